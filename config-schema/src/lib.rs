@@ -1,0 +1,22 @@
+//! The table model and formats shared by the node firmware and `config-tool`.
+//!
+//! `no_std`, no allocation. See `docs/table-format.md`.
+//!
+//! - [`limits`]: every capacity, in one place.
+//! - [`table`]: the table one node runs.
+//! - [`guard`]: the expression bytecode of guards and assignments.
+//! - [`validate`]: semantic checks of a decoded table.
+//! - [`blob`]: the versioned, CRC-protected envelope, [`encode`] and [`decode`].
+#![no_std]
+#![forbid(unsafe_code)]
+
+pub mod blob;
+pub mod guard;
+pub mod limits;
+pub mod table;
+pub mod validate;
+
+pub use blob::{decode, encode, DecodeError, EncodeError, SCHEMA_VERSION};
+pub use guard::{Expr, ExprError, Op};
+pub use table::*;
+pub use validate::{validate, Invalid, Place};

@@ -1,0 +1,369 @@
+//! Semantic validation of a decoded table: every index, count and range is checked, so the
+//! interpreter can run a validated table without ever indexing out of bounds.
+
+use core::fmt;
+
+use crate::guard::{self, Expr, ExprError};
+use crate::limits::*;
+use crate::table::{Action, Table};
+
+/// Where in a table a problem is (indices into the table's pools).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Place {
+    Header,
+    Input(u8),
+    Output(u8),
+    Timer(u8),
+    Chart(u8),
+    State(u8),
+    Transition(u8),
+    Action(u8),
+    Route(u8),
+    Peer(u8),
+    Publication(u8),
+    Subscription(u8),
+}
+
+/// A table that decoded but does not make sense.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Invalid {
+    /// A count over its capacity limit.
+    Capacity {
+        what: &'static str,
+        count: usize,
+        max: usize,
+    },
+    /// A node event id at or past `Table::events`.
+    Event { at: Place, event: u8 },
+    /// A variable that does not exist.
+    Var { at: Place, var: u8 },
+    /// A timer that does not exist.
+    Timer { at: Place, timer: u8 },
+    /// An output mask naming outputs that do not exist.
+    Output { at: Place, mask: u16 },
+    /// A peer that does not exist (or a subscriber mask naming one).
+    Peer { at: Place, peer: u8 },
+    /// A transition (or initial state) to a state the chart does not have.
+    State { at: Place, state: u8 },
+    /// A chart input event the chart does not have.
+    ChartInput { at: Place, input: u8 },
+    /// An event routed to a chart that does not exist.
+    Chart { at: Place, chart: u8 },
+    /// Pool ranges that go backwards or do not cover their pool.
+    Range { at: Place },
+    /// A malformed guard or assignment expression.
+    Expr { at: Place, error: ExprError },
+    /// A pin, peer, topic or event declared twice.
+    Duplicate { at: Place },
+    /// A `Publish` action for an event without a publication.
+    NotPublished { at: Place, event: u8 },
+}
+
+impl fmt::Display for Place {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Place::Header => write!(f, "header"),
+            Place::Input(i) => write!(f, "input #{i}"),
+            Place::Output(i) => write!(f, "output #{i}"),
+            Place::Timer(i) => write!(f, "timer #{i}"),
+            Place::Chart(i) => write!(f, "chart #{i}"),
+            Place::State(i) => write!(f, "state #{i}"),
+            Place::Transition(i) => write!(f, "transition #{i}"),
+            Place::Action(i) => write!(f, "action #{i}"),
+            Place::Route(i) => write!(f, "route #{i}"),
+            Place::Peer(i) => write!(f, "peer #{i}"),
+            Place::Publication(i) => write!(f, "publication #{i}"),
+            Place::Subscription(i) => write!(f, "subscription #{i}"),
+        }
+    }
+}
+
+impl fmt::Display for ExprError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ExprError::Length(n) => write!(f, "expression of {n} operations (1..={MAX_EXPR_LEN})"),
+            ExprError::OutOfCode { end, code_len } => {
+                write!(
+                    f,
+                    "expression ends at {end}, past the {code_len} operations of code"
+                )
+            }
+            ExprError::Underflow { at } => write!(f, "operation {at} reads past its operands"),
+            ExprError::Overflow { at } => {
+                write!(f, "operation {at} overflows the {MAX_STACK}-deep stack")
+            }
+            ExprError::Result { depth } => write!(f, "expression leaves {depth} values, not 1"),
+            ExprError::Var { at, var } => write!(f, "operation {at} reads missing variable {var}"),
+            ExprError::Input { at, input } => {
+                write!(f, "operation {at} reads missing input {input}")
+            }
+        }
+    }
+}
+
+impl fmt::Display for Invalid {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Invalid::Capacity { what, count, max } => {
+                write!(f, "{count} {what} exceed the limit of {max}")
+            }
+            Invalid::Event { at, event } => write!(f, "{at}: event {event} does not exist"),
+            Invalid::Var { at, var } => write!(f, "{at}: variable {var} does not exist"),
+            Invalid::Timer { at, timer } => write!(f, "{at}: timer {timer} does not exist"),
+            Invalid::Output { at, mask } => {
+                write!(f, "{at}: output mask {mask:#06x} names missing outputs")
+            }
+            Invalid::Peer { at, peer } => write!(f, "{at}: peer {peer} does not exist"),
+            Invalid::State { at, state } => {
+                write!(f, "{at}: state {state} does not exist in its chart")
+            }
+            Invalid::ChartInput { at, input } => {
+                write!(f, "{at}: chart input {input} does not exist")
+            }
+            Invalid::Chart { at, chart } => {
+                write!(f, "{at}: routed to chart {chart}, which does not exist")
+            }
+            Invalid::Range { at } => write!(f, "{at}: pool range out of order"),
+            Invalid::Expr { at, error } => write!(f, "{at}: {error}"),
+            Invalid::Duplicate { at } => write!(f, "{at}: declared twice"),
+            Invalid::NotPublished { at, event } => {
+                write!(f, "{at}: publishes event {event}, which has no publication")
+            }
+        }
+    }
+}
+
+fn capacity(what: &'static str, count: usize, max: usize) -> Result<(), Invalid> {
+    if count > max {
+        Err(Invalid::Capacity { what, count, max })
+    } else {
+        Ok(())
+    }
+}
+
+fn idx(i: usize) -> u8 {
+    u8::try_from(i).unwrap_or(u8::MAX)
+}
+
+/// Checks every semantic rule of a table. A table that passes can be run by the interpreter
+/// without any out-of-range access.
+pub fn validate(t: &Table) -> Result<(), Invalid> {
+    let events = usize::from(t.events);
+    capacity("events", events, MAX_EVENTS)?;
+    let event_ok = |at: Place, e: u8| {
+        if usize::from(e) < events {
+            Ok(())
+        } else {
+            Err(Invalid::Event { at, event: e })
+        }
+    };
+    if let Some(e) = t.start {
+        event_ok(Place::Header, e)?;
+    }
+
+    // Pins.
+    for (i, input) in t.inputs.iter().enumerate() {
+        let at = Place::Input(idx(i));
+        if let Some(e) = input.rise {
+            event_ok(at, e)?;
+        }
+        if let Some(e) = input.fall {
+            event_ok(at, e)?;
+        }
+        if let Some(v) = input.var {
+            if usize::from(v) >= t.vars.len() {
+                return Err(Invalid::Var { at, var: v });
+            }
+        }
+        if t.inputs[..i].iter().any(|o| o.pin == input.pin) {
+            return Err(Invalid::Duplicate { at });
+        }
+    }
+    for (i, output) in t.outputs.iter().enumerate() {
+        if t.outputs[..i].iter().any(|o| o.pin == output.pin) {
+            return Err(Invalid::Duplicate {
+                at: Place::Output(idx(i)),
+            });
+        }
+    }
+    for (i, timer) in t.timers.iter().enumerate() {
+        event_ok(Place::Timer(idx(i)), timer.event)?;
+    }
+
+    // Charts own consecutive, non-empty runs of states and runs of transitions.
+    let expr_ok = |at: Place, e: Expr| {
+        let end = usize::from(e.start) + usize::from(e.len);
+        if end > t.code.len() {
+            return Err(Invalid::Expr {
+                at,
+                error: ExprError::OutOfCode {
+                    end,
+                    code_len: t.code.len(),
+                },
+            });
+        }
+        guard::check(t.expr(e), t.vars.len(), t.inputs.len())
+            .map_err(|error| Invalid::Expr { at, error })
+    };
+    let (mut states_start, mut transitions_start) = (0usize, 0usize);
+    for (c, chart) in t.charts.iter().enumerate() {
+        let at = Place::Chart(idx(c));
+        let (s_end, t_end) = (
+            usize::from(chart.states_end),
+            usize::from(chart.transitions_end),
+        );
+        if s_end <= states_start || s_end > t.states.len() || t_end < transitions_start {
+            return Err(Invalid::Range { at });
+        }
+        if t_end > t.transitions.len() {
+            return Err(Invalid::Range { at });
+        }
+        capacity("chart inputs", usize::from(chart.inputs), MAX_CHART_INPUTS)?;
+        let n_states = s_end - states_start;
+        if usize::from(chart.initial) >= n_states {
+            return Err(Invalid::State {
+                at,
+                state: chart.initial,
+            });
+        }
+        for (ti, tr) in t.transitions[transitions_start..t_end].iter().enumerate() {
+            let at = Place::Transition(idx(transitions_start + ti));
+            for s in [tr.from, tr.to] {
+                if usize::from(s) >= n_states {
+                    return Err(Invalid::State { at, state: s });
+                }
+            }
+            if let Some(input) = tr.trigger {
+                if input >= chart.inputs {
+                    return Err(Invalid::ChartInput { at, input });
+                }
+            }
+            if let Some(g) = tr.guard {
+                expr_ok(at, g)?;
+            }
+        }
+        states_start = s_end;
+        transitions_start = t_end;
+    }
+    if states_start != t.states.len() {
+        return Err(Invalid::Range {
+            at: Place::State(idx(states_start)),
+        });
+    }
+    if transitions_start != t.transitions.len() {
+        return Err(Invalid::Range {
+            at: Place::Transition(idx(transitions_start)),
+        });
+    }
+
+    // States own consecutive runs of actions.
+    let mut actions_start = 0usize;
+    for (s, state) in t.states.iter().enumerate() {
+        let end = usize::from(state.actions_end);
+        if end < actions_start || end > t.actions.len() {
+            return Err(Invalid::Range {
+                at: Place::State(idx(s)),
+            });
+        }
+        actions_start = end;
+    }
+    if actions_start != t.actions.len() {
+        return Err(Invalid::Range {
+            at: Place::Action(idx(actions_start)),
+        });
+    }
+    let output_mask: u32 = (1u32 << t.outputs.len()) - 1;
+    for (a, action) in t.actions.iter().enumerate() {
+        let at = Place::Action(idx(a));
+        match *action {
+            Action::Set { var, expr } => {
+                if usize::from(var) >= t.vars.len() {
+                    return Err(Invalid::Var { at, var });
+                }
+                expr_ok(at, expr)?;
+            }
+            Action::Drive { mask, value } => {
+                if u32::from(mask | value) & !output_mask != 0 {
+                    return Err(Invalid::Output {
+                        at,
+                        mask: mask | value,
+                    });
+                }
+            }
+            Action::Emit(e) => event_ok(at, e)?,
+            Action::Publish(e) => {
+                event_ok(at, e)?;
+                if t.publication(e).is_none() {
+                    return Err(Invalid::NotPublished { at, event: e });
+                }
+            }
+            Action::StartTimer { timer, .. } | Action::CancelTimer(timer) => {
+                if usize::from(timer) >= t.timers.len() {
+                    return Err(Invalid::Timer { at, timer });
+                }
+            }
+            Action::Fault(_) => {}
+        }
+    }
+
+    // Routing.
+    for (r, route) in t.routes.iter().enumerate() {
+        let at = Place::Route(idx(r));
+        event_ok(at, route.event)?;
+        let chart = t
+            .charts
+            .get(usize::from(route.chart))
+            .ok_or(Invalid::Chart {
+                at,
+                chart: route.chart,
+            })?;
+        if route.input >= chart.inputs {
+            return Err(Invalid::ChartInput {
+                at,
+                input: route.input,
+            });
+        }
+    }
+
+    // Radio links.
+    for (p, peer) in t.peers.iter().enumerate() {
+        if *peer == 0xFFFF || t.peers[..p].contains(peer) {
+            return Err(Invalid::Duplicate {
+                at: Place::Peer(idx(p)),
+            });
+        }
+    }
+    let peer_mask: u32 = (1u32 << t.peers.len()) - 1;
+    for (p, publication) in t.publications.iter().enumerate() {
+        let at = Place::Publication(idx(p));
+        event_ok(at, publication.event)?;
+        if u32::from(publication.subscribers) & !peer_mask != 0 {
+            let stray = u32::from(publication.subscribers) & !peer_mask;
+            let peer = idx(stray.trailing_zeros() as usize);
+            return Err(Invalid::Peer { at, peer });
+        }
+        if t.publications[..p]
+            .iter()
+            .any(|o| o.event == publication.event || o.topic == publication.topic)
+        {
+            return Err(Invalid::Duplicate { at });
+        }
+    }
+    for (s, sub) in t.subscriptions.iter().enumerate() {
+        let at = Place::Subscription(idx(s));
+        event_ok(at, sub.event)?;
+        if usize::from(sub.publisher) >= t.peers.len() {
+            return Err(Invalid::Peer {
+                at,
+                peer: sub.publisher,
+            });
+        }
+        if t.subscriptions[..s]
+            .iter()
+            .any(|o| o.publisher == sub.publisher && o.topic == sub.topic)
+        {
+            return Err(Invalid::Duplicate { at });
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,369 @@
+//! The ECC interpreter: IEC 61499 basic-FB execution over a validated [`Table`].
+//!
+//! Pure and deterministic: no Embassy, no allocation, no clock. Everything a step does to
+//! the world (pin changes, publications, timer requests, faults) is reported through
+//! [`Effects`], so the MCU runtime, the simulator and the tests share this engine.
+//! Semantics: `docs/ecc-semantics.md`.
+
+use config_schema::limits::{EVENT_QUEUE, MAX_CASCADE, MAX_CHAIN, MAX_CHARTS, MAX_VARS};
+use config_schema::{guard, Action, EventId, Expr, Publication, Table, Topic};
+use heapless::Deque;
+
+/// Why a node faulted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Fault {
+    /// A chart fired more than `MAX_CHAIN` event-less transitions in one delivery.
+    ChainLimit { chart: u8 },
+    /// More than `EVENT_QUEUE` events were pending.
+    QueueFull { event: EventId },
+    /// One stimulus caused more than `MAX_CASCADE` event deliveries.
+    Cascade { event: EventId },
+    /// A `Fault` action ran.
+    Action { chart: u8, code: u8 },
+    /// An expression could not be evaluated (only for tables that skipped validation).
+    Expr { chart: u8 },
+}
+
+/// What a step does to the world. Every method has a do-nothing default.
+pub trait Effects {
+    /// Output `output` changed to `value`.
+    fn output(&mut self, _output: u8, _value: bool) {}
+    /// A node event is to be published to the radio.
+    fn publish(&mut self, _publication: &Publication) {}
+    /// Start (or restart) timer `timer` to expire in `ms` milliseconds.
+    fn start_timer(&mut self, _timer: u8, _ms: u32) {}
+    /// Cancel timer `timer`.
+    fn cancel_timer(&mut self, _timer: u8) {}
+    /// The node faulted; its outputs are already in the safe state.
+    fn fault(&mut self, _fault: Fault) {}
+    /// Trace: chart `chart` took `transition` (table index) from state `from` to `to`
+    /// (chart-local states).
+    fn fired(&mut self, _chart: u8, _transition: u8, _from: u8, _to: u8) {}
+    /// Trace: chart input `input` of `chart` fired nothing and was dropped.
+    fn ignored(&mut self, _chart: u8, _input: u8) {}
+}
+
+/// Discards every effect.
+impl Effects for () {}
+
+/// One node's charts running one table.
+#[derive(Debug, Clone)]
+pub struct Engine<'t> {
+    table: &'t Table,
+    current: [u8; MAX_CHARTS],
+    vars: [i32; MAX_VARS],
+    inputs: u16,
+    outputs: u16,
+    queue: Deque<EventId, EVENT_QUEUE>,
+    fault: Option<Fault>,
+}
+
+fn safe_outputs(table: &Table) -> u16 {
+    table
+        .outputs
+        .iter()
+        .take(16)
+        .enumerate()
+        .fold(0, |acc, (i, o)| acc | (u16::from(o.safe) << i))
+}
+
+impl<'t> Engine<'t> {
+    /// An engine in its initial state: every chart in its initial state, variables at their
+    /// initial values, outputs in the safe state, inputs low. `table` must be validated
+    /// (as [`config_schema::decode`] does).
+    pub fn new(table: &'t Table) -> Self {
+        let mut engine = Engine {
+            table,
+            current: [0; MAX_CHARTS],
+            vars: [0; MAX_VARS],
+            inputs: 0,
+            outputs: safe_outputs(table),
+            queue: Deque::new(),
+            fault: None,
+        };
+        engine.init();
+        engine
+    }
+
+    fn init(&mut self) {
+        for (slot, chart) in self.current.iter_mut().zip(self.table.charts.iter()) {
+            *slot = chart.initial;
+        }
+        for (slot, value) in self.vars.iter_mut().zip(self.table.vars.iter()) {
+            *slot = *value;
+        }
+        // Inputs keep their levels and mirrors: the switches did not move.
+        for (i, input) in self.table.inputs.iter().enumerate().take(16) {
+            if let Some(var) = input.var.and_then(|v| self.vars.get_mut(usize::from(v))) {
+                *var = i32::from(self.inputs & (1 << i) != 0);
+            }
+        }
+        self.queue.clear();
+        self.fault = None;
+    }
+
+    /// The table this engine runs.
+    pub fn table(&self) -> &'t Table {
+        self.table
+    }
+
+    /// The chart-local current state of `chart`.
+    pub fn state(&self, chart: usize) -> Option<u8> {
+        (chart < self.table.charts.len()).then(|| self.current[chart])
+    }
+
+    /// The value of variable `var`.
+    pub fn var(&self, var: usize) -> Option<i32> {
+        (var < self.table.vars.len()).then(|| self.vars[var])
+    }
+
+    /// The output levels, bit i = output i.
+    pub fn outputs(&self) -> u16 {
+        self.outputs
+    }
+
+    /// The input levels, bit i = input i.
+    pub fn inputs(&self) -> u16 {
+        self.inputs
+    }
+
+    /// The fault the node is in, if any.
+    pub fn fault(&self) -> Option<Fault> {
+        self.fault
+    }
+
+    /// Back to the initial state: clears a fault, cancels every timer, charts and variables
+    /// to their initial values, outputs to the safe state.
+    pub fn reset(&mut self, fx: &mut impl Effects) {
+        for timer in 0..self.table.timers.len() {
+            fx.cancel_timer(timer as u8);
+        }
+        self.drive(u16::MAX, safe_outputs(self.table), fx);
+        self.init();
+    }
+
+    /// Input `input` is now at `level`: updates its mirror variable and, on an edge, raises
+    /// its rise or fall event (published if it has a publication).
+    pub fn input(&mut self, input: u8, level: bool, fx: &mut impl Effects) {
+        let Some(binding) = self.table.inputs.get(usize::from(input)) else {
+            return;
+        };
+        let bit = 1u16 << (input & 15);
+        let was = self.inputs & bit != 0;
+        if level {
+            self.inputs |= bit;
+        } else {
+            self.inputs &= !bit;
+        }
+        if let Some(var) = binding.var.and_then(|v| self.vars.get_mut(usize::from(v))) {
+            *var = i32::from(level);
+        }
+        if was != level {
+            if let Some(event) = if level { binding.rise } else { binding.fall } {
+                self.raise(event, true, fx);
+            }
+        }
+    }
+
+    /// Timer `timer` expired: raises its event (published if it has a publication).
+    pub fn timer_expired(&mut self, timer: u8, fx: &mut impl Effects) {
+        if let Some(t) = self.table.timers.get(usize::from(timer)) {
+            self.raise(t.event, true, fx);
+        }
+    }
+
+    /// Peer `publisher` (index into the table's peers) published `topic`: raises the
+    /// subscribed event, if this node subscribes to it. Returns whether it did.
+    pub fn remote(&mut self, publisher: u8, topic: Topic, fx: &mut impl Effects) -> bool {
+        let sub = self
+            .table
+            .subscriptions
+            .iter()
+            .find(|s| s.publisher == publisher && s.topic == topic);
+        match sub {
+            Some(s) => {
+                self.raise(s.event, false, fx);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// The START command: raises the table's start event, if it has one. Returns whether it
+    /// did.
+    pub fn start(&mut self, fx: &mut impl Effects) -> bool {
+        match self.table.start {
+            Some(event) => {
+                self.raise(event, false, fx);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Delivers a node event from outside (no publication), running every chart to a
+    /// stable state.
+    pub fn event(&mut self, event: EventId, fx: &mut impl Effects) {
+        self.raise(event, false, fx);
+    }
+
+    fn raise(&mut self, event: EventId, local: bool, fx: &mut impl Effects) {
+        if self.fault.is_some() || usize::from(event) >= usize::from(self.table.events) {
+            return;
+        }
+        if local {
+            self.emit(event, fx);
+        } else if self.queue.push_back(event).is_err() {
+            self.set_fault(Fault::QueueFull { event }, fx);
+        }
+        self.run(event, fx);
+    }
+
+    /// Delivers queued events FIFO, each to all its routes in order, until the queue is
+    /// empty or the node faults.
+    fn run(&mut self, stimulus: EventId, fx: &mut impl Effects) {
+        let table = self.table;
+        let mut processed = 0usize;
+        while let Some(event) = self.queue.pop_front() {
+            processed += 1;
+            if processed > MAX_CASCADE {
+                self.set_fault(Fault::Cascade { event: stimulus }, fx);
+                return;
+            }
+            for route in table.routes.iter().filter(|r| r.event == event) {
+                self.deliver(route.chart, route.input, fx);
+                if self.fault.is_some() {
+                    return;
+                }
+            }
+        }
+    }
+
+    /// Delivers chart input `input` to `chart` and runs its event-less transitions until it
+    /// is stable.
+    fn deliver(&mut self, chart: u8, input: u8, fx: &mut impl Effects) {
+        match self.select(chart, Some(input)) {
+            Some(t) => self.fire(chart, t, fx),
+            None => {
+                fx.ignored(chart, input);
+                return;
+            }
+        }
+        let mut steps = 0usize;
+        while self.fault.is_none() {
+            let Some(t) = self.select(chart, None) else {
+                return;
+            };
+            steps += 1;
+            if steps > MAX_CHAIN {
+                self.set_fault(Fault::ChainLimit { chart }, fx);
+                return;
+            }
+            self.fire(chart, t, fx);
+        }
+    }
+
+    /// The first transition of `chart`, in declaration order, leaving the current state
+    /// whose trigger matches (`None`: event-less only) and whose guard holds.
+    fn select(&self, chart: u8, input: Option<u8>) -> Option<usize> {
+        let table = self.table;
+        let c = usize::from(chart);
+        let current = *self.current.get(c)?;
+        let range = table.chart_transitions(c);
+        let start = range.start;
+        table
+            .transitions
+            .get(range)?
+            .iter()
+            .position(|t| {
+                t.from == current
+                    && (t.trigger.is_none() || (input.is_some() && t.trigger == input))
+                    && t.guard.is_none_or(|g| self.eval(g).is_some_and(|v| v != 0))
+            })
+            .map(|i| start + i)
+    }
+
+    fn eval(&self, expr: Expr) -> Option<i32> {
+        let inputs = self.inputs;
+        guard::eval(
+            self.table.expr(expr),
+            |v| self.vars.get(usize::from(v)).copied(),
+            |i| (i < 16).then(|| inputs & (1 << i) != 0),
+        )
+    }
+
+    fn fire(&mut self, chart: u8, transition: usize, fx: &mut impl Effects) {
+        let table = self.table;
+        let Some(t) = table.transitions.get(transition) else {
+            return;
+        };
+        let Some(current) = self.current.get_mut(usize::from(chart)) else {
+            return;
+        };
+        *current = t.to;
+        fx.fired(chart, transition as u8, t.from, t.to);
+        let state = table.chart_states(usize::from(chart)).start + usize::from(t.to);
+        let actions = table.actions.get(table.state_actions(state)).unwrap_or(&[]);
+        for action in actions {
+            self.act(chart, *action, fx);
+            if self.fault.is_some() {
+                return;
+            }
+        }
+    }
+
+    fn act(&mut self, chart: u8, action: Action, fx: &mut impl Effects) {
+        match action {
+            Action::Set { var, expr } => match self.eval(expr) {
+                Some(value) => {
+                    if let Some(slot) = self.vars.get_mut(usize::from(var)) {
+                        *slot = value;
+                    }
+                }
+                None => self.set_fault(Fault::Expr { chart }, fx),
+            },
+            Action::Drive { mask, value } => self.drive(mask, value, fx),
+            Action::Emit(event) => self.emit(event, fx),
+            Action::Publish(event) => {
+                if let Some(p) = self.table.publication(event) {
+                    fx.publish(p);
+                }
+            }
+            Action::StartTimer { timer, ms } => fx.start_timer(timer, ms),
+            Action::CancelTimer(timer) => fx.cancel_timer(timer),
+            Action::Fault(code) => self.set_fault(Fault::Action { chart, code }, fx),
+        }
+    }
+
+    /// A locally originated event: published if it has a publication, and queued.
+    fn emit(&mut self, event: EventId, fx: &mut impl Effects) {
+        if let Some(p) = self.table.publication(event) {
+            fx.publish(p);
+        }
+        if self.queue.push_back(event).is_err() {
+            self.set_fault(Fault::QueueFull { event }, fx);
+        }
+    }
+
+    fn drive(&mut self, mask: u16, value: u16, fx: &mut impl Effects) {
+        let next = (self.outputs & !mask) | (value & mask);
+        let changed = self.outputs ^ next;
+        self.outputs = next;
+        for i in 0..self.table.outputs.len().min(16) {
+            if changed & (1 << i) != 0 {
+                fx.output(i as u8, next & (1 << i) != 0);
+            }
+        }
+    }
+
+    fn set_fault(&mut self, fault: Fault, fx: &mut impl Effects) {
+        self.fault = Some(fault);
+        self.queue.clear();
+        let safe = safe_outputs(self.table);
+        self.drive(u16::MAX, safe, fx);
+        for timer in 0..self.table.timers.len() {
+            fx.cancel_timer(timer as u8);
+        }
+        fx.fault(fault);
+    }
+}
