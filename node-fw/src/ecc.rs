@@ -335,13 +335,15 @@ impl<'t> Engine<'t> {
         }
     }
 
-    /// A locally originated event: published if it has a publication, and queued.
+    /// A locally originated event: queued and, once queued, published if it has a
+    /// publication. An event that does not fit faults the node and is not published.
     fn emit(&mut self, event: EventId, fx: &mut impl Effects) {
-        if let Some(p) = self.table.publication(event) {
-            fx.publish(p);
-        }
         if self.queue.push_back(event).is_err() {
             self.set_fault(Fault::QueueFull { event }, fx);
+            return;
+        }
+        if let Some(p) = self.table.publication(event) {
+            fx.publish(p);
         }
     }
 
