@@ -15,6 +15,7 @@ pub mod guard;
 pub mod limits;
 pub mod table;
 pub mod validate;
+pub mod wire;
 
 pub use blob::{decode, encode, DecodeError, EncodeError, SCHEMA_VERSION};
 pub use guard::{Expr, ExprError, Op};

@@ -1,0 +1,6 @@
+//! Wire formats, parsed and emitted without allocation and without panics on any input
+//! (smoltcp style: this layer knows bytes, not protocol state).
+//!
+//! - [`mac`]: IEEE 802.15.4-2006 MAC frames (the subset the nodes use).
+
+pub mod mac;
