@@ -1,0 +1,805 @@
+//! A deterministic, virtual-time world for the host: one [`Engine`] per node, plant models
+//! on their pins, an ideal radio between them, and a trace of everything. Used by the tests,
+//! `config-tool sim` and the verifier. Only built with the `std` feature.
+//! See `docs/simulation.md`.
+//!
+//! ```text
+//! let nodes = [NodeSpec { addr: 0x11, table: &vc }, NodeSpec { addr: 0x12, table: &gr }];
+//! let mut world = World::new(&nodes, plants)?;
+//! world.press(start_button)?;
+//! world.run_until_idle(60_000)?;
+//! assert_eq!(world.steps(), ["VC+", "GR+", ...]);
+//! ```
+//!
+//! Everything happens through one event queue ordered by (virtual time, insertion order):
+//! the same tables, plants and calls give the same trace, always. Every run is bounded by a
+//! virtual-time limit and by [`RUN_EVENT_LIMIT`] processed events.
+
+mod plant;
+mod trace;
+
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+use std::fmt;
+
+use config_schema::limits::MAX_TIMERS;
+use config_schema::{Publication, Table, Topic};
+
+use crate::ecc::{Effects, Engine, Fault};
+
+pub use plant::{Button, DoubleActing, Plant, Position, SingleActing};
+pub use trace::{cycles, steps, Cycle, TraceEntry, What};
+
+use plant::{Outcome, Rod};
+
+/// Default radio latency, publication to delivery.
+pub const DEFAULT_RADIO_DELAY_MS: u64 = 2;
+/// Queue events processed by one `run_*` call before it gives up with
+/// [`SimError::Runaway`] (a zero-delay loop between nodes would otherwise never end).
+pub const RUN_EVENT_LIMIT: usize = 1_000_000;
+
+/// A node of the world: its 16-bit short address and the (validated) table it runs.
+#[derive(Debug, Clone, Copy)]
+pub struct NodeSpec<'t> {
+    pub addr: u16,
+    pub table: &'t Table,
+}
+
+/// Why a world could not be built or a run did not finish.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SimError {
+    /// Two nodes have one address.
+    DuplicateAddress { addr: u16 },
+    /// A plant names a node the world does not have.
+    NoSuchNode { plant: String, node: usize },
+    /// A plant names an output the node's table does not have.
+    NoSuchOutput {
+        plant: String,
+        node: usize,
+        output: u8,
+    },
+    /// A plant names an input the node's table does not have.
+    NoSuchInput {
+        plant: String,
+        node: usize,
+        input: u8,
+    },
+    /// Two plants (or one plant twice) on one pin.
+    PinShared {
+        plant: String,
+        node: usize,
+        pin: u8,
+        output: bool,
+    },
+    /// A plant index that does not exist or is not of the right kind.
+    NoSuchPlant { plant: usize, want: &'static str },
+    /// A node index that does not exist.
+    NoSuchNodeIndex { node: usize },
+    /// The run reached its virtual-time limit with events still pending.
+    NotIdle { now_ms: u64, next_ms: u64 },
+    /// The run processed [`RUN_EVENT_LIMIT`] events.
+    Runaway { now_ms: u64 },
+}
+
+impl fmt::Display for SimError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SimError::DuplicateAddress { addr } => {
+                write!(f, "two nodes have the address {addr:#06x}")
+            }
+            SimError::NoSuchNode { plant, node } => {
+                write!(f, "plant {plant}: there is no node #{node}")
+            }
+            SimError::NoSuchOutput {
+                plant,
+                node,
+                output,
+            } => write!(f, "plant {plant}: node #{node} has no output #{output}"),
+            SimError::NoSuchInput { plant, node, input } => {
+                write!(f, "plant {plant}: node #{node} has no input #{input}")
+            }
+            SimError::PinShared {
+                plant,
+                node,
+                pin,
+                output,
+            } => write!(
+                f,
+                "plant {plant}: {} #{pin} of node #{node} is already wired to a plant",
+                if *output { "output" } else { "input" }
+            ),
+            SimError::NoSuchPlant { plant, want } => write!(f, "plant #{plant} is not {want}"),
+            SimError::NoSuchNodeIndex { node } => write!(f, "there is no node #{node}"),
+            SimError::NotIdle { now_ms, next_ms } => write!(
+                f,
+                "not idle at the time limit ({now_ms} ms): next event at {next_ms} ms"
+            ),
+            SimError::Runaway { now_ms } => write!(
+                f,
+                "{RUN_EVENT_LIMIT} events processed without becoming idle (at {now_ms} ms)"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for SimError {}
+
+/// Something scheduled on the queue.
+#[derive(Debug, Clone, Copy)]
+enum Ev {
+    Input {
+        node: usize,
+        input: u8,
+        level: bool,
+    },
+    Start {
+        node: usize,
+    },
+    Arrive {
+        plant: usize,
+        gen: u64,
+    },
+    Timer {
+        node: usize,
+        timer: u8,
+        gen: u64,
+    },
+    Deliver {
+        from: usize,
+        to: usize,
+        topic: Topic,
+    },
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Queued {
+    t: u64,
+    seq: u64,
+    ev: Ev,
+}
+
+impl PartialEq for Queued {
+    fn eq(&self, other: &Self) -> bool {
+        (self.t, self.seq) == (other.t, other.seq)
+    }
+}
+impl Eq for Queued {}
+impl PartialOrd for Queued {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Queued {
+    /// Reversed: `BinaryHeap` is a max-heap, the earliest (time, seq) must come out first.
+    fn cmp(&self, other: &Self) -> Ordering {
+        (other.t, other.seq).cmp(&(self.t, self.seq))
+    }
+}
+
+struct Node<'t> {
+    addr: u16,
+    engine: Engine<'t>,
+    /// Generation of each armed timer (0 = not armed).
+    timers: [u64; MAX_TIMERS],
+}
+
+/// An effect reported by an engine, applied to the world after the engine call returns.
+#[derive(Debug, Clone, Copy)]
+enum Effect {
+    Output(u8, bool),
+    Publish(Publication),
+    StartTimer(u8, u32),
+    CancelTimer(u8),
+}
+
+/// The [`Effects`] sink of one engine call: traces at once, applies afterwards.
+struct Fx<'a> {
+    node: usize,
+    now: u64,
+    trace: &'a mut Vec<TraceEntry>,
+    todo: &'a mut Vec<Effect>,
+}
+
+impl Fx<'_> {
+    fn log(&mut self, what: What) {
+        self.trace.push(TraceEntry {
+            t_ms: self.now,
+            what,
+        });
+    }
+}
+
+impl Effects for Fx<'_> {
+    fn output(&mut self, output: u8, value: bool) {
+        let node = self.node;
+        self.log(What::Output {
+            node,
+            output,
+            level: value,
+        });
+        self.todo.push(Effect::Output(output, value));
+    }
+    fn publish(&mut self, p: &Publication) {
+        let node = self.node;
+        self.log(What::Publish {
+            node,
+            event: p.event,
+            topic: p.topic,
+            subscribers: p.subscribers,
+        });
+        self.todo.push(Effect::Publish(*p));
+    }
+    fn start_timer(&mut self, timer: u8, ms: u32) {
+        self.todo.push(Effect::StartTimer(timer, ms));
+    }
+    fn cancel_timer(&mut self, timer: u8) {
+        self.todo.push(Effect::CancelTimer(timer));
+    }
+    fn fault(&mut self, fault: Fault) {
+        let node = self.node;
+        self.log(What::Fault { node, fault });
+    }
+    fn fired(&mut self, chart: u8, transition: u8, from: u8, to: u8) {
+        let node = self.node;
+        self.log(What::Fired {
+            node,
+            chart,
+            transition,
+            from,
+            to,
+        });
+    }
+    fn ignored(&mut self, chart: u8, input: u8) {
+        let node = self.node;
+        self.log(What::Ignored { node, chart, input });
+    }
+}
+
+/// The simulated machine: nodes, plants, radio, virtual clock and trace.
+pub struct World<'t> {
+    now: u64,
+    seq: u64,
+    queue: BinaryHeap<Queued>,
+    nodes: Vec<Node<'t>>,
+    plants: Vec<Plant>,
+    /// Rod of each plant (buttons keep `Home`).
+    rods: Vec<Rod>,
+    /// Motion generation of each plant: a stale arrival is dropped.
+    gens: Vec<u64>,
+    timer_gen: u64,
+    radio_delay_ms: u64,
+    trace: Vec<TraceEntry>,
+    scratch: Vec<Effect>,
+}
+
+impl<'t> World<'t> {
+    /// A world at t = 0: one engine per node in its initial state, every actuator at home
+    /// with its home switch high (set at power-up, before the charts start: no edge, no
+    /// event), a single-acting actuator out if its output starts high, buttons released.
+    pub fn new(nodes: &[NodeSpec<'t>], plants: Vec<Plant>) -> Result<World<'t>, SimError> {
+        for (i, n) in nodes.iter().enumerate() {
+            if nodes[..i].iter().any(|m| m.addr == n.addr) {
+                return Err(SimError::DuplicateAddress { addr: n.addr });
+            }
+        }
+        let mut used: Vec<(usize, u8, bool)> = Vec::new();
+        for p in &plants {
+            let node = p.node();
+            let plant = p.name().to_string();
+            let Some(spec) = nodes.get(node) else {
+                return Err(SimError::NoSuchNode { plant, node });
+            };
+            for output in p.outputs() {
+                if usize::from(output) >= spec.table.outputs.len() {
+                    return Err(SimError::NoSuchOutput {
+                        plant,
+                        node,
+                        output,
+                    });
+                }
+                if used.contains(&(node, output, true)) {
+                    return Err(SimError::PinShared {
+                        plant,
+                        node,
+                        pin: output,
+                        output: true,
+                    });
+                }
+                used.push((node, output, true));
+            }
+            for input in p.inputs() {
+                if usize::from(input) >= spec.table.inputs.len() {
+                    return Err(SimError::NoSuchInput { plant, node, input });
+                }
+                if used.contains(&(node, input, false)) {
+                    return Err(SimError::PinShared {
+                        plant,
+                        node,
+                        pin: input,
+                        output: false,
+                    });
+                }
+                used.push((node, input, false));
+            }
+        }
+        let mut world = World {
+            now: 0,
+            seq: 0,
+            queue: BinaryHeap::new(),
+            nodes: nodes
+                .iter()
+                .map(|n| Node {
+                    addr: n.addr,
+                    engine: Engine::new(n.table),
+                    timers: [0; MAX_TIMERS],
+                })
+                .collect(),
+            rods: vec![Rod::Home; plants.len()],
+            gens: vec![0; plants.len()],
+            plants,
+            timer_gen: 0,
+            radio_delay_ms: DEFAULT_RADIO_DELAY_MS,
+            trace: Vec::new(),
+            scratch: Vec::new(),
+        };
+        // Power-up: the nodes read their switches, then start from their initial states.
+        let mut powered = vec![false; world.nodes.len()];
+        for (p, plant) in world.plants.iter().enumerate() {
+            match plant {
+                Plant::DoubleActing(da) => {
+                    if let Some(home) = da.home_in {
+                        world.nodes[da.node].engine.input(home, true, &mut ());
+                        powered[da.node] = true;
+                    }
+                }
+                Plant::SingleActing(sa) => {
+                    let out = world.nodes[sa.node].engine.outputs() & (1 << sa.out) != 0;
+                    if out {
+                        world.rods[p] = Rod::End;
+                    }
+                }
+                Plant::Button(_) => {}
+            }
+        }
+        for (node, powered) in world.nodes.iter_mut().zip(powered) {
+            if powered {
+                node.engine.reset(&mut ());
+            }
+        }
+        Ok(world)
+    }
+
+    /// Sets the radio latency (publication to delivery) for later publications.
+    pub fn set_radio_delay(&mut self, ms: u64) {
+        self.radio_delay_ms = ms;
+    }
+
+    /// Virtual time now, in milliseconds.
+    pub fn now(&self) -> u64 {
+        self.now
+    }
+
+    /// The number of nodes.
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// The engine of node `node` (panics if there is no such node).
+    pub fn engine(&self, node: usize) -> &Engine<'t> {
+        &self.nodes[node].engine
+    }
+
+    /// The address of node `node` (panics if there is no such node).
+    pub fn addr(&self, node: usize) -> u16 {
+        self.nodes[node].addr
+    }
+
+    /// The node with address `addr`.
+    pub fn node_by_addr(&self, addr: u16) -> Option<usize> {
+        self.nodes.iter().position(|n| n.addr == addr)
+    }
+
+    /// Current chart-local state of every chart of node `node`.
+    pub fn states(&self, node: usize) -> Vec<u8> {
+        let engine = &self.nodes[node].engine;
+        (0..engine.table().charts.len())
+            .filter_map(|c| engine.state(c))
+            .collect()
+    }
+
+    /// The plants, in the order given to [`World::new`].
+    pub fn plants(&self) -> &[Plant] {
+        &self.plants
+    }
+
+    /// The index of the plant named `name`.
+    pub fn plant_by_name(&self, name: &str) -> Option<usize> {
+        self.plants.iter().position(|p| p.name() == name)
+    }
+
+    /// Where an actuator's rod is (`None` for a button or no such plant).
+    pub fn position(&self, plant: usize) -> Option<Position> {
+        self.plants.get(plant)?.travel()?;
+        Some(self.rods[plant].position())
+    }
+
+    /// Everything that happened so far.
+    pub fn trace(&self) -> &[TraceEntry] {
+        &self.trace
+    }
+
+    /// Takes the trace, leaving it empty (long runs: keep memory flat).
+    pub fn take_trace(&mut self) -> Vec<TraceEntry> {
+        std::mem::take(&mut self.trace)
+    }
+
+    /// The step strings of the whole trace.
+    pub fn steps(&self) -> Vec<String> {
+        steps(&self.trace)
+    }
+
+    /// The trace split into cycles at each press / START.
+    pub fn cycles(&self) -> Vec<Cycle> {
+        cycles(&self.trace)
+    }
+
+    /// Whether nothing is scheduled (no motion, timer, delivery or button release pending).
+    pub fn is_idle(&mut self) -> bool {
+        self.peek().is_none()
+    }
+
+    /// Presses button `button` (plant index) now: its input goes high at once and low
+    /// `press_ms` later. Takes effect when the world runs.
+    pub fn press(&mut self, button: usize) -> Result<(), SimError> {
+        let Some(Plant::Button(b)) = self.plants.get(button) else {
+            return Err(SimError::NoSuchPlant {
+                plant: button,
+                want: "a button",
+            });
+        };
+        let (node, input, press_ms) = (b.node, b.input, b.press_ms);
+        self.log(What::Press { button });
+        self.schedule(
+            0,
+            Ev::Input {
+                node,
+                input,
+                level: true,
+            },
+        );
+        self.schedule(
+            press_ms,
+            Ev::Input {
+                node,
+                input,
+                level: false,
+            },
+        );
+        Ok(())
+    }
+
+    /// Sends the START command to node `node` now (raises its table's start event).
+    pub fn start(&mut self, node: usize) -> Result<(), SimError> {
+        if node >= self.nodes.len() {
+            return Err(SimError::NoSuchNodeIndex { node });
+        }
+        self.log(What::Start { node });
+        self.schedule(0, Ev::Start { node });
+        Ok(())
+    }
+
+    /// Commands actuator `plant`'s valve directly, bypassing its node (a GO_1 / GO_0 of
+    /// `Bistabilni_C`): `plus` extends. Applied at once.
+    pub fn go(&mut self, plant: usize, plus: bool) -> Result<(), SimError> {
+        if self.plants.get(plant).and_then(Plant::travel).is_none() {
+            return Err(SimError::NoSuchPlant {
+                plant,
+                want: "an actuator",
+            });
+        }
+        self.log(What::Go { plant, plus });
+        self.command(plant, plus);
+        Ok(())
+    }
+
+    /// Resets node `node` (the reset command): charts to initial states, timers cancelled,
+    /// outputs safe, fault cleared. Applied at once.
+    pub fn reset(&mut self, node: usize) -> Result<(), SimError> {
+        if node >= self.nodes.len() {
+            return Err(SimError::NoSuchNodeIndex { node });
+        }
+        self.log(What::Reset { node });
+        self.call(node, |e, fx| e.reset(fx));
+        Ok(())
+    }
+
+    /// Processes the next scheduled event (advancing the clock to it). Returns its time, or
+    /// `None` when idle.
+    pub fn step(&mut self) -> Option<u64> {
+        let q = self.peek()?;
+        self.queue.pop();
+        self.now = q.t;
+        self.process(q.ev);
+        Some(q.t)
+    }
+
+    /// Runs until nothing is scheduled, for at most `limit_ms` of virtual time from now.
+    /// Returns the time of the last event processed (the clock stays there).
+    pub fn run_until_idle(&mut self, limit_ms: u64) -> Result<u64, SimError> {
+        let deadline = self.now.saturating_add(limit_ms);
+        for _ in 0..RUN_EVENT_LIMIT {
+            match self.peek() {
+                None => return Ok(self.now),
+                Some(q) if q.t > deadline => {
+                    return Err(SimError::NotIdle {
+                        now_ms: self.now,
+                        next_ms: q.t,
+                    })
+                }
+                Some(_) => {
+                    self.step();
+                }
+            }
+        }
+        Err(SimError::Runaway { now_ms: self.now })
+    }
+
+    /// Runs every event up to `now + ms`, then sets the clock to `now + ms`.
+    pub fn run_for(&mut self, ms: u64) -> Result<(), SimError> {
+        let deadline = self.now.saturating_add(ms);
+        for _ in 0..RUN_EVENT_LIMIT {
+            match self.peek() {
+                Some(q) if q.t <= deadline => {
+                    self.step();
+                }
+                _ => {
+                    self.now = deadline;
+                    return Ok(());
+                }
+            }
+        }
+        Err(SimError::Runaway { now_ms: self.now })
+    }
+
+    /// Presses `button`, runs until idle (at most `limit_ms`), and returns the cycle it ran.
+    pub fn run_cycle(&mut self, button: usize, limit_ms: u64) -> Result<Cycle, SimError> {
+        let mark = self.trace.len();
+        self.press(button)?;
+        self.run_until_idle(limit_ms)?;
+        let mut cycles = cycles(&self.trace[mark..]);
+        Ok(cycles.pop().unwrap_or(Cycle {
+            start_ms: self.now,
+            end_ms: self.now,
+            steps: Vec::new(),
+        }))
+    }
+
+    fn log(&mut self, what: What) {
+        self.trace.push(TraceEntry {
+            t_ms: self.now,
+            what,
+        });
+    }
+
+    fn schedule(&mut self, delay_ms: u64, ev: Ev) {
+        self.seq += 1;
+        self.queue.push(Queued {
+            t: self.now.saturating_add(delay_ms),
+            seq: self.seq,
+            ev,
+        });
+    }
+
+    fn live(&self, ev: &Ev) -> bool {
+        match *ev {
+            Ev::Arrive { plant, gen } => self.gens[plant] == gen,
+            Ev::Timer { node, timer, gen } => self.nodes[node].timers[usize::from(timer)] == gen,
+            _ => true,
+        }
+    }
+
+    /// The next live event, dropping stale ones (cancelled timers, superseded arrivals).
+    fn peek(&mut self) -> Option<Queued> {
+        while let Some(q) = self.queue.peek().copied() {
+            if self.live(&q.ev) {
+                return Some(q);
+            }
+            self.queue.pop();
+        }
+        None
+    }
+
+    fn process(&mut self, ev: Ev) {
+        match ev {
+            Ev::Input { node, input, level } => self.set_input(node, input, level),
+            Ev::Start { node } => self.call(node, |e, fx| {
+                e.start(fx);
+            }),
+            Ev::Arrive { plant, .. } => {
+                if let Some(end) = self.rods[plant].arrive() {
+                    self.log(What::Arrived { plant, end });
+                    if let Plant::DoubleActing(da) = &self.plants[plant] {
+                        let (node, pin) = (da.node, if end { da.end_in } else { da.home_in });
+                        if let Some(pin) = pin {
+                            self.set_input(node, pin, true);
+                        }
+                    }
+                }
+            }
+            Ev::Timer { node, timer, .. } => {
+                self.nodes[node].timers[usize::from(timer)] = 0;
+                self.log(What::TimerExpired { node, timer });
+                self.call(node, |e, fx| e.timer_expired(timer, fx));
+            }
+            Ev::Deliver { from, to, topic } => {
+                let from_addr = self.nodes[from].addr;
+                let engine = &self.nodes[to].engine;
+                let peer = engine.table().peers.iter().position(|a| *a == from_addr);
+                let accepted = peer.is_some_and(|p| {
+                    engine
+                        .table()
+                        .subscriptions
+                        .iter()
+                        .any(|s| usize::from(s.publisher) == p && s.topic == topic)
+                });
+                self.log(What::Deliver {
+                    from,
+                    to,
+                    topic,
+                    accepted,
+                });
+                if let (true, Some(p)) = (accepted, peer) {
+                    self.call(to, |e, fx| {
+                        e.remote(p as u8, topic, fx);
+                    });
+                }
+            }
+        }
+    }
+
+    fn set_input(&mut self, node: usize, input: u8, level: bool) {
+        self.log(What::Input { node, input, level });
+        self.call(node, |e, fx| e.input(input, level, fx));
+    }
+
+    /// Runs one engine call with a tracing sink, then applies its effects.
+    fn call(&mut self, node: usize, f: impl FnOnce(&mut Engine<'t>, &mut Fx<'_>)) {
+        let mut todo = std::mem::take(&mut self.scratch);
+        {
+            let mut fx = Fx {
+                node,
+                now: self.now,
+                trace: &mut self.trace,
+                todo: &mut todo,
+            };
+            f(&mut self.nodes[node].engine, &mut fx);
+        }
+        self.apply(node, &todo);
+        todo.clear();
+        self.scratch = todo;
+    }
+
+    fn apply(&mut self, node: usize, effects: &[Effect]) {
+        // Valve commands of this engine step, per plant in first-touched order:
+        // (plant, extend solenoid rose, retract solenoid rose, monostable level).
+        let mut valves: Vec<(usize, bool, bool, Option<bool>)> = Vec::new();
+        for effect in effects {
+            match *effect {
+                Effect::Output(output, level) => {
+                    for (p, plant) in self.plants.iter().enumerate() {
+                        let hit = match plant {
+                            Plant::DoubleActing(da) if da.node == node => {
+                                if da.extend_out == output {
+                                    Some((level, false, None))
+                                } else if da.retract_out == output {
+                                    Some((false, level, None))
+                                } else {
+                                    None
+                                }
+                            }
+                            Plant::SingleActing(sa) if sa.node == node && sa.out == output => {
+                                Some((false, false, Some(level)))
+                            }
+                            _ => None,
+                        };
+                        if let Some((ext, ret, mono)) = hit {
+                            match valves.iter_mut().find(|v| v.0 == p) {
+                                Some(v) => {
+                                    v.1 |= ext;
+                                    v.2 |= ret;
+                                    if mono.is_some() {
+                                        v.3 = mono;
+                                    }
+                                }
+                                None => valves.push((p, ext, ret, mono)),
+                            }
+                        }
+                    }
+                }
+                Effect::Publish(p) => self.publish(node, &p),
+                Effect::StartTimer(timer, ms) => {
+                    if let Some(slot) = self.nodes[node].timers.get_mut(usize::from(timer)) {
+                        self.timer_gen += 1;
+                        *slot = self.timer_gen;
+                        let gen = self.timer_gen;
+                        self.schedule(u64::from(ms), Ev::Timer { node, timer, gen });
+                    }
+                }
+                Effect::CancelTimer(timer) => {
+                    if let Some(slot) = self.nodes[node].timers.get_mut(usize::from(timer)) {
+                        *slot = 0;
+                    }
+                }
+            }
+        }
+        for (plant, ext, ret, mono) in valves {
+            match (ext, ret, mono) {
+                (true, true, _) => self.log(What::Conflict { plant }),
+                (true, false, _) => self.command(plant, true),
+                (false, true, _) => self.command(plant, false),
+                (false, false, Some(level)) => self.command(plant, level),
+                (false, false, None) => {}
+            }
+        }
+    }
+
+    fn publish(&mut self, node: usize, p: &Publication) {
+        let table = self.nodes[node].engine.table();
+        for (i, addr) in table.peers.iter().enumerate().take(8) {
+            if p.subscribers & (1 << i) == 0 {
+                continue;
+            }
+            match self.node_by_addr(*addr) {
+                Some(to) => self.schedule(
+                    self.radio_delay_ms,
+                    Ev::Deliver {
+                        from: node,
+                        to,
+                        topic: p.topic,
+                    },
+                ),
+                None => self.log(What::NoSuchPeer { node, addr: *addr }),
+            }
+        }
+    }
+
+    /// A valve command to an actuator (`extend` or retract).
+    fn command(&mut self, plant: usize, extend: bool) {
+        let Some(travel) = self.plants[plant].travel() else {
+            return;
+        };
+        let outcome = self.rods[plant].command(self.now, extend, travel);
+        let arrive = match outcome {
+            Outcome::Nothing => return,
+            Outcome::Left { arrive, .. } | Outcome::Reversed { arrive } => arrive,
+        };
+        self.log(What::Step {
+            plant,
+            actuator: self.plants[plant].name().to_string(),
+            plus: extend,
+        });
+        // Leaving a switch drops it at once (before a zero-time arrival raises the other).
+        if let (Outcome::Left { from_end, .. }, Plant::DoubleActing(da)) =
+            (outcome, &self.plants[plant])
+        {
+            let pin = if from_end { da.end_in } else { da.home_in };
+            if let Some(input) = pin {
+                let node = da.node;
+                self.schedule(
+                    0,
+                    Ev::Input {
+                        node,
+                        input,
+                        level: false,
+                    },
+                );
+            }
+        }
+        self.gens[plant] += 1;
+        let gen = self.gens[plant];
+        self.schedule(arrive - self.now, Ev::Arrive { plant, gen });
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,613 @@
+use config_schema::{Action, Input, Output, Publication, Subscription, Table, Timer, Transition};
+
+use super::*;
+
+const EXT: u16 = 0b01;
+const RET: u16 = 0b10;
+
+/// A cylinder node: input 0 = home switch (rise: event 0), input 1 = end switch (rise:
+/// event 1), output 0 = extend solenoid, output 1 = retract solenoid. With `chart`, START
+/// (event 2) runs S0 -START-> S1[C+] -end-> S2[C-] -home-> S0.
+fn cylinder_table(chart: bool) -> Table {
+    let mut t = Table::empty("C");
+    for _ in 0..3 {
+        t.push_event().unwrap();
+    }
+    for (pin, rise) in [(0, 0), (1, 1)] {
+        t.inputs
+            .push(Input {
+                pin,
+                rise: Some(rise),
+                fall: None,
+                var: None,
+            })
+            .unwrap();
+    }
+    for pin in 0..2 {
+        t.outputs.push(Output { pin, safe: false }).unwrap();
+    }
+    if chart {
+        t.start = Some(2);
+        let tr = |from, to, trigger| Transition {
+            from,
+            to,
+            trigger: Some(trigger),
+            guard: None,
+        };
+        t.push_chart(
+            0,
+            3,
+            &[
+                &[],
+                &[Action::Drive {
+                    mask: EXT | RET,
+                    value: EXT,
+                }],
+                &[Action::Drive {
+                    mask: EXT | RET,
+                    value: RET,
+                }],
+            ],
+            &[tr(0, 1, 2), tr(1, 2, 1), tr(2, 0, 0)],
+        )
+        .unwrap();
+        for e in 0..3 {
+            t.routes
+                .push(config_schema::Route {
+                    event: e,
+                    chart: 0,
+                    input: e,
+                })
+                .unwrap();
+        }
+    }
+    config_schema::validate(&t).unwrap();
+    t
+}
+
+fn cylinder(node: usize) -> Plant {
+    DoubleActing {
+        name: "C".into(),
+        node,
+        extend_out: 0,
+        retract_out: 1,
+        home_in: Some(0),
+        end_in: Some(1),
+        extend_ms: 300,
+        retract_ms: 600,
+    }
+    .into()
+}
+
+fn at(t_ms: u64, what: What) -> TraceEntry {
+    TraceEntry { t_ms, what }
+}
+
+fn step(plus: bool) -> What {
+    What::Step {
+        plant: 0,
+        actuator: "C".into(),
+        plus,
+    }
+}
+
+fn input(input: u8, level: bool) -> What {
+    What::Input {
+        node: 0,
+        input,
+        level,
+    }
+}
+
+#[test]
+fn the_rod_starts_home_with_its_switch_high_and_no_event() {
+    let table = cylinder_table(true);
+    let nodes = [NodeSpec {
+        addr: 1,
+        table: &table,
+    }];
+    let mut world = World::new(&nodes, vec![cylinder(0)]).unwrap();
+    assert_eq!(world.engine(0).inputs(), 0b01);
+    assert_eq!(world.states(0), vec![0]);
+    assert_eq!(world.position(0), Some(Position::Home));
+    assert!(world.is_idle());
+    assert!(world.trace().is_empty());
+}
+
+#[test]
+fn a_motion_drops_the_switch_at_once_and_raises_the_other_after_the_travel_time() {
+    let table = cylinder_table(false);
+    let nodes = [NodeSpec {
+        addr: 1,
+        table: &table,
+    }];
+    let mut world = World::new(&nodes, vec![cylinder(0)]).unwrap();
+    world.go(0, true).unwrap();
+    assert_eq!(world.position(0), Some(Position::Extending));
+    assert_eq!(world.run_until_idle(10_000), Ok(300));
+    assert_eq!(
+        world.trace(),
+        [
+            at(
+                0,
+                What::Go {
+                    plant: 0,
+                    plus: true
+                }
+            ),
+            at(0, step(true)),
+            at(0, input(0, false)),
+            at(
+                300,
+                What::Arrived {
+                    plant: 0,
+                    end: true
+                }
+            ),
+            at(300, input(1, true)),
+        ]
+    );
+    assert_eq!(world.engine(0).inputs(), 0b10);
+    assert_eq!(world.position(0), Some(Position::End));
+}
+
+#[test]
+fn a_go_toward_the_held_position_changes_nothing() {
+    let table = cylinder_table(false);
+    let nodes = [NodeSpec {
+        addr: 1,
+        table: &table,
+    }];
+    let mut world = World::new(&nodes, vec![cylinder(0)]).unwrap();
+    world.go(0, false).unwrap();
+    assert_eq!(
+        world.trace(),
+        [at(
+            0,
+            What::Go {
+                plant: 0,
+                plus: false
+            }
+        )]
+    );
+    assert!(world.is_idle());
+    world.go(0, true).unwrap();
+    world.run_until_idle(10_000).unwrap();
+    let mark = world.trace().len();
+    world.go(0, true).unwrap();
+    assert!(world.is_idle());
+    assert_eq!(
+        world.trace()[mark..],
+        [at(
+            300,
+            What::Go {
+                plant: 0,
+                plus: true
+            }
+        )]
+    );
+    assert_eq!(world.engine(0).inputs(), 0b10);
+    assert_eq!(world.position(0), Some(Position::End));
+}
+
+#[test]
+fn a_reversal_mid_travel_is_a_new_step_and_returns_over_the_covered_stroke() {
+    let table = cylinder_table(false);
+    let nodes = [NodeSpec {
+        addr: 1,
+        table: &table,
+    }];
+    let mut world = World::new(&nodes, vec![cylinder(0)]).unwrap();
+    world.go(0, true).unwrap();
+    world.run_for(100).unwrap();
+    // A third of the stroke out; back at 600 ms per stroke takes 200 ms.
+    world.go(0, false).unwrap();
+    assert_eq!(world.run_until_idle(10_000), Ok(300));
+    assert_eq!(
+        world.trace(),
+        [
+            at(
+                0,
+                What::Go {
+                    plant: 0,
+                    plus: true
+                }
+            ),
+            at(0, step(true)),
+            at(0, input(0, false)),
+            at(
+                100,
+                What::Go {
+                    plant: 0,
+                    plus: false
+                }
+            ),
+            at(100, step(false)),
+            at(
+                300,
+                What::Arrived {
+                    plant: 0,
+                    end: false
+                }
+            ),
+            at(300, input(0, true)),
+        ]
+    );
+    assert_eq!(world.position(0), Some(Position::Home));
+    assert_eq!(world.steps(), ["C+", "C-"]);
+}
+
+#[test]
+fn a_chart_drives_the_cylinder_out_and_back() {
+    let table = cylinder_table(true);
+    let nodes = [NodeSpec {
+        addr: 1,
+        table: &table,
+    }];
+    let mut world = World::new(&nodes, vec![cylinder(0)]).unwrap();
+    world.start(0).unwrap();
+    assert_eq!(world.run_until_idle(10_000), Ok(900));
+    assert_eq!(world.steps(), ["C+", "C-"]);
+    assert_eq!(
+        world.cycles(),
+        [Cycle {
+            start_ms: 0,
+            end_ms: 900,
+            steps: vec!["C+".into(), "C-".into()],
+        }]
+    );
+    let fired: Vec<(u64, u8, u8)> = world
+        .trace()
+        .iter()
+        .filter_map(|e| match e.what {
+            What::Fired { from, to, .. } => Some((e.t_ms, from, to)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(fired, [(0, 0, 1), (300, 1, 2), (900, 2, 0)]);
+    assert_eq!(world.states(0), vec![0]);
+    assert_eq!(world.engine(0).outputs(), RET);
+}
+
+#[test]
+fn both_solenoids_at_once_is_a_conflict_and_moves_nothing() {
+    let mut table = cylinder_table(false);
+    table.start = Some(2);
+    table
+        .push_chart(
+            0,
+            1,
+            &[
+                &[],
+                &[Action::Drive {
+                    mask: EXT | RET,
+                    value: EXT | RET,
+                }],
+            ],
+            &[Transition {
+                from: 0,
+                to: 1,
+                trigger: Some(0),
+                guard: None,
+            }],
+        )
+        .unwrap();
+    table
+        .routes
+        .push(config_schema::Route {
+            event: 2,
+            chart: 0,
+            input: 0,
+        })
+        .unwrap();
+    config_schema::validate(&table).unwrap();
+    let nodes = [NodeSpec {
+        addr: 1,
+        table: &table,
+    }];
+    let mut world = World::new(&nodes, vec![cylinder(0)]).unwrap();
+    world.start(0).unwrap();
+    world.run_until_idle(10_000).unwrap();
+    assert_eq!(world.steps(), Vec::<String>::new());
+    assert_eq!(
+        world.trace().last().map(|e| &e.what),
+        Some(&What::Conflict { plant: 0 })
+    );
+    assert_eq!(world.position(0), Some(Position::Home));
+}
+
+/// Node A: input 0 (rise: event 0) published as topic 7 to every peer in `peers`; a
+/// one-shot timer started by event 1 (START) and cancelled by event 0.
+fn publisher_table(peers: &[u16]) -> Table {
+    let mut t = Table::empty("A");
+    for _ in 0..3 {
+        t.push_event().unwrap();
+    }
+    t.start = Some(1);
+    t.inputs
+        .push(Input {
+            pin: 0,
+            rise: Some(0),
+            fall: None,
+            var: None,
+        })
+        .unwrap();
+    t.timers.push(Timer { event: 2 }).unwrap();
+    for p in peers {
+        t.peers.push(*p).unwrap();
+    }
+    t.publications
+        .push(Publication {
+            event: 0,
+            topic: 7,
+            subscribers: ((1u16 << peers.len()) - 1) as u8,
+        })
+        .unwrap();
+    let tr = |from, to, trigger| Transition {
+        from,
+        to,
+        trigger: Some(trigger),
+        guard: None,
+    };
+    t.push_chart(
+        0,
+        2,
+        &[
+            &[],
+            &[Action::StartTimer { timer: 0, ms: 100 }],
+            &[Action::CancelTimer(0)],
+        ],
+        &[tr(0, 1, 1), tr(1, 2, 0)],
+    )
+    .unwrap();
+    t.routes
+        .push(config_schema::Route {
+            event: 1,
+            chart: 0,
+            input: 1,
+        })
+        .unwrap();
+    t.routes
+        .push(config_schema::Route {
+            event: 0,
+            chart: 0,
+            input: 0,
+        })
+        .unwrap();
+    config_schema::validate(&t).unwrap();
+    t
+}
+
+/// Node B: subscribes topic 7 from peer 0 as event 0, routed to a one-state chart that
+/// ignores it.
+fn subscriber_table(publisher: u16) -> Table {
+    let mut t = Table::empty("B");
+    t.push_event().unwrap();
+    t.peers.push(publisher).unwrap();
+    t.subscriptions
+        .push(Subscription {
+            publisher: 0,
+            topic: 7,
+            event: 0,
+        })
+        .unwrap();
+    t.push_chart(0, 1, &[&[]], &[]).unwrap();
+    t.routes
+        .push(config_schema::Route {
+            event: 0,
+            chart: 0,
+            input: 0,
+        })
+        .unwrap();
+    config_schema::validate(&t).unwrap();
+    t
+}
+
+#[test]
+fn a_publication_reaches_each_subscriber_after_the_radio_delay() {
+    let a = publisher_table(&[0x20, 0x30, 0x40]);
+    let b = subscriber_table(0x10);
+    let c = subscriber_table(0x99);
+    let nodes = [
+        NodeSpec {
+            addr: 0x10,
+            table: &a,
+        },
+        NodeSpec {
+            addr: 0x20,
+            table: &b,
+        },
+        NodeSpec {
+            addr: 0x30,
+            table: &c,
+        },
+    ];
+    let mut world = World::new(&nodes, vec![Button::new("S", 0, 0).into()]).unwrap();
+    world.set_radio_delay(5);
+    world.press(0).unwrap();
+    assert_eq!(world.run_until_idle(1_000), Ok(50));
+    assert_eq!(
+        world.trace(),
+        [
+            at(0, What::Press { button: 0 }),
+            at(0, input(0, true)),
+            at(
+                0,
+                What::Publish {
+                    node: 0,
+                    event: 0,
+                    topic: 7,
+                    subscribers: 0b111,
+                }
+            ),
+            at(
+                0,
+                What::Ignored {
+                    node: 0,
+                    chart: 0,
+                    input: 0,
+                }
+            ),
+            // Effects are applied once the engine step is over.
+            at(
+                0,
+                What::NoSuchPeer {
+                    node: 0,
+                    addr: 0x40
+                }
+            ),
+            at(
+                5,
+                What::Deliver {
+                    from: 0,
+                    to: 1,
+                    topic: 7,
+                    accepted: true,
+                }
+            ),
+            at(
+                5,
+                What::Ignored {
+                    node: 1,
+                    chart: 0,
+                    input: 0,
+                }
+            ),
+            // Node C knows no peer 0x10: the frame is not for a subscription of its.
+            at(
+                5,
+                What::Deliver {
+                    from: 0,
+                    to: 2,
+                    topic: 7,
+                    accepted: false,
+                }
+            ),
+            at(50, input(0, false)),
+        ]
+    );
+}
+
+#[test]
+fn a_cancelled_timer_never_expires_and_an_armed_one_does() {
+    let a = publisher_table(&[]);
+    let nodes = [NodeSpec {
+        addr: 0x10,
+        table: &a,
+    }];
+    let mut world = World::new(&nodes, vec![Button::new("S", 0, 0).into()]).unwrap();
+    world.start(0).unwrap();
+    world.run_for(40).unwrap();
+    world.press(0).unwrap();
+    assert_eq!(world.run_until_idle(1_000), Ok(90));
+    assert!(!world
+        .trace()
+        .iter()
+        .any(|e| matches!(e.what, What::TimerExpired { .. })));
+    assert_eq!(world.states(0), vec![2]);
+
+    let mut world = World::new(&nodes, vec![Button::new("S", 0, 0).into()]).unwrap();
+    world.start(0).unwrap();
+    assert_eq!(world.run_until_idle(1_000), Ok(100));
+    assert_eq!(
+        world.trace().last(),
+        Some(&at(100, What::TimerExpired { node: 0, timer: 0 }))
+    );
+}
+
+#[test]
+fn runs_are_bounded_by_their_time_limit() {
+    let table = cylinder_table(false);
+    let nodes = [NodeSpec {
+        addr: 1,
+        table: &table,
+    }];
+    let mut world = World::new(&nodes, vec![cylinder(0)]).unwrap();
+    world.go(0, true).unwrap();
+    assert_eq!(
+        world.run_until_idle(299),
+        Err(SimError::NotIdle {
+            now_ms: 0,
+            next_ms: 300
+        })
+    );
+    assert_eq!(world.run_until_idle(300), Ok(300));
+}
+
+#[test]
+fn the_same_calls_give_the_same_trace() {
+    let table = cylinder_table(true);
+    let nodes = [NodeSpec {
+        addr: 1,
+        table: &table,
+    }];
+    let run = || {
+        let mut world = World::new(&nodes, vec![cylinder(0)]).unwrap();
+        for _ in 0..3 {
+            world.start(0).unwrap();
+            world.run_for(450).unwrap();
+            world.go(0, true).unwrap();
+            world.run_until_idle(10_000).unwrap();
+        }
+        world.take_trace()
+    };
+    let first = run();
+    assert!(first.len() > 20);
+    assert_eq!(first, run());
+}
+
+#[test]
+fn bad_wiring_is_refused() {
+    let table = cylinder_table(false);
+    let nodes = [NodeSpec {
+        addr: 1,
+        table: &table,
+    }];
+    let bad_out = DoubleActing {
+        name: "X".into(),
+        node: 0,
+        extend_out: 0,
+        retract_out: 2,
+        home_in: None,
+        end_in: None,
+        extend_ms: 1,
+        retract_ms: 1,
+    };
+    assert_eq!(
+        World::new(&nodes, vec![bad_out.into()]).err(),
+        Some(SimError::NoSuchOutput {
+            plant: "X".into(),
+            node: 0,
+            output: 2
+        })
+    );
+    assert_eq!(
+        World::new(&nodes, vec![cylinder(0), Button::new("S", 0, 1).into()]).err(),
+        Some(SimError::PinShared {
+            plant: "S".into(),
+            node: 0,
+            pin: 1,
+            output: false
+        })
+    );
+    assert_eq!(
+        World::new(&nodes, vec![cylinder(1)]).err(),
+        Some(SimError::NoSuchNode {
+            plant: "C".into(),
+            node: 1
+        })
+    );
+    let twice = [nodes[0], nodes[0]];
+    assert_eq!(
+        World::new(&twice, vec![]).err(),
+        Some(SimError::DuplicateAddress { addr: 1 })
+    );
+    let mut world = World::new(&nodes, vec![cylinder(0)]).unwrap();
+    assert_eq!(
+        world.press(0),
+        Err(SimError::NoSuchPlant {
+            plant: 0,
+            want: "a button"
+        })
+    );
+}
