@@ -2,5 +2,7 @@
 //! (smoltcp style: this layer knows bytes, not protocol state).
 //!
 //! - [`mac`]: IEEE 802.15.4-2006 MAC frames (the subset the nodes use).
+//! - [`msg`]: the application messages inside them (postcard).
 
 pub mod mac;
+pub mod msg;

@@ -1,0 +1,203 @@
+//! Application messages: postcard inside the MAC payload of a data frame.
+//!
+//! The publisher of an event and the sender of every message is the frame's source
+//! address; the MAC layer carries no meaning beyond addressing and integrity, so a security
+//! layer (auxiliary security header + MIC) can wrap these payloads unchanged.
+
+use heapless::{String, Vec};
+use serde::{Deserialize, Serialize};
+
+use crate::limits::{MAX_CHARTS, MAX_ROLE_NAME};
+use crate::table::Topic;
+
+/// Bytes of table data in one OTA chunk: fits a data frame with the chunk's own fields.
+pub const CHUNK_DATA: usize = 96;
+
+/// One application message.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Message<'a> {
+    /// A published event. `epoch` changes whenever the publisher restarts its numbering
+    /// (boot, new table); `seq` counts this publisher's events to this subscriber.
+    Event { epoch: u16, seq: u16, topic: Topic },
+    /// Cumulative acknowledgement: every event of `epoch` before `next` arrived, in order.
+    EventAck { epoch: u16, next: u16 },
+    /// Start of a table transfer.
+    ConfigBegin {
+        generation: u32,
+        len: u16,
+        crc: u32,
+        force: bool,
+    },
+    /// `data` is the blob from byte `offset`.
+    ConfigChunk {
+        generation: u32,
+        offset: u16,
+        #[serde(borrow)]
+        data: &'a [u8],
+    },
+    /// All chunks sent: check, activate, persist.
+    ConfigEnd { generation: u32 },
+    /// The node's answer to every config message.
+    ConfigReply { generation: u32, reply: ConfigReply },
+    /// An operator command.
+    Command(Command),
+    /// The node's status (answer to `Command::Status`).
+    Status(Status),
+    /// "Here I am": periodic while unconfigured, and on `Command::Identify`.
+    Announce(Announce),
+}
+
+/// Where a table transfer stands, from the receiving node.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ConfigReply {
+    /// Send bytes from `next` on (acknowledges everything before it).
+    Next { next: u16 },
+    /// The new table is checked, persisted and running.
+    Activated,
+    /// The transfer was refused; the old table keeps running.
+    Refused(Refusal),
+}
+
+/// Why a transfer was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Refusal {
+    /// The generation is not newer than the running one (and not forced).
+    Stale { running: u32 },
+    /// Longer than a blob may be.
+    TooLong,
+    /// A chunk for another generation or offset than the transfer in progress.
+    OutOfSequence,
+    /// The whole blob's CRC-32 does not match `ConfigBegin`.
+    Crc,
+    /// The blob does not decode or validate.
+    Invalid,
+    /// Persisting to flash failed.
+    Flash,
+}
+
+/// Operator commands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Command {
+    /// The START of the paper.
+    Start,
+    /// Leave a fault: back to the initial state.
+    Reset,
+    /// Answer with an `Announce`.
+    Identify,
+    /// Answer with a `Status`.
+    Status,
+}
+
+/// What `config-tool status` shows of a node.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Status {
+    pub role: String<MAX_ROLE_NAME>,
+    pub generation: u32,
+    pub states: Vec<u8, MAX_CHARTS>,
+    pub outputs: u16,
+    pub inputs: u16,
+    /// Fault code, if faulted.
+    pub fault: Option<u8>,
+    /// Bit i: peer i stopped acknowledging.
+    pub link_alarms: u8,
+    pub counters: Counters,
+}
+
+/// Radio and delivery counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Counters {
+    pub sent: u32,
+    pub received: u32,
+    pub retried: u32,
+    pub dropped: u32,
+    pub delivered: u32,
+}
+
+/// A node introducing itself.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Announce {
+    pub firmware: u16,
+    pub generation: u32,
+    /// Empty while unconfigured.
+    pub role: String<MAX_ROLE_NAME>,
+}
+
+/// Why a payload is not a message.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MessageError(pub postcard::Error);
+
+impl core::fmt::Display for MessageError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "malformed message: {}", self.0)
+    }
+}
+
+impl<'a> Message<'a> {
+    /// Parses a MAC payload. Never panics; trailing bytes are an error.
+    pub fn parse(payload: &'a [u8]) -> Result<Message<'a>, MessageError> {
+        match postcard::take_from_bytes::<Message<'a>>(payload) {
+            Ok((msg, [])) => Ok(msg),
+            Ok(_) => Err(MessageError(postcard::Error::DeserializeBadEncoding)),
+            Err(e) => Err(MessageError(e)),
+        }
+    }
+
+    /// Writes the message into `buf`; returns its length.
+    pub fn emit(&self, buf: &mut [u8]) -> Result<usize, MessageError> {
+        postcard::to_slice(self, buf)
+            .map(|b| b.len())
+            .map_err(MessageError)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wire::mac::MAX_PAYLOAD;
+
+    #[test]
+    fn a_full_chunk_fits_one_frame() {
+        let data = [0xA5u8; CHUNK_DATA];
+        let msg = Message::ConfigChunk {
+            generation: u32::MAX,
+            offset: u16::MAX,
+            data: &data,
+        };
+        let mut buf = [0u8; 256];
+        let n = msg.emit(&mut buf).unwrap();
+        assert!(n <= MAX_PAYLOAD, "{n} > {MAX_PAYLOAD}");
+        assert_eq!(Message::parse(&buf[..n]), Ok(msg));
+    }
+
+    #[test]
+    fn events_are_a_few_bytes() {
+        let msg = Message::Event {
+            epoch: 3,
+            seq: 200,
+            topic: 7,
+        };
+        let mut buf = [0u8; 16];
+        let n = msg.emit(&mut buf).unwrap();
+        assert_eq!(&buf[..n], &[0, 3, 0xC8, 0x01, 7]);
+        assert_eq!(Message::parse(&buf[..n]), Ok(msg));
+    }
+
+    #[test]
+    fn trailing_and_unknown_bytes_are_errors() {
+        assert!(Message::parse(&[0, 3, 4, 7, 0]).is_err());
+        assert!(Message::parse(&[0xFF]).is_err());
+        assert!(Message::parse(&[]).is_err());
+    }
+
+    mod props {
+        use super::super::*;
+        use proptest::prelude::*;
+
+        proptest! {
+            #[test]
+            fn parse_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..120)) {
+                let _ = Message::parse(&bytes);
+            }
+        }
+    }
+}

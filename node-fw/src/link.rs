@@ -1,0 +1,283 @@
+//! Reliable, ordered event delivery between a publisher and one subscriber, over a radio that
+//! loses, duplicates and reorders frames. Pure state machines: time comes in as milliseconds,
+//! messages go out through a closure, so the runtime, the simulator and the tests share them.
+//!
+//! Go-back-N with cumulative acknowledgements:
+//! - the [`Sender`] numbers each event (`seq`, per `epoch`), keeps it until acknowledged,
+//!   sends at most [`WINDOW`] unacknowledged events, and on a timeout resends them all with
+//!   exponential backoff; after [`ALARM_AFTER`] timeouts without progress it raises a link
+//!   alarm (and keeps trying);
+//! - the [`Receiver`] delivers only the next expected `seq`, so every event is delivered
+//!   exactly once and in publisher order; frames up to [`WINDOW`] ahead are held until the
+//!   gap before them fills (the radio reorders); duplicates are dropped; every frame of the
+//!   current epoch is answered with the cumulative acknowledgement.
+//!
+//! A gap is never skipped: if the sender's queue overflows the link is [`LinkState::Broken`]
+//! and sends nothing more in this epoch, so a subscriber can stall but never act out of turn.
+
+use config_schema::wire::msg::Message;
+use config_schema::Topic;
+use heapless::Deque;
+
+/// Unacknowledged events in flight.
+pub const WINDOW: usize = 4;
+/// Events queued per subscriber (in flight or waiting for the window).
+pub const QUEUE: usize = 16;
+/// First retransmission timeout: above the round trip of a frame and its acknowledgement
+/// (two frames of airtime plus the medium's delay, at most 24 ms in the tests).
+pub const RTO_MS: u64 = 30;
+/// Largest retransmission timeout.
+pub const RTO_MAX_MS: u64 = 120;
+/// Timeouts without progress before the link alarm.
+pub const ALARM_AFTER: u8 = 8;
+
+fn before(a: u16, b: u16) -> bool {
+    (a.wrapping_sub(b) as i16) < 0
+}
+
+/// Health of a link, as status shows it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum LinkState {
+    /// Acknowledgements arrive.
+    Ok,
+    /// The peer stopped acknowledging; still retrying.
+    Alarm,
+    /// The queue overflowed: nothing more is sent in this epoch.
+    Broken,
+}
+
+/// Counters of one sender.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SenderCounters {
+    /// Event frames sent for the first time.
+    pub sent: u32,
+    /// Event frames sent again.
+    pub retried: u32,
+    /// Events acknowledged.
+    pub acked: u32,
+}
+
+/// The publisher's side of one link.
+#[derive(Debug, Clone)]
+pub struct Sender {
+    epoch: u16,
+    /// Seq of `pending[0]`.
+    base: u16,
+    pending: Deque<Topic, QUEUE>,
+    deadline: Option<u64>,
+    timeouts: u8,
+    state: LinkState,
+    counters: SenderCounters,
+}
+
+/// Why an event was not queued.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LinkBroken;
+
+impl Sender {
+    /// A link starting a new epoch (call with a new epoch after every boot or new table).
+    pub fn new(epoch: u16) -> Self {
+        Sender {
+            epoch,
+            base: 0,
+            pending: Deque::new(),
+            deadline: None,
+            timeouts: 0,
+            state: LinkState::Ok,
+            counters: SenderCounters::default(),
+        }
+    }
+
+    pub fn state(&self) -> LinkState {
+        self.state
+    }
+
+    pub fn counters(&self) -> SenderCounters {
+        self.counters
+    }
+
+    /// Events not yet acknowledged.
+    pub fn unacked(&self) -> usize {
+        self.pending.len()
+    }
+
+    /// When [`Sender::poll`] next has work.
+    pub fn deadline(&self) -> Option<u64> {
+        self.deadline
+    }
+
+    fn rto(&self) -> u64 {
+        (RTO_MS << self.timeouts.min(8)).min(RTO_MAX_MS)
+    }
+
+    fn event(&self, index: usize) -> Option<Message<'static>> {
+        let topic = *self.pending.iter().nth(index)?;
+        Some(Message::Event {
+            epoch: self.epoch,
+            seq: self.base.wrapping_add(index as u16),
+            topic,
+        })
+    }
+
+    /// Queues an event; sends it now if the window allows.
+    pub fn push(
+        &mut self,
+        topic: Topic,
+        now: u64,
+        mut send: impl FnMut(Message<'static>),
+    ) -> Result<(), LinkBroken> {
+        if self.state == LinkState::Broken {
+            return Err(LinkBroken);
+        }
+        if self.pending.push_back(topic).is_err() {
+            self.state = LinkState::Broken;
+            self.deadline = None;
+            return Err(LinkBroken);
+        }
+        let index = self.pending.len() - 1;
+        if index < WINDOW {
+            if let Some(msg) = self.event(index) {
+                send(msg);
+                self.counters.sent += 1;
+            }
+        }
+        if self.deadline.is_none() {
+            self.deadline = Some(now + self.rto());
+        }
+        Ok(())
+    }
+
+    /// An acknowledgement arrived: drops what it covers, sends what the window now allows.
+    pub fn on_ack(
+        &mut self,
+        epoch: u16,
+        next: u16,
+        now: u64,
+        mut send: impl FnMut(Message<'static>),
+    ) {
+        if epoch != self.epoch || self.state == LinkState::Broken {
+            return;
+        }
+        let acked = usize::from(next.wrapping_sub(self.base));
+        if acked == 0 || acked > self.pending.len() {
+            return; // nothing new, or not about this window
+        }
+        let window_end = WINDOW.min(self.pending.len());
+        for _ in 0..acked {
+            self.pending.pop_front();
+        }
+        self.base = next;
+        self.counters.acked += acked as u32;
+        self.timeouts = 0;
+        self.state = LinkState::Ok;
+        // Events that were queued behind the window and now fit into it.
+        let already_sent = window_end.saturating_sub(acked);
+        for index in already_sent..WINDOW.min(self.pending.len()) {
+            if let Some(msg) = self.event(index) {
+                send(msg);
+                self.counters.sent += 1;
+            }
+        }
+        self.deadline = (!self.pending.is_empty()).then(|| now + self.rto());
+    }
+
+    /// Resends the window if its timeout passed.
+    pub fn poll(&mut self, now: u64, mut send: impl FnMut(Message<'static>)) {
+        let Some(deadline) = self.deadline else {
+            return;
+        };
+        if now < deadline {
+            return;
+        }
+        for index in 0..WINDOW.min(self.pending.len()) {
+            if let Some(msg) = self.event(index) {
+                send(msg);
+                self.counters.retried += 1;
+            }
+        }
+        self.timeouts = self.timeouts.saturating_add(1);
+        if self.timeouts >= ALARM_AFTER {
+            self.state = LinkState::Alarm;
+        }
+        self.deadline = Some(now + self.rto());
+    }
+}
+
+/// What the receiver makes of an event frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Received {
+    /// Deliver these topics to the engine, in this order (each exactly once, in publisher
+    /// order: a frame that fills a gap releases the frames held behind it).
+    pub deliver: heapless::Vec<Topic, { WINDOW + 1 }>,
+    /// Send this acknowledgement back (`None`: say nothing).
+    pub ack: Option<Message<'static>>,
+}
+
+/// The subscriber's side of one link.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub struct Receiver {
+    /// (epoch, next expected seq) once the first event of an epoch arrived.
+    cursor: Option<(u16, u16)>,
+    /// Events that arrived early: `held[i]` is seq `next + 1 + i`.
+    held: [Option<Topic>; WINDOW],
+    /// Duplicates, stale and out-of-window frames dropped.
+    pub dropped: u32,
+}
+
+impl Receiver {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    fn drop_frame(&mut self) -> Received {
+        self.dropped += 1;
+        Received {
+            deliver: heapless::Vec::new(),
+            ack: None,
+        }
+    }
+
+    /// An event frame arrived.
+    pub fn on_event(&mut self, epoch: u16, seq: u16, topic: Topic) -> Received {
+        let next = match self.cursor {
+            Some((current, next)) if current == epoch => next,
+            // An older epoch: a frame from before the publisher restarted.
+            Some((current, _)) if before(epoch, current) => return self.drop_frame(),
+            // A newer epoch (or the first one seen) is anchored at seq 0 only.
+            _ if seq != 0 => return self.drop_frame(),
+            _ => {
+                self.held = [None; WINDOW];
+                0
+            }
+        };
+        let mut deliver = heapless::Vec::new();
+        let ahead = usize::from(seq.wrapping_sub(next));
+        let mut next = next;
+        if ahead == 0 {
+            let _ = deliver.push(topic);
+            next = next.wrapping_add(1);
+            // Re-index the held frames from the new `next`, releasing those now in order.
+            loop {
+                let first = self.held[0];
+                self.held.rotate_left(1);
+                self.held[WINDOW - 1] = None;
+                match first {
+                    Some(t) => {
+                        let _ = deliver.push(t);
+                        next = next.wrapping_add(1);
+                    }
+                    None => break,
+                }
+            }
+        } else if (1..=WINDOW).contains(&ahead) && self.held[ahead - 1].is_none() {
+            self.held[ahead - 1] = Some(topic);
+        } else {
+            self.dropped += 1; // a duplicate, or beyond the sender's window
+        }
+        self.cursor = Some((epoch, next));
+        Received {
+            deliver,
+            ack: Some(Message::EventAck { epoch, next }),
+        }
+    }
+}

@@ -1,0 +1,290 @@
+//! Reliable event delivery over a lossy, duplicating, reordering channel: every event arrives
+//! exactly once and in publisher order, or the link stalls with an alarm; never out of turn.
+
+use config_schema::wire::msg::Message;
+use node_fw::link::{LinkState, Receiver, Sender, ALARM_AFTER, QUEUE, WINDOW};
+use proptest::prelude::*;
+
+/// A deterministic xorshift generator.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+    fn chance(&mut self, p: f64) -> bool {
+        (self.next() % 10_000) as f64 / 10_000.0 < p
+    }
+    fn range(&mut self, lo: u64, hi: u64) -> u64 {
+        lo + self.next() % (hi - lo + 1)
+    }
+}
+
+/// Frames in flight in one direction, each with its arrival time.
+struct Channel {
+    loss: f64,
+    dup: f64,
+    delay: (u64, u64),
+    flight: Vec<(u64, Message<'static>)>,
+    sent: usize,
+}
+
+impl Channel {
+    fn new(loss: f64, dup: f64, delay: (u64, u64)) -> Self {
+        Channel {
+            loss,
+            dup,
+            delay,
+            flight: Vec::new(),
+            sent: 0,
+        }
+    }
+    fn send(&mut self, rng: &mut Rng, now: u64, msg: Message<'static>) {
+        self.sent += 1;
+        let copies = if rng.chance(self.dup) { 2 } else { 1 };
+        for _ in 0..copies {
+            if !rng.chance(self.loss) {
+                let at = now + rng.range(self.delay.0, self.delay.1);
+                self.flight.push((at, msg.clone()));
+            }
+        }
+    }
+    fn due(&mut self, now: u64) -> Vec<Message<'static>> {
+        let (due, later): (Vec<_>, Vec<_>) = self.flight.drain(..).partition(|(t, _)| *t <= now);
+        self.flight = later;
+        due.into_iter().map(|(_, m)| m).collect()
+    }
+}
+
+struct Run {
+    delivered: Vec<u8>,
+    sender: Sender,
+    receiver: Receiver,
+    frames: usize,
+    end: u64,
+}
+
+/// Publishes `topics` (one every `gap` ms: a machine publishes a few events a second, so
+/// the queue does not fill; overflow has its own test) across the channel pair and runs until
+/// every event is acknowledged or `limit` ms pass.
+fn run(topics: &[u8], gap: u64, loss: f64, dup: f64, seed: u64, limit: u64) -> Run {
+    let mut rng = Rng(seed | 1);
+    let mut forward = Channel::new(loss, dup, (1, 12));
+    let mut back = Channel::new(loss, dup, (1, 12));
+    let mut sender = Sender::new(7);
+    let mut receiver = Receiver::new();
+    let mut delivered = Vec::new();
+    let mut now = 0;
+    let mut next_topic = 0;
+    while now < limit {
+        if next_topic < topics.len() && now >= next_topic as u64 * gap {
+            let mut out = Vec::new();
+            if sender
+                .push(topics[next_topic], now, |m| out.push(m))
+                .is_err()
+            {
+                panic!(
+                    "queue overflow at {now} ms, seed {seed}: {:?}",
+                    sender.counters()
+                );
+            }
+            for m in out {
+                forward.send(&mut rng, now, m);
+            }
+            next_topic += 1;
+        }
+        for msg in forward.due(now) {
+            let Message::Event { epoch, seq, topic } = msg else {
+                panic!("not an event: {msg:?}")
+            };
+            let got = receiver.on_event(epoch, seq, topic);
+            delivered.extend(got.deliver.iter().copied());
+            if let Some(ack) = got.ack {
+                back.send(&mut rng, now, ack);
+            }
+        }
+        for msg in back.due(now) {
+            let Message::EventAck { epoch, next } = msg else {
+                panic!("not an ack: {msg:?}")
+            };
+            let mut out = Vec::new();
+            sender.on_ack(epoch, next, now, |m| out.push(m));
+            for m in out {
+                forward.send(&mut rng, now, m);
+            }
+        }
+        let mut out = Vec::new();
+        sender.poll(now, |m| out.push(m));
+        for m in out {
+            forward.send(&mut rng, now, m);
+        }
+        if next_topic == topics.len() && sender.unacked() == 0 {
+            break;
+        }
+        now += 1;
+    }
+    Run {
+        delivered,
+        sender,
+        receiver,
+        frames: forward.sent + back.sent,
+        end: now,
+    }
+}
+
+#[test]
+fn a_clean_channel_delivers_in_order_with_one_frame_each_way() {
+    let topics: Vec<u8> = (0..50).collect();
+    let r = run(&topics, 20, 0.0, 0.0, 1, 10_000);
+    assert_eq!(r.delivered, topics);
+    assert_eq!(r.sender.unacked(), 0);
+    assert_eq!(r.sender.counters().retried, 0);
+    assert_eq!(r.frames, 100);
+    assert_eq!(r.sender.state(), LinkState::Ok);
+}
+
+#[test]
+fn twenty_percent_loss_with_duplication_and_reordering_delivers_exactly_once_in_order() {
+    let topics: Vec<u8> = (0..200).map(|i| (i % 251) as u8).collect();
+    for seed in 1..=20 {
+        let r = run(&topics, 40, 0.2, 0.1, seed, 60_000);
+        assert_eq!(r.delivered, topics, "seed {seed}");
+        assert_eq!(r.sender.unacked(), 0, "seed {seed}");
+        assert!(
+            r.sender.counters().retried > 0,
+            "seed {seed}: loss forced retries"
+        );
+    }
+}
+
+#[test]
+fn a_silent_peer_raises_the_alarm_and_nothing_is_delivered() {
+    let r = run(&[1, 2, 3], 1, 1.0, 0.0, 3, 5_000);
+    assert!(r.delivered.is_empty());
+    assert_eq!(r.sender.state(), LinkState::Alarm);
+    assert_eq!(r.sender.unacked(), 3);
+    assert!(r.end >= 5_000 - 1);
+}
+
+#[test]
+fn the_alarm_needs_alarm_after_timeouts_and_clears_on_progress() {
+    let mut s = Sender::new(1);
+    let mut sent = Vec::new();
+    s.push(9, 0, |m| sent.push(m)).unwrap();
+    assert_eq!(
+        sent,
+        vec![Message::Event {
+            epoch: 1,
+            seq: 0,
+            topic: 9
+        }]
+    );
+    let mut timeouts = 0;
+    let mut now = 0;
+    while s.state() == LinkState::Ok {
+        now = s.deadline().unwrap();
+        s.poll(now, |_| {});
+        timeouts += 1;
+    }
+    assert_eq!(timeouts, ALARM_AFTER as usize);
+    s.on_ack(1, 1, now, |_| {});
+    assert_eq!(s.state(), LinkState::Ok);
+    assert_eq!(s.unacked(), 0);
+    assert_eq!(s.deadline(), None);
+}
+
+#[test]
+fn only_the_window_is_in_flight_and_acks_open_it() {
+    let mut s = Sender::new(0);
+    let mut sent = Vec::new();
+    for topic in 0..6 {
+        s.push(topic, 0, |m| sent.push(m)).unwrap();
+    }
+    let seqs = |v: &[Message]| -> Vec<u16> {
+        v.iter()
+            .map(|m| match m {
+                Message::Event { seq, .. } => *seq,
+                _ => panic!(),
+            })
+            .collect()
+    };
+    assert_eq!(seqs(&sent), (0..WINDOW as u16).collect::<Vec<_>>());
+    sent.clear();
+    s.on_ack(0, 2, 1, |m| sent.push(m));
+    assert_eq!(seqs(&sent), vec![4, 5]);
+    sent.clear();
+    // A stale or foreign acknowledgement changes nothing.
+    s.on_ack(0, 1, 2, |m| sent.push(m));
+    s.on_ack(5, 6, 2, |m| sent.push(m));
+    assert!(sent.is_empty());
+    assert_eq!(s.unacked(), 4);
+}
+
+#[test]
+fn an_overflowing_queue_breaks_the_link_instead_of_skipping_an_event() {
+    let mut s = Sender::new(0);
+    for topic in 0..QUEUE as u8 {
+        s.push(topic, 0, |_| {}).unwrap();
+    }
+    assert_eq!(s.push(99, 0, |_| {}), Err(node_fw::link::LinkBroken));
+    assert_eq!(s.state(), LinkState::Broken);
+    assert_eq!(s.push(100, 0, |_| {}), Err(node_fw::link::LinkBroken));
+    let mut sent = Vec::new();
+    s.poll(10_000, |m| sent.push(m));
+    s.on_ack(0, 4, 10_000, |m| sent.push(m));
+    assert!(sent.is_empty(), "a broken link sends nothing: {sent:?}");
+}
+
+fn got(r: &mut Receiver, epoch: u16, seq: u16, topic: u8) -> Vec<u8> {
+    r.on_event(epoch, seq, topic).deliver.into_iter().collect()
+}
+
+#[test]
+fn the_receiver_holds_early_frames_and_drops_duplicates_and_old_epochs() {
+    let mut r = Receiver::new();
+    // Not the start of an epoch: nothing to anchor to, no acknowledgement.
+    assert_eq!(r.on_event(4, 3, 1).ack, None);
+    let first = r.on_event(4, 0, 10);
+    assert_eq!(first.deliver.as_slice(), &[10]);
+    assert_eq!(first.ack, Some(Message::EventAck { epoch: 4, next: 1 }));
+    // Duplicate: acknowledged again, not delivered.
+    let dup = r.on_event(4, 0, 10);
+    assert!(dup.deliver.is_empty());
+    assert_eq!(dup.ack, Some(Message::EventAck { epoch: 4, next: 1 }));
+    // Seq 3 and 2 arrive before 1: held, then released in order by 1.
+    assert_eq!(got(&mut r, 4, 3, 13), vec![]);
+    assert_eq!(got(&mut r, 4, 2, 12), vec![]);
+    assert_eq!(
+        r.on_event(4, 2, 12).ack,
+        Some(Message::EventAck { epoch: 4, next: 1 })
+    );
+    assert_eq!(got(&mut r, 4, 1, 11), vec![11, 12, 13]);
+    assert_eq!(got(&mut r, 4, 2, 12), vec![], "already delivered");
+    // Beyond the window: dropped.
+    assert_eq!(got(&mut r, 4, 4 + WINDOW as u16 + 1, 0), vec![]);
+    assert_eq!(got(&mut r, 4, 4, 14), vec![14]);
+    // An older epoch is ignored entirely; a newer one restarts at 0.
+    assert_eq!(r.on_event(3, 0, 99).ack, None);
+    assert_eq!(got(&mut r, 5, 0, 20), vec![20]);
+    assert_eq!(r.dropped, 6);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+    #[test]
+    fn any_loss_below_half_still_delivers_exactly_once_in_order(
+        seed in any::<u64>(),
+        loss in 0.0f64..0.35,
+        dup in 0.0f64..0.3,
+        n in 1usize..60,
+    ) {
+        let topics: Vec<u8> = (0..n).map(|i| (i * 7 % 256) as u8).collect();
+        let r = run(&topics, 200, loss, dup, seed, 200_000);
+        prop_assert_eq!(&r.delivered, &topics);
+        prop_assert_eq!(r.sender.unacked(), 0);
+        prop_assert_eq!(r.receiver.dropped as usize + r.delivered.len() >= topics.len(), true);
+    }
+}
