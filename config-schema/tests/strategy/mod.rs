@@ -1,0 +1,469 @@
+//! A proptest strategy for VALID tables, and blob mutations.
+//!
+//! Used by `config-schema/tests/props.rs` and (through `#[path]`) by
+//! `node-fw/tests/ecc_props.rs`.
+//!
+//! proptest generates a `Raw` description made of plain numbers and expression trees;
+//! [`build`] turns it into a table by reducing every index modulo what exists, so the result
+//! is valid by construction (and the properties assert it), and shrinking works on numbers.
+#![allow(dead_code)]
+
+use config_schema::blob::{CRC32, HEADER_LEN, TRAILER_LEN};
+use config_schema::limits::*;
+use config_schema::{
+    Action, EventId, Expr, Input, Op, Output, Publication, Route, Subscription, Table, Timer,
+    Transition,
+};
+use proptest::collection::vec;
+use proptest::prelude::*;
+
+/// A well-formed expression, before its indices are reduced.
+#[derive(Debug, Clone)]
+pub enum Tree {
+    Const(i32),
+    Var(u8),
+    Input(u8),
+    Not(Box<Tree>),
+    /// Binary operation number `op % 11` of [`BINARY`].
+    Bin(u8, Box<Tree>, Box<Tree>),
+}
+
+pub const BINARY: [Op; 11] = [
+    Op::And,
+    Op::Or,
+    Op::Eq,
+    Op::Ne,
+    Op::Lt,
+    Op::Le,
+    Op::Gt,
+    Op::Ge,
+    Op::Add,
+    Op::Sub,
+    Op::And,
+];
+
+/// Expression trees of height <= 4: at most 31 operations (MAX_EXPR_LEN is 32) and a stack
+/// depth of at most 5 (MAX_STACK is 8).
+pub fn tree() -> impl Strategy<Value = Tree> {
+    let leaf = prop_oneof![
+        3 => (-3i32..10).prop_map(Tree::Const),
+        1 => any::<i32>().prop_map(Tree::Const),
+        3 => any::<u8>().prop_map(Tree::Var),
+        2 => any::<u8>().prop_map(Tree::Input),
+    ];
+    leaf.prop_recursive(4, 31, 2, |inner| {
+        prop_oneof![
+            1 => inner.clone().prop_map(|t| Tree::Not(Box::new(t))),
+            4 => (any::<u8>(), inner.clone(), inner)
+                .prop_map(|(op, a, b)| Tree::Bin(op, Box::new(a), Box::new(b))),
+        ]
+    })
+}
+
+/// Postfix operations of a tree, with variable and input indices reduced (a variable or an
+/// input the table does not have becomes a constant).
+pub fn lower(tree: &Tree, vars: usize, inputs: usize, out: &mut Vec<Op>) {
+    match tree {
+        Tree::Const(c) => out.push(Op::Const(*c)),
+        Tree::Var(v) if vars > 0 => out.push(Op::Var(*v % vars as u8)),
+        Tree::Input(i) if inputs > 0 => out.push(Op::Input(*i % inputs as u8)),
+        Tree::Var(v) | Tree::Input(v) => out.push(Op::Const(i32::from(*v))),
+        Tree::Not(a) => {
+            lower(a, vars, inputs, out);
+            out.push(Op::Not);
+        }
+        Tree::Bin(op, a, b) => {
+            lower(a, vars, inputs, out);
+            lower(b, vars, inputs, out);
+            out.push(BINARY[usize::from(*op) % BINARY.len()]);
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+pub enum RawAction {
+    Set(u8, Tree),
+    Drive(u16, u16),
+    Emit(u8),
+    Publish(u8),
+    StartTimer(u8, u32),
+    CancelTimer(u8),
+    Fault(u8),
+}
+
+fn raw_action() -> impl Strategy<Value = RawAction> {
+    prop_oneof![
+        3 => (any::<u8>(), tree()).prop_map(|(v, t)| RawAction::Set(v, t)),
+        3 => (any::<u16>(), any::<u16>()).prop_map(|(m, v)| RawAction::Drive(m, v)),
+        3 => any::<u8>().prop_map(RawAction::Emit),
+        1 => any::<u8>().prop_map(RawAction::Publish),
+        2 => (any::<u8>(), 0u32..5000).prop_map(|(t, ms)| RawAction::StartTimer(t, ms)),
+        1 => any::<u8>().prop_map(RawAction::CancelTimer),
+        1 => any::<u8>().prop_map(RawAction::Fault),
+    ]
+}
+
+#[derive(Debug, Clone)]
+pub struct RawTransition {
+    pub from: u8,
+    pub to: u8,
+    pub trigger: Option<u8>,
+    pub guard: Option<Tree>,
+}
+
+#[derive(Debug, Clone)]
+pub struct RawChart {
+    pub inputs: u8,
+    pub initial: u8,
+    pub states: Vec<Vec<RawAction>>,
+    pub transitions: Vec<RawTransition>,
+}
+
+fn raw_chart() -> impl Strategy<Value = RawChart> {
+    let transition = (
+        any::<u8>(),
+        any::<u8>(),
+        proptest::option::weighted(0.8, any::<u8>()),
+        proptest::option::weighted(0.4, tree()),
+    )
+        .prop_map(|(from, to, trigger, guard)| RawTransition {
+            from,
+            to,
+            trigger,
+            guard,
+        });
+    (
+        0u8..5,
+        any::<u8>(),
+        vec(vec(raw_action(), 0..4), 1..6),
+        vec(transition, 0..9),
+    )
+        .prop_map(|(inputs, initial, states, transitions)| RawChart {
+            inputs,
+            initial,
+            states,
+            transitions,
+        })
+}
+
+#[derive(Debug, Clone)]
+pub struct Raw {
+    pub role: String,
+    pub generation: u32,
+    pub pan_id: u16,
+    pub channel: u8,
+    pub events: u8,
+    pub start: Option<u8>,
+    pub vars: Vec<i32>,
+    /// (rise, fall, mirror variable).
+    pub inputs: Vec<(Option<u8>, Option<u8>, Option<u8>)>,
+    pub outputs: Vec<bool>,
+    pub timers: Vec<u8>,
+    pub peer_base: u16,
+    pub peers: usize,
+    /// (event, topic, subscriber mask).
+    pub publications: Vec<(u8, u8, u8)>,
+    /// (publisher, topic, event).
+    pub subscriptions: Vec<(u8, u8, u8)>,
+    pub charts: Vec<RawChart>,
+    /// (event, chart, chart input).
+    pub routes: Vec<(u8, u8, u8)>,
+}
+
+pub fn raw() -> impl Strategy<Value = Raw> {
+    let head = (
+        "[A-Za-z0-9_]{0,12}",
+        any::<u32>(),
+        any::<u16>(),
+        11u8..27,
+        prop_oneof![4 => 1u8..16, 1 => Just(MAX_EVENTS as u8)],
+        proptest::option::of(any::<u8>()),
+        vec(-5i32..100, 0..6),
+    );
+    let pins = (
+        vec(
+            (
+                proptest::option::of(any::<u8>()),
+                proptest::option::of(any::<u8>()),
+                proptest::option::of(any::<u8>()),
+            ),
+            0..5,
+        ),
+        vec(any::<bool>(), 0..7),
+        vec(any::<u8>(), 0..4),
+    );
+    let radio = (
+        0u16..0xF000,
+        0usize..4,
+        vec((any::<u8>(), any::<u8>(), any::<u8>()), 0..5),
+        vec((any::<u8>(), any::<u8>(), any::<u8>()), 0..5),
+    );
+    let network = (vec(raw_chart(), 1..4), vec(any::<(u8, u8, u8)>(), 0..14));
+    (head, pins, radio, network).prop_map(
+        |(
+            (role, generation, pan_id, channel, events, start, vars),
+            (inputs, outputs, timers),
+            (peer_base, peers, publications, subscriptions),
+            (charts, routes),
+        )| Raw {
+            role,
+            generation,
+            pan_id,
+            channel,
+            events,
+            start,
+            vars,
+            inputs,
+            outputs,
+            timers,
+            peer_base,
+            peers,
+            publications,
+            subscriptions,
+            charts,
+            routes,
+        },
+    )
+}
+
+/// A valid table from a raw description.
+pub fn build(raw: &Raw) -> Table {
+    let mut t = Table::empty(&raw.role);
+    t.generation = raw.generation;
+    t.header.pan_id = raw.pan_id;
+    t.header.channel = raw.channel;
+    t.events = raw.events.clamp(1, MAX_EVENTS as u8);
+    let events = t.events;
+    let ev = |e: u8| -> EventId { e % events };
+    t.start = raw.start.map(ev);
+    t.vars.extend_from_slice(&raw.vars).unwrap();
+    let nvars = t.vars.len();
+    let var = |v: Option<u8>| v.filter(|_| nvars > 0).map(|v| v % nvars as u8);
+    for (i, (rise, fall, v)) in raw.inputs.iter().enumerate() {
+        t.inputs
+            .push(Input {
+                pin: 2 * i as u8,
+                rise: rise.map(ev),
+                fall: fall.map(ev),
+                var: var(*v),
+            })
+            .unwrap();
+    }
+    for (i, safe) in raw.outputs.iter().enumerate() {
+        t.outputs
+            .push(Output {
+                pin: 32 + i as u8,
+                safe: *safe,
+            })
+            .unwrap();
+    }
+    for e in &raw.timers {
+        t.timers.push(Timer { event: ev(*e) }).unwrap();
+    }
+    for i in 0..raw.peers {
+        t.peers.push(raw.peer_base + 3 * i as u16).unwrap();
+    }
+    let peer_mask = ((1u16 << t.peers.len()) - 1) as u8;
+    for (e, topic, mask) in &raw.publications {
+        let (event, topic) = (ev(*e), *topic);
+        if t.publications
+            .iter()
+            .any(|p| p.event == event || p.topic == topic)
+        {
+            continue;
+        }
+        t.publications
+            .push(Publication {
+                event,
+                topic,
+                subscribers: mask & peer_mask,
+            })
+            .unwrap();
+    }
+    if !t.peers.is_empty() {
+        for (p, topic, e) in &raw.subscriptions {
+            let publisher = p % t.peers.len() as u8;
+            if t.subscriptions
+                .iter()
+                .any(|s| s.publisher == publisher && s.topic == *topic)
+            {
+                continue;
+            }
+            t.subscriptions
+                .push(Subscription {
+                    publisher,
+                    topic: *topic,
+                    event: ev(*e),
+                })
+                .unwrap();
+        }
+    }
+
+    let (ninputs, nout, ntimers) = (t.inputs.len(), t.outputs.len(), t.timers.len());
+    let out_mask = ((1u32 << nout) - 1) as u16;
+    let published: Vec<EventId> = t.publications.iter().map(|p| p.event).collect();
+    for chart in &raw.charts {
+        let n_states = chart.states.len() as u8;
+        let inputs = chart.inputs;
+        let mut states: Vec<Vec<Action>> = Vec::new();
+        for actions in &chart.states {
+            let mut out = Vec::new();
+            for a in actions {
+                let action = match a {
+                    RawAction::Set(v, tree) if nvars > 0 => {
+                        let mut ops = Vec::new();
+                        lower(tree, nvars, ninputs, &mut ops);
+                        match t.push_expr(&ops) {
+                            Ok(expr) => Action::Set {
+                                var: v % nvars as u8,
+                                expr,
+                            },
+                            Err(_) => Action::Emit(ev(*v)),
+                        }
+                    }
+                    RawAction::Drive(m, v) => Action::Drive {
+                        mask: m & out_mask,
+                        value: v & out_mask,
+                    },
+                    RawAction::Publish(e) if !published.is_empty() => {
+                        Action::Publish(published[usize::from(*e) % published.len()])
+                    }
+                    RawAction::StartTimer(tm, ms) if ntimers > 0 => Action::StartTimer {
+                        timer: tm % ntimers as u8,
+                        ms: *ms,
+                    },
+                    RawAction::CancelTimer(tm) if ntimers > 0 => {
+                        Action::CancelTimer(tm % ntimers as u8)
+                    }
+                    RawAction::Fault(code) => Action::Fault(*code),
+                    RawAction::Set(e, _)
+                    | RawAction::Emit(e)
+                    | RawAction::Publish(e)
+                    | RawAction::StartTimer(e, _)
+                    | RawAction::CancelTimer(e) => Action::Emit(ev(*e)),
+                };
+                out.push(action);
+            }
+            states.push(out);
+        }
+        let mut transitions = Vec::new();
+        for tr in &chart.transitions {
+            let guard: Option<Expr> = tr.guard.as_ref().and_then(|g| {
+                let mut ops = Vec::new();
+                lower(g, nvars, ninputs, &mut ops);
+                t.push_expr(&ops).ok()
+            });
+            transitions.push(Transition {
+                from: tr.from % n_states,
+                to: tr.to % n_states,
+                trigger: tr.trigger.filter(|_| inputs > 0).map(|i| i % inputs),
+                guard,
+            });
+        }
+        let states: Vec<&[Action]> = states.iter().map(Vec::as_slice).collect();
+        t.push_chart(chart.initial % n_states, inputs, &states, &transitions)
+            .unwrap();
+    }
+    for (e, c, i) in &raw.routes {
+        let chart = c % t.charts.len() as u8;
+        let inputs = t.charts[usize::from(chart)].inputs;
+        if inputs == 0 {
+            continue;
+        }
+        t.routes
+            .push(Route {
+                event: ev(*e),
+                chart,
+                input: i % inputs,
+            })
+            .unwrap();
+    }
+    t
+}
+
+/// Valid tables.
+pub fn table() -> impl Strategy<Value = Table> {
+    raw().prop_map(|r| build(&r))
+}
+
+/// One change to a payload.
+#[derive(Debug, Clone)]
+pub enum Mutation {
+    /// Flip bit `bit % 8` of byte `at % len`.
+    Flip { at: usize, bit: u8 },
+    /// Set byte `at % len` to `value`.
+    Set { at: usize, value: u8 },
+    /// Keep the first `len % (len + 1)` bytes.
+    Truncate { len: usize },
+    /// Replace bytes `at..at + n` (clamped) with `bytes`.
+    Splice { at: usize, n: usize, bytes: Vec<u8> },
+    /// Copy `n` bytes from `from` to `to` (both modulo len), inside the payload.
+    Copy { from: usize, to: usize, n: usize },
+}
+
+pub fn mutation() -> impl Strategy<Value = Mutation> {
+    prop_oneof![
+        4 => (any::<usize>(), any::<u8>()).prop_map(|(at, bit)| Mutation::Flip { at, bit }),
+        3 => (any::<usize>(), prop_oneof![0u8..4, any::<u8>()])
+            .prop_map(|(at, value)| Mutation::Set { at, value }),
+        1 => any::<usize>().prop_map(|len| Mutation::Truncate { len }),
+        2 => (any::<usize>(), 0usize..4, vec(any::<u8>(), 0..4))
+            .prop_map(|(at, n, bytes)| Mutation::Splice { at, n, bytes }),
+        1 => (any::<usize>(), any::<usize>(), 1usize..6)
+            .prop_map(|(from, to, n)| Mutation::Copy { from, to, n }),
+    ]
+}
+
+pub fn mutate(payload: &mut Vec<u8>, m: &Mutation) {
+    let len = payload.len();
+    match m {
+        Mutation::Flip { at, bit } if len > 0 => payload[at % len] ^= 1 << (bit % 8),
+        Mutation::Set { at, value } if len > 0 => payload[at % len] = *value,
+        Mutation::Truncate { len: keep } => payload.truncate(keep % (len + 1)),
+        Mutation::Splice { at, n, bytes } => {
+            let at = at % (len + 1);
+            let end = (at + n).min(len);
+            payload.splice(at..end, bytes.iter().copied());
+        }
+        Mutation::Copy { from, to, n } if len > 0 => {
+            let (from, to) = (from % len, to % len);
+            let n = (*n).min(len - from).min(len - to);
+            payload.copy_within(from..from + n, to);
+        }
+        _ => {}
+    }
+}
+
+/// A blob around `payload` with a correct envelope: length and CRC recomputed, so decoding
+/// reaches the payload parser and the validator.
+pub fn seal(payload: &[u8], generation: u32) -> Vec<u8> {
+    let mut b = Vec::with_capacity(payload.len() + HEADER_LEN + TRAILER_LEN);
+    b.extend_from_slice(b"ECCT");
+    b.extend_from_slice(&1u16.to_le_bytes());
+    b.extend_from_slice(&generation.to_le_bytes());
+    b.extend_from_slice(&(payload.len() as u16).to_le_bytes());
+    b.extend_from_slice(payload);
+    let crc = CRC32.checksum(&b);
+    b.extend_from_slice(&crc.to_le_bytes());
+    b
+}
+
+/// The blob of a table.
+pub fn blob(t: &Table) -> Vec<u8> {
+    let mut buf = vec![0u8; MAX_BLOB];
+    let n = config_schema::encode(t, &mut buf).unwrap();
+    buf.truncate(n);
+    buf
+}
+
+/// A valid table's blob with mutations applied to its payload, resealed.
+pub fn mutated_blob() -> impl Strategy<Value = Vec<u8>> {
+    (table(), vec(mutation(), 1..4)).prop_map(|(t, ms)| {
+        let b = blob(&t);
+        let mut payload = b[HEADER_LEN..b.len() - TRAILER_LEN].to_vec();
+        for m in &ms {
+            mutate(&mut payload, m);
+        }
+        seal(&payload, t.generation)
+    })
+}

@@ -1,0 +1,267 @@
+//! Property tests of the interpreter: any table that decodes (generated valid tables, and
+//! mutated blobs that still decode) runs under any sequence of stimuli without panicking,
+//! and everything it reports stays inside the table.
+
+// The valid-table strategy and blob mutations are shared with config-schema's tests.
+#[path = "../../config-schema/tests/strategy/mod.rs"]
+mod strategy;
+
+use config_schema::{decode, Publication, Table};
+use node_fw::ecc::{Effects, Engine, Fault};
+use proptest::collection::vec;
+use proptest::prelude::*;
+use proptest::strategy::ValueTree;
+use proptest::test_runner::TestRunner;
+
+/// Something that happens to a node.
+#[derive(Debug, Clone, Copy)]
+enum Stimulus {
+    Input(u8, bool),
+    Timer(u8),
+    /// A subscribed (publisher, topic) when `pick` is even and there is one, else raw.
+    Remote {
+        pick: u8,
+        publisher: u8,
+        topic: u8,
+    },
+    Start,
+    Event(u8),
+    Reset,
+}
+
+fn stimulus() -> impl Strategy<Value = Stimulus> {
+    prop_oneof![
+        6 => (any::<u8>(), any::<bool>()).prop_map(|(i, l)| Stimulus::Input(i, l)),
+        3 => any::<u8>().prop_map(Stimulus::Timer),
+        3 => (any::<u8>(), any::<u8>(), any::<u8>())
+            .prop_map(|(pick, publisher, topic)| Stimulus::Remote { pick, publisher, topic }),
+        2 => Just(Stimulus::Start),
+        6 => any::<u8>().prop_map(Stimulus::Event),
+        1 => Just(Stimulus::Reset),
+    ]
+}
+
+/// One reported effect, for comparing runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Ev {
+    Out(u8, bool),
+    Publish(u8, u8),
+    Start(u8, u32),
+    Cancel(u8),
+    Fault(Fault),
+    Fired(u8, u8, u8, u8),
+    Ignored(u8, u8),
+}
+
+/// Checks every reported effect against the table, tracks the outputs the reports imply,
+/// and records the trace.
+struct Check<'t> {
+    t: &'t Table,
+    outputs: u16,
+    trace: Vec<Ev>,
+}
+
+fn safe_mask(t: &Table) -> u16 {
+    t.outputs
+        .iter()
+        .enumerate()
+        .fold(0, |m, (i, o)| m | (u16::from(o.safe) << i))
+}
+
+impl Effects for Check<'_> {
+    fn output(&mut self, output: u8, value: bool) {
+        assert!(
+            usize::from(output) < self.t.outputs.len(),
+            "output {output}"
+        );
+        let bit = 1u16 << output;
+        assert_ne!(
+            self.outputs & bit != 0,
+            value,
+            "output {output} reported without a change"
+        );
+        self.outputs ^= bit;
+        self.trace.push(Ev::Out(output, value));
+    }
+    fn publish(&mut self, p: &Publication) {
+        assert!(self.t.publications.contains(p), "{p:?}");
+        self.trace.push(Ev::Publish(p.event, p.topic));
+    }
+    fn start_timer(&mut self, timer: u8, ms: u32) {
+        assert!(usize::from(timer) < self.t.timers.len(), "timer {timer}");
+        self.trace.push(Ev::Start(timer, ms));
+    }
+    fn cancel_timer(&mut self, timer: u8) {
+        assert!(usize::from(timer) < self.t.timers.len(), "timer {timer}");
+        self.trace.push(Ev::Cancel(timer));
+    }
+    fn fault(&mut self, fault: Fault) {
+        assert_eq!(
+            self.outputs,
+            safe_mask(self.t),
+            "faulted outside the safe state"
+        );
+        self.trace.push(Ev::Fault(fault));
+    }
+    fn fired(&mut self, chart: u8, transition: u8, from: u8, to: u8) {
+        let c = usize::from(chart);
+        assert!(c < self.t.charts.len(), "chart {chart}");
+        assert!(self
+            .t
+            .chart_transitions(c)
+            .contains(&usize::from(transition)));
+        let tr = self.t.transitions[usize::from(transition)];
+        assert_eq!((tr.from, tr.to), (from, to));
+        assert!(usize::from(to) < self.t.chart_states(c).len());
+        self.trace.push(Ev::Fired(chart, transition, from, to));
+    }
+    fn ignored(&mut self, chart: u8, input: u8) {
+        let c = self.t.charts.get(usize::from(chart)).expect("chart exists");
+        assert!(input < c.inputs, "chart input {input}");
+        self.trace.push(Ev::Ignored(chart, input));
+    }
+}
+
+/// Runs `stimuli` on a fresh engine, checking the invariants after each; returns the trace.
+fn run(t: &Table, stimuli: &[Stimulus]) -> Vec<Ev> {
+    let mut e = Engine::new(t);
+    let mut fx = Check {
+        t,
+        outputs: safe_mask(t),
+        trace: Vec::new(),
+    };
+    assert_eq!(e.outputs(), fx.outputs);
+    let wrap = |x: u8, n: usize| x % (n as u8).saturating_add(2);
+    for s in stimuli {
+        match *s {
+            Stimulus::Input(i, level) => e.input(wrap(i, t.inputs.len()), level, &mut fx),
+            Stimulus::Timer(i) => e.timer_expired(wrap(i, t.timers.len()), &mut fx),
+            Stimulus::Remote {
+                pick,
+                publisher,
+                topic,
+            } => {
+                let (publisher, topic) = match t.subscriptions.len() {
+                    n if n > 0 && pick % 2 == 0 => {
+                        let s = t.subscriptions[usize::from(pick / 2) % n];
+                        (s.publisher, s.topic)
+                    }
+                    _ => (publisher, topic),
+                };
+                let subscribed = t
+                    .subscriptions
+                    .iter()
+                    .any(|s| s.publisher == publisher && s.topic == topic);
+                assert_eq!(e.remote(publisher, topic, &mut fx), subscribed);
+            }
+            Stimulus::Start => assert_eq!(e.start(&mut fx), t.start.is_some()),
+            // A routed event when `ev` is even and there is one, else any id.
+            Stimulus::Event(ev) => match t.routes.len() {
+                n if n > 0 && ev % 2 == 0 => {
+                    e.event(t.routes[usize::from(ev / 2) % n].event, &mut fx)
+                }
+                _ => e.event(wrap(ev, usize::from(t.events)), &mut fx),
+            },
+            Stimulus::Reset => {
+                e.reset(&mut fx);
+                assert_eq!(e.fault(), None);
+            }
+        }
+        for c in 0..t.charts.len() {
+            let s = e.state(c).expect("every chart has a state");
+            assert!(
+                usize::from(s) < t.chart_states(c).len(),
+                "chart {c} state {s}"
+            );
+        }
+        assert_eq!(e.state(t.charts.len()), None);
+        assert_eq!(e.outputs(), fx.outputs, "reported outputs = engine outputs");
+        if e.fault().is_some() {
+            assert_eq!(e.outputs(), safe_mask(t));
+        }
+        for v in 0..t.vars.len() {
+            assert!(e.var(v).is_some());
+        }
+    }
+    fx.trace
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    /// Generated valid tables under random stimuli: no panic, effects inside the table,
+    /// states inside their charts, and the same stimuli give the same trace.
+    #[test]
+    fn valid_tables_run_inside_their_bounds(
+        t in strategy::table(),
+        stimuli in vec(stimulus(), 0..40),
+    ) {
+        let b = strategy::blob(&t);
+        let t = decode(&b).expect("a generated table decodes");
+        let first = run(&t, &stimuli);
+        prop_assert_eq!(run(&t, &stimuli), first);
+    }
+
+    /// Mutated blobs: whatever decodes runs inside its bounds.
+    #[test]
+    fn decodable_mutated_blobs_run_inside_their_bounds(
+        b in strategy::mutated_blob(),
+        stimuli in vec(stimulus(), 0..40),
+    ) {
+        if let Ok(t) = decode(&b) {
+            run(&t, &stimuli);
+        }
+    }
+}
+
+/// The generator is only useful if its tables do things: over a fixed-seed sample, count the
+/// runs that fire transitions, publish, and fault.
+#[test]
+fn generated_tables_exercise_the_engine() {
+    let mut runner = TestRunner::deterministic();
+    let tables = strategy::table();
+    let stimuli = vec(stimulus(), 20..60);
+    let (n, mut fired, mut published, mut faulted, mut chained) = (500, 0, 0, 0, 0);
+    for _ in 0..n {
+        let t = tables.new_tree(&mut runner).unwrap().current();
+        let s = stimuli.new_tree(&mut runner).unwrap().current();
+        let trace = run(&t, &s);
+        let count = |f: fn(&Ev) -> bool| usize::from(trace.iter().any(f));
+        fired += count(|e| matches!(e, Ev::Fired(..)));
+        published += count(|e| matches!(e, Ev::Publish(..)));
+        faulted += count(|e| matches!(e, Ev::Fault(_)));
+        chained += count(|e| matches!(e, Ev::Fault(Fault::ChainLimit { .. })));
+    }
+    println!(
+        "of {n} generated tables: {fired} fired, {published} published, {faulted} faulted \
+         ({chained} on the chain limit)"
+    );
+    assert!(fired >= n / 3, "{fired}");
+    assert!(published >= n / 10, "{published}");
+    assert!(faulted >= n / 10, "{faulted}");
+}
+
+/// The same over a fixed-seed sample, so that a known number of mutated tables (not a
+/// chance few) actually run; prints how many did.
+#[test]
+fn a_fixed_sample_of_mutated_tables_runs() {
+    let mut runner = TestRunner::deterministic();
+    let blobs = strategy::mutated_blob();
+    let stimuli = vec(stimulus(), 20..60);
+    let (n, mut ran, mut faulted, mut fired) = (1500, 0, 0, 0);
+    for _ in 0..n {
+        let b = blobs.new_tree(&mut runner).unwrap().current();
+        let s = stimuli.new_tree(&mut runner).unwrap().current();
+        if let Ok(t) = decode(&b) {
+            let trace = run(&t, &s);
+            ran += 1;
+            faulted += usize::from(trace.iter().any(|e| matches!(e, Ev::Fault(_))));
+            fired += usize::from(trace.iter().any(|e| matches!(e, Ev::Fired(..))));
+        }
+    }
+    println!(
+        "of {n} mutated blobs {ran} decoded and ran; {fired} fired a transition, {faulted} faulted"
+    );
+    assert!(ran >= n / 20, "{ran}");
+    assert!(fired >= ran / 4, "{fired}");
+}
