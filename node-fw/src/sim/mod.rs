@@ -502,6 +502,19 @@ impl<'t> World<'t> {
         Ok(())
     }
 
+    /// A frame from node `from` carrying `topic` reaches node `to` now, whoever published
+    /// it: a stray, duplicated or forged frame. It goes through the same subscription check
+    /// as a real delivery (traced as [`What::Deliver`]).
+    pub fn inject(&mut self, from: usize, to: usize, topic: Topic) -> Result<(), SimError> {
+        for node in [from, to] {
+            if node >= self.nodes.len() {
+                return Err(SimError::NoSuchNodeIndex { node });
+            }
+        }
+        self.schedule(0, Ev::Deliver { from, to, topic });
+        Ok(())
+    }
+
     /// Resets node `node` (the reset command): charts to initial states, timers cancelled,
     /// outputs safe, fault cleared. Applied at once.
     pub fn reset(&mut self, node: usize) -> Result<(), SimError> {
