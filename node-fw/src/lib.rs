@@ -2,11 +2,13 @@
 //!
 //! - [`ecc`]: the table interpreter (pure, `no_std`, no allocation, no Embassy).
 //! - [`link`]: reliable, ordered event delivery over a lossy radio (pure state machines).
+//! - [`ota`]: over-the-air table transfer, node and tool sides (pure state machines).
 //! - `sim` (feature `std`): the host's deterministic virtual-time world with plant models.
 #![cfg_attr(not(feature = "std"), no_std)]
 #![forbid(unsafe_code)]
 
 pub mod ecc;
 pub mod link;
+pub mod ota;
 #[cfg(feature = "std")]
 pub mod sim;

@@ -5,59 +5,8 @@ use config_schema::wire::msg::Message;
 use node_fw::link::{LinkState, Receiver, Sender, ALARM_AFTER, QUEUE, WINDOW};
 use proptest::prelude::*;
 
-/// A deterministic xorshift generator.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0
-    }
-    fn chance(&mut self, p: f64) -> bool {
-        (self.next() % 10_000) as f64 / 10_000.0 < p
-    }
-    fn range(&mut self, lo: u64, hi: u64) -> u64 {
-        lo + self.next() % (hi - lo + 1)
-    }
-}
-
-/// Frames in flight in one direction, each with its arrival time.
-struct Channel {
-    loss: f64,
-    dup: f64,
-    delay: (u64, u64),
-    flight: Vec<(u64, Message<'static>)>,
-    sent: usize,
-}
-
-impl Channel {
-    fn new(loss: f64, dup: f64, delay: (u64, u64)) -> Self {
-        Channel {
-            loss,
-            dup,
-            delay,
-            flight: Vec::new(),
-            sent: 0,
-        }
-    }
-    fn send(&mut self, rng: &mut Rng, now: u64, msg: Message<'static>) {
-        self.sent += 1;
-        let copies = if rng.chance(self.dup) { 2 } else { 1 };
-        for _ in 0..copies {
-            if !rng.chance(self.loss) {
-                let at = now + rng.range(self.delay.0, self.delay.1);
-                self.flight.push((at, msg.clone()));
-            }
-        }
-    }
-    fn due(&mut self, now: u64) -> Vec<Message<'static>> {
-        let (due, later): (Vec<_>, Vec<_>) = self.flight.drain(..).partition(|(t, _)| *t <= now);
-        self.flight = later;
-        due.into_iter().map(|(_, m)| m).collect()
-    }
-}
+mod support;
+use support::{Channel, Rng};
 
 struct Run {
     delivered: Vec<u8>,
@@ -71,7 +20,7 @@ struct Run {
 /// the queue does not fill; overflow has its own test) across the channel pair and runs until
 /// every event is acknowledged or `limit` ms pass.
 fn run(topics: &[u8], gap: u64, loss: f64, dup: f64, seed: u64, limit: u64) -> Run {
-    let mut rng = Rng(seed | 1);
+    let mut rng = Rng::new(seed);
     let mut forward = Channel::new(loss, dup, (1, 12));
     let mut back = Channel::new(loss, dup, (1, 12));
     let mut sender = Sender::new(7);

@@ -1,0 +1,380 @@
+//! Over-the-air table transfer: pure state machines for the node ([`Receiver`]) and the tool
+//! ([`Sender`]), sharing the messages of `config_schema::wire::msg`.
+//!
+//! ```text
+//! tool                                   node
+//! ConfigBegin{gen, len, crc, force}  ->  Next{0}         (or Refused(Stale/TooLong))
+//! ConfigChunk{gen, offset, data}     ->  Next{first missing byte}
+//!   ... up to WINDOW chunks in flight; chunks have fixed places (offset = i * CHUNK_DATA),
+//!   so the node stages them in any order and only lost ones are waited for
+//! ConfigEnd{gen}                     ->  Activated       (or Refused(Crc/Invalid/Flash))
+//! ```
+//! Every message is answered, and every answer says where the node is, so the tool resends
+//! whatever was lost. Nothing is activated before the whole blob's CRC-32 matches and the
+//! table decodes and validates; a transfer that stops anywhere leaves the old table running.
+
+use config_schema::blob::CRC32;
+use config_schema::limits::MAX_BLOB;
+use config_schema::wire::msg::{ConfigReply, Message, Refusal, CHUNK_DATA};
+use config_schema::{decode, Table};
+
+/// Chunks the tool keeps in flight.
+pub const WINDOW: usize = 4;
+/// Tool-side retransmission timeout.
+pub const RTO_MS: u64 = 40;
+/// Tool-side timeouts without progress before it gives up.
+pub const GIVE_UP_AFTER: u8 = 25;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Transfer {
+    generation: u32,
+    len: u16,
+    crc: u32,
+    /// Bit i: chunk i (bytes `i * CHUNK_DATA ..`) is staged.
+    have: u64,
+    /// Bytes before the first missing chunk.
+    received: u16,
+}
+
+/// Chunks of the largest blob: one bit each in `Transfer::have`.
+const MAX_CHUNKS: usize = MAX_BLOB.div_ceil(CHUNK_DATA);
+const _: () = assert!(MAX_CHUNKS <= 64);
+
+impl Transfer {
+    fn chunks(&self) -> usize {
+        usize::from(self.len).div_ceil(CHUNK_DATA)
+    }
+
+    /// Length chunk `index` must have.
+    fn chunk_len(&self, index: usize) -> usize {
+        (usize::from(self.len) - index * CHUNK_DATA).min(CHUNK_DATA)
+    }
+
+    fn update_received(&mut self) {
+        let first_missing = (!self.have).trailing_zeros() as usize;
+        self.received = (first_missing * CHUNK_DATA).min(usize::from(self.len)) as u16;
+    }
+}
+
+/// The node's side: stages one incoming blob in RAM.
+#[derive(Debug, Clone)]
+pub struct Receiver {
+    transfer: Option<Transfer>,
+    staging: [u8; MAX_BLOB],
+}
+
+impl Default for Receiver {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// What the node does with a config message.
+// The table is moved once per activation, straight into the runtime's engine slot.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone, PartialEq)]
+pub enum Outcome {
+    /// Answer with this reply.
+    Reply(ConfigReply),
+    /// The blob is complete and valid: activate `table` atomically (outputs to the safe
+    /// state, new engine, persist `blob` to the inactive slot, flip), then answer
+    /// `Activated` (or `Refused(Flash)` if persisting failed).
+    Activate { table: Table, generation: u32 },
+}
+
+impl Receiver {
+    pub const fn new() -> Self {
+        Receiver {
+            transfer: None,
+            staging: [0; MAX_BLOB],
+        }
+    }
+
+    /// The generation being received, if a transfer is in progress.
+    pub fn receiving(&self) -> Option<u32> {
+        self.transfer.map(|t| t.generation)
+    }
+
+    /// The staged blob of the last completed transfer (what `Activate` is to persist).
+    pub fn blob(&self, len: usize) -> &[u8] {
+        self.staging.get(..len).unwrap_or(&[])
+    }
+
+    /// Forgets any transfer in progress.
+    pub fn abort(&mut self) {
+        self.transfer = None;
+    }
+
+    /// Handles a config message; `running` is the generation of the running table (0 when
+    /// unconfigured). Other messages are answered with `None`.
+    pub fn on_message(&mut self, msg: &Message<'_>, running: u32) -> Option<Outcome> {
+        let reply = |r| Some(Outcome::Reply(r));
+        match *msg {
+            Message::ConfigBegin {
+                generation,
+                len,
+                crc,
+                force,
+            } => {
+                if let Some(t) = self.transfer.filter(|t| t.generation == generation) {
+                    // A repeated begin: say where we are.
+                    return reply(ConfigReply::Next { next: t.received });
+                }
+                if generation <= running && !force {
+                    return reply(ConfigReply::Refused(Refusal::Stale { running }));
+                }
+                if usize::from(len) > MAX_BLOB {
+                    return reply(ConfigReply::Refused(Refusal::TooLong));
+                }
+                self.transfer = Some(Transfer {
+                    generation,
+                    len,
+                    crc,
+                    have: 0,
+                    received: 0,
+                });
+                reply(ConfigReply::Next { next: 0 })
+            }
+            Message::ConfigChunk {
+                generation,
+                offset,
+                data,
+            } => {
+                let Some(t) = self
+                    .transfer
+                    .as_mut()
+                    .filter(|t| t.generation == generation)
+                else {
+                    return reply(ConfigReply::Refused(Refusal::OutOfSequence));
+                };
+                // Chunks may arrive in any order; each has a fixed place and length.
+                let offset = usize::from(offset);
+                let index = offset / CHUNK_DATA;
+                if offset % CHUNK_DATA == 0
+                    && index < t.chunks()
+                    && data.len() == t.chunk_len(index)
+                {
+                    if let Some(dst) = self.staging.get_mut(offset..offset + data.len()) {
+                        dst.copy_from_slice(data);
+                        t.have |= 1 << index;
+                        t.update_received();
+                    }
+                }
+                reply(ConfigReply::Next { next: t.received })
+            }
+            Message::ConfigEnd { generation } => {
+                let Some(t) = self.transfer.filter(|t| t.generation == generation) else {
+                    // The end of the transfer that is now running: its answer was lost.
+                    if generation == running && running != 0 {
+                        return reply(ConfigReply::Activated);
+                    }
+                    return reply(ConfigReply::Refused(Refusal::OutOfSequence));
+                };
+                if t.received != t.len {
+                    return reply(ConfigReply::Next { next: t.received });
+                }
+                self.transfer = None;
+                let blob = self.blob(usize::from(t.len));
+                if CRC32.checksum(blob) != t.crc {
+                    return reply(ConfigReply::Refused(Refusal::Crc));
+                }
+                match decode(blob) {
+                    Ok(table) if table.generation == generation => {
+                        Some(Outcome::Activate { table, generation })
+                    }
+                    _ => reply(ConfigReply::Refused(Refusal::Invalid)),
+                }
+            }
+            _ => None,
+        }
+    }
+}
+
+/// Where the tool's transfer stands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Progress {
+    /// Still sending.
+    Busy,
+    /// The node activated the table.
+    Done,
+    /// The node refused it.
+    Refused(Refusal),
+    /// The node stopped answering.
+    GaveUp,
+}
+
+/// Counters of one transfer.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TransferStats {
+    pub frames: u32,
+    pub retries: u32,
+    pub bytes: u32,
+}
+
+/// The tool's side of one transfer to one node.
+#[derive(Debug, Clone)]
+pub struct Sender<'b> {
+    blob: &'b [u8],
+    generation: u32,
+    force: bool,
+    /// Acknowledged bytes (the node's `next`); `None` until the begin is answered.
+    acked: Option<u16>,
+    /// Bytes sent at least once.
+    sent: u16,
+    ended: bool,
+    progress: Progress,
+    deadline: u64,
+    timeouts: u8,
+    stats: TransferStats,
+}
+
+impl<'b> Sender<'b> {
+    /// A transfer of `blob` (an encoded table of `generation`).
+    pub fn new(blob: &'b [u8], generation: u32, force: bool) -> Self {
+        Sender {
+            blob,
+            generation,
+            force,
+            acked: None,
+            sent: 0,
+            ended: false,
+            progress: Progress::Busy,
+            deadline: 0,
+            timeouts: 0,
+            stats: TransferStats::default(),
+        }
+    }
+
+    pub fn progress(&self) -> Progress {
+        self.progress
+    }
+
+    pub fn stats(&self) -> TransferStats {
+        self.stats
+    }
+
+    /// Bytes the node has acknowledged.
+    pub fn acked(&self) -> usize {
+        usize::from(self.acked.unwrap_or(0))
+    }
+
+    fn chunk(&self, offset: u16) -> Message<'b> {
+        let start = usize::from(offset).min(self.blob.len());
+        let end = (start + CHUNK_DATA).min(self.blob.len());
+        Message::ConfigChunk {
+            generation: self.generation,
+            offset,
+            data: &self.blob[start..end],
+        }
+    }
+
+    fn send(&mut self, msg: Message<'b>, send: &mut impl FnMut(Message<'b>)) {
+        if let Message::ConfigChunk { data, .. } = &msg {
+            self.stats.bytes += data.len() as u32;
+        }
+        self.stats.frames += 1;
+        send(msg);
+    }
+
+    /// Sends the window from the acknowledged point: chunks not yet sent, or (`resend`)
+    /// all of them.
+    fn fill(&mut self, resend: bool, send: &mut impl FnMut(Message<'b>)) {
+        let Some(acked) = self.acked else {
+            let crc = CRC32.checksum(self.blob);
+            let begin = Message::ConfigBegin {
+                generation: self.generation,
+                len: self.blob.len() as u16,
+                crc,
+                force: self.force,
+            };
+            self.send(begin, send);
+            return;
+        };
+        let total = self.blob.len() as u16;
+        if acked >= total {
+            if resend || !self.ended {
+                self.ended = true;
+                self.send(
+                    Message::ConfigEnd {
+                        generation: self.generation,
+                    },
+                    send,
+                );
+            }
+            return;
+        }
+        let window_end = (usize::from(acked) + WINDOW * CHUNK_DATA).min(self.blob.len()) as u16;
+        let mut offset = if resend { acked } else { self.sent.max(acked) };
+        while offset < window_end {
+            let msg = self.chunk(offset);
+            self.send(msg, send);
+            offset = (usize::from(offset) + CHUNK_DATA).min(self.blob.len()) as u16;
+        }
+        self.sent = self.sent.max(offset);
+    }
+
+    /// Starts the transfer (sends the begin).
+    pub fn start(&mut self, now: u64, mut send: impl FnMut(Message<'b>)) {
+        if self.blob.len() > usize::from(u16::MAX) {
+            self.progress = Progress::Refused(Refusal::TooLong);
+            return;
+        }
+        self.fill(false, &mut send);
+        self.deadline = now + RTO_MS;
+    }
+
+    /// A reply from the node.
+    pub fn on_reply(
+        &mut self,
+        generation: u32,
+        reply: ConfigReply,
+        now: u64,
+        mut send: impl FnMut(Message<'b>),
+    ) {
+        if generation != self.generation || self.progress != Progress::Busy {
+            return;
+        }
+        match reply {
+            ConfigReply::Next { next } => {
+                if next as usize > self.blob.len() {
+                    return;
+                }
+                let progressed = self.acked.is_none_or(|a| next > a);
+                if !progressed {
+                    return;
+                }
+                self.acked = Some(next);
+                self.timeouts = 0;
+                self.fill(false, &mut send);
+                self.deadline = now + RTO_MS;
+            }
+            ConfigReply::Activated => {
+                if self.ended {
+                    self.progress = Progress::Done;
+                }
+            }
+            ConfigReply::Refused(why) => self.progress = Progress::Refused(why),
+        }
+    }
+
+    /// Resends after a timeout.
+    pub fn poll(&mut self, now: u64, mut send: impl FnMut(Message<'b>)) {
+        if self.progress != Progress::Busy || now < self.deadline {
+            return;
+        }
+        self.timeouts += 1;
+        if self.timeouts > GIVE_UP_AFTER {
+            self.progress = Progress::GaveUp;
+            return;
+        }
+        let before = self.stats.frames;
+        self.fill(true, &mut send);
+        self.stats.retries += self.stats.frames - before;
+        self.deadline = now + RTO_MS;
+    }
+
+    /// When [`Sender::poll`] next has work.
+    pub fn deadline(&self) -> u64 {
+        self.deadline
+    }
+}

@@ -1,0 +1,300 @@
+//! Over-the-air transfer: the node activates a table only when the whole blob arrived, its
+//! CRC-32 matches and it decodes and validates; anything else leaves the old table running.
+
+mod support;
+use support::{Channel, Rng};
+
+use config_schema::limits::MAX_BLOB;
+use config_schema::wire::msg::{ConfigReply, Message, Refusal, CHUNK_DATA};
+use config_schema::{encode, Action, Output, Table, Transition};
+use node_fw::ota::{Outcome, Progress, Receiver, Sender};
+
+/// A valid table of `generation` whose blob spans several chunks.
+fn blob(generation: u32, states: usize) -> (Table, Vec<u8>) {
+    let mut t = Table::empty("VC");
+    t.generation = generation;
+    let ev = t.push_event().unwrap();
+    t.outputs
+        .push(Output {
+            pin: 3,
+            safe: false,
+        })
+        .unwrap();
+    let drive = [Action::Drive { mask: 1, value: 1 }];
+    let actions: Vec<&[Action]> = (0..states).map(|_| &drive[..]).collect();
+    let transitions: Vec<Transition> = (0..states)
+        .map(|s| Transition {
+            from: s as u8,
+            to: ((s + 1) % states) as u8,
+            trigger: Some(0),
+            guard: None,
+        })
+        .collect();
+    t.push_chart(0, 1, &actions, &transitions).unwrap();
+    t.routes
+        .push(config_schema::Route {
+            event: ev,
+            chart: 0,
+            input: 0,
+        })
+        .unwrap();
+    let mut buf = vec![0u8; MAX_BLOB];
+    let n = encode(&t, &mut buf).unwrap();
+    buf.truncate(n);
+    (t, buf)
+}
+
+/// What the node ended with.
+struct Node {
+    rx: Receiver,
+    running: u32,
+    activations: Vec<Table>,
+}
+
+impl Node {
+    fn new(running: u32) -> Self {
+        Node {
+            rx: Receiver::new(),
+            running,
+            activations: Vec::new(),
+        }
+    }
+    /// Handles a message as the runtime would; returns the reply.
+    fn handle(&mut self, msg: &Message) -> Option<(u32, ConfigReply)> {
+        let generation = match *msg {
+            Message::ConfigBegin { generation, .. }
+            | Message::ConfigChunk { generation, .. }
+            | Message::ConfigEnd { generation } => generation,
+            _ => return None,
+        };
+        match self.rx.on_message(msg, self.running)? {
+            Outcome::Reply(r) => Some((generation, r)),
+            Outcome::Activate { table, generation } => {
+                self.running = generation;
+                self.activations.push(table);
+                Some((generation, ConfigReply::Activated))
+            }
+        }
+    }
+}
+
+/// Runs a transfer over a lossy channel pair until the sender settles (or `limit` ms).
+fn transfer(node: &mut Node, sender: &mut Sender, loss: f64, dup: f64, seed: u64) -> u64 {
+    let mut rng = Rng::new(seed);
+    let mut down: Channel<Message> = Channel::new(loss, dup, (1, 6));
+    let mut up: Channel<(u32, ConfigReply)> = Channel::new(loss, dup, (1, 6));
+    let mut now = 0;
+    let mut out = Vec::new();
+    sender.start(now, |m| out.push(m));
+    while sender.progress() == Progress::Busy && now < 60_000 {
+        for m in out.drain(..) {
+            if std::env::var("OTA_TRACE").is_ok() {
+                eprintln!("{now} -> {m:?}");
+            }
+            down.send(&mut rng, now, m);
+        }
+        for m in down.due(now) {
+            if let Some(r) = node.handle(&m) {
+                up.send(&mut rng, now, r);
+            }
+        }
+        for (generation, reply) in up.due(now) {
+            sender.on_reply(generation, reply, now, |m| out.push(m));
+        }
+        sender.poll(now, |m| out.push(m));
+        now += 1;
+    }
+    now
+}
+
+#[test]
+fn a_clean_transfer_activates_the_decoded_table_once() {
+    let (table, bytes) = blob(5, 30);
+    assert!(bytes.len() > 2 * CHUNK_DATA, "spans several chunks");
+    let mut node = Node::new(4);
+    let mut tx = Sender::new(&bytes, 5, false);
+    transfer(&mut node, &mut tx, 0.0, 0.0, 1);
+    assert_eq!(tx.progress(), Progress::Done);
+    assert_eq!(node.activations, vec![table]);
+    assert_eq!(node.running, 5);
+    let chunks = bytes.len().div_ceil(CHUNK_DATA) as u32;
+    // begin + chunks + end, nothing resent.
+    assert_eq!(tx.stats().frames, chunks + 2);
+    assert_eq!(tx.stats().retries, 0);
+    assert_eq!(tx.stats().bytes as usize, bytes.len());
+}
+
+#[test]
+fn lossy_transfers_complete_with_exactly_one_activation() {
+    let (table, bytes) = blob(9, 40);
+    for seed in 1..=30 {
+        let mut node = Node::new(2);
+        let mut tx = Sender::new(&bytes, 9, false);
+        transfer(&mut node, &mut tx, 0.2, 0.1, seed);
+        assert_eq!(tx.progress(), Progress::Done, "seed {seed}");
+        assert_eq!(node.activations, vec![table.clone()], "seed {seed}");
+    }
+}
+
+#[test]
+fn a_stale_generation_is_refused_unless_forced() {
+    let (table, bytes) = blob(3, 2);
+    for running in [3, 7] {
+        let mut node = Node::new(running);
+        let mut tx = Sender::new(&bytes, 3, false);
+        transfer(&mut node, &mut tx, 0.0, 0.0, 1);
+        assert_eq!(tx.progress(), Progress::Refused(Refusal::Stale { running }));
+        assert!(node.activations.is_empty());
+    }
+    let mut node = Node::new(7);
+    let mut tx = Sender::new(&bytes, 3, true);
+    transfer(&mut node, &mut tx, 0.0, 0.0, 1);
+    assert_eq!(tx.progress(), Progress::Done);
+    assert_eq!(node.activations, vec![table]);
+}
+
+#[test]
+fn a_wrong_total_crc_is_refused_and_nothing_is_activated() {
+    let (_, bytes) = blob(2, 10);
+    let mut rx = Receiver::new();
+    let begin = Message::ConfigBegin {
+        generation: 2,
+        len: bytes.len() as u16,
+        crc: 0xDEAD_BEEF,
+        force: false,
+    };
+    assert_eq!(
+        rx.on_message(&begin, 1),
+        Some(Outcome::Reply(ConfigReply::Next { next: 0 }))
+    );
+    for (i, data) in bytes.chunks(CHUNK_DATA).enumerate() {
+        let chunk = Message::ConfigChunk {
+            generation: 2,
+            offset: (i * CHUNK_DATA) as u16,
+            data,
+        };
+        rx.on_message(&chunk, 1);
+    }
+    assert_eq!(
+        rx.on_message(&Message::ConfigEnd { generation: 2 }, 1),
+        Some(Outcome::Reply(ConfigReply::Refused(Refusal::Crc)))
+    );
+    assert_eq!(rx.receiving(), None);
+}
+
+#[test]
+fn a_blob_that_does_not_decode_is_refused() {
+    let (_, mut bytes) = blob(2, 3);
+    bytes[0] = b'X'; // bad magic, but the transfer CRC covers the damaged bytes
+    let mut node = Node::new(1);
+    let mut tx = Sender::new(&bytes, 2, false);
+    transfer(&mut node, &mut tx, 0.0, 0.0, 1);
+    assert_eq!(tx.progress(), Progress::Refused(Refusal::Invalid));
+    assert!(node.activations.is_empty());
+    assert_eq!(node.running, 1);
+}
+
+#[test]
+fn chunks_out_of_place_are_not_staged_and_the_node_says_where_it_is() {
+    let (_, bytes) = blob(2, 40);
+    assert!(bytes.len() > 3 * CHUNK_DATA);
+    let mut rx = Receiver::new();
+    let begin = Message::ConfigBegin {
+        generation: 2,
+        len: bytes.len() as u16,
+        crc: config_schema::blob::CRC32.checksum(&bytes),
+        force: false,
+    };
+    rx.on_message(&begin, 0);
+    let chunk = |offset: usize| Message::ConfigChunk {
+        generation: 2,
+        offset: offset as u16,
+        data: &bytes[offset..(offset + CHUNK_DATA).min(bytes.len())],
+    };
+    let next = |n| Some(Outcome::Reply(ConfigReply::Next { next: n }));
+    // Chunk 1 before chunk 0: staged, but the node still needs byte 0.
+    assert_eq!(rx.on_message(&chunk(CHUNK_DATA), 0), next(0), "early");
+    assert_eq!(rx.on_message(&chunk(0), 0), next(2 * CHUNK_DATA as u16));
+    assert_eq!(
+        rx.on_message(&chunk(0), 0),
+        next(2 * CHUNK_DATA as u16),
+        "dup"
+    );
+    // A chunk off its place, or cut short, is not staged.
+    let misplaced = Message::ConfigChunk {
+        generation: 2,
+        offset: 2 * CHUNK_DATA as u16 + 1,
+        data: &bytes[..CHUNK_DATA],
+    };
+    assert_eq!(rx.on_message(&misplaced, 0), next(2 * CHUNK_DATA as u16));
+    let short = Message::ConfigChunk {
+        generation: 2,
+        offset: 2 * CHUNK_DATA as u16,
+        data: &bytes[2 * CHUNK_DATA..2 * CHUNK_DATA + 10],
+    };
+    assert_eq!(rx.on_message(&short, 0), next(2 * CHUNK_DATA as u16));
+    let other = Message::ConfigChunk {
+        generation: 3,
+        offset: CHUNK_DATA as u16,
+        data: &bytes[..4],
+    };
+    assert_eq!(
+        rx.on_message(&other, 0),
+        Some(Outcome::Reply(ConfigReply::Refused(Refusal::OutOfSequence)))
+    );
+    // An early end is answered with where the node is.
+    assert_eq!(
+        rx.on_message(&Message::ConfigEnd { generation: 2 }, 0),
+        next(2 * CHUNK_DATA as u16)
+    );
+    assert_eq!(rx.receiving(), Some(2));
+}
+
+#[test]
+fn an_interrupted_transfer_activates_nothing_and_a_newer_one_restarts() {
+    let (_, old) = blob(4, 30);
+    let (table, new) = blob(5, 12);
+    let mut node = Node::new(3);
+    // The tool dies after the begin and two chunks.
+    let mut tx = Sender::new(&old, 4, false);
+    let mut out = Vec::new();
+    tx.start(0, |m| out.push(m));
+    let reply = node.handle(&out[0]).unwrap();
+    out.clear();
+    tx.on_reply(reply.0, reply.1, 1, |m| out.push(m));
+    for m in out.iter().take(2) {
+        node.handle(m);
+    }
+    assert_eq!(node.rx.receiving(), Some(4));
+    assert!(node.activations.is_empty());
+    assert_eq!(node.running, 3);
+    // A newer transfer starts over.
+    let mut tx = Sender::new(&new, 5, false);
+    transfer(&mut node, &mut tx, 0.0, 0.0, 2);
+    assert_eq!(tx.progress(), Progress::Done);
+    assert_eq!(node.activations, vec![table]);
+}
+
+#[test]
+fn a_lost_activated_reply_is_answered_again_not_refused() {
+    let (_, bytes) = blob(6, 3);
+    let mut node = Node::new(0);
+    let mut tx = Sender::new(&bytes, 6, false);
+    transfer(&mut node, &mut tx, 0.0, 0.0, 1);
+    assert_eq!(node.running, 6);
+    assert_eq!(
+        node.handle(&Message::ConfigEnd { generation: 6 }),
+        Some((6, ConfigReply::Activated))
+    );
+    assert_eq!(node.activations.len(), 1);
+}
+
+#[test]
+fn a_node_that_never_answers_makes_the_tool_give_up() {
+    let (_, bytes) = blob(6, 3);
+    let mut node = Node::new(0);
+    let mut tx = Sender::new(&bytes, 6, false);
+    transfer(&mut node, &mut tx, 1.0, 0.0, 1);
+    assert_eq!(tx.progress(), Progress::GaveUp);
+    assert!(node.activations.is_empty());
+}

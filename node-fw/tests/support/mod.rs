@@ -1,0 +1,64 @@
+//! A deterministic lossy radio for the protocol tests: loss, duplication, and reordering by
+//! a random delay per frame.
+#![allow(dead_code)]
+
+/// A deterministic xorshift generator.
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Self {
+        Rng(seed | 1)
+    }
+    pub fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+    pub fn chance(&mut self, p: f64) -> bool {
+        (self.next() % 10_000) as f64 / 10_000.0 < p
+    }
+    pub fn range(&mut self, lo: u64, hi: u64) -> u64 {
+        lo + self.next() % (hi - lo + 1)
+    }
+}
+
+/// Frames in flight in one direction, each with its arrival time.
+pub struct Channel<M> {
+    pub loss: f64,
+    pub dup: f64,
+    pub delay: (u64, u64),
+    flight: Vec<(u64, M)>,
+    /// Frames handed to the channel.
+    pub sent: usize,
+}
+
+impl<M: Clone> Channel<M> {
+    pub fn new(loss: f64, dup: f64, delay: (u64, u64)) -> Self {
+        Channel {
+            loss,
+            dup,
+            delay,
+            flight: Vec::new(),
+            sent: 0,
+        }
+    }
+    pub fn send(&mut self, rng: &mut Rng, now: u64, msg: M) {
+        self.sent += 1;
+        let copies = if rng.chance(self.dup) { 2 } else { 1 };
+        for _ in 0..copies {
+            if !rng.chance(self.loss) {
+                let at = now + rng.range(self.delay.0, self.delay.1);
+                self.flight.push((at, msg.clone()));
+            }
+        }
+    }
+    /// Frames arriving at or before `now`, in arrival order.
+    pub fn due(&mut self, now: u64) -> Vec<M> {
+        let (mut due, later): (Vec<_>, Vec<_>) =
+            self.flight.drain(..).partition(|(t, _)| *t <= now);
+        self.flight = later;
+        due.sort_by_key(|(t, _)| *t);
+        due.into_iter().map(|(_, m)| m).collect()
+    }
+}
