@@ -3,6 +3,7 @@
 //! - [`ecc`]: the table interpreter (pure, `no_std`, no allocation, no Embassy).
 //! - [`link`]: reliable, ordered event delivery over a lossy radio (pure state machines).
 //! - [`ota`]: over-the-air table transfer, node and tool sides (pure state machines).
+//! - [`slots`]: the two table slots in flash, committed last so a power cut loses nothing.
 //! - `sim` (feature `std`): the host's deterministic virtual-time world with plant models.
 #![cfg_attr(not(feature = "std"), no_std)]
 #![forbid(unsafe_code)]
@@ -10,5 +11,6 @@
 pub mod ecc;
 pub mod link;
 pub mod ota;
+pub mod slots;
 #[cfg(feature = "std")]
 pub mod sim;

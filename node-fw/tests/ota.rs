@@ -2,47 +2,11 @@
 //! CRC-32 matches and it decodes and validates; anything else leaves the old table running.
 
 mod support;
-use support::{Channel, Rng};
+use support::{blob, Channel, Rng};
 
-use config_schema::limits::MAX_BLOB;
 use config_schema::wire::msg::{ConfigReply, Message, Refusal, CHUNK_DATA};
-use config_schema::{encode, Action, Output, Table, Transition};
+use config_schema::Table;
 use node_fw::ota::{Outcome, Progress, Receiver, Sender};
-
-/// A valid table of `generation` whose blob spans several chunks.
-fn blob(generation: u32, states: usize) -> (Table, Vec<u8>) {
-    let mut t = Table::empty("VC");
-    t.generation = generation;
-    let ev = t.push_event().unwrap();
-    t.outputs
-        .push(Output {
-            pin: 3,
-            safe: false,
-        })
-        .unwrap();
-    let drive = [Action::Drive { mask: 1, value: 1 }];
-    let actions: Vec<&[Action]> = (0..states).map(|_| &drive[..]).collect();
-    let transitions: Vec<Transition> = (0..states)
-        .map(|s| Transition {
-            from: s as u8,
-            to: ((s + 1) % states) as u8,
-            trigger: Some(0),
-            guard: None,
-        })
-        .collect();
-    t.push_chart(0, 1, &actions, &transitions).unwrap();
-    t.routes
-        .push(config_schema::Route {
-            event: ev,
-            chart: 0,
-            input: 0,
-        })
-        .unwrap();
-    let mut buf = vec![0u8; MAX_BLOB];
-    let n = encode(&t, &mut buf).unwrap();
-    buf.truncate(n);
-    (t, buf)
-}
 
 /// What the node ended with.
 struct Node {

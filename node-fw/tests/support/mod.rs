@@ -2,6 +2,9 @@
 //! a random delay per frame.
 #![allow(dead_code)]
 
+use config_schema::limits::MAX_BLOB;
+use config_schema::{encode, Action, Output, Route, Table, Transition};
+
 /// A deterministic xorshift generator.
 pub struct Rng(pub u64);
 
@@ -61,4 +64,39 @@ impl<M: Clone> Channel<M> {
         due.sort_by_key(|(t, _)| *t);
         due.into_iter().map(|(_, m)| m).collect()
     }
+}
+/// A valid table of `generation`: one chart cycling through `states` states (its blob grows
+/// with `states`), and its encoded blob.
+pub fn blob(generation: u32, states: usize) -> (Table, Vec<u8>) {
+    let mut t = Table::empty("VC");
+    t.generation = generation;
+    let ev = t.push_event().unwrap();
+    t.outputs
+        .push(Output {
+            pin: 3,
+            safe: false,
+        })
+        .unwrap();
+    let drive = [Action::Drive { mask: 1, value: 1 }];
+    let actions: Vec<&[Action]> = (0..states).map(|_| &drive[..]).collect();
+    let transitions: Vec<Transition> = (0..states)
+        .map(|s| Transition {
+            from: s as u8,
+            to: ((s + 1) % states) as u8,
+            trigger: Some(0),
+            guard: None,
+        })
+        .collect();
+    t.push_chart(0, 1, &actions, &transitions).unwrap();
+    t.routes
+        .push(Route {
+            event: ev,
+            chart: 0,
+            input: 0,
+        })
+        .unwrap();
+    let mut buf = vec![0u8; MAX_BLOB];
+    let n = encode(&t, &mut buf).unwrap();
+    buf.truncate(n);
+    (t, buf)
 }
