@@ -1,1 +1,175 @@
-fn main() {}
+//! The `config-tool` command line. The work is in the library; this parses arguments,
+//! prints, and sets the exit status.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand, ValueEnum};
+use config_tool::{check, compile, diagram, dump, sim, Diagnostic, Source};
+
+#[derive(Parser)]
+#[command(
+    name = "config-tool",
+    version,
+    about = "Check, compile, dump, draw and simulate RON robot descriptions"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Parse and validate a robot: every problem, with file:line:col.
+    Check { robot: PathBuf },
+    /// Compile a robot to one table blob per role (`DIR/ROLE.bin`).
+    Compile {
+        robot: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Print a table blob in readable form.
+    Dump { blob: PathBuf },
+    /// Print a role's charts as Graphviz DOT (or SVG through `dot`).
+    Diagram {
+        robot: PathBuf,
+        #[arg(long)]
+        role: String,
+        #[arg(long, value_enum, default_value = "dot")]
+        format: Format,
+    },
+    /// Run the compiled blobs on the host interpreter with plant models, on virtual time.
+    Sim {
+        robot: PathBuf,
+        #[arg(long, default_value_t = 3)]
+        cycles: usize,
+        /// Print every trace entry.
+        #[arg(long)]
+        trace: bool,
+    },
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Format {
+    Dot,
+    Svg,
+}
+
+fn load(path: &Path) -> Result<Source, String> {
+    std::fs::read_to_string(path)
+        .map(|text| Source::new(path.display().to_string(), text))
+        .map_err(|e| format!("error: cannot read {}: {e}", path.display()))
+}
+
+fn report(src: &Source, diags: &[Diagnostic]) {
+    use std::io::IsTerminal;
+    let color = std::io::stderr().is_terminal();
+    for d in diags {
+        eprint!("{}", d.render(src, color));
+    }
+    let errors = diags.iter().filter(|d| d.is_error()).count();
+    let warnings = diags.len() - errors;
+    if errors + warnings > 0 {
+        eprintln!("{}: {errors} error(s), {warnings} warning(s)", src.name);
+    }
+}
+
+fn run(cli: Cli) -> Result<(), String> {
+    match cli.command {
+        Command::Check { robot } => {
+            let src = load(&robot)?;
+            let (_, diags) = check::check(&src);
+            report(&src, &diags);
+            if diags.iter().any(Diagnostic::is_error) {
+                return Err(String::new());
+            }
+            println!("{}: ok", src.name);
+            Ok(())
+        }
+        Command::Compile { robot, out } => {
+            let src = load(&robot)?;
+            let compiled = compile::compile(&src).map_err(|d| {
+                report(&src, &d);
+                String::new()
+            })?;
+            report(&src, &compiled.warnings);
+            std::fs::create_dir_all(&out).map_err(|e| format!("error: {}: {e}", out.display()))?;
+            for (role, blob) in compiled.ir.roles.iter().zip(&compiled.blobs) {
+                let path = out.join(format!("{}.bin", role.name));
+                std::fs::write(&path, blob)
+                    .map_err(|e| format!("error: {}: {e}", path.display()))?;
+            }
+            for line in compile::summary(&compiled) {
+                println!("{line}");
+            }
+            if compiled.robot.sequence.is_some() {
+                let radio = compile::radio_events(&compiled.ir);
+                println!("radio publications per cycle: {}", radio.len());
+                for (from, event, to) in radio {
+                    println!("  {from} -> {to}: {event}");
+                }
+            }
+            Ok(())
+        }
+        Command::Dump { blob } => {
+            let bytes = std::fs::read(&blob)
+                .map_err(|e| format!("error: cannot read {}: {e}", blob.display()))?;
+            let text = dump::dump(&bytes)
+                .map_err(|e| format!("error: {}: not a valid table blob: {e}", blob.display()))?;
+            print!("{text}");
+            Ok(())
+        }
+        Command::Diagram {
+            robot,
+            role,
+            format,
+        } => {
+            let src = load(&robot)?;
+            let compiled = compile::compile(&src).map_err(|d| {
+                report(&src, &d);
+                String::new()
+            })?;
+            let dot = diagram::dot(&compiled.ir, &role).map_err(|e| format!("error: {e}"))?;
+            match format {
+                Format::Dot => print!("{dot}"),
+                Format::Svg => print!("{}", diagram::svg(&dot).map_err(|e| format!("error: {e}"))?),
+            }
+            Ok(())
+        }
+        Command::Sim {
+            robot,
+            cycles,
+            trace,
+        } => {
+            let src = load(&robot)?;
+            let compiled = compile::compile(&src).map_err(|d| {
+                report(&src, &d);
+                String::new()
+            })?;
+            let result = sim::simulate(&compiled, cycles).map_err(|e| format!("error: {e}"))?;
+            if trace {
+                for line in &result.trace {
+                    println!("{line}");
+                }
+            }
+            print!("{}", result.report());
+            if result.ok() {
+                Ok(())
+            } else {
+                Err(String::new())
+            }
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(message) => {
+            if !message.is_empty() {
+                eprintln!("{message}");
+            }
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,113 @@
+//! Chart types: states unreachable from the initial state (warning), and two transitions
+//! from one state on one event whose guards can both hold (warning: the first declared
+//! wins, which may not be what was meant).
+
+use std::collections::BTreeMap;
+
+use crate::diag::Diagnostic;
+use crate::expr;
+use crate::model::{ChartType, Robot};
+use crate::source::Source;
+
+pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
+    for (ti, t) in robot.chart_types.iter().enumerate() {
+        unreachable(t, ti, src, out);
+        // Parameter values of every instance (or none: parameters free).
+        let mut instances: Vec<BTreeMap<String, i32>> = robot
+            .roles
+            .iter()
+            .flat_map(|r| r.charts.iter())
+            .filter(|c| c.type_ == t.name)
+            .map(|c| c.params.clone())
+            .collect();
+        if instances.is_empty() {
+            instances.push(BTreeMap::new());
+        }
+        overlaps(t, ti, &instances, src, out);
+    }
+}
+
+fn unreachable(t: &ChartType, ti: usize, src: &Source, out: &mut Vec<Diagnostic>) {
+    let Some(initial) = t.states.first() else {
+        out.push(Diagnostic::error(
+            src.span(&format!("chart_types[{ti}].states")),
+            format!("chart type `{}` has no states", t.name),
+        ));
+        return;
+    };
+    let mut reached = vec![initial.name.as_str()];
+    let mut k = 0;
+    while k < reached.len() {
+        let from = reached[k];
+        for tr in t.transitions.iter().filter(|tr| tr.from == from) {
+            if !reached.contains(&tr.to.as_str()) {
+                reached.push(&tr.to);
+            }
+        }
+        k += 1;
+    }
+    for (si, s) in t.states.iter().enumerate() {
+        if !reached.contains(&s.name.as_str()) {
+            out.push(
+                Diagnostic::warning(
+                    src.span(&format!("chart_types[{ti}].states[{si}].name")),
+                    format!(
+                        "state `{}` of chart type `{}` is unreachable from its initial state `{}`",
+                        s.name, t.name, initial.name
+                    ),
+                )
+                .label("no transition leads here"),
+            );
+        }
+    }
+}
+
+fn overlaps(
+    t: &ChartType,
+    ti: usize,
+    instances: &[BTreeMap<String, i32>],
+    src: &Source,
+    out: &mut Vec<Diagnostic>,
+) {
+    let always = expr::Ast::Int(1);
+    let guards: Vec<Option<expr::Ast>> = t
+        .transitions
+        .iter()
+        .map(|tr| match &tr.when {
+            Some(text) => expr::parse(text).ok(),
+            None => Some(always.clone()),
+        })
+        .collect();
+    for (j, b) in t.transitions.iter().enumerate() {
+        for (i, a) in t.transitions.iter().enumerate().take(j) {
+            if a.from != b.from || a.on != b.on {
+                continue;
+            }
+            let (Some(ga), Some(gb)) = (&guards[i], &guards[j]) else {
+                continue;
+            };
+            let both = instances.iter().any(|params| {
+                let fixed = |n: &str| params.get(n).copied();
+                expr::may_overlap(ga, gb, &fixed)
+            });
+            if both {
+                let on = match &b.on {
+                    Some(e) => format!("on `{e}`"),
+                    None => String::from("without an event"),
+                };
+                let path = format!("chart_types[{ti}].transitions");
+                let (line, col) = src.line_col(src.span(&format!("{path}[{i}]")).start);
+                out.push(
+                    Diagnostic::warning(
+                        src.span(&format!("{path}[{j}]")),
+                        format!(
+                            "transitions `{} -> {}` and `{} -> {}` leave `{}` {on} and both guards can hold: the first declared wins",
+                            a.from, a.to, b.from, b.to, b.from
+                        ),
+                    )
+                    .label(format!("overlaps the transition at {line}:{col}")),
+                );
+            }
+        }
+    }
+}

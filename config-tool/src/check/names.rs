@@ -1,0 +1,166 @@
+//! Duplicate names: nodes, roles, actuators (robot-wide: sequences name them), pins of a
+//! role, charts of a role, chart types, and the states, variables, inputs, outputs,
+//! timers and parameters of a chart type.
+
+use std::collections::BTreeMap;
+
+use super::duplicate;
+use crate::diag::Diagnostic;
+use crate::model::Robot;
+use crate::source::Source;
+
+fn dups<'a>(
+    src: &Source,
+    what: &str,
+    items: impl Iterator<Item = (&'a str, String)>,
+    out: &mut Vec<Diagnostic>,
+) {
+    let mut seen: BTreeMap<&str, String> = BTreeMap::new();
+    for (name, path) in items {
+        match seen.get(name) {
+            Some(first) => out.push(duplicate(src, what, name, first, &path)),
+            None => {
+                seen.insert(name, path);
+            }
+        }
+    }
+}
+
+pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
+    dups(
+        src,
+        "node name",
+        robot
+            .nodes
+            .iter()
+            .enumerate()
+            .map(|(i, n)| (n.name.as_str(), format!("nodes[{i}].name"))),
+        out,
+    );
+    dups(
+        src,
+        "role name",
+        robot
+            .roles
+            .iter()
+            .enumerate()
+            .map(|(i, r)| (r.name.as_str(), format!("roles[{i}].name"))),
+        out,
+    );
+    dups(
+        src,
+        "actuator name",
+        robot.roles.iter().enumerate().flat_map(|(i, r)| {
+            r.actuators
+                .iter()
+                .enumerate()
+                .map(move |(a, x)| (x.name.as_str(), format!("roles[{i}].actuators[{a}].name")))
+        }),
+        out,
+    );
+    for (i, r) in robot.roles.iter().enumerate() {
+        let pins = r
+            .actuators
+            .iter()
+            .enumerate()
+            .map(|(a, x)| (x.name.as_str(), format!("roles[{i}].actuators[{a}].name")))
+            .chain(
+                r.inputs
+                    .iter()
+                    .enumerate()
+                    .map(|(k, x)| (x.name.as_str(), format!("roles[{i}].inputs[{k}].name"))),
+            )
+            .chain(
+                r.outputs
+                    .iter()
+                    .enumerate()
+                    .map(|(k, x)| (x.name.as_str(), format!("roles[{i}].outputs[{k}].name"))),
+            );
+        // Actuators are checked robot-wide above; here only inputs/outputs against all.
+        let mut seen: BTreeMap<&str, String> = BTreeMap::new();
+        for (name, path) in pins {
+            match seen.get(name) {
+                Some(first) if !path.contains(".actuators[") => {
+                    out.push(duplicate(src, "pin name", name, first, &path))
+                }
+                Some(_) => {}
+                None => {
+                    seen.insert(name, path);
+                }
+            }
+        }
+        dups(
+            src,
+            "chart name",
+            r.charts
+                .iter()
+                .enumerate()
+                .map(|(c, x)| (x.name.as_str(), format!("roles[{i}].charts[{c}].name"))),
+            out,
+        );
+    }
+    dups(
+        src,
+        "chart type",
+        robot
+            .chart_types
+            .iter()
+            .enumerate()
+            .map(|(i, t)| (t.name.as_str(), format!("chart_types[{i}].name"))),
+        out,
+    );
+    for (i, t) in robot.chart_types.iter().enumerate() {
+        let p = format!("chart_types[{i}]");
+        dups(
+            src,
+            "state",
+            t.states
+                .iter()
+                .enumerate()
+                .map(|(k, s)| (s.name.as_str(), format!("{p}.states[{k}].name"))),
+            out,
+        );
+        dups(
+            src,
+            "variable",
+            t.vars
+                .iter()
+                .enumerate()
+                .map(|(k, s)| (s.name.as_str(), format!("{p}.vars[{k}].name"))),
+            out,
+        );
+        dups(
+            src,
+            "event",
+            t.inputs
+                .iter()
+                .enumerate()
+                .map(|(k, s)| (s.as_str(), format!("{p}.inputs[{k}]")))
+                .chain(
+                    t.timers
+                        .iter()
+                        .enumerate()
+                        .map(|(k, s)| (s.as_str(), format!("{p}.timers[{k}]"))),
+                ),
+            out,
+        );
+        dups(
+            src,
+            "output event",
+            t.outputs
+                .iter()
+                .enumerate()
+                .map(|(k, s)| (s.as_str(), format!("{p}.outputs[{k}]"))),
+            out,
+        );
+        dups(
+            src,
+            "parameter",
+            t.params
+                .iter()
+                .enumerate()
+                .map(|(k, s)| (s.as_str(), format!("{p}.params[{k}]"))),
+            out,
+        );
+    }
+}

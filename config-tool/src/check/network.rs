@@ -1,0 +1,115 @@
+//! Nodes and role assignment: addresses used twice, unknown roles and nodes, a role played
+//! by no node or by two, a node playing two roles.
+
+use std::collections::BTreeMap;
+
+use super::duplicate;
+use crate::diag::Diagnostic;
+use crate::model::Robot;
+use crate::source::Source;
+
+pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
+    let mut addrs: BTreeMap<u16, usize> = BTreeMap::new();
+    for (i, n) in robot.nodes.iter().enumerate() {
+        let here = src.span(&format!("nodes[{i}].address"));
+        if n.address == 0xFFFF || n.address == 0xFFFE {
+            out.push(Diagnostic::error(
+                here.clone(),
+                format!("address {:#06x} is reserved by IEEE 802.15.4", n.address),
+            ));
+        }
+        match addrs.get(&n.address) {
+            Some(&first) => {
+                let (line, col) = src.line_col(src.span(&format!("nodes[{first}].address")).start);
+                out.push(
+                    Diagnostic::error(
+                        here,
+                        format!(
+                            "address {:#06x} is used by nodes `{}` and `{}`",
+                            n.address, robot.nodes[first].name, n.name
+                        ),
+                    )
+                    .label(format!("first used at {line}:{col}")),
+                );
+            }
+            None => {
+                addrs.insert(n.address, i);
+            }
+        }
+    }
+    let mut roles: BTreeMap<&str, usize> = BTreeMap::new();
+    let mut nodes: BTreeMap<&str, usize> = BTreeMap::new();
+    for (k, (role, node)) in robot.assign.iter().enumerate() {
+        if robot.role(role).is_none() {
+            out.push(
+                Diagnostic::error(
+                    src.span(&format!("assign[{k}][0]")),
+                    format!("unknown role `{role}`"),
+                )
+                .help(format!(
+                    "roles: {}",
+                    robot
+                        .roles
+                        .iter()
+                        .map(|r| r.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )),
+            );
+        } else if let Some(&first) = roles.get(role.as_str()) {
+            out.push(
+                duplicate(
+                    src,
+                    "assignment of role",
+                    role,
+                    &format!("assign[{first}][0]"),
+                    &format!("assign[{k}][0]"),
+                )
+                .help("a role runs on exactly one node: remove one of the two lines"),
+            );
+        } else {
+            roles.insert(role, k);
+        }
+        if !robot.nodes.iter().any(|n| &n.name == node) {
+            out.push(
+                Diagnostic::error(
+                    src.span(&format!("assign[{k}][1]")),
+                    format!("unknown node `{node}`"),
+                )
+                .help(format!(
+                    "nodes: {}",
+                    robot
+                        .nodes
+                        .iter()
+                        .map(|n| n.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )),
+            );
+        } else if let Some(&first) = nodes.get(node.as_str()) {
+            out.push(
+                duplicate(
+                    src,
+                    "use of node",
+                    node,
+                    &format!("assign[{first}][1]"),
+                    &format!("assign[{k}][1]"),
+                )
+                .help("a node plays one role: give the other role its own node"),
+            );
+        } else {
+            nodes.insert(node, k);
+        }
+    }
+    for (i, r) in robot.roles.iter().enumerate() {
+        if !roles.contains_key(r.name.as_str()) {
+            out.push(
+                Diagnostic::error(
+                    src.span(&format!("roles[{i}].name")),
+                    format!("role `{}` is assigned to no node", r.name),
+                )
+                .help(format!("add `(\"{}\", \"NODE\")` to `assign`", r.name)),
+            );
+        }
+    }
+}

@@ -1,0 +1,131 @@
+//! The behaviour's shape: a sequence or explicit charts (not both, not neither), the start
+//! input, and the sequence itself: undeclared actuators, a `+` on an actuator that is
+//! already out (or `-` on one at home), actuators out at the end of the cycle, actuators
+//! that never move. Also the `expect` sequence of explicit robots.
+
+use crate::diag::Diagnostic;
+use crate::elab::{start_input, string_start};
+use crate::ir::parse_steps;
+use crate::model::Robot;
+use crate::source::Source;
+
+pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
+    let has_charts = robot.roles.iter().any(|r| !r.charts.is_empty());
+    match (&robot.sequence, has_charts) {
+        (Some(_), true) => out.push(Diagnostic::error(
+            src.key_span("sequence"),
+            "a robot has either a `sequence` or explicit `charts`, not both",
+        )),
+        (None, false) => out.push(
+            Diagnostic::error(src.span(""), "the robot has no behaviour")
+                .help("add a `sequence` or give the roles `charts`"),
+        ),
+        _ => {}
+    }
+    match start_input(robot) {
+        Err(e) => out.push(Diagnostic::error(src.span("start"), e)),
+        Ok(None) if robot.sequence.is_some() => out.push(
+            Diagnostic::error(src.key_span("sequence"), "a sequence needs a `start` input")
+                .help("add `start: \"START\"` naming the button that starts a cycle"),
+        ),
+        Ok(_) => {}
+    }
+    if let Some(text) = &robot.sequence {
+        steps(robot, src, "sequence", text, true, out);
+    }
+    if let Some(text) = &robot.expect {
+        steps(robot, src, "expect", text, false, out);
+    }
+}
+
+fn steps(
+    robot: &Robot,
+    src: &Source,
+    path: &str,
+    text: &str,
+    synth: bool,
+    out: &mut Vec<Diagnostic>,
+) {
+    let base = string_start(src, path);
+    let mut out_now: Vec<(String, std::ops::Range<usize>)> = Vec::new();
+    let parsed = parse_steps(text);
+    if parsed.is_empty() {
+        out.push(Diagnostic::error(
+            src.span(path),
+            format!("`{path}` has no steps"),
+        ));
+        return;
+    }
+    for (step, span) in &parsed {
+        let here = base + span.start..base + span.end;
+        let step = match step {
+            Ok(s) => s,
+            Err(e) => {
+                out.push(Diagnostic::error(here, e.clone()));
+                continue;
+            }
+        };
+        if robot.actuator(&step.actuator).is_none() {
+            let names: Vec<&str> = robot
+                .roles
+                .iter()
+                .flat_map(|r| r.actuators.iter().map(|a| a.name.as_str()))
+                .collect();
+            out.push(
+                Diagnostic::error(here, format!("unknown actuator `{}`", step.actuator))
+                    .label("not declared by any role")
+                    .help(format!("actuators: {}", names.join(", "))),
+            );
+            continue;
+        }
+        let at = out_now.iter().position(|(a, _)| *a == step.actuator);
+        match (step.extend, at) {
+            (true, Some(i)) => {
+                let (line, col) = src.line_col(out_now[i].1.start);
+                out.push(
+                    Diagnostic::error(
+                        here,
+                        format!("`{step}`: `{}` is already out", step.actuator),
+                    )
+                    .label(format!("extended at {line}:{col} and not retracted since")),
+                );
+            }
+            (false, None) => out.push(
+                Diagnostic::error(
+                    here,
+                    format!("`{step}`: `{}` is already home", step.actuator),
+                )
+                .label("every actuator starts home (retracted)"),
+            ),
+            (true, None) => out_now.push((step.actuator.clone(), here)),
+            (false, Some(i)) => {
+                out_now.remove(i);
+            }
+        }
+    }
+    for (a, span) in out_now {
+        out.push(
+            Diagnostic::error(
+                span,
+                format!("`{a}` is still out at the end of the cycle: the cycle cannot repeat"),
+            )
+            .label("extended here, never retracted")
+            .help(format!("add `{a}-` to the cycle")),
+        );
+    }
+    if synth {
+        for (ri, r) in robot.roles.iter().enumerate() {
+            for (ai, a) in r.actuators.iter().enumerate() {
+                if !parsed
+                    .iter()
+                    .any(|(s, _)| s.as_ref().is_ok_and(|s| s.actuator == a.name))
+                {
+                    out.push(Diagnostic::warning(
+                        src.span(&format!("roles[{ri}].actuators[{ai}].name")),
+                        format!("actuator `{}` never moves in the sequence", a.name),
+                    ));
+                }
+            }
+        }
+    }
+}

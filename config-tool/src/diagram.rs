@@ -1,0 +1,106 @@
+//! `diagram`: a role's charts as Graphviz DOT: one cluster per chart, a node per state
+//! (its actions listed under the name), edges labelled `EVENT [guard]`.
+
+use std::fmt::Write;
+use std::io::Write as _;
+use std::process::{Command, Stdio};
+
+use crate::ir::Ir;
+
+fn esc(s: &str) -> String {
+    s.replace('\\', "\\\\").replace('"', "\\\"")
+}
+
+/// The DOT text of role `role`'s charts.
+pub fn dot(ir: &Ir, role: &str) -> Result<String, String> {
+    let r = ir.roles.iter().find(|r| r.name == role).ok_or_else(|| {
+        format!(
+            "unknown role `{role}` (roles: {})",
+            ir.roles
+                .iter()
+                .map(|r| r.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    })?;
+    let mut o = String::new();
+    let _ = writeln!(o, "digraph \"{}\" {{", esc(&r.name));
+    let _ = writeln!(o, "  rankdir=LR;");
+    let _ = writeln!(
+        o,
+        "  node [shape=box, style=rounded, fontname=\"Helvetica\"];"
+    );
+    let _ = writeln!(o, "  edge [fontname=\"Helvetica\", fontsize=10];");
+    for (ci, c) in r.charts.iter().enumerate() {
+        let _ = writeln!(o, "  subgraph cluster_{ci} {{");
+        let _ = writeln!(o, "    label=\"{}\";", esc(&c.name));
+        for (si, s) in c.states.iter().enumerate() {
+            let mut label = esc(&s.name);
+            for a in &s.actions {
+                label.push_str("\\l  ");
+                label.push_str(&esc(&r.action_text(c, a)));
+            }
+            if !s.actions.is_empty() {
+                label.push_str("\\l");
+            }
+            let extra = if si == c.initial {
+                ", peripheries=2"
+            } else {
+                ""
+            };
+            let _ = writeln!(o, "    c{ci}s{si} [label=\"{label}\"{extra}];");
+        }
+        for t in &c.transitions {
+            let mut label = t
+                .trigger
+                .and_then(|i| c.inputs.get(i))
+                .cloned()
+                .unwrap_or_default();
+            if let Some((text, _)) = &t.guard {
+                if !label.is_empty() {
+                    label.push(' ');
+                }
+                label.push_str(&format!("[{text}]"));
+            }
+            let _ = writeln!(
+                o,
+                "    c{ci}s{} -> c{ci}s{} [label=\"{}\"];",
+                t.from,
+                t.to,
+                esc(&label)
+            );
+        }
+        let _ = writeln!(o, "  }}");
+    }
+    let _ = writeln!(o, "}}");
+    Ok(o)
+}
+
+/// Renders DOT to SVG through Graphviz `dot`.
+pub fn svg(dot: &str) -> Result<String, String> {
+    let mut child = Command::new("dot")
+        .arg("-Tsvg")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map_err(|e| {
+            format!(
+                "cannot run Graphviz `dot` ({e}): install graphviz, or use `--format dot` and render it elsewhere"
+            )
+        })?;
+    child
+        .stdin
+        .take()
+        .ok_or("no stdin for dot")?
+        .write_all(dot.as_bytes())
+        .map_err(|e| e.to_string())?;
+    let out = child.wait_with_output().map_err(|e| e.to_string())?;
+    if !out.status.success() {
+        return Err(format!(
+            "dot failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        ));
+    }
+    String::from_utf8(out.stdout).map_err(|e| e.to_string())
+}

@@ -1,0 +1,430 @@
+//! Guard and assignment expressions: text -> AST -> `config_schema::Op` bytecode.
+//!
+//! ```text
+//! expr  := or
+//! or    := and ("||" and)*
+//! and   := cmp ("&&" cmp)*
+//! cmp   := sum (("==" | "!=" | "<" | "<=" | ">" | ">=") sum)?
+//! sum   := unary (("+" | "-") unary)*
+//! unary := "!" unary | "-" unary | atom
+//! atom  := INTEGER | "true" | "false" | NAME | "(" expr ")"
+//! ```
+//! Names (letters, digits, `_`, `.`) are variables, inputs or chart parameters.
+
+use std::ops::Range;
+
+use config_schema::Op;
+
+/// A syntax or name error at a byte span of the expression text.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ExprError {
+    pub message: String,
+    pub span: Range<usize>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BinOp {
+    Or,
+    And,
+    Eq,
+    Ne,
+    Lt,
+    Le,
+    Gt,
+    Ge,
+    Add,
+    Sub,
+}
+
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Ast {
+    Int(i32),
+    Name(String, Range<usize>),
+    Not(Box<Ast>),
+    Neg(Box<Ast>),
+    Bin(BinOp, Box<Ast>, Box<Ast>),
+}
+
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Tok {
+    Int(i32),
+    Name(String),
+    Sym(&'static str),
+    End,
+}
+
+fn lex(text: &str) -> Result<Vec<(Tok, Range<usize>)>, ExprError> {
+    const SYMS: [&str; 14] = [
+        "&&", "||", "==", "!=", "<=", ">=", "<", ">", "!", "+", "-", "(", ")", "=",
+    ];
+    let b = text.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < b.len() {
+        let c = b[i];
+        if c.is_ascii_whitespace() {
+            i += 1;
+        } else if c.is_ascii_digit() {
+            let start = i;
+            while i < b.len() && b[i].is_ascii_digit() {
+                i += 1;
+            }
+            let n = text[start..i].parse::<i32>().map_err(|_| ExprError {
+                message: format!("integer `{}` does not fit in 32 bits", &text[start..i]),
+                span: start..i,
+            })?;
+            out.push((Tok::Int(n), start..i));
+        } else if c.is_ascii_alphabetic() || c == b'_' {
+            let start = i;
+            while i < b.len() && (b[i].is_ascii_alphanumeric() || b[i] == b'_' || b[i] == b'.') {
+                i += 1;
+            }
+            out.push((Tok::Name(text[start..i].to_string()), start..i));
+        } else if let Some(sym) = SYMS.iter().find(|s| text[i..].starts_with(**s)) {
+            if *sym == "=" {
+                return Err(ExprError {
+                    message: String::from("`=` is not an operator: write `==` to compare"),
+                    span: i..i + 1,
+                });
+            }
+            out.push((Tok::Sym(sym), i..i + sym.len()));
+            i += sym.len();
+        } else {
+            let ch = text[i..].chars().next().unwrap_or('?');
+            return Err(ExprError {
+                message: format!("unexpected character `{ch}`"),
+                span: i..i + ch.len_utf8(),
+            });
+        }
+    }
+    out.push((Tok::End, text.len()..text.len()));
+    Ok(out)
+}
+
+struct Parser {
+    toks: Vec<(Tok, Range<usize>)>,
+    at: usize,
+}
+
+impl Parser {
+    fn peek(&self) -> &Tok {
+        &self.toks[self.at.min(self.toks.len() - 1)].0
+    }
+
+    fn span(&self) -> Range<usize> {
+        self.toks[self.at.min(self.toks.len() - 1)].1.clone()
+    }
+
+    fn eat(&mut self, sym: &'static str) -> bool {
+        if *self.peek() == Tok::Sym(sym) {
+            self.at += 1;
+            true
+        } else {
+            false
+        }
+    }
+
+    fn unexpected(&self, wanted: &str) -> ExprError {
+        let found = match self.peek() {
+            Tok::Int(n) => format!("`{n}`"),
+            Tok::Name(n) => format!("`{n}`"),
+            Tok::Sym(s) => format!("`{s}`"),
+            Tok::End => String::from("the end of the expression"),
+        };
+        let mut span = self.span();
+        if span.is_empty() {
+            span = span.start.saturating_sub(1)..span.start;
+        }
+        ExprError {
+            message: format!("expected {wanted}, found {found}"),
+            span,
+        }
+    }
+
+    fn binary(
+        &mut self,
+        ops: &[(&'static str, BinOp)],
+        next: fn(&mut Parser) -> Result<Ast, ExprError>,
+        chain: bool,
+    ) -> Result<Ast, ExprError> {
+        let mut left = next(self)?;
+        loop {
+            let Some(&(_, op)) = ops.iter().find(|(s, _)| self.eat(s)) else {
+                return Ok(left);
+            };
+            let right = next(self)?;
+            left = Ast::Bin(op, Box::new(left), Box::new(right));
+            if !chain {
+                if ops.iter().any(|(s, _)| *self.peek() == Tok::Sym(s)) {
+                    return Err(ExprError {
+                        message: String::from(
+                            "comparisons do not chain: use `&&` between two comparisons",
+                        ),
+                        span: self.span(),
+                    });
+                }
+                return Ok(left);
+            }
+        }
+    }
+
+    fn or(&mut self) -> Result<Ast, ExprError> {
+        self.binary(&[("||", BinOp::Or)], Parser::and, true)
+    }
+
+    fn and(&mut self) -> Result<Ast, ExprError> {
+        self.binary(&[("&&", BinOp::And)], Parser::cmp, true)
+    }
+
+    fn cmp(&mut self) -> Result<Ast, ExprError> {
+        self.binary(
+            &[
+                ("==", BinOp::Eq),
+                ("!=", BinOp::Ne),
+                ("<=", BinOp::Le),
+                (">=", BinOp::Ge),
+                ("<", BinOp::Lt),
+                (">", BinOp::Gt),
+            ],
+            Parser::sum,
+            false,
+        )
+    }
+
+    fn sum(&mut self) -> Result<Ast, ExprError> {
+        self.binary(&[("+", BinOp::Add), ("-", BinOp::Sub)], Parser::unary, true)
+    }
+
+    fn unary(&mut self) -> Result<Ast, ExprError> {
+        if self.eat("!") {
+            return Ok(Ast::Not(Box::new(self.unary()?)));
+        }
+        if self.eat("-") {
+            return Ok(Ast::Neg(Box::new(self.unary()?)));
+        }
+        self.atom()
+    }
+
+    fn atom(&mut self) -> Result<Ast, ExprError> {
+        let span = self.span();
+        match self.peek().clone() {
+            Tok::Int(n) => {
+                self.at += 1;
+                Ok(Ast::Int(n))
+            }
+            Tok::Name(n) if n == "true" => {
+                self.at += 1;
+                Ok(Ast::Int(1))
+            }
+            Tok::Name(n) if n == "false" => {
+                self.at += 1;
+                Ok(Ast::Int(0))
+            }
+            Tok::Name(n) => {
+                self.at += 1;
+                Ok(Ast::Name(n, span))
+            }
+            Tok::Sym("(") => {
+                self.at += 1;
+                let inner = self.or()?;
+                if !self.eat(")") {
+                    return Err(self.unexpected("`)`"));
+                }
+                Ok(inner)
+            }
+            _ => Err(self.unexpected("a value, a name or `(`")),
+        }
+    }
+}
+
+/// Parses expression text.
+pub fn parse(text: &str) -> Result<Ast, ExprError> {
+    let toks = lex(text)?;
+    let mut p = Parser { toks, at: 0 };
+    if *p.peek() == Tok::End {
+        return Err(ExprError {
+            message: String::from("empty expression"),
+            span: 0..0,
+        });
+    }
+    let ast = p.or()?;
+    if *p.peek() != Tok::End {
+        return Err(p.unexpected("an operator or the end of the expression"));
+    }
+    Ok(ast)
+}
+
+/// What a name stands for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Operand {
+    Var(u8),
+    Input(u8),
+    Const(i32),
+}
+
+/// Compiles an AST to bytecode; `resolve` gives the meaning of each name.
+pub fn compile(ast: &Ast, resolve: &dyn Fn(&str) -> Option<Operand>) -> Result<Vec<Op>, ExprError> {
+    let mut ops = Vec::new();
+    emit(ast, resolve, &mut ops)?;
+    Ok(ops)
+}
+
+fn emit(
+    ast: &Ast,
+    resolve: &dyn Fn(&str) -> Option<Operand>,
+    ops: &mut Vec<Op>,
+) -> Result<(), ExprError> {
+    match ast {
+        Ast::Int(n) => ops.push(Op::Const(*n)),
+        Ast::Name(n, span) => ops.push(match resolve(n) {
+            Some(Operand::Var(v)) => Op::Var(v),
+            Some(Operand::Input(i)) => Op::Input(i),
+            Some(Operand::Const(c)) => Op::Const(c),
+            None => {
+                return Err(ExprError {
+                    message: format!(
+                        "unknown name `{n}`: not a variable, input or parameter of this chart"
+                    ),
+                    span: span.clone(),
+                })
+            }
+        }),
+        Ast::Not(a) => {
+            emit(a, resolve, ops)?;
+            ops.push(Op::Not);
+        }
+        Ast::Neg(a) => {
+            ops.push(Op::Const(0));
+            emit(a, resolve, ops)?;
+            ops.push(Op::Sub);
+        }
+        Ast::Bin(op, a, b) => {
+            emit(a, resolve, ops)?;
+            emit(b, resolve, ops)?;
+            ops.push(match op {
+                BinOp::Or => Op::Or,
+                BinOp::And => Op::And,
+                BinOp::Eq => Op::Eq,
+                BinOp::Ne => Op::Ne,
+                BinOp::Lt => Op::Lt,
+                BinOp::Le => Op::Le,
+                BinOp::Gt => Op::Gt,
+                BinOp::Ge => Op::Ge,
+                BinOp::Add => Op::Add,
+                BinOp::Sub => Op::Sub,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Evaluates an AST with `value` giving each name's value (`None`: unknown name).
+pub fn eval(ast: &Ast, value: &dyn Fn(&str) -> Option<i32>) -> Option<i32> {
+    Some(match ast {
+        Ast::Int(n) => *n,
+        Ast::Name(n, _) => value(n)?,
+        Ast::Not(a) => i32::from(eval(a, value)? == 0),
+        Ast::Neg(a) => 0i32.wrapping_sub(eval(a, value)?),
+        Ast::Bin(op, a, b) => {
+            let (a, b) = (eval(a, value)?, eval(b, value)?);
+            match op {
+                BinOp::Or => i32::from(a != 0 || b != 0),
+                BinOp::And => i32::from(a != 0 && b != 0),
+                BinOp::Eq => i32::from(a == b),
+                BinOp::Ne => i32::from(a != b),
+                BinOp::Lt => i32::from(a < b),
+                BinOp::Le => i32::from(a <= b),
+                BinOp::Gt => i32::from(a > b),
+                BinOp::Ge => i32::from(a >= b),
+                BinOp::Add => a.wrapping_add(b),
+                BinOp::Sub => a.wrapping_sub(b),
+            }
+        }
+    })
+}
+
+/// Every name an AST reads, in order of first use.
+pub fn names(ast: &Ast, out: &mut Vec<String>) {
+    match ast {
+        Ast::Int(_) => {}
+        Ast::Name(n, _) => {
+            if !out.contains(n) {
+                out.push(n.clone());
+            }
+        }
+        Ast::Not(a) | Ast::Neg(a) => names(a, out),
+        Ast::Bin(_, a, b) => {
+            names(a, out);
+            names(b, out);
+        }
+    }
+}
+
+fn constants(ast: &Ast, out: &mut Vec<i32>) {
+    match ast {
+        Ast::Int(n) => out.push(*n),
+        Ast::Name(..) => {}
+        Ast::Not(a) | Ast::Neg(a) => constants(a, out),
+        Ast::Bin(_, a, b) => {
+            constants(a, out);
+            constants(b, out);
+        }
+    }
+}
+
+/// Whether two guards can both be true for some values of their names: tried over the
+/// constants they mention, their neighbours, 0 and 1 (exhaustive for up to 4 names).
+/// `fixed` gives the names whose value is known (parameters).
+pub fn may_overlap(a: &Ast, b: &Ast, fixed: &dyn Fn(&str) -> Option<i32>) -> bool {
+    let mut free = Vec::new();
+    names(a, &mut free);
+    names(b, &mut free);
+    free.retain(|n| fixed(n).is_none());
+    let mut consts = vec![0, 1];
+    constants(a, &mut consts);
+    constants(b, &mut consts);
+    let mut candidates: Vec<i32> = Vec::new();
+    for c in consts
+        .iter()
+        .chain([fixed_values(a, b, fixed)].iter().flatten())
+    {
+        for d in [-1, 0, 1] {
+            let v = c.wrapping_add(d);
+            if !candidates.contains(&v) {
+                candidates.push(v);
+            }
+        }
+    }
+    if free.len() > 4 {
+        return true;
+    }
+    let mut idx = vec![0usize; free.len()];
+    loop {
+        let value = |n: &str| {
+            fixed(n).or_else(|| free.iter().position(|f| f == n).map(|i| candidates[idx[i]]))
+        };
+        if eval(a, &value).is_some_and(|v| v != 0) && eval(b, &value).is_some_and(|v| v != 0) {
+            return true;
+        }
+        // Next combination.
+        let mut k = 0;
+        loop {
+            if k == idx.len() {
+                return false;
+            }
+            idx[k] += 1;
+            if idx[k] < candidates.len() {
+                break;
+            }
+            idx[k] = 0;
+            k += 1;
+        }
+    }
+}
+
+fn fixed_values(a: &Ast, b: &Ast, fixed: &dyn Fn(&str) -> Option<i32>) -> Vec<i32> {
+    let mut all = Vec::new();
+    names(a, &mut all);
+    names(b, &mut all);
+    all.iter().filter_map(|n| fixed(n)).collect()
+}

@@ -1,0 +1,26 @@
+//! config-tool: RON robot descriptions -> checked, compiled, simulated table blobs.
+//!
+//! - [`source`], [`locate`]: file text, line:col, spans of values by path.
+//! - [`model`]: the RON format as serde types. [`diag`]: miette diagnostics.
+//! - [`check`]: independent check passes. [`expr`]: guard text -> bytecode.
+//! - [`synth`]: sequence -> charts. [`elab`]: explicit charts -> IR. [`ir`]: the IR.
+//! - [`lower`]: IR -> tables. [`compile`]: the pipeline. [`dump`], [`diagram`], [`sim`].
+
+pub mod check;
+pub mod compile;
+pub mod diag;
+pub mod diagram;
+pub mod dump;
+pub mod elab;
+pub mod expr;
+pub mod ir;
+pub mod locate;
+pub mod lower;
+pub mod model;
+pub mod sim;
+pub mod source;
+pub mod synth;
+
+pub use compile::{compile, Compiled};
+pub use diag::{Diagnostic, Severity};
+pub use source::Source;

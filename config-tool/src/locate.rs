@@ -1,0 +1,369 @@
+//! A structural locator over RON text: records the byte span of every value so that
+//! semantic diagnostics can point at `roles[2].actuators[0].name`. ron deserialises the
+//! values; this only walks the syntax (tolerantly: it gives up quietly on text ron would
+//! reject, which ron reports itself).
+
+use std::ops::Range;
+
+/// A RON value and its byte span.
+#[derive(Debug, Clone)]
+pub struct Value {
+    pub span: Range<usize>,
+    pub kind: Kind,
+}
+
+/// The shape of a value.
+#[derive(Debug, Clone)]
+pub enum Kind {
+    /// Strings, numbers, chars, unit identifiers.
+    Atom,
+    /// `Name(a: x, b: y)` or `(a: x)`: named fields, each with its key's span.
+    Fields(Vec<(String, Range<usize>, Value)>),
+    /// `[x, y]`, `(x, y)`, `Name(x, y)`, `Some(x)`.
+    Items(Vec<Value>),
+    /// `{ k: v }`: entries with the key as written (strings unquoted).
+    Map(Vec<(String, Value, Value)>),
+}
+
+struct Parser<'a> {
+    s: &'a [u8],
+    text: &'a str,
+    i: usize,
+}
+
+/// Parses RON text into its span tree, or `None` if the syntax is broken.
+pub fn parse(text: &str) -> Option<Value> {
+    let mut p = Parser {
+        s: text.as_bytes(),
+        text,
+        i: 0,
+    };
+    p.ws();
+    // `#![enable(...)]` attributes.
+    while p.s.get(p.i) == Some(&b'#') {
+        while p.i < p.s.len() && p.s[p.i] != b']' {
+            p.i += 1;
+        }
+        p.i += 1;
+        p.ws();
+    }
+    p.value(0)
+}
+
+impl Parser<'_> {
+    fn ws(&mut self) {
+        loop {
+            while self.i < self.s.len() && self.s[self.i].is_ascii_whitespace() {
+                self.i += 1;
+            }
+            if self.s[self.i..].starts_with(b"//") {
+                while self.i < self.s.len() && self.s[self.i] != b'\n' {
+                    self.i += 1;
+                }
+            } else if self.s[self.i..].starts_with(b"/*") {
+                let mut depth = 0usize;
+                while self.i < self.s.len() {
+                    if self.s[self.i..].starts_with(b"/*") {
+                        depth += 1;
+                        self.i += 2;
+                    } else if self.s[self.i..].starts_with(b"*/") {
+                        depth -= 1;
+                        self.i += 2;
+                        if depth == 0 {
+                            break;
+                        }
+                    } else {
+                        self.i += 1;
+                    }
+                }
+            } else {
+                return;
+            }
+        }
+    }
+
+    fn peek(&self) -> Option<u8> {
+        self.s.get(self.i).copied()
+    }
+
+    fn ident(&mut self) -> Option<Range<usize>> {
+        let start = self.i;
+        if self.s[self.i..].starts_with(b"r#") {
+            self.i += 2;
+        }
+        while self
+            .peek()
+            .is_some_and(|c| c.is_ascii_alphanumeric() || c == b'_' || c >= 0x80)
+        {
+            self.i += 1;
+        }
+        (self.i > start).then_some(start..self.i)
+    }
+
+    fn value(&mut self, depth: usize) -> Option<Value> {
+        if depth > 128 {
+            return None;
+        }
+        self.ws();
+        let start = self.i;
+        match self.peek()? {
+            b'"' => {
+                self.i += 1;
+                while let Some(c) = self.peek() {
+                    self.i += 1;
+                    match c {
+                        b'\\' => self.i += 1,
+                        b'"' => return Some(self.atom(start)),
+                        _ => {}
+                    }
+                }
+                None
+            }
+            b'\'' => {
+                self.i += 1;
+                while let Some(c) = self.peek() {
+                    self.i += 1;
+                    match c {
+                        b'\\' => self.i += 1,
+                        b'\'' => return Some(self.atom(start)),
+                        _ => {}
+                    }
+                }
+                None
+            }
+            b'r' if self.raw_string_ahead() => {
+                self.i += 1;
+                let mut hashes = 0;
+                while self.peek() == Some(b'#') {
+                    hashes += 1;
+                    self.i += 1;
+                }
+                self.i += 1;
+                let close: Vec<u8> = std::iter::once(b'"')
+                    .chain(std::iter::repeat_n(b'#', hashes))
+                    .collect();
+                while self.i < self.s.len() {
+                    if self.s[self.i..].starts_with(&close) {
+                        self.i += close.len();
+                        return Some(self.atom(start));
+                    }
+                    self.i += 1;
+                }
+                None
+            }
+            b'[' => {
+                self.i += 1;
+                let items = self.items(b']', depth)?;
+                Some(Value {
+                    span: start..self.i,
+                    kind: Kind::Items(items),
+                })
+            }
+            b'{' => {
+                self.i += 1;
+                let mut entries = Vec::new();
+                loop {
+                    self.ws();
+                    if self.peek()? == b'}' {
+                        self.i += 1;
+                        break;
+                    }
+                    let key = self.value(depth + 1)?;
+                    self.ws();
+                    if self.peek()? != b':' {
+                        return None;
+                    }
+                    self.i += 1;
+                    let value = self.value(depth + 1)?;
+                    let text = self.text[key.span.clone()].trim_matches('"').to_string();
+                    entries.push((text, key, value));
+                    self.ws();
+                    if self.peek()? == b',' {
+                        self.i += 1;
+                    }
+                }
+                Some(Value {
+                    span: start..self.i,
+                    kind: Kind::Map(entries),
+                })
+            }
+            b'(' => self.parens(start, depth),
+            c if c.is_ascii_alphabetic() || c == b'_' => {
+                self.ident()?;
+                self.after_ident(start, depth)
+            }
+            _ => {
+                // A number (or anything else atomic): up to a delimiter.
+                while self.peek().is_some_and(|c| {
+                    !matches!(c, b',' | b')' | b']' | b'}' | b':') && !c.is_ascii_whitespace()
+                }) {
+                    self.i += 1;
+                }
+                (self.i > start).then(|| self.atom(start))
+            }
+        }
+    }
+
+    fn raw_string_ahead(&self) -> bool {
+        let rest = &self.s[self.i + 1..];
+        let hashes = rest.iter().take_while(|&&c| c == b'#').count();
+        rest.get(hashes) == Some(&b'"')
+    }
+
+    fn atom(&self, start: usize) -> Value {
+        Value {
+            span: start..self.i,
+            kind: Kind::Atom,
+        }
+    }
+
+    fn after_ident(&mut self, start: usize, depth: usize) -> Option<Value> {
+        let save = self.i;
+        self.ws();
+        if self.peek() == Some(b'(') {
+            let mut v = self.parens(self.i, depth)?;
+            v.span.start = start;
+            Some(v)
+        } else {
+            self.i = save;
+            Some(self.atom(start))
+        }
+    }
+
+    /// `( ... )` after an optional name: named fields or positional items.
+    fn parens(&mut self, start: usize, depth: usize) -> Option<Value> {
+        self.i += 1;
+        self.ws();
+        // Named fields if the content starts with `ident :` (and not `::`).
+        let save = self.i;
+        let named = self.ident().is_some() && {
+            self.ws();
+            self.peek() == Some(b':')
+        };
+        self.i = save;
+        if !named {
+            let items = self.items(b')', depth)?;
+            return Some(Value {
+                span: start..self.i,
+                kind: Kind::Items(items),
+            });
+        }
+        let mut fields = Vec::new();
+        loop {
+            self.ws();
+            if self.peek()? == b')' {
+                self.i += 1;
+                break;
+            }
+            let key = self.ident()?;
+            self.ws();
+            if self.peek()? != b':' {
+                return None;
+            }
+            self.i += 1;
+            let value = self.value(depth + 1)?;
+            let name = self.text[key.clone()].trim_start_matches("r#").to_string();
+            fields.push((name, key, value));
+            self.ws();
+            if self.peek()? == b',' {
+                self.i += 1;
+            }
+        }
+        Some(Value {
+            span: start..self.i,
+            kind: Kind::Fields(fields),
+        })
+    }
+
+    fn items(&mut self, close: u8, depth: usize) -> Option<Vec<Value>> {
+        let mut items = Vec::new();
+        loop {
+            self.ws();
+            if self.peek()? == close {
+                self.i += 1;
+                return Some(items);
+            }
+            items.push(self.value(depth + 1)?);
+            self.ws();
+            if self.peek()? == b',' {
+                self.i += 1;
+            }
+        }
+    }
+}
+
+enum Seg<'p> {
+    Field(&'p str),
+    Index(usize),
+}
+
+fn segments(path: &str) -> Vec<Seg<'_>> {
+    let mut out = Vec::new();
+    for part in path.split('.').filter(|p| !p.is_empty()) {
+        let (name, rest) = part.split_at(part.find('[').unwrap_or(part.len()));
+        if !name.is_empty() {
+            out.push(Seg::Field(name));
+        }
+        for index in rest.split('[').filter(|s| !s.is_empty()) {
+            if let Ok(i) = index.trim_end_matches(']').parse() {
+                out.push(Seg::Index(i));
+            }
+        }
+    }
+    out
+}
+
+impl Value {
+    /// `Some(x)` and single-item wrappers are transparent to paths.
+    fn unwrap_some(&self) -> &Value {
+        match &self.kind {
+            Kind::Items(items) if items.len() == 1 => items[0].unwrap_some(),
+            _ => self,
+        }
+    }
+
+    fn step(&self, seg: &Seg) -> Option<(Option<Range<usize>>, &Value)> {
+        match (seg, &self.kind) {
+            (Seg::Field(name), Kind::Fields(fields)) => fields
+                .iter()
+                .find(|(n, _, _)| n == name)
+                .map(|(_, k, v)| (Some(k.clone()), v)),
+            (Seg::Field(name), Kind::Map(entries)) => entries
+                .iter()
+                .find(|(n, _, _)| n == name)
+                .map(|(_, k, v)| (Some(k.span.clone()), v)),
+            (Seg::Index(i), Kind::Items(items)) => items.get(*i).map(|v| (None, v)),
+            (Seg::Index(i), Kind::Map(entries)) => {
+                entries.get(*i).map(|(_, k, v)| (Some(k.span.clone()), v))
+            }
+            (Seg::Field(_), Kind::Items(items)) if items.len() == 1 => items[0].step(seg),
+            _ => None,
+        }
+    }
+
+    fn walk(&self, path: &str) -> (Option<Range<usize>>, &Value) {
+        let mut at = self;
+        let mut key = None;
+        for seg in segments(path) {
+            match at.step(&seg).or_else(|| at.unwrap_some().step(&seg)) {
+                Some((k, v)) => {
+                    key = k;
+                    at = v;
+                }
+                None => return (None, at),
+            }
+        }
+        (key, at)
+    }
+
+    /// The span of the value at `path` (or of its deepest existing ancestor).
+    pub fn find(&self, path: &str) -> Range<usize> {
+        self.walk(path).1.span.clone()
+    }
+
+    /// The span of the key naming the value at `path` (or the value's span).
+    pub fn find_key(&self, path: &str) -> Range<usize> {
+        let (key, v) = self.walk(path);
+        key.unwrap_or_else(|| v.span.clone())
+    }
+}

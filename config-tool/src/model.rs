@@ -1,0 +1,254 @@
+//! The RON robot description, as serde types. `docs/robot-format.md` documents it.
+
+use std::collections::BTreeMap;
+
+use serde::Deserialize;
+
+use crate::diag::Diagnostic;
+use crate::source::Source;
+
+/// A whole machine: network, nodes, roles and their behaviour.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Robot {
+    pub name: String,
+    /// Deployment generation written into every blob.
+    #[serde(default)]
+    pub generation: u32,
+    pub network: Network,
+    pub nodes: Vec<Node>,
+    pub roles: Vec<Role>,
+    /// Which node plays which role: `(ROLE, NODE)` pairs. Moving a role to a spare node is
+    /// a one-line edit here.
+    pub assign: Vec<(String, String)>,
+    /// The input (`NAME` or `ROLE/NAME`) whose rising edge starts a cycle.
+    #[serde(default)]
+    pub start: Option<String>,
+    /// A cycle as steps `A+ B- ...`: the charts are synthesised from it.
+    #[serde(default)]
+    pub sequence: Option<String>,
+    /// Synthesised charts fault when a motion does not complete within this time.
+    #[serde(default = "default_timeout")]
+    pub motion_timeout_ms: u32,
+    /// Explicit chart types, instantiated by the roles' `charts`.
+    #[serde(default)]
+    pub chart_types: Vec<ChartType>,
+    /// For explicit charts: the actuator sequence one cycle must produce (checked by `sim`).
+    #[serde(default)]
+    pub expect: Option<String>,
+}
+
+fn default_timeout() -> u32 {
+    2000
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Network {
+    pub pan_id: u16,
+    pub channel: u8,
+}
+
+/// A physical node: its name and IEEE 802.15.4 short address.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Node {
+    pub name: String,
+    pub address: u16,
+}
+
+/// A role: the hardware one node drives and the charts it runs.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Role {
+    pub name: String,
+    #[serde(default)]
+    pub actuators: Vec<Actuator>,
+    #[serde(default)]
+    pub inputs: Vec<InputPin>,
+    #[serde(default)]
+    pub outputs: Vec<OutputPin>,
+    #[serde(default)]
+    pub charts: Vec<ChartInstance>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Actuator {
+    pub name: String,
+    pub kind: ActuatorKind,
+}
+
+/// Actuator hardware and its plant parameters (for `sim`).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum ActuatorKind {
+    /// Double-acting cylinder, bistable valve (extend / retract solenoids), home and end
+    /// limit switches.
+    DoubleActing {
+        extend: u8,
+        retract: u8,
+        home: u8,
+        end: u8,
+        #[serde(default = "default_travel")]
+        out_ms: u32,
+        #[serde(default = "default_travel")]
+        back_ms: u32,
+    },
+    /// Single-acting actuator, monostable valve, no switches: a motion is complete after
+    /// `dwell_ms`.
+    SingleActing {
+        valve: u8,
+        dwell_ms: u32,
+        #[serde(default = "default_travel")]
+        out_ms: u32,
+        #[serde(default = "default_travel")]
+        back_ms: u32,
+    },
+}
+
+fn default_travel() -> u32 {
+    200
+}
+
+/// A plain digital input (button, sensor). Its rising edge is the event `NAME`, its
+/// falling edge `NAME.fall`; guards read its level as `NAME`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputPin {
+    pub name: String,
+    pub pin: u8,
+}
+
+/// A plain digital output (lamp, gate) and its level in the safe state.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputPin {
+    pub name: String,
+    pub pin: u8,
+    #[serde(default)]
+    pub safe: bool,
+}
+
+/// A chart type: an ECC with parameters, input and output events, variables, timers.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChartType {
+    pub name: String,
+    #[serde(default)]
+    pub params: Vec<String>,
+    #[serde(default)]
+    pub inputs: Vec<String>,
+    #[serde(default)]
+    pub outputs: Vec<String>,
+    #[serde(default)]
+    pub vars: Vec<VarDecl>,
+    /// Timers; a timer's expiry is a chart input event of the same name.
+    #[serde(default)]
+    pub timers: Vec<String>,
+    pub states: Vec<StateDecl>,
+    #[serde(default)]
+    pub transitions: Vec<TransitionDecl>,
+}
+
+/// A chart variable and its initial value (an expression over the parameters).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VarDecl {
+    pub name: String,
+    #[serde(default = "zero")]
+    pub init: String,
+}
+
+fn zero() -> String {
+    String::from("0")
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StateDecl {
+    pub name: String,
+    #[serde(default)]
+    pub actions: Vec<ActionDecl>,
+}
+
+/// What a state does when it is entered, in order.
+#[derive(Debug, Clone, Deserialize)]
+pub enum ActionDecl {
+    /// `Set("count", "count + 1")`: assign an expression to a variable.
+    Set(String, String),
+    /// Emit a chart output event.
+    Emit(String),
+    /// Extend an actuator of the role (valve on / extend solenoid).
+    Extend(String),
+    /// Retract an actuator of the role.
+    Retract(String),
+    /// Drive a plain output.
+    Out(String, bool),
+    /// Start (or restart) a timer, in milliseconds.
+    StartTimer(String, u32),
+    CancelTimer(String),
+    /// Fault the node with an application code.
+    Fault(u8),
+}
+
+/// An ordered transition: `from` -> `to` on the chart input `on` (none: event-less) when
+/// the guard `when` holds.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TransitionDecl {
+    pub from: String,
+    pub to: String,
+    #[serde(default)]
+    pub on: Option<String>,
+    #[serde(default)]
+    pub when: Option<String>,
+}
+
+/// A chart of a role: an instance of a chart type with parameter values, and the event
+/// feeding each of its inputs (`EVENT` of this role or `ROLE/EVENT` of another).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChartInstance {
+    pub name: String,
+    #[serde(rename = "type")]
+    pub type_: String,
+    #[serde(default)]
+    pub params: BTreeMap<String, i32>,
+    #[serde(default)]
+    pub on: BTreeMap<String, String>,
+}
+
+/// Parses a RON robot; a syntax or shape error becomes a diagnostic at ron's position.
+pub fn parse(src: &Source) -> Result<Robot, Diagnostic> {
+    let options =
+        ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
+    options.from_str(&src.text).map_err(|e| {
+        let start = src.offset(e.span.start.line, e.span.start.col);
+        let end = src.offset(e.span.end.line, e.span.end.col).max(start);
+        Diagnostic::error(start..end, e.code.to_string()).label("here")
+    })
+}
+
+impl Robot {
+    pub fn role(&self, name: &str) -> Option<(usize, &Role)> {
+        self.roles.iter().enumerate().find(|(_, r)| r.name == name)
+    }
+
+    pub fn chart_type(&self, name: &str) -> Option<(usize, &ChartType)> {
+        self.chart_types
+            .iter()
+            .enumerate()
+            .find(|(_, t)| t.name == name)
+    }
+
+    /// The role and actuator index of an actuator name.
+    pub fn actuator(&self, name: &str) -> Option<(usize, usize)> {
+        self.roles.iter().enumerate().find_map(|(r, role)| {
+            role.actuators
+                .iter()
+                .position(|a| a.name == name)
+                .map(|a| (r, a))
+        })
+    }
+}

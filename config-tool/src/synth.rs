@@ -1,0 +1,413 @@
+//! Sequence synthesis: a cycle `A+ B+ A- B-` -> one chart per actuator.
+//!
+//! Every actuator starts home. Actuator `a`'s chart has a state per place in the cycle:
+//! `STEPk` drives step k and starts the motion watchdog (or the dwell timer of a
+//! sensorless actuator); `WAITk` waits for the event that releases step k. Step k+1
+//! waits for the completion of step k: the limit switch (`A.end` for `+`, `A.home` for
+//! `-`) or the dwell timer. When step k+1 is the same actuator's, the chart goes straight
+//! from `STEPk` to `STEPk+1`: nothing is exchanged. Otherwise the chart emits the
+//! step-specific event `stepk.done`, which only the next step's chart listens to; it
+//! crosses the radio only when that chart is on another node, and only to that node.
+//! The owner of step 1 waits in `IDLE` for START, and (if the last step is another
+//! actuator's) in `CYCLE_END` for `stepN.done`, so a START during a cycle is ignored.
+//! A watchdog timeout raises fault 1 through a small per-role `watchdog` chart.
+
+use crate::ir::{
+    ActionIr, ChartIr, InputIr, Ir, OutputIr, RoleIr, StateIr, Step, TimerIr, TransitionIr,
+};
+use crate::model::{ActuatorKind, Robot};
+
+/// Fault code of a motion that did not complete in time.
+pub const FAULT_MOTION_TIMEOUT: u8 = 1;
+
+/// Synthesises the charts of a sequence robot. The robot must have passed `check`.
+pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
+    let n = steps.len();
+    if n == 0 {
+        return Err(String::from("the sequence has no steps"));
+    }
+    let (start_role, start_input) = crate::elab::start_input(robot)?.ok_or_else(|| {
+        String::from("a sequence robot needs `start`: the input that starts a cycle")
+    })?;
+    let first_role = robot
+        .actuator(&steps[0].actuator)
+        .map(|(r, _)| r)
+        .ok_or_else(|| format!("unknown actuator `{}`", steps[0].actuator))?;
+    let role_of = |k: usize| robot.actuator(&steps[k % n].actuator).map(|(r, _)| r);
+
+    let mut roles = Vec::new();
+    for (ri, role) in robot.roles.iter().enumerate() {
+        let mut r = RoleIr {
+            name: role.name.clone(),
+            address: crate::elab::address(robot, &role.name)?,
+            ..RoleIr::default()
+        };
+        // Hardware of the actuators that move.
+        let moving: Vec<_> = role
+            .actuators
+            .iter()
+            .filter(|a| steps.iter().any(|s| s.actuator == a.name))
+            .collect();
+        for a in &moving {
+            match a.kind {
+                ActuatorKind::DoubleActing {
+                    extend,
+                    retract,
+                    home,
+                    end,
+                    ..
+                } => {
+                    r.outputs.push(OutputIr {
+                        name: format!("{}.extend", a.name),
+                        pin: extend,
+                        safe: false,
+                    });
+                    r.outputs.push(OutputIr {
+                        name: format!("{}.retract", a.name),
+                        pin: retract,
+                        safe: false,
+                    });
+                    for (what, pin) in [("home", home), ("end", end)] {
+                        let ev = format!("{}.{what}", a.name);
+                        r.event(&ev);
+                        r.inputs.push(InputIr {
+                            name: ev.clone(),
+                            pin,
+                            rise: Some(ev),
+                            fall: None,
+                            var: None,
+                        });
+                    }
+                }
+                ActuatorKind::SingleActing { valve, .. } => {
+                    r.outputs.push(OutputIr {
+                        name: format!("{}.valve", a.name),
+                        pin: valve,
+                        safe: false,
+                    });
+                }
+            }
+        }
+        if start_role == ri {
+            let pin = role
+                .inputs
+                .iter()
+                .find(|i| i.name == start_input)
+                .map(|i| i.pin)
+                .ok_or_else(|| format!("unknown input `{start_input}`"))?;
+            r.event(&start_input);
+            r.inputs.push(InputIr {
+                name: start_input.clone(),
+                pin,
+                rise: Some(start_input.clone()),
+                fall: None,
+                var: None,
+            });
+        }
+        for a in &moving {
+            let name = match a.kind {
+                ActuatorKind::DoubleActing { .. } => format!("{}.watchdog", a.name),
+                ActuatorKind::SingleActing { .. } => format!("{}.dwell", a.name),
+            };
+            r.event(&name);
+            r.timers.push(TimerIr {
+                name: name.clone(),
+                event: name,
+            });
+        }
+        if ri == first_role {
+            if ri != start_role {
+                r.event(&start_input);
+                r.imports.push((
+                    robot.roles[start_role].name.clone(),
+                    start_input.clone(),
+                    start_input.clone(),
+                ));
+            }
+            r.start = Some(start_input.clone());
+        }
+        // One chart per moving actuator.
+        for a in &moving {
+            let chart = actuator_chart(robot, &mut r, a, steps, &start_input)?;
+            r.charts.push(chart);
+        }
+        // Imports of step events from other roles, in step order.
+        let routed: Vec<String> = r.routes.iter().map(|(e, _, _)| e.clone()).collect();
+        for (k, step) in steps.iter().enumerate() {
+            let ev = done_event(k);
+            if routed.contains(&ev) && role_of(k) != Some(ri) {
+                let from =
+                    role_of(k).ok_or_else(|| format!("unknown actuator `{}`", step.actuator))?;
+                r.imports
+                    .push((robot.roles[from].name.clone(), ev.clone(), ev));
+            }
+        }
+        // The watchdog chart.
+        let watchdogs: Vec<String> = r
+            .timers
+            .iter()
+            .filter(|t| t.name.ends_with(".watchdog"))
+            .map(|t| t.event.clone())
+            .collect();
+        if !watchdogs.is_empty() {
+            let c = r.charts.len();
+            for w in watchdogs {
+                r.routes.push((w, c, 0));
+            }
+            r.charts.push(ChartIr {
+                name: String::from("watchdog"),
+                inputs: vec![String::from("timeout")],
+                initial: 0,
+                states: vec![
+                    StateIr {
+                        name: String::from("RUN"),
+                        actions: vec![],
+                    },
+                    StateIr {
+                        name: String::from("FAULT"),
+                        actions: vec![ActionIr::Fault(FAULT_MOTION_TIMEOUT)],
+                    },
+                ],
+                transitions: vec![TransitionIr {
+                    from: 0,
+                    to: 1,
+                    trigger: Some(0),
+                    guard: None,
+                }],
+            });
+        }
+        // Register route events (emitted and imported) in a stable order.
+        for (e, _, _) in r.routes.clone() {
+            r.event(&e);
+        }
+        roles.push(r);
+    }
+    Ok(Ir {
+        name: robot.name.clone(),
+        generation: robot.generation,
+        pan_id: robot.network.pan_id,
+        channel: robot.network.channel,
+        roles,
+        start: Some((start_role, start_input)),
+        expect: steps.to_vec(),
+    })
+}
+
+/// The event that says step `k` (0-based) is complete: `step{k+1}.done`.
+pub fn done_event(k: usize) -> String {
+    format!("step{}.done", k + 1)
+}
+
+fn actuator_chart(
+    robot: &Robot,
+    r: &mut RoleIr,
+    a: &crate::model::Actuator,
+    steps: &[Step],
+    start_input: &str,
+) -> Result<ChartIr, String> {
+    let n = steps.len();
+    let own: Vec<usize> = (0..n).filter(|&k| steps[k].actuator == a.name).collect();
+    let chart_index = r.charts.len();
+    let out = |suffix: &str| {
+        r.outputs
+            .iter()
+            .position(|o| o.name == format!("{}.{suffix}", a.name))
+    };
+    let timer = |suffix: &str| {
+        r.timers
+            .iter()
+            .position(|t| t.name == format!("{}.{suffix}", a.name))
+    };
+    let (drive, timer_index, timer_ms, cancel): (Box<dyn Fn(bool) -> ActionIr>, usize, u32, bool) =
+        match a.kind {
+            ActuatorKind::DoubleActing { .. } => {
+                let (e, rt) = (
+                    out("extend").ok_or("no extend output")?,
+                    out("retract").ok_or("no retract output")?,
+                );
+                let mask = (1u16 << e) | (1u16 << rt);
+                let name = a.name.clone();
+                (
+                    Box::new(move |extend| ActionIr::Drive {
+                        mask,
+                        value: if extend { 1 << e } else { 1 << rt },
+                        label: format!("{name}{}", if extend { '+' } else { '-' }),
+                    }),
+                    timer("watchdog").ok_or("no watchdog timer")?,
+                    robot.motion_timeout_ms,
+                    true,
+                )
+            }
+            ActuatorKind::SingleActing { dwell_ms, .. } => {
+                let v = out("valve").ok_or("no valve output")?;
+                let name = a.name.clone();
+                (
+                    Box::new(move |extend| ActionIr::Drive {
+                        mask: 1 << v,
+                        value: if extend { 1 << v } else { 0 },
+                        label: format!("{name}{}", if extend { '+' } else { '-' }),
+                    }),
+                    timer("dwell").ok_or("no dwell timer")?,
+                    dwell_ms,
+                    false,
+                )
+            }
+        };
+    let completion = |extend: bool| -> &'static str {
+        match (cancel, extend) {
+            (true, true) => "end",
+            (true, false) => "home",
+            (false, _) => "dwell",
+        }
+    };
+    let mut inputs: Vec<String> = Vec::new();
+    let mut routes: Vec<(String, String)> = Vec::new(); // (node event, chart input)
+    let mut input = |name: &str, event: String| -> usize {
+        match inputs.iter().position(|i| i == name) {
+            Some(i) => i,
+            None => {
+                inputs.push(name.to_string());
+                routes.push((event, name.to_string()));
+                inputs.len() - 1
+            }
+        }
+    };
+    let owns_first = own[0] == 0;
+    let mut states = vec![StateIr {
+        name: if owns_first {
+            String::from("IDLE")
+        } else {
+            format!("WAIT{}", own[0] + 1)
+        },
+        actions: vec![],
+    }];
+    let mut transitions = Vec::new();
+    let mut wait_state = 0usize;
+    let mut prev_move = 0usize;
+    let leave = |k: usize| -> Vec<ActionIr> {
+        let mut v = Vec::new();
+        if cancel {
+            v.push(ActionIr::CancelTimer(timer_index));
+        }
+        v.push(ActionIr::Emit(done_event(k)));
+        v
+    };
+    for (j, &k) in own.iter().enumerate() {
+        let step = &steps[k];
+        let move_state = states.len();
+        states.push(StateIr {
+            name: format!("STEP{}", k + 1),
+            actions: vec![
+                drive(step.extend),
+                ActionIr::StartTimer {
+                    timer: timer_index,
+                    ms: timer_ms,
+                },
+            ],
+        });
+        let back_to_back = j > 0 && own[j - 1] + 1 == k;
+        if back_to_back {
+            let prev = &steps[k - 1];
+            let c = completion(prev.extend);
+            let trig = input(c, format!("{}.{c}", a.name));
+            transitions.push(TransitionIr {
+                from: prev_move,
+                to: move_state,
+                trigger: Some(trig),
+                guard: None,
+            });
+        } else {
+            let (name, event) = if k == 0 {
+                ("start".to_string(), start_input.to_string())
+            } else {
+                (done_event(k - 1), done_event(k - 1))
+            };
+            let trig = input(&name, event);
+            transitions.push(TransitionIr {
+                from: wait_state,
+                to: move_state,
+                trigger: Some(trig),
+                guard: None,
+            });
+        }
+        prev_move = move_state;
+        let next_own = own.get(j + 1).copied();
+        if next_own == Some(k + 1) {
+            continue;
+        }
+        let c = completion(step.extend);
+        let trig = input(c, format!("{}.{c}", a.name));
+        if let Some(k2) = next_own {
+            let wait = states.len();
+            states.push(StateIr {
+                name: format!("WAIT{}", k2 + 1),
+                actions: leave(k),
+            });
+            transitions.push(TransitionIr {
+                from: move_state,
+                to: wait,
+                trigger: Some(trig),
+                guard: None,
+            });
+            wait_state = wait;
+        } else if owns_first && k == n - 1 {
+            // Last step of the cycle and the first of the next are this actuator's.
+            if cancel {
+                states[0].actions.push(ActionIr::CancelTimer(timer_index));
+            }
+            transitions.push(TransitionIr {
+                from: move_state,
+                to: 0,
+                trigger: Some(trig),
+                guard: None,
+            });
+        } else if owns_first {
+            let end = states.len();
+            states.push(StateIr {
+                name: String::from("CYCLE_END"),
+                actions: leave(k),
+            });
+            transitions.push(TransitionIr {
+                from: move_state,
+                to: end,
+                trigger: Some(trig),
+                guard: None,
+            });
+            let last = done_event(n - 1);
+            let t = input(&last, last.clone());
+            transitions.push(TransitionIr {
+                from: end,
+                to: 0,
+                trigger: Some(t),
+                guard: None,
+            });
+        } else {
+            states[0].actions = leave(k);
+            transitions.push(TransitionIr {
+                from: move_state,
+                to: 0,
+                trigger: Some(trig),
+                guard: None,
+            });
+        }
+    }
+    // Emitted events become node events before routes (stable ids).
+    for s in &states {
+        for act in &s.actions {
+            if let ActionIr::Emit(e) = act {
+                r.event(e);
+            }
+        }
+    }
+    for (event, name) in routes {
+        let i = inputs.iter().position(|x| *x == name).unwrap_or(0);
+        r.routes.push((event, chart_index, i));
+    }
+    Ok(ChartIr {
+        name: a.name.clone(),
+        inputs,
+        initial: 0,
+        states,
+        transitions,
+    })
+}
