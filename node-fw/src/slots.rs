@@ -64,8 +64,8 @@ impl<F: NorFlash> Slots<F> {
         let size = Self::slot_size();
         if F::WRITE_SIZE > MAX_ALIGN
             || F::READ_SIZE > MAX_ALIGN
-            || MAX_ALIGN % F::WRITE_SIZE != 0
-            || MAX_ALIGN % F::READ_SIZE != 0
+            || !MAX_ALIGN.is_multiple_of(F::WRITE_SIZE)
+            || !MAX_ALIGN.is_multiple_of(F::READ_SIZE)
             || flash.capacity() < 2 * size
         {
             return Err(SlotError::Geometry);
