@@ -46,6 +46,18 @@ pub trait Effects {
 /// Discards every effect.
 impl Effects for () {}
 
+/// An engine's state without its table: what a runtime that owns and swaps its table keeps
+/// between stimuli, and what a verifier hashes. (The event queue is always empty between
+/// stimuli, so it is not part of it.)
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub struct EngineState {
+    pub current: [u8; MAX_CHARTS],
+    pub vars: [i32; MAX_VARS],
+    pub inputs: u16,
+    pub outputs: u16,
+    pub fault: Option<Fault>,
+}
+
 /// One node's charts running one table.
 #[derive(Debug, Clone)]
 pub struct Engine<'t> {
@@ -100,6 +112,31 @@ impl<'t> Engine<'t> {
         }
         self.queue.clear();
         self.fault = None;
+    }
+
+    /// The state to [`resume`](Engine::resume) from later.
+    pub fn snapshot(&self) -> EngineState {
+        EngineState {
+            current: self.current,
+            vars: self.vars,
+            inputs: self.inputs,
+            outputs: self.outputs,
+            fault: self.fault,
+        }
+    }
+
+    /// An engine over `table` in a state taken by [`snapshot`](Engine::snapshot) of an
+    /// engine running the same table.
+    pub fn resume(table: &'t Table, state: &EngineState) -> Self {
+        Engine {
+            table,
+            current: state.current,
+            vars: state.vars,
+            inputs: state.inputs,
+            outputs: state.outputs,
+            queue: Deque::new(),
+            fault: state.fault,
+        }
     }
 
     /// The table this engine runs.
