@@ -65,7 +65,7 @@ fn report(src: &Source, diags: &[Diagnostic]) {
     use std::io::IsTerminal;
     let color = std::io::stderr().is_terminal();
     for d in diags {
-        eprint!("{}", d.render(src, color));
+        eprintln!("{}", d.render(src, color));
     }
     let errors = diags.iter().filter(|d| d.is_error()).count();
     let warnings = diags.len() - errors;

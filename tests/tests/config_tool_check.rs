@@ -1,0 +1,139 @@
+//! `check` diagnostics: one broken RON file per check (tests/fixtures/broken), each
+//! asserting the exact messages with their line:col, all problems of a file at once; the
+//! rendered miette form; and the good files passing.
+
+use config_tool::check::check;
+use config_tool::Source;
+
+fn fixture(path: &str) -> Source {
+    let full = format!("{}/fixtures/{path}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&full).unwrap_or_else(|e| panic!("{full}: {e}"));
+    Source::new(path, text)
+}
+
+/// `line:col: severity: message` of every diagnostic of a file.
+fn diagnostics(path: &str) -> Vec<String> {
+    let src = fixture(path);
+    let (_, diags) = check(&src);
+    diags
+        .iter()
+        .map(|d| {
+            let (line, col) = d.line_col(&src);
+            let sev = if d.is_error() { "error" } else { "warning" };
+            format!("{line}:{col}: {sev}: {}", d.message)
+        })
+        .collect()
+}
+
+/// (file, every diagnostic as `line:col: severity: message`), one file per check.
+const BROKEN: &[(&str, &[&str])] = &[
+    ("syntax.ron", &["7:21: error: Expected comma"]),
+    ("unknown-role.ron", &[
+        "9:28: error: unknown role `C`",
+        "17:19: error: role `B` is assigned to no node",
+    ]),
+    ("unknown-node.ron", &["9:33: error: unknown node `n3`"]),
+    ("unknown-event.ron", &["15:95: error: unknown event `b.FINISHED` of role `B`"]),
+    ("unknown-state.ron", &[
+        "49:24: warning: state `DONE` of chart type `Follower` is unreachable from its initial state `WAIT`",
+        "54:34: error: unknown state `FINISH`",
+    ]),
+    ("unknown-pin-name.ron", &["47:41: error: role `B` has no actuator `C` (chart `b`)"]),
+    ("duplicate-role.ron", &[
+        "9:28: error: unknown role `B`",
+        "17:19: error: duplicate role name `A`",
+    ]),
+    ("pin-twice.ron", &["14:43: error: pin 3 of role `A` is used twice: by `A.end` and `START`"]),
+    ("role-unassigned.ron", &["17:19: error: role `B` is assigned to no node"]),
+    ("role-twice.ron", &[
+        "9:41: error: duplicate assignment of role `A`",
+        "9:46: error: duplicate use of node `n2`",
+    ]),
+    ("address-twice.ron", &["7:31: error: address 0x0001 is used by nodes `n1` and `n2`"]),
+    ("step-undeclared.ron", &["22:22: error: unknown actuator `C`"]),
+    ("step-already-out.ron", &["22:22: error: `A+`: `A` is already out"]),
+    ("cycle-not-home.ron", &[
+        "22:16: error: `A` is still out at the end of the cycle: the cycle cannot repeat",
+    ]),
+    ("subscribed-unpublished.ron", &[
+        "15:95: error: `B/b.DONE` is subscribed here but nobody publishes it: no state of chart `b` emits `DONE`",
+    ]),
+    ("published-unused.ron", &["20:29: warning: chart `b` publishes `DONE` but nobody uses it"]),
+    ("unreachable-state.ron", &[
+        "49:24: warning: state `DONE` of chart type `Follower` is unreachable from its initial state `WAIT`",
+    ]),
+    ("overlapping-guards.ron", &[
+        "39:17: warning: transitions `IN -> IDLE` and `IN -> OUT` leave `IN` without an event and both guards can hold: the first declared wins",
+    ]),
+    ("capacity.ron", &[
+        "12:19: error: the table of role `A` is too big: actions needs 203 but MAX_ACTIONS is 160 (over by 43)",
+        "12:19: error: the table of role `A` is too big: states needs 104 but MAX_STATES is 96 (over by 8)",
+    ]),
+    ("guard-syntax.ron", &["36:68: error: expected a value, a name or `(`, found `&&`"]),
+    ("guard-unknown-name.ron", &[
+        "36:68: error: unknown name `MAX`: not a variable, input or parameter of this chart",
+    ]),
+];
+
+#[test]
+fn each_broken_file_gives_exactly_its_diagnostics() {
+    for (file, expected) in BROKEN {
+        assert_eq!(diagnostics(&format!("broken/{file}")), *expected, "{file}");
+    }
+}
+
+#[test]
+fn every_broken_file_is_in_the_table() {
+    let dir = format!("{}/fixtures/broken", env!("CARGO_MANIFEST_DIR"));
+    let mut on_disk: Vec<String> = std::fs::read_dir(dir)
+        .expect("fixtures/broken")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    on_disk.sort();
+    let mut listed: Vec<String> = BROKEN.iter().map(|(f, _)| f.to_string()).collect();
+    listed.sort();
+    assert_eq!(on_disk, listed);
+}
+
+#[test]
+fn the_small_robots_the_broken_files_derive_from_are_clean() {
+    assert_eq!(diagnostics("small-sequence.ron"), Vec::<String>::new());
+    assert_eq!(diagnostics("small-charts.ron"), Vec::<String>::new());
+}
+
+#[test]
+fn every_robot_config_checks_without_a_diagnostic() {
+    let dir = format!("{}/../robot-configs", env!("CARGO_MANIFEST_DIR"));
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).expect("robot-configs") {
+        let path = entry.expect("entry").path();
+        if path.extension().is_some_and(|e| e == "ron") {
+            let text = std::fs::read_to_string(&path).expect("read");
+            let src = Source::new(path.display().to_string(), text);
+            let (robot, diags) = check(&src);
+            assert!(robot.is_some());
+            let short: Vec<String> = diags.iter().map(|d| d.short(&src)).collect();
+            assert_eq!(short, Vec::<String>::new());
+            n += 1;
+        }
+    }
+    assert!(n >= 4, "{n} configs");
+}
+
+#[test]
+fn a_diagnostic_renders_with_file_line_col_the_line_and_a_caret() {
+    let src = fixture("broken/step-undeclared.ron");
+    let (_, diags) = check(&src);
+    let text = diags[0].render(&src, false);
+    let expected = "  × unknown actuator `C`
+    ╭─[broken/step-undeclared.ron:22:22]
+ 21 │     start: \"START\",
+ 22 │     sequence: \"A+ B+ C+ B- A-\",
+    ·                      ─┬
+    ·                       ╰── not declared by any role
+ 23 │ )
+    ╰────
+  help: actuators: A, B
+";
+    assert_eq!(text, expected);
+}
