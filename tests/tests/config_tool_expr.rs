@@ -1,0 +1,147 @@
+//! Guard / assignment expressions: text -> bytecode, precedence, precise syntax errors
+//! (message and byte span), and the "both guards can hold" test behind the overlap warning.
+
+use config_schema::Op;
+use config_tool::expr::{compile, may_overlap, parse, Operand};
+
+fn ops(text: &str) -> Vec<Op> {
+    let resolve = |n: &str| match n {
+        "count" => Some(Operand::Var(0)),
+        "token" => Some(Operand::Var(1)),
+        "END" => Some(Operand::Input(2)),
+        "VC.home" => Some(Operand::Input(3)),
+        "M" => Some(Operand::Const(3)),
+        _ => None,
+    };
+    compile(&parse(text).expect("parses"), &resolve).expect("compiles")
+}
+
+fn error(text: &str) -> (String, std::ops::Range<usize>) {
+    let e = parse(text).expect_err("syntax error");
+    (e.message, e.span)
+}
+
+#[test]
+fn names_become_variables_inputs_or_parameter_constants() {
+    assert_eq!(
+        ops("END && count < M"),
+        [Op::Input(2), Op::Var(0), Op::Const(3), Op::Lt, Op::And]
+    );
+    assert_eq!(ops("VC.home"), [Op::Input(3)]);
+    assert_eq!(ops("count + 1"), [Op::Var(0), Op::Const(1), Op::Add]);
+}
+
+#[test]
+fn precedence_not_over_comparison_over_and_over_or() {
+    assert_eq!(
+        ops("!token || count == 1 && END"),
+        [
+            Op::Var(1),
+            Op::Not,
+            Op::Var(0),
+            Op::Const(1),
+            Op::Eq,
+            Op::Input(2),
+            Op::And,
+            Op::Or
+        ]
+    );
+    assert_eq!(
+        ops("(token || END) && true"),
+        [Op::Var(1), Op::Input(2), Op::Or, Op::Const(1), Op::And]
+    );
+    assert_eq!(
+        ops("count - 1 - 1 >= -2"),
+        [
+            Op::Var(0),
+            Op::Const(1),
+            Op::Sub,
+            Op::Const(1),
+            Op::Sub,
+            Op::Const(0),
+            Op::Const(2),
+            Op::Sub,
+            Op::Ge
+        ]
+    );
+    assert_eq!(ops("false"), [Op::Const(0)]);
+}
+
+#[test]
+fn syntax_errors_name_the_problem_and_its_span() {
+    assert_eq!(
+        error("END && && count"),
+        (
+            "expected a value, a name or `(`, found `&&`".to_string(),
+            7..9
+        )
+    );
+    assert_eq!(
+        error("(count < 3"),
+        (
+            "expected `)`, found the end of the expression".to_string(),
+            9..10
+        )
+    );
+    assert_eq!(
+        error("count = 1"),
+        (
+            "`=` is not an operator: write `==` to compare".to_string(),
+            6..7
+        )
+    );
+    assert_eq!(
+        error("count 1"),
+        (
+            "expected an operator or the end of the expression, found `1`".to_string(),
+            6..7
+        )
+    );
+    assert_eq!(
+        error("a < b < c"),
+        (
+            "comparisons do not chain: use `&&` between two comparisons".to_string(),
+            6..7
+        )
+    );
+    assert_eq!(
+        error("count # 2"),
+        ("unexpected character `#`".to_string(), 6..7)
+    );
+    assert_eq!(error("  "), ("empty expression".to_string(), 0..0));
+    assert_eq!(
+        error("99999999999"),
+        (
+            "integer `99999999999` does not fit in 32 bits".to_string(),
+            0..11
+        )
+    );
+}
+
+#[test]
+fn unknown_names_are_reported_at_their_span() {
+    let e = compile(&parse("count < MAX").expect("parses"), &|n| {
+        (n == "count").then_some(Operand::Var(0))
+    })
+    .expect_err("unknown");
+    assert_eq!(
+        e.message,
+        "unknown name `MAX`: not a variable, input or parameter of this chart"
+    );
+    assert_eq!(e.span, 8..11);
+}
+
+#[test]
+fn overlap_is_found_when_both_guards_can_hold_and_not_otherwise() {
+    let none = |_: &str| None;
+    let g = |t: &str| parse(t).expect("parses");
+    assert!(!may_overlap(&g("count < 3"), &g("count >= 3"), &none));
+    assert!(may_overlap(&g("count < 3"), &g("count > 1"), &none));
+    assert!(!may_overlap(&g("END && !token"), &g("token"), &none));
+    assert!(may_overlap(&g("END"), &g("token"), &none));
+    // Parameters are fixed per instance: `count < M` and `count > 5` overlap only if M > 6.
+    let m3 = |n: &str| (n == "M").then_some(3);
+    let m9 = |n: &str| (n == "M").then_some(9);
+    assert!(!may_overlap(&g("count < M"), &g("count > 5"), &m3));
+    assert!(may_overlap(&g("count < M"), &g("count > 5"), &m9));
+}
