@@ -96,6 +96,8 @@ impl Effects for Check<'_> {
         self.trace.push(Ev::Cancel(timer));
     }
     fn fault(&mut self, fault: Fault) {
+        // Only a table that skipped validation can hold an expression that fails.
+        assert!(!matches!(fault, Fault::Expr { .. }), "{fault:?}");
         assert_eq!(
             self.outputs,
             safe_mask(self.t),
@@ -198,6 +200,7 @@ proptest! {
     ) {
         let b = strategy::blob(&t);
         let t = decode(&b).expect("a generated table decodes");
+        prop_assert_eq!(strategy::interpreter_safe(&t), Ok(()));
         let first = run(&t, &stimuli);
         prop_assert_eq!(run(&t, &stimuli), first);
     }
@@ -209,6 +212,7 @@ proptest! {
         stimuli in vec(stimulus(), 0..40),
     ) {
         if let Ok(t) = decode(&b) {
+            prop_assert_eq!(strategy::interpreter_safe(&t), Ok(()));
             run(&t, &stimuli);
         }
     }
@@ -253,6 +257,7 @@ fn a_fixed_sample_of_mutated_tables_runs() {
         let b = blobs.new_tree(&mut runner).unwrap().current();
         let s = stimuli.new_tree(&mut runner).unwrap().current();
         if let Ok(t) = decode(&b) {
+            assert_eq!(strategy::interpreter_safe(&t), Ok(()));
             let trace = run(&t, &s);
             ran += 1;
             faulted += usize::from(trace.iter().any(|e| matches!(e, Ev::Fault(_))));

@@ -467,3 +467,122 @@ pub fn mutated_blob() -> impl Strategy<Value = Vec<u8>> {
         seal(&payload, t.generation)
     })
 }
+
+/// An oracle independent of `validate`: every index the interpreter will follow in `t` is
+/// inside the table. Returns the first problem found.
+pub fn interpreter_safe(t: &Table) -> Result<(), String> {
+    let events = usize::from(t.events);
+    let ev = |e: u8, what: &str| {
+        if usize::from(e) < events {
+            Ok(())
+        } else {
+            Err(format!("{what}: event {e} of {events}"))
+        }
+    };
+    let expr = |e: Expr, what: &str| {
+        let (start, end) = (
+            usize::from(e.start),
+            usize::from(e.start) + usize::from(e.len),
+        );
+        let ops = t
+            .code
+            .get(start..end)
+            .ok_or(format!("{what}: expression past the code"))?;
+        config_schema::guard::check(ops, t.vars.len(), t.inputs.len())
+            .map_err(|err| format!("{what}: {err:?}"))
+    };
+    if usize::from(t.events) > MAX_EVENTS {
+        return Err("events over capacity".into());
+    }
+    if let Some(e) = t.start {
+        ev(e, "start")?;
+    }
+    for i in &t.inputs {
+        for e in [i.rise, i.fall].into_iter().flatten() {
+            ev(e, "input")?;
+        }
+        if i.var.is_some_and(|v| usize::from(v) >= t.vars.len()) {
+            return Err("input mirror variable".into());
+        }
+    }
+    for tm in &t.timers {
+        ev(tm.event, "timer")?;
+    }
+    let mut state_start = 0;
+    let mut transition_start = 0;
+    for (c, chart) in t.charts.iter().enumerate() {
+        let states = t.chart_states(c);
+        let transitions = t.chart_transitions(c);
+        if states.start != state_start || states.is_empty() || states.end > t.states.len() {
+            return Err(format!("chart {c} states {states:?}"));
+        }
+        if transitions.start != transition_start || transitions.end > t.transitions.len() {
+            return Err(format!("chart {c} transitions {transitions:?}"));
+        }
+        (state_start, transition_start) = (states.end, transitions.end);
+        let n = states.len();
+        if usize::from(chart.initial) >= n {
+            return Err(format!("chart {c} initial state"));
+        }
+        for tr in &t.transitions[transitions] {
+            if usize::from(tr.from) >= n || usize::from(tr.to) >= n {
+                return Err(format!("chart {c} transition {tr:?}"));
+            }
+            if tr.trigger.is_some_and(|i| i >= chart.inputs) {
+                return Err(format!("chart {c} trigger {tr:?}"));
+            }
+            if let Some(g) = tr.guard {
+                expr(g, "guard")?;
+            }
+        }
+    }
+    for s in 0..t.states.len() {
+        let r = t.state_actions(s);
+        if r.end > t.actions.len() || (s > 0 && r.start != t.state_actions(s - 1).end) {
+            return Err(format!("state {s} actions {r:?}"));
+        }
+    }
+    let outputs = (1u32 << t.outputs.len()) - 1;
+    for a in &t.actions {
+        match *a {
+            Action::Set { var, expr: e } => {
+                if usize::from(var) >= t.vars.len() {
+                    return Err("Set variable".into());
+                }
+                expr(e, "Set")?;
+            }
+            Action::Drive { mask, value } => {
+                if u32::from(mask | value) & !outputs != 0 {
+                    return Err(format!("Drive {mask:#x} {value:#x}"));
+                }
+            }
+            Action::Emit(e) | Action::Publish(e) => ev(e, "emit/publish")?,
+            Action::StartTimer { timer, .. } | Action::CancelTimer(timer) => {
+                if usize::from(timer) >= t.timers.len() {
+                    return Err(format!("timer {timer}"));
+                }
+            }
+            Action::Fault(_) => {}
+        }
+    }
+    for r in &t.routes {
+        ev(r.event, "route")?;
+        let chart = t.charts.get(usize::from(r.chart)).ok_or("route chart")?;
+        if r.input >= chart.inputs {
+            return Err("route chart input".into());
+        }
+    }
+    for p in &t.publications {
+        ev(p.event, "publication")?;
+        if u32::from(p.subscribers) >> t.peers.len() != 0 {
+            return Err("publication subscriber".into());
+        }
+    }
+    for s in &t.subscriptions {
+        ev(s.event, "subscription")?;
+        if usize::from(s.publisher) >= t.peers.len() {
+            return Err("subscription publisher".into());
+        }
+    }
+    Ok(())
+}
