@@ -1,0 +1,160 @@
+//! The `config-tool` binary: command names, outputs and exit statuses that scripts rely on.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn tool(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(args)
+        .current_dir(root())
+        .output()
+        .expect("runs")
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+#[test]
+fn check_accepts_a_good_robot_and_rejects_a_broken_one_with_status_1() {
+    let ok = tool(&["check", "robot-configs/paint-robot.ron"]);
+    assert!(ok.status.success());
+    assert_eq!(text(&ok.stdout), "robot-configs/paint-robot.ron: ok\n");
+    assert_eq!(text(&ok.stderr), "");
+
+    let bad = tool(&["check", "tests/fixtures/broken/role-twice.ron"]);
+    assert_eq!(bad.status.code(), Some(1));
+    let err = text(&bad.stderr);
+    assert!(err.contains("duplicate assignment of role `A`"), "{err}");
+    assert!(err.contains("duplicate use of node `n2`"), "{err}");
+    assert!(
+        err.contains("[tests/fixtures/broken/role-twice.ron:9:41]"),
+        "{err}"
+    );
+    assert!(
+        err.ends_with("tests/fixtures/broken/role-twice.ron: 2 error(s), 0 warning(s)\n"),
+        "{err}"
+    );
+}
+
+#[test]
+fn check_reports_warnings_but_succeeds() {
+    let out = tool(&["check", "tests/fixtures/broken/unreachable-state.ron"]);
+    assert!(out.status.success());
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("state `DONE` of chart type `Follower` is unreachable"),
+        "{err}"
+    );
+    assert!(err.ends_with("0 error(s), 1 warning(s)\n"), "{err}");
+}
+
+#[test]
+fn compile_writes_one_blob_per_role_and_a_summary_line_each() {
+    let dir = scratch("compile");
+    let out = tool(&[
+        "compile",
+        "robot-configs/paint-robot.ron",
+        "--out",
+        dir.to_str().expect("utf-8"),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    let lines: Vec<&str> = stdout.lines().collect();
+    for (i, role) in ["VC", "GR", "HC", "RC"].iter().enumerate() {
+        let blob = std::fs::read(dir.join(format!("{role}.bin"))).expect("blob written");
+        assert!(
+            lines[i].starts_with(&format!("{role:<12} node 0x001{}", i + 1)),
+            "{}",
+            lines[i]
+        );
+        assert!(
+            lines[i].ends_with(&format!("bytes {:>4}", blob.len())),
+            "{}",
+            lines[i]
+        );
+    }
+    assert_eq!(lines[4], "radio publications per cycle: 9");
+}
+
+#[test]
+fn dump_prints_a_blob_and_fails_clearly_on_a_bad_one() {
+    let dir = scratch("dump");
+    let out = tool(&[
+        "compile",
+        "robot-configs/paint-robot.ron",
+        "--out",
+        dir.to_str().expect("utf-8"),
+    ]);
+    assert!(out.status.success());
+    let gr = dir.join("GR.bin");
+    let dump = tool(&["dump", gr.to_str().expect("utf-8")]);
+    assert!(dump.status.success());
+    assert!(text(&dump.stdout).contains("role GR  generation 0  pan 0x1234  channel 15\n"));
+
+    let mut bytes = std::fs::read(&gr).expect("blob");
+    bytes.truncate(bytes.len() - 1);
+    let bad = dir.join("bad.bin");
+    std::fs::write(&bad, &bytes).expect("write");
+    let out = tool(&["dump", bad.to_str().expect("utf-8")]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("not a valid table blob: truncated blob:"),
+        "{err}"
+    );
+}
+
+#[test]
+fn sim_prints_each_cycle_and_fails_on_a_sequence_that_differs() {
+    let out = tool(&["sim", "robot-configs/paint-robot.ron", "--cycles", "2"]);
+    assert!(out.status.success());
+    assert_eq!(
+        text(&out.stdout),
+        "cycle   1:   3968 ms   9 publications  VC+ GR+ VC- HC+ VC+ VC- RC+ RC- HC- VC+ GR- VC-\n\
+         cycle   2:   3968 ms   9 publications  VC+ GR+ VC- HC+ VC+ VC- RC+ RC- HC- VC+ GR- VC-\n\
+         ok: 2 cycle(s), each 12 step(s) as declared\n"
+    );
+    let dir = scratch("sim");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let robot =
+        std::fs::read_to_string(root().join("tests/fixtures/small-charts.ron")).expect("read");
+    let wrong = dir.join("wrong.ron");
+    std::fs::write(
+        &wrong,
+        robot.replace("expect: \"A+ B+ B- A-\"", "expect: \"A+ B+ A- B-\""),
+    )
+    .expect("write");
+    let out = tool(&["sim", wrong.to_str().expect("utf-8"), "--cycles", "3"]);
+    assert_eq!(out.status.code(), Some(1));
+    let stdout = text(&out.stdout);
+    assert!(
+        stdout.contains("     3  A-        B-        <-- differs\n"),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn diagram_prints_dot_and_rejects_an_unknown_role() {
+    let out = tool(&["diagram", "robot-configs/paint-robot.ron", "--role", "GR"]);
+    assert!(out.status.success());
+    let dot = text(&out.stdout);
+    assert!(dot.starts_with("digraph \"GR\" {\n"), "{dot}");
+    assert!(dot.contains("c0s1 -> c0s2 [label=\"dwell\"];"), "{dot}");
+    let out = tool(&["diagram", "robot-configs/paint-robot.ron", "--role", "XX"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(
+        text(&out.stderr),
+        "error: unknown role `XX` (roles: VC, GR, HC, RC)\n"
+    );
+}
