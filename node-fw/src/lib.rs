@@ -2,6 +2,7 @@
 //!
 //! - [`ecc`]: the table interpreter (pure, `no_std`, no allocation, no Embassy).
 //! - [`link`]: reliable, ordered event delivery over a lossy radio (pure state machines).
+//! - [`node`]: the whole node as one pure state machine: frames in, frames and pins out.
 //! - [`ota`]: over-the-air table transfer, node and tool sides (pure state machines).
 //! - [`slots`]: the two table slots in flash, committed last so a power cut loses nothing.
 //! - `sim` (feature `std`): the host's deterministic virtual-time world with plant models.
@@ -10,6 +11,7 @@
 
 pub mod ecc;
 pub mod link;
+pub mod node;
 pub mod ota;
 pub mod slots;
 #[cfg(feature = "std")]

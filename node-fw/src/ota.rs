@@ -79,7 +79,12 @@ pub enum Outcome {
     /// The blob is complete and valid: activate `table` atomically (outputs to the safe
     /// state, new engine, persist `blob` to the inactive slot, flip), then answer
     /// `Activated` (or `Refused(Flash)` if persisting failed).
-    Activate { table: Table, generation: u32 },
+    Activate {
+        table: Table,
+        generation: u32,
+        /// Length of the staged blob: [`Receiver::blob`]`(len)` is what to persist.
+        len: usize,
+    },
 }
 
 impl Receiver {
@@ -179,9 +184,11 @@ impl Receiver {
                     return reply(ConfigReply::Refused(Refusal::Crc));
                 }
                 match decode(blob) {
-                    Ok(table) if table.generation == generation => {
-                        Some(Outcome::Activate { table, generation })
-                    }
+                    Ok(table) if table.generation == generation => Some(Outcome::Activate {
+                        table,
+                        generation,
+                        len: usize::from(t.len),
+                    }),
                     _ => reply(ConfigReply::Refused(Refusal::Invalid)),
                 }
             }

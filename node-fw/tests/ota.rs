@@ -33,7 +33,9 @@ impl Node {
         };
         match self.rx.on_message(msg, self.running)? {
             Outcome::Reply(r) => Some((generation, r)),
-            Outcome::Activate { table, generation } => {
+            Outcome::Activate {
+                table, generation, ..
+            } => {
                 self.running = generation;
                 self.activations.push(table);
                 Some((generation, ConfigReply::Activated))

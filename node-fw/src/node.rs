@@ -1,0 +1,504 @@
+//! The whole node as one pure state machine: frames in, frames and pin levels out.
+//!
+//! [`NodeCore`] owns the running table and the engine state, one reliable link per peer each
+//! way, the OTA receiver, the timers and the counters. A board (the Embassy runtime, the
+//! host node, a test) feeds it received PSDUs, input pin levels and the time, performs the
+//! [`Io`] it asks for, and persists a new table when asked, before the node switches to it.
+
+use config_schema::limits::{MAX_PEERS, MAX_TIMERS};
+use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
+use config_schema::wire::msg::{
+    Announce, Command, ConfigReply, Counters, Message, Refusal, Status,
+};
+use config_schema::{Publication, Table};
+use heapless::Vec;
+
+use crate::ecc::{Effects, Engine, EngineState, Fault};
+use crate::link::{self, LinkState};
+use crate::ota::{self, Outcome};
+
+/// Reported in announcements and status.
+pub const FIRMWARE_VERSION: u16 = 1;
+/// Announcement period while unconfigured.
+pub const ANNOUNCE_MS: u64 = 1000;
+/// The PAN id of configuration and command traffic (any node, any robot).
+pub const CONFIG_PAN: u16 = 0xFFFF;
+
+/// What the node does to the world.
+pub trait Io {
+    /// Transmit a PSDU (FCS included).
+    fn transmit(&mut self, psdu: &[u8]);
+    /// Drive board pin `pin` to `level`.
+    fn set_pin(&mut self, pin: u8, level: bool);
+}
+
+/// A table waiting to be persisted before it runs.
+#[derive(Debug, Clone, PartialEq)]
+struct Staged {
+    table: Table,
+    len: usize,
+    from: u16,
+}
+
+/// The generic node.
+pub struct NodeCore {
+    addr: u16,
+    table: Option<Table>,
+    state: Option<EngineState>,
+    timers: [Option<u64>; MAX_TIMERS],
+    senders: Vec<link::Sender, MAX_PEERS>,
+    /// (peer address, link) for every peer that sent events.
+    receivers: Vec<(u16, link::Receiver), MAX_PEERS>,
+    ota: ota::Receiver,
+    staged: Option<Staged>,
+    epoch: u16,
+    mac_seq: u8,
+    next_announce: u64,
+    counters: Counters,
+}
+
+/// The engine's effects, applied to the node's timers, links and pins.
+struct Fx<'a, I: Io> {
+    now: u64,
+    table: &'a Table,
+    timers: &'a mut [Option<u64>; MAX_TIMERS],
+    senders: &'a mut Vec<link::Sender, MAX_PEERS>,
+    radio: Radio<'a>,
+    io: &'a mut I,
+}
+
+/// What sending a message needs.
+struct Radio<'a> {
+    addr: u16,
+    mac_seq: &'a mut u8,
+    counters: &'a mut Counters,
+}
+
+impl Radio<'_> {
+    fn send(&mut self, io: &mut impl Io, pan_id: u16, dst: u16, msg: &Message<'_>) {
+        let mut payload = [0u8; mac::MAX_PAYLOAD];
+        let Ok(n) = msg.emit(&mut payload) else {
+            return;
+        };
+        let header = Header {
+            seq: *self.mac_seq,
+            pan_id,
+            dst,
+            src: self.addr,
+            ack_request: false,
+            secured: false,
+        };
+        *self.mac_seq = self.mac_seq.wrapping_add(1);
+        let mut psdu = [0u8; MAX_PSDU];
+        if let Ok(len) = mac::emit_data(&header, &payload[..n], &mut psdu) {
+            self.counters.sent += 1;
+            io.transmit(&psdu[..len]);
+        }
+    }
+}
+
+impl<I: Io> Effects for Fx<'_, I> {
+    fn output(&mut self, output: u8, value: bool) {
+        if let Some(o) = self.table.outputs.get(usize::from(output)) {
+            self.io.set_pin(o.pin, value);
+        }
+    }
+    fn publish(&mut self, p: &Publication) {
+        let (pan, table) = (self.table.header.pan_id, self.table);
+        for (i, sender) in self.senders.iter_mut().enumerate() {
+            if p.subscribers & (1 << i) == 0 {
+                continue;
+            }
+            let Some(&dst) = table.peers.get(i) else {
+                continue;
+            };
+            let (radio, io) = (&mut self.radio, &mut *self.io);
+            // A broken link refuses the event: the subscriber stalls rather than skips.
+            let _ = sender.push(p.topic, self.now, |m| radio.send(io, pan, dst, &m));
+        }
+    }
+    fn start_timer(&mut self, timer: u8, ms: u32) {
+        if let Some(t) = self.timers.get_mut(usize::from(timer)) {
+            *t = Some(self.now + u64::from(ms));
+        }
+    }
+    fn cancel_timer(&mut self, timer: u8) {
+        if let Some(t) = self.timers.get_mut(usize::from(timer)) {
+            *t = None;
+        }
+    }
+}
+
+impl NodeCore {
+    /// A node at `addr` booting with `table` (the newest valid slot) or none. `epoch` must
+    /// differ from (be newer than) the previous boot's: peers only accept newer epochs.
+    pub fn new(addr: u16, table: Option<Table>, epoch: u16) -> Self {
+        let mut node = NodeCore {
+            addr,
+            table: None,
+            state: None,
+            timers: [None; MAX_TIMERS],
+            senders: Vec::new(),
+            receivers: Vec::new(),
+            ota: ota::Receiver::new(),
+            staged: None,
+            epoch,
+            mac_seq: 0,
+            next_announce: 0,
+            counters: Counters::default(),
+        };
+        if let Some(t) = table {
+            node.install(t);
+        }
+        node
+    }
+
+    /// Drives every output of the running table to its safe value (call once at boot).
+    pub fn boot(&mut self, io: &mut impl Io) {
+        if let Some(t) = &self.table {
+            for o in &t.outputs {
+                io.set_pin(o.pin, o.safe);
+            }
+        }
+    }
+
+    fn install(&mut self, table: Table) {
+        self.state = Some(Engine::new(&table).snapshot());
+        self.timers = [None; MAX_TIMERS];
+        self.epoch = self.epoch.wrapping_add(1);
+        self.senders.clear();
+        for _ in &table.peers {
+            let _ = self.senders.push(link::Sender::new(self.epoch));
+        }
+        // Links from peers that stay keep their place in the publisher's numbering.
+        self.receivers.retain(|(a, _)| table.peers.contains(a));
+        self.table = Some(table);
+    }
+
+    pub fn addr(&self) -> u16 {
+        self.addr
+    }
+
+    /// The running table, if configured.
+    pub fn table(&self) -> Option<&Table> {
+        self.table.as_ref()
+    }
+
+    pub fn generation(&self) -> u32 {
+        self.table.as_ref().map_or(0, |t| t.generation)
+    }
+
+    pub fn engine_state(&self) -> Option<&EngineState> {
+        self.state.as_ref()
+    }
+
+    pub fn counters(&self) -> Counters {
+        self.counters
+    }
+
+    /// Bit i: the link to peer i is in alarm (or broken).
+    pub fn link_alarms(&self) -> u8 {
+        self.senders
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.state() != LinkState::Ok)
+            .fold(0, |m, (i, _)| m | (1 << i))
+    }
+
+    /// The blob a pending activation wants persisted (call [`NodeCore::persisted`] after).
+    pub fn to_persist(&self) -> Option<&[u8]> {
+        self.staged.as_ref().map(|s| self.ota.blob(s.len))
+    }
+
+    /// The earliest time [`NodeCore::poll`] has work.
+    pub fn deadline(&self) -> u64 {
+        let timers = self.timers.iter().flatten().copied();
+        let links = self.senders.iter().filter_map(|s| s.deadline());
+        let announce = self.table.is_none().then_some(self.next_announce);
+        timers
+            .chain(links)
+            .chain(announce)
+            .min()
+            .unwrap_or(u64::MAX)
+    }
+
+    /// Runs the engine on the running table with effects applied to this node.
+    fn run<I: Io>(&mut self, now: u64, io: &mut I, f: impl FnOnce(&mut Engine, &mut Fx<'_, I>)) {
+        let (Some(table), Some(state)) = (&self.table, &mut self.state) else {
+            return;
+        };
+        let mut engine = Engine::resume(table, state);
+        let mut fx = Fx {
+            now,
+            table,
+            timers: &mut self.timers,
+            senders: &mut self.senders,
+            radio: Radio {
+                addr: self.addr,
+                mac_seq: &mut self.mac_seq,
+                counters: &mut self.counters,
+            },
+            io,
+        };
+        f(&mut engine, &mut fx);
+        *state = engine.snapshot();
+    }
+
+    fn send(&mut self, io: &mut impl Io, pan: u16, dst: u16, msg: &Message<'_>) {
+        let mut radio = Radio {
+            addr: self.addr,
+            mac_seq: &mut self.mac_seq,
+            counters: &mut self.counters,
+        };
+        radio.send(io, pan, dst, msg);
+    }
+
+    /// The level of board pin `pin` changed.
+    pub fn input(&mut self, pin: u8, level: bool, now: u64, io: &mut impl Io) {
+        let index = self
+            .table
+            .as_ref()
+            .and_then(|t| t.inputs.iter().position(|i| i.pin == pin));
+        if let Some(index) = index {
+            self.run(now, io, |e, fx| e.input(index as u8, level, fx));
+        }
+    }
+
+    /// Expired timers, link retransmissions, announcements.
+    pub fn poll(&mut self, now: u64, io: &mut impl Io) {
+        for timer in 0..MAX_TIMERS {
+            if self.timers[timer].is_some_and(|t| t <= now) {
+                self.timers[timer] = None;
+                self.run(now, io, |e, fx| e.timer_expired(timer as u8, fx));
+            }
+        }
+        if let Some(table) = &self.table {
+            let pan = table.header.pan_id;
+            let mut radio = Radio {
+                addr: self.addr,
+                mac_seq: &mut self.mac_seq,
+                counters: &mut self.counters,
+            };
+            for (sender, &dst) in self.senders.iter_mut().zip(table.peers.iter()) {
+                let before = sender.counters().retried;
+                sender.poll(now, |m| radio.send(io, pan, dst, &m));
+                radio.counters.retried += sender.counters().retried - before;
+            }
+        } else if now >= self.next_announce {
+            self.next_announce = now + ANNOUNCE_MS;
+            let announce = self.announce();
+            self.send(io, CONFIG_PAN, BROADCAST, &announce);
+        }
+    }
+
+    fn announce(&self) -> Message<'static> {
+        let mut role = heapless::String::new();
+        if let Some(t) = &self.table {
+            role = t.header.role.clone();
+        }
+        Message::Announce(Announce {
+            firmware: FIRMWARE_VERSION,
+            generation: self.generation(),
+            role,
+        })
+    }
+
+    /// The node's status.
+    pub fn status(&self) -> Status {
+        let mut s = Status {
+            role: heapless::String::new(),
+            generation: self.generation(),
+            states: Vec::new(),
+            outputs: 0,
+            inputs: 0,
+            fault: None,
+            link_alarms: self.link_alarms(),
+            counters: self.counters,
+        };
+        if let (Some(t), Some(st)) = (&self.table, &self.state) {
+            s.role = t.header.role.clone();
+            for c in 0..t.charts.len() {
+                let _ = s.states.push(st.current[c]);
+            }
+            s.outputs = st.outputs;
+            s.inputs = st.inputs;
+            s.fault = st.fault.map(fault_code);
+        }
+        s
+    }
+
+    /// A PSDU arrived.
+    pub fn receive(&mut self, psdu: &[u8], now: u64, io: &mut impl Io) {
+        let (header, payload) = match Frame::parse(psdu) {
+            Ok(Frame::Data { header, payload }) => (header, payload),
+            _ => {
+                self.counters.dropped += 1;
+                return;
+            }
+        };
+        let pan_ok = header.pan_id == CONFIG_PAN
+            || self
+                .table
+                .as_ref()
+                .is_none_or(|t| t.header.pan_id == header.pan_id);
+        if (header.dst != self.addr && header.dst != BROADCAST) || !pan_ok || header.secured {
+            self.counters.dropped += 1;
+            return;
+        }
+        let Ok(msg) = Message::parse(payload) else {
+            self.counters.dropped += 1;
+            return;
+        };
+        self.counters.received += 1;
+        let src = header.src;
+        let reply_pan = header.pan_id;
+        match msg {
+            Message::Event { epoch, seq, topic } => self.on_event(src, epoch, seq, topic, now, io),
+            Message::EventAck { epoch, next } => {
+                let Some(peer) = self.peer(src) else { return };
+                let (Some(table), Some(sender)) = (&self.table, self.senders.get_mut(peer)) else {
+                    return;
+                };
+                let pan = table.header.pan_id;
+                let mut radio = Radio {
+                    addr: self.addr,
+                    mac_seq: &mut self.mac_seq,
+                    counters: &mut self.counters,
+                };
+                sender.on_ack(epoch, next, now, |m| radio.send(io, pan, src, &m));
+            }
+            Message::ConfigBegin { .. }
+            | Message::ConfigChunk { .. }
+            | Message::ConfigEnd { .. } => self.on_config(&msg, src, reply_pan, io),
+            Message::Command(cmd) => self.on_command(cmd, src, reply_pan, now, io),
+            // Replies, statuses and announcements are for the tool.
+            _ => {}
+        }
+    }
+
+    fn peer(&self, addr: u16) -> Option<usize> {
+        self.table.as_ref()?.peers.iter().position(|&p| p == addr)
+    }
+
+    fn on_event(&mut self, src: u16, epoch: u16, seq: u16, topic: u8, now: u64, io: &mut impl Io) {
+        let Some(peer) = self.peer(src) else {
+            self.counters.dropped += 1;
+            return;
+        };
+        let slot = match self.receivers.iter().position(|(a, _)| *a == src) {
+            Some(i) => i,
+            None => {
+                if self.receivers.push((src, link::Receiver::new())).is_err() {
+                    return;
+                }
+                self.receivers.len() - 1
+            }
+        };
+        let received = self.receivers[slot].1.on_event(epoch, seq, topic);
+        if let Some(ack) = &received.ack {
+            let pan = self.table.as_ref().map_or(CONFIG_PAN, |t| t.header.pan_id);
+            self.send(io, pan, src, ack);
+        }
+        for topic in received.deliver {
+            self.counters.delivered += 1;
+            self.run(now, io, |e, fx| {
+                e.remote(peer as u8, topic, fx);
+            });
+        }
+    }
+
+    fn on_config(&mut self, msg: &Message<'_>, src: u16, pan: u16, io: &mut impl Io) {
+        if let (Some(staged), Message::ConfigEnd { generation }) = (&self.staged, msg) {
+            if staged.table.generation == *generation {
+                return; // answered once the table is persisted
+            }
+        }
+        let generation = self.generation();
+        match self.ota.on_message(msg, generation) {
+            Some(Outcome::Reply(reply)) => {
+                let gen = match *msg {
+                    Message::ConfigBegin { generation, .. }
+                    | Message::ConfigChunk { generation, .. }
+                    | Message::ConfigEnd { generation } => generation,
+                    _ => 0,
+                };
+                self.send(
+                    io,
+                    pan,
+                    src,
+                    &Message::ConfigReply {
+                        generation: gen,
+                        reply,
+                    },
+                );
+            }
+            Some(Outcome::Activate { table, len, .. }) => {
+                // The old table keeps running until the new one is persisted.
+                self.staged = Some(Staged {
+                    table,
+                    len,
+                    from: src,
+                });
+            }
+            None => {}
+        }
+    }
+
+    /// The runtime persisted (or failed to persist) the staged table: switch to it
+    /// atomically (old outputs safe, new outputs safe, new engine) and answer the tool.
+    pub fn persisted(&mut self, ok: bool, io: &mut impl Io) {
+        let Some(staged) = self.staged.take() else {
+            return;
+        };
+        let generation = staged.table.generation;
+        let reply = if ok {
+            if let Some(old) = &self.table {
+                for o in &old.outputs {
+                    io.set_pin(o.pin, o.safe);
+                }
+            }
+            for o in &staged.table.outputs {
+                io.set_pin(o.pin, o.safe);
+            }
+            self.install(staged.table);
+            ConfigReply::Activated
+        } else {
+            ConfigReply::Refused(Refusal::Flash)
+        };
+        self.send(
+            io,
+            CONFIG_PAN,
+            staged.from,
+            &Message::ConfigReply { generation, reply },
+        );
+    }
+
+    fn on_command(&mut self, cmd: Command, src: u16, pan: u16, now: u64, io: &mut impl Io) {
+        match cmd {
+            Command::Start => self.run(now, io, |e, fx| {
+                e.start(fx);
+            }),
+            Command::Reset => self.run(now, io, |e, fx| e.reset(fx)),
+            Command::Identify => {
+                let a = self.announce();
+                self.send(io, pan, src, &a);
+            }
+            Command::Status => {
+                let s = Message::Status(self.status());
+                self.send(io, pan, src, &s);
+            }
+        }
+    }
+}
+
+/// The one-byte fault code of status: 1..=4 for the interpreter's bounds, 0x80 | code for
+/// a `Fault` action.
+pub fn fault_code(f: Fault) -> u8 {
+    match f {
+        Fault::ChainLimit { .. } => 1,
+        Fault::QueueFull { .. } => 2,
+        Fault::Cascade { .. } => 3,
+        Fault::Expr { .. } => 4,
+        Fault::Action { code, .. } => 0x80 | code,
+    }
+}

@@ -1,0 +1,375 @@
+//! The generic node end to end on a lossy radio: unconfigured nodes announce themselves, the
+//! tool pushes their tables over the air, events then cross between them exactly once and in
+//! order; stale pushes, flash failures and hostile frames change nothing.
+
+mod support;
+use support::{Channel, Rng};
+
+use config_schema::limits::MAX_BLOB;
+use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
+use config_schema::wire::msg::{Command, Message, Refusal, Status};
+use config_schema::{
+    encode, Action, Input, Output, Publication, Route, Subscription, Table, Transition,
+};
+use node_fw::node::{Io, NodeCore, CONFIG_PAN};
+use node_fw::ota;
+
+const TOOL: u16 = 0x0100;
+const A: u16 = 0x0001;
+const B: u16 = 0x0002;
+const PAN: u16 = 0x4242;
+const BUTTON_PIN: u8 = 5;
+const LAMP_PIN: u8 = 7;
+
+/// A: a button whose press is published to B.
+fn table_a(generation: u32) -> Table {
+    let mut t = Table::empty("A");
+    t.generation = generation;
+    t.header.pan_id = PAN;
+    let press = t.push_event().unwrap();
+    t.inputs
+        .push(Input {
+            pin: BUTTON_PIN,
+            rise: Some(press),
+            fall: None,
+            var: None,
+        })
+        .unwrap();
+    t.peers.push(B).unwrap();
+    t.publications
+        .push(Publication {
+            event: press,
+            topic: 3,
+            subscribers: 0b1,
+        })
+        .unwrap();
+    t
+}
+
+/// B: a lamp toggled by every press published by A.
+fn table_b(generation: u32) -> Table {
+    let mut t = Table::empty("B");
+    t.generation = generation;
+    t.header.pan_id = PAN;
+    let press = t.push_event().unwrap();
+    t.outputs
+        .push(Output {
+            pin: LAMP_PIN,
+            safe: false,
+        })
+        .unwrap();
+    t.peers.push(A).unwrap();
+    t.subscriptions
+        .push(Subscription {
+            publisher: 0,
+            topic: 3,
+            event: press,
+        })
+        .unwrap();
+    let on: &[Action] = &[Action::Drive { mask: 1, value: 1 }];
+    let off: &[Action] = &[Action::Drive { mask: 1, value: 0 }];
+    let tr = |from, to| Transition {
+        from,
+        to,
+        trigger: Some(0),
+        guard: None,
+    };
+    t.push_chart(0, 1, &[off, on], &[tr(0, 1), tr(1, 0)])
+        .unwrap();
+    t.routes
+        .push(Route {
+            event: press,
+            chart: 0,
+            input: 0,
+        })
+        .unwrap();
+    t
+}
+
+fn blob(t: &Table) -> Vec<u8> {
+    let mut buf = vec![0u8; MAX_BLOB];
+    let n = encode(t, &mut buf).unwrap();
+    buf.truncate(n);
+    buf
+}
+
+/// A node's outside: what it transmitted and the pin levels it set.
+#[derive(Default)]
+struct Board {
+    out: Vec<Vec<u8>>,
+    pins: Vec<(u8, bool)>,
+}
+
+impl Io for Board {
+    fn transmit(&mut self, psdu: &[u8]) {
+        self.out.push(psdu.to_vec());
+    }
+    fn set_pin(&mut self, pin: u8, level: bool) {
+        self.pins.push((pin, level));
+    }
+}
+
+/// Two nodes and the tool on one lossy radio.
+struct Net {
+    rng: Rng,
+    air: Channel<Vec<u8>>,
+    nodes: Vec<(NodeCore, Board)>,
+    /// Messages the tool received: (src, message bytes).
+    tool_inbox: Vec<(u16, Vec<u8>)>,
+    flash_ok: bool,
+    now: u64,
+    seq: u8,
+}
+
+impl Net {
+    fn new(loss: f64, dup: f64, seed: u64) -> Self {
+        Net {
+            rng: Rng::new(seed),
+            air: Channel::new(loss, dup, (1, 8)),
+            nodes: vec![
+                (NodeCore::new(A, None, 1), Board::default()),
+                (NodeCore::new(B, None, 1), Board::default()),
+            ],
+            tool_inbox: Vec::new(),
+            flash_ok: true,
+            now: 0,
+            seq: 0,
+        }
+    }
+
+    fn tool_send(&mut self, dst: u16, msg: &Message) {
+        let mut payload = [0u8; mac::MAX_PAYLOAD];
+        let n = msg.emit(&mut payload).unwrap();
+        let header = Header {
+            seq: self.seq,
+            pan_id: CONFIG_PAN,
+            dst,
+            src: TOOL,
+            ack_request: false,
+            secured: false,
+        };
+        self.seq = self.seq.wrapping_add(1);
+        let mut psdu = [0u8; MAX_PSDU];
+        let len = mac::emit_data(&header, &payload[..n], &mut psdu).unwrap();
+        self.air.send(&mut self.rng, self.now, psdu[..len].to_vec());
+    }
+
+    /// One millisecond: deliver due frames, poll the nodes, put what they sent on the air.
+    fn tick(&mut self) {
+        for psdu in self.air.due(self.now) {
+            let Ok(Frame::Data { header, payload }) = Frame::parse(&psdu) else {
+                panic!("the medium only carries good frames here");
+            };
+            if header.dst == TOOL || header.dst == BROADCAST {
+                self.tool_inbox.push((header.src, payload.to_vec()));
+            }
+            for (node, board) in &mut self.nodes {
+                if header.dst == node.addr() || header.dst == BROADCAST {
+                    node.receive(&psdu, self.now, board);
+                    if node.to_persist().is_some() {
+                        node.persisted(self.flash_ok, board);
+                    }
+                }
+            }
+        }
+        for (node, board) in &mut self.nodes {
+            node.poll(self.now, board);
+            for psdu in board.out.drain(..) {
+                self.air.send(&mut self.rng, self.now, psdu);
+            }
+        }
+        self.now += 1;
+    }
+
+    fn run(&mut self, ms: u64) {
+        for _ in 0..ms {
+            self.tick();
+        }
+    }
+
+    /// Pushes `table` to `dst` with the tool's OTA sender; returns its outcome.
+    fn push(&mut self, dst: u16, table: &Table, force: bool) -> ota::Progress {
+        let bytes = blob(table);
+        let mut tx = ota::Sender::new(&bytes, table.generation, force);
+        let mut out = Vec::new();
+        tx.start(self.now, |m| out.push(m));
+        let start = self.now;
+        while tx.progress() == ota::Progress::Busy && self.now - start < 20_000 {
+            for m in out.drain(..) {
+                self.tool_send(dst, &m);
+            }
+            self.tick();
+            for (src, bytes) in std::mem::take(&mut self.tool_inbox) {
+                if let (true, Ok(Message::ConfigReply { generation, reply })) =
+                    (src == dst, Message::parse(&bytes))
+                {
+                    tx.on_reply(generation, reply, self.now, |m| out.push(m));
+                }
+            }
+            tx.poll(self.now, |m| out.push(m));
+        }
+        tx.progress()
+    }
+
+    fn press(&mut self) {
+        let (node, board) = &mut self.nodes[0];
+        node.input(BUTTON_PIN, true, self.now, board);
+        self.run(20);
+        let (node, board) = &mut self.nodes[0];
+        node.input(BUTTON_PIN, false, self.now, board);
+        self.run(180);
+    }
+
+    fn status(&mut self, dst: u16) -> Status {
+        self.tool_inbox.clear();
+        for _ in 0..50 {
+            self.tool_send(dst, &Message::Command(Command::Status));
+            self.run(30);
+            for (src, bytes) in std::mem::take(&mut self.tool_inbox) {
+                if let (true, Ok(Message::Status(s))) = (src == dst, Message::parse(&bytes)) {
+                    return s;
+                }
+            }
+        }
+        panic!("no status from {dst:#06x}");
+    }
+}
+
+#[test]
+fn unconfigured_nodes_announce_themselves() {
+    let mut net = Net::new(0.0, 0.0, 1);
+    net.run(10);
+    let announced: Vec<u16> = net
+        .tool_inbox
+        .iter()
+        .filter(|(_, b)| matches!(Message::parse(b), Ok(Message::Announce(a)) if a.role.is_empty() && a.generation == 0))
+        .map(|(src, _)| *src)
+        .collect();
+    assert_eq!(announced, vec![A, B]);
+}
+
+#[test]
+fn pushed_tables_carry_events_exactly_once_in_order_under_loss() {
+    for seed in 1..=5 {
+        let mut net = Net::new(0.2, 0.1, seed);
+        assert_eq!(
+            net.push(A, &table_a(1), false),
+            ota::Progress::Done,
+            "seed {seed}"
+        );
+        assert_eq!(
+            net.push(B, &table_b(1), false),
+            ota::Progress::Done,
+            "seed {seed}"
+        );
+        // Activation drove B's lamp to its safe value.
+        assert_eq!(net.nodes[1].1.pins, vec![(LAMP_PIN, false)], "seed {seed}");
+        net.nodes[1].1.pins.clear();
+        for _ in 0..10 {
+            net.press();
+        }
+        net.run(3000);
+        let lamp: Vec<bool> = net.nodes[1].1.pins.iter().map(|&(_, l)| l).collect();
+        assert_eq!(
+            lamp,
+            [true, false].repeat(5),
+            "seed {seed}: exactly one toggle per press"
+        );
+        let b = net.status(B);
+        assert_eq!(b.role.as_str(), "B");
+        assert_eq!(b.generation, 1);
+        assert_eq!(b.counters.delivered, 10, "seed {seed}");
+        assert_eq!(b.states.as_slice(), &[0]);
+        let a = net.status(A);
+        assert_eq!(a.link_alarms, 0);
+        assert!(
+            a.counters.retried > 0,
+            "seed {seed}: the loss forced retries"
+        );
+    }
+}
+
+#[test]
+fn a_stale_push_is_refused_and_a_failed_flash_keeps_the_old_table() {
+    let mut net = Net::new(0.0, 0.0, 7);
+    assert_eq!(net.push(B, &table_b(4), false), ota::Progress::Done);
+    assert_eq!(
+        net.push(B, &table_b(4), false),
+        ota::Progress::Refused(Refusal::Stale { running: 4 })
+    );
+    net.flash_ok = false;
+    assert_eq!(
+        net.push(B, &table_b(5), false),
+        ota::Progress::Refused(Refusal::Flash)
+    );
+    assert_eq!(net.nodes[1].0.generation(), 4);
+    net.flash_ok = true;
+    assert_eq!(net.push(B, &table_b(5), false), ota::Progress::Done);
+    assert_eq!(net.nodes[1].0.generation(), 5);
+}
+
+#[test]
+fn a_silent_subscriber_raises_the_link_alarm_and_nothing_moves_twice() {
+    let mut net = Net::new(0.0, 0.0, 3);
+    assert_eq!(net.push(A, &table_a(1), false), ota::Progress::Done);
+    assert_eq!(net.push(B, &table_b(1), false), ota::Progress::Done);
+    net.nodes[1].1.pins.clear();
+    net.air.loss = 1.0; // B's radio dies
+    net.press();
+    net.run(3000);
+    assert!(net.nodes[1].1.pins.is_empty());
+    assert_eq!(net.nodes[0].0.link_alarms(), 0b1);
+    net.air.loss = 0.0; // back: the press arrives once, late, and the alarm clears
+    net.run(1000);
+    assert_eq!(net.nodes[1].1.pins, vec![(LAMP_PIN, true)]);
+    assert_eq!(net.nodes[0].0.link_alarms(), 0);
+}
+
+#[test]
+fn hostile_frames_are_dropped_and_counted() {
+    let mut net = Net::new(0.0, 0.0, 9);
+    assert_eq!(net.push(B, &table_b(1), false), ota::Progress::Done);
+    let (node, board) = &mut net.nodes[1];
+    let before = node.counters().dropped;
+    let mut rng = Rng::new(42);
+    let mut sent = 0;
+    for len in 0..200usize {
+        let bytes: Vec<u8> = (0..len).map(|_| rng.next() as u8).collect();
+        node.receive(&bytes, 0, board);
+        sent += 1;
+    }
+    // A good frame to B with a payload that is not a message.
+    let header = Header {
+        seq: 1,
+        pan_id: PAN,
+        dst: B,
+        src: A,
+        ack_request: false,
+        secured: false,
+    };
+    let mut psdu = [0u8; MAX_PSDU];
+    let n = mac::emit_data(&header, &[0xFF, 0xFF, 0xFF], &mut psdu).unwrap();
+    node.receive(&psdu[..n], 0, board);
+    sent += 1;
+    // An event from a node that is not a peer.
+    let n = {
+        let mut payload = [0u8; 16];
+        let m = Message::Event {
+            epoch: 1,
+            seq: 0,
+            topic: 3,
+        }
+        .emit(&mut payload)
+        .unwrap();
+        let h = Header {
+            src: 0x0666,
+            ..header
+        };
+        mac::emit_data(&h, &payload[..m], &mut psdu).unwrap()
+    };
+    node.receive(&psdu[..n], 0, board);
+    sent += 1;
+    assert_eq!(node.counters().dropped - before, sent);
+    assert!(board.pins.iter().all(|&(_, l)| !l), "nothing moved");
+    assert_eq!(node.counters().delivered, 0);
+}
