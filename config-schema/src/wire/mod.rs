@@ -3,6 +3,8 @@
 //!
 //! - [`mac`]: IEEE 802.15.4-2006 MAC frames (the subset the nodes use).
 //! - [`msg`]: the application messages inside them (postcard).
+//! - [`medium`]: the framing of a connection to the simulated medium (and UART bridges).
 
 pub mod mac;
+pub mod medium;
 pub mod msg;
