@@ -137,3 +137,19 @@ fn a_diagnostic_renders_with_file_line_col_the_line_and_a_caret() {
 ";
     assert_eq!(text, expected);
 }
+
+#[test]
+fn the_complete_example_of_the_format_doc_checks_clean() {
+    let doc = std::fs::read_to_string(format!(
+        "{}/../docs/robot-format.md",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .expect("docs/robot-format.md");
+    let start = doc.find("```ron\n").expect("a ron block") + "```ron\n".len();
+    let end = start + doc[start..].find("```").expect("closed");
+    let src = Source::new("robot-format.md", &doc[start..end]);
+    let (robot, diags) = check(&src);
+    assert!(robot.is_some());
+    let short: Vec<String> = diags.iter().map(|d| d.short(&src)).collect();
+    assert_eq!(short, Vec::<String>::new());
+}
