@@ -11,6 +11,7 @@ use config_schema::{decode, encode, DecodeError, EncodeError, Invalid, Place, Ta
 fn a_realistic_table_round_trips() {
     let t = realistic();
     let b = blob(&t);
+    println!("realistic VC table: {} bytes of blob", b.len());
     assert_eq!(decode(&b), Ok(t.clone()));
     // Deterministic: the same table gives the same bytes.
     assert_eq!(blob(&t), b);
