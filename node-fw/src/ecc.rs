@@ -20,7 +20,8 @@ pub enum Fault {
     Cascade { event: EventId },
     /// A `Fault` action ran.
     Action { chart: u8, code: u8 },
-    /// An expression could not be evaluated (only for tables that skipped validation).
+    /// A guard or assignment expression could not be evaluated (only for tables that
+    /// skipped validation).
     Expr { chart: u8 },
 }
 
@@ -280,16 +281,25 @@ impl<'t> Engine<'t> {
     /// is stable.
     fn deliver(&mut self, chart: u8, input: u8, fx: &mut impl Effects) {
         match self.select(chart, Some(input)) {
-            Some(t) => self.fire(chart, t, fx),
-            None => {
+            Ok(Some(t)) => self.fire(chart, t, fx),
+            Ok(None) => {
                 fx.ignored(chart, input);
+                return;
+            }
+            Err(fault) => {
+                self.set_fault(fault, fx);
                 return;
             }
         }
         let mut steps = 0usize;
         while self.fault.is_none() {
-            let Some(t) = self.select(chart, None) else {
-                return;
+            let t = match self.select(chart, None) {
+                Ok(Some(t)) => t,
+                Ok(None) => return,
+                Err(fault) => {
+                    self.set_fault(fault, fx);
+                    return;
+                }
             };
             steps += 1;
             if steps > MAX_CHAIN {
@@ -301,23 +311,34 @@ impl<'t> Engine<'t> {
     }
 
     /// The first transition of `chart`, in declaration order, leaving the current state
-    /// whose trigger matches (`None`: event-less only) and whose guard holds.
-    fn select(&self, chart: u8, input: Option<u8>) -> Option<usize> {
+    /// whose trigger matches (`None`: event-less only) and whose guard holds. A guard that
+    /// cannot be evaluated (only in a table that skipped validation) is a fault.
+    fn select(&self, chart: u8, input: Option<u8>) -> Result<Option<usize>, Fault> {
         let table = self.table;
         let c = usize::from(chart);
-        let current = *self.current.get(c)?;
+        let Some(&current) = self.current.get(c) else {
+            return Ok(None);
+        };
         let range = table.chart_transitions(c);
         let start = range.start;
-        table
-            .transitions
-            .get(range)?
-            .iter()
-            .position(|t| {
-                t.from == current
-                    && (t.trigger.is_none() || (input.is_some() && t.trigger == input))
-                    && t.guard.is_none_or(|g| self.eval(g).is_some_and(|v| v != 0))
-            })
-            .map(|i| start + i)
+        let Some(transitions) = table.transitions.get(range) else {
+            return Ok(None);
+        };
+        for (i, t) in transitions.iter().enumerate() {
+            if t.from != current
+                || !(t.trigger.is_none() || (input.is_some() && t.trigger == input))
+            {
+                continue;
+            }
+            let holds = match t.guard {
+                None => true,
+                Some(g) => self.eval(g).ok_or(Fault::Expr { chart })? != 0,
+            };
+            if holds {
+                return Ok(Some(start + i));
+            }
+        }
+        Ok(None)
     }
 
     fn eval(&self, expr: Expr) -> Option<i32> {

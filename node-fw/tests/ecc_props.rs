@@ -270,3 +270,145 @@ fn a_fixed_sample_of_mutated_tables_runs() {
     assert!(ran >= n / 20, "{ran}");
     assert!(fired >= ran / 4, "{fired}");
 }
+
+/// One damage done to a table's structure, bypassing `validate`.
+#[derive(Debug, Clone, Copy)]
+struct Damage {
+    what: u8,
+    at: usize,
+    a: u8,
+    b: u8,
+    mask: u16,
+}
+
+fn damage() -> impl Strategy<Value = Damage> {
+    (
+        any::<u8>(),
+        any::<usize>(),
+        any::<u8>(),
+        any::<u8>(),
+        any::<u16>(),
+    )
+        .prop_map(|(what, at, a, b, mask)| Damage {
+            what,
+            at,
+            a,
+            b,
+            mask,
+        })
+}
+
+fn pick<T, const N: usize>(v: &mut heapless::Vec<T, N>, at: usize) -> Option<&mut T> {
+    let n = v.len();
+    (n > 0).then(|| &mut v[at % n])
+}
+
+/// Applies `d` to `t`: an index or a range of the table set to an arbitrary value.
+fn apply(t: &mut Table, d: Damage) {
+    use config_schema::{Action, Expr, Op};
+    let expr = Expr {
+        start: d.a,
+        len: d.b % 40,
+    };
+    match d.what % 16 {
+        0 => pick(&mut t.transitions, d.at).map(|x| x.to = d.a),
+        1 => pick(&mut t.transitions, d.at).map(|x| x.from = d.a),
+        2 => pick(&mut t.transitions, d.at).map(|x| x.trigger = Some(d.a)),
+        3 => pick(&mut t.transitions, d.at).map(|x| x.guard = Some(expr)),
+        4 => pick(&mut t.actions, d.at).map(|x| *x = Action::Set { var: d.b, expr }),
+        5 => pick(&mut t.actions, d.at).map(|x| {
+            *x = Action::Drive {
+                mask: d.mask,
+                value: !d.mask ^ u16::from(d.a),
+            }
+        }),
+        6 => pick(&mut t.actions, d.at).map(|x| *x = Action::StartTimer { timer: d.a, ms: 1 }),
+        7 => pick(&mut t.actions, d.at).map(|x| *x = Action::Emit(d.a)),
+        8 => pick(&mut t.charts, d.at).map(|x| x.states_end = d.a),
+        9 => pick(&mut t.charts, d.at).map(|x| x.transitions_end = d.a),
+        10 => pick(&mut t.charts, d.at).map(|x| x.initial = d.a),
+        11 => pick(&mut t.states, d.at).map(|x| x.actions_end = d.a),
+        12 => pick(&mut t.routes, d.at).map(|x| {
+            x.chart = d.a;
+            x.input = d.b;
+        }),
+        13 => pick(&mut t.code, d.at).map(|x| {
+            *x =
+                [Op::Not, Op::And, Op::Var(d.a), Op::Input(d.a), Op::Const(1)][usize::from(d.b) % 5]
+        }),
+        14 => pick(&mut t.inputs, d.at).map(|x| x.var = Some(d.a)),
+        _ => {
+            t.events = d.a;
+            Some(())
+        }
+    };
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    /// Defence in depth: the engine does not panic even on a table that skipped validation
+    /// (indices and ranges set to arbitrary values), and it stays deterministic.
+    #[test]
+    fn unvalidated_tables_never_panic_the_engine(
+        t in strategy::table(),
+        damage in vec(damage(), 1..6),
+        stimuli in vec(stimulus(), 0..40),
+    ) {
+        let mut t = t;
+        for d in damage {
+            apply(&mut t, d);
+        }
+        let go = || {
+            let mut e = Engine::new(&t);
+            let mut fx = Loose(Vec::new());
+            for s in &stimuli {
+                match *s {
+                    Stimulus::Input(i, level) => e.input(i, level, &mut fx),
+                    Stimulus::Timer(i) => e.timer_expired(i, &mut fx),
+                    Stimulus::Remote { publisher, topic, .. } => {
+                        e.remote(publisher, topic, &mut fx);
+                    }
+                    Stimulus::Start => {
+                        e.start(&mut fx);
+                    }
+                    Stimulus::Event(ev) => e.event(ev, &mut fx),
+                    Stimulus::Reset => e.reset(&mut fx),
+                }
+                for c in 0..t.charts.len() {
+                    assert!(e.state(c).is_some());
+                }
+            }
+            fx.0
+        };
+        let first = go();
+        prop_assert_eq!(go(), first);
+    }
+}
+
+/// Records effects without checking them against the table.
+struct Loose(Vec<Ev>);
+
+impl Effects for Loose {
+    fn output(&mut self, output: u8, value: bool) {
+        self.0.push(Ev::Out(output, value));
+    }
+    fn publish(&mut self, p: &Publication) {
+        self.0.push(Ev::Publish(p.event, p.topic));
+    }
+    fn start_timer(&mut self, timer: u8, ms: u32) {
+        self.0.push(Ev::Start(timer, ms));
+    }
+    fn cancel_timer(&mut self, timer: u8) {
+        self.0.push(Ev::Cancel(timer));
+    }
+    fn fault(&mut self, fault: Fault) {
+        self.0.push(Ev::Fault(fault));
+    }
+    fn fired(&mut self, chart: u8, transition: u8, from: u8, to: u8) {
+        self.0.push(Ev::Fired(chart, transition, from, to));
+    }
+    fn ignored(&mut self, chart: u8, input: u8) {
+        self.0.push(Ev::Ignored(chart, input));
+    }
+}

@@ -1338,3 +1338,58 @@ fn construction_reports_nothing_and_starts_safe() {
     e.event(0, &mut fx);
     assert_eq!(e.fault(), None);
 }
+
+#[test]
+fn an_expression_that_cannot_be_evaluated_faults_the_node() {
+    // Only a table that skipped validation can hold one: here a guard and an assignment
+    // that read past their operands. Chart 0: S0 -GO-> S1 [RUN], S1 -[bad]-> S2;
+    // S0 -LATER-> S3 [v := bad].
+    let build = || {
+        let mut t = fault_base();
+        t.vars.push(5).unwrap();
+        let bad = t.push_expr(&[Op::Const(1), Op::And]).unwrap();
+        t.push_chart(
+            0,
+            2,
+            &[
+                &[],
+                &[RUN[0], RUN[1]],
+                &[],
+                &[drive(0, true), Action::Set { var: 0, expr: bad }],
+            ],
+            &[on(0, 0, 1), when(1, 2, bad), on(0, 1, 3)],
+        )
+        .unwrap();
+        route(&mut t, 0, 0, 0);
+        route(&mut t, 3, 0, 1);
+        t
+    };
+    let t = build();
+    assert!(validate(&t).is_err());
+    let fault = Fault::Expr { chart: 0 };
+
+    let mut e = Engine::new(&t);
+    let mut fx = Rec::default();
+    e.event(0, &mut fx);
+    let mut want = vec![fired(0, 0, 0, 1)];
+    want.extend(RUN_TRACE);
+    want.extend(safe_trace(fault));
+    assert_eq!(fx.take(), want);
+    assert_eq!(e.state(0), Some(1));
+    assert_stays_faulted(&mut e, fault);
+
+    let mut e = Engine::new(&t);
+    e.event(3, &mut fx);
+    assert_eq!(
+        fx.take(),
+        [
+            fired(0, 2, 0, 3),
+            Out { i: 0, v: true },
+            Out { i: 0, v: false },
+            CancelTimer { timer: 0 },
+            CancelTimer { timer: 1 },
+            Ev::Fault(fault),
+        ]
+    );
+    assert_eq!(e.var(0), Some(5));
+}
