@@ -13,6 +13,6 @@ pub mod ecc;
 pub mod link;
 pub mod node;
 pub mod ota;
-pub mod slots;
 #[cfg(feature = "std")]
 pub mod sim;
+pub mod slots;
