@@ -16,6 +16,7 @@ pub mod expr;
 pub mod ir;
 pub mod locate;
 pub mod lower;
+pub mod medium;
 pub mod model;
 pub mod sim;
 pub mod source;

@@ -146,7 +146,12 @@ fn run(cli: Cli) -> Result<(), String> {
                 report(&src, &d);
                 String::new()
             })?;
-            let result = sim::simulate(&compiled, cycles).map_err(|e| format!("error: {e}"))?;
+            let result = if trace {
+                sim::simulate_traced(&compiled, cycles)
+            } else {
+                sim::simulate(&compiled, cycles)
+            }
+            .map_err(|e| format!("error: {e}"))?;
             if trace {
                 for line in &result.trace {
                     println!("{line}");

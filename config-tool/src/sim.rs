@@ -30,7 +30,7 @@ pub struct CycleResult {
 pub struct SimResult {
     pub expect: Vec<String>,
     pub cycles: Vec<CycleResult>,
-    /// Every trace entry, as text.
+    /// Every trace entry, as text (only from [`simulate_traced`]).
     pub trace: Vec<String>,
 }
 
@@ -165,6 +165,15 @@ pub fn plants(c: &Compiled) -> Result<(Vec<Plant>, usize), String> {
 
 /// Runs `cycles` cycles of the compiled robot from its blobs.
 pub fn simulate(c: &Compiled, cycles: usize) -> Result<SimResult, String> {
+    run(c, cycles, false)
+}
+
+/// [`simulate`], keeping every trace entry as text in [`SimResult::trace`].
+pub fn simulate_traced(c: &Compiled, cycles: usize) -> Result<SimResult, String> {
+    run(c, cycles, true)
+}
+
+fn run(c: &Compiled, cycles: usize, keep_trace: bool) -> Result<SimResult, String> {
     let tables: Vec<Table> = c
         .blobs
         .iter()
@@ -207,7 +216,9 @@ pub fn simulate(c: &Compiled, cycles: usize) -> Result<SimResult, String> {
                 _ => None,
             })
             .collect();
-        result.trace.extend(entries.iter().map(|e| e.to_string()));
+        if keep_trace {
+            result.trace.extend(entries.iter().map(|e| e.to_string()));
+        }
         let duration_ms = cycle.duration_ms();
         let r = CycleResult {
             steps: cycle.steps,

@@ -1,0 +1,90 @@
+//! config-tool performance: compile time of the paint robot and of a generated
+//! 8-actuator, 64-step sequence; simulated cycles per wall second of the paint robot; the
+//! paint robot's blob sizes (target: one 802.15.4 frame, about 100 bytes, each).
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use config_tool::{compile, sim, Source};
+use criterion::{criterion_group, criterion_main, Criterion};
+
+fn paint_robot() -> Source {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../robot-configs/paint-robot.ron"
+    );
+    Source::new(
+        "paint-robot.ron",
+        std::fs::read_to_string(path).expect("paint-robot.ron"),
+    )
+}
+
+/// Eight double-acting cylinders A..H, one node each; four rounds of
+/// `A+ B+ .. H+ H- .. B- A-`: 64 steps.
+fn eight_by_64() -> Source {
+    let names = ["A", "B", "C", "D", "E", "F", "G", "H"];
+    let mut nodes = String::new();
+    let mut assign = String::new();
+    let mut roles = String::new();
+    for (i, n) in names.iter().enumerate() {
+        nodes += &format!("(name: \"n{i}\", address: {}),", i + 1);
+        assign += &format!("(\"{n}\", \"n{i}\"),");
+        let start = if i == 0 {
+            "inputs: [(name: \"START\", pin: 4)],"
+        } else {
+            ""
+        };
+        roles += &format!(
+            "(name: \"{n}\", actuators: [(name: \"{n}\", kind: DoubleActing(extend: 0, retract: 1, home: 2, end: 3))], {start}),"
+        );
+    }
+    let round: Vec<String> = names
+        .iter()
+        .map(|n| format!("{n}+"))
+        .chain(names.iter().rev().map(|n| format!("{n}-")))
+        .collect();
+    let sequence = vec![round.join(" "); 4].join(" ");
+    Source::new(
+        "eight.ron",
+        format!(
+            "Robot(name: \"eight\", network: (pan_id: 1, channel: 11), nodes: [{nodes}], \
+             assign: [{assign}], roles: [{roles}], start: \"START\", sequence: \"{sequence}\")"
+        ),
+    )
+}
+
+fn benches(c: &mut Criterion) {
+    let paint = paint_robot();
+    let eight = eight_by_64();
+    let compiled = compile(&paint).expect("paint robot compiles");
+    let eight_compiled = compile(&eight).expect("8 x 64 compiles");
+    for (role, blob) in compiled.ir.roles.iter().zip(&compiled.blobs) {
+        println!("paint-robot blob {}: {} bytes", role.name, blob.len());
+    }
+    let largest = eight_compiled.blobs.iter().map(Vec::len).max().unwrap_or(0);
+    println!("8 x 64 largest blob: {largest} bytes");
+
+    c.bench_function("compile paint-robot.ron", |b| {
+        b.iter(|| compile(black_box(&paint)).expect("compiles"))
+    });
+    c.bench_function("compile 8 actuators x 64 steps", |b| {
+        b.iter(|| compile(black_box(&eight)).expect("compiles"))
+    });
+    c.bench_function("sim paint-robot 10 cycles", |b| {
+        b.iter(|| sim::simulate(black_box(&compiled), 10).expect("sim"))
+    });
+
+    // Throughput, measured once more outside criterion for a plain figure.
+    let cycles = 2000;
+    let t0 = Instant::now();
+    let result = sim::simulate(&compiled, cycles).expect("sim");
+    let secs = t0.elapsed().as_secs_f64();
+    assert!(result.ok());
+    println!(
+        "sim paint-robot: {cycles} cycles in {secs:.3} s wall = {:.0} simulated cycles / s",
+        cycles as f64 / secs
+    );
+}
+
+criterion_group!(group, benches);
+criterion_main!(group);
