@@ -13,7 +13,7 @@
 //!
 //! Everything happens through one event queue ordered by (virtual time, insertion order):
 //! the same tables, plants and calls give the same trace, always. Every run is bounded by a
-//! virtual-time limit and by [`RUN_EVENT_LIMIT`] processed events.
+//! virtual-time limit and by a number of processed events ([`RUN_EVENT_LIMIT`]).
 
 mod plant;
 mod trace;
@@ -34,8 +34,9 @@ use plant::{Outcome, Rod};
 
 /// Default radio latency, publication to delivery.
 pub const DEFAULT_RADIO_DELAY_MS: u64 = 2;
-/// Queue events processed by one `run_*` call before it gives up with
+/// Default number of queue events one `run_*` call processes before it gives up with
 /// [`SimError::Runaway`] (a zero-delay loop between nodes would otherwise never end).
+/// See [`World::set_run_event_limit`].
 pub const RUN_EVENT_LIMIT: usize = 1_000_000;
 
 /// A node of the world: its 16-bit short address and the (validated) table it runs.
@@ -77,8 +78,9 @@ pub enum SimError {
     NoSuchNodeIndex { node: usize },
     /// The run reached its virtual-time limit with events still pending.
     NotIdle { now_ms: u64, next_ms: u64 },
-    /// The run processed [`RUN_EVENT_LIMIT`] events.
-    Runaway { now_ms: u64 },
+    /// The run processed its event limit ([`RUN_EVENT_LIMIT`] by default) without
+    /// becoming idle.
+    Runaway { now_ms: u64, events: usize },
 }
 
 impl fmt::Display for SimError {
@@ -114,9 +116,9 @@ impl fmt::Display for SimError {
                 f,
                 "not idle at the time limit ({now_ms} ms): next event at {next_ms} ms"
             ),
-            SimError::Runaway { now_ms } => write!(
+            SimError::Runaway { now_ms, events } => write!(
                 f,
-                "{RUN_EVENT_LIMIT} events processed without becoming idle (at {now_ms} ms)"
+                "{events} events processed without becoming idle (at {now_ms} ms)"
             ),
         }
     }
@@ -268,6 +270,7 @@ pub struct World<'t> {
     gens: Vec<u64>,
     timer_gen: u64,
     radio_delay_ms: u64,
+    event_limit: usize,
     trace: Vec<TraceEntry>,
     scratch: Vec<Effect>,
 }
@@ -339,6 +342,7 @@ impl<'t> World<'t> {
             plants,
             timer_gen: 0,
             radio_delay_ms: DEFAULT_RADIO_DELAY_MS,
+            event_limit: RUN_EVENT_LIMIT,
             trace: Vec::new(),
             scratch: Vec::new(),
         };
@@ -372,6 +376,12 @@ impl<'t> World<'t> {
     /// Sets the radio latency (publication to delivery) for later publications.
     pub fn set_radio_delay(&mut self, ms: u64) {
         self.radio_delay_ms = ms;
+    }
+
+    /// Sets how many queue events one `run_*` call may process ([`RUN_EVENT_LIMIT`] by
+    /// default).
+    pub fn set_run_event_limit(&mut self, events: usize) {
+        self.event_limit = events;
     }
 
     /// Virtual time now, in milliseconds.
@@ -540,7 +550,7 @@ impl<'t> World<'t> {
     /// Returns the time of the last event processed (the clock stays there).
     pub fn run_until_idle(&mut self, limit_ms: u64) -> Result<u64, SimError> {
         let deadline = self.now.saturating_add(limit_ms);
-        for _ in 0..RUN_EVENT_LIMIT {
+        for _ in 0..self.event_limit {
             match self.peek() {
                 None => return Ok(self.now),
                 Some(q) if q.t > deadline => {
@@ -554,13 +564,16 @@ impl<'t> World<'t> {
                 }
             }
         }
-        Err(SimError::Runaway { now_ms: self.now })
+        Err(SimError::Runaway {
+            now_ms: self.now,
+            events: self.event_limit,
+        })
     }
 
     /// Runs every event up to `now + ms`, then sets the clock to `now + ms`.
     pub fn run_for(&mut self, ms: u64) -> Result<(), SimError> {
         let deadline = self.now.saturating_add(ms);
-        for _ in 0..RUN_EVENT_LIMIT {
+        for _ in 0..self.event_limit {
             match self.peek() {
                 Some(q) if q.t <= deadline => {
                     self.step();
@@ -571,7 +584,10 @@ impl<'t> World<'t> {
                 }
             }
         }
-        Err(SimError::Runaway { now_ms: self.now })
+        Err(SimError::Runaway {
+            now_ms: self.now,
+            events: self.event_limit,
+        })
     }
 
     /// Presses `button`, runs until idle (at most `limit_ms`), and returns the cycle it ran.

@@ -611,3 +611,104 @@ fn bad_wiring_is_refused() {
         })
     );
 }
+
+/// A node that answers every `topic_in` from its peer with a publication of `topic_out`
+/// back to it; with `starts`, START sends the first one.
+fn ping_table(peer: u16, topic_in: u8, topic_out: u8, starts: bool) -> Table {
+    let mut t = Table::empty("P");
+    for _ in 0..3 {
+        t.push_event().unwrap();
+    }
+    t.peers.push(peer).unwrap();
+    t.subscriptions
+        .push(Subscription {
+            publisher: 0,
+            topic: topic_in,
+            event: 0,
+        })
+        .unwrap();
+    t.publications
+        .push(Publication {
+            event: 1,
+            topic: topic_out,
+            subscribers: 1,
+        })
+        .unwrap();
+    t.push_chart(
+        0,
+        1,
+        &[&[Action::Emit(1)]],
+        &[Transition {
+            from: 0,
+            to: 0,
+            trigger: Some(0),
+            guard: None,
+        }],
+    )
+    .unwrap();
+    t.routes
+        .push(config_schema::Route {
+            event: 0,
+            chart: 0,
+            input: 0,
+        })
+        .unwrap();
+    if starts {
+        t.start = Some(2);
+        t.routes
+            .push(config_schema::Route {
+                event: 2,
+                chart: 0,
+                input: 0,
+            })
+            .unwrap();
+    }
+    config_schema::validate(&t).unwrap();
+    t
+}
+
+#[test]
+fn an_endless_exchange_between_nodes_is_stopped_by_the_run_bounds() {
+    let a = ping_table(0x20, 1, 2, true);
+    let b = ping_table(0x10, 2, 1, false);
+    let nodes = [
+        NodeSpec {
+            addr: 0x10,
+            table: &a,
+        },
+        NodeSpec {
+            addr: 0x20,
+            table: &b,
+        },
+    ];
+    // With the radio's delay, virtual time advances: the time limit stops it.
+    let mut world = World::new(&nodes, vec![]).unwrap();
+    world.start(0).unwrap();
+    assert_eq!(
+        world.run_until_idle(9),
+        Err(SimError::NotIdle {
+            now_ms: 8,
+            next_ms: 10
+        })
+    );
+    let deliveries = |w: &World<'_>| {
+        w.trace()
+            .iter()
+            .filter(|e| matches!(e.what, What::Deliver { accepted: true, .. }))
+            .count()
+    };
+    assert_eq!(deliveries(&world), 4);
+    // With no delay it never leaves t = 0: the event limit stops it.
+    let mut world = World::new(&nodes, vec![]).unwrap();
+    world.set_radio_delay(0);
+    world.set_run_event_limit(100);
+    world.start(0).unwrap();
+    assert_eq!(
+        world.run_until_idle(1_000),
+        Err(SimError::Runaway {
+            now_ms: 0,
+            events: 100
+        })
+    );
+    assert_eq!(deliveries(&world), 99);
+}
