@@ -712,3 +712,75 @@ fn an_endless_exchange_between_nodes_is_stopped_by_the_run_bounds() {
     );
     assert_eq!(deliveries(&world), 99);
 }
+
+#[test]
+fn a_single_acting_valve_follows_its_output_and_ignores_a_zero_length_pulse() {
+    let mut t = Table::empty("G");
+    t.push_event().unwrap();
+    t.start = Some(0);
+    t.outputs
+        .push(Output {
+            pin: 0,
+            safe: false,
+        })
+        .unwrap();
+    let (on, off) = (
+        Action::Drive { mask: 1, value: 1 },
+        Action::Drive { mask: 1, value: 0 },
+    );
+    let tr = |from, to| Transition {
+        from,
+        to,
+        trigger: Some(0),
+        guard: None,
+    };
+    // START: a pulse within one step, then close, then open.
+    t.push_chart(
+        0,
+        1,
+        &[&[off], &[on, off], &[on]],
+        &[tr(0, 1), tr(1, 2), tr(2, 0)],
+    )
+    .unwrap();
+    t.routes
+        .push(config_schema::Route {
+            event: 0,
+            chart: 0,
+            input: 0,
+        })
+        .unwrap();
+    config_schema::validate(&t).unwrap();
+    let nodes = [NodeSpec { addr: 1, table: &t }];
+    let gripper = SingleActing {
+        name: "GR".into(),
+        node: 0,
+        out: 0,
+        extend_ms: 80,
+        retract_ms: 40,
+    };
+    let mut world = World::new(&nodes, vec![gripper.into()]).unwrap();
+    world.start(0).unwrap();
+    world.run_until_idle(1_000).unwrap();
+    assert_eq!(world.steps(), Vec::<String>::new());
+    assert_eq!(world.position(0), Some(Position::Home));
+    world.start(0).unwrap();
+    world.run_for(10).unwrap();
+    assert_eq!(world.position(0), Some(Position::Extending));
+    assert_eq!(world.run_until_idle(1_000), Ok(80));
+    assert_eq!(world.position(0), Some(Position::End));
+    world.start(0).unwrap();
+    assert_eq!(world.run_until_idle(1_000), Ok(120));
+    assert_eq!(world.position(0), Some(Position::Home));
+    assert_eq!(world.steps(), ["GR+", "GR-"]);
+    assert_eq!(
+        world
+            .trace()
+            .iter()
+            .filter_map(|e| match e.what {
+                What::Arrived { end, .. } => Some((e.t_ms, end)),
+                _ => None,
+            })
+            .collect::<Vec<_>>(),
+        [(80, true), (120, false)]
+    );
+}
