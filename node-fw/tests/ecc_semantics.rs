@@ -921,12 +921,12 @@ fn a_ping_pong_emit_cycle_faults_with_cascade() {
 
 #[test]
 fn a_fault_action_stops_the_step_and_the_node() {
-    // Chart 0: S0 -GO-> S1 [RUN, fault 7, out1 on]. Chart 1 also routed GO, after chart 0.
+    // Chart 0: S0 -GO-> S1 [RUN, fault 7, out0 on]. Chart 1 also routed GO, after chart 0.
     let mut t = fault_base();
     t.push_chart(
         0,
         1,
-        &[&[], &[RUN[0], RUN[1], Action::Fault(7), drive(1, true)]],
+        &[&[], &[RUN[0], RUN[1], Action::Fault(7), drive(0, true)]],
         &[on(0, 0, 1)],
     )
     .unwrap();
