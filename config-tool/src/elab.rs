@@ -8,7 +8,7 @@ use std::collections::BTreeSet;
 use crate::diag::Diagnostic;
 use crate::expr::{self, Operand};
 use crate::ir::{ActionIr, ChartIr, InputIr, Ir, OutputIr, RoleIr, StateIr, TimerIr, TransitionIr};
-use crate::model::{ActionDecl, ActuatorKind, Robot, Role};
+use crate::model::{ActionDecl, ActuatorKind, ChartType, Robot, Role};
 use crate::source::Source;
 
 /// The role index and input name of the robot's `start`, if it has one.
@@ -272,6 +272,40 @@ pub fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
     })
 }
 
+/// An expression error at its span inside the string value at `path`.
+pub fn expr_error(src: &Source, path: &str, e: &expr::ExprError) -> Diagnostic {
+    let base = string_start(src, path);
+    Diagnostic::error(base + e.span.start..base + e.span.end, e.message.clone())
+}
+
+/// A transition naming a state its chart type does not have.
+pub fn unknown_state(src: &Source, t: &ChartType, path: &str, name: &str) -> Diagnostic {
+    let states: Vec<&str> = t.states.iter().map(|s| s.name.as_str()).collect();
+    Diagnostic::error(src.span(path), format!("unknown state `{name}`")).help(format!(
+        "states of `{}`: {}",
+        t.name,
+        states.join(", ")
+    ))
+}
+
+/// A transition triggered by an event its chart type does not have.
+pub fn unknown_chart_event(src: &Source, t: &ChartType, path: &str, on: &str) -> Diagnostic {
+    let inputs: Vec<&str> = t
+        .inputs
+        .iter()
+        .chain(&t.timers)
+        .map(String::as_str)
+        .collect();
+    Diagnostic::error(
+        src.span(path),
+        format!(
+            "unknown event `{on}`: not an input or timer of chart type `{}`",
+            t.name
+        ),
+    )
+    .help(format!("inputs and timers: {}", inputs.join(", ")))
+}
+
 /// Offset of a string value's first character (after the opening quote).
 pub fn string_start(src: &Source, path: &str) -> usize {
     let span = src.span(path);
@@ -347,11 +381,7 @@ fn chart(
                 }
             },
             Err(e) => {
-                let base = string_start(src, &path);
-                diags.push(Diagnostic::error(
-                    base + e.span.start..base + e.span.end,
-                    e.message,
-                ));
+                diags.push(expr_error(src, &path, &e));
                 0
             }
         };
@@ -403,13 +433,7 @@ fn chart(
                             text: text.clone(),
                             ops,
                         }),
-                        Err(e) => {
-                            let base = string_start(src, &format!("{path}[1]"));
-                            diags.push(Diagnostic::error(
-                                base + e.span.start..base + e.span.end,
-                                e.message,
-                            ));
-                        }
+                        Err(e) => diags.push(expr_error(src, &format!("{path}[1]"), &e)),
                     }
                 }
                 ActionDecl::Emit(o) => {
@@ -497,47 +521,24 @@ fn chart(
         let to = state_of(&tr.to);
         for (name, found, field) in [(&tr.from, from, "from"), (&tr.to, to, "to")] {
             if found.is_none() {
-                diags.push(
-                    Diagnostic::error(
-                        src.span(&format!("{path}.{field}")),
-                        format!("unknown state `{name}`"),
-                    )
-                    .help(format!(
-                        "states of `{}`: {}",
-                        t.name,
-                        t.states
-                            .iter()
-                            .map(|s| s.name.as_str())
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    )),
-                );
+                diags.push(unknown_state(src, t, &format!("{path}.{field}"), name));
             }
         }
         let trigger = match &tr.on {
-            Some(on) => {
-                match inputs.iter().position(|i| i == on) {
-                    Some(i) => Some(i),
-                    None => {
-                        diags.push(
-                        Diagnostic::error(src.span(&format!("{path}.on")), format!("unknown event `{on}`: not an input or timer of chart type `{}`", t.name))
-                            .help(format!("inputs and timers: {}", inputs.join(", "))),
-                    );
-                        None
-                    }
+            Some(on) => match inputs.iter().position(|i| i == on) {
+                Some(i) => Some(i),
+                None => {
+                    diags.push(unknown_chart_event(src, t, &format!("{path}.on"), on));
+                    None
                 }
-            }
+            },
             None => None,
         };
         let guard = match &tr.when {
             Some(text) => match expr::parse(text).and_then(|ast| expr::compile(&ast, &resolve)) {
                 Ok(ops) => Some((text.clone(), ops)),
                 Err(e) => {
-                    let base = string_start(src, &format!("{path}.when"));
-                    diags.push(Diagnostic::error(
-                        base + e.span.start..base + e.span.end,
-                        e.message,
-                    ));
+                    diags.push(expr_error(src, &format!("{path}.when"), &e));
                     None
                 }
             },

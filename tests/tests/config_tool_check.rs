@@ -70,6 +70,12 @@ const BROKEN: &[(&str, &[&str])] = &[
         "12:19: error: the table of role `A` is too big: states needs 104 but MAX_STATES is 96 (over by 8)",
     ]),
     ("guard-syntax.ron", &["36:68: error: expected a value, a name or `(`, found `&&`"]),
+    ("many-problems.ron", &[
+        "7:31: error: address 0x0001 is used by nodes `n1` and `n2`",
+        "14:43: error: pin 2 of role `A` is used twice: by `A.home` and `START`",
+        "36:71: error: expected a value, a name or `(`, found the end of the expression",
+        "54:46: error: unknown event `HOMED`: not an input or timer of chart type `Follower`",
+    ]),
     ("guard-unknown-name.ron", &[
         "36:68: error: unknown name `MAX`: not a variable, input or parameter of this chart",
     ]),

@@ -5,12 +5,14 @@
 use std::collections::BTreeMap;
 
 use crate::diag::Diagnostic;
+use crate::elab;
 use crate::expr;
-use crate::model::{ChartType, Robot};
+use crate::model::{ActionDecl, ChartType, Robot};
 use crate::source::Source;
 
 pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
     for (ti, t) in robot.chart_types.iter().enumerate() {
+        names(t, ti, src, out);
         unreachable(t, ti, src, out);
         // Parameter values of every instance (or none: parameters free).
         let mut instances: Vec<BTreeMap<String, i32>> = robot
@@ -24,6 +26,49 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
             instances.push(BTreeMap::new());
         }
         overlaps(t, ti, &instances, src, out);
+    }
+}
+
+/// Names inside a chart type (states and events of its transitions) and the syntax of its
+/// expressions. Names that depend on the role (inputs read by guards, actuators) are
+/// checked when the charts are elaborated.
+fn names(t: &ChartType, ti: usize, src: &Source, out: &mut Vec<Diagnostic>) {
+    let tp = format!("chart_types[{ti}]");
+    let syntax = |path: String, text: &str, out: &mut Vec<Diagnostic>| {
+        if let Err(e) = expr::parse(text) {
+            out.push(elab::expr_error(src, &path, &e));
+        }
+    };
+    for (vi, v) in t.vars.iter().enumerate() {
+        syntax(format!("{tp}.vars[{vi}].init"), &v.init, out);
+    }
+    for (si, s) in t.states.iter().enumerate() {
+        for (ai, a) in s.actions.iter().enumerate() {
+            if let ActionDecl::Set(_, text) = a {
+                syntax(format!("{tp}.states[{si}].actions[{ai}][1]"), text, out);
+            }
+        }
+    }
+    for (k, tr) in t.transitions.iter().enumerate() {
+        let path = format!("{tp}.transitions[{k}]");
+        for (name, field) in [(&tr.from, "from"), (&tr.to, "to")] {
+            if !t.states.iter().any(|s| &s.name == name) {
+                out.push(elab::unknown_state(
+                    src,
+                    t,
+                    &format!("{path}.{field}"),
+                    name,
+                ));
+            }
+        }
+        if let Some(on) = &tr.on {
+            if !t.inputs.contains(on) && !t.timers.contains(on) {
+                out.push(elab::unknown_chart_event(src, t, &format!("{path}.on"), on));
+            }
+        }
+        if let Some(text) = &tr.when {
+            syntax(format!("{path}.when"), text, out);
+        }
     }
 }
 
