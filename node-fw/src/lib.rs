@@ -5,6 +5,8 @@
 //! - [`node`]: the whole node as one pure state machine: frames in, frames and pins out.
 //! - [`ota`]: over-the-air table transfer, node and tool sides (pure state machines).
 //! - [`slots`]: the two table slots in flash, committed last so a power cut loses nothing.
+//! - [`runtime`]: the Embassy runtime around the node, generic over radio, pins and flash.
+//! - `host` (feature `std`): the host board of `node-host` (radio = the simulated medium).
 //! - `sim` (feature `std`): the host's deterministic virtual-time world with plant models.
 #![cfg_attr(not(feature = "std"), no_std)]
 #![forbid(unsafe_code)]
@@ -13,6 +15,9 @@ pub mod ecc;
 pub mod link;
 pub mod node;
 pub mod ota;
+pub mod runtime;
+#[cfg(feature = "std")]
+pub mod host;
 #[cfg(feature = "std")]
 pub mod sim;
 pub mod slots;

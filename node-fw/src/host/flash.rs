@@ -1,0 +1,233 @@
+//! The host board's flash: a file holding the two table slots (NOR semantics: erase sets
+//! 0xFF, a write only clears bits, every erase and write is synced before it returns), then
+//! one erase page with the boot counter. Without a file, the same flash in RAM.
+//!
+//! ```text
+//! 0              slot 0 (Slots::slot_size() bytes)
+//! slot_size      slot 1
+//! 2 * slot_size  u32 LE boot counter (0xFFFF_FFFF: never booted), rest of the page 0xFF
+//! ```
+
+use std::fs::{File, OpenOptions};
+use std::io::{self, Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+use embedded_storage::nor_flash::{ErrorType, NorFlashError, NorFlashErrorKind};
+use embedded_storage_async::nor_flash::{NorFlash, ReadNorFlash};
+
+use crate::slots::Slots;
+
+/// The erase page (as on an nRF52840).
+pub const ERASE_SIZE: usize = 4096;
+/// The bytes of the two slots: what the runtime's `Slots` see.
+pub const SLOTS_BYTES: usize = 2 * Slots::<HostFlash>::slot_size();
+/// Where the boot counter is.
+pub const COUNTER_AT: usize = SLOTS_BYTES;
+/// The size of a flash file.
+pub const FILE_SIZE: usize = SLOTS_BYTES + ERASE_SIZE;
+
+/// Why the host flash failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FlashError {
+    /// Outside the slots.
+    OutOfBounds,
+    /// Not aligned to the write or erase size.
+    NotAligned,
+    /// The file could not be read or written.
+    Io(io::ErrorKind),
+}
+
+impl NorFlashError for FlashError {
+    fn kind(&self) -> NorFlashErrorKind {
+        match self {
+            FlashError::OutOfBounds => NorFlashErrorKind::OutOfBounds,
+            FlashError::NotAligned => NorFlashErrorKind::NotAligned,
+            FlashError::Io(_) => NorFlashErrorKind::Other,
+        }
+    }
+}
+
+impl From<io::Error> for FlashError {
+    fn from(e: io::Error) -> Self {
+        FlashError::Io(e.kind())
+    }
+}
+
+enum Store {
+    Ram(Vec<u8>),
+    File(File),
+}
+
+/// The two table slots of a host node, in a file or in RAM.
+pub struct HostFlash {
+    store: Store,
+}
+
+/// Why a flash file cannot be used (nothing in it was changed).
+#[derive(Debug)]
+pub enum OpenError {
+    Io(PathBuf, io::Error),
+    /// The file exists but is not a node flash file.
+    Size {
+        path: PathBuf,
+        found: u64,
+    },
+}
+
+impl std::fmt::Display for OpenError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            OpenError::Io(path, e) => write!(f, "flash file {}: {e}", path.display()),
+            OpenError::Size { path, found } => write!(
+                f,
+                "flash file {} is {found} bytes, not a node flash file ({FILE_SIZE} bytes); \
+                 left unchanged",
+                path.display()
+            ),
+        }
+    }
+}
+
+impl HostFlash {
+    /// An erased flash in RAM (lost when the process ends).
+    pub fn ram() -> Self {
+        HostFlash {
+            store: Store::Ram(vec![0xFF; SLOTS_BYTES]),
+        }
+    }
+
+    /// Opens the flash file at `path`, creating it erased if it does not exist.
+    pub fn open(path: &Path) -> Result<Self, OpenError> {
+        let io_err = |e| OpenError::Io(path.to_path_buf(), e);
+        let file = match OpenOptions::new().read(true).write(true).open(path) {
+            Ok(file) => {
+                let found = file.metadata().map_err(io_err)?.len();
+                if found != FILE_SIZE as u64 {
+                    return Err(OpenError::Size {
+                        path: path.to_path_buf(),
+                        found,
+                    });
+                }
+                file
+            }
+            Err(e) if e.kind() == io::ErrorKind::NotFound => {
+                let mut file = OpenOptions::new()
+                    .read(true)
+                    .write(true)
+                    .create_new(true)
+                    .open(path)
+                    .map_err(io_err)?;
+                file.write_all(&[0xFF; FILE_SIZE]).map_err(io_err)?;
+                file.sync_all().map_err(io_err)?;
+                file
+            }
+            Err(e) => return Err(io_err(e)),
+        };
+        Ok(HostFlash {
+            store: Store::File(file),
+        })
+    }
+
+    /// Counts this boot: returns the new boot count (1 on the first boot of a file), or
+    /// `None` for RAM (which has no previous boot).
+    pub fn count_boot(&mut self) -> io::Result<Option<u32>> {
+        let Store::File(file) = &mut self.store else {
+            return Ok(None);
+        };
+        let mut word = [0u8; 4];
+        file.seek(SeekFrom::Start(COUNTER_AT as u64))?;
+        file.read_exact(&mut word)?;
+        let boots = match u32::from_le_bytes(word) {
+            u32::MAX => 1,
+            n => n.wrapping_add(1).max(1),
+        };
+        // A 4-byte overwrite in a file: a killed process leaves the old or the new count.
+        file.seek(SeekFrom::Start(COUNTER_AT as u64))?;
+        file.write_all(&boots.to_le_bytes())?;
+        file.sync_data()?;
+        Ok(Some(boots))
+    }
+
+    fn check(offset: u32, len: usize, align: usize) -> Result<usize, FlashError> {
+        let start = offset as usize;
+        if start.checked_add(len).is_none_or(|end| end > SLOTS_BYTES) {
+            return Err(FlashError::OutOfBounds);
+        }
+        if !start.is_multiple_of(align) || !len.is_multiple_of(align) {
+            return Err(FlashError::NotAligned);
+        }
+        Ok(start)
+    }
+
+    fn read_at(&mut self, start: usize, bytes: &mut [u8]) -> Result<(), FlashError> {
+        match &mut self.store {
+            Store::Ram(mem) => {
+                let src = mem
+                    .get(start..start + bytes.len())
+                    .ok_or(FlashError::OutOfBounds)?;
+                bytes.copy_from_slice(src);
+            }
+            Store::File(file) => {
+                file.seek(SeekFrom::Start(start as u64))?;
+                file.read_exact(bytes)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn write_at(&mut self, start: usize, bytes: &[u8]) -> Result<(), FlashError> {
+        match &mut self.store {
+            Store::Ram(mem) => {
+                let dst = mem
+                    .get_mut(start..start + bytes.len())
+                    .ok_or(FlashError::OutOfBounds)?;
+                dst.copy_from_slice(bytes);
+            }
+            Store::File(file) => {
+                file.seek(SeekFrom::Start(start as u64))?;
+                file.write_all(bytes)?;
+                file.sync_data()?;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl ErrorType for HostFlash {
+    type Error = FlashError;
+}
+
+impl ReadNorFlash for HostFlash {
+    const READ_SIZE: usize = 1;
+
+    async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
+        let start = Self::check(offset, bytes.len(), Self::READ_SIZE)?;
+        self.read_at(start, bytes)
+    }
+
+    fn capacity(&self) -> usize {
+        SLOTS_BYTES
+    }
+}
+
+impl NorFlash for HostFlash {
+    const WRITE_SIZE: usize = 4;
+    const ERASE_SIZE: usize = ERASE_SIZE;
+
+    async fn erase(&mut self, from: u32, to: u32) -> Result<(), FlashError> {
+        let len = to.checked_sub(from).ok_or(FlashError::OutOfBounds)? as usize;
+        let start = Self::check(from, len, Self::ERASE_SIZE)?;
+        self.write_at(start, &vec![0xFF; len])
+    }
+
+    async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
+        let start = Self::check(offset, bytes.len(), Self::WRITE_SIZE)?;
+        // NOR: programming only clears bits.
+        let mut cells = vec![0u8; bytes.len()];
+        self.read_at(start, &mut cells)?;
+        for (cell, b) in cells.iter_mut().zip(bytes) {
+            *cell &= *b;
+        }
+        self.write_at(start, &cells)
+    }
+}

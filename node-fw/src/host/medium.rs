@@ -1,0 +1,267 @@
+//! The host board's radio, pins and inputs: one TCP connection to the simulated medium
+//! (`config_schema::wire::medium` framing). A reader thread parses what the medium sends and
+//! hands it to the runtime through `embassy-sync` channels; writes go straight to the socket
+//! (loopback: a write of one message does not block for long).
+//!
+//! - `Frame` from the medium: a received PSDU (longer than 127 bytes: dropped, counted);
+//! - `Pin { addr, pin, level }` for this node's address: input `pin` is now at `level`
+//!   (from the plant, which the medium attaches; the node never knows its role);
+//! - anything else (other nodes' pins, a `Hello`, bytes that are not a message): ignored,
+//!   counted.
+//!
+//! The node sends `Hello(Node { addr })` first, then a `Frame` per transmitted PSDU and a
+//! `Pin` per output change.
+
+use std::io::{self, Read, Write};
+use std::net::{Shutdown, TcpStream};
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+
+use config_schema::wire::mac::MAX_PSDU;
+use config_schema::wire::medium::{Link, Peer, MAX_LINK};
+use embassy_futures::select::{select, Either};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::channel::Channel;
+use embassy_sync::signal::Signal;
+use log::warn;
+
+use crate::runtime::{Inputs, Pins, Psdu, Radio};
+
+/// Received frames buffered between the reader thread and the runtime (more are dropped,
+/// like a radio's full receive buffer).
+pub const RX_QUEUE: usize = 64;
+/// Input changes buffered between the reader thread and the runtime.
+pub const PIN_QUEUE: usize = 64;
+
+/// What the reader thread counted.
+#[derive(Debug, Default)]
+pub struct LinkCounters {
+    /// Frames dropped: the receive queue was full.
+    pub rx_overflow: AtomicU32,
+    /// Frames longer than a PSDU.
+    pub oversized: AtomicU32,
+    /// Messages that did not parse, or made no sense from the medium.
+    pub garbage: AtomicU32,
+    /// Input changes dropped: the queue was full.
+    pub pin_overflow: AtomicU32,
+}
+
+/// Where the reader thread and the runtime meet.
+struct Shared {
+    frames: Channel<CriticalSectionRawMutex, Psdu, RX_QUEUE>,
+    pins: Channel<CriticalSectionRawMutex, (u8, bool), PIN_QUEUE>,
+    closed: Signal<CriticalSectionRawMutex, ()>,
+    counters: LinkCounters,
+}
+
+/// The connection was lost.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Closed;
+
+/// One node's connection to the medium.
+pub struct Connection {
+    addr: u16,
+    stream: TcpStream,
+    writer: Arc<Mutex<TcpStream>>,
+    shared: Arc<Shared>,
+    reader: Option<JoinHandle<()>>,
+}
+
+fn write_link(stream: &mut TcpStream, msg: &Link<'_>) -> io::Result<()> {
+    let mut buf = [0u8; MAX_LINK];
+    let n = msg
+        .emit(&mut buf)
+        .map_err(|_| io::Error::new(io::ErrorKind::InvalidInput, "message too long"))?;
+    stream.write_all(buf.get(..n).unwrap_or(&buf))
+}
+
+impl Connection {
+    /// Says hello on `stream` as node `addr` and starts reading.
+    pub fn start(addr: u16, stream: TcpStream) -> io::Result<Self> {
+        stream.set_nodelay(true)?;
+        let mut writer = stream.try_clone()?;
+        write_link(&mut writer, &Link::Hello(Peer::Node { addr }))?;
+        let shared = Arc::new(Shared {
+            frames: Channel::new(),
+            pins: Channel::new(),
+            closed: Signal::new(),
+            counters: LinkCounters::default(),
+        });
+        let reading = stream.try_clone()?;
+        let for_reader = shared.clone();
+        let reader = std::thread::Builder::new()
+            .name(format!("medium-{addr:04x}"))
+            .spawn(move || read_loop(addr, reading, &for_reader))?;
+        Ok(Connection {
+            addr,
+            stream,
+            writer: Arc::new(Mutex::new(writer)),
+            shared,
+            reader: Some(reader),
+        })
+    }
+
+    pub fn radio(&self) -> HostRadio {
+        HostRadio {
+            writer: self.writer.clone(),
+            shared: self.shared.clone(),
+        }
+    }
+
+    pub fn pins(&self) -> HostPins {
+        HostPins {
+            addr: self.addr,
+            writer: self.writer.clone(),
+        }
+    }
+
+    pub fn inputs(&self) -> HostInputs {
+        HostInputs {
+            shared: self.shared.clone(),
+            levels: [false; 256],
+            replay: 256,
+        }
+    }
+
+    pub fn counters(&self) -> &LinkCounters {
+        &self.shared.counters
+    }
+
+    /// Closes the connection and waits for the reader thread.
+    pub fn close(mut self) {
+        let _ = self.stream.shutdown(Shutdown::Both);
+        if let Some(reader) = self.reader.take() {
+            let _ = reader.join();
+        }
+    }
+}
+
+fn read_loop(addr: u16, mut stream: TcpStream, shared: &Shared) {
+    let mut body = vec![0u8; usize::from(u16::MAX)];
+    loop {
+        let mut len = [0u8; 2];
+        if stream.read_exact(&mut len).is_err() {
+            break;
+        }
+        let len = usize::from(u16::from_le_bytes(len));
+        let Some(msg) = body.get_mut(..len) else {
+            break;
+        };
+        if stream.read_exact(msg).is_err() {
+            break;
+        }
+        let c = &shared.counters;
+        match Link::parse(msg) {
+            Ok(Link::Frame(psdu)) => match Psdu::from_slice(psdu) {
+                Ok(frame) => {
+                    if shared.frames.try_send(frame).is_err() {
+                        c.rx_overflow.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+                Err(_) => {
+                    c.oversized.fetch_add(1, Ordering::Relaxed);
+                }
+            },
+            Ok(Link::Pin {
+                addr: a,
+                pin,
+                level,
+            }) if a == addr => {
+                if shared.pins.try_send((pin, level)).is_err() {
+                    c.pin_overflow.fetch_add(1, Ordering::Relaxed);
+                    warn!("node {addr:#06x}: input queue full: pin {pin} change lost");
+                }
+            }
+            _ => {
+                c.garbage.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+    shared.closed.signal(());
+}
+
+/// The radio: frames over the connection.
+pub struct HostRadio {
+    writer: Arc<Mutex<TcpStream>>,
+    shared: Arc<Shared>,
+}
+
+impl Radio for HostRadio {
+    type Error = Closed;
+
+    async fn send(&mut self, psdu: &[u8]) -> Result<(), Closed> {
+        let mut stream = self.writer.lock().map_err(|_| Closed)?;
+        write_link(&mut stream, &Link::Frame(psdu)).map_err(|_| Closed)
+    }
+
+    async fn receive(&mut self, buf: &mut [u8; MAX_PSDU]) -> Result<usize, Closed> {
+        // Frames first: those that arrived before the connection closed are delivered.
+        match select(self.shared.frames.receive(), self.shared.closed.wait()).await {
+            Either::First(frame) => Ok(copy(&frame, buf)),
+            Either::Second(()) => {
+                self.shared.closed.signal(());
+                Err(Closed)
+            }
+        }
+    }
+}
+
+fn copy(frame: &[u8], buf: &mut [u8; MAX_PSDU]) -> usize {
+    let n = frame.len().min(MAX_PSDU);
+    buf[..n].copy_from_slice(&frame[..n]);
+    n
+}
+
+/// The outputs: `Pin` messages to the medium.
+pub struct HostPins {
+    addr: u16,
+    writer: Arc<Mutex<TcpStream>>,
+}
+
+impl Pins for HostPins {
+    fn set(&mut self, pin: u8, level: bool) {
+        if let Ok(mut stream) = self.writer.lock() {
+            // A lost connection shows up at the radio, which stops the runtime.
+            let _ = write_link(
+                &mut stream,
+                &Link::Pin {
+                    addr: self.addr,
+                    pin,
+                    level,
+                },
+            );
+        }
+    }
+    /// The host board has no outputs of its own: until a table names them, nothing is
+    /// driven (the table's safe values follow at boot and at every activation).
+    fn all_off(&mut self) {}
+}
+
+/// The inputs: `Pin` messages from the medium, every change reported once, in order.
+pub struct HostInputs {
+    shared: Arc<Shared>,
+    /// The last level of every pin.
+    levels: [bool; 256],
+    /// Next pin to report again after a resync (256: none).
+    replay: usize,
+}
+
+impl Inputs for HostInputs {
+    async fn change(&mut self) -> (u8, bool) {
+        while let Some(&high) = self.levels.get(self.replay) {
+            let pin = self.replay as u8;
+            self.replay += 1;
+            if high {
+                return (pin, true);
+            }
+        }
+        let (pin, level) = self.shared.pins.receive().await;
+        self.levels[usize::from(pin)] = level;
+        (pin, level)
+    }
+
+    fn resync(&mut self) {
+        self.replay = 0;
+    }
+}

@@ -1,0 +1,195 @@
+//! The host board: one generic node on Embassy's std executor, whose radio and pins are a
+//! connection to the simulated medium ([`medium`]) and whose flash is a file ([`flash`]).
+//!
+//! `node-host` is [`Args`] + [`run`]; `config-tool` can run nodes in-process the same way
+//! (one thread per node: [`run`] blocks until the medium closes the connection).
+
+pub mod flash;
+pub mod medium;
+
+use std::cell::RefCell;
+use std::net::{SocketAddr, TcpStream};
+use std::path::PathBuf;
+use std::rc::Rc;
+use std::sync::atomic::Ordering;
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use embassy_executor::raw::TaskStorage;
+use embassy_executor::Executor;
+use log::{info, warn, LevelFilter, Log, Metadata, Record};
+
+use crate::runtime::{self, Board, Stats, Stop};
+use flash::{HostFlash, OpenError};
+use medium::{Closed, Connection};
+
+/// `node-host`'s command line.
+#[derive(Debug, Clone, clap::Parser)]
+#[command(
+    name = "node-host",
+    version,
+    about = "One generic node on the host: its radio and pins are a connection to the \
+             simulated 802.15.4 medium, its table slots a file"
+)]
+pub struct Args {
+    /// The node's 16-bit short address (hex with 0x, or decimal; not 0xFFFE or 0xFFFF).
+    #[arg(long, value_parser = parse_addr)]
+    pub addr: u16,
+    /// The medium to connect to (host:port).
+    #[arg(long)]
+    pub medium: SocketAddr,
+    /// The flash file with the two table slots and the boot counter (created erased if
+    /// missing). Without it the slots are in RAM and the node boots unconfigured.
+    #[arg(long)]
+    pub flash: Option<PathBuf>,
+}
+
+/// Parses a short address: `0x0003`, `0X3` or `3`.
+pub fn parse_addr(s: &str) -> Result<u16, String> {
+    let t = s.trim();
+    let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+        Some(hex) => u16::from_str_radix(hex, 16),
+        None => t.parse(),
+    };
+    match parsed {
+        Ok(a) if a >= 0xFFFE => Err(format!(
+            "{a:#06x} is not a node address (0xFFFE and 0xFFFF are reserved by IEEE 802.15.4)"
+        )),
+        Ok(a) => Ok(a),
+        Err(_) => Err(format!("`{s}` is not a 16-bit address (write 0x0003 or 3)")),
+    }
+}
+
+/// Why the node could not run.
+#[derive(Debug)]
+pub enum HostError {
+    Flash(OpenError),
+    /// The boot counter could not be read or written.
+    BootCounter(std::io::Error),
+    Connect(SocketAddr, std::io::Error),
+    /// The flash does not fit two slots (a bug of the board).
+    FlashGeometry,
+}
+
+impl std::fmt::Display for HostError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            HostError::Flash(e) => write!(f, "{e}"),
+            HostError::BootCounter(e) => write!(f, "flash file: boot counter: {e}"),
+            HostError::Connect(addr, e) => write!(f, "cannot connect to the medium at {addr}: {e}"),
+            HostError::FlashGeometry => write!(f, "the flash does not fit two table slots"),
+        }
+    }
+}
+
+impl std::error::Error for HostError {}
+
+/// The link epoch of boot number `boots` of a flash file: 256 epochs per boot, so the
+/// tables one boot installs (each takes the next epoch) stay below the next boot's.
+pub fn epoch_of_boot(boots: u32) -> u16 {
+    boots.wrapping_mul(256) as u16
+}
+
+/// The link epoch of a node without a flash file: the wall clock in seconds (u16), newer
+/// on every restart that comes at least a second (and fewer than 9 hours) later.
+pub fn epoch_of_clock() -> u16 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs() as u16)
+}
+
+struct Stderr;
+
+impl Log for Stderr {
+    fn enabled(&self, metadata: &Metadata<'_>) -> bool {
+        metadata.level() <= log::max_level()
+    }
+    fn log(&self, record: &Record<'_>) {
+        if self.enabled(record.metadata()) {
+            eprintln!("{:<5} {}", record.level(), record.args());
+        }
+    }
+    fn flush(&self) {}
+}
+
+static STDERR: Stderr = Stderr;
+
+/// Logs to stderr at info level, unless the process already has a logger.
+pub fn init_logging() {
+    if log::set_logger(&STDERR).is_ok() {
+        log::set_max_level(LevelFilter::Info);
+    }
+}
+
+/// Runs the node until the medium closes the connection (`Ok`), or fails to start.
+pub fn run(args: Args) -> Result<(), HostError> {
+    init_logging();
+    let addr = args.addr;
+    let (mut flash, what) = match &args.flash {
+        Some(path) => (
+            HostFlash::open(path).map_err(HostError::Flash)?,
+            format!("flash {}", path.display()),
+        ),
+        None => (HostFlash::ram(), "flash in RAM".to_string()),
+    };
+    let (epoch, boot) = match flash.count_boot().map_err(HostError::BootCounter)? {
+        Some(boots) => (epoch_of_boot(boots), format!("boot {boots}")),
+        None => (epoch_of_clock(), "clock".to_string()),
+    };
+    let stream = TcpStream::connect(args.medium).map_err(|e| HostError::Connect(args.medium, e))?;
+    let conn = Connection::start(addr, stream).map_err(|e| HostError::Connect(args.medium, e))?;
+    info!(
+        "node {addr:#06x}: medium {}, {what}, epoch {epoch} ({boot})",
+        args.medium
+    );
+    let board = Board {
+        radio: conn.radio(),
+        outputs: conn.pins(),
+        inputs: conn.inputs(),
+        flash,
+    };
+    let (stop, stats) = run_on_executor(addr, epoch, board);
+    let c = conn.counters();
+    let (overflow, oversized, garbage) = (
+        c.rx_overflow.load(Ordering::Relaxed),
+        c.oversized.load(Ordering::Relaxed),
+        c.garbage.load(Ordering::Relaxed),
+    );
+    conn.close();
+    info!(
+        "node {addr:#06x}: stopped: {stop:?}; {} activations, {} flash failures, \
+         tx dropped {} (queue) + {} (radio), rx dropped {overflow} (queue) + \
+         {oversized} (oversized), {garbage} garbage messages",
+        stats.activations, stats.flash_failures, stats.tx_queue_full, stats.tx_failed
+    );
+    match stop {
+        Stop::Radio(Closed) => Ok(()),
+        Stop::FlashGeometry => Err(HostError::FlashGeometry),
+    }
+}
+
+type Stopped = (Stop<Closed>, Stats);
+type HostBoard = Board<medium::HostRadio, medium::HostPins, medium::HostInputs, HostFlash>;
+
+/// Runs the runtime as a task of a fresh std executor on this thread until it stops.
+fn run_on_executor(addr: u16, epoch: u16, board: HostBoard) -> (Stop<Closed>, Stats) {
+    let result: Rc<RefCell<Option<Stopped>>> = Rc::new(RefCell::new(None));
+    let out = result.clone();
+    let done = result.clone();
+    // Leaked: the executor and the task need `'static`; one of each per node run.
+    let executor: &'static mut Executor = Box::leak(Box::new(Executor::new()));
+    executor.run_until(
+        move |spawner| {
+            let task = Box::leak(Box::new(TaskStorage::new()));
+            match task.spawn(move || async move {
+                let stopped = runtime::run(addr, epoch, board).await;
+                *out.borrow_mut() = Some(stopped);
+            }) {
+                Ok(token) => spawner.spawn(token),
+                Err(e) => warn!("node {addr:#06x}: cannot spawn the runtime: {e:?}"),
+            }
+        },
+        move || done.borrow().is_some(),
+    );
+    let stopped = result.borrow_mut().take();
+    stopped.unwrap_or((Stop::Radio(Closed), Stats::default()))
+}

@@ -1,0 +1,352 @@
+//! The Embassy runtime around [`NodeCore`]: the same code on every board, generic over the
+//! hardware at its seams.
+//!
+//! - [`Radio`]: send and receive one IEEE 802.15.4 PSDU (half duplex, async);
+//! - [`Pins`]: the outputs, addressed by the table's pin numbers (implemented for slices of
+//!   `embedded_hal::digital::OutputPin`, index = pin number);
+//! - [`Inputs`]: the next input level change (implemented by [`WaitInputs`] for arrays of
+//!   `embedded_hal_async::digital::Wait` + `InputPin`, index = pin number);
+//! - a `NorFlash` (`embedded-storage-async`) for the two table [`Slots`];
+//! - `embassy-time` for the time and the timer until [`NodeCore::deadline`].
+//!
+//! [`run`] boots (outputs safe, newest valid slot, `NodeCore::new`) and then loops: wait for
+//! a frame, an input change or the deadline; feed the core; poll it; persist a pushed table
+//! when asked (then `persisted`); transmit what the core queued. The transmit queue is
+//! bounded: a full queue drops the frame and counts it, and a radio that does not take a
+//! frame within [`SEND_TIMEOUT_MS`] loses it (counted too), so nothing blocks forever. The
+//! protocols above (event links, OTA) resend what is lost.
+
+use core::convert::Infallible;
+
+use config_schema::wire::mac::MAX_PSDU;
+use embassy_futures::select::{select3, select_array, Either3};
+use embassy_time::{with_timeout, Duration, Instant, Timer};
+use embedded_hal::digital::{InputPin, OutputPin};
+use embedded_hal_async::digital::Wait;
+use embedded_storage_async::nor_flash::NorFlash;
+use heapless::{Deque, Vec};
+use log::{info, warn};
+
+use crate::node::{fault_code, Io, NodeCore};
+use crate::slots::Slots;
+
+/// Frames the core may queue between two flushes (a poll that retransmits to every peer
+/// queues at most `WINDOW` frames per peer).
+pub const TX_QUEUE: usize = 32;
+/// How long the radio may take to accept one frame before it is dropped.
+pub const SEND_TIMEOUT_MS: u64 = 100;
+/// The longest single sleep of the main loop (the deadline is recomputed after it).
+pub const MAX_SLEEP_MS: u64 = 60_000;
+
+/// One PSDU (FCS included).
+pub type Psdu = Vec<u8, MAX_PSDU>;
+
+/// The radio: an IEEE 802.15.4 transceiver, or a connection to a simulated medium.
+#[allow(async_fn_in_trait)]
+pub trait Radio {
+    type Error: core::fmt::Debug;
+    /// Transmits one PSDU (FCS included).
+    async fn send(&mut self, psdu: &[u8]) -> Result<(), Self::Error>;
+    /// Receives one PSDU into `buf`; returns its length. Must be cancel-safe: the runtime
+    /// drops an unfinished receive when an input or a timer wins, losing at most the frame
+    /// in flight. An error stops the runtime (the radio is gone).
+    async fn receive(&mut self, buf: &mut [u8; MAX_PSDU]) -> Result<usize, Self::Error>;
+}
+
+/// The outputs, addressed by the table's pin numbers.
+pub trait Pins {
+    /// Drives output `pin` to `level` (pins the board does not have are ignored).
+    fn set(&mut self, pin: u8, level: bool);
+    /// Drives every output to its inactive level: the state before any table is known.
+    fn all_off(&mut self);
+}
+
+/// Output pins indexed by the table's pin numbers (`self[pin]`), inactive when low.
+impl<O: OutputPin> Pins for [O] {
+    fn set(&mut self, pin: u8, level: bool) {
+        if let Some(p) = self.get_mut(usize::from(pin)) {
+            let _ = if level { p.set_high() } else { p.set_low() };
+        }
+    }
+    fn all_off(&mut self) {
+        for p in self.iter_mut() {
+            let _ = p.set_low();
+        }
+    }
+}
+
+impl<O: OutputPin, const N: usize> Pins for [O; N] {
+    fn set(&mut self, pin: u8, level: bool) {
+        self.as_mut_slice().set(pin, level)
+    }
+    fn all_off(&mut self) {
+        self.as_mut_slice().all_off()
+    }
+}
+
+impl<P: Pins + ?Sized> Pins for &mut P {
+    fn set(&mut self, pin: u8, level: bool) {
+        (**self).set(pin, level)
+    }
+    fn all_off(&mut self) {
+        (**self).all_off()
+    }
+}
+
+/// The inputs: limit switches, buttons.
+#[allow(async_fn_in_trait)]
+pub trait Inputs {
+    /// Waits for the next change of an input's level; returns (pin, new level). Must be
+    /// cancel-safe: a change that happens while no `change` future is pending is reported
+    /// by the next call.
+    async fn change(&mut self) -> (u8, bool);
+    /// Forgets what was reported: the next calls report every input that is high (after a
+    /// new table, whose engine starts with every input low).
+    fn resync(&mut self);
+}
+
+/// No inputs at all.
+impl Inputs for () {
+    async fn change(&mut self) -> (u8, bool) {
+        core::future::pending().await
+    }
+    fn resync(&mut self) {}
+}
+
+/// `embedded-hal-async` input pins indexed by the table's pin numbers (`pins[pin]`).
+///
+/// Levels are the truth and edges only wake it up: each call first compares every pin's
+/// level with the last one reported, so an edge that came while nobody waited is not lost
+/// (a pulse shorter than one loop turn may be).
+pub struct WaitInputs<'a, I, const N: usize> {
+    pins: &'a mut [I; N],
+    reported: [bool; N],
+}
+
+impl<'a, I: Wait + InputPin, const N: usize> WaitInputs<'a, I, N> {
+    /// Every pin is taken as reported low, so high pins are reported first.
+    pub fn new(pins: &'a mut [I; N]) -> Self {
+        WaitInputs {
+            pins,
+            reported: [false; N],
+        }
+    }
+}
+
+impl<I: Wait + InputPin, const N: usize> Inputs for WaitInputs<'_, I, N> {
+    async fn change(&mut self) -> (u8, bool) {
+        loop {
+            for (i, (pin, reported)) in self.pins.iter_mut().zip(&mut self.reported).enumerate() {
+                if let Ok(level) = pin.is_high() {
+                    if level != *reported {
+                        *reported = level;
+                        return (i as u8, level);
+                    }
+                }
+            }
+            let waits = self.pins.each_mut().map(|p| p.wait_for_any_edge());
+            let (result, _) = select_array(waits).await;
+            if result.is_err() {
+                // A pin that cannot wait: look again later instead of spinning.
+                Timer::after_millis(10).await;
+            }
+        }
+    }
+    fn resync(&mut self) {
+        self.reported = [false; N];
+    }
+}
+
+/// Why the runtime stopped.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Stop<E> {
+    /// The radio failed (for the host board: the medium closed the connection).
+    Radio(E),
+    /// The flash is too small for two slots or its granularity does not fit.
+    FlashGeometry,
+}
+
+/// What the runtime counted besides the core's counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Stats {
+    /// Frames dropped because the transmit queue was full.
+    pub tx_queue_full: u32,
+    /// Frames the radio refused or did not take in time.
+    pub tx_failed: u32,
+    /// Tables persisted and activated.
+    pub activations: u32,
+    /// Tables that could not be persisted (refused to the tool).
+    pub flash_failures: u32,
+}
+
+/// The core's view of the board: pins directly, frames into the bounded queue.
+struct CoreIo<'a, P> {
+    pins: &'a mut P,
+    tx: Deque<Psdu, TX_QUEUE>,
+    stats: &'a mut Stats,
+}
+
+impl<P: Pins> Io for CoreIo<'_, P> {
+    fn transmit(&mut self, psdu: &[u8]) {
+        let Ok(frame) = Psdu::from_slice(psdu) else {
+            self.stats.tx_failed += 1;
+            return;
+        };
+        if self.tx.push_back(frame).is_err() {
+            self.stats.tx_queue_full += 1;
+        }
+    }
+    fn set_pin(&mut self, pin: u8, level: bool) {
+        self.pins.set(pin, level);
+    }
+}
+
+/// The hardware of one node.
+pub struct Board<R, P, I, F> {
+    pub radio: R,
+    pub outputs: P,
+    pub inputs: I,
+    pub flash: F,
+}
+
+fn now_ms() -> u64 {
+    Instant::now().as_millis()
+}
+
+/// The running engine's fault code, if faulted.
+fn fault_of(core: &NodeCore) -> Option<u8> {
+    core.engine_state().and_then(|s| s.fault).map(fault_code)
+}
+
+/// Runs node `addr` on `board` until the radio fails. `epoch` must be newer than the
+/// previous boot's (serial order on `u16`, with room for the tables this boot installs,
+/// each of which takes the next epoch): see `docs/node-runtime.md`.
+pub async fn run<R, P, I, F>(
+    addr: u16,
+    epoch: u16,
+    board: Board<R, P, I, F>,
+) -> (Stop<R::Error>, Stats)
+where
+    R: Radio,
+    P: Pins,
+    I: Inputs,
+    F: NorFlash,
+{
+    let mut stats = Stats::default();
+    match run_inner(addr, epoch, board, &mut stats).await {
+        Ok(never) => match never {},
+        Err(stop) => (stop, stats),
+    }
+}
+
+async fn run_inner<R, P, I, F>(
+    addr: u16,
+    epoch: u16,
+    board: Board<R, P, I, F>,
+    stats: &mut Stats,
+) -> Result<Infallible, Stop<R::Error>>
+where
+    R: Radio,
+    P: Pins,
+    I: Inputs,
+    F: NorFlash,
+{
+    let Board {
+        mut radio,
+        mut outputs,
+        mut inputs,
+        flash,
+    } = board;
+    outputs.all_off();
+    let mut slots = Slots::new(flash).map_err(|_| Stop::FlashGeometry)?;
+    let loaded = match slots.load().await {
+        Ok(loaded) => loaded,
+        Err(e) => {
+            warn!("node {addr:#06x}: flash unreadable ({e:?}): booting unconfigured");
+            None
+        }
+    };
+    let mut running = loaded.as_ref().map(|l| l.slot);
+    let mut core = NodeCore::new(addr, loaded.map(|l| l.table), epoch);
+    let mut io = CoreIo {
+        pins: &mut outputs,
+        tx: Deque::new(),
+        stats,
+    };
+    core.boot(&mut io);
+    match core.table() {
+        Some(t) => info!(
+            "node {addr:#06x}: boot: role {} generation {} from slot {}",
+            t.header.role,
+            t.generation,
+            running.unwrap_or(0)
+        ),
+        None => info!("node {addr:#06x}: boot: unconfigured"),
+    }
+    let mut fault = fault_of(&core);
+    let mut rx = [0u8; MAX_PSDU];
+    loop {
+        core.poll(now_ms(), &mut io);
+
+        if let Some(blob) = core.to_persist() {
+            let ok = match slots.store(running, blob).await {
+                Ok(slot) => {
+                    running = Some(slot);
+                    true
+                }
+                Err(e) => {
+                    warn!("node {addr:#06x}: cannot persist the pushed table: {e:?}");
+                    io.stats.flash_failures += 1;
+                    false
+                }
+            };
+            core.persisted(ok, &mut io);
+            if ok {
+                io.stats.activations += 1;
+                inputs.resync();
+                if let Some(t) = core.table() {
+                    info!(
+                        "node {addr:#06x}: activated role {} generation {} (slot {})",
+                        t.header.role,
+                        t.generation,
+                        running.unwrap_or(0)
+                    );
+                }
+            }
+        }
+
+        let now = fault_of(&core);
+        if now != fault {
+            match now {
+                Some(code) => warn!("node {addr:#06x}: fault {code:#04x}: outputs safe"),
+                None => info!("node {addr:#06x}: fault cleared"),
+            }
+            fault = now;
+        }
+
+        while let Some(psdu) = io.tx.pop_front() {
+            let sent =
+                with_timeout(Duration::from_millis(SEND_TIMEOUT_MS), radio.send(&psdu)).await;
+            if !matches!(sent, Ok(Ok(()))) {
+                io.stats.tx_failed += 1;
+            }
+        }
+
+        let sleep = core.deadline().saturating_sub(now_ms()).min(MAX_SLEEP_MS);
+        match select3(
+            radio.receive(&mut rx),
+            inputs.change(),
+            Timer::after_millis(sleep),
+        )
+        .await
+        {
+            Either3::First(Ok(n)) => {
+                let psdu = rx.get(..n).unwrap_or(&rx);
+                core.receive(psdu, now_ms(), &mut io);
+            }
+            Either3::First(Err(e)) => return Err(Stop::Radio(e)),
+            Either3::Second((pin, level)) => core.input(pin, level, now_ms(), &mut io),
+            Either3::Third(()) => {}
+        }
+    }
+}
