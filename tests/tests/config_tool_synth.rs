@@ -74,7 +74,10 @@ fn run(text: &str, cycles: usize) -> (Vec<String>, Vec<usize>) {
         Err(d) => panic!(
             "{}\n{}",
             text,
-            d.iter().map(|d| d.short(&src)).collect::<Vec<_>>().join("\n")
+            d.iter()
+                .map(|d| d.short(&src))
+                .collect::<Vec<_>>()
+                .join("\n")
         ),
     };
     let result = sim::simulate(&compiled, cycles).expect("simulation runs");
@@ -93,14 +96,29 @@ fn table() -> Vec<(&'static str, Vec<Act>, &'static str, usize)> {
         ("A+ B+ A- B-", each_on_own(&["A", "B"]), "A", 4),
         ("A+ A- B+ B-", each_on_own(&["A", "B"]), "A", 2),
         // Back-to-back steps on one node: nothing crosses the radio.
-        ("A+ B+ A- B-", vec![Act("A", "R", true), Act("B", "R", true)], "R", 0),
+        (
+            "A+ B+ A- B-",
+            vec![Act("A", "R", true), Act("B", "R", true)],
+            "R",
+            0,
+        ),
         // START on a node that moves nothing.
         ("A+ B+ B- A-", each_on_own(&["A", "B"]), "PANEL", 3),
         // Three and four actuators.
         ("A+ B+ C+ A- B- C-", each_on_own(&["A", "B", "C"]), "A", 6),
         ("A+ B+ C+ C- B- A-", each_on_own(&["A", "B", "C"]), "A", 4),
-        ("A+ B+ C+ D+ D- C- B- A-", each_on_own(&["A", "B", "C", "D"]), "A", 6),
-        ("A+ C+ B+ A- D+ D- C- B-", each_on_own(&["A", "B", "C", "D"]), "A", 7),
+        (
+            "A+ B+ C+ D+ D- C- B- A-",
+            each_on_own(&["A", "B", "C", "D"]),
+            "A",
+            6,
+        ),
+        (
+            "A+ C+ B+ A- D+ D- C- B-",
+            each_on_own(&["A", "B", "C", "D"]),
+            "A",
+            7,
+        ),
         // Repeated steps: the same actuator several times per cycle (double dip).
         ("A+ B+ B- B+ B- A-", each_on_own(&["A", "B"]), "A", 2),
         ("A+ A- B+ A+ A- B-", each_on_own(&["A", "B"]), "A", 4),
@@ -151,5 +169,65 @@ fn every_sequence_of_the_table_is_reproduced_in_simulation() {
         let (cycles, pubs) = run(&text, 5);
         assert_eq!(cycles, vec![sequence.to_string(); 5], "{sequence}");
         assert_eq!(pubs, vec![publications; 5], "publications of {sequence}");
+    }
+}
+
+mod random {
+    use super::*;
+    use proptest::prelude::*;
+
+    const NAMES: [&str; 8] = ["A", "B", "C", "D", "E", "F", "G", "H"];
+
+    /// A valid random cycle over `n` actuators: each step toggles one actuator (so `+` is
+    /// always on one at home and `-` on one that is out), every actuator moves, and the
+    /// cycle ends with all of them home.
+    fn cycle(n: usize, picks: &[usize]) -> Vec<String> {
+        let mut out = vec![false; n];
+        let mut steps = Vec::new();
+        let toggle = |a: usize, out: &mut Vec<bool>, steps: &mut Vec<String>| {
+            out[a] = !out[a];
+            steps.push(format!("{}{}", NAMES[a], if out[a] { '+' } else { '-' }));
+        };
+        for a in 0..n {
+            toggle(a, &mut out, &mut steps);
+            if let Some(&p) = picks.get(a) {
+                // Interleave some random toggles early, so actuators overlap.
+                toggle(p % n, &mut out, &mut steps);
+            }
+        }
+        for &p in picks.iter().skip(n) {
+            toggle(p % n, &mut out, &mut steps);
+        }
+        for a in 0..n {
+            if out[a] {
+                toggle(a, &mut out, &mut steps);
+            }
+        }
+        steps
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 64, .. ProptestConfig::default() })]
+
+        /// Any valid cycle of 2..8 actuators, on 1..n nodes, double or single acting,
+        /// with START on any node, is reproduced exactly for 3 cycles.
+        #[test]
+        fn any_valid_cycle_is_reproduced(
+            n in 2usize..=8,
+            picks in proptest::collection::vec(0usize..8, 0..16),
+            nodes in proptest::collection::vec(0usize..8, 8),
+            single in proptest::collection::vec(proptest::bool::weighted(0.25), 8),
+            start in 0usize..8,
+        ) {
+            let steps = cycle(n, &picks);
+            let roles = ["R0", "R1", "R2", "R3", "R4", "R5", "R6", "R7"];
+            let acts: Vec<Act> = (0..n)
+                .map(|a| Act(NAMES[a], roles[nodes[a] % n], !single[a]))
+                .collect();
+            let sequence = steps.join(" ");
+            let text = robot(&sequence, &acts, roles[start % n]);
+            let (cycles, _) = run(&text, 3);
+            prop_assert_eq!(cycles, vec![sequence; 3]);
+        }
     }
 }
