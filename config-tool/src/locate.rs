@@ -367,3 +367,44 @@ impl Value {
         key.unwrap_or_else(|| v.span.clone())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::parse;
+
+    fn at<'a>(text: &'a str, path: &str) -> &'a str {
+        let tree = parse(text).expect("parses");
+        &text[tree.find(path)]
+    }
+
+    #[test]
+    fn spans_of_fields_items_maps_and_wrappers() {
+        let text = r##"// comment (with parens)
+Robot(
+    name: "x", /* block /* nested */ */
+    list: [(a: 1, b: Some("two")), Kind(c: [3, 4])],
+    map: {"k": r#"raw "quoted""#, "m": 'c'},
+    r#type: -5,
+)"##;
+        assert_eq!(at(text, "name"), "\"x\"");
+        assert_eq!(at(text, "list[0].a"), "1");
+        assert_eq!(at(text, "list[0].b"), "Some(\"two\")");
+        assert_eq!(at(text, "list[1].c[1]"), "4");
+        assert_eq!(at(text, "list[1]"), "Kind(c: [3, 4])");
+        assert_eq!(at(text, "map.k"), "r#\"raw \"quoted\"\"#");
+        assert_eq!(at(text, "map.m"), "'c'");
+        assert_eq!(at(text, "type"), "-5");
+        // A path that goes too deep stops at the deepest value that exists.
+        assert_eq!(at(text, "list[0].zzz"), "(a: 1, b: Some(\"two\"))");
+        let tree = parse(text).expect("parses");
+        assert_eq!(&text[tree.find_key("map.m")], "\"m\"");
+        assert_eq!(&text[tree.find_key("list[0].b")], "b");
+    }
+
+    #[test]
+    fn broken_syntax_gives_no_tree() {
+        assert!(parse("Robot(name: \"x\"").is_none());
+        assert!(parse("[1, 2").is_none());
+        assert!(parse("{\"a\" 1}").is_none());
+    }
+}

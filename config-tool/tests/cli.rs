@@ -158,3 +158,30 @@ fn diagram_prints_dot_and_rejects_an_unknown_role() {
         "error: unknown role `XX` (roles: VC, GR, HC, RC)\n"
     );
 }
+
+#[test]
+fn diagram_svg_says_clearly_when_graphviz_is_missing() {
+    let out = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args([
+            "diagram",
+            "robot-configs/paint-robot.ron",
+            "--role",
+            "GR",
+            "--format",
+            "svg",
+        ])
+        .current_dir(root())
+        .env("PATH", "")
+        .output()
+        .expect("runs");
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(
+        err.starts_with("error: cannot run Graphviz `dot` ("),
+        "{err}"
+    );
+    assert!(
+        err.ends_with("): install graphviz, or use `--format dot` and render it elsewhere\n"),
+        "{err}"
+    );
+}
