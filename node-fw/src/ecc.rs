@@ -227,12 +227,13 @@ impl<'t> Engine<'t> {
         }
     }
 
-    /// The START command: raises the table's start event, if it has one. Returns whether it
-    /// did.
+    /// The START command: raises the table's start event, if it has one, as if the START
+    /// button wired to this node was pressed (so it is published like the button's edge).
+    /// Returns whether it did.
     pub fn start(&mut self, fx: &mut impl Effects) -> bool {
         match self.table.start {
             Some(event) => {
-                self.raise(event, false, fx);
+                self.raise(event, true, fx);
                 true
             }
             None => false,

@@ -55,6 +55,8 @@ pub struct NodeCore {
     mac_seq: u8,
     next_announce: u64,
     counters: Counters,
+    /// The last command id run per sender: a repeat is answered, not run again.
+    commands: Vec<(u16, u16), 4>,
 }
 
 /// The engine's effects, applied to the node's timers, links and pins.
@@ -146,6 +148,7 @@ impl NodeCore {
             mac_seq: 0,
             next_announce: 0,
             counters: Counters::default(),
+            commands: Vec::new(),
         };
         if let Some(t) = table {
             node.install(t);
@@ -303,9 +306,10 @@ impl NodeCore {
         })
     }
 
-    /// The node's status.
-    pub fn status(&self) -> Status {
+    /// The node's status, answering command `ack`.
+    pub fn status(&self, ack: u16) -> Status {
         let mut s = Status {
+            ack,
             role: heapless::String::new(),
             generation: self.generation(),
             states: Vec::new(),
@@ -370,7 +374,9 @@ impl NodeCore {
             Message::ConfigBegin { .. }
             | Message::ConfigChunk { .. }
             | Message::ConfigEnd { .. } => self.on_config(&msg, src, reply_pan, io),
-            Message::Command(cmd) => self.on_command(cmd, src, reply_pan, now, io),
+            Message::Command { id, command } => {
+                self.on_command(id, command, src, reply_pan, now, io)
+            }
             // Replies, statuses and announcements are for the tool.
             _ => {}
         }
@@ -473,21 +479,42 @@ impl NodeCore {
         );
     }
 
-    fn on_command(&mut self, cmd: Command, src: u16, pan: u16, now: u64, io: &mut impl Io) {
-        match cmd {
-            Command::Start => self.run(now, io, |e, fx| {
-                e.start(fx);
-            }),
-            Command::Reset => self.run(now, io, |e, fx| e.reset(fx)),
-            Command::Identify => {
-                let a = self.announce();
-                self.send(io, pan, src, &a);
+    fn on_command(
+        &mut self,
+        id: u16,
+        cmd: Command,
+        src: u16,
+        pan: u16,
+        now: u64,
+        io: &mut impl Io,
+    ) {
+        if cmd == Command::Identify {
+            let a = self.announce();
+            self.send(io, pan, src, &a);
+            return;
+        }
+        let seen = self.commands.iter().position(|(from, _)| *from == src);
+        let repeat = seen.is_some_and(|i| self.commands[i].1 == id);
+        if !repeat {
+            match seen {
+                Some(i) => self.commands[i].1 = id,
+                None => {
+                    if self.commands.is_full() {
+                        self.commands.remove(0);
+                    }
+                    let _ = self.commands.push((src, id));
+                }
             }
-            Command::Status => {
-                let s = Message::Status(self.status());
-                self.send(io, pan, src, &s);
+            match cmd {
+                Command::Start => self.run(now, io, |e, fx| {
+                    e.start(fx);
+                }),
+                Command::Reset => self.run(now, io, |e, fx| e.reset(fx)),
+                Command::Identify | Command::Status => {}
             }
         }
+        let status = Message::Status(self.status(id));
+        self.send(io, pan, src, &status);
     }
 }
 

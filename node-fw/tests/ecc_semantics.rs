@@ -1237,9 +1237,20 @@ fn locally_originated_events_are_published_remote_ones_are_not() {
     assert_eq!(fx.take(), [fired(0, 6, 0, 4), fired(0, 7, 4, 0)]);
     assert_eq!(e.var(0), Some(3));
 
-    // START command and an event from outside: delivered, not published.
+    // The START command stands for the START button wired to this node: published.
     assert!(e.start(&mut fx));
-    assert_eq!(fx.take(), [fired(0, 8, 0, 5), fired(0, 9, 5, 0)]);
+    assert_eq!(
+        fx.take(),
+        [
+            Publish {
+                event: 4,
+                topic: 104
+            },
+            fired(0, 8, 0, 5),
+            fired(0, 9, 5, 0)
+        ]
+    );
+    // An event from outside: delivered, not published.
     e.event(5, &mut fx);
     assert_eq!(fx.take(), [fired(0, 10, 0, 6), fired(0, 11, 6, 0)]);
     assert_eq!(e.var(0), Some(5));

@@ -35,6 +35,7 @@ fn table_a(generation: u32) -> Table {
             var: None,
         })
         .unwrap();
+    t.start = Some(press);
     t.peers.push(B).unwrap();
     t.publications
         .push(Publication {
@@ -223,7 +224,13 @@ impl Net {
     fn status(&mut self, dst: u16) -> Status {
         self.tool_inbox.clear();
         for _ in 0..50 {
-            self.tool_send(dst, &Message::Command(Command::Status));
+            self.tool_send(
+                dst,
+                &Message::Command {
+                    id: 1,
+                    command: Command::Status,
+                },
+            );
             self.run(30);
             for (src, bytes) in std::mem::take(&mut self.tool_inbox) {
                 if let (true, Ok(Message::Status(s))) = (src == dst, Message::parse(&bytes)) {
@@ -372,4 +379,32 @@ fn hostile_frames_are_dropped_and_counted() {
     assert_eq!(node.counters().dropped - before, sent);
     assert!(board.pins.iter().all(|&(_, l)| !l), "nothing moved");
     assert_eq!(node.counters().delivered, 0);
+}
+
+#[test]
+fn a_repeated_command_is_acknowledged_but_runs_once() {
+    let mut net = Net::new(0.0, 0.0, 11);
+    assert_eq!(net.push(A, &table_a(1), false), ota::Progress::Done);
+    assert_eq!(net.push(B, &table_b(1), false), ota::Progress::Done);
+    net.nodes[1].1.pins.clear();
+    let start = |id| Message::Command {
+        id,
+        command: Command::Start,
+    };
+    let mut acks = Vec::new();
+    for id in [7, 7, 7, 8] {
+        net.tool_send(A, &start(id));
+        net.run(200);
+        for (src, bytes) in std::mem::take(&mut net.tool_inbox) {
+            if let (A, Ok(Message::Status(s))) = (src, Message::parse(&bytes)) {
+                acks.push(s.ack);
+            }
+        }
+    }
+    assert_eq!(acks, vec![7, 7, 7, 8], "every copy is answered");
+    // START raised A's press event twice (ids 7 and 8), not four times.
+    assert_eq!(
+        net.nodes[1].1.pins,
+        vec![(LAMP_PIN, true), (LAMP_PIN, false)]
+    );
 }

@@ -39,9 +39,11 @@ pub enum Message<'a> {
     ConfigEnd { generation: u32 },
     /// The node's answer to every config message.
     ConfigReply { generation: u32, reply: ConfigReply },
-    /// An operator command.
-    Command(Command),
-    /// The node's status (answer to `Command::Status`).
+    /// An operator command. `id` tells repeats apart: a node runs each (sender, id) once and
+    /// answers every copy with its `Status` (whose `ack` is the id), so the tool can resend a
+    /// START until it is acknowledged without ever starting a second cycle.
+    Command { id: u16, command: Command },
+    /// The node's status: the answer to every command but `Identify`.
     Status(Status),
     /// "Here I am": periodic while unconfigured, and on `Command::Identify`.
     Announce(Announce),
@@ -82,15 +84,17 @@ pub enum Command {
     Start,
     /// Leave a fault: back to the initial state.
     Reset,
-    /// Answer with an `Announce`.
+    /// Answer with an `Announce` (may be broadcast: a scan).
     Identify,
-    /// Answer with a `Status`.
+    /// Only answer with the status.
     Status,
 }
 
 /// What `config-tool status` shows of a node.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Status {
+    /// The id of the command this answers.
+    pub ack: u16,
     pub role: String<MAX_ROLE_NAME>,
     pub generation: u32,
     pub states: Vec<u8, MAX_CHARTS>,
