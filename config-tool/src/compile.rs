@@ -19,6 +19,18 @@ pub struct Compiled {
     pub warnings: Vec<Diagnostic>,
 }
 
+impl Compiled {
+    /// The same robot for deployment generation `generation` (re-encoded blobs).
+    pub fn with_generation(mut self, generation: u32) -> Result<Compiled, String> {
+        self.ir.generation = generation;
+        for (table, blob) in self.tables.iter_mut().zip(self.blobs.iter_mut()) {
+            table.generation = generation;
+            *blob = encode(table)?;
+        }
+        Ok(self)
+    }
+}
+
 /// Elaborates a robot that passed the structural checks: synthesis for a sequence,
 /// elaboration of explicit charts otherwise.
 pub fn build(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {

@@ -27,6 +27,10 @@ enum Command {
         robot: PathBuf,
         #[arg(long)]
         out: PathBuf,
+        /// Deployment generation written into every blob (default: the robot's
+        /// `generation`, or 0).
+        #[arg(long)]
+        generation: Option<u32>,
     },
     /// Print a table blob in readable form.
     Dump { blob: PathBuf },
@@ -86,12 +90,21 @@ fn run(cli: Cli) -> Result<(), String> {
             println!("{}: ok", src.name);
             Ok(())
         }
-        Command::Compile { robot, out } => {
+        Command::Compile {
+            robot,
+            out,
+            generation,
+        } => {
             let src = load(&robot)?;
-            let compiled = compile::compile(&src).map_err(|d| {
+            let mut compiled = compile::compile(&src).map_err(|d| {
                 report(&src, &d);
                 String::new()
             })?;
+            if let Some(g) = generation {
+                compiled = compiled
+                    .with_generation(g)
+                    .map_err(|e| format!("error: {e}"))?;
+            }
             report(&src, &compiled.warnings);
             std::fs::create_dir_all(&out).map_err(|e| format!("error: {}: {e}", out.display()))?;
             for (role, blob) in compiled.ir.roles.iter().zip(&compiled.blobs) {

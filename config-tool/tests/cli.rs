@@ -85,6 +85,18 @@ fn compile_writes_one_blob_per_role_and_a_summary_line_each() {
         );
     }
     assert_eq!(lines[4], "radio publications per cycle: 9");
+
+    let out = tool(&[
+        "compile",
+        "robot-configs/paint-robot.ron",
+        "--out",
+        dir.to_str().expect("utf-8"),
+        "--generation",
+        "7",
+    ]);
+    assert!(out.status.success());
+    let blob = std::fs::read(dir.join("VC.bin")).expect("blob");
+    assert_eq!(config_schema::decode(&blob).expect("decodes").generation, 7);
 }
 
 #[test]
