@@ -82,8 +82,12 @@ impl Diagnostic {
             GraphicalTheme::unicode_nocolor()
         };
         let handler = GraphicalReportHandler::new_themed(theme).with_width(100);
+        let clamped = Diagnostic {
+            span: src.clamp(self.span.clone()),
+            ..self.clone()
+        };
         let report = Report {
-            d: self,
+            d: &clamped,
             src: NamedSource::new(&src.name, src.text.clone()),
         };
         let mut out = String::new();

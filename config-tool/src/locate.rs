@@ -51,16 +51,20 @@ pub fn parse(text: &str) -> Option<Value> {
 }
 
 impl Parser<'_> {
+    fn rest(&self) -> &[u8] {
+        self.s.get(self.i..).unwrap_or(&[])
+    }
+
     fn ws(&mut self) {
         loop {
             while self.i < self.s.len() && self.s[self.i].is_ascii_whitespace() {
                 self.i += 1;
             }
-            if self.s[self.i..].starts_with(b"//") {
+            if self.rest().starts_with(b"//") {
                 while self.i < self.s.len() && self.s[self.i] != b'\n' {
                     self.i += 1;
                 }
-            } else if self.s[self.i..].starts_with(b"/*") {
+            } else if self.rest().starts_with(b"/*") {
                 let mut depth = 0usize;
                 while self.i < self.s.len() {
                     if self.s[self.i..].starts_with(b"/*") {
@@ -88,7 +92,7 @@ impl Parser<'_> {
 
     fn ident(&mut self) -> Option<Range<usize>> {
         let start = self.i;
-        if self.s[self.i..].starts_with(b"r#") {
+        if self.rest().starts_with(b"r#") {
             self.i += 2;
         }
         while self
@@ -205,7 +209,7 @@ impl Parser<'_> {
     }
 
     fn raw_string_ahead(&self) -> bool {
-        let rest = &self.s[self.i + 1..];
+        let rest = self.s.get(self.i + 1..).unwrap_or(&[]);
         let hashes = rest.iter().take_while(|&&c| c == b'#').count();
         rest.get(hashes) == Some(&b'"')
     }
