@@ -59,10 +59,38 @@ pub struct EngineState {
     pub fault: Option<Fault>,
 }
 
+/// Where a chart's pieces are in the table's pools, worked out once per engine so the hot
+/// path does not recompute them per event.
+#[derive(Debug, Clone, Copy, Default)]
+struct Layout {
+    transitions: (usize, usize),
+    first_state: usize,
+    /// The chart has event-less transitions: only then is it re-scanned after a firing.
+    eventless: bool,
+}
+
+fn layouts(table: &Table) -> [Layout; MAX_CHARTS] {
+    let mut out = [Layout::default(); MAX_CHARTS];
+    for (c, slot) in out.iter_mut().enumerate().take(table.charts.len()) {
+        let range = table.chart_transitions(c);
+        let eventless = table
+            .transitions
+            .get(range.clone())
+            .is_some_and(|ts| ts.iter().any(|t| t.trigger.is_none()));
+        *slot = Layout {
+            transitions: (range.start, range.end),
+            first_state: table.chart_states(c).start,
+            eventless,
+        };
+    }
+    out
+}
+
 /// One node's charts running one table.
 #[derive(Debug, Clone)]
 pub struct Engine<'t> {
     table: &'t Table,
+    layout: [Layout; MAX_CHARTS],
     current: [u8; MAX_CHARTS],
     vars: [i32; MAX_VARS],
     inputs: u16,
@@ -87,6 +115,7 @@ impl<'t> Engine<'t> {
     pub fn new(table: &'t Table) -> Self {
         let mut engine = Engine {
             table,
+            layout: layouts(table),
             current: [0; MAX_CHARTS],
             vars: [0; MAX_VARS],
             inputs: 0,
@@ -131,6 +160,7 @@ impl<'t> Engine<'t> {
     pub fn resume(table: &'t Table, state: &EngineState) -> Self {
         Engine {
             table,
+            layout: layouts(table),
             current: state.current,
             vars: state.vars,
             inputs: state.inputs,
@@ -292,6 +322,13 @@ impl<'t> Engine<'t> {
                 return;
             }
         }
+        if !self
+            .layout
+            .get(usize::from(chart))
+            .is_some_and(|l| l.eventless)
+        {
+            return;
+        }
         let mut steps = 0usize;
         while self.fault.is_none() {
             let t = match self.select(chart, None) {
@@ -320,9 +357,14 @@ impl<'t> Engine<'t> {
         let Some(&current) = self.current.get(c) else {
             return Ok(None);
         };
-        let range = table.chart_transitions(c);
-        let start = range.start;
-        let Some(transitions) = table.transitions.get(range) else {
+        let Some(&Layout {
+            transitions: (start, end),
+            ..
+        }) = self.layout.get(c)
+        else {
+            return Ok(None);
+        };
+        let Some(transitions) = table.transitions.get(start..end) else {
             return Ok(None);
         };
         for (i, t) in transitions.iter().enumerate() {
@@ -361,7 +403,11 @@ impl<'t> Engine<'t> {
         };
         *current = t.to;
         fx.fired(chart, transition as u8, t.from, t.to);
-        let state = table.chart_states(usize::from(chart)).start + usize::from(t.to);
+        let first_state = self
+            .layout
+            .get(usize::from(chart))
+            .map_or(0, |l| l.first_state);
+        let state = first_state + usize::from(t.to);
         let actions = table.actions.get(table.state_actions(state)).unwrap_or(&[]);
         for action in actions {
             self.act(chart, *action, fx);
