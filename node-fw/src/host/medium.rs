@@ -1,7 +1,9 @@
 //! The host board's radio, pins and inputs: one TCP connection to the simulated medium
 //! (`config_schema::wire::medium` framing). A reader thread parses what the medium sends and
 //! hands it to the runtime through `embassy-sync` channels; writes go straight to the socket
-//! (loopback: a write of one message does not block for long).
+//! (loopback: a write of one message does not block for long). Nothing is lost between the
+//! medium and the node: when a channel is full the reader waits (TCP then holds the medium
+//! back), so loss is the medium's to model, with its seed.
 //!
 //! - `Frame` from the medium: a received PSDU (longer than 127 bytes: dropped, counted);
 //! - `Pin { addr, pin, level }` for this node's address: input `pin` is now at `level`
@@ -14,22 +16,21 @@
 
 use std::io::{self, Read, Write};
 use std::net::{Shutdown, TcpStream};
-use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
+use std::time::Duration;
 
 use config_schema::wire::mac::MAX_PSDU;
 use config_schema::wire::medium::{Link, Peer, MAX_LINK};
 use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
-use embassy_sync::channel::Channel;
+use embassy_sync::channel::{Channel, TrySendError};
 use embassy_sync::signal::Signal;
-use log::warn;
 
 use crate::runtime::{Inputs, Pins, Psdu, Radio};
 
-/// Received frames buffered between the reader thread and the runtime (more are dropped,
-/// like a radio's full receive buffer).
+/// Received frames buffered between the reader thread and the runtime.
 pub const RX_QUEUE: usize = 64;
 /// Input changes buffered between the reader thread and the runtime.
 pub const PIN_QUEUE: usize = 64;
@@ -37,14 +38,12 @@ pub const PIN_QUEUE: usize = 64;
 /// What the reader thread counted.
 #[derive(Debug, Default)]
 pub struct LinkCounters {
-    /// Frames dropped: the receive queue was full.
-    pub rx_overflow: AtomicU32,
+    /// Times the reader waited for the runtime (a channel was full).
+    pub backpressure: AtomicU32,
     /// Frames longer than a PSDU.
     pub oversized: AtomicU32,
     /// Messages that did not parse, or made no sense from the medium.
     pub garbage: AtomicU32,
-    /// Input changes dropped: the queue was full.
-    pub pin_overflow: AtomicU32,
 }
 
 /// Where the reader thread and the runtime meet.
@@ -52,7 +51,34 @@ struct Shared {
     frames: Channel<CriticalSectionRawMutex, Psdu, RX_QUEUE>,
     pins: Channel<CriticalSectionRawMutex, (u8, bool), PIN_QUEUE>,
     closed: Signal<CriticalSectionRawMutex, ()>,
+    /// The runtime is gone: the reader stops waiting for room.
+    stopping: AtomicBool,
     counters: LinkCounters,
+}
+
+impl Shared {
+    /// Puts `item` into `channel`, waiting for room; `false` if the runtime is gone.
+    fn put<T, const N: usize>(
+        &self,
+        channel: &Channel<CriticalSectionRawMutex, T, N>,
+        mut item: T,
+    ) -> bool {
+        let mut waited = false;
+        loop {
+            match channel.try_send(item) {
+                Ok(()) => return true,
+                Err(TrySendError::Full(back)) => item = back,
+            }
+            if self.stopping.load(Ordering::Relaxed) {
+                return false;
+            }
+            if !waited {
+                waited = true;
+                self.counters.backpressure.fetch_add(1, Ordering::Relaxed);
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
 }
 
 /// The connection was lost.
@@ -86,6 +112,7 @@ impl Connection {
             frames: Channel::new(),
             pins: Channel::new(),
             closed: Signal::new(),
+            stopping: AtomicBool::new(false),
             counters: LinkCounters::default(),
         });
         let reading = stream.try_clone()?;
@@ -130,6 +157,7 @@ impl Connection {
 
     /// Closes the connection and waits for the reader thread.
     pub fn close(mut self) {
+        self.shared.stopping.store(true, Ordering::Relaxed);
         let _ = self.stream.shutdown(Shutdown::Both);
         if let Some(reader) = self.reader.take() {
             let _ = reader.join();
@@ -155,8 +183,8 @@ fn read_loop(addr: u16, mut stream: TcpStream, shared: &Shared) {
         match Link::parse(msg) {
             Ok(Link::Frame(psdu)) => match Psdu::from_slice(psdu) {
                 Ok(frame) => {
-                    if shared.frames.try_send(frame).is_err() {
-                        c.rx_overflow.fetch_add(1, Ordering::Relaxed);
+                    if !shared.put(&shared.frames, frame) {
+                        break;
                     }
                 }
                 Err(_) => {
@@ -168,9 +196,8 @@ fn read_loop(addr: u16, mut stream: TcpStream, shared: &Shared) {
                 pin,
                 level,
             }) if a == addr => {
-                if shared.pins.try_send((pin, level)).is_err() {
-                    c.pin_overflow.fetch_add(1, Ordering::Relaxed);
-                    warn!("node {addr:#06x}: input queue full: pin {pin} change lost");
+                if !shared.put(&shared.pins, (pin, level)) {
+                    break;
                 }
             }
             _ => {

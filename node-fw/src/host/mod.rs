@@ -149,16 +149,16 @@ pub fn run(args: Args) -> Result<(), HostError> {
     };
     let (stop, stats) = run_on_executor(addr, epoch, board);
     let c = conn.counters();
-    let (overflow, oversized, garbage) = (
-        c.rx_overflow.load(Ordering::Relaxed),
+    let (backpressure, oversized, garbage) = (
+        c.backpressure.load(Ordering::Relaxed),
         c.oversized.load(Ordering::Relaxed),
         c.garbage.load(Ordering::Relaxed),
     );
     conn.close();
     info!(
         "node {addr:#06x}: stopped: {stop:?}; {} activations, {} flash failures, \
-         tx dropped {} (queue) + {} (radio), rx dropped {overflow} (queue) + \
-         {oversized} (oversized), {garbage} garbage messages",
+         tx dropped {} (queue) + {} (radio); from the medium: {oversized} oversized \
+         frames, {garbage} garbage messages, {backpressure} waits for room",
         stats.activations, stats.flash_failures, stats.tx_queue_full, stats.tx_failed
     );
     match stop {
