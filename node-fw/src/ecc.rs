@@ -210,6 +210,23 @@ impl<'t> Engine<'t> {
         self.init();
     }
 
+    /// Input `input` is at `level` when the engine starts (a switch that was already
+    /// closed): sets the level and its mirror variable without raising any event.
+    pub fn sense(&mut self, input: u8, level: bool) {
+        let Some(binding) = self.table.inputs.get(usize::from(input)) else {
+            return;
+        };
+        let bit = 1u16 << (input & 15);
+        if level {
+            self.inputs |= bit;
+        } else {
+            self.inputs &= !bit;
+        }
+        if let Some(var) = binding.var.and_then(|v| self.vars.get_mut(usize::from(v))) {
+            *var = i32::from(level);
+        }
+    }
+
     /// Input `input` is now at `level`: updates its mirror variable and, on an edge, raises
     /// its rise or fall event (published if it has a publication).
     pub fn input(&mut self, input: u8, level: bool, fx: &mut impl Effects) {

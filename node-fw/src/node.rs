@@ -57,6 +57,9 @@ pub struct NodeCore {
     counters: Counters,
     /// The last command id run per sender: a repeat is answered, not run again.
     commands: Vec<(u16, u16), 4>,
+    /// Board pin levels as last reported (bit = pin number), kept while unconfigured too,
+    /// so a new table starts from the switches' real positions.
+    pins: u64,
 }
 
 /// The engine's effects, applied to the node's timers, links and pins.
@@ -149,11 +152,26 @@ impl NodeCore {
             next_announce: 0,
             counters: Counters::default(),
             commands: Vec::new(),
+            pins: 0,
         };
         if let Some(t) = table {
             node.install(t);
         }
         node
+    }
+
+    /// The board's input pin levels at boot (bit = pin number), read before any edge is
+    /// fed: the table loaded from flash starts from the switches' real positions, without
+    /// raising events for switches that were already closed.
+    pub fn seed_pins(&mut self, pins: u64) {
+        self.pins = pins;
+        if let (Some(table), Some(state)) = (&self.table, &mut self.state) {
+            let mut engine = Engine::resume(table, state);
+            for (i, input) in table.inputs.iter().enumerate() {
+                engine.sense(i as u8, pins & (1u64 << (input.pin & 63)) != 0);
+            }
+            *state = engine.snapshot();
+        }
     }
 
     /// Drives every output of the running table to its safe value (call once at boot).
@@ -166,7 +184,11 @@ impl NodeCore {
     }
 
     fn install(&mut self, table: Table) {
-        self.state = Some(Engine::new(&table).snapshot());
+        let mut engine = Engine::new(&table);
+        for (i, input) in table.inputs.iter().enumerate() {
+            engine.sense(i as u8, self.pins & (1u64 << (input.pin & 63)) != 0);
+        }
+        self.state = Some(engine.snapshot());
         self.timers = [None; MAX_TIMERS];
         self.epoch = self.epoch.wrapping_add(1);
         self.senders.clear();
@@ -256,8 +278,15 @@ impl NodeCore {
         radio.send(io, pan, dst, msg);
     }
 
-    /// The level of board pin `pin` changed.
+    /// The level of board pin `pin` is `level` (repeating an unchanged level is harmless:
+    /// events come from edges).
     pub fn input(&mut self, pin: u8, level: bool, now: u64, io: &mut impl Io) {
+        let bit = 1u64 << (pin & 63);
+        if level {
+            self.pins |= bit;
+        } else {
+            self.pins &= !bit;
+        }
         let index = self
             .table
             .as_ref()

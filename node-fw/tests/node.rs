@@ -408,3 +408,39 @@ fn a_repeated_command_is_acknowledged_but_runs_once() {
         vec![(LAMP_PIN, true), (LAMP_PIN, false)]
     );
 }
+
+#[test]
+fn a_switch_already_closed_at_activation_raises_no_event() {
+    let mut net = Net::new(0.0, 0.0, 13);
+    // The plant reports A's button held down while A is still unconfigured.
+    let (a, board) = &mut net.nodes[0];
+    a.input(BUTTON_PIN, true, 0, board);
+    assert_eq!(net.push(A, &table_a(1), false), ota::Progress::Done);
+    assert_eq!(net.push(B, &table_b(1), false), ota::Progress::Done);
+    net.nodes[1].1.pins.clear();
+    // The plant repeats the level it holds: no edge, no event.
+    let (a, board) = &mut net.nodes[0];
+    a.input(BUTTON_PIN, true, net.now, board);
+    net.run(500);
+    assert!(net.nodes[1].1.pins.is_empty());
+    // Released and pressed again: one event.
+    let (a, board) = &mut net.nodes[0];
+    a.input(BUTTON_PIN, false, net.now, board);
+    net.run(50);
+    net.press();
+    net.run(500);
+    assert_eq!(net.nodes[1].1.pins, vec![(LAMP_PIN, true)]);
+}
+
+#[test]
+fn a_table_loaded_at_boot_starts_from_the_seeded_pin_levels() {
+    let mut a = NodeCore::new(A, Some(table_a(1)), 1);
+    a.seed_pins(1 << BUTTON_PIN);
+    let mut board = Board::default();
+    a.input(BUTTON_PIN, true, 0, &mut board);
+    a.poll(0, &mut board);
+    assert!(board.out.is_empty(), "no edge: nothing published");
+    a.input(BUTTON_PIN, false, 1, &mut board);
+    a.input(BUTTON_PIN, true, 2, &mut board);
+    assert_eq!(board.out.len(), 1, "one edge: one event frame to B");
+}
