@@ -40,7 +40,7 @@ fn configs() -> Vec<String> {
 #[test]
 fn every_config_reproduces_its_sequence_for_20_cycles_through_its_blobs() {
     let configs = configs();
-    assert_eq!(configs.len(), 4);
+    assert_eq!(configs.len(), 5);
     for path in configs {
         let c = build(&load(&path));
         let result = sim::simulate(&c, 20).expect("sim runs");
@@ -51,6 +51,37 @@ fn every_config_reproduces_its_sequence_for_20_cycles_through_its_blobs() {
         for cycle in &result.cycles {
             assert_eq!(cycle.steps, declared, "{path}");
             assert!(cycle.faults.is_empty(), "{path}");
+        }
+    }
+}
+
+/// The counted robot's chart types give the cycle its parameters ask for.
+#[test]
+fn parameterised_charts_follow_their_parameters() {
+    let base = load("../robot-configs/paint-robot-counted.ron");
+    for (dips, shakes) in [(1, 1), (2, 2), (3, 1), (1, 3), (4, 2)] {
+        let mut steps = vec!["VC+", "GR+", "VC-", "HC+"];
+        for _ in 0..dips {
+            steps.extend(["VC+", "VC-"]);
+        }
+        for _ in 0..shakes {
+            steps.extend(["RC+", "RC-"]);
+        }
+        steps.extend(["HC-", "VC+", "GR-", "VC-"]);
+        let expect = steps.join(" ");
+        let text = base
+            .text
+            .replace("\"DIPS\": 2", &format!("\"DIPS\": {dips}"))
+            .replace("\"SHAKES\": 2", &format!("\"SHAKES\": {shakes}"))
+            .replace(
+                "expect: \"VC+ GR+ VC- HC+ VC+ VC- VC+ VC- RC+ RC- RC+ RC- HC- VC+ GR- VC-\"",
+                &format!("expect: \"{expect}\""),
+            );
+        let c = build(&Source::new("counted.ron", text));
+        let result = sim::simulate(&c, 5).expect("sim runs");
+        assert!(result.ok(), "{dips} {shakes}\n{}", result.report());
+        for cycle in &result.cycles {
+            assert_eq!(cycle.steps.join(" "), expect);
         }
     }
 }
