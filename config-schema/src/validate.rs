@@ -180,7 +180,10 @@ pub fn validate(t: &Table) -> Result<(), Invalid> {
         }
     }
     for (i, output) in t.outputs.iter().enumerate() {
-        if t.outputs[..i].iter().any(|o| o.pin == output.pin) {
+        // A pin is an input or an output, once.
+        if t.outputs[..i].iter().any(|o| o.pin == output.pin)
+            || t.inputs.iter().any(|input| input.pin == output.pin)
+        {
             return Err(Invalid::Duplicate {
                 at: Place::Output(idx(i)),
             });

@@ -497,6 +497,13 @@ fn duplicates() {
             at: Place::Output(2)
         }
     );
+    // A pin is an input or an output, not both.
+    assert_eq!(
+        invalid(|t| t.outputs[1].pin = t.inputs[0].pin),
+        Invalid::Duplicate {
+            at: Place::Output(1)
+        }
+    );
     assert_eq!(
         invalid(|t| t.peers[1] = 0x0001),
         Invalid::Duplicate { at: Place::Peer(1) }

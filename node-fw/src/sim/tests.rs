@@ -23,7 +23,7 @@ fn cylinder_table(chart: bool) -> Table {
             })
             .unwrap();
     }
-    for pin in 0..2 {
+    for pin in 10..12 {
         t.outputs.push(Output { pin, safe: false }).unwrap();
     }
     if chart {
