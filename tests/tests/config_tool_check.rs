@@ -49,6 +49,10 @@ const BROKEN: &[(&str, &[&str])] = &[
         "9:41: error: duplicate assignment of role `A`",
         "9:46: error: duplicate use of node `n2`",
     ]),
+    ("bad-network.ron", &[
+        "4:23: error: PAN id 0xffff is the broadcast PAN id",
+        "4:40: error: channel 27 is not an IEEE 802.15.4 2.4 GHz channel",
+    ]),
     ("address-twice.ron", &["7:31: error: address 0x0001 is used by nodes `n1` and `n2`"]),
     ("step-undeclared.ron", &["22:22: error: unknown actuator `C`"]),
     ("step-already-out.ron", &["22:22: error: `A+`: `A` is already out"]),

@@ -1,4 +1,4 @@
-//! Nodes and role assignment: addresses used twice, unknown roles and nodes, a role played
+//! The network (channel, PAN id), nodes and role assignment: addresses used twice, unknown roles and nodes, a role played
 //! by no node or by two, a node playing two roles.
 
 use std::collections::BTreeMap;
@@ -9,6 +9,24 @@ use crate::model::Robot;
 use crate::source::Source;
 
 pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
+    if !(11..=26).contains(&robot.network.channel) {
+        out.push(
+            Diagnostic::error(
+                src.span("network.channel"),
+                format!(
+                    "channel {} is not an IEEE 802.15.4 2.4 GHz channel",
+                    robot.network.channel
+                ),
+            )
+            .label("11..=26"),
+        );
+    }
+    if robot.network.pan_id == 0xFFFF {
+        out.push(Diagnostic::error(
+            src.span("network.pan_id"),
+            "PAN id 0xffff is the broadcast PAN id",
+        ));
+    }
     let mut addrs: BTreeMap<u16, usize> = BTreeMap::new();
     for (i, n) in robot.nodes.iter().enumerate() {
         let here = src.span(&format!("nodes[{i}].address"));
