@@ -38,7 +38,7 @@ pub fn dot(ir: &Ir, role: &str) -> Result<String, String> {
             let mut label = esc(&s.name);
             for a in &s.actions {
                 label.push_str("\\l  ");
-                label.push_str(&esc(&r.action_text(c, a)));
+                label.push_str(&esc(&r.action_text(a)));
             }
             if !s.actions.is_empty() {
                 label.push_str("\\l");

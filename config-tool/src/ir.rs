@@ -147,8 +147,7 @@ impl RoleIr {
     }
 
     /// Human text of an action.
-    pub fn action_text(&self, chart: &ChartIr, action: &ActionIr) -> String {
-        let _ = chart;
+    pub fn action_text(&self, action: &ActionIr) -> String {
         match action {
             ActionIr::Set { var, text, .. } => format!(
                 "{} := {text}",

@@ -18,6 +18,8 @@ pub mod locate;
 pub mod lower;
 pub mod medium;
 pub mod model;
+pub mod push;
+pub mod radio;
 pub mod sim;
 pub mod source;
 pub mod synth;

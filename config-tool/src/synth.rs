@@ -193,6 +193,83 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
     })
 }
 
+/// How an actuator is driven and how its motions complete.
+struct Motion {
+    name: String,
+    /// Its outputs, and their values for `+` and `-`.
+    mask: u16,
+    plus: u16,
+    minus: u16,
+    /// The watchdog (switched) or dwell (sensorless) timer and its time.
+    timer: usize,
+    timer_ms: u32,
+    /// Double acting: limit switches complete a motion; the timer is a watchdog.
+    switched: bool,
+}
+
+impl Motion {
+    fn of(robot: &Robot, r: &RoleIr, a: &crate::model::Actuator) -> Result<Motion, String> {
+        let out = |suffix: &str| {
+            let name = format!("{}.{suffix}", a.name);
+            r.outputs
+                .iter()
+                .position(|o| o.name == name)
+                .ok_or(format!("no output {name}"))
+        };
+        let timer = |suffix: &str| {
+            let name = format!("{}.{suffix}", a.name);
+            r.timers
+                .iter()
+                .position(|t| t.name == name)
+                .ok_or(format!("no timer {name}"))
+        };
+        Ok(match a.kind {
+            ActuatorKind::DoubleActing { .. } => {
+                let (e, rt) = (out("extend")?, out("retract")?);
+                Motion {
+                    name: a.name.clone(),
+                    mask: (1 << e) | (1 << rt),
+                    plus: 1 << e,
+                    minus: 1 << rt,
+                    timer: timer("watchdog")?,
+                    timer_ms: robot.motion_timeout_ms,
+                    switched: true,
+                }
+            }
+            ActuatorKind::SingleActing { dwell_ms, .. } => {
+                let v = out("valve")?;
+                Motion {
+                    name: a.name.clone(),
+                    mask: 1 << v,
+                    plus: 1 << v,
+                    minus: 0,
+                    timer: timer("dwell")?,
+                    timer_ms: dwell_ms,
+                    switched: false,
+                }
+            }
+        })
+    }
+
+    /// Drives a `+` (extend) or `-` motion: both solenoids of a bistable valve at once.
+    fn drive(&self, extend: bool) -> ActionIr {
+        ActionIr::Drive {
+            mask: self.mask,
+            value: if extend { self.plus } else { self.minus },
+            label: format!("{}{}", self.name, if extend { '+' } else { '-' }),
+        }
+    }
+
+    /// The chart input that says a motion is complete.
+    fn completion(&self, extend: bool) -> &'static str {
+        match (self.switched, extend) {
+            (true, true) => "end",
+            (true, false) => "home",
+            (false, _) => "dwell",
+        }
+    }
+}
+
 /// The event that says step `k` (0-based) is complete: `step{k+1}.done`.
 pub fn done_event(k: usize) -> String {
     format!("step{}.done", k + 1)
@@ -208,58 +285,9 @@ fn actuator_chart(
     let n = steps.len();
     let own: Vec<usize> = (0..n).filter(|&k| steps[k].actuator == a.name).collect();
     let chart_index = r.charts.len();
-    let out = |suffix: &str| {
-        r.outputs
-            .iter()
-            .position(|o| o.name == format!("{}.{suffix}", a.name))
-    };
-    let timer = |suffix: &str| {
-        r.timers
-            .iter()
-            .position(|t| t.name == format!("{}.{suffix}", a.name))
-    };
-    let (drive, timer_index, timer_ms, cancel): (Box<dyn Fn(bool) -> ActionIr>, usize, u32, bool) =
-        match a.kind {
-            ActuatorKind::DoubleActing { .. } => {
-                let (e, rt) = (
-                    out("extend").ok_or("no extend output")?,
-                    out("retract").ok_or("no retract output")?,
-                );
-                let mask = (1u16 << e) | (1u16 << rt);
-                let name = a.name.clone();
-                (
-                    Box::new(move |extend| ActionIr::Drive {
-                        mask,
-                        value: if extend { 1 << e } else { 1 << rt },
-                        label: format!("{name}{}", if extend { '+' } else { '-' }),
-                    }),
-                    timer("watchdog").ok_or("no watchdog timer")?,
-                    robot.motion_timeout_ms,
-                    true,
-                )
-            }
-            ActuatorKind::SingleActing { dwell_ms, .. } => {
-                let v = out("valve").ok_or("no valve output")?;
-                let name = a.name.clone();
-                (
-                    Box::new(move |extend| ActionIr::Drive {
-                        mask: 1 << v,
-                        value: if extend { 1 << v } else { 0 },
-                        label: format!("{name}{}", if extend { '+' } else { '-' }),
-                    }),
-                    timer("dwell").ok_or("no dwell timer")?,
-                    dwell_ms,
-                    false,
-                )
-            }
-        };
-    let completion = |extend: bool| -> &'static str {
-        match (cancel, extend) {
-            (true, true) => "end",
-            (true, false) => "home",
-            (false, _) => "dwell",
-        }
-    };
+    let motion = Motion::of(robot, r, a)?;
+    let cancel = motion.switched;
+    let timer_index = motion.timer;
     let mut inputs: Vec<String> = Vec::new();
     let mut routes: Vec<(String, String)> = Vec::new(); // (node event, chart input)
     let mut input = |name: &str, event: String| -> usize {
@@ -298,17 +326,17 @@ fn actuator_chart(
         states.push(StateIr {
             name: format!("STEP{}", k + 1),
             actions: vec![
-                drive(step.extend),
+                motion.drive(step.extend),
                 ActionIr::StartTimer {
                     timer: timer_index,
-                    ms: timer_ms,
+                    ms: motion.timer_ms,
                 },
             ],
         });
         let back_to_back = j > 0 && own[j - 1] + 1 == k;
         if back_to_back {
             let prev = &steps[k - 1];
-            let c = completion(prev.extend);
+            let c = motion.completion(prev.extend);
             let trig = input(c, format!("{}.{c}", a.name));
             transitions.push(TransitionIr {
                 from: prev_move,
@@ -335,7 +363,7 @@ fn actuator_chart(
         if next_own == Some(k + 1) {
             continue;
         }
-        let c = completion(step.extend);
+        let c = motion.completion(step.extend);
         let trig = input(c, format!("{}.{c}", a.name));
         if let Some(k2) = next_own {
             let wait = states.len();

@@ -48,11 +48,8 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
             }
         }
     }
-    if let Some(start) = &robot.start {
-        if let Ok(Some((r, name))) = crate::elab::start_input(robot) {
-            let _ = start;
-            listened.push((robot.roles[r].name.clone(), name));
-        }
+    if let Ok(Some((r, name))) = crate::elab::start_input(robot) {
+        listened.push((robot.roles[r].name.clone(), name));
     }
     for (ri, role) in robot.roles.iter().enumerate() {
         for (ci, c) in role.charts.iter().enumerate() {

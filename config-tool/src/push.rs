@@ -1,0 +1,174 @@
+//! Pushing tables over the air and talking to nodes: `push` (every role at once, each an
+//! OTA transfer of `node_fw::ota`), `scan`, `status` and reliable commands.
+
+use std::collections::BTreeMap;
+use std::io;
+use std::time::{Duration, Instant};
+
+use config_schema::wire::mac::BROADCAST;
+use config_schema::wire::msg::{Announce, Command, Message, Status};
+use node_fw::ota::{Progress, Sender, TransferStats};
+
+use crate::radio::ToolRadio;
+
+/// One table to push.
+#[derive(Debug, Clone)]
+pub struct Target {
+    pub role: String,
+    pub addr: u16,
+    pub blob: Vec<u8>,
+    pub generation: u32,
+}
+
+/// How one push ended.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Outcome {
+    pub role: String,
+    pub addr: u16,
+    pub progress: Progress,
+    pub stats: TransferStats,
+    pub bytes: usize,
+    pub elapsed: Duration,
+}
+
+/// Pushes every target at once; `progress(i, acked, total)` reports each step. Returns when
+/// every transfer is done, refused or given up.
+pub fn push(
+    radio: &mut ToolRadio,
+    targets: &[Target],
+    force: bool,
+    progress: &mut dyn FnMut(usize, usize, usize),
+) -> io::Result<Vec<Outcome>> {
+    let start = Instant::now();
+    let now_ms = || start.elapsed().as_millis() as u64;
+    let mut senders: Vec<Sender> = targets
+        .iter()
+        .map(|t| Sender::new(&t.blob, t.generation, force))
+        .collect();
+    let mut finished: Vec<Option<Duration>> = vec![None; targets.len()];
+    let mut out: Vec<(u16, Message)> = Vec::new();
+    for (s, t) in senders.iter_mut().zip(targets) {
+        s.start(now_ms(), |m| out.push((t.addr, m)));
+    }
+    loop {
+        for (dst, m) in out.drain(..) {
+            radio.send(dst, &m)?;
+        }
+        for (i, s) in senders.iter().enumerate() {
+            if s.progress() != Progress::Busy && finished[i].is_none() {
+                finished[i] = Some(start.elapsed());
+            }
+        }
+        if senders.iter().all(|s| s.progress() != Progress::Busy) {
+            break;
+        }
+        let next = senders
+            .iter()
+            .filter(|s| s.progress() == Progress::Busy)
+            .map(|s| s.deadline())
+            .min()
+            .unwrap_or(0);
+        let until = start + Duration::from_millis(next);
+        if let Some(r) = radio.recv(until.max(Instant::now()))? {
+            if let Some(Message::ConfigReply { generation, reply }) = r.message() {
+                for (i, (s, t)) in senders.iter_mut().zip(targets).enumerate() {
+                    if t.addr == r.src {
+                        s.on_reply(generation, reply, now_ms(), |m| out.push((t.addr, m)));
+                        progress(i, s.acked(), t.blob.len());
+                    }
+                }
+            }
+        }
+        let now = now_ms();
+        for (s, t) in senders.iter_mut().zip(targets) {
+            s.poll(now, |m| out.push((t.addr, m)));
+        }
+    }
+    Ok(senders
+        .iter()
+        .zip(targets)
+        .zip(finished)
+        .map(|((s, t), f)| Outcome {
+            role: t.role.clone(),
+            addr: t.addr,
+            progress: s.progress(),
+            stats: s.stats(),
+            bytes: t.blob.len(),
+            elapsed: f.unwrap_or_else(|| start.elapsed()),
+        })
+        .collect())
+}
+
+/// Command ids: start somewhere new in every run (a node remembers the last id it ran
+/// from this address and would take a repeat for a retransmission).
+pub struct Ids(u16);
+
+impl Default for Ids {
+    fn default() -> Self {
+        Ids(rand::random())
+    }
+}
+
+impl Ids {
+    pub fn next(&mut self) -> u16 {
+        self.0 = self.0.wrapping_add(1);
+        self.0
+    }
+}
+
+/// Sends `command` to `addr` until its status comes back acknowledging it (every
+/// `retry`, at most until `timeout`). A repeat never runs twice on the node.
+pub fn command(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    addr: u16,
+    command: Command,
+    timeout: Duration,
+) -> io::Result<Option<Status>> {
+    let id = ids.next();
+    let end = Instant::now() + timeout;
+    let retry = Duration::from_millis(150);
+    while Instant::now() < end {
+        radio.send(addr, &Message::Command { id, command })?;
+        let until = (Instant::now() + retry).min(end);
+        while let Some(r) = radio.recv(until)? {
+            if let (true, Some(Message::Status(s))) = (r.src == addr, r.message()) {
+                if s.ack == id {
+                    return Ok(Some(s));
+                }
+            }
+        }
+    }
+    Ok(None)
+}
+
+/// The nodes in range: asks every node to identify itself and collects announcements
+/// for `wait` (unconfigured nodes announce themselves anyway).
+pub fn scan(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    wait: Duration,
+) -> io::Result<BTreeMap<u16, Announce>> {
+    let mut found = BTreeMap::new();
+    let id = ids.next();
+    let end = Instant::now() + wait;
+    let mut next_ask = Instant::now();
+    while Instant::now() < end {
+        if Instant::now() >= next_ask {
+            radio.send(
+                BROADCAST,
+                &Message::Command {
+                    id,
+                    command: Command::Identify,
+                },
+            )?;
+            next_ask = Instant::now() + Duration::from_millis(300);
+        }
+        if let Some(r) = radio.recv(next_ask.min(end))? {
+            if let Some(Message::Announce(a)) = r.message() {
+                found.insert(r.src, a);
+            }
+        }
+    }
+    Ok(found)
+}
