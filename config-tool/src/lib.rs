@@ -18,6 +18,7 @@ pub mod locate;
 pub mod lower;
 pub mod medium;
 pub mod model;
+pub mod plant;
 pub mod push;
 pub mod radio;
 pub mod sim;

@@ -110,7 +110,7 @@ impl Default for Ids {
 }
 
 impl Ids {
-    pub fn next(&mut self) -> u16 {
+    pub fn fresh(&mut self) -> u16 {
         self.0 = self.0.wrapping_add(1);
         self.0
     }
@@ -125,7 +125,7 @@ pub fn command(
     command: Command,
     timeout: Duration,
 ) -> io::Result<Option<Status>> {
-    let id = ids.next();
+    let id = ids.fresh();
     let end = Instant::now() + timeout;
     let retry = Duration::from_millis(150);
     while Instant::now() < end {
@@ -150,7 +150,7 @@ pub fn scan(
     wait: Duration,
 ) -> io::Result<BTreeMap<u16, Announce>> {
     let mut found = BTreeMap::new();
-    let id = ids.next();
+    let id = ids.fresh();
     let end = Instant::now() + wait;
     let mut next_ask = Instant::now();
     while Instant::now() < end {

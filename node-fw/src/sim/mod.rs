@@ -27,10 +27,8 @@ use config_schema::{Publication, Table, Topic};
 
 use crate::ecc::{Effects, Engine, Fault};
 
-pub use plant::{Button, DoubleActing, Plant, Position, SingleActing};
+pub use plant::{Button, DoubleActing, Outcome as RodOutcome, Plant, Position, Rod, SingleActing};
 pub use trace::{cycles, steps, Cycle, TraceEntry, What};
-
-use plant::{Outcome, Rod};
 
 /// Default radio latency, publication to delivery.
 pub const DEFAULT_RADIO_DELAY_MS: u64 = 2;
@@ -799,8 +797,8 @@ impl<'t> World<'t> {
         };
         let outcome = self.rods[plant].command(self.now, extend, travel);
         let arrive = match outcome {
-            Outcome::Nothing => return,
-            Outcome::Left { arrive, .. } | Outcome::Reversed { arrive } => arrive,
+            RodOutcome::Nothing => return,
+            RodOutcome::Left { arrive, .. } | RodOutcome::Reversed { arrive } => arrive,
         };
         self.log(What::Step {
             plant,
@@ -808,7 +806,7 @@ impl<'t> World<'t> {
             plus: extend,
         });
         // Leaving a switch drops it at once (before a zero-time arrival raises the other).
-        if let (Outcome::Left { from_end, .. }, Plant::DoubleActing(da)) =
+        if let (RodOutcome::Left { from_end, .. }, Plant::DoubleActing(da)) =
             (outcome, &self.plants[plant])
         {
             let pin = if from_end { da.end_in } else { da.home_in };

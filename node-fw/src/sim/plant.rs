@@ -124,7 +124,7 @@ impl Plant {
     }
 
     /// Travel times (extend, retract) of an actuator.
-    pub(crate) fn travel(&self) -> Option<(u64, u64)> {
+    pub fn travel(&self) -> Option<(u64, u64)> {
         match self {
             Plant::DoubleActing(p) => Some((p.extend_ms, p.retract_ms)),
             Plant::SingleActing(p) => Some((p.extend_ms, p.retract_ms)),
@@ -165,11 +165,11 @@ pub enum Position {
 }
 
 /// Stroke positions are fractions of `FULL`.
-pub(crate) const FULL: u64 = 1_000_000;
+pub const FULL: u64 = 1_000_000;
 
 /// The rod of an actuator.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Rod {
+pub enum Rod {
     Home,
     End,
     /// Moving from stroke position `from` at `t0` to the end (or home) at `arrive`.
@@ -183,7 +183,7 @@ pub(crate) enum Rod {
 
 /// What a valve command did to the rod.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Outcome {
+pub enum Outcome {
     /// Toward where it is or is going: nothing.
     Nothing,
     /// Left a switch (`from_end`: the end switch, else home) and arrives at `arrive`.
@@ -193,7 +193,7 @@ pub(crate) enum Outcome {
 }
 
 impl Rod {
-    pub(crate) fn position(self) -> Position {
+    pub fn position(self) -> Position {
         match self {
             Rod::Home => Position::Home,
             Rod::End => Position::End,
@@ -203,7 +203,7 @@ impl Rod {
     }
 
     /// Stroke position (0 = home, `FULL` = end) at time `now`.
-    pub(crate) fn stroke(self, now: u64) -> u64 {
+    pub fn stroke(self, now: u64) -> u64 {
         match self {
             Rod::Home => 0,
             Rod::End => FULL,
@@ -232,7 +232,7 @@ impl Rod {
 
     /// Applies a valve command at `now` (`extend`: toward the end). `ms` = (extend, retract)
     /// full-stroke times.
-    pub(crate) fn command(&mut self, now: u64, extend: bool, ms: (u64, u64)) -> Outcome {
+    pub fn command(&mut self, now: u64, extend: bool, ms: (u64, u64)) -> Outcome {
         let (holds, from_switch) = match *self {
             Rod::Home => (!extend, Some(false)),
             Rod::End => (extend, Some(true)),
@@ -261,7 +261,7 @@ impl Rod {
     }
 
     /// The rod reached the end it was moving to.
-    pub(crate) fn arrive(&mut self) -> Option<bool> {
+    pub fn arrive(&mut self) -> Option<bool> {
         match *self {
             Rod::Moving { to_end, .. } => {
                 *self = if to_end { Rod::End } else { Rod::Home };
