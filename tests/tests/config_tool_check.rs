@@ -38,6 +38,7 @@ const BROKEN: &[(&str, &[&str])] = &[
         "49:24: warning: state `DONE` of chart type `Follower` is unreachable from its initial state `WAIT`",
         "54:34: error: unknown state `FINISH`",
     ]),
+    ("unknown-input.ron", &["21:12: error: no role has an input `STRAT`"]),
     ("unknown-pin-name.ron", &["47:41: error: role `B` has no actuator `C` (chart `b`)"]),
     ("duplicate-role.ron", &[
         "9:28: error: unknown role `B`",
