@@ -96,21 +96,24 @@ impl<P: Pins + ?Sized> Pins for &mut P {
 /// The inputs: limit switches, buttons.
 #[allow(async_fn_in_trait)]
 pub trait Inputs {
+    /// The levels now (bit = pin number, pins 0..=63), read once at boot before any
+    /// change: the table from flash starts from the switches' real positions. What this
+    /// returns is not reported again by [`Inputs::change`].
+    fn levels(&mut self) -> u64;
     /// Waits for the next change of an input's level; returns (pin, new level). Must be
     /// cancel-safe: a change that happens while no `change` future is pending is reported
     /// by the next call.
     async fn change(&mut self) -> (u8, bool);
-    /// Forgets what was reported: the next calls report every input that is high (after a
-    /// new table, whose engine starts with every input low).
-    fn resync(&mut self);
 }
 
 /// No inputs at all.
 impl Inputs for () {
+    fn levels(&mut self) -> u64 {
+        0
+    }
     async fn change(&mut self) -> (u8, bool) {
         core::future::pending().await
     }
-    fn resync(&mut self) {}
 }
 
 /// `embedded-hal-async` input pins indexed by the table's pin numbers (`pins[pin]`).
@@ -124,7 +127,7 @@ pub struct WaitInputs<'a, I, const N: usize> {
 }
 
 impl<'a, I: Wait + InputPin, const N: usize> WaitInputs<'a, I, N> {
-    /// Every pin is taken as reported low, so high pins are reported first.
+    /// Every pin is taken as reported low until [`Inputs::levels`] reads them.
     pub fn new(pins: &'a mut [I; N]) -> Self {
         WaitInputs {
             pins,
@@ -134,6 +137,16 @@ impl<'a, I: Wait + InputPin, const N: usize> WaitInputs<'a, I, N> {
 }
 
 impl<I: Wait + InputPin, const N: usize> Inputs for WaitInputs<'_, I, N> {
+    fn levels(&mut self) -> u64 {
+        let mut levels = 0u64;
+        for (i, (pin, reported)) in self.pins.iter_mut().zip(&mut self.reported).enumerate() {
+            *reported = pin.is_high().unwrap_or(false);
+            if *reported && i < 64 {
+                levels |= 1 << i;
+            }
+        }
+        levels
+    }
     async fn change(&mut self) -> (u8, bool) {
         loop {
             for (i, (pin, reported)) in self.pins.iter_mut().zip(&mut self.reported).enumerate() {
@@ -151,9 +164,6 @@ impl<I: Wait + InputPin, const N: usize> Inputs for WaitInputs<'_, I, N> {
                 Timer::after_millis(10).await;
             }
         }
-    }
-    fn resync(&mut self) {
-        self.reported = [false; N];
     }
 }
 
@@ -268,6 +278,7 @@ where
     };
     let mut running = loaded.as_ref().map(|l| l.slot);
     let mut core = NodeCore::new(addr, loaded.map(|l| l.table), epoch);
+    core.seed_pins(inputs.levels());
     let mut io = CoreIo {
         pins: &mut outputs,
         tx: Deque::new(),
@@ -303,7 +314,6 @@ where
             core.persisted(ok, &mut io);
             if ok {
                 io.stats.activations += 1;
-                inputs.resync();
                 if let Some(t) = core.table() {
                     info!(
                         "node {addr:#06x}: activated role {} generation {} (slot {})",

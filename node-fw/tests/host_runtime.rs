@@ -1,1 +1,591 @@
-//! (being written)
+//! The Embassy runtime on the seams an MCU board uses: `embedded-hal` output pins,
+//! `embedded-hal-async` input pins (through `WaitInputs`), a NOR flash, and a radio, all
+//! faked in memory and run on Embassy's std executor. A table pushed over the radio is
+//! persisted, activated and driven; a later boot on the same flash runs it; a flash that
+//! fails refuses the table and keeps the old one; a radio that swallows a frame costs that
+//! frame only.
+
+use std::cell::{Cell, RefCell};
+use std::convert::Infallible;
+use std::future::poll_fn;
+use std::rc::Rc;
+use std::task::{Poll, Waker};
+
+use config_schema::limits::MAX_BLOB;
+use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
+use config_schema::wire::msg::{Command, Message, Refusal, Status};
+use config_schema::{encode, Action, Input, Output, Route, Table, Transition};
+use embassy_futures::join::join;
+use embassy_sync::blocking_mutex::raw::NoopRawMutex;
+use embassy_sync::channel::Channel;
+use embassy_time::{Instant, Timer};
+use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
+use embedded_hal_async::digital::Wait;
+use embedded_storage_async::nor_flash::{self as nor, NorFlash, ReadNorFlash};
+use node_fw::host::block_on;
+use node_fw::node::CONFIG_PAN;
+use node_fw::ota;
+use node_fw::runtime::{self, Board, Inputs, Pins, Radio, Stats, Stop, WaitInputs};
+use node_fw::slots::{PowerCut, RamFlash, Slots};
+
+const ADDR: u16 = 0x0009;
+const TOOL: u16 = 0x0100;
+const BUTTON: u8 = 5;
+const LAMP: u8 = 7;
+const BEACON: u8 = 8;
+/// Every wait of the scripts below (in Embassy time).
+const WAIT_MS: u64 = 10_000;
+
+/// "lamp": every rise of the button toggles the lamp; the beacon's safe level is high.
+fn lamp_table(generation: u32) -> Table {
+    let mut t = Table::empty("lamp");
+    t.generation = generation;
+    t.header.pan_id = 0x4242;
+    let press = t.push_event().unwrap();
+    t.inputs
+        .push(Input {
+            pin: BUTTON,
+            rise: Some(press),
+            fall: None,
+            var: None,
+        })
+        .unwrap();
+    for (pin, safe) in [(LAMP, false), (BEACON, true)] {
+        t.outputs.push(Output { pin, safe }).unwrap();
+    }
+    let on: &[Action] = &[Action::Drive { mask: 1, value: 1 }];
+    let off: &[Action] = &[Action::Drive { mask: 1, value: 0 }];
+    let tr = |from, to| Transition {
+        from,
+        to,
+        trigger: Some(0),
+        guard: None,
+    };
+    t.push_chart(0, 1, &[off, on], &[tr(0, 1), tr(1, 0)])
+        .unwrap();
+    t.routes
+        .push(Route {
+            event: press,
+            chart: 0,
+            input: 0,
+        })
+        .unwrap();
+    t
+}
+
+fn blob(t: &Table) -> Vec<u8> {
+    let mut buf = vec![0u8; MAX_BLOB];
+    let n = encode(t, &mut buf).unwrap();
+    buf.truncate(n);
+    buf
+}
+
+// ---------------------------------------------------------------- fake hardware
+
+/// Output pin `pin`: every level it is driven to lands in the shared log.
+struct FakeOut {
+    pin: u8,
+    log: Rc<RefCell<Vec<(u8, bool)>>>,
+}
+
+impl ErrorType for FakeOut {
+    type Error = Infallible;
+}
+
+impl OutputPin for FakeOut {
+    fn set_low(&mut self) -> Result<(), Infallible> {
+        self.log.borrow_mut().push((self.pin, false));
+        Ok(())
+    }
+    fn set_high(&mut self) -> Result<(), Infallible> {
+        self.log.borrow_mut().push((self.pin, true));
+        Ok(())
+    }
+}
+
+fn outputs(log: &Rc<RefCell<Vec<(u8, bool)>>>) -> [FakeOut; 10] {
+    std::array::from_fn(|i| FakeOut {
+        pin: i as u8,
+        log: log.clone(),
+    })
+}
+
+/// The outside of an input pin: its level, and who waits for an edge.
+#[derive(Default)]
+struct Line {
+    level: Cell<bool>,
+    edges: Cell<u32>,
+    waker: RefCell<Option<Waker>>,
+}
+
+impl Line {
+    fn set(&self, level: bool) {
+        if self.level.replace(level) != level {
+            self.edges.set(self.edges.get() + 1);
+            if let Some(w) = self.waker.borrow_mut().take() {
+                w.wake();
+            }
+        }
+    }
+}
+
+struct FakeIn(Rc<Line>);
+
+impl ErrorType for FakeIn {
+    type Error = Infallible;
+}
+
+impl InputPin for FakeIn {
+    fn is_high(&mut self) -> Result<bool, Infallible> {
+        Ok(self.0.level.get())
+    }
+    fn is_low(&mut self) -> Result<bool, Infallible> {
+        Ok(!self.0.level.get())
+    }
+}
+
+impl Wait for FakeIn {
+    async fn wait_for_high(&mut self) -> Result<(), Infallible> {
+        unimplemented!("the runtime waits for edges")
+    }
+    async fn wait_for_low(&mut self) -> Result<(), Infallible> {
+        unimplemented!("the runtime waits for edges")
+    }
+    async fn wait_for_rising_edge(&mut self) -> Result<(), Infallible> {
+        unimplemented!("the runtime waits for edges")
+    }
+    async fn wait_for_falling_edge(&mut self) -> Result<(), Infallible> {
+        unimplemented!("the runtime waits for edges")
+    }
+    async fn wait_for_any_edge(&mut self) -> Result<(), Infallible> {
+        let start = self.0.edges.get();
+        poll_fn(|cx| {
+            if self.0.edges.get() != start {
+                Poll::Ready(Ok(()))
+            } else {
+                *self.0.waker.borrow_mut() = Some(cx.waker().clone());
+                Poll::Pending
+            }
+        })
+        .await
+    }
+}
+
+/// The air around the node: frames to it (`None`: the radio is gone), frames from it.
+struct Air {
+    to_node: Channel<NoopRawMutex, Option<Vec<u8>>, 16>,
+    from_node: RefCell<Vec<Vec<u8>>>,
+    /// The radio never completes this many more sends.
+    swallow: Cell<u32>,
+}
+
+impl Default for Air {
+    fn default() -> Self {
+        Air {
+            to_node: Channel::new(),
+            from_node: RefCell::default(),
+            swallow: Cell::new(0),
+        }
+    }
+}
+
+struct FakeRadio(Rc<Air>);
+
+impl Radio for FakeRadio {
+    type Error = &'static str;
+    async fn send(&mut self, psdu: &[u8]) -> Result<(), &'static str> {
+        if self.0.swallow.get() > 0 {
+            self.0.swallow.set(self.0.swallow.get() - 1);
+            return core::future::pending().await;
+        }
+        self.0.from_node.borrow_mut().push(psdu.to_vec());
+        Ok(())
+    }
+    async fn receive(&mut self, buf: &mut [u8; MAX_PSDU]) -> Result<usize, &'static str> {
+        let psdu = self.0.to_node.receive().await.ok_or("gone")?;
+        buf[..psdu.len()].copy_from_slice(&psdu);
+        Ok(psdu.len())
+    }
+}
+
+const FLASH: usize = 2 * Slots::<RamFlash<1>>::slot_size();
+
+/// A RAM flash that outlives one boot, and can be made to fail.
+#[derive(Clone, Default)]
+struct Flash {
+    cells: Rc<RefCell<RamFlash<FLASH>>>,
+    broken: Rc<Cell<bool>>,
+}
+
+impl nor::ErrorType for Flash {
+    type Error = PowerCut;
+}
+
+impl ReadNorFlash for Flash {
+    const READ_SIZE: usize = 1;
+    async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), PowerCut> {
+        let mut cells = self.cells.borrow_mut();
+        embassy_futures::block_on(cells.read(offset, bytes))
+    }
+    fn capacity(&self) -> usize {
+        FLASH
+    }
+}
+
+impl NorFlash for Flash {
+    const WRITE_SIZE: usize = 4;
+    const ERASE_SIZE: usize = 1024;
+    async fn erase(&mut self, from: u32, to: u32) -> Result<(), PowerCut> {
+        if self.broken.get() {
+            return Err(PowerCut);
+        }
+        let mut cells = self.cells.borrow_mut();
+        embassy_futures::block_on(cells.erase(from, to))
+    }
+    async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), PowerCut> {
+        if self.broken.get() {
+            return Err(PowerCut);
+        }
+        let mut cells = self.cells.borrow_mut();
+        embassy_futures::block_on(cells.write(offset, bytes))
+    }
+}
+
+// ---------------------------------------------------------------- the tool's side
+
+/// The tool, in the same executor as the node.
+struct Tool {
+    air: Rc<Air>,
+    seq: u8,
+    id: u16,
+    /// How many of the node's frames were already looked at.
+    seen: usize,
+}
+
+impl Tool {
+    async fn send(&mut self, msg: &Message<'_>) {
+        let mut payload = [0u8; mac::MAX_PAYLOAD];
+        let n = msg.emit(&mut payload).unwrap();
+        let header = Header {
+            seq: self.seq,
+            pan_id: CONFIG_PAN,
+            dst: ADDR,
+            src: TOOL,
+            ack_request: false,
+            secured: false,
+        };
+        self.seq = self.seq.wrapping_add(1);
+        let mut psdu = [0u8; MAX_PSDU];
+        let len = mac::emit_data(&header, &payload[..n], &mut psdu).unwrap();
+        self.air.to_node.send(Some(psdu[..len].to_vec())).await;
+    }
+
+    /// The node's next frame, parsed, within `ms`.
+    async fn next(&mut self, ms: u64) -> Option<Message<'static>> {
+        let deadline = Instant::now().as_millis() + ms;
+        loop {
+            let frame = self.air.from_node.borrow().get(self.seen).cloned();
+            if let Some(psdu) = frame {
+                self.seen += 1;
+                let Ok(Frame::Data { payload, .. }) = Frame::parse(&psdu) else {
+                    panic!("the node sent a frame that does not parse");
+                };
+                let owned: &'static [u8] = Box::leak(payload.to_vec().into_boxed_slice());
+                return Some(Message::parse(owned).unwrap());
+            }
+            if Instant::now().as_millis() >= deadline {
+                return None;
+            }
+            Timer::after_millis(1).await;
+        }
+    }
+
+    async fn status(&mut self) -> Status {
+        self.id += 1;
+        let id = self.id;
+        self.send(&Message::Command {
+            id,
+            command: Command::Status,
+        })
+        .await;
+        loop {
+            match self.next(WAIT_MS).await {
+                Some(Message::Status(s)) => return s,
+                Some(_) => continue,
+                None => panic!("no status"),
+            }
+        }
+    }
+
+    /// Asks for the status until `done` holds (at most `WAIT_MS`); returns the last one.
+    async fn status_until(&mut self, done: impl Fn(&Status) -> bool) -> Status {
+        let deadline = Instant::now().as_millis() + WAIT_MS;
+        loop {
+            let s = self.status().await;
+            if done(&s) || Instant::now().as_millis() >= deadline {
+                return s;
+            }
+            Timer::after_millis(1).await;
+        }
+    }
+
+    async fn push(&mut self, table: &Table) -> ota::Progress {
+        let bytes = blob(table);
+        let mut tx = ota::Sender::new(&bytes, table.generation, false);
+        let now = || Instant::now().as_millis();
+        let start = now();
+        let mut out = Vec::new();
+        tx.start(now(), |m| out.push(m));
+        while tx.progress() == ota::Progress::Busy && now() - start < WAIT_MS {
+            for m in std::mem::take(&mut out) {
+                self.send(&m).await;
+            }
+            if let Some(Message::ConfigReply { generation, reply }) = self.next(5).await {
+                tx.on_reply(generation, reply, now(), |m| out.push(m));
+            }
+            tx.poll(now(), |m| out.push(m));
+        }
+        tx.progress()
+    }
+
+    async fn close(&self) {
+        self.air.to_node.send(None).await;
+    }
+}
+
+/// Runs one boot of the node on `flash` beside `script`; returns why the node stopped.
+fn boot<S>(
+    flash: Flash,
+    lines: &[Rc<Line>; 10],
+    pins: &Rc<RefCell<Vec<(u8, bool)>>>,
+    air: Rc<Air>,
+    script: impl FnOnce(Tool) -> S + 'static,
+) -> (Stop<&'static str>, Stats)
+where
+    S: std::future::Future<Output = ()> + 'static,
+{
+    let outs = outputs(pins);
+    let ins: [FakeIn; 10] = std::array::from_fn(|i| FakeIn(lines[i].clone()));
+    let tool = Tool {
+        air: air.clone(),
+        seq: 0,
+        id: 0,
+        seen: 0,
+    };
+    let node = async move {
+        let mut ins = ins;
+        let board = Board {
+            radio: FakeRadio(air),
+            outputs: outs,
+            inputs: WaitInputs::new(&mut ins),
+            flash,
+        };
+        runtime::run(ADDR, 1, board).await
+    };
+    block_on(async move { join(node, script(tool)).await.0 }).expect("spawned")
+}
+
+/// Waits (at most `WAIT_MS`) until `log` holds `n` entries.
+async fn wait_len(log: &RefCell<Vec<(u8, bool)>>, n: usize) {
+    let deadline = Instant::now().as_millis() + WAIT_MS;
+    while log.borrow().len() < n && Instant::now().as_millis() < deadline {
+        Timer::after_millis(1).await;
+    }
+}
+
+fn lines() -> [Rc<Line>; 10] {
+    std::array::from_fn(|_| Rc::new(Line::default()))
+}
+
+// ---------------------------------------------------------------- tests
+
+#[test]
+fn pushed_table_is_persisted_driven_and_booted_again() {
+    let flash = Flash::default();
+    let lines = lines();
+    let pins = Rc::new(RefCell::new(Vec::new()));
+    let button = lines[usize::from(BUTTON)].clone();
+    let seen = pins.clone();
+    let (stop, stats) = boot(
+        flash.clone(),
+        &lines,
+        &pins,
+        Rc::default(),
+        move |mut tool| {
+            async move {
+                // Boot: every output off, then the unconfigured node announces itself.
+                let all_off: Vec<(u8, bool)> = (0..10).map(|p| (p, false)).collect();
+                assert_eq!(*seen.borrow(), all_off);
+                assert!(
+                    matches!(tool.next(WAIT_MS).await, Some(Message::Announce(a)) if a.generation == 0)
+                );
+                // The button is held while the table arrives: the new engine starts with it
+                // pressed, and no phantom press toggles the lamp.
+                button.set(true);
+                seen.borrow_mut().clear();
+                assert_eq!(tool.push(&lamp_table(3)).await, ota::Progress::Done);
+                let s = tool.status().await;
+                assert_eq!((s.role.as_str(), s.generation), ("lamp", 3));
+                assert_eq!((s.inputs, s.states.as_slice()), (1, &[0][..]));
+                assert_eq!(*seen.borrow(), vec![(LAMP, false), (BEACON, true)]);
+                // Released, then pressed: the lamp goes on.
+                button.set(false);
+                assert_eq!(tool.status_until(|s| s.inputs == 0).await.inputs, 0);
+                button.set(true);
+                wait_len(&seen, 3).await;
+                let s = tool.status_until(|s| s.inputs == 1).await;
+                assert_eq!((s.inputs, s.states.as_slice()), (1, &[1][..]));
+                assert_eq!(
+                    *seen.borrow(),
+                    vec![(LAMP, false), (BEACON, true), (LAMP, true)]
+                );
+                tool.close().await;
+            }
+        },
+    );
+    assert_eq!(stop, Stop::Radio("gone"));
+    assert_eq!(
+        (stats.activations, stats.flash_failures, stats.tx_failed),
+        (1, 0, 0)
+    );
+
+    // Next boot on the same flash, the button still held: the table runs at once (outputs
+    // off, then safe), and the engine starts from the button's real level.
+    pins.borrow_mut().clear();
+    let seen = pins.clone();
+    let button = lines[usize::from(BUTTON)].clone();
+    let (_, stats) = boot(
+        flash,
+        &lines,
+        &pins,
+        Rc::default(),
+        move |mut tool| async move {
+            let s = tool.status().await;
+            assert_eq!((s.role.as_str(), s.generation), ("lamp", 3));
+            assert_eq!((s.inputs, s.states.as_slice()), (1, &[0][..]));
+            let mut expected: Vec<(u8, bool)> = (0..10).map(|p| (p, false)).collect();
+            expected.extend([(LAMP, false), (BEACON, true)]);
+            assert_eq!(*seen.borrow(), expected);
+            button.set(false);
+            assert_eq!(tool.status_until(|s| s.inputs == 0).await.inputs, 0);
+            button.set(true);
+            expected.push((LAMP, true));
+            wait_len(&seen, expected.len()).await;
+            assert_eq!(*seen.borrow(), expected);
+            tool.close().await;
+        },
+    );
+    assert_eq!(stats.activations, 0, "booted, not pushed");
+}
+
+#[test]
+fn a_table_the_flash_cannot_hold_is_refused_and_nothing_changes() {
+    let flash = Flash::default();
+    flash.broken.set(true);
+    let broken = flash.broken.clone();
+    let lines = lines();
+    let pins = Rc::new(RefCell::new(Vec::new()));
+    let seen = pins.clone();
+    let (_, stats) = boot(
+        flash,
+        &lines,
+        &pins,
+        Rc::default(),
+        move |mut tool| async move {
+            seen.borrow_mut().clear();
+            assert_eq!(
+                tool.push(&lamp_table(2)).await,
+                ota::Progress::Refused(Refusal::Flash)
+            );
+            let s = tool.status().await;
+            assert_eq!(
+                (s.role.as_str(), s.generation),
+                ("", 0),
+                "still unconfigured"
+            );
+            assert!(seen.borrow().is_empty(), "no output moved");
+            broken.set(false);
+            assert_eq!(tool.push(&lamp_table(2)).await, ota::Progress::Done);
+            assert_eq!(tool.status().await.generation, 2);
+            tool.close().await;
+        },
+    );
+    assert_eq!((stats.flash_failures, stats.activations), (1, 1));
+}
+
+#[test]
+fn a_radio_that_never_takes_a_frame_costs_that_frame_only() {
+    let air = Rc::new(Air::default());
+    air.swallow.set(1); // the first announcement
+    let lines = lines();
+    let pins = Rc::new(RefCell::new(Vec::new()));
+    let (_, stats) = boot(
+        Flash::default(),
+        &lines,
+        &pins,
+        air,
+        |mut tool| async move {
+            let s = tool.status().await;
+            assert_eq!(s.generation, 0);
+            tool.close().await;
+        },
+    );
+    assert_eq!(stats.tx_failed, 1);
+    assert_eq!(stats.tx_queue_full, 0);
+}
+
+#[test]
+fn a_flash_too_small_for_two_slots_stops_the_runtime() {
+    let lines = lines();
+    let pins = Rc::new(RefCell::new(Vec::new()));
+    let board = Board {
+        radio: FakeRadio(Rc::default()),
+        outputs: outputs(&pins),
+        inputs: (),
+        flash: RamFlash::<1024>::new(),
+    };
+    let (stop, _) = block_on(runtime::run(ADDR, 1, board)).unwrap();
+    assert_eq!(stop, Stop::FlashGeometry);
+    assert_eq!(pins.borrow().len(), 10, "outputs off before anything else");
+    drop(lines);
+}
+
+#[test]
+fn wait_inputs_report_levels_so_no_edge_is_lost() {
+    let lines = lines();
+    let mut ins: [FakeIn; 10] = std::array::from_fn(|i| FakeIn(lines[i].clone()));
+    let mut inputs = WaitInputs::new(&mut ins);
+    lines[3].set(true);
+    lines[6].set(true);
+    // The levels at boot, which are then not reported as changes.
+    assert_eq!(inputs.levels(), (1 << 3) | (1 << 6));
+    let next =
+        |inputs: &mut WaitInputs<'_, FakeIn, 10>| embassy_futures::poll_once(inputs.change());
+    assert_eq!(next(&mut inputs), Poll::Pending);
+    // Changes made while nobody waited are reported, in pin order.
+    lines[6].set(false);
+    lines[2].set(true);
+    assert_eq!(next(&mut inputs), Poll::Ready((2, true)));
+    assert_eq!(next(&mut inputs), Poll::Ready((6, false)));
+    assert_eq!(next(&mut inputs), Poll::Pending);
+    // A pulse shorter than one look is not seen (levels are the truth).
+    lines[3].set(false);
+    lines[3].set(true);
+    assert_eq!(next(&mut inputs), Poll::Pending);
+    // No inputs at all: never.
+    assert_eq!(().levels(), 0);
+    assert_eq!(embassy_futures::poll_once(().change()), Poll::Pending);
+}
+
+#[test]
+fn output_pins_are_addressed_by_table_pin_number() {
+    let log = Rc::new(RefCell::new(Vec::new()));
+    let mut outs = outputs(&log);
+    outs.set(7, true);
+    outs.set(200, true); // no such pin: ignored
+    outs.as_mut_slice().set(2, false);
+    outs.all_off();
+    let mut expected = vec![(7, true), (2, false)];
+    expected.extend((0..10).map(|p| (p, false)));
+    assert_eq!(*log.borrow(), expected);
+}

@@ -147,7 +147,6 @@ impl Connection {
         HostInputs {
             shared: self.shared.clone(),
             levels: [false; 256],
-            replay: 256,
         }
     }
 
@@ -270,25 +269,25 @@ pub struct HostInputs {
     shared: Arc<Shared>,
     /// The last level of every pin.
     levels: [bool; 256],
-    /// Next pin to report again after a resync (256: none).
-    replay: usize,
 }
 
 impl Inputs for HostInputs {
-    async fn change(&mut self) -> (u8, bool) {
-        while let Some(&high) = self.levels.get(self.replay) {
-            let pin = self.replay as u8;
-            self.replay += 1;
-            if high {
-                return (pin, true);
-            }
+    /// What the plant said before the node booted (usually nothing: all low).
+    fn levels(&mut self) -> u64 {
+        while let Ok((pin, level)) = self.shared.pins.try_receive() {
+            self.levels[usize::from(pin)] = level;
         }
+        self.levels
+            .iter()
+            .take(64)
+            .enumerate()
+            .filter(|(_, &high)| high)
+            .fold(0, |m, (i, _)| m | (1 << i))
+    }
+
+    async fn change(&mut self) -> (u8, bool) {
         let (pin, level) = self.shared.pins.receive().await;
         self.levels[usize::from(pin)] = level;
         (pin, level)
-    }
-
-    fn resync(&mut self) {
-        self.replay = 0;
     }
 }

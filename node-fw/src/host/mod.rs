@@ -8,6 +8,7 @@ pub mod flash;
 pub mod medium;
 
 use std::cell::RefCell;
+use std::future::Future;
 use std::net::{SocketAddr, TcpStream};
 use std::path::PathBuf;
 use std::rc::Rc;
@@ -171,25 +172,39 @@ type Stopped = (Stop<Closed>, Stats);
 type HostBoard = Board<medium::HostRadio, medium::HostPins, medium::HostInputs, HostFlash>;
 
 /// Runs the runtime as a task of a fresh std executor on this thread until it stops.
-fn run_on_executor(addr: u16, epoch: u16, board: HostBoard) -> (Stop<Closed>, Stats) {
-    let result: Rc<RefCell<Option<Stopped>>> = Rc::new(RefCell::new(None));
+fn run_on_executor(addr: u16, epoch: u16, board: HostBoard) -> Stopped {
+    block_on(runtime::run(addr, epoch, board)).unwrap_or((Stop::Radio(Closed), Stats::default()))
+}
+
+/// Runs `future` as the one task of a fresh Embassy std executor on this thread, until it
+/// completes (`None` only if the task could not be spawned). The executor and the task's
+/// storage are leaked: they must be `'static`, and this runs once per node.
+pub fn block_on<F>(future: F) -> Option<F::Output>
+where
+    F: Future + 'static,
+    F::Output: 'static,
+{
+    let result = Rc::new(RefCell::new(None));
     let out = result.clone();
     let done = result.clone();
-    // Leaked: the executor and the task need `'static`; one of each per node run.
     let executor: &'static mut Executor = Box::leak(Box::new(Executor::new()));
+    let spawned = std::cell::Cell::new(true);
     executor.run_until(
-        move |spawner| {
+        |spawner| {
             let task = Box::leak(Box::new(TaskStorage::new()));
             match task.spawn(move || async move {
-                let stopped = runtime::run(addr, epoch, board).await;
-                *out.borrow_mut() = Some(stopped);
+                let value = future.await;
+                *out.borrow_mut() = Some(value);
             }) {
                 Ok(token) => spawner.spawn(token),
-                Err(e) => warn!("node {addr:#06x}: cannot spawn the runtime: {e:?}"),
+                Err(e) => {
+                    warn!("cannot spawn the task: {e:?}");
+                    spawned.set(false);
+                }
             }
         },
-        move || done.borrow().is_some(),
+        || !spawned.get() || done.borrow().is_some(),
     );
-    let stopped = result.borrow_mut().take();
-    stopped.unwrap_or((Stop::Radio(Closed), Stats::default()))
+    let value = result.borrow_mut().take();
+    value
 }
