@@ -94,6 +94,10 @@ pub enum ActuatorKind {
         out_ms: u32,
         #[serde(default = "default_travel")]
         back_ms: u32,
+        /// Watchdog of this actuator's motions in synthesised charts (default: the
+        /// robot's `motion_timeout_ms`).
+        #[serde(default)]
+        timeout_ms: Option<u32>,
     },
     /// Single-acting actuator, monostable valve, no switches: a motion is complete after
     /// `dwell_ms`.

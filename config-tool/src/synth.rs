@@ -224,7 +224,7 @@ impl Motion {
                 .ok_or(format!("no timer {name}"))
         };
         Ok(match a.kind {
-            ActuatorKind::DoubleActing { .. } => {
+            ActuatorKind::DoubleActing { timeout_ms, .. } => {
                 let (e, rt) = (out("extend")?, out("retract")?);
                 Motion {
                     name: a.name.clone(),
@@ -232,7 +232,7 @@ impl Motion {
                     plus: 1 << e,
                     minus: 1 << rt,
                     timer: timer("watchdog")?,
-                    timer_ms: robot.motion_timeout_ms,
+                    timer_ms: timeout_ms.unwrap_or(robot.motion_timeout_ms),
                     switched: true,
                 }
             }

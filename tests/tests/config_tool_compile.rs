@@ -213,6 +213,10 @@ fn a_motion_that_outlasts_its_timeout_faults_the_node_and_fails_sim() {
         "(name: \"B\", kind: DoubleActing(extend: 0, retract: 1, home: 2, end: 3))",
         "(name: \"B\", kind: DoubleActing(extend: 0, retract: 1, home: 2, end: 3, out_ms: 2500))",
     );
+    // With its own, longer timeout the slow cylinder is fine.
+    let slow_ok = src.clone_with("out_ms: 2500)", "out_ms: 2500, timeout_ms: 3000)");
+    let result = sim::simulate(&build(&slow_ok), 3).expect("sim runs");
+    assert!(result.ok(), "{}", result.report());
     let c = build(&src);
     let result = sim::simulate(&c, 3).expect("sim runs");
     assert!(!result.ok());
