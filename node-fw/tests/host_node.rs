@@ -17,7 +17,9 @@ use config_schema::limits::MAX_BLOB;
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
 use config_schema::wire::medium::{next_message, Link, Peer, MAX_LINK};
 use config_schema::wire::msg::{Announce, Command as Cmd, Message, Status};
-use config_schema::{encode, Action, Input, Output, Route, Table, Transition};
+use config_schema::{
+    encode, Action, Input, Output, Publication, Route, Subscription, Table, Transition,
+};
 use node_fw::node::CONFIG_PAN;
 use node_fw::ota;
 
@@ -679,4 +681,93 @@ fn bad_arguments_and_a_foreign_flash_file_get_clear_errors() {
     assert!(err.contains("not a node flash file"), "{err}");
     assert_eq!(std::fs::read(&path).unwrap(), b"my notes");
     let _ = std::fs::remove_file(&path);
+}
+
+/// "button": a press is published to the lamp node (peer 0).
+fn button_table(lamp: u16) -> Table {
+    let mut t = Table::empty("button");
+    t.generation = 1;
+    t.header.pan_id = PAN;
+    let press = t.push_event().unwrap();
+    t.inputs
+        .push(Input {
+            pin: BUTTON,
+            rise: Some(press),
+            fall: None,
+            var: None,
+        })
+        .unwrap();
+    t.peers.push(lamp).unwrap();
+    t.publications
+        .push(Publication {
+            event: press,
+            topic: 3,
+            subscribers: 0b1,
+        })
+        .unwrap();
+    t
+}
+
+/// "lamp" again, toggled by the button node's publication instead of a local input.
+fn remote_lamp_table(button: u16) -> Table {
+    let mut t = lamp_table(1);
+    t.inputs.clear();
+    t.peers.push(button).unwrap();
+    t.subscriptions
+        .push(Subscription {
+            publisher: 0,
+            topic: 3,
+            event: 0,
+        })
+        .unwrap();
+    t
+}
+
+#[test]
+fn two_nodes_in_process_carry_events_and_return_when_the_medium_goes() {
+    const A: u16 = 0x0011;
+    const B: u16 = 0x0012;
+    let relay = Relay::start();
+    let (done_tx, done) = mpsc::channel();
+    for addr in [A, B] {
+        let args = node_fw::host::Args {
+            addr,
+            medium: format!("127.0.0.1:{}", relay.port).parse().unwrap(),
+            flash: None,
+        };
+        let done_tx = done_tx.clone();
+        std::thread::spawn(move || {
+            let result = node_fw::host::run(args).map_err(|e| e.to_string());
+            let _ = done_tx.send((addr, result));
+        });
+        assert!(relay.connected(addr));
+    }
+    let mut tool = Client::tool(&relay);
+    let mut plant = Client::connect(&relay, Peer::Plant);
+    assert_eq!(tool.push(A, &button_table(B)), ota::Progress::Done);
+    assert_eq!(tool.push(B, &remote_lamp_table(A)), ota::Progress::Done);
+    assert_eq!(relay.pins(B, 2), vec![(LAMP, false), (BEACON, true)]);
+    relay.clear_pins();
+    // Three presses on A: B's lamp on, off, on; each exactly once.
+    for _ in 0..3 {
+        plant.drive(A, BUTTON, true);
+        plant.drive(A, BUTTON, false);
+    }
+    assert_eq!(
+        relay.pins(B, 3),
+        vec![(LAMP, true), (LAMP, false), (LAMP, true)]
+    );
+    let b = tool.status(B);
+    assert_eq!(b.counters.delivered, 3);
+    assert_eq!(tool.status(A).link_alarms, 0);
+
+    // The medium goes away: both runs return Ok.
+    relay.disconnect(A);
+    relay.disconnect(B);
+    let mut stopped = Vec::new();
+    for _ in 0..2 {
+        stopped.push(done.recv_timeout(WAIT).expect("run returns"));
+    }
+    stopped.sort();
+    assert_eq!(stopped, vec![(A, Ok(())), (B, Ok(()))]);
 }
