@@ -4,7 +4,6 @@
 //! file after a kill, turns a plant's input into the chart's output, and survives garbage.
 //! Every wait is bounded (10 s) so a broken node fails the test instead of hanging it.
 
-use std::collections::VecDeque;
 use std::io::{Read, Write};
 use std::net::{Shutdown, TcpListener, TcpStream};
 use std::path::PathBuf;
@@ -251,8 +250,6 @@ struct Client {
     inbox: mpsc::Receiver<Vec<u8>>,
     seq: u8,
     cmd_id: u16,
-    /// Messages received and not yet taken: (src, payload).
-    pending: VecDeque<(u16, Vec<u8>)>,
 }
 
 impl Client {
@@ -278,7 +275,6 @@ impl Client {
             inbox,
             seq: 0,
             cmd_id: 0,
-            pending: VecDeque::new(),
         }
     }
 
@@ -307,9 +303,6 @@ impl Client {
 
     /// Next (src, payload) received within `timeout`.
     fn recv(&mut self, timeout: Duration) -> Option<(u16, Vec<u8>)> {
-        if let Some(m) = self.pending.pop_front() {
-            return Some(m);
-        }
         let deadline = Instant::now() + timeout;
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
@@ -375,14 +368,12 @@ impl Client {
                 if let (true, Ok(Message::ConfigReply { generation, reply })) =
                     (src == addr, Message::parse(&bytes))
                 {
+                    // Anything else (announcements of other nodes) is not for the push.
                     tx.on_reply(generation, reply, now(), |m| out.push(m));
-                } else {
-                    self.pending.push_back((src, bytes));
                 }
             }
             tx.poll(now(), |m| out.push(m));
         }
-        self.pending.clear();
         tx.progress()
     }
 
