@@ -8,6 +8,7 @@
 
 pub mod check;
 pub mod compile;
+pub mod demo;
 pub mod diag;
 pub mod diagram;
 pub mod dump;
@@ -18,6 +19,7 @@ pub mod locate;
 pub mod lower;
 pub mod medium;
 pub mod model;
+pub mod netcmd;
 pub mod plant;
 pub mod push;
 pub mod radio;

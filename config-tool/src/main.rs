@@ -51,6 +51,9 @@ enum Command {
         #[arg(long)]
         trace: bool,
     },
+    /// The radio: medium, scan, push, status, start, reset, monitor, demo.
+    #[command(flatten)]
+    Net(config_tool::netcmd::NetCommand),
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -149,6 +152,7 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             Ok(())
         }
+        Command::Net(cmd) => config_tool::netcmd::run(cmd),
         Command::Sim {
             robot,
             cycles,

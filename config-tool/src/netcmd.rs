@@ -1,0 +1,578 @@
+//! The commands that talk to nodes over the (simulated) radio: `medium`, `scan`, `push`,
+//! `status`, `start`, `monitor`, `demo`, and the hidden `node` (one generic node in this
+//! process: what `demo` starts, so a single build runs the whole machine).
+
+use std::io::{self, Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use clap::{Args, Subcommand};
+use config_schema::wire::mac::Frame;
+use config_schema::wire::medium::{next_message, Link, Peer, MAX_LINK};
+use config_schema::wire::msg::{Command, Message, Status};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use node_fw::ota::Progress;
+
+use crate::demo::{self, Bed};
+use crate::push::{self, Ids};
+use crate::radio::{ToolRadio, TOOL_ADDR};
+use crate::{compile, medium, plant, Compiled, Source};
+
+/// Where the medium is.
+#[derive(Args, Debug, Clone)]
+pub struct MediumAddr {
+    /// The medium's address (`config-tool medium --listen ...`).
+    #[arg(long, default_value = "127.0.0.1:15400")]
+    pub medium: SocketAddr,
+}
+
+/// The radio commands.
+#[derive(Subcommand, Debug)]
+pub enum NetCommand {
+    /// Run the simulated IEEE 802.15.4 medium (loopback) until interrupted.
+    Medium {
+        #[arg(long, default_value = "127.0.0.1:15400")]
+        listen: SocketAddr,
+        /// Probability a frame is lost (per receiver).
+        #[arg(long, default_value_t = 0.0, value_parser = probability)]
+        loss: f64,
+        /// Probability a frame arrives twice.
+        #[arg(long, default_value_t = 0.0, value_parser = probability)]
+        dup: f64,
+        /// Probability a frame arrives with a flipped bit.
+        #[arg(long, default_value_t = 0.0, value_parser = probability)]
+        corrupt: f64,
+        /// Extra delay per frame, uniform in A..B ms (reorders frames).
+        #[arg(long, value_parser = delay_range, default_value = "0..0")]
+        delay_ms: (u64, u64),
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Write every frame on the air to this pcap (link type 195).
+        #[arg(long)]
+        pcap: Option<PathBuf>,
+    },
+    /// List the nodes in range: address, firmware, generation, role.
+    Scan {
+        #[command(flatten)]
+        at: MediumAddr,
+    },
+    /// Compile a robot and push every role to its node (or one role to a given node).
+    Push {
+        robot: PathBuf,
+        #[command(flatten)]
+        at: MediumAddr,
+        /// Push only this role.
+        #[arg(long)]
+        role: Option<String>,
+        /// To this node instead of the one the robot assigns (with --role).
+        #[arg(long, value_parser = node_fw::host::parse_addr, requires = "role")]
+        node: Option<u16>,
+        /// Generation of the tables (default: the robot's, at least 1).
+        #[arg(long)]
+        generation: Option<u32>,
+        /// Push even if the node runs the same or a newer generation.
+        #[arg(long)]
+        force: bool,
+    },
+    /// A node's status: role, generation, chart states, outputs, fault, links, counters.
+    Status {
+        #[command(flatten)]
+        at: MediumAddr,
+        #[arg(long, value_parser = node_fw::host::parse_addr)]
+        node: u16,
+    },
+    /// START (as the START button of the robot), to the node with the start input.
+    Start {
+        #[command(flatten)]
+        at: MediumAddr,
+        #[arg(long, value_parser = node_fw::host::parse_addr)]
+        node: u16,
+    },
+    /// Leave a fault: back to the initial state.
+    Reset {
+        #[command(flatten)]
+        at: MediumAddr,
+        #[arg(long, value_parser = node_fw::host::parse_addr)]
+        node: u16,
+    },
+    /// A live trace of frames, events and pin changes on the medium.
+    Monitor {
+        #[command(flatten)]
+        at: MediumAddr,
+        /// Stop after this many seconds (default: run until interrupted).
+        #[arg(long)]
+        seconds: Option<u64>,
+    },
+    /// The whole machine on this host: medium, unconfigured nodes, plant; push, run the
+    /// cycles, check them, then push a reconfiguration to the running nodes.
+    Demo {
+        robot: PathBuf,
+        #[arg(long, default_value_t = 3)]
+        cycles: usize,
+        /// Frame loss on the medium (with as much duplication, and reordering).
+        #[arg(long, default_value_t = 0.0, value_parser = probability)]
+        loss: f64,
+        /// The robot pushed afterwards to the same running nodes (default:
+        /// paint-robot-double-dip.ron beside ROBOT, if there is one).
+        #[arg(long)]
+        then: Option<PathBuf>,
+        /// Skip the reconfiguration.
+        #[arg(long)]
+        no_reconfigure: bool,
+        /// Write every frame on the air to this pcap.
+        #[arg(long)]
+        pcap: Option<PathBuf>,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+    /// Run one generic node in this process (what `demo` starts).
+    #[command(hide = true)]
+    Node(node_fw::host::Args),
+}
+
+fn probability(s: &str) -> Result<f64, String> {
+    let p: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
+    if (0.0..=1.0).contains(&p) {
+        Ok(p)
+    } else {
+        Err(format!("`{s}` is not a probability in 0..1"))
+    }
+}
+
+fn delay_range(s: &str) -> Result<(u64, u64), String> {
+    let (a, b) = s
+        .split_once("..")
+        .ok_or_else(|| format!("`{s}` is not a range A..B (ms)"))?;
+    let a: u64 = a
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{a}` is not a number of ms"))?;
+    let b: u64 = b
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{b}` is not a number of ms"))?;
+    if a > b {
+        return Err(format!("the range {a}..{b} is empty"));
+    }
+    Ok((a, b))
+}
+
+fn load(path: &Path) -> Result<Compiled, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("error: cannot read {}: {e}", path.display()))?;
+    let src = Source::new(path.display().to_string(), text);
+    compile::compile(&src).map_err(|diags| {
+        let mut s = String::new();
+        for d in diags.iter().filter(|d| d.is_error()) {
+            s.push_str(&d.render(&src, false));
+            s.push('\n');
+        }
+        s.push_str(&format!("{}: does not compile", src.name));
+        s
+    })
+}
+
+/// The generation to push: the robot's, at least 1 (an unconfigured node runs 0).
+fn generation_of(c: Compiled, generation: Option<u32>) -> Result<Compiled, String> {
+    let g = generation.unwrap_or(c.ir.generation).max(1);
+    c.with_generation(g)
+}
+
+fn connect(at: &MediumAddr) -> Result<ToolRadio, String> {
+    ToolRadio::connect(at.medium, TOOL_ADDR)
+        .map_err(|e| format!("error: cannot reach the medium at {}: {e}", at.medium))
+}
+
+/// Runs a radio command.
+pub fn run(cmd: NetCommand) -> Result<(), String> {
+    match cmd {
+        NetCommand::Medium {
+            listen,
+            loss,
+            dup,
+            corrupt,
+            delay_ms,
+            seed,
+            pcap,
+        } => {
+            let m = medium::Medium::start(medium::Config {
+                listen,
+                loss,
+                dup,
+                corrupt,
+                delay_ms,
+                seed,
+                pcap,
+            })
+            .map_err(|e| format!("error: medium on {listen}: {e}"))?;
+            println!("medium listening on {}", m.addr());
+            loop {
+                std::thread::sleep(Duration::from_secs(3600));
+            }
+        }
+        NetCommand::Scan { at } => {
+            let mut radio = connect(&at)?;
+            let found = push::scan(&mut radio, &mut Ids::default(), Duration::from_secs(2))
+                .map_err(|e| e.to_string())?;
+            for (addr, a) in &found {
+                let role = if a.role.is_empty() {
+                    "(unconfigured)"
+                } else {
+                    a.role.as_str()
+                };
+                println!(
+                    "{addr:#06x}  firmware {}  generation {}  {role}",
+                    a.firmware, a.generation
+                );
+            }
+            println!("{} node(s)", found.len());
+            Ok(())
+        }
+        NetCommand::Push {
+            robot,
+            at,
+            role,
+            node,
+            generation,
+            force,
+        } => {
+            let c = generation_of(load(&robot)?, generation)?;
+            let mut targets = demo::targets(&c);
+            if let Some(role) = &role {
+                targets.retain(|t| &t.role == role);
+                if targets.is_empty() {
+                    return Err(format!("error: {} has no role {role}", robot.display()));
+                }
+                if let Some(addr) = node {
+                    targets[0].addr = addr;
+                }
+            }
+            let mut radio = connect(&at)?;
+            let outcomes = push_with_bars(&mut radio, &targets, force)?;
+            report_push(&outcomes)
+        }
+        NetCommand::Status { at, node } => {
+            let mut radio = connect(&at)?;
+            let s = command(&mut radio, node, Command::Status)?;
+            println!("{}", status_text(node, &s));
+            Ok(())
+        }
+        NetCommand::Start { at, node } => {
+            let mut radio = connect(&at)?;
+            command(&mut radio, node, Command::Start)?;
+            println!("{node:#06x}: started");
+            Ok(())
+        }
+        NetCommand::Reset { at, node } => {
+            let mut radio = connect(&at)?;
+            command(&mut radio, node, Command::Reset)?;
+            println!("{node:#06x}: reset");
+            Ok(())
+        }
+        NetCommand::Monitor { at, seconds } => monitor(&at, seconds.map(Duration::from_secs)),
+        NetCommand::Demo {
+            robot,
+            cycles,
+            loss,
+            then,
+            no_reconfigure,
+            pcap,
+            seed,
+        } => {
+            let then = match (no_reconfigure, then) {
+                (true, _) => None,
+                (false, Some(p)) => Some(p),
+                (false, None) => {
+                    let p = robot.with_file_name("paint-robot-double-dip.ron");
+                    (p.exists() && p != robot).then_some(p)
+                }
+            };
+            let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+            let options = demo::Options {
+                medium: medium::Config {
+                    loss,
+                    dup: loss / 2.0,
+                    delay_ms: if loss > 0.0 { (0, 8) } else { (0, 0) },
+                    seed,
+                    pcap,
+                    ..medium::Config::default()
+                },
+                node_command: vec![exe.into_os_string(), "node".into()],
+                flash_dir: None,
+                timeout: Duration::from_secs(60),
+            };
+            let ok = run_demo(&robot, then.as_deref(), cycles, options, &mut io::stdout())?;
+            if ok {
+                Ok(())
+            } else {
+                Err("demo: a cycle did not match its declared sequence".into())
+            }
+        }
+        NetCommand::Node(args) => node_fw::host::run(args).map_err(|e| format!("node: {e}")),
+    }
+}
+
+fn command(radio: &mut ToolRadio, node: u16, cmd: Command) -> Result<Status, String> {
+    push::command(
+        radio,
+        &mut Ids::default(),
+        node,
+        cmd,
+        Duration::from_secs(5),
+    )
+    .map_err(|e| e.to_string())?
+    .ok_or_else(|| format!("error: node {node:#06x} did not answer"))
+}
+
+/// A status in readable form.
+pub fn status_text(addr: u16, s: &Status) -> String {
+    let role = if s.role.is_empty() {
+        "(unconfigured)"
+    } else {
+        s.role.as_str()
+    };
+    let states: Vec<String> = s.states.iter().map(|x| format!("S{x}")).collect();
+    let c = s.counters;
+    format!(
+        "{addr:#06x}  role {role}  generation {}\n  states {}  outputs {:#06x}  inputs {:#06x}  fault {}\n  link alarms {:#010b}\n  frames sent {} received {} retried {} dropped {}  events delivered {}",
+        s.generation,
+        if states.is_empty() { "-".to_string() } else { states.join(" ") },
+        s.outputs,
+        s.inputs,
+        s.fault.map_or("none".to_string(), |f| format!("{f:#04x}")),
+        s.link_alarms,
+        c.sent,
+        c.received,
+        c.retried,
+        c.dropped,
+        c.delivered
+    )
+}
+
+fn bars(targets: &[push::Target]) -> (MultiProgress, Vec<ProgressBar>) {
+    let multi = MultiProgress::new();
+    let style = ProgressStyle::with_template("{prefix:>8} [{bar:30}] {pos:>5}/{len} bytes {msg}")
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("=> ");
+    let bars = targets
+        .iter()
+        .map(|t| {
+            let b = multi.add(ProgressBar::new(t.blob.len() as u64));
+            b.set_style(style.clone());
+            b.set_prefix(format!("{} {:#06x}", t.role, t.addr));
+            b
+        })
+        .collect();
+    (multi, bars)
+}
+
+fn push_with_bars(
+    radio: &mut ToolRadio,
+    targets: &[push::Target],
+    force: bool,
+) -> Result<Vec<push::Outcome>, String> {
+    let (_multi, bars) = bars(targets);
+    let outcomes = push::push(radio, targets, force, &mut |i, acked, _| {
+        if let Some(b) = bars.get(i) {
+            b.set_position(acked as u64);
+        }
+    })
+    .map_err(|e| e.to_string())?;
+    for (b, o) in bars.iter().zip(&outcomes) {
+        b.finish_with_message(match o.progress {
+            Progress::Done => "activated".to_string(),
+            other => format!("{other:?}"),
+        });
+    }
+    Ok(outcomes)
+}
+
+fn report_push(outcomes: &[push::Outcome]) -> Result<(), String> {
+    for o in outcomes {
+        println!("{}", demo::push_line(o));
+    }
+    let (bytes, frames, retries) = outcomes.iter().fold((0, 0, 0), |a, o| {
+        (a.0 + o.bytes, a.1 + o.stats.frames, a.2 + o.stats.retries)
+    });
+    let time = outcomes.iter().map(|o| o.elapsed).max().unwrap_or_default();
+    println!(
+        "pushed {} table(s): {bytes} bytes, {frames} frames, {retries} retries, {:.1} ms",
+        outcomes.len(),
+        time.as_secs_f64() * 1e3
+    );
+    if outcomes.iter().all(|o| o.progress == Progress::Done) {
+        Ok(())
+    } else {
+        Err("error: not every node activated its table".into())
+    }
+}
+
+/// The demo: returns whether every cycle matched.
+pub fn run_demo(
+    robot: &Path,
+    then: Option<&Path>,
+    cycles: usize,
+    options: demo::Options,
+    out: &mut dyn Write,
+) -> Result<bool, String> {
+    let c = generation_of(load(robot)?, None)?;
+    let next = match then {
+        Some(p) => Some(generation_of(load(p)?, Some(c.ir.generation + 1))?),
+        None => None,
+    };
+    let mut bed = Bed::start(options)?;
+    let addrs = demo::node_addrs(&c);
+    demo::say(
+        out,
+        &format!(
+            "medium on {}; starting {} unconfigured node(s)",
+            bed.medium().addr(),
+            addrs.len()
+        ),
+    );
+    for a in &addrs {
+        bed.start_node(*a)?;
+    }
+    bed.set_plant(plant::actuators(&c)?)?;
+    let found = bed.wait_for_nodes(&addrs)?;
+    for (addr, a) in &found {
+        let role = if a.role.is_empty() {
+            "unconfigured"
+        } else {
+            a.role.as_str()
+        };
+        demo::say(
+            out,
+            &format!("  node {addr:#06x}: firmware {}, {role}", a.firmware),
+        );
+    }
+    let mut all_ok = true;
+    for (label, robot, n) in [(robot, &c, cycles)]
+        .into_iter()
+        .chain(next.as_ref().map(|n| (then.unwrap_or(robot), n, 1)))
+    {
+        demo::say(
+            out,
+            &format!(
+                "pushing {} (generation {})",
+                label.display(),
+                robot.ir.generation
+            ),
+        );
+        let outcomes = bed.push(robot, false, &mut |_, _, _| {})?;
+        for o in &outcomes {
+            demo::say(out, &demo::push_line(o));
+        }
+        if outcomes.iter().any(|o| o.progress != Progress::Done) {
+            demo::say(out, "not every node activated its table");
+            return Ok(false);
+        }
+        bed.set_plant(plant::actuators(robot)?)?;
+        let expect: Vec<String> = robot.ir.expect.iter().map(|s| s.to_string()).collect();
+        demo::say(out, &format!("sequence: {}", expect.join(" ")));
+        for i in 1..=n {
+            let t0 = Instant::now();
+            let cycle = bed.run_cycle(robot, &mut |s| {
+                let _ = writeln!(io::stderr(), "  {:>7.3} s  {s}", t0.elapsed().as_secs_f64());
+            })?;
+            all_ok &= cycle.ok();
+            demo::say(out, &demo::cycle_line(i, &cycle));
+            if !cycle.ok() {
+                break;
+            }
+        }
+    }
+    let s = bed.medium().stats();
+    demo::say(
+        out,
+        &format!(
+            "medium: {} frames, {:.1} ms airtime, {} lost, {} duplicated",
+            s.frames,
+            s.airtime_us as f64 / 1e3,
+            s.lost,
+            s.duplicated
+        ),
+    );
+    bed.stop();
+    demo::say(
+        out,
+        if all_ok {
+            "demo: every cycle matched"
+        } else {
+            "demo: FAILED"
+        },
+    );
+    Ok(all_ok)
+}
+
+/// Prints every frame (decoded) and pin change on the medium.
+fn monitor(at: &MediumAddr, for_: Option<Duration>) -> Result<(), String> {
+    let mut stream = TcpStream::connect(at.medium)
+        .map_err(|e| format!("error: cannot reach the medium at {}: {e}", at.medium))?;
+    let mut buf = [0u8; MAX_LINK];
+    let n = Link::Hello(Peer::Monitor)
+        .emit(&mut buf)
+        .map_err(|_| "link".to_string())?;
+    stream.write_all(&buf[..n]).map_err(|e| e.to_string())?;
+    let start = Instant::now();
+    let mut pending = Vec::new();
+    let mut chunk = [0u8; 2048];
+    loop {
+        if let Some(d) = for_ {
+            let left = d.saturating_sub(start.elapsed());
+            if left.is_zero() {
+                return Ok(());
+            }
+            let _ = stream.set_read_timeout(Some(left));
+        }
+        let n = match stream.read(&mut chunk) {
+            Ok(0) => return Ok(()),
+            Ok(n) => n,
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
+                ) =>
+            {
+                continue
+            }
+            Err(e) => return Err(e.to_string()),
+        };
+        pending.extend_from_slice(&chunk[..n]);
+        while let Some(body) = next_message(&pending) {
+            let t = start.elapsed().as_secs_f64();
+            match Link::parse(&pending[body.clone()]) {
+                Ok(Link::Frame(psdu)) => println!("{t:>9.3}  {}", describe(psdu)),
+                Ok(Link::Pin { addr, pin, level }) => {
+                    println!("{t:>9.3}  pin {addr:#06x}.{pin} = {}", u8::from(level))
+                }
+                _ => {}
+            }
+            pending.drain(..body.end);
+        }
+    }
+}
+
+/// One frame in readable form.
+pub fn describe(psdu: &[u8]) -> String {
+    match Frame::parse(psdu) {
+        Ok(Frame::Data { header, payload }) => {
+            let msg = match Message::parse(payload) {
+                Ok(Message::ConfigChunk {
+                    generation,
+                    offset,
+                    data,
+                }) => format!(
+                    "ConfigChunk {{ generation: {generation}, offset: {offset}, {} bytes }}",
+                    data.len()
+                ),
+                Ok(m) => format!("{m:?}"),
+                Err(e) => format!("({e})"),
+            };
+            format!("{:#06x} -> {:#06x}  {msg}", header.src, header.dst)
+        }
+        Ok(Frame::Ack { seq, .. }) => format!("ack {seq}"),
+        Err(e) => format!("bad frame ({e}), {} bytes", psdu.len()),
+    }
+}
