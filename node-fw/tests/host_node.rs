@@ -374,6 +374,15 @@ impl Client {
             }
             tx.poll(now(), |m| out.push(m));
         }
+        let st = tx.stats();
+        eprintln!(
+            "push of {} bytes to {addr:#06x}: {:?} in {} ms, {} frames, {} retries",
+            bytes.len(),
+            tx.progress(),
+            t0.elapsed().as_millis(),
+            st.frames,
+            st.retries
+        );
         tx.progress()
     }
 

@@ -589,3 +589,25 @@ fn output_pins_are_addressed_by_table_pin_number() {
     expected.extend((0..10).map(|p| (p, false)));
     assert_eq!(*log.borrow(), expected);
 }
+
+/// Prints the RAM the runtime's future takes on these fake seams (the whole node: core with
+/// its OTA staging buffer, slot buffer, transmit queue): a figure for MCU boards.
+#[test]
+fn runtime_future_size() {
+    let lines = lines();
+    let pins = Rc::new(RefCell::new(Vec::new()));
+    let mut ins: [FakeIn; 10] = std::array::from_fn(|i| FakeIn(lines[i].clone()));
+    let board = Board {
+        radio: FakeRadio(Rc::default()),
+        outputs: outputs(&pins),
+        inputs: WaitInputs::new(&mut ins),
+        flash: Flash::default(),
+    };
+    let size = std::mem::size_of_val(&runtime::run(ADDR, 1, board));
+    eprintln!(
+        "runtime future: {size} bytes (NodeCore {}, Table {})",
+        std::mem::size_of::<node_fw::node::NodeCore>(),
+        std::mem::size_of::<Table>()
+    );
+    assert!(size > std::mem::size_of::<node_fw::node::NodeCore>());
+}
