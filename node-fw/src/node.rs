@@ -443,9 +443,16 @@ impl NodeCore {
     }
 
     fn on_config(&mut self, msg: &Message<'_>, src: u16, pan: u16, io: &mut impl Io) {
-        if let (Some(staged), Message::ConfigEnd { generation }) = (&self.staged, msg) {
-            if staged.table.generation == *generation {
-                return; // answered once the table is persisted
+        // Anything about a table being persisted is answered once it runs.
+        if let Some(staged) = &self.staged {
+            let generation = match *msg {
+                Message::ConfigBegin { generation, .. }
+                | Message::ConfigChunk { generation, .. }
+                | Message::ConfigEnd { generation } => generation,
+                _ => 0,
+            };
+            if staged.table.generation == generation {
+                return;
             }
         }
         let generation = self.generation();

@@ -22,6 +22,8 @@ use config_schema::{decode, Table};
 pub const WINDOW: usize = 4;
 /// Tool-side retransmission timeout.
 pub const RTO_MS: u64 = 40;
+/// Times the tool starts a transfer over because the node lost it.
+pub const MAX_RESTARTS: u8 = 3;
 /// Tool-side timeouts without progress before it gives up.
 pub const GIVE_UP_AFTER: u8 = 25;
 
@@ -150,6 +152,10 @@ impl Receiver {
                     .as_mut()
                     .filter(|t| t.generation == generation)
                 else {
+                    // A late copy of a chunk of the table now running: it is in.
+                    if generation == running && running != 0 {
+                        return reply(ConfigReply::Activated);
+                    }
                     return reply(ConfigReply::Refused(Refusal::OutOfSequence));
                 };
                 // Chunks may arrive in any order; each has a fixed place and length.
@@ -232,6 +238,8 @@ pub struct Sender<'b> {
     progress: Progress,
     deadline: u64,
     timeouts: u8,
+    /// Times the node lost the transfer (`OutOfSequence`) and it started over.
+    restarts: u8,
     stats: TransferStats,
 }
 
@@ -248,6 +256,7 @@ impl<'b> Sender<'b> {
             progress: Progress::Busy,
             deadline: 0,
             timeouts: 0,
+            restarts: 0,
             stats: TransferStats::default(),
         }
     }
@@ -359,6 +368,19 @@ impl<'b> Sender<'b> {
                 if self.ended {
                     self.progress = Progress::Done;
                 }
+            }
+            // Answers to chunks sent before a restart, while the begin is not answered yet.
+            ConfigReply::Refused(Refusal::OutOfSequence) if self.acked.is_none() => {}
+            // The node does not know this transfer (it restarted, or began another):
+            // start over, a few times.
+            ConfigReply::Refused(Refusal::OutOfSequence) if self.restarts < MAX_RESTARTS => {
+                self.restarts += 1;
+                self.acked = None;
+                self.sent = 0;
+                self.ended = false;
+                self.timeouts = 0;
+                self.fill(false, &mut send);
+                self.deadline = now + RTO_MS;
             }
             ConfigReply::Refused(why) => self.progress = Progress::Refused(why),
         }

@@ -264,3 +264,51 @@ fn a_node_that_never_answers_makes_the_tool_give_up() {
     assert_eq!(tx.progress(), Progress::GaveUp);
     assert!(node.activations.is_empty());
 }
+
+#[test]
+fn a_late_chunk_copy_after_activation_is_answered_activated() {
+    let (_, bytes) = blob(6, 3);
+    let mut node = Node::new(0);
+    let mut tx = Sender::new(&bytes, 6, false);
+    transfer(&mut node, &mut tx, 0.0, 0.0, 1);
+    assert_eq!(node.running, 6);
+    let late = Message::ConfigChunk {
+        generation: 6,
+        offset: 0,
+        data: &bytes[..CHUNK_DATA.min(bytes.len())],
+    };
+    assert_eq!(node.handle(&late), Some((6, ConfigReply::Activated)));
+    assert_eq!(node.activations.len(), 1);
+}
+
+#[test]
+fn a_node_that_loses_the_transfer_gets_it_again_from_the_start() {
+    let (table, bytes) = blob(8, 40);
+    let mut node = Node::new(7);
+    let mut tx = Sender::new(&bytes, 8, false);
+    let mut out = Vec::new();
+    tx.start(0, |m| out.push(m));
+    let mut now = 0;
+    let mut forgotten = false;
+    while tx.progress() == Progress::Busy && now < 10_000 {
+        let mut replies = Vec::new();
+        for m in out.drain(..) {
+            if let Some(r) = node.handle(&m) {
+                replies.push(r);
+            }
+            // The node restarts after staging its first chunk: the transfer is gone.
+            if !forgotten && matches!(m, Message::ConfigChunk { .. }) {
+                node.rx = Receiver::new();
+                forgotten = true;
+            }
+        }
+        for (generation, reply) in replies {
+            tx.on_reply(generation, reply, now, |m| out.push(m));
+        }
+        tx.poll(now, |m| out.push(m));
+        now += 1;
+    }
+    assert!(forgotten);
+    assert_eq!(tx.progress(), Progress::Done);
+    assert_eq!(node.activations, vec![table]);
+}
