@@ -1,0 +1,109 @@
+//! The host board's flash file: created erased, NOR semantics (a write only clears bits),
+//! bounds and alignment refused, the boot counter counts across openings, and a table
+//! stored through `Slots` is there when the file is opened again.
+
+use std::path::PathBuf;
+
+use config_schema::limits::MAX_BLOB;
+use config_schema::{encode, Table};
+use embassy_futures::block_on;
+use embedded_storage_async::nor_flash::{NorFlash, ReadNorFlash};
+use node_fw::host::flash::{FlashError, HostFlash, OpenError, FILE_SIZE, SLOTS_BYTES};
+use node_fw::host::{epoch_of_boot, parse_addr};
+use node_fw::slots::Slots;
+
+fn path(name: &str) -> PathBuf {
+    let p = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("{name}-{}.flash", std::process::id()));
+    let _ = std::fs::remove_file(&p);
+    p
+}
+
+#[test]
+fn a_new_file_is_erased_and_writes_only_clear_bits() {
+    let p = path("nor");
+    let mut f = HostFlash::open(&p).unwrap();
+    let bytes = std::fs::read(&p).unwrap();
+    assert_eq!(bytes.len(), FILE_SIZE);
+    assert!(bytes.iter().all(|&b| b == 0xFF));
+    assert_eq!(f.capacity(), SLOTS_BYTES);
+
+    block_on(f.write(8, &[0xF0, 0x0F, 0xFF, 0x00])).unwrap();
+    block_on(f.write(8, &[0x3C, 0x3C, 0x3C, 0x3C])).unwrap();
+    let mut got = [0u8; 4];
+    block_on(f.read(8, &mut got)).unwrap();
+    assert_eq!(got, [0x30, 0x0C, 0x3C, 0x00]);
+    assert_eq!(block_on(f.write(9, &[0; 4])), Err(FlashError::NotAligned));
+    assert_eq!(block_on(f.write(8, &[0; 3])), Err(FlashError::NotAligned));
+    let end = SLOTS_BYTES as u32;
+    assert_eq!(
+        block_on(f.write(end, &[0; 4])),
+        Err(FlashError::OutOfBounds)
+    );
+    assert_eq!(
+        block_on(f.read(end - 1, &mut got)),
+        Err(FlashError::OutOfBounds)
+    );
+    assert_eq!(block_on(f.erase(0, 100)), Err(FlashError::NotAligned));
+    assert_eq!(block_on(f.erase(4096, 0)), Err(FlashError::OutOfBounds));
+    block_on(f.erase(0, 4096)).unwrap();
+    block_on(f.read(8, &mut got)).unwrap();
+    assert_eq!(got, [0xFF; 4]);
+    let _ = std::fs::remove_file(&p);
+}
+
+#[test]
+fn the_boot_counter_and_the_slots_survive_reopening() {
+    let p = path("reopen");
+    let mut table = Table::empty("kept");
+    table.generation = 9;
+    let mut blob = vec![0u8; MAX_BLOB];
+    let n = encode(&table, &mut blob).unwrap();
+    {
+        let mut f = HostFlash::open(&p).unwrap();
+        assert_eq!(f.count_boot().unwrap(), Some(1));
+        let mut slots = Slots::new(f).unwrap();
+        assert_eq!(block_on(slots.load()).unwrap(), None);
+        assert_eq!(block_on(slots.store(None, &blob[..n])).unwrap(), 0);
+    }
+    let mut f = HostFlash::open(&p).unwrap();
+    assert_eq!(f.count_boot().unwrap(), Some(2));
+    let mut slots = Slots::new(f).unwrap();
+    let loaded = block_on(slots.load()).unwrap().unwrap();
+    assert_eq!((loaded.slot, loaded.table), (0, table));
+    assert_eq!(HostFlash::ram().count_boot().unwrap(), None);
+    let _ = std::fs::remove_file(&p);
+}
+
+#[test]
+fn a_file_of_another_size_is_refused_untouched() {
+    let p = path("foreign");
+    std::fs::write(&p, vec![7u8; 100]).unwrap();
+    match HostFlash::open(&p) {
+        Err(OpenError::Size { found: 100, .. }) => {}
+        other => panic!("{:?}", other.err()),
+    }
+    assert_eq!(std::fs::read(&p).unwrap(), vec![7u8; 100]);
+    let _ = std::fs::remove_file(&p);
+}
+
+#[test]
+fn epochs_of_consecutive_boots_are_newer_with_room_for_tables() {
+    for boots in [1u32, 2, 255, 256, 257, 65_535, 65_536] {
+        let (a, b) = (epoch_of_boot(boots), epoch_of_boot(boots + 1));
+        // b is after a in serial order, with 255 installs of room between them.
+        assert_eq!(b.wrapping_sub(a), 256, "boot {boots}");
+    }
+}
+
+#[test]
+fn addresses_parse_in_hex_or_decimal() {
+    assert_eq!(parse_addr("0x0003"), Ok(3));
+    assert_eq!(parse_addr("0X1f"), Ok(0x1F));
+    assert_eq!(parse_addr("42"), Ok(42));
+    assert!(parse_addr("0xFFFE").unwrap_err().contains("reserved"));
+    assert!(parse_addr("65536")
+        .unwrap_err()
+        .contains("not a 16-bit address"));
+    assert!(parse_addr("").is_err());
+}
