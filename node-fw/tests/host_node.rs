@@ -31,6 +31,11 @@ const WAIT: Duration = Duration::from_secs(10);
 
 /// "lamp": every rise of the button toggles the lamp; the beacon's safe level is high.
 fn lamp_table(generation: u32) -> Table {
+    lamp_with(generation, &[Action::Drive { mask: 1, value: 1 }])
+}
+
+/// The lamp table whose "on" state runs `on`.
+fn lamp_with(generation: u32, on: &[Action]) -> Table {
     let mut t = Table::empty("lamp");
     t.generation = generation;
     t.header.pan_id = PAN;
@@ -46,7 +51,6 @@ fn lamp_table(generation: u32) -> Table {
     for (pin, safe) in [(LAMP, false), (BEACON, true)] {
         t.outputs.push(Output { pin, safe }).unwrap();
     }
-    let on: &[Action] = &[Action::Drive { mask: 1, value: 1 }];
     let off: &[Action] = &[Action::Drive { mask: 1, value: 0 }];
     let tr = |from, to| Transition {
         from,
@@ -770,4 +774,27 @@ fn two_nodes_in_process_carry_events_and_return_when_the_medium_goes() {
     }
     stopped.sort();
     assert_eq!(stopped, vec![(A, Ok(())), (B, Ok(()))]);
+}
+
+#[test]
+fn a_fault_is_logged_reported_and_cleared_by_a_new_table() {
+    const ADDR: u16 = 0x0021;
+    let relay = Relay::start();
+    let node = Node::spawn(ADDR, &relay, None);
+    let mut tool = Client::tool(&relay);
+    let mut plant = Client::connect(&relay, Peer::Plant);
+    // A lamp whose "on" state faults with application code 5.
+    let t = lamp_with(1, &[Action::Drive { mask: 1, value: 1 }, Action::Fault(5)]);
+    assert_eq!(tool.push(ADDR, &t), ota::Progress::Done);
+    assert_eq!(relay.pins(ADDR, 2), vec![(LAMP, false), (BEACON, true)]);
+    relay.clear_pins();
+    plant.drive(ADDR, BUTTON, true);
+    // The lamp went on, then the fault drove every output to its safe level.
+    assert_eq!(relay.pins(ADDR, 2), vec![(LAMP, true), (LAMP, false)]);
+    assert_eq!(tool.status(ADDR).fault, Some(0x85));
+    assert!(node.log().contains("fault 0x85"), "{}", node.log());
+    // A new table clears it.
+    assert_eq!(tool.push(ADDR, &lamp_table(2)), ota::Progress::Done);
+    assert_eq!(tool.status(ADDR).fault, None);
+    assert!(node.log().contains("fault cleared"), "{}", node.log());
 }
