@@ -1,0 +1,218 @@
+//! The radio, measured on the simulated medium's 250 kbit/s airtime model with real node
+//! processes (`config-tool node`), each figure printed beside its lower bound:
+//! - pushing the four paint-robot tables: airtime and wall time; the lower bound is the
+//!   airtime of the protocol's minimal exchange (begin, chunks, end and one answer each);
+//! - node-to-node latency per hop: from a cylinder reaching its switch to the next actuator
+//!   (on another node) starting, in wall time (the host's processes and TCP included), and
+//!   the airtime every hop spent; the lower bound is the airtime of one event frame;
+//! - frames per cycle between nodes (tool traffic excluded); the lower bound is one event
+//!   and one acknowledgement per radio publication.
+//!
+//! `cargo bench -p config-tool --bench radio`
+
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
+use config_schema::wire::medium::{next_message, Link, Peer, MAX_LINK};
+use config_schema::wire::msg::{ConfigReply, Message, CHUNK_DATA};
+use config_tool::demo::{self, Bed, Options};
+use config_tool::radio::TOOL_ADDR;
+use config_tool::{compile, medium, plant, Source};
+
+fn paint_robot() -> config_tool::Compiled {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../robot-configs/paint-robot.ron"
+    );
+    let src = Source::new(
+        "paint-robot.ron",
+        std::fs::read_to_string(path).expect("robot"),
+    );
+    compile::compile(&src)
+        .expect("paint robot compiles")
+        .with_generation(1)
+        .expect("generation")
+}
+
+/// Airtime of one message in a data frame, us.
+fn airtime(msg: &Message) -> u64 {
+    let mut payload = [0u8; mac::MAX_PAYLOAD];
+    let n = msg.emit(&mut payload).expect("fits");
+    let header = Header {
+        seq: 0,
+        pan_id: 0xFFFF,
+        dst: 1,
+        src: 2,
+        ack_request: false,
+        secured: false,
+    };
+    let mut psdu = [0u8; MAX_PSDU];
+    let len = mac::emit_data(&header, &payload[..n], &mut psdu).expect("frame");
+    u64::from(mac::airtime_us(len))
+}
+
+/// The airtime of the minimal transfer of `blob`: every message once, each answered once.
+fn push_lower_bound(blob: &[u8]) -> u64 {
+    let g = 1;
+    let mut t = airtime(&Message::ConfigBegin {
+        generation: g,
+        len: blob.len() as u16,
+        crc: u32::MAX,
+        force: false,
+    });
+    for (i, chunk) in blob.chunks(CHUNK_DATA).enumerate() {
+        t += airtime(&Message::ConfigChunk {
+            generation: g,
+            offset: (i * CHUNK_DATA) as u16,
+            data: chunk,
+        });
+    }
+    t += airtime(&Message::ConfigEnd { generation: g });
+    let chunks = blob.len().div_ceil(CHUNK_DATA);
+    for i in 0..=chunks {
+        t += airtime(&Message::ConfigReply {
+            generation: g,
+            reply: ConfigReply::Next {
+                next: (i * CHUNK_DATA).min(blob.len()) as u16,
+            },
+        });
+    }
+    t + airtime(&Message::ConfigReply {
+        generation: g,
+        reply: ConfigReply::Activated,
+    })
+}
+
+/// Counts frames between nodes (not to or from the tool, not broadcast) and their airtime.
+fn count_node_frames(addr: std::net::SocketAddr, count: Arc<AtomicU64>, air_us: Arc<AtomicU64>) {
+    let mut s = TcpStream::connect(addr).expect("monitor");
+    let mut buf = [0u8; MAX_LINK];
+    let n = Link::Hello(Peer::Monitor).emit(&mut buf).expect("hello");
+    s.write_all(&buf[..n]).expect("hello");
+    let mut pending = Vec::new();
+    let mut chunk = [0u8; 4096];
+    while let Ok(n) = s.read(&mut chunk) {
+        if n == 0 {
+            return;
+        }
+        pending.extend_from_slice(&chunk[..n]);
+        while let Some(body) = next_message(&pending) {
+            if let Ok(Link::Frame(psdu)) = Link::parse(&pending[body.clone()]) {
+                if let Ok(Frame::Data { header, .. }) = Frame::parse(psdu) {
+                    if header.src != TOOL_ADDR
+                        && header.dst != TOOL_ADDR
+                        && header.dst != mac::BROADCAST
+                    {
+                        count.fetch_add(1, Ordering::Relaxed);
+                        air_us.fetch_add(u64::from(mac::airtime_us(psdu.len())), Ordering::Relaxed);
+                    }
+                }
+            }
+            pending.drain(..body.end);
+        }
+    }
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+fn main() {
+    let c = paint_robot();
+    let options = Options {
+        medium: medium::Config::default(),
+        node_command: vec![env!("CARGO_BIN_EXE_config-tool").into(), "node".into()],
+        flash_dir: None,
+        timeout: Duration::from_secs(60),
+    };
+    let mut bed = Bed::start(options).expect("bed");
+    let addrs: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
+    for a in &addrs {
+        bed.start_node(*a).expect("node");
+    }
+    let actuators = plant::actuators(&c).expect("plant");
+    bed.set_plant(actuators.clone()).expect("plant");
+    bed.wait_for_nodes(&addrs).expect("nodes");
+    let frames = Arc::new(AtomicU64::new(0));
+    let node_air = Arc::new(AtomicU64::new(0));
+    let (maddr, f, a) = (bed.medium().addr(), frames.clone(), node_air.clone());
+    std::thread::spawn(move || count_node_frames(maddr, f, a));
+
+    // Push.
+    let before = bed.medium().stats();
+    let t0 = Instant::now();
+    let outcomes = bed.push(&c, false, &mut |_, _, _| {}).expect("push");
+    let wall = t0.elapsed();
+    let after = bed.medium().stats();
+    assert!(outcomes
+        .iter()
+        .all(|o| o.progress == node_fw::ota::Progress::Done));
+    let air = after.airtime_us - before.airtime_us;
+    let bound: u64 = c.blobs.iter().map(|b| push_lower_bound(b)).sum();
+    println!(
+        "push of the four paint-robot tables ({} bytes):",
+        c.blobs.iter().map(Vec::len).sum::<usize>()
+    );
+    println!("  airtime       {:>8.2} ms   lower bound {:>7.2} ms   ratio {:.2}x   (target: < 100 ms, within 2x)",
+        air as f64 / 1e3, bound as f64 / 1e3, air as f64 / bound as f64);
+    println!(
+        "  frames        {:>8}      wall time {:.1} ms",
+        after.frames - before.frames,
+        wall.as_secs_f64() * 1e3
+    );
+
+    // Cycles: latency per hop and frames between nodes.
+    let travel = |name: &str, plus: bool| {
+        actuators
+            .iter()
+            .find(|a| a.name == name)
+            .map(|a| if plus { a.travel_ms.0 } else { a.travel_ms.1 })
+            .unwrap_or(0)
+    };
+    let node_of = |name: &str| actuators.iter().find(|a| a.name == name).map(|a| a.addr);
+    // A sensorless actuator completes on its node's dwell timer, not on arrival.
+    let switched = |name: &str| actuators.iter().any(|a| a.name == name && a.double);
+    let mut hops = Vec::new();
+    let mut per_cycle = Vec::new();
+    let air0 = node_air.load(Ordering::Relaxed);
+    let cycles = 3;
+    for _ in 0..cycles {
+        let mut steps = Vec::new();
+        let n0 = frames.load(Ordering::Relaxed);
+        let cycle = bed
+            .run_cycle(&c, &mut |s| steps.push(s.clone()))
+            .expect("cycle");
+        assert!(cycle.ok(), "{}", demo::cycle_line(0, &cycle));
+        per_cycle.push(frames.load(Ordering::Relaxed) - n0);
+        for w in steps.windows(2) {
+            let (a, b) = (&w[0], &w[1]);
+            if node_of(&a.actuator) != node_of(&b.actuator) && switched(&a.actuator) {
+                let arrived = a.at + Duration::from_millis(travel(&a.actuator, a.plus));
+                hops.push(b.at.saturating_sub(arrived).as_secs_f64() * 1e3);
+            }
+        }
+    }
+    let event = airtime(&Message::Event {
+        epoch: 1,
+        seq: 1,
+        topic: 1,
+    });
+    let ack = airtime(&Message::EventAck { epoch: 1, next: 2 });
+    let n_hops = hops.len();
+    let max = hops.iter().copied().fold(0.0, f64::max);
+    println!("node-to-node latency over {n_hops} hops (switch reached -> next actuator moves):");
+    println!("  median {:>6.2} ms   max {:>6.2} ms   lower bound {:.2} ms (one event frame's airtime; with its ack {:.2} ms)   (target: < 3 ms airtime per hop)",
+        median(&mut hops), max, event as f64 / 1e3, (event + ack) as f64 / 1e3);
+    let publications = config_tool::compile::radio_events(&c.ir).len();
+    let per_hop = (node_air.load(Ordering::Relaxed) - air0) as f64 / (cycles * publications) as f64;
+    println!("  airtime per hop (measured) {:.2} ms: every frame between nodes over {cycles} cycles / {} hops   (target: < 3 ms)",
+        per_hop / 1e3, cycles * publications);
+    println!("  (wall latency includes the host: processes, TCP, scheduling; the airtime is what a real radio spends)");
+    println!("frames between nodes per cycle: {per_cycle:?}   lower bound {} ({publications} publications, each an event and an ack)", 2 * publications);
+    bed.stop();
+}
