@@ -96,6 +96,13 @@ pub enum NetCommand {
         #[arg(long, value_parser = node_fw::host::parse_addr)]
         node: u16,
     },
+    /// The robot's machine (cylinders, gripper) on the medium, in real time: it moves the
+    /// actuators the nodes command and closes their switches; prints every step.
+    Plant {
+        robot: PathBuf,
+        #[command(flatten)]
+        at: MediumAddr,
+    },
     /// A live trace of frames, events and pin changes on the medium.
     Monitor {
         #[command(flatten)]
@@ -269,6 +276,28 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
             command(&mut radio, node, Command::Reset)?;
             println!("{node:#06x}: reset");
             Ok(())
+        }
+        NetCommand::Plant { robot, at } => {
+            let c = load(&robot)?;
+            let actuators = plant::actuators(&c)?;
+            for a in &actuators {
+                println!(
+                    "{:<4} on node {:#06x}: valves {:?}, home {:?}, end {:?}",
+                    a.name, a.addr, a.valves, a.home, a.end
+                );
+            }
+            let (tx, rx) = std::sync::mpsc::channel();
+            let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+            let medium = at.medium;
+            let handle = std::thread::spawn(move || plant::run(medium, actuators, tx, stop));
+            for step in rx {
+                println!("{:>9.3}  {step}", step.at.as_secs_f64());
+            }
+            match handle.join() {
+                Ok(Ok(())) => Ok(()),
+                Ok(Err(e)) => Err(format!("error: plant on {medium}: {e}")),
+                Err(_) => Err("error: the plant stopped".into()),
+            }
         }
         NetCommand::Monitor { at, seconds } => monitor(&at, seconds.map(Duration::from_secs)),
         NetCommand::Demo {

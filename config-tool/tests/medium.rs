@@ -242,3 +242,84 @@ fn only_loopback_is_served_and_garbage_disconnects() {
     assert_eq!(b.recv(SURE), Some(Got::Frame(f)));
     medium.stop();
 }
+
+/// Wireshark's decoder agrees: every frame of the capture is IEEE 802.15.4 with a good FCS
+/// and the addresses that were sent. Needs `tshark`; CI installs it and sets
+/// `REQUIRE_TSHARK=1`, so there a missing tshark fails instead of skipping.
+#[test]
+fn tshark_decodes_the_capture() {
+    let have = std::process::Command::new("tshark")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !have {
+        assert!(
+            std::env::var_os("REQUIRE_TSHARK").is_none(),
+            "REQUIRE_TSHARK is set but tshark is not installed"
+        );
+        eprintln!("tshark not installed: skipped");
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("medium-tshark-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("air.pcap");
+    let medium = Medium::start(Config {
+        pcap: Some(path.clone()),
+        ..Config::default()
+    })
+    .unwrap();
+    let mut a = Client::join(&medium, Peer::Node { addr: 0x11 });
+    let mut b = Client::join(&medium, Peer::Node { addr: 0x12 });
+    settle(&medium, 2);
+    let frames = [
+        frame(0x11, 0x12, b"one"),
+        frame(0x12, 0x11, b"two"),
+        frame(0x11, BROADCAST, b"all"),
+    ];
+    a.send(&Link::Frame(&frames[0]));
+    assert!(b.recv(SURE).is_some());
+    b.send(&Link::Frame(&frames[1]));
+    assert!(a.recv(SURE).is_some());
+    a.send(&Link::Frame(&frames[2]));
+    assert!(b.recv(SURE).is_some());
+    medium.stop();
+    let out = std::process::Command::new("tshark")
+        .args(["-r"])
+        .arg(&path)
+        .args([
+            "--disable-protocol",
+            "lwm",
+            "--disable-protocol",
+            "6lowpan",
+            "--disable-protocol",
+            "zbee_nwk",
+            "--disable-protocol",
+            "zbee_nwk_gp",
+            "-T",
+            "fields",
+            "-e",
+            "wpan.src16",
+            "-e",
+            "wpan.dst16",
+            "-e",
+            "wpan.fcs_ok",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let rows: Vec<&str> = text.lines().collect();
+    assert_eq!(
+        rows,
+        [
+            "0x0011\t0x0012\t1",
+            "0x0012\t0x0011\t1",
+            "0x0011\t0xffff\t1"
+        ]
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
