@@ -197,3 +197,35 @@ fn diagram_svg_says_clearly_when_graphviz_is_missing() {
         "{err}"
     );
 }
+
+/// With Graphviz installed, `--format svg` renders the chart. CI installs Graphviz and sets
+/// `REQUIRE_GRAPHVIZ=1`, so there a missing `dot` fails instead of skipping.
+#[test]
+fn diagram_svg_renders_through_graphviz() {
+    let have = Command::new("dot")
+        .arg("-V")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !have {
+        assert!(
+            std::env::var_os("REQUIRE_GRAPHVIZ").is_none(),
+            "REQUIRE_GRAPHVIZ is set but Graphviz is not installed"
+        );
+        eprintln!("Graphviz not installed: skipped");
+        return;
+    }
+    let out = tool(&[
+        "diagram",
+        "robot-configs/paint-robot.ron",
+        "--role",
+        "GR",
+        "--format",
+        "svg",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let svg = text(&out.stdout);
+    assert!(svg.contains("<svg"), "{svg}");
+    assert!(svg.trim_end().ends_with("</svg>"), "{svg}");
+    // The states and the transition labels made it into the picture.
+    assert!(svg.contains("dwell"), "{svg}");
+}
