@@ -298,29 +298,34 @@ impl<'t> Engine<'t> {
             return;
         }
         if local {
-            self.emit(event, fx);
-        } else if self.queue.push_back(event).is_err() {
-            self.set_fault(Fault::QueueFull { event }, fx);
+            if let Some(p) = self.table.publication(event) {
+                fx.publish(p);
+            }
         }
-        self.run(event, fx);
-    }
-
-    /// Delivers queued events FIFO, each to all its routes in order, until the queue is
-    /// empty or the node faults.
-    fn run(&mut self, stimulus: EventId, fx: &mut impl Effects) {
-        let table = self.table;
-        let mut processed = 0usize;
-        while let Some(event) = self.queue.pop_front() {
+        // The queue is empty between stimuli: the stimulus goes straight to its routes, and
+        // only events emitted by actions wait in the FIFO.
+        self.dispatch(event, fx);
+        let mut processed = 1usize;
+        while self.fault.is_none() {
+            let Some(next) = self.queue.pop_front() else {
+                return;
+            };
             processed += 1;
             if processed > MAX_CASCADE {
-                self.set_fault(Fault::Cascade { event: stimulus }, fx);
+                self.set_fault(Fault::Cascade { event }, fx);
                 return;
             }
-            for route in table.routes.iter().filter(|r| r.event == event) {
-                self.deliver(route.chart, route.input, fx);
-                if self.fault.is_some() {
-                    return;
-                }
+            self.dispatch(next, fx);
+        }
+    }
+
+    /// Delivers `event` to all its routes, in order, each chart running to a stable state.
+    fn dispatch(&mut self, event: EventId, fx: &mut impl Effects) {
+        let table = self.table;
+        for route in table.routes.iter().filter(|r| r.event == event) {
+            self.deliver(route.chart, route.input, fx);
+            if self.fault.is_some() {
+                return;
             }
         }
     }
