@@ -1,0 +1,282 @@
+//! End to end, with real processes: the simulated medium, one `config-tool node` process per
+//! physical node (booting unconfigured), the plant, and the tool's radio. The plant's steps
+//! are the truth: every cycle is exactly the declared list, nothing more.
+//!
+//! - unconfigured nodes -> push -> 5 cycles of sequence (1), on a clean medium and at 20 %
+//!   loss with duplication and reordering: exact, every event delivered exactly once;
+//! - reconfiguration of the running nodes (double dip), then the VC role reassigned to the
+//!   spare node;
+//! - hostile frames at a node: dropped, counted one by one, the node keeps working.
+//!
+//! OTA faults are in `e2e_ota.rs`.
+
+mod e2e_support;
+
+use config_schema::wire::mac::{self, Header, MAX_PSDU};
+use config_schema::wire::msg::{Command, Message};
+use config_tool::demo;
+use config_tool::medium::{self, Stats};
+use config_tool::plant;
+use config_tool::radio::TOOL_ADDR;
+use node_fw::node::CONFIG_PAN;
+
+use e2e_support::*;
+
+/// Unconfigured nodes, a push, five exact cycles on `medium`; returns the medium's counters.
+fn five_exact_cycles(medium: medium::Config) -> Stats {
+    let c = robot("paint-robot.ron", 1);
+    assert_eq!(expect(&c).join(" "), SEQUENCE_1);
+    let deliveries = deliveries_per_cycle(&c, 5);
+    assert!(deliveries[0].iter().sum::<u32>() > 0);
+
+    let mut bed = bring_up(&c, options(medium, None));
+    push_ok(&mut bed, &c);
+    let mut before = counters(&assert_running(&mut bed, &c), &c);
+    assert!(before.values().all(|k| k.delivered == 0));
+    // The spare node is not part of this robot: it stays unconfigured.
+    let roles: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
+    let spares: Vec<u16> = demo::node_addrs(&c)
+        .into_iter()
+        .filter(|a| !roles.contains(a))
+        .collect();
+    assert_eq!(spares, [0x0015]);
+    let spare = status(&mut bed, 0x0015);
+    assert_eq!((spare.generation, spare.role.as_str()), (0, ""));
+
+    for (n, expected) in deliveries.iter().enumerate() {
+        exact_cycle(&mut bed, &c, n + 1);
+        let now = counters(&assert_running(&mut bed, &c), &c);
+        for (i, r) in c.ir.roles.iter().enumerate() {
+            let got = now[&r.address].delivered - before[&r.address].delivered;
+            assert_eq!(
+                got,
+                expected[i],
+                "cycle {}: events delivered to {} (exactly once each)",
+                n + 1,
+                r.name
+            );
+        }
+        before = now;
+    }
+    let retried: u32 = before.values().map(|k| k.retried).sum();
+    let stats = bed.medium().stats();
+    bed.stop();
+    assert!(
+        stats.lost == 0 || retried > 0,
+        "lost frames were retransmitted"
+    );
+    stats
+}
+
+#[test]
+fn unconfigured_nodes_push_then_five_exact_cycles() {
+    let stats = five_exact_cycles(medium::Config::default());
+    assert_eq!((stats.lost, stats.duplicated, stats.corrupted), (0, 0, 0));
+}
+
+#[test]
+fn five_exact_cycles_at_20_percent_loss_with_duplication_and_reordering() {
+    let stats = five_exact_cycles(medium::Config {
+        loss: 0.2,
+        dup: 0.1,
+        delay_ms: (0, 8),
+        seed: 0x5EED_0004,
+        ..medium::Config::default()
+    });
+    assert!(stats.lost > 0, "{stats:?}");
+    assert!(stats.duplicated > 0, "{stats:?}");
+}
+
+#[test]
+fn reconfiguration_while_running_then_role_reassigned_to_the_spare() {
+    const OLD_VC: u16 = 0x0011;
+    const SPARE: u16 = 0x0015;
+    let paint = robot("paint-robot.ron", 1);
+    let mut bed = bring_up(&paint, options(medium::Config::default(), None));
+    push_ok(&mut bed, &paint);
+    assert_running(&mut bed, &paint);
+    for n in 1..=2 {
+        exact_cycle(&mut bed, &paint, n);
+    }
+
+    // The double dip, pushed to the same running nodes (same wiring: the plant stays).
+    let dip = robot("paint-robot-double-dip.ron", 2);
+    assert_eq!(
+        plant::actuators(&dip).unwrap(),
+        plant::actuators(&paint).unwrap()
+    );
+    assert_ne!(expect(&dip), expect(&paint));
+    assert_eq!(expect(&dip).len(), 16);
+    push_ok(&mut bed, &dip);
+    // Every node switched at rest to the new table's initial states.
+    assert_running(&mut bed, &dip);
+    for n in 1..=2 {
+        // Exactly the 16 new steps: the old sequence never comes back.
+        exact_cycle(&mut bed, &dip, n);
+        assert_running(&mut bed, &dip);
+    }
+
+    // Node 1 "failed": the VC role moves to the spare node (one line of the robot).
+    let spare = robot("paint-robot-spare-node.ron", 3);
+    assert!(demo::node_addrs(&spare).contains(&SPARE));
+    assert!(demo::node_addrs(&paint).contains(&SPARE), "the spare runs");
+    assert_eq!(addr_of(&spare, "VC"), SPARE);
+    assert_eq!(addr_of(&paint, "VC"), OLD_VC);
+    assert!(spare.ir.roles.iter().all(|r| r.address != OLD_VC));
+    assert_eq!(expect(&spare).join(" "), SEQUENCE_1);
+    assert_eq!(status(&mut bed, SPARE).generation, 0, "unconfigured so far");
+    let outcomes = push_ok(&mut bed, &spare);
+    assert_eq!(outcomes[role_of(&spare, "VC").0].addr, SPARE);
+    assert_running(&mut bed, &spare);
+    let old = status(&mut bed, OLD_VC);
+    assert_eq!((old.role.as_str(), old.generation), ("VC", 2));
+
+    // The VC cylinder's cable moved with the role: the plant is rewired.
+    bed.set_plant(plant::actuators(&spare).unwrap()).unwrap();
+    let clients = bed.medium().stats().clients;
+    let mut monitor = Monitor::join(bed.medium().addr());
+    assert!(bed.medium().wait_for_clients(clients + 1, TIMEOUT));
+    exact_cycle(&mut bed, &spare, 1);
+    assert_running(&mut bed, &spare);
+    // Everything on the air since the monitor joined, up to a status query to the old node.
+    let old_after = status(&mut bed, OLD_VC);
+    let seen = monitor.until(|h, _| h.dst == OLD_VC && h.src == TOOL_ADDR);
+    let (last, during) = seen.split_last().unwrap();
+    assert_eq!(last.0.dst, OLD_VC);
+    let to_or_from_old: Vec<&Header> = during
+        .iter()
+        .map(|(h, _)| h)
+        .filter(|h| h.src == OLD_VC || h.dst == OLD_VC)
+        .collect();
+    assert!(
+        to_or_from_old.is_empty(),
+        "the old VC node took part: {to_or_from_old:?}"
+    );
+    let events_from_spare = during
+        .iter()
+        .filter(|(h, p)| h.src == SPARE && matches!(Message::parse(p), Ok(Message::Event { .. })))
+        .count();
+    assert!(events_from_spare > 0, "the spare published the VC events");
+    // The old node still holds its old table, idle, untouched.
+    assert_eq!((old_after.role.as_str(), old_after.generation), ("VC", 2));
+    assert_eq!(old_after.states, old.states);
+    assert_eq!(old_after.counters.delivered, old.counters.delivered);
+    bed.stop();
+}
+
+/// 64-bit xorshift: the same "random" bytes on every run.
+struct XorShift(u64);
+
+impl XorShift {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+}
+
+#[test]
+fn hostile_frames_are_dropped_counted_and_the_node_keeps_working() {
+    const HOSTILE: u16 = 0x0200; // not a peer of anyone, not the tool
+    let c = robot("paint-robot.ron", 1);
+    let mut bed = bring_up(&c, options(medium::Config::default(), None));
+    push_ok(&mut bed, &c);
+    let (gr, node) = role_of(&c, "GR");
+    let pan = c.ir.pan_id;
+    assert_ne!(pan, CONFIG_PAN);
+    let others_before = counters(&assert_running(&mut bed, &c), &c);
+
+    // An oversized frame cannot even get on the air: the medium disconnects its sender.
+    let mut big = RawClient::join(bed.medium().addr(), HOSTILE + 1);
+    let mut link = vec![1u8, 200, 1]; // postcard: Link::Frame, varint length 200
+    link.extend_from_slice(&[0xA5; 200]);
+    let mut msg = (link.len() as u16).to_le_bytes().to_vec();
+    msg.extend_from_slice(&link);
+    big.send_raw(&msg);
+    assert!(big.closed_by_medium(TIMEOUT), "the medium hung up");
+
+    let mut raw = RawClient::join(bed.medium().addr(), HOSTILE);
+    let before = raw.status(node);
+    let start = Message::Command {
+        id: 0x5A5A,
+        command: Command::Start,
+    };
+    let valid = frame(CONFIG_PAN, node, HOSTILE, 1, &payload(&start));
+    let mut hostile: Vec<Vec<u8>> = Vec::new();
+    // Truncated: the header alone, no FCS, a byte short.
+    for len in [7, mac::DATA_HEADER_LEN, valid.len() - 2, valid.len() - 1] {
+        hostile.push(valid[..len].to_vec());
+    }
+    // Bad FCS: the FCS changed, a payload bit flipped.
+    let mut bad = valid.clone();
+    *bad.last_mut().unwrap() ^= 0x55;
+    hostile.push(bad);
+    let mut bad = valid.clone();
+    bad[mac::DATA_HEADER_LEN] ^= 0x01;
+    hostile.push(bad);
+    // Random bytes (with a data frame's routing fields, so the medium takes them there).
+    let mut rng = XorShift(0x9E37_79B9_7F4A_7C15);
+    for _ in 0..16 {
+        let len = 9 + (rng.next() % (MAX_PSDU as u64 - 8)) as usize;
+        let mut b: Vec<u8> = (0..len).map(|_| rng.next() as u8).collect();
+        b[0] = (b[0] & !0b111) | 0b001;
+        b[1] = (b[1] & !0b1100) | 0b1000;
+        b[5..7].copy_from_slice(&node.to_le_bytes());
+        assert!(config_schema::wire::mac::Frame::parse(&b).is_err());
+        hostile.push(b);
+    }
+    // Valid frames whose payload is not a message.
+    let mut trailing = payload(&start);
+    trailing.push(0);
+    for p in [vec![], vec![0xFF], vec![0x00], trailing] {
+        hostile.push(frame(CONFIG_PAN, node, HOSTILE, 2, &p));
+    }
+    // A valid START, but on another PAN, or with the security bit (no keys yet).
+    hostile.push(frame(0x4321, node, HOSTILE, 3, &payload(&start)));
+    let mut secured = [0u8; MAX_PSDU];
+    let header = Header {
+        seq: 4,
+        pan_id: CONFIG_PAN,
+        dst: node,
+        src: HOSTILE,
+        ack_request: false,
+        secured: true,
+    };
+    let n = mac::emit_data(&header, &payload(&start), &mut secured).unwrap();
+    hostile.push(secured[..n].to_vec());
+    // Events from a node that is not a peer (on the robot's PAN and on the config PAN).
+    let event = Message::Event {
+        epoch: 1,
+        seq: 0,
+        topic: 0,
+    };
+    hostile.push(frame(pan, node, HOSTILE, 5, &payload(&event)));
+    hostile.push(frame(CONFIG_PAN, node, HOSTILE, 6, &payload(&event)));
+    assert_eq!(hostile.len(), 30);
+    for h in &hostile {
+        raw.send_psdu(h);
+    }
+    // Asked on the same connection: the answer counts every frame sent before it.
+    let after = raw.status(node);
+    assert_eq!(
+        after.counters.dropped - before.counters.dropped,
+        hostile.len() as u32
+    );
+    assert_eq!((after.role.as_str(), after.generation), ("GR", 1));
+    assert_eq!(after.states, before.states, "nothing started");
+    assert_eq!(after.counters.delivered, before.counters.delivered);
+    assert_eq!(after.fault, None);
+
+    // Nobody else saw any of it, and the robot still runs its cycle.
+    let now = counters(&assert_running(&mut bed, &c), &c);
+    for r in &c.ir.roles {
+        if r.address != node {
+            assert_eq!(now[&r.address].dropped, others_before[&r.address].dropped);
+        }
+    }
+    exact_cycle(&mut bed, &c, 1);
+    let last = assert_running(&mut bed, &c);
+    assert_eq!(last[gr].counters.dropped, after.counters.dropped);
+    bed.stop();
+}

@@ -1,0 +1,478 @@
+//! Shared by the end-to-end tests (`e2e.rs`, `e2e_ota.rs`): the test bed with real node
+//! processes (`config-tool node`) on a real medium, robots from `robot-configs/`, what a
+//! cycle must deliver (from the virtual-time simulator), a hand-driven OTA transfer, and a
+//! raw medium client that sends any bytes as a frame.
+#![allow(dead_code)]
+
+use std::collections::BTreeMap;
+use std::ffi::OsString;
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
+use config_schema::wire::medium::{next_message, Link, Peer, MAX_LINK};
+use config_schema::wire::msg::{Command, Message, Status};
+use config_schema::Table;
+use config_tool::demo::{self, Bed, Cycle, Options};
+use config_tool::medium;
+use config_tool::radio::ToolRadio;
+use config_tool::{compile, plant, Compiled, Source};
+use node_fw::node::CONFIG_PAN;
+use node_fw::ota::{Progress, Sender, TransferStats};
+use node_fw::sim::{NodeSpec, What, World};
+
+/// Bound of every wait (a cycle, a command, nodes coming up): generous, never a pace.
+pub const TIMEOUT: Duration = Duration::from_secs(60);
+
+/// The declared sequence of `paint-robot.ron`: the paper's sequence (1).
+pub const SEQUENCE_1: &str = "VC+ GR+ VC- HC+ VC+ VC- RC+ RC- HC- VC+ GR- VC-";
+
+/// `robot-configs/NAME`, compiled for `generation`.
+pub fn robot(name: &str, generation: u32) -> Compiled {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join("robot-configs")
+        .join(name);
+    let text = std::fs::read_to_string(&path).expect("robot file");
+    let c = compile::compile(&Source::new(name, text))
+        .unwrap_or_else(|d| panic!("{name} does not compile: {d:?}"));
+    c.with_generation(generation).expect("re-encodes")
+}
+
+/// The steps `c` declares, as text.
+pub fn expect(c: &Compiled) -> Vec<String> {
+    c.ir.expect.iter().map(|s| s.to_string()).collect()
+}
+
+/// A role's node address.
+pub fn addr_of(c: &Compiled, role: &str) -> u16 {
+    role_of(c, role).1
+}
+
+/// A role's index and node address.
+pub fn role_of(c: &Compiled, role: &str) -> (usize, u16) {
+    let i =
+        c.ir.roles
+            .iter()
+            .position(|r| r.name == role)
+            .unwrap_or_else(|| panic!("no role {role}"));
+    (i, c.ir.roles[i].address)
+}
+
+/// A fresh directory under the system's temp dir, removed on drop.
+pub struct TempDir(pub PathBuf);
+
+impl TempDir {
+    pub fn new(tag: &str) -> TempDir {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.subsec_nanos());
+        let dir = std::env::temp_dir().join(format!(
+            "config-tool-e2e-{tag}-{}-{nanos}",
+            std::process::id()
+        ));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        TempDir(dir)
+    }
+
+    /// The flash file the bed gives node `addr`.
+    pub fn flash(&self, addr: u16) -> PathBuf {
+        self.0.join(format!("node-{addr:04x}.flash"))
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Bed options: nodes are `config-tool node` processes.
+pub fn options(medium: medium::Config, flash_dir: Option<&TempDir>) -> Options {
+    let node_command: Vec<OsString> = vec![env!("CARGO_BIN_EXE_config-tool").into(), "node".into()];
+    Options {
+        medium,
+        node_command,
+        flash_dir: flash_dir.map(|d| d.0.clone()),
+        timeout: TIMEOUT,
+    }
+}
+
+/// Starts the medium, one unconfigured node process per physical node of `c` (spares
+/// too) and the plant of `c`; returns once every node has announced itself unconfigured.
+pub fn bring_up(c: &Compiled, options: Options) -> Bed {
+    let mut bed = Bed::start(options).expect("bed");
+    let addrs = demo::node_addrs(c);
+    for a in &addrs {
+        bed.start_node(*a).expect("node process");
+    }
+    bed.set_plant(plant::actuators(c).expect("actuators"))
+        .expect("plant");
+    let found = bed
+        .wait_for_nodes(&addrs)
+        .expect("every node announces itself");
+    assert_eq!(found.keys().copied().collect::<Vec<_>>(), addrs);
+    for (addr, a) in &found {
+        assert_eq!(
+            (a.generation, a.role.as_str(), a.firmware),
+            (0, "", node_fw::node::FIRMWARE_VERSION),
+            "node {addr:#06x} boots unconfigured"
+        );
+    }
+    bed
+}
+
+/// Pushes every role of `c` and checks that every node activated its table.
+pub fn push_ok(bed: &mut Bed, c: &Compiled) -> Vec<config_tool::push::Outcome> {
+    let outcomes = bed.push(c, false, &mut |_, _, _| {}).expect("push");
+    assert_eq!(outcomes.len(), c.ir.roles.len());
+    for (o, (r, blob)) in outcomes.iter().zip(c.ir.roles.iter().zip(&c.blobs)) {
+        assert_eq!(
+            (o.role.as_str(), o.addr, o.progress, o.bytes),
+            (r.name.as_str(), r.address, Progress::Done, blob.len()),
+            "{}",
+            demo::push_line(o)
+        );
+        assert!(o.stats.bytes as usize >= blob.len(), "every byte was sent");
+    }
+    outcomes
+}
+
+/// Every role's node runs `c`'s table, at rest: role, generation, initial states, no
+/// fault, no link alarm. Returns the statuses (in role order).
+pub fn assert_running(bed: &mut Bed, c: &Compiled) -> Vec<Status> {
+    let statuses = bed.statuses(c).expect("statuses");
+    for ((s, r), t) in statuses.iter().zip(&c.ir.roles).zip(&c.tables) {
+        assert_eq!(
+            (s.role.as_str(), s.generation),
+            (r.name.as_str(), c.ir.generation),
+            "node {:#06x}",
+            r.address
+        );
+        assert_eq!(
+            s.states.as_slice(),
+            initial(t).as_slice(),
+            "role {}",
+            r.name
+        );
+        assert_eq!((s.fault, s.link_alarms), (None, 0), "role {}", r.name);
+    }
+    statuses
+}
+
+/// The initial state of every chart of `t`.
+pub fn initial(t: &Table) -> Vec<u8> {
+    t.charts.iter().map(|ch| ch.initial).collect()
+}
+
+/// One status of node `addr`.
+pub fn status(bed: &mut Bed, addr: u16) -> Status {
+    bed.command(addr, Command::Status).expect("status")
+}
+
+/// Runs one cycle and checks it: exactly the declared steps, nothing more, no fault.
+pub fn exact_cycle(bed: &mut Bed, c: &Compiled, n: usize) -> Cycle {
+    let cycle = bed.run_cycle(c, &mut |_| {}).expect("cycle");
+    assert!(cycle.ok(), "{}", demo::cycle_line(n, &cycle));
+    assert_eq!(cycle.steps, expect(c), "cycle {n}");
+    cycle
+}
+
+/// Events delivered to each role's node per cycle, cycle by cycle, as the virtual-time
+/// simulator (the same tables, a perfect radio) counts them.
+pub fn deliveries_per_cycle(c: &Compiled, cycles: usize) -> Vec<Vec<u32>> {
+    let specs: Vec<NodeSpec> = c
+        .tables
+        .iter()
+        .zip(&c.ir.roles)
+        .map(|(t, r)| NodeSpec {
+            addr: r.address,
+            table: t,
+        })
+        .collect();
+    let (plants, button) = config_tool::sim::plants(c).expect("plants");
+    let mut world = World::new(&specs, plants).expect("world");
+    (0..cycles)
+        .map(|_| {
+            let mark = world.trace().len();
+            world.run_cycle(button, 600_000).expect("sim cycle");
+            let mut per = vec![0u32; specs.len()];
+            for e in &world.trace()[mark..] {
+                if let What::Deliver { to, .. } = e.what {
+                    per[to] += 1;
+                }
+            }
+            per
+        })
+        .collect()
+}
+
+/// What a hand-driven transfer does with a message the sender wants to send.
+pub enum Fate {
+    Send,
+    /// Lost on the way (not sent).
+    Lose,
+    /// Stop the transfer here (nothing more is sent).
+    Stop,
+}
+
+/// One OTA transfer to `addr`, driven by hand like `push::push` drives it, with `fate`
+/// deciding about every message (`acked`: bytes the node acknowledged so far). Returns the
+/// sender's progress (`Busy` when stopped) and the bytes acknowledged.
+pub fn drive(
+    radio: &mut ToolRadio,
+    addr: u16,
+    blob: &[u8],
+    generation: u32,
+    mut fate: impl FnMut(&Message<'_>, usize) -> Fate,
+    mut tamper: impl FnMut(Message<'static>) -> Message<'static>,
+) -> (Progress, usize, TransferStats) {
+    let blob: &'static [u8] = Box::leak(blob.to_vec().into_boxed_slice());
+    let start = Instant::now();
+    let now_ms = || start.elapsed().as_millis() as u64;
+    let mut sender = Sender::new(blob, generation, false);
+    let mut out: Vec<Message<'static>> = Vec::new();
+    sender.start(now_ms(), |m| out.push(m));
+    let end = start + TIMEOUT;
+    loop {
+        for m in out.drain(..) {
+            match fate(&m, sender.acked()) {
+                Fate::Send => radio.send(addr, &tamper(m)).expect("send"),
+                Fate::Lose => {}
+                Fate::Stop => return (Progress::Busy, sender.acked(), sender.stats()),
+            }
+        }
+        if sender.progress() != Progress::Busy {
+            return (sender.progress(), sender.acked(), sender.stats());
+        }
+        assert!(Instant::now() < end, "transfer to {addr:#06x} did not end");
+        let until = start + Duration::from_millis(sender.deadline());
+        if let Some(r) = radio.recv(until.max(Instant::now())).expect("recv") {
+            if let (true, Some(Message::ConfigReply { generation, reply })) =
+                (r.src == addr, r.message())
+            {
+                sender.on_reply(generation, reply, now_ms(), |m| out.push(m));
+            }
+        }
+        sender.poll(now_ms(), |m| out.push(m));
+    }
+}
+
+/// A data frame (FCS included).
+pub fn frame(pan_id: u16, dst: u16, src: u16, seq: u8, payload: &[u8]) -> Vec<u8> {
+    let header = Header {
+        seq,
+        pan_id,
+        dst,
+        src,
+        ack_request: false,
+        secured: false,
+    };
+    let mut psdu = [0u8; MAX_PSDU];
+    let n = mac::emit_data(&header, payload, &mut psdu).expect("fits");
+    psdu[..n].to_vec()
+}
+
+/// A message as a MAC payload.
+pub fn payload(msg: &Message<'_>) -> Vec<u8> {
+    let mut buf = [0u8; mac::MAX_PAYLOAD];
+    let n = msg.emit(&mut buf).expect("fits");
+    buf[..n].to_vec()
+}
+
+/// A radio on the medium that sends any bytes as a PSDU.
+pub struct RawClient {
+    pub addr: u16,
+    stream: TcpStream,
+    buf: Vec<u8>,
+    next_id: u16,
+}
+
+impl RawClient {
+    pub fn join(medium: std::net::SocketAddr, addr: u16) -> RawClient {
+        let stream = TcpStream::connect(medium).expect("medium");
+        stream.set_nodelay(true).expect("nodelay");
+        let mut c = RawClient {
+            addr,
+            stream,
+            buf: Vec::new(),
+            next_id: 0x7000,
+        };
+        c.link(&Link::Hello(Peer::Tool { addr }));
+        c
+    }
+
+    fn link(&mut self, msg: &Link<'_>) {
+        let mut buf = [0u8; MAX_LINK];
+        let n = msg.emit(&mut buf).expect("link message");
+        self.stream.write_all(&buf[..n]).expect("write");
+    }
+
+    /// Puts `psdu` on the air, whatever it is.
+    pub fn send_psdu(&mut self, psdu: &[u8]) {
+        self.link(&Link::Frame(psdu));
+    }
+
+    /// Writes raw bytes on the connection (a link message built by hand).
+    pub fn send_raw(&mut self, bytes: &[u8]) {
+        self.stream.write_all(bytes).expect("write");
+    }
+
+    /// Sends a `Status` command to `addr` and returns the answer. Sent on this connection
+    /// after everything sent before it, so the answer counts everything sent before it.
+    pub fn status(&mut self, addr: u16) -> Status {
+        self.next_id = self.next_id.wrapping_add(1);
+        let id = self.next_id;
+        let msg = Message::Command {
+            id,
+            command: Command::Status,
+        };
+        let psdu = frame(CONFIG_PAN, addr, self.addr, id as u8, &payload(&msg));
+        self.send_psdu(&psdu);
+        let end = Instant::now() + TIMEOUT;
+        loop {
+            let got = self.next_frame(end).expect("status answer");
+            if let Ok(Frame::Data { header, payload }) = Frame::parse(&got) {
+                if let (true, Ok(Message::Status(s))) =
+                    (header.src == addr, Message::parse(payload))
+                {
+                    if s.ack == id {
+                        return s;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The next frame for this radio before `until`; `None` on timeout or when the medium
+    /// closed the connection.
+    pub fn next_frame(&mut self, until: Instant) -> Option<Vec<u8>> {
+        loop {
+            if let Some(body) = next_message(&self.buf) {
+                let got = match Link::parse(&self.buf[body.clone()]) {
+                    Ok(Link::Frame(f)) => Some(f.to_vec()),
+                    _ => None,
+                };
+                self.buf.drain(..body.end);
+                if got.is_some() {
+                    return got;
+                }
+                continue;
+            }
+            let left = until.checked_duration_since(Instant::now())?;
+            self.stream
+                .set_read_timeout(Some(left.max(Duration::from_millis(1))))
+                .expect("timeout");
+            let mut chunk = [0u8; 1024];
+            match self.stream.read(&mut chunk) {
+                Ok(0) => return None,
+                Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                    ) => {}
+                Err(_) => return None,
+            }
+        }
+    }
+
+    /// Whether the medium closed this connection (waits at most `within`).
+    pub fn closed_by_medium(&mut self, within: Duration) -> bool {
+        let end = Instant::now() + within;
+        loop {
+            let Some(left) = end.checked_duration_since(Instant::now()) else {
+                return false;
+            };
+            let _ = self
+                .stream
+                .set_read_timeout(Some(left.max(Duration::from_millis(1))));
+            let mut chunk = [0u8; 1024];
+            match self.stream.read(&mut chunk) {
+                Ok(0) => return true,
+                Ok(_) => {}
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                    ) => {}
+                Err(_) => return true,
+            }
+        }
+    }
+}
+
+/// A monitor on the medium: every frame put on the air, in air order.
+pub struct Monitor {
+    stream: TcpStream,
+    buf: Vec<u8>,
+}
+
+impl Monitor {
+    pub fn join(medium: std::net::SocketAddr) -> Monitor {
+        let mut stream = TcpStream::connect(medium).expect("medium");
+        let mut buf = [0u8; MAX_LINK];
+        let n = Link::Hello(Peer::Monitor).emit(&mut buf).expect("hello");
+        stream.write_all(&buf[..n]).expect("write");
+        Monitor {
+            stream,
+            buf: Vec::new(),
+        }
+    }
+
+    /// Every data frame's (src, dst, message) until (and including) the first frame for
+    /// which `last` holds.
+    pub fn until(
+        &mut self,
+        mut last: impl FnMut(&Header, &[u8]) -> bool,
+    ) -> Vec<(Header, Vec<u8>)> {
+        let end = Instant::now() + TIMEOUT;
+        let mut out = Vec::new();
+        loop {
+            while let Some(body) = next_message(&self.buf) {
+                if let Ok(Link::Frame(psdu)) = Link::parse(&self.buf[body.clone()]) {
+                    if let Ok(Frame::Data { header, payload }) = Frame::parse(psdu) {
+                        let done = last(&header, payload);
+                        out.push((header, payload.to_vec()));
+                        if done {
+                            self.buf.drain(..body.end);
+                            return out;
+                        }
+                    }
+                }
+                self.buf.drain(..body.end);
+            }
+            let left = end
+                .checked_duration_since(Instant::now())
+                .expect("the monitor saw the marker frame");
+            self.stream
+                .set_read_timeout(Some(left.max(Duration::from_millis(1))))
+                .expect("timeout");
+            let mut chunk = [0u8; 4096];
+            match self.stream.read(&mut chunk) {
+                Ok(0) => panic!("the medium closed the monitor"),
+                Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                    ) => {}
+                Err(e) => panic!("monitor: {e}"),
+            }
+        }
+    }
+}
+
+/// Counters of every role's node, by address.
+pub fn counters(
+    statuses: &[Status],
+    c: &Compiled,
+) -> BTreeMap<u16, config_schema::wire::msg::Counters> {
+    statuses
+        .iter()
+        .zip(&c.ir.roles)
+        .map(|(s, r)| (r.address, s.counters))
+        .collect()
+}
