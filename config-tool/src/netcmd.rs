@@ -265,18 +265,8 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
             println!("{}", status_text(node, &s));
             Ok(())
         }
-        NetCommand::Start { at, node } => {
-            let mut radio = connect(&at)?;
-            command(&mut radio, node, Command::Start)?;
-            println!("{node:#06x}: started");
-            Ok(())
-        }
-        NetCommand::Reset { at, node } => {
-            let mut radio = connect(&at)?;
-            command(&mut radio, node, Command::Reset)?;
-            println!("{node:#06x}: reset");
-            Ok(())
-        }
+        NetCommand::Start { at, node } => order(&at, node, Command::Start, "started"),
+        NetCommand::Reset { at, node } => order(&at, node, Command::Reset, "reset"),
         NetCommand::Plant { robot, at } => {
             let c = load(&robot)?;
             let actuators = plant::actuators(&c)?;
@@ -340,6 +330,14 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
         }
         NetCommand::Node(args) => node_fw::host::run(args).map_err(|e| format!("node: {e}")),
     }
+}
+
+/// Sends a command that changes the node and says it was done.
+fn order(at: &MediumAddr, node: u16, cmd: Command, done: &str) -> Result<(), String> {
+    let mut radio = connect(at)?;
+    command(&mut radio, node, cmd)?;
+    println!("{node:#06x}: {done}");
+    Ok(())
 }
 
 fn command(radio: &mut ToolRadio, node: u16, cmd: Command) -> Result<Status, String> {

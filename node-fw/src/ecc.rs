@@ -233,16 +233,8 @@ impl<'t> Engine<'t> {
         let Some(binding) = self.table.inputs.get(usize::from(input)) else {
             return;
         };
-        let bit = 1u16 << (input & 15);
-        let was = self.inputs & bit != 0;
-        if level {
-            self.inputs |= bit;
-        } else {
-            self.inputs &= !bit;
-        }
-        if let Some(var) = binding.var.and_then(|v| self.vars.get_mut(usize::from(v))) {
-            *var = i32::from(level);
-        }
+        let was = self.inputs & (1u16 << (input & 15)) != 0;
+        self.sense(input, level);
         if was != level {
             if let Some(event) = if level { binding.rise } else { binding.fall } {
                 self.raise(event, true, fx);
