@@ -1,0 +1,142 @@
+//! The generic node on QEMU's `mps2-an385` (Cortex-M3): every node boots this same ELF.
+//!
+//! - address: the provisioning word ([`provision`], `-device loader`);
+//! - radio and pins: CMSDK UART0 bridged by QEMU to the simulated medium ([`uart`]);
+//! - time: CMSDK TIMER0/1 ([`time`]);
+//! - table slots: emulated flash, persistent in a host file through semihosting ([`flash`]);
+//! - executor: Embassy's raw executor in a WFI loop (QEMU treats WFE as a no-op, so the
+//!   stock thread executor would keep a host core busy).
+//!
+//! ```text
+//! qemu-system-arm -M mps2-an385 -display none -monitor none \
+//!   -kernel qemu-mps2 -device loader,addr=0x003ff000,data=0xA5010003,data-len=4 \
+//!   -chardev socket,id=radio,host=127.0.0.1,port=15400,nodelay=on -serial chardev:radio \
+//!   -semihosting-config enable=on,target=native,arg=flash=node-0003.flash
+//! ```
+#![no_std]
+#![no_main]
+
+mod flash;
+mod provision;
+mod semihosting;
+mod time;
+mod uart;
+mod vectors;
+
+use core::fmt::Write as _;
+use core::sync::atomic::{AtomicBool, Ordering};
+
+use config_schema::wire::medium::{Link, Peer};
+use cortex_m_rt::entry;
+use embassy_executor::raw;
+use node_fw::runtime::{self, Board};
+
+use flash::{Backing, QemuFlash};
+
+/// The firmware's semihosting log (QEMU's console), when the emulator has semihosting.
+struct Log;
+
+impl log::Log for Log {
+    fn enabled(&self, m: &log::Metadata<'_>) -> bool {
+        m.level() <= log::max_level()
+    }
+    fn log(&self, r: &log::Record<'_>) {
+        let mut s = heapless::String::<200>::new();
+        let _ = write!(s, "{:<5} {}", r.level(), r.args());
+        let _ = s.push('\n');
+        let _ = s.push('\0');
+        semihosting::write0(s.as_bytes());
+    }
+    fn flush(&self) {}
+}
+
+static LOG: Log = Log;
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
+    let mut s = heapless::String::<200>::new();
+    let _ = write!(s, "panic: {info}\n\0");
+    semihosting::write0(s.as_bytes());
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+/// Set by the executor's pender (a task was woken): poll again before sleeping.
+static WORK: AtomicBool = AtomicBool::new(false);
+
+#[export_name = "__pender"]
+fn pender(_context: *mut ()) {
+    WORK.store(true, Ordering::Release);
+}
+
+#[embassy_executor::task]
+async fn node(addr: u16, epoch: u16, flash: QemuFlash) {
+    let board = Board {
+        radio: uart::UartRadio,
+        outputs: uart::UartPins { addr },
+        inputs: uart::UartInputs::new(),
+        flash,
+    };
+    let (stop, stats) = runtime::run(addr, epoch, board).await;
+    log::error!("node {addr:#06x}: stopped: {stop:?} ({stats:?})");
+}
+
+/// The semihosting command line's `flash=PATH`.
+fn flash_path(buf: &mut [u8]) -> Option<&[u8]> {
+    let line = semihosting::cmdline(buf)?;
+    line.split(|&b| b == b' ')
+        .find_map(|w| w.strip_prefix(b"flash="))
+        .filter(|p| !p.is_empty())
+}
+
+#[entry]
+fn main() -> ! {
+    let Some(p) = provision::read() else {
+        // Nothing to say it with: no address, no medium. A node without an id stays off.
+        loop {
+            cortex_m::asm::wfi();
+        }
+    };
+    if p.flags & provision::FLAG_SEMIHOSTING != 0 {
+        semihosting::enable();
+        if log::set_logger(&LOG).is_ok() {
+            log::set_max_level(log::LevelFilter::Info);
+        }
+    }
+    let addr = p.addr;
+    time::init();
+    uart::init();
+    // The node says who it is before anything else (the medium routes by it).
+    uart::send_link(&Link::Hello(Peer::Node { addr }));
+
+    let mut cmdline = [0u8; 160];
+    let (mut flash, backing) = QemuFlash::open(flash_path(&mut cmdline));
+    let (epoch, why) = match flash.count_boot() {
+        Some(boots) => ((boots.wrapping_mul(256)) as u16, "boot count"),
+        None => (semihosting::time().unwrap_or(0) as u16, "clock"),
+    };
+    log::info!("node {addr:#06x}: qemu-mps2, flash {backing:?}, epoch {epoch} ({why})");
+    if backing == Backing::FileRefused {
+        log::warn!("node {addr:#06x}: the flash file is not usable: slots in RAM");
+    }
+
+    let executor: &'static mut raw::Executor =
+        cortex_m::singleton!(: raw::Executor = raw::Executor::new(core::ptr::null_mut()))
+            .expect("one executor");
+    let executor: &'static raw::Executor = executor;
+    let spawner = executor.spawner();
+    spawner.spawn(uart::demux(addr).expect("demux task"));
+    spawner.spawn(node(addr, epoch, flash).expect("node task"));
+    loop {
+        // SAFETY: polled only here, never re-entered.
+        unsafe { executor.poll() };
+        cortex_m::interrupt::free(|_| {
+            // With interrupts masked, a wake between the check and WFI still ends the WFI
+            // (a pending interrupt wakes the core); its handler runs after `free`.
+            if !WORK.swap(false, Ordering::AcqRel) {
+                cortex_m::asm::wfi();
+            }
+        });
+    }
+}
