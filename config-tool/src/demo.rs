@@ -6,7 +6,8 @@
 use std::collections::BTreeMap;
 use std::ffi::OsString;
 use std::io::{self, Write};
-use std::path::PathBuf;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command as Process, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver};
@@ -357,4 +358,71 @@ pub fn cycle_line(n: usize, cy: &Cycle) -> String {
 pub fn say(out: &mut dyn Write, line: &str) {
     let _ = writeln!(out, "{line}");
     let _ = out.flush();
+}
+
+/// The emulated board: QEMU's Cortex-M3 machine the `qemu-mps2` image runs on.
+pub const QEMU_MACHINE: &str = "mps2-an385";
+/// Where the provisioning word goes (`node-fw/boards/qemu-mps2/src/provision.rs`).
+pub const PROVISION_AT: u32 = 0x003F_F000;
+/// The provisioning word's magic (bits 31..24) and its flag "semihosting on" (bit 16).
+const PROVISION_MAGIC: u32 = 0xA5 << 24;
+const PROVISION_SEMIHOSTING: u32 = 1 << 16;
+/// The release image, relative to the repository.
+pub const QEMU_ELF: &str = "node-fw/boards/target/thumbv7m-none-eabi/release/qemu-mps2";
+
+/// The provisioning word of node `addr` (address, magic, semihosting on).
+pub fn provision_word(addr: u16) -> u32 {
+    PROVISION_MAGIC | PROVISION_SEMIHOSTING | u32::from(addr)
+}
+
+/// QEMU's arguments for one node booting `elf`: its address in the provisioning word, its
+/// UART connected to the medium, its flash slots in `flash` (through semihosting; without
+/// it they are erased at every boot).
+pub fn qemu_args(
+    elf: &Path,
+    addr: u16,
+    medium: SocketAddr,
+    flash: Option<&Path>,
+) -> Result<Vec<OsString>, String> {
+    let mut semihosting = OsString::from("enable=on,target=native");
+    if let Some(f) = flash {
+        let text = f.to_str().unwrap_or(",");
+        // QEMU splits options at commas and the firmware its command line at spaces.
+        if text.contains([',', ' ']) {
+            return Err(format!(
+                "flash file {}: a QEMU node's flash path cannot contain a comma or a space",
+                f.display()
+            ));
+        }
+        semihosting.push(",arg=flash=");
+        semihosting.push(text);
+    }
+    let mut args: Vec<OsString> = vec![
+        "-M".into(),
+        QEMU_MACHINE.into(),
+        "-display".into(),
+        "none".into(),
+        "-monitor".into(),
+        "none".into(),
+        "-kernel".into(),
+        elf.as_os_str().to_owned(),
+        "-device".into(),
+        format!(
+            "loader,addr={PROVISION_AT:#010x},data={:#010x},data-len=4",
+            provision_word(addr)
+        )
+        .into(),
+        "-chardev".into(),
+        format!(
+            "socket,id=radio,host={},port={},nodelay=on",
+            medium.ip(),
+            medium.port()
+        )
+        .into(),
+        "-serial".into(),
+        "chardev:radio".into(),
+        "-semihosting-config".into(),
+    ];
+    args.push(semihosting);
+    Ok(args)
 }

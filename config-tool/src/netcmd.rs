@@ -132,10 +132,79 @@ pub enum NetCommand {
         pcap: Option<PathBuf>,
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Run the nodes as QEMU instances (mps2-an385) booting the firmware image.
+        #[arg(long)]
+        qemu: bool,
+        /// The firmware image the QEMU nodes boot (with --qemu).
+        #[arg(long, default_value = demo::QEMU_ELF, requires = "qemu")]
+        elf: PathBuf,
     },
+    /// Run one emulated node: QEMU booting the firmware image, its UART on the medium.
+    QemuNode(QemuNodeArgs),
     /// Run one generic node in this process (what `demo` starts).
     #[command(hide = true)]
     Node(node_fw::host::Args),
+}
+
+/// One QEMU node.
+#[derive(Args, Debug, Clone)]
+pub struct QemuNodeArgs {
+    /// The firmware image (`node-fw/boards/qemu-mps2`, built with `cargo build --release`).
+    #[arg(long, default_value = demo::QEMU_ELF)]
+    pub elf: PathBuf,
+    /// The QEMU program.
+    #[arg(long, default_value = "qemu-system-arm")]
+    pub qemu: PathBuf,
+    /// The node's address, written to its provisioning word.
+    #[arg(long, value_parser = node_fw::host::parse_addr)]
+    pub addr: u16,
+    /// The medium its UART connects to (host:port).
+    #[arg(long)]
+    pub medium: SocketAddr,
+    /// A host file for its flash slots (created erased if missing; no comma or space).
+    #[arg(long)]
+    pub flash: Option<PathBuf>,
+}
+
+/// Checks the image is there (a clear message instead of QEMU's).
+fn check_elf(elf: &Path) -> Result<(), String> {
+    if elf.is_file() {
+        Ok(())
+    } else {
+        Err(format!(
+            "error: no firmware image at {}: build it with `cargo build --release` in \
+             node-fw/boards/qemu-mps2 (or give --elf)",
+            elf.display()
+        ))
+    }
+}
+
+/// Becomes QEMU (exec), so whoever started this process stops the node by stopping it.
+fn qemu_node(a: QemuNodeArgs) -> Result<(), String> {
+    check_elf(&a.elf)?;
+    let args = demo::qemu_args(&a.elf, a.addr, a.medium, a.flash.as_deref())?;
+    let mut cmd = std::process::Command::new(&a.qemu);
+    cmd.args(&args);
+    let failed = |e: io::Error| {
+        format!(
+            "error: cannot run {}: {e} (Debian: apt-get install qemu-system-arm)",
+            a.qemu.display()
+        )
+    };
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::CommandExt;
+        Err(failed(cmd.exec()))
+    }
+    #[cfg(not(unix))]
+    {
+        let status = cmd.status().map_err(failed)?;
+        if status.success() {
+            Ok(())
+        } else {
+            Err(format!("qemu: {status}"))
+        }
+    }
 }
 
 fn probability(s: &str) -> Result<f64, String> {
@@ -298,6 +367,8 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
             no_reconfigure,
             pcap,
             seed,
+            qemu,
+            elf,
         } => {
             let then = match (no_reconfigure, then) {
                 (true, _) => None,
@@ -317,7 +388,18 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
                     pcap,
                     ..medium::Config::default()
                 },
-                node_command: vec![exe.into_os_string(), "node".into()],
+                node_command: if qemu {
+                    check_elf(&elf)?;
+                    let elf = std::path::absolute(&elf).map_err(|e| e.to_string())?;
+                    vec![
+                        exe.into_os_string(),
+                        "qemu-node".into(),
+                        "--elf".into(),
+                        elf.into_os_string(),
+                    ]
+                } else {
+                    vec![exe.into_os_string(), "node".into()]
+                },
                 flash_dir: None,
                 timeout: Duration::from_secs(60),
             };
@@ -328,6 +410,7 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
                 Err("demo: a cycle did not match its declared sequence".into())
             }
         }
+        NetCommand::QemuNode(args) => qemu_node(args),
         NetCommand::Node(args) => node_fw::host::run(args).map_err(|e| format!("node: {e}")),
     }
 }
