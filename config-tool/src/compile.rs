@@ -92,11 +92,14 @@ pub fn compile(src: &Source) -> Result<Compiled, Vec<Diagnostic>> {
 
 /// The radio events one cycle of a sequence robot sends: (from role, event, to role), in
 /// topic order. Each step event occurs once per cycle, so this is also the count of
-/// publications per cycle.
+/// publications per cycle. A synthesised `fault` (sent only on a fault) is left out.
 pub fn radio_events(ir: &Ir) -> Vec<(String, String, String)> {
     let mut out = Vec::new();
     for (ri, e) in lower::topics(ir) {
         let from = &ir.roles[ri];
+        if from.events[e] == crate::synth::FAULT_EVENT {
+            continue; // only on a fault
+        }
         for to in &ir.roles {
             if to
                 .imports

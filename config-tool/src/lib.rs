@@ -26,6 +26,7 @@ pub mod radio;
 pub mod sim;
 pub mod source;
 pub mod synth;
+pub mod verify;
 
 pub use compile::{compile, Compiled};
 pub use diag::{Diagnostic, Severity};

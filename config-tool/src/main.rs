@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use config_tool::{check, compile, diagram, dump, sim, Diagnostic, Source};
+use config_tool::{check, compile, diagram, dump, sim, verify, Diagnostic, Source};
 
 #[derive(Parser)]
 #[command(
@@ -50,6 +50,17 @@ enum Command {
         /// Print every trace entry.
         #[arg(long)]
         trace: bool,
+    },
+    /// Explore every reachable state of the machine (charts, plant, radio) and check
+    /// deadlock freedom, sequence conformance, interlocks and no double actuation.
+    Verify {
+        robot: PathBuf,
+        /// A delivery may also fail after the link's retries (link alarm).
+        #[arg(long)]
+        lossy: bool,
+        /// Stop (inconclusive) beyond this many states.
+        #[arg(long, default_value_t = 5_000_000)]
+        max_states: usize,
     },
     /// The radio: medium, scan, push, status, start, reset, monitor, demo.
     #[command(flatten)]
@@ -153,6 +164,25 @@ fn run(cli: Cli) -> Result<(), String> {
             Ok(())
         }
         Command::Net(cmd) => config_tool::netcmd::run(cmd),
+        Command::Verify {
+            robot,
+            lossy,
+            max_states,
+        } => {
+            let src = load(&robot)?;
+            let compiled = compile::compile(&src).map_err(|d| {
+                report(&src, &d);
+                String::new()
+            })?;
+            let model = verify::Model::new(&compiled).map_err(|e| format!("error: {e}"))?;
+            let result = verify::explore(&model, verify::Options { lossy, max_states });
+            print!("{}", result.render(&src.name, model.interlock_count()));
+            if result.ok() {
+                Ok(())
+            } else {
+                Err(String::new())
+            }
+        }
         Command::Sim {
             robot,
             cycles,

@@ -36,6 +36,10 @@ pub struct Robot {
     /// For explicit charts: the actuator sequence one cycle must produce (checked by `sim`).
     #[serde(default)]
     pub expect: Option<String>,
+    /// Interlocks `verify` proves: conditions over actuator positions and chart states
+    /// that must never hold, e.g. `"HC.moving && !VC.home"`.
+    #[serde(default)]
+    pub never: Vec<String>,
 }
 
 fn default_timeout() -> u32 {

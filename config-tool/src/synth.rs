@@ -10,7 +10,9 @@
 //! crosses the radio only when that chart is on another node, and only to that node.
 //! The owner of step 1 waits in `IDLE` for START, and (if the last step is another
 //! actuator's) in `CYCLE_END` for `stepN.done`, so a START during a cycle is ignored.
-//! A watchdog timeout raises fault 1 through a small per-role `watchdog` chart.
+//! A watchdog timeout raises fault 1 through a small per-role `fault` chart, which also
+//! publishes `fault` to every other role; receiving a peer's `fault` raises fault 2. So a
+//! fault anywhere stops every node at once (outputs safe) until a reset.
 
 use crate::ir::{
     ActionIr, ChartIr, InputIr, Ir, OutputIr, RoleIr, StateIr, Step, TimerIr, TransitionIr,
@@ -19,6 +21,29 @@ use crate::model::{ActuatorKind, Robot};
 
 /// Fault code of a motion that did not complete in time.
 pub const FAULT_MOTION_TIMEOUT: u8 = 1;
+/// Fault code of a node stopped by another node's fault.
+pub const FAULT_PEER: u8 = 2;
+/// The node event a role publishes to every other role when its watchdog expires.
+pub const FAULT_EVENT: &str = "fault";
+/// The node event a peer's `fault` raises.
+pub const PEER_FAULT_EVENT: &str = "peer.fault";
+
+/// Whether role `q` has an actuator that moves in the sequence.
+fn moving_in(robot: &Robot, q: usize, steps: &[Step]) -> bool {
+    robot.roles[q]
+        .actuators
+        .iter()
+        .any(|a| steps.iter().any(|s| s.actuator == a.name))
+}
+
+/// Whether role `q` has a switched (double-acting) actuator that moves: it has a motion
+/// watchdog, so it can detect a fault and publishes `fault`.
+fn switched_in(robot: &Robot, q: usize, steps: &[Step]) -> bool {
+    robot.roles[q].actuators.iter().any(|a| {
+        matches!(a.kind, ActuatorKind::DoubleActing { .. })
+            && steps.iter().any(|s| s.actuator == a.name)
+    })
+}
 
 /// Synthesises the charts of a sequence robot. The robot must have passed `check`.
 pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
@@ -142,38 +167,73 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
                     .push((robot.roles[from].name.clone(), ev.clone(), ev));
             }
         }
-        // The watchdog chart.
+        // The fault chart: a watchdog expiry faults the node and publishes `fault` to
+        // every other role; a peer's `fault` faults this node too (stop at once).
         let watchdogs: Vec<String> = r
             .timers
             .iter()
             .filter(|t| t.name.ends_with(".watchdog"))
             .map(|t| t.event.clone())
             .collect();
-        if !watchdogs.is_empty() {
+        let detectors: Vec<usize> = (0..robot.roles.len())
+            .filter(|&q| q != ri && moving_in(robot, q, steps) && switched_in(robot, q, steps))
+            .collect();
+        if !moving.is_empty() && (!watchdogs.is_empty() || !detectors.is_empty()) {
             let c = r.charts.len();
-            for w in watchdogs {
-                r.routes.push((w, c, 0));
+            let mut inputs = Vec::new();
+            let mut states = vec![StateIr {
+                name: String::from("RUN"),
+                actions: vec![],
+            }];
+            let mut transitions = Vec::new();
+            if !watchdogs.is_empty() {
+                r.event(FAULT_EVENT);
+                for w in watchdogs {
+                    r.routes.push((w, c, inputs.len()));
+                }
+                transitions.push(TransitionIr {
+                    from: 0,
+                    to: states.len(),
+                    trigger: Some(inputs.len()),
+                    guard: None,
+                });
+                inputs.push(String::from("timeout"));
+                states.push(StateIr {
+                    name: String::from("TIMEOUT"),
+                    actions: vec![
+                        ActionIr::Emit(String::from(FAULT_EVENT)),
+                        ActionIr::Fault(FAULT_MOTION_TIMEOUT),
+                    ],
+                });
+            }
+            if !detectors.is_empty() {
+                for q in detectors {
+                    r.imports.push((
+                        robot.roles[q].name.clone(),
+                        String::from(FAULT_EVENT),
+                        String::from(PEER_FAULT_EVENT),
+                    ));
+                }
+                r.routes
+                    .push((String::from(PEER_FAULT_EVENT), c, inputs.len()));
+                transitions.push(TransitionIr {
+                    from: 0,
+                    to: states.len(),
+                    trigger: Some(inputs.len()),
+                    guard: None,
+                });
+                inputs.push(String::from("peer"));
+                states.push(StateIr {
+                    name: String::from("PEER_FAULT"),
+                    actions: vec![ActionIr::Fault(FAULT_PEER)],
+                });
             }
             r.charts.push(ChartIr {
-                name: String::from("watchdog"),
-                inputs: vec![String::from("timeout")],
+                name: String::from("fault"),
+                inputs,
                 initial: 0,
-                states: vec![
-                    StateIr {
-                        name: String::from("RUN"),
-                        actions: vec![],
-                    },
-                    StateIr {
-                        name: String::from("FAULT"),
-                        actions: vec![ActionIr::Fault(FAULT_MOTION_TIMEOUT)],
-                    },
-                ],
-                transitions: vec![TransitionIr {
-                    from: 0,
-                    to: 1,
-                    trigger: Some(0),
-                    guard: None,
-                }],
+                states,
+                transitions,
             });
         }
         // Register route events (emitted and imported) in a stable order.

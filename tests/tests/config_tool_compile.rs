@@ -135,10 +135,12 @@ fn the_paint_robot_sends_nine_step_events_per_cycle_each_to_one_node() {
     for cycle in &result.cycles {
         assert_eq!(cycle.publications, 9);
     }
-    // Each publication goes to exactly one subscriber.
-    for t in &c.tables {
+    // Each step event goes to exactly one subscriber; `fault` (sent only on a watchdog
+    // fault) goes to every other role.
+    for (t, r) in c.tables.iter().zip(&c.ir.roles) {
         for p in &t.publications {
-            assert_eq!(p.subscribers.count_ones(), 1);
+            let fault = r.events[usize::from(p.event)] == "fault";
+            assert_eq!(p.subscribers.count_ones(), if fault { 3 } else { 1 });
         }
     }
 }
@@ -223,11 +225,15 @@ fn a_motion_that_outlasts_its_timeout_faults_the_node_and_fails_sim() {
     assert_eq!(result.cycles.len(), 1, "stops at the first bad cycle");
     let cycle = &result.cycles[0];
     // B+ started, never reached its end switch within 2000 ms: B's node faulted, its
-    // outputs went safe, nothing else moved.
+    // outputs went safe, it published `fault`, and A faulted on it one radio hop later
+    // (code 2); nothing else moved.
     assert_eq!(cycle.steps, ["A+", "B+"]);
     assert_eq!(
         cycle.faults,
-        ["at 2202 ms: role B faulted: Action { chart: 1, code: 1 }"]
+        [
+            "at 2202 ms: role B faulted: Action { chart: 1, code: 1 }",
+            "at 2204 ms: role A faulted: Action { chart: 1, code: 2 }"
+        ]
     );
 }
 
@@ -260,7 +266,7 @@ fn dump_shows_the_decoded_table_and_names_a_bad_blob_clearly() {
         c.blobs[1].len() - 16,
         u32::from_le_bytes(c.blobs[1][c.blobs[1].len() - 4..].try_into().expect("4"))
     ) + "role B  generation 0  pan 0x0101  channel 11
-events 5  start -
+events 7  start -
 input in0: pin 2  rise e0  fall -  mirror -
 input in1: pin 3  rise e1  fall -  mirror -
 output out0: pin 0  safe 0
@@ -273,17 +279,22 @@ chart 0: 3 inputs, initial S0
   T0: S0 --in0--> S1
   T1: S1 --in1--> S2
   T2: S2 --in2--> S0
-chart 1: 1 inputs, initial S0
+chart 1: 2 inputs, initial S0
   S0: 
-  S1: fault 1
+  S1: emit e4; fault 1
+  S2: fault 2
   T3: S0 --in0--> S1
-route e4 -> chart 0 in0
+  T4: S0 --in1--> S2
+route e5 -> chart 0 in0
 route e1 -> chart 0 in1
 route e0 -> chart 0 in2
 route e2 -> chart 1 in0
+route e6 -> chart 1 in1
 peer p0: 0x0001
-publish e3 as topic 1 to peers 0b00000001
-subscribe p0 topic 0 -> e4
+publish e3 as topic 2 to peers 0b00000001
+publish e4 as topic 3 to peers 0b00000001
+subscribe p0 topic 0 -> e5
+subscribe p0 topic 1 -> e6
 ";
     assert_eq!(text, expected);
     let mut bad = c.blobs[1].clone();

@@ -5,6 +5,7 @@
 
 mod charts;
 mod events;
+mod interlocks;
 mod names;
 mod network;
 mod pins;
@@ -32,6 +33,7 @@ pub const SEMANTIC: &[(&str, Pass)] = &[
     ("build", tables::build),
     ("events", events::check),
     ("capacity", tables::capacity),
+    ("interlocks", interlocks::check),
 ];
 
 /// Parses and checks a robot: every problem found, sorted by position. The robot is

@@ -1,0 +1,28 @@
+//! `never:` interlocks: syntax, and names that resolve to actuator positions, chart states
+//! or node faults of the elaborated robot.
+
+use crate::compile;
+use crate::diag::Diagnostic;
+use crate::model::Robot;
+use crate::source::Source;
+use crate::verify::interlock;
+
+pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
+    if robot.never.is_empty() {
+        return;
+    }
+    let Ok(ir) = compile::build(robot, src) else {
+        return;
+    };
+    for i in 0..robot.never.len() {
+        let mut one = robot.clone();
+        one.never = vec![robot.never[i].clone()];
+        if let Err((_, message, span)) = interlock::interlocks(&one, &ir) {
+            let value = src.span(&format!("never[{i}]"));
+            // The value's span starts at its opening quote.
+            let start = value.start + 1 + span.start;
+            let end = (value.start + 1 + span.end).min(value.end);
+            out.push(Diagnostic::error(start..end.max(start), message));
+        }
+    }
+}

@@ -1,0 +1,166 @@
+//! Interlocks: `never: ["HC.moving && !VC.home"]`, expressions over plant and chart state
+//! that must be false in every reachable state.
+//!
+//! Names: `ACT.home`, `ACT.end`, `ACT.moving`, `ACT.extending`, `ACT.retracting` (an
+//! actuator's position), `ROLE.CHART.STATE` (1 while that chart is in that state),
+//! `ROLE.fault` (1 while the node is faulted). Operators and precedence are those of
+//! guards (`docs/robot-format.md`).
+
+use std::collections::BTreeMap;
+
+use crate::expr::{self, Ast};
+use crate::ir::Ir;
+use crate::model::Robot;
+
+/// What a name of an interlock reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Atom {
+    /// Actuator (plant index) is in one of the positions of the mask (bit 0 home, 1 end,
+    /// 2 extending, 3 retracting).
+    Position { plant: usize, mask: u8 },
+    /// Chart `chart` of role `role` is in state `state`.
+    Chart {
+        role: usize,
+        chart: usize,
+        state: usize,
+    },
+    /// Role `role`'s node is faulted.
+    Fault { role: usize },
+}
+
+/// A parsed interlock with its names resolved.
+#[derive(Debug, Clone)]
+pub struct Interlock {
+    pub text: String,
+    pub ast: Ast,
+    pub names: BTreeMap<String, Atom>,
+}
+
+/// Position masks.
+pub const HOME: u8 = 1;
+pub const END: u8 = 2;
+pub const EXTENDING: u8 = 4;
+pub const RETRACTING: u8 = 8;
+
+/// Resolves one name of an interlock. `actuators` lists the actuators with a plant, in
+/// plant order.
+pub fn resolve(name: &str, ir: &Ir, actuators: &[String]) -> Result<Atom, String> {
+    let parts: Vec<&str> = name.split('.').collect();
+    if parts.len() == 2 {
+        if let Some(plant) = actuators.iter().position(|a| a == parts[0]) {
+            let mask = match parts[1] {
+                "home" => HOME,
+                "end" => END,
+                "moving" => EXTENDING | RETRACTING,
+                "extending" => EXTENDING,
+                "retracting" => RETRACTING,
+                other => {
+                    return Err(format!(
+                        "`{name}`: an actuator has `.home`, `.end`, `.moving`, `.extending`, \
+                         `.retracting`, not `.{other}`"
+                    ))
+                }
+            };
+            return Ok(Atom::Position { plant, mask });
+        }
+        if let Some(role) = ir.roles.iter().position(|r| r.name == parts[0]) {
+            if parts[1] == "fault" {
+                return Ok(Atom::Fault { role });
+            }
+        }
+    }
+    if parts.len() == 3 {
+        if let Some(role) = ir.roles.iter().position(|r| r.name == parts[0]) {
+            let r = &ir.roles[role];
+            let Some(chart) = r.charts.iter().position(|c| c.name == parts[1]) else {
+                return Err(format!(
+                    "`{name}`: role {} has no chart `{}` (charts: {})",
+                    r.name,
+                    parts[1],
+                    r.charts
+                        .iter()
+                        .map(|c| c.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ));
+            };
+            let c = &r.charts[chart];
+            let Some(state) = c.states.iter().position(|s| s.name == parts[2]) else {
+                return Err(format!(
+                    "`{name}`: chart {}.{} has no state `{}` (states: {})",
+                    r.name,
+                    c.name,
+                    parts[2],
+                    c.states
+                        .iter()
+                        .map(|s| s.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ));
+            };
+            return Ok(Atom::Chart { role, chart, state });
+        }
+    }
+    Err(format!(
+        "`{name}` is not an interlock name: write `ACTUATOR.home` / `.end` / `.moving` / \
+         `.extending` / `.retracting`, `ROLE.CHART.STATE` or `ROLE.fault`"
+    ))
+}
+
+/// The actuators of a robot that `sim` and `verify` model, in plant order (role order,
+/// then actuator order, only those whose outputs the tables have).
+pub fn actuator_names(robot: &Robot, ir: &Ir) -> Vec<String> {
+    let mut out = Vec::new();
+    for (role, r) in robot.roles.iter().zip(&ir.roles) {
+        for a in &role.actuators {
+            let has = |s: &str| {
+                r.outputs
+                    .iter()
+                    .any(|o| o.name == format!("{}.{s}", a.name))
+            };
+            if has("extend") && has("retract") || has("valve") {
+                out.push(a.name.clone());
+            }
+        }
+    }
+    out
+}
+
+/// Parses and resolves the robot's interlocks: `Err((index, message, byte span in the
+/// expression text))` for the first bad one.
+pub fn interlocks(
+    robot: &Robot,
+    ir: &Ir,
+) -> Result<Vec<Interlock>, (usize, String, std::ops::Range<usize>)> {
+    let actuators = actuator_names(robot, ir);
+    let mut out = Vec::new();
+    for (i, text) in robot.never.iter().enumerate() {
+        let ast = expr::parse(text).map_err(|e| (i, e.message, e.span))?;
+        let mut names = Vec::new();
+        expr::names(&ast, &mut names);
+        let mut resolved = BTreeMap::new();
+        for n in names {
+            let atom = resolve(&n, ir, &actuators).map_err(|m| {
+                let at = text.find(&n).unwrap_or(0);
+                (i, m, at..at + n.len())
+            })?;
+            resolved.insert(n, atom);
+        }
+        out.push(Interlock {
+            text: text.clone(),
+            ast,
+            names: resolved,
+        });
+    }
+    Ok(out)
+}
+
+impl Interlock {
+    /// Whether the forbidden condition holds, given how to read each atom.
+    pub fn holds(&self, read: &dyn Fn(Atom) -> bool) -> bool {
+        expr::eval(&self.ast, &|n| {
+            self.names.get(n).map(|a| i32::from(read(*a)))
+        })
+        .is_some_and(|v| v != 0)
+    }
+}

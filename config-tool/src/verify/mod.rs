@@ -1,0 +1,1086 @@
+//! `verify`: explicit-state exploration of the whole machine, built from the decoded
+//! compiled tables run by the nodes' own interpreter ([`Engine`]), the plant and the
+//! network. See `docs/verification.md`.
+//!
+//! A state is every node's [`EngineState`] and armed timers, every actuator's position
+//! (home, end, extending, retracting), every radio link's FIFO of publications in flight
+//! (and, with `lossy`, whether it is in alarm), and how far the cycle has got in the
+//! declared sequence. Moves: the operator presses START (only when the machine is idle),
+//! a moving actuator arrives, an armed timer expires, a link delivers its oldest
+//! publication (or, lossy, gives up: link alarm). Breadth-first with a visited set, so a
+//! counterexample is a shortest one.
+
+pub mod interlock;
+
+use std::collections::VecDeque;
+use std::fmt::Write;
+use std::time::{Duration, Instant};
+
+use config_schema::{Publication, Table, Topic};
+use indexmap::IndexSet;
+use node_fw::ecc::{Effects, Engine, EngineState, Fault};
+use node_fw::sim::Plant;
+
+use crate::compile::Compiled;
+use interlock::{Atom, Interlock};
+
+/// Options of a verification run.
+#[derive(Debug, Clone, Copy)]
+pub struct Options {
+    /// A delivery may fail after the link's retries (link alarm).
+    pub lossy: bool,
+    /// Give up (inconclusive) beyond this many states.
+    pub max_states: usize,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            lossy: false,
+            max_states: 5_000_000,
+        }
+    }
+}
+
+/// The properties `verify` checks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Property {
+    /// From every reachable state the machine can get back to idle, or it is faulted (or,
+    /// lossy, a link is in alarm).
+    Deadlock,
+    /// Actuator motions follow the declared sequence (or `expect`).
+    Sequence,
+    /// A `never:` condition held.
+    Interlock,
+    /// An actuator commanded one way while moving the other (or both solenoids at once).
+    DoubleActuation,
+    /// A node faulted for another reason than a declared `Fault` action (event queue,
+    /// cascade, chain limit).
+    EngineFault,
+    /// More publications in flight on one link than [`LINK_BOUND`].
+    LinkBound,
+}
+
+impl std::fmt::Display for Property {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Property::Deadlock => "deadlock freedom",
+            Property::Sequence => "sequence conformance",
+            Property::Interlock => "interlock",
+            Property::DoubleActuation => "no double actuation",
+            Property::EngineFault => "no engine fault",
+            Property::LinkBound => "bounded links",
+        })
+    }
+}
+
+/// Publications in flight on one link beyond which the model is not explored further.
+pub const LINK_BOUND: usize = 8;
+
+/// A failed property and its shortest counterexample.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Violation {
+    pub property: Property,
+    pub message: String,
+    /// Moves from the initial state to the violation.
+    pub steps: usize,
+    /// Numbered steps from the initial state, each with what it did.
+    pub trace: Vec<String>,
+}
+
+/// The outcome of a run.
+#[derive(Debug, Clone)]
+pub struct Report {
+    pub states: usize,
+    pub transitions: usize,
+    /// States where the machine is idle (ready for START).
+    pub idle: usize,
+    /// States where a node is faulted or, lossy, a link is in alarm.
+    pub stopped: usize,
+    pub elapsed: Duration,
+    pub violation: Option<Violation>,
+    /// The exploration hit `max_states`.
+    pub incomplete: bool,
+    pub lossy: bool,
+}
+
+impl Report {
+    pub fn ok(&self) -> bool {
+        self.violation.is_none() && !self.incomplete
+    }
+
+    /// The text `config-tool verify` prints.
+    pub fn render(&self, name: &str, interlocks: usize) -> String {
+        let mut o = String::new();
+        let secs = self.elapsed.as_secs_f64();
+        let _ = writeln!(
+            o,
+            "{name}: {} states, {} transitions in {:.3} s ({:.0} states/s){}",
+            self.states,
+            self.transitions,
+            secs,
+            self.states as f64 / secs.max(1e-9),
+            if self.lossy { ", lossy links" } else { "" }
+        );
+        let _ = writeln!(
+            o,
+            "  idle states {}, stopped (fault / link alarm) states {}",
+            self.idle, self.stopped
+        );
+        if self.incomplete {
+            let _ = writeln!(o, "INCOMPLETE: stopped after {} states", self.states);
+        }
+        match &self.violation {
+            None if !self.incomplete => {
+                let _ = writeln!(
+                    o,
+                    "ok: deadlock freedom, sequence conformance, {interlocks} interlock(s), no \
+                     double actuation, no engine fault"
+                );
+            }
+            None => {}
+            Some(v) => {
+                let _ = writeln!(o, "FAILED {}: {}", v.property, v.message);
+                let _ = writeln!(o, "shortest counterexample ({} steps):", v.steps);
+                for line in &v.trace {
+                    let _ = writeln!(o, "{line}");
+                }
+            }
+        }
+        o
+    }
+}
+
+/// An actuator as the verifier sees it.
+#[derive(Debug, Clone)]
+struct Act {
+    name: String,
+    node: usize,
+    /// Double acting: (extend, retract) outputs; single acting: the valve.
+    extend: u8,
+    retract: Option<u8>,
+    home_in: Option<u8>,
+    end_in: Option<u8>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+enum Pos {
+    Home,
+    End,
+    Extending,
+    Retracting,
+}
+
+impl Pos {
+    fn mask(self) -> u8 {
+        match self {
+            Pos::Home => interlock::HOME,
+            Pos::End => interlock::END,
+            Pos::Extending => interlock::EXTENDING,
+            Pos::Retracting => interlock::RETRACTING,
+        }
+    }
+}
+
+/// The whole machine's state.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+struct Sys {
+    nodes: Vec<EngineState>,
+    /// Armed timers per node, bit i = timer i.
+    timers: Vec<u8>,
+    pos: Vec<Pos>,
+    /// Topics in flight per link `from * n + to`, oldest first.
+    links: Vec<Vec<Topic>>,
+    /// Links in alarm (lossy), bit `from * n + to`.
+    alarms: u64,
+    /// Steps of the current cycle done, modulo the cycle length.
+    progress: u16,
+}
+
+/// One move of the environment.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Move {
+    Press,
+    Arrive(u8),
+    Expire(u8, u8),
+    Deliver(u8, u8),
+    Lose(u8, u8),
+}
+
+/// What an engine call reported, in order.
+#[derive(Debug, Clone)]
+enum Fx {
+    Output(u8, bool),
+    Publish(Publication),
+    Start(u8),
+    Cancel(u8),
+    Fault(Fault),
+    Fired(u8, u8, u8),
+    Ignored(u8, u8),
+}
+
+#[derive(Default)]
+struct Sink(Vec<Fx>);
+
+impl Effects for Sink {
+    fn output(&mut self, output: u8, value: bool) {
+        self.0.push(Fx::Output(output, value));
+    }
+    fn publish(&mut self, p: &Publication) {
+        self.0.push(Fx::Publish(*p));
+    }
+    fn start_timer(&mut self, timer: u8, _ms: u32) {
+        self.0.push(Fx::Start(timer));
+    }
+    fn cancel_timer(&mut self, timer: u8) {
+        self.0.push(Fx::Cancel(timer));
+    }
+    fn fault(&mut self, fault: Fault) {
+        self.0.push(Fx::Fault(fault));
+    }
+    fn fired(&mut self, chart: u8, _transition: u8, from: u8, to: u8) {
+        self.0.push(Fx::Fired(chart, from, to));
+    }
+    fn ignored(&mut self, chart: u8, input: u8) {
+        self.0.push(Fx::Ignored(chart, input));
+    }
+}
+
+/// The composed model of a compiled robot.
+pub struct Model<'c> {
+    c: &'c Compiled,
+    tables: Vec<Table>,
+    acts: Vec<Act>,
+    /// (node, input) of START.
+    start: (usize, u8),
+    /// Per node, per peer index: the node with that address.
+    peers: Vec<Vec<Option<usize>>>,
+    expect: Vec<String>,
+    interlocks: Vec<Interlock>,
+    init: Sys,
+}
+
+type Bad = (Property, String);
+
+impl<'c> Model<'c> {
+    /// The model of `c`, from its blobs decoded as a node decodes them.
+    pub fn new(c: &'c Compiled) -> Result<Model<'c>, String> {
+        let tables: Vec<Table> = c
+            .blobs
+            .iter()
+            .zip(&c.ir.roles)
+            .map(|(b, r)| {
+                config_schema::decode(b).map_err(|e| format!("blob of role {}: {e}", r.name))
+            })
+            .collect::<Result<_, _>>()?;
+        if tables.len() > 8 {
+            return Err(format!(
+                "{} roles: verify handles at most 8 nodes",
+                tables.len()
+            ));
+        }
+        let (plants, button) = crate::sim::plants(c)?;
+        let mut acts = Vec::new();
+        for p in &plants {
+            match p {
+                Plant::DoubleActing(d) => acts.push(Act {
+                    name: d.name.clone(),
+                    node: d.node,
+                    extend: d.extend_out,
+                    retract: Some(d.retract_out),
+                    home_in: d.home_in,
+                    end_in: d.end_in,
+                }),
+                Plant::SingleActing(s) => acts.push(Act {
+                    name: s.name.clone(),
+                    node: s.node,
+                    extend: s.out,
+                    retract: None,
+                    home_in: None,
+                    end_in: None,
+                }),
+                Plant::Button(_) => {}
+            }
+        }
+        let Plant::Button(b) = &plants[button] else {
+            return Err(String::from("no start button"));
+        };
+        let start = (b.node, b.input);
+        let peers = tables
+            .iter()
+            .map(|t| {
+                t.peers
+                    .iter()
+                    .map(|a| c.ir.roles.iter().position(|r| r.address == *a))
+                    .collect()
+            })
+            .collect();
+        let interlocks = interlock::interlocks(&c.robot, &c.ir)
+            .map_err(|(i, m, _)| format!("never[{i}]: {m}"))?;
+        let expect = c.ir.expect.iter().map(|s| s.to_string()).collect();
+        let n = tables.len();
+        // Power-up as the simulator does: home switches high, then a reset.
+        let mut nodes = Vec::new();
+        for (i, t) in tables.iter().enumerate() {
+            let mut e = Engine::new(t);
+            let mut powered = false;
+            for a in acts.iter().filter(|a| a.node == i) {
+                if let Some(h) = a.home_in {
+                    e.input(h, true, &mut ());
+                    powered = true;
+                }
+            }
+            if powered {
+                e.reset(&mut ());
+            }
+            nodes.push(e.snapshot());
+        }
+        let pos = acts
+            .iter()
+            .map(|a| {
+                let out = nodes[a.node].outputs & (1 << a.extend) != 0;
+                if a.retract.is_none() && out {
+                    Pos::End
+                } else {
+                    Pos::Home
+                }
+            })
+            .collect();
+        let init = Sys {
+            nodes,
+            timers: vec![0; n],
+            pos,
+            links: vec![Vec::new(); n * n],
+            alarms: 0,
+            progress: 0,
+        };
+        Ok(Model {
+            c,
+            tables,
+            acts,
+            start,
+            peers,
+            expect,
+            interlocks,
+            init,
+        })
+    }
+
+    /// The number of `never:` interlocks.
+    pub fn interlock_count(&self) -> usize {
+        self.interlocks.len()
+    }
+
+    fn n(&self) -> usize {
+        self.tables.len()
+    }
+
+    fn idle(&self, s: &Sys) -> bool {
+        s.alarms == 0
+            && s.timers.iter().all(|t| *t == 0)
+            && s.links.iter().all(Vec::is_empty)
+            && s.pos == self.init.pos
+            && s.nodes
+                .iter()
+                .zip(&self.init.nodes)
+                .all(|(a, b)| a.fault.is_none() && a.current == b.current)
+    }
+
+    fn stopped(&self, s: &Sys) -> bool {
+        s.alarms != 0 || s.nodes.iter().any(|e| e.fault.is_some())
+    }
+
+    fn moves(&self, s: &Sys, lossy: bool, out: &mut Vec<Move>) {
+        out.clear();
+        if self.idle(s) {
+            out.push(Move::Press);
+        }
+        for (p, pos) in s.pos.iter().enumerate() {
+            if matches!(pos, Pos::Extending | Pos::Retracting) {
+                out.push(Move::Arrive(p as u8));
+            }
+        }
+        for (node, t) in s.timers.iter().enumerate() {
+            for i in 0..8u8 {
+                if t & (1 << i) != 0 {
+                    out.push(Move::Expire(node as u8, i));
+                }
+            }
+        }
+        let n = self.n();
+        for (l, q) in s.links.iter().enumerate() {
+            if q.is_empty() || s.alarms & (1 << l) != 0 {
+                continue;
+            }
+            let (f, t) = ((l / n) as u8, (l % n) as u8);
+            out.push(Move::Deliver(f, t));
+            if lossy {
+                out.push(Move::Lose(f, t));
+            }
+        }
+    }
+
+    /// Applies `m` to `s`; `log` gets readable lines. Returns the first property the move
+    /// broke.
+    fn apply(&self, s: &mut Sys, m: Move, mut log: Option<&mut Vec<String>>) -> Option<Bad> {
+        let mut bad = None;
+        let mut inputs: VecDeque<(usize, u8, bool)> = VecDeque::new();
+        let n = self.n();
+        match m {
+            Move::Press => {
+                let (node, input) = self.start;
+                inputs.push_back((node, input, true));
+                inputs.push_back((node, input, false));
+            }
+            Move::Arrive(p) => {
+                let p = usize::from(p);
+                let a = &self.acts[p];
+                let end = s.pos[p] == Pos::Extending;
+                s.pos[p] = if end { Pos::End } else { Pos::Home };
+                if let Some(pin) = if end { a.end_in } else { a.home_in } {
+                    inputs.push_back((a.node, pin, true));
+                }
+            }
+            Move::Expire(node, t) => {
+                s.timers[usize::from(node)] &= !(1 << t);
+                self.call(
+                    s,
+                    usize::from(node),
+                    Call::Timer(t),
+                    &mut inputs,
+                    &mut bad,
+                    &mut log,
+                );
+            }
+            Move::Deliver(f, t) => {
+                let l = usize::from(f) * n + usize::from(t);
+                let topic = s.links[l].remove(0);
+                let (f, t) = (usize::from(f), usize::from(t));
+                let from_addr = self.c.ir.roles[f].address;
+                if let Some(peer) = self.tables[t].peers.iter().position(|a| *a == from_addr) {
+                    self.call(
+                        s,
+                        t,
+                        Call::Remote(peer as u8, topic),
+                        &mut inputs,
+                        &mut bad,
+                        &mut log,
+                    );
+                }
+            }
+            Move::Lose(f, t) => {
+                let l = usize::from(f) * n + usize::from(t);
+                s.alarms |= 1 << l;
+            }
+        }
+        while let Some((node, input, level)) = inputs.pop_front() {
+            self.call(
+                s,
+                node,
+                Call::Input(input, level),
+                &mut inputs,
+                &mut bad,
+                &mut log,
+            );
+        }
+        if bad.is_none() {
+            bad = self.check_state(s);
+        }
+        bad
+    }
+
+    fn check_state(&self, s: &Sys) -> Option<Bad> {
+        for (i, e) in s.nodes.iter().enumerate() {
+            if let Some(f) = e.fault {
+                if !matches!(f, Fault::Action { .. }) {
+                    return Some((
+                        Property::EngineFault,
+                        format!("role {} faulted: {f:?}", self.c.ir.roles[i].name),
+                    ));
+                }
+            }
+        }
+        for il in &self.interlocks {
+            let read = |a: Atom| match a {
+                Atom::Position { plant, mask } => s.pos[plant].mask() & mask != 0,
+                Atom::Chart { role, chart, state } => {
+                    usize::from(s.nodes[role].current[chart]) == state
+                }
+                Atom::Fault { role } => s.nodes[role].fault.is_some(),
+            };
+            if il.holds(&read) {
+                return Some((Property::Interlock, format!("never: \"{}\" holds", il.text)));
+            }
+        }
+        if let Some(l) = s.links.iter().position(|q| q.len() > LINK_BOUND) {
+            let n = self.n();
+            return Some((
+                Property::LinkBound,
+                format!(
+                    "more than {LINK_BOUND} publications in flight from {} to {}",
+                    self.c.ir.roles[l / n].name,
+                    self.c.ir.roles[l % n].name
+                ),
+            ));
+        }
+        if !self.expect.is_empty() && s.progress != 0 && self.idle(s) {
+            return Some((
+                Property::Sequence,
+                format!(
+                    "the machine is idle after {} of the {} declared steps",
+                    s.progress,
+                    self.expect.len()
+                ),
+            ));
+        }
+        None
+    }
+
+    fn call(
+        &self,
+        s: &mut Sys,
+        node: usize,
+        what: Call,
+        inputs: &mut VecDeque<(usize, u8, bool)>,
+        bad: &mut Option<Bad>,
+        log: &mut Option<&mut Vec<String>>,
+    ) {
+        let table = &self.tables[node];
+        let role = &self.c.ir.roles[node];
+        let mut e = Engine::resume(table, &s.nodes[node]);
+        let mut fx = Sink::default();
+        if let Some(log) = log.as_deref_mut() {
+            log.push(format!(
+                "   {}: {}",
+                role.name,
+                self.describe_call(node, what)
+            ));
+        }
+        match what {
+            Call::Input(i, level) => e.input(i, level, &mut fx),
+            Call::Timer(t) => e.timer_expired(t, &mut fx),
+            Call::Remote(p, topic) => {
+                e.remote(p, topic, &mut fx);
+            }
+        }
+        s.nodes[node] = e.snapshot();
+        let faulted = s.nodes[node].fault.is_some();
+        let n = self.n();
+        // (plant, extend rose, retract rose, monostable level)
+        let mut valves: Vec<(usize, bool, bool, Option<bool>)> = Vec::new();
+        for f in &fx.0 {
+            if let Some(log) = log.as_deref_mut() {
+                if let Some(line) = self.describe_fx(node, f) {
+                    log.push(format!("      {line}"));
+                }
+            }
+            match *f {
+                Fx::Output(o, level) => {
+                    for (p, a) in self.acts.iter().enumerate() {
+                        if a.node != node {
+                            continue;
+                        }
+                        let hit = match a.retract {
+                            Some(_) if a.extend == o => Some((level, false, None)),
+                            Some(r) if r == o => Some((false, level, None)),
+                            None if a.extend == o => Some((false, false, Some(level))),
+                            _ => None,
+                        };
+                        if let Some((x, r, m)) = hit {
+                            match valves.iter_mut().find(|v| v.0 == p) {
+                                Some(v) => {
+                                    v.1 |= x;
+                                    v.2 |= r;
+                                    if m.is_some() {
+                                        v.3 = m;
+                                    }
+                                }
+                                None => valves.push((p, x, r, m)),
+                            }
+                        }
+                    }
+                }
+                Fx::Publish(p) => {
+                    for (i, to) in self.peers[node].iter().enumerate().take(8) {
+                        if p.subscribers & (1 << i) != 0 {
+                            if let Some(to) = to {
+                                s.links[node * n + to].push(p.topic);
+                            }
+                        }
+                    }
+                }
+                Fx::Start(t) => s.timers[node] |= 1 << t,
+                Fx::Cancel(t) => s.timers[node] &= !(1 << t),
+                Fx::Fault(_) | Fx::Fired(..) | Fx::Ignored(..) => {}
+            }
+        }
+        for (p, x, r, m) in valves {
+            let extend = match (x, r, m) {
+                (true, true, _) => {
+                    if bad.is_none() && !faulted {
+                        *bad = Some((
+                            Property::DoubleActuation,
+                            format!("{}: both solenoids energised at once", self.acts[p].name),
+                        ));
+                    }
+                    continue;
+                }
+                (true, false, _) => true,
+                (false, true, _) => false,
+                (false, false, Some(level)) => level,
+                (false, false, None) => continue,
+            };
+            self.command(s, p, extend, faulted, inputs, bad, log);
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn command(
+        &self,
+        s: &mut Sys,
+        p: usize,
+        extend: bool,
+        safe: bool,
+        inputs: &mut VecDeque<(usize, u8, bool)>,
+        bad: &mut Option<Bad>,
+        log: &mut Option<&mut Vec<String>>,
+    ) {
+        let a = &self.acts[p];
+        let step = format!("{}{}", a.name, if extend { '+' } else { '-' });
+        let before = s.pos[p];
+        let (next, leaves) = match (before, extend) {
+            (Pos::Home, false) | (Pos::End, true) => return,
+            (Pos::Extending, true) | (Pos::Retracting, false) => return,
+            (Pos::Home, true) => (Pos::Extending, a.home_in),
+            (Pos::End, false) => (Pos::Retracting, a.end_in),
+            (Pos::Extending, false) => (Pos::Retracting, None),
+            (Pos::Retracting, true) => (Pos::Extending, None),
+        };
+        s.pos[p] = next;
+        if let Some(log) = log.as_deref_mut() {
+            log.push(format!(
+                "      {step}: {} starts {}{}",
+                a.name,
+                if extend { "extending" } else { "retracting" },
+                if safe { " (safe state)" } else { "" }
+            ));
+        }
+        if let Some(pin) = leaves {
+            inputs.push_back((a.node, pin, false));
+        }
+        if safe || bad.is_some() {
+            return;
+        }
+        // A monostable valve just follows its level: a sensorless actuator may reverse.
+        if a.retract.is_some() && matches!(before, Pos::Extending | Pos::Retracting) {
+            *bad = Some((
+                Property::DoubleActuation,
+                format!(
+                    "{step} commanded while {} is still {}",
+                    a.name,
+                    if before == Pos::Extending {
+                        "extending"
+                    } else {
+                        "retracting"
+                    }
+                ),
+            ));
+            return;
+        }
+        if self.expect.is_empty() {
+            return;
+        }
+        let k = usize::from(s.progress);
+        if self.expect[k] != step {
+            *bad = Some((
+                Property::Sequence,
+                format!(
+                    "step {} of the cycle is {step}, the declared sequence says {}",
+                    k + 1,
+                    self.expect[k]
+                ),
+            ));
+            return;
+        }
+        s.progress = ((k + 1) % self.expect.len()) as u16;
+    }
+
+    fn event_name(&self, node: usize, e: u8) -> String {
+        self.c.ir.roles[node]
+            .events
+            .get(usize::from(e))
+            .cloned()
+            .unwrap_or_else(|| format!("event #{e}"))
+    }
+
+    fn topic_name(&self, from: usize, topic: Topic) -> String {
+        self.tables[from]
+            .publications
+            .iter()
+            .find(|p| p.topic == topic)
+            .map_or(format!("topic #{topic}"), |p| {
+                self.event_name(from, p.event)
+            })
+    }
+
+    fn describe_call(&self, node: usize, what: Call) -> String {
+        let r = &self.c.ir.roles[node];
+        match what {
+            Call::Input(i, level) => format!(
+                "input {} {}",
+                r.inputs
+                    .get(usize::from(i))
+                    .map_or("?", |x| x.name.as_str()),
+                if level { "rises" } else { "falls" }
+            ),
+            Call::Timer(t) => format!(
+                "timer {} expires",
+                r.timers
+                    .get(usize::from(t))
+                    .map_or("?", |x| x.name.as_str())
+            ),
+            Call::Remote(p, topic) => {
+                let from = self.peers[node].get(usize::from(p)).copied().flatten();
+                match from {
+                    Some(f) => format!(
+                        "receives {} from {}",
+                        self.topic_name(f, topic),
+                        self.c.ir.roles[f].name
+                    ),
+                    None => format!("receives topic #{topic}"),
+                }
+            }
+        }
+    }
+
+    fn describe_fx(&self, node: usize, f: &Fx) -> Option<String> {
+        let r = &self.c.ir.roles[node];
+        Some(match *f {
+            Fx::Output(o, level) => format!(
+                "output {} = {}",
+                r.outputs
+                    .get(usize::from(o))
+                    .map_or("?", |x| x.name.as_str()),
+                u8::from(level)
+            ),
+            Fx::Publish(p) => {
+                let to: Vec<&str> = self.peers[node]
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| p.subscribers & (1 << i) != 0)
+                    .filter_map(|(_, t)| t.map(|t| self.c.ir.roles[t].name.as_str()))
+                    .collect();
+                format!(
+                    "publishes {} to {}",
+                    self.event_name(node, p.event),
+                    to.join(", ")
+                )
+            }
+            Fx::Start(t) => format!(
+                "starts timer {}",
+                r.timers
+                    .get(usize::from(t))
+                    .map_or("?", |x| x.name.as_str())
+            ),
+            Fx::Cancel(_) => return None,
+            Fx::Fault(fault) => format!("FAULT {fault:?}: outputs safe"),
+            Fx::Fired(chart, from, to) => {
+                let c = r.charts.get(usize::from(chart))?;
+                let st = |i: u8| {
+                    c.states
+                        .get(usize::from(i))
+                        .map_or("?", |s| s.name.as_str())
+                };
+                format!("chart {}: {} -> {}", c.name, st(from), st(to))
+            }
+            Fx::Ignored(chart, input) => {
+                let c = r.charts.get(usize::from(chart))?;
+                format!(
+                    "chart {} ignores {} (no transition takes it here)",
+                    c.name,
+                    c.inputs.get(usize::from(input)).map_or("?", |x| x.as_str())
+                )
+            }
+        })
+    }
+
+    fn describe_move(&self, s: &Sys, m: Move) -> String {
+        let role = |i: u8| self.c.ir.roles[usize::from(i)].name.as_str();
+        match m {
+            Move::Press => format!("operator presses START (at {})", role(self.start.0 as u8)),
+            Move::Arrive(p) => {
+                let a = &self.acts[usize::from(p)];
+                let end = s.pos[usize::from(p)] == Pos::Extending;
+                match (a.retract.is_some(), end) {
+                    (true, true) => format!("{} reaches its end switch", a.name),
+                    (true, false) => format!("{} reaches its home switch", a.name),
+                    (false, true) => format!("{} is fully out (no switch)", a.name),
+                    (false, false) => format!("{} is fully back (no switch)", a.name),
+                }
+            }
+            Move::Expire(node, t) => format!(
+                "timer {} of {} expires",
+                self.c.ir.roles[usize::from(node)]
+                    .timers
+                    .get(usize::from(t))
+                    .map_or("?", |x| x.name.as_str()),
+                role(node)
+            ),
+            Move::Deliver(f, t) => format!("radio delivers {} -> {}", role(f), role(t)),
+            Move::Lose(f, t) => format!(
+                "radio link {} -> {} gives up after its retries: link alarm at {}",
+                role(f),
+                role(t),
+                role(f)
+            ),
+        }
+    }
+
+    /// A readable summary of a state: charts, positions, in flight, timers.
+    fn describe_state(&self, s: &Sys) -> String {
+        let mut parts = Vec::new();
+        for (i, e) in s.nodes.iter().enumerate() {
+            let r = &self.c.ir.roles[i];
+            let charts: Vec<String> = r
+                .charts
+                .iter()
+                .enumerate()
+                .map(|(ci, c)| {
+                    let st = c
+                        .states
+                        .get(usize::from(e.current[ci]))
+                        .map_or("?", |x| x.name.as_str());
+                    format!("{}={st}", c.name)
+                })
+                .collect();
+            let fault = e.fault.map(|f| format!(" FAULT {f:?}")).unwrap_or_default();
+            parts.push(format!("{}[{}]{fault}", r.name, charts.join(" ")));
+        }
+        let pos: Vec<String> = self
+            .acts
+            .iter()
+            .zip(&s.pos)
+            .map(|(a, p)| {
+                format!("{} {:?}", a.name, p)
+                    .to_lowercase()
+                    .replace(&a.name.to_lowercase(), &a.name)
+            })
+            .collect();
+        let n = self.n();
+        let flight: Vec<String> = s
+            .links
+            .iter()
+            .enumerate()
+            .filter(|(_, q)| !q.is_empty())
+            .map(|(l, q)| {
+                let names: Vec<String> = q.iter().map(|t| self.topic_name(l / n, *t)).collect();
+                format!(
+                    "{}->{}: {}",
+                    self.c.ir.roles[l / n].name,
+                    self.c.ir.roles[l % n].name,
+                    names.join(", ")
+                )
+            })
+            .collect();
+        format!(
+            "charts {}; actuators {}; in flight: {}",
+            parts.join(" "),
+            pos.join(", "),
+            if flight.is_empty() {
+                String::from("none")
+            } else {
+                flight.join("; ")
+            }
+        )
+    }
+
+    /// The numbered, readable trace of `moves` from the initial state.
+    fn replay(&self, moves: &[Move]) -> Vec<String> {
+        let mut s = self.init.clone();
+        let mut out = Vec::new();
+        for (i, m) in moves.iter().enumerate() {
+            let mut log = Vec::new();
+            let what = self.describe_move(&s, *m);
+            self.apply(&mut s, *m, Some(&mut log));
+            out.push(format!("{:>3}. {what}", i + 1));
+            out.extend(log);
+        }
+        out.push(format!("     state: {}", self.describe_state(&s)));
+        out
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Call {
+    Input(u8, bool),
+    Timer(u8),
+    Remote(u8, Topic),
+}
+
+/// Explores every reachable state of `c` and checks the properties.
+pub fn verify(c: &Compiled, opts: Options) -> Result<Report, String> {
+    let model = Model::new(c)?;
+    Ok(explore(&model, opts))
+}
+
+/// [`verify`] on a built model.
+pub fn explore(model: &Model<'_>, opts: Options) -> Report {
+    let t0 = Instant::now();
+    let mut seen: IndexSet<Sys, ahash_like::Build> = IndexSet::default();
+    // Parent index and move of each state (the initial state's own entry is unused).
+    let mut parent: Vec<(u32, Move)> = Vec::new();
+    let mut edges: Vec<(u32, u32)> = Vec::new();
+    seen.insert(model.init.clone());
+    parent.push((0, Move::Press));
+    let path = |parent: &[(u32, Move)], mut i: usize| {
+        let mut moves = Vec::new();
+        while i != 0 {
+            moves.push(parent[i].1);
+            i = parent[i].0 as usize;
+        }
+        moves.reverse();
+        moves
+    };
+    let mut moves = Vec::new();
+    let mut next = 0usize;
+    let mut violation = None;
+    let mut incomplete = false;
+    'bfs: while next < seen.len() {
+        let s = seen
+            .get_index(next)
+            .cloned()
+            .unwrap_or_else(|| model.init.clone());
+        model.moves(&s, opts.lossy, &mut moves);
+        for &m in &moves {
+            let mut t = s.clone();
+            if let Some((property, message)) = model.apply(&mut t, m, None) {
+                let mut p = path(&parent, next);
+                p.push(m);
+                violation = Some(Violation {
+                    property,
+                    message,
+                    steps: p.len(),
+                    trace: model.replay(&p),
+                });
+                break 'bfs;
+            }
+            let (j, new) = seen.insert_full(t);
+            if new {
+                parent.push((next as u32, m));
+                if seen.len() >= opts.max_states {
+                    incomplete = true;
+                    break 'bfs;
+                }
+            }
+            edges.push((next as u32, j as u32));
+        }
+        next += 1;
+    }
+    let states = seen.len();
+    let idle_flags: Vec<bool> = seen.iter().map(|s| model.idle(s)).collect();
+    let stopped_flags: Vec<bool> = seen.iter().map(|s| model.stopped(s)).collect();
+    if violation.is_none() && !incomplete {
+        // Backward reachability of idle over the reverse edges.
+        let mut start = vec![0u32; states + 1];
+        for &(_, to) in &edges {
+            start[to as usize + 1] += 1;
+        }
+        for i in 0..states {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut rev = vec![0u32; edges.len()];
+        for &(from, to) in &edges {
+            rev[fill[to as usize] as usize] = from;
+            fill[to as usize] += 1;
+        }
+        let mut good = idle_flags.clone();
+        let mut queue: VecDeque<usize> = (0..states).filter(|&i| good[i]).collect();
+        while let Some(i) = queue.pop_front() {
+            for &f in &rev[start[i] as usize..start[i + 1] as usize] {
+                if !good[f as usize] {
+                    good[f as usize] = true;
+                    queue.push_back(f as usize);
+                }
+            }
+        }
+        if let Some(bad) = (0..states).find(|&i| !good[i] && !stopped_flags[i]) {
+            let s = seen
+                .get_index(bad)
+                .cloned()
+                .unwrap_or_else(|| model.init.clone());
+            let stuck = edges.iter().all(|&(f, _)| f as usize != bad);
+            violation = Some(Violation {
+                property: Property::Deadlock,
+                message: if stuck {
+                    String::from(
+                        "the machine stops here: nothing can happen any more, and it is not idle",
+                    )
+                } else {
+                    String::from(
+                        "from here the machine can never get back to idle (only to faults or \
+                         other states that cannot)",
+                    )
+                },
+                steps: path(&parent, bad).len(),
+                trace: model.replay(&path(&parent, bad)),
+            });
+            let _ = s;
+        }
+    }
+    Report {
+        states,
+        transitions: edges.len(),
+        idle: idle_flags.iter().filter(|b| **b).count(),
+        stopped: stopped_flags.iter().filter(|b| **b).count(),
+        elapsed: t0.elapsed(),
+        violation,
+        incomplete,
+        lossy: opts.lossy,
+    }
+}
+
+/// A fast non-cryptographic hasher (FxHash) for the visited set: the states are our own,
+/// no hash flooding to fear.
+mod ahash_like {
+    use std::hash::{BuildHasherDefault, Hasher};
+
+    #[derive(Default)]
+    pub struct Fx(u64);
+
+    impl Hasher for Fx {
+        fn finish(&self) -> u64 {
+            self.0
+        }
+        fn write(&mut self, bytes: &[u8]) {
+            for chunk in bytes.chunks(8) {
+                let mut b = [0u8; 8];
+                b[..chunk.len()].copy_from_slice(chunk);
+                self.add(u64::from_le_bytes(b));
+            }
+        }
+        fn write_u8(&mut self, i: u8) {
+            self.add(u64::from(i));
+        }
+        fn write_u16(&mut self, i: u16) {
+            self.add(u64::from(i));
+        }
+        fn write_u32(&mut self, i: u32) {
+            self.add(u64::from(i));
+        }
+        fn write_u64(&mut self, i: u64) {
+            self.add(i);
+        }
+        fn write_usize(&mut self, i: usize) {
+            self.add(i as u64);
+        }
+    }
+
+    impl Fx {
+        fn add(&mut self, v: u64) {
+            self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+        }
+    }
+
+    pub type Build = BuildHasherDefault<Fx>;
+}

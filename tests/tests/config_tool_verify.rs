@@ -1,0 +1,210 @@
+//! `config-tool verify`: every robot of `robot-configs/` explored exhaustively, and broken
+//! robots each caught by the right property with its shortest counterexample.
+
+use config_tool::verify::{self, Options, Property, Report};
+use config_tool::{compile, Compiled, Source};
+
+fn load(path: &str) -> Source {
+    let full = format!("{}/{path}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&full).unwrap_or_else(|e| panic!("{full}: {e}"));
+    Source::new(path, text)
+}
+
+fn build(src: &Source) -> Compiled {
+    match compile(src) {
+        Ok(c) => c,
+        Err(d) => panic!(
+            "{}",
+            d.iter()
+                .map(|d| d.short(src))
+                .collect::<Vec<_>>()
+                .join("\n")
+        ),
+    }
+}
+
+fn run(c: &Compiled, lossy: bool) -> Report {
+    verify::verify(
+        c,
+        Options {
+            lossy,
+            ..Options::default()
+        },
+    )
+    .expect("model builds")
+}
+
+/// (states, transitions, idle states, stopped states) of a report that passed.
+fn passes(r: &Report) -> (usize, usize, usize, usize) {
+    assert!(r.ok(), "{}", r.render("robot", 0));
+    (r.states, r.transitions, r.idle, r.stopped)
+}
+
+#[test]
+fn the_sequence_robots_of_robot_configs_pass_with_their_state_counts() {
+    for (file, lossless, lossy) in [
+        (
+            "paint-robot.ron",
+            (451, 1111, 2, 388),
+            (1475, 4360, 2, 1412),
+        ),
+        (
+            "paint-robot-spare-node.ron",
+            (451, 1111, 2, 388),
+            (1475, 4360, 2, 1412),
+        ),
+        (
+            "paint-robot-double-dip.ron",
+            (623, 1557, 2, 548),
+            (2063, 6166, 2, 1988),
+        ),
+    ] {
+        let c = build(&load(&format!("../robot-configs/{file}")));
+        assert_eq!(passes(&run(&c, false)), lossless, "{file}");
+        assert_eq!(passes(&run(&c, true)), lossy, "{file} lossy");
+    }
+}
+
+/// The two explicit-chart robots in the paper's position-event style are correct only
+/// when a publication is delivered before the next motion ends: with arbitrary radio delays
+/// a late `VC.home` reaches HC after RC's `RC.home`, HC ignores RC's event and waits for
+/// ever (paper charts) or starts HC+ while HC is still retracting (counted).
+#[test]
+fn the_position_event_robots_race_on_late_deliveries() {
+    let c = build(&load("../robot-configs/paint-robot-paper-charts.ron"));
+    let r = run(&c, false);
+    let v = r.violation.as_ref().expect("a violation");
+    assert_eq!(v.property, Property::Deadlock);
+    assert_eq!(v.steps, 16);
+    let text = v.trace.join("\n");
+    assert!(text.contains(" 16. radio delivers RC -> HC"), "{text}");
+    assert!(text.ends_with(
+        "state: charts VC[vc=S4] GR[gr=S2] HC[hc=S1] RC[rc=S3]; actuators VC home, GR \
+         extending, HC end, RC home; in flight: VC->GR: VC.end; VC->HC: VC.home"
+    ));
+
+    let c = build(&load("../robot-configs/paint-robot-counted.ron"));
+    let v = run(&c, false).violation.expect("a violation");
+    assert_eq!(v.property, Property::DoubleActuation);
+    assert_eq!(v.message, "HC+ commanded while HC is still retracting");
+    assert_eq!(v.steps, 24);
+}
+
+#[test]
+fn a_chart_that_deadlocks_when_two_events_arrive_in_the_other_order() {
+    let c = build(&load("fixtures/verify/order-deadlock.ron"));
+    let v = run(&c, false).violation.expect("a violation");
+    assert_eq!(v.property, Property::Deadlock);
+    assert_eq!(v.steps, 4);
+    assert_eq!(
+        v.trace[v.trace.len() - 4..],
+        [
+            "  4. radio delivers Y -> Z",
+            "   Z: receives y.OUT from Y",
+            "      chart z ignores SECOND (no transition takes it here)",
+            "     state: charts X[x=OUT] Y[y=WAIT] Z[z=W0]; actuators X end, Z home; in \
+             flight: X->Z: X.end",
+        ]
+    );
+}
+
+#[test]
+fn a_missing_interlock_is_caught_and_the_right_order_keeps_it() {
+    let src = load("fixtures/verify/interlock.ron");
+    let v = run(&build(&src), false).violation.expect("a violation");
+    assert_eq!(v.property, Property::Interlock);
+    assert_eq!(v.message, "never: \"B.moving && !A.home\" holds");
+    assert_eq!(v.steps, 3);
+    assert_eq!(
+        v.trace
+            .iter()
+            .filter(|l| !l.starts_with("      ") && !l.starts_with("   "))
+            .cloned()
+            .collect::<Vec<_>>(),
+        [
+            "  1. operator presses START (at A)",
+            "  2. A reaches its end switch",
+            "  3. radio delivers A -> B",
+        ]
+    );
+    assert!(v
+        .trace
+        .contains(&"      B+: B starts extending".to_string()));
+    let fixed = Source::new(
+        "interlock-fixed",
+        src.text.replace("A+ B+ A- B-", "A+ A- B+ B-"),
+    );
+    let r = run(&build(&fixed), false);
+    assert!(r.ok(), "{}", r.render("fixed", 1));
+}
+
+#[test]
+fn a_chart_that_refires_on_a_repeated_event_breaks_the_sequence() {
+    let c = build(&load("fixtures/verify/refire.ron"));
+    let v = run(&c, false).violation.expect("a violation");
+    assert_eq!(v.property, Property::Sequence);
+    assert_eq!(
+        v.message,
+        "step 4 of the cycle is B+, the declared sequence says A-"
+    );
+}
+
+#[test]
+fn a_timer_instead_of_a_switch_is_a_double_actuation() {
+    let c = build(&load("fixtures/verify/timed-retract.ron"));
+    let v = run(&c, false).violation.expect("a violation");
+    assert_eq!(v.property, Property::DoubleActuation);
+    assert_eq!(v.message, "A- commanded while A is still extending");
+    assert_eq!(v.steps, 2);
+    assert!(v.trace.contains(&"  2. timer a.T of A expires".to_string()));
+}
+
+/// A tampered compiled table (VC's START transition retargeted from `STEP1` to `STEP5`,
+/// skipping GR+ VC- HC+), re-encoded into the blob the nodes would receive.
+#[test]
+fn a_tampered_compiled_table_breaks_the_sequence() {
+    let mut c = build(&load("../robot-configs/paint-robot.ron"));
+    let chart = &c.ir.roles[0].charts[0];
+    let step5 = chart
+        .states
+        .iter()
+        .position(|s| s.name == "STEP5")
+        .expect("STEP5") as u8;
+    let t = c.tables[0]
+        .transitions
+        .iter()
+        .position(|t| t.from == 0 && t.to == 1)
+        .expect("IDLE -> STEP1");
+    c.tables[0].transitions[t].to = step5;
+    c.blobs[0] = config_tool::compile::encode(&c.tables[0]).expect("encodes");
+    let v = run(&c, false).violation.expect("a violation");
+    assert_eq!(v.property, Property::Sequence);
+    assert_eq!(
+        v.message,
+        "step 2 of the cycle is VC-, the declared sequence says GR+"
+    );
+    assert_eq!(v.steps, 2);
+    assert!(v
+        .trace
+        .contains(&"      chart VC: IDLE -> STEP5".to_string()));
+}
+
+#[test]
+fn an_unknown_interlock_name_is_a_diagnostic() {
+    let src = load("fixtures/verify/interlock.ron");
+    let bad = Source::new(
+        "bad-interlock",
+        src.text
+            .replace("B.moving && !A.home", "B.moving && !A.down"),
+    );
+    let diags = match compile(&bad) {
+        Ok(_) => panic!("compiles"),
+        Err(d) => d,
+    };
+    let text: Vec<String> = diags.iter().map(|d| d.short(&bad)).collect();
+    assert_eq!(
+        text,
+        ["bad-interlock:24:27: error: `A.down`: an actuator has `.home`, `.end`, `.moving`, `.extending`, \
+          `.retracting`, not `.down`"]
+    );
+}
