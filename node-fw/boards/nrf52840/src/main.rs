@@ -1,0 +1,139 @@
+//! The generic node on the nRF52840 (flash once; the role comes over the air):
+//!
+//! - address: UICR CUSTOMER[0], the provisioning word (`0xA5` magic in bits 31..24, the
+//!   16-bit short address in bits 15..0), written once per node; the radio channel of an
+//!   unconfigured node: UICR CUSTOMER[1] (11..=26; erased: 15);
+//! - radio: the IEEE 802.15.4 radio ([`radio`]);
+//! - pins: 16 GPIOs, outputs or inputs as the table uses them ([`gpio`]);
+//! - table slots and boot counter: the last 20 KiB of the internal flash ([`flash`]);
+//! - log: defmt over RTT (`cargo run --release` flashes a DK with probe-rs and prints it).
+#![no_std]
+#![no_main]
+
+mod flash;
+mod gpio;
+mod radio;
+
+use core::fmt::Write as _;
+
+use defmt_rtt as _;
+use embassy_executor::Spawner;
+use embassy_nrf::config::{Config, HfclkSource};
+use embassy_nrf::gpio::Flex;
+use embassy_nrf::nvmc::Nvmc;
+use embassy_nrf::radio::ieee802154::{Packet, Radio};
+use embassy_nrf::{bind_interrupts, peripherals};
+use embassy_time::Timer;
+use node_fw::runtime::{self, Board};
+use panic_probe as _;
+
+use flash::NrfFlash;
+use gpio::{Gpio, GpioInputs, GpioPins};
+
+bind_interrupts!(struct Irqs {
+    RADIO => embassy_nrf::radio::InterruptHandler<peripherals::RADIO>;
+});
+
+/// UICR CUSTOMER[0] and [1].
+const PROVISION_AT: usize = 0x1000_1080;
+const CHANNEL_AT: usize = 0x1000_1084;
+const MAGIC: u32 = 0xA5;
+const DEFAULT_CHANNEL: u8 = 15;
+
+fn uicr(at: usize) -> u32 {
+    // SAFETY: UICR customer words are always readable.
+    unsafe { core::ptr::read_volatile(at as *const u32) }
+}
+
+/// The runtime's `log` messages, as defmt strings.
+struct DefmtLog;
+
+impl log::Log for DefmtLog {
+    fn enabled(&self, m: &log::Metadata<'_>) -> bool {
+        m.level() <= log::max_level()
+    }
+    fn log(&self, r: &log::Record<'_>) {
+        let mut s = heapless::String::<128>::new();
+        let _ = write!(s, "{}", r.args());
+        match r.level() {
+            log::Level::Error => defmt::error!("{=str}", s.as_str()),
+            log::Level::Warn => defmt::warn!("{=str}", s.as_str()),
+            _ => defmt::info!("{=str}", s.as_str()),
+        }
+    }
+    fn flush(&self) {}
+}
+
+static LOG: DefmtLog = DefmtLog;
+
+#[embassy_executor::main]
+async fn main(_spawner: Spawner) {
+    let mut config = Config::default();
+    config.hfclk_source = HfclkSource::ExternalXtal;
+    let p = embassy_nrf::init(config);
+    if log::set_logger(&LOG).is_ok() {
+        log::set_max_level(log::LevelFilter::Info);
+    }
+
+    let word = uicr(PROVISION_AT);
+    let addr = word as u16;
+    if word >> 24 != MAGIC || addr >= 0xFFFE {
+        defmt::error!(
+            "no node id: write UICR CUSTOMER[0] = 0xA500_0000 | address (see docs/boards.md)"
+        );
+        loop {
+            Timer::after_secs(3600).await;
+        }
+    }
+    let channel = match uicr(CHANNEL_AT) as u8 {
+        c @ 11..=26 => c,
+        _ => DEFAULT_CHANNEL,
+    };
+
+    let mut radio = Radio::new(p.RADIO, Irqs);
+    radio.set_channel(channel);
+    let gpio = Gpio::new([
+        Flex::new(p.P1_01),
+        Flex::new(p.P1_02),
+        Flex::new(p.P1_03),
+        Flex::new(p.P1_04),
+        Flex::new(p.P1_05),
+        Flex::new(p.P1_06),
+        Flex::new(p.P1_07),
+        Flex::new(p.P1_08),
+        Flex::new(p.P1_10),
+        Flex::new(p.P1_11),
+        Flex::new(p.P1_12),
+        Flex::new(p.P1_13),
+        Flex::new(p.P1_14),
+        Flex::new(p.P1_15),
+        Flex::new(p.P0_03),
+        Flex::new(p.P0_04),
+    ]);
+    let mut flash = NrfFlash::new(Nvmc::new(p.NVMC));
+    let boots = flash.count_boot();
+    let epoch = boots.wrapping_mul(256) as u16;
+    defmt::info!(
+        "node {=u16:#06x}: nrf52840, channel {=u8}, boot {=u32}, epoch {=u16}",
+        addr,
+        channel,
+        boots,
+        epoch
+    );
+
+    let board = Board {
+        radio: radio::NrfRadio {
+            radio,
+            packet: Packet::new(),
+        },
+        outputs: GpioPins(&gpio),
+        inputs: GpioInputs::new(&gpio),
+        flash,
+    };
+    let (stop, stats) = runtime::run(addr, epoch, board).await;
+    defmt::error!(
+        "node stopped ({=bool}): {=u32} activations",
+        matches!(stop, runtime::Stop::FlashGeometry),
+        stats.activations
+    );
+}
