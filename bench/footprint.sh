@@ -1,0 +1,72 @@
+#!/usr/bin/env bash
+# Flash and static RAM of both release firmware images (QEMU mps2-an385 and nRF52840),
+# broken down by section, with the table capacities they were built with.
+#
+#   bench/footprint.sh            # builds both images (release), prints the figures
+#   bench/footprint.sh --no-build # only measures what is built
+#
+# Flash = vector table + .text + .rodata + .data (its initial values live in flash);
+# static RAM = .data + .bss + .uninit (the stack is not counted: it gets the rest of RAM).
+# Targets for the nRF52840 image: flash < 48 KiB, static RAM < 16 KiB.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+BOARDS="node-fw/boards"
+QEMU_ELF="$BOARDS/target/thumbv7m-none-eabi/release/qemu-mps2"
+NRF_ELF="$BOARDS/target/thumbv7em-none-eabihf/release/nrf52840"
+
+if [ "${1:-}" != "--no-build" ]; then
+    (cd "$BOARDS/qemu-mps2" && cargo build --release --locked -q)
+    (cd "$BOARDS/nrf52840" && cargo build --release --locked -q)
+fi
+
+# An llvm-size: on PATH, or rustup's llvm-tools.
+SIZE=""
+for c in llvm-size rust-size arm-none-eabi-size; do
+    if command -v "$c" >/dev/null; then SIZE="$c"; break; fi
+done
+if [ -z "$SIZE" ]; then
+    rustup component add llvm-tools >/dev/null 2>&1 || true
+    SIZE="$(find "$(rustc --print sysroot)" -name llvm-size -type f | head -n 1)"
+fi
+if [ -z "$SIZE" ]; then
+    echo "footprint: no llvm-size (rustup component add llvm-tools)" >&2
+    exit 1
+fi
+
+# section sizes of ELF $1 as "name size" lines
+sections() { "$SIZE" -A "$1" | awk 'NR > 2 && NF >= 2 { print $1, $2 }'; }
+
+report() {
+    local name="$1" elf="$2" flash_max="$3" ram_max="$4"
+    sections "$elf" | awk -v name="$name" -v fmax="$flash_max" -v rmax="$ram_max" '
+        { s[$1] = $2 }
+        END {
+            vt = s[".vector_table"] + 0; text = s[".text"] + 0; ro = s[".rodata"] + 0
+            data = s[".data"] + 0; bss = s[".bss"] + 0; un = s[".uninit"] + 0
+            flash = vt + text + ro + data; ram = data + bss + un
+            printf "%-11s %7d %7d %7d %6d %7d %7d  %8d (%5.1f KiB) %7d (%5.1f KiB)\n", \
+                name, vt, text, ro, data, bss, un, flash, flash / 1024, ram, ram / 1024
+            if (fmax > 0) {
+                printf "%-11s target: flash < %d KiB: %s; static RAM < %d KiB: %s\n", "", \
+                    fmax, (flash < fmax * 1024 ? "met" : "MISSED"), \
+                    rmax, (ram < rmax * 1024 ? "met" : "MISSED")
+            }
+        }'
+}
+
+echo "release images (bytes)"
+printf "%-11s %7s %7s %7s %6s %7s %7s  %20s %21s\n" image vectors text rodata data bss uninit "flash" "static RAM"
+report qemu-mps2 "$QEMU_ELF" 0 0
+report nrf52840 "$NRF_ELF" 48 16
+
+echo
+echo "largest static RAM objects (nrf52840)"
+nm -S --size-sort -C -t d "$NRF_ELF" 2>/dev/null | awk '$3 ~ /^[bBdD]$/' | tail -n 4 |
+    awk '{ size = $2 + 0; $1 = ""; $2 = ""; $3 = ""; printf "  %7d %s\n", size, $0 }' || true
+
+echo
+echo "capacities (config-schema/src/limits.rs, node-fw/src/runtime.rs)"
+grep -hE '^pub const [A-Z_]+: usize = ' config-schema/src/limits.rs node-fw/src/runtime.rs |
+    sed -E 's/^pub const ([A-Z_]+): usize = (.*);/\1=\2/' |
+    awk '{ printf "  %-22s", $0; if (NR % 4 == 0) printf "\n" } END { if (NR % 4) printf "\n" }'
