@@ -578,16 +578,29 @@ pub fn run_demo(
             demo::say(out, "not every node activated its table");
             return Ok(false);
         }
+        let activated = Instant::now();
         bed.set_plant(plant::actuators(robot)?)?;
         let expect: Vec<String> = robot.ir.expect.iter().map(|s| s.to_string()).collect();
         demo::say(out, &format!("sequence: {}", expect.join(" ")));
+        let mut first_motion = None;
         for i in 1..=n {
             let t0 = Instant::now();
             let cycle = bed.run_cycle(robot, &mut |s| {
+                first_motion.get_or_insert_with(|| activated.elapsed());
                 let _ = writeln!(io::stderr(), "  {:>7.3} s  {s}", t0.elapsed().as_secs_f64());
             })?;
             all_ok &= cycle.ok();
             demo::say(out, &demo::cycle_line(i, &cycle));
+            if let (1, Some(t)) = (i, first_motion) {
+                demo::say(
+                    out,
+                    &format!(
+                        "first motion {:.1} ms after the last table was activated (START \
+                         included)",
+                        t.as_secs_f64() * 1e3
+                    ),
+                );
+            }
             if !cycle.ok() {
                 break;
             }
