@@ -135,12 +135,15 @@ impl Bed {
         }
     }
 
-    /// Wires the plant for these actuators (restarting it: call between cycles).
+    /// Wires the plant for these actuators (restarting it: call between cycles). The plant
+    /// is on the medium, its switches set, when this returns.
     pub fn set_plant(&mut self, actuators: Vec<Actuator>) -> Result<(), String> {
         self.stop_plant();
         let stop = Arc::new(AtomicBool::new(false));
-        let (addr, tx, flag) = (self.medium.addr(), self.steps_tx.clone(), stop.clone());
-        let handle = std::thread::spawn(move || plant::run(addr, actuators, tx, flag));
+        let stream =
+            plant::attach(self.medium.addr(), &actuators).map_err(|e| format!("plant: {e}"))?;
+        let (tx, flag) = (self.steps_tx.clone(), stop.clone());
+        let handle = std::thread::spawn(move || plant::run_attached(stream, actuators, tx, flag));
         self.plant = Some((stop, handle));
         while self.steps.try_recv().is_ok() {}
         Ok(())

@@ -94,6 +94,37 @@ struct State {
     arrival: Option<Instant>,
 }
 
+fn send(stream: &mut TcpStream, link: &Link) -> io::Result<()> {
+    let mut buf = [0u8; MAX_LINK];
+    let n = link.emit(&mut buf).map_err(|_| io::Error::other("link"))?;
+    stream.write_all(&buf[..n])
+}
+
+/// Connects to the medium as the plant and drives every limit switch to the rest position
+/// (rods home): when this returns, the hello and the levels are on their way to the nodes,
+/// ahead of anything sent after it (a START right after wiring a node new to the plant
+/// finds its switches set).
+pub fn attach(medium: SocketAddr, actuators: &[Actuator]) -> io::Result<TcpStream> {
+    let mut stream = TcpStream::connect_timeout(&medium, Duration::from_secs(5))?;
+    stream.set_nodelay(true)?;
+    send(&mut stream, &Link::Hello(Peer::Plant))?;
+    for a in actuators {
+        for (pin, level) in [(a.home, true), (a.end, false)] {
+            if let Some(pin) = pin {
+                send(
+                    &mut stream,
+                    &Link::Pin {
+                        addr: a.addr,
+                        pin,
+                        level,
+                    },
+                )?;
+            }
+        }
+    }
+    Ok(stream)
+}
+
 /// Runs the plant until `stop` is set or the medium goes away. Every step is sent to
 /// `steps` as it starts.
 pub fn run(
@@ -102,14 +133,17 @@ pub fn run(
     steps: Sender<Step>,
     stop: Arc<AtomicBool>,
 ) -> io::Result<()> {
-    let mut stream = TcpStream::connect_timeout(&medium, Duration::from_secs(5))?;
-    stream.set_nodelay(true)?;
-    let send = |stream: &mut TcpStream, link: &Link| -> io::Result<()> {
-        let mut buf = [0u8; MAX_LINK];
-        let n = link.emit(&mut buf).map_err(|_| io::Error::other("link"))?;
-        stream.write_all(&buf[..n])
-    };
-    send(&mut stream, &Link::Hello(Peer::Plant))?;
+    let stream = attach(medium, &actuators)?;
+    run_attached(stream, actuators, steps, stop)
+}
+
+/// [`run`] on a connection made by [`attach`].
+pub fn run_attached(
+    mut stream: TcpStream,
+    actuators: Vec<Actuator>,
+    steps: Sender<Step>,
+    stop: Arc<AtomicBool>,
+) -> io::Result<()> {
     let start = Instant::now();
     let ms = |t: Instant| t.duration_since(start).as_millis() as u64;
     let mut states: Vec<State> = actuators

@@ -133,6 +133,14 @@ fn reconfiguration_while_running_then_role_reassigned_to_the_spare() {
 
     // The VC cylinder's cable moved with the role: the plant is rewired.
     bed.set_plant(plant::actuators(&spare).unwrap()).unwrap();
+    // The spare sees the rod at home (its switch is wired now) before START.
+    let (vc, _) = role_of(&spare, "VC");
+    let home = spare.ir.roles[vc]
+        .inputs
+        .iter()
+        .position(|i| i.name == "VC.home")
+        .expect("VC.home input");
+    wait_until(&mut bed, SPARE, |s| s.inputs & (1 << home) != 0);
     let clients = bed.medium().stats().clients;
     let mut monitor = Monitor::join(bed.medium().addr());
     assert!(bed.medium().wait_for_clients(clients + 1, TIMEOUT));

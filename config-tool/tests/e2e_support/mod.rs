@@ -172,6 +172,18 @@ pub fn status(bed: &mut Bed, addr: u16) -> Status {
     bed.command(addr, Command::Status).expect("status")
 }
 
+/// Asks node `addr` for its status until `ok` holds (at most [`TIMEOUT`]).
+pub fn wait_until(bed: &mut Bed, addr: u16, mut ok: impl FnMut(&Status) -> bool) -> Status {
+    let end = Instant::now() + TIMEOUT;
+    loop {
+        let s = status(bed, addr);
+        if ok(&s) {
+            return s;
+        }
+        assert!(Instant::now() < end, "node {addr:#06x}: {s:?}");
+    }
+}
+
 /// Runs one cycle and checks it: exactly the declared steps, nothing more, no fault.
 pub fn exact_cycle(bed: &mut Bed, c: &Compiled, n: usize) -> Cycle {
     let cycle = bed.run_cycle(c, &mut |_| {}).expect("cycle");
