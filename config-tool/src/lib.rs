@@ -14,6 +14,7 @@ pub mod diagram;
 pub mod dump;
 pub mod elab;
 pub mod expr;
+pub mod faults;
 pub mod ir;
 pub mod locate;
 pub mod lower;
@@ -26,6 +27,7 @@ pub mod radio;
 pub mod sim;
 pub mod source;
 pub mod synth;
+pub mod timeline;
 pub mod verify;
 
 pub use compile::{compile, Compiled};

@@ -5,7 +5,9 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use config_tool::{check, compile, diagram, dump, sim, verify, Diagnostic, Source};
+use config_tool::{
+    check, compile, diagram, dump, faults, sim, timeline, verify, Diagnostic, Source,
+};
 
 #[derive(Parser)]
 #[command(
@@ -50,6 +52,13 @@ enum Command {
         /// Print every trace entry.
         #[arg(long)]
         trace: bool,
+        /// Inject a fault: stuck:ACT, switch:ACT.end|ACT.home, stop:ROLE or
+        /// link:FROM->TO, then @STEP or @CYCLE.STEP (injected just before that step).
+        #[arg(long)]
+        fault: Option<String>,
+        /// Write a time diagram of the run (SVG): actuator positions, chart states, events.
+        #[arg(long)]
+        timeline: Option<PathBuf>,
     },
     /// Explore every reachable state of the machine (charts, plant, radio) and check
     /// deadlock freedom, sequence conformance, interlocks and no double actuation.
@@ -187,13 +196,33 @@ fn run(cli: Cli) -> Result<(), String> {
             robot,
             cycles,
             trace,
+            fault,
+            timeline,
         } => {
             let src = load(&robot)?;
             let compiled = compile::compile(&src).map_err(|d| {
                 report(&src, &d);
                 String::new()
             })?;
-            let result = if trace {
+            if let Some(spec) = fault {
+                let spec = faults::parse(&spec).map_err(|e| format!("error: {e}"))?;
+                let run = faults::simulate(&compiled, &spec).map_err(|e| format!("error: {e}"))?;
+                if trace {
+                    for e in &run.trace {
+                        println!("{e}");
+                    }
+                }
+                if let Some(path) = timeline {
+                    write_timeline(&compiled, &run.trace, &path)?;
+                }
+                print!("{}", run.report(&compiled));
+                return if run.stopped_safely() {
+                    Ok(())
+                } else {
+                    Err(String::new())
+                };
+            }
+            let result = if trace || timeline.is_some() {
                 sim::simulate_traced(&compiled, cycles)
             } else {
                 sim::simulate(&compiled, cycles)
@@ -204,6 +233,11 @@ fn run(cli: Cli) -> Result<(), String> {
                     println!("{line}");
                 }
             }
+            if let Some(path) = timeline {
+                let entries =
+                    timeline::run(&compiled, cycles).map_err(|e| format!("error: {e}"))?;
+                write_timeline(&compiled, &entries, &path)?;
+            }
             print!("{}", result.report());
             if result.ok() {
                 Ok(())
@@ -212,6 +246,17 @@ fn run(cli: Cli) -> Result<(), String> {
             }
         }
     }
+}
+
+fn write_timeline(
+    compiled: &config_tool::Compiled,
+    trace: &[node_fw::sim::TraceEntry],
+    path: &Path,
+) -> Result<(), String> {
+    let svg = timeline::svg(compiled, trace).map_err(|e| format!("error: {e}"))?;
+    std::fs::write(path, svg).map_err(|e| format!("error: {}: {e}", path.display()))?;
+    eprintln!("timeline: {}", path.display());
+    Ok(())
 }
 
 fn main() -> ExitCode {

@@ -173,13 +173,18 @@ pub fn simulate_traced(c: &Compiled, cycles: usize) -> Result<SimResult, String>
     run(c, cycles, true)
 }
 
-fn run(c: &Compiled, cycles: usize, keep_trace: bool) -> Result<SimResult, String> {
-    let tables: Vec<Table> = c
-        .blobs
+/// The robot's blobs decoded as a node decodes them, in role order.
+pub fn tables(c: &Compiled) -> Result<Vec<Table>, String> {
+    c.blobs
         .iter()
         .zip(&c.ir.roles)
         .map(|(b, r)| config_schema::decode(b).map_err(|e| format!("blob of role {}: {e}", r.name)))
-        .collect::<Result<_, _>>()?;
+        .collect()
+}
+
+/// A world running `tables` (from [`tables`]) with the robot's plants, and the index of
+/// its start button.
+pub fn world<'t>(c: &Compiled, tables: &'t [Table]) -> Result<(World<'t>, usize), String> {
     let specs: Vec<NodeSpec> = tables
         .iter()
         .zip(&c.ir.roles)
@@ -189,7 +194,13 @@ fn run(c: &Compiled, cycles: usize, keep_trace: bool) -> Result<SimResult, Strin
         })
         .collect();
     let (plants, button) = plants(c)?;
-    let mut world = World::new(&specs, plants).map_err(|e| e.to_string())?;
+    let world = World::new(&specs, plants).map_err(|e| e.to_string())?;
+    Ok((world, button))
+}
+
+fn run(c: &Compiled, cycles: usize, keep_trace: bool) -> Result<SimResult, String> {
+    let tables = tables(c)?;
+    let (mut world, button) = world(c, &tables)?;
     let expect: Vec<String> = c.ir.expect.iter().map(|s| s.to_string()).collect();
     let mut result = SimResult {
         expect,

@@ -149,6 +149,10 @@ enum Ev {
         to: usize,
         topic: Topic,
     },
+    LinkAlarm {
+        node: usize,
+        peer: usize,
+    },
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -271,6 +275,23 @@ pub struct World<'t> {
     event_limit: usize,
     trace: Vec<TraceEntry>,
     scratch: Vec<Effect>,
+    /// Injected faults: jammed plants, broken switches (node, input), stopped nodes, cut
+    /// links (from, to), and links already in alarm.
+    jammed: Vec<bool>,
+    broken: Vec<(usize, u8)>,
+    stopped: Vec<bool>,
+    cut: Vec<(usize, usize)>,
+    alarmed: Vec<(usize, usize)>,
+}
+
+/// Time from a publication to the link alarm when the subscriber never acknowledges: the
+/// reliable link's [`ALARM_AFTER`](crate::link::ALARM_AFTER) retransmission timeouts with
+/// exponential backoff (30 + 60 + 6 x 120 = 810 ms).
+pub fn link_alarm_ms() -> u64 {
+    use crate::link::{ALARM_AFTER, RTO_MAX_MS, RTO_MS};
+    (0..u32::from(ALARM_AFTER))
+        .map(|i| (RTO_MS << i.min(8)).min(RTO_MAX_MS))
+        .sum()
 }
 
 impl<'t> World<'t> {
@@ -323,6 +344,7 @@ impl<'t> World<'t> {
                 used.push((node, input, false));
             }
         }
+        let plants_len = plants.len();
         let mut world = World {
             now: 0,
             seq: 0,
@@ -343,6 +365,11 @@ impl<'t> World<'t> {
             event_limit: RUN_EVENT_LIMIT,
             trace: Vec::new(),
             scratch: Vec::new(),
+            jammed: vec![false; plants_len],
+            broken: Vec::new(),
+            stopped: vec![false; nodes.len()],
+            cut: Vec::new(),
+            alarmed: Vec::new(),
         };
         // Power-up: the nodes read their switches, then start from their initial states.
         let mut powered = vec![false; world.nodes.len()];
@@ -523,6 +550,61 @@ impl<'t> World<'t> {
         Ok(())
     }
 
+    /// Injects a jammed actuator: from now on valve commands to plant `plant` move nothing
+    /// (a motion under way still completes).
+    pub fn jam(&mut self, plant: usize) -> Result<(), SimError> {
+        if self.plants.get(plant).and_then(Plant::travel).is_none() {
+            return Err(SimError::NoSuchPlant {
+                plant,
+                want: "an actuator",
+            });
+        }
+        self.jammed[plant] = true;
+        let fault = format!("{} jammed", self.plants[plant].name());
+        self.log(What::Injected { fault });
+        Ok(())
+    }
+
+    /// Injects a broken switch: input `input` of node `node` stays low from now on.
+    pub fn break_switch(&mut self, node: usize, input: u8) -> Result<(), SimError> {
+        if node >= self.nodes.len() {
+            return Err(SimError::NoSuchNodeIndex { node });
+        }
+        self.broken.push((node, input));
+        self.log(What::Injected {
+            fault: format!("node {node} input {input} broken (stays low)"),
+        });
+        Ok(())
+    }
+
+    /// Injects a stopped node: it handles nothing more (its outputs keep their levels, its
+    /// timers never fire) and acknowledges nothing, so its publishers' links go into alarm.
+    pub fn stop_node(&mut self, node: usize) -> Result<(), SimError> {
+        if node >= self.nodes.len() {
+            return Err(SimError::NoSuchNodeIndex { node });
+        }
+        self.stopped[node] = true;
+        self.log(What::Injected {
+            fault: format!("node {node} stopped"),
+        });
+        Ok(())
+    }
+
+    /// Injects a lost link: nothing published by `from` reaches `to` any more; `from`'s link
+    /// goes into alarm [`link_alarm_ms`] after the first undelivered publication.
+    pub fn cut_link(&mut self, from: usize, to: usize) -> Result<(), SimError> {
+        for node in [from, to] {
+            if node >= self.nodes.len() {
+                return Err(SimError::NoSuchNodeIndex { node });
+            }
+        }
+        self.cut.push((from, to));
+        self.log(What::Injected {
+            fault: format!("link node {from} -> node {to} lost"),
+        });
+        Ok(())
+    }
+
     /// Resets node `node` (the reset command): charts to initial states, timers cancelled,
     /// outputs safe, fault cleared. Applied at once.
     pub fn reset(&mut self, node: usize) -> Result<(), SimError> {
@@ -658,6 +740,24 @@ impl<'t> World<'t> {
                 self.log(What::TimerExpired { node, timer });
                 self.call(node, |e, fx| e.timer_expired(timer, fx));
             }
+            Ev::Deliver { from, to, .. } if self.stopped[to] || self.cut.contains(&(from, to)) => {
+                if !self.alarmed.contains(&(from, to)) {
+                    self.alarmed.push((from, to));
+                    let wait = link_alarm_ms().saturating_sub(self.radio_delay_ms);
+                    self.schedule(
+                        wait,
+                        Ev::LinkAlarm {
+                            node: from,
+                            peer: to,
+                        },
+                    );
+                }
+            }
+            Ev::LinkAlarm { node, peer } => {
+                if !self.stopped[node] {
+                    self.log(What::LinkAlarm { node, peer });
+                }
+            }
             Ev::Deliver { from, to, topic } => {
                 let from_addr = self.nodes[from].addr;
                 let engine = &self.nodes[to].engine;
@@ -685,12 +785,18 @@ impl<'t> World<'t> {
     }
 
     fn set_input(&mut self, node: usize, input: u8, level: bool) {
+        if level && self.broken.contains(&(node, input)) {
+            return;
+        }
         self.log(What::Input { node, input, level });
         self.call(node, |e, fx| e.input(input, level, fx));
     }
 
     /// Runs one engine call with a tracing sink, then applies its effects.
     fn call(&mut self, node: usize, f: impl FnOnce(&mut Engine<'t>, &mut Fx<'_>)) {
+        if self.stopped[node] {
+            return;
+        }
         let mut todo = std::mem::take(&mut self.scratch);
         {
             let mut fx = Fx {
@@ -795,6 +901,15 @@ impl<'t> World<'t> {
         let Some(travel) = self.plants[plant].travel() else {
             return;
         };
+        if self.jammed[plant] {
+            if self.rods[plant].position() != Position::from_command(extend) {
+                self.log(What::Jammed {
+                    plant,
+                    plus: extend,
+                });
+            }
+            return;
+        }
         let outcome = self.rods[plant].command(self.now, extend, travel);
         let arrive = match outcome {
             RodOutcome::Nothing => return,

@@ -192,6 +192,17 @@ pub enum Outcome {
     Reversed { arrive: u64 },
 }
 
+impl Position {
+    /// Where a command `extend` (or retract) leads when it completes.
+    pub fn from_command(extend: bool) -> Position {
+        if extend {
+            Position::End
+        } else {
+            Position::Home
+        }
+    }
+}
+
 impl Rod {
     pub fn position(self) -> Position {
         match self {

@@ -74,6 +74,12 @@ pub enum What {
     Fault { node: usize, fault: Fault },
     /// [`World::reset`](super::World::reset) reset a node.
     Reset { node: usize },
+    /// A fault was injected (`jam`, `break_switch`, `stop_node`, `cut_link`), as text.
+    Injected { fault: String },
+    /// A valve command reached a jammed actuator: it did not move.
+    Jammed { plant: usize, plus: bool },
+    /// The link from `node` to `peer` gave up after its retries: link alarm at `node`.
+    LinkAlarm { node: usize, peer: usize },
 }
 
 impl What {
@@ -148,6 +154,18 @@ impl fmt::Display for What {
             ),
             What::Fault { node, fault } => write!(f, "node {node} FAULT {fault:?}"),
             What::Reset { node } => write!(f, "node {node} reset"),
+            What::Injected { fault } => write!(f, "INJECTED {fault}"),
+            What::Jammed { plant, plus } => write!(
+                f,
+                "plant #{plant} commanded {} but jammed",
+                if *plus { '+' } else { '-' }
+            ),
+            What::LinkAlarm { node, peer } => {
+                write!(
+                    f,
+                    "node {node} LINK ALARM: node {peer} does not acknowledge"
+                )
+            }
         }
     }
 }

@@ -1,0 +1,345 @@
+//! `sim --timeline FILE.svg`: a state-timing diagram of a simulated run, like seed 001's:
+//! one lane per actuator (home / moving / end, drawn as the rod's stroke over time), one
+//! lane per chart (its state over time, a tick per transition), a radio lane (a tick per
+//! publication), and faults, link alarms and injected faults as vertical lines.
+//!
+//! Every lane is a `<g class="lane KIND" data-name="NAME">` (KIND: `actuator`, `chart`,
+//! `radio`), so tools and tests can find them.
+
+use std::fmt::Write;
+
+use node_fw::sim::{TraceEntry, What};
+
+use crate::compile::Compiled;
+use crate::sim::CYCLE_LIMIT_MS;
+
+const LEFT: f64 = 150.0;
+const WIDTH: f64 = 1100.0;
+const ACT_H: f64 = 44.0;
+const CHART_H: f64 = 26.0;
+const RADIO_H: f64 = 22.0;
+const TOP: f64 = 36.0;
+
+/// Runs `cycles` cycles and returns the whole trace.
+pub fn run(c: &Compiled, cycles: usize) -> Result<Vec<TraceEntry>, String> {
+    let tables = crate::sim::tables(c)?;
+    let (mut world, button) = crate::sim::world(c, &tables)?;
+    for _ in 0..cycles {
+        world
+            .run_cycle(button, CYCLE_LIMIT_MS)
+            .map_err(|e| e.to_string())?;
+    }
+    Ok(world.take_trace())
+}
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// A tick spacing of 1, 2 or 5 times a power of ten giving about 10 ticks.
+fn tick_step(end_ms: u64) -> u64 {
+    let raw = (end_ms / 10).max(1);
+    let mut p = 1u64;
+    while p * 10 <= raw {
+        p *= 10;
+    }
+    [1, 2, 5, 10]
+        .iter()
+        .map(|m| m * p)
+        .find(|s| *s >= raw)
+        .unwrap_or(10 * p)
+}
+
+/// The SVG of a trace of the compiled robot.
+pub fn svg(c: &Compiled, trace: &[TraceEntry]) -> Result<String, String> {
+    let (plants, _) = crate::sim::plants(c)?;
+    let actuators: Vec<(usize, &str)> = plants
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.travel().is_some())
+        .map(|(i, p)| (i, p.name()))
+        .collect();
+    let charts: Vec<(usize, usize)> =
+        c.ir.roles
+            .iter()
+            .enumerate()
+            .flat_map(|(r, role)| (0..role.charts.len()).map(move |ch| (r, ch)))
+            .collect();
+    let end_ms = trace.last().map_or(1, |e| e.t_ms).max(1);
+    let x = |t: u64| LEFT + WIDTH * t as f64 / end_ms as f64;
+    let height =
+        TOP + ACT_H * actuators.len() as f64 + CHART_H * charts.len() as f64 + RADIO_H + 40.0;
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{:.0}" height="{height:.0}" font-family="sans-serif" font-size="11">"#,
+        LEFT + WIDTH + 20.0
+    );
+    let _ = writeln!(
+        o,
+        r#"<rect x="0" y="0" width="{:.0}" height="{height:.0}" fill="white"/>"#,
+        LEFT + WIDTH + 20.0
+    );
+    let _ = writeln!(
+        o,
+        r#"<text x="10" y="20" font-size="14" font-weight="bold">{} — {} ms</text>"#,
+        esc(&c.ir.name),
+        end_ms
+    );
+    let mut y = TOP;
+    // Actuator lanes: the stroke over time.
+    for (plant, name) in &actuators {
+        let (lo, hi) = (y + ACT_H - 10.0, y + 8.0);
+        let _ = writeln!(o, r#"<g class="lane actuator" data-name="{}">"#, esc(name));
+        let _ = writeln!(
+            o,
+            r##"<rect x="{LEFT}" y="{y}" width="{WIDTH}" height="{ACT_H}" fill="#f4f7fb" stroke="#dde"/>"##
+        );
+        let _ = writeln!(
+            o,
+            r#"<text x="10" y="{:.1}" font-weight="bold">{}</text><text x="{:.1}" y="{:.1}" font-size="9" fill="gray" text-anchor="end">end</text><text x="{:.1}" y="{:.1}" font-size="9" fill="gray" text-anchor="end">home</text>"#,
+            y + ACT_H / 2.0 + 4.0,
+            esc(name),
+            LEFT - 4.0,
+            hi + 3.0,
+            LEFT - 4.0,
+            lo + 3.0
+        );
+        let mut points = vec![(x(0), lo)];
+        let mut level = lo;
+        for e in trace {
+            match &e.what {
+                What::Step { plant: p, plus, .. } if p == plant => {
+                    points.push((x(e.t_ms), level));
+                    let _ = plus;
+                }
+                What::Arrived { plant: p, end } if p == plant => {
+                    level = if *end { hi } else { lo };
+                    points.push((x(e.t_ms), level));
+                }
+                What::Jammed { plant: p, .. } if p == plant => {
+                    let _ = writeln!(
+                        o,
+                        r#"<text x="{:.1}" y="{:.1}" fill="red" font-weight="bold" text-anchor="middle">✕ jammed</text>"#,
+                        x(e.t_ms),
+                        y + ACT_H / 2.0 + 4.0
+                    );
+                }
+                _ => {}
+            }
+        }
+        points.push((x(end_ms), level));
+        let pts: Vec<String> = points
+            .iter()
+            .map(|(a, b)| format!("{a:.1},{b:.1}"))
+            .collect();
+        let _ = writeln!(
+            o,
+            r##"<polyline points="{}" fill="none" stroke="#1f4e9c" stroke-width="2"/>"##,
+            pts.join(" ")
+        );
+        for e in trace {
+            if let What::Step { plant: p, .. } = &e.what {
+                if p == plant {
+                    let _ = writeln!(
+                        o,
+                        r##"<text x="{:.1}" y="{:.1}" font-size="9" fill="#1f4e9c">{}</text>"##,
+                        x(e.t_ms) + 2.0,
+                        y + ACT_H / 2.0 + 3.0,
+                        esc(&e.what.step().unwrap_or_default())
+                    );
+                }
+            }
+        }
+        o.push_str("</g>\n");
+        y += ACT_H;
+    }
+    // Chart lanes: state intervals and a tick per transition.
+    let palette = [
+        "#e8f0e0", "#fdf0d8", "#e6eefa", "#f6e4ee", "#e9e4f6", "#e0f3f3",
+    ];
+    for &(r, ch) in &charts {
+        let role = &c.ir.roles[r];
+        let chart = &role.charts[ch];
+        let label = format!("{}.{}", role.name, chart.name);
+        let _ = writeln!(o, r#"<g class="lane chart" data-name="{}">"#, esc(&label));
+        let _ = writeln!(
+            o,
+            r#"<text x="10" y="{:.1}">{}</text>"#,
+            y + CHART_H / 2.0 + 4.0,
+            esc(&label)
+        );
+        let mut intervals: Vec<(u64, usize)> = vec![(0, chart.initial)];
+        let mut ticks = Vec::new();
+        for e in trace {
+            match &e.what {
+                What::Fired {
+                    node, chart: k, to, ..
+                } if *node == r && usize::from(*k) == ch => {
+                    intervals.push((e.t_ms, usize::from(*to)));
+                    ticks.push(e.t_ms);
+                }
+                What::Reset { node } if *node == r => intervals.push((e.t_ms, chart.initial)),
+                _ => {}
+            }
+        }
+        for (i, (t0, s)) in intervals.iter().enumerate() {
+            let t1 = intervals.get(i + 1).map_or(end_ms, |n| n.0);
+            let (x0, x1) = (x(*t0), x(t1));
+            let name = chart.states.get(*s).map_or("?", |st| st.name.as_str());
+            let _ = writeln!(
+                o,
+                r##"<rect x="{x0:.1}" y="{:.1}" width="{:.1}" height="{:.1}" fill="{}" stroke="#999" stroke-width="0.5"><title>{} {} from {} ms</title></rect>"##,
+                y + 3.0,
+                (x1 - x0).max(0.5),
+                CHART_H - 6.0,
+                palette[*s % palette.len()],
+                esc(&label),
+                esc(name),
+                t0
+            );
+            if x1 - x0 > 6.5 * name.len() as f64 {
+                let _ = writeln!(
+                    o,
+                    r#"<text x="{:.1}" y="{:.1}" font-size="10">{}</text>"#,
+                    x0 + 2.0,
+                    y + CHART_H / 2.0 + 4.0,
+                    esc(name)
+                );
+            }
+        }
+        // A faulted node's charts no longer run: shade the rest of the lane.
+        let fault = trace.iter().find_map(|e| match &e.what {
+            What::Fault { node, .. } if *node == r => Some(e.t_ms),
+            _ => None,
+        });
+        if let Some(t0) = fault {
+            let _ = writeln!(
+                o,
+                r##"<rect class="faulted" x="{:.1}" y="{:.1}" width="{:.1}" height="{:.1}" fill="#ff0000" fill-opacity="0.18"/><text x="{:.1}" y="{:.1}" font-size="9" fill="#b00000">FAULT</text>"##,
+                x(t0),
+                y + 3.0,
+                (x(end_ms) - x(t0)).max(0.5),
+                CHART_H - 6.0,
+                x(t0) + 2.0,
+                y + CHART_H / 2.0 + 3.0
+            );
+        }
+        for t in ticks {
+            let _ = writeln!(
+                o,
+                r#"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}" stroke="black"/>"#,
+                x(t),
+                y + CHART_H - 3.0,
+                x(t),
+                y + CHART_H + 1.0
+            );
+        }
+        o.push_str("</g>\n");
+        y += CHART_H;
+    }
+    // Radio lane: a tick per publication.
+    let _ = writeln!(o, r#"<g class="lane radio" data-name="radio">"#);
+    let _ = writeln!(
+        o,
+        r#"<text x="10" y="{:.1}" fill="gray">radio</text>"#,
+        y + RADIO_H / 2.0 + 4.0
+    );
+    for e in trace {
+        if let What::Publish { node, event, .. } = &e.what {
+            let ev = c.ir.roles[*node]
+                .events
+                .get(usize::from(*event))
+                .cloned()
+                .unwrap_or_default();
+            let _ = writeln!(
+                o,
+                r##"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}" stroke="#c07000" stroke-width="1.5"><title>{} publishes {} at {} ms</title></line>"##,
+                x(e.t_ms),
+                y + 4.0,
+                x(e.t_ms),
+                y + RADIO_H - 4.0,
+                esc(&c.ir.roles[*node].name),
+                esc(&ev),
+                e.t_ms
+            );
+        }
+    }
+    o.push_str("</g>\n");
+    y += RADIO_H;
+    // Faults, link alarms, injections (the first of each instant labelled).
+    let mut labelled: Vec<u64> = Vec::new();
+    for e in trace {
+        let mark = match &e.what {
+            What::Fault { node, fault } => Some((
+                "red",
+                match fault {
+                    node_fw::ecc::Fault::Action { code, .. } => {
+                        format!("FAULT {} (code {code})", c.ir.roles[*node].name)
+                    }
+                    other => format!("FAULT {} {other:?}", c.ir.roles[*node].name),
+                },
+            )),
+            What::LinkAlarm { node, peer } => Some((
+                "#b000b0",
+                format!(
+                    "LINK ALARM {} -> {}",
+                    c.ir.roles[*node].name, c.ir.roles[*peer].name
+                ),
+            )),
+            What::Injected { fault } => Some(("black", format!("injected: {fault}"))),
+            _ => None,
+        };
+        if let Some((color, text)) = mark {
+            if labelled.last().is_none_or(|t| x(e.t_ms) - x(*t) > 140.0) {
+                labelled.push(e.t_ms);
+                let _ = writeln!(
+                    o,
+                    r#"<text x="{:.1}" y="{:.1}" font-size="9" fill="{color}" text-anchor="end">{}</text>"#,
+                    x(e.t_ms) - 2.0,
+                    TOP - 4.0,
+                    esc(&text)
+                );
+            }
+            let _ = writeln!(
+                o,
+                r#"<line class="mark" x1="{:.1}" y1="{TOP}" x2="{:.1}" y2="{y:.1}" stroke="{color}" stroke-dasharray="4,3"><title>{} at {} ms</title></line>"#,
+                x(e.t_ms),
+                x(e.t_ms),
+                esc(&text),
+                e.t_ms
+            );
+        }
+    }
+    // Time axis.
+    let step = tick_step(end_ms);
+    let _ = writeln!(
+        o,
+        r#"<line x1="{LEFT}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="black"/>"#,
+        LEFT + WIDTH
+    );
+    let mut t = 0;
+    while t <= end_ms {
+        let _ = writeln!(
+            o,
+            r#"<line x1="{:.1}" y1="{y:.1}" x2="{:.1}" y2="{:.1}" stroke="black"/><text x="{:.1}" y="{:.1}" font-size="9" text-anchor="middle">{t}</text>"#,
+            x(t),
+            x(t),
+            y + 4.0,
+            x(t),
+            y + 15.0
+        );
+        t += step;
+    }
+    let _ = writeln!(
+        o,
+        r#"<text x="{:.1}" y="{:.1}" font-size="9" text-anchor="end">ms</text>"#,
+        LEFT + WIDTH,
+        y + 28.0
+    );
+    o.push_str("</svg>\n");
+    Ok(o)
+}
