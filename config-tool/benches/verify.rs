@@ -1,0 +1,109 @@
+//! `verify` performance, printed figures: states explored per second, verify time of the
+//! paint robot (lossless and lossy links), and of synthesised robots of 4, 6 and 8
+//! double-acting cylinders, one node each, 2 steps each per cycle (`A+ B+ .. B- A-`), and
+//! how the state count grows with the number of actuators. Best of 3 runs each.
+
+use std::time::{Duration, Instant};
+
+use config_tool::verify::{self, Options, Report};
+use config_tool::{compile, Compiled, Source};
+
+fn paint_robot() -> Compiled {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../robot-configs/paint-robot.ron"
+    );
+    let text = std::fs::read_to_string(path).expect("paint-robot.ron");
+    compile(&Source::new("paint-robot.ron", text)).expect("compiles")
+}
+
+/// `n` cylinders, one node each, cycle `A+ B+ .. N+ N- .. B- A-`.
+fn nested(n: usize) -> Compiled {
+    let names: Vec<String> = (0..n).map(|i| format!("A{i}")).collect();
+    let mut nodes = String::new();
+    let mut assign = String::new();
+    let mut roles = String::new();
+    for (i, a) in names.iter().enumerate() {
+        nodes += &format!("(name: \"n{i}\", address: {}),", i + 1);
+        assign += &format!("(\"{a}\", \"n{i}\"),");
+        let start = if i == 0 {
+            "inputs: [(name: \"START\", pin: 4)],"
+        } else {
+            ""
+        };
+        roles += &format!(
+            "(name: \"{a}\", actuators: [(name: \"{a}\", kind: DoubleActing(extend: 0, \
+             retract: 1, home: 2, end: 3))], {start}),"
+        );
+    }
+    let mut seq: Vec<String> = names.iter().map(|a| format!("{a}+")).collect();
+    seq.extend(names.iter().rev().map(|a| format!("{a}-")));
+    let text = format!(
+        "Robot(name: \"nested-{n}\", network: (pan_id: 0x4242, channel: 20), nodes: [{nodes}], \
+         assign: [{assign}], roles: [{roles}], start: \"START\", sequence: \"{}\")",
+        seq.join(" ")
+    );
+    compile(&Source::new("nested", text)).expect("compiles")
+}
+
+fn best(c: &Compiled, lossy: bool) -> (Report, Duration) {
+    let mut best: Option<(Report, Duration)> = None;
+    for _ in 0..3 {
+        let r = verify::verify(
+            c,
+            Options {
+                lossy,
+                ..Options::default()
+            },
+        )
+        .expect("model");
+        assert!(r.ok(), "{}", r.render("bench", 0));
+        let t = r.elapsed;
+        if best.as_ref().is_none_or(|b| t < b.1) {
+            best = Some((r, t));
+        }
+    }
+    best.expect("three runs")
+}
+
+fn line(name: &str, r: &Report, t: Duration) {
+    println!(
+        "{name:<26} {:>9} states {:>10} transitions {:>10.3} ms {:>12.0} states/s",
+        r.states,
+        r.transitions,
+        t.as_secs_f64() * 1e3,
+        r.states as f64 / t.as_secs_f64()
+    );
+}
+
+fn main() {
+    // `cargo bench` passes `--bench`; any other argument is a filter we do not need.
+    let t0 = Instant::now();
+    let paint = paint_robot();
+    let (r, t) = best(&paint, false);
+    line("paint-robot", &r, t);
+    let (r, t) = best(&paint, true);
+    line("paint-robot --lossy", &r, t);
+    let mut counts = Vec::new();
+    for n in [2, 3, 4, 5, 6, 7, 8] {
+        let c = nested(n);
+        let (r, t) = best(&c, false);
+        line(&format!("{n} actuators, {} steps", 2 * n), &r, t);
+        counts.push((n, r.states));
+    }
+    for n in [4, 6, 8] {
+        let c = nested(n);
+        let (r, t) = best(&c, true);
+        line(&format!("{n} actuators --lossy"), &r, t);
+    }
+    println!("state count growth (lossless):");
+    for w in counts.windows(2) {
+        println!(
+            "  {} -> {} actuators: x{:.2}",
+            w[0].0,
+            w[1].0,
+            w[1].1 as f64 / w[0].1 as f64
+        );
+    }
+    println!("total bench time {:.1} s", t0.elapsed().as_secs_f64());
+}
