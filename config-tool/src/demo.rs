@@ -386,8 +386,22 @@ pub fn qemu_args(
     addr: u16,
     medium: SocketAddr,
     flash: Option<&Path>,
+    count: Option<&Path>,
 ) -> Result<Vec<OsString>, String> {
     let mut semihosting = OsString::from("enable=on,target=native");
+    let mut word = provision_word(addr);
+    let mut extra: Vec<OsString> = Vec::new();
+    if let Some(dir) = count {
+        // A nanosecond of emulated time is one instruction; the firmware logs its busy
+        // time and stimuli to the node's log file.
+        word |= PROVISION_COUNT;
+        let log = count_log(dir, addr);
+        let mut chardev = OsString::from("file,id=log,path=");
+        chardev.push(log.as_os_str());
+        extra.extend(["-icount".into(), "shift=0,sleep=on".into()]);
+        extra.extend(["-chardev".into(), chardev]);
+        semihosting.push(",chardev=log");
+    }
     if let Some(f) = flash {
         let text = f.to_str().unwrap_or(",");
         // QEMU splits options at commas and the firmware its command line at spaces.
@@ -410,11 +424,7 @@ pub fn qemu_args(
         "-kernel".into(),
         elf.as_os_str().to_owned(),
         "-device".into(),
-        format!(
-            "loader,addr={PROVISION_AT:#010x},data={:#010x},data-len=4",
-            provision_word(addr)
-        )
-        .into(),
+        format!("loader,addr={PROVISION_AT:#010x},data={word:#010x},data-len=4").into(),
         "-chardev".into(),
         format!(
             "socket,id=radio,host={},port={},nodelay=on",
@@ -427,5 +437,44 @@ pub fn qemu_args(
         "-semihosting-config".into(),
     ];
     args.push(semihosting);
+    args.extend(extra);
     Ok(args)
+}
+
+/// The provisioning flag "count busy time and stimuli".
+const PROVISION_COUNT: u32 = 2 << 16;
+
+/// Where a counting QEMU node logs.
+pub fn count_log(dir: &Path, addr: u16) -> PathBuf {
+    dir.join(format!("node-{addr:04x}.log"))
+}
+
+/// What a counting node said last.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Counts {
+    /// Instructions executed while awake (interrupts included).
+    pub instructions: u64,
+    /// Frames received.
+    pub frames: u64,
+    /// `Pin` messages received (the plant repeats levels every 200 ms).
+    pub pins: u64,
+    /// Input level changes among them.
+    pub changes: u64,
+}
+
+/// The last `count:` line of a counting node's log.
+pub fn read_counts(dir: &Path, addr: u16) -> Option<Counts> {
+    let text = std::fs::read_to_string(count_log(dir, addr)).ok()?;
+    let line = text.lines().rev().find(|l| l.contains(" count: "))?;
+    let mut words = line.split_whitespace();
+    let mut next = |key: &str| -> Option<u64> {
+        words.by_ref().find(|w| *w == key)?;
+        words.next()?.parse().ok()
+    };
+    Some(Counts {
+        instructions: next("busy_ns")?,
+        frames: next("frames")?,
+        pins: next("pins")?,
+        changes: next("changes")?,
+    })
 }

@@ -138,6 +138,10 @@ pub enum NetCommand {
         /// The firmware image the QEMU nodes boot (with --qemu).
         #[arg(long, default_value = demo::QEMU_ELF, requires = "qemu")]
         elf: PathBuf,
+        /// Count the instructions the QEMU nodes execute (`-icount shift=0`) during the
+        /// first robot's cycles: instructions per cycle and per stimulus (frame or input).
+        #[arg(long, requires = "qemu")]
+        icount: bool,
     },
     /// Run one emulated node: QEMU booting the firmware image, its UART on the medium.
     QemuNode(QemuNodeArgs),
@@ -164,6 +168,10 @@ pub struct QemuNodeArgs {
     /// A host file for its flash slots (created erased if missing; no comma or space).
     #[arg(long)]
     pub flash: Option<PathBuf>,
+    /// Count instructions (`-icount shift=0`): the node logs its busy time, frames and
+    /// input changes every second to DIR/node-AAAA.log.
+    #[arg(long, value_name = "DIR")]
+    pub count: Option<PathBuf>,
 }
 
 /// Checks the image is there (a clear message instead of QEMU's).
@@ -182,7 +190,13 @@ fn check_elf(elf: &Path) -> Result<(), String> {
 /// Becomes QEMU (exec), so whoever started this process stops the node by stopping it.
 fn qemu_node(a: QemuNodeArgs) -> Result<(), String> {
     check_elf(&a.elf)?;
-    let args = demo::qemu_args(&a.elf, a.addr, a.medium, a.flash.as_deref())?;
+    let args = demo::qemu_args(
+        &a.elf,
+        a.addr,
+        a.medium,
+        a.flash.as_deref(),
+        a.count.as_deref(),
+    )?;
     let mut cmd = std::process::Command::new(&a.qemu);
     cmd.args(&args);
     let failed = |e: io::Error| {
@@ -369,7 +383,17 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
             seed,
             qemu,
             elf,
+            icount,
         } => {
+            let count_dir = if icount {
+                let dir =
+                    std::env::temp_dir().join(format!("config-tool-icount-{}", std::process::id()));
+                std::fs::create_dir_all(&dir)
+                    .map_err(|e| format!("error: {}: {e}", dir.display()))?;
+                Some(dir)
+            } else {
+                None
+            };
             let then = match (no_reconfigure, then) {
                 (true, _) => None,
                 (false, Some(p)) => Some(p),
@@ -391,19 +415,34 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
                 node_command: if qemu {
                     check_elf(&elf)?;
                     let elf = std::path::absolute(&elf).map_err(|e| e.to_string())?;
-                    vec![
+                    let mut cmd = vec![
                         exe.into_os_string(),
                         "qemu-node".into(),
                         "--elf".into(),
                         elf.into_os_string(),
-                    ]
+                    ];
+                    if let Some(dir) = &count_dir {
+                        cmd.extend(["--count".into(), dir.clone().into_os_string()]);
+                    }
+                    cmd
                 } else {
                     vec![exe.into_os_string(), "node".into()]
                 },
                 flash_dir: None,
                 timeout: Duration::from_secs(60),
             };
-            let ok = run_demo(&robot, then.as_deref(), cycles, options, &mut io::stdout())?;
+            let ok = run_demo(
+                &robot,
+                then.as_deref(),
+                cycles,
+                options,
+                count_dir.as_deref(),
+                &mut io::stdout(),
+            );
+            if let Some(dir) = &count_dir {
+                let _ = std::fs::remove_dir_all(dir);
+            }
+            let ok = ok?;
             if ok {
                 Ok(())
             } else {
@@ -524,6 +563,7 @@ pub fn run_demo(
     then: Option<&Path>,
     cycles: usize,
     options: demo::Options,
+    count_dir: Option<&Path>,
     out: &mut dyn Write,
 ) -> Result<bool, String> {
     let c = generation_of(load(robot)?, None)?;
@@ -558,6 +598,7 @@ pub fn run_demo(
         );
     }
     let mut all_ok = true;
+    let mut first_robot = true;
     for (label, robot, n) in [(robot, &c, cycles)]
         .into_iter()
         .chain(next.as_ref().map(|n| (then.unwrap_or(robot), n, 1)))
@@ -583,6 +624,11 @@ pub fn run_demo(
         let expect: Vec<String> = robot.ir.expect.iter().map(|s| s.to_string()).collect();
         demo::say(out, &format!("sequence: {}", expect.join(" ")));
         let mut first_motion = None;
+        let counted = match count_dir {
+            Some(dir) if first_robot => Some((dir, settled_counts(dir, &addrs))),
+            _ => None,
+        };
+        first_robot = false;
         for i in 1..=n {
             let t0 = Instant::now();
             let cycle = bed.run_cycle(robot, &mut |s| {
@@ -591,7 +637,7 @@ pub fn run_demo(
             })?;
             all_ok &= cycle.ok();
             demo::say(out, &demo::cycle_line(i, &cycle));
-            if let (1, Some(t)) = (i, first_motion) {
+            if let (1, Some(t), None) = (i, first_motion, &counted) {
                 demo::say(
                     out,
                     &format!(
@@ -603,6 +649,12 @@ pub fn run_demo(
             }
             if !cycle.ok() {
                 break;
+            }
+        }
+        if let Some((dir, before)) = counted {
+            let after = settled_counts(dir, &addrs);
+            for line in count_lines(&addrs, &before, &after, n) {
+                demo::say(out, &line);
             }
         }
     }
@@ -627,6 +679,71 @@ pub fn run_demo(
         },
     );
     Ok(all_ok)
+}
+
+/// Every node's counts once they stop changing (the nodes log every second).
+fn settled_counts(dir: &Path, addrs: &[u16]) -> Vec<Option<demo::Counts>> {
+    let read = || -> Vec<Option<demo::Counts>> {
+        addrs.iter().map(|a| demo::read_counts(dir, *a)).collect()
+    };
+    let mut last = read();
+    for _ in 0..10 {
+        std::thread::sleep(Duration::from_millis(1200));
+        let now = read();
+        if now == last {
+            break;
+        }
+        last = now;
+    }
+    last
+}
+
+/// Instructions per node over `cycles` cycles, per cycle and per stimulus.
+fn count_lines(
+    addrs: &[u16],
+    before: &[Option<demo::Counts>],
+    after: &[Option<demo::Counts>],
+    cycles: usize,
+) -> Vec<String> {
+    let mut lines = vec![format!(
+        "instructions executed during the {cycles} cycle(s) (QEMU -icount shift=0):"
+    )];
+    let mut total = demo::Counts::default();
+    for ((a, b), e) in addrs.iter().zip(before).zip(after) {
+        let (Some(b), Some(e)) = (b, e) else {
+            lines.push(format!("  node {a:#06x}: no counts"));
+            continue;
+        };
+        let d = demo::Counts {
+            instructions: e.instructions.saturating_sub(b.instructions),
+            frames: e.frames.saturating_sub(b.frames),
+            pins: e.pins.saturating_sub(b.pins),
+            changes: e.changes.saturating_sub(b.changes),
+        };
+        total.instructions += d.instructions;
+        total.frames += d.frames;
+        total.pins += d.pins;
+        total.changes += d.changes;
+        lines.push(count_line(&format!("node {a:#06x}"), &d, cycles));
+    }
+    lines.push(count_line("all nodes  ", &total, cycles));
+    lines
+}
+
+fn count_line(who: &str, d: &demo::Counts, cycles: usize) -> String {
+    // A stimulus is what the node must react to: a frame, or an input that changed (the
+    // plant's repeated levels cost instructions too, but are not events).
+    let stimuli = d.frames + d.changes;
+    format!(
+        "  {who}: {:>9} instructions, {:>8.0} per cycle; {:>4} frames + {:>3} input changes \
+         ({:>3} level messages): {:>6.0} per stimulus",
+        d.instructions,
+        d.instructions as f64 / cycles.max(1) as f64,
+        d.frames,
+        d.changes,
+        d.pins,
+        d.instructions as f64 / stimuli.max(1) as f64
+    )
 }
 
 /// Prints every frame (decoded) and pin change on the medium.

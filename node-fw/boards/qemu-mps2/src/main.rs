@@ -82,6 +82,31 @@ async fn node(addr: u16, epoch: u16, flash: QemuFlash) {
     log::error!("node {addr:#06x}: stopped: {stop:?} ({stats:?})");
 }
 
+/// Timer cycles the core was awake (not in WFI), interrupt handlers included.
+static BUSY: critical_section::Mutex<core::cell::Cell<u64>> =
+    critical_section::Mutex::new(core::cell::Cell::new(0));
+
+/// Logs the busy time and the stimuli every second when they changed (provisioning flag
+/// `FLAG_COUNT`; under `-icount shift=0` a nanosecond is one instruction).
+#[embassy_executor::task]
+async fn count(addr: u16) {
+    let mut last = (u64::MAX, 0, 0);
+    loop {
+        embassy_time::Timer::after_secs(1).await;
+        let busy = critical_section::with(|cs| BUSY.borrow(cs).get()) * time::NS_PER_CYCLE;
+        let c = uart::counters();
+        if (busy, c.frames, c.pins) != last {
+            last = (busy, c.frames, c.pins);
+            log::info!(
+                "node {addr:#06x}: count: busy_ns {busy} frames {} pins {} changes {}",
+                c.frames,
+                c.pins,
+                c.changes
+            );
+        }
+    }
+}
+
 /// The semihosting command line's `flash=PATH`.
 fn flash_path(buf: &mut [u8]) -> Option<&[u8]> {
     let line = semihosting::cmdline(buf)?;
@@ -128,6 +153,11 @@ fn main() -> ! {
     let spawner = executor.spawner();
     spawner.spawn(uart::demux(addr).expect("demux task"));
     spawner.spawn(node(addr, epoch, flash).expect("node task"));
+    let counting = p.flags & provision::FLAG_COUNT != 0;
+    if counting {
+        spawner.spawn(count(addr).expect("count task"));
+    }
+    let mut awake = time::cycles();
     loop {
         // SAFETY: polled only here, never re-entered.
         unsafe { executor.poll() };
@@ -135,7 +165,17 @@ fn main() -> ! {
             // With interrupts masked, a wake between the check and WFI still ends the WFI
             // (a pending interrupt wakes the core); its handler runs after `free`.
             if !WORK.swap(false, Ordering::AcqRel) {
+                if counting {
+                    let now = time::cycles();
+                    critical_section::with(|cs| {
+                        let busy = BUSY.borrow(cs);
+                        busy.set(busy.get() + now.saturating_sub(awake));
+                    });
+                }
                 cortex_m::asm::wfi();
+                if counting {
+                    awake = time::cycles();
+                }
             }
         });
     }

@@ -5,6 +5,8 @@
 //! ```text
 //! bits 31..24  0xA5     magic: the word was written
 //! bits 23..16  flags    bit 0: the emulator has semihosting (flash file, clock, log)
+//!                       bit 1: count busy time and stimuli, logged every second (for
+//!                       `-icount shift=0`, where a nanosecond is an instruction)
 //! bits 15..0   address  the node's 16-bit short address
 //! ```
 
@@ -12,6 +14,7 @@
 pub const ADDR: usize = 0x003F_F000;
 pub const MAGIC: u32 = 0xA5;
 pub const FLAG_SEMIHOSTING: u8 = 1;
+pub const FLAG_COUNT: u8 = 2;
 
 #[derive(Debug, Clone, Copy)]
 pub struct Provision {

@@ -91,6 +91,22 @@ impl CmsdkTime {
     }
 }
 
+/// Timer cycles since boot (40 ns each; under `-icount shift=0`, 40 instructions).
+pub fn cycles() -> u64 {
+    critical_section::with(|cs| loop {
+        let pending1 = read(TIMER0, INTSTATUS) & 1;
+        let value = read(TIMER0, VALUE);
+        let pending2 = read(TIMER0, INTSTATUS) & 1;
+        if pending1 == pending2 {
+            let s = u64::from(DRIVER.seconds.borrow(cs).get()) + u64::from(pending1);
+            return s * u64::from(PERIOD) + u64::from(PERIOD.saturating_sub(value));
+        }
+    })
+}
+
+/// Nanoseconds per timer cycle.
+pub const NS_PER_CYCLE: u64 = 1000 / CYCLES_PER_US as u64;
+
 impl Driver for CmsdkTime {
     fn now(&self) -> u64 {
         critical_section::with(|cs| self.now_cs(cs))

@@ -76,15 +76,29 @@ static FRAMES: Channel<CriticalSectionRawMutex, Psdu, RX_FRAMES> = Channel::new(
 static PINS: Channel<CriticalSectionRawMutex, (u8, bool), RX_PINS> = Channel::new();
 
 /// Counters of what came in from the medium.
+#[derive(Debug, Clone, Copy)]
 pub struct Counters {
     pub garbage: u32,
     pub oversized: u32,
+    /// Frames handed to the runtime.
+    pub frames: u32,
+    /// `Pin` messages handed to the runtime (the plant repeats levels).
+    pub pins: u32,
+    /// Of those, the ones that changed a level.
+    pub changes: u32,
 }
 
 static COUNTERS: Mutex<RefCell<Counters>> = Mutex::new(RefCell::new(Counters {
     garbage: 0,
     oversized: 0,
+    frames: 0,
+    pins: 0,
+    changes: 0,
 }));
+
+pub fn counters() -> Counters {
+    critical_section::with(|cs| *COUNTERS.borrow_ref(cs))
+}
 
 /// Enables UART0 (BAUDDIV 16: QEMU ignores TX below that) and its interrupts.
 pub fn init() {
@@ -238,14 +252,20 @@ pub async fn demux(addr: u16) {
         read_exact(msg).await;
         match Link::parse(msg) {
             Ok(Link::Frame(psdu)) => match Psdu::from_slice(psdu) {
-                Ok(frame) => FRAMES.send(frame).await,
+                Ok(frame) => {
+                    critical_section::with(|cs| COUNTERS.borrow_ref_mut(cs).frames += 1);
+                    FRAMES.send(frame).await
+                }
                 Err(_) => critical_section::with(|cs| COUNTERS.borrow_ref_mut(cs).oversized += 1),
             },
             Ok(Link::Pin {
                 addr: a,
                 pin,
                 level,
-            }) if a == addr => PINS.send((pin, level)).await,
+            }) if a == addr => {
+                critical_section::with(|cs| COUNTERS.borrow_ref_mut(cs).pins += 1);
+                PINS.send((pin, level)).await
+            }
             _ => critical_section::with(|cs| COUNTERS.borrow_ref_mut(cs).garbage += 1),
         }
     }
@@ -320,6 +340,9 @@ impl Inputs for UartInputs {
 impl UartInputs {
     fn set(&mut self, pin: u8, level: bool) {
         if pin < 64 {
+            if (self.levels >> pin) & 1 != u64::from(level) {
+                critical_section::with(|cs| COUNTERS.borrow_ref_mut(cs).changes += 1);
+            }
             if level {
                 self.levels |= 1 << pin;
             } else {
