@@ -40,7 +40,7 @@ fn push_completes_through_lost_and_corrupted_frames() {
         options(
             medium::Config {
                 loss: 0.25,
-                corrupt: 0.15,
+                corrupt: 0.2,
                 seed: 0x07A0_0001,
                 ..medium::Config::default()
             },
