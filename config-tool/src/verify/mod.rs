@@ -189,8 +189,9 @@ struct Sys {
     /// Armed timers per node, bit i = timer i.
     timers: Vec<u8>,
     pos: Vec<Pos>,
-    /// Topics in flight per link `from * n + to`, oldest first.
-    links: Vec<Vec<Topic>>,
+    /// Publications in flight as (link `from * n + to`, topic), sorted by link and oldest
+    /// first within a link (a canonical form: one entry per state).
+    flight: Vec<(u8, Topic)>,
     /// Links in alarm (lossy), bit `from * n + to`.
     alarms: u64,
     /// Steps of the current cycle done, modulo the cycle length.
@@ -350,7 +351,7 @@ impl<'c> Model<'c> {
             nodes,
             timers: vec![0; n],
             pos,
-            links: vec![Vec::new(); n * n],
+            flight: Vec::new(),
             alarms: 0,
             progress: 0,
         };
@@ -378,7 +379,7 @@ impl<'c> Model<'c> {
     fn idle(&self, s: &Sys) -> bool {
         s.alarms == 0
             && s.timers.iter().all(|t| *t == 0)
-            && s.links.iter().all(Vec::is_empty)
+            && s.flight.is_empty()
             && s.pos == self.init.pos
             && s.nodes
                 .iter()
@@ -408,10 +409,13 @@ impl<'c> Model<'c> {
             }
         }
         let n = self.n();
-        for (l, q) in s.links.iter().enumerate() {
-            if q.is_empty() || s.alarms & (1 << l) != 0 {
+        let mut last = None;
+        for &(l, _) in &s.flight {
+            if last == Some(l) || s.alarms & (1 << l) != 0 {
                 continue;
             }
+            last = Some(l);
+            let l = usize::from(l);
             let (f, t) = ((l / n) as u8, (l % n) as u8);
             out.push(Move::Deliver(f, t));
             if lossy {
@@ -454,7 +458,8 @@ impl<'c> Model<'c> {
             }
             Move::Deliver(f, t) => {
                 let l = usize::from(f) * n + usize::from(t);
-                let topic = s.links[l].remove(0);
+                let at = s.flight.partition_point(|e| usize::from(e.0) < l);
+                let topic = s.flight.remove(at).1;
                 let (f, t) = (usize::from(f), usize::from(t));
                 let from_addr = self.c.ir.roles[f].address;
                 if let Some(peer) = self.tables[t].peers.iter().position(|a| *a == from_addr) {
@@ -512,7 +517,11 @@ impl<'c> Model<'c> {
                 return Some((Property::Interlock, format!("never: \"{}\" holds", il.text)));
             }
         }
-        if let Some(l) = s.links.iter().position(|q| q.len() > LINK_BOUND) {
+        let over = s
+            .flight
+            .windows(LINK_BOUND + 1)
+            .find(|w| w[0].0 == w[LINK_BOUND].0);
+        if let Some(l) = over.map(|w| usize::from(w[0].0)) {
             let n = self.n();
             return Some((
                 Property::LinkBound,
@@ -604,7 +613,9 @@ impl<'c> Model<'c> {
                     for (i, to) in self.peers[node].iter().enumerate().take(8) {
                         if p.subscribers & (1 << i) != 0 {
                             if let Some(to) = to {
-                                s.links[node * n + to].push(p.topic);
+                                let l = (node * n + to) as u8;
+                                let at = s.flight.partition_point(|e| e.0 <= l);
+                                s.flight.insert(at, (l, p.topic));
                             }
                         }
                     }
@@ -867,12 +878,17 @@ impl<'c> Model<'c> {
             })
             .collect();
         let n = self.n();
-        let flight: Vec<String> = s
-            .links
+        let mut links: Vec<(usize, Vec<Topic>)> = Vec::new();
+        for &(l, t) in &s.flight {
+            match links.last_mut() {
+                Some((k, q)) if *k == usize::from(l) => q.push(t),
+                _ => links.push((usize::from(l), vec![t])),
+            }
+        }
+        let flight: Vec<String> = links
             .iter()
-            .enumerate()
-            .filter(|(_, q)| !q.is_empty())
             .map(|(l, q)| {
+                let l = *l;
                 let names: Vec<String> = q.iter().map(|t| self.topic_name(l / n, *t)).collect();
                 format!(
                     "{}->{}: {}",
