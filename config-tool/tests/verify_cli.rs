@@ -1,0 +1,99 @@
+//! `config-tool verify` and `sim --fault` / `--timeline` on the command line: outputs and
+//! exit statuses.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn tool(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(args)
+        .current_dir(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .output()
+        .expect("runs")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+#[test]
+fn verify_passes_the_paint_robot_and_says_how_many_states() {
+    let out = tool(&["verify", "robot-configs/paint-robot.ron"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert!(
+        lines[0].starts_with("robot-configs/paint-robot.ron: 451 states, 1111 transitions in "),
+        "{stdout}"
+    );
+    assert_eq!(
+        lines[1],
+        "  idle states 2, stopped (fault / link alarm) states 388"
+    );
+    assert_eq!(
+        lines[2],
+        "ok: deadlock freedom, sequence conformance, 0 interlock(s), no double actuation, no \
+         engine fault"
+    );
+    let lossy = tool(&["verify", "robot-configs/paint-robot.ron", "--lossy"]);
+    assert_eq!(lossy.status.code(), Some(0));
+    assert!(text(&lossy.stdout).contains(": 1475 states, 4360 transitions in "));
+}
+
+#[test]
+fn verify_prints_a_numbered_counterexample_and_exits_1() {
+    let out = tool(&["verify", "tests/fixtures/verify/order-deadlock.ron"]);
+    assert_eq!(out.status.code(), Some(1));
+    let stdout = text(&out.stdout);
+    assert!(stdout
+        .contains("FAILED deadlock freedom: from here the machine can never get back to idle"));
+    assert!(
+        stdout.contains("shortest counterexample (4 steps):\n  1. operator presses START (at X)\n")
+    );
+}
+
+#[test]
+fn sim_fault_reports_the_detection_and_exits_0_when_everything_stopped() {
+    let out = tool(&[
+        "sim",
+        "robot-configs/paint-robot.ron",
+        "--fault",
+        "stuck:HC@4",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert!(stdout.starts_with(
+        "fault: HC jammed at 454 ms (cycle 1, before step 4 HC+)\nsteps until then: VC+ GR+ VC-\n\
+         detected at 2706 ms by HC: motion watchdog (fault 1), 2000 ms after step 4 was commanded\n"
+    ), "{stdout}");
+    let bad = tool(&[
+        "sim",
+        "robot-configs/paint-robot.ron",
+        "--fault",
+        "stuck:HC",
+    ]);
+    assert_eq!(bad.status.code(), Some(1));
+    assert!(text(&bad.stderr).starts_with("error: `stuck:HC`: no `@STEP`"));
+}
+
+#[test]
+fn sim_timeline_writes_an_svg() {
+    let path = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("timeline.svg");
+    let _ = std::fs::remove_file(&path);
+    let out = tool(&[
+        "sim",
+        "robot-configs/paint-robot.ron",
+        "--cycles",
+        "1",
+        "--timeline",
+        path.to_str().expect("utf-8"),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let svg = std::fs::read_to_string(&path).expect("written");
+    let doc = roxmltree::Document::parse(&svg).expect("parses");
+    let lanes = doc
+        .descendants()
+        .filter(|n| n.attribute("class") == Some("lane actuator"))
+        .count();
+    assert_eq!(lanes, 4);
+}
