@@ -12,12 +12,12 @@
 #![forbid(unsafe_code)]
 
 pub mod ecc;
+#[cfg(feature = "std")]
+pub mod host;
 pub mod link;
 pub mod node;
 pub mod ota;
 pub mod runtime;
-#[cfg(feature = "std")]
-pub mod host;
 #[cfg(feature = "std")]
 pub mod sim;
 pub mod slots;
