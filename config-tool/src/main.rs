@@ -67,6 +67,10 @@ enum Command {
         /// A delivery may also fail after the link's retries (link alarm).
         #[arg(long)]
         lossy: bool,
+        /// Assume the radio is faster than any motion or timer: nothing arrives or
+        /// expires while a publication is in flight.
+        #[arg(long)]
+        prompt: bool,
         /// Stop (inconclusive) beyond this many states.
         #[arg(long, default_value_t = 5_000_000)]
         max_states: usize,
@@ -176,6 +180,7 @@ fn run(cli: Cli) -> Result<(), String> {
         Command::Verify {
             robot,
             lossy,
+            prompt,
             max_states,
         } => {
             let src = load(&robot)?;
@@ -184,7 +189,14 @@ fn run(cli: Cli) -> Result<(), String> {
                 String::new()
             })?;
             let model = verify::Model::new(&compiled).map_err(|e| format!("error: {e}"))?;
-            let result = verify::explore(&model, verify::Options { lossy, max_states });
+            let result = verify::explore(
+                &model,
+                verify::Options {
+                    lossy,
+                    prompt,
+                    max_states,
+                },
+            );
             print!("{}", result.render(&src.name, model.interlock_count()));
             if result.ok() {
                 Ok(())

@@ -34,6 +34,48 @@ fn run(c: &Compiled, lossy: bool) -> Report {
     .expect("model builds")
 }
 
+fn run_prompt(c: &Compiled) -> Report {
+    verify::verify(
+        c,
+        Options {
+            prompt: true,
+            ..Options::default()
+        },
+    )
+    .expect("model builds")
+}
+
+/// Every file of `robot-configs/` passes when the radio is faster than any motion (the
+/// simulator's and a healthy link's case); the sequence robots also pass with any delays
+/// (below).
+#[test]
+fn every_robot_of_robot_configs_passes_with_a_prompt_radio() {
+    let dir = format!("{}/../robot-configs", env!("CARGO_MANIFEST_DIR"));
+    let mut files: Vec<String> = std::fs::read_dir(&dir)
+        .expect("robot-configs")
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".ron"))
+        .collect();
+    files.sort();
+    let mut counts = Vec::new();
+    for f in &files {
+        let r = run_prompt(&build(&load(&format!("../robot-configs/{f}"))));
+        assert!(r.ok(), "{f}: {}", r.render(f, 0));
+        counts.push((f.as_str(), r.states));
+    }
+    assert_eq!(
+        counts,
+        [
+            ("paint-robot-counted.ron", 125),
+            ("paint-robot-double-dip.ron", 327),
+            ("paint-robot-paper-charts.ron", 87),
+            ("paint-robot-spare-node.ron", 243),
+            ("paint-robot.ron", 243),
+        ]
+    );
+}
+
 /// (states, transitions, idle states, stopped states) of a report that passed.
 fn passes(r: &Report) -> (usize, usize, usize, usize) {
     assert!(r.ok(), "{}", r.render("robot", 0));

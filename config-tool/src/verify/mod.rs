@@ -29,6 +29,10 @@ use interlock::{Atom, Interlock};
 pub struct Options {
     /// A delivery may fail after the link's retries (link alarm).
     pub lossy: bool,
+    /// Timing assumption: the radio is faster than any motion or timer, so while a
+    /// publication is in flight no actuator arrives and no timer expires. Off: deliveries
+    /// take any time.
+    pub prompt: bool,
     /// Give up (inconclusive) beyond this many states.
     pub max_states: usize,
 }
@@ -37,6 +41,7 @@ impl Default for Options {
     fn default() -> Self {
         Options {
             lossy: false,
+            prompt: false,
             max_states: 5_000_000,
         }
     }
@@ -102,6 +107,7 @@ pub struct Report {
     /// The exploration hit `max_states`.
     pub incomplete: bool,
     pub lossy: bool,
+    pub prompt: bool,
 }
 
 impl Report {
@@ -120,7 +126,12 @@ impl Report {
             self.transitions,
             secs,
             self.states as f64 / secs.max(1e-9),
-            if self.lossy { ", lossy links" } else { "" }
+            match (self.lossy, self.prompt) {
+                (false, false) => "",
+                (true, false) => ", lossy links",
+                (false, true) => ", prompt radio",
+                (true, true) => ", lossy links, prompt radio",
+            }
         );
         let _ = writeln!(
             o,
@@ -391,17 +402,25 @@ impl<'c> Model<'c> {
         s.alarms != 0 || s.nodes.iter().any(|e| e.fault.is_some())
     }
 
-    fn moves(&self, s: &Sys, lossy: bool, out: &mut Vec<Move>) {
+    fn moves(&self, s: &Sys, opts: Options, out: &mut Vec<Move>) {
         out.clear();
+        let lossy = opts.lossy;
         if self.idle(s) {
             out.push(Move::Press);
         }
+        let radio_busy = s.flight.iter().any(|(l, _)| s.alarms & (1 << l) == 0);
         for (p, pos) in s.pos.iter().enumerate() {
+            if opts.prompt && radio_busy {
+                break;
+            }
             if matches!(pos, Pos::Extending | Pos::Retracting) {
                 out.push(Move::Arrive(p as u8));
             }
         }
         for (node, t) in s.timers.iter().enumerate() {
+            if opts.prompt && radio_busy {
+                break;
+            }
             for i in 0..8u8 {
                 if t & (1 << i) != 0 {
                     out.push(Move::Expire(node as u8, i));
@@ -966,7 +985,7 @@ pub fn explore(model: &Model<'_>, opts: Options) -> Report {
             .get_index(next)
             .cloned()
             .unwrap_or_else(|| model.init.clone());
-        model.moves(&s, opts.lossy, &mut moves);
+        model.moves(&s, opts, &mut moves);
         for &m in &moves {
             let mut t = s.clone();
             if let Some((property, message)) = model.apply(&mut t, m, None) {
@@ -1053,6 +1072,7 @@ pub fn explore(model: &Model<'_>, opts: Options) -> Report {
         violation,
         incomplete,
         lossy: opts.lossy,
+        prompt: opts.prompt,
     }
 }
 
