@@ -460,6 +460,13 @@ pub struct Counts {
     pub pins: u64,
     /// Input level changes among them.
     pub changes: u64,
+    /// Instructions inside the node core (MAC, links, OTA, interpreter) for frames, and
+    /// the frames.
+    pub core_frame: u64,
+    pub core_frames: u64,
+    /// The same for `Pin` messages (every one goes to the core; repeats raise no event).
+    pub core_input: u64,
+    pub core_inputs: u64,
 }
 
 /// The last `count:` line of a counting node's log.
@@ -476,5 +483,9 @@ pub fn read_counts(dir: &Path, addr: u16) -> Option<Counts> {
         frames: next("frames")?,
         pins: next("pins")?,
         changes: next("changes")?,
+        core_frame: next("core_frame_ns")?,
+        core_frames: next("core_frames")?,
+        core_input: next("core_input_ns")?,
+        core_inputs: next("core_inputs")?,
     })
 }

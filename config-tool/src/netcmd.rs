@@ -719,11 +719,19 @@ fn count_lines(
             frames: e.frames.saturating_sub(b.frames),
             pins: e.pins.saturating_sub(b.pins),
             changes: e.changes.saturating_sub(b.changes),
+            core_frame: e.core_frame.saturating_sub(b.core_frame),
+            core_frames: e.core_frames.saturating_sub(b.core_frames),
+            core_input: e.core_input.saturating_sub(b.core_input),
+            core_inputs: e.core_inputs.saturating_sub(b.core_inputs),
         };
         total.instructions += d.instructions;
         total.frames += d.frames;
         total.pins += d.pins;
         total.changes += d.changes;
+        total.core_frame += d.core_frame;
+        total.core_frames += d.core_frames;
+        total.core_input += d.core_input;
+        total.core_inputs += d.core_inputs;
         lines.push(count_line(&format!("node {a:#06x}"), &d, cycles));
     }
     lines.push(count_line("all nodes  ", &total, cycles));
@@ -743,6 +751,12 @@ fn count_line(who: &str, d: &demo::Counts, cycles: usize) -> String {
         d.changes,
         d.pins,
         d.instructions as f64 / stimuli.max(1) as f64
+    ) + &format!(
+        "\n  {:w$}  of which in the node core: {:>6.0} per frame, {:>5.0} per level message",
+        "",
+        d.core_frame as f64 / d.core_frames.max(1) as f64,
+        d.core_input as f64 / d.core_inputs.max(1) as f64,
+        w = who.len()
     )
 }
 

@@ -189,6 +189,25 @@ pub struct Stats {
     pub flash_failures: u32,
 }
 
+/// What the core was doing, for a [`Probe`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Work {
+    /// `NodeCore::receive` of one frame.
+    Frame,
+    /// `NodeCore::input` of one input change.
+    Input,
+}
+
+/// Measures the core's work (a board that counts instructions or cycles); `()` does not.
+pub trait Probe {
+    /// The core starts on a stimulus.
+    fn start(&mut self) {}
+    /// The core is done with it (the frames it queued not yet sent).
+    fn stop(&mut self, _work: Work) {}
+}
+
+impl Probe for () {}
+
 /// The core's view of the board: pins directly, frames into the bounded queue.
 struct CoreIo<'a, P> {
     pins: &'a mut P,
@@ -260,24 +279,43 @@ where
     I: Inputs,
     F: NorFlash,
 {
+    run_probed(addr, epoch, board, &mut ()).await
+}
+
+/// [`run`], with `probe` around the core's handling of every frame and input change.
+pub async fn run_probed<R, P, I, F, Q>(
+    addr: u16,
+    epoch: u16,
+    board: Board<R, P, I, F>,
+    probe: &mut Q,
+) -> (Stop<R::Error>, Stats)
+where
+    R: Radio,
+    P: Pins,
+    I: Inputs,
+    F: NorFlash,
+    Q: Probe,
+{
     let mut stats = Stats::default();
-    match run_inner(addr, epoch, board, &mut stats).await {
+    match run_inner(addr, epoch, board, &mut stats, probe).await {
         Ok(never) => match never {},
         Err(stop) => (stop, stats),
     }
 }
 
-async fn run_inner<R, P, I, F>(
+async fn run_inner<R, P, I, F, Q>(
     addr: u16,
     epoch: u16,
     board: Board<R, P, I, F>,
     stats: &mut Stats,
+    probe: &mut Q,
 ) -> Result<Infallible, Stop<R::Error>>
 where
     R: Radio,
     P: Pins,
     I: Inputs,
     F: NorFlash,
+    Q: Probe,
 {
     let Board {
         mut radio,
@@ -362,10 +400,16 @@ where
         {
             Either3::First(Ok(n)) => {
                 let psdu = rx.get(..n).unwrap_or(&rx);
+                probe.start();
                 core.receive(psdu, now_ms(), &mut io);
+                probe.stop(Work::Frame);
             }
             Either3::First(Err(e)) => return Err(Stop::Radio(e)),
-            Either3::Second((pin, level)) => core.input(pin, level, now_ms(), &mut io),
+            Either3::Second((pin, level)) => {
+                probe.start();
+                core.input(pin, level, now_ms(), &mut io);
+                probe.stop(Work::Input);
+            }
             Either3::Third(()) => {}
         }
     }

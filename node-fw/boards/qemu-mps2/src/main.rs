@@ -41,7 +41,7 @@ impl log::Log for Log {
         m.level() <= log::max_level()
     }
     fn log(&self, r: &log::Record<'_>) {
-        let mut s = heapless::String::<200>::new();
+        let mut s = heapless::String::<256>::new();
         let _ = write!(s, "{:<5} {}", r.level(), r.args());
         let _ = s.push('\n');
         let _ = s.push('\0');
@@ -70,15 +70,51 @@ fn pender(_context: *mut ()) {
     WORK.store(true, Ordering::Release);
 }
 
+/// Timer cycles inside `NodeCore` per kind of stimulus: (cycles, count) for frames and for
+/// input changes.
+static CORE: critical_section::Mutex<core::cell::Cell<[(u64, u32); 2]>> =
+    critical_section::Mutex::new(core::cell::Cell::new([(0, 0); 2]));
+
+/// Times the core's handling of each stimulus (when counting).
+struct CoreProbe {
+    on: bool,
+    at: u64,
+}
+
+impl runtime::Probe for CoreProbe {
+    fn start(&mut self) {
+        if self.on {
+            self.at = time::cycles();
+        }
+    }
+    fn stop(&mut self, work: runtime::Work) {
+        if self.on {
+            let spent = time::cycles().saturating_sub(self.at);
+            let i = usize::from(work == runtime::Work::Input);
+            critical_section::with(|cs| {
+                let cell = CORE.borrow(cs);
+                let mut v = cell.get();
+                v[i].0 += spent;
+                v[i].1 += 1;
+                cell.set(v);
+            });
+        }
+    }
+}
+
 #[embassy_executor::task]
-async fn node(addr: u16, epoch: u16, flash: QemuFlash) {
+async fn node(addr: u16, epoch: u16, flash: QemuFlash, counting: bool) {
     let board = Board {
         radio: uart::UartRadio,
         outputs: uart::UartPins { addr },
         inputs: uart::UartInputs::new(),
         flash,
     };
-    let (stop, stats) = runtime::run(addr, epoch, board).await;
+    let mut probe = CoreProbe {
+        on: counting,
+        at: 0,
+    };
+    let (stop, stats) = runtime::run_probed(addr, epoch, board, &mut probe).await;
     log::error!("node {addr:#06x}: stopped: {stop:?} ({stats:?})");
 }
 
@@ -95,13 +131,18 @@ async fn count(addr: u16) {
         embassy_time::Timer::after_secs(1).await;
         let busy = critical_section::with(|cs| BUSY.borrow(cs).get()) * time::NS_PER_CYCLE;
         let c = uart::counters();
+        let [(frame_cycles, frames), (input_cycles, inputs)] =
+            critical_section::with(|cs| CORE.borrow(cs).get());
         if (busy, c.frames, c.pins) != last {
             last = (busy, c.frames, c.pins);
             log::info!(
-                "node {addr:#06x}: count: busy_ns {busy} frames {} pins {} changes {}",
+                "node {addr:#06x}: count: busy_ns {busy} frames {} pins {} changes {} \
+                 core_frame_ns {} core_frames {frames} core_input_ns {} core_inputs {inputs}",
                 c.frames,
                 c.pins,
-                c.changes
+                c.changes,
+                frame_cycles * time::NS_PER_CYCLE,
+                input_cycles * time::NS_PER_CYCLE,
             );
         }
     }
@@ -152,8 +193,8 @@ fn main() -> ! {
     let executor: &'static raw::Executor = executor;
     let spawner = executor.spawner();
     spawner.spawn(uart::demux(addr).expect("demux task"));
-    spawner.spawn(node(addr, epoch, flash).expect("node task"));
     let counting = p.flags & provision::FLAG_COUNT != 0;
+    spawner.spawn(node(addr, epoch, flash, counting).expect("node task"));
     if counting {
         spawner.spawn(count(addr).expect("count task"));
     }
