@@ -187,6 +187,21 @@ fn check_elf(elf: &Path) -> Result<(), String> {
     }
 }
 
+/// Checks QEMU runs (a clear message now instead of nodes that never answer).
+fn check_qemu() -> Result<(), String> {
+    match std::process::Command::new("qemu-system-arm")
+        .arg("--version")
+        .stdout(std::process::Stdio::null())
+        .status()
+    {
+        Ok(s) if s.success() => Ok(()),
+        Ok(s) => Err(format!("error: qemu-system-arm --version: {s}")),
+        Err(e) => Err(format!(
+            "error: cannot run qemu-system-arm: {e} (Debian: apt-get install qemu-system-arm)"
+        )),
+    }
+}
+
 /// Becomes QEMU (exec), so whoever started this process stops the node by stopping it.
 fn qemu_node(a: QemuNodeArgs) -> Result<(), String> {
     check_elf(&a.elf)?;
@@ -414,6 +429,7 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
                 },
                 node_command: if qemu {
                     check_elf(&elf)?;
+                    check_qemu()?;
                     let elf = std::path::absolute(&elf).map_err(|e| e.to_string())?;
                     let mut cmd = vec![
                         exe.into_os_string(),
