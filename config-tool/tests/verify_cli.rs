@@ -32,8 +32,8 @@ fn verify_passes_the_paint_robot_and_says_how_many_states() {
     );
     assert_eq!(
         lines[2],
-        "ok: deadlock freedom, sequence conformance, 0 interlock(s), no double actuation, no \
-         engine fault"
+        "ok: deadlock freedom, sequence conformance, 2 interlock(s), no double actuation, no \
+         engine fault, a fault stops every node"
     );
     let lossy = tool(&["verify", "robot-configs/paint-robot.ron", "--lossy"]);
     assert_eq!(lossy.status.code(), Some(0));

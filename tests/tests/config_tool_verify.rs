@@ -231,6 +231,37 @@ fn a_tampered_compiled_table_breaks_the_sequence() {
         .contains(&"      chart VC: IDLE -> STEP5".to_string()));
 }
 
+/// A tampered table whose `fault` publication no longer reaches RC: when VC's watchdog
+/// fires, RC goes on running.
+#[test]
+fn a_fault_publication_that_misses_a_node_is_caught() {
+    let mut c = build(&load("../robot-configs/paint-robot.ron"));
+    let fault = c.ir.roles[0].event_id("fault").expect("fault event") as u8;
+    let rc = c.ir.roles.iter().position(|r| r.name == "RC").expect("RC");
+    let rc_peer = c.tables[0]
+        .peers
+        .iter()
+        .position(|a| *a == c.ir.roles[rc].address)
+        .expect("RC is a peer of VC");
+    let p = c.tables[0]
+        .publications
+        .iter_mut()
+        .find(|p| p.event == fault)
+        .expect("fault is published");
+    assert_eq!(p.subscribers.count_ones(), 3);
+    p.subscribers &= !(1 << rc_peer);
+    c.blobs[0] = config_tool::compile::encode(&c.tables[0]).expect("encodes");
+    let v = run(&c, false).violation.expect("a violation");
+    assert_eq!(v.property, Property::FaultStop);
+    assert_eq!(v.message, "VC faulted but RC is still running");
+    // START, VC's watchdog expires at once, VC's rod completes its stroke, the fault
+    // reaches GR and HC: nothing more can happen, RC still runs.
+    assert_eq!(v.steps, 5);
+    assert!(v
+        .trace
+        .contains(&"  2. timer VC.watchdog of VC expires".to_string()));
+}
+
 #[test]
 fn an_unknown_interlock_name_is_a_diagnostic() {
     let src = load("fixtures/verify/interlock.ron");

@@ -64,6 +64,9 @@ pub enum Property {
     EngineFault,
     /// More publications in flight on one link than [`LINK_BOUND`].
     LinkBound,
+    /// A node that publishes `fault` (synthesised fault chart) faulted, and once nothing
+    /// more can happen some node that subscribes to it is still running.
+    FaultStop,
 }
 
 impl std::fmt::Display for Property {
@@ -75,6 +78,7 @@ impl std::fmt::Display for Property {
             Property::DoubleActuation => "no double actuation",
             Property::EngineFault => "no engine fault",
             Property::LinkBound => "bounded links",
+            Property::FaultStop => "a fault stops every node",
         })
     }
 }
@@ -146,7 +150,7 @@ impl Report {
                 let _ = writeln!(
                     o,
                     "ok: deadlock freedom, sequence conformance, {interlocks} interlock(s), no \
-                     double actuation, no engine fault"
+                     double actuation, no engine fault, a fault stops every node"
                 );
             }
             None => {}
@@ -396,6 +400,38 @@ impl<'c> Model<'c> {
                 .iter()
                 .zip(&self.init.nodes)
                 .all(|(a, b)| a.fault.is_none() && a.current == b.current)
+    }
+
+    /// In a state where nothing more can happen: a role still running although a node
+    /// published `fault` to it (its watchdog expired) over a link not in alarm.
+    fn unstopped(&self, s: &Sys) -> Option<String> {
+        let n = self.n();
+        for (f, e) in s.nodes.iter().enumerate() {
+            // Only a watchdog fault publishes `fault` (a peer's fault does not echo it).
+            let published = matches!(
+                e.fault,
+                Some(Fault::Action { code, .. }) if code == crate::synth::FAULT_MOTION_TIMEOUT
+            );
+            if !published {
+                continue;
+            }
+            let r = &self.c.ir.roles[f];
+            // Who must hear it: the roles the robot's description says subscribe to it
+            // (from the IR, so a table that lost a subscriber is caught).
+            for (to, q) in self.c.ir.roles.iter().enumerate() {
+                let listens = q
+                    .imports
+                    .iter()
+                    .any(|(from, ev, _)| *from == r.name && ev == crate::synth::FAULT_EVENT);
+                if listens && s.nodes[to].fault.is_none() && s.alarms & (1 << (f * n + to)) == 0 {
+                    return Some(format!(
+                        "{} faulted but {} is still running",
+                        r.name, q.name
+                    ));
+                }
+            }
+        }
+        None
     }
 
     fn stopped(&self, s: &Sys) -> bool {
@@ -1061,6 +1097,30 @@ pub fn explore(model: &Model<'_>, opts: Options) -> Report {
                 trace: model.replay(&path(&parent, bad)),
             });
             let _ = s;
+        }
+    }
+    if violation.is_none() && !incomplete {
+        // Stop at once: in every state where nothing more can happen, a fault that was
+        // published has stopped every node that listens for it.
+        let mut out_degree = vec![0u32; states];
+        for &(f, _) in &edges {
+            out_degree[f as usize] += 1;
+        }
+        let bad = (0..states).find_map(|i| {
+            let s = seen.get_index(i)?;
+            (out_degree[i] == 0)
+                .then(|| model.unstopped(s))
+                .flatten()
+                .map(|m| (i, m))
+        });
+        if let Some((i, message)) = bad {
+            let p = path(&parent, i);
+            violation = Some(Violation {
+                property: Property::FaultStop,
+                message,
+                steps: p.len(),
+                trace: model.replay(&p),
+            });
         }
     }
     Report {
