@@ -145,6 +145,19 @@ pub enum NetCommand {
     },
     /// Run one emulated node: QEMU booting the firmware image, its UART on the medium.
     QemuNode(QemuNodeArgs),
+    /// Run a medium whose frames also go to the air, through an nRF52840 gateway on a
+    /// serial port (`nrf52840` image built with `--features gateway`): `push`, `scan`,
+    /// `status`, `monitor` with `--medium` then reach the real nodes in range.
+    Gateway {
+        /// The gateway's serial port (the DK's J-Link virtual COM port: /dev/ttyACM0).
+        #[arg(long)]
+        serial: PathBuf,
+        /// The baud rate (set with `stty`; the gateway's UART runs at 1 Mbaud).
+        #[arg(long, default_value_t = 1_000_000)]
+        baud: u32,
+        #[arg(long, default_value = "127.0.0.1:15400")]
+        listen: SocketAddr,
+    },
     /// Run one generic node in this process (what `demo` starts).
     #[command(hide = true)]
     Node(node_fw::host::Args),
@@ -184,6 +197,80 @@ fn check_elf(elf: &Path) -> Result<(), String> {
              node-fw/boards/qemu-mps2 (or give --elf)",
             elf.display()
         ))
+    }
+}
+
+/// Bridges a medium to the air: every frame on the medium goes to the gateway on `serial`
+/// (the medium's framing), and every frame the gateway hears goes on the medium. The
+/// bridge joins the medium as a monitor (it sees every frame, without the medium's loss).
+fn gateway(serial: &Path, baud: u32, listen: SocketAddr) -> Result<(), String> {
+    if serial.to_str().is_some_and(|p| p.starts_with("/dev/tty")) {
+        let status = std::process::Command::new("stty")
+            .arg("-F")
+            .arg(serial)
+            .args([baud.to_string().as_str(), "raw", "-echo"])
+            .status()
+            .map_err(|e| format!("error: stty: {e}"))?;
+        if !status.success() {
+            return Err(format!(
+                "error: stty -F {} {baud} raw: {status}",
+                serial.display()
+            ));
+        }
+    }
+    let port = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(serial)
+        .map_err(|e| format!("error: {}: {e}", serial.display()))?;
+    let m = medium::Medium::start(medium::Config {
+        listen,
+        ..medium::Config::default()
+    })
+    .map_err(|e| format!("error: medium on {listen}: {e}"))?;
+    let mut stream = TcpStream::connect(m.addr()).map_err(|e| e.to_string())?;
+    stream.set_nodelay(true).map_err(|e| e.to_string())?;
+    let mut buf = [0u8; MAX_LINK];
+    let n = Link::Hello(Peer::Monitor)
+        .emit(&mut buf)
+        .map_err(|_| "link".to_string())?;
+    stream.write_all(&buf[..n]).map_err(|e| e.to_string())?;
+    println!(
+        "medium listening on {}, bridged to the air through {}",
+        m.addr(),
+        serial.display()
+    );
+    let to_air = port.try_clone().map_err(|e| e.to_string())?;
+    let from_medium = stream.try_clone().map_err(|e| e.to_string())?;
+    // Medium -> air, in its own thread; air -> medium here. Each forwards frames only.
+    let down = std::thread::spawn(move || forward_frames(from_medium, to_air));
+    let up = forward_frames(port, stream);
+    let _ = down.join();
+    up.map_err(|e| format!("error: {}: {e}", serial.display()))
+}
+
+/// Copies the `Link::Frame` messages of `from` to `to` until `from` ends.
+fn forward_frames(mut from: impl Read, mut to: impl Write) -> io::Result<()> {
+    let mut pending = Vec::new();
+    let mut chunk = [0u8; 1024];
+    let mut out = [0u8; MAX_LINK];
+    loop {
+        let n = from.read(&mut chunk)?;
+        if n == 0 {
+            return Ok(());
+        }
+        pending.extend_from_slice(&chunk[..n]);
+        while let Some(body) = next_message(&pending) {
+            if let Ok(Link::Frame(psdu)) = Link::parse(&pending[body.clone()]) {
+                if let Ok(m) = Link::Frame(psdu).emit(&mut out) {
+                    to.write_all(&out[..m])?;
+                }
+            }
+            pending.drain(..body.end);
+        }
+        if pending.len() > 2 + usize::from(u16::MAX) {
+            pending.clear();
+        }
     }
 }
 
@@ -466,6 +553,11 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
             }
         }
         NetCommand::QemuNode(args) => qemu_node(args),
+        NetCommand::Gateway {
+            serial,
+            baud,
+            listen,
+        } => gateway(&serial, baud, listen),
         NetCommand::Node(args) => node_fw::host::run(args).map_err(|e| format!("node: {e}")),
     }
 }

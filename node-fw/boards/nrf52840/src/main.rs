@@ -7,10 +7,17 @@
 //! - pins: 16 GPIOs, outputs or inputs as the table uses them ([`gpio`]);
 //! - table slots and boot counter: the last 20 KiB of the internal flash ([`flash`]);
 //! - log: defmt over RTT (`cargo run --release` flashes a DK with probe-rs and prints it).
+//!
+//! With the feature `gateway` the image is the serial <-> radio gateway instead
+//! ([`gateway`]; a separate build so that the node image does not carry the UART).
 #![no_std]
 #![no_main]
 
+#[cfg(not(feature = "gateway"))]
 mod flash;
+#[cfg(feature = "gateway")]
+mod gateway;
+#[cfg(not(feature = "gateway"))]
 mod gpio;
 mod radio;
 
@@ -19,19 +26,20 @@ use core::fmt::Write as _;
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use embassy_nrf::config::{Config, HfclkSource};
-use embassy_nrf::gpio::Flex;
-use embassy_nrf::nvmc::Nvmc;
 use embassy_nrf::radio::ieee802154::{Packet, Radio};
 use embassy_nrf::{bind_interrupts, peripherals};
 use embassy_time::Timer;
-use node_fw::runtime::{self, Board};
 use panic_probe as _;
 
-use flash::NrfFlash;
-use gpio::{Gpio, GpioInputs, GpioPins};
-
+#[cfg(not(feature = "gateway"))]
 bind_interrupts!(struct Irqs {
     RADIO => embassy_nrf::radio::InterruptHandler<peripherals::RADIO>;
+});
+
+#[cfg(feature = "gateway")]
+bind_interrupts!(struct Irqs {
+    RADIO => embassy_nrf::radio::InterruptHandler<peripherals::RADIO>;
+    UARTE0 => embassy_nrf::buffered_uarte::InterruptHandler<peripherals::UARTE0>;
 });
 
 /// UICR CUSTOMER[0] and [1].
@@ -92,48 +100,82 @@ async fn main(_spawner: Spawner) {
 
     let mut radio = Radio::new(p.RADIO, Irqs);
     radio.set_channel(channel);
-    let gpio = Gpio::new([
-        Flex::new(p.P1_01),
-        Flex::new(p.P1_02),
-        Flex::new(p.P1_03),
-        Flex::new(p.P1_04),
-        Flex::new(p.P1_05),
-        Flex::new(p.P1_06),
-        Flex::new(p.P1_07),
-        Flex::new(p.P1_08),
-        Flex::new(p.P1_10),
-        Flex::new(p.P1_11),
-        Flex::new(p.P1_12),
-        Flex::new(p.P1_13),
-        Flex::new(p.P1_14),
-        Flex::new(p.P1_15),
-        Flex::new(p.P0_03),
-        Flex::new(p.P0_04),
-    ]);
-    let mut flash = NrfFlash::new(Nvmc::new(p.NVMC));
-    let boots = flash.count_boot();
-    let epoch = boots.wrapping_mul(256) as u16;
-    defmt::info!(
-        "node {=u16:#06x}: nrf52840, channel {=u8}, boot {=u32}, epoch {=u16}",
-        addr,
-        channel,
-        boots,
-        epoch
-    );
-
-    let board = Board {
-        radio: radio::NrfRadio {
-            radio,
-            packet: Packet::new(),
-        },
-        outputs: GpioPins(&gpio),
-        inputs: GpioInputs::new(&gpio),
-        flash,
+    let radio = radio::NrfRadio {
+        radio,
+        packet: Packet::new(),
     };
-    let (stop, stats) = runtime::run(addr, epoch, board).await;
-    defmt::error!(
-        "node stopped ({=bool}): {=u32} activations",
-        matches!(stop, runtime::Stop::FlashGeometry),
-        stats.activations
-    );
+    #[cfg(feature = "gateway")]
+    {
+        defmt::info!("gateway: channel {=u8}, serial 1 Mbaud", channel);
+        let mut config = embassy_nrf::uarte::Config::default();
+        config.baudrate = embassy_nrf::uarte::Baudrate::Baud1m;
+        let rx_buf = cortex_m::singleton!(: [u8; 512] = [0; 512]).expect("once");
+        let tx_buf = cortex_m::singleton!(: [u8; 512] = [0; 512]).expect("once");
+        let uart = embassy_nrf::buffered_uarte::BufferedUarte::new(
+            p.UARTE0,
+            p.TIMER1,
+            p.PPI_CH0,
+            p.PPI_CH1,
+            p.PPI_GROUP0,
+            p.P0_08,
+            p.P0_06,
+            Irqs,
+            config,
+            rx_buf,
+            tx_buf,
+        );
+        let (rx, tx) = uart.split();
+        gateway::run(radio, rx, tx).await;
+    }
+    #[cfg(not(feature = "gateway"))]
+    {
+        use embassy_nrf::gpio::Flex;
+        use embassy_nrf::nvmc::Nvmc;
+        use node_fw::runtime::{self, Board};
+
+        use flash::NrfFlash;
+        use gpio::{Gpio, GpioInputs, GpioPins};
+
+        let gpio = Gpio::new([
+            Flex::new(p.P1_01),
+            Flex::new(p.P1_02),
+            Flex::new(p.P1_03),
+            Flex::new(p.P1_04),
+            Flex::new(p.P1_05),
+            Flex::new(p.P1_06),
+            Flex::new(p.P1_07),
+            Flex::new(p.P1_08),
+            Flex::new(p.P1_10),
+            Flex::new(p.P1_11),
+            Flex::new(p.P1_12),
+            Flex::new(p.P1_13),
+            Flex::new(p.P1_14),
+            Flex::new(p.P1_15),
+            Flex::new(p.P0_03),
+            Flex::new(p.P0_04),
+        ]);
+        let mut flash = NrfFlash::new(Nvmc::new(p.NVMC));
+        let boots = flash.count_boot();
+        let epoch = boots.wrapping_mul(256) as u16;
+        defmt::info!(
+            "node {=u16:#06x}: nrf52840, channel {=u8}, boot {=u32}, epoch {=u16}",
+            addr,
+            channel,
+            boots,
+            epoch
+        );
+
+        let board = Board {
+            radio,
+            outputs: GpioPins(&gpio),
+            inputs: GpioInputs::new(&gpio),
+            flash,
+        };
+        let (stop, stats) = runtime::run(addr, epoch, board).await;
+        defmt::error!(
+            "node stopped ({=bool}): {=u32} activations",
+            matches!(stop, runtime::Stop::FlashGeometry),
+            stats.activations
+        );
+    }
 }

@@ -1,0 +1,96 @@
+//! Gateway mode: the node bridges its radio to a serial line in the medium's framing (u16 LE
+//! length + postcard `Link`, as on the QEMU board's UART). Every frame the radio hears goes
+//! out as `Link::Frame` (FCS appended); every `Link::Frame` that comes in is transmitted.
+//! `config-tool gateway --serial DEV` puts it on a medium, where `push`, `scan`, `status`
+//! and `monitor` reach the real nodes in range.
+//!
+//! Serial: UARTE0 on P0.08 (RX) / P0.06 (TX) at 1 Mbaud, the DK's J-Link virtual COM port.
+
+use config_schema::wire::mac::MAX_PSDU;
+use config_schema::wire::medium::{next_message, Link, MAX_LINK};
+use embassy_futures::select::{select, Either};
+use embassy_nrf::buffered_uarte::{BufferedUarteRx, BufferedUarteTx};
+use node_fw::runtime::Radio as _;
+
+use crate::radio::NrfRadio;
+
+/// Bytes of the serial stream not yet parsed: survives a cancelled read.
+struct Reader {
+    buf: [u8; 2 + MAX_LINK],
+    len: usize,
+}
+
+impl Reader {
+    /// Waits for the next complete message; returns its body's end (body at 2..end).
+    async fn next(&mut self, rx: &mut BufferedUarteRx<'_>) -> usize {
+        loop {
+            if let Some(body) = next_message(&self.buf[..self.len]) {
+                return body.end;
+            }
+            if self.len == self.buf.len() {
+                // Longer than any message: not our framing. Start over.
+                self.len = 0;
+            }
+            let Ok(bytes) = rx.fill_buf().await else {
+                continue;
+            };
+            let n = bytes.len().min(self.buf.len() - self.len);
+            self.buf[self.len..self.len + n].copy_from_slice(&bytes[..n]);
+            rx.consume(n);
+            self.len += n;
+        }
+    }
+
+    fn drop_message(&mut self, end: usize) {
+        self.buf.copy_within(end..self.len, 0);
+        self.len -= end;
+    }
+}
+
+async fn write_all(tx: &mut BufferedUarteTx<'_>, mut bytes: &[u8]) {
+    while !bytes.is_empty() {
+        match tx.write(bytes).await {
+            Ok(n) => bytes = &bytes[n..],
+            Err(_) => return,
+        }
+    }
+}
+
+pub async fn run(
+    mut radio: NrfRadio,
+    mut rx: BufferedUarteRx<'static>,
+    mut tx: BufferedUarteTx<'static>,
+) -> ! {
+    let mut reader = Reader {
+        buf: [0; 2 + MAX_LINK],
+        len: 0,
+    };
+    let mut psdu = [0u8; MAX_PSDU];
+    let mut out = [0u8; MAX_LINK];
+    let (mut to_air, mut from_air) = (0u32, 0u32);
+    loop {
+        match select(reader.next(&mut rx), radio.receive(&mut psdu)).await {
+            Either::First(end) => {
+                if let Ok(Link::Frame(frame)) = Link::parse(&reader.buf[2..end]) {
+                    if radio.send(frame).await.is_ok() {
+                        to_air += 1;
+                        if to_air.is_multiple_of(100) {
+                            defmt::info!("gateway: {=u32} frames to the air", to_air);
+                        }
+                    }
+                }
+                reader.drop_message(end);
+            }
+            Either::Second(Ok(n)) => {
+                if let Ok(m) = Link::Frame(&psdu[..n]).emit(&mut out) {
+                    write_all(&mut tx, &out[..m]).await;
+                    from_air += 1;
+                    if from_air.is_multiple_of(100) {
+                        defmt::info!("gateway: {=u32} frames from the air", from_air);
+                    }
+                }
+            }
+            Either::Second(Err(_)) => {}
+        }
+    }
+}
