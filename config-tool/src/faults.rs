@@ -199,7 +199,14 @@ pub fn simulate(c: &Compiled, spec: &FaultSpec) -> Result<FaultRun, String> {
             spec.step
         )
     })?;
-    let trace = world.take_trace();
+    let mut trace = world.take_trace();
+    // Name the injected fault by roles and actuators rather than indices.
+    let named = describe(&spec.kind);
+    for e in trace.iter_mut().skip(mark) {
+        if let What::Injected { fault } = &mut e.what {
+            *fault = named.clone();
+        }
+    }
     let fault_text = trace[mark..]
         .iter()
         .find_map(|e| match &e.what {
@@ -334,12 +341,12 @@ impl FaultRun {
     }
 
     /// The text `sim --fault` prints.
-    pub fn report(&self, c: &Compiled) -> String {
+    pub fn report(&self) -> String {
         let mut o = String::new();
         let _ = writeln!(
             o,
             "fault: {} at {} ms (cycle {}, before step {}{})",
-            self.describe(c),
+            describe(&self.spec.kind),
             self.injected_ms,
             self.spec.cycle,
             self.spec.step,
@@ -410,13 +417,14 @@ impl FaultRun {
         }
         o
     }
+}
 
-    fn describe(&self, _c: &Compiled) -> String {
-        match &self.spec.kind {
-            FaultKind::Stuck(a) => format!("{a} jammed"),
-            FaultKind::Switch(s) => format!("switch {s} broken (stays open)"),
-            FaultKind::Stop(r) => format!("node of {r} stopped"),
-            FaultKind::Link(f, t) => format!("link {f} -> {t} lost"),
-        }
+/// The injected fault in words.
+fn describe(kind: &FaultKind) -> String {
+    match kind {
+        FaultKind::Stuck(a) => format!("{a} jammed"),
+        FaultKind::Switch(s) => format!("switch {s} broken (stays open)"),
+        FaultKind::Stop(r) => format!("node of {r} stopped"),
+        FaultKind::Link(f, t) => format!("link {f} -> {t} lost"),
     }
 }

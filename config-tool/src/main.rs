@@ -227,7 +227,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 if let Some(path) = timeline {
                     write_timeline(&compiled, &run.trace, &path)?;
                 }
-                print!("{}", run.report(&compiled));
+                print!("{}", run.report());
                 return if run.stopped_safely() {
                     Ok(())
                 } else {
