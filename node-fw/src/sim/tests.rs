@@ -784,3 +784,109 @@ fn a_single_acting_valve_follows_its_output_and_ignores_a_zero_length_pulse() {
         [(80, true), (120, false)]
     );
 }
+
+#[test]
+fn a_jammed_cylinder_moves_nothing_and_says_so() {
+    let table = cylinder_table(false);
+    let nodes = [NodeSpec {
+        addr: 1,
+        table: &table,
+    }];
+    let mut world = World::new(&nodes, vec![cylinder(0)]).unwrap();
+    world.jam(0).unwrap();
+    world.go(0, true).unwrap();
+    assert_eq!(world.run_until_idle(10_000), Ok(0));
+    assert_eq!(
+        world.trace(),
+        [
+            at(
+                0,
+                What::Injected {
+                    fault: "C jammed".into()
+                }
+            ),
+            at(
+                0,
+                What::Go {
+                    plant: 0,
+                    plus: true
+                }
+            ),
+            at(
+                0,
+                What::Jammed {
+                    plant: 0,
+                    plus: true
+                }
+            ),
+        ]
+    );
+    assert_eq!(world.position(0), Some(Position::Home));
+    assert_eq!(
+        world.jam(5),
+        Err(SimError::NoSuchPlant {
+            plant: 5,
+            want: "an actuator"
+        })
+    );
+}
+
+#[test]
+fn a_broken_switch_never_rises() {
+    let table = cylinder_table(false);
+    let nodes = [NodeSpec {
+        addr: 1,
+        table: &table,
+    }];
+    let mut world = World::new(&nodes, vec![cylinder(0)]).unwrap();
+    world.break_switch(0, 1).unwrap();
+    world.go(0, true).unwrap();
+    assert_eq!(world.run_until_idle(10_000), Ok(300));
+    assert_eq!(world.position(0), Some(Position::End));
+    // The rod arrived, the end switch stayed low (and the home switch fell).
+    assert_eq!(world.engine(0).inputs(), 0b00);
+    assert!(!world.trace().contains(&at(300, input(1, true))));
+}
+
+#[test]
+fn a_cut_link_or_a_stopped_node_raises_the_link_alarm_after_the_retries() {
+    assert_eq!(link_alarm_ms(), 30 + 60 + 6 * 120);
+    let a = publisher_table(&[0x20, 0x30]);
+    let b = subscriber_table(0x10);
+    let c = subscriber_table(0x10);
+    let nodes = [
+        NodeSpec {
+            addr: 0x10,
+            table: &a,
+        },
+        NodeSpec {
+            addr: 0x20,
+            table: &b,
+        },
+        NodeSpec {
+            addr: 0x30,
+            table: &c,
+        },
+    ];
+    let mut world = World::new(&nodes, vec![Button::new("S", 0, 0).into()]).unwrap();
+    world.cut_link(0, 1).unwrap();
+    world.stop_node(2).unwrap();
+    world.press(0).unwrap();
+    assert_eq!(world.run_until_idle(10_000), Ok(810));
+    let alarms: Vec<&TraceEntry> = world
+        .trace()
+        .iter()
+        .filter(|e| matches!(e.what, What::LinkAlarm { .. }))
+        .collect();
+    assert_eq!(
+        alarms,
+        [
+            &at(810, What::LinkAlarm { node: 0, peer: 1 }),
+            &at(810, What::LinkAlarm { node: 0, peer: 2 }),
+        ]
+    );
+    assert!(!world
+        .trace()
+        .iter()
+        .any(|e| matches!(e.what, What::Deliver { .. })));
+}
