@@ -71,8 +71,11 @@ enum Command {
         /// expires while a publication is in flight.
         #[arg(long)]
         prompt: bool,
+        /// The operator may press START at any time, not only when the machine is idle.
+        #[arg(long)]
+        start_anytime: bool,
         /// Stop (inconclusive) beyond this many states.
-        #[arg(long, default_value_t = 5_000_000)]
+        #[arg(long, default_value_t = 2_000_000)]
         max_states: usize,
     },
     /// The radio: medium, scan, push, status, start, reset, monitor, demo.
@@ -181,6 +184,7 @@ fn run(cli: Cli) -> Result<(), String> {
             robot,
             lossy,
             prompt,
+            start_anytime,
             max_states,
         } => {
             let src = load(&robot)?;
@@ -194,6 +198,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 verify::Options {
                     lossy,
                     prompt,
+                    start_anytime,
                     max_states,
                 },
             );

@@ -262,6 +262,51 @@ fn a_fault_publication_that_misses_a_node_is_caught() {
         .contains(&"  2. timer VC.watchdog of VC expires".to_string()));
 }
 
+/// With START pressed at any time, the small explicit-chart robot's mover extends again
+/// while it is still retracting: its chart returns to IDLE before A is home.
+#[test]
+fn a_start_during_the_cycle_is_explored_with_start_anytime() {
+    let anytime = |c: &Compiled| {
+        verify::verify(
+            c,
+            Options {
+                start_anytime: true,
+                ..Options::default()
+            },
+        )
+        .expect("model builds")
+    };
+    let paint = build(&load("../robot-configs/paint-robot.ron"));
+    assert_eq!(passes(&anytime(&paint)), (469, 1631, 2, 404));
+    let small = build(&load("fixtures/small-charts.ron"));
+    let v = anytime(&small).violation.expect("a violation");
+    assert_eq!(v.property, Property::DoubleActuation);
+    assert_eq!(v.message, "A+ commanded while A is still retracting");
+    assert_eq!(v.steps, 7);
+    assert!(v
+        .trace
+        .contains(&"  7. operator presses START (at A)".to_string()));
+}
+
+/// A counter that is never reset makes the state space infinite: the run stops at
+/// `max_states`, says so, and names the variable.
+#[test]
+fn an_unbounded_counter_stops_the_exploration_and_is_named() {
+    let small = build(&load("fixtures/small-charts.ron"));
+    let r = verify::verify(
+        &small,
+        Options {
+            max_states: 1000,
+            ..Options::default()
+        },
+    )
+    .expect("model builds");
+    assert!(r.incomplete);
+    assert!(!r.ok());
+    assert_eq!(r.states, 1000);
+    assert_eq!(r.growing, ["A.a.count = 143"]);
+}
+
 #[test]
 fn an_unknown_interlock_name_is_a_diagnostic() {
     let src = load("fixtures/verify/interlock.ron");

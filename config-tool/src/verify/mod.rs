@@ -33,6 +33,8 @@ pub struct Options {
     /// publication is in flight no actuator arrives and no timer expires. Off: deliveries
     /// take any time.
     pub prompt: bool,
+    /// The operator may press START at any time, not only when the machine is idle.
+    pub start_anytime: bool,
     /// Give up (inconclusive) beyond this many states.
     pub max_states: usize,
 }
@@ -42,7 +44,8 @@ impl Default for Options {
         Options {
             lossy: false,
             prompt: false,
-            max_states: 5_000_000,
+            start_anytime: false,
+            max_states: 2_000_000,
         }
     }
 }
@@ -110,6 +113,9 @@ pub struct Report {
     pub violation: Option<Violation>,
     /// The exploration hit `max_states`.
     pub incomplete: bool,
+    /// When incomplete: variables of the last state explored far from their initial
+    /// values (`ROLE.var = value`), the usual cause (a counter never reset).
+    pub growing: Vec<String>,
     pub lossy: bool,
     pub prompt: bool,
 }
@@ -144,6 +150,14 @@ impl Report {
         );
         if self.incomplete {
             let _ = writeln!(o, "INCOMPLETE: stopped after {} states", self.states);
+            if !self.growing.is_empty() {
+                let _ = writeln!(
+                    o,
+                    "  variables that keep growing (a counter never reset makes the state \
+                     space infinite): {}",
+                    self.growing.join(", ")
+                );
+            }
         }
         match &self.violation {
             None if !self.incomplete => {
@@ -441,7 +455,7 @@ impl<'c> Model<'c> {
     fn moves(&self, s: &Sys, opts: Options, out: &mut Vec<Move>) {
         out.clear();
         let lossy = opts.lossy;
-        if self.idle(s) {
+        if self.idle(s) || opts.start_anytime {
             out.push(Move::Press);
         }
         let radio_busy = s.flight.iter().any(|(l, _)| s.alarms & (1 << l) == 0);
@@ -1123,7 +1137,21 @@ pub fn explore(model: &Model<'_>, opts: Options) -> Report {
             });
         }
     }
+    let mut growing = Vec::new();
+    if incomplete {
+        if let Some(last) = seen.get_index(states - 1) {
+            for (i, (e, init)) in last.nodes.iter().zip(&model.init.nodes).enumerate() {
+                let role = &model.c.ir.roles[i];
+                for (v, (name, _)) in role.vars.iter().enumerate() {
+                    if (i64::from(e.vars[v]) - i64::from(init.vars[v])).abs() > 100 {
+                        growing.push(format!("{}.{name} = {}", role.name, e.vars[v]));
+                    }
+                }
+            }
+        }
+    }
     Report {
+        growing,
         states,
         transitions: edges.len(),
         idle: idle_flags.iter().filter(|b| **b).count(),
