@@ -454,6 +454,19 @@ impl Node {
     fn log(&self) -> String {
         self.log.lock().unwrap().clone()
     }
+
+    /// The log once it says `what`, or as it is after `WAIT` (the stderr reader is a thread
+    /// of its own: a line the node wrote may not be read yet).
+    fn log_saying(&self, what: &str) -> String {
+        let deadline = Instant::now() + WAIT;
+        loop {
+            let log = self.log();
+            if log.contains(what) || Instant::now() >= deadline {
+                return log;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
 }
 
 impl Drop for Node {
@@ -498,7 +511,8 @@ fn a_pushed_table_runs_survives_a_restart_and_answers_the_plant() {
     plant.drive(ADDR, BUTTON, true);
     assert_eq!(relay.pins(ADDR, 2), vec![(LAMP, true), (LAMP, false)]);
     assert_eq!(tool.status(ADDR).states.as_slice(), &[0]);
-    assert!(node.log().contains("activated role lamp generation 3"));
+    let log = node.log_saying("activated role lamp generation 3");
+    assert!(log.contains("activated role lamp generation 3"), "{log}");
 
     // Killed and restarted on the same flash file: it boots with the table, no push.
     node.kill();
@@ -508,12 +522,10 @@ fn a_pushed_table_runs_survives_a_restart_and_answers_the_plant() {
     let s = tool.status(ADDR);
     assert_eq!((s.role.as_str(), s.generation), ("lamp", 3));
     assert_eq!(s.counters.delivered, 0);
-    assert!(
-        node.log().contains("boot: role lamp generation 3"),
-        "{}",
-        node.log()
-    );
-    assert!(node.log().contains("(boot 2)"), "{}", node.log());
+    let log = node.log_saying("boot: role lamp generation 3");
+    assert!(log.contains("boot: role lamp generation 3"), "{log}");
+    let log = node.log_saying("(boot 2)");
+    assert!(log.contains("(boot 2)"), "{log}");
     // The restarted node still answers the plant.
     relay.clear_pins();
     plant.drive(ADDR, BUTTON, false);
@@ -605,7 +617,7 @@ fn garbage_and_hostile_frames_do_not_crash_the_node() {
     relay.disconnect(ADDR);
     let status = node.exit().expect("node-host exits when the medium goes");
     assert!(status.success(), "{status:?}");
-    let log = node.log();
+    let log = node.log_saying("1 oversized frames, 4 garbage messages");
     assert!(
         log.contains("1 oversized frames, 4 garbage messages"),
         "{log}"
@@ -792,9 +804,11 @@ fn a_fault_is_logged_reported_and_cleared_by_a_new_table() {
     // The lamp went on, then the fault drove every output to its safe level.
     assert_eq!(relay.pins(ADDR, 2), vec![(LAMP, true), (LAMP, false)]);
     assert_eq!(tool.status(ADDR).fault, Some(0x85));
-    assert!(node.log().contains("fault 0x85"), "{}", node.log());
+    let log = node.log_saying("fault 0x85");
+    assert!(log.contains("fault 0x85"), "{log}");
     // A new table clears it.
     assert_eq!(tool.push(ADDR, &lamp_table(2)), ota::Progress::Done);
     assert_eq!(tool.status(ADDR).fault, None);
-    assert!(node.log().contains("fault cleared"), "{}", node.log());
+    let log = node.log_saying("fault cleared");
+    assert!(log.contains("fault cleared"), "{log}");
 }
