@@ -117,7 +117,7 @@ pub enum NetCommand {
         robot: PathBuf,
         #[arg(long, default_value_t = 3)]
         cycles: usize,
-        /// Frame loss on the medium (with as much duplication, and reordering).
+        /// Frame loss on the medium (with half as much duplication, and reordering).
         #[arg(long, default_value_t = 0.0, value_parser = probability)]
         loss: f64,
         /// The robot pushed afterwards to the same running nodes (default:
