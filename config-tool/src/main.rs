@@ -95,6 +95,18 @@ fn load(path: &Path) -> Result<Source, String> {
         .map_err(|e| format!("error: cannot read {}: {e}", path.display()))
 }
 
+/// Reads and compiles a robot; on failure every diagnostic is reported.
+fn load_compiled(path: &Path) -> Result<(Source, compile::Compiled), String> {
+    let src = load(path)?;
+    match compile::compile(&src) {
+        Ok(compiled) => Ok((src, compiled)),
+        Err(diags) => {
+            report(&src, &diags);
+            Err(String::new())
+        }
+    }
+}
+
 fn report(src: &Source, diags: &[Diagnostic]) {
     use std::io::IsTerminal;
     let color = std::io::stderr().is_terminal();
@@ -125,11 +137,7 @@ fn run(cli: Cli) -> Result<(), String> {
             out,
             generation,
         } => {
-            let src = load(&robot)?;
-            let mut compiled = compile::compile(&src).map_err(|d| {
-                report(&src, &d);
-                String::new()
-            })?;
+            let (src, mut compiled) = load_compiled(&robot)?;
             if let Some(g) = generation {
                 compiled = compiled
                     .with_generation(g)
@@ -167,11 +175,7 @@ fn run(cli: Cli) -> Result<(), String> {
             role,
             format,
         } => {
-            let src = load(&robot)?;
-            let compiled = compile::compile(&src).map_err(|d| {
-                report(&src, &d);
-                String::new()
-            })?;
+            let (_, compiled) = load_compiled(&robot)?;
             let dot = diagram::dot(&compiled.ir, &role).map_err(|e| format!("error: {e}"))?;
             match format {
                 Format::Dot => print!("{dot}"),
@@ -187,11 +191,7 @@ fn run(cli: Cli) -> Result<(), String> {
             start_anytime,
             max_states,
         } => {
-            let src = load(&robot)?;
-            let compiled = compile::compile(&src).map_err(|d| {
-                report(&src, &d);
-                String::new()
-            })?;
+            let (src, compiled) = load_compiled(&robot)?;
             let model = verify::Model::new(&compiled).map_err(|e| format!("error: {e}"))?;
             let result = verify::explore(
                 &model,
@@ -216,11 +216,7 @@ fn run(cli: Cli) -> Result<(), String> {
             fault,
             timeline,
         } => {
-            let src = load(&robot)?;
-            let compiled = compile::compile(&src).map_err(|d| {
-                report(&src, &d);
-                String::new()
-            })?;
+            let (_, compiled) = load_compiled(&robot)?;
             if let Some(spec) = fault {
                 let spec = faults::parse(&spec).map_err(|e| format!("error: {e}"))?;
                 let run = faults::simulate(&compiled, &spec).map_err(|e| format!("error: {e}"))?;
