@@ -100,6 +100,28 @@ fn send(stream: &mut TcpStream, link: &Link) -> io::Result<()> {
     stream.write_all(&buf[..n])
 }
 
+/// The levels of an actuator's limit switches for where its rod is.
+fn send_switches(stream: &mut TcpStream, a: &Actuator, rod: Rod) -> io::Result<()> {
+    let (home, end) = match rod {
+        Rod::Home => (true, false),
+        Rod::End => (false, true),
+        Rod::Moving { .. } => (false, false),
+    };
+    for (pin, level) in [(a.home, home), (a.end, end)] {
+        if let Some(pin) = pin {
+            send(
+                stream,
+                &Link::Pin {
+                    addr: a.addr,
+                    pin,
+                    level,
+                },
+            )?;
+        }
+    }
+    Ok(())
+}
+
 /// Connects to the medium as the plant and drives every limit switch to the rest position
 /// (rods home): when this returns, the hello and the levels are on their way to the nodes,
 /// ahead of anything sent after it (a START right after wiring a node new to the plant
@@ -109,18 +131,7 @@ pub fn attach(medium: SocketAddr, actuators: &[Actuator]) -> io::Result<TcpStrea
     stream.set_nodelay(true)?;
     send(&mut stream, &Link::Hello(Peer::Plant))?;
     for a in actuators {
-        for (pin, level) in [(a.home, true), (a.end, false)] {
-            if let Some(pin) = pin {
-                send(
-                    &mut stream,
-                    &Link::Pin {
-                        addr: a.addr,
-                        pin,
-                        level,
-                    },
-                )?;
-            }
-        }
+        send_switches(&mut stream, a, Rod::Home)?;
     }
     Ok(stream)
 }
@@ -181,23 +192,7 @@ pub fn run_attached(
         if now >= next_refresh {
             next_refresh = now + Duration::from_millis(200);
             for (a, s) in actuators.iter().zip(&states) {
-                let (home, end) = match s.rod {
-                    Rod::Home => (true, false),
-                    Rod::End => (false, true),
-                    Rod::Moving { .. } => (false, false),
-                };
-                for (pin, level) in [(a.home, home), (a.end, end)] {
-                    if let Some(pin) = pin {
-                        send(
-                            &mut stream,
-                            &Link::Pin {
-                                addr: a.addr,
-                                pin,
-                                level,
-                            },
-                        )?;
-                    }
-                }
+                send_switches(&mut stream, a, s.rod)?;
             }
         }
         let wake = states
