@@ -68,9 +68,13 @@ enum Command {
         #[arg(long)]
         lossy: bool,
         /// Assume the radio is faster than any motion or timer: nothing arrives or
-        /// expires while a publication is in flight.
+        /// expires while a publication is in flight (also when the robot declares
+        /// `assume_prompt_radio`).
         #[arg(long)]
         prompt: bool,
+        /// Explore any radio delay, even if the robot declares `assume_prompt_radio`.
+        #[arg(long, conflicts_with = "prompt")]
+        any_delay: bool,
         /// The operator may press START at any time, not only when the machine is idle.
         #[arg(long)]
         start_anytime: bool,
@@ -188,10 +192,19 @@ fn run(cli: Cli) -> Result<(), String> {
             robot,
             lossy,
             prompt,
+            any_delay,
             start_anytime,
             max_states,
         } => {
             let (src, compiled) = load_compiled(&robot)?;
+            let declared = compiled.robot.assume_prompt_radio && !prompt && !any_delay;
+            if declared {
+                println!(
+                    "{}: assumes a prompt radio (`assume_prompt_radio`); --any-delay explores without it",
+                    src.name
+                );
+            }
+            let prompt = (prompt || compiled.robot.assume_prompt_radio) && !any_delay;
             let model = verify::Model::new(&compiled).map_err(|e| format!("error: {e}"))?;
             let result = verify::explore(
                 &model,

@@ -40,6 +40,12 @@ pub struct Robot {
     /// that must never hold, e.g. `"HC.moving && !VC.home"`.
     #[serde(default)]
     pub never: Vec<String>,
+    /// The charts rely on the radio delivering every publication before the next motion
+    /// completes or timer expires (the paper's position-event charts do: each subscriber
+    /// counts events that several nodes see). `verify` then explores with that assumption
+    /// and says so; `verify --any-delay` drops it (and shows the races it hides).
+    #[serde(default)]
+    pub assume_prompt_radio: bool,
 }
 
 fn default_timeout() -> u32 {

@@ -97,3 +97,57 @@ fn sim_timeline_writes_an_svg() {
         .count();
     assert_eq!(lanes, 4);
 }
+
+#[test]
+fn verify_passes_every_robot_of_robot_configs_as_declared() {
+    let mut files: Vec<String> =
+        std::fs::read_dir(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../robot-configs"))
+            .expect("robot-configs")
+            .filter_map(|e| e.ok())
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|f| f.ends_with(".ron"))
+            .collect();
+    files.sort();
+    assert_eq!(files.len(), 5, "{files:?}");
+    for f in &files {
+        let out = tool(&["verify", &format!("robot-configs/{f}")]);
+        assert_eq!(out.status.code(), Some(0), "{f}: {}", text(&out.stdout));
+        let stdout = text(&out.stdout);
+        // The robots that count shared position events say which assumption they rest on.
+        let assumes = f.contains("paper-charts") || f.contains("counted");
+        assert_eq!(
+            stdout.contains("assumes a prompt radio (`assume_prompt_radio`)"),
+            assumes,
+            "{f}: {stdout}"
+        );
+        assert_eq!(stdout.contains(", prompt radio"), assumes, "{f}: {stdout}");
+    }
+}
+
+#[test]
+fn any_delay_drops_the_declared_assumption_and_finds_the_race() {
+    let out = tool(&[
+        "verify",
+        "robot-configs/paint-robot-paper-charts.ron",
+        "--any-delay",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    let stdout = text(&out.stdout);
+    assert!(!stdout.contains("assumes a prompt radio"), "{stdout}");
+    assert!(
+        stdout
+            .contains("FAILED deadlock freedom: from here the machine can never get back to idle"),
+        "{stdout}"
+    );
+    let both = tool(&[
+        "verify",
+        "robot-configs/paint-robot.ron",
+        "--any-delay",
+        "--prompt",
+    ]);
+    assert_eq!(
+        both.status.code(),
+        Some(2),
+        "clap refuses the contradiction"
+    );
+}
