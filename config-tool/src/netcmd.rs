@@ -25,6 +25,13 @@ pub struct MediumAddr {
     /// The medium's address (`config-tool medium --listen ...`).
     #[arg(long, default_value = "127.0.0.1:15400")]
     pub medium: SocketAddr,
+    /// Reach real nodes instead: through an nRF52840 gateway on this serial port (a medium
+    /// bridged to the air runs in this process, as `config-tool gateway` does).
+    #[arg(long, conflicts_with = "medium")]
+    pub serial: Option<PathBuf>,
+    /// The gateway's baud rate (with --serial).
+    #[arg(long, default_value_t = 1_000_000, requires = "serial")]
+    pub baud: u32,
 }
 
 /// The radio commands.
@@ -204,6 +211,25 @@ fn check_elf(elf: &Path) -> Result<(), String> {
 /// (the medium's framing), and every frame the gateway hears goes on the medium. The
 /// bridge joins the medium as a monitor (it sees every frame, without the medium's loss).
 fn gateway(serial: &Path, baud: u32, listen: SocketAddr) -> Result<(), String> {
+    let (m, up) = bridge(serial, baud, listen)?;
+    println!(
+        "medium listening on {}, bridged to the air through {}",
+        m.addr(),
+        serial.display()
+    );
+    match up.join() {
+        Ok(r) => r.map_err(|e| format!("error: {}: {e}", serial.display())),
+        Err(_) => Err("error: the gateway bridge stopped".into()),
+    }
+}
+
+/// A medium on `listen` whose frames also go to the air through the gateway on `serial`
+/// (and the air's to it); returns the medium and the thread carrying the air's frames.
+fn bridge(
+    serial: &Path,
+    baud: u32,
+    listen: SocketAddr,
+) -> Result<(medium::Medium, std::thread::JoinHandle<io::Result<()>>), String> {
     if serial.to_str().is_some_and(|p| p.starts_with("/dev/tty")) {
         let status = std::process::Command::new("stty")
             .arg("-F")
@@ -235,18 +261,12 @@ fn gateway(serial: &Path, baud: u32, listen: SocketAddr) -> Result<(), String> {
         .emit(&mut buf)
         .map_err(|_| "link".to_string())?;
     stream.write_all(&buf[..n]).map_err(|e| e.to_string())?;
-    println!(
-        "medium listening on {}, bridged to the air through {}",
-        m.addr(),
-        serial.display()
-    );
     let to_air = port.try_clone().map_err(|e| e.to_string())?;
     let from_medium = stream.try_clone().map_err(|e| e.to_string())?;
-    // Medium -> air, in its own thread; air -> medium here. Each forwards frames only.
-    let down = std::thread::spawn(move || forward_frames(from_medium, to_air));
-    let up = forward_frames(port, stream);
-    let _ = down.join();
-    up.map_err(|e| format!("error: {}: {e}", serial.display()))
+    // Medium -> air and air -> medium, each in its own thread; frames only.
+    std::thread::spawn(move || forward_frames(from_medium, to_air));
+    let up = std::thread::spawn(move || forward_frames(port, stream));
+    Ok((m, up))
 }
 
 /// Copies the `Link::Frame` messages of `from` to `to` until `from` ends.
@@ -371,9 +391,24 @@ fn generation_of(c: Compiled, generation: Option<u32>) -> Result<Compiled, Strin
     c.with_generation(g)
 }
 
+/// The medium to talk to: the one at `--medium`, or with `--serial` one bridged to the air
+/// started here (it lives as long as the command).
+fn resolve(at: &MediumAddr) -> Result<SocketAddr, String> {
+    match &at.serial {
+        None => Ok(at.medium),
+        Some(serial) => {
+            let (m, _) = bridge(serial, at.baud, SocketAddr::from(([127, 0, 0, 1], 0)))?;
+            let addr = m.addr();
+            std::mem::forget(m);
+            Ok(addr)
+        }
+    }
+}
+
 fn connect(at: &MediumAddr) -> Result<ToolRadio, String> {
-    ToolRadio::connect(at.medium, TOOL_ADDR)
-        .map_err(|e| format!("error: cannot reach the medium at {}: {e}", at.medium))
+    let medium = resolve(at)?;
+    ToolRadio::connect(medium, TOOL_ADDR)
+        .map_err(|e| format!("error: cannot reach the medium at {medium}: {e}"))
 }
 
 /// Runs a radio command.
@@ -463,6 +498,12 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
             }
             let (tx, rx) = std::sync::mpsc::channel();
             let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+            if at.serial.is_some() {
+                return Err(
+                    "error: the plant is the simulated machine: it needs a medium, not --serial"
+                        .into(),
+                );
+            }
             let medium = at.medium;
             let handle = std::thread::spawn(move || plant::run(medium, actuators, tx, stop));
             for step in rx {
@@ -870,8 +911,9 @@ fn count_line(who: &str, d: &demo::Counts, cycles: usize) -> String {
 
 /// Prints every frame (decoded) and pin change on the medium.
 fn monitor(at: &MediumAddr, for_: Option<Duration>) -> Result<(), String> {
-    let mut stream = TcpStream::connect(at.medium)
-        .map_err(|e| format!("error: cannot reach the medium at {}: {e}", at.medium))?;
+    let medium = resolve(at)?;
+    let mut stream = TcpStream::connect(medium)
+        .map_err(|e| format!("error: cannot reach the medium at {medium}: {e}"))?;
     let mut buf = [0u8; MAX_LINK];
     let n = Link::Hello(Peer::Monitor)
         .emit(&mut buf)
