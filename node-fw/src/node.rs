@@ -10,7 +10,7 @@ use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
 use config_schema::wire::msg::{
     Announce, Command, ConfigReply, Counters, Message, Refusal, Status,
 };
-use config_schema::{Publication, Table};
+use config_schema::{decode, Publication, Table};
 use heapless::Vec;
 
 use crate::ecc::{Effects, Engine, EngineState, Fault};
@@ -32,10 +32,12 @@ pub trait Io {
     fn set_pin(&mut self, pin: u8, level: bool);
 }
 
-/// A table waiting to be persisted before it runs.
-#[derive(Debug, Clone, PartialEq)]
+/// A table waiting to be persisted before it runs: its blob stays in the OTA staging
+/// buffer (decoded and validated already; decoded again when it is switched to, so the node
+/// never holds two decoded tables besides the running one).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Staged {
-    table: Table,
+    generation: u32,
     len: usize,
     from: u16,
 }
@@ -443,17 +445,10 @@ impl NodeCore {
     }
 
     fn on_config(&mut self, msg: &Message<'_>, src: u16, pan: u16, io: &mut impl Io) {
-        // Anything about a table being persisted is answered once it runs.
-        if let Some(staged) = &self.staged {
-            let generation = match *msg {
-                Message::ConfigBegin { generation, .. }
-                | Message::ConfigChunk { generation, .. }
-                | Message::ConfigEnd { generation } => generation,
-                _ => 0,
-            };
-            if staged.table.generation == generation {
-                return;
-            }
+        // Nothing touches the staging buffer while its table is being persisted; the
+        // answer comes once it runs (the runtime persists before it reads another frame).
+        if self.staged.is_some() {
+            return;
         }
         let generation = self.generation();
         match self.ota.on_message(msg, generation) {
@@ -474,10 +469,12 @@ impl NodeCore {
                     },
                 );
             }
-            Some(Outcome::Activate { table, len, .. }) => {
+            Some(Outcome::Activate {
+                generation, len, ..
+            }) => {
                 // The old table keeps running until the new one is persisted.
                 self.staged = Some(Staged {
-                    table,
+                    generation,
                     len,
                     from: src,
                 });
@@ -492,20 +489,27 @@ impl NodeCore {
         let Some(staged) = self.staged.take() else {
             return;
         };
-        let generation = staged.table.generation;
-        let reply = if ok {
-            if let Some(old) = &self.table {
-                for o in &old.outputs {
+        let generation = staged.generation;
+        // The blob was decoded and validated when it arrived; the buffer has not changed.
+        let table = match decode(self.ota.blob(staged.len)) {
+            Ok(table) if ok => Some(table),
+            _ => None,
+        };
+        let reply = match table {
+            Some(table) => {
+                if let Some(old) = &self.table {
+                    for o in &old.outputs {
+                        io.set_pin(o.pin, o.safe);
+                    }
+                }
+                for o in &table.outputs {
                     io.set_pin(o.pin, o.safe);
                 }
+                self.install(table);
+                ConfigReply::Activated
             }
-            for o in &staged.table.outputs {
-                io.set_pin(o.pin, o.safe);
-            }
-            self.install(staged.table);
-            ConfigReply::Activated
-        } else {
-            ConfigReply::Refused(Refusal::Flash)
+            None if ok => ConfigReply::Refused(Refusal::Invalid),
+            None => ConfigReply::Refused(Refusal::Flash),
         };
         self.send(
             io,
