@@ -140,44 +140,7 @@ pub fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
         let want = |e: &str| wanted.contains(&(role.name.clone(), e.to_string()));
         // Hardware: every declared pin.
         for a in &role.actuators {
-            match a.kind {
-                ActuatorKind::DoubleActing {
-                    extend,
-                    retract,
-                    home,
-                    end,
-                    ..
-                } => {
-                    r.outputs.push(OutputIr {
-                        name: format!("{}.extend", a.name),
-                        pin: extend,
-                        safe: false,
-                    });
-                    r.outputs.push(OutputIr {
-                        name: format!("{}.retract", a.name),
-                        pin: retract,
-                        safe: false,
-                    });
-                    for (s, pin) in [("home", home), ("end", end)] {
-                        let name = format!("{}.{s}", a.name);
-                        let fall = format!("{name}.fall");
-                        r.inputs.push(InputIr {
-                            rise: want(&name).then(|| name.clone()),
-                            fall: want(&fall).then_some(fall),
-                            var: None,
-                            name,
-                            pin,
-                        });
-                    }
-                }
-                ActuatorKind::SingleActing { valve, .. } => {
-                    r.outputs.push(OutputIr {
-                        name: format!("{}.valve", a.name),
-                        pin: valve,
-                        safe: false,
-                    });
-                }
-            }
+            r.declare_actuator(a, want, want);
         }
         for i in &role.inputs {
             let fall = format!("{}.fall", i.name);

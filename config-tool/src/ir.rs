@@ -131,6 +131,38 @@ pub enum ActionIr {
 }
 
 impl RoleIr {
+    /// Declares an actuator's pins: each valve an output `ACT.FIELD` (safe off), each limit
+    /// switch an input `ACT.FIELD` whose rising edge raises the event `ACT.FIELD` if
+    /// `rise` says so, and whose falling edge raises `ACT.FIELD.fall` if `fall` says so.
+    /// Events are not registered here.
+    pub fn declare_actuator(
+        &mut self,
+        a: &crate::model::Actuator,
+        rise: impl Fn(&str) -> bool,
+        fall: impl Fn(&str) -> bool,
+    ) {
+        for (field, pin, used) in a.kind.pins() {
+            let name = format!("{}.{field}", a.name);
+            match used {
+                crate::model::PinUse::Valve => self.outputs.push(OutputIr {
+                    name,
+                    pin,
+                    safe: false,
+                }),
+                crate::model::PinUse::Switch => {
+                    let falling = format!("{name}.fall");
+                    self.inputs.push(InputIr {
+                        rise: rise(&name).then(|| name.clone()),
+                        fall: fall(&falling).then_some(falling),
+                        var: None,
+                        name,
+                        pin,
+                    });
+                }
+            }
+        }
+    }
+
     /// The id of a node event, adding it if new.
     pub fn event(&mut self, name: &str) -> usize {
         match self.events.iter().position(|e| e == name) {

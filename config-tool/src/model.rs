@@ -89,6 +89,37 @@ pub struct Actuator {
     pub kind: ActuatorKind,
 }
 
+/// How a node pin of an actuator is used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PinUse {
+    /// A valve solenoid (a node output).
+    Valve,
+    /// A limit switch (a node input).
+    Switch,
+}
+
+impl ActuatorKind {
+    /// Every pin of the actuator: its RON field name (`extend`, `retract`, `home`, `end`,
+    /// `valve`), the pin and its use, valves before switches.
+    pub fn pins(&self) -> Vec<(&'static str, u8, PinUse)> {
+        match *self {
+            ActuatorKind::DoubleActing {
+                extend,
+                retract,
+                home,
+                end,
+                ..
+            } => vec![
+                ("extend", extend, PinUse::Valve),
+                ("retract", retract, PinUse::Valve),
+                ("home", home, PinUse::Switch),
+                ("end", end, PinUse::Switch),
+            ],
+            ActuatorKind::SingleActing { valve, .. } => vec![("valve", valve, PinUse::Valve)],
+        }
+    }
+}
+
 /// Actuator hardware and its plant parameters (for `sim`).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]

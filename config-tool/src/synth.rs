@@ -14,9 +14,7 @@
 //! publishes `fault` to every other role; receiving a peer's `fault` raises fault 2. So a
 //! fault anywhere stops every node at once (outputs safe) until a reset.
 
-use crate::ir::{
-    ActionIr, ChartIr, InputIr, Ir, OutputIr, RoleIr, StateIr, Step, TimerIr, TransitionIr,
-};
+use crate::ir::{ActionIr, ChartIr, InputIr, Ir, RoleIr, StateIr, Step, TimerIr, TransitionIr};
 use crate::model::{ActuatorKind, Robot};
 
 /// Fault code of a motion that did not complete in time.
@@ -74,43 +72,11 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
             .filter(|a| steps.iter().any(|s| s.actuator == a.name))
             .collect();
         for a in &moving {
-            match a.kind {
-                ActuatorKind::DoubleActing {
-                    extend,
-                    retract,
-                    home,
-                    end,
-                    ..
-                } => {
-                    r.outputs.push(OutputIr {
-                        name: format!("{}.extend", a.name),
-                        pin: extend,
-                        safe: false,
-                    });
-                    r.outputs.push(OutputIr {
-                        name: format!("{}.retract", a.name),
-                        pin: retract,
-                        safe: false,
-                    });
-                    for (what, pin) in [("home", home), ("end", end)] {
-                        let ev = format!("{}.{what}", a.name);
-                        r.event(&ev);
-                        r.inputs.push(InputIr {
-                            name: ev.clone(),
-                            pin,
-                            rise: Some(ev),
-                            fall: None,
-                            var: None,
-                        });
-                    }
-                }
-                ActuatorKind::SingleActing { valve, .. } => {
-                    r.outputs.push(OutputIr {
-                        name: format!("{}.valve", a.name),
-                        pin: valve,
-                        safe: false,
-                    });
-                }
+            let first = r.inputs.len();
+            r.declare_actuator(a, |_| true, |_| false);
+            for i in first..r.inputs.len() {
+                let name = r.inputs[i].name.clone();
+                r.event(&name);
             }
         }
         if start_role == ri {

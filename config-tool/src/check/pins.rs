@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 
 use crate::diag::Diagnostic;
-use crate::model::{ActuatorKind, Robot};
+use crate::model::Robot;
 use crate::source::Source;
 
 pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
@@ -13,26 +13,8 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
         let mut uses: Vec<(u8, String, String)> = Vec::new();
         for (ai, a) in role.actuators.iter().enumerate() {
             let p = format!("roles[{ri}].actuators[{ai}].kind");
-            match a.kind {
-                ActuatorKind::DoubleActing {
-                    extend,
-                    retract,
-                    home,
-                    end,
-                    ..
-                } => {
-                    for (field, pin) in [
-                        ("extend", extend),
-                        ("retract", retract),
-                        ("home", home),
-                        ("end", end),
-                    ] {
-                        uses.push((pin, format!("{}.{field}", a.name), format!("{p}.{field}")));
-                    }
-                }
-                ActuatorKind::SingleActing { valve, .. } => {
-                    uses.push((valve, format!("{}.valve", a.name), format!("{p}.valve")));
-                }
+            for (field, pin, _) in a.kind.pins() {
+                uses.push((pin, format!("{}.{field}", a.name), format!("{p}.{field}")));
             }
         }
         for (k, i) in role.inputs.iter().enumerate() {
