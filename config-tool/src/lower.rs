@@ -71,7 +71,8 @@ pub fn peers(ir: &Ir, ri: usize) -> Vec<usize> {
 pub fn capacity(ir: &Ir) -> Vec<Over> {
     let mut out = Vec::new();
     for (ri, r) in ir.roles.iter().enumerate() {
-        let code: usize = r
+        // The length of every expression: guards and assignments.
+        let exprs: Vec<usize> = r
             .charts
             .iter()
             .flat_map(|c| {
@@ -85,23 +86,9 @@ pub fn capacity(ir: &Ir) -> Vec<Over> {
                         })
                     }))
             })
-            .sum();
-        let longest_expr = r
-            .charts
-            .iter()
-            .flat_map(|c| {
-                c.transitions
-                    .iter()
-                    .filter_map(|t| t.guard.as_ref().map(|g| g.1.len()))
-                    .chain(c.states.iter().flat_map(|s| {
-                        s.actions.iter().filter_map(|a| match a {
-                            ActionIr::Set { ops, .. } => Some(ops.len()),
-                            _ => None,
-                        })
-                    }))
-            })
-            .max()
-            .unwrap_or(0);
+            .collect();
+        let code: usize = exprs.iter().sum();
+        let longest_expr = exprs.iter().copied().max().unwrap_or(0);
         let published = topics(ir).iter().filter(|(q, _)| *q == ri).count();
         let checks: [(&'static str, usize, usize); 15] = [
             ("MAX_EVENTS", r.events.len(), MAX_EVENTS),
