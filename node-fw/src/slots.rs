@@ -201,6 +201,34 @@ impl<F: NorFlash> Slots<F> {
     }
 }
 
+/// Why a NOR flash access is refused before it reaches the memory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Access {
+    /// It runs past the region.
+    OutOfBounds,
+    /// Its offset or length is not a multiple of the granularity.
+    NotAligned,
+}
+
+/// Checks an access of `len` bytes at `offset` in a region of `capacity` bytes with
+/// granularity `align` (what every `NorFlash` implementation must refuse); returns the
+/// offset as an index.
+pub fn check_access(
+    offset: u32,
+    len: usize,
+    align: usize,
+    capacity: usize,
+) -> Result<usize, Access> {
+    let start = offset as usize;
+    if start.checked_add(len).is_none_or(|end| end > capacity) {
+        return Err(Access::OutOfBounds);
+    }
+    if !start.is_multiple_of(align) || !len.is_multiple_of(align) {
+        return Err(Access::NotAligned);
+    }
+    Ok(start)
+}
+
 /// A NOR flash in RAM (erase sets bytes to 0xFF, writes can only clear bits), for the host,
 /// the simulator and tests. `fail_after` cuts the power: the write that would exceed it
 /// is applied only halfway and every later operation fails.
@@ -238,10 +266,7 @@ impl<const N: usize> RamFlash<N> {
     }
 
     fn range(&self, offset: u32, len: usize) -> Result<core::ops::Range<usize>, PowerCut> {
-        let start = offset as usize;
-        if start + len > N {
-            return Err(PowerCut);
-        }
+        let start = check_access(offset, len, 1, N).map_err(|_| PowerCut)?;
         Ok(start..start + len)
     }
 

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use embedded_storage::nor_flash::{ErrorType, NorFlashError, NorFlashErrorKind};
 use embedded_storage_async::nor_flash::{NorFlash, ReadNorFlash};
 
-use crate::slots::Slots;
+use crate::slots::{check_access, Access, Slots};
 
 /// The erase page (as on an nRF52840).
 pub const ERASE_SIZE: usize = 4096;
@@ -35,6 +35,15 @@ pub enum FlashError {
     NotAligned,
     /// The file could not be read or written.
     Io(io::ErrorKind),
+}
+
+impl From<Access> for FlashError {
+    fn from(a: Access) -> Self {
+        match a {
+            Access::OutOfBounds => FlashError::OutOfBounds,
+            Access::NotAligned => FlashError::NotAligned,
+        }
+    }
 }
 
 impl NorFlashError for FlashError {
@@ -148,17 +157,6 @@ impl HostFlash {
         Ok(Some(boots))
     }
 
-    fn check(offset: u32, len: usize, align: usize) -> Result<usize, FlashError> {
-        let start = offset as usize;
-        if start.checked_add(len).is_none_or(|end| end > SLOTS_BYTES) {
-            return Err(FlashError::OutOfBounds);
-        }
-        if !start.is_multiple_of(align) || !len.is_multiple_of(align) {
-            return Err(FlashError::NotAligned);
-        }
-        Ok(start)
-    }
-
     fn read_at(&mut self, start: usize, bytes: &mut [u8]) -> Result<(), FlashError> {
         match &mut self.store {
             Store::Ram(mem) => {
@@ -201,7 +199,7 @@ impl ReadNorFlash for HostFlash {
     const READ_SIZE: usize = 1;
 
     async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
-        let start = Self::check(offset, bytes.len(), Self::READ_SIZE)?;
+        let start = check_access(offset, bytes.len(), Self::READ_SIZE, SLOTS_BYTES)?;
         self.read_at(start, bytes)
     }
 
@@ -216,12 +214,12 @@ impl NorFlash for HostFlash {
 
     async fn erase(&mut self, from: u32, to: u32) -> Result<(), FlashError> {
         let len = to.checked_sub(from).ok_or(FlashError::OutOfBounds)? as usize;
-        let start = Self::check(from, len, Self::ERASE_SIZE)?;
+        let start = check_access(from, len, Self::ERASE_SIZE, SLOTS_BYTES)?;
         self.write_at(start, &vec![0xFF; len])
     }
 
     async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
-        let start = Self::check(offset, bytes.len(), Self::WRITE_SIZE)?;
+        let start = check_access(offset, bytes.len(), Self::WRITE_SIZE, SLOTS_BYTES)?;
         // NOR: programming only clears bits.
         let mut cells = vec![0u8; bytes.len()];
         self.read_at(start, &mut cells)?;

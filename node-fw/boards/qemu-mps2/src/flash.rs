@@ -13,7 +13,7 @@
 
 use embedded_storage::nor_flash::{ErrorType, NorFlashError, NorFlashErrorKind};
 use embedded_storage_async::nor_flash::{NorFlash, ReadNorFlash};
-use node_fw::slots::Slots;
+use node_fw::slots::{check_access, Access, Slots};
 
 use crate::semihosting::{self, File};
 
@@ -30,6 +30,15 @@ pub enum FlashError {
     NotAligned,
     /// The host file could not be written.
     Host,
+}
+
+impl From<Access> for FlashError {
+    fn from(a: Access) -> Self {
+        match a {
+            Access::OutOfBounds => FlashError::OutOfBounds,
+            Access::NotAligned => FlashError::NotAligned,
+        }
+    }
 }
 
 impl NorFlashError for FlashError {
@@ -100,17 +109,6 @@ impl QemuFlash {
         f.write_at(at, &m[at..at + 4]).then_some(boots)
     }
 
-    fn check(offset: u32, len: usize, align: usize) -> Result<usize, FlashError> {
-        let start = offset as usize;
-        if start.checked_add(len).is_none_or(|end| end > SLOTS_BYTES) {
-            return Err(FlashError::OutOfBounds);
-        }
-        if !start.is_multiple_of(align) || !len.is_multiple_of(align) {
-            return Err(FlashError::NotAligned);
-        }
-        Ok(start)
-    }
-
     fn sync(&self, start: usize, len: usize) -> Result<(), FlashError> {
         match self.file {
             Some(f) if !f.write_at(start, &mem()[start..start + len]) => Err(FlashError::Host),
@@ -127,7 +125,7 @@ impl ReadNorFlash for QemuFlash {
     const READ_SIZE: usize = 1;
 
     async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
-        let start = Self::check(offset, bytes.len(), 1)?;
+        let start = check_access(offset, bytes.len(), 1, SLOTS_BYTES)?;
         bytes.copy_from_slice(&mem()[start..start + bytes.len()]);
         Ok(())
     }
@@ -145,14 +143,14 @@ impl NorFlash for QemuFlash {
         if to < from {
             return Err(FlashError::OutOfBounds);
         }
-        let start = Self::check(from, (to - from) as usize, ERASE_SIZE)?;
+        let start = check_access(from, (to - from) as usize, ERASE_SIZE, SLOTS_BYTES)?;
         let len = (to - from) as usize;
         mem()[start..start + len].fill(0xFF);
         self.sync(start, len)
     }
 
     async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
-        let start = Self::check(offset, bytes.len(), 4)?;
+        let start = check_access(offset, bytes.len(), 4, SLOTS_BYTES)?;
         for (cell, b) in mem()[start..start + bytes.len()].iter_mut().zip(bytes) {
             *cell &= *b;
         }
