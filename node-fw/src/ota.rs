@@ -14,9 +14,9 @@
 //! table decodes and validates; a transfer that stops anywhere leaves the old table running.
 
 use config_schema::blob::CRC32;
+use config_schema::decode;
 use config_schema::limits::MAX_BLOB;
 use config_schema::wire::msg::{ConfigReply, Message, Refusal, CHUNK_DATA};
-use config_schema::{decode, Table};
 
 /// Chunks the tool keeps in flight.
 pub const WINDOW: usize = 4;
@@ -72,19 +72,17 @@ impl Default for Receiver {
 }
 
 /// What the node does with a config message.
-// The table is moved once per activation, straight into the runtime's engine slot.
-#[allow(clippy::large_enum_variant)]
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Outcome {
     /// Answer with this reply.
     Reply(ConfigReply),
-    /// The blob is complete and valid: activate `table` atomically (outputs to the safe
-    /// state, new engine, persist `blob` to the inactive slot, flip), then answer
-    /// `Activated` (or `Refused(Flash)` if persisting failed).
+    /// The blob is complete, its CRC matches and it decodes and validates: persist
+    /// [`Receiver::blob`]`(len)` to the inactive slot, then switch to it atomically
+    /// (outputs to the safe state, new engine) and answer `Activated` (or
+    /// `Refused(Flash)` if persisting failed).
     Activate {
-        table: Table,
         generation: u32,
-        /// Length of the staged blob: [`Receiver::blob`]`(len)` is what to persist.
+        /// Length of the staged blob.
         len: usize,
     },
 }
@@ -191,7 +189,6 @@ impl Receiver {
                 }
                 match decode(blob) {
                     Ok(table) if table.generation == generation => Some(Outcome::Activate {
-                        table,
                         generation,
                         len: usize::from(t.len),
                     }),

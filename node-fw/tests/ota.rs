@@ -33,11 +33,11 @@ impl Node {
         };
         match self.rx.on_message(msg, self.running)? {
             Outcome::Reply(r) => Some((generation, r)),
-            Outcome::Activate {
-                table, generation, ..
-            } => {
+            Outcome::Activate { generation, len } => {
                 self.running = generation;
-                self.activations.push(table);
+                // What the node would switch to: the staged blob, decoded.
+                self.activations
+                    .push(config_schema::decode(self.rx.blob(len)).unwrap());
                 Some((generation, ConfigReply::Activated))
             }
         }
