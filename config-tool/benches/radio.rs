@@ -185,7 +185,7 @@ fn main() {
         let mut steps = Vec::new();
         let n0 = frames.load(Ordering::Relaxed);
         let cycle = bed
-            .run_cycle(&c, &mut |s| steps.push(s.clone()))
+            .run_cycle(&c, &mut |s, _| steps.push(s.clone()))
             .expect("cycle");
         assert!(cycle.ok(), "{}", demo::cycle_line(0, &cycle));
         per_cycle.push(frames.load(Ordering::Relaxed) - n0);

@@ -20,9 +20,10 @@ use node_fw::ota::Progress;
 
 use crate::compile::Compiled;
 use crate::medium::{self, Medium};
-use crate::plant::{self, Actuator, Step};
+use crate::plant::{self, Actuator, Injection, Step};
 use crate::push::{self, Ids, Target};
 use crate::radio::{ToolRadio, TOOL_ADDR};
+use crate::watch::{self, Seen, Watch};
 
 /// How to run the test bed.
 #[derive(Debug, Clone)]
@@ -49,12 +50,33 @@ pub struct Cycle {
     pub airtime_us: u64,
     /// Faults reported by the nodes at the end of the cycle: (role, code).
     pub faults: Vec<(String, u8)>,
+    /// The machine faulted during the cycle: who detected it, when, and what followed.
+    pub fault: Option<FaultReport>,
 }
 
 impl Cycle {
     pub fn ok(&self) -> bool {
-        self.steps == self.expect && self.faults.is_empty()
+        self.steps == self.expect && self.faults.is_empty() && self.fault.is_none()
     }
+}
+
+/// A fault, as the demo saw it happen. Times are since the cycle's START.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FaultReport {
+    /// When the first node published its fault (or, without a publication, when a
+    /// status showed it).
+    pub at: Duration,
+    pub role: String,
+    pub addr: u16,
+    /// Its fault code (`synth::FAULT_MOTION_TIMEOUT`, ...), if its status said.
+    pub code: Option<u8>,
+    /// The step under way on the detecting role when it faulted: (step, when it was
+    /// commanded); `jammed` when the plant saw the command and did not move.
+    pub step: Option<(String, Duration, bool)>,
+    /// Every role's node after the fault: (role, address, fault code, outputs).
+    pub nodes: Vec<(String, u16, Option<u8>, u16)>,
+    /// Output levels the nodes drove from the detection on: (time, address, pin, level).
+    pub outputs: Vec<(Duration, u16, u8, bool)>,
 }
 
 /// The running machine.
@@ -65,8 +87,15 @@ pub struct Bed {
     plant: Option<(Arc<AtomicBool>, JoinHandle<io::Result<()>>)>,
     steps: Receiver<Step>,
     steps_tx: mpsc::Sender<Step>,
+    watch: Option<Watch>,
+    seen: Receiver<Seen>,
+    seen_tx: mpsc::Sender<Seen>,
     radio: ToolRadio,
     ids: Ids,
+    /// Steps the plant has seen since it was wired (what an injection counts).
+    steps_seen: usize,
+    /// The node to stop after so many steps (`--fault stop:ROLE@STEP`).
+    kill_after: Option<(usize, u16)>,
 }
 
 fn err(e: impl std::fmt::Display) -> String {
@@ -79,6 +108,7 @@ impl Bed {
         let medium = Medium::start(options.medium.clone()).map_err(|e| format!("medium: {e}"))?;
         let radio = ToolRadio::connect(medium.addr(), TOOL_ADDR).map_err(err)?;
         let (steps_tx, steps) = mpsc::channel();
+        let (seen_tx, seen) = mpsc::channel();
         Ok(Bed {
             options,
             medium,
@@ -86,8 +116,13 @@ impl Bed {
             plant: None,
             steps,
             steps_tx,
+            watch: None,
+            seen,
+            seen_tx,
             radio,
             ids: Ids::default(),
+            steps_seen: 0,
+            kill_after: None,
         })
     }
 
@@ -136,16 +171,42 @@ impl Bed {
     }
 
     /// Wires the plant for these actuators (restarting it: call between cycles). The plant
-    /// is on the medium, its switches set, when this returns.
+    /// is on the medium, its switches set at the nodes, when this returns.
     pub fn set_plant(&mut self, actuators: Vec<Actuator>) -> Result<(), String> {
+        self.set_plant_injected(actuators, None)
+    }
+
+    /// [`Bed::set_plant`], with a fault the plant injects.
+    pub fn set_plant_injected(
+        &mut self,
+        actuators: Vec<Actuator>,
+        injection: Option<Injection>,
+    ) -> Result<(), String> {
         self.stop_plant();
         let stop = Arc::new(AtomicBool::new(false));
-        let stream =
+        let conn =
             plant::attach(self.medium.addr(), &actuators).map_err(|e| format!("plant: {e}"))?;
         let (tx, flag) = (self.steps_tx.clone(), stop.clone());
-        let handle = std::thread::spawn(move || plant::run_attached(stream, actuators, tx, flag));
+        let handle =
+            std::thread::spawn(move || plant::run_attached(conn, actuators, injection, tx, flag));
         self.plant = Some((stop, handle));
+        self.steps_seen = 0;
         while self.steps.try_recv().is_ok() {}
+        Ok(())
+    }
+
+    /// Watches the air for the faults of robot `c` (and every output level) from now on.
+    pub fn watch(&mut self, c: &Compiled) -> Result<(), String> {
+        self.watch = None;
+        let w = Watch::start(
+            self.medium.addr(),
+            self.medium.started(),
+            watch::fault_topics(c),
+            self.seen_tx.clone(),
+        )
+        .map_err(|e| format!("monitor: {e}"))?;
+        self.watch = Some(w);
+        while self.seen.try_recv().is_ok() {}
         Ok(())
     }
 
@@ -200,48 +261,103 @@ impl Bed {
         .ok_or_else(|| format!("node {addr:#06x} did not answer {command:?}"))
     }
 
+    /// Stops the node at `addr` (a power cut) once the plant has seen `steps` steps.
+    pub fn stop_node_after(&mut self, steps: usize, addr: u16) {
+        self.kill_after = Some((steps, addr));
+    }
+
     /// Presses START (the command, to the role with the start input) and follows one cycle:
     /// every step as the plant sees it (`on_step`), until the declared number of steps
-    /// happened and every node is back in its initial state.
+    /// happened and every node is back in its initial state, or a node faults (reported
+    /// as it happens, with what every node then did).
     pub fn run_cycle(
         &mut self,
         c: &Compiled,
-        on_step: &mut dyn FnMut(&Step),
+        on_step: &mut dyn FnMut(&Step, Duration),
     ) -> Result<Cycle, String> {
         let expect: Vec<String> = c.ir.expect.iter().map(|s| s.to_string()).collect();
         let (start_role, _) = c.ir.start.clone().ok_or("the robot has no start input")?;
         let start_addr = c.ir.roles[start_role].address;
         while self.steps.try_recv().is_ok() {}
+        while self.seen.try_recv().is_ok() {}
         let before = self.medium.stats();
         let t0 = Instant::now();
+        let m0 = self.medium.now();
         let end = t0 + self.options.timeout;
+        // Without a fault publication (one role), a stall shows a fault: no step for
+        // longer than the watchdog.
+        let stall = Duration::from_millis(u64::from(c.robot.motion_timeout_ms) + 500);
         self.command(start_addr, Command::Start)?;
         let mut steps = Vec::new();
+        let mut commanded: Vec<(Step, bool)> = Vec::new();
         let mut faults = Vec::new();
+        let mut outputs = Vec::new();
+        let mut detected: Option<(Duration, u16, String)> = None;
+        let mut last_progress = Instant::now();
         loop {
             while let Ok(step) = self.steps.try_recv() {
-                on_step(&step);
-                steps.push(step.to_string());
+                last_progress = Instant::now();
+                self.on_plant_step(&step, m0, &mut steps, &mut commanded, on_step);
             }
-            if steps.len() >= expect.len() {
+            while let Ok(seen) = self.seen.try_recv() {
+                match seen {
+                    Seen::Fault { at, addr, role } => {
+                        detected.get_or_insert((at.saturating_sub(m0), addr, role));
+                    }
+                    Seen::Output {
+                        at,
+                        addr,
+                        pin,
+                        level,
+                    } => outputs.push((at.saturating_sub(m0), addr, pin, level)),
+                }
+            }
+            if detected.is_some() {
+                break;
+            }
+            let stalled = last_progress.elapsed() > stall;
+            if steps.len() >= expect.len() || stalled {
                 // Done when every node is back where it started (and nothing else moved).
                 let statuses = self.statuses(c)?;
                 faults = faults_of(c, &statuses);
-                if !faults.is_empty() || at_rest(c, &statuses) {
+                if let Some((role, _)) = faults.first() {
+                    let at = self.medium.now().saturating_sub(m0);
+                    let addr =
+                        c.ir.roles
+                            .iter()
+                            .find(|r| &r.name == role)
+                            .map(|r| r.address);
+                    detected = Some((at, addr.unwrap_or(0), role.clone()));
                     break;
                 }
+                if steps.len() >= expect.len() && at_rest(c, &statuses) {
+                    break;
+                }
+                last_progress = Instant::now();
             }
             if Instant::now() > end {
                 break;
             }
-            if let Ok(step) = self.steps.recv_timeout(Duration::from_millis(100)) {
-                on_step(&step);
-                steps.push(step.to_string());
+            if let Ok(step) = self.steps.recv_timeout(Duration::from_millis(20)) {
+                last_progress = Instant::now();
+                self.on_plant_step(&step, m0, &mut steps, &mut commanded, on_step);
             }
         }
+        let fault = match detected {
+            Some((at, addr, role)) => {
+                Some(self.fault_report(c, at, addr, role, m0, &commanded, outputs)?)
+            }
+            None => None,
+        };
+        if let Some(f) = &fault {
+            faults = f
+                .nodes
+                .iter()
+                .filter_map(|(role, _, code, _)| code.map(|k| (role.clone(), k)))
+                .collect();
+        }
         while let Ok(step) = self.steps.try_recv() {
-            on_step(&step);
-            steps.push(step.to_string());
+            self.on_plant_step(&step, m0, &mut steps, &mut commanded, on_step);
         }
         let after = self.medium.stats();
         Ok(Cycle {
@@ -251,6 +367,105 @@ impl Bed {
             frames: after.frames - before.frames,
             airtime_us: after.airtime_us - before.airtime_us,
             faults,
+            fault,
+        })
+    }
+
+    /// A step the plant saw: counted (a jammed command is not a step), printed, and the
+    /// node to stop at this point stopped.
+    fn on_plant_step(
+        &mut self,
+        step: &Step,
+        m0: Duration,
+        steps: &mut Vec<String>,
+        commanded: &mut Vec<(Step, bool)>,
+        on_step: &mut dyn FnMut(&Step, Duration),
+    ) {
+        on_step(step, step.at.saturating_sub(m0));
+        commanded.push((step.clone(), step.moved));
+        if !step.moved {
+            return;
+        }
+        steps.push(step.to_string());
+        self.steps_seen += 1;
+        if let Some((after, addr)) = self.kill_after {
+            if self.steps_seen >= after {
+                self.kill_after = None;
+                self.kill_node(addr);
+            }
+        }
+    }
+
+    /// What every node did after `role` at `addr` faulted at `at`.
+    #[allow(clippy::too_many_arguments)]
+    fn fault_report(
+        &mut self,
+        c: &Compiled,
+        at: Duration,
+        addr: u16,
+        role: String,
+        m0: Duration,
+        commanded: &[(Step, bool)],
+        mut outputs: Vec<(Duration, u16, u8, bool)>,
+    ) -> Result<FaultReport, String> {
+        // Give every node the time to hear the fault and drive its outputs safe.
+        std::thread::sleep(Duration::from_millis(100));
+        let mut nodes = Vec::new();
+        for r in &c.ir.roles {
+            let status = push::command(
+                &mut self.radio,
+                &mut self.ids,
+                r.address,
+                Command::Status,
+                Duration::from_secs(2),
+            )
+            .map_err(err)?;
+            nodes.push((
+                r.name.clone(),
+                r.address,
+                status.as_ref().and_then(|s| s.fault),
+                status.map_or(0, |s| s.outputs),
+            ));
+        }
+        while let Ok(seen) = self.seen.try_recv() {
+            if let Seen::Output {
+                at,
+                addr,
+                pin,
+                level,
+            } = seen
+            {
+                outputs.push((at.saturating_sub(m0), addr, pin, level));
+            }
+        }
+        outputs.retain(|o| o.0 >= at.saturating_sub(Duration::from_millis(50)));
+        let actuators: Vec<&str> =
+            c.ir.roles
+                .iter()
+                .find(|r| r.name == role)
+                .map(|r| {
+                    c.robot
+                        .roles
+                        .iter()
+                        .find(|m| m.name == r.name)
+                        .map(|m| m.actuators.iter().map(|a| a.name.as_str()).collect())
+                        .unwrap_or_default()
+                })
+                .unwrap_or_default();
+        let step = commanded
+            .iter()
+            .rev()
+            .find(|(s, _)| actuators.contains(&s.actuator.as_str()))
+            .map(|(s, moved)| (s.to_string(), s.at.saturating_sub(m0), !moved));
+        let code = nodes.iter().find(|n| n.1 == addr).and_then(|n| n.2);
+        Ok(FaultReport {
+            at,
+            role,
+            addr,
+            code,
+            step,
+            nodes,
+            outputs,
         })
     }
 
@@ -320,26 +535,52 @@ pub fn node_addrs(c: &Compiled) -> Vec<u16> {
     c.robot.nodes.iter().map(|n| n.address).collect()
 }
 
+/// How a push to one node ended, in words.
+pub fn progress_text(p: Progress) -> String {
+    match p {
+        Progress::Done => "activated".to_string(),
+        Progress::Busy => "still sending".to_string(),
+        Progress::GaveUp => "FAILED: the node stopped answering (is it running, in range?)".into(),
+        Progress::Refused(why) => format!("REFUSED: {}", refusal_text(why)),
+    }
+}
+
+/// Why a node refused a table, in words.
+pub fn refusal_text(why: config_schema::wire::msg::Refusal) -> String {
+    use config_schema::wire::msg::Refusal;
+    match why {
+        Refusal::Stale { running } => {
+            format!("stale generation (the node runs generation {running}; push a higher one)")
+        }
+        Refusal::TooLong => "the table is longer than the node holds".into(),
+        Refusal::OutOfSequence => "the transfer was lost (the node restarted?)".into(),
+        Refusal::Crc => "the table arrived damaged (CRC-32 mismatch)".into(),
+        Refusal::Invalid => "the table does not decode or validate on the node".into(),
+        Refusal::Flash => "the node could not write its flash".into(),
+    }
+}
+
 /// A one-line summary of a push.
 pub fn push_line(o: &push::Outcome) -> String {
-    let verdict = match o.progress {
-        Progress::Done => "activated".to_string(),
-        other => format!("{other:?}"),
-    };
     format!(
-        "  {:<6} {:#06x}  {:>5} bytes  {:>3} frames  {:>3} retries  {:>6.1} ms  {verdict}",
+        "  {:<6} {:#06x}  {:>5} bytes  {:>3} frames  {:>3} retries  {:>6.1} ms  {}",
         o.role,
         o.addr,
         o.bytes,
         o.stats.frames,
         o.stats.retries,
-        o.elapsed.as_secs_f64() * 1e3
+        o.elapsed.as_secs_f64() * 1e3,
+        progress_text(o.progress)
     )
 }
 
 /// Prints a cycle's verdict.
 pub fn cycle_line(n: usize, cy: &Cycle) -> String {
-    let verdict = if cy.ok() { "ok" } else { "MISMATCH" };
+    let verdict = match (&cy.fault, cy.ok()) {
+        (Some(_), _) => "FAULTED",
+        (None, true) => "ok",
+        (None, false) => "MISMATCH",
+    };
     let mut s = format!(
         "cycle {n}: {verdict}  {:.2} s  {} frames  {:.1} ms airtime  {}",
         cy.duration.as_secs_f64(),
@@ -347,11 +588,68 @@ pub fn cycle_line(n: usize, cy: &Cycle) -> String {
         cy.airtime_us as f64 / 1e3,
         cy.steps.join(" ")
     );
-    if !cy.ok() {
+    if let Some(f) = &cy.fault {
+        s.push('\n');
+        s.push_str(&fault_text(f));
+    } else if !cy.ok() {
         s.push('\n');
         s.push_str(&crate::sim::diff(&cy.expect, &cy.steps));
         for (role, code) in &cy.faults {
             s.push_str(&format!("  role {role} faulted (code {code:#04x})\n"));
+        }
+    }
+    s
+}
+
+/// A fault in words: who detected it, how, when, and what every node then did.
+pub fn fault_text(f: &FaultReport) -> String {
+    let how = match f.code {
+        Some(crate::synth::FAULT_MOTION_TIMEOUT) => "its motion watchdog expired".to_string(),
+        Some(crate::synth::FAULT_PEER) => "a peer's fault".to_string(),
+        Some(code) => format!("fault {code:#04x}"),
+        None => "a fault (its status did not answer)".to_string(),
+    };
+    let mut s = format!(
+        "FAULT at {:.3} s: node {:#06x} ({}) detected it: {how}",
+        f.at.as_secs_f64(),
+        f.addr,
+        f.role
+    );
+    if let Some((step, at, jammed)) = &f.step {
+        let what = if *jammed {
+            "the plant saw the command and the rod did not move"
+        } else {
+            "it did not complete"
+        };
+        s.push_str(&format!(
+            "\n  watchdog of step {step}, commanded at {:.3} s ({:.3} s before the detection): \
+             {what}",
+            at.as_secs_f64(),
+            f.at.saturating_sub(*at).as_secs_f64()
+        ));
+    }
+    for (role, addr, code, outputs) in &f.nodes {
+        let state = match code {
+            Some(c) => format!("faulted (code {c:#04x})"),
+            None => "NOT faulted".to_string(),
+        };
+        s.push_str(&format!(
+            "\n  node {addr:#06x} ({role}): {state}, outputs {outputs:#06x}"
+        ));
+        let changes: Vec<String> = f
+            .outputs
+            .iter()
+            .filter(|o| o.1 == *addr)
+            .map(|(at, _, pin, level)| {
+                format!(
+                    "pin {pin} -> {} at {:.3} s",
+                    u8::from(*level),
+                    at.as_secs_f64()
+                )
+            })
+            .collect();
+        if !changes.is_empty() {
+            s.push_str(&format!("; {}", changes.join(", ")));
         }
     }
     s

@@ -29,6 +29,7 @@ pub mod source;
 pub mod synth;
 pub mod timeline;
 pub mod verify;
+pub mod watch;
 
 pub use compile::{compile, Compiled};
 pub use diag::{Diagnostic, Severity};

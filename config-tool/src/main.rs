@@ -124,8 +124,8 @@ fn report(src: &Source, diags: &[Diagnostic]) {
     }
 }
 
-fn run(cli: Cli) -> Result<(), String> {
-    match cli.command {
+fn run(command: Command) -> Result<(), String> {
+    match command {
         Command::Check { robot } => {
             let src = load(&robot)?;
             let (_, diags) = check::check(&src);
@@ -187,7 +187,8 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             Ok(())
         }
-        Command::Net(cmd) => config_tool::netcmd::run(cmd),
+        // `main` runs them itself, for their exit statuses.
+        Command::Net(cmd) => config_tool::netcmd::run(cmd).map_err(|f| f.message),
         Command::Verify {
             robot,
             lossy,
@@ -286,13 +287,17 @@ fn write_timeline(
 }
 
 fn main() -> ExitCode {
-    match run(Cli::parse()) {
+    let result = match Cli::parse().command {
+        Command::Net(cmd) => config_tool::netcmd::run(cmd),
+        command => run(command).map_err(config_tool::netcmd::Failure::from),
+    };
+    match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(message) => {
-            if !message.is_empty() {
-                eprintln!("{message}");
+        Err(failure) => {
+            if !failure.message.is_empty() {
+                eprintln!("{}", failure.message);
             }
-            ExitCode::FAILURE
+            ExitCode::from(failure.code)
         }
     }
 }

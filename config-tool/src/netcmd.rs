@@ -3,7 +3,7 @@
 //! process: what `demo` starts, so a single build runs the whole machine).
 
 use std::io::{self, Read, Write};
-use std::net::{SocketAddr, TcpStream};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -15,9 +15,68 @@ use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use node_fw::ota::Progress;
 
 use crate::demo::{self, Bed};
+use crate::medium::Conn;
 use crate::push::{self, Ids};
 use crate::radio::{ToolRadio, TOOL_ADDR};
 use crate::{compile, medium, plant, Compiled, Source};
+
+/// The exit statuses of the radio commands (docs/config-tool.md).
+pub mod exit {
+    /// Anything else that went wrong (bad robot, no medium, nodes that never started).
+    pub const ERROR: u8 = 1;
+    /// A node did not activate its table (refused, or stopped answering).
+    pub const PUSH_FAILED: u8 = 3;
+    /// A cycle did not produce the declared sequence.
+    pub const MISMATCH: u8 = 4;
+    /// A node faulted (a watchdog, a peer's fault).
+    pub const FAULTED: u8 = 5;
+}
+
+/// A radio command that failed: what to print, and the exit status.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{message}")]
+pub struct Failure {
+    pub code: u8,
+    pub message: String,
+}
+
+impl From<String> for Failure {
+    fn from(message: String) -> Failure {
+        Failure {
+            code: exit::ERROR,
+            message,
+        }
+    }
+}
+
+/// How a demo ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// Every cycle matched its declared sequence.
+    Matched,
+    PushFailed,
+    Mismatch,
+    Faulted,
+}
+
+impl Verdict {
+    /// The command's result.
+    pub fn result(self) -> Result<(), Failure> {
+        let (code, message) = match self {
+            Verdict::Matched => return Ok(()),
+            Verdict::PushFailed => (exit::PUSH_FAILED, "demo: the push failed"),
+            Verdict::Mismatch => (
+                exit::MISMATCH,
+                "demo: a cycle did not match its declared sequence",
+            ),
+            Verdict::Faulted => (exit::FAULTED, "demo: the machine faulted"),
+        };
+        Err(Failure {
+            code,
+            message: message.into(),
+        })
+    }
+}
 
 /// Where the medium is.
 #[derive(Args, Debug, Clone)]
@@ -149,6 +208,11 @@ pub enum NetCommand {
         /// first robot's cycles: instructions per cycle and per stimulus (frame or input).
         #[arg(long, requires = "qemu")]
         icount: bool,
+        /// Inject a fault into the running machine, as `sim --fault` does: stuck:ACT or
+        /// switch:ACT.end|ACT.home (the plant), stop:ROLE (the node's process is killed),
+        /// then @STEP or @CYCLE.STEP. The demo reports the detection and exits "faulted".
+        #[arg(long)]
+        fault: Option<String>,
     },
     /// Run one emulated node: QEMU booting the firmware image, its UART on the medium.
     QemuNode(QemuNodeArgs),
@@ -254,13 +318,8 @@ fn bridge(
         ..medium::Config::default()
     })
     .map_err(|e| format!("error: medium on {listen}: {e}"))?;
-    let mut stream = TcpStream::connect(m.addr()).map_err(|e| e.to_string())?;
-    stream.set_nodelay(true).map_err(|e| e.to_string())?;
-    let mut buf = [0u8; MAX_LINK];
-    let n = Link::Hello(Peer::Monitor)
-        .emit(&mut buf)
-        .map_err(|_| "link".to_string())?;
-    stream.write_all(&buf[..n]).map_err(|e| e.to_string())?;
+    let conn = Conn::join(m.addr(), Peer::Monitor).map_err(|e| e.to_string())?;
+    let stream = conn.try_clone_stream().map_err(|e| e.to_string())?;
     let to_air = port.try_clone().map_err(|e| e.to_string())?;
     let from_medium = stream.try_clone().map_err(|e| e.to_string())?;
     // Medium -> air and air -> medium, each in its own thread; frames only.
@@ -412,7 +471,7 @@ fn connect(at: &MediumAddr) -> Result<ToolRadio, String> {
 }
 
 /// Runs a radio command.
-pub fn run(cmd: NetCommand) -> Result<(), String> {
+pub fn run(cmd: NetCommand) -> Result<(), Failure> {
     match cmd {
         NetCommand::Medium {
             listen,
@@ -469,7 +528,7 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
             if let Some(role) = &role {
                 targets.retain(|t| &t.role == role);
                 if targets.is_empty() {
-                    return Err(format!("error: {} has no role {role}", robot.display()));
+                    return Err(format!("error: {} has no role {role}", robot.display()).into());
                 }
                 if let Some(addr) = node {
                     targets[0].addr = addr;
@@ -477,7 +536,10 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
             }
             let mut radio = connect(&at)?;
             let outcomes = push_with_bars(&mut radio, &targets, force)?;
-            report_push(&outcomes)
+            report_push(&outcomes).map_err(|message| Failure {
+                code: exit::PUSH_FAILED,
+                message,
+            })
         }
         NetCommand::Status { at, node } => {
             let mut radio = connect(&at)?;
@@ -485,8 +547,8 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
             println!("{}", status_text(node, &s));
             Ok(())
         }
-        NetCommand::Start { at, node } => order(&at, node, Command::Start, "started"),
-        NetCommand::Reset { at, node } => order(&at, node, Command::Reset, "reset"),
+        NetCommand::Start { at, node } => Ok(order(&at, node, Command::Start, "started")?),
+        NetCommand::Reset { at, node } => Ok(order(&at, node, Command::Reset, "reset")?),
         NetCommand::Plant { robot, at } => {
             let c = load(&robot)?;
             let actuators = plant::actuators(&c)?;
@@ -499,10 +561,10 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
             let (tx, rx) = std::sync::mpsc::channel();
             let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
             if at.serial.is_some() {
-                return Err(
-                    "error: the plant is the simulated machine: it needs a medium, not --serial"
-                        .into(),
-                );
+                return Err(String::from(
+                    "error: the plant is the simulated machine: it needs a medium, not --serial",
+                )
+                .into());
             }
             let medium = at.medium;
             let handle = std::thread::spawn(move || plant::run(medium, actuators, tx, stop));
@@ -511,11 +573,11 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
             }
             match handle.join() {
                 Ok(Ok(())) => Ok(()),
-                Ok(Err(e)) => Err(format!("error: plant on {medium}: {e}")),
-                Err(_) => Err("error: the plant stopped".into()),
+                Ok(Err(e)) => Err(format!("error: plant on {medium}: {e}").into()),
+                Err(_) => Err(String::from("error: the plant stopped").into()),
             }
         }
-        NetCommand::Monitor { at, seconds } => monitor(&at, seconds.map(Duration::from_secs)),
+        NetCommand::Monitor { at, seconds } => Ok(monitor(&at, seconds.map(Duration::from_secs))?),
         NetCommand::Demo {
             robot,
             cycles,
@@ -527,7 +589,9 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
             qemu,
             elf,
             icount,
+            fault,
         } => {
+            let fault = fault.as_deref().map(crate::faults::parse).transpose()?;
             let count_dir = if icount {
                 let dir =
                     std::env::temp_dir().join(format!("config-tool-icount-{}", std::process::id()));
@@ -575,31 +639,31 @@ pub fn run(cmd: NetCommand) -> Result<(), String> {
                 flash_dir: None,
                 timeout: Duration::from_secs(60),
             };
-            let ok = run_demo(
-                &robot,
-                then.as_deref(),
-                cycles,
+            let verdict = run_demo(
+                &Demo {
+                    robot: &robot,
+                    then: then.as_deref(),
+                    cycles,
+                    fault,
+                    count_dir: count_dir.as_deref(),
+                },
                 options,
-                count_dir.as_deref(),
                 &mut io::stdout(),
             );
             if let Some(dir) = &count_dir {
                 let _ = std::fs::remove_dir_all(dir);
             }
-            let ok = ok?;
-            if ok {
-                Ok(())
-            } else {
-                Err("demo: a cycle did not match its declared sequence".into())
-            }
+            verdict?.result()
         }
-        NetCommand::QemuNode(args) => qemu_node(args),
+        NetCommand::QemuNode(args) => Ok(qemu_node(args)?),
         NetCommand::Gateway {
             serial,
             baud,
             listen,
-        } => gateway(&serial, baud, listen),
-        NetCommand::Node(args) => node_fw::host::run(args).map_err(|e| format!("node: {e}")),
+        } => Ok(gateway(&serial, baud, listen)?),
+        NetCommand::Node(args) => {
+            node_fw::host::run(args).map_err(|e| Failure::from(format!("node: {e}")))
+        }
     }
 }
 
@@ -706,20 +770,94 @@ fn report_push(outcomes: &[push::Outcome]) -> Result<(), String> {
     }
 }
 
-/// The demo: returns whether every cycle matched.
+/// What `demo` runs.
+pub struct Demo<'a> {
+    pub robot: &'a Path,
+    /// The robot pushed afterwards to the running nodes (one cycle).
+    pub then: Option<&'a Path>,
+    pub cycles: usize,
+    /// A fault injected into the first robot's run.
+    pub fault: Option<crate::faults::FaultSpec>,
+    /// Where counting QEMU nodes log (`--icount`).
+    pub count_dir: Option<&'a Path>,
+}
+
+/// Where a `--fault` goes on the test bed: the plant's injection, or the node to stop
+/// after so many steps (steps, address).
+type Placed = (Option<plant::Injection>, Option<(usize, u16)>);
+
+fn place_fault(
+    c: &Compiled,
+    actuators: &[plant::Actuator],
+    spec: &crate::faults::FaultSpec,
+) -> Result<Placed, String> {
+    use crate::faults::FaultKind;
+    let after = (spec.cycle - 1) * c.ir.expect.len() + (spec.step - 1);
+    let actuator = |name: &str| {
+        actuators
+            .iter()
+            .position(|a| a.name == name)
+            .ok_or_else(|| format!("error: --fault: the robot has no actuator {name}"))
+    };
+    match &spec.kind {
+        FaultKind::Stuck(name) => Ok((
+            Some(plant::Injection {
+                after,
+                actuator: actuator(name)?,
+                kind: plant::Jam::Stuck,
+            }),
+            None,
+        )),
+        FaultKind::Switch(target) => {
+            let (name, end) = match target.rsplit_once('.') {
+                Some((n, "end")) => (n, true),
+                Some((n, "home")) => (n, false),
+                _ => {
+                    return Err(format!(
+                        "error: --fault: `{target}`: a switch is ACT.end or ACT.home"
+                    ))
+                }
+            };
+            Ok((
+                Some(plant::Injection {
+                    after,
+                    actuator: actuator(name)?,
+                    kind: plant::Jam::SwitchOpen { end },
+                }),
+                None,
+            ))
+        }
+        FaultKind::Stop(role) => {
+            let r =
+                c.ir.roles
+                    .iter()
+                    .find(|r| &r.name == role)
+                    .ok_or_else(|| format!("error: --fault: the robot has no role {role}"))?;
+            Ok((None, Some((after, r.address))))
+        }
+        FaultKind::Link(..) => Err(
+            "error: --fault: link faults are injected in simulation only (`sim --fault`)".into(),
+        ),
+    }
+}
+
+/// The demo: pushes, runs the cycles, reports each; says how it ended.
 pub fn run_demo(
-    robot: &Path,
-    then: Option<&Path>,
-    cycles: usize,
+    demo: &Demo,
     options: demo::Options,
-    count_dir: Option<&Path>,
     out: &mut dyn Write,
-) -> Result<bool, String> {
-    let c = generation_of(load(robot)?, None)?;
-    let next = match then {
+) -> Result<Verdict, String> {
+    let c = generation_of(load(demo.robot)?, None)?;
+    let next = match demo.then {
         Some(p) => Some(generation_of(load(p)?, Some(c.ir.generation + 1))?),
         None => None,
     };
+    let first_actuators = plant::actuators(&c)?;
+    let placed = demo
+        .fault
+        .as_ref()
+        .map(|f| place_fault(&c, &first_actuators, f))
+        .transpose()?;
     let mut bed = Bed::start(options)?;
     let addrs = demo::node_addrs(&c);
     demo::say(
@@ -733,7 +871,7 @@ pub fn run_demo(
     for a in &addrs {
         bed.start_node(*a)?;
     }
-    bed.set_plant(plant::actuators(&c)?)?;
+    bed.set_plant(first_actuators)?;
     let found = bed.wait_for_nodes(&addrs)?;
     for (addr, a) in &found {
         let role = if a.role.is_empty() {
@@ -746,12 +884,13 @@ pub fn run_demo(
             &format!("  node {addr:#06x}: firmware {}, {role}", a.firmware),
         );
     }
-    let mut all_ok = true;
+    let mut verdict = Verdict::Matched;
     let mut first_robot = true;
-    for (label, robot, n) in [(robot, &c, cycles)]
-        .into_iter()
-        .chain(next.as_ref().map(|n| (then.unwrap_or(robot), n, 1)))
-    {
+    let runs = [(demo.robot, &c, demo.cycles)].into_iter().chain(
+        next.as_ref()
+            .map(|n| (demo.then.unwrap_or(demo.robot), n, 1)),
+    );
+    'robots: for (label, robot, n) in runs {
         demo::say(
             out,
             &format!(
@@ -764,27 +903,54 @@ pub fn run_demo(
         for o in &outcomes {
             demo::say(out, &demo::push_line(o));
         }
-        if outcomes.iter().any(|o| o.progress != Progress::Done) {
-            demo::say(out, "not every node activated its table");
-            return Ok(false);
+        let failed: Vec<&push::Outcome> = outcomes
+            .iter()
+            .filter(|o| o.progress != Progress::Done)
+            .collect();
+        if !failed.is_empty() {
+            for o in failed {
+                demo::say(
+                    out,
+                    &format!(
+                        "push FAILED: role {} at node {:#06x}: {}",
+                        o.role,
+                        o.addr,
+                        demo::progress_text(o.progress)
+                    ),
+                );
+            }
+            verdict = Verdict::PushFailed;
+            break;
         }
         let activated = Instant::now();
-        bed.set_plant(plant::actuators(robot)?)?;
+        let (injection, kill) = match (&placed, first_robot) {
+            (Some(p), true) => *p,
+            _ => (None, None),
+        };
+        bed.set_plant_injected(plant::actuators(robot)?, injection)?;
+        bed.watch(robot)?;
+        if let Some((after, addr)) = kill {
+            bed.stop_node_after(after, addr);
+        }
+        if let Some(spec) = demo.fault.as_ref().filter(|_| first_robot) {
+            demo::say(out, &format!("fault to inject: {spec:?}"));
+        }
         let expect: Vec<String> = robot.ir.expect.iter().map(|s| s.to_string()).collect();
         demo::say(out, &format!("sequence: {}", expect.join(" ")));
         let mut first_motion = None;
-        let counted = match count_dir {
+        let counted = match demo.count_dir {
             Some(dir) if first_robot => Some((dir, settled_counts(dir, &addrs))),
             _ => None,
         };
         first_robot = false;
         for i in 1..=n {
-            let t0 = Instant::now();
-            let cycle = bed.run_cycle(robot, &mut |s| {
-                first_motion.get_or_insert_with(|| activated.elapsed());
-                let _ = writeln!(io::stderr(), "  {:>7.3} s  {s}", t0.elapsed().as_secs_f64());
+            let cycle = bed.run_cycle(robot, &mut |s, at| {
+                if s.moved {
+                    first_motion.get_or_insert_with(|| activated.elapsed());
+                }
+                let jammed = if s.moved { "" } else { "  (jammed: no motion)" };
+                let _ = writeln!(io::stderr(), "  {:>7.3} s  {s}{jammed}", at.as_secs_f64());
             })?;
-            all_ok &= cycle.ok();
             demo::say(out, &demo::cycle_line(i, &cycle));
             if let (1, Some(t), None) = (i, first_motion, &counted) {
                 demo::say(
@@ -797,7 +963,12 @@ pub fn run_demo(
                 );
             }
             if !cycle.ok() {
-                break;
+                verdict = if cycle.fault.is_some() {
+                    Verdict::Faulted
+                } else {
+                    Verdict::Mismatch
+                };
+                break 'robots;
             }
         }
         if let Some((dir, before)) = counted {
@@ -821,13 +992,14 @@ pub fn run_demo(
     bed.stop();
     demo::say(
         out,
-        if all_ok {
-            "demo: every cycle matched"
-        } else {
-            "demo: FAILED"
+        match verdict {
+            Verdict::Matched => "demo: every cycle matched",
+            Verdict::PushFailed => "demo: FAILED (push)",
+            Verdict::Mismatch => "demo: FAILED (sequence mismatch)",
+            Verdict::Faulted => "demo: FAULTED",
         },
     );
-    Ok(all_ok)
+    Ok(verdict)
 }
 
 /// Every node's counts once they stop changing (the nodes log every second).
@@ -909,51 +1081,42 @@ fn count_line(who: &str, d: &demo::Counts, cycles: usize) -> String {
     )
 }
 
-/// Prints every frame (decoded) and pin change on the medium.
+/// Prints every frame (decoded) and pin change on the medium. Pin changes carry the
+/// medium's time; frames the time they reached the monitor (on the same clock once the
+/// first pin change is seen, else since the monitor joined).
 fn monitor(at: &MediumAddr, for_: Option<Duration>) -> Result<(), String> {
     let medium = resolve(at)?;
-    let mut stream = TcpStream::connect(medium)
+    let mut conn = Conn::join(medium, Peer::Monitor)
         .map_err(|e| format!("error: cannot reach the medium at {medium}: {e}"))?;
-    let mut buf = [0u8; MAX_LINK];
-    let n = Link::Hello(Peer::Monitor)
-        .emit(&mut buf)
-        .map_err(|_| "link".to_string())?;
-    stream.write_all(&buf[..n]).map_err(|e| e.to_string())?;
     let start = Instant::now();
-    let mut pending = Vec::new();
-    let mut chunk = [0u8; 2048];
+    let end = for_.map(|d| start + d);
     loop {
-        if let Some(d) = for_ {
-            let left = d.saturating_sub(start.elapsed());
-            if left.is_zero() {
-                return Ok(());
-            }
-            let _ = stream.set_read_timeout(Some(left));
-        }
-        let n = match stream.read(&mut chunk) {
-            Ok(0) => return Ok(()),
-            Ok(n) => n,
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
-                ) =>
-            {
-                continue
-            }
-            Err(e) => return Err(e.to_string()),
-        };
-        pending.extend_from_slice(&chunk[..n]);
-        while let Some(body) = next_message(&pending) {
+        let until = end.unwrap_or_else(|| Instant::now() + Duration::from_secs(3600));
+        let got = conn.recv(until, |link| {
             let t = start.elapsed().as_secs_f64();
-            match Link::parse(&pending[body.clone()]) {
-                Ok(Link::Frame(psdu)) => println!("{t:>9.3}  {}", describe(psdu)),
-                Ok(Link::Pin { addr, pin, level }) => {
-                    println!("{t:>9.3}  pin {addr:#06x}.{pin} = {}", u8::from(level))
-                }
-                _ => {}
+            match link {
+                Link::Frame(psdu) => Some(format!("{t:>9.3}  {}", describe(psdu))),
+                Link::Seen {
+                    at_us,
+                    addr,
+                    pin,
+                    level,
+                    output,
+                } => Some(format!(
+                    "{:>9.3}  pin {addr:#06x}.{pin} = {} ({})",
+                    at_us as f64 / 1e6,
+                    u8::from(level),
+                    if output { "output" } else { "input" }
+                )),
+                _ => None,
             }
-            pending.drain(..body.end);
+        });
+        match got {
+            Ok(Some(line)) => println!("{line}"),
+            Ok(None) if end.is_some_and(|e| Instant::now() >= e) => return Ok(()),
+            Ok(None) => {}
+            Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => return Ok(()),
+            Err(e) => return Err(format!("error: monitor: {e}")),
         }
     }
 }

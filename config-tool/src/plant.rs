@@ -4,17 +4,18 @@
 //! pin number, so a node never learns which role it plays.
 
 use std::collections::HashMap;
-use std::io::{self, Read, Write};
-use std::net::{SocketAddr, TcpStream};
+use std::io;
+use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::Sender;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use config_schema::wire::medium::{next_message, Link, Peer, MAX_LINK};
-use node_fw::sim::{Plant, Rod, RodOutcome};
+use config_schema::wire::medium::{Link, Peer};
+use node_fw::sim::{Plant, Position, Rod, RodOutcome};
 
 use crate::compile::Compiled;
+use crate::medium::Conn;
 
 /// One actuator, wired by node address and board pin numbers.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -33,9 +34,12 @@ pub struct Actuator {
 /// An actuator starting a motion (`VC+`), seen by the plant.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Step {
+    /// When the medium saw the valve output change (its clock, `Medium::now`).
     pub at: Duration,
     pub actuator: String,
     pub plus: bool,
+    /// `false`: the valve was commanded but the rod is jammed (an injected fault).
+    pub moved: bool,
 }
 
 impl std::fmt::Display for Step {
@@ -88,102 +92,129 @@ pub fn actuators(c: &Compiled) -> Result<Vec<Actuator>, String> {
     Ok(out)
 }
 
+/// A fault the plant injects: from the `after`-th step it sees on (0: at once), an
+/// actuator is jammed (valve commands move nothing) or one of its limit switches stays open.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Injection {
+    pub after: usize,
+    /// Index into the plant's actuators.
+    pub actuator: usize,
+    pub kind: Jam,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Jam {
+    /// The rod does not move any more (a motion under way completes).
+    Stuck,
+    /// The end (`true`) or home switch never closes again.
+    SwitchOpen { end: bool },
+}
+
 struct State {
     rod: Rod,
     /// When the current motion arrives (a new command replaces it).
     arrival: Option<Instant>,
+    stuck: bool,
+    /// An open switch: (home, end).
+    open: (bool, bool),
 }
 
-fn send(stream: &mut TcpStream, link: &Link) -> io::Result<()> {
-    let mut buf = [0u8; MAX_LINK];
-    let n = link.emit(&mut buf).map_err(|_| io::Error::other("link"))?;
-    stream.write_all(&buf[..n])
+impl State {
+    /// The levels of the actuator's limit switches for where its rod is.
+    fn switches(&self) -> (bool, bool) {
+        let (home, end) = match self.rod {
+            Rod::Home => (true, false),
+            Rod::End => (false, true),
+            Rod::Moving { .. } => (false, false),
+        };
+        (home && !self.open.0, end && !self.open.1)
+    }
 }
 
-/// The levels of an actuator's limit switches for where its rod is.
-fn send_switches(stream: &mut TcpStream, a: &Actuator, rod: Rod) -> io::Result<()> {
-    let (home, end) = match rod {
-        Rod::Home => (true, false),
-        Rod::End => (false, true),
-        Rod::Moving { .. } => (false, false),
-    };
+fn send_switches(conn: &mut Conn, a: &Actuator, s: &State) -> io::Result<()> {
+    let (home, end) = s.switches();
     for (pin, level) in [(a.home, home), (a.end, end)] {
         if let Some(pin) = pin {
-            send(
-                stream,
-                &Link::Pin {
-                    addr: a.addr,
-                    pin,
-                    level,
-                },
-            )?;
+            conn.send(&Link::Pin {
+                addr: a.addr,
+                pin,
+                level,
+            })?;
         }
     }
     Ok(())
 }
 
-/// Connects to the medium as the plant and drives every limit switch to the rest position
-/// (rods home): when this returns, the hello and the levels are on their way to the nodes,
-/// ahead of anything sent after it (a START right after wiring a node new to the plant
-/// finds its switches set).
-pub fn attach(medium: SocketAddr, actuators: &[Actuator]) -> io::Result<TcpStream> {
-    let mut stream = TcpStream::connect_timeout(&medium, Duration::from_secs(5))?;
-    stream.set_nodelay(true)?;
-    send(&mut stream, &Link::Hello(Peer::Plant))?;
-    for a in actuators {
-        send_switches(&mut stream, a, Rod::Home)?;
+fn rest() -> State {
+    State {
+        rod: Rod::Home,
+        arrival: None,
+        stuck: false,
+        open: (false, false),
     }
-    Ok(stream)
+}
+
+/// Connects to the medium as the plant and drives every limit switch to the rest position
+/// (rods home). When this returns the medium routes every node output to the plant and
+/// has passed the levels on to the nodes, ahead of anything sent after it (a START right
+/// after wiring a node new to the plant finds its switches set, and the plant sees the
+/// valve it opens).
+pub fn attach(medium: SocketAddr, actuators: &[Actuator]) -> io::Result<Conn> {
+    let mut conn = Conn::join(medium, Peer::Plant)?;
+    for a in actuators {
+        send_switches(&mut conn, a, &rest())?;
+    }
+    conn.sync()?;
+    Ok(conn)
 }
 
 /// Runs the plant until `stop` is set or the medium goes away. Every step is sent to
-/// `steps` as it starts.
+/// `steps` as it starts, stamped with the medium's clock.
 pub fn run(
     medium: SocketAddr,
     actuators: Vec<Actuator>,
     steps: Sender<Step>,
     stop: Arc<AtomicBool>,
 ) -> io::Result<()> {
-    let stream = attach(medium, &actuators)?;
-    run_attached(stream, actuators, steps, stop)
+    let conn = attach(medium, &actuators)?;
+    run_attached(conn, actuators, None, steps, stop)
 }
 
-/// [`run`] on a connection made by [`attach`].
+/// [`run`] on a connection made by [`attach`], with an optional injected fault.
 pub fn run_attached(
-    mut stream: TcpStream,
+    mut conn: Conn,
     actuators: Vec<Actuator>,
+    injection: Option<Injection>,
     steps: Sender<Step>,
     stop: Arc<AtomicBool>,
 ) -> io::Result<()> {
     let start = Instant::now();
     let ms = |t: Instant| t.duration_since(start).as_millis() as u64;
-    let mut states: Vec<State> = actuators
-        .iter()
-        .map(|_| State {
-            rod: Rod::Home,
-            arrival: None,
-        })
-        .collect();
+    let mut states: Vec<State> = actuators.iter().map(|_| rest()).collect();
     let mut outputs: HashMap<(u16, u8), bool> = HashMap::new();
-    let mut buf = Vec::new();
     let mut next_refresh = Instant::now();
+    let mut seen_steps = 0usize;
+    let inject = |states: &mut [State], seen: usize| {
+        let Some(i) = injection.filter(|i| i.after == seen) else {
+            return;
+        };
+        if let Some(s) = states.get_mut(i.actuator) {
+            match i.kind {
+                Jam::Stuck => s.stuck = true,
+                Jam::SwitchOpen { end: true } => s.open.1 = true,
+                Jam::SwitchOpen { end: false } => s.open.0 = true,
+            }
+        }
+    };
+    inject(&mut states, 0);
     while !stop.load(Ordering::Relaxed) {
         let now = Instant::now();
         // Arrivals: the far switch closes.
         for (a, s) in actuators.iter().zip(states.iter_mut()) {
             if s.arrival.is_some_and(|due| due <= now) {
                 s.arrival = None;
-                if let Some(end) = s.rod.arrive() {
-                    if let Some(pin) = if end { a.end } else { a.home } {
-                        send(
-                            &mut stream,
-                            &Link::Pin {
-                                addr: a.addr,
-                                pin,
-                                level: true,
-                            },
-                        )?;
-                    }
+                if s.rod.arrive().is_some() {
+                    send_switches(&mut conn, a, s)?;
                 }
             }
         }
@@ -192,7 +223,7 @@ pub fn run_attached(
         if now >= next_refresh {
             next_refresh = now + Duration::from_millis(200);
             for (a, s) in actuators.iter().zip(&states) {
-                send_switches(&mut stream, a, s.rod)?;
+                send_switches(&mut conn, a, s)?;
             }
         }
         let wake = states
@@ -201,71 +232,77 @@ pub fn run_attached(
             .chain([next_refresh])
             .min()
             .unwrap_or(next_refresh);
-        stream.set_read_timeout(Some(
-            wake.saturating_duration_since(Instant::now())
-                .max(Duration::from_millis(1)),
-        ))?;
-        let mut chunk = [0u8; 1024];
-        match stream.read(&mut chunk) {
-            Ok(0) => return Ok(()),
-            Ok(n) => buf.extend_from_slice(&chunk[..n]),
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
-                ) => {}
+        let seen = match conn.recv(wake, |l| match l {
+            Link::Seen {
+                at_us,
+                addr,
+                pin,
+                level,
+                output: true,
+            } => Some((at_us, addr, pin, level)),
+            _ => None,
+        }) {
+            Ok(Some(seen)) => seen,
+            Ok(None) => continue,
+            Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => return Ok(()),
             Err(e) => return Err(e),
-        }
-        while let Some(body) = next_message(&buf) {
-            if let Ok(Link::Pin { addr, pin, level }) = Link::parse(&buf[body.clone()]) {
-                let rose = level && !outputs.get(&(addr, pin)).copied().unwrap_or(false);
-                let fell = !level && outputs.get(&(addr, pin)).copied().unwrap_or(false);
-                outputs.insert((addr, pin), level);
-                for (a, s) in actuators.iter().zip(states.iter_mut()) {
-                    if a.addr != addr {
-                        continue;
-                    }
-                    // Bistable: the solenoid last energised decides. Monostable: the level.
-                    let extend = if a.double {
-                        match (pin == a.valves.0 && rose, pin == a.valves.1 && rose) {
-                            (true, _) => Some(true),
-                            (_, true) => Some(false),
-                            _ => None,
-                        }
-                    } else if pin == a.valves.0 && (rose || fell) {
-                        Some(level)
+        };
+        let (at_us, addr, pin, level) = seen;
+        let was = outputs.insert((addr, pin), level).unwrap_or(false);
+        let (rose, fell) = (level && !was, !level && was);
+        for (a, s) in actuators.iter().zip(states.iter_mut()) {
+            if a.addr != addr {
+                continue;
+            }
+            // Bistable: the solenoid last energised decides. Monostable: the level.
+            let extend = if a.double {
+                match (pin == a.valves.0 && rose, pin == a.valves.1 && rose) {
+                    (true, _) => Some(true),
+                    (_, true) => Some(false),
+                    _ => None,
+                }
+            } else if pin == a.valves.0 && (rose || fell) {
+                Some(level)
+            } else {
+                None
+            };
+            let Some(extend) = extend else { continue };
+            if s.stuck {
+                if s.rod.position()
+                    != if extend {
+                        Position::End
                     } else {
-                        None
-                    };
-                    let Some(extend) = extend else { continue };
-                    let now = Instant::now();
-                    let outcome = s.rod.command(ms(now), extend, a.travel_ms);
-                    let arrive = match outcome {
-                        RodOutcome::Nothing => continue,
-                        RodOutcome::Left { arrive, .. } | RodOutcome::Reversed { arrive } => arrive,
-                    };
+                        Position::Home
+                    }
+                {
                     let _ = steps.send(Step {
-                        at: now.duration_since(start),
+                        at: Duration::from_micros(at_us),
                         actuator: a.name.clone(),
                         plus: extend,
+                        moved: false,
                     });
-                    if let RodOutcome::Left { from_end, .. } = outcome {
-                        if let Some(pin) = if from_end { a.end } else { a.home } {
-                            send(
-                                &mut stream,
-                                &Link::Pin {
-                                    addr: a.addr,
-                                    pin,
-                                    level: false,
-                                },
-                            )?;
-                        }
-                    }
-                    s.arrival = Some(start + Duration::from_millis(arrive));
                 }
+                continue;
             }
-            buf.drain(..body.end);
+            let now = Instant::now();
+            let outcome = s.rod.command(ms(now), extend, a.travel_ms);
+            let arrive = match outcome {
+                RodOutcome::Nothing => continue,
+                RodOutcome::Left { arrive, .. } | RodOutcome::Reversed { arrive } => arrive,
+            };
+            let _ = steps.send(Step {
+                at: Duration::from_micros(at_us),
+                actuator: a.name.clone(),
+                plus: extend,
+                moved: true,
+            });
+            seen_steps += 1;
+            if let RodOutcome::Left { .. } = outcome {
+                send_switches(&mut conn, a, s)?;
+            }
+            s.arrival = Some(start + Duration::from_millis(arrive));
         }
+        inject(&mut states, seen_steps);
     }
     Ok(())
 }

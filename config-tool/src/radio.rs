@@ -1,14 +1,16 @@
 //! The tool's radio: a connection to the medium as `Peer::Tool`, speaking IEEE 802.15.4
 //! frames and application messages like any node.
 
-use std::io::{self, Read, Write};
-use std::net::{SocketAddr, TcpStream};
+use std::io;
+use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
 use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
-use config_schema::wire::medium::{next_message, Link, Peer, MAX_LINK};
+use config_schema::wire::medium::{Link, Peer};
 use config_schema::wire::msg::Message;
 use node_fw::node::CONFIG_PAN;
+
+use crate::medium::Conn;
 
 /// The tool's default short address.
 pub const TOOL_ADDR: u16 = 0x0100;
@@ -38,39 +40,35 @@ pub struct RadioStats {
 
 /// The tool on the medium.
 pub struct ToolRadio {
-    stream: TcpStream,
+    conn: Conn,
     addr: u16,
     seq: u8,
-    buf: Vec<u8>,
+    /// When the frames this radio sent leave the air, at the earliest (250 kbit/s, one
+    /// after the other): what a reply to the last of them waits for.
+    air_clear: Instant,
     pub stats: RadioStats,
 }
 
 impl ToolRadio {
-    /// Connects to the medium at `medium` as the radio with short address `addr`.
+    /// Connects to the medium at `medium` as the radio with short address `addr`; returns
+    /// once the medium routes to it.
     pub fn connect(medium: SocketAddr, addr: u16) -> io::Result<ToolRadio> {
-        let stream = TcpStream::connect_timeout(&medium, Duration::from_secs(5))?;
-        stream.set_nodelay(true)?;
-        let mut radio = ToolRadio {
-            stream,
+        Ok(ToolRadio {
+            conn: Conn::join(medium, Peer::Tool { addr })?,
             addr,
             seq: 0,
-            buf: Vec::new(),
+            air_clear: Instant::now(),
             stats: RadioStats::default(),
-        };
-        radio.write(&Link::Hello(Peer::Tool { addr }))?;
-        Ok(radio)
+        })
     }
 
     pub fn addr(&self) -> u16 {
         self.addr
     }
 
-    fn write(&mut self, link: &Link) -> io::Result<()> {
-        let mut buf = [0u8; MAX_LINK];
-        let n = link
-            .emit(&mut buf)
-            .map_err(|_| io::Error::other("message too long"))?;
-        self.stream.write_all(&buf[..n])
+    /// When the frames sent so far are off the air at the earliest.
+    pub fn air_clear(&self) -> Instant {
+        self.air_clear
     }
 
     /// Sends `msg` to `dst` (a node or the broadcast address) on the configuration PAN.
@@ -92,58 +90,32 @@ impl ToolRadio {
         let len = mac::emit_data(&header, &payload[..n], &mut psdu)
             .map_err(|_| io::Error::other("frame too long"))?;
         self.stats.sent += 1;
-        self.write(&Link::Frame(&psdu[..len]))
+        let airtime = Duration::from_micros(u64::from(mac::airtime_us(len)));
+        self.air_clear = self.air_clear.max(Instant::now()) + airtime;
+        self.conn.send(&Link::Frame(&psdu[..len]))
     }
 
     /// The next message for this radio, or `None` when `until` passes.
     pub fn recv(&mut self, until: Instant) -> io::Result<Option<Received>> {
-        loop {
-            while let Some(body) = next_message(&self.buf) {
-                let link = Link::parse(&self.buf[body.clone()]);
-                let got = match link {
-                    Ok(Link::Frame(psdu)) => match Frame::parse(psdu) {
-                        Ok(Frame::Data { header, payload })
-                            if header.dst == self.addr || header.dst == mac::BROADCAST =>
-                        {
-                            self.stats.received += 1;
-                            Some(Received {
-                                src: header.src,
-                                payload: payload.to_vec(),
-                            })
-                        }
-                        Ok(_) => None,
-                        Err(_) => {
-                            self.stats.dropped += 1;
-                            None
-                        }
-                    },
-                    _ => None,
-                };
-                self.buf.drain(..body.end);
-                if got.is_some() {
-                    return Ok(got);
+        let (me, stats) = (self.addr, &mut self.stats);
+        self.conn.recv(until, |link| {
+            let Link::Frame(psdu) = link else { return None };
+            match Frame::parse(psdu) {
+                Ok(Frame::Data { header, payload })
+                    if header.dst == me || header.dst == mac::BROADCAST =>
+                {
+                    stats.received += 1;
+                    Some(Received {
+                        src: header.src,
+                        payload: payload.to_vec(),
+                    })
+                }
+                Ok(_) => None,
+                Err(_) => {
+                    stats.dropped += 1;
+                    None
                 }
             }
-            let now = Instant::now();
-            if now >= until {
-                return Ok(None);
-            }
-            self.stream
-                .set_read_timeout(Some((until - now).max(Duration::from_millis(1))))?;
-            let mut chunk = [0u8; 2048];
-            match self.stream.read(&mut chunk) {
-                Ok(0) => {
-                    return Err(io::Error::new(
-                        io::ErrorKind::UnexpectedEof,
-                        "the medium closed the connection",
-                    ))
-                }
-                Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
-                Err(e)
-                    if e.kind() == io::ErrorKind::WouldBlock
-                        || e.kind() == io::ErrorKind::TimedOut => {}
-                Err(e) => return Err(e),
-            }
-        }
+        })
     }
 }

@@ -148,6 +148,8 @@ impl Relay {
             let mut s = shared.0.lock().unwrap();
             let id = s.next_id;
             s.next_id += 1;
+            // Routed to from now on, as the medium says with its welcome.
+            stream.write_all(&emit(&Link::Welcome)).unwrap();
             s.clients.push((id, peer, stream.try_clone().unwrap()));
             id
         };

@@ -6,6 +6,13 @@
 //! a **plant** (the machine: it sees the nodes' output pins and drives their input pins, by
 //! node address and pin number, so a plant attaches without the node knowing its role),
 //! and a **monitor** (sees every frame and pin change).
+//!
+//! A connection starts with the client's `Hello`; the medium answers `Welcome` once it
+//! routes to the client (nothing sent to the client before it is lost to a race). `Sync(n)`
+//! is a barrier: the medium answers `Synced(n)` once it has handled every message the client
+//! sent before it (a plant's switch levels are at the nodes before anything sent after).
+//! Output levels reach plants and monitors as `Seen`, stamped with the medium's clock when
+//! the medium saw the change (the time a step happened, whatever the reader's delays).
 
 use serde::{Deserialize, Serialize};
 
@@ -31,6 +38,23 @@ pub enum Link<'a> {
     /// A pin level. Node -> medium -> plant/monitor: output `pin` of node `addr`.
     /// Plant -> medium -> node: input `pin` of node `addr`.
     Pin { addr: u16, pin: u8, level: bool },
+    /// Medium -> client: the answer to `Hello`; the medium routes to this client now.
+    Welcome,
+    /// Client -> medium: answer `Synced` with the same number once every message sent
+    /// before this one is handled.
+    Sync(u32),
+    /// Medium -> client: the answer to `Sync`.
+    Synced(u32),
+    /// Medium -> plant / monitor: a pin level as the medium saw it, `at_us` microseconds
+    /// after the medium started: a node's output (`output`), or an input level a plant
+    /// drove (monitors only).
+    Seen {
+        at_us: u64,
+        addr: u16,
+        pin: u8,
+        level: bool,
+        output: bool,
+    },
 }
 
 /// Why bytes are not a link message.
@@ -85,6 +109,16 @@ mod tests {
                 pin: 3,
                 level: true,
             },
+            Link::Welcome,
+            Link::Sync(7),
+            Link::Synced(u32::MAX),
+            Link::Seen {
+                at_us: u64::MAX,
+                addr: 0xFFFF,
+                pin: 255,
+                level: true,
+                output: false,
+            },
         ] {
             let n = msg.emit(&mut buf).unwrap();
             let body = next_message(&buf[..n]).unwrap();
@@ -99,6 +133,20 @@ mod tests {
         let psdu = [0xAAu8; crate::wire::mac::MAX_PSDU];
         let mut buf = [0u8; MAX_LINK];
         assert!(Link::Frame(&psdu).emit(&mut buf).is_ok());
+    }
+
+    #[test]
+    fn the_first_variants_keep_their_bytes() {
+        // Hello(Node 0x12), Pin: what a node and a plant of an earlier build send.
+        let mut buf = [0u8; MAX_LINK];
+        let n = Link::Hello(Peer::Node { addr: 0x0012 })
+            .emit(&mut buf)
+            .unwrap();
+        assert_eq!(&buf[..n], &[3, 0, 0, 0, 0x12]);
+        let n = Link::Welcome.emit(&mut buf).unwrap();
+        assert_eq!(&buf[..n], &[1, 0, 3]);
+        let n = Link::Sync(300).emit(&mut buf).unwrap();
+        assert_eq!(&buf[..n], &[3, 0, 4, 0xAC, 0x02]);
     }
 
     #[test]

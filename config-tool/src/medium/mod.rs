@@ -7,27 +7,65 @@
 //!   `mac::airtime_us(len)` and waits for the frames before it.
 //! - Faults, per frame and per receiver, from a seeded generator: loss, duplication,
 //!   corruption (one bit flipped, so the FCS fails), and a random extra delay (which reorders).
-//! - Pins: a node's output levels go to plants and monitors; a plant's input levels go to the
-//!   node with that address.
+//! - Pins: a node's output levels go to plants and monitors (as `Seen`, stamped with the
+//!   medium's clock); a plant's input levels go to the node with that address.
+//! - A client is routed to once the medium answered its `Hello` with `Welcome`.
 //! - Every frame on the air is written to a pcap (link type 195, IEEE 802.15.4 with FCS).
+//!
+//! Nothing grows without bound, whatever clients do ([`limits`]): a client's frames wait
+//! for the air in a bounded transmit queue (past it they are dropped, as a radio reports a
+//! channel access failure); each client has a bounded rate of messages; each receiver has
+//! its own bounded outbox written by its own thread (a radio that cannot keep up loses
+//! frames, as a radio's receive buffer overruns; a plant or monitor that does not read is
+//! disconnected); connections that do not say hello in time are closed; connections are
+//! capped. Every drop is counted in [`Stats`].
 
+mod air;
+mod client;
+mod outbox;
 mod pcap;
+mod serve;
 
-use std::collections::{BinaryHeap, HashMap};
-use std::io::{self, Read, Write};
-use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::io;
+use std::net::{SocketAddr, TcpListener};
 use std::path::PathBuf;
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc::{self, SyncSender};
 use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use config_schema::wire::mac::{self, BROADCAST};
-use config_schema::wire::medium::{next_message, Link, Peer, MAX_LINK};
-use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
+use config_schema::wire::medium::Peer;
 
+pub use client::{Conn, JOIN_TIMEOUT};
 pub use pcap::PcapLog;
+
+/// Every bound of the medium, in one place.
+pub mod limits {
+    use std::time::Duration;
+
+    /// Connections open at once (more are closed at once, counted in `refused`).
+    pub const MAX_CONNECTIONS: usize = 128;
+    /// Connections that have not said hello yet, at once.
+    pub const MAX_GREETING: usize = 16;
+    /// A connection must say hello within this time.
+    pub const HELLO_TIMEOUT: Duration = Duration::from_secs(2);
+    /// Frames of one client waiting for (or on) the air; more are dropped (`busy`).
+    pub const TX_QUEUE: usize = 64;
+    /// Messages a client may send per second, sustained, and in a burst.
+    pub const RATE_PER_S: u32 = 2_000;
+    pub const BURST: u32 = 400;
+    /// Messages waiting to be written to one client. A radio past it loses frames
+    /// (`overruns`); a plant or monitor past it is disconnected (`slow`).
+    pub const OUTBOX: usize = 512;
+    /// The kernel's send buffer of each client's socket (bytes), so the kernel holds
+    /// little more than the outbox for a client that does not read.
+    pub const SOCKET_BUFFER: usize = 32 * 1024;
+    /// A write to a client that takes longer than this disconnects it.
+    pub const WRITE_TIMEOUT: Duration = Duration::from_secs(2);
+    /// Messages from every client waiting for the air thread.
+    pub const INBOX: usize = 4096;
+}
 
 /// What the medium does to frames.
 #[derive(Debug, Clone)]
@@ -74,37 +112,52 @@ pub struct Stats {
     pub corrupted: u64,
     /// Clients connected (after their hello).
     pub clients: u64,
+    /// Frames dropped because their sender's transmit queue was full.
+    pub busy: u64,
+    /// Messages dropped because their sender exceeded its rate.
+    pub rate_limited: u64,
+    /// Messages dropped because a radio's outbox was full.
+    pub overruns: u64,
+    /// Plants and monitors disconnected because they did not read.
+    pub slow: u64,
+    /// Connections closed because they did not say hello in time, or said nonsense.
+    pub silent: u64,
+    /// Connections refused (too many at once).
+    pub refused: u64,
+    /// Deliveries scheduled and not made yet (a gauge).
+    pub queued: u64,
 }
 
 /// A running medium. Dropping it does not stop it; call [`Medium::stop`].
 pub struct Medium {
     addr: SocketAddr,
     stats: Arc<Mutex<Stats>>,
-    events: Sender<Event>,
+    events: SyncSender<Event>,
+    start: Instant,
 }
 
 type ClientId = u64;
 
+/// What the connection threads tell the air thread.
 enum Event {
-    Joined(ClientId, Peer, TcpStream),
+    Joined(ClientId, Peer, outbox::Outbox),
     Frame(ClientId, Vec<u8>),
     Pin(ClientId, u16, u8, bool),
+    Sync(ClientId, u32),
     Left(ClientId),
     Stop,
 }
 
-struct Client {
-    peer: Peer,
-    stream: TcpStream,
-}
+/// Shared counters, updated by every thread.
+#[derive(Clone)]
+struct Counters(Arc<Mutex<Stats>>);
 
-/// A frame due at a client.
-#[derive(PartialEq, Eq, PartialOrd, Ord)]
-struct Due {
-    at: Instant,
-    seq: u64,
-    to: ClientId,
-    psdu: Vec<u8>,
+impl Counters {
+    fn count(&self, f: impl FnOnce(&mut Stats)) {
+        if let Ok(mut s) = self.0.lock() {
+            f(&mut s);
+        }
+    }
 }
 
 impl Medium {
@@ -123,25 +176,23 @@ impl Medium {
             None => None,
         };
         let stats = Arc::new(Mutex::new(Stats::default()));
-        let (events, rx) = mpsc::channel();
+        let counters = Counters(stats.clone());
+        let (events, rx) = mpsc::sync_channel(limits::INBOX);
+        let start = Instant::now();
         let accept_events = events.clone();
-        thread::spawn(move || accept(listener, accept_events));
-        let air = Air {
-            config,
-            rng: StdRng::seed_from_u64(0),
-            clients: HashMap::new(),
-            due: BinaryHeap::new(),
-            seq: 0,
-            air_free: Instant::now(),
-            start: Instant::now(),
-            pcap,
-            stats: stats.clone(),
-        };
-        thread::spawn(move || air.run(rx));
+        let accept_counters = counters.clone();
+        thread::Builder::new()
+            .name("medium-accept".into())
+            .spawn(move || accept(listener, accept_events, accept_counters))?;
+        let air = air::Air::new(config, start, pcap, counters);
+        thread::Builder::new()
+            .name("medium-air".into())
+            .spawn(move || air.run(rx))?;
         Ok(Medium {
             addr,
             stats,
             events,
+            start,
         })
     }
 
@@ -152,6 +203,16 @@ impl Medium {
 
     pub fn stats(&self) -> Stats {
         self.stats.lock().map(|s| *s).unwrap_or_default()
+    }
+
+    /// The medium's clock: the time since it started (what `Seen` stamps carry).
+    pub fn now(&self) -> Duration {
+        self.start.elapsed()
+    }
+
+    /// When the medium started (the zero of its clock).
+    pub fn started(&self) -> Instant {
+        self.start
     }
 
     /// Waits (up to `timeout`) until `n` clients have joined; returns whether they did.
@@ -172,264 +233,37 @@ impl Medium {
     }
 }
 
-fn accept(listener: TcpListener, events: Sender<Event>) {
+/// Accepts connections, each served by its own thread, within the connection caps.
+fn accept(listener: TcpListener, events: SyncSender<Event>, counters: Counters) {
+    let open = Arc::new(AtomicUsize::new(0));
+    let greeting = Arc::new(AtomicUsize::new(0));
     let mut next_id: ClientId = 0;
     for stream in listener.incoming() {
         let Ok(stream) = stream else { continue };
+        if open.load(Ordering::SeqCst) >= limits::MAX_CONNECTIONS
+            || greeting.load(Ordering::SeqCst) >= limits::MAX_GREETING
+        {
+            let _ = stream.shutdown(std::net::Shutdown::Both);
+            counters.count(|s| s.refused += 1);
+            continue;
+        }
         next_id += 1;
-        let id = next_id;
-        let events = events.clone();
-        thread::spawn(move || serve(id, stream, events));
-    }
-}
-
-/// Reads one client's messages and hands them to the air.
-fn serve(id: ClientId, mut stream: TcpStream, events: Sender<Event>) {
-    let _ = stream.set_nodelay(true);
-    let mut buf = Vec::with_capacity(4 * MAX_LINK);
-    let mut chunk = [0u8; 1024];
-    let mut joined = false;
-    loop {
-        let n = match stream.read(&mut chunk) {
-            Ok(0) | Err(_) => break,
-            Ok(n) => n,
+        open.fetch_add(1, Ordering::SeqCst);
+        greeting.fetch_add(1, Ordering::SeqCst);
+        let conn = serve::Connection {
+            id: next_id,
+            events: events.clone(),
+            counters: counters.clone(),
+            open: open.clone(),
+            greeting: greeting.clone(),
         };
-        buf.extend_from_slice(&chunk[..n]);
-        while let Some(body) = next_message(&buf) {
-            let event = match Link::parse(&buf[body.clone()]) {
-                Ok(Link::Hello(peer)) if !joined => match stream.try_clone() {
-                    Ok(w) => {
-                        joined = true;
-                        Some(Event::Joined(id, peer, w))
-                    }
-                    Err(_) => None,
-                },
-                Ok(Link::Frame(psdu)) if joined && psdu.len() <= mac::MAX_PSDU => {
-                    Some(Event::Frame(id, psdu.to_vec()))
-                }
-                Ok(Link::Pin { addr, pin, level }) if joined => {
-                    Some(Event::Pin(id, addr, pin, level))
-                }
-                // A client that speaks nonsense is disconnected.
-                _ => {
-                    let _ = events.send(Event::Left(id));
-                    return;
-                }
-            };
-            buf.drain(..body.end);
-            if let Some(e) = event {
-                if events.send(e).is_err() {
-                    return;
-                }
-            }
+        let spawned = thread::Builder::new()
+            .name(format!("medium-conn-{next_id}"))
+            .spawn(move || conn.serve(stream));
+        if spawned.is_err() {
+            open.fetch_sub(1, Ordering::SeqCst);
+            greeting.fetch_sub(1, Ordering::SeqCst);
+            counters.count(|s| s.refused += 1);
         }
-        if buf.len() > 4 * MAX_LINK {
-            break;
-        }
-    }
-    let _ = events.send(Event::Left(id));
-}
-
-/// The shared channel: who is connected, what is in flight.
-struct Air {
-    config: Config,
-    rng: StdRng,
-    clients: HashMap<ClientId, Client>,
-    due: BinaryHeap<std::cmp::Reverse<Due>>,
-    seq: u64,
-    air_free: Instant,
-    start: Instant,
-    pcap: Option<PcapLog>,
-    stats: Arc<Mutex<Stats>>,
-}
-
-fn send(stream: &mut TcpStream, msg: &Link) -> bool {
-    let mut buf = [0u8; MAX_LINK];
-    match msg.emit(&mut buf) {
-        Ok(n) => stream.write_all(&buf[..n]).is_ok(),
-        Err(_) => true,
-    }
-}
-
-impl Air {
-    fn run(mut self, rx: Receiver<Event>) {
-        self.rng = StdRng::seed_from_u64(self.config.seed);
-        loop {
-            let clients = self.clients.len() as u64;
-            self.count(|s| s.clients = clients);
-            let timeout = self
-                .due
-                .peek()
-                .map(|d| d.0.at.saturating_duration_since(Instant::now()))
-                .unwrap_or(Duration::from_millis(100));
-            match rx.recv_timeout(timeout) {
-                Ok(Event::Stop) | Err(RecvTimeoutError::Disconnected) => break,
-                Ok(event) => self.handle(event),
-                Err(RecvTimeoutError::Timeout) => {}
-            }
-            self.deliver_due();
-        }
-        for client in self.clients.values() {
-            let _ = client.stream.shutdown(std::net::Shutdown::Both);
-        }
-    }
-
-    fn handle(&mut self, event: Event) {
-        match event {
-            Event::Joined(id, peer, stream) => {
-                self.clients.insert(id, Client { peer, stream });
-            }
-            Event::Left(id) => {
-                if let Some(c) = self.clients.remove(&id) {
-                    let _ = c.stream.shutdown(std::net::Shutdown::Both);
-                }
-            }
-            Event::Frame(id, psdu) => self.transmit(id, psdu),
-            Event::Pin(id, addr, pin, level) => self.pin(id, addr, pin, level),
-            Event::Stop => {}
-        }
-    }
-
-    fn radio_addr(peer: Peer) -> Option<u16> {
-        match peer {
-            Peer::Node { addr } | Peer::Tool { addr } => Some(addr),
-            Peer::Plant | Peer::Monitor => None,
-        }
-    }
-
-    /// A frame goes on the air: after the frames before it, for its airtime.
-    fn transmit(&mut self, from: ClientId, psdu: Vec<u8>) {
-        let now = Instant::now();
-        let airtime = Duration::from_micros(u64::from(mac::airtime_us(psdu.len())));
-        let on_air = self.air_free.max(now);
-        self.air_free = on_air + airtime;
-        let arrives = self.air_free;
-        if let Some(pcap) = &mut self.pcap {
-            pcap.write(on_air.duration_since(self.start), &psdu);
-        }
-        if let Ok(mut s) = self.stats.lock() {
-            s.frames += 1;
-            s.bytes += psdu.len() as u64;
-            s.airtime_us += airtime.as_micros() as u64;
-        }
-        let dst = psdu_dst(&psdu);
-        let targets: Vec<ClientId> = self
-            .clients
-            .iter()
-            .filter(|(id, _)| **id != from)
-            .filter(|(_, c)| match (Self::radio_addr(c.peer), dst) {
-                (_, None) => c.peer == Peer::Monitor,
-                (Some(a), Some(d)) => a == d || d == BROADCAST,
-                (None, _) => c.peer == Peer::Monitor,
-            })
-            .map(|(id, _)| *id)
-            .collect();
-        for to in targets {
-            let monitor = self
-                .clients
-                .get(&to)
-                .is_some_and(|c| c.peer == Peer::Monitor);
-            if monitor {
-                self.schedule(to, arrives, psdu.clone());
-                continue;
-            }
-            if self.rng.random_bool(self.config.loss.clamp(0.0, 1.0)) {
-                self.count(|s| s.lost += 1);
-                continue;
-            }
-            let copies = if self.rng.random_bool(self.config.dup.clamp(0.0, 1.0)) {
-                self.count(|s| s.duplicated += 1);
-                2
-            } else {
-                1
-            };
-            for _ in 0..copies {
-                let mut bytes = psdu.clone();
-                if self.rng.random_bool(self.config.corrupt.clamp(0.0, 1.0)) && !bytes.is_empty() {
-                    let i = self.rng.random_range(0..bytes.len());
-                    bytes[i] ^= 1 << self.rng.random_range(0..8);
-                    self.count(|s| s.corrupted += 1);
-                }
-                let (lo, hi) = self.config.delay_ms;
-                let extra = if hi > lo {
-                    self.rng.random_range(lo..=hi)
-                } else {
-                    lo
-                };
-                self.schedule(to, arrives + Duration::from_millis(extra), bytes);
-            }
-        }
-    }
-
-    fn count(&self, f: impl FnOnce(&mut Stats)) {
-        if let Ok(mut s) = self.stats.lock() {
-            f(&mut s);
-        }
-    }
-
-    fn schedule(&mut self, to: ClientId, at: Instant, psdu: Vec<u8>) {
-        self.seq += 1;
-        self.due.push(std::cmp::Reverse(Due {
-            at,
-            seq: self.seq,
-            to,
-            psdu,
-        }));
-    }
-
-    fn deliver_due(&mut self) {
-        let now = Instant::now();
-        while self.due.peek().is_some_and(|d| d.0.at <= now) {
-            let Some(std::cmp::Reverse(d)) = self.due.pop() else {
-                break;
-            };
-            let Some(client) = self.clients.get_mut(&d.to) else {
-                continue;
-            };
-            let monitor = client.peer == Peer::Monitor;
-            if send(&mut client.stream, &Link::Frame(&d.psdu)) {
-                if !monitor {
-                    self.count(|s| s.delivered += 1);
-                }
-            } else {
-                self.clients.remove(&d.to);
-            }
-        }
-    }
-
-    /// Output levels go from a node to plants and monitors; input levels from a plant to the
-    /// node with that address (and monitors).
-    fn pin(&mut self, from: ClientId, addr: u16, pin: u8, level: bool) {
-        let Some(sender) = self.clients.get(&from).map(|c| c.peer) else {
-            return;
-        };
-        let msg = Link::Pin { addr, pin, level };
-        let mut gone = Vec::new();
-        for (id, c) in self.clients.iter_mut() {
-            let wanted = match (sender, c.peer) {
-                (Peer::Node { addr: a }, Peer::Plant | Peer::Monitor) => a == addr,
-                (Peer::Plant, Peer::Node { addr: a }) => a == addr,
-                (Peer::Plant, Peer::Monitor) => true,
-                _ => false,
-            };
-            if wanted && *id != from && !send(&mut c.stream, &msg) {
-                gone.push(*id);
-            }
-        }
-        for id in gone {
-            self.clients.remove(&id);
-        }
-    }
-}
-
-/// The destination short address of a data frame (without checking the FCS: a corrupted
-/// frame still reaches its receiver, which drops it). `None` for anything else.
-fn psdu_dst(psdu: &[u8]) -> Option<u16> {
-    let fc = u16::from_le_bytes([*psdu.first()?, *psdu.get(1)?]);
-    match fc & 0b111 {
-        0b001 if (fc >> 10) & 0b11 == 0b10 => {
-            Some(u16::from_le_bytes([*psdu.get(5)?, *psdu.get(6)?]))
-        }
-        _ => None,
     }
 }

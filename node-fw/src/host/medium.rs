@@ -11,8 +11,9 @@
 //! - anything else (other nodes' pins, a `Hello`, bytes that are not a message): ignored,
 //!   counted.
 //!
-//! The node sends `Hello(Node { addr })` first, then a `Frame` per transmitted PSDU and a
-//! `Pin` per output change.
+//! The node sends `Hello(Node { addr })` first and waits for the medium's `Welcome` (from
+//! then on the medium routes to it), then sends a `Frame` per transmitted PSDU and a `Pin`
+//! per output change.
 
 use std::io::{self, Read, Write};
 use std::net::{Shutdown, TcpStream};
@@ -102,12 +103,40 @@ fn write_link(stream: &mut TcpStream, msg: &Link<'_>) -> io::Result<()> {
     stream.write_all(buf.get(..n).unwrap_or(&buf))
 }
 
+/// How long a node waits for the medium's `Welcome`.
+pub const WELCOME_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// Reads whole messages (nothing past them) until the medium's `Welcome`.
+fn await_welcome(stream: &TcpStream) -> io::Result<()> {
+    let mut reader = stream;
+    reader.set_read_timeout(Some(WELCOME_TIMEOUT))?;
+    let mut body = [0u8; MAX_LINK];
+    loop {
+        let mut len = [0u8; 2];
+        reader.read_exact(&mut len)?;
+        let len = usize::from(u16::from_le_bytes(len));
+        let msg = body.get_mut(..len).ok_or_else(|| {
+            io::Error::new(
+                io::ErrorKind::InvalidData,
+                "the medium sent a message too long",
+            )
+        })?;
+        reader.read_exact(msg)?;
+        if Link::parse(msg) == Ok(Link::Welcome) {
+            break;
+        }
+    }
+    reader.set_read_timeout(None)
+}
+
 impl Connection {
-    /// Says hello on `stream` as node `addr` and starts reading.
+    /// Says hello on `stream` as node `addr`, waits until the medium routes to it (its
+    /// `Welcome`), and starts reading.
     pub fn start(addr: u16, stream: TcpStream) -> io::Result<Self> {
         stream.set_nodelay(true)?;
         let mut writer = stream.try_clone()?;
         write_link(&mut writer, &Link::Hello(Peer::Node { addr }))?;
+        await_welcome(&stream)?;
         let shared = Arc::new(Shared {
             frames: Channel::new(),
             pins: Channel::new(),

@@ -1,0 +1,292 @@
+//! The shared channel: who is connected, what is in flight, and the faults of each
+//! delivery. One thread; it never waits on a client (every client has its own outbox).
+
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, HashMap, VecDeque};
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::time::{Duration, Instant};
+
+use config_schema::wire::mac::{self, BROADCAST};
+use config_schema::wire::medium::{Link, Peer};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+use super::outbox::{Outbox, Refused};
+use super::{limits, ClientId, Config, Counters, Event, PcapLog};
+
+struct Client {
+    peer: Peer,
+    outbox: Outbox,
+    /// When each of its frames still waiting for (or on) the air leaves it.
+    tx_queue: VecDeque<Instant>,
+}
+
+/// A frame due at a client.
+#[derive(PartialEq, Eq, PartialOrd, Ord)]
+struct Due {
+    at: Instant,
+    seq: u64,
+    to: ClientId,
+    psdu: Vec<u8>,
+}
+
+pub(super) struct Air {
+    config: Config,
+    rng: StdRng,
+    clients: HashMap<ClientId, Client>,
+    due: BinaryHeap<Reverse<Due>>,
+    seq: u64,
+    air_free: Instant,
+    start: Instant,
+    pcap: Option<PcapLog>,
+    counters: Counters,
+}
+
+impl Air {
+    pub fn new(config: Config, start: Instant, pcap: Option<PcapLog>, counters: Counters) -> Air {
+        Air {
+            rng: StdRng::seed_from_u64(config.seed),
+            config,
+            clients: HashMap::new(),
+            due: BinaryHeap::new(),
+            seq: 0,
+            air_free: start,
+            start,
+            pcap,
+            counters,
+        }
+    }
+
+    pub fn run(mut self, rx: Receiver<Event>) {
+        loop {
+            let (clients, queued) = (self.clients.len() as u64, self.due.len() as u64);
+            self.counters.count(|s| {
+                s.clients = clients;
+                s.queued = queued;
+            });
+            let timeout = self
+                .due
+                .peek()
+                .map(|d| d.0.at.saturating_duration_since(Instant::now()))
+                .unwrap_or(Duration::from_millis(100));
+            match rx.recv_timeout(timeout) {
+                Ok(Event::Stop) | Err(RecvTimeoutError::Disconnected) => break,
+                Ok(event) => self.handle(event),
+                Err(RecvTimeoutError::Timeout) => {}
+            }
+            self.deliver_due();
+        }
+        for client in self.clients.values() {
+            client.outbox.close();
+        }
+    }
+
+    fn handle(&mut self, event: Event) {
+        match event {
+            Event::Joined(id, peer, outbox) => {
+                if outbox.put(&Link::Welcome).is_ok() {
+                    let tx_queue = VecDeque::new();
+                    self.clients.insert(
+                        id,
+                        Client {
+                            peer,
+                            outbox,
+                            tx_queue,
+                        },
+                    );
+                } else {
+                    outbox.close();
+                }
+            }
+            Event::Left(id) => self.drop_client(id),
+            Event::Frame(id, psdu) => self.transmit(id, psdu),
+            Event::Pin(id, addr, pin, level) => self.pin(id, addr, pin, level),
+            Event::Sync(id, n) => {
+                self.send(id, &Link::Synced(n));
+            }
+            Event::Stop => {}
+        }
+    }
+
+    fn drop_client(&mut self, id: ClientId) {
+        if let Some(c) = self.clients.remove(&id) {
+            c.outbox.close();
+        }
+    }
+
+    /// Queues `msg` for client `to`. A radio that cannot keep up loses it; a plant or a
+    /// monitor that cannot keep up is disconnected (it would miss levels).
+    fn send(&mut self, to: ClientId, msg: &Link) -> bool {
+        let Some(client) = self.clients.get(&to) else {
+            return false;
+        };
+        match client.outbox.put(msg) {
+            Ok(()) => true,
+            Err(Refused::Full) if radio_addr(client.peer).is_some() => {
+                self.counters.count(|s| s.overruns += 1);
+                false
+            }
+            Err(Refused::Full) => {
+                self.counters.count(|s| s.slow += 1);
+                self.drop_client(to);
+                false
+            }
+            Err(Refused::Gone) => {
+                self.drop_client(to);
+                false
+            }
+        }
+    }
+
+    /// A frame goes on the air: after the frames before it, for its airtime; unless its
+    /// sender already has `TX_QUEUE` frames waiting (a channel access failure).
+    fn transmit(&mut self, from: ClientId, psdu: Vec<u8>) {
+        let now = Instant::now();
+        let Some(sender) = self.clients.get_mut(&from) else {
+            return;
+        };
+        while sender.tx_queue.front().is_some_and(|t| *t <= now) {
+            sender.tx_queue.pop_front();
+        }
+        if sender.tx_queue.len() >= limits::TX_QUEUE {
+            self.counters.count(|s| s.busy += 1);
+            return;
+        }
+        let airtime = Duration::from_micros(u64::from(mac::airtime_us(psdu.len())));
+        let on_air = self.air_free.max(now);
+        self.air_free = on_air + airtime;
+        let arrives = self.air_free;
+        sender.tx_queue.push_back(arrives);
+        if let Some(pcap) = &mut self.pcap {
+            pcap.write(on_air.duration_since(self.start), &psdu);
+        }
+        self.counters.count(|s| {
+            s.frames += 1;
+            s.bytes += psdu.len() as u64;
+            s.airtime_us += airtime.as_micros() as u64;
+        });
+        let dst = psdu_dst(&psdu);
+        let targets: Vec<(ClientId, bool)> = self
+            .clients
+            .iter()
+            .filter(|(id, _)| **id != from)
+            .filter(|(_, c)| match (radio_addr(c.peer), dst) {
+                (Some(a), Some(d)) => a == d || d == BROADCAST,
+                _ => c.peer == Peer::Monitor,
+            })
+            .map(|(id, c)| (*id, c.peer == Peer::Monitor))
+            .collect();
+        for (to, monitor) in targets {
+            if monitor {
+                self.schedule(to, arrives, psdu.clone());
+                continue;
+            }
+            if self.rng.random_bool(self.config.loss.clamp(0.0, 1.0)) {
+                self.counters.count(|s| s.lost += 1);
+                continue;
+            }
+            let copies = if self.rng.random_bool(self.config.dup.clamp(0.0, 1.0)) {
+                self.counters.count(|s| s.duplicated += 1);
+                2
+            } else {
+                1
+            };
+            for _ in 0..copies {
+                let mut bytes = psdu.clone();
+                if self.rng.random_bool(self.config.corrupt.clamp(0.0, 1.0)) && !bytes.is_empty() {
+                    let i = self.rng.random_range(0..bytes.len());
+                    if let Some(b) = bytes.get_mut(i) {
+                        *b ^= 1 << self.rng.random_range(0..8);
+                    }
+                    self.counters.count(|s| s.corrupted += 1);
+                }
+                let (lo, hi) = self.config.delay_ms;
+                let extra = if hi > lo {
+                    self.rng.random_range(lo..=hi)
+                } else {
+                    lo
+                };
+                self.schedule(to, arrives + Duration::from_millis(extra), bytes);
+            }
+        }
+    }
+
+    fn schedule(&mut self, to: ClientId, at: Instant, psdu: Vec<u8>) {
+        self.seq += 1;
+        self.due.push(Reverse(Due {
+            at,
+            seq: self.seq,
+            to,
+            psdu,
+        }));
+    }
+
+    fn deliver_due(&mut self) {
+        let now = Instant::now();
+        while self.due.peek().is_some_and(|d| d.0.at <= now) {
+            let Some(Reverse(d)) = self.due.pop() else {
+                break;
+            };
+            let monitor = self
+                .clients
+                .get(&d.to)
+                .is_some_and(|c| c.peer == Peer::Monitor);
+            if self.send(d.to, &Link::Frame(&d.psdu)) && !monitor {
+                self.counters.count(|s| s.delivered += 1);
+            }
+        }
+    }
+
+    /// Output levels go from a node to plants and monitors; input levels from a plant to the
+    /// node with that address (and monitors). Plants and monitors get them stamped.
+    fn pin(&mut self, from: ClientId, addr: u16, pin: u8, level: bool) {
+        let Some(sender) = self.clients.get(&from).map(|c| c.peer) else {
+            return;
+        };
+        let at_us = self.start.elapsed().as_micros() as u64;
+        let seen = Link::Seen {
+            at_us,
+            addr,
+            pin,
+            level,
+            output: matches!(sender, Peer::Node { .. }),
+        };
+        let plain = Link::Pin { addr, pin, level };
+        let targets: Vec<(ClientId, bool)> = self
+            .clients
+            .iter()
+            .filter(|(id, _)| **id != from)
+            .filter_map(|(id, c)| {
+                let stamped = match (sender, c.peer) {
+                    (Peer::Node { addr: a }, Peer::Plant | Peer::Monitor) if a == addr => true,
+                    (Peer::Plant, Peer::Node { addr: a }) if a == addr => false,
+                    (Peer::Plant, Peer::Monitor) => true,
+                    _ => return None,
+                };
+                Some((*id, stamped))
+            })
+            .collect();
+        for (to, stamped) in targets {
+            self.send(to, if stamped { &seen } else { &plain });
+        }
+    }
+}
+
+fn radio_addr(peer: Peer) -> Option<u16> {
+    match peer {
+        Peer::Node { addr } | Peer::Tool { addr } => Some(addr),
+        Peer::Plant | Peer::Monitor => None,
+    }
+}
+
+/// The destination short address of a data frame (without checking the FCS: a corrupted
+/// frame still reaches its receiver, which drops it). `None` for anything else.
+fn psdu_dst(psdu: &[u8]) -> Option<u16> {
+    let fc = u16::from_le_bytes([*psdu.first()?, *psdu.get(1)?]);
+    match fc & 0b111 {
+        0b001 if (fc >> 10) & 0b11 == 0b10 => {
+            Some(u16::from_le_bytes([*psdu.get(5)?, *psdu.get(6)?]))
+        }
+        _ => None,
+    }
+}

@@ -1,0 +1,131 @@
+//! One client's connection: waits for its hello (within `HELLO_TIMEOUT`), then reads its
+//! messages, within its rate, and hands them to the air thread in order.
+
+use std::io::{self, Read};
+use std::net::TcpStream;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc::SyncSender;
+use std::sync::Arc;
+use std::time::Instant;
+
+use config_schema::wire::mac;
+use config_schema::wire::medium::{next_message, Link, MAX_LINK};
+
+use super::outbox::Outbox;
+use super::{limits, ClientId, Counters, Event};
+
+/// What a connection thread needs.
+pub(super) struct Connection {
+    pub id: ClientId,
+    pub events: SyncSender<Event>,
+    pub counters: Counters,
+    /// Connections open, and those not past their hello (the accept thread's caps).
+    pub open: Arc<AtomicUsize>,
+    pub greeting: Arc<AtomicUsize>,
+}
+
+/// A token bucket: `RATE_PER_S` messages a second, `BURST` at once.
+struct Rate {
+    tokens: f64,
+    last: Instant,
+}
+
+impl Rate {
+    fn new() -> Rate {
+        Rate {
+            tokens: f64::from(limits::BURST),
+            last: Instant::now(),
+        }
+    }
+
+    fn take(&mut self) -> bool {
+        let now = Instant::now();
+        let refill = now.duration_since(self.last).as_secs_f64() * f64::from(limits::RATE_PER_S);
+        self.tokens = (self.tokens + refill).min(f64::from(limits::BURST));
+        self.last = now;
+        if self.tokens >= 1.0 {
+            self.tokens -= 1.0;
+            true
+        } else {
+            false
+        }
+    }
+}
+
+impl Connection {
+    /// Serves the connection until it closes, says nonsense, or the medium stops.
+    pub fn serve(self, stream: TcpStream) {
+        let _ = stream.set_nodelay(true);
+        let mut greeted = false;
+        if let Err(e) = self.read(&stream, &mut greeted) {
+            if !greeted || e.kind() == io::ErrorKind::InvalidData {
+                self.counters.count(|s| s.silent += 1);
+            }
+        }
+        if !greeted {
+            self.greeting.fetch_sub(1, Ordering::SeqCst);
+        }
+        let _ = stream.shutdown(std::net::Shutdown::Both);
+        let _ = self.events.send(Event::Left(self.id));
+        self.open.fetch_sub(1, Ordering::SeqCst);
+    }
+
+    fn read(&self, stream: &TcpStream, greeted: &mut bool) -> io::Result<()> {
+        let nonsense = || io::Error::new(io::ErrorKind::InvalidData, "not a medium message");
+        let gone = || io::Error::new(io::ErrorKind::BrokenPipe, "the medium stopped");
+        stream.set_read_timeout(Some(limits::HELLO_TIMEOUT))?;
+        let deadline = Instant::now() + limits::HELLO_TIMEOUT;
+        let mut reader = stream;
+        let mut buf: Vec<u8> = Vec::with_capacity(4 * MAX_LINK);
+        let mut chunk = [0u8; 1024];
+        let mut rate = Rate::new();
+        loop {
+            if !*greeted && Instant::now() >= deadline {
+                return Err(io::Error::new(io::ErrorKind::TimedOut, "no hello"));
+            }
+            let n = match reader.read(&mut chunk) {
+                Ok(0) => return Ok(()),
+                Ok(n) => n,
+                Err(e) => return Err(e),
+            };
+            buf.extend_from_slice(chunk.get(..n).unwrap_or_default());
+            let mut used = 0;
+            while let Some(body) = buf.get(used..).and_then(next_message) {
+                let (start, end) = (used + body.start, used + body.end);
+                used = end;
+                let link = buf
+                    .get(start..end)
+                    .map(Link::parse)
+                    .ok_or_else(nonsense)?
+                    .map_err(|_| nonsense())?;
+                let event = match link {
+                    Link::Hello(peer) if !*greeted => {
+                        *greeted = true;
+                        self.greeting.fetch_sub(1, Ordering::SeqCst);
+                        stream.set_read_timeout(None)?;
+                        let outbox = Outbox::start(self.id, stream.try_clone()?, peer)?;
+                        Event::Joined(self.id, peer, outbox)
+                    }
+                    _ if !*greeted => return Err(nonsense()),
+                    _ if !rate.take() => {
+                        self.counters.count(|s| s.rate_limited += 1);
+                        continue;
+                    }
+                    Link::Frame(psdu) if psdu.len() <= mac::MAX_PSDU => {
+                        Event::Frame(self.id, psdu.to_vec())
+                    }
+                    Link::Pin { addr, pin, level } => Event::Pin(self.id, addr, pin, level),
+                    Link::Sync(n) => Event::Sync(self.id, n),
+                    // A client that speaks nonsense (or the medium's words) is disconnected.
+                    _ => return Err(nonsense()),
+                };
+                // Blocks while the air thread is behind: the client's TCP then waits.
+                self.events.send(event).map_err(|_| gone())?;
+            }
+            buf.drain(..used);
+            if buf.len() > 4 * MAX_LINK {
+                return Err(nonsense());
+            }
+        }
+    }
+}
