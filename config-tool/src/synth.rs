@@ -10,6 +10,13 @@
 //! crosses the radio only when that chart is on another node, and only to that node.
 //! The owner of step 1 waits in `IDLE` for START, and (if the last step is another
 //! actuator's) in `CYCLE_END` for `stepN.done`, so a START during a cycle is ignored.
+//! When the START button is on another role than step 1's, a `START` chart on the
+//! button's role gates it: `IDLE` -(press)-> `CYCLE` (emit `cycle.start`, published to
+//! step 1's role) -(the cycle is over)-> `IDLE`. A press during a cycle costs nothing. The
+//! cycle is over for the button's role when step 1's chart is back in `IDLE`: it then
+//! emits `cycle.done` to the button's role, unless the last step is the button role's own
+//! (its `stepN.done` reaches step 1's role on the same link before the next
+//! `cycle.start`, so that local event reopens the gate for free).
 //! A watchdog timeout raises fault 1 through a small per-role `fault` chart, which also
 //! publishes `fault` to every other role; receiving a peer's `fault` raises fault 2. So a
 //! fault anywhere stops every node at once (outputs safe) until a reset.
@@ -25,6 +32,12 @@ pub const FAULT_PEER: u8 = 2;
 pub const FAULT_EVENT: &str = "fault";
 /// The node event a peer's `fault` raises.
 pub const PEER_FAULT_EVENT: &str = "peer.fault";
+/// The event the START chart (button on another role than step 1's) publishes to step 1's
+/// role for a press at idle.
+pub const CYCLE_START_EVENT: &str = "cycle.start";
+/// The event step 1's chart emits (to the button's role) when it is back in `IDLE`, if the
+/// button's role needs it to reopen its gate.
+pub const CYCLE_DONE_EVENT: &str = "cycle.done";
 
 /// Whether role `q` has an actuator that moves in the sequence.
 fn moving_in(robot: &Robot, q: usize, steps: &[Step]) -> bool {
@@ -57,6 +70,15 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
         .map(|(r, _)| r)
         .ok_or_else(|| format!("unknown actuator `{}`", steps[0].actuator))?;
     let role_of = |k: usize| robot.actuator(&steps[k % n].actuator).map(|(r, _)| r);
+    // START on another role than step 1's is gated there (module doc). Its gate reopens
+    // on the local `stepN.done` if the last step is that role's, else on `cycle.done`.
+    let gated = start_role != first_role;
+    let reopen = if role_of(n - 1) == Some(start_role) {
+        done_event(n - 1)
+    } else {
+        String::from(CYCLE_DONE_EVENT)
+    };
+    let cycle_done = gated && reopen == CYCLE_DONE_EVENT;
 
     let mut roles = Vec::new();
     for (ri, role) in robot.roles.iter().enumerate() {
@@ -107,19 +129,28 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
             });
         }
         if ri == first_role {
-            if ri != start_role {
+            if gated {
                 r.event(&start_input);
                 r.imports.push((
                     robot.roles[start_role].name.clone(),
-                    start_input.clone(),
+                    String::from(CYCLE_START_EVENT),
                     start_input.clone(),
                 ));
+            } else {
+                r.start = Some(start_input.clone());
             }
-            r.start = Some(start_input.clone());
         }
         // One chart per moving actuator.
         for a in &moving {
-            let chart = actuator_chart(robot, &mut r, a, steps, &start_input)?;
+            let mut chart = actuator_chart(robot, &mut r, a, steps, &start_input)?;
+            if cycle_done && a.name == steps[0].actuator {
+                // Back in IDLE: tell the button's role that a press may start a cycle.
+                if let Some(idle) = chart.states.first_mut() {
+                    idle.actions
+                        .push(ActionIr::Emit(String::from(CYCLE_DONE_EVENT)));
+                }
+                r.event(CYCLE_DONE_EVENT);
+            }
             r.charts.push(chart);
         }
         // Imports of step events from other roles, in step order.
@@ -202,6 +233,9 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
                 transitions,
             });
         }
+        if gated && ri == start_role {
+            start_chart(robot, &mut r, &start_input, &reopen, first_role);
+        }
         // Register route events (emitted and imported) in a stable order.
         for (e, _, _) in r.routes.clone() {
             r.event(&e);
@@ -217,6 +251,52 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
         start: Some((start_role, start_input)),
         expect: steps.to_vec(),
     })
+}
+
+/// The START chart of the button's role when step 1 is another role's (module doc):
+/// `IDLE` -(START)-> `CYCLE` [emit `cycle.start`] -(`reopen`)-> `IDLE`.
+fn start_chart(robot: &Robot, r: &mut RoleIr, start_input: &str, reopen: &str, first: usize) {
+    let c = r.charts.len();
+    r.start = Some(start_input.to_string());
+    r.event(CYCLE_START_EVENT);
+    if reopen == CYCLE_DONE_EVENT {
+        r.imports.push((
+            robot.roles[first].name.clone(),
+            String::from(CYCLE_DONE_EVENT),
+            String::from(CYCLE_DONE_EVENT),
+        ));
+    }
+    r.routes.push((start_input.to_string(), c, 0));
+    r.routes.push((reopen.to_string(), c, 1));
+    r.charts.push(ChartIr {
+        name: start_input.to_string(),
+        inputs: vec![String::from("press"), String::from("done")],
+        initial: 0,
+        states: vec![
+            StateIr {
+                name: String::from("IDLE"),
+                actions: vec![],
+            },
+            StateIr {
+                name: String::from("CYCLE"),
+                actions: vec![ActionIr::Emit(String::from(CYCLE_START_EVENT))],
+            },
+        ],
+        transitions: vec![
+            TransitionIr {
+                from: 0,
+                to: 1,
+                trigger: Some(0),
+                guard: None,
+            },
+            TransitionIr {
+                from: 1,
+                to: 0,
+                trigger: Some(1),
+                guard: None,
+            },
+        ],
+    });
 }
 
 /// How an actuator is driven and how its motions complete.
@@ -464,4 +544,178 @@ fn actuator_chart(
         states,
         transitions,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use node_fw::sim::{NodeSpec, Plant, What, World};
+
+    use crate::compile::{compile, Compiled};
+    use crate::source::Source;
+    use crate::{sim, verify};
+
+    const START_ON_GR: &str = include_str!("../../robot-configs/paint-robot-start-on-gr.ron");
+
+    /// Two cylinders, one node each; START on `start` (a third role `PANEL` moves nothing).
+    fn two(sequence: &str, start: &str) -> String {
+        let role = |r: &str| {
+            let input = if r == start {
+                "inputs: [(name: \"START\", pin: 4)],"
+            } else {
+                ""
+            };
+            format!(
+                "(name: \"{r}\", actuators: [(name: \"{r}\", kind: DoubleActing(extend: 0, \
+                 retract: 1, home: 2, end: 3, out_ms: 300, back_ms: 300))], {input}),"
+            )
+        };
+        let panel = if start == "PANEL" {
+            "(name: \"PANEL\", inputs: [(name: \"START\", pin: 4)]),"
+        } else {
+            ""
+        };
+        format!(
+            "Robot(name: \"two\", network: (pan_id: 0x4242, channel: 20),\n\
+             nodes: [(name: \"n1\", address: 0x21), (name: \"n2\", address: 0x22), \
+             (name: \"n3\", address: 0x23)],\n\
+             assign: [(\"A\", \"n1\"), (\"B\", \"n2\"){}],\n\
+             roles: [{}{}{panel}],\n\
+             start: \"START\", sequence: \"{sequence}\")\n",
+            if start == "PANEL" {
+                ", (\"PANEL\", \"n3\")"
+            } else {
+                ""
+            },
+            role("A"),
+            role("B"),
+        )
+    }
+
+    fn build(name: &str, text: &str) -> Compiled {
+        let src = Source::new(name, text);
+        match compile(&src) {
+            Ok(c) => c,
+            Err(d) => panic!(
+                "{}",
+                d.iter()
+                    .map(|d| d.short(&src))
+                    .collect::<Vec<_>>()
+                    .join("\n")
+            ),
+        }
+    }
+
+    /// The robots with START on another role than step 1's: the last step on the button's
+    /// role (its `stepN.done` reopens the gate), on step 1's role, and a button on a role
+    /// that moves nothing (both: `cycle.done`).
+    fn gated() -> Vec<(&'static str, String)> {
+        vec![
+            ("paint-robot-start-on-gr.ron", START_ON_GR.to_string()),
+            ("last-on-button.ron", two("A+ B+ A- B-", "B")),
+            ("panel.ron", two("A+ B+ B- A-", "PANEL")),
+        ]
+    }
+
+    #[test]
+    fn start_anytime_passes_with_start_on_another_node_than_step_1s() {
+        for (name, text) in gated() {
+            let c = build(name, &text);
+            let opts = verify::Options {
+                start_anytime: true,
+                ..verify::Options::default()
+            };
+            let r = verify::verify(&c, opts).expect("model builds");
+            assert!(r.ok(), "{}", r.render(name, 0));
+            let r = verify::verify(&c, verify::Options::default()).expect("model builds");
+            assert!(r.ok(), "{}", r.render(name, 0));
+        }
+    }
+
+    /// Presses START at idle, then `during` times every 12 ms while that cycle runs, waits
+    /// until the machine is idle, presses once more at idle and waits again. Returns the
+    /// steps, the publications and the link alarms, breaks and faults of the trace.
+    fn press_storm(c: &Compiled, during: usize, loss: f64) -> (Vec<String>, usize, Vec<String>) {
+        let tables = sim::tables(c).expect("blobs decode");
+        let specs: Vec<NodeSpec> = tables
+            .iter()
+            .zip(&c.ir.roles)
+            .map(|(t, r)| NodeSpec {
+                addr: r.address,
+                table: t,
+            })
+            .collect();
+        let (mut plants, button) = sim::plants(c).expect("plants");
+        if let Some(Plant::Button(b)) = plants.get_mut(button) {
+            b.press_ms = 5;
+        }
+        let mut world = World::new(&specs, plants).expect("world");
+        if loss > 0.0 {
+            // With this seed, a synthesis that publishes every press broke the paint
+            // robot's GR -> VC link at 588 ms (queue overflow) and stalled it after 2 steps.
+            world.set_loss(loss, 1);
+        }
+        world.press(button).expect("press");
+        for _ in 0..during {
+            world.run_for(12).expect("runs");
+            world.press(button).expect("press");
+        }
+        let during_cycle = world.steps().len();
+        assert!(
+            during_cycle < c.ir.expect.len(),
+            "the presses must fall inside the first cycle ({during_cycle} steps done)"
+        );
+        world.run_until_idle(600_000).expect("idle");
+        world.press(button).expect("press");
+        world.run_until_idle(600_000).expect("idle");
+        if loss > 0.0 {
+            let (sent, lost) = world.frames();
+            assert!(lost > 0, "{lost} of {sent} frames lost");
+        }
+        let trouble = world
+            .trace()
+            .iter()
+            .filter(|e| {
+                matches!(
+                    e.what,
+                    What::LinkAlarm { .. } | What::LinkBroken { .. } | What::Fault { .. }
+                )
+            })
+            .map(|e| e.to_string())
+            .collect();
+        let publications = world
+            .trace()
+            .iter()
+            .filter(|e| matches!(e.what, What::Publish { .. }))
+            .count();
+        (world.steps(), publications, trouble)
+    }
+
+    /// 100 presses during a cycle at 20 % loss: no link alarm or break, and exactly one
+    /// cycle per press at idle (two presses at idle: two cycles). A press during a cycle
+    /// costs no publication: the ideal radio sees exactly two cycles' publications.
+    #[test]
+    fn presses_during_a_cycle_cost_nothing_and_break_no_link_at_20_percent_loss() {
+        for (name, text, per_cycle) in [
+            ("paint-robot-start-on-gr.ron", START_ON_GR.to_string(), 11),
+            ("last-on-button.ron", two("A+ B+ A- B-", "B"), 5),
+            ("panel.ron", two("A+ B+ B- A-", "PANEL"), 4),
+        ] {
+            let c = build(name, &text);
+            let expect: Vec<String> = c.ir.expect.iter().map(|s| s.to_string()).collect();
+            let two_cycles = [expect.clone(), expect].concat();
+            let during = if name == "paint-robot-start-on-gr.ron" {
+                100
+            } else {
+                20
+            };
+            let (steps, publications, trouble) = press_storm(&c, during, 0.2);
+            assert_eq!(trouble, Vec::<String>::new(), "{name} at 20 % loss");
+            assert_eq!(steps, two_cycles, "{name} at 20 % loss");
+            assert_eq!(publications, 2 * per_cycle, "{name} at 20 % loss");
+            let (steps, publications, trouble) = press_storm(&c, during, 0.0);
+            assert_eq!(steps, two_cycles, "{name}");
+            assert_eq!(publications, 2 * per_cycle, "{name}");
+            assert_eq!(trouble, Vec::<String>::new(), "{name}");
+        }
+    }
 }

@@ -40,7 +40,7 @@ fn configs() -> Vec<String> {
 #[test]
 fn every_config_reproduces_its_sequence_for_20_cycles_through_its_blobs() {
     let configs = configs();
-    assert_eq!(configs.len(), 5);
+    assert_eq!(configs.len(), 6);
     for path in configs {
         let c = build(&load(&path));
         let result = sim::simulate(&c, 20).expect("sim runs");

@@ -71,6 +71,7 @@ fn every_robot_of_robot_configs_passes_with_a_prompt_radio() {
             ("paint-robot-double-dip.ron", 327),
             ("paint-robot-paper-charts.ron", 87),
             ("paint-robot-spare-node.ron", 243),
+            ("paint-robot-start-on-gr.ron", 247),
             ("paint-robot.ron", 243),
         ]
     );
@@ -99,6 +100,11 @@ fn the_sequence_robots_of_robot_configs_pass_with_their_state_counts() {
             "paint-robot-double-dip.ron",
             (623, 1557, 2, 548),
             (2063, 6166, 2, 1988),
+        ),
+        (
+            "paint-robot-start-on-gr.ron",
+            (455, 1116, 2, 388),
+            (1483, 4370, 2, 1416),
         ),
     ] {
         let c = build(&load(&format!("../robot-configs/{file}")));
@@ -278,6 +284,10 @@ fn a_start_during_the_cycle_is_explored_with_start_anytime() {
     };
     let paint = build(&load("../robot-configs/paint-robot.ron"));
     assert_eq!(passes(&anytime(&paint)), (469, 1631, 2, 404));
+    // START on another node than step 1's: its node gates the button, so a press during a
+    // cycle costs no publication (it used to fill the GR -> VC link: bounded links).
+    let on_gr = build(&load("../robot-configs/paint-robot-start-on-gr.ron"));
+    assert_eq!(passes(&anytime(&on_gr)), (474, 1643, 2, 404));
     let small = build(&load("fixtures/small-charts.ron"));
     let v = anytime(&small).violation.expect("a violation");
     assert_eq!(v.property, Property::DoubleActuation);

@@ -15,6 +15,7 @@
 //! the same tables, plants and calls give the same trace, always. Every run is bounded by a
 //! virtual-time limit and by a number of processed events ([`RUN_EVENT_LIMIT`]).
 
+mod lossy;
 mod plant;
 mod trace;
 
@@ -153,6 +154,18 @@ enum Ev {
         node: usize,
         peer: usize,
     },
+    /// Lossy radio: a frame of link `from -> to` reaches its end.
+    Frame {
+        from: usize,
+        to: usize,
+        frame: lossy::Frame,
+    },
+    /// Lossy radio: the retransmission timer of link `from -> to`.
+    LinkPoll {
+        from: usize,
+        to: usize,
+        gen: u64,
+    },
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -282,6 +295,8 @@ pub struct World<'t> {
     stopped: Vec<bool>,
     cut: Vec<(usize, usize)>,
     alarmed: Vec<(usize, usize)>,
+    /// The lossy radio, once [`World::set_loss`] chose it.
+    lossy: Option<lossy::Lossy>,
 }
 
 /// Time from a publication to the link alarm when the subscriber never acknowledges: the
@@ -370,6 +385,7 @@ impl<'t> World<'t> {
             stopped: vec![false; nodes.len()],
             cut: Vec::new(),
             alarmed: Vec::new(),
+            lossy: None,
         };
         // Power-up: the nodes read their switches, then start from their initial states.
         let mut powered = vec![false; world.nodes.len()];
@@ -401,6 +417,20 @@ impl<'t> World<'t> {
     /// Sets the radio latency (publication to delivery) for later publications.
     pub fn set_radio_delay(&mut self, ms: u64) {
         self.radio_delay_ms = ms;
+    }
+
+    /// Makes the radio lossy: from now on every publication travels over the node's
+    /// reliable link ([`crate::link`]: window, queue, retransmissions, alarm, broken on
+    /// overflow), and each frame (event or acknowledgement) is lost with probability
+    /// `loss`, drawn from a generator seeded with `seed`. Each surviving frame takes the
+    /// radio delay. Call it before anything is published (every link starts a new epoch).
+    pub fn set_loss(&mut self, loss: f64, seed: u64) {
+        self.lossy = Some(lossy::Lossy::new(self.nodes.len(), loss, seed));
+    }
+
+    /// Frames the lossy radio carried and lost so far ((0, 0) on the ideal radio).
+    pub fn frames(&self) -> (u64, u64) {
+        self.lossy.as_ref().map_or((0, 0), |l| (l.sent, l.lost))
     }
 
     /// Sets how many queue events one `run_*` call may process ([`RUN_EVENT_LIMIT`] by
@@ -703,6 +733,9 @@ impl<'t> World<'t> {
         match *ev {
             Ev::Arrive { plant, gen } => self.gens[plant] == gen,
             Ev::Timer { node, timer, gen } => self.nodes[node].timers[usize::from(timer)] == gen,
+            Ev::LinkPoll { from, to, gen } => {
+                self.lossy.as_ref().and_then(|l| l.poll_gen(from, to)) == Some(gen)
+            }
             _ => true,
         }
     }
@@ -758,28 +791,155 @@ impl<'t> World<'t> {
                     self.log(What::LinkAlarm { node, peer });
                 }
             }
-            Ev::Deliver { from, to, topic } => {
-                let from_addr = self.nodes[from].addr;
-                let engine = &self.nodes[to].engine;
-                let peer = engine.table().peers.iter().position(|a| *a == from_addr);
-                let accepted = peer.is_some_and(|p| {
-                    engine
-                        .table()
-                        .subscriptions
-                        .iter()
-                        .any(|s| usize::from(s.publisher) == p && s.topic == topic)
-                });
-                self.log(What::Deliver {
-                    from,
-                    to,
-                    topic,
-                    accepted,
-                });
-                if let (true, Some(p)) = (accepted, peer) {
-                    self.call(to, |e, fx| {
-                        e.remote(p as u8, topic, fx);
-                    });
+            Ev::Deliver { from, to, topic } => self.deliver(from, to, topic),
+            Ev::Frame { from, to, frame } => self.frame(from, to, frame),
+            Ev::LinkPoll { from, to, .. } => {
+                if self.stopped[from] {
+                    return;
                 }
+                let now = self.now;
+                let mut out = Vec::new();
+                let mut alarm = None;
+                if let Some(link) = self.lossy.as_mut().and_then(|l| l.link(from, to)) {
+                    link.poll_at = None;
+                    link.tx.poll(now, |m| out.extend(lossy::Frame::of(&m)));
+                    let alarmed = lossy::alarmed(link.tx.state());
+                    if alarmed && !link.alarm_traced {
+                        alarm = Some(What::LinkAlarm {
+                            node: from,
+                            peer: to,
+                        });
+                    }
+                    link.alarm_traced = alarmed;
+                }
+                if let Some(what) = alarm {
+                    self.log(what);
+                }
+                self.send_frames(from, to, out);
+            }
+        }
+    }
+
+    /// Topic `topic` published by `from` reaches `to`'s engine (if it subscribes to it).
+    fn deliver(&mut self, from: usize, to: usize, topic: Topic) {
+        let from_addr = self.nodes[from].addr;
+        let engine = &self.nodes[to].engine;
+        let peer = engine.table().peers.iter().position(|a| *a == from_addr);
+        let accepted = peer.is_some_and(|p| {
+            engine
+                .table()
+                .subscriptions
+                .iter()
+                .any(|s| usize::from(s.publisher) == p && s.topic == topic)
+        });
+        self.log(What::Deliver {
+            from,
+            to,
+            topic,
+            accepted,
+        });
+        if let (true, Some(p)) = (accepted, peer) {
+            self.call(to, |e, fx| {
+                e.remote(p as u8, topic, fx);
+            });
+        }
+    }
+
+    /// Lossy radio: a publication joins the link `from -> to`.
+    fn link_push(&mut self, from: usize, to: usize, topic: Topic) {
+        let now = self.now;
+        let mut out = Vec::new();
+        let mut broken = None;
+        if let Some(link) = self.lossy.as_mut().and_then(|l| l.link(from, to)) {
+            let pushed = link
+                .tx
+                .push(topic, now, |m| out.extend(lossy::Frame::of(&m)));
+            if pushed.is_err() && !link.broken_traced {
+                link.broken_traced = true;
+                broken = Some(What::LinkBroken {
+                    node: from,
+                    peer: to,
+                });
+            }
+        }
+        if let Some(what) = broken {
+            self.log(what);
+        }
+        self.send_frames(from, to, out);
+    }
+
+    /// Lossy radio: puts frames of link `from -> to` on the air (each may be lost), then
+    /// (re)schedules the link's retransmission timer.
+    fn send_frames(&mut self, from: usize, to: usize, frames: Vec<lossy::Frame>) {
+        let delay = self.radio_delay_ms;
+        for frame in frames {
+            let lost = self.lossy.as_mut().is_none_or(|l| l.lose());
+            if !lost {
+                self.schedule(delay, Ev::Frame { from, to, frame });
+            }
+        }
+        let now = self.now;
+        let mut poll = None;
+        if let Some(link) = self.lossy.as_mut().and_then(|l| l.link(from, to)) {
+            let deadline = link.tx.deadline();
+            if deadline != link.poll_at {
+                link.poll_at = deadline;
+                link.poll_gen += 1;
+                poll = deadline.map(|d| (d.saturating_sub(now), link.poll_gen));
+            }
+        }
+        if let Some((wait, gen)) = poll {
+            self.schedule(wait, Ev::LinkPoll { from, to, gen });
+        }
+    }
+
+    /// Lossy radio: a frame of link `from -> to` arrives (an event at `to`, an
+    /// acknowledgement at `from`).
+    fn frame(&mut self, from: usize, to: usize, frame: lossy::Frame) {
+        let now = self.now;
+        match frame {
+            lossy::Frame::Event { epoch, seq, topic } => {
+                if self.stopped[to] || self.cut.contains(&(from, to)) {
+                    return;
+                }
+                let Some(got) = self
+                    .lossy
+                    .as_mut()
+                    .and_then(|l| l.link(from, to))
+                    .map(|link| link.rx.on_event(epoch, seq, topic))
+                else {
+                    return;
+                };
+                for topic in got.deliver {
+                    self.deliver(from, to, topic);
+                }
+                if let Some(ack) = got.ack.as_ref().and_then(lossy::Frame::of) {
+                    let lost = self.lossy.as_mut().is_none_or(|l| l.lose());
+                    if !lost {
+                        self.schedule(
+                            self.radio_delay_ms,
+                            Ev::Frame {
+                                from,
+                                to,
+                                frame: ack,
+                            },
+                        );
+                    }
+                }
+            }
+            lossy::Frame::Ack { epoch, next } => {
+                if self.stopped[from] {
+                    return;
+                }
+                let mut out = Vec::new();
+                if let Some(link) = self.lossy.as_mut().and_then(|l| l.link(from, to)) {
+                    link.tx
+                        .on_ack(epoch, next, now, |m| out.extend(lossy::Frame::of(&m)));
+                    if !lossy::alarmed(link.tx.state()) {
+                        link.alarm_traced = false;
+                    }
+                }
+                self.send_frames(from, to, out);
             }
         }
     }
@@ -883,6 +1043,7 @@ impl<'t> World<'t> {
                 continue;
             }
             match self.node_by_addr(*addr) {
+                Some(to) if self.lossy.is_some() => self.link_push(node, to, p.topic),
                 Some(to) => self.schedule(
                     self.radio_delay_ms,
                     Ev::Deliver {

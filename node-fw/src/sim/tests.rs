@@ -890,3 +890,86 @@ fn a_cut_link_or_a_stopped_node_raises_the_link_alarm_after_the_retries() {
         .iter()
         .any(|e| matches!(e.what, What::Deliver { .. })));
 }
+
+/// A publisher (node 0, a button on input 0 publishes topic 7) and its subscriber.
+fn pub_sub() -> (Table, Table) {
+    (publisher_table(&[0x20]), subscriber_table(0x10))
+}
+
+fn pub_sub_world<'t>(a: &'t Table, b: &'t Table) -> World<'t> {
+    let nodes = [
+        NodeSpec {
+            addr: 0x10,
+            table: a,
+        },
+        NodeSpec {
+            addr: 0x20,
+            table: b,
+        },
+    ];
+    World::new(&nodes, vec![Button::new("S", 0, 0).into()]).unwrap()
+}
+
+fn link_trouble(world: &World<'_>) -> Vec<TraceEntry> {
+    world
+        .trace()
+        .iter()
+        .filter(|e| matches!(e.what, What::LinkAlarm { .. } | What::LinkBroken { .. }))
+        .cloned()
+        .collect()
+}
+
+#[test]
+fn a_lossy_radio_delivers_every_publication_exactly_once() {
+    let (a, b) = pub_sub();
+    let mut world = pub_sub_world(&a, &b);
+    world.set_loss(0.3, 7);
+    for _ in 0..20 {
+        world.press(0).unwrap();
+        world.run_for(70).unwrap();
+    }
+    world.run_until_idle(60_000).unwrap();
+    let delivered = world
+        .trace()
+        .iter()
+        .filter(|e| {
+            matches!(
+                e.what,
+                What::Deliver {
+                    from: 0,
+                    to: 1,
+                    topic: 7,
+                    accepted: true
+                }
+            )
+        })
+        .count();
+    assert_eq!(delivered, 20);
+    let (sent, lost) = world.frames();
+    assert!(lost > 0 && lost < sent, "{lost} of {sent} frames lost");
+    assert_eq!(link_trouble(&world), []);
+}
+
+#[test]
+fn a_lossy_link_raises_its_alarm_after_the_retries_and_breaks_when_its_queue_overflows() {
+    let (a, b) = pub_sub();
+    let mut world = pub_sub_world(&a, &b);
+    world.set_loss(1.0, 1);
+    // One publication every 60 ms, none acknowledged: the 17th overflows the queue of 16.
+    for _ in 0..17 {
+        world.press(0).unwrap();
+        world.run_for(60).unwrap();
+    }
+    assert_eq!(crate::link::QUEUE, 16);
+    assert_eq!(
+        link_trouble(&world),
+        [
+            at(810, What::LinkAlarm { node: 0, peer: 1 }),
+            at(960, What::LinkBroken { node: 0, peer: 1 }),
+        ]
+    );
+    assert!(!world
+        .trace()
+        .iter()
+        .any(|e| matches!(e.what, What::Deliver { .. })));
+}

@@ -80,6 +80,10 @@ pub enum What {
     Jammed { plant: usize, plus: bool },
     /// The link from `node` to `peer` gave up after its retries: link alarm at `node`.
     LinkAlarm { node: usize, peer: usize },
+    /// Lossy radio: the link from `node` to `peer` overflowed its queue
+    /// ([`QUEUE`](crate::link::QUEUE) events unacknowledged): it is broken and sends nothing
+    /// more in this epoch.
+    LinkBroken { node: usize, peer: usize },
 }
 
 impl What {
@@ -164,6 +168,12 @@ impl fmt::Display for What {
                 write!(
                     f,
                     "node {node} LINK ALARM: node {peer} does not acknowledge"
+                )
+            }
+            What::LinkBroken { node, peer } => {
+                write!(
+                    f,
+                    "node {node} LINK BROKEN: queue to node {peer} overflowed"
                 )
             }
         }
