@@ -356,7 +356,7 @@ fn a_welcomed_client_is_routed_to_at_once_and_sync_orders_its_levels() {
         plant.send(&Link::Pin {
             addr: 0x11,
             pin: 2,
-            level: i % 2 == 0,
+            level: i.is_multiple_of(2),
         });
         plant.send(&Link::Sync(u32::from(i)));
         assert_eq!(plant.recv(SURE), Some(Got::Synced(u32::from(i))));
@@ -364,7 +364,7 @@ fn a_welcomed_client_is_routed_to_at_once_and_sync_orders_its_levels() {
         tool.send(&Link::Frame(&start));
         assert_eq!(
             node.recv(SURE),
-            Some(Got::Pin(0x11, 2, i % 2 == 0)),
+            Some(Got::Pin(0x11, 2, i.is_multiple_of(2))),
             "round {i}"
         );
         assert_eq!(node.recv(SURE), Some(Got::Frame(start)), "round {i}");
@@ -492,7 +492,7 @@ fn a_monitor_that_never_reads_is_dropped_and_nobody_waits_for_it() {
                 s.send(&Link::Pin {
                     addr: 0x11,
                     pin: (n % 8) as u8,
-                    level: n % 2 == 0,
+                    level: n.is_multiple_of(2),
                 });
                 n += 1;
             }
