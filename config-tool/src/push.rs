@@ -51,8 +51,19 @@ pub fn push(
         s.start(now_ms(), |m| out.push((t.addr, m)));
     }
     loop {
+        let sent = !out.is_empty();
         for (dst, m) in out.drain(..) {
             radio.send(dst, &m)?;
+        }
+        if sent {
+            // Every answer waits for the tool's frames to leave the (shared) air.
+            let clear = radio
+                .air_clear()
+                .saturating_duration_since(start)
+                .as_millis() as u64;
+            for s in &mut senders {
+                s.on_air(clear);
+            }
         }
         for (i, s) in senders.iter().enumerate() {
             if s.progress() != Progress::Busy && finished[i].is_none() {

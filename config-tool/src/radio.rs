@@ -15,6 +15,10 @@ use crate::medium::Conn;
 /// The tool's default short address.
 pub const TOOL_ADDR: u16 = 0x0100;
 
+/// The PSDU length of a node's answer to a frame of the tool (a `ConfigReply::Next` is
+/// 18 bytes; a status is longer, and rarer).
+const ANSWER_PSDU: usize = 24;
+
 /// A received application message, owned.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Received {
@@ -43,8 +47,9 @@ pub struct ToolRadio {
     conn: Conn,
     addr: u16,
     seq: u8,
-    /// When the frames this radio sent leave the air, at the earliest (250 kbit/s, one
-    /// after the other): what a reply to the last of them waits for.
+    /// When the frames this radio sent, and the short answer each one asks for, are off the
+    /// air at the earliest (250 kbit/s, one after the other): what a reply to the last of
+    /// them waits for.
     air_clear: Instant,
     pub stats: RadioStats,
 }
@@ -90,8 +95,8 @@ impl ToolRadio {
         let len = mac::emit_data(&header, &payload[..n], &mut psdu)
             .map_err(|_| io::Error::other("frame too long"))?;
         self.stats.sent += 1;
-        let airtime = Duration::from_micros(u64::from(mac::airtime_us(len)));
-        self.air_clear = self.air_clear.max(Instant::now()) + airtime;
+        let airtime = mac::airtime_us(len) + mac::airtime_us(ANSWER_PSDU);
+        self.air_clear = self.air_clear.max(Instant::now()) + Duration::from_micros(airtime.into());
         self.conn.send(&Link::Frame(&psdu[..len]))
     }
 

@@ -20,8 +20,13 @@ use config_schema::wire::msg::{ConfigReply, Message, Refusal, CHUNK_DATA};
 
 /// Chunks the tool keeps in flight.
 pub const WINDOW: usize = 4;
-/// Tool-side retransmission timeout.
+/// Tool-side retransmission timeout, counted from when the tool's frames are off the air
+/// ([`Sender::on_air`]): the node's answer (its airtime, a few ms), the node's handling
+/// and the host's scheduling of both ends.
 pub const RTO_MS: u64 = 40;
+/// What the end of a transfer may take on top: the node decodes, validates and persists
+/// the table (a flash page erase and write on a real node: tens of ms).
+pub const PERSIST_MS: u64 = 200;
 /// Times the tool starts a transfer over because the node lost it.
 pub const MAX_RESTARTS: u8 = 3;
 /// Tool-side timeouts without progress before it gives up.
@@ -234,6 +239,8 @@ pub struct Sender<'b> {
     ended: bool,
     progress: Progress,
     deadline: u64,
+    /// When the tool's frames sent so far are off the air ([`Sender::on_air`]).
+    air_clear: u64,
     timeouts: u8,
     /// Times the node lost the transfer (`OutOfSequence`) and it started over.
     restarts: u8,
@@ -252,6 +259,7 @@ impl<'b> Sender<'b> {
             ended: false,
             progress: Progress::Busy,
             deadline: 0,
+            air_clear: 0,
             timeouts: 0,
             restarts: 0,
             stats: TransferStats::default(),
@@ -333,7 +341,28 @@ impl<'b> Sender<'b> {
             return;
         }
         self.fill(false, &mut send);
-        self.deadline = now + RTO_MS;
+        self.arm(now);
+    }
+
+    /// The retransmission deadline from `from`: a round trip, and the persisting time once
+    /// the end is out.
+    fn rto(&self) -> u64 {
+        RTO_MS + if self.ended { PERSIST_MS } else { 0 }
+    }
+
+    /// The deadline of what is outstanding: a timeout after now, or after the air is
+    /// clear of the tool's frames sent so far (this transfer's among them).
+    fn arm(&mut self, now: u64) {
+        self.deadline = now.max(self.air_clear) + self.rto();
+    }
+
+    /// The frames sent so far (to every node: the air is shared) are off the air at
+    /// `clear` at the earliest: no answer can be late before `clear` plus the timeout.
+    pub fn on_air(&mut self, clear: u64) {
+        self.air_clear = self.air_clear.max(clear);
+        if self.progress == Progress::Busy {
+            self.deadline = self.deadline.max(clear + self.rto());
+        }
     }
 
     /// A reply from the node.
@@ -359,7 +388,7 @@ impl<'b> Sender<'b> {
                 self.acked = Some(next);
                 self.timeouts = 0;
                 self.fill(false, &mut send);
-                self.deadline = now + RTO_MS;
+                self.arm(now);
             }
             ConfigReply::Activated => {
                 if self.ended {
@@ -377,7 +406,7 @@ impl<'b> Sender<'b> {
                 self.ended = false;
                 self.timeouts = 0;
                 self.fill(false, &mut send);
-                self.deadline = now + RTO_MS;
+                self.arm(now);
             }
             ConfigReply::Refused(why) => self.progress = Progress::Refused(why),
         }
@@ -396,7 +425,7 @@ impl<'b> Sender<'b> {
         let before = self.stats.frames;
         self.fill(true, &mut send);
         self.stats.retries += self.stats.frames - before;
-        self.deadline = now + RTO_MS;
+        self.arm(now);
     }
 
     /// When [`Sender::poll`] next has work.

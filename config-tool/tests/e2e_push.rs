@@ -1,0 +1,104 @@
+//! `push` on a lossless medium needs no retransmission, however many nodes share the air
+//! and however long the tables (issue: 27 to 45 retries per node for the tables of a
+//! 64-step, 8-actuator robot, from a timeout shorter than the shared air takes).
+
+mod e2e_support;
+
+use config_schema::limits::MAX_BLOB;
+use config_schema::wire::msg::Refusal;
+use config_tool::push::{self, Target};
+use config_tool::{compile, medium, Source};
+use node_fw::ota::Progress;
+
+use e2e_support::*;
+
+/// Eight double-acting cylinders A..H on eight nodes, 64 steps.
+fn eight_actuators() -> config_tool::Compiled {
+    let names = ["A", "B", "C", "D", "E", "F", "G", "H"];
+    let nodes: Vec<String> = (0..8)
+        .map(|i| format!("(name: \"n{i}\", address: {:#06x})", 0x21 + i))
+        .collect();
+    let assign: Vec<String> = names
+        .iter()
+        .enumerate()
+        .map(|(i, a)| format!("(\"{a}\", \"n{i}\")"))
+        .collect();
+    let roles: Vec<String> = names
+        .iter()
+        .enumerate()
+        .map(|(i, a)| {
+            let start = if i == 0 {
+                ", inputs: [(name: \"START\", pin: 4)]"
+            } else {
+                ""
+            };
+            format!(
+                "(name: \"{a}\", actuators: [(name: \"{a}\", kind: DoubleActing(extend: 0, \
+                 retract: 1, home: 2, end: 3, out_ms: 60, back_ms: 60))]{start})"
+            )
+        })
+        .collect();
+    let half: Vec<String> = names
+        .iter()
+        .map(|a| format!("{a}+"))
+        .chain(names.iter().map(|a| format!("{a}-")))
+        .collect();
+    let sequence = vec![half.join(" "); 4].join(" ");
+    let text = format!(
+        "Robot(name: \"eight\", network: (pan_id: 0x1234, channel: 15), nodes: [{}], \
+         assign: [{}], roles: [{}], start: \"START\", sequence: \"{sequence}\", \
+         motion_timeout_ms: 2000)",
+        nodes.join(", "),
+        assign.join(", "),
+        roles.join(", ")
+    );
+    let c = compile::compile(&Source::new("eight.ron", text)).expect("compiles");
+    assert_eq!(c.ir.expect.len(), 64);
+    c.with_generation(1).expect("re-encodes")
+}
+
+#[test]
+fn eight_tables_at_once_take_no_retry_on_a_lossless_medium() {
+    let c = eight_actuators();
+    let mut bed = bring_up(&c, options(medium::Config::default(), None));
+    let outcomes = push_ok(&mut bed, &c);
+    let retries: Vec<(String, u32)> = outcomes
+        .iter()
+        .map(|o| (o.role.clone(), o.stats.retries))
+        .collect();
+    assert_eq!(
+        retries,
+        ["A", "B", "C", "D", "E", "F", "G", "H"].map(|r| (r.to_string(), 0))
+    );
+    assert_running(&mut bed, &c);
+    bed.stop();
+}
+
+#[test]
+fn tables_at_the_blob_limit_take_no_retry_on_a_lossless_medium() {
+    let c = eight_actuators();
+    let mut bed = bring_up(&c, options(medium::Config::default(), None));
+    // Blobs of the largest length a node takes (not tables: every node refuses them at
+    // the end, after the whole transfer).
+    let targets: Vec<Target> =
+        c.ir.roles
+            .iter()
+            .enumerate()
+            .map(|(i, r)| Target {
+                role: r.name.clone(),
+                addr: r.address,
+                blob: vec![i as u8; MAX_BLOB],
+                generation: 1,
+            })
+            .collect();
+    let outcomes = push::push(bed.radio(), &targets, false, &mut |_, _, _| {}).expect("push");
+    let got: Vec<(Progress, u32, u32)> = outcomes
+        .iter()
+        .map(|o| (o.progress, o.stats.retries, o.stats.bytes))
+        .collect();
+    assert_eq!(
+        got,
+        vec![(Progress::Refused(Refusal::Invalid), 0, MAX_BLOB as u32); 8]
+    );
+    bed.stop();
+}
