@@ -601,12 +601,27 @@ pub fn cycle_line(n: usize, cy: &Cycle) -> String {
     s
 }
 
+/// A status fault code in words (`node_fw::node::fault_code`).
+pub fn fault_meaning(code: u8) -> String {
+    const ACTION: u8 = 0x80;
+    match code {
+        1 => "the interpreter's chain limit (event-less transitions)".into(),
+        2 => "the interpreter's event queue overflowed".into(),
+        3 => "the interpreter's cascade limit".into(),
+        4 => "a guard or assignment failed to evaluate".into(),
+        c if c == ACTION | crate::synth::FAULT_MOTION_TIMEOUT => {
+            "its motion watchdog expired".into()
+        }
+        c if c == ACTION | crate::synth::FAULT_PEER => "stopped by a peer's fault".into(),
+        c if c & ACTION != 0 => format!("fault action {}", c & !ACTION),
+        c => format!("fault {c:#04x}"),
+    }
+}
+
 /// A fault in words: who detected it, how, when, and what every node then did.
 pub fn fault_text(f: &FaultReport) -> String {
     let how = match f.code {
-        Some(crate::synth::FAULT_MOTION_TIMEOUT) => "its motion watchdog expired".to_string(),
-        Some(crate::synth::FAULT_PEER) => "a peer's fault".to_string(),
-        Some(code) => format!("fault {code:#04x}"),
+        Some(code) => fault_meaning(code),
         None => "a fault (its status did not answer)".to_string(),
     };
     let mut s = format!(
@@ -630,7 +645,7 @@ pub fn fault_text(f: &FaultReport) -> String {
     }
     for (role, addr, code, outputs) in &f.nodes {
         let state = match code {
-            Some(c) => format!("faulted (code {c:#04x})"),
+            Some(c) => format!("faulted ({}, code {c:#04x})", fault_meaning(*c)),
             None => "NOT faulted".to_string(),
         };
         s.push_str(&format!(

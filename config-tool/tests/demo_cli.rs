@@ -1,0 +1,176 @@
+//! `config-tool demo` as an operator runs it: a fault is reported when it happens (who,
+//! which watchdog, what every node then did) with its own exit status; a failed push is
+//! said to be one; every step carries the time it happened.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn demo(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .arg("demo")
+        .args(args)
+        .current_dir(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .output()
+        .expect("runs")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+/// `  0.460 s  VC-  (jammed: no motion)` -> (0.460, "VC-", jammed).
+fn steps(stderr: &str) -> Vec<(f64, String, bool)> {
+    stderr
+        .lines()
+        .filter_map(|l| {
+            let mut w = l.split_whitespace();
+            let t: f64 = w.next()?.parse().ok()?;
+            (w.next()? == "s").then_some(())?;
+            let step = w.next()?.to_string();
+            Some((t, step, l.contains("jammed")))
+        })
+        .collect()
+}
+
+/// The number after `key` in `line` (`commanded at 0.460 s`).
+fn seconds_after(line: &str, key: &str) -> f64 {
+    let rest = &line[line.find(key).unwrap_or_else(|| panic!("{key} in {line}")) + key.len()..];
+    rest.split_whitespace().next().unwrap().parse().unwrap()
+}
+
+#[test]
+fn a_jammed_cylinder_is_reported_when_its_watchdog_fires_and_the_demo_exits_faulted() {
+    let out = demo(&[
+        "robot-configs/paint-robot.ron",
+        "--cycles",
+        "1",
+        "--no-reconfigure",
+        "--fault",
+        "stuck:VC@3",
+    ]);
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert_eq!(out.status.code(), Some(5), "{stdout}\n{stderr}");
+    assert!(stderr.ends_with("demo: the machine faulted\n"), "{stderr}");
+    // The plant saw VC- commanded (step 3) and jammed it; nothing else moved but the
+    // gripper going to its safe level.
+    let seen = steps(&stderr);
+    let names: Vec<(&str, bool)> = seen.iter().map(|(_, s, j)| (s.as_str(), *j)).collect();
+    assert_eq!(
+        names,
+        [
+            ("VC+", false),
+            ("GR+", false),
+            ("VC-", true),
+            ("GR-", false)
+        ],
+        "{stderr}"
+    );
+    let lines: Vec<&str> = stdout.lines().collect();
+    let at = |prefix: &str| -> &str {
+        lines
+            .iter()
+            .map(|l| l.trim_start())
+            .find(|l| l.starts_with(prefix))
+            .unwrap_or_else(|| panic!("no `{prefix}` in\n{stdout}"))
+    };
+    assert!(at("cycle 1:").starts_with("cycle 1: FAULTED"), "{stdout}");
+    let fault = at("FAULT at");
+    assert!(
+        fault.ends_with("node 0x0011 (VC) detected it: its motion watchdog expired"),
+        "{fault}"
+    );
+    let watchdog = at("watchdog of step");
+    assert!(
+        watchdog.starts_with("watchdog of step VC-, commanded at")
+            && watchdog.ends_with("the plant saw the command and the rod did not move"),
+        "{watchdog}"
+    );
+    // Detected by the 2000 ms watchdog, within 100 ms of it.
+    let commanded = seconds_after(watchdog, "commanded at");
+    let detected = seconds_after(fault, "FAULT at");
+    assert!(
+        (2.0..2.1).contains(&(detected - commanded)),
+        "{commanded} -> {detected}"
+    );
+    assert!(
+        (commanded - seen[2].0).abs() < 0.0015,
+        "{watchdog} / {stderr}"
+    );
+    assert!(at("node 0x0011 (VC):").starts_with(
+        "node 0x0011 (VC): faulted (its motion watchdog expired, code 0x81), outputs 0x0000"
+    ));
+    for (addr, role) in [("0x0012", "GR"), ("0x0013", "HC"), ("0x0014", "RC")] {
+        let line = at(&format!("node {addr} ({role}):"));
+        assert!(
+            line.starts_with(&format!(
+                "node {addr} ({role}): faulted (stopped by a peer's fault, code 0x82), outputs 0x0000"
+            )),
+            "{line}"
+        );
+    }
+    // The gripper's valve closed (the safe level) at the fault, seen on the medium.
+    let gr = at("node 0x0012 (GR):");
+    let closed = seconds_after(gr, "pin 0 -> 0 at");
+    assert!((closed - detected).abs() < 0.1, "{gr}");
+    assert_eq!(lines.last(), Some(&"demo: FAULTED"), "{stdout}");
+}
+
+#[test]
+fn a_push_to_a_node_that_is_not_running_is_reported_as_a_failed_push() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("demo-push-fails");
+    std::fs::create_dir_all(&dir).unwrap();
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let paint = std::fs::read_to_string(root.join("robot-configs/paint-robot.ron")).unwrap();
+    // RC on a node the demo never started.
+    let moved = paint.replace("address: 0x0014", "address: 0x0099");
+    let b = dir.join("rc-elsewhere.ron");
+    std::fs::write(&b, moved).unwrap();
+    let out = demo(&[
+        "robot-configs/paint-robot.ron",
+        "--cycles",
+        "1",
+        "--then",
+        b.to_str().unwrap(),
+    ]);
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert_eq!(out.status.code(), Some(3), "{stdout}\n{stderr}");
+    assert!(
+        stdout.contains(
+            "push FAILED: role RC at node 0x0099: FAILED: the node stopped answering (is it \
+             running, in range?)"
+        ),
+        "{stdout}"
+    );
+    assert!(!stdout.contains("MISMATCH"), "{stdout}");
+    assert_eq!(stdout.lines().last(), Some("demo: FAILED (push)"));
+    assert!(stderr.ends_with("demo: the push failed\n"), "{stderr}");
+}
+
+#[test]
+fn steps_carry_the_time_they_happened_at_20_percent_loss() {
+    let out = demo(&[
+        "robot-configs/paint-robot.ron",
+        "--cycles",
+        "2",
+        "--no-reconfigure",
+        "--loss",
+        "0.2",
+    ]);
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert_eq!(out.status.code(), Some(0), "{stdout}\n{stderr}");
+    let seen = steps(&stderr);
+    assert_eq!(seen.len(), 24, "{stderr}");
+    // Every step waits for the one before it to complete: the fastest motion of the paint
+    // robot is 100 ms, so no two steps of a cycle are closer (a time read after the fact
+    // put two steps 0 ms apart).
+    for cycle in seen.chunks(12) {
+        for w in cycle.windows(2) {
+            assert!(
+                w[1].0 - w[0].0 >= 0.1,
+                "{:?} then {:?}\n{stderr}",
+                w[0],
+                w[1]
+            );
+        }
+    }
+}
