@@ -16,7 +16,6 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use config_schema::wire::msg::{Announce, Command, Status};
-use node_fw::ota::Progress;
 
 use crate::compile::Compiled;
 use crate::medium::{self, Medium};
@@ -322,10 +321,7 @@ pub fn node_addrs(c: &Compiled) -> Vec<u16> {
 
 /// A one-line summary of a push.
 pub fn push_line(o: &push::Outcome) -> String {
-    let verdict = match o.progress {
-        Progress::Done => "activated".to_string(),
-        other => format!("{other:?}"),
-    };
+    let verdict = o.verdict();
     format!(
         "  {:<6} {:#06x}  {:>5} bytes  {:>3} frames  {:>3} retries  {:>6.1} ms  {verdict}",
         o.role,
