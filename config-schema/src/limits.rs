@@ -39,6 +39,9 @@ pub const MAX_PEERS: usize = 8;
 pub const MAX_PUBLICATIONS: usize = 24;
 /// Remote events subscribed from the radio.
 pub const MAX_SUBSCRIPTIONS: usize = 32;
+/// Board pin numbers a table may name: `0..MAX_PINS` (a node keeps its pin levels in a
+/// `u64`, one bit a pin).
+pub const MAX_PINS: usize = 64;
 /// Bytes of the role name.
 pub const MAX_ROLE_NAME: usize = 12;
 

@@ -186,6 +186,18 @@ impl Table {
         }
     }
 
+    /// The first input or output pin (in table order, inputs first) that `board` lacks
+    /// (bit n: the board has pin n; pins past 63 are on no board), if any.
+    pub fn missing_pin(&self, board: u64) -> Option<u8> {
+        let on_board = |pin: u8| {
+            1u64.checked_shl(u32::from(pin))
+                .is_some_and(|b| board & b != 0)
+        };
+        let inputs = self.inputs.iter().map(|i| i.pin);
+        let outputs = self.outputs.iter().map(|o| o.pin);
+        inputs.chain(outputs).find(|&pin| !on_board(pin))
+    }
+
     /// The half-open range of chart `chart`'s states in [`Table::states`].
     pub fn chart_states(&self, chart: usize) -> core::ops::Range<usize> {
         let end = self

@@ -53,6 +53,8 @@ pub enum Invalid {
     Range { at: Place },
     /// A malformed guard or assignment expression.
     Expr { at: Place, error: ExprError },
+    /// A pin number at or past [`MAX_PINS`].
+    Pin { at: Place, pin: u8 },
     /// A pin, peer, topic or event declared twice.
     Duplicate { at: Place },
     /// A `Publish` action for an event without a publication.
@@ -125,6 +127,9 @@ impl fmt::Display for Invalid {
             }
             Invalid::Range { at } => write!(f, "{at}: pool range out of order"),
             Invalid::Expr { at, error } => write!(f, "{at}: {error}"),
+            Invalid::Pin { at, pin } => {
+                write!(f, "{at}: pin {pin} is out of range (0..={})", MAX_PINS - 1)
+            }
             Invalid::Duplicate { at } => write!(f, "{at}: declared twice"),
             Invalid::NotPublished { at, event } => {
                 write!(f, "{at}: publishes event {event}, which has no publication")
@@ -162,8 +167,16 @@ pub fn validate(t: &Table) -> Result<(), Invalid> {
     }
 
     // Pins.
+    let pin_ok = |at: Place, pin: u8| {
+        if usize::from(pin) < MAX_PINS {
+            Ok(())
+        } else {
+            Err(Invalid::Pin { at, pin })
+        }
+    };
     for (i, input) in t.inputs.iter().enumerate() {
         let at = Place::Input(idx(i));
+        pin_ok(at, input.pin)?;
         if let Some(e) = input.rise {
             event_ok(at, e)?;
         }
@@ -180,6 +193,7 @@ pub fn validate(t: &Table) -> Result<(), Invalid> {
         }
     }
     for (i, output) in t.outputs.iter().enumerate() {
+        pin_ok(Place::Output(idx(i)), output.pin)?;
         // A pin is an input or an output, once.
         if t.outputs[..i].iter().any(|o| o.pin == output.pin)
             || t.inputs.iter().any(|input| input.pin == output.pin)

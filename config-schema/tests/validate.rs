@@ -638,3 +638,52 @@ fn builders_keep_the_pools_consistent() {
     assert!(t.push_chart(0, 0, &many, &[]).is_err());
     assert_eq!(t, before);
 }
+
+#[test]
+fn pins_past_the_bitmap_are_refused_so_no_pin_aliases_another() {
+    // Pin 64 would be bit 0 of the node's pin levels, pin 200 bit 8.
+    assert_eq!(
+        invalid(|t| t.inputs[1].pin = 64),
+        Invalid::Pin {
+            at: Place::Input(1),
+            pin: 64
+        }
+    );
+    assert_eq!(
+        invalid(|t| t.outputs[0].pin = 200),
+        Invalid::Pin {
+            at: Place::Output(0),
+            pin: 200
+        }
+    );
+    assert_eq!(
+        Invalid::Pin {
+            at: Place::Input(1),
+            pin: 64
+        }
+        .to_string(),
+        "input #1: pin 64 is out of range (0..=63)"
+    );
+    let mut t = realistic();
+    t.inputs[0].pin = (MAX_PINS - 1) as u8;
+    assert_eq!(validate(&t), Ok(()), "pin 63 is the last one");
+}
+
+#[test]
+fn missing_pin_names_the_first_pin_a_board_lacks() {
+    let t = realistic();
+    assert_eq!(t.missing_pin(u64::MAX), None);
+    let used = t
+        .inputs
+        .iter()
+        .map(|i| i.pin)
+        .chain(t.outputs.iter().map(|o| o.pin));
+    let mask = used.fold(0u64, |m, p| m | 1 << p);
+    assert_eq!(t.missing_pin(mask), None);
+    let last_output = t.outputs.last().unwrap().pin;
+    assert_eq!(t.missing_pin(mask & !(1 << last_output)), Some(last_output));
+    assert_eq!(t.missing_pin(0), Some(t.inputs[0].pin));
+    let mut wide = t.clone();
+    wide.outputs[0].pin = 64;
+    assert_eq!(wide.missing_pin(u64::MAX), Some(64), "no board has pin 64");
+}

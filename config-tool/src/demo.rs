@@ -16,7 +16,6 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use config_schema::wire::msg::{Announce, Command, Status};
-use node_fw::ota::Progress;
 
 use crate::compile::Compiled;
 use crate::medium::{self, Medium};
@@ -535,31 +534,6 @@ pub fn node_addrs(c: &Compiled) -> Vec<u16> {
     c.robot.nodes.iter().map(|n| n.address).collect()
 }
 
-/// How a push to one node ended, in words.
-pub fn progress_text(p: Progress) -> String {
-    match p {
-        Progress::Done => "activated".to_string(),
-        Progress::Busy => "still sending".to_string(),
-        Progress::GaveUp => "FAILED: the node stopped answering (is it running, in range?)".into(),
-        Progress::Refused(why) => format!("REFUSED: {}", refusal_text(why)),
-    }
-}
-
-/// Why a node refused a table, in words.
-pub fn refusal_text(why: config_schema::wire::msg::Refusal) -> String {
-    use config_schema::wire::msg::Refusal;
-    match why {
-        Refusal::Stale { running } => {
-            format!("stale generation (the node runs generation {running}; push a higher one)")
-        }
-        Refusal::TooLong => "the table is longer than the node holds".into(),
-        Refusal::OutOfSequence => "the transfer was lost (the node restarted?)".into(),
-        Refusal::Crc => "the table arrived damaged (CRC-32 mismatch)".into(),
-        Refusal::Invalid => "the table does not decode or validate on the node".into(),
-        Refusal::Flash => "the node could not write its flash".into(),
-    }
-}
-
 /// A one-line summary of a push.
 pub fn push_line(o: &push::Outcome) -> String {
     format!(
@@ -570,7 +544,7 @@ pub fn push_line(o: &push::Outcome) -> String {
         o.stats.frames,
         o.stats.retries,
         o.elapsed.as_secs_f64() * 1e3,
-        progress_text(o.progress)
+        o.verdict()
     )
 }
 

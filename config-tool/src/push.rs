@@ -31,6 +31,20 @@ pub struct Outcome {
     pub elapsed: Duration,
 }
 
+impl Outcome {
+    /// How it ended, in words: `activated`, `refused: <the node's reason>`, ...
+    pub fn verdict(&self) -> String {
+        match self.progress {
+            Progress::Done => "activated".to_string(),
+            Progress::Refused(why) => format!("refused: {why}"),
+            Progress::GaveUp => {
+                "FAILED: the node stopped answering (is it running, in range?)".into()
+            }
+            Progress::Busy => "still sending".into(),
+        }
+    }
+}
+
 /// Pushes every target at once; `progress(i, acked, total)` reports each step. Returns when
 /// every transfer is done, refused or given up.
 pub fn push(

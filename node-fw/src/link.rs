@@ -12,8 +12,10 @@
 //!   gap before them fills (the radio reorders); duplicates are dropped; every frame of the
 //!   current epoch is answered with the cumulative acknowledgement.
 //!
-//! A gap is never skipped: if the sender's queue overflows the link is [`LinkState::Broken`]
-//! and sends nothing more in this epoch, so a subscriber can stall but never act out of turn.
+//! A gap is never skipped: if the sender's queue overflows the link is [`LinkState::Broken`]:
+//! it still delivers the events it had queued, but takes no new one in this epoch, so a
+//! subscriber can stall but never act out of turn. Only a new epoch (a new [`Sender`]: a new
+//! table, or the operator's reset) re-establishes it.
 
 use config_schema::wire::msg::Message;
 use config_schema::Topic;
@@ -42,7 +44,8 @@ pub enum LinkState {
     Ok,
     /// The peer stopped acknowledging; still retrying.
     Alarm,
-    /// The queue overflowed: nothing more is sent in this epoch.
+    /// The queue overflowed: no new event is taken in this epoch (what was queued is still
+    /// delivered).
     Broken,
 }
 
@@ -92,6 +95,11 @@ impl Sender {
         self.state
     }
 
+    /// The epoch this link numbers its events in.
+    pub fn epoch(&self) -> u16 {
+        self.epoch
+    }
+
     pub fn counters(&self) -> SenderCounters {
         self.counters
     }
@@ -119,7 +127,8 @@ impl Sender {
         })
     }
 
-    /// Queues an event; sends it now if the window allows.
+    /// Queues an event; sends it now if the window allows. A full queue breaks the link:
+    /// the event is refused, and so is every later one in this epoch.
     pub fn push(
         &mut self,
         topic: Topic,
@@ -131,7 +140,6 @@ impl Sender {
         }
         if self.pending.push_back(topic).is_err() {
             self.state = LinkState::Broken;
-            self.deadline = None;
             return Err(LinkBroken);
         }
         let index = self.pending.len() - 1;
@@ -155,7 +163,7 @@ impl Sender {
         now: u64,
         mut send: impl FnMut(Message<'static>),
     ) {
-        if epoch != self.epoch || self.state == LinkState::Broken {
+        if epoch != self.epoch {
             return;
         }
         let acked = usize::from(next.wrapping_sub(self.base));
@@ -169,7 +177,9 @@ impl Sender {
         self.base = next;
         self.counters.acked += acked as u32;
         self.timeouts = 0;
-        self.state = LinkState::Ok;
+        if self.state == LinkState::Alarm {
+            self.state = LinkState::Ok;
+        }
         // Events that were queued behind the window and now fit into it.
         let already_sent = window_end.saturating_sub(acked);
         for index in already_sent..WINDOW.min(self.pending.len()) {
@@ -196,7 +206,7 @@ impl Sender {
             }
         }
         self.timeouts = self.timeouts.saturating_add(1);
-        if self.timeouts >= ALARM_AFTER {
+        if self.timeouts >= ALARM_AFTER && self.state == LinkState::Ok {
             self.state = LinkState::Alarm;
         }
         self.deadline = Some(now + self.rto());

@@ -8,7 +8,7 @@
 use config_schema::limits::{MAX_PEERS, MAX_TIMERS};
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
 use config_schema::wire::msg::{
-    Announce, Command, ConfigReply, Counters, Message, Refusal, Status,
+    Announce, Command, ConfigReply, Counters, Message, Refusal, RuntimeCounters, Status,
 };
 use config_schema::{decode, Publication, Table};
 use heapless::Vec;
@@ -30,6 +30,10 @@ pub trait Io {
     fn transmit(&mut self, psdu: &[u8]);
     /// Drive board pin `pin` to `level`.
     fn set_pin(&mut self, pin: u8, level: bool);
+    /// What the board's runtime counted, for status (a board without a runtime: zeros).
+    fn runtime_counters(&self) -> RuntimeCounters {
+        RuntimeCounters::default()
+    }
 }
 
 /// A table waiting to be persisted before it runs: its blob stays in the OTA staging
@@ -45,6 +49,8 @@ struct Staged {
 /// The generic node.
 pub struct NodeCore {
     addr: u16,
+    /// Bit n: the board has pin n. A table naming another pin is refused.
+    board_pins: u64,
     table: Option<Table>,
     state: Option<EngineState>,
     timers: [Option<u64>; MAX_TIMERS],
@@ -54,6 +60,8 @@ pub struct NodeCore {
     ota: ota::Receiver,
     staged: Option<Staged>,
     epoch: u16,
+    /// Bit i: the last `Reset` re-established the link to peer i.
+    restarted: u8,
     mac_seq: u8,
     next_announce: u64,
     counters: Counters,
@@ -137,29 +145,38 @@ impl<I: Io> Effects for Fx<'_, I> {
 }
 
 impl NodeCore {
-    /// A node at `addr` booting with `table` (the newest valid slot) or none. `epoch` must
-    /// differ from (be newer than) the previous boot's: peers only accept newer epochs.
-    pub fn new(addr: u16, table: Option<Table>, epoch: u16) -> Self {
+    /// A node at `addr` on a board with pins `board_pins` (bit n: the board has pin n),
+    /// booting with `table` (the newest valid slot) or none; a table naming a pin the board
+    /// lacks is not run (the node boots unconfigured). `epoch` must differ from (be newer
+    /// than) the previous boot's: peers only accept newer epochs.
+    pub fn new(addr: u16, board_pins: u64, table: Option<Table>, epoch: u16) -> Self {
         let mut node = NodeCore {
             addr,
+            board_pins,
             table: None,
             state: None,
             timers: [None; MAX_TIMERS],
             senders: Vec::new(),
             receivers: Vec::new(),
-            ota: ota::Receiver::new(),
+            ota: ota::Receiver::for_board(board_pins),
             staged: None,
             epoch,
+            restarted: 0,
             mac_seq: 0,
             next_announce: 0,
             counters: Counters::default(),
             commands: Vec::new(),
             pins: 0,
         };
-        if let Some(t) = table {
+        if let Some(t) = table.filter(|t| t.missing_pin(board_pins).is_none()) {
             node.install(t);
         }
         node
+    }
+
+    /// The board's pins (bit n: pin n).
+    pub fn board_pins(&self) -> u64 {
+        self.board_pins
     }
 
     /// The board's input pin levels at boot (bit = pin number), read before any edge is
@@ -170,7 +187,7 @@ impl NodeCore {
         if let (Some(table), Some(state)) = (&self.table, &mut self.state) {
             let mut engine = Engine::resume(table, state);
             for (i, input) in table.inputs.iter().enumerate() {
-                engine.sense(i as u8, pins & (1u64 << (input.pin & 63)) != 0);
+                engine.sense(i as u8, level(pins, input.pin));
             }
             *state = engine.snapshot();
         }
@@ -188,12 +205,13 @@ impl NodeCore {
     fn install(&mut self, table: Table) {
         let mut engine = Engine::new(&table);
         for (i, input) in table.inputs.iter().enumerate() {
-            engine.sense(i as u8, self.pins & (1u64 << (input.pin & 63)) != 0);
+            engine.sense(i as u8, level(self.pins, input.pin));
         }
         self.state = Some(engine.snapshot());
         self.timers = [None; MAX_TIMERS];
         self.epoch = self.epoch.wrapping_add(1);
         self.senders.clear();
+        self.restarted = 0;
         for _ in &table.peers {
             let _ = self.senders.push(link::Sender::new(self.epoch));
         }
@@ -223,13 +241,52 @@ impl NodeCore {
         self.counters
     }
 
-    /// Bit i: the link to peer i is in alarm (or broken).
-    pub fn link_alarms(&self) -> u8 {
+    fn links_in(&self, state: LinkState) -> u8 {
         self.senders
             .iter()
             .enumerate()
-            .filter(|(_, s)| s.state() != LinkState::Ok)
+            .filter(|(_, s)| s.state() == state)
             .fold(0, |m, (i, _)| m | (1 << i))
+    }
+
+    /// Bit i: the link to peer i is in alarm (the peer stopped acknowledging).
+    pub fn link_alarms(&self) -> u8 {
+        self.links_in(LinkState::Alarm)
+    }
+
+    /// Bit i: the link to peer i is broken (its queue overflowed).
+    pub fn links_broken(&self) -> u8 {
+        self.links_in(LinkState::Broken)
+    }
+
+    /// The epoch of the newest link numbering.
+    pub fn epoch(&self) -> u16 {
+        self.epoch
+    }
+
+    /// The operator's reset of the links: every link that is not idle and healthy (broken,
+    /// in alarm, or with events not yet acknowledged) starts over in a new epoch, which its
+    /// subscriber accepts from seq 0; what it had queued is dropped (it belongs to before
+    /// the reset). Idle healthy links keep their numbering, so a reset of a quiet machine
+    /// takes no epoch. Returns (and keeps for status) the links re-established.
+    fn restart_links(&mut self) -> u8 {
+        let stuck = |s: &link::Sender| s.state() != LinkState::Ok || s.unacked() > 0;
+        let restart = self
+            .senders
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| stuck(s))
+            .fold(0u8, |m, (i, _)| m | (1 << i));
+        if restart != 0 {
+            self.epoch = self.epoch.wrapping_add(1);
+            for (i, s) in self.senders.iter_mut().enumerate() {
+                if restart & (1 << i) != 0 {
+                    *s = link::Sender::new(self.epoch);
+                }
+            }
+        }
+        self.restarted = restart;
+        restart
     }
 
     /// The blob a pending activation wants persisted (call [`NodeCore::persisted`] after).
@@ -283,7 +340,8 @@ impl NodeCore {
     /// The level of board pin `pin` is `level` (repeating an unchanged level is harmless:
     /// events come from edges).
     pub fn input(&mut self, pin: u8, level: bool, now: u64, io: &mut impl Io) {
-        let bit = 1u64 << (pin & 63);
+        // A pin past the bitmap is on no board (and in no validated table).
+        let bit = 1u64.checked_shl(u32::from(pin)).unwrap_or(0);
         if level {
             self.pins |= bit;
         } else {
@@ -337,8 +395,8 @@ impl NodeCore {
         })
     }
 
-    /// The node's status, answering command `ack`.
-    pub fn status(&self, ack: u16) -> Status {
+    /// The node's status, answering command `ack`, with the board runtime's counters.
+    pub fn status(&self, ack: u16, runtime: RuntimeCounters) -> Status {
         let mut s = Status {
             ack,
             role: heapless::String::new(),
@@ -348,7 +406,11 @@ impl NodeCore {
             inputs: 0,
             fault: None,
             link_alarms: self.link_alarms(),
+            links_broken: self.links_broken(),
+            links_restarted: self.restarted,
+            epoch: self.epoch,
             counters: self.counters,
+            runtime,
         };
         if let (Some(t), Some(st)) = (&self.table, &self.state) {
             s.role = t.header.role.clone();
@@ -549,13 +611,22 @@ impl NodeCore {
                 Command::Start => self.run(now, io, |e, fx| {
                     e.start(fx);
                 }),
-                Command::Reset => self.run(now, io, |e, fx| e.reset(fx)),
+                Command::Reset => {
+                    // Links first: what the reset publishes goes out in the new epoch.
+                    self.restart_links();
+                    self.run(now, io, |e, fx| e.reset(fx));
+                }
                 Command::Identify | Command::Status => {}
             }
         }
-        let status = Message::Status(self.status(id));
+        let status = Message::Status(self.status(id, io.runtime_counters()));
         self.send(io, pan, src, &status);
     }
+}
+
+/// Whether pin `pin` is high in `pins` (bit = pin number; pins past 63 never are).
+fn level(pins: u64, pin: u8) -> bool {
+    pins.checked_shr(u32::from(pin)).is_some_and(|p| p & 1 != 0)
 }
 
 /// The one-byte fault code of status: 1..=4 for the interpreter's bounds, 0x80 | code for

@@ -7,11 +7,11 @@
 //! ConfigChunk{gen, offset, data}     ->  Next{first missing byte}
 //!   ... up to WINDOW chunks in flight; chunks have fixed places (offset = i * CHUNK_DATA),
 //!   so the node stages them in any order and only lost ones are waited for
-//! ConfigEnd{gen}                     ->  Activated       (or Refused(Crc/Invalid/Flash))
+//! ConfigEnd{gen}                     ->  Activated       (or Refused(Crc/Invalid/Pin/Flash))
 //! ```
 //! Every message is answered, and every answer says where the node is, so the tool resends
-//! whatever was lost. Nothing is activated before the whole blob's CRC-32 matches and the
-//! table decodes and validates; a transfer that stops anywhere leaves the old table running.
+//! whatever was lost. Nothing is activated before the whole blob's CRC-32 matches, the
+//! table decodes and validates, and every pin it names is on the board; a transfer that stops anywhere leaves the old table running.
 
 use config_schema::blob::CRC32;
 use config_schema::decode;
@@ -67,6 +67,8 @@ impl Transfer {
 #[derive(Debug, Clone)]
 pub struct Receiver {
     transfer: Option<Transfer>,
+    /// Bit n: the board has pin n.
+    board_pins: u64,
     staging: [u8; MAX_BLOB],
 }
 
@@ -81,7 +83,8 @@ impl Default for Receiver {
 pub enum Outcome {
     /// Answer with this reply.
     Reply(ConfigReply),
-    /// The blob is complete, its CRC matches and it decodes and validates: persist
+    /// The blob is complete, its CRC matches, it decodes and validates and its pins are on
+    /// the board: persist
     /// [`Receiver::blob`]`(len)` to the inactive slot, then switch to it atomically
     /// (outputs to the safe state, new engine) and answer `Activated` (or
     /// `Refused(Flash)` if persisting failed).
@@ -93,9 +96,17 @@ pub enum Outcome {
 }
 
 impl Receiver {
+    /// A receiver that takes any pin a table may name (`0..MAX_PINS`).
     pub const fn new() -> Self {
+        Self::for_board(u64::MAX)
+    }
+
+    /// A receiver on a board with pins `board_pins` (bit n: the board has pin n): a table
+    /// naming another pin is refused with `Refusal::Pin`.
+    pub const fn for_board(board_pins: u64) -> Self {
         Receiver {
             transfer: None,
+            board_pins,
             staging: [0; MAX_BLOB],
         }
     }
@@ -192,11 +203,15 @@ impl Receiver {
                 if CRC32.checksum(blob) != t.crc {
                     return reply(ConfigReply::Refused(Refusal::Crc));
                 }
+                let board = self.board_pins;
                 match decode(blob) {
-                    Ok(table) if table.generation == generation => Some(Outcome::Activate {
-                        generation,
-                        len: usize::from(t.len),
-                    }),
+                    Ok(table) if table.generation == generation => match table.missing_pin(board) {
+                        Some(pin) => reply(ConfigReply::Refused(Refusal::Pin { pin, board })),
+                        None => Some(Outcome::Activate {
+                            generation,
+                            len: usize::from(t.len),
+                        }),
+                    },
                     _ => reply(ConfigReply::Refused(Refusal::Invalid)),
                 }
             }

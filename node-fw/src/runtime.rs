@@ -27,6 +27,8 @@ use embedded_storage_async::nor_flash::NorFlash;
 use heapless::{Deque, Vec};
 use log::{info, warn};
 
+use config_schema::wire::msg::RuntimeCounters;
+
 use crate::node::{fault_code, Io, NodeCore};
 use crate::slots::Slots;
 
@@ -181,6 +183,8 @@ pub enum Stop<E> {
 pub struct Stats {
     /// Frames dropped because the transmit queue was full.
     pub tx_queue_full: u32,
+    /// The most frames the transmit queue held (of [`TX_QUEUE`]).
+    pub tx_queue_high: u32,
     /// Frames the radio refused or did not take in time.
     pub tx_failed: u32,
     /// Tables persisted and activated.
@@ -224,9 +228,27 @@ impl<P: Pins> Io for CoreIo<'_, P> {
         if self.tx.push_back(frame).is_err() {
             self.stats.tx_queue_full += 1;
         }
+        self.stats.tx_queue_high = self.stats.tx_queue_high.max(self.tx.len() as u32);
     }
     fn set_pin(&mut self, pin: u8, level: bool) {
         self.pins.set(pin, level);
+    }
+    fn runtime_counters(&self) -> RuntimeCounters {
+        RuntimeCounters {
+            tx_queue_full: self.stats.tx_queue_full,
+            tx_queue_high: self.stats.tx_queue_high,
+            tx_failed: self.stats.tx_failed,
+            flash_failures: self.stats.flash_failures,
+        }
+    }
+}
+
+/// The mask of table pins `0..count` (every pin a table may name from 64 on).
+pub const fn pin_range(count: usize) -> u64 {
+    if count >= 64 {
+        u64::MAX
+    } else {
+        (1u64 << count) - 1
     }
 }
 
@@ -236,6 +258,9 @@ pub struct Board<R, P, I, F> {
     pub outputs: P,
     pub inputs: I,
     pub flash: F,
+    /// The table pin numbers the board has (bit n: pin n): the node refuses a table that
+    /// names any other (`Refusal::Pin`), and does not run one from flash.
+    pub pin_mask: u64,
 }
 
 fn now_ms() -> u64 {
@@ -251,6 +276,7 @@ fn fault_of(core: &NodeCore) -> Option<u8> {
 /// slot. (A function of its own: the future is 4.7 KB smaller than inline.)
 async fn load<F: NorFlash>(
     addr: u16,
+    pin_mask: u64,
     epoch: u16,
     slots: &mut Slots<F>,
 ) -> (NodeCore, Option<usize>) {
@@ -262,7 +288,11 @@ async fn load<F: NorFlash>(
         }
     };
     let running = loaded.as_ref().map(|l| l.slot);
-    (NodeCore::new(addr, loaded.map(|l| l.table), epoch), running)
+    if let Some(pin) = loaded.as_ref().and_then(|l| l.table.missing_pin(pin_mask)) {
+        warn!("node {addr:#06x}: the stored table uses pin {pin}, which this board lacks");
+    }
+    let core = NodeCore::new(addr, pin_mask, loaded.map(|l| l.table), epoch);
+    (core, running)
 }
 
 /// Runs node `addr` on `board` until the radio fails. `epoch` must be newer than the
@@ -322,10 +352,11 @@ where
         mut outputs,
         mut inputs,
         flash,
+        pin_mask,
     } = board;
     outputs.all_off();
     let mut slots = Slots::new(flash).map_err(|_| Stop::FlashGeometry)?;
-    let (mut core, mut running) = load(addr, epoch, &mut slots).await;
+    let (mut core, mut running) = load(addr, pin_mask, epoch, &mut slots).await;
     core.seed_pins(inputs.levels());
     let mut io = CoreIo {
         pins: &mut outputs,

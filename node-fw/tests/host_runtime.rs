@@ -13,7 +13,7 @@ use std::task::{Poll, Waker};
 
 use config_schema::limits::MAX_BLOB;
 use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
-use config_schema::wire::msg::{Command, Message, Refusal, Status};
+use config_schema::wire::msg::{Command, Message, Refusal, RuntimeCounters, Status};
 use config_schema::{encode, Action, Input, Output, Route, Table, Transition};
 use embassy_futures::join::join;
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
@@ -379,6 +379,7 @@ where
             outputs: outs,
             inputs: WaitInputs::new(&mut ins),
             flash,
+            pin_mask: runtime::pin_range(10),
         };
         runtime::run(ADDR, 1, board).await
     };
@@ -503,6 +504,17 @@ fn a_table_the_flash_cannot_hold_is_refused_and_nothing_changes() {
                 ("", 0),
                 "still unconfigured"
             );
+            // Status shows the runtime's counters: the flash failure, and the transmit
+            // queue's high-water mark (one frame at a time here), nothing dropped.
+            assert_eq!(
+                s.runtime,
+                RuntimeCounters {
+                    tx_queue_full: 0,
+                    tx_queue_high: 1,
+                    tx_failed: 0,
+                    flash_failures: 1,
+                }
+            );
             assert!(seen.borrow().is_empty(), "no output moved");
             broken.set(false);
             assert_eq!(tool.push(&lamp_table(2)).await, ota::Progress::Done);
@@ -511,6 +523,37 @@ fn a_table_the_flash_cannot_hold_is_refused_and_nothing_changes() {
         },
     );
     assert_eq!((stats.flash_failures, stats.activations), (1, 1));
+}
+
+/// The fake board has pins 0..=9: a table with its beacon on pin 12 is refused, naming the
+/// pin and the board's pins, and the node stays as it was.
+#[test]
+fn a_table_naming_a_pin_the_board_lacks_is_refused() {
+    let lines = lines();
+    let pins = Rc::new(RefCell::new(Vec::new()));
+    let seen = pins.clone();
+    let (_, stats) = boot(
+        Flash::default(),
+        &lines,
+        &pins,
+        Rc::default(),
+        move |mut tool| async move {
+            seen.borrow_mut().clear();
+            let mut t = lamp_table(2);
+            t.outputs[1].pin = 12;
+            assert_eq!(
+                tool.push(&t).await,
+                ota::Progress::Refused(Refusal::Pin {
+                    pin: 12,
+                    board: 0x3FF
+                })
+            );
+            assert_eq!(tool.status().await.generation, 0, "still unconfigured");
+            assert!(seen.borrow().is_empty(), "no output moved");
+            tool.close().await;
+        },
+    );
+    assert_eq!((stats.flash_failures, stats.activations), (0, 0));
 }
 
 #[test]
@@ -543,6 +586,7 @@ fn a_flash_too_small_for_two_slots_stops_the_runtime() {
         outputs: outputs(&pins),
         inputs: (),
         flash: RamFlash::<1024>::new(),
+        pin_mask: runtime::pin_range(10),
     };
     let (stop, _) = block_on(runtime::run(ADDR, 1, board)).unwrap();
     assert_eq!(stop, Stop::FlashGeometry);
@@ -602,6 +646,7 @@ fn runtime_future_size() {
         outputs: outputs(&pins),
         inputs: WaitInputs::new(&mut ins),
         flash: Flash::default(),
+        pin_mask: runtime::pin_range(10),
     };
     let size = std::mem::size_of_val(&runtime::run(ADDR, 1, board));
     eprintln!(

@@ -20,9 +20,22 @@ struct Run {
 /// the queue does not fill; overflow has its own test) across the channel pair and runs until
 /// every event is acknowledged or `limit` ms pass.
 fn run(topics: &[u8], gap: u64, loss: f64, dup: f64, seed: u64, limit: u64) -> Run {
+    run_on((1, 12), topics, gap, loss, dup, seed, limit)
+}
+
+/// [`run`] over channels whose frames take `delay` ms (a range) each way.
+fn run_on(
+    delay: (u64, u64),
+    topics: &[u8],
+    gap: u64,
+    loss: f64,
+    dup: f64,
+    seed: u64,
+    limit: u64,
+) -> Run {
     let mut rng = Rng::new(seed);
-    let mut forward = Channel::new(loss, dup, (1, 12));
-    let mut back = Channel::new(loss, dup, (1, 12));
+    let mut forward = Channel::new(loss, dup, delay);
+    let mut back = Channel::new(loss, dup, delay);
     let mut sender = Sender::new(7);
     let mut receiver = Receiver::new();
     let mut delivered = Vec::new();
@@ -93,6 +106,18 @@ fn a_clean_channel_delivers_in_order_with_one_frame_each_way() {
     assert_eq!(r.sender.counters().retried, 0);
     assert_eq!(r.frames, 100);
     assert_eq!(r.sender.state(), LinkState::Ok);
+}
+
+/// A flood the link can carry does not break it: 5,000 events, one a millisecond, over a
+/// channel of 1 ms each way (a round trip of 2 ms, so at most a window in flight).
+#[test]
+fn a_flood_the_link_keeps_up_with_never_breaks_it() {
+    let topics: Vec<u8> = (0..5_000u32).map(|i| (i % 251) as u8).collect();
+    let r = run_on((1, 1), &topics, 1, 0.0, 0.0, 5, 20_000);
+    assert_eq!(r.delivered, topics);
+    assert_eq!(r.sender.state(), LinkState::Ok);
+    assert_eq!(r.sender.counters().retried, 0);
+    assert_eq!(r.frames, 2 * topics.len());
 }
 
 #[test]
@@ -175,16 +200,49 @@ fn only_the_window_is_in_flight_and_acks_open_it() {
 #[test]
 fn an_overflowing_queue_breaks_the_link_instead_of_skipping_an_event() {
     let mut s = Sender::new(0);
+    let mut sent = Vec::new();
     for topic in 0..QUEUE as u8 {
-        s.push(topic, 0, |_| {}).unwrap();
+        s.push(topic, 0, |m| sent.push(m)).unwrap();
     }
+    assert_eq!(sent.len(), WINDOW);
     assert_eq!(s.push(99, 0, |_| {}), Err(node_fw::link::LinkBroken));
     assert_eq!(s.state(), LinkState::Broken);
     assert_eq!(s.push(100, 0, |_| {}), Err(node_fw::link::LinkBroken));
-    let mut sent = Vec::new();
-    s.poll(10_000, |m| sent.push(m));
-    s.on_ack(0, 4, 10_000, |m| sent.push(m));
-    assert!(sent.is_empty(), "a broken link sends nothing: {sent:?}");
+    // What it had taken is still delivered, in order; nothing after the gap ever is.
+    let mut receiver = Receiver::new();
+    let mut delivered = Vec::new();
+    let mut now = 0;
+    while s.unacked() > 0 && now < 10_000 {
+        for m in std::mem::take(&mut sent) {
+            let Message::Event { epoch, seq, topic } = m else {
+                panic!("not an event: {m:?}")
+            };
+            let got = receiver.on_event(epoch, seq, topic);
+            delivered.extend(got.deliver);
+            if let Some(Message::EventAck { epoch, next }) = got.ack {
+                s.on_ack(epoch, next, now, |m| sent.push(m));
+            }
+        }
+        now += 1;
+        s.poll(now, |m| sent.push(m));
+    }
+    assert_eq!(delivered, (0..QUEUE as u8).collect::<Vec<_>>());
+    assert_eq!(
+        s.state(),
+        LinkState::Broken,
+        "acknowledgements do not mend it"
+    );
+    assert_eq!(s.deadline(), None);
+    assert_eq!(s.push(101, now, |_| {}), Err(node_fw::link::LinkBroken));
+    // Silence does not turn it into a mere alarm either.
+    let mut s = Sender::new(1);
+    for topic in 0..=QUEUE as u8 {
+        let _ = s.push(topic, 0, |_| {});
+    }
+    for t in 1..=u64::from(ALARM_AFTER) + 2 {
+        s.poll(t * 1_000, |_| {});
+    }
+    assert_eq!(s.state(), LinkState::Broken);
 }
 
 fn got(r: &mut Receiver, epoch: u16, seq: u16, topic: u8) -> Vec<u8> {

@@ -124,12 +124,17 @@ struct Net {
 
 impl Net {
     fn new(loss: f64, dup: f64, seed: u64) -> Self {
+        Self::on_boards(loss, dup, seed, u64::MAX)
+    }
+
+    /// Nodes on boards with pins `board_pins` (bit n: pin n).
+    fn on_boards(loss: f64, dup: f64, seed: u64, board_pins: u64) -> Self {
         Net {
             rng: Rng::new(seed),
             air: Channel::new(loss, dup, (1, 8)),
             nodes: vec![
-                (NodeCore::new(A, None, 1), Board::default()),
-                (NodeCore::new(B, None, 1), Board::default()),
+                (NodeCore::new(A, board_pins, None, 1), Board::default()),
+                (NodeCore::new(B, board_pins, None, 1), Board::default()),
             ],
             tool_inbox: Vec::new(),
             flash_ok: true,
@@ -434,7 +439,7 @@ fn a_switch_already_closed_at_activation_raises_no_event() {
 
 #[test]
 fn a_table_loaded_at_boot_starts_from_the_seeded_pin_levels() {
-    let mut a = NodeCore::new(A, Some(table_a(1)), 1);
+    let mut a = NodeCore::new(A, u64::MAX, Some(table_a(1)), 1);
     a.seed_pins(1 << BUTTON_PIN);
     let mut board = Board::default();
     a.input(BUTTON_PIN, true, 0, &mut board);
@@ -443,4 +448,159 @@ fn a_table_loaded_at_boot_starts_from_the_seeded_pin_levels() {
     a.input(BUTTON_PIN, false, 1, &mut board);
     a.input(BUTTON_PIN, true, 2, &mut board);
     assert_eq!(board.out.len(), 1, "one edge: one event frame to B");
+}
+
+impl Net {
+    /// Sends command `command` (id `id`) to `dst` until its status acknowledges it.
+    fn command(&mut self, dst: u16, id: u16, command: Command) -> Status {
+        self.tool_inbox.clear();
+        for _ in 0..50 {
+            self.tool_send(dst, &Message::Command { id, command });
+            self.run(30);
+            for (src, bytes) in std::mem::take(&mut self.tool_inbox) {
+                if let (true, Ok(Message::Status(s))) = (src == dst, Message::parse(&bytes)) {
+                    if s.ack == id {
+                        return s;
+                    }
+                }
+            }
+        }
+        panic!("no answer from {dst:#06x}");
+    }
+
+    /// Every event frame in flight or queued, as (dst, epoch, seq).
+    fn events_sent_by(out: &[Vec<u8>]) -> Vec<(u16, u16, u16)> {
+        out.iter()
+            .filter_map(|psdu| match Frame::parse(psdu) {
+                Ok(Frame::Data { header, payload }) => match Message::parse(payload) {
+                    Ok(Message::Event { epoch, seq, .. }) => Some((header.dst, epoch, seq)),
+                    _ => None,
+                },
+                _ => None,
+            })
+            .collect()
+    }
+}
+
+/// 5,000 presses in one millisecond overflow A's queue to B: the link breaks (no event is
+/// skipped); the operator's reset re-establishes it in a new epoch, B accepts it from seq 0,
+/// and every later press arrives exactly once, in order; old-epoch frames stay dropped.
+#[test]
+fn a_flood_breaks_a_link_and_the_operators_reset_re_establishes_it() {
+    let mut net = Net::new(0.0, 0.0, 21);
+    assert_eq!(net.push(A, &table_a(1), false), ota::Progress::Done);
+    assert_eq!(net.push(B, &table_b(1), false), ota::Progress::Done);
+    net.nodes[1].1.pins.clear();
+    let mut old_frames = Vec::new();
+    {
+        let (a, board) = &mut net.nodes[0];
+        for _ in 0..5_000 {
+            a.input(BUTTON_PIN, true, net.now, board);
+            a.input(BUTTON_PIN, false, net.now, board);
+        }
+        old_frames.extend(board.out.iter().cloned());
+    }
+    let old = Net::events_sent_by(&old_frames);
+    assert_eq!(
+        old.iter().map(|e| e.2).collect::<Vec<_>>(),
+        vec![0, 1, 2, 3],
+        "the window went out, nothing after the overflow"
+    );
+    let old_epoch = old[0].1;
+    net.run(3000);
+    // B got the queued presses (the window, then the rest of the queue) and nothing more.
+    let delivered = net.status(B).counters.delivered;
+    assert_eq!(delivered, 16);
+    assert_eq!(net.nodes[1].1.pins.len(), 16);
+    // Broken for good: another press goes nowhere; status tells it from an alarm.
+    net.press();
+    net.run(1000);
+    assert_eq!(net.status(B).counters.delivered, 16);
+    let a = net.status(A);
+    assert_eq!(
+        (a.links_broken, a.link_alarms, a.links_restarted, a.epoch),
+        (0b1, 0, 0, old_epoch)
+    );
+
+    // The operator resets A: its link to B starts over in a new epoch, and the answer
+    // says so.
+    let reset = net.command(A, 40, Command::Reset);
+    assert_eq!(
+        (reset.links_broken, reset.link_alarms, reset.links_restarted),
+        (0, 0, 0b1)
+    );
+    assert_eq!(reset.epoch, old_epoch.wrapping_add(1));
+    net.nodes[1].1.pins.clear();
+    let mut sent_after = Vec::new();
+    for _ in 0..3 {
+        let (a, board) = &mut net.nodes[0];
+        a.input(BUTTON_PIN, true, net.now, board);
+        sent_after.extend(board.out.iter().cloned());
+        net.run(20);
+        let (a, board) = &mut net.nodes[0];
+        a.input(BUTTON_PIN, false, net.now, board);
+        net.run(180);
+    }
+    let new = Net::events_sent_by(&sent_after);
+    assert_eq!(
+        new.iter().map(|e| (e.0, e.2)).collect::<Vec<_>>(),
+        vec![(B, 0), (B, 1), (B, 2)]
+    );
+    assert!(new.iter().all(|e| e.1 == old_epoch.wrapping_add(1)));
+    assert_eq!(
+        net.nodes[1].1.pins,
+        vec![(LAMP_PIN, true), (LAMP_PIN, false), (LAMP_PIN, true)],
+        "B's lamp: one toggle per press, from where it was"
+    );
+    // Old-epoch frames (a late copy on the radio) are dropped: nothing moves.
+    net.nodes[1].1.pins.clear();
+    for psdu in &old_frames {
+        let (b, board) = &mut net.nodes[1];
+        b.receive(psdu, net.now, board);
+    }
+    assert!(net.nodes[1].1.pins.is_empty());
+    assert_eq!(net.status(B).counters.delivered, 16 + 3);
+    // A reset of a quiet machine re-establishes nothing and takes no epoch.
+    let again = net.command(A, 41, Command::Reset);
+    assert_eq!(
+        (again.links_restarted, again.links_broken, again.epoch),
+        (0, 0, old_epoch.wrapping_add(1))
+    );
+}
+
+/// A board with pins 0..=5 has B's lamp pin 7 nowhere: B refuses the table, naming the pin
+/// and the board's pins, and keeps what it ran; A's button (pin 5) is on the board.
+#[test]
+fn a_table_naming_a_pin_the_board_lacks_is_refused_with_the_pin() {
+    let mut net = Net::on_boards(0.0, 0.0, 23, 0b11_1111);
+    assert_eq!(net.push(A, &table_a(1), false), ota::Progress::Done);
+    assert_eq!(
+        net.push(B, &table_b(1), false),
+        ota::Progress::Refused(Refusal::Pin {
+            pin: LAMP_PIN,
+            board: 0b11_1111
+        })
+    );
+    assert_eq!(net.nodes[1].0.generation(), 0);
+    assert!(net.nodes[1].1.pins.is_empty(), "nothing was driven");
+    // The same table from flash does not run either.
+    let b = NodeCore::new(B, 0b11_1111, Some(table_b(1)), 1);
+    assert!(b.table().is_none());
+    let b = NodeCore::new(B, u64::MAX, Some(table_b(1)), 1);
+    assert_eq!(b.generation(), 1);
+}
+
+/// Pin 69 is not pin 5 (69 & 63): a level reported for it leaves pin 5's level alone, so a
+/// table with its button on pin 5 still sees the first press as an edge.
+#[test]
+fn a_pin_past_the_bitmap_does_not_alias_a_real_one() {
+    let mut net = Net::new(0.0, 0.0, 25);
+    let (a, board) = &mut net.nodes[0];
+    a.input(BUTTON_PIN + 64, true, 0, board);
+    assert_eq!(net.push(A, &table_a(1), false), ota::Progress::Done);
+    assert_eq!(net.push(B, &table_b(1), false), ota::Progress::Done);
+    net.nodes[1].1.pins.clear();
+    net.press();
+    net.run(500);
+    assert_eq!(net.nodes[1].1.pins, vec![(LAMP_PIN, true)]);
 }

@@ -75,6 +75,57 @@ pub enum Refusal {
     Invalid,
     /// Persisting to flash failed.
     Flash,
+    /// The table uses board pin `pin`, which this node's board lacks (`board`: bit n, the
+    /// board has pin n).
+    Pin { pin: u8, board: u64 },
+}
+
+impl core::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            Refusal::Stale { running } => {
+                write!(f, "generation not newer than the running {running}")
+            }
+            Refusal::TooLong => write!(f, "table longer than a node accepts"),
+            Refusal::OutOfSequence => write!(f, "out of sequence (the node lost the transfer)"),
+            Refusal::Crc => write!(f, "CRC mismatch"),
+            Refusal::Invalid => write!(f, "the table does not decode or validate"),
+            Refusal::Flash => write!(f, "flash write failed"),
+            Refusal::Pin { pin, board } => {
+                write!(
+                    f,
+                    "the table uses pin {pin}, which the board lacks (its pins: "
+                )?;
+                write_pins(f, board)?;
+                write!(f, ")")
+            }
+        }
+    }
+}
+
+/// A pin mask as ranges: `0-15`, `0-3 8 10-11`, `none`.
+fn write_pins(f: &mut core::fmt::Formatter<'_>, mask: u64) -> core::fmt::Result {
+    if mask == 0 {
+        return write!(f, "none");
+    }
+    let (mut pin, mut first) = (0u32, true);
+    while pin < 64 {
+        if mask & (1 << pin) == 0 {
+            pin += 1;
+            continue;
+        }
+        let start = pin;
+        while pin < 64 && mask & (1 << pin) != 0 {
+            pin += 1;
+        }
+        let sep = if first { "" } else { " " };
+        first = false;
+        match pin - start {
+            1 => write!(f, "{sep}{start}")?,
+            _ => write!(f, "{sep}{start}-{}", pin - 1)?,
+        }
+    }
+    Ok(())
 }
 
 /// Operator commands.
@@ -102,9 +153,31 @@ pub struct Status {
     pub inputs: u16,
     /// Fault code, if faulted.
     pub fault: Option<u8>,
-    /// Bit i: peer i stopped acknowledging.
+    /// Bit i: the link to peer i is in alarm (the peer stopped acknowledging; still
+    /// retrying).
     pub link_alarms: u8,
+    /// Bit i: the link to peer i is broken (its queue overflowed: nothing more is sent on
+    /// it until a `Reset` or a new table re-establishes it).
+    pub links_broken: u8,
+    /// Bit i: the last `Reset` re-established the link to peer i in a new epoch.
+    pub links_restarted: u8,
+    /// The epoch of the node's newest link numbering.
+    pub epoch: u16,
     pub counters: Counters,
+    pub runtime: RuntimeCounters,
+}
+
+/// What the board's runtime counted (zero where a board has no such thing).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RuntimeCounters {
+    /// Frames dropped because the transmit queue was full.
+    pub tx_queue_full: u32,
+    /// The most frames the transmit queue ever held.
+    pub tx_queue_high: u32,
+    /// Frames the radio refused or did not take in time.
+    pub tx_failed: u32,
+    /// Pushed tables that could not be persisted.
+    pub flash_failures: u32,
 }
 
 /// Radio and delivery counters.
@@ -184,6 +257,77 @@ mod tests {
         let n = msg.emit(&mut buf).unwrap();
         assert_eq!(&buf[..n], &[0, 3, 0xC8, 0x01, 7]);
         assert_eq!(Message::parse(&buf[..n]), Ok(msg));
+    }
+
+    #[test]
+    fn the_largest_status_fits_one_frame() {
+        let mut role = String::new();
+        while role.push('W').is_ok() {}
+        let mut states = Vec::new();
+        while states.push(u8::MAX).is_ok() {}
+        let c = u32::MAX;
+        let msg = Message::Status(Status {
+            ack: u16::MAX,
+            role,
+            generation: u32::MAX,
+            states,
+            outputs: u16::MAX,
+            inputs: u16::MAX,
+            fault: Some(u8::MAX),
+            link_alarms: u8::MAX,
+            links_broken: u8::MAX,
+            links_restarted: u8::MAX,
+            epoch: u16::MAX,
+            counters: Counters {
+                sent: c,
+                received: c,
+                retried: c,
+                dropped: c,
+                delivered: c,
+            },
+            runtime: RuntimeCounters {
+                tx_queue_full: c,
+                tx_queue_high: c,
+                tx_failed: c,
+                flash_failures: c,
+            },
+        });
+        let mut buf = [0u8; 256];
+        let n = msg.emit(&mut buf).unwrap();
+        assert!(n <= MAX_PAYLOAD, "{n} > {MAX_PAYLOAD}");
+        assert_eq!(Message::parse(&buf[..n]), Ok(msg));
+    }
+
+    fn text(r: Refusal) -> String<128> {
+        use core::fmt::Write;
+        let mut s = String::new();
+        write!(s, "{r}").unwrap();
+        s
+    }
+
+    #[test]
+    fn a_pin_refusal_names_the_pin_and_the_board_pins() {
+        let pin = |pin, board| text(Refusal::Pin { pin, board });
+        assert_eq!(
+            pin(20, 0xFFFF),
+            "the table uses pin 20, which the board lacks (its pins: 0-15)"
+        );
+        assert_eq!(
+            pin(4, 0b1_0110_1111),
+            "the table uses pin 4, which the board lacks (its pins: 0-3 5-6 8)"
+        );
+        assert_eq!(
+            pin(63, u64::MAX >> 1),
+            "the table uses pin 63, which the board lacks (its pins: 0-62)"
+        );
+        assert_eq!(
+            pin(0, 1 << 63),
+            "the table uses pin 0, which the board lacks (its pins: 63)"
+        );
+        assert_eq!(
+            pin(0, 0),
+            "the table uses pin 0, which the board lacks (its pins: none)"
+        );
     }
 
     #[test]

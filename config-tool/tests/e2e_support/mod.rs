@@ -157,7 +157,12 @@ pub fn assert_running(bed: &mut Bed, c: &Compiled) -> Vec<Status> {
             "role {}",
             r.name
         );
-        assert_eq!((s.fault, s.link_alarms), (None, 0), "role {}", r.name);
+        assert_eq!(
+            (s.fault, s.link_alarms, s.links_broken),
+            (None, 0, 0),
+            "role {}",
+            r.name
+        );
     }
     statuses
 }

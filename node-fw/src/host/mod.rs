@@ -121,6 +121,10 @@ pub fn init_logging() {
     }
 }
 
+/// Table pins of the host board: all 64 a table may name (its pins are `Pin` messages on
+/// the medium; which exist is the plant's business).
+pub const PINS: usize = 64;
+
 /// Runs the node until the medium closes the connection (`Ok`), or fails to start.
 pub fn run(args: Args) -> Result<(), HostError> {
     init_logging();
@@ -147,6 +151,7 @@ pub fn run(args: Args) -> Result<(), HostError> {
         outputs: conn.pins(),
         inputs: conn.inputs(),
         flash,
+        pin_mask: runtime::pin_range(PINS),
     };
     let (stop, stats) = run_on_executor(addr, epoch, board);
     let c = conn.counters();

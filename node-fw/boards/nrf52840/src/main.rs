@@ -170,6 +170,7 @@ async fn main(_spawner: Spawner) {
             outputs: GpioPins(&gpio),
             inputs: GpioInputs::new(&gpio),
             flash,
+            pin_mask: runtime::pin_range(gpio::PINS),
         };
         let (stop, stats) = runtime::run(addr, epoch, board).await;
         defmt::error!(

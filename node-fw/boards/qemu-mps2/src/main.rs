@@ -109,6 +109,7 @@ async fn node(addr: u16, epoch: u16, flash: QemuFlash, counting: bool) {
         outputs: uart::UartPins { addr },
         inputs: uart::UartInputs::new(),
         flash,
+        pin_mask: runtime::pin_range(uart::TABLE_PINS),
     };
     let mut probe = CoreProbe {
         on: counting,

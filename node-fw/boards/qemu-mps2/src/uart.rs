@@ -293,6 +293,10 @@ impl Radio for UartRadio {
     }
 }
 
+/// Table pins of this board: all 64 a table may name (they are `Link::Pin` messages; which
+/// exist is the plant's business).
+pub const TABLE_PINS: usize = 64;
+
 /// The outputs: `Link::Pin` to the medium (the plant drives the valves).
 pub struct UartPins {
     pub addr: u16,
