@@ -581,6 +581,7 @@ impl<'c> Model<'c> {
                     usize::from(s.nodes[role].current[chart]) == state
                 }
                 Atom::Fault { role } => s.nodes[role].fault.is_some(),
+                Atom::Const(v) => v,
             };
             if il.holds(&read) {
                 return Some((Property::Interlock, format!("never: \"{}\" holds", il.text)));
