@@ -114,14 +114,7 @@ fn load_compiled(path: &Path) -> Result<(Source, compile::Compiled), String> {
 fn report(src: &Source, diags: &[Diagnostic]) {
     use std::io::IsTerminal;
     let color = std::io::stderr().is_terminal();
-    for d in diags {
-        eprintln!("{}", d.render(src, color));
-    }
-    let errors = diags.iter().filter(|d| d.is_error()).count();
-    let warnings = diags.len() - errors;
-    if errors + warnings > 0 {
-        eprintln!("{}: {errors} error(s), {warnings} warning(s)", src.name);
-    }
+    eprint!("{}", config_tool::diag::render_all(src, diags, color));
 }
 
 fn run(cli: Cli) -> Result<(), String> {

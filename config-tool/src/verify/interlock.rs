@@ -151,32 +151,70 @@ pub fn interlocks(
     robot: &Robot,
     ir: &Ir,
 ) -> Result<Vec<Interlock>, (usize, String, std::ops::Range<usize>)> {
-    let actuators = actuator_names(robot, ir);
-    let declared: Vec<&str> = robot
-        .roles
+    let names = Names::of(robot, ir);
+    robot
+        .never
         .iter()
-        .flat_map(|r| r.actuators.iter().map(|a| a.name.as_str()))
-        .collect();
-    let mut out = Vec::new();
-    for (i, text) in robot.never.iter().enumerate() {
-        let ast = expr::parse(text).map_err(|e| (i, e.message, e.span))?;
-        let mut names = Vec::new();
-        expr::names(&ast, &mut names);
-        let mut resolved = BTreeMap::new();
-        for n in names {
-            let atom = resolve(&n, ir, &actuators, &declared).map_err(|m| {
-                let at = text.find(&n).unwrap_or(0);
-                (i, m, at..at + n.len())
-            })?;
-            resolved.insert(n, atom);
+        .enumerate()
+        .map(|(i, text)| names.interlock(text).map_err(|(m, span)| (i, m, span)))
+        .collect()
+}
+
+/// What interlock names can refer to: the actuators with a plant (in plant order) and
+/// every declared actuator.
+pub struct Names<'r> {
+    ir: &'r Ir,
+    actuators: Vec<String>,
+    declared: Vec<&'r str>,
+}
+
+impl<'r> Names<'r> {
+    pub fn of(robot: &'r Robot, ir: &'r Ir) -> Names<'r> {
+        Names {
+            ir,
+            actuators: actuator_names(robot, ir),
+            declared: robot
+                .roles
+                .iter()
+                .flat_map(|r| r.actuators.iter().map(|a| a.name.as_str()))
+                .collect(),
         }
-        out.push(Interlock {
-            text: text.clone(),
+    }
+
+    /// Parses and resolves one interlock: `Err((message, byte span in the text))` at its
+    /// first bad name.
+    pub fn interlock(&self, text: &str) -> Result<Interlock, (String, std::ops::Range<usize>)> {
+        let ast = expr::parse(text).map_err(|e| (e.message, e.span))?;
+        let mut spans = Vec::new();
+        name_spans(&ast, &mut spans);
+        let mut resolved = BTreeMap::new();
+        for (n, span) in spans {
+            if resolved.contains_key(n) {
+                continue;
+            }
+            let atom = resolve(n, self.ir, &self.actuators, &self.declared)
+                .map_err(|m| (m, span.clone()))?;
+            resolved.insert(n.to_string(), atom);
+        }
+        Ok(Interlock {
+            text: text.to_string(),
             ast,
             names: resolved,
-        });
+        })
     }
-    Ok(out)
+}
+
+/// Every name of an expression with its span, left to right.
+fn name_spans<'a>(ast: &'a Ast, out: &mut Vec<(&'a str, std::ops::Range<usize>)>) {
+    match ast {
+        Ast::Int(_) => {}
+        Ast::Name(n, span) => out.push((n, span.clone())),
+        Ast::Not(a) | Ast::Neg(a) => name_spans(a, out),
+        Ast::Bin(_, a, b) => {
+            name_spans(a, out);
+            name_spans(b, out);
+        }
+    }
 }
 
 impl Interlock {
