@@ -39,6 +39,9 @@ pub const MAX_PEERS: usize = 8;
 pub const MAX_PUBLICATIONS: usize = 24;
 /// Remote events subscribed from the radio.
 pub const MAX_SUBSCRIPTIONS: usize = 32;
+/// Board pin numbers a table may name: `0..MAX_PINS` (a node keeps its pin levels in a
+/// `u64`, one bit a pin).
+pub const MAX_PINS: usize = 64;
 /// Bytes of the role name.
 pub const MAX_ROLE_NAME: usize = 12;
 
@@ -52,3 +55,6 @@ pub const MAX_BLOB: usize = 4096;
 /// Events processed (queued and delivered) per outside stimulus before the node faults:
 /// bounds a cascade of charts that keep emitting to each other.
 pub const MAX_CASCADE: usize = 64;
+
+/// IEEE 802.15.4 channels of the 2.4 GHz band (O-QPSK): the only ones a table may name.
+pub const CHANNELS: core::ops::RangeInclusive<u8> = 11..=26;

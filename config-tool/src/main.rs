@@ -94,9 +94,9 @@ enum Format {
 }
 
 fn load(path: &Path) -> Result<Source, String> {
-    std::fs::read_to_string(path)
-        .map(|text| Source::new(path.display().to_string(), text))
-        .map_err(|e| format!("error: cannot read {}: {e}", path.display()))
+    let bytes =
+        std::fs::read(path).map_err(|e| format!("error: cannot read {}: {e}", path.display()))?;
+    Source::from_bytes(path.display().to_string(), bytes)
 }
 
 /// Reads and compiles a robot; on failure every diagnostic is reported.

@@ -50,6 +50,28 @@ impl Source {
         }
     }
 
+    /// A file's bytes as a source, or `FILE:LINE:COL: error: ...` at the first byte that is
+    /// not UTF-8.
+    pub fn from_bytes(name: impl Into<String>, bytes: Vec<u8>) -> Result<Source, String> {
+        let name = name.into();
+        match String::from_utf8(bytes) {
+            Ok(text) => Ok(Source::new(name, text)),
+            Err(e) => {
+                let at = e.utf8_error().valid_up_to();
+                let bytes = e.as_bytes();
+                let valid = std::str::from_utf8(bytes.get(..at).unwrap_or(&[])).unwrap_or("");
+                let line = valid.matches('\n').count() + 1;
+                let start = valid.rfind('\n').map_or(0, |i| i + 1);
+                let col = valid[start..].chars().count() + 1;
+                Err(format!(
+                    "{name}:{line}:{col}: error: the file is not UTF-8 text: byte {:#04x} at \
+                     offset {at}",
+                    bytes.get(at).copied().unwrap_or(0)
+                ))
+            }
+        }
+    }
+
     /// Characters before byte `offset` (a character boundary).
     fn chars_before(&self, offset: usize) -> usize {
         let k = offset / CHECKPOINT;
@@ -184,5 +206,18 @@ mod tests {
         assert_eq!(src.line_col(text.len()), (4, 5));
         assert_eq!(src.offset(9, 1), text.len());
         assert_eq!(src.line_count(), 4);
+    }
+
+    #[test]
+    fn bytes_that_are_not_utf8_are_an_error_at_their_place() {
+        let bytes = b"Robot(\n  name: \"\xc3\xa9\xff\",\n)".to_vec();
+        assert_eq!(
+            Source::from_bytes("r.ron", bytes)
+                .map(|s| s.text)
+                .unwrap_err(),
+            "r.ron:2:11: error: the file is not UTF-8 text: byte 0xff at offset 18"
+        );
+        let ok = Source::from_bytes("r.ron", b"ok".to_vec()).expect("utf-8");
+        assert_eq!(ok.text, "ok");
     }
 }

@@ -3,13 +3,15 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
+use config_schema::limits::CHANNELS;
+
 use super::duplicate;
 use crate::diag::Diagnostic;
 use crate::model::Robot;
 use crate::source::Source;
 
 pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
-    if !(11..=26).contains(&robot.network.channel) {
+    if !CHANNELS.contains(&robot.network.channel) {
         out.push(
             Diagnostic::error(
                 src.span("network.channel"),
@@ -18,7 +20,7 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
                     robot.network.channel
                 ),
             )
-            .label("11..=26"),
+            .label(format!("{}..={}", CHANNELS.start(), CHANNELS.end())),
         );
     }
     if robot.network.pan_id == 0xFFFF {

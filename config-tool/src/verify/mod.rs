@@ -326,8 +326,8 @@ impl<'c> Model<'c> {
                     node: s.node,
                     extend: s.out,
                     retract: None,
-                    home_in: None,
-                    end_in: None,
+                    home_in: s.home_in,
+                    end_in: s.end_in,
                 }),
                 Plant::Button(_) => {}
             }
