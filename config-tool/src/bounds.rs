@@ -61,8 +61,7 @@ pub fn integer_field(text: &str, offset: usize) -> Option<(String, &'static str)
 /// The range of an integer field of the robot format (`model`).
 fn range(field: &str) -> Option<&'static str> {
     Some(match field {
-        "channel" | "extend" | "retract" | "home" | "end" | "valve" | "pin" | "sensor"
-        | "Fault" => "0..=255",
+        "channel" | "extend" | "retract" | "home" | "end" | "valve" | "pin" | "Fault" => "0..=255",
         "pan_id" | "address" => "0..=65535",
         "generation" | "motion_timeout_ms" | "out_ms" | "back_ms" | "dwell_ms" | "timeout_ms"
         | "StartTimer" => "0..=4294967295",
