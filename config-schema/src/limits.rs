@@ -55,3 +55,6 @@ pub const MAX_BLOB: usize = 4096;
 /// Events processed (queued and delivered) per outside stimulus before the node faults:
 /// bounds a cascade of charts that keep emitting to each other.
 pub const MAX_CASCADE: usize = 64;
+
+/// IEEE 802.15.4 channels of the 2.4 GHz band (O-QPSK): the only ones a table may name.
+pub const CHANNELS: core::ops::RangeInclusive<u8> = 11..=26;

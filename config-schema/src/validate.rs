@@ -33,6 +33,8 @@ pub enum Invalid {
         count: usize,
         max: usize,
     },
+    /// A radio channel outside [`CHANNELS`].
+    Channel { channel: u8 },
     /// A node event id at or past `Table::events`.
     Event { at: Place, event: u8 },
     /// A variable that does not exist.
@@ -109,6 +111,12 @@ impl fmt::Display for Invalid {
             Invalid::Capacity { what, count, max } => {
                 write!(f, "{count} {what} exceed the limit of {max}")
             }
+            Invalid::Channel { channel } => write!(
+                f,
+                "channel {channel} is not an IEEE 802.15.4 2.4 GHz channel ({}..={})",
+                CHANNELS.start(),
+                CHANNELS.end()
+            ),
             Invalid::Event { at, event } => write!(f, "{at}: event {event} does not exist"),
             Invalid::Var { at, var } => write!(f, "{at}: variable {var} does not exist"),
             Invalid::Timer { at, timer } => write!(f, "{at}: timer {timer} does not exist"),
@@ -153,6 +161,11 @@ fn idx(i: usize) -> u8 {
 /// Checks every semantic rule of a table. A table that passes can be run by the interpreter
 /// without any out-of-range access.
 pub fn validate(t: &Table) -> Result<(), Invalid> {
+    if !CHANNELS.contains(&t.header.channel) {
+        return Err(Invalid::Channel {
+            channel: t.header.channel,
+        });
+    }
     let events = usize::from(t.events);
     capacity("events", events, MAX_EVENTS)?;
     let event_ok = |at: Place, e: u8| {

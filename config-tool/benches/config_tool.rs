@@ -1,6 +1,7 @@
 //! config-tool performance: compile time of the paint robot and of a generated
 //! 8-actuator, 64-step sequence; simulated cycles per wall second of the paint robot; the
-//! paint robot's blob sizes (target: one 802.15.4 frame, about 100 bytes, each).
+//! paint robot's blob sizes (target: one 802.15.4 frame, about 100 bytes, each); `check`
+//! diagnostics on 5k vs 20k duplicate node addresses (printed ratio: linear scaling).
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -86,5 +87,55 @@ fn benches(c: &mut Criterion) {
     );
 }
 
-criterion_group!(group, benches);
+/// A one-role robot whose `n` nodes all have address 0x0001: `n - 1` diagnostics.
+fn duplicate_addresses(n: usize) -> Source {
+    let nodes: String = (0..n)
+        .map(|i| format!("(name: \"n{i}\", address: 0x0001),\n"))
+        .collect();
+    Source::new(
+        "dups.ron",
+        format!(
+            "Robot(name: \"dups\", network: (pan_id: 0x0101, channel: 11), nodes: [\n{nodes}], \
+             assign: [(\"A\", \"n0\")], roles: [(name: \"A\", actuators: [(name: \"A\", kind: \
+             DoubleActing(extend: 0, retract: 1, home: 2, end: 3))], inputs: [(name: \"START\", \
+             pin: 4)])], start: \"START\", sequence: \"A+ A-\")"
+        ),
+    )
+}
+
+/// `check` and its printed output (50 rendered, the rest counted) on 5k and 20k duplicate
+/// node addresses: linear scaling gives a ratio of about 4 (quadratic: 16).
+fn diagnostics(c: &mut Criterion) {
+    let mut group = c.benchmark_group("diagnostics");
+    group.sample_size(10);
+    let mut secs = Vec::new();
+    for n in [5_000, 20_000] {
+        let src = duplicate_addresses(n);
+        let run = |src: &Source| {
+            let (_, diags) = config_tool::check::check(src);
+            let out = config_tool::diag::render_all(src, &diags, false);
+            (diags.len(), out.len())
+        };
+        assert_eq!(run(&src).0, n - 1);
+        group.bench_function(format!("check + render {n} duplicate addresses"), |b| {
+            b.iter(|| run(black_box(&src)))
+        });
+        let rounds = 5;
+        let t0 = Instant::now();
+        for _ in 0..rounds {
+            black_box(run(&src));
+        }
+        secs.push(t0.elapsed().as_secs_f64() / f64::from(rounds));
+    }
+    group.finish();
+    println!(
+        "diagnostics: 5k duplicate addresses {:.1} ms, 20k {:.1} ms: ratio {:.2} for 4x the \
+         input (linear: ~4, quadratic: ~16)",
+        secs[0] * 1e3,
+        secs[1] * 1e3,
+        secs[1] / secs[0]
+    );
+}
+
+criterion_group!(group, benches, diagnostics);
 criterion_main!(group);

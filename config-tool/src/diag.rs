@@ -4,7 +4,10 @@
 use std::fmt;
 use std::ops::Range;
 
-use miette::{GraphicalReportHandler, GraphicalTheme, LabeledSpan, NamedSource, SourceCode};
+use miette::{
+    GraphicalReportHandler, GraphicalTheme, LabeledSpan, MietteError, MietteSpanContents,
+    SourceCode, SourceSpan, SpanContents,
+};
 
 use crate::source::Source;
 
@@ -82,13 +85,15 @@ impl Diagnostic {
             GraphicalTheme::unicode_nocolor()
         };
         let handler = GraphicalReportHandler::new_themed(theme).with_width(100);
+        let span = src.clamp(self.span.clone());
+        let excerpt = Excerpt::around(src, span.clone());
         let clamped = Diagnostic {
-            span: src.clamp(self.span.clone()),
+            span: excerpt.label.clone(),
             ..self.clone()
         };
         let report = Report {
             d: &clamped,
-            src: NamedSource::new(&src.name, src.text.clone()),
+            src: excerpt,
         };
         let mut out = String::new();
         if handler.render_report(&mut out, &report).is_err() {
@@ -100,7 +105,86 @@ impl Diagnostic {
 
 struct Report<'a> {
     d: &'a Diagnostic,
-    src: NamedSource<String>,
+    src: Excerpt<'a>,
+}
+
+/// Bytes of source a rendering shows at most (its lines with one line of context each
+/// side); beyond it only the start of the span and a little either side are shown, so that
+/// rendering a diagnostic costs the same on a 60 kB line as on a short one.
+pub const EXCERPT_MAX: usize = 1024;
+/// Bytes of a long line shown each side of the span when it is cut.
+const CUT_CONTEXT: usize = 60;
+/// Bytes of a span underlined at most when the excerpt is cut.
+const CUT_SPAN: usize = 160;
+
+/// The part of a source a diagnostic shows, with the real offsets, lines and columns
+/// (miette reads only this, never the whole text).
+struct Excerpt<'a> {
+    src: &'a Source,
+    /// The bytes shown.
+    window: Range<usize>,
+    /// The span underlined (inside `window`).
+    label: Range<usize>,
+}
+
+impl<'a> Excerpt<'a> {
+    fn around(src: &'a Source, span: Range<usize>) -> Excerpt<'a> {
+        let (first, _) = src.line_of(span.start);
+        let (last, _) = src.line_of(span.end);
+        let from = src.line_start(first.saturating_sub(1));
+        let to = src.line_end((last + 1).min(src.line_count().saturating_sub(1)));
+        if to - from <= EXCERPT_MAX {
+            return Excerpt {
+                src,
+                window: from..to,
+                label: span,
+            };
+        }
+        // Too much to show: the start of the span on its own line, cut either side.
+        let (_, line_start) = src.line_of(span.start);
+        let line_end = src.line_end(first);
+        let end = src.floor(span.end.min(line_end).min(span.start + CUT_SPAN));
+        let window = src.floor(span.start.saturating_sub(CUT_CONTEXT).max(line_start))
+            ..src.floor((end + CUT_CONTEXT).min(line_end));
+        Excerpt {
+            src,
+            window,
+            label: span.start..end.max(span.start),
+        }
+    }
+
+    /// 0-based line and column of a byte offset.
+    fn line_col0(&self, offset: usize) -> (usize, usize) {
+        let (line, col) = self.src.line_col(offset);
+        (line - 1, col - 1)
+    }
+}
+
+impl SourceCode for Excerpt<'_> {
+    fn read_span<'b>(
+        &'b self,
+        span: &SourceSpan,
+        context_lines_before: usize,
+        context_lines_after: usize,
+    ) -> Result<Box<dyn SpanContents<'b> + 'b>, MietteError> {
+        let (data, at) = if context_lines_before == 0 && context_lines_after == 0 {
+            // Where the label starts (miette's `[file:line:col]`).
+            let start = self.src.floor(span.offset());
+            (start..self.src.floor(start + span.len()).max(start), start)
+        } else {
+            (self.window.clone(), self.window.start)
+        };
+        let (line, column) = self.line_col0(at);
+        let text = self.src.text.get(data.clone()).unwrap_or("");
+        Ok(Box::new(MietteSpanContents::new_named(
+            self.src.name.clone(),
+            text.as_bytes(),
+            SourceSpan::from(data.start..data.end),
+            line,
+            column,
+            text.matches('\n').count() + 1,
+        )))
+    }
 }
 
 impl fmt::Debug for Report<'_> {
@@ -152,4 +236,41 @@ pub fn sort(diags: &mut [Diagnostic]) {
     diags.sort_by(|a, b| {
         (a.span.start, a.severity, &a.message).cmp(&(b.span.start, b.severity, &b.message))
     });
+}
+
+/// Diagnostics rendered in full at most; the rest are counted.
+pub const SHOWN: usize = 50;
+
+/// Every diagnostic as `check` prints it: the first [`SHOWN`] rendered, then
+/// `... and N more errors` (and warnings) for the rest, then the totals.
+pub fn render_all(src: &Source, diags: &[Diagnostic], color: bool) -> String {
+    let mut out = String::new();
+    for d in diags.iter().take(SHOWN) {
+        out.push_str(&d.render(src, color));
+        out.push('\n');
+    }
+    let rest = diags.get(SHOWN..).unwrap_or(&[]);
+    let rest_errors = rest.iter().filter(|d| d.is_error()).count();
+    let rest_warnings = rest.len() - rest_errors;
+    let count = |n: usize, what: &str| match n {
+        0 => None,
+        1 => Some(format!("1 more {what}")),
+        n => Some(format!("{n} more {what}s")),
+    };
+    let more: Vec<String> = [count(rest_errors, "error"), count(rest_warnings, "warning")]
+        .into_iter()
+        .flatten()
+        .collect();
+    if !more.is_empty() {
+        out.push_str(&format!("... and {}\n", more.join(" and ")));
+    }
+    let errors = diags.iter().filter(|d| d.is_error()).count();
+    let warnings = diags.len() - errors;
+    if !diags.is_empty() {
+        out.push_str(&format!(
+            "{}: {errors} error(s), {warnings} warning(s)\n",
+            src.name
+        ));
+    }
+    out
 }

@@ -8,7 +8,7 @@ use std::collections::BTreeSet;
 use crate::diag::Diagnostic;
 use crate::expr::{self, Operand};
 use crate::ir::{ActionIr, ChartIr, InputIr, Ir, OutputIr, RoleIr, StateIr, TimerIr, TransitionIr};
-use crate::model::{ActionDecl, ActuatorKind, ChartType, Robot, Role};
+use crate::model::{ActionDecl, ChartType, Robot, Role};
 use crate::source::Source;
 
 /// The role index and input name of the robot's `start`, if it has one.
@@ -64,8 +64,8 @@ pub fn role_events(robot: &Robot, role: &Role) -> Vec<String> {
         out.push(format!("{}.fall", i.name));
     }
     for a in &role.actuators {
-        if let ActuatorKind::DoubleActing { .. } = a.kind {
-            for s in ["home", "end"] {
+        for (s, _, used) in a.kind.pins() {
+            if used == crate::model::PinUse::Switch {
                 out.push(format!("{}.{s}", a.name));
                 out.push(format!("{}.{s}.fall", a.name));
             }

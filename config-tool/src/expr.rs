@@ -345,17 +345,22 @@ pub fn eval(ast: &Ast, value: &dyn Fn(&str) -> Option<i32>) -> Option<i32> {
 
 /// Every name an AST reads, in order of first use.
 pub fn names(ast: &Ast, out: &mut Vec<String>) {
+    let mut seen: std::collections::BTreeSet<String> = out.iter().cloned().collect();
+    collect_names(ast, &mut seen, out);
+}
+
+fn collect_names(ast: &Ast, seen: &mut std::collections::BTreeSet<String>, out: &mut Vec<String>) {
     match ast {
         Ast::Int(_) => {}
         Ast::Name(n, _) => {
-            if !out.contains(n) {
+            if seen.insert(n.clone()) {
                 out.push(n.clone());
             }
         }
-        Ast::Not(a) | Ast::Neg(a) => names(a, out),
+        Ast::Not(a) | Ast::Neg(a) => collect_names(a, seen, out),
         Ast::Bin(_, a, b) => {
-            names(a, out);
-            names(b, out);
+            collect_names(a, seen, out);
+            collect_names(b, seen, out);
         }
     }
 }

@@ -92,8 +92,13 @@ pub struct FaultRun {
     pub before_step: Option<String>,
     /// Time step `step` was commanded (or attempted on a jammed actuator).
     pub commanded_ms: Option<u64>,
-    /// Steps of the fault's cycle up to the detection.
+    /// Steps of the fault's cycle before the injection.
     pub steps_before: Vec<String>,
+    /// Steps after the injection, up to the detection (or, undetected, the end of the run).
+    pub steps_after: Vec<String>,
+    /// The first motion a jam held back, when it has no completion sensor (nothing can
+    /// detect it): (time, step).
+    pub undetectable: Option<(u64, String)>,
     pub detected: Option<Detection>,
     /// Every node fault and link alarm after the injection: (time, text).
     pub reactions: Vec<(u64, String)>,
@@ -133,16 +138,16 @@ pub fn simulate(c: &Compiled, spec: &FaultSpec) -> Result<FaultRun, String> {
             let p = world
                 .plant_by_name(a)
                 .ok_or_else(|| format!("no actuator `{a}`"))?;
-            let Plant::DoubleActing(d) = &world.plants()[p] else {
+            let Some((node, home, end)) = world.plants()[p].switches() else {
                 return Err(format!("`{a}` has no switches"));
             };
             let input = match which {
-                "end" => d.end_in,
-                "home" => d.home_in,
+                "end" => end,
+                "home" => home,
                 _ => None,
             }
             .ok_or_else(|| format!("`{s}`: a switch is ACT.end or ACT.home"))?;
-            Target::Input(d.node, input)
+            Target::Input(node, input)
         }
         FaultKind::Stop(r) => Target::Node(role(r)?),
         FaultKind::Link(f, t) => Target::Link(role(f)?, role(t)?),
@@ -272,10 +277,32 @@ pub fn simulate(c: &Compiled, spec: &FaultSpec) -> Result<FaultRun, String> {
             }
         }
     }
-    let steps_before: Vec<String> = trace[mark..detected.as_ref().map_or(trace.len(), |d| d.0)]
-        .iter()
-        .filter_map(|e| e.what.step())
-        .collect();
+    let steps = |range: std::ops::Range<usize>| -> Vec<String> {
+        trace
+            .get(range)
+            .unwrap_or(&[])
+            .iter()
+            .filter_map(|e| e.what.step())
+            .collect()
+    };
+    let steps_before = steps(mark..inj_index);
+    let steps_after = steps(inj_index..detected.as_ref().map_or(trace.len(), |d| d.0));
+    // The first motion the jam held back, if it has no completion sensor.
+    let undetectable = trace[inj_index..].iter().find_map(|e| match &e.what {
+        What::Jammed { plant, plus } => {
+            let name = plant_name(*plant);
+            let sensorless = c.robot.actuator(&name).is_some_and(|(r, i)| {
+                c.robot.roles[r].actuators[i]
+                    .kind
+                    .completion_switch(*plus)
+                    .is_none()
+            });
+            let step = format!("{name}{}", if *plus { '+' } else { '-' });
+            Some(sensorless.then_some((e.t_ms, step)))
+        }
+        _ => None,
+    });
+    let undetectable = undetectable.flatten();
     let mut moves_after = Vec::new();
     if let Some((d, _)) = &detected {
         for (i, e) in trace.iter().enumerate().skip(*d) {
@@ -317,6 +344,8 @@ pub fn simulate(c: &Compiled, spec: &FaultSpec) -> Result<FaultRun, String> {
         before_step,
         commanded_ms,
         steps_before,
+        steps_after,
+        undetectable,
         detected: detected.map(|d| d.1),
         reactions,
         moves_after,
@@ -356,6 +385,18 @@ impl FaultRun {
                 .unwrap_or_default()
         );
         let _ = writeln!(o, "steps until then: {}", self.steps_before.join(" "));
+        if !self.steps_after.is_empty() {
+            let _ = writeln!(
+                o,
+                "steps after the injection{}: {}",
+                if self.detected.is_some() {
+                    ", before the detection"
+                } else {
+                    ""
+                },
+                self.steps_after.join(" ")
+            );
+        }
         match &self.detected {
             Some(d) => {
                 let _ = writeln!(
@@ -383,9 +424,18 @@ impl FaultRun {
                      stopped at {} ms",
                     self.end_ms
                 );
+                if let Some((t, step)) = &self.undetectable {
+                    let _ = writeln!(
+                        o,
+                        "  the jammed motion `{step}` (at {t} ms) has no completion sensor: it \
+                         completes after its dwell time whether it moved or not (`check` \
+                         warns of such steps)"
+                    );
+                }
             }
         }
-        if self.moves_after.is_empty() {
+        if self.detected.is_none() {
+        } else if self.moves_after.is_empty() {
             let _ = writeln!(o, "after the detection: no actuator moved");
         } else {
             for (t, s, safe) in &self.moves_after {

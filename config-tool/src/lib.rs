@@ -1,11 +1,13 @@
 //! config-tool: RON robot descriptions -> checked, compiled, simulated table blobs.
 //!
-//! - [`source`], [`locate`]: file text, line:col, spans of values by path.
+//! - [`source`], [`locate`]: file text, line:col, spans of values by path. [`bounds`]:
+//!   the range of an integer field for ron's out-of-bounds error.
 //! - [`model`]: the RON format as serde types. [`diag`]: miette diagnostics.
 //! - [`check`]: independent check passes. [`expr`]: guard text -> bytecode.
 //! - [`synth`]: sequence -> charts. [`elab`]: explicit charts -> IR. [`ir`]: the IR.
 //! - [`lower`]: IR -> tables. [`compile`]: the pipeline. [`dump`], [`diagram`], [`sim`].
 
+pub mod bounds;
 pub mod check;
 pub mod compile;
 pub mod demo;

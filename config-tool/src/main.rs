@@ -94,9 +94,9 @@ enum Format {
 }
 
 fn load(path: &Path) -> Result<Source, String> {
-    std::fs::read_to_string(path)
-        .map(|text| Source::new(path.display().to_string(), text))
-        .map_err(|e| format!("error: cannot read {}: {e}", path.display()))
+    let bytes =
+        std::fs::read(path).map_err(|e| format!("error: cannot read {}: {e}", path.display()))?;
+    Source::from_bytes(path.display().to_string(), bytes)
 }
 
 /// Reads and compiles a robot; on failure every diagnostic is reported.
@@ -114,14 +114,7 @@ fn load_compiled(path: &Path) -> Result<(Source, compile::Compiled), String> {
 fn report(src: &Source, diags: &[Diagnostic]) {
     use std::io::IsTerminal;
     let color = std::io::stderr().is_terminal();
-    for d in diags {
-        eprintln!("{}", d.render(src, color));
-    }
-    let errors = diags.iter().filter(|d| d.is_error()).count();
-    let warnings = diags.len() - errors;
-    if errors + warnings > 0 {
-        eprintln!("{}: {errors} error(s), {warnings} warning(s)", src.name);
-    }
+    eprint!("{}", config_tool::diag::render_all(src, diags, color));
 }
 
 fn run(command: Command) -> Result<(), String> {

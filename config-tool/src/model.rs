@@ -115,7 +115,46 @@ impl ActuatorKind {
                 ("home", home, PinUse::Switch),
                 ("end", end, PinUse::Switch),
             ],
-            ActuatorKind::SingleActing { valve, .. } => vec![("valve", valve, PinUse::Valve)],
+            ActuatorKind::SingleActing {
+                valve, home, end, ..
+            } => [("valve", Some(valve), PinUse::Valve)]
+                .into_iter()
+                .chain([("home", home, PinUse::Switch), ("end", end, PinUse::Switch)])
+                .filter_map(|(f, pin, used)| pin.map(|p| (f, p, used)))
+                .collect(),
+        }
+    }
+
+    /// The limit switch (or position sensor) that says a motion is complete: `end` for a
+    /// `+`, `home` for a `-`; `None` if there is none (a sensorless motion completes after
+    /// its dwell time, so a jam cannot be detected).
+    pub fn completion_switch(&self, extend: bool) -> Option<u8> {
+        let (home, end) = match *self {
+            ActuatorKind::DoubleActing { home, end, .. } => (Some(home), Some(end)),
+            ActuatorKind::SingleActing { home, end, .. } => (home, end),
+        };
+        if extend {
+            end
+        } else {
+            home
+        }
+    }
+
+    /// Whether some motion completes on a switch: the actuator has a motion watchdog.
+    pub fn has_watchdog(&self) -> bool {
+        self.completion_switch(true).is_some() || self.completion_switch(false).is_some()
+    }
+
+    /// Whether some motion completes after the dwell time.
+    pub fn has_dwell(&self) -> bool {
+        self.completion_switch(true).is_none() || self.completion_switch(false).is_none()
+    }
+
+    /// This actuator's motion watchdog, if it sets its own.
+    pub fn timeout_ms(&self) -> Option<u32> {
+        match *self {
+            ActuatorKind::DoubleActing { timeout_ms, .. }
+            | ActuatorKind::SingleActing { timeout_ms, .. } => timeout_ms,
         }
     }
 }
@@ -140,8 +179,9 @@ pub enum ActuatorKind {
         #[serde(default)]
         timeout_ms: Option<u32>,
     },
-    /// Single-acting actuator, monostable valve, no switches: a motion is complete after
-    /// `dwell_ms`.
+    /// Single-acting actuator, monostable valve: a motion is complete after `dwell_ms`, or,
+    /// toward an end with a position sensor (`end`: extended / closed, `home`: retracted /
+    /// open, both optional), when that sensor closes, under the motion watchdog.
     SingleActing {
         valve: u8,
         dwell_ms: u32,
@@ -149,6 +189,16 @@ pub enum ActuatorKind {
         out_ms: u32,
         #[serde(default = "default_travel")]
         back_ms: u32,
+        /// Input pin of a position sensor at home (retracted).
+        #[serde(default)]
+        home: Option<u8>,
+        /// Input pin of a position sensor at the end (extended).
+        #[serde(default)]
+        end: Option<u8>,
+        /// Watchdog of the motions a sensor completes (default: the robot's
+        /// `motion_timeout_ms`).
+        #[serde(default)]
+        timeout_ms: Option<u32>,
     },
 }
 
@@ -271,6 +321,15 @@ pub fn parse(src: &Source) -> Result<Robot, Diagnostic> {
     options.from_str(&src.text).map_err(|e| {
         let start = src.offset(e.span.start.line, e.span.start.col);
         let end = src.offset(e.span.end.line, e.span.end.col).max(start);
+        if e.code == ron::Error::IntegerOutOfBounds {
+            if let Some((field, range)) = crate::bounds::integer_field(&src.text, start) {
+                return Diagnostic::error(
+                    start..end,
+                    format!("Integer is out of bounds: `{field}` takes {range}"),
+                )
+                .label(range);
+            }
+        }
         Diagnostic::error(start..end, e.code.to_string()).label("here")
     })
 }

@@ -81,8 +81,8 @@ pub fn actuators(c: &Compiled) -> Result<Vec<Actuator>, String> {
                     addr: role.address,
                     valves: (v, v),
                     double: false,
-                    home: None,
-                    end: None,
+                    home: ipin(s.home_in),
+                    end: ipin(s.end_in),
                     travel_ms,
                 });
             }

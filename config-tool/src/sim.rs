@@ -142,6 +142,8 @@ pub fn plants(c: &Compiled) -> Result<(Vec<Plant>, usize), String> {
                         name: a.name.clone(),
                         node: ri,
                         out: v,
+                        home_in: inp(format!("{}.home", a.name)),
+                        end_in: inp(format!("{}.end", a.name)),
                         extend_ms: u64::from(out_ms),
                         retract_ms: u64::from(back_ms),
                     }));

@@ -4,24 +4,112 @@ use std::ops::Range;
 
 use crate::locate::{self, Value};
 
+/// Bytes between two character-count checkpoints of [`Source`].
+const CHECKPOINT: usize = 256;
+
 /// One source file: its name (as given on the command line), its text, and the span tree
-/// of its values.
+/// of its values. Line starts and character-count checkpoints are indexed once, so that
+/// [`Source::line_col`] costs O(log lines) whatever the file: diagnostics stay linear.
 #[derive(Debug, Clone)]
 pub struct Source {
     pub name: String,
     pub text: String,
     tree: Option<Value>,
+    /// Byte offset of the start of every line.
+    lines: Vec<usize>,
+    /// Characters before byte `k * CHECKPOINT`.
+    chars: Vec<usize>,
+}
+
+/// Whether a byte starts a character (is not a UTF-8 continuation byte).
+fn starts_char(b: u8) -> bool {
+    b & 0xC0 != 0x80
 }
 
 impl Source {
     pub fn new(name: impl Into<String>, text: impl Into<String>) -> Source {
         let text = text.into();
         let tree = locate::parse(&text);
+        let bytes = text.as_bytes();
+        let lines = std::iter::once(0)
+            .chain(newline_ends(bytes))
+            .collect::<Vec<_>>();
+        let mut chars = Vec::with_capacity(bytes.len() / CHECKPOINT + 1);
+        let mut count = 0;
+        for block in bytes.chunks(CHECKPOINT) {
+            chars.push(count);
+            count += block.iter().filter(|b| starts_char(**b)).count();
+        }
+        chars.push(count);
         Source {
             name: name.into(),
             text,
             tree,
+            lines,
+            chars,
         }
+    }
+
+    /// A file's bytes as a source, or `FILE:LINE:COL: error: ...` at the first byte that is
+    /// not UTF-8.
+    pub fn from_bytes(name: impl Into<String>, bytes: Vec<u8>) -> Result<Source, String> {
+        let name = name.into();
+        match String::from_utf8(bytes) {
+            Ok(text) => Ok(Source::new(name, text)),
+            Err(e) => {
+                let at = e.utf8_error().valid_up_to();
+                let bytes = e.as_bytes();
+                let valid = std::str::from_utf8(bytes.get(..at).unwrap_or(&[])).unwrap_or("");
+                let line = valid.matches('\n').count() + 1;
+                let start = valid.rfind('\n').map_or(0, |i| i + 1);
+                let col = valid[start..].chars().count() + 1;
+                Err(format!(
+                    "{name}:{line}:{col}: error: the file is not UTF-8 text: byte {:#04x} at \
+                     offset {at}",
+                    bytes.get(at).copied().unwrap_or(0)
+                ))
+            }
+        }
+    }
+
+    /// Characters before byte `offset` (a character boundary).
+    fn chars_before(&self, offset: usize) -> usize {
+        let k = offset / CHECKPOINT;
+        let base = self.chars.get(k).copied().unwrap_or(0);
+        let from = k * CHECKPOINT;
+        base + self
+            .text
+            .as_bytes()
+            .get(from..offset)
+            .map_or(0, |b| b.iter().filter(|b| starts_char(**b)).count())
+    }
+
+    /// The 0-based line of a byte offset and the byte offset where that line starts.
+    pub fn line_of(&self, offset: usize) -> (usize, usize) {
+        let line = self
+            .lines
+            .partition_point(|&s| s <= offset)
+            .saturating_sub(1);
+        (line, self.lines.get(line).copied().unwrap_or(0))
+    }
+
+    /// The byte offset where 0-based line `line` starts (the end of the text past the
+    /// last line).
+    pub fn line_start(&self, line: usize) -> usize {
+        self.lines.get(line).copied().unwrap_or(self.text.len())
+    }
+
+    /// The byte offset where 0-based line `line` ends (before its newline), or the end of
+    /// the text.
+    pub fn line_end(&self, line: usize) -> usize {
+        self.lines
+            .get(line + 1)
+            .map_or(self.text.len(), |next| next - 1)
+    }
+
+    /// The number of lines.
+    pub fn line_count(&self) -> usize {
+        self.lines.len()
     }
 
     /// `offset` moved back to a character boundary inside the text.
@@ -42,24 +130,20 @@ impl Source {
     /// 1-based line and column (in characters) of a byte offset.
     pub fn line_col(&self, offset: usize) -> (usize, usize) {
         let offset = self.floor(offset);
-        let before = &self.text[..offset];
-        let line = before.matches('\n').count() + 1;
-        let line_start = before.rfind('\n').map_or(0, |i| i + 1);
-        let col = before[line_start..].chars().count() + 1;
-        (line, col)
+        let (line, start) = self.line_of(offset);
+        let col = self.chars_before(offset) - self.chars_before(start);
+        (line + 1, col + 1)
     }
 
     /// Byte offset of a 1-based line and column (in characters).
     pub fn offset(&self, line: usize, col: usize) -> usize {
-        let mut start = 0;
-        for _ in 1..line {
-            match self.text[start..].find('\n') {
-                Some(i) => start += i + 1,
-                None => return self.text.len(),
-            }
-        }
-        let rest = &self.text[start..];
-        let line_text = &rest[..rest.find('\n').unwrap_or(rest.len())];
+        let Some(&start) = self.lines.get(line.saturating_sub(1)) else {
+            return self.text.len();
+        };
+        let line_text = self
+            .text
+            .get(start..self.line_end(line.saturating_sub(1)))
+            .unwrap_or("");
         start
             + line_text
                 .char_indices()
@@ -88,5 +172,52 @@ impl Source {
     /// The text of a span.
     pub fn slice(&self, span: Range<usize>) -> &str {
         self.text.get(span).unwrap_or("")
+    }
+}
+
+/// Offsets just after every newline.
+fn newline_ends(bytes: &[u8]) -> impl Iterator<Item = usize> + '_ {
+    bytes
+        .iter()
+        .enumerate()
+        .filter(|(_, b)| **b == b'\n')
+        .map(|(i, _)| i + 1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Source;
+
+    #[test]
+    fn line_col_and_offset_agree_on_multibyte_text() {
+        let text = format!("ab\n{}é x\n\nlast", "ü".repeat(300));
+        let src = Source::new("t", text.clone());
+        for (offset, _) in text.char_indices() {
+            let (line, col) = src.line_col(offset);
+            let before = &text[..offset];
+            let want_line = before.matches('\n').count() + 1;
+            let start = before.rfind('\n').map_or(0, |i| i + 1);
+            assert_eq!(
+                (line, col),
+                (want_line, before[start..].chars().count() + 1)
+            );
+            assert_eq!(src.offset(line, col), offset);
+        }
+        assert_eq!(src.line_col(text.len()), (4, 5));
+        assert_eq!(src.offset(9, 1), text.len());
+        assert_eq!(src.line_count(), 4);
+    }
+
+    #[test]
+    fn bytes_that_are_not_utf8_are_an_error_at_their_place() {
+        let bytes = b"Robot(\n  name: \"\xc3\xa9\xff\",\n)".to_vec();
+        assert_eq!(
+            Source::from_bytes("r.ron", bytes)
+                .map(|s| s.text)
+                .unwrap_err(),
+            "r.ron:2:11: error: the file is not UTF-8 text: byte 0xff at offset 18"
+        );
+        let ok = Source::from_bytes("r.ron", b"ok".to_vec()).expect("utf-8");
+        assert_eq!(ok.text, "ok");
     }
 }

@@ -47,13 +47,14 @@ fn moving_in(robot: &Robot, q: usize, steps: &[Step]) -> bool {
         .any(|a| steps.iter().any(|s| s.actuator == a.name))
 }
 
-/// Whether role `q` has a switched (double-acting) actuator that moves: it has a motion
-/// watchdog, so it can detect a fault and publishes `fault`.
+/// Whether role `q` has an actuator with a switch (double acting, or single acting with a
+/// position sensor) that moves: it has a motion watchdog, so it can detect a fault and
+/// publishes `fault`.
 fn switched_in(robot: &Robot, q: usize, steps: &[Step]) -> bool {
-    robot.roles[q].actuators.iter().any(|a| {
-        matches!(a.kind, ActuatorKind::DoubleActing { .. })
-            && steps.iter().any(|s| s.actuator == a.name)
-    })
+    robot.roles[q]
+        .actuators
+        .iter()
+        .any(|a| a.kind.has_watchdog() && steps.iter().any(|s| s.actuator == a.name))
 }
 
 /// Synthesises the charts of a sequence robot. The robot must have passed `check`.
@@ -118,15 +119,18 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
             });
         }
         for a in &moving {
-            let name = match a.kind {
-                ActuatorKind::DoubleActing { .. } => format!("{}.watchdog", a.name),
-                ActuatorKind::SingleActing { .. } => format!("{}.dwell", a.name),
-            };
-            r.event(&name);
-            r.timers.push(TimerIr {
-                name: name.clone(),
-                event: name,
-            });
+            let kinds = [
+                (a.kind.has_watchdog(), "watchdog"),
+                (a.kind.has_dwell(), "dwell"),
+            ];
+            for (_, kind) in kinds.iter().filter(|(has, _)| *has) {
+                let name = format!("{}.{kind}", a.name);
+                r.event(&name);
+                r.timers.push(TimerIr {
+                    name: name.clone(),
+                    event: name,
+                });
+            }
         }
         if ri == first_role {
             if gated {
@@ -306,11 +310,12 @@ struct Motion {
     mask: u16,
     plus: u16,
     minus: u16,
-    /// The watchdog (switched) or dwell (sensorless) timer and its time.
-    timer: usize,
-    timer_ms: u32,
-    /// Double acting: limit switches complete a motion; the timer is a watchdog.
-    switched: bool,
+    /// The motion watchdog (timer, ms), if some motion completes on a switch.
+    watchdog: Option<(usize, u32)>,
+    /// The dwell timer (timer, ms), if some motion completes after a time.
+    dwell: Option<(usize, u32)>,
+    /// Which motions complete on a switch: (`+`, `-`).
+    switched: (bool, bool),
 }
 
 impl Motion {
@@ -329,31 +334,34 @@ impl Motion {
                 .position(|t| t.name == name)
                 .ok_or(format!("no timer {name}"))
         };
-        Ok(match a.kind {
-            ActuatorKind::DoubleActing { timeout_ms, .. } => {
+        let (mask, plus, minus, dwell_ms) = match a.kind {
+            ActuatorKind::DoubleActing { .. } => {
                 let (e, rt) = (out("extend")?, out("retract")?);
-                Motion {
-                    name: a.name.clone(),
-                    mask: (1 << e) | (1 << rt),
-                    plus: 1 << e,
-                    minus: 1 << rt,
-                    timer: timer("watchdog")?,
-                    timer_ms: timeout_ms.unwrap_or(robot.motion_timeout_ms),
-                    switched: true,
-                }
+                ((1 << e) | (1 << rt), 1 << e, 1 << rt, 0)
             }
             ActuatorKind::SingleActing { dwell_ms, .. } => {
                 let v = out("valve")?;
-                Motion {
-                    name: a.name.clone(),
-                    mask: 1 << v,
-                    plus: 1 << v,
-                    minus: 0,
-                    timer: timer("dwell")?,
-                    timer_ms: dwell_ms,
-                    switched: false,
-                }
+                (1 << v, 1 << v, 0, dwell_ms)
             }
+        };
+        let timeout_ms = a.kind.timeout_ms().unwrap_or(robot.motion_timeout_ms);
+        Ok(Motion {
+            name: a.name.clone(),
+            mask,
+            plus,
+            minus,
+            watchdog: match a.kind.has_watchdog() {
+                true => Some((timer("watchdog")?, timeout_ms)),
+                false => None,
+            },
+            dwell: match a.kind.has_dwell() {
+                true => Some((timer("dwell")?, dwell_ms)),
+                false => None,
+            },
+            switched: (
+                a.kind.completion_switch(true).is_some(),
+                a.kind.completion_switch(false).is_some(),
+            ),
         })
     }
 
@@ -366,9 +374,34 @@ impl Motion {
         }
     }
 
+    /// Whether a `+` (or `-`) completes on a switch (under the watchdog).
+    fn is_switched(&self, extend: bool) -> bool {
+        if extend {
+            self.switched.0
+        } else {
+            self.switched.1
+        }
+    }
+
+    /// The timer a motion starts: its watchdog (switched) or its dwell timer.
+    fn timer(&self, extend: bool) -> Result<(usize, u32), String> {
+        match self.is_switched(extend) {
+            true => self.watchdog,
+            false => self.dwell,
+        }
+        .ok_or_else(|| format!("{}: no timer for its motion", self.name))
+    }
+
+    /// The watchdog to cancel once a motion is complete (a dwell timer has expired).
+    fn cancel(&self, extend: bool) -> Option<ActionIr> {
+        self.watchdog
+            .filter(|_| self.is_switched(extend))
+            .map(|(t, _)| ActionIr::CancelTimer(t))
+    }
+
     /// The chart input that says a motion is complete.
     fn completion(&self, extend: bool) -> &'static str {
-        match (self.switched, extend) {
+        match (self.is_switched(extend), extend) {
             (true, true) => "end",
             (true, false) => "home",
             (false, _) => "dwell",
@@ -392,8 +425,6 @@ fn actuator_chart(
     let own: Vec<usize> = (0..n).filter(|&k| steps[k].actuator == a.name).collect();
     let chart_index = r.charts.len();
     let motion = Motion::of(robot, r, a)?;
-    let cancel = motion.switched;
-    let timer_index = motion.timer;
     let mut inputs: Vec<String> = Vec::new();
     let mut routes: Vec<(String, String)> = Vec::new(); // (node event, chart input)
     let mut input = |name: &str, event: String| -> usize {
@@ -419,27 +450,25 @@ fn actuator_chart(
     let mut wait_state = 0usize;
     let mut prev_move = 0usize;
     let leave = |k: usize| -> Vec<ActionIr> {
-        let mut v = Vec::new();
-        if cancel {
-            v.push(ActionIr::CancelTimer(timer_index));
-        }
+        let mut v: Vec<ActionIr> = motion.cancel(steps[k].extend).into_iter().collect();
         v.push(ActionIr::Emit(done_event(k)));
         v
     };
     for (j, &k) in own.iter().enumerate() {
         let step = &steps[k];
         let move_state = states.len();
+        let back_to_back = j > 0 && own[j - 1] + 1 == k;
+        let (timer, ms) = motion.timer(step.extend)?;
+        let mut actions = vec![motion.drive(step.extend)];
+        // Straight on from a switched motion to a timed one: its watchdog is still armed.
+        if back_to_back && !motion.is_switched(step.extend) {
+            actions.extend(motion.cancel(steps[k - 1].extend));
+        }
+        actions.push(ActionIr::StartTimer { timer, ms });
         states.push(StateIr {
             name: format!("STEP{}", k + 1),
-            actions: vec![
-                motion.drive(step.extend),
-                ActionIr::StartTimer {
-                    timer: timer_index,
-                    ms: motion.timer_ms,
-                },
-            ],
+            actions,
         });
-        let back_to_back = j > 0 && own[j - 1] + 1 == k;
         if back_to_back {
             let prev = &steps[k - 1];
             let c = motion.completion(prev.extend);
@@ -486,9 +515,7 @@ fn actuator_chart(
             wait_state = wait;
         } else if owns_first && k == n - 1 {
             // Last step of the cycle and the first of the next are this actuator's.
-            if cancel {
-                states[0].actions.push(ActionIr::CancelTimer(timer_index));
-            }
+            states[0].actions.extend(motion.cancel(step.extend));
             transitions.push(TransitionIr {
                 from: move_state,
                 to: 0,

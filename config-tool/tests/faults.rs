@@ -92,8 +92,10 @@ fn a_lost_link_raises_a_link_alarm_and_nothing_moves_after_it() {
     let run = inject(&c, "link:VC->GR@10");
     assert_eq!(
         run.steps_before,
-        ["VC+", "GR+", "VC-", "HC+", "VC+", "VC-", "RC+", "RC-", "HC-", "VC+"]
+        ["VC+", "GR+", "VC-", "HC+", "VC+", "VC-", "RC+", "RC-", "HC-"]
     );
+    // Step 10 is VC's own: it still moves; the hand-over to GR is what is lost.
+    assert_eq!(run.steps_after, ["VC+"]);
     let d = run.detected.clone().expect("detected");
     assert_eq!(d.role, "VC");
     assert!(run.moves_after.is_empty());

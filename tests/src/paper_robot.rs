@@ -381,6 +381,8 @@ pub fn plants() -> Vec<Plant> {
             name: "GR".into(),
             node: GR,
             out: 0,
+            home_in: None,
+            end_in: None,
             extend_ms: 80,
             retract_ms: 80,
         }

@@ -14,10 +14,9 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
     let Ok(ir) = compile::build(robot, src) else {
         return;
     };
-    for i in 0..robot.never.len() {
-        let mut one = robot.clone();
-        one.never = vec![robot.never[i].clone()];
-        if let Err((_, message, span)) = interlock::interlocks(&one, &ir) {
+    let names = interlock::Names::of(robot, &ir);
+    for (i, text) in robot.never.iter().enumerate() {
+        if let Err((message, span)) = names.interlock(text) {
             let value = src.span(&format!("never[{i}]"));
             // The value's span starts at its opening quote.
             let start = value.start + 1 + span.start;

@@ -11,6 +11,7 @@ mod network;
 mod pins;
 mod sequence;
 mod tables;
+mod timing;
 
 use crate::diag::{self, Diagnostic};
 use crate::model::{self, Robot};
@@ -24,6 +25,7 @@ pub const STRUCTURE: &[(&str, Pass)] = &[
     ("names", names::check),
     ("network", network::check),
     ("pins", pins::check),
+    ("timing", timing::check),
     ("sequence", sequence::check),
     ("charts", charts::check),
 ];

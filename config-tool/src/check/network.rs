@@ -1,7 +1,9 @@
 //! The network (channel, PAN id), nodes and role assignment: addresses used twice, unknown roles and nodes, a role played
 //! by no node or by two, a node playing two roles.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
+
+use config_schema::limits::CHANNELS;
 
 use super::duplicate;
 use crate::diag::Diagnostic;
@@ -9,7 +11,7 @@ use crate::model::Robot;
 use crate::source::Source;
 
 pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
-    if !(11..=26).contains(&robot.network.channel) {
+    if !CHANNELS.contains(&robot.network.channel) {
         out.push(
             Diagnostic::error(
                 src.span("network.channel"),
@@ -18,7 +20,7 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
                     robot.network.channel
                 ),
             )
-            .label("11..=26"),
+            .label(format!("{}..={}", CHANNELS.start(), CHANNELS.end())),
         );
     }
     if robot.network.pan_id == 0xFFFF {
@@ -57,8 +59,10 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
     }
     let mut roles: BTreeMap<&str, usize> = BTreeMap::new();
     let mut nodes: BTreeMap<&str, usize> = BTreeMap::new();
+    let role_names: BTreeSet<&str> = robot.roles.iter().map(|r| r.name.as_str()).collect();
+    let node_names: BTreeSet<&str> = robot.nodes.iter().map(|n| n.name.as_str()).collect();
     for (k, (role, node)) in robot.assign.iter().enumerate() {
-        if robot.role(role).is_none() {
+        if !role_names.contains(role.as_str()) {
             out.push(
                 Diagnostic::error(
                     src.span(&format!("assign[{k}][0]")),
@@ -88,7 +92,7 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
         } else {
             roles.insert(role, k);
         }
-        if !robot.nodes.iter().any(|n| &n.name == node) {
+        if !node_names.contains(node.as_str()) {
             out.push(
                 Diagnostic::error(
                     src.span(&format!("assign[{k}][1]")),

@@ -1,7 +1,10 @@
-//! Pins: a GPIO pin used twice on one role (inputs and outputs share the pin numbers of
-//! the node).
+//! Pins: a GPIO pin past the table's pin range (`limits::MAX_PINS`: a node keeps its pin
+//! levels in a `u64`), or used twice on one role (inputs and outputs share the pin numbers
+//! of the node).
 
 use std::collections::BTreeMap;
+
+use config_schema::limits::MAX_PINS;
 
 use crate::diag::Diagnostic;
 use crate::model::Robot;
@@ -33,6 +36,19 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
         }
         let mut seen: BTreeMap<u8, (String, String)> = BTreeMap::new();
         for (pin, what, path) in uses {
+            if usize::from(pin) >= MAX_PINS {
+                out.push(
+                    Diagnostic::error(
+                        src.span(&path),
+                        format!(
+                            "pin {pin} of `{what}` is out of range: a table names pins 0..={}",
+                            MAX_PINS - 1
+                        ),
+                    )
+                    .label(format!("0..={}", MAX_PINS - 1)),
+                );
+                continue;
+            }
             match seen.get(&pin) {
                 Some((first, first_path)) => {
                     let (line, col) = src.line_col(src.span(first_path).start);

@@ -1,12 +1,13 @@
 //! The behaviour's shape: a sequence or explicit charts (not both, not neither), the start
 //! input, and the sequence itself: undeclared actuators, a `+` on an actuator that is
 //! already out (or `-` on one at home), actuators out at the end of the cycle, actuators
-//! that never move. Also the `expect` sequence of explicit robots.
+//! that never move, steps without a completion sensor (a jam goes undetected: warning).
+//! Also the `expect` sequence of explicit robots.
 
 use crate::diag::Diagnostic;
 use crate::elab::{start_input, string_start};
 use crate::ir::parse_steps;
-use crate::model::Robot;
+use crate::model::{ActuatorKind, Robot};
 use crate::source::Source;
 
 pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
@@ -65,7 +66,7 @@ fn steps(
                 continue;
             }
         };
-        if robot.actuator(&step.actuator).is_none() {
+        let Some((ri, ai)) = robot.actuator(&step.actuator) else {
             let names: Vec<&str> = robot
                 .roles
                 .iter()
@@ -77,6 +78,32 @@ fn steps(
                     .help(format!("actuators: {}", names.join(", "))),
             );
             continue;
+        };
+        if synth {
+            let kind = &robot.roles[ri].actuators[ai].kind;
+            if let (None, ActuatorKind::SingleActing { dwell_ms, .. }) =
+                (kind.completion_switch(step.extend), kind)
+            {
+                let sensor = if step.extend { "end" } else { "home" };
+                out.push(
+                    Diagnostic::warning(
+                        here.clone(),
+                        format!(
+                            "step `{step}` has no completion sensor: a jam of `{}` goes \
+                             undetected",
+                            step.actuator
+                        ),
+                    )
+                    .label(format!(
+                        "completes after dwell_ms ({dwell_ms} ms), unsupervised"
+                    ))
+                    .help(format!(
+                        "if `{}` has a position sensor, declare it (`{sensor}: PIN`) to get a \
+                         motion watchdog",
+                        step.actuator
+                    )),
+                );
+            }
         }
         let at = out_now.iter().position(|(a, _)| *a == step.actuator);
         match (step.extend, at) {

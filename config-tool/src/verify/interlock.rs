@@ -26,6 +26,9 @@ pub enum Atom {
     },
     /// Role `role`'s node is faulted.
     Fault { role: usize },
+    /// A name whose value never changes: a position of a declared actuator that no table
+    /// drives (it is home for ever).
+    Const(bool),
 }
 
 /// A parsed interlock with its names resolved.
@@ -42,31 +45,47 @@ pub const END: u8 = 2;
 pub const EXTENDING: u8 = 4;
 pub const RETRACTING: u8 = 8;
 
+/// The position mask of an actuator name's suffix (`home`, `end`, `moving`, ...).
+fn position_mask(name: &str, suffix: &str) -> Result<u8, String> {
+    Ok(match suffix {
+        "home" => HOME,
+        "end" => END,
+        "moving" => EXTENDING | RETRACTING,
+        "extending" => EXTENDING,
+        "retracting" => RETRACTING,
+        other => {
+            return Err(format!(
+                "`{name}`: an actuator has `.home`, `.end`, `.moving`, `.extending`, \
+                 `.retracting`, not `.{other}`"
+            ))
+        }
+    })
+}
+
 /// Resolves one name of an interlock. `actuators` lists the actuators with a plant, in
-/// plant order.
-pub fn resolve(name: &str, ir: &Ir, actuators: &[String]) -> Result<Atom, String> {
+/// plant order; `declared` every actuator the robot declares (one without a plant never
+/// moves: it is home for ever).
+pub fn resolve(
+    name: &str,
+    ir: &Ir,
+    actuators: &[String],
+    declared: &[&str],
+) -> Result<Atom, String> {
     let parts: Vec<&str> = name.split('.').collect();
     if parts.len() == 2 {
-        if let Some(plant) = actuators.iter().position(|a| a == parts[0]) {
-            let mask = match parts[1] {
-                "home" => HOME,
-                "end" => END,
-                "moving" => EXTENDING | RETRACTING,
-                "extending" => EXTENDING,
-                "retracting" => RETRACTING,
-                other => {
-                    return Err(format!(
-                        "`{name}`: an actuator has `.home`, `.end`, `.moving`, `.extending`, \
-                         `.retracting`, not `.{other}`"
-                    ))
-                }
-            };
-            return Ok(Atom::Position { plant, mask });
-        }
-        if let Some(role) = ir.roles.iter().position(|r| r.name == parts[0]) {
-            if parts[1] == "fault" {
+        // `ROLE.fault` first: a role and its actuator often share a name.
+        if parts[1] == "fault" {
+            if let Some(role) = ir.roles.iter().position(|r| r.name == parts[0]) {
                 return Ok(Atom::Fault { role });
             }
+        }
+        if let Some(plant) = actuators.iter().position(|a| a == parts[0]) {
+            let mask = position_mask(name, parts[1])?;
+            return Ok(Atom::Position { plant, mask });
+        }
+        if declared.contains(&parts[0]) {
+            let mask = position_mask(name, parts[1])?;
+            return Ok(Atom::Const(mask & HOME != 0));
         }
     }
     if parts.len() == 3 {
@@ -132,27 +151,70 @@ pub fn interlocks(
     robot: &Robot,
     ir: &Ir,
 ) -> Result<Vec<Interlock>, (usize, String, std::ops::Range<usize>)> {
-    let actuators = actuator_names(robot, ir);
-    let mut out = Vec::new();
-    for (i, text) in robot.never.iter().enumerate() {
-        let ast = expr::parse(text).map_err(|e| (i, e.message, e.span))?;
-        let mut names = Vec::new();
-        expr::names(&ast, &mut names);
-        let mut resolved = BTreeMap::new();
-        for n in names {
-            let atom = resolve(&n, ir, &actuators).map_err(|m| {
-                let at = text.find(&n).unwrap_or(0);
-                (i, m, at..at + n.len())
-            })?;
-            resolved.insert(n, atom);
+    let names = Names::of(robot, ir);
+    robot
+        .never
+        .iter()
+        .enumerate()
+        .map(|(i, text)| names.interlock(text).map_err(|(m, span)| (i, m, span)))
+        .collect()
+}
+
+/// What interlock names can refer to: the actuators with a plant (in plant order) and
+/// every declared actuator.
+pub struct Names<'r> {
+    ir: &'r Ir,
+    actuators: Vec<String>,
+    declared: Vec<&'r str>,
+}
+
+impl<'r> Names<'r> {
+    pub fn of(robot: &'r Robot, ir: &'r Ir) -> Names<'r> {
+        Names {
+            ir,
+            actuators: actuator_names(robot, ir),
+            declared: robot
+                .roles
+                .iter()
+                .flat_map(|r| r.actuators.iter().map(|a| a.name.as_str()))
+                .collect(),
         }
-        out.push(Interlock {
-            text: text.clone(),
+    }
+
+    /// Parses and resolves one interlock: `Err((message, byte span in the text))` at its
+    /// first bad name.
+    pub fn interlock(&self, text: &str) -> Result<Interlock, (String, std::ops::Range<usize>)> {
+        let ast = expr::parse(text).map_err(|e| (e.message, e.span))?;
+        let mut spans = Vec::new();
+        name_spans(&ast, &mut spans);
+        let mut resolved = BTreeMap::new();
+        for (n, span) in spans {
+            if resolved.contains_key(n) {
+                continue;
+            }
+            let atom = resolve(n, self.ir, &self.actuators, &self.declared)
+                .map_err(|m| (m, span.clone()))?;
+            resolved.insert(n.to_string(), atom);
+        }
+        Ok(Interlock {
+            text: text.to_string(),
             ast,
             names: resolved,
-        });
+        })
     }
-    Ok(out)
+}
+
+/// Every name of an expression with its span, left to right.
+fn name_spans<'a>(ast: &'a Ast, out: &mut Vec<(&'a str, std::ops::Range<usize>)>) {
+    match ast {
+        Ast::Int(_) => {}
+        Ast::Name(n, span) => out.push((n, span.clone())),
+        Ast::Not(a) | Ast::Neg(a) => name_spans(a, out),
+        Ast::Bin(_, a, b) => {
+            name_spans(a, out);
+            name_spans(b, out);
+        }
+    }
 }
 
 impl Interlock {

@@ -326,8 +326,8 @@ impl<'c> Model<'c> {
                     node: s.node,
                     extend: s.out,
                     retract: None,
-                    home_in: None,
-                    end_in: None,
+                    home_in: s.home_in,
+                    end_in: s.end_in,
                 }),
                 Plant::Button(_) => {}
             }
@@ -581,6 +581,7 @@ impl<'c> Model<'c> {
                     usize::from(s.nodes[role].current[chart]) == state
                 }
                 Atom::Fault { role } => s.nodes[role].fault.is_some(),
+                Atom::Const(v) => v,
             };
             if il.holds(&read) {
                 return Some((Property::Interlock, format!("never: \"{}\" holds", il.text)));

@@ -402,6 +402,10 @@ impl<'t> World<'t> {
                     if out {
                         world.rods[p] = Rod::End;
                     }
+                    if let Some(sensor) = if out { sa.end_in } else { sa.home_in } {
+                        world.nodes[sa.node].engine.input(sensor, true, &mut ());
+                        powered[sa.node] = true;
+                    }
                 }
                 Plant::Button(_) => {}
             }
@@ -760,9 +764,8 @@ impl<'t> World<'t> {
             Ev::Arrive { plant, .. } => {
                 if let Some(end) = self.rods[plant].arrive() {
                     self.log(What::Arrived { plant, end });
-                    if let Plant::DoubleActing(da) = &self.plants[plant] {
-                        let (node, pin) = (da.node, if end { da.end_in } else { da.home_in });
-                        if let Some(pin) = pin {
+                    if let Some((node, home, end_in)) = self.plants[plant].switches() {
+                        if let Some(pin) = if end { end_in } else { home } {
                             self.set_input(node, pin, true);
                         }
                     }
@@ -1082,12 +1085,11 @@ impl<'t> World<'t> {
             plus: extend,
         });
         // Leaving a switch drops it at once (before a zero-time arrival raises the other).
-        if let (RodOutcome::Left { from_end, .. }, Plant::DoubleActing(da)) =
-            (outcome, &self.plants[plant])
+        if let (RodOutcome::Left { from_end, .. }, Some((node, home, end))) =
+            (outcome, self.plants[plant].switches())
         {
-            let pin = if from_end { da.end_in } else { da.home_in };
+            let pin = if from_end { end } else { home };
             if let Some(input) = pin {
-                let node = da.node;
                 self.schedule(
                     0,
                     Ev::Input {

@@ -37,9 +37,12 @@ pub struct DoubleActing {
     pub retract_ms: u64,
 }
 
-/// A single-acting actuator with a monostable valve and no sensors (the gripper): output
-/// high extends (closes), low retracts (opens, by spring). A zero-length pulse (high and low
-/// again within one engine step) does nothing. Reversal mid-travel as for [`DoubleActing`].
+/// A single-acting actuator with a monostable valve (the gripper): output high extends
+/// (closes), low retracts (opens, by spring). A zero-length pulse (high and low again within
+/// one engine step) does nothing. Reversal mid-travel as for [`DoubleActing`]. Usually it
+/// has no sensors; an optional position sensor at either end behaves as a limit switch of a
+/// [`DoubleActing`] (high at rest at home from t = 0, dropped on leaving, raised on
+/// arrival).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SingleActing {
     /// The actuator's name in step strings.
@@ -48,7 +51,11 @@ pub struct SingleActing {
     pub node: usize,
     /// Output index of the valve solenoid.
     pub out: u8,
-    /// Full stroke time out (only reported through [`Position`]; nothing senses it).
+    /// Input index of a position sensor at home (retracted), if wired.
+    pub home_in: Option<u8>,
+    /// Input index of a position sensor at the end (extended), if wired.
+    pub end_in: Option<u8>,
+    /// Full stroke time out (reported through [`Position`] and the sensors, if any).
     pub extend_ms: u64,
     /// Full stroke time back.
     pub retract_ms: u64,
@@ -118,8 +125,17 @@ impl Plant {
     pub fn inputs(&self) -> Vec<u8> {
         match self {
             Plant::DoubleActing(p) => p.home_in.into_iter().chain(p.end_in).collect(),
-            Plant::SingleActing(_) => vec![],
+            Plant::SingleActing(p) => p.home_in.into_iter().chain(p.end_in).collect(),
             Plant::Button(p) => vec![p.input],
+        }
+    }
+
+    /// The node and the (home, end) switch inputs of an actuator.
+    pub fn switches(&self) -> Option<(usize, Option<u8>, Option<u8>)> {
+        match self {
+            Plant::DoubleActing(p) => Some((p.node, p.home_in, p.end_in)),
+            Plant::SingleActing(p) => Some((p.node, p.home_in, p.end_in)),
+            Plant::Button(_) => None,
         }
     }
 

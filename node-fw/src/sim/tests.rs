@@ -755,6 +755,8 @@ fn a_single_acting_valve_follows_its_output_and_ignores_a_zero_length_pulse() {
         name: "GR".into(),
         node: 0,
         out: 0,
+        home_in: None,
+        end_in: None,
         extend_ms: 80,
         retract_ms: 40,
     };
