@@ -94,9 +94,7 @@ enum Format {
 }
 
 fn load(path: &Path) -> Result<Source, String> {
-    let bytes =
-        std::fs::read(path).map_err(|e| format!("error: cannot read {}: {e}", path.display()))?;
-    Source::from_bytes(path.display().to_string(), bytes)
+    Source::read(path)
 }
 
 /// Reads and compiles a robot; on failure every diagnostic is reported.

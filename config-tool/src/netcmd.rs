@@ -430,17 +430,14 @@ fn delay_range(s: &str) -> Result<(u64, u64), String> {
 }
 
 fn load(path: &Path) -> Result<Compiled, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("error: cannot read {}: {e}", path.display()))?;
-    let src = Source::new(path.display().to_string(), text);
+    let src = Source::read(path)?;
     compile::compile(&src).map_err(|diags| {
-        let mut s = String::new();
-        for d in diags.iter().filter(|d| d.is_error()) {
-            s.push_str(&d.render(&src, false));
-            s.push('\n');
-        }
-        s.push_str(&format!("{}: does not compile", src.name));
-        s
+        let errors: Vec<crate::Diagnostic> = diags.into_iter().filter(|d| d.is_error()).collect();
+        format!(
+            "{}{}: does not compile",
+            crate::diag::render_all(&src, &errors, false),
+            src.name
+        )
     })
 }
 

@@ -50,6 +50,14 @@ impl Source {
         }
     }
 
+    /// Reads a robot file: a clear error if it cannot be read or is not UTF-8 (at its
+    /// first bad byte).
+    pub fn read(path: &std::path::Path) -> Result<Source, String> {
+        let bytes = std::fs::read(path)
+            .map_err(|e| format!("error: cannot read {}: {e}", path.display()))?;
+        Source::from_bytes(path.display().to_string(), bytes)
+    }
+
     /// A file's bytes as a source, or `FILE:LINE:COL: error: ...` at the first byte that is
     /// not UTF-8.
     pub fn from_bytes(name: impl Into<String>, bytes: Vec<u8>) -> Result<Source, String> {
