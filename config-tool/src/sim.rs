@@ -184,17 +184,22 @@ pub fn tables(c: &Compiled) -> Result<Vec<Table>, String> {
         .collect()
 }
 
-/// A world running `tables` (from [`tables`]) with the robot's plants, and the index of
-/// its start button.
-pub fn world<'t>(c: &Compiled, tables: &'t [Table]) -> Result<(World<'t>, usize), String> {
-    let specs: Vec<NodeSpec> = tables
+/// Every role's node running its table of `tables` (in role order) at its address.
+pub fn node_specs<'t>(c: &Compiled, tables: &'t [Table]) -> Vec<NodeSpec<'t>> {
+    tables
         .iter()
         .zip(&c.ir.roles)
         .map(|(t, r)| NodeSpec {
             addr: r.address,
             table: t,
         })
-        .collect();
+        .collect()
+}
+
+/// A world running `tables` (from [`tables`]) with the robot's plants, and the index of
+/// its start button.
+pub fn world<'t>(c: &Compiled, tables: &'t [Table]) -> Result<(World<'t>, usize), String> {
+    let specs = node_specs(c, tables);
     let (plants, button) = plants(c)?;
     let world = World::new(&specs, plants).map_err(|e| e.to_string())?;
     Ok((world, button))

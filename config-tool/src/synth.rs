@@ -575,7 +575,7 @@ fn actuator_chart(
 
 #[cfg(test)]
 mod tests {
-    use node_fw::sim::{NodeSpec, Plant, What, World};
+    use node_fw::sim::{Plant, What, World};
 
     use crate::compile::{compile, Compiled};
     use crate::source::Source;
@@ -663,14 +663,7 @@ mod tests {
     /// steps, the publications and the link alarms, breaks and faults of the trace.
     fn press_storm(c: &Compiled, during: usize, loss: f64) -> (Vec<String>, usize, Vec<String>) {
         let tables = sim::tables(c).expect("blobs decode");
-        let specs: Vec<NodeSpec> = tables
-            .iter()
-            .zip(&c.ir.roles)
-            .map(|(t, r)| NodeSpec {
-                addr: r.address,
-                table: t,
-            })
-            .collect();
+        let specs = sim::node_specs(c, &tables);
         let (mut plants, button) = sim::plants(c).expect("plants");
         if let Some(Plant::Button(b)) = plants.get_mut(button) {
             b.press_ms = 5;

@@ -4,7 +4,7 @@
 //! changes peer addresses; interlocks, watchdog faults and sequence diffs in `sim`.
 
 use config_tool::{compile, diagram, dump, sim, Compiled, Source};
-use node_fw::sim::{NodeSpec, World};
+use node_fw::sim::World;
 
 fn load(path: &str) -> Source {
     let full = format!("{}/{path}", env!("CARGO_MANIFEST_DIR"));
@@ -170,15 +170,7 @@ fn a_start_during_a_cycle_is_ignored_until_the_cycle_is_complete() {
     // A+ B+ A- B-: A is home again before B-, so A waits in CYCLE_END for step4.done.
     let c = build(&load("fixtures/small-sequence.ron").clone_with("A+ B+ B- A-", "A+ B+ A- B-"));
     let (plants, button) = sim::plants(&c).expect("plants");
-    let specs: Vec<NodeSpec> = c
-        .tables
-        .iter()
-        .zip(&c.ir.roles)
-        .map(|(t, r)| NodeSpec {
-            addr: r.address,
-            table: t,
-        })
-        .collect();
+    let specs = config_tool::sim::node_specs(&c, &c.tables);
     let mut world = World::new(&specs, plants).expect("world");
     world.press(button).expect("press");
     // Press again every 100 ms while the cycle runs (A+ 0-200 ms, B+ 202-402, A- 402-602,

@@ -21,7 +21,7 @@ use config_tool::radio::ToolRadio;
 use config_tool::{compile, plant, Compiled, Source};
 use node_fw::node::CONFIG_PAN;
 use node_fw::ota::{Progress, Sender, TransferStats};
-use node_fw::sim::{NodeSpec, What, World};
+use node_fw::sim::{What, World};
 
 /// Bound of every wait (a cycle, a command, nodes coming up): generous, never a pace.
 pub const TIMEOUT: Duration = Duration::from_secs(60);
@@ -200,15 +200,7 @@ pub fn exact_cycle(bed: &mut Bed, c: &Compiled, n: usize) -> Cycle {
 /// Events delivered to each role's node per cycle, cycle by cycle, as the virtual-time
 /// simulator (the same tables, a perfect radio) counts them.
 pub fn deliveries_per_cycle(c: &Compiled, cycles: usize) -> Vec<Vec<u32>> {
-    let specs: Vec<NodeSpec> = c
-        .tables
-        .iter()
-        .zip(&c.ir.roles)
-        .map(|(t, r)| NodeSpec {
-            addr: r.address,
-            table: t,
-        })
-        .collect();
+    let specs = config_tool::sim::node_specs(c, &c.tables);
     let (plants, button) = config_tool::sim::plants(c).expect("plants");
     let mut world = World::new(&specs, plants).expect("world");
     (0..cycles)
