@@ -85,11 +85,13 @@ fn a_jammed_cylinder_is_reported_when_its_watchdog_fires_and_the_demo_exits_faul
             && watchdog.ends_with("the plant saw the command and the rod did not move"),
         "{watchdog}"
     );
-    // Detected by the 2000 ms watchdog, within 100 ms of it.
+    // Detected by the 2000 ms watchdog, within 100 ms of it. (The node starts its timer
+    // as it drives the valve, a moment before the medium sees the level, and the times
+    // print to the ms: hence the lower bound's 10 ms.)
     let commanded = seconds_after(watchdog, "commanded at");
     let detected = seconds_after(fault, "FAULT at");
     assert!(
-        (2.0..2.1).contains(&(detected - commanded)),
+        (1.99..2.1).contains(&(detected - commanded)),
         "{commanded} -> {detected}"
     );
     assert!(
