@@ -425,6 +425,17 @@ impl Monitor {
         let mut buf = [0u8; MAX_LINK];
         let n = Link::Hello(Peer::Monitor).emit(&mut buf).expect("hello");
         stream.write_all(&buf[..n]).expect("write");
+        // Whole messages only, up to the welcome: from then on it sees every frame.
+        stream.set_read_timeout(Some(TIMEOUT)).expect("timeout");
+        loop {
+            let mut len = [0u8; 2];
+            stream.read_exact(&mut len).expect("the medium answers");
+            let body = &mut buf[..usize::from(u16::from_le_bytes(len))];
+            stream.read_exact(body).expect("the medium answers");
+            if Link::parse(body) == Ok(Link::Welcome) {
+                break;
+            }
+        }
         Monitor {
             stream,
             buf: Vec::new(),
