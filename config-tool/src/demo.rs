@@ -65,10 +65,15 @@ pub struct FaultReport {
     /// When the first node published its fault (or, without a publication, when a
     /// status showed it).
     pub at: Duration,
+    /// Found by a status after no step for this long (no node published a fault).
+    pub stalled: Option<Duration>,
     pub role: String,
     pub addr: u16,
     /// Its fault code (`synth::FAULT_MOTION_TIMEOUT`, ...), if its status said.
     pub code: Option<u8>,
+    /// Its links in trouble, by peer role: (peer, broken); not broken is an alarm (the
+    /// peer stopped acknowledging; the node still retries).
+    pub links: Vec<(String, bool)>,
     /// The step under way on the detecting role when it faulted: (step, when it was
     /// commanded); `jammed` when the plant saw the command and did not move.
     pub step: Option<(String, Duration, bool)>,
@@ -76,6 +81,15 @@ pub struct FaultReport {
     pub nodes: Vec<(String, u16, Option<u8>, u16)>,
     /// Output levels the nodes drove from the detection on: (time, address, pin, level).
     pub outputs: Vec<(Duration, u16, u8, bool)>,
+}
+
+/// Who detected a fault, and when (since the cycle's START).
+struct Detected {
+    at: Duration,
+    addr: u16,
+    role: String,
+    /// Found by a status after no step for this long.
+    stalled: Option<Duration>,
 }
 
 /// The running machine.
@@ -93,8 +107,17 @@ pub struct Bed {
     ids: Ids,
     /// Steps the plant has seen since it was wired (what an injection counts).
     steps_seen: usize,
-    /// The node to stop after so many steps (`--fault stop:ROLE@STEP`).
-    kill_after: Option<(usize, u16)>,
+    /// A fault to inject once the plant has seen so many steps.
+    pending: Option<(usize, BedFault)>,
+}
+
+/// A fault the bed injects into the running machine (`demo --fault`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BedFault {
+    /// Stops the node at this address (a power cut): `stop:ROLE`.
+    Stop(u16),
+    /// Cuts the radio link from one node to another: `link:FROM->TO`.
+    Cut { from: u16, to: u16 },
 }
 
 fn err(e: impl std::fmt::Display) -> String {
@@ -121,7 +144,7 @@ impl Bed {
             radio,
             ids: Ids::default(),
             steps_seen: 0,
-            kill_after: None,
+            pending: None,
         })
     }
 
@@ -260,9 +283,9 @@ impl Bed {
         .ok_or_else(|| format!("node {addr:#06x} did not answer {command:?}"))
     }
 
-    /// Stops the node at `addr` (a power cut) once the plant has seen `steps` steps.
-    pub fn stop_node_after(&mut self, steps: usize, addr: u16) {
-        self.kill_after = Some((steps, addr));
+    /// Injects `fault` once the plant has seen `steps` steps.
+    pub fn inject_after(&mut self, steps: usize, fault: BedFault) {
+        self.pending = Some((steps, fault));
     }
 
     /// Presses START (the command, to the role with the start input) and follows one cycle:
@@ -286,12 +309,13 @@ impl Bed {
         // Without a fault publication (one role), a stall shows a fault: no step for
         // longer than the watchdog.
         let stall = Duration::from_millis(u64::from(c.robot.motion_timeout_ms) + 500);
+        self.inject_due();
         self.command(start_addr, Command::Start)?;
         let mut steps = Vec::new();
         let mut commanded: Vec<(Step, bool)> = Vec::new();
         let mut faults = Vec::new();
         let mut outputs = Vec::new();
-        let mut detected: Option<(Duration, u16, String)> = None;
+        let mut detected: Option<Detected> = None;
         let mut last_progress = Instant::now();
         loop {
             while let Ok(step) = self.steps.try_recv() {
@@ -301,7 +325,12 @@ impl Bed {
             while let Ok(seen) = self.seen.try_recv() {
                 match seen {
                     Seen::Fault { at, addr, role } => {
-                        detected.get_or_insert((at.saturating_sub(m0), addr, role));
+                        detected.get_or_insert(Detected {
+                            at: at.saturating_sub(m0),
+                            addr,
+                            role,
+                            stalled: None,
+                        });
                     }
                     Seen::Output {
                         at,
@@ -319,14 +348,30 @@ impl Bed {
                 // Done when every node is back where it started (and nothing else moved).
                 let statuses = self.statuses(c)?;
                 faults = faults_of(c, &statuses);
-                if let Some((role, _)) = faults.first() {
+                // A stalled machine whose node reports a link in trouble: a radio fault
+                // (not a fault state of the node: it keeps retrying).
+                let link_trouble = stalled
+                    .then(|| {
+                        statuses
+                            .iter()
+                            .zip(&c.ir.roles)
+                            .find(|(s, _)| s.link_alarms | s.links_broken != 0)
+                            .map(|(_, r)| (r.name.clone(), 0))
+                    })
+                    .flatten();
+                if let Some((role, _)) = faults.first().or(link_trouble.as_ref()) {
                     let at = self.medium.now().saturating_sub(m0);
                     let addr =
                         c.ir.roles
                             .iter()
                             .find(|r| &r.name == role)
                             .map(|r| r.address);
-                    detected = Some((at, addr.unwrap_or(0), role.clone()));
+                    detected = Some(Detected {
+                        at,
+                        addr: addr.unwrap_or(0),
+                        role: role.clone(),
+                        stalled: Some(last_progress.elapsed()),
+                    });
                     break;
                 }
                 if steps.len() >= expect.len() && at_rest(c, &statuses) {
@@ -343,9 +388,7 @@ impl Bed {
             }
         }
         let fault = match detected {
-            Some((at, addr, role)) => {
-                Some(self.fault_report(c, at, addr, role, m0, &commanded, outputs)?)
-            }
+            Some(d) => Some(self.fault_report(c, d, m0, &commanded, outputs)?),
             None => None,
         };
         if let Some(f) = &fault {
@@ -387,10 +430,18 @@ impl Bed {
         }
         steps.push(step.to_string());
         self.steps_seen += 1;
-        if let Some((after, addr)) = self.kill_after {
+        self.inject_due();
+    }
+
+    /// Injects the pending fault if the plant has seen its steps.
+    fn inject_due(&mut self) {
+        if let Some((after, fault)) = self.pending {
             if self.steps_seen >= after {
-                self.kill_after = None;
-                self.kill_node(addr);
+                self.pending = None;
+                match fault {
+                    BedFault::Stop(addr) => self.kill_node(addr),
+                    BedFault::Cut { from, to } => self.medium.cut(from, to),
+                }
             }
         }
     }
@@ -400,17 +451,22 @@ impl Bed {
     fn fault_report(
         &mut self,
         c: &Compiled,
-        at: Duration,
-        addr: u16,
-        role: String,
+        detected: Detected,
         m0: Duration,
         commanded: &[(Step, bool)],
         mut outputs: Vec<(Duration, u16, u8, bool)>,
     ) -> Result<FaultReport, String> {
+        let Detected {
+            at,
+            addr,
+            role,
+            stalled,
+        } = detected;
         // Give every node the time to hear the fault and drive its outputs safe.
         std::thread::sleep(Duration::from_millis(100));
         let mut nodes = Vec::new();
-        for r in &c.ir.roles {
+        let mut links = Vec::new();
+        for (r, table) in c.ir.roles.iter().zip(&c.tables) {
             let status = push::command(
                 &mut self.radio,
                 &mut self.ids,
@@ -419,6 +475,9 @@ impl Bed {
                 Duration::from_secs(2),
             )
             .map_err(err)?;
+            if let Some(s) = status.as_ref().filter(|_| r.address == addr) {
+                links = links_in_trouble(c, table, s);
+            }
             nodes.push((
                 r.name.clone(),
                 r.address,
@@ -459,9 +518,11 @@ impl Bed {
         let code = nodes.iter().find(|n| n.1 == addr).and_then(|n| n.2);
         Ok(FaultReport {
             at,
+            stalled,
             role,
             addr,
             code,
+            links,
             step,
             nodes,
             outputs,
@@ -519,6 +580,25 @@ fn at_rest(c: &Compiled, statuses: &[Status]) -> bool {
                 .zip(&t.charts)
                 .all(|(st, ch)| *st == ch.initial)
     })
+}
+
+/// A node's links in alarm or broken, by peer role (the table's peer list gives the
+/// addresses): (peer, broken).
+fn links_in_trouble(c: &Compiled, table: &config_schema::Table, s: &Status) -> Vec<(String, bool)> {
+    table
+        .peers
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i < 8 && (s.link_alarms | s.links_broken) & (1 << i) != 0)
+        .map(|(i, peer)| {
+            let name =
+                c.ir.roles
+                    .iter()
+                    .find(|r| r.address == *peer)
+                    .map_or_else(|| format!("{peer:#06x}"), |r| r.name.clone());
+            (name, s.links_broken & (1 << i) != 0)
+        })
+        .collect()
 }
 
 fn faults_of(c: &Compiled, statuses: &[Status]) -> Vec<(String, u8)> {
@@ -594,8 +674,17 @@ pub fn fault_meaning(code: u8) -> String {
 
 /// A fault in words: who detected it, how, when, and what every node then did.
 pub fn fault_text(f: &FaultReport) -> String {
+    let links: Vec<String> = f
+        .links
+        .iter()
+        .map(|(peer, broken)| match broken {
+            true => format!("link to {peer} broken (nothing more is sent on it until a reset)"),
+            false => format!("link alarm: {peer} does not acknowledge"),
+        })
+        .collect();
     let how = match f.code {
         Some(code) => fault_meaning(code),
+        None if !links.is_empty() => links.join("; "),
         None => "a fault (its status did not answer)".to_string(),
     };
     let mut s = format!(
@@ -604,7 +693,20 @@ pub fn fault_text(f: &FaultReport) -> String {
         f.addr,
         f.role
     );
-    if let Some((step, at, jammed)) = &f.step {
+    if let Some(quiet) = f.stalled {
+        s.push_str(&format!(
+            "\n  no node published a fault: its status showed it after {:.3} s without a step",
+            quiet.as_secs_f64()
+        ));
+    }
+    let watchdog = f.code.is_some() || f.links.is_empty();
+    if let Some((step, at, _)) = f.step.as_ref().filter(|_| !watchdog) {
+        s.push_str(&format!(
+            "\n  last step: {step}, commanded at {:.3} s",
+            at.as_secs_f64()
+        ));
+    }
+    if let Some((step, at, jammed)) = f.step.as_ref().filter(|_| watchdog) {
         let what = if *jammed {
             "the plant saw the command and the rod did not move"
         } else {

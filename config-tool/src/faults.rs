@@ -35,6 +35,18 @@ pub struct FaultSpec {
     pub step: usize,
 }
 
+impl std::fmt::Display for FaultSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} before step {} of cycle {}",
+            describe(&self.kind),
+            self.step,
+            self.cycle
+        )
+    }
+}
+
 /// Parses `stuck:HC@4`, `switch:HC.end@2.4`, `stop:GR@3`, `link:VC->GR@1`.
 pub fn parse(spec: &str) -> Result<FaultSpec, String> {
     let usage = "write KIND:TARGET@STEP or KIND:TARGET@CYCLE.STEP, KIND one of stuck (an \

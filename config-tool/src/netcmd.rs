@@ -14,7 +14,7 @@ use config_schema::wire::msg::{Command, Message, Status};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use node_fw::ota::Progress;
 
-use crate::demo::{self, Bed};
+use crate::demo::{self, Bed, BedFault};
 use crate::medium::Conn;
 use crate::push::{self, Ids};
 use crate::radio::{ToolRadio, TOOL_ADDR};
@@ -805,9 +805,9 @@ pub struct Demo<'a> {
     pub count_dir: Option<&'a Path>,
 }
 
-/// Where a `--fault` goes on the test bed: the plant's injection, or the node to stop
-/// after so many steps (steps, address).
-type Placed = (Option<plant::Injection>, Option<(usize, u16)>);
+/// Where a `--fault` goes on the test bed: the plant's injection, or the bed's fault to
+/// inject after so many steps.
+type Placed = (Option<plant::Injection>, Option<(usize, BedFault)>);
 
 fn place_fault(
     c: &Compiled,
@@ -821,6 +821,13 @@ fn place_fault(
             .iter()
             .position(|a| a.name == name)
             .ok_or_else(|| format!("error: --fault: the robot has no actuator {name}"))
+    };
+    let address = |role: &str| {
+        c.ir.roles
+            .iter()
+            .find(|r| r.name == role)
+            .map(|r| r.address)
+            .ok_or_else(|| format!("error: --fault: the robot has no role {role}"))
     };
     match &spec.kind {
         FaultKind::Stuck(name) => Ok((
@@ -850,17 +857,14 @@ fn place_fault(
                 None,
             ))
         }
-        FaultKind::Stop(role) => {
-            let r =
-                c.ir.roles
-                    .iter()
-                    .find(|r| &r.name == role)
-                    .ok_or_else(|| format!("error: --fault: the robot has no role {role}"))?;
-            Ok((None, Some((after, r.address))))
+        FaultKind::Stop(role) => Ok((None, Some((after, BedFault::Stop(address(role)?))))),
+        FaultKind::Link(from, to) => {
+            let fault = BedFault::Cut {
+                from: address(from)?,
+                to: address(to)?,
+            };
+            Ok((None, Some((after, fault))))
         }
-        FaultKind::Link(..) => Err(
-            "error: --fault: link faults are injected in simulation only (`sim --fault`)".into(),
-        ),
     }
 }
 
@@ -952,11 +956,11 @@ pub fn run_demo(
         };
         bed.set_plant_injected(plant::actuators(robot)?, injection)?;
         bed.watch(robot)?;
-        if let Some((after, addr)) = kill {
-            bed.stop_node_after(after, addr);
+        if let Some((after, fault)) = kill {
+            bed.inject_after(after, fault);
         }
         if let Some(spec) = demo.fault.as_ref().filter(|_| first_robot) {
-            demo::say(out, &format!("fault to inject: {spec:?}"));
+            demo::say(out, &format!("fault to inject: {spec}"));
         }
         let expect: Vec<String> = robot.ir.expect.iter().map(|s| s.to_string()).collect();
         demo::say(out, &format!("sequence: {}", expect.join(" ")));

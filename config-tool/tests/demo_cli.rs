@@ -118,6 +118,62 @@ fn a_jammed_cylinder_is_reported_when_its_watchdog_fires_and_the_demo_exits_faul
 }
 
 #[test]
+fn a_cut_radio_link_is_reported_as_the_alarm_of_the_node_whose_peer_stopped_acknowledging() {
+    let out = demo(&[
+        "robot-configs/paint-robot.ron",
+        "--cycles",
+        "1",
+        "--no-reconfigure",
+        "--fault",
+        "link:VC->GR@2",
+    ]);
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert_eq!(out.status.code(), Some(5), "{stdout}\n{stderr}");
+    assert!(stderr.ends_with("demo: the machine faulted\n"), "{stderr}");
+    // VC's "extended" never reaches GR: the gripper never closes, nothing moves after VC+.
+    let seen: Vec<String> = steps(&stderr).into_iter().map(|(_, s, _)| s).collect();
+    assert_eq!(seen, ["VC+"], "{stderr}");
+    let lines: Vec<&str> = stdout.lines().map(str::trim_start).collect();
+    let at = |prefix: &str| -> &str {
+        lines
+            .iter()
+            .find(|l| l.starts_with(prefix))
+            .unwrap_or_else(|| panic!("no `{prefix}` in\n{stdout}"))
+    };
+    assert_eq!(
+        at("fault to inject:"),
+        "fault to inject: link VC -> GR lost before step 2 of cycle 1"
+    );
+    assert!(at("cycle 1:").starts_with("cycle 1: FAULTED"), "{stdout}");
+    assert!(
+        at("FAULT at")
+            .ends_with("node 0x0011 (VC) detected it: link alarm: GR does not acknowledge"),
+        "{stdout}"
+    );
+    assert!(
+        at("no node published a fault: its status showed it after").ends_with("without a step"),
+        "{stdout}"
+    );
+    assert!(
+        at("last step:").starts_with("last step: VC+, commanded at"),
+        "{stdout}"
+    );
+    // A link alarm is not a fault state: every node keeps running (and retrying); VC holds
+    // its rod out.
+    assert_eq!(
+        at("node 0x0011 (VC):"),
+        "node 0x0011 (VC): NOT faulted, outputs 0x0001"
+    );
+    for (addr, role) in [("0x0012", "GR"), ("0x0013", "HC"), ("0x0014", "RC")] {
+        assert_eq!(
+            at(&format!("node {addr} ({role}):")),
+            format!("node {addr} ({role}): NOT faulted, outputs 0x0000")
+        );
+    }
+    assert_eq!(lines.last(), Some(&"demo: FAULTED"), "{stdout}");
+}
+
+#[test]
 fn a_push_to_a_node_that_is_not_running_is_reported_as_a_failed_push() {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("demo-push-fails");
     std::fs::create_dir_all(&dir).unwrap();

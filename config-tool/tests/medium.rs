@@ -118,6 +118,42 @@ fn frames_go_to_their_destination_broadcasts_to_every_radio_monitors_see_all() {
 }
 
 #[test]
+fn a_cut_link_delivers_nothing_from_one_radio_to_the_other_and_everything_else() {
+    let medium = Medium::start(Config::default()).unwrap();
+    let mut a = Client::join(&medium, Peer::Node { addr: 0x11 });
+    let mut b = Client::join(&medium, Peer::Node { addr: 0x12 });
+    let mut tool = Client::join(&medium, Peer::Tool { addr: 0x100 });
+    let mut monitor = Client::join(&medium, Peer::Monitor);
+    medium.cut(0x11, 0x12);
+    // The air is one channel, in order: what b receives next after a's frames is the
+    // tool's frame, so a's never reached it.
+    let all = frame(0x11, BROADCAST, b"here I am");
+    let direct = frame(0x11, 0x12, b"to b");
+    let marker = frame(0x100, 0x12, b"after");
+    a.send(&Link::Frame(&all));
+    a.send(&Link::Frame(&direct));
+    assert_eq!(tool.recv(SURE), Some(Got::Frame(all.clone())));
+    tool.send(&Link::Frame(&marker));
+    assert_eq!(b.recv(SURE), Some(Got::Frame(marker.clone())));
+    assert_eq!(
+        monitor.recv(SURE),
+        Some(Got::Frame(all)),
+        "the air still carries it"
+    );
+    assert_eq!(monitor.recv(SURE), Some(Got::Frame(direct)));
+    assert_eq!(monitor.recv(SURE), Some(Got::Frame(marker)));
+    let back = frame(0x12, 0x11, b"to a");
+    b.send(&Link::Frame(&back));
+    assert_eq!(
+        a.recv(SURE),
+        Some(Got::Frame(back)),
+        "the other direction works"
+    );
+    assert_eq!(medium.stats().cut, 2);
+    medium.stop();
+}
+
+#[test]
 fn output_pins_reach_plants_and_plant_inputs_reach_their_node_only() {
     let medium = Medium::start(Config::default()).unwrap();
     let mut a = Client::join(&medium, Peer::Node { addr: 0x11 });

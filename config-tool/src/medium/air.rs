@@ -2,7 +2,7 @@
 //! delivery. One thread; it never waits on a client (every client has its own outbox).
 
 use std::cmp::Reverse;
-use std::collections::{BinaryHeap, HashMap, VecDeque};
+use std::collections::{BTreeSet, BinaryHeap, HashMap, VecDeque};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
@@ -40,6 +40,8 @@ pub(super) struct Air {
     start: Instant,
     pcap: Option<PcapLog>,
     counters: Counters,
+    /// Cut links: (from, to) radio addresses.
+    cuts: BTreeSet<(u16, u16)>,
 }
 
 impl Air {
@@ -54,6 +56,7 @@ impl Air {
             start,
             pcap,
             counters,
+            cuts: BTreeSet::new(),
         }
     }
 
@@ -103,6 +106,11 @@ impl Air {
             Event::Pin(id, addr, pin, level) => self.pin(id, addr, pin, level),
             Event::Sync(id, n) => {
                 self.send(id, &Link::Synced(n));
+            }
+            Event::Cut { from, to } => {
+                // Bounded: one entry per pair of 16-bit addresses at most, and only the
+                // tool process (not a client) can cut.
+                self.cuts.insert((from, to));
             }
             Event::Stop => {}
         }
@@ -157,6 +165,7 @@ impl Air {
         self.air_free = on_air + airtime;
         let arrives = self.air_free;
         sender.tx_queue.push_back(arrives);
+        let sender_addr = radio_addr(sender.peer);
         if let Some(pcap) = &mut self.pcap {
             pcap.write(on_air.duration_since(self.start), &psdu);
         }
@@ -166,7 +175,7 @@ impl Air {
             s.airtime_us += airtime.as_micros() as u64;
         });
         let dst = psdu_dst(&psdu);
-        let targets: Vec<(ClientId, bool)> = self
+        let targets: Vec<(ClientId, bool, bool)> = self
             .clients
             .iter()
             .filter(|(id, _)| **id != from)
@@ -174,11 +183,21 @@ impl Air {
                 (Some(a), Some(d)) => a == d || d == BROADCAST,
                 _ => c.peer == Peer::Monitor,
             })
-            .map(|(id, c)| (*id, c.peer == Peer::Monitor))
+            .map(|(id, c)| {
+                let cut = match (sender_addr, radio_addr(c.peer)) {
+                    (Some(s), Some(r)) => self.cuts.contains(&(s, r)),
+                    _ => false,
+                };
+                (*id, c.peer == Peer::Monitor, cut)
+            })
             .collect();
-        for (to, monitor) in targets {
+        for (to, monitor, cut) in targets {
             if monitor {
                 self.schedule(to, arrives, psdu.clone());
+                continue;
+            }
+            if cut {
+                self.counters.count(|s| s.cut += 1);
                 continue;
             }
             if self.rng.random_bool(self.config.loss.clamp(0.0, 1.0)) {

@@ -9,6 +9,8 @@
 //!   corruption (one bit flipped, so the FCS fails), and a random extra delay (which reorders).
 //! - Pins: a node's output levels go to plants and monitors (as `Seen`, stamped with the
 //!   medium's clock); a plant's input levels go to the node with that address.
+//! - A link can be cut ([`Medium::cut`]): from then on, no frame of one radio reaches
+//!   another (a fault injected by `demo --fault link:FROM->TO`).
 //! - A client is routed to once the medium answered its `Hello` with `Welcome`.
 //! - Every frame on the air is written to a pcap (link type 195, IEEE 802.15.4 with FCS).
 //!
@@ -126,6 +128,8 @@ pub struct Stats {
     pub refused: u64,
     /// Deliveries scheduled and not made yet (a gauge).
     pub queued: u64,
+    /// Deliveries not made because their link was cut ([`Medium::cut`]).
+    pub cut: u64,
 }
 
 /// A running medium. Dropping it does not stop it; call [`Medium::stop`].
@@ -144,6 +148,7 @@ enum Event {
     Frame(ClientId, Vec<u8>),
     Pin(ClientId, u16, u8, bool),
     Sync(ClientId, u32),
+    Cut { from: u16, to: u16 },
     Left(ClientId),
     Stop,
 }
@@ -225,6 +230,13 @@ impl Medium {
             thread::sleep(Duration::from_millis(5));
         }
         false
+    }
+
+    /// Cuts the link from the radio at address `from` to the radio at `to`: no frame `from`
+    /// puts on the air after this reaches `to` (the other direction, and every other
+    /// receiver, are untouched). Frames already in flight still arrive.
+    pub fn cut(&self, from: u16, to: u16) {
+        let _ = self.events.send(Event::Cut { from, to });
     }
 
     /// Stops relaying (connections are closed).
