@@ -291,3 +291,46 @@ fn hostile_frames_are_dropped_counted_and_the_node_keeps_working() {
     assert_eq!(last[gr].counters.dropped, after.counters.dropped);
     bed.stop();
 }
+
+/// Issue: 10,000 frames/s to a missing address left `status` unanswered for 23 s. Here
+/// with the real node processes: two floods of 50,000 frames each (to a missing address,
+/// and broadcast, which every node has to read and drop) and, the moment they end, every
+/// node answers its status, a push of the next generation goes through, and the robot
+/// runs an exact cycle.
+#[test]
+fn after_a_flood_the_real_nodes_answer_take_a_push_and_run_at_once() {
+    let c = robot("paint-robot.ron", 1);
+    let mut bed = bring_up(&c, options(medium::Config::default(), None));
+    push_ok(&mut bed, &c);
+    let floods: Vec<_> = [(0x0300, 0x7777), (0x0301, mac::BROADCAST)]
+        .into_iter()
+        .map(|(src, dst)| {
+            let mut raw = RawClient::join(bed.medium().addr(), src);
+            let psdu = frame(c.ir.pan_id, dst, src, 9, &[0xEE; 90]);
+            let mut one = [0u8; config_schema::wire::medium::MAX_LINK];
+            let n = config_schema::wire::medium::Link::Frame(&psdu)
+                .emit(&mut one)
+                .expect("link message");
+            let batch: Vec<u8> = one[..n].repeat(500);
+            std::thread::spawn(move || {
+                for _ in 0..100 {
+                    raw.send_raw(&batch);
+                }
+            })
+        })
+        .collect();
+    for f in floods {
+        f.join().expect("flood");
+    }
+    let flooded = bed.medium().stats();
+    assert!(
+        flooded.busy > 0 && flooded.rate_limited > 0,
+        "it was a flood: {flooded:?}"
+    );
+    assert_running(&mut bed, &c);
+    let next = robot("paint-robot.ron", 2);
+    push_ok(&mut bed, &next);
+    assert_running(&mut bed, &next);
+    exact_cycle(&mut bed, &next, 1);
+    bed.stop();
+}
