@@ -10,18 +10,17 @@
 //!
 //! `cargo bench -p config-tool --bench radio`
 
-use std::io::{Read, Write};
-use std::net::TcpStream;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
-use config_schema::wire::medium::{next_message, Link, Peer, MAX_LINK};
+use config_schema::wire::medium::{Link, Peer};
 use config_schema::wire::msg::{ConfigReply, Message, CHUNK_DATA};
 use config_tool::demo::{self, Bed, Options};
+use config_tool::medium::{self, Conn};
 use config_tool::radio::TOOL_ADDR;
-use config_tool::{compile, medium, plant, Source};
+use config_tool::{compile, plant, Source};
 
 fn paint_robot() -> config_tool::Compiled {
     let path = concat!(
@@ -89,32 +88,22 @@ fn push_lower_bound(blob: &[u8]) -> u64 {
 
 /// Counts frames between nodes (not to or from the tool, not broadcast) and their airtime.
 fn count_node_frames(addr: std::net::SocketAddr, count: Arc<AtomicU64>, air_us: Arc<AtomicU64>) {
-    let mut s = TcpStream::connect(addr).expect("monitor");
-    let mut buf = [0u8; MAX_LINK];
-    let n = Link::Hello(Peer::Monitor).emit(&mut buf).expect("hello");
-    s.write_all(&buf[..n]).expect("hello");
-    let mut pending = Vec::new();
-    let mut chunk = [0u8; 4096];
-    while let Ok(n) = s.read(&mut chunk) {
-        if n == 0 {
-            return;
-        }
-        pending.extend_from_slice(&chunk[..n]);
-        while let Some(body) = next_message(&pending) {
-            if let Ok(Link::Frame(psdu)) = Link::parse(&pending[body.clone()]) {
-                if let Ok(Frame::Data { header, .. }) = Frame::parse(psdu) {
-                    if header.src != TOOL_ADDR
-                        && header.dst != TOOL_ADDR
-                        && header.dst != mac::BROADCAST
-                    {
-                        count.fetch_add(1, Ordering::Relaxed);
-                        air_us.fetch_add(u64::from(mac::airtime_us(psdu.len())), Ordering::Relaxed);
-                    }
+    let mut monitor = Conn::join(addr, Peer::Monitor).expect("monitor");
+    let far = Instant::now() + Duration::from_secs(24 * 3600);
+    let _ = monitor.recv(far, |l| {
+        if let Link::Frame(psdu) = l {
+            if let Ok(Frame::Data { header, .. }) = Frame::parse(psdu) {
+                if header.src != TOOL_ADDR
+                    && header.dst != TOOL_ADDR
+                    && header.dst != mac::BROADCAST
+                {
+                    count.fetch_add(1, Ordering::Relaxed);
+                    air_us.fetch_add(u64::from(mac::airtime_us(psdu.len())), Ordering::Relaxed);
                 }
             }
-            pending.drain(..body.end);
         }
-    }
+        None::<()>
+    });
 }
 
 fn median(v: &mut [f64]) -> f64 {

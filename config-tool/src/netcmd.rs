@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use clap::{Args, Subcommand};
 use config_schema::wire::mac::Frame;
-use config_schema::wire::medium::{next_message, Link, Peer, MAX_LINK};
+use config_schema::wire::medium::{Deframer, Link, Peer, MAX_LINK};
 use config_schema::wire::msg::{Command, Message, Status};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use node_fw::ota::Progress;
@@ -330,25 +330,26 @@ fn bridge(
 
 /// Copies the `Link::Frame` messages of `from` to `to` until `from` ends.
 fn forward_frames(mut from: impl Read, mut to: impl Write) -> io::Result<()> {
-    let mut pending = Vec::new();
-    let mut chunk = [0u8; 1024];
+    let mut incoming = Box::new(Deframer::<{ 8 * MAX_LINK }>::new());
     let mut out = [0u8; MAX_LINK];
     loop {
-        let n = from.read(&mut chunk)?;
+        let n = from.read(incoming.space())?;
         if n == 0 {
             return Ok(());
         }
-        pending.extend_from_slice(&chunk[..n]);
-        while let Some(body) = next_message(&pending) {
-            if let Ok(Link::Frame(psdu)) = Link::parse(&pending[body.clone()]) {
+        incoming.filled(n);
+        loop {
+            let body = match incoming.take() {
+                Ok(Some(body)) => body,
+                Ok(None) => break,
+                // Longer than any message (noise on a serial line): skipped.
+                Err(_) => continue,
+            };
+            if let Ok(Link::Frame(psdu)) = Link::parse(body) {
                 if let Ok(m) = Link::Frame(psdu).emit(&mut out) {
                     to.write_all(&out[..m])?;
                 }
             }
-            pending.drain(..body.end);
-        }
-        if pending.len() > 2 + usize::from(u16::MAX) {
-            pending.clear();
         }
     }
 }

@@ -6,12 +6,12 @@ use std::net::TcpStream;
 use std::time::Duration;
 
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
-use config_schema::wire::medium::{next_message, Link, Peer, MAX_LINK};
+use config_schema::wire::medium::{Deframer, Link, Peer, MAX_LINK};
 use config_tool::medium::{Config, Medium};
 
 struct Client {
     stream: TcpStream,
-    buf: Vec<u8>,
+    incoming: Box<Deframer<{ 16 * MAX_LINK }>>,
 }
 
 /// What a client received.
@@ -40,7 +40,7 @@ impl Client {
         stream.set_nodelay(true).unwrap();
         let mut c = Client {
             stream,
-            buf: Vec::new(),
+            incoming: Box::default(),
         };
         c.send(&Link::Hello(peer));
         c
@@ -54,8 +54,8 @@ impl Client {
     fn recv(&mut self, wait: Duration) -> Option<Got> {
         self.stream.set_read_timeout(Some(wait)).unwrap();
         loop {
-            if let Some(body) = next_message(&self.buf) {
-                let got = match Link::parse(&self.buf[body.clone()]).unwrap() {
+            if let Some(body) = self.incoming.take().unwrap() {
+                let got = match Link::parse(body).unwrap() {
                     Link::Frame(f) => Got::Frame(f.to_vec()),
                     Link::Pin { addr, pin, level }
                     | Link::Seen {
@@ -65,13 +65,11 @@ impl Client {
                     Link::Synced(n) => Got::Synced(n),
                     other => panic!("the medium never says {other:?}"),
                 };
-                self.buf.drain(..body.end);
                 return Some(got);
             }
-            let mut chunk = [0u8; 512];
-            match self.stream.read(&mut chunk) {
+            match self.stream.read(self.incoming.space()) {
                 Ok(0) | Err(_) => return None,
-                Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
+                Ok(n) => self.incoming.filled(n),
             }
         }
     }

@@ -93,9 +93,190 @@ pub fn next_message(buf: &[u8]) -> Option<core::ops::Range<usize>> {
     (buf.len() >= 2 + len).then_some(2..2 + len)
 }
 
+/// The stream announced a message longer than [`MAX_LINK`] (`len`: its body's length). The
+/// deframer skips it, bytes as they come, and goes on after it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TooLong {
+    pub len: usize,
+}
+
+/// Splits a byte stream into messages: the one reader of every medium connection (the
+/// medium's, its clients', a node's, the gateway's serial line). A fixed buffer of `N`
+/// bytes (at least [`MAX_LINK`]), no allocation; bytes go in through [`Deframer::space`]
+/// and [`Deframer::filled`] (or [`Deframer::push`]), whole message bodies come out of
+/// [`Deframer::take`].
+#[derive(Debug, Clone)]
+pub struct Deframer<const N: usize> {
+    buf: [u8; N],
+    /// Unread bytes are `buf[start..end]`.
+    start: usize,
+    end: usize,
+    /// Bytes of a too-long message still to skip.
+    skip: usize,
+}
+
+impl<const N: usize> Default for Deframer<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> Deframer<N> {
+    const HOLDS_A_MESSAGE: () = assert!(N >= MAX_LINK, "a deframer holds a whole message");
+
+    pub const fn new() -> Self {
+        let () = Self::HOLDS_A_MESSAGE;
+        Deframer {
+            buf: [0; N],
+            start: 0,
+            end: 0,
+            skip: 0,
+        }
+    }
+
+    /// Room for more bytes (never empty: a partial message is shorter than `MAX_LINK`).
+    /// Unread bytes move to the front first.
+    pub fn space(&mut self) -> &mut [u8] {
+        if self.start > 0 {
+            self.buf.copy_within(self.start..self.end, 0);
+            self.end -= self.start;
+            self.start = 0;
+        }
+        self.buf.get_mut(self.end..).unwrap_or_default()
+    }
+
+    /// `n` bytes were written at the start of [`Deframer::space`].
+    pub fn filled(&mut self, n: usize) {
+        self.end = (self.end + n).min(N);
+    }
+
+    /// Copies as much of `bytes` as fits; returns how much it took. Take the messages out
+    /// with [`Deframer::take`], then push the rest.
+    pub fn push(&mut self, bytes: &[u8]) -> usize {
+        let space = self.space();
+        let n = bytes.len().min(space.len());
+        space[..n].copy_from_slice(&bytes[..n]);
+        self.filled(n);
+        n
+    }
+
+    /// Whether a whole message is buffered (so [`Deframer::take`] returns it). For a reader
+    /// that returns the body it finds from a loop that also reads. A too-long message is
+    /// reported once, then skipped.
+    pub fn complete(&mut self) -> Result<bool, TooLong> {
+        if self.skip > 0 {
+            let n = self.skip.min(self.end - self.start);
+            self.start += n;
+            self.skip -= n;
+            if self.skip > 0 {
+                return Ok(false);
+            }
+        }
+        let unread = self.buf.get(self.start..self.end).unwrap_or_default();
+        let len = match unread {
+            [lo, hi, ..] => usize::from(u16::from_le_bytes([*lo, *hi])),
+            _ => return Ok(false),
+        };
+        if 2 + len > MAX_LINK {
+            self.skip = 2 + len;
+            // Skip what is buffered now; the rest as it comes.
+            let _ = self.complete();
+            return Err(TooLong { len });
+        }
+        Ok(unread.len() >= 2 + len)
+    }
+
+    /// The next whole message's body (consumed), `None` until one is complete.
+    pub fn take(&mut self) -> Result<Option<&[u8]>, TooLong> {
+        if !self.complete()? {
+            return Ok(None);
+        }
+        let unread = self.buf.get(self.start..self.end).unwrap_or_default();
+        let Some(body) = next_message(unread) else {
+            return Ok(None);
+        };
+        let (from, to) = (self.start + body.start, self.start + body.end);
+        self.start = to;
+        Ok(self.buf.get(from..to))
+    }
+
+    /// Bytes buffered and not yet returned.
+    pub fn pending(&self) -> usize {
+        self.end - self.start
+    }
+
+    /// Drops everything buffered.
+    pub fn clear(&mut self) {
+        self.start = 0;
+        self.end = 0;
+        self.skip = 0;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_deframer_splits_a_stream_fed_in_any_pieces() {
+        // Welcome, Sync(300), Pin { 0x12, 3, true }.
+        let stream = [1, 0, 3, 3, 0, 4, 0xAC, 0x02, 4, 0, 2, 0x12, 3, 1];
+        let want = [
+            Link::Welcome,
+            Link::Sync(300),
+            Link::Pin {
+                addr: 0x12,
+                pin: 3,
+                level: true,
+            },
+        ];
+        for piece in 1..=stream.len() {
+            let mut d = Deframer::<MAX_LINK>::new();
+            let mut got = 0;
+            for chunk in stream.chunks(piece) {
+                assert_eq!(d.push(chunk), chunk.len());
+                while let Some(body) = d.take().unwrap() {
+                    assert_eq!(Link::parse(body).as_ref(), Ok(&want[got]), "{piece}");
+                    got += 1;
+                }
+            }
+            assert_eq!((got, d.pending()), (3, 0), "{piece}");
+        }
+    }
+
+    #[test]
+    fn a_message_past_max_link_is_reported_once_and_skipped() {
+        let mut d = Deframer::<MAX_LINK>::new();
+        // A 600-byte body, fed in pieces, then Welcome.
+        let mut stream = [0xAA; 605];
+        stream[..2].copy_from_slice(&[0x58, 0x02]);
+        stream[602..].copy_from_slice(&[1, 0, 3]);
+        let mut reported = 0;
+        let mut got = 0;
+        for chunk in stream.chunks(50) {
+            assert_eq!(d.push(chunk), chunk.len());
+            loop {
+                match d.take() {
+                    Err(TooLong { len }) => {
+                        assert_eq!(len, 600);
+                        reported += 1;
+                    }
+                    Ok(Some(body)) => {
+                        assert_eq!(Link::parse(body), Ok(Link::Welcome));
+                        got += 1;
+                    }
+                    Ok(None) => break,
+                }
+            }
+        }
+        assert_eq!((reported, got, d.pending()), (1, 1, 0));
+        // The largest message fits, exactly.
+        let mut whole = [0u8; MAX_LINK];
+        whole[0] = (MAX_LINK - 2) as u8;
+        assert_eq!(d.push(&whole), MAX_LINK);
+        assert_eq!(d.take().unwrap().map(<[u8]>::len), Some(MAX_LINK - 2));
+        assert_eq!(d.take(), Ok(None));
+    }
 
     #[test]
     fn round_trip_with_length_prefix() {

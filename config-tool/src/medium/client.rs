@@ -6,18 +6,23 @@ use std::io::{self, Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::time::{Duration, Instant};
 
-use config_schema::wire::medium::{next_message, Link, Peer, MAX_LINK};
+use std::collections::VecDeque;
+
+use config_schema::wire::medium::{Deframer, Link, Peer, MAX_LINK};
 
 /// How long a client waits for the medium's `Welcome` (and a `Synced`).
 pub const JOIN_TIMEOUT: Duration = Duration::from_secs(5);
 
-/// Bytes of a partial message a client keeps at most (a message is at most `MAX_LINK`).
-const PENDING: usize = 2 + u16::MAX as usize;
+/// Messages a [`Conn::sync`] keeps for [`Conn::recv`] at most (more are dropped: a client
+/// that syncs reads what it needs right after).
+const HELD: usize = 1024;
 
 /// A joined connection.
 pub struct Conn {
     stream: TcpStream,
-    pending: Vec<u8>,
+    incoming: Box<Deframer<{ 16 * MAX_LINK }>>,
+    /// Messages read during a sync, not yet returned.
+    held: VecDeque<Vec<u8>>,
     syncs: u32,
 }
 
@@ -28,7 +33,8 @@ impl Conn {
         stream.set_nodelay(true)?;
         let mut conn = Conn {
             stream,
-            pending: Vec::new(),
+            incoming: Box::default(),
+            held: VecDeque::new(),
             syncs: 0,
         };
         conn.send(&Link::Hello(peer))?;
@@ -50,6 +56,11 @@ impl Conn {
         self.stream.write_all(buf.get(..n).unwrap_or_default())
     }
 
+    /// Writes raw bytes on the connection (a test's hand-built message).
+    pub fn send_raw(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.stream.write_all(bytes)
+    }
+
     /// A barrier: returns once the medium has handled everything sent before. Messages
     /// received meanwhile stay queued for [`Conn::recv`].
     pub fn sync(&mut self) -> io::Result<()> {
@@ -57,21 +68,25 @@ impl Conn {
         let n = self.syncs;
         self.send(&Link::Sync(n))?;
         let until = Instant::now() + JOIN_TIMEOUT;
-        let mut kept = Vec::new();
+        let mut kept = VecDeque::new();
         let done = loop {
-            match self.next_raw(until)? {
-                None => break false,
-                Some(raw) => {
-                    if Link::parse(&raw).is_ok_and(|l| l == Link::Synced(n)) {
-                        break true;
-                    }
-                    kept.extend_from_slice(&(raw.len() as u16).to_le_bytes());
-                    kept.extend_from_slice(&raw);
+            let synced = self.next_in(until, |body| {
+                if Link::parse(body).is_ok_and(|l| l == Link::Synced(n)) {
+                    return Some(());
                 }
+                if kept.len() < HELD {
+                    kept.push_back(body.to_vec());
+                }
+                None
+            })?;
+            match synced {
+                Next::Taken(()) => break true,
+                Next::Declined => {}
+                Next::TimedOut => break false,
             }
         };
-        kept.append(&mut self.pending);
-        self.pending = kept;
+        kept.append(&mut self.held);
+        self.held = kept;
         if done {
             Ok(())
         } else {
@@ -89,46 +104,54 @@ impl Conn {
         until: Instant,
         mut pick: impl FnMut(Link<'_>) -> Option<T>,
     ) -> io::Result<Option<T>> {
-        while let Some(raw) = self.next_raw(until)? {
+        while let Some(raw) = self.held.pop_front() {
             if let Some(t) = Link::parse(&raw).ok().and_then(&mut pick) {
                 return Ok(Some(t));
             }
         }
-        Ok(None)
+        loop {
+            match self.next_in(until, |body| Link::parse(body).ok().and_then(&mut pick))? {
+                Next::Taken(t) => return Ok(Some(t)),
+                Next::Declined => {}
+                Next::TimedOut => return Ok(None),
+            }
+        }
     }
 
-    /// The next message body, or `None` once `until` passes.
-    fn next_raw(&mut self, until: Instant) -> io::Result<Option<Vec<u8>>> {
+    /// Hands the next message body to `take`, reading until one is whole or `until`
+    /// passes.
+    fn next_in<T>(
+        &mut self,
+        until: Instant,
+        take: impl FnOnce(&[u8]) -> Option<T>,
+    ) -> io::Result<Next<T>> {
         loop {
-            if let Some(body) = next_message(&self.pending) {
-                let raw = self.pending.get(body.clone()).unwrap_or_default().to_vec();
-                self.pending.drain(..body.end);
-                return Ok(Some(raw));
+            let not_framing = || {
+                io::Error::new(
+                    io::ErrorKind::InvalidData,
+                    "the medium sent something that is not a message",
+                )
+            };
+            if let Some(body) = self.incoming.take().map_err(|_| not_framing())? {
+                return Ok(match take(body) {
+                    Some(t) => Next::Taken(t),
+                    None => Next::Declined,
+                });
             }
             let now = Instant::now();
             if now >= until {
-                return Ok(None);
+                return Ok(Next::TimedOut);
             }
             self.stream
                 .set_read_timeout(Some((until - now).max(Duration::from_millis(1))))?;
-            let mut chunk = [0u8; 4096];
-            match self.stream.read(&mut chunk) {
+            match self.stream.read(self.incoming.space()) {
                 Ok(0) => {
                     return Err(io::Error::new(
                         io::ErrorKind::UnexpectedEof,
                         "the medium closed the connection",
                     ))
                 }
-                Ok(n) => {
-                    self.pending
-                        .extend_from_slice(chunk.get(..n).unwrap_or_default());
-                    if self.pending.len() > PENDING {
-                        return Err(io::Error::new(
-                            io::ErrorKind::InvalidData,
-                            "the medium sent something that is not a message",
-                        ));
-                    }
-                }
+                Ok(n) => self.incoming.filled(n),
                 Err(e)
                     if matches!(
                         e.kind(),
@@ -143,4 +166,11 @@ impl Conn {
     pub fn try_clone_stream(&self) -> io::Result<TcpStream> {
         self.stream.try_clone()
     }
+}
+
+/// What [`Conn::next_in`] did with the next message.
+enum Next<T> {
+    Taken(T),
+    Declined,
+    TimedOut,
 }

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use config_schema::wire::mac;
-use config_schema::wire::medium::{next_message, Link, MAX_LINK};
+use config_schema::wire::medium::{Deframer, Link, MAX_LINK};
 
 use super::outbox::Outbox;
 use super::{limits, ClientId, Counters, Event};
@@ -76,28 +76,20 @@ impl Connection {
         stream.set_read_timeout(Some(limits::HELLO_TIMEOUT))?;
         let deadline = Instant::now() + limits::HELLO_TIMEOUT;
         let mut reader = stream;
-        let mut buf: Vec<u8> = Vec::with_capacity(4 * MAX_LINK);
-        let mut chunk = [0u8; 1024];
+        let mut incoming = Box::new(Deframer::<{ 8 * MAX_LINK }>::new());
         let mut rate = Rate::new();
         loop {
             if !*greeted && Instant::now() >= deadline {
                 return Err(io::Error::new(io::ErrorKind::TimedOut, "no hello"));
             }
-            let n = match reader.read(&mut chunk) {
+            let n = match reader.read(incoming.space()) {
                 Ok(0) => return Ok(()),
                 Ok(n) => n,
                 Err(e) => return Err(e),
             };
-            buf.extend_from_slice(chunk.get(..n).unwrap_or_default());
-            let mut used = 0;
-            while let Some(body) = buf.get(used..).and_then(next_message) {
-                let (start, end) = (used + body.start, used + body.end);
-                used = end;
-                let link = buf
-                    .get(start..end)
-                    .map(Link::parse)
-                    .ok_or_else(nonsense)?
-                    .map_err(|_| nonsense())?;
+            incoming.filled(n);
+            while let Some(body) = incoming.take().map_err(|_| nonsense())? {
+                let link = Link::parse(body).map_err(|_| nonsense())?;
                 let event = match link {
                     Link::Hello(peer) if !*greeted => {
                         *greeted = true;
@@ -121,10 +113,6 @@ impl Connection {
                 };
                 // Blocks while the air thread is behind: the client's TCP then waits.
                 self.events.send(event).map_err(|_| gone())?;
-            }
-            buf.drain(..used);
-            if buf.len() > 4 * MAX_LINK {
-                return Err(nonsense());
             }
         }
     }

@@ -6,13 +6,11 @@
 
 use std::collections::BTreeMap;
 use std::ffi::OsString;
-use std::io::{Read, Write};
-use std::net::TcpStream;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
-use config_schema::wire::medium::{next_message, Link, Peer, MAX_LINK};
+use config_schema::wire::medium::{Link, Peer};
 use config_schema::wire::msg::{Command, Message, Status};
 use config_schema::Table;
 use config_tool::demo::{self, Bed, Cycle, Options};
@@ -291,42 +289,31 @@ pub fn payload(msg: &Message<'_>) -> Vec<u8> {
     buf[..n].to_vec()
 }
 
-/// A radio on the medium that sends any bytes as a PSDU.
+/// A raw client of the medium (on the medium's own connection, [`medium::Conn`]): sends
+/// any bytes, as a frame or as a whole connection stream.
 pub struct RawClient {
     pub addr: u16,
-    stream: TcpStream,
-    buf: Vec<u8>,
+    conn: medium::Conn,
     next_id: u16,
 }
 
 impl RawClient {
     pub fn join(medium: std::net::SocketAddr, addr: u16) -> RawClient {
-        let stream = TcpStream::connect(medium).expect("medium");
-        stream.set_nodelay(true).expect("nodelay");
-        let mut c = RawClient {
+        RawClient {
             addr,
-            stream,
-            buf: Vec::new(),
+            conn: medium::Conn::join(medium, Peer::Tool { addr }).expect("medium"),
             next_id: 0x7000,
-        };
-        c.link(&Link::Hello(Peer::Tool { addr }));
-        c
-    }
-
-    fn link(&mut self, msg: &Link<'_>) {
-        let mut buf = [0u8; MAX_LINK];
-        let n = msg.emit(&mut buf).expect("link message");
-        self.stream.write_all(&buf[..n]).expect("write");
+        }
     }
 
     /// Puts `psdu` on the air, whatever it is.
     pub fn send_psdu(&mut self, psdu: &[u8]) {
-        self.link(&Link::Frame(psdu));
+        self.conn.send(&Link::Frame(psdu)).expect("write");
     }
 
     /// Writes raw bytes on the connection (a link message built by hand).
     pub fn send_raw(&mut self, bytes: &[u8]) {
-        self.stream.write_all(bytes).expect("write");
+        self.conn.send_raw(bytes).expect("write");
     }
 
     /// Sends a `Status` command to `addr` and returns the answer. Sent on this connection
@@ -358,87 +345,30 @@ impl RawClient {
     /// The next frame for this radio before `until`; `None` on timeout or when the medium
     /// closed the connection.
     pub fn next_frame(&mut self, until: Instant) -> Option<Vec<u8>> {
-        loop {
-            if let Some(body) = next_message(&self.buf) {
-                let got = match Link::parse(&self.buf[body.clone()]) {
-                    Ok(Link::Frame(f)) => Some(f.to_vec()),
-                    _ => None,
-                };
-                self.buf.drain(..body.end);
-                if got.is_some() {
-                    return got;
-                }
-                continue;
-            }
-            let left = until.checked_duration_since(Instant::now())?;
-            self.stream
-                .set_read_timeout(Some(left.max(Duration::from_millis(1))))
-                .expect("timeout");
-            let mut chunk = [0u8; 1024];
-            match self.stream.read(&mut chunk) {
-                Ok(0) => return None,
-                Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
-                    ) => {}
-                Err(_) => return None,
-            }
-        }
+        let frame = |l: Link<'_>| match l {
+            Link::Frame(f) => Some(f.to_vec()),
+            _ => None,
+        };
+        self.conn.recv(until, frame).ok().flatten()
     }
 
     /// Whether the medium closed this connection (waits at most `within`).
     pub fn closed_by_medium(&mut self, within: Duration) -> bool {
         let end = Instant::now() + within;
-        loop {
-            let Some(left) = end.checked_duration_since(Instant::now()) else {
-                return false;
-            };
-            let _ = self
-                .stream
-                .set_read_timeout(Some(left.max(Duration::from_millis(1))));
-            let mut chunk = [0u8; 1024];
-            match self.stream.read(&mut chunk) {
-                Ok(0) => return true,
-                Ok(_) => {}
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
-                    ) => {}
-                Err(_) => return true,
-            }
-        }
+        self.conn.recv(end, |_| None::<()>).is_err()
     }
 }
 
 /// A monitor on the medium: every frame put on the air, in air order.
 pub struct Monitor {
-    stream: TcpStream,
-    buf: Vec<u8>,
+    conn: medium::Conn,
 }
 
 impl Monitor {
+    /// Joins (welcomed: from then on it sees every frame).
     pub fn join(medium: std::net::SocketAddr) -> Monitor {
-        let mut stream = TcpStream::connect(medium).expect("medium");
-        let mut buf = [0u8; MAX_LINK];
-        let n = Link::Hello(Peer::Monitor).emit(&mut buf).expect("hello");
-        stream.write_all(&buf[..n]).expect("write");
-        // Whole messages only, up to the welcome: from then on it sees every frame.
-        stream.set_read_timeout(Some(TIMEOUT)).expect("timeout");
-        loop {
-            let mut len = [0u8; 2];
-            stream.read_exact(&mut len).expect("the medium answers");
-            let body = &mut buf[..usize::from(u16::from_le_bytes(len))];
-            stream.read_exact(body).expect("the medium answers");
-            if Link::parse(body) == Ok(Link::Welcome) {
-                break;
-            }
-        }
         Monitor {
-            stream,
-            buf: Vec::new(),
+            conn: medium::Conn::join(medium, Peer::Monitor).expect("medium"),
         }
     }
 
@@ -450,38 +380,18 @@ impl Monitor {
     ) -> Vec<(Header, Vec<u8>)> {
         let end = Instant::now() + TIMEOUT;
         let mut out = Vec::new();
-        loop {
-            while let Some(body) = next_message(&self.buf) {
-                if let Ok(Link::Frame(psdu)) = Link::parse(&self.buf[body.clone()]) {
-                    if let Ok(Frame::Data { header, payload }) = Frame::parse(psdu) {
-                        let done = last(&header, payload);
-                        out.push((header, payload.to_vec()));
-                        if done {
-                            self.buf.drain(..body.end);
-                            return out;
-                        }
-                    }
-                }
-                self.buf.drain(..body.end);
-            }
-            let left = end
-                .checked_duration_since(Instant::now())
-                .expect("the monitor saw the marker frame");
-            self.stream
-                .set_read_timeout(Some(left.max(Duration::from_millis(1))))
-                .expect("timeout");
-            let mut chunk = [0u8; 4096];
-            match self.stream.read(&mut chunk) {
-                Ok(0) => panic!("the medium closed the monitor"),
-                Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
-                    ) => {}
-                Err(e) => panic!("monitor: {e}"),
-            }
-        }
+        let mut seen = |l: Link<'_>| {
+            let Link::Frame(psdu) = l else { return None };
+            let Ok(Frame::Data { header, payload }) = Frame::parse(psdu) else {
+                return None;
+            };
+            let done = last(&header, payload);
+            out.push((header, payload.to_vec()));
+            done.then_some(())
+        };
+        let got = self.conn.recv(end, &mut seen).expect("monitor");
+        assert!(got.is_some(), "the monitor saw the marker frame");
+        out
     }
 }
 

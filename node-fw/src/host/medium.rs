@@ -23,7 +23,7 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use config_schema::wire::mac::MAX_PSDU;
-use config_schema::wire::medium::{Link, Peer, MAX_LINK};
+use config_schema::wire::medium::{Deframer, Link, Peer, MAX_LINK};
 use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::{Channel, TrySendError};
@@ -106,27 +106,54 @@ fn write_link(stream: &mut TcpStream, msg: &Link<'_>) -> io::Result<()> {
 /// How long a node waits for the medium's `Welcome`.
 pub const WELCOME_TIMEOUT: Duration = Duration::from_secs(5);
 
-/// Reads whole messages (nothing past them) until the medium's `Welcome`.
-fn await_welcome(stream: &TcpStream) -> io::Result<()> {
+/// What a node reads from its connection: messages of at most `MAX_LINK` bytes.
+type Incoming = Box<Deframer<{ 16 * MAX_LINK }>>;
+
+/// The next message body from `stream` (bytes past it stay in `incoming`); `None` when the
+/// connection ends. A message longer than any is skipped and counted (`too_long`).
+fn next_body<'a>(
+    stream: &mut impl Read,
+    incoming: &'a mut Incoming,
+    mut too_long: impl FnMut(),
+) -> Option<&'a [u8]> {
+    // Asks whether a message is whole before taking it: the borrow it returns is then not
+    // held across the read.
+    loop {
+        match incoming.complete() {
+            Ok(true) => break,
+            Ok(false) => {}
+            Err(_) => {
+                too_long();
+                continue;
+            }
+        }
+        let n = stream.read(incoming.space()).ok()?;
+        if n == 0 {
+            return None;
+        }
+        incoming.filled(n);
+    }
+    incoming.take().ok().flatten()
+}
+
+/// Reads messages until the medium's `Welcome`; returns what was read past it.
+fn await_welcome(stream: &TcpStream) -> io::Result<Incoming> {
     let mut reader = stream;
     reader.set_read_timeout(Some(WELCOME_TIMEOUT))?;
-    let mut body = [0u8; MAX_LINK];
+    let mut incoming = Incoming::default();
     loop {
-        let mut len = [0u8; 2];
-        reader.read_exact(&mut len)?;
-        let len = usize::from(u16::from_le_bytes(len));
-        let msg = body.get_mut(..len).ok_or_else(|| {
+        let body = next_body(&mut reader, &mut incoming, || {}).ok_or_else(|| {
             io::Error::new(
                 io::ErrorKind::InvalidData,
-                "the medium sent a message too long",
+                "the medium did not welcome this node",
             )
         })?;
-        reader.read_exact(msg)?;
-        if Link::parse(msg) == Ok(Link::Welcome) {
+        if Link::parse(body) == Ok(Link::Welcome) {
             break;
         }
     }
-    reader.set_read_timeout(None)
+    reader.set_read_timeout(None)?;
+    Ok(incoming)
 }
 
 impl Connection {
@@ -136,7 +163,7 @@ impl Connection {
         stream.set_nodelay(true)?;
         let mut writer = stream.try_clone()?;
         write_link(&mut writer, &Link::Hello(Peer::Node { addr }))?;
-        await_welcome(&stream)?;
+        let incoming = await_welcome(&stream)?;
         let shared = Arc::new(Shared {
             frames: Channel::new(),
             pins: Channel::new(),
@@ -148,7 +175,7 @@ impl Connection {
         let for_reader = shared.clone();
         let reader = std::thread::Builder::new()
             .name(format!("medium-{addr:04x}"))
-            .spawn(move || read_loop(addr, reading, &for_reader))?;
+            .spawn(move || read_loop(addr, reading, incoming, &for_reader))?;
         Ok(Connection {
             addr,
             stream,
@@ -193,20 +220,11 @@ impl Connection {
     }
 }
 
-fn read_loop(addr: u16, mut stream: TcpStream, shared: &Shared) {
-    let mut body = vec![0u8; usize::from(u16::MAX)];
-    loop {
-        let mut len = [0u8; 2];
-        if stream.read_exact(&mut len).is_err() {
-            break;
-        }
-        let len = usize::from(u16::from_le_bytes(len));
-        let Some(msg) = body.get_mut(..len) else {
-            break;
-        };
-        if stream.read_exact(msg).is_err() {
-            break;
-        }
+fn read_loop(addr: u16, mut stream: TcpStream, mut incoming: Incoming, shared: &Shared) {
+    let too_long = || {
+        shared.counters.oversized.fetch_add(1, Ordering::Relaxed);
+    };
+    while let Some(msg) = next_body(&mut stream, &mut incoming, too_long) {
         let c = &shared.counters;
         match Link::parse(msg) {
             Ok(Link::Frame(psdu)) => match Psdu::from_slice(psdu) {

@@ -7,7 +7,7 @@
 //! Serial: UARTE0 on P0.08 (RX) / P0.06 (TX) at 1 Mbaud, the DK's J-Link virtual COM port.
 
 use config_schema::wire::mac::MAX_PSDU;
-use config_schema::wire::medium::{next_message, Link, MAX_LINK};
+use config_schema::wire::medium::{Deframer, Link, MAX_LINK};
 use embassy_futures::select::{select, Either};
 use embassy_nrf::buffered_uarte::{BufferedUarteRx, BufferedUarteTx};
 use node_fw::runtime::Radio as _;
@@ -16,34 +16,23 @@ use crate::radio::NrfRadio;
 
 /// Bytes of the serial stream not yet parsed: survives a cancelled read.
 struct Reader {
-    buf: [u8; 2 + MAX_LINK],
-    len: usize,
+    incoming: Deframer<{ 2 * MAX_LINK }>,
 }
 
 impl Reader {
-    /// Waits for the next complete message; returns its body's end (body at 2..end).
-    async fn next(&mut self, rx: &mut BufferedUarteRx<'_>) -> usize {
+    /// Waits until a whole message is buffered ([`Deframer::next`] then returns it).
+    /// Bytes that are not the framing (noise on the line) are dropped.
+    async fn wait(&mut self, rx: &mut BufferedUarteRx<'_>) {
         loop {
-            if let Some(body) = next_message(&self.buf[..self.len]) {
-                return body.end;
-            }
-            if self.len == self.buf.len() {
-                // Longer than any message: not our framing. Start over.
-                self.len = 0;
+            if let Ok(true) = self.incoming.complete() {
+                return;
             }
             let Ok(bytes) = rx.fill_buf().await else {
                 continue;
             };
-            let n = bytes.len().min(self.buf.len() - self.len);
-            self.buf[self.len..self.len + n].copy_from_slice(&bytes[..n]);
+            let n = self.incoming.push(bytes);
             rx.consume(n);
-            self.len += n;
         }
-    }
-
-    fn drop_message(&mut self, end: usize) {
-        self.buf.copy_within(end..self.len, 0);
-        self.len -= end;
     }
 }
 
@@ -62,16 +51,16 @@ pub async fn run(
     mut tx: BufferedUarteTx<'static>,
 ) -> ! {
     let mut reader = Reader {
-        buf: [0; 2 + MAX_LINK],
-        len: 0,
+        incoming: Deframer::new(),
     };
     let mut psdu = [0u8; MAX_PSDU];
     let mut out = [0u8; MAX_LINK];
     let (mut to_air, mut from_air) = (0u32, 0u32);
     loop {
-        match select(reader.next(&mut rx), radio.receive(&mut psdu)).await {
-            Either::First(end) => {
-                if let Ok(Link::Frame(frame)) = Link::parse(&reader.buf[2..end]) {
+        match select(reader.wait(&mut rx), radio.receive(&mut psdu)).await {
+            Either::First(()) => {
+                let body = reader.incoming.take().ok().flatten().unwrap_or_default();
+                if let Ok(Link::Frame(frame)) = Link::parse(body) {
                     if radio.send(frame).await.is_ok() {
                         to_air += 1;
                         if to_air.is_multiple_of(100) {
@@ -79,7 +68,6 @@ pub async fn run(
                         }
                     }
                 }
-                reader.drop_message(end);
             }
             Either::Second(Ok(n)) => {
                 if let Ok(m) = Link::Frame(&psdu[..n]).emit(&mut out) {

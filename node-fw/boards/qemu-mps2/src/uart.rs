@@ -16,7 +16,7 @@ use core::future::poll_fn;
 use core::task::Poll;
 
 use config_schema::wire::mac::MAX_PSDU;
-use config_schema::wire::medium::{Link, MAX_LINK};
+use config_schema::wire::medium::{Deframer, Link, MAX_LINK};
 use critical_section::Mutex;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
@@ -223,33 +223,27 @@ async fn read_some(buf: &mut [u8]) -> usize {
     .await
 }
 
-async fn read_exact(buf: &mut [u8]) {
-    let mut at = 0;
-    while at < buf.len() {
-        at += read_some(&mut buf[at..]).await;
-    }
-}
-
 /// Parses what the medium sends into frames and this node's input changes, forever.
 #[embassy_executor::task]
 pub async fn demux(addr: u16) {
-    let mut body = [0u8; MAX_LINK];
+    let mut incoming = Deframer::<{ 2 * MAX_LINK }>::new();
     loop {
-        let mut len = [0u8; 2];
-        read_exact(&mut len).await;
-        let mut left = usize::from(u16::from_le_bytes(len));
-        if left > body.len() {
-            // Not a message this node can hold: skip it.
-            while left > 0 {
-                let n = left.min(body.len());
-                read_exact(&mut body[..n]).await;
-                left -= n;
+        match incoming.complete() {
+            Ok(true) => {}
+            Ok(false) => {
+                let n = read_some(incoming.space()).await;
+                incoming.filled(n);
+                continue;
             }
-            critical_section::with(|cs| COUNTERS.borrow_ref_mut(cs).garbage += 1);
-            continue;
+            // Not a message this node can hold: skipped.
+            Err(_) => {
+                critical_section::with(|cs| COUNTERS.borrow_ref_mut(cs).garbage += 1);
+                continue;
+            }
         }
-        let msg = &mut body[..left];
-        read_exact(msg).await;
+        let Ok(Some(msg)) = incoming.take() else {
+            continue;
+        };
         match Link::parse(msg) {
             Ok(Link::Frame(psdu)) => match Psdu::from_slice(psdu) {
                 Ok(frame) => {
