@@ -17,6 +17,7 @@ pub mod dump;
 pub mod elab;
 pub mod expr;
 pub mod faults;
+pub mod interlock;
 pub mod ir;
 pub mod locate;
 pub mod lower;
