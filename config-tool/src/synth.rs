@@ -118,19 +118,23 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
                 var: None,
             });
         }
+        // Per moving actuator: its watchdog and dwell timers, if it has them.
+        let mut timers = Vec::new();
         for a in &moving {
-            let kinds = [
-                (a.kind.has_watchdog(), "watchdog"),
-                (a.kind.has_dwell(), "dwell"),
-            ];
-            for (_, kind) in kinds.iter().filter(|(has, _)| *has) {
-                let name = format!("{}.{kind}", a.name);
-                r.event(&name);
-                r.timers.push(TimerIr {
-                    name: name.clone(),
-                    event: name,
-                });
-            }
+            let mut timer = |has: bool, kind: &str| {
+                has.then(|| {
+                    let name = format!("{}.{kind}", a.name);
+                    r.event(&name);
+                    r.timers.push(TimerIr {
+                        name: name.clone(),
+                        event: name,
+                    });
+                    r.timers.len() - 1
+                })
+            };
+            let watchdog = timer(a.kind.has_watchdog(), "watchdog");
+            let dwell = timer(a.kind.has_dwell(), "dwell");
+            timers.push(Timers { watchdog, dwell });
         }
         if ri == first_role {
             if gated {
@@ -145,8 +149,9 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
             }
         }
         // One chart per moving actuator.
-        for a in &moving {
-            let mut chart = actuator_chart(robot, &mut r, a, steps, &start_input)?;
+        for (a, timers) in moving.iter().zip(timers) {
+            let motion = Motion::of(robot, &r, a, timers)?;
+            let mut chart = actuator_chart(&mut r, &motion, steps, &start_input)?;
             if cycle_done && a.name == steps[0].actuator {
                 // Back in IDLE: tell the button's role that a press may start a cycle.
                 if let Some(idle) = chart.states.first_mut() {
@@ -303,6 +308,12 @@ fn start_chart(robot: &Robot, r: &mut RoleIr, start_input: &str, reopen: &str, f
     });
 }
 
+/// The timers of one actuator's chart (indices into the role's `timers`).
+struct Timers {
+    watchdog: Option<usize>,
+    dwell: Option<usize>,
+}
+
 /// How an actuator is driven and how its motions complete.
 struct Motion {
     name: String,
@@ -319,31 +330,22 @@ struct Motion {
 }
 
 impl Motion {
-    fn of(robot: &Robot, r: &RoleIr, a: &crate::model::Actuator) -> Result<Motion, String> {
-        let out = |suffix: &str| {
-            let name = format!("{}.{suffix}", a.name);
-            r.outputs
-                .iter()
-                .position(|o| o.name == name)
-                .ok_or(format!("no output {name}"))
+    fn of(
+        robot: &Robot,
+        r: &RoleIr,
+        a: &crate::model::Actuator,
+        timers: Timers,
+    ) -> Result<Motion, String> {
+        let wiring = r
+            .actuator(&a.name)
+            .ok_or_else(|| format!("actuator {} is not declared", a.name))?;
+        let ((mask, plus), (_, minus)) = (wiring.drive(true), wiring.drive(false));
+        let dwell_ms = match a.kind {
+            ActuatorKind::DoubleActing { .. } => 0,
+            ActuatorKind::SingleActing { dwell_ms, .. } => dwell_ms,
         };
-        let timer = |suffix: &str| {
-            let name = format!("{}.{suffix}", a.name);
-            r.timers
-                .iter()
-                .position(|t| t.name == name)
-                .ok_or(format!("no timer {name}"))
-        };
-        let (mask, plus, minus, dwell_ms) = match a.kind {
-            ActuatorKind::DoubleActing { .. } => {
-                let (e, rt) = (out("extend")?, out("retract")?);
-                ((1 << e) | (1 << rt), 1 << e, 1 << rt, 0)
-            }
-            ActuatorKind::SingleActing { dwell_ms, .. } => {
-                let v = out("valve")?;
-                (1 << v, 1 << v, 0, dwell_ms)
-            }
-        };
+        let timer =
+            |t: Option<usize>, kind: &str| t.ok_or_else(|| format!("no timer {}.{kind}", a.name));
         let timeout_ms = a.kind.timeout_ms().unwrap_or(robot.motion_timeout_ms);
         Ok(Motion {
             name: a.name.clone(),
@@ -351,11 +353,11 @@ impl Motion {
             plus,
             minus,
             watchdog: match a.kind.has_watchdog() {
-                true => Some((timer("watchdog")?, timeout_ms)),
+                true => Some((timer(timers.watchdog, "watchdog")?, timeout_ms)),
                 false => None,
             },
             dwell: match a.kind.has_dwell() {
-                true => Some((timer("dwell")?, dwell_ms)),
+                true => Some((timer(timers.dwell, "dwell")?, dwell_ms)),
                 false => None,
             },
             switched: (
@@ -415,16 +417,16 @@ pub fn done_event(k: usize) -> String {
 }
 
 fn actuator_chart(
-    robot: &Robot,
     r: &mut RoleIr,
-    a: &crate::model::Actuator,
+    motion: &Motion,
     steps: &[Step],
     start_input: &str,
 ) -> Result<ChartIr, String> {
     let n = steps.len();
-    let own: Vec<usize> = (0..n).filter(|&k| steps[k].actuator == a.name).collect();
+    let own: Vec<usize> = (0..n)
+        .filter(|&k| steps[k].actuator == motion.name)
+        .collect();
     let chart_index = r.charts.len();
-    let motion = Motion::of(robot, r, a)?;
     let mut inputs: Vec<String> = Vec::new();
     let mut routes: Vec<(String, String)> = Vec::new(); // (node event, chart input)
     let mut input = |name: &str, event: String| -> usize {
@@ -472,7 +474,7 @@ fn actuator_chart(
         if back_to_back {
             let prev = &steps[k - 1];
             let c = motion.completion(prev.extend);
-            let trig = input(c, format!("{}.{c}", a.name));
+            let trig = input(c, format!("{}.{c}", motion.name));
             transitions.push(TransitionIr {
                 from: prev_move,
                 to: move_state,
@@ -499,7 +501,7 @@ fn actuator_chart(
             continue;
         }
         let c = motion.completion(step.extend);
-        let trig = input(c, format!("{}.{c}", a.name));
+        let trig = input(c, format!("{}.{c}", motion.name));
         if let Some(k2) = next_own {
             let wait = states.len();
             states.push(StateIr {
@@ -565,7 +567,7 @@ fn actuator_chart(
         r.routes.push((event, chart_index, i));
     }
     Ok(ChartIr {
-        name: a.name.clone(),
+        name: motion.name.clone(),
         inputs,
         initial: 0,
         states,
