@@ -112,7 +112,7 @@ fn diagnostics(c: &mut Criterion) {
     for n in [5_000, 20_000] {
         let src = duplicate_addresses(n);
         let run = |src: &Source| {
-            let (_, diags) = config_tool::check::check(src);
+            let diags = config_tool::check::check(src).diagnostics;
             let out = config_tool::diag::render_all(src, &diags, false);
             (diags.len(), out.len())
         };

@@ -1,12 +1,13 @@
-//! The pipeline: source -> checked robot -> IR -> tables -> blobs.
+//! The pipeline: source -> checked robot and its IR (`check`) -> tables -> blobs.
 
 use config_schema::{limits::MAX_BLOB, Table};
 
+use crate::check::{self, Checked};
 use crate::diag::Diagnostic;
-use crate::ir::{parse_steps, Ir};
+use crate::ir::Ir;
+use crate::lower;
 use crate::model::Robot;
 use crate::source::Source;
-use crate::{check, elab, lower, synth};
 
 /// A compiled robot: its IR, one table and one blob per role (in role order), and the
 /// warnings `check` gave.
@@ -31,22 +32,6 @@ impl Compiled {
     }
 }
 
-/// Elaborates a robot that passed the structural checks: synthesis for a sequence,
-/// elaboration of explicit charts otherwise.
-pub fn build(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
-    match &robot.sequence {
-        Some(text) => {
-            let steps: Vec<_> = parse_steps(text)
-                .into_iter()
-                .filter_map(|(s, _)| s.ok())
-                .collect();
-            synth::synthesise(robot, &steps)
-                .map_err(|e| vec![Diagnostic::error(src.span("sequence"), e)])
-        }
-        None => elab::elaborate(robot, src),
-    }
-}
-
 /// Encodes a table into a blob.
 pub fn encode(table: &Table) -> Result<Vec<u8>, String> {
     let mut buf = vec![0u8; MAX_BLOB];
@@ -55,16 +40,24 @@ pub fn encode(table: &Table) -> Result<Vec<u8>, String> {
     Ok(buf)
 }
 
-/// Checks, builds, lowers and encodes. On error: every diagnostic (errors and warnings).
+/// Checks (which elaborates), then lowers and encodes. On error: every diagnostic (errors
+/// and warnings).
 pub fn compile(src: &Source) -> Result<Compiled, Vec<Diagnostic>> {
-    let (robot, diags) = check::check(src);
-    let Some(robot) = robot else {
+    lower_checked(src, check::check(src))
+}
+
+/// Lowers and encodes the IR of a robot `check` elaborated. On error (of the check or
+/// here): every diagnostic (errors and warnings).
+pub fn lower_checked(src: &Source, checked: Checked) -> Result<Compiled, Vec<Diagnostic>> {
+    let has_errors = checked.has_errors();
+    let Checked {
+        robot,
+        ir,
+        diagnostics: diags,
+    } = checked;
+    let (Some(robot), Some(ir), false) = (robot, ir, has_errors) else {
         return Err(diags);
     };
-    if diags.iter().any(Diagnostic::is_error) {
-        return Err(diags);
-    }
-    let ir = build(&robot, src)?;
     let fail = |m: String| vec![Diagnostic::error(src.span(""), m)];
     let tables = lower::lower(&ir).map_err(|e| fail(e.to_string()))?;
     let blobs = tables

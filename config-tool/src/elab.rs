@@ -415,22 +415,9 @@ fn chart(
                     let extend = matches!(a, ActionDecl::Extend(_));
                     let sign = if extend { '+' } else { '-' };
                     let label = format!("{name}{sign}");
-                    if let (Some(e), Some(rt)) = (
-                        out_index(&format!("{name}.extend")),
-                        out_index(&format!("{name}.retract")),
-                    ) {
-                        let mask = (1u16 << e) | (1u16 << rt);
-                        actions.push(ActionIr::Drive {
-                            mask,
-                            value: if extend { 1 << e } else { 1 << rt },
-                            label,
-                        });
-                    } else if let Some(v) = out_index(&format!("{name}.valve")) {
-                        actions.push(ActionIr::Drive {
-                            mask: 1 << v,
-                            value: if extend { 1 << v } else { 0 },
-                            label,
-                        });
+                    if let Some(w) = r.actuator(name) {
+                        let (mask, value) = w.drive(extend);
+                        actions.push(ActionIr::Drive { mask, value, label });
                     } else {
                         diags.push(err(format!(
                             "role `{}` has no actuator `{name}` (chart `{}`)",

@@ -56,6 +56,65 @@ pub struct RoleIr {
     pub start: Option<String>,
     /// Events of other roles raised here: (publishing role, its event, the local event).
     pub imports: Vec<(String, String, String)>,
+    /// The actuators declared here, in declaration order: which outputs and inputs are
+    /// their valves and switches.
+    pub actuators: Vec<Wiring>,
+}
+
+/// An index into a role's `outputs` (the table's output index).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct OutputIndex(pub usize);
+
+/// An index into a role's `inputs` (the table's input index).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct InputIndex(pub usize);
+
+impl OutputIndex {
+    /// The output's bit in a `Drive` mask or value (none beyond the 16 a table has).
+    pub fn bit(self) -> u16 {
+        u32::try_from(self.0)
+            .ok()
+            .and_then(|i| 1u16.checked_shl(i))
+            .unwrap_or(0)
+    }
+}
+
+/// How an actuator's valve is wired.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Valves {
+    /// A bistable valve: the extend and the retract solenoid.
+    Double {
+        extend: OutputIndex,
+        retract: OutputIndex,
+    },
+    /// A monostable valve: energised extends, de-energised retracts.
+    Single { valve: OutputIndex },
+}
+
+/// One actuator's wiring in its role, recorded when it is declared
+/// ([`RoleIr::declare_actuator`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Wiring {
+    /// The actuator's name (`VC`).
+    pub name: String,
+    pub valves: Valves,
+    /// The home and end limit switches (or position sensors), if it has them.
+    pub home: Option<InputIndex>,
+    pub end: Option<InputIndex>,
+}
+
+impl Wiring {
+    /// The outputs a motion drives, and their values for a `+` (extend) or a `-`: both
+    /// solenoids of a bistable valve at once.
+    pub fn drive(&self, extend: bool) -> (u16, u16) {
+        match self.valves {
+            Valves::Double { extend: e, retract } => {
+                let mask = e.bit() | retract.bit();
+                (mask, if extend { e.bit() } else { retract.bit() })
+            }
+            Valves::Single { valve } => (valve.bit(), if extend { valve.bit() } else { 0 }),
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -133,34 +192,80 @@ pub enum ActionIr {
 impl RoleIr {
     /// Declares an actuator's pins: each valve an output `ACT.FIELD` (safe off), each limit
     /// switch an input `ACT.FIELD` whose rising edge raises the event `ACT.FIELD` if
-    /// `rise` says so, and whose falling edge raises `ACT.FIELD.fall` if `fall` says so.
-    /// Events are not registered here.
+    /// `rise` says so, and whose falling edge raises `ACT.FIELD.fall` if `fall` says so
+    /// (in the order of `ActuatorKind::pins`); records their indices in
+    /// [`RoleIr::actuators`]. Events are not registered here.
     pub fn declare_actuator(
         &mut self,
         a: &crate::model::Actuator,
         rise: impl Fn(&str) -> bool,
         fall: impl Fn(&str) -> bool,
     ) {
-        for (field, pin, used) in a.kind.pins() {
-            let name = format!("{}.{field}", a.name);
-            match used {
-                crate::model::PinUse::Valve => self.outputs.push(OutputIr {
-                    name,
-                    pin,
-                    safe: false,
-                }),
-                crate::model::PinUse::Switch => {
-                    let falling = format!("{name}.fall");
-                    self.inputs.push(InputIr {
-                        rise: rise(&name).then(|| name.clone()),
-                        fall: fall(&falling).then_some(falling),
-                        var: None,
-                        name,
-                        pin,
-                    });
-                }
+        use crate::model::ActuatorKind;
+        let (valves, home, end) = match a.kind {
+            ActuatorKind::DoubleActing {
+                extend,
+                retract,
+                home,
+                end,
+                ..
+            } => {
+                let extend = self.valve(&a.name, "extend", extend);
+                let retract = self.valve(&a.name, "retract", retract);
+                (Valves::Double { extend, retract }, Some(home), Some(end))
             }
-        }
+            ActuatorKind::SingleActing {
+                valve, home, end, ..
+            } => {
+                let valve = self.valve(&a.name, "valve", valve);
+                (Valves::Single { valve }, home, end)
+            }
+        };
+        let home = home.map(|pin| self.switch(&a.name, "home", pin, &rise, &fall));
+        let end = end.map(|pin| self.switch(&a.name, "end", pin, &rise, &fall));
+        self.actuators.push(Wiring {
+            name: a.name.clone(),
+            valves,
+            home,
+            end,
+        });
+    }
+
+    /// A valve solenoid of actuator `actuator`: the output `ACT.FIELD`, safe off.
+    fn valve(&mut self, actuator: &str, field: &str, pin: u8) -> OutputIndex {
+        self.outputs.push(OutputIr {
+            name: format!("{actuator}.{field}"),
+            pin,
+            safe: false,
+        });
+        OutputIndex(self.outputs.len() - 1)
+    }
+
+    /// A limit switch of actuator `actuator`: the input `ACT.FIELD` (see
+    /// [`RoleIr::declare_actuator`]).
+    fn switch(
+        &mut self,
+        actuator: &str,
+        field: &str,
+        pin: u8,
+        rise: &impl Fn(&str) -> bool,
+        fall: &impl Fn(&str) -> bool,
+    ) -> InputIndex {
+        let name = format!("{actuator}.{field}");
+        let falling = format!("{name}.fall");
+        self.inputs.push(InputIr {
+            rise: rise(&name).then(|| name.clone()),
+            fall: fall(&falling).then_some(falling),
+            var: None,
+            name,
+            pin,
+        });
+        InputIndex(self.inputs.len() - 1)
+    }
+
+    /// The wiring of the actuator `name` declared in this role.
+    pub fn actuator(&self, name: &str) -> Option<&Wiring> {
+        self.actuators.iter().find(|w| w.name == name)
     }
 
     /// The id of a node event, adding it if new.
@@ -227,4 +332,76 @@ pub fn parse_steps(text: &str) -> Vec<(Result<Step, String>, std::ops::Range<usi
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{InputIndex, OutputIndex, RoleIr, Valves, Wiring};
+    use crate::model::{Actuator, ActuatorKind};
+
+    /// Declaring actuators records the indices of the outputs and inputs they add, after
+    /// what the role already has; a `+` / `-` drives both solenoids of a bistable valve.
+    #[test]
+    fn declaring_an_actuator_records_its_wiring() {
+        let mut r = RoleIr::default();
+        r.outputs.push(super::OutputIr {
+            name: String::from("lamp"),
+            pin: 9,
+            safe: false,
+        });
+        let double = Actuator {
+            name: String::from("VC"),
+            kind: ActuatorKind::DoubleActing {
+                extend: 0,
+                retract: 1,
+                home: 2,
+                end: 3,
+                out_ms: 200,
+                back_ms: 200,
+                timeout_ms: None,
+            },
+        };
+        let single = Actuator {
+            name: String::from("GR"),
+            kind: ActuatorKind::SingleActing {
+                valve: 4,
+                dwell_ms: 100,
+                out_ms: 200,
+                back_ms: 200,
+                home: None,
+                end: Some(5),
+                timeout_ms: None,
+            },
+        };
+        r.declare_actuator(&double, |_| true, |_| false);
+        r.declare_actuator(&single, |_| true, |_| false);
+        let vc = Wiring {
+            name: String::from("VC"),
+            valves: Valves::Double {
+                extend: OutputIndex(1),
+                retract: OutputIndex(2),
+            },
+            home: Some(InputIndex(0)),
+            end: Some(InputIndex(1)),
+        };
+        let gr = Wiring {
+            name: String::from("GR"),
+            valves: Valves::Single {
+                valve: OutputIndex(3),
+            },
+            home: None,
+            end: Some(InputIndex(2)),
+        };
+        assert_eq!(r.actuators, [vc.clone(), gr.clone()]);
+        assert_eq!(r.actuator("GR"), Some(&gr));
+        let names: Vec<&str> = r.outputs.iter().map(|o| o.name.as_str()).collect();
+        assert_eq!(names, ["lamp", "VC.extend", "VC.retract", "GR.valve"]);
+        let names: Vec<&str> = r.inputs.iter().map(|i| i.name.as_str()).collect();
+        assert_eq!(names, ["VC.home", "VC.end", "GR.end"]);
+        assert_eq!(vc.drive(true), (0b110, 0b010));
+        assert_eq!(vc.drive(false), (0b110, 0b100));
+        assert_eq!(gr.drive(true), (0b1000, 0b1000));
+        assert_eq!(gr.drive(false), (0b1000, 0));
+        assert_eq!(OutputIndex(16).bit(), 0);
+    }
 }

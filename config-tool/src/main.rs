@@ -119,7 +119,7 @@ fn run(command: Command) -> Result<(), String> {
     match command {
         Command::Check { robot } => {
             let src = load(&robot)?;
-            let (_, diags) = check::check(&src);
+            let diags = check::check(&src).diagnostics;
             report(&src, &diags);
             if diags.iter().any(Diagnostic::is_error) {
                 return Err(String::new());

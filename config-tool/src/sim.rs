@@ -9,6 +9,7 @@ use config_schema::Table;
 use node_fw::sim::{Button, DoubleActing, NodeSpec, Plant, SingleActing, What, World};
 
 use crate::compile::Compiled;
+use crate::ir::Valves;
 use crate::model::ActuatorKind;
 
 /// Virtual-time bound of one cycle.
@@ -108,26 +109,28 @@ pub fn diff(expect: &[String], observed: &[String]) -> String {
 pub fn plants(c: &Compiled) -> Result<(Vec<Plant>, usize), String> {
     let mut plants = Vec::new();
     for (ri, (role, r)) in c.robot.roles.iter().zip(&c.ir.roles).enumerate() {
-        let out = |n: String| r.outputs.iter().position(|o| o.name == n).map(|i| i as u8);
-        let inp = |n: String| r.inputs.iter().position(|o| o.name == n).map(|i| i as u8);
         for a in &role.actuators {
+            // Only the actuators the tables drive (a sequence declares those that move).
+            let Some(w) = r.actuator(&a.name) else {
+                continue;
+            };
+            let home_in = w.home.map(|i| i.0 as u8);
+            let end_in = w.end.map(|i| i.0 as u8);
             match a.kind {
                 ActuatorKind::DoubleActing {
                     out_ms, back_ms, ..
                 } => {
-                    let (Some(e), Some(rt)) = (
-                        out(format!("{}.extend", a.name)),
-                        out(format!("{}.retract", a.name)),
-                    ) else {
+                    let Valves::Double { extend, retract } = w.valves else {
                         continue;
                     };
+                    let (e, rt) = (extend.0 as u8, retract.0 as u8);
                     plants.push(Plant::DoubleActing(DoubleActing {
                         name: a.name.clone(),
                         node: ri,
                         extend_out: e,
                         retract_out: rt,
-                        home_in: inp(format!("{}.home", a.name)),
-                        end_in: inp(format!("{}.end", a.name)),
+                        home_in,
+                        end_in,
                         extend_ms: u64::from(out_ms),
                         retract_ms: u64::from(back_ms),
                     }));
@@ -135,15 +138,16 @@ pub fn plants(c: &Compiled) -> Result<(Vec<Plant>, usize), String> {
                 ActuatorKind::SingleActing {
                     out_ms, back_ms, ..
                 } => {
-                    let Some(v) = out(format!("{}.valve", a.name)) else {
+                    let Valves::Single { valve } = w.valves else {
                         continue;
                     };
+                    let v = valve.0 as u8;
                     plants.push(Plant::SingleActing(SingleActing {
                         name: a.name.clone(),
                         node: ri,
                         out: v,
-                        home_in: inp(format!("{}.home", a.name)),
-                        end_in: inp(format!("{}.end", a.name)),
+                        home_in,
+                        end_in,
                         extend_ms: u64::from(out_ms),
                         retract_ms: u64::from(back_ms),
                     }));

@@ -118,19 +118,23 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
                 var: None,
             });
         }
+        // Per moving actuator: its watchdog and dwell timers, if it has them.
+        let mut timers = Vec::new();
         for a in &moving {
-            let kinds = [
-                (a.kind.has_watchdog(), "watchdog"),
-                (a.kind.has_dwell(), "dwell"),
-            ];
-            for (_, kind) in kinds.iter().filter(|(has, _)| *has) {
-                let name = format!("{}.{kind}", a.name);
-                r.event(&name);
-                r.timers.push(TimerIr {
-                    name: name.clone(),
-                    event: name,
-                });
-            }
+            let mut timer = |has: bool, kind: &str| {
+                has.then(|| {
+                    let name = format!("{}.{kind}", a.name);
+                    r.event(&name);
+                    r.timers.push(TimerIr {
+                        name: name.clone(),
+                        event: name,
+                    });
+                    r.timers.len() - 1
+                })
+            };
+            let watchdog = timer(a.kind.has_watchdog(), "watchdog");
+            let dwell = timer(a.kind.has_dwell(), "dwell");
+            timers.push(Timers { watchdog, dwell });
         }
         if ri == first_role {
             if gated {
@@ -145,8 +149,9 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
             }
         }
         // One chart per moving actuator.
-        for a in &moving {
-            let mut chart = actuator_chart(robot, &mut r, a, steps, &start_input)?;
+        for (a, timers) in moving.iter().zip(timers) {
+            let motion = Motion::of(robot, &r, a, timers)?;
+            let mut chart = actuator_chart(&mut r, &motion, steps, &start_input)?;
             if cycle_done && a.name == steps[0].actuator {
                 // Back in IDLE: tell the button's role that a press may start a cycle.
                 if let Some(idle) = chart.states.first_mut() {
@@ -303,6 +308,12 @@ fn start_chart(robot: &Robot, r: &mut RoleIr, start_input: &str, reopen: &str, f
     });
 }
 
+/// The timers of one actuator's chart (indices into the role's `timers`).
+struct Timers {
+    watchdog: Option<usize>,
+    dwell: Option<usize>,
+}
+
 /// How an actuator is driven and how its motions complete.
 struct Motion {
     name: String,
@@ -319,31 +330,22 @@ struct Motion {
 }
 
 impl Motion {
-    fn of(robot: &Robot, r: &RoleIr, a: &crate::model::Actuator) -> Result<Motion, String> {
-        let out = |suffix: &str| {
-            let name = format!("{}.{suffix}", a.name);
-            r.outputs
-                .iter()
-                .position(|o| o.name == name)
-                .ok_or(format!("no output {name}"))
+    fn of(
+        robot: &Robot,
+        r: &RoleIr,
+        a: &crate::model::Actuator,
+        timers: Timers,
+    ) -> Result<Motion, String> {
+        let wiring = r
+            .actuator(&a.name)
+            .ok_or_else(|| format!("actuator {} is not declared", a.name))?;
+        let ((mask, plus), (_, minus)) = (wiring.drive(true), wiring.drive(false));
+        let dwell_ms = match a.kind {
+            ActuatorKind::DoubleActing { .. } => 0,
+            ActuatorKind::SingleActing { dwell_ms, .. } => dwell_ms,
         };
-        let timer = |suffix: &str| {
-            let name = format!("{}.{suffix}", a.name);
-            r.timers
-                .iter()
-                .position(|t| t.name == name)
-                .ok_or(format!("no timer {name}"))
-        };
-        let (mask, plus, minus, dwell_ms) = match a.kind {
-            ActuatorKind::DoubleActing { .. } => {
-                let (e, rt) = (out("extend")?, out("retract")?);
-                ((1 << e) | (1 << rt), 1 << e, 1 << rt, 0)
-            }
-            ActuatorKind::SingleActing { dwell_ms, .. } => {
-                let v = out("valve")?;
-                (1 << v, 1 << v, 0, dwell_ms)
-            }
-        };
+        let timer =
+            |t: Option<usize>, kind: &str| t.ok_or_else(|| format!("no timer {}.{kind}", a.name));
         let timeout_ms = a.kind.timeout_ms().unwrap_or(robot.motion_timeout_ms);
         Ok(Motion {
             name: a.name.clone(),
@@ -351,11 +353,11 @@ impl Motion {
             plus,
             minus,
             watchdog: match a.kind.has_watchdog() {
-                true => Some((timer("watchdog")?, timeout_ms)),
+                true => Some((timer(timers.watchdog, "watchdog")?, timeout_ms)),
                 false => None,
             },
             dwell: match a.kind.has_dwell() {
-                true => Some((timer("dwell")?, dwell_ms)),
+                true => Some((timer(timers.dwell, "dwell")?, dwell_ms)),
                 false => None,
             },
             switched: (
@@ -415,16 +417,16 @@ pub fn done_event(k: usize) -> String {
 }
 
 fn actuator_chart(
-    robot: &Robot,
     r: &mut RoleIr,
-    a: &crate::model::Actuator,
+    motion: &Motion,
     steps: &[Step],
     start_input: &str,
 ) -> Result<ChartIr, String> {
     let n = steps.len();
-    let own: Vec<usize> = (0..n).filter(|&k| steps[k].actuator == a.name).collect();
+    let own: Vec<usize> = (0..n)
+        .filter(|&k| steps[k].actuator == motion.name)
+        .collect();
     let chart_index = r.charts.len();
-    let motion = Motion::of(robot, r, a)?;
     let mut inputs: Vec<String> = Vec::new();
     let mut routes: Vec<(String, String)> = Vec::new(); // (node event, chart input)
     let mut input = |name: &str, event: String| -> usize {
@@ -472,7 +474,7 @@ fn actuator_chart(
         if back_to_back {
             let prev = &steps[k - 1];
             let c = motion.completion(prev.extend);
-            let trig = input(c, format!("{}.{c}", a.name));
+            let trig = input(c, format!("{}.{c}", motion.name));
             transitions.push(TransitionIr {
                 from: prev_move,
                 to: move_state,
@@ -499,7 +501,7 @@ fn actuator_chart(
             continue;
         }
         let c = motion.completion(step.extend);
-        let trig = input(c, format!("{}.{c}", a.name));
+        let trig = input(c, format!("{}.{c}", motion.name));
         if let Some(k2) = next_own {
             let wait = states.len();
             states.push(StateIr {
@@ -565,177 +567,10 @@ fn actuator_chart(
         r.routes.push((event, chart_index, i));
     }
     Ok(ChartIr {
-        name: a.name.clone(),
+        name: motion.name.clone(),
         inputs,
         initial: 0,
         states,
         transitions,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use node_fw::sim::{Plant, What, World};
-
-    use crate::compile::{compile, Compiled};
-    use crate::source::Source;
-    use crate::{sim, verify};
-
-    const START_ON_GR: &str = include_str!("../../robot-configs/paint-robot-start-on-gr.ron");
-
-    /// Two cylinders, one node each; START on `start` (a third role `PANEL` moves nothing).
-    fn two(sequence: &str, start: &str) -> String {
-        let role = |r: &str| {
-            let input = if r == start {
-                "inputs: [(name: \"START\", pin: 4)],"
-            } else {
-                ""
-            };
-            format!(
-                "(name: \"{r}\", actuators: [(name: \"{r}\", kind: DoubleActing(extend: 0, \
-                 retract: 1, home: 2, end: 3, out_ms: 300, back_ms: 300))], {input}),"
-            )
-        };
-        let panel = if start == "PANEL" {
-            "(name: \"PANEL\", inputs: [(name: \"START\", pin: 4)]),"
-        } else {
-            ""
-        };
-        format!(
-            "Robot(name: \"two\", network: (pan_id: 0x4242, channel: 20),\n\
-             nodes: [(name: \"n1\", address: 0x21), (name: \"n2\", address: 0x22), \
-             (name: \"n3\", address: 0x23)],\n\
-             assign: [(\"A\", \"n1\"), (\"B\", \"n2\"){}],\n\
-             roles: [{}{}{panel}],\n\
-             start: \"START\", sequence: \"{sequence}\")\n",
-            if start == "PANEL" {
-                ", (\"PANEL\", \"n3\")"
-            } else {
-                ""
-            },
-            role("A"),
-            role("B"),
-        )
-    }
-
-    fn build(name: &str, text: &str) -> Compiled {
-        let src = Source::new(name, text);
-        match compile(&src) {
-            Ok(c) => c,
-            Err(d) => panic!(
-                "{}",
-                d.iter()
-                    .map(|d| d.short(&src))
-                    .collect::<Vec<_>>()
-                    .join("\n")
-            ),
-        }
-    }
-
-    /// The robots with START on another role than step 1's: the last step on the button's
-    /// role (its `stepN.done` reopens the gate), on step 1's role, and a button on a role
-    /// that moves nothing (both: `cycle.done`).
-    fn gated() -> Vec<(&'static str, String)> {
-        vec![
-            ("paint-robot-start-on-gr.ron", START_ON_GR.to_string()),
-            ("last-on-button.ron", two("A+ B+ A- B-", "B")),
-            ("panel.ron", two("A+ B+ B- A-", "PANEL")),
-        ]
-    }
-
-    #[test]
-    fn start_anytime_passes_with_start_on_another_node_than_step_1s() {
-        for (name, text) in gated() {
-            let c = build(name, &text);
-            let opts = verify::Options {
-                start_anytime: true,
-                ..verify::Options::default()
-            };
-            let r = verify::verify(&c, opts).expect("model builds");
-            assert!(r.ok(), "{}", r.render(name, 0));
-            let r = verify::verify(&c, verify::Options::default()).expect("model builds");
-            assert!(r.ok(), "{}", r.render(name, 0));
-        }
-    }
-
-    /// Presses START at idle, then `during` times every 12 ms while that cycle runs, waits
-    /// until the machine is idle, presses once more at idle and waits again. Returns the
-    /// steps, the publications and the link alarms, breaks and faults of the trace.
-    fn press_storm(c: &Compiled, during: usize, loss: f64) -> (Vec<String>, usize, Vec<String>) {
-        let tables = sim::tables(c).expect("blobs decode");
-        let specs = sim::node_specs(c, &tables);
-        let (mut plants, button) = sim::plants(c).expect("plants");
-        if let Some(Plant::Button(b)) = plants.get_mut(button) {
-            b.press_ms = 5;
-        }
-        let mut world = World::new(&specs, plants).expect("world");
-        if loss > 0.0 {
-            // With this seed, a synthesis that publishes every press broke the paint
-            // robot's GR -> VC link at 588 ms (queue overflow) and stalled it after 2 steps.
-            world.set_loss(loss, 1);
-        }
-        world.press(button).expect("press");
-        for _ in 0..during {
-            world.run_for(12).expect("runs");
-            world.press(button).expect("press");
-        }
-        let during_cycle = world.steps().len();
-        assert!(
-            during_cycle < c.ir.expect.len(),
-            "the presses must fall inside the first cycle ({during_cycle} steps done)"
-        );
-        world.run_until_idle(600_000).expect("idle");
-        world.press(button).expect("press");
-        world.run_until_idle(600_000).expect("idle");
-        if loss > 0.0 {
-            let (sent, lost) = world.frames();
-            assert!(lost > 0, "{lost} of {sent} frames lost");
-        }
-        let trouble = world
-            .trace()
-            .iter()
-            .filter(|e| {
-                matches!(
-                    e.what,
-                    What::LinkAlarm { .. } | What::LinkBroken { .. } | What::Fault { .. }
-                )
-            })
-            .map(|e| e.to_string())
-            .collect();
-        let publications = world
-            .trace()
-            .iter()
-            .filter(|e| matches!(e.what, What::Publish { .. }))
-            .count();
-        (world.steps(), publications, trouble)
-    }
-
-    /// 100 presses during a cycle at 20 % loss: no link alarm or break, and exactly one
-    /// cycle per press at idle (two presses at idle: two cycles). A press during a cycle
-    /// costs no publication: the ideal radio sees exactly two cycles' publications.
-    #[test]
-    fn presses_during_a_cycle_cost_nothing_and_break_no_link_at_20_percent_loss() {
-        for (name, text, per_cycle) in [
-            ("paint-robot-start-on-gr.ron", START_ON_GR.to_string(), 11),
-            ("last-on-button.ron", two("A+ B+ A- B-", "B"), 5),
-            ("panel.ron", two("A+ B+ B- A-", "PANEL"), 4),
-        ] {
-            let c = build(name, &text);
-            let expect: Vec<String> = c.ir.expect.iter().map(|s| s.to_string()).collect();
-            let two_cycles = [expect.clone(), expect].concat();
-            let during = if name == "paint-robot-start-on-gr.ron" {
-                100
-            } else {
-                20
-            };
-            let (steps, publications, trouble) = press_storm(&c, during, 0.2);
-            assert_eq!(trouble, Vec::<String>::new(), "{name} at 20 % loss");
-            assert_eq!(steps, two_cycles, "{name} at 20 % loss");
-            assert_eq!(publications, 2 * per_cycle, "{name} at 20 % loss");
-            let (steps, publications, trouble) = press_storm(&c, during, 0.0);
-            assert_eq!(steps, two_cycles, "{name}");
-            assert_eq!(publications, 2 * per_cycle, "{name}");
-            assert_eq!(trouble, Vec::<String>::new(), "{name}");
-        }
-    }
 }

@@ -141,10 +141,10 @@ fn reconfiguration_while_running_then_role_reassigned_to_the_spare() {
     // The spare sees the rod at home (its switch is wired now) before START.
     let (vc, _) = role_of(&spare, "VC");
     let home = spare.ir.roles[vc]
-        .inputs
-        .iter()
-        .position(|i| i.name == "VC.home")
-        .expect("VC.home input");
+        .actuator("VC")
+        .and_then(|w| w.home)
+        .expect("VC.home input")
+        .0;
     wait_until(&mut bed, SPARE, |s| s.inputs & (1 << home) != 0);
     let mut monitor = Monitor::join(bed.medium().addr());
     exact_cycle(&mut bed, &spare, 1);

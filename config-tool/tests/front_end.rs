@@ -16,7 +16,7 @@ fn paint_text() -> String {
 
 /// `line:col: severity: message` of every diagnostic.
 fn diagnostics(src: &Source) -> Vec<String> {
-    let (_, diags) = check(src);
+    let diags = check(src).diagnostics;
     diags
         .iter()
         .map(|d| {
@@ -108,7 +108,7 @@ fn duplicate_addresses(n: usize, never: &str) -> Source {
 #[test]
 fn twenty_thousand_duplicate_addresses_are_all_found() {
     let src = duplicate_addresses(20_000, "");
-    let (_, diags) = check(&src);
+    let diags = check(&src).diagnostics;
     assert_eq!(diags.len(), 19_999);
     assert!(diags.iter().all(|d| d.is_error()));
     let last = diags.last().expect("one");
@@ -129,7 +129,7 @@ fn twenty_thousand_duplicate_addresses_are_all_found() {
 #[test]
 fn after_fifty_diagnostics_the_rest_are_counted() {
     let src = duplicate_addresses(53, "");
-    let (_, diags) = check(&src);
+    let diags = check(&src).diagnostics;
     let out = config_tool::diag::render_all(&src, &diags, false);
     let tail = "  × address 0x0001 is used by nodes `n0` and `n50`
     ╭─[dups.ron:55:32]
@@ -147,7 +147,7 @@ dups.ron: 52 error(s), 0 warning(s)
     assert_eq!(out.matches("  × ").count(), 50);
     // Fewer than the cap: all shown, no count.
     let src = duplicate_addresses(3, "");
-    let (_, diags) = check(&src);
+    let diags = check(&src).diagnostics;
     let out = config_tool::diag::render_all(&src, &diags, false);
     assert!(!out.contains("more error"), "{out}");
     assert!(
@@ -178,7 +178,7 @@ fn five_thousand_bad_names_on_one_line_render_short() {
     let never: Vec<String> = (0..5000).map(|i| format!("\"Z{i}.home\"")).collect();
     let src = duplicate_addresses(1, &never.join(", "));
     assert!(src.text.len() > 60_000);
-    let (_, diags) = check(&src);
+    let diags = check(&src).diagnostics;
     assert_eq!(diags.len(), 5000);
     assert_eq!(
         diags[4999].short(&src),
@@ -225,7 +225,7 @@ fn check_warns_of_each_step_without_a_completion_sensor() {
             "58:56: warning: step `GR-` has no completion sensor: a jam of `GR` goes undetected",
         ]
     );
-    let (_, diags) = check(&src);
+    let diags = check(&src).diagnostics;
     assert_eq!(
         diags[0].label,
         "completes after dwell_ms (150 ms), unsupervised"

@@ -14,7 +14,7 @@ fn fixture(path: &str) -> Source {
 /// `line:col: severity: message` of every diagnostic of a file.
 fn diagnostics(path: &str) -> Vec<String> {
     let src = fixture(path);
-    let (_, diags) = check(&src);
+    let diags = check(&src).diagnostics;
     diags
         .iter()
         .map(|d| {
@@ -121,7 +121,8 @@ fn every_robot_config_checks_without_a_diagnostic_but_sensorless_steps() {
         if path.extension().is_some_and(|e| e == "ron") {
             let text = std::fs::read_to_string(&path).expect("read");
             let src = Source::new(path.display().to_string(), text);
-            let (robot, diags) = check(&src);
+            let checked = check(&src);
+            let (robot, diags) = (checked.robot, checked.diagnostics);
             assert!(robot.is_some());
             let short: Vec<String> = diags
                 .iter()
@@ -138,7 +139,7 @@ fn every_robot_config_checks_without_a_diagnostic_but_sensorless_steps() {
 #[test]
 fn a_diagnostic_renders_with_file_line_col_the_line_and_a_caret() {
     let src = fixture("broken/step-undeclared.ron");
-    let (_, diags) = check(&src);
+    let diags = check(&src).diagnostics;
     let text = diags[0].render(&src, false);
     let expected = "  × unknown actuator `C`
     ╭─[broken/step-undeclared.ron:22:22]
@@ -163,7 +164,8 @@ fn the_complete_example_of_the_format_doc_checks_clean_but_sensorless_steps() {
     let start = doc.find("```ron\n").expect("a ron block") + "```ron\n".len();
     let end = start + doc[start..].find("```").expect("closed");
     let src = Source::new("robot-format.md", &doc[start..end]);
-    let (robot, diags) = check(&src);
+    let checked = check(&src);
+    let (robot, diags) = (checked.robot, checked.diagnostics);
     assert!(robot.is_some());
     let short: Vec<String> = diags
         .iter()
@@ -211,7 +213,7 @@ mod robustness {
             while !text.is_char_boundary(end) { end -= 1; }
             let damaged = format!("{}{}{}", &text[..at], insert, &text[end..]);
             let src = Source::new("damaged.ron", damaged);
-            let (_, diags) = check(&src);
+            let diags = check(&src).diagnostics;
             for d in &diags {
                 let (line, col) = d.line_col(&src);
                 prop_assert!(line >= 1 && col >= 1);

@@ -4,6 +4,7 @@
 
 use crate::diag::Diagnostic;
 use crate::elab::split_source;
+use crate::ir::Ir;
 use crate::model::{ActionDecl, ChartType, Robot};
 use crate::source::Source;
 
@@ -14,7 +15,7 @@ fn emits(t: &ChartType, output: &str) -> bool {
         .any(|a| matches!(a, ActionDecl::Emit(o) if o == output))
 }
 
-pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
+pub fn check(robot: &Robot, _ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>) {
     // Every (role, event) some connection listens to.
     let mut listened: Vec<(String, String)> = Vec::new();
     for (ri, role) in robot.roles.iter().enumerate() {

@@ -1,20 +1,17 @@
 //! `never:` interlocks: syntax, and names that resolve to actuator positions, chart states
 //! or node faults of the elaborated robot.
 
-use crate::compile;
 use crate::diag::Diagnostic;
+use crate::interlock;
+use crate::ir::Ir;
 use crate::model::Robot;
 use crate::source::Source;
-use crate::verify::interlock;
 
-pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
+pub fn check(robot: &Robot, ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>) {
     if robot.never.is_empty() {
         return;
     }
-    let Ok(ir) = compile::build(robot, src) else {
-        return;
-    };
-    let names = interlock::Names::of(robot, &ir);
+    let names = interlock::Names::of(robot, ir);
     for (i, text) in robot.never.iter().enumerate() {
         if let Err((message, span)) = names.interlock(text) {
             let value = src.span(&format!("never[{i}]"));

@@ -1,22 +1,12 @@
-//! Passes over the elaborated robot: elaboration itself (names in charts, guards) and the
-//! capacity of each role's table against `config_schema::limits`.
+//! The capacity of each role's table against `config_schema::limits`.
 
-use crate::compile;
 use crate::diag::Diagnostic;
+use crate::ir::Ir;
 use crate::model::Robot;
 use crate::source::Source;
 
-pub fn build(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
-    if let Err(mut d) = compile::build(robot, src) {
-        out.append(&mut d);
-    }
-}
-
-pub fn capacity(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
-    let Ok(ir) = compile::build(robot, src) else {
-        return;
-    };
-    for over in crate::lower::capacity(&ir) {
+pub fn capacity(_robot: &Robot, ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>) {
+    for over in crate::lower::capacity(ir) {
         let role = &ir.roles[over.role].name;
         out.push(
             Diagnostic::error(

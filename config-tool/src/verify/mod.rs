@@ -10,8 +10,6 @@
 //! publication (or, lossy, gives up: link alarm). Breadth-first with a visited set, so a
 //! counterexample is a shortest one.
 
-pub mod interlock;
-
 use std::collections::VecDeque;
 use std::fmt::Write;
 use std::time::{Duration, Instant};
@@ -22,7 +20,7 @@ use node_fw::ecc::{Effects, Engine, EngineState, Fault};
 use node_fw::sim::Plant;
 
 use crate::compile::Compiled;
-use interlock::{Atom, Interlock};
+use crate::interlock::{self, Atom, Interlock};
 
 /// Options of a verification run.
 #[derive(Debug, Clone, Copy)]

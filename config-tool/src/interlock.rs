@@ -127,22 +127,12 @@ pub fn resolve(
 }
 
 /// The actuators of a robot that `sim` and `verify` model, in plant order (role order,
-/// then actuator order, only those whose outputs the tables have).
-pub fn actuator_names(robot: &Robot, ir: &Ir) -> Vec<String> {
-    let mut out = Vec::new();
-    for (role, r) in robot.roles.iter().zip(&ir.roles) {
-        for a in &role.actuators {
-            let has = |s: &str| {
-                r.outputs
-                    .iter()
-                    .any(|o| o.name == format!("{}.{s}", a.name))
-            };
-            if has("extend") && has("retract") || has("valve") {
-                out.push(a.name.clone());
-            }
-        }
-    }
-    out
+/// then actuator order, only those the tables drive).
+pub fn actuator_names(ir: &Ir) -> Vec<String> {
+    ir.roles
+        .iter()
+        .flat_map(|r| r.actuators.iter().map(|w| w.name.clone()))
+        .collect()
 }
 
 /// Parses and resolves the robot's interlocks: `Err((index, message, byte span in the
@@ -172,7 +162,7 @@ impl<'r> Names<'r> {
     pub fn of(robot: &'r Robot, ir: &'r Ir) -> Names<'r> {
         Names {
             ir,
-            actuators: actuator_names(robot, ir),
+            actuators: actuator_names(ir),
             declared: robot
                 .roles
                 .iter()
