@@ -1066,6 +1066,3 @@ impl<'t> World<'t> {
         self.schedule(arrive - self.now, Ev::Arrive { plant, gen });
     }
 }
-
-#[cfg(test)]
-mod tests;

@@ -1,6 +1,8 @@
-use config_schema::{Action, Input, Output, Publication, Subscription, Table, Timer, Transition};
+//! The virtual-time world (`node_fw::sim`) through its public API: plants on the pins, the
+//! radio (ideal and lossy), run bounds, injected faults, and the trace of each.
 
-use super::*;
+use config_schema::{Action, Input, Output, Publication, Subscription, Table, Timer, Transition};
+use node_fw::sim::*;
 
 const EXT: u16 = 0b01;
 const RET: u16 = 0b10;
@@ -962,7 +964,7 @@ fn a_lossy_link_raises_its_alarm_after_the_retries_and_breaks_when_its_queue_ove
         world.press(0).unwrap();
         world.run_for(60).unwrap();
     }
-    assert_eq!(crate::link::QUEUE, 16);
+    assert_eq!(node_fw::link::QUEUE, 16);
     assert_eq!(
         link_trouble(&world),
         [
