@@ -5,14 +5,12 @@
 mod support;
 use support::{Channel, Rng};
 
-use config_schema::limits::MAX_BLOB;
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
 use config_schema::wire::msg::{Command, Message, Refusal, Status};
-use config_schema::{
-    encode, Action, Input, Output, Publication, Route, Subscription, Table, Transition,
-};
+use config_schema::{Action, Input, Output, Publication, Subscription, Table, Transition};
 use node_fw::node::{Io, NodeCore, CONFIG_PAN};
 use node_fw::ota;
+use test_tables::{blob, route};
 
 const TOOL: u16 = 0x0100;
 const A: u16 = 0x0001;
@@ -77,21 +75,8 @@ fn table_b(generation: u32) -> Table {
     };
     t.push_chart(0, 1, &[off, on], &[tr(0, 1), tr(1, 0)])
         .unwrap();
-    t.routes
-        .push(Route {
-            event: press,
-            chart: 0,
-            input: 0,
-        })
-        .unwrap();
+    route(&mut t, press, 0, 0);
     t
-}
-
-fn blob(t: &Table) -> Vec<u8> {
-    let mut buf = vec![0u8; MAX_BLOB];
-    let n = encode(t, &mut buf).unwrap();
-    buf.truncate(n);
-    buf
 }
 
 /// A node's outside: what it transmitted and the pin levels it set.
