@@ -15,10 +15,10 @@ use std::time::{Duration, Instant};
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
 use config_schema::wire::medium::{next_message, Link, Peer, MAX_LINK};
 use config_schema::wire::msg::{Announce, Command as Cmd, Message, Status};
-use config_schema::{Action, Input, Publication, Subscription, Table};
+use config_schema::{Action, Publication, Subscription, Table};
 use node_fw::node::CONFIG_PAN;
 use node_fw::ota;
-use test_tables::{blob, lamp_table, lamp_with, BEACON, BUTTON, LAMP, PAN};
+use test_tables::{blob, button, lamp_table, lamp_with, BEACON, BUTTON, LAMP, PAN};
 
 const TOOL: u16 = 0x0100;
 const WAIT: Duration = Duration::from_secs(10);
@@ -652,15 +652,7 @@ fn button_table(lamp: u16) -> Table {
     let mut t = Table::empty("button");
     t.generation = 1;
     t.header.pan_id = PAN;
-    let press = t.push_event().unwrap();
-    t.inputs
-        .push(Input {
-            pin: BUTTON,
-            rise: Some(press),
-            fall: None,
-            var: None,
-        })
-        .unwrap();
+    let press = button(&mut t, BUTTON);
     t.peers.push(lamp).unwrap();
     t.publications
         .push(Publication {

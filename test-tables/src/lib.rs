@@ -73,18 +73,31 @@ pub fn lamp_with(generation: u32, on: &[Action]) -> Table {
     let mut t = Table::empty("lamp");
     t.generation = generation;
     t.header.pan_id = PAN;
+    let press = button(&mut t, BUTTON);
+    for (pin, safe) in [(LAMP, false), (BEACON, true)] {
+        t.outputs.push(Output { pin, safe }).unwrap();
+    }
+    toggle(&mut t, press, on);
+    t
+}
+
+/// A new event, raised by every rise of a new input on pin `pin` (no mirror variable).
+pub fn button(t: &mut Table, pin: u8) -> EventId {
     let press = t.push_event().unwrap();
     t.inputs
         .push(Input {
-            pin: BUTTON,
+            pin,
             rise: Some(press),
             fall: None,
             var: None,
         })
         .unwrap();
-    for (pin, safe) in [(LAMP, false), (BEACON, true)] {
-        t.outputs.push(Output { pin, safe }).unwrap();
-    }
+    press
+}
+
+/// Chart 0 (its input 0 routed from `event`): every `event` toggles between off (output 0
+/// low) and on (runs `on`).
+pub fn toggle(t: &mut Table, event: EventId, on: &[Action]) {
     let off: &[Action] = &[Action::Drive { mask: 1, value: 0 }];
     let tr = |from, to| Transition {
         from,
@@ -94,6 +107,5 @@ pub fn lamp_with(generation: u32, on: &[Action]) -> Table {
     };
     t.push_chart(0, 1, &[off, on], &[tr(0, 1), tr(1, 0)])
         .unwrap();
-    route(&mut t, press, 0, 0);
-    t
+    route(t, event, 0, 0);
 }
