@@ -7,8 +7,9 @@ use common::{blob, realistic};
 use config_schema::limits::*;
 use config_schema::{
     decode, validate, Action, Chart, DecodeError, Expr, ExprError, Input, Invalid, Op, Output,
-    Place, Publication, Route, State, Subscription, Table, Transition,
+    Place, Publication, State, Subscription, Table, Transition,
 };
+use test_tables::route;
 
 /// Applies `mutate` to the realistic table and returns the validation error, checking that
 /// `decode` reports the same one.
@@ -600,13 +601,7 @@ fn builders_keep_the_pools_consistent() {
             }],
         )
         .unwrap();
-    t.routes
-        .push(Route {
-            event: e,
-            chart: c,
-            input: 0,
-        })
-        .unwrap();
+    route(&mut t, e, c, 0);
     assert_eq!(validate(&t), Ok(()));
     assert_eq!(
         t.charts[0],

@@ -1,7 +1,8 @@
 //! The machine, in real time, on the medium: a `Peer::Plant` client that watches the nodes'
 //! valve outputs and drives their limit switches after each actuator's travel time, with
-//! the same rod model as `sim` (`node_fw::sim::Rod`). Plants are wired by node address and
-//! pin number, so a node never learns which role it plays.
+//! the same plant rules as `sim` and `verify` (`node_fw::cylinder`: valve, sensors, travel).
+//! Plants are wired by node address and pin number, so a node never learns which role it
+//! plays.
 
 use std::collections::HashMap;
 use std::io;
@@ -12,7 +13,8 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use config_schema::wire::medium::{Link, Peer};
-use node_fw::sim::{Plant, Position, Rod, RodOutcome};
+use node_fw::cylinder::{Command, Cylinder, Outcome as RodOutcome, Position, Rod, Valve, Valves};
+use node_fw::sim::Plant;
 
 use crate::compile::Compiled;
 use crate::medium::Conn;
@@ -29,6 +31,27 @@ pub struct Actuator {
     pub end: Option<u8>,
     /// Full-stroke times (extend, retract), ms.
     pub travel_ms: (u64, u64),
+}
+
+impl Actuator {
+    /// Its wiring, for the rules of `node_fw::cylinder` (board pins).
+    fn cylinder(&self) -> Cylinder {
+        let valve = if self.double {
+            Valve::Double {
+                extend: self.valves.0,
+                retract: self.valves.1,
+            }
+        } else {
+            Valve::Single {
+                valve: self.valves.0,
+            }
+        };
+        Cylinder {
+            valve,
+            home: self.home,
+            end: self.end,
+        }
+    }
 }
 
 /// An actuator starting a motion (`VC+`), seen by the plant.
@@ -122,11 +145,7 @@ struct State {
 impl State {
     /// The levels of the actuator's limit switches for where its rod is.
     fn switches(&self) -> (bool, bool) {
-        let (home, end) = match self.rod {
-            Rod::Home => (true, false),
-            Rod::End => (false, true),
-            Rod::Moving { .. } => (false, false),
-        };
+        let (home, end) = self.rod.position().sensors();
         (home && !self.open.0, end && !self.open.1)
     }
 }
@@ -254,27 +273,16 @@ pub fn run_attached(
             if a.addr != addr {
                 continue;
             }
-            // Bistable: the solenoid last energised decides. Monostable: the level.
-            let extend = if a.double {
-                match (pin == a.valves.0 && rose, pin == a.valves.1 && rose) {
-                    (true, _) => Some(true),
-                    (_, true) => Some(false),
-                    _ => None,
-                }
-            } else if pin == a.valves.0 && (rose || fell) {
-                Some(level)
-            } else {
-                None
+            // Each change the medium saw is a step of its own (no conflict in real time).
+            let mut step = Valves::default();
+            if rose || fell {
+                a.cylinder().output(&mut step, pin, level);
+            }
+            let Some(Command::Drive(extend)) = step.command() else {
+                continue;
             };
-            let Some(extend) = extend else { continue };
             if s.stuck {
-                if s.rod.position()
-                    != if extend {
-                        Position::End
-                    } else {
-                        Position::Home
-                    }
-                {
+                if s.rod.position() != Position::from_command(extend) {
                     let _ = steps.send(Step {
                         at: Duration::from_micros(at_us),
                         actuator: a.name.clone(),

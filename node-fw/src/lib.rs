@@ -1,5 +1,6 @@
 //! The generic node firmware.
 //!
+//! - [`cylinder`]: the pneumatic plant's rules (valve, power-up, sensors, travel), pure.
 //! - [`ecc`]: the table interpreter (pure, `no_std`, no allocation, no Embassy).
 //! - [`link`]: reliable, ordered event delivery over a lossy radio (pure state machines).
 //! - [`node`]: the whole node as one pure state machine: frames in, frames and pins out.
@@ -11,6 +12,7 @@
 #![cfg_attr(not(feature = "std"), no_std)]
 #![forbid(unsafe_code)]
 
+pub mod cylinder;
 pub mod ecc;
 #[cfg(feature = "std")]
 pub mod host;

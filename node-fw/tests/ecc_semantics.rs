@@ -4,12 +4,13 @@
 //! Every table goes through `encode` + `decode` before it runs, so the engine runs exactly
 //! what a node would run.
 
-use config_schema::limits::{EVENT_QUEUE, MAX_BLOB, MAX_CASCADE, MAX_CHAIN};
+use config_schema::limits::{EVENT_QUEUE, MAX_CASCADE, MAX_CHAIN};
 use config_schema::{
-    decode, encode, validate, Action, EventId, Expr, Input, Op, Output, Publication, Route,
-    Subscription, Table, Timer, Transition,
+    validate, Action, EventId, Expr, Input, Op, Output, Publication, Subscription, Table, Timer,
+    Transition,
 };
 use node_fw::ecc::{Effects, Engine, Fault};
+use test_tables::{load, route};
 
 /// One effect reported by the engine.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -104,16 +105,6 @@ fn when(from: u8, to: u8, guard: Expr) -> Transition {
     }
 }
 
-fn route(t: &mut Table, event: EventId, chart: u8, input: u8) {
-    t.routes
-        .push(Route {
-            event,
-            chart,
-            input,
-        })
-        .unwrap();
-}
-
 fn outputs(t: &mut Table, safe: &[bool]) {
     for (pin, safe) in safe.iter().enumerate() {
         t.outputs
@@ -136,16 +127,6 @@ fn drive(i: u8, v: bool) -> Action {
         mask: 1 << i,
         value: u16::from(v) << i,
     }
-}
-
-/// Validates, encodes and decodes the table: what a node would run.
-fn load(t: Table) -> Table {
-    validate(&t).unwrap();
-    let mut buf = vec![0u8; MAX_BLOB];
-    let n = encode(&t, &mut buf).unwrap();
-    let back = decode(&buf[..n]).unwrap();
-    assert_eq!(back, t);
-    back
 }
 
 // ---------------------------------------------------------------------------------------

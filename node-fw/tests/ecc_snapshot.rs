@@ -1,8 +1,9 @@
 //! An engine snapshotted after every stimulus and resumed behaves exactly like one that ran
 //! uninterrupted (what the runtime does when it owns its table, and what the verifier hashes).
 
-use config_schema::{Action, Op, Output, Route, Table, Transition};
+use config_schema::{Action, Op, Output, Table, Transition};
 use node_fw::ecc::{Effects, Engine};
+use test_tables::route;
 
 #[derive(Default, Debug, PartialEq)]
 struct Rec(Vec<String>);
@@ -59,13 +60,7 @@ fn toggle() -> Table {
         ],
     )
     .unwrap();
-    t.routes
-        .push(Route {
-            event: press,
-            chart: 0,
-            input: 0,
-        })
-        .unwrap();
+    route(&mut t, press, 0, 0);
     config_schema::validate(&t).unwrap();
     t
 }

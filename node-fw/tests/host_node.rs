@@ -12,70 +12,16 @@ use std::sync::mpsc;
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
-use config_schema::limits::MAX_BLOB;
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
 use config_schema::wire::medium::{next_message, Link, Peer, MAX_LINK};
 use config_schema::wire::msg::{Announce, Command as Cmd, Message, Status};
-use config_schema::{
-    encode, Action, Input, Output, Publication, Route, Subscription, Table, Transition,
-};
+use config_schema::{Action, Publication, Subscription, Table};
 use node_fw::node::CONFIG_PAN;
 use node_fw::ota;
+use test_tables::{blob, button, lamp_table, lamp_with, BEACON, BUTTON, LAMP, PAN};
 
 const TOOL: u16 = 0x0100;
-const PAN: u16 = 0x4242;
-const BUTTON: u8 = 5;
-const LAMP: u8 = 7;
-const BEACON: u8 = 8;
 const WAIT: Duration = Duration::from_secs(10);
-
-/// "lamp": every rise of the button toggles the lamp; the beacon's safe level is high.
-fn lamp_table(generation: u32) -> Table {
-    lamp_with(generation, &[Action::Drive { mask: 1, value: 1 }])
-}
-
-/// The lamp table whose "on" state runs `on`.
-fn lamp_with(generation: u32, on: &[Action]) -> Table {
-    let mut t = Table::empty("lamp");
-    t.generation = generation;
-    t.header.pan_id = PAN;
-    let press = t.push_event().unwrap();
-    t.inputs
-        .push(Input {
-            pin: BUTTON,
-            rise: Some(press),
-            fall: None,
-            var: None,
-        })
-        .unwrap();
-    for (pin, safe) in [(LAMP, false), (BEACON, true)] {
-        t.outputs.push(Output { pin, safe }).unwrap();
-    }
-    let off: &[Action] = &[Action::Drive { mask: 1, value: 0 }];
-    let tr = |from, to| Transition {
-        from,
-        to,
-        trigger: Some(0),
-        guard: None,
-    };
-    t.push_chart(0, 1, &[off, on], &[tr(0, 1), tr(1, 0)])
-        .unwrap();
-    t.routes
-        .push(Route {
-            event: press,
-            chart: 0,
-            input: 0,
-        })
-        .unwrap();
-    t
-}
-
-fn blob(t: &Table) -> Vec<u8> {
-    let mut buf = vec![0u8; MAX_BLOB];
-    let n = encode(t, &mut buf).unwrap();
-    buf.truncate(n);
-    buf
-}
 
 fn emit(msg: &Link<'_>) -> Vec<u8> {
     let mut buf = [0u8; MAX_LINK];
@@ -706,15 +652,7 @@ fn button_table(lamp: u16) -> Table {
     let mut t = Table::empty("button");
     t.generation = 1;
     t.header.pan_id = PAN;
-    let press = t.push_event().unwrap();
-    t.inputs
-        .push(Input {
-            pin: BUTTON,
-            rise: Some(press),
-            fall: None,
-            var: None,
-        })
-        .unwrap();
+    let press = button(&mut t, BUTTON);
     t.peers.push(lamp).unwrap();
     t.publications
         .push(Publication {

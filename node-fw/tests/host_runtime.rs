@@ -11,10 +11,9 @@ use std::future::poll_fn;
 use std::rc::Rc;
 use std::task::{Poll, Waker};
 
-use config_schema::limits::MAX_BLOB;
 use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
 use config_schema::wire::msg::{Command, Message, Refusal, RuntimeCounters, Status};
-use config_schema::{encode, Action, Input, Output, Route, Table, Transition};
+use config_schema::Table;
 use embassy_futures::join::join;
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use embassy_sync::channel::Channel;
@@ -27,58 +26,12 @@ use node_fw::node::CONFIG_PAN;
 use node_fw::ota;
 use node_fw::runtime::{self, Board, Inputs, Pins, Radio, Stats, Stop, WaitInputs};
 use node_fw::slots::{PowerCut, RamFlash, Slots};
+use test_tables::{blob, lamp_table, BEACON, BUTTON, LAMP};
 
 const ADDR: u16 = 0x0009;
 const TOOL: u16 = 0x0100;
-const BUTTON: u8 = 5;
-const LAMP: u8 = 7;
-const BEACON: u8 = 8;
 /// Every wait of the scripts below (in Embassy time).
 const WAIT_MS: u64 = 10_000;
-
-/// "lamp": every rise of the button toggles the lamp; the beacon's safe level is high.
-fn lamp_table(generation: u32) -> Table {
-    let mut t = Table::empty("lamp");
-    t.generation = generation;
-    t.header.pan_id = 0x4242;
-    let press = t.push_event().unwrap();
-    t.inputs
-        .push(Input {
-            pin: BUTTON,
-            rise: Some(press),
-            fall: None,
-            var: None,
-        })
-        .unwrap();
-    for (pin, safe) in [(LAMP, false), (BEACON, true)] {
-        t.outputs.push(Output { pin, safe }).unwrap();
-    }
-    let on: &[Action] = &[Action::Drive { mask: 1, value: 1 }];
-    let off: &[Action] = &[Action::Drive { mask: 1, value: 0 }];
-    let tr = |from, to| Transition {
-        from,
-        to,
-        trigger: Some(0),
-        guard: None,
-    };
-    t.push_chart(0, 1, &[off, on], &[tr(0, 1), tr(1, 0)])
-        .unwrap();
-    t.routes
-        .push(Route {
-            event: press,
-            chart: 0,
-            input: 0,
-        })
-        .unwrap();
-    t
-}
-
-fn blob(t: &Table) -> Vec<u8> {
-    let mut buf = vec![0u8; MAX_BLOB];
-    let n = encode(t, &mut buf).unwrap();
-    buf.truncate(n);
-    buf
-}
 
 // ---------------------------------------------------------------- fake hardware
 

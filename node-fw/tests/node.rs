@@ -5,14 +5,12 @@
 mod support;
 use support::{Channel, Rng};
 
-use config_schema::limits::MAX_BLOB;
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
 use config_schema::wire::msg::{Command, Message, Refusal, Status};
-use config_schema::{
-    encode, Action, Input, Output, Publication, Route, Subscription, Table, Transition,
-};
+use config_schema::{Action, Output, Publication, Subscription, Table};
 use node_fw::node::{Io, NodeCore, CONFIG_PAN};
 use node_fw::ota;
+use test_tables::{blob, button, toggle};
 
 const TOOL: u16 = 0x0100;
 const A: u16 = 0x0001;
@@ -26,15 +24,7 @@ fn table_a(generation: u32) -> Table {
     let mut t = Table::empty("A");
     t.generation = generation;
     t.header.pan_id = PAN;
-    let press = t.push_event().unwrap();
-    t.inputs
-        .push(Input {
-            pin: BUTTON_PIN,
-            rise: Some(press),
-            fall: None,
-            var: None,
-        })
-        .unwrap();
+    let press = button(&mut t, BUTTON_PIN);
     t.start = Some(press);
     t.peers.push(B).unwrap();
     t.publications
@@ -67,31 +57,8 @@ fn table_b(generation: u32) -> Table {
             event: press,
         })
         .unwrap();
-    let on: &[Action] = &[Action::Drive { mask: 1, value: 1 }];
-    let off: &[Action] = &[Action::Drive { mask: 1, value: 0 }];
-    let tr = |from, to| Transition {
-        from,
-        to,
-        trigger: Some(0),
-        guard: None,
-    };
-    t.push_chart(0, 1, &[off, on], &[tr(0, 1), tr(1, 0)])
-        .unwrap();
-    t.routes
-        .push(Route {
-            event: press,
-            chart: 0,
-            input: 0,
-        })
-        .unwrap();
+    toggle(&mut t, press, &[Action::Drive { mask: 1, value: 1 }]);
     t
-}
-
-fn blob(t: &Table) -> Vec<u8> {
-    let mut buf = vec![0u8; MAX_BLOB];
-    let n = encode(t, &mut buf).unwrap();
-    buf.truncate(n);
-    buf
 }
 
 /// A node's outside: what it transmitted and the pin levels it set.

@@ -2,8 +2,7 @@
 //! tables, pushed through encode -> decode as a node would receive them, four engines, the
 //! radio and the plant models.
 
-use config_schema::limits::MAX_BLOB;
-use config_schema::{decode, encode, Table};
+use config_schema::{decode, Table};
 use node_fw::sim::{Position, TraceEntry, What, World};
 use robot_tests::paper_robot::*;
 
@@ -20,13 +19,7 @@ const CYCLE_MS: u64 = 4820;
 /// The four tables as a node gets them: encoded, then decoded (and checked equal).
 fn decoded() -> [Table; 4] {
     let tables = tables().expect("the robot fits the table limits");
-    tables.map(|t| {
-        let mut buf = [0u8; MAX_BLOB];
-        let len = encode(&t, &mut buf).expect("encodes");
-        let back = decode(&buf[..len]).expect("decodes");
-        assert_eq!(back, t, "{} round trip", t.header.role);
-        back
-    })
+    tables.map(test_tables::load)
 }
 
 fn actuators() -> [usize; 4] {
@@ -284,9 +277,9 @@ fn every_table_survives_encode_decode_within_its_size_budget() {
     let tables = tables().unwrap();
     for (t, budget) in tables.iter().zip(BLOB_BUDGET) {
         config_schema::validate(t).unwrap();
-        let mut buf = [0u8; MAX_BLOB];
-        let len = encode(t, &mut buf).unwrap();
-        assert_eq!(decode(&buf[..len]).as_ref(), Ok(t), "{}", t.header.role);
+        let blob = test_tables::blob(t);
+        let len = blob.len();
+        assert_eq!(decode(&blob).as_ref(), Ok(t), "{}", t.header.role);
         assert!(
             len <= budget,
             "{}: {len} bytes, over its {budget}-byte budget",

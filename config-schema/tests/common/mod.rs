@@ -1,10 +1,11 @@
 //! Tables and blob helpers shared by the config-schema tests.
 #![allow(dead_code)]
 
-use config_schema::blob::{CRC32, HEADER_LEN, TRAILER_LEN};
-use config_schema::limits::MAX_BLOB;
+#[allow(unused_imports)]
+pub use test_tables::{blob, payload, route, seal};
+
 use config_schema::{
-    encode, Action, Input, Op, Output, Publication, Route, Subscription, Table, Timer, Transition,
+    Action, Input, Op, Output, Publication, Subscription, Table, Timer, Transition,
 };
 
 /// A realistic role: the vertical cylinder (VC) of the painting robot, in the paper's
@@ -150,13 +151,7 @@ pub fn realistic() -> Table {
         (1, 0, 4),
         (4, 1, 0),
     ] {
-        t.routes
-            .push(Route {
-                event,
-                chart,
-                input,
-            })
-            .unwrap();
+        route(&mut t, event, chart, input);
     }
     t.peers.extend_from_slice(&[0x0001, 0x0003]).unwrap();
     for (event, topic, subscribers) in [(0, 20, 0b01), (1, 21, 0b11), (6, 22, 0b10)] {
@@ -178,31 +173,4 @@ pub fn realistic() -> Table {
             .unwrap();
     }
     t
-}
-
-/// The blob of a table.
-pub fn blob(t: &Table) -> Vec<u8> {
-    let mut buf = vec![0u8; MAX_BLOB];
-    let n = encode(t, &mut buf).unwrap();
-    buf.truncate(n);
-    buf
-}
-
-/// The payload of a blob (no envelope).
-pub fn payload(blob: &[u8]) -> Vec<u8> {
-    blob[HEADER_LEN..blob.len() - TRAILER_LEN].to_vec()
-}
-
-/// Wraps a payload into a well-formed envelope (magic, version 1, `generation`, length, CRC)
-/// so that decoding reaches the payload parser and the validator.
-pub fn seal(payload: &[u8], generation: u32) -> Vec<u8> {
-    let mut b = Vec::with_capacity(payload.len() + HEADER_LEN + TRAILER_LEN);
-    b.extend_from_slice(b"ECCT");
-    b.extend_from_slice(&1u16.to_le_bytes());
-    b.extend_from_slice(&generation.to_le_bytes());
-    b.extend_from_slice(&(payload.len() as u16).to_le_bytes());
-    b.extend_from_slice(payload);
-    let crc = CRC32.checksum(&b);
-    b.extend_from_slice(&crc.to_le_bytes());
-    b
 }

@@ -8,7 +8,7 @@
 //! is valid by construction (and the properties assert it), and shrinking works on numbers.
 #![allow(dead_code)]
 
-use config_schema::blob::{CRC32, HEADER_LEN, TRAILER_LEN};
+use config_schema::blob::{HEADER_LEN, TRAILER_LEN};
 use config_schema::limits::*;
 use config_schema::{
     Action, EventId, Expr, Input, Op, Output, Publication, Route, Subscription, Table, Timer,
@@ -16,6 +16,7 @@ use config_schema::{
 };
 use proptest::collection::vec;
 use proptest::prelude::*;
+pub use test_tables::{blob, seal};
 
 /// A well-formed expression, before its indices are reduced.
 #[derive(Debug, Clone)]
@@ -432,28 +433,6 @@ pub fn mutate(payload: &mut Vec<u8>, m: &Mutation) {
         }
         _ => {}
     }
-}
-
-/// A blob around `payload` with a correct envelope: length and CRC recomputed, so decoding
-/// reaches the payload parser and the validator.
-pub fn seal(payload: &[u8], generation: u32) -> Vec<u8> {
-    let mut b = Vec::with_capacity(payload.len() + HEADER_LEN + TRAILER_LEN);
-    b.extend_from_slice(b"ECCT");
-    b.extend_from_slice(&1u16.to_le_bytes());
-    b.extend_from_slice(&generation.to_le_bytes());
-    b.extend_from_slice(&(payload.len() as u16).to_le_bytes());
-    b.extend_from_slice(payload);
-    let crc = CRC32.checksum(&b);
-    b.extend_from_slice(&crc.to_le_bytes());
-    b
-}
-
-/// The blob of a table.
-pub fn blob(t: &Table) -> Vec<u8> {
-    let mut buf = vec![0u8; MAX_BLOB];
-    let n = config_schema::encode(t, &mut buf).unwrap();
-    buf.truncate(n);
-    buf
 }
 
 /// A valid table's blob with mutations applied to its payload, resealed.

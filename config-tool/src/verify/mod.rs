@@ -16,8 +16,8 @@ use std::time::{Duration, Instant};
 
 use config_schema::{Publication, Table, Topic};
 use indexmap::IndexSet;
+use node_fw::cylinder::{self, Command, Cylinder, Motion, Position as Pos};
 use node_fw::ecc::{Effects, Engine, EngineState, Fault};
-use node_fw::sim::Plant;
 
 use crate::compile::Compiled;
 use crate::interlock::{self, Atom, Interlock};
@@ -183,29 +183,16 @@ impl Report {
 struct Act {
     name: String,
     node: usize,
-    /// Double acting: (extend, retract) outputs; single acting: the valve.
-    extend: u8,
-    retract: Option<u8>,
-    home_in: Option<u8>,
-    end_in: Option<u8>,
+    cylinder: Cylinder,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-enum Pos {
-    Home,
-    End,
-    Extending,
-    Retracting,
-}
-
-impl Pos {
-    fn mask(self) -> u8 {
-        match self {
-            Pos::Home => interlock::HOME,
-            Pos::End => interlock::END,
-            Pos::Extending => interlock::EXTENDING,
-            Pos::Retracting => interlock::RETRACTING,
-        }
+/// The interlock bit of a position.
+fn mask(p: Pos) -> u8 {
+    match p {
+        Pos::Home => interlock::HOME,
+        Pos::End => interlock::END,
+        Pos::Extending => interlock::EXTENDING,
+        Pos::Retracting => interlock::RETRACTING,
     }
 }
 
@@ -308,29 +295,16 @@ impl<'c> Model<'c> {
             ));
         }
         let (plants, button) = crate::sim::plants(c)?;
-        let mut acts = Vec::new();
-        for p in &plants {
-            match p {
-                Plant::DoubleActing(d) => acts.push(Act {
-                    name: d.name.clone(),
-                    node: d.node,
-                    extend: d.extend_out,
-                    retract: Some(d.retract_out),
-                    home_in: d.home_in,
-                    end_in: d.end_in,
-                }),
-                Plant::SingleActing(s) => acts.push(Act {
-                    name: s.name.clone(),
-                    node: s.node,
-                    extend: s.out,
-                    retract: None,
-                    home_in: s.home_in,
-                    end_in: s.end_in,
-                }),
-                Plant::Button(_) => {}
-            }
-        }
-        let Plant::Button(b) = &plants[button] else {
+        let acts: Vec<Act> = (plants.iter())
+            .filter_map(|p| {
+                Some(Act {
+                    name: p.name().to_string(),
+                    node: p.node(),
+                    cylinder: p.cylinder()?,
+                })
+            })
+            .collect();
+        let node_fw::sim::Plant::Button(b) = &plants[button] else {
             return Err(String::from("no start button"));
         };
         let start = (b.node, b.input);
@@ -347,33 +321,19 @@ impl<'c> Model<'c> {
             .map_err(|(i, m, _)| format!("never[{i}]: {m}"))?;
         let expect = c.ir.expect.iter().map(|s| s.to_string()).collect();
         let n = tables.len();
-        // Power-up as the simulator does: home switches high, then a reset.
-        let mut nodes = Vec::new();
-        for (i, t) in tables.iter().enumerate() {
-            let mut e = Engine::new(t);
-            let mut powered = false;
-            for a in acts.iter().filter(|a| a.node == i) {
-                if let Some(h) = a.home_in {
-                    e.input(h, true, &mut ());
-                    powered = true;
-                }
+        // Power-up (`node_fw::cylinder`): each rod rests where its node's safe outputs hold
+        // it, the node reads the sensors closed there.
+        let mut engines: Vec<Engine<'_>> = tables.iter().map(Engine::new).collect();
+        let mut pos = Vec::new();
+        for a in &acts {
+            let e = &mut engines[a.node];
+            let (at, closed) = a.cylinder.power_up(e.outputs());
+            if let Some(sensor) = closed {
+                e.sense(sensor, true);
             }
-            if powered {
-                e.reset(&mut ());
-            }
-            nodes.push(e.snapshot());
+            pos.push(at);
         }
-        let pos = acts
-            .iter()
-            .map(|a| {
-                let out = nodes[a.node].outputs & (1 << a.extend) != 0;
-                if a.retract.is_none() && out {
-                    Pos::End
-                } else {
-                    Pos::Home
-                }
-            })
-            .collect();
+        let nodes = engines.iter().map(Engine::snapshot).collect();
         let init = Sys {
             nodes,
             timers: vec![0; n],
@@ -461,7 +421,7 @@ impl<'c> Model<'c> {
             if opts.prompt && radio_busy {
                 break;
             }
-            if matches!(pos, Pos::Extending | Pos::Retracting) {
+            if pos.moving() {
                 out.push(Move::Arrive(p as u8));
             }
         }
@@ -506,9 +466,10 @@ impl<'c> Model<'c> {
             Move::Arrive(p) => {
                 let p = usize::from(p);
                 let a = &self.acts[p];
-                let end = s.pos[p] == Pos::Extending;
-                s.pos[p] = if end { Pos::End } else { Pos::Home };
-                if let Some(pin) = if end { a.end_in } else { a.home_in } {
+                let pin = s.pos[p]
+                    .finish_travel()
+                    .and_then(|end| a.cylinder.sensor(end));
+                if let Some(pin) = pin {
                     inputs.push_back((a.node, pin, true));
                 }
             }
@@ -574,7 +535,7 @@ impl<'c> Model<'c> {
         }
         for il in &self.interlocks {
             let read = |a: Atom| match a {
-                Atom::Position { plant, mask } => s.pos[plant].mask() & mask != 0,
+                Atom::Position { plant, mask: m } => mask(s.pos[plant]) & m != 0,
                 Atom::Chart { role, chart, state } => {
                     usize::from(s.nodes[role].current[chart]) == state
                 }
@@ -643,8 +604,15 @@ impl<'c> Model<'c> {
         s.nodes[node] = e.snapshot();
         let faulted = s.nodes[node].fault.is_some();
         let n = self.n();
-        // (plant, extend rose, retract rose, monostable level)
-        let mut valves: Vec<(usize, bool, bool, Option<bool>)> = Vec::new();
+        let cylinders: Vec<(usize, Cylinder)> = (self.acts.iter().enumerate())
+            .filter(|(_, a)| a.node == node)
+            .map(|(p, a)| (p, a.cylinder))
+            .collect();
+        let outputs = fx.0.iter().filter_map(|f| match *f {
+            Fx::Output(o, level) => Some((o, level)),
+            _ => None,
+        });
+        let valves = cylinder::commands(&cylinders, outputs);
         for f in &fx.0 {
             if let Some(log) = log.as_deref_mut() {
                 if let Some(line) = self.describe_fx(node, f) {
@@ -652,31 +620,6 @@ impl<'c> Model<'c> {
                 }
             }
             match *f {
-                Fx::Output(o, level) => {
-                    for (p, a) in self.acts.iter().enumerate() {
-                        if a.node != node {
-                            continue;
-                        }
-                        let hit = match a.retract {
-                            Some(_) if a.extend == o => Some((level, false, None)),
-                            Some(r) if r == o => Some((false, level, None)),
-                            None if a.extend == o => Some((false, false, Some(level))),
-                            _ => None,
-                        };
-                        if let Some((x, r, m)) = hit {
-                            match valves.iter_mut().find(|v| v.0 == p) {
-                                Some(v) => {
-                                    v.1 |= x;
-                                    v.2 |= r;
-                                    if m.is_some() {
-                                        v.3 = m;
-                                    }
-                                }
-                                None => valves.push((p, x, r, m)),
-                            }
-                        }
-                    }
-                }
                 Fx::Publish(p) => {
                     for (i, to) in self.peers[node].iter().enumerate().take(8) {
                         if p.subscribers & (1 << i) != 0 {
@@ -690,12 +633,12 @@ impl<'c> Model<'c> {
                 }
                 Fx::Start(t) => s.timers[node] |= 1 << t,
                 Fx::Cancel(t) => s.timers[node] &= !(1 << t),
-                Fx::Fault(_) | Fx::Fired(..) | Fx::Ignored(..) => {}
+                Fx::Output(..) | Fx::Fault(_) | Fx::Fired(..) | Fx::Ignored(..) => {}
             }
         }
-        for (p, x, r, m) in valves {
-            let extend = match (x, r, m) {
-                (true, true, _) => {
+        for (p, command) in valves {
+            let extend = match command {
+                Command::Conflict => {
                     if bad.is_none() && !faulted {
                         *bad = Some((
                             Property::DoubleActuation,
@@ -704,10 +647,7 @@ impl<'c> Model<'c> {
                     }
                     continue;
                 }
-                (true, false, _) => true,
-                (false, true, _) => false,
-                (false, false, Some(level)) => level,
-                (false, false, None) => continue,
+                Command::Drive(extend) => extend,
             };
             self.command(s, p, extend, faulted, inputs, bad, log);
         }
@@ -727,15 +667,11 @@ impl<'c> Model<'c> {
         let a = &self.acts[p];
         let step = format!("{}{}", a.name, if extend { '+' } else { '-' });
         let before = s.pos[p];
-        let (next, leaves) = match (before, extend) {
-            (Pos::Home, false) | (Pos::End, true) => return,
-            (Pos::Extending, true) | (Pos::Retracting, false) => return,
-            (Pos::Home, true) => (Pos::Extending, a.home_in),
-            (Pos::End, false) => (Pos::Retracting, a.end_in),
-            (Pos::Extending, false) => (Pos::Retracting, None),
-            (Pos::Retracting, true) => (Pos::Extending, None),
+        let leaves = match s.pos[p].command(extend) {
+            Motion::Nothing => return,
+            Motion::Left { from_end } => a.cylinder.sensor(from_end),
+            Motion::Reversed => None,
         };
-        s.pos[p] = next;
         if let Some(log) = log.as_deref_mut() {
             log.push(format!(
                 "      {step}: {} starts {}{}",
@@ -751,7 +687,7 @@ impl<'c> Model<'c> {
             return;
         }
         // A monostable valve just follows its level: a sensorless actuator may reverse.
-        if a.retract.is_some() && matches!(before, Pos::Extending | Pos::Retracting) {
+        if a.cylinder.double() && before.moving() {
             *bad = Some((
                 Property::DoubleActuation,
                 format!(
@@ -890,7 +826,7 @@ impl<'c> Model<'c> {
             Move::Arrive(p) => {
                 let a = &self.acts[usize::from(p)];
                 let end = s.pos[usize::from(p)] == Pos::Extending;
-                match (a.retract.is_some(), end) {
+                match (a.cylinder.double(), end) {
                     (true, true) => format!("{} reaches its end switch", a.name),
                     (true, false) => format!("{} reaches its home switch", a.name),
                     (false, true) => format!("{} is fully out (no switch)", a.name),

@@ -26,9 +26,11 @@ use std::fmt;
 use config_schema::limits::MAX_TIMERS;
 use config_schema::{Publication, Table, Topic};
 
+use crate::cylinder::{self, Command, Cylinder};
 use crate::ecc::{Effects, Engine, Fault};
 
-pub use plant::{Button, DoubleActing, Outcome as RodOutcome, Plant, Position, Rod, SingleActing};
+pub use crate::cylinder::{Outcome as RodOutcome, Position, Rod};
+pub use plant::{Button, DoubleActing, Plant, SingleActing};
 pub use trace::{cycles, steps, Cycle, TraceEntry, What};
 
 /// Default radio latency, publication to delivery.
@@ -387,32 +389,18 @@ impl<'t> World<'t> {
             alarmed: Vec::new(),
             lossy: None,
         };
-        // Power-up: the nodes read their switches, then start from their initial states.
-        let mut powered = vec![false; world.nodes.len()];
+        // Power-up: each rod rests where its node's safe outputs hold it, and the node reads
+        // the sensors closed there as levels before its charts start.
         for (p, plant) in world.plants.iter().enumerate() {
-            match plant {
-                Plant::DoubleActing(da) => {
-                    if let Some(home) = da.home_in {
-                        world.nodes[da.node].engine.input(home, true, &mut ());
-                        powered[da.node] = true;
-                    }
+            if let Some(cylinder) = plant.cylinder() {
+                let engine = &mut world.nodes[plant.node()].engine;
+                let (at, closed) = cylinder.power_up(engine.outputs());
+                if at == Position::End {
+                    world.rods[p] = Rod::End;
                 }
-                Plant::SingleActing(sa) => {
-                    let out = world.nodes[sa.node].engine.outputs() & (1 << sa.out) != 0;
-                    if out {
-                        world.rods[p] = Rod::End;
-                    }
-                    if let Some(sensor) = if out { sa.end_in } else { sa.home_in } {
-                        world.nodes[sa.node].engine.input(sensor, true, &mut ());
-                        powered[sa.node] = true;
-                    }
+                if let Some(sensor) = closed {
+                    engine.sense(sensor, true);
                 }
-                Plant::Button(_) => {}
-            }
-        }
-        for (node, powered) in world.nodes.iter_mut().zip(powered) {
-            if powered {
-                node.engine.reset(&mut ());
             }
         }
         Ok(world)
@@ -764,10 +752,9 @@ impl<'t> World<'t> {
             Ev::Arrive { plant, .. } => {
                 if let Some(end) = self.rods[plant].arrive() {
                     self.log(What::Arrived { plant, end });
-                    if let Some((node, home, end_in)) = self.plants[plant].switches() {
-                        if let Some(pin) = if end { end_in } else { home } {
-                            self.set_input(node, pin, true);
-                        }
+                    let node = self.plants[plant].node();
+                    if let Some(pin) = self.plants[plant].cylinder().and_then(|c| c.sensor(end)) {
+                        self.set_input(node, pin, true);
                     }
                 }
             }
@@ -976,42 +963,19 @@ impl<'t> World<'t> {
     }
 
     fn apply(&mut self, node: usize, effects: &[Effect]) {
-        // Valve commands of this engine step, per plant in first-touched order:
-        // (plant, extend solenoid rose, retract solenoid rose, monostable level).
-        let mut valves: Vec<(usize, bool, bool, Option<bool>)> = Vec::new();
+        // The valves see the outputs once the engine step is over.
+        let cylinders: Vec<(usize, Cylinder)> = (self.plants.iter().enumerate())
+            .filter(|(_, plant)| plant.node() == node)
+            .filter_map(|(p, plant)| Some((p, plant.cylinder()?)))
+            .collect();
+        let outputs = effects.iter().filter_map(|e| match *e {
+            Effect::Output(output, level) => Some((output, level)),
+            _ => None,
+        });
+        let valves = cylinder::commands(&cylinders, outputs);
         for effect in effects {
             match *effect {
-                Effect::Output(output, level) => {
-                    for (p, plant) in self.plants.iter().enumerate() {
-                        let hit = match plant {
-                            Plant::DoubleActing(da) if da.node == node => {
-                                if da.extend_out == output {
-                                    Some((level, false, None))
-                                } else if da.retract_out == output {
-                                    Some((false, level, None))
-                                } else {
-                                    None
-                                }
-                            }
-                            Plant::SingleActing(sa) if sa.node == node && sa.out == output => {
-                                Some((false, false, Some(level)))
-                            }
-                            _ => None,
-                        };
-                        if let Some((ext, ret, mono)) = hit {
-                            match valves.iter_mut().find(|v| v.0 == p) {
-                                Some(v) => {
-                                    v.1 |= ext;
-                                    v.2 |= ret;
-                                    if mono.is_some() {
-                                        v.3 = mono;
-                                    }
-                                }
-                                None => valves.push((p, ext, ret, mono)),
-                            }
-                        }
-                    }
-                }
+                Effect::Output(..) => {}
                 Effect::Publish(p) => self.publish(node, &p),
                 Effect::StartTimer(timer, ms) => {
                     if let Some(slot) = self.nodes[node].timers.get_mut(usize::from(timer)) {
@@ -1028,13 +992,10 @@ impl<'t> World<'t> {
                 }
             }
         }
-        for (plant, ext, ret, mono) in valves {
-            match (ext, ret, mono) {
-                (true, true, _) => self.log(What::Conflict { plant }),
-                (true, false, _) => self.command(plant, true),
-                (false, true, _) => self.command(plant, false),
-                (false, false, Some(level)) => self.command(plant, level),
-                (false, false, None) => {}
+        for (plant, command) in valves {
+            match command {
+                Command::Conflict => self.log(What::Conflict { plant }),
+                Command::Drive(extend) => self.command(plant, extend),
             }
         }
     }
@@ -1085,11 +1046,11 @@ impl<'t> World<'t> {
             plus: extend,
         });
         // Leaving a switch drops it at once (before a zero-time arrival raises the other).
-        if let (RodOutcome::Left { from_end, .. }, Some((node, home, end))) =
-            (outcome, self.plants[plant].switches())
+        if let (RodOutcome::Left { from_end, .. }, Some(cylinder)) =
+            (outcome, self.plants[plant].cylinder())
         {
-            let pin = if from_end { end } else { home };
-            if let Some(input) = pin {
+            let node = self.plants[plant].node();
+            if let Some(input) = cylinder.sensor(from_end) {
                 self.schedule(
                     0,
                     Ev::Input {
@@ -1105,6 +1066,3 @@ impl<'t> World<'t> {
         self.schedule(arrive - self.now, Ev::Arrive { plant, gen });
     }
 }
-
-#[cfg(test)]
-mod tests;

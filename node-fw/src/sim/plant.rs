@@ -1,7 +1,10 @@
 //! Plant models: what the nodes' pins are wired to in the simulated world.
 //!
 //! A plant is attached to pins of one node by index (`Table::outputs` / `Table::inputs`
-//! indices of that node's table). Travel times are in milliseconds of virtual time.
+//! indices of that node's table). Travel times are in milliseconds of virtual time. The
+//! rules (valve, power-up, sensors, travel) are [`crate::cylinder`]'s.
+
+use crate::cylinder::{Cylinder, Valve};
 
 /// A double-acting cylinder with a bistable 5/2 valve (the paper's `Bistabilni_C`).
 ///
@@ -139,6 +142,26 @@ impl Plant {
         }
     }
 
+    /// An actuator's wiring, for the rules of [`crate::cylinder`].
+    pub fn cylinder(&self) -> Option<Cylinder> {
+        match self {
+            Plant::DoubleActing(p) => Some(Cylinder {
+                valve: Valve::Double {
+                    extend: p.extend_out,
+                    retract: p.retract_out,
+                },
+                home: p.home_in,
+                end: p.end_in,
+            }),
+            Plant::SingleActing(p) => Some(Cylinder {
+                valve: Valve::Single { valve: p.out },
+                home: p.home_in,
+                end: p.end_in,
+            }),
+            Plant::Button(_) => None,
+        }
+    }
+
     /// Travel times (extend, retract) of an actuator.
     pub fn travel(&self) -> Option<(u64, u64)> {
         match self {
@@ -164,182 +187,5 @@ impl From<SingleActing> for Plant {
 impl From<Button> for Plant {
     fn from(p: Button) -> Plant {
         Plant::Button(p)
-    }
-}
-
-/// Where an actuator's rod is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Position {
-    /// Retracted, at the home switch.
-    Home,
-    /// Extended, at the end switch.
-    End,
-    /// Moving out.
-    Extending,
-    /// Moving back.
-    Retracting,
-}
-
-/// Stroke positions are fractions of `FULL`.
-pub const FULL: u64 = 1_000_000;
-
-/// The rod of an actuator.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Rod {
-    Home,
-    End,
-    /// Moving from stroke position `from` at `t0` to the end (or home) at `arrive`.
-    Moving {
-        to_end: bool,
-        from: u64,
-        t0: u64,
-        arrive: u64,
-    },
-}
-
-/// What a valve command did to the rod.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Outcome {
-    /// Toward where it is or is going: nothing.
-    Nothing,
-    /// Left a switch (`from_end`: the end switch, else home) and arrives at `arrive`.
-    Left { from_end: bool, arrive: u64 },
-    /// Turned round mid-travel; arrives at `arrive`.
-    Reversed { arrive: u64 },
-}
-
-impl Position {
-    /// Where a command `extend` (or retract) leads when it completes.
-    pub fn from_command(extend: bool) -> Position {
-        if extend {
-            Position::End
-        } else {
-            Position::Home
-        }
-    }
-}
-
-impl Rod {
-    pub fn position(self) -> Position {
-        match self {
-            Rod::Home => Position::Home,
-            Rod::End => Position::End,
-            Rod::Moving { to_end: true, .. } => Position::Extending,
-            Rod::Moving { to_end: false, .. } => Position::Retracting,
-        }
-    }
-
-    /// Stroke position (0 = home, `FULL` = end) at time `now`.
-    pub fn stroke(self, now: u64) -> u64 {
-        match self {
-            Rod::Home => 0,
-            Rod::End => FULL,
-            Rod::Moving {
-                to_end,
-                from,
-                t0,
-                arrive,
-            } => {
-                let target = if to_end { FULL } else { 0 };
-                if now >= arrive || arrive <= t0 {
-                    return target;
-                }
-                let frac = u128::from(now.saturating_sub(t0));
-                let span = u128::from(arrive - t0);
-                let dist = u128::from(target.abs_diff(from));
-                let moved = (dist * frac / span) as u64;
-                if to_end {
-                    from + moved
-                } else {
-                    from.saturating_sub(moved)
-                }
-            }
-        }
-    }
-
-    /// Applies a valve command at `now` (`extend`: toward the end). `ms` = (extend, retract)
-    /// full-stroke times.
-    pub fn command(&mut self, now: u64, extend: bool, ms: (u64, u64)) -> Outcome {
-        let (holds, from_switch) = match *self {
-            Rod::Home => (!extend, Some(false)),
-            Rod::End => (extend, Some(true)),
-            Rod::Moving { to_end, .. } => (to_end == extend, None),
-        };
-        if holds {
-            // Toward the position it holds, or the way it is already going: nothing.
-            return Outcome::Nothing;
-        }
-        let pos = self.stroke(now);
-        let target = if extend { FULL } else { 0 };
-        let full_ms = if extend { ms.0 } else { ms.1 };
-        let dist = u128::from(target.abs_diff(pos));
-        let time = (dist * u128::from(full_ms)).div_ceil(u128::from(FULL)) as u64;
-        let arrive = now + time;
-        *self = Rod::Moving {
-            to_end: extend,
-            from: pos,
-            t0: now,
-            arrive,
-        };
-        match from_switch {
-            Some(from_end) => Outcome::Left { from_end, arrive },
-            None => Outcome::Reversed { arrive },
-        }
-    }
-
-    /// The rod reached the end it was moving to.
-    pub fn arrive(&mut self) -> Option<bool> {
-        match *self {
-            Rod::Moving { to_end, .. } => {
-                *self = if to_end { Rod::End } else { Rod::Home };
-                Some(to_end)
-            }
-            _ => None,
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn command_toward_held_position_does_nothing() {
-        let mut rod = Rod::Home;
-        assert_eq!(rod.command(5, false, (300, 200)), Outcome::Nothing);
-        assert_eq!(rod, Rod::Home);
-        let mut rod = Rod::End;
-        assert_eq!(rod.command(5, true, (300, 200)), Outcome::Nothing);
-        assert_eq!(rod, Rod::End);
-    }
-
-    #[test]
-    fn command_in_the_direction_of_motion_does_nothing() {
-        let mut rod = Rod::Home;
-        assert_eq!(
-            rod.command(0, true, (300, 200)),
-            Outcome::Left {
-                from_end: false,
-                arrive: 300
-            }
-        );
-        let before = rod;
-        assert_eq!(rod.command(100, true, (300, 200)), Outcome::Nothing);
-        assert_eq!(rod, before);
-    }
-
-    #[test]
-    fn reversal_goes_back_over_the_covered_stroke_at_the_new_speed() {
-        let mut rod = Rod::Home;
-        rod.command(0, true, (300, 600));
-        // A third of the stroke out after 100 ms; back at 600 ms per stroke: 200 ms.
-        assert_eq!(rod.stroke(100), FULL / 3);
-        assert_eq!(
-            rod.command(100, false, (300, 600)),
-            Outcome::Reversed { arrive: 300 }
-        );
-        assert_eq!(rod.position(), Position::Retracting);
-        assert_eq!(rod.arrive(), Some(false));
-        assert_eq!(rod, Rod::Home);
     }
 }

@@ -2,8 +2,8 @@
 //! a random delay per frame.
 #![allow(dead_code)]
 
-use config_schema::limits::MAX_BLOB;
-use config_schema::{encode, Action, Output, Route, Table, Transition};
+use config_schema::{Action, Output, Table, Transition};
+use test_tables::{blob as encoded, route};
 
 /// A deterministic xorshift generator.
 pub struct Rng(pub u64);
@@ -88,15 +88,7 @@ pub fn blob(generation: u32, states: usize) -> (Table, Vec<u8>) {
         })
         .collect();
     t.push_chart(0, 1, &actions, &transitions).unwrap();
-    t.routes
-        .push(Route {
-            event: ev,
-            chart: 0,
-            input: 0,
-        })
-        .unwrap();
-    let mut buf = vec![0u8; MAX_BLOB];
-    let n = encode(&t, &mut buf).unwrap();
-    buf.truncate(n);
+    route(&mut t, ev, 0, 0);
+    let buf = encoded(&t);
     (t, buf)
 }

@@ -1,6 +1,9 @@
-use config_schema::{Action, Input, Output, Publication, Subscription, Table, Timer, Transition};
+//! The virtual-time world (`node_fw::sim`) through its public API: plants on the pins, the
+//! radio (ideal and lossy), run bounds, injected faults, and the trace of each.
 
-use super::*;
+use config_schema::{Action, Input, Output, Publication, Subscription, Table, Timer, Transition};
+use node_fw::sim::*;
+use test_tables::route;
 
 const EXT: u16 = 0b01;
 const RET: u16 = 0b10;
@@ -52,13 +55,7 @@ fn cylinder_table(chart: bool) -> Table {
         )
         .unwrap();
         for e in 0..3 {
-            t.routes
-                .push(config_schema::Route {
-                    event: e,
-                    chart: 0,
-                    input: e,
-                })
-                .unwrap();
+            route(&mut t, e, 0, e);
         }
     }
     config_schema::validate(&t).unwrap();
@@ -360,20 +357,8 @@ fn publisher_table(peers: &[u16]) -> Table {
         &[tr(0, 1, 1), tr(1, 2, 0)],
     )
     .unwrap();
-    t.routes
-        .push(config_schema::Route {
-            event: 1,
-            chart: 0,
-            input: 1,
-        })
-        .unwrap();
-    t.routes
-        .push(config_schema::Route {
-            event: 0,
-            chart: 0,
-            input: 0,
-        })
-        .unwrap();
+    route(&mut t, 1, 0, 1);
+    route(&mut t, 0, 0, 0);
     config_schema::validate(&t).unwrap();
     t
 }
@@ -392,13 +377,7 @@ fn subscriber_table(publisher: u16) -> Table {
         })
         .unwrap();
     t.push_chart(0, 1, &[&[]], &[]).unwrap();
-    t.routes
-        .push(config_schema::Route {
-            event: 0,
-            chart: 0,
-            input: 0,
-        })
-        .unwrap();
+    route(&mut t, 0, 0, 0);
     config_schema::validate(&t).unwrap();
     t
 }
@@ -646,22 +625,10 @@ fn ping_table(peer: u16, topic_in: u8, topic_out: u8, starts: bool) -> Table {
         }],
     )
     .unwrap();
-    t.routes
-        .push(config_schema::Route {
-            event: 0,
-            chart: 0,
-            input: 0,
-        })
-        .unwrap();
+    route(&mut t, 0, 0, 0);
     if starts {
         t.start = Some(2);
-        t.routes
-            .push(config_schema::Route {
-                event: 2,
-                chart: 0,
-                input: 0,
-            })
-            .unwrap();
+        route(&mut t, 2, 0, 0);
     }
     config_schema::validate(&t).unwrap();
     t
@@ -742,13 +709,7 @@ fn a_single_acting_valve_follows_its_output_and_ignores_a_zero_length_pulse() {
         &[tr(0, 1), tr(1, 2), tr(2, 0)],
     )
     .unwrap();
-    t.routes
-        .push(config_schema::Route {
-            event: 0,
-            chart: 0,
-            input: 0,
-        })
-        .unwrap();
+    route(&mut t, 0, 0, 0);
     config_schema::validate(&t).unwrap();
     let nodes = [NodeSpec { addr: 1, table: &t }];
     let gripper = SingleActing {
@@ -962,7 +923,7 @@ fn a_lossy_link_raises_its_alarm_after_the_retries_and_breaks_when_its_queue_ove
         world.press(0).unwrap();
         world.run_for(60).unwrap();
     }
-    assert_eq!(crate::link::QUEUE, 16);
+    assert_eq!(node_fw::link::QUEUE, 16);
     assert_eq!(
         link_trouble(&world),
         [
