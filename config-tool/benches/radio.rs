@@ -17,12 +17,13 @@ use std::time::{Duration, Instant};
 use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
 use config_schema::wire::medium::{Link, Peer};
 use config_schema::wire::msg::{ConfigReply, Message, CHUNK_DATA};
-use config_tool::demo::{self, Bed, Options};
-use config_tool::medium::{self, Conn};
-use config_tool::radio::TOOL_ADDR;
-use config_tool::{compile, plant, Source};
+use medium::{self, Conn};
+use robot_compiler::{compile, Source};
+use robot_net::demo::{self, Bed, Options};
+use robot_net::live_plant;
+use robot_net::radio::TOOL_ADDR;
 
-fn paint_robot() -> config_tool::Compiled {
+fn paint_robot() -> robot_compiler::Compiled {
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../robot-configs/paint-robot.ron"
@@ -124,7 +125,7 @@ fn main() {
     for a in &addrs {
         bed.start_node(*a).expect("node");
     }
-    let actuators = plant::actuators(&c).expect("plant");
+    let actuators = live_plant::actuators(&c).expect("plant");
     bed.set_plant(actuators.clone()).expect("plant");
     bed.wait_for_nodes(&addrs).expect("nodes");
     let frames = Arc::new(AtomicU64::new(0));
@@ -197,7 +198,7 @@ fn main() {
     println!("node-to-node latency over {n_hops} hops (switch reached -> next actuator moves):");
     println!("  median {:>6.2} ms   max {:>6.2} ms   lower bound {:.2} ms (one event frame's airtime; with its ack {:.2} ms)   (target: < 3 ms airtime per hop)",
         median(&mut hops), max, event as f64 / 1e3, (event + ack) as f64 / 1e3);
-    let publications = config_tool::compile::radio_events(&c.ir).len();
+    let publications = robot_compiler::compile::radio_events(&c.ir).len();
     let per_hop = (node_air.load(Ordering::Relaxed) - air0) as f64 / (cycles * publications) as f64;
     println!("  airtime per hop (measured) {:.2} ms: every frame between nodes over {cycles} cycles / {} hops   (target: < 3 ms)",
         per_hop / 1e3, cycles * publications);

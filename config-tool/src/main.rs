@@ -5,9 +5,10 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use config_tool::{
-    check, compile, diagram, dump, faults, sim, timeline, verify, Diagnostic, Source,
-};
+use robot_analysis::{inject, sim, timeline, verify};
+use robot_compiler::{check, compile, diagram, dump, Diagnostic, Source};
+
+mod netcmd;
 
 #[derive(Parser)]
 #[command(
@@ -84,7 +85,7 @@ enum Command {
     },
     /// The radio: medium, scan, push, status, start, reset, monitor, demo.
     #[command(flatten)]
-    Net(config_tool::netcmd::NetCommand),
+    Net(crate::netcmd::NetCommand),
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -112,7 +113,7 @@ fn load_compiled(path: &Path) -> Result<(Source, compile::Compiled), String> {
 fn report(src: &Source, diags: &[Diagnostic]) {
     use std::io::IsTerminal;
     let color = std::io::stderr().is_terminal();
-    eprint!("{}", config_tool::diag::render_all(src, diags, color));
+    eprint!("{}", robot_compiler::diag::render_all(src, diags, color));
 }
 
 fn run(command: Command) -> Result<(), String> {
@@ -179,7 +180,7 @@ fn run(command: Command) -> Result<(), String> {
             Ok(())
         }
         // `main` runs them itself, for their exit statuses.
-        Command::Net(cmd) => config_tool::netcmd::run(cmd).map_err(|f| f.message),
+        Command::Net(cmd) => crate::netcmd::run(cmd).map_err(|f| f.message),
         Command::Verify {
             robot,
             lossy,
@@ -223,8 +224,8 @@ fn run(command: Command) -> Result<(), String> {
         } => {
             let (_, compiled) = load_compiled(&robot)?;
             if let Some(spec) = fault {
-                let spec = faults::parse(&spec).map_err(|e| format!("error: {e}"))?;
-                let run = faults::simulate(&compiled, &spec).map_err(|e| format!("error: {e}"))?;
+                let spec = inject::parse(&spec).map_err(|e| format!("error: {e}"))?;
+                let run = inject::simulate(&compiled, &spec).map_err(|e| format!("error: {e}"))?;
                 if trace {
                     for e in &run.trace {
                         println!("{e}");
@@ -267,7 +268,7 @@ fn run(command: Command) -> Result<(), String> {
 }
 
 fn write_timeline(
-    compiled: &config_tool::Compiled,
+    compiled: &robot_compiler::Compiled,
     trace: &[node_fw::sim::TraceEntry],
     path: &Path,
 ) -> Result<(), String> {
@@ -279,8 +280,8 @@ fn write_timeline(
 
 fn main() -> ExitCode {
     let result = match Cli::parse().command {
-        Command::Net(cmd) => config_tool::netcmd::run(cmd),
-        command => run(command).map_err(config_tool::netcmd::Failure::from),
+        Command::Net(cmd) => crate::netcmd::run(cmd),
+        command => run(command).map_err(crate::netcmd::Failure::from),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

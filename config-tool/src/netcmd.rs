@@ -14,11 +14,12 @@ use config_schema::wire::msg::{Command, Message, Status};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use node_fw::ota::Progress;
 
-use crate::demo::{self, Bed, BedFault};
-use crate::medium::Conn;
-use crate::push::{self, Ids};
-use crate::radio::{ToolRadio, TOOL_ADDR};
-use crate::{compile, medium, plant, Compiled, Source};
+use medium::Conn;
+use robot_compiler::{compile, Compiled, Source};
+use robot_net::demo::{self, Bed, BedFault};
+use robot_net::live_plant;
+use robot_net::push::{self, Ids};
+use robot_net::radio::{ToolRadio, TOOL_ADDR};
 
 /// The exit statuses of the radio commands (docs/config-tool.md).
 pub mod exit {
@@ -436,7 +437,7 @@ fn load(path: &Path) -> Result<Compiled, String> {
         let errors: Vec<crate::Diagnostic> = diags.into_iter().filter(|d| d.is_error()).collect();
         format!(
             "{}{}: does not compile",
-            crate::diag::render_all(&src, &errors, false),
+            robot_compiler::diag::render_all(&src, &errors, false),
             src.name
         )
     })
@@ -554,7 +555,7 @@ pub fn run(cmd: NetCommand) -> Result<(), Failure> {
         }
         NetCommand::Plant { robot, at } => {
             let c = load(&robot)?;
-            let actuators = plant::actuators(&c)?;
+            let actuators = live_plant::actuators(&c)?;
             for a in &actuators {
                 println!(
                     "{:<4} on node {:#06x}: valves {:?}, home {:?}, end {:?}",
@@ -570,7 +571,7 @@ pub fn run(cmd: NetCommand) -> Result<(), Failure> {
                 .into());
             }
             let medium = at.medium;
-            let handle = std::thread::spawn(move || plant::run(medium, actuators, tx, stop));
+            let handle = std::thread::spawn(move || live_plant::run(medium, actuators, tx, stop));
             for step in rx {
                 println!("{:>9.3}  {step}", step.at.as_secs_f64());
             }
@@ -594,7 +595,10 @@ pub fn run(cmd: NetCommand) -> Result<(), Failure> {
             icount,
             fault,
         } => {
-            let fault = fault.as_deref().map(crate::faults::parse).transpose()?;
+            let fault = fault
+                .as_deref()
+                .map(robot_analysis::inject::parse)
+                .transpose()?;
             let count_dir = if icount {
                 let dir =
                     std::env::temp_dir().join(format!("config-tool-icount-{}", std::process::id()));
@@ -801,21 +805,21 @@ pub struct Demo<'a> {
     pub then: Option<&'a Path>,
     pub cycles: usize,
     /// A fault injected into the first robot's run.
-    pub fault: Option<crate::faults::FaultSpec>,
+    pub fault: Option<robot_analysis::inject::FaultSpec>,
     /// Where counting QEMU nodes log (`--icount`).
     pub count_dir: Option<&'a Path>,
 }
 
 /// Where a `--fault` goes on the test bed: the plant's injection, or the bed's fault to
 /// inject after so many steps.
-type Placed = (Option<plant::Injection>, Option<(usize, BedFault)>);
+type Placed = (Option<live_plant::Injection>, Option<(usize, BedFault)>);
 
 fn place_fault(
     c: &Compiled,
-    actuators: &[plant::Actuator],
-    spec: &crate::faults::FaultSpec,
+    actuators: &[live_plant::Actuator],
+    spec: &robot_analysis::inject::FaultSpec,
 ) -> Result<Placed, String> {
-    use crate::faults::FaultKind;
+    use robot_analysis::inject::FaultKind;
     let after = (spec.cycle - 1) * c.ir.expect.len() + (spec.step - 1);
     let actuator = |name: &str| {
         actuators
@@ -832,10 +836,10 @@ fn place_fault(
     };
     match &spec.kind {
         FaultKind::Stuck(name) => Ok((
-            Some(plant::Injection {
+            Some(live_plant::Injection {
                 after,
                 actuator: actuator(name)?,
-                kind: plant::Jam::Stuck,
+                kind: live_plant::Jam::Stuck,
             }),
             None,
         )),
@@ -850,10 +854,10 @@ fn place_fault(
                 }
             };
             Ok((
-                Some(plant::Injection {
+                Some(live_plant::Injection {
                     after,
                     actuator: actuator(name)?,
-                    kind: plant::Jam::SwitchOpen { end },
+                    kind: live_plant::Jam::SwitchOpen { end },
                 }),
                 None,
             ))
@@ -880,7 +884,7 @@ pub fn run_demo(
         Some(p) => Some(generation_of(load(p)?, Some(c.ir.generation + 1))?),
         None => None,
     };
-    let first_actuators = plant::actuators(&c)?;
+    let first_actuators = live_plant::actuators(&c)?;
     let placed = demo
         .fault
         .as_ref()
@@ -955,7 +959,7 @@ pub fn run_demo(
             (Some(p), true) => *p,
             _ => (None, None),
         };
-        bed.set_plant_injected(plant::actuators(robot)?, injection)?;
+        bed.set_plant_injected(live_plant::actuators(robot)?, injection)?;
         bed.watch(robot)?;
         if let Some((after, fault)) = kill {
             bed.inject_after(after, fault);

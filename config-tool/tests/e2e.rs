@@ -14,11 +14,11 @@ mod e2e_support;
 
 use config_schema::wire::mac::{self, Header, MAX_PSDU};
 use config_schema::wire::msg::{Command, Message};
-use config_tool::demo;
-use config_tool::medium::{self, Stats};
-use config_tool::plant;
-use config_tool::radio::TOOL_ADDR;
+use medium::{self, Stats};
 use node_fw::node::CONFIG_PAN;
+use robot_net::demo;
+use robot_net::live_plant;
+use robot_net::radio::TOOL_ADDR;
 
 use e2e_support::*;
 
@@ -107,8 +107,8 @@ fn reconfiguration_while_running_then_role_reassigned_to_the_spare() {
     // The double dip, pushed to the same running nodes (same wiring: the plant stays).
     let dip = robot("paint-robot-double-dip.ron", 2);
     assert_eq!(
-        plant::actuators(&dip).unwrap(),
-        plant::actuators(&paint).unwrap()
+        live_plant::actuators(&dip).unwrap(),
+        live_plant::actuators(&paint).unwrap()
     );
     assert_ne!(expect(&dip), expect(&paint));
     assert_eq!(expect(&dip).len(), 16);
@@ -137,7 +137,8 @@ fn reconfiguration_while_running_then_role_reassigned_to_the_spare() {
     assert_eq!((old.role.as_str(), old.generation), ("VC", 2));
 
     // The VC cylinder's cable moved with the role: the plant is rewired.
-    bed.set_plant(plant::actuators(&spare).unwrap()).unwrap();
+    bed.set_plant(live_plant::actuators(&spare).unwrap())
+        .unwrap();
     // The spare sees the rod at home (its switch is wired now) before START.
     let (vc, _) = role_of(&spare, "VC");
     let home = spare.ir.roles[vc]

@@ -12,12 +12,11 @@ use std::task::{Context, Poll, Waker};
 
 use config_schema::wire::mac;
 use config_schema::wire::msg::{Message, Refusal, CHUNK_DATA};
-use config_tool::medium;
-use config_tool::radio::TOOL_ADDR;
 use node_fw::host::flash::HostFlash;
 use node_fw::node::CONFIG_PAN;
 use node_fw::ota::Progress;
 use node_fw::slots::Slots;
+use robot_net::radio::TOOL_ADDR;
 
 use e2e_support::*;
 

@@ -6,14 +6,14 @@ mod e2e_support;
 
 use config_schema::limits::MAX_BLOB;
 use config_schema::wire::msg::Refusal;
-use config_tool::push::{self, Target};
-use config_tool::{compile, medium, Source};
 use node_fw::ota::Progress;
+use robot_compiler::{compile, Source};
+use robot_net::push::{self, Target};
 
 use e2e_support::*;
 
 /// Eight double-acting cylinders A..H on eight nodes, 64 steps.
-fn eight_actuators() -> config_tool::Compiled {
+fn eight_actuators() -> robot_compiler::Compiled {
     let names = ["A", "B", "C", "D", "E", "F", "G", "H"];
     let nodes: Vec<String> = (0..8)
         .map(|i| format!("(name: \"n{i}\", address: {:#06x})", 0x21 + i))

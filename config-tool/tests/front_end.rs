@@ -3,8 +3,9 @@
 //! actuators, pins and values out of range, bad bytes, and diagnostics that stay linear
 //! and capped on floods of errors.
 
-use config_tool::check::check;
-use config_tool::{compile, verify, Source};
+use robot_analysis::verify;
+use robot_compiler::check::check;
+use robot_compiler::{compile, Source};
 
 fn paint_text() -> String {
     let path = format!(
@@ -50,7 +51,7 @@ fn an_interlock_may_name_an_actuator_the_sequence_never_moves() {
         .collect();
     assert_eq!(errors, Vec::<String>::new());
     let c = compile(&src).expect("compiles");
-    let sim = config_tool::sim::simulate(&c, 3).expect("sim");
+    let sim = robot_analysis::sim::simulate(&c, 3).expect("sim");
     assert!(sim.ok(), "{}", sim.report());
     let model = verify::Model::new(&c).expect("model");
     assert_eq!(model.interlock_count(), 2);
@@ -117,7 +118,7 @@ fn twenty_thousand_duplicate_addresses_are_all_found() {
         "dups.ron:20004:35: error: address 0x0001 is used by nodes `n0` and `n19999`"
     );
     assert_eq!(last.label, "first used at 5:31");
-    let out = config_tool::diag::render_all(&src, &diags, false);
+    let out = robot_compiler::diag::render_all(&src, &diags, false);
     assert!(
         out.ends_with("... and 19949 more errors\ndups.ron: 19999 error(s), 0 warning(s)\n"),
         "{}",
@@ -130,7 +131,7 @@ fn twenty_thousand_duplicate_addresses_are_all_found() {
 fn after_fifty_diagnostics_the_rest_are_counted() {
     let src = duplicate_addresses(53, "");
     let diags = check(&src).diagnostics;
-    let out = config_tool::diag::render_all(&src, &diags, false);
+    let out = robot_compiler::diag::render_all(&src, &diags, false);
     let tail = "  × address 0x0001 is used by nodes `n0` and `n50`
     ╭─[dups.ron:55:32]
  54 │         (name: \"n49\", address: 0x0001),
@@ -148,7 +149,7 @@ dups.ron: 52 error(s), 0 warning(s)
     // Fewer than the cap: all shown, no count.
     let src = duplicate_addresses(3, "");
     let diags = check(&src).diagnostics;
-    let out = config_tool::diag::render_all(&src, &diags, false);
+    let out = robot_compiler::diag::render_all(&src, &diags, false);
     assert!(!out.contains("more error"), "{out}");
     assert!(
         out.ends_with("\ndups.ron: 2 error(s), 0 warning(s)\n"),
@@ -156,15 +157,15 @@ dups.ron: 52 error(s), 0 warning(s)
     );
     // Errors and warnings beyond the cap are counted apart.
     let mut mixed: Vec<_> = (0..25).flat_map(|_| diags.iter().cloned()).collect();
-    mixed.push(config_tool::Diagnostic::warning(0..1, "w"));
-    mixed.push(config_tool::Diagnostic::warning(0..1, "w"));
-    let out = config_tool::diag::render_all(&src, &mixed, false);
+    mixed.push(robot_compiler::Diagnostic::warning(0..1, "w"));
+    mixed.push(robot_compiler::Diagnostic::warning(0..1, "w"));
+    let out = robot_compiler::diag::render_all(&src, &mixed, false);
     assert!(
         out.ends_with("\n... and 2 more warnings\ndups.ron: 50 error(s), 2 warning(s)\n"),
         "{out}"
     );
-    mixed.insert(0, config_tool::Diagnostic::error(0..1, "e"));
-    let out = config_tool::diag::render_all(&src, &mixed, false);
+    mixed.insert(0, robot_compiler::Diagnostic::error(0..1, "e"));
+    let out = robot_compiler::diag::render_all(&src, &mixed, false);
     assert!(
         out.ends_with(
             "\n... and 1 more error and 2 more warnings\ndups.ron: 51 error(s), 2 warning(s)\n"
@@ -202,7 +203,7 @@ fn five_thousand_bad_names_on_one_line_render_short() {
     }
     let last = diags[4999].render(&src, false);
     assert!(last.contains("\"Z4999.home\""), "{last}");
-    let out = config_tool::diag::render_all(&src, &diags, false);
+    let out = robot_compiler::diag::render_all(&src, &diags, false);
     assert!(out.ends_with("\n... and 4950 more errors\ndups.ron: 5000 error(s), 0 warning(s)\n"));
     assert!(out.len() < 50_000, "{}", out.len());
 }
@@ -254,7 +255,7 @@ fn a_sensored_single_acting_actuator_runs_verifies_and_has_a_watchdog() {
     ] {
         let src = paint_with(GRIPPER, &GRIPPER.replace(")", &format!("{sensors})")));
         let c = compile(&src).expect("compiles");
-        let sim = config_tool::sim::simulate(&c, 3).expect("sim");
+        let sim = robot_analysis::sim::simulate(&c, 3).expect("sim");
         assert!(sim.ok(), "{sensors}: {}", sim.report());
         let model = verify::Model::new(&c).expect("model");
         let report = verify::explore(&model, verify::Options::default());
@@ -263,9 +264,11 @@ fn a_sensored_single_acting_actuator_runs_verifies_and_has_a_watchdog() {
     // A jammed gripper is now caught by its own watchdog and every node stops.
     let src = paint_with(GRIPPER, &GRIPPER.replace(")", ", end: 1)"));
     let c = compile(&src).expect("compiles");
-    let run =
-        config_tool::faults::simulate(&c, &config_tool::faults::parse("stuck:GR@2").expect("spec"))
-            .expect("runs");
+    let run = robot_analysis::inject::simulate(
+        &c,
+        &robot_analysis::inject::parse("stuck:GR@2").expect("spec"),
+    )
+    .expect("runs");
     let d = run.detected.clone().expect("detected");
     assert_eq!(
         (d.role.as_str(), d.how.as_str()),
@@ -277,9 +280,9 @@ fn a_sensored_single_acting_actuator_runs_verifies_and_has_a_watchdog() {
     // ... and its own timeout_ms, if given.
     let src = paint_with(GRIPPER, &GRIPPER.replace(")", ", end: 1, timeout_ms: 500)"));
     let c = compile(&src).expect("compiles");
-    let run = config_tool::faults::simulate(
+    let run = robot_analysis::inject::simulate(
         &c,
-        &config_tool::faults::parse("switch:GR.end@2").expect("spec"),
+        &robot_analysis::inject::parse("switch:GR.end@2").expect("spec"),
     )
     .expect("runs");
     let d = run.detected.clone().expect("detected");
@@ -289,9 +292,11 @@ fn a_sensored_single_acting_actuator_runs_verifies_and_has_a_watchdog() {
 #[test]
 fn a_jammed_sensorless_gripper_prints_the_steps_after_the_injection_apart() {
     let c = compile(&paint_with("", "")).expect("compiles");
-    let run =
-        config_tool::faults::simulate(&c, &config_tool::faults::parse("stuck:GR@3").expect("spec"))
-            .expect("runs");
+    let run = robot_analysis::inject::simulate(
+        &c,
+        &robot_analysis::inject::parse("stuck:GR@3").expect("spec"),
+    )
+    .expect("runs");
     assert_eq!(
         run.report(),
         "fault: GR jammed at 302 ms (cycle 1, before step 3 VC-)
@@ -426,7 +431,7 @@ fn dump_refuses_a_blob_on_channel_200() {
     let c = compile(&paint_with("", "")).expect("compiles");
     let mut table = c.tables[1].clone();
     table.header.channel = 200;
-    let blob = config_tool::compile::encode(&table).expect("encodes");
+    let blob = robot_compiler::compile::encode(&table).expect("encodes");
     let dir = scratch("channel-200");
     let path = dir.join("GR.bin");
     std::fs::write(&path, blob).expect("write");
@@ -464,7 +469,7 @@ fn check_prints_fifty_diagnostics_then_counts_the_rest() {
 fn the_real_time_plant_drives_a_single_acting_actuator_s_sensor() {
     let src = paint_with(GRIPPER, &GRIPPER.replace(")", ", end: 1)"));
     let c = compile(&src).expect("compiles");
-    let actuators = config_tool::plant::actuators(&c).expect("actuators");
+    let actuators = robot_net::live_plant::actuators(&c).expect("actuators");
     let gr = actuators.iter().find(|a| a.name == "GR").expect("GR");
     assert_eq!(
         (gr.valves, gr.double, gr.home, gr.end),

@@ -8,7 +8,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use config_schema::wire::medium::{Link, Peer};
-use config_tool::medium::{Config, Medium};
+use medium::{Config, Medium};
 
 /// Opens a pty in raw mode, prints its slave's path, and relays bytes between the master and
 /// a TCP connection to the air (joined as a monitor: it hears every frame and may send).

@@ -13,13 +13,13 @@ use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
 use config_schema::wire::medium::{Link, Peer};
 use config_schema::wire::msg::{Command, Message, Status};
 use config_schema::Table;
-use config_tool::demo::{self, Bed, Cycle, Options};
-use config_tool::medium;
-use config_tool::radio::ToolRadio;
-use config_tool::{compile, plant, Compiled, Source};
 use node_fw::node::CONFIG_PAN;
 use node_fw::ota::{Progress, Sender, TransferStats};
 use node_fw::sim::{What, World};
+use robot_compiler::{compile, Compiled, Source};
+use robot_net::demo::{self, Bed, Cycle, Options};
+use robot_net::live_plant;
+use robot_net::radio::ToolRadio;
 
 /// Bound of every wait (a cycle, a command, nodes coming up): generous, never a pace.
 pub const TIMEOUT: Duration = Duration::from_secs(60);
@@ -106,7 +106,7 @@ pub fn bring_up(c: &Compiled, options: Options) -> Bed {
     for a in &addrs {
         bed.start_node(*a).expect("node process");
     }
-    bed.set_plant(plant::actuators(c).expect("actuators"))
+    bed.set_plant(live_plant::actuators(c).expect("actuators"))
         .expect("plant");
     let found = bed
         .wait_for_nodes(&addrs)
@@ -123,7 +123,7 @@ pub fn bring_up(c: &Compiled, options: Options) -> Bed {
 }
 
 /// Pushes every role of `c` and checks that every node activated its table.
-pub fn push_ok(bed: &mut Bed, c: &Compiled) -> Vec<config_tool::push::Outcome> {
+pub fn push_ok(bed: &mut Bed, c: &Compiled) -> Vec<robot_net::push::Outcome> {
     let outcomes = bed.push(c, false, &mut |_, _, _| {}).expect("push");
     assert_eq!(outcomes.len(), c.ir.roles.len());
     for (o, (r, blob)) in outcomes.iter().zip(c.ir.roles.iter().zip(&c.blobs)) {
@@ -198,8 +198,8 @@ pub fn exact_cycle(bed: &mut Bed, c: &Compiled, n: usize) -> Cycle {
 /// Events delivered to each role's node per cycle, cycle by cycle, as the virtual-time
 /// simulator (the same tables, a perfect radio) counts them.
 pub fn deliveries_per_cycle(c: &Compiled, cycles: usize) -> Vec<Vec<u32>> {
-    let specs = config_tool::sim::node_specs(c, &c.tables);
-    let (plants, button) = config_tool::sim::plants(c).expect("plants");
+    let specs = robot_analysis::sim::node_specs(c, &c.tables);
+    let (plants, button) = robot_analysis::sim::plants(c).expect("plants");
     let mut world = World::new(&specs, plants).expect("world");
     (0..cycles)
         .map(|_| {

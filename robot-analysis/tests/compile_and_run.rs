@@ -3,11 +3,12 @@
 //! through its compiled blobs; the radio plan of the paint robot; role reassignment only
 //! changes peer addresses; interlocks, watchdog faults and sequence diffs in `sim`.
 
-use config_tool::{compile, diagram, dump, sim, Compiled, Source};
 use node_fw::sim::World;
+use robot_analysis::sim;
+use robot_compiler::{compile, diagram, dump, Compiled, Source};
 
 fn load(path: &str) -> Source {
-    let full = format!("{}/{path}", env!("CARGO_MANIFEST_DIR"));
+    let full = format!("{}/../tests/{path}", env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(&full).unwrap_or_else(|e| panic!("{full}: {e}"));
     Source::new(path, text)
 }
@@ -113,7 +114,7 @@ fn every_blob_decodes_to_the_table_it_was_compiled_from() {
 #[test]
 fn the_paint_robot_sends_nine_step_events_per_cycle_each_to_one_node() {
     let c = build(&load("../robot-configs/paint-robot.ron"));
-    let radio: Vec<String> = config_tool::compile::radio_events(&c.ir)
+    let radio: Vec<String> = robot_compiler::compile::radio_events(&c.ir)
         .into_iter()
         .map(|(from, ev, to)| format!("{from}->{to}:{ev}"))
         .collect();
@@ -170,7 +171,7 @@ fn a_start_during_a_cycle_is_ignored_until_the_cycle_is_complete() {
     // A+ B+ A- B-: A is home again before B-, so A waits in CYCLE_END for step4.done.
     let c = build(&load("fixtures/small-sequence.ron").clone_with("A+ B+ B- A-", "A+ B+ A- B-"));
     let (plants, button) = sim::plants(&c).expect("plants");
-    let specs = config_tool::sim::node_specs(&c, &c.tables);
+    let specs = robot_analysis::sim::node_specs(&c, &c.tables);
     let mut world = World::new(&specs, plants).expect("world");
     world.press(button).expect("press");
     // Press again every 100 ms while the cycle runs (A+ 0-200 ms, B+ 202-402, A- 402-602,

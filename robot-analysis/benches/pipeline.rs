@@ -6,8 +6,9 @@
 use std::hint::black_box;
 use std::time::Instant;
 
-use config_tool::{compile, sim, Source};
 use criterion::{criterion_group, criterion_main, Criterion};
+use robot_analysis::sim;
+use robot_compiler::{compile, Source};
 
 fn paint_robot() -> Source {
     let path = concat!(
@@ -112,8 +113,8 @@ fn diagnostics(c: &mut Criterion) {
     for n in [5_000, 20_000] {
         let src = duplicate_addresses(n);
         let run = |src: &Source| {
-            let diags = config_tool::check::check(src).diagnostics;
-            let out = config_tool::diag::render_all(src, &diags, false);
+            let diags = robot_compiler::check::check(src).diagnostics;
+            let out = robot_compiler::diag::render_all(src, &diags, false);
             (diags.len(), out.len())
         };
         assert_eq!(run(&src).0, n - 1);

@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
 use config_schema::wire::medium::{Deframer, Link, Peer, MAX_LINK};
-use config_tool::medium::{Config, Medium};
+use medium::{Config, Medium};
 
 struct Client {
     stream: TcpStream,
@@ -548,7 +548,7 @@ fn a_monitor_that_never_reads_is_dropped_and_nobody_waits_for_it() {
 /// do not say hello are closed after `HELLO_TIMEOUT`, and only a few wait at once.
 #[test]
 fn silent_connections_are_capped_and_closed() {
-    use config_tool::medium::limits;
+    use medium::limits;
     let medium = Medium::start(Config::default()).unwrap();
     let threads = || -> u64 {
         let status = std::fs::read_to_string("/proc/self/status").unwrap();

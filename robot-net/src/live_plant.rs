@@ -16,8 +16,8 @@ use config_schema::wire::medium::{Link, Peer};
 use node_fw::cylinder::{Command, Cylinder, Outcome as RodOutcome, Position, Rod, Valve, Valves};
 use node_fw::sim::Plant;
 
-use crate::compile::Compiled;
-use crate::medium::Conn;
+use medium::Conn;
+use robot_compiler::compile::Compiled;
 
 /// One actuator, wired by node address and board pin numbers.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -73,7 +73,7 @@ impl std::fmt::Display for Step {
 
 /// The actuators of a compiled robot, on the nodes its roles are assigned to.
 pub fn actuators(c: &Compiled) -> Result<Vec<Actuator>, String> {
-    let (plants, _) = crate::sim::plants(c)?;
+    let (plants, _) = robot_analysis::sim::plants(c)?;
     let mut out = Vec::new();
     for p in plants {
         let Some(role) = c.ir.roles.get(p.node()) else {

@@ -2,7 +2,8 @@
 //! back-to-back steps, actuators sharing a node, sensorless actuators), the compiled blobs
 //! run in the simulator produce exactly that sequence, cycle after cycle, without a fault.
 
-use config_tool::{compile, sim, Source};
+use robot_analysis::sim;
+use robot_compiler::{compile, Source};
 
 /// An actuator of a generated robot: name, role, double acting (else single acting).
 struct Act(&'static str, &'static str, bool);
@@ -180,7 +181,7 @@ fn every_sequence_of_the_table_is_reproduced_in_simulation() {
 /// `verify --start-anytime`: a press during a cycle costs no publication, so no link fills.
 #[test]
 fn every_sequence_of_the_table_passes_verify_with_start_anytime_and_start_on_any_node() {
-    use config_tool::verify::{verify, Options};
+    use robot_analysis::verify::{verify, Options};
     for (sequence, acts, _, _) in table() {
         let mut starts: Vec<&str> = acts.iter().map(|a| a.1).collect();
         starts.dedup();

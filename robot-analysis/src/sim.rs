@@ -8,9 +8,9 @@ use std::fmt::Write;
 use config_schema::Table;
 use node_fw::sim::{Button, DoubleActing, NodeSpec, Plant, SingleActing, What, World};
 
-use crate::compile::Compiled;
-use crate::ir::Valves;
-use crate::model::ActuatorKind;
+use robot_compiler::compile::Compiled;
+use robot_compiler::ir::Valves;
+use robot_compiler::model::ActuatorKind;
 
 /// Virtual-time bound of one cycle.
 pub const CYCLE_LIMIT_MS: u64 = 600_000;

@@ -4,7 +4,7 @@
 //! role publishes the same events to the same number of nodes.
 
 use config_schema::{Action, Table};
-use config_tool::{compile, Source};
+use robot_compiler::{compile, Source};
 use robot_tests::paper_robot;
 
 /// Actions with event ids blanked (ids are numbered differently by hand).

@@ -17,12 +17,12 @@ use std::time::{Duration, Instant};
 
 use config_schema::wire::msg::{Announce, Command, Status};
 
-use crate::compile::Compiled;
-use crate::medium::{self, Medium};
-use crate::plant::{self, Actuator, Injection, Step};
+use crate::live_plant::{self, Actuator, Injection, Step};
 use crate::push::{self, Ids, Target};
 use crate::radio::{ToolRadio, TOOL_ADDR};
 use crate::watch::{self, Seen, Watch};
+use medium::{self, Medium};
+use robot_compiler::compile::Compiled;
 
 /// How to run the test bed.
 #[derive(Debug, Clone)]
@@ -206,11 +206,12 @@ impl Bed {
     ) -> Result<(), String> {
         self.stop_plant();
         let stop = Arc::new(AtomicBool::new(false));
-        let conn =
-            plant::attach(self.medium.addr(), &actuators).map_err(|e| format!("plant: {e}"))?;
+        let conn = live_plant::attach(self.medium.addr(), &actuators)
+            .map_err(|e| format!("plant: {e}"))?;
         let (tx, flag) = (self.steps_tx.clone(), stop.clone());
-        let handle =
-            std::thread::spawn(move || plant::run_attached(conn, actuators, injection, tx, flag));
+        let handle = std::thread::spawn(move || {
+            live_plant::run_attached(conn, actuators, injection, tx, flag)
+        });
         self.plant = Some((stop, handle));
         self.steps_seen = 0;
         while self.steps.try_recv().is_ok() {}
@@ -647,7 +648,7 @@ pub fn cycle_line(n: usize, cy: &Cycle) -> String {
         s.push_str(&fault_text(f));
     } else if !cy.ok() {
         s.push('\n');
-        s.push_str(&crate::sim::diff(&cy.expect, &cy.steps));
+        s.push_str(&robot_analysis::sim::diff(&cy.expect, &cy.steps));
         for (role, code) in &cy.faults {
             s.push_str(&format!("  role {role} faulted (code {code:#04x})\n"));
         }
@@ -663,10 +664,10 @@ pub fn fault_meaning(code: u8) -> String {
         2 => "the interpreter's event queue overflowed".into(),
         3 => "the interpreter's cascade limit".into(),
         4 => "a guard or assignment failed to evaluate".into(),
-        c if c == ACTION | crate::synth::FAULT_MOTION_TIMEOUT => {
+        c if c == ACTION | robot_compiler::synth::FAULT_MOTION_TIMEOUT => {
             "its motion watchdog expired".into()
         }
-        c if c == ACTION | crate::synth::FAULT_PEER => "stopped by a peer's fault".into(),
+        c if c == ACTION | robot_compiler::synth::FAULT_PEER => "stopped by a peer's fault".into(),
         c if c & ACTION != 0 => format!("fault action {}", c & !ACTION),
         c => format!("fault {c:#04x}"),
     }

@@ -1,9 +1,10 @@
 //! Synthesised robots whose START button is on another role than step 1's (the gate of
 //! `synth`'s module doc), run on the simulator and the verifier.
 
-use config_tool::compile::{compile, Compiled};
-use config_tool::{sim, verify, Source};
 use node_fw::sim::{Plant, What, World};
+use robot_analysis::{sim, verify};
+use robot_compiler::compile::{compile, Compiled};
+use robot_compiler::Source;
 
 const START_ON_GR: &str = include_str!("../../robot-configs/paint-robot-start-on-gr.ron");
 

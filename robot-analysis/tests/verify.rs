@@ -1,11 +1,11 @@
 //! `config-tool verify`: every robot of `robot-configs/` explored exhaustively, and broken
 //! robots each caught by the right property with its shortest counterexample.
 
-use config_tool::verify::{self, Options, Property, Report};
-use config_tool::{compile, Compiled, Source};
+use robot_analysis::verify::{self, Options, Property, Report};
+use robot_compiler::{compile, Compiled, Source};
 
 fn load(path: &str) -> Source {
-    let full = format!("{}/{path}", env!("CARGO_MANIFEST_DIR"));
+    let full = format!("{}/../tests/{path}", env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(&full).unwrap_or_else(|e| panic!("{full}: {e}"));
     Source::new(path, text)
 }
@@ -224,7 +224,7 @@ fn a_tampered_compiled_table_breaks_the_sequence() {
         .position(|t| t.from == 0 && t.to == 1)
         .expect("IDLE -> STEP1");
     c.tables[0].transitions[t].to = step5;
-    c.blobs[0] = config_tool::compile::encode(&c.tables[0]).expect("encodes");
+    c.blobs[0] = robot_compiler::compile::encode(&c.tables[0]).expect("encodes");
     let v = run(&c, false).violation.expect("a violation");
     assert_eq!(v.property, Property::Sequence);
     assert_eq!(
@@ -256,7 +256,7 @@ fn a_fault_publication_that_misses_a_node_is_caught() {
         .expect("fault is published");
     assert_eq!(p.subscribers.count_ones(), 3);
     p.subscribers &= !(1 << rc_peer);
-    c.blobs[0] = config_tool::compile::encode(&c.tables[0]).expect("encodes");
+    c.blobs[0] = robot_compiler::compile::encode(&c.tables[0]).expect("encodes");
     let v = run(&c, false).violation.expect("a violation");
     assert_eq!(v.property, Property::FaultStop);
     assert_eq!(v.message, "VC faulted but RC is still running");

@@ -5,14 +5,14 @@
 //!
 //! A change that means to change the blobs regenerates the file on purpose:
 //!
-//!     UPDATE_GOLDEN=1 cargo test -p config-tool --test golden_blobs
+//!     UPDATE_GOLDEN=1 cargo test -p robot-compiler --test golden_blobs
 //!
 //! and the diff of `tests/fixtures/blobs.golden` shows which blobs changed. CI never sets
 //! `UPDATE_GOLDEN`.
 
 use std::path::{Path, PathBuf};
 
-use config_tool::{compile, Source};
+use robot_compiler::{compile, Source};
 
 const GOLDEN: &str = "tests/fixtures/blobs.golden";
 const DIRS: &[&str] = &["robot-configs", "tests/fixtures", "bench/robots"];

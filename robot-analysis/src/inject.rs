@@ -13,8 +13,8 @@ use std::fmt::Write;
 
 use node_fw::sim::{Plant, TraceEntry, What, World};
 
-use crate::compile::Compiled;
 use crate::sim::CYCLE_LIMIT_MS;
+use robot_compiler::compile::Compiled;
 
 /// What is injected.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -2,11 +2,11 @@
 //! asserting the exact messages with their line:col, all problems of a file at once; the
 //! rendered miette form; and the good files passing.
 
-use config_tool::check::check;
-use config_tool::Source;
+use robot_compiler::check::check;
+use robot_compiler::Source;
 
 fn fixture(path: &str) -> Source {
-    let full = format!("{}/fixtures/{path}", env!("CARGO_MANIFEST_DIR"));
+    let full = format!("{}/../tests/fixtures/{path}", env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(&full).unwrap_or_else(|e| panic!("{full}: {e}"));
     Source::new(path, text)
 }
@@ -95,7 +95,7 @@ fn each_broken_file_gives_exactly_its_diagnostics() {
 
 #[test]
 fn every_broken_file_is_in_the_table() {
-    let dir = format!("{}/fixtures/broken", env!("CARGO_MANIFEST_DIR"));
+    let dir = format!("{}/../tests/fixtures/broken", env!("CARGO_MANIFEST_DIR"));
     let mut on_disk: Vec<String> = std::fs::read_dir(dir)
         .expect("fixtures/broken")
         .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
@@ -176,57 +176,6 @@ fn the_complete_example_of_the_format_doc_checks_clean_but_sensorless_steps() {
 }
 
 /// The warning every step of a sensorless gripper gets (the paint robot's GR has none).
-fn sensorless(d: &config_tool::Diagnostic) -> bool {
+fn sensorless(d: &robot_compiler::Diagnostic) -> bool {
     !d.is_error() && d.message.contains("has no completion sensor")
-}
-
-mod robustness {
-    use super::*;
-    use proptest::prelude::*;
-
-    fn config(which: usize) -> String {
-        let name = ["paint-robot-paper-charts.ron", "paint-robot.ron"][which % 2];
-        std::fs::read_to_string(format!(
-            "{}/../robot-configs/{name}",
-            env!("CARGO_MANIFEST_DIR")
-        ))
-        .expect("config")
-    }
-
-    proptest! {
-        #![proptest_config(ProptestConfig { cases: 256, .. ProptestConfig::default() })]
-
-        /// Damaged robot files (a range cut out, text spliced in) never panic `check` or
-        /// the rendering of its diagnostics, and an error always comes with a position
-        /// inside the file; a damaged file that checks clean compiles and simulates.
-        #[test]
-        fn check_never_panics_on_damaged_files(
-            which in 0usize..2,
-            cut in 0usize..6000,
-            len in 0usize..40,
-            insert in "[ -~éü\"\\\\(){}\\[\\],:+\n]{0,12}",
-        ) {
-            let text = config(which);
-            let mut at = cut.min(text.len());
-            while !text.is_char_boundary(at) { at -= 1; }
-            let mut end = (at + len).min(text.len());
-            while !text.is_char_boundary(end) { end -= 1; }
-            let damaged = format!("{}{}{}", &text[..at], insert, &text[end..]);
-            let src = Source::new("damaged.ron", damaged);
-            let diags = check(&src).diagnostics;
-            for d in &diags {
-                let (line, col) = d.line_col(&src);
-                prop_assert!(line >= 1 && col >= 1);
-                prop_assert!(!d.render(&src, false).is_empty());
-            }
-            // What checks clean also compiles, and simulates (maybe to a fault or a diff).
-            if !diags.iter().any(|d| d.is_error()) {
-                let compiled = config_tool::compile(&src);
-                prop_assert!(compiled.is_ok());
-                if let Ok(c) = compiled {
-                    let _ = config_tool::sim::simulate(&c, 2);
-                }
-            }
-        }
-    }
 }

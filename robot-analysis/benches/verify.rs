@@ -5,8 +5,8 @@
 
 use std::time::{Duration, Instant};
 
-use config_tool::verify::{self, Options, Report};
-use config_tool::{compile, Compiled, Source};
+use robot_analysis::verify::{self, Options, Report};
+use robot_compiler::{compile, Compiled, Source};
 
 fn paint_robot() -> Compiled {
     let path = concat!(

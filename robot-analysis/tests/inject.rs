@@ -3,8 +3,9 @@
 //! afterwards but a monostable valve released to its safe state. `sim --timeline`: the SVG
 //! parses and has one lane per actuator.
 
-use config_tool::faults::{self, FaultRun};
-use config_tool::{compile, timeline, Compiled, Source};
+use robot_analysis::inject::{self, FaultRun};
+use robot_analysis::timeline;
+use robot_compiler::{compile, Compiled, Source};
 
 fn paint() -> Compiled {
     let path = format!(
@@ -16,7 +17,7 @@ fn paint() -> Compiled {
 }
 
 fn inject(c: &Compiled, spec: &str) -> FaultRun {
-    faults::simulate(c, &faults::parse(spec).expect("spec")).expect("runs")
+    inject::simulate(c, &inject::parse(spec).expect("spec")).expect("runs")
 }
 
 fn all_faulted_with_outputs_off(run: &FaultRun) {
@@ -105,21 +106,21 @@ fn a_lost_link_raises_a_link_alarm_and_nothing_moves_after_it() {
 
 #[test]
 fn fault_specs_parse_or_say_what_is_wrong() {
-    let s = faults::parse("switch:HC.end@2.4").expect("parses");
+    let s = inject::parse("switch:HC.end@2.4").expect("parses");
     assert_eq!((s.cycle, s.step), (2, 4));
     assert_eq!(
-        faults::parse("stuck:HC").unwrap_err(),
+        inject::parse("stuck:HC").unwrap_err(),
         "`stuck:HC`: no `@STEP`: write KIND:TARGET@STEP or KIND:TARGET@CYCLE.STEP, KIND one \
          of stuck (an actuator), switch (ACT.end or ACT.home), stop (a role), link (FROM->TO)"
     );
     assert_eq!(
-        faults::parse("stuck:HC@0").unwrap_err(),
+        inject::parse("stuck:HC@0").unwrap_err(),
         "`stuck:HC@0`: `0` is not a step or cycle number (1, 2, ...)"
     );
     let c = paint();
-    let err = faults::simulate(&c, &faults::parse("stuck:XX@1").expect("parses")).unwrap_err();
+    let err = inject::simulate(&c, &inject::parse("stuck:XX@1").expect("parses")).unwrap_err();
     assert_eq!(err, "no moving actuator `XX`");
-    let err = faults::simulate(&c, &faults::parse("stuck:HC@13").expect("parses")).unwrap_err();
+    let err = inject::simulate(&c, &inject::parse("stuck:HC@13").expect("parses")).unwrap_err();
     assert_eq!(err, "the cycle has 12 steps: there is no step 13");
 }
 

@@ -10,8 +10,8 @@ use std::fmt::Write;
 
 use node_fw::sim::{TraceEntry, What};
 
-use crate::compile::Compiled;
 use crate::sim::CYCLE_LIMIT_MS;
+use robot_compiler::compile::Compiled;
 
 const LEFT: f64 = 150.0;
 const WIDTH: f64 = 1100.0;

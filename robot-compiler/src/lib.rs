@@ -1,4 +1,5 @@
-//! config-tool: RON robot descriptions -> checked, compiled, simulated table blobs.
+//! The robot compiler: a RON description of a machine -> checked IR -> one ECC table per
+//! role -> blobs. One direction, one elaboration:
 //!
 //! - [`source`], [`locate`]: file text, line:col, spans of values by path. [`bounds`]:
 //!   the range of an integer field for ron's out-of-bounds error.
@@ -8,36 +9,25 @@
 //! - [`synth`]: sequence -> charts. [`elab`]: explicit charts -> IR. [`ir`]: the IR, with
 //!   each actuator's wiring.
 //! - [`lower`]: IR -> tables. [`compile`]: the pipeline. [`dump`], [`diagram`].
-//! - The front end above uses nothing of the rest: [`sim`], [`faults`], [`timeline`],
-//!   [`verify`], the radio side ([`medium`], [`radio`], [`plant`], [`push`], [`watch`],
-//!   [`demo`], [`netcmd`]).
+//!
+//! It knows nothing of the node firmware, the simulator or the radio (see
+//! `docs/architecture.md`).
 
 pub mod bounds;
 pub mod check;
 pub mod compile;
-pub mod demo;
 pub mod diag;
 pub mod diagram;
 pub mod dump;
 pub mod elab;
 pub mod expr;
-pub mod faults;
 pub mod interlock;
 pub mod ir;
 pub mod locate;
 pub mod lower;
-pub mod medium;
 pub mod model;
-pub mod netcmd;
-pub mod plant;
-pub mod push;
-pub mod radio;
-pub mod sim;
 pub mod source;
 pub mod synth;
-pub mod timeline;
-pub mod verify;
-pub mod watch;
 
 pub use compile::{compile, Compiled};
 pub use diag::{Diagnostic, Severity};

@@ -19,8 +19,8 @@ use indexmap::IndexSet;
 use node_fw::cylinder::{self, Command, Cylinder, Motion, Position as Pos};
 use node_fw::ecc::{Effects, Engine, EngineState, Fault};
 
-use crate::compile::Compiled;
-use crate::interlock::{self, Atom, Interlock};
+use robot_compiler::compile::Compiled;
+use robot_compiler::interlock::{self, Atom, Interlock};
 
 /// Options of a verification run.
 #[derive(Debug, Clone, Copy)]
@@ -382,7 +382,7 @@ impl<'c> Model<'c> {
             // Only a watchdog fault publishes `fault` (a peer's fault does not echo it).
             let published = matches!(
                 e.fault,
-                Some(Fault::Action { code, .. }) if code == crate::synth::FAULT_MOTION_TIMEOUT
+                Some(Fault::Action { code, .. }) if code == robot_compiler::synth::FAULT_MOTION_TIMEOUT
             );
             if !published {
                 continue;
@@ -391,10 +391,9 @@ impl<'c> Model<'c> {
             // Who must hear it: the roles the robot's description says subscribe to it
             // (from the IR, so a table that lost a subscriber is caught).
             for (to, q) in self.c.ir.roles.iter().enumerate() {
-                let listens = q
-                    .imports
-                    .iter()
-                    .any(|(from, ev, _)| *from == r.name && ev == crate::synth::FAULT_EVENT);
+                let listens = q.imports.iter().any(|(from, ev, _)| {
+                    *from == r.name && ev == robot_compiler::synth::FAULT_EVENT
+                });
                 if listens && s.nodes[to].fault.is_none() && s.alarms & (1 << (f * n + to)) == 0 {
                     return Some(format!(
                         "{} faulted but {} is still running",

@@ -2,7 +2,7 @@
 //! (message and byte span), and the "both guards can hold" test behind the overlap warning.
 
 use config_schema::Op;
-use config_tool::expr::{compile, may_overlap, parse, Operand};
+use robot_compiler::expr::{compile, may_overlap, parse, Operand};
 
 fn ops(text: &str) -> Vec<Op> {
     let resolve = |n: &str| match n {

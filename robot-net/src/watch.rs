@@ -15,8 +15,8 @@ use config_schema::wire::mac::Frame;
 use config_schema::wire::medium::{Link, Peer};
 use config_schema::wire::msg::Message;
 
-use crate::compile::Compiled;
-use crate::medium::Conn;
+use medium::Conn;
+use robot_compiler::compile::Compiled;
 
 /// Something the monitor saw, at `at` on the medium's clock.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -38,14 +38,15 @@ pub enum Seen {
 
 /// Which (publisher address, topic) is a role's fault publication.
 pub fn fault_topics(c: &Compiled) -> HashMap<(u16, u8), String> {
-    crate::lower::topics(&c.ir)
+    robot_compiler::lower::topics(&c.ir)
         .into_iter()
         .enumerate()
         .filter_map(|(topic, (ri, e))| {
             let role = c.ir.roles.get(ri)?;
             let name = role.events.get(e)?;
             let topic = u8::try_from(topic).ok()?;
-            (name == crate::synth::FAULT_EVENT).then(|| ((role.address, topic), role.name.clone()))
+            (name == robot_compiler::synth::FAULT_EVENT)
+                .then(|| ((role.address, topic), role.name.clone()))
         })
         .collect()
 }

@@ -10,7 +10,7 @@ use config_schema::wire::medium::{Link, Peer};
 use config_schema::wire::msg::Message;
 use node_fw::node::CONFIG_PAN;
 
-use crate::medium::Conn;
+use medium::Conn;
 
 /// The tool's default short address.
 pub const TOOL_ADDR: u16 = 0x0100;

@@ -1,0 +1,13 @@
+//! What a compiled robot will do, before it is pushed: the compiled blobs run on the node
+//! firmware's own interpreter (`node_fw::sim`, virtual time) with the plant model of
+//! `node_fw::cylinder`.
+//!
+//! - [`sim`]: the world of a compiled robot, cycles checked against the sequence.
+//! - [`inject`]: faults injected into the simulation, their detection and what followed.
+//! - [`timeline`]: a state-timing diagram (SVG) of a run.
+//! - [`verify`]: every reachable state of charts, plant and radio; the properties.
+
+pub mod inject;
+pub mod sim;
+pub mod timeline;
+pub mod verify;

@@ -1,0 +1,10 @@
+//! A machine over the radio: the tool's radio on a medium ([`radio`]), OTA push and
+//! reliable commands ([`push`]), the real-time plant ([`live_plant`]), a monitor that
+//! reports faults and outputs as they happen ([`watch`]), and the test bed that runs a
+//! whole machine on this host ([`demo`]).
+
+pub mod demo;
+pub mod live_plant;
+pub mod push;
+pub mod radio;
+pub mod watch;
