@@ -23,6 +23,7 @@
 //! capped. Every drop is counted in [`Stats`].
 
 mod air;
+mod bridge;
 mod client;
 mod outbox;
 mod pcap;
@@ -39,6 +40,7 @@ use std::time::{Duration, Instant};
 
 use config_schema::wire::medium::Peer;
 
+pub use bridge::{bridge, BridgeError};
 pub use client::{Conn, JOIN_TIMEOUT};
 pub use pcap::PcapLog;
 

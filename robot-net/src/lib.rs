@@ -4,7 +4,11 @@
 //! whole machine on this host ([`demo`]).
 
 pub mod demo;
+mod error;
 pub mod live_plant;
 pub mod push;
 pub mod radio;
+pub mod show;
 pub mod watch;
+
+pub use error::NetError;

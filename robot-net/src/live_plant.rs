@@ -4,6 +4,7 @@
 //! Plants are wired by node address and pin number, so a node never learns which role it
 //! plays.
 
+use crate::error::NetError;
 use std::collections::HashMap;
 use std::io;
 use std::net::SocketAddr;
@@ -72,8 +73,8 @@ impl std::fmt::Display for Step {
 }
 
 /// The actuators of a compiled robot, on the nodes its roles are assigned to.
-pub fn actuators(c: &Compiled) -> Result<Vec<Actuator>, String> {
-    let (plants, _) = robot_analysis::sim::plants(c)?;
+pub fn actuators(c: &Compiled) -> Result<Vec<Actuator>, NetError> {
+    let (plants, _) = robot_analysis::sim::plants(c).map_err(|e| NetError::Robot(e.to_string()))?;
     let mut out = Vec::new();
     for p in plants {
         let Some(role) = c.ir.roles.get(p.node()) else {

@@ -1,13 +1,10 @@
-//! The whole machine on the host: the simulated medium, one unconfigured node process per
-//! physical node, the plant, and the tool. `demo` pushes the tables over the medium, runs
-//! cycles and checks each against the declared sequence, then pushes a reconfiguration to
-//! the running nodes. The end-to-end tests drive the same [`Bed`].
+//! The test bed: medium, node processes, plant, monitor and the tool's radio; one cycle
+//! at a time, with faults injected and reported as they happen.
 
 use std::collections::BTreeMap;
 use std::ffi::OsString;
-use std::io::{self, Write};
-use std::net::SocketAddr;
-use std::path::{Path, PathBuf};
+use std::io;
+use std::path::PathBuf;
 use std::process::{Child, Command as Process, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver};
@@ -17,6 +14,7 @@ use std::time::{Duration, Instant};
 
 use config_schema::wire::msg::{Announce, Command, Status};
 
+use crate::error::NetError;
 use crate::live_plant::{self, Actuator, Injection, Step};
 use crate::push::{self, Ids, Target};
 use crate::radio::{ToolRadio, TOOL_ADDR};
@@ -120,15 +118,11 @@ pub enum BedFault {
     Cut { from: u16, to: u16 },
 }
 
-fn err(e: impl std::fmt::Display) -> String {
-    e.to_string()
-}
-
 impl Bed {
     /// Starts the medium and the tool's radio; no nodes yet.
-    pub fn start(options: Options) -> Result<Bed, String> {
-        let medium = Medium::start(options.medium.clone()).map_err(|e| format!("medium: {e}"))?;
-        let radio = ToolRadio::connect(medium.addr(), TOOL_ADDR).map_err(err)?;
+    pub fn start(options: Options) -> Result<Bed, NetError> {
+        let medium = Medium::start(options.medium.clone()).map_err(NetError::Medium)?;
+        let radio = ToolRadio::connect(medium.addr(), TOOL_ADDR)?;
         let (steps_tx, steps) = mpsc::channel();
         let (seen_tx, seen) = mpsc::channel();
         Ok(Bed {
@@ -157,13 +151,13 @@ impl Bed {
     }
 
     /// Starts (or restarts) the node process at `addr`.
-    pub fn start_node(&mut self, addr: u16) -> Result<(), String> {
+    pub fn start_node(&mut self, addr: u16) -> Result<(), NetError> {
         self.kill_node(addr);
         let (program, lead) = self
             .options
             .node_command
             .split_first()
-            .ok_or("no node command")?;
+            .ok_or(NetError::NoNodeCommand)?;
         let mut cmd = Process::new(program);
         cmd.args(lead)
             .arg("--addr")
@@ -179,7 +173,7 @@ impl Bed {
         }
         let child = cmd
             .spawn()
-            .map_err(|e| format!("cannot start node {addr:#06x}: {e}"))?;
+            .map_err(|source| NetError::NodeStart { addr, source })?;
         self.nodes.insert(addr, child);
         Ok(())
     }
@@ -194,7 +188,7 @@ impl Bed {
 
     /// Wires the plant for these actuators (restarting it: call between cycles). The plant
     /// is on the medium, its switches set at the nodes, when this returns.
-    pub fn set_plant(&mut self, actuators: Vec<Actuator>) -> Result<(), String> {
+    pub fn set_plant(&mut self, actuators: Vec<Actuator>) -> Result<(), NetError> {
         self.set_plant_injected(actuators, None)
     }
 
@@ -203,11 +197,10 @@ impl Bed {
         &mut self,
         actuators: Vec<Actuator>,
         injection: Option<Injection>,
-    ) -> Result<(), String> {
+    ) -> Result<(), NetError> {
         self.stop_plant();
         let stop = Arc::new(AtomicBool::new(false));
-        let conn = live_plant::attach(self.medium.addr(), &actuators)
-            .map_err(|e| format!("plant: {e}"))?;
+        let conn = live_plant::attach(self.medium.addr(), &actuators).map_err(NetError::Plant)?;
         let (tx, flag) = (self.steps_tx.clone(), stop.clone());
         let handle = std::thread::spawn(move || {
             live_plant::run_attached(conn, actuators, injection, tx, flag)
@@ -219,7 +212,7 @@ impl Bed {
     }
 
     /// Watches the air for the faults of robot `c` (and every output level) from now on.
-    pub fn watch(&mut self, c: &Compiled) -> Result<(), String> {
+    pub fn watch(&mut self, c: &Compiled) -> Result<(), NetError> {
         self.watch = None;
         let w = Watch::start(
             self.medium.addr(),
@@ -227,7 +220,7 @@ impl Bed {
             watch::fault_topics(c),
             self.seen_tx.clone(),
         )
-        .map_err(|e| format!("monitor: {e}"))?;
+        .map_err(NetError::Monitor)?;
         self.watch = Some(w);
         while self.seen.try_recv().is_ok() {}
         Ok(())
@@ -241,12 +234,11 @@ impl Bed {
     }
 
     /// Waits until every address in `addrs` has announced itself.
-    pub fn wait_for_nodes(&mut self, addrs: &[u16]) -> Result<BTreeMap<u16, Announce>, String> {
+    pub fn wait_for_nodes(&mut self, addrs: &[u16]) -> Result<BTreeMap<u16, Announce>, NetError> {
         let end = Instant::now() + self.options.timeout;
         let mut found = BTreeMap::new();
         while Instant::now() < end {
-            let seen = push::scan(&mut self.radio, &mut self.ids, Duration::from_millis(600))
-                .map_err(err)?;
+            let seen = push::scan(&mut self.radio, &mut self.ids, Duration::from_millis(600))?;
             found.extend(seen);
             if addrs.iter().all(|a| found.contains_key(a)) {
                 return Ok(found);
@@ -257,7 +249,7 @@ impl Bed {
             .filter(|a| !found.contains_key(a))
             .map(|a| format!("{a:#06x}"))
             .collect();
-        Err(format!("nodes did not answer: {}", missing.join(", ")))
+        Err(NetError::Silent(missing))
     }
 
     /// Pushes every role of `c` to its node.
@@ -266,22 +258,24 @@ impl Bed {
         c: &Compiled,
         force: bool,
         progress: &mut dyn FnMut(usize, usize, usize),
-    ) -> Result<Vec<push::Outcome>, String> {
+    ) -> Result<Vec<push::Outcome>, NetError> {
         let targets = targets(c);
-        push::push(&mut self.radio, &targets, force, progress).map_err(err)
+        Ok(push::push(&mut self.radio, &targets, force, progress)?)
     }
 
     /// A command to a node, resent until acknowledged.
-    pub fn command(&mut self, addr: u16, command: Command) -> Result<Status, String> {
+    pub fn command(&mut self, addr: u16, command: Command) -> Result<Status, NetError> {
         push::command(
             &mut self.radio,
             &mut self.ids,
             addr,
             command,
             self.options.timeout,
-        )
-        .map_err(err)?
-        .ok_or_else(|| format!("node {addr:#06x} did not answer {command:?}"))
+        )?
+        .ok_or_else(|| NetError::NoAnswer {
+            addr,
+            command: format!("{command:?}"),
+        })
     }
 
     /// Injects `fault` once the plant has seen `steps` steps.
@@ -297,9 +291,9 @@ impl Bed {
         &mut self,
         c: &Compiled,
         on_step: &mut dyn FnMut(&Step, Duration),
-    ) -> Result<Cycle, String> {
+    ) -> Result<Cycle, NetError> {
         let expect: Vec<String> = c.ir.expect.iter().map(|s| s.to_string()).collect();
-        let (start_role, _) = c.ir.start.clone().ok_or("the robot has no start input")?;
+        let (start_role, _) = c.ir.start.clone().ok_or(NetError::NoStart)?;
         let start_addr = c.ir.roles[start_role].address;
         while self.steps.try_recv().is_ok() {}
         while self.seen.try_recv().is_ok() {}
@@ -456,7 +450,7 @@ impl Bed {
         m0: Duration,
         commanded: &[(Step, bool)],
         mut outputs: Vec<(Duration, u16, u8, bool)>,
-    ) -> Result<FaultReport, String> {
+    ) -> Result<FaultReport, NetError> {
         let Detected {
             at,
             addr,
@@ -474,8 +468,7 @@ impl Bed {
                 r.address,
                 Command::Status,
                 Duration::from_secs(2),
-            )
-            .map_err(err)?;
+            )?;
             if let Some(s) = status.as_ref().filter(|_| r.address == addr) {
                 links = links_in_trouble(c, table, s);
             }
@@ -531,7 +524,7 @@ impl Bed {
     }
 
     /// The status of every role's node.
-    pub fn statuses(&mut self, c: &Compiled) -> Result<Vec<Status>, String> {
+    pub fn statuses(&mut self, c: &Compiled) -> Result<Vec<Status>, NetError> {
         c.ir.roles
             .iter()
             .map(|r| self.command(r.address, Command::Status))
@@ -613,269 +606,4 @@ fn faults_of(c: &Compiled, statuses: &[Status]) -> Vec<(String, u8)> {
 /// The addresses of every physical node of the robot (spares too).
 pub fn node_addrs(c: &Compiled) -> Vec<u16> {
     c.robot.nodes.iter().map(|n| n.address).collect()
-}
-
-/// A one-line summary of a push.
-pub fn push_line(o: &push::Outcome) -> String {
-    format!(
-        "  {:<6} {:#06x}  {:>5} bytes  {:>3} frames  {:>3} retries  {:>6.1} ms  {}",
-        o.role,
-        o.addr,
-        o.bytes,
-        o.stats.frames,
-        o.stats.retries,
-        o.elapsed.as_secs_f64() * 1e3,
-        o.verdict()
-    )
-}
-
-/// Prints a cycle's verdict.
-pub fn cycle_line(n: usize, cy: &Cycle) -> String {
-    let verdict = match (&cy.fault, cy.ok()) {
-        (Some(_), _) => "FAULTED",
-        (None, true) => "ok",
-        (None, false) => "MISMATCH",
-    };
-    let mut s = format!(
-        "cycle {n}: {verdict}  {:.2} s  {} frames  {:.1} ms airtime  {}",
-        cy.duration.as_secs_f64(),
-        cy.frames,
-        cy.airtime_us as f64 / 1e3,
-        cy.steps.join(" ")
-    );
-    if let Some(f) = &cy.fault {
-        s.push('\n');
-        s.push_str(&fault_text(f));
-    } else if !cy.ok() {
-        s.push('\n');
-        s.push_str(&robot_analysis::sim::diff(&cy.expect, &cy.steps));
-        for (role, code) in &cy.faults {
-            s.push_str(&format!("  role {role} faulted (code {code:#04x})\n"));
-        }
-    }
-    s
-}
-
-/// A status fault code in words (`node_fw::node::fault_code`).
-pub fn fault_meaning(code: u8) -> String {
-    const ACTION: u8 = 0x80;
-    match code {
-        1 => "the interpreter's chain limit (event-less transitions)".into(),
-        2 => "the interpreter's event queue overflowed".into(),
-        3 => "the interpreter's cascade limit".into(),
-        4 => "a guard or assignment failed to evaluate".into(),
-        c if c == ACTION | robot_compiler::synth::FAULT_MOTION_TIMEOUT => {
-            "its motion watchdog expired".into()
-        }
-        c if c == ACTION | robot_compiler::synth::FAULT_PEER => "stopped by a peer's fault".into(),
-        c if c & ACTION != 0 => format!("fault action {}", c & !ACTION),
-        c => format!("fault {c:#04x}"),
-    }
-}
-
-/// A fault in words: who detected it, how, when, and what every node then did.
-pub fn fault_text(f: &FaultReport) -> String {
-    let links: Vec<String> = f
-        .links
-        .iter()
-        .map(|(peer, broken)| match broken {
-            true => format!("link to {peer} broken (nothing more is sent on it until a reset)"),
-            false => format!("link alarm: {peer} does not acknowledge"),
-        })
-        .collect();
-    let how = match f.code {
-        Some(code) => fault_meaning(code),
-        None if !links.is_empty() => links.join("; "),
-        None => "a fault (its status did not answer)".to_string(),
-    };
-    let mut s = format!(
-        "FAULT at {:.3} s: node {:#06x} ({}) detected it: {how}",
-        f.at.as_secs_f64(),
-        f.addr,
-        f.role
-    );
-    if let Some(quiet) = f.stalled {
-        s.push_str(&format!(
-            "\n  no node published a fault: its status showed it after {:.3} s without a step",
-            quiet.as_secs_f64()
-        ));
-    }
-    let watchdog = f.code.is_some() || f.links.is_empty();
-    if let Some((step, at, _)) = f.step.as_ref().filter(|_| !watchdog) {
-        s.push_str(&format!(
-            "\n  last step: {step}, commanded at {:.3} s",
-            at.as_secs_f64()
-        ));
-    }
-    if let Some((step, at, jammed)) = f.step.as_ref().filter(|_| watchdog) {
-        let what = if *jammed {
-            "the plant saw the command and the rod did not move"
-        } else {
-            "it did not complete"
-        };
-        s.push_str(&format!(
-            "\n  watchdog of step {step}, commanded at {:.3} s ({:.3} s before the detection): \
-             {what}",
-            at.as_secs_f64(),
-            f.at.saturating_sub(*at).as_secs_f64()
-        ));
-    }
-    for (role, addr, code, outputs) in &f.nodes {
-        let state = match code {
-            Some(c) => format!("faulted ({}, code {c:#04x})", fault_meaning(*c)),
-            None => "NOT faulted".to_string(),
-        };
-        s.push_str(&format!(
-            "\n  node {addr:#06x} ({role}): {state}, outputs {outputs:#06x}"
-        ));
-        let changes: Vec<String> = f
-            .outputs
-            .iter()
-            .filter(|o| o.1 == *addr)
-            .map(|(at, _, pin, level)| {
-                format!(
-                    "pin {pin} -> {} at {:.3} s",
-                    u8::from(*level),
-                    at.as_secs_f64()
-                )
-            })
-            .collect();
-        if !changes.is_empty() {
-            s.push_str(&format!("; {}", changes.join(", ")));
-        }
-    }
-    s
-}
-
-/// Writes a line and flushes (the demo prints as things happen).
-pub fn say(out: &mut dyn Write, line: &str) {
-    let _ = writeln!(out, "{line}");
-    let _ = out.flush();
-}
-
-/// The emulated board: QEMU's Cortex-M3 machine the `qemu-mps2` image runs on.
-pub const QEMU_MACHINE: &str = "mps2-an385";
-/// Where the provisioning word goes (`node-fw/boards/qemu-mps2/src/provision.rs`).
-pub const PROVISION_AT: u32 = 0x003F_F000;
-/// The provisioning word's magic (bits 31..24) and its flag "semihosting on" (bit 16).
-const PROVISION_MAGIC: u32 = 0xA5 << 24;
-const PROVISION_SEMIHOSTING: u32 = 1 << 16;
-/// The release image, relative to the repository.
-pub const QEMU_ELF: &str = "node-fw/boards/target/thumbv7m-none-eabi/release/qemu-mps2";
-
-/// The provisioning word of node `addr` (address, magic, semihosting on).
-pub fn provision_word(addr: u16) -> u32 {
-    PROVISION_MAGIC | PROVISION_SEMIHOSTING | u32::from(addr)
-}
-
-/// QEMU's arguments for one node booting `elf`: its address in the provisioning word, its
-/// UART connected to the medium, its flash slots in `flash` (through semihosting; without
-/// it they are erased at every boot).
-pub fn qemu_args(
-    elf: &Path,
-    addr: u16,
-    medium: SocketAddr,
-    flash: Option<&Path>,
-    count: Option<&Path>,
-) -> Result<Vec<OsString>, String> {
-    let mut semihosting = OsString::from("enable=on,target=native");
-    let mut word = provision_word(addr);
-    let mut extra: Vec<OsString> = Vec::new();
-    if let Some(dir) = count {
-        // A nanosecond of emulated time is one instruction; the firmware logs its busy
-        // time and stimuli to the node's log file.
-        word |= PROVISION_COUNT;
-        let log = count_log(dir, addr);
-        let mut chardev = OsString::from("file,id=log,path=");
-        chardev.push(log.as_os_str());
-        extra.extend(["-icount".into(), "shift=0,sleep=on".into()]);
-        extra.extend(["-chardev".into(), chardev]);
-        semihosting.push(",chardev=log");
-    }
-    if let Some(f) = flash {
-        let text = f.to_str().unwrap_or(",");
-        // QEMU splits options at commas and the firmware its command line at spaces.
-        if text.contains([',', ' ']) {
-            return Err(format!(
-                "flash file {}: a QEMU node's flash path cannot contain a comma or a space",
-                f.display()
-            ));
-        }
-        semihosting.push(",arg=flash=");
-        semihosting.push(text);
-    }
-    let mut args: Vec<OsString> = vec![
-        "-M".into(),
-        QEMU_MACHINE.into(),
-        "-display".into(),
-        "none".into(),
-        "-monitor".into(),
-        "none".into(),
-        "-kernel".into(),
-        elf.as_os_str().to_owned(),
-        "-device".into(),
-        format!("loader,addr={PROVISION_AT:#010x},data={word:#010x},data-len=4").into(),
-        "-chardev".into(),
-        format!(
-            "socket,id=radio,host={},port={},nodelay=on",
-            medium.ip(),
-            medium.port()
-        )
-        .into(),
-        "-serial".into(),
-        "chardev:radio".into(),
-        "-semihosting-config".into(),
-    ];
-    args.push(semihosting);
-    args.extend(extra);
-    Ok(args)
-}
-
-/// The provisioning flag "count busy time and stimuli".
-const PROVISION_COUNT: u32 = 2 << 16;
-
-/// Where a counting QEMU node logs.
-pub fn count_log(dir: &Path, addr: u16) -> PathBuf {
-    dir.join(format!("node-{addr:04x}.log"))
-}
-
-/// What a counting node said last.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct Counts {
-    /// Instructions executed while awake (interrupts included).
-    pub instructions: u64,
-    /// Frames received.
-    pub frames: u64,
-    /// `Pin` messages received (the plant repeats levels every 200 ms).
-    pub pins: u64,
-    /// Input level changes among them.
-    pub changes: u64,
-    /// Instructions inside the node core (MAC, links, OTA, interpreter) for frames, and
-    /// the frames.
-    pub core_frame: u64,
-    pub core_frames: u64,
-    /// The same for `Pin` messages (every one goes to the core; repeats raise no event).
-    pub core_input: u64,
-    pub core_inputs: u64,
-}
-
-/// The last `count:` line of a counting node's log.
-pub fn read_counts(dir: &Path, addr: u16) -> Option<Counts> {
-    let text = std::fs::read_to_string(count_log(dir, addr)).ok()?;
-    let line = text.lines().rev().find(|l| l.contains(" count: "))?;
-    let mut words = line.split_whitespace();
-    let mut next = |key: &str| -> Option<u64> {
-        words.by_ref().find(|w| *w == key)?;
-        words.next()?.parse().ok()
-    };
-    Some(Counts {
-        instructions: next("busy_ns")?,
-        frames: next("frames")?,
-        pins: next("pins")?,
-        changes: next("changes")?,
-        core_frame: next("core_frame_ns")?,
-        core_frames: next("core_frames")?,
-        core_input: next("core_input_ns")?,
-        core_inputs: next("core_inputs")?,
-    })
 }

@@ -1,0 +1,289 @@
+//! The command line: one clap command tree. Only this crate knows the flags.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+#[derive(Parser)]
+#[command(
+    name = "config-tool",
+    version,
+    about = "Check, compile, dump, draw and simulate RON robot descriptions"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Parse and validate a robot: every problem, with file:line:col.
+    Check { robot: PathBuf },
+    /// Compile a robot to one table blob per role (`DIR/ROLE.bin`).
+    Compile {
+        robot: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+        /// Deployment generation written into every blob (default: the robot's
+        /// `generation`, or 0).
+        #[arg(long)]
+        generation: Option<u32>,
+    },
+    /// Print a table blob in readable form.
+    Dump { blob: PathBuf },
+    /// Print a role's charts as Graphviz DOT (or SVG through `dot`).
+    Diagram {
+        robot: PathBuf,
+        #[arg(long)]
+        role: String,
+        #[arg(long, value_enum, default_value = "dot")]
+        format: Format,
+    },
+    /// Run the compiled blobs on the host interpreter with plant models, on virtual time.
+    Sim {
+        robot: PathBuf,
+        #[arg(long, default_value_t = 3)]
+        cycles: usize,
+        /// Print every trace entry.
+        #[arg(long)]
+        trace: bool,
+        /// Inject a fault: stuck:ACT, switch:ACT.end|ACT.home, stop:ROLE or
+        /// link:FROM->TO, then @STEP or @CYCLE.STEP (injected just before that step).
+        #[arg(long)]
+        fault: Option<String>,
+        /// Write a time diagram of the run (SVG): actuator positions, chart states, events.
+        #[arg(long)]
+        timeline: Option<PathBuf>,
+    },
+    /// Explore every reachable state of the machine (charts, plant, radio) and check
+    /// deadlock freedom, sequence conformance, interlocks and no double actuation.
+    Verify {
+        robot: PathBuf,
+        /// A delivery may also fail after the link's retries (link alarm).
+        #[arg(long)]
+        lossy: bool,
+        /// Assume the radio is faster than any motion or timer: nothing arrives or
+        /// expires while a publication is in flight (also when the robot declares
+        /// `assume_prompt_radio`).
+        #[arg(long)]
+        prompt: bool,
+        /// Explore any radio delay, even if the robot declares `assume_prompt_radio`.
+        #[arg(long, conflicts_with = "prompt")]
+        any_delay: bool,
+        /// The operator may press START at any time, not only when the machine is idle.
+        #[arg(long)]
+        start_anytime: bool,
+        /// Stop (inconclusive) beyond this many states.
+        #[arg(long, default_value_t = 2_000_000)]
+        max_states: usize,
+    },
+    /// Run the simulated IEEE 802.15.4 medium (loopback) until interrupted.
+    Medium {
+        #[arg(long, default_value = "127.0.0.1:15400")]
+        listen: SocketAddr,
+        /// Probability a frame is lost (per receiver).
+        #[arg(long, default_value_t = 0.0, value_parser = probability)]
+        loss: f64,
+        /// Probability a frame arrives twice.
+        #[arg(long, default_value_t = 0.0, value_parser = probability)]
+        dup: f64,
+        /// Probability a frame arrives with a flipped bit.
+        #[arg(long, default_value_t = 0.0, value_parser = probability)]
+        corrupt: f64,
+        /// Extra delay per frame, uniform in A..B ms (reorders frames).
+        #[arg(long, value_parser = delay_range, default_value = "0..0")]
+        delay_ms: (u64, u64),
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Write every frame on the air to this pcap (link type 195).
+        #[arg(long)]
+        pcap: Option<PathBuf>,
+    },
+    /// List the nodes in range: address, firmware, generation, role.
+    Scan {
+        #[command(flatten)]
+        at: MediumAddr,
+    },
+    /// Compile a robot and push every role to its node (or one role to a given node).
+    Push {
+        robot: PathBuf,
+        #[command(flatten)]
+        at: MediumAddr,
+        /// Push only this role.
+        #[arg(long)]
+        role: Option<String>,
+        /// To this node instead of the one the robot assigns (with --role).
+        #[arg(long, value_parser = node_fw::host::parse_addr, requires = "role")]
+        node: Option<u16>,
+        /// Generation of the tables (default: the robot's, at least 1).
+        #[arg(long)]
+        generation: Option<u32>,
+        /// Push even if the node runs the same or a newer generation.
+        #[arg(long)]
+        force: bool,
+    },
+    /// A node's status: role, generation, chart states, outputs, fault, links, counters.
+    Status {
+        #[command(flatten)]
+        at: MediumAddr,
+        #[arg(long, value_parser = node_fw::host::parse_addr)]
+        node: u16,
+    },
+    /// START (as the START button of the robot), to the node with the start input.
+    Start {
+        #[command(flatten)]
+        at: MediumAddr,
+        #[arg(long, value_parser = node_fw::host::parse_addr)]
+        node: u16,
+    },
+    /// Leave a fault: back to the initial state.
+    Reset {
+        #[command(flatten)]
+        at: MediumAddr,
+        #[arg(long, value_parser = node_fw::host::parse_addr)]
+        node: u16,
+    },
+    /// The robot's machine (cylinders, gripper) on the medium, in real time: it moves the
+    /// actuators the nodes command and closes their switches; prints every step.
+    Plant {
+        robot: PathBuf,
+        #[command(flatten)]
+        at: MediumAddr,
+    },
+    /// A live trace of frames, events and pin changes on the medium.
+    Monitor {
+        #[command(flatten)]
+        at: MediumAddr,
+        /// Stop after this many seconds (default: run until interrupted).
+        #[arg(long)]
+        seconds: Option<u64>,
+    },
+    /// The whole machine on this host: medium, unconfigured nodes, plant; push, run the
+    /// cycles, check them, then push a reconfiguration to the running nodes.
+    Demo {
+        robot: PathBuf,
+        #[arg(long, default_value_t = 3)]
+        cycles: usize,
+        /// Frame loss on the medium (with half as much duplication, and reordering).
+        #[arg(long, default_value_t = 0.0, value_parser = probability)]
+        loss: f64,
+        /// The robot pushed afterwards to the same running nodes (default:
+        /// paint-robot-double-dip.ron beside ROBOT, if there is one).
+        #[arg(long)]
+        then: Option<PathBuf>,
+        /// Skip the reconfiguration.
+        #[arg(long)]
+        no_reconfigure: bool,
+        /// Write every frame on the air to this pcap.
+        #[arg(long)]
+        pcap: Option<PathBuf>,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Run the nodes as QEMU instances (mps2-an385) booting the firmware image.
+        #[arg(long)]
+        qemu: bool,
+        /// The firmware image the QEMU nodes boot (with --qemu).
+        #[arg(long, default_value = robot_net::demo::QEMU_ELF, requires = "qemu")]
+        elf: PathBuf,
+        /// Count the instructions the QEMU nodes execute (`-icount shift=0`) during the
+        /// first robot's cycles: instructions per cycle and per stimulus (frame or input).
+        #[arg(long, requires = "qemu")]
+        icount: bool,
+        /// Inject a fault into the running machine, as `sim --fault` does: stuck:ACT or
+        /// switch:ACT.end|ACT.home (the plant), stop:ROLE (the node's process is killed),
+        /// then @STEP or @CYCLE.STEP. The demo reports the detection and exits "faulted".
+        #[arg(long)]
+        fault: Option<String>,
+    },
+    /// Run one emulated node: QEMU booting the firmware image, its UART on the medium.
+    QemuNode(QemuNodeArgs),
+    /// Run a medium whose frames also go to the air, through an nRF52840 gateway on a
+    /// serial port (`nrf52840` image built with `--features gateway`): `push`, `scan`,
+    /// `status`, `monitor` with `--medium` then reach the real nodes in range.
+    Gateway {
+        /// The gateway's serial port (the DK's J-Link virtual COM port: /dev/ttyACM0).
+        #[arg(long)]
+        serial: PathBuf,
+        /// The baud rate (set with `stty`; the gateway's UART runs at 1 Mbaud).
+        #[arg(long, default_value_t = 1_000_000)]
+        baud: u32,
+        #[arg(long, default_value = "127.0.0.1:15400")]
+        listen: SocketAddr,
+    },
+    /// Run one generic node in this process (what `demo` starts).
+    #[command(hide = true)]
+    Node(node_fw::host::Args),
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum Format {
+    Dot,
+    Svg,
+}
+
+/// Where the medium is.
+#[derive(Args, Debug, Clone)]
+pub struct MediumAddr {
+    /// The medium's address (`config-tool medium --listen ...`).
+    #[arg(long, default_value = "127.0.0.1:15400")]
+    pub medium: SocketAddr,
+    /// Reach real nodes instead: through an nRF52840 gateway on this serial port (a medium
+    /// bridged to the air runs in this process, as `config-tool gateway` does).
+    #[arg(long, conflicts_with = "medium")]
+    pub serial: Option<PathBuf>,
+    /// The gateway's baud rate (with --serial).
+    #[arg(long, default_value_t = 1_000_000, requires = "serial")]
+    pub baud: u32,
+}
+
+/// One QEMU node.
+#[derive(Args, Debug, Clone)]
+pub struct QemuNodeArgs {
+    /// The firmware image (`node-fw/boards/qemu-mps2`, built with `cargo build --release`).
+    #[arg(long, default_value = robot_net::demo::QEMU_ELF)]
+    pub elf: PathBuf,
+    /// The QEMU program.
+    #[arg(long, default_value = "qemu-system-arm")]
+    pub qemu: PathBuf,
+    /// The node's address, written to its provisioning word.
+    #[arg(long, value_parser = node_fw::host::parse_addr)]
+    pub addr: u16,
+    /// The medium its UART connects to (host:port).
+    #[arg(long)]
+    pub medium: SocketAddr,
+    /// A host file for its flash slots (created erased if missing; no comma or space).
+    #[arg(long)]
+    pub flash: Option<PathBuf>,
+    /// Count instructions (`-icount shift=0`): the node logs its busy time, frames and
+    /// input changes every second to DIR/node-AAAA.log.
+    #[arg(long, value_name = "DIR")]
+    pub count: Option<PathBuf>,
+}
+
+pub fn probability(s: &str) -> Result<f64, String> {
+    let p: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
+    if (0.0..=1.0).contains(&p) {
+        Ok(p)
+    } else {
+        Err(format!("`{s}` is not a probability in 0..1"))
+    }
+}
+
+pub fn delay_range(s: &str) -> Result<(u64, u64), String> {
+    let (a, b) = s
+        .split_once("..")
+        .ok_or_else(|| format!("`{s}` is not a range A..B (ms)"))?;
+    let a: u64 = a
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{a}` is not a number of ms"))?;
+    let b: u64 = b
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{b}` is not a number of ms"))?;
+    if a > b {
+        return Err(format!("the range {a}..{b} is empty"));
+    }
+    Ok((a, b))
+}

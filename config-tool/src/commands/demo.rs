@@ -1,0 +1,102 @@
+//! `demo`: the whole machine on this host (the work is `robot_net::demo::run`); this turns
+//! the flags into the bed's options and the verdict into the exit status.
+
+use std::io;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use robot_net::demo::{self, Demo};
+
+use crate::failure::Failure;
+
+/// `demo`'s flags.
+pub struct DemoFlags {
+    pub cycles: usize,
+    pub loss: f64,
+    pub then: Option<PathBuf>,
+    pub no_reconfigure: bool,
+    pub pcap: Option<PathBuf>,
+    pub seed: u64,
+    pub qemu: bool,
+    pub elf: PathBuf,
+    pub icount: bool,
+    pub fault: Option<String>,
+}
+
+pub fn demo(robot: &Path, flags: DemoFlags) -> Result<(), Failure> {
+    let fault = flags
+        .fault
+        .as_deref()
+        .map(robot_analysis::inject::parse)
+        .transpose()
+        .map_err(Failure::error)?;
+    let count_dir = if flags.icount {
+        let dir = std::env::temp_dir().join(format!("config-tool-icount-{}", std::process::id()));
+        std::fs::create_dir_all(&dir)
+            .map_err(|e| Failure::error(format!("{}: {e}", dir.display())))?;
+        Some(dir)
+    } else {
+        None
+    };
+    let then = match (flags.no_reconfigure, flags.then) {
+        (true, _) => None,
+        (false, Some(p)) => Some(p),
+        (false, None) => {
+            let p = robot.with_file_name("paint-robot-double-dip.ron");
+            (p.exists() && p != robot).then_some(p)
+        }
+    };
+    let options = demo::Options {
+        medium: medium::Config {
+            loss: flags.loss,
+            dup: flags.loss / 2.0,
+            delay_ms: if flags.loss > 0.0 { (0, 8) } else { (0, 0) },
+            seed: flags.seed,
+            pcap: flags.pcap,
+            ..medium::Config::default()
+        },
+        node_command: node_command(flags.qemu, &flags.elf, count_dir.as_deref())?,
+        flash_dir: None,
+        timeout: Duration::from_secs(60),
+    };
+    let verdict = demo::run(
+        &Demo {
+            robot,
+            then: then.as_deref(),
+            cycles: flags.cycles,
+            fault,
+            count_dir: count_dir.as_deref(),
+        },
+        options,
+        &mut io::stdout(),
+    );
+    if let Some(dir) = &count_dir {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+    Failure::of_verdict(verdict?)
+}
+
+/// How the bed starts one node: this binary's `node`, or its `qemu-node` booting `elf`.
+fn node_command(
+    qemu: bool,
+    elf: &Path,
+    count_dir: Option<&Path>,
+) -> Result<Vec<std::ffi::OsString>, Failure> {
+    let exe = std::env::current_exe().map_err(Failure::error)?;
+    if !qemu {
+        return Ok(vec![exe.into_os_string(), "node".into()]);
+    }
+    demo::check_elf(elf)?;
+    demo::check_qemu()?;
+    let elf = std::path::absolute(elf).map_err(Failure::error)?;
+    let mut cmd = vec![
+        exe.into_os_string(),
+        "qemu-node".into(),
+        "--elf".into(),
+        elf.into_os_string(),
+    ];
+    if let Some(dir) = count_dir {
+        cmd.extend(["--count".into(), dir.as_os_str().to_owned()]);
+    }
+    Ok(cmd)
+}

@@ -1,0 +1,195 @@
+//! The commands that need no radio: check, compile, dump, diagram, sim, verify.
+
+use std::path::Path;
+
+use robot_analysis::{inject, sim, timeline, verify};
+use robot_compiler::compile as pipeline;
+use robot_compiler::{check, diagram, dump, Compiled, Diagnostic, Source};
+
+use crate::cli::Format;
+use crate::failure::{exit, Failure};
+
+/// Reads a robot (its errors name the file, and the place of a byte that is not UTF-8).
+fn load(path: &Path) -> Result<Source, Failure> {
+    Source::read(path).map_err(|e| Failure::as_is(exit::ERROR, e.to_string()))
+}
+
+/// Reads and compiles a robot; on failure every diagnostic is reported.
+fn load_compiled(path: &Path) -> Result<(Source, Compiled), Failure> {
+    let src = load(path)?;
+    match pipeline::compile(&src) {
+        Ok(compiled) => Ok((src, compiled)),
+        Err(diags) => {
+            report(&src, &diags);
+            Err(Failure::reported())
+        }
+    }
+}
+
+fn report(src: &Source, diags: &[Diagnostic]) {
+    use std::io::IsTerminal;
+    let color = std::io::stderr().is_terminal();
+    eprint!("{}", robot_compiler::diag::render_all(src, diags, color));
+}
+
+pub fn check(robot: &Path) -> Result<(), Failure> {
+    let src = load(robot)?;
+    let diags = check::check(&src).diagnostics;
+    report(&src, &diags);
+    if diags.iter().any(Diagnostic::is_error) {
+        return Err(Failure::reported());
+    }
+    println!("{}: ok", src.name);
+    Ok(())
+}
+
+pub fn compile(robot: &Path, out: &Path, generation: Option<u32>) -> Result<(), Failure> {
+    let (src, mut compiled) = load_compiled(robot)?;
+    if let Some(g) = generation {
+        compiled = compiled.with_generation(g).map_err(Failure::error)?;
+    }
+    report(&src, &compiled.warnings);
+    std::fs::create_dir_all(out).map_err(|e| Failure::error(format!("{}: {e}", out.display())))?;
+    for (role, blob) in compiled.ir.roles.iter().zip(&compiled.blobs) {
+        let path = out.join(format!("{}.bin", role.name));
+        std::fs::write(&path, blob)
+            .map_err(|e| Failure::error(format!("{}: {e}", path.display())))?;
+    }
+    for line in pipeline::summary(&compiled) {
+        println!("{line}");
+    }
+    if compiled.robot.sequence.is_some() {
+        let radio = pipeline::radio_events(&compiled.ir);
+        println!("radio publications per cycle: {}", radio.len());
+        for (from, event, to) in radio {
+            println!("  {from} -> {to}: {event}");
+        }
+    }
+    Ok(())
+}
+
+pub fn dump(blob: &Path) -> Result<(), Failure> {
+    let bytes = std::fs::read(blob)
+        .map_err(|e| Failure::error(format!("cannot read {}: {e}", blob.display())))?;
+    let text = dump::dump(&bytes)
+        .map_err(|e| Failure::error(format!("{}: not a valid table blob: {e}", blob.display())))?;
+    print!("{text}");
+    Ok(())
+}
+
+pub fn diagram(robot: &Path, role: &str, format: Format) -> Result<(), Failure> {
+    let (_, compiled) = load_compiled(robot)?;
+    let dot = diagram::dot(&compiled.ir, role).map_err(Failure::error)?;
+    match format {
+        Format::Dot => print!("{dot}"),
+        Format::Svg => print!("{}", diagram::svg(&dot).map_err(Failure::error)?),
+    }
+    Ok(())
+}
+
+/// `verify`'s flags.
+pub struct VerifyFlags {
+    pub lossy: bool,
+    pub prompt: bool,
+    pub any_delay: bool,
+    pub start_anytime: bool,
+    pub max_states: usize,
+}
+
+pub fn verify(robot: &Path, flags: VerifyFlags) -> Result<(), Failure> {
+    let (src, compiled) = load_compiled(robot)?;
+    let declared = compiled.robot.assume_prompt_radio && !flags.prompt && !flags.any_delay;
+    if declared {
+        println!(
+            "{}: assumes a prompt radio (`assume_prompt_radio`); --any-delay explores without it",
+            src.name
+        );
+    }
+    let prompt = (flags.prompt || compiled.robot.assume_prompt_radio) && !flags.any_delay;
+    let model = verify::Model::new(&compiled).map_err(Failure::error)?;
+    let result = verify::explore(
+        &model,
+        verify::Options {
+            lossy: flags.lossy,
+            prompt,
+            start_anytime: flags.start_anytime,
+            max_states: flags.max_states,
+        },
+    );
+    print!("{}", result.render(&src.name, model.interlock_count()));
+    if result.ok() {
+        Ok(())
+    } else {
+        Err(Failure::reported())
+    }
+}
+
+pub fn sim(
+    robot: &Path,
+    cycles: usize,
+    trace: bool,
+    fault: Option<&str>,
+    timeline: Option<&Path>,
+) -> Result<(), Failure> {
+    let (_, compiled) = load_compiled(robot)?;
+    if let Some(spec) = fault {
+        return sim_fault(&compiled, spec, trace, timeline);
+    }
+    let result = if trace || timeline.is_some() {
+        sim::simulate_traced(&compiled, cycles)
+    } else {
+        sim::simulate(&compiled, cycles)
+    }
+    .map_err(Failure::error)?;
+    if trace {
+        for line in &result.trace {
+            println!("{line}");
+        }
+    }
+    if let Some(path) = timeline {
+        let entries = timeline::run(&compiled, cycles).map_err(Failure::error)?;
+        write_timeline(&compiled, &entries, path)?;
+    }
+    print!("{}", result.report());
+    if result.ok() {
+        Ok(())
+    } else {
+        Err(Failure::reported())
+    }
+}
+
+/// `sim --fault`: succeeds if the fault was detected and nothing moved afterwards.
+fn sim_fault(
+    compiled: &Compiled,
+    spec: &str,
+    trace: bool,
+    timeline: Option<&Path>,
+) -> Result<(), Failure> {
+    let spec = inject::parse(spec).map_err(Failure::error)?;
+    let run = inject::simulate(compiled, &spec).map_err(Failure::error)?;
+    if trace {
+        for e in &run.trace {
+            println!("{e}");
+        }
+    }
+    if let Some(path) = timeline {
+        write_timeline(compiled, &run.trace, path)?;
+    }
+    print!("{}", run.report());
+    if run.stopped_safely() {
+        Ok(())
+    } else {
+        Err(Failure::reported())
+    }
+}
+
+fn write_timeline(
+    compiled: &Compiled,
+    trace: &[node_fw::sim::TraceEntry],
+    path: &Path,
+) -> Result<(), Failure> {
+    let svg = timeline::svg(compiled, trace).map_err(Failure::error)?;
+    std::fs::write(path, svg).map_err(|e| Failure::error(format!("{}: {e}", path.display())))?;
+    eprintln!("timeline: {}", path.display());
+    Ok(())
+}

@@ -1,0 +1,313 @@
+//! The commands that talk to nodes over the (simulated) radio: medium, scan, push, status,
+//! start, reset, plant, monitor, gateway, and the node runners (`node`, `qemu-node`).
+
+use std::io;
+use std::net::SocketAddr;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use config_schema::wire::medium::{Link, Peer};
+use config_schema::wire::msg::{Command, Status};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use medium::Conn;
+use node_fw::ota::Progress;
+use robot_net::demo;
+use robot_net::push::{self, Ids};
+use robot_net::radio::{ToolRadio, TOOL_ADDR};
+use robot_net::{live_plant, show};
+
+use crate::cli::{MediumAddr, QemuNodeArgs};
+use crate::failure::{exit, Failure};
+
+/// The medium to talk to: the one at `--medium`, or with `--serial` one bridged to the air
+/// started here (it lives as long as the command).
+fn resolve(at: &MediumAddr) -> Result<SocketAddr, Failure> {
+    match &at.serial {
+        None => Ok(at.medium),
+        Some(serial) => {
+            let (m, _) = medium::bridge(serial, at.baud, SocketAddr::from(([127, 0, 0, 1], 0)))?;
+            let addr = m.addr();
+            std::mem::forget(m);
+            Ok(addr)
+        }
+    }
+}
+
+fn connect(at: &MediumAddr) -> Result<ToolRadio, Failure> {
+    let medium = resolve(at)?;
+    ToolRadio::connect(medium, TOOL_ADDR)
+        .map_err(|e| Failure::error(format!("cannot reach the medium at {medium}: {e}")))
+}
+
+/// A command to one node, resent until answered.
+fn command(radio: &mut ToolRadio, node: u16, cmd: Command) -> Result<Status, Failure> {
+    push::command(
+        radio,
+        &mut Ids::default(),
+        node,
+        cmd,
+        Duration::from_secs(5),
+    )
+    .map_err(Failure::error)?
+    .ok_or_else(|| Failure::error(format!("node {node:#06x} did not answer")))
+}
+
+/// `medium`: runs until interrupted.
+pub fn medium(config: medium::Config) -> Result<(), Failure> {
+    let listen = config.listen;
+    let m = medium::Medium::start(config)
+        .map_err(|e| Failure::error(format!("medium on {listen}: {e}")))?;
+    println!("medium listening on {}", m.addr());
+    loop {
+        std::thread::sleep(Duration::from_secs(3600));
+    }
+}
+
+pub fn scan(at: &MediumAddr) -> Result<(), Failure> {
+    let mut radio = connect(at)?;
+    let found = push::scan(&mut radio, &mut Ids::default(), Duration::from_secs(2))
+        .map_err(Failure::error)?;
+    for (addr, a) in &found {
+        let role = if a.role.is_empty() {
+            "(unconfigured)"
+        } else {
+            a.role.as_str()
+        };
+        println!(
+            "{addr:#06x}  firmware {}  generation {}  {role}",
+            a.firmware, a.generation
+        );
+    }
+    println!("{} node(s)", found.len());
+    Ok(())
+}
+
+/// What `push` sends: one role (maybe to another node) or every role.
+pub struct PushFlags {
+    pub role: Option<String>,
+    pub node: Option<u16>,
+    pub generation: Option<u32>,
+    pub force: bool,
+}
+
+pub fn push(robot: &Path, at: &MediumAddr, flags: PushFlags) -> Result<(), Failure> {
+    let c = demo::generation_of(demo::load(robot)?, flags.generation)?;
+    let mut targets = demo::targets(&c);
+    if let Some(role) = &flags.role {
+        targets.retain(|t| &t.role == role);
+        if targets.is_empty() {
+            return Err(Failure::error(format!(
+                "{} has no role {role}",
+                robot.display()
+            )));
+        }
+        if let (Some(addr), Some(t)) = (flags.node, targets.first_mut()) {
+            t.addr = addr;
+        }
+    }
+    let mut radio = connect(at)?;
+    let outcomes = push_with_bars(&mut radio, &targets, flags.force)?;
+    report_push(&outcomes)
+}
+
+fn bars(targets: &[push::Target]) -> (MultiProgress, Vec<ProgressBar>) {
+    let multi = MultiProgress::new();
+    let style = ProgressStyle::with_template("{prefix:>8} [{bar:30}] {pos:>5}/{len} bytes {msg}")
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("=> ");
+    let bars = targets
+        .iter()
+        .map(|t| {
+            let b = multi.add(ProgressBar::new(t.blob.len() as u64));
+            b.set_style(style.clone());
+            b.set_prefix(format!("{} {:#06x}", t.role, t.addr));
+            b
+        })
+        .collect();
+    (multi, bars)
+}
+
+fn push_with_bars(
+    radio: &mut ToolRadio,
+    targets: &[push::Target],
+    force: bool,
+) -> Result<Vec<push::Outcome>, Failure> {
+    let (_multi, bars) = bars(targets);
+    let outcomes = push::push(radio, targets, force, &mut |i, acked, _| {
+        if let Some(b) = bars.get(i) {
+            b.set_position(acked as u64);
+        }
+    })
+    .map_err(Failure::error)?;
+    for (b, o) in bars.iter().zip(&outcomes) {
+        b.finish_with_message(o.verdict());
+    }
+    Ok(outcomes)
+}
+
+fn report_push(outcomes: &[push::Outcome]) -> Result<(), Failure> {
+    for o in outcomes {
+        println!("{}", demo::push_line(o));
+    }
+    let (bytes, frames, retries) = outcomes.iter().fold((0, 0, 0), |a, o| {
+        (a.0 + o.bytes, a.1 + o.stats.frames, a.2 + o.stats.retries)
+    });
+    let time = outcomes.iter().map(|o| o.elapsed).max().unwrap_or_default();
+    println!(
+        "pushed {} table(s): {bytes} bytes, {frames} frames, {retries} retries, {:.1} ms",
+        outcomes.len(),
+        time.as_secs_f64() * 1e3
+    );
+    if outcomes.iter().all(|o| o.progress == Progress::Done) {
+        Ok(())
+    } else {
+        Err(Failure {
+            code: exit::PUSH_FAILED,
+            message: "error: not every node activated its table".into(),
+        })
+    }
+}
+
+pub fn status(at: &MediumAddr, node: u16) -> Result<(), Failure> {
+    let mut radio = connect(at)?;
+    let s = command(&mut radio, node, Command::Status)?;
+    println!("{}", show::status_text(node, &s));
+    Ok(())
+}
+
+pub fn start(at: &MediumAddr, node: u16) -> Result<(), Failure> {
+    let mut radio = connect(at)?;
+    command(&mut radio, node, Command::Start)?;
+    println!("{node:#06x}: started");
+    Ok(())
+}
+
+pub fn reset(at: &MediumAddr, node: u16) -> Result<(), Failure> {
+    let mut radio = connect(at)?;
+    let s = command(&mut radio, node, Command::Reset)?;
+    println!("{}", show::reset_text(node, &s));
+    Ok(())
+}
+
+/// `plant`: the robot's machine on the medium, in real time; prints every step.
+pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
+    let c = demo::load(robot)?;
+    let actuators = live_plant::actuators(&c)?;
+    for a in &actuators {
+        println!(
+            "{:<4} on node {:#06x}: valves {:?}, home {:?}, end {:?}",
+            a.name, a.addr, a.valves, a.home, a.end
+        );
+    }
+    if at.serial.is_some() {
+        return Err(Failure::error(
+            "the plant is the simulated machine: it needs a medium, not --serial",
+        ));
+    }
+    let (tx, rx) = std::sync::mpsc::channel();
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let medium = at.medium;
+    let handle = std::thread::spawn(move || live_plant::run(medium, actuators, tx, stop));
+    for step in rx {
+        println!("{:>9.3}  {step}", step.at.as_secs_f64());
+    }
+    match handle.join() {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => Err(Failure::error(format!("plant on {medium}: {e}"))),
+        Err(_) => Err(Failure::error("the plant stopped")),
+    }
+}
+
+/// `monitor`: every frame (decoded) and pin change on the medium. Pin changes carry the
+/// medium's time; frames the time they reached the monitor.
+pub fn monitor(at: &MediumAddr, for_: Option<Duration>) -> Result<(), Failure> {
+    let medium = resolve(at)?;
+    let mut conn = Conn::join(medium, Peer::Monitor)
+        .map_err(|e| Failure::error(format!("cannot reach the medium at {medium}: {e}")))?;
+    let start = Instant::now();
+    let end = for_.map(|d| start + d);
+    loop {
+        let until = end.unwrap_or_else(|| Instant::now() + Duration::from_secs(3600));
+        let got = conn.recv(until, |link| {
+            let t = start.elapsed().as_secs_f64();
+            match link {
+                Link::Frame(psdu) => Some(format!("{t:>9.3}  {}", show::describe(psdu))),
+                Link::Seen {
+                    at_us,
+                    addr,
+                    pin,
+                    level,
+                    output,
+                } => Some(format!(
+                    "{:>9.3}  pin {addr:#06x}.{pin} = {} ({})",
+                    at_us as f64 / 1e6,
+                    u8::from(level),
+                    if output { "output" } else { "input" }
+                )),
+                _ => None,
+            }
+        });
+        match got {
+            Ok(Some(line)) => println!("{line}"),
+            Ok(None) if end.is_some_and(|e| Instant::now() >= e) => return Ok(()),
+            Ok(None) => {}
+            Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => return Ok(()),
+            Err(e) => return Err(Failure::error(format!("monitor: {e}"))),
+        }
+    }
+}
+
+/// `gateway`: a medium bridged to the air through an nRF52840 gateway; runs until the
+/// serial line closes.
+pub fn gateway(serial: &Path, baud: u32, listen: SocketAddr) -> Result<(), Failure> {
+    let (m, up) = medium::bridge(serial, baud, listen)?;
+    println!(
+        "medium listening on {}, bridged to the air through {}",
+        m.addr(),
+        serial.display()
+    );
+    match up.join() {
+        Ok(r) => r.map_err(|e| Failure::error(format!("{}: {e}", serial.display()))),
+        Err(_) => Err(Failure::error("the gateway bridge stopped")),
+    }
+}
+
+/// `qemu-node`: becomes QEMU (exec), so whoever started this process stops the node by
+/// stopping it.
+pub fn qemu_node(a: QemuNodeArgs) -> Result<(), Failure> {
+    demo::check_elf(&a.elf)?;
+    let args = demo::qemu_args(
+        &a.elf,
+        a.addr,
+        a.medium,
+        a.flash.as_deref(),
+        a.count.as_deref(),
+    )?;
+    let mut cmd = std::process::Command::new(&a.qemu);
+    cmd.args(&args);
+    let failed = |e: io::Error| {
+        Failure::error(format!(
+            "cannot run {}: {e} (Debian: apt-get install qemu-system-arm)",
+            a.qemu.display()
+        ))
+    };
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::CommandExt;
+        Err(failed(cmd.exec()))
+    }
+    #[cfg(not(unix))]
+    {
+        let status = cmd.status().map_err(failed)?;
+        if status.success() {
+            Ok(())
+        } else {
+            Err(Failure::error(format!("qemu: {status}")))
+        }
+    }
+}
+
+/// `node`: one generic node in this process (what `demo` starts).
+pub fn node(args: node_fw::host::Args) -> Result<(), Failure> {
+    node_fw::host::run(args).map_err(|e| Failure::as_is(exit::ERROR, format!("node: {e}")))
+}

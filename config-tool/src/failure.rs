@@ -1,0 +1,84 @@
+//! How a command failed: the message to print and the exit status (docs/config-tool.md).
+//! The one place an `error:` prefix is written.
+
+use std::fmt::Display;
+
+use robot_net::demo::Verdict;
+use robot_net::NetError;
+
+/// The exit statuses.
+pub mod exit {
+    /// Anything else that went wrong (bad robot, no medium, nodes that never started).
+    pub const ERROR: u8 = 1;
+    /// A node did not activate its table (refused, or stopped answering).
+    pub const PUSH_FAILED: u8 = 3;
+    /// A cycle did not produce the declared sequence.
+    pub const MISMATCH: u8 = 4;
+    /// A node faulted (a watchdog, a peer's fault, a link alarm in a stalled machine).
+    pub const FAULTED: u8 = 5;
+}
+
+/// A command that failed: what to print (nothing if it was printed already), and the exit
+/// status.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{message}")]
+pub struct Failure {
+    pub code: u8,
+    pub message: String,
+}
+
+impl Failure {
+    /// `error: WHAT`, status 1.
+    pub fn error(what: impl Display) -> Failure {
+        Failure {
+            code: exit::ERROR,
+            message: format!("error: {what}"),
+        }
+    }
+
+    /// Status 1, the reason already printed (diagnostics, a counterexample, a diff).
+    pub fn reported() -> Failure {
+        Failure {
+            code: exit::ERROR,
+            message: String::new(),
+        }
+    }
+
+    /// Printed as it is (it says what went wrong itself).
+    pub fn as_is(code: u8, message: impl Into<String>) -> Failure {
+        Failure {
+            code,
+            message: message.into(),
+        }
+    }
+
+    /// How a demo ended, as the command's result.
+    pub fn of_verdict(verdict: Verdict) -> Result<(), Failure> {
+        let (code, message) = match verdict {
+            Verdict::Matched => return Ok(()),
+            Verdict::PushFailed => (exit::PUSH_FAILED, "demo: the push failed"),
+            Verdict::Mismatch => (
+                exit::MISMATCH,
+                "demo: a cycle did not match its declared sequence",
+            ),
+            Verdict::Faulted => (exit::FAULTED, "demo: the machine faulted"),
+        };
+        Err(Failure::as_is(code, message))
+    }
+}
+
+impl From<NetError> for Failure {
+    fn from(e: NetError) -> Failure {
+        match e {
+            // Rendered diagnostics: they say `error` themselves.
+            NetError::Robot(rendered) => Failure::as_is(exit::ERROR, rendered),
+            e => Failure::error(e),
+        }
+    }
+}
+
+impl From<medium::BridgeError> for Failure {
+    fn from(e: medium::BridgeError) -> Failure {
+        Failure::error(e)
+    }
+}

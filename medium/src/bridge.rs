@@ -1,0 +1,110 @@
+//! A medium bridged to the air: every frame on the medium goes to an nRF52840 gateway on a
+//! serial line (the medium's framing), and every frame the gateway hears goes on the
+//! medium. The bridge joins the medium as a monitor (it sees every frame, without the
+//! medium's loss).
+
+use std::io::{self, Read, Write};
+use std::net::SocketAddr;
+use std::path::Path;
+use std::thread::JoinHandle;
+
+use config_schema::wire::medium::{Deframer, Link, Peer, MAX_LINK};
+
+use crate::{Config, Conn, Medium};
+
+/// Why a bridge did not start.
+#[derive(Debug, thiserror::Error)]
+pub enum BridgeError {
+    #[error("stty: {0}")]
+    Stty(io::Error),
+    #[error("stty -F {port} {baud} raw: {status}")]
+    SttyFailed {
+        port: String,
+        baud: u32,
+        status: std::process::ExitStatus,
+    },
+    #[error("{port}: {source}")]
+    Port { port: String, source: io::Error },
+    #[error("medium on {listen}: {source}")]
+    Medium {
+        listen: SocketAddr,
+        source: io::Error,
+    },
+    #[error("the bridge's own connection: {0}")]
+    Join(io::Error),
+}
+
+/// A medium on `listen` whose frames also go to the air through the gateway on `serial`
+/// (and the air's to it); returns the medium and the thread carrying the air's frames.
+pub fn bridge(
+    serial: &Path,
+    baud: u32,
+    listen: SocketAddr,
+) -> Result<(Medium, JoinHandle<io::Result<()>>), BridgeError> {
+    let port_name = || serial.display().to_string();
+    if serial.to_str().is_some_and(|p| p.starts_with("/dev/tty")) {
+        let status = std::process::Command::new("stty")
+            .arg("-F")
+            .arg(serial)
+            .args([baud.to_string().as_str(), "raw", "-echo"])
+            .status()
+            .map_err(BridgeError::Stty)?;
+        if !status.success() {
+            return Err(BridgeError::SttyFailed {
+                port: port_name(),
+                baud,
+                status,
+            });
+        }
+    }
+    let port = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(serial)
+        .map_err(|source| BridgeError::Port {
+            port: port_name(),
+            source,
+        })?;
+    let m = Medium::start(Config {
+        listen,
+        ..Config::default()
+    })
+    .map_err(|source| BridgeError::Medium { listen, source })?;
+    let conn = Conn::join(m.addr(), Peer::Monitor).map_err(BridgeError::Join)?;
+    let stream = conn.try_clone_stream().map_err(BridgeError::Join)?;
+    let to_air = port.try_clone().map_err(|source| BridgeError::Port {
+        port: port_name(),
+        source,
+    })?;
+    let from_medium = stream.try_clone().map_err(BridgeError::Join)?;
+    // Medium -> air and air -> medium, each in its own thread; frames only.
+    std::thread::spawn(move || forward_frames(from_medium, to_air));
+    let up = std::thread::spawn(move || forward_frames(port, stream));
+    Ok((m, up))
+}
+
+/// Copies the `Link::Frame` messages of `from` to `to` until `from` ends.
+fn forward_frames(mut from: impl Read, mut to: impl Write) -> io::Result<()> {
+    let mut incoming = Box::new(Deframer::<{ 8 * MAX_LINK }>::new());
+    let mut out = [0u8; MAX_LINK];
+    loop {
+        let n = from.read(incoming.space())?;
+        if n == 0 {
+            return Ok(());
+        }
+        incoming.filled(n);
+        loop {
+            let body = match incoming.take() {
+                Ok(Some(body)) => body,
+                Ok(None) => break,
+                // Longer than any message (noise on a serial line): skipped.
+                Err(_) => continue,
+            };
+            if let Ok(Link::Frame(psdu)) = Link::parse(body) {
+                if let Ok(m) = Link::Frame(psdu).emit(&mut out) {
+                    to.write_all(&out[..m])?;
+                }
+            }
+        }
+    }
+}

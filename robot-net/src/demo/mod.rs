@@ -1,0 +1,17 @@
+//! The whole machine on the host: the simulated medium, one unconfigured node process per
+//! physical node, the plant, and the tool. `demo` pushes the tables over the medium, runs
+//! cycles and checks each against the declared sequence, then pushes a reconfiguration to
+//! the running nodes. The end-to-end tests drive the same [`Bed`].
+
+mod bed;
+mod qemu;
+mod report;
+mod run;
+
+pub use bed::{node_addrs, targets, Bed, BedFault, Cycle, FaultReport, Options};
+pub use qemu::{
+    check_elf, check_qemu, count_log, provision_word, qemu_args, read_counts, Counts, PROVISION_AT,
+    QEMU_ELF, QEMU_MACHINE,
+};
+pub use report::{cycle_line, fault_meaning, fault_text, push_line, say};
+pub use run::{generation_of, load, run, Demo, Verdict};

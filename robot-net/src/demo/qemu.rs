@@ -1,0 +1,232 @@
+//! Nodes as QEMU instances booting the firmware image: the command line, provisioning,
+//! and the instruction counts they log (`demo --qemu --icount`).
+
+use std::ffi::OsString;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use crate::error::NetError;
+
+/// The emulated board: QEMU's Cortex-M3 machine the `qemu-mps2` image runs on.
+pub const QEMU_MACHINE: &str = "mps2-an385";
+/// Where the provisioning word goes (`node-fw/boards/qemu-mps2/src/provision.rs`).
+pub const PROVISION_AT: u32 = 0x003F_F000;
+/// The provisioning word's magic (bits 31..24) and its flag "semihosting on" (bit 16).
+const PROVISION_MAGIC: u32 = 0xA5 << 24;
+const PROVISION_SEMIHOSTING: u32 = 1 << 16;
+/// The release image, relative to the repository.
+pub const QEMU_ELF: &str = "node-fw/boards/target/thumbv7m-none-eabi/release/qemu-mps2";
+
+/// The provisioning word of node `addr` (address, magic, semihosting on).
+pub fn provision_word(addr: u16) -> u32 {
+    PROVISION_MAGIC | PROVISION_SEMIHOSTING | u32::from(addr)
+}
+
+/// QEMU's arguments for one node booting `elf`: its address in the provisioning word, its
+/// UART connected to the medium, its flash slots in `flash` (through semihosting; without
+/// it they are erased at every boot).
+pub fn qemu_args(
+    elf: &Path,
+    addr: u16,
+    medium: SocketAddr,
+    flash: Option<&Path>,
+    count: Option<&Path>,
+) -> Result<Vec<OsString>, NetError> {
+    let mut semihosting = OsString::from("enable=on,target=native");
+    let mut word = provision_word(addr);
+    let mut extra: Vec<OsString> = Vec::new();
+    if let Some(dir) = count {
+        // A nanosecond of emulated time is one instruction; the firmware logs its busy
+        // time and stimuli to the node's log file.
+        word |= PROVISION_COUNT;
+        let log = count_log(dir, addr);
+        let mut chardev = OsString::from("file,id=log,path=");
+        chardev.push(log.as_os_str());
+        extra.extend(["-icount".into(), "shift=0,sleep=on".into()]);
+        extra.extend(["-chardev".into(), chardev]);
+        semihosting.push(",chardev=log");
+    }
+    if let Some(f) = flash {
+        let text = f.to_str().unwrap_or(",");
+        // QEMU splits options at commas and the firmware its command line at spaces.
+        if text.contains([',', ' ']) {
+            return Err(NetError::FlashPath(f.display().to_string()));
+        }
+        semihosting.push(",arg=flash=");
+        semihosting.push(text);
+    }
+    let mut args: Vec<OsString> = vec![
+        "-M".into(),
+        QEMU_MACHINE.into(),
+        "-display".into(),
+        "none".into(),
+        "-monitor".into(),
+        "none".into(),
+        "-kernel".into(),
+        elf.as_os_str().to_owned(),
+        "-device".into(),
+        format!("loader,addr={PROVISION_AT:#010x},data={word:#010x},data-len=4").into(),
+        "-chardev".into(),
+        format!(
+            "socket,id=radio,host={},port={},nodelay=on",
+            medium.ip(),
+            medium.port()
+        )
+        .into(),
+        "-serial".into(),
+        "chardev:radio".into(),
+        "-semihosting-config".into(),
+    ];
+    args.push(semihosting);
+    args.extend(extra);
+    Ok(args)
+}
+
+/// The provisioning flag "count busy time and stimuli".
+const PROVISION_COUNT: u32 = 2 << 16;
+
+/// Where a counting QEMU node logs.
+pub fn count_log(dir: &Path, addr: u16) -> PathBuf {
+    dir.join(format!("node-{addr:04x}.log"))
+}
+
+/// What a counting node said last.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Counts {
+    /// Instructions executed while awake (interrupts included).
+    pub instructions: u64,
+    /// Frames received.
+    pub frames: u64,
+    /// `Pin` messages received (the plant repeats levels every 200 ms).
+    pub pins: u64,
+    /// Input level changes among them.
+    pub changes: u64,
+    /// Instructions inside the node core (MAC, links, OTA, interpreter) for frames, and
+    /// the frames.
+    pub core_frame: u64,
+    pub core_frames: u64,
+    /// The same for `Pin` messages (every one goes to the core; repeats raise no event).
+    pub core_input: u64,
+    pub core_inputs: u64,
+}
+
+/// The last `count:` line of a counting node's log.
+pub fn read_counts(dir: &Path, addr: u16) -> Option<Counts> {
+    let text = std::fs::read_to_string(count_log(dir, addr)).ok()?;
+    let line = text.lines().rev().find(|l| l.contains(" count: "))?;
+    let mut words = line.split_whitespace();
+    let mut next = |key: &str| -> Option<u64> {
+        words.by_ref().find(|w| *w == key)?;
+        words.next()?.parse().ok()
+    };
+    Some(Counts {
+        instructions: next("busy_ns")?,
+        frames: next("frames")?,
+        pins: next("pins")?,
+        changes: next("changes")?,
+        core_frame: next("core_frame_ns")?,
+        core_frames: next("core_frames")?,
+        core_input: next("core_input_ns")?,
+        core_inputs: next("core_inputs")?,
+    })
+}
+
+/// Checks the image is there (a clear message instead of QEMU's).
+pub fn check_elf(elf: &Path) -> Result<(), NetError> {
+    if elf.is_file() {
+        Ok(())
+    } else {
+        Err(NetError::NoImage(elf.display().to_string()))
+    }
+}
+
+/// Checks QEMU runs (a clear message now instead of nodes that never answer).
+pub fn check_qemu() -> Result<(), NetError> {
+    match std::process::Command::new("qemu-system-arm")
+        .arg("--version")
+        .stdout(std::process::Stdio::null())
+        .status()
+    {
+        Ok(s) if s.success() => Ok(()),
+        Ok(s) => Err(NetError::QemuFailed(s)),
+        Err(e) => Err(NetError::NoQemu(e)),
+    }
+}
+
+/// Every node's counts once they stop changing (the nodes log every second).
+pub fn settled_counts(dir: &Path, addrs: &[u16]) -> Vec<Option<Counts>> {
+    let read = || -> Vec<Option<Counts>> { addrs.iter().map(|a| read_counts(dir, *a)).collect() };
+    let mut last = read();
+    for _ in 0..10 {
+        std::thread::sleep(Duration::from_millis(1200));
+        let now = read();
+        if now == last {
+            break;
+        }
+        last = now;
+    }
+    last
+}
+
+/// Instructions per node over `cycles` cycles, per cycle and per stimulus.
+pub fn count_lines(
+    addrs: &[u16],
+    before: &[Option<Counts>],
+    after: &[Option<Counts>],
+    cycles: usize,
+) -> Vec<String> {
+    let mut lines = vec![format!(
+        "instructions executed during the {cycles} cycle(s) (QEMU -icount shift=0):"
+    )];
+    let mut total = Counts::default();
+    for ((a, b), e) in addrs.iter().zip(before).zip(after) {
+        let (Some(b), Some(e)) = (b, e) else {
+            lines.push(format!("  node {a:#06x}: no counts"));
+            continue;
+        };
+        let d = Counts {
+            instructions: e.instructions.saturating_sub(b.instructions),
+            frames: e.frames.saturating_sub(b.frames),
+            pins: e.pins.saturating_sub(b.pins),
+            changes: e.changes.saturating_sub(b.changes),
+            core_frame: e.core_frame.saturating_sub(b.core_frame),
+            core_frames: e.core_frames.saturating_sub(b.core_frames),
+            core_input: e.core_input.saturating_sub(b.core_input),
+            core_inputs: e.core_inputs.saturating_sub(b.core_inputs),
+        };
+        total.instructions += d.instructions;
+        total.frames += d.frames;
+        total.pins += d.pins;
+        total.changes += d.changes;
+        total.core_frame += d.core_frame;
+        total.core_frames += d.core_frames;
+        total.core_input += d.core_input;
+        total.core_inputs += d.core_inputs;
+        lines.push(count_line(&format!("node {a:#06x}"), &d, cycles));
+    }
+    lines.push(count_line("all nodes  ", &total, cycles));
+    lines
+}
+
+fn count_line(who: &str, d: &Counts, cycles: usize) -> String {
+    // A stimulus is what the node must react to: a frame, or an input that changed (the
+    // plant's repeated levels cost instructions too, but are not events).
+    let stimuli = d.frames + d.changes;
+    format!(
+        "  {who}: {:>9} instructions, {:>8.0} per cycle; {:>4} frames + {:>3} input changes \
+         ({:>3} level messages): {:>6.0} per stimulus",
+        d.instructions,
+        d.instructions as f64 / cycles.max(1) as f64,
+        d.frames,
+        d.changes,
+        d.pins,
+        d.instructions as f64 / stimuli.max(1) as f64
+    ) + &format!(
+        "\n  {:w$}  of which in the node core: {:>6.0} per frame, {:>5.0} per level message",
+        "",
+        d.core_frame as f64 / d.core_frames.max(1) as f64,
+        d.core_input as f64 / d.core_inputs.max(1) as f64,
+        w = who.len()
+    )
+}

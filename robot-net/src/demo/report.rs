@@ -1,0 +1,182 @@
+//! The demo's report, line by line: pushes, cycles, faults in words.
+
+use std::io::Write;
+
+use super::bed::{Cycle, FaultReport};
+use crate::push;
+
+/// A one-line summary of a push.
+pub fn push_line(o: &push::Outcome) -> String {
+    format!(
+        "  {:<6} {:#06x}  {:>5} bytes  {:>3} frames  {:>3} retries  {:>6.1} ms  {}",
+        o.role,
+        o.addr,
+        o.bytes,
+        o.stats.frames,
+        o.stats.retries,
+        o.elapsed.as_secs_f64() * 1e3,
+        o.verdict()
+    )
+}
+
+/// Prints a cycle's verdict.
+pub fn cycle_line(n: usize, cy: &Cycle) -> String {
+    let verdict = match (&cy.fault, cy.ok()) {
+        (Some(_), _) => "FAULTED",
+        (None, true) => "ok",
+        (None, false) => "MISMATCH",
+    };
+    let mut s = format!(
+        "cycle {n}: {verdict}  {:.2} s  {} frames  {:.1} ms airtime  {}",
+        cy.duration.as_secs_f64(),
+        cy.frames,
+        cy.airtime_us as f64 / 1e3,
+        cy.steps.join(" ")
+    );
+    if let Some(f) = &cy.fault {
+        s.push('\n');
+        s.push_str(&fault_text(f));
+    } else if !cy.ok() {
+        s.push('\n');
+        s.push_str(&robot_analysis::sim::diff(&cy.expect, &cy.steps));
+        for (role, code) in &cy.faults {
+            s.push_str(&format!("  role {role} faulted (code {code:#04x})\n"));
+        }
+    }
+    s
+}
+
+/// A status fault code in words (`node_fw::node::fault_code`).
+pub fn fault_meaning(code: u8) -> String {
+    const ACTION: u8 = 0x80;
+    match code {
+        1 => "the interpreter's chain limit (event-less transitions)".into(),
+        2 => "the interpreter's event queue overflowed".into(),
+        3 => "the interpreter's cascade limit".into(),
+        4 => "a guard or assignment failed to evaluate".into(),
+        c if c == ACTION | robot_compiler::synth::FAULT_MOTION_TIMEOUT => {
+            "its motion watchdog expired".into()
+        }
+        c if c == ACTION | robot_compiler::synth::FAULT_PEER => "stopped by a peer's fault".into(),
+        c if c & ACTION != 0 => format!("fault action {}", c & !ACTION),
+        c => format!("fault {c:#04x}"),
+    }
+}
+
+/// A fault in words: who detected it, how, when, and what every node then did.
+pub fn fault_text(f: &FaultReport) -> String {
+    let links: Vec<String> = f
+        .links
+        .iter()
+        .map(|(peer, broken)| match broken {
+            true => format!("link to {peer} broken (nothing more is sent on it until a reset)"),
+            false => format!("link alarm: {peer} does not acknowledge"),
+        })
+        .collect();
+    let how = match f.code {
+        Some(code) => fault_meaning(code),
+        None if !links.is_empty() => links.join("; "),
+        None => "a fault (its status did not answer)".to_string(),
+    };
+    let mut s = format!(
+        "FAULT at {:.3} s: node {:#06x} ({}) detected it: {how}",
+        f.at.as_secs_f64(),
+        f.addr,
+        f.role
+    );
+    if let Some(quiet) = f.stalled {
+        s.push_str(&format!(
+            "\n  no node published a fault: its status showed it after {:.3} s without a step",
+            quiet.as_secs_f64()
+        ));
+    }
+    let watchdog = f.code.is_some() || f.links.is_empty();
+    if let Some((step, at, _)) = f.step.as_ref().filter(|_| !watchdog) {
+        s.push_str(&format!(
+            "\n  last step: {step}, commanded at {:.3} s",
+            at.as_secs_f64()
+        ));
+    }
+    if let Some((step, at, jammed)) = f.step.as_ref().filter(|_| watchdog) {
+        let what = if *jammed {
+            "the plant saw the command and the rod did not move"
+        } else {
+            "it did not complete"
+        };
+        s.push_str(&format!(
+            "\n  watchdog of step {step}, commanded at {:.3} s ({:.3} s before the detection): \
+             {what}",
+            at.as_secs_f64(),
+            f.at.saturating_sub(*at).as_secs_f64()
+        ));
+    }
+    for (role, addr, code, outputs) in &f.nodes {
+        let state = match code {
+            Some(c) => format!("faulted ({}, code {c:#04x})", fault_meaning(*c)),
+            None => "NOT faulted".to_string(),
+        };
+        s.push_str(&format!(
+            "\n  node {addr:#06x} ({role}): {state}, outputs {outputs:#06x}"
+        ));
+        let changes: Vec<String> = f
+            .outputs
+            .iter()
+            .filter(|o| o.1 == *addr)
+            .map(|(at, _, pin, level)| {
+                format!(
+                    "pin {pin} -> {} at {:.3} s",
+                    u8::from(*level),
+                    at.as_secs_f64()
+                )
+            })
+            .collect();
+        if !changes.is_empty() {
+            s.push_str(&format!("; {}", changes.join(", ")));
+        }
+    }
+    s
+}
+
+/// Writes a line and flushes (the demo prints as things happen).
+pub fn say(out: &mut dyn Write, line: &str) {
+    let _ = writeln!(out, "{line}");
+    let _ = out.flush();
+}
+#[cfg(test)]
+mod tests {
+    use std::time::Duration;
+
+    use config_schema::wire::msg::Refusal;
+    use node_fw::ota::{Progress, TransferStats};
+
+    use super::*;
+
+    #[test]
+    fn push_prints_the_nodes_refusal_reason() {
+        let o = push::Outcome {
+            role: "VC".into(),
+            addr: 0x0011,
+            progress: Progress::Refused(Refusal::Pin {
+                pin: 20,
+                board: 0xFFFF,
+            }),
+            stats: TransferStats {
+                frames: 5,
+                retries: 0,
+                bytes: 274,
+            },
+            bytes: 274,
+            elapsed: Duration::from_micros(46_100),
+        };
+        assert_eq!(
+            push_line(&o),
+            "  VC     0x0011    274 bytes    5 frames    0 retries    46.1 ms  \
+             refused: the table uses pin 20, which the board lacks (its pins: 0-15)"
+        );
+        let done = push::Outcome {
+            progress: Progress::Done,
+            ..o
+        };
+        assert_eq!(done.verdict(), "activated");
+    }
+}

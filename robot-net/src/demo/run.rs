@@ -1,0 +1,278 @@
+//! The demo as an operator runs it: start the bed, push, run the cycles, report each,
+//! push the reconfiguration; say how it ended.
+
+use std::io::{self, Write};
+use std::path::Path;
+use std::time::Instant;
+
+use node_fw::ota::Progress;
+use robot_compiler::{compile, Compiled, Source};
+
+use super::bed::{self, Bed, BedFault};
+use super::{qemu, report as demo_report};
+use crate::error::NetError;
+use crate::live_plant;
+use crate::push;
+
+/// How a demo ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// Every cycle matched its declared sequence.
+    Matched,
+    PushFailed,
+    Mismatch,
+    Faulted,
+}
+
+/// Reads and compiles a robot; on failure the errors, rendered.
+pub fn load(path: &Path) -> Result<Compiled, NetError> {
+    let src = Source::read(path).map_err(|e| NetError::Robot(e.to_string()))?;
+    compile::compile(&src).map_err(|diags| {
+        let errors: Vec<robot_compiler::Diagnostic> =
+            diags.into_iter().filter(|d| d.is_error()).collect();
+        NetError::Robot(format!(
+            "{}{}: does not compile",
+            robot_compiler::diag::render_all(&src, &errors, false),
+            src.name
+        ))
+    })
+}
+
+/// The generation to push: the robot's, at least 1 (an unconfigured node runs 0).
+pub fn generation_of(c: Compiled, generation: Option<u32>) -> Result<Compiled, NetError> {
+    let g = generation.unwrap_or(c.ir.generation).max(1);
+    c.with_generation(g)
+        .map_err(|e| NetError::Robot(e.to_string()))
+}
+
+/// What `demo` runs.
+pub struct Demo<'a> {
+    pub robot: &'a Path,
+    /// The robot pushed afterwards to the running nodes (one cycle).
+    pub then: Option<&'a Path>,
+    pub cycles: usize,
+    /// A fault injected into the first robot's run.
+    pub fault: Option<robot_analysis::inject::FaultSpec>,
+    /// Where counting QEMU nodes log (`--icount`).
+    pub count_dir: Option<&'a Path>,
+}
+
+/// Where a `--fault` goes on the test bed: the plant's injection, or the bed's fault to
+/// inject after so many steps.
+type Placed = (Option<live_plant::Injection>, Option<(usize, BedFault)>);
+
+fn place_fault(
+    c: &Compiled,
+    actuators: &[live_plant::Actuator],
+    spec: &robot_analysis::inject::FaultSpec,
+) -> Result<Placed, NetError> {
+    use robot_analysis::inject::FaultKind;
+    let after = (spec.cycle - 1) * c.ir.expect.len() + (spec.step - 1);
+    let actuator = |name: &str| {
+        actuators
+            .iter()
+            .position(|a| a.name == name)
+            .ok_or_else(|| NetError::Fault(format!("the robot has no actuator {name}")))
+    };
+    let address = |role: &str| {
+        c.ir.roles
+            .iter()
+            .find(|r| r.name == role)
+            .map(|r| r.address)
+            .ok_or_else(|| NetError::Fault(format!("the robot has no role {role}")))
+    };
+    match &spec.kind {
+        FaultKind::Stuck(name) => Ok((
+            Some(live_plant::Injection {
+                after,
+                actuator: actuator(name)?,
+                kind: live_plant::Jam::Stuck,
+            }),
+            None,
+        )),
+        FaultKind::Switch(target) => {
+            let (name, end) = match target.rsplit_once('.') {
+                Some((n, "end")) => (n, true),
+                Some((n, "home")) => (n, false),
+                _ => {
+                    return Err(NetError::Fault(format!(
+                        "`{target}`: a switch is ACT.end or ACT.home"
+                    )))
+                }
+            };
+            Ok((
+                Some(live_plant::Injection {
+                    after,
+                    actuator: actuator(name)?,
+                    kind: live_plant::Jam::SwitchOpen { end },
+                }),
+                None,
+            ))
+        }
+        FaultKind::Stop(role) => Ok((None, Some((after, BedFault::Stop(address(role)?))))),
+        FaultKind::Link(from, to) => {
+            let fault = BedFault::Cut {
+                from: address(from)?,
+                to: address(to)?,
+            };
+            Ok((None, Some((after, fault))))
+        }
+    }
+}
+
+/// The demo: pushes, runs the cycles, reports each; says how it ended.
+pub fn run(demo: &Demo, options: bed::Options, out: &mut dyn Write) -> Result<Verdict, NetError> {
+    let c = generation_of(load(demo.robot)?, None)?;
+    let next = match demo.then {
+        Some(p) => Some(generation_of(load(p)?, Some(c.ir.generation + 1))?),
+        None => None,
+    };
+    let first_actuators = live_plant::actuators(&c)?;
+    let placed = demo
+        .fault
+        .as_ref()
+        .map(|f| place_fault(&c, &first_actuators, f))
+        .transpose()?;
+    let mut bed = Bed::start(options)?;
+    let addrs = bed::node_addrs(&c);
+    demo_report::say(
+        out,
+        &format!(
+            "medium on {}; starting {} unconfigured node(s)",
+            bed.medium().addr(),
+            addrs.len()
+        ),
+    );
+    for a in &addrs {
+        bed.start_node(*a)?;
+    }
+    bed.set_plant(first_actuators)?;
+    let found = bed.wait_for_nodes(&addrs)?;
+    for (addr, a) in &found {
+        let role = if a.role.is_empty() {
+            "unconfigured"
+        } else {
+            a.role.as_str()
+        };
+        demo_report::say(
+            out,
+            &format!("  node {addr:#06x}: firmware {}, {role}", a.firmware),
+        );
+    }
+    let mut verdict = Verdict::Matched;
+    let mut first_robot = true;
+    let runs = [(demo.robot, &c, demo.cycles)].into_iter().chain(
+        next.as_ref()
+            .map(|n| (demo.then.unwrap_or(demo.robot), n, 1)),
+    );
+    'robots: for (label, robot, n) in runs {
+        demo_report::say(
+            out,
+            &format!(
+                "pushing {} (generation {})",
+                label.display(),
+                robot.ir.generation
+            ),
+        );
+        let outcomes = bed.push(robot, false, &mut |_, _, _| {})?;
+        for o in &outcomes {
+            demo_report::say(out, &demo_report::push_line(o));
+        }
+        let failed: Vec<&push::Outcome> = outcomes
+            .iter()
+            .filter(|o| o.progress != Progress::Done)
+            .collect();
+        if !failed.is_empty() {
+            for o in failed {
+                demo_report::say(
+                    out,
+                    &format!(
+                        "push FAILED: role {} at node {:#06x}: {}",
+                        o.role,
+                        o.addr,
+                        o.verdict()
+                    ),
+                );
+            }
+            verdict = Verdict::PushFailed;
+            break;
+        }
+        let activated = Instant::now();
+        let (injection, kill) = match (&placed, first_robot) {
+            (Some(p), true) => *p,
+            _ => (None, None),
+        };
+        bed.set_plant_injected(live_plant::actuators(robot)?, injection)?;
+        bed.watch(robot)?;
+        if let Some((after, fault)) = kill {
+            bed.inject_after(after, fault);
+        }
+        if let Some(spec) = demo.fault.as_ref().filter(|_| first_robot) {
+            demo_report::say(out, &format!("fault to inject: {spec}"));
+        }
+        let expect: Vec<String> = robot.ir.expect.iter().map(|s| s.to_string()).collect();
+        demo_report::say(out, &format!("sequence: {}", expect.join(" ")));
+        let mut first_motion = None;
+        let counted = match demo.count_dir {
+            Some(dir) if first_robot => Some((dir, qemu::settled_counts(dir, &addrs))),
+            _ => None,
+        };
+        first_robot = false;
+        for i in 1..=n {
+            let cycle = bed.run_cycle(robot, &mut |s, at| {
+                if s.moved {
+                    first_motion.get_or_insert_with(|| activated.elapsed());
+                }
+                let jammed = if s.moved { "" } else { "  (jammed: no motion)" };
+                let _ = writeln!(io::stderr(), "  {:>7.3} s  {s}{jammed}", at.as_secs_f64());
+            })?;
+            demo_report::say(out, &demo_report::cycle_line(i, &cycle));
+            if let (1, Some(t), None) = (i, first_motion, &counted) {
+                demo_report::say(
+                    out,
+                    &format!(
+                        "first motion {:.1} ms after the last table was activated (START \
+                         included)",
+                        t.as_secs_f64() * 1e3
+                    ),
+                );
+            }
+            if !cycle.ok() {
+                verdict = if cycle.fault.is_some() {
+                    Verdict::Faulted
+                } else {
+                    Verdict::Mismatch
+                };
+                break 'robots;
+            }
+        }
+        if let Some((dir, before)) = counted {
+            let after = qemu::settled_counts(dir, &addrs);
+            for line in qemu::count_lines(&addrs, &before, &after, n) {
+                demo_report::say(out, &line);
+            }
+        }
+    }
+    let s = bed.medium().stats();
+    demo_report::say(
+        out,
+        &format!(
+            "medium: {} frames, {:.1} ms airtime, {} lost, {} duplicated",
+            s.frames,
+            s.airtime_us as f64 / 1e3,
+            s.lost,
+            s.duplicated
+        ),
+    );
+    bed.stop();
+    demo_report::say(
+        out,
+        match verdict {
+            Verdict::Matched => "demo: every cycle matched",
+            Verdict::PushFailed => "demo: FAILED (push)",
+            Verdict::Mismatch => "demo: FAILED (sequence mismatch)",
+            Verdict::Faulted => "demo: FAULTED",
+        },
+    );
+    Ok(verdict)
+}

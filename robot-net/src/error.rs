@@ -1,0 +1,45 @@
+//! What can go wrong talking to a machine, typed. The messages carry no `error:` prefix:
+//! the binary adds it.
+
+use std::io;
+use std::process::ExitStatus;
+
+#[derive(Debug, thiserror::Error)]
+pub enum NetError {
+    /// A robot that does not load, compile or re-encode (its diagnostics, rendered).
+    #[error("{0}")]
+    Robot(String),
+    #[error("medium: {0}")]
+    Medium(#[source] io::Error),
+    /// The tool's radio (or a command on it) failed.
+    #[error("{0}")]
+    Radio(#[from] io::Error),
+    #[error("no node command")]
+    NoNodeCommand,
+    #[error("cannot start node {addr:#06x}: {source}")]
+    NodeStart { addr: u16, source: io::Error },
+    #[error("plant: {0}")]
+    Plant(#[source] io::Error),
+    #[error("monitor: {0}")]
+    Monitor(#[source] io::Error),
+    #[error("nodes did not answer: {}", .0.join(", "))]
+    Silent(Vec<String>),
+    #[error("node {addr:#06x} did not answer {command}")]
+    NoAnswer { addr: u16, command: String },
+    #[error("the robot has no start input")]
+    NoStart,
+    /// A `--fault` that does not fit the robot.
+    #[error("--fault: {0}")]
+    Fault(String),
+    #[error(
+        "no firmware image at {0}: build it with `cargo build --release` in \
+         node-fw/boards/qemu-mps2 (or give --elf)"
+    )]
+    NoImage(String),
+    #[error("qemu-system-arm --version: {0}")]
+    QemuFailed(ExitStatus),
+    #[error("cannot run qemu-system-arm: {0} (Debian: apt-get install qemu-system-arm)")]
+    NoQemu(#[source] io::Error),
+    #[error("flash file {0}: a QEMU node's flash path cannot contain a comma or a space")]
+    FlashPath(String),
+}

@@ -1,0 +1,140 @@
+//! What nodes say, in readable form: a status, the answer to a reset, a frame.
+
+use config_schema::wire::mac::Frame;
+use config_schema::wire::msg::{Message, Status};
+
+/// A status in readable form.
+pub fn status_text(addr: u16, s: &Status) -> String {
+    let role = if s.role.is_empty() {
+        "(unconfigured)"
+    } else {
+        s.role.as_str()
+    };
+    let states: Vec<String> = s.states.iter().map(|x| format!("S{x}")).collect();
+    let (c, r) = (s.counters, s.runtime);
+    format!(
+        "{addr:#06x}  role {role}  generation {}\n  states {}  outputs {:#06x}  inputs {:#06x}  fault {}\n  link alarms {:#010b}  broken {:#010b}  epoch {}\n  frames sent {} received {} retried {} dropped {}  events delivered {}\n  tx queue full {}  high-water {}  radio failures {}  flash failures {}",
+        s.generation,
+        if states.is_empty() { "-".to_string() } else { states.join(" ") },
+        s.outputs,
+        s.inputs,
+        s.fault.map_or("none".to_string(), |f| format!("{f:#04x}")),
+        s.link_alarms,
+        s.links_broken,
+        s.epoch,
+        c.sent,
+        c.received,
+        c.retried,
+        c.dropped,
+        c.delivered,
+        r.tx_queue_full,
+        r.tx_queue_high,
+        r.tx_failed,
+        r.flash_failures,
+    )
+}
+
+/// The answer to `reset`: which links the node re-established (in which epoch).
+pub fn reset_text(addr: u16, s: &Status) -> String {
+    let peers: Vec<String> = (0..8)
+        .filter(|i| s.links_restarted & (1 << i) != 0)
+        .map(|i| format!("#{i}"))
+        .collect();
+    let links = if peers.is_empty() {
+        "no link needed re-establishing".to_string()
+    } else {
+        format!(
+            "links to peer {} re-established in epoch {}",
+            peers.join(" "),
+            s.epoch
+        )
+    };
+    format!("{addr:#06x}: reset; {links}")
+}
+
+/// One frame in readable form.
+pub fn describe(psdu: &[u8]) -> String {
+    match Frame::parse(psdu) {
+        Ok(Frame::Data { header, payload }) => {
+            let msg = match Message::parse(payload) {
+                Ok(Message::ConfigChunk {
+                    generation,
+                    offset,
+                    data,
+                }) => format!(
+                    "ConfigChunk {{ generation: {generation}, offset: {offset}, {} bytes }}",
+                    data.len()
+                ),
+                Ok(m) => format!("{m:?}"),
+                Err(e) => format!("({e})"),
+            };
+            format!("{:#06x} -> {:#06x}  {msg}", header.src, header.dst)
+        }
+        Ok(Frame::Ack { seq, .. }) => format!("ack {seq}"),
+        Err(e) => format!("bad frame ({e}), {} bytes", psdu.len()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use config_schema::wire::msg::{Counters, RuntimeCounters};
+
+    fn status() -> Status {
+        Status {
+            ack: 9,
+            role: heapless::String::try_from("GR").unwrap(),
+            generation: 3,
+            states: heapless::Vec::from_slice(&[2, 0]).unwrap(),
+            outputs: 0x0002,
+            inputs: 0x0001,
+            fault: None,
+            link_alarms: 0b100,
+            links_broken: 0b001,
+            links_restarted: 0,
+            epoch: 257,
+            counters: Counters {
+                sent: 19,
+                received: 36,
+                retried: 4,
+                dropped: 1,
+                delivered: 2,
+            },
+            runtime: RuntimeCounters {
+                tx_queue_full: 5,
+                tx_queue_high: 32,
+                tx_failed: 1,
+                flash_failures: 2,
+            },
+        }
+    }
+
+    #[test]
+    fn status_tells_an_alarm_from_a_broken_link_and_shows_the_runtime_counters() {
+        assert_eq!(
+            status_text(0x0013, &status()),
+            "0x0013  role GR  generation 3\n  \
+             states S2 S0  outputs 0x0002  inputs 0x0001  fault none\n  \
+             link alarms 0b00000100  broken 0b00000001  epoch 257\n  \
+             frames sent 19 received 36 retried 4 dropped 1  events delivered 2\n  \
+             tx queue full 5  high-water 32  radio failures 1  flash failures 2"
+        );
+    }
+
+    #[test]
+    fn reset_says_which_links_it_re_established() {
+        let mut s = status();
+        s.links_broken = 0;
+        s.link_alarms = 0;
+        assert_eq!(
+            reset_text(0x0013, &s),
+            "0x0013: reset; no link needed re-establishing"
+        );
+        s.links_restarted = 0b101;
+        s.epoch = 258;
+        assert_eq!(
+            reset_text(0x0013, &s),
+            "0x0013: reset; links to peer #0 #2 re-established in epoch 258"
+        );
+    }
+}
