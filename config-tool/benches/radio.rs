@@ -181,8 +181,9 @@ fn main() {
         per_cycle.push(frames.load(Ordering::Relaxed) - n0);
         for w in steps.windows(2) {
             let (a, b) = (&w[0], &w[1]);
-            if node_of(&a.actuator) != node_of(&b.actuator) && switched(&a.actuator) {
-                let arrived = a.at + Duration::from_millis(travel(&a.actuator, a.plus));
+            if node_of(&a.step.actuator) != node_of(&b.step.actuator) && switched(&a.step.actuator)
+            {
+                let arrived = a.at + Duration::from_millis(travel(&a.step.actuator, a.step.extend));
                 hops.push(b.at.saturating_sub(arrived).as_secs_f64() * 1e3);
             }
         }

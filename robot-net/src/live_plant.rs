@@ -4,7 +4,6 @@
 //! Plants are wired by node address and pin number, so a node never learns which role it
 //! plays.
 
-use crate::error::NetError;
 use std::collections::HashMap;
 use std::io;
 use std::net::SocketAddr;
@@ -19,6 +18,9 @@ use node_fw::sim::Plant;
 
 use medium::Conn;
 use robot_compiler::compile::Compiled;
+use robot_compiler::ir::Step;
+
+use crate::error::NetError;
 
 /// One actuator, wired by node address and board pin numbers.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -55,20 +57,19 @@ impl Actuator {
     }
 }
 
-/// An actuator starting a motion (`VC+`), seen by the plant.
+/// A stroke the plant saw commanded: the step (`VC+`) and when the medium saw the valve
+/// output change (its clock, `Medium::now`).
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Step {
-    /// When the medium saw the valve output change (its clock, `Medium::now`).
+pub struct Stroke {
     pub at: Duration,
-    pub actuator: String,
-    pub plus: bool,
+    pub step: Step,
     /// `false`: the valve was commanded but the rod is jammed (an injected fault).
     pub moved: bool,
 }
 
-impl std::fmt::Display for Step {
+impl std::fmt::Display for Stroke {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}{}", self.actuator, if self.plus { '+' } else { '-' })
+        self.step.fmt(f)
     }
 }
 
@@ -193,7 +194,7 @@ pub fn attach(medium: SocketAddr, actuators: &[Actuator]) -> io::Result<Conn> {
 pub fn run(
     medium: SocketAddr,
     actuators: Vec<Actuator>,
-    steps: Sender<Step>,
+    steps: Sender<Stroke>,
     stop: Arc<AtomicBool>,
 ) -> io::Result<()> {
     let conn = attach(medium, &actuators)?;
@@ -205,7 +206,7 @@ pub fn run_attached(
     mut conn: Conn,
     actuators: Vec<Actuator>,
     injection: Option<Injection>,
-    steps: Sender<Step>,
+    steps: Sender<Stroke>,
     stop: Arc<AtomicBool>,
 ) -> io::Result<()> {
     let start = Instant::now();
@@ -284,10 +285,12 @@ pub fn run_attached(
             };
             if s.stuck {
                 if s.rod.position() != Position::from_command(extend) {
-                    let _ = steps.send(Step {
+                    let _ = steps.send(Stroke {
                         at: Duration::from_micros(at_us),
-                        actuator: a.name.clone(),
-                        plus: extend,
+                        step: Step {
+                            actuator: a.name.clone(),
+                            extend,
+                        },
                         moved: false,
                     });
                 }
@@ -299,10 +302,12 @@ pub fn run_attached(
                 RodOutcome::Nothing => continue,
                 RodOutcome::Left { arrive, .. } | RodOutcome::Reversed { arrive } => arrive,
             };
-            let _ = steps.send(Step {
+            let _ = steps.send(Stroke {
                 at: Duration::from_micros(at_us),
-                actuator: a.name.clone(),
-                plus: extend,
+                step: Step {
+                    actuator: a.name.clone(),
+                    extend,
+                },
                 moved: true,
             });
             seen_steps += 1;

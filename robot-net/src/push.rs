@@ -22,7 +22,7 @@ pub struct Target {
 
 /// How one push ended.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Outcome {
+pub struct Pushed {
     pub role: String,
     pub addr: u16,
     pub progress: Progress,
@@ -31,7 +31,7 @@ pub struct Outcome {
     pub elapsed: Duration,
 }
 
-impl Outcome {
+impl Pushed {
     /// How it ended, in words: `activated`, `refused: <the node's reason>`, ...
     pub fn verdict(&self) -> String {
         match self.progress {
@@ -52,7 +52,7 @@ pub fn push(
     targets: &[Target],
     force: bool,
     progress: &mut dyn FnMut(usize, usize, usize),
-) -> io::Result<Vec<Outcome>> {
+) -> io::Result<Vec<Pushed>> {
     let start = Instant::now();
     let now_ms = || start.elapsed().as_millis() as u64;
     let mut senders: Vec<Sender> = targets
@@ -113,7 +113,7 @@ pub fn push(
         .iter()
         .zip(targets)
         .zip(finished)
-        .map(|((s, t), f)| Outcome {
+        .map(|((s, t), f)| Pushed {
             role: t.role.clone(),
             addr: t.addr,
             progress: s.progress(),

@@ -131,7 +131,7 @@ fn push_with_bars(
     radio: &mut ToolRadio,
     targets: &[push::Target],
     force: bool,
-) -> Result<Vec<push::Outcome>, Failure> {
+) -> Result<Vec<push::Pushed>, Failure> {
     let (_multi, bars) = bars(targets);
     let outcomes = push::push(radio, targets, force, &mut |i, acked, _| {
         if let Some(b) = bars.get(i) {
@@ -145,7 +145,7 @@ fn push_with_bars(
     Ok(outcomes)
 }
 
-fn report_push(outcomes: &[push::Outcome]) -> Result<(), Failure> {
+fn report_push(outcomes: &[push::Pushed]) -> Result<(), Failure> {
     for o in outcomes {
         println!("{}", demo::push_line(o));
     }
@@ -163,7 +163,7 @@ fn report_push(outcomes: &[push::Outcome]) -> Result<(), Failure> {
     } else {
         Err(Failure {
             code: exit::PUSH_FAILED,
-            message: "error: not every node activated its table".into(),
+            ..Failure::error("not every node activated its table")
         })
     }
 }

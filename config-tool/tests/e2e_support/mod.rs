@@ -123,7 +123,7 @@ pub fn bring_up(c: &Compiled, options: Options) -> Bed {
 }
 
 /// Pushes every role of `c` and checks that every node activated its table.
-pub fn push_ok(bed: &mut Bed, c: &Compiled) -> Vec<robot_net::push::Outcome> {
+pub fn push_ok(bed: &mut Bed, c: &Compiled) -> Vec<robot_net::push::Pushed> {
     let outcomes = bed.push(c, false, &mut |_, _, _| {}).expect("push");
     assert_eq!(outcomes.len(), c.ir.roles.len());
     for (o, (r, blob)) in outcomes.iter().zip(c.ir.roles.iter().zip(&c.blobs)) {

@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use config_schema::wire::msg::{Announce, Command, Status};
 
 use crate::error::NetError;
-use crate::live_plant::{self, Actuator, Injection, Step};
+use crate::live_plant::{self, Actuator, Injection, Stroke};
 use crate::push::{self, Ids, Target};
 use crate::radio::{ToolRadio, TOOL_ADDR};
 use crate::watch::{self, Seen, Watch};
@@ -96,8 +96,8 @@ pub struct Bed {
     medium: Medium,
     nodes: BTreeMap<u16, Child>,
     plant: Option<(Arc<AtomicBool>, JoinHandle<io::Result<()>>)>,
-    steps: Receiver<Step>,
-    steps_tx: mpsc::Sender<Step>,
+    steps: Receiver<Stroke>,
+    steps_tx: mpsc::Sender<Stroke>,
     watch: Option<Watch>,
     seen: Receiver<Seen>,
     seen_tx: mpsc::Sender<Seen>,
@@ -258,7 +258,7 @@ impl Bed {
         c: &Compiled,
         force: bool,
         progress: &mut dyn FnMut(usize, usize, usize),
-    ) -> Result<Vec<push::Outcome>, NetError> {
+    ) -> Result<Vec<push::Pushed>, NetError> {
         let targets = targets(c);
         Ok(push::push(&mut self.radio, &targets, force, progress)?)
     }
@@ -290,7 +290,7 @@ impl Bed {
     pub fn run_cycle(
         &mut self,
         c: &Compiled,
-        on_step: &mut dyn FnMut(&Step, Duration),
+        on_step: &mut dyn FnMut(&Stroke, Duration),
     ) -> Result<Cycle, NetError> {
         let expect: Vec<String> = c.ir.expect.iter().map(|s| s.to_string()).collect();
         let (start_role, _) = c.ir.start.clone().ok_or(NetError::NoStart)?;
@@ -307,7 +307,7 @@ impl Bed {
         self.inject_due();
         self.command(start_addr, Command::Start)?;
         let mut steps = Vec::new();
-        let mut commanded: Vec<(Step, bool)> = Vec::new();
+        let mut commanded: Vec<(Stroke, bool)> = Vec::new();
         let mut faults = Vec::new();
         let mut outputs = Vec::new();
         let mut detected: Option<Detected> = None;
@@ -412,11 +412,11 @@ impl Bed {
     /// node to stop at this point stopped.
     fn on_plant_step(
         &mut self,
-        step: &Step,
+        step: &Stroke,
         m0: Duration,
         steps: &mut Vec<String>,
-        commanded: &mut Vec<(Step, bool)>,
-        on_step: &mut dyn FnMut(&Step, Duration),
+        commanded: &mut Vec<(Stroke, bool)>,
+        on_step: &mut dyn FnMut(&Stroke, Duration),
     ) {
         on_step(step, step.at.saturating_sub(m0));
         commanded.push((step.clone(), step.moved));
@@ -448,7 +448,7 @@ impl Bed {
         c: &Compiled,
         detected: Detected,
         m0: Duration,
-        commanded: &[(Step, bool)],
+        commanded: &[(Stroke, bool)],
         mut outputs: Vec<(Duration, u16, u8, bool)>,
     ) -> Result<FaultReport, NetError> {
         let Detected {
@@ -507,7 +507,7 @@ impl Bed {
         let step = commanded
             .iter()
             .rev()
-            .find(|(s, _)| actuators.contains(&s.actuator.as_str()))
+            .find(|(s, _)| actuators.contains(&s.step.actuator.as_str()))
             .map(|(s, moved)| (s.to_string(), s.at.saturating_sub(m0), !moved));
         let code = nodes.iter().find(|n| n.1 == addr).and_then(|n| n.2);
         Ok(FaultReport {

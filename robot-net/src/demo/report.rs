@@ -6,7 +6,7 @@ use super::bed::{Cycle, FaultReport};
 use crate::push;
 
 /// A one-line summary of a push.
-pub fn push_line(o: &push::Outcome) -> String {
+pub fn push_line(o: &push::Pushed) -> String {
     format!(
         "  {:<6} {:#06x}  {:>5} bytes  {:>3} frames  {:>3} retries  {:>6.1} ms  {}",
         o.role,
@@ -153,7 +153,7 @@ mod tests {
 
     #[test]
     fn push_prints_the_nodes_refusal_reason() {
-        let o = push::Outcome {
+        let o = push::Pushed {
             role: "VC".into(),
             addr: 0x0011,
             progress: Progress::Refused(Refusal::Pin {
@@ -173,7 +173,7 @@ mod tests {
             "  VC     0x0011    274 bytes    5 frames    0 retries    46.1 ms  \
              refused: the table uses pin 20, which the board lacks (its pins: 0-15)"
         );
-        let done = push::Outcome {
+        let done = push::Pushed {
             progress: Progress::Done,
             ..o
         };

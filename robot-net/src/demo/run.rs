@@ -178,7 +178,7 @@ pub fn run(demo: &Demo, options: bed::Options, out: &mut dyn Write) -> Result<Ve
         for o in &outcomes {
             demo_report::say(out, &demo_report::push_line(o));
         }
-        let failed: Vec<&push::Outcome> = outcomes
+        let failed: Vec<&push::Pushed> = outcomes
             .iter()
             .filter(|o| o.progress != Progress::Done)
             .collect();
