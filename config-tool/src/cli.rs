@@ -9,7 +9,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 #[command(
     name = "config-tool",
     version,
-    about = "Check, compile, dump, draw and simulate RON robot descriptions"
+    about = "Check, compile, simulate, verify and push RON robot descriptions to generic ECC nodes"
 )]
 pub struct Cli {
     #[command(subcommand)]
@@ -41,88 +41,19 @@ pub enum Command {
         format: Format,
     },
     /// Run the compiled blobs on the host interpreter with plant models, on virtual time.
-    Sim {
-        robot: PathBuf,
-        #[arg(long, default_value_t = 3)]
-        cycles: usize,
-        /// Print every trace entry.
-        #[arg(long)]
-        trace: bool,
-        /// Inject a fault: stuck:ACT, switch:ACT.end|ACT.home, stop:ROLE or
-        /// link:FROM->TO, then @STEP or @CYCLE.STEP (injected just before that step).
-        #[arg(long)]
-        fault: Option<String>,
-        /// Write a time diagram of the run (SVG): actuator positions, chart states, events.
-        #[arg(long)]
-        timeline: Option<PathBuf>,
-    },
+    Sim(SimArgs),
     /// Explore every reachable state of the machine (charts, plant, radio) and check
     /// deadlock freedom, sequence conformance, interlocks and no double actuation.
-    Verify {
-        robot: PathBuf,
-        /// A delivery may also fail after the link's retries (link alarm).
-        #[arg(long)]
-        lossy: bool,
-        /// Assume the radio is faster than any motion or timer: nothing arrives or
-        /// expires while a publication is in flight (also when the robot declares
-        /// `assume_prompt_radio`).
-        #[arg(long)]
-        prompt: bool,
-        /// Explore any radio delay, even if the robot declares `assume_prompt_radio`.
-        #[arg(long, conflicts_with = "prompt")]
-        any_delay: bool,
-        /// The operator may press START at any time, not only when the machine is idle.
-        #[arg(long)]
-        start_anytime: bool,
-        /// Stop (inconclusive) beyond this many states.
-        #[arg(long, default_value_t = 2_000_000)]
-        max_states: usize,
-    },
+    Verify(VerifyArgs),
     /// Run the simulated IEEE 802.15.4 medium (loopback) until interrupted.
-    Medium {
-        #[arg(long, default_value = "127.0.0.1:15400")]
-        listen: SocketAddr,
-        /// Probability a frame is lost (per receiver).
-        #[arg(long, default_value_t = 0.0, value_parser = probability)]
-        loss: f64,
-        /// Probability a frame arrives twice.
-        #[arg(long, default_value_t = 0.0, value_parser = probability)]
-        dup: f64,
-        /// Probability a frame arrives with a flipped bit.
-        #[arg(long, default_value_t = 0.0, value_parser = probability)]
-        corrupt: f64,
-        /// Extra delay per frame, uniform in A..B ms (reorders frames).
-        #[arg(long, value_parser = delay_range, default_value = "0..0")]
-        delay_ms: (u64, u64),
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Write every frame on the air to this pcap (link type 195).
-        #[arg(long)]
-        pcap: Option<PathBuf>,
-    },
+    Medium(MediumArgs),
     /// List the nodes in range: address, firmware, generation, role.
     Scan {
         #[command(flatten)]
         at: MediumAddr,
     },
     /// Compile a robot and push every role to its node (or one role to a given node).
-    Push {
-        robot: PathBuf,
-        #[command(flatten)]
-        at: MediumAddr,
-        /// Push only this role.
-        #[arg(long)]
-        role: Option<String>,
-        /// To this node instead of the one the robot assigns (with --role).
-        #[arg(long, value_parser = node_fw::host::parse_addr, requires = "role")]
-        node: Option<u16>,
-        /// Generation of the tables (default: the robot's, at least 1).
-        #[arg(long)]
-        generation: Option<u32>,
-        /// Push even if the node runs the same or a newer generation.
-        #[arg(long)]
-        force: bool,
-    },
+    Push(PushArgs),
     /// A node's status: role, generation, chart states, outputs, fault, links, counters.
     Status {
         #[command(flatten)]
@@ -161,41 +92,7 @@ pub enum Command {
     },
     /// The whole machine on this host: medium, unconfigured nodes, plant; push, run the
     /// cycles, check them, then push a reconfiguration to the running nodes.
-    Demo {
-        robot: PathBuf,
-        #[arg(long, default_value_t = 3)]
-        cycles: usize,
-        /// Frame loss on the medium (with half as much duplication, and reordering).
-        #[arg(long, default_value_t = 0.0, value_parser = probability)]
-        loss: f64,
-        /// The robot pushed afterwards to the same running nodes (default:
-        /// paint-robot-double-dip.ron beside ROBOT, if there is one).
-        #[arg(long)]
-        then: Option<PathBuf>,
-        /// Skip the reconfiguration.
-        #[arg(long)]
-        no_reconfigure: bool,
-        /// Write every frame on the air to this pcap.
-        #[arg(long)]
-        pcap: Option<PathBuf>,
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Run the nodes as QEMU instances (mps2-an385) booting the firmware image.
-        #[arg(long)]
-        qemu: bool,
-        /// The firmware image the QEMU nodes boot (with --qemu).
-        #[arg(long, default_value = robot_net::demo::QEMU_ELF, requires = "qemu")]
-        elf: PathBuf,
-        /// Count the instructions the QEMU nodes execute (`-icount shift=0`) during the
-        /// first robot's cycles: instructions per cycle and per stimulus (frame or input).
-        #[arg(long, requires = "qemu")]
-        icount: bool,
-        /// Inject a fault into the running machine, as `sim --fault` does: stuck:ACT or
-        /// switch:ACT.end|ACT.home (the plant), stop:ROLE (the node's process is killed),
-        /// then @STEP or @CYCLE.STEP. The demo reports the detection and exits "faulted".
-        #[arg(long)]
-        fault: Option<String>,
-    },
+    Demo(DemoArgs),
     /// Run one emulated node: QEMU booting the firmware image, its UART on the medium.
     QemuNode(QemuNodeArgs),
     /// Run a medium whose frames also go to the air, through an nRF52840 gateway on a
@@ -214,6 +111,144 @@ pub enum Command {
     /// Run one generic node in this process (what `demo` starts).
     #[command(hide = true)]
     Node(node_fw::host::Args),
+}
+
+/// `sim`'s arguments.
+#[derive(Args, Debug)]
+pub struct SimArgs {
+    pub robot: PathBuf,
+    #[arg(long, default_value_t = 3)]
+    pub cycles: usize,
+    /// Print every trace entry.
+    #[arg(long)]
+    pub trace: bool,
+    /// Inject a fault: stuck:ACT, switch:ACT.end|ACT.home, stop:ROLE or
+    /// link:FROM->TO, then @STEP or @CYCLE.STEP (injected just before that step).
+    #[arg(long)]
+    pub fault: Option<String>,
+    /// Write a time diagram of the run (SVG): actuator positions, chart states, events.
+    #[arg(long)]
+    pub timeline: Option<PathBuf>,
+}
+
+/// `verify`'s arguments.
+#[derive(Args, Debug)]
+pub struct VerifyArgs {
+    pub robot: PathBuf,
+    /// A delivery may also fail after the link's retries (link alarm).
+    #[arg(long)]
+    pub lossy: bool,
+    /// Assume the radio is faster than any motion or timer: nothing arrives or
+    /// expires while a publication is in flight (also when the robot declares
+    /// `assume_prompt_radio`).
+    #[arg(long)]
+    pub prompt: bool,
+    /// Explore any radio delay, even if the robot declares `assume_prompt_radio`.
+    #[arg(long, conflicts_with = "prompt")]
+    pub any_delay: bool,
+    /// The operator may press START at any time, not only when the machine is idle.
+    #[arg(long)]
+    pub start_anytime: bool,
+    /// Stop (inconclusive) beyond this many states.
+    #[arg(long, default_value_t = 2_000_000)]
+    pub max_states: usize,
+}
+
+/// `medium`'s arguments.
+#[derive(Args, Debug)]
+pub struct MediumArgs {
+    #[arg(long, default_value = "127.0.0.1:15400")]
+    pub listen: SocketAddr,
+    /// Probability a frame is lost (per receiver).
+    #[arg(long, default_value_t = 0.0, value_parser = probability)]
+    pub loss: f64,
+    /// Probability a frame arrives twice.
+    #[arg(long, default_value_t = 0.0, value_parser = probability)]
+    pub dup: f64,
+    /// Probability a frame arrives with a flipped bit.
+    #[arg(long, default_value_t = 0.0, value_parser = probability)]
+    pub corrupt: f64,
+    /// Extra delay per frame, uniform in A..B ms (reorders frames).
+    #[arg(long, value_parser = delay_range, default_value = "0..0")]
+    pub delay_ms: (u64, u64),
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Write every frame on the air to this pcap (link type 195).
+    #[arg(long)]
+    pub pcap: Option<PathBuf>,
+}
+
+/// `push`'s arguments.
+#[derive(Args, Debug)]
+pub struct PushArgs {
+    pub robot: PathBuf,
+    #[command(flatten)]
+    pub at: MediumAddr,
+    /// Push only this role.
+    #[arg(long)]
+    pub role: Option<String>,
+    /// To this node instead of the one the robot assigns (with --role).
+    #[arg(long, value_parser = node_fw::host::parse_addr, requires = "role")]
+    pub node: Option<u16>,
+    /// Generation of the tables (default: the robot's, at least 1).
+    #[arg(long)]
+    pub generation: Option<u32>,
+    /// Push even if the node runs the same or a newer generation.
+    #[arg(long)]
+    pub force: bool,
+}
+
+impl MediumArgs {
+    /// The medium these flags describe.
+    pub fn config(self) -> medium::Config {
+        medium::Config {
+            listen: self.listen,
+            loss: self.loss,
+            dup: self.dup,
+            corrupt: self.corrupt,
+            delay_ms: self.delay_ms,
+            seed: self.seed,
+            pcap: self.pcap,
+        }
+    }
+}
+
+/// `demo`'s arguments.
+#[derive(Args, Debug)]
+pub struct DemoArgs {
+    pub robot: PathBuf,
+    #[arg(long, default_value_t = 3)]
+    pub cycles: usize,
+    /// Frame loss on the medium (with half as much duplication, and reordering).
+    #[arg(long, default_value_t = 0.0, value_parser = probability)]
+    pub loss: f64,
+    /// The robot pushed afterwards to the same running nodes (default:
+    /// paint-robot-double-dip.ron beside ROBOT, if there is one).
+    #[arg(long)]
+    pub then: Option<PathBuf>,
+    /// Skip the reconfiguration.
+    #[arg(long)]
+    pub no_reconfigure: bool,
+    /// Write every frame on the air to this pcap.
+    #[arg(long)]
+    pub pcap: Option<PathBuf>,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Run the nodes as QEMU instances (mps2-an385) booting the firmware image.
+    #[arg(long)]
+    pub qemu: bool,
+    /// The firmware image the QEMU nodes boot (with --qemu).
+    #[arg(long, default_value = robot_net::demo::QEMU_ELF, requires = "qemu")]
+    pub elf: PathBuf,
+    /// Count the instructions the QEMU nodes execute (`-icount shift=0`) during the
+    /// first robot's cycles: instructions per cycle and per stimulus (frame or input).
+    #[arg(long, requires = "qemu")]
+    pub icount: bool,
+    /// Inject a fault into the running machine, as `sim --fault` does: stuck:ACT or
+    /// switch:ACT.end|ACT.home (the plant), stop:ROLE (the node's process is killed),
+    /// then @STEP or @CYCLE.STEP. The demo reports the detection and exits "faulted".
+    #[arg(long)]
+    pub fault: Option<String>,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]

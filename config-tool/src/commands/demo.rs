@@ -2,28 +2,16 @@
 //! the flags into the bed's options and the verdict into the exit status.
 
 use std::io;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Duration;
 
 use robot_net::demo::{self, Demo};
 
+use crate::cli::DemoArgs;
 use crate::failure::Failure;
 
-/// `demo`'s flags.
-pub struct DemoFlags {
-    pub cycles: usize,
-    pub loss: f64,
-    pub then: Option<PathBuf>,
-    pub no_reconfigure: bool,
-    pub pcap: Option<PathBuf>,
-    pub seed: u64,
-    pub qemu: bool,
-    pub elf: PathBuf,
-    pub icount: bool,
-    pub fault: Option<String>,
-}
-
-pub fn demo(robot: &Path, flags: DemoFlags) -> Result<(), Failure> {
+pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
+    let robot = flags.robot.as_path();
     let fault = flags
         .fault
         .as_deref()

@@ -6,7 +6,7 @@ use robot_analysis::{inject, sim, timeline, verify};
 use robot_compiler::compile as pipeline;
 use robot_compiler::{check, diagram, dump, Compiled, Diagnostic, Source};
 
-use crate::cli::Format;
+use crate::cli::{Format, SimArgs, VerifyArgs};
 use crate::failure::{exit, Failure};
 
 /// Reads a robot (its errors name the file, and the place of a byte that is not UTF-8).
@@ -87,17 +87,8 @@ pub fn diagram(robot: &Path, role: &str, format: Format) -> Result<(), Failure> 
     Ok(())
 }
 
-/// `verify`'s flags.
-pub struct VerifyFlags {
-    pub lossy: bool,
-    pub prompt: bool,
-    pub any_delay: bool,
-    pub start_anytime: bool,
-    pub max_states: usize,
-}
-
-pub fn verify(robot: &Path, flags: VerifyFlags) -> Result<(), Failure> {
-    let (src, compiled) = load_compiled(robot)?;
+pub fn verify(flags: &VerifyArgs) -> Result<(), Failure> {
+    let (src, compiled) = load_compiled(&flags.robot)?;
     let declared = compiled.robot.assume_prompt_radio && !flags.prompt && !flags.any_delay;
     if declared {
         println!(
@@ -124,15 +115,10 @@ pub fn verify(robot: &Path, flags: VerifyFlags) -> Result<(), Failure> {
     }
 }
 
-pub fn sim(
-    robot: &Path,
-    cycles: usize,
-    trace: bool,
-    fault: Option<&str>,
-    timeline: Option<&Path>,
-) -> Result<(), Failure> {
-    let (_, compiled) = load_compiled(robot)?;
-    if let Some(spec) = fault {
+pub fn sim(args: &SimArgs) -> Result<(), Failure> {
+    let (cycles, trace, timeline) = (args.cycles, args.trace, args.timeline.as_deref());
+    let (_, compiled) = load_compiled(&args.robot)?;
+    if let Some(spec) = &args.fault {
         return sim_fault(&compiled, spec, trace, timeline);
     }
     let result = if trace || timeline.is_some() {

@@ -16,7 +16,7 @@ use robot_net::push::{self, Ids};
 use robot_net::radio::{ToolRadio, TOOL_ADDR};
 use robot_net::{live_plant, show};
 
-use crate::cli::{MediumAddr, QemuNodeArgs};
+use crate::cli::{MediumAddr, PushArgs, QemuNodeArgs};
 use crate::failure::{exit, Failure};
 
 /// The medium to talk to: the one at `--medium`, or with `--serial` one bridged to the air
@@ -82,15 +82,8 @@ pub fn scan(at: &MediumAddr) -> Result<(), Failure> {
     Ok(())
 }
 
-/// What `push` sends: one role (maybe to another node) or every role.
-pub struct PushFlags {
-    pub role: Option<String>,
-    pub node: Option<u16>,
-    pub generation: Option<u32>,
-    pub force: bool,
-}
-
-pub fn push(robot: &Path, at: &MediumAddr, flags: PushFlags) -> Result<(), Failure> {
+pub fn push(flags: &PushArgs) -> Result<(), Failure> {
+    let (robot, at) = (&flags.robot, &flags.at);
     let c = demo::generation_of(demo::load(robot)?, flags.generation)?;
     let mut targets = demo::targets(&c);
     if let Some(role) = &flags.role {
