@@ -253,16 +253,7 @@ pub fn run_attached(
             .chain([next_refresh])
             .min()
             .unwrap_or(next_refresh);
-        let seen = match conn.recv(wake, |l| match l {
-            Link::Seen {
-                at_us,
-                addr,
-                pin,
-                level,
-                output: true,
-            } => Some((at_us, addr, pin, level)),
-            _ => None,
-        }) {
+        let seen = match conn.recv(wake, |l| l.output_seen()) {
             Ok(Some(seen)) => seen,
             Ok(None) => continue,
             Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => return Ok(()),

@@ -102,19 +102,15 @@ impl Drop for Watch {
 
 /// What one medium message says, if it is worth reporting.
 fn seen(link: &Link, clock: Instant, faults: &HashMap<(u16, u8), String>) -> Option<Seen> {
-    match *link {
-        Link::Seen {
-            at_us,
-            addr,
-            pin,
-            level,
-            output: true,
-        } => Some(Seen::Output {
+    if let Some((at_us, addr, pin, level)) = link.output_seen() {
+        return Some(Seen::Output {
             at: Duration::from_micros(at_us),
             addr,
             pin,
             level,
-        }),
+        });
+    }
+    match *link {
         Link::Frame(psdu) => {
             let Ok(Frame::Data { header, payload }) = Frame::parse(psdu) else {
                 return None;

@@ -77,6 +77,20 @@ impl<'a> Link<'a> {
         Ok(n + 2)
     }
 
+    /// A node's output level as the medium saw it: `(at_us, addr, pin, level)`.
+    pub fn output_seen(&self) -> Option<(u64, u16, u8, bool)> {
+        match *self {
+            Link::Seen {
+                at_us,
+                addr,
+                pin,
+                level,
+                output: true,
+            } => Some((at_us, addr, pin, level)),
+            _ => None,
+        }
+    }
+
     /// Parses one message body (without its length). Never panics.
     pub fn parse(body: &'a [u8]) -> Result<Link<'a>, LinkError> {
         match postcard::take_from_bytes::<Link<'a>>(body) {
