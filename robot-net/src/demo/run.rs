@@ -12,7 +12,6 @@ use super::bed::{self, Bed, BedFault};
 use super::{qemu, report as demo_report};
 use crate::error::NetError;
 use crate::live_plant;
-use crate::push;
 
 /// How a demo ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -133,8 +132,51 @@ pub fn run(demo: &Demo, options: bed::Options, out: &mut dyn Write) -> Result<Ve
         .as_ref()
         .map(|f| place_fault(&c, &first_actuators, f))
         .transpose()?;
-    let mut bed = Bed::start(options)?;
     let addrs = bed::node_addrs(&c);
+    let mut bed = bring_up(options, &addrs, first_actuators, out)?;
+    let runs = [(demo.robot, &c, demo.cycles)].into_iter().chain(
+        next.as_ref()
+            .map(|n| (demo.then.unwrap_or(demo.robot), n, 1)),
+    );
+    let mut verdict = Verdict::Matched;
+    for (i, (label, robot, cycles)) in runs.enumerate() {
+        let first = i == 0;
+        if !push_robot(&mut bed, label, robot, out)? {
+            verdict = Verdict::PushFailed;
+            break;
+        }
+        let activated = Instant::now();
+        let (injection, fault) = match (&placed, first) {
+            (Some(p), true) => *p,
+            _ => (None, None),
+        };
+        bed.set_plant_injected(live_plant::actuators(robot)?, injection)?;
+        bed.watch(robot)?;
+        if let Some((after, fault)) = fault {
+            bed.inject_after(after, fault);
+        }
+        if let Some(spec) = demo.fault.as_ref().filter(|_| first) {
+            demo_report::say(out, &format!("fault to inject: {spec}"));
+        }
+        let count_dir = demo.count_dir.filter(|_| first);
+        verdict = run_cycles(&mut bed, robot, cycles, activated, count_dir, &addrs, out)?;
+        if verdict != Verdict::Matched {
+            break;
+        }
+    }
+    finish(bed, verdict, out);
+    Ok(verdict)
+}
+
+/// Starts the bed: the medium, one unconfigured node per address, the plant; says what
+/// announced itself.
+fn bring_up(
+    options: bed::Options,
+    addrs: &[u16],
+    actuators: Vec<live_plant::Actuator>,
+    out: &mut dyn Write,
+) -> Result<Bed, NetError> {
+    let mut bed = Bed::start(options)?;
     demo_report::say(
         out,
         &format!(
@@ -143,12 +185,11 @@ pub fn run(demo: &Demo, options: bed::Options, out: &mut dyn Write) -> Result<Ve
             addrs.len()
         ),
     );
-    for a in &addrs {
+    for a in addrs {
         bed.start_node(*a)?;
     }
-    bed.set_plant(first_actuators)?;
-    let found = bed.wait_for_nodes(&addrs)?;
-    for (addr, a) in &found {
+    bed.set_plant(actuators)?;
+    for (addr, a) in &bed.wait_for_nodes(addrs)? {
         let role = if a.role.is_empty() {
             "unconfigured"
         } else {
@@ -159,100 +200,97 @@ pub fn run(demo: &Demo, options: bed::Options, out: &mut dyn Write) -> Result<Ve
             &format!("  node {addr:#06x}: firmware {}, {role}", a.firmware),
         );
     }
-    let mut verdict = Verdict::Matched;
-    let mut first_robot = true;
-    let runs = [(demo.robot, &c, demo.cycles)].into_iter().chain(
-        next.as_ref()
-            .map(|n| (demo.then.unwrap_or(demo.robot), n, 1)),
+    Ok(bed)
+}
+
+/// Pushes every role of `robot`; says how each push went. `false` if one failed.
+fn push_robot(
+    bed: &mut Bed,
+    label: &Path,
+    robot: &Compiled,
+    out: &mut dyn Write,
+) -> Result<bool, NetError> {
+    demo_report::say(
+        out,
+        &format!(
+            "pushing {} (generation {})",
+            label.display(),
+            robot.ir.generation
+        ),
     );
-    'robots: for (label, robot, n) in runs {
+    let pushed = bed.push(robot, false, &mut |_, _, _| {})?;
+    for o in &pushed {
+        demo_report::say(out, &demo_report::push_line(o));
+    }
+    let mut ok = true;
+    for o in pushed.iter().filter(|o| o.progress != Progress::Done) {
         demo_report::say(
             out,
             &format!(
-                "pushing {} (generation {})",
-                label.display(),
-                robot.ir.generation
+                "push FAILED: role {} at node {:#06x}: {}",
+                o.role,
+                o.addr,
+                o.verdict()
             ),
         );
-        let outcomes = bed.push(robot, false, &mut |_, _, _| {})?;
-        for o in &outcomes {
-            demo_report::say(out, &demo_report::push_line(o));
-        }
-        let failed: Vec<&push::Pushed> = outcomes
-            .iter()
-            .filter(|o| o.progress != Progress::Done)
-            .collect();
-        if !failed.is_empty() {
-            for o in failed {
-                demo_report::say(
-                    out,
-                    &format!(
-                        "push FAILED: role {} at node {:#06x}: {}",
-                        o.role,
-                        o.addr,
-                        o.verdict()
-                    ),
-                );
+        ok = false;
+    }
+    Ok(ok)
+}
+
+/// Runs `n` cycles of `robot`, each step printed as it happens (stderr) and each cycle's
+/// verdict (`out`); with `count_dir`, the instructions the QEMU nodes executed.
+fn run_cycles(
+    bed: &mut Bed,
+    robot: &Compiled,
+    n: usize,
+    activated: Instant,
+    count_dir: Option<&Path>,
+    addrs: &[u16],
+    out: &mut dyn Write,
+) -> Result<Verdict, NetError> {
+    let expect: Vec<String> = robot.ir.expect.iter().map(|s| s.to_string()).collect();
+    demo_report::say(out, &format!("sequence: {}", expect.join(" ")));
+    let counted = count_dir.map(|dir| (dir, qemu::settled_counts(dir, addrs)));
+    let mut first_motion = None;
+    for i in 1..=n {
+        let cycle = bed.run_cycle(robot, &mut |s, at| {
+            if s.moved {
+                first_motion.get_or_insert_with(|| activated.elapsed());
             }
-            verdict = Verdict::PushFailed;
-            break;
+            let jammed = if s.moved { "" } else { "  (jammed: no motion)" };
+            let _ = writeln!(io::stderr(), "  {:>7.3} s  {s}{jammed}", at.as_secs_f64());
+        })?;
+        demo_report::say(out, &demo_report::cycle_line(i, &cycle));
+        if let (1, Some(t), None) = (i, first_motion, &counted) {
+            demo_report::say(
+                out,
+                &format!(
+                    "first motion {:.1} ms after the last table was activated (START \
+                     included)",
+                    t.as_secs_f64() * 1e3
+                ),
+            );
         }
-        let activated = Instant::now();
-        let (injection, kill) = match (&placed, first_robot) {
-            (Some(p), true) => *p,
-            _ => (None, None),
-        };
-        bed.set_plant_injected(live_plant::actuators(robot)?, injection)?;
-        bed.watch(robot)?;
-        if let Some((after, fault)) = kill {
-            bed.inject_after(after, fault);
-        }
-        if let Some(spec) = demo.fault.as_ref().filter(|_| first_robot) {
-            demo_report::say(out, &format!("fault to inject: {spec}"));
-        }
-        let expect: Vec<String> = robot.ir.expect.iter().map(|s| s.to_string()).collect();
-        demo_report::say(out, &format!("sequence: {}", expect.join(" ")));
-        let mut first_motion = None;
-        let counted = match demo.count_dir {
-            Some(dir) if first_robot => Some((dir, qemu::settled_counts(dir, &addrs))),
-            _ => None,
-        };
-        first_robot = false;
-        for i in 1..=n {
-            let cycle = bed.run_cycle(robot, &mut |s, at| {
-                if s.moved {
-                    first_motion.get_or_insert_with(|| activated.elapsed());
-                }
-                let jammed = if s.moved { "" } else { "  (jammed: no motion)" };
-                let _ = writeln!(io::stderr(), "  {:>7.3} s  {s}{jammed}", at.as_secs_f64());
-            })?;
-            demo_report::say(out, &demo_report::cycle_line(i, &cycle));
-            if let (1, Some(t), None) = (i, first_motion, &counted) {
-                demo_report::say(
-                    out,
-                    &format!(
-                        "first motion {:.1} ms after the last table was activated (START \
-                         included)",
-                        t.as_secs_f64() * 1e3
-                    ),
-                );
-            }
-            if !cycle.ok() {
-                verdict = if cycle.fault.is_some() {
-                    Verdict::Faulted
-                } else {
-                    Verdict::Mismatch
-                };
-                break 'robots;
-            }
-        }
-        if let Some((dir, before)) = counted {
-            let after = qemu::settled_counts(dir, &addrs);
-            for line in qemu::count_lines(&addrs, &before, &after, n) {
-                demo_report::say(out, &line);
-            }
+        if !cycle.ok() {
+            return Ok(if cycle.fault.is_some() {
+                Verdict::Faulted
+            } else {
+                Verdict::Mismatch
+            });
         }
     }
+    if let Some((dir, before)) = counted {
+        let after = qemu::settled_counts(dir, addrs);
+        for line in qemu::count_lines(addrs, &before, &after, n) {
+            demo_report::say(out, &line);
+        }
+    }
+    Ok(Verdict::Matched)
+}
+
+/// The medium's totals and the verdict in words; stops the bed.
+fn finish(bed: Bed, verdict: Verdict, out: &mut dyn Write) {
     let s = bed.medium().stats();
     demo_report::say(
         out,
@@ -274,5 +312,4 @@ pub fn run(demo: &Demo, options: bed::Options, out: &mut dyn Write) -> Result<Ve
             Verdict::Faulted => "demo: FAULTED",
         },
     );
-    Ok(verdict)
 }
