@@ -105,6 +105,8 @@ impl fmt::Display for ExprError {
     }
 }
 
+impl core::error::Error for ExprError {}
+
 impl fmt::Display for Invalid {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -145,6 +147,8 @@ impl fmt::Display for Invalid {
         }
     }
 }
+
+impl core::error::Error for Invalid {}
 
 fn capacity(what: &'static str, count: usize, max: usize) -> Result<(), Invalid> {
     if count > max {

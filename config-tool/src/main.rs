@@ -95,7 +95,7 @@ enum Format {
 }
 
 fn load(path: &Path) -> Result<Source, String> {
-    Source::read(path)
+    Source::read(path).map_err(|e| e.to_string())
 }
 
 /// Reads and compiles a robot; on failure every diagnostic is reported.

@@ -432,7 +432,7 @@ fn delay_range(s: &str) -> Result<(u64, u64), String> {
 }
 
 fn load(path: &Path) -> Result<Compiled, String> {
-    let src = Source::read(path)?;
+    let src = Source::read(path).map_err(|e| e.to_string())?;
     compile::compile(&src).map_err(|diags| {
         let errors: Vec<crate::Diagnostic> = diags.into_iter().filter(|d| d.is_error()).collect();
         format!(
@@ -446,7 +446,7 @@ fn load(path: &Path) -> Result<Compiled, String> {
 /// The generation to push: the robot's, at least 1 (an unconfigured node runs 0).
 fn generation_of(c: Compiled, generation: Option<u32>) -> Result<Compiled, String> {
     let g = generation.unwrap_or(c.ir.generation).max(1);
-    c.with_generation(g)
+    c.with_generation(g).map_err(|e| e.to_string())
 }
 
 /// The medium to talk to: the one at `--medium`, or with `--serial` one bridged to the air

@@ -11,8 +11,26 @@ use crate::ir::{ActionIr, ChartIr, InputIr, Ir, OutputIr, RoleIr, StateIr, Timer
 use crate::model::{ActionDecl, ChartType, Robot, Role};
 use crate::source::Source;
 
+/// Why the robot's `start` names no single input.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum StartError {
+    #[error("no role has an input `{0}`")]
+    NoInput(String),
+    #[error("several roles have an input `{0}`: write `ROLE/{0}`")]
+    Ambiguous(String),
+}
+
+/// Why a role has no node address.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum AddressError {
+    #[error("role `{0}` is assigned to no node")]
+    Unassigned(String),
+    #[error("unknown node `{0}`")]
+    UnknownNode(String),
+}
+
 /// The role index and input name of the robot's `start`, if it has one.
-pub fn start_input(robot: &Robot) -> Result<Option<(usize, String)>, String> {
+pub fn start_input(robot: &Robot) -> Result<Option<(usize, String)>, StartError> {
     let Some(start) = &robot.start else {
         return Ok(None);
     };
@@ -33,27 +51,25 @@ pub fn start_input(robot: &Robot) -> Result<Option<(usize, String)>, String> {
     let name = start.rsplit('/').next().unwrap_or(start).to_string();
     match found.as_slice() {
         [one] => Ok(Some((*one, name))),
-        [] => Err(format!("no role has an input `{start}`")),
-        _ => Err(format!(
-            "several roles have an input `{start}`: write `ROLE/{start}`"
-        )),
+        [] => Err(StartError::NoInput(start.clone())),
+        _ => Err(StartError::Ambiguous(start.clone())),
     }
 }
 
 /// The short address of the node playing `role`.
-pub fn address(robot: &Robot, role: &str) -> Result<u16, String> {
+pub fn address(robot: &Robot, role: &str) -> Result<u16, AddressError> {
     let node = robot
         .assign
         .iter()
         .find(|(r, _)| r == role)
         .map(|(_, n)| n)
-        .ok_or_else(|| format!("role `{role}` is assigned to no node"))?;
+        .ok_or_else(|| AddressError::Unassigned(role.to_string()))?;
     robot
         .nodes
         .iter()
         .find(|n| &n.name == node)
         .map(|n| n.address)
-        .ok_or_else(|| format!("unknown node `{node}`"))
+        .ok_or_else(|| AddressError::UnknownNode(node.clone()))
 }
 
 /// The events a role can raise, by name, for a connection source.
@@ -122,7 +138,7 @@ pub fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
     let start = match start_input(robot) {
         Ok(s) => s,
         Err(e) => {
-            diags.push(Diagnostic::error(src.span("start"), e));
+            diags.push(Diagnostic::error(src.span("start"), e.to_string()));
             None
         }
     };

@@ -16,7 +16,8 @@ use std::ops::Range;
 use config_schema::Op;
 
 /// A syntax or name error at a byte span of the expression text.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{message}")]
 pub struct ExprError {
     pub message: String,
     pub span: Range<usize>,

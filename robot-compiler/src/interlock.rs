@@ -7,8 +7,9 @@
 //! guards (`docs/robot-format.md`).
 
 use std::collections::BTreeMap;
+use std::ops::Range;
 
-use crate::expr::{self, Ast};
+use crate::expr::{self, Ast, ExprError};
 use crate::ir::Ir;
 use crate::model::Robot;
 
@@ -45,8 +46,72 @@ pub const END: u8 = 2;
 pub const EXTENDING: u8 = 4;
 pub const RETRACTING: u8 = 8;
 
+/// A name of an interlock that reads nothing.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum NameError {
+    #[error(
+        "`{name}`: an actuator has `.home`, `.end`, `.moving`, `.extending`, `.retracting`, \
+         not `.{suffix}`"
+    )]
+    Position { name: String, suffix: String },
+    #[error("`{name}`: role {role} has no chart `{chart}` (charts: {})", charts.join(", "))]
+    NoChart {
+        name: String,
+        role: String,
+        chart: String,
+        charts: Vec<String>,
+    },
+    #[error(
+        "`{name}`: chart {role}.{chart} has no state `{state}` (states: {})",
+        states.join(", ")
+    )]
+    NoState {
+        name: String,
+        role: String,
+        chart: String,
+        state: String,
+        states: Vec<String>,
+    },
+    #[error(
+        "`{0}` is not an interlock name: write `ACTUATOR.home` / `.end` / `.moving` / \
+         `.extending` / `.retracting`, `ROLE.CHART.STATE` or `ROLE.fault`"
+    )]
+    Unknown(String),
+}
+
+/// An interlock that is not an expression, or has a name that reads nothing.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum InterlockError {
+    #[error(transparent)]
+    Syntax(ExprError),
+    #[error("{error}")]
+    Name {
+        error: NameError,
+        /// The name's byte span in the text.
+        span: Range<usize>,
+    },
+}
+
+impl InterlockError {
+    /// The byte span of the problem in the interlock's text.
+    pub fn span(&self) -> Range<usize> {
+        match self {
+            InterlockError::Syntax(e) => e.span.clone(),
+            InterlockError::Name { span, .. } => span.clone(),
+        }
+    }
+}
+
+/// A bad entry of the robot's `never:` list.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("never[{index}]: {error}")]
+pub struct NeverError {
+    pub index: usize,
+    pub error: InterlockError,
+}
+
 /// The position mask of an actuator name's suffix (`home`, `end`, `moving`, ...).
-fn position_mask(name: &str, suffix: &str) -> Result<u8, String> {
+fn position_mask(name: &str, suffix: &str) -> Result<u8, NameError> {
     Ok(match suffix {
         "home" => HOME,
         "end" => END,
@@ -54,10 +119,10 @@ fn position_mask(name: &str, suffix: &str) -> Result<u8, String> {
         "extending" => EXTENDING,
         "retracting" => RETRACTING,
         other => {
-            return Err(format!(
-                "`{name}`: an actuator has `.home`, `.end`, `.moving`, `.extending`, \
-                 `.retracting`, not `.{other}`"
-            ))
+            return Err(NameError::Position {
+                name: name.to_string(),
+                suffix: other.to_string(),
+            })
         }
     })
 }
@@ -70,7 +135,7 @@ pub fn resolve(
     ir: &Ir,
     actuators: &[String],
     declared: &[&str],
-) -> Result<Atom, String> {
+) -> Result<Atom, NameError> {
     let parts: Vec<&str> = name.split('.').collect();
     if parts.len() == 2 {
         // `ROLE.fault` first: a role and its actuator often share a name.
@@ -92,38 +157,27 @@ pub fn resolve(
         if let Some(role) = ir.roles.iter().position(|r| r.name == parts[0]) {
             let r = &ir.roles[role];
             let Some(chart) = r.charts.iter().position(|c| c.name == parts[1]) else {
-                return Err(format!(
-                    "`{name}`: role {} has no chart `{}` (charts: {})",
-                    r.name,
-                    parts[1],
-                    r.charts
-                        .iter()
-                        .map(|c| c.name.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ));
+                return Err(NameError::NoChart {
+                    name: name.to_string(),
+                    role: r.name.clone(),
+                    chart: parts[1].to_string(),
+                    charts: r.charts.iter().map(|c| c.name.clone()).collect(),
+                });
             };
             let c = &r.charts[chart];
             let Some(state) = c.states.iter().position(|s| s.name == parts[2]) else {
-                return Err(format!(
-                    "`{name}`: chart {}.{} has no state `{}` (states: {})",
-                    r.name,
-                    c.name,
-                    parts[2],
-                    c.states
-                        .iter()
-                        .map(|s| s.name.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ));
+                return Err(NameError::NoState {
+                    name: name.to_string(),
+                    role: r.name.clone(),
+                    chart: c.name.clone(),
+                    state: parts[2].to_string(),
+                    states: c.states.iter().map(|s| s.name.clone()).collect(),
+                });
             };
             return Ok(Atom::Chart { role, chart, state });
         }
     }
-    Err(format!(
-        "`{name}` is not an interlock name: write `ACTUATOR.home` / `.end` / `.moving` / \
-         `.extending` / `.retracting`, `ROLE.CHART.STATE` or `ROLE.fault`"
-    ))
+    Err(NameError::Unknown(name.to_string()))
 }
 
 /// The actuators of a robot that `sim` and `verify` model, in plant order (role order,
@@ -135,18 +189,18 @@ pub fn actuator_names(ir: &Ir) -> Vec<String> {
         .collect()
 }
 
-/// Parses and resolves the robot's interlocks: `Err((index, message, byte span in the
-/// expression text))` for the first bad one.
-pub fn interlocks(
-    robot: &Robot,
-    ir: &Ir,
-) -> Result<Vec<Interlock>, (usize, String, std::ops::Range<usize>)> {
+/// Parses and resolves the robot's interlocks: an error for the first bad one.
+pub fn interlocks(robot: &Robot, ir: &Ir) -> Result<Vec<Interlock>, NeverError> {
     let names = Names::of(robot, ir);
     robot
         .never
         .iter()
         .enumerate()
-        .map(|(i, text)| names.interlock(text).map_err(|(m, span)| (i, m, span)))
+        .map(|(index, text)| {
+            names
+                .interlock(text)
+                .map_err(|error| NeverError { index, error })
+        })
         .collect()
 }
 
@@ -171,10 +225,9 @@ impl<'r> Names<'r> {
         }
     }
 
-    /// Parses and resolves one interlock: `Err((message, byte span in the text))` at its
-    /// first bad name.
-    pub fn interlock(&self, text: &str) -> Result<Interlock, (String, std::ops::Range<usize>)> {
-        let ast = expr::parse(text).map_err(|e| (e.message, e.span))?;
+    /// Parses and resolves one interlock: an error at its first bad name.
+    pub fn interlock(&self, text: &str) -> Result<Interlock, InterlockError> {
+        let ast = expr::parse(text).map_err(InterlockError::Syntax)?;
         let mut spans = Vec::new();
         name_spans(&ast, &mut spans);
         let mut resolved = BTreeMap::new();
@@ -182,8 +235,12 @@ impl<'r> Names<'r> {
             if resolved.contains_key(n) {
                 continue;
             }
-            let atom = resolve(n, self.ir, &self.actuators, &self.declared)
-                .map_err(|m| (m, span.clone()))?;
+            let atom = resolve(n, self.ir, &self.actuators, &self.declared).map_err(|error| {
+                InterlockError::Name {
+                    error,
+                    span: span.clone(),
+                }
+            })?;
             resolved.insert(n.to_string(), atom);
         }
         Ok(Interlock {

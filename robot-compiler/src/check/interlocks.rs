@@ -13,12 +13,13 @@ pub fn check(robot: &Robot, ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>) {
     }
     let names = interlock::Names::of(robot, ir);
     for (i, text) in robot.never.iter().enumerate() {
-        if let Err((message, span)) = names.interlock(text) {
+        if let Err(e) = names.interlock(text) {
+            let span = e.span();
             let value = src.span(&format!("never[{i}]"));
             // The value's span starts at its opening quote.
             let start = value.start + 1 + span.start;
             let end = (value.start + 1 + span.end).min(value.end);
-            out.push(Diagnostic::error(start..end.max(start), message));
+            out.push(Diagnostic::error(start..end.max(start), e.to_string()));
         }
     }
 }

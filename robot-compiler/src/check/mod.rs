@@ -115,7 +115,7 @@ fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
                 .filter_map(|(s, _)| s.ok())
                 .collect();
             synth::synthesise(robot, &steps)
-                .map_err(|e| vec![Diagnostic::error(src.span("sequence"), e)])
+                .map_err(|e| vec![Diagnostic::error(src.span("sequence"), e.to_string())])
         }
         None => elab::elaborate(robot, src),
     }
