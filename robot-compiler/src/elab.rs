@@ -156,11 +156,7 @@ pub fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
 
 /// Which (role, event) the connections ask for; an error for each connection from an
 /// unknown role or event.
-fn wanted(
-    robot: &Robot,
-    src: &Source,
-    diags: &mut Vec<Diagnostic>,
-) -> BTreeSet<(String, String)> {
+fn wanted(robot: &Robot, src: &Source, diags: &mut Vec<Diagnostic>) -> BTreeSet<(String, String)> {
     let mut wanted = BTreeSet::new();
     for (ri, role) in robot.roles.iter().enumerate() {
         for (ci, c) in role.charts.iter().enumerate() {

@@ -264,7 +264,10 @@ pub enum Operand {
 }
 
 /// Compiles an AST to bytecode; `resolve` gives the meaning of each name.
-pub fn bytecode(ast: &Ast, resolve: &dyn Fn(&str) -> Option<Operand>) -> Result<Vec<Op>, ExprError> {
+pub fn bytecode(
+    ast: &Ast,
+    resolve: &dyn Fn(&str) -> Option<Operand>,
+) -> Result<Vec<Op>, ExprError> {
     let mut ops = Vec::new();
     emit(ast, resolve, &mut ops)?;
     Ok(ops)

@@ -86,7 +86,7 @@ pub enum InterlockError {
     Syntax(ExprError),
     #[error("{error}")]
     Name {
-        error: NameError,
+        error: Box<NameError>,
         /// The name's byte span in the text.
         span: Range<usize>,
     },
@@ -191,7 +191,7 @@ pub fn actuator_names(ir: &Ir) -> Vec<String> {
 
 /// Parses and resolves the robot's interlocks: an error for the first bad one.
 pub fn interlocks(robot: &Robot, ir: &Ir) -> Result<Vec<Interlock>, NeverError> {
-    let names = Names::of(robot, ir);
+    let names = Scope::of(robot, ir);
     robot
         .never
         .iter()
@@ -206,15 +206,15 @@ pub fn interlocks(robot: &Robot, ir: &Ir) -> Result<Vec<Interlock>, NeverError> 
 
 /// What interlock names can refer to: the actuators with a plant (in plant order) and
 /// every declared actuator.
-pub struct Names<'r> {
+pub struct Scope<'r> {
     ir: &'r Ir,
     actuators: Vec<String>,
     declared: Vec<&'r str>,
 }
 
-impl<'r> Names<'r> {
-    pub fn of(robot: &'r Robot, ir: &'r Ir) -> Names<'r> {
-        Names {
+impl<'r> Scope<'r> {
+    pub fn of(robot: &'r Robot, ir: &'r Ir) -> Scope<'r> {
+        Scope {
             ir,
             actuators: actuator_names(ir),
             declared: robot
@@ -237,7 +237,7 @@ impl<'r> Names<'r> {
             }
             let atom = resolve(n, self.ir, &self.actuators, &self.declared).map_err(|error| {
                 InterlockError::Name {
-                    error,
+                    error: Box::new(error),
                     span: span.clone(),
                 }
             })?;

@@ -202,7 +202,7 @@ pub fn lower(ir: &Ir) -> Result<Vec<Table>, LowerError> {
     let topics = topics(ir);
     (0..ir.roles.len())
         .map(|ri| {
-            let role = Role {
+            let role = Lowering {
                 ir,
                 ri,
                 r: &ir.roles[ri],
@@ -222,14 +222,14 @@ fn u8_of(x: usize, what: &'static str) -> Result<u8, RoleError> {
 
 /// One role being lowered: the robot's IR, the role's index and IR, and the robot's
 /// topics.
-struct Role<'a> {
+struct Lowering<'a> {
     ir: &'a Ir,
     ri: usize,
     r: &'a RoleIr,
     topics: &'a [(usize, usize)],
 }
 
-impl Role<'_> {
+impl Lowering<'_> {
     /// The role's table: header, hardware, charts, routes, radio links; validated.
     fn lower(&self) -> Result<Table, RoleError> {
         let (ir, r) = (self.ir, self.r);

@@ -11,7 +11,7 @@ pub fn check(robot: &Robot, ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>) {
     if robot.never.is_empty() {
         return;
     }
-    let names = interlock::Names::of(robot, ir);
+    let names = interlock::Scope::of(robot, ir);
     for (i, text) in robot.never.iter().enumerate() {
         if let Err(e) = names.interlock(text) {
             let span = e.span();
