@@ -273,3 +273,76 @@ impl Interlock {
         .is_some_and(|v| v != 0)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{Robot, Scope};
+    use crate::source::Source;
+
+    const PAINT: &str = include_str!("../../robot-configs/paint-robot.ron");
+
+    /// Each bad name of an interlock is an error with its message and its span in the
+    /// text; `interlocks` says which entry of `never:` it is.
+    #[test]
+    fn bad_interlock_names_say_what_they_may_be() {
+        let c = crate::compile(&Source::new("paint-robot.ron", PAINT)).expect("compiles");
+        let scope = Scope::of(&c.robot, &c.ir);
+        let err = |text: &str| {
+            let e = scope.interlock(text).expect_err("a bad name");
+            (e.to_string(), e.span())
+        };
+        assert_eq!(
+            err("VC.home && HC.up"),
+            (
+                String::from(
+                    "`HC.up`: an actuator has `.home`, `.end`, `.moving`, `.extending`, \
+                     `.retracting`, not `.up`"
+                ),
+                11..16
+            )
+        );
+        assert_eq!(
+            err("VC.arm.IDLE"),
+            (
+                String::from("`VC.arm.IDLE`: role VC has no chart `arm` (charts: VC, fault)"),
+                0..11
+            )
+        );
+        assert_eq!(
+            err("!VC.VC.NOWHERE"),
+            (
+                String::from(
+                    "`VC.VC.NOWHERE`: chart VC.VC has no state `NOWHERE` (states: IDLE, STEP1, \
+                     WAIT3, STEP3, WAIT5, STEP5, STEP6, WAIT10, STEP10, WAIT12, STEP12)"
+                ),
+                1..14
+            )
+        );
+        assert_eq!(
+            err("lamp"),
+            (
+                String::from(
+                    "`lamp` is not an interlock name: write `ACTUATOR.home` / `.end` / \
+                     `.moving` / `.extending` / `.retracting`, `ROLE.CHART.STATE` or `ROLE.fault`"
+                ),
+                0..4
+            )
+        );
+        assert_eq!(
+            err("VC.home &&"),
+            (
+                String::from("expected a value, a name or `(`, found the end of the expression"),
+                9..10
+            )
+        );
+        let mut robot: Robot = c.robot.clone();
+        robot.never.push(String::from("GR.open"));
+        assert_eq!(
+            super::interlocks(&robot, &c.ir)
+                .expect_err("a bad entry")
+                .to_string(),
+            "never[2]: `GR.open`: an actuator has `.home`, `.end`, `.moving`, `.extending`, \
+             `.retracting`, not `.open`"
+        );
+    }
+}

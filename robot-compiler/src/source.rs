@@ -257,4 +257,20 @@ mod tests {
         let ok = Source::from_bytes("r.ron", b"ok".to_vec()).expect("utf-8");
         assert_eq!(ok.text, "ok");
     }
+
+    /// A file that cannot be read is an error naming it, with the I/O error as its source.
+    #[test]
+    fn a_file_that_cannot_be_read_is_an_error_naming_it() {
+        let path = std::env::temp_dir().join("robot-compiler-no-such-dir/robot.ron");
+        let e = Source::read(&path).expect_err("no such file");
+        let want = format!("error: cannot read {}: ", path.display());
+        assert!(e.to_string().starts_with(&want), "{e}");
+        match e {
+            super::LoadError::Read { path: p, source } => {
+                assert_eq!(p, path);
+                assert_eq!(source.kind(), std::io::ErrorKind::NotFound);
+            }
+            other => panic!("not a read error: {other}"),
+        }
+    }
 }
