@@ -73,6 +73,8 @@ impl fmt::Display for DecodeError {
     }
 }
 
+impl core::error::Error for DecodeError {}
+
 /// Why a table could not be encoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum EncodeError {
@@ -90,6 +92,8 @@ impl fmt::Display for EncodeError {
         }
     }
 }
+
+impl core::error::Error for EncodeError {}
 
 /// Encodes `table` as a blob into `buf`; returns the blob's length.
 pub fn encode(table: &Table, buf: &mut [u8]) -> Result<usize, EncodeError> {

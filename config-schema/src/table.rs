@@ -270,6 +270,8 @@ impl core::fmt::Display for Full {
     }
 }
 
+impl core::error::Error for Full {}
+
 fn push<T, const N: usize>(v: &mut Vec<T, N>, x: T, what: &'static str) -> Result<(), Full> {
     v.push(x).map_err(|_| Full(what))
 }

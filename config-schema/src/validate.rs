@@ -5,7 +5,7 @@ use core::fmt;
 
 use crate::guard::{self, Expr, ExprError};
 use crate::limits::*;
-use crate::table::{Action, Table};
+use crate::table::{Action, Chart, Table, Transition};
 
 /// Where in a table a problem is (indices into the table's pools).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -105,6 +105,8 @@ impl fmt::Display for ExprError {
     }
 }
 
+impl core::error::Error for ExprError {}
+
 impl fmt::Display for Invalid {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -146,6 +148,8 @@ impl fmt::Display for Invalid {
     }
 }
 
+impl core::error::Error for Invalid {}
+
 fn capacity(what: &'static str, count: usize, max: usize) -> Result<(), Invalid> {
     if count > max {
         Err(Invalid::Capacity { what, count, max })
@@ -159,56 +163,96 @@ fn idx(i: usize) -> u8 {
 }
 
 /// Checks every semantic rule of a table. A table that passes can be run by the interpreter
-/// without any out-of-range access.
+/// without any out-of-range access. The first broken rule is the error, in this order:
+/// header, pins, timers, charts and their transitions, states, actions, routes, radio
+/// links.
 pub fn validate(t: &Table) -> Result<(), Invalid> {
+    header(t)?;
+    pins(t)?;
+    for (i, timer) in t.timers.iter().enumerate() {
+        event_ok(t, Place::Timer(idx(i)), timer.event)?;
+    }
+    charts(t)?;
+    states(t)?;
+    for (a, action) in t.actions.iter().enumerate() {
+        action_ok(t, Place::Action(idx(a)), action)?;
+    }
+    routes(t)?;
+    links(t)
+}
+
+/// A node event id below `Table::events`.
+fn event_ok(t: &Table, at: Place, event: u8) -> Result<(), Invalid> {
+    if event < t.events {
+        Ok(())
+    } else {
+        Err(Invalid::Event { at, event })
+    }
+}
+
+/// A pin number below [`MAX_PINS`].
+fn pin_ok(at: Place, pin: u8) -> Result<(), Invalid> {
+    if usize::from(pin) < MAX_PINS {
+        Ok(())
+    } else {
+        Err(Invalid::Pin { at, pin })
+    }
+}
+
+/// An expression inside the code pool that checks (stack, variables, inputs).
+fn expr_ok(t: &Table, at: Place, e: Expr) -> Result<(), Invalid> {
+    let end = usize::from(e.start) + usize::from(e.len);
+    if end > t.code.len() {
+        return Err(Invalid::Expr {
+            at,
+            error: ExprError::OutOfCode {
+                end,
+                code_len: t.code.len(),
+            },
+        });
+    }
+    guard::check(t.expr(e), t.vars.len(), t.inputs.len())
+        .map_err(|error| Invalid::Expr { at, error })
+}
+
+/// The radio channel, the event count and the START event.
+fn header(t: &Table) -> Result<(), Invalid> {
     if !CHANNELS.contains(&t.header.channel) {
         return Err(Invalid::Channel {
             channel: t.header.channel,
         });
     }
-    let events = usize::from(t.events);
-    capacity("events", events, MAX_EVENTS)?;
-    let event_ok = |at: Place, e: u8| {
-        if usize::from(e) < events {
-            Ok(())
-        } else {
-            Err(Invalid::Event { at, event: e })
-        }
-    };
+    capacity("events", usize::from(t.events), MAX_EVENTS)?;
     if let Some(e) = t.start {
-        event_ok(Place::Header, e)?;
+        event_ok(t, Place::Header, e)?;
     }
+    Ok(())
+}
 
-    // Pins.
-    let pin_ok = |at: Place, pin: u8| {
-        if usize::from(pin) < MAX_PINS {
-            Ok(())
-        } else {
-            Err(Invalid::Pin { at, pin })
-        }
-    };
+/// Inputs (pin, events, variable) and outputs: each pin used once.
+fn pins(t: &Table) -> Result<(), Invalid> {
     for (i, input) in t.inputs.iter().enumerate() {
         let at = Place::Input(idx(i));
         pin_ok(at, input.pin)?;
         if let Some(e) = input.rise {
-            event_ok(at, e)?;
+            event_ok(t, at, e)?;
         }
         if let Some(e) = input.fall {
-            event_ok(at, e)?;
+            event_ok(t, at, e)?;
         }
         if let Some(v) = input.var {
             if usize::from(v) >= t.vars.len() {
                 return Err(Invalid::Var { at, var: v });
             }
         }
-        if t.inputs[..i].iter().any(|o| o.pin == input.pin) {
+        if t.inputs.iter().take(i).any(|o| o.pin == input.pin) {
             return Err(Invalid::Duplicate { at });
         }
     }
     for (i, output) in t.outputs.iter().enumerate() {
         pin_ok(Place::Output(idx(i)), output.pin)?;
         // A pin is an input or an output, once.
-        if t.outputs[..i].iter().any(|o| o.pin == output.pin)
+        if t.outputs.iter().take(i).any(|o| o.pin == output.pin)
             || t.inputs.iter().any(|input| input.pin == output.pin)
         {
             return Err(Invalid::Duplicate {
@@ -216,25 +260,12 @@ pub fn validate(t: &Table) -> Result<(), Invalid> {
             });
         }
     }
-    for (i, timer) in t.timers.iter().enumerate() {
-        event_ok(Place::Timer(idx(i)), timer.event)?;
-    }
+    Ok(())
+}
 
-    // Charts own consecutive, non-empty runs of states and runs of transitions.
-    let expr_ok = |at: Place, e: Expr| {
-        let end = usize::from(e.start) + usize::from(e.len);
-        if end > t.code.len() {
-            return Err(Invalid::Expr {
-                at,
-                error: ExprError::OutOfCode {
-                    end,
-                    code_len: t.code.len(),
-                },
-            });
-        }
-        guard::check(t.expr(e), t.vars.len(), t.inputs.len())
-            .map_err(|error| Invalid::Expr { at, error })
-    };
+/// Charts own consecutive, non-empty runs of states and runs of transitions that cover
+/// both pools; each transition stays in its chart.
+fn charts(t: &Table) -> Result<(), Invalid> {
     let (mut states_start, mut transitions_start) = (0usize, 0usize);
     for (c, chart) in t.charts.iter().enumerate() {
         let at = Place::Chart(idx(c));
@@ -245,9 +276,9 @@ pub fn validate(t: &Table) -> Result<(), Invalid> {
         if s_end <= states_start || s_end > t.states.len() || t_end < transitions_start {
             return Err(Invalid::Range { at });
         }
-        if t_end > t.transitions.len() {
+        let Some(transitions) = t.transitions.get(transitions_start..t_end) else {
             return Err(Invalid::Range { at });
-        }
+        };
         capacity("chart inputs", usize::from(chart.inputs), MAX_CHART_INPUTS)?;
         let n_states = s_end - states_start;
         if usize::from(chart.initial) >= n_states {
@@ -256,21 +287,14 @@ pub fn validate(t: &Table) -> Result<(), Invalid> {
                 state: chart.initial,
             });
         }
-        for (ti, tr) in t.transitions[transitions_start..t_end].iter().enumerate() {
-            let at = Place::Transition(idx(transitions_start + ti));
-            for s in [tr.from, tr.to] {
-                if usize::from(s) >= n_states {
-                    return Err(Invalid::State { at, state: s });
-                }
-            }
-            if let Some(input) = tr.trigger {
-                if input >= chart.inputs {
-                    return Err(Invalid::ChartInput { at, input });
-                }
-            }
-            if let Some(g) = tr.guard {
-                expr_ok(at, g)?;
-            }
+        for (ti, tr) in transitions.iter().enumerate() {
+            transition_ok(
+                t,
+                Place::Transition(idx(transitions_start + ti)),
+                tr,
+                chart,
+                n_states,
+            )?;
         }
         states_start = s_end;
         transitions_start = t_end;
@@ -285,8 +309,35 @@ pub fn validate(t: &Table) -> Result<(), Invalid> {
             at: Place::Transition(idx(transitions_start)),
         });
     }
+    Ok(())
+}
 
-    // States own consecutive runs of actions.
+/// A transition of `chart` (of `n_states` states): its states, trigger and guard.
+fn transition_ok(
+    t: &Table,
+    at: Place,
+    tr: &Transition,
+    chart: &Chart,
+    n_states: usize,
+) -> Result<(), Invalid> {
+    for s in [tr.from, tr.to] {
+        if usize::from(s) >= n_states {
+            return Err(Invalid::State { at, state: s });
+        }
+    }
+    if let Some(input) = tr.trigger {
+        if input >= chart.inputs {
+            return Err(Invalid::ChartInput { at, input });
+        }
+    }
+    if let Some(g) = tr.guard {
+        expr_ok(t, at, g)?;
+    }
+    Ok(())
+}
+
+/// States own consecutive runs of actions that cover the pool.
+fn states(t: &Table) -> Result<(), Invalid> {
     let mut actions_start = 0usize;
     for (s, state) in t.states.iter().enumerate() {
         let end = usize::from(state.actions_end);
@@ -302,44 +353,49 @@ pub fn validate(t: &Table) -> Result<(), Invalid> {
             at: Place::Action(idx(actions_start)),
         });
     }
-    let output_mask: u32 = (1u32 << t.outputs.len()) - 1;
-    for (a, action) in t.actions.iter().enumerate() {
-        let at = Place::Action(idx(a));
-        match *action {
-            Action::Set { var, expr } => {
-                if usize::from(var) >= t.vars.len() {
-                    return Err(Invalid::Var { at, var });
-                }
-                expr_ok(at, expr)?;
-            }
-            Action::Drive { mask, value } => {
-                if u32::from(mask | value) & !output_mask != 0 {
-                    return Err(Invalid::Output {
-                        at,
-                        mask: mask | value,
-                    });
-                }
-            }
-            Action::Emit(e) => event_ok(at, e)?,
-            Action::Publish(e) => {
-                event_ok(at, e)?;
-                if t.publication(e).is_none() {
-                    return Err(Invalid::NotPublished { at, event: e });
-                }
-            }
-            Action::StartTimer { timer, .. } | Action::CancelTimer(timer) => {
-                if usize::from(timer) >= t.timers.len() {
-                    return Err(Invalid::Timer { at, timer });
-                }
-            }
-            Action::Fault(_) => {}
-        }
-    }
+    Ok(())
+}
 
-    // Routing.
+/// One action: the variables, outputs, events and timers it names exist.
+fn action_ok(t: &Table, at: Place, action: &Action) -> Result<(), Invalid> {
+    let output_mask: u32 = (1u32 << t.outputs.len()) - 1;
+    match *action {
+        Action::Set { var, expr } => {
+            if usize::from(var) >= t.vars.len() {
+                return Err(Invalid::Var { at, var });
+            }
+            expr_ok(t, at, expr)?;
+        }
+        Action::Drive { mask, value } => {
+            if u32::from(mask | value) & !output_mask != 0 {
+                return Err(Invalid::Output {
+                    at,
+                    mask: mask | value,
+                });
+            }
+        }
+        Action::Emit(e) => event_ok(t, at, e)?,
+        Action::Publish(e) => {
+            event_ok(t, at, e)?;
+            if t.publication(e).is_none() {
+                return Err(Invalid::NotPublished { at, event: e });
+            }
+        }
+        Action::StartTimer { timer, .. } | Action::CancelTimer(timer) => {
+            if usize::from(timer) >= t.timers.len() {
+                return Err(Invalid::Timer { at, timer });
+            }
+        }
+        Action::Fault(_) => {}
+    }
+    Ok(())
+}
+
+/// Routing: each route from an event to an input of an existing chart.
+fn routes(t: &Table) -> Result<(), Invalid> {
     for (r, route) in t.routes.iter().enumerate() {
         let at = Place::Route(idx(r));
-        event_ok(at, route.event)?;
+        event_ok(t, at, route.event)?;
         let chart = t
             .charts
             .get(usize::from(route.chart))
@@ -354,10 +410,14 @@ pub fn validate(t: &Table) -> Result<(), Invalid> {
             });
         }
     }
+    Ok(())
+}
 
-    // Radio links.
+/// Radio links: distinct peers, publications to existing peers (one per event and per
+/// topic), subscriptions from existing peers (one per publisher and topic).
+fn links(t: &Table) -> Result<(), Invalid> {
     for (p, peer) in t.peers.iter().enumerate() {
-        if *peer == 0xFFFF || t.peers[..p].contains(peer) {
+        if *peer == 0xFFFF || t.peers.iter().take(p).any(|q| q == peer) {
             return Err(Invalid::Duplicate {
                 at: Place::Peer(idx(p)),
             });
@@ -366,14 +426,15 @@ pub fn validate(t: &Table) -> Result<(), Invalid> {
     let peer_mask: u32 = (1u32 << t.peers.len()) - 1;
     for (p, publication) in t.publications.iter().enumerate() {
         let at = Place::Publication(idx(p));
-        event_ok(at, publication.event)?;
+        event_ok(t, at, publication.event)?;
         if u32::from(publication.subscribers) & !peer_mask != 0 {
             let stray = u32::from(publication.subscribers) & !peer_mask;
             let peer = idx(stray.trailing_zeros() as usize);
             return Err(Invalid::Peer { at, peer });
         }
-        if t.publications[..p]
+        if t.publications
             .iter()
+            .take(p)
             .any(|o| o.event == publication.event || o.topic == publication.topic)
         {
             return Err(Invalid::Duplicate { at });
@@ -381,15 +442,16 @@ pub fn validate(t: &Table) -> Result<(), Invalid> {
     }
     for (s, sub) in t.subscriptions.iter().enumerate() {
         let at = Place::Subscription(idx(s));
-        event_ok(at, sub.event)?;
+        event_ok(t, at, sub.event)?;
         if usize::from(sub.publisher) >= t.peers.len() {
             return Err(Invalid::Peer {
                 at,
                 peer: sub.publisher,
             });
         }
-        if t.subscriptions[..s]
+        if t.subscriptions
             .iter()
+            .take(s)
             .any(|o| o.publisher == sub.publisher && o.topic == sub.topic)
         {
             return Err(Invalid::Duplicate { at });

@@ -329,7 +329,7 @@ fn diagram_draws_states_with_actions_and_labelled_transitions() {
 "#
     );
     assert_eq!(
-        diagram::dot(&c.ir, "Z").expect_err("no role"),
+        diagram::dot(&c.ir, "Z").expect_err("no role").to_string(),
         "unknown role `Z` (roles: A, B)"
     );
 }

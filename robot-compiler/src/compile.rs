@@ -9,6 +9,16 @@ use crate::lower;
 use crate::model::Robot;
 use crate::source::Source;
 
+/// Why a table could not be made a blob.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum EncodeError {
+    #[error(transparent)]
+    Blob(#[from] config_schema::EncodeError),
+    /// Longer than a node can store.
+    #[error("blob of {len} bytes exceeds MAX_BLOB ({MAX_BLOB})")]
+    TooBig { len: usize },
+}
+
 /// A compiled robot: its IR, one table and one blob per role (in role order), and the
 /// warnings `check` gave.
 #[derive(Debug, Clone)]
@@ -22,7 +32,7 @@ pub struct Compiled {
 
 impl Compiled {
     /// The same robot for deployment generation `generation` (re-encoded blobs).
-    pub fn with_generation(mut self, generation: u32) -> Result<Compiled, String> {
+    pub fn with_generation(mut self, generation: u32) -> Result<Compiled, EncodeError> {
         self.ir.generation = generation;
         for (table, blob) in self.tables.iter_mut().zip(self.blobs.iter_mut()) {
             table.generation = generation;
@@ -32,10 +42,13 @@ impl Compiled {
     }
 }
 
-/// Encodes a table into a blob.
-pub fn encode(table: &Table) -> Result<Vec<u8>, String> {
+/// Encodes a table into a blob (at most `MAX_BLOB` bytes).
+pub fn encode(table: &Table) -> Result<Vec<u8>, EncodeError> {
     let mut buf = vec![0u8; MAX_BLOB];
-    let n = config_schema::encode(table, &mut buf).map_err(|e| e.to_string())?;
+    let n = config_schema::encode(table, &mut buf)?;
+    if n > MAX_BLOB {
+        return Err(EncodeError::TooBig { len: n });
+    }
     buf.truncate(n);
     Ok(buf)
 }
@@ -58,22 +71,13 @@ pub fn lower_checked(src: &Source, checked: Checked) -> Result<Compiled, Vec<Dia
     let (Some(robot), Some(ir), false) = (robot, ir, has_errors) else {
         return Err(diags);
     };
-    let fail = |m: String| vec![Diagnostic::error(src.span(""), m)];
-    let tables = lower::lower(&ir).map_err(|e| fail(e.to_string()))?;
+    let fail = |e: &dyn std::fmt::Display| vec![Diagnostic::error(src.span(""), e.to_string())];
+    let tables = lower::lower(&ir).map_err(|e| fail(&e))?;
     let blobs = tables
         .iter()
-        .map(|t| {
-            let blob = encode(t)?;
-            if blob.len() > MAX_BLOB {
-                return Err(format!(
-                    "blob of {} bytes exceeds MAX_BLOB ({MAX_BLOB})",
-                    blob.len()
-                ));
-            }
-            Ok(blob)
-        })
-        .collect::<Result<Vec<_>, String>>()
-        .map_err(fail)?;
+        .map(encode)
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| fail(&e))?;
     Ok(Compiled {
         robot,
         ir,

@@ -7,22 +7,42 @@ use std::process::{Command, Stdio};
 
 use crate::ir::Ir;
 
+/// Why a diagram could not be drawn.
+#[derive(Debug, thiserror::Error)]
+pub enum DiagramError {
+    #[error("unknown role `{role}` (roles: {})", roles.join(", "))]
+    UnknownRole { role: String, roles: Vec<String> },
+    /// Graphviz `dot` could not be started.
+    #[error(
+        "cannot run Graphviz `dot` ({0}): install graphviz, or use `--format dot` and render it elsewhere"
+    )]
+    NoGraphviz(#[source] std::io::Error),
+    #[error("no stdin for dot")]
+    NoStdin,
+    /// Writing to or waiting for `dot` failed.
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+    /// `dot` failed: its standard error.
+    #[error("dot failed: {0}")]
+    Failed(String),
+    #[error(transparent)]
+    NotUtf8(#[from] std::string::FromUtf8Error),
+}
+
 fn esc(s: &str) -> String {
     s.replace('\\', "\\\\").replace('"', "\\\"")
 }
 
 /// The DOT text of role `role`'s charts.
-pub fn dot(ir: &Ir, role: &str) -> Result<String, String> {
-    let r = ir.roles.iter().find(|r| r.name == role).ok_or_else(|| {
-        format!(
-            "unknown role `{role}` (roles: {})",
-            ir.roles
-                .iter()
-                .map(|r| r.name.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
-        )
-    })?;
+pub fn dot(ir: &Ir, role: &str) -> Result<String, DiagramError> {
+    let r = ir
+        .roles
+        .iter()
+        .find(|r| r.name == role)
+        .ok_or_else(|| DiagramError::UnknownRole {
+            role: role.to_string(),
+            roles: ir.roles.iter().map(|r| r.name.clone()).collect(),
+        })?;
     let mut o = String::new();
     let _ = writeln!(o, "digraph \"{}\" {{", esc(&r.name));
     let _ = writeln!(o, "  rankdir=LR;");
@@ -77,30 +97,24 @@ pub fn dot(ir: &Ir, role: &str) -> Result<String, String> {
 }
 
 /// Renders DOT to SVG through Graphviz `dot`.
-pub fn svg(dot: &str) -> Result<String, String> {
+pub fn svg(dot: &str) -> Result<String, DiagramError> {
     let mut child = Command::new("dot")
         .arg("-Tsvg")
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
-        .map_err(|e| {
-            format!(
-                "cannot run Graphviz `dot` ({e}): install graphviz, or use `--format dot` and render it elsewhere"
-            )
-        })?;
+        .map_err(DiagramError::NoGraphviz)?;
     child
         .stdin
         .take()
-        .ok_or("no stdin for dot")?
-        .write_all(dot.as_bytes())
-        .map_err(|e| e.to_string())?;
-    let out = child.wait_with_output().map_err(|e| e.to_string())?;
+        .ok_or(DiagramError::NoStdin)?
+        .write_all(dot.as_bytes())?;
+    let out = child.wait_with_output()?;
     if !out.status.success() {
-        return Err(format!(
-            "dot failed: {}",
-            String::from_utf8_lossy(&out.stderr)
+        return Err(DiagramError::Failed(
+            String::from_utf8_lossy(&out.stderr).into_owned(),
         ));
     }
-    String::from_utf8(out.stdout).map_err(|e| e.to_string())
+    Ok(String::from_utf8(out.stdout)?)
 }

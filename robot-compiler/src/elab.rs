@@ -8,11 +8,29 @@ use std::collections::BTreeSet;
 use crate::diag::Diagnostic;
 use crate::expr::{self, Operand};
 use crate::ir::{ActionIr, ChartIr, InputIr, Ir, OutputIr, RoleIr, StateIr, TimerIr, TransitionIr};
-use crate::model::{ActionDecl, ChartType, Robot, Role};
+use crate::model::{ActionDecl, ChartInstance, ChartType, Robot, Role};
 use crate::source::Source;
 
+/// Why the robot's `start` names no single input.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum StartError {
+    #[error("no role has an input `{0}`")]
+    NoInput(String),
+    #[error("several roles have an input `{0}`: write `ROLE/{0}`")]
+    Ambiguous(String),
+}
+
+/// Why a role has no node address.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum AddressError {
+    #[error("role `{0}` is assigned to no node")]
+    Unassigned(String),
+    #[error("unknown node `{0}`")]
+    UnknownNode(String),
+}
+
 /// The role index and input name of the robot's `start`, if it has one.
-pub fn start_input(robot: &Robot) -> Result<Option<(usize, String)>, String> {
+pub fn start_input(robot: &Robot) -> Result<Option<(usize, String)>, StartError> {
     let Some(start) = &robot.start else {
         return Ok(None);
     };
@@ -33,27 +51,25 @@ pub fn start_input(robot: &Robot) -> Result<Option<(usize, String)>, String> {
     let name = start.rsplit('/').next().unwrap_or(start).to_string();
     match found.as_slice() {
         [one] => Ok(Some((*one, name))),
-        [] => Err(format!("no role has an input `{start}`")),
-        _ => Err(format!(
-            "several roles have an input `{start}`: write `ROLE/{start}`"
-        )),
+        [] => Err(StartError::NoInput(start.clone())),
+        _ => Err(StartError::Ambiguous(start.clone())),
     }
 }
 
 /// The short address of the node playing `role`.
-pub fn address(robot: &Robot, role: &str) -> Result<u16, String> {
+pub fn address(robot: &Robot, role: &str) -> Result<u16, AddressError> {
     let node = robot
         .assign
         .iter()
         .find(|(r, _)| r == role)
         .map(|(_, n)| n)
-        .ok_or_else(|| format!("role `{role}` is assigned to no node"))?;
+        .ok_or_else(|| AddressError::Unassigned(role.to_string()))?;
     robot
         .nodes
         .iter()
         .find(|n| &n.name == node)
         .map(|n| n.address)
-        .ok_or_else(|| format!("unknown node `{node}`"))
+        .ok_or_else(|| AddressError::UnknownNode(node.clone()))
 }
 
 /// The events a role can raise, by name, for a connection source.
@@ -89,8 +105,59 @@ pub fn split_source<'a>(source: &'a str, own: &'a str) -> (&'a str, &'a str) {
 /// Elaborates a robot with explicit charts.
 pub fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
     let mut diags = Vec::new();
-    // Which (role, event) each connection asks for.
-    let mut wanted: BTreeSet<(String, String)> = BTreeSet::new();
+    let mut wanted = wanted(robot, src, &mut diags);
+    let start = match start_input(robot) {
+        Ok(s) => s,
+        Err(e) => {
+            diags.push(Diagnostic::error(src.span("start"), e.to_string()));
+            None
+        }
+    };
+    if let Some((r, name)) = &start {
+        wanted.insert((robot.roles[*r].name.clone(), name.clone()));
+    }
+    let mut roles = Vec::new();
+    for (ri, role) in robot.roles.iter().enumerate() {
+        let mut r = hardware(robot, role, &wanted);
+        if let Some((sr, name)) = &start {
+            if *sr == ri {
+                r.start = Some(name.clone());
+            }
+        }
+        for ci in 0..role.charts.len() {
+            match chart(robot, src, &mut r, role, ri, ci) {
+                Ok(chart) => r.charts.push(chart),
+                Err(mut d) => diags.append(&mut d),
+            }
+        }
+        routes(robot, src, &mut r, role, ri, &mut diags);
+        roles.push(r);
+    }
+    let expect = match &robot.expect {
+        Some(text) => crate::ir::parse_steps(text)
+            .into_iter()
+            .filter_map(|(s, _)| s.ok())
+            .collect(),
+        None => Vec::new(),
+    };
+    if !diags.is_empty() {
+        return Err(diags);
+    }
+    Ok(Ir {
+        name: robot.name.clone(),
+        generation: robot.generation,
+        pan_id: robot.network.pan_id,
+        channel: robot.network.channel,
+        roles,
+        start,
+        expect,
+    })
+}
+
+/// Which (role, event) the connections ask for; an error for each connection from an
+/// unknown role or event.
+fn wanted(robot: &Robot, src: &Source, diags: &mut Vec<Diagnostic>) -> BTreeSet<(String, String)> {
+    let mut wanted = BTreeSet::new();
     for (ri, role) in robot.roles.iter().enumerate() {
         for (ci, c) in role.charts.iter().enumerate() {
             for (key, source) in &c.on {
@@ -119,120 +186,91 @@ pub fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
             }
         }
     }
-    let start = match start_input(robot) {
-        Ok(s) => s,
-        Err(e) => {
-            diags.push(Diagnostic::error(src.span("start"), e));
-            None
-        }
+    wanted
+}
+
+/// A role's IR with its hardware: every declared pin, an input raising its events only
+/// if some connection (or `start`) wants them.
+fn hardware(robot: &Robot, role: &Role, wanted: &BTreeSet<(String, String)>) -> RoleIr {
+    let mut r = RoleIr {
+        name: role.name.clone(),
+        address: address(robot, &role.name).unwrap_or_default(),
+        ..RoleIr::default()
     };
-    if let Some((r, name)) = &start {
-        wanted.insert((robot.roles[*r].name.clone(), name.clone()));
+    let want = |e: &str| wanted.contains(&(role.name.clone(), e.to_string()));
+    for a in &role.actuators {
+        r.declare_actuator(a, want, want);
     }
-    let mut roles = Vec::new();
-    for (ri, role) in robot.roles.iter().enumerate() {
-        let address = address(robot, &role.name).unwrap_or_default();
-        let mut r = RoleIr {
-            name: role.name.clone(),
-            address,
-            ..RoleIr::default()
+    for i in &role.inputs {
+        let fall = format!("{}.fall", i.name);
+        r.inputs.push(InputIr {
+            rise: want(&i.name).then(|| i.name.clone()),
+            fall: want(&fall).then_some(fall),
+            var: None,
+            name: i.name.clone(),
+            pin: i.pin,
+        });
+    }
+    for o in &role.outputs {
+        r.outputs.push(OutputIr {
+            name: o.name.clone(),
+            pin: o.pin,
+            safe: o.safe,
+        });
+    }
+    for i in r.inputs.clone() {
+        for e in [i.rise, i.fall].into_iter().flatten() {
+            r.event(&e);
+        }
+    }
+    r
+}
+
+/// The routes of a role's charts: each connection to its chart input (a connection from
+/// another role is imported), each timer's expiry to the input of the timer's name.
+fn routes(
+    robot: &Robot,
+    src: &Source,
+    r: &mut RoleIr,
+    role: &Role,
+    ri: usize,
+    diags: &mut Vec<Diagnostic>,
+) {
+    for (ci, c) in role.charts.iter().enumerate() {
+        let Some((_, t)) = robot.chart_type(&c.type_) else {
+            continue;
         };
-        let want = |e: &str| wanted.contains(&(role.name.clone(), e.to_string()));
-        // Hardware: every declared pin.
-        for a in &role.actuators {
-            r.declare_actuator(a, want, want);
-        }
-        for i in &role.inputs {
-            let fall = format!("{}.fall", i.name);
-            r.inputs.push(InputIr {
-                rise: want(&i.name).then(|| i.name.clone()),
-                fall: want(&fall).then_some(fall),
-                var: None,
-                name: i.name.clone(),
-                pin: i.pin,
-            });
-        }
-        for o in &role.outputs {
-            r.outputs.push(OutputIr {
-                name: o.name.clone(),
-                pin: o.pin,
-                safe: o.safe,
-            });
-        }
-        for i in r.inputs.clone() {
-            for e in [i.rise, i.fall].into_iter().flatten() {
-                r.event(&e);
-            }
-        }
-        if let Some((sr, name)) = &start {
-            if *sr == ri {
-                r.start = Some(name.clone());
-            }
-        }
-        for ci in 0..role.charts.len() {
-            match chart(robot, src, &mut r, role, ri, ci) {
-                Ok(chart) => r.charts.push(chart),
-                Err(mut d) => diags.append(&mut d),
-            }
-        }
-        // Routes from the connections.
-        for (ci, c) in role.charts.iter().enumerate() {
-            let Some((_, t)) = robot.chart_type(&c.type_) else {
+        for (key, source) in &c.on {
+            let Some(input) = t.inputs.iter().position(|i| i == key) else {
+                diags.push(
+                    Diagnostic::error(
+                        src.key_span(&format!("roles[{ri}].charts[{ci}].on.{key}")),
+                        format!("chart type `{}` has no input event `{key}`", t.name),
+                    )
+                    .help(format!("its inputs: {}", t.inputs.join(", "))),
+                );
                 continue;
             };
-            for (key, source) in &c.on {
-                let Some(input) = t.inputs.iter().position(|i| i == key) else {
-                    diags.push(
-                        Diagnostic::error(
-                            src.key_span(&format!("roles[{ri}].charts[{ci}].on.{key}")),
-                            format!("chart type `{}` has no input event `{key}`", t.name),
-                        )
-                        .help(format!("its inputs: {}", t.inputs.join(", "))),
-                    );
-                    continue;
-                };
-                let (sr, e) = split_source(source, &role.name);
-                let local = if sr == role.name {
-                    e.to_string()
-                } else {
-                    let local = format!("{sr}/{e}");
-                    if !r.imports.iter().any(|(_, _, l)| *l == local) {
-                        r.imports
-                            .push((sr.to_string(), e.to_string(), local.clone()));
-                    }
-                    local
-                };
-                r.event(&local);
-                r.routes.push((local, ci, input));
-            }
-            // Timer expiries go to the chart input of the timer's name.
-            for (k, timer) in t.timers.iter().enumerate() {
-                let name = format!("{}.{timer}", c.name);
-                r.event(&name);
-                r.routes.push((name, ci, t.inputs.len() + k));
-            }
+            let (sr, e) = split_source(source, &role.name);
+            let local = if sr == role.name {
+                e.to_string()
+            } else {
+                let local = format!("{sr}/{e}");
+                if !r.imports.iter().any(|(_, _, l)| *l == local) {
+                    r.imports
+                        .push((sr.to_string(), e.to_string(), local.clone()));
+                }
+                local
+            };
+            r.event(&local);
+            r.routes.push((local, ci, input));
         }
-        roles.push(r);
+        for (k, timer) in t.timers.iter().enumerate() {
+            let name = format!("{}.{timer}", c.name);
+            r.event(&name);
+            r.routes.push((name, ci, t.inputs.len() + k));
+        }
     }
-    let expect = match &robot.expect {
-        Some(text) => crate::ir::parse_steps(text)
-            .into_iter()
-            .filter_map(|(s, _)| s.ok())
-            .collect(),
-        None => Vec::new(),
-    };
-    if !diags.is_empty() {
-        return Err(diags);
-    }
-    Ok(Ir {
-        name: robot.name.clone(),
-        generation: robot.generation,
-        pan_id: robot.network.pan_id,
-        channel: robot.network.channel,
-        roles,
-        start,
-        expect,
-    })
 }
 
 /// An expression error at its span inside the string value at `path`.
@@ -281,6 +319,8 @@ pub fn string_start(src: &Source, path: &str) -> usize {
     span.start + skip
 }
 
+/// Instantiates chart `ci` of role `ri` (its type with the instance's parameters) into
+/// `r`: its variables and timers join the role's pools.
 fn chart(
     robot: &Robot,
     src: &Source,
@@ -306,157 +346,24 @@ fn chart(
                 .join(", ")
         ))]);
     };
-    let mut diags = Vec::new();
-    let tp = format!("chart_types[{ti}]");
-    for p in &t.params {
-        if !c.params.contains_key(p) {
-            diags.push(Diagnostic::error(
-                src.span(&format!("{at}.params")),
-                format!("parameter `{p}` of chart type `{}` has no value", t.name),
-            ));
-        }
-    }
-    for p in c.params.keys() {
-        if !t.params.contains(p) {
-            diags.push(Diagnostic::error(
-                src.key_span(&format!("{at}.params.{p}")),
-                format!("chart type `{}` has no parameter `{p}`", t.name),
-            ));
-        }
-    }
-    let param = |n: &str| c.params.get(n).copied();
-    // Variables: `chart.var` in the node's pool.
-    let var_base = r.vars.len();
-    for (vi, v) in t.vars.iter().enumerate() {
-        let path = format!("{tp}.vars[{vi}].init");
-        let init = match expr::parse(&v.init) {
-            Ok(ast) => match expr::eval(&ast, &|n| param(n)) {
-                Some(x) => x,
-                None => {
-                    diags.push(Diagnostic::error(
-                        src.span(&path),
-                        format!(
-                            "the initial value of `{}` may only use numbers and parameters",
-                            v.name
-                        ),
-                    ));
-                    0
-                }
-            },
-            Err(e) => {
-                diags.push(expr_error(src, &path, &e));
-                0
-            }
-        };
-        r.vars.push((format!("{}.{}", c.name, v.name), init));
-    }
-    let timer_base = r.timers.len();
-    for timer in &t.timers {
-        let name = format!("{}.{timer}", c.name);
-        r.timers.push(TimerIr {
-            name: name.clone(),
-            event: name,
-        });
-    }
-    let inputs_snapshot = r.inputs.clone();
-    let resolve = |n: &str| -> Option<Operand> {
-        if let Some(i) = t.vars.iter().position(|v| v.name == n) {
-            return Some(Operand::Var((var_base + i) as u8));
-        }
-        if let Some(x) = param(n) {
-            return Some(Operand::Const(x));
-        }
-        inputs_snapshot
-            .iter()
-            .position(|i| i.name == n)
-            .map(|i| Operand::Input(i as u8))
+    let mut cx = ChartCx {
+        src,
+        role,
+        c,
+        t,
+        tp: format!("chart_types[{ti}]"),
+        var_base: r.vars.len(),
+        timer_base: 0,
+        inputs: Vec::new(),
+        diags: Vec::new(),
     };
-    let state_of = |name: &str| t.states.iter().position(|s| s.name == name);
+    cx.params(&at);
+    cx.declare(r);
     let mut states = Vec::new();
     for (si, s) in t.states.iter().enumerate() {
         let mut actions = Vec::new();
         for (ai, a) in s.actions.iter().enumerate() {
-            let path = format!("{tp}.states[{si}].actions[{ai}]");
-            let here = src.span(&path);
-            let err = |m: String| Diagnostic::error(here.clone(), m);
-            let out_index = |name: &str| r.outputs.iter().position(|o| o.name == name);
-            match a {
-                ActionDecl::Set(var, text) => {
-                    let Some(v) = t.vars.iter().position(|x| &x.name == var) else {
-                        diags.push(err(format!(
-                            "`{var}` is not a variable of chart type `{}`",
-                            t.name
-                        )));
-                        continue;
-                    };
-                    let ops = expr::parse(text).and_then(|ast| expr::compile(&ast, &resolve));
-                    match ops {
-                        Ok(ops) => actions.push(ActionIr::Set {
-                            var: var_base + v,
-                            text: text.clone(),
-                            ops,
-                        }),
-                        Err(e) => diags.push(expr_error(src, &format!("{path}[1]"), &e)),
-                    }
-                }
-                ActionDecl::Emit(o) => {
-                    if t.outputs.contains(o) {
-                        let e = format!("{}.{o}", c.name);
-                        r.event(&e);
-                        actions.push(ActionIr::Emit(e));
-                    } else {
-                        diags.push(err(format!(
-                            "`{o}` is not an output event of chart type `{}`",
-                            t.name
-                        )));
-                    }
-                }
-                ActionDecl::Extend(name) | ActionDecl::Retract(name) => {
-                    let extend = matches!(a, ActionDecl::Extend(_));
-                    let sign = if extend { '+' } else { '-' };
-                    let label = format!("{name}{sign}");
-                    if let Some(w) = r.actuator(name) {
-                        let (mask, value) = w.drive(extend);
-                        actions.push(ActionIr::Drive { mask, value, label });
-                    } else {
-                        diags.push(err(format!(
-                            "role `{}` has no actuator `{name}` (chart `{}`)",
-                            role.name, c.name
-                        )));
-                    }
-                }
-                ActionDecl::Out(name, level) => match out_index(name) {
-                    Some(o) => actions.push(ActionIr::Drive {
-                        mask: 1 << o,
-                        value: if *level { 1 << o } else { 0 },
-                        label: format!("{name}={}", u8::from(*level)),
-                    }),
-                    None => diags.push(err(format!(
-                        "role `{}` has no output `{name}` (chart `{}`)",
-                        role.name, c.name
-                    ))),
-                },
-                ActionDecl::StartTimer(name, _) | ActionDecl::CancelTimer(name)
-                    if !t.timers.contains(name) =>
-                {
-                    diags.push(err(format!(
-                        "`{name}` is not a timer of chart type `{}`",
-                        t.name
-                    )));
-                }
-                ActionDecl::StartTimer(name, ms) => {
-                    let k = t.timers.iter().position(|x| x == name).unwrap_or(0);
-                    actions.push(ActionIr::StartTimer {
-                        timer: timer_base + k,
-                        ms: *ms,
-                    });
-                }
-                ActionDecl::CancelTimer(name) => {
-                    let k = t.timers.iter().position(|x| x == name).unwrap_or(0);
-                    actions.push(ActionIr::CancelTimer(timer_base + k));
-                }
-                ActionDecl::Fault(code) => actions.push(ActionIr::Fault(*code)),
-            }
+            actions.extend(cx.action(r, &format!("{}.states[{si}].actions[{ai}]", cx.tp), a));
         }
         states.push(StateIr {
             name: s.name.clone(),
@@ -464,47 +371,11 @@ fn chart(
         });
     }
     let inputs: Vec<String> = t.inputs.iter().chain(t.timers.iter()).cloned().collect();
-    let mut transitions = Vec::new();
-    for (k, tr) in t.transitions.iter().enumerate() {
-        let path = format!("{tp}.transitions[{k}]");
-        let from = state_of(&tr.from);
-        let to = state_of(&tr.to);
-        for (name, found, field) in [(&tr.from, from, "from"), (&tr.to, to, "to")] {
-            if found.is_none() {
-                diags.push(unknown_state(src, t, &format!("{path}.{field}"), name));
-            }
-        }
-        let trigger = match &tr.on {
-            Some(on) => match inputs.iter().position(|i| i == on) {
-                Some(i) => Some(i),
-                None => {
-                    diags.push(unknown_chart_event(src, t, &format!("{path}.on"), on));
-                    None
-                }
-            },
-            None => None,
-        };
-        let guard = match &tr.when {
-            Some(text) => match expr::parse(text).and_then(|ast| expr::compile(&ast, &resolve)) {
-                Ok(ops) => Some((text.clone(), ops)),
-                Err(e) => {
-                    diags.push(expr_error(src, &format!("{path}.when"), &e));
-                    None
-                }
-            },
-            None => None,
-        };
-        if let (Some(from), Some(to)) = (from, to) {
-            transitions.push(TransitionIr {
-                from,
-                to,
-                trigger,
-                guard,
-            });
-        }
-    }
-    if !diags.is_empty() {
-        return Err(diags);
+    let transitions = (0..t.transitions.len())
+        .filter_map(|k| cx.transition(&inputs, k))
+        .collect();
+    if !cx.diags.is_empty() {
+        return Err(cx.diags);
     }
     Ok(ChartIr {
         name: c.name.clone(),
@@ -513,4 +384,226 @@ fn chart(
         states,
         transitions,
     })
+}
+
+/// One chart instance being elaborated: its type, where its variables and timers start in
+/// the role's pools, and the problems found.
+struct ChartCx<'a> {
+    src: &'a Source,
+    role: &'a Role,
+    c: &'a ChartInstance,
+    t: &'a ChartType,
+    /// The path of the chart type (`chart_types[i]`).
+    tp: String,
+    var_base: usize,
+    timer_base: usize,
+    /// The role's inputs (expressions may read them).
+    inputs: Vec<InputIr>,
+    diags: Vec<Diagnostic>,
+}
+
+impl ChartCx<'_> {
+    fn param(&self, n: &str) -> Option<i32> {
+        self.c.params.get(n).copied()
+    }
+
+    /// Every parameter of the type has a value, every value a parameter (`at`: the
+    /// instance's path).
+    fn params(&mut self, at: &str) {
+        let (src, c, t) = (self.src, self.c, self.t);
+        for p in &t.params {
+            if !c.params.contains_key(p) {
+                self.diags.push(Diagnostic::error(
+                    src.span(&format!("{at}.params")),
+                    format!("parameter `{p}` of chart type `{}` has no value", t.name),
+                ));
+            }
+        }
+        for p in c.params.keys() {
+            if !t.params.contains(p) {
+                self.diags.push(Diagnostic::error(
+                    src.key_span(&format!("{at}.params.{p}")),
+                    format!("chart type `{}` has no parameter `{p}`", t.name),
+                ));
+            }
+        }
+    }
+
+    /// Adds the chart's variables (`chart.var`, with their initial values) and timers to
+    /// the role's pools.
+    fn declare(&mut self, r: &mut RoleIr) {
+        let (src, c, t) = (self.src, self.c, self.t);
+        for (vi, v) in t.vars.iter().enumerate() {
+            let path = format!("{}.vars[{vi}].init", self.tp);
+            let init = match expr::parse(&v.init) {
+                Ok(ast) => match expr::eval(&ast, &|n| self.param(n)) {
+                    Some(x) => x,
+                    None => {
+                        self.diags.push(Diagnostic::error(
+                            src.span(&path),
+                            format!(
+                                "the initial value of `{}` may only use numbers and parameters",
+                                v.name
+                            ),
+                        ));
+                        0
+                    }
+                },
+                Err(e) => {
+                    self.diags.push(expr_error(src, &path, &e));
+                    0
+                }
+            };
+            r.vars.push((format!("{}.{}", c.name, v.name), init));
+        }
+        self.timer_base = r.timers.len();
+        for timer in &t.timers {
+            let name = format!("{}.{timer}", c.name);
+            r.timers.push(TimerIr {
+                name: name.clone(),
+                event: name,
+            });
+        }
+        self.inputs = r.inputs.clone();
+    }
+
+    /// What a name of an expression reads: a variable of the chart, a parameter or an
+    /// input of the role.
+    fn resolve(&self, n: &str) -> Option<Operand> {
+        if let Some(i) = self.t.vars.iter().position(|v| v.name == n) {
+            return Some(Operand::Var((self.var_base + i) as u8));
+        }
+        if let Some(x) = self.param(n) {
+            return Some(Operand::Const(x));
+        }
+        self.inputs
+            .iter()
+            .position(|i| i.name == n)
+            .map(|i| Operand::Input(i as u8))
+    }
+
+    /// An expression's bytecode, or an error at its place inside the string at `path`.
+    fn bytecode(&mut self, text: &str, path: &str) -> Option<Vec<config_schema::Op>> {
+        match expr::parse(text).and_then(|ast| expr::bytecode(&ast, &|n| self.resolve(n))) {
+            Ok(ops) => Some(ops),
+            Err(e) => {
+                self.diags.push(expr_error(self.src, path, &e));
+                None
+            }
+        }
+    }
+
+    /// One action of a state (at `path`), or none and an error.
+    fn action(&mut self, r: &mut RoleIr, path: &str, a: &ActionDecl) -> Option<ActionIr> {
+        let (c, t, role) = (self.c, self.t, self.role);
+        let here = self.src.span(path);
+        let message = match a {
+            ActionDecl::Set(var, text) => {
+                let Some(v) = t.vars.iter().position(|x| &x.name == var) else {
+                    let m = format!("`{var}` is not a variable of chart type `{}`", t.name);
+                    self.diags.push(Diagnostic::error(here, m));
+                    return None;
+                };
+                let ops = self.bytecode(text, &format!("{path}[1]"))?;
+                return Some(ActionIr::Set {
+                    var: self.var_base + v,
+                    text: text.clone(),
+                    ops,
+                });
+            }
+            ActionDecl::Emit(o) if t.outputs.contains(o) => {
+                let e = format!("{}.{o}", c.name);
+                r.event(&e);
+                return Some(ActionIr::Emit(e));
+            }
+            ActionDecl::Emit(o) => {
+                format!("`{o}` is not an output event of chart type `{}`", t.name)
+            }
+            ActionDecl::Extend(name) | ActionDecl::Retract(name) => {
+                let extend = matches!(a, ActionDecl::Extend(_));
+                let sign = if extend { '+' } else { '-' };
+                let label = format!("{name}{sign}");
+                if let Some(w) = r.actuator(name) {
+                    let (mask, value) = w.drive(extend);
+                    return Some(ActionIr::Drive { mask, value, label });
+                }
+                format!(
+                    "role `{}` has no actuator `{name}` (chart `{}`)",
+                    role.name, c.name
+                )
+            }
+            ActionDecl::Out(name, level) => {
+                if let Some(o) = r.outputs.iter().position(|o| o.name == *name) {
+                    return Some(ActionIr::Drive {
+                        mask: 1 << o,
+                        value: if *level { 1 << o } else { 0 },
+                        label: format!("{name}={}", u8::from(*level)),
+                    });
+                }
+                format!(
+                    "role `{}` has no output `{name}` (chart `{}`)",
+                    role.name, c.name
+                )
+            }
+            ActionDecl::StartTimer(name, _) | ActionDecl::CancelTimer(name)
+                if !t.timers.contains(name) =>
+            {
+                format!("`{name}` is not a timer of chart type `{}`", t.name)
+            }
+            ActionDecl::StartTimer(name, ms) => {
+                let k = t.timers.iter().position(|x| x == name).unwrap_or(0);
+                return Some(ActionIr::StartTimer {
+                    timer: self.timer_base + k,
+                    ms: *ms,
+                });
+            }
+            ActionDecl::CancelTimer(name) => {
+                let k = t.timers.iter().position(|x| x == name).unwrap_or(0);
+                return Some(ActionIr::CancelTimer(self.timer_base + k));
+            }
+            ActionDecl::Fault(code) => return Some(ActionIr::Fault(*code)),
+        };
+        self.diags.push(Diagnostic::error(here, message));
+        None
+    }
+
+    /// Transition `k` of the chart type (`inputs`: the chart's input events), or none if
+    /// a state it names does not exist.
+    fn transition(&mut self, inputs: &[String], k: usize) -> Option<TransitionIr> {
+        let (src, t) = (self.src, self.t);
+        let tr = &t.transitions[k];
+        let path = format!("{}.transitions[{k}]", self.tp);
+        let state_of = |name: &str| t.states.iter().position(|s| s.name == name);
+        let from = state_of(&tr.from);
+        let to = state_of(&tr.to);
+        for (name, found, field) in [(&tr.from, from, "from"), (&tr.to, to, "to")] {
+            if found.is_none() {
+                self.diags
+                    .push(unknown_state(src, t, &format!("{path}.{field}"), name));
+            }
+        }
+        let trigger = match &tr.on {
+            Some(on) => match inputs.iter().position(|i| i == on) {
+                Some(i) => Some(i),
+                None => {
+                    self.diags
+                        .push(unknown_chart_event(src, t, &format!("{path}.on"), on));
+                    None
+                }
+            },
+            None => None,
+        };
+        let guard = match &tr.when {
+            Some(text) => self
+                .bytecode(text, &format!("{path}.when"))
+                .map(|ops| (text.clone(), ops)),
+            None => None,
+        };
+        Some(TransitionIr {
+            from: from?,
+            to: to?,
+            trigger,
+            guard,
+        })
+    }
 }

@@ -16,7 +16,8 @@ use std::ops::Range;
 use config_schema::Op;
 
 /// A syntax or name error at a byte span of the expression text.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{message}")]
 pub struct ExprError {
     pub message: String,
     pub span: Range<usize>,
@@ -263,7 +264,10 @@ pub enum Operand {
 }
 
 /// Compiles an AST to bytecode; `resolve` gives the meaning of each name.
-pub fn compile(ast: &Ast, resolve: &dyn Fn(&str) -> Option<Operand>) -> Result<Vec<Op>, ExprError> {
+pub fn bytecode(
+    ast: &Ast,
+    resolve: &dyn Fn(&str) -> Option<Operand>,
+) -> Result<Vec<Op>, ExprError> {
     let mut ops = Vec::new();
     emit(ast, resolve, &mut ops)?;
     Ok(ops)

@@ -305,8 +305,15 @@ impl RoleIr {
     }
 }
 
+/// A token of a step list that is not a step.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("`{token}` is not a step: write an actuator name and `+` or `-`, e.g. `VC+`")]
+pub struct NotAStep {
+    pub token: String,
+}
+
 /// Parses `A+ B- ...` into steps with their byte spans in the text.
-pub fn parse_steps(text: &str) -> Vec<(Result<Step, String>, std::ops::Range<usize>)> {
+pub fn parse_steps(text: &str) -> Vec<(Result<Step, NotAStep>, std::ops::Range<usize>)> {
     let mut out = Vec::new();
     let mut start = None;
     let bytes = text.as_bytes();
@@ -321,9 +328,9 @@ pub fn parse_steps(text: &str) -> Vec<(Result<Step, String>, std::ops::Range<usi
                         actuator: token[..token.len() - 1].to_string(),
                         extend: c == '+',
                     }),
-                    _ => Err(format!(
-                        "`{token}` is not a step: write an actuator name and `+` or `-`, e.g. `VC+`"
-                    )),
+                    _ => Err(NotAStep {
+                        token: token.to_string(),
+                    }),
                 };
                 out.push((step, s..i));
                 start = None;

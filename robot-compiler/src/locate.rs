@@ -25,7 +25,7 @@ pub enum Kind {
     Map(Vec<(String, Value, Value)>),
 }
 
-struct Parser<'a> {
+struct Walker<'a> {
     s: &'a [u8],
     text: &'a str,
     i: usize,
@@ -33,7 +33,7 @@ struct Parser<'a> {
 
 /// Parses RON text into its span tree, or `None` if the syntax is broken.
 pub fn parse(text: &str) -> Option<Value> {
-    let mut p = Parser {
+    let mut p = Walker {
         s: text.as_bytes(),
         text,
         i: 0,
@@ -50,7 +50,7 @@ pub fn parse(text: &str) -> Option<Value> {
     p.value(0)
 }
 
-impl Parser<'_> {
+impl Walker<'_> {
     fn rest(&self) -> &[u8] {
         self.s.get(self.i..).unwrap_or(&[])
     }

@@ -7,7 +7,7 @@ use config_schema::{
     Action, Input, Output, Publication, Route, Subscription, Table, Timer, Transition,
 };
 
-use crate::ir::{ActionIr, Ir, RoleIr};
+use crate::ir::{ActionIr, ChartIr, Ir, RoleIr};
 
 /// A capacity of a role's table exceeded.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -154,28 +154,43 @@ pub fn capacity(ir: &Ir) -> Vec<Over> {
 }
 
 /// Why lowering failed (the checks should have caught it first).
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum LowerError {
+    /// Every capacity exceeded, one line each.
+    #[error("{}", lines(.0))]
     Capacity(Vec<Over>),
     /// A name that does not resolve, or a table that does not validate.
-    Internal {
-        role: String,
-        message: String,
-    },
+    #[error("role {role}: {error}")]
+    Internal { role: String, error: RoleError },
 }
 
-impl std::fmt::Display for LowerError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            LowerError::Capacity(over) => {
-                for o in over {
-                    writeln!(f, "{o}")?;
-                }
-                Ok(())
-            }
-            LowerError::Internal { role, message } => write!(f, "role {role}: {message}"),
-        }
-    }
+fn lines(over: &[Over]) -> String {
+    over.iter().map(|o| format!("{o}\n")).collect()
+}
+
+/// Why one role's IR does not make a table.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum RoleError {
+    #[error("unknown event `{0}`")]
+    UnknownEvent(String),
+    #[error("unknown var")]
+    UnknownVar,
+    #[error("unknown role `{0}`")]
+    UnknownRole(String),
+    #[error("`{from}/{event}` is not published")]
+    NotPublished { from: String, event: String },
+    #[error("no such peer")]
+    NoSuchPeer,
+    /// An index or count that does not fit the table's byte.
+    #[error("{what} {value} does not fit in a byte")]
+    TooWide { what: &'static str, value: usize },
+    /// A pool of the table (`vars`, `inputs`, ...) is full.
+    #[error("{0} full")]
+    PoolFull(&'static str),
+    #[error(transparent)]
+    Table(#[from] config_schema::Full),
+    #[error("invalid table: {0}")]
+    Invalid(config_schema::Invalid),
 }
 
 /// Lowers every role to its table.
@@ -187,75 +202,121 @@ pub fn lower(ir: &Ir) -> Result<Vec<Table>, LowerError> {
     let topics = topics(ir);
     (0..ir.roles.len())
         .map(|ri| {
-            lower_role(ir, ri, &topics).map_err(|message| LowerError::Internal {
+            let role = Lowering {
+                ir,
+                ri,
+                r: &ir.roles[ri],
+                topics: &topics,
+            };
+            role.lower().map_err(|error| LowerError::Internal {
                 role: ir.roles[ri].name.clone(),
-                message,
+                error,
             })
         })
         .collect()
 }
 
-fn u8_of(x: usize, what: &str) -> Result<u8, String> {
-    u8::try_from(x).map_err(|_| format!("{what} {x} does not fit in a byte"))
+fn u8_of(x: usize, what: &'static str) -> Result<u8, RoleError> {
+    u8::try_from(x).map_err(|_| RoleError::TooWide { what, value: x })
 }
 
-fn lower_role(ir: &Ir, ri: usize, topics: &[(usize, usize)]) -> Result<Table, String> {
-    let r: &RoleIr = &ir.roles[ri];
-    let mut t = Table::empty(&r.name);
-    t.generation = ir.generation;
-    t.header.pan_id = ir.pan_id;
-    t.header.channel = ir.channel;
-    let ev = |name: &str| -> Result<u8, String> {
-        r.event_id(name)
-            .ok_or_else(|| format!("unknown event `{name}`"))
+/// One role being lowered: the robot's IR, the role's index and IR, and the robot's
+/// topics.
+struct Lowering<'a> {
+    ir: &'a Ir,
+    ri: usize,
+    r: &'a RoleIr,
+    topics: &'a [(usize, usize)],
+}
+
+impl Lowering<'_> {
+    /// The role's table: header, hardware, charts, routes, radio links; validated.
+    fn lower(&self) -> Result<Table, RoleError> {
+        let (ir, r) = (self.ir, self.r);
+        let mut t = Table::empty(&r.name);
+        t.generation = ir.generation;
+        t.header.pan_id = ir.pan_id;
+        t.header.channel = ir.channel;
+        t.events = u8_of(r.events.len(), "events")?;
+        t.start = r.start.as_deref().map(|e| self.ev(e)).transpose()?;
+        self.hardware(&mut t)?;
+        for c in &r.charts {
+            self.chart(&mut t, c)?;
+        }
+        for (e, chart, input) in &r.routes {
+            t.routes
+                .push(Route {
+                    event: self.ev(e)?,
+                    chart: u8_of(*chart, "chart")?,
+                    input: u8_of(*input, "input")?,
+                })
+                .map_err(|_| RoleError::PoolFull("routes"))?;
+        }
+        self.links(&mut t)?;
+        config_schema::validate(&t).map_err(RoleError::Invalid)?;
+        Ok(t)
+    }
+
+    /// The id of a node event.
+    fn ev(&self, name: &str) -> Result<u8, RoleError> {
+        self.r
+            .event_id(name)
+            .ok_or_else(|| RoleError::UnknownEvent(name.to_string()))
             .and_then(|e| u8_of(e, "event"))
-    };
-    t.events = u8_of(r.events.len(), "events")?;
-    t.start = r.start.as_deref().map(ev).transpose()?;
-    let full = |e: config_schema::Full| e.to_string();
-    for (_, init) in &r.vars {
-        t.vars.push(*init).map_err(|_| "vars full")?;
     }
-    for i in &r.inputs {
-        let var = match &i.var {
-            Some(v) => Some(u8_of(
-                r.vars
-                    .iter()
-                    .position(|(n, _)| n == v)
-                    .ok_or("unknown var")?,
-                "var",
-            )?),
-            None => None,
-        };
-        t.inputs
-            .push(Input {
-                pin: i.pin,
-                rise: i.rise.as_deref().map(ev).transpose()?,
-                fall: i.fall.as_deref().map(ev).transpose()?,
-                var,
-            })
-            .map_err(|_| "inputs full")?;
+
+    /// Variables, inputs, outputs and timers.
+    fn hardware(&self, t: &mut Table) -> Result<(), RoleError> {
+        let r = self.r;
+        for (_, init) in &r.vars {
+            t.vars
+                .push(*init)
+                .map_err(|_| RoleError::PoolFull("vars"))?;
+        }
+        for i in &r.inputs {
+            let var = match &i.var {
+                Some(v) => Some(u8_of(
+                    r.vars
+                        .iter()
+                        .position(|(n, _)| n == v)
+                        .ok_or(RoleError::UnknownVar)?,
+                    "var",
+                )?),
+                None => None,
+            };
+            t.inputs
+                .push(Input {
+                    pin: i.pin,
+                    rise: i.rise.as_deref().map(|e| self.ev(e)).transpose()?,
+                    fall: i.fall.as_deref().map(|e| self.ev(e)).transpose()?,
+                    var,
+                })
+                .map_err(|_| RoleError::PoolFull("inputs"))?;
+        }
+        for o in &r.outputs {
+            t.outputs
+                .push(Output {
+                    pin: o.pin,
+                    safe: o.safe,
+                })
+                .map_err(|_| RoleError::PoolFull("outputs"))?;
+        }
+        for tm in &r.timers {
+            t.timers
+                .push(Timer {
+                    event: self.ev(&tm.event)?,
+                })
+                .map_err(|_| RoleError::PoolFull("timers"))?;
+        }
+        Ok(())
     }
-    for o in &r.outputs {
-        t.outputs
-            .push(Output {
-                pin: o.pin,
-                safe: o.safe,
-            })
-            .map_err(|_| "outputs full")?;
-    }
-    for tm in &r.timers {
-        t.timers
-            .push(Timer {
-                event: ev(&tm.event)?,
-            })
-            .map_err(|_| "timers full")?;
-    }
-    for c in &r.charts {
+
+    /// One chart: its transitions' guards, then its states' actions, into the table.
+    fn chart(&self, t: &mut Table, c: &ChartIr) -> Result<(), RoleError> {
         let mut transitions = Vec::new();
         for tr in &c.transitions {
             let guard = match &tr.guard {
-                Some((_, ops)) => Some(t.push_expr(ops).map_err(full)?),
+                Some((_, ops)) => Some(t.push_expr(ops)?),
                 None => None,
             };
             transitions.push(Transition {
@@ -269,23 +330,7 @@ fn lower_role(ir: &Ir, ri: usize, topics: &[(usize, usize)]) -> Result<Table, St
         for s in &c.states {
             let mut actions = Vec::new();
             for a in &s.actions {
-                actions.push(match a {
-                    ActionIr::Set { var, ops, .. } => Action::Set {
-                        var: u8_of(*var, "var")?,
-                        expr: t.push_expr(ops).map_err(full)?,
-                    },
-                    ActionIr::Drive { mask, value, .. } => Action::Drive {
-                        mask: *mask,
-                        value: *value,
-                    },
-                    ActionIr::Emit(e) => Action::Emit(ev(e)?),
-                    ActionIr::StartTimer { timer, ms } => Action::StartTimer {
-                        timer: u8_of(*timer, "timer")?,
-                        ms: *ms,
-                    },
-                    ActionIr::CancelTimer(timer) => Action::CancelTimer(u8_of(*timer, "timer")?),
-                    ActionIr::Fault(code) => Action::Fault(*code),
-                });
+                actions.push(self.action(t, a)?);
             }
             states.push(actions);
         }
@@ -295,66 +340,89 @@ fn lower_role(ir: &Ir, ri: usize, topics: &[(usize, usize)]) -> Result<Table, St
             u8_of(c.inputs.len(), "chart inputs")?,
             &refs,
             &transitions,
-        )
-        .map_err(full)?;
+        )?;
+        Ok(())
     }
-    for (e, chart, input) in &r.routes {
-        t.routes
-            .push(Route {
-                event: ev(e)?,
-                chart: u8_of(*chart, "chart")?,
-                input: u8_of(*input, "input")?,
-            })
-            .map_err(|_| "routes full")?;
+
+    /// One action (an assignment's expression goes into the table's code).
+    fn action(&self, t: &mut Table, a: &ActionIr) -> Result<Action, RoleError> {
+        Ok(match a {
+            ActionIr::Set { var, ops, .. } => Action::Set {
+                var: u8_of(*var, "var")?,
+                expr: t.push_expr(ops)?,
+            },
+            ActionIr::Drive { mask, value, .. } => Action::Drive {
+                mask: *mask,
+                value: *value,
+            },
+            ActionIr::Emit(e) => Action::Emit(self.ev(e)?),
+            ActionIr::StartTimer { timer, ms } => Action::StartTimer {
+                timer: u8_of(*timer, "timer")?,
+                ms: *ms,
+            },
+            ActionIr::CancelTimer(timer) => Action::CancelTimer(u8_of(*timer, "timer")?),
+            ActionIr::Fault(code) => Action::Fault(*code),
+        })
     }
-    let peers = peers(ir, ri);
-    for &q in &peers {
-        t.peers
-            .push(ir.roles[q].address)
-            .map_err(|_| "peers full")?;
-    }
-    for (topic, &(q, e)) in topics.iter().enumerate() {
-        if q != ri {
-            continue;
+
+    /// The radio links: peers, publications (with their subscribers), subscriptions.
+    fn links(&self, t: &mut Table) -> Result<(), RoleError> {
+        let (ir, ri, r) = (self.ir, self.ri, self.r);
+        let peers = peers(ir, ri);
+        for &q in &peers {
+            t.peers
+                .push(ir.roles[q].address)
+                .map_err(|_| RoleError::PoolFull("peers"))?;
         }
-        let name = &r.events[e];
-        let mut mask = 0u8;
-        for (pi, &p) in peers.iter().enumerate() {
-            if ir.roles[p]
-                .imports
-                .iter()
-                .any(|(from, x, _)| *from == r.name && x == name)
-            {
-                mask |= 1 << pi;
+        for (topic, &(q, e)) in self.topics.iter().enumerate() {
+            if q != ri {
+                continue;
             }
+            let name = &r.events[e];
+            let mut mask = 0u8;
+            for (pi, &p) in peers.iter().enumerate() {
+                if ir.roles[p]
+                    .imports
+                    .iter()
+                    .any(|(from, x, _)| *from == r.name && x == name)
+                {
+                    mask |= 1 << pi;
+                }
+            }
+            t.publications
+                .push(Publication {
+                    event: u8_of(e, "event")?,
+                    topic: u8_of(topic, "topic")?,
+                    subscribers: mask,
+                })
+                .map_err(|_| RoleError::PoolFull("publications"))?;
         }
-        t.publications
-            .push(Publication {
-                event: u8_of(e, "event")?,
-                topic: u8_of(topic, "topic")?,
-                subscribers: mask,
-            })
-            .map_err(|_| "publications full")?;
+        for (from, x, local) in &r.imports {
+            let q = ir
+                .roles
+                .iter()
+                .position(|q| q.name == *from)
+                .ok_or_else(|| RoleError::UnknownRole(from.clone()))?;
+            let topic = self
+                .topics
+                .iter()
+                .position(|&(tq, te)| tq == q && ir.roles[q].events[te] == *x)
+                .ok_or_else(|| RoleError::NotPublished {
+                    from: from.clone(),
+                    event: x.clone(),
+                })?;
+            let publisher = peers
+                .iter()
+                .position(|&p| p == q)
+                .ok_or(RoleError::NoSuchPeer)?;
+            t.subscriptions
+                .push(Subscription {
+                    publisher: u8_of(publisher, "peer")?,
+                    topic: u8_of(topic, "topic")?,
+                    event: self.ev(local)?,
+                })
+                .map_err(|_| RoleError::PoolFull("subscriptions"))?;
+        }
+        Ok(())
     }
-    for (from, x, local) in &r.imports {
-        let q = ir
-            .roles
-            .iter()
-            .position(|q| q.name == *from)
-            .ok_or_else(|| format!("unknown role `{from}`"))?;
-        let topic = topics
-            .iter()
-            .position(|&(tq, te)| tq == q && ir.roles[q].events[te] == *x)
-            .ok_or_else(|| format!("`{from}/{x}` is not published"))?;
-        let publisher = peers.iter().position(|&p| p == q).ok_or("no such peer")?;
-        t.subscriptions
-            .push(Subscription {
-                publisher: u8_of(publisher, "peer")?,
-                topic: u8_of(topic, "topic")?,
-                event: ev(local)?,
-            })
-            .map_err(|_| "subscriptions full")?;
-    }
-    config_schema::validate(&t).map_err(|e| format!("invalid table: {e}"))?;
-    Ok(t)
 }

@@ -1,8 +1,32 @@
 //! A RON file's text, byte offsets <-> line:col, and spans of values by path.
 
 use std::ops::Range;
+use std::path::PathBuf;
 
 use crate::locate::{self, Value};
+
+/// Why a robot file could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// The file could not be read.
+    #[error("error: cannot read {}: {source}", path.display())]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// The bytes are not UTF-8: the first bad byte, its place and offset.
+    #[error(
+        "{path}:{line}:{col}: error: the file is not UTF-8 text: byte {byte:#04x} at offset {offset}"
+    )]
+    NotUtf8 {
+        /// The file's name as given.
+        path: String,
+        line: usize,
+        col: usize,
+        byte: u8,
+        offset: usize,
+    },
+}
 
 /// Bytes between two character-count checkpoints of [`Source`].
 const CHECKPOINT: usize = 256;
@@ -52,15 +76,17 @@ impl Source {
 
     /// Reads a robot file: a clear error if it cannot be read or is not UTF-8 (at its
     /// first bad byte).
-    pub fn read(path: &std::path::Path) -> Result<Source, String> {
-        let bytes = std::fs::read(path)
-            .map_err(|e| format!("error: cannot read {}: {e}", path.display()))?;
+    pub fn read(path: &std::path::Path) -> Result<Source, LoadError> {
+        let bytes = std::fs::read(path).map_err(|source| LoadError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
         Source::from_bytes(path.display().to_string(), bytes)
     }
 
-    /// A file's bytes as a source, or `FILE:LINE:COL: error: ...` at the first byte that is
-    /// not UTF-8.
-    pub fn from_bytes(name: impl Into<String>, bytes: Vec<u8>) -> Result<Source, String> {
+    /// A file's bytes as a source, or [`LoadError::NotUtf8`] at the first byte that is not
+    /// UTF-8.
+    pub fn from_bytes(name: impl Into<String>, bytes: Vec<u8>) -> Result<Source, LoadError> {
         let name = name.into();
         match String::from_utf8(bytes) {
             Ok(text) => Ok(Source::new(name, text)),
@@ -71,11 +97,13 @@ impl Source {
                 let line = valid.matches('\n').count() + 1;
                 let start = valid.rfind('\n').map_or(0, |i| i + 1);
                 let col = valid[start..].chars().count() + 1;
-                Err(format!(
-                    "{name}:{line}:{col}: error: the file is not UTF-8 text: byte {:#04x} at \
-                     offset {at}",
-                    bytes.get(at).copied().unwrap_or(0)
-                ))
+                Err(LoadError::NotUtf8 {
+                    byte: bytes.get(at).copied().unwrap_or(0),
+                    path: name,
+                    line,
+                    col,
+                    offset: at,
+                })
             }
         }
     }
@@ -222,10 +250,27 @@ mod tests {
         assert_eq!(
             Source::from_bytes("r.ron", bytes)
                 .map(|s| s.text)
-                .unwrap_err(),
+                .unwrap_err()
+                .to_string(),
             "r.ron:2:11: error: the file is not UTF-8 text: byte 0xff at offset 18"
         );
         let ok = Source::from_bytes("r.ron", b"ok".to_vec()).expect("utf-8");
         assert_eq!(ok.text, "ok");
+    }
+
+    /// A file that cannot be read is an error naming it, with the I/O error as its source.
+    #[test]
+    fn a_file_that_cannot_be_read_is_an_error_naming_it() {
+        let path = std::env::temp_dir().join("robot-compiler-no-such-dir/robot.ron");
+        let e = Source::read(&path).expect_err("no such file");
+        let want = format!("error: cannot read {}: ", path.display());
+        assert!(e.to_string().starts_with(&want), "{e}");
+        match e {
+            super::LoadError::Read { path: p, source } => {
+                assert_eq!(p, path);
+                assert_eq!(source.kind(), std::io::ErrorKind::NotFound);
+            }
+            other => panic!("not a read error: {other}"),
+        }
     }
 }

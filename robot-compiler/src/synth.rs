@@ -21,8 +21,9 @@
 //! publishes `fault` to every other role; receiving a peer's `fault` raises fault 2. So a
 //! fault anywhere stops every node at once (outputs safe) until a reset.
 
+use crate::elab::{AddressError, StartError};
 use crate::ir::{ActionIr, ChartIr, InputIr, Ir, RoleIr, StateIr, Step, TimerIr, TransitionIr};
-use crate::model::{ActuatorKind, Robot};
+use crate::model::{Actuator, ActuatorKind, Robot, Role};
 
 /// Fault code of a motion that did not complete in time.
 pub const FAULT_MOTION_TIMEOUT: u8 = 1;
@@ -57,43 +58,122 @@ fn switched_in(robot: &Robot, q: usize, steps: &[Step]) -> bool {
         .any(|a| a.kind.has_watchdog() && steps.iter().any(|s| s.actuator == a.name))
 }
 
-/// Synthesises the charts of a sequence robot. The robot must have passed `check`.
-pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
-    let n = steps.len();
-    if n == 0 {
-        return Err(String::from("the sequence has no steps"));
-    }
-    let (start_role, start_input) = crate::elab::start_input(robot)?.ok_or_else(|| {
-        String::from("a sequence robot needs `start`: the input that starts a cycle")
-    })?;
-    let first_role = robot
-        .actuator(&steps[0].actuator)
-        .map(|(r, _)| r)
-        .ok_or_else(|| format!("unknown actuator `{}`", steps[0].actuator))?;
-    let role_of = |k: usize| robot.actuator(&steps[k % n].actuator).map(|(r, _)| r);
-    // START on another role than step 1's is gated there (module doc). Its gate reopens
-    // on the local `stepN.done` if the last step is that role's, else on `cycle.done`.
-    let gated = start_role != first_role;
-    let reopen = if role_of(n - 1) == Some(start_role) {
-        done_event(n - 1)
-    } else {
-        String::from(CYCLE_DONE_EVENT)
-    };
-    let cycle_done = gated && reopen == CYCLE_DONE_EVENT;
+/// Why a sequence could not be synthesised (`check` reports each first).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SynthError {
+    #[error("the sequence has no steps")]
+    NoSteps,
+    #[error(transparent)]
+    Start(#[from] StartError),
+    #[error("a sequence robot needs `start`: the input that starts a cycle")]
+    NoStart,
+    #[error(transparent)]
+    Address(#[from] AddressError),
+    #[error("unknown actuator `{0}`")]
+    UnknownActuator(String),
+    #[error("unknown input `{0}`")]
+    UnknownInput(String),
+    #[error("actuator {0} is not declared")]
+    Undeclared(String),
+    #[error("no timer {actuator}.{kind}")]
+    NoTimer {
+        actuator: String,
+        kind: &'static str,
+    },
+    #[error("{0}: no timer for its motion")]
+    NoMotionTimer(String),
+}
 
-    let mut roles = Vec::new();
-    for (ri, role) in robot.roles.iter().enumerate() {
+/// Synthesises the charts of a sequence robot. The robot must have passed `check`.
+pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, SynthError> {
+    let seq = Sequence::of(robot, steps)?;
+    let roles = (0..robot.roles.len())
+        .map(|ri| seq.role(ri))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Ir {
+        name: robot.name.clone(),
+        generation: robot.generation,
+        pan_id: robot.network.pan_id,
+        channel: robot.network.channel,
+        roles,
+        start: Some((seq.start_role, seq.start_input)),
+        expect: steps.to_vec(),
+    })
+}
+
+/// What every role's synthesis shares: the steps, where START is, and how the START gate
+/// (module doc) reopens.
+struct Sequence<'a> {
+    robot: &'a Robot,
+    steps: &'a [Step],
+    /// The role and input of the START button.
+    start_role: usize,
+    start_input: String,
+    /// The role of step 1's actuator.
+    first_role: usize,
+    /// Whether START is on another role than step 1's (gated there).
+    gated: bool,
+    /// The event that reopens the gate: the local `stepN.done` if the last step is the
+    /// button role's, else `cycle.done`.
+    reopen: String,
+    /// Whether step 1's chart emits `cycle.done` (gated, and reopened by it).
+    cycle_done: bool,
+}
+
+impl<'a> Sequence<'a> {
+    fn of(robot: &'a Robot, steps: &'a [Step]) -> Result<Sequence<'a>, SynthError> {
+        let n = steps.len();
+        if n == 0 {
+            return Err(SynthError::NoSteps);
+        }
+        let (start_role, start_input) =
+            crate::elab::start_input(robot)?.ok_or(SynthError::NoStart)?;
+        let first_role = robot
+            .actuator(&steps[0].actuator)
+            .map(|(r, _)| r)
+            .ok_or_else(|| SynthError::UnknownActuator(steps[0].actuator.clone()))?;
+        let gated = start_role != first_role;
+        let mut seq = Sequence {
+            robot,
+            steps,
+            start_role,
+            start_input,
+            first_role,
+            gated,
+            reopen: String::from(CYCLE_DONE_EVENT),
+            cycle_done: false,
+        };
+        if seq.role_of(n - 1) == Some(start_role) {
+            seq.reopen = done_event(n - 1);
+        }
+        seq.cycle_done = gated && seq.reopen == CYCLE_DONE_EVENT;
+        Ok(seq)
+    }
+
+    /// The role of step `k`'s actuator (the cycle wraps around).
+    fn role_of(&self, k: usize) -> Option<usize> {
+        let n = self.steps.len();
+        self.robot
+            .actuator(&self.steps[k % n].actuator)
+            .map(|(r, _)| r)
+    }
+
+    /// Whether an actuator moves in the sequence.
+    fn moves(&self, a: &Actuator) -> bool {
+        self.steps.iter().any(|s| s.actuator == a.name)
+    }
+
+    /// Role `ri`'s IR: the hardware and timers of its moving actuators, the START button,
+    /// one chart per moving actuator, the fault chart and the START gate.
+    fn role(&self, ri: usize) -> Result<RoleIr, SynthError> {
+        let robot = self.robot;
+        let role = &robot.roles[ri];
         let mut r = RoleIr {
             name: role.name.clone(),
             address: crate::elab::address(robot, &role.name)?,
             ..RoleIr::default()
         };
-        // Hardware of the actuators that move.
-        let moving: Vec<_> = role
-            .actuators
-            .iter()
-            .filter(|a| steps.iter().any(|s| s.actuator == a.name))
-            .collect();
+        let moving: Vec<&Actuator> = role.actuators.iter().filter(|a| self.moves(a)).collect();
         for a in &moving {
             let first = r.inputs.len();
             r.declare_actuator(a, |_| true, |_| false);
@@ -102,57 +182,17 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
                 r.event(&name);
             }
         }
-        if start_role == ri {
-            let pin = role
-                .inputs
-                .iter()
-                .find(|i| i.name == start_input)
-                .map(|i| i.pin)
-                .ok_or_else(|| format!("unknown input `{start_input}`"))?;
-            r.event(&start_input);
-            r.inputs.push(InputIr {
-                name: start_input.clone(),
-                pin,
-                rise: Some(start_input.clone()),
-                fall: None,
-                var: None,
-            });
+        if self.start_role == ri {
+            self.start_button(&mut r, role)?;
         }
-        // Per moving actuator: its watchdog and dwell timers, if it has them.
-        let mut timers = Vec::new();
-        for a in &moving {
-            let mut timer = |has: bool, kind: &str| {
-                has.then(|| {
-                    let name = format!("{}.{kind}", a.name);
-                    r.event(&name);
-                    r.timers.push(TimerIr {
-                        name: name.clone(),
-                        event: name,
-                    });
-                    r.timers.len() - 1
-                })
-            };
-            let watchdog = timer(a.kind.has_watchdog(), "watchdog");
-            let dwell = timer(a.kind.has_dwell(), "dwell");
-            timers.push(Timers { watchdog, dwell });
+        let timers: Vec<Timers> = moving.iter().map(|a| Timers::add(&mut r, a)).collect();
+        if ri == self.first_role {
+            self.cycle_start(&mut r);
         }
-        if ri == first_role {
-            if gated {
-                r.event(&start_input);
-                r.imports.push((
-                    robot.roles[start_role].name.clone(),
-                    String::from(CYCLE_START_EVENT),
-                    start_input.clone(),
-                ));
-            } else {
-                r.start = Some(start_input.clone());
-            }
-        }
-        // One chart per moving actuator.
         for (a, timers) in moving.iter().zip(timers) {
             let motion = Motion::of(robot, &r, a, timers)?;
-            let mut chart = actuator_chart(&mut r, &motion, steps, &start_input)?;
-            if cycle_done && a.name == steps[0].actuator {
+            let mut chart = actuator_chart(&mut r, &motion, self.steps, &self.start_input)?;
+            if self.cycle_done && a.name == self.steps[0].actuator {
                 // Back in IDLE: tell the button's role that a press may start a cycle.
                 if let Some(idle) = chart.states.first_mut() {
                     idle.actions
@@ -162,19 +202,82 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
             }
             r.charts.push(chart);
         }
-        // Imports of step events from other roles, in step order.
+        self.step_imports(&mut r, ri)?;
+        if !moving.is_empty() {
+            self.fault_chart(&mut r, ri);
+        }
+        if self.gated && ri == self.start_role {
+            start_chart(
+                robot,
+                &mut r,
+                &self.start_input,
+                &self.reopen,
+                self.first_role,
+            );
+        }
+        // Register route events (emitted and imported) in a stable order.
+        for (e, _, _) in r.routes.clone() {
+            r.event(&e);
+        }
+        Ok(r)
+    }
+
+    /// The START button's input, on the button's role.
+    fn start_button(&self, r: &mut RoleIr, role: &Role) -> Result<(), SynthError> {
+        let start = &self.start_input;
+        let pin = role
+            .inputs
+            .iter()
+            .find(|i| i.name == *start)
+            .map(|i| i.pin)
+            .ok_or_else(|| SynthError::UnknownInput(start.clone()))?;
+        r.event(start);
+        r.inputs.push(InputIr {
+            name: start.clone(),
+            pin,
+            rise: Some(start.clone()),
+            fall: None,
+            var: None,
+        });
+        Ok(())
+    }
+
+    /// What starts a cycle on step 1's role: START itself, or the gate's `cycle.start`.
+    fn cycle_start(&self, r: &mut RoleIr) {
+        if self.gated {
+            r.event(&self.start_input);
+            r.imports.push((
+                self.robot.roles[self.start_role].name.clone(),
+                String::from(CYCLE_START_EVENT),
+                self.start_input.clone(),
+            ));
+        } else {
+            r.start = Some(self.start_input.clone());
+        }
+    }
+
+    /// Imports of the step events role `ri`'s charts wait for from other roles, in step
+    /// order.
+    fn step_imports(&self, r: &mut RoleIr, ri: usize) -> Result<(), SynthError> {
         let routed: Vec<String> = r.routes.iter().map(|(e, _, _)| e.clone()).collect();
-        for (k, step) in steps.iter().enumerate() {
+        for (k, step) in self.steps.iter().enumerate() {
             let ev = done_event(k);
-            if routed.contains(&ev) && role_of(k) != Some(ri) {
-                let from =
-                    role_of(k).ok_or_else(|| format!("unknown actuator `{}`", step.actuator))?;
+            if routed.contains(&ev) && self.role_of(k) != Some(ri) {
+                let from = self
+                    .role_of(k)
+                    .ok_or_else(|| SynthError::UnknownActuator(step.actuator.clone()))?;
                 r.imports
-                    .push((robot.roles[from].name.clone(), ev.clone(), ev));
+                    .push((self.robot.roles[from].name.clone(), ev.clone(), ev));
             }
         }
-        // The fault chart: a watchdog expiry faults the node and publishes `fault` to
-        // every other role; a peer's `fault` faults this node too (stop at once).
+        Ok(())
+    }
+
+    /// The fault chart of a role with moving actuators: a watchdog expiry faults the node
+    /// and publishes `fault` to every other role; a peer's `fault` faults this node too
+    /// (stop at once). None if the role has no watchdog and no peer can fault.
+    fn fault_chart(&self, r: &mut RoleIr, ri: usize) {
+        let robot = self.robot;
         let watchdogs: Vec<String> = r
             .timers
             .iter()
@@ -182,84 +285,70 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, String> {
             .map(|t| t.event.clone())
             .collect();
         let detectors: Vec<usize> = (0..robot.roles.len())
-            .filter(|&q| q != ri && moving_in(robot, q, steps) && switched_in(robot, q, steps))
+            .filter(|&q| {
+                q != ri && moving_in(robot, q, self.steps) && switched_in(robot, q, self.steps)
+            })
             .collect();
-        if !moving.is_empty() && (!watchdogs.is_empty() || !detectors.is_empty()) {
-            let c = r.charts.len();
-            let mut inputs = Vec::new();
-            let mut states = vec![StateIr {
-                name: String::from("RUN"),
-                actions: vec![],
-            }];
-            let mut transitions = Vec::new();
-            if !watchdogs.is_empty() {
-                r.event(FAULT_EVENT);
-                for w in watchdogs {
-                    r.routes.push((w, c, inputs.len()));
-                }
-                transitions.push(TransitionIr {
-                    from: 0,
-                    to: states.len(),
-                    trigger: Some(inputs.len()),
-                    guard: None,
-                });
-                inputs.push(String::from("timeout"));
-                states.push(StateIr {
-                    name: String::from("TIMEOUT"),
-                    actions: vec![
-                        ActionIr::Emit(String::from(FAULT_EVENT)),
-                        ActionIr::Fault(FAULT_MOTION_TIMEOUT),
-                    ],
-                });
+        if watchdogs.is_empty() && detectors.is_empty() {
+            return;
+        }
+        let c = r.charts.len();
+        let mut inputs = Vec::new();
+        let mut states = vec![StateIr {
+            name: String::from("RUN"),
+            actions: vec![],
+        }];
+        let mut transitions = Vec::new();
+        if !watchdogs.is_empty() {
+            r.event(FAULT_EVENT);
+            for w in watchdogs {
+                r.routes.push((w, c, inputs.len()));
             }
-            if !detectors.is_empty() {
-                for q in detectors {
-                    r.imports.push((
-                        robot.roles[q].name.clone(),
-                        String::from(FAULT_EVENT),
-                        String::from(PEER_FAULT_EVENT),
-                    ));
-                }
-                r.routes
-                    .push((String::from(PEER_FAULT_EVENT), c, inputs.len()));
-                transitions.push(TransitionIr {
-                    from: 0,
-                    to: states.len(),
-                    trigger: Some(inputs.len()),
-                    guard: None,
-                });
-                inputs.push(String::from("peer"));
-                states.push(StateIr {
-                    name: String::from("PEER_FAULT"),
-                    actions: vec![ActionIr::Fault(FAULT_PEER)],
-                });
-            }
-            r.charts.push(ChartIr {
-                name: String::from("fault"),
-                inputs,
-                initial: 0,
-                states,
-                transitions,
+            transitions.push(TransitionIr {
+                from: 0,
+                to: states.len(),
+                trigger: Some(inputs.len()),
+                guard: None,
+            });
+            inputs.push(String::from("timeout"));
+            states.push(StateIr {
+                name: String::from("TIMEOUT"),
+                actions: vec![
+                    ActionIr::Emit(String::from(FAULT_EVENT)),
+                    ActionIr::Fault(FAULT_MOTION_TIMEOUT),
+                ],
             });
         }
-        if gated && ri == start_role {
-            start_chart(robot, &mut r, &start_input, &reopen, first_role);
+        if !detectors.is_empty() {
+            for q in detectors {
+                r.imports.push((
+                    robot.roles[q].name.clone(),
+                    String::from(FAULT_EVENT),
+                    String::from(PEER_FAULT_EVENT),
+                ));
+            }
+            r.routes
+                .push((String::from(PEER_FAULT_EVENT), c, inputs.len()));
+            transitions.push(TransitionIr {
+                from: 0,
+                to: states.len(),
+                trigger: Some(inputs.len()),
+                guard: None,
+            });
+            inputs.push(String::from("peer"));
+            states.push(StateIr {
+                name: String::from("PEER_FAULT"),
+                actions: vec![ActionIr::Fault(FAULT_PEER)],
+            });
         }
-        // Register route events (emitted and imported) in a stable order.
-        for (e, _, _) in r.routes.clone() {
-            r.event(&e);
-        }
-        roles.push(r);
+        r.charts.push(ChartIr {
+            name: String::from("fault"),
+            inputs,
+            initial: 0,
+            states,
+            transitions,
+        });
     }
-    Ok(Ir {
-        name: robot.name.clone(),
-        generation: robot.generation,
-        pan_id: robot.network.pan_id,
-        channel: robot.network.channel,
-        roles,
-        start: Some((start_role, start_input)),
-        expect: steps.to_vec(),
-    })
 }
 
 /// The START chart of the button's role when step 1 is another role's (module doc):
@@ -314,6 +403,26 @@ struct Timers {
     dwell: Option<usize>,
 }
 
+impl Timers {
+    /// Adds a moving actuator's watchdog and dwell timers to its role, if it has them.
+    fn add(r: &mut RoleIr, a: &Actuator) -> Timers {
+        let mut timer = |has: bool, kind: &str| {
+            has.then(|| {
+                let name = format!("{}.{kind}", a.name);
+                r.event(&name);
+                r.timers.push(TimerIr {
+                    name: name.clone(),
+                    event: name,
+                });
+                r.timers.len() - 1
+            })
+        };
+        let watchdog = timer(a.kind.has_watchdog(), "watchdog");
+        let dwell = timer(a.kind.has_dwell(), "dwell");
+        Timers { watchdog, dwell }
+    }
+}
+
 /// How an actuator is driven and how its motions complete.
 struct Motion {
     name: String,
@@ -330,22 +439,21 @@ struct Motion {
 }
 
 impl Motion {
-    fn of(
-        robot: &Robot,
-        r: &RoleIr,
-        a: &crate::model::Actuator,
-        timers: Timers,
-    ) -> Result<Motion, String> {
+    fn of(robot: &Robot, r: &RoleIr, a: &Actuator, timers: Timers) -> Result<Motion, SynthError> {
         let wiring = r
             .actuator(&a.name)
-            .ok_or_else(|| format!("actuator {} is not declared", a.name))?;
+            .ok_or_else(|| SynthError::Undeclared(a.name.clone()))?;
         let ((mask, plus), (_, minus)) = (wiring.drive(true), wiring.drive(false));
         let dwell_ms = match a.kind {
             ActuatorKind::DoubleActing { .. } => 0,
             ActuatorKind::SingleActing { dwell_ms, .. } => dwell_ms,
         };
-        let timer =
-            |t: Option<usize>, kind: &str| t.ok_or_else(|| format!("no timer {}.{kind}", a.name));
+        let timer = |t: Option<usize>, kind: &'static str| {
+            t.ok_or_else(|| SynthError::NoTimer {
+                actuator: a.name.clone(),
+                kind,
+            })
+        };
         let timeout_ms = a.kind.timeout_ms().unwrap_or(robot.motion_timeout_ms);
         Ok(Motion {
             name: a.name.clone(),
@@ -386,12 +494,12 @@ impl Motion {
     }
 
     /// The timer a motion starts: its watchdog (switched) or its dwell timer.
-    fn timer(&self, extend: bool) -> Result<(usize, u32), String> {
+    fn timer(&self, extend: bool) -> Result<(usize, u32), SynthError> {
         match self.is_switched(extend) {
             true => self.watchdog,
             false => self.dwell,
         }
-        .ok_or_else(|| format!("{}: no timer for its motion", self.name))
+        .ok_or_else(|| SynthError::NoMotionTimer(self.name.clone()))
     }
 
     /// The watchdog to cancel once a motion is complete (a dwell timer has expired).
@@ -416,161 +524,202 @@ pub fn done_event(k: usize) -> String {
     format!("step{}.done", k + 1)
 }
 
+/// Actuator `motion`'s chart (module doc): `IDLE` or `WAITk` first, then per own step k
+/// `STEPk`, and after the last own step of a run either `WAITk'` (this actuator's next
+/// step k'), `CYCLE_END` or straight back to the first state.
 fn actuator_chart(
     r: &mut RoleIr,
     motion: &Motion,
     steps: &[Step],
     start_input: &str,
-) -> Result<ChartIr, String> {
-    let n = steps.len();
-    let own: Vec<usize> = (0..n)
+) -> Result<ChartIr, SynthError> {
+    let own: Vec<usize> = (0..steps.len())
         .filter(|&k| steps[k].actuator == motion.name)
         .collect();
-    let chart_index = r.charts.len();
-    let mut inputs: Vec<String> = Vec::new();
-    let mut routes: Vec<(String, String)> = Vec::new(); // (node event, chart input)
-    let mut input = |name: &str, event: String| -> usize {
-        match inputs.iter().position(|i| i == name) {
-            Some(i) => i,
-            None => {
-                inputs.push(name.to_string());
-                routes.push((event, name.to_string()));
-                inputs.len() - 1
+    let owns_first = own[0] == 0;
+    let first = if owns_first {
+        String::from("IDLE")
+    } else {
+        format!("WAIT{}", own[0] + 1)
+    };
+    let mut b = ChartBuilder {
+        motion,
+        steps,
+        inputs: Vec::new(),
+        routes: Vec::new(),
+        states: vec![StateIr {
+            name: first,
+            actions: vec![],
+        }],
+        transitions: Vec::new(),
+    };
+    let (mut wait_state, mut prev_move) = (0usize, 0usize);
+    for (j, &k) in own.iter().enumerate() {
+        let back_to_back = j > 0 && own[j - 1] + 1 == k;
+        let from = if back_to_back { prev_move } else { wait_state };
+        let move_state = b.enter(k, back_to_back, from, start_input)?;
+        prev_move = move_state;
+        match own.get(j + 1).copied() {
+            Some(next) if next == k + 1 => {}
+            next => {
+                if let Some(wait) = b.complete(k, move_state, next, owns_first) {
+                    wait_state = wait;
+                }
             }
         }
-    };
-    let owns_first = own[0] == 0;
-    let mut states = vec![StateIr {
-        name: if owns_first {
-            String::from("IDLE")
-        } else {
-            format!("WAIT{}", own[0] + 1)
-        },
-        actions: vec![],
-    }];
-    let mut transitions = Vec::new();
-    let mut wait_state = 0usize;
-    let mut prev_move = 0usize;
-    let leave = |k: usize| -> Vec<ActionIr> {
-        let mut v: Vec<ActionIr> = motion.cancel(steps[k].extend).into_iter().collect();
+    }
+    Ok(b.finish(r))
+}
+
+/// One actuator's chart as it is built: its inputs (each with the node event routed to
+/// it), states and transitions.
+struct ChartBuilder<'a> {
+    motion: &'a Motion,
+    steps: &'a [Step],
+    inputs: Vec<String>,
+    /// (node event, chart input), in the order the inputs were added.
+    routes: Vec<(String, String)>,
+    states: Vec<StateIr>,
+    transitions: Vec<TransitionIr>,
+}
+
+impl ChartBuilder<'_> {
+    /// The chart input `name` (raised by node event `event`), added if new.
+    fn input(&mut self, name: &str, event: String) -> usize {
+        match self.inputs.iter().position(|i| i == name) {
+            Some(i) => i,
+            None => {
+                self.inputs.push(name.to_string());
+                self.routes.push((event, name.to_string()));
+                self.inputs.len() - 1
+            }
+        }
+    }
+
+    /// The input that says step `k`'s motion is complete (`end`, `home` or `dwell`).
+    fn completion(&mut self, k: usize) -> usize {
+        let c = self.motion.completion(self.steps[k].extend);
+        self.input(c, format!("{}.{c}", self.motion.name))
+    }
+
+    fn state(&mut self, name: String, actions: Vec<ActionIr>) -> usize {
+        self.states.push(StateIr { name, actions });
+        self.states.len() - 1
+    }
+
+    fn go(&mut self, from: usize, to: usize, trigger: usize) {
+        self.transitions.push(TransitionIr {
+            from,
+            to,
+            trigger: Some(trigger),
+            guard: None,
+        });
+    }
+
+    /// The actions of leaving step `k` for another actuator's step: cancel the watchdog,
+    /// emit `stepk.done`.
+    fn leave(&self, k: usize) -> Vec<ActionIr> {
+        let mut v: Vec<ActionIr> = self
+            .motion
+            .cancel(self.steps[k].extend)
+            .into_iter()
+            .collect();
         v.push(ActionIr::Emit(done_event(k)));
         v
-    };
-    for (j, &k) in own.iter().enumerate() {
-        let step = &steps[k];
-        let move_state = states.len();
-        let back_to_back = j > 0 && own[j - 1] + 1 == k;
+    }
+
+    /// Adds `STEPk` (drive, start its timer) and the transition into it from `from`: on
+    /// the previous motion's completion (`back_to_back`: step k-1 is this actuator's
+    /// too), on START (step 1) or on `stepk-1.done`. Returns `STEPk`.
+    fn enter(
+        &mut self,
+        k: usize,
+        back_to_back: bool,
+        from: usize,
+        start_input: &str,
+    ) -> Result<usize, SynthError> {
+        let (motion, step) = (self.motion, &self.steps[k]);
         let (timer, ms) = motion.timer(step.extend)?;
         let mut actions = vec![motion.drive(step.extend)];
         // Straight on from a switched motion to a timed one: its watchdog is still armed.
         if back_to_back && !motion.is_switched(step.extend) {
-            actions.extend(motion.cancel(steps[k - 1].extend));
+            actions.extend(motion.cancel(self.steps[k - 1].extend));
         }
         actions.push(ActionIr::StartTimer { timer, ms });
-        states.push(StateIr {
-            name: format!("STEP{}", k + 1),
-            actions,
-        });
-        if back_to_back {
-            let prev = &steps[k - 1];
-            let c = motion.completion(prev.extend);
-            let trig = input(c, format!("{}.{c}", motion.name));
-            transitions.push(TransitionIr {
-                from: prev_move,
-                to: move_state,
-                trigger: Some(trig),
-                guard: None,
-            });
+        let move_state = self.state(format!("STEP{}", k + 1), actions);
+        let trigger = if back_to_back {
+            self.completion(k - 1)
+        } else if k == 0 {
+            self.input("start", start_input.to_string())
         } else {
-            let (name, event) = if k == 0 {
-                ("start".to_string(), start_input.to_string())
-            } else {
-                (done_event(k - 1), done_event(k - 1))
-            };
-            let trig = input(&name, event);
-            transitions.push(TransitionIr {
-                from: wait_state,
-                to: move_state,
-                trigger: Some(trig),
-                guard: None,
-            });
-        }
-        prev_move = move_state;
-        let next_own = own.get(j + 1).copied();
-        if next_own == Some(k + 1) {
-            continue;
-        }
-        let c = motion.completion(step.extend);
-        let trig = input(c, format!("{}.{c}", motion.name));
-        if let Some(k2) = next_own {
-            let wait = states.len();
-            states.push(StateIr {
-                name: format!("WAIT{}", k2 + 1),
-                actions: leave(k),
-            });
-            transitions.push(TransitionIr {
-                from: move_state,
-                to: wait,
-                trigger: Some(trig),
-                guard: None,
-            });
-            wait_state = wait;
-        } else if owns_first && k == n - 1 {
-            // Last step of the cycle and the first of the next are this actuator's.
-            states[0].actions.extend(motion.cancel(step.extend));
-            transitions.push(TransitionIr {
-                from: move_state,
-                to: 0,
-                trigger: Some(trig),
-                guard: None,
-            });
-        } else if owns_first {
-            let end = states.len();
-            states.push(StateIr {
-                name: String::from("CYCLE_END"),
-                actions: leave(k),
-            });
-            transitions.push(TransitionIr {
-                from: move_state,
-                to: end,
-                trigger: Some(trig),
-                guard: None,
-            });
-            let last = done_event(n - 1);
-            let t = input(&last, last.clone());
-            transitions.push(TransitionIr {
-                from: end,
-                to: 0,
-                trigger: Some(t),
-                guard: None,
-            });
-        } else {
-            states[0].actions = leave(k);
-            transitions.push(TransitionIr {
-                from: move_state,
-                to: 0,
-                trigger: Some(trig),
-                guard: None,
-            });
-        }
+            self.input(&done_event(k - 1), done_event(k - 1))
+        };
+        self.go(from, move_state, trigger);
+        Ok(move_state)
     }
-    // Emitted events become node events before routes (stable ids).
-    for s in &states {
-        for act in &s.actions {
-            if let ActionIr::Emit(e) = act {
-                r.event(e);
+
+    /// Leaves `STEPk` (`move_state`) on its motion's completion: to `WAITnext` if this
+    /// actuator has a later step `next` (returned), else back to the first state,
+    /// through `CYCLE_END` when this chart starts the cycle and another actuator ends it.
+    fn complete(
+        &mut self,
+        k: usize,
+        move_state: usize,
+        next: Option<usize>,
+        owns_first: bool,
+    ) -> Option<usize> {
+        let n = self.steps.len();
+        let trigger = self.completion(k);
+        match next {
+            Some(next) => {
+                let actions = self.leave(k);
+                let wait = self.state(format!("WAIT{}", next + 1), actions);
+                self.go(move_state, wait, trigger);
+                return Some(wait);
+            }
+            None if owns_first && k == n - 1 => {
+                // Last step of the cycle and the first of the next are this actuator's.
+                let cancel = self.motion.cancel(self.steps[k].extend);
+                self.states[0].actions.extend(cancel);
+                self.go(move_state, 0, trigger);
+            }
+            None if owns_first => {
+                let actions = self.leave(k);
+                let end = self.state(String::from("CYCLE_END"), actions);
+                self.go(move_state, end, trigger);
+                let last = done_event(n - 1);
+                let t = self.input(&last, last.clone());
+                self.go(end, 0, t);
+            }
+            None => {
+                self.states[0].actions = self.leave(k);
+                self.go(move_state, 0, trigger);
             }
         }
+        None
     }
-    for (event, name) in routes {
-        let i = inputs.iter().position(|x| *x == name).unwrap_or(0);
-        r.routes.push((event, chart_index, i));
+
+    /// The chart, as the role's next; its emitted events and routes are registered in
+    /// the role (emitted events first: stable ids).
+    fn finish(self, r: &mut RoleIr) -> ChartIr {
+        let chart_index = r.charts.len();
+        for s in &self.states {
+            for act in &s.actions {
+                if let ActionIr::Emit(e) = act {
+                    r.event(e);
+                }
+            }
+        }
+        for (event, name) in self.routes {
+            let i = self.inputs.iter().position(|x| *x == name).unwrap_or(0);
+            r.routes.push((event, chart_index, i));
+        }
+        ChartIr {
+            name: self.motion.name.clone(),
+            inputs: self.inputs,
+            initial: 0,
+            states: self.states,
+            transitions: self.transitions,
+        }
     }
-    Ok(ChartIr {
-        name: motion.name.clone(),
-        inputs,
-        initial: 0,
-        states,
-        transitions,
-    })
 }

@@ -2,7 +2,7 @@
 //! (message and byte span), and the "both guards can hold" test behind the overlap warning.
 
 use config_schema::Op;
-use robot_compiler::expr::{compile, may_overlap, parse, Operand};
+use robot_compiler::expr::{bytecode, may_overlap, parse, Operand};
 
 fn ops(text: &str) -> Vec<Op> {
     let resolve = |n: &str| match n {
@@ -13,7 +13,7 @@ fn ops(text: &str) -> Vec<Op> {
         "M" => Some(Operand::Const(3)),
         _ => None,
     };
-    compile(&parse(text).expect("parses"), &resolve).expect("compiles")
+    bytecode(&parse(text).expect("parses"), &resolve).expect("compiles")
 }
 
 fn error(text: &str) -> (String, std::ops::Range<usize>) {
@@ -120,7 +120,7 @@ fn syntax_errors_name_the_problem_and_its_span() {
 
 #[test]
 fn unknown_names_are_reported_at_their_span() {
-    let e = compile(&parse("count < MAX").expect("parses"), &|n| {
+    let e = bytecode(&parse("count < MAX").expect("parses"), &|n| {
         (n == "count").then_some(Operand::Var(0))
     })
     .expect_err("unknown");

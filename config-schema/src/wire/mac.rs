@@ -70,6 +70,8 @@ impl fmt::Display for FrameError {
     }
 }
 
+impl core::error::Error for FrameError {}
+
 /// The MAC header fields of a data frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Header {

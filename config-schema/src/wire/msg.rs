@@ -209,6 +209,8 @@ impl core::fmt::Display for MessageError {
     }
 }
 
+impl core::error::Error for MessageError {}
+
 impl<'a> Message<'a> {
     /// Parses a MAC payload. Never panics; trailing bytes are an error.
     pub fn parse(payload: &'a [u8]) -> Result<Message<'a>, MessageError> {

@@ -317,8 +317,7 @@ impl<'c> Model<'c> {
                     .collect()
             })
             .collect();
-        let interlocks = interlock::interlocks(&c.robot, &c.ir)
-            .map_err(|(i, m, _)| format!("never[{i}]: {m}"))?;
+        let interlocks = interlock::interlocks(&c.robot, &c.ir).map_err(|e| e.to_string())?;
         let expect = c.ir.expect.iter().map(|s| s.to_string()).collect();
         let n = tables.len();
         // Power-up (`node_fw::cylinder`): each rod rests where its node's safe outputs hold

@@ -11,14 +11,15 @@ pub fn check(robot: &Robot, ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>) {
     if robot.never.is_empty() {
         return;
     }
-    let names = interlock::Names::of(robot, ir);
+    let names = interlock::Scope::of(robot, ir);
     for (i, text) in robot.never.iter().enumerate() {
-        if let Err((message, span)) = names.interlock(text) {
+        if let Err(e) = names.interlock(text) {
+            let span = e.span();
             let value = src.span(&format!("never[{i}]"));
             // The value's span starts at its opening quote.
             let start = value.start + 1 + span.start;
             let end = (value.start + 1 + span.end).min(value.end);
-            out.push(Diagnostic::error(start..end.max(start), message));
+            out.push(Diagnostic::error(start..end.max(start), e.to_string()));
         }
     }
 }

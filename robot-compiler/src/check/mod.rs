@@ -42,7 +42,7 @@ pub const STRUCTURE: &[(&str, Pass)] = &[
 /// error).
 pub const SEMANTIC: &[(&str, IrPass)] = &[
     ("events", events::check),
-    ("capacity", tables::capacity),
+    ("capacity", tables::check),
     ("interlocks", interlocks::check),
 ];
 
@@ -83,7 +83,7 @@ pub fn check(src: &Source) -> Checked {
     }
     let mut ir = None;
     if !diags.iter().any(Diagnostic::is_error) {
-        match elaborate(&robot, src) {
+        match build_ir(&robot, src) {
             Ok(built) => {
                 for (_, pass) in SEMANTIC {
                     pass(&robot, &built, src, &mut diags);
@@ -107,7 +107,7 @@ pub fn check(src: &Source) -> Checked {
 
 /// Elaborates a robot that passed the structural checks: synthesis for a sequence,
 /// elaboration of explicit charts otherwise.
-fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
+fn build_ir(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
     match &robot.sequence {
         Some(text) => {
             let steps: Vec<_> = parse_steps(text)
@@ -115,7 +115,7 @@ fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
                 .filter_map(|(s, _)| s.ok())
                 .collect();
             synth::synthesise(robot, &steps)
-                .map_err(|e| vec![Diagnostic::error(src.span("sequence"), e)])
+                .map_err(|e| vec![Diagnostic::error(src.span("sequence"), e.to_string())])
         }
         None => elab::elaborate(robot, src),
     }

@@ -24,7 +24,7 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
         _ => {}
     }
     match start_input(robot) {
-        Err(e) => out.push(Diagnostic::error(src.span("start"), e)),
+        Err(e) => out.push(Diagnostic::error(src.span("start"), e.to_string())),
         Ok(None) if robot.sequence.is_some() => out.push(
             Diagnostic::error(src.key_span("sequence"), "a sequence needs a `start` input")
                 .help("add `start: \"START\"` naming the button that starts a cycle"),
@@ -62,7 +62,7 @@ fn steps(
         let step = match step {
             Ok(s) => s,
             Err(e) => {
-                out.push(Diagnostic::error(here, e.clone()));
+                out.push(Diagnostic::error(here, e.to_string()));
                 continue;
             }
         };

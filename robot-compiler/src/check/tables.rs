@@ -5,7 +5,7 @@ use crate::ir::Ir;
 use crate::model::Robot;
 use crate::source::Source;
 
-pub fn capacity(_robot: &Robot, ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>) {
+pub fn check(_robot: &Robot, ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>) {
     for over in crate::lower::capacity(ir) {
         let role = &ir.roles[over.role].name;
         out.push(
