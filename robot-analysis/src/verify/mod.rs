@@ -16,6 +16,7 @@ use std::time::{Duration, Instant};
 
 use config_schema::{Publication, Table, Topic};
 use indexmap::IndexSet;
+use rustc_hash::FxBuildHasher;
 use node_fw::cylinder::{self, Command, Cylinder, Motion, Position as Pos};
 use node_fw::ecc::{Effects, Engine, EngineState, Fault};
 
@@ -945,7 +946,8 @@ pub fn verify(c: &Compiled, opts: Options) -> Result<Report, String> {
 /// [`verify`] on a built model.
 pub fn explore(model: &Model<'_>, opts: Options) -> Report {
     let t0 = Instant::now();
-    let mut seen: IndexSet<Sys, ahash_like::Build> = IndexSet::default();
+    // FxHash: fast and not keyed; the states are our own, no hash flooding to fear.
+    let mut seen: IndexSet<Sys, FxBuildHasher> = IndexSet::default();
     // Parent index and move of each state (the initial state's own entry is unused).
     let mut parent: Vec<(u32, Move)> = Vec::new();
     let mut edges: Vec<(u32, u32)> = Vec::new();
@@ -1096,49 +1098,4 @@ pub fn explore(model: &Model<'_>, opts: Options) -> Report {
         lossy: opts.lossy,
         prompt: opts.prompt,
     }
-}
-
-/// A fast non-cryptographic hasher (FxHash) for the visited set: the states are our own,
-/// no hash flooding to fear.
-mod ahash_like {
-    use std::hash::{BuildHasherDefault, Hasher};
-
-    #[derive(Default)]
-    pub struct Fx(u64);
-
-    impl Hasher for Fx {
-        fn finish(&self) -> u64 {
-            self.0
-        }
-        fn write(&mut self, bytes: &[u8]) {
-            for chunk in bytes.chunks(8) {
-                let mut b = [0u8; 8];
-                b[..chunk.len()].copy_from_slice(chunk);
-                self.add(u64::from_le_bytes(b));
-            }
-        }
-        fn write_u8(&mut self, i: u8) {
-            self.add(u64::from(i));
-        }
-        fn write_u16(&mut self, i: u16) {
-            self.add(u64::from(i));
-        }
-        fn write_u32(&mut self, i: u32) {
-            self.add(u64::from(i));
-        }
-        fn write_u64(&mut self, i: u64) {
-            self.add(i);
-        }
-        fn write_usize(&mut self, i: usize) {
-            self.add(i as u64);
-        }
-    }
-
-    impl Fx {
-        fn add(&mut self, v: u64) {
-            self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
-        }
-    }
-
-    pub type Build = BuildHasherDefault<Fx>;
 }
