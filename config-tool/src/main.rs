@@ -201,7 +201,7 @@ fn run(command: Command) -> Result<(), String> {
             let model = verify::Model::new(&compiled).map_err(|e| format!("error: {e}"))?;
             let result = verify::explore(
                 &model,
-                verify::Options {
+                verify::ExploreOptions {
                     lossy,
                     prompt,
                     start_anytime,

@@ -598,7 +598,8 @@ pub fn run(cmd: NetCommand) -> Result<(), Failure> {
             let fault = fault
                 .as_deref()
                 .map(robot_analysis::inject::parse)
-                .transpose()?;
+                .transpose()
+                .map_err(|e| e.to_string())?;
             let count_dir = if icount {
                 let dir =
                     std::env::temp_dir().join(format!("config-tool-icount-{}", std::process::id()));

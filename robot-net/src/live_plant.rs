@@ -73,7 +73,7 @@ impl std::fmt::Display for Step {
 
 /// The actuators of a compiled robot, on the nodes its roles are assigned to.
 pub fn actuators(c: &Compiled) -> Result<Vec<Actuator>, String> {
-    let (plants, _) = robot_analysis::sim::plants(c)?;
+    let (plants, _) = robot_analysis::sim::plants(c).map_err(|e| e.to_string())?;
     let mut out = Vec::new();
     for p in plants {
         let Some(role) = c.ir.roles.get(p.node()) else {
