@@ -55,7 +55,7 @@ fn an_interlock_may_name_an_actuator_the_sequence_never_moves() {
     assert!(sim.ok(), "{}", sim.report());
     let model = verify::Model::new(&c).expect("model");
     assert_eq!(model.interlock_count(), 2);
-    let report = verify::explore(&model, verify::Options::default());
+    let report = verify::explore(&model, verify::ExploreOptions::default());
     assert!(report.ok(), "{}", report.render("no-hc", 2));
 }
 
@@ -65,7 +65,7 @@ fn an_actuator_that_never_moves_is_home_for_ever() {
     let src = without_hc("\"HC.home && VC.end\"");
     let c = compile(&src).expect("compiles");
     let model = verify::Model::new(&c).expect("model");
-    let report = verify::explore(&model, verify::Options::default());
+    let report = verify::explore(&model, verify::ExploreOptions::default());
     let v = report.violation.expect("violated");
     assert_eq!(v.property, verify::Property::Interlock);
     assert_eq!(v.message, "never: \"HC.home && VC.end\" holds");
@@ -73,7 +73,7 @@ fn an_actuator_that_never_moves_is_home_for_ever() {
     let src = without_hc("\"HC.moving || HC.end || !HC.home\"");
     let c = compile(&src).expect("compiles");
     let model = verify::Model::new(&c).expect("model");
-    assert!(verify::explore(&model, verify::Options::default()).ok());
+    assert!(verify::explore(&model, verify::ExploreOptions::default()).ok());
 }
 
 #[test]
@@ -258,7 +258,7 @@ fn a_sensored_single_acting_actuator_runs_verifies_and_has_a_watchdog() {
         let sim = robot_analysis::sim::simulate(&c, 3).expect("sim");
         assert!(sim.ok(), "{sensors}: {}", sim.report());
         let model = verify::Model::new(&c).expect("model");
-        let report = verify::explore(&model, verify::Options::default());
+        let report = verify::explore(&model, verify::ExploreOptions::default());
         assert!(report.ok(), "{sensors}: {}", report.render("gr", 2));
     }
     // A jammed gripper is now caught by its own watchdog and every node stops.

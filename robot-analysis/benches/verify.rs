@@ -5,7 +5,7 @@
 
 use std::time::{Duration, Instant};
 
-use robot_analysis::verify::{self, Options, Report};
+use robot_analysis::verify::{self, ExploreOptions, Report};
 use robot_compiler::{compile, Compiled, Source};
 
 fn paint_robot() -> Compiled {
@@ -51,9 +51,9 @@ fn best(c: &Compiled, lossy: bool) -> (Report, Duration) {
     for _ in 0..3 {
         let r = verify::verify(
             c,
-            Options {
+            ExploreOptions {
                 lossy,
-                ..Options::default()
+                ..ExploreOptions::default()
             },
         )
         .expect("model");

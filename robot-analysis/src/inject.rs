@@ -11,10 +11,11 @@
 
 use std::fmt::Write;
 
-use node_fw::sim::{Plant, TraceEntry, What, World};
+use node_fw::sim::{Plant, SimError, TraceEntry, What, World};
 
-use crate::sim::CYCLE_LIMIT_MS;
+use crate::sim::{step_of, steps_text, SimulationError, CYCLE_LIMIT_MS};
 use robot_compiler::compile::Compiled;
+use robot_compiler::ir::Step;
 
 /// What is injected.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -47,21 +48,42 @@ impl std::fmt::Display for FaultSpec {
     }
 }
 
+/// How to write a fault (the usage hint of [`ParseError`]).
+pub const USAGE: &str = "write KIND:TARGET@STEP or KIND:TARGET@CYCLE.STEP, KIND one of stuck (an \
+                         actuator), switch (ACT.end or ACT.home), stop (a role), link (FROM->TO)";
+
+/// Why a `--fault` argument does not parse.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ParseError {
+    #[error("`{spec}`: no `@STEP`: {}", USAGE)]
+    NoStep { spec: String },
+    #[error("`{spec}`: no `KIND:`: {}", USAGE)]
+    NoKind { spec: String },
+    #[error("`{spec}`: `{number}` is not a step or cycle number (1, 2, ...)")]
+    BadNumber { spec: String, number: String },
+    #[error("`{spec}`: a link is FROM->TO")]
+    BadLink { spec: String },
+    #[error("`{spec}`: unknown fault kind `{kind}`: {}", USAGE)]
+    UnknownKind { spec: String, kind: String },
+}
+
 /// Parses `stuck:HC@4`, `switch:HC.end@2.4`, `stop:GR@3`, `link:VC->GR@1`.
-pub fn parse(spec: &str) -> Result<FaultSpec, String> {
-    let usage = "write KIND:TARGET@STEP or KIND:TARGET@CYCLE.STEP, KIND one of stuck (an \
-                 actuator), switch (ACT.end or ACT.home), stop (a role), link (FROM->TO)";
+pub fn parse(spec: &str) -> Result<FaultSpec, ParseError> {
+    let owned = || spec.to_string();
     let (what, at) = spec
         .rsplit_once('@')
-        .ok_or_else(|| format!("`{spec}`: no `@STEP`: {usage}"))?;
+        .ok_or_else(|| ParseError::NoStep { spec: owned() })?;
     let (kind, target) = what
         .split_once(':')
-        .ok_or_else(|| format!("`{spec}`: no `KIND:`: {usage}"))?;
-    let number = |s: &str| -> Result<usize, String> {
+        .ok_or_else(|| ParseError::NoKind { spec: owned() })?;
+    let number = |s: &str| -> Result<usize, ParseError> {
         s.parse::<usize>()
             .ok()
             .filter(|n| *n > 0)
-            .ok_or_else(|| format!("`{spec}`: `{s}` is not a step or cycle number (1, 2, ...)"))
+            .ok_or_else(|| ParseError::BadNumber {
+                spec: owned(),
+                number: s.to_string(),
+            })
     };
     let (cycle, step) = match at.split_once('.') {
         Some((c, s)) => (number(c)?, number(s)?),
@@ -74,12 +96,42 @@ pub fn parse(spec: &str) -> Result<FaultSpec, String> {
         "link" => {
             let (f, t) = target
                 .split_once("->")
-                .ok_or_else(|| format!("`{spec}`: a link is FROM->TO"))?;
+                .ok_or_else(|| ParseError::BadLink { spec: owned() })?;
             FaultKind::Link(f.to_string(), t.to_string())
         }
-        other => return Err(format!("`{spec}`: unknown fault kind `{other}`: {usage}")),
+        other => {
+            return Err(ParseError::UnknownKind {
+                spec: owned(),
+                kind: other.to_string(),
+            })
+        }
     };
     Ok(FaultSpec { kind, cycle, step })
+}
+
+/// Why a fault could not be injected.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum InjectError {
+    #[error("no role `{0}`")]
+    NoRole(String),
+    #[error("no moving actuator `{0}`")]
+    NoMovingActuator(String),
+    #[error("no actuator `{0}`")]
+    NoActuator(String),
+    #[error("`{0}`: a switch is ACT.end or ACT.home")]
+    BadSwitch(String),
+    #[error("`{0}` has no switches")]
+    NoSwitches(String),
+    /// The declared cycle is shorter than the step named.
+    #[error("the cycle has {steps} steps: there is no step {step}")]
+    NoSuchStep { steps: usize, step: usize },
+    /// The simulated cycle ended before the step named.
+    #[error("the cycle ended after {steps} step(s): there is no step {step}")]
+    CycleEnded { steps: usize, step: usize },
+    #[error(transparent)]
+    Simulation(#[from] SimulationError),
+    #[error(transparent)]
+    World(#[from] SimError),
 }
 
 /// Who noticed the fault first, and how.
@@ -101,22 +153,22 @@ pub struct FaultRun {
     pub fault: String,
     pub injected_ms: u64,
     /// The step the fault was injected before (`HC+`), if the cycle got that far.
-    pub before_step: Option<String>,
+    pub before_step: Option<Step>,
     /// Time step `step` was commanded (or attempted on a jammed actuator).
     pub commanded_ms: Option<u64>,
     /// Steps of the fault's cycle before the injection.
-    pub steps_before: Vec<String>,
+    pub steps_before: Vec<Step>,
     /// Steps after the injection, up to the detection (or, undetected, the end of the run).
-    pub steps_after: Vec<String>,
+    pub steps_after: Vec<Step>,
     /// The first motion a jam held back, when it has no completion sensor (nothing can
     /// detect it): (time, step).
-    pub undetectable: Option<(u64, String)>,
+    pub undetectable: Option<(u64, Step)>,
     pub detected: Option<Detection>,
     /// Every node fault and link alarm after the injection: (time, text).
     pub reactions: Vec<(u64, String)>,
     /// Actuator motions started after the detection: (time, step, safe-state release of a
     /// monostable valve on a faulted node).
-    pub moves_after: Vec<(u64, String, bool)>,
+    pub moves_after: Vec<(u64, Step, bool)>,
     /// Per role: fault (if any) and output levels at the end.
     pub outputs: Vec<NodeOutputs>,
     /// The whole trace (for `--timeline`).
@@ -125,97 +177,19 @@ pub struct FaultRun {
 }
 
 /// Simulates the robot with the fault of `spec` injected.
-pub fn simulate(c: &Compiled, spec: &FaultSpec) -> Result<FaultRun, String> {
+pub fn simulate(c: &Compiled, spec: &FaultSpec) -> Result<FaultRun, InjectError> {
     let tables = crate::sim::tables(c)?;
     let (mut world, button) = crate::sim::world(c, &tables)?;
-    let role = |name: &str| {
-        c.ir.roles
-            .iter()
-            .position(|r| r.name == *name)
-            .ok_or_else(|| format!("no role `{name}`"))
-    };
     // Resolve the target now, so a typo fails before anything runs.
-    let target = match &spec.kind {
-        FaultKind::Stuck(a) => {
-            let p = world
-                .plant_by_name(a)
-                .filter(|p| world.plants()[*p].travel().is_some())
-                .ok_or_else(|| format!("no moving actuator `{a}`"))?;
-            Target::Plant(p)
-        }
-        FaultKind::Switch(s) => {
-            let (a, which) = s
-                .split_once('.')
-                .ok_or_else(|| format!("`{s}`: a switch is ACT.end or ACT.home"))?;
-            let p = world
-                .plant_by_name(a)
-                .ok_or_else(|| format!("no actuator `{a}`"))?;
-            let Some((node, home, end)) = world.plants()[p].switches() else {
-                return Err(format!("`{a}` has no switches"));
-            };
-            let input = match which {
-                "end" => end,
-                "home" => home,
-                _ => None,
-            }
-            .ok_or_else(|| format!("`{s}`: a switch is ACT.end or ACT.home"))?;
-            Target::Input(node, input)
-        }
-        FaultKind::Stop(r) => Target::Node(role(r)?),
-        FaultKind::Link(f, t) => Target::Link(role(f)?, role(t)?),
-    };
+    let target = resolve(c, &world, &spec.kind)?;
     let n = c.ir.expect.len();
     if n > 0 && spec.step > n {
-        return Err(format!(
-            "the cycle has {n} steps: there is no step {}",
-            spec.step
-        ));
+        return Err(InjectError::NoSuchStep {
+            steps: n,
+            step: spec.step,
+        });
     }
-    for _ in 1..spec.cycle {
-        world
-            .run_cycle(button, CYCLE_LIMIT_MS)
-            .map_err(|e| e.to_string())?;
-    }
-    let mark = world.trace().len();
-    let steps_so_far = |w: &World| {
-        w.trace()[mark..]
-            .iter()
-            .filter(|e| e.what.step().is_some())
-            .count()
-    };
-    let mut injected_ms = None;
-    let inject = |w: &mut World, target: &Target| -> Result<u64, String> {
-        match *target {
-            Target::Plant(p) => w.jam(p),
-            Target::Input(n, i) => w.break_switch(n, i),
-            Target::Node(n) => w.stop_node(n),
-            Target::Link(f, t) => w.cut_link(f, t),
-        }
-        .map_err(|e| e.to_string())?;
-        Ok(w.now())
-    };
-    if spec.step == 1 {
-        injected_ms = Some(inject(&mut world, &target)?);
-    }
-    world.press(button).map_err(|e| e.to_string())?;
-    let deadline = world.now() + CYCLE_LIMIT_MS;
-    let mut events = 0usize;
-    loop {
-        if injected_ms.is_none() && steps_so_far(&world) + 1 >= spec.step {
-            injected_ms = Some(inject(&mut world, &target)?);
-        }
-        match world.step() {
-            Some(t) if t <= deadline && events < 1_000_000 => events += 1,
-            _ => break,
-        }
-    }
-    let injected_ms = injected_ms.ok_or_else(|| {
-        format!(
-            "the cycle ended after {} step(s): there is no step {}",
-            steps_so_far(&world),
-            spec.step
-        )
-    })?;
+    let (mark, injected_ms) = run_injected(&mut world, button, spec, &target)?;
     let mut trace = world.take_trace();
     // Name the injected fault by roles and actuators rather than indices.
     let named = describe(&spec.kind);
@@ -235,27 +209,161 @@ pub fn simulate(c: &Compiled, spec: &FaultSpec) -> Result<FaultRun, String> {
         .iter()
         .position(|e| matches!(e.what, What::Injected { .. }))
         .map_or(mark, |i| mark + i);
-    let name = |node: usize| c.ir.roles[node].name.clone();
-    let plant_name = |p: usize| world.plants()[p].name().to_string();
-    // The step the fault precedes: the next step or jammed command after the injection.
-    let (before_step, commanded_ms) = trace[inj_index..]
+    let plants = world.plants();
+    let (before_step, commanded_ms) = first_command(plants, &trace[inj_index..]);
+    let (reactions, detected) = reactions(c, &trace, inj_index);
+    let steps_after = steps_in(
+        &trace,
+        inj_index..detected.as_ref().map_or(trace.len(), |d| d.0),
+    );
+    Ok(FaultRun {
+        spec: spec.clone(),
+        fault: fault_text,
+        injected_ms,
+        before_step,
+        commanded_ms,
+        steps_before: steps_in(&trace, mark..inj_index),
+        steps_after,
+        undetectable: undetectable(c, plants, &trace[inj_index..]),
+        moves_after: detected
+            .as_ref()
+            .map_or_else(Vec::new, |(d, _)| moves_after(plants, &trace, *d)),
+        detected: detected.map(|d| d.1),
+        reactions,
+        outputs: outputs(c, &world),
+        end_ms: world.now(),
+        trace,
+    })
+}
+
+/// The plant, input, node or link `kind` names.
+fn resolve(c: &Compiled, world: &World, kind: &FaultKind) -> Result<Target, InjectError> {
+    let role = |name: &str| {
+        c.ir.roles
+            .iter()
+            .position(|r| r.name == *name)
+            .ok_or_else(|| InjectError::NoRole(name.to_string()))
+    };
+    Ok(match kind {
+        FaultKind::Stuck(a) => {
+            let p = world
+                .plant_by_name(a)
+                .filter(|p| world.plants()[*p].travel().is_some())
+                .ok_or_else(|| InjectError::NoMovingActuator(a.clone()))?;
+            Target::Plant(p)
+        }
+        FaultKind::Switch(s) => {
+            let (a, which) = s
+                .split_once('.')
+                .ok_or_else(|| InjectError::BadSwitch(s.clone()))?;
+            let p = world
+                .plant_by_name(a)
+                .ok_or_else(|| InjectError::NoActuator(a.to_string()))?;
+            let Some((node, home, end)) = world.plants()[p].switches() else {
+                return Err(InjectError::NoSwitches(a.to_string()));
+            };
+            let input = match which {
+                "end" => end,
+                "home" => home,
+                _ => None,
+            }
+            .ok_or_else(|| InjectError::BadSwitch(s.clone()))?;
+            Target::Input(node, input)
+        }
+        FaultKind::Stop(r) => Target::Node(role(r)?),
+        FaultKind::Link(f, t) => Target::Link(role(f)?, role(t)?),
+    })
+}
+
+/// Runs the cycles before the fault's, then the fault's cycle with `target` injected
+/// just before its step `spec.step`: the trace index where that cycle starts and the
+/// time of the injection.
+fn run_injected(
+    world: &mut World,
+    button: usize,
+    spec: &FaultSpec,
+    target: &Target,
+) -> Result<(usize, u64), InjectError> {
+    for _ in 1..spec.cycle {
+        world.run_cycle(button, CYCLE_LIMIT_MS)?;
+    }
+    let mark = world.trace().len();
+    let steps_so_far = |w: &World| {
+        w.trace()[mark..]
+            .iter()
+            .filter(|e| e.what.step().is_some())
+            .count()
+    };
+    let mut injected_ms = None;
+    if spec.step == 1 {
+        injected_ms = Some(inject(world, target)?);
+    }
+    world.press(button)?;
+    let deadline = world.now() + CYCLE_LIMIT_MS;
+    let mut events = 0usize;
+    loop {
+        if injected_ms.is_none() && steps_so_far(world) + 1 >= spec.step {
+            injected_ms = Some(inject(world, target)?);
+        }
+        match world.step() {
+            Some(t) if t <= deadline && events < 1_000_000 => events += 1,
+            _ => break,
+        }
+    }
+    let injected_ms = injected_ms.ok_or_else(|| InjectError::CycleEnded {
+        steps: steps_so_far(world),
+        step: spec.step,
+    })?;
+    Ok((mark, injected_ms))
+}
+
+/// Injects the fault now; returns the time.
+fn inject(w: &mut World, target: &Target) -> Result<u64, SimError> {
+    match *target {
+        Target::Plant(p) => w.jam(p),
+        Target::Input(n, i) => w.break_switch(n, i),
+        Target::Node(n) => w.stop_node(n),
+        Target::Link(f, t) => w.cut_link(f, t),
+    }?;
+    Ok(w.now())
+}
+
+/// A motion of plant `plant` (`HC+`).
+fn plant_step(plants: &[Plant], plant: usize, plus: bool) -> Step {
+    Step {
+        actuator: plants[plant].name().to_string(),
+        extend: plus,
+    }
+}
+
+/// The step the fault precedes: the first step or jammed command of `after`, and its time.
+fn first_command(plants: &[Plant], after: &[TraceEntry]) -> (Option<Step>, Option<u64>) {
+    after
         .iter()
         .find_map(|e| match &e.what {
-            What::Step { .. } => Some((e.what.step(), Some(e.t_ms))),
-            What::Jammed { plant, plus } => Some((
-                Some(format!(
-                    "{}{}",
-                    plant_name(*plant),
-                    if *plus { '+' } else { '-' }
-                )),
-                Some(e.t_ms),
-            )),
+            What::Step { .. } => Some((step_of(&e.what), Some(e.t_ms))),
+            What::Jammed { plant, plus } => {
+                Some((Some(plant_step(plants, *plant, *plus)), Some(e.t_ms)))
+            }
             _ => None,
         })
-        .unwrap_or((None, None));
+        .unwrap_or((None, None))
+}
+
+/// The first reaction to a fault, with its trace index.
+type FirstReaction = Option<(usize, Detection)>;
+
+/// Every node fault and link alarm from `from` on, as (time, text), and the first of
+/// them.
+fn reactions(
+    c: &Compiled,
+    trace: &[TraceEntry],
+    from: usize,
+) -> (Vec<(u64, String)>, FirstReaction) {
+    let name = |node: usize| c.ir.roles[node].name.clone();
     let mut reactions = Vec::new();
-    let mut detected: Option<(usize, Detection)> = None;
-    for (i, e) in trace.iter().enumerate().skip(inj_index) {
+    let mut detected: FirstReaction = None;
+    for (i, e) in trace.iter().enumerate().skip(from) {
         let text = match &e.what {
             What::Fault { node, fault } => {
                 let how = match fault {
@@ -289,82 +397,73 @@ pub fn simulate(c: &Compiled, spec: &FaultSpec) -> Result<FaultRun, String> {
             }
         }
     }
-    let steps = |range: std::ops::Range<usize>| -> Vec<String> {
-        trace
-            .get(range)
-            .unwrap_or(&[])
-            .iter()
-            .filter_map(|e| e.what.step())
-            .collect()
-    };
-    let steps_before = steps(mark..inj_index);
-    let steps_after = steps(inj_index..detected.as_ref().map_or(trace.len(), |d| d.0));
-    // The first motion the jam held back, if it has no completion sensor.
-    let undetectable = trace[inj_index..].iter().find_map(|e| match &e.what {
+    (reactions, detected)
+}
+
+/// The steps of `trace[range]`.
+fn steps_in(trace: &[TraceEntry], range: std::ops::Range<usize>) -> Vec<Step> {
+    trace
+        .get(range)
+        .unwrap_or(&[])
+        .iter()
+        .filter_map(|e| step_of(&e.what))
+        .collect()
+}
+
+/// The first motion a jam in `after` held back, if it has no completion sensor.
+fn undetectable(c: &Compiled, plants: &[Plant], after: &[TraceEntry]) -> Option<(u64, Step)> {
+    let held = after.iter().find_map(|e| match &e.what {
         What::Jammed { plant, plus } => {
-            let name = plant_name(*plant);
-            let sensorless = c.robot.actuator(&name).is_some_and(|(r, i)| {
+            let step = plant_step(plants, *plant, *plus);
+            let sensorless = c.robot.actuator(&step.actuator).is_some_and(|(r, i)| {
                 c.robot.roles[r].actuators[i]
                     .kind
                     .completion_switch(*plus)
                     .is_none()
             });
-            let step = format!("{name}{}", if *plus { '+' } else { '-' });
             Some(sensorless.then_some((e.t_ms, step)))
         }
         _ => None,
     });
-    let undetectable = undetectable.flatten();
-    let mut moves_after = Vec::new();
-    if let Some((d, _)) = &detected {
-        for (i, e) in trace.iter().enumerate().skip(*d) {
-            if let What::Step { plant, .. } = &e.what {
-                let node = world.plants()[*plant].node();
-                let single = matches!(world.plants()[*plant], Plant::SingleActing(_));
-                let faulted_now = trace[..i]
-                    .iter()
-                    .rev()
-                    .take_while(|x| x.t_ms == e.t_ms)
-                    .any(|x| matches!(x.what, What::Fault { node: n, .. } if n == node));
-                moves_after.push((
-                    e.t_ms,
-                    e.what.step().unwrap_or_default(),
-                    single && faulted_now,
-                ));
-            }
+    held.flatten()
+}
+
+/// Actuator motions from trace index `detected` on: (time, step, safe-state release of a
+/// monostable valve on a node that faulted at that instant).
+fn moves_after(plants: &[Plant], trace: &[TraceEntry], detected: usize) -> Vec<(u64, Step, bool)> {
+    let mut moves = Vec::new();
+    for (i, e) in trace.iter().enumerate().skip(detected) {
+        if let What::Step { plant, plus, .. } = &e.what {
+            let node = plants[*plant].node();
+            let single = matches!(plants[*plant], Plant::SingleActing(_));
+            let faulted_now = trace[..i]
+                .iter()
+                .rev()
+                .take_while(|x| x.t_ms == e.t_ms)
+                .any(|x| matches!(x.what, What::Fault { node: n, .. } if n == node));
+            let step = step_of(&e.what).unwrap_or_else(|| plant_step(plants, *plant, *plus));
+            moves.push((e.t_ms, step, single && faulted_now));
         }
     }
-    let outputs =
-        c.ir.roles
-            .iter()
-            .enumerate()
-            .map(|(i, r)| {
-                let e = world.engine(i);
-                let levels = r
-                    .outputs
-                    .iter()
-                    .enumerate()
-                    .map(|(o, out)| (out.name.clone(), e.outputs() & (1 << o) != 0))
-                    .collect();
-                (r.name.clone(), e.fault().map(|f| format!("{f:?}")), levels)
-            })
-            .collect();
-    Ok(FaultRun {
-        spec: spec.clone(),
-        fault: fault_text,
-        injected_ms,
-        before_step,
-        commanded_ms,
-        steps_before,
-        steps_after,
-        undetectable,
-        detected: detected.map(|d| d.1),
-        reactions,
-        moves_after,
-        outputs,
-        end_ms: world.now(),
-        trace,
-    })
+    moves
+}
+
+/// Per role: its fault (if any) and its output levels.
+fn outputs(c: &Compiled, world: &World) -> Vec<NodeOutputs> {
+    c.ir.roles
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let e = world.engine(i);
+            let levels = r
+                .outputs
+                .iter()
+                .enumerate()
+                .map(|(o, out)| (out.name.clone(), e.outputs() & (1 << o) != 0))
+                .collect();
+            (r.name.clone(), e.fault().map(|f| format!("{f:?}")), levels)
+        })
+        .collect()
 }
 
 enum Target {
@@ -396,7 +495,7 @@ impl FaultRun {
                 .map(|s| format!(" {s}"))
                 .unwrap_or_default()
         );
-        let _ = writeln!(o, "steps until then: {}", self.steps_before.join(" "));
+        let _ = writeln!(o, "steps until then: {}", steps_text(&self.steps_before));
         if !self.steps_after.is_empty() {
             let _ = writeln!(
                 o,
@@ -406,7 +505,7 @@ impl FaultRun {
                 } else {
                     ""
                 },
-                self.steps_after.join(" ")
+                steps_text(&self.steps_after)
             );
         }
         match &self.detected {
@@ -488,5 +587,56 @@ fn describe(kind: &FaultKind) -> String {
         FaultKind::Switch(s) => format!("switch {s} broken (stays open)"),
         FaultKind::Stop(r) => format!("node of {r} stopped"),
         FaultKind::Link(f, t) => format!("link {f} -> {t} lost"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{parse, FaultKind, ParseError};
+
+    #[test]
+    fn a_fault_spec_names_its_cycle_and_step() {
+        let s = parse("link:VC->GR@3.2").expect("parses");
+        assert_eq!(s.kind, FaultKind::Link("VC".into(), "GR".into()));
+        assert_eq!((s.cycle, s.step), (3, 2));
+        assert_eq!(s.to_string(), "link VC -> GR lost before step 2 of cycle 3");
+    }
+
+    #[test]
+    fn a_bad_fault_spec_says_what_is_wrong() {
+        assert_eq!(
+            parse("link:VC@1"),
+            Err(ParseError::BadLink {
+                spec: "link:VC@1".into()
+            })
+        );
+        assert_eq!(
+            parse("link:VC@1").unwrap_err().to_string(),
+            "`link:VC@1`: a link is FROM->TO"
+        );
+        let err = parse("melt:VC@1").unwrap_err();
+        assert_eq!(
+            err,
+            ParseError::UnknownKind {
+                spec: "melt:VC@1".into(),
+                kind: "melt".into()
+            }
+        );
+        assert_eq!(
+            err.to_string(),
+            "`melt:VC@1`: unknown fault kind `melt`: write KIND:TARGET@STEP or \
+             KIND:TARGET@CYCLE.STEP, KIND one of stuck (an actuator), switch (ACT.end or \
+             ACT.home), stop (a role), link (FROM->TO)"
+        );
+        assert_eq!(
+            parse("stop:GR@x.1").unwrap_err().to_string(),
+            "`stop:GR@x.1`: `x` is not a step or cycle number (1, 2, ...)"
+        );
+        assert_eq!(
+            parse("GR@1").unwrap_err(),
+            ParseError::NoKind {
+                spec: "GR@1".into()
+            }
+        );
     }
 }

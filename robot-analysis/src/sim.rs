@@ -3,22 +3,37 @@
 //! START press per cycle. Each cycle's actuator steps are compared with the declared
 //! sequence (or `expect`).
 
-use std::fmt::Write;
+use std::fmt::{Display, Write};
 
-use config_schema::Table;
-use node_fw::sim::{Button, DoubleActing, NodeSpec, Plant, SingleActing, What, World};
+use config_schema::{DecodeError, Table};
+use node_fw::sim::{Button, DoubleActing, NodeSpec, Plant, SimError, SingleActing, What, World};
 
 use robot_compiler::compile::Compiled;
-use robot_compiler::ir::Valves;
+use robot_compiler::ir::{Step, Valves};
 use robot_compiler::model::ActuatorKind;
+
+/// Why a compiled robot could not be simulated.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SimulationError {
+    #[error("the robot has no `start` input to press")]
+    NoStart,
+    #[error("role {role} has no input {input}")]
+    NoStartInput { role: String, input: String },
+    /// A compiled blob does not decode as a node decodes it.
+    #[error("blob of role {role}: {error}")]
+    Blob { role: String, error: DecodeError },
+    /// The world could not be built, or a run did not finish.
+    #[error(transparent)]
+    World(#[from] SimError),
+}
 
 /// Virtual-time bound of one cycle.
 pub const CYCLE_LIMIT_MS: u64 = 600_000;
 
 /// What one simulated cycle did.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct CycleResult {
-    pub steps: Vec<String>,
+pub struct SimulatedCycle {
+    pub steps: Vec<Step>,
     pub duration_ms: u64,
     /// Radio publications (one per published event, whatever the number of subscribers).
     pub publications: usize,
@@ -29,14 +44,14 @@ pub struct CycleResult {
 /// The outcome of a simulation.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SimResult {
-    pub expect: Vec<String>,
-    pub cycles: Vec<CycleResult>,
+    pub expect: Vec<Step>,
+    pub cycles: Vec<SimulatedCycle>,
     /// Every trace entry, as text (only from [`simulate_traced`]).
     pub trace: Vec<String>,
 }
 
-impl CycleResult {
-    fn ok(&self, expect: &[String]) -> bool {
+impl SimulatedCycle {
+    fn ok(&self, expect: &[Step]) -> bool {
         self.faults.is_empty() && (expect.is_empty() || self.steps == expect)
     }
 }
@@ -58,7 +73,7 @@ impl SimResult {
                 i + 1,
                 c.duration_ms,
                 c.publications,
-                c.steps.join(" ")
+                steps_text(&c.steps)
             );
             for f in &c.faults {
                 let _ = writeln!(o, "  FAULT {f}");
@@ -92,12 +107,30 @@ impl SimResult {
     }
 }
 
-/// A side-by-side listing of expected and observed steps, marking the differences.
-pub fn diff(expect: &[String], observed: &[String]) -> String {
+/// Steps as the CLI prints them: `VC+ GR+ VC-`.
+pub fn steps_text(steps: &[Step]) -> String {
+    let text: Vec<String> = steps.iter().map(Step::to_string).collect();
+    text.join(" ")
+}
+
+/// The step of a [`What::Step`] trace entry.
+pub fn step_of(what: &What) -> Option<Step> {
+    match what {
+        What::Step { actuator, plus, .. } => Some(Step {
+            actuator: actuator.clone(),
+            extend: *plus,
+        }),
+        _ => None,
+    }
+}
+
+/// A side-by-side listing of expected and observed steps ([`Step`]s, or their text),
+/// marking the differences.
+pub fn diff<S: Display>(expect: &[S], observed: &[S]) -> String {
+    let text = |s: Option<&S>| s.map_or_else(|| String::from("(none)"), S::to_string);
     let mut o = String::from("  step  expected  observed\n");
     for i in 0..expect.len().max(observed.len()) {
-        let e = expect.get(i).map_or("(none)", String::as_str);
-        let s = observed.get(i).map_or("(none)", String::as_str);
+        let (e, s) = (text(expect.get(i)), text(observed.get(i)));
         let mark = if e == s { "" } else { "  <-- differs" };
         let _ = writeln!(o, "  {:>4}  {e:<8}  {s:<8}{mark}", i + 1);
     }
@@ -106,7 +139,7 @@ pub fn diff(expect: &[String], observed: &[String]) -> String {
 
 /// The plant models of a compiled robot, wired to its tables' pin indices, and the index
 /// of the start button.
-pub fn plants(c: &Compiled) -> Result<(Vec<Plant>, usize), String> {
+pub fn plants(c: &Compiled) -> Result<(Vec<Plant>, usize), SimulationError> {
     let mut plants = Vec::new();
     for (ri, (role, r)) in c.robot.roles.iter().zip(&c.ir.roles).enumerate() {
         for a in &role.actuators {
@@ -155,36 +188,41 @@ pub fn plants(c: &Compiled) -> Result<(Vec<Plant>, usize), String> {
             }
         }
     }
-    let (sr, name) =
-        c.ir.start
-            .clone()
-            .ok_or("the robot has no `start` input to press")?;
+    let (sr, name) = c.ir.start.clone().ok_or(SimulationError::NoStart)?;
     let input = c.ir.roles[sr]
         .inputs
         .iter()
         .position(|i| i.name == name)
-        .ok_or_else(|| format!("role {} has no input {name}", c.ir.roles[sr].name))?;
+        .ok_or_else(|| SimulationError::NoStartInput {
+            role: c.ir.roles[sr].name.clone(),
+            input: name.clone(),
+        })?;
     plants.push(Plant::Button(Button::new(&name, sr, input as u8)));
     let button = plants.len() - 1;
     Ok((plants, button))
 }
 
 /// Runs `cycles` cycles of the compiled robot from its blobs.
-pub fn simulate(c: &Compiled, cycles: usize) -> Result<SimResult, String> {
+pub fn simulate(c: &Compiled, cycles: usize) -> Result<SimResult, SimulationError> {
     run(c, cycles, false)
 }
 
 /// [`simulate`], keeping every trace entry as text in [`SimResult::trace`].
-pub fn simulate_traced(c: &Compiled, cycles: usize) -> Result<SimResult, String> {
+pub fn simulate_traced(c: &Compiled, cycles: usize) -> Result<SimResult, SimulationError> {
     run(c, cycles, true)
 }
 
 /// The robot's blobs decoded as a node decodes them, in role order.
-pub fn tables(c: &Compiled) -> Result<Vec<Table>, String> {
+pub fn tables(c: &Compiled) -> Result<Vec<Table>, SimulationError> {
     c.blobs
         .iter()
         .zip(&c.ir.roles)
-        .map(|(b, r)| config_schema::decode(b).map_err(|e| format!("blob of role {}: {e}", r.name)))
+        .map(|(b, r)| {
+            config_schema::decode(b).map_err(|error| SimulationError::Blob {
+                role: r.name.clone(),
+                error,
+            })
+        })
         .collect()
 }
 
@@ -202,27 +240,24 @@ pub fn node_specs<'t>(c: &Compiled, tables: &'t [Table]) -> Vec<NodeSpec<'t>> {
 
 /// A world running `tables` (from [`tables`]) with the robot's plants, and the index of
 /// its start button.
-pub fn world<'t>(c: &Compiled, tables: &'t [Table]) -> Result<(World<'t>, usize), String> {
+pub fn world<'t>(c: &Compiled, tables: &'t [Table]) -> Result<(World<'t>, usize), SimulationError> {
     let specs = node_specs(c, tables);
     let (plants, button) = plants(c)?;
-    let world = World::new(&specs, plants).map_err(|e| e.to_string())?;
+    let world = World::new(&specs, plants)?;
     Ok((world, button))
 }
 
-fn run(c: &Compiled, cycles: usize, keep_trace: bool) -> Result<SimResult, String> {
+fn run(c: &Compiled, cycles: usize, keep_trace: bool) -> Result<SimResult, SimulationError> {
     let tables = tables(c)?;
     let (mut world, button) = world(c, &tables)?;
-    let expect: Vec<String> = c.ir.expect.iter().map(|s| s.to_string()).collect();
     let mut result = SimResult {
-        expect,
+        expect: c.ir.expect.clone(),
         cycles: Vec::new(),
         trace: Vec::new(),
     };
     for _ in 0..cycles {
         let mark = world.trace().len();
-        let cycle = world
-            .run_cycle(button, CYCLE_LIMIT_MS)
-            .map_err(|e| e.to_string())?;
+        let cycle = world.run_cycle(button, CYCLE_LIMIT_MS)?;
         let entries = &world.trace()[mark..];
         let publications = entries
             .iter()
@@ -242,8 +277,8 @@ fn run(c: &Compiled, cycles: usize, keep_trace: bool) -> Result<SimResult, Strin
             result.trace.extend(entries.iter().map(|e| e.to_string()));
         }
         let duration_ms = cycle.duration_ms();
-        let r = CycleResult {
-            steps: cycle.steps,
+        let r = SimulatedCycle {
+            steps: entries.iter().filter_map(|e| step_of(&e.what)).collect(),
             duration_ms,
             publications,
             faults,
@@ -255,4 +290,44 @@ fn run(c: &Compiled, cycles: usize, keep_trace: bool) -> Result<SimResult, Strin
         }
     }
     Ok(result)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{diff, step_of, steps_text};
+    use node_fw::sim::What;
+    use robot_compiler::ir::Step;
+
+    fn step(actuator: &str, extend: bool) -> Step {
+        Step {
+            actuator: actuator.to_string(),
+            extend,
+        }
+    }
+
+    #[test]
+    fn a_diff_of_steps_reads_as_the_diff_of_their_text() {
+        let expect = [step("VC", true), step("GR", true)];
+        let observed = [step("VC", true), step("GR", false), step("VC", false)];
+        let text = "  step  expected  observed\n     1  VC+       VC+     \n     2  GR+       GR-       <-- differs\n     3  (none)    VC-       <-- differs\n";
+        assert_eq!(diff(&expect, &observed), text);
+        let as_text = |s: &[Step]| s.iter().map(Step::to_string).collect::<Vec<_>>();
+        assert_eq!(diff(&as_text(&expect), &as_text(&observed)), text);
+    }
+
+    #[test]
+    fn steps_print_as_the_sequence_is_written() {
+        assert_eq!(
+            steps_text(&[step("VC", true), step("GR", false)]),
+            "VC+ GR-"
+        );
+        assert_eq!(steps_text(&[]), "");
+        let what = What::Step {
+            plant: 3,
+            actuator: String::from("HC"),
+            plus: false,
+        };
+        assert_eq!(step_of(&what), Some(step("HC", false)));
+        assert_eq!(step_of(&What::Reset { node: 0 }), None);
+    }
 }

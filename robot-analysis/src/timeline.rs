@@ -10,7 +10,7 @@ use std::fmt::Write;
 
 use node_fw::sim::{TraceEntry, What};
 
-use crate::sim::CYCLE_LIMIT_MS;
+use crate::sim::{SimulationError, CYCLE_LIMIT_MS};
 use robot_compiler::compile::Compiled;
 
 const LEFT: f64 = 150.0;
@@ -21,13 +21,11 @@ const RADIO_H: f64 = 22.0;
 const TOP: f64 = 36.0;
 
 /// Runs `cycles` cycles and returns the whole trace.
-pub fn run(c: &Compiled, cycles: usize) -> Result<Vec<TraceEntry>, String> {
+pub fn run(c: &Compiled, cycles: usize) -> Result<Vec<TraceEntry>, SimulationError> {
     let tables = crate::sim::tables(c)?;
     let (mut world, button) = crate::sim::world(c, &tables)?;
     for _ in 0..cycles {
-        world
-            .run_cycle(button, CYCLE_LIMIT_MS)
-            .map_err(|e| e.to_string())?;
+        world.run_cycle(button, CYCLE_LIMIT_MS)?;
     }
     Ok(world.take_trace())
 }
@@ -54,7 +52,7 @@ fn tick_step(end_ms: u64) -> u64 {
 }
 
 /// The SVG of a trace of the compiled robot.
-pub fn svg(c: &Compiled, trace: &[TraceEntry]) -> Result<String, String> {
+pub fn svg(c: &Compiled, trace: &[TraceEntry]) -> Result<String, SimulationError> {
     let (plants, _) = crate::sim::plants(c)?;
     let actuators: Vec<(usize, &str)> = plants
         .iter()
@@ -69,37 +67,87 @@ pub fn svg(c: &Compiled, trace: &[TraceEntry]) -> Result<String, String> {
             .flat_map(|(r, role)| (0..role.charts.len()).map(move |ch| (r, ch)))
             .collect();
     let end_ms = trace.last().map_or(1, |e| e.t_ms).max(1);
-    let x = |t: u64| LEFT + WIDTH * t as f64 / end_ms as f64;
+    let mut d = Drawing {
+        c,
+        trace,
+        end_ms,
+        o: String::new(),
+    };
     let height =
         TOP + ACT_H * actuators.len() as f64 + CHART_H * charts.len() as f64 + RADIO_H + 40.0;
-    let mut o = String::new();
-    let _ = writeln!(
-        o,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{:.0}" height="{height:.0}" font-family="sans-serif" font-size="11">"#,
-        LEFT + WIDTH + 20.0
-    );
-    let _ = writeln!(
-        o,
-        r#"<rect x="0" y="0" width="{:.0}" height="{height:.0}" fill="white"/>"#,
-        LEFT + WIDTH + 20.0
-    );
-    let _ = writeln!(
-        o,
-        r#"<text x="10" y="20" font-size="14" font-weight="bold">{} — {} ms</text>"#,
-        esc(&c.ir.name),
-        end_ms
-    );
+    d.header(height);
     let mut y = TOP;
-    // Actuator lanes: the stroke over time.
     for (plant, name) in &actuators {
-        let (lo, hi) = (y + ACT_H - 10.0, y + 8.0);
-        let _ = writeln!(o, r#"<g class="lane actuator" data-name="{}">"#, esc(name));
+        d.actuator_lane(*plant, name, y);
+        y += ACT_H;
+    }
+    for &(r, ch) in &charts {
+        d.chart_lane(r, ch, y);
+        y += CHART_H;
+    }
+    d.radio_lane(y);
+    y += RADIO_H;
+    d.marks(y);
+    d.time_axis(y);
+    d.o.push_str("</svg>\n");
+    Ok(d.o)
+}
+
+/// An SVG being drawn: the robot, the trace, and the text so far.
+struct Drawing<'a> {
+    c: &'a Compiled,
+    trace: &'a [TraceEntry],
+    end_ms: u64,
+    o: String,
+}
+
+/// Background colours of chart states, by state index.
+const PALETTE: [&str; 6] = [
+    "#e8f0e0", "#fdf0d8", "#e6eefa", "#f6e4ee", "#e9e4f6", "#e0f3f3",
+];
+
+impl Drawing<'_> {
+    /// The x coordinate of time `t`.
+    fn x(&self, t: u64) -> f64 {
+        LEFT + WIDTH * t as f64 / self.end_ms as f64
+    }
+
+    /// The `<svg>` element, the background and the title.
+    fn header(&mut self, height: f64) {
+        let o = &mut self.o;
         let _ = writeln!(
             o,
-            r##"<rect x="{LEFT}" y="{y}" width="{WIDTH}" height="{ACT_H}" fill="#f4f7fb" stroke="#dde"/>"##
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{:.0}" height="{height:.0}" font-family="sans-serif" font-size="11">"#,
+            LEFT + WIDTH + 20.0
         );
         let _ = writeln!(
             o,
+            r#"<rect x="0" y="0" width="{:.0}" height="{height:.0}" fill="white"/>"#,
+            LEFT + WIDTH + 20.0
+        );
+        let _ = writeln!(
+            o,
+            r#"<text x="10" y="20" font-size="14" font-weight="bold">{} — {} ms</text>"#,
+            esc(&self.c.ir.name),
+            self.end_ms
+        );
+    }
+
+    /// An actuator lane at `y`: the stroke over time, its steps and jams.
+    fn actuator_lane(&mut self, plant: usize, name: &str, y: f64) {
+        let (lo, hi) = (y + ACT_H - 10.0, y + 8.0);
+        let (trace, end_ms) = (self.trace, self.end_ms);
+        let _ = writeln!(
+            self.o,
+            r#"<g class="lane actuator" data-name="{}">"#,
+            esc(name)
+        );
+        let _ = writeln!(
+            self.o,
+            r##"<rect x="{LEFT}" y="{y}" width="{WIDTH}" height="{ACT_H}" fill="#f4f7fb" stroke="#dde"/>"##
+        );
+        let _ = writeln!(
+            self.o,
             r#"<text x="10" y="{:.1}" font-weight="bold">{}</text><text x="{:.1}" y="{:.1}" font-size="9" fill="gray" text-anchor="end">end</text><text x="{:.1}" y="{:.1}" font-size="9" fill="gray" text-anchor="end">home</text>"#,
             y + ACT_H / 2.0 + 4.0,
             esc(name),
@@ -108,66 +156,68 @@ pub fn svg(c: &Compiled, trace: &[TraceEntry]) -> Result<String, String> {
             LEFT - 4.0,
             lo + 3.0
         );
-        let mut points = vec![(x(0), lo)];
+        let mut points = vec![(self.x(0), lo)];
         let mut level = lo;
         for e in trace {
             match &e.what {
-                What::Step { plant: p, plus, .. } if p == plant => {
-                    points.push((x(e.t_ms), level));
-                    let _ = plus;
+                What::Step { plant: p, .. } if *p == plant => {
+                    points.push((self.x(e.t_ms), level));
                 }
-                What::Arrived { plant: p, end } if p == plant => {
+                What::Arrived { plant: p, end } if *p == plant => {
                     level = if *end { hi } else { lo };
-                    points.push((x(e.t_ms), level));
+                    points.push((self.x(e.t_ms), level));
                 }
-                What::Jammed { plant: p, .. } if p == plant => {
+                What::Jammed { plant: p, .. } if *p == plant => {
                     let _ = writeln!(
-                        o,
+                        self.o,
                         r#"<text x="{:.1}" y="{:.1}" fill="red" font-weight="bold" text-anchor="middle">✕ jammed</text>"#,
-                        x(e.t_ms),
+                        self.x(e.t_ms),
                         y + ACT_H / 2.0 + 4.0
                     );
                 }
                 _ => {}
             }
         }
-        points.push((x(end_ms), level));
+        points.push((self.x(end_ms), level));
         let pts: Vec<String> = points
             .iter()
             .map(|(a, b)| format!("{a:.1},{b:.1}"))
             .collect();
         let _ = writeln!(
-            o,
+            self.o,
             r##"<polyline points="{}" fill="none" stroke="#1f4e9c" stroke-width="2"/>"##,
             pts.join(" ")
         );
         for e in trace {
             if let What::Step { plant: p, .. } = &e.what {
-                if p == plant {
+                if *p == plant {
                     let _ = writeln!(
-                        o,
+                        self.o,
                         r##"<text x="{:.1}" y="{:.1}" font-size="9" fill="#1f4e9c">{}</text>"##,
-                        x(e.t_ms) + 2.0,
+                        self.x(e.t_ms) + 2.0,
                         y + ACT_H / 2.0 + 3.0,
                         esc(&e.what.step().unwrap_or_default())
                     );
                 }
             }
         }
-        o.push_str("</g>\n");
-        y += ACT_H;
+        self.o.push_str("</g>\n");
     }
-    // Chart lanes: state intervals and a tick per transition.
-    let palette = [
-        "#e8f0e0", "#fdf0d8", "#e6eefa", "#f6e4ee", "#e9e4f6", "#e0f3f3",
-    ];
-    for &(r, ch) in &charts {
+
+    /// The lane of chart `ch` of role `r` at `y`: state intervals, a tick per transition,
+    /// and the time its node faulted shaded.
+    fn chart_lane(&mut self, r: usize, ch: usize, y: f64) {
+        let (c, trace, end_ms) = (self.c, self.trace, self.end_ms);
         let role = &c.ir.roles[r];
         let chart = &role.charts[ch];
         let label = format!("{}.{}", role.name, chart.name);
-        let _ = writeln!(o, r#"<g class="lane chart" data-name="{}">"#, esc(&label));
         let _ = writeln!(
-            o,
+            self.o,
+            r#"<g class="lane chart" data-name="{}">"#,
+            esc(&label)
+        );
+        let _ = writeln!(
+            self.o,
             r#"<text x="10" y="{:.1}">{}</text>"#,
             y + CHART_H / 2.0 + 4.0,
             esc(&label)
@@ -188,22 +238,22 @@ pub fn svg(c: &Compiled, trace: &[TraceEntry]) -> Result<String, String> {
         }
         for (i, (t0, s)) in intervals.iter().enumerate() {
             let t1 = intervals.get(i + 1).map_or(end_ms, |n| n.0);
-            let (x0, x1) = (x(*t0), x(t1));
+            let (x0, x1) = (self.x(*t0), self.x(t1));
             let name = chart.states.get(*s).map_or("?", |st| st.name.as_str());
             let _ = writeln!(
-                o,
+                self.o,
                 r##"<rect x="{x0:.1}" y="{:.1}" width="{:.1}" height="{:.1}" fill="{}" stroke="#999" stroke-width="0.5"><title>{} {} from {} ms</title></rect>"##,
                 y + 3.0,
                 (x1 - x0).max(0.5),
                 CHART_H - 6.0,
-                palette[*s % palette.len()],
+                PALETTE[*s % PALETTE.len()],
                 esc(&label),
                 esc(name),
                 t0
             );
             if x1 - x0 > 6.5 * name.len() as f64 {
                 let _ = writeln!(
-                    o,
+                    self.o,
                     r#"<text x="{:.1}" y="{:.1}" font-size="10">{}</text>"#,
                     x0 + 2.0,
                     y + CHART_H / 2.0 + 4.0,
@@ -218,128 +268,154 @@ pub fn svg(c: &Compiled, trace: &[TraceEntry]) -> Result<String, String> {
         });
         if let Some(t0) = fault {
             let _ = writeln!(
-                o,
+                self.o,
                 r##"<rect class="faulted" x="{:.1}" y="{:.1}" width="{:.1}" height="{:.1}" fill="#ff0000" fill-opacity="0.18"/><text x="{:.1}" y="{:.1}" font-size="9" fill="#b00000">FAULT</text>"##,
-                x(t0),
+                self.x(t0),
                 y + 3.0,
-                (x(end_ms) - x(t0)).max(0.5),
+                (self.x(end_ms) - self.x(t0)).max(0.5),
                 CHART_H - 6.0,
-                x(t0) + 2.0,
+                self.x(t0) + 2.0,
                 y + CHART_H / 2.0 + 3.0
             );
         }
         for t in ticks {
             let _ = writeln!(
-                o,
+                self.o,
                 r#"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}" stroke="black"/>"#,
-                x(t),
+                self.x(t),
                 y + CHART_H - 3.0,
-                x(t),
+                self.x(t),
                 y + CHART_H + 1.0
             );
         }
-        o.push_str("</g>\n");
-        y += CHART_H;
+        self.o.push_str("</g>\n");
     }
-    // Radio lane: a tick per publication.
-    let _ = writeln!(o, r#"<g class="lane radio" data-name="radio">"#);
-    let _ = writeln!(
-        o,
-        r#"<text x="10" y="{:.1}" fill="gray">radio</text>"#,
-        y + RADIO_H / 2.0 + 4.0
-    );
-    for e in trace {
-        if let What::Publish { node, event, .. } = &e.what {
-            let ev = c.ir.roles[*node]
-                .events
-                .get(usize::from(*event))
-                .cloned()
-                .unwrap_or_default();
-            let _ = writeln!(
-                o,
-                r##"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}" stroke="#c07000" stroke-width="1.5"><title>{} publishes {} at {} ms</title></line>"##,
-                x(e.t_ms),
-                y + 4.0,
-                x(e.t_ms),
-                y + RADIO_H - 4.0,
-                esc(&c.ir.roles[*node].name),
-                esc(&ev),
-                e.t_ms
-            );
+
+    /// The radio lane at `y`: a tick per publication.
+    fn radio_lane(&mut self, y: f64) {
+        let (c, trace) = (self.c, self.trace);
+        let _ = writeln!(self.o, r#"<g class="lane radio" data-name="radio">"#);
+        let _ = writeln!(
+            self.o,
+            r#"<text x="10" y="{:.1}" fill="gray">radio</text>"#,
+            y + RADIO_H / 2.0 + 4.0
+        );
+        for e in trace {
+            if let What::Publish { node, event, .. } = &e.what {
+                let ev = c.ir.roles[*node]
+                    .events
+                    .get(usize::from(*event))
+                    .cloned()
+                    .unwrap_or_default();
+                let _ = writeln!(
+                    self.o,
+                    r##"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}" stroke="#c07000" stroke-width="1.5"><title>{} publishes {} at {} ms</title></line>"##,
+                    self.x(e.t_ms),
+                    y + 4.0,
+                    self.x(e.t_ms),
+                    y + RADIO_H - 4.0,
+                    esc(&c.ir.roles[*node].name),
+                    esc(&ev),
+                    e.t_ms
+                );
+            }
         }
+        self.o.push_str("</g>\n");
     }
-    o.push_str("</g>\n");
-    y += RADIO_H;
-    // Faults, link alarms, injections (the first of each instant labelled).
-    let mut labelled: Vec<u64> = Vec::new();
-    for e in trace {
-        let mark = match &e.what {
-            What::Fault { node, fault } => Some((
-                "red",
-                match fault {
-                    node_fw::ecc::Fault::Action { code, .. } => {
-                        format!("FAULT {} (code {code})", c.ir.roles[*node].name)
-                    }
-                    other => format!("FAULT {} {other:?}", c.ir.roles[*node].name),
-                },
-            )),
-            What::LinkAlarm { node, peer } => Some((
-                "#b000b0",
-                format!(
-                    "LINK ALARM {} -> {}",
-                    c.ir.roles[*node].name, c.ir.roles[*peer].name
-                ),
-            )),
-            What::Injected { fault } => Some(("black", format!("injected: {fault}"))),
-            _ => None,
-        };
-        if let Some((color, text)) = mark {
-            if labelled.last().is_none_or(|t| x(e.t_ms) - x(*t) > 140.0) {
+
+    /// Faults, link alarms and injections as vertical lines from the top down to `bottom`
+    /// (the first of each instant labelled).
+    fn marks(&mut self, bottom: f64) {
+        let (c, trace) = (self.c, self.trace);
+        let mut labelled: Vec<u64> = Vec::new();
+        for e in trace {
+            let mark = match &e.what {
+                What::Fault { node, fault } => Some((
+                    "red",
+                    match fault {
+                        node_fw::ecc::Fault::Action { code, .. } => {
+                            format!("FAULT {} (code {code})", c.ir.roles[*node].name)
+                        }
+                        other => format!("FAULT {} {other:?}", c.ir.roles[*node].name),
+                    },
+                )),
+                What::LinkAlarm { node, peer } => Some((
+                    "#b000b0",
+                    format!(
+                        "LINK ALARM {} -> {}",
+                        c.ir.roles[*node].name, c.ir.roles[*peer].name
+                    ),
+                )),
+                What::Injected { fault } => Some(("black", format!("injected: {fault}"))),
+                _ => None,
+            };
+            let Some((color, text)) = mark else {
+                continue;
+            };
+            let x = self.x(e.t_ms);
+            if labelled.last().is_none_or(|t| x - self.x(*t) > 140.0) {
                 labelled.push(e.t_ms);
                 let _ = writeln!(
-                    o,
+                    self.o,
                     r#"<text x="{:.1}" y="{:.1}" font-size="9" fill="{color}" text-anchor="end">{}</text>"#,
-                    x(e.t_ms) - 2.0,
+                    x - 2.0,
                     TOP - 4.0,
                     esc(&text)
                 );
             }
             let _ = writeln!(
-                o,
-                r#"<line class="mark" x1="{:.1}" y1="{TOP}" x2="{:.1}" y2="{y:.1}" stroke="{color}" stroke-dasharray="4,3"><title>{} at {} ms</title></line>"#,
-                x(e.t_ms),
-                x(e.t_ms),
+                self.o,
+                r#"<line class="mark" x1="{x:.1}" y1="{TOP}" x2="{x:.1}" y2="{bottom:.1}" stroke="{color}" stroke-dasharray="4,3"><title>{} at {} ms</title></line>"#,
                 esc(&text),
                 e.t_ms
             );
         }
     }
-    // Time axis.
-    let step = tick_step(end_ms);
-    let _ = writeln!(
-        o,
-        r#"<line x1="{LEFT}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="black"/>"#,
-        LEFT + WIDTH
-    );
-    let mut t = 0;
-    while t <= end_ms {
+
+    /// The time axis at `y`: a tick and label every [`tick_step`] ms.
+    fn time_axis(&mut self, y: f64) {
+        let end_ms = self.end_ms;
+        let step = tick_step(end_ms);
         let _ = writeln!(
-            o,
-            r#"<line x1="{:.1}" y1="{y:.1}" x2="{:.1}" y2="{:.1}" stroke="black"/><text x="{:.1}" y="{:.1}" font-size="9" text-anchor="middle">{t}</text>"#,
-            x(t),
-            x(t),
-            y + 4.0,
-            x(t),
-            y + 15.0
+            self.o,
+            r#"<line x1="{LEFT}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="black"/>"#,
+            LEFT + WIDTH
         );
-        t += step;
+        let mut t = 0;
+        while t <= end_ms {
+            let x = self.x(t);
+            let _ = writeln!(
+                self.o,
+                r#"<line x1="{x:.1}" y1="{y:.1}" x2="{x:.1}" y2="{:.1}" stroke="black"/><text x="{x:.1}" y="{:.1}" font-size="9" text-anchor="middle">{t}</text>"#,
+                y + 4.0,
+                y + 15.0
+            );
+            t += step;
+        }
+        let _ = writeln!(
+            self.o,
+            r#"<text x="{:.1}" y="{:.1}" font-size="9" text-anchor="end">ms</text>"#,
+            LEFT + WIDTH,
+            y + 28.0
+        );
     }
-    let _ = writeln!(
-        o,
-        r#"<text x="{:.1}" y="{:.1}" font-size="9" text-anchor="end">ms</text>"#,
-        LEFT + WIDTH,
-        y + 28.0
-    );
-    o.push_str("</svg>\n");
-    Ok(o)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{esc, tick_step};
+
+    #[test]
+    fn the_time_axis_has_about_ten_round_ticks() {
+        assert_eq!(tick_step(1), 1);
+        assert_eq!(tick_step(95), 10);
+        assert_eq!(tick_step(1_500), 200);
+        assert_eq!(tick_step(13_000), 2_000);
+        assert_eq!(tick_step(45_000), 5_000);
+    }
+
+    #[test]
+    fn names_are_escaped_for_xml() {
+        assert_eq!(esc(r#"a<b>&"c""#), "a&lt;b&gt;&amp;&quot;c&quot;");
+    }
 }

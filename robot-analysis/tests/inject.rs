@@ -3,8 +3,9 @@
 //! afterwards but a monostable valve released to its safe state. `sim --timeline`: the SVG
 //! parses and has one lane per actuator.
 
-use robot_analysis::inject::{self, FaultRun};
+use robot_analysis::inject::{self, FaultRun, InjectError, ParseError};
 use robot_analysis::timeline;
+use robot_compiler::ir::{parse_steps, Step};
 use robot_compiler::{compile, Compiled, Source};
 
 fn paint() -> Compiled {
@@ -14,6 +15,18 @@ fn paint() -> Compiled {
     );
     let text = std::fs::read_to_string(&path).expect("robot");
     compile(&Source::new("paint-robot.ron", text)).expect("compiles")
+}
+
+/// `"VC+ GR+"` as steps.
+fn steps(text: &str) -> Vec<Step> {
+    parse_steps(text)
+        .into_iter()
+        .map(|(s, _)| s.expect("a step"))
+        .collect()
+}
+
+fn step(text: &str) -> Step {
+    steps(text).remove(0)
 }
 
 fn inject(c: &Compiled, spec: &str) -> FaultRun {
@@ -31,8 +44,8 @@ fn all_faulted_with_outputs_off(run: &FaultRun) {
 fn a_jammed_actuator_is_caught_by_its_watchdog_and_every_node_stops() {
     let c = paint();
     let run = inject(&c, "stuck:HC@4");
-    assert_eq!(run.before_step.as_deref(), Some("HC+"));
-    assert_eq!(run.steps_before, ["VC+", "GR+", "VC-"]);
+    assert_eq!(run.before_step, Some(step("HC+")));
+    assert_eq!(run.steps_before, steps("VC+ GR+ VC-"));
     let d = run.detected.clone().expect("detected");
     assert_eq!(
         (d.role.as_str(), d.how.as_str()),
@@ -50,7 +63,7 @@ fn a_jammed_actuator_is_caught_by_its_watchdog_and_every_node_stops() {
         ]
     );
     // The gripper's monostable valve drops to its safe level; nothing else moves.
-    assert_eq!(run.moves_after, [(2708, String::from("GR-"), true)]);
+    assert_eq!(run.moves_after, [(2708, step("GR-"), true)]);
     assert!(run.stopped_safely());
     all_faulted_with_outputs_off(&run);
 }
@@ -59,12 +72,12 @@ fn a_jammed_actuator_is_caught_by_its_watchdog_and_every_node_stops() {
 fn a_broken_end_switch_is_caught_within_the_timeout() {
     let c = paint();
     let run = inject(&c, "switch:RC.end@7");
-    assert_eq!(run.before_step.as_deref(), Some("RC+"));
+    assert_eq!(run.before_step, Some(step("RC+")));
     let d = run.detected.clone().expect("detected");
     assert_eq!(d.role, "RC");
     assert_eq!(d.t_ms - run.commanded_ms.expect("commanded"), 2000);
     assert_eq!(run.reactions.len(), 4);
-    assert_eq!(run.moves_after, [(4062, String::from("GR-"), true)]);
+    assert_eq!(run.moves_after, [(4062, step("GR-"), true)]);
     assert!(run.stopped_safely());
     all_faulted_with_outputs_off(&run);
 }
@@ -73,7 +86,7 @@ fn a_broken_end_switch_is_caught_within_the_timeout() {
 fn a_stopped_node_raises_a_link_alarm_and_the_machine_stalls_without_moving() {
     let c = paint();
     let run = inject(&c, "stop:GR@2");
-    assert_eq!(run.steps_before, ["VC+"]);
+    assert_eq!(run.steps_before, steps("VC+"));
     let d = run.detected.clone().expect("detected");
     assert_eq!(
         (d.role.as_str(), d.how.as_str()),
@@ -93,10 +106,10 @@ fn a_lost_link_raises_a_link_alarm_and_nothing_moves_after_it() {
     let run = inject(&c, "link:VC->GR@10");
     assert_eq!(
         run.steps_before,
-        ["VC+", "GR+", "VC-", "HC+", "VC+", "VC-", "RC+", "RC-", "HC-"]
+        steps("VC+ GR+ VC- HC+ VC+ VC- RC+ RC- HC-")
     );
     // Step 10 is VC's own: it still moves; the hand-over to GR is what is lost.
-    assert_eq!(run.steps_after, ["VC+"]);
+    assert_eq!(run.steps_after, steps("VC+"));
     let d = run.detected.clone().expect("detected");
     assert_eq!(d.role, "VC");
     assert!(run.moves_after.is_empty());
@@ -108,27 +121,38 @@ fn a_lost_link_raises_a_link_alarm_and_nothing_moves_after_it() {
 fn fault_specs_parse_or_say_what_is_wrong() {
     let s = inject::parse("switch:HC.end@2.4").expect("parses");
     assert_eq!((s.cycle, s.step), (2, 4));
+    let err = inject::parse("stuck:HC").unwrap_err();
     assert_eq!(
-        inject::parse("stuck:HC").unwrap_err(),
+        err,
+        ParseError::NoStep {
+            spec: "stuck:HC".into()
+        }
+    );
+    assert_eq!(
+        err.to_string(),
         "`stuck:HC`: no `@STEP`: write KIND:TARGET@STEP or KIND:TARGET@CYCLE.STEP, KIND one \
          of stuck (an actuator), switch (ACT.end or ACT.home), stop (a role), link (FROM->TO)"
     );
     assert_eq!(
-        inject::parse("stuck:HC@0").unwrap_err(),
+        inject::parse("stuck:HC@0").unwrap_err().to_string(),
         "`stuck:HC@0`: `0` is not a step or cycle number (1, 2, ...)"
     );
     let c = paint();
     let err = inject::simulate(&c, &inject::parse("stuck:XX@1").expect("parses")).unwrap_err();
-    assert_eq!(err, "no moving actuator `XX`");
+    assert_eq!(err, InjectError::NoMovingActuator("XX".into()));
+    assert_eq!(err.to_string(), "no moving actuator `XX`");
     let err = inject::simulate(&c, &inject::parse("stuck:HC@13").expect("parses")).unwrap_err();
-    assert_eq!(err, "the cycle has 12 steps: there is no step 13");
+    assert_eq!(
+        err.to_string(),
+        "the cycle has 12 steps: there is no step 13"
+    );
 }
 
 #[test]
 fn a_fault_in_the_second_cycle_leaves_the_first_intact() {
     let c = paint();
     let run = inject(&c, "stuck:VC@2.1");
-    assert_eq!(run.steps_before, Vec::<String>::new());
+    assert_eq!(run.steps_before, Vec::<Step>::new());
     let d = run.detected.clone().expect("detected");
     assert_eq!(d.role, "VC");
     assert_eq!(d.t_ms - run.commanded_ms.expect("commanded"), 2000);

@@ -84,7 +84,11 @@ fn run(text: &str, cycles: usize) -> (Vec<String>, Vec<usize>) {
     let result = sim::simulate(&compiled, cycles).expect("simulation runs");
     assert!(result.ok(), "{}\n{}", text, result.report());
     (
-        result.cycles.iter().map(|c| c.steps.join(" ")).collect(),
+        result
+            .cycles
+            .iter()
+            .map(|c| sim::steps_text(&c.steps))
+            .collect(),
         result.cycles.iter().map(|c| c.publications).collect(),
     )
 }
@@ -181,7 +185,7 @@ fn every_sequence_of_the_table_is_reproduced_in_simulation() {
 /// `verify --start-anytime`: a press during a cycle costs no publication, so no link fills.
 #[test]
 fn every_sequence_of_the_table_passes_verify_with_start_anytime_and_start_on_any_node() {
-    use robot_analysis::verify::{verify, Options};
+    use robot_analysis::verify::{verify, ExploreOptions};
     for (sequence, acts, _, _) in table() {
         let mut starts: Vec<&str> = acts.iter().map(|a| a.1).collect();
         starts.dedup();
@@ -190,9 +194,9 @@ fn every_sequence_of_the_table_passes_verify_with_start_anytime_and_start_on_any
             let text = robot(sequence, &acts, start);
             let src = Source::new("gen.ron", text.as_str());
             let c = compile(&src).unwrap_or_else(|_| panic!("{text}"));
-            let opts = Options {
+            let opts = ExploreOptions {
                 start_anytime: true,
-                ..Options::default()
+                ..ExploreOptions::default()
             };
             let r = verify(&c, opts).expect("model builds");
             assert!(r.ok(), "START on {start}\n{}", r.render("gen.ron", 0));

@@ -72,13 +72,13 @@ fn gated() -> Vec<(&'static str, String)> {
 fn start_anytime_passes_with_start_on_another_node_than_step_1s() {
     for (name, text) in gated() {
         let c = build(name, &text);
-        let opts = verify::Options {
+        let opts = verify::ExploreOptions {
             start_anytime: true,
-            ..verify::Options::default()
+            ..verify::ExploreOptions::default()
         };
         let r = verify::verify(&c, opts).expect("model builds");
         assert!(r.ok(), "{}", r.render(name, 0));
-        let r = verify::verify(&c, verify::Options::default()).expect("model builds");
+        let r = verify::verify(&c, verify::ExploreOptions::default()).expect("model builds");
         assert!(r.ok(), "{}", r.render(name, 0));
     }
 }

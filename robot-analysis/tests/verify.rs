@@ -1,7 +1,7 @@
 //! `config-tool verify`: every robot of `robot-configs/` explored exhaustively, and broken
 //! robots each caught by the right property with its shortest counterexample.
 
-use robot_analysis::verify::{self, Options, Property, Report};
+use robot_analysis::verify::{self, ExploreOptions, Property, Report};
 use robot_compiler::{compile, Compiled, Source};
 
 fn load(path: &str) -> Source {
@@ -26,9 +26,9 @@ fn build(src: &Source) -> Compiled {
 fn run(c: &Compiled, lossy: bool) -> Report {
     verify::verify(
         c,
-        Options {
+        ExploreOptions {
             lossy,
-            ..Options::default()
+            ..ExploreOptions::default()
         },
     )
     .expect("model builds")
@@ -37,9 +37,9 @@ fn run(c: &Compiled, lossy: bool) -> Report {
 fn run_prompt(c: &Compiled) -> Report {
     verify::verify(
         c,
-        Options {
+        ExploreOptions {
             prompt: true,
-            ..Options::default()
+            ..ExploreOptions::default()
         },
     )
     .expect("model builds")
@@ -275,9 +275,9 @@ fn a_start_during_the_cycle_is_explored_with_start_anytime() {
     let anytime = |c: &Compiled| {
         verify::verify(
             c,
-            Options {
+            ExploreOptions {
                 start_anytime: true,
-                ..Options::default()
+                ..ExploreOptions::default()
             },
         )
         .expect("model builds")
@@ -305,9 +305,9 @@ fn an_unbounded_counter_stops_the_exploration_and_is_named() {
     let small = build(&load("fixtures/small-charts.ron"));
     let r = verify::verify(
         &small,
-        Options {
+        ExploreOptions {
             max_states: 1000,
-            ..Options::default()
+            ..ExploreOptions::default()
         },
     )
     .expect("model builds");

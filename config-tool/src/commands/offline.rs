@@ -100,7 +100,7 @@ pub fn verify(flags: &VerifyArgs) -> Result<(), Failure> {
     let model = verify::Model::new(&compiled).map_err(Failure::error)?;
     let result = verify::explore(
         &model,
-        verify::Options {
+        verify::ExploreOptions {
             lossy: flags.lossy,
             prompt,
             start_anytime: flags.start_anytime,

@@ -18,13 +18,31 @@ use config_schema::{Publication, Table, Topic};
 use indexmap::IndexSet;
 use node_fw::cylinder::{self, Command, Cylinder, Motion, Position as Pos};
 use node_fw::ecc::{Effects, Engine, EngineState, Fault};
+use rustc_hash::FxBuildHasher;
 
 use robot_compiler::compile::Compiled;
 use robot_compiler::interlock::{self, Atom, Interlock};
+use robot_compiler::ir::Step;
 
-/// Options of a verification run.
+use crate::sim::SimulationError;
+
+/// Why a compiled robot has no model to explore.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ModelError {
+    #[error("{0} roles: verify handles at most 8 nodes")]
+    TooManyRoles(usize),
+    #[error("no start button")]
+    NoStartButton,
+    /// A `never:` interlock (by index) does not resolve.
+    #[error("never[{index}]: {message}")]
+    Interlock { index: usize, message: String },
+    #[error(transparent)]
+    Simulation(#[from] SimulationError),
+}
+
+/// Assumptions and bounds of a verification run.
 #[derive(Debug, Clone, Copy)]
-pub struct Options {
+pub struct ExploreOptions {
     /// A delivery may fail after the link's retries (link alarm).
     pub lossy: bool,
     /// Timing assumption: the radio is faster than any motion or timer, so while a
@@ -37,9 +55,9 @@ pub struct Options {
     pub max_states: usize,
 }
 
-impl Default for Options {
+impl Default for ExploreOptions {
     fn default() -> Self {
-        Options {
+        ExploreOptions {
             lossy: false,
             prompt: false,
             start_anytime: false,
@@ -224,7 +242,7 @@ enum Move {
 
 /// What an engine call reported, in order.
 #[derive(Debug, Clone)]
-enum Fx {
+enum Effect {
     Output(u8, bool),
     Publish(Publication),
     Start(u8),
@@ -234,30 +252,31 @@ enum Fx {
     Ignored(u8, u8),
 }
 
+/// The effects of one engine call, in order.
 #[derive(Default)]
-struct Sink(Vec<Fx>);
+struct EffectLog(Vec<Effect>);
 
-impl Effects for Sink {
+impl Effects for EffectLog {
     fn output(&mut self, output: u8, value: bool) {
-        self.0.push(Fx::Output(output, value));
+        self.0.push(Effect::Output(output, value));
     }
     fn publish(&mut self, p: &Publication) {
-        self.0.push(Fx::Publish(*p));
+        self.0.push(Effect::Publish(*p));
     }
     fn start_timer(&mut self, timer: u8, _ms: u32) {
-        self.0.push(Fx::Start(timer));
+        self.0.push(Effect::Start(timer));
     }
     fn cancel_timer(&mut self, timer: u8) {
-        self.0.push(Fx::Cancel(timer));
+        self.0.push(Effect::Cancel(timer));
     }
     fn fault(&mut self, fault: Fault) {
-        self.0.push(Fx::Fault(fault));
+        self.0.push(Effect::Fault(fault));
     }
     fn fired(&mut self, chart: u8, _transition: u8, from: u8, to: u8) {
-        self.0.push(Fx::Fired(chart, from, to));
+        self.0.push(Effect::Fired(chart, from, to));
     }
     fn ignored(&mut self, chart: u8, input: u8) {
-        self.0.push(Fx::Ignored(chart, input));
+        self.0.push(Effect::Ignored(chart, input));
     }
 }
 
@@ -270,7 +289,7 @@ pub struct Model<'c> {
     start: (usize, u8),
     /// Per node, per peer index: the node with that address.
     peers: Vec<Vec<Option<usize>>>,
-    expect: Vec<String>,
+    expect: Vec<Step>,
     interlocks: Vec<Interlock>,
     init: Sys,
 }
@@ -279,20 +298,10 @@ type Bad = (Property, String);
 
 impl<'c> Model<'c> {
     /// The model of `c`, from its blobs decoded as a node decodes them.
-    pub fn new(c: &'c Compiled) -> Result<Model<'c>, String> {
-        let tables: Vec<Table> = c
-            .blobs
-            .iter()
-            .zip(&c.ir.roles)
-            .map(|(b, r)| {
-                config_schema::decode(b).map_err(|e| format!("blob of role {}: {e}", r.name))
-            })
-            .collect::<Result<_, _>>()?;
+    pub fn new(c: &'c Compiled) -> Result<Model<'c>, ModelError> {
+        let tables = crate::sim::tables(c)?;
         if tables.len() > 8 {
-            return Err(format!(
-                "{} roles: verify handles at most 8 nodes",
-                tables.len()
-            ));
+            return Err(ModelError::TooManyRoles(tables.len()));
         }
         let (plants, button) = crate::sim::plants(c)?;
         let acts: Vec<Act> = (plants.iter())
@@ -305,7 +314,7 @@ impl<'c> Model<'c> {
             })
             .collect();
         let node_fw::sim::Plant::Button(b) = &plants[button] else {
-            return Err(String::from("no start button"));
+            return Err(ModelError::NoStartButton);
         };
         let start = (b.node, b.input);
         let peers = tables
@@ -317,8 +326,12 @@ impl<'c> Model<'c> {
                     .collect()
             })
             .collect();
-        let interlocks = interlock::interlocks(&c.robot, &c.ir).map_err(|e| e.to_string())?;
-        let expect = c.ir.expect.iter().map(|s| s.to_string()).collect();
+        let interlocks =
+            interlock::interlocks(&c.robot, &c.ir).map_err(|e| ModelError::Interlock {
+                index: e.index,
+                message: e.error.to_string(),
+            })?;
+        let expect = c.ir.expect.clone();
         let n = tables.len();
         // Power-up (`node_fw::cylinder`): each rod rests where its node's safe outputs hold
         // it, the node reads the sensors closed there.
@@ -408,7 +421,7 @@ impl<'c> Model<'c> {
         s.alarms != 0 || s.nodes.iter().any(|e| e.fault.is_some())
     }
 
-    fn moves(&self, s: &Sys, opts: Options, out: &mut Vec<Move>) {
+    fn moves(&self, s: &Sys, opts: ExploreOptions, out: &mut Vec<Move>) {
         out.clear();
         let lossy = opts.lossy;
         if self.idle(s) || opts.start_anytime {
@@ -584,7 +597,7 @@ impl<'c> Model<'c> {
         let table = &self.tables[node];
         let role = &self.c.ir.roles[node];
         let mut e = Engine::resume(table, &s.nodes[node]);
-        let mut fx = Sink::default();
+        let mut fx = EffectLog::default();
         if let Some(log) = log.as_deref_mut() {
             log.push(format!(
                 "   {}: {}",
@@ -607,18 +620,18 @@ impl<'c> Model<'c> {
             .map(|(p, a)| (p, a.cylinder))
             .collect();
         let outputs = fx.0.iter().filter_map(|f| match *f {
-            Fx::Output(o, level) => Some((o, level)),
+            Effect::Output(o, level) => Some((o, level)),
             _ => None,
         });
         let valves = cylinder::commands(&cylinders, outputs);
         for f in &fx.0 {
             if let Some(log) = log.as_deref_mut() {
-                if let Some(line) = self.describe_fx(node, f) {
+                if let Some(line) = self.describe_effect(node, f) {
                     log.push(format!("      {line}"));
                 }
             }
             match *f {
-                Fx::Publish(p) => {
+                Effect::Publish(p) => {
                     for (i, to) in self.peers[node].iter().enumerate().take(8) {
                         if p.subscribers & (1 << i) != 0 {
                             if let Some(to) = to {
@@ -629,9 +642,10 @@ impl<'c> Model<'c> {
                         }
                     }
                 }
-                Fx::Start(t) => s.timers[node] |= 1 << t,
-                Fx::Cancel(t) => s.timers[node] &= !(1 << t),
-                Fx::Output(..) | Fx::Fault(_) | Fx::Fired(..) | Fx::Ignored(..) => {}
+                Effect::Start(t) => s.timers[node] |= 1 << t,
+                Effect::Cancel(t) => s.timers[node] &= !(1 << t),
+                Effect::Output(..) | Effect::Fault(_) | Effect::Fired(..) | Effect::Ignored(..) => {
+                }
             }
         }
         for (p, command) in valves {
@@ -663,7 +677,10 @@ impl<'c> Model<'c> {
         log: &mut Option<&mut Vec<String>>,
     ) {
         let a = &self.acts[p];
-        let step = format!("{}{}", a.name, if extend { '+' } else { '-' });
+        let step = Step {
+            actuator: a.name.clone(),
+            extend,
+        };
         let before = s.pos[p];
         let leaves = match s.pos[p].command(extend) {
             Motion::Nothing => return,
@@ -766,17 +783,17 @@ impl<'c> Model<'c> {
         }
     }
 
-    fn describe_fx(&self, node: usize, f: &Fx) -> Option<String> {
+    fn describe_effect(&self, node: usize, f: &Effect) -> Option<String> {
         let r = &self.c.ir.roles[node];
         Some(match *f {
-            Fx::Output(o, level) => format!(
+            Effect::Output(o, level) => format!(
                 "output {} = {}",
                 r.outputs
                     .get(usize::from(o))
                     .map_or("?", |x| x.name.as_str()),
                 u8::from(level)
             ),
-            Fx::Publish(p) => {
+            Effect::Publish(p) => {
                 let to: Vec<&str> = self.peers[node]
                     .iter()
                     .enumerate()
@@ -789,15 +806,15 @@ impl<'c> Model<'c> {
                     to.join(", ")
                 )
             }
-            Fx::Start(t) => format!(
+            Effect::Start(t) => format!(
                 "starts timer {}",
                 r.timers
                     .get(usize::from(t))
                     .map_or("?", |x| x.name.as_str())
             ),
-            Fx::Cancel(_) => return None,
-            Fx::Fault(fault) => format!("FAULT {fault:?}: outputs safe"),
-            Fx::Fired(chart, from, to) => {
+            Effect::Cancel(_) => return None,
+            Effect::Fault(fault) => format!("FAULT {fault:?}: outputs safe"),
+            Effect::Fired(chart, from, to) => {
                 let c = r.charts.get(usize::from(chart))?;
                 let st = |i: u8| {
                     c.states
@@ -806,7 +823,7 @@ impl<'c> Model<'c> {
                 };
                 format!("chart {}: {} -> {}", c.name, st(from), st(to))
             }
-            Fx::Ignored(chart, input) => {
+            Effect::Ignored(chart, input) => {
                 let c = r.charts.get(usize::from(chart))?;
                 format!(
                     "chart {} ignores {} (no transition takes it here)",
@@ -936,71 +953,130 @@ enum Call {
 }
 
 /// Explores every reachable state of `c` and checks the properties.
-pub fn verify(c: &Compiled, opts: Options) -> Result<Report, String> {
+pub fn verify(c: &Compiled, opts: ExploreOptions) -> Result<Report, ModelError> {
     let model = Model::new(c)?;
     Ok(explore(&model, opts))
 }
 
 /// [`verify`] on a built model.
-pub fn explore(model: &Model<'_>, opts: Options) -> Report {
+pub fn explore(model: &Model<'_>, opts: ExploreOptions) -> Report {
     let t0 = Instant::now();
-    let mut seen: IndexSet<Sys, ahash_like::Build> = IndexSet::default();
-    // Parent index and move of each state (the initial state's own entry is unused).
-    let mut parent: Vec<(u32, Move)> = Vec::new();
-    let mut edges: Vec<(u32, u32)> = Vec::new();
-    seen.insert(model.init.clone());
-    parent.push((0, Move::Press));
-    let path = |parent: &[(u32, Move)], mut i: usize| {
+    let mut search = Search::bfs(model, opts);
+    let states = search.seen.len();
+    let idle_flags: Vec<bool> = search.seen.iter().map(|s| model.idle(s)).collect();
+    let stopped_flags: Vec<bool> = search.seen.iter().map(|s| model.stopped(s)).collect();
+    if search.violation.is_none() && !search.incomplete {
+        search.violation = search.deadlock(model, &idle_flags, &stopped_flags);
+    }
+    if search.violation.is_none() && !search.incomplete {
+        search.violation = search.fault_stop(model);
+    }
+    let growing = if search.incomplete {
+        search.growing(model)
+    } else {
+        Vec::new()
+    };
+    Report {
+        growing,
+        states,
+        transitions: search.edges.len(),
+        idle: idle_flags.iter().filter(|b| **b).count(),
+        stopped: stopped_flags.iter().filter(|b| **b).count(),
+        elapsed: t0.elapsed(),
+        violation: search.violation,
+        incomplete: search.incomplete,
+        lossy: opts.lossy,
+        prompt: opts.prompt,
+    }
+}
+
+/// The explored state graph.
+struct Search {
+    /// Every state found, in breadth-first order; the index is the state's number.
+    // FxHash: fast and not keyed; the states are our own, no hash flooding to fear.
+    seen: IndexSet<Sys, FxBuildHasher>,
+    /// Parent index and move of each state (the initial state's own entry is unused).
+    parent: Vec<(u32, Move)>,
+    /// Every transition (from, to).
+    edges: Vec<(u32, u32)>,
+    violation: Option<Violation>,
+    /// Stopped at `max_states`.
+    incomplete: bool,
+}
+
+impl Search {
+    /// Breadth-first from the initial state, up to the first move that breaks a property
+    /// checked on a transition or state.
+    fn bfs(model: &Model<'_>, opts: ExploreOptions) -> Search {
+        let mut g = Search {
+            seen: IndexSet::default(),
+            parent: Vec::new(),
+            edges: Vec::new(),
+            violation: None,
+            incomplete: false,
+        };
+        g.seen.insert(model.init.clone());
+        g.parent.push((0, Move::Press));
+        let mut moves = Vec::new();
+        let mut next = 0usize;
+        'bfs: while next < g.seen.len() {
+            let s = g
+                .seen
+                .get_index(next)
+                .cloned()
+                .unwrap_or_else(|| model.init.clone());
+            model.moves(&s, opts, &mut moves);
+            for &m in &moves {
+                let mut t = s.clone();
+                if let Some((property, message)) = model.apply(&mut t, m, None) {
+                    let mut p = g.path(next);
+                    p.push(m);
+                    g.violation = Some(Violation {
+                        property,
+                        message,
+                        steps: p.len(),
+                        trace: model.replay(&p),
+                    });
+                    break 'bfs;
+                }
+                let (j, new) = g.seen.insert_full(t);
+                if new {
+                    g.parent.push((next as u32, m));
+                    if g.seen.len() >= opts.max_states {
+                        g.incomplete = true;
+                        break 'bfs;
+                    }
+                }
+                g.edges.push((next as u32, j as u32));
+            }
+            next += 1;
+        }
+        g
+    }
+
+    /// The moves from the initial state to state `i`.
+    fn path(&self, mut i: usize) -> Vec<Move> {
         let mut moves = Vec::new();
         while i != 0 {
-            moves.push(parent[i].1);
-            i = parent[i].0 as usize;
+            moves.push(self.parent[i].1);
+            i = self.parent[i].0 as usize;
         }
         moves.reverse();
         moves
-    };
-    let mut moves = Vec::new();
-    let mut next = 0usize;
-    let mut violation = None;
-    let mut incomplete = false;
-    'bfs: while next < seen.len() {
-        let s = seen
-            .get_index(next)
-            .cloned()
-            .unwrap_or_else(|| model.init.clone());
-        model.moves(&s, opts, &mut moves);
-        for &m in &moves {
-            let mut t = s.clone();
-            if let Some((property, message)) = model.apply(&mut t, m, None) {
-                let mut p = path(&parent, next);
-                p.push(m);
-                violation = Some(Violation {
-                    property,
-                    message,
-                    steps: p.len(),
-                    trace: model.replay(&p),
-                });
-                break 'bfs;
-            }
-            let (j, new) = seen.insert_full(t);
-            if new {
-                parent.push((next as u32, m));
-                if seen.len() >= opts.max_states {
-                    incomplete = true;
-                    break 'bfs;
-                }
-            }
-            edges.push((next as u32, j as u32));
-        }
-        next += 1;
     }
-    let states = seen.len();
-    let idle_flags: Vec<bool> = seen.iter().map(|s| model.idle(s)).collect();
-    let stopped_flags: Vec<bool> = seen.iter().map(|s| model.stopped(s)).collect();
-    if violation.is_none() && !incomplete {
-        // Backward reachability of idle over the reverse edges.
+
+    /// Deadlock freedom: a state that is not stopped and cannot get back to idle
+    /// (backward reachability of idle over the reverse edges).
+    fn deadlock(
+        &self,
+        model: &Model<'_>,
+        idle_flags: &[bool],
+        stopped_flags: &[bool],
+    ) -> Option<Violation> {
+        let states = self.seen.len();
+        let edges = &self.edges;
         let mut start = vec![0u32; states + 1];
-        for &(_, to) in &edges {
+        for &(_, to) in edges {
             start[to as usize + 1] += 1;
         }
         for i in 0..states {
@@ -1008,11 +1084,11 @@ pub fn explore(model: &Model<'_>, opts: Options) -> Report {
         }
         let mut fill = start.clone();
         let mut rev = vec![0u32; edges.len()];
-        for &(from, to) in &edges {
+        for &(from, to) in edges {
             rev[fill[to as usize] as usize] = from;
             fill[to as usize] += 1;
         }
-        let mut good = idle_flags.clone();
+        let mut good = idle_flags.to_vec();
         let mut queue: VecDeque<usize> = (0..states).filter(|&i| good[i]).collect();
         while let Some(i) = queue.pop_front() {
             for &f in &rev[start[i] as usize..start[i + 1] as usize] {
@@ -1022,122 +1098,63 @@ pub fn explore(model: &Model<'_>, opts: Options) -> Report {
                 }
             }
         }
-        if let Some(bad) = (0..states).find(|&i| !good[i] && !stopped_flags[i]) {
-            let s = seen
-                .get_index(bad)
-                .cloned()
-                .unwrap_or_else(|| model.init.clone());
-            let stuck = edges.iter().all(|&(f, _)| f as usize != bad);
-            violation = Some(Violation {
-                property: Property::Deadlock,
-                message: if stuck {
-                    String::from(
-                        "the machine stops here: nothing can happen any more, and it is not idle",
-                    )
-                } else {
-                    String::from(
-                        "from here the machine can never get back to idle (only to faults or \
-                         other states that cannot)",
-                    )
-                },
-                steps: path(&parent, bad).len(),
-                trace: model.replay(&path(&parent, bad)),
-            });
-            let _ = s;
-        }
+        let bad = (0..states).find(|&i| !good[i] && !stopped_flags[i])?;
+        let stuck = edges.iter().all(|&(f, _)| f as usize != bad);
+        let path = self.path(bad);
+        Some(Violation {
+            property: Property::Deadlock,
+            message: if stuck {
+                String::from(
+                    "the machine stops here: nothing can happen any more, and it is not idle",
+                )
+            } else {
+                String::from(
+                    "from here the machine can never get back to idle (only to faults or \
+                     other states that cannot)",
+                )
+            },
+            steps: path.len(),
+            trace: model.replay(&path),
+        })
     }
-    if violation.is_none() && !incomplete {
-        // Stop at once: in every state where nothing more can happen, a fault that was
-        // published has stopped every node that listens for it.
-        let mut out_degree = vec![0u32; states];
-        for &(f, _) in &edges {
+
+    /// Stop at once: in every state where nothing more can happen, a fault that was
+    /// published has stopped every node that listens for it.
+    fn fault_stop(&self, model: &Model<'_>) -> Option<Violation> {
+        let mut out_degree = vec![0u32; self.seen.len()];
+        for &(f, _) in &self.edges {
             out_degree[f as usize] += 1;
         }
-        let bad = (0..states).find_map(|i| {
-            let s = seen.get_index(i)?;
+        let (i, message) = (0..self.seen.len()).find_map(|i| {
+            let s = self.seen.get_index(i)?;
             (out_degree[i] == 0)
                 .then(|| model.unstopped(s))
                 .flatten()
                 .map(|m| (i, m))
-        });
-        if let Some((i, message)) = bad {
-            let p = path(&parent, i);
-            violation = Some(Violation {
-                property: Property::FaultStop,
-                message,
-                steps: p.len(),
-                trace: model.replay(&p),
-            });
-        }
+        })?;
+        let p = self.path(i);
+        Some(Violation {
+            property: Property::FaultStop,
+            message,
+            steps: p.len(),
+            trace: model.replay(&p),
+        })
     }
-    let mut growing = Vec::new();
-    if incomplete {
-        if let Some(last) = seen.get_index(states - 1) {
-            for (i, (e, init)) in last.nodes.iter().zip(&model.init.nodes).enumerate() {
-                let role = &model.c.ir.roles[i];
-                for (v, (name, _)) in role.vars.iter().enumerate() {
-                    if (i64::from(e.vars[v]) - i64::from(init.vars[v])).abs() > 100 {
-                        growing.push(format!("{}.{name} = {}", role.name, e.vars[v]));
-                    }
+
+    /// Variables of the last state explored far from their initial values.
+    fn growing(&self, model: &Model<'_>) -> Vec<String> {
+        let mut growing = Vec::new();
+        let Some(last) = self.seen.last() else {
+            return growing;
+        };
+        for (i, (e, init)) in last.nodes.iter().zip(&model.init.nodes).enumerate() {
+            let role = &model.c.ir.roles[i];
+            for (v, (name, _)) in role.vars.iter().enumerate() {
+                if (i64::from(e.vars[v]) - i64::from(init.vars[v])).abs() > 100 {
+                    growing.push(format!("{}.{name} = {}", role.name, e.vars[v]));
                 }
             }
         }
+        growing
     }
-    Report {
-        growing,
-        states,
-        transitions: edges.len(),
-        idle: idle_flags.iter().filter(|b| **b).count(),
-        stopped: stopped_flags.iter().filter(|b| **b).count(),
-        elapsed: t0.elapsed(),
-        violation,
-        incomplete,
-        lossy: opts.lossy,
-        prompt: opts.prompt,
-    }
-}
-
-/// A fast non-cryptographic hasher (FxHash) for the visited set: the states are our own,
-/// no hash flooding to fear.
-mod ahash_like {
-    use std::hash::{BuildHasherDefault, Hasher};
-
-    #[derive(Default)]
-    pub struct Fx(u64);
-
-    impl Hasher for Fx {
-        fn finish(&self) -> u64 {
-            self.0
-        }
-        fn write(&mut self, bytes: &[u8]) {
-            for chunk in bytes.chunks(8) {
-                let mut b = [0u8; 8];
-                b[..chunk.len()].copy_from_slice(chunk);
-                self.add(u64::from_le_bytes(b));
-            }
-        }
-        fn write_u8(&mut self, i: u8) {
-            self.add(u64::from(i));
-        }
-        fn write_u16(&mut self, i: u16) {
-            self.add(u64::from(i));
-        }
-        fn write_u32(&mut self, i: u32) {
-            self.add(u64::from(i));
-        }
-        fn write_u64(&mut self, i: u64) {
-            self.add(i);
-        }
-        fn write_usize(&mut self, i: usize) {
-            self.add(i as u64);
-        }
-    }
-
-    impl Fx {
-        fn add(&mut self, v: u64) {
-            self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
-        }
-    }
-
-    pub type Build = BuildHasherDefault<Fx>;
 }
