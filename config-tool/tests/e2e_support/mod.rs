@@ -191,7 +191,7 @@ pub fn wait_until(bed: &mut Bed, addr: u16, mut ok: impl FnMut(&Status) -> bool)
 pub fn exact_cycle(bed: &mut Bed, c: &Compiled, n: usize) -> Cycle {
     let cycle = bed.run_cycle(c, &mut |_, _| {}).expect("cycle");
     assert!(cycle.ok(), "{}", demo::cycle_line(n, &cycle));
-    assert_eq!(cycle.steps, expect(c), "cycle {n}");
+    assert_eq!(cycle.steps, c.ir.expect, "cycle {n}");
     cycle
 }
 

@@ -21,6 +21,7 @@ use crate::radio::{ToolRadio, TOOL_ADDR};
 use crate::watch::{self, Seen, Watch};
 use medium::{self, Medium};
 use robot_compiler::compile::Compiled;
+use robot_compiler::ir::Step;
 
 /// How to run the test bed.
 #[derive(Debug, Clone)]
@@ -39,8 +40,8 @@ pub struct Options {
 /// What one cycle did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Cycle {
-    pub steps: Vec<String>,
-    pub expect: Vec<String>,
+    pub steps: Vec<Step>,
+    pub expect: Vec<Step>,
     pub duration: Duration,
     /// Frames put on the air during the cycle.
     pub frames: u64,
@@ -292,7 +293,7 @@ impl Bed {
         c: &Compiled,
         on_step: &mut dyn FnMut(&Stroke, Duration),
     ) -> Result<Cycle, NetError> {
-        let expect: Vec<String> = c.ir.expect.iter().map(|s| s.to_string()).collect();
+        let expect = c.ir.expect.clone();
         let (start_role, _) = c.ir.start.clone().ok_or(NetError::NoStart)?;
         let start_addr = c.ir.roles[start_role].address;
         while self.steps.try_recv().is_ok() {}
@@ -414,7 +415,7 @@ impl Bed {
         &mut self,
         step: &Stroke,
         m0: Duration,
-        steps: &mut Vec<String>,
+        steps: &mut Vec<Step>,
         commanded: &mut Vec<(Stroke, bool)>,
         on_step: &mut dyn FnMut(&Stroke, Duration),
     ) {
@@ -423,7 +424,7 @@ impl Bed {
         if !step.moved {
             return;
         }
-        steps.push(step.to_string());
+        steps.push(step.step.clone());
         self.steps_seen += 1;
         self.inject_due();
     }

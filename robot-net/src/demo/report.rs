@@ -31,7 +31,7 @@ pub fn cycle_line(n: usize, cy: &Cycle) -> String {
         cy.duration.as_secs_f64(),
         cy.frames,
         cy.airtime_us as f64 / 1e3,
-        cy.steps.join(" ")
+        robot_analysis::sim::steps_text(&cy.steps)
     );
     if let Some(f) = &cy.fault {
         s.push('\n');
