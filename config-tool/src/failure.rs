@@ -3,6 +3,7 @@
 
 use std::fmt::Display;
 
+use robot_compiler::source::LoadError;
 use robot_net::demo::Verdict;
 use robot_net::NetError;
 
@@ -72,7 +73,18 @@ impl From<NetError> for Failure {
         match e {
             // Rendered diagnostics: they say `error` themselves.
             NetError::Robot(rendered) => Failure::as_is(exit::ERROR, rendered),
+            NetError::Load(e) => Failure::from(e),
             e => Failure::error(e),
+        }
+    }
+}
+
+impl From<LoadError> for Failure {
+    fn from(e: LoadError) -> Failure {
+        match e {
+            // `FILE:LINE:COL: error: ...`, as a diagnostic.
+            LoadError::NotUtf8 { .. } => Failure::as_is(exit::ERROR, e.to_string()),
+            LoadError::Read { .. } => Failure::error(e),
         }
     }
 }

@@ -9,7 +9,7 @@ use crate::locate::{self, Value};
 #[derive(Debug, thiserror::Error)]
 pub enum LoadError {
     /// The file could not be read.
-    #[error("error: cannot read {}: {source}", path.display())]
+    #[error("cannot read {}: {source}", path.display())]
     Read {
         path: PathBuf,
         source: std::io::Error,
@@ -263,7 +263,7 @@ mod tests {
     fn a_file_that_cannot_be_read_is_an_error_naming_it() {
         let path = std::env::temp_dir().join("robot-compiler-no-such-dir/robot.ron");
         let e = Source::read(&path).expect_err("no such file");
-        let want = format!("error: cannot read {}: ", path.display());
+        let want = format!("cannot read {}: ", path.display());
         assert!(e.to_string().starts_with(&want), "{e}");
         match e {
             super::LoadError::Read { path: p, source } => {

@@ -9,6 +9,9 @@ pub enum NetError {
     /// A robot that does not load, compile or re-encode (its diagnostics, rendered).
     #[error("{0}")]
     Robot(String),
+    /// A robot file that cannot be read.
+    #[error(transparent)]
+    Load(#[from] robot_compiler::source::LoadError),
     #[error("medium: {0}")]
     Medium(#[source] io::Error),
     /// The tool's radio (or a command on it) failed.

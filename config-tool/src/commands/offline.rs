@@ -7,11 +7,11 @@ use robot_compiler::compile as pipeline;
 use robot_compiler::{check, diagram, dump, Compiled, Diagnostic, Source};
 
 use crate::cli::{Format, SimArgs, VerifyArgs};
-use crate::failure::{exit, Failure};
+use crate::failure::Failure;
 
 /// Reads a robot (its errors name the file, and the place of a byte that is not UTF-8).
 fn load(path: &Path) -> Result<Source, Failure> {
-    Source::read(path).map_err(|e| Failure::as_is(exit::ERROR, e.to_string()))
+    Source::read(path).map_err(Failure::from)
 }
 
 /// Reads and compiles a robot; on failure every diagnostic is reported.

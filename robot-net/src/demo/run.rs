@@ -25,7 +25,7 @@ pub enum Verdict {
 
 /// Reads and compiles a robot; on failure the errors, rendered.
 pub fn load(path: &Path) -> Result<Compiled, NetError> {
-    let src = Source::read(path).map_err(|e| NetError::Robot(e.to_string()))?;
+    let src = Source::read(path)?;
     compile::compile(&src).map_err(|diags| {
         let errors: Vec<robot_compiler::Diagnostic> =
             diags.into_iter().filter(|d| d.is_error()).collect();
