@@ -6,6 +6,7 @@
 //! - [`node`]: the whole node as one pure state machine: frames in, frames and pins out.
 //! - [`ota`]: over-the-air table transfer, node and tool sides (pure state machines).
 //! - [`slots`]: the two table slots in flash, committed last so a power cut loses nothing.
+//! - [`frame_counter`]: the secured frames' counter, reserved ahead in flash, never reused.
 //! - [`runtime`]: the Embassy runtime around the node, generic over radio, pins and flash.
 //! - `host` (feature `std`): the host board of `node-host` (radio = the simulated medium).
 //! - `sim` (feature `std`): the host's deterministic virtual-time world with plant models.
@@ -14,6 +15,7 @@
 
 pub mod cylinder;
 pub mod ecc;
+pub mod frame_counter;
 #[cfg(feature = "std")]
 pub mod host;
 pub mod link;
