@@ -7,8 +7,8 @@
 //!
 //! Security: the frame-control "security enabled" bit is carried in [`Header::secured`].
 //! A secured frame has an auxiliary security header after the addressing fields and a MIC
-//! before the FCS; this module hands its payload out untouched, so AES-CCM* can be added as a
-//! layer between this codec and the application messages without changing either.
+//! before the FCS; this module hands its payload out untouched, and [`super::security`]
+//! secures and opens it (AES-CCM*) between this codec and the application messages.
 //!
 //! ```text
 //! data frame, PSDU:
@@ -159,7 +159,8 @@ impl<'a> Frame<'a> {
     }
 }
 
-fn finish(buf: &mut [u8], body_len: usize) -> Result<usize, FrameError> {
+/// Appends the FCS over `buf[..body_len]`; returns the PSDU length.
+pub(crate) fn finish(buf: &mut [u8], body_len: usize) -> Result<usize, FrameError> {
     let total = body_len + FCS_LEN;
     if total > MAX_PSDU {
         return Err(FrameError::NoRoom);
@@ -177,6 +178,14 @@ pub fn emit_data(header: &Header, payload: &[u8], buf: &mut [u8]) -> Result<usiz
     if body_len + FCS_LEN > MAX_PSDU || buf.len() < body_len + FCS_LEN {
         return Err(FrameError::NoRoom);
     }
+    emit_data_header(header, buf)?;
+    buf[DATA_HEADER_LEN..body_len].copy_from_slice(payload);
+    finish(buf, body_len)
+}
+
+/// Writes the [`DATA_HEADER_LEN`] bytes of a data frame's MAC header into `buf`.
+pub(crate) fn emit_data_header(header: &Header, buf: &mut [u8]) -> Result<(), FrameError> {
+    let buf = buf.get_mut(..DATA_HEADER_LEN).ok_or(FrameError::NoRoom)?;
     let mut fc = TYPE_DATA
         | FC_PAN_COMPRESSION
         | (ADDR_SHORT << 10)
@@ -193,8 +202,7 @@ pub fn emit_data(header: &Header, payload: &[u8], buf: &mut [u8]) -> Result<usiz
     buf[3..5].copy_from_slice(&header.pan_id.to_le_bytes());
     buf[5..7].copy_from_slice(&header.dst.to_le_bytes());
     buf[7..9].copy_from_slice(&header.src.to_le_bytes());
-    buf[DATA_HEADER_LEN..body_len].copy_from_slice(payload);
-    finish(buf, body_len)
+    Ok(())
 }
 
 /// Writes an acknowledgement frame for `seq` into `buf`; returns the PSDU length (5).

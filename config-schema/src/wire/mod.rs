@@ -2,9 +2,12 @@
 //! (smoltcp style: this layer knows bytes, not protocol state).
 //!
 //! - [`mac`]: IEEE 802.15.4-2006 MAC frames (the subset the nodes use).
+//! - [`security`]: IEEE 802.15.4 frame security: the auxiliary security header, AES-128-CCM*
+//!   secure / open of a data frame, and the receivers' replay guard.
 //! - [`msg`]: the application messages inside them (postcard).
 //! - [`medium`]: the framing of a connection to the simulated medium (and UART bridges).
 
 pub mod mac;
 pub mod medium;
 pub mod msg;
+pub mod security;
