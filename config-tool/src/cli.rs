@@ -108,9 +108,56 @@ pub enum Command {
         #[arg(long, default_value = "127.0.0.1:15400")]
         listen: SocketAddr,
     },
+    /// The machine's keys: its secret (`keys new`) and what to provision on each node
+    /// (`keys provision`); see docs/security.md.
+    Keys {
+        #[command(subcommand)]
+        command: KeysCommand,
+    },
     /// Run one generic node in this process (what `demo` starts).
     #[command(hide = true)]
     Node(node_fw::host::Args),
+}
+
+/// `keys`' subcommands.
+#[derive(Subcommand, Debug)]
+pub enum KeysCommand {
+    /// Create the machine secret (32 random bytes from the OS) in a key file, mode 0600.
+    New {
+        #[arg(long, value_name = "FILE")]
+        out: PathBuf,
+        /// Replace an existing file (every node must then be provisioned again).
+        #[arg(long)]
+        force: bool,
+    },
+    /// Print what to write on a node (its address and management key) for each board, or
+    /// for one.
+    Provision {
+        /// The machine secret's key file (`keys new`).
+        #[arg(long, value_name = "FILE")]
+        keys: PathBuf,
+        #[arg(long, value_parser = node_fw::host::parse_addr)]
+        node: u16,
+        #[arg(long, value_enum)]
+        board: Option<Board>,
+        /// Write the host board's key file here (mode 0600) instead of printing it.
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+        /// Replace an existing --out file.
+        #[arg(long, requires = "out")]
+        force: bool,
+    },
+}
+
+/// The boards `keys provision` knows.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum Board {
+    /// `node-host` / `config-tool node`: a key file.
+    Host,
+    /// `qemu-mps2`: QEMU loader arguments.
+    Qemu,
+    /// nRF52840: `nrfjprog` writes to UICR.
+    Nrf52840,
 }
 
 /// `sim`'s arguments.
@@ -290,6 +337,10 @@ pub struct QemuNodeArgs {
     /// A host file for its flash slots (created erased if missing; no comma or space).
     #[arg(long)]
     pub flash: Option<PathBuf>,
+    /// Its management key: the host board's key file (`keys provision --board host --out
+    /// FILE`), written to the provisioning area after the word.
+    #[arg(long, value_name = "FILE")]
+    pub key: Option<PathBuf>,
     /// Count instructions (`-icount shift=0`): the node logs its busy time, frames and
     /// input changes every second to DIR/node-AAAA.log.
     #[arg(long, value_name = "DIR")]

@@ -10,8 +10,8 @@ mod cli;
 mod commands;
 mod failure;
 
-use cli::{Cli, Command};
-use commands::{demo, offline, radio};
+use cli::{Cli, Command, KeysCommand};
+use commands::{demo, keys, offline, radio};
 use failure::Failure;
 
 fn run(command: Command) -> Result<(), Failure> {
@@ -47,6 +47,16 @@ fn run(command: Command) -> Result<(), Failure> {
             baud,
             listen,
         } => radio::gateway(&serial, baud, listen),
+        Command::Keys { command } => match command {
+            KeysCommand::New { out, force } => keys::new(&out, force),
+            KeysCommand::Provision {
+                keys: file,
+                node,
+                board,
+                out,
+                force,
+            } => keys::provision(&file, node, board, out.as_deref(), force),
+        },
         Command::Node(args) => radio::node(args),
     }
 }

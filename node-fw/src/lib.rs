@@ -5,6 +5,7 @@
 //! - [`link`]: reliable, ordered event delivery over a lossy radio (pure state machines).
 //! - [`node`]: the whole node as one pure state machine: frames in, frames and pins out.
 //! - [`ota`]: over-the-air table transfer, node and tool sides (pure state machines).
+//! - [`provision`]: what a node is given at flash time (address, flags, management key).
 //! - [`slots`]: the two table slots in flash, committed last so a power cut loses nothing.
 //! - [`frame_counter`]: the secured frames' counter, reserved ahead in flash, never reused.
 //! - [`runtime`]: the Embassy runtime around the node, generic over radio, pins and flash.
@@ -21,6 +22,7 @@ pub mod host;
 pub mod link;
 pub mod node;
 pub mod ota;
+pub mod provision;
 pub mod runtime;
 #[cfg(feature = "std")]
 pub mod sim;

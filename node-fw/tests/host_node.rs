@@ -690,6 +690,7 @@ fn two_nodes_in_process_carry_events_and_return_when_the_medium_goes() {
             addr,
             medium: format!("127.0.0.1:{}", relay.port).parse().unwrap(),
             flash: None,
+            key: None,
         };
         let done_tx = done_tx.clone();
         std::thread::spawn(move || {

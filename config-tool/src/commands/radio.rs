@@ -269,9 +269,17 @@ pub fn gateway(serial: &Path, baud: u32, listen: SocketAddr) -> Result<(), Failu
 /// stopping it.
 pub fn qemu_node(a: QemuNodeArgs) -> Result<(), Failure> {
     demo::check_elf(&a.elf)?;
+    let key = match &a.key {
+        Some(path) => Some(
+            node_fw::host::key::load(path, a.addr)
+                .map_err(|e| Failure::error(format!("key file: {e}")))?,
+        ),
+        None => None,
+    };
     let args = demo::qemu_args(
         &a.elf,
         a.addr,
+        key.as_ref(),
         a.medium,
         a.flash.as_deref(),
         a.count.as_deref(),

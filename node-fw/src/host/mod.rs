@@ -5,6 +5,7 @@
 //! (one thread per node: [`run`] blocks until the medium closes the connection).
 
 pub mod flash;
+pub mod key;
 pub mod medium;
 
 use std::cell::RefCell;
@@ -19,6 +20,7 @@ use embassy_executor::raw::TaskStorage;
 use embassy_executor::Executor;
 use log::{info, warn, LevelFilter, Log, Metadata, Record};
 
+use crate::provision::ManagementKey;
 use crate::runtime::{self, Board, Stats, Stop};
 use flash::{HostFlash, OpenError};
 use medium::{Closed, Connection};
@@ -42,6 +44,36 @@ pub struct Args {
     /// missing). Without it the slots are in RAM and the node boots unconfigured.
     #[arg(long)]
     pub flash: Option<PathBuf>,
+    /// The node's management key file (`config-tool keys provision --board host --out
+    /// FILE`; mode 0600, for this address). Read and checked; frames do not use it yet.
+    #[arg(long, value_name = "FILE")]
+    pub key: Option<PathBuf>,
+}
+
+/// What the node runs with: its arguments, the provisioned key read and checked.
+#[derive(Debug)]
+pub struct Config {
+    pub addr: u16,
+    pub medium: SocketAddr,
+    pub flash: Option<PathBuf>,
+    /// The management key (`--key`), if provisioned.
+    pub key: Option<ManagementKey>,
+}
+
+impl Config {
+    /// Reads what the arguments name (the key file); the flash is opened by [`run`].
+    pub fn load(args: &Args) -> Result<Config, HostError> {
+        let key = match &args.key {
+            Some(path) => Some(key::load(path, args.addr).map_err(HostError::Key)?),
+            None => None,
+        };
+        Ok(Config {
+            addr: args.addr,
+            medium: args.medium,
+            flash: args.flash.clone(),
+            key,
+        })
+    }
 }
 
 /// Parses a short address: `0x0003`, `0X3` or `3`.
@@ -69,6 +101,8 @@ pub enum HostError {
     Connect(SocketAddr, std::io::Error),
     /// The flash does not fit two slots (a bug of the board).
     FlashGeometry,
+    /// The key file was refused.
+    Key(key::KeyError),
 }
 
 impl std::fmt::Display for HostError {
@@ -78,6 +112,7 @@ impl std::fmt::Display for HostError {
             HostError::BootCounter(e) => write!(f, "flash file: boot counter: {e}"),
             HostError::Connect(addr, e) => write!(f, "cannot connect to the medium at {addr}: {e}"),
             HostError::FlashGeometry => write!(f, "the flash does not fit two table slots"),
+            HostError::Key(e) => write!(f, "key file: {e}"),
         }
     }
 }
@@ -128,6 +163,7 @@ pub const PINS: usize = 64;
 /// Runs the node until the medium closes the connection (`Ok`), or fails to start.
 pub fn run(args: Args) -> Result<(), HostError> {
     init_logging();
+    let args = Config::load(&args)?;
     let addr = args.addr;
     let (mut flash, what) = match &args.flash {
         Some(path) => (
@@ -142,8 +178,13 @@ pub fn run(args: Args) -> Result<(), HostError> {
     };
     let stream = TcpStream::connect(args.medium).map_err(|e| HostError::Connect(args.medium, e))?;
     let conn = Connection::start(addr, stream).map_err(|e| HostError::Connect(args.medium, e))?;
+    let key = if args.key.is_some() {
+        "management key provisioned"
+    } else {
+        "no management key"
+    };
     info!(
-        "node {addr:#06x}: medium {}, {what}, epoch {epoch} ({boot})",
+        "node {addr:#06x}: medium {}, {what}, epoch {epoch} ({boot}), {key}",
         args.medium
     );
     let board = Board {
@@ -212,4 +253,71 @@ where
     );
     let value = result.borrow_mut().take();
     value
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+    use crate::provision::NodeKeyLine;
+
+    fn key_file(name: &str, addr: u16, mode: u32) -> PathBuf {
+        let p = std::env::temp_dir().join(format!("node-host-{}-{name}", std::process::id()));
+        let key = ManagementKey::from_bytes([0x33; 16]);
+        std::fs::write(&p, NodeKeyLine { addr, key: &key }.to_string()).unwrap();
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&p, std::fs::Permissions::from_mode(mode)).unwrap();
+        }
+        #[cfg(not(unix))]
+        let _ = mode;
+        p
+    }
+
+    fn args(extra: &[&str]) -> Args {
+        let mut argv = vec![
+            "node-host",
+            "--addr",
+            "0x0011",
+            "--medium",
+            "127.0.0.1:15400",
+        ];
+        argv.extend(extra);
+        Args::try_parse_from(argv).unwrap()
+    }
+
+    #[test]
+    fn the_key_file_is_read_into_the_config() {
+        let p = key_file("good", 0x0011, 0o600);
+        let c = Config::load(&args(&["--key", p.to_str().unwrap()])).unwrap();
+        assert_eq!(c.key.as_ref().map(|k| *k.expose()), Some([0x33; 16]));
+        assert_eq!(
+            format!("{:?}", c.key),
+            "Some(ManagementKey(<secret>))",
+            "the config's Debug hides the key"
+        );
+        assert!(Config::load(&args(&[])).unwrap().key.is_none());
+    }
+
+    #[test]
+    fn a_refused_key_file_stops_the_node_before_it_connects() {
+        let other = key_file("other", 0x0012, 0o600);
+        let e = Config::load(&args(&["--key", other.to_str().unwrap()])).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "key file: {}: the key of node 0x0012, not of this node (0x0011)",
+                other.display()
+            )
+        );
+        // `run` loads the config first: nothing listens on port 1, yet the error is the key's.
+        let mut a = args(&["--key", other.to_str().unwrap()]);
+        a.medium = "127.0.0.1:1".parse().unwrap();
+        assert!(matches!(
+            run(a),
+            Err(HostError::Key(key::KeyError::OtherNode(..)))
+        ));
+    }
 }

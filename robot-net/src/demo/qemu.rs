@@ -6,29 +6,50 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use node_fw::provision::{self, ManagementKey, Word};
+
 use crate::error::NetError;
 
 /// The emulated board: QEMU's Cortex-M3 machine the `qemu-mps2` image runs on.
 pub const QEMU_MACHINE: &str = "mps2-an385";
-/// Where the provisioning word goes (`node-fw/boards/qemu-mps2/src/provision.rs`).
-pub const PROVISION_AT: u32 = 0x003F_F000;
-/// The provisioning word's magic (bits 31..24) and its flag "semihosting on" (bit 16).
-const PROVISION_MAGIC: u32 = 0xA5 << 24;
-const PROVISION_SEMIHOSTING: u32 = 1 << 16;
+/// Where the provisioning word goes (`node_fw::provision`, the board's `provision.rs`).
+pub const PROVISION_AT: u32 = provision::qemu::WORD_AT;
 /// The release image, relative to the repository.
 pub const QEMU_ELF: &str = "node-fw/boards/target/thumbv7m-none-eabi/release/qemu-mps2";
 
 /// The provisioning word of node `addr` (address, magic, semihosting on).
 pub fn provision_word(addr: u16) -> u32 {
-    PROVISION_MAGIC | PROVISION_SEMIHOSTING | u32::from(addr)
+    Word {
+        addr,
+        flags: provision::FLAG_SEMIHOSTING,
+    }
+    .encode()
 }
 
-/// QEMU's arguments for one node booting `elf`: its address in the provisioning word, its
-/// UART connected to the medium, its flash slots in `flash` (through semihosting; without
-/// it they are erased at every boot).
+/// The `-device` values that write a node's provisioning before its CPU starts: the word
+/// (with the key flag when there is a key), then the key's four little-endian words right
+/// after it (`node_fw::provision`).
+pub fn provision_loaders(word: u32, key: Option<&ManagementKey>) -> Vec<String> {
+    let loader =
+        |addr: u32, data: u32| format!("loader,addr={addr:#010x},data={data:#010x},data-len=4");
+    let Some(key) = key else {
+        return vec![loader(PROVISION_AT, word)];
+    };
+    let word = word | u32::from(provision::FLAG_KEY) << 16;
+    let mut loaders = vec![loader(PROVISION_AT, word)];
+    for (i, w) in key.words().into_iter().enumerate() {
+        loaders.push(loader(provision::qemu::KEY_AT + 4 * i as u32, w));
+    }
+    loaders
+}
+
+/// QEMU's arguments for one node booting `elf`: its address (and its management key, if
+/// given) in the provisioning area, its UART connected to the medium, its flash slots in
+/// `flash` (through semihosting; without it they are erased at every boot).
 pub fn qemu_args(
     elf: &Path,
     addr: u16,
+    key: Option<&ManagementKey>,
     medium: SocketAddr,
     flash: Option<&Path>,
     count: Option<&Path>,
@@ -39,7 +60,7 @@ pub fn qemu_args(
     if let Some(dir) = count {
         // A nanosecond of emulated time is one instruction; the firmware logs its busy
         // time and stimuli to the node's log file.
-        word |= PROVISION_COUNT;
+        word |= u32::from(provision::FLAG_COUNT) << 16;
         let log = count_log(dir, addr);
         let mut chardev = OsString::from("file,id=log,path=");
         chardev.push(log.as_os_str());
@@ -65,8 +86,11 @@ pub fn qemu_args(
         "none".into(),
         "-kernel".into(),
         elf.as_os_str().to_owned(),
-        "-device".into(),
-        format!("loader,addr={PROVISION_AT:#010x},data={word:#010x},data-len=4").into(),
+    ];
+    for loader in provision_loaders(word, key) {
+        args.extend(["-device".into(), loader.into()]);
+    }
+    args.extend([
         "-chardev".into(),
         format!(
             "socket,id=radio,host={},port={},nodelay=on",
@@ -77,14 +101,11 @@ pub fn qemu_args(
         "-serial".into(),
         "chardev:radio".into(),
         "-semihosting-config".into(),
-    ];
-    args.push(semihosting);
+        semihosting,
+    ]);
     args.extend(extra);
     Ok(args)
 }
-
-/// The provisioning flag "count busy time and stimuli".
-const PROVISION_COUNT: u32 = 2 << 16;
 
 /// Where a counting QEMU node logs.
 pub fn count_log(dir: &Path, addr: u16) -> PathBuf {
@@ -229,4 +250,80 @@ fn count_line(who: &str, d: &Counts, cycles: usize) -> String {
         d.core_input as f64 / d.core_inputs.max(1) as f64,
         w = who.len()
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(key: Option<&ManagementKey>) -> Vec<String> {
+        qemu_args(
+            Path::new("qemu-mps2"),
+            0x0011,
+            key,
+            "127.0.0.1:15400".parse().unwrap(),
+            Some(Path::new("node-11.flash")),
+            None,
+        )
+        .unwrap()
+        .into_iter()
+        .map(|a| a.into_string().unwrap())
+        .collect()
+    }
+
+    const BASE: [&str; 8] = [
+        "-M",
+        "mps2-an385",
+        "-display",
+        "none",
+        "-monitor",
+        "none",
+        "-kernel",
+        "qemu-mps2",
+    ];
+    const TAIL: [&str; 6] = [
+        "-chardev",
+        "socket,id=radio,host=127.0.0.1,port=15400,nodelay=on",
+        "-serial",
+        "chardev:radio",
+        "-semihosting-config",
+        "enable=on,target=native,arg=flash=node-11.flash",
+    ];
+
+    #[test]
+    fn without_a_key_the_command_line_is_as_before() {
+        let mut want: Vec<&str> = BASE.to_vec();
+        want.extend([
+            "-device",
+            "loader,addr=0x003ff000,data=0xa5010011,data-len=4",
+        ]);
+        want.extend(TAIL);
+        assert_eq!(args(None), want);
+    }
+
+    #[test]
+    fn a_key_adds_its_four_words_after_the_flagged_word() {
+        let key = ManagementKey::from_bytes(core::array::from_fn(|i| 0x10 + i as u8));
+        let mut want: Vec<&str> = BASE.to_vec();
+        want.extend([
+            "-device",
+            "loader,addr=0x003ff000,data=0xa5050011,data-len=4",
+            "-device",
+            "loader,addr=0x003ff004,data=0x13121110,data-len=4",
+            "-device",
+            "loader,addr=0x003ff008,data=0x17161514,data-len=4",
+            "-device",
+            "loader,addr=0x003ff00c,data=0x1b1a1918,data-len=4",
+            "-device",
+            "loader,addr=0x003ff010,data=0x1f1e1d1c,data-len=4",
+        ]);
+        want.extend(TAIL);
+        assert_eq!(args(Some(&key)), want);
+        // What the board reads back from those words is the key.
+        let (word, back) = provision::read(0xa505_0011, || key.words()).unwrap();
+        assert_eq!(
+            (word.addr, back.map(|k| *k.expose())),
+            (0x0011, Some(*key.expose()))
+        );
+    }
 }

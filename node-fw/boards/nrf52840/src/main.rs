@@ -2,7 +2,8 @@
 //!
 //! - address: UICR CUSTOMER[0], the provisioning word (`0xA5` magic in bits 31..24, the
 //!   16-bit short address in bits 15..0), written once per node; the radio channel of an
-//!   unconfigured node: UICR CUSTOMER[1] (11..=26; erased: 15);
+//!   unconfigured node: UICR CUSTOMER[1] (11..=26; erased: 15); the management key:
+//!   CUSTOMER[2..=5] when the word's flag bit 2 says so (`node_fw::provision`);
 //! - radio: the IEEE 802.15.4 radio ([`radio`]);
 //! - pins: 16 GPIOs, outputs or inputs as the table uses them ([`gpio`]);
 //! - table slots and boot counter: the last 20 KiB of the internal flash ([`flash`]);
@@ -29,6 +30,7 @@ use embassy_nrf::config::{Config, HfclkSource};
 use embassy_nrf::radio::ieee802154::{Packet, Radio};
 use embassy_nrf::{bind_interrupts, peripherals};
 use embassy_time::Timer;
+use node_fw::provision;
 use panic_probe as _;
 
 #[cfg(not(feature = "gateway"))]
@@ -42,10 +44,11 @@ bind_interrupts!(struct Irqs {
     UARTE0 => embassy_nrf::buffered_uarte::InterruptHandler<peripherals::UARTE0>;
 });
 
-/// UICR CUSTOMER[0] and [1].
-const PROVISION_AT: usize = 0x1000_1080;
-const CHANNEL_AT: usize = 0x1000_1084;
-const MAGIC: u32 = 0xA5;
+/// UICR CUSTOMER[0] (the provisioning word), [1] (the channel), [2..=5] (the key): the
+/// layout of `node_fw::provision`.
+const PROVISION_AT: usize = provision::nrf52840::WORD_AT as usize;
+const CHANNEL_AT: usize = provision::nrf52840::CHANNEL_AT as usize;
+const KEY_AT: usize = provision::nrf52840::KEY_AT as usize;
 const DEFAULT_CHANNEL: u8 = 15;
 
 fn uicr(at: usize) -> u32 {
@@ -83,16 +86,31 @@ async fn main(_spawner: Spawner) {
         log::set_max_level(log::LevelFilter::Info);
     }
 
-    let word = uicr(PROVISION_AT);
-    let addr = word as u16;
-    if word >> 24 != MAGIC || addr >= 0xFFFE {
+    let Ok(word) = provision::parse_word(uicr(PROVISION_AT)) else {
         defmt::error!(
             "no node id: write UICR CUSTOMER[0] = 0xA500_0000 | address (see docs/boards.md)"
         );
         loop {
             Timer::after_secs(3600).await;
         }
-    }
+    };
+    let addr = word.addr;
+    // The management key (CUSTOMER[2..=5]) is read and checked; frames do not use it yet.
+    let key = if word.has_key() {
+        let words = core::array::from_fn(|i| uicr(KEY_AT + 4 * i));
+        let Some(key) = provision::ManagementKey::from_words(words) else {
+            defmt::error!(
+                "node {=u16:#06x}: CUSTOMER[0] announces a key but CUSTOMER[2..=5] are erased",
+                addr
+            );
+            loop {
+                Timer::after_secs(3600).await;
+            }
+        };
+        Some(key)
+    } else {
+        None
+    };
     let channel = match uicr(CHANNEL_AT) as u8 {
         c @ 11..=26 => c,
         _ => DEFAULT_CHANNEL,
@@ -106,6 +124,8 @@ async fn main(_spawner: Spawner) {
     };
     #[cfg(feature = "gateway")]
     {
+        // The gateway only relays frames: security is end to end, it needs no key.
+        let _ = key;
         defmt::info!("gateway: channel {=u8}, serial 1 Mbaud", channel);
         let mut config = embassy_nrf::uarte::Config::default();
         config.baudrate = embassy_nrf::uarte::Baudrate::Baud1m;
@@ -158,11 +178,12 @@ async fn main(_spawner: Spawner) {
         let boots = flash.count_boot();
         let epoch = boots.wrapping_mul(256) as u16;
         defmt::info!(
-            "node {=u16:#06x}: nrf52840, channel {=u8}, boot {=u32}, epoch {=u16}",
+            "node {=u16:#06x}: nrf52840, channel {=u8}, boot {=u32}, epoch {=u16}, key {=bool}",
             addr,
             channel,
             boots,
-            epoch
+            epoch,
+            key.is_some()
         );
 
         let board = Board {

@@ -172,6 +172,16 @@ fn main() -> ! {
         }
     }
     let addr = p.addr;
+    // The management key is read and checked; frames do not use it yet.
+    let key = match p.key {
+        Ok(key) => key,
+        Err(e) => {
+            log::error!("node {addr:#06x}: {e}: staying off the air");
+            loop {
+                cortex_m::asm::wfi();
+            }
+        }
+    };
     time::init();
     uart::init();
     // The node says who it is before anything else (the medium routes by it).
@@ -183,7 +193,12 @@ fn main() -> ! {
         Some(boots) => ((boots.wrapping_mul(256)) as u16, "boot count"),
         None => (semihosting::time().unwrap_or(0) as u16, "clock"),
     };
-    log::info!("node {addr:#06x}: qemu-mps2, flash {backing:?}, epoch {epoch} ({why})");
+    let keyed = if key.is_some() {
+        "management key provisioned"
+    } else {
+        "no management key"
+    };
+    log::info!("node {addr:#06x}: qemu-mps2, flash {backing:?}, epoch {epoch} ({why}), {keyed}");
     if backing == Backing::FileRefused {
         log::warn!("node {addr:#06x}: the flash file is not usable: slots in RAM");
     }
