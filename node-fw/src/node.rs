@@ -73,7 +73,7 @@ pub struct NodeCore {
 }
 
 /// The engine's effects, applied to the node's timers, links and pins.
-struct Fx<'a, I: Io> {
+struct NodeEffects<'a, I: Io> {
     now: u64,
     table: &'a Table,
     timers: &'a mut [Option<u64>; MAX_TIMERS],
@@ -112,7 +112,7 @@ impl Radio<'_> {
     }
 }
 
-impl<I: Io> Effects for Fx<'_, I> {
+impl<I: Io> Effects for NodeEffects<'_, I> {
     fn output(&mut self, output: u8, value: bool) {
         if let Some(o) = self.table.outputs.get(usize::from(output)) {
             self.io.set_pin(o.pin, value);
@@ -307,12 +307,17 @@ impl NodeCore {
     }
 
     /// Runs the engine on the running table with effects applied to this node.
-    fn run<I: Io>(&mut self, now: u64, io: &mut I, f: impl FnOnce(&mut Engine, &mut Fx<'_, I>)) {
+    fn run<I: Io>(
+        &mut self,
+        now: u64,
+        io: &mut I,
+        f: impl FnOnce(&mut Engine, &mut NodeEffects<'_, I>),
+    ) {
         let (Some(table), Some(state)) = (&self.table, &mut self.state) else {
             return;
         };
         let mut engine = Engine::resume(table, state);
-        let mut fx = Fx {
+        let mut fx = NodeEffects {
             now,
             table,
             timers: &mut self.timers,

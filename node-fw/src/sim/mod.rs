@@ -212,14 +212,14 @@ enum Effect {
 }
 
 /// The [`Effects`] sink of one engine call: traces at once, applies afterwards.
-struct Fx<'a> {
+struct WorldEffects<'a> {
     node: usize,
     now: u64,
     trace: &'a mut Vec<TraceEntry>,
     todo: &'a mut Vec<Effect>,
 }
 
-impl Fx<'_> {
+impl WorldEffects<'_> {
     fn log(&mut self, what: What) {
         self.trace.push(TraceEntry {
             t_ms: self.now,
@@ -228,7 +228,7 @@ impl Fx<'_> {
     }
 }
 
-impl Effects for Fx<'_> {
+impl Effects for WorldEffects<'_> {
     fn output(&mut self, output: u8, value: bool) {
         let node = self.node;
         self.log(What::Output {
@@ -943,13 +943,13 @@ impl<'t> World<'t> {
     }
 
     /// Runs one engine call with a tracing sink, then applies its effects.
-    fn call(&mut self, node: usize, f: impl FnOnce(&mut Engine<'t>, &mut Fx<'_>)) {
+    fn call(&mut self, node: usize, f: impl FnOnce(&mut Engine<'t>, &mut WorldEffects<'_>)) {
         if self.stopped[node] {
             return;
         }
         let mut todo = std::mem::take(&mut self.scratch);
         {
-            let mut fx = Fx {
+            let mut fx = WorldEffects {
                 node,
                 now: self.now,
                 trace: &mut self.trace,
