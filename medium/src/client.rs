@@ -69,12 +69,13 @@ impl Conn {
         self.send(&Link::Sync(n))?;
         let until = Instant::now() + JOIN_TIMEOUT;
         let mut kept = VecDeque::new();
+        let held = self.held.len();
         let done = loop {
             let synced = self.next_in(until, |body| {
                 if Link::parse(body).is_ok_and(|l| l == Link::Synced(n)) {
                     return Some(());
                 }
-                if kept.len() < HELD {
+                if held + kept.len() < HELD {
                     kept.push_back(body.to_vec());
                 }
                 None
@@ -85,8 +86,8 @@ impl Conn {
                 Next::TimedOut => break false,
             }
         };
-        kept.append(&mut self.held);
-        self.held = kept;
+        // After what earlier syncs held: the stream's order.
+        self.held.append(&mut kept);
         if done {
             Ok(())
         } else {

@@ -152,6 +152,34 @@ fn a_cut_link_delivers_nothing_from_one_radio_to_the_other_and_everything_else()
 }
 
 #[test]
+fn messages_read_during_syncs_come_out_in_the_order_they_came() {
+    use medium::Conn;
+    use std::time::Instant;
+    let medium = Medium::start(Config::default()).unwrap();
+    let mut plant = Conn::join(medium.addr(), Peer::Plant).unwrap();
+    let mut node = Conn::join(medium.addr(), Peer::Node { addr: 0x11 }).unwrap();
+    for pin in [1, 2] {
+        node.send(&Link::Pin {
+            addr: 0x11,
+            pin,
+            level: true,
+        })
+        .unwrap();
+        // The node's level is at the plant before the plant's sync is answered.
+        node.sync().unwrap();
+        plant.sync().unwrap();
+    }
+    let until = Instant::now() + SURE;
+    let mut got = Vec::new();
+    while got.len() < 2 {
+        let pin = plant.recv(until, |l| l.output_seen().map(|(_, _, pin, _)| pin));
+        got.push(pin.unwrap().expect("held"));
+    }
+    assert_eq!(got, [1, 2]);
+    medium.stop();
+}
+
+#[test]
 fn output_pins_reach_plants_and_plant_inputs_reach_their_node_only() {
     let medium = Medium::start(Config::default()).unwrap();
     let mut a = Client::join(&medium, Peer::Node { addr: 0x11 });

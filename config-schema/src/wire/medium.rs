@@ -192,9 +192,11 @@ impl<const N: usize> Deframer<N> {
             _ => return Ok(false),
         };
         if 2 + len > MAX_LINK {
-            self.skip = 2 + len;
-            // Skip what is buffered now; the rest as it comes.
-            let _ = self.complete();
+            // Skip what is buffered of it now, the rest as it comes; the next call reports
+            // the message after it (which may be too long as well).
+            let now = (2 + len).min(unread.len());
+            self.start += now;
+            self.skip = 2 + len - now;
             return Err(TooLong { len });
         }
         Ok(unread.len() >= 2 + len)
@@ -284,6 +286,17 @@ mod tests {
             }
         }
         assert_eq!((reported, got, d.pending()), (1, 1, 0));
+        // Two too-long messages in a row, in one piece: each is reported.
+        let mut two = [0xAA; 2 * 202 + 3];
+        two[..2].copy_from_slice(&[200, 0]);
+        two[202..204].copy_from_slice(&[200, 0]);
+        two[404..].copy_from_slice(&[1, 0, 3]);
+        let mut d = Deframer::<{ 4 * MAX_LINK }>::new();
+        assert_eq!(d.push(&two), two.len());
+        assert_eq!(d.take(), Err(TooLong { len: 200 }));
+        assert_eq!(d.take(), Err(TooLong { len: 200 }));
+        assert_eq!(d.take().map(|b| b.map(<[u8]>::len)), Ok(Some(1)));
+        let mut d = Deframer::<MAX_LINK>::new();
         // The largest message fits, exactly.
         let mut whole = [0u8; MAX_LINK];
         whole[0] = (MAX_LINK - 2) as u8;

@@ -24,8 +24,11 @@ impl Reader {
     /// Bytes that are not the framing (noise on the line) are dropped.
     async fn wait(&mut self, rx: &mut BufferedUarteRx<'_>) {
         loop {
-            if let Ok(true) = self.incoming.complete() {
-                return;
+            match self.incoming.complete() {
+                Ok(true) => return,
+                // Skipped; a whole message may be buffered behind it.
+                Err(_) => continue,
+                Ok(false) => {}
             }
             let Ok(bytes) = rx.fill_buf().await else {
                 continue;
