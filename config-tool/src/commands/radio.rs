@@ -3,6 +3,7 @@
 
 use std::io;
 use std::net::SocketAddr;
+use std::os::fd::AsRawFd;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -276,10 +277,15 @@ pub fn qemu_node(a: QemuNodeArgs) -> Result<(), Failure> {
         ),
         None => None,
     };
+    // Kept open across the exec: QEMU reads the key from it at start-up.
+    let key_fd = key.as_ref().map(key_memfd).transpose()?;
+    let key_path = key_fd
+        .as_ref()
+        .map(|fd| std::path::PathBuf::from(format!("/proc/self/fd/{}", fd.as_raw_fd())));
     let args = demo::qemu_args(
         &a.elf,
         a.addr,
-        key.as_ref(),
+        key_path.as_deref(),
         a.medium,
         a.flash.as_deref(),
         a.count.as_deref(),
@@ -306,6 +312,27 @@ pub fn qemu_node(a: QemuNodeArgs) -> Result<(), Failure> {
             Err(Failure::error(format!("qemu: {status}")))
         }
     }
+}
+
+/// The key's 16 bytes in an anonymous memory file (no path, owner-only, never on a command
+/// line), inherited by QEMU across `exec` (no close-on-exec flag).
+#[cfg(target_os = "linux")]
+fn key_memfd(key: &node_fw::provision::ManagementKey) -> Result<std::os::fd::OwnedFd, Failure> {
+    use rustix::fs::{memfd_create, MemfdFlags};
+    let fd = memfd_create("node-key", MemfdFlags::empty())
+        .map_err(|e| Failure::error(format!("key for QEMU: {e}")))?;
+    let mut file = std::fs::File::from(fd);
+    let bytes: Vec<u8> = key.words().iter().flat_map(|w| w.to_le_bytes()).collect();
+    io::Write::write_all(&mut file, &bytes)
+        .map_err(|e| Failure::error(format!("key for QEMU: {e}")))?;
+    Ok(file.into())
+}
+
+#[cfg(not(target_os = "linux"))]
+fn key_memfd(_: &node_fw::provision::ManagementKey) -> Result<std::os::fd::OwnedFd, Failure> {
+    Err(Failure::error(
+        "qemu-node --key hands the key to QEMU through a memory file: Linux only",
+    ))
 }
 
 /// `node`: one generic node in this process (what `demo` starts).

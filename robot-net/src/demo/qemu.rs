@@ -43,13 +43,15 @@ pub fn provision_loaders(word: u32, key: Option<&ManagementKey>) -> Vec<String> 
     loaders
 }
 
-/// QEMU's arguments for one node booting `elf`: its address (and its management key, if
-/// given) in the provisioning area, its UART connected to the medium, its flash slots in
-/// `flash` (through semihosting; without it they are erased at every boot).
+/// QEMU's arguments for one node booting `elf`: its address in the provisioning word (with
+/// the key flag when `key_file` names the file QEMU loads the management key from, 16 raw
+/// bytes, right after the word: never the key itself, since every local user can read a
+/// process's arguments), its UART connected to the medium, its flash slots in `flash`
+/// (through semihosting; without it they are erased at every boot).
 pub fn qemu_args(
     elf: &Path,
     addr: u16,
-    key: Option<&ManagementKey>,
+    key_file: Option<&Path>,
     medium: SocketAddr,
     flash: Option<&Path>,
     count: Option<&Path>,
@@ -87,8 +89,18 @@ pub fn qemu_args(
         "-kernel".into(),
         elf.as_os_str().to_owned(),
     ];
-    for loader in provision_loaders(word, key) {
+    let flag = key_file.map_or(0, |_| u32::from(provision::FLAG_KEY) << 16);
+    for loader in provision_loaders(word | flag, None) {
         args.extend(["-device".into(), loader.into()]);
+    }
+    if let Some(file) = key_file {
+        let mut loader = OsString::from("loader,file=");
+        loader.push(file.as_os_str());
+        loader.push(format!(
+            ",addr={:#010x},force-raw=on",
+            provision::qemu::KEY_AT
+        ));
+        args.extend(["-device".into(), loader]);
     }
     args.extend([
         "-chardev".into(),
@@ -256,7 +268,7 @@ fn count_line(who: &str, d: &Counts, cycles: usize) -> String {
 mod tests {
     use super::*;
 
-    fn args(key: Option<&ManagementKey>) -> Vec<String> {
+    fn args(key: Option<&Path>) -> Vec<String> {
         qemu_args(
             Path::new("qemu-mps2"),
             0x0011,
@@ -302,24 +314,31 @@ mod tests {
     }
 
     #[test]
-    fn a_key_adds_its_four_words_after_the_flagged_word() {
-        let key = ManagementKey::from_bytes(core::array::from_fn(|i| 0x10 + i as u8));
+    fn a_key_is_loaded_from_its_file_after_the_flagged_word() {
         let mut want: Vec<&str> = BASE.to_vec();
         want.extend([
             "-device",
             "loader,addr=0x003ff000,data=0xa5050011,data-len=4",
             "-device",
-            "loader,addr=0x003ff004,data=0x13121110,data-len=4",
-            "-device",
-            "loader,addr=0x003ff008,data=0x17161514,data-len=4",
-            "-device",
-            "loader,addr=0x003ff00c,data=0x1b1a1918,data-len=4",
-            "-device",
-            "loader,addr=0x003ff010,data=0x1f1e1d1c,data-len=4",
+            "loader,file=/proc/self/fd/7,addr=0x003ff004,force-raw=on",
         ]);
         want.extend(TAIL);
-        assert_eq!(args(Some(&key)), want);
-        // What the board reads back from those words is the key.
+        assert_eq!(args(Some(Path::new("/proc/self/fd/7"))), want);
+    }
+
+    #[test]
+    fn the_printed_loaders_carry_the_key_words_the_board_reads_back() {
+        let key = ManagementKey::from_bytes(core::array::from_fn(|i| 0x10 + i as u8));
+        assert_eq!(
+            provision_loaders(0xa501_0011, Some(&key)),
+            [
+                "loader,addr=0x003ff000,data=0xa5050011,data-len=4",
+                "loader,addr=0x003ff004,data=0x13121110,data-len=4",
+                "loader,addr=0x003ff008,data=0x17161514,data-len=4",
+                "loader,addr=0x003ff00c,data=0x1b1a1918,data-len=4",
+                "loader,addr=0x003ff010,data=0x1f1e1d1c,data-len=4",
+            ]
+        );
         let (word, back) = provision::read(0xa505_0011, || key.words()).unwrap();
         assert_eq!(
             (word.addr, back.map(|k| *k.expose())),
