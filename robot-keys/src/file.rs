@@ -41,6 +41,11 @@ pub enum KeyFileError {
     Permissions { path: PathBuf, mode: u32 },
     #[error("{}: not a regular file", path.display())]
     NotAFile { path: PathBuf },
+    #[error(
+        "{}: owned by user {owner}, not by this user ({me}): whoever owns it may know the key",
+        path.display()
+    )]
+    NotOwned { path: PathBuf, owner: u32, me: u32 },
     #[error("{}:{line}:{col}: {what}", path.display())]
     Format {
         path: PathBuf,
@@ -116,6 +121,12 @@ fn set_owner_only(_: &File) -> io::Result<()> {
 /// Reads a key file: a regular file of at most 4 KiB that neither group nor others may
 /// read or write (checked on the opened file), as text.
 pub fn read_secret_file(path: &Path) -> Result<Zeroizing<String>, KeyFileError> {
+    // Not opened unless it is a regular file (opening a FIFO would wait for a writer).
+    if !std::fs::metadata(path).map_err(io_error(path))?.is_file() {
+        return Err(KeyFileError::NotAFile {
+            path: path.to_path_buf(),
+        });
+    }
     let f = File::open(path).map_err(io_error(path))?;
     let meta = f.metadata().map_err(io_error(path))?;
     if !meta.is_file() {
@@ -124,7 +135,7 @@ pub fn read_secret_file(path: &Path) -> Result<Zeroizing<String>, KeyFileError> 
         });
     }
     check_owner_only(path, &meta)?;
-    let mut bytes = Zeroizing::new(Vec::new());
+    let mut bytes = Zeroizing::new(Vec::with_capacity(MAX_LEN as usize + 1));
     f.take(MAX_LEN + 1)
         .read_to_end(&mut bytes)
         .map_err(io_error(path))?;
@@ -142,7 +153,15 @@ pub fn read_secret_file(path: &Path) -> Result<Zeroizing<String>, KeyFileError> 
 
 #[cfg(unix)]
 fn check_owner_only(path: &Path, meta: &std::fs::Metadata) -> Result<(), KeyFileError> {
-    use std::os::unix::fs::PermissionsExt;
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    let me = rustix::process::geteuid().as_raw();
+    if meta.uid() != me {
+        return Err(KeyFileError::NotOwned {
+            path: path.to_path_buf(),
+            owner: meta.uid(),
+            me,
+        });
+    }
     let mode = meta.permissions().mode() & 0o7777;
     if mode & 0o066 != 0 {
         return Err(KeyFileError::Permissions {
@@ -293,6 +312,23 @@ mod tests {
         write_machine_secret(&p, true).unwrap();
         assert_ne!(std::fs::read_to_string(&p).unwrap(), first);
         assert_eq!(std::fs::read_dir(&d).unwrap().count(), 1);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_fifo_is_refused_at_once_not_waited_on() {
+        let d = dir("fifo");
+        let p = d.join("machine.key");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&p)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        let e = load_machine_secret(&p).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!("{}: not a regular file", p.display())
+        );
     }
 
     #[cfg(unix)]

@@ -60,6 +60,10 @@ impl std::error::Error for KeyError {}
 /// Reads node `addr`'s management key from `path`.
 pub fn load(path: &Path, addr: u16) -> Result<ManagementKey, KeyError> {
     let io = |e| KeyError::Io(path.to_path_buf(), e);
+    // Not opened unless it is a regular file (opening a FIFO would wait for a writer).
+    if !std::fs::metadata(path).map_err(io)?.is_file() {
+        return Err(KeyError::NotAFile(path.to_path_buf()));
+    }
     let f = std::fs::File::open(path).map_err(io)?;
     let meta = f.metadata().map_err(io)?;
     if !meta.is_file() {
