@@ -166,6 +166,12 @@ pub enum SecError {
     CounterExhausted,
     /// The frame does not fit the PSDU or the buffer.
     NoRoom,
+    /// Secured at another level than the receiver requires (a weaker MIC, or none of the
+    /// encryption): refused before any key is looked up.
+    Level {
+        got: SecurityLevel,
+        required: SecurityLevel,
+    },
 }
 
 impl fmt::Display for SecError {
@@ -179,6 +185,9 @@ impl fmt::Display for SecError {
             SecError::BadMic => f.write_str("MIC mismatch"),
             SecError::CounterExhausted => f.write_str("frame counter exhausted"),
             SecError::NoRoom => f.write_str("secured frame does not fit"),
+            SecError::Level { got, required } => {
+                write!(f, "security level {got:?}, not the required {required:?}")
+            }
         }
     }
 }
@@ -523,6 +532,51 @@ pub struct Opened<'a> {
 /// `scratch` (`mac::MAX_PAYLOAD` bytes always suffice). Never panics; on any error no
 /// unauthenticated plaintext is left in `scratch`. Replay is the caller's check, on the returned
 /// `aux.frame_counter`, and only once this returned `Ok`.
+/// [`open`], for a receiver that requires one security level (ours: ENC-MIC-64): a frame
+/// claiming another, weaker or stronger, is refused before any key is looked up.
+pub fn open_at<'a, F>(
+    psdu: &[u8],
+    required: SecurityLevel,
+    lookup: F,
+    scratch: &'a mut [u8],
+) -> Result<Opened<'a>, SecError>
+where
+    F: FnOnce(&Header, &AuxRepr) -> Option<([u8; KEY_LEN], [u8; 8])>,
+{
+    open(
+        psdu,
+        |header, aux| {
+            (aux.level == required)
+                .then(|| lookup(header, aux))
+                .flatten()
+        },
+        scratch,
+    )
+    .map_err(|e| match e {
+        // `lookup` declined because of the level: say so.
+        SecError::UnknownKey => {
+            level_of(psdu)
+                .filter(|got| *got != required)
+                .map_or(SecError::UnknownKey, |got| SecError::Level {
+                    got,
+                    required,
+                })
+        }
+        e => e,
+    })
+}
+
+/// The security level a secured data frame claims, if it has an auxiliary header.
+fn level_of(psdu: &[u8]) -> Option<SecurityLevel> {
+    match Frame::parse(psdu).ok()? {
+        Frame::Data { header, payload } if header.secured => {
+            let view = AuxHeader::new_checked(payload).ok()?;
+            Some(AuxRepr::parse(&view).level)
+        }
+        _ => None,
+    }
+}
+
 pub fn open<'a, F>(psdu: &[u8], lookup: F, scratch: &'a mut [u8]) -> Result<Opened<'a>, SecError>
 where
     F: FnOnce(&Header, &AuxRepr) -> Option<([u8; KEY_LEN], [u8; 8])>,

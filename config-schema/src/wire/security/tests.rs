@@ -754,3 +754,53 @@ fn openssl_reproduces_annex_c() {
     assert!(ct.is_empty());
     assert_eq!(tag, C21_MIC);
 }
+
+#[test]
+fn a_receiver_that_requires_enc_mic_64_refuses_a_weaker_mic_before_looking_up_a_key() {
+    let key = [0x42; 16];
+    let mut scratch = [0u8; MAX_PSDU];
+    for (level, ok) in [
+        (SecurityLevel::Mic32, false),
+        (SecurityLevel::EncMic32, false),
+        (SecurityLevel::EncMic128, false),
+        (SecurityLevel::EncMic64, true),
+    ] {
+        let aux = AuxRepr {
+            level,
+            ..AuxRepr::new(1, 9)
+        };
+        let mut out = [0u8; MAX_PSDU];
+        let n = secure(
+            &header(),
+            &aux,
+            &key,
+            ext_addr(0xBEEF, 0x0001),
+            b"START",
+            &mut out,
+        )
+        .unwrap();
+        let mut looked_up = false;
+        let r = open_at(
+            &out[..n],
+            SecurityLevel::EncMic64,
+            |h: &Header, a: &AuxRepr| {
+                looked_up = true;
+                node_lookup(key)(h, a)
+            },
+            &mut scratch,
+        );
+        if ok {
+            assert_eq!(r.map(|o| o.payload.to_vec()), Ok(b"START".to_vec()));
+        } else {
+            assert_eq!(
+                r.map(|_| ()),
+                Err(SecError::Level {
+                    got: level,
+                    required: SecurityLevel::EncMic64
+                }),
+                "{level:?}"
+            );
+            assert!(!looked_up, "{level:?}: no key looked up");
+        }
+    }
+}
