@@ -24,7 +24,10 @@
 //! 3.2e9 frames, so 3.1e6 reservations of 1024; a 4 KiB sector holds 256 records, so
 //! each of the two sectors is erased about 6,000 times, within the nRF52840's 10,000
 //! cycles. The 32-bit counter lasts 13.6 years at that rate; before it would wrap, `next`
-//! says [`CounterError::Exhausted`] and the node needs a new key.
+//! says [`CounterError::Exhausted`], for good: one counter serves every key of the node
+//! (so a new generation's link keys do not restart it), and only re-provisioning the node
+//! (a new management key, which erases this region with the rest of the node's flash)
+//! starts it again at 0.
 
 use crc::{Crc, CRC_32_ISO_HDLC};
 use embedded_storage_async::nor_flash::NorFlash;
