@@ -10,8 +10,9 @@ use serde::{Deserialize, Serialize};
 use crate::limits::{MAX_CHARTS, MAX_ROLE_NAME};
 use crate::table::Topic;
 
-/// Bytes of table data in one OTA chunk: fits a data frame with the chunk's own fields.
-pub const CHUNK_DATA: usize = 96;
+/// Bytes of table data in one OTA chunk: fits a secured data frame (ENC-MIC-64, 102 bytes
+/// of payload) with the chunk's own fields.
+pub const CHUNK_DATA: usize = 88;
 
 /// One application message.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -232,10 +233,11 @@ impl<'a> Message<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::wire::mac::MAX_PAYLOAD;
+    // Every message must fit a secured frame (the auxiliary header and MIC taken).
+    use crate::wire::security::MAX_SECURED_PAYLOAD as MAX_PAYLOAD;
 
     #[test]
-    fn a_full_chunk_fits_one_frame() {
+    fn a_full_chunk_fits_one_secured_frame() {
         let data = [0xA5u8; CHUNK_DATA];
         let msg = Message::ConfigChunk {
             generation: u32::MAX,
@@ -262,7 +264,7 @@ mod tests {
     }
 
     #[test]
-    fn the_largest_status_fits_one_frame() {
+    fn the_largest_status_fits_one_secured_frame() {
         let mut role = String::new();
         while role.push('W').is_ok() {}
         let mut states = Vec::new();
