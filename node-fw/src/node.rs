@@ -8,7 +8,13 @@
 use config_schema::limits::{MAX_PEERS, MAX_TIMERS};
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
 use config_schema::wire::msg::{
-    Announce, Command, ConfigReply, Counters, Message, Refusal, RuntimeCounters, Status,
+    Announce, Command, ConfigReply, Counters, Message, Refusal, RuntimeCounters, SecurityCounters,
+    SecurityReport, Status,
+};
+use config_schema::wire::security::{
+    self, ext_addr,
+    replay::{ReplayError, ReplayGuard},
+    AuxRepr, SecError, SecurityLevel,
 };
 use config_schema::{decode, Publication, Table};
 use heapless::Vec;
@@ -16,6 +22,7 @@ use heapless::Vec;
 use crate::ecc::{Effects, Engine, EngineState, Fault};
 use crate::link::{self, LinkState};
 use crate::ota::{self, Outcome};
+use crate::provision::ManagementKey;
 
 /// Reported in announcements and status.
 pub const FIRMWARE_VERSION: u16 = 1;
@@ -34,7 +41,23 @@ pub trait Io {
     fn runtime_counters(&self) -> RuntimeCounters {
         RuntimeCounters::default()
     }
+    /// The frame counter for the next secured frame: never handed out before, whatever
+    /// power cuts came between (`crate::frame_counter`). `None` (exhausted, the flash
+    /// failed, or a board without one): the frame is not sent, and counted.
+    fn next_frame_counter(&mut self) -> Option<u32> {
+        None
+    }
 }
+
+/// The key index of the management key in the auxiliary security header.
+pub const MANAGEMENT_KEY_INDEX: u8 = 0;
+/// Senders on the config PAN whose last frame counter a node remembers (the tool, and a
+/// few spare tool addresses); a new one past these is refused, never one forgotten.
+pub const MANAGEMENT_SENDERS: usize = 4;
+/// A secured node answers an unsecured broadcast `Identify` (a scan cannot be secured
+/// with every node's key) at most once per this many ms: the answer is secured and spends
+/// a frame counter, so a flood must not use the counter up.
+pub const OPEN_IDENTIFY_MS: u64 = ANNOUNCE_MS;
 
 /// A table waiting to be persisted before it runs: its blob stays in the OTA staging
 /// buffer (decoded and validated already; decoded again when it is switched to, so the node
@@ -70,6 +93,13 @@ pub struct NodeCore {
     /// Board pin levels as last reported (bit = pin number), kept while unconfigured too,
     /// so a new table starts from the switches' real positions.
     pins: u64,
+    /// The management key: with it, every frame on the config PAN is secured both ways.
+    key: Option<ManagementKey>,
+    /// The last frame counter accepted per management sender.
+    replay: ReplayGuard<MANAGEMENT_SENDERS>,
+    security: SecurityCounters,
+    /// When an unsecured broadcast `Identify` may be answered again.
+    next_open_identify: u64,
 }
 
 /// The engine's effects, applied to the node's timers, links and pins.
@@ -87,6 +117,9 @@ struct Radio<'a> {
     addr: u16,
     mac_seq: &'a mut u8,
     counters: &'a mut Counters,
+    /// The management key: frames on the config PAN are secured with it.
+    key: Option<&'a ManagementKey>,
+    security: &'a mut SecurityCounters,
 }
 
 impl Radio<'_> {
@@ -105,7 +138,27 @@ impl Radio<'_> {
         };
         *self.mac_seq = self.mac_seq.wrapping_add(1);
         let mut psdu = [0u8; MAX_PSDU];
-        if let Ok(len) = mac::emit_data(&header, &payload[..n], &mut psdu) {
+        let emitted = match self.key.filter(|_| pan_id == CONFIG_PAN) {
+            Some(key) => {
+                let Some(counter) = io.next_frame_counter() else {
+                    self.security.no_counter += 1;
+                    return;
+                };
+                let aux = AuxRepr::new(MANAGEMENT_KEY_INDEX, counter);
+                let src_ext = ext_addr(pan_id, self.addr);
+                security::secure(
+                    &header,
+                    &aux,
+                    key.expose(),
+                    src_ext,
+                    &payload[..n],
+                    &mut psdu,
+                )
+                .ok()
+            }
+            None => mac::emit_data(&header, &payload[..n], &mut psdu).ok(),
+        };
+        if let Some(len) = emitted {
             self.counters.sent += 1;
             io.transmit(&psdu[..len]);
         }
@@ -167,11 +220,33 @@ impl NodeCore {
             counters: Counters::default(),
             commands: Vec::new(),
             pins: 0,
+            key: None,
+            replay: ReplayGuard::new(),
+            security: SecurityCounters::default(),
+            next_open_identify: 0,
         };
         if let Some(t) = table.filter(|t| t.missing_pin(board_pins).is_none()) {
             node.install(t);
         }
         node
+    }
+
+    /// The node with its management key (provisioned): from now on it accepts on the
+    /// config PAN only frames secured at ENC-MIC-64 with it, replay-checked, and secures
+    /// every frame it sends there (the board's [`Io::next_frame_counter`] numbers them).
+    pub fn with_management_key(mut self, key: ManagementKey) -> Self {
+        self.key = Some(key);
+        self
+    }
+
+    /// Whether the node has a management key.
+    pub fn keyed(&self) -> bool {
+        self.key.is_some()
+    }
+
+    /// What the node counted of frame security.
+    pub fn security_counters(&self) -> SecurityCounters {
+        self.security
     }
 
     /// The board's pins (bit n: pin n).
@@ -326,6 +401,8 @@ impl NodeCore {
                 addr: self.addr,
                 mac_seq: &mut self.mac_seq,
                 counters: &mut self.counters,
+                key: self.key.as_ref(),
+                security: &mut self.security,
             },
             io,
         };
@@ -338,6 +415,8 @@ impl NodeCore {
             addr: self.addr,
             mac_seq: &mut self.mac_seq,
             counters: &mut self.counters,
+            key: self.key.as_ref(),
+            security: &mut self.security,
         };
         radio.send(io, pan, dst, msg);
     }
@@ -375,6 +454,8 @@ impl NodeCore {
                 addr: self.addr,
                 mac_seq: &mut self.mac_seq,
                 counters: &mut self.counters,
+                key: self.key.as_ref(),
+                security: &mut self.security,
             };
             for (sender, &dst) in self.senders.iter_mut().zip(table.peers.iter()) {
                 let before = sender.counters().retried;
@@ -443,14 +524,57 @@ impl NodeCore {
                 .table
                 .as_ref()
                 .is_none_or(|t| t.header.pan_id == header.pan_id);
-        if (header.dst != self.addr && header.dst != BROADCAST) || !pan_ok || header.secured {
+        if (header.dst != self.addr && header.dst != BROADCAST) || !pan_ok {
             self.counters.dropped += 1;
             return;
         }
+        let mut scratch = [0u8; mac::MAX_PAYLOAD];
+        let management = header.pan_id == CONFIG_PAN && self.key.is_some();
+        let (payload, authentic) = if management && header.secured {
+            match self.open_management(psdu, &mut scratch) {
+                Ok(payload) => (payload, true),
+                Err(()) => {
+                    self.counters.dropped += 1;
+                    return;
+                }
+            }
+        } else if header.secured {
+            // Secured frames elsewhere (events) come with link keys: not yet.
+            self.counters.dropped += 1;
+            return;
+        } else {
+            (payload, false)
+        };
         let Ok(msg) = Message::parse(payload) else {
             self.counters.dropped += 1;
             return;
         };
+        let is_management = matches!(
+            msg,
+            Message::ConfigBegin { .. }
+                | Message::ConfigChunk { .. }
+                | Message::ConfigEnd { .. }
+                | Message::Command { .. }
+        );
+        if self.key.is_some() && is_management && !authentic {
+            // A scan cannot be secured with every node's key: an unsecured broadcast
+            // Identify is answered (secured), rate-limited; nothing else is taken.
+            let scan = header.dst == BROADCAST
+                && header.pan_id == CONFIG_PAN
+                && matches!(
+                    msg,
+                    Message::Command {
+                        command: Command::Identify,
+                        ..
+                    }
+                );
+            if !(scan && now >= self.next_open_identify) {
+                self.security.not_secured += 1;
+                self.counters.dropped += 1;
+                return;
+            }
+            self.next_open_identify = now + OPEN_IDENTIFY_MS;
+        }
         self.counters.received += 1;
         let src = header.src;
         let reply_pan = header.pan_id;
@@ -466,6 +590,8 @@ impl NodeCore {
                     addr: self.addr,
                     mac_seq: &mut self.mac_seq,
                     counters: &mut self.counters,
+                    key: self.key.as_ref(),
+                    security: &mut self.security,
                 };
                 sender.on_ack(epoch, next, now, |m| radio.send(io, pan, src, &m));
             }
@@ -477,6 +603,56 @@ impl NodeCore {
             }
             // Replies, statuses and announcements are for the tool.
             _ => {}
+        }
+    }
+
+    /// Opens a secured frame on the config PAN with the management key (ENC-MIC-64, key
+    /// index 0, the sender's extended address from its short address), then checks its
+    /// counter against the last one accepted from that sender. Every refusal is counted by
+    /// its reason.
+    fn open_management<'s>(&mut self, psdu: &[u8], scratch: &'s mut [u8]) -> Result<&'s [u8], ()> {
+        let Some(key) = &self.key else {
+            return Err(());
+        };
+        let me = self.addr;
+        let opened = security::open_at(
+            psdu,
+            SecurityLevel::EncMic64,
+            |header, aux| {
+                // Our own frames reflected back are not the tool's.
+                (aux.key_id.index() == Some(MANAGEMENT_KEY_INDEX) && header.src != me)
+                    .then(|| (*key.expose(), ext_addr(header.pan_id, header.src)))
+            },
+            scratch,
+        );
+        let c = &mut self.security;
+        let opened = match opened {
+            Ok(o) => o,
+            Err(e) => {
+                match e {
+                    SecError::NotSecured => c.not_secured += 1,
+                    SecError::BadMic => c.bad_mic += 1,
+                    SecError::UnknownKey => c.unknown_key += 1,
+                    SecError::Level { .. } | SecError::NoMic => c.wrong_level += 1,
+                    _ => c.malformed += 1,
+                }
+                return Err(());
+            }
+        };
+        match self.replay.check_and_accept(
+            opened.header.src,
+            MANAGEMENT_KEY_INDEX,
+            opened.aux.frame_counter,
+        ) {
+            Ok(()) => Ok(opened.payload),
+            Err(ReplayError::Replayed { .. }) => {
+                c.replayed += 1;
+                Err(())
+            }
+            Err(ReplayError::Full) => {
+                c.table_full += 1;
+                Err(())
+            }
         }
     }
 
@@ -621,8 +797,17 @@ impl NodeCore {
                     self.restart_links();
                     self.run(now, io, |e, fx| e.reset(fx));
                 }
-                Command::Identify | Command::Status => {}
+                Command::Identify | Command::Status | Command::Security => {}
             }
+        }
+        if cmd == Command::Security {
+            let report = Message::Security(SecurityReport {
+                ack: id,
+                keyed: self.key.is_some(),
+                counters: self.security,
+            });
+            self.send(io, pan, src, &report);
+            return;
         }
         let status = Message::Status(self.status(id, io.runtime_counters()));
         self.send(io, pan, src, &status);

@@ -48,6 +48,8 @@ pub enum Message<'a> {
     Status(Status),
     /// "Here I am": periodic while unconfigured, and on `Command::Identify`.
     Announce(Announce),
+    /// The node's frame security counters: the answer to `Command::Security`.
+    Security(SecurityReport),
 }
 
 /// Where a table transfer stands, from the receiving node.
@@ -140,6 +142,40 @@ pub enum Command {
     Identify,
     /// Only answer with the status.
     Status,
+    /// Answer with the frame security counters (`Message::Security`) instead of the status.
+    Security,
+}
+
+/// What a node counted of frame security (every reason a frame was dropped, and what it
+/// could not send), answering command `ack`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SecurityReport {
+    /// The id of the command this answers.
+    pub ack: u16,
+    /// Whether the node has a management key (frames on the config PAN are secured).
+    pub keyed: bool,
+    pub counters: SecurityCounters,
+}
+
+/// Frames a secured node dropped, per reason, and frames it could not secure.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SecurityCounters {
+    /// A management frame (config PAN) without security.
+    pub not_secured: u32,
+    /// The MIC did not verify (forged, damaged, wrong key).
+    pub bad_mic: u32,
+    /// A frame counter not above the last one accepted from that sender.
+    pub replayed: u32,
+    /// A key index the node has no key for (or a frame claiming to come from the node).
+    pub unknown_key: u32,
+    /// Secured at another level than ENC-MIC-64.
+    pub wrong_level: u32,
+    /// A malformed auxiliary security header, or any other codec refusal.
+    pub malformed: u32,
+    /// A new sender, and the replay table was full.
+    pub table_full: u32,
+    /// Frames not sent: no frame counter (exhausted, or the flash failed).
+    pub no_counter: u32,
 }
 
 /// What `config-tool status` shows of a node.
@@ -294,6 +330,29 @@ mod tests {
                 tx_queue_high: c,
                 tx_failed: c,
                 flash_failures: c,
+            },
+        });
+        let mut buf = [0u8; 256];
+        let n = msg.emit(&mut buf).unwrap();
+        assert!(n <= MAX_PAYLOAD, "{n} > {MAX_PAYLOAD}");
+        assert_eq!(Message::parse(&buf[..n]), Ok(msg));
+    }
+
+    #[test]
+    fn the_largest_security_report_fits_one_secured_frame() {
+        let c = u32::MAX;
+        let msg = Message::Security(SecurityReport {
+            ack: u16::MAX,
+            keyed: true,
+            counters: SecurityCounters {
+                not_secured: c,
+                bad_mic: c,
+                replayed: c,
+                unknown_key: c,
+                wrong_level: c,
+                malformed: c,
+                table_full: c,
+                no_counter: c,
             },
         });
         let mut buf = [0u8; 256];

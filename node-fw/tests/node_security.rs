@@ -1,0 +1,273 @@
+//! A node with a management key: the tool's frames on the config PAN are taken only
+//! secured at ENC-MIC-64 with that key and with a fresh frame counter; everything the node
+//! sends there is secured; each refused frame is counted by its reason.
+
+use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PAYLOAD, MAX_PSDU};
+use config_schema::wire::msg::{Command, Message, SecurityCounters};
+use config_schema::wire::security::{self, ext_addr, AuxRepr, KeyId, SecurityLevel};
+use node_fw::node::{Io, NodeCore, CONFIG_PAN};
+use node_fw::provision::ManagementKey;
+use test_tables::{lamp_table, BUTTON, LAMP, PAN};
+
+const TOOL: u16 = 0x0100;
+const NODE: u16 = 0x0011;
+const KEY: [u8; 16] = [0x5A; 16];
+const WRONG: [u8; 16] = [0xA5; 16];
+
+/// The board: what the node sent, the pins it set, and its frame counter.
+struct Board {
+    out: Vec<Vec<u8>>,
+    pins: Vec<(u8, bool)>,
+    counter: Option<u32>,
+}
+
+impl Io for Board {
+    fn transmit(&mut self, psdu: &[u8]) {
+        self.out.push(psdu.to_vec());
+    }
+    fn set_pin(&mut self, pin: u8, level: bool) {
+        self.pins.push((pin, level));
+    }
+    fn next_frame_counter(&mut self) -> Option<u32> {
+        let c = self.counter?;
+        self.counter = c.checked_add(1);
+        Some(c)
+    }
+}
+
+/// The lamp table with START toggling the lamp: every START that runs drives it.
+fn node() -> (NodeCore, Board) {
+    let mut t = lamp_table(1);
+    t.start = t
+        .inputs
+        .iter()
+        .find(|i| i.pin == BUTTON)
+        .and_then(|i| i.rise);
+    let node = NodeCore::new(NODE, u64::MAX, Some(t), 1)
+        .with_management_key(ManagementKey::from_bytes(KEY));
+    let board = Board {
+        out: Vec::new(),
+        pins: Vec::new(),
+        counter: Some(0),
+    };
+    (node, board)
+}
+
+fn header(pan_id: u16, dst: u16, src: u16) -> Header {
+    Header {
+        seq: 0,
+        pan_id,
+        dst,
+        src,
+        ack_request: false,
+        secured: false,
+    }
+}
+
+fn command(id: u16, command: Command) -> Vec<u8> {
+    let mut payload = [0u8; MAX_PAYLOAD];
+    let n = Message::Command { id, command }.emit(&mut payload).unwrap();
+    payload[..n].to_vec()
+}
+
+fn plain(pan: u16, dst: u16, payload: &[u8]) -> Vec<u8> {
+    let mut psdu = [0u8; MAX_PSDU];
+    let n = mac::emit_data(&header(pan, dst, TOOL), payload, &mut psdu).unwrap();
+    psdu[..n].to_vec()
+}
+
+fn secured_with(aux: AuxRepr, key: &[u8; 16], payload: &[u8]) -> Vec<u8> {
+    let mut psdu = [0u8; MAX_PSDU];
+    let n = security::secure(
+        &header(CONFIG_PAN, NODE, TOOL),
+        &aux,
+        key,
+        ext_addr(CONFIG_PAN, TOOL),
+        payload,
+        &mut psdu,
+    )
+    .unwrap();
+    psdu[..n].to_vec()
+}
+
+/// What the tool sends: ENC-MIC-64, key index 0, its counter.
+fn secured(counter: u32, key: &[u8; 16], payload: &[u8]) -> Vec<u8> {
+    secured_with(AuxRepr::new(0, counter), key, payload)
+}
+
+/// Times the lamp was switched on: STARTs that ran.
+fn starts(board: &Board) -> usize {
+    board.pins.iter().filter(|p| **p == (LAMP, true)).count()
+}
+
+/// Opens a frame the node sent, as the tool does; `None` if it is not secured with `KEY`.
+fn open(psdu: &[u8]) -> Option<(u32, Vec<u8>)> {
+    let mut scratch = [0u8; MAX_PAYLOAD];
+    let o = security::open_at(
+        psdu,
+        SecurityLevel::EncMic64,
+        |h, _| Some((KEY, ext_addr(h.pan_id, h.src))),
+        &mut scratch,
+    )
+    .ok()?;
+    Some((o.aux.frame_counter, o.payload.to_vec()))
+}
+
+#[test]
+fn a_secured_start_runs_and_the_answer_is_secured() {
+    let (mut n, mut b) = node();
+    n.receive(&secured(7, &KEY, &command(1, Command::Start)), 0, &mut b);
+    assert_eq!(starts(&b), 1);
+    assert_eq!(b.out.len(), 1);
+    let (counter, payload) = open(&b.out[0]).expect("the status is secured with the key");
+    assert_eq!(counter, 0);
+    assert!(matches!(Message::parse(&payload), Ok(Message::Status(s)) if s.ack == 1));
+    // Nothing of the payload is in clear on the air.
+    assert!(matches!(Frame::parse(&b.out[0]), Ok(Frame::Data { header, .. }) if header.secured));
+    assert_eq!(n.security_counters(), SecurityCounters::default());
+}
+
+#[test]
+fn forged_damaged_and_replayed_starts_start_nothing_and_are_counted_by_reason() {
+    let (mut n, mut b) = node();
+    // An attacker without the key: unsecured, then secured with another key.
+    n.receive(
+        &plain(CONFIG_PAN, NODE, &command(1, Command::Start)),
+        0,
+        &mut b,
+    );
+    n.receive(&secured(1, &WRONG, &command(2, Command::Start)), 0, &mut b);
+    // A real START, captured; one bit flipped in each byte after the MAC header.
+    let real = secured(10, &KEY, &command(3, Command::Start));
+    for i in 9..real.len() - 2 {
+        let mut bad = real.clone();
+        bad[i] ^= 0x10;
+        // The FCS is recomputed: only the MIC can tell.
+        let len = bad.len();
+        let fcs = mac::FCS.checksum(&bad[..len - 2]);
+        bad[len - 2..].copy_from_slice(&fcs.to_le_bytes());
+        n.receive(&bad, 0, &mut b);
+    }
+    assert_eq!(starts(&b), 0, "nothing started");
+    assert!(b.out.is_empty(), "nothing answered");
+    let flips = (real.len() - 2 - 9) as u32;
+    let c = n.security_counters();
+    assert_eq!(c.not_secured, 1);
+    // A flipped security control byte makes another level or key id mode; a flipped key
+    // index another key; every other flip fails the MIC.
+    assert_eq!(
+        c.bad_mic + c.wrong_level + c.unknown_key + c.malformed,
+        1 + flips
+    );
+    assert!(c.bad_mic >= 1 + flips - 2, "{c:?}");
+    // The real one runs once; its replay, after another command moved the node's
+    // memory of commands on, does not.
+    n.receive(&real, 0, &mut b);
+    n.receive(&secured(11, &KEY, &command(4, Command::Status)), 0, &mut b);
+    n.receive(&real, 0, &mut b);
+    assert_eq!(starts(&b), 1);
+    assert_eq!(n.security_counters().replayed, 1);
+    assert_eq!(b.out.len(), 2, "two statuses: for the START and the STATUS");
+}
+
+#[test]
+fn other_levels_key_indexes_and_the_nodes_own_frames_are_refused() {
+    let (mut n, mut b) = node();
+    let start = command(1, Command::Start);
+    let mic32 = AuxRepr {
+        level: SecurityLevel::EncMic32,
+        key_id: KeyId::Index(0),
+        frame_counter: 1,
+    };
+    n.receive(&secured_with(mic32, &KEY, &start), 0, &mut b);
+    n.receive(&secured_with(AuxRepr::new(1, 2), &KEY, &start), 0, &mut b);
+    // The node's own announcement, reflected back to it.
+    let mut psdu = [0u8; MAX_PSDU];
+    let len = security::secure(
+        &header(CONFIG_PAN, NODE, NODE),
+        &AuxRepr::new(0, 3),
+        &KEY,
+        ext_addr(CONFIG_PAN, NODE),
+        &start,
+        &mut psdu,
+    )
+    .unwrap();
+    n.receive(&psdu[..len], 0, &mut b);
+    // An unsecured command on the robot's PAN is no way around it.
+    n.receive(&plain(PAN, NODE, &command(2, Command::Start)), 0, &mut b);
+    assert_eq!(starts(&b), 0);
+    let c = n.security_counters();
+    assert_eq!((c.wrong_level, c.unknown_key, c.not_secured), (1, 2, 1));
+}
+
+#[test]
+fn without_a_frame_counter_nothing_is_sent_and_it_is_counted() {
+    let (mut n, mut b) = node();
+    b.counter = None;
+    n.receive(&secured(1, &KEY, &command(1, Command::Status)), 0, &mut b);
+    assert!(b.out.is_empty());
+    assert_eq!(n.security_counters().no_counter, 1);
+}
+
+#[test]
+fn the_security_command_reports_the_counters_and_counters_increase() {
+    let (mut n, mut b) = node();
+    n.receive(
+        &plain(CONFIG_PAN, NODE, &command(1, Command::Start)),
+        0,
+        &mut b,
+    );
+    n.receive(&secured(5, &KEY, &command(2, Command::Security)), 0, &mut b);
+    n.receive(&secured(6, &KEY, &command(3, Command::Security)), 0, &mut b);
+    let answers: Vec<_> = b.out.iter().map(|p| open(p).expect("secured")).collect();
+    assert_eq!(answers.iter().map(|a| a.0).collect::<Vec<_>>(), [0, 1]);
+    match Message::parse(&answers[1].1) {
+        Ok(Message::Security(r)) => {
+            assert_eq!((r.ack, r.keyed, r.counters.not_secured), (3, true, 1));
+        }
+        other => panic!("not a security report: {other:?}"),
+    }
+}
+
+#[test]
+fn an_unsecured_scan_is_answered_secured_at_most_once_a_second() {
+    let (mut n, mut b) = node();
+    let identify = plain(CONFIG_PAN, BROADCAST, &command(9, Command::Identify));
+    n.receive(&identify, 0, &mut b);
+    n.receive(&identify, 10, &mut b);
+    n.receive(&identify, 999, &mut b);
+    n.receive(&identify, 1000, &mut b);
+    assert_eq!(b.out.len(), 2);
+    for psdu in &b.out {
+        let (_, payload) = open(psdu).expect("the announcement is secured");
+        assert!(matches!(Message::parse(&payload), Ok(Message::Announce(_))));
+    }
+    assert_eq!(n.security_counters().not_secured, 2);
+    // An unsecured Identify to the node itself is not a scan.
+    n.receive(
+        &plain(CONFIG_PAN, NODE, &command(10, Command::Identify)),
+        5000,
+        &mut b,
+    );
+    assert_eq!(b.out.len(), 2);
+}
+
+#[test]
+fn an_unkeyed_node_is_unchanged() {
+    let mut t = lamp_table(1);
+    t.start = t.inputs.first().and_then(|i| i.rise);
+    let mut n = NodeCore::new(NODE, u64::MAX, Some(t), 1);
+    let mut b = Board {
+        out: Vec::new(),
+        pins: Vec::new(),
+        counter: None,
+    };
+    n.receive(
+        &plain(CONFIG_PAN, NODE, &command(1, Command::Start)),
+        0,
+        &mut b,
+    );
+    assert_eq!(starts(&b), 1);
+    assert!(matches!(Frame::parse(&b.out[0]), Ok(Frame::Data { header, .. }) if !header.secured));
+    assert!(!n.keyed());
+}
