@@ -30,6 +30,7 @@ use log::{info, warn};
 use config_schema::wire::msg::RuntimeCounters;
 
 use crate::node::{fault_code, Io, NodeCore};
+use crate::provision::ManagementKey;
 use crate::slots::Slots;
 
 /// Frames the core may queue between two flushes (a poll that retransmits to every peer
@@ -217,6 +218,7 @@ struct CoreIo<'a, P> {
     pins: &'a mut P,
     tx: Deque<Psdu, TX_QUEUE>,
     stats: &'a mut Stats,
+    counter: &'a mut dyn FnMut() -> Option<u32>,
 }
 
 impl<P: Pins> Io for CoreIo<'_, P> {
@@ -232,6 +234,9 @@ impl<P: Pins> Io for CoreIo<'_, P> {
     }
     fn set_pin(&mut self, pin: u8, level: bool) {
         self.pins.set(pin, level);
+    }
+    fn next_frame_counter(&mut self) -> Option<u32> {
+        (self.counter)()
     }
     fn runtime_counters(&self) -> RuntimeCounters {
         RuntimeCounters {
@@ -326,8 +331,35 @@ where
     F: NorFlash,
     Q: Probe,
 {
+    run_secured(addr, epoch, board, probe, None).await
+}
+
+/// What a provisioned node secures its management traffic with: its key, and the source
+/// of its frame counters (`crate::frame_counter::FrameCounter` on the board's flash;
+/// `None` when exhausted or the flash failed: the frame is not sent, and counted).
+pub struct Security<'a> {
+    pub key: ManagementKey,
+    pub counter: &'a mut dyn FnMut() -> Option<u32>,
+}
+
+/// [`run_probed`], with the management key: the config PAN is secured
+/// ([`NodeCore::with_management_key`]).
+pub async fn run_secured<R, P, I, F, Q>(
+    addr: u16,
+    epoch: u16,
+    board: Board<R, P, I, F>,
+    probe: &mut Q,
+    security: Option<Security<'_>>,
+) -> (Stop<R::Error>, Stats)
+where
+    R: Radio,
+    P: Pins,
+    I: Inputs,
+    F: NorFlash,
+    Q: Probe,
+{
     let mut stats = Stats::default();
-    match run_inner(addr, epoch, board, &mut stats, probe).await {
+    match run_inner(addr, epoch, board, &mut stats, probe, security).await {
         Ok(never) => match never {},
         Err(stop) => (stop, stats),
     }
@@ -339,6 +371,7 @@ async fn run_inner<R, P, I, F, Q>(
     board: Board<R, P, I, F>,
     stats: &mut Stats,
     probe: &mut Q,
+    security: Option<Security<'_>>,
 ) -> Result<Infallible, Stop<R::Error>>
 where
     R: Radio,
@@ -357,11 +390,20 @@ where
     outputs.all_off();
     let mut slots = Slots::new(flash).map_err(|_| Stop::FlashGeometry)?;
     let (mut core, mut running) = load(addr, pin_mask, epoch, &mut slots).await;
+    let mut no_counter = || None;
+    let counter: &mut dyn FnMut() -> Option<u32> = match security {
+        Some(Security { key, counter }) => {
+            core = core.with_management_key(key);
+            counter
+        }
+        None => &mut no_counter,
+    };
     core.seed_pins(inputs.levels());
     let mut io = CoreIo {
         pins: &mut outputs,
         tx: Deque::new(),
         stats,
+        counter,
     };
     core.boot(&mut io);
     match core.table() {

@@ -25,6 +25,16 @@ pub const SLOTS_BYTES: usize = 2 * Slots::<HostFlash>::slot_size();
 pub const COUNTER_AT: usize = SLOTS_BYTES;
 /// The size of a flash file.
 pub const FILE_SIZE: usize = SLOTS_BYTES + ERASE_SIZE;
+/// The size of a frame counter file (`node_fw::frame_counter`: two erase pages), kept
+/// beside the flash file ([`counter_path`]).
+pub const COUNTER_FILE_SIZE: usize = 2 * ERASE_SIZE;
+
+/// The frame counter file of the flash file at `flash`: `FLASH.counter`.
+pub fn counter_path(flash: &Path) -> PathBuf {
+    let mut p = flash.as_os_str().to_owned();
+    p.push(".counter");
+    PathBuf::from(p)
+}
 
 /// Why the host flash failed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -70,6 +80,8 @@ enum Store {
 /// The two table slots of a host node, in a file or in RAM.
 pub struct HostFlash {
     store: Store,
+    /// The bytes the `NorFlash` sees: the slots, or the frame counter's two pages.
+    capacity: usize,
 }
 
 /// Why a flash file cannot be used (nothing in it was changed).
@@ -80,6 +92,7 @@ pub enum OpenError {
     Size {
         path: PathBuf,
         found: u64,
+        expected: u64,
     },
 }
 
@@ -87,9 +100,13 @@ impl std::fmt::Display for OpenError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             OpenError::Io(path, e) => write!(f, "flash file {}: {e}", path.display()),
-            OpenError::Size { path, found } => write!(
+            OpenError::Size {
+                path,
+                found,
+                expected,
+            } => write!(
                 f,
-                "flash file {} is {found} bytes, not a node flash file ({FILE_SIZE} bytes); \
+                "flash file {} is {found} bytes, not a node flash file ({expected} bytes); \
                  left unchanged",
                 path.display()
             ),
@@ -102,19 +119,31 @@ impl HostFlash {
     pub fn ram() -> Self {
         HostFlash {
             store: Store::Ram(vec![0xFF; SLOTS_BYTES]),
+            capacity: SLOTS_BYTES,
         }
     }
 
     /// Opens the flash file at `path`, creating it erased if it does not exist.
     pub fn open(path: &Path) -> Result<Self, OpenError> {
+        Self::open_sized(path, FILE_SIZE, SLOTS_BYTES)
+    }
+
+    /// Opens the frame counter file at `path` (two erase pages), creating it erased if it
+    /// does not exist.
+    pub fn open_counter(path: &Path) -> Result<Self, OpenError> {
+        Self::open_sized(path, COUNTER_FILE_SIZE, COUNTER_FILE_SIZE)
+    }
+
+    fn open_sized(path: &Path, file_size: usize, capacity: usize) -> Result<Self, OpenError> {
         let io_err = |e| OpenError::Io(path.to_path_buf(), e);
         let file = match OpenOptions::new().read(true).write(true).open(path) {
             Ok(file) => {
                 let found = file.metadata().map_err(io_err)?.len();
-                if found != FILE_SIZE as u64 {
+                if found != file_size as u64 {
                     return Err(OpenError::Size {
                         path: path.to_path_buf(),
                         found,
+                        expected: file_size as u64,
                     });
                 }
                 file
@@ -126,7 +155,7 @@ impl HostFlash {
                     .create_new(true)
                     .open(path)
                     .map_err(io_err)?;
-                file.write_all(&[0xFF; FILE_SIZE]).map_err(io_err)?;
+                file.write_all(&vec![0xFF; file_size]).map_err(io_err)?;
                 file.sync_all().map_err(io_err)?;
                 file
             }
@@ -134,6 +163,7 @@ impl HostFlash {
         };
         Ok(HostFlash {
             store: Store::File(file),
+            capacity,
         })
     }
 
@@ -199,12 +229,12 @@ impl ReadNorFlash for HostFlash {
     const READ_SIZE: usize = 1;
 
     async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
-        let start = check_access(offset, bytes.len(), Self::READ_SIZE, SLOTS_BYTES)?;
+        let start = check_access(offset, bytes.len(), Self::READ_SIZE, self.capacity)?;
         self.read_at(start, bytes)
     }
 
     fn capacity(&self) -> usize {
-        SLOTS_BYTES
+        self.capacity
     }
 }
 
@@ -214,12 +244,12 @@ impl NorFlash for HostFlash {
 
     async fn erase(&mut self, from: u32, to: u32) -> Result<(), FlashError> {
         let len = to.checked_sub(from).ok_or(FlashError::OutOfBounds)? as usize;
-        let start = check_access(from, len, Self::ERASE_SIZE, SLOTS_BYTES)?;
+        let start = check_access(from, len, Self::ERASE_SIZE, self.capacity)?;
         self.write_at(start, &vec![0xFF; len])
     }
 
     async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
-        let start = check_access(offset, bytes.len(), Self::WRITE_SIZE, SLOTS_BYTES)?;
+        let start = check_access(offset, bytes.len(), Self::WRITE_SIZE, self.capacity)?;
         // NOR: programming only clears bits.
         let mut cells = vec![0u8; bytes.len()];
         self.read_at(start, &mut cells)?;

@@ -45,7 +45,8 @@ pub struct Args {
     #[arg(long)]
     pub flash: Option<PathBuf>,
     /// The node's management key file (`config-tool keys provision --board host --out
-    /// FILE`; mode 0600, for this address). Read and checked; frames do not use it yet.
+    /// FILE`; mode 0600, for this address). With it, every frame on the config PAN is
+    /// secured (ENC-MIC-64) and the tool's frames are taken only secured with it.
     #[arg(long, value_name = "FILE")]
     pub key: Option<PathBuf>,
 }
@@ -103,6 +104,8 @@ pub enum HostError {
     FlashGeometry,
     /// The key file was refused.
     Key(key::KeyError),
+    /// The frame counter file could not be read (its path).
+    FrameCounter(PathBuf),
 }
 
 impl std::fmt::Display for HostError {
@@ -113,6 +116,9 @@ impl std::fmt::Display for HostError {
             HostError::Connect(addr, e) => write!(f, "cannot connect to the medium at {addr}: {e}"),
             HostError::FlashGeometry => write!(f, "the flash does not fit two table slots"),
             HostError::Key(e) => write!(f, "key file: {e}"),
+            HostError::FrameCounter(p) => {
+                write!(f, "frame counter file {}: unreadable", p.display())
+            }
         }
     }
 }
@@ -176,6 +182,13 @@ pub fn run(args: Args) -> Result<(), HostError> {
         Some(boots) => (epoch_of_boot(boots), format!("boot {boots}")),
         None => (epoch_of_clock(), "clock".to_string()),
     };
+    let security = match args.key.clone() {
+        Some(key) => Some(runtime::Security {
+            key,
+            counter: Box::leak(frame_counter(args.flash.as_deref())?),
+        }),
+        None => None,
+    };
     let stream = TcpStream::connect(args.medium).map_err(|e| HostError::Connect(args.medium, e))?;
     let conn = Connection::start(addr, stream).map_err(|e| HostError::Connect(args.medium, e))?;
     let key = if args.key.is_some() {
@@ -194,7 +207,7 @@ pub fn run(args: Args) -> Result<(), HostError> {
         flash,
         pin_mask: runtime::pin_range(PINS),
     };
-    let (stop, stats) = run_on_executor(addr, epoch, board);
+    let (stop, stats) = run_on_executor(addr, epoch, board, security);
     let c = conn.counters();
     let (backpressure, oversized, garbage) = (
         c.backpressure.load(Ordering::Relaxed),
@@ -218,8 +231,52 @@ type Stopped = (Stop<Closed>, Stats);
 type HostBoard = Board<medium::HostRadio, medium::HostPins, medium::HostInputs, HostFlash>;
 
 /// Runs the runtime as a task of a fresh std executor on this thread until it stops.
-fn run_on_executor(addr: u16, epoch: u16, board: HostBoard) -> Stopped {
-    block_on(runtime::run(addr, epoch, board)).unwrap_or((Stop::Radio(Closed), Stats::default()))
+fn run_on_executor(
+    addr: u16,
+    epoch: u16,
+    board: HostBoard,
+    security: Option<runtime::Security<'static>>,
+) -> Stopped {
+    block_on(async move { runtime::run_secured(addr, epoch, board, &mut (), security).await })
+        .unwrap_or((Stop::Radio(Closed), Stats::default()))
+}
+
+/// A frame counter source.
+type CounterSource = Box<dyn FnMut() -> Option<u32>>;
+
+/// The node's frame counter: with a flash file, a `FrameCounter` in the counter file beside
+/// it (`FLASH.counter`, reserved ahead, strictly increasing across restarts and power
+/// cuts); without one, in RAM from [`clock_counter_seed`].
+pub fn frame_counter(flash: Option<&std::path::Path>) -> Result<CounterSource, HostError> {
+    let Some(flash) = flash else {
+        let mut next = Some(clock_counter_seed());
+        return Ok(Box::new(move || {
+            let n = next?;
+            next = n.checked_add(1).filter(|n| *n != u32::MAX);
+            Some(n)
+        }));
+    };
+    let path = flash::counter_path(flash);
+    let file = HostFlash::open_counter(&path).map_err(HostError::Flash)?;
+    // The host flash does its I/O synchronously: these futures complete when first polled.
+    let mut counter = embassy_futures::block_on(crate::frame_counter::FrameCounter::open(file))
+        .map_err(|_| HostError::FrameCounter(path))?;
+    Ok(Box::new(move || {
+        embassy_futures::block_on(counter.next()).ok()
+    }))
+}
+
+/// Where the frame counter of a node without a flash file starts: 16 per second since
+/// 2026-01-01 (as [`epoch_of_clock`] does for epochs), so a restart starts above what it
+/// sent before unless it sent more than 16 secured frames a second on average (the
+/// config PAN carries a few per command). Lasts until 2034; a flash file has none of these
+/// limits.
+pub fn clock_counter_seed() -> u32 {
+    const Y2026: u64 = 1_767_225_600;
+    let secs = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    u32::try_from(secs.saturating_sub(Y2026).saturating_mul(16)).unwrap_or(u32::MAX - 1)
 }
 
 /// Runs `future` as the one task of a fresh Embassy std executor on this thread, until it
@@ -299,6 +356,22 @@ mod tests {
             "the config's Debug hides the key"
         );
         assert!(Config::load(&args(&[])).unwrap().key.is_none());
+    }
+
+    #[test]
+    fn the_frame_counter_resumes_above_everything_sent_before_a_restart() {
+        let flash = std::env::temp_dir().join(format!("node-host-{}-fc.flash", std::process::id()));
+        let _ = std::fs::remove_file(flash::counter_path(&flash));
+        let mut first = frame_counter(Some(&flash)).unwrap();
+        let sent: Vec<u32> = (0..5).map(|_| first().unwrap()).collect();
+        assert_eq!(sent, [0, 1, 2, 3, 4]);
+        drop(first);
+        let mut again = frame_counter(Some(&flash)).unwrap();
+        assert_eq!(again(), Some(crate::frame_counter::STEP));
+        let _ = std::fs::remove_file(flash::counter_path(&flash));
+        // Without a flash file: from the clock.
+        let mut ram = frame_counter(None).unwrap();
+        assert!(ram().is_some_and(|n| n >= clock_counter_seed().saturating_sub(16)));
     }
 
     #[test]
