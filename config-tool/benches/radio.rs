@@ -119,6 +119,7 @@ fn main() {
         node_command: vec![env!("CARGO_BIN_EXE_config-tool").into(), "node".into()],
         flash_dir: None,
         timeout: Duration::from_secs(60),
+        secured: true,
     };
     let mut bed = Bed::start(options).expect("bed");
     let addrs: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();

@@ -208,7 +208,10 @@ fn hostile_frames_are_dropped_counted_and_the_node_keeps_working() {
     big.send_raw(&msg);
     assert!(big.closed_by_medium(TIMEOUT), "the medium hung up");
 
-    let mut raw = RawClient::join(bed.medium().addr(), HOSTILE);
+    // The hostile frames go out on this connection; its status questions are secured
+    // (with the tool's keys), so each answer counts every frame sent before it.
+    let secret = bed.secret().expect("a secured bed").clone();
+    let mut raw = RawClient::join(bed.medium().addr(), HOSTILE).keyed(&secret);
     let before = raw.status(node);
     let start = Message::Command {
         id: 0x5A5A,
@@ -244,7 +247,7 @@ fn hostile_frames_are_dropped_counted_and_the_node_keeps_working() {
     for p in [vec![], vec![0xFF], vec![0x00], trailing] {
         hostile.push(frame(CONFIG_PAN, node, HOSTILE, 2, &p));
     }
-    // A valid START, but on another PAN, or with the security bit (no keys yet).
+    // A valid START, but on another PAN, or with the security bit and no security header.
     hostile.push(frame(0x4321, node, HOSTILE, 3, &payload(&start)));
     let mut secured = [0u8; MAX_PSDU];
     let header = Header {

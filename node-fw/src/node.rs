@@ -530,6 +530,11 @@ impl NodeCore {
         }
         let mut scratch = [0u8; mac::MAX_PAYLOAD];
         let management = header.pan_id == CONFIG_PAN && self.key.is_some();
+        if management && header.secured && header.dst == BROADCAST {
+            // No one key secures a broadcast to every node: these are other nodes'
+            // announcements (secured with their own keys), which a node never reads.
+            return;
+        }
         let (payload, authentic) = if management && header.secured {
             match self.open_management(psdu, &mut scratch) {
                 Ok(payload) => (payload, true),

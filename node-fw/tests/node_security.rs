@@ -253,6 +253,35 @@ fn an_unsecured_scan_is_answered_secured_at_most_once_a_second() {
 }
 
 #[test]
+fn other_nodes_secured_announcements_are_ignored_not_counted() {
+    let (mut n, mut b) = node();
+    let mut announce = [0u8; MAX_PAYLOAD];
+    let len = Message::Announce(config_schema::wire::msg::Announce {
+        firmware: 1,
+        generation: 0,
+        role: heapless::String::new(),
+    })
+    .emit(&mut announce)
+    .unwrap();
+    let mut psdu = [0u8; MAX_PSDU];
+    let other = 0x0012;
+    let n_psdu = security::secure(
+        &header(CONFIG_PAN, BROADCAST, other),
+        &AuxRepr::new(0, 1),
+        &WRONG,
+        ext_addr(CONFIG_PAN, other),
+        &announce[..len],
+        &mut psdu,
+    )
+    .unwrap();
+    let dropped = n.counters().dropped;
+    n.receive(&psdu[..n_psdu], 0, &mut b);
+    assert_eq!(n.counters().dropped, dropped);
+    assert_eq!(n.security_counters(), SecurityCounters::default());
+    assert!(b.out.is_empty());
+}
+
+#[test]
 fn an_unkeyed_node_is_unchanged() {
     let mut t = lamp_table(1);
     t.start = t.inputs.first().and_then(|i| i.rise);

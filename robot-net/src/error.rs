@@ -19,6 +19,8 @@ pub enum NetError {
     Radio(#[from] io::Error),
     #[error("no node command")]
     NoNodeCommand,
+    #[error("keys of the test bed: {0}")]
+    Keys(#[from] robot_keys::KeyFileError),
     #[error("cannot start node {addr:#06x}: {source}")]
     NodeStart { addr: u16, source: io::Error },
     #[error("plant: {0}")]

@@ -8,7 +8,9 @@ use std::time::{Duration, Instant};
 use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
 use config_schema::wire::medium::{Link, Peer};
 use config_schema::wire::msg::Message;
-use node_fw::node::CONFIG_PAN;
+use config_schema::wire::security::{self, ext_addr, replay::ReplayGuard, AuxRepr, SecurityLevel};
+use node_fw::node::{CONFIG_PAN, MANAGEMENT_KEY_INDEX};
+use robot_keys::{management_key, MachineSecret};
 
 use medium::Conn;
 
@@ -40,6 +42,23 @@ pub struct RadioStats {
     pub received: u64,
     /// Frames that failed their FCS or did not parse.
     pub dropped: u64,
+    /// With keys: frames from nodes refused (unsecured, bad MIC, replayed, ...).
+    pub refused: u64,
+}
+
+/// Nodes whose last frame counter the tool remembers (one entry per node it heard).
+pub const TOOL_SENDERS: usize = 256;
+
+/// The source of the tool's frame counters: never one handed out before under the same
+/// machine secret (`None`: used up, or its file failed; nothing is sent).
+pub type CounterSource = Box<dyn FnMut() -> Option<u32>>;
+
+/// What a secured tool radio holds: the machine secret (each node's management key is
+/// derived from it), its frame counter, and the last counter accepted from each node.
+struct Keys {
+    secret: MachineSecret,
+    counter: CounterSource,
+    replay: ReplayGuard<TOOL_SENDERS>,
 }
 
 /// The tool on the medium.
@@ -52,6 +71,7 @@ pub struct ToolRadio {
     /// them waits for.
     air_clear: Instant,
     pub stats: RadioStats,
+    keys: Option<Keys>,
 }
 
 impl ToolRadio {
@@ -64,7 +84,25 @@ impl ToolRadio {
             seq: 0,
             air_clear: Instant::now(),
             stats: RadioStats::default(),
+            keys: None,
         })
+    }
+
+    /// From now on, what this radio sends to a node is secured with that node's
+    /// management key (ENC-MIC-64, key index 0), numbered by `counter`, and what it
+    /// receives is taken only secured by the sender's key with a fresh counter. Broadcasts
+    /// (a scan's Identify) stay unsecured: no one key covers every node.
+    pub fn secure(&mut self, secret: MachineSecret, counter: CounterSource) {
+        self.keys = Some(Keys {
+            secret,
+            counter,
+            replay: ReplayGuard::new(),
+        });
+    }
+
+    /// Whether the radio secures its frames.
+    pub fn secured(&self) -> bool {
+        self.keys.is_some()
     }
 
     pub fn addr(&self) -> u16 {
@@ -92,8 +130,24 @@ impl ToolRadio {
         };
         self.seq = self.seq.wrapping_add(1);
         let mut psdu = [0u8; MAX_PSDU];
-        let len = mac::emit_data(&header, &payload[..n], &mut psdu)
-            .map_err(|_| io::Error::other("frame too long"))?;
+        let len = match self.keys.as_mut().filter(|_| dst != mac::BROADCAST) {
+            Some(keys) => {
+                let counter = (keys.counter)()
+                    .ok_or_else(|| io::Error::other("the tool's frame counter is used up"))?;
+                let key = management_key(&keys.secret, dst);
+                security::secure(
+                    &header,
+                    &AuxRepr::new(MANAGEMENT_KEY_INDEX, counter),
+                    key.expose(),
+                    ext_addr(CONFIG_PAN, self.addr),
+                    &payload[..n],
+                    &mut psdu,
+                )
+                .map_err(|e| io::Error::other(format!("cannot secure the frame: {e}")))?
+            }
+            None => mac::emit_data(&header, &payload[..n], &mut psdu)
+                .map_err(|_| io::Error::other("frame too long"))?,
+        };
         self.stats.sent += 1;
         let airtime = mac::airtime_us(len) + mac::airtime_us(ANSWER_PSDU);
         self.air_clear = self.air_clear.max(Instant::now()) + Duration::from_micros(airtime.into());
@@ -102,17 +156,31 @@ impl ToolRadio {
 
     /// The next message for this radio, or `None` when `until` passes.
     pub fn recv(&mut self, until: Instant) -> io::Result<Option<Received>> {
-        let (me, stats) = (self.addr, &mut self.stats);
+        let (me, stats, keys) = (self.addr, &mut self.stats, &mut self.keys);
         self.conn.recv(until, |link| {
             let Link::Frame(psdu) = link else { return None };
             match Frame::parse(psdu) {
                 Ok(Frame::Data { header, payload })
                     if header.dst == me || header.dst == mac::BROADCAST =>
                 {
+                    let payload = match keys {
+                        Some(keys) => match open(keys, psdu) {
+                            Some(p) => p,
+                            None => {
+                                stats.refused += 1;
+                                return None;
+                            }
+                        },
+                        None if header.secured => {
+                            stats.dropped += 1;
+                            return None;
+                        }
+                        None => payload.to_vec(),
+                    };
                     stats.received += 1;
                     Some(Received {
                         src: header.src,
-                        payload: payload.to_vec(),
+                        payload,
                     })
                 }
                 Ok(_) => None,
@@ -123,4 +191,31 @@ impl ToolRadio {
             }
         })
     }
+}
+
+/// A node's frame to the tool, opened with that node's management key and replay-checked;
+/// `None` if it is not secured so, or not fresh.
+fn open(keys: &mut Keys, psdu: &[u8]) -> Option<Vec<u8>> {
+    let mut scratch = [0u8; mac::MAX_PAYLOAD];
+    let secret = &keys.secret;
+    let opened = security::open_at(
+        psdu,
+        SecurityLevel::EncMic64,
+        |header, aux| {
+            (aux.key_id.index() == Some(MANAGEMENT_KEY_INDEX)).then(|| {
+                let key = management_key(secret, header.src);
+                (*key.expose(), ext_addr(header.pan_id, header.src))
+            })
+        },
+        &mut scratch,
+    )
+    .ok()?;
+    keys.replay
+        .check_and_accept(
+            opened.header.src,
+            MANAGEMENT_KEY_INDEX,
+            opened.aux.frame_counter,
+        )
+        .ok()?;
+    Some(opened.payload.to_vec())
 }

@@ -12,6 +12,7 @@ use std::time::{Duration, Instant};
 use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
 use config_schema::wire::medium::{Link, Peer};
 use config_schema::wire::msg::{Command, Message, Status};
+use config_schema::wire::security::{self, ext_addr, AuxRepr, SecurityLevel};
 use config_schema::Table;
 use node_fw::node::CONFIG_PAN;
 use node_fw::ota::{Progress, Sender, TransferStats};
@@ -95,6 +96,7 @@ pub fn options(medium: medium::Config, flash_dir: Option<&TempDir>) -> Options {
         node_command,
         flash_dir: flash_dir.map(|d| d.0.clone()),
         timeout: TIMEOUT,
+        secured: true,
     }
 }
 
@@ -268,15 +270,64 @@ pub fn drive(
 }
 
 /// A data frame (FCS included).
-pub fn frame(pan_id: u16, dst: u16, src: u16, seq: u8, payload: &[u8]) -> Vec<u8> {
-    let header = Header {
+fn header(pan_id: u16, dst: u16, src: u16, seq: u8) -> Header {
+    Header {
         seq,
         pan_id,
         dst,
         src,
         ack_request: false,
         secured: false,
-    };
+    }
+}
+
+/// A node's secured frame opened with its management key, as an unsecured frame with the
+/// plain payload (so it parses as before); `None` if it does not open.
+pub fn open_from(secret: &robot_keys::MachineSecret, psdu: &[u8]) -> Option<Vec<u8>> {
+    let mut scratch = [0u8; mac::MAX_PAYLOAD];
+    let o = security::open_at(
+        psdu,
+        SecurityLevel::EncMic64,
+        |h, _| {
+            let key = robot_keys::management_key(secret, h.src);
+            Some((*key.expose(), ext_addr(h.pan_id, h.src)))
+        },
+        &mut scratch,
+    )
+    .ok()?;
+    Some(frame(
+        o.header.pan_id,
+        o.header.dst,
+        o.header.src,
+        o.header.seq,
+        o.payload,
+    ))
+}
+
+/// A secured frame from `src` to `dst` on the config PAN, as the tool sends.
+pub fn secured_frame(
+    secret: &robot_keys::MachineSecret,
+    dst: u16,
+    src: u16,
+    counter: u32,
+    payload: &[u8],
+) -> Vec<u8> {
+    let key = robot_keys::management_key(secret, dst);
+    let mut psdu = [0u8; MAX_PSDU];
+    let n = security::secure(
+        &header(CONFIG_PAN, dst, src, 0),
+        &AuxRepr::new(0, counter),
+        key.expose(),
+        ext_addr(CONFIG_PAN, src),
+        payload,
+        &mut psdu,
+    )
+    .expect("fits");
+    psdu[..n].to_vec()
+}
+
+pub fn frame(pan_id: u16, dst: u16, src: u16, seq: u8, payload: &[u8]) -> Vec<u8> {
+    let header = header(pan_id, dst, src, seq);
     let mut psdu = [0u8; MAX_PSDU];
     let n = mac::emit_data(&header, payload, &mut psdu).expect("fits");
     psdu[..n].to_vec()
@@ -295,14 +346,23 @@ pub struct RawClient {
     pub addr: u16,
     conn: medium::Conn,
     next_id: u16,
+    /// The machine secret and the next frame counter: `status` is then secured.
+    keys: Option<(robot_keys::MachineSecret, u32)>,
 }
 
 impl RawClient {
+    /// Its `status` secured with the management keys of `secret` (the tool's keys).
+    pub fn keyed(mut self, secret: &robot_keys::MachineSecret) -> RawClient {
+        self.keys = Some((secret.clone(), 0));
+        self
+    }
+
     pub fn join(medium: std::net::SocketAddr, addr: u16) -> RawClient {
         RawClient {
             addr,
             conn: medium::Conn::join(medium, Peer::Tool { addr }).expect("medium"),
             next_id: 0x7000,
+            keys: None,
         }
     }
 
@@ -325,11 +385,35 @@ impl RawClient {
             id,
             command: Command::Status,
         };
-        let psdu = frame(CONFIG_PAN, addr, self.addr, id as u8, &payload(&msg));
+        let psdu = match &mut self.keys {
+            Some((secret, counter)) => {
+                let key = robot_keys::management_key(secret, addr);
+                let mut psdu = [0u8; MAX_PSDU];
+                let n = security::secure(
+                    &header(CONFIG_PAN, addr, self.addr, id as u8),
+                    &AuxRepr::new(0, *counter),
+                    key.expose(),
+                    ext_addr(CONFIG_PAN, self.addr),
+                    &payload(&msg),
+                    &mut psdu,
+                )
+                .expect("fits");
+                *counter += 1;
+                psdu[..n].to_vec()
+            }
+            None => frame(CONFIG_PAN, addr, self.addr, id as u8, &payload(&msg)),
+        };
         self.send_psdu(&psdu);
         let end = Instant::now() + TIMEOUT;
         loop {
             let got = self.next_frame(end).expect("status answer");
+            let got = match &self.keys {
+                Some((secret, _)) => match open_from(secret, &got) {
+                    Some(plain) => plain,
+                    None => continue,
+                },
+                None => got,
+            };
             if let Ok(Frame::Data { header, payload }) = Frame::parse(&got) {
                 if let (true, Ok(Message::Status(s))) =
                     (header.src == addr, Message::parse(payload))

@@ -35,6 +35,10 @@ pub struct Options {
     pub flash_dir: Option<PathBuf>,
     /// Bound of one cycle (and of waiting for nodes).
     pub timeout: Duration,
+    /// Secure the management traffic: the bed makes a machine secret of its own, gives
+    /// every node its key file (`--key`) and the tool's radio the secret. Host nodes only
+    /// for now: a QEMU node does not secure its frames yet.
+    pub secured: bool,
 }
 
 /// What one cycle did.
@@ -108,6 +112,52 @@ pub struct Bed {
     steps_seen: usize,
     /// A fault to inject once the plant has seen so many steps.
     pending: Option<(usize, BedFault)>,
+    /// Secured: the directory with the machine secret and every node's key file.
+    keys: Option<KeyDir>,
+}
+
+/// The bed's keys: a directory of its own (removed with the bed) holding the machine
+/// secret (`machine.key`) and each node's key file (`node-AAAA.key`), all mode 0600.
+struct KeyDir {
+    dir: PathBuf,
+    secret: robot_keys::MachineSecret,
+}
+
+impl KeyDir {
+    fn create() -> Result<KeyDir, NetError> {
+        use std::sync::atomic::AtomicU32;
+        static RUN: AtomicU32 = AtomicU32::new(0);
+        let run = RUN.fetch_add(1, Ordering::Relaxed);
+        let dir = std::env::temp_dir().join(format!("robot-bed-{}-{run}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).map_err(NetError::Radio)?;
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700))
+                .map_err(NetError::Radio)?;
+        }
+        let path = dir.join("machine.key");
+        robot_keys::write_machine_secret(&path, false)?;
+        let secret = robot_keys::load_machine_secret(&path)?;
+        Ok(KeyDir { dir, secret })
+    }
+
+    /// Writes node `addr`'s key file (again, for a restart); returns its path.
+    fn node_key(&self, addr: u16) -> Result<PathBuf, NetError> {
+        let path = self.dir.join(format!("node-{addr:04x}.key"));
+        let key = robot_keys::management_key(&self.secret, addr);
+        let key = node_fw::provision::ManagementKey::from_bytes(*key.expose());
+        let line = node_fw::provision::NodeKeyLine { addr, key: &key }.to_string();
+        robot_keys::write_secret_file(&path, line.as_bytes(), true)?;
+        Ok(path)
+    }
+}
+
+impl Drop for KeyDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
 }
 
 /// A fault the bed injects into the running machine (`demo --fault`).
@@ -123,7 +173,23 @@ impl Bed {
     /// Starts the medium and the tool's radio; no nodes yet.
     pub fn start(options: Options) -> Result<Bed, NetError> {
         let medium = Medium::start(options.medium.clone()).map_err(NetError::Medium)?;
-        let radio = ToolRadio::connect(medium.addr(), TOOL_ADDR)?;
+        let mut radio = ToolRadio::connect(medium.addr(), TOOL_ADDR)?;
+        let keys = if options.secured {
+            let keys = KeyDir::create()?;
+            // A fresh secret per bed run: the tool's counter may start at 0 (in memory).
+            let mut next = 0u32;
+            radio.secure(
+                keys.secret.clone(),
+                Box::new(move || {
+                    let n = next;
+                    next = next.checked_add(1).filter(|n| *n != u32::MAX)?;
+                    Some(n)
+                }),
+            );
+            Some(keys)
+        } else {
+            None
+        };
         let (steps_tx, steps) = mpsc::channel();
         let (seen_tx, seen) = mpsc::channel();
         Ok(Bed {
@@ -140,6 +206,7 @@ impl Bed {
             ids: Ids::default(),
             steps_seen: 0,
             pending: None,
+            keys,
         })
     }
 
@@ -149,6 +216,11 @@ impl Bed {
 
     pub fn radio(&mut self) -> &mut ToolRadio {
         &mut self.radio
+    }
+
+    /// The machine secret of a secured bed (tests check the nodes' answers with it).
+    pub fn secret(&self) -> Option<&robot_keys::MachineSecret> {
+        self.keys.as_ref().map(|k| &k.secret)
     }
 
     /// Starts (or restarts) the node process at `addr`.
@@ -171,6 +243,9 @@ impl Bed {
         if let Some(dir) = &self.options.flash_dir {
             cmd.arg("--flash")
                 .arg(dir.join(format!("node-{addr:04x}.flash")));
+        }
+        if let Some(keys) = &self.keys {
+            cmd.arg("--key").arg(keys.node_key(addr)?);
         }
         let child = cmd
             .spawn()
