@@ -296,6 +296,100 @@ fn hostile_frames_are_dropped_counted_and_the_node_keeps_working() {
     bed.stop();
 }
 
+/// Issue 11: a forged START from 0xBEEF started VC's cylinder, and a captured START
+/// replayed after the tool's next commands started the cycle again. Secured: a forged
+/// START (unsecured, and secured under another machine's key with the tool's address), a
+/// bit-flipped copy of the tool's real secured START and a replay of it after the cycle
+/// (the tool's statuses having moved the node's memory of commands on) start nothing; the
+/// node's counters say why, and the robot still runs its next cycle.
+#[test]
+fn forged_flipped_and_replayed_starts_start_nothing_and_the_counters_say_why() {
+    const HOSTILE: u16 = 0xBEEF;
+    let c = robot("paint-robot.ron", 1);
+    let mut bed = bring_up(&c, options(medium::Config::default(), None));
+    push_ok(&mut bed, &c);
+    let secret = bed.secret().expect("a secured bed").clone();
+    let (start_role, _) = c.ir.start.clone().expect("a start input");
+    let node = c.ir.roles[start_role].address;
+    let at_rest = initial(&c.tables[start_role]);
+
+    // One real cycle; the monitor keeps the tool's secured START to the node.
+    let mut monitor = Monitor::join(bed.medium().addr());
+    exact_cycle(&mut bed, &c, 1);
+    let is_start = |psdu: &[u8]| {
+        let Some(plain) = open_from_tool(&secret, node, psdu) else {
+            return false;
+        };
+        matches!(
+            Message::parse(&plain),
+            Ok(Message::Command {
+                command: Command::Start,
+                ..
+            })
+        )
+    };
+    let captured = monitor
+        .psdus_until(|p| is_start(p))
+        .pop()
+        .expect("captured");
+    assert!(
+        matches!(mac::Frame::parse(&captured), Ok(mac::Frame::Data { header, .. }) if header.secured),
+        "the START went out secured"
+    );
+
+    let mut raw = RawClient::join(bed.medium().addr(), HOSTILE).keyed(&secret);
+    let before = raw.security(node);
+    assert!(before.keyed);
+    let start = payload(&Message::Command {
+        id: 0x5A5A,
+        command: Command::Start,
+    });
+    // Forged: no security; then secured under another machine's key, posing as the tool.
+    raw.send_psdu(&frame(CONFIG_PAN, node, HOSTILE, 1, &start));
+    let other = robot_keys::MachineSecret::from_bytes([7; 32]);
+    raw.send_psdu(&secured_frame(
+        &other,
+        node,
+        TOOL_ADDR,
+        u32::MAX - 1,
+        &start,
+    ));
+    // The real one with one bit of its encrypted payload flipped (FCS made good again).
+    let mut flipped = captured.clone();
+    flipped[mac::DATA_HEADER_LEN + 8] ^= 0x10;
+    let body = flipped.len() - 2;
+    let fcs = mac::FCS.checksum(&flipped[..body]).to_le_bytes();
+    flipped[body..].copy_from_slice(&fcs);
+    raw.send_psdu(&flipped);
+    // The real one, replayed.
+    raw.send_psdu(&captured);
+    // Asked on the same connection: the answers come after every frame above.
+    let status = raw.status(node);
+    assert_eq!(
+        status.states.as_slice(),
+        at_rest.as_slice(),
+        "nothing started"
+    );
+    let after = raw.security(node);
+    let d = |f: fn(&config_schema::wire::msg::SecurityCounters) -> u32| {
+        f(&after.counters) - f(&before.counters)
+    };
+    assert_eq!(
+        (
+            d(|c| c.not_secured),
+            d(|c| c.bad_mic),
+            d(|c| c.replayed),
+            d(|c| c.unknown_key),
+            d(|c| c.wrong_level),
+            d(|c| c.malformed)
+        ),
+        (1, 2, 1, 0, 0, 0)
+    );
+    // The tool's own counter was not pushed up by the forgery: the next cycle runs.
+    exact_cycle(&mut bed, &c, 2);
+    bed.stop();
+}
+
 /// Issue: 10,000 frames/s to a missing address left `status` unanswered for 23 s. Here
 /// with the real node processes: two floods of 50,000 frames each (to a missing address,
 /// and broadcast, which every node has to read and drop) and, the moment they end, every

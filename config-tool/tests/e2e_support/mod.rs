@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
 use config_schema::wire::medium::{Link, Peer};
-use config_schema::wire::msg::{Command, Message, Status};
+use config_schema::wire::msg::{Command, Message, SecurityReport, Status};
 use config_schema::wire::security::{self, ext_addr, AuxRepr, SecurityLevel};
 use config_schema::Table;
 use node_fw::node::CONFIG_PAN;
@@ -304,6 +304,24 @@ pub fn open_from(secret: &robot_keys::MachineSecret, psdu: &[u8]) -> Option<Vec<
     ))
 }
 
+/// The plain payload of a secured frame from the tool (any tool address) to `node`.
+pub fn open_from_tool(
+    secret: &robot_keys::MachineSecret,
+    node: u16,
+    psdu: &[u8],
+) -> Option<Vec<u8>> {
+    let mut scratch = [0u8; mac::MAX_PAYLOAD];
+    let key = robot_keys::management_key(secret, node);
+    let o = security::open_at(
+        psdu,
+        SecurityLevel::EncMic64,
+        |h, _| (h.dst == node).then(|| (*key.expose(), ext_addr(h.pan_id, h.src))),
+        &mut scratch,
+    )
+    .ok()?;
+    Some(o.payload.to_vec())
+}
+
 /// A secured frame from `src` to `dst` on the config PAN, as the tool sends.
 pub fn secured_frame(
     secret: &robot_keys::MachineSecret,
@@ -379,12 +397,30 @@ impl RawClient {
     /// Sends a `Status` command to `addr` and returns the answer. Sent on this connection
     /// after everything sent before it, so the answer counts everything sent before it.
     pub fn status(&mut self, addr: u16) -> Status {
+        self.ask(addr, Command::Status, |m, id| match m {
+            Message::Status(s) if s.ack == id => Some(s),
+            _ => None,
+        })
+    }
+
+    /// Sends `Command::Security` to `addr` and returns the report (as `status`).
+    pub fn security(&mut self, addr: u16) -> SecurityReport {
+        self.ask(addr, Command::Security, |m, id| match m {
+            Message::Security(r) if r.ack == id => Some(r),
+            _ => None,
+        })
+    }
+
+    /// Sends `command` to `addr` and returns what `pick` takes of its answers.
+    fn ask<T>(
+        &mut self,
+        addr: u16,
+        command: Command,
+        pick: impl Fn(Message<'_>, u16) -> Option<T>,
+    ) -> T {
         self.next_id = self.next_id.wrapping_add(1);
         let id = self.next_id;
-        let msg = Message::Command {
-            id,
-            command: Command::Status,
-        };
+        let msg = Message::Command { id, command };
         let psdu = match &mut self.keys {
             Some((secret, counter)) => {
                 let key = robot_keys::management_key(secret, addr);
@@ -406,7 +442,7 @@ impl RawClient {
         self.send_psdu(&psdu);
         let end = Instant::now() + TIMEOUT;
         loop {
-            let got = self.next_frame(end).expect("status answer");
+            let got = self.next_frame(end).expect("an answer");
             let got = match &self.keys {
                 Some((secret, _)) => match open_from(secret, &got) {
                     Some(plain) => plain,
@@ -415,12 +451,11 @@ impl RawClient {
                 None => got,
             };
             if let Ok(Frame::Data { header, payload }) = Frame::parse(&got) {
-                if let (true, Ok(Message::Status(s))) =
-                    (header.src == addr, Message::parse(payload))
-                {
-                    if s.ack == id {
-                        return s;
-                    }
+                if header.src != addr {
+                    continue;
+                }
+                if let Some(t) = Message::parse(payload).ok().and_then(|m| pick(m, id)) {
+                    return t;
                 }
             }
         }
@@ -454,6 +489,20 @@ impl Monitor {
         Monitor {
             conn: medium::Conn::join(medium, Peer::Monitor).expect("medium"),
         }
+    }
+
+    /// Every PSDU on the air until (and including) the first for which `last` holds.
+    pub fn psdus_until(&mut self, mut last: impl FnMut(&[u8]) -> bool) -> Vec<Vec<u8>> {
+        let end = Instant::now() + TIMEOUT;
+        let mut out = Vec::new();
+        let mut seen = |l: Link<'_>| {
+            let Link::Frame(psdu) = l else { return None };
+            out.push(psdu.to_vec());
+            last(psdu).then_some(())
+        };
+        let got = self.conn.recv(end, &mut seen).expect("monitor");
+        assert!(got.is_some(), "the monitor saw the frame");
+        out
     }
 
     /// Every data frame's (src, dst, message) until (and including) the first frame for
