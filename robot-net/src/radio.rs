@@ -8,7 +8,9 @@ use std::time::{Duration, Instant};
 use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
 use config_schema::wire::medium::{Link, Peer};
 use config_schema::wire::msg::Message;
-use config_schema::wire::security::{self, ext_addr, replay::ReplayGuard, AuxRepr, SecurityLevel};
+use config_schema::wire::security::{
+    self, ext_addr, replay::ReplayGuard, AuxRepr, SecurityLevel, DEFAULT_OVERHEAD,
+};
 use node_fw::node::{CONFIG_PAN, MANAGEMENT_KEY_INDEX};
 use robot_keys::{management_key, MachineSecret};
 
@@ -149,7 +151,14 @@ impl ToolRadio {
                 .map_err(|_| io::Error::other("frame too long"))?,
         };
         self.stats.sent += 1;
-        let airtime = mac::airtime_us(len) + mac::airtime_us(ANSWER_PSDU);
+        // A secured answer carries the auxiliary header and the MIC too.
+        let answer = ANSWER_PSDU
+            + if self.keys.is_some() {
+                DEFAULT_OVERHEAD
+            } else {
+                0
+            };
+        let airtime = mac::airtime_us(len) + mac::airtime_us(answer);
         self.air_clear = self.air_clear.max(Instant::now()) + Duration::from_micros(airtime.into());
         self.conn.send(&Link::Frame(&psdu[..len]))
     }
@@ -218,4 +227,133 @@ fn open(keys: &mut Keys, psdu: &[u8]) -> Option<Vec<u8>> {
         )
         .ok()?;
     Some(opened.payload.to_vec())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use config_schema::wire::msg::Command;
+
+    const NODE: u16 = 0x0011;
+
+    fn secret(b: u8) -> MachineSecret {
+        MachineSecret::from_bytes([b; 32])
+    }
+
+    fn counter_from(mut next: u32) -> CounterSource {
+        Box::new(move || {
+            let n = next;
+            next += 1;
+            Some(n)
+        })
+    }
+
+    fn status_payload(ack: u16) -> Vec<u8> {
+        let msg = Message::Command {
+            id: ack,
+            command: Command::Identify,
+        };
+        let mut buf = [0u8; mac::MAX_PAYLOAD];
+        let n = msg.emit(&mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    /// A frame from the node to the tool: secured under `key_of`'s key for the node, or not.
+    fn from_node(key_of: Option<&MachineSecret>, counter: u32, payload: &[u8]) -> Vec<u8> {
+        let header = Header {
+            seq: 0,
+            pan_id: CONFIG_PAN,
+            dst: TOOL_ADDR,
+            src: NODE,
+            ack_request: false,
+            secured: false,
+        };
+        let mut psdu = [0u8; MAX_PSDU];
+        let n = match key_of {
+            Some(s) => security::secure(
+                &header,
+                &AuxRepr::new(MANAGEMENT_KEY_INDEX, counter),
+                management_key(s, NODE).expose(),
+                ext_addr(CONFIG_PAN, NODE),
+                payload,
+                &mut psdu,
+            )
+            .unwrap(),
+            None => mac::emit_data(&header, payload, &mut psdu).unwrap(),
+        };
+        psdu[..n].to_vec()
+    }
+
+    #[test]
+    fn a_secured_radio_takes_only_the_nodes_fresh_secured_frames() {
+        let medium = medium::Medium::start(medium::Config::default()).unwrap();
+        let mut tool = ToolRadio::connect(medium.addr(), TOOL_ADDR).unwrap();
+        tool.secure(secret(1), counter_from(0));
+        let mut node = Conn::join(medium.addr(), Peer::Node { addr: NODE }).unwrap();
+        let good = from_node(Some(&secret(1)), 5, &status_payload(1));
+        // Unsecured, another machine's key, the good one, its replay, then a fresh one.
+        for psdu in [
+            from_node(None, 0, &status_payload(9)),
+            from_node(Some(&secret(2)), 6, &status_payload(9)),
+            good.clone(),
+            good,
+            from_node(Some(&secret(1)), 6, &status_payload(2)),
+        ] {
+            node.send(&Link::Frame(&psdu)).unwrap();
+        }
+        let end = Instant::now() + Duration::from_secs(30);
+        let mut got = Vec::new();
+        while got.len() < 2 {
+            let r = tool.recv(end).unwrap().expect("two frames get through");
+            got.push(r.payload);
+        }
+        assert_eq!(got, [status_payload(1), status_payload(2)]);
+        assert_eq!((tool.stats.received, tool.stats.refused), (2, 3));
+        medium.stop();
+    }
+
+    #[test]
+    fn a_secured_radio_secures_to_a_node_and_broadcasts_in_clear() {
+        let medium = medium::Medium::start(medium::Config::default()).unwrap();
+        let mut tool = ToolRadio::connect(medium.addr(), TOOL_ADDR).unwrap();
+        tool.secure(secret(1), counter_from(40));
+        let mut node = Conn::join(medium.addr(), Peer::Node { addr: NODE }).unwrap();
+        let msg = Message::Command {
+            id: 3,
+            command: Command::Start,
+        };
+        tool.send(NODE, &msg).unwrap();
+        tool.send(mac::BROADCAST, &msg).unwrap();
+        let end = Instant::now() + Duration::from_secs(30);
+        let mut frames = Vec::new();
+        while frames.len() < 2 {
+            let f = node
+                .recv(end, |l| match l {
+                    Link::Frame(p) => Some(p.to_vec()),
+                    _ => None,
+                })
+                .unwrap()
+                .expect("both frames");
+            frames.push(f);
+        }
+        let key = management_key(&secret(1), NODE);
+        let mut scratch = [0u8; mac::MAX_PAYLOAD];
+        let opened = security::open_at(
+            &frames[0],
+            SecurityLevel::EncMic64,
+            |h, _| Some((*key.expose(), ext_addr(h.pan_id, h.src))),
+            &mut scratch,
+        )
+        .expect("secured with the node's key");
+        assert_eq!(opened.aux.frame_counter, 40);
+        assert_eq!(Message::parse(opened.payload), Ok(msg.clone()));
+        match Frame::parse(&frames[1]) {
+            Ok(Frame::Data { header, payload }) => {
+                assert!(!header.secured);
+                assert_eq!(Message::parse(payload), Ok(msg));
+            }
+            other => panic!("not a data frame: {other:?}"),
+        }
+        medium.stop();
+    }
 }
