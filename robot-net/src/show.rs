@@ -2,6 +2,7 @@
 
 use config_schema::wire::mac::Frame;
 use config_schema::wire::msg::{Message, Status};
+use config_schema::wire::security::{AuxHeader, AuxRepr};
 
 /// A status in readable form.
 pub fn status_text(addr: u16, s: &Status) -> String {
@@ -55,6 +56,24 @@ pub fn reset_text(addr: u16, s: &Status) -> String {
 /// One frame in readable form.
 pub fn describe(psdu: &[u8]) -> String {
     match Frame::parse(psdu) {
+        Ok(Frame::Data { header, payload }) if header.secured => {
+            let what = match AuxHeader::new_checked(payload) {
+                Ok(view) => {
+                    let aux = AuxRepr::parse(&view);
+                    let sealed = payload.len().saturating_sub(view.header_len());
+                    format!(
+                        "secured {:?}, key {}, counter {}, {sealed} bytes sealed",
+                        aux.level,
+                        aux.key_id
+                            .index()
+                            .map_or_else(|| "implicit".to_string(), |i| i.to_string()),
+                        aux.frame_counter,
+                    )
+                }
+                Err(e) => format!("secured, but {e}"),
+            };
+            format!("{:#06x} -> {:#06x}  {what}", header.src, header.dst)
+        }
         Ok(Frame::Data { header, payload }) => {
             let msg = match Message::parse(payload) {
                 Ok(Message::ConfigChunk {
@@ -78,6 +97,34 @@ pub fn describe(psdu: &[u8]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_secured_frame_is_described_by_its_security_header() {
+        use config_schema::wire::mac::Header;
+        use config_schema::wire::security::{ext_addr, secure};
+        let header = Header {
+            seq: 0,
+            pan_id: 0xFFFF,
+            dst: 0x0011,
+            src: 0x0100,
+            ack_request: false,
+            secured: false,
+        };
+        let mut psdu = [0u8; 127];
+        let n = secure(
+            &header,
+            &AuxRepr::new(0, 42),
+            &[1; 16],
+            ext_addr(0xFFFF, 0x0100),
+            &[0, 1, 2, 3, 4],
+            &mut psdu,
+        )
+        .unwrap();
+        assert_eq!(
+            describe(&psdu[..n]),
+            "0x0100 -> 0x0011  secured EncMic64, key 0, counter 42, 13 bytes sealed"
+        );
+    }
     use config_schema::wire::msg::{Counters, RuntimeCounters};
 
     fn status() -> Status {
