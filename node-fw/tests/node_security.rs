@@ -300,3 +300,63 @@ fn an_unkeyed_node_is_unchanged() {
     assert!(matches!(Frame::parse(&b.out[0]), Ok(Frame::Data { header, .. }) if !header.secured));
     assert!(!n.keyed());
 }
+
+#[test]
+fn a_fifth_management_sender_is_refused_not_one_forgotten() {
+    let (mut n, mut b) = node();
+    let mut psdu = [0u8; MAX_PSDU];
+    for (i, src) in [TOOL, 0x0101, 0x0102, 0x0103, 0x0104]
+        .into_iter()
+        .enumerate()
+    {
+        let len = security::secure(
+            &header(CONFIG_PAN, NODE, src),
+            &AuxRepr::new(0, 1),
+            &KEY,
+            ext_addr(CONFIG_PAN, src),
+            &command(i as u16, Command::Status),
+            &mut psdu,
+        )
+        .unwrap();
+        n.receive(&psdu[..len], 0, &mut b);
+    }
+    assert_eq!(b.out.len(), 4, "the first four are answered");
+    assert_eq!(n.security_counters().table_full, 1);
+}
+
+proptest::proptest! {
+    /// Random bytes, and a real secured START with any bytes flipped, cut or added (its
+    /// FCS made good again or not): the node never starts and never answers.
+    #[test]
+    fn mutated_secured_starts_never_run(
+        flips in proptest::collection::vec((0usize..64, 1u8..=255), 1..4),
+        cut in proptest::option::of(0usize..64),
+        extra in proptest::collection::vec(proptest::num::u8::ANY, 0..3),
+        noise in proptest::collection::vec(proptest::num::u8::ANY, 0..127),
+        fix_fcs in proptest::bool::ANY,
+    ) {
+        let (mut n, mut b) = node();
+        let real = secured(3, &KEY, &command(1, Command::Start));
+        let mut bad = real.clone();
+        for (at, x) in &flips {
+            let i = at % bad.len();
+            bad[i] ^= x;
+        }
+        if let Some(c) = cut {
+            bad.truncate(c % bad.len());
+        }
+        bad.extend_from_slice(&extra);
+        if fix_fcs && bad.len() >= 2 {
+            // Only the MIC can tell then.
+            let body = bad.len() - 2;
+            let fcs = mac::FCS.checksum(&bad[..body]).to_le_bytes();
+            bad[body..].copy_from_slice(&fcs);
+        }
+        if bad != real {
+            n.receive(&bad, 0, &mut b);
+        }
+        n.receive(&noise, 0, &mut b);
+        proptest::prop_assert_eq!(starts(&b), 0);
+        proptest::prop_assert!(b.out.is_empty());
+    }
+}
