@@ -58,6 +58,9 @@ pub const MANAGEMENT_SENDERS: usize = 4;
 /// with every node's key) at most once per this many ms: the answer is secured and spends
 /// a frame counter, so a flood must not use the counter up.
 pub const OPEN_IDENTIFY_MS: u64 = ANNOUNCE_MS;
+/// A node sends at most one `Challenge` per this many ms (each spends a frame counter:
+/// a flood of replays must not use it up).
+pub const CHALLENGE_MS: u64 = 50;
 
 /// A table waiting to be persisted before it runs: its blob stays in the OTA staging
 /// buffer (decoded and validated already; decoded again when it is switched to, so the node
@@ -100,6 +103,18 @@ pub struct NodeCore {
     security: SecurityCounters,
     /// When an unsecured broadcast `Identify` may be answered again.
     next_open_identify: u64,
+    /// Challenges sent and not answered yet: (sender, nonce).
+    challenges: Vec<(u16, u32), MANAGEMENT_SENDERS>,
+    /// When the next challenge may be sent.
+    next_challenge: u64,
+}
+
+/// Why a management frame is not acted on.
+enum Refused {
+    /// Refused (counted by its reason, and as dropped).
+    Dropped,
+    /// Authentic, part of the freshness handshake (a challenge sent, or answered).
+    Handshake,
 }
 
 /// The engine's effects, applied to the node's timers, links and pins.
@@ -124,6 +139,19 @@ struct Radio<'a> {
 
 impl Radio<'_> {
     fn send(&mut self, io: &mut impl Io, pan_id: u16, dst: u16, msg: &Message<'_>) {
+        self.send_numbered(io, pan_id, dst, msg, None)
+    }
+
+    /// [`Radio::send`]; a secured frame takes `counter` if given (already drawn from the
+    /// board), else the board's next.
+    fn send_numbered(
+        &mut self,
+        io: &mut impl Io,
+        pan_id: u16,
+        dst: u16,
+        msg: &Message<'_>,
+        counter: Option<u32>,
+    ) {
         let mut payload = [0u8; mac::MAX_PAYLOAD];
         let Ok(n) = msg.emit(&mut payload) else {
             return;
@@ -140,7 +168,7 @@ impl Radio<'_> {
         let mut psdu = [0u8; MAX_PSDU];
         let emitted = match self.key.filter(|_| pan_id == CONFIG_PAN) {
             Some(key) => {
-                let Some(counter) = io.next_frame_counter() else {
+                let Some(counter) = counter.or_else(|| io.next_frame_counter()) else {
                     self.security.no_counter += 1;
                     return;
                 };
@@ -224,6 +252,8 @@ impl NodeCore {
             replay: ReplayGuard::new(),
             security: SecurityCounters::default(),
             next_open_identify: 0,
+            challenges: Vec::new(),
+            next_challenge: 0,
         };
         if let Some(t) = table.filter(|t| t.missing_pin(board_pins).is_none()) {
             node.install(t);
@@ -536,12 +566,13 @@ impl NodeCore {
             return;
         }
         let (payload, authentic) = if management && header.secured {
-            match self.open_management(psdu, &mut scratch) {
+            match self.open_management(psdu, &mut scratch, now, io) {
                 Ok(payload) => (payload, true),
-                Err(()) => {
+                Err(Refused::Dropped) => {
                     self.counters.dropped += 1;
                     return;
                 }
+                Err(Refused::Handshake) => return,
             }
         } else if header.secured {
             // Secured frames elsewhere (events) come with link keys: not yet.
@@ -615,9 +646,21 @@ impl NodeCore {
     /// index 0, the sender's extended address from its short address), then checks its
     /// counter against the last one accepted from that sender. Every refusal is counted by
     /// its reason.
-    fn open_management<'s>(&mut self, psdu: &[u8], scratch: &'s mut [u8]) -> Result<&'s [u8], ()> {
+    ///
+    /// A sender whose counter the node does not know (none since boot) is challenged
+    /// instead: its frame is not acted on; the node answers `Challenge { nonce }`, the nonce
+    /// being that frame's own counter (never used before), and takes the counter of the
+    /// sender's `ChallengeAnswer` with that nonce as its floor. A frame captured before
+    /// the answer has a lower counter: no replay passes a reboot.
+    fn open_management<'s>(
+        &mut self,
+        psdu: &[u8],
+        scratch: &'s mut [u8],
+        now: u64,
+        io: &mut impl Io,
+    ) -> Result<&'s [u8], Refused> {
         let Some(key) = &self.key else {
-            return Err(());
+            return Err(Refused::Dropped);
         };
         let me = self.addr;
         let opened = security::open_at(
@@ -641,9 +684,40 @@ impl NodeCore {
                     SecError::Level { .. } | SecError::NoMic => c.wrong_level += 1,
                     _ => c.malformed += 1,
                 }
-                return Err(());
+                return Err(Refused::Dropped);
             }
         };
+        let src = opened.header.src;
+        if self.replay.last(src, MANAGEMENT_KEY_INDEX).is_none() {
+            let answer = match Message::parse(opened.payload) {
+                Ok(Message::ChallengeAnswer { nonce }) => Some(nonce),
+                _ => None,
+            };
+            let pending = self.challenges.iter().position(|(s, _)| *s == src);
+            let answered = pending
+                .zip(answer)
+                .is_some_and(|(i, nonce)| self.challenges.get(i).is_some_and(|p| p.1 == nonce));
+            if answered {
+                if let Some(i) = pending {
+                    self.challenges.remove(i);
+                }
+                if self
+                    .replay
+                    .check_and_accept(src, MANAGEMENT_KEY_INDEX, opened.aux.frame_counter)
+                    .is_err()
+                {
+                    self.security.table_full += 1;
+                }
+                return Err(Refused::Handshake);
+            }
+            self.security.challenged += 1;
+            if now >= self.next_challenge {
+                self.next_challenge = now + CHALLENGE_MS;
+                self.challenge(src, io);
+            }
+            return Err(Refused::Handshake);
+        }
+        let c = &mut self.security;
         match self.replay.check_and_accept(
             opened.header.src,
             MANAGEMENT_KEY_INDEX,
@@ -652,13 +726,44 @@ impl NodeCore {
             Ok(()) => Ok(opened.payload),
             Err(ReplayError::Replayed { .. }) => {
                 c.replayed += 1;
-                Err(())
+                Err(Refused::Dropped)
             }
             Err(ReplayError::Full) => {
                 c.table_full += 1;
-                Err(())
+                Err(Refused::Dropped)
             }
         }
+    }
+
+    /// Sends `src` a challenge whose nonce is the counter of the challenge frame itself.
+    fn challenge(&mut self, src: u16, io: &mut impl Io) {
+        let Some(nonce) = io.next_frame_counter() else {
+            self.security.no_counter += 1;
+            return;
+        };
+        match self.challenges.iter_mut().find(|(s, _)| *s == src) {
+            Some(p) => p.1 = nonce,
+            None => {
+                if self.challenges.is_full() {
+                    self.challenges.remove(0);
+                }
+                let _ = self.challenges.push((src, nonce));
+            }
+        }
+        let mut radio = Radio {
+            addr: self.addr,
+            mac_seq: &mut self.mac_seq,
+            counters: &mut self.counters,
+            key: self.key.as_ref(),
+            security: &mut self.security,
+        };
+        radio.send_numbered(
+            io,
+            CONFIG_PAN,
+            src,
+            &Message::Challenge { nonce },
+            Some(nonce),
+        );
     }
 
     fn peer(&self, addr: u16) -> Option<usize> {

@@ -35,8 +35,59 @@ impl Io for Board {
     }
 }
 
-/// The lamp table with START toggling the lamp: every START that runs drives it.
+/// The lamp table with START toggling the lamp: every START that runs drives it; the
+/// tool's counter established (its floor 0: the handshake spent the node's counter 0).
 fn node() -> (NodeCore, Board) {
+    let (mut n, mut b) = booted();
+    handshake(&mut n, &mut b, TOOL, 0, 0);
+    (n, b)
+}
+
+/// A secured frame from `src` with `counter`.
+fn from(src: u16, counter: u32, payload: &[u8]) -> Vec<u8> {
+    let mut psdu = [0u8; MAX_PSDU];
+    let n = security::secure(
+        &header(CONFIG_PAN, NODE, src),
+        &AuxRepr::new(0, counter),
+        &KEY,
+        ext_addr(CONFIG_PAN, src),
+        payload,
+        &mut psdu,
+    )
+    .unwrap();
+    psdu[..n].to_vec()
+}
+
+fn message(msg: &Message<'_>) -> Vec<u8> {
+    let mut payload = [0u8; MAX_PAYLOAD];
+    let n = msg.emit(&mut payload).unwrap();
+    payload[..n].to_vec()
+}
+
+/// `src`'s first frame (at `counter`) is challenged; the answer (at `counter`) sets its
+/// floor. Leaves nothing in `b.out`.
+fn handshake(n: &mut NodeCore, b: &mut Board, src: u16, counter: u32, now: u64) {
+    let sent = b.out.len();
+    n.receive(
+        &from(src, counter, &command(0xFFF0, Command::Status)),
+        now,
+        b,
+    );
+    assert_eq!(b.out.len(), sent + 1, "challenged");
+    let (_, payload) = open(&b.out[sent]).expect("a secured challenge");
+    let Ok(Message::Challenge { nonce }) = Message::parse(&payload) else {
+        panic!("not a challenge: {payload:?}");
+    };
+    n.receive(
+        &from(src, counter, &message(&Message::ChallengeAnswer { nonce })),
+        now,
+        b,
+    );
+    b.out.truncate(sent);
+}
+
+/// Just booted: the node knows no sender's counter.
+fn booted() -> (NodeCore, Board) {
     let mut t = lamp_table(1);
     t.start = t
         .inputs
@@ -120,11 +171,15 @@ fn a_secured_start_runs_and_the_answer_is_secured() {
     assert_eq!(starts(&b), 1);
     assert_eq!(b.out.len(), 1);
     let (counter, payload) = open(&b.out[0]).expect("the status is secured with the key");
-    assert_eq!(counter, 0);
+    assert_eq!(counter, 1, "after the handshake's challenge");
     assert!(matches!(Message::parse(&payload), Ok(Message::Status(s)) if s.ack == 1));
     // Nothing of the payload is in clear on the air.
     assert!(matches!(Frame::parse(&b.out[0]), Ok(Frame::Data { header, .. }) if header.secured));
-    assert_eq!(n.security_counters(), SecurityCounters::default());
+    let handshake = SecurityCounters {
+        challenged: 1,
+        ..SecurityCounters::default()
+    };
+    assert_eq!(n.security_counters(), handshake);
 }
 
 #[test]
@@ -220,10 +275,14 @@ fn the_security_command_reports_the_counters_and_counters_increase() {
     n.receive(&secured(5, &KEY, &command(2, Command::Security)), 0, &mut b);
     n.receive(&secured(6, &KEY, &command(3, Command::Security)), 0, &mut b);
     let answers: Vec<_> = b.out.iter().map(|p| open(p).expect("secured")).collect();
-    assert_eq!(answers.iter().map(|a| a.0).collect::<Vec<_>>(), [0, 1]);
+    assert_eq!(answers.iter().map(|a| a.0).collect::<Vec<_>>(), [1, 2]);
     match Message::parse(&answers[1].1) {
         Ok(Message::Security(r)) => {
-            assert_eq!((r.ack, r.keyed, r.counters.not_secured), (3, true, 1));
+            let c = r.counters;
+            assert_eq!(
+                (r.ack, r.keyed, c.not_secured, c.challenged),
+                (3, true, 1, 1)
+            );
         }
         other => panic!("not a security report: {other:?}"),
     }
@@ -277,7 +336,11 @@ fn other_nodes_secured_announcements_are_ignored_not_counted() {
     let dropped = n.counters().dropped;
     n.receive(&psdu[..n_psdu], 0, &mut b);
     assert_eq!(n.counters().dropped, dropped);
-    assert_eq!(n.security_counters(), SecurityCounters::default());
+    let handshake = SecurityCounters {
+        challenged: 1,
+        ..SecurityCounters::default()
+    };
+    assert_eq!(n.security_counters(), handshake);
     assert!(b.out.is_empty());
 }
 
@@ -304,24 +367,69 @@ fn an_unkeyed_node_is_unchanged() {
 #[test]
 fn a_fifth_management_sender_is_refused_not_one_forgotten() {
     let (mut n, mut b) = node();
-    let mut psdu = [0u8; MAX_PSDU];
-    for (i, src) in [TOOL, 0x0101, 0x0102, 0x0103, 0x0104]
-        .into_iter()
-        .enumerate()
-    {
-        let len = security::secure(
-            &header(CONFIG_PAN, NODE, src),
-            &AuxRepr::new(0, 1),
-            &KEY,
-            ext_addr(CONFIG_PAN, src),
-            &command(i as u16, Command::Status),
-            &mut psdu,
-        )
-        .unwrap();
-        n.receive(&psdu[..len], 0, &mut b);
+    for (i, src) in [0x0101, 0x0102, 0x0103].into_iter().enumerate() {
+        handshake(&mut n, &mut b, src, 1, 100 * (i as u64 + 1));
     }
-    assert_eq!(b.out.len(), 4, "the first four are answered");
+    // The fifth is challenged, but its answer finds the table full.
+    let src = 0x0104;
+    n.receive(&from(src, 1, &command(1, Command::Status)), 400, &mut b);
+    let (_, payload) = open(&b.out[0]).unwrap();
+    let Ok(Message::Challenge { nonce }) = Message::parse(&payload) else {
+        panic!("not a challenge");
+    };
+    n.receive(
+        &from(src, 2, &message(&Message::ChallengeAnswer { nonce })),
+        400,
+        &mut b,
+    );
     assert_eq!(n.security_counters().table_full, 1);
+    // And the tool was not forgotten.
+    n.receive(&secured(1, &KEY, &command(2, Command::Status)), 500, &mut b);
+    assert_eq!(b.out.len(), 2);
+    assert!(matches!(
+        Message::parse(&open(&b.out[1]).unwrap().1),
+        Ok(Message::Status(_))
+    ));
+}
+
+/// After a reboot the node knows no counter: a START captured before is not run but
+/// challenged; the real tool's answer sets the floor above every captured frame, so the
+/// replay stays refused, and the tool's next START runs.
+#[test]
+fn after_a_reboot_a_replayed_start_is_challenged_and_never_runs() {
+    let (mut n, mut b) = node();
+    let captured = secured(5, &KEY, &command(1, Command::Start));
+    n.receive(&captured, 0, &mut b);
+    assert_eq!(starts(&b), 1);
+    // Reboot: a fresh core (its frame counter goes on: the board's persists).
+    let counter = b.counter;
+    let (mut n, mut b) = booted();
+    b.counter = counter;
+    n.receive(&captured, 0, &mut b);
+    assert_eq!(starts(&b), 0);
+    assert_eq!(n.security_counters().challenged, 1);
+    let (_, payload) = open(&b.out[0]).unwrap();
+    let Ok(Message::Challenge { nonce }) = Message::parse(&payload) else {
+        panic!("not a challenge");
+    };
+    // A wrong nonce (an old answer replayed) is no answer: challenged again (rate-limited).
+    let old = secured(
+        6,
+        &KEY,
+        &message(&Message::ChallengeAnswer { nonce: nonce - 1 }),
+    );
+    n.receive(&old, 10, &mut b);
+    assert_eq!(n.security_counters().challenged, 2);
+    // The tool answers with its current counter; the replay is then below the floor.
+    n.receive(
+        &secured(7, &KEY, &message(&Message::ChallengeAnswer { nonce })),
+        20,
+        &mut b,
+    );
+    n.receive(&captured, 30, &mut b);
+    assert_eq!((starts(&b), n.security_counters().replayed), (0, 1));
+    n.receive(&secured(8, &KEY, &command(2, Command::Start)), 40, &mut b);
+    assert_eq!(starts(&b), 1);
 }
 
 proptest::proptest! {

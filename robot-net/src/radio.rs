@@ -46,7 +46,12 @@ pub struct RadioStats {
     pub dropped: u64,
     /// With keys: frames from nodes refused (unsecured, bad MIC, replayed, ...).
     pub refused: u64,
+    /// With keys: challenges from nodes answered (each node's first exchange after boot).
+    pub challenges: u64,
 }
+
+/// How recent an unanswered message must be to be sent again after a challenge.
+pub const RESEND_WITHIN: Duration = Duration::from_millis(500);
 
 /// Nodes whose last frame counter the tool remembers (one entry per node it heard).
 pub const TOOL_SENDERS: usize = 256;
@@ -61,6 +66,9 @@ struct Keys {
     secret: MachineSecret,
     counter: CounterSource,
     replay: ReplayGuard<TOOL_SENDERS>,
+    /// The last message sent to each node and when, while unanswered: sent again after
+    /// answering the node's challenge.
+    last_sent: std::collections::HashMap<u16, (Instant, Vec<u8>)>,
 }
 
 /// The tool on the medium.
@@ -99,6 +107,7 @@ impl ToolRadio {
             secret,
             counter,
             replay: ReplayGuard::new(),
+            last_sent: Default::default(),
         });
     }
 
@@ -122,6 +131,15 @@ impl ToolRadio {
         let n = msg
             .emit(&mut payload)
             .map_err(|_| io::Error::other("message does not fit a frame"))?;
+        if let Some(keys) = self.keys.as_mut().filter(|_| dst != mac::BROADCAST) {
+            keys.last_sent
+                .insert(dst, (Instant::now(), payload[..n].to_vec()));
+        }
+        self.send_payload(dst, &payload[..n])
+    }
+
+    /// Sends a message's bytes to `dst` (secured to a node when the radio has keys).
+    fn send_payload(&mut self, dst: u16, payload: &[u8]) -> io::Result<()> {
         let header = Header {
             seq: self.seq,
             pan_id: CONFIG_PAN,
@@ -142,12 +160,12 @@ impl ToolRadio {
                     &AuxRepr::new(MANAGEMENT_KEY_INDEX, counter),
                     key.expose(),
                     ext_addr(CONFIG_PAN, self.addr),
-                    &payload[..n],
+                    payload,
                     &mut psdu,
                 )
                 .map_err(|e| io::Error::other(format!("cannot secure the frame: {e}")))?
             }
-            None => mac::emit_data(&header, &payload[..n], &mut psdu)
+            None => mac::emit_data(&header, payload, &mut psdu)
                 .map_err(|_| io::Error::other("frame too long"))?,
         };
         self.stats.sent += 1;
@@ -164,7 +182,43 @@ impl ToolRadio {
     }
 
     /// The next message for this radio, or `None` when `until` passes.
+    ///
+    /// With keys, a node's `Challenge` (it rebooted and does not know the tool's counter
+    /// yet) is answered here, and the last message sent to that node is sent again at
+    /// once, so the protocols above see no loss.
     pub fn recv(&mut self, until: Instant) -> io::Result<Option<Received>> {
+        loop {
+            let Some(r) = self.recv_one(until)? else {
+                return Ok(None);
+            };
+            match (self.keys.is_some(), r.message()) {
+                (true, Some(Message::Challenge { nonce })) => {
+                    self.stats.challenges += 1;
+                    let mut answer = [0u8; 16];
+                    let n = Message::ChallengeAnswer { nonce }
+                        .emit(&mut answer)
+                        .map_err(|_| io::Error::other("challenge answer"))?;
+                    self.send_payload(r.src, &answer[..n])?;
+                    // Sent again once, and only if it is still unanswered and recent: a
+                    // challenge an attacker provokes later (by replaying a frame) must not
+                    // make the tool repeat a command the node already took.
+                    let last = self.keys.as_mut().and_then(|k| k.last_sent.remove(&r.src));
+                    if let Some((_, last)) = last.filter(|(at, _)| at.elapsed() < RESEND_WITHIN) {
+                        self.send_payload(r.src, &last)?;
+                    }
+                }
+                _ => {
+                    // An answer: what was sent to that node was taken.
+                    if let Some(k) = self.keys.as_mut() {
+                        k.last_sent.remove(&r.src);
+                    }
+                    return Ok(Some(r));
+                }
+            }
+        }
+    }
+
+    fn recv_one(&mut self, until: Instant) -> io::Result<Option<Received>> {
         let (me, stats, keys) = (self.addr, &mut self.stats, &mut self.keys);
         self.conn.recv(until, |link| {
             let Link::Frame(psdu) = link else { return None };
@@ -309,6 +363,96 @@ mod tests {
         }
         assert_eq!(got, [status_payload(1), status_payload(2)]);
         assert_eq!((tool.stats.received, tool.stats.refused), (2, 3));
+        medium.stop();
+    }
+
+    /// What the node received, opened with its key.
+    fn node_gets(node: &mut Conn, n: usize) -> Vec<Vec<u8>> {
+        let end = Instant::now() + Duration::from_secs(30);
+        let key = management_key(&secret(1), NODE);
+        let mut got = Vec::new();
+        while got.len() < n {
+            let f = node
+                .recv(end, |l| match l {
+                    Link::Frame(p) => Some(p.to_vec()),
+                    _ => None,
+                })
+                .unwrap()
+                .expect("a frame");
+            let mut scratch = [0u8; mac::MAX_PAYLOAD];
+            let o = security::open_at(
+                &f,
+                SecurityLevel::EncMic64,
+                |h, _| Some((*key.expose(), ext_addr(h.pan_id, h.src))),
+                &mut scratch,
+            )
+            .expect("secured");
+            got.push(o.payload.to_vec());
+        }
+        got
+    }
+
+    fn emit(msg: &Message<'_>) -> Vec<u8> {
+        let mut buf = [0u8; mac::MAX_PAYLOAD];
+        let n = msg.emit(&mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    #[test]
+    fn a_challenge_is_answered_and_only_an_unanswered_message_sent_again() {
+        let medium = medium::Medium::start(medium::Config::default()).unwrap();
+        let mut tool = ToolRadio::connect(medium.addr(), TOOL_ADDR).unwrap();
+        tool.secure(secret(1), counter_from(0));
+        let mut node = Conn::join(medium.addr(), Peer::Node { addr: NODE }).unwrap();
+        let start = Message::Command {
+            id: 1,
+            command: Command::Start,
+        };
+        tool.send(NODE, &start).unwrap();
+        assert_eq!(node_gets(&mut node, 1), [emit(&start)]);
+        // The node (just booted) challenges: the tool answers, then sends the START again.
+        let challenge = |nonce, counter| {
+            from_node(
+                Some(&secret(1)),
+                counter,
+                &emit(&Message::Challenge { nonce }),
+            )
+        };
+        node.send(&Link::Frame(&challenge(70, 70))).unwrap();
+        let end = Instant::now() + Duration::from_secs(30);
+        // Handled inside recv, never handed up (waits for the event, bounded).
+        while tool.stats.challenges < 1 && Instant::now() < end {
+            let r = tool
+                .recv(Instant::now() + Duration::from_millis(50))
+                .unwrap();
+            assert_eq!(r, None);
+        }
+        let answer = Message::ChallengeAnswer { nonce: 70 };
+        assert_eq!(node_gets(&mut node, 2), [emit(&answer), emit(&start)]);
+        // The node answers; a later challenge (a replay provoked it) repeats nothing.
+        node.send(&Link::Frame(&from_node(
+            Some(&secret(1)),
+            71,
+            &status_payload(1),
+        )))
+        .unwrap();
+        node.send(&Link::Frame(&challenge(72, 72))).unwrap();
+        assert!(tool.recv(end).unwrap().is_some(), "the answer");
+        while tool.stats.challenges < 2 && Instant::now() < end {
+            let r = tool
+                .recv(Instant::now() + Duration::from_millis(50))
+                .unwrap();
+            assert_eq!(r, None);
+        }
+        // Nothing else came before a marker the tool sends next.
+        let marker = Message::Command {
+            id: 2,
+            command: Command::Status,
+        };
+        tool.send(NODE, &marker).unwrap();
+        let answer = Message::ChallengeAnswer { nonce: 72 };
+        assert_eq!(node_gets(&mut node, 2), [emit(&answer), emit(&marker)]);
+        assert_eq!(tool.stats.challenges, 2);
         medium.stop();
     }
 

@@ -50,6 +50,12 @@ pub enum Message<'a> {
     Announce(Announce),
     /// The node's frame security counters: the answer to `Command::Security`.
     Security(SecurityReport),
+    /// A secured node does not know the sender's frame counter (it rebooted): prove your
+    /// frames are fresh by answering `nonce` (the counter of this very frame, which the
+    /// node never used before).
+    Challenge { nonce: u32 },
+    /// The answer to a `Challenge`: its counter becomes the sender's floor at the node.
+    ChallengeAnswer { nonce: u32 },
 }
 
 /// Where a table transfer stands, from the receiving node.
@@ -176,6 +182,9 @@ pub struct SecurityCounters {
     pub table_full: u32,
     /// Frames not sent: no frame counter (exhausted, or the flash failed).
     pub no_counter: u32,
+    /// Authentic frames from a sender whose counter the node did not know yet (after its
+    /// boot): not acted on, the sender challenged.
+    pub challenged: u32,
 }
 
 /// What `config-tool status` shows of a node.
@@ -353,6 +362,7 @@ mod tests {
                 malformed: c,
                 table_full: c,
                 no_counter: c,
+                challenged: c,
             },
         });
         let mut buf = [0u8; 256];

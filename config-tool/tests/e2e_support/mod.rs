@@ -421,24 +421,7 @@ impl RawClient {
         self.next_id = self.next_id.wrapping_add(1);
         let id = self.next_id;
         let msg = Message::Command { id, command };
-        let psdu = match &mut self.keys {
-            Some((secret, counter)) => {
-                let key = robot_keys::management_key(secret, addr);
-                let mut psdu = [0u8; MAX_PSDU];
-                let n = security::secure(
-                    &header(CONFIG_PAN, addr, self.addr, id as u8),
-                    &AuxRepr::new(0, *counter),
-                    key.expose(),
-                    ext_addr(CONFIG_PAN, self.addr),
-                    &payload(&msg),
-                    &mut psdu,
-                )
-                .expect("fits");
-                *counter += 1;
-                psdu[..n].to_vec()
-            }
-            None => frame(CONFIG_PAN, addr, self.addr, id as u8, &payload(&msg)),
-        };
+        let psdu = self.psdu_to(addr, id as u8, &payload(&msg));
         self.send_psdu(&psdu);
         let end = Instant::now() + TIMEOUT;
         loop {
@@ -450,14 +433,49 @@ impl RawClient {
                 },
                 None => got,
             };
-            if let Ok(Frame::Data { header, payload }) = Frame::parse(&got) {
+            if let Ok(Frame::Data { header, payload: p }) = Frame::parse(&got) {
                 if header.src != addr {
                     continue;
                 }
-                if let Some(t) = Message::parse(payload).ok().and_then(|m| pick(m, id)) {
-                    return t;
+                match Message::parse(p) {
+                    // The node does not know this client's counter yet: answer, ask again.
+                    Ok(Message::Challenge { nonce }) => {
+                        let answer =
+                            self.psdu_to(addr, 0, &payload(&Message::ChallengeAnswer { nonce }));
+                        self.send_psdu(&answer);
+                        let again = self.psdu_to(addr, id as u8, &payload(&msg));
+                        self.send_psdu(&again);
+                    }
+                    Ok(m) => {
+                        if let Some(t) = pick(m, id) {
+                            return t;
+                        }
+                    }
+                    Err(_) => {}
                 }
             }
+        }
+    }
+
+    /// A frame to `addr` on the config PAN: secured with its key when this client has keys.
+    fn psdu_to(&mut self, addr: u16, seq: u8, body: &[u8]) -> Vec<u8> {
+        match &mut self.keys {
+            Some((secret, counter)) => {
+                let key = robot_keys::management_key(secret, addr);
+                let mut psdu = [0u8; MAX_PSDU];
+                let n = security::secure(
+                    &header(CONFIG_PAN, addr, self.addr, seq),
+                    &AuxRepr::new(0, *counter),
+                    key.expose(),
+                    ext_addr(CONFIG_PAN, self.addr),
+                    body,
+                    &mut psdu,
+                )
+                .expect("fits");
+                *counter += 1;
+                psdu[..n].to_vec()
+            }
+            None => frame(CONFIG_PAN, addr, self.addr, seq, body),
         }
     }
 
