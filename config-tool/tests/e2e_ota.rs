@@ -11,7 +11,7 @@ use std::pin::pin;
 use std::task::{Context, Poll, Waker};
 
 use config_schema::wire::mac;
-use config_schema::wire::msg::{Message, Refusal, CHUNK_DATA};
+use config_schema::wire::msg::{Command, Message, Refusal, CHUNK_DATA};
 use node_fw::host::flash::HostFlash;
 use node_fw::node::CONFIG_PAN;
 use node_fw::ota::Progress;
@@ -177,6 +177,66 @@ fn wrong_crc_invalid_blob_and_stale_generations_are_refused() {
     assert!(forced.iter().all(|o| o.progress == Progress::Done));
     assert_running(&mut bed, &c);
     exact_cycle(&mut bed, &c, 1);
+    bed.stop();
+}
+
+/// Issue 11: a captured START replayed after the node rebooted (its memory of the tool's
+/// counter gone) started the cycle again. Secured: the node challenges the tool instead
+/// of acting; nothing starts, and the tool, answering the challenge, commands it again.
+#[test]
+fn a_start_replayed_after_the_node_rebooted_is_challenged_and_starts_nothing() {
+    let flash = TempDir::new("replay-reboot");
+    let c = robot("paint-robot.ron", 1);
+    let mut bed = bring_up(&c, options(medium::Config::default(), Some(&flash)));
+    push_ok(&mut bed, &c);
+    let secret = bed.secret().expect("a secured bed").clone();
+    let (start_role, _) = c.ir.start.clone().expect("a start input");
+    let node = c.ir.roles[start_role].address;
+    let mut monitor = Monitor::join(bed.medium().addr());
+    exact_cycle(&mut bed, &c, 1);
+    let is_start = |psdu: &[u8]| {
+        open_from_tool(&secret, node, psdu).is_some_and(|p| {
+            matches!(
+                Message::parse(&p),
+                Ok(Message::Command {
+                    command: Command::Start,
+                    ..
+                })
+            )
+        })
+    };
+    let captured = monitor
+        .psdus_until(|p| is_start(p))
+        .pop()
+        .expect("captured");
+
+    bed.kill_node(node);
+    bed.start_node(node).unwrap();
+    bed.wait_for_nodes(&[node]).unwrap();
+    let mut raw = RawClient::join(bed.medium().addr(), 0xBEEF).keyed(&secret);
+    raw.send_psdu(&captured);
+    // Asked on the same connection: the answers come after the replay.
+    let after = raw.status(node);
+    assert_eq!(
+        after.states.as_slice(),
+        initial(&c.tables[start_role]).as_slice(),
+        "nothing started"
+    );
+    let report = raw.security(node);
+    assert!(report.counters.challenged >= 2, "{report:?}");
+    assert_eq!(
+        report.counters.replayed, 0,
+        "refused before any floor: challenged"
+    );
+    // The tool answers the node's challenge and commands it again. (A whole cycle right
+    // after the reboot of a subscriber mid-epoch is the event links' matter: the
+    // publisher's numbering goes on where the rebooted receiver starts afresh.)
+    let s = status(&mut bed, node);
+    assert_eq!(
+        s.states.as_slice(),
+        initial(&c.tables[start_role]).as_slice()
+    );
+    assert!(bed.radio().stats.challenges >= 1);
     bed.stop();
 }
 

@@ -424,8 +424,17 @@ impl RawClient {
         let psdu = self.psdu_to(addr, id as u8, &payload(&msg));
         self.send_psdu(&psdu);
         let end = Instant::now() + TIMEOUT;
+        // Asked again until answered, as the tool does (a challenge may be rate-limited).
+        let retry = Duration::from_millis(300);
+        let mut again_at = Instant::now() + retry;
         loop {
-            let got = self.next_frame(end).expect("an answer");
+            let Some(got) = self.next_frame(again_at.min(end)) else {
+                assert!(Instant::now() < end, "an answer");
+                let again = self.psdu_to(addr, id as u8, &payload(&msg));
+                self.send_psdu(&again);
+                again_at = Instant::now() + retry;
+                continue;
+            };
             let got = match &self.keys {
                 Some((secret, _)) => match open_from(secret, &got) {
                     Some(plain) => plain,
