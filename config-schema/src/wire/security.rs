@@ -532,8 +532,16 @@ pub struct Opened<'a> {
 /// `scratch` (`mac::MAX_PAYLOAD` bytes always suffice). Never panics; on any error no
 /// unauthenticated plaintext is left in `scratch`. Replay is the caller's check, on the returned
 /// `aux.frame_counter`, and only once this returned `Ok`.
+pub fn open<'a, F>(psdu: &[u8], lookup: F, scratch: &'a mut [u8]) -> Result<Opened<'a>, SecError>
+where
+    F: FnOnce(&Header, &AuxRepr) -> Option<([u8; KEY_LEN], [u8; 8])>,
+{
+    open_checked(psdu, None, lookup, scratch)
+}
+
 /// [`open`], for a receiver that requires one security level (ours: ENC-MIC-64): a frame
-/// claiming another, weaker or stronger, is refused before any key is looked up.
+/// claiming another, weaker or stronger, is refused as [`SecError::Level`] before any key
+/// is looked up.
 pub fn open_at<'a, F>(
     psdu: &[u8],
     required: SecurityLevel,
@@ -543,41 +551,15 @@ pub fn open_at<'a, F>(
 where
     F: FnOnce(&Header, &AuxRepr) -> Option<([u8; KEY_LEN], [u8; 8])>,
 {
-    open(
-        psdu,
-        |header, aux| {
-            (aux.level == required)
-                .then(|| lookup(header, aux))
-                .flatten()
-        },
-        scratch,
-    )
-    .map_err(|e| match e {
-        // `lookup` declined because of the level: say so.
-        SecError::UnknownKey => {
-            level_of(psdu)
-                .filter(|got| *got != required)
-                .map_or(SecError::UnknownKey, |got| SecError::Level {
-                    got,
-                    required,
-                })
-        }
-        e => e,
-    })
+    open_checked(psdu, Some(required), lookup, scratch)
 }
 
-/// The security level a secured data frame claims, if it has an auxiliary header.
-fn level_of(psdu: &[u8]) -> Option<SecurityLevel> {
-    match Frame::parse(psdu).ok()? {
-        Frame::Data { header, payload } if header.secured => {
-            let view = AuxHeader::new_checked(payload).ok()?;
-            Some(AuxRepr::parse(&view).level)
-        }
-        _ => None,
-    }
-}
-
-pub fn open<'a, F>(psdu: &[u8], lookup: F, scratch: &'a mut [u8]) -> Result<Opened<'a>, SecError>
+fn open_checked<'a, F>(
+    psdu: &[u8],
+    required: Option<SecurityLevel>,
+    lookup: F,
+    scratch: &'a mut [u8],
+) -> Result<Opened<'a>, SecError>
 where
     F: FnOnce(&Header, &AuxRepr) -> Option<([u8; KEY_LEN], [u8; 8])>,
 {
@@ -591,6 +573,12 @@ where
     let view = AuxHeader::new_checked(secured)?;
     let aux = AuxRepr::parse(&view);
     check_aux(&aux)?;
+    if let Some(required) = required.filter(|r| *r != aux.level) {
+        return Err(SecError::Level {
+            got: aux.level,
+            required,
+        });
+    }
     let a_len = DATA_HEADER_LEN + view.header_len();
     let mic_len = aux.level.mic_len();
     let n = secured
