@@ -5,26 +5,10 @@
 
 use node_fw::sim::World;
 use robot_analysis::sim;
-use robot_compiler::{compile, diagram, dump, Compiled, Source};
+use robot_compiler::{diagram, dump, Source};
 
-fn load(path: &str) -> Source {
-    let full = format!("{}/../tests/{path}", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(&full).unwrap_or_else(|e| panic!("{full}: {e}"));
-    Source::new(path, text)
-}
-
-fn build(src: &Source) -> Compiled {
-    match compile(src) {
-        Ok(c) => c,
-        Err(d) => panic!(
-            "{}",
-            d.iter()
-                .map(|d| d.short(src))
-                .collect::<Vec<_>>()
-                .join("\n")
-        ),
-    }
-}
+mod common;
+use common::{build, load};
 
 fn configs() -> Vec<String> {
     let dir = format!("{}/../robot-configs", env!("CARGO_MANIFEST_DIR"));

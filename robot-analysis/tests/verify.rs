@@ -4,24 +4,8 @@
 use robot_analysis::verify::{self, ExploreOptions, Property, Report};
 use robot_compiler::{compile, Compiled, Source};
 
-fn load(path: &str) -> Source {
-    let full = format!("{}/../tests/{path}", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(&full).unwrap_or_else(|e| panic!("{full}: {e}"));
-    Source::new(path, text)
-}
-
-fn build(src: &Source) -> Compiled {
-    match compile(src) {
-        Ok(c) => c,
-        Err(d) => panic!(
-            "{}",
-            d.iter()
-                .map(|d| d.short(src))
-                .collect::<Vec<_>>()
-                .join("\n")
-        ),
-    }
-}
+mod common;
+use common::{build, load};
 
 fn run(c: &Compiled, lossy: bool) -> Report {
     verify::verify(
