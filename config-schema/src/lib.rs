@@ -7,12 +7,14 @@
 //! - [`guard`]: the expression bytecode of guards and assignments.
 //! - [`validate`]: semantic checks of a decoded table.
 //! - [`blob`]: the versioned, CRC-protected envelope, [`encode`] and [`decode`].
+//! - [`link_keys`]: the link key block that follows a blob in a secured transfer.
 #![no_std]
 #![forbid(unsafe_code)]
 
 pub mod blob;
 pub mod guard;
 pub mod limits;
+pub mod link_keys;
 pub mod table;
 pub mod validate;
 pub mod wire;

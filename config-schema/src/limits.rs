@@ -50,8 +50,11 @@ pub const MAX_CHAIN: usize = 32;
 /// Pending events in the interpreter's FIFO before the node faults.
 pub const EVENT_QUEUE: usize = 16;
 
-/// Largest encoded blob (envelope included) a node accepts.
+/// Largest transfer a node accepts and stores: the encoded blob (envelope included) and
+/// the link key block that may follow it.
 pub const MAX_BLOB: usize = 4096;
+/// Largest table blob the compiler makes: room is left for the largest key block.
+pub const MAX_TABLE_BLOB: usize = MAX_BLOB - crate::link_keys::MAX_LEN;
 /// Events processed (queued and delivered) per outside stimulus before the node faults:
 /// bounds a cascade of charts that keep emitting to each other.
 pub const MAX_CASCADE: usize = 64;

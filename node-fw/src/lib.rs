@@ -22,6 +22,7 @@ pub mod host;
 pub mod link;
 pub mod node;
 pub mod ota;
+pub mod peer_security;
 pub mod provision;
 pub mod runtime;
 #[cfg(feature = "std")]

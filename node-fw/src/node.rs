@@ -6,6 +6,7 @@
 //! [`Io`] it asks for, and persists a new table when asked, before the node switches to it.
 
 use config_schema::limits::{MAX_PEERS, MAX_TIMERS};
+use config_schema::link_keys::{decode_deployment, LinkKeys};
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
 use config_schema::wire::msg::{
     Announce, Command, ConfigReply, Counters, Message, Refusal, RuntimeCounters, SecurityCounters,
@@ -14,14 +15,15 @@ use config_schema::wire::msg::{
 use config_schema::wire::security::{
     self, ext_addr,
     replay::{ReplayError, ReplayGuard},
-    AuxRepr, SecError, SecurityLevel,
+    AuxRepr, SecurityLevel,
 };
-use config_schema::{decode, Publication, Table};
+use config_schema::{Publication, Table};
 use heapless::Vec;
 
 use crate::ecc::{Effects, Engine, EngineState, Fault};
 use crate::link::{self, LinkState};
 use crate::ota::{self, Outcome};
+use crate::peer_security::{self, PeerSecurity, Verdict};
 use crate::provision::ManagementKey;
 
 /// Reported in announcements and status.
@@ -107,6 +109,9 @@ pub struct NodeCore {
     challenges: Vec<(u16, u32), MANAGEMENT_SENDERS>,
     /// When the next challenge may be sent.
     next_challenge: u64,
+    /// The link keys of the running table (and the previous one's, for the overlap), the
+    /// peers' replay floors and handshakes.
+    peer_security: PeerSecurity,
 }
 
 /// Why a management frame is not acted on.
@@ -134,6 +139,8 @@ struct Radio<'a> {
     counters: &'a mut Counters,
     /// The management key: frames on the config PAN are secured with it.
     key: Option<&'a ManagementKey>,
+    /// The link keys: frames on the robot's PAN are secured with them, if any.
+    links: &'a PeerSecurity,
     security: &'a mut SecurityCounters,
 }
 
@@ -166,7 +173,18 @@ impl Radio<'_> {
         };
         *self.mac_seq = self.mac_seq.wrapping_add(1);
         let mut psdu = [0u8; MAX_PSDU];
+        let links = pan_id != CONFIG_PAN && self.links.secured();
         let emitted = match self.key.filter(|_| pan_id == CONFIG_PAN) {
+            None if links => {
+                let Some(counter) = counter.or_else(|| io.next_frame_counter()) else {
+                    self.security.no_counter += 1;
+                    return;
+                };
+                // No key for `dst` (not a peer): nothing is sent in clear instead.
+                self.links
+                    .seal(&header, counter, &payload[..n], &mut psdu)
+                    .and_then(Result::ok)
+            }
             Some(key) => {
                 let Some(counter) = counter.or_else(|| io.next_frame_counter()) else {
                     self.security.no_counter += 1;
@@ -254,11 +272,29 @@ impl NodeCore {
             next_open_identify: 0,
             challenges: Vec::new(),
             next_challenge: 0,
+            peer_security: PeerSecurity::default(),
         };
         if let Some(t) = table.filter(|t| t.missing_pin(board_pins).is_none()) {
-            node.install(t);
+            node.install(t, None);
         }
         node
+    }
+
+    /// The node with the link keys its running table came with (from its flash slot):
+    /// its events are secured with them. Keys that do not name exactly the running
+    /// table's peers, for its generation, are not taken (the events stay refused).
+    pub fn with_link_keys(mut self, keys: LinkKeys) -> Self {
+        if let Some(t) = &self.table {
+            if keys.check(t).is_ok() {
+                self.peer_security.install(Some(keys), &t.peers);
+            }
+        }
+        self
+    }
+
+    /// Whether the running table's events are secured (it came with link keys).
+    pub fn links_secured(&self) -> bool {
+        self.peer_security.secured()
     }
 
     /// The node with its management key (provisioned): from now on it accepts on the
@@ -307,7 +343,8 @@ impl NodeCore {
         }
     }
 
-    fn install(&mut self, table: Table) {
+    fn install(&mut self, table: Table, keys: Option<LinkKeys>) {
+        self.peer_security.install(keys, &table.peers);
         let mut engine = Engine::new(&table);
         for (i, input) in table.inputs.iter().enumerate() {
             engine.sense(i as u8, level(self.pins, input.pin));
@@ -432,6 +469,7 @@ impl NodeCore {
                 mac_seq: &mut self.mac_seq,
                 counters: &mut self.counters,
                 key: self.key.as_ref(),
+                links: &self.peer_security,
                 security: &mut self.security,
             },
             io,
@@ -446,6 +484,7 @@ impl NodeCore {
             mac_seq: &mut self.mac_seq,
             counters: &mut self.counters,
             key: self.key.as_ref(),
+            links: &self.peer_security,
             security: &mut self.security,
         };
         radio.send(io, pan, dst, msg);
@@ -485,6 +524,7 @@ impl NodeCore {
                 mac_seq: &mut self.mac_seq,
                 counters: &mut self.counters,
                 key: self.key.as_ref(),
+                links: &self.peer_security,
                 security: &mut self.security,
             };
             for (sender, &dst) in self.senders.iter_mut().zip(table.peers.iter()) {
@@ -574,8 +614,43 @@ impl NodeCore {
                 }
                 Err(Refused::Handshake) => return,
             }
+        } else if header.pan_id != CONFIG_PAN && self.peer_security.secured() {
+            if !header.secured {
+                self.security.not_secured += 1;
+                self.counters.dropped += 1;
+                return;
+            }
+            match self
+                .peer_security
+                .open(psdu, self.addr, now, &mut scratch, &mut self.security)
+            {
+                Verdict::Accept(payload) => (payload, true),
+                Verdict::Dropped => {
+                    self.counters.dropped += 1;
+                    return;
+                }
+                Verdict::Challenge { peer, challenge } => {
+                    if challenge {
+                        self.challenge_peer(peer, io);
+                    }
+                    return;
+                }
+                Verdict::Answer {
+                    peer,
+                    nonce,
+                    answer,
+                } => {
+                    if answer {
+                        let pan = header.pan_id;
+                        self.send(io, pan, peer, &Message::ChallengeAnswer { nonce });
+                    }
+                    return;
+                }
+                Verdict::Answered => return,
+            }
         } else if header.secured {
-            // Secured frames elsewhere (events) come with link keys: not yet.
+            // Secured, and no key for it: an unkeyed node, or a table without link keys.
+            self.security.unknown_key += 1;
             self.counters.dropped += 1;
             return;
         } else {
@@ -627,6 +702,7 @@ impl NodeCore {
                     mac_seq: &mut self.mac_seq,
                     counters: &mut self.counters,
                     key: self.key.as_ref(),
+                    links: &self.peer_security,
                     security: &mut self.security,
                 };
                 sender.on_ack(epoch, next, now, |m| radio.send(io, pan, src, &m));
@@ -677,13 +753,7 @@ impl NodeCore {
         let opened = match opened {
             Ok(o) => o,
             Err(e) => {
-                match e {
-                    SecError::NotSecured => c.not_secured += 1,
-                    SecError::BadMic => c.bad_mic += 1,
-                    SecError::UnknownKey => c.unknown_key += 1,
-                    SecError::Level { .. } | SecError::NoMic => c.wrong_level += 1,
-                    _ => c.malformed += 1,
-                }
+                peer_security::count_refusal(e, c);
                 return Err(Refused::Dropped);
             }
         };
@@ -755,6 +825,7 @@ impl NodeCore {
             mac_seq: &mut self.mac_seq,
             counters: &mut self.counters,
             key: self.key.as_ref(),
+            links: &self.peer_security,
             security: &mut self.security,
         };
         radio.send_numbered(
@@ -764,6 +835,27 @@ impl NodeCore {
             &Message::Challenge { nonce },
             Some(nonce),
         );
+    }
+
+    /// Challenges peer `peer` on the robot's PAN (see [`crate::peer_security`]).
+    fn challenge_peer(&mut self, peer: u16, io: &mut impl Io) {
+        let Some(pan) = self.table.as_ref().map(|t| t.header.pan_id) else {
+            return;
+        };
+        let Some(nonce) = io.next_frame_counter() else {
+            self.security.no_counter += 1;
+            return;
+        };
+        self.peer_security.challenged(peer, nonce);
+        let mut radio = Radio {
+            addr: self.addr,
+            mac_seq: &mut self.mac_seq,
+            counters: &mut self.counters,
+            key: self.key.as_ref(),
+            links: &self.peer_security,
+            security: &mut self.security,
+        };
+        radio.send_numbered(io, pan, peer, &Message::Challenge { nonce }, Some(nonce));
     }
 
     fn peer(&self, addr: u16) -> Option<usize> {
@@ -844,12 +936,12 @@ impl NodeCore {
         };
         let generation = staged.generation;
         // The blob was decoded and validated when it arrived; the buffer has not changed.
-        let table = match decode(self.ota.blob(staged.len)) {
-            Ok(table) if ok => Some(table),
+        let table = match decode_deployment(self.ota.blob(staged.len)) {
+            Ok(deployed) if ok => Some(deployed),
             _ => None,
         };
         let reply = match table {
-            Some(table) => {
+            Some((table, keys)) => {
                 if let Some(old) = &self.table {
                     for o in &old.outputs {
                         io.set_pin(o.pin, o.safe);
@@ -858,7 +950,7 @@ impl NodeCore {
                 for o in &table.outputs {
                     io.set_pin(o.pin, o.safe);
                 }
-                self.install(table);
+                self.install(table, keys);
                 ConfigReply::Activated
             }
             None if ok => ConfigReply::Refused(Refusal::Invalid),

@@ -14,8 +14,8 @@
 //! table decodes and validates, and every pin it names is on the board; a transfer that stops anywhere leaves the old table running.
 
 use config_schema::blob::CRC32;
-use config_schema::decode;
 use config_schema::limits::MAX_BLOB;
+use config_schema::link_keys::decode_deployment;
 use config_schema::wire::msg::{ConfigReply, Message, Refusal, CHUNK_DATA};
 
 /// Chunks the tool keeps in flight.
@@ -204,14 +204,16 @@ impl Receiver {
                     return reply(ConfigReply::Refused(Refusal::Crc));
                 }
                 let board = self.board_pins;
-                match decode(blob) {
-                    Ok(table) if table.generation == generation => match table.missing_pin(board) {
-                        Some(pin) => reply(ConfigReply::Refused(Refusal::Pin { pin, board })),
-                        None => Some(Outcome::Activate {
-                            generation,
-                            len: usize::from(t.len),
-                        }),
-                    },
+                match decode_deployment(blob) {
+                    Ok((table, _)) if table.generation == generation => {
+                        match table.missing_pin(board) {
+                            Some(pin) => reply(ConfigReply::Refused(Refusal::Pin { pin, board })),
+                            None => Some(Outcome::Activate {
+                                generation,
+                                len: usize::from(t.len),
+                            }),
+                        }
+                    }
                     _ => reply(ConfigReply::Refused(Refusal::Invalid)),
                 }
             }

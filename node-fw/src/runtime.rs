@@ -296,7 +296,14 @@ async fn load<F: NorFlash>(
     if let Some(pin) = loaded.as_ref().and_then(|l| l.table.missing_pin(pin_mask)) {
         warn!("node {addr:#06x}: the stored table uses pin {pin}, which this board lacks");
     }
-    let core = NodeCore::new(addr, pin_mask, loaded.map(|l| l.table), epoch);
+    let (table, keys) = match loaded {
+        Some(l) => (Some(l.table), l.keys),
+        None => (None, None),
+    };
+    let mut core = NodeCore::new(addr, pin_mask, table, epoch);
+    if let Some(keys) = keys {
+        core = core.with_link_keys(keys);
+    }
     (core, running)
 }
 

@@ -12,7 +12,8 @@
 //! node always runs the old table or the new one, never a mix.
 
 use config_schema::limits::MAX_BLOB;
-use config_schema::{decode, Table};
+use config_schema::link_keys::{decode_deployment, LinkKeys};
+use config_schema::Table;
 use embedded_storage::nor_flash::{ErrorType, NorFlashError, NorFlashErrorKind};
 use embedded_storage_async::nor_flash::{NorFlash, ReadNorFlash};
 
@@ -47,6 +48,8 @@ pub struct Slots<F> {
 pub struct Loaded {
     pub slot: usize,
     pub table: Table,
+    /// The link keys stored with the table (a secured push), if any.
+    pub keys: Option<LinkKeys>,
 }
 
 fn round_up(n: usize, to: usize) -> usize {
@@ -132,14 +135,14 @@ impl<F: NorFlash> Slots<F> {
             let Some(len) = self.read_blob(slot, &mut buf).await? else {
                 continue;
             };
-            let Ok(table) = decode(&buf[..len]) else {
+            let Ok((table, keys)) = decode_deployment(&buf[..len]) else {
                 continue;
             };
             if best
                 .as_ref()
                 .is_none_or(|b| table.generation > b.table.generation)
             {
-                best = Some(Loaded { slot, table });
+                best = Some(Loaded { slot, table, keys });
             }
         }
         Ok(best)

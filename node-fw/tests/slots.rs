@@ -37,9 +37,23 @@ fn stores_alternate_slots_and_the_newest_boots() {
     let (t1, b1) = blob(1, 5);
     let (t2, b2) = blob(2, 50);
     assert_eq!(block_on(s.store(None, &b1)), Ok(0));
-    assert_eq!(block_on(s.load()), Ok(Some(Loaded { slot: 0, table: t1 })));
+    assert_eq!(
+        block_on(s.load()),
+        Ok(Some(Loaded {
+            slot: 0,
+            table: t1,
+            keys: None
+        }))
+    );
     assert_eq!(block_on(s.store(Some(0), &b2)), Ok(1));
-    assert_eq!(block_on(s.load()), Ok(Some(Loaded { slot: 1, table: t2 })));
+    assert_eq!(
+        block_on(s.load()),
+        Ok(Some(Loaded {
+            slot: 1,
+            table: t2,
+            keys: None
+        }))
+    );
     // The layout: length, then the marker, then the blob.
     let flash = s.into_inner();
     let base = Slots::<Flash>::slot_size();

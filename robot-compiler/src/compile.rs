@@ -1,6 +1,6 @@
 //! The pipeline: source -> checked robot and its IR (`check`) -> tables -> blobs.
 
-use config_schema::{limits::MAX_BLOB, Table};
+use config_schema::{limits::MAX_TABLE_BLOB, Table};
 
 use crate::check::{self, Checked};
 use crate::diag::Diagnostic;
@@ -14,8 +14,8 @@ use crate::source::Source;
 pub enum EncodeError {
     #[error(transparent)]
     Blob(#[from] config_schema::EncodeError),
-    /// Longer than a node can store.
-    #[error("blob of {len} bytes exceeds MAX_BLOB ({MAX_BLOB})")]
+    /// Longer than a node can store with its link keys.
+    #[error("blob of {len} bytes exceeds MAX_TABLE_BLOB ({MAX_TABLE_BLOB})")]
     TooBig { len: usize },
 }
 
@@ -42,11 +42,11 @@ impl Compiled {
     }
 }
 
-/// Encodes a table into a blob (at most `MAX_BLOB` bytes).
+/// Encodes a table into a blob (at most `MAX_TABLE_BLOB` bytes).
 pub fn encode(table: &Table) -> Result<Vec<u8>, EncodeError> {
-    let mut buf = vec![0u8; MAX_BLOB];
+    let mut buf = vec![0u8; config_schema::limits::MAX_BLOB];
     let n = config_schema::encode(table, &mut buf)?;
-    if n > MAX_BLOB {
+    if n > MAX_TABLE_BLOB {
         return Err(EncodeError::TooBig { len: n });
     }
     buf.truncate(n);

@@ -16,6 +16,7 @@
 //! The labels hold no 0x00 and every field after it has a fixed width, so no two inputs
 //! share an `info`. HKDF is one-way: a key reveals neither the secret nor another key.
 
+use config_schema::link_keys::{LinkKeys, PeerKeys};
 use hkdf::Hkdf;
 use sha2::Sha256;
 
@@ -43,6 +44,31 @@ pub fn link_key(secret: &MachineSecret, generation: u32, sender: u16, receiver: 
             &receiver.to_be_bytes(),
         ],
     )
+}
+
+/// The link key block of node `node` for a table of `generation` with `peers`: per peer the
+/// key `node` sends under and the key it opens the peer's frames with. `None` if there are
+/// more peers than a table may have.
+pub fn link_keys(
+    secret: &MachineSecret,
+    generation: u32,
+    node: u16,
+    peers: &[u16],
+) -> Option<LinkKeys> {
+    let mut keys = LinkKeys {
+        generation,
+        peers: Default::default(),
+    };
+    for &peer in peers {
+        keys.peers
+            .push(PeerKeys {
+                peer,
+                send: *link_key(secret, generation, node, peer).expose(),
+                receive: *link_key(secret, generation, peer, node).expose(),
+            })
+            .ok()?;
+    }
+    Some(keys)
 }
 
 fn expand(secret: &MachineSecret, info: &[&[u8]]) -> Key {

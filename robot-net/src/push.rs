@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 use std::io;
 use std::time::{Duration, Instant};
 
+use config_schema::link_keys;
 use config_schema::wire::mac::BROADCAST;
 use config_schema::wire::msg::{Announce, Command, Message, Status};
 use node_fw::ota::{Progress, Sender, TransferStats};
@@ -28,6 +29,8 @@ pub struct Pushed {
     pub progress: Progress,
     pub stats: TransferStats,
     pub bytes: usize,
+    /// Bytes of the link key block sent after the table (0: unsecured).
+    pub key_bytes: usize,
     pub elapsed: Duration,
 }
 
@@ -55,9 +58,11 @@ pub fn push(
 ) -> io::Result<Vec<Pushed>> {
     let start = Instant::now();
     let now_ms = || start.elapsed().as_millis() as u64;
-    let mut senders: Vec<Sender> = targets
+    let transfers: Vec<Vec<u8>> = targets.iter().map(|t| transfer(radio, t)).collect();
+    let mut senders: Vec<Sender> = transfers
         .iter()
-        .map(|t| Sender::new(&t.blob, t.generation, force))
+        .zip(targets)
+        .map(|(bytes, t)| Sender::new(bytes, t.generation, force))
         .collect();
     let mut finished: Vec<Option<Duration>> = vec![None; targets.len()];
     let mut out: Vec<(u16, Message)> = Vec::new();
@@ -99,7 +104,7 @@ pub fn push(
                 for (i, (s, t)) in senders.iter_mut().zip(targets).enumerate() {
                     if t.addr == r.src {
                         s.on_reply(generation, reply, now_ms(), |m| out.push((t.addr, m)));
-                        progress(i, s.acked(), t.blob.len());
+                        progress(i, s.acked(), transfers[i].len());
                     }
                 }
             }
@@ -111,17 +116,35 @@ pub fn push(
     }
     Ok(senders
         .iter()
-        .zip(targets)
+        .zip(targets.iter().zip(&transfers))
         .zip(finished)
-        .map(|((s, t), f)| Pushed {
+        .map(|((s, (t, bytes)), f)| Pushed {
             role: t.role.clone(),
             addr: t.addr,
             progress: s.progress(),
             stats: s.stats(),
             bytes: t.blob.len(),
+            key_bytes: bytes.len() - t.blob.len(),
             elapsed: f.unwrap_or_else(|| start.elapsed()),
         })
         .collect())
+}
+
+/// What goes over the air for `t`: its blob, then, when the radio is secured, the node's
+/// link key block for the table's peers (`config_schema::link_keys`), inside the secured
+/// transfer. A blob that does not decode goes alone (the node refuses it anyway).
+fn transfer(radio: &ToolRadio, t: &Target) -> Vec<u8> {
+    let mut bytes = t.blob.clone();
+    let keys = config_schema::decode(&t.blob)
+        .ok()
+        .and_then(|table| radio.link_keys(table.generation, t.addr, &table.peers));
+    if let Some(keys) = keys {
+        let mut block = [0u8; link_keys::MAX_LEN];
+        if let Some(n) = keys.encode(&mut block) {
+            bytes.extend_from_slice(&block[..n]);
+        }
+    }
+    bytes
 }
 
 /// Command ids: start somewhere new in every run (a node remembers the last id it ran

@@ -111,6 +111,18 @@ impl ToolRadio {
         });
     }
 
+    /// The link keys of `node` for a table of `generation` with `peers`, derived from the
+    /// machine secret; `None` when the radio is not secured.
+    pub fn link_keys(
+        &self,
+        generation: u32,
+        node: u16,
+        peers: &[u16],
+    ) -> Option<config_schema::link_keys::LinkKeys> {
+        let keys = self.keys.as_ref()?;
+        robot_keys::link_keys(&keys.secret, generation, node, peers)
+    }
+
     /// Whether the radio secures its frames.
     pub fn secured(&self) -> bool {
         self.keys.is_some()

@@ -11,12 +11,14 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use config_schema::wire::mac::Frame;
+use config_schema::wire::mac::{Frame, MAX_PAYLOAD};
 use config_schema::wire::medium::{Link, Peer};
 use config_schema::wire::msg::Message;
 
 use medium::Conn;
 use robot_compiler::compile::Compiled;
+
+use crate::keyring::Keyring;
 
 /// Something the monitor saw, at `at` on the medium's clock.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -65,6 +67,7 @@ impl Watch {
         medium: SocketAddr,
         clock: Instant,
         faults: HashMap<(u16, u8), String>,
+        keys: Option<Keyring>,
         out: Sender<Seen>,
     ) -> io::Result<Watch> {
         let mut conn = Conn::join(medium, Peer::Monitor)?;
@@ -75,7 +78,7 @@ impl Watch {
             .spawn(move || {
                 while !flag.load(Ordering::Relaxed) {
                     let until = Instant::now() + Duration::from_millis(100);
-                    let seen = conn.recv(until, |link| seen(&link, clock, &faults))?;
+                    let seen = conn.recv(until, |link| seen(&link, clock, &faults, keys.as_ref()))?;
                     if let Some(s) = seen {
                         if out.send(s).is_err() {
                             break;
@@ -101,7 +104,13 @@ impl Drop for Watch {
 }
 
 /// What one medium message says, if it is worth reporting.
-fn seen(link: &Link, clock: Instant, faults: &HashMap<(u16, u8), String>) -> Option<Seen> {
+/// A secured frame is read with `keys` (the machine's events are secured).
+fn seen(
+    link: &Link,
+    clock: Instant,
+    faults: &HashMap<(u16, u8), String>,
+    keys: Option<&Keyring>,
+) -> Option<Seen> {
     if let Some((at_us, addr, pin, level)) = link.output_seen() {
         return Some(Seen::Output {
             at: Duration::from_micros(at_us),
@@ -114,6 +123,12 @@ fn seen(link: &Link, clock: Instant, faults: &HashMap<(u16, u8), String>) -> Opt
         Link::Frame(psdu) => {
             let Ok(Frame::Data { header, payload }) = Frame::parse(psdu) else {
                 return None;
+            };
+            let mut scratch = [0u8; MAX_PAYLOAD];
+            let payload = match (header.secured, keys) {
+                (false, _) => payload,
+                (true, Some(k)) => k.open(psdu, &mut scratch).ok()?.payload,
+                (true, None) => return None,
             };
             let Ok(Message::Event { topic, .. }) = Message::parse(payload) else {
                 return None;

@@ -47,6 +47,12 @@ pub const DEFAULT_OVERHEAD: usize = AUX_LEN_KEY_INDEX + 8;
 /// Largest payload of a default-secured data frame.
 pub const MAX_SECURED_PAYLOAD: usize = mac::MAX_PAYLOAD - DEFAULT_OVERHEAD;
 
+/// The key index of the link keys of tables of `generation`: 1 to 255 (0 is the
+/// management key), so two consecutive generations never share an index.
+pub const fn link_key_index(generation: u32) -> u8 {
+    (generation % 255) as u8 + 1
+}
+
 /// The security level (security control bits 0-2): what a frame's MIC and encryption are.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
 pub enum SecurityLevel {

@@ -7,8 +7,12 @@ use crate::push;
 
 /// A one-line summary of a push.
 pub fn push_line(o: &push::Pushed) -> String {
+    let keys = match o.key_bytes {
+        0 => String::new(),
+        n => format!(" + {n} of keys"),
+    };
     format!(
-        "  {:<6} {:#06x}  {:>5} bytes  {:>3} frames  {:>3} retries  {:>6.1} ms  {}",
+        "  {:<6} {:#06x}  {:>5} bytes{keys}  {:>3} frames  {:>3} retries  {:>6.1} ms  {}",
         o.role,
         o.addr,
         o.bytes,
@@ -166,6 +170,7 @@ mod tests {
                 bytes: 274,
             },
             bytes: 274,
+            key_bytes: 0,
             elapsed: Duration::from_micros(46_100),
         };
         assert_eq!(
@@ -175,8 +180,14 @@ mod tests {
         );
         let done = push::Pushed {
             progress: Progress::Done,
+            key_bytes: 81,
             ..o
         };
         assert_eq!(done.verdict(), "activated");
+        assert_eq!(
+            push_line(&done),
+            "  VC     0x0011    274 bytes + 81 of keys    5 frames    0 retries    46.1 ms  \
+             activated"
+        );
     }
 }

@@ -1,0 +1,484 @@
+//! Frame security between peers: the link keys a node's table came with, which key opens a
+//! peer's frame, the replay floor of every peer, and the freshness handshake after a boot.
+//!
+//! A node whose running table came with a key block ([`LinkKeys`]) secures every frame it
+//! sends on the robot's PAN (events, acknowledgements, challenges) at ENC-MIC-64 under its
+//! send key for that peer, key index [`link_key_index`] of the table's generation, and
+//! takes there only frames secured so by a peer under that peer's key. Without a key block
+//! (an explicitly unsecured robot, or a node never pushed keys) frames stay unsecured.
+//!
+//! **Overlap.** When a new generation runs, the previous generation's receive keys are
+//! kept: a peer that has not switched yet still reaches this node, until that peer is
+//! heard under the new key (it switched: its old-key frames are replays or forgeries from
+//! then on) or [`OVERLAP_MS`] after the switch, whichever comes first. A node only sends
+//! under its running generation's keys; a peer still on the old generation cannot open
+//! them and the link layer resends until it switches. So a switch-over loses no event.
+//!
+//! **Replay.** Every sender's frame counter is one per device and strictly increasing
+//! across all its keys, so the floor is per peer, kept across generations. After a boot
+//! the node knows no floor: an authentic frame from a peer without one is not acted on;
+//! the node sends that peer `Challenge { nonce }` (the challenge frame's own counter) and
+//! takes the counter of the peer's `ChallengeAnswer` with that nonce as the floor. A peer
+//! answers a challenge even if it has no floor for the challenger itself (answering takes
+//! nothing in; with a floor, a replayed challenge is refused like any replay), at most
+//! once per [`HANDSHAKE_MS`] per peer, as it challenges.
+
+use config_schema::limits::MAX_PEERS;
+use config_schema::link_keys::LinkKeys;
+use config_schema::wire::mac::Header;
+use config_schema::wire::msg::{Message, SecurityCounters};
+use config_schema::wire::security::{
+    self, ext_addr, link_key_index,
+    replay::{ReplayError, ReplayGuard},
+    AuxRepr, Opened, SecError, SecurityLevel, KEY_LEN,
+};
+use heapless::Vec;
+
+/// How long after a switch the previous generation's keys still open a peer's frames.
+pub const OVERLAP_MS: u64 = 10_000;
+/// At most one challenge, and one answer, per peer per this many ms (each spends a frame
+/// counter: a flood of replays must not use it up).
+pub const HANDSHAKE_MS: u64 = 50;
+
+/// The replay guard's key index for every link key: a peer's counter is one per device,
+/// so its floor holds whatever key it used.
+const ANY_LINK_KEY: u8 = 1;
+
+/// What became of a frame from a peer.
+#[derive(Debug)]
+pub enum Verdict<'s> {
+    /// Authentic and fresh: act on it.
+    Accept(&'s [u8]),
+    /// Authentic, but this node knows no floor for the peer yet: challenge it (if
+    /// `challenge` is set; else the last challenge is too recent). Not acted on.
+    Challenge { peer: u16, challenge: bool },
+    /// Authentic: the peer asks this node to prove freshness; answer it with `nonce` (if
+    /// `answer`: at most once per [`HANDSHAKE_MS`]).
+    Answer { peer: u16, nonce: u32, answer: bool },
+    /// The answer to this node's challenge: the peer's floor is set. Nothing else to do.
+    Answered,
+    /// Refused; counted by its reason.
+    Dropped,
+}
+
+/// A node's peer security state.
+#[derive(Debug, Default)]
+pub struct PeerSecurity {
+    current: Option<LinkKeys>,
+    previous: Option<LinkKeys>,
+    /// Peers heard under the current keys (their previous-generation frames are refused).
+    switched: Vec<u16, MAX_PEERS>,
+    /// Until when the previous keys open anything (from the first frame after the switch).
+    overlap_until: Option<u64>,
+    replay: ReplayGuard<MAX_PEERS>,
+    /// Challenges sent and not answered: (peer, nonce).
+    challenges: Vec<(u16, u32), MAX_PEERS>,
+    /// Per peer: when it may be challenged, and answered, again.
+    next_challenge: Vec<(u16, u64), MAX_PEERS>,
+    next_answer: Vec<(u16, u64), MAX_PEERS>,
+}
+
+fn may(times: &mut Vec<(u16, u64), MAX_PEERS>, peer: u16, now: u64) -> bool {
+    match times.iter_mut().find(|(p, _)| *p == peer) {
+        Some((_, next)) if now < *next => false,
+        Some((_, next)) => {
+            *next = now + HANDSHAKE_MS;
+            true
+        }
+        None => {
+            if times.is_full() {
+                times.remove(0);
+            }
+            let _ = times.push((peer, now + HANDSHAKE_MS));
+            true
+        }
+    }
+}
+
+impl PeerSecurity {
+    /// Whether the running table came with link keys (its events are secured).
+    pub fn secured(&self) -> bool {
+        self.current.is_some()
+    }
+
+    /// The running table's keys.
+    pub fn current(&self) -> Option<&LinkKeys> {
+        self.current.as_ref()
+    }
+
+    /// A new table runs, with `keys` (or none) for its `peers`. The previous
+    /// generation's keys stay for the overlap (unless they share its key index); floors of
+    /// nodes that are no longer peers are forgotten (a peer again later is challenged).
+    pub fn install(&mut self, keys: Option<LinkKeys>, peers: &[u16]) {
+        let old = self.current.take();
+        self.previous = match (&old, &keys) {
+            (Some(o), Some(n)) if link_key_index(o.generation) == link_key_index(n.generation) => {
+                None
+            }
+            _ => old,
+        };
+        self.current = keys;
+        self.switched.clear();
+        self.overlap_until = None;
+        let mut floors = ReplayGuard::new();
+        for e in self.replay.iter().filter(|e| peers.contains(&e.sender)) {
+            // As many entries as before, at most: there is room.
+            let _ = floors.check_and_accept(e.sender, e.key_index, e.last);
+        }
+        self.replay = floors;
+        self.challenges.retain(|(p, _)| peers.contains(p));
+    }
+
+    /// Secures `payload` to `dst` under the send key of the running generation; `None` if
+    /// there is no key for `dst`.
+    pub fn seal(
+        &self,
+        header: &Header,
+        counter: u32,
+        payload: &[u8],
+        out: &mut [u8],
+    ) -> Option<Result<usize, SecError>> {
+        let keys = self.current.as_ref()?;
+        let send = keys.of(header.dst)?.send;
+        let aux = AuxRepr::new(link_key_index(keys.generation), counter);
+        Some(security::secure(
+            header,
+            &aux,
+            &send,
+            ext_addr(header.pan_id, header.src),
+            payload,
+            out,
+        ))
+    }
+
+    /// The receive key for a frame from `src` under `key_index`, at `now`.
+    fn key_for(&self, src: u16, key_index: u8, now: u64) -> Option<[u8; KEY_LEN]> {
+        if let Some(k) = self
+            .current
+            .as_ref()
+            .filter(|k| link_key_index(k.generation) == key_index)
+        {
+            return k.of(src).map(|p| p.receive);
+        }
+        let overlap = self.overlap_until.is_some_and(|t| now < t) && !self.switched.contains(&src);
+        self.previous
+            .as_ref()
+            .filter(|k| overlap && link_key_index(k.generation) == key_index)
+            .and_then(|k| k.of(src))
+            .map(|p| p.receive)
+    }
+
+    /// Opens a secured frame from a peer (`me`: this node's address, never a sender),
+    /// checks its counter, and runs the handshake. Every refusal is counted.
+    pub fn open<'s>(
+        &mut self,
+        psdu: &[u8],
+        me: u16,
+        now: u64,
+        scratch: &'s mut [u8],
+        counters: &mut SecurityCounters,
+    ) -> Verdict<'s> {
+        self.overlap_until.get_or_insert(now + OVERLAP_MS);
+        let opened = security::open_at(
+            psdu,
+            SecurityLevel::EncMic64,
+            |header, aux| {
+                let index = aux.key_id.index()?;
+                if header.src == me {
+                    return None;
+                }
+                self.key_for(header.src, index, now)
+                    .map(|k| (k, ext_addr(header.pan_id, header.src)))
+            },
+            scratch,
+        );
+        let Opened {
+            header,
+            aux,
+            payload,
+        } = match opened {
+            Ok(o) => o,
+            Err(e) => {
+                count_refusal(e, counters);
+                return Verdict::Dropped;
+            }
+        };
+        let src = header.src;
+        let current = self
+            .current
+            .as_ref()
+            .is_some_and(|k| aux.key_id.index() == Some(link_key_index(k.generation)));
+        let message = Message::parse(payload);
+        let floor = self.replay.last(src, ANY_LINK_KEY);
+        if let (None, Ok(Message::Challenge { nonce })) = (floor, &message) {
+            // Answering takes nothing in: no floor needed (the peer rebooted, or both did).
+            let answer = may(&mut self.next_answer, src, now);
+            return Verdict::Answer {
+                peer: src,
+                nonce: *nonce,
+                answer,
+            };
+        }
+        if floor.is_none() {
+            let pending = self.challenges.iter().position(|(p, _)| *p == src);
+            let answered = match (pending, &message) {
+                (Some(i), Ok(Message::ChallengeAnswer { nonce })) => {
+                    self.challenges.get(i).is_some_and(|p| p.1 == *nonce)
+                }
+                _ => false,
+            };
+            if answered {
+                self.challenges.retain(|(p, _)| *p != src);
+                if self
+                    .replay
+                    .check_and_accept(src, ANY_LINK_KEY, aux.frame_counter)
+                    .is_err()
+                {
+                    counters.table_full += 1;
+                }
+                return Verdict::Answered;
+            }
+            counters.challenged += 1;
+            let challenge = may(&mut self.next_challenge, src, now);
+            return Verdict::Challenge {
+                peer: src,
+                challenge,
+            };
+        }
+        match self
+            .replay
+            .check_and_accept(src, ANY_LINK_KEY, aux.frame_counter)
+        {
+            Ok(()) => {
+                if current && !self.switched.contains(&src) {
+                    let _ = self.switched.push(src);
+                }
+                match message {
+                    Ok(Message::Challenge { nonce }) => Verdict::Answer {
+                        peer: src,
+                        nonce,
+                        answer: may(&mut self.next_answer, src, now),
+                    },
+                    _ => Verdict::Accept(payload),
+                }
+            }
+            Err(ReplayError::Replayed { .. }) => {
+                counters.replayed += 1;
+                Verdict::Dropped
+            }
+            Err(ReplayError::Full) => {
+                counters.table_full += 1;
+                Verdict::Dropped
+            }
+        }
+    }
+
+    /// This node challenged `peer` with `nonce` (the challenge frame's own counter).
+    pub fn challenged(&mut self, peer: u16, nonce: u32) {
+        match self.challenges.iter_mut().find(|(p, _)| *p == peer) {
+            Some(c) => c.1 = nonce,
+            None => {
+                if self.challenges.is_full() {
+                    self.challenges.remove(0);
+                }
+                let _ = self.challenges.push((peer, nonce));
+            }
+        }
+    }
+}
+
+/// Counts why a secured frame did not open.
+pub fn count_refusal(e: SecError, c: &mut SecurityCounters) {
+    match e {
+        SecError::NotSecured => c.not_secured += 1,
+        SecError::BadMic => c.bad_mic += 1,
+        SecError::UnknownKey => c.unknown_key += 1,
+        SecError::Level { .. } | SecError::NoMic => c.wrong_level += 1,
+        _ => c.malformed += 1,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use config_schema::link_keys::PeerKeys;
+    use config_schema::wire::mac::{MAX_PAYLOAD, MAX_PSDU};
+
+    const ME: u16 = 2;
+    const PEER: u16 = 1;
+    const PAN: u16 = 0x4242;
+
+    fn key(generation: u32, from: u16) -> [u8; 16] {
+        [generation as u8 * 16 + from as u8; 16]
+    }
+
+    fn keys(generation: u32) -> LinkKeys {
+        let mut k = LinkKeys {
+            generation,
+            peers: Vec::new(),
+        };
+        k.peers
+            .push(PeerKeys {
+                peer: PEER,
+                send: key(generation, ME),
+                receive: key(generation, PEER),
+            })
+            .unwrap();
+        k
+    }
+
+    /// A frame from PEER under generation `generation`'s key.
+    fn frame(generation: u32, counter: u32, msg: &Message) -> heapless::Vec<u8, MAX_PSDU> {
+        let mut payload = [0u8; MAX_PAYLOAD];
+        let n = msg.emit(&mut payload).unwrap();
+        let header = Header {
+            seq: 0,
+            pan_id: PAN,
+            dst: ME,
+            src: PEER,
+            ack_request: false,
+            secured: false,
+        };
+        let mut out = [0u8; MAX_PSDU];
+        let len = security::secure(
+            &header,
+            &AuxRepr::new(link_key_index(generation), counter),
+            &key(generation, PEER),
+            ext_addr(PAN, PEER),
+            &payload[..n],
+            &mut out,
+        )
+        .unwrap();
+        heapless::Vec::from_slice(&out[..len]).unwrap()
+    }
+
+    const EVENT: Message<'static> = Message::Event {
+        epoch: 1,
+        seq: 0,
+        topic: 3,
+    };
+
+    fn verdict(
+        s: &mut PeerSecurity,
+        psdu: &[u8],
+        now: u64,
+        c: &mut SecurityCounters,
+    ) -> &'static str {
+        let mut scratch = [0u8; MAX_PAYLOAD];
+        match s.open(psdu, ME, now, &mut scratch, c) {
+            Verdict::Accept(_) => "accept",
+            Verdict::Challenge { .. } => "challenge",
+            Verdict::Answer { .. } => "answer",
+            Verdict::Answered => "answered",
+            Verdict::Dropped => "dropped",
+        }
+    }
+
+    /// Generation 1 running, PEER's floor at 10.
+    fn running() -> (PeerSecurity, SecurityCounters) {
+        let mut s = PeerSecurity::default();
+        let mut c = SecurityCounters::default();
+        s.install(Some(keys(1)), &[PEER]);
+        assert_eq!(
+            verdict(&mut s, &frame(1, 9, &EVENT), 0, &mut c),
+            "challenge"
+        );
+        s.challenged(PEER, 77);
+        let answer = Message::ChallengeAnswer { nonce: 77 };
+        assert_eq!(
+            verdict(&mut s, &frame(1, 10, &answer), 0, &mut c),
+            "answered"
+        );
+        (s, c)
+    }
+
+    #[test]
+    fn the_previous_generation_opens_until_the_peer_is_heard_under_the_new_one() {
+        let (mut s, mut c) = running();
+        s.install(Some(keys(2)), &[PEER]);
+        assert_eq!(
+            verdict(&mut s, &frame(1, 11, &EVENT), 100, &mut c),
+            "accept"
+        );
+        assert_eq!(
+            verdict(&mut s, &frame(2, 12, &EVENT), 200, &mut c),
+            "accept"
+        );
+        // PEER switched: its generation-1 frames are refused from now on.
+        assert_eq!(
+            verdict(&mut s, &frame(1, 13, &EVENT), 300, &mut c),
+            "dropped"
+        );
+        assert_eq!(c.unknown_key, 1);
+        // The floor held across the switch: a counter below it is a replay.
+        assert_eq!(
+            verdict(&mut s, &frame(2, 12, &EVENT), 400, &mut c),
+            "dropped"
+        );
+        assert_eq!(c.replayed, 1);
+    }
+
+    #[test]
+    fn the_previous_generation_opens_for_the_overlap_only() {
+        let (mut s, mut c) = running();
+        s.install(Some(keys(2)), &[PEER]);
+        assert_eq!(
+            verdict(&mut s, &frame(1, 11, &EVENT), 1_000, &mut c),
+            "accept"
+        );
+        let late = 1_000 + OVERLAP_MS;
+        assert_eq!(
+            verdict(&mut s, &frame(1, 12, &EVENT), late, &mut c),
+            "dropped"
+        );
+        assert_eq!(c.unknown_key, 1);
+        // Two generations back is never open.
+        s.install(Some(keys(3)), &[PEER]);
+        assert_eq!(
+            verdict(&mut s, &frame(1, 13, &EVENT), late, &mut c),
+            "dropped"
+        );
+        assert_eq!(c.unknown_key, 2);
+    }
+
+    #[test]
+    fn a_node_that_is_no_longer_a_peer_is_forgotten_and_challenged_again() {
+        let (mut s, mut c) = running();
+        s.install(Some(keys(2)), &[]);
+        s.install(Some(keys(3)), &[PEER]);
+        assert_eq!(
+            verdict(&mut s, &frame(3, 11, &EVENT), 0, &mut c),
+            "challenge"
+        );
+    }
+
+    #[test]
+    fn challenges_are_answered_without_a_floor_and_replayed_ones_are_not() {
+        let mut s = PeerSecurity::default();
+        let mut c = SecurityCounters::default();
+        s.install(Some(keys(1)), &[PEER]);
+        let ch = Message::Challenge { nonce: 5 };
+        assert_eq!(verdict(&mut s, &frame(1, 3, &ch), 0, &mut c), "answer");
+        let (mut s, mut c) = running();
+        assert_eq!(verdict(&mut s, &frame(1, 3, &ch), 0, &mut c), "dropped");
+        assert_eq!(c.replayed, 1);
+        assert_eq!(verdict(&mut s, &frame(1, 30, &ch), 0, &mut c), "answer");
+    }
+
+    #[test]
+    fn a_wrong_nonce_does_not_set_the_floor() {
+        let mut s = PeerSecurity::default();
+        let mut c = SecurityCounters::default();
+        s.install(Some(keys(1)), &[PEER]);
+        s.challenged(PEER, 77);
+        let wrong = Message::ChallengeAnswer { nonce: 78 };
+        assert_eq!(
+            verdict(&mut s, &frame(1, 10, &wrong), 0, &mut c),
+            "challenge"
+        );
+        assert_eq!(
+            verdict(&mut s, &frame(1, 11, &EVENT), 0, &mut c),
+            "challenge"
+        );
+    }
+}

@@ -1,0 +1,420 @@
+//! Events between nodes whose tables came with link keys: secured at ENC-MIC-64 under the
+//! sender's key for that peer; a receiver takes only those, fresh, and challenges a peer it
+//! knows no counter of (after its boot). Forged, damaged, replayed, unsecured frames and
+//! frames under another generation's or another node's key move nothing and are counted.
+
+use config_schema::link_keys::{LinkKeys, PeerKeys};
+use config_schema::wire::mac::{self, Frame, Header, MAX_PAYLOAD, MAX_PSDU};
+use config_schema::wire::msg::{Message, SecurityCounters};
+use config_schema::wire::security::{self, ext_addr, link_key_index, AuxRepr};
+use config_schema::{Action, Output, Publication, Subscription, Table};
+use node_fw::node::{Io, NodeCore};
+use test_tables::{button, toggle};
+
+const A: u16 = 0x0001;
+const B: u16 = 0x0002;
+const C: u16 = 0x0003;
+const PAN: u16 = 0x4242;
+const BUTTON_PIN: u8 = 5;
+const LAMP_PIN: u8 = 7;
+const GENERATION: u32 = 1;
+
+/// The key of `from`'s frames to `to` (what the tool would derive), by pair.
+fn key(from: u16, to: u16) -> [u8; 16] {
+    [(from as u8) << 4 | to as u8; 16]
+}
+
+fn keys(node: u16, peers: &[u16], generation: u32) -> LinkKeys {
+    let mut k = LinkKeys {
+        generation,
+        peers: Default::default(),
+    };
+    for &peer in peers {
+        k.peers
+            .push(PeerKeys {
+                peer,
+                send: key(node, peer),
+                receive: key(peer, node),
+            })
+            .unwrap();
+    }
+    k
+}
+
+/// A: a button whose press is published to B.
+fn table_a() -> Table {
+    let mut t = Table::empty("A");
+    t.generation = GENERATION;
+    t.header.pan_id = PAN;
+    let press = button(&mut t, BUTTON_PIN);
+    t.peers.push(B).unwrap();
+    t.publications
+        .push(Publication {
+            event: press,
+            topic: 3,
+            subscribers: 0b1,
+        })
+        .unwrap();
+    t
+}
+
+/// B: a lamp toggled by every press published by A (or by C, its other peer).
+fn table_b() -> Table {
+    let mut t = Table::empty("B");
+    t.generation = GENERATION;
+    t.header.pan_id = PAN;
+    let press = t.push_event().unwrap();
+    t.outputs
+        .push(Output {
+            pin: LAMP_PIN,
+            safe: false,
+        })
+        .unwrap();
+    t.peers.push(A).unwrap();
+    t.peers.push(C).unwrap();
+    for publisher in 0..2 {
+        t.subscriptions
+            .push(Subscription {
+                publisher,
+                topic: 3,
+                event: press,
+            })
+            .unwrap();
+    }
+    toggle(&mut t, press, &[Action::Drive { mask: 1, value: 1 }]);
+    t
+}
+
+/// A node's outside: what it sent, its lamp, its frame counter (persisted ahead: a reboot
+/// keeps counting from where it was).
+#[derive(Default)]
+struct Board {
+    out: Vec<Vec<u8>>,
+    lamp: Vec<bool>,
+    counter: u32,
+}
+
+impl Io for Board {
+    fn transmit(&mut self, psdu: &[u8]) {
+        self.out.push(psdu.to_vec());
+    }
+    fn set_pin(&mut self, pin: u8, level: bool) {
+        if pin == LAMP_PIN {
+            self.lamp.push(level);
+        }
+    }
+    fn next_frame_counter(&mut self) -> Option<u32> {
+        self.counter += 1;
+        Some(self.counter)
+    }
+}
+
+fn node_a() -> NodeCore {
+    NodeCore::new(A, u64::MAX, Some(table_a()), 1).with_link_keys(keys(A, &[B], GENERATION))
+}
+
+fn node_b() -> NodeCore {
+    NodeCore::new(B, u64::MAX, Some(table_b()), 1).with_link_keys(keys(B, &[A, C], GENERATION))
+}
+
+/// A and B on a perfect radio; every frame on the air is recorded.
+struct Net {
+    a: (NodeCore, Board),
+    b: (NodeCore, Board),
+    now: u64,
+    /// (src, dst, message kind) of every frame, opened with the pair's key.
+    trace: Vec<(u16, u16, &'static str)>,
+    air: Vec<Vec<u8>>,
+}
+
+fn kind(m: &Message) -> &'static str {
+    match m {
+        Message::Event { .. } => "Event",
+        Message::EventAck { .. } => "EventAck",
+        Message::Challenge { .. } => "Challenge",
+        Message::ChallengeAnswer { .. } => "ChallengeAnswer",
+        _ => "other",
+    }
+}
+
+/// Opens a frame on the robot's PAN with the pair's key (as the receiver would).
+fn open(psdu: &[u8]) -> (Header, AuxRepr, Vec<u8>) {
+    let mut scratch = [0u8; MAX_PAYLOAD];
+    let o = security::open(
+        psdu,
+        |h, _| Some((key(h.src, h.dst), ext_addr(h.pan_id, h.src))),
+        &mut scratch,
+    )
+    .expect("every frame between the nodes is secured under the pair's key");
+    (o.header, o.aux, o.payload.to_vec())
+}
+
+impl Net {
+    fn new() -> Net {
+        Net {
+            a: (node_a(), Board::default()),
+            b: (node_b(), Board::default()),
+            now: 0,
+            trace: Vec::new(),
+            air: Vec::new(),
+        }
+    }
+
+    /// Delivers every frame sent until none is left, advancing 1 ms per round and
+    /// polling the nodes (retransmissions), for `ms` milliseconds.
+    fn run(&mut self, ms: u64) {
+        let end = self.now + ms;
+        while self.now < end {
+            self.now += 1;
+            self.a.0.poll(self.now, &mut self.a.1);
+            self.b.0.poll(self.now, &mut self.b.1);
+            let mut frames = std::mem::take(&mut self.a.1.out);
+            frames.append(&mut self.b.1.out);
+            for f in frames {
+                self.deliver(&f);
+            }
+        }
+    }
+
+    fn deliver(&mut self, psdu: &[u8]) {
+        let (h, aux, payload) = open(psdu);
+        assert_eq!(
+            (aux.key_id.index(), h.pan_id),
+            (Some(link_key_index(GENERATION)), PAN)
+        );
+        let m = Message::parse(&payload).unwrap();
+        self.trace.push((h.src, h.dst, kind(&m)));
+        self.air.push(psdu.to_vec());
+        match h.dst {
+            A => self.a.0.receive(psdu, self.now, &mut self.a.1),
+            B => self.b.0.receive(psdu, self.now, &mut self.b.1),
+            _ => {}
+        }
+    }
+
+    fn press(&mut self) {
+        self.a.0.input(BUTTON_PIN, true, self.now, &mut self.a.1);
+        self.a.0.input(BUTTON_PIN, false, self.now, &mut self.a.1);
+    }
+
+    /// A's first press, through both handshakes: the lamp is on, and both know the
+    /// other's counter.
+    fn established() -> Net {
+        let mut net = Net::new();
+        net.press();
+        net.run(400);
+        assert_eq!(net.b.1.lamp, [true]);
+        net.trace.clear();
+        net.air.clear();
+        net
+    }
+
+    /// Injects a frame at B (an attacker on the air).
+    fn inject(&mut self, psdu: &[u8]) {
+        self.b.0.receive(psdu, self.now, &mut self.b.1);
+        self.run(200);
+    }
+}
+
+/// A frame from `src` to B secured with `key` under `key_index` at `counter`.
+fn forged(src: u16, key: [u8; 16], key_index: u8, counter: u32, msg: &Message) -> Vec<u8> {
+    let mut payload = [0u8; MAX_PAYLOAD];
+    let n = msg.emit(&mut payload).unwrap();
+    let header = Header {
+        seq: 0,
+        pan_id: PAN,
+        dst: B,
+        src,
+        ack_request: false,
+        secured: false,
+    };
+    let mut psdu = [0u8; MAX_PSDU];
+    let len = security::secure(
+        &header,
+        &AuxRepr::new(key_index, counter),
+        &key,
+        ext_addr(PAN, src),
+        &payload[..n],
+        &mut psdu,
+    )
+    .unwrap();
+    psdu[..len].to_vec()
+}
+
+fn event(seq: u16) -> Message<'static> {
+    Message::Event {
+        epoch: 2,
+        seq,
+        topic: 3,
+    }
+}
+
+#[test]
+fn a_press_reaches_the_peer_secured_after_the_handshakes_of_the_first_boot() {
+    let mut net = Net::new();
+    net.press();
+    net.run(400);
+    assert_eq!(net.b.1.lamp, [true], "delivered exactly once");
+    assert_eq!(
+        net.trace,
+        [
+            (A, B, "Event"),
+            // B knows no counter of A yet: A's first event is not taken, A is challenged.
+            (B, A, "Challenge"),
+            (A, B, "ChallengeAnswer"),
+            // A resends on its timeout; now B takes it and acknowledges.
+            (A, B, "Event"),
+            (B, A, "EventAck"),
+            // A knows no counter of B: the same handshake the other way.
+            (A, B, "Challenge"),
+            (B, A, "ChallengeAnswer"),
+            (A, B, "Event"),
+            (B, A, "EventAck"),
+        ]
+    );
+    let challenged = |n: &NodeCore| n.security_counters().challenged;
+    assert_eq!((challenged(&net.a.0), challenged(&net.b.0)), (1, 1));
+    // Once both know each other's counter, a press is one event and one acknowledgement.
+    net.trace.clear();
+    net.press();
+    net.run(200);
+    assert_eq!(net.trace, [(A, B, "Event"), (B, A, "EventAck")]);
+    assert_eq!(net.b.1.lamp, [true, false]);
+}
+
+#[test]
+fn forged_damaged_replayed_unsecured_and_misaddressed_events_move_nothing() {
+    let mut net = Net::established();
+    let idx = link_key_index(GENERATION);
+    // A captured event of A's, replayed.
+    net.press();
+    let captured = net.a.1.out[0].clone();
+    net.run(200);
+    assert_eq!(net.b.1.lamp, [true, false]);
+    let mut expected = SecurityCounters {
+        challenged: 1,
+        ..Default::default()
+    };
+    let counted = |net: &Net| net.b.0.security_counters();
+    assert_eq!(counted(&net), expected);
+
+    net.inject(&captured);
+    expected.replayed += 1;
+    assert_eq!(counted(&net), expected, "a replay");
+
+    let mut flipped = captured.clone();
+    let body = flipped.len() - 6;
+    flipped[body] ^= 0x01;
+    // The FCS no longer matches: refused by the frame layer before any key.
+    let fcs = mac::FCS.checksum(&flipped[..flipped.len() - 2]);
+    let n = flipped.len();
+    flipped[n - 2..].copy_from_slice(&fcs.to_le_bytes());
+    net.inject(&flipped);
+    expected.bad_mic += 1;
+    assert_eq!(counted(&net), expected, "one bit flipped (with a good FCS)");
+
+    net.inject(&forged(A, [0xEE; 16], idx, 1_000, &event(9)));
+    expected.bad_mic += 1;
+    assert_eq!(counted(&net), expected, "a forgery with a guessed key");
+
+    // C is a peer of B too (a stolen node, say): its key to B does not make A's frames.
+    net.inject(&forged(A, key(C, B), idx, 1_001, &event(9)));
+    expected.bad_mic += 1;
+    assert_eq!(counted(&net), expected, "C posing as A");
+
+    net.inject(&forged(
+        A,
+        key(A, B),
+        link_key_index(GENERATION + 1),
+        1_002,
+        &event(9),
+    ));
+    expected.unknown_key += 1;
+    assert_eq!(counted(&net), expected, "another generation's key index");
+
+    let mut payload = [0u8; MAX_PAYLOAD];
+    let n = event(9).emit(&mut payload).unwrap();
+    let header = Header {
+        seq: 0,
+        pan_id: PAN,
+        dst: B,
+        src: A,
+        ack_request: false,
+        secured: false,
+    };
+    let mut psdu = [0u8; MAX_PSDU];
+    let len = mac::emit_data(&header, &payload[..n], &mut psdu).unwrap();
+    net.inject(&psdu[..len]);
+    expected.not_secured += 1;
+    assert_eq!(counted(&net), expected, "unsecured");
+
+    // B's own frame reflected back to it.
+    net.inject(&forged(B, key(B, A), idx, 1_003, &event(9)));
+    expected.unknown_key += 1;
+    assert_eq!(counted(&net), expected, "reflected");
+
+    assert_eq!(net.b.1.lamp, [true, false], "nothing moved");
+    // And the real A still gets through.
+    net.press();
+    net.run(200);
+    assert_eq!(net.b.1.lamp, [true, false, true]);
+}
+
+#[test]
+fn after_the_receiver_reboots_a_replayed_event_is_challenged_and_never_delivered() {
+    let mut net = Net::established();
+    net.press();
+    let captured = net.a.1.out[0].clone();
+    net.run(200);
+    assert_eq!(net.b.1.lamp, [true, false]);
+    // B loses power; it boots from its flash with the same table and keys, knowing no
+    // counter of A. The replayed event is authentic but not fresh for all B knows.
+    net.b.0 = node_b();
+    net.b.1.lamp.clear();
+    net.b.0.receive(&captured, net.now, &mut net.b.1);
+    assert_eq!(net.b.0.security_counters().challenged, 1);
+    let challenge = net.b.1.out.pop().expect("B challenges A");
+    assert_eq!(
+        kind(&Message::parse(&open(&challenge).2).unwrap()),
+        "Challenge"
+    );
+    // The attacker replays it again, and does not pass the challenge on to A.
+    net.b.0.receive(&captured, net.now + 100, &mut net.b.1);
+    assert!(net.b.1.lamp.is_empty(), "nothing delivered");
+    assert_eq!(net.b.0.security_counters().challenged, 2);
+}
+
+#[test]
+fn after_the_sender_reboots_its_new_events_pass_and_its_old_frames_do_not() {
+    let mut net = Net::established();
+    net.press();
+    let captured = net.a.1.out[0].clone();
+    net.run(200);
+    // A reboots (a new link epoch); its counter continues from flash.
+    net.a.0 =
+        NodeCore::new(A, u64::MAX, Some(table_a()), 7).with_link_keys(keys(A, &[B], GENERATION));
+    net.press();
+    net.run(400);
+    assert_eq!(net.b.1.lamp, [true, false, true]);
+    let before = net.b.0.security_counters().replayed;
+    net.inject(&captured);
+    assert_eq!(net.b.0.security_counters().replayed, before + 1);
+    assert_eq!(net.b.1.lamp, [true, false, true]);
+}
+
+#[test]
+fn without_link_keys_the_node_refuses_secured_events_and_sends_in_clear() {
+    let mut a = NodeCore::new(A, u64::MAX, Some(table_a()), 1);
+    let mut board = Board::default();
+    assert!(!a.links_secured());
+    a.input(BUTTON_PIN, true, 0, &mut board);
+    let Ok(Frame::Data { header, .. }) = Frame::parse(&board.out[0]) else {
+        panic!("a data frame");
+    };
+    assert!(!header.secured);
+    // Keys for another table's peers are not taken.
+    let b = NodeCore::new(B, u64::MAX, Some(table_b()), 1).with_link_keys(keys(B, &[A], 1));
+    assert!(!b.links_secured());
+    let b = NodeCore::new(B, u64::MAX, Some(table_b()), 1).with_link_keys(keys(B, &[A, C], 2));
+    assert!(!b.links_secured(), "keys of another generation");
+}
