@@ -337,6 +337,32 @@ mod tests {
     }
 
     #[test]
+    fn a_frame_at_another_level_is_marked_refused_as_a_node_refuses_it() {
+        let key = management_key(&secret(), VC);
+        let h = header(CONFIG_PAN, TOOL, VC);
+        let aux = AuxRepr {
+            level: SecurityLevel::Mic32,
+            ..AuxRepr::new(0, 5)
+        };
+        let mut psdu = [0u8; 127];
+        let n = secure(
+            &h,
+            &aux,
+            key.expose(),
+            ext_addr(CONFIG_PAN, TOOL),
+            &[1, 2, 3],
+            &mut psdu,
+        )
+        .unwrap();
+        let mut s = Sniffer::new(Some(secret()), None);
+        assert_eq!(
+            s.describe(&psdu[..n]),
+            "0x0100 -> 0x0011  secured Mic32 key 0 counter 5: refused (security level Mic32, \
+             not the required EncMic64), 7 bytes sealed"
+        );
+    }
+
+    #[test]
     fn a_forged_announcement_teaches_no_generation() {
         let mut s = Sniffer::new(Some(secret()), None);
         s.describe(&flipped(announce_from(VC, 7)));
