@@ -89,6 +89,12 @@ pub enum Command {
         /// Stop after this many seconds (default: run until interrupted).
         #[arg(long)]
         seconds: Option<u64>,
+        /// The machine secret's key file: secured frames are shown decrypted.
+        #[arg(long)]
+        keys: Option<PathBuf>,
+        /// A generation whose link keys to try before one is seen on the air.
+        #[arg(long, requires = "keys")]
+        generation: Option<u32>,
     },
     /// The whole machine on this host: medium, unconfigured nodes, plant; push, run the
     /// cycles, check them, then push a reconfiguration to the running nodes.

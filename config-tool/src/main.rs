@@ -37,9 +37,17 @@ fn run(command: Command) -> Result<(), Failure> {
         Command::Start { at, node } => radio::start(&at, node),
         Command::Reset { at, node } => radio::reset(&at, node),
         Command::Plant { robot, at } => radio::plant(&robot, &at),
-        Command::Monitor { at, seconds } => {
-            radio::monitor(&at, seconds.map(std::time::Duration::from_secs))
-        }
+        Command::Monitor {
+            at,
+            seconds,
+            keys,
+            generation,
+        } => radio::monitor(
+            &at,
+            seconds.map(std::time::Duration::from_secs),
+            keys.as_deref(),
+            generation,
+        ),
         Command::Demo(args) => demo::demo(args),
         Command::QemuNode(args) => radio::qemu_node(args),
         Command::Gateway {

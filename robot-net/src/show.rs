@@ -53,6 +53,23 @@ pub fn reset_text(addr: u16, s: &Status) -> String {
     format!("{addr:#06x}: reset; {links}")
 }
 
+/// A frame's (clear or opened) payload in readable form: the message, a chunk's data as
+/// its length, or why it is not a message.
+pub fn message_text(payload: &[u8]) -> String {
+    match Message::parse(payload) {
+        Ok(Message::ConfigChunk {
+            generation,
+            offset,
+            data,
+        }) => format!(
+            "ConfigChunk {{ generation: {generation}, offset: {offset}, {} bytes }}",
+            data.len()
+        ),
+        Ok(m) => format!("{m:?}"),
+        Err(e) => format!("({e})"),
+    }
+}
+
 /// One frame in readable form.
 pub fn describe(psdu: &[u8]) -> String {
     match Frame::parse(psdu) {
@@ -75,19 +92,12 @@ pub fn describe(psdu: &[u8]) -> String {
             format!("{:#06x} -> {:#06x}  {what}", header.src, header.dst)
         }
         Ok(Frame::Data { header, payload }) => {
-            let msg = match Message::parse(payload) {
-                Ok(Message::ConfigChunk {
-                    generation,
-                    offset,
-                    data,
-                }) => format!(
-                    "ConfigChunk {{ generation: {generation}, offset: {offset}, {} bytes }}",
-                    data.len()
-                ),
-                Ok(m) => format!("{m:?}"),
-                Err(e) => format!("({e})"),
-            };
-            format!("{:#06x} -> {:#06x}  {msg}", header.src, header.dst)
+            format!(
+                "{:#06x} -> {:#06x}  {}",
+                header.src,
+                header.dst,
+                message_text(payload)
+            )
         }
         Ok(Frame::Ack { seq, .. }) => format!("ack {seq}"),
         Err(e) => format!("bad frame ({e}), {} bytes", psdu.len()),

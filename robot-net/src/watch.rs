@@ -11,14 +11,14 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use config_schema::wire::mac::{Frame, MAX_PAYLOAD};
+use config_schema::wire::mac::Frame;
 use config_schema::wire::medium::{Link, Peer};
 use config_schema::wire::msg::Message;
 
 use medium::Conn;
 use robot_compiler::compile::Compiled;
 
-use crate::keyring::Keyring;
+use crate::sniff::Sniffer;
 
 /// Something the monitor saw, at `at` on the medium's clock.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -67,7 +67,7 @@ impl Watch {
         medium: SocketAddr,
         clock: Instant,
         faults: HashMap<(u16, u8), String>,
-        keys: Option<Keyring>,
+        mut keys: Option<Sniffer>,
         out: Sender<Seen>,
     ) -> io::Result<Watch> {
         let mut conn = Conn::join(medium, Peer::Monitor)?;
@@ -78,7 +78,8 @@ impl Watch {
             .spawn(move || {
                 while !flag.load(Ordering::Relaxed) {
                     let until = Instant::now() + Duration::from_millis(100);
-                    let seen = conn.recv(until, |link| seen(&link, clock, &faults, keys.as_ref()))?;
+                    let seen =
+                        conn.recv(until, |link| seen(&link, clock, &faults, keys.as_mut()))?;
                     if let Some(s) = seen {
                         if out.send(s).is_err() {
                             break;
@@ -109,7 +110,7 @@ fn seen(
     link: &Link,
     clock: Instant,
     faults: &HashMap<(u16, u8), String>,
-    keys: Option<&Keyring>,
+    keys: Option<&mut Sniffer>,
 ) -> Option<Seen> {
     if let Some((at_us, addr, pin, level)) = link.output_seen() {
         return Some(Seen::Output {
@@ -124,10 +125,13 @@ fn seen(
             let Ok(Frame::Data { header, payload }) = Frame::parse(psdu) else {
                 return None;
             };
-            let mut scratch = [0u8; MAX_PAYLOAD];
+            let plain;
             let payload = match (header.secured, keys) {
                 (false, _) => payload,
-                (true, Some(k)) => k.open(psdu, &mut scratch).ok()?.payload,
+                (true, Some(k)) => {
+                    plain = k.open(psdu).ok()?;
+                    &plain[..]
+                }
                 (true, None) => return None,
             };
             let Ok(Message::Event { topic, .. }) = Message::parse(payload) else {

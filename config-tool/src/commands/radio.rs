@@ -212,9 +212,20 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
     }
 }
 
-/// `monitor`: every frame (decoded) and pin change on the medium. Pin changes carry the
-/// medium's time; frames the time they reached the monitor.
-pub fn monitor(at: &MediumAddr, for_: Option<Duration>) -> Result<(), Failure> {
+/// `monitor`: every frame (decoded; secured ones opened with the keys of `keys`, the
+/// machine secret's file) and pin change on the medium. Pin changes carry the medium's
+/// time; frames the time they reached the monitor.
+pub fn monitor(
+    at: &MediumAddr,
+    for_: Option<Duration>,
+    keys: Option<&Path>,
+    generation: Option<u32>,
+) -> Result<(), Failure> {
+    let secret = keys
+        .map(robot_keys::load_machine_secret)
+        .transpose()
+        .map_err(|e| Failure::error(e.to_string()))?;
+    let mut sniffer = robot_net::sniff::Sniffer::new(secret, generation);
     let medium = resolve(at)?;
     let mut conn = Conn::join(medium, Peer::Monitor)
         .map_err(|e| Failure::error(format!("cannot reach the medium at {medium}: {e}")))?;
@@ -225,7 +236,7 @@ pub fn monitor(at: &MediumAddr, for_: Option<Duration>) -> Result<(), Failure> {
         let got = conn.recv(until, |link| {
             let t = start.elapsed().as_secs_f64();
             match link {
-                Link::Frame(psdu) => Some(format!("{t:>9.3}  {}", show::describe(psdu))),
+                Link::Frame(psdu) => Some(format!("{t:>9.3}  {}", sniffer.describe(psdu))),
                 Link::Seen {
                     at_us,
                     addr,

@@ -18,7 +18,7 @@ use crate::error::NetError;
 use crate::live_plant::{self, Actuator, Injection, Stroke};
 use crate::push::{self, Ids, Target};
 use crate::radio::{ToolRadio, TOOL_ADDR};
-use crate::keyring::Keyring;
+use crate::sniff::Sniffer;
 use crate::watch::{self, Seen, Watch};
 use medium::{self, Medium};
 use robot_compiler::compile::Compiled;
@@ -295,11 +295,9 @@ impl Bed {
             self.medium.addr(),
             self.medium.started(),
             watch::fault_topics(c),
-            self.keys.as_ref().map(|k| {
-                let mut ring = Keyring::new(k.secret.clone());
-                ring.add_generation(c.ir.generation);
-                ring
-            }),
+            self.keys
+                .as_ref()
+                .map(|k| Sniffer::new(Some(k.secret.clone()), Some(c.ir.generation))),
             self.seen_tx.clone(),
         )
         .map_err(NetError::Monitor)?;

@@ -1,0 +1,154 @@
+//! `config-tool monitor --keys FILE`: secured frames on the medium shown decrypted, the
+//! ones that fail marked, an unsecured one shown as such; a key file others may read is
+//! refused.
+
+use std::io::{BufRead, BufReader};
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::Duration;
+
+use config_schema::wire::mac::{self, Header, FCS};
+use config_schema::wire::medium::{Link, Peer};
+use config_schema::wire::msg::{Command as Cmd, Message};
+use config_schema::wire::security::{ext_addr, secure, AuxRepr};
+use medium::{Config, Conn, Medium};
+use robot_keys::{link_key, load_machine_secret, management_key, write_machine_secret};
+
+const SURE: Duration = Duration::from_secs(10);
+const TOOL: u16 = 0x0100;
+const VC: u16 = 0x0011;
+const GR: u16 = 0x0012;
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn header(pan_id: u16, src: u16, dst: u16) -> Header {
+    Header {
+        seq: 1,
+        pan_id,
+        dst,
+        src,
+        ack_request: true,
+        secured: false,
+    }
+}
+
+fn payload(m: &Message) -> Vec<u8> {
+    let mut buf = [0u8; 116];
+    let n = m.emit(&mut buf).unwrap();
+    buf[..n].to_vec()
+}
+
+fn sealed(h: Header, index: u8, counter: u32, key: &[u8; 16], m: &Message) -> Vec<u8> {
+    let mut psdu = [0u8; 127];
+    let aux = AuxRepr::new(index, counter);
+    let src = ext_addr(h.pan_id, h.src);
+    let n = secure(&h, &aux, key, src, &payload(m), &mut psdu).unwrap();
+    psdu[..n].to_vec()
+}
+
+#[test]
+fn monitor_with_the_key_file_shows_secured_frames_decrypted_and_marks_the_bad_ones() {
+    let dir = scratch("monitor-keys");
+    let keys = dir.join("machine.key");
+    write_machine_secret(&keys, false).unwrap();
+    let secret = load_machine_secret(&keys).unwrap();
+    let medium = Medium::start(Config::default()).unwrap();
+    let mut radio = Conn::join(medium.addr(), Peer::Tool { addr: TOOL }).unwrap();
+    let mut monitor = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["monitor", "--medium", &medium.addr().to_string(), "--keys"])
+        .arg(&keys)
+        .args(["--generation", "3"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let out = monitor.stdout.take().unwrap();
+    let (tx, lines) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(out).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    assert!(medium.wait_for_clients(2, SURE), "the monitor joins");
+
+    let start = Message::Command {
+        id: 3,
+        command: Cmd::Start,
+    };
+    let event = Message::Event {
+        epoch: 1,
+        seq: 4,
+        topic: 2,
+    };
+    let mgmt = management_key(&secret, VC);
+    let link = link_key(&secret, 3, VC, GR);
+    let secured_start = sealed(header(0xFFFF, TOOL, VC), 0, 42, mgmt.expose(), &start);
+    let mut flipped = secured_start.clone();
+    flipped[16] ^= 0x01;
+    let n = flipped.len() - 2;
+    let fcs = FCS.checksum(&flipped[..n]);
+    flipped[n..].copy_from_slice(&fcs.to_le_bytes());
+    let secured_event = sealed(header(0xBEEF, VC, GR), 4, 7, link.expose(), &event);
+    let unknown = sealed(header(0xBEEF, VC, GR), 9, 8, link.expose(), &event);
+    let mut clear = [0u8; 127];
+    let n = mac::emit_data(&header(0xFFFF, TOOL, VC), &payload(&start), &mut clear).unwrap();
+    for f in [
+        &secured_start,
+        &flipped,
+        &secured_event,
+        &unknown,
+        &clear[..n].to_vec(),
+    ] {
+        radio.send(&Link::Frame(f)).unwrap();
+    }
+    let seen: Vec<String> = (0..5)
+        .map(|_| {
+            let line = lines.recv_timeout(SURE).expect("the monitor prints a line");
+            // The time the frame reached the monitor, then the frame.
+            let (_, frame) = line.trim_start().split_once("  ").unwrap();
+            frame.to_string()
+        })
+        .collect();
+    let _ = monitor.kill();
+    let _ = monitor.wait();
+    medium.stop();
+    assert_eq!(
+        seen,
+        [
+            "0x0100 -> 0x0011  secured EncMic64 key 0 counter 42: Command { id: 3, command: Start }",
+            "0x0100 -> 0x0011  secured EncMic64 key 0 counter 42: BAD MIC, 11 bytes sealed",
+            "0x0011 -> 0x0012  secured EncMic64 key 4 counter 7: Event { epoch: 1, seq: 4, topic: 2 }",
+            "0x0011 -> 0x0012  secured EncMic64 key 9 counter 8: unknown key, 12 bytes sealed",
+            "0x0100 -> 0x0011  unsecured: Command { id: 3, command: Start }",
+        ]
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn monitor_refuses_a_key_file_others_may_read() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = scratch("monitor-keys-open");
+    let keys = dir.join("machine.key");
+    write_machine_secret(&keys, false).unwrap();
+    std::fs::set_permissions(&keys, std::fs::Permissions::from_mode(0o644)).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["monitor", "--medium", "127.0.0.1:1", "--keys"])
+        .arg(&keys)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&keys.display().to_string()) && err.contains("644"),
+        "{err}"
+    );
+    assert!(out.stdout.is_empty());
+}
