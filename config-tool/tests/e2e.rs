@@ -19,6 +19,7 @@ use node_fw::node::CONFIG_PAN;
 use robot_net::demo;
 use robot_net::live_plant;
 use robot_net::radio::TOOL_ADDR;
+use robot_net::sniff::Sniffer;
 
 use e2e_support::*;
 
@@ -152,21 +153,33 @@ fn reconfiguration_while_running_then_role_reassigned_to_the_spare() {
     assert_running(&mut bed, &spare);
     // Everything on the air since the monitor joined, up to a status query to the old node.
     let old_after = status(&mut bed, OLD_VC);
-    let seen = monitor.until(|h, _| h.dst == OLD_VC && h.src == TOOL_ADDR);
-    let (last, during) = seen.split_last().unwrap();
-    assert_eq!(last.0.dst, OLD_VC);
-    let to_or_from_old: Vec<&Header> = during
+    let header_of = |psdu: &[u8]| match mac::Frame::parse(psdu) {
+        Ok(mac::Frame::Data { header, .. }) => Some(header),
+        _ => None,
+    };
+    let seen = monitor.psdus_until(|p| {
+        header_of(p).is_some_and(|h| h.dst == OLD_VC && h.src == TOOL_ADDR)
+    });
+    let (_, during) = seen.split_last().unwrap();
+    let headers: Vec<Header> = during.iter().filter_map(|p| header_of(p)).collect();
+    let to_or_from_old: Vec<&Header> = headers
         .iter()
-        .map(|(h, _)| h)
         .filter(|h| h.src == OLD_VC || h.dst == OLD_VC)
         .collect();
     assert!(
         to_or_from_old.is_empty(),
         "the old VC node took part: {to_or_from_old:?}"
     );
+    // The events are secured: read them with the machine secret, generation 3's keys.
+    let mut sniffer = Sniffer::new(bed.secret().cloned(), Some(3));
     let events_from_spare = during
         .iter()
-        .filter(|(h, p)| h.src == SPARE && matches!(Message::parse(p), Ok(Message::Event { .. })))
+        .filter(|p| header_of(p).is_some_and(|h| h.src == SPARE && h.secured))
+        .filter(|p| {
+            sniffer
+                .open(p)
+                .is_ok_and(|plain| matches!(Message::parse(&plain), Ok(Message::Event { .. })))
+        })
         .count();
     assert!(events_from_spare > 0, "the spare published the VC events");
     // The old node still holds its old table, idle, untouched.
