@@ -403,6 +403,144 @@ fn forged_flipped_and_replayed_starts_start_nothing_and_the_counters_say_why() {
     bed.stop();
 }
 
+/// Issue 11: a forged event from "VC" to GR closed the gripper. Secured: an unsecured
+/// event posing as VC, a replay of VC's real (secured) event, a copy with one bit flipped
+/// and one under another machine's key move nothing; after generation 2 is pushed and has
+/// run, VC's captured generation-1 event and a fresh frame under the old generation's key
+/// (a stolen old key) open nothing. GR's counters say why each was refused, and the robot
+/// runs on.
+#[test]
+fn forged_replayed_and_old_generation_events_move_nothing_and_the_counters_say_why() {
+    const HOSTILE: u16 = 0xBEEF;
+    let c = robot("paint-robot.ron", 1);
+    let mut bed = bring_up(&c, options(medium::Config::default(), None));
+    push_ok(&mut bed, &c);
+    let secret = bed.secret().expect("a secured bed").clone();
+    let vc = addr_of(&c, "VC");
+    let (gr_role, gr) = role_of(&c, "GR");
+    let pan = c.ir.pan_id;
+    let at_rest = initial(&c.tables[gr_role]);
+
+    // One real cycle; the monitor keeps VC's first event to GR (it closes the gripper).
+    let mut monitor = Monitor::join(bed.medium().addr());
+    exact_cycle(&mut bed, &c, 1);
+    let mut sniffer = Sniffer::new(Some(secret.clone()), Some(1));
+    let mut event = None;
+    let captured = monitor
+        .psdus_until(|p| {
+            let Ok(mac::Frame::Data { header, .. }) = mac::Frame::parse(p) else {
+                return false;
+            };
+            if (header.src, header.dst, header.pan_id) != (vc, gr, pan) || !header.secured {
+                return false;
+            }
+            let Ok(plain) = sniffer.open(p) else {
+                return false;
+            };
+            if let Ok(Message::Event { epoch, seq, topic }) = Message::parse(&plain) {
+                event = Some((epoch, seq, topic));
+            }
+            event.is_some()
+        })
+        .pop()
+        .expect("captured");
+    let (epoch, seq, topic) = event.expect("an event");
+    let forged_event = payload(&Message::Event {
+        epoch,
+        seq: seq.wrapping_add(1),
+        topic,
+    });
+    let link_frame = |key: &robot_keys::Key, generation: u32, counter: u32| {
+        let mut psdu = [0u8; MAX_PSDU];
+        let header = Header {
+            seq: 9,
+            pan_id: pan,
+            dst: gr,
+            src: vc,
+            ack_request: false,
+            secured: false,
+        };
+        let n = config_schema::wire::security::secure(
+            &header,
+            &config_schema::wire::security::AuxRepr::new(
+                config_schema::wire::security::link_key_index(generation),
+                counter,
+            ),
+            key.expose(),
+            config_schema::wire::security::ext_addr(pan, vc),
+            &forged_event,
+            &mut psdu,
+        )
+        .unwrap();
+        psdu[..n].to_vec()
+    };
+
+    let mut raw = RawClient::join(bed.medium().addr(), HOSTILE).keyed(&secret);
+    let before = raw.security(gr);
+    assert!(before.keyed);
+    // Unsecured, posing as VC.
+    raw.send_psdu(&frame(pan, gr, vc, 7, &forged_event));
+    // The real one, replayed.
+    raw.send_psdu(&captured);
+    // The real one with one bit of its encrypted payload flipped (FCS made good again).
+    let mut flipped = captured.clone();
+    flipped[mac::DATA_HEADER_LEN + 6] ^= 0x01;
+    let body = flipped.len() - 2;
+    let fcs = mac::FCS.checksum(&flipped[..body]).to_le_bytes();
+    flipped[body..].copy_from_slice(&fcs);
+    raw.send_psdu(&flipped);
+    // Under another machine's link key for VC -> GR.
+    let other = robot_keys::MachineSecret::from_bytes([7; 32]);
+    raw.send_psdu(&link_frame(
+        &robot_keys::link_key(&other, 1, vc, gr),
+        1,
+        u32::MAX - 1,
+    ));
+    let status = raw.status(gr);
+    assert_eq!(status.states.as_slice(), at_rest.as_slice(), "nothing moved");
+    let after = raw.security(gr);
+    let d = |a: &config_schema::wire::msg::SecurityReport,
+             f: fn(&config_schema::wire::msg::SecurityCounters) -> u32| {
+        f(&a.counters) - f(&before.counters)
+    };
+    let reasons = |a: &config_schema::wire::msg::SecurityReport| {
+        (
+            d(a, |c| c.not_secured),
+            d(a, |c| c.bad_mic),
+            d(a, |c| c.replayed),
+            d(a, |c| c.unknown_key),
+        )
+    };
+    assert_eq!(reasons(&after), (1, 2, 1, 0));
+
+    // Generation 2 runs a cycle: GR has heard VC under the new key.
+    let c2 = robot("paint-robot.ron", 2);
+    push_ok(&mut bed, &c2);
+    assert_running(&mut bed, &c2);
+    exact_cycle(&mut bed, &c2, 1);
+    let before_old = raw.security(gr);
+    raw.send_psdu(&captured);
+    raw.send_psdu(&link_frame(
+        &robot_keys::link_key(&secret, 1, vc, gr),
+        1,
+        u32::MAX - 2,
+    ));
+    let status = raw.status(gr);
+    assert_eq!(status.states.as_slice(), at_rest.as_slice(), "nothing moved");
+    let old = raw.security(gr);
+    assert_eq!(
+        (
+            old.counters.unknown_key - before_old.counters.unknown_key,
+            old.counters.bad_mic - before_old.counters.bad_mic,
+            old.counters.replayed - before_old.counters.replayed
+        ),
+        (2, 0, 0),
+        "the old generation's key opens nothing"
+    );
+    exact_cycle(&mut bed, &c2, 2);
+    bed.stop();
+}
+
 /// Issue: 10,000 frames/s to a missing address left `status` unanswered for 23 s. Here
 /// with the real node processes: two floods of 50,000 frames each (to a missing address,
 /// and broadcast, which every node has to read and drop) and, the moment they end, every
