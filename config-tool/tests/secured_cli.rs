@@ -14,7 +14,9 @@ fn root() -> PathBuf {
 /// Runs the tool at the workspace root, without `CONFIG_TOOL_KEYS` unless `env` sets it.
 fn tool(args: &[&str], env: Option<&Path>) -> Output {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_config-tool"));
-    cmd.current_dir(root()).args(args).env_remove("CONFIG_TOOL_KEYS");
+    cmd.current_dir(root())
+        .args(args)
+        .env_remove("CONFIG_TOOL_KEYS");
     if let Some(file) = env {
         cmd.env("CONFIG_TOOL_KEYS", file);
     }
@@ -59,11 +61,21 @@ fn check_warns_about_an_unsecured_robot_at_its_setting() {
         err.contains("╭─[tests/fixtures/broken/unsecured.ron:5:15]"),
         "{err}"
     );
-    assert!(err.contains("help: remove `security: Off` to secure every frame"), "{err}");
-    assert!(err.ends_with("unsecured.ron: 0 error(s), 1 warning(s)\n"), "{err}");
+    assert!(
+        err.contains("help: remove `security: Off` to secure every frame"),
+        "{err}"
+    );
+    assert!(
+        err.ends_with("unsecured.ron: 0 error(s), 1 warning(s)\n"),
+        "{err}"
+    );
     // The secured default says nothing of security.
     let out = tool(&["check", "robot-configs/paint-robot.ron"], None);
-    assert!(!text(&out.stderr).contains("security"), "{}", text(&out.stderr));
+    assert!(
+        !text(&out.stderr).contains("security"),
+        "{}",
+        text(&out.stderr)
+    );
 }
 
 #[test]
@@ -143,7 +155,10 @@ fn a_missing_key_file_is_named_with_how_to_make_one_from_the_flag_or_the_environ
             "{args:?} with CONFIG_TOOL_KEYS"
         );
     }
-    assert!(!dir.join("machine.key.counter").exists(), "no counter without a key");
+    assert!(
+        !dir.join("machine.key.counter").exists(),
+        "no counter without a key"
+    );
 }
 
 #[cfg(unix)]
@@ -154,7 +169,15 @@ fn a_key_file_others_may_read_is_refused() {
     let key = new_key(&dir);
     std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o640)).unwrap();
     let out = tool(
-        &["status", "--node", "0x0011", "--keys", s(&key), "--medium", NO_MEDIUM],
+        &[
+            "status",
+            "--node",
+            "0x0011",
+            "--keys",
+            s(&key),
+            "--medium",
+            NO_MEDIUM,
+        ],
         None,
     );
     assert_eq!(out.status.code(), Some(1));
@@ -175,7 +198,15 @@ fn an_unreadable_counter_file_is_refused_and_left_as_it_is() {
     let counter = dir.join("machine.key.counter");
     std::fs::write(&counter, b"not a counter").unwrap();
     let out = tool(
-        &["start", "--node", "0x0011", "--keys", s(&key), "--medium", NO_MEDIUM],
+        &[
+            "start",
+            "--node",
+            "0x0011",
+            "--keys",
+            s(&key),
+            "--medium",
+            NO_MEDIUM,
+        ],
         None,
     );
     assert_eq!(out.status.code(), Some(1));
@@ -192,7 +223,15 @@ fn an_unreadable_counter_file_is_refused_and_left_as_it_is() {
     std::fs::remove_file(&counter).unwrap();
     std::fs::create_dir(&counter).unwrap();
     let out = tool(
-        &["start", "--node", "0x0011", "--keys", s(&key), "--medium", NO_MEDIUM],
+        &[
+            "start",
+            "--node",
+            "0x0011",
+            "--keys",
+            s(&key),
+            "--medium",
+            NO_MEDIUM,
+        ],
         None,
     );
     assert_eq!(
@@ -211,7 +250,15 @@ fn a_counter_file_another_process_holds_is_refused_until_it_is_released() {
     let dir = scratch("locked");
     let key = new_key(&dir);
     // A first run creates the counter file (the medium is not there: nothing is sent).
-    let args = ["status", "--node", "0x0011", "--keys", s(&key), "--medium", NO_MEDIUM];
+    let args = [
+        "status",
+        "--node",
+        "0x0011",
+        "--keys",
+        s(&key),
+        "--medium",
+        NO_MEDIUM,
+    ];
     let out = tool(&args, None);
     assert!(text(&out.stderr).contains("cannot reach the medium"));
     let counter = dir.join("machine.key.counter");
