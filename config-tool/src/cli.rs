@@ -51,6 +51,8 @@ pub enum Command {
     Scan {
         #[command(flatten)]
         at: MediumAddr,
+        #[command(flatten)]
+        keys: KeysArg,
     },
     /// Compile a robot and push every role to its node (or one role to a given node).
     Push(PushArgs),
@@ -60,6 +62,8 @@ pub enum Command {
         at: MediumAddr,
         #[arg(long, value_parser = node_fw::host::parse_addr)]
         node: u16,
+        #[command(flatten)]
+        keys: KeysArg,
     },
     /// START (as the START button of the robot), to the node with the start input.
     Start {
@@ -67,6 +71,8 @@ pub enum Command {
         at: MediumAddr,
         #[arg(long, value_parser = node_fw::host::parse_addr)]
         node: u16,
+        #[command(flatten)]
+        keys: KeysArg,
     },
     /// Leave a fault: back to the initial state.
     Reset {
@@ -74,6 +80,8 @@ pub enum Command {
         at: MediumAddr,
         #[arg(long, value_parser = node_fw::host::parse_addr)]
         node: u16,
+        #[command(flatten)]
+        keys: KeysArg,
     },
     /// The robot's machine (cylinders, gripper) on the medium, in real time: it moves the
     /// actuators the nodes command and closes their switches; prints every step.
@@ -249,6 +257,19 @@ pub struct PushArgs {
     /// Push even if the node runs the same or a newer generation.
     #[arg(long)]
     pub force: bool,
+    #[command(flatten)]
+    pub keys: KeysArg,
+}
+
+/// The machine secret that secures what a radio command sends and receives.
+#[derive(Args, Debug, Clone)]
+pub struct KeysArg {
+    /// The machine secret's key file (`config-tool keys new`): every frame to and from the
+    /// nodes is secured with their keys; the tool's frame counter is kept beside it
+    /// (FILE.counter). Default: the file named by the environment variable
+    /// CONFIG_TOOL_KEYS. `push` of a secured robot (the default) needs it.
+    #[arg(long, value_name = "FILE")]
+    pub keys: Option<PathBuf>,
 }
 
 impl MediumArgs {

@@ -11,6 +11,8 @@ use robot_net::NetError;
 pub mod exit {
     /// Anything else that went wrong (bad robot, no medium, nodes that never started).
     pub const ERROR: u8 = 1;
+    /// A bad command line (clap's usage errors, and a missing `--keys` for a secured robot).
+    pub const USAGE: u8 = 2;
     /// A node did not activate its table (refused, or stopped answering).
     pub const PUSH_FAILED: u8 = 3;
     /// A cycle did not produce the declared sequence.
@@ -33,6 +35,14 @@ impl Failure {
     pub fn error(what: impl Display) -> Failure {
         Failure {
             code: exit::ERROR,
+            message: format!("error: {what}"),
+        }
+    }
+
+    /// `error: WHAT`, status 2: the command line lacks something (as clap's usage errors).
+    pub fn usage(what: impl Display) -> Failure {
+        Failure {
+            code: exit::USAGE,
             message: format!("error: {what}"),
         }
     }

@@ -9,6 +9,7 @@ use clap::Parser;
 mod cli;
 mod commands;
 mod failure;
+mod tool_keys;
 
 use cli::{Cli, Command, KeysCommand};
 use commands::{demo, keys, offline, radio};
@@ -31,11 +32,11 @@ fn run(command: Command) -> Result<(), Failure> {
         Command::Sim(args) => offline::sim(&args),
         Command::Verify(args) => offline::verify(&args),
         Command::Medium(args) => radio::medium(args.config()),
-        Command::Scan { at } => radio::scan(&at),
+        Command::Scan { at, keys } => radio::scan(&at, &keys),
         Command::Push(args) => radio::push(&args),
-        Command::Status { at, node } => radio::status(&at, node),
-        Command::Start { at, node } => radio::start(&at, node),
-        Command::Reset { at, node } => radio::reset(&at, node),
+        Command::Status { at, node, keys } => radio::status(&at, node, &keys),
+        Command::Start { at, node, keys } => radio::start(&at, node, &keys),
+        Command::Reset { at, node, keys } => radio::reset(&at, node, &keys),
         Command::Plant { robot, at } => radio::plant(&robot, &at),
         Command::Monitor {
             at,

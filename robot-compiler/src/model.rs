@@ -46,6 +46,20 @@ pub struct Robot {
     /// and says so; `verify --any-delay` drops it (and shows the races it hides).
     #[serde(default)]
     pub assume_prompt_radio: bool,
+    /// IEEE 802.15.4 frame security of the machine's radio (docs/security.md): `On` (the
+    /// default) unless the robot says `security: Off`, which `check` warns about.
+    #[serde(default)]
+    pub security: Security,
+}
+
+/// Whether the tool secures its frames to the robot's nodes (and delivers link keys).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+pub enum Security {
+    /// Every frame secured: `push` needs the machine secret (`--keys`).
+    #[default]
+    On,
+    /// Explicitly unsecured: anyone in radio range can push, command and forge events.
+    Off,
 }
 
 fn default_timeout() -> u32 {

@@ -39,6 +39,13 @@ pub enum KeyFileError {
         path.display()
     )]
     Permissions { path: PathBuf, mode: u32 },
+    #[error(
+        "{}: no such key file (the machine secret is made once, by `config-tool keys new \
+         --out {}`)",
+        path.display(),
+        path.display()
+    )]
+    Missing { path: PathBuf },
     #[error("{}: not a regular file", path.display())]
     NotAFile { path: PathBuf },
     #[error(
@@ -122,7 +129,15 @@ fn set_owner_only(_: &File) -> io::Result<()> {
 /// read or write (checked on the opened file), as text.
 pub fn read_secret_file(path: &Path) -> Result<Zeroizing<String>, KeyFileError> {
     // Not opened unless it is a regular file (opening a FIFO would wait for a writer).
-    if !std::fs::metadata(path).map_err(io_error(path))?.is_file() {
+    let meta = match std::fs::metadata(path) {
+        Err(e) if e.kind() == io::ErrorKind::NotFound => {
+            return Err(KeyFileError::Missing {
+                path: path.to_path_buf(),
+            })
+        }
+        other => other.map_err(io_error(path))?,
+    };
+    if !meta.is_file() {
         return Err(KeyFileError::NotAFile {
             path: path.to_path_buf(),
         });
@@ -282,6 +297,21 @@ mod tests {
     fn chmod(p: &Path, m: u32) {
         use std::os::unix::fs::PermissionsExt;
         std::fs::set_permissions(p, std::fs::Permissions::from_mode(m)).unwrap();
+    }
+
+    #[test]
+    fn a_missing_key_file_says_how_to_make_one() {
+        let p = dir("missing").join("machine.key");
+        let e = load_machine_secret(&p).unwrap_err();
+        assert!(matches!(e, KeyFileError::Missing { .. }), "{e:?}");
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "{0}: no such key file (the machine secret is made once, by `config-tool keys \
+                 new --out {0}`)",
+                p.display()
+            )
+        );
     }
 
     #[test]

@@ -1,7 +1,8 @@
-//! What nodes say, in readable form: a status, the answer to a reset, a frame.
+//! What nodes say, in readable form: a status, a security report, the answer to a reset,
+//! a frame.
 
 use config_schema::wire::mac::Frame;
-use config_schema::wire::msg::{Message, Status};
+use config_schema::wire::msg::{Message, SecurityReport, Status};
 use config_schema::wire::security::{AuxHeader, AuxRepr};
 
 /// A status in readable form.
@@ -32,6 +33,32 @@ pub fn status_text(addr: u16, s: &Status) -> String {
         r.tx_queue_high,
         r.tx_failed,
         r.flash_failures,
+    )
+}
+
+/// A node's security report as the line `status` prints after the status: whether it
+/// has a management key, the frames it dropped by reason, the senders it challenged after
+/// its boot (normal: the first frame of each sender), the frames it could not secure.
+pub fn security_text(r: &SecurityReport) -> String {
+    let c = r.counters;
+    format!(
+        "  security {}  dropped: not secured {}  bad MIC {}  replayed {}  unknown key {}  \
+         wrong level {}  malformed {}  replay table full {}  challenged after boot {}  \
+         not sent (no frame counter) {}",
+        if r.keyed {
+            "on"
+        } else {
+            "off (no management key)"
+        },
+        c.not_secured,
+        c.bad_mic,
+        c.replayed,
+        c.unknown_key,
+        c.wrong_level,
+        c.malformed,
+        c.table_full,
+        c.challenged,
+        c.no_counter,
     )
 }
 
@@ -175,6 +202,38 @@ mod tests {
              link alarms 0b00000100  broken 0b00000001  epoch 257\n  \
              frames sent 19 received 36 retried 4 dropped 1  events delivered 2\n  \
              tx queue full 5  high-water 32  radio failures 1  flash failures 2"
+        );
+    }
+
+    #[test]
+    fn the_security_line_names_every_reason_with_its_count() {
+        use config_schema::wire::msg::SecurityCounters;
+        let r = SecurityReport {
+            ack: 1,
+            keyed: true,
+            counters: SecurityCounters {
+                not_secured: 1,
+                bad_mic: 2,
+                replayed: 3,
+                unknown_key: 4,
+                wrong_level: 5,
+                malformed: 6,
+                table_full: 7,
+                no_counter: 8,
+                challenged: 9,
+            },
+        };
+        assert_eq!(
+            security_text(&r),
+            "  security on  dropped: not secured 1  bad MIC 2  replayed 3  unknown key 4  \
+             wrong level 5  malformed 6  replay table full 7  challenged after boot 9  \
+             not sent (no frame counter) 8"
+        );
+        assert_eq!(
+            security_text(&SecurityReport::default()),
+            "  security off (no management key)  dropped: not secured 0  bad MIC 0  \
+             replayed 0  unknown key 0  wrong level 0  malformed 0  replay table full 0  \
+             challenged after boot 0  not sent (no frame counter) 0"
         );
     }
 

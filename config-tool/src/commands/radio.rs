@@ -8,7 +8,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use config_schema::wire::medium::{Link, Peer};
-use config_schema::wire::msg::{Command, Status};
+use config_schema::wire::msg::{Command, Message, SecurityReport, Status};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use medium::Conn;
 use node_fw::ota::Progress;
@@ -17,8 +17,11 @@ use robot_net::push::{self, Ids};
 use robot_net::radio::{ToolRadio, TOOL_ADDR};
 use robot_net::{live_plant, show};
 
-use crate::cli::{MediumAddr, PushArgs, QemuNodeArgs};
+use robot_compiler::model::Security;
+
+use crate::cli::{KeysArg, MediumAddr, PushArgs, QemuNodeArgs};
 use crate::failure::{exit, Failure};
+use crate::tool_keys::{self, KeysFrom, KEYS_ENV};
 
 /// The medium to talk to: the one at `--medium`, or with `--serial` one bridged to the air
 /// started here (it lives as long as the command).
@@ -40,17 +43,81 @@ fn connect(at: &MediumAddr) -> Result<ToolRadio, Failure> {
         .map_err(|e| Failure::error(format!("cannot reach the medium at {medium}: {e}")))
 }
 
-/// A command to one node, resent until answered.
-fn command(radio: &mut ToolRadio, node: u16, cmd: Command) -> Result<Status, Failure> {
-    push::command(
-        radio,
-        &mut Ids::default(),
-        node,
-        cmd,
-        Duration::from_secs(5),
-    )
-    .map_err(Failure::error)?
-    .ok_or_else(|| Failure::error(format!("node {node:#06x} did not answer")))
+/// The tool's radio, secured with the machine secret of `keys` if given (the key file and
+/// the counter file are read before the medium is reached).
+fn connect_keyed(at: &MediumAddr, keys: Option<&KeysFrom>) -> Result<ToolRadio, Failure> {
+    let keys = keys
+        .map(|k| tool_keys::open(k.path()))
+        .transpose()
+        .map_err(Failure::error)?;
+    let mut radio = connect(at)?;
+    if let Some(k) = keys {
+        radio.secure(k.secret, k.counter);
+    }
+    Ok(radio)
+}
+
+/// How long a command to one node is resent until answered.
+const ANSWER_WITHIN: Duration = Duration::from_secs(5);
+
+/// Sends `cmd` to `node` every 150 ms until `pick` takes an answer acknowledging it; a
+/// repeat never runs twice on the node.
+fn ask<T>(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    node: u16,
+    cmd: Command,
+    pick: impl Fn(Message<'_>, u16) -> Option<T>,
+) -> Result<T, Failure> {
+    let id = ids.fresh();
+    let sent_before = radio.stats.sent;
+    let end = Instant::now() + ANSWER_WITHIN;
+    let retry = Duration::from_millis(150);
+    while Instant::now() < end {
+        radio
+            .send(node, &Message::Command { id, command: cmd })
+            .map_err(Failure::error)?;
+        let until = (Instant::now() + retry).min(end);
+        while let Some(r) = radio.recv(until).map_err(Failure::error)? {
+            if r.src != node {
+                continue;
+            }
+            if let Some(t) = r.message().and_then(|m| pick(m, id)) {
+                return Ok(t);
+            }
+        }
+    }
+    let asked = radio.stats.sent - sent_before;
+    let hint = if radio.secured() {
+        ""
+    } else {
+        "; a node with a management key takes only secured frames: pass --keys"
+    };
+    Err(Failure::error(format!(
+        "node {node:#06x} did not answer (asked {asked} times in {} s){hint}",
+        ANSWER_WITHIN.as_secs()
+    )))
+}
+
+/// A command to one node, resent until its status comes back.
+fn command(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    node: u16,
+    cmd: Command,
+) -> Result<Status, Failure> {
+    ask(radio, ids, node, cmd, |m, id| match m {
+        Message::Status(s) if s.ack == id => Some(s),
+        _ => None,
+    })
+}
+
+/// The node's security report (`Command::Security`).
+fn security(radio: &mut ToolRadio, ids: &mut Ids, node: u16) -> Result<SecurityReport, Failure> {
+    ask(radio, ids, node, Command::Security, |m, id| match m {
+        Message::Security(r) if r.ack == id => Some(r),
+        _ => None,
+    })
 }
 
 /// `medium`: runs until interrupted.
@@ -64,8 +131,8 @@ pub fn medium(config: medium::Config) -> Result<(), Failure> {
     }
 }
 
-pub fn scan(at: &MediumAddr) -> Result<(), Failure> {
-    let mut radio = connect(at)?;
+pub fn scan(at: &MediumAddr, keys: &KeysArg) -> Result<(), Failure> {
+    let mut radio = connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?;
     let found = push::scan(&mut radio, &mut Ids::default(), Duration::from_secs(2))
         .map_err(Failure::error)?;
     for (addr, a) in &found {
@@ -99,9 +166,34 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
             t.addr = addr;
         }
     }
-    let mut radio = connect(at)?;
+    let keys = push_keys(robot, &c, KeysFrom::resolve(flags.keys.keys.as_deref()))?;
+    let mut radio = connect_keyed(at, keys.as_ref())?;
     let outcomes = push_with_bars(&mut radio, &targets, flags.force)?;
     report_push(&outcomes)
+}
+
+/// The keys `push` secures with: a secured robot (the default) needs them; an unsecured one
+/// (`security: Off`) is pushed without, and refuses an explicit `--keys`.
+fn push_keys(
+    robot: &Path,
+    c: &robot_compiler::Compiled,
+    keys: Option<KeysFrom>,
+) -> Result<Option<KeysFrom>, Failure> {
+    match (c.robot.security, keys) {
+        (Security::On, None) => Err(Failure::usage(format!(
+            "{} is secured (frame security is on unless the robot says `security: Off`): \
+             pass --keys FILE, the machine secret's key file (`config-tool keys new`), or set \
+             {KEYS_ENV}",
+            robot.display()
+        ))),
+        (Security::On, keys) => Ok(keys),
+        (Security::Off, Some(KeysFrom::Flag(_))) => Err(Failure::usage(format!(
+            "{} says `security: Off`: its nodes are pushed and commanded unsecured; drop \
+             --keys, or remove the setting to secure them",
+            robot.display()
+        ))),
+        (Security::Off, _) => Ok(None),
+    }
 }
 
 fn bars(targets: &[push::Target]) -> (MultiProgress, Vec<ProgressBar>) {
@@ -162,23 +254,26 @@ fn report_push(outcomes: &[push::Pushed]) -> Result<(), Failure> {
     }
 }
 
-pub fn status(at: &MediumAddr, node: u16) -> Result<(), Failure> {
-    let mut radio = connect(at)?;
-    let s = command(&mut radio, node, Command::Status)?;
+pub fn status(at: &MediumAddr, node: u16, keys: &KeysArg) -> Result<(), Failure> {
+    let mut radio = connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?;
+    let mut ids = Ids::default();
+    let s = command(&mut radio, &mut ids, node, Command::Status)?;
+    let r = security(&mut radio, &mut ids, node)?;
     println!("{}", show::status_text(node, &s));
+    println!("{}", show::security_text(&r));
     Ok(())
 }
 
-pub fn start(at: &MediumAddr, node: u16) -> Result<(), Failure> {
-    let mut radio = connect(at)?;
-    command(&mut radio, node, Command::Start)?;
+pub fn start(at: &MediumAddr, node: u16, keys: &KeysArg) -> Result<(), Failure> {
+    let mut radio = connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?;
+    command(&mut radio, &mut Ids::default(), node, Command::Start)?;
     println!("{node:#06x}: started");
     Ok(())
 }
 
-pub fn reset(at: &MediumAddr, node: u16) -> Result<(), Failure> {
-    let mut radio = connect(at)?;
-    let s = command(&mut radio, node, Command::Reset)?;
+pub fn reset(at: &MediumAddr, node: u16, keys: &KeysArg) -> Result<(), Failure> {
+    let mut radio = connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?;
+    let s = command(&mut radio, &mut Ids::default(), node, Command::Reset)?;
     println!("{}", show::reset_text(node, &s));
     Ok(())
 }

@@ -1,5 +1,6 @@
-//! The network (channel, PAN id), nodes and role assignment: addresses used twice, unknown roles and nodes, a role played
-//! by no node or by two, a node playing two roles.
+//! The network (channel, PAN id, security), nodes and role assignment: addresses used
+//! twice, unknown roles and nodes, a role played by no node or by two, a node playing two
+//! roles; a robot that turns frame security off (a warning).
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -7,10 +8,24 @@ use config_schema::limits::CHANNELS;
 
 use super::duplicate;
 use crate::diag::Diagnostic;
-use crate::model::Robot;
+use crate::model::{Robot, Security};
 use crate::source::Source;
 
 pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
+    if robot.security == Security::Off {
+        out.push(
+            Diagnostic::warning(
+                src.span("security"),
+                "frame security is off: anyone in radio range can push a table to these \
+                 nodes, press START or forge their events",
+            )
+            .label("unsecured")
+            .help(
+                "remove `security: Off` to secure every frame (push then needs the machine \
+                 secret: --keys)",
+            ),
+        );
+    }
     if !CHANNELS.contains(&robot.network.channel) {
         out.push(
             Diagnostic::error(

@@ -1,0 +1,210 @@
+//! The tool's side of frame security (docs/security.md): the machine secret's key file
+//! (`--keys FILE`, or `CONFIG_TOOL_KEYS`) and the tool's frame counter, kept in the counter
+//! file beside it (`FILE.counter`).
+//!
+//! The counter is the host node's: a `node_fw::frame_counter::FrameCounter` over a host
+//! flash file of two erase pages (`node_fw::host::frame_counter`), reserved 1024 ahead, so
+//! it is strictly increasing across runs of the tool and power cuts with one write per run
+//! and per 1024 frames. A process holds an exclusive advisory lock (`flock`) on the counter
+//! file for as long as it may send: a second process with the same key file is refused
+//! rather than handed the same counters.
+
+use std::fs::{File, OpenOptions};
+use std::io::{self, Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+use node_fw::host::flash::{counter_path, OpenError, COUNTER_FILE_SIZE};
+use node_fw::host::HostError;
+use robot_keys::{load_machine_secret, KeyFileError, MachineSecret};
+use robot_net::radio::CounterSource;
+
+/// The environment variable that stands for `--keys FILE` when the flag is not given.
+pub const KEYS_ENV: &str = "CONFIG_TOOL_KEYS";
+
+/// Where the key file came from: `--keys` or [`KEYS_ENV`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum KeysFrom {
+    Flag(PathBuf),
+    Env(PathBuf),
+}
+
+impl KeysFrom {
+    /// `--keys FILE` if given, else a non-empty [`KEYS_ENV`].
+    pub fn resolve(flag: Option<&Path>) -> Option<KeysFrom> {
+        match flag {
+            Some(p) => Some(KeysFrom::Flag(p.to_path_buf())),
+            None => std::env::var_os(KEYS_ENV)
+                .filter(|v| !v.is_empty())
+                .map(|v| KeysFrom::Env(PathBuf::from(v))),
+        }
+    }
+
+    pub fn path(&self) -> &Path {
+        match self {
+            KeysFrom::Flag(p) | KeysFrom::Env(p) => p,
+        }
+    }
+}
+
+/// What a secured radio is given: the secret and the counter (which holds the lock).
+pub struct ToolKeys {
+    pub secret: MachineSecret,
+    pub counter: CounterSource,
+}
+
+/// Why the tool cannot secure its frames.
+#[derive(Debug, thiserror::Error)]
+pub enum ToolKeyError {
+    /// The key file: missing, readable by others, not a secret, ...
+    #[error(transparent)]
+    Key(#[from] KeyFileError),
+    #[error(
+        "counter file {}: in use by another config-tool process with the same key file \
+         (locked); wait until it ends",
+        .0.display()
+    )]
+    Locked(PathBuf),
+    #[error("counter file {}: {source}", path.display())]
+    Io { path: PathBuf, source: io::Error },
+    #[error(
+        "counter file {}: {found} bytes, not a frame counter file ({expected} bytes); left \
+         unchanged",
+        path.display()
+    )]
+    Size {
+        path: PathBuf,
+        found: u64,
+        expected: u64,
+    },
+    #[error("counter file {}: unreadable", .0.display())]
+    Unreadable(PathBuf),
+}
+
+/// Reads the machine secret of `key_file` (refused if others may read it) and opens the
+/// tool's frame counter beside it, locked for this process until the counter is dropped.
+pub fn open(key_file: &Path) -> Result<ToolKeys, ToolKeyError> {
+    let secret = load_machine_secret(key_file)?;
+    let path = counter_path(key_file);
+    let lock = lock(&path)?;
+    let mut counter = node_fw::host::frame_counter(Some(key_file)).map_err(|e| match e {
+        HostError::Flash(OpenError::Size {
+            found, expected, ..
+        }) => ToolKeyError::Size {
+            path: path.clone(),
+            found,
+            expected,
+        },
+        HostError::Flash(OpenError::Io(_, source)) => ToolKeyError::Io {
+            path: path.clone(),
+            source,
+        },
+        _ => ToolKeyError::Unreadable(path.clone()),
+    })?;
+    Ok(ToolKeys {
+        secret,
+        counter: Box::new(move || {
+            // The lock lives as long as the counter.
+            let _held = &lock;
+            counter()
+        }),
+    })
+}
+
+/// Opens (creating, mode 0600) and locks the counter file; a file just created, or left
+/// shorter by a cut while it was being created (still blank), is made two erased pages.
+fn lock(path: &Path) -> Result<File, ToolKeyError> {
+    let io_err = |source| ToolKeyError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut options = OpenOptions::new();
+    options.read(true).write(true).create(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.mode(0o600);
+    }
+    let mut file = options.open(path).map_err(io_err)?;
+    #[cfg(unix)]
+    {
+        use rustix::fs::{flock, FlockOperation};
+        match flock(&file, FlockOperation::NonBlockingLockExclusive) {
+            Ok(()) => {}
+            Err(e) if e == rustix::io::Errno::WOULDBLOCK => {
+                return Err(ToolKeyError::Locked(path.to_path_buf()))
+            }
+            Err(e) => return Err(io_err(e.into())),
+        }
+    }
+    let len = file.metadata().map_err(io_err)?.len();
+    if len < COUNTER_FILE_SIZE as u64 {
+        let mut bytes = Vec::new();
+        file.read_to_end(&mut bytes).map_err(io_err)?;
+        // Anything but erased bytes is left for the size check to refuse.
+        if bytes.iter().all(|b| *b == 0xFF) {
+            file.seek(SeekFrom::Start(0)).map_err(io_err)?;
+            file.write_all(&[0xFF; COUNTER_FILE_SIZE]).map_err(io_err)?;
+            file.sync_all().map_err(io_err)?;
+        }
+    }
+    Ok(file)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn key_file(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("tool-keys-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("machine.key");
+        robot_keys::write_machine_secret(&p, false).unwrap();
+        p
+    }
+
+    #[test]
+    fn the_counter_resumes_above_every_earlier_run_and_one_run_at_a_time() {
+        let key = key_file("runs");
+        let mut first = open(&key).unwrap();
+        let sent: Vec<u32> = (0..3).map(|_| (first.counter)().unwrap()).collect();
+        assert_eq!(sent, [0, 1, 2]);
+        let again = open(&key).err().expect("locked while the first runs");
+        assert_eq!(
+            again.to_string(),
+            format!(
+                "counter file {}.counter: in use by another config-tool process with the same \
+                 key file (locked); wait until it ends",
+                key.display()
+            )
+        );
+        drop(first);
+        let mut second = open(&key).unwrap();
+        assert_eq!((second.counter)(), Some(node_fw::frame_counter::STEP));
+        assert_eq!(
+            std::fs::metadata(counter_path(&key)).unwrap().len(),
+            COUNTER_FILE_SIZE as u64
+        );
+    }
+
+    #[test]
+    fn a_blank_counter_file_cut_short_is_completed_and_anything_else_refused() {
+        let key = key_file("short");
+        let path = counter_path(&key);
+        std::fs::write(&path, [0xFF; 100]).unwrap();
+        let mut keys = open(&key).unwrap();
+        assert_eq!((keys.counter)(), Some(0));
+        drop(keys);
+        std::fs::write(&path, b"hello").unwrap();
+        let e = open(&key).err().expect("refused");
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "counter file {}: 5 bytes, not a frame counter file (8192 bytes); left \
+                 unchanged",
+                path.display()
+            )
+        );
+        assert_eq!(std::fs::read(&path).unwrap(), b"hello");
+    }
+}

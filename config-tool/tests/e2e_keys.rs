@@ -1,0 +1,287 @@
+//! The secured machine from the command line, as an operator runs it: `keys new`, each
+//! host node provisioned (`keys provision --board host --out`) and started with its key
+//! file, then `scan`, `push`, `start` and `status` with `--keys`, each its own run of the
+//! tool. An unsecured `start` to the keyed node starts nothing and is counted; a second
+//! `push --keys` works only because the tool's frame counter persisted in the counter file
+//! (a node refuses a counter it saw before).
+
+mod e2e_support;
+
+use std::path::Path;
+use std::process::{Child, Command, Output, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc};
+use std::time::Instant;
+
+use config_schema::wire::mac;
+use e2e_support::{initial, robot, Monitor, TempDir, SEQUENCE_1, TIMEOUT};
+use robot_net::live_plant;
+
+const ROBOT: &str = "robot-configs/paint-robot.ron";
+
+fn tool(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .args(args)
+        .env_remove("CONFIG_TOOL_KEYS")
+        .output()
+        .expect("runs")
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = tool(args);
+    assert!(
+        out.status.success(),
+        "{args:?}: {}{}",
+        text(&out.stdout),
+        text(&out.stderr)
+    );
+    text(&out.stdout)
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+struct Killed(Child);
+
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// The reservations in the tool's counter file, in log order (first sector only: a run
+/// writes one, far fewer than the 256 a sector holds here).
+fn reservations(counter: &Path) -> Vec<u32> {
+    let bytes = std::fs::read(counter).expect("counter file");
+    assert_eq!(bytes.len(), 8192);
+    let word = |r: &[u8], i: usize| u32::from_le_bytes(r[i..i + 4].try_into().unwrap());
+    bytes[..4096]
+        .chunks(16)
+        .take_while(|r| r.iter().any(|b| *b != 0xFF))
+        .map(|r| {
+            assert_eq!(word(r, 0), 0xFC0C_0017, "a whole record");
+            assert_eq!(word(r, 8), !word(r, 4));
+            word(r, 4)
+        })
+        .collect()
+}
+
+/// `status --keys` of `node`, as lines.
+fn status(key: &str, medium: &str, node: &str) -> Vec<String> {
+    ok(&["status", "--keys", key, "--medium", medium, "--node", node])
+        .lines()
+        .map(str::to_string)
+        .collect()
+}
+
+/// The security line's drop counters, up to the challenges (normal after a node's boot:
+/// one per sender, or a few while the answer is on its way).
+fn drops(security_line: &str) -> &str {
+    let (drops, rest) = security_line
+        .split_once("  challenged after boot ")
+        .unwrap_or_else(|| panic!("{security_line}"));
+    assert!(
+        rest.ends_with("  not sent (no frame counter) 0"),
+        "{security_line}"
+    );
+    drops
+}
+
+#[test]
+fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_dropped_and_counted() {
+    let dir = TempDir::new("keys-cli");
+    let key = dir.0.join("machine.key");
+    let key_s = s(&key).to_string();
+    ok(&["keys", "new", "--out", &key_s]);
+    let c = robot("paint-robot.ron", 1);
+    let addrs = robot_net::demo::node_addrs(&c);
+
+    let medium = medium::Medium::start(medium::Config::default()).expect("medium");
+    let m = medium.addr().to_string();
+    let mut monitor = Monitor::join(medium.addr());
+    let mut nodes = Vec::new();
+    for a in &addrs {
+        let node_key = dir.0.join(format!("node-{a:04x}.key"));
+        let addr = format!("{a:#06x}");
+        ok(&[
+            "keys",
+            "provision",
+            "--keys",
+            &key_s,
+            "--node",
+            &addr,
+            "--board",
+            "host",
+            "--out",
+            s(&node_key),
+        ]);
+        let child = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+            .args([
+                "node",
+                "--addr",
+                &addr,
+                "--medium",
+                &m,
+                "--key",
+                s(&node_key),
+            ])
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("node process");
+        nodes.push(Killed(child));
+    }
+    let actuators = live_plant::actuators(&c).expect("actuators");
+    let conn = live_plant::attach(medium.addr(), &actuators).expect("plant");
+    let (steps_tx, steps) = mpsc::channel();
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let plant =
+        std::thread::spawn(move || live_plant::run_attached(conn, actuators, None, steps_tx, flag));
+
+    // Every node is up once it announced itself (unconfigured, every second).
+    let mut heard = std::collections::BTreeSet::new();
+    monitor.psdus_until(|psdu| {
+        if let Ok(mac::Frame::Data { header, .. }) = mac::Frame::parse(psdu) {
+            if addrs.contains(&header.src) {
+                heard.insert(header.src);
+            }
+        }
+        heard.len() == addrs.len()
+    });
+
+    let counter = dir.0.join("machine.key.counter");
+    let pushed = ok(&["push", ROBOT, "--keys", &key_s, "--medium", &m]);
+    let lines: Vec<&str> = pushed.lines().collect();
+    assert_eq!(lines.len(), c.ir.roles.len() + 1, "{pushed}");
+    for line in &lines[..c.ir.roles.len()] {
+        assert!(line.ends_with("activated"), "{pushed}");
+    }
+    assert!(lines[c.ir.roles.len()].starts_with("pushed 4 table(s): 724 bytes"));
+    // One reservation for the whole run: the counter file, not a write per frame.
+    assert_eq!(reservations(&counter), [1024]);
+
+    assert_eq!(
+        ok(&["start", "--keys", &key_s, "--medium", &m, "--node", "0x0011"]),
+        "0x0011: started\n"
+    );
+    let cycle: Vec<String> = (0..12)
+        .map(|_| {
+            steps
+                .recv_timeout(TIMEOUT)
+                .expect("a step of the cycle")
+                .to_string()
+        })
+        .collect();
+    assert_eq!(cycle.join(" "), SEQUENCE_1);
+
+    // VC back at rest (its last step's switch may still be on its way).
+    let vc = &c.tables[e2e_support::role_of(&c, "VC").0];
+    let rest = format!(
+        "  states {}",
+        initial(vc)
+            .iter()
+            .map(|s| format!("S{s}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    let end = Instant::now() + TIMEOUT;
+    let before = loop {
+        let st = status(&key_s, &m, "0x0011");
+        if st[1].starts_with(&format!("{rest}  ")) || Instant::now() > end {
+            break st;
+        }
+    };
+    assert_eq!(before.len(), 6, "{before:?}");
+    assert_eq!(before[0], "0x0011  role VC  generation 1");
+    assert!(before[1].ends_with("fault none"), "{before:?}");
+    assert_eq!(
+        drops(&before[5]),
+        "  security on  dropped: not secured 0  bad MIC 0  replayed 0  unknown key 0  \
+         wrong level 0  malformed 0  replay table full 0"
+    );
+
+    // Without keys: the node drops every try, answers none, starts nothing.
+    let out = tool(&["start", "--medium", &m, "--node", "0x0011"]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    let asked: u32 = err
+        .strip_prefix("error: node 0x0011 did not answer (asked ")
+        .and_then(|r| r.split_once(" times in 5 s)"))
+        .and_then(|(n, rest)| {
+            (rest == "; a node with a management key takes only secured frames: pass --keys\n")
+                .then(|| n.parse().ok())
+                .flatten()
+        })
+        .unwrap_or_else(|| panic!("{err}"));
+    assert!(asked >= 1);
+    let after = status(&key_s, &m, "0x0011");
+    assert_eq!(
+        after[1], before[1],
+        "states, outputs, inputs and fault unchanged"
+    );
+    assert_eq!(
+        drops(&after[5]),
+        format!(
+            "  security on  dropped: not secured {asked}  bad MIC 0  replayed 0  unknown key 0  \
+             wrong level 0  malformed 0  replay table full 0"
+        )
+    );
+    assert!(steps.try_recv().is_err(), "nothing moved");
+
+    // A second push: a new run, its counters above every earlier run's (the node would
+    // drop them as replayed otherwise, and the push would fail).
+    let runs = reservations(&counter);
+    let again = ok(&[
+        "push",
+        ROBOT,
+        "--keys",
+        &key_s,
+        "--medium",
+        &m,
+        "--generation",
+        "2",
+    ]);
+    assert_eq!(
+        again.lines().filter(|l| l.ends_with("activated")).count(),
+        4,
+        "{again}"
+    );
+    let now = reservations(&counter);
+    assert_eq!(now.len(), runs.len() + 1);
+    assert!(
+        now.windows(2).all(|w| w[1] == w[0] + 1024),
+        "one reservation per run, each above the last: {now:?}"
+    );
+    let last = status(&key_s, &m, "0x0011");
+    assert_eq!(last[0], "0x0011  role VC  generation 2");
+    assert_eq!(
+        drops(&last[5]),
+        format!(
+            "  security on  dropped: not secured {asked}  bad MIC 0  replayed 0  unknown key 0  \
+             wrong level 0  malformed 0  replay table full 0"
+        )
+    );
+
+    // A secured scan reads the nodes' secured answers; without keys it reads none.
+    let found = ok(&["scan", "--keys", &key_s, "--medium", &m]);
+    for r in &c.ir.roles {
+        let line = format!("{:#06x}  firmware 1  generation 2  {}", r.address, r.name);
+        assert!(found.contains(&line), "{found}");
+    }
+    assert!(found.ends_with("5 node(s)\n"), "the spare too: {found}");
+    assert_eq!(ok(&["scan", "--medium", &m]), "0 node(s)\n");
+
+    stop.store(true, Ordering::Relaxed);
+    drop(nodes);
+    medium.stop();
+    let _ = plant.join();
+}
