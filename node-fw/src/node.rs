@@ -679,8 +679,13 @@ impl NodeCore {
                         ..
                     }
                 );
-            if !(scan && now >= self.next_open_identify) {
+            if !scan {
                 self.security.not_secured += 1;
+                self.counters.dropped += 1;
+                return;
+            }
+            if now < self.next_open_identify {
+                // A scan asked again within the second: not a security refusal.
                 self.counters.dropped += 1;
                 return;
             }
