@@ -157,9 +157,8 @@ fn reconfiguration_while_running_then_role_reassigned_to_the_spare() {
         Ok(mac::Frame::Data { header, .. }) => Some(header),
         _ => None,
     };
-    let seen = monitor.psdus_until(|p| {
-        header_of(p).is_some_and(|h| h.dst == OLD_VC && h.src == TOOL_ADDR)
-    });
+    let seen = monitor
+        .psdus_until(|p| header_of(p).is_some_and(|h| h.dst == OLD_VC && h.src == TOOL_ADDR));
     let (_, during) = seen.split_last().unwrap();
     let headers: Vec<Header> = during.iter().filter_map(|p| header_of(p)).collect();
     let to_or_from_old: Vec<&Header> = headers
@@ -497,7 +496,11 @@ fn forged_replayed_and_old_generation_events_move_nothing_and_the_counters_say_w
         u32::MAX - 1,
     ));
     let status = raw.status(gr);
-    assert_eq!(status.states.as_slice(), at_rest.as_slice(), "nothing moved");
+    assert_eq!(
+        status.states.as_slice(),
+        at_rest.as_slice(),
+        "nothing moved"
+    );
     let after = raw.security(gr);
     let d = |a: &config_schema::wire::msg::SecurityReport,
              f: fn(&config_schema::wire::msg::SecurityCounters) -> u32| {
@@ -526,7 +529,11 @@ fn forged_replayed_and_old_generation_events_move_nothing_and_the_counters_say_w
         u32::MAX - 2,
     ));
     let status = raw.status(gr);
-    assert_eq!(status.states.as_slice(), at_rest.as_slice(), "nothing moved");
+    assert_eq!(
+        status.states.as_slice(),
+        at_rest.as_slice(),
+        "nothing moved"
+    );
     let old = raw.security(gr);
     assert_eq!(
         (
@@ -538,6 +545,69 @@ fn forged_replayed_and_old_generation_events_move_nothing_and_the_counters_say_w
         "the old generation's key opens nothing"
     );
     exact_cycle(&mut bed, &c2, 2);
+    bed.stop();
+}
+
+/// Issue 11: a forged push of the RC table at generation 50 turned GR into RC, and a
+/// forced downgrade was activated too. Secured: the tool's real push of generation 2 to GR,
+/// captured and replayed once generation 3 runs, is refused frame by frame as replayed; the
+/// RC table pushed to GR at generation 50 with force, under another machine's key, is
+/// refused as forged. GR keeps running GR at generation 3.
+#[test]
+fn a_replayed_push_and_a_forged_forced_push_change_no_table() {
+    const HOSTILE: u16 = 0xBEEF;
+    let c2 = robot("paint-robot.ron", 2);
+    let mut bed = bring_up(&c2, options(medium::Config::default(), None));
+    let secret = bed.secret().expect("a secured bed").clone();
+    let (_, gr) = role_of(&c2, "GR");
+    let mut monitor = Monitor::join(bed.medium().addr());
+    push_ok(&mut bed, &c2);
+    // Every frame of the tool's push to GR, through its last (the transfer's end).
+    let is_end = |p: &[u8]| {
+        open_from_tool(&secret, gr, p)
+            .is_some_and(|plain| matches!(Message::parse(&plain), Ok(Message::ConfigEnd { .. })))
+    };
+    let captured: Vec<Vec<u8>> = monitor
+        .psdus_until(is_end)
+        .into_iter()
+        .filter(|p| open_from_tool(&secret, gr, p).is_some())
+        .collect();
+    assert!(
+        captured.len() >= 4,
+        "begin, chunks, end: {}",
+        captured.len()
+    );
+    let c3 = robot("paint-robot.ron", 3);
+    push_ok(&mut bed, &c3);
+    assert_running(&mut bed, &c3);
+
+    let mut raw = RawClient::join(bed.medium().addr(), HOSTILE).keyed(&secret);
+    let before = raw.security(gr);
+    for p in &captured {
+        raw.send_psdu(p);
+    }
+    // RC's table at generation 50, forced, posing as the tool under another secret.
+    let (rc, _) = role_of(&c2, "RC");
+    let blob = robot("paint-robot.ron", 50).blobs[rc].clone();
+    let other = robot_keys::MachineSecret::from_bytes([7; 32]);
+    let begin = payload(&Message::ConfigBegin {
+        generation: 50,
+        len: blob.len() as u16,
+        crc: config_schema::blob::CRC32.checksum(&blob),
+        force: true,
+    });
+    raw.send_psdu(&secured_frame(&other, gr, TOOL_ADDR, u32::MAX - 1, &begin));
+    let status = raw.status(gr);
+    assert_eq!((status.role.as_str(), status.generation), ("GR", 3));
+    let after = raw.security(gr);
+    assert_eq!(
+        (
+            after.counters.replayed - before.counters.replayed,
+            after.counters.bad_mic - before.counters.bad_mic
+        ),
+        (captured.len() as u32, 1)
+    );
+    exact_cycle(&mut bed, &c3, 1);
     bed.stop();
 }
 
