@@ -441,9 +441,11 @@ impl NodeCore {
         let timers = self.timers.iter().flatten().copied();
         let links = self.senders.iter().filter_map(|s| s.deadline());
         let announce = self.table.is_none().then_some(self.next_announce);
+        let greet = self.peer_security.greeting();
         timers
             .chain(links)
             .chain(announce)
+            .chain(greet)
             .min()
             .unwrap_or(u64::MAX)
     }
@@ -516,6 +518,9 @@ impl NodeCore {
                 self.timers[timer] = None;
                 self.run(now, io, |e, fx| e.timer_expired(timer as u8, fx));
             }
+        }
+        while let Some(peer) = self.peer_security.next_greeting(now) {
+            self.challenge_peer(peer, io);
         }
         if let Some(table) = &self.table {
             let pan = table.header.pan_id;
@@ -639,10 +644,14 @@ impl NodeCore {
                     peer,
                     nonce,
                     answer,
+                    challenge,
                 } => {
                     if answer {
                         let pan = header.pan_id;
                         self.send(io, pan, peer, &Message::ChallengeAnswer { nonce });
+                    }
+                    if challenge {
+                        self.challenge_peer(peer, io);
                     }
                     return;
                 }

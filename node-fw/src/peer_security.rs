@@ -18,7 +18,9 @@
 //! across all its keys, so the floor is per peer, kept across generations. After a boot
 //! the node knows no floor: an authentic frame from a peer without one is not acted on;
 //! the node sends that peer `Challenge { nonce }` (the challenge frame's own counter) and
-//! takes the counter of the peer's `ChallengeAnswer` with that nonce as the floor. A peer
+//! takes the counter of the peer's `ChallengeAnswer` with that nonce as the floor. So
+//! that the first events of a new table (or after a boot) do not wait for it, the node
+//! challenges every peer it knows no floor of as soon as it runs with keys. A peer
 //! answers a challenge even if it has no floor for the challenger itself (answering takes
 //! nothing in; with a floor, a replayed challenge is refused like any replay), at most
 //! once per [`HANDSHAKE_MS`] per peer, as it challenges.
@@ -40,6 +42,11 @@ pub const OVERLAP_MS: u64 = 10_000;
 /// counter: a flood of replays must not use it up).
 pub const HANDSHAKE_MS: u64 = 50;
 
+/// Challenges a node sends a peer it knows no floor of once it runs with keys, one per
+/// this many ms (until answered).
+pub const GREET_TRIES: u8 = 5;
+pub const GREET_EVERY_MS: u64 = 100;
+
 /// The replay guard's key index for every link key: a peer's counter is one per device,
 /// so its floor holds whatever key it used.
 const ANY_LINK_KEY: u8 = 1;
@@ -54,7 +61,14 @@ pub enum Verdict<'s> {
     Challenge { peer: u16, challenge: bool },
     /// Authentic: the peer asks this node to prove freshness; answer it with `nonce` (if
     /// `answer`: at most once per [`HANDSHAKE_MS`]).
-    Answer { peer: u16, nonce: u32, answer: bool },
+    Answer {
+        peer: u16,
+        nonce: u32,
+        answer: bool,
+        /// This node knows no floor of the peer either: challenge it back (the peer that
+        /// greets last after a push is then known both ways before any event).
+        challenge: bool,
+    },
     /// The answer to this node's challenge: the peer's floor is set. Nothing else to do.
     Answered,
     /// Refused; counted by its reason.
@@ -73,6 +87,11 @@ pub struct PeerSecurity {
     replay: ReplayGuard<MAX_PEERS>,
     /// Challenges sent and not answered: (peer, nonce).
     challenges: Vec<(u16, u32), MAX_PEERS>,
+    /// Peers to challenge before any event (set when keys are installed), with the tries
+    /// left and when the next is due: the first events of a new table or a boot then find
+    /// their floors established. Retried because a peer that has not switched to this
+    /// generation yet cannot open the challenge.
+    greet: Vec<(u16, u8, u64), MAX_PEERS>,
     /// Per peer: when it may be challenged, and answered, again.
     next_challenge: Vec<(u16, u64), MAX_PEERS>,
     next_answer: Vec<(u16, u64), MAX_PEERS>,
@@ -127,6 +146,31 @@ impl PeerSecurity {
         }
         self.replay = floors;
         self.challenges.retain(|(p, _)| peers.contains(p));
+        self.greet.clear();
+        if self.current.is_some() {
+            for &p in peers {
+                if self.replay.last(p, ANY_LINK_KEY).is_none() {
+                    let _ = self.greet.push((p, GREET_TRIES, 0));
+                }
+            }
+        }
+    }
+
+    /// The next peer to challenge before any of its frames came (see `greet`), at `now`.
+    pub fn next_greeting(&mut self, now: u64) -> Option<u16> {
+        let replay = &self.replay;
+        self.greet
+            .retain(|(p, tries, _)| *tries > 0 && replay.last(*p, ANY_LINK_KEY).is_none());
+        let (peer, tries, next) = self.greet.iter_mut().find(|(_, _, at)| *at <= now)?;
+        *tries -= 1;
+        *next = now + GREET_EVERY_MS;
+        let peer = *peer;
+        may(&mut self.next_challenge, peer, now).then_some(peer)
+    }
+
+    /// When the next greeting is due, if any is.
+    pub fn greeting(&self) -> Option<u64> {
+        self.greet.iter().map(|(_, _, at)| *at).min()
     }
 
     /// Secures `payload` to `dst` under the send key of the running generation; `None` if
@@ -213,10 +257,14 @@ impl PeerSecurity {
         if let (None, Ok(Message::Challenge { nonce })) = (floor, &message) {
             // Answering takes nothing in: no floor needed (the peer rebooted, or both did).
             let answer = may(&mut self.next_answer, src, now);
+            // (A challenge of ours still unanswered may have gone to the peer before it had
+            // this generation's keys: challenged again, at the handshake's rate.)
+            let challenge = may(&mut self.next_challenge, src, now);
             return Verdict::Answer {
                 peer: src,
                 nonce: *nonce,
                 answer,
+                challenge,
             };
         }
         if floor.is_none() {
@@ -258,6 +306,7 @@ impl PeerSecurity {
                         peer: src,
                         nonce,
                         answer: may(&mut self.next_answer, src, now),
+                        challenge: false,
                     },
                     _ => Verdict::Accept(payload),
                 }
@@ -463,6 +512,73 @@ mod tests {
         assert_eq!(verdict(&mut s, &frame(1, 3, &ch), 0, &mut c), "dropped");
         assert_eq!(c.replayed, 1);
         assert_eq!(verdict(&mut s, &frame(1, 30, &ch), 0, &mut c), "answer");
+    }
+
+    #[test]
+    fn a_challenge_from_a_peer_of_unknown_floor_is_answered_and_challenged_back_once() {
+        let mut s = PeerSecurity::default();
+        let mut c = SecurityCounters::default();
+        s.install(Some(keys(1)), &[PEER]);
+        let ch = Message::Challenge { nonce: 5 };
+        let mut scratch = [0u8; MAX_PAYLOAD];
+        let v = s.open(&frame(1, 3, &ch), ME, 0, &mut scratch, &mut c);
+        assert!(matches!(
+            v,
+            Verdict::Answer {
+                peer: PEER,
+                nonce: 5,
+                answer: true,
+                challenge: true
+            }
+        ));
+        // Within the handshake's rate: neither answered nor challenged again.
+        let v = s.open(
+            &frame(1, 4, &ch),
+            ME,
+            HANDSHAKE_MS - 1,
+            &mut scratch,
+            &mut c,
+        );
+        assert!(matches!(
+            v,
+            Verdict::Answer {
+                answer: false,
+                challenge: false,
+                ..
+            }
+        ));
+    }
+
+    #[test]
+    fn keys_installed_greet_every_peer_without_a_floor_once() {
+        let (mut s, _) = running();
+        s.install(Some(keys(2)), &[PEER]);
+        assert_eq!(s.next_greeting(0), None, "its floor is known");
+        let mut s = PeerSecurity::default();
+        s.install(Some(keys(1)), &[PEER]);
+        assert_eq!(s.greeting(), Some(0));
+        let tries: Vec<u64, 8> = (0..20 * GREET_EVERY_MS)
+            .filter(|&t| s.next_greeting(t) == Some(PEER))
+            .collect();
+        assert_eq!(
+            tries,
+            [0, 100, 200, 300, 400],
+            "until answered, 5 times at most"
+        );
+        assert_eq!(s.greeting(), None);
+        s.install(Some(keys(2)), &[PEER]);
+        assert_eq!(s.next_greeting(1_000), Some(PEER));
+        // Answered: no more greetings.
+        s.challenged(PEER, 77);
+        let mut c = SecurityCounters::default();
+        let answer = Message::ChallengeAnswer { nonce: 77 };
+        assert_eq!(
+            verdict(&mut s, &frame(2, 10, &answer), 1_001, &mut c),
+            "answered"
+        );
+        assert_eq!(s.next_greeting(1_000 + GREET_EVERY_MS), None);
+        s.install(None, &[PEER]);
+        assert_eq!(s.greeting(), None, "no keys, no greeting");
     }
 
     #[test]
