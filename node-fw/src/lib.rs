@@ -28,3 +28,4 @@ pub mod runtime;
 #[cfg(feature = "std")]
 pub mod sim;
 pub mod slots;
+pub mod switch;

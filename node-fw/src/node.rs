@@ -6,11 +6,11 @@
 //! [`Io`] it asks for, and persists a new table when asked, before the node switches to it.
 
 use config_schema::limits::{MAX_PEERS, MAX_TIMERS};
-use config_schema::link_keys::{decode_deployment, LinkKeys};
+use config_schema::link_keys::LinkKeys;
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
 use config_schema::wire::msg::{
     Announce, Command, ConfigReply, Counters, Message, Refusal, RuntimeCounters, SecurityCounters,
-    SecurityReport, Status,
+    SecurityReport, Status, SwitchStep,
 };
 use config_schema::wire::security::{
     self, ext_addr,
@@ -25,6 +25,7 @@ use crate::link::{self, LinkState};
 use crate::ota::{self, Outcome};
 use crate::peer_security::{self, PeerSecurity, Verdict};
 use crate::provision::ManagementKey;
+use crate::switch::{self, SwitchOver};
 
 /// Reported in announcements and status.
 pub const FIRMWARE_VERSION: u16 = 1;
@@ -64,14 +65,25 @@ pub const OPEN_IDENTIFY_MS: u64 = ANNOUNCE_MS;
 /// a flood of replays must not use it up).
 pub const CHALLENGE_MS: u64 = 50;
 
-/// A table waiting to be persisted before it runs: its blob stays in the OTA staging
-/// buffer (decoded and validated already; decoded again when it is switched to, so the node
-/// never holds two decoded tables besides the running one).
+/// A transfer waiting to be staged in flash: its blob is in the OTA buffer (decoded and
+/// validated already).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct Staged {
+struct Staging {
     generation: u32,
     len: usize,
     from: u16,
+}
+
+/// What the node needs of its flash. The board does it, then answers with
+/// [`NodeCore::staged`] or [`NodeCore::activated`], before it hands the node another frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FlashRequest<'a> {
+    /// Persist this transfer (a table blob and its key block) in the slot not running, as
+    /// staged: checked, not running.
+    Stage(&'a [u8]),
+    /// Make the staged slot the boot table, read it back and hand it to
+    /// [`NodeCore::activated`].
+    Activate,
 }
 
 /// The generic node.
@@ -86,7 +98,9 @@ pub struct NodeCore {
     /// (peer address, link) for every peer that sent events.
     receivers: Vec<(u16, link::Receiver), MAX_PEERS>,
     ota: ota::Receiver,
-    staged: Option<Staged>,
+    staging: Option<Staging>,
+    /// The staged generation and the switch-over to it.
+    switch: SwitchOver,
     epoch: u16,
     /// Bit i: the last `Reset` re-established the link to peer i.
     restarted: u8,
@@ -258,7 +272,8 @@ impl NodeCore {
             senders: Vec::new(),
             receivers: Vec::new(),
             ota: ota::Receiver::for_board(board_pins),
-            staged: None,
+            staging: None,
+            switch: SwitchOver::default(),
             epoch,
             restarted: 0,
             mac_seq: 0,
@@ -431,9 +446,39 @@ impl NodeCore {
         restart
     }
 
-    /// The blob a pending activation wants persisted (call [`NodeCore::persisted`] after).
-    pub fn to_persist(&self) -> Option<&[u8]> {
-        self.staged.as_ref().map(|s| self.ota.blob(s.len))
+    /// What the node needs of its flash now, if anything.
+    pub fn flash_request(&self) -> Option<FlashRequest<'_>> {
+        if let Some(s) = &self.staging {
+            return Some(FlashRequest::Stage(self.ota.blob(s.len)));
+        }
+        self.switch.activating().map(|_| FlashRequest::Activate)
+    }
+
+    /// The node booted with `generation` staged in flash (the tool may finish the
+    /// switch-over).
+    pub fn with_staged(mut self, generation: u32) -> Self {
+        self.switch.set_staged(generation);
+        self
+    }
+
+    /// The generation staged for the switch-over (0: none).
+    pub fn staged_generation(&self) -> u32 {
+        self.switch.staged()
+    }
+
+    /// Whether the node is idle: configured, not faulted, every chart in its initial state,
+    /// no timer running, no event of its own unacknowledged (unconfigured: idle).
+    pub fn idle(&self) -> bool {
+        let (Some(t), Some(st)) = (&self.table, &self.state) else {
+            return true;
+        };
+        st.fault.is_none()
+            && t.charts
+                .iter()
+                .zip(st.current.iter())
+                .all(|(c, &cur)| cur == c.initial)
+            && self.timers.iter().all(Option::is_none)
+            && self.senders.iter().all(|s| s.unacked() == 0)
     }
 
     /// The earliest time [`NodeCore::poll`] has work.
@@ -441,11 +486,13 @@ impl NodeCore {
         let timers = self.timers.iter().flatten().copied();
         let links = self.senders.iter().filter_map(|s| s.deadline());
         let announce = self.table.is_none().then_some(self.next_announce);
+        let disarm = self.switch.deadline();
         let greet = self.peer_security.greeting();
         timers
             .chain(links)
             .chain(announce)
             .chain(greet)
+            .chain(disarm)
             .min()
             .unwrap_or(u64::MAX)
     }
@@ -519,6 +566,11 @@ impl NodeCore {
                 self.run(now, io, |e, fx| e.timer_expired(timer as u8, fx));
             }
         }
+        if self.switch.poll(now) {
+            self.run(now, io, |e, fx| {
+                e.start(fx);
+            });
+        }
         while let Some(peer) = self.peer_security.next_greeting(now) {
             self.challenge_peer(peer, io);
         }
@@ -553,6 +605,7 @@ impl NodeCore {
             firmware: FIRMWARE_VERSION,
             generation: self.generation(),
             role,
+            staged: self.switch.staged(),
         })
     }
 
@@ -562,6 +615,7 @@ impl NodeCore {
             ack,
             role: heapless::String::new(),
             generation: self.generation(),
+            staged: self.switch.staged(),
             states: Vec::new(),
             outputs: 0,
             inputs: 0,
@@ -675,6 +729,7 @@ impl NodeCore {
                 | Message::ConfigChunk { .. }
                 | Message::ConfigEnd { .. }
                 | Message::Command { .. }
+                | Message::Switch { .. }
         );
         if self.key.is_some() && is_management && !authentic {
             // A scan cannot be secured with every node's key: an unsecured broadcast
@@ -726,6 +781,9 @@ impl NodeCore {
             | Message::ConfigEnd { .. } => self.on_config(&msg, src, reply_pan, io),
             Message::Command { id, command } => {
                 self.on_command(id, command, src, reply_pan, now, io)
+            }
+            Message::Switch { generation, step } => {
+                self.on_switch(generation, step, src, reply_pan, now, io)
             }
             // Replies, statuses and announcements are for the tool.
             _ => {}
@@ -906,11 +964,11 @@ impl NodeCore {
     fn on_config(&mut self, msg: &Message<'_>, src: u16, pan: u16, io: &mut impl Io) {
         // Nothing touches the staging buffer while its table is being persisted; the
         // answer comes once it runs (the runtime persists before it reads another frame).
-        if self.staged.is_some() {
+        if self.staging.is_some() || self.switch.activating().is_some() {
             return;
         }
         let generation = self.generation();
-        match self.ota.on_message(msg, generation) {
+        match self.ota.on_message(msg, generation, self.switch.staged()) {
             Some(Outcome::Reply(reply)) => {
                 let gen = match *msg {
                     Message::ConfigBegin { generation, .. }
@@ -928,11 +986,9 @@ impl NodeCore {
                     },
                 );
             }
-            Some(Outcome::Activate {
-                generation, len, ..
-            }) => {
-                // The old table keeps running until the new one is persisted.
-                self.staged = Some(Staged {
+            Some(Outcome::Stage { generation, len }) => {
+                // The old table keeps running; the new one waits for the switch-over.
+                self.staging = Some(Staging {
                     generation,
                     len,
                     from: src,
@@ -942,19 +998,40 @@ impl NodeCore {
         }
     }
 
-    /// The runtime persisted (or failed to persist) the staged table: switch to it
-    /// atomically (old outputs safe, new outputs safe, new engine) and answer the tool.
-    pub fn persisted(&mut self, ok: bool, io: &mut impl Io) {
-        let Some(staged) = self.staged.take() else {
+    /// The board staged the transfer (`ok`) or failed to: answer the tool.
+    pub fn staged(&mut self, ok: bool, io: &mut impl Io) {
+        let Some(staging) = self.staging.take() else {
             return;
         };
-        let generation = staged.generation;
-        // The blob was decoded and validated when it arrived; the buffer has not changed.
-        let table = match decode_deployment(self.ota.blob(staged.len)) {
-            Ok(deployed) if ok => Some(deployed),
-            _ => None,
+        let generation = staging.generation;
+        let reply = if ok {
+            self.switch.set_staged(generation);
+            ConfigReply::Staged
+        } else {
+            ConfigReply::Refused(Refusal::Flash)
         };
-        let reply = match table {
+        self.send(
+            io,
+            CONFIG_PAN,
+            staging.from,
+            &Message::ConfigReply { generation, reply },
+        );
+    }
+
+    /// The board activated the staged slot and read back its table and keys (`None`: the
+    /// flash failed, or the slot no longer decodes): switch to it atomically (old outputs
+    /// safe, new outputs safe, new engine), answer the tool, and run a START held during
+    /// the switch-over.
+    pub fn activated(
+        &mut self,
+        deployed: Option<(Table, Option<LinkKeys>)>,
+        now: u64,
+        io: &mut impl Io,
+    ) {
+        let generation = self.switch.staged();
+        let deployed = deployed.filter(|(t, _)| t.generation == generation);
+        let (from, start) = self.switch.activated(deployed.is_some());
+        let reply = match deployed {
             Some((table, keys)) => {
                 if let Some(old) = &self.table {
                     for o in &old.outputs {
@@ -967,15 +1044,49 @@ impl NodeCore {
                 self.install(table, keys);
                 ConfigReply::Activated
             }
-            None if ok => ConfigReply::Refused(Refusal::Invalid),
             None => ConfigReply::Refused(Refusal::Flash),
         };
-        self.send(
-            io,
-            CONFIG_PAN,
-            staged.from,
-            &Message::ConfigReply { generation, reply },
-        );
+        if let Some(from) = from {
+            self.send(
+                io,
+                CONFIG_PAN,
+                from,
+                &Message::ConfigReply { generation, reply },
+            );
+        }
+        if start {
+            self.run(now, io, |e, fx| {
+                e.start(fx);
+            });
+        }
+    }
+
+    /// A `Switch` step from the tool.
+    fn on_switch(
+        &mut self,
+        generation: u32,
+        step: SwitchStep,
+        src: u16,
+        pan: u16,
+        now: u64,
+        io: &mut impl Io,
+    ) {
+        let idle = self.idle();
+        let running = self.generation();
+        let reply = match self.switch.step(generation, step, src, running, idle, now) {
+            switch::Action::Reply(r) => r,
+            // Answered once the board has switched.
+            switch::Action::Activate => return,
+            switch::Action::Disarmed { start } => {
+                if start {
+                    self.run(now, io, |e, fx| {
+                        e.start(fx);
+                    });
+                }
+                ConfigReply::Disarmed
+            }
+        };
+        self.send(io, pan, src, &Message::ConfigReply { generation, reply });
     }
 
     fn on_command(
@@ -1005,6 +1116,8 @@ impl NodeCore {
                 }
             }
             match cmd {
+                // Armed for a switch-over: the START waits for it.
+                Command::Start if self.switch.hold_start() => {}
                 Command::Start => self.run(now, io, |e, fx| {
                     e.start(fx);
                 }),

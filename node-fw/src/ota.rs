@@ -7,11 +7,13 @@
 //! ConfigChunk{gen, offset, data}     ->  Next{first missing byte}
 //!   ... up to WINDOW chunks in flight; chunks have fixed places (offset = i * CHUNK_DATA),
 //!   so the node stages them in any order and only lost ones are waited for
-//! ConfigEnd{gen}                     ->  Activated       (or Refused(Crc/Invalid/Pin/Flash))
+//! ConfigEnd{gen}                     ->  Staged          (or Refused(Crc/Invalid/Pin/Flash))
 //! ```
 //! Every message is answered, and every answer says where the node is, so the tool resends
-//! whatever was lost. Nothing is activated before the whole blob's CRC-32 matches, the
-//! table decodes and validates, and every pin it names is on the board; a transfer that stops anywhere leaves the old table running.
+//! whatever was lost. Nothing is staged before the whole blob's CRC-32 matches, the table
+//! decodes and validates, and every pin it names is on the board; a transfer that stops
+//! anywhere leaves the old table running. A staged table runs only on the switch-over
+//! (`Message::Switch`, the node's part: `crate::node`).
 
 use config_schema::blob::CRC32;
 use config_schema::limits::MAX_BLOB;
@@ -84,11 +86,9 @@ pub enum Outcome {
     /// Answer with this reply.
     Reply(ConfigReply),
     /// The blob is complete, its CRC matches, it decodes and validates and its pins are on
-    /// the board: persist
-    /// [`Receiver::blob`]`(len)` to the inactive slot, then switch to it atomically
-    /// (outputs to the safe state, new engine) and answer `Activated` (or
-    /// `Refused(Flash)` if persisting failed).
-    Activate {
+    /// the board: persist [`Receiver::blob`]`(len)` to the inactive slot as staged and
+    /// answer `Staged` (or `Refused(Flash)` if persisting failed).
+    Stage {
         generation: u32,
         /// Length of the staged blob.
         len: usize,
@@ -116,7 +116,7 @@ impl Receiver {
         self.transfer.map(|t| t.generation)
     }
 
-    /// The staged blob of the last completed transfer (what `Activate` is to persist).
+    /// The blob of the last completed transfer (what `Stage` is to persist).
     pub fn blob(&self, len: usize) -> &[u8] {
         self.staging.get(..len).unwrap_or(&[])
     }
@@ -127,8 +127,19 @@ impl Receiver {
     }
 
     /// Handles a config message; `running` is the generation of the running table (0 when
-    /// unconfigured). Other messages are answered with `None`.
-    pub fn on_message(&mut self, msg: &Message<'_>, running: u32) -> Option<Outcome> {
+    /// unconfigured), `staged` the one staged (0: none). Other messages are answered with
+    /// `None`.
+    pub fn on_message(&mut self, msg: &Message<'_>, running: u32, staged: u32) -> Option<Outcome> {
+        // The last answer to a transfer that is done: activated (running) or staged.
+        let done = |generation: u32| {
+            if generation == staged && staged != 0 {
+                Some(ConfigReply::Staged)
+            } else if generation == running && running != 0 {
+                Some(ConfigReply::Activated)
+            } else {
+                None
+            }
+        };
         let reply = |r| Some(Outcome::Reply(r));
         match *msg {
             Message::ConfigBegin {
@@ -141,8 +152,22 @@ impl Receiver {
                     // A repeated begin: say where we are.
                     return reply(ConfigReply::Next { next: t.received });
                 }
+                if generation == staged && staged != 0 && !force {
+                    // Staged already (its answer was lost, or the tool pushes again).
+                    return reply(ConfigReply::Staged);
+                }
                 if generation <= running && !force {
                     return reply(ConfigReply::Refused(Refusal::Stale { running }));
+                }
+                // An older generation (a late or replayed begin) does not replace a newer
+                // transfer in progress.
+                if let Some(t) = self
+                    .transfer
+                    .filter(|t| generation < t.generation && !force)
+                {
+                    return reply(ConfigReply::Refused(Refusal::Superseded {
+                        transfer: t.generation,
+                    }));
                 }
                 if usize::from(len) > MAX_BLOB {
                     return reply(ConfigReply::Refused(Refusal::TooLong));
@@ -166,9 +191,9 @@ impl Receiver {
                     .as_mut()
                     .filter(|t| t.generation == generation)
                 else {
-                    // A late copy of a chunk of the table now running: it is in.
-                    if generation == running && running != 0 {
-                        return reply(ConfigReply::Activated);
+                    // A late copy of a chunk of the table now staged or running: it is in.
+                    if let Some(r) = done(generation) {
+                        return reply(r);
                     }
                     return reply(ConfigReply::Refused(Refusal::OutOfSequence));
                 };
@@ -189,9 +214,9 @@ impl Receiver {
             }
             Message::ConfigEnd { generation } => {
                 let Some(t) = self.transfer.filter(|t| t.generation == generation) else {
-                    // The end of the transfer that is now running: its answer was lost.
-                    if generation == running && running != 0 {
-                        return reply(ConfigReply::Activated);
+                    // The end of the transfer now staged or running: its answer was lost.
+                    if let Some(r) = done(generation) {
+                        return reply(r);
                     }
                     return reply(ConfigReply::Refused(Refusal::OutOfSequence));
                 };
@@ -208,7 +233,7 @@ impl Receiver {
                     Ok((table, _)) if table.generation == generation => {
                         match table.missing_pin(board) {
                             Some(pin) => reply(ConfigReply::Refused(Refusal::Pin { pin, board })),
-                            None => Some(Outcome::Activate {
+                            None => Some(Outcome::Stage {
                                 generation,
                                 len: usize::from(t.len),
                             }),
@@ -227,7 +252,7 @@ impl Receiver {
 pub enum Progress {
     /// Still sending.
     Busy,
-    /// The node activated the table.
+    /// The node staged the table (or runs it already).
     Done,
     /// The node refused it.
     Refused(Refusal),
@@ -407,11 +432,14 @@ impl<'b> Sender<'b> {
                 self.fill(false, &mut send);
                 self.arm(now);
             }
-            ConfigReply::Activated => {
+            // Staged (or, from a node that switched already, running).
+            ConfigReply::Staged | ConfigReply::Activated => {
                 if self.ended {
                     self.progress = Progress::Done;
                 }
             }
+            // Answers of the switch-over, not of a transfer.
+            ConfigReply::Armed { .. } | ConfigReply::Busy | ConfigReply::Disarmed => {}
             // Answers to chunks sent before a restart, while the begin is not answered yet.
             ConfigReply::Refused(Refusal::OutOfSequence) if self.acked.is_none() => {}
             // The node does not know this transfer (it restarted, or began another):

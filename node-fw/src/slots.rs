@@ -1,16 +1,25 @@
-//! The two table slots in flash: a new table is written to the slot not holding the running
-//! one and becomes the boot table only when its commit marker, written last, is in place.
+//! The two table slots in flash. A new table is written to the slot not holding the running
+//! one and staged (checked, not running); it becomes the boot table when it is activated,
+//! and stays it once confirmed. Every state is one word written once after the erase, so a
+//! power cut at any write leaves a slot in the state before or after it, never between.
 //!
 //! ```text
-//! slot (slot_size bytes, erase-aligned):
-//! 0   u32 LE  blob length           written after the blob
-//! 16  u32 LE  COMMITTED marker      written last: the "flip"
-//! 32  blob                          padded with 0xFF to the write size
+//! slot (slot_size bytes, erase-aligned; every word u32 LE, in its own 16-byte cell):
+//! 0   blob length        written after the blob
+//! 16  STAGED marker      the blob is whole and was checked: a table, not running
+//! 32  activation serial  written when the node switches to it: the order of activations
+//! 48  CONFIRMED marker   the activation is final (an activation on trial is not, yet)
+//! 64  REVOKED marker     rolled back or abandoned: never booted again
+//! 80  blob               padded with 0xFF to the write size
 //! ```
-//! A power cut before the marker leaves that slot uncommitted and the node boots the other
-//! one; after it, the node boots the newest committed slot that decodes and validates. So a
-//! node always runs the old table or the new one, never a mix.
+//!
+//! At boot the node runs the confirmed, unrevoked slot activated **last** (the highest
+//! serial), not the highest generation: a forced downgrade survives a restart. A slot
+//! activated but never confirmed is a trial that a power cut interrupted: it is not
+//! booted ([`Boot::abandoned`]; the runtime revokes it). A staged slot that was never
+//! activated is reported ([`Boot::staged`]) so the tool can finish the switch-over.
 
+use config_schema::blob;
 use config_schema::limits::MAX_BLOB;
 use config_schema::link_keys::{decode_deployment, LinkKeys};
 use config_schema::Table;
@@ -18,11 +27,19 @@ use embedded_storage::nor_flash::{ErrorType, NorFlashError, NorFlashErrorKind};
 use embedded_storage_async::nor_flash::{NorFlash, ReadNorFlash};
 
 /// Bytes before the blob in a slot.
-pub const HEADER: usize = 32;
+pub const HEADER: usize = 80;
 const LEN_AT: u32 = 0;
-const MARKER_AT: u32 = 16;
-/// The commit marker.
-pub const COMMITTED: u32 = 0x5A17_C0DE;
+const STAGED_AT: u32 = 16;
+const SERIAL_AT: u32 = 32;
+const CONFIRMED_AT: u32 = 48;
+const REVOKED_AT: u32 = 64;
+/// The staged marker.
+pub const STAGED: u32 = 0x57A6_ED02;
+/// The confirmed marker.
+pub const CONFIRMED: u32 = 0xC0F1_12ED;
+/// The revoked marker.
+pub const REVOKED: u32 = 0x2E70_CED0;
+const ERASED: u32 = u32::MAX;
 /// Largest write or read granularity the layout supports.
 const MAX_ALIGN: usize = 16;
 
@@ -33,6 +50,8 @@ pub enum SlotError<E> {
     Geometry,
     /// The blob is longer than `MAX_BLOB`.
     TooLong,
+    /// The slot holds no staged table to activate (or it was revoked).
+    NotStaged,
     /// The flash failed.
     Flash(E),
 }
@@ -50,6 +69,36 @@ pub struct Loaded {
     pub table: Table,
     /// The link keys stored with the table (a secured push), if any.
     pub keys: Option<LinkKeys>,
+}
+
+/// A staged table: where, and its generation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StagedSlot {
+    pub slot: usize,
+    pub generation: u32,
+}
+
+/// What the slots hold at boot.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Boot {
+    /// The table to run: confirmed, not revoked, activated last.
+    pub running: Option<Loaded>,
+    /// A checked table staged and never activated, to switch to on the tool's word.
+    pub staged: Option<StagedSlot>,
+    /// A trial a power cut interrupted (activated, never confirmed): not booted.
+    pub abandoned: Option<usize>,
+    /// The serial the next activation takes.
+    pub next_serial: u32,
+}
+
+/// The state words of one slot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SlotState {
+    pub staged: bool,
+    /// The activation serial, if it was activated.
+    pub serial: Option<u32>,
+    pub confirmed: bool,
+    pub revoked: bool,
 }
 
 fn round_up(n: usize, to: usize) -> usize {
@@ -100,20 +149,35 @@ impl<F: NorFlash> Slots<F> {
         Ok(u32::from_le_bytes([word[0], word[1], word[2], word[3]]))
     }
 
-    async fn write_word(&mut self, at: u32, value: u32) -> Result<(), F::Error> {
+    async fn write_word(&mut self, at: u32, value: u32) -> Result<(), SlotError<F::Error>> {
         let mut word = [0xFFu8; MAX_ALIGN];
         word[..4].copy_from_slice(&value.to_le_bytes());
-        self.flash.write(at, &word[..F::WRITE_SIZE.max(4)]).await
+        self.flash
+            .write(at, &word[..F::WRITE_SIZE.max(4)])
+            .await
+            .map_err(SlotError::Flash)
     }
 
-    /// Reads slot `slot`'s blob into `buf` if the slot is committed; returns its length.
+    /// The state words of slot `slot`.
+    pub async fn state(&mut self, slot: usize) -> Result<SlotState, F::Error> {
+        let base = self.base(slot);
+        let serial = self.read_word(base + SERIAL_AT).await?;
+        Ok(SlotState {
+            staged: self.read_word(base + STAGED_AT).await? == STAGED,
+            serial: (serial != ERASED).then_some(serial),
+            confirmed: self.read_word(base + CONFIRMED_AT).await? == CONFIRMED,
+            revoked: self.read_word(base + REVOKED_AT).await? == REVOKED,
+        })
+    }
+
+    /// Reads slot `slot`'s blob into `buf` if the slot is staged; returns its length.
     pub async fn read_blob(
         &mut self,
         slot: usize,
         buf: &mut [u8; MAX_BLOB + MAX_ALIGN],
     ) -> Result<Option<usize>, F::Error> {
         let base = self.base(slot);
-        if self.read_word(base + MARKER_AT).await? != COMMITTED {
+        if self.read_word(base + STAGED_AT).await? != STAGED {
             return Ok(None);
         }
         let len = self.read_word(base + LEN_AT).await? as usize;
@@ -127,28 +191,64 @@ impl<F: NorFlash> Slots<F> {
         Ok(Some(len))
     }
 
-    /// The newest committed slot whose blob decodes and validates, if any.
-    pub async fn load(&mut self) -> Result<Option<Loaded>, F::Error> {
+    /// The table (and its keys) staged in slot `slot`, if it decodes and validates.
+    pub async fn read_table(&mut self, slot: usize) -> Result<Option<Loaded>, F::Error> {
         let mut buf = [0u8; MAX_BLOB + MAX_ALIGN];
-        let mut best: Option<Loaded> = None;
-        for slot in 0..2 {
-            let Some(len) = self.read_blob(slot, &mut buf).await? else {
-                continue;
-            };
-            let Ok((table, keys)) = decode_deployment(&buf[..len]) else {
-                continue;
-            };
-            if best
-                .as_ref()
-                .is_none_or(|b| table.generation > b.table.generation)
-            {
-                best = Some(Loaded { slot, table, keys });
-            }
-        }
-        Ok(best)
+        let Some(len) = self.read_blob(slot, &mut buf).await? else {
+            return Ok(None);
+        };
+        Ok(decode_deployment(buf.get(..len).unwrap_or(&[]))
+            .ok()
+            .map(|(table, keys)| Loaded { slot, table, keys }))
     }
 
-    /// Erases slot `slot` and writes `blob` and its length, without the commit marker.
+    /// What the slots hold: the table to boot, a staged one, an abandoned trial.
+    pub async fn load(&mut self) -> Result<Boot, F::Error> {
+        let mut boot = Boot::default();
+        let mut best: Option<u32> = None;
+        for slot in 0..2 {
+            let st = self.state(slot).await?;
+            if let Some(serial) = st.serial {
+                boot.next_serial = boot.next_serial.max(serial.saturating_add(1));
+            }
+            if !st.staged || st.revoked {
+                continue;
+            }
+            match (st.serial, st.confirmed) {
+                (None, _) => {
+                    // Checked when it was staged; its generation is in the envelope.
+                    let mut buf = [0u8; MAX_BLOB + MAX_ALIGN];
+                    if let Some(len) = self.read_blob(slot, &mut buf).await? {
+                        let whole = buf.get(..len).unwrap_or(&[]);
+                        if decode_deployment(whole).is_ok() {
+                            if let Ok(env) = config_schema::link_keys::split(whole)
+                                .map_err(|_| ())
+                                .and_then(|(b, _)| blob::envelope(b).map_err(|_| ()))
+                            {
+                                boot.staged = Some(StagedSlot {
+                                    slot,
+                                    generation: env.generation,
+                                });
+                            }
+                        }
+                    }
+                }
+                (Some(_), false) => boot.abandoned = Some(slot),
+                (Some(serial), true) => {
+                    if best.is_some_and(|b| b >= serial) {
+                        continue;
+                    }
+                    if let Some(loaded) = self.read_table(slot).await? {
+                        best = Some(serial);
+                        boot.running = Some(loaded);
+                    }
+                }
+            }
+        }
+        Ok(boot)
+    }
+
+    /// Erases slot `slot` and writes `blob` and its length, not yet staged.
     pub async fn persist(&mut self, slot: usize, blob: &[u8]) -> Result<(), SlotError<F::Error>> {
         if blob.len() > MAX_BLOB {
             return Err(SlotError::TooLong);
@@ -174,22 +274,12 @@ impl<F: NorFlash> Slots<F> {
                 .await
                 .map_err(SlotError::Flash)?;
         }
-        self.write_word(base + LEN_AT, blob.len() as u32)
-            .await
-            .map_err(SlotError::Flash)
+        self.write_word(base + LEN_AT, blob.len() as u32).await
     }
 
-    /// Writes slot `slot`'s commit marker: from now on it is a boot candidate.
-    pub async fn commit(&mut self, slot: usize) -> Result<(), SlotError<F::Error>> {
-        let base = self.base(slot);
-        self.write_word(base + MARKER_AT, COMMITTED)
-            .await
-            .map_err(SlotError::Flash)
-    }
-
-    /// Stores a new table beside the running one (in slot `running`, if any): persist to
-    /// the other slot, then commit. Returns the slot written.
-    pub async fn store(
+    /// Persists `blob` in the slot not holding `running` and marks it staged: checked,
+    /// not running. Returns the slot written.
+    pub async fn stage(
         &mut self,
         running: Option<usize>,
         blob: &[u8],
@@ -199,7 +289,51 @@ impl<F: NorFlash> Slots<F> {
             _ => 0,
         };
         self.persist(slot, blob).await?;
-        self.commit(slot).await?;
+        self.write_word(self.base(slot) + STAGED_AT, STAGED).await?;
+        Ok(slot)
+    }
+
+    /// Makes staged slot `slot` the boot table with activation `serial`; unless `trial`,
+    /// confirmed at once.
+    pub async fn activate(
+        &mut self,
+        slot: usize,
+        serial: u32,
+        trial: bool,
+    ) -> Result<(), SlotError<F::Error>> {
+        let st = self.state(slot).await.map_err(SlotError::Flash)?;
+        if !st.staged || st.revoked || st.serial.is_some() {
+            return Err(SlotError::NotStaged);
+        }
+        let base = self.base(slot);
+        self.write_word(base + SERIAL_AT, serial).await?;
+        if !trial {
+            self.write_word(base + CONFIRMED_AT, CONFIRMED).await?;
+        }
+        Ok(())
+    }
+
+    /// Confirms slot `slot`'s activation (a trial that passed).
+    pub async fn confirm(&mut self, slot: usize) -> Result<(), SlotError<F::Error>> {
+        self.write_word(self.base(slot) + CONFIRMED_AT, CONFIRMED)
+            .await
+    }
+
+    /// Revokes slot `slot`: it never boots again (a rollback, an abandoned trial).
+    pub async fn revoke(&mut self, slot: usize) -> Result<(), SlotError<F::Error>> {
+        self.write_word(self.base(slot) + REVOKED_AT, REVOKED).await
+    }
+
+    /// Stages `blob` beside the running table (in slot `running`, if any) and activates it,
+    /// confirmed, with `serial`: the one-step store. Returns the slot written.
+    pub async fn store(
+        &mut self,
+        running: Option<usize>,
+        blob: &[u8],
+        serial: u32,
+    ) -> Result<usize, SlotError<F::Error>> {
+        let slot = self.stage(running, blob).await?;
+        self.activate(slot, serial, false).await?;
         Ok(slot)
     }
 }

@@ -5,11 +5,12 @@
 mod support;
 use support::{Channel, Rng};
 
+use config_schema::link_keys::decode_deployment;
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
 use config_schema::wire::msg::{Command, Message, Refusal, Status};
 use config_schema::{Action, Output, Publication, Subscription, Table};
-use node_fw::node::{Io, NodeCore, CONFIG_PAN};
-use node_fw::ota;
+use node_fw::node::{FlashRequest, Io, NodeCore, CONFIG_PAN};
+use node_fw::{ota, switch};
 use test_tables::{blob, button, toggle};
 
 const TOOL: u16 = 0x0100;
@@ -61,11 +62,34 @@ fn table_b(generation: u32) -> Table {
     t
 }
 
-/// A node's outside: what it transmitted and the pin levels it set.
+/// A node's outside: what it transmitted, the pin levels it set, the transfer staged in
+/// its flash.
 #[derive(Default)]
 struct Board {
     out: Vec<Vec<u8>>,
     pins: Vec<(u8, bool)>,
+    staged: Option<Vec<u8>>,
+}
+
+/// What the runtime does with the node's flash requests (a slot kept in RAM).
+fn serve_flash(node: &mut NodeCore, board: &mut Board, ok: bool, now: u64) {
+    match node.flash_request() {
+        Some(FlashRequest::Stage(bytes)) => {
+            if ok {
+                board.staged = Some(bytes.to_vec());
+            }
+            node.staged(ok, board);
+        }
+        Some(FlashRequest::Activate) => {
+            let deployed = board
+                .staged
+                .take()
+                .filter(|_| ok)
+                .and_then(|b| decode_deployment(&b).ok());
+            node.activated(deployed, now, board);
+        }
+        None => {}
+    }
 }
 
 impl Io for Board {
@@ -139,9 +163,7 @@ impl Net {
             for (node, board) in &mut self.nodes {
                 if header.dst == node.addr() || header.dst == BROADCAST {
                     node.receive(&psdu, self.now, board);
-                    if node.to_persist().is_some() {
-                        node.persisted(self.flash_ok, board);
-                    }
+                    serve_flash(node, board, self.flash_ok, self.now);
                 }
             }
         }
@@ -160,8 +182,48 @@ impl Net {
         }
     }
 
-    /// Pushes `table` to `dst` with the tool's OTA sender; returns its outcome.
+    /// Pushes `table` to `dst` with the tool's OTA sender, then switches it over (armed,
+    /// at its idle point); returns the outcome.
     fn push(&mut self, dst: u16, table: &Table, force: bool) -> ota::Progress {
+        let staged = self.stage(dst, table, force);
+        if staged != ota::Progress::Done {
+            return staged;
+        }
+        match self.switch(dst, table.generation) {
+            switch::Verdict::Switched => ota::Progress::Done,
+            _ => {
+                let (node, _) = self.nodes.iter().find(|(n, _)| n.addr() == dst).unwrap();
+                ota::Progress::Refused(if node.generation() == table.generation {
+                    Refusal::Invalid
+                } else {
+                    Refusal::Flash
+                })
+            }
+        }
+    }
+
+    /// The switch-over of `dst` to `generation`, with the tool's coordinator.
+    fn switch(&mut self, dst: u16, generation: u32) -> switch::Verdict {
+        let mut c = switch::Coordinator::new(&[dst], generation, false, 10_000, self.now);
+        let mut out = Vec::new();
+        let start = self.now;
+        while c.verdict() == switch::Verdict::Busy && self.now - start < 20_000 {
+            c.poll(self.now, |a, m| out.push((a, m)));
+            for (a, m) in out.drain(..) {
+                self.tool_send(a, &m);
+            }
+            self.tick();
+            for (src, bytes) in std::mem::take(&mut self.tool_inbox) {
+                if let Ok(Message::ConfigReply { generation, reply }) = Message::parse(&bytes) {
+                    c.on_reply(src, generation, reply, self.now, |a, m| out.push((a, m)));
+                }
+            }
+        }
+        c.verdict()
+    }
+
+    /// Stages `table` at `dst` with the tool's OTA sender; returns its outcome.
+    fn stage(&mut self, dst: u16, table: &Table, force: bool) -> ota::Progress {
         let bytes = blob(table);
         let mut tx = ota::Sender::new(&bytes, table.generation, force);
         let mut out = Vec::new();

@@ -1,4 +1,4 @@
-//! Over-the-air transfer: the node activates a table only when the whole blob arrived, its
+//! Over-the-air transfer: the node stages a table only when the whole blob arrived, its
 //! CRC-32 matches and it decodes and validates; anything else leaves the old table running.
 
 mod support;
@@ -31,14 +31,15 @@ impl Node {
             | Message::ConfigEnd { generation } => generation,
             _ => return None,
         };
-        match self.rx.on_message(msg, self.running)? {
+        match self.rx.on_message(msg, self.running, 0)? {
             Outcome::Reply(r) => Some((generation, r)),
-            Outcome::Activate { generation, len } => {
+            // Staged, and (this test's node) switched to at once.
+            Outcome::Stage { generation, len } => {
                 self.running = generation;
                 // What the node would switch to: the staged blob, decoded.
                 self.activations
                     .push(config_schema::decode(self.rx.blob(len)).unwrap());
-                Some((generation, ConfigReply::Activated))
+                Some((generation, ConfigReply::Staged))
             }
         }
     }
@@ -130,7 +131,7 @@ fn a_wrong_total_crc_is_refused_and_nothing_is_activated() {
         force: false,
     };
     assert_eq!(
-        rx.on_message(&begin, 1),
+        rx.on_message(&begin, 1, 0),
         Some(Outcome::Reply(ConfigReply::Next { next: 0 }))
     );
     for (i, data) in bytes.chunks(CHUNK_DATA).enumerate() {
@@ -139,10 +140,10 @@ fn a_wrong_total_crc_is_refused_and_nothing_is_activated() {
             offset: (i * CHUNK_DATA) as u16,
             data,
         };
-        rx.on_message(&chunk, 1);
+        rx.on_message(&chunk, 1, 0);
     }
     assert_eq!(
-        rx.on_message(&Message::ConfigEnd { generation: 2 }, 1),
+        rx.on_message(&Message::ConfigEnd { generation: 2 }, 1, 0),
         Some(Outcome::Reply(ConfigReply::Refused(Refusal::Crc)))
     );
     assert_eq!(rx.receiving(), None);
@@ -171,7 +172,7 @@ fn chunks_out_of_place_are_not_staged_and_the_node_says_where_it_is() {
         crc: config_schema::blob::CRC32.checksum(&bytes),
         force: false,
     };
-    rx.on_message(&begin, 0);
+    rx.on_message(&begin, 0, 0);
     let chunk = |offset: usize| Message::ConfigChunk {
         generation: 2,
         offset: offset as u16,
@@ -179,10 +180,10 @@ fn chunks_out_of_place_are_not_staged_and_the_node_says_where_it_is() {
     };
     let next = |n| Some(Outcome::Reply(ConfigReply::Next { next: n }));
     // Chunk 1 before chunk 0: staged, but the node still needs byte 0.
-    assert_eq!(rx.on_message(&chunk(CHUNK_DATA), 0), next(0), "early");
-    assert_eq!(rx.on_message(&chunk(0), 0), next(2 * CHUNK_DATA as u16));
+    assert_eq!(rx.on_message(&chunk(CHUNK_DATA), 0, 0), next(0), "early");
+    assert_eq!(rx.on_message(&chunk(0), 0, 0), next(2 * CHUNK_DATA as u16));
     assert_eq!(
-        rx.on_message(&chunk(0), 0),
+        rx.on_message(&chunk(0), 0, 0),
         next(2 * CHUNK_DATA as u16),
         "dup"
     );
@@ -192,25 +193,25 @@ fn chunks_out_of_place_are_not_staged_and_the_node_says_where_it_is() {
         offset: 2 * CHUNK_DATA as u16 + 1,
         data: &bytes[..CHUNK_DATA],
     };
-    assert_eq!(rx.on_message(&misplaced, 0), next(2 * CHUNK_DATA as u16));
+    assert_eq!(rx.on_message(&misplaced, 0, 0), next(2 * CHUNK_DATA as u16));
     let short = Message::ConfigChunk {
         generation: 2,
         offset: 2 * CHUNK_DATA as u16,
         data: &bytes[2 * CHUNK_DATA..2 * CHUNK_DATA + 10],
     };
-    assert_eq!(rx.on_message(&short, 0), next(2 * CHUNK_DATA as u16));
+    assert_eq!(rx.on_message(&short, 0, 0), next(2 * CHUNK_DATA as u16));
     let other = Message::ConfigChunk {
         generation: 3,
         offset: CHUNK_DATA as u16,
         data: &bytes[..4],
     };
     assert_eq!(
-        rx.on_message(&other, 0),
+        rx.on_message(&other, 0, 0),
         Some(Outcome::Reply(ConfigReply::Refused(Refusal::OutOfSequence)))
     );
     // An early end is answered with where the node is.
     assert_eq!(
-        rx.on_message(&Message::ConfigEnd { generation: 2 }, 0),
+        rx.on_message(&Message::ConfigEnd { generation: 2 }, 0, 0),
         next(2 * CHUNK_DATA as u16)
     );
     assert_eq!(rx.receiving(), Some(2));
@@ -311,4 +312,37 @@ fn a_node_that_loses_the_transfer_gets_it_again_from_the_start() {
     assert!(forgotten);
     assert_eq!(tx.progress(), Progress::Done);
     assert_eq!(node.activations, vec![table]);
+}
+
+/// Issue 12: a `ConfigBegin` of an older generation that is still newer than the running
+/// one replaced a newer transfer in progress.
+#[test]
+fn an_older_begin_does_not_replace_a_newer_transfer_and_a_staged_one_is_answered_staged() {
+    let (_, bytes) = blob(7, 30);
+    let begin = |generation, force| Message::ConfigBegin {
+        generation,
+        len: bytes.len() as u16,
+        crc: config_schema::blob::CRC32.checksum(&bytes),
+        force,
+    };
+    let mut rx = Receiver::new();
+    let next = |n| Some(Outcome::Reply(ConfigReply::Next { next: n }));
+    assert_eq!(rx.on_message(&begin(7, false), 4, 0), next(0));
+    assert_eq!(
+        rx.on_message(&begin(5, false), 4, 0),
+        Some(Outcome::Reply(ConfigReply::Refused(Refusal::Superseded {
+            transfer: 7
+        })))
+    );
+    assert_eq!(rx.receiving(), Some(7));
+    // Forced, it does (the operator's explicit downgrade).
+    assert_eq!(rx.on_message(&begin(5, true), 4, 0), next(0));
+    assert_eq!(rx.receiving(), Some(5));
+    // Generation 7 staged already: a begin for it is answered so, not restarted.
+    let mut rx = Receiver::new();
+    assert_eq!(
+        rx.on_message(&begin(7, false), 4, 7),
+        Some(Outcome::Reply(ConfigReply::Staged))
+    );
+    assert_eq!(rx.receiving(), None);
 }

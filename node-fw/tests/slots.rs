@@ -1,11 +1,15 @@
-//! The two flash slots: the node boots the newest committed table; a power cut at any write
-//! of a store leaves it with the old table or the new one, never a mix.
+//! The two flash slots: a table is staged (checked, not running), then activated; the node
+//! boots the confirmed table activated last (not the highest generation); a power cut at
+//! any write leaves it with the old table or the new one, never a mix; a trial a power cut
+//! interrupted is not booted.
 
 mod support;
 use support::blob;
 
 use embassy_futures::block_on;
-use node_fw::slots::{Loaded, RamFlash, SlotError, Slots, COMMITTED, HEADER};
+use node_fw::slots::{
+    Boot, Loaded, RamFlash, SlotError, SlotState, Slots, StagedSlot, CONFIRMED, HEADER, STAGED,
+};
 
 type Flash = RamFlash<{ 10 * 1024 }>;
 
@@ -13,14 +17,19 @@ fn slots(flash: Flash) -> Slots<Flash> {
     Slots::new(flash).unwrap()
 }
 
-fn generation(loaded: Option<Loaded>) -> Option<(usize, u32)> {
-    loaded.map(|l| (l.slot, l.table.generation))
+/// The booted (slot, generation).
+fn running(boot: &Boot) -> Option<(usize, u32)> {
+    boot.running.as_ref().map(|l| (l.slot, l.table.generation))
+}
+
+fn load(s: &mut Slots<Flash>) -> Boot {
+    block_on(s.load()).unwrap()
 }
 
 #[test]
 fn an_erased_flash_has_no_table() {
     let mut s = slots(Flash::new());
-    assert_eq!(block_on(s.load()), Ok(None));
+    assert_eq!(load(&mut s), Boot::default());
 }
 
 #[test]
@@ -32,46 +41,114 @@ fn a_too_small_flash_is_refused() {
 }
 
 #[test]
-fn stores_alternate_slots_and_the_newest_boots() {
+fn stores_alternate_slots_and_the_one_activated_last_boots() {
     let mut s = slots(Flash::new());
     let (t1, b1) = blob(1, 5);
     let (t2, b2) = blob(2, 50);
-    assert_eq!(block_on(s.store(None, &b1)), Ok(0));
+    assert_eq!(block_on(s.store(None, &b1, 0)), Ok(0));
+    let boot = load(&mut s);
     assert_eq!(
-        block_on(s.load()),
-        Ok(Some(Loaded {
+        boot.running,
+        Some(Loaded {
             slot: 0,
             table: t1,
             keys: None
-        }))
+        })
     );
-    assert_eq!(block_on(s.store(Some(0), &b2)), Ok(1));
+    assert_eq!(boot.next_serial, 1);
+    assert_eq!(block_on(s.store(Some(0), &b2, 1)), Ok(1));
+    let boot = load(&mut s);
     assert_eq!(
-        block_on(s.load()),
-        Ok(Some(Loaded {
+        boot.running,
+        Some(Loaded {
             slot: 1,
             table: t2,
             keys: None
-        }))
+        })
     );
-    // The layout: length, then the marker, then the blob.
+    assert_eq!(
+        (boot.staged, boot.abandoned, boot.next_serial),
+        (None, None, 2)
+    );
+    // The layout: length, the staged marker, the serial, the confirmed marker, the blob.
     let flash = s.into_inner();
     let base = Slots::<Flash>::slot_size();
-    assert_eq!(flash.bytes[base..base + 4], (b2.len() as u32).to_le_bytes());
-    assert_eq!(flash.bytes[base + 16..base + 20], COMMITTED.to_le_bytes());
+    let word = |at: usize| flash.bytes[base + at..base + at + 4].to_vec();
+    assert_eq!(word(0), (b2.len() as u32).to_le_bytes());
+    assert_eq!(word(16), STAGED.to_le_bytes());
+    assert_eq!(word(32), 1u32.to_le_bytes());
+    assert_eq!(word(48), CONFIRMED.to_le_bytes());
+    assert_eq!(word(64), [0xFF; 4]);
     assert_eq!(flash.bytes[base + HEADER..base + HEADER + b2.len()], b2[..]);
 }
 
 #[test]
-fn persisted_but_not_flipped_boots_the_old_table() {
+fn a_staged_table_does_not_boot_and_is_reported_until_activated() {
     let mut s = slots(Flash::new());
     let (_, b1) = blob(1, 5);
     let (_, b2) = blob(2, 5);
-    block_on(s.store(None, &b1)).unwrap();
-    block_on(s.persist(1, &b2)).unwrap();
-    assert_eq!(generation(block_on(s.load()).unwrap()), Some((0, 1)));
-    block_on(s.commit(1)).unwrap();
-    assert_eq!(generation(block_on(s.load()).unwrap()), Some((1, 2)));
+    block_on(s.store(None, &b1, 0)).unwrap();
+    assert_eq!(block_on(s.stage(Some(0), &b2)), Ok(1));
+    let boot = load(&mut s);
+    assert_eq!(running(&boot), Some((0, 1)));
+    assert_eq!(
+        boot.staged,
+        Some(StagedSlot {
+            slot: 1,
+            generation: 2
+        })
+    );
+    block_on(s.activate(1, boot.next_serial, false)).unwrap();
+    let boot = load(&mut s);
+    assert_eq!((running(&boot), boot.staged), (Some((1, 2)), None));
+    // Activated once: a second activation of the same slot is refused.
+    assert_eq!(block_on(s.activate(1, 9, false)), Err(SlotError::NotStaged));
+}
+
+/// Issue 12: push GR at generation 60, then force generation 3: after a restart the node
+/// ran generation 60 again.
+#[test]
+fn a_forced_downgrade_survives_a_restart() {
+    let mut s = slots(Flash::new());
+    let (_, b60) = blob(60, 5);
+    let (_, b3) = blob(3, 5);
+    block_on(s.store(None, &b60, 0)).unwrap();
+    block_on(s.store(Some(0), &b3, 1)).unwrap();
+    assert_eq!(running(&load(&mut s)), Some((1, 3)));
+}
+
+#[test]
+fn a_trial_cut_by_a_power_cut_boots_the_confirmed_table() {
+    let mut s = slots(Flash::new());
+    let (_, b1) = blob(1, 5);
+    let (_, b2) = blob(2, 5);
+    block_on(s.store(None, &b1, 0)).unwrap();
+    block_on(s.stage(Some(0), &b2)).unwrap();
+    block_on(s.activate(1, 1, true)).unwrap();
+    let boot = load(&mut s);
+    assert_eq!((running(&boot), boot.abandoned), (Some((0, 1)), Some(1)));
+    // Revoked, it is gone for good; confirmed instead, it would have booted.
+    block_on(s.revoke(1)).unwrap();
+    let boot = load(&mut s);
+    assert_eq!(
+        (running(&boot), boot.abandoned, boot.staged),
+        (Some((0, 1)), None, None)
+    );
+    let mut s = slots(Flash::new());
+    block_on(s.store(None, &b1, 0)).unwrap();
+    block_on(s.stage(Some(0), &b2)).unwrap();
+    block_on(s.activate(1, 1, true)).unwrap();
+    block_on(s.confirm(1)).unwrap();
+    assert_eq!(running(&load(&mut s)), Some((1, 2)));
+    assert_eq!(
+        block_on(s.state(1)),
+        Ok(SlotState {
+            staged: true,
+            serial: Some(1),
+            confirmed: true,
+            revoked: false
+        })
+    );
 }
 
 #[test]
@@ -81,19 +158,20 @@ fn a_power_cut_at_any_write_leaves_the_old_or_the_new_table() {
     let (_, b3) = blob(3, 40);
     // Running gen 2 in slot 1; gen 1 is the older table in slot 0, about to be overwritten.
     let mut base = slots(Flash::new());
-    block_on(base.store(None, &b1)).unwrap();
-    block_on(base.store(Some(0), &b2)).unwrap();
+    block_on(base.store(None, &b1, 0)).unwrap();
+    block_on(base.store(Some(0), &b2, 1)).unwrap();
     let before = base.into_inner();
     let mut outcomes = Vec::new();
     for cut in 0.. {
         let mut flash = before.clone();
         flash.fail_after = Some(cut);
         let mut s = slots(flash);
-        let stored = block_on(s.store(Some(1), &b3));
+        let stored = block_on(s.store(Some(1), &b3, 2));
         let mut flash = s.into_inner();
         flash.fail_after = None; // power back on
         let mut s = slots(flash);
-        let booted = generation(block_on(s.load()).unwrap());
+        let boot = load(&mut s);
+        let booted = running(&boot);
         outcomes.push(booted);
         if stored.is_ok() {
             assert_eq!(booted, Some((0, 3)));
@@ -103,30 +181,37 @@ fn a_power_cut_at_any_write_leaves_the_old_or_the_new_table() {
             booted == Some((1, 2)) || booted == Some((0, 3)),
             "cut at write {cut}: booted {booted:?}"
         );
+        // Staged but not activated (the cut came between): reported, not booted.
+        if let Some(staged) = boot.staged {
+            assert_eq!(
+                (staged.slot, staged.generation, booted),
+                (0, 3, Some((1, 2)))
+            );
+        }
     }
-    // Every cut before the marker boots the old table; the marker write itself was cut
-    // halfway, which is not a marker either.
+    // Every cut before the confirmation boots the old table; the confirming write itself
+    // was cut halfway, which is not a marker either.
     let last = outcomes.len() - 1;
     assert!(
         outcomes[..last].iter().all(|o| *o == Some((1, 2))),
         "{outcomes:?}"
     );
     assert!(
-        outcomes.len() >= 4,
-        "erase, body, tail/len and marker writes were all cut"
+        outcomes.len() >= 6,
+        "erase, body, tail/len, staged, serial and confirmed writes were all cut"
     );
 }
 
 #[test]
-fn a_damaged_committed_slot_falls_back_to_the_other() {
+fn a_damaged_slot_falls_back_to_the_other() {
     let mut s = slots(Flash::new());
     let (_, b1) = blob(1, 5);
     let (_, b2) = blob(2, 5);
-    block_on(s.store(None, &b1)).unwrap();
-    block_on(s.store(Some(0), &b2)).unwrap();
+    block_on(s.store(None, &b1, 0)).unwrap();
+    block_on(s.store(Some(0), &b2, 1)).unwrap();
     let mut flash = s.into_inner();
     let base = Slots::<Flash>::slot_size();
     flash.bytes[base + HEADER + 20] ^= 0x40; // a bit flipped in gen 2's blob
     let mut s = slots(flash);
-    assert_eq!(generation(block_on(s.load()).unwrap()), Some((0, 1)));
+    assert_eq!(running(&load(&mut s)), Some((0, 1)));
 }

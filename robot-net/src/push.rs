@@ -9,6 +9,7 @@ use config_schema::link_keys;
 use config_schema::wire::mac::BROADCAST;
 use config_schema::wire::msg::{Announce, Command, Message, Status};
 use node_fw::ota::{Progress, Sender, TransferStats};
+use node_fw::switch::{Coordinator, NodeState, Verdict};
 
 use crate::radio::ToolRadio;
 
@@ -26,7 +27,11 @@ pub struct Target {
 pub struct Pushed {
     pub role: String,
     pub addr: u16,
+    /// The transfer: `Done` once the node staged the table.
     pub progress: Progress,
+    /// Where the node stands in the switch-over to the staged table (`None`: not
+    /// switched, or not asked to).
+    pub switch: Option<NodeState>,
     pub stats: TransferStats,
     pub bytes: usize,
     /// Bytes of the link key block sent after the table (0: unsecured).
@@ -35,10 +40,30 @@ pub struct Pushed {
 }
 
 impl Pushed {
-    /// How it ended, in words: `activated`, `refused: <the node's reason>`, ...
+    /// How it ended, in words: `activated`, `staged`, `refused: <the node's reason>`, ...
     pub fn verdict(&self) -> String {
-        match self.progress {
-            Progress::Done => "activated".to_string(),
+        match (self.progress, self.switch) {
+            (Progress::Done, Some(NodeState::Switched)) => "activated".to_string(),
+            (Progress::Done, None) => "staged".to_string(),
+            (Progress::Done, Some(NodeState::Refused(why))) => {
+                format!("staged, not switched: refused: {why}")
+            }
+            (Progress::Done, Some(NodeState::Silent)) => {
+                "staged, not switched: the node stopped answering".to_string()
+            }
+            (Progress::Done, Some(_)) => "staged, not switched".to_string(),
+            (progress, _) => Self::transfer_verdict(progress),
+        }
+    }
+
+    /// Whether the node runs the pushed table.
+    pub fn switched(&self) -> bool {
+        self.switch == Some(NodeState::Switched)
+    }
+
+    fn transfer_verdict(progress: Progress) -> String {
+        match progress {
+            Progress::Done => "staged".to_string(),
             Progress::Refused(why) => format!("refused: {why}"),
             Progress::GaveUp => {
                 "FAILED: the node stopped answering (is it running, in range?)".into()
@@ -122,6 +147,7 @@ pub fn push(
             role: t.role.clone(),
             addr: t.addr,
             progress: s.progress(),
+            switch: None,
             stats: s.stats(),
             bytes: t.blob.len(),
             key_bytes: bytes.len() - t.blob.len(),
@@ -145,6 +171,52 @@ fn transfer(radio: &ToolRadio, t: &Target) -> Vec<u8> {
         }
     }
     bytes
+}
+
+/// How long a switch-over waits, by default, for the machine to be idle at once (the
+/// cycle in progress to end).
+pub const SWITCH_WAIT: Duration = Duration::from_secs(60);
+
+/// Switches every node of `pushed` that staged its table over to it, together
+/// (`node_fw::switch::Coordinator`): at the machine's next idle point within `wait`, or
+/// (`now`) at once. Fills in each one's `switch`; returns the verdict.
+pub fn switch_over(
+    radio: &mut ToolRadio,
+    pushed: &mut [Pushed],
+    generation: u32,
+    now: bool,
+    wait: Duration,
+) -> io::Result<Verdict> {
+    let nodes: Vec<u16> = pushed
+        .iter()
+        .filter(|p| p.progress == Progress::Done)
+        .map(|p| p.addr)
+        .collect();
+    if nodes.is_empty() {
+        return Ok(Verdict::Aborted);
+    }
+    let start = Instant::now();
+    let now_ms = || start.elapsed().as_millis() as u64;
+    let mut c = Coordinator::new(&nodes, generation, now, wait.as_millis() as u64, 0);
+    let mut out: Vec<(u16, Message<'static>)> = Vec::new();
+    while c.verdict() == Verdict::Busy {
+        c.poll(now_ms(), |a, m| out.push((a, m)));
+        for (dst, m) in out.drain(..) {
+            radio.send(dst, &m)?;
+        }
+        let until = start + Duration::from_millis(c.deadline());
+        if let Some(r) = radio.recv(until.max(Instant::now()))? {
+            if let Some(Message::ConfigReply { generation, reply }) = r.message() {
+                c.on_reply(r.src, generation, reply, now_ms(), |a, m| out.push((a, m)));
+            }
+        }
+    }
+    for (addr, state) in c.nodes() {
+        for p in pushed.iter_mut().filter(|p| p.addr == addr) {
+            p.switch = Some(state);
+        }
+    }
+    Ok(c.verdict())
 }
 
 /// Command ids: start somewhere new in every run (a node remembers the last id it ran

@@ -56,6 +56,20 @@ pub enum Message<'a> {
     Challenge { nonce: u32 },
     /// The answer to a `Challenge`: its counter becomes the sender's floor at the node.
     ChallengeAnswer { nonce: u32 },
+    /// The switch-over to a staged generation (answered by `ConfigReply`).
+    Switch { generation: u32, step: SwitchStep },
+}
+
+/// One step of the two-phase switch-over (docs/reconfiguration.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum SwitchStep {
+    /// Get ready: hold any START until the switch, and say whether the node is idle.
+    Arm,
+    /// Switch to the staged generation now if armed and idle; with `now`, whatever the
+    /// node is doing (a stopped or faulted machine).
+    Go { now: bool },
+    /// The switch-over is off: run a held START on the running table.
+    Disarm,
 }
 
 /// Where a table transfer stands, from the receiving node.
@@ -67,6 +81,15 @@ pub enum ConfigReply {
     Activated,
     /// The transfer was refused; the old table keeps running.
     Refused(Refusal),
+    /// The new table is checked and persisted, not running: it waits for the switch.
+    Staged,
+    /// Armed for the switch-over: START is held; `idle`: every chart in its initial
+    /// state, no timer running, nothing in flight, no fault.
+    Armed { idle: bool },
+    /// Not switched: the node is not armed or not idle (ask again).
+    Busy,
+    /// Disarmed: the running table goes on.
+    Disarmed,
 }
 
 /// Why a transfer was refused.
@@ -87,6 +110,10 @@ pub enum Refusal {
     /// The table uses board pin `pin`, which this node's board lacks (`board`: bit n, the
     /// board has pin n).
     Pin { pin: u8, board: u64 },
+    /// A switch to a generation that is not the staged one (`staged`: 0 for none).
+    NotStaged { staged: u32 },
+    /// A transfer of an older generation than the one in progress (not forced).
+    Superseded { transfer: u32 },
 }
 
 impl core::fmt::Display for Refusal {
@@ -100,6 +127,16 @@ impl core::fmt::Display for Refusal {
             Refusal::Crc => write!(f, "CRC mismatch"),
             Refusal::Invalid => write!(f, "the table does not decode or validate"),
             Refusal::Flash => write!(f, "flash write failed"),
+            Refusal::NotStaged { staged: 0 } => write!(f, "no generation is staged"),
+            Refusal::NotStaged { staged } => {
+                write!(f, "generation {staged} is staged, not this one")
+            }
+            Refusal::Superseded { transfer } => {
+                write!(
+                    f,
+                    "a transfer of the newer generation {transfer} is in progress"
+                )
+            }
             Refusal::Pin { pin, board } => {
                 write!(
                     f,
@@ -194,6 +231,8 @@ pub struct Status {
     pub ack: u16,
     pub role: String<MAX_ROLE_NAME>,
     pub generation: u32,
+    /// The generation staged for the switch-over (0: none).
+    pub staged: u32,
     pub states: Vec<u8, MAX_CHARTS>,
     pub outputs: u16,
     pub inputs: u16,
@@ -243,6 +282,8 @@ pub struct Announce {
     pub generation: u32,
     /// Empty while unconfigured.
     pub role: String<MAX_ROLE_NAME>,
+    /// The generation staged for the switch-over (0: none).
+    pub staged: u32,
 }
 
 /// Why a payload is not a message.
@@ -319,6 +360,7 @@ mod tests {
             ack: u16::MAX,
             role,
             generation: u32::MAX,
+            staged: u32::MAX,
             states,
             outputs: u16::MAX,
             inputs: u16::MAX,

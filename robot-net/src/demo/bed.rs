@@ -339,8 +339,44 @@ impl Bed {
         force: bool,
         progress: &mut dyn FnMut(usize, usize, usize),
     ) -> Result<Vec<push::Pushed>, NetError> {
+        let mut pushed = self.stage(c, force, progress)?;
+        push::switch_over(
+            &mut self.radio,
+            &mut pushed,
+            c.ir.generation,
+            false,
+            push::SWITCH_WAIT,
+        )?;
+        Ok(pushed)
+    }
+
+    /// Stages `c`'s tables on their nodes (the first phase of a push): nothing switches.
+    pub fn stage(
+        &mut self,
+        c: &Compiled,
+        force: bool,
+        progress: &mut dyn FnMut(usize, usize, usize),
+    ) -> Result<Vec<push::Pushed>, NetError> {
         let targets = targets(c);
         Ok(push::push(&mut self.radio, &targets, force, progress)?)
+    }
+
+    /// Switches the nodes of `pushed` (staged with [`Bed::stage`]) over to generation
+    /// `generation`, at the next idle point within `wait` or (`now`) at once.
+    pub fn switch_over(
+        &mut self,
+        pushed: &mut [push::Pushed],
+        generation: u32,
+        now: bool,
+        wait: std::time::Duration,
+    ) -> Result<node_fw::switch::Verdict, NetError> {
+        Ok(push::switch_over(
+            &mut self.radio,
+            pushed,
+            generation,
+            now,
+            wait,
+        )?)
     }
 
     /// A command to a node, resent until acknowledged.

@@ -1,0 +1,700 @@
+//! The node's part of the two-phase switch-over (docs/reconfiguration.md): a pushed table is
+//! staged (persisted, not running); the tool arms every node (each holds any START from
+//! then on and says whether it is idle), waits until all are idle at once, and tells each
+//! to go. A node switches only when armed and idle, or on an explicit `now`.
+//!
+//! Pure state: the node asks [`SwitchOver::step`] what to do with a `Switch` message and
+//! tells it what happened; time comes in as milliseconds.
+
+use config_schema::wire::msg::{ConfigReply, Message, Refusal, SwitchStep};
+
+/// An armed node that hears nothing more from the tool for this long disarms (and runs a
+/// START it held): a tool that died does not leave the machine refusing to start.
+pub const ARM_HOLD_MS: u64 = 30_000;
+
+/// Where the node's switch-over stands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SwitchOver {
+    /// The generation staged in flash (0: none).
+    staged: u32,
+    /// Armed for the staged generation until this time.
+    armed_until: Option<u64>,
+    /// A START came while armed: it runs after the switch (or on disarm).
+    held_start: bool,
+    /// A switch in progress (the board activates the staged slot): who asked.
+    activating: Option<u16>,
+}
+
+/// What the node does with a `Switch` message.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Action {
+    /// Answer this.
+    Reply(ConfigReply),
+    /// Activate the staged table (the board reads it from flash), then answer `Activated`.
+    Activate,
+    /// Disarmed: answer `Disarmed`, and run the held START if there was one.
+    Disarmed { start: bool },
+}
+
+impl SwitchOver {
+    /// The generation staged (0: none).
+    pub fn staged(&self) -> u32 {
+        self.staged
+    }
+
+    /// A table of `generation` was staged (0: the staged one is gone).
+    pub fn set_staged(&mut self, generation: u32) {
+        if generation != self.staged {
+            self.armed_until = None;
+        }
+        self.staged = generation;
+    }
+
+    /// Whether START is held.
+    pub fn armed(&self) -> bool {
+        self.armed_until.is_some()
+    }
+
+    /// When an armed node disarms by itself.
+    pub fn deadline(&self) -> Option<u64> {
+        self.armed_until
+    }
+
+    /// A START while armed is held; returns whether it was.
+    pub fn hold_start(&mut self) -> bool {
+        if self.armed() {
+            self.held_start = true;
+        }
+        self.armed()
+    }
+
+    /// Who asked for the activation in progress, if one is.
+    pub fn activating(&self) -> Option<u16> {
+        self.activating
+    }
+
+    /// A `Switch { generation, step }` from `from`, with the running generation `running`
+    /// and whether the node is idle.
+    pub fn step(
+        &mut self,
+        generation: u32,
+        step: SwitchStep,
+        from: u16,
+        running: u32,
+        idle: bool,
+        now: u64,
+    ) -> Action {
+        if self.activating.is_some() {
+            // The board is switching: the answer comes when it is done.
+            return Action::Reply(ConfigReply::Busy);
+        }
+        if step == SwitchStep::Disarm {
+            return self.disarm();
+        }
+        if generation == running && running != 0 && self.staged != generation {
+            // Switched already (the answer was lost).
+            return Action::Reply(ConfigReply::Activated);
+        }
+        if self.staged != generation || generation == 0 {
+            return Action::Reply(ConfigReply::Refused(Refusal::NotStaged {
+                staged: self.staged,
+            }));
+        }
+        match step {
+            SwitchStep::Arm => {
+                self.armed_until = Some(now + ARM_HOLD_MS);
+                Action::Reply(ConfigReply::Armed { idle })
+            }
+            SwitchStep::Go { now: at_once } => {
+                if at_once || (self.armed() && idle) {
+                    self.activating = Some(from);
+                    Action::Activate
+                } else {
+                    Action::Reply(ConfigReply::Busy)
+                }
+            }
+            SwitchStep::Disarm => self.disarm(),
+        }
+    }
+
+    fn disarm(&mut self) -> Action {
+        let start = self.armed() && self.held_start;
+        self.armed_until = None;
+        self.held_start = false;
+        Action::Disarmed { start }
+    }
+
+    /// The board activated the staged table (`ok`) or failed to: who asked, and whether a
+    /// held START is to run now (on the new table).
+    pub fn activated(&mut self, ok: bool) -> (Option<u16>, bool) {
+        let from = self.activating.take();
+        let start = ok && self.held_start;
+        if ok {
+            self.staged = 0;
+            self.armed_until = None;
+            self.held_start = false;
+        }
+        (from, start)
+    }
+
+    /// Time passed: an armed node left alone too long disarms. Returns whether to run a
+    /// held START.
+    pub fn poll(&mut self, now: u64) -> bool {
+        match self.armed_until {
+            Some(until) if now >= until && self.activating.is_none() => {
+                matches!(self.disarm(), Action::Disarmed { start: true })
+            }
+            _ => false,
+        }
+    }
+}
+
+/// The tool resends a switch step to a node that has not answered after this long.
+pub const RETRY_MS: u64 = 150;
+/// Resends without any answer before the tool gives a node up.
+pub const GIVE_UP_AFTER: u8 = 40;
+
+/// Where one node stands in the tool's switch-over.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NodeState {
+    /// Not armed yet (or to be armed again: it rebooted).
+    Arming,
+    /// Armed; `idle` as of its answer, the `at`-th answer the tool took.
+    Armed { idle: bool, at: u32 },
+    /// Told to go; waiting for `Activated`.
+    Going,
+    /// Runs the new generation.
+    Switched,
+    /// Refused (it has not staged this generation, or its flash failed).
+    Refused(Refusal),
+    /// Stopped answering.
+    Silent,
+    /// Disarmed after the switch-over was called off.
+    Disarmed,
+}
+
+/// How the tool's switch-over ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// Still at it.
+    Busy,
+    /// Every node switched.
+    Switched,
+    /// The machine was not idle at once within the wait: every node disarmed, nothing
+    /// switched.
+    NotIdle,
+    /// A node refused or stopped answering before anything switched: every node
+    /// disarmed, nothing switched.
+    Aborted,
+    /// Some nodes switched and some did not answer any more: the machine is mixed (the
+    /// tool says which; run again, or `--now`).
+    Partial,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    /// Arming every node.
+    Arming,
+    /// Every node armed by the `since`-th answer: waiting for an answer from each, after
+    /// it, that says idle.
+    Waiting {
+        since: u32,
+    },
+    /// Telling every node to go.
+    Going,
+    /// Calling it off: disarming.
+    Disarming,
+    Done,
+}
+
+/// The tool's side of the switch-over of one machine: arm every node, wait until each says
+/// idle after all were armed, then tell each to go, resending until each confirms.
+#[derive(Debug, Clone)]
+pub struct Coordinator {
+    generation: u32,
+    now: bool,
+    /// Until when the machine may take to become idle.
+    wait_until: u64,
+    phase: Phase,
+    verdict: Verdict,
+    /// Answers taken so far (orders them).
+    answers: u32,
+    nodes: heapless::Vec<(u16, NodeState, u8, u64), 16>,
+}
+
+impl Coordinator {
+    /// A switch-over of `nodes` to `generation`: at the machine's next idle point within
+    /// `wait_ms`, or (`now`) at once whatever the machine does. At most 16 nodes.
+    pub fn new(nodes: &[u16], generation: u32, now: bool, wait_ms: u64, start: u64) -> Self {
+        let mut c = Coordinator {
+            generation,
+            now,
+            wait_until: start + wait_ms,
+            phase: if now { Phase::Going } else { Phase::Arming },
+            verdict: Verdict::Busy,
+            answers: 0,
+            nodes: heapless::Vec::new(),
+        };
+        let state = if now {
+            NodeState::Going
+        } else {
+            NodeState::Arming
+        };
+        for &n in nodes {
+            let _ = c.nodes.push((n, state, 0, start));
+        }
+        c
+    }
+
+    /// How it ended (`Busy` until every node has its last answer: a call-off is over when
+    /// every node disarmed).
+    pub fn verdict(&self) -> Verdict {
+        if self.phase == Phase::Done {
+            self.verdict
+        } else {
+            Verdict::Busy
+        }
+    }
+
+    /// Every node and where it stands.
+    pub fn nodes(&self) -> impl Iterator<Item = (u16, NodeState)> + '_ {
+        self.nodes.iter().map(|&(a, s, _, _)| (a, s))
+    }
+
+    /// When [`Coordinator::poll`] next has work.
+    pub fn deadline(&self) -> u64 {
+        self.nodes
+            .iter()
+            .filter(|n| self.waits_for(n.1))
+            .map(|n| n.3)
+            .min()
+            .unwrap_or(self.wait_until)
+            .min(self.wait_until)
+    }
+
+    fn waits_for(&self, s: NodeState) -> bool {
+        match self.phase {
+            Phase::Arming => s == NodeState::Arming,
+            Phase::Waiting { since } => {
+                !matches!(s, NodeState::Armed { idle: true, at } if at > since)
+            }
+            Phase::Going => matches!(
+                s,
+                NodeState::Going | NodeState::Arming | NodeState::Armed { .. }
+            ),
+            Phase::Disarming => !matches!(
+                s,
+                NodeState::Disarmed
+                    | NodeState::Switched
+                    | NodeState::Silent
+                    | NodeState::Refused(_)
+            ),
+            Phase::Done => false,
+        }
+    }
+
+    fn step_for(&self, s: NodeState) -> SwitchStep {
+        match (self.phase, s) {
+            (Phase::Disarming, _) => SwitchStep::Disarm,
+            // A node that lost its arming (it rebooted) is armed again before it goes.
+            (Phase::Going, NodeState::Arming) if !self.now => SwitchStep::Arm,
+            (Phase::Going, _) => SwitchStep::Go { now: self.now },
+            _ => SwitchStep::Arm,
+        }
+    }
+
+    /// Sends what is due at `now_ms` (`send(node, step)`), and moves on.
+    pub fn poll(&mut self, now_ms: u64, mut send: impl FnMut(u16, Message<'static>)) {
+        self.poll_dyn(now_ms, &mut send)
+    }
+
+    fn poll_dyn(&mut self, now_ms: u64, send: &mut dyn FnMut(u16, Message<'static>)) {
+        if self.phase == Phase::Done {
+            return;
+        }
+        if now_ms >= self.wait_until && matches!(self.phase, Phase::Arming | Phase::Waiting { .. })
+        {
+            self.verdict = Verdict::NotIdle;
+            self.phase = Phase::Disarming;
+        }
+        let generation = self.generation;
+        for i in 0..self.nodes.len() {
+            let (addr, state, tries, due) = self.nodes[i];
+            if !self.waits_for(state) || now_ms < due {
+                continue;
+            }
+            if tries >= GIVE_UP_AFTER {
+                self.nodes[i].1 = NodeState::Silent;
+                continue;
+            }
+            let step = self.step_for(state);
+            send(addr, Message::Switch { generation, step });
+            self.nodes[i].2 = tries + 1;
+            self.nodes[i].3 = now_ms + RETRY_MS;
+        }
+        self.advance(now_ms, send);
+    }
+
+    /// A node's answer.
+    pub fn on_reply(
+        &mut self,
+        addr: u16,
+        generation: u32,
+        reply: ConfigReply,
+        now_ms: u64,
+        mut send: impl FnMut(u16, Message<'static>),
+    ) {
+        if generation != self.generation || self.phase == Phase::Done {
+            return;
+        }
+        let phase = self.phase;
+        if !self.nodes.iter().any(|n| n.0 == addr) {
+            return;
+        }
+        let state = match (phase, reply) {
+            (_, ConfigReply::Activated) => NodeState::Switched,
+            (_, ConfigReply::Refused(r)) => NodeState::Refused(r),
+            (Phase::Disarming, ConfigReply::Disarmed) => NodeState::Disarmed,
+            (Phase::Going, ConfigReply::Armed { .. }) => NodeState::Going,
+            (Phase::Going, ConfigReply::Busy) => NodeState::Arming,
+            (Phase::Arming | Phase::Waiting { .. }, ConfigReply::Armed { idle }) => {
+                self.answers += 1;
+                NodeState::Armed {
+                    idle,
+                    at: self.answers,
+                }
+            }
+            _ => return,
+        };
+        let Some(node) = self.nodes.iter_mut().find(|n| n.0 == addr) else {
+            return;
+        };
+        let progressed = state != node.1 || matches!(state, NodeState::Armed { .. });
+        node.1 = state;
+        if progressed {
+            node.2 = 0;
+            // Ask again at once when the step changes, else on the retry.
+            node.3 = if matches!(state, NodeState::Armed { .. }) {
+                now_ms + RETRY_MS
+            } else {
+                now_ms
+            };
+        }
+        self.advance(now_ms, &mut send);
+    }
+
+    fn advance(&mut self, now_ms: u64, send: &mut dyn FnMut(u16, Message<'static>)) {
+        let all = |f: &dyn Fn(NodeState) -> bool| self.nodes.iter().all(|n| f(n.1));
+        let any = |f: &dyn Fn(NodeState) -> bool| self.nodes.iter().any(|n| f(n.1));
+        let failed = |s: NodeState| matches!(s, NodeState::Refused(_) | NodeState::Silent);
+        let next = match self.phase {
+            Phase::Arming | Phase::Waiting { .. } if any(&failed) => {
+                self.verdict = Verdict::Aborted;
+                Some(Phase::Disarming)
+            }
+            Phase::Arming if all(&|s| matches!(s, NodeState::Armed { .. })) => {
+                // Ask every node once more at once: only answers after this count.
+                for n in self.nodes.iter_mut() {
+                    n.2 = 0;
+                    n.3 = now_ms;
+                }
+                Some(Phase::Waiting {
+                    since: self.answers,
+                })
+            }
+            Phase::Waiting { since }
+                if all(&|s| matches!(s, NodeState::Armed { idle: true, at } if at > since)) =>
+            {
+                for n in self.nodes.iter_mut() {
+                    n.1 = NodeState::Going;
+                    n.2 = 0;
+                    n.3 = now_ms;
+                }
+                Some(Phase::Going)
+            }
+            Phase::Going if all(&|s| s == NodeState::Switched) => {
+                self.verdict = Verdict::Switched;
+                Some(Phase::Done)
+            }
+            Phase::Going if all(&|s| s == NodeState::Switched || failed(s)) => {
+                self.verdict = if any(&|s| s == NodeState::Switched) {
+                    Verdict::Partial
+                } else {
+                    Verdict::Aborted
+                };
+                Some(Phase::Done)
+            }
+            Phase::Disarming if !self.nodes.iter().any(|n| self.waits_for(n.1)) => {
+                Some(Phase::Done)
+            }
+            _ => None,
+        };
+        if let Some(p) = next {
+            self.phase = p;
+            if p == Phase::Disarming {
+                for n in self.nodes.iter_mut() {
+                    n.2 = 0;
+                    n.3 = now_ms;
+                }
+            }
+            if p != Phase::Done {
+                self.poll_dyn(now_ms, send);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TOOL: u16 = 0x0100;
+
+    fn staged(generation: u32) -> SwitchOver {
+        let mut s = SwitchOver::default();
+        s.set_staged(generation);
+        s
+    }
+
+    #[test]
+    fn go_switches_only_when_armed_and_idle_or_now() {
+        let mut s = staged(2);
+        let go = SwitchStep::Go { now: false };
+        assert_eq!(
+            s.step(2, go, TOOL, 1, true, 0),
+            Action::Reply(ConfigReply::Busy)
+        );
+        let arm = SwitchStep::Arm;
+        assert_eq!(
+            s.step(2, arm, TOOL, 1, false, 0),
+            Action::Reply(ConfigReply::Armed { idle: false })
+        );
+        assert_eq!(
+            s.step(2, go, TOOL, 1, false, 1),
+            Action::Reply(ConfigReply::Busy)
+        );
+        assert_eq!(s.step(2, go, TOOL, 1, true, 2), Action::Activate);
+        assert_eq!(s.activating(), Some(TOOL));
+        assert_eq!(s.activated(true), (Some(TOOL), false));
+        assert_eq!(s.staged(), 0);
+        // The answer was lost: asked again, it is switched.
+        assert_eq!(
+            s.step(2, go, TOOL, 2, true, 3),
+            Action::Reply(ConfigReply::Activated)
+        );
+        let mut s = staged(2);
+        let now = SwitchStep::Go { now: true };
+        assert_eq!(s.step(2, now, TOOL, 1, false, 0), Action::Activate);
+    }
+
+    #[test]
+    fn a_start_while_armed_is_held_and_runs_after_the_switch_or_on_disarm() {
+        let mut s = staged(2);
+        assert!(!s.hold_start(), "not armed: START runs");
+        s.step(2, SwitchStep::Arm, TOOL, 1, true, 0);
+        assert!(s.hold_start());
+        s.step(2, SwitchStep::Go { now: false }, TOOL, 1, true, 1);
+        assert_eq!(s.activated(true), (Some(TOOL), true));
+        let mut s = staged(2);
+        s.step(2, SwitchStep::Arm, TOOL, 1, true, 0);
+        assert!(s.hold_start());
+        assert_eq!(
+            s.step(2, SwitchStep::Disarm, TOOL, 1, true, 1),
+            Action::Disarmed { start: true }
+        );
+        assert!(!s.hold_start());
+    }
+
+    #[test]
+    fn an_armed_node_left_alone_disarms_and_runs_its_held_start() {
+        let mut s = staged(2);
+        s.step(2, SwitchStep::Arm, TOOL, 1, true, 0);
+        s.hold_start();
+        assert_eq!(s.deadline(), Some(ARM_HOLD_MS));
+        assert!(!s.poll(ARM_HOLD_MS - 1));
+        assert!(s.poll(ARM_HOLD_MS));
+        assert!(!s.armed());
+    }
+
+    #[test]
+    fn another_generation_than_the_staged_one_is_refused() {
+        let mut s = staged(3);
+        assert_eq!(
+            s.step(2, SwitchStep::Arm, TOOL, 1, true, 0),
+            Action::Reply(ConfigReply::Refused(Refusal::NotStaged { staged: 3 }))
+        );
+        let mut none = SwitchOver::default();
+        assert_eq!(
+            none.step(2, SwitchStep::Go { now: true }, TOOL, 1, true, 0),
+            Action::Reply(ConfigReply::Refused(Refusal::NotStaged { staged: 0 }))
+        );
+    }
+
+    #[test]
+    fn a_failed_activation_keeps_the_staged_table_and_the_arming() {
+        let mut s = staged(2);
+        s.step(2, SwitchStep::Arm, TOOL, 1, true, 0);
+        s.step(2, SwitchStep::Go { now: false }, TOOL, 1, true, 1);
+        assert_eq!(s.activated(false), (Some(TOOL), false));
+        assert_eq!((s.staged(), s.armed()), (2, true));
+    }
+
+    /// Nodes (the node side of this module) and the tool's coordinator on a perfect link,
+    /// with each node's idleness scripted and frames to some nodes droppable.
+    struct Machine {
+        nodes: heapless::Vec<(u16, SwitchOver, bool, u32), 4>,
+        tool: Coordinator,
+        /// (node, frames to drop before one gets through)
+        drop: heapless::Vec<(u16, u32), 4>,
+        /// Gos to drop to a node.
+        drop_go: heapless::Vec<(u16, u32), 4>,
+        /// A node that reboots (its arming lost, its staged table kept) as its first Go
+        /// arrives.
+        reboot_at_go: Option<u16>,
+        now: u64,
+        log: heapless::Vec<(u64, u16, SwitchStep), 256>,
+    }
+
+    impl Machine {
+        fn new(n: usize, now: bool) -> Machine {
+            let mut nodes = heapless::Vec::new();
+            let mut addrs: heapless::Vec<u16, 4> = heapless::Vec::new();
+            for i in 0..n {
+                let addr = 0x11 + i as u16;
+                nodes.push((addr, staged(2), true, 1)).unwrap();
+                addrs.push(addr).unwrap();
+            }
+            Machine {
+                nodes,
+                tool: Coordinator::new(&addrs, 2, now, 20_000, 0),
+                drop: heapless::Vec::new(),
+                drop_go: heapless::Vec::new(),
+                reboot_at_go: None,
+                now: 0,
+                log: heapless::Vec::new(),
+            }
+        }
+
+        fn run(&mut self, until: u64) -> Verdict {
+            while self.now < until && self.tool.verdict() == Verdict::Busy {
+                let mut out: heapless::Vec<(u16, Message<'static>), 16> = heapless::Vec::new();
+                self.tool.poll(self.now, |a, m| out.push((a, m)).unwrap());
+                while let Some((addr, m)) = out.pop() {
+                    let Message::Switch { generation, step } = m else {
+                        panic!()
+                    };
+                    let _ = self.log.push((self.now, addr, step));
+                    if let Some(d) = self.drop.iter_mut().find(|d| d.0 == addr && d.1 > 0) {
+                        d.1 -= 1;
+                        continue;
+                    }
+                    let go = matches!(step, SwitchStep::Go { .. });
+                    if let Some(d) = self
+                        .drop_go
+                        .iter_mut()
+                        .find(|d| d.0 == addr && d.1 > 0 && go)
+                    {
+                        d.1 -= 1;
+                        continue;
+                    }
+                    if go && self.reboot_at_go == Some(addr) {
+                        self.reboot_at_go = None;
+                        if let Some(n) = self.nodes.iter_mut().find(|n| n.0 == addr) {
+                            n.1 = staged(2);
+                        }
+                    }
+                    let Some(n) = self.nodes.iter_mut().find(|n| n.0 == addr) else {
+                        continue;
+                    };
+                    let reply = match n.1.step(generation, step, TOOL, n.3, n.2, self.now) {
+                        Action::Reply(r) => r,
+                        Action::Activate => {
+                            n.1.activated(true);
+                            n.3 = 2;
+                            ConfigReply::Activated
+                        }
+                        Action::Disarmed { .. } => ConfigReply::Disarmed,
+                    };
+                    self.tool
+                        .on_reply(addr, 2, reply, self.now, |a, m| out.push((a, m)).unwrap());
+                }
+                self.now += 10;
+            }
+            self.tool.verdict()
+        }
+
+        fn running(&self) -> heapless::Vec<u32, 4> {
+            self.nodes.iter().map(|n| n.3).collect()
+        }
+    }
+
+    #[test]
+    fn an_idle_machine_is_armed_checked_once_more_and_switched() {
+        let mut m = Machine::new(3, false);
+        assert_eq!(m.run(10_000), Verdict::Switched);
+        assert_eq!(m.running().as_slice(), &[2, 2, 2]);
+        let steps: heapless::Vec<SwitchStep, 16> = m.log.iter().map(|l| l.2).collect();
+        let arm = SwitchStep::Arm;
+        let go = SwitchStep::Go { now: false };
+        assert_eq!(
+            steps.as_slice(),
+            &[arm, arm, arm, arm, arm, arm, go, go, go]
+        );
+    }
+
+    #[test]
+    fn no_node_switches_before_every_node_is_idle_at_once() {
+        let mut m = Machine::new(3, false);
+        m.nodes[1].2 = false; // mid-cycle
+        assert_eq!(m.run(1_000), Verdict::Busy);
+        assert_eq!(m.running().as_slice(), &[1, 1, 1], "nothing switched");
+        assert!(m.nodes.iter().all(|n| n.1.armed()));
+        m.nodes[1].2 = true; // the cycle ended
+        assert_eq!(m.run(2_000), Verdict::Switched);
+        assert_eq!(m.running().as_slice(), &[2, 2, 2]);
+    }
+
+    #[test]
+    fn a_lost_go_is_resent_and_a_node_that_rebooted_is_armed_again() {
+        let mut m = Machine::new(2, false);
+        // Two Gos to 0x12 are lost; 0x11 reboots between its arming and its Go.
+        m.drop_go.push((0x12, 2)).unwrap();
+        m.reboot_at_go = Some(0x11);
+        assert_eq!(m.run(5_000), Verdict::Switched);
+        assert_eq!(m.running().as_slice(), &[2, 2]);
+        let to = |addr: u16| -> heapless::Vec<SwitchStep, 16> {
+            m.log.iter().filter(|l| l.1 == addr).map(|l| l.2).collect()
+        };
+        let (arm, go) = (SwitchStep::Arm, SwitchStep::Go { now: false });
+        assert_eq!(to(0x11).as_slice(), &[arm, arm, go, arm, go]);
+        assert_eq!(to(0x12).as_slice(), &[arm, arm, go, go, go]);
+    }
+
+    #[test]
+    fn a_machine_that_never_idles_is_disarmed_and_nothing_switches() {
+        let mut m = Machine::new(2, false);
+        m.nodes[0].2 = false;
+        assert_eq!(m.run(30_000), Verdict::NotIdle);
+        assert_eq!(m.running().as_slice(), &[1, 1]);
+        assert!(m.nodes.iter().all(|n| !n.1.armed()), "disarmed");
+    }
+
+    #[test]
+    fn a_node_that_never_answers_the_arming_aborts_and_the_rest_is_disarmed() {
+        let mut m = Machine::new(2, false);
+        m.drop.push((0x12, u32::MAX)).unwrap();
+        assert_eq!(m.run(30_000), Verdict::Aborted);
+        assert_eq!(m.running().as_slice(), &[1, 1]);
+        assert!(!m.nodes[0].1.armed());
+    }
+
+    #[test]
+    fn now_switches_at_once_whatever_the_machine_does() {
+        let mut m = Machine::new(2, true);
+        m.nodes[0].2 = false;
+        assert_eq!(m.run(1_000), Verdict::Switched);
+        let steps: heapless::Vec<SwitchStep, 4> = m.log.iter().map(|l| l.2).collect();
+        let go = SwitchStep::Go { now: true };
+        assert_eq!(steps.as_slice(), &[go, go]);
+    }
+}
