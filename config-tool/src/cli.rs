@@ -54,7 +54,8 @@ pub enum Command {
         #[command(flatten)]
         keys: KeysArg,
     },
-    /// Compile a robot and push every role to its node (or one role to a given node).
+    /// Compile and verify a robot, then push every role to its node (or one role to a given
+    /// node); nothing is sent if `verify` fails, unless --no-verify.
     Push(PushArgs),
     /// A node's status: role, generation, chart states, outputs, fault, links, counters.
     Status {
@@ -196,6 +197,16 @@ pub struct SimArgs {
 #[derive(Args, Debug)]
 pub struct VerifyArgs {
     pub robot: PathBuf,
+    #[command(flatten)]
+    pub how: VerifyHow,
+}
+
+/// `verify`'s default bound on the states explored (also `push`'s).
+pub const MAX_STATES: usize = 2_000_000;
+
+/// How `verify` explores (`push` verifies with the defaults).
+#[derive(Args, Debug, Clone, Copy)]
+pub struct VerifyHow {
     /// A delivery may also fail after the link's retries (link alarm).
     #[arg(long)]
     pub lossy: bool,
@@ -211,8 +222,21 @@ pub struct VerifyArgs {
     #[arg(long)]
     pub start_anytime: bool,
     /// Stop (inconclusive) beyond this many states.
-    #[arg(long, default_value_t = 2_000_000)]
+    #[arg(long, default_value_t = MAX_STATES)]
     pub max_states: usize,
+}
+
+impl Default for VerifyHow {
+    /// `verify` without options.
+    fn default() -> Self {
+        VerifyHow {
+            lossy: false,
+            prompt: false,
+            any_delay: false,
+            start_anytime: false,
+            max_states: MAX_STATES,
+        }
+    }
 }
 
 /// `medium`'s arguments.
@@ -257,6 +281,10 @@ pub struct PushArgs {
     /// Push even if the node runs the same or a newer generation.
     #[arg(long)]
     pub force: bool,
+    /// Push without verifying the robot first (by default `push` runs `verify` on the
+    /// whole robot and sends nothing if a property fails).
+    #[arg(long)]
+    pub no_verify: bool,
     #[command(flatten)]
     pub keys: KeysArg,
 }

@@ -6,7 +6,7 @@ use robot_analysis::{inject, sim, timeline, verify};
 use robot_compiler::compile as pipeline;
 use robot_compiler::{check, diagram, dump, Compiled, Diagnostic, Source};
 
-use crate::cli::{Format, SimArgs, VerifyArgs};
+use crate::cli::{Format, SimArgs, VerifyArgs, VerifyHow};
 use crate::failure::Failure;
 
 /// Reads a robot (its errors name the file, and the place of a byte that is not UTF-8).
@@ -89,30 +89,64 @@ pub fn diagram(robot: &Path, role: &str, format: Format) -> Result<(), Failure> 
 
 pub fn verify(flags: &VerifyArgs) -> Result<(), Failure> {
     let (src, compiled) = load_compiled(&flags.robot)?;
-    let declared = compiled.robot.assume_prompt_radio && !flags.prompt && !flags.any_delay;
-    if declared {
-        println!(
-            "{}: assumes a prompt radio (`assume_prompt_radio`); --any-delay explores without it",
-            src.name
-        );
-    }
-    let prompt = (flags.prompt || compiled.robot.assume_prompt_radio) && !flags.any_delay;
-    let model = verify::Model::new(&compiled).map_err(Failure::error)?;
-    let result = verify::explore(
-        &model,
-        verify::ExploreOptions {
-            lossy: flags.lossy,
-            prompt,
-            start_anytime: flags.start_anytime,
-            max_states: flags.max_states,
-        },
-    );
-    print!("{}", result.render(&src.name, model.interlock_count()));
-    if result.ok() {
+    let verified = verification(&src.name, &compiled, flags.how).map_err(Failure::error)?;
+    print!("{}", verified.text);
+    if verified.report.ok() {
         Ok(())
     } else {
         Err(Failure::reported())
     }
+}
+
+/// A `verify` run: its report and the text `verify` prints.
+pub struct Verification {
+    pub report: verify::Report,
+    pub text: String,
+}
+
+impl Verification {
+    /// The one line `push` prints for a robot that passed.
+    pub fn passed_line(&self) -> String {
+        let r = &self.report;
+        let assumed = if r.prompt {
+            " (assuming a prompt radio)"
+        } else {
+            ""
+        };
+        format!(
+            "verified: {} states, {} transitions, every property holds{assumed}",
+            r.states, r.transitions
+        )
+    }
+}
+
+/// Explores `compiled` (named `name`) as `verify` does with `how`.
+pub fn verification(
+    name: &str,
+    compiled: &Compiled,
+    how: VerifyHow,
+) -> Result<Verification, verify::ModelError> {
+    let mut text = String::new();
+    let declared = compiled.robot.assume_prompt_radio && !how.prompt && !how.any_delay;
+    if declared {
+        text.push_str(&format!(
+            "{name}: assumes a prompt radio (`assume_prompt_radio`); --any-delay explores \
+             without it\n"
+        ));
+    }
+    let prompt = (how.prompt || compiled.robot.assume_prompt_radio) && !how.any_delay;
+    let model = verify::Model::new(compiled)?;
+    let report = verify::explore(
+        &model,
+        verify::ExploreOptions {
+            lossy: how.lossy,
+            prompt,
+            start_anytime: how.start_anytime,
+            max_states: how.max_states,
+        },
+    );
+    text.push_str(&report.render(name, model.interlock_count()));
+    Ok(Verification { report, text })
 }
 
 pub fn sim(args: &SimArgs) -> Result<(), Failure> {

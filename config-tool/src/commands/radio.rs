@@ -19,7 +19,8 @@ use robot_net::{live_plant, show};
 
 use robot_compiler::model::Security;
 
-use crate::cli::{KeysArg, MediumAddr, PushArgs, QemuNodeArgs};
+use crate::cli::{KeysArg, MediumAddr, PushArgs, QemuNodeArgs, VerifyHow};
+use crate::commands::offline;
 use crate::failure::{exit, Failure};
 use crate::tool_keys::{self, KeysFrom, KEYS_ENV};
 
@@ -167,6 +168,7 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
         }
     }
     let keys = push_keys(robot, &c, KeysFrom::resolve(flags.keys.keys.as_deref()))?;
+    verify_before_push(robot, &c, flags.no_verify)?;
     let mut radio = connect_keyed(at, keys.as_ref())?;
     let outcomes = push_with_bars(&mut radio, &targets, flags.force)?;
     report_push(&outcomes)
@@ -194,6 +196,39 @@ fn push_keys(
         ))),
         (Security::Off, _) => Ok(None),
     }
+}
+
+/// `verify` on the whole robot (every role, whatever `--role` says), with `verify`'s
+/// defaults, before any node is contacted: a robot that fails is refused with the report
+/// `verify` prints (its counterexample) and `verify`'s status; one that passes gets a line.
+/// `--no-verify` skips it, and says so.
+fn verify_before_push(
+    robot: &Path,
+    c: &robot_compiler::Compiled,
+    skip: bool,
+) -> Result<(), Failure> {
+    let name = robot.display();
+    if skip {
+        eprintln!("warning: push --no-verify: {name} was not verified");
+        return Ok(());
+    }
+    let unverified = "nothing was sent (--no-verify pushes it unverified)";
+    let verified = offline::verification(&name.to_string(), c, VerifyHow::default())
+        .map_err(|e| Failure::error(format!("{name}: verify cannot run: {e}; {unverified}")))?;
+    let report = &verified.report;
+    if report.ok() {
+        println!("{}", verified.passed_line());
+        return Ok(());
+    }
+    print!("{}", verified.text);
+    let why = match &report.violation {
+        Some(v) => format!("fails verify ({})", v.property),
+        None => format!(
+            "was not verified: verify stopped at {} states without an answer",
+            report.states
+        ),
+    };
+    Err(Failure::error(format!("{name} {why}: {unverified}")))
 }
 
 fn bars(targets: &[push::Target]) -> (MultiProgress, Vec<ProgressBar>) {
