@@ -116,7 +116,7 @@ async fn node(
     flash: QemuFlash,
     counting: bool,
     key: Option<ManagementKey>,
-    mut counter: Counter,
+    mut counter: Option<Counter>,
 ) {
     let board = Board {
         radio: uart::UartRadio,
@@ -129,7 +129,7 @@ async fn node(
         on: counting,
         at: 0,
     };
-    let mut next = || counter.next();
+    let mut next = || counter.as_mut().and_then(Counter::next);
     let security = key.map(|key| runtime::Security {
         key,
         counter: &mut next,
@@ -223,12 +223,12 @@ fn main() -> ! {
     if backing == Backing::FileRefused {
         log::warn!("node {addr:#06x}: the flash file is not usable: slots in RAM");
     }
-    let counter = match Counter::open(flash.frame_counter(), backing) {
-        Ok(c) => c,
-        Err(e) => off_the_air(addr, format_args!("frame counter: {e:?}")),
-    };
-    if key.is_some() {
-        // The counter's value only: the key is never logged.
+    // A keyed node's frame counter (only the value is logged, never the key).
+    let counter = key.as_ref().map(|_| {
+        let counter = match Counter::open(flash.frame_counter(), backing) {
+            Ok(c) => c,
+            Err(e) => off_the_air(addr, format_args!("frame counter: {e:?}")),
+        };
         let kept = if counter.persistent() {
             "in flash"
         } else {
@@ -238,7 +238,8 @@ fn main() -> ! {
             Some(n) => log::info!("node {addr:#06x}: frame counter {n} ({kept})"),
             None => log::warn!("node {addr:#06x}: frame counter used up: nothing secured is sent"),
         }
-    }
+        counter
+    });
 
     let executor: &'static mut raw::Executor =
         cortex_m::singleton!(: raw::Executor = raw::Executor::new(core::ptr::null_mut()))
