@@ -19,6 +19,7 @@
 #![no_std]
 #![no_main]
 
+mod bench;
 mod counter;
 mod flash;
 mod provision;
@@ -248,6 +249,23 @@ fn main() -> ! {
     let spawner = executor.spawner();
     spawner.spawn(uart::demux(addr).expect("demux task"));
     let counting = p.flags & provision::FLAG_COUNT != 0;
+    if counting {
+        match bench::secure_and_open() {
+            Some(costs) => {
+                for (size, (secure, open)) in bench::SIZES.iter().zip(costs) {
+                    log::info!(
+                        "node {addr:#06x}: security cost: payload {size} secure_ns {secure} \
+                         open_ns {open}"
+                    );
+                }
+            }
+            None => log::warn!("node {addr:#06x}: security cost: the codec refused"),
+        }
+        let (schedule, block) = bench::aes();
+        log::info!(
+            "node {addr:#06x}: security cost: aes key_schedule_ns {schedule} block_ns {block}"
+        );
+    }
     spawner.spawn(node(addr, epoch, flash, counting, key, counter).expect("node task"));
     if counting {
         spawner.spawn(count(addr).expect("count task"));
