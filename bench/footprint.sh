@@ -66,6 +66,19 @@ nm -S --size-sort -C -t d "$NRF_ELF" 2>/dev/null | awk '$3 ~ /^[bBdD]$/' | tail 
     awk '{ size = $2 + 0; $1 = ""; $2 = ""; $3 = ""; printf "  %7d %s\n", size, $0 }' || true
 
 echo
+echo "frame security in the nrf52840 image: the symbols of aes, ccm, cipher, ctr and"
+echo "config_schema::wire::security (code inlined into their callers is not counted)"
+nm -S --size-sort -C -t d "$NRF_ELF" 2>/dev/null | awk '$3 ~ /^[tTrR]$/' |
+    awk '{ size = $2 + 0; $1 = ""; $2 = ""; $3 = ""; sub(/^ +/, "") }
+        /^<?(<[^ ]+ as )?(aes|ccm|cipher|ctr|crypto_common)::|wire::security::/ {
+            n++; total += size; line[n] = sprintf("  %7d %s", size, $0)
+        }
+        END {
+            for (i = (n > 5 ? n - 4 : 1); i <= n; i++) print line[i]
+            printf "  %7d bytes in %d symbols\n", total, n
+        }' || true
+
+echo
 echo "capacities (config-schema/src/limits.rs, node-fw/src/runtime.rs)"
 grep -hE '^pub const [A-Z_]+: usize = ' config-schema/src/limits.rs node-fw/src/runtime.rs |
     sed -E 's/^pub const ([A-Z_]+): usize = (.*);/\1=\2/' |

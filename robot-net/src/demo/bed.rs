@@ -37,8 +37,8 @@ pub struct Options {
     /// Bound of one cycle (and of waiting for nodes).
     pub timeout: Duration,
     /// Secure the management traffic: the bed makes a machine secret of its own, gives
-    /// every node its key file (`--key`) and the tool's radio the secret. Host nodes only
-    /// for now: a QEMU node does not secure its frames yet.
+    /// every node its key file (`--key`: `node` reads it, `qemu-node` writes it to the
+    /// provisioning area) and the tool's radio the secret.
     pub secured: bool,
 }
 

@@ -165,6 +165,81 @@ pub fn read_counts(dir: &Path, addr: u16) -> Option<Counts> {
     })
 }
 
+/// What securing and opening one frame costs on the emulated Cortex-M3, as a counting node
+/// measured it at boot (`security::secure` and `security::open_at`, ENC-MIC-64).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SecurityCost {
+    /// Payload bytes.
+    pub payload: u64,
+    /// Instructions to secure one frame, and to open one.
+    pub secure: u64,
+    pub open: u64,
+}
+
+/// The values after `keys` in `line` (each key's next word), if all are there.
+fn values<const N: usize>(line: &str, keys: [&str; N]) -> Option<[u64; N]> {
+    let mut words = line.split_whitespace();
+    let mut out = [0; N];
+    for (key, v) in keys.iter().zip(out.iter_mut()) {
+        words.by_ref().find(|w| w == key)?;
+        *v = words.next()?.parse().ok()?;
+    }
+    Some(out)
+}
+
+/// The `security cost: payload` lines of a counting node's log, in order.
+pub fn read_security_costs(dir: &Path, addr: u16) -> Vec<SecurityCost> {
+    let Ok(text) = std::fs::read_to_string(count_log(dir, addr)) else {
+        return Vec::new();
+    };
+    text.lines()
+        .filter(|l| l.contains(" security cost: payload "))
+        .filter_map(|line| {
+            let [payload, secure, open] = values(line, ["payload", "secure_ns", "open_ns"])?;
+            Some(SecurityCost {
+                payload,
+                secure,
+                open,
+            })
+        })
+        .collect()
+}
+
+/// The instructions of one AES-128 key schedule and of one block, as the node measured.
+pub fn read_aes_cost(dir: &Path, addr: u16) -> Option<(u64, u64)> {
+    let text = std::fs::read_to_string(count_log(dir, addr)).ok()?;
+    let line = text.lines().find(|l| l.contains(" security cost: aes "))?;
+    let [schedule, block] = values(line, ["key_schedule_ns", "block_ns"])?;
+    Some((schedule, block))
+}
+
+/// The cost of frame security, from the first node of `addrs` that measured it (every node
+/// runs the same image).
+pub fn security_cost_lines(dir: &Path, addrs: &[u16]) -> Vec<String> {
+    let Some((addr, costs)) = addrs
+        .iter()
+        .map(|a| (*a, read_security_costs(dir, *a)))
+        .find(|(_, c)| !c.is_empty())
+    else {
+        return vec!["frame security: no node measured it".into()];
+    };
+    let mut lines = vec![
+        "frame security (AES-128-CCM*, ENC-MIC-64, software AES), instructions per frame:".into(),
+    ];
+    for c in costs {
+        lines.push(format!(
+            "  payload {:>3} bytes: secure {:>6}, open {:>6}",
+            c.payload, c.secure, c.open
+        ));
+    }
+    if let Some((schedule, block)) = read_aes_cost(dir, addr) {
+        lines.push(format!(
+            "  of which AES-128 alone: key schedule {schedule:>6} (every frame), one block {block:>6}"
+        ));
+    }
+    lines
+}
+
 /// Checks the image is there (a clear message instead of QEMU's).
 pub fn check_elf(elf: &Path) -> Result<(), NetError> {
     if elf.is_file() {
@@ -301,6 +376,41 @@ mod tests {
         "-semihosting-config",
         "enable=on,target=native,arg=flash=node-11.flash",
     ];
+
+    #[test]
+    fn the_security_costs_are_read_from_the_log() {
+        let dir = std::env::temp_dir().join(format!("robot-net-cost-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(
+            count_log(&dir, 0x0011),
+            "INFO  node 0x0011: qemu-mps2, flash Ram\n\
+             INFO  node 0x0011: security cost: payload 4 secure_ns 9000 open_ns 9100\n\
+             INFO  node 0x0011: security cost: payload 102 secure_ns 30000 open_ns 30500\n\
+             INFO  node 0x0011: security cost: aes key_schedule_ns 7000 block_ns 2000\n\
+             INFO  node 0x0011: count: busy_ns 1 frames 0 pins 0 changes 0 core_frame_ns 0 \
+             core_frames 0 core_input_ns 0 core_inputs 0\n",
+        )
+        .unwrap();
+        let cost = |payload, secure, open| SecurityCost {
+            payload,
+            secure,
+            open,
+        };
+        assert_eq!(
+            read_security_costs(&dir, 0x0011),
+            [cost(4, 9000, 9100), cost(102, 30000, 30500)]
+        );
+        assert_eq!(
+            security_cost_lines(&dir, &[0x0012, 0x0011]),
+            [
+                "frame security (AES-128-CCM*, ENC-MIC-64, software AES), instructions per frame:",
+                "  payload   4 bytes: secure   9000, open   9100",
+                "  payload 102 bytes: secure  30000, open  30500",
+                "  of which AES-128 alone: key schedule   7000 (every frame), one block   2000",
+            ]
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn without_a_key_the_command_line_is_as_before() {

@@ -285,6 +285,9 @@ fn run_cycles(
         for line in qemu::count_lines(addrs, &before, &after, n) {
             demo_report::say(out, &line);
         }
+        for line in qemu::security_cost_lines(dir, addrs) {
+            demo_report::say(out, &line);
+        }
     }
     Ok(Verdict::Matched)
 }

@@ -1,12 +1,21 @@
-//! The internal flash (NVMC) pages holding the two table slots and the boot counter.
+//! The internal flash (NVMC) pages holding the frame counter, the two table slots and the
+//! boot counter: the last 28 KiB, outside memory.x.
 //!
 //! ```text
-//! SLOTS_AT                  slot 0, slot 1 (Slots::slot_size() = 8 KiB each)
-//! SLOTS_AT + SLOTS_BYTES    boot counter page: word i = the count of the i-th boot since
-//!                           the page was erased; the last written word is the count
+//! 0x000F_9000  FRAME_COUNTER_AT  two pages: the frame counter's log (node_fw::frame_counter)
+//! 0x000F_B000  SLOTS_AT          slot 0, slot 1 (Slots::slot_size() = 8 KiB each)
+//! 0x000F_F000  BOOT_AT           boot counter page: word i = the count of the i-th boot
+//!                                since the page was erased; the last written word is the
+//!                                count
+//! 0x0010_0000                    end of flash
 //! ```
-//! NVMC writes block the CPU (a page erase ~85 ms); the runtime persists a table only when
-//! one is pushed, so that is the only time the node pauses.
+//! Each region is an [`NrfFlash`] of its own ([`NrfFlash::new`] gives the slots,
+//! [`NrfFlash::frame_counter`] the counter's pages), sharing the one NVMC. NVMC writes
+//! block the CPU (a page erase ~85 ms): the runtime persists a table only when one is
+//! pushed, and the frame counter writes one 16-byte record per 1024 secured frames (a page
+//! erase per 256 records), so those are the only times the node pauses.
+
+use core::cell::RefCell;
 
 use embassy_nrf::nvmc::Nvmc;
 use embedded_storage::nor_flash::{
@@ -16,12 +25,16 @@ use embedded_storage::nor_flash::{
 use embedded_storage_async::nor_flash::{NorFlash, ReadNorFlash};
 use node_fw::slots::Slots;
 
-/// The first byte of the slots (see memory.x).
-pub const SLOTS_AT: u32 = 0x000F_B000;
 pub const PAGE: usize = 4096;
+/// The frame counter's two pages: the first byte not the linker's (see memory.x).
+pub const FRAME_COUNTER_AT: u32 = 0x000F_9000;
+pub const FRAME_COUNTER_BYTES: usize = 2 * PAGE;
+/// The first byte of the slots.
+pub const SLOTS_AT: u32 = FRAME_COUNTER_AT + FRAME_COUNTER_BYTES as u32;
 pub const SLOTS_BYTES: usize = 2 * Slots::<NrfFlash>::slot_size();
-const COUNTER_AT: u32 = SLOTS_AT + SLOTS_BYTES as u32;
-const COUNTER_WORDS: usize = PAGE / 4;
+const BOOT_AT: u32 = SLOTS_AT + SLOTS_BYTES as u32;
+const BOOT_WORDS: usize = PAGE / 4;
+const _: () = assert!(SLOTS_AT == 0x000F_B000 && BOOT_AT + PAGE as u32 == 0x0010_0000);
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum FlashError {
@@ -40,29 +53,53 @@ impl NorFlashError for FlashError {
     }
 }
 
-/// The slots region of the internal flash.
+/// One region of the internal flash: the slots, or the frame counter's pages.
 pub struct NrfFlash {
-    nvmc: Nvmc<'static>,
+    nvmc: &'static RefCell<Nvmc<'static>>,
+    at: u32,
+    len: usize,
 }
 
 impl NrfFlash {
-    pub fn new(nvmc: Nvmc<'static>) -> Self {
-        NrfFlash { nvmc }
+    /// The slots (and the boot counter page behind them).
+    pub fn new(nvmc: &'static RefCell<Nvmc<'static>>) -> Self {
+        NrfFlash {
+            nvmc,
+            at: SLOTS_AT,
+            len: SLOTS_BYTES,
+        }
     }
 
-    fn check(offset: u32, len: usize) -> Result<u32, FlashError> {
+    /// The frame counter's pages (call once: the region has one owner).
+    pub fn frame_counter(&self) -> NrfFlash {
+        NrfFlash {
+            nvmc: self.nvmc,
+            at: FRAME_COUNTER_AT,
+            len: FRAME_COUNTER_BYTES,
+        }
+    }
+
+    fn check(&self, offset: u32, len: usize) -> Result<u32, FlashError> {
         if (offset as usize)
             .checked_add(len)
-            .is_none_or(|end| end > SLOTS_BYTES)
+            .is_none_or(|end| end > self.len)
         {
             return Err(FlashError::OutOfBounds);
         }
-        Ok(SLOTS_AT + offset)
+        Ok(self.at + offset)
+    }
+
+    /// The NVMC (one task uses the flash, and no borrow is held across an await: the
+    /// NVMC's operations block, so this never finds it taken).
+    fn nvmc(&self) -> Result<core::cell::RefMut<'static, Nvmc<'static>>, FlashError> {
+        self.nvmc.try_borrow_mut().map_err(|_| FlashError::Nvmc)
     }
 
     fn word(&mut self, at: u32) -> u32 {
         let mut w = [0u8; 4];
-        let _ = self.nvmc.read(at, &mut w);
+        if let Ok(mut nvmc) = self.nvmc() {
+            let _ = nvmc.read(at, &mut w);
+        }
         u32::from_le_bytes(w)
     }
 
@@ -70,22 +107,22 @@ impl NrfFlash {
     /// returns the count. A power cut during that erase, once in 1024 boots, restarts the
     /// count at 1.
     pub fn count_boot(&mut self) -> u32 {
-        let used = (0..COUNTER_WORDS)
-            .find(|&i| self.word(COUNTER_AT + 4 * i as u32) == u32::MAX)
-            .unwrap_or(COUNTER_WORDS);
+        let used = (0..BOOT_WORDS)
+            .find(|&i| self.word(BOOT_AT + 4 * i as u32) == u32::MAX)
+            .unwrap_or(BOOT_WORDS);
         let last = match used {
             0 => 0,
-            n => self.word(COUNTER_AT + 4 * (n as u32 - 1)),
+            n => self.word(BOOT_AT + 4 * (n as u32 - 1)),
         };
         let boots = last.wrapping_add(1).max(1);
         let mut at = used;
-        if used == COUNTER_WORDS {
-            let _ = self.nvmc.erase(COUNTER_AT, COUNTER_AT + PAGE as u32);
-            at = 0;
+        if let Ok(mut nvmc) = self.nvmc() {
+            if used == BOOT_WORDS {
+                let _ = nvmc.erase(BOOT_AT, BOOT_AT + PAGE as u32);
+                at = 0;
+            }
+            let _ = nvmc.write(BOOT_AT + 4 * at as u32, &boots.to_le_bytes());
         }
-        let _ = self
-            .nvmc
-            .write(COUNTER_AT + 4 * at as u32, &boots.to_le_bytes());
         boots
     }
 }
@@ -98,12 +135,12 @@ impl ReadNorFlash for NrfFlash {
     const READ_SIZE: usize = 1;
 
     async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
-        let at = Self::check(offset, bytes.len())?;
-        self.nvmc.read(at, bytes).map_err(|_| FlashError::Nvmc)
+        let at = self.check(offset, bytes.len())?;
+        self.nvmc()?.read(at, bytes).map_err(|_| FlashError::Nvmc)
     }
 
     fn capacity(&self) -> usize {
-        SLOTS_BYTES
+        self.len
     }
 }
 
@@ -115,20 +152,20 @@ impl NorFlash for NrfFlash {
         if to < from {
             return Err(FlashError::OutOfBounds);
         }
-        let at = Self::check(from, (to - from) as usize)?;
+        let at = self.check(from, (to - from) as usize)?;
         if !(from as usize).is_multiple_of(PAGE) || !(to as usize).is_multiple_of(PAGE) {
             return Err(FlashError::NotAligned);
         }
-        self.nvmc
+        self.nvmc()?
             .erase(at, at + (to - from))
             .map_err(|_| FlashError::Nvmc)
     }
 
     async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
-        let at = Self::check(offset, bytes.len())?;
+        let at = self.check(offset, bytes.len())?;
         if !(offset as usize).is_multiple_of(4) || !bytes.len().is_multiple_of(4) {
             return Err(FlashError::NotAligned);
         }
-        self.nvmc.write(at, bytes).map_err(|_| FlashError::Nvmc)
+        self.nvmc()?.write(at, bytes).map_err(|_| FlashError::Nvmc)
     }
 }

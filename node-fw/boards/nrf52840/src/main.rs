@@ -6,7 +6,9 @@
 //!   CUSTOMER[2..=5] when the word's flag bit 2 says so (`node_fw::provision`);
 //! - radio: the IEEE 802.15.4 radio ([`radio`]);
 //! - pins: 16 GPIOs, outputs or inputs as the table uses them ([`gpio`]);
-//! - table slots and boot counter: the last 20 KiB of the internal flash ([`flash`]);
+//! - frame counter, table slots and boot counter: the last 28 KiB of the internal flash
+//!   ([`flash`]);
+//! - security: with a management key, the config PAN is secured (`runtime::run_secured`);
 //! - log: defmt over RTT (`cargo run --release` flashes a DK with probe-rs and prints it).
 //!
 //! With the feature `gateway` the image is the serial <-> radio gateway instead
@@ -95,7 +97,7 @@ async fn main(_spawner: Spawner) {
         }
     };
     let addr = word.addr;
-    // The management key (CUSTOMER[2..=5]) is read and checked; frames do not use it yet.
+    // The management key (CUSTOMER[2..=5]): the node secures its config PAN with it.
     let key = if word.has_key() {
         let words = core::array::from_fn(|i| uicr(KEY_AT + 4 * i));
         let Some(key) = provision::ManagementKey::from_words(words) else {
@@ -149,8 +151,12 @@ async fn main(_spawner: Spawner) {
     }
     #[cfg(not(feature = "gateway"))]
     {
+        use core::cell::RefCell;
+
+        use embassy_futures::block_on;
         use embassy_nrf::gpio::Flex;
         use embassy_nrf::nvmc::Nvmc;
+        use node_fw::frame_counter::FrameCounter;
         use node_fw::runtime::{self, Board};
 
         use flash::NrfFlash;
@@ -174,7 +180,9 @@ async fn main(_spawner: Spawner) {
             Flex::new(p.P0_03),
             Flex::new(p.P0_04),
         ]);
-        let mut flash = NrfFlash::new(Nvmc::new(p.NVMC));
+        let nvmc = cortex_m::singleton!(: RefCell<Nvmc<'static>> = RefCell::new(Nvmc::new(p.NVMC)))
+            .expect("once");
+        let mut flash = NrfFlash::new(nvmc);
         let boots = flash.count_boot();
         let epoch = boots.wrapping_mul(256) as u16;
         defmt::info!(
@@ -185,6 +193,33 @@ async fn main(_spawner: Spawner) {
             epoch,
             key.is_some()
         );
+        // A keyed node's frame counter. The NVMC blocks: its futures complete when first
+        // polled.
+        let mut counter = None;
+        if key.is_some() {
+            match block_on(FrameCounter::open(flash.frame_counter())) {
+                Ok(c) => {
+                    // The counter's value only: the key is never logged.
+                    defmt::info!("node {=u16:#06x}: frame counter {=u32}", addr, c.peek());
+                    counter = Some(c);
+                }
+                Err(e) => {
+                    defmt::error!(
+                        "node {=u16:#06x}: frame counter: {}: staying off the air",
+                        addr,
+                        defmt::Debug2Format(&e)
+                    );
+                    loop {
+                        Timer::after_secs(3600).await;
+                    }
+                }
+            }
+        }
+        let mut next = || counter.as_mut().and_then(|c| block_on(c.next()).ok());
+        let security = key.map(|key| runtime::Security {
+            key,
+            counter: &mut next,
+        });
 
         let board = Board {
             radio,
@@ -193,7 +228,7 @@ async fn main(_spawner: Spawner) {
             flash,
             pin_mask: runtime::pin_range(gpio::PINS),
         };
-        let (stop, stats) = runtime::run(addr, epoch, board).await;
+        let (stop, stats) = runtime::run_secured(addr, epoch, board, &mut (), security).await;
         defmt::error!(
             "node stopped ({=bool}): {=u32} activations",
             matches!(stop, runtime::Stop::FlashGeometry),

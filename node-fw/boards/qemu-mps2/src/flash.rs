@@ -1,15 +1,23 @@
-//! The emulated internal flash holding the two table slots and the boot counter, laid out
-//! as the host board's flash file (`node_fw::host::flash`), so the files are the same:
+//! The emulated internal flash holding the two table slots, the boot counter and the frame
+//! counter. Its first part is laid out as the host board's flash file
+//! (`node_fw::host::flash`), its last two pages as the host board's frame counter file:
 //!
 //! ```text
-//! 0              slot 0, slot 1 (Slots::slot_size() bytes each)
-//! 2 * slot_size  u32 LE boot counter (0xFFFF_FFFF: never booted), rest of the page 0xFF
+//! 0                   slot 0, slot 1 (Slots::slot_size() bytes each)
+//! BOOT_AT             u32 LE boot counter (0xFFFF_FFFF: never booted), rest of the page 0xFF
+//! FRAME_COUNTER_AT    two pages: the frame counter's log (node_fw::frame_counter)
 //! ```
 //! The bytes live in the emulated SSRAM at [`BASE`] with NOR semantics (erase sets 0xFF, a
 //! write only clears bits). With semihosting and `flash=FILE` on the semihosting command
 //! line, they are loaded from that host file at boot and every erase and write goes through
-//! to it before returning: the slots survive a QEMU restart or a kill (a power cut) exactly
-//! as the runtime's commit order allows. Without a file they are erased at every boot.
+//! to it before returning: the slots and the frame counter survive a QEMU restart or a kill
+//! (a power cut) exactly as the runtime's commit order and the counter's log allow. A file
+//! of [`HOST_FILE`] bytes (a host node's flash file, or an older image's) is taken and
+//! extended with erased frame counter pages. Without a file everything is erased at every
+//! boot.
+//!
+//! Each region is a [`QemuFlash`] of its own ([`QemuFlash::open`] gives the slots,
+//! [`QemuFlash::frame_counter`] the counter's pages), sharing the host file.
 
 use embedded_storage::nor_flash::{ErrorType, NorFlashError, NorFlashErrorKind};
 use embedded_storage_async::nor_flash::{NorFlash, ReadNorFlash};
@@ -21,8 +29,15 @@ use crate::semihosting::{self, File};
 pub const BASE: usize = 0x003E_0000;
 pub const ERASE_SIZE: usize = 4096;
 pub const SLOTS_BYTES: usize = 2 * Slots::<QemuFlash>::slot_size();
-pub const COUNTER_AT: usize = SLOTS_BYTES;
-pub const TOTAL: usize = SLOTS_BYTES + ERASE_SIZE;
+/// The boot counter's page.
+pub const BOOT_AT: usize = SLOTS_BYTES;
+/// The frame counter's two pages (erase-aligned: the slots are whole pages).
+pub const FRAME_COUNTER_AT: usize = BOOT_AT + ERASE_SIZE;
+pub const FRAME_COUNTER_BYTES: usize = 2 * ERASE_SIZE;
+/// The size of a host node's flash file: the slots and the boot page.
+pub const HOST_FILE: usize = FRAME_COUNTER_AT;
+pub const TOTAL: usize = FRAME_COUNTER_AT + FRAME_COUNTER_BYTES;
+const _: () = assert!(SLOTS_BYTES.is_multiple_of(ERASE_SIZE));
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FlashError {
@@ -62,56 +77,97 @@ pub enum Backing {
     FileRefused,
 }
 
+/// One region of the emulated flash: the slots, or the frame counter's pages.
 pub struct QemuFlash {
     file: Option<File>,
+    /// Where the region starts in the flash (and in the file), and its bytes.
+    start: usize,
+    len: usize,
 }
 
-fn mem() -> &'static mut [u8; TOTAL] {
-    // SAFETY: emulated SSRAM outside every linker region, used only through the one
-    // QemuFlash (created once at boot).
-    unsafe { &mut *(BASE as *mut [u8; TOTAL]) }
+/// Bytes `start..start + len` of the emulated flash.
+fn mem(start: usize, len: usize) -> &'static mut [u8] {
+    debug_assert!(start + len <= TOTAL);
+    // SAFETY: emulated SSRAM outside every linker region. The regions are disjoint and
+    // each is used only through its one QemuFlash (created once at boot); the whole flash
+    // only by `open`, before any region exists.
+    unsafe { core::slice::from_raw_parts_mut((BASE + start) as *mut u8, len) }
 }
 
 impl QemuFlash {
-    /// The flash, loaded from `path` if given (a missing file is created erased).
+    /// The slots, the whole flash loaded from `path` if given (a missing file is created
+    /// erased, a host node's file extended).
     pub fn open(path: Option<&[u8]>) -> (QemuFlash, Backing) {
-        let m = mem();
+        let (file, backing) = Self::load(path);
+        let slots = QemuFlash {
+            file,
+            start: 0,
+            len: SLOTS_BYTES,
+        };
+        (slots, backing)
+    }
+
+    fn load(path: Option<&[u8]>) -> (Option<File>, Backing) {
+        let m = mem(0, TOTAL);
+        m.fill(0xFF);
         let Some(path) = path else {
-            m.fill(0xFF);
-            return (QemuFlash { file: None }, Backing::Ram);
+            return (None, Backing::Ram);
         };
         if let Some(f) = File::open(path, semihosting::MODE_RB_PLUS) {
-            if f.len() == Some(TOTAL) && f.read_at(0, m) {
-                return (QemuFlash { file: Some(f) }, Backing::File);
+            let loaded = match f.len() {
+                Some(TOTAL) => f.read_at(0, m),
+                // The slots and the boot page; the counter pages are appended, erased.
+                Some(HOST_FILE) => {
+                    f.read_at(0, &mut m[..HOST_FILE]) && f.write_at(HOST_FILE, &m[HOST_FILE..])
+                }
+                _ => false,
+            };
+            if loaded {
+                return (Some(f), Backing::File);
             }
             m.fill(0xFF);
-            return (QemuFlash { file: None }, Backing::FileRefused);
+            return (None, Backing::FileRefused);
         }
-        m.fill(0xFF);
         match File::open(path, semihosting::MODE_WB_PLUS) {
-            Some(f) if f.write_at(0, m) => (QemuFlash { file: Some(f) }, Backing::File),
-            _ => (QemuFlash { file: None }, Backing::FileRefused),
+            Some(f) if f.write_at(0, m) => (Some(f), Backing::File),
+            _ => (None, Backing::FileRefused),
+        }
+    }
+
+    /// The frame counter's pages (call once: the region has one owner).
+    pub fn frame_counter(&self) -> QemuFlash {
+        QemuFlash {
+            file: self.file,
+            start: FRAME_COUNTER_AT,
+            len: FRAME_COUNTER_BYTES,
         }
     }
 
     /// Counts this boot in the boot page; `None` without a file (nothing persists).
     pub fn count_boot(&mut self) -> Option<u32> {
         let f = self.file?;
-        let m = mem();
-        let at = COUNTER_AT;
-        let old = u32::from_le_bytes([m[at], m[at + 1], m[at + 2], m[at + 3]]);
+        let m = mem(BOOT_AT, 4);
+        let old = u32::from_le_bytes([m[0], m[1], m[2], m[3]]);
         let boots = match old {
             u32::MAX => 1,
             n => n.wrapping_add(1).max(1),
         };
         // An overwrite of one word (as the host board's file): the old or the new count.
-        m[at..at + 4].copy_from_slice(&boots.to_le_bytes());
-        f.write_at(at, &m[at..at + 4]).then_some(boots)
+        m.copy_from_slice(&boots.to_le_bytes());
+        f.write_at(BOOT_AT, m).then_some(boots)
     }
 
-    fn sync(&self, start: usize, len: usize) -> Result<(), FlashError> {
+    /// This region's bytes.
+    fn bytes(&self) -> &'static mut [u8] {
+        mem(self.start, self.len)
+    }
+
+    /// Writes bytes `at..at + len` of this region through to the file.
+    fn sync(&self, at: usize, len: usize) -> Result<(), FlashError> {
         match self.file {
-            Some(f) if !f.write_at(start, &mem()[start..start + len]) => Err(FlashError::Host),
+            Some(f) if !f.write_at(self.start + at, &self.bytes()[at..at + len]) => {
+                Err(FlashError::Host)
+            }
             _ => Ok(()),
         }
     }
@@ -125,13 +181,13 @@ impl ReadNorFlash for QemuFlash {
     const READ_SIZE: usize = 1;
 
     async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
-        let start = check_access(offset, bytes.len(), 1, SLOTS_BYTES)?;
-        bytes.copy_from_slice(&mem()[start..start + bytes.len()]);
+        let start = check_access(offset, bytes.len(), 1, self.len)?;
+        bytes.copy_from_slice(&self.bytes()[start..start + bytes.len()]);
         Ok(())
     }
 
     fn capacity(&self) -> usize {
-        SLOTS_BYTES
+        self.len
     }
 }
 
@@ -143,15 +199,18 @@ impl NorFlash for QemuFlash {
         if to < from {
             return Err(FlashError::OutOfBounds);
         }
-        let start = check_access(from, (to - from) as usize, ERASE_SIZE, SLOTS_BYTES)?;
+        let start = check_access(from, (to - from) as usize, ERASE_SIZE, self.len)?;
         let len = (to - from) as usize;
-        mem()[start..start + len].fill(0xFF);
+        self.bytes()[start..start + len].fill(0xFF);
         self.sync(start, len)
     }
 
     async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
-        let start = check_access(offset, bytes.len(), 4, SLOTS_BYTES)?;
-        for (cell, b) in mem()[start..start + bytes.len()].iter_mut().zip(bytes) {
+        let start = check_access(offset, bytes.len(), 4, self.len)?;
+        for (cell, b) in self.bytes()[start..start + bytes.len()]
+            .iter_mut()
+            .zip(bytes)
+        {
             *cell &= *b;
         }
         self.sync(start, bytes.len())

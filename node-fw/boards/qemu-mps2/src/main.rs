@@ -3,7 +3,10 @@
 //! - address: the provisioning word ([`provision`], `-device loader`);
 //! - radio and pins: CMSDK UART0 bridged by QEMU to the simulated medium ([`uart`]);
 //! - time: CMSDK TIMER0/1 ([`time`]);
-//! - table slots: emulated flash, persistent in a host file through semihosting ([`flash`]);
+//! - table slots and frame counter: emulated flash, persistent in a host file through
+//!   semihosting ([`flash`], [`counter`]);
+//! - security: with a management key in the provisioning area, the config PAN is secured
+//!   (`runtime::run_secured`);
 //! - executor: Embassy's raw executor in a WFI loop (QEMU treats WFE as a no-op, so the
 //!   stock thread executor would keep a host core busy).
 //!
@@ -16,6 +19,8 @@
 #![no_std]
 #![no_main]
 
+mod bench;
+mod counter;
 mod flash;
 mod provision;
 mod semihosting;
@@ -29,7 +34,10 @@ use core::sync::atomic::{AtomicBool, Ordering};
 use config_schema::wire::medium::{Link, Peer};
 use cortex_m_rt::entry;
 use embassy_executor::raw;
+use node_fw::provision::ManagementKey;
 use node_fw::runtime::{self, Board};
+
+use counter::Counter;
 
 use flash::{Backing, QemuFlash};
 
@@ -103,7 +111,14 @@ impl runtime::Probe for CoreProbe {
 }
 
 #[embassy_executor::task]
-async fn node(addr: u16, epoch: u16, flash: QemuFlash, counting: bool) {
+async fn node(
+    addr: u16,
+    epoch: u16,
+    flash: QemuFlash,
+    counting: bool,
+    key: Option<ManagementKey>,
+    mut counter: Option<Counter>,
+) {
     let board = Board {
         radio: uart::UartRadio,
         outputs: uart::UartPins { addr },
@@ -115,7 +130,12 @@ async fn node(addr: u16, epoch: u16, flash: QemuFlash, counting: bool) {
         on: counting,
         at: 0,
     };
-    let (stop, stats) = runtime::run_probed(addr, epoch, board, &mut probe).await;
+    let mut next = || counter.as_mut().and_then(Counter::next);
+    let security = key.map(|key| runtime::Security {
+        key,
+        counter: &mut next,
+    });
+    let (stop, stats) = runtime::run_secured(addr, epoch, board, &mut probe, security).await;
     log::error!("node {addr:#06x}: stopped: {stop:?} ({stats:?})");
 }
 
@@ -149,6 +169,14 @@ async fn count(addr: u16) {
     }
 }
 
+/// Says why and stays off the air (a node that cannot secure must not talk).
+fn off_the_air(addr: u16, why: core::fmt::Arguments<'_>) -> ! {
+    log::error!("node {addr:#06x}: {why}: staying off the air");
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
 /// The semihosting command line's `flash=PATH`.
 fn flash_path(buf: &mut [u8]) -> Option<&[u8]> {
     let line = semihosting::cmdline(buf)?;
@@ -172,15 +200,9 @@ fn main() -> ! {
         }
     }
     let addr = p.addr;
-    // The management key is read and checked; frames do not use it yet.
     let key = match p.key {
         Ok(key) => key,
-        Err(e) => {
-            log::error!("node {addr:#06x}: {e}: staying off the air");
-            loop {
-                cortex_m::asm::wfi();
-            }
-        }
+        Err(e) => off_the_air(addr, format_args!("{e}")),
     };
     time::init();
     uart::init();
@@ -202,6 +224,23 @@ fn main() -> ! {
     if backing == Backing::FileRefused {
         log::warn!("node {addr:#06x}: the flash file is not usable: slots in RAM");
     }
+    // A keyed node's frame counter (only the value is logged, never the key).
+    let counter = key.as_ref().map(|_| {
+        let counter = match Counter::open(flash.frame_counter(), backing) {
+            Ok(c) => c,
+            Err(e) => off_the_air(addr, format_args!("frame counter: {e:?}")),
+        };
+        let kept = if counter.persistent() {
+            "in flash"
+        } else {
+            "in RAM, from the clock"
+        };
+        match counter.start() {
+            Some(n) => log::info!("node {addr:#06x}: frame counter {n} ({kept})"),
+            None => log::warn!("node {addr:#06x}: frame counter used up: nothing secured is sent"),
+        }
+        counter
+    });
 
     let executor: &'static mut raw::Executor =
         cortex_m::singleton!(: raw::Executor = raw::Executor::new(core::ptr::null_mut()))
@@ -210,7 +249,24 @@ fn main() -> ! {
     let spawner = executor.spawner();
     spawner.spawn(uart::demux(addr).expect("demux task"));
     let counting = p.flags & provision::FLAG_COUNT != 0;
-    spawner.spawn(node(addr, epoch, flash, counting).expect("node task"));
+    if counting {
+        match bench::secure_and_open() {
+            Some(costs) => {
+                for (size, (secure, open)) in bench::SIZES.iter().zip(costs) {
+                    log::info!(
+                        "node {addr:#06x}: security cost: payload {size} secure_ns {secure} \
+                         open_ns {open}"
+                    );
+                }
+            }
+            None => log::warn!("node {addr:#06x}: security cost: the codec refused"),
+        }
+        let (schedule, block) = bench::aes();
+        log::info!(
+            "node {addr:#06x}: security cost: aes key_schedule_ns {schedule} block_ns {block}"
+        );
+    }
+    spawner.spawn(node(addr, epoch, flash, counting, key, counter).expect("node task"));
     if counting {
         spawner.spawn(count(addr).expect("count task"));
     }

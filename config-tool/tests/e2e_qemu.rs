@@ -1,0 +1,163 @@
+//! End to end with QEMU nodes: every node a `config-tool qemu-node` booting the `qemu-mps2`
+//! image, provisioned with its management key, on a real medium. What the host nodes'
+//! tests (`e2e.rs`) show of security, shown of the emulated board's own frame path: its
+//! config PAN is secured, an unsecured START moves nothing and is counted, and its frame
+//! counter, on its emulated flash, survives a kill (a power cut).
+//!
+//! The image is built by `cd node-fw/boards/qemu-mps2 && cargo build --release` (or named by
+//! `QEMU_ELF`). Without
+//! it (or without `qemu-system-arm`) these tests say so and pass, unless `REQUIRE_QEMU` is
+//! set (CI sets it once the image is built), where they fail.
+
+mod e2e_support;
+
+use std::ffi::OsString;
+use std::path::PathBuf;
+
+use config_schema::wire::mac::Frame;
+use config_schema::wire::msg::{Command, Message, SecurityCounters};
+use config_schema::wire::security::AuxHeader;
+use node_fw::node::CONFIG_PAN;
+use robot_net::demo::{self, Bed, Options};
+
+use e2e_support::*;
+
+/// The image (`QEMU_ELF`, else the release build's) and QEMU, if both are there; panics
+/// if they are not and `REQUIRE_QEMU` is set.
+fn qemu_image() -> Option<PathBuf> {
+    let elf = std::env::var_os("QEMU_ELF").map_or_else(
+        || {
+            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+                .join("..")
+                .join(demo::QEMU_ELF)
+        },
+        PathBuf::from,
+    );
+    let missing = match (demo::check_elf(&elf), demo::check_qemu()) {
+        (Ok(()), Ok(())) => return Some(elf),
+        (Err(e), _) | (_, Err(e)) => e.to_string(),
+    };
+    assert!(
+        std::env::var_os("REQUIRE_QEMU").is_none(),
+        "REQUIRE_QEMU is set: {missing}"
+    );
+    eprintln!("skipped: {missing}");
+    None
+}
+
+/// Bed options: secured, every node a QEMU instance, its flash in `flash_dir`.
+fn qemu_options(elf: &std::path::Path, flash_dir: &TempDir) -> Options {
+    let node_command: Vec<OsString> = vec![
+        env!("CARGO_BIN_EXE_config-tool").into(),
+        "qemu-node".into(),
+        "--elf".into(),
+        elf.as_os_str().to_owned(),
+    ];
+    Options {
+        medium: medium::Config::default(),
+        node_command,
+        flash_dir: Some(flash_dir.0.clone()),
+        timeout: TIMEOUT,
+        secured: true,
+    }
+}
+
+/// The frame counter of a secured frame from `src` (any PAN), if it is one.
+fn counter_from(psdu: &[u8], src: u16) -> Option<u32> {
+    match Frame::parse(psdu) {
+        Ok(Frame::Data { header, payload }) if header.secured && header.src == src => {
+            AuxHeader::new_checked(payload)
+                .ok()
+                .map(|a| a.frame_counter())
+        }
+        _ => None,
+    }
+}
+
+/// Issue 11, on the emulated board: a forged START from 0xBEEF started VC's cylinder. A
+/// keyed QEMU node takes the push and the commands of the tool (secured), drops an
+/// unsecured START without moving anything, counts it as `not_secured` and nothing else,
+/// and runs the next cycle.
+#[test]
+fn a_keyed_qemu_node_drops_an_unsecured_start_and_counts_it() {
+    const HOSTILE: u16 = 0xBEEF;
+    let Some(elf) = qemu_image() else { return };
+    let dir = TempDir::new("qemu-forged");
+    let c = robot("paint-robot.ron", 1);
+    let mut bed = bring_up(&c, qemu_options(&elf, &dir));
+    push_ok(&mut bed, &c);
+    assert_running(&mut bed, &c);
+    let secret = bed.secret().expect("a secured bed").clone();
+    let (start_role, _) = c.ir.start.clone().expect("a start input");
+    let node = c.ir.roles[start_role].address;
+    let at_rest = initial(&c.tables[start_role]);
+
+    let mut raw = RawClient::join(bed.medium().addr(), HOSTILE).keyed(&secret);
+    let before = raw.security(node);
+    assert!(before.keyed, "the QEMU node has its management key");
+    let status_before = raw.status(node);
+    let start = payload(&Message::Command {
+        id: 0x5A5A,
+        command: Command::Start,
+    });
+    raw.send_psdu(&frame(CONFIG_PAN, node, HOSTILE, 1, &start));
+    // Asked on the same connection: the answers come after the forged START.
+    let status = raw.status(node);
+    assert_eq!(
+        status.states.as_slice(),
+        at_rest.as_slice(),
+        "nothing started"
+    );
+    assert_eq!(status.outputs, status_before.outputs, "no valve moved");
+    let after = raw.security(node);
+    assert_eq!(
+        after.counters,
+        SecurityCounters {
+            not_secured: before.counters.not_secured + 1,
+            ..before.counters
+        }
+    );
+    exact_cycle(&mut bed, &c, 1);
+    bed.stop();
+}
+
+/// The QEMU node's frame counter is on its emulated flash, persisted in the flash file:
+/// killed (a power cut) and booted again, it resumes at the next reservation
+/// (`frame_counter::STEP`), above everything it sent, and the tool, which remembers the
+/// old counters, takes its frames. Seen on the air: the counters of the node's secured
+/// frames, from before the kill to its first answer after the reboot, strictly increase,
+/// and the first one at or above `STEP` is `STEP`.
+#[test]
+fn a_qemu_node_killed_resumes_its_frame_counter_above_everything_it_sent() {
+    const NODE: u16 = 0x0011;
+    const MARKER: u16 = 0x7E7E;
+    const STEP: u32 = node_fw::frame_counter::STEP;
+    let Some(elf) = qemu_image() else { return };
+    let dir = TempDir::new("qemu-counter");
+    let mut bed = Bed::start(qemu_options(&elf, &dir)).expect("bed");
+    bed.start_node(NODE).expect("node");
+    bed.wait_for_nodes(&[NODE])
+        .expect("the node announces itself");
+    let mut monitor = Monitor::join(bed.medium().addr());
+    bed.command(NODE, Command::Status).expect("status");
+    bed.kill_node(NODE);
+    bed.start_node(NODE).expect("node again");
+    // Resent until answered: the tool opens the answer only above the counter it has seen.
+    let s = bed
+        .command(NODE, Command::Status)
+        .expect("status after the kill");
+    assert_eq!((s.generation, s.role.as_str()), (0, ""));
+    // The end of what the monitor must have seen: a frame sent after that answer.
+    let marker = frame(CONFIG_PAN, MARKER, MARKER, 1, &[0xAA]);
+    RawClient::join(bed.medium().addr(), MARKER).send_psdu(&marker);
+    let seen = monitor.psdus_until(|p| p == marker.as_slice());
+    let counters: Vec<u32> = seen.iter().filter_map(|p| counter_from(p, NODE)).collect();
+    assert!(counters.windows(2).all(|w| w[0] < w[1]), "{counters:?}");
+    let resumed = counters
+        .iter()
+        .position(|c| *c >= STEP)
+        .unwrap_or_else(|| panic!("no frame after the reboot: {counters:?}"));
+    assert!(resumed > 0, "no frame before the kill: {counters:?}");
+    assert_eq!(counters[resumed], STEP, "{counters:?}");
+    bed.stop();
+}
