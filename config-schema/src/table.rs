@@ -62,11 +62,62 @@ pub struct Input {
     pub var: Option<u8>,
 }
 
-/// A digital output and its value in the safe state (on fault, on a new table, at boot).
+/// What the node drives an output to when it faults or when its charts start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Level {
+    /// Off (0).
+    Low,
+    /// On (1).
+    High,
+    /// Keep the level the output has: a gripper keeps its part. At boot there is nothing
+    /// to keep (the pin comes out of reset off): a held output starts low.
+    Hold,
+}
+
+impl Level {
+    /// The level driven, or `None` for [`Level::Hold`].
+    pub fn level(self) -> Option<bool> {
+        match self {
+            Level::Low => Some(false),
+            Level::High => Some(true),
+            Level::Hold => None,
+        }
+    }
+
+    /// `Low` or `High`.
+    pub fn of(level: bool) -> Level {
+        if level {
+            Level::High
+        } else {
+            Level::Low
+        }
+    }
+}
+
+/// A digital output and the levels the node drives it to outside the charts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Output {
     pub pin: u8,
-    pub safe: bool,
+    /// When the node faults (then it ignores every event until a reset or a new table).
+    pub fault: Level,
+    /// Before the charts run from their initial states: a new table, a boot, a reset.
+    pub start: Level,
+    /// Where homing drives it (the machine's idle place); homing drives a level, so it is
+    /// never held.
+    pub home: bool,
+}
+
+impl Output {
+    /// An output driven to `level` on fault, at start and by homing (what one `safe`
+    /// level meant before fault, start and home levels).
+    pub fn safe(pin: u8, level: bool) -> Output {
+        Output {
+            pin,
+            fault: Level::of(level),
+            start: Level::of(level),
+            home: level,
+        }
+    }
 }
 
 /// A one-shot timer and the node event raised when it expires.
@@ -198,6 +249,23 @@ impl Table {
         inputs.chain(outputs).find(|&pin| !on_board(pin))
     }
 
+    /// The outputs a fault drives (mask, bit i = output i: those not held) and their
+    /// levels.
+    pub fn fault_drive(&self) -> (u16, u16) {
+        drive_of(self.outputs.iter().map(|o| o.fault))
+    }
+
+    /// The outputs a start (new table, boot, reset) drives (those not held) and their
+    /// levels.
+    pub fn start_drive(&self) -> (u16, u16) {
+        drive_of(self.outputs.iter().map(|o| o.start))
+    }
+
+    /// The levels homing drives the outputs to, bit i = output i.
+    pub fn home_levels(&self) -> u16 {
+        drive_of(self.outputs.iter().map(|o| Level::of(o.home))).1
+    }
+
     /// The half-open range of chart `chart`'s states in [`Table::states`].
     pub fn chart_states(&self, chart: usize) -> core::ops::Range<usize> {
         let end = self
@@ -258,6 +326,17 @@ impl Table {
     pub fn publication(&self, event: EventId) -> Option<&Publication> {
         self.publications.iter().find(|p| p.event == event)
     }
+}
+
+/// (mask of the outputs a level drives, their levels) over the first 16 outputs.
+fn drive_of(levels: impl Iterator<Item = Level>) -> (u16, u16) {
+    levels
+        .take(16)
+        .enumerate()
+        .fold((0, 0), |(mask, value), (i, l)| match l.level() {
+            Some(high) => (mask | 1 << i, value | u16::from(high) << i),
+            None => (mask, value),
+        })
 }
 
 /// A pool of the table is full.
@@ -341,5 +420,46 @@ impl Table {
         }
         self.events += 1;
         Ok(id)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Level, Output, Table};
+
+    /// Fault and start drive every output that is not held, to its level; homing drives
+    /// every output.
+    #[test]
+    fn the_drive_masks_leave_held_outputs_alone() {
+        let mut t = Table::empty("r");
+        let outputs = [
+            Output {
+                pin: 0,
+                fault: Level::Hold,
+                start: Level::Low,
+                home: false,
+            },
+            Output {
+                pin: 1,
+                fault: Level::High,
+                start: Level::Hold,
+                home: true,
+            },
+            Output {
+                pin: 2,
+                fault: Level::Low,
+                start: Level::High,
+                home: true,
+            },
+            Output::safe(3, true),
+        ];
+        for o in outputs {
+            t.outputs.push(o).unwrap();
+        }
+        assert_eq!(t.fault_drive(), (0b1110, 0b1010));
+        assert_eq!(t.start_drive(), (0b1101, 0b1100));
+        assert_eq!(t.home_levels(), 0b1110);
+        assert_eq!(Level::Hold.level(), None);
+        assert_eq!(Level::of(true).level(), Some(true));
     }
 }

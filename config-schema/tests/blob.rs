@@ -5,7 +5,9 @@ mod common;
 
 use common::{blob, payload, realistic, seal};
 use config_schema::blob::{envelope, Envelope, CRC32, HEADER_LEN, MAGIC, TRAILER_LEN};
-use config_schema::{decode, encode, DecodeError, EncodeError, Invalid, Place, Table};
+use config_schema::{
+    decode, encode, DecodeError, EncodeError, Invalid, Level, Output, Place, Table,
+};
 
 #[test]
 fn a_realistic_table_round_trips() {
@@ -30,7 +32,7 @@ fn the_envelope_layout_is_exact() {
     let n = b.len() - HEADER_LEN - TRAILER_LEN;
     assert_eq!(&b[0..4], b"ECCT");
     assert_eq!(MAGIC, *b"ECCT");
-    assert_eq!(&b[4..6], &[1, 0], "schema version 1, little-endian");
+    assert_eq!(&b[4..6], &[2, 0], "schema version 2, little-endian");
     assert_eq!(
         &b[6..10],
         &[0x04, 0x03, 0x02, 0x01],
@@ -42,7 +44,7 @@ fn the_envelope_layout_is_exact() {
     assert_eq!(
         envelope(&b),
         Ok(Envelope {
-            version: 1,
+            version: 2,
             generation: 0x0102_0304,
             payload_len: n,
             crc,
@@ -69,6 +71,41 @@ fn the_payload_of_an_empty_table_is_postcard_field_by_field() {
     ];
     assert_eq!(p, want);
     assert_eq!(decode(&seal(&want, 9)).map(|t| t.generation), Ok(9));
+}
+
+/// An output is its pin, its fault and start levels (`Low` 0, `High` 1, `Hold` 2) and its
+/// home level (a bool).
+#[test]
+fn an_output_is_pin_fault_start_home() {
+    let mut t = Table::empty("r");
+    let gripper = Output {
+        pin: 9,
+        fault: Level::Hold,
+        start: Level::Low,
+        home: false,
+    };
+    t.outputs.push(gripper).unwrap();
+    t.outputs.push(Output::safe(10, true)).unwrap();
+    let p = payload(&blob(&t));
+    #[rustfmt::skip]
+    let want = [
+        1, b'r', 0, 11, 0, 0, // role, pan_id, channel, events, start
+        0,                    // vars
+        0,                    // inputs
+        2,                    // outputs: two
+        9, 2, 0, 0,           //   pin 9, fault Hold, start Low, home low
+        10, 1, 1, 1,          //   pin 10, High, High, high
+        0, 0, 0, 0, 0, 0, 0, 0, 0, 0, // timers .. subscriptions
+    ];
+    assert_eq!(p, want);
+    assert_eq!(decode(&seal(&want, 0)), Ok(t));
+    // A level past `Hold` is not a level.
+    let mut bad = want;
+    bad[10] = 3;
+    assert!(matches!(
+        decode(&seal(&bad, 1)),
+        Err(DecodeError::Postcard(_))
+    ));
 }
 
 #[test]
@@ -100,8 +137,11 @@ fn bad_magic() {
 #[test]
 fn unsupported_version() {
     let mut b = blob(&realistic());
-    b[4] = 2;
-    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(2)));
+    // Version 1: one safe level per output, not read by this build.
+    b[4] = 1;
+    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(1)));
+    b[4] = 3;
+    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(3)));
     b[4] = 0;
     b[5] = 1;
     assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(256)));

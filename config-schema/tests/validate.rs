@@ -487,13 +487,7 @@ fn duplicates() {
         }
     );
     assert_eq!(
-        invalid(|t| t
-            .outputs
-            .push(Output {
-                pin: 10,
-                safe: false
-            })
-            .unwrap()),
+        invalid(|t| t.outputs.push(Output::safe(10, false)).unwrap()),
         Invalid::Duplicate {
             at: Place::Output(2)
         }

@@ -222,8 +222,8 @@ fn check_warns_of_each_step_without_a_completion_sensor() {
     assert_eq!(
         diagnostics(&src),
         [
-            "58:20: warning: step `GR+` has no completion sensor: a jam of `GR` goes undetected",
-            "58:56: warning: step `GR-` has no completion sensor: a jam of `GR` goes undetected",
+            "61:20: warning: step `GR+` has no completion sensor: a jam of `GR` goes undetected",
+            "61:56: warning: step `GR-` has no completion sensor: a jam of `GR` goes undetected",
         ]
     );
     let diags = check(&src).diagnostics;
@@ -239,7 +239,7 @@ fn check_warns_of_each_step_without_a_completion_sensor() {
     let src = paint_with(GRIPPER, &GRIPPER.replace(")", ", end: 1)"));
     assert_eq!(
         diagnostics(&src),
-        ["58:56: warning: step `GR-` has no completion sensor: a jam of `GR` goes undetected"]
+        ["61:56: warning: step `GR-` has no completion sensor: a jam of `GR` goes undetected"]
     );
     let src = paint_with(GRIPPER, &GRIPPER.replace(")", ", home: 2, end: 1)"));
     assert_eq!(diagnostics(&src), Vec::<String>::new());
@@ -338,7 +338,7 @@ fn pins_past_the_table_s_pin_range_are_refused() {
         .collect();
     assert_eq!(
         errors,
-        ["37:56: error: pin 70 of `GR.valve` is out of range: a table names pins 0..=63"]
+        ["39:56: error: pin 70 of `GR.valve` is out of range: a table names pins 0..=63"]
     );
 }
 
@@ -351,7 +351,7 @@ fn a_zero_motion_timeout_is_refused() {
         .collect();
     assert_eq!(
         errors,
-        ["59:24: error: `motion_timeout_ms` is 0 ms: every motion would fault as soon as it is commanded"]
+        ["62:24: error: `motion_timeout_ms` is 0 ms: every motion would fault as soon as it is commanded"]
     );
     let src = paint_with(
         "out_ms: 800, back_ms: 800)",
@@ -363,7 +363,7 @@ fn a_zero_motion_timeout_is_refused() {
         .collect();
     assert_eq!(
         errors,
-        ["44:128: error: the watchdog `timeout_ms` of `HC` is 0 ms: every motion would fault as soon as it is commanded"]
+        ["47:128: error: the watchdog `timeout_ms` of `HC` is 0 ms: every motion would fault as soon as it is commanded"]
     );
 }
 
@@ -378,12 +378,12 @@ fn an_integer_out_of_bounds_says_the_field_s_range() {
         (
             "valve: 0,",
             "valve: 300,",
-            "37:56: error: Integer is out of bounds: `valve` takes 0..=255",
+            "39:56: error: Integer is out of bounds: `valve` takes 0..=255",
         ),
         (
             "motion_timeout_ms: 2000",
             "motion_timeout_ms: 99999999999",
-            "59:24: error: Integer is out of bounds: `motion_timeout_ms` takes 0..=4294967295",
+            "62:24: error: Integer is out of bounds: `motion_timeout_ms` takes 0..=4294967295",
         ),
     ];
     for (from, to, want) in cases {

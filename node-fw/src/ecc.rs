@@ -35,7 +35,7 @@ pub trait Effects {
     fn start_timer(&mut self, _timer: u8, _ms: u32) {}
     /// Cancel timer `timer`.
     fn cancel_timer(&mut self, _timer: u8) {}
-    /// The node faulted; its outputs are already in the safe state.
+    /// The node faulted; its outputs are already at their fault levels.
     fn fault(&mut self, _fault: Fault) {}
     /// Trace: chart `chart` took `transition` (table index) from state `from` to `to`
     /// (chart-local states).
@@ -99,27 +99,31 @@ pub struct Engine<'t> {
     fault: Option<Fault>,
 }
 
-fn safe_outputs(table: &Table) -> u16 {
-    table
-        .outputs
-        .iter()
-        .take(16)
-        .enumerate()
-        .fold(0, |acc, (i, o)| acc | (u16::from(o.safe) << i))
+/// The outputs at their start levels, a held one at its bit of `before`.
+fn start_outputs(table: &Table, before: u16) -> u16 {
+    let (mask, value) = table.start_drive();
+    (before & !mask) | (value & mask)
 }
 
 impl<'t> Engine<'t> {
     /// An engine in its initial state: every chart in its initial state, variables at their
-    /// initial values, outputs in the safe state, inputs low. `table` must be validated
-    /// (as [`config_schema::decode`] does).
+    /// initial values, outputs at their start levels (a held one low: what a boot
+    /// drives), inputs low. `table` must be validated (as [`config_schema::decode`] does).
     pub fn new(table: &'t Table) -> Self {
+        Engine::new_holding(table, 0)
+    }
+
+    /// [`Engine::new`] for a table that replaces a running one: an output whose start
+    /// level is `Hold` keeps its bit of `before` (bit i: the level its pin has now, as the
+    /// previous table left it).
+    pub fn new_holding(table: &'t Table, before: u16) -> Self {
         let mut engine = Engine {
             table,
             layout: layouts(table),
             current: [0; MAX_CHARTS],
             vars: [0; MAX_VARS],
             inputs: 0,
-            outputs: safe_outputs(table),
+            outputs: start_outputs(table, before),
             queue: Deque::new(),
             fault: None,
         };
@@ -201,12 +205,13 @@ impl<'t> Engine<'t> {
     }
 
     /// Back to the initial state: clears a fault, cancels every timer, charts and variables
-    /// to their initial values, outputs to the safe state.
+    /// to their initial values, outputs to their start levels (a held one keeps its level).
     pub fn reset(&mut self, fx: &mut impl Effects) {
         for timer in 0..self.table.timers.len() {
             fx.cancel_timer(timer as u8);
         }
-        self.drive(u16::MAX, safe_outputs(self.table), fx);
+        let (mask, value) = self.table.start_drive();
+        self.drive(mask, value, fx);
         self.init();
     }
 
@@ -480,8 +485,8 @@ impl<'t> Engine<'t> {
     fn set_fault(&mut self, fault: Fault, fx: &mut impl Effects) {
         self.fault = Some(fault);
         self.queue.clear();
-        let safe = safe_outputs(self.table);
-        self.drive(u16::MAX, safe, fx);
+        let (mask, value) = self.table.fault_drive();
+        self.drive(mask, value, fx);
         for timer in 0..self.table.timers.len() {
             fx.cancel_timer(timer as u8);
         }

@@ -349,18 +349,54 @@ impl NodeCore {
         }
     }
 
-    /// Drives every output of the running table to its safe value (call once at boot).
+    /// Drives every output of the running table to its start level (call once at boot).
+    /// A held output starts low: the pin came out of reset off, there is nothing to hold.
     pub fn boot(&mut self, io: &mut impl Io) {
         if let Some(t) = &self.table {
             for o in &t.outputs {
-                io.set_pin(o.pin, o.safe);
+                io.set_pin(o.pin, o.start.level().unwrap_or(false));
             }
+        }
+    }
+
+    /// Bit i: the level the running table drives on the pin of `next`'s output i (low
+    /// where it drives none): what a held output of `next` keeps.
+    fn driven_levels(&self, next: &Table) -> u16 {
+        let (Some(table), Some(state)) = (&self.table, &self.state) else {
+            return 0;
+        };
+        let high = |pin: u8| {
+            (table.outputs.iter().take(16))
+                .position(|o| o.pin == pin)
+                .is_some_and(|j| state.outputs & (1 << j) != 0)
+        };
+        (next.outputs.iter().take(16))
+            .enumerate()
+            .fold(0, |acc, (i, o)| acc | (u16::from(high(o.pin)) << i))
+    }
+
+    /// Activation's pins, before `next` replaces the running table: the running table's
+    /// outputs go to their start levels (low if held: nobody drives them after), except
+    /// those `next` holds; then `next`'s outputs go to their start levels, a held one
+    /// to the level it has.
+    fn drive_start(&self, next: &Table, io: &mut impl Io) {
+        let holds =
+            |pin: u8| (next.outputs.iter()).any(|o| o.pin == pin && o.start.level().is_none());
+        if let Some(old) = &self.table {
+            for o in old.outputs.iter().filter(|o| !holds(o.pin)) {
+                io.set_pin(o.pin, o.start.level().unwrap_or(false));
+            }
+        }
+        let before = self.driven_levels(next);
+        for (i, o) in next.outputs.iter().enumerate() {
+            let now = i < 16 && before & (1 << i) != 0;
+            io.set_pin(o.pin, o.start.level().unwrap_or(now));
         }
     }
 
     fn install(&mut self, table: Table, keys: Option<LinkKeys>) {
         self.peer_security.install(keys, &table.peers);
-        let mut engine = Engine::new(&table);
+        let mut engine = Engine::new_holding(&table, self.driven_levels(&table));
         for (i, input) in table.inputs.iter().enumerate() {
             engine.sense(i as u8, level(self.pins, input.pin));
         }
@@ -1019,9 +1055,9 @@ impl NodeCore {
     }
 
     /// The board activated the staged slot and read back its table and keys (`None`: the
-    /// flash failed, or the slot no longer decodes): switch to it atomically (old outputs
-    /// safe, new outputs safe, new engine), answer the tool, and run a START held during
-    /// the switch-over.
+    /// flash failed, or the slot no longer decodes): switch to it atomically (outputs to
+    /// their start levels, held ones kept, new engine), answer the tool, and run a START
+    /// held during the switch-over.
     pub fn activated(
         &mut self,
         deployed: Option<(Table, Option<LinkKeys>)>,
@@ -1033,14 +1069,7 @@ impl NodeCore {
         let (from, start) = self.switch.activated(deployed.is_some());
         let reply = match deployed {
             Some((table, keys)) => {
-                if let Some(old) = &self.table {
-                    for o in &old.outputs {
-                        io.set_pin(o.pin, o.safe);
-                    }
-                }
-                for o in &table.outputs {
-                    io.set_pin(o.pin, o.safe);
-                }
+                self.drive_start(&table, io);
                 self.install(table, keys);
                 ConfigReply::Activated
             }

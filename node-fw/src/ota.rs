@@ -432,8 +432,11 @@ impl<'b> Sender<'b> {
                 self.fill(false, &mut send);
                 self.arm(now);
             }
-            // Staged (or, from a node that switched already, running).
-            ConfigReply::Staged | ConfigReply::Activated => {
+            // The node has this generation staged (this transfer, or one before it: a
+            // repeated push).
+            ConfigReply::Staged => self.progress = Progress::Done,
+            // Running it (a node that switched already).
+            ConfigReply::Activated => {
                 if self.ended {
                     self.progress = Progress::Done;
                 }

@@ -6,8 +6,8 @@
 
 use config_schema::limits::{EVENT_QUEUE, MAX_CASCADE, MAX_CHAIN};
 use config_schema::{
-    validate, Action, EventId, Expr, Input, Op, Output, Publication, Subscription, Table, Timer,
-    Transition,
+    validate, Action, EventId, Expr, Input, Level, Op, Output, Publication, Subscription, Table,
+    Timer, Transition,
 };
 use node_fw::ecc::{Effects, Engine, Fault};
 use test_tables::{load, route};
@@ -105,14 +105,10 @@ fn when(from: u8, to: u8, guard: Expr) -> Transition {
     }
 }
 
+/// Outputs on pins 0.. driven to these levels on fault, at start and by homing.
 fn outputs(t: &mut Table, safe: &[bool]) {
     for (pin, safe) in safe.iter().enumerate() {
-        t.outputs
-            .push(Output {
-                pin: pin as u8,
-                safe: *safe,
-            })
-            .unwrap();
+        t.outputs.push(Output::safe(pin as u8, *safe)).unwrap();
     }
 }
 
@@ -1005,6 +1001,101 @@ fn reset_restores_the_initial_state_and_clears_a_fault() {
     let mut want = vec![fired(0, 0, 0, 1)];
     want.extend(RUN_TRACE);
     assert_eq!(fx.take(), want);
+}
+
+/// A gripper (out0: fault `Hold`, start `Hold`), a warning lamp (out1: fault `High`, start
+/// `Low`) and a beacon (out2: fault `Low`, start `High`). S0 -GO-> S1 [out0 on (close),
+/// timer 0] -LATER-> S2 [fault 5].
+fn levels_table() -> Table {
+    let mut t = fault_base();
+    t.outputs.clear();
+    let levels = [
+        (Level::Hold, Level::Hold, false),
+        (Level::High, Level::Low, false),
+        (Level::Low, Level::High, true),
+    ];
+    for (pin, (fault, start, home)) in levels.into_iter().enumerate() {
+        let pin = pin as u8;
+        let o = Output {
+            pin,
+            fault,
+            start,
+            home,
+        };
+        t.outputs.push(o).unwrap();
+    }
+    let close = Action::Drive {
+        mask: 0b001,
+        value: 0b001,
+    };
+    t.push_chart(
+        0,
+        2,
+        &[&[], &[close, RUN[1]], &[Action::Fault(5)]],
+        &[on(0, 0, 1), on(1, 1, 2)],
+    )
+    .unwrap();
+    route(&mut t, 0, 0, 0);
+    route(&mut t, 3, 0, 1);
+    load(t)
+}
+
+#[test]
+fn a_fault_drives_the_fault_levels_and_a_held_output_keeps_its_level() {
+    let t = levels_table();
+    let mut e = Engine::new(&t);
+    let mut fx = Rec::default();
+    assert_eq!(
+        e.outputs(),
+        0b100,
+        "start levels; the held gripper starts low"
+    );
+    e.event(0, &mut fx);
+    assert_eq!(e.outputs(), 0b101, "the gripper closed");
+    fx.take();
+    e.event(3, &mut fx);
+    let fault = Fault::Action { chart: 0, code: 5 };
+    assert_eq!(
+        fx.take(),
+        [
+            fired(0, 1, 1, 2),
+            // The gripper holds (nothing reported), the lamp lights, the beacon goes off.
+            Out { i: 1, v: true },
+            Out { i: 2, v: false },
+            CancelTimer { timer: 0 },
+            CancelTimer { timer: 1 },
+            Ev::Fault(fault),
+        ]
+    );
+    assert_eq!(e.outputs(), 0b011, "the gripper holds its part");
+    // A reset drives the start levels; the held gripper still holds.
+    e.reset(&mut fx);
+    assert_eq!(
+        fx.take(),
+        [
+            CancelTimer { timer: 0 },
+            CancelTimer { timer: 1 },
+            Out { i: 1, v: false },
+            Out { i: 2, v: true },
+        ]
+    );
+    assert_eq!((e.outputs(), e.fault(), e.state(0)), (0b101, None, Some(0)));
+}
+
+#[test]
+fn a_new_table_holds_the_levels_it_is_given_for_its_held_outputs() {
+    let t = levels_table();
+    // The previous table left every pin high: the gripper keeps it, the others start at
+    // their start levels.
+    let e = Engine::new_holding(&t, 0b111);
+    assert_eq!(e.outputs(), 0b101);
+    let e = Engine::new_holding(&t, 0b010);
+    assert_eq!(e.outputs(), 0b100);
+    // A table that holds nothing ignores them.
+    let mut plain = Table::empty("plain");
+    outputs(&mut plain, &[false, true]);
+    let plain = load(plain);
+    assert_eq!(Engine::new_holding(&plain, 0b11).outputs(), 0b10);
 }
 
 // ---------------------------------------------------------------------------------------

@@ -25,12 +25,7 @@ fn toggle() -> Table {
     let mut t = Table::empty("T");
     let press = t.push_event().unwrap();
     t.vars.push(0).unwrap();
-    t.outputs
-        .push(Output {
-            pin: 1,
-            safe: false,
-        })
-        .unwrap();
+    t.outputs.push(Output::safe(1, false)).unwrap();
     let inc = t.push_expr(&[Op::Var(0), Op::Const(1), Op::Add]).unwrap();
     let too_many = t.push_expr(&[Op::Var(0), Op::Const(4), Op::Ge]).unwrap();
     let on: &[Action] = &[

@@ -8,7 +8,7 @@ use support::{Channel, Rng};
 use config_schema::link_keys::decode_deployment;
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
 use config_schema::wire::msg::{Command, Message, Refusal, Status};
-use config_schema::{Action, Output, Publication, Subscription, Table};
+use config_schema::{Action, Level, Output, Publication, Subscription, Table};
 use node_fw::node::{FlashRequest, Io, NodeCore, CONFIG_PAN};
 use node_fw::{ota, switch};
 use test_tables::{blob, button, toggle};
@@ -44,12 +44,7 @@ fn table_b(generation: u32) -> Table {
     t.generation = generation;
     t.header.pan_id = PAN;
     let press = t.push_event().unwrap();
-    t.outputs
-        .push(Output {
-            pin: LAMP_PIN,
-            safe: false,
-        })
-        .unwrap();
+    t.outputs.push(Output::safe(LAMP_PIN, false)).unwrap();
     t.peers.push(A).unwrap();
     t.subscriptions
         .push(Subscription {
@@ -185,11 +180,16 @@ impl Net {
     /// Pushes `table` to `dst` with the tool's OTA sender, then switches it over (armed,
     /// at its idle point); returns the outcome.
     fn push(&mut self, dst: u16, table: &Table, force: bool) -> ota::Progress {
+        self.push_at(dst, table, force, false)
+    }
+
+    /// [`Net::push`], switched over at once (`now`) whatever the node does.
+    fn push_at(&mut self, dst: u16, table: &Table, force: bool, now: bool) -> ota::Progress {
         let staged = self.stage(dst, table, force);
         if staged != ota::Progress::Done {
             return staged;
         }
-        match self.switch(dst, table.generation) {
+        match self.switch(dst, table.generation, now) {
             switch::Verdict::Switched => ota::Progress::Done,
             _ => {
                 let (node, _) = self.nodes.iter().find(|(n, _)| n.addr() == dst).unwrap();
@@ -203,8 +203,8 @@ impl Net {
     }
 
     /// The switch-over of `dst` to `generation`, with the tool's coordinator.
-    fn switch(&mut self, dst: u16, generation: u32) -> switch::Verdict {
-        let mut c = switch::Coordinator::new(&[dst], generation, false, 10_000, self.now);
+    fn switch(&mut self, dst: u16, generation: u32, now: bool) -> switch::Verdict {
+        let mut c = switch::Coordinator::new(&[dst], generation, now, 10_000, self.now);
         let mut out = Vec::new();
         let start = self.now;
         while c.verdict() == switch::Verdict::Busy && self.now - start < 20_000 {
@@ -220,6 +220,12 @@ impl Net {
             }
         }
         c.verdict()
+    }
+
+    /// Stages `table` at `dst` and tries to switch it over at its idle point.
+    fn switch_staged(&mut self, dst: u16, table: &Table) -> switch::Verdict {
+        assert_eq!(self.stage(dst, table, false), ota::Progress::Done);
+        self.switch(dst, table.generation, false)
     }
 
     /// Stages `table` at `dst` with the tool's OTA sender; returns its outcome.
@@ -632,4 +638,168 @@ fn a_pin_past_the_bitmap_does_not_alias_a_real_one() {
     net.press();
     net.run(500);
     assert_eq!(net.nodes[1].1.pins, vec![(LAMP_PIN, true)]);
+}
+
+const GRIP_PIN: u8 = 7;
+const WARN_PIN: u8 = 8;
+const BEACON_PIN: u8 = 9;
+
+/// B as a gripper: each press published by A steps S0 -> S1 [drive the gripper to
+/// `close`] -> S2 [fault 9]. The gripper (a monostable valve) holds on fault and at a new
+/// table; a warning lamp lights on fault; a beacon is on from the start and off on fault.
+fn gripper(generation: u32, close: bool) -> Table {
+    let mut t = table_b(generation);
+    t.routes.clear();
+    t.charts.clear();
+    t.states.clear();
+    t.transitions.clear();
+    t.actions.clear();
+    t.outputs.clear();
+    let levels = [
+        (GRIP_PIN, Level::Hold, Level::Hold, false),
+        (WARN_PIN, Level::High, Level::Low, false),
+        (BEACON_PIN, Level::Low, Level::High, true),
+    ];
+    for (pin, fault, start, home) in levels {
+        let o = Output {
+            pin,
+            fault,
+            start,
+            home,
+        };
+        t.outputs.push(o).unwrap();
+    }
+    let grip = Action::Drive {
+        mask: 1,
+        value: u16::from(close),
+    };
+    let step = |from, to| config_schema::Transition {
+        from,
+        to,
+        trigger: Some(0),
+        guard: None,
+    };
+    t.push_chart(
+        0,
+        1,
+        &[&[], &[grip], &[Action::Fault(9)]],
+        &[step(0, 1), step(1, 2)],
+    )
+    .unwrap();
+    test_tables::route(&mut t, 0, 0, 0);
+    t
+}
+
+/// A fault holds the gripper closed (its pin is not touched), drives the warning lamp and
+/// the beacon to their fault levels; the operator's reset drives the start levels and the
+/// gripper still holds.
+#[test]
+fn a_fault_holds_the_gripper_closed() {
+    let mut net = Net::new(0.0, 0.0, 31);
+    assert_eq!(net.push(A, &table_a(1), false), ota::Progress::Done);
+    assert_eq!(net.push(B, &gripper(1, true), false), ota::Progress::Done);
+    // Activation on an unconfigured node: the held gripper at the level it has (low).
+    let activation = [(GRIP_PIN, false), (WARN_PIN, false), (BEACON_PIN, true)];
+    assert_eq!(net.nodes[1].1.pins, activation);
+    net.nodes[1].1.pins.clear();
+    net.press();
+    assert_eq!(
+        net.nodes[1].1.pins,
+        [(GRIP_PIN, true)],
+        "the part is gripped"
+    );
+    net.nodes[1].1.pins.clear();
+    net.press();
+    assert_eq!(
+        net.nodes[1].1.pins,
+        [(WARN_PIN, true), (BEACON_PIN, false)],
+        "faulted: the gripper keeps its part"
+    );
+    let status = net.status(B);
+    assert_eq!((status.fault, status.outputs), (Some(0x89), 0b011));
+    net.nodes[1].1.pins.clear();
+    let status = net.command(B, 40, Command::Reset);
+    assert_eq!(net.nodes[1].1.pins, [(WARN_PIN, false), (BEACON_PIN, true)]);
+    assert_eq!((status.fault, status.outputs), (None, 0b101));
+}
+
+/// A new table holds the gripper closed: activation does not touch its pin (the old and
+/// new tables' other outputs go to their start levels), and the new engine knows it is
+/// closed: its first step opens it.
+#[test]
+fn activation_keeps_the_gripper_closed_and_drives_the_start_levels() {
+    let mut net = Net::new(0.0, 0.0, 33);
+    assert_eq!(net.push(A, &table_a(1), false), ota::Progress::Done);
+    assert_eq!(net.push(B, &gripper(1, true), false), ota::Progress::Done);
+    net.press();
+    net.nodes[1].1.pins.clear();
+    // Gripping, B is not idle: it switches only when told to at once.
+    assert_eq!(
+        net.switch_staged(B, &gripper(2, false)),
+        switch::Verdict::NotIdle
+    );
+    assert_eq!(net.nodes[1].0.generation(), 1);
+    assert!(net.nodes[1].1.pins.is_empty(), "nothing driven");
+    assert_eq!(
+        net.push_at(B, &gripper(2, false), false, true),
+        ota::Progress::Done
+    );
+    assert_eq!(
+        net.nodes[1].1.pins,
+        [
+            // The running table's outputs the new one does not hold.
+            (WARN_PIN, false),
+            (BEACON_PIN, true),
+            // The new table's: the gripper at the level it has.
+            (GRIP_PIN, true),
+            (WARN_PIN, false),
+            (BEACON_PIN, true),
+        ]
+    );
+    assert_eq!(
+        net.status(B).outputs,
+        0b101,
+        "the new engine knows it is closed"
+    );
+    net.nodes[1].1.pins.clear();
+    net.press();
+    assert_eq!(
+        net.nodes[1].1.pins,
+        [(GRIP_PIN, false)],
+        "released by the new table"
+    );
+}
+
+/// A boot drives the start levels; a held output starts low (out of reset nothing is
+/// held), and the engine agrees.
+#[test]
+fn a_boot_drives_the_start_levels() {
+    let mut b = NodeCore::new(B, u64::MAX, Some(gripper(1, true)), 1);
+    let mut board = Board::default();
+    b.boot(&mut board);
+    assert_eq!(
+        board.pins,
+        [(GRIP_PIN, false), (WARN_PIN, false), (BEACON_PIN, true)]
+    );
+    assert_eq!(b.engine_state().map(|s| s.outputs), Some(0b100));
+}
+
+/// A table that declares no levels (one safe level each, as before): activation drives
+/// every old output to it, then every new one, and a fault drives every output to it.
+#[test]
+fn safe_levels_drive_every_output_as_before() {
+    let mut net = Net::new(0.0, 0.0, 35);
+    assert_eq!(net.push(B, &table_b(1), false), ota::Progress::Done);
+    net.nodes[1].1.pins.clear();
+    let mut next = table_b(2);
+    next.outputs.push(Output::safe(BEACON_PIN, true)).unwrap();
+    assert_eq!(net.push(B, &next, false), ota::Progress::Done);
+    assert_eq!(
+        net.nodes[1].1.pins,
+        [(LAMP_PIN, false), (LAMP_PIN, false), (BEACON_PIN, true)]
+    );
+    let mut b = NodeCore::new(B, u64::MAX, Some(next), 1);
+    let mut board = Board::default();
+    b.boot(&mut board);
+    assert_eq!(board.pins, [(LAMP_PIN, false), (BEACON_PIN, true)]);
 }

@@ -64,12 +64,7 @@ fn table_b() -> Table {
     t.generation = GENERATION;
     t.header.pan_id = PAN;
     let press = t.push_event().unwrap();
-    t.outputs
-        .push(Output {
-            pin: LAMP_PIN,
-            safe: false,
-        })
-        .unwrap();
+    t.outputs.push(Output::safe(LAMP_PIN, false)).unwrap();
     t.peers.push(A).unwrap();
     t.peers.push(C).unwrap();
     for publisher in 0..2 {

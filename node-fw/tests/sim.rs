@@ -27,7 +27,7 @@ fn cylinder_table(chart: bool) -> Table {
             .unwrap();
     }
     for pin in 10..12 {
-        t.outputs.push(Output { pin, safe: false }).unwrap();
+        t.outputs.push(Output::safe(pin, false)).unwrap();
     }
     if chart {
         t.start = Some(2);
@@ -685,12 +685,7 @@ fn a_single_acting_valve_follows_its_output_and_ignores_a_zero_length_pulse() {
     let mut t = Table::empty("G");
     t.push_event().unwrap();
     t.start = Some(0);
-    t.outputs
-        .push(Output {
-            pin: 0,
-            safe: false,
-        })
-        .unwrap();
+    t.outputs.push(Output::safe(0, false)).unwrap();
     let (on, off) = (
         Action::Drive { mask: 1, value: 1 },
         Action::Drive { mask: 1, value: 0 },

@@ -238,7 +238,7 @@ fn dump_shows_the_decoded_table_and_names_a_bad_blob_clearly() {
     let c = build(&load("fixtures/small-sequence.ron"));
     let text = dump::dump(&c.blobs[1]).expect("dumps");
     let expected = format!(
-        "blob: {} bytes (payload {}), schema 1, generation 0, CRC-32 {:#010x}\n",
+        "blob: {} bytes (payload {}), schema 2, generation 0, CRC-32 {:#010x}\n",
         c.blobs[1].len(),
         c.blobs[1].len() - 16,
         u32::from_le_bytes(c.blobs[1][c.blobs[1].len() - 4..].try_into().expect("4"))
@@ -246,8 +246,8 @@ fn dump_shows_the_decoded_table_and_names_a_bad_blob_clearly() {
 events 7  start -
 input in0: pin 2  rise e0  fall -  mirror -
 input in1: pin 3  rise e1  fall -  mirror -
-output out0: pin 0  safe 0
-output out1: pin 1  safe 0
+output out0: pin 0  fault 0  start 0  home 0
+output out1: pin 1  fault 0  start 0  home 1
 timer t0: expiry e2
 chart 0: 3 inputs, initial S0
   S0: cancel t0; emit e3
@@ -300,6 +300,7 @@ fn diagram_draws_states_with_actions_and_labelled_transitions() {
   rankdir=LR;
   node [shape=box, style=rounded, fontname="Helvetica"];
   edge [fontname="Helvetica", fontsize=10];
+  outputs [shape=note, label="outputs: fault / start / home\l  A.extend (pin 0): 0 / 0 / 0\l  A.retract (pin 1): 0 / 0 / 1\l"];
   subgraph cluster_0 {
     label="a";
     c0s0 [label="IDLE", peripheries=2];

@@ -1,20 +1,31 @@
 //! `sim --fault`: injected faults are detected (watchdog within the motion timeout, link
 //! alarm after the link's retries), every node stops at once, and no actuator moves
-//! afterwards but a monostable valve released to its safe state. `sim --timeline`: the SVG
-//! parses and has one lane per actuator.
+//! afterwards but a monostable valve released on fault (a gripper that holds keeps its
+//! part). `sim --timeline`: the SVG parses and has one lane per actuator.
 
 use robot_analysis::inject::{self, FaultRun, InjectError, ParseError};
 use robot_analysis::timeline;
 use robot_compiler::ir::{parse_steps, Step};
 use robot_compiler::{compile, Compiled, Source};
 
-fn paint() -> Compiled {
+fn paint_text() -> String {
     let path = format!(
         "{}/../robot-configs/paint-robot.ron",
         env!("CARGO_MANIFEST_DIR")
     );
-    let text = std::fs::read_to_string(&path).expect("robot");
-    compile(&Source::new("paint-robot.ron", text)).expect("compiles")
+    std::fs::read_to_string(&path).expect("robot")
+}
+
+fn paint() -> Compiled {
+    compile(&Source::new("paint-robot.ron", paint_text())).expect("compiles")
+}
+
+/// The paint robot whose gripper says nothing about its levels: its valve drops on fault.
+fn paint_dropping() -> Compiled {
+    let text = paint_text();
+    let said = text.replace("\n                 fault: Hold, start: Hold),", "),");
+    assert_ne!(said, text, "the gripper declares its levels");
+    compile(&Source::new("paint-robot.ron", said)).expect("compiles")
 }
 
 /// `"VC+ GR+"` as steps.
@@ -40,6 +51,19 @@ fn all_faulted_with_outputs_off(run: &FaultRun) {
     }
 }
 
+/// Every node faulted, every output off but the gripper, which holds its part.
+fn all_faulted_and_the_part_held(run: &FaultRun) {
+    for (role, fault, levels) in &run.outputs {
+        assert!(fault.is_some(), "{role} is not faulted");
+        let held = levels
+            .iter()
+            .filter(|(_, l)| *l)
+            .map(|(name, _)| name.as_str());
+        let want: &[&str] = if role == "GR" { &["GR.valve"] } else { &[] };
+        assert_eq!(held.collect::<Vec<_>>(), want, "{role}");
+    }
+}
+
 #[test]
 fn a_jammed_actuator_is_caught_by_its_watchdog_and_every_node_stops() {
     let c = paint();
@@ -62,7 +86,18 @@ fn a_jammed_actuator_is_caught_by_its_watchdog_and_every_node_stops() {
             (2708, String::from("RC: a peer's fault (fault 2)")),
         ]
     );
-    // The gripper's monostable valve drops to its safe level; nothing else moves.
+    // Nothing moves: the gripper holds its part (`fault: Hold`).
+    assert_eq!(run.moves_after, []);
+    assert!(run.stopped_safely());
+    all_faulted_and_the_part_held(&run);
+}
+
+/// A gripper that says nothing about its fault level drops the part, as before fault
+/// levels existed: its monostable valve is released.
+#[test]
+fn a_gripper_without_a_fault_level_drops_its_part_on_a_fault() {
+    let run = inject(&paint_dropping(), "stuck:HC@4");
+    assert_eq!(run.reactions.len(), 4);
     assert_eq!(run.moves_after, [(2708, step("GR-"), true)]);
     assert!(run.stopped_safely());
     all_faulted_with_outputs_off(&run);
@@ -77,9 +112,9 @@ fn a_broken_end_switch_is_caught_within_the_timeout() {
     assert_eq!(d.role, "RC");
     assert_eq!(d.t_ms - run.commanded_ms.expect("commanded"), 2000);
     assert_eq!(run.reactions.len(), 4);
-    assert_eq!(run.moves_after, [(4062, step("GR-"), true)]);
+    assert_eq!(run.moves_after, []);
     assert!(run.stopped_safely());
-    all_faulted_with_outputs_off(&run);
+    all_faulted_and_the_part_held(&run);
 }
 
 #[test]

@@ -52,11 +52,11 @@ fn every_robot_of_robot_configs_passes_with_a_prompt_radio() {
         counts,
         [
             ("paint-robot-counted.ron", 125),
-            ("paint-robot-double-dip.ron", 327),
+            ("paint-robot-double-dip.ron", 376),
             ("paint-robot-paper-charts.ron", 87),
-            ("paint-robot-spare-node.ron", 243),
-            ("paint-robot-start-on-gr.ron", 247),
-            ("paint-robot.ron", 243),
+            ("paint-robot-spare-node.ron", 276),
+            ("paint-robot-start-on-gr.ron", 280),
+            ("paint-robot.ron", 276),
         ]
     );
 }

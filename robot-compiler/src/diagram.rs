@@ -5,6 +5,7 @@ use std::fmt::Write;
 use std::io::Write as _;
 use std::process::{Command, Stdio};
 
+use crate::dump::level_text;
 use crate::ir::Ir;
 
 /// Why a diagram could not be drawn.
@@ -51,6 +52,22 @@ pub fn dot(ir: &Ir, role: &str) -> Result<String, DiagramError> {
         "  node [shape=box, style=rounded, fontname=\"Helvetica\"];"
     );
     let _ = writeln!(o, "  edge [fontname=\"Helvetica\", fontsize=10];");
+    if !r.outputs.is_empty() {
+        // What the node drives outside the charts: on fault, at start, by homing.
+        let mut label = String::from("outputs: fault / start / home\\l");
+        for x in &r.outputs {
+            label.push_str(&esc(&format!(
+                "  {} (pin {}): {} / {} / {}",
+                x.name,
+                x.pin,
+                level_text(x.fault),
+                level_text(x.start),
+                u8::from(x.home)
+            )));
+            label.push_str("\\l");
+        }
+        let _ = writeln!(o, "  outputs [shape=note, label=\"{label}\"];");
+    }
     for (ci, c) in r.charts.iter().enumerate() {
         let _ = writeln!(o, "  subgraph cluster_{ci} {{");
         let _ = writeln!(o, "    label=\"{}\";", esc(&c.name));

@@ -4,7 +4,7 @@
 use std::fmt::Write;
 
 use config_schema::blob::envelope;
-use config_schema::{decode, Action, DecodeError, Op, Table};
+use config_schema::{decode, Action, DecodeError, Level, Op, Table};
 
 /// Bytecode back to infix text (`v0 < 3 && in1`).
 pub fn expr_text(ops: &[Op]) -> String {
@@ -55,6 +55,15 @@ pub fn expr_text(ops: &[Op]) -> String {
     stack.pop().map(|s| s.0).unwrap_or_default()
 }
 
+/// `0`, `1` or `hold`.
+pub fn level_text(l: Level) -> &'static str {
+    match l {
+        Level::Low => "0",
+        Level::High => "1",
+        Level::Hold => "hold",
+    }
+}
+
 fn ev(e: Option<u8>) -> String {
     e.map_or_else(|| String::from("-"), |e| format!("e{e}"))
 }
@@ -82,7 +91,14 @@ pub fn table_text(t: &Table) -> String {
         );
     }
     for (i, x) in t.outputs.iter().enumerate() {
-        let _ = writeln!(o, "output out{i}: pin {}  safe {}", x.pin, u8::from(x.safe));
+        let _ = writeln!(
+            o,
+            "output out{i}: pin {}  fault {}  start {}  home {}",
+            x.pin,
+            level_text(x.fault),
+            level_text(x.start),
+            u8::from(x.home)
+        );
     }
     for (i, x) in t.timers.iter().enumerate() {
         let _ = writeln!(o, "timer t{i}: expiry e{}", x.event);

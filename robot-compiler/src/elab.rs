@@ -212,10 +212,13 @@ fn hardware(robot: &Robot, role: &Role, wanted: &BTreeSet<(String, String)>) -> 
         });
     }
     for o in &role.outputs {
+        let (fault, start, home) = o.levels();
         r.outputs.push(OutputIr {
             name: o.name.clone(),
             pin: o.pin,
-            safe: o.safe,
+            fault,
+            start,
+            home,
         });
     }
     for i in r.inputs.clone() {

@@ -2,7 +2,9 @@
 //! lowering to a `config_schema::Table`. Both the sequence synthesiser and the explicit
 //! chart elaborator produce it; `lower`, `diagram` and the checks read it.
 
-use config_schema::Op;
+use config_schema::{Level, Op};
+
+use crate::model::ActuatorLevel;
 
 /// The whole robot, elaborated.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -130,7 +132,23 @@ pub struct InputIr {
 pub struct OutputIr {
     pub name: String,
     pub pin: u8,
-    pub safe: bool,
+    /// When the node faults.
+    pub fault: Level,
+    /// Before the charts run: a new table, a boot, a reset.
+    pub start: Level,
+    /// Where homing drives it.
+    pub home: bool,
+}
+
+/// The level of one valve solenoid of an actuator at `level`: `on_extend` / `on_retract`
+/// say whether a `+` / a `-` energises it.
+pub fn solenoid(level: ActuatorLevel, on_extend: bool, on_retract: bool) -> Level {
+    match level {
+        ActuatorLevel::Off => Level::Low,
+        ActuatorLevel::Hold => Level::Hold,
+        ActuatorLevel::Extend => Level::of(on_extend),
+        ActuatorLevel::Retract => Level::of(on_retract),
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -190,7 +208,8 @@ pub enum ActionIr {
 }
 
 impl RoleIr {
-    /// Declares an actuator's pins: each valve an output `ACT.FIELD` (safe off), each limit
+    /// Declares an actuator's pins: each valve an output `ACT.FIELD` (its fault and start
+    /// levels from the actuator's, home as after a `-`), each limit
     /// switch an input `ACT.FIELD` whose rising edge raises the event `ACT.FIELD` if
     /// `rise` says so, and whose falling edge raises `ACT.FIELD.fall` if `fall` says so
     /// (in the order of `ActuatorKind::pins`); records their indices in
@@ -210,14 +229,14 @@ impl RoleIr {
                 end,
                 ..
             } => {
-                let extend = self.valve(&a.name, "extend", extend);
-                let retract = self.valve(&a.name, "retract", retract);
+                let extend = self.valve(a, "extend", extend, (true, false));
+                let retract = self.valve(a, "retract", retract, (false, true));
                 (Valves::Double { extend, retract }, Some(home), Some(end))
             }
             ActuatorKind::SingleActing {
                 valve, home, end, ..
             } => {
-                let valve = self.valve(&a.name, "valve", valve);
+                let valve = self.valve(a, "valve", valve, (true, false));
                 (Valves::Single { valve }, home, end)
             }
         };
@@ -231,12 +250,21 @@ impl RoleIr {
         });
     }
 
-    /// A valve solenoid of actuator `actuator`: the output `ACT.FIELD`, safe off.
-    fn valve(&mut self, actuator: &str, field: &str, pin: u8) -> OutputIndex {
+    /// A valve solenoid of actuator `a`: the output `ACT.FIELD`; `(on_extend, on_retract)`
+    /// say whether a `+` / a `-` energises it.
+    fn valve(
+        &mut self,
+        a: &crate::model::Actuator,
+        field: &str,
+        pin: u8,
+        (on_extend, on_retract): (bool, bool),
+    ) -> OutputIndex {
         self.outputs.push(OutputIr {
-            name: format!("{actuator}.{field}"),
+            name: format!("{}.{field}", a.name),
             pin,
-            safe: false,
+            fault: solenoid(a.fault, on_extend, on_retract),
+            start: solenoid(a.start, on_extend, on_retract),
+            home: on_retract,
         });
         OutputIndex(self.outputs.len() - 1)
     }
@@ -343,8 +371,8 @@ pub fn parse_steps(text: &str) -> Vec<(Result<Step, NotAStep>, std::ops::Range<u
 
 #[cfg(test)]
 mod tests {
-    use super::{InputIndex, OutputIndex, RoleIr, Valves, Wiring};
-    use crate::model::{Actuator, ActuatorKind};
+    use super::{InputIndex, Level, OutputIndex, RoleIr, Valves, Wiring};
+    use crate::model::{Actuator, ActuatorKind, ActuatorLevel};
 
     /// Declaring actuators records the indices of the outputs and inputs they add, after
     /// what the role already has; a `+` / `-` drives both solenoids of a bistable valve.
@@ -354,7 +382,9 @@ mod tests {
         r.outputs.push(super::OutputIr {
             name: String::from("lamp"),
             pin: 9,
-            safe: false,
+            fault: Level::Low,
+            start: Level::Low,
+            home: false,
         });
         let double = Actuator {
             name: String::from("VC"),
@@ -367,6 +397,8 @@ mod tests {
                 back_ms: 200,
                 timeout_ms: None,
             },
+            fault: ActuatorLevel::Retract,
+            start: ActuatorLevel::Off,
         };
         let single = Actuator {
             name: String::from("GR"),
@@ -379,6 +411,8 @@ mod tests {
                 end: Some(5),
                 timeout_ms: None,
             },
+            fault: ActuatorLevel::Hold,
+            start: ActuatorLevel::Extend,
         };
         r.declare_actuator(&double, |_| true, |_| false);
         r.declare_actuator(&single, |_| true, |_| false);
@@ -403,6 +437,18 @@ mod tests {
         assert_eq!(r.actuator("GR"), Some(&gr));
         let names: Vec<&str> = r.outputs.iter().map(|o| o.name.as_str()).collect();
         assert_eq!(names, ["lamp", "VC.extend", "VC.retract", "GR.valve"]);
+        // (fault, start, home) per solenoid: VC retracts on fault, GR holds its part.
+        let levels: Vec<_> = (r.outputs.iter().skip(1))
+            .map(|o| (o.fault, o.start, o.home))
+            .collect();
+        assert_eq!(
+            levels,
+            [
+                (Level::Low, Level::Low, false),
+                (Level::High, Level::Low, true),
+                (Level::Hold, Level::High, false),
+            ]
+        );
         let names: Vec<&str> = r.inputs.iter().map(|i| i.name.as_str()).collect();
         assert_eq!(names, ["VC.home", "VC.end", "GR.end"]);
         assert_eq!(vc.drive(true), (0b110, 0b010));

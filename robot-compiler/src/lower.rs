@@ -297,7 +297,9 @@ impl Lowering<'_> {
             t.outputs
                 .push(Output {
                     pin: o.pin,
-                    safe: o.safe,
+                    fault: o.fault,
+                    start: o.start,
+                    home: o.home,
                 })
                 .map_err(|_| RoleError::PoolFull("outputs"))?;
         }

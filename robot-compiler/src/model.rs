@@ -2,6 +2,7 @@
 
 use std::collections::BTreeMap;
 
+use config_schema::Level;
 use serde::Deserialize;
 
 use crate::diag::Diagnostic;
@@ -101,6 +102,30 @@ pub struct Role {
 pub struct Actuator {
     pub name: String,
     pub kind: ActuatorKind,
+    /// What its node drives its valve to when it faults (default `Off`).
+    #[serde(default)]
+    pub fault: ActuatorLevel,
+    /// What its node drives its valve to before the charts run: a new table, a boot, a
+    /// reset (default `Off`).
+    #[serde(default)]
+    pub start: ActuatorLevel,
+}
+
+/// An actuator's valve outside the charts: on fault, or before they run. Homing always
+/// drives an actuator home, as a `-` does.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+pub enum ActuatorLevel {
+    /// Every solenoid off: a monostable valve drops back (a gripper opens), a bistable
+    /// one is no longer driven.
+    #[default]
+    Off,
+    /// Keep driving what it drives: a gripper keeps its part. At boot there is nothing to
+    /// keep: every solenoid starts off.
+    Hold,
+    /// Drive it out, as a `+`.
+    Extend,
+    /// Drive it home, as a `-`.
+    Retract,
 }
 
 /// How a node pin of an actuator is used.
@@ -229,14 +254,35 @@ pub struct InputPin {
     pub pin: u8,
 }
 
-/// A plain digital output (lamp, gate) and its level in the safe state.
+/// A plain digital output (lamp, gate) and its levels outside the charts.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OutputPin {
     pub name: String,
     pub pin: u8,
+    /// The level of `fault`, `start` and `home` where they are not given (default low).
     #[serde(default)]
     pub safe: bool,
+    /// When the node faults: `Low`, `High` or `Hold`.
+    #[serde(default)]
+    pub fault: Option<Level>,
+    /// Before the charts run (a new table, a boot, a reset): `Low`, `High` or `Hold`
+    /// (low at boot).
+    #[serde(default)]
+    pub start: Option<Level>,
+    /// Where homing drives it: `Low` or `High` (`check` refuses `Hold`).
+    #[serde(default)]
+    pub home: Option<Level>,
+}
+
+impl OutputPin {
+    /// Its fault, start and home levels, `safe` where one is not given (a `Hold` home,
+    /// which `check` refuses, as `safe`).
+    pub fn levels(&self) -> (Level, Level, bool) {
+        let safe = Level::of(self.safe);
+        let home = self.home.and_then(Level::level).unwrap_or(self.safe);
+        (self.fault.unwrap_or(safe), self.start.unwrap_or(safe), home)
+    }
 }
 
 /// A chart type: an ECC with parameters, input and output events, variables, timers.

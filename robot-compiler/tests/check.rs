@@ -84,6 +84,12 @@ const BROKEN: &[(&str, &[&str])] = &[
     ("unsecured.ron", &[
         "5:15: warning: frame security is off: anyone in radio range can push a table to these nodes, press START or forge their events",
     ]),
+    ("home-hold.ron", &[
+        "15:65: error: `home` of output `LAMP` is `Hold`: homing drives an output to a level",
+    ]),
+    ("level-unknown.ron", &[
+        "18:104: error: Unexpected variant named `Open` in enum `ActuatorLevel`, expected one of `Off`, `Hold`, `Extend`, or `Retract` instead",
+    ]),
     ("guard-unknown-name.ron", &[
         "36:68: error: unknown name `MAX`: not a variable, input or parameter of this chart",
     ]),

@@ -29,12 +29,12 @@ pub fn payload(blob: &[u8]) -> Vec<u8> {
     blob[HEADER_LEN..blob.len() - TRAILER_LEN].to_vec()
 }
 
-/// A blob around `payload` with a correct envelope (magic, version 1, `generation`, length,
+/// A blob around `payload` with a correct envelope (magic, this build's schema version, `generation`, length,
 /// CRC recomputed), so decoding reaches the payload parser and the validator.
 pub fn seal(payload: &[u8], generation: u32) -> Vec<u8> {
     let mut b = Vec::with_capacity(payload.len() + HEADER_LEN + TRAILER_LEN);
     b.extend_from_slice(b"ECCT");
-    b.extend_from_slice(&1u16.to_le_bytes());
+    b.extend_from_slice(&config_schema::SCHEMA_VERSION.to_le_bytes());
     b.extend_from_slice(&generation.to_le_bytes());
     b.extend_from_slice(&(payload.len() as u16).to_le_bytes());
     b.extend_from_slice(payload);
@@ -75,7 +75,7 @@ pub fn lamp_with(generation: u32, on: &[Action]) -> Table {
     t.header.pan_id = PAN;
     let press = button(&mut t, BUTTON);
     for (pin, safe) in [(LAMP, false), (BEACON, true)] {
-        t.outputs.push(Output { pin, safe }).unwrap();
+        t.outputs.push(Output::safe(pin, safe)).unwrap();
     }
     toggle(&mut t, press, on);
     t

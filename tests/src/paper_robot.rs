@@ -168,7 +168,7 @@ fn switch(t: &mut Table, pin: u8, rise: EventId) -> Result<(), Full> {
 
 fn outputs(t: &mut Table, pins: &[u8]) -> Result<(), Full> {
     for &pin in pins {
-        push(&mut t.outputs, Output { pin, safe: false }, "outputs")?;
+        push(&mut t.outputs, Output::safe(pin, false), "outputs")?;
     }
     Ok(())
 }

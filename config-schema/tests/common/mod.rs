@@ -41,18 +41,8 @@ pub fn realistic() -> Table {
             var: Some(2),
         })
         .unwrap();
-    t.outputs
-        .push(Output {
-            pin: 10,
-            safe: false,
-        })
-        .unwrap();
-    t.outputs
-        .push(Output {
-            pin: 11,
-            safe: true,
-        })
-        .unwrap();
+    t.outputs.push(Output::safe(10, false)).unwrap();
+    t.outputs.push(Output::safe(11, true)).unwrap();
     t.timers.push(Timer { event: 4 }).unwrap();
 
     let at_home = t.push_expr(&[Op::Var(1)]).unwrap();

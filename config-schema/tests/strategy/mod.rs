@@ -11,8 +11,8 @@
 use config_schema::blob::{HEADER_LEN, TRAILER_LEN};
 use config_schema::limits::*;
 use config_schema::{
-    Action, EventId, Expr, Input, Op, Output, Publication, Route, Subscription, Table, Timer,
-    Transition,
+    Action, EventId, Expr, Input, Level, Op, Output, Publication, Route, Subscription, Table,
+    Timer, Transition,
 };
 use proptest::collection::vec;
 use proptest::prelude::*;
@@ -158,7 +158,8 @@ pub struct Raw {
     pub vars: Vec<i32>,
     /// (rise, fall, mirror variable).
     pub inputs: Vec<(Option<u8>, Option<u8>, Option<u8>)>,
-    pub outputs: Vec<bool>,
+    /// (fault, start, home): fault and start are `Level` variant indices 0..3.
+    pub outputs: Vec<(u8, u8, bool)>,
     pub timers: Vec<u8>,
     pub peer_base: u16,
     pub peers: usize,
@@ -190,7 +191,7 @@ pub fn raw() -> impl Strategy<Value = Raw> {
             ),
             0..5,
         ),
-        vec(any::<bool>(), 0..7),
+        vec((0u8..3, 0u8..3, any::<bool>()), 0..7),
         vec(any::<u8>(), 0..4),
     );
     let radio = (
@@ -250,11 +251,14 @@ pub fn build(raw: &Raw) -> Table {
             })
             .unwrap();
     }
-    for (i, safe) in raw.outputs.iter().enumerate() {
+    let level = |l: u8| [Level::Low, Level::High, Level::Hold][usize::from(l % 3)];
+    for (i, &(fault, start, home)) in raw.outputs.iter().enumerate() {
         t.outputs
             .push(Output {
                 pin: 32 + i as u8,
-                safe: *safe,
+                fault: level(fault),
+                start: level(start),
+                home,
             })
             .unwrap();
     }

@@ -71,12 +71,7 @@ pub fn blob(generation: u32, states: usize) -> (Table, Vec<u8>) {
     let mut t = Table::empty("VC");
     t.generation = generation;
     let ev = t.push_event().unwrap();
-    t.outputs
-        .push(Output {
-            pin: 3,
-            safe: false,
-        })
-        .unwrap();
+    t.outputs.push(Output::safe(3, false)).unwrap();
     let drive = [Action::Drive { mask: 1, value: 1 }];
     let actions: Vec<&[Action]> = (0..states).map(|_| &drive[..]).collect();
     let transitions: Vec<Transition> = (0..states)

@@ -9,6 +9,7 @@
 mod charts;
 mod events;
 mod interlocks;
+mod levels;
 mod names;
 mod network;
 mod pins;
@@ -33,6 +34,7 @@ pub const STRUCTURE: &[(&str, Pass)] = &[
     ("names", names::check),
     ("network", network::check),
     ("pins", pins::check),
+    ("levels", levels::check),
     ("timing", timing::check),
     ("sequence", sequence::check),
     ("charts", charts::check),
