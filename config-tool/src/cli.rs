@@ -285,6 +285,17 @@ pub struct PushArgs {
     /// whole robot and sends nothing if a property fails).
     #[arg(long)]
     pub no_verify: bool,
+    /// Switch every node over at once, whatever the machine does (a stopped or faulted
+    /// machine); by default the nodes switch together at the machine's next idle point.
+    #[arg(long)]
+    pub now: bool,
+    /// Only stage the tables (checked and persisted, not running): a later `push` of the
+    /// same generation switches them.
+    #[arg(long, conflicts_with = "now")]
+    pub stage_only: bool,
+    /// How long to wait for the machine to be idle (the cycle in progress to end), seconds.
+    #[arg(long, default_value_t = 60)]
+    pub wait: u64,
     #[command(flatten)]
     pub keys: KeysArg,
 }

@@ -306,6 +306,7 @@ fn node_killed_between_persisting_and_flipping_boots_the_old_table() {
     let mut slots = Slots::new(HostFlash::open(&path).unwrap()).unwrap();
     let loaded = now(slots.load())
         .unwrap()
+        .running
         .expect("the old table is committed");
     assert_eq!(
         (loaded.table.generation, loaded.table.header.role.as_str()),
@@ -315,7 +316,7 @@ fn node_killed_between_persisting_and_flipping_boots_the_old_table() {
     now(slots.persist(inactive, &dip.blobs[vc])).unwrap();
     let mut buf = [0u8; config_schema::limits::MAX_BLOB + 16];
     assert_eq!(now(slots.read_blob(inactive, &mut buf)).unwrap(), None);
-    let reloaded = now(slots.load()).unwrap().unwrap();
+    let reloaded = now(slots.load()).unwrap().running.unwrap();
     assert_eq!((reloaded.slot, reloaded.table.generation), (loaded.slot, 1));
     drop(slots);
 
@@ -333,7 +334,7 @@ fn node_killed_between_persisting_and_flipping_boots_the_old_table() {
     assert_running(&mut bed, &dip);
     bed.kill_node(node);
     let mut slots = Slots::new(HostFlash::open(&path).unwrap()).unwrap();
-    let newest = now(slots.load()).unwrap().unwrap();
+    let newest = now(slots.load()).unwrap().running.unwrap();
     assert_eq!((newest.slot, newest.table.generation), (inactive, 2));
     drop(slots);
     bed.start_node(node).unwrap();

@@ -715,10 +715,14 @@ impl NodeCore {
                 self.counters.dropped += 1;
                 return;
             }
-            match self
-                .peer_security
-                .open(psdu, self.addr, now, &mut scratch, &mut self.security)
-            {
+            match self.peer_security.open(
+                psdu,
+                self.addr,
+                self.switch.staged(),
+                now,
+                &mut scratch,
+                &mut self.security,
+            ) {
                 Verdict::Accept(payload) => (payload, true),
                 Verdict::Dropped => {
                     self.counters.dropped += 1;
@@ -748,8 +752,13 @@ impl NodeCore {
                 Verdict::Answered => return,
             }
         } else if header.secured {
-            // Secured, and no key for it: an unkeyed node, or a table without link keys.
-            self.security.unknown_key += 1;
+            // Secured, and no key for it: a table without link keys counts it; an
+            // unconfigured node (a machine's traffic it is not part of yet), or one with
+            // that generation staged (a peer that switched a moment earlier), does not.
+            let ahead = self.switch.staged() != 0 && header.pan_id != CONFIG_PAN;
+            if self.table.is_some() && !ahead {
+                self.security.unknown_key += 1;
+            }
             self.counters.dropped += 1;
             return;
         } else {

@@ -214,10 +214,13 @@ impl PeerSecurity {
 
     /// Opens a secured frame from a peer (`me`: this node's address, never a sender),
     /// checks its counter, and runs the handshake. Every refusal is counted.
+    /// A frame under the key index of `staged` (the generation this node has staged) is a
+    /// peer that switched a moment earlier: dropped, not counted as a security refusal.
     pub fn open<'s>(
         &mut self,
         psdu: &[u8],
         me: u16,
+        staged: u32,
         now: u64,
         scratch: &'s mut [u8],
         counters: &mut SecurityCounters,
@@ -242,6 +245,9 @@ impl PeerSecurity {
             payload,
         } = match opened {
             Ok(o) => o,
+            Err(SecError::UnknownKey) if staged != 0 && ahead(psdu, staged) => {
+                return Verdict::Dropped;
+            }
             Err(e) => {
                 count_refusal(e, counters);
                 return Verdict::Dropped;
@@ -336,6 +342,17 @@ impl PeerSecurity {
     }
 }
 
+/// Whether `psdu` is secured under the key index of generation `staged`.
+fn ahead(psdu: &[u8], staged: u32) -> bool {
+    match config_schema::wire::mac::Frame::parse(psdu) {
+        Ok(config_schema::wire::mac::Frame::Data { payload, .. }) => {
+            security::AuxHeader::new_checked(payload)
+                .is_ok_and(|aux| aux.key_index() == Some(link_key_index(staged)))
+        }
+        _ => false,
+    }
+}
+
 /// Counts why a secured frame did not open.
 pub fn count_refusal(e: SecError, c: &mut SecurityCounters) {
     match e {
@@ -414,7 +431,7 @@ mod tests {
         c: &mut SecurityCounters,
     ) -> &'static str {
         let mut scratch = [0u8; MAX_PAYLOAD];
-        match s.open(psdu, ME, now, &mut scratch, c) {
+        match s.open(psdu, ME, 0, now, &mut scratch, c) {
             Verdict::Accept(_) => "accept",
             Verdict::Challenge { .. } => "challenge",
             Verdict::Answer { .. } => "answer",
@@ -521,7 +538,7 @@ mod tests {
         s.install(Some(keys(1)), &[PEER]);
         let ch = Message::Challenge { nonce: 5 };
         let mut scratch = [0u8; MAX_PAYLOAD];
-        let v = s.open(&frame(1, 3, &ch), ME, 0, &mut scratch, &mut c);
+        let v = s.open(&frame(1, 3, &ch), ME, 0, 0, &mut scratch, &mut c);
         assert!(matches!(
             v,
             Verdict::Answer {
@@ -535,6 +552,7 @@ mod tests {
         let v = s.open(
             &frame(1, 4, &ch),
             ME,
+            0,
             HANDSHAKE_MS - 1,
             &mut scratch,
             &mut c,
@@ -579,6 +597,23 @@ mod tests {
         assert_eq!(s.next_greeting(1_000 + GREET_EVERY_MS), None);
         s.install(None, &[PEER]);
         assert_eq!(s.greeting(), None, "no keys, no greeting");
+    }
+
+    #[test]
+    fn a_frame_of_the_staged_generation_is_dropped_uncounted() {
+        let (mut s, mut c) = running();
+        let mut scratch = [0u8; MAX_PAYLOAD];
+        let early = frame(2, 20, &EVENT);
+        assert!(matches!(
+            s.open(&early, ME, 2, 0, &mut scratch, &mut c),
+            Verdict::Dropped
+        ));
+        assert_eq!(c.unknown_key, 0, "a peer that switched a moment earlier");
+        assert!(matches!(
+            s.open(&early, ME, 0, 0, &mut scratch, &mut c),
+            Verdict::Dropped
+        ));
+        assert_eq!(c.unknown_key, 1, "nothing staged: an unknown key");
     }
 
     #[test]

@@ -63,13 +63,13 @@ fn the_boot_counter_and_the_slots_survive_reopening() {
         let mut f = HostFlash::open(&p).unwrap();
         assert_eq!(f.count_boot().unwrap(), Some(1));
         let mut slots = Slots::new(f).unwrap();
-        assert_eq!(block_on(slots.load()).unwrap(), None);
-        assert_eq!(block_on(slots.store(None, &blob[..n])).unwrap(), 0);
+        assert_eq!(block_on(slots.load()).unwrap().running, None);
+        assert_eq!(block_on(slots.store(None, &blob[..n], 0)).unwrap(), 0);
     }
     let mut f = HostFlash::open(&p).unwrap();
     assert_eq!(f.count_boot().unwrap(), Some(2));
     let mut slots = Slots::new(f).unwrap();
-    let loaded = block_on(slots.load()).unwrap().unwrap();
+    let loaded = block_on(slots.load()).unwrap().running.unwrap();
     assert_eq!((loaded.slot, loaded.table), (0, table));
     assert_eq!(HostFlash::ram().count_boot().unwrap(), None);
     let _ = std::fs::remove_file(&p);

@@ -15,8 +15,9 @@ pub fn status_text(addr: u16, s: &Status) -> String {
     let states: Vec<String> = s.states.iter().map(|x| format!("S{x}")).collect();
     let (c, r) = (s.counters, s.runtime);
     format!(
-        "{addr:#06x}  role {role}  generation {}\n  states {}  outputs {:#06x}  inputs {:#06x}  fault {}\n  link alarms {:#010b}  broken {:#010b}  epoch {}\n  frames sent {} received {} retried {} dropped {}  events delivered {}\n  tx queue full {}  high-water {}  radio failures {}  flash failures {}",
+        "{addr:#06x}  role {role}  generation {}{}\n  states {}  outputs {:#06x}  inputs {:#06x}  fault {}\n  link alarms {:#010b}  broken {:#010b}  epoch {}\n  frames sent {} received {} retried {} dropped {}  events delivered {}\n  tx queue full {}  high-water {}  radio failures {}  flash failures {}",
         s.generation,
+        staged_note(s.staged),
         if states.is_empty() { "-".to_string() } else { states.join(" ") },
         s.outputs,
         s.inputs,
@@ -34,6 +35,14 @@ pub fn status_text(addr: u16, s: &Status) -> String {
         r.tx_failed,
         r.flash_failures,
     )
+}
+
+/// `  staged N` when generation N waits for the switch-over, else nothing.
+pub fn staged_note(staged: u32) -> String {
+    match staged {
+        0 => String::new(),
+        g => format!("  staged {g}"),
+    }
 }
 
 /// A node's security report as the line `status` prints after the status: whether it
@@ -169,6 +178,7 @@ mod tests {
             ack: 9,
             role: heapless::String::try_from("GR").unwrap(),
             generation: 3,
+            staged: 0,
             states: heapless::Vec::from_slice(&[2, 0]).unwrap(),
             outputs: 0x0002,
             inputs: 0x0001,

@@ -246,6 +246,7 @@ mod tests {
             firmware: 1,
             generation,
             role: heapless::String::try_from("VC").unwrap(),
+            staged: 0,
         });
         sealed(header(CONFIG_PAN, node, BROADCAST), 0, 9, key.expose(), &m)
     }

@@ -12,6 +12,7 @@ use config_schema::wire::msg::{Command, Message, SecurityReport, Status};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use medium::Conn;
 use node_fw::ota::Progress;
+use node_fw::switch::Verdict;
 use robot_net::demo;
 use robot_net::push::{self, Ids};
 use robot_net::radio::{ToolRadio, TOOL_ADDR};
@@ -143,8 +144,10 @@ pub fn scan(at: &MediumAddr, keys: &KeysArg) -> Result<(), Failure> {
             a.role.as_str()
         };
         println!(
-            "{addr:#06x}  firmware {}  generation {}  {role}",
-            a.firmware, a.generation
+            "{addr:#06x}  firmware {}  generation {}{}  {role}",
+            a.firmware,
+            a.generation,
+            show::staged_note(a.staged)
         );
     }
     println!("{} node(s)", found.len());
@@ -170,8 +173,22 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
     let keys = push_keys(robot, &c, KeysFrom::resolve(flags.keys.keys.as_deref()))?;
     verify_before_push(robot, &c, flags.no_verify)?;
     let mut radio = connect_keyed(at, keys.as_ref())?;
-    let outcomes = push_with_bars(&mut radio, &targets, flags.force)?;
-    report_push(&outcomes)
+    let mut outcomes = push_with_bars(&mut radio, &targets, flags.force)?;
+    let verdict = if flags.stage_only {
+        None
+    } else {
+        Some(
+            push::switch_over(
+                &mut radio,
+                &mut outcomes,
+                c.ir.generation,
+                flags.now,
+                Duration::from_secs(flags.wait),
+            )
+            .map_err(Failure::error)?,
+        )
+    };
+    report_push(&outcomes, verdict)
 }
 
 /// The keys `push` secures with: a secured robot (the default) needs them; an unsecured one
@@ -266,7 +283,7 @@ fn push_with_bars(
     Ok(outcomes)
 }
 
-fn report_push(outcomes: &[push::Pushed]) -> Result<(), Failure> {
+fn report_push(outcomes: &[push::Pushed], verdict: Option<Verdict>) -> Result<(), Failure> {
     for o in outcomes {
         println!("{}", demo::push_line(o));
     }
@@ -279,13 +296,39 @@ fn report_push(outcomes: &[push::Pushed]) -> Result<(), Failure> {
         outcomes.len(),
         time.as_secs_f64() * 1e3
     );
-    if outcomes.iter().all(|o| o.progress == Progress::Done) {
-        Ok(())
-    } else {
+    if !outcomes.iter().all(|o| o.progress == Progress::Done) {
+        return Err(Failure {
+            code: exit::PUSH_FAILED,
+            ..Failure::error("not every node staged its table: nothing switched")
+        });
+    }
+    let failed = |what: &str| {
         Err(Failure {
             code: exit::PUSH_FAILED,
-            ..Failure::error("not every node activated its table")
+            ..Failure::error(what)
         })
+    };
+    match verdict {
+        None => {
+            println!("staged on every node: `push` the same generation again to switch");
+            Ok(())
+        }
+        Some(Verdict::Switched) => {
+            println!("switched: every node runs the new generation");
+            Ok(())
+        }
+        Some(Verdict::NotIdle) => failed(concat!(
+            "the machine was not idle within --wait: nothing switched (the tables stay ",
+            "staged; push again, or --now for a stopped machine)"
+        )),
+        Some(Verdict::Aborted) => failed(concat!(
+            "a node refused or stopped answering before the switch: nothing switched (the ",
+            "tables stay staged)"
+        )),
+        Some(Verdict::Partial) | Some(Verdict::Busy) => failed(concat!(
+            "the switch-over did not finish: the nodes marked `staged, not switched` run the ",
+            "old generation; push again to finish it (or --now)"
+        )),
     }
 }
 

@@ -160,6 +160,7 @@ mod tests {
         let o = push::Pushed {
             role: "VC".into(),
             addr: 0x0011,
+            switch: None,
             progress: Progress::Refused(Refusal::Pin {
                 pin: 20,
                 board: 0xFFFF,
@@ -180,6 +181,7 @@ mod tests {
         );
         let done = push::Pushed {
             progress: Progress::Done,
+            switch: Some(node_fw::switch::NodeState::Switched),
             key_bytes: 81,
             ..o
         };
