@@ -161,7 +161,7 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     let counter = dir.0.join("machine.key.counter");
     let pushed = ok(&["push", ROBOT, "--keys", &key_s, "--medium", &m]);
     let lines: Vec<&str> = pushed.lines().collect();
-    assert_eq!(lines.len(), c.ir.roles.len() + 2, "{pushed}");
+    assert_eq!(lines.len(), c.ir.roles.len() + 3, "{pushed}");
     assert_eq!(
         lines[0],
         "verified: 451 states, 1111 transitions, every property holds"
@@ -169,7 +169,14 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     for line in &lines[1..=c.ir.roles.len()] {
         assert!(line.ends_with("activated"), "{pushed}");
     }
-    assert!(lines[c.ir.roles.len() + 1].starts_with("pushed 4 table(s): 724 bytes"));
+    assert!(
+        lines[c.ir.roles.len() + 1].starts_with("pushed 4 table(s): 738 bytes"),
+        "{pushed}"
+    );
+    assert_eq!(
+        lines[c.ir.roles.len() + 2],
+        "switched: every node runs the new generation"
+    );
     // One reservation for the whole run: the counter file, not a write per frame.
     assert_eq!(reservations(&counter), [1024]);
 

@@ -17,7 +17,7 @@ use config_schema::wire::medium::{next_message, Link, Peer, MAX_LINK};
 use config_schema::wire::msg::{Announce, Command as Cmd, Message, Status};
 use config_schema::{Action, Publication, Subscription, Table};
 use node_fw::node::CONFIG_PAN;
-use node_fw::ota;
+use node_fw::{ota, switch};
 use test_tables::{blob, button, lamp_table, lamp_with, BEACON, BUTTON, LAMP, PAN};
 
 const TOOL: u16 = 0x0100;
@@ -305,7 +305,40 @@ impl Client {
     }
 
     /// Pushes `table` to `addr` with the OTA sender on wall-clock time.
+    /// Stages `table` at `addr`, then switches it over (at its idle point).
     fn push(&mut self, addr: u16, table: &Table) -> ota::Progress {
+        self.push_at(addr, table, false)
+    }
+
+    /// [`Client::push`]; `now`: switched at once, idle or not (a lit lamp, a fault).
+    fn push_at(&mut self, addr: u16, table: &Table, at_once: bool) -> ota::Progress {
+        let staged = self.stage(addr, table);
+        if staged != ota::Progress::Done {
+            return staged;
+        }
+        let t0 = Instant::now();
+        let now = || t0.elapsed().as_millis() as u64;
+        let mut c = switch::Coordinator::new(&[addr], table.generation, at_once, 10_000, now());
+        let mut out = Vec::new();
+        while c.verdict() == switch::Verdict::Busy && t0.elapsed() < WAIT {
+            c.poll(now(), |a, m| out.push((a, m)));
+            for (a, m) in out.drain(..) {
+                self.send(a, &m);
+            }
+            if let Some((src, bytes)) = self.recv(Duration::from_millis(5)) {
+                if let Ok(Message::ConfigReply { generation, reply }) = Message::parse(&bytes) {
+                    c.on_reply(src, generation, reply, now(), |a, m| out.push((a, m)));
+                }
+            }
+        }
+        match c.verdict() {
+            switch::Verdict::Switched => ota::Progress::Done,
+            _ => ota::Progress::GaveUp,
+        }
+    }
+
+    /// Stages `table` at `addr` with the tool's OTA sender.
+    fn stage(&mut self, addr: u16, table: &Table) -> ota::Progress {
         let bytes = blob(table);
         let mut tx = ota::Sender::new(&bytes, table.generation, false);
         let t0 = Instant::now();
@@ -479,8 +512,12 @@ fn a_pushed_table_runs_survives_a_restart_and_answers_the_plant() {
     plant.drive(ADDR, BUTTON, false);
     plant.drive(ADDR, BUTTON, true);
     assert_eq!(relay.pins(ADDR, 1), vec![(LAMP, true)]);
-    // A newer table replaces it; an older one is refused.
-    assert_eq!(tool.push(ADDR, &lamp_table(4)), ota::Progress::Done);
+    // A newer table replaces it (at once: the lamp is lit, the node not idle); an older
+    // one is refused.
+    assert_eq!(
+        tool.push_at(ADDR, &lamp_table(4), true),
+        ota::Progress::Done
+    );
     assert_eq!(
         tool.push(ADDR, &lamp_table(2)),
         ota::Progress::Refused(config_schema::wire::msg::Refusal::Stale { running: 4 })
@@ -747,8 +784,11 @@ fn a_fault_is_logged_reported_and_cleared_by_a_new_table() {
     assert_eq!(tool.status(ADDR).fault, Some(0x85));
     let log = node.log_saying("fault 0x85");
     assert!(log.contains("fault 0x85"), "{log}");
-    // A new table clears it.
-    assert_eq!(tool.push(ADDR, &lamp_table(2)), ota::Progress::Done);
+    // A new table, switched to at once (a faulted node is not idle), clears it.
+    assert_eq!(
+        tool.push_at(ADDR, &lamp_table(2), true),
+        ota::Progress::Done
+    );
     assert_eq!(tool.status(ADDR).fault, None);
     let log = node.log_saying("fault cleared");
     assert!(log.contains("fault cleared"), "{log}");

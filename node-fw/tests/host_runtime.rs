@@ -23,9 +23,9 @@ use embedded_hal_async::digital::Wait;
 use embedded_storage_async::nor_flash::{self as nor, NorFlash, ReadNorFlash};
 use node_fw::host::block_on;
 use node_fw::node::CONFIG_PAN;
-use node_fw::ota;
 use node_fw::runtime::{self, Board, Inputs, Pins, Radio, Stats, Stop, WaitInputs};
 use node_fw::slots::{PowerCut, RamFlash, Slots};
+use node_fw::{ota, switch};
 use test_tables::{blob, lamp_table, BEACON, BUTTON, LAMP};
 
 const ADDR: u16 = 0x0009;
@@ -298,7 +298,26 @@ impl Tool {
             }
             tx.poll(now(), |m| out.push(m));
         }
-        tx.progress()
+        if tx.progress() != ota::Progress::Done {
+            return tx.progress();
+        }
+        // Staged: switch it over (the node is idle), as `push` does.
+        let addr = ADDR;
+        let mut c = switch::Coordinator::new(&[addr], table.generation, false, WAIT_MS, now());
+        let mut out: Vec<(u16, Message<'static>)> = Vec::new();
+        while c.verdict() == switch::Verdict::Busy && now() - start < 2 * WAIT_MS {
+            c.poll(now(), |a, m| out.push((a, m)));
+            for (_, m) in std::mem::take(&mut out) {
+                self.send(&m).await;
+            }
+            if let Some(Message::ConfigReply { generation, reply }) = self.next(5).await {
+                c.on_reply(addr, generation, reply, now(), |a, m| out.push((a, m)));
+            }
+        }
+        match c.verdict() {
+            switch::Verdict::Switched => ota::Progress::Done,
+            _ => ota::Progress::Refused(config_schema::wire::msg::Refusal::Flash),
+        }
     }
 
     async fn close(&self) {

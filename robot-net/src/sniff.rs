@@ -315,7 +315,7 @@ mod tests {
         assert_eq!(
             s.describe(&announce_from(VC, 3)),
             "0x0011 -> 0xffff  secured EncMic64 key 0 counter 9: \
-             Announce(Announce { firmware: 1, generation: 3, role: \"VC\" })"
+             Announce(Announce { firmware: 1, generation: 3, role: \"VC\", staged: 0 })"
         );
         assert_eq!(s.generations().collect::<Vec<_>>(), [3]);
         assert_eq!(

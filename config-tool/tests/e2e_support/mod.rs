@@ -253,6 +253,16 @@ pub fn drive(
                 Fate::Stop => return (Progress::Busy, sender.acked(), sender.stats()),
             }
         }
+        if sender.progress() == Progress::Done {
+            // Staged: switch the node over (at its idle point), as `push` does.
+            let switched = switch_one(radio, addr, generation);
+            let progress = if switched {
+                Progress::Done
+            } else {
+                Progress::GaveUp
+            };
+            return (progress, sender.acked(), sender.stats());
+        }
         if sender.progress() != Progress::Busy {
             return (sender.progress(), sender.acked(), sender.stats());
         }
@@ -267,6 +277,27 @@ pub fn drive(
         }
         sender.poll(now_ms(), |m| out.push(m));
     }
+}
+
+/// Switches node `addr` over to its staged `generation`; whether it did.
+pub fn switch_one(radio: &mut ToolRadio, addr: u16, generation: u32) -> bool {
+    let start = Instant::now();
+    let now_ms = || start.elapsed().as_millis() as u64;
+    let mut c = node_fw::switch::Coordinator::new(&[addr], generation, false, 30_000, 0);
+    let mut out: Vec<(u16, Message<'static>)> = Vec::new();
+    while c.verdict() == node_fw::switch::Verdict::Busy {
+        c.poll(now_ms(), |a, m| out.push((a, m)));
+        for (a, m) in out.drain(..) {
+            radio.send(a, &m).expect("send");
+        }
+        let until = start + Duration::from_millis(c.deadline());
+        if let Some(r) = radio.recv(until.max(Instant::now())).expect("recv") {
+            if let Some(Message::ConfigReply { generation, reply }) = r.message() {
+                c.on_reply(r.src, generation, reply, now_ms(), |a, m| out.push((a, m)));
+            }
+        }
+    }
+    c.verdict() == node_fw::switch::Verdict::Switched
 }
 
 /// A data frame (FCS included).

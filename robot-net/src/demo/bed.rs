@@ -683,12 +683,15 @@ pub fn targets(c: &Compiled) -> Vec<Target> {
 
 fn at_rest(c: &Compiled, statuses: &[Status]) -> bool {
     statuses.iter().zip(&c.tables).all(|(s, t)| {
-        s.generation == t.generation
-            && s.states.len() == t.charts.len()
-            && s.states
-                .iter()
-                .zip(&t.charts)
-                .all(|(st, ch)| *st == ch.initial)
+        // A node on a newer generation switched over at this idle point (a push waited
+        // for it): its new engine starts in its initial states.
+        s.generation > t.generation
+            || s.generation == t.generation
+                && s.states.len() == t.charts.len()
+                && s.states
+                    .iter()
+                    .zip(&t.charts)
+                    .all(|(st, ch)| *st == ch.initial)
     })
 }
 
