@@ -564,6 +564,18 @@ impl NodeCore {
     }
 
     fn send(&mut self, io: &mut impl Io, pan: u16, dst: u16, msg: &Message<'_>) {
+        self.send_numbered(io, pan, dst, msg, None);
+    }
+
+    /// [`NodeCore::send`]; a secured frame takes `counter` if given.
+    fn send_numbered(
+        &mut self,
+        io: &mut impl Io,
+        pan: u16,
+        dst: u16,
+        msg: &Message<'_>,
+        counter: Option<u32>,
+    ) {
         let mut radio = Radio {
             addr: self.addr,
             mac_seq: &mut self.mac_seq,
@@ -572,7 +584,7 @@ impl NodeCore {
             links: &self.peer_security,
             security: &mut self.security,
         };
-        radio.send(io, pan, dst, msg);
+        radio.send_numbered(io, pan, dst, msg, counter);
     }
 
     /// The level of board pin `pin` is `level` (repeating an unchanged level is harmless:
@@ -937,15 +949,7 @@ impl NodeCore {
                 let _ = self.challenges.push((src, nonce));
             }
         }
-        let mut radio = Radio {
-            addr: self.addr,
-            mac_seq: &mut self.mac_seq,
-            counters: &mut self.counters,
-            key: self.key.as_ref(),
-            links: &self.peer_security,
-            security: &mut self.security,
-        };
-        radio.send_numbered(
+        self.send_numbered(
             io,
             CONFIG_PAN,
             src,
@@ -964,15 +968,7 @@ impl NodeCore {
             return;
         };
         self.peer_security.challenged(peer, nonce);
-        let mut radio = Radio {
-            addr: self.addr,
-            mac_seq: &mut self.mac_seq,
-            counters: &mut self.counters,
-            key: self.key.as_ref(),
-            links: &self.peer_security,
-            security: &mut self.security,
-        };
-        radio.send_numbered(io, pan, peer, &Message::Challenge { nonce }, Some(nonce));
+        self.send_numbered(io, pan, peer, &Message::Challenge { nonce }, Some(nonce));
     }
 
     fn peer(&self, addr: u16) -> Option<usize> {
