@@ -57,6 +57,12 @@ pub enum Command {
     /// Compile and verify a robot, then push every role to its node (or one role to a given
     /// node); nothing is sent if `verify` fails, unless --no-verify.
     Push(PushArgs),
+    /// Confirm the generation on trial (`push --trial`) on every node of the robot: it
+    /// stays the boot table.
+    Confirm(SwitchArgs),
+    /// Return every node of the robot to its previous generation together, at the
+    /// machine's next idle point (or --now).
+    Rollback(SwitchArgs),
     /// A node's status: role, generation, chart states, outputs, fault, links, counters.
     Status {
         #[command(flatten)]
@@ -294,6 +300,27 @@ pub struct PushArgs {
     #[arg(long, conflicts_with = "now")]
     pub stage_only: bool,
     /// How long to wait for the machine to be idle (the cycle in progress to end), seconds.
+    #[arg(long, default_value_t = 60)]
+    pub wait: u64,
+    /// Switch on trial: until `config-tool confirm`, a power cut or `config-tool rollback`
+    /// returns every node to the previous generation.
+    #[arg(long)]
+    pub trial: bool,
+    #[command(flatten)]
+    pub keys: KeysArg,
+}
+
+/// `confirm` and `rollback`: which machine, and how.
+#[derive(Args, Debug, Clone)]
+pub struct SwitchArgs {
+    /// The robot whose nodes to address.
+    pub robot: PathBuf,
+    #[command(flatten)]
+    pub at: MediumAddr,
+    /// (rollback) At once, whatever the machine does.
+    #[arg(long)]
+    pub now: bool,
+    /// (rollback) How long to wait for the machine to be idle, seconds.
     #[arg(long, default_value_t = 60)]
     pub wait: u64,
     #[command(flatten)]

@@ -34,6 +34,8 @@ fn run(command: Command) -> Result<(), Failure> {
         Command::Medium(args) => radio::medium(args.config()),
         Command::Scan { at, keys } => radio::scan(&at, &keys),
         Command::Push(args) => radio::push(&args),
+        Command::Confirm(args) => radio::confirm(&args),
+        Command::Rollback(args) => radio::rollback(&args),
         Command::Status { at, node, keys } => radio::status(&at, node, &keys),
         Command::Start { at, node, keys } => radio::start(&at, node, &keys),
         Command::Reset { at, node, keys } => radio::reset(&at, node, &keys),

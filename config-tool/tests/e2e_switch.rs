@@ -120,3 +120,82 @@ fn a_node_killed_between_stage_and_switch_comes_back_staged_and_the_switch_finis
     exact_cycle(&mut bed, &dip, 1);
     bed.stop();
 }
+
+/// Every node's (generation, on trial, previous).
+fn where_all(bed: &mut robot_net::demo::Bed, addrs: &[u16]) -> Vec<(u32, bool, u32)> {
+    addrs
+        .iter()
+        .map(|&a| {
+            let s = status(bed, a);
+            (s.generation, s.trial, s.previous)
+        })
+        .collect()
+}
+
+/// Every node loses power at once and boots again from its flash.
+fn power_cut(bed: &mut robot_net::demo::Bed, addrs: &[u16]) {
+    for &a in addrs {
+        bed.kill_node(a);
+    }
+    for &a in addrs {
+        bed.start_node(a).unwrap();
+    }
+    bed.wait_for_nodes(addrs).unwrap();
+}
+
+/// Stages `c` and switches it over on trial.
+fn on_trial(bed: &mut robot_net::demo::Bed, c: &robot_compiler::Compiled) {
+    let mut pushed = bed.stage(c, false, &mut |_, _, _| {}).unwrap();
+    let verdict = push::switch_over_as(
+        bed.radio(),
+        &mut pushed,
+        c.ir.generation,
+        false,
+        true,
+        Duration::from_secs(30),
+    )
+    .unwrap();
+    assert_eq!(verdict, Verdict::Switched);
+}
+
+/// Trial and rollback, as MCUboot does for images: a generation switched on trial is
+/// left by a power cut (every node boots the previous one) or by `rollback`; once
+/// confirmed it stays across a power cut.
+#[test]
+fn a_trial_is_left_by_a_power_cut_or_a_rollback_and_stays_once_confirmed() {
+    let flash = TempDir::new("trial");
+    let paint = robot("paint-robot.ron", 1);
+    let mut bed = bring_up(&paint, options(medium::Config::default(), Some(&flash)));
+    let addrs: Vec<u16> = paint.ir.roles.iter().map(|r| r.address).collect();
+    push_ok(&mut bed, &paint);
+    let n = addrs.len();
+
+    // On trial, then the power goes: generation 1 again.
+    on_trial(&mut bed, &robot("paint-robot-double-dip.ron", 2));
+    assert_eq!(where_all(&mut bed, &addrs), vec![(2, true, 1); n]);
+    power_cut(&mut bed, &addrs);
+    assert_eq!(where_all(&mut bed, &addrs), vec![(1, false, 0); n]);
+    exact_cycle(&mut bed, &paint, 1);
+
+    // On trial, then rolled back on demand: generation 1 again, at once an exact cycle.
+    on_trial(&mut bed, &robot("paint-robot-double-dip.ron", 3));
+    assert_eq!(where_all(&mut bed, &addrs), vec![(3, true, 1); n]);
+    let (verdict, _) =
+        push::rollback(bed.radio(), &addrs, 1, false, Duration::from_secs(30)).unwrap();
+    assert_eq!(verdict, Verdict::Switched);
+    assert_eq!(where_all(&mut bed, &addrs), vec![(1, false, 0); n]);
+    exact_cycle(&mut bed, &paint, 2);
+
+    // On trial and confirmed: it stays across a power cut.
+    let dip = robot("paint-robot-double-dip.ron", 4);
+    on_trial(&mut bed, &dip);
+    let answers = push::confirm(bed.radio(), &addrs, 4, Duration::from_secs(10)).unwrap();
+    assert!(answers
+        .iter()
+        .all(|a| a.1 == Some(config_schema::wire::msg::ConfigReply::Confirmed)));
+    assert_eq!(where_all(&mut bed, &addrs), vec![(4, false, 1); n]);
+    power_cut(&mut bed, &addrs);
+    assert_eq!(where_all(&mut bed, &addrs), vec![(4, false, 1); n]);
+    exact_cycle(&mut bed, &dip, 1);
+    bed.stop();
+}

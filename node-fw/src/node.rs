@@ -81,9 +81,14 @@ pub enum FlashRequest<'a> {
     /// Persist this transfer (a table blob and its key block) in the slot not running, as
     /// staged: checked, not running.
     Stage(&'a [u8]),
-    /// Make the staged slot the boot table, read it back and hand it to
+    /// Make the staged slot the boot table (`trial`: activated, not confirmed), read it
+    /// back and hand it to [`NodeCore::activated`].
+    Activate { trial: bool },
+    /// Roll back: revoke the running slot, read the previous one back and hand it to
     /// [`NodeCore::activated`].
-    Activate,
+    Rollback,
+    /// Confirm the running slot (on trial), then [`NodeCore::confirmed`].
+    Confirm,
 }
 
 /// The generic node.
@@ -487,7 +492,38 @@ impl NodeCore {
         if let Some(s) = &self.staging {
             return Some(FlashRequest::Stage(self.ota.blob(s.len)));
         }
-        self.switch.activating().map(|_| FlashRequest::Activate)
+        if self.switch.confirming().is_some() {
+            return Some(FlashRequest::Confirm);
+        }
+        self.switch.activating().map(|(_, target)| match target {
+            switch::Target::Staged { trial } => FlashRequest::Activate { trial },
+            switch::Target::Previous => FlashRequest::Rollback,
+        })
+    }
+
+    /// The node booted with `generation` confirmed in its other slot: what a rollback
+    /// returns to.
+    pub fn with_previous(mut self, generation: u32) -> Self {
+        self.switch.set_previous(generation);
+        self
+    }
+
+    /// The board confirmed the running table (`ok`) or failed to: answer the tool.
+    pub fn confirmed(&mut self, ok: bool, io: &mut impl Io) {
+        let generation = self.generation();
+        if let Some(from) = self.switch.confirmed(ok) {
+            let reply = if ok {
+                ConfigReply::Confirmed
+            } else {
+                ConfigReply::Refused(Refusal::Flash)
+            };
+            self.send(
+                io,
+                CONFIG_PAN,
+                from,
+                &Message::ConfigReply { generation, reply },
+            );
+        }
     }
 
     /// The node booted with `generation` staged in flash (the tool may finish the
@@ -664,6 +700,8 @@ impl NodeCore {
             role: heapless::String::new(),
             generation: self.generation(),
             staged: self.switch.staged(),
+            previous: self.switch.previous(),
+            trial: self.switch.trial(),
             states: Vec::new(),
             outputs: 0,
             inputs: 0,
@@ -1009,6 +1047,19 @@ impl NodeCore {
             return;
         }
         let generation = self.generation();
+        if let (true, Message::ConfigBegin { generation: g, .. }) = (self.switch.trial(), msg) {
+            let reply = ConfigReply::Refused(Refusal::OnTrial);
+            self.send(
+                io,
+                pan,
+                src,
+                &Message::ConfigReply {
+                    generation: *g,
+                    reply,
+                },
+            );
+            return;
+        }
         match self.ota.on_message(msg, generation, self.switch.staged()) {
             Some(Outcome::Reply(reply)) => {
                 let gen = match *msg {
@@ -1069,9 +1120,18 @@ impl NodeCore {
         now: u64,
         io: &mut impl Io,
     ) {
-        let generation = self.switch.staged();
+        let rollback = matches!(
+            self.switch.activating(),
+            Some((_, switch::Target::Previous))
+        );
+        let generation = if rollback {
+            self.switch.previous()
+        } else {
+            self.switch.staged()
+        };
         let deployed = deployed.filter(|(t, _)| t.generation == generation);
-        let (from, start) = self.switch.activated(deployed.is_some());
+        let running = self.generation();
+        let (from, start) = self.switch.activated(deployed.is_some(), running);
         let reply = match deployed {
             Some((table, keys)) => {
                 self.drive_start(&table, io);
@@ -1110,7 +1170,7 @@ impl NodeCore {
         let reply = match self.switch.step(generation, step, src, running, idle, now) {
             switch::Action::Reply(r) => r,
             // Answered once the board has switched.
-            switch::Action::Activate => return,
+            switch::Action::Activate(_) | switch::Action::Confirm => return,
             switch::Action::Disarmed { start } => {
                 if start {
                     self.run(now, io, |e, fx| {

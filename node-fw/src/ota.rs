@@ -442,7 +442,10 @@ impl<'b> Sender<'b> {
                 }
             }
             // Answers of the switch-over, not of a transfer.
-            ConfigReply::Armed { .. } | ConfigReply::Busy | ConfigReply::Disarmed => {}
+            ConfigReply::Armed { .. }
+            | ConfigReply::Busy
+            | ConfigReply::Disarmed
+            | ConfigReply::Confirmed => {}
             // Answers to chunks sent before a restart, while the begin is not answered yet.
             ConfigReply::Refused(Refusal::OutOfSequence) if self.acked.is_none() => {}
             // The node does not know this transfer (it restarted, or began another):

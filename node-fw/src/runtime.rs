@@ -283,6 +283,10 @@ fn fault_of(core: &NodeCore) -> Option<u8> {
 struct SlotsAt {
     running: Option<usize>,
     staged: Option<usize>,
+    /// The other slot, confirmed: what a rollback returns to.
+    previous: Option<usize>,
+    /// The running slot is on trial (activated, not confirmed).
+    trial: bool,
     next_serial: u32,
 }
 
@@ -311,6 +315,8 @@ async fn load<F: NorFlash>(
     let at = SlotsAt {
         running: boot.running.as_ref().map(|l| l.slot),
         staged: boot.staged.map(|s| s.slot),
+        previous: boot.previous.map(|p| p.slot),
+        trial: false,
         next_serial: boot.next_serial,
     };
     if let Some(pin) = boot
@@ -330,6 +336,8 @@ async fn load<F: NorFlash>(
     }
     if let Some(staged) = boot.staged {
         core = core.with_staged(staged.generation);
+    } else if let Some(previous) = boot.previous {
+        core = core.with_previous(previous.generation);
     }
     (core, at)
 }
@@ -348,6 +356,8 @@ async fn serve_flash<F: NorFlash, P: Pins>(
             let ok = match slots.stage(at.running, blob).await {
                 Ok(slot) => {
                     at.staged = Some(slot);
+                    // It went over the previous table.
+                    at.previous = None;
                     true
                 }
                 Err(e) => {
@@ -358,14 +368,63 @@ async fn serve_flash<F: NorFlash, P: Pins>(
             };
             core.staged(ok, io);
         }
-        Some(FlashRequest::Activate) => {
+        Some(FlashRequest::Confirm) => {
+            let ok = match at.running {
+                Some(slot) => slots.confirm(slot).await.is_ok(),
+                None => false,
+            };
+            if ok {
+                at.trial = false;
+            } else {
+                io.stats.flash_failures += 1;
+            }
+            core.confirmed(ok, io);
+        }
+        Some(FlashRequest::Rollback) => {
+            let deployed = match (at.previous, at.running) {
+                (Some(slot), Some(running)) => match slots.read_table(slot).await {
+                    // Revoked first: a power cut after it boots the previous table too.
+                    Ok(Some(loaded)) => match slots.revoke(running).await {
+                        Ok(()) => {
+                            at.running = Some(slot);
+                            at.previous = None;
+                            at.trial = false;
+                            Some((loaded.table, loaded.keys))
+                        }
+                        Err(e) => {
+                            warn!("node {addr:#06x}: cannot revoke slot {running}: {e:?}");
+                            None
+                        }
+                    },
+                    _ => None,
+                },
+                _ => None,
+            };
+            if deployed.is_none() {
+                io.stats.flash_failures += 1;
+            }
+            core.activated(deployed, now_ms(), io);
+            if let Some(t) = core.table() {
+                info!(
+                    "node {addr:#06x}: rolled back to role {} generation {} (slot {})",
+                    t.header.role,
+                    t.generation,
+                    at.running.unwrap_or(0)
+                );
+            }
+        }
+        Some(FlashRequest::Activate { trial }) => {
             let deployed = match at.staged {
                 Some(slot) => match slots.read_table(slot).await {
-                    Ok(Some(loaded)) => match slots.activate(slot, at.next_serial, false).await {
+                    Ok(Some(loaded)) => match slots.activate(slot, at.next_serial, trial).await {
                         Ok(()) => {
                             at.next_serial = at.next_serial.wrapping_add(1);
+                            if !at.trial {
+                                at.previous = at.running;
+                            }
                             at.running = Some(slot);
                             at.staged = None;
+                            at.trial = trial;
                             Some((loaded.table, loaded.keys))
                         }
                         Err(e) => {

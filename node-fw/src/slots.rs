@@ -87,6 +87,9 @@ pub struct Boot {
     pub staged: Option<StagedSlot>,
     /// A trial a power cut interrupted (activated, never confirmed): not booted.
     pub abandoned: Option<usize>,
+    /// The other confirmed table, activated before the running one: what a rollback
+    /// returns to.
+    pub previous: Option<StagedSlot>,
     /// The serial the next activation takes.
     pub next_serial: u32,
 }
@@ -235,13 +238,24 @@ impl<F: NorFlash> Slots<F> {
                 }
                 (Some(_), false) => boot.abandoned = Some(slot),
                 (Some(serial), true) => {
+                    let Some(loaded) = self.read_table(slot).await? else {
+                        continue;
+                    };
                     if best.is_some_and(|b| b >= serial) {
+                        boot.previous = Some(StagedSlot {
+                            slot,
+                            generation: loaded.table.generation,
+                        });
                         continue;
                     }
-                    if let Some(loaded) = self.read_table(slot).await? {
-                        best = Some(serial);
-                        boot.running = Some(loaded);
+                    if let Some(old) = boot.running.take() {
+                        boot.previous = Some(StagedSlot {
+                            slot: old.slot,
+                            generation: old.table.generation,
+                        });
                     }
+                    best = Some(serial);
+                    boot.running = Some(loaded);
                 }
             }
         }

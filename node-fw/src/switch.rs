@@ -3,6 +3,10 @@
 //! then on and says whether it is idle), waits until all are idle at once, and tells each
 //! to go. A node switches only when armed and idle, or on an explicit `now`.
 //!
+//! The same steps return to the previous generation (a rollback: its slot is kept until
+//! the next stage overwrites it), and a switch may be a **trial**: activated but not
+//! confirmed, so a power cut boots the previous generation again until `Confirm`.
+//!
 //! Pure state: the node asks [`SwitchOver::step`] what to do with a `Switch` message and
 //! tells it what happened; time comes in as milliseconds.
 
@@ -17,12 +21,27 @@ pub const ARM_HOLD_MS: u64 = 30_000;
 pub struct SwitchOver {
     /// The generation staged in flash (0: none).
     staged: u32,
+    /// The previous generation, kept in the other slot for a rollback (0: none).
+    previous: u32,
+    /// The running generation is on trial (activated, not confirmed).
+    trial: bool,
     /// Armed for the staged generation until this time.
     armed_until: Option<u64>,
     /// A START came while armed: it runs after the switch (or on disarm).
     held_start: bool,
-    /// A switch in progress (the board activates the staged slot): who asked.
-    activating: Option<u16>,
+    /// A switch in progress (the board activates the slot): who asked, and what.
+    activating: Option<(u16, Target)>,
+    /// A confirmation in progress: who asked.
+    confirming: Option<u16>,
+}
+
+/// What a switch switches to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Target {
+    /// The staged table; `trial`: not confirmed yet.
+    Staged { trial: bool },
+    /// The previous table (a rollback: the running one is revoked).
+    Previous,
 }
 
 /// What the node does with a `Switch` message.
@@ -30,8 +49,11 @@ pub struct SwitchOver {
 pub enum Action {
     /// Answer this.
     Reply(ConfigReply),
-    /// Activate the staged table (the board reads it from flash), then answer `Activated`.
-    Activate,
+    /// Activate the target's table (the board reads it from flash), then answer
+    /// `Activated`.
+    Activate(Target),
+    /// Confirm the running table (on trial) in flash, then answer `Confirmed`.
+    Confirm,
     /// Disarmed: answer `Disarmed`, and run the held START if there was one.
     Disarmed { start: bool },
 }
@@ -42,12 +64,31 @@ impl SwitchOver {
         self.staged
     }
 
-    /// A table of `generation` was staged (0: the staged one is gone).
+    /// A table of `generation` was staged (0: the staged one is gone). It went to the slot
+    /// of the previous generation, which is gone then.
     pub fn set_staged(&mut self, generation: u32) {
         if generation != self.staged {
             self.armed_until = None;
         }
+        if generation != 0 {
+            self.previous = 0;
+        }
         self.staged = generation;
+    }
+
+    /// The node booted with `generation` in its other slot, confirmed (0: none).
+    pub fn set_previous(&mut self, generation: u32) {
+        self.previous = generation;
+    }
+
+    /// The previous generation a rollback returns to (0: none).
+    pub fn previous(&self) -> u32 {
+        self.previous
+    }
+
+    /// Whether the running generation is on trial.
+    pub fn trial(&self) -> bool {
+        self.trial
     }
 
     /// Whether START is held.
@@ -68,9 +109,14 @@ impl SwitchOver {
         self.armed()
     }
 
-    /// Who asked for the activation in progress, if one is.
-    pub fn activating(&self) -> Option<u16> {
+    /// The activation in progress, if one is: who asked, and what.
+    pub fn activating(&self) -> Option<(u16, Target)> {
         self.activating
+    }
+
+    /// Who asked for the confirmation in progress, if one is.
+    pub fn confirming(&self) -> Option<u16> {
+        self.confirming
     }
 
     /// A `Switch { generation, step }` from `from`, with the running generation `running`
@@ -84,18 +130,31 @@ impl SwitchOver {
         idle: bool,
         now: u64,
     ) -> Action {
-        if self.activating.is_some() {
-            // The board is switching: the answer comes when it is done.
+        if self.activating.is_some() || self.confirming.is_some() {
+            // The board is at its flash: the answer comes when it is done.
             return Action::Reply(ConfigReply::Busy);
         }
         if step == SwitchStep::Disarm {
             return self.disarm();
         }
+        if step == SwitchStep::Confirm {
+            if generation != running || running == 0 {
+                return Action::Reply(ConfigReply::Refused(Refusal::NotStaged {
+                    staged: self.staged,
+                }));
+            }
+            if !self.trial {
+                return Action::Reply(ConfigReply::Confirmed);
+            }
+            self.confirming = Some(from);
+            return Action::Confirm;
+        }
         if generation == running && running != 0 && self.staged != generation {
             // Switched already (the answer was lost).
             return Action::Reply(ConfigReply::Activated);
         }
-        if self.staged != generation || generation == 0 {
+        let rollback = generation == self.previous && self.previous != 0;
+        if (self.staged != generation && !rollback) || generation == 0 {
             return Action::Reply(ConfigReply::Refused(Refusal::NotStaged {
                 staged: self.staged,
             }));
@@ -105,16 +164,32 @@ impl SwitchOver {
                 self.armed_until = Some(now + ARM_HOLD_MS);
                 Action::Reply(ConfigReply::Armed { idle })
             }
-            SwitchStep::Go { now: at_once } => {
+            SwitchStep::Go {
+                now: at_once,
+                trial,
+            } => {
                 if at_once || (self.armed() && idle) {
-                    self.activating = Some(from);
-                    Action::Activate
+                    let target = if rollback {
+                        Target::Previous
+                    } else {
+                        Target::Staged { trial }
+                    };
+                    self.activating = Some((from, target));
+                    Action::Activate(target)
                 } else {
                     Action::Reply(ConfigReply::Busy)
                 }
             }
-            SwitchStep::Disarm => self.disarm(),
+            SwitchStep::Disarm | SwitchStep::Confirm => self.disarm(),
         }
+    }
+
+    /// The board confirmed the running table (`ok`) or failed to: who asked.
+    pub fn confirmed(&mut self, ok: bool) -> Option<u16> {
+        if ok {
+            self.trial = false;
+        }
+        self.confirming.take()
     }
 
     fn disarm(&mut self) -> Action {
@@ -124,24 +199,41 @@ impl SwitchOver {
         Action::Disarmed { start }
     }
 
-    /// The board activated the staged table (`ok`) or failed to: who asked, and whether a
-    /// held START is to run now (on the new table).
-    pub fn activated(&mut self, ok: bool) -> (Option<u16>, bool) {
-        let from = self.activating.take();
+    /// The board activated the target (`ok`) or failed to, `running` being the generation
+    /// that ran until then: who asked, and whether a held START is to run now (on the new
+    /// table).
+    pub fn activated(&mut self, ok: bool, running: u32) -> (Option<u16>, bool) {
+        let asked = self.activating.take();
         let start = ok && self.held_start;
         if ok {
-            self.staged = 0;
+            match asked.map(|(_, t)| t) {
+                Some(Target::Staged { trial }) => {
+                    // The old table stays in its slot: the rollback target (a trial's is
+                    // not confirmed, so it is no target).
+                    self.previous = if self.trial { self.previous } else { running };
+                    self.staged = 0;
+                    self.trial = trial;
+                }
+                Some(Target::Previous) => {
+                    // The rolled-back table is revoked: nothing to return to.
+                    self.previous = 0;
+                    self.trial = false;
+                }
+                None => {}
+            }
             self.armed_until = None;
             self.held_start = false;
         }
-        (from, start)
+        (asked.map(|(from, _)| from), start)
     }
 
     /// Time passed: an armed node left alone too long disarms. Returns whether to run a
     /// held START.
     pub fn poll(&mut self, now: u64) -> bool {
         match self.armed_until {
-            Some(until) if now >= until && self.activating.is_none() => {
+            Some(until)
+                if now >= until && self.activating.is_none() && self.confirming.is_none() =>
+            {
                 matches!(self.disarm(), Action::Disarmed { start: true })
             }
             _ => false,
@@ -213,6 +305,8 @@ enum Phase {
 pub struct Coordinator {
     generation: u32,
     now: bool,
+    /// Switch as a trial (`Go { trial }`).
+    trial: bool,
     /// Until when the machine may take to become idle.
     wait_until: u64,
     phase: Phase,
@@ -229,6 +323,7 @@ impl Coordinator {
         let mut c = Coordinator {
             generation,
             now,
+            trial: false,
             wait_until: start + wait_ms,
             phase: if now { Phase::Going } else { Phase::Arming },
             verdict: Verdict::Busy,
@@ -244,6 +339,13 @@ impl Coordinator {
             let _ = c.nodes.push((n, state, 0, start));
         }
         c
+    }
+
+    /// The switch as a trial: activated, not confirmed (a power cut, or a rollback,
+    /// returns to the previous generation).
+    pub fn on_trial(mut self) -> Self {
+        self.trial = true;
+        self
     }
 
     /// How it ended (`Busy` until every node has its last answer: a call-off is over when
@@ -298,7 +400,10 @@ impl Coordinator {
             (Phase::Disarming, _) => SwitchStep::Disarm,
             // A node that lost its arming (it rebooted) is armed again before it goes.
             (Phase::Going, NodeState::Arming) if !self.now => SwitchStep::Arm,
-            (Phase::Going, _) => SwitchStep::Go { now: self.now },
+            (Phase::Going, _) => SwitchStep::Go {
+                now: self.now,
+                trial: self.trial,
+            },
             _ => SwitchStep::Arm,
         }
     }
@@ -459,7 +564,10 @@ mod tests {
     #[test]
     fn go_switches_only_when_armed_and_idle_or_now() {
         let mut s = staged(2);
-        let go = SwitchStep::Go { now: false };
+        let go = SwitchStep::Go {
+            now: false,
+            trial: false,
+        };
         assert_eq!(
             s.step(2, go, TOOL, 1, true, 0),
             Action::Reply(ConfigReply::Busy)
@@ -473,9 +581,15 @@ mod tests {
             s.step(2, go, TOOL, 1, false, 1),
             Action::Reply(ConfigReply::Busy)
         );
-        assert_eq!(s.step(2, go, TOOL, 1, true, 2), Action::Activate);
-        assert_eq!(s.activating(), Some(TOOL));
-        assert_eq!(s.activated(true), (Some(TOOL), false));
+        assert_eq!(
+            s.step(2, go, TOOL, 1, true, 2),
+            Action::Activate(Target::Staged { trial: false })
+        );
+        assert_eq!(
+            s.activating(),
+            Some((TOOL, Target::Staged { trial: false }))
+        );
+        assert_eq!(s.activated(true, 1), (Some(TOOL), false));
         assert_eq!(s.staged(), 0);
         // The answer was lost: asked again, it is switched.
         assert_eq!(
@@ -483,8 +597,14 @@ mod tests {
             Action::Reply(ConfigReply::Activated)
         );
         let mut s = staged(2);
-        let now = SwitchStep::Go { now: true };
-        assert_eq!(s.step(2, now, TOOL, 1, false, 0), Action::Activate);
+        let now = SwitchStep::Go {
+            now: true,
+            trial: false,
+        };
+        assert_eq!(
+            s.step(2, now, TOOL, 1, false, 0),
+            Action::Activate(Target::Staged { trial: false })
+        );
     }
 
     #[test]
@@ -493,8 +613,18 @@ mod tests {
         assert!(!s.hold_start(), "not armed: START runs");
         s.step(2, SwitchStep::Arm, TOOL, 1, true, 0);
         assert!(s.hold_start());
-        s.step(2, SwitchStep::Go { now: false }, TOOL, 1, true, 1);
-        assert_eq!(s.activated(true), (Some(TOOL), true));
+        s.step(
+            2,
+            SwitchStep::Go {
+                now: false,
+                trial: false,
+            },
+            TOOL,
+            1,
+            true,
+            1,
+        );
+        assert_eq!(s.activated(true, 1), (Some(TOOL), true));
         let mut s = staged(2);
         s.step(2, SwitchStep::Arm, TOOL, 1, true, 0);
         assert!(s.hold_start());
@@ -525,17 +655,93 @@ mod tests {
         );
         let mut none = SwitchOver::default();
         assert_eq!(
-            none.step(2, SwitchStep::Go { now: true }, TOOL, 1, true, 0),
+            none.step(
+                2,
+                SwitchStep::Go {
+                    now: true,
+                    trial: false
+                },
+                TOOL,
+                1,
+                true,
+                0
+            ),
             Action::Reply(ConfigReply::Refused(Refusal::NotStaged { staged: 0 }))
         );
+    }
+
+    #[test]
+    fn a_trial_is_confirmed_or_rolled_back_to_the_generation_before_it() {
+        let trial = SwitchStep::Go {
+            now: true,
+            trial: true,
+        };
+        // Generation 1 runs; 2 is staged and switched to on trial.
+        let mut s = staged(2);
+        assert_eq!(
+            s.step(2, trial, TOOL, 1, true, 0),
+            Action::Activate(Target::Staged { trial: true })
+        );
+        s.activated(true, 1);
+        assert_eq!((s.trial(), s.previous(), s.staged()), (true, 1, 0));
+        // Roll back to 1: armed and idle, then go.
+        assert_eq!(
+            s.step(1, SwitchStep::Arm, TOOL, 2, true, 1),
+            Action::Reply(ConfigReply::Armed { idle: true })
+        );
+        let go = SwitchStep::Go {
+            now: false,
+            trial: false,
+        };
+        assert_eq!(
+            s.step(1, go, TOOL, 2, true, 2),
+            Action::Activate(Target::Previous)
+        );
+        s.activated(true, 2);
+        assert_eq!(
+            (s.trial(), s.previous()),
+            (false, 0),
+            "nothing to return to"
+        );
+        // Or confirm it.
+        let mut s = staged(2);
+        s.step(2, trial, TOOL, 1, true, 0);
+        s.activated(true, 1);
+        assert_eq!(
+            s.step(2, SwitchStep::Confirm, TOOL, 2, true, 1),
+            Action::Confirm
+        );
+        assert_eq!(s.confirmed(true), Some(TOOL));
+        assert!(!s.trial());
+        assert_eq!(
+            s.step(2, SwitchStep::Confirm, TOOL, 2, true, 2),
+            Action::Reply(ConfigReply::Confirmed),
+            "confirmed already"
+        );
+        // A trial over a trial keeps the confirmed generation as the one to return to.
+        let mut s = staged(2);
+        s.step(2, trial, TOOL, 1, true, 0);
+        s.activated(true, 1);
+        s.set_staged(3);
+        assert_eq!(s.previous(), 0, "staging went over the previous slot");
     }
 
     #[test]
     fn a_failed_activation_keeps_the_staged_table_and_the_arming() {
         let mut s = staged(2);
         s.step(2, SwitchStep::Arm, TOOL, 1, true, 0);
-        s.step(2, SwitchStep::Go { now: false }, TOOL, 1, true, 1);
-        assert_eq!(s.activated(false), (Some(TOOL), false));
+        s.step(
+            2,
+            SwitchStep::Go {
+                now: false,
+                trial: false,
+            },
+            TOOL,
+            1,
+            true,
+            1,
+        );
+        assert_eq!(s.activated(false, 1), (Some(TOOL), false));
         assert_eq!((s.staged(), s.armed()), (2, true));
     }
 
@@ -608,10 +814,14 @@ mod tests {
                     };
                     let reply = match n.1.step(generation, step, TOOL, n.3, n.2, self.now) {
                         Action::Reply(r) => r,
-                        Action::Activate => {
-                            n.1.activated(true);
+                        Action::Activate(_) => {
+                            n.1.activated(true, n.3);
                             n.3 = 2;
                             ConfigReply::Activated
+                        }
+                        Action::Confirm => {
+                            n.1.confirmed(true);
+                            ConfigReply::Confirmed
                         }
                         Action::Disarmed { .. } => ConfigReply::Disarmed,
                     };
@@ -635,7 +845,10 @@ mod tests {
         assert_eq!(m.running().as_slice(), &[2, 2, 2]);
         let steps: heapless::Vec<SwitchStep, 16> = m.log.iter().map(|l| l.2).collect();
         let arm = SwitchStep::Arm;
-        let go = SwitchStep::Go { now: false };
+        let go = SwitchStep::Go {
+            now: false,
+            trial: false,
+        };
         assert_eq!(
             steps.as_slice(),
             &[arm, arm, arm, arm, arm, arm, go, go, go]
@@ -665,7 +878,13 @@ mod tests {
         let to = |addr: u16| -> heapless::Vec<SwitchStep, 16> {
             m.log.iter().filter(|l| l.1 == addr).map(|l| l.2).collect()
         };
-        let (arm, go) = (SwitchStep::Arm, SwitchStep::Go { now: false });
+        let (arm, go) = (
+            SwitchStep::Arm,
+            SwitchStep::Go {
+                now: false,
+                trial: false,
+            },
+        );
         assert_eq!(to(0x11).as_slice(), &[arm, arm, go, arm, go]);
         assert_eq!(to(0x12).as_slice(), &[arm, arm, go, go, go]);
     }
@@ -694,7 +913,10 @@ mod tests {
         m.nodes[0].2 = false;
         assert_eq!(m.run(1_000), Verdict::Switched);
         let steps: heapless::Vec<SwitchStep, 4> = m.log.iter().map(|l| l.2).collect();
-        let go = SwitchStep::Go { now: true };
+        let go = SwitchStep::Go {
+            now: true,
+            trial: false,
+        };
         assert_eq!(steps.as_slice(), &[go, go]);
     }
 }

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use config_schema::link_keys;
 use config_schema::wire::mac::BROADCAST;
-use config_schema::wire::msg::{Announce, Command, Message, Status};
+use config_schema::wire::msg::{Announce, Command, ConfigReply, Message, Status, SwitchStep};
 use node_fw::ota::{Progress, Sender, TransferStats};
 use node_fw::switch::{Coordinator, NodeState, Verdict};
 
@@ -187,6 +187,19 @@ pub fn switch_over(
     now: bool,
     wait: Duration,
 ) -> io::Result<Verdict> {
+    switch_over_as(radio, pushed, generation, now, false, wait)
+}
+
+/// [`switch_over`]; `trial`: activated on trial, not confirmed (a power cut or a
+/// [`rollback`] returns to the previous generation; [`confirm`] keeps it).
+pub fn switch_over_as(
+    radio: &mut ToolRadio,
+    pushed: &mut [Pushed],
+    generation: u32,
+    now: bool,
+    trial: bool,
+    wait: Duration,
+) -> io::Result<Verdict> {
     let nodes: Vec<u16> = pushed
         .iter()
         .filter(|p| p.progress == Progress::Done)
@@ -195,9 +208,26 @@ pub fn switch_over(
     if nodes.is_empty() {
         return Ok(Verdict::Aborted);
     }
+    let mut c = Coordinator::new(&nodes, generation, now, wait.as_millis() as u64, 0);
+    if trial {
+        c = c.on_trial();
+    }
+    let (verdict, states) = coordinate(radio, c)?;
+    for (addr, state) in states {
+        for p in pushed.iter_mut().filter(|p| p.addr == addr) {
+            p.switch = Some(state);
+        }
+    }
+    Ok(verdict)
+}
+
+/// Runs a coordinator to its end: the verdict and where each node stands.
+fn coordinate(
+    radio: &mut ToolRadio,
+    mut c: Coordinator,
+) -> io::Result<(Verdict, Vec<(u16, NodeState)>)> {
     let start = Instant::now();
     let now_ms = || start.elapsed().as_millis() as u64;
-    let mut c = Coordinator::new(&nodes, generation, now, wait.as_millis() as u64, 0);
     let mut out: Vec<(u16, Message<'static>)> = Vec::new();
     while c.verdict() == Verdict::Busy {
         c.poll(now_ms(), |a, m| out.push((a, m)));
@@ -211,12 +241,60 @@ pub fn switch_over(
             }
         }
     }
-    for (addr, state) in c.nodes() {
-        for p in pushed.iter_mut().filter(|p| p.addr == addr) {
-            p.switch = Some(state);
+    Ok((c.verdict(), c.nodes().collect()))
+}
+
+/// Returns every node of `nodes` to its previous generation `generation` together, at the
+/// machine's next idle point within `wait` (or `now`): a rollback. Where each ended.
+pub fn rollback(
+    radio: &mut ToolRadio,
+    nodes: &[u16],
+    generation: u32,
+    now: bool,
+    wait: Duration,
+) -> io::Result<(Verdict, Vec<(u16, NodeState)>)> {
+    let c = Coordinator::new(nodes, generation, now, wait.as_millis() as u64, 0);
+    coordinate(radio, c)
+}
+
+/// Confirms generation `generation` (on trial) on every node of `nodes`, resending until
+/// each answers; each node's last answer (`None`: it never answered).
+pub fn confirm(
+    radio: &mut ToolRadio,
+    nodes: &[u16],
+    generation: u32,
+    timeout: Duration,
+) -> io::Result<Vec<(u16, Option<ConfigReply>)>> {
+    let mut answers: Vec<(u16, Option<ConfigReply>)> = nodes.iter().map(|&n| (n, None)).collect();
+    let end = Instant::now() + timeout;
+    let step = Message::Switch {
+        generation,
+        step: SwitchStep::Confirm,
+    };
+    while Instant::now() < end
+        && answers
+            .iter()
+            .any(|a| !matches!(a.1, Some(r) if r != ConfigReply::Busy))
+    {
+        for (n, a) in &answers {
+            if !matches!(a, Some(r) if *r != ConfigReply::Busy) {
+                radio.send(*n, &step)?;
+            }
+        }
+        let until = (Instant::now() + Duration::from_millis(150)).min(end);
+        while let Some(r) = radio.recv(until)? {
+            if let Some(Message::ConfigReply {
+                generation: g,
+                reply,
+            }) = r.message()
+            {
+                if let Some(a) = answers.iter_mut().find(|a| a.0 == r.src && g == generation) {
+                    a.1 = Some(reply);
+                }
+            }
         }
     }
-    Ok(c.verdict())
+    Ok(answers)
 }
 
 /// Command ids: start somewhere new in every run (a node remembers the last id it ran

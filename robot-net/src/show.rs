@@ -17,7 +17,11 @@ pub fn status_text(addr: u16, s: &Status) -> String {
     format!(
         "{addr:#06x}  role {role}  generation {}{}\n  states {}  outputs {:#06x}  inputs {:#06x}  fault {}\n  link alarms {:#010b}  broken {:#010b}  epoch {}\n  frames sent {} received {} retried {} dropped {}  events delivered {}\n  tx queue full {}  high-water {}  radio failures {}  flash failures {}",
         s.generation,
-        staged_note(s.staged),
+        format!(
+            "{}{}",
+            if s.trial { "  on trial" } else { "" },
+            staged_note(s.staged)
+        ),
         if states.is_empty() { "-".to_string() } else { states.join(" ") },
         s.outputs,
         s.inputs,

@@ -56,7 +56,8 @@ pub enum Message<'a> {
     Challenge { nonce: u32 },
     /// The answer to a `Challenge`: its counter becomes the sender's floor at the node.
     ChallengeAnswer { nonce: u32 },
-    /// The switch-over to a staged generation (answered by `ConfigReply`).
+    /// The switch-over to `generation`, the staged one or (a rollback) the previous one
+    /// (answered by `ConfigReply`).
     Switch { generation: u32, step: SwitchStep },
 }
 
@@ -65,11 +66,14 @@ pub enum Message<'a> {
 pub enum SwitchStep {
     /// Get ready: hold any START until the switch, and say whether the node is idle.
     Arm,
-    /// Switch to the staged generation now if armed and idle; with `now`, whatever the
-    /// node is doing (a stopped or faulted machine).
-    Go { now: bool },
+    /// Switch to the generation now if armed and idle; with `now`, whatever the node is
+    /// doing (a stopped or faulted machine). `trial`: not confirmed yet (a power cut, or a
+    /// rollback, returns to the previous generation).
+    Go { now: bool, trial: bool },
     /// The switch-over is off: run a held START on the running table.
     Disarm,
+    /// The running generation (on trial) is confirmed: it stays the boot table.
+    Confirm,
 }
 
 /// Where a table transfer stands, from the receiving node.
@@ -90,6 +94,8 @@ pub enum ConfigReply {
     Busy,
     /// Disarmed: the running table goes on.
     Disarmed,
+    /// The running generation is confirmed (no longer on trial).
+    Confirmed,
 }
 
 /// Why a transfer was refused.
@@ -110,10 +116,14 @@ pub enum Refusal {
     /// The table uses board pin `pin`, which this node's board lacks (`board`: bit n, the
     /// board has pin n).
     Pin { pin: u8, board: u64 },
-    /// A switch to a generation that is not the staged one (`staged`: 0 for none).
+    /// A switch to a generation that is neither the staged one nor the previous one
+    /// (`staged`: 0 for none).
     NotStaged { staged: u32 },
     /// A transfer of an older generation than the one in progress (not forced).
     Superseded { transfer: u32 },
+    /// The running generation is on trial: confirm it or roll it back first (a new table
+    /// would go over the previous one, the only confirmed table).
+    OnTrial,
 }
 
 impl core::fmt::Display for Refusal {
@@ -131,6 +141,10 @@ impl core::fmt::Display for Refusal {
             Refusal::NotStaged { staged } => {
                 write!(f, "generation {staged} is staged, not this one")
             }
+            Refusal::OnTrial => write!(
+                f,
+                "the running generation is on trial: confirm or roll back first"
+            ),
             Refusal::Superseded { transfer } => {
                 write!(
                     f,
@@ -233,6 +247,10 @@ pub struct Status {
     pub generation: u32,
     /// The generation staged for the switch-over (0: none).
     pub staged: u32,
+    /// The previous generation a rollback returns to (0: none).
+    pub previous: u32,
+    /// The running generation is on trial (not confirmed).
+    pub trial: bool,
     pub states: Vec<u8, MAX_CHARTS>,
     pub outputs: u16,
     pub inputs: u16,
@@ -361,6 +379,8 @@ mod tests {
             role,
             generation: u32::MAX,
             staged: u32::MAX,
+            previous: u32::MAX,
+            trial: true,
             states,
             outputs: u16::MAX,
             inputs: u16::MAX,

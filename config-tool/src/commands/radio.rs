@@ -8,11 +8,11 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use config_schema::wire::medium::{Link, Peer};
-use config_schema::wire::msg::{Command, Message, SecurityReport, Status};
+use config_schema::wire::msg::{Command, ConfigReply, Message, SecurityReport, Status};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use medium::Conn;
 use node_fw::ota::Progress;
-use node_fw::switch::Verdict;
+use node_fw::switch::{NodeState, Verdict};
 use robot_net::demo;
 use robot_net::push::{self, Ids};
 use robot_net::radio::{ToolRadio, TOOL_ADDR};
@@ -20,7 +20,7 @@ use robot_net::{live_plant, show};
 
 use robot_compiler::model::Security;
 
-use crate::cli::{KeysArg, MediumAddr, PushArgs, QemuNodeArgs, VerifyHow};
+use crate::cli::{KeysArg, MediumAddr, PushArgs, QemuNodeArgs, SwitchArgs, VerifyHow};
 use crate::commands::offline;
 use crate::failure::{exit, Failure};
 use crate::tool_keys::{self, KeysFrom, KEYS_ENV};
@@ -178,17 +178,18 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
         None
     } else {
         Some(
-            push::switch_over(
+            push::switch_over_as(
                 &mut radio,
                 &mut outcomes,
                 c.ir.generation,
                 flags.now,
+                flags.trial,
                 Duration::from_secs(flags.wait),
             )
             .map_err(Failure::error)?,
         )
     };
-    report_push(&outcomes, verdict)
+    report_push(&outcomes, verdict, flags.trial)
 }
 
 /// The keys `push` secures with: a secured robot (the default) needs them; an unsecured one
@@ -283,7 +284,11 @@ fn push_with_bars(
     Ok(outcomes)
 }
 
-fn report_push(outcomes: &[push::Pushed], verdict: Option<Verdict>) -> Result<(), Failure> {
+fn report_push(
+    outcomes: &[push::Pushed],
+    verdict: Option<Verdict>,
+    trial: bool,
+) -> Result<(), Failure> {
     for o in outcomes {
         println!("{}", demo::push_line(o));
     }
@@ -313,6 +318,13 @@ fn report_push(outcomes: &[push::Pushed], verdict: Option<Verdict>) -> Result<()
             println!("staged on every node: `push` the same generation again to switch");
             Ok(())
         }
+        Some(Verdict::Switched) if trial => {
+            println!(
+                "switched on trial: `config-tool confirm` keeps it; a power cut or \
+                 `config-tool rollback` returns to the previous generation"
+            );
+            Ok(())
+        }
         Some(Verdict::Switched) => {
             println!("switched: every node runs the new generation");
             Ok(())
@@ -340,6 +352,107 @@ pub fn status(at: &MediumAddr, node: u16, keys: &KeysArg) -> Result<(), Failure>
     println!("{}", show::status_text(node, &s));
     println!("{}", show::security_text(&r));
     Ok(())
+}
+
+/// The radio and the statuses of every node of `flags.robot`.
+fn machine(flags: &SwitchArgs) -> Result<(ToolRadio, Vec<(String, u16, Status)>), Failure> {
+    let c = demo::load(&flags.robot)?;
+    let keys = push_keys(
+        &flags.robot,
+        &c,
+        KeysFrom::resolve(flags.keys.keys.as_deref()),
+    )?;
+    let mut radio = connect_keyed(&flags.at, keys.as_ref())?;
+    let mut ids = Ids::default();
+    let mut nodes = Vec::new();
+    for r in &c.ir.roles {
+        let s = command(&mut radio, &mut ids, r.address, Command::Status)?;
+        nodes.push((r.name.clone(), r.address, s));
+    }
+    Ok((radio, nodes))
+}
+
+/// `confirm`: the generation on trial stays.
+pub fn confirm(flags: &SwitchArgs) -> Result<(), Failure> {
+    let (mut radio, nodes) = machine(flags)?;
+    let trial: Vec<u16> = nodes.iter().filter(|n| n.2.trial).map(|n| n.1).collect();
+    if trial.is_empty() {
+        println!("nothing on trial: every node's generation is confirmed");
+        return Ok(());
+    }
+    let generation = nodes
+        .iter()
+        .find(|n| n.2.trial)
+        .map_or(0, |n| n.2.generation);
+    let answers =
+        push::confirm(&mut radio, &trial, generation, ANSWER_WITHIN).map_err(Failure::error)?;
+    let mut all = true;
+    for (role, addr, _) in nodes.iter().filter(|n| n.2.trial) {
+        let answer = answers.iter().find(|a| a.0 == *addr).and_then(|a| a.1);
+        let what = match answer {
+            Some(ConfigReply::Confirmed) => "confirmed".to_string(),
+            Some(other) => {
+                all = false;
+                format!("NOT confirmed: {other:?}")
+            }
+            None => {
+                all = false;
+                "NOT confirmed: no answer".to_string()
+            }
+        };
+        println!("  {role:<6} {addr:#06x}  generation {generation}  {what}");
+    }
+    if all {
+        Ok(())
+    } else {
+        Err(Failure {
+            code: exit::PUSH_FAILED,
+            ..Failure::error(
+                "not every node confirmed: a power cut returns those to the previous generation",
+            )
+        })
+    }
+}
+
+/// `rollback`: every node back to its previous generation, together.
+pub fn rollback(flags: &SwitchArgs) -> Result<(), Failure> {
+    let (mut radio, nodes) = machine(flags)?;
+    let previous: Vec<u32> = nodes.iter().map(|n| n.2.previous).collect();
+    let target = previous.first().copied().unwrap_or(0);
+    if target == 0 || previous.iter().any(|&p| p != target) {
+        let each: Vec<String> = nodes
+            .iter()
+            .map(|(role, _, s)| format!("{role} {}", s.previous))
+            .collect();
+        return Err(Failure::error(format!(
+            "no common previous generation to return to (per node: {})",
+            each.join(", ")
+        )));
+    }
+    let addrs: Vec<u16> = nodes.iter().map(|n| n.1).collect();
+    let (verdict, states) = push::rollback(
+        &mut radio,
+        &addrs,
+        target,
+        flags.now,
+        Duration::from_secs(flags.wait),
+    )
+    .map_err(Failure::error)?;
+    for (role, addr, _) in &nodes {
+        let state = states.iter().find(|s| s.0 == *addr).map(|s| s.1);
+        let what = match state {
+            Some(NodeState::Switched) => "rolled back".to_string(),
+            other => format!("NOT rolled back: {other:?}"),
+        };
+        println!("  {role:<6} {addr:#06x}  generation {target}  {what}");
+    }
+    match verdict {
+        Verdict::Switched => Ok(()),
+        _ => Err(Failure {
+            code: exit::PUSH_FAILED,
+            ..Failure::error(format!("the rollback did not finish: {verdict:?}"))
+        }),
+    }
 }
 
 pub fn start(at: &MediumAddr, node: u16, keys: &KeysArg) -> Result<(), Failure> {
