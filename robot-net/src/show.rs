@@ -15,13 +15,10 @@ pub fn status_text(addr: u16, s: &Status) -> String {
     let states: Vec<String> = s.states.iter().map(|x| format!("S{x}")).collect();
     let (c, r) = (s.counters, s.runtime);
     format!(
-        "{addr:#06x}  role {role}  generation {}{}\n  states {}  outputs {:#06x}  inputs {:#06x}  fault {}\n  link alarms {:#010b}  broken {:#010b}  epoch {}\n  frames sent {} received {} retried {} dropped {}  events delivered {}\n  tx queue full {}  high-water {}  radio failures {}  flash failures {}",
+        "{addr:#06x}  role {role}  generation {}{}{}\n  states {}  outputs {:#06x}  inputs {:#06x}  fault {}\n  link alarms {:#010b}  broken {:#010b}  epoch {}\n  frames sent {} received {} retried {} dropped {}  events delivered {}\n  tx queue full {}  high-water {}  radio failures {}  flash failures {}",
         s.generation,
-        format!(
-            "{}{}",
-            if s.trial { "  on trial" } else { "" },
-            staged_note(s.staged)
-        ),
+        if s.trial { "  on trial" } else { "" },
+        staged_note(s.staged),
         if states.is_empty() { "-".to_string() } else { states.join(" ") },
         s.outputs,
         s.inputs,
