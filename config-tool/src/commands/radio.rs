@@ -354,8 +354,11 @@ pub fn status(at: &MediumAddr, node: u16, keys: &KeysArg) -> Result<(), Failure>
     Ok(())
 }
 
+/// A role's node and its status: (role, address, status).
+type RoleStatus = (String, u16, Status);
+
 /// The radio and the statuses of every node of `flags.robot`.
-fn machine(flags: &SwitchArgs) -> Result<(ToolRadio, Vec<(String, u16, Status)>), Failure> {
+fn machine(flags: &SwitchArgs) -> Result<(ToolRadio, Vec<RoleStatus>), Failure> {
     let c = demo::load(&flags.robot)?;
     let keys = push_keys(
         &flags.robot,
