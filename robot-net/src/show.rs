@@ -180,6 +180,8 @@ mod tests {
             role: heapless::String::try_from("GR").unwrap(),
             generation: 3,
             staged: 0,
+            previous: 0,
+            trial: false,
             states: heapless::Vec::from_slice(&[2, 0]).unwrap(),
             outputs: 0x0002,
             inputs: 0x0001,
