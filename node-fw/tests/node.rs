@@ -75,7 +75,10 @@ fn serve_flash(node: &mut NodeCore, board: &mut Board, ok: bool, now: u64) {
             }
             node.staged(ok, board);
         }
-        Some(FlashRequest::Activate) => {
+        Some(FlashRequest::Confirm) => node.confirmed(ok, board),
+        // This harness keeps one staged copy, no previous table.
+        Some(FlashRequest::Rollback) => node.activated(None, now, board),
+        Some(FlashRequest::Activate { .. }) => {
             let deployed = board
                 .staged
                 .take()
