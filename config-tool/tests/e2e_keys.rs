@@ -291,6 +291,63 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     assert!(found.ends_with("5 node(s)\n"), "the spare too: {found}");
     assert_eq!(ok(&["scan", "--medium", &m]), "0 node(s)\n");
 
+    // Generation 3 on trial; rolled back to 2; on trial again and confirmed.
+    let push_trial = |generation: &str| {
+        ok(&[
+            "push",
+            ROBOT,
+            "--keys",
+            &key_s,
+            "--medium",
+            &m,
+            "--generation",
+            generation,
+            "--trial",
+        ])
+    };
+    let trial = push_trial("3");
+    assert!(
+        trial.ends_with(
+            "switched on trial: `config-tool confirm` keeps it; a power cut or \
+             `config-tool rollback` returns to the previous generation\n"
+        ),
+        "{trial}"
+    );
+    assert_eq!(
+        status(&key_s, &m, "0x0011")[0],
+        "0x0011  role VC  generation 3  on trial"
+    );
+    let back = ok(&["rollback", ROBOT, "--keys", &key_s, "--medium", &m]);
+    let expect: Vec<String> =
+        c.ir.roles
+            .iter()
+            .map(|r| {
+                format!(
+                    "  {:<6} {:#06x}  generation 2  rolled back",
+                    r.name, r.address
+                )
+            })
+            .collect();
+    assert_eq!(back.lines().collect::<Vec<_>>(), expect, "{back}");
+    assert_eq!(
+        status(&key_s, &m, "0x0011")[0],
+        "0x0011  role VC  generation 2"
+    );
+    push_trial("4");
+    let kept = ok(&["confirm", ROBOT, "--keys", &key_s, "--medium", &m]);
+    assert!(
+        kept.lines().all(|l| l.ends_with("generation 4  confirmed")),
+        "{kept}"
+    );
+    assert_eq!(
+        status(&key_s, &m, "0x0011")[0],
+        "0x0011  role VC  generation 4"
+    );
+    assert_eq!(
+        ok(&["confirm", ROBOT, "--keys", &key_s, "--medium", &m]),
+        "nothing on trial: every node's generation is confirmed\n"
+    );
+
     stop.store(true, Ordering::Relaxed);
     drop(nodes);
     medium.stop();
