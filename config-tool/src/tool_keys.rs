@@ -7,16 +7,20 @@
 //! it is strictly increasing across runs of the tool and power cuts with one write per run
 //! and per 1024 frames. A process holds an exclusive advisory lock (`flock`) on the counter
 //! file for as long as it may send: a second process with the same key file is refused
-//! rather than handed the same counters.
+//! rather than handed the same counters (after waiting [`LOCK_WAIT`] for it to let go).
 
 use std::fs::{File, OpenOptions};
 use std::io::{self, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
 use node_fw::host::flash::{counter_path, OpenError, COUNTER_FILE_SIZE};
 use node_fw::host::HostError;
 use robot_keys::{load_machine_secret, KeyFileError, MachineSecret};
 use robot_net::radio::CounterSource;
+
+/// How long a run waits for another run's lock on the counter file before it is refused.
+pub const LOCK_WAIT: Duration = Duration::from_secs(2);
 
 /// The environment variable that stands for `--keys FILE` when the flag is not given.
 pub const KEYS_ENV: &str = "CONFIG_TOOL_KEYS";
@@ -128,12 +132,20 @@ fn lock(path: &Path) -> Result<File, ToolKeyError> {
     #[cfg(unix)]
     {
         use rustix::fs::{flock, FlockOperation};
-        match flock(&file, FlockOperation::NonBlockingLockExclusive) {
-            Ok(()) => {}
-            Err(e) if e == rustix::io::Errno::WOULDBLOCK => {
-                return Err(ToolKeyError::Locked(path.to_path_buf()))
+        // Another run that is ending (or a process forked while it held the file) gets
+        // LOCK_WAIT to let go; then this run is refused.
+        let until = Instant::now() + LOCK_WAIT;
+        loop {
+            match flock(&file, FlockOperation::NonBlockingLockExclusive) {
+                Ok(()) => break,
+                Err(e) if e == rustix::io::Errno::WOULDBLOCK => {
+                    if Instant::now() >= until {
+                        return Err(ToolKeyError::Locked(path.to_path_buf()));
+                    }
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+                Err(e) => return Err(io_err(e.into())),
             }
-            Err(e) => return Err(io_err(e.into())),
         }
     }
     let len = file.metadata().map_err(io_err)?.len();
