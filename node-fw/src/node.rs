@@ -501,6 +501,18 @@ impl NodeCore {
         })
     }
 
+    /// The transfer buffer, lent to the board to read a slot back into (any transfer in
+    /// progress is dropped: the tool starts it again); [`NodeCore::lent`] reads it.
+    pub fn lend_buffer(&mut self) -> &mut [u8] {
+        self.ota.abort();
+        self.ota.buffer_mut()
+    }
+
+    /// The first `len` bytes of the lent buffer.
+    pub fn lent(&self, len: usize) -> &[u8] {
+        self.ota.blob(len)
+    }
+
     /// The node booted with `generation` confirmed in its other slot: what a rollback
     /// returns to.
     pub fn with_previous(mut self, generation: u32) -> Self {

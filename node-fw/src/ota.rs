@@ -121,6 +121,11 @@ impl Receiver {
         self.staging.get(..len).unwrap_or(&[])
     }
 
+    /// The whole staging buffer (to read a stored table back into).
+    pub fn buffer_mut(&mut self) -> &mut [u8] {
+        &mut self.staging
+    }
+
     /// Forgets any transfer in progress.
     pub fn abort(&mut self) {
         self.transfer = None;

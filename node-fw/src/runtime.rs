@@ -18,6 +18,7 @@
 
 use core::convert::Infallible;
 
+use config_schema::link_keys::decode_deployment;
 use config_schema::wire::mac::MAX_PSDU;
 use embassy_futures::select::{select3, select_array, Either3};
 use embassy_time::{with_timeout, Duration, Instant, Timer};
@@ -381,42 +382,33 @@ async fn serve_flash<F: NorFlash, P: Pins>(
             core.confirmed(ok, io);
         }
         Some(FlashRequest::Rollback) => {
-            let deployed = match (at.previous, at.running) {
-                (Some(slot), Some(running)) => match slots.read_table(slot).await {
-                    // Revoked first: a power cut after it boots the previous table too.
-                    Ok(Some(loaded)) => match slots.revoke(running).await {
-                        Ok(()) => {
-                            at.running = Some(slot);
-                            at.previous = None;
-                            at.trial = false;
-                            Some((loaded.table, loaded.keys))
-                        }
-                        Err(e) => {
-                            warn!("node {addr:#06x}: cannot revoke slot {running}: {e:?}");
-                            None
-                        }
-                    },
-                    _ => None,
-                },
+            let read = match (at.previous, at.running) {
+                // Revoked first: a power cut after it boots the previous table too.
+                (Some(slot), Some(running)) => {
+                    match slots.read_into(slot, core.lend_buffer()).await {
+                        Ok(Some(len)) => match slots.revoke(running).await {
+                            Ok(()) => {
+                                at.running = Some(slot);
+                                at.previous = None;
+                                at.trial = false;
+                                Some(len)
+                            }
+                            Err(e) => {
+                                warn!("node {addr:#06x}: cannot revoke slot {running}: {e:?}");
+                                None
+                            }
+                        },
+                        _ => None,
+                    }
+                }
                 _ => None,
             };
-            if deployed.is_none() {
-                io.stats.flash_failures += 1;
-            }
-            core.activated(deployed, now_ms(), io);
-            if let Some(t) = core.table() {
-                info!(
-                    "node {addr:#06x}: rolled back to role {} generation {} (slot {})",
-                    t.header.role,
-                    t.generation,
-                    at.running.unwrap_or(0)
-                );
-            }
+            switched(addr, core, at, io, read, "rolled back to");
         }
         Some(FlashRequest::Activate { trial }) => {
-            let deployed = match at.staged {
-                Some(slot) => match slots.read_table(slot).await {
-                    Ok(Some(loaded)) => match slots.activate(slot, at.next_serial, trial).await {
+            let read = match at.staged {
+                Some(slot) => match slots.read_into(slot, core.lend_buffer()).await {
+                    Ok(Some(len)) => match slots.activate(slot, at.next_serial, trial).await {
                         Ok(()) => {
                             at.next_serial = at.next_serial.wrapping_add(1);
                             if !at.trial {
@@ -425,7 +417,7 @@ async fn serve_flash<F: NorFlash, P: Pins>(
                             at.running = Some(slot);
                             at.staged = None;
                             at.trial = trial;
-                            Some((loaded.table, loaded.keys))
+                            Some(len)
                         }
                         Err(e) => {
                             warn!("node {addr:#06x}: cannot activate slot {slot}: {e:?}");
@@ -436,20 +428,36 @@ async fn serve_flash<F: NorFlash, P: Pins>(
                 },
                 None => None,
             };
-            if deployed.is_none() {
-                io.stats.flash_failures += 1;
-            }
-            core.activated(deployed, now_ms(), io);
-            if let Some(t) = core.table() {
-                io.stats.activations += 1;
-                info!(
-                    "node {addr:#06x}: activated role {} generation {} (slot {})",
-                    t.header.role,
-                    t.generation,
-                    at.running.unwrap_or(0)
-                );
-            }
+            switched(addr, core, at, io, read, "activated");
         }
+    }
+}
+
+/// The slot (its blob read back into the core's buffer, `len` bytes, or `None`: the flash
+/// failed) is the boot table now: the core switches to it. Decoded here, after the last
+/// await, so the table never lives in the runtime's future.
+fn switched<P: Pins>(
+    addr: u16,
+    core: &mut NodeCore,
+    at: &SlotsAt,
+    io: &mut CoreIo<'_, P>,
+    read: Option<usize>,
+    what: &str,
+) {
+    let deployed = read.and_then(|len| decode_deployment(core.lent(len)).ok());
+    let ok = deployed.is_some();
+    if !ok {
+        io.stats.flash_failures += 1;
+    }
+    core.activated(deployed, now_ms(), io);
+    if let Some(t) = core.table().filter(|_| ok) {
+        io.stats.activations += 1;
+        info!(
+            "node {addr:#06x}: {what} role {} generation {} (slot {})",
+            t.header.role,
+            t.generation,
+            at.running.unwrap_or(0)
+        );
     }
 }
 

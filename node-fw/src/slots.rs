@@ -194,6 +194,37 @@ impl<F: NorFlash> Slots<F> {
         Ok(Some(len))
     }
 
+    /// Reads slot `slot`'s blob into `buf` if the slot is staged and the blob fits;
+    /// returns its length. (No buffer of its own: the node lends its transfer buffer.)
+    pub async fn read_into(
+        &mut self,
+        slot: usize,
+        buf: &mut [u8],
+    ) -> Result<Option<usize>, F::Error> {
+        let base = self.base(slot);
+        if self.read_word(base + STAGED_AT).await? != STAGED {
+            return Ok(None);
+        }
+        let len = self.read_word(base + LEN_AT).await? as usize;
+        let Some(dst) = buf.get_mut(..len).filter(|_| len <= MAX_BLOB) else {
+            return Ok(None);
+        };
+        let whole = len / F::READ_SIZE.max(1) * F::READ_SIZE.max(1);
+        let (body, tail) = dst.split_at_mut(whole);
+        if !body.is_empty() {
+            self.flash.read(base + HEADER as u32, body).await?;
+        }
+        if !tail.is_empty() {
+            let mut last = [0u8; MAX_ALIGN];
+            let n = F::READ_SIZE.max(1);
+            self.flash
+                .read(base + (HEADER + whole) as u32, &mut last[..n])
+                .await?;
+            tail.copy_from_slice(&last[..tail.len()]);
+        }
+        Ok(Some(len))
+    }
+
     /// The table (and its keys) staged in slot `slot`, if it decodes and validates.
     pub async fn read_table(&mut self, slot: usize) -> Result<Option<Loaded>, F::Error> {
         let mut buf = [0u8; MAX_BLOB + MAX_ALIGN];
