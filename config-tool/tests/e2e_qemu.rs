@@ -161,3 +161,45 @@ fn a_qemu_node_killed_resumes_its_frame_counter_above_everything_it_sent() {
     assert_eq!(counters[resumed], STEP, "{counters:?}");
     bed.stop();
 }
+
+/// Issue 12 on the emulated board: a push on trial while a cycle runs is staged at once
+/// and switched at the cycle's end, every node together; the next cycle is the new
+/// sequence; then the power goes (every QEMU killed) and every node boots the previous,
+/// confirmed generation from its emulated flash and runs it exactly.
+#[test]
+fn qemu_nodes_switch_at_the_cycle_end_and_a_power_cut_during_the_trial_boots_the_previous_generation(
+) {
+    let Some(elf) = qemu_image() else { return };
+    let flash = TempDir::new("qemu-trial");
+    let paint = robot("paint-robot.ron", 1);
+    let dip = robot("paint-robot-double-dip.ron", 2);
+    let mut bed = bring_up(&paint, qemu_options(&elf, &flash));
+    push_ok(&mut bed, &paint);
+    let secret = bed.secret().expect("secured").clone();
+    let at = bed.medium().addr();
+    let targets = demo::targets(&dip);
+    let pusher = std::thread::spawn(move || {
+        wait_for_outputs(at, 3);
+        let mut radio = second_tool(at, &secret);
+        let mut pushed =
+            robot_net::push::push(&mut radio, &targets, false, &mut |_, _, _| {}).unwrap();
+        robot_net::push::switch_over_as(
+            &mut radio,
+            &mut pushed,
+            2,
+            false,
+            true,
+            std::time::Duration::from_secs(60),
+        )
+        .unwrap()
+    });
+    exact_cycle(&mut bed, &paint, 1);
+    assert_eq!(pusher.join().unwrap(), node_fw::switch::Verdict::Switched);
+    assert_running(&mut bed, &dip);
+    exact_cycle(&mut bed, &dip, 1);
+    let addrs: Vec<u16> = paint.ir.roles.iter().map(|r| r.address).collect();
+    power_cut(&mut bed, &addrs);
+    assert_running(&mut bed, &paint);
+    exact_cycle(&mut bed, &paint, 2);
+    bed.stop();
+}

@@ -5,44 +5,13 @@
 
 mod e2e_support;
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use config_schema::wire::medium::{Link, Peer};
 use node_fw::ota::Progress;
 use node_fw::switch::{NodeState, Verdict};
 use robot_net::push;
-use robot_net::radio::ToolRadio;
 
 use e2e_support::*;
-
-/// A second tool on the medium (another address than the bed's), secured with `secret`.
-fn second_tool(medium: std::net::SocketAddr, secret: &robot_keys::MachineSecret) -> ToolRadio {
-    let mut radio = ToolRadio::connect(medium, 0x0101).expect("medium");
-    let mut next = 0u32;
-    radio.secure(
-        secret.clone(),
-        Box::new(move || {
-            next += 1;
-            Some(next)
-        }),
-    );
-    radio
-}
-
-/// Waits until the plant has driven `n` output levels (the cycle is under way).
-fn wait_for_outputs(medium: std::net::SocketAddr, n: usize) {
-    let mut monitor = medium::Conn::join(medium, Peer::Monitor).expect("monitor");
-    let mut seen = 0;
-    let got = monitor
-        .recv(Instant::now() + TIMEOUT, |l: Link<'_>| {
-            if l.output_seen().is_some() {
-                seen += 1;
-            }
-            (seen >= n).then_some(())
-        })
-        .expect("monitor");
-    assert!(got.is_some(), "the cycle got under way");
-}
 
 /// Issue 12: a push of the double dip at 1.6 s into a cycle (VC down in the paint pot,
 /// holding the part) switched each node the moment its table arrived: the gripper opened
@@ -130,17 +99,6 @@ fn where_all(bed: &mut robot_net::demo::Bed, addrs: &[u16]) -> Vec<(u32, bool, u
             (s.generation, s.trial, s.previous)
         })
         .collect()
-}
-
-/// Every node loses power at once and boots again from its flash.
-fn power_cut(bed: &mut robot_net::demo::Bed, addrs: &[u16]) {
-    for &a in addrs {
-        bed.kill_node(a);
-    }
-    for &a in addrs {
-        bed.start_node(a).unwrap();
-    }
-    bed.wait_for_nodes(addrs).unwrap();
 }
 
 /// Stages `c` and switches it over on trial.

@@ -597,3 +597,43 @@ pub fn counters(
         .map(|(s, r)| (r.address, s.counters))
         .collect()
 }
+
+/// A second tool on the medium (another address than the bed's), secured with `secret`.
+pub fn second_tool(medium: std::net::SocketAddr, secret: &robot_keys::MachineSecret) -> ToolRadio {
+    let mut radio = ToolRadio::connect(medium, 0x0101).expect("medium");
+    let mut next = 0u32;
+    radio.secure(
+        secret.clone(),
+        Box::new(move || {
+            next += 1;
+            Some(next)
+        }),
+    );
+    radio
+}
+
+/// Waits until the plant has driven `n` output levels (the cycle is under way).
+pub fn wait_for_outputs(medium: std::net::SocketAddr, n: usize) {
+    let mut monitor = medium::Conn::join(medium, Peer::Monitor).expect("monitor");
+    let mut seen = 0;
+    let got = monitor
+        .recv(Instant::now() + TIMEOUT, |l: Link<'_>| {
+            if l.output_seen().is_some() {
+                seen += 1;
+            }
+            (seen >= n).then_some(())
+        })
+        .expect("monitor");
+    assert!(got.is_some(), "the cycle got under way");
+}
+
+/// Every node loses power at once and boots again from its flash.
+pub fn power_cut(bed: &mut robot_net::demo::Bed, addrs: &[u16]) {
+    for &a in addrs {
+        bed.kill_node(a);
+    }
+    for &a in addrs {
+        bed.start_node(a).unwrap();
+    }
+    bed.wait_for_nodes(addrs).unwrap();
+}
