@@ -9,9 +9,10 @@
 //! - a `NorFlash` (`embedded-storage-async`) for the two table [`Slots`];
 //! - `embassy-time` for the time and the timer until [`NodeCore::deadline`].
 //!
-//! [`run`] boots (outputs safe, newest valid slot, `NodeCore::new`) and then loops: wait for
-//! a frame, an input change or the deadline; feed the core; poll it; persist a pushed table
-//! when asked (then `persisted`); transmit what the core queued. The transmit queue is
+//! [`run`] boots (outputs safe, the slot activated last, `NodeCore::new`) and then loops:
+//! wait for a frame, an input change or the deadline; feed the core; poll it; do what it
+//! asks of the flash (stage a pushed table, activate, roll back, confirm: then `staged`,
+//! `activated` or `confirmed`); transmit what the core queued. The transmit queue is
 //! bounded: a full queue drops the frame and counts it, and a radio that does not take a
 //! frame within [`SEND_TIMEOUT_MS`] loses it (counted too), so nothing blocks forever. The
 //! protocols above (event links, OTA) resend what is lost.
