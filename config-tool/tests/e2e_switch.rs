@@ -157,3 +157,22 @@ fn a_trial_is_left_by_a_power_cut_or_a_rollback_and_stays_once_confirmed() {
     exact_cycle(&mut bed, &dip, 1);
     bed.stop();
 }
+
+/// A node that lost power between cycles and booted again from its flash: its peers kept
+/// numbering their links to it, and its fresh receivers, waiting for seq 0, dropped every
+/// event (the next cycle stalled). Its greeting now tells each peer to number again.
+#[test]
+fn a_node_that_rebooted_between_cycles_takes_part_in_the_next_cycle() {
+    let flash = TempDir::new("reboot-one");
+    let paint = robot("paint-robot.ron", 1);
+    let mut bed = bring_up(&paint, options(medium::Config::default(), Some(&flash)));
+    push_ok(&mut bed, &paint);
+    exact_cycle(&mut bed, &paint, 1);
+    let gr = addr_of(&paint, "GR");
+    power_cut(&mut bed, &[gr]);
+    assert_running(&mut bed, &paint);
+    for n in 2..=3 {
+        exact_cycle(&mut bed, &paint, n);
+    }
+    bed.stop();
+}

@@ -191,6 +191,19 @@ impl Sender {
         self.deadline = (!self.pending.is_empty()).then(|| now + self.rto());
     }
 
+    /// The subscriber lost its side of the link (it rebooted): the events it has not
+    /// acknowledged are numbered again from 0 in `epoch` (newer than this link's) and sent
+    /// at the next poll. A broken link stays broken (only a reset re-establishes it).
+    pub fn renumber(&mut self, epoch: u16, now: u64) {
+        self.epoch = epoch;
+        self.base = 0;
+        self.timeouts = 0;
+        if self.state == LinkState::Alarm {
+            self.state = LinkState::Ok;
+        }
+        self.deadline = (!self.pending.is_empty()).then_some(now);
+    }
+
     /// Resends the window if its timeout passed.
     pub fn poll(&mut self, now: u64, mut send: impl FnMut(Message<'static>)) {
         let Some(deadline) = self.deadline else {

@@ -802,6 +802,9 @@ impl NodeCore {
                     answer,
                     challenge,
                 } => {
+                    // It knows no counter of ours: it booted (or is new to this table),
+                    // and has no receiving side of our link to it either.
+                    self.renumber_link(peer, now);
                     if answer {
                         let pan = header.pan_id;
                         self.send(io, pan, peer, &Message::ChallengeAnswer { nonce });
@@ -1006,6 +1009,17 @@ impl NodeCore {
             &Message::Challenge { nonce },
             Some(nonce),
         );
+    }
+
+    /// Our link to `peer` starts again from seq 0 in a new epoch (the peer rebooted: its
+    /// receiver waits for seq 0), with the events it has not acknowledged.
+    fn renumber_link(&mut self, peer: u16, now: u64) {
+        let Some(i) = self.peer(peer) else { return };
+        self.epoch = self.epoch.wrapping_add(1);
+        let epoch = self.epoch;
+        if let Some(sender) = self.senders.get_mut(i) {
+            sender.renumber(epoch, now);
+        }
     }
 
     /// Challenges peer `peer` on the robot's PAN (see [`crate::peer_security`]).

@@ -287,15 +287,16 @@ fn an_event_before_the_greetings_is_challenged_and_delivered_once_on_its_resend(
     assert_eq!(
         net.trace,
         [
-            // B knows no counter of A yet: A's first event is not taken, A is challenged
-            // (besides the greetings both send).
+            // B knows no counter of A yet: A's first event is not taken (besides the
+            // greetings both send).
             (A, B, "Event"),
             (A, B, "Challenge"),
             (B, A, "Challenge"),
             (A, B, "ChallengeAnswer"),
-            (B, A, "ChallengeAnswer"),
-            // A resends on its timeout; now B takes it and acknowledges.
+            // B's challenge told A that B has no side of the link: A numbers it again
+            // and resends at once; B, knowing A's counter now, takes it.
             (A, B, "Event"),
+            (B, A, "ChallengeAnswer"),
             (B, A, "EventAck"),
         ]
     );
@@ -437,4 +438,26 @@ fn without_link_keys_the_node_refuses_secured_events_and_sends_in_clear() {
     assert!(!b.links_secured());
     let b = NodeCore::new(B, u64::MAX, Some(table_b()), 1).with_link_keys(keys(B, &[A, C], 2));
     assert!(!b.links_secured(), "keys of another generation");
+}
+
+/// A subscriber that rebooted lost its side of every link: its publisher numbered on and
+/// the fresh receiver, waiting for seq 0, dropped every event (the machine stalled). The
+/// rebooted node's greeting tells the publisher, which numbers its link to it again from 0
+/// in a new epoch: the next press is delivered, once.
+#[test]
+fn after_the_subscriber_reboots_the_publisher_numbers_its_link_again_and_events_flow() {
+    let mut net = Net::established();
+    net.press();
+    net.run(200);
+    assert_eq!(net.b.1.lamp, [true, false]);
+    net.b.0 = node_b();
+    net.b.1.lamp.clear();
+    net.run(300);
+    net.press();
+    net.run(400);
+    assert_eq!(net.b.1.lamp, [true], "delivered, once");
+    net.press();
+    net.run(400);
+    assert_eq!(net.b.1.lamp, [true, false]);
+    assert_eq!(net.a.0.link_alarms(), 0);
 }
