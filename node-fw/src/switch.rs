@@ -554,6 +554,14 @@ mod tests {
     use super::*;
 
     const TOOL: u16 = 0x0100;
+    const GO: SwitchStep = SwitchStep::Go {
+        now: false,
+        trial: false,
+    };
+    const GO_NOW: SwitchStep = SwitchStep::Go {
+        now: true,
+        trial: false,
+    };
 
     fn staged(generation: u32) -> SwitchOver {
         let mut s = SwitchOver::default();
@@ -564,10 +572,7 @@ mod tests {
     #[test]
     fn go_switches_only_when_armed_and_idle_or_now() {
         let mut s = staged(2);
-        let go = SwitchStep::Go {
-            now: false,
-            trial: false,
-        };
+        let go = GO;
         assert_eq!(
             s.step(2, go, TOOL, 1, true, 0),
             Action::Reply(ConfigReply::Busy)
@@ -597,10 +602,7 @@ mod tests {
             Action::Reply(ConfigReply::Activated)
         );
         let mut s = staged(2);
-        let now = SwitchStep::Go {
-            now: true,
-            trial: false,
-        };
+        let now = GO_NOW;
         assert_eq!(
             s.step(2, now, TOOL, 1, false, 0),
             Action::Activate(Target::Staged { trial: false })
@@ -613,17 +615,7 @@ mod tests {
         assert!(!s.hold_start(), "not armed: START runs");
         s.step(2, SwitchStep::Arm, TOOL, 1, true, 0);
         assert!(s.hold_start());
-        s.step(
-            2,
-            SwitchStep::Go {
-                now: false,
-                trial: false,
-            },
-            TOOL,
-            1,
-            true,
-            1,
-        );
+        s.step(2, GO, TOOL, 1, true, 1);
         assert_eq!(s.activated(true, 1), (Some(TOOL), true));
         let mut s = staged(2);
         s.step(2, SwitchStep::Arm, TOOL, 1, true, 0);
@@ -655,17 +647,7 @@ mod tests {
         );
         let mut none = SwitchOver::default();
         assert_eq!(
-            none.step(
-                2,
-                SwitchStep::Go {
-                    now: true,
-                    trial: false
-                },
-                TOOL,
-                1,
-                true,
-                0
-            ),
+            none.step(2, GO_NOW, TOOL, 1, true, 0),
             Action::Reply(ConfigReply::Refused(Refusal::NotStaged { staged: 0 }))
         );
     }
@@ -689,10 +671,7 @@ mod tests {
             s.step(1, SwitchStep::Arm, TOOL, 2, true, 1),
             Action::Reply(ConfigReply::Armed { idle: true })
         );
-        let go = SwitchStep::Go {
-            now: false,
-            trial: false,
-        };
+        let go = GO;
         assert_eq!(
             s.step(1, go, TOOL, 2, true, 2),
             Action::Activate(Target::Previous)
@@ -730,17 +709,7 @@ mod tests {
     fn a_failed_activation_keeps_the_staged_table_and_the_arming() {
         let mut s = staged(2);
         s.step(2, SwitchStep::Arm, TOOL, 1, true, 0);
-        s.step(
-            2,
-            SwitchStep::Go {
-                now: false,
-                trial: false,
-            },
-            TOOL,
-            1,
-            true,
-            1,
-        );
+        s.step(2, GO, TOOL, 1, true, 1);
         assert_eq!(s.activated(false, 1), (Some(TOOL), false));
         assert_eq!((s.staged(), s.armed()), (2, true));
     }
@@ -845,10 +814,7 @@ mod tests {
         assert_eq!(m.running().as_slice(), &[2, 2, 2]);
         let steps: heapless::Vec<SwitchStep, 16> = m.log.iter().map(|l| l.2).collect();
         let arm = SwitchStep::Arm;
-        let go = SwitchStep::Go {
-            now: false,
-            trial: false,
-        };
+        let go = GO;
         assert_eq!(
             steps.as_slice(),
             &[arm, arm, arm, arm, arm, arm, go, go, go]
@@ -878,13 +844,7 @@ mod tests {
         let to = |addr: u16| -> heapless::Vec<SwitchStep, 16> {
             m.log.iter().filter(|l| l.1 == addr).map(|l| l.2).collect()
         };
-        let (arm, go) = (
-            SwitchStep::Arm,
-            SwitchStep::Go {
-                now: false,
-                trial: false,
-            },
-        );
+        let (arm, go) = (SwitchStep::Arm, GO);
         assert_eq!(to(0x11).as_slice(), &[arm, arm, go, arm, go]);
         assert_eq!(to(0x12).as_slice(), &[arm, arm, go, go, go]);
     }
@@ -913,10 +873,7 @@ mod tests {
         m.nodes[0].2 = false;
         assert_eq!(m.run(1_000), Verdict::Switched);
         let steps: heapless::Vec<SwitchStep, 4> = m.log.iter().map(|l| l.2).collect();
-        let go = SwitchStep::Go {
-            now: true,
-            trial: false,
-        };
+        let go = GO_NOW;
         assert_eq!(steps.as_slice(), &[go, go]);
     }
 }
