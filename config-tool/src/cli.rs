@@ -306,6 +306,11 @@ pub struct PushArgs {
     /// returns every node to the previous generation.
     #[arg(long)]
     pub trial: bool,
+    /// With --trial: stay and watch the trial for this many seconds; a node that faults
+    /// rolls every node back at once, a trial not confirmed (`config-tool confirm`) by
+    /// then rolls them back at the idle point.
+    #[arg(long, value_name = "SECONDS", requires = "trial")]
+    pub watch: Option<u64>,
     #[command(flatten)]
     pub keys: KeysArg,
 }

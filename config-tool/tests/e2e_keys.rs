@@ -347,6 +347,37 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
         ok(&["confirm", ROBOT, "--keys", &key_s, "--medium", &m]),
         "nothing on trial: every node's generation is confirmed\n"
     );
+    // A watched trial nobody confirms goes back by itself.
+    let watched = tool(&[
+        "push",
+        ROBOT,
+        "--keys",
+        &key_s,
+        "--medium",
+        &m,
+        "--generation",
+        "5",
+        "--trial",
+        "--watch",
+        "1",
+    ]);
+    assert_eq!(watched.status.code(), Some(3), "{}", text(&watched.stdout));
+    assert!(
+        text(&watched.stdout).ends_with(
+            "watching the trial for 1 s (rolled back to generation 4 unless confirmed)\n"
+        ),
+        "{}",
+        text(&watched.stdout)
+    );
+    assert_eq!(
+        text(&watched.stderr),
+        "error: the trial was not confirmed within 1 s: every node back to generation 4 \
+         (Switched)\n"
+    );
+    assert_eq!(
+        status(&key_s, &m, "0x0011")[0],
+        "0x0011  role VC  generation 4"
+    );
 
     stop.store(true, Ordering::Relaxed);
     drop(nodes);

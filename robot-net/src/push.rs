@@ -257,6 +257,62 @@ pub fn rollback(
     coordinate(radio, c)
 }
 
+/// How a watched trial ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum TrialEnd {
+    /// Every node's generation was confirmed (`config-tool confirm`) within the window.
+    Confirmed,
+    /// A node faulted during the trial: every node was rolled back at once.
+    Faulted { node: u16, rolled_back: Verdict },
+    /// Not confirmed within the window: every node was rolled back at its idle point.
+    Expired { rolled_back: Verdict },
+}
+
+/// Watches a trial of `nodes` (rolled back to `previous` if it fails) for `window`:
+/// every `every`, each node's status; a fault rolls every node back at once, a window
+/// that ends unconfirmed rolls them back at the machine's idle point (within `wait`).
+/// Supervised by the tool: a tool that dies leaves the trial to `confirm`, `rollback` or
+/// a power cut.
+pub fn watch_trial(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    nodes: &[u16],
+    previous: u32,
+    window: Duration,
+    every: Duration,
+    wait: Duration,
+) -> io::Result<TrialEnd> {
+    let end = Instant::now() + window;
+    loop {
+        let mut confirmed = true;
+        for &node in nodes {
+            let Some(s) = command(radio, ids, node, Command::Status, every.max(RETRY_FLOOR))?
+            else {
+                confirmed = false;
+                continue;
+            };
+            if s.fault.is_some() {
+                let (rolled_back, _) = rollback(radio, nodes, previous, true, wait)?;
+                return Ok(TrialEnd::Faulted { node, rolled_back });
+            }
+            confirmed &= !s.trial;
+        }
+        if confirmed {
+            return Ok(TrialEnd::Confirmed);
+        }
+        if Instant::now() >= end {
+            let (rolled_back, _) = rollback(radio, nodes, previous, false, wait)?;
+            return Ok(TrialEnd::Expired { rolled_back });
+        }
+        let until = (Instant::now() + every).min(end);
+        // Whatever comes meanwhile (late answers) is not for the watch.
+        while radio.recv(until)?.is_some() {}
+    }
+}
+
+/// The least time a status is asked for before a watched node counts as not answering.
+const RETRY_FLOOR: Duration = Duration::from_millis(500);
+
 /// Confirms generation `generation` (on trial) on every node of `nodes`, resending until
 /// each answers; each node's last answer (`None`: it never answered).
 pub fn confirm(

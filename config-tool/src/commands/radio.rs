@@ -189,7 +189,64 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
             .map_err(Failure::error)?,
         )
     };
-    report_push(&outcomes, verdict, flags.trial)
+    report_push(&outcomes, verdict, flags.trial)?;
+    match flags.watch {
+        Some(seconds) => watch(
+            &mut radio,
+            &outcomes,
+            Duration::from_secs(seconds),
+            flags.wait,
+        ),
+        None => Ok(()),
+    }
+}
+
+/// `push --trial --watch S`: the trial, watched until confirmed, a fault, or its end.
+fn watch(
+    radio: &mut ToolRadio,
+    outcomes: &[push::Pushed],
+    window: Duration,
+    wait: u64,
+) -> Result<(), Failure> {
+    let nodes: Vec<u16> = outcomes.iter().map(|o| o.addr).collect();
+    let mut ids = Ids::default();
+    let first = nodes.first().copied().unwrap_or(0);
+    let previous = command(radio, &mut ids, first, Command::Status)?.previous;
+    println!(
+        "watching the trial for {} s (rolled back to generation {previous} unless confirmed)",
+        window.as_secs()
+    );
+    let end = push::watch_trial(
+        radio,
+        &mut ids,
+        &nodes,
+        previous,
+        window,
+        Duration::from_millis(500),
+        Duration::from_secs(wait),
+    )
+    .map_err(Failure::error)?;
+    match end {
+        push::TrialEnd::Confirmed => {
+            println!("confirmed: the trial generation stays");
+            Ok(())
+        }
+        push::TrialEnd::Faulted { node, rolled_back } => Err(Failure {
+            code: exit::PUSH_FAILED,
+            ..Failure::error(format!(
+                "node {node:#06x} faulted during the trial: every node back to generation \
+                 {previous} ({rolled_back:?})"
+            ))
+        }),
+        push::TrialEnd::Expired { rolled_back } => Err(Failure {
+            code: exit::PUSH_FAILED,
+            ..Failure::error(format!(
+                "the trial was not confirmed within {} s: every node back to generation \
+                 {previous} ({rolled_back:?})",
+                window.as_secs()
+            ))
+        }),
+    }
 }
 
 /// The keys `push` secures with: a secured robot (the default) needs them; an unsecured one
