@@ -51,6 +51,10 @@ pub struct Robot {
     /// default) unless the robot says `security: Off`, which `check` warns about.
     #[serde(default)]
     pub security: Security,
+    /// How long a `push --trial` is watched, seconds: a fault during it, or no `confirm`
+    /// by its end, returns every node to the previous generation (docs/reconfiguration.md).
+    #[serde(default)]
+    pub trial_seconds: Option<u32>,
 }
 
 /// Whether the tool secures its frames to the robot's nodes (and delivers link keys).

@@ -81,6 +81,9 @@ const BROKEN: &[(&str, &[&str])] = &[
         "36:71: error: expected a value, a name or `(`, found the end of the expression",
         "54:46: error: unknown event `HOMED`: not an input or timer of chart type `Follower`",
     ]),
+    ("trial-zero.ron", &[
+        "5:20: error: a trial of 0 seconds rolls back at once: give it the time the operator needs to see the new sequence run",
+    ]),
     ("unsecured.ron", &[
         "5:15: warning: frame security is off: anyone in radio range can push a table to these nodes, press START or forge their events",
     ]),

@@ -190,7 +190,15 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
         )
     };
     report_push(&outcomes, verdict, flags.trial)?;
-    match flags.watch {
+    // A trial is watched for --watch, else for the window the robot declares.
+    let window = flags.watch.or_else(|| {
+        flags
+            .trial
+            .then_some(c.robot.trial_seconds)
+            .flatten()
+            .map(u64::from)
+    });
+    match window {
         Some(seconds) => watch(
             &mut radio,
             &outcomes,

@@ -26,6 +26,16 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
             ),
         );
     }
+    if robot.trial_seconds == Some(0) {
+        out.push(
+            Diagnostic::error(
+                src.span("trial_seconds"),
+                "a trial of 0 seconds rolls back at once: give it the time the operator needs \
+                 to see the new sequence run",
+            )
+            .label("zero"),
+        );
+    }
     if !CHANNELS.contains(&robot.network.channel) {
         out.push(
             Diagnostic::error(
