@@ -100,21 +100,43 @@ fn push_lower_bound(blob: &[u8]) -> u64 {
     })
 }
 
-/// Counts frames between nodes (not to or from the tool, not broadcast) and their airtime.
-fn count_node_frames(addr: std::net::SocketAddr, count: Arc<AtomicU64>, air_us: Arc<AtomicU64>) {
-    let mut monitor = Conn::join(addr, Peer::Monitor).expect("monitor");
+/// What the monitor counted: frames between nodes (not to or from the tool, not broadcast)
+/// and their airtime, the airtime of the tool's frames and of their answers, and every
+/// frame it saw (to wait until it has seen what the medium sent).
+#[derive(Default)]
+struct Counted {
+    node_frames: AtomicU64,
+    node_air_us: AtomicU64,
+    tool_air_us: AtomicU64,
+    all_frames: AtomicU64,
+    /// The medium's frame count when the monitor joined (it sees every frame after).
+    base: AtomicU64,
+}
+
+impl Counted {
+    /// Returns once the monitor has seen `frames` frames (the medium's count): its figures
+    /// then cover everything sent so far.
+    fn caught_up(&self, frames: u64) {
+        while self.base.load(Ordering::Relaxed) + self.all_frames.load(Ordering::Relaxed) < frames {
+            std::thread::yield_now();
+        }
+    }
+}
+
+fn count_frames(mut monitor: Conn, counted: Arc<Counted>) {
     let far = Instant::now() + Duration::from_secs(24 * 3600);
     let _ = monitor.recv(far, |l| {
         if let Link::Frame(psdu) = l {
             if let Ok(Frame::Data { header, .. }) = Frame::parse(psdu) {
-                if header.src != TOOL_ADDR
-                    && header.dst != TOOL_ADDR
-                    && header.dst != mac::BROADCAST
-                {
-                    count.fetch_add(1, Ordering::Relaxed);
-                    air_us.fetch_add(u64::from(mac::airtime_us(psdu.len())), Ordering::Relaxed);
+                let air = u64::from(mac::airtime_us(psdu.len()));
+                if header.src == TOOL_ADDR || header.dst == TOOL_ADDR {
+                    counted.tool_air_us.fetch_add(air, Ordering::Relaxed);
+                } else if header.dst != mac::BROADCAST {
+                    counted.node_frames.fetch_add(1, Ordering::Relaxed);
+                    counted.node_air_us.fetch_add(air, Ordering::Relaxed);
                 }
             }
+            counted.all_frames.fetch_add(1, Ordering::Relaxed);
         }
         None::<()>
     });
@@ -142,18 +164,27 @@ fn main() {
     let actuators = live_plant::actuators(&c).expect("plant");
     bed.set_plant(actuators.clone()).expect("plant");
     bed.wait_for_nodes(&addrs).expect("nodes");
-    let frames = Arc::new(AtomicU64::new(0));
-    let node_air = Arc::new(AtomicU64::new(0));
-    let (maddr, f, a) = (bed.medium().addr(), frames.clone(), node_air.clone());
-    std::thread::spawn(move || count_node_frames(maddr, f, a));
+    let counted = Arc::new(Counted::default());
+    let monitor = Conn::join(bed.medium().addr(), Peer::Monitor).expect("monitor");
+    counted
+        .base
+        .store(bed.medium().stats().frames, Ordering::Relaxed);
+    let c2 = counted.clone();
+    std::thread::spawn(move || count_frames(monitor, c2));
+    let tool_air = || counted.tool_air_us.load(Ordering::Relaxed);
+    let node_air = || counted.node_air_us.load(Ordering::Relaxed);
+    let node_frames = || counted.node_frames.load(Ordering::Relaxed);
 
     // Push: the transfers (stage), then the switch-over, measured apart.
     let before = bed.medium().stats();
-    let node_air_before = node_air.load(Ordering::Relaxed);
+    counted.caught_up(before.frames);
+    let (tool0, node0) = (tool_air(), node_air());
     let t0 = Instant::now();
     let mut outcomes = bed.stage(&c, false, &mut |_, _, _| {}).expect("stage");
     let wall = t0.elapsed();
     let staged = bed.medium().stats();
+    counted.caught_up(staged.frames);
+    let tool1 = tool_air();
     assert!(outcomes
         .iter()
         .all(|o| o.progress == node_fw::ota::Progress::Done));
@@ -169,11 +200,12 @@ fn main() {
     assert_eq!(verdict, node_fw::switch::Verdict::Switched);
     let switch_wall = t1.elapsed();
     let after = bed.medium().stats();
-    // Nodes that activated greet their peers (the freshness handshake) meanwhile: not
-    // the push's airtime.
-    let greetings = node_air.load(Ordering::Relaxed) - node_air_before;
-    let air = staged.airtime_us - before.airtime_us;
-    let switch_air = after.airtime_us - staged.airtime_us - greetings;
+    counted.caught_up(after.frames);
+    // Only the tool's frames and their answers: the nodes that switched greet their
+    // peers (the freshness handshake) meanwhile, counted apart.
+    let air = tool1 - tool0;
+    let switch_air = tool_air() - tool1;
+    let greetings = node_air() - node0;
     // The secured lower bound: each transfer (table and key block) in secured frames.
     let transfers: Vec<Vec<u8>> = c
         .blobs
@@ -227,7 +259,7 @@ fn main() {
         switch_air as f64 / 1e3, switch_bound as f64 / 1e3, switch_air as f64 / switch_bound as f64,
         after.frames - staged.frames, switch_wall.as_secs_f64() * 1e3);
     println!(
-        "  (besides: {:.2} ms of the nodes greeting their peers)",
+        "  (besides, until the switch returned: {:.2} ms of the nodes greeting their peers)",
         greetings as f64 / 1e3
     );
 
@@ -244,16 +276,17 @@ fn main() {
     let switched = |name: &str| actuators.iter().any(|a| a.name == name && a.double);
     let mut hops = Vec::new();
     let mut per_cycle = Vec::new();
-    let air0 = node_air.load(Ordering::Relaxed);
+    let air0 = node_air();
     let cycles = 3;
     for _ in 0..cycles {
         let mut steps = Vec::new();
-        let n0 = frames.load(Ordering::Relaxed);
+        let n0 = node_frames();
         let cycle = bed
             .run_cycle(&c, &mut |s, _| steps.push(s.clone()))
             .expect("cycle");
         assert!(cycle.ok(), "{}", demo::cycle_line(0, &cycle));
-        per_cycle.push(frames.load(Ordering::Relaxed) - n0);
+        counted.caught_up(bed.medium().stats().frames);
+        per_cycle.push(node_frames() - n0);
         for w in steps.windows(2) {
             let (a, b) = (&w[0], &w[1]);
             if node_of(&a.step.actuator) != node_of(&b.step.actuator) && switched(&a.step.actuator)
@@ -280,7 +313,7 @@ fn main() {
     println!("  median {:>6.2} ms   max {:>6.2} ms   lower bound {:.2} ms (one secured event frame's airtime, {:.2} ms unsecured; with its ack {:.2} ms)   (target: < 3 ms airtime per hop)",
         median(&mut hops), max, event as f64 / 1e3, plain as f64 / 1e3, (event + ack) as f64 / 1e3);
     let publications = robot_compiler::compile::radio_events(&c.ir).len();
-    let per_hop = (node_air.load(Ordering::Relaxed) - air0) as f64 / (cycles * publications) as f64;
+    let per_hop = (node_air() - air0) as f64 / (cycles * publications) as f64;
     println!("  airtime per hop (measured) {:.2} ms: every frame between nodes over {cycles} cycles / {} hops   (target: < 3 ms)",
         per_hop / 1e3, cycles * publications);
     println!("  (wall latency includes the host: processes, TCP, scheduling; the airtime is what a real radio spends)");
