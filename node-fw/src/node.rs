@@ -12,18 +12,14 @@ use config_schema::wire::msg::{
     Announce, Command, ConfigReply, Counters, Message, Refusal, RuntimeCounters, SecurityCounters,
     SecurityReport, Status, SwitchStep,
 };
-use config_schema::wire::security::{
-    self, ext_addr,
-    replay::{ReplayError, ReplayGuard},
-    AuxRepr, SecurityLevel,
-};
+use config_schema::wire::security::{self, ext_addr, replay::ReplayGuard, AuxRepr, SecurityLevel};
 use config_schema::{Publication, Table};
 use heapless::Vec;
 
 use crate::ecc::{Effects, Engine, EngineState, Fault};
 use crate::link::{self, LinkState};
 use crate::ota::{self, Outcome};
-use crate::peer_security::{self, PeerSecurity, Verdict};
+use crate::peer_security::{self, PeerSecurity, Pending, Verdict};
 use crate::provision::ManagementKey;
 use crate::switch::{self, SwitchOver};
 
@@ -125,7 +121,7 @@ pub struct NodeCore {
     /// When an unsecured broadcast `Identify` may be answered again.
     next_open_identify: u64,
     /// Challenges sent and not answered yet: (sender, nonce).
-    challenges: Vec<(u16, u32), MANAGEMENT_SENDERS>,
+    challenges: Pending<MANAGEMENT_SENDERS>,
     /// When the next challenge may be sent.
     next_challenge: u64,
     /// The link keys of the running table (and the previous one's, for the overlap), the
@@ -290,7 +286,7 @@ impl NodeCore {
             replay: ReplayGuard::new(),
             security: SecurityCounters::default(),
             next_open_identify: 0,
-            challenges: Vec::new(),
+            challenges: Pending::default(),
             next_challenge: 0,
             peer_security: PeerSecurity::default(),
         };
@@ -940,26 +936,12 @@ impl NodeCore {
             }
         };
         let src = opened.header.src;
+        let counter = opened.aux.frame_counter;
         if self.replay.last(src, MANAGEMENT_KEY_INDEX).is_none() {
-            let answer = match Message::parse(opened.payload) {
-                Ok(Message::ChallengeAnswer { nonce }) => Some(nonce),
-                _ => None,
-            };
-            let pending = self.challenges.iter().position(|(s, _)| *s == src);
-            let answered = pending
-                .zip(answer)
-                .is_some_and(|(i, nonce)| self.challenges.get(i).is_some_and(|p| p.1 == nonce));
-            if answered {
-                if let Some(i) = pending {
-                    self.challenges.remove(i);
-                }
-                if self
-                    .replay
-                    .check_and_accept(src, MANAGEMENT_KEY_INDEX, opened.aux.frame_counter)
-                    .is_err()
-                {
-                    self.security.table_full += 1;
-                }
+            let message = Message::parse(opened.payload);
+            if self.challenges.answered(src, &message) {
+                let c = &mut self.security;
+                peer_security::accept(&mut self.replay, src, MANAGEMENT_KEY_INDEX, counter, c);
                 return Err(Refused::Handshake);
             }
             self.security.challenged += 1;
@@ -970,20 +952,10 @@ impl NodeCore {
             return Err(Refused::Handshake);
         }
         let c = &mut self.security;
-        match self.replay.check_and_accept(
-            opened.header.src,
-            MANAGEMENT_KEY_INDEX,
-            opened.aux.frame_counter,
-        ) {
-            Ok(()) => Ok(opened.payload),
-            Err(ReplayError::Replayed { .. }) => {
-                c.replayed += 1;
-                Err(Refused::Dropped)
-            }
-            Err(ReplayError::Full) => {
-                c.table_full += 1;
-                Err(Refused::Dropped)
-            }
+        if peer_security::accept(&mut self.replay, src, MANAGEMENT_KEY_INDEX, counter, c) {
+            Ok(opened.payload)
+        } else {
+            Err(Refused::Dropped)
         }
     }
 
@@ -993,15 +965,7 @@ impl NodeCore {
             self.security.no_counter += 1;
             return;
         };
-        match self.challenges.iter_mut().find(|(s, _)| *s == src) {
-            Some(p) => p.1 = nonce,
-            None => {
-                if self.challenges.is_full() {
-                    self.challenges.remove(0);
-                }
-                let _ = self.challenges.push((src, nonce));
-            }
-        }
+        self.challenges.sent(src, nonce);
         self.send_numbered(
             io,
             CONFIG_PAN,

@@ -85,8 +85,8 @@ pub struct PeerSecurity {
     /// Until when the previous keys open anything (from the first frame after the switch).
     overlap_until: Option<u64>,
     replay: ReplayGuard<MAX_PEERS>,
-    /// Challenges sent and not answered: (peer, nonce).
-    challenges: Vec<(u16, u32), MAX_PEERS>,
+    /// Challenges sent and not answered.
+    challenges: Pending<MAX_PEERS>,
     /// Peers to challenge before any event (set when keys are installed), with the tries
     /// left and when the next is due: the first events of a new table or a boot then find
     /// their floors established. Retried because a peer that has not switched to this
@@ -145,7 +145,7 @@ impl PeerSecurity {
             let _ = floors.check_and_accept(e.sender, e.key_index, e.last);
         }
         self.replay = floors;
-        self.challenges.retain(|(p, _)| peers.contains(p));
+        self.challenges.retain(peers);
         self.greet.clear();
         if self.current.is_some() {
             for &p in peers {
@@ -274,22 +274,14 @@ impl PeerSecurity {
             };
         }
         if floor.is_none() {
-            let pending = self.challenges.iter().position(|(p, _)| *p == src);
-            let answered = match (pending, &message) {
-                (Some(i), Ok(Message::ChallengeAnswer { nonce })) => {
-                    self.challenges.get(i).is_some_and(|p| p.1 == *nonce)
-                }
-                _ => false,
-            };
-            if answered {
-                self.challenges.retain(|(p, _)| *p != src);
-                if self
-                    .replay
-                    .check_and_accept(src, ANY_LINK_KEY, aux.frame_counter)
-                    .is_err()
-                {
-                    counters.table_full += 1;
-                }
+            if self.challenges.answered(src, &message) {
+                accept(
+                    &mut self.replay,
+                    src,
+                    ANY_LINK_KEY,
+                    aux.frame_counter,
+                    counters,
+                );
                 return Verdict::Answered;
             }
             counters.challenged += 1;
@@ -299,45 +291,98 @@ impl PeerSecurity {
                 challenge,
             };
         }
-        match self
-            .replay
-            .check_and_accept(src, ANY_LINK_KEY, aux.frame_counter)
-        {
-            Ok(()) => {
-                if current && !self.switched.contains(&src) {
-                    let _ = self.switched.push(src);
-                }
-                match message {
-                    Ok(Message::Challenge { nonce }) => Verdict::Answer {
-                        peer: src,
-                        nonce,
-                        answer: may(&mut self.next_answer, src, now),
-                        challenge: false,
-                    },
-                    _ => Verdict::Accept(payload),
-                }
-            }
-            Err(ReplayError::Replayed { .. }) => {
-                counters.replayed += 1;
-                Verdict::Dropped
-            }
-            Err(ReplayError::Full) => {
-                counters.table_full += 1;
-                Verdict::Dropped
-            }
+        if !accept(
+            &mut self.replay,
+            src,
+            ANY_LINK_KEY,
+            aux.frame_counter,
+            counters,
+        ) {
+            return Verdict::Dropped;
+        }
+        if current && !self.switched.contains(&src) {
+            let _ = self.switched.push(src);
+        }
+        match message {
+            Ok(Message::Challenge { nonce }) => Verdict::Answer {
+                peer: src,
+                nonce,
+                answer: may(&mut self.next_answer, src, now),
+                challenge: false,
+            },
+            _ => Verdict::Accept(payload),
         }
     }
 
     /// This node challenged `peer` with `nonce` (the challenge frame's own counter).
     pub fn challenged(&mut self, peer: u16, nonce: u32) {
-        match self.challenges.iter_mut().find(|(p, _)| *p == peer) {
+        self.challenges.sent(peer, nonce);
+    }
+}
+
+/// Challenges a node sent and that were not answered yet: per sender the nonce, the
+/// oldest forgotten when full (shared by the management path and the peers').
+#[derive(Debug, Default)]
+pub struct Pending<const N: usize> {
+    sent: Vec<(u16, u32), N>,
+}
+
+impl<const N: usize> Pending<N> {
+    /// `sender` was challenged with `nonce` (its earlier challenge, if any, no longer
+    /// counts).
+    pub fn sent(&mut self, sender: u16, nonce: u32) {
+        match self.sent.iter_mut().find(|(s, _)| *s == sender) {
             Some(c) => c.1 = nonce,
             None => {
-                if self.challenges.is_full() {
-                    self.challenges.remove(0);
+                if self.sent.is_full() {
+                    self.sent.remove(0);
                 }
-                let _ = self.challenges.push((peer, nonce));
+                let _ = self.sent.push((sender, nonce));
             }
+        }
+    }
+
+    /// Whether `message` from `sender` answers its pending challenge; if so it is no
+    /// longer pending.
+    pub fn answered<E>(&mut self, sender: u16, message: &Result<Message<'_>, E>) -> bool {
+        let Ok(Message::ChallengeAnswer { nonce }) = message else {
+            return false;
+        };
+        let Some(i) = self
+            .sent
+            .iter()
+            .position(|&(s, n)| s == sender && n == *nonce)
+        else {
+            return false;
+        };
+        self.sent.remove(i);
+        true
+    }
+
+    /// Forgets the challenges of senders not in `keep`.
+    pub fn retain(&mut self, keep: &[u16]) {
+        self.sent.retain(|(s, _)| keep.contains(s));
+    }
+}
+
+/// Takes `counter` from `sender` under `key_index` if it is above the sender's floor (and
+/// makes it the floor); else counts why not.
+pub fn accept<const N: usize>(
+    replay: &mut ReplayGuard<N>,
+    sender: u16,
+    key_index: u8,
+    counter: u32,
+    c: &mut SecurityCounters,
+) -> bool {
+    match replay.check_and_accept(sender, key_index, counter) {
+        Ok(()) => true,
+        Err(ReplayError::Replayed { .. }) => {
+            c.replayed += 1;
+            false
+        }
+        Err(ReplayError::Full) => {
+            c.table_full += 1;
+            false
         }
     }
 }
