@@ -19,7 +19,6 @@
 //! booted ([`Boot::abandoned`]; the runtime revokes it). A staged slot that was never
 //! activated is reported ([`Boot::staged`]) so the tool can finish the switch-over.
 
-use config_schema::blob;
 use config_schema::limits::MAX_BLOB;
 use config_schema::link_keys::{decode_deployment, LinkKeys};
 use config_schema::Table;
@@ -253,17 +252,11 @@ impl<F: NorFlash> Slots<F> {
                     // Checked when it was staged; its generation is in the envelope.
                     let mut buf = [0u8; MAX_BLOB + MAX_ALIGN];
                     if let Some(len) = self.read_blob(slot, &mut buf).await? {
-                        let whole = buf.get(..len).unwrap_or(&[]);
-                        if decode_deployment(whole).is_ok() {
-                            if let Ok(env) = config_schema::link_keys::split(whole)
-                                .map_err(|_| ())
-                                .and_then(|(b, _)| blob::envelope(b).map_err(|_| ()))
-                            {
-                                boot.staged = Some(StagedSlot {
-                                    slot,
-                                    generation: env.generation,
-                                });
-                            }
+                        if let Ok((table, _)) = decode_deployment(buf.get(..len).unwrap_or(&[])) {
+                            boot.staged = Some(StagedSlot {
+                                slot,
+                                generation: table.generation,
+                            });
                         }
                     }
                 }
