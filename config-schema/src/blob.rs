@@ -19,8 +19,9 @@ use crate::validate::{validate, Invalid};
 /// First bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"ECCT";
 /// The schema version this crate reads and writes (2: each output has fault, start and
-/// home levels instead of one safe level).
-pub const SCHEMA_VERSION: u16 = 2;
+/// home levels instead of one safe level; 3: each chart has an idle state besides its
+/// initial one, and the table the event of the HOME command).
+pub const SCHEMA_VERSION: u16 = 3;
 /// Bytes before the payload.
 pub const HEADER_LEN: usize = 12;
 /// Bytes after the payload.

@@ -27,6 +27,9 @@ pub struct Table {
     pub events: u8,
     /// The node event raised by the START command, if the role reacts to one.
     pub start: Option<EventId>,
+    /// The node event raised by the HOME command, if the role starts homing
+    /// (docs/reconfiguration.md).
+    pub home: Option<EventId>,
     /// Initial values of the variables.
     pub vars: Vec<i32, MAX_VARS>,
     pub inputs: Vec<Input, MAX_INPUTS>,
@@ -135,8 +138,13 @@ pub struct Chart {
     pub transitions_end: u8,
     /// Number of chart input events.
     pub inputs: u8,
-    /// Initial state, chart-local.
+    /// Initial state, chart-local: where the chart starts after a boot, a reset or an
+    /// activation of a stopped machine (actuators may be anywhere: not homed).
     pub initial: u8,
+    /// The chart's idle state, chart-local: where it rests between cycles with every
+    /// actuator home. The machine is idle when every chart is in it; a table activated
+    /// at the idle point starts its charts there.
+    pub idle: u8,
 }
 
 /// One ECC state.
@@ -221,6 +229,7 @@ impl Table {
             },
             events: 0,
             start: None,
+            home: None,
             vars: Vec::new(),
             inputs: Vec::new(),
             outputs: Vec::new(),
@@ -371,7 +380,9 @@ impl Table {
     }
 
     /// Appends a chart. `states[i]` are the actions of chart-local state `i`; transitions
-    /// use chart-local states and chart inputs `0..inputs`. Returns the chart's index.
+    /// use chart-local states and chart inputs `0..inputs`. Its idle state is its initial
+    /// one (set `idle` of the chart for one that starts elsewhere). Returns the chart's
+    /// index.
     pub fn push_chart(
         &mut self,
         initial: u8,
@@ -401,6 +412,7 @@ impl Table {
                 transitions_end: end(self.transitions.len(), "transitions")?,
                 inputs,
                 initial,
+                idle: initial,
             };
             push(&mut self.charts, chart, "charts")
         })();

@@ -45,7 +45,7 @@ pub enum Invalid {
     Output { at: Place, mask: u16 },
     /// A peer that does not exist (or a subscriber mask naming one).
     Peer { at: Place, peer: u8 },
-    /// A transition (or initial state) to a state the chart does not have.
+    /// A transition (or initial or idle state) to a state the chart does not have.
     State { at: Place, state: u8 },
     /// A chart input event the chart does not have.
     ChartInput { at: Place, input: u8 },
@@ -223,7 +223,7 @@ fn header(t: &Table) -> Result<(), Invalid> {
         });
     }
     capacity("events", usize::from(t.events), MAX_EVENTS)?;
-    if let Some(e) = t.start {
+    for e in [t.start, t.home].into_iter().flatten() {
         event_ok(t, Place::Header, e)?;
     }
     Ok(())
@@ -281,11 +281,10 @@ fn charts(t: &Table) -> Result<(), Invalid> {
         };
         capacity("chart inputs", usize::from(chart.inputs), MAX_CHART_INPUTS)?;
         let n_states = s_end - states_start;
-        if usize::from(chart.initial) >= n_states {
-            return Err(Invalid::State {
-                at,
-                state: chart.initial,
-            });
+        for state in [chart.initial, chart.idle] {
+            if usize::from(state) >= n_states {
+                return Err(Invalid::State { at, state });
+            }
         }
         for (ti, tr) in transitions.iter().enumerate() {
             transition_ok(

@@ -32,7 +32,7 @@ fn the_envelope_layout_is_exact() {
     let n = b.len() - HEADER_LEN - TRAILER_LEN;
     assert_eq!(&b[0..4], b"ECCT");
     assert_eq!(MAGIC, *b"ECCT");
-    assert_eq!(&b[4..6], &[2, 0], "schema version 2, little-endian");
+    assert_eq!(&b[4..6], &[3, 0], "schema version 3, little-endian");
     assert_eq!(
         &b[6..10],
         &[0x04, 0x03, 0x02, 0x01],
@@ -44,7 +44,7 @@ fn the_envelope_layout_is_exact() {
     assert_eq!(
         envelope(&b),
         Ok(Envelope {
-            version: 2,
+            version: 3,
             generation: 0x0102_0304,
             payload_len: n,
             crc,
@@ -65,6 +65,7 @@ fn the_payload_of_an_empty_table_is_postcard_field_by_field() {
         11,      // channel
         0,       // events
         0,       // start: None
+        0,       // home: None
         0, 0, 0, 0, // vars, inputs, outputs, timers: empty
         0, 0, 0, 0, // charts, states, transitions, actions
         0, 0, 0, 0, 0, // code, routes, peers, publications, subscriptions
@@ -90,6 +91,7 @@ fn an_output_is_pin_fault_start_home() {
     #[rustfmt::skip]
     let want = [
         1, b'r', 0, 11, 0, 0, // role, pan_id, channel, events, start
+        0,                    // home
         0,                    // vars
         0,                    // inputs
         2,                    // outputs: two
@@ -101,7 +103,7 @@ fn an_output_is_pin_fault_start_home() {
     assert_eq!(decode(&seal(&want, 0)), Ok(t));
     // A level past `Hold` is not a level.
     let mut bad = want;
-    bad[10] = 3;
+    bad[11] = 3;
     assert!(matches!(
         decode(&seal(&bad, 1)),
         Err(DecodeError::Postcard(_))
@@ -137,11 +139,14 @@ fn bad_magic() {
 #[test]
 fn unsupported_version() {
     let mut b = blob(&realistic());
-    // Version 1: one safe level per output, not read by this build.
+    // Version 1: one safe level per output, not read by this build; version 2: no idle
+    // states, no HOME event.
     b[4] = 1;
     assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(1)));
-    b[4] = 3;
-    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(3)));
+    b[4] = 2;
+    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(2)));
+    b[4] = 4;
+    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(4)));
     b[4] = 0;
     b[5] = 1;
     assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(256)));
@@ -263,7 +268,7 @@ fn postcard_errors() {
     // 33 variables: over MAX_VARS (32) while decoding.
     assert_eq!(
         case(&|q| {
-            q.splice(6..7, std::iter::once(33).chain([0; 33]));
+            q.splice(7..8, std::iter::once(33).chain([0; 33]));
         }),
         Err(DecodeError::Postcard(SerdeDeCustom))
     );

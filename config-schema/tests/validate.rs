@@ -80,6 +80,13 @@ fn events_out_of_range() {
         }
     );
     assert_eq!(
+        invalid(|t| t.home = Some(8)),
+        Invalid::Event {
+            at: Place::Header,
+            event: 8
+        }
+    );
+    assert_eq!(
         invalid(|t| t.inputs[1].rise = Some(9)),
         Invalid::Event {
             at: Place::Input(1),
@@ -235,6 +242,13 @@ fn states_and_chart_inputs() {
         Invalid::State {
             at: Place::Chart(1),
             state: 2
+        }
+    );
+    assert_eq!(
+        invalid(|t| t.charts[1].idle = 3),
+        Invalid::State {
+            at: Place::Chart(1),
+            state: 3
         }
     );
     // Chart 0 has 5 inputs.
@@ -603,7 +617,8 @@ fn builders_keep_the_pools_consistent() {
             states_end: 2,
             transitions_end: 1,
             inputs: 1,
-            initial: 0
+            initial: 0,
+            idle: 0
         }
     );
     assert_eq!(t.chart_states(0), 0..2);

@@ -284,6 +284,26 @@ impl<'t> Engine<'t> {
         }
     }
 
+    /// Raises the table's HOME event (the HOME command), if it has one; false if not.
+    pub fn home(&mut self, fx: &mut impl Effects) -> bool {
+        match self.table.home {
+            Some(event) => {
+                self.raise(event, true, fx);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Puts every chart in its idle state, running no action: a table activated at the
+    /// idle point of the one it replaces starts where that one rested (every actuator
+    /// home), not in its initial (not homed) state.
+    pub fn rest(&mut self) {
+        for (slot, chart) in self.current.iter_mut().zip(self.table.charts.iter()) {
+            *slot = chart.idle;
+        }
+    }
+
     /// Delivers a node event from outside (no publication), running every chart to a
     /// stable state.
     pub fn event(&mut self, event: EventId, fx: &mut impl Effects) {

@@ -291,7 +291,7 @@ impl NodeCore {
             peer_security: PeerSecurity::default(),
         };
         if let Some(t) = table.filter(|t| t.missing_pin(board_pins).is_none()) {
-            node.install(t, None);
+            node.install(t, None, false);
         }
         node
     }
@@ -395,9 +395,14 @@ impl NodeCore {
         }
     }
 
-    fn install(&mut self, table: Table, keys: Option<LinkKeys>) {
+    /// Runs `table` from now on: its charts start in their initial states, or in their
+    /// idle states when `at_idle` (it replaces a table that rested at its idle point).
+    fn install(&mut self, table: Table, keys: Option<LinkKeys>, at_idle: bool) {
         self.peer_security.install(keys, &table.peers);
         let mut engine = Engine::new_holding(&table, self.driven_levels(&table));
+        if at_idle {
+            engine.rest();
+        }
         for (i, input) in table.inputs.iter().enumerate() {
             engine.sense(i as u8, level(self.pins, input.pin));
         }
@@ -546,7 +551,7 @@ impl NodeCore {
         self.switch.staged()
     }
 
-    /// Whether the node is idle: configured, not faulted, every chart in its initial state,
+    /// Whether the node is idle: configured, not faulted, every chart in its idle state,
     /// no timer running, no event of its own unacknowledged (unconfigured: idle).
     pub fn idle(&self) -> bool {
         let (Some(t), Some(st)) = (&self.table, &self.state) else {
@@ -556,7 +561,7 @@ impl NodeCore {
             && t.charts
                 .iter()
                 .zip(st.current.iter())
-                .all(|(c, &cur)| cur == c.initial)
+                .all(|(c, &cur)| cur == c.idle)
             && self.timers.iter().all(Option::is_none)
             && self.senders.iter().all(|s| s.unacked() == 0)
     }
@@ -1124,8 +1129,11 @@ impl NodeCore {
         let (from, start) = self.switch.activated(deployed.is_some(), running);
         let reply = match deployed {
             Some((table, keys)) => {
+                // A machine that rested at its idle point stays homed; one stopped
+                // anywhere else (or a node that was never configured) needs homing.
+                let at_idle = self.table.is_some() && self.idle();
                 self.drive_start(&table, io);
-                self.install(table, keys);
+                self.install(table, keys, at_idle);
                 ConfigReply::Activated
             }
             None => ConfigReply::Refused(Refusal::Flash),
@@ -1204,6 +1212,11 @@ impl NodeCore {
                 Command::Start if self.switch.hold_start() => {}
                 Command::Start => self.run(now, io, |e, fx| {
                     e.start(fx);
+                }),
+                // Homing moves actuators: not while armed for a switch-over.
+                Command::Home if self.switch.armed() => {}
+                Command::Home => self.run(now, io, |e, fx| {
+                    e.home(fx);
                 }),
                 Command::Reset => {
                     // Links first: what the reset publishes goes out in the new epoch.

@@ -201,6 +201,8 @@ pub enum Command {
     Status,
     /// Answer with the frame security counters (`Message::Security`) instead of the status.
     Security,
+    /// Start homing: raise the table's `home` event (docs/reconfiguration.md).
+    Home,
 }
 
 /// What a node counted of frame security (every reason a frame was dropped, and what it
