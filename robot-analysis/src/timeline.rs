@@ -222,7 +222,8 @@ impl Drawing<'_> {
             y + CHART_H / 2.0 + 4.0,
             esc(&label)
         );
-        let mut intervals: Vec<(u64, usize)> = vec![(0, chart.initial)];
+        // The simulated machine starts homed: every chart at its idle point.
+        let mut intervals: Vec<(u64, usize)> = vec![(0, chart.idle)];
         let mut ticks = Vec::new();
         for e in trace {
             match &e.what {

@@ -211,7 +211,10 @@ fn the_timeline_parses_and_has_one_lane_per_actuator_and_per_chart() {
     assert_eq!(lanes(&svg, "actuator"), ["VC", "GR", "HC", "RC"]);
     assert_eq!(
         lanes(&svg, "chart"),
-        ["VC.VC", "VC.fault", "GR.GR", "GR.fault", "HC.HC", "HC.fault", "RC.RC", "RC.fault"]
+        [
+            "VC.VC", "VC.fault", "VC.home", "GR.GR", "GR.fault", "GR.home", "HC.HC", "HC.fault",
+            "HC.home", "RC.RC", "RC.fault", "RC.home"
+        ]
     );
     assert_eq!(lanes(&svg, "radio"), ["radio"]);
     // Two cycles of 9 publications: one tick each.
@@ -237,7 +240,7 @@ fn the_timeline_of_a_fault_marks_it_and_shades_the_stopped_charts() {
         .filter(|n| n.attribute("class") == Some("faulted"))
         .count();
     assert_eq!(
-        faulted, 8,
+        faulted, 12,
         "every chart of every node shaded after its fault"
     );
     let marks = doc

@@ -89,13 +89,15 @@ pub fn lower_checked(src: &Source, checked: Checked) -> Result<Compiled, Vec<Dia
 
 /// The radio events one cycle of a sequence robot sends: (from role, event, to role), in
 /// topic order. Each step event occurs once per cycle, so this is also the count of
-/// publications per cycle. A synthesised `fault` (sent only on a fault) is left out.
+/// publications per cycle. A synthesised `fault` (sent only on a fault) and homing's
+/// events (sent only when homing) are left out.
 pub fn radio_events(ir: &Ir) -> Vec<(String, String, String)> {
     let mut out = Vec::new();
+    let homing = crate::synth::homing_events(ir);
     for (ri, e) in lower::topics(ir) {
         let from = &ir.roles[ri];
-        if from.events[e] == crate::synth::FAULT_EVENT {
-            continue; // only on a fault
+        if from.events[e] == crate::synth::FAULT_EVENT || homing.contains(&from.events[e]) {
+            continue; // only on a fault, or when homing
         }
         for to in &ir.roles {
             if to

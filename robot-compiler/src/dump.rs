@@ -76,7 +76,13 @@ pub fn table_text(t: &Table) -> String {
         "role {}  generation {}  pan {:#06x}  channel {}",
         t.header.role, t.generation, t.header.pan_id, t.header.channel
     );
-    let _ = writeln!(o, "events {}  start {}", t.events, ev(t.start));
+    let _ = writeln!(
+        o,
+        "events {}  start {}  home {}",
+        t.events,
+        ev(t.start),
+        ev(t.home)
+    );
     for (i, v) in t.vars.iter().enumerate() {
         let _ = writeln!(o, "var v{i} = {v}");
     }
@@ -107,8 +113,8 @@ pub fn table_text(t: &Table) -> String {
         let chart = t.charts[c];
         let _ = writeln!(
             o,
-            "chart {c}: {} inputs, initial S{}",
-            chart.inputs, chart.initial
+            "chart {c}: {} inputs, initial S{}, idle S{}",
+            chart.inputs, chart.initial, chart.idle
         );
         let states = t.chart_states(c);
         for (local, s) in states.clone().enumerate() {

@@ -31,7 +31,20 @@ pub enum AddressError {
 
 /// The role index and input name of the robot's `start`, if it has one.
 pub fn start_input(robot: &Robot) -> Result<Option<(usize, String)>, StartError> {
-    let Some(start) = &robot.start else {
+    named_input(robot, robot.start.as_ref())
+}
+
+/// The role and input name of the robot's `home` input (`NAME` or `ROLE/NAME`), if it
+/// declares one.
+pub fn home_input(robot: &Robot) -> Result<Option<(usize, String)>, StartError> {
+    named_input(robot, robot.home.as_ref())
+}
+
+fn named_input(
+    robot: &Robot,
+    start: Option<&String>,
+) -> Result<Option<(usize, String)>, StartError> {
+    let Some(start) = start else {
         return Ok(None);
     };
     let found: Vec<usize> = match start.split_once('/') {
@@ -151,6 +164,9 @@ pub fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
         roles,
         start,
         expect,
+        home: None,
+        homing: Vec::new(),
+        homing_derived: false,
     })
 }
 
@@ -384,6 +400,7 @@ fn chart(
         name: c.name.clone(),
         inputs,
         initial: 0,
+        idle: 0,
         states,
         transitions,
     })

@@ -304,7 +304,7 @@ mod tests {
         assert_eq!(
             err("VC.arm.IDLE"),
             (
-                String::from("`VC.arm.IDLE`: role VC has no chart `arm` (charts: VC, fault)"),
+                String::from("`VC.arm.IDLE`: role VC has no chart `arm` (charts: VC, fault, home)"),
                 0..11
             )
         );
@@ -313,7 +313,7 @@ mod tests {
             (
                 String::from(
                     "`VC.VC.NOWHERE`: chart VC.VC has no state `NOWHERE` (states: IDLE, STEP1, \
-                     WAIT3, STEP3, WAIT5, STEP5, STEP6, WAIT10, STEP10, WAIT12, STEP12)"
+                     WAIT3, STEP3, WAIT5, STEP5, STEP6, WAIT10, STEP10, WAIT12, STEP12, HOMING, UNHOMED)"
                 ),
                 1..14
             )

@@ -18,6 +18,11 @@ pub struct Ir {
     pub start: Option<(usize, String)>,
     /// The actuator steps one cycle must produce.
     pub expect: Vec<Step>,
+    /// The role whose table raises homing on the HOME command (sequence robots).
+    pub home: Option<usize>,
+    /// The homing sequence, and whether the synthesiser derived it (not declared).
+    pub homing: Vec<Step>,
+    pub homing_derived: bool,
 }
 
 /// One actuator motion: `VC+` (extend) or `VC-` (retract).
@@ -56,6 +61,8 @@ pub struct RoleIr {
     pub routes: Vec<(String, usize, usize)>,
     /// The node event the START command raises.
     pub start: Option<String>,
+    /// The node event the HOME command raises.
+    pub home: Option<String>,
     /// Events of other roles raised here: (publishing role, its event, the local event).
     pub imports: Vec<(String, String, String)>,
     /// The actuators declared here, in declaration order: which outputs and inputs are
@@ -162,7 +169,9 @@ pub struct ChartIr {
     pub name: String,
     /// Chart input events, by name.
     pub inputs: Vec<String>,
+    /// Where the chart starts (not homed) and where it rests between cycles.
     pub initial: usize,
+    pub idle: usize,
     pub states: Vec<StateIr>,
     pub transitions: Vec<TransitionIr>,
 }

@@ -8,6 +8,7 @@
 //!   [`expr`]: guard text -> bytecode. [`interlock`]: `never:` grammar and names.
 //! - [`synth`]: sequence -> charts. [`elab`]: explicit charts -> IR. [`ir`]: the IR, with
 //!   each actuator's wiring.
+//! - [`homing`]: the homing sequence, derived or declared, and the interlocks it keeps.
 //! - [`lower`]: IR -> tables. [`compile`]: the pipeline. [`dump`], [`diagram`].
 //!
 //! It knows nothing of the node firmware, the simulator or the radio (see
@@ -21,6 +22,7 @@ pub mod diagram;
 pub mod dump;
 pub mod elab;
 pub mod expr;
+pub mod homing;
 pub mod interlock;
 pub mod ir;
 pub mod locate;

@@ -239,6 +239,7 @@ impl Lowering<'_> {
         t.header.channel = ir.channel;
         t.events = u8_of(r.events.len(), "events")?;
         t.start = r.start.as_deref().map(|e| self.ev(e)).transpose()?;
+        t.home = r.home.as_deref().map(|e| self.ev(e)).transpose()?;
         self.hardware(&mut t)?;
         for c in &r.charts {
             self.chart(&mut t, c)?;
@@ -337,12 +338,15 @@ impl Lowering<'_> {
             states.push(actions);
         }
         let refs: Vec<&[Action]> = states.iter().map(|s| s.as_slice()).collect();
-        t.push_chart(
+        let index = t.push_chart(
             u8_of(c.initial, "state")?,
             u8_of(c.inputs.len(), "chart inputs")?,
             &refs,
             &transitions,
         )?;
+        if let Some(chart) = t.charts.get_mut(usize::from(index)) {
+            chart.idle = u8_of(c.idle, "state")?;
+        }
         Ok(())
     }
 

@@ -25,6 +25,16 @@ pub struct Robot {
     /// The input (`NAME` or `ROLE/NAME`) whose rising edge starts a cycle.
     #[serde(default)]
     pub start: Option<String>,
+    /// The input (`NAME` or `ROLE/NAME`) whose rising edge starts homing, besides the
+    /// `config-tool home` command (sequence robots).
+    #[serde(default)]
+    pub home: Option<String>,
+    /// The homing sequence of a sequence robot, as steps `A- B- ...`, run in that order
+    /// after a boot, a reset or an activation of a stopped machine; a step whose switch
+    /// already reads its target is skipped. Derived from the actuators and the
+    /// interlocks when absent (docs/reconfiguration.md).
+    #[serde(default)]
+    pub homing: Option<String>,
     /// A cycle as steps `A+ B- ...`: the charts are synthesised from it.
     #[serde(default)]
     pub sequence: Option<String>,

@@ -269,8 +269,9 @@ fn start_during_a_cycle_is_ignored() {
 /// Encoded blob sizes (envelope included) measured when these tables were written, in node
 /// order. The target is one IEEE 802.15.4 frame payload (about 100 bytes); VC, with seven
 /// events, seven routes and four subscriptions, is over it. A table may shrink; growing
-/// past these fails here. (Schema 2 added two bytes per output: fault and home levels.)
-const BLOB_BUDGET: [usize; 4] = [166, 109, 108, 102];
+/// past these fails here. (Schema 2 added two bytes per output: fault and home levels;
+/// schema 3 one per table, its HOME event, and one per chart, its idle state.)
+const BLOB_BUDGET: [usize; 4] = [168, 111, 110, 104];
 
 #[test]
 fn every_table_survives_encode_decode_within_its_size_budget() {

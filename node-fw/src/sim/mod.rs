@@ -138,6 +138,9 @@ enum Ev {
     Start {
         node: usize,
     },
+    Home {
+        node: usize,
+    },
     Arrive {
         plant: usize,
         gen: u64,
@@ -370,7 +373,12 @@ impl<'t> World<'t> {
                 .iter()
                 .map(|n| Node {
                     addr: n.addr,
-                    engine: Engine::new(n.table),
+                    // The machine starts homed: every chart at its idle point.
+                    engine: {
+                        let mut e = Engine::new(n.table);
+                        e.rest();
+                        e
+                    },
                     timers: [0; MAX_TIMERS],
                 })
                 .collect(),
@@ -542,6 +550,16 @@ impl<'t> World<'t> {
         }
         self.log(What::Start { node });
         self.schedule(0, Ev::Start { node });
+        Ok(())
+    }
+
+    /// Sends the HOME command to node `node` now (raises its table's home event).
+    pub fn home(&mut self, node: usize) -> Result<(), SimError> {
+        if node >= self.nodes.len() {
+            return Err(SimError::NoSuchNodeIndex { node });
+        }
+        self.log(What::Home { node });
+        self.schedule(0, Ev::Home { node });
         Ok(())
     }
 
@@ -748,6 +766,9 @@ impl<'t> World<'t> {
             Ev::Input { node, input, level } => self.set_input(node, input, level),
             Ev::Start { node } => self.call(node, |e, fx| {
                 e.start(fx);
+            }),
+            Ev::Home { node } => self.call(node, |e, fx| {
+                e.home(fx);
             }),
             Ev::Arrive { plant, .. } => {
                 if let Some(end) = self.rods[plant].arrive() {

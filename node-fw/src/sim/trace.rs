@@ -21,6 +21,8 @@ pub enum What {
     Press { button: usize },
     /// [`World::start`](super::World::start) sent the START command to a node.
     Start { node: usize },
+    /// [`World::home`](super::World::home) sent the HOME command to a node.
+    Home { node: usize },
     /// [`World::go`](super::World::go) commanded an actuator's valve directly.
     Go { plant: usize, plus: bool },
     /// An actuator started a motion (`VC+`): from a switch, or reversing mid-travel.
@@ -104,6 +106,7 @@ impl fmt::Display for What {
         match self {
             What::Press { button } => write!(f, "press button #{button}"),
             What::Start { node } => write!(f, "START -> node {node}"),
+            What::Home { node } => write!(f, "HOME -> node {node}"),
             What::Go { plant, plus } => {
                 write!(f, "go plant #{plant} {}", if *plus { '+' } else { '-' })
             }

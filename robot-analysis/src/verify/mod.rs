@@ -335,7 +335,15 @@ impl<'c> Model<'c> {
         let n = tables.len();
         // Power-up (`node_fw::cylinder`): each rod rests where its node's safe outputs hold
         // it, the node reads the sensors closed there.
-        let mut engines: Vec<Engine<'_>> = tables.iter().map(Engine::new).collect();
+        // The cycle is explored from the machine homed: every chart at its idle point.
+        let mut engines: Vec<Engine<'_>> = tables
+            .iter()
+            .map(|t| {
+                let mut e = Engine::new(t);
+                e.rest();
+                e
+            })
+            .collect();
         let mut pos = Vec::new();
         for a in &acts {
             let e = &mut engines[a.node];

@@ -21,6 +21,12 @@
 //! publishes `fault` to every other role; receiving a peer's `fault` raises fault 2. So a
 //! fault anywhere stops every node at once (outputs safe) until a reset.
 
+mod homing;
+
+pub use homing::{
+    home_done_event, homing_events, HOME_COMMAND_EVENT, HOME_DONE_EVENT, HOME_START_EVENT,
+};
+
 use crate::elab::{AddressError, StartError};
 use crate::ir::{ActionIr, ChartIr, InputIr, Ir, RoleIr, StateIr, Step, TimerIr, TransitionIr};
 use crate::model::{Actuator, ActuatorKind, Robot, Role};
@@ -82,6 +88,8 @@ pub enum SynthError {
     },
     #[error("{0}: no timer for its motion")]
     NoMotionTimer(String),
+    #[error(transparent)]
+    Homing(#[from] crate::homing::DeriveError),
 }
 
 /// Synthesises the charts of a sequence robot. The robot must have passed `check`.
@@ -90,15 +98,20 @@ pub fn synthesise(robot: &Robot, steps: &[Step]) -> Result<Ir, SynthError> {
     let roles = (0..robot.roles.len())
         .map(|ri| seq.role(ri))
         .collect::<Result<Vec<_>, _>>()?;
-    Ok(Ir {
+    let mut ir = Ir {
         name: robot.name.clone(),
         generation: robot.generation,
         pan_id: robot.network.pan_id,
         channel: robot.network.channel,
         roles,
-        start: Some((seq.start_role, seq.start_input)),
+        start: Some((seq.start_role, seq.start_input.clone())),
         expect: steps.to_vec(),
-    })
+        home: None,
+        homing: Vec::new(),
+        homing_derived: false,
+    };
+    homing::add(&seq, &mut ir)?;
+    Ok(ir)
 }
 
 /// What every role's synthesis shares: the steps, where START is, and how the START gate
@@ -345,6 +358,7 @@ impl<'a> Sequence<'a> {
             name: String::from("fault"),
             inputs,
             initial: 0,
+            idle: 0,
             states,
             transitions,
         });
@@ -370,6 +384,7 @@ fn start_chart(robot: &Robot, r: &mut RoleIr, start_input: &str, reopen: &str, f
         name: start_input.to_string(),
         inputs: vec![String::from("press"), String::from("done")],
         initial: 0,
+        idle: 0,
         states: vec![
             StateIr {
                 name: String::from("IDLE"),
@@ -718,6 +733,7 @@ impl ChartBuilder<'_> {
             name: self.motion.name.clone(),
             inputs: self.inputs,
             initial: 0,
+            idle: 0,
             states: self.states,
             transitions: self.transitions,
         }
