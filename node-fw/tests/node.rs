@@ -806,3 +806,69 @@ fn safe_levels_drive_every_output_as_before() {
     b.boot(&mut board);
     assert_eq!(board.pins, [(LAMP_PIN, false), (BEACON_PIN, true)]);
 }
+
+/// B with homing: its chart starts `UNHOMED` (S1) and rests in `IDLE` (S0); HOME takes it
+/// from `UNHOMED` to `IDLE`; a press (from A) takes it from `IDLE` to `BUSY` (S2), where
+/// it stays.
+fn homing_b(generation: u32) -> Table {
+    let mut t = table_b(generation);
+    t.routes.clear();
+    t.charts.clear();
+    t.states.clear();
+    t.transitions.clear();
+    t.actions.clear();
+    let home = t.push_event().unwrap();
+    t.home = Some(home);
+    let on = |from, to, trigger| config_schema::Transition {
+        from,
+        to,
+        trigger: Some(trigger),
+        guard: None,
+    };
+    t.push_chart(1, 2, &[&[], &[], &[]], &[on(1, 0, 1), on(0, 2, 0)])
+        .unwrap();
+    t.charts[0].idle = 0;
+    test_tables::route(&mut t, 0, 0, 0);
+    test_tables::route(&mut t, home, 0, 1);
+    t
+}
+
+/// A first table, or one activated on a node that is not at its idle point, starts in its
+/// initial (not homed) state; the HOME command raises the table's home event; a table
+/// activated at the idle point starts in its idle state.
+#[test]
+fn a_table_starts_homed_only_when_activated_at_the_idle_point() {
+    let mut net = Net::new(0.0, 0.0, 35);
+    assert_eq!(net.push(A, &table_a(1), false), ota::Progress::Done);
+    assert_eq!(net.push(B, &homing_b(1), false), ota::Progress::Done);
+    assert_eq!(net.status(B).states, [1], "a first table: not homed");
+    // A press while not homed does nothing.
+    net.press();
+    assert_eq!(net.status(B).states, [1]);
+    assert_eq!(net.command(B, 50, Command::Home).states, [0], "homed");
+    // At the idle point: the next table starts idle.
+    assert_eq!(
+        net.switch_staged(B, &homing_b(2)),
+        switch::Verdict::Switched
+    );
+    assert_eq!(
+        net.status(B).states,
+        [0],
+        "switched at the idle point: homed"
+    );
+    // Busy: only an explicit switch-over at once, which starts not homed.
+    net.press();
+    assert_eq!(net.status(B).states, [2]);
+    assert_eq!(
+        net.push_at(B, &homing_b(3), false, true),
+        ota::Progress::Done
+    );
+    assert_eq!(
+        net.status(B).states,
+        [1],
+        "switched away from the idle point"
+    );
+    // A reset, too, leaves the chart not homed.
+    assert_eq!(net.command(B, 51, Command::Home).states, [0]);
+    assert_eq!(net.command(B, 52, Command::Reset).states, [1]);
+}

@@ -263,3 +263,108 @@ mod random {
         }
     }
 }
+
+/// Compiles a generated robot or panics with its diagnostics.
+fn compiled(text: &str) -> robot_compiler::Compiled {
+    let src = Source::new("gen.ron", text);
+    compile(&src).unwrap_or_else(|d| {
+        panic!(
+            "{text}\n{}",
+            d.iter()
+                .map(|d| d.short(&src))
+                .collect::<Vec<_>>()
+                .join("\n")
+        )
+    })
+}
+
+/// Every sequence of the table, with START on each role and on a panel: stopped half way
+/// through a cycle and reset (every chart in its initial state, the actuators where they
+/// stopped), a START moves nothing; HOME runs the homing steps of the actuators away from
+/// home, in homing order, and leaves every chart idle and every actuator home; the next
+/// START gives exactly one cycle.
+#[test]
+fn every_sequence_of_the_table_homes_from_half_way_through_a_cycle() {
+    use node_fw::cylinder::Position;
+    let mut homed_steps = 0;
+    for (sequence, acts, _, _) in table() {
+        let mut starts: Vec<&str> = acts.iter().map(|a| a.1).collect();
+        starts.dedup();
+        starts.push("PANEL");
+        for start in starts {
+            let text = robot(sequence, &acts, start);
+            let c = compiled(&text);
+            let tables = sim::tables(&c).expect("tables");
+            let (mut world, button) = sim::world(&c, &tables).expect("world");
+            let full = world.run_cycle(button, 60_000).expect("a cycle");
+            assert_eq!(full.steps.join(" "), sequence, "{text}");
+            // Half way through the next cycle: every node reset.
+            world.press(button).expect("press");
+            world
+                .run_for((full.end_ms - full.start_ms) / 2)
+                .expect("runs");
+            for node in 0..world.node_count() {
+                world.reset(node).expect("reset");
+            }
+            world.run_until_idle(60_000).expect("settles");
+            let actuators: Vec<usize> = (0..world.plants().len())
+                .filter(|&p| world.plants()[p].travel().is_some())
+                .collect();
+            let away: Vec<String> = actuators
+                .iter()
+                .filter(|&&p| world.position(p) != Some(Position::Home))
+                .map(|&p| world.plants()[p].name().to_string())
+                .collect();
+            // Not homed: a START moves nothing.
+            let mark = world.trace().len();
+            world.press(button).expect("press");
+            world.run_until_idle(60_000).expect("settles");
+            let moved: Vec<_> = world.trace()[mark..]
+                .iter()
+                .filter_map(|e| sim::step_of(&e.what))
+                .collect();
+            assert_eq!(
+                moved,
+                [],
+                "START before homing, {sequence} START on {start}"
+            );
+            // HOME.
+            let home = c.ir.home.expect("a sequence robot homes");
+            let mark = world.trace().len();
+            world.home(home).expect("home");
+            world.run_until_idle(60_000).expect("homes");
+            let homed: Vec<String> = world.trace()[mark..]
+                .iter()
+                .filter_map(|e| sim::step_of(&e.what))
+                .map(|s| s.to_string())
+                .collect();
+            // Switched actuators already home are skipped; a sensorless one is driven home
+            // and waited for, which moves it only if it is away.
+            let want: Vec<String> =
+                c.ir.homing
+                    .iter()
+                    .filter(|s| away.contains(&s.actuator))
+                    .map(|s| s.to_string())
+                    .collect();
+            assert_eq!(homed, want, "{sequence}, START on {start}, away: {away:?}");
+            homed_steps += homed.len();
+            for &p in &actuators {
+                assert_eq!(world.position(p), Some(Position::Home), "{sequence}");
+            }
+            for (node, t) in tables.iter().enumerate() {
+                let idle: Vec<u8> = t.charts.iter().map(|ch| ch.idle).collect();
+                assert_eq!(world.states(node), idle, "{sequence}: node {node} idle");
+            }
+            let next = world.run_cycle(button, 60_000).expect("a cycle");
+            assert_eq!(
+                next.steps.join(" "),
+                sequence,
+                "after homing, START on {start}"
+            );
+        }
+    }
+    assert!(
+        homed_steps > 20,
+        "the cycles stopped with actuators away: {homed_steps}"
+    );
+}

@@ -93,6 +93,23 @@ const BROKEN: &[(&str, &[&str])] = &[
     ("level-unknown.ron", &[
         "18:104: error: Unexpected variant named `Open` in enum `ActuatorLevel`, expected one of `Off`, `Hold`, `Extend`, or `Retract` instead",
     ]),
+    ("homing-breaks-interlock.ron", &[
+        "24:14: error: homing step `B-` breaks interlock never[0] `B.moving && !A.home` with A at its end",
+    ]),
+    ("homing-incomplete.ron", &[
+        "23:13: error: homing leaves `B` away from home: the cycle could start from there",
+    ]),
+    ("homing-unknown-step.ron", &[
+        "23:17: error: unknown actuator `C`",
+        "23:20: error: `X` is not a step: write an actuator name and `+` or `-`, e.g. `VC+`",
+    ]),
+    ("home-input-unknown.ron", &["23:11: error: no role has an input `HOMEX`"]),
+    ("homing-underivable.ron", &[
+        "22:15: error: no homing order keeps the interlocks: A-, B- cannot move while the others may be anywhere (declare `homing`, e.g. `homing: \"A- B-\"`)",
+    ]),
+    ("homing-on-charts.ron", &[
+        "60:5: error: `homing` is for sequence robots: explicit charts home themselves",
+    ]),
     ("guard-unknown-name.ron", &[
         "36:68: error: unknown name `MAX`: not a variable, input or parameter of this chart",
     ]),

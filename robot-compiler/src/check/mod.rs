@@ -8,6 +8,7 @@
 
 mod charts;
 mod events;
+mod homing;
 mod interlocks;
 mod levels;
 mod names;
@@ -37,6 +38,7 @@ pub const STRUCTURE: &[(&str, Pass)] = &[
     ("levels", levels::check),
     ("timing", timing::check),
     ("sequence", sequence::check),
+    ("homing", homing::check),
     ("charts", charts::check),
 ];
 
@@ -46,6 +48,7 @@ pub const SEMANTIC: &[(&str, IrPass)] = &[
     ("events", events::check),
     ("capacity", tables::check),
     ("interlocks", interlocks::check),
+    ("homing", homing::check_ir),
 ];
 
 /// A checked robot: what parsed, what elaborated, and every problem found.
