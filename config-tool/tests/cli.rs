@@ -29,7 +29,11 @@ fn scratch(name: &str) -> PathBuf {
 fn check_accepts_a_good_robot_and_rejects_a_broken_one_with_status_1() {
     let ok = tool(&["check", "robot-configs/paint-robot.ron"]);
     assert!(ok.status.success());
-    assert_eq!(text(&ok.stdout), "robot-configs/paint-robot.ron: ok\n");
+    assert_eq!(
+        text(&ok.stdout),
+        "homing: VC- HC- RC- GR- (derived from the actuators and interlocks; HOME goes to role \
+         VC)\nrobot-configs/paint-robot.ron: ok\n"
+    );
     // The sensorless gripper's two steps are warned of (a jam goes undetected).
     assert!(
         text(&ok.stderr).ends_with("robot-configs/paint-robot.ron: 0 error(s), 2 warning(s)\n"),

@@ -315,7 +315,7 @@ fn diagram_draws_states_with_actions_and_labelled_transitions() {
   outputs [shape=note, label="outputs: fault / start / home\l  A.extend (pin 0): 0 / 0 / 0\l  A.retract (pin 1): 0 / 0 / 1\l"];
   subgraph cluster_0 {
     label="a";
-    c0s0 [label="IDLE", peripheries=2];
+    c0s0 [label="IDLE", peripheries=2, style=bold];
     c0s1 [label="OUT\l  drive A+\l  a.count := count + 1\l"];
     c0s2 [label="IN\l  drive A-\l"];
     c0s0 -> c0s1 [label="GO [count < M || true]"];

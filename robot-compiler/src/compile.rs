@@ -112,6 +112,23 @@ pub fn radio_events(ir: &Ir) -> Vec<(String, String, String)> {
     out
 }
 
+/// What homing does, for people: `homing: VC- HC- RC- GR- (derived ...)`; none for a
+/// robot without homing (explicit charts).
+pub fn homing_line(ir: &Ir) -> Option<String> {
+    let role = ir.roles.get(ir.home?)?;
+    let steps: Vec<String> = ir.homing.iter().map(ToString::to_string).collect();
+    let how = if ir.homing_derived {
+        "derived from the actuators and interlocks"
+    } else {
+        "declared"
+    };
+    Some(format!(
+        "homing: {} ({how}; HOME goes to role {})",
+        steps.join(" "),
+        role.name
+    ))
+}
+
 /// One summary line per role: node address, charts, states, transitions, blob bytes.
 pub fn summary(c: &Compiled) -> Vec<String> {
     c.ir.roles

@@ -1,5 +1,6 @@
 //! `diagram`: a role's charts as Graphviz DOT: one cluster per chart, a node per state
-//! (its actions listed under the name), edges labelled `EVENT [guard]`.
+//! (its actions listed under the name; a double border marks the initial state, bold the
+//! idle one), edges labelled `EVENT [guard]`.
 
 use std::fmt::Write;
 use std::io::Write as _;
@@ -80,10 +81,12 @@ pub fn dot(ir: &Ir, role: &str) -> Result<String, DiagramError> {
             if !s.actions.is_empty() {
                 label.push_str("\\l");
             }
-            let extra = if si == c.initial {
-                ", peripheries=2"
-            } else {
-                ""
+            // Double border: where the chart starts; bold: where it rests between cycles.
+            let extra = match (si == c.initial, si == c.idle) {
+                (true, true) => ", peripheries=2, style=bold",
+                (true, false) => ", peripheries=2",
+                (false, true) => ", style=bold",
+                (false, false) => "",
             };
             let _ = writeln!(o, "    c{ci}s{si} [label=\"{label}\"{extra}];");
         }

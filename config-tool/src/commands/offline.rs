@@ -34,10 +34,13 @@ fn report(src: &Source, diags: &[Diagnostic]) {
 
 pub fn check(robot: &Path) -> Result<(), Failure> {
     let src = load(robot)?;
-    let diags = check::check(&src).diagnostics;
-    report(&src, &diags);
-    if diags.iter().any(Diagnostic::is_error) {
+    let checked = check::check(&src);
+    report(&src, &checked.diagnostics);
+    if checked.has_errors() {
         return Err(Failure::reported());
+    }
+    if let Some(line) = checked.ir.as_ref().and_then(pipeline::homing_line) {
+        println!("{line}");
     }
     println!("{}: ok", src.name);
     Ok(())
@@ -64,6 +67,9 @@ pub fn compile(robot: &Path, out: &Path, generation: Option<u32>) -> Result<(), 
         for (from, event, to) in radio {
             println!("  {from} -> {to}: {event}");
         }
+    }
+    if let Some(line) = pipeline::homing_line(&compiled.ir) {
+        println!("{line}");
     }
     Ok(())
 }
