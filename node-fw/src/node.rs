@@ -105,6 +105,10 @@ pub struct NodeCore {
     epoch: u16,
     /// Bit i: the last `Reset` re-established the link to peer i.
     restarted: u8,
+    /// Cycles this node's START began at its idle point and that ended with the node back
+    /// at it (`Status::cycles`), and whether one is under way.
+    cycles: u8,
+    cycle_open: bool,
     mac_seq: u8,
     next_announce: u64,
     counters: Counters,
@@ -277,6 +281,8 @@ impl NodeCore {
             switch: SwitchOver::default(),
             epoch,
             restarted: 0,
+            cycles: 0,
+            cycle_open: false,
             mac_seq: 0,
             next_announce: 0,
             counters: Counters::default(),
@@ -411,6 +417,7 @@ impl NodeCore {
         self.epoch = self.epoch.wrapping_add(1);
         self.senders.clear();
         self.restarted = 0;
+        self.cycle_open = false;
         for _ in &table.peers {
             let _ = self.senders.push(link::Sender::new(self.epoch));
         }
@@ -582,6 +589,24 @@ impl NodeCore {
             .unwrap_or(u64::MAX)
     }
 
+    /// Raises the table's START event: a START at the idle point that sets the node going
+    /// begins a cycle.
+    fn run_start(&mut self, now: u64, io: &mut impl Io) {
+        let was_idle = self.idle();
+        self.run(now, io, |e, fx| {
+            e.start(fx);
+        });
+        self.cycle_open |= was_idle && !self.idle();
+    }
+
+    /// Counts a cycle under way that is over: the node is back at its idle point.
+    fn note_idle(&mut self) {
+        if self.cycle_open && self.idle() {
+            self.cycle_open = false;
+            self.cycles = self.cycles.wrapping_add(1);
+        }
+    }
+
     /// Runs the engine on the running table with effects applied to this node.
     fn run<I: Io>(
         &mut self,
@@ -650,13 +675,25 @@ impl NodeCore {
             .table
             .as_ref()
             .and_then(|t| t.inputs.iter().position(|i| i.pin == pin));
-        if let Some(index) = index {
-            self.run(now, io, |e, fx| e.input(index as u8, level, fx));
-        }
+        let Some(index) = index else {
+            return;
+        };
+        let is_start = self.table.as_ref().is_some_and(|t| {
+            level && t.start.is_some() && t.inputs.get(index).and_then(|i| i.rise) == t.start
+        });
+        let was_idle = self.idle();
+        self.run(now, io, |e, fx| e.input(index as u8, level, fx));
+        self.cycle_open |= is_start && was_idle && !self.idle();
+        self.note_idle();
     }
 
     /// Expired timers, link retransmissions, announcements.
     pub fn poll(&mut self, now: u64, io: &mut impl Io) {
+        self.poll_due(now, io);
+        self.note_idle();
+    }
+
+    fn poll_due(&mut self, now: u64, io: &mut impl Io) {
         for timer in 0..MAX_TIMERS {
             if self.timers[timer].is_some_and(|t| t <= now) {
                 self.timers[timer] = None;
@@ -664,9 +701,7 @@ impl NodeCore {
             }
         }
         if self.switch.poll(now) {
-            self.run(now, io, |e, fx| {
-                e.start(fx);
-            });
+            self.run_start(now, io);
         }
         while let Some(peer) = self.peer_security.next_greeting(now) {
             self.challenge_peer(peer, io);
@@ -725,6 +760,7 @@ impl NodeCore {
             epoch: self.epoch,
             counters: self.counters,
             runtime,
+            cycles: self.cycles,
         };
         if let (Some(t), Some(st)) = (&self.table, &self.state) {
             s.role = t.header.role.clone();
@@ -740,6 +776,11 @@ impl NodeCore {
 
     /// A PSDU arrived.
     pub fn receive(&mut self, psdu: &[u8], now: u64, io: &mut impl Io) {
+        self.receive_frame(psdu, now, io);
+        self.note_idle();
+    }
+
+    fn receive_frame(&mut self, psdu: &[u8], now: u64, io: &mut impl Io) {
         let (header, payload) = match Frame::parse(psdu) {
             Ok(Frame::Data { header, payload }) => (header, payload),
             _ => {
@@ -1147,9 +1188,7 @@ impl NodeCore {
             );
         }
         if start {
-            self.run(now, io, |e, fx| {
-                e.start(fx);
-            });
+            self.run_start(now, io);
         }
     }
 
@@ -1171,9 +1210,7 @@ impl NodeCore {
             switch::Action::Activate(_) | switch::Action::Confirm => return,
             switch::Action::Disarmed { start } => {
                 if start {
-                    self.run(now, io, |e, fx| {
-                        e.start(fx);
-                    });
+                    self.run_start(now, io);
                 }
                 ConfigReply::Disarmed
             }
@@ -1210,9 +1247,7 @@ impl NodeCore {
             match cmd {
                 // Armed for a switch-over: the START waits for it.
                 Command::Start if self.switch.hold_start() => {}
-                Command::Start => self.run(now, io, |e, fx| {
-                    e.start(fx);
-                }),
+                Command::Start => self.run_start(now, io),
                 // Homing moves actuators: not while armed for a switch-over.
                 Command::Home if self.switch.armed() => {}
                 Command::Home => self.run(now, io, |e, fx| {

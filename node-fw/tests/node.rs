@@ -872,3 +872,22 @@ fn a_table_starts_homed_only_when_activated_at_the_idle_point() {
     assert_eq!(net.command(B, 51, Command::Home).states, [0]);
     assert_eq!(net.command(B, 52, Command::Reset).states, [1]);
 }
+
+/// A counts a cycle for each START at its idle point (the button or the command) once it is
+/// back at it (here: its published press acknowledged by B).
+#[test]
+fn the_status_counts_the_cycles_a_start_began_and_that_ended() {
+    let mut net = Net::new(0.2, 0.0, 37);
+    assert_eq!(net.push(A, &table_a(1), false), ota::Progress::Done);
+    assert_eq!(net.push(B, &table_b(1), false), ota::Progress::Done);
+    assert_eq!(net.status(A).cycles, 0);
+    net.press();
+    net.run(2_000);
+    net.press();
+    net.run(2_000);
+    assert_eq!(net.status(A).cycles, 2);
+    net.command(A, 60, Command::Start);
+    net.run(2_000);
+    assert_eq!(net.status(A).cycles, 3);
+    assert_eq!(net.status(B).cycles, 0, "B has no START");
+}

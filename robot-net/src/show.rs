@@ -203,6 +203,7 @@ mod tests {
                 tx_failed: 1,
                 flash_failures: 2,
             },
+            cycles: 7,
         }
     }
 

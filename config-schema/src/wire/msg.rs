@@ -270,6 +270,10 @@ pub struct Status {
     pub epoch: u16,
     pub counters: Counters,
     pub runtime: RuntimeCounters,
+    /// Cycles since boot, modulo 256, that this node's START (button or command) began at
+    /// its idle point and that ended with the node back at it (the trial window's count:
+    /// one byte, so the largest status still fits a secured frame).
+    pub cycles: u8,
 }
 
 /// What the board's runtime counted (zero where a board has no such thing).
@@ -404,6 +408,7 @@ mod tests {
                 tx_failed: c,
                 flash_failures: c,
             },
+            cycles: u8::MAX,
         });
         let mut buf = [0u8; 256];
         let n = msg.emit(&mut buf).unwrap();
