@@ -117,7 +117,7 @@ fn may(times: &mut Vec<(u16, u64), MAX_PEERS>, peer: u16, now: u64) -> bool {
 impl PeerSecurity {
     /// Whether the running table came with link keys (its events are secured).
     pub fn secured(&self) -> bool {
-        self.current.is_some()
+        crate::FRAME_SECURITY && self.current.is_some()
     }
 
     /// The running table's keys.
@@ -158,6 +158,9 @@ impl PeerSecurity {
 
     /// The next peer to challenge before any of its frames came (see `greet`), at `now`.
     pub fn next_greeting(&mut self, now: u64) -> Option<u16> {
+        if !crate::FRAME_SECURITY {
+            return None;
+        }
         let replay = &self.replay;
         self.greet
             .retain(|(p, tries, _)| *tries > 0 && replay.last(*p, ANY_LINK_KEY).is_none());
@@ -170,6 +173,9 @@ impl PeerSecurity {
 
     /// When the next greeting is due, if any is.
     pub fn greeting(&self) -> Option<u64> {
+        if !crate::FRAME_SECURITY {
+            return None;
+        }
         self.greet.iter().map(|(_, _, at)| *at).min()
     }
 
@@ -182,6 +188,9 @@ impl PeerSecurity {
         payload: &[u8],
         out: &mut [u8],
     ) -> Option<Result<usize, SecError>> {
+        if !crate::FRAME_SECURITY {
+            return None;
+        }
         let keys = self.current.as_ref()?;
         let send = keys.of(header.dst)?.send;
         let aux = AuxRepr::new(link_key_index(keys.generation), counter);
@@ -225,6 +234,9 @@ impl PeerSecurity {
         scratch: &'s mut [u8],
         counters: &mut SecurityCounters,
     ) -> Verdict<'s> {
+        if !crate::FRAME_SECURITY {
+            return Verdict::Dropped;
+        }
         self.overlap_until.get_or_insert(now + OVERLAP_MS);
         let opened = security::open_at(
             psdu,
