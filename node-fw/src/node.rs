@@ -12,7 +12,7 @@ use config_schema::wire::msg::{
     Announce, Command, ConfigReply, Counters, Message, Refusal, RuntimeCounters, SecurityCounters,
     SecurityReport, Status, SwitchStep,
 };
-use config_schema::wire::security::{self, ext_addr, replay::ReplayGuard, AuxRepr, SecurityLevel};
+use config_schema::wire::security::{self, ext_addr, replay::ReplayGuard, AuxRepr};
 use config_schema::{Publication, Table};
 use heapless::Vec;
 
@@ -195,7 +195,9 @@ impl Radio<'_> {
         *self.mac_seq = self.mac_seq.wrapping_add(1);
         let mut psdu = [0u8; MAX_PSDU];
         let links = pan_id != CONFIG_PAN && self.links.secured();
-        let key = self.key.filter(|_| crate::FRAME_SECURITY && pan_id == CONFIG_PAN);
+        let key = self
+            .key
+            .filter(|_| crate::FRAME_SECURITY && pan_id == CONFIG_PAN);
         let emitted = match key {
             None if links => {
                 let Some(counter) = counter.or_else(|| io.next_frame_counter()) else {
@@ -214,7 +216,7 @@ impl Radio<'_> {
                 };
                 let aux = AuxRepr::new(MANAGEMENT_KEY_INDEX, counter);
                 let src_ext = ext_addr(pan_id, self.addr);
-                security::secure(
+                security::secure_default(
                     &header,
                     &aux,
                     key.expose(),
@@ -929,9 +931,8 @@ impl NodeCore {
             return Err(Refused::Dropped);
         };
         let me = self.addr;
-        let opened = security::open_at(
+        let opened = security::open_default(
             psdu,
-            SecurityLevel::EncMic64,
             |header, aux| {
                 // Our own frames reflected back are not the tool's.
                 (aux.key_id.index() == Some(MANAGEMENT_KEY_INDEX) && header.src != me)

@@ -32,7 +32,7 @@ use config_schema::wire::msg::{Message, SecurityCounters};
 use config_schema::wire::security::{
     self, ext_addr, link_key_index,
     replay::{ReplayError, ReplayGuard},
-    AuxRepr, Opened, SecError, SecurityLevel, KEY_LEN,
+    AuxRepr, Opened, SecError, KEY_LEN,
 };
 use heapless::Vec;
 
@@ -194,7 +194,7 @@ impl PeerSecurity {
         let keys = self.current.as_ref()?;
         let send = keys.of(header.dst)?.send;
         let aux = AuxRepr::new(link_key_index(keys.generation), counter);
-        Some(security::secure(
+        Some(security::secure_default(
             header,
             &aux,
             &send,
@@ -238,9 +238,8 @@ impl PeerSecurity {
             return Verdict::Dropped;
         }
         self.overlap_until.get_or_insert(now + OVERLAP_MS);
-        let opened = security::open_at(
+        let opened = security::open_default(
             psdu,
-            SecurityLevel::EncMic64,
             |header, aux| {
                 let index = aux.key_id.index()?;
                 if header.src == me {
@@ -463,7 +462,7 @@ mod tests {
             secured: false,
         };
         let mut out = [0u8; MAX_PSDU];
-        let len = security::secure(
+        let len = security::secure_default(
             &header,
             &AuxRepr::new(link_key_index(generation), counter),
             &key(generation, PEER),
