@@ -29,3 +29,9 @@ pub mod runtime;
 pub mod sim;
 pub mod slots;
 pub mod switch;
+
+/// Whether the image secures frames (feature `frame-security`, on by default and with
+/// `std`). Without it a node never secures or opens a frame, whatever keys it is given:
+/// the secured paths are dead code and the crypto is not linked. Only for measuring what
+/// frame security costs (`bench/footprint.sh`): such a node is not for a machine.
+pub const FRAME_SECURITY: bool = cfg!(feature = "frame-security");

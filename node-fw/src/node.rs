@@ -12,7 +12,7 @@ use config_schema::wire::msg::{
     Announce, Command, ConfigReply, Counters, Message, Refusal, RuntimeCounters, SecurityCounters,
     SecurityReport, Status, SwitchStep,
 };
-use config_schema::wire::security::{self, ext_addr, replay::ReplayGuard, AuxRepr, SecurityLevel};
+use config_schema::wire::security::{self, ext_addr, replay::ReplayGuard, AuxRepr};
 use config_schema::{Publication, Table};
 use heapless::Vec;
 
@@ -85,6 +85,12 @@ pub enum FlashRequest<'a> {
     Rollback,
     /// Confirm the running slot (on trial), then [`NodeCore::confirmed`].
     Confirm,
+}
+
+/// `key`, if the image has frame security ([`crate::FRAME_SECURITY`]: without it every
+/// secured path is dead code and the crypto is not linked).
+fn gated(key: &Option<ManagementKey>) -> Option<&ManagementKey> {
+    key.as_ref().filter(|_| crate::FRAME_SECURITY)
 }
 
 /// The generic node.
@@ -193,7 +199,10 @@ impl Radio<'_> {
         *self.mac_seq = self.mac_seq.wrapping_add(1);
         let mut psdu = [0u8; MAX_PSDU];
         let links = pan_id != CONFIG_PAN && self.links.secured();
-        let emitted = match self.key.filter(|_| pan_id == CONFIG_PAN) {
+        let key = self
+            .key
+            .filter(|_| crate::FRAME_SECURITY && pan_id == CONFIG_PAN);
+        let emitted = match key {
             None if links => {
                 let Some(counter) = counter.or_else(|| io.next_frame_counter()) else {
                     self.security.no_counter += 1;
@@ -211,7 +220,7 @@ impl Radio<'_> {
                 };
                 let aux = AuxRepr::new(MANAGEMENT_KEY_INDEX, counter);
                 let src_ext = ext_addr(pan_id, self.addr);
-                security::secure(
+                security::secure_default(
                     &header,
                     &aux,
                     key.expose(),
@@ -329,7 +338,12 @@ impl NodeCore {
 
     /// Whether the node has a management key.
     pub fn keyed(&self) -> bool {
-        self.key.is_some()
+        self.key().is_some()
+    }
+
+    /// The management key, if the node has one and the image has frame security.
+    fn key(&self) -> Option<&ManagementKey> {
+        gated(&self.key)
     }
 
     /// What the node counted of frame security.
@@ -627,7 +641,7 @@ impl NodeCore {
                 addr: self.addr,
                 mac_seq: &mut self.mac_seq,
                 counters: &mut self.counters,
-                key: self.key.as_ref(),
+                key: gated(&self.key),
                 links: &self.peer_security,
                 security: &mut self.security,
             },
@@ -654,7 +668,7 @@ impl NodeCore {
             addr: self.addr,
             mac_seq: &mut self.mac_seq,
             counters: &mut self.counters,
-            key: self.key.as_ref(),
+            key: gated(&self.key),
             links: &self.peer_security,
             security: &mut self.security,
         };
@@ -712,7 +726,7 @@ impl NodeCore {
                 addr: self.addr,
                 mac_seq: &mut self.mac_seq,
                 counters: &mut self.counters,
-                key: self.key.as_ref(),
+                key: gated(&self.key),
                 links: &self.peer_security,
                 security: &mut self.security,
             };
@@ -798,7 +812,7 @@ impl NodeCore {
             return;
         }
         let mut scratch = [0u8; mac::MAX_PAYLOAD];
-        let management = header.pan_id == CONFIG_PAN && self.key.is_some();
+        let management = header.pan_id == CONFIG_PAN && self.key().is_some();
         if management && header.secured && header.dst == BROADCAST {
             // No one key secures a broadcast to every node: these are other nodes'
             // announcements (secured with their own keys), which a node never reads.
@@ -883,7 +897,7 @@ impl NodeCore {
                 | Message::Command { .. }
                 | Message::Switch { .. }
         );
-        if self.key.is_some() && is_management && !authentic {
+        if self.key().is_some() && is_management && !authentic {
             // A scan cannot be secured with every node's key: an unsecured broadcast
             // Identify is answered (secured), rate-limited; nothing else is taken.
             let scan = header.dst == BROADCAST
@@ -922,7 +936,7 @@ impl NodeCore {
                     addr: self.addr,
                     mac_seq: &mut self.mac_seq,
                     counters: &mut self.counters,
-                    key: self.key.as_ref(),
+                    key: gated(&self.key),
                     links: &self.peer_security,
                     security: &mut self.security,
                 };
@@ -959,13 +973,12 @@ impl NodeCore {
         now: u64,
         io: &mut impl Io,
     ) -> Result<&'s [u8], Refused> {
-        let Some(key) = &self.key else {
+        let Some(key) = gated(&self.key) else {
             return Err(Refused::Dropped);
         };
         let me = self.addr;
-        let opened = security::open_at(
+        let opened = security::open_default(
             psdu,
-            SecurityLevel::EncMic64,
             |header, aux| {
                 // Our own frames reflected back are not the tool's.
                 (aux.key_id.index() == Some(MANAGEMENT_KEY_INDEX) && header.src != me)
@@ -1264,7 +1277,7 @@ impl NodeCore {
         if cmd == Command::Security {
             let report = Message::Security(SecurityReport {
                 ack: id,
-                keyed: self.key.is_some(),
+                keyed: self.key().is_some(),
                 counters: self.security,
             });
             self.send(io, pan, src, &report);

@@ -32,7 +32,7 @@ use config_schema::wire::msg::{Message, SecurityCounters};
 use config_schema::wire::security::{
     self, ext_addr, link_key_index,
     replay::{ReplayError, ReplayGuard},
-    AuxRepr, Opened, SecError, SecurityLevel, KEY_LEN,
+    AuxRepr, Opened, SecError, KEY_LEN,
 };
 use heapless::Vec;
 
@@ -117,7 +117,7 @@ fn may(times: &mut Vec<(u16, u64), MAX_PEERS>, peer: u16, now: u64) -> bool {
 impl PeerSecurity {
     /// Whether the running table came with link keys (its events are secured).
     pub fn secured(&self) -> bool {
-        self.current.is_some()
+        crate::FRAME_SECURITY && self.current.is_some()
     }
 
     /// The running table's keys.
@@ -158,6 +158,9 @@ impl PeerSecurity {
 
     /// The next peer to challenge before any of its frames came (see `greet`), at `now`.
     pub fn next_greeting(&mut self, now: u64) -> Option<u16> {
+        if !crate::FRAME_SECURITY {
+            return None;
+        }
         let replay = &self.replay;
         self.greet
             .retain(|(p, tries, _)| *tries > 0 && replay.last(*p, ANY_LINK_KEY).is_none());
@@ -170,6 +173,9 @@ impl PeerSecurity {
 
     /// When the next greeting is due, if any is.
     pub fn greeting(&self) -> Option<u64> {
+        if !crate::FRAME_SECURITY {
+            return None;
+        }
         self.greet.iter().map(|(_, _, at)| *at).min()
     }
 
@@ -182,10 +188,13 @@ impl PeerSecurity {
         payload: &[u8],
         out: &mut [u8],
     ) -> Option<Result<usize, SecError>> {
+        if !crate::FRAME_SECURITY {
+            return None;
+        }
         let keys = self.current.as_ref()?;
         let send = keys.of(header.dst)?.send;
         let aux = AuxRepr::new(link_key_index(keys.generation), counter);
-        Some(security::secure(
+        Some(security::secure_default(
             header,
             &aux,
             &send,
@@ -225,10 +234,12 @@ impl PeerSecurity {
         scratch: &'s mut [u8],
         counters: &mut SecurityCounters,
     ) -> Verdict<'s> {
+        if !crate::FRAME_SECURITY {
+            return Verdict::Dropped;
+        }
         self.overlap_until.get_or_insert(now + OVERLAP_MS);
-        let opened = security::open_at(
+        let opened = security::open_default(
             psdu,
-            SecurityLevel::EncMic64,
             |header, aux| {
                 let index = aux.key_id.index()?;
                 if header.src == me {
@@ -451,7 +462,7 @@ mod tests {
             secured: false,
         };
         let mut out = [0u8; MAX_PSDU];
-        let len = security::secure(
+        let len = security::secure_default(
             &header,
             &AuxRepr::new(link_key_index(generation), counter),
             &key(generation, PEER),

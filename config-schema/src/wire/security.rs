@@ -23,16 +23,18 @@
 //! This codec knows bytes, not state: keeping frame counters (sender) is the caller's job,
 //! and so is rejecting replays (receiver), for which [`replay::ReplayGuard`] is the table.
 
+mod block;
 pub mod replay;
 #[cfg(test)]
 mod tests;
 
 use core::fmt;
 
-use aes::Aes128;
 use ccm::aead::array::{Array, ArraySize};
 use ccm::consts::{U13, U16, U4, U8};
-use ccm::{AeadInOut, Ccm, KeyInit, TagSize};
+use ccm::{AeadInOut, Ccm, TagSize};
+
+use block::OneBlock;
 
 use super::mac::{self, Frame, FrameError, Header, DATA_HEADER_LEN, FCS_LEN, MAX_PSDU};
 
@@ -397,13 +399,13 @@ pub const fn nonce(src_ext: &[u8; 8], frame_counter: u32, level: SecurityLevel) 
 }
 
 fn seal_with<M: ArraySize + TagSize>(
-    cipher: Aes128,
+    cipher: OneBlock,
     nonce: &[u8; NONCE_LEN],
     a: &[u8],
     m: &mut [u8],
     mic: &mut [u8],
 ) -> Result<(), SecError> {
-    let ccm = Ccm::<Aes128, M, U13>::from(cipher);
+    let ccm = Ccm::<OneBlock, M, U13>::from(cipher);
     let tag = ccm
         .encrypt_inout_detached(&Array::from(*nonce), a, m.into())
         .map_err(|_| SecError::NoRoom)?;
@@ -415,13 +417,13 @@ fn seal_with<M: ArraySize + TagSize>(
 }
 
 fn open_with<M: ArraySize + TagSize>(
-    cipher: Aes128,
+    cipher: OneBlock,
     nonce: &[u8; NONCE_LEN],
     a: &[u8],
     m: &mut [u8],
     mic: &[u8],
 ) -> Result<(), SecError> {
-    let ccm = Ccm::<Aes128, M, U13>::from(cipher);
+    let ccm = Ccm::<OneBlock, M, U13>::from(cipher);
     let tag = Array::<u8, M>::try_from(mic).map_err(|_| SecError::Malformed)?;
     ccm.decrypt_inout_detached(&Array::from(*nonce), a, m.into(), &tag)
         .map_err(|_| SecError::BadMic)
@@ -450,7 +452,7 @@ pub(crate) fn seal(
     m: &mut [u8],
     mic: &mut [u8],
 ) -> Result<(), SecError> {
-    let cipher = Aes128::new(&Array::from(*key));
+    let cipher = OneBlock::new(key);
     match level.mic_len() {
         4 => seal_with::<U4>(cipher, nonce, a, m, mic),
         8 => seal_with::<U8>(cipher, nonce, a, m, mic),
@@ -469,7 +471,7 @@ pub(crate) fn unseal(
     m: &mut [u8],
     mic: &[u8],
 ) -> Result<(), SecError> {
-    let cipher = Aes128::new(&Array::from(*key));
+    let cipher = OneBlock::new(key);
     match level.mic_len() {
         4 => open_with::<U4>(cipher, nonce, a, m, mic),
         8 => open_with::<U8>(cipher, nonce, a, m, mic),
@@ -477,6 +479,61 @@ pub(crate) fn unseal(
         _ => Err(SecError::NoMic),
     }
 }
+
+/// [`seal`] at ENC-MIC-64 only: one CCM* instance (a node's; [`secure_default`]).
+fn seal_default(
+    key: &[u8; KEY_LEN],
+    nonce: &[u8; NONCE_LEN],
+    level: SecurityLevel,
+    a: &[u8],
+    m: &mut [u8],
+    mic: &mut [u8],
+) -> Result<(), SecError> {
+    default_level(level)?;
+    seal_with::<U8>(OneBlock::new(key), nonce, a, m, mic)
+}
+
+/// [`unseal`] at ENC-MIC-64 only (a node's; [`open_default`]).
+fn unseal_default(
+    key: &[u8; KEY_LEN],
+    nonce: &[u8; NONCE_LEN],
+    level: SecurityLevel,
+    a: &[u8],
+    m: &mut [u8],
+    mic: &[u8],
+) -> Result<(), SecError> {
+    default_level(level)?;
+    open_with::<U8>(OneBlock::new(key), nonce, a, m, mic)
+}
+
+fn default_level(level: SecurityLevel) -> Result<(), SecError> {
+    match level {
+        SecurityLevel::EncMic64 => Ok(()),
+        got => Err(SecError::Level {
+            got,
+            required: SecurityLevel::EncMic64,
+        }),
+    }
+}
+
+/// [`seal`] or [`seal_default`]: which CCM* instances a caller links.
+type Seal = fn(
+    &[u8; KEY_LEN],
+    &[u8; NONCE_LEN],
+    SecurityLevel,
+    &[u8],
+    &mut [u8],
+    &mut [u8],
+) -> Result<(), SecError>;
+/// [`unseal`] or [`unseal_default`].
+type Unseal = fn(
+    &[u8; KEY_LEN],
+    &[u8; NONCE_LEN],
+    SecurityLevel,
+    &[u8],
+    &mut [u8],
+    &[u8],
+) -> Result<(), SecError>;
 
 /// Checks what every secured frame needs of its aux header, sending or receiving.
 fn check_aux(aux: &AuxRepr) -> Result<(), SecError> {
@@ -499,6 +556,32 @@ pub fn secure(
     src_ext: [u8; 8],
     payload: &[u8],
     out: &mut [u8],
+) -> Result<usize, SecError> {
+    secure_by(header, aux, key, src_ext, payload, out, seal)
+}
+
+/// [`secure`] at ENC-MIC-64 only, our frames' level ([`AuxRepr::new`]); another level is
+/// refused ([`SecError::Level`]). The same frames, one CCM* instance linked instead of
+/// three: what a node calls.
+pub fn secure_default(
+    header: &Header,
+    aux: &AuxRepr,
+    key: &[u8; KEY_LEN],
+    src_ext: [u8; 8],
+    payload: &[u8],
+    out: &mut [u8],
+) -> Result<usize, SecError> {
+    secure_by(header, aux, key, src_ext, payload, out, seal_default)
+}
+
+fn secure_by(
+    header: &Header,
+    aux: &AuxRepr,
+    key: &[u8; KEY_LEN],
+    src_ext: [u8; 8],
+    payload: &[u8],
+    out: &mut [u8],
+    seal: Seal,
 ) -> Result<usize, SecError> {
     check_aux(aux)?;
     let a_len = DATA_HEADER_LEN + aux.buffer_len();
@@ -542,7 +625,7 @@ pub fn open<'a, F>(psdu: &[u8], lookup: F, scratch: &'a mut [u8]) -> Result<Open
 where
     F: FnOnce(&Header, &AuxRepr) -> Option<([u8; KEY_LEN], [u8; 8])>,
 {
-    open_checked(psdu, None, lookup, scratch)
+    open_checked(psdu, None, lookup, scratch, unseal)
 }
 
 /// [`open`], for a receiver that requires one security level (ours: ENC-MIC-64): a frame
@@ -557,7 +640,26 @@ pub fn open_at<'a, F>(
 where
     F: FnOnce(&Header, &AuxRepr) -> Option<([u8; KEY_LEN], [u8; 8])>,
 {
-    open_checked(psdu, Some(required), lookup, scratch)
+    open_checked(psdu, Some(required), lookup, scratch, unseal)
+}
+
+/// [`open_at`] ENC-MIC-64, with one CCM* instance linked instead of three: what a node
+/// calls.
+pub fn open_default<'a, F>(
+    psdu: &[u8],
+    lookup: F,
+    scratch: &'a mut [u8],
+) -> Result<Opened<'a>, SecError>
+where
+    F: FnOnce(&Header, &AuxRepr) -> Option<([u8; KEY_LEN], [u8; 8])>,
+{
+    open_checked(
+        psdu,
+        Some(SecurityLevel::EncMic64),
+        lookup,
+        scratch,
+        unseal_default,
+    )
 }
 
 fn open_checked<'a, F>(
@@ -565,6 +667,7 @@ fn open_checked<'a, F>(
     required: Option<SecurityLevel>,
     lookup: F,
     scratch: &'a mut [u8],
+    unseal: Unseal,
 ) -> Result<Opened<'a>, SecError>
 where
     F: FnOnce(&Header, &AuxRepr) -> Option<([u8; KEY_LEN], [u8; 8])>,

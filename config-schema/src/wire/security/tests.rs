@@ -5,6 +5,8 @@ extern crate std;
 
 use std::vec::Vec;
 
+use aes::Aes128;
+
 use super::*;
 use crate::wire::mac::{emit_data, FCS, MAX_PAYLOAD};
 
@@ -803,4 +805,55 @@ fn a_receiver_that_requires_enc_mic_64_refuses_a_weaker_mic_before_looking_up_a_
             assert!(!looked_up, "{level:?}: no key looked up");
         }
     }
+}
+
+/// The node's entry points (one CCM* instance, ENC-MIC-64 only) make and open exactly the
+/// frames of the general ones: Annex C.2.3 and our literal data frame; any other level is
+/// refused by name, on both sides.
+#[test]
+fn the_enc_mic_64_only_path_is_the_same_codec() {
+    let (a, m) = C23_FRAME.split_at(29);
+    let mut m = [m[0]];
+    let mut mic = [0u8; 8];
+    let level = SecurityLevel::EncMic64;
+    seal_default(&ANNEX_KEY, &C23_NONCE, level, a, &mut m, &mut mic).unwrap();
+    assert_eq!(m[0], C23_SECURED_TAIL[0]);
+    assert_eq!(mic, C23_SECURED_TAIL[1..]);
+    unseal_default(&ANNEX_KEY, &C23_NONCE, level, a, &mut m, &mic).unwrap();
+    assert_eq!(m, [0xCE]);
+
+    let mut general = [0u8; MAX_PSDU];
+    let mut node = [0u8; MAX_PSDU];
+    let src = ext_addr(0xBEEF, 0x0001);
+    let aux = AuxRepr::new(1, 5);
+    let n = secure(&header(), &aux, &ANNEX_KEY, src, b"abcd", &mut general).unwrap();
+    let k = secure_default(&header(), &aux, &ANNEX_KEY, src, b"abcd", &mut node).unwrap();
+    assert_eq!((k, &node[..k]), (n, &general[..n]));
+    let mut scratch = [0u8; MAX_PAYLOAD];
+    let opened = open_default(&node[..k], node_lookup(ANNEX_KEY), &mut scratch).unwrap();
+    assert_eq!((opened.aux, opened.payload), (aux, &b"abcd"[..]));
+    let mut flipped = node;
+    flipped[16] ^= 0x01;
+    let mut scratch = [0u8; MAX_PAYLOAD];
+    let refused = open_default(
+        &with_fcs(&flipped[..k - 2]),
+        node_lookup(ANNEX_KEY),
+        &mut scratch,
+    );
+    assert_eq!(refused, Err(SecError::BadMic));
+
+    let mic32 = AuxRepr {
+        level: SecurityLevel::EncMic32,
+        ..aux
+    };
+    let refused = secure_default(&header(), &mic32, &ANNEX_KEY, src, b"abcd", &mut node);
+    let want = SecError::Level {
+        got: SecurityLevel::EncMic32,
+        required: SecurityLevel::EncMic64,
+    };
+    assert_eq!(refused, Err(want));
+    let n = secure(&header(), &mic32, &ANNEX_KEY, src, b"abcd", &mut general).unwrap();
+    let mut scratch = [0u8; MAX_PAYLOAD];
+    let refused = open_default(&general[..n], node_lookup(ANNEX_KEY), &mut scratch);
+    assert_eq!(refused, Err(want));
 }

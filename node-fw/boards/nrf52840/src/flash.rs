@@ -71,6 +71,7 @@ impl NrfFlash {
     }
 
     /// The frame counter's pages (call once: the region has one owner).
+    #[cfg_attr(not(feature = "frame-security"), allow(dead_code))]
     pub fn frame_counter(&self) -> NrfFlash {
         NrfFlash {
             nvmc: self.nvmc,

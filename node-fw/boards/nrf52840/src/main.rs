@@ -97,8 +97,9 @@ async fn main(_spawner: Spawner) {
         }
     };
     let addr = word.addr;
-    // The management key (CUSTOMER[2..=5]): the node secures its config PAN with it.
-    let key = if word.has_key() {
+    // The management key (CUSTOMER[2..=5]): the node secures its config PAN with it. An
+    // image without frame security (a measurement) reads none.
+    let key = if word.has_key() && cfg!(feature = "frame-security") {
         let words = core::array::from_fn(|i| uicr(KEY_AT + 4 * i));
         let Some(key) = provision::ManagementKey::from_words(words) else {
             defmt::error!(
@@ -153,9 +154,11 @@ async fn main(_spawner: Spawner) {
     {
         use core::cell::RefCell;
 
+        #[cfg(feature = "frame-security")]
         use embassy_futures::block_on;
         use embassy_nrf::gpio::Flex;
         use embassy_nrf::nvmc::Nvmc;
+        #[cfg(feature = "frame-security")]
         use node_fw::frame_counter::FrameCounter;
         use node_fw::runtime::{self, Board};
 
@@ -195,13 +198,13 @@ async fn main(_spawner: Spawner) {
         );
         // A keyed node's frame counter. The NVMC blocks: its futures complete when first
         // polled.
-        let mut counter = None;
-        if key.is_some() {
-            match block_on(FrameCounter::open(flash.frame_counter())) {
+        #[cfg(feature = "frame-security")]
+        let mut counter = match key {
+            Some(_) => match block_on(FrameCounter::open(flash.frame_counter())) {
                 Ok(c) => {
                     // The counter's value only: the key is never logged.
                     defmt::info!("node {=u16:#06x}: frame counter {=u32}", addr, c.peek());
-                    counter = Some(c);
+                    Some(c)
                 }
                 Err(e) => {
                     defmt::error!(
@@ -213,13 +216,9 @@ async fn main(_spawner: Spawner) {
                         Timer::after_secs(3600).await;
                     }
                 }
-            }
-        }
-        let mut next = || counter.as_mut().and_then(|c| block_on(c.next()).ok());
-        let security = key.map(|key| runtime::Security {
-            key,
-            counter: &mut next,
-        });
+            },
+            None => None,
+        };
 
         let board = Board {
             radio,
@@ -228,7 +227,18 @@ async fn main(_spawner: Spawner) {
             flash,
             pin_mask: runtime::pin_range(gpio::PINS),
         };
-        let (stop, stats) = runtime::run_secured(addr, epoch, board, &mut (), security).await;
+        #[cfg(feature = "frame-security")]
+        let (stop, stats) = {
+            let mut next = || counter.as_mut().and_then(|c| block_on(c.next()).ok());
+            let security = key.map(|key| runtime::Security {
+                key,
+                counter: &mut next,
+            });
+            runtime::run_secured(addr, epoch, board, &mut (), security).await
+        };
+        // The unsecured node (a measurement: what frame security costs).
+        #[cfg(not(feature = "frame-security"))]
+        let (stop, stats) = runtime::run(addr, epoch, board).await;
         defmt::error!(
             "node stopped ({=bool}): {=u32} activations",
             matches!(stop, runtime::Stop::FlashGeometry),
