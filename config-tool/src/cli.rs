@@ -311,6 +311,11 @@ pub struct PushArgs {
     /// then rolls them back at the idle point.
     #[arg(long, value_name = "SECONDS", requires = "trial")]
     pub watch: Option<u64>,
+    /// With --trial: watch the trial for this many cycles of the machine (with --watch:
+    /// whichever ends first); not confirmed by then, every node goes back at the idle
+    /// point after the last of them.
+    #[arg(long, value_name = "CYCLES", requires = "trial", value_parser = clap::value_parser!(u32).range(1..))]
+    pub watch_cycles: Option<u32>,
     #[command(flatten)]
     pub keys: KeysArg,
 }

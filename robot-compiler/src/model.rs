@@ -65,6 +65,10 @@ pub struct Robot {
     /// by its end, returns every node to the previous generation (docs/reconfiguration.md).
     #[serde(default)]
     pub trial_seconds: Option<u32>,
+    /// How many cycles of the machine a `push --trial` is watched (with `trial_seconds`:
+    /// whichever ends first).
+    #[serde(default)]
+    pub trial_cycles: Option<u32>,
 }
 
 /// Whether the tool secures its frames to the robot's nodes (and delivers link keys).

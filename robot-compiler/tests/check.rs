@@ -84,6 +84,9 @@ const BROKEN: &[(&str, &[&str])] = &[
     ("trial-zero.ron", &[
         "5:20: error: a trial of 0 seconds rolls back at once: give it the time the operator needs to see the new sequence run",
     ]),
+    ("trial-cycles-zero.ron", &[
+        "5:19: error: a trial of 0 cycles rolls back at once: give it the cycles the operator needs to see the new sequence run",
+    ]),
     ("unsecured.ron", &[
         "5:15: warning: frame security is off: anyone in radio range can push a table to these nodes, press START or forge their events",
     ]),

@@ -268,6 +268,83 @@ pub enum TrialEnd {
     Expired { rolled_back: Verdict },
 }
 
+/// How long a trial is watched: a time, a number of cycles, or whichever ends first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct TrialWindow {
+    pub time: Option<Duration>,
+    /// Cycles the machine completes on the trial generation (counted by the nodes'
+    /// `Status::cycles`: a START at the idle point, the node back at it).
+    pub cycles: Option<u32>,
+}
+
+/// Cycles counted by `nodes` since the watch began, from their one-byte, wrapping
+/// counters (read at least every 255 cycles: twice a second is plenty).
+#[derive(Debug, Default)]
+struct CycleCount {
+    last: Vec<(u16, u8)>,
+    done: u32,
+}
+
+impl CycleCount {
+    fn saw(&mut self, node: u16, count: u8) {
+        match self.last.iter_mut().find(|(n, _)| *n == node) {
+            Some((_, last)) => {
+                self.done = self
+                    .done
+                    .saturating_add(u32::from(count.wrapping_sub(*last)));
+                *last = count;
+            }
+            None => self.last.push((node, count)),
+        }
+    }
+}
+
+/// [`watch_trial`] for a window in time and / or cycles: it ends (unconfirmed: rolled
+/// back at the idle point) when the first of them is over; with neither, only a confirm or
+/// a fault ends it.
+#[allow(clippy::too_many_arguments)]
+pub fn watch_trial_for(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    nodes: &[u16],
+    previous: u32,
+    window: TrialWindow,
+    every: Duration,
+    wait: Duration,
+) -> io::Result<TrialEnd> {
+    let end = window.time.map(|t| Instant::now() + t);
+    let mut cycles = CycleCount::default();
+    loop {
+        let mut confirmed = true;
+        for &node in nodes {
+            let Some(s) = command(radio, ids, node, Command::Status, every.max(RETRY_FLOOR))?
+            else {
+                confirmed = false;
+                continue;
+            };
+            if s.fault.is_some() {
+                let (rolled_back, _) = rollback(radio, nodes, previous, true, wait)?;
+                return Ok(TrialEnd::Faulted { node, rolled_back });
+            }
+            cycles.saw(node, s.cycles);
+            confirmed &= !s.trial;
+        }
+        if confirmed {
+            return Ok(TrialEnd::Confirmed);
+        }
+        let timed_out = end.is_some_and(|e| Instant::now() >= e);
+        let cycled = window.cycles.is_some_and(|n| cycles.done >= n);
+        if timed_out || cycled {
+            let (rolled_back, _) = rollback(radio, nodes, previous, false, wait)?;
+            return Ok(TrialEnd::Expired { rolled_back });
+        }
+        let next = Instant::now() + every;
+        let until = end.map_or(next, |e| next.min(e));
+        // Whatever comes meanwhile (late answers) is not for the watch.
+        while radio.recv(until)?.is_some() {}
+    }
+}
+
 /// Watches a trial of `nodes` (rolled back to `previous` if it fails) for `window`:
 /// every `every`, each node's status; a fault rolls every node back at once, a window
 /// that ends unconfirmed rolls them back at the machine's idle point (within `wait`).
@@ -282,32 +359,11 @@ pub fn watch_trial(
     every: Duration,
     wait: Duration,
 ) -> io::Result<TrialEnd> {
-    let end = Instant::now() + window;
-    loop {
-        let mut confirmed = true;
-        for &node in nodes {
-            let Some(s) = command(radio, ids, node, Command::Status, every.max(RETRY_FLOOR))?
-            else {
-                confirmed = false;
-                continue;
-            };
-            if s.fault.is_some() {
-                let (rolled_back, _) = rollback(radio, nodes, previous, true, wait)?;
-                return Ok(TrialEnd::Faulted { node, rolled_back });
-            }
-            confirmed &= !s.trial;
-        }
-        if confirmed {
-            return Ok(TrialEnd::Confirmed);
-        }
-        if Instant::now() >= end {
-            let (rolled_back, _) = rollback(radio, nodes, previous, false, wait)?;
-            return Ok(TrialEnd::Expired { rolled_back });
-        }
-        let until = (Instant::now() + every).min(end);
-        // Whatever comes meanwhile (late answers) is not for the watch.
-        while radio.recv(until)?.is_some() {}
-    }
+    let window = TrialWindow {
+        time: Some(window),
+        cycles: None,
+    };
+    watch_trial_for(radio, ids, nodes, previous, window, every, wait)
 }
 
 /// The least time a status is asked for before a watched node counts as not answering.
@@ -425,4 +481,22 @@ pub fn scan(
         }
     }
     Ok(found)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::CycleCount;
+
+    /// The nodes count cycles in one wrapping byte: the watch adds the differences.
+    #[test]
+    fn cycles_are_counted_across_the_counters_wrap() {
+        let mut c = CycleCount::default();
+        c.saw(0x11, 250);
+        c.saw(0x12, 0);
+        assert_eq!(c.done, 0, "the first reading is the baseline");
+        c.saw(0x11, 252);
+        c.saw(0x11, 3);
+        c.saw(0x12, 1);
+        assert_eq!(c.done, 10);
+    }
 }

@@ -190,22 +190,43 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
         )
     };
     report_push(&outcomes, verdict, flags.trial)?;
-    // A trial is watched for --watch, else for the window the robot declares.
-    let window = flags.watch.or_else(|| {
-        flags
-            .trial
-            .then_some(c.robot.trial_seconds)
-            .flatten()
-            .map(u64::from)
+    // A trial is watched for --watch / --watch-cycles, else for the window the robot
+    // declares.
+    let given = flags.watch.is_some() || flags.watch_cycles.is_some();
+    let window = if given {
+        push::TrialWindow {
+            time: flags.watch.map(Duration::from_secs),
+            cycles: flags.watch_cycles,
+        }
+    } else if flags.trial {
+        push::TrialWindow {
+            time: c
+                .robot
+                .trial_seconds
+                .map(|s| Duration::from_secs(u64::from(s))),
+            cycles: c.robot.trial_cycles,
+        }
+    } else {
+        push::TrialWindow::default()
+    };
+    if window == push::TrialWindow::default() {
+        return Ok(());
+    }
+    watch(&mut radio, &outcomes, window, flags.wait)
+}
+
+/// A trial window for people: `30 s`, `3 cycles`, `3 cycles or 30 s`.
+fn window_text(window: push::TrialWindow) -> String {
+    let time = window.time.map(|t| format!("{} s", t.as_secs()));
+    let cycles = window.cycles.map(|n| match n {
+        1 => String::from("1 cycle"),
+        n => format!("{n} cycles"),
     });
-    match window {
-        Some(seconds) => watch(
-            &mut radio,
-            &outcomes,
-            Duration::from_secs(seconds),
-            flags.wait,
-        ),
-        None => Ok(()),
+    match (cycles, time) {
+        (Some(c), Some(t)) => format!("{c} or {t}"),
+        (Some(c), None) => c,
+        (None, Some(t)) => t,
+        (None, None) => String::from("ever"),
     }
 }
 
@@ -213,7 +234,7 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
 fn watch(
     radio: &mut ToolRadio,
     outcomes: &[push::Pushed],
-    window: Duration,
+    window: push::TrialWindow,
     wait: u64,
 ) -> Result<(), Failure> {
     let nodes: Vec<u16> = outcomes.iter().map(|o| o.addr).collect();
@@ -221,10 +242,10 @@ fn watch(
     let first = nodes.first().copied().unwrap_or(0);
     let previous = command(radio, &mut ids, first, Command::Status)?.previous;
     println!(
-        "watching the trial for {} s (rolled back to generation {previous} unless confirmed)",
-        window.as_secs()
+        "watching the trial for {} (rolled back to generation {previous} unless confirmed)",
+        window_text(window)
     );
-    let end = push::watch_trial(
+    let end = push::watch_trial_for(
         radio,
         &mut ids,
         &nodes,
@@ -249,9 +270,9 @@ fn watch(
         push::TrialEnd::Expired { rolled_back } => Err(Failure {
             code: exit::PUSH_FAILED,
             ..Failure::error(format!(
-                "the trial was not confirmed within {} s: every node back to generation \
+                "the trial was not confirmed within {}: every node back to generation \
                  {previous} ({rolled_back:?})",
-                window.as_secs()
+                window_text(window)
             ))
         }),
     }

@@ -36,6 +36,16 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
             .label("zero"),
         );
     }
+    if robot.trial_cycles == Some(0) {
+        out.push(
+            Diagnostic::error(
+                src.span("trial_cycles"),
+                "a trial of 0 cycles rolls back at once: give it the cycles the operator needs \
+                 to see the new sequence run",
+            )
+            .label("zero"),
+        );
+    }
     if !CHANNELS.contains(&robot.network.channel) {
         out.push(
             Diagnostic::error(
