@@ -104,6 +104,7 @@ impl Air {
             Event::Left(id) => self.drop_client(id),
             Event::Frame(id, psdu) => self.transmit(id, psdu),
             Event::Pin(id, addr, pin, level) => self.pin(id, addr, pin, level),
+            Event::Running(id, addr, generation) => self.running(id, addr, generation),
             Event::Sync(id, n) => {
                 self.send(id, &Link::Synced(n));
             }
@@ -287,6 +288,26 @@ impl Air {
             .collect();
         for (to, stamped) in targets {
             self.send(to, if stamped { &seen } else { &plain });
+        }
+    }
+
+    /// A node's running generation goes to plants and monitors, in order with its pins;
+    /// only a node may say it, and only of itself.
+    fn running(&mut self, from: ClientId, addr: u16, generation: u32) {
+        let Some(Peer::Node { addr: a }) = self.clients.get(&from).map(|c| c.peer) else {
+            return;
+        };
+        if a != addr {
+            return;
+        }
+        let targets: Vec<ClientId> = self
+            .clients
+            .iter()
+            .filter(|(_, c)| matches!(c.peer, Peer::Plant | Peer::Monitor))
+            .map(|(id, _)| *id)
+            .collect();
+        for to in targets {
+            self.send(to, &Link::Running { addr, generation });
         }
     }
 }

@@ -149,6 +149,7 @@ enum Event {
     Joined(ClientId, Peer, outbox::Outbox),
     Frame(ClientId, Vec<u8>),
     Pin(ClientId, u16, u8, bool),
+    Running(ClientId, u16, u32),
     Sync(ClientId, u32),
     Cut { from: u16, to: u16 },
     Left(ClientId),

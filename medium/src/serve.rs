@@ -107,6 +107,7 @@ impl Connection {
                         Event::Frame(self.id, psdu.to_vec())
                     }
                     Link::Pin { addr, pin, level } => Event::Pin(self.id, addr, pin, level),
+                    Link::Running { addr, generation } => Event::Running(self.id, addr, generation),
                     Link::Sync(n) => Event::Sync(self.id, n),
                     // A client that speaks nonsense (or the medium's words) is disconnected.
                     _ => return Err(nonsense()),

@@ -19,6 +19,7 @@ struct Client {
 enum Got {
     Frame(Vec<u8>),
     Pin(u16, u8, bool),
+    Running(u16, u32),
     Welcome,
     Synced(u32),
 }
@@ -61,6 +62,7 @@ impl Client {
                     | Link::Seen {
                         addr, pin, level, ..
                     } => Got::Pin(addr, pin, level),
+                    Link::Running { addr, generation } => Got::Running(addr, generation),
                     Link::Welcome => Got::Welcome,
                     Link::Synced(n) => Got::Synced(n),
                     other => panic!("the medium never says {other:?}"),
@@ -198,6 +200,40 @@ fn output_pins_reach_plants_and_plant_inputs_reach_their_node_only() {
     });
     assert_eq!(b.recv(SURE), Some(Got::Pin(0x12, 2, true)));
     assert_eq!(a.recv(QUIET), None);
+    medium.stop();
+}
+
+/// A node's running generation reaches plants and monitors in order with its pins; a
+/// node cannot speak for another, a plant not at all.
+#[test]
+fn a_nodes_running_generation_reaches_plants_and_monitors_before_its_pins() {
+    let medium = Medium::start(Config::default()).unwrap();
+    let mut a = Client::join(&medium, Peer::Node { addr: 0x11 });
+    let mut b = Client::join(&medium, Peer::Node { addr: 0x12 });
+    let mut plant = Client::join(&medium, Peer::Plant);
+    let mut monitor = Client::join(&medium, Peer::Monitor);
+    b.send(&Link::Running {
+        addr: 0x11,
+        generation: 9,
+    });
+    plant.send(&Link::Running {
+        addr: 0x12,
+        generation: 9,
+    });
+    a.send(&Link::Running {
+        addr: 0x11,
+        generation: 2,
+    });
+    a.send(&Link::Pin {
+        addr: 0x11,
+        pin: 0,
+        level: true,
+    });
+    for c in [&mut plant, &mut monitor] {
+        assert_eq!(c.recv(SURE), Some(Got::Running(0x11, 2)));
+        assert_eq!(c.recv(SURE), Some(Got::Pin(0x11, 0, true)));
+    }
+    assert_eq!(b.recv(QUIET), None, "nodes are not told");
     medium.stop();
 }
 

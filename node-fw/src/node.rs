@@ -36,6 +36,10 @@ pub trait Io {
     fn transmit(&mut self, psdu: &[u8]);
     /// Drive board pin `pin` to `level`.
     fn set_pin(&mut self, pin: u8, level: bool);
+    /// The node runs table generation `generation` from now on (at boot and at every
+    /// activation, before any pin the table drives): a board on the simulated medium tells
+    /// the plant, whose trace then says under which generation each step ran.
+    fn running(&mut self, _generation: u32) {}
     /// What the board's runtime counted, for status (a board without a runtime: zeros).
     fn runtime_counters(&self) -> RuntimeCounters {
         RuntimeCounters::default()
@@ -374,6 +378,7 @@ impl NodeCore {
     /// A held output starts low: the pin came out of reset off, there is nothing to hold.
     pub fn boot(&mut self, io: &mut impl Io) {
         if let Some(t) = &self.table {
+            io.running(t.generation);
             for o in &t.outputs {
                 io.set_pin(o.pin, o.start.level().unwrap_or(false));
             }
@@ -1186,6 +1191,7 @@ impl NodeCore {
                 // A machine that rested at its idle point stays homed; one stopped
                 // anywhere else (or a node that was never configured) needs homing.
                 let at_idle = self.table.is_some() && self.idle();
+                io.running(table.generation);
                 self.drive_start(&table, io);
                 self.install(table, keys, at_idle);
                 ConfigReply::Activated

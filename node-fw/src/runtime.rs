@@ -64,6 +64,8 @@ pub trait Pins {
     fn set(&mut self, pin: u8, level: bool);
     /// Drives every output to its inactive level: the state before any table is known.
     fn all_off(&mut self);
+    /// The node runs table generation `generation` from now on ([`crate::node::Io::running`]).
+    fn running(&mut self, _generation: u32) {}
 }
 
 /// Output pins indexed by the table's pin numbers (`self[pin]`), inactive when low.
@@ -236,6 +238,9 @@ impl<P: Pins> Io for CoreIo<'_, P> {
     }
     fn set_pin(&mut self, pin: u8, level: bool) {
         self.pins.set(pin, level);
+    }
+    fn running(&mut self, generation: u32) {
+        self.pins.running(generation);
     }
     fn next_frame_counter(&mut self) -> Option<u32> {
         (self.counter)()

@@ -55,6 +55,10 @@ pub enum Link<'a> {
         level: bool,
         output: bool,
     },
+    /// Node -> medium -> plant / monitor: node `addr` runs table generation `generation`
+    /// from now on (sent at boot and at every activation, before any pin the new table
+    /// drives), so a plant's trace says under which generation each step ran.
+    Running { addr: u16, generation: u32 },
 }
 
 /// Why bytes are not a link message.

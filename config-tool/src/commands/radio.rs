@@ -624,6 +624,9 @@ pub fn monitor(
                     u8::from(level),
                     if output { "output" } else { "input" }
                 )),
+                Link::Running { addr, generation } => Some(format!(
+                    "{t:>9.3}  node {addr:#06x} runs generation {generation}"
+                )),
                 _ => None,
             }
         });

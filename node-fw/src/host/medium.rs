@@ -309,6 +309,12 @@ impl Pins for HostPins {
     /// The host board has no outputs of its own: until a table names them, nothing is
     /// driven (the table's safe values follow at boot and at every activation).
     fn all_off(&mut self) {}
+    fn running(&mut self, generation: u32) {
+        if let Ok(mut stream) = self.writer.lock() {
+            let addr = self.addr;
+            let _ = write_link(&mut stream, &Link::Running { addr, generation });
+        }
+    }
 }
 
 /// The inputs: `Pin` messages from the medium, every change reported once, in order.

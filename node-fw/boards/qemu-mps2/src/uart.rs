@@ -307,6 +307,12 @@ impl Pins for UartPins {
     /// No outputs of its own: until a table names them nothing is driven (the table's safe
     /// values follow at boot and at every activation), as on the host board.
     fn all_off(&mut self) {}
+    fn running(&mut self, generation: u32) {
+        send_link(&Link::Running {
+            addr: self.addr,
+            generation,
+        });
+    }
 }
 
 /// The inputs: `Link::Pin` from the medium, every change once, in order.
