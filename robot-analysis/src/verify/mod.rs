@@ -157,6 +157,23 @@ impl Report {
         self.violation.is_none() && !self.incomplete
     }
 
+    /// The report of an exploration that was not run (`verify --only`): nothing explored,
+    /// nothing failed.
+    pub fn skipped(opts: ExploreOptions) -> Report {
+        Report {
+            states: 0,
+            transitions: 0,
+            idle: 0,
+            stopped: 0,
+            elapsed: Duration::ZERO,
+            violation: None,
+            incomplete: false,
+            growing: Vec::new(),
+            lossy: opts.lossy,
+            prompt: opts.prompt,
+        }
+    }
+
     /// The text `config-tool verify` prints.
     pub fn render(&self, name: &str, interlocks: usize) -> String {
         let mut o = self.figures(&format!("{name}: "), "idle");
