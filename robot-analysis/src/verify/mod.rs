@@ -9,6 +9,9 @@
 //! a moving actuator arrives, an armed timer expires, a link delivers its oldest
 //! publication (or, lossy, gives up: link alarm). Breadth-first with a visited set, so a
 //! counterexample is a shortest one.
+//!
+//! The cycle is explored from the machine homed; [`explore_homing`] explores homing from
+//! every start position (module `homing`), on the same model and moves.
 
 use std::collections::VecDeque;
 use std::fmt::Write;
