@@ -230,6 +230,17 @@ pub struct VerifyHow {
     /// Stop (inconclusive) beyond this many states.
     #[arg(long, default_value_t = MAX_STATES)]
     pub max_states: usize,
+    /// Explore only the cycle (from the machine homed) or only homing (from every start
+    /// position); both without it.
+    #[arg(long, value_enum)]
+    pub only: Option<VerifyPart>,
+}
+
+/// One of `verify`'s two explorations.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum VerifyPart {
+    Cycle,
+    Homing,
 }
 
 impl Default for VerifyHow {
@@ -241,6 +252,7 @@ impl Default for VerifyHow {
             any_delay: false,
             start_anytime: false,
             max_states: MAX_STATES,
+            only: None,
         }
     }
 }

@@ -35,9 +35,65 @@ fn verify_passes_the_paint_robot_and_says_how_many_states() {
         "ok: deadlock freedom, sequence conformance, 2 interlock(s), no double actuation, no \
          engine fault, a fault stops every node"
     );
+    // Then homing, from every start position.
+    assert!(
+        lines[3].starts_with(
+            "robot-configs/paint-robot.ron: homing \"VC- HC- RC- GR-\" from 81 start positions \
+             x 2 held valve levels: 1440 states, 3416 transitions in "
+        ),
+        "{stdout}"
+    );
+    assert_eq!(
+        lines[4],
+        "  homed (idle) states 16, stopped (fault / link alarm) states 1008"
+    );
+    assert_eq!(
+        lines[5],
+        "ok: homing reaches the idle state from every start position, nothing moves before \
+         HOME, homing conformance, 2 interlock(s), no double actuation, no engine fault, a \
+         fault stops every node"
+    );
+    assert_eq!(lines.len(), 6, "{stdout}");
     let lossy = tool(&["verify", "robot-configs/paint-robot.ron", "--lossy"]);
     assert_eq!(lossy.status.code(), Some(0));
     assert!(text(&lossy.stdout).contains(": 1475 states, 4360 transitions in "));
+    assert!(text(&lossy.stdout).contains(": 4240 states, 12252 transitions in "));
+}
+
+#[test]
+fn verify_only_runs_one_of_the_cycle_and_homing() {
+    let paint = "robot-configs/paint-robot.ron";
+    let cycle = tool(&["verify", paint, "--only", "cycle"]);
+    assert_eq!(cycle.status.code(), Some(0), "{}", text(&cycle.stderr));
+    let stdout = text(&cycle.stdout);
+    assert_eq!(stdout.lines().count(), 3, "{stdout}");
+    assert!(
+        stdout.starts_with(&format!("{paint}: 451 states, ")),
+        "{stdout}"
+    );
+    let homing = tool(&["verify", paint, "--only", "homing"]);
+    assert_eq!(homing.status.code(), Some(0), "{}", text(&homing.stderr));
+    let stdout = text(&homing.stdout);
+    assert_eq!(stdout.lines().count(), 3, "{stdout}");
+    assert!(
+        stdout.starts_with(&format!("{paint}: homing \"VC- HC- RC- GR-\" from 81 ")),
+        "{stdout}"
+    );
+    // A robot of explicit charts has no homing: it says so.
+    let charts = tool(&[
+        "verify",
+        "robot-configs/paint-robot-paper-charts.ron",
+        "--only",
+        "homing",
+    ]);
+    assert_eq!(charts.status.code(), Some(0));
+    assert_eq!(
+        text(&charts.stdout),
+        "robot-configs/paint-robot-paper-charts.ron: assumes a prompt radio \
+         (`assume_prompt_radio`); --any-delay explores without it\n\
+         robot-configs/paint-robot-paper-charts.ron: no homing to prove (its charts take no \
+         HOME command)\n"
+    );
 }
 
 #[test]

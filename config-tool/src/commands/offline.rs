@@ -6,7 +6,7 @@ use robot_analysis::{inject, sim, timeline, verify};
 use robot_compiler::compile as pipeline;
 use robot_compiler::{check, diagram, dump, Compiled, Diagnostic, Source};
 
-use crate::cli::{Format, SimArgs, VerifyArgs, VerifyHow};
+use crate::cli::{Format, SimArgs, VerifyArgs, VerifyHow, VerifyPart};
 use crate::failure::Failure;
 
 /// Reads a robot (its errors name the file, and the place of a byte that is not UTF-8).
@@ -97,20 +97,36 @@ pub fn verify(flags: &VerifyArgs) -> Result<(), Failure> {
     let (src, compiled) = load_compiled(&flags.robot)?;
     let verified = verification(&src.name, &compiled, flags.how).map_err(Failure::error)?;
     print!("{}", verified.text);
-    if verified.report.ok() {
+    if verified.ok() {
         Ok(())
     } else {
         Err(Failure::reported())
     }
 }
 
-/// A `verify` run: its report and the text `verify` prints.
+/// A `verify` run: its reports and the text `verify` prints.
 pub struct Verification {
+    /// The cycle's (not run with `--only homing`: then an empty passing report).
     pub report: verify::Report,
+    /// Homing's, if the robot homes and it was run.
+    pub homing: Option<verify::HomingReport>,
     pub text: String,
 }
 
 impl Verification {
+    /// Every exploration run passed.
+    pub fn ok(&self) -> bool {
+        self.deciding().ok()
+    }
+
+    /// The first report that failed (the cycle's, then homing's), else the cycle's.
+    pub fn deciding(&self) -> &verify::Report {
+        match &self.homing {
+            Some(h) if self.report.ok() && !h.ok() => &h.report,
+            _ => &self.report,
+        }
+    }
+
     /// The one line `push` prints for a robot that passed.
     pub fn passed_line(&self) -> String {
         let r = &self.report;
@@ -142,17 +158,39 @@ pub fn verification(
     }
     let prompt = (how.prompt || compiled.robot.assume_prompt_radio) && !how.any_delay;
     let model = verify::Model::new(compiled)?;
-    let report = verify::explore(
-        &model,
-        verify::ExploreOptions {
-            lossy: how.lossy,
-            prompt,
-            start_anytime: how.start_anytime,
-            max_states: how.max_states,
-        },
-    );
-    text.push_str(&report.render(name, model.interlock_count()));
-    Ok(Verification { report, text })
+    let opts = verify::ExploreOptions {
+        lossy: how.lossy,
+        prompt,
+        start_anytime: how.start_anytime,
+        max_states: how.max_states,
+    };
+    let interlocks = model.interlock_count();
+    let report = match how.only {
+        Some(VerifyPart::Homing) => verify::Report::skipped(opts),
+        _ => {
+            let r = verify::explore(&model, opts);
+            text.push_str(&r.render(name, interlocks));
+            r
+        }
+    };
+    let homing = match how.only {
+        Some(VerifyPart::Cycle) => None,
+        _ => {
+            let h = verify::explore_homing(&model, opts);
+            match &h {
+                Some(h) => text.push_str(&h.render(name, interlocks)),
+                None => text.push_str(&format!(
+                    "{name}: no homing to prove (its charts take no HOME command)\n"
+                )),
+            }
+            h
+        }
+    };
+    Ok(Verification {
+        report,
+        homing,
+        text,
+    })
 }
 
 pub fn sim(args: &SimArgs) -> Result<(), Failure> {

@@ -319,7 +319,7 @@ fn verify_before_push(
     let unverified = "nothing was sent (--no-verify pushes it unverified)";
     let verified = offline::verification(&name.to_string(), c, VerifyHow::default())
         .map_err(|e| Failure::error(format!("{name}: verify cannot run: {e}; {unverified}")))?;
-    let report = &verified.report;
+    let report = verified.deciding();
     if report.ok() {
         println!("{}", verified.passed_line());
         return Ok(());

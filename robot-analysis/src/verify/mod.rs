@@ -9,6 +9,9 @@
 //! a moving actuator arrives, an armed timer expires, a link delivers its oldest
 //! publication (or, lossy, gives up: link alarm). Breadth-first with a visited set, so a
 //! counterexample is a shortest one.
+//!
+//! The cycle is explored from the machine homed; [`explore_homing`] explores homing from
+//! every start position (module `homing`), on the same model and moves.
 
 use std::collections::VecDeque;
 use std::fmt::Write;
@@ -25,6 +28,13 @@ use robot_compiler::interlock::{self, Atom, Interlock};
 use robot_compiler::ir::Step;
 
 use crate::sim::SimulationError;
+
+mod homing;
+mod place;
+
+pub use homing::{explore_homing, HomingReport};
+use place::Place;
+pub use place::Rest;
 
 /// Why a compiled robot has no model to explore.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -86,6 +96,11 @@ pub enum Property {
     /// A node that publishes `fault` (synthesised fault chart) faulted, and once nothing
     /// more can happen some node that subscribes to it is still running.
     FaultStop,
+    /// Homing: an actuator moved before the HOME command (a START while not homed, or a
+    /// chart that acted on its own).
+    UnhomedStart,
+    /// Homing: an actuator motion that is not one of the homing steps left, in order.
+    Homing,
 }
 
 impl std::fmt::Display for Property {
@@ -98,6 +113,8 @@ impl std::fmt::Display for Property {
             Property::EngineFault => "no engine fault",
             Property::LinkBound => "bounded links",
             Property::FaultStop => "a fault stops every node",
+            Property::UnhomedStart => "nothing moves before HOME",
+            Property::Homing => "homing conformance",
         })
     }
 }
@@ -114,6 +131,8 @@ pub struct Violation {
     pub steps: usize,
     /// Numbered steps from the initial state, each with what it did.
     pub trace: Vec<String>,
+    /// Homing: the start positions the counterexample starts from (`VC end, GR between`).
+    pub start: Option<String>,
 }
 
 /// The outcome of a run.
@@ -141,13 +160,44 @@ impl Report {
         self.violation.is_none() && !self.incomplete
     }
 
+    /// The report of an exploration that was not run (`verify --only`): nothing explored,
+    /// nothing failed.
+    pub fn skipped(opts: ExploreOptions) -> Report {
+        Report {
+            states: 0,
+            transitions: 0,
+            idle: 0,
+            stopped: 0,
+            elapsed: Duration::ZERO,
+            violation: None,
+            incomplete: false,
+            growing: Vec::new(),
+            lossy: opts.lossy,
+            prompt: opts.prompt,
+        }
+    }
+
     /// The text `config-tool verify` prints.
     pub fn render(&self, name: &str, interlocks: usize) -> String {
+        let mut o = self.figures(&format!("{name}: "), "idle");
+        self.verdict(
+            &mut o,
+            &format!(
+                "ok: deadlock freedom, sequence conformance, {interlocks} interlock(s), no \
+                 double actuation, no engine fault, a fault stops every node"
+            ),
+        );
+        o
+    }
+
+    /// The first two lines: size and time, then the idle (`idle` names them) and stopped
+    /// states; `head` starts the first.
+    fn figures(&self, head: &str, idle: &str) -> String {
         let mut o = String::new();
         let secs = self.elapsed.as_secs_f64();
         let _ = writeln!(
             o,
-            "{name}: {} states, {} transitions in {:.3} s ({:.0} states/s){}",
+            "{head}{} states, {} transitions in {:.3} s ({:.0} states/s){}",
             self.states,
             self.transitions,
             secs,
@@ -161,9 +211,14 @@ impl Report {
         );
         let _ = writeln!(
             o,
-            "  idle states {}, stopped (fault / link alarm) states {}",
+            "  {idle} states {}, stopped (fault / link alarm) states {}",
             self.idle, self.stopped
         );
+        o
+    }
+
+    /// Incomplete, then `ok` or the failed property with its counterexample.
+    fn verdict(&self, o: &mut String, ok: &str) {
         if self.incomplete {
             let _ = writeln!(o, "INCOMPLETE: stopped after {} states", self.states);
             if !self.growing.is_empty() {
@@ -177,22 +232,20 @@ impl Report {
         }
         match &self.violation {
             None if !self.incomplete => {
-                let _ = writeln!(
-                    o,
-                    "ok: deadlock freedom, sequence conformance, {interlocks} interlock(s), no \
-                     double actuation, no engine fault, a fault stops every node"
-                );
+                let _ = writeln!(o, "{ok}");
             }
             None => {}
             Some(v) => {
                 let _ = writeln!(o, "FAILED {}: {}", v.property, v.message);
+                if let Some(start) = &v.start {
+                    let _ = writeln!(o, "start positions: {start}");
+                }
                 let _ = writeln!(o, "shortest counterexample ({} steps):", v.steps);
                 for line in &v.trace {
                     let _ = writeln!(o, "{line}");
                 }
             }
         }
-        o
     }
 }
 
@@ -204,36 +257,30 @@ struct Act {
     cylinder: Cylinder,
 }
 
-/// The interlock bit of a position.
-fn mask(p: Pos) -> u8 {
-    match p {
-        Pos::Home => interlock::HOME,
-        Pos::End => interlock::END,
-        Pos::Extending => interlock::EXTENDING,
-        Pos::Retracting => interlock::RETRACTING,
-    }
-}
-
 /// The whole machine's state.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 struct Sys {
     nodes: Vec<EngineState>,
     /// Armed timers per node, bit i = timer i.
     timers: Vec<u8>,
-    pos: Vec<Pos>,
+    pos: Vec<Place>,
     /// Publications in flight as (link `from * n + to`, topic), sorted by link and oldest
     /// first within a link (a canonical form: one entry per state).
     flight: Vec<(u8, Topic)>,
     /// Links in alarm (lossy), bit `from * n + to`.
     alarms: u64,
-    /// Steps of the current cycle done, modulo the cycle length.
+    /// Steps of the current cycle done, modulo the cycle length; homing: the homing steps
+    /// passed.
     progress: u16,
+    /// Homing explorations only: whether the HOME command was given (`None`: the cycle).
+    homing: Option<bool>,
 }
 
 /// One move of the environment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Move {
     Press,
+    Home,
     Arrive(u8),
     Expire(u8, u8),
     Deliver(u8, u8),
@@ -287,6 +334,8 @@ pub struct Model<'c> {
     acts: Vec<Act>,
     /// (node, input) of START.
     start: (usize, u8),
+    /// The node that takes the HOME command, if the tables home.
+    home: Option<usize>,
     /// Per node, per peer index: the node with that address.
     peers: Vec<Vec<Option<usize>>>,
     expect: Vec<Step>,
@@ -351,7 +400,7 @@ impl<'c> Model<'c> {
             if let Some(sensor) = closed {
                 e.sense(sensor, true);
             }
-            pos.push(at);
+            pos.push(Place::Rod(at));
         }
         let nodes = engines.iter().map(Engine::snapshot).collect();
         let init = Sys {
@@ -361,12 +410,15 @@ impl<'c> Model<'c> {
             flight: Vec::new(),
             alarms: 0,
             progress: 0,
+            homing: None,
         };
+        let home = (c.ir.home).filter(|&r| tables.get(r).is_some_and(|t| t.home.is_some()));
         Ok(Model {
             c,
             tables,
             acts,
             start,
+            home,
             peers,
             expect,
             interlocks,
@@ -432,8 +484,15 @@ impl<'c> Model<'c> {
     fn moves(&self, s: &Sys, opts: ExploreOptions, out: &mut Vec<Move>) {
         out.clear();
         let lossy = opts.lossy;
-        if self.idle(s) || opts.start_anytime {
-            out.push(Move::Press);
+        match s.homing {
+            // Homing: HOME once, any number of STARTs before it.
+            Some(false) => {
+                out.push(Move::Press);
+                out.push(Move::Home);
+            }
+            Some(true) => {}
+            None if self.idle(s) || opts.start_anytime => out.push(Move::Press),
+            None => {}
         }
         let radio_busy = s.flight.iter().any(|(l, _)| s.alarms & (1 << l) == 0);
         for (p, pos) in s.pos.iter().enumerate() {
@@ -481,6 +540,12 @@ impl<'c> Model<'c> {
                 let (node, input) = self.start;
                 inputs.push_back((node, input, true));
                 inputs.push_back((node, input, false));
+            }
+            Move::Home => {
+                s.homing = Some(true);
+                if let Some(node) = self.home {
+                    self.call(s, node, Call::Home, &mut inputs, &mut bad, &mut log);
+                }
             }
             Move::Arrive(p) => {
                 let p = usize::from(p);
@@ -554,7 +619,7 @@ impl<'c> Model<'c> {
         }
         for il in &self.interlocks {
             let read = |a: Atom| match a {
-                Atom::Position { plant, mask: m } => mask(s.pos[plant]) & m != 0,
+                Atom::Position { plant, mask: m } => s.pos[plant].mask() & m != 0,
                 Atom::Chart { role, chart, state } => {
                     usize::from(s.nodes[role].current[chart]) == state
                 }
@@ -580,7 +645,7 @@ impl<'c> Model<'c> {
                 ),
             ));
         }
-        if !self.expect.is_empty() && s.progress != 0 && self.idle(s) {
+        if s.homing.is_none() && !self.expect.is_empty() && s.progress != 0 && self.idle(s) {
             return Some((
                 Property::Sequence,
                 format!(
@@ -618,6 +683,9 @@ impl<'c> Model<'c> {
             Call::Timer(t) => e.timer_expired(t, &mut fx),
             Call::Remote(p, topic) => {
                 e.remote(p, topic, &mut fx);
+            }
+            Call::Home => {
+                e.home(&mut fx);
             }
         }
         s.nodes[node] = e.snapshot();
@@ -716,13 +784,13 @@ impl<'c> Model<'c> {
                 format!(
                     "{step} commanded while {} is still {}",
                     a.name,
-                    if before == Pos::Extending {
-                        "extending"
-                    } else {
-                        "retracting"
-                    }
+                    before.name()
                 ),
             ));
+            return;
+        }
+        if let Some(given) = s.homing {
+            *bad = self.homing_step(s, &step, given);
             return;
         }
         if self.expect.is_empty() {
@@ -788,6 +856,35 @@ impl<'c> Model<'c> {
                     None => format!("receives topic #{topic}"),
                 }
             }
+            Call::Home => String::from("HOME command"),
+        }
+    }
+
+    /// Homing: the check of a motion `step` (`given`: after the HOME command).
+    fn homing_step(&self, s: &mut Sys, step: &Step, given: bool) -> Option<Bad> {
+        if !given {
+            return Some((
+                Property::UnhomedStart,
+                format!("{step} before HOME: the machine moved while not homed"),
+            ));
+        }
+        let homing = &self.c.ir.homing;
+        let k = usize::from(s.progress).min(homing.len());
+        match homing[k..].iter().position(|h| h == step) {
+            Some(j) => {
+                s.progress = (k + j + 1) as u16;
+                None
+            }
+            None => {
+                let left: Vec<String> = homing[k..].iter().map(Step::to_string).collect();
+                Some((
+                    Property::Homing,
+                    format!(
+                        "{step} moved, but the homing steps left are \"{}\"",
+                        left.join(" ")
+                    ),
+                ))
+            }
         }
     }
 
@@ -846,9 +943,13 @@ impl<'c> Model<'c> {
         let role = |i: u8| self.c.ir.roles[usize::from(i)].name.as_str();
         match m {
             Move::Press => format!("operator presses START (at {})", role(self.start.0 as u8)),
+            Move::Home => format!(
+                "operator gives the HOME command (at {})",
+                self.home.map_or("?", |r| self.c.ir.roles[r].name.as_str())
+            ),
             Move::Arrive(p) => {
                 let a = &self.acts[usize::from(p)];
-                let end = s.pos[usize::from(p)] == Pos::Extending;
+                let end = s.pos[usize::from(p)] == Place::Rod(Pos::Extending);
                 match (a.cylinder.double(), end) {
                     (true, true) => format!("{} reaches its end switch", a.name),
                     (true, false) => format!("{} reaches its home switch", a.name),
@@ -898,11 +999,7 @@ impl<'c> Model<'c> {
             .acts
             .iter()
             .zip(&s.pos)
-            .map(|(a, p)| {
-                format!("{} {:?}", a.name, p)
-                    .to_lowercase()
-                    .replace(&a.name.to_lowercase(), &a.name)
-            })
+            .map(|(a, p)| format!("{} {}", a.name, p.name()))
             .collect();
         let n = self.n();
         let mut links: Vec<(usize, Vec<Topic>)> = Vec::new();
@@ -937,9 +1034,9 @@ impl<'c> Model<'c> {
         )
     }
 
-    /// The numbered, readable trace of `moves` from the initial state.
-    fn replay(&self, moves: &[Move]) -> Vec<String> {
-        let mut s = self.init.clone();
+    /// The numbered, readable trace of `moves` from `root`.
+    fn replay(&self, root: &Sys, moves: &[Move]) -> Vec<String> {
+        let mut s = root.clone();
         let mut out = Vec::new();
         for (i, m) in moves.iter().enumerate() {
             let mut log = Vec::new();
@@ -958,6 +1055,7 @@ enum Call {
     Input(u8, bool),
     Timer(u8),
     Remote(u8, Topic),
+    Home,
 }
 
 /// Explores every reachable state of `c` and checks the properties.
@@ -968,8 +1066,14 @@ pub fn verify(c: &Compiled, opts: ExploreOptions) -> Result<Report, ModelError> 
 
 /// [`verify`] on a built model.
 pub fn explore(model: &Model<'_>, opts: ExploreOptions) -> Report {
+    run(model, vec![(model.init.clone(), None)], opts)
+}
+
+/// Explores every state reachable from `roots` (each with the start positions a
+/// counterexample names) and checks the properties.
+fn run(model: &Model<'_>, roots: Vec<(Sys, Option<String>)>, opts: ExploreOptions) -> Report {
     let t0 = Instant::now();
-    let mut search = Search::bfs(model, opts);
+    let mut search = Search::bfs(model, roots, opts);
     let states = search.seen.len();
     let idle_flags: Vec<bool> = search.seen.iter().map(|s| model.idle(s)).collect();
     let stopped_flags: Vec<bool> = search.seen.iter().map(|s| model.stopped(s)).collect();
@@ -1003,7 +1107,10 @@ struct Search {
     /// Every state found, in breadth-first order; the index is the state's number.
     // FxHash: fast and not keyed; the states are our own, no hash flooding to fear.
     seen: IndexSet<Sys, FxBuildHasher>,
-    /// Parent index and move of each state (the initial state's own entry is unused).
+    /// The initial states are the first `labels.len()`, each with the start positions a
+    /// counterexample from it names (none for the cycle's one).
+    labels: Vec<Option<String>>,
+    /// Parent index and move of each state (the initial states' own entries are unused).
     parent: Vec<(u32, Move)>,
     /// Every transition (from, to).
     edges: Vec<(u32, u32)>,
@@ -1013,18 +1120,29 @@ struct Search {
 }
 
 impl Search {
-    /// Breadth-first from the initial state, up to the first move that breaks a property
+    /// Breadth-first from the initial states, up to the first move that breaks a property
     /// checked on a transition or state.
-    fn bfs(model: &Model<'_>, opts: ExploreOptions) -> Search {
+    fn bfs(model: &Model<'_>, roots: Vec<(Sys, Option<String>)>, opts: ExploreOptions) -> Search {
         let mut g = Search {
             seen: IndexSet::default(),
+            labels: Vec::new(),
             parent: Vec::new(),
             edges: Vec::new(),
             violation: None,
             incomplete: false,
         };
-        g.seen.insert(model.init.clone());
-        g.parent.push((0, Move::Press));
+        for (root, label) in roots {
+            let bad = model.check_state(&root);
+            if g.seen.insert(root) {
+                g.labels.push(label);
+                g.parent.push((0, Move::Press));
+                if let Some((property, message)) = bad {
+                    let i = g.labels.len() - 1;
+                    g.violation = Some(g.violation(model, property, message, i, &[]));
+                    return g;
+                }
+            }
+        }
         let mut moves = Vec::new();
         let mut next = 0usize;
         'bfs: while next < g.seen.len() {
@@ -1037,14 +1155,9 @@ impl Search {
             for &m in &moves {
                 let mut t = s.clone();
                 if let Some((property, message)) = model.apply(&mut t, m, None) {
-                    let mut p = g.path(next);
+                    let (root, mut p) = g.path(next);
                     p.push(m);
-                    g.violation = Some(Violation {
-                        property,
-                        message,
-                        steps: p.len(),
-                        trace: model.replay(&p),
-                    });
+                    g.violation = Some(g.violation(model, property, message, root, &p));
                     break 'bfs;
                 }
                 let (j, new) = g.seen.insert_full(t);
@@ -1062,15 +1175,36 @@ impl Search {
         g
     }
 
-    /// The moves from the initial state to state `i`.
-    fn path(&self, mut i: usize) -> Vec<Move> {
+    /// The initial state state `i` was reached from, and the moves from it.
+    fn path(&self, mut i: usize) -> (usize, Vec<Move>) {
         let mut moves = Vec::new();
-        while i != 0 {
+        while i >= self.labels.len() {
             moves.push(self.parent[i].1);
             i = self.parent[i].0 as usize;
         }
         moves.reverse();
-        moves
+        (i, moves)
+    }
+
+    /// The counterexample `moves` from initial state `root`.
+    fn violation(
+        &self,
+        model: &Model<'_>,
+        property: Property,
+        message: String,
+        root: usize,
+        moves: &[Move],
+    ) -> Violation {
+        let (init, label) = (self.seen.get_index(root))
+            .zip(self.labels.get(root))
+            .map_or((&model.init, None), |(s, l)| (s, l.clone()));
+        Violation {
+            property,
+            message,
+            steps: moves.len(),
+            trace: model.replay(init, moves),
+            start: label,
+        }
     }
 
     /// Deadlock freedom: a state that is not stopped and cannot get back to idle
@@ -1106,24 +1240,49 @@ impl Search {
                 }
             }
         }
-        let bad = (0..states).find(|&i| !good[i] && !stopped_flags[i])?;
+        let doomed = |i: usize| !good[i] && !stopped_flags[i];
+        let first = (0..states).find(|&i| doomed(i))?;
+        let homing = self
+            .seen
+            .get_index(first)
+            .is_some_and(|s| s.homing.is_some());
+        // Homing starts are often doomed from the start: show where homing gets stuck, the
+        // first state after which nothing or only a stop (fault, link alarm) can happen.
+        let mut dead_end = vec![true; states];
+        for &(f, t) in edges {
+            if !stopped_flags[t as usize] {
+                dead_end[f as usize] = false;
+            }
+        }
+        let bad = match homing {
+            true => (0..states)
+                .find(|&i| doomed(i) && dead_end[i])
+                .unwrap_or(first),
+            false => first,
+        };
         let stuck = edges.iter().all(|&(f, _)| f as usize != bad);
-        let path = self.path(bad);
-        Some(Violation {
-            property: Property::Deadlock,
-            message: if stuck {
-                String::from(
-                    "the machine stops here: nothing can happen any more, and it is not idle",
-                )
-            } else {
-                String::from(
-                    "from here the machine can never get back to idle (only to faults or \
-                     other states that cannot)",
-                )
-            },
-            steps: path.len(),
-            trace: model.replay(&path),
-        })
+        let (root, path) = self.path(bad);
+        let message = match (stuck, homing, dead_end[bad]) {
+            (true, false, _) => {
+                "the machine stops here: nothing can happen any more, and it is not idle"
+            }
+            (false, false, _) => {
+                "from here the machine can never get back to idle (only to faults or other \
+                 states that cannot)"
+            }
+            (true, true, _) => {
+                "homing stops here: nothing can happen any more, and the machine is not idle"
+            }
+            (false, true, true) => {
+                "homing is stuck here: only a fault or a link alarm can happen next, and the \
+                 machine is not idle"
+            }
+            (false, true, false) => {
+                "from here homing can never reach the idle state (only faults or other states \
+                 that cannot)"
+            }
+        };
+        Some(self.violation(model, Property::Deadlock, message.into(), root, &path))
     }
 
     /// Stop at once: in every state where nothing more can happen, a fault that was
@@ -1140,13 +1299,8 @@ impl Search {
                 .flatten()
                 .map(|m| (i, m))
         })?;
-        let p = self.path(i);
-        Some(Violation {
-            property: Property::FaultStop,
-            message,
-            steps: p.len(),
-            trace: model.replay(&p),
-        })
+        let (root, p) = self.path(i);
+        Some(self.violation(model, Property::FaultStop, message, root, &p))
     }
 
     /// Variables of the last state explored far from their initial values.
