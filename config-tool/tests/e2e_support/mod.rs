@@ -140,14 +140,36 @@ pub fn push_ok(bed: &mut Bed, c: &Compiled) -> Vec<robot_net::push::Pushed> {
     outcomes
 }
 
-/// Every role's node runs `c`'s table, at rest: role, generation, initial states, no
-/// fault, no link alarm. Returns the statuses (in role order).
-pub fn assert_running(bed: &mut Bed, c: &Compiled) -> Vec<Status> {
+/// Homes the machine of `c` and checks it ended homed; the steps the plant saw.
+pub fn home_ok(bed: &mut Bed, c: &Compiled) -> Vec<String> {
+    let homing = bed.home(c).expect("home");
+    assert_eq!(
+        homing.end,
+        robot_net::home::HomeEnd::Homed,
+        "{}",
+        demo::homed_line(&homing)
+    );
+    homing.steps.iter().map(|s| s.to_string()).collect()
+}
+
+/// Pushes every role of `c` to nodes that are not homed (unconfigured, or stopped
+/// anywhere), then homes the machine: the actuators are home already, so the plant moves
+/// nothing.
+pub fn push_and_home(bed: &mut Bed, c: &Compiled) -> Vec<robot_net::push::Pushed> {
+    let outcomes = push_ok(bed, c);
+    assert_not_homed(bed, c);
+    assert_eq!(home_ok(bed, c), Vec::<String>::new(), "from rest");
+    outcomes
+}
+
+/// Every role's node runs `c`'s table in its initial states (booted, reset or activated
+/// on a stopped machine: not homed), no fault, no link alarm.
+pub fn assert_not_homed(bed: &mut Bed, c: &Compiled) -> Vec<Status> {
     let statuses = bed.statuses(c).expect("statuses");
     for ((s, r), t) in statuses.iter().zip(&c.ir.roles).zip(&c.tables) {
         assert_eq!(
-            (s.role.as_str(), s.generation),
-            (r.name.as_str(), c.ir.generation),
+            (s.role.as_str(), s.generation, s.fault),
+            (r.name.as_str(), c.ir.generation, None),
             "node {:#06x}",
             r.address
         );
@@ -157,6 +179,22 @@ pub fn assert_running(bed: &mut Bed, c: &Compiled) -> Vec<Status> {
             "role {}",
             r.name
         );
+    }
+    statuses
+}
+
+/// Every role's node runs `c`'s table, homed and at rest: role, generation, idle states,
+/// no fault, no link alarm. Returns the statuses (in role order).
+pub fn assert_running(bed: &mut Bed, c: &Compiled) -> Vec<Status> {
+    let statuses = bed.statuses(c).expect("statuses");
+    for ((s, r), t) in statuses.iter().zip(&c.ir.roles).zip(&c.tables) {
+        assert_eq!(
+            (s.role.as_str(), s.generation),
+            (r.name.as_str(), c.ir.generation),
+            "node {:#06x}",
+            r.address
+        );
+        assert_eq!(s.states.as_slice(), idle(t).as_slice(), "role {}", r.name);
         assert_eq!(
             (s.fault, s.link_alarms, s.links_broken),
             (None, 0, 0),
@@ -170,6 +208,11 @@ pub fn assert_running(bed: &mut Bed, c: &Compiled) -> Vec<Status> {
 /// The initial state of every chart of `t`.
 pub fn initial(t: &Table) -> Vec<u8> {
     t.charts.iter().map(|ch| ch.initial).collect()
+}
+
+/// The idle state of every chart of `t` (where it rests homed between cycles).
+pub fn idle(t: &Table) -> Vec<u8> {
+    t.charts.iter().map(|ch| ch.idle).collect()
 }
 
 /// One status of node `addr`.
