@@ -183,6 +183,21 @@ pub fn assert_not_homed(bed: &mut Bed, c: &Compiled) -> Vec<Status> {
     statuses
 }
 
+/// Role `role`'s node (rebooted) runs `c`'s table in its initial states, not homed; the
+/// other nodes rest homed.
+pub fn assert_not_homed_node(bed: &mut Bed, c: &Compiled, role: &str) {
+    let statuses = bed.statuses(c).expect("statuses");
+    for ((s, r), t) in statuses.iter().zip(&c.ir.roles).zip(&c.tables) {
+        let want = if r.name == role { initial(t) } else { idle(t) };
+        assert_eq!(
+            (s.role.as_str(), s.generation, s.fault, s.states.as_slice()),
+            (r.name.as_str(), c.ir.generation, None, want.as_slice()),
+            "node {:#06x}",
+            r.address
+        );
+    }
+}
+
 /// Every role's node runs `c`'s table, homed and at rest: role, generation, idle states,
 /// no fault, no link alarm. Returns the statuses (in role order).
 pub fn assert_running(bed: &mut Bed, c: &Compiled) -> Vec<Status> {
@@ -679,4 +694,56 @@ pub fn power_cut(bed: &mut robot_net::demo::Bed, addrs: &[u16]) {
         bed.start_node(a).unwrap();
     }
     bed.wait_for_nodes(addrs).unwrap();
+}
+
+/// Push, home, START; once the plant has seen `VC+ GR+ VC- HC+ VC+` (HC+ completed, VC on
+/// its way down into the pot) every node process is killed and restarted.
+///
+/// `options` must keep the nodes' flash (they boot their confirmed table).
+pub fn killed_mid_cycle_then_homed(options: Options) {
+    let c = robot("paint-robot.ron", 1);
+    let addrs: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
+    let mut bed = bring_up(&c, options);
+    push_and_home(&mut bed, &c);
+    assert_running(&mut bed, &c);
+
+    bed.press_start(&c).expect("START");
+    let seen: Vec<String> = bed
+        .await_strokes(5)
+        .expect("five steps")
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    assert_eq!(seen.join(" "), "VC+ GR+ VC- HC+ VC+");
+    power_cut(&mut bed, &addrs);
+    // The gripper's monostable valve dropped with the power (a boot cannot hold it): the
+    // part is released; the cylinders' valves go off and their rods stay where they are.
+    let booted = bed.await_strokes(1).expect("the gripper drops");
+    assert_eq!(booted[0].to_string(), "GR-");
+
+    // Booted from flash: generation 1, every chart initial (not homed).
+    assert_not_homed(&mut bed, &c);
+    let (start_role, _) = c.ir.start.clone().unwrap();
+    let before = status(&mut bed, c.ir.roles[start_role].address);
+    let after = bed.press_start(&c).expect("START");
+    assert_eq!(
+        (after.states.as_slice(), after.outputs, after.fault),
+        (before.states.as_slice(), before.outputs, None),
+        "a START on a machine not homed does nothing"
+    );
+
+    // Homing (VC- HC- RC- GR-) from where the power cut left the rods, and nothing else
+    // since the boot (no START motion): VC (down, or on its way) and HC (at its end) go
+    // home, RC's home switch reads home (skipped), GR- runs its dwell on a valve that is
+    // off already (the plant sees no change).
+    assert_eq!(
+        robot_analysis::sim::steps_text(&c.ir.homing),
+        "VC- HC- RC- GR-"
+    );
+    let homing = home_ok(&mut bed, &c);
+    assert_eq!(homing.join(" "), "VC- HC-");
+    assert_running(&mut bed, &c);
+    let cycle = exact_cycle(&mut bed, &c, 1);
+    assert_eq!(robot_analysis::sim::steps_text(&cycle.steps), SEQUENCE_1);
+    bed.stop();
 }
