@@ -33,7 +33,9 @@ fn five_exact_cycles(medium: medium::Config) -> Stats {
     let mut bed = bring_up(&c, options(medium, None));
     push_and_home(&mut bed, &c);
     let mut before = counters(&assert_running(&mut bed, &c), &c);
-    assert!(before.values().all(|k| k.delivered == 0));
+    // Homing handed its token on once around the nodes (VC- HC- RC- GR-, then back to
+    // VC): one event delivered to each, exactly once.
+    assert!(before.values().all(|k| k.delivered == 1), "{before:?}");
     // The spare node is not part of this robot: it stays unconfigured.
     let roles: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
     let spares: Vec<u16> = demo::node_addrs(&c)
@@ -133,7 +135,8 @@ fn reconfiguration_while_running_then_role_reassigned_to_the_spare() {
     assert_eq!(status(&mut bed, SPARE).generation, 0, "unconfigured so far");
     let outcomes = push_ok(&mut bed, &spare);
     assert_eq!(outcomes[role_of(&spare, "VC").0].addr, SPARE);
-    assert_running(&mut bed, &spare);
+    // The others switched at their idle point; the spare had no table: not homed.
+    assert_not_homed_node(&mut bed, &spare, "VC");
     let old = status(&mut bed, OLD_VC);
     assert_eq!((old.role.as_str(), old.generation), ("VC", 2));
 
@@ -148,6 +151,8 @@ fn reconfiguration_while_running_then_role_reassigned_to_the_spare() {
         .expect("VC.home input")
         .0;
     wait_until(&mut bed, SPARE, |s| s.inputs & (1 << home) != 0);
+    assert_eq!(home_ok(&mut bed, &spare), Vec::<String>::new(), "from rest");
+    assert_running(&mut bed, &spare);
     let mut monitor = Monitor::join(bed.medium().addr());
     exact_cycle(&mut bed, &spare, 1);
     assert_running(&mut bed, &spare);
