@@ -200,17 +200,14 @@ pub fn home(
     let end = t0 + wait;
     loop {
         let now = nodes(c, &statuses(radio, ids, c, answer_within)?);
-        let faulted = now.iter().find_map(|n| match n.standing {
-            Standing::Faulted(code) => Some((n, code)),
-            _ => None,
-        });
-        if let Some((n, code)) = faulted {
-            let end = HomeEnd::Faulted {
-                role: n.role.clone(),
-                addr: n.addr,
-                code,
-            };
-            return Ok((end, t0.elapsed()));
+        if now
+            .iter()
+            .any(|n| matches!(n.standing, Standing::Faulted(_)))
+        {
+            // Once more, every node: the one that detected it has faulted by the time a
+            // peer shows its fault; it is named, not the peer.
+            let after = nodes(c, &statuses(radio, ids, c, answer_within)?);
+            return Ok((detector(&after), t0.elapsed()));
         }
         if now.iter().all(|n| n.standing == Standing::Homed) {
             return Ok((HomeEnd::Homed, t0.elapsed()));
@@ -226,6 +223,28 @@ pub fn home(
         // Whatever comes meanwhile (late answers) is not for the watch.
         let until = (Instant::now() + POLL).min(end);
         while radio.recv(until)?.is_some() {}
+    }
+}
+
+/// The status fault code of a node stopped by a peer's fault.
+const PEER_FAULT: u8 = 0x80 | robot_compiler::synth::FAULT_PEER;
+
+/// The faulted node that detected the fault: the first whose fault is not a peer's, else
+/// the first faulted.
+fn detector(nodes: &[Node]) -> HomeEnd {
+    let faulted = |own: bool| {
+        nodes.iter().find_map(|n| match n.standing {
+            Standing::Faulted(code) if !own || code != PEER_FAULT => Some((n, code)),
+            _ => None,
+        })
+    };
+    match faulted(true).or_else(|| faulted(false)) {
+        Some((n, code)) => HomeEnd::Faulted {
+            role: n.role.clone(),
+            addr: n.addr,
+            code,
+        },
+        None => HomeEnd::NotDone(Vec::new()),
     }
 }
 
@@ -301,6 +320,30 @@ mod tests {
             addr,
             standing,
         }
+    }
+
+    #[test]
+    fn homing_names_the_node_that_detected_a_fault_not_a_peer_it_stopped() {
+        let nodes = [
+            node("VC", 0x11, Standing::Faulted(PEER_FAULT)),
+            node("HC", 0x13, Standing::Faulted(0x81)),
+        ];
+        assert_eq!(
+            detector(&nodes),
+            HomeEnd::Faulted {
+                role: "HC".into(),
+                addr: 0x13,
+                code: 0x81
+            }
+        );
+        assert_eq!(
+            detector(&nodes[..1]),
+            HomeEnd::Faulted {
+                role: "VC".into(),
+                addr: 0x11,
+                code: PEER_FAULT
+            }
+        );
     }
 
     #[test]

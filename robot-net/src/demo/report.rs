@@ -196,6 +196,34 @@ mod tests {
     use super::*;
 
     #[test]
+    fn homing_says_how_it_ended_and_what_the_plant_moved() {
+        let step = |a: &str| robot_compiler::ir::Step {
+            actuator: a.into(),
+            extend: false,
+        };
+        let mut h = Homing {
+            end: HomeEnd::Homed,
+            steps: vec![],
+            took: Duration::from_millis(420),
+        };
+        assert_eq!(
+            homed_line(&h),
+            "homed: every chart idle in 0.42 s; the plant moved nothing"
+        );
+        h.steps = vec![step("VC"), step("HC")];
+        h.end = HomeEnd::Faulted {
+            role: "HC".into(),
+            addr: 0x0013,
+            code: 0x81,
+        };
+        assert_eq!(
+            homed_line(&h),
+            "homing FAULTED: node 0x0013 (HC): its motion watchdog expired; the plant moved \
+             VC- HC-"
+        );
+    }
+
+    #[test]
     fn push_prints_the_nodes_refusal_reason() {
         let o = push::Pushed {
             role: "VC".into(),
