@@ -47,8 +47,11 @@ pub enum Command {
     Verify(VerifyArgs),
     /// Run the simulated IEEE 802.15.4 medium (loopback) until interrupted.
     Medium(MediumArgs),
-    /// List the nodes in range: address, firmware, generation, role.
+    /// List the nodes in range: address, firmware, generation, role (and with the robot,
+    /// whether each of its nodes is homed).
     Scan {
+        /// The robot whose nodes to show homed or not.
+        robot: Option<PathBuf>,
         #[command(flatten)]
         at: MediumAddr,
         #[command(flatten)]
@@ -63,8 +66,11 @@ pub enum Command {
     /// Return every node of the robot to its previous generation together, at the
     /// machine's next idle point (or --now).
     Rollback(SwitchArgs),
-    /// A node's status: role, generation, chart states, outputs, fault, links, counters.
+    /// A node's status: role, generation, chart states, outputs, fault, links, counters
+    /// (and with the robot, whether the node is homed).
     Status {
+        /// The robot the node plays a role of.
+        robot: Option<PathBuf>,
         #[command(flatten)]
         at: MediumAddr,
         #[arg(long, value_parser = node_fw::host::parse_addr)]
@@ -72,15 +78,24 @@ pub enum Command {
         #[command(flatten)]
         keys: KeysArg,
     },
-    /// START (as the START button of the robot), to the node with the start input.
+    /// START (as the START button of the robot), to the node with the start input; with
+    /// the robot, refused unless every node of it is homed and at rest.
     Start {
+        /// The robot: START goes to its start role's node (unless --node), once every node
+        /// of it is homed, at rest and not faulted.
+        #[arg(required_unless_present = "node")]
+        robot: Option<PathBuf>,
         #[command(flatten)]
         at: MediumAddr,
         #[arg(long, value_parser = node_fw::host::parse_addr)]
-        node: u16,
+        node: Option<u16>,
         #[command(flatten)]
         keys: KeysArg,
     },
+    /// Home the robot: HOME to its home role's node, which runs the homing sequence; waits
+    /// until every chart of every node rests in its idle state. Refused while a node is
+    /// faulted (reset first) or a cycle runs.
+    Home(HomeArgs),
     /// Leave a fault: back to the initial state.
     Reset {
         #[command(flatten)]
@@ -343,6 +358,20 @@ pub struct SwitchArgs {
     #[arg(long)]
     pub now: bool,
     /// (rollback) How long to wait for the machine to be idle, seconds.
+    #[arg(long, default_value_t = 60)]
+    pub wait: u64,
+    #[command(flatten)]
+    pub keys: KeysArg,
+}
+
+/// `home`'s arguments.
+#[derive(Args, Debug, Clone)]
+pub struct HomeArgs {
+    /// The robot to home.
+    pub robot: PathBuf,
+    #[command(flatten)]
+    pub at: MediumAddr,
+    /// How long to wait for homing to end, seconds.
     #[arg(long, default_value_t = 60)]
     pub wait: u64,
     #[command(flatten)]

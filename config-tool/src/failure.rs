@@ -19,6 +19,9 @@ pub mod exit {
     pub const MISMATCH: u8 = 4;
     /// A node faulted (a watchdog, a peer's fault, a link alarm in a stalled machine).
     pub const FAULTED: u8 = 5;
+    /// The machine's state refuses the command, nothing was sent: `start` of a machine
+    /// not homed, `home` or `start` of one faulted or moving.
+    pub const REFUSED: u8 = 6;
 }
 
 /// A command that failed: what to print (nothing if it was printed already), and the exit
@@ -43,6 +46,14 @@ impl Failure {
     pub fn usage(what: impl Display) -> Failure {
         Failure {
             code: exit::USAGE,
+            message: format!("error: {what}"),
+        }
+    }
+
+    /// `error: WHAT`, status 6: the machine's state refuses the command.
+    pub fn refused(what: impl Display) -> Failure {
+        Failure {
+            code: exit::REFUSED,
             message: format!("error: {what}"),
         }
     }

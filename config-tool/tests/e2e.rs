@@ -31,9 +31,11 @@ fn five_exact_cycles(medium: medium::Config) -> Stats {
     assert!(deliveries[0].iter().sum::<u32>() > 0);
 
     let mut bed = bring_up(&c, options(medium, None));
-    push_ok(&mut bed, &c);
+    push_and_home(&mut bed, &c);
     let mut before = counters(&assert_running(&mut bed, &c), &c);
-    assert!(before.values().all(|k| k.delivered == 0));
+    // Homing handed its token on once around the nodes (VC- HC- RC- GR-, then back to
+    // VC): one event delivered to each, exactly once.
+    assert!(before.values().all(|k| k.delivered == 1), "{before:?}");
     // The spare node is not part of this robot: it stays unconfigured.
     let roles: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
     let spares: Vec<u16> = demo::node_addrs(&c)
@@ -99,7 +101,7 @@ fn reconfiguration_while_running_then_role_reassigned_to_the_spare() {
     const SPARE: u16 = 0x0015;
     let paint = robot("paint-robot.ron", 1);
     let mut bed = bring_up(&paint, options(medium::Config::default(), None));
-    push_ok(&mut bed, &paint);
+    push_and_home(&mut bed, &paint);
     assert_running(&mut bed, &paint);
     for n in 1..=2 {
         exact_cycle(&mut bed, &paint, n);
@@ -133,7 +135,8 @@ fn reconfiguration_while_running_then_role_reassigned_to_the_spare() {
     assert_eq!(status(&mut bed, SPARE).generation, 0, "unconfigured so far");
     let outcomes = push_ok(&mut bed, &spare);
     assert_eq!(outcomes[role_of(&spare, "VC").0].addr, SPARE);
-    assert_running(&mut bed, &spare);
+    // The others switched at their idle point; the spare had no table: not homed.
+    assert_not_homed_node(&mut bed, &spare, "VC");
     let old = status(&mut bed, OLD_VC);
     assert_eq!((old.role.as_str(), old.generation), ("VC", 2));
 
@@ -148,6 +151,8 @@ fn reconfiguration_while_running_then_role_reassigned_to_the_spare() {
         .expect("VC.home input")
         .0;
     wait_until(&mut bed, SPARE, |s| s.inputs & (1 << home) != 0);
+    assert_eq!(home_ok(&mut bed, &spare), Vec::<String>::new(), "from rest");
+    assert_running(&mut bed, &spare);
     let mut monitor = Monitor::join(bed.medium().addr());
     exact_cycle(&mut bed, &spare, 1);
     assert_running(&mut bed, &spare);
@@ -205,7 +210,7 @@ fn hostile_frames_are_dropped_counted_and_the_node_keeps_working() {
     const HOSTILE: u16 = 0x0200; // not a peer of anyone, not the tool
     let c = robot("paint-robot.ron", 1);
     let mut bed = bring_up(&c, options(medium::Config::default(), None));
-    push_ok(&mut bed, &c);
+    push_and_home(&mut bed, &c);
     let (gr, node) = role_of(&c, "GR");
     let pan = c.ir.pan_id;
     assert_ne!(pan, CONFIG_PAN);
@@ -319,11 +324,11 @@ fn forged_flipped_and_replayed_starts_start_nothing_and_the_counters_say_why() {
     const HOSTILE: u16 = 0xBEEF;
     let c = robot("paint-robot.ron", 1);
     let mut bed = bring_up(&c, options(medium::Config::default(), None));
-    push_ok(&mut bed, &c);
+    push_and_home(&mut bed, &c);
     let secret = bed.secret().expect("a secured bed").clone();
     let (start_role, _) = c.ir.start.clone().expect("a start input");
     let node = c.ir.roles[start_role].address;
-    let at_rest = initial(&c.tables[start_role]);
+    let at_rest = idle(&c.tables[start_role]);
 
     // One real cycle; the monitor keeps the tool's secured START to the node.
     let mut monitor = Monitor::join(bed.medium().addr());
@@ -413,12 +418,12 @@ fn forged_replayed_and_old_generation_events_move_nothing_and_the_counters_say_w
     const HOSTILE: u16 = 0xBEEF;
     let c = robot("paint-robot.ron", 1);
     let mut bed = bring_up(&c, options(medium::Config::default(), None));
-    push_ok(&mut bed, &c);
+    push_and_home(&mut bed, &c);
     let secret = bed.secret().expect("a secured bed").clone();
     let vc = addr_of(&c, "VC");
     let (gr_role, gr) = role_of(&c, "GR");
     let pan = c.ir.pan_id;
-    let at_rest = initial(&c.tables[gr_role]);
+    let at_rest = idle(&c.tables[gr_role]);
 
     // One real cycle; the monitor keeps VC's first event to GR (it closes the gripper).
     let mut monitor = Monitor::join(bed.medium().addr());
@@ -561,7 +566,7 @@ fn a_replayed_push_and_a_forged_forced_push_change_no_table() {
     let secret = bed.secret().expect("a secured bed").clone();
     let (_, gr) = role_of(&c2, "GR");
     let mut monitor = Monitor::join(bed.medium().addr());
-    push_ok(&mut bed, &c2);
+    push_and_home(&mut bed, &c2);
     // Every frame of the tool's push to GR, through its last (the transfer's end).
     let is_end = |p: &[u8]| {
         open_from_tool(&secret, gr, p)
@@ -620,7 +625,7 @@ fn a_replayed_push_and_a_forged_forced_push_change_no_table() {
 fn after_a_flood_the_real_nodes_answer_take_a_push_and_run_at_once() {
     let c = robot("paint-robot.ron", 1);
     let mut bed = bring_up(&c, options(medium::Config::default(), None));
-    push_ok(&mut bed, &c);
+    push_and_home(&mut bed, &c);
     let floods: Vec<_> = [(0x0300, 0x7777), (0x0301, mac::BROADCAST)]
         .into_iter()
         .map(|(src, dst)| {

@@ -14,7 +14,7 @@ use std::sync::{mpsc, Arc};
 use std::time::Instant;
 
 use config_schema::wire::mac;
-use e2e_support::{initial, robot, Monitor, TempDir, SEQUENCE_1, TIMEOUT};
+use e2e_support::{idle, robot, Monitor, TempDir, SEQUENCE_1, TIMEOUT};
 use robot_net::live_plant;
 
 const ROBOT: &str = "robot-configs/paint-robot.ron";
@@ -170,7 +170,7 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
         assert!(line.ends_with("activated"), "{pushed}");
     }
     assert!(
-        lines[c.ir.roles.len() + 1].starts_with("pushed 4 table(s): 738 bytes"),
+        lines[c.ir.roles.len() + 1].starts_with("pushed 4 table(s): 981 bytes"),
         "{pushed}"
     );
     assert_eq!(
@@ -180,8 +180,53 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     // One reservation for the whole run: the counter file, not a write per frame.
     assert_eq!(reservations(&counter), [1024]);
 
+    // The nodes booted their first table not homed: `status` and `scan` with the robot
+    // say so, and `start` with the robot refuses (nothing sent, the plant does not move).
+    let st = ok(&[
+        "status", ROBOT, "--keys", &key_s, "--medium", &m, "--node", "0x0011",
+    ]);
     assert_eq!(
-        ok(&["start", "--keys", &key_s, "--medium", &m, "--node", "0x0011"]),
+        st.lines().last(),
+        Some("  homing: not homed (config-tool home)"),
+        "{st}"
+    );
+    let found = ok(&["scan", ROBOT, "--keys", &key_s, "--medium", &m]);
+    assert!(
+        found.contains("0x0011  firmware 1  generation 1  VC  not homed (config-tool home)\n")
+            && found.contains("0x0012  firmware 1  generation 1  GR  homed\n")
+            && found.contains("0x0015  firmware 1  generation 0  (unconfigured)\n"),
+        "{found}"
+    );
+    let refused = tool(&["start", ROBOT, "--keys", &key_s, "--medium", &m]);
+    assert_eq!(
+        (refused.status.code(), text(&refused.stderr).as_str()),
+        (
+            Some(6),
+            "error: not homed: run config-tool home; START was not sent\n"
+        )
+    );
+    // Homing from rest: every rod's switch reads home, the gripper's valve is off: the
+    // plant moves nothing.
+    let homed = ok(&["home", ROBOT, "--keys", &key_s, "--medium", &m]);
+    let lines: Vec<&str> = homed.lines().collect();
+    assert_eq!(lines.len(), 2, "{homed}");
+    assert_eq!(
+        lines[0],
+        "homing: VC- HC- RC- GR- (HOME to node 0x0011, VC; a step whose switch reads its \
+         target already is skipped)"
+    );
+    assert!(
+        lines[1].starts_with("homed: every chart idle in "),
+        "{homed}"
+    );
+    assert!(steps.try_recv().is_err(), "homing from rest moves nothing");
+    let st = ok(&[
+        "status", ROBOT, "--keys", &key_s, "--medium", &m, "--node", "0x0011",
+    ]);
+    assert_eq!(st.lines().last(), Some("  homing: homed"), "{st}");
+
+    assert_eq!(
+        ok(&["start", ROBOT, "--keys", &key_s, "--medium", &m]),
         "0x0011: started\n"
     );
     let cycle: Vec<String> = (0..12)
@@ -198,7 +243,7 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     let vc = &c.tables[e2e_support::role_of(&c, "VC").0];
     let rest = format!(
         "  states {}",
-        initial(vc)
+        idle(vc)
             .iter()
             .map(|s| format!("S{s}"))
             .collect::<Vec<_>>()

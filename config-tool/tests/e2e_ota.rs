@@ -46,7 +46,7 @@ fn push_completes_through_lost_and_corrupted_frames() {
             None,
         ),
     );
-    let outcomes = push_ok(&mut bed, &c);
+    let outcomes = push_and_home(&mut bed, &c);
     let statuses = assert_running(&mut bed, &c);
     let stats = bed.medium().stats();
     assert!(stats.lost > 0 && stats.corrupted > 0, "{stats:?}");
@@ -66,7 +66,7 @@ fn a_lost_chunk_is_resent_and_a_corrupted_one_dropped() {
     let dip = robot("paint-robot-double-dip.ron", 2);
     let (vc, node) = role_of(&c, "VC");
     let mut bed = bring_up(&c, options(medium::Config::default(), None));
-    push_ok(&mut bed, &c);
+    push_and_home(&mut bed, &c);
     let blob = &dip.blobs[vc];
     assert!(blob.len() > 2 * CHUNK_DATA, "three chunks at least");
     let before = status(&mut bed, node);
@@ -110,7 +110,8 @@ fn a_lost_chunk_is_resent_and_a_corrupted_one_dropped() {
     let after = status(&mut bed, node);
     assert_eq!((after.role.as_str(), after.generation), ("VC", 2));
     assert_eq!(after.counters.dropped - before.counters.dropped, 1);
-    assert_eq!(after.states.as_slice(), initial(&dip.tables[vc]).as_slice());
+    // Switched at its idle point: homed, in the new table's idle states.
+    assert_eq!(after.states.as_slice(), idle(&dip.tables[vc]).as_slice());
     bed.stop();
 }
 
@@ -120,7 +121,7 @@ fn wrong_crc_invalid_blob_and_stale_generations_are_refused() {
     let dip = robot("paint-robot-double-dip.ron", 2);
     let (vc, node) = role_of(&c, "VC");
     let mut bed = bring_up(&c, options(medium::Config::default(), None));
-    push_ok(&mut bed, &c);
+    push_and_home(&mut bed, &c);
 
     // A wrong total CRC in the begin: every chunk arrives, the end is refused.
     let (progress, acked, _) = drive(
@@ -188,7 +189,7 @@ fn a_start_replayed_after_the_node_rebooted_is_challenged_and_starts_nothing() {
     let flash = TempDir::new("replay-reboot");
     let c = robot("paint-robot.ron", 1);
     let mut bed = bring_up(&c, options(medium::Config::default(), Some(&flash)));
-    push_ok(&mut bed, &c);
+    push_and_home(&mut bed, &c);
     let secret = bed.secret().expect("a secured bed").clone();
     let (start_role, _) = c.ir.start.clone().expect("a start input");
     let node = c.ir.roles[start_role].address;
@@ -217,6 +218,8 @@ fn a_start_replayed_after_the_node_rebooted_is_challenged_and_starts_nothing() {
     raw.send_psdu(&captured);
     // Asked on the same connection: the answers come after the replay.
     let after = raw.status(node);
+    // Nothing started (booted, the node is not homed either: the counters below say the
+    // replay was challenged, not run).
     assert_eq!(
         after.states.as_slice(),
         initial(&c.tables[start_role]).as_slice(),
@@ -247,7 +250,7 @@ fn node_killed_mid_transfer_restarts_with_the_old_table_then_takes_a_new_push() 
     let dip = robot("paint-robot-double-dip.ron", 2);
     let (vc, node) = role_of(&c, "VC");
     let mut bed = bring_up(&c, options(medium::Config::default(), Some(&flash)));
-    push_ok(&mut bed, &c);
+    push_and_home(&mut bed, &c);
     assert_running(&mut bed, &c);
 
     // Only the first chunk gets through; the power goes once the node acknowledged it.
@@ -274,7 +277,10 @@ fn node_killed_mid_transfer_restarts_with_the_old_table_then_takes_a_new_push() 
         (found[&node].role.as_str(), found[&node].generation),
         ("VC", 1)
     );
-    // It runs the old table from flash, with its peers, for a whole cycle.
+    // It runs the old table from flash, booted not homed; homed (the rods are home: the
+    // plant moves nothing), with its peers, for a whole cycle.
+    assert_not_homed_node(&mut bed, &c, "VC");
+    assert_eq!(home_ok(&mut bed, &c), Vec::<String>::new());
     assert_running(&mut bed, &c);
     exact_cycle(&mut bed, &c, 1);
 
@@ -285,7 +291,7 @@ fn node_killed_mid_transfer_restarts_with_the_old_table_then_takes_a_new_push() 
     bed.start_node(node).unwrap();
     let found = bed.wait_for_nodes(&[node]).unwrap();
     assert_eq!(found[&node].generation, 2);
-    assert_running(&mut bed, &dip);
+    assert_not_homed_node(&mut bed, &dip, "VC");
     bed.stop();
 }
 
@@ -296,7 +302,7 @@ fn node_killed_between_persisting_and_flipping_boots_the_old_table() {
     let dip = robot("paint-robot-double-dip.ron", 2);
     let (vc, node) = role_of(&c, "VC");
     let mut bed = bring_up(&c, options(medium::Config::default(), Some(&flash)));
-    push_ok(&mut bed, &c);
+    push_and_home(&mut bed, &c);
     assert_running(&mut bed, &c);
     bed.kill_node(node);
 
@@ -326,6 +332,8 @@ fn node_killed_between_persisting_and_flipping_boots_the_old_table() {
         (found[&node].role.as_str(), found[&node].generation),
         ("VC", 1)
     );
+    assert_not_homed_node(&mut bed, &c, "VC");
+    assert_eq!(home_ok(&mut bed, &c), Vec::<String>::new());
     assert_running(&mut bed, &c);
     exact_cycle(&mut bed, &c, 1);
 
@@ -339,6 +347,6 @@ fn node_killed_between_persisting_and_flipping_boots_the_old_table() {
     drop(slots);
     bed.start_node(node).unwrap();
     assert_eq!(bed.wait_for_nodes(&[node]).unwrap()[&node].generation, 2);
-    assert_running(&mut bed, &dip);
+    assert_not_homed_node(&mut bed, &dip, "VC");
     bed.stop();
 }

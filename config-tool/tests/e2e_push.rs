@@ -61,7 +61,7 @@ fn eight_actuators() -> robot_compiler::Compiled {
 fn eight_tables_at_once_take_no_retry_on_a_lossless_medium() {
     let c = eight_actuators();
     let mut bed = bring_up(&c, options(medium::Config::default(), None));
-    let outcomes = push_ok(&mut bed, &c);
+    let outcomes = push_and_home(&mut bed, &c);
     let retries: Vec<(String, u32)> = outcomes
         .iter()
         .map(|o| (o.role.clone(), o.stats.retries))

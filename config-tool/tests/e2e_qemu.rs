@@ -85,12 +85,12 @@ fn a_keyed_qemu_node_drops_an_unsecured_start_and_counts_it() {
     let dir = TempDir::new("qemu-forged");
     let c = robot("paint-robot.ron", 1);
     let mut bed = bring_up(&c, qemu_options(&elf, &dir));
-    push_ok(&mut bed, &c);
+    push_and_home(&mut bed, &c);
     assert_running(&mut bed, &c);
     let secret = bed.secret().expect("a secured bed").clone();
     let (start_role, _) = c.ir.start.clone().expect("a start input");
     let node = c.ir.roles[start_role].address;
-    let at_rest = initial(&c.tables[start_role]);
+    let at_rest = idle(&c.tables[start_role]);
 
     let mut raw = RawClient::join(bed.medium().addr(), HOSTILE).keyed(&secret);
     let before = raw.security(node);
@@ -174,7 +174,7 @@ fn qemu_nodes_switch_at_the_cycle_end_and_a_power_cut_during_the_trial_boots_the
     let paint = robot("paint-robot.ron", 1);
     let dip = robot("paint-robot-double-dip.ron", 2);
     let mut bed = bring_up(&paint, qemu_options(&elf, &flash));
-    push_ok(&mut bed, &paint);
+    push_and_home(&mut bed, &paint);
     let secret = bed.secret().expect("secured").clone();
     let at = bed.medium().addr();
     let targets = demo::targets(&dip);
@@ -199,7 +199,20 @@ fn qemu_nodes_switch_at_the_cycle_end_and_a_power_cut_during_the_trial_boots_the
     exact_cycle(&mut bed, &dip, 1);
     let addrs: Vec<u16> = paint.ir.roles.iter().map(|r| r.address).collect();
     power_cut(&mut bed, &addrs);
+    // Booted not homed; the rods are home: homing moves nothing.
+    assert_not_homed(&mut bed, &paint);
+    assert_eq!(home_ok(&mut bed, &paint), Vec::<String>::new());
     assert_running(&mut bed, &paint);
     exact_cycle(&mut bed, &paint, 2);
     bed.stop();
+}
+
+/// Issue 12 on the emulated board: every QEMU node killed mid-cycle and booted again is
+/// not homed (a START does nothing), homing runs exactly the steps the rods need, then one
+/// START gives an exact cycle (`e2e_homing.rs` on host nodes).
+#[test]
+fn qemu_nodes_killed_mid_cycle_boot_unhomed_and_homing_then_one_start_gives_an_exact_cycle() {
+    let Some(elf) = qemu_image() else { return };
+    let flash = TempDir::new("qemu-homing");
+    killed_mid_cycle_then_homed(qemu_options(&elf, &flash));
 }

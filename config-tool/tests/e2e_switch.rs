@@ -30,7 +30,7 @@ fn a_push_during_a_cycle_switches_at_its_end_and_the_next_cycle_is_the_new_seque
         ..medium::Config::default()
     };
     let mut bed = bring_up(&paint, options(lossy, None));
-    push_ok(&mut bed, &paint);
+    push_and_home(&mut bed, &paint);
     let secret = bed.secret().expect("secured").clone();
     let at = bed.medium().addr();
     let targets = robot_net::demo::targets(&dip);
@@ -65,7 +65,7 @@ fn a_node_killed_between_stage_and_switch_comes_back_staged_and_the_switch_finis
     let paint = robot("paint-robot.ron", 1);
     let dip = robot("paint-robot-double-dip.ron", 2);
     let mut bed = bring_up(&paint, options(medium::Config::default(), Some(&flash)));
-    push_ok(&mut bed, &paint);
+    push_and_home(&mut bed, &paint);
     let mut pushed = bed.stage(&dip, false, &mut |_, _, _| {}).unwrap();
     assert!(pushed.iter().all(|p| p.progress == Progress::Done));
     let gr = addr_of(&paint, "GR");
@@ -125,7 +125,7 @@ fn a_trial_is_left_by_a_power_cut_or_a_rollback_and_stays_once_confirmed() {
     let paint = robot("paint-robot.ron", 1);
     let mut bed = bring_up(&paint, options(medium::Config::default(), Some(&flash)));
     let addrs: Vec<u16> = paint.ir.roles.iter().map(|r| r.address).collect();
-    push_ok(&mut bed, &paint);
+    push_and_home(&mut bed, &paint);
     let n = addrs.len();
 
     // On trial, then the power goes: generation 1 again.
@@ -133,6 +133,9 @@ fn a_trial_is_left_by_a_power_cut_or_a_rollback_and_stays_once_confirmed() {
     assert_eq!(where_all(&mut bed, &addrs), vec![(2, true, 1); n]);
     power_cut(&mut bed, &addrs);
     assert_eq!(where_all(&mut bed, &addrs), vec![(1, false, 0); n]);
+    // Booted: not homed (the rods are home: homing moves nothing).
+    assert_not_homed(&mut bed, &paint);
+    assert_eq!(home_ok(&mut bed, &paint), Vec::<String>::new());
     exact_cycle(&mut bed, &paint, 1);
 
     // On trial, then rolled back on demand: generation 1 again, at once an exact cycle.
@@ -154,6 +157,8 @@ fn a_trial_is_left_by_a_power_cut_or_a_rollback_and_stays_once_confirmed() {
     assert_eq!(where_all(&mut bed, &addrs), vec![(4, false, 1); n]);
     power_cut(&mut bed, &addrs);
     assert_eq!(where_all(&mut bed, &addrs), vec![(4, false, 1); n]);
+    assert_not_homed(&mut bed, &dip);
+    assert_eq!(home_ok(&mut bed, &dip), Vec::<String>::new());
     exact_cycle(&mut bed, &dip, 1);
     bed.stop();
 }
@@ -166,7 +171,7 @@ fn a_node_that_rebooted_between_cycles_takes_part_in_the_next_cycle() {
     let flash = TempDir::new("reboot-one");
     let paint = robot("paint-robot.ron", 1);
     let mut bed = bring_up(&paint, options(medium::Config::default(), Some(&flash)));
-    push_ok(&mut bed, &paint);
+    push_and_home(&mut bed, &paint);
     exact_cycle(&mut bed, &paint, 1);
     let gr = addr_of(&paint, "GR");
     power_cut(&mut bed, &[gr]);
@@ -187,7 +192,7 @@ fn a_watched_trial_rolls_back_on_a_fault_or_when_its_window_ends_unconfirmed() {
     let dip = robot("paint-robot-double-dip.ron", 2);
     let mut bed = bring_up(&paint, options(medium::Config::default(), Some(&flash)));
     let addrs: Vec<u16> = paint.ir.roles.iter().map(|r| r.address).collect();
-    push_ok(&mut bed, &paint);
+    push_and_home(&mut bed, &paint);
 
     // Expired: nobody confirms within 1 s.
     on_trial(&mut bed, &dip);
@@ -258,9 +263,9 @@ fn a_watched_trial_rolls_back_on_a_fault_or_when_its_window_ends_unconfirmed() {
         ),
         "{end:?}"
     );
-    // Every node back on generation 1, in its initial states, not faulted. (Where the
-    // jammed rod stands is homing's business, not yet built: no cycle is run here.)
-    assert_running(&mut bed, &paint);
+    // Every node back on generation 1 at once (the machine stopped, faulted): in its
+    // initial states, not homed, not faulted. (The jammed rod: no cycle is run here.)
+    assert_not_homed(&mut bed, &paint);
     assert_eq!(
         where_all(&mut bed, &addrs),
         vec![(1, false, 0); addrs.len()]

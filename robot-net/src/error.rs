@@ -33,6 +33,10 @@ pub enum NetError {
     NoAnswer { addr: u16, command: String },
     #[error("the robot has no start input")]
     NoStart,
+    #[error("the plant saw {0} of {1} strokes in time")]
+    Stalled(usize, usize),
+    #[error("the robot has no homing (only a sequence robot is homed)")]
+    NoHome,
     /// A `--fault` that does not fit the robot.
     #[error("--fault: {0}")]
     Fault(String),

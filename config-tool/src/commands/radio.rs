@@ -1,5 +1,5 @@
 //! The commands that talk to nodes over the (simulated) radio: medium, scan, push, status,
-//! start, reset, plant, monitor, gateway, and the node runners (`node`, `qemu-node`).
+//! start, home, reset, plant, monitor, gateway, and the node runners (`node`, `qemu-node`).
 
 use std::io;
 use std::net::SocketAddr;
@@ -16,11 +16,11 @@ use node_fw::switch::{NodeState, Verdict};
 use robot_net::demo;
 use robot_net::push::{self, Ids};
 use robot_net::radio::{ToolRadio, TOOL_ADDR};
-use robot_net::{live_plant, show};
+use robot_net::{home, live_plant, show};
 
 use robot_compiler::model::Security;
 
-use crate::cli::{KeysArg, MediumAddr, PushArgs, QemuNodeArgs, SwitchArgs, VerifyHow};
+use crate::cli::{HomeArgs, KeysArg, MediumAddr, PushArgs, QemuNodeArgs, SwitchArgs, VerifyHow};
 use crate::commands::offline;
 use crate::failure::{exit, Failure};
 use crate::tool_keys::{self, KeysFrom, KEYS_ENV};
@@ -133,18 +133,23 @@ pub fn medium(config: medium::Config) -> Result<(), Failure> {
     }
 }
 
-pub fn scan(at: &MediumAddr, keys: &KeysArg) -> Result<(), Failure> {
+pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(), Failure> {
+    let c = robot.map(demo::load).transpose()?;
     let mut radio = connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?;
-    let found = push::scan(&mut radio, &mut Ids::default(), Duration::from_secs(2))
-        .map_err(Failure::error)?;
+    let mut ids = Ids::default();
+    let found = push::scan(&mut radio, &mut ids, Duration::from_secs(2)).map_err(Failure::error)?;
     for (addr, a) in &found {
         let role = if a.role.is_empty() {
             "(unconfigured)"
         } else {
             a.role.as_str()
         };
+        let homed = match &c {
+            Some(c) => homed_note(&mut radio, &mut ids, c, *addr)?,
+            None => String::new(),
+        };
         println!(
-            "{addr:#06x}  firmware {}  generation {}{}  {role}",
+            "{addr:#06x}  firmware {}  generation {}{}  {role}{homed}",
             a.firmware,
             a.generation,
             show::staged_note(a.staged)
@@ -430,14 +435,54 @@ fn report_push(
     }
 }
 
-pub fn status(at: &MediumAddr, node: u16, keys: &KeysArg) -> Result<(), Failure> {
+pub fn status(
+    robot: Option<&Path>,
+    at: &MediumAddr,
+    node: u16,
+    keys: &KeysArg,
+) -> Result<(), Failure> {
+    let c = robot.map(demo::load).transpose()?;
     let mut radio = connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?;
     let mut ids = Ids::default();
     let s = command(&mut radio, &mut ids, node, Command::Status)?;
     let r = security(&mut radio, &mut ids, node)?;
     println!("{}", show::status_text(node, &s));
     println!("{}", show::security_text(&r));
+    if let Some(c) = &c {
+        println!("  homing: {}", standing_text(c, node, &s));
+    }
     Ok(())
+}
+
+/// Whether node `node` (status `s`) of robot `c` is homed, in words.
+fn standing_text(c: &robot_compiler::Compiled, node: u16, s: &Status) -> String {
+    let role =
+        c.ir.roles
+            .iter()
+            .zip(&c.tables)
+            .find(|(r, _)| r.address == node);
+    match role {
+        Some((r, t)) => match home::standing(&r.name, t, s) {
+            home::Standing::NotHomed => "not homed (config-tool home)".to_string(),
+            other => other.text(),
+        },
+        None => "not a node of this robot".to_string(),
+    }
+}
+
+/// `  homed` (or `  not homed (config-tool home)`, ...) for a node of robot `c`; nothing
+/// for another node.
+fn homed_note(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    c: &robot_compiler::Compiled,
+    node: u16,
+) -> Result<String, Failure> {
+    if !c.ir.roles.iter().any(|r| r.address == node) {
+        return Ok(String::new());
+    }
+    let s = command(radio, ids, node, Command::Status)?;
+    Ok(format!("  {}", standing_text(c, node, &s)))
 }
 
 /// A role's node and its status: (role, address, status).
@@ -544,11 +589,77 @@ pub fn rollback(flags: &SwitchArgs) -> Result<(), Failure> {
     }
 }
 
-pub fn start(at: &MediumAddr, node: u16, keys: &KeysArg) -> Result<(), Failure> {
+/// `start`: START to `node`, or with the robot to its start role's node once every node
+/// of it is homed, at rest and not faulted (refused otherwise: nothing is sent).
+pub fn start(
+    robot: Option<&Path>,
+    at: &MediumAddr,
+    node: Option<u16>,
+    keys: &KeysArg,
+) -> Result<(), Failure> {
+    let c = robot.map(demo::load).transpose()?;
+    let start_node = c.as_ref().and_then(|c| {
+        let (role, _) = c.ir.start.as_ref()?;
+        Some(c.ir.roles.get(*role)?.address)
+    });
+    let node = node.or(start_node).ok_or_else(|| {
+        Failure::usage("the robot has no start input: give the node to START with --node")
+    })?;
     let mut radio = connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?;
-    command(&mut radio, &mut Ids::default(), node, Command::Start)?;
+    let mut ids = Ids::default();
+    if let Some(c) = &c {
+        let statuses = home::statuses(&mut radio, &mut ids, c, ANSWER_WITHIN)?;
+        if let Some(why) = home::refusal(&home::nodes(c, &statuses), false) {
+            return Err(Failure::refused(format!("{why}; START was not sent")));
+        }
+    }
+    command(&mut radio, &mut ids, node, Command::Start)?;
     println!("{node:#06x}: started");
     Ok(())
+}
+
+/// `home`: HOME to the robot's home role's node, then every node's status until each
+/// chart rests in its idle state (homed), a node faults, or `--wait` passes.
+pub fn home(flags: &HomeArgs) -> Result<(), Failure> {
+    let c = demo::load(&flags.robot)?;
+    let keys = push_keys(
+        &flags.robot,
+        &c,
+        KeysFrom::resolve(flags.keys.keys.as_deref()),
+    )?;
+    let mut radio = connect_keyed(&flags.at, keys.as_ref())?;
+    println!("{}", demo::homing_line(&c));
+    let (end, took) = home::home(
+        &mut radio,
+        &mut Ids::default(),
+        &c,
+        ANSWER_WITHIN,
+        Duration::from_secs(flags.wait),
+    )?;
+    match end {
+        home::HomeEnd::Homed => {
+            println!("homed: every chart idle in {:.2} s", took.as_secs_f64());
+            Ok(())
+        }
+        home::HomeEnd::Refused(why) => Err(Failure::refused(format!("{why}; HOME was not sent"))),
+        home::HomeEnd::Ignored { role, addr } => Err(Failure::refused(format!(
+            "node {addr:#06x} ({role}) did not start homing (armed for a switch-over?): \
+             finish the push first"
+        ))),
+        home::HomeEnd::Faulted { role, addr, code } => Err(Failure {
+            code: exit::FAULTED,
+            ..Failure::error(format!(
+                "homing faulted: node {addr:#06x} ({role}): {} (code {code:#04x}); reset, \
+                 then home again",
+                demo::fault_meaning(code)
+            ))
+        }),
+        home::HomeEnd::NotDone(waiting) => Err(Failure::error(format!(
+            "homing did not end within {} s: {}",
+            flags.wait,
+            waiting.join(", ")
+        ))),
+    }
 }
 
 pub fn reset(at: &MediumAddr, node: u16, keys: &KeysArg) -> Result<(), Failure> {

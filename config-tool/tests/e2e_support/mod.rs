@@ -140,14 +140,36 @@ pub fn push_ok(bed: &mut Bed, c: &Compiled) -> Vec<robot_net::push::Pushed> {
     outcomes
 }
 
-/// Every role's node runs `c`'s table, at rest: role, generation, initial states, no
-/// fault, no link alarm. Returns the statuses (in role order).
-pub fn assert_running(bed: &mut Bed, c: &Compiled) -> Vec<Status> {
+/// Homes the machine of `c` and checks it ended homed; the steps the plant saw.
+pub fn home_ok(bed: &mut Bed, c: &Compiled) -> Vec<String> {
+    let homing = bed.home(c).expect("home");
+    assert_eq!(
+        homing.end,
+        robot_net::home::HomeEnd::Homed,
+        "{}",
+        demo::homed_line(&homing)
+    );
+    homing.steps.iter().map(|s| s.to_string()).collect()
+}
+
+/// Pushes every role of `c` to nodes that are not homed (unconfigured, or stopped
+/// anywhere), then homes the machine: the actuators are home already, so the plant moves
+/// nothing.
+pub fn push_and_home(bed: &mut Bed, c: &Compiled) -> Vec<robot_net::push::Pushed> {
+    let outcomes = push_ok(bed, c);
+    assert_not_homed(bed, c);
+    assert_eq!(home_ok(bed, c), Vec::<String>::new(), "from rest");
+    outcomes
+}
+
+/// Every role's node runs `c`'s table in its initial states (booted, reset or activated
+/// on a stopped machine: not homed), no fault, no link alarm.
+pub fn assert_not_homed(bed: &mut Bed, c: &Compiled) -> Vec<Status> {
     let statuses = bed.statuses(c).expect("statuses");
     for ((s, r), t) in statuses.iter().zip(&c.ir.roles).zip(&c.tables) {
         assert_eq!(
-            (s.role.as_str(), s.generation),
-            (r.name.as_str(), c.ir.generation),
+            (s.role.as_str(), s.generation, s.fault),
+            (r.name.as_str(), c.ir.generation, None),
             "node {:#06x}",
             r.address
         );
@@ -157,6 +179,37 @@ pub fn assert_running(bed: &mut Bed, c: &Compiled) -> Vec<Status> {
             "role {}",
             r.name
         );
+    }
+    statuses
+}
+
+/// Role `role`'s node (rebooted) runs `c`'s table in its initial states, not homed; the
+/// other nodes rest homed.
+pub fn assert_not_homed_node(bed: &mut Bed, c: &Compiled, role: &str) {
+    let statuses = bed.statuses(c).expect("statuses");
+    for ((s, r), t) in statuses.iter().zip(&c.ir.roles).zip(&c.tables) {
+        let want = if r.name == role { initial(t) } else { idle(t) };
+        assert_eq!(
+            (s.role.as_str(), s.generation, s.fault, s.states.as_slice()),
+            (r.name.as_str(), c.ir.generation, None, want.as_slice()),
+            "node {:#06x}",
+            r.address
+        );
+    }
+}
+
+/// Every role's node runs `c`'s table, homed and at rest: role, generation, idle states,
+/// no fault, no link alarm. Returns the statuses (in role order).
+pub fn assert_running(bed: &mut Bed, c: &Compiled) -> Vec<Status> {
+    let statuses = bed.statuses(c).expect("statuses");
+    for ((s, r), t) in statuses.iter().zip(&c.ir.roles).zip(&c.tables) {
+        assert_eq!(
+            (s.role.as_str(), s.generation),
+            (r.name.as_str(), c.ir.generation),
+            "node {:#06x}",
+            r.address
+        );
+        assert_eq!(s.states.as_slice(), idle(t).as_slice(), "role {}", r.name);
         assert_eq!(
             (s.fault, s.link_alarms, s.links_broken),
             (None, 0, 0),
@@ -170,6 +223,11 @@ pub fn assert_running(bed: &mut Bed, c: &Compiled) -> Vec<Status> {
 /// The initial state of every chart of `t`.
 pub fn initial(t: &Table) -> Vec<u8> {
     t.charts.iter().map(|ch| ch.initial).collect()
+}
+
+/// The idle state of every chart of `t` (where it rests homed between cycles).
+pub fn idle(t: &Table) -> Vec<u8> {
+    t.charts.iter().map(|ch| ch.idle).collect()
 }
 
 /// One status of node `addr`.
@@ -636,4 +694,56 @@ pub fn power_cut(bed: &mut robot_net::demo::Bed, addrs: &[u16]) {
         bed.start_node(a).unwrap();
     }
     bed.wait_for_nodes(addrs).unwrap();
+}
+
+/// Push, home, START; once the plant has seen `VC+ GR+ VC- HC+ VC+` (HC+ completed, VC on
+/// its way down into the pot) every node process is killed and restarted.
+///
+/// `options` must keep the nodes' flash (they boot their confirmed table).
+pub fn killed_mid_cycle_then_homed(options: Options) {
+    let c = robot("paint-robot.ron", 1);
+    let addrs: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
+    let mut bed = bring_up(&c, options);
+    push_and_home(&mut bed, &c);
+    assert_running(&mut bed, &c);
+
+    bed.press_start(&c).expect("START");
+    let seen: Vec<String> = bed
+        .await_strokes(5)
+        .expect("five steps")
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    assert_eq!(seen.join(" "), "VC+ GR+ VC- HC+ VC+");
+    power_cut(&mut bed, &addrs);
+    // The gripper's monostable valve dropped with the power (a boot cannot hold it): the
+    // part is released; the cylinders' valves go off and their rods stay where they are.
+    let booted = bed.await_strokes(1).expect("the gripper drops");
+    assert_eq!(booted[0].to_string(), "GR-");
+
+    // Booted from flash: generation 1, every chart initial (not homed).
+    assert_not_homed(&mut bed, &c);
+    let (start_role, _) = c.ir.start.clone().unwrap();
+    let before = status(&mut bed, c.ir.roles[start_role].address);
+    let after = bed.press_start(&c).expect("START");
+    assert_eq!(
+        (after.states.as_slice(), after.outputs, after.fault),
+        (before.states.as_slice(), before.outputs, None),
+        "a START on a machine not homed does nothing"
+    );
+
+    // Homing (VC- HC- RC- GR-) from where the power cut left the rods, and nothing else
+    // since the boot (no START motion): VC (down, or on its way) and HC (at its end) go
+    // home, RC's home switch reads home (skipped), GR- runs its dwell on a valve that is
+    // off already (the plant sees no change).
+    assert_eq!(
+        robot_analysis::sim::steps_text(&c.ir.homing),
+        "VC- HC- RC- GR-"
+    );
+    let homing = home_ok(&mut bed, &c);
+    assert_eq!(homing.join(" "), "VC- HC-");
+    assert_running(&mut bed, &c);
+    let cycle = exact_cycle(&mut bed, &c, 1);
+    assert_eq!(robot_analysis::sim::steps_text(&cycle.steps), SEQUENCE_1);
+    bed.stop();
 }

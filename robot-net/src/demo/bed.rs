@@ -15,6 +15,7 @@ use std::time::{Duration, Instant};
 use config_schema::wire::msg::{Announce, Command, Status};
 
 use crate::error::NetError;
+use crate::home::{self, HomeEnd};
 use crate::live_plant::{self, Actuator, Injection, Stroke};
 use crate::push::{self, Ids, Target};
 use crate::radio::{ToolRadio, TOOL_ADDR};
@@ -61,6 +62,16 @@ impl Cycle {
     pub fn ok(&self) -> bool {
         self.steps == self.expect && self.faults.is_empty() && self.fault.is_none()
     }
+}
+
+/// How homing on the bed ended ([`Bed::home`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Homing {
+    pub end: HomeEnd,
+    /// The steps the plant saw (homing's, and anything since the last cycle).
+    pub steps: Vec<Step>,
+    /// From the HOME command to its end.
+    pub took: Duration,
 }
 
 /// A fault, as the demo saw it happen. Times are since the cycle's START.
@@ -394,6 +405,48 @@ impl Bed {
         })
     }
 
+    /// Homes the machine of `c` (`robot_net::home::home`) and returns how it ended with
+    /// the steps the plant saw since the last cycle, homing or [`Bed::strokes`] (what a
+    /// START or a boot before it moved shows there too).
+    pub fn home(&mut self, c: &Compiled) -> Result<Homing, NetError> {
+        let (end, took) = home::home(
+            &mut self.radio,
+            &mut self.ids,
+            c,
+            self.options.timeout,
+            self.options.timeout,
+        )?;
+        let steps = self.strokes().into_iter().map(|s| s.step).collect();
+        Ok(Homing { end, steps, took })
+    }
+
+    /// The strokes the plant saw since the last cycle, homing or call, without waiting.
+    pub fn strokes(&mut self) -> Vec<Stroke> {
+        std::iter::from_fn(|| self.steps.try_recv().ok()).collect()
+    }
+
+    /// Presses START (the command, to the role with the start input) without following
+    /// the cycle: its status, as it answered the command.
+    pub fn press_start(&mut self, c: &Compiled) -> Result<Status, NetError> {
+        let (start_role, _) = c.ir.start.clone().ok_or(NetError::NoStart)?;
+        let addr = c.ir.roles.get(start_role).ok_or(NetError::NoStart)?.address;
+        self.command(addr, Command::Start)
+    }
+
+    /// Waits (at most the bed's timeout) until the plant has seen `n` more strokes; them.
+    pub fn await_strokes(&mut self, n: usize) -> Result<Vec<Stroke>, NetError> {
+        let end = Instant::now() + self.options.timeout;
+        let mut got = Vec::new();
+        while got.len() < n {
+            let left = end.saturating_duration_since(Instant::now());
+            match self.steps.recv_timeout(left) {
+                Ok(s) => got.push(s),
+                Err(_) => return Err(NetError::Stalled(got.len(), n)),
+            }
+        }
+        Ok(got)
+    }
+
     /// Injects `fault` once the plant has seen `steps` steps.
     pub fn inject_after(&mut self, steps: usize, fault: BedFault) {
         self.pending = Some((steps, fault));
@@ -401,8 +454,9 @@ impl Bed {
 
     /// Presses START (the command, to the role with the start input) and follows one cycle:
     /// every step as the plant sees it (`on_step`), until the declared number of steps
-    /// happened and every node is back in its initial state, or a node faults (reported
-    /// as it happens, with what every node then did).
+    /// happened and every node is back in its idle state, or a node faults (reported
+    /// as it happens, with what every node then did). The machine must be homed
+    /// ([`Bed::home`]): a START on one that is not does nothing.
     pub fn run_cycle(
         &mut self,
         c: &Compiled,
@@ -681,17 +735,18 @@ pub fn targets(c: &Compiled) -> Vec<Target> {
         .collect()
 }
 
+/// Every node back at its idle point (homed, at rest): the cycle is over.
 fn at_rest(c: &Compiled, statuses: &[Status]) -> bool {
     statuses.iter().zip(&c.tables).all(|(s, t)| {
         // A node on a newer generation switched over at this idle point (a push waited
-        // for it): its new engine starts in its initial states.
+        // for it): its new engine starts in its idle states.
         s.generation > t.generation
             || s.generation == t.generation
                 && s.states.len() == t.charts.len()
                 && s.states
                     .iter()
                     .zip(&t.charts)
-                    .all(|(st, ch)| *st == ch.initial)
+                    .all(|(st, ch)| *st == ch.idle)
     })
 }
 

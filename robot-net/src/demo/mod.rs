@@ -8,10 +8,10 @@ mod qemu;
 mod report;
 mod run;
 
-pub use bed::{node_addrs, targets, Bed, BedFault, Cycle, FaultReport, Options};
+pub use bed::{node_addrs, targets, Bed, BedFault, Cycle, FaultReport, Homing, Options};
 pub use qemu::{
     check_elf, check_qemu, count_log, provision_loaders, provision_word, qemu_args, read_counts,
     Counts, PROVISION_AT, QEMU_ELF, QEMU_MACHINE,
 };
-pub use report::{cycle_line, fault_meaning, fault_text, push_line, say};
+pub use report::{cycle_line, fault_meaning, fault_text, homed_line, homing_line, push_line, say};
 pub use run::{generation_of, load, run, Demo, Verdict};

@@ -2,7 +2,10 @@
 
 use std::io::Write;
 
-use super::bed::{Cycle, FaultReport};
+use robot_compiler::compile::Compiled;
+
+use super::bed::{Cycle, FaultReport, Homing};
+use crate::home::HomeEnd;
 use crate::push;
 
 /// A one-line summary of a push.
@@ -48,6 +51,43 @@ pub fn cycle_line(n: usize, cy: &Cycle) -> String {
         }
     }
     s
+}
+
+/// What homing is about to run: `homing: VC- HC- RC- GR- (HOME to node 0x0011, VC)`.
+pub fn homing_line(c: &Compiled) -> String {
+    let node = c.ir.home.and_then(|h| c.ir.roles.get(h)).map_or_else(
+        || "the robot has no home role".to_string(),
+        |r| format!("HOME to node {:#06x}, {}", r.address, r.name),
+    );
+    format!(
+        "homing: {} ({node}; a step whose switch reads its target already is skipped)",
+        robot_analysis::sim::steps_text(&c.ir.homing)
+    )
+}
+
+/// How homing ended, with the steps the plant saw.
+pub fn homed_line(h: &Homing) -> String {
+    let moved = if h.steps.is_empty() {
+        "the plant moved nothing".to_string()
+    } else {
+        format!(
+            "the plant moved {}",
+            robot_analysis::sim::steps_text(&h.steps)
+        )
+    };
+    let end = match &h.end {
+        HomeEnd::Homed => format!("homed: every chart idle in {:.2} s", h.took.as_secs_f64()),
+        HomeEnd::Refused(why) => format!("homing refused: {why}"),
+        HomeEnd::Ignored { role, addr } => {
+            format!("homing did not start: node {addr:#06x} ({role}) ignored HOME")
+        }
+        HomeEnd::Faulted { role, addr, code } => format!(
+            "homing FAULTED: node {addr:#06x} ({role}): {}",
+            fault_meaning(*code)
+        ),
+        HomeEnd::NotDone(waiting) => format!("homing did not end: {}", waiting.join(", ")),
+    };
+    format!("{end}; {moved}")
 }
 
 /// A status fault code in words (`node_fw::node::fault_code`).
@@ -154,6 +194,34 @@ mod tests {
     use node_fw::ota::{Progress, TransferStats};
 
     use super::*;
+
+    #[test]
+    fn homing_says_how_it_ended_and_what_the_plant_moved() {
+        let step = |a: &str| robot_compiler::ir::Step {
+            actuator: a.into(),
+            extend: false,
+        };
+        let mut h = Homing {
+            end: HomeEnd::Homed,
+            steps: vec![],
+            took: Duration::from_millis(420),
+        };
+        assert_eq!(
+            homed_line(&h),
+            "homed: every chart idle in 0.42 s; the plant moved nothing"
+        );
+        h.steps = vec![step("VC"), step("HC")];
+        h.end = HomeEnd::Faulted {
+            role: "HC".into(),
+            addr: 0x0013,
+            code: 0x81,
+        };
+        assert_eq!(
+            homed_line(&h),
+            "homing FAULTED: node 0x0013 (HC): its motion watchdog expired; the plant moved \
+             VC- HC-"
+        );
+    }
 
     #[test]
     fn push_prints_the_nodes_refusal_reason() {

@@ -1,5 +1,5 @@
-//! The demo as an operator runs it: start the bed, push, run the cycles, report each,
-//! push the reconfiguration; say how it ended.
+//! The demo as an operator runs it: start the bed, push, home, run the cycles, report
+//! each, push the reconfiguration; say how it ended.
 
 use std::io::{self, Write};
 use std::path::Path;
@@ -11,7 +11,7 @@ use robot_compiler::{compile, Compiled, Source};
 use super::bed::{self, Bed, BedFault};
 use super::{qemu, report as demo_report};
 use crate::error::NetError;
-use crate::live_plant;
+use crate::{home, live_plant};
 
 /// How a demo ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -158,6 +158,10 @@ pub fn run(demo: &Demo, options: bed::Options, out: &mut dyn Write) -> Result<Ve
         if let Some(spec) = demo.fault.as_ref().filter(|_| first) {
             demo_report::say(out, &format!("fault to inject: {spec}"));
         }
+        if !home_robot(&mut bed, robot, out)? {
+            verdict = Verdict::Faulted;
+            break;
+        }
         let count_dir = demo.count_dir.filter(|_| first);
         verdict = run_cycles(&mut bed, robot, cycles, activated, count_dir, &addrs, out)?;
         if verdict != Verdict::Matched {
@@ -238,6 +242,21 @@ fn push_robot(
     Ok(ok)
 }
 
+/// Homes `robot` when a node is not homed (the first push to unconfigured nodes; a push
+/// at the idle point leaves the machine homed); says what happened. `false` if homing
+/// did not end with every chart idle.
+fn home_robot(bed: &mut Bed, robot: &Compiled, out: &mut dyn Write) -> Result<bool, NetError> {
+    let nodes = home::nodes(robot, &bed.statuses(robot)?);
+    if nodes.iter().all(|n| n.standing == home::Standing::Homed) {
+        demo_report::say(out, "homed already: the tables switched at the idle point");
+        return Ok(true);
+    }
+    demo_report::say(out, &demo_report::homing_line(robot));
+    let homing = bed.home(robot)?;
+    demo_report::say(out, &demo_report::homed_line(&homing));
+    Ok(homing.end == home::HomeEnd::Homed)
+}
+
 /// Runs `n` cycles of `robot`, each step printed as it happens (stderr) and each cycle's
 /// verdict (`out`); with `count_dir`, the instructions the QEMU nodes executed.
 fn run_cycles(
@@ -266,8 +285,8 @@ fn run_cycles(
             demo_report::say(
                 out,
                 &format!(
-                    "first motion {:.1} ms after the last table was activated (START \
-                     included)",
+                    "first motion of the cycle {:.1} ms after the last table was activated \
+                     (homing, if it ran, and START included)",
                     t.as_secs_f64() * 1e3
                 ),
             );

@@ -1,0 +1,85 @@
+//! Issue 12, homing, end to end with real processes: every node killed mid-cycle and
+//! restarted boots its confirmed table unhomed, where a START does nothing and the plant
+//! does not move; homing then runs exactly the steps the positions need (a step whose
+//! switch already reads home is skipped), and one START gives an exact cycle.
+
+mod e2e_support;
+
+use e2e_support::*;
+
+#[test]
+fn every_node_killed_mid_cycle_boots_unhomed_and_homing_then_one_start_gives_an_exact_cycle() {
+    let flash = TempDir::new("homing-cut");
+    killed_mid_cycle_then_homed(options(medium::Config::default(), Some(&flash)));
+}
+
+#[test]
+fn every_node_killed_mid_cycle_at_20_percent_loss_is_homed_then_runs_an_exact_cycle() {
+    let flash = TempDir::new("homing-cut-lossy");
+    let lossy = medium::Config {
+        loss: 0.2,
+        dup: 0.1,
+        delay_ms: (0, 8),
+        seed: 0x5EED_0012,
+        ..medium::Config::default()
+    };
+    killed_mid_cycle_then_homed(options(lossy, Some(&flash)));
+}
+
+/// After a fault, homing is refused until every faulted node is reset; a homing step whose
+/// rod is jammed faults on its watchdog, and homing says so.
+#[test]
+fn homing_is_refused_on_a_faulted_machine_and_a_jammed_homing_step_faults() {
+    let c = robot("paint-robot.ron", 1);
+    let mut bed = bring_up(&c, options(medium::Config::default(), None));
+    push_and_home(&mut bed, &c);
+    // VC's rod jams once the plant has seen VC+ GR+: VC- (step 3) does not move.
+    let actuators = robot_net::live_plant::actuators(&c).unwrap();
+    let vc = actuators.iter().position(|a| a.name == "VC").unwrap();
+    bed.set_plant_injected(
+        actuators,
+        Some(robot_net::live_plant::Injection {
+            after: 2,
+            actuator: vc,
+            kind: robot_net::live_plant::Jam::Stuck,
+        }),
+    )
+    .unwrap();
+    bed.watch(&c).unwrap();
+    let cycle = bed.run_cycle(&c, &mut |_, _| {}).unwrap();
+    assert_eq!(
+        cycle.fault.as_ref().map(|f| (f.role.as_str(), f.code)),
+        Some(("VC", Some(0x81))),
+        "{}",
+        robot_net::demo::cycle_line(1, &cycle)
+    );
+
+    let refused = bed.home(&c).unwrap();
+    assert_eq!(
+        refused.end,
+        robot_net::home::HomeEnd::Refused(
+            "node 0x0011 (VC) is faulted (0x81): reset first (config-tool reset --node \
+             0x0011), then config-tool home"
+                .to_string()
+        )
+    );
+    for r in &c.ir.roles {
+        bed.command(r.address, config_schema::wire::msg::Command::Reset)
+            .unwrap();
+    }
+    assert_not_homed(&mut bed, &c);
+    // Homing commands VC- first: the rod (at its end) is still jammed.
+    let homing = bed.home(&c).unwrap();
+    assert_eq!(
+        homing.end,
+        robot_net::home::HomeEnd::Faulted {
+            role: "VC".into(),
+            addr: 0x0011,
+            code: 0x81
+        },
+        "{}",
+        robot_net::demo::homed_line(&homing)
+    );
+    assert_eq!(robot_analysis::sim::steps_text(&homing.steps), "VC-");
+    bed.stop();
+}

@@ -1,0 +1,394 @@
+//! Homing a machine over the radio (docs/running-a-robot.md#homing): where each node
+//! stands, from its status and its role's compiled table ([`standing`]: homed, not homed,
+//! moving, faulted), the machine as a whole ([`machine`]), and [`home`]: the HOME command
+//! to the node of the robot's home role (`ir.home`, step 1's), then its statuses until
+//! every chart of every node rests in its idle state, or a node faults.
+
+use std::time::{Duration, Instant};
+
+use config_schema::wire::msg::{Command, Status};
+use config_schema::Table;
+use robot_compiler::compile::Compiled;
+
+use crate::error::NetError;
+use crate::push::{self, Ids};
+use crate::radio::ToolRadio;
+
+/// Where one node stands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Standing {
+    /// Every chart in its idle state: homed, at rest between cycles.
+    Homed,
+    /// A chart rests in its initial state, which is not its idle one (after a boot, a
+    /// reset or an activation of a stopped machine): the actuators may be anywhere.
+    NotHomed,
+    /// A chart is in neither state: a cycle or homing is under way.
+    Moving,
+    /// Faulted, with its fault code.
+    Faulted(u8),
+    /// The node does not run the role's table (another role, or another chart count).
+    Other,
+}
+
+impl Standing {
+    /// In words, as `status` and `scan` print it.
+    pub fn text(self) -> String {
+        match self {
+            Standing::Homed => "homed".to_string(),
+            Standing::NotHomed => "not homed".to_string(),
+            Standing::Moving => "moving (a cycle or homing under way)".to_string(),
+            Standing::Faulted(code) => format!("faulted ({code:#04x})"),
+            Standing::Other => "not running this robot's table".to_string(),
+        }
+    }
+}
+
+/// Where the node running `s` stands, against `table`, the table of role `role`.
+pub fn standing(role: &str, table: &Table, s: &Status) -> Standing {
+    if s.role.as_str() != role || s.states.len() != table.charts.len() {
+        return Standing::Other;
+    }
+    if let Some(code) = s.fault {
+        return Standing::Faulted(code);
+    }
+    let mut homed = true;
+    for (chart, &state) in table.charts.iter().zip(s.states.iter()) {
+        if state == chart.idle {
+            continue;
+        }
+        if state != chart.initial {
+            return Standing::Moving;
+        }
+        homed = false;
+    }
+    if homed {
+        Standing::Homed
+    } else {
+        Standing::NotHomed
+    }
+}
+
+/// One role's node and where it stands.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Node {
+    pub role: String,
+    pub addr: u16,
+    pub standing: Standing,
+}
+
+/// Where every role's node stands; `statuses` in role order.
+pub fn nodes(c: &Compiled, statuses: &[Status]) -> Vec<Node> {
+    c.ir.roles
+        .iter()
+        .zip(&c.tables)
+        .zip(statuses)
+        .map(|((r, t), s)| Node {
+            role: r.name.clone(),
+            addr: r.address,
+            standing: standing(&r.name, t, s),
+        })
+        .collect()
+}
+
+/// The machine as a whole: the first node that is not this robot's, else the first
+/// faulted, else the first moving; else not homed if any node is; else homed.
+pub fn machine(nodes: &[Node]) -> Option<&Node> {
+    let first = |f: &dyn Fn(Standing) -> bool| nodes.iter().find(|n| f(n.standing));
+    first(&|s| s == Standing::Other)
+        .or_else(|| first(&|s| matches!(s, Standing::Faulted(_))))
+        .or_else(|| first(&|s| s == Standing::Moving))
+        .or_else(|| first(&|s| s == Standing::NotHomed))
+}
+
+/// Why a command refuses the machine `nodes` describe (`None`: homed, at rest), in words
+/// naming the node and what to do: `start` refuses a machine not homed, `home` does not.
+pub fn refusal(nodes: &[Node], homing: bool) -> Option<String> {
+    let n = machine(nodes)?;
+    let who = format!("node {:#06x} ({})", n.addr, n.role);
+    Some(match n.standing {
+        Standing::Other => format!("{who} does not run this robot's table: push it first"),
+        Standing::Faulted(code) => format!(
+            "{who} is faulted ({code:#04x}): reset first (config-tool reset --node {:#06x}), \
+             then config-tool home",
+            n.addr
+        ),
+        Standing::Moving if homing => {
+            format!("{who} is moving (a cycle or homing under way): home once it is at rest")
+        }
+        Standing::Moving => {
+            format!("{who} is moving (a cycle or homing under way): START once it is at rest")
+        }
+        Standing::NotHomed if homing => return None,
+        Standing::NotHomed => "not homed: run config-tool home".to_string(),
+        Standing::Homed => return None,
+    })
+}
+
+/// How homing ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum HomeEnd {
+    /// Every chart of every node rests in its idle state.
+    Homed,
+    /// Nothing was sent: the machine's state refuses homing (in words, [`refusal`]).
+    Refused(String),
+    /// The home node answered the HOME command but did not start homing (armed for a
+    /// switch-over).
+    Ignored { role: String, addr: u16 },
+    /// A node faulted while homing.
+    Faulted { role: String, addr: u16, code: u8 },
+    /// Not every node at rest within the wait: the roles still moving or not homed.
+    NotDone(Vec<String>),
+}
+
+/// How often the nodes' statuses are asked for while homing runs.
+pub const POLL: Duration = Duration::from_millis(50);
+
+/// The status of every role's node of `c` (each asked until it answers, at most
+/// `timeout`).
+pub fn statuses(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    c: &Compiled,
+    timeout: Duration,
+) -> Result<Vec<Status>, NetError> {
+    c.ir.roles
+        .iter()
+        .map(|r| {
+            push::command(radio, ids, r.address, Command::Status, timeout)?.ok_or_else(|| {
+                NetError::NoAnswer {
+                    addr: r.address,
+                    command: "Status".to_string(),
+                }
+            })
+        })
+        .collect()
+}
+
+/// Homes the machine of `c`: refuses one with a node faulted, moving or not running the
+/// robot's table; else sends HOME to the home role's node and asks every node's status
+/// (every [`POLL`]) until every chart rests in its idle state, a node faults, or `wait`
+/// passes. Returns how it ended and how long it took from the HOME command.
+pub fn home(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    c: &Compiled,
+    answer_within: Duration,
+    wait: Duration,
+) -> Result<(HomeEnd, Duration), NetError> {
+    let home = c.ir.home.ok_or(NetError::NoHome)?;
+    let role = c.ir.roles.get(home).ok_or(NetError::NoHome)?;
+    let before = nodes(c, &statuses(radio, ids, c, answer_within)?);
+    if let Some(why) = refusal(&before, true) {
+        return Ok((HomeEnd::Refused(why), Duration::ZERO));
+    }
+    let t0 = Instant::now();
+    let s = push::command(radio, ids, role.address, Command::Home, answer_within)?.ok_or_else(
+        || NetError::NoAnswer {
+            addr: role.address,
+            command: "Home".to_string(),
+        },
+    )?;
+    if let Some(t) = c.tables.get(home) {
+        if standing(&role.name, t, &s) == Standing::NotHomed {
+            let end = HomeEnd::Ignored {
+                role: role.name.clone(),
+                addr: role.address,
+            };
+            return Ok((end, t0.elapsed()));
+        }
+    }
+    let end = t0 + wait;
+    loop {
+        let now = nodes(c, &statuses(radio, ids, c, answer_within)?);
+        if now
+            .iter()
+            .any(|n| matches!(n.standing, Standing::Faulted(_)))
+        {
+            // Once more, every node: the one that detected it has faulted by the time a
+            // peer shows its fault; it is named, not the peer.
+            let after = nodes(c, &statuses(radio, ids, c, answer_within)?);
+            return Ok((detector(&after), t0.elapsed()));
+        }
+        if now.iter().all(|n| n.standing == Standing::Homed) {
+            return Ok((HomeEnd::Homed, t0.elapsed()));
+        }
+        if Instant::now() >= end {
+            let waiting = now
+                .iter()
+                .filter(|n| n.standing != Standing::Homed)
+                .map(|n| format!("{} {}", n.role, n.standing.text()))
+                .collect();
+            return Ok((HomeEnd::NotDone(waiting), t0.elapsed()));
+        }
+        // Whatever comes meanwhile (late answers) is not for the watch.
+        let until = (Instant::now() + POLL).min(end);
+        while radio.recv(until)?.is_some() {}
+    }
+}
+
+/// The status fault code of a node stopped by a peer's fault.
+const PEER_FAULT: u8 = 0x80 | robot_compiler::synth::FAULT_PEER;
+
+/// The faulted node that detected the fault: the first whose fault is not a peer's, else
+/// the first faulted.
+fn detector(nodes: &[Node]) -> HomeEnd {
+    let faulted = |own: bool| {
+        nodes.iter().find_map(|n| match n.standing {
+            Standing::Faulted(code) if !own || code != PEER_FAULT => Some((n, code)),
+            _ => None,
+        })
+    };
+    match faulted(true).or_else(|| faulted(false)) {
+        Some((n, code)) => HomeEnd::Faulted {
+            role: n.role.clone(),
+            addr: n.addr,
+            code,
+        },
+        None => HomeEnd::NotDone(Vec::new()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use config_schema::wire::msg::{Counters, RuntimeCounters};
+
+    fn status(role: &str, states: &[u8], fault: Option<u8>) -> Status {
+        Status {
+            ack: 1,
+            role: heapless::String::try_from(role).unwrap(),
+            generation: 1,
+            staged: 0,
+            previous: 0,
+            trial: false,
+            states: heapless::Vec::from_slice(states).unwrap(),
+            outputs: 0,
+            inputs: 0,
+            fault,
+            link_alarms: 0,
+            links_broken: 0,
+            links_restarted: 0,
+            epoch: 0,
+            counters: Counters::default(),
+            runtime: RuntimeCounters::default(),
+        }
+    }
+
+    /// Two charts: the first starts in S2 (not homed) and idles in S0, the second
+    /// starts and idles in S0.
+    fn table() -> Table {
+        let mut t = Table::empty("VC");
+        t.push_chart(2, 1, &[&[], &[], &[]], &[]).unwrap();
+        t.push_chart(0, 1, &[&[], &[]], &[]).unwrap();
+        t.charts[0].idle = 0;
+        t
+    }
+
+    #[test]
+    fn a_node_is_homed_not_homed_moving_faulted_or_not_this_robots() {
+        let t = table();
+        assert_eq!(
+            standing("VC", &t, &status("VC", &[0, 0], None)),
+            Standing::Homed
+        );
+        assert_eq!(
+            standing("VC", &t, &status("VC", &[2, 0], None)),
+            Standing::NotHomed
+        );
+        assert_eq!(
+            standing("VC", &t, &status("VC", &[1, 0], None)),
+            Standing::Moving
+        );
+        assert_eq!(
+            standing("VC", &t, &status("VC", &[2, 1], None)),
+            Standing::Moving
+        );
+        assert_eq!(
+            standing("VC", &t, &status("VC", &[2, 0], Some(0x81))),
+            Standing::Faulted(0x81)
+        );
+        assert_eq!(
+            standing("VC", &t, &status("GR", &[0, 0], None)),
+            Standing::Other
+        );
+        assert_eq!(standing("VC", &t, &status("", &[], None)), Standing::Other);
+    }
+
+    fn node(role: &str, addr: u16, standing: Standing) -> Node {
+        Node {
+            role: role.into(),
+            addr,
+            standing,
+        }
+    }
+
+    #[test]
+    fn homing_names_the_node_that_detected_a_fault_not_a_peer_it_stopped() {
+        let nodes = [
+            node("VC", 0x11, Standing::Faulted(PEER_FAULT)),
+            node("HC", 0x13, Standing::Faulted(0x81)),
+        ];
+        assert_eq!(
+            detector(&nodes),
+            HomeEnd::Faulted {
+                role: "HC".into(),
+                addr: 0x13,
+                code: 0x81
+            }
+        );
+        assert_eq!(
+            detector(&nodes[..1]),
+            HomeEnd::Faulted {
+                role: "VC".into(),
+                addr: 0x11,
+                code: PEER_FAULT
+            }
+        );
+    }
+
+    #[test]
+    fn start_refuses_a_machine_not_homed_and_home_refuses_a_faulted_or_moving_one() {
+        let homed = [
+            node("VC", 0x11, Standing::Homed),
+            node("GR", 0x12, Standing::Homed),
+        ];
+        assert_eq!(refusal(&homed, false), None);
+        assert_eq!(refusal(&homed, true), None);
+        let unhomed = [
+            node("VC", 0x11, Standing::NotHomed),
+            node("GR", 0x12, Standing::Homed),
+        ];
+        assert_eq!(
+            refusal(&unhomed, false).as_deref(),
+            Some("not homed: run config-tool home")
+        );
+        assert_eq!(refusal(&unhomed, true), None);
+        let faulted = [
+            node("VC", 0x11, Standing::NotHomed),
+            node("GR", 0x12, Standing::Faulted(0x82)),
+        ];
+        let said = "node 0x0012 (GR) is faulted (0x82): reset first (config-tool reset \
+                    --node 0x0012), then config-tool home";
+        assert_eq!(refusal(&faulted, true).as_deref(), Some(said));
+        assert_eq!(refusal(&faulted, false).as_deref(), Some(said));
+        let moving = [
+            node("VC", 0x11, Standing::Moving),
+            node("GR", 0x12, Standing::Homed),
+        ];
+        assert_eq!(
+            refusal(&moving, true).as_deref(),
+            Some(
+                "node 0x0011 (VC) is moving (a cycle or homing under way): home once it is at \
+                 rest"
+            )
+        );
+        let other = [
+            node("VC", 0x11, Standing::Other),
+            node("GR", 0x12, Standing::Faulted(1)),
+        ];
+        assert_eq!(
+            refusal(&other, true).as_deref(),
+            Some("node 0x0011 (VC) does not run this robot's table: push it first")
+        );
+    }
+}
