@@ -271,6 +271,7 @@ mod tests {
             epoch: 0,
             counters: Counters::default(),
             runtime: RuntimeCounters::default(),
+            cycles: 0,
         }
     }
 
