@@ -65,12 +65,20 @@ pub struct Stroke {
     pub step: Step,
     /// `false`: the valve was commanded but the rod is jammed (an injected fault).
     pub moved: bool,
+    /// The table generation the commanding node ran (`Link::Running`; 0: it never said).
+    pub generation: u32,
 }
 
 impl std::fmt::Display for Stroke {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         self.step.fmt(f)
     }
+}
+
+/// What the plant hears from the medium: a node's output level, or its generation.
+enum Heard {
+    Output((u64, u16, u8, bool)),
+    Running(u16, u32),
 }
 
 /// The actuators of a compiled robot, on the nodes its roles are assigned to.
@@ -213,6 +221,8 @@ pub fn run_attached(
     let ms = |t: Instant| t.duration_since(start).as_millis() as u64;
     let mut states: Vec<State> = actuators.iter().map(|_| rest()).collect();
     let mut outputs: HashMap<(u16, u8), bool> = HashMap::new();
+    // The generation each node says it runs.
+    let mut running: HashMap<u16, u32> = HashMap::new();
     let mut next_refresh = Instant::now();
     let mut seen_steps = 0usize;
     let inject = |states: &mut [State], seen: usize| {
@@ -253,13 +263,22 @@ pub fn run_attached(
             .chain([next_refresh])
             .min()
             .unwrap_or(next_refresh);
-        let seen = match conn.recv(wake, |l| l.output_seen()) {
-            Ok(Some(seen)) => seen,
+        let heard = conn.recv(wake, |l| match l {
+            Link::Running { addr, generation } => Some(Heard::Running(addr, generation)),
+            _ => l.output_seen().map(Heard::Output),
+        });
+        let seen = match heard {
+            Ok(Some(Heard::Output(seen))) => seen,
+            Ok(Some(Heard::Running(addr, generation))) => {
+                running.insert(addr, generation);
+                continue;
+            }
             Ok(None) => continue,
             Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => return Ok(()),
             Err(e) => return Err(e),
         };
         let (at_us, addr, pin, level) = seen;
+        let generation = running.get(&addr).copied().unwrap_or(0);
         let was = outputs.insert((addr, pin), level).unwrap_or(false);
         let (rose, fell) = (level && !was, !level && was);
         for (a, s) in actuators.iter().zip(states.iter_mut()) {
@@ -283,6 +302,7 @@ pub fn run_attached(
                             extend,
                         },
                         moved: false,
+                        generation,
                     });
                 }
                 continue;
@@ -300,6 +320,7 @@ pub fn run_attached(
                     extend,
                 },
                 moved: true,
+                generation,
             });
             seen_steps += 1;
             if let RodOutcome::Left { .. } = outcome {

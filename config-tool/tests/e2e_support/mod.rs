@@ -252,6 +252,12 @@ pub fn exact_cycle(bed: &mut Bed, c: &Compiled, n: usize) -> Cycle {
     let cycle = bed.run_cycle(c, &mut |_, _| {}).expect("cycle");
     assert!(cycle.ok(), "{}", demo::cycle_line(n, &cycle));
     assert_eq!(cycle.steps, c.ir.expect, "cycle {n}");
+    // Every step ran under the robot's generation: no mix.
+    assert_eq!(
+        cycle.generations,
+        vec![c.ir.generation; cycle.steps.len()],
+        "cycle {n}: the generation of each step"
+    );
     cycle
 }
 

@@ -47,6 +47,8 @@ pub struct Options {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Cycle {
     pub steps: Vec<Step>,
+    /// The generation each step's node ran when it commanded it (parallel to `steps`).
+    pub generations: Vec<u32>,
     pub expect: Vec<Step>,
     pub duration: Duration,
     /// Frames put on the air during the cycle.
@@ -59,8 +61,13 @@ pub struct Cycle {
 }
 
 impl Cycle {
+    /// Whether the cycle's steps ran under more than one table generation.
+    pub fn mixed(&self) -> bool {
+        self.generations.windows(2).any(|w| w[0] != w[1])
+    }
+
     pub fn ok(&self) -> bool {
-        self.steps == self.expect && self.faults.is_empty() && self.fault.is_none()
+        self.steps == self.expect && self.faults.is_empty() && self.fault.is_none() && !self.mixed()
     }
 }
 
@@ -567,8 +574,14 @@ impl Bed {
             self.on_plant_step(&step, m0, &mut steps, &mut commanded, on_step);
         }
         let after = self.medium.stats();
+        let generations = commanded
+            .iter()
+            .filter(|(_, moved)| *moved)
+            .map(|(s, _)| s.generation)
+            .collect();
         Ok(Cycle {
             steps,
+            generations,
             expect,
             duration: t0.elapsed(),
             frames: after.frames - before.frames,

@@ -43,6 +43,15 @@ pub fn cycle_line(n: usize, cy: &Cycle) -> String {
     if let Some(f) = &cy.fault {
         s.push('\n');
         s.push_str(&fault_text(f));
+    } else if cy.mixed() {
+        // Which step ran under which generation: `VC+@1 GR+@1 VC-@2 ...`.
+        let steps: Vec<String> = cy
+            .steps
+            .iter()
+            .zip(&cy.generations)
+            .map(|(st, g)| format!("{st}@{g}"))
+            .collect();
+        s.push_str(&format!("\n  MIXED generations: {}", steps.join(" ")));
     } else if !cy.ok() {
         s.push('\n');
         s.push_str(&robot_analysis::sim::diff(&cy.expect, &cy.steps));
@@ -220,6 +229,34 @@ mod tests {
             homed_line(&h),
             "homing FAULTED: node 0x0013 (HC): its motion watchdog expired; the plant moved \
              VC- HC-"
+        );
+    }
+
+    /// A cycle whose steps ran under two generations is not ok, and says which ran where.
+    #[test]
+    fn a_cycle_of_mixed_generations_is_shown_step_by_step() {
+        let step = |a: &str, extend| robot_compiler::ir::Step {
+            actuator: a.to_string(),
+            extend,
+        };
+        let steps = vec![step("A", true), step("B", true), step("A", false)];
+        let mut cy = Cycle {
+            steps: steps.clone(),
+            generations: vec![1, 1, 1],
+            expect: steps,
+            duration: Duration::from_millis(1500),
+            frames: 7,
+            airtime_us: 4000,
+            faults: Vec::new(),
+            fault: None,
+        };
+        assert!(cy.ok());
+        cy.generations[2] = 2;
+        assert!(!cy.ok());
+        assert_eq!(
+            cycle_line(3, &cy),
+            "cycle 3: MISMATCH  1.50 s  7 frames  4.0 ms airtime  A+ B+ A-\n  \
+             MIXED generations: A+@1 B+@1 A-@2"
         );
     }
 
