@@ -82,7 +82,7 @@ pub fn load_with(
         }
         names.push((&decl.name, i));
         let mut diags = Vec::new();
-        if let Some(located) = resolve(robot, decl, &path, src, read, &mut diags) {
+        if let Some(located) = resolve(&robot.colours, decl, &path, src, read, &mut diags) {
             if diags.iter().all(|d| !d.is_error()) {
                 out.automata.push(located);
             }
@@ -111,7 +111,7 @@ struct WrittenTransition {
 }
 
 fn resolve(
-    robot: &Robot,
+    robot_colours: &[String],
     decl: &AutomatonDecl,
     path: &str,
     src: &Source,
@@ -131,7 +131,7 @@ fn resolve(
         }
         (Some(text), None) if !written_in_ron => {
             let map = InlineMap::new(src, src.span(&format!("{path}.facts")));
-            from_facts(prolog::parse(text), &|span| map.place(span), out)?
+            written_from_facts(prolog::parse(text), &|span| map.place(span), out)?
         }
         (None, Some(file)) if !written_in_ron => {
             let at = src.span(&format!("{path}.facts_file"));
@@ -161,7 +161,7 @@ fn resolve(
                     at: at.clone(),
                 }
             };
-            from_facts(prolog::parse(&facts_src.text), &place, out)?
+            written_from_facts(prolog::parse(&facts_src.text), &place, out)?
         }
         (None, None) => from_ron(decl, path, src),
         _ => {
@@ -172,7 +172,7 @@ fn resolve(
             return None;
         }
     };
-    build(robot, decl, path, src, written, out)
+    build(robot_colours, decl, path, src, written, out)
 }
 
 fn from_ron(decl: &AutomatonDecl, path: &str, src: &Source) -> Written {
@@ -214,7 +214,7 @@ fn from_ron(decl: &AutomatonDecl, path: &str, src: &Source) -> Written {
     }
 }
 
-fn from_facts(
+fn written_from_facts(
     parsed: Result<Facts, prolog::FactError>,
     place: &dyn Fn(std::ops::Range<usize>) -> Place,
     out: &mut Vec<Diagnostic>,
@@ -285,7 +285,7 @@ impl InlineMap {
 /// The colours an automaton reads: its own, else the robot's, else those its transitions
 /// name.
 fn colours(
-    robot: &Robot,
+    robot_colours: &[String],
     decl: &AutomatonDecl,
     path: &str,
     src: &Source,
@@ -293,15 +293,15 @@ fn colours(
     out: &mut Vec<Diagnostic>,
 ) -> Vec<String> {
     if let Some(own) = &decl.colours {
-        if !robot.colours.is_empty() {
+        if !robot_colours.is_empty() {
             for (i, c) in own.iter().enumerate() {
-                if !robot.colours.contains(c) {
+                if !robot_colours.contains(c) {
                     out.push(Diagnostic::error(
                         src.span(&format!("{path}.colours[{i}]")),
                         format!(
                             "colour `{c}` of automaton `{}` is not one of the robot's colours ({}): its sensors cannot produce it",
                             decl.name,
-                            robot.colours.join(", ")
+                            robot_colours.join(", ")
                         ),
                     ));
                 }
@@ -309,8 +309,8 @@ fn colours(
         }
         return own.clone();
     }
-    if !robot.colours.is_empty() {
-        return robot.colours.clone();
+    if !robot_colours.is_empty() {
+        return robot_colours.to_vec();
     }
     let mut seen: Vec<String> = Vec::new();
     for t in &w.transitions {
@@ -322,7 +322,7 @@ fn colours(
 }
 
 fn build(
-    robot: &Robot,
+    robot_colours: &[String],
     decl: &AutomatonDecl,
     path: &str,
     src: &Source,
@@ -332,7 +332,7 @@ fn build(
     let name = &decl.name;
     let name_place = Place::Robot(src.span(&format!("{path}.name")));
     let errors_before = out.iter().filter(|d| d.is_error()).count();
-    let colours = colours(robot, decl, path, src, &w, out);
+    let colours = colours(robot_colours, decl, path, src, &w, out);
     let limit = |what: &str, n: usize, max: usize| {
         name_place.error(format!(
             "automaton `{name}` has {n} {what}: at most {max} (over by {}); split it into automata that select parts of the sequences",
@@ -482,4 +482,40 @@ pub fn facts_dir(src: &Source) -> PathBuf {
         .parent()
         .map(Path::to_path_buf)
         .unwrap_or_default()
+}
+
+/// One automaton from the paper's facts alone (no robot): resolved and checked, or every
+/// error as `line:col: error: message` (places in `text`). For tests and tools that
+/// bring an automaton written for the paper's tools.
+pub fn from_facts(name: &str, text: &str) -> Result<Located, Vec<String>> {
+    let mut hashes = String::from("#");
+    while text.contains(&format!("\"{hashes}")) {
+        hashes.push('#');
+    }
+    let ron_text = format!("(name: {name:?}, facts: r{hashes}\"{text}\"{hashes})");
+    let src = Source::new(name, ron_text);
+    let short = |diags: &[Diagnostic]| -> Vec<String> {
+        diags
+            .iter()
+            .filter(|d| d.is_error())
+            .map(|d| {
+                let (line, col) = d.line_col(&src);
+                format!("{line}:{col}: error: {}", d.message)
+            })
+            .collect()
+    };
+    let decl: AutomatonDecl = ron::Options::default()
+        .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+        .from_str(&src.text)
+        .map_err(|e| vec![e.to_string()])?;
+    let mut diags = Vec::new();
+    let no_file = |_: &str| Err(io::Error::from(io::ErrorKind::NotFound));
+    let located = resolve(&[], &decl, "", &src, &no_file, &mut diags);
+    if let Some(l) = &located {
+        super::check::check_one(l, &mut diags);
+    }
+    match located {
+        Some(l) if short(&diags).is_empty() => Ok(l),
+        _ => Err(short(&diags)),
+    }
 }

@@ -14,7 +14,7 @@ pub mod prolog;
 use std::ops::Range;
 
 pub use crate::model::TransitionKind;
-pub use load::{load, load_with, Loaded, Located, Places, TransitionPlaces};
+pub use load::{facts_dir, from_facts, load, load_with, Loaded, Located, Places, TransitionPlaces};
 
 use crate::diag::Diagnostic;
 
