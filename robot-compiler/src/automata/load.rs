@@ -370,8 +370,13 @@ fn build(
     }
     let state = |s: &str| states.iter().position(|x| x == s).map(|i| StateId(i as u8));
     let unknown = |(s, place): &(String, Place), what: &str| {
+        let is = if what.starts_with("transition") {
+            ", which is"
+        } else {
+            " is"
+        };
         place.error(format!(
-            "{what} `{s}` is not a state of automaton `{name}` (states: {})",
+            "{what} `{s}`{is} not a state of automaton `{name}` (states: {})",
             if states.is_empty() {
                 String::from("none declared")
             } else {
@@ -492,14 +497,15 @@ pub fn from_facts(name: &str, text: &str) -> Result<Located, Vec<String>> {
     while text.contains(&format!("\"{hashes}")) {
         hashes.push('#');
     }
-    let ron_text = format!("(name: {name:?}, facts: r{hashes}\"{text}\"{hashes})");
-    let src = Source::new(name, ron_text);
+    let prefix = format!("(name: {name:?}, facts: r{hashes}\"");
+    let src = Source::new(name, format!("{prefix}{text}\"{hashes})"));
+    let facts_src = Source::new(name, text);
     let short = |diags: &[Diagnostic]| -> Vec<String> {
         diags
             .iter()
             .filter(|d| d.is_error())
             .map(|d| {
-                let (line, col) = d.line_col(&src);
+                let (line, col) = facts_src.line_col(d.span.start.saturating_sub(prefix.len()));
                 format!("{line}:{col}: error: {}", d.message)
             })
             .collect()
