@@ -7,6 +7,7 @@
 //! - [`timeline`]: a state-timing diagram (SVG) of a run.
 //! - [`verify`]: every reachable state of charts, plant and radio; the properties.
 
+pub mod automata;
 pub mod inject;
 pub mod sim;
 pub mod timeline;

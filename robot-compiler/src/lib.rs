@@ -9,11 +9,13 @@
 //! - [`synth`]: sequence -> charts. [`elab`]: explicit charts -> IR. [`ir`]: the IR, with
 //!   each actuator's wiring.
 //! - [`homing`]: the homing sequence, derived or declared, and the interlocks it keeps.
+//! - [`automata`]: selecting automata (RON or the paper's Prolog facts), their checks.
 //! - [`lower`]: IR -> tables. [`compile`]: the pipeline. [`dump`], [`diagram`].
 //!
 //! It knows nothing of the node firmware, the simulator or the radio (see
 //! `docs/architecture.md`).
 
+pub mod automata;
 pub mod bounds;
 pub mod check;
 pub mod compile;

@@ -69,6 +69,73 @@ pub struct Robot {
     /// whichever ends first).
     #[serde(default)]
     pub trial_cycles: Option<u32>,
+    /// The colours (part types) the machine's sensors can tell apart; an automaton without
+    /// its own `colours` uses these (docs/selecting-automata.md).
+    #[serde(default)]
+    pub colours: Vec<String>,
+    /// Selecting automata (docs/selecting-automata.md): each picks sequences of colours
+    /// out of a stream of parts.
+    #[serde(default)]
+    pub automata: Vec<AutomatonDecl>,
+}
+
+/// A selecting automaton as written: either `states` / `initial` / `transitions`, or the
+/// paper's Prolog facts inline (`facts`) or in a file next to the robot (`facts_file`).
+/// `crate::automata::load` resolves it into a [`crate::automata::Automaton`].
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AutomatonDecl {
+    pub name: String,
+    /// The colours it reads (default: the robot's `colours`, else those its transitions
+    /// name, in order of appearance).
+    #[serde(default)]
+    pub colours: Option<Vec<String>>,
+    #[serde(default)]
+    pub states: Vec<String>,
+    /// Initial states: one for a deterministic automaton, any number otherwise.
+    #[serde(default)]
+    pub initial: Vec<String>,
+    #[serde(default)]
+    pub transitions: Vec<AutomatonTransitionDecl>,
+    /// The paper's facts: `state/1`, `transition/6`, `initial_state/1`.
+    #[serde(default)]
+    pub facts: Option<String>,
+    /// A file of such facts, relative to the robot file.
+    #[serde(default)]
+    pub facts_file: Option<String>,
+    /// Firing order of transitions that conflict (the paper's priority chains): ids, the
+    /// first fires first.
+    #[serde(default)]
+    pub priority: Vec<String>,
+    /// Declares the automaton deterministic (`true`: nondeterminism is an error) or
+    /// nondeterministic (`false`: it is expected, not reported).
+    #[serde(default)]
+    pub deterministic: Option<bool>,
+}
+
+/// One transition of an automaton: `from` -> `to` on a part of `colour`. `max`: how many
+/// parts a loop (`from == to`) accepts in a row (required on a loop, not allowed
+/// elsewhere).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AutomatonTransitionDecl {
+    pub id: String,
+    pub from: String,
+    pub to: String,
+    pub colour: String,
+    #[serde(default)]
+    pub max: Option<u32>,
+    #[serde(default)]
+    pub kind: TransitionKind,
+}
+
+/// Whether a transition ends a selected sequence (emits EOS).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Deserialize)]
+pub enum TransitionKind {
+    #[default]
+    Ordinary,
+    /// The sequence collected so far is selected: end of sequence (EOS).
+    Final,
 }
 
 /// Whether the tool secures its frames to the robot's nodes (and delivers link keys).

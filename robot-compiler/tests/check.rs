@@ -131,6 +131,7 @@ fn every_broken_file_is_in_the_table() {
     let mut on_disk: Vec<String> = std::fs::read_dir(dir)
         .expect("fixtures/broken")
         .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .filter(|f| !f.starts_with("automata-")) // tests/automata.rs
         .collect();
     on_disk.sort();
     let mut listed: Vec<String> = BROKEN.iter().map(|(f, _)| f.to_string()).collect();

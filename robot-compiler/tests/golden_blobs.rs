@@ -60,7 +60,9 @@ fn current() -> String {
     let mut out = String::new();
     for file in files {
         let text = std::fs::read_to_string(root().join(&file)).expect("read robot");
-        match compile(&Source::new(&file, text)) {
+        // Named by its path from here, so that a robot's `facts_file` is found.
+        let name = root().join(&file).display().to_string();
+        match compile(&Source::new(name, text)) {
             Ok(c) => {
                 for (role, blob) in c.ir.roles.iter().zip(&c.blobs) {
                     out.push_str(&format!(

@@ -40,6 +40,7 @@ pub const STRUCTURE: &[(&str, Pass)] = &[
     ("sequence", sequence::check),
     ("homing", homing::check),
     ("charts", charts::check),
+    ("automata", crate::automata::check::check),
 ];
 
 /// Passes over the elaborated robot (run when `STRUCTURE` and the elaboration found no
