@@ -30,6 +30,10 @@ pub struct Table {
     /// The node event raised by the HOME command, if the role starts homing
     /// (docs/reconfiguration.md).
     pub home: Option<EventId>,
+    /// The node event raised (and published) once when the node boots with this table, not
+    /// at an activation: a peer that hears it knows this node's actuators may stand
+    /// anywhere (docs/reconfiguration.md).
+    pub boot: Option<EventId>,
     /// Initial values of the variables.
     pub vars: Vec<i32, MAX_VARS>,
     pub inputs: Vec<Input, MAX_INPUTS>,
@@ -230,6 +234,7 @@ impl Table {
             events: 0,
             start: None,
             home: None,
+            boot: None,
             vars: Vec::new(),
             inputs: Vec::new(),
             outputs: Vec::new(),

@@ -223,7 +223,7 @@ fn header(t: &Table) -> Result<(), Invalid> {
         });
     }
     capacity("events", usize::from(t.events), MAX_EVENTS)?;
-    for e in [t.start, t.home].into_iter().flatten() {
+    for e in [t.start, t.home, t.boot].into_iter().flatten() {
         event_ok(t, Place::Header, e)?;
     }
     Ok(())

@@ -66,6 +66,7 @@ fn the_payload_of_an_empty_table_is_postcard_field_by_field() {
         0,       // events
         0,       // start: None
         0,       // home: None
+        0,       // boot: None
         0, 0, 0, 0, // vars, inputs, outputs, timers: empty
         0, 0, 0, 0, // charts, states, transitions, actions
         0, 0, 0, 0, 0, // code, routes, peers, publications, subscriptions
@@ -91,7 +92,7 @@ fn an_output_is_pin_fault_start_home() {
     #[rustfmt::skip]
     let want = [
         1, b'r', 0, 11, 0, 0, // role, pan_id, channel, events, start
-        0,                    // home
+        0, 0,                 // home, boot
         0,                    // vars
         0,                    // inputs
         2,                    // outputs: two
@@ -103,7 +104,7 @@ fn an_output_is_pin_fault_start_home() {
     assert_eq!(decode(&seal(&want, 0)), Ok(t));
     // A level past `Hold` is not a level.
     let mut bad = want;
-    bad[11] = 3;
+    bad[12] = 3;
     assert!(matches!(
         decode(&seal(&bad, 1)),
         Err(DecodeError::Postcard(_))
@@ -268,7 +269,7 @@ fn postcard_errors() {
     // 33 variables: over MAX_VARS (32) while decoding.
     assert_eq!(
         case(&|q| {
-            q.splice(7..8, std::iter::once(33).chain([0; 33]));
+            q.splice(8..9, std::iter::once(33).chain([0; 33]));
         }),
         Err(DecodeError::Postcard(SerdeDeCustom))
     );

@@ -87,6 +87,13 @@ fn events_out_of_range() {
         }
     );
     assert_eq!(
+        invalid(|t| t.boot = Some(7)),
+        Invalid::Event {
+            at: Place::Header,
+            event: 7
+        }
+    );
+    assert_eq!(
         invalid(|t| t.inputs[1].rise = Some(9)),
         Invalid::Event {
             at: Place::Input(1),

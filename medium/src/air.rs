@@ -2,7 +2,7 @@
 //! delivery. One thread; it never waits on a client (every client has its own outbox).
 
 use std::cmp::Reverse;
-use std::collections::{BTreeSet, BinaryHeap, HashMap, VecDeque};
+use std::collections::{BTreeMap, BTreeSet, BinaryHeap, HashMap, VecDeque};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
@@ -42,6 +42,9 @@ pub(super) struct Air {
     counters: Counters,
     /// Cut links: (from, to) radio addresses.
     cuts: BTreeSet<(u16, u16)>,
+    /// The generation each connected node last said it runs: told to a plant or monitor
+    /// that joins later (one entry per connected node).
+    running: BTreeMap<u16, u32>,
 }
 
 impl Air {
@@ -57,6 +60,7 @@ impl Air {
             pcap,
             counters,
             cuts: BTreeSet::new(),
+            running: BTreeMap::new(),
         }
     }
 
@@ -87,7 +91,13 @@ impl Air {
     fn handle(&mut self, event: Event) {
         match event {
             Event::Joined(id, peer, outbox) => {
-                if outbox.put(&Link::Welcome).is_ok() {
+                let told = |o: &Outbox| {
+                    !matches!(peer, Peer::Plant | Peer::Monitor)
+                        || self.running.iter().all(|(&addr, &generation)| {
+                            o.put(&Link::Running { addr, generation }).is_ok()
+                        })
+                };
+                if outbox.put(&Link::Welcome).is_ok() && told(&outbox) {
                     let tx_queue = VecDeque::new();
                     self.clients.insert(
                         id,
@@ -119,6 +129,9 @@ impl Air {
 
     fn drop_client(&mut self, id: ClientId) {
         if let Some(c) = self.clients.remove(&id) {
+            if let Peer::Node { addr } = c.peer {
+                self.running.remove(&addr);
+            }
             c.outbox.close();
         }
     }
@@ -300,6 +313,7 @@ impl Air {
         if a != addr {
             return;
         }
+        self.running.insert(addr, generation);
         let targets: Vec<ClientId> = self
             .clients
             .iter()

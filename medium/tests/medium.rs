@@ -203,8 +203,8 @@ fn output_pins_reach_plants_and_plant_inputs_reach_their_node_only() {
     medium.stop();
 }
 
-/// A node's running generation reaches plants and monitors in order with its pins; a
-/// node cannot speak for another, a plant not at all.
+/// A node's running generation reaches plants and monitors in order with its pins (and a
+/// plant that joins later); a node cannot speak for another, a plant not at all.
 #[test]
 fn a_nodes_running_generation_reaches_plants_and_monitors_before_its_pins() {
     let medium = Medium::start(Config::default()).unwrap();
@@ -234,6 +234,11 @@ fn a_nodes_running_generation_reaches_plants_and_monitors_before_its_pins() {
         assert_eq!(c.recv(SURE), Some(Got::Pin(0x11, 0, true)));
     }
     assert_eq!(b.recv(QUIET), None, "nodes are not told");
+    // A plant that joins later is told what every connected node runs, after its welcome.
+    let mut late = Client::hello(&medium, Peer::Plant);
+    assert_eq!(late.recv(SURE), Some(Got::Welcome));
+    assert_eq!(late.recv(SURE), Some(Got::Running(0x11, 2)));
+    assert_eq!(late.recv(QUIET), None);
     medium.stop();
 }
 

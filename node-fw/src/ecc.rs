@@ -295,6 +295,18 @@ impl<'t> Engine<'t> {
         }
     }
 
+    /// Raises the table's boot event (once, when the node boots with the table), if it has
+    /// one; false if not.
+    pub fn boot(&mut self, fx: &mut impl Effects) -> bool {
+        match self.table.boot {
+            Some(event) => {
+                self.raise(event, true, fx);
+                true
+            }
+            None => false,
+        }
+    }
+
     /// Puts every chart in its idle state, running no action: a table activated at the
     /// idle point of the one it replaces starts where that one rested (every actuator
     /// home), not in its initial (not homed) state.

@@ -119,6 +119,8 @@ pub struct NodeCore {
     /// at it (`Status::cycles`), and whether one is under way.
     cycles: u8,
     cycle_open: bool,
+    /// The table's boot event is still to be raised (the node booted with a table).
+    boot_pending: bool,
     mac_seq: u8,
     next_announce: u64,
     counters: Counters,
@@ -296,6 +298,7 @@ impl NodeCore {
             restarted: 0,
             cycles: 0,
             cycle_open: false,
+            boot_pending: false,
             mac_seq: 0,
             next_announce: 0,
             counters: Counters::default(),
@@ -311,6 +314,7 @@ impl NodeCore {
         };
         if let Some(t) = table.filter(|t| t.missing_pin(board_pins).is_none()) {
             node.install(t, None, false);
+            node.boot_pending = true;
         }
         node
     }
@@ -437,6 +441,7 @@ impl NodeCore {
         self.senders.clear();
         self.restarted = 0;
         self.cycle_open = false;
+        self.boot_pending = false;
         for _ in &table.peers {
             let _ = self.senders.push(link::Sender::new(self.epoch));
         }
@@ -580,6 +585,17 @@ impl NodeCore {
     /// Whether the node is idle: configured, not faulted, every chart in its idle state,
     /// no timer running, no event of its own unacknowledged (unconfigured: idle).
     pub fn idle(&self) -> bool {
+        self.resting(|c, cur| cur == c.idle)
+    }
+
+    /// Whether the node is at rest: as [`NodeCore::idle`], but a chart may also be in its
+    /// initial state (not homed: nothing moves there either). A switch-over waits for this;
+    /// the table it activates starts homed only if the node was idle.
+    pub fn at_rest(&self) -> bool {
+        self.resting(|c, cur| cur == c.idle || cur == c.initial)
+    }
+
+    fn resting(&self, chart_rests: impl Fn(&config_schema::Chart, u8) -> bool) -> bool {
         let (Some(t), Some(st)) = (&self.table, &self.state) else {
             return true;
         };
@@ -587,7 +603,7 @@ impl NodeCore {
             && t.charts
                 .iter()
                 .zip(st.current.iter())
-                .all(|(c, &cur)| cur == c.idle)
+                .all(|(c, &cur)| chart_rests(c, cur))
             && self.timers.iter().all(Option::is_none)
             && self.senders.iter().all(|s| s.unacked() == 0)
     }
@@ -713,6 +729,12 @@ impl NodeCore {
     }
 
     fn poll_due(&mut self, now: u64, io: &mut impl Io) {
+        if core::mem::take(&mut self.boot_pending) {
+            // Peers learn that this node's actuators may stand anywhere.
+            self.run(now, io, |e, fx| {
+                e.boot(fx);
+            });
+        }
         for timer in 0..MAX_TIMERS {
             if self.timers[timer].is_some_and(|t| t <= now) {
                 self.timers[timer] = None;
@@ -1221,7 +1243,7 @@ impl NodeCore {
         now: u64,
         io: &mut impl Io,
     ) {
-        let idle = self.idle();
+        let idle = self.at_rest();
         let running = self.generation();
         let reply = match self.switch.step(generation, step, src, running, idle, now) {
             switch::Action::Reply(r) => r,

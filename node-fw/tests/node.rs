@@ -845,10 +845,17 @@ fn a_table_starts_homed_only_when_activated_at_the_idle_point() {
     // A press while not homed does nothing.
     net.press();
     assert_eq!(net.status(B).states, [1]);
+    // Not homed is at rest: a switch-over need not wait, and the next table is not homed
+    // either.
+    assert_eq!(
+        net.switch_staged(B, &homing_b(10)),
+        switch::Verdict::Switched
+    );
+    assert_eq!(net.status(B).states, [1], "switched at rest, not homed");
     assert_eq!(net.command(B, 50, Command::Home).states, [0], "homed");
     // At the idle point: the next table starts idle.
     assert_eq!(
-        net.switch_staged(B, &homing_b(2)),
+        net.switch_staged(B, &homing_b(12)),
         switch::Verdict::Switched
     );
     assert_eq!(
@@ -860,7 +867,7 @@ fn a_table_starts_homed_only_when_activated_at_the_idle_point() {
     net.press();
     assert_eq!(net.status(B).states, [2]);
     assert_eq!(
-        net.push_at(B, &homing_b(3), false, true),
+        net.push_at(B, &homing_b(13), false, true),
         ota::Progress::Done
     );
     assert_eq!(
@@ -890,4 +897,33 @@ fn the_status_counts_the_cycles_a_start_began_and_that_ended() {
     net.run(2_000);
     assert_eq!(net.status(A).cycles, 3);
     assert_eq!(net.status(B).cycles, 0, "B has no START");
+}
+
+/// A node that boots with a table raises (and publishes) its boot event once, at its first
+/// poll; one that gets its table by a push does not.
+#[test]
+fn a_node_booting_with_a_table_publishes_its_boot_event_once() {
+    let mut net = Net::new(0.0, 0.0, 39);
+    assert_eq!(net.push(B, &table_b(1), false), ota::Progress::Done);
+    let mut a = table_a(1);
+    a.boot = a.start;
+    assert_eq!(net.push(A, &a, false), ota::Progress::Done);
+    net.run(500);
+    assert!(
+        !net.nodes[1].1.pins.contains(&(LAMP_PIN, true)),
+        "a push is not a boot"
+    );
+    // A's power cut: it boots its table.
+    net.nodes[0].0 = NodeCore::new(A, u64::MAX, Some(a), 2);
+    net.run(2_000);
+    assert_eq!(
+        net.nodes[1]
+            .1
+            .pins
+            .iter()
+            .filter(|p| **p == (LAMP_PIN, true))
+            .count(),
+        1,
+        "B heard A's boot once"
+    );
 }

@@ -233,7 +233,9 @@ impl Drawing<'_> {
                     intervals.push((e.t_ms, usize::from(*to)));
                     ticks.push(e.t_ms);
                 }
-                What::Reset { node } if *node == r => intervals.push((e.t_ms, chart.initial)),
+                What::Reset { node } | What::Reboot { node } if *node == r => {
+                    intervals.push((e.t_ms, chart.initial))
+                }
                 _ => {}
             }
         }

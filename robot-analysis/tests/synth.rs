@@ -368,3 +368,73 @@ fn every_sequence_of_the_table_homes_from_half_way_through_a_cycle() {
         "the cycles stopped with actuators away: {homed_steps}"
     );
 }
+
+/// A power cut of one node alone (GR's, whose monostable valve drops the part): at rest, the
+/// machine is no longer homed (VC's chart is back in `UNHOMED`; a START moves nothing; HOME
+/// then an exact cycle); during a cycle (after GR's first step) the machine stalls with
+/// nothing more moving, and after a reset it is not homed.
+#[test]
+fn a_power_cut_of_one_node_unhomes_the_machine_at_rest_and_stalls_a_cycle() {
+    let text = std::fs::read_to_string(format!(
+        "{}/../robot-configs/paint-robot.ron",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .expect("paint robot");
+    let c = compiled(&text);
+    let tables = sim::tables(&c).expect("tables");
+    let (mut world, button) = sim::world(&c, &tables).expect("world");
+    let role = |name: &str| {
+        c.ir.roles
+            .iter()
+            .position(|r| r.name == name)
+            .expect("role")
+    };
+    let (vc, gr) = (role("VC"), role("GR"));
+    let home = c.ir.home.expect("home");
+    let sequence = "VC+ GR+ VC- HC+ VC+ VC- RC+ RC- HC- VC+ GR- VC-";
+    let cycle =
+        |w: &mut node_fw::sim::World| w.run_cycle(button, 60_000).expect("cycle").steps.join(" ");
+    assert_eq!(cycle(&mut world), sequence);
+    // At rest.
+    world.reboot(gr).expect("reboot");
+    world.run_until_idle(60_000).expect("settles");
+    assert_eq!(
+        world.states(vc)[0],
+        tables[vc].charts[0].initial,
+        "VC not homed"
+    );
+    let steps = |w: &node_fw::sim::World, from: usize| {
+        w.trace()[from..]
+            .iter()
+            .filter_map(|e| sim::step_of(&e.what))
+            .map(|s| s.to_string())
+            .collect::<Vec<_>>()
+    };
+    let mark = world.trace().len();
+    world.press(button).expect("press");
+    world.run_until_idle(60_000).expect("settles");
+    assert_eq!(steps(&world, mark), Vec::<String>::new());
+    world.home(home).expect("home");
+    world.run_until_idle(60_000).expect("homes");
+    assert_eq!(cycle(&mut world), sequence);
+    // During a cycle, after VC+ GR+ VC- HC+: GR's chart waits for `step1.done` again.
+    let mark = world.trace().len();
+    world.press(button).expect("press");
+    while steps(&world, mark).len() < 4 {
+        world.step().expect("runs");
+    }
+    world.reboot(gr).expect("reboot");
+    world.run_until_idle(60_000).expect("stops");
+    assert_eq!(
+        steps(&world, mark).join(" "),
+        "VC+ GR+ VC- HC+ VC+ VC- RC+ RC- HC- VC+",
+        "stalled at GR-: nothing moves from a wrong place"
+    );
+    for node in 0..world.node_count() {
+        world.reset(node).expect("reset");
+    }
+    world.run_until_idle(60_000).expect("settles");
+    world.home(home).expect("home");
+    world.run_until_idle(60_000).expect("homes");
+    assert_eq!(cycle(&mut world), sequence);
+}

@@ -78,10 +78,11 @@ pub fn table_text(t: &Table) -> String {
     );
     let _ = writeln!(
         o,
-        "events {}  start {}  home {}",
+        "events {}  start {}  home {}  boot {}",
         t.events,
         ev(t.start),
-        ev(t.home)
+        ev(t.home),
+        ev(t.boot)
     );
     for (i, v) in t.vars.iter().enumerate() {
         let _ = writeln!(o, "var v{i} = {v}");

@@ -63,6 +63,8 @@ pub struct RoleIr {
     pub start: Option<String>,
     /// The node event the HOME command raises.
     pub home: Option<String>,
+    /// The node event raised (and published) when the node boots with its table.
+    pub boot: Option<String>,
     /// Events of other roles raised here: (publishing role, its event, the local event).
     pub imports: Vec<(String, String, String)>,
     /// The actuators declared here, in declaration order: which outputs and inputs are

@@ -240,6 +240,7 @@ impl Lowering<'_> {
         t.events = u8_of(r.events.len(), "events")?;
         t.start = r.start.as_deref().map(|e| self.ev(e)).transpose()?;
         t.home = r.home.as_deref().map(|e| self.ev(e)).transpose()?;
+        t.boot = r.boot.as_deref().map(|e| self.ev(e)).transpose()?;
         self.hardware(&mut t)?;
         for c in &r.charts {
             self.chart(&mut t, c)?;

@@ -199,7 +199,10 @@ pub fn home(
     }
     let end = t0 + wait;
     loop {
-        let now = nodes(c, &statuses(radio, ids, c, answer_within)?);
+        let answers = statuses(radio, ids, c, answer_within)?;
+        let now = nodes(c, &answers);
+        // Homed, and what homing published acknowledged (a link in alarm still retries).
+        let settled = answers.iter().all(|s| s.link_alarms == 0);
         if now
             .iter()
             .any(|n| matches!(n.standing, Standing::Faulted(_)))
@@ -209,7 +212,7 @@ pub fn home(
             let after = nodes(c, &statuses(radio, ids, c, answer_within)?);
             return Ok((detector(&after), t0.elapsed()));
         }
-        if now.iter().all(|n| n.standing == Standing::Homed) {
+        if settled && now.iter().all(|n| n.standing == Standing::Homed) {
             return Ok((HomeEnd::Homed, t0.elapsed()));
         }
         if Instant::now() >= end {

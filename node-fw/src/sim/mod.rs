@@ -656,6 +656,21 @@ impl<'t> World<'t> {
         Ok(())
     }
 
+    /// A power cut of node `node` alone: charts back in their initial states, timers
+    /// cancelled, outputs at their start levels (as a reset: a held output keeps its level
+    /// here, where a real boot drops it), then its table's boot event raised and published.
+    pub fn reboot(&mut self, node: usize) -> Result<(), SimError> {
+        if node >= self.nodes.len() {
+            return Err(SimError::NoSuchNodeIndex { node });
+        }
+        self.log(What::Reboot { node });
+        self.call(node, |e, fx| {
+            e.reset(fx);
+            e.boot(fx);
+        });
+        Ok(())
+    }
+
     /// Processes the next scheduled event (advancing the clock to it). Returns its time, or
     /// `None` when idle.
     pub fn step(&mut self) -> Option<u64> {

@@ -76,6 +76,8 @@ pub enum What {
     Fault { node: usize, fault: Fault },
     /// [`World::reset`](super::World::reset) reset a node.
     Reset { node: usize },
+    /// [`World::reboot`](super::World::reboot): a power cut of one node.
+    Reboot { node: usize },
     /// A fault was injected (`jam`, `break_switch`, `stop_node`, `cut_link`), as text.
     Injected { fault: String },
     /// A valve command reached a jammed actuator: it did not move.
@@ -161,6 +163,7 @@ impl fmt::Display for What {
             ),
             What::Fault { node, fault } => write!(f, "node {node} FAULT {fault:?}"),
             What::Reset { node } => write!(f, "node {node} reset"),
+            What::Reboot { node } => write!(f, "node {node} rebooted"),
             What::Injected { fault } => write!(f, "INJECTED {fault}"),
             What::Jammed { plant, plus } => write!(
                 f,

@@ -22,6 +22,10 @@ use super::{Motion, Sequence, SynthError, Timers, CYCLE_DONE_EVENT};
 pub const HOME_START_EVENT: &str = "home.start";
 /// The event the last homing step emits.
 pub const HOME_DONE_EVENT: &str = "home.done";
+/// The event a node raises and publishes to step 1's role when it boots with its table.
+pub const BOOT_EVENT: &str = "boot";
+/// The event another node's boot raises on step 1's role.
+pub const PEER_BOOT_EVENT: &str = "peer.boot";
 /// The event the HOME command raises when the robot declares no HOME input.
 pub const HOME_COMMAND_EVENT: &str = "home";
 
@@ -43,11 +47,11 @@ fn home_trigger_event(k: usize, n: usize) -> String {
     }
 }
 
-/// The events homing sends (none during a cycle): `home.start`, each step's done event
-/// and the HOME input's, when it is published to step 1's role.
+/// The events homing sends (none during a cycle): `home.start`, each step's done event,
+/// the HOME input's when it is published to step 1's role, and a node's boot.
 pub fn homing_events(ir: &Ir) -> Vec<String> {
     let n = ir.homing.len();
-    let mut out = vec![String::from(HOME_START_EVENT)];
+    let mut out = vec![String::from(HOME_START_EVENT), String::from(BOOT_EVENT)];
     out.extend((0..n).map(|k| home_done_event(k, n)));
     if let Some(e) = ir.home.and_then(|r| ir.roles.get(r)?.home.clone()) {
         out.push(e);
@@ -132,7 +136,39 @@ pub(super) fn add(seq: &Sequence<'_>, ir: &mut Ir) -> Result<(), SynthError> {
                 guard: None,
             });
         }
+        // Another node that boots (a power cut of that node alone) may have left its
+        // actuators anywhere: at rest, the machine is no longer homed. (During a cycle or
+        // homing its chart waits, from its first state, for an event that has passed: the
+        // machine stalls, nothing moves from a wrong place; a reset then leaves it not
+        // homed.)
+        let booters: Vec<usize> = (0..roles_names.len())
+            .filter(|&q| q != first && seq.moves_in(q))
+            .collect();
+        let mut unhome_input = None;
+        if !booters.is_empty() {
+            let unhome = c.inputs.len();
+            unhome_input = Some(unhome);
+            c.inputs.push(String::from("unhome"));
+            c.transitions.push(TransitionIr {
+                from: c.idle,
+                to: unhomed,
+                trigger: Some(unhome),
+                guard: None,
+            });
+        }
         c.initial = unhomed;
+        if let Some(unhome) = unhome_input {
+            r.event(PEER_BOOT_EVENT);
+            r.routes.push((String::from(PEER_BOOT_EVENT), ci, unhome));
+            for &q in &booters {
+                let entry = (
+                    roles_names[q].clone(),
+                    String::from(BOOT_EVENT),
+                    String::from(PEER_BOOT_EVENT),
+                );
+                r.imports.push(entry);
+            }
+        }
         r.event(&home_event);
         r.event(HOME_START_EVENT);
         r.event(HOME_DONE_EVENT);
@@ -154,6 +190,13 @@ pub(super) fn add(seq: &Sequence<'_>, ir: &mut Ir) -> Result<(), SynthError> {
             if owners.last().is_some_and(|&o| o != sr) {
                 import(r, owners[n - 1], HOME_DONE_EVENT);
             }
+        }
+    }
+    for q in 0..ir.roles.len() {
+        if q != first && seq.moves_in(q) {
+            let r = &mut ir.roles[q];
+            r.event(BOOT_EVENT);
+            r.boot = Some(String::from(BOOT_EVENT));
         }
     }
     // One `home` chart per role with homing steps.

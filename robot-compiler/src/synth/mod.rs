@@ -24,7 +24,8 @@
 mod homing;
 
 pub use homing::{
-    home_done_event, homing_events, HOME_COMMAND_EVENT, HOME_DONE_EVENT, HOME_START_EVENT,
+    home_done_event, homing_events, BOOT_EVENT, HOME_COMMAND_EVENT, HOME_DONE_EVENT,
+    HOME_START_EVENT, PEER_BOOT_EVENT,
 };
 
 use crate::elab::{AddressError, StartError};
@@ -169,6 +170,11 @@ impl<'a> Sequence<'a> {
         self.robot
             .actuator(&self.steps[k % n].actuator)
             .map(|(r, _)| r)
+    }
+
+    /// Whether role `q` has an actuator that moves in the sequence.
+    fn moves_in(&self, q: usize) -> bool {
+        moving_in(self.robot, q, self.steps)
     }
 
     /// Whether an actuator moves in the sequence.
