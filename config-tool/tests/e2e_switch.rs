@@ -79,13 +79,20 @@ fn a_node_killed_between_stage_and_switch_comes_back_staged_and_the_switch_finis
         (1, 2),
         "rebooted: old running, new staged"
     );
+    // GR's boot told VC: the machine is not homed (at rest: the switch need not wait).
+    let vc = addr_of(&paint, "VC");
+    wait_until(&mut bed, vc, |s| {
+        s.states.first() == Some(&initial(&paint.tables[0])[0])
+    });
     let verdict = bed
         .switch_over(&mut pushed, 2, false, Duration::from_secs(30))
         .unwrap();
     assert_eq!(verdict, Verdict::Switched);
-    assert_running(&mut bed, &dip);
+    assert_not_homed_node(&mut bed, &dip, "VC");
     let s = status(&mut bed, gr);
     assert_eq!((s.generation, s.staged), (2, 0));
+    home_ok(&mut bed, &dip);
+    assert_running(&mut bed, &dip);
     exact_cycle(&mut bed, &dip, 1);
     bed.stop();
 }
@@ -165,7 +172,9 @@ fn a_trial_is_left_by_a_power_cut_or_a_rollback_and_stays_once_confirmed() {
 
 /// A node that lost power between cycles and booted again from its flash: its peers kept
 /// numbering their links to it, and its fresh receivers, waiting for seq 0, dropped every
-/// event (the next cycle stalled). Its greeting now tells each peer to number again.
+/// event (the next cycle stalled). Its greeting now tells each peer to number again. Its
+/// boot makes the machine not homed (its gripper let go): a START moves nothing until
+/// HOME.
 #[test]
 fn a_node_that_rebooted_between_cycles_takes_part_in_the_next_cycle() {
     let flash = TempDir::new("reboot-one");
@@ -175,6 +184,12 @@ fn a_node_that_rebooted_between_cycles_takes_part_in_the_next_cycle() {
     exact_cycle(&mut bed, &paint, 1);
     let gr = addr_of(&paint, "GR");
     power_cut(&mut bed, &[gr]);
+    let vc = addr_of(&paint, "VC");
+    wait_until(&mut bed, vc, |s| {
+        s.states.first() == Some(&initial(&paint.tables[0])[0])
+    });
+    assert_not_homed_node(&mut bed, &paint, "VC");
+    home_ok(&mut bed, &paint);
     assert_running(&mut bed, &paint);
     for n in 2..=3 {
         exact_cycle(&mut bed, &paint, n);
@@ -270,5 +285,51 @@ fn a_watched_trial_rolls_back_on_a_fault_or_when_its_window_ends_unconfirmed() {
         where_all(&mut bed, &addrs),
         vec![(1, false, 0); addrs.len()]
     );
+    bed.stop();
+}
+
+/// A trial window counted in cycles: the machine runs two cycles on the trial generation,
+/// nobody confirms, and after the second every node goes back to the previous generation
+/// at the idle point (homed: the next cycle is the old sequence at once).
+#[test]
+fn a_trial_watched_for_two_cycles_rolls_back_after_the_second() {
+    let flash = TempDir::new("cycles");
+    let paint = robot("paint-robot.ron", 1);
+    let dip = robot("paint-robot-double-dip.ron", 2);
+    let mut bed = bring_up(&paint, options(medium::Config::default(), Some(&flash)));
+    let addrs: Vec<u16> = paint.ir.roles.iter().map(|r| r.address).collect();
+    push_and_home(&mut bed, &paint);
+    on_trial(&mut bed, &dip);
+    let secret = bed.secret().unwrap().clone();
+    let at = bed.medium().addr();
+    let watched = addrs.clone();
+    let watcher = std::thread::spawn(move || {
+        let mut radio = second_tool(at, &secret);
+        let window = push::TrialWindow {
+            time: None,
+            cycles: Some(2),
+        };
+        push::watch_trial_for(
+            &mut radio,
+            &mut push::Ids::default(),
+            &watched,
+            1,
+            window,
+            Duration::from_millis(200),
+            Duration::from_secs(60),
+        )
+        .unwrap()
+    });
+    for n in 1..=2 {
+        exact_cycle(&mut bed, &dip, n);
+    }
+    assert_eq!(
+        watcher.join().unwrap(),
+        push::TrialEnd::Expired {
+            rolled_back: Verdict::Switched
+        }
+    );
+    assert_running(&mut bed, &paint);
+    exact_cycle(&mut bed, &paint, 1);
     bed.stop();
 }
