@@ -8,7 +8,8 @@
 //! - pins: 16 GPIOs, outputs or inputs as the table uses them ([`gpio`]);
 //! - frame counter, table slots and boot counter: the last 28 KiB of the internal flash
 //!   ([`flash`]);
-//! - security: with a management key, the config PAN is secured (`runtime::run_secured`);
+//! - security: with a management key, the config PAN is secured (`runtime::run_secured`),
+//!   AES-128 on the AES-ECB peripheral ([`ecb`]);
 //! - log: defmt over RTT (`cargo run --release` flashes a DK with probe-rs and prints it).
 //!
 //! With the feature `gateway` the image is the serial <-> radio gateway instead
@@ -16,6 +17,8 @@
 #![no_std]
 #![no_main]
 
+#[cfg(all(feature = "ecb", not(feature = "gateway")))]
+mod ecb;
 #[cfg(not(feature = "gateway"))]
 mod flash;
 #[cfg(feature = "gateway")]
@@ -227,6 +230,8 @@ async fn main(_spawner: Spawner) {
             flash,
             pin_mask: runtime::pin_range(gpio::PINS),
         };
+        #[cfg(feature = "ecb")]
+        ecb::install();
         #[cfg(feature = "frame-security")]
         let (stop, stats) = {
             let mut next = || counter.as_mut().and_then(|c| block_on(c.next()).ok());
