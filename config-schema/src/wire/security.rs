@@ -262,7 +262,7 @@ impl<T: AsRef<[u8]>> AuxHeader<T> {
 
     /// The security control byte.
     pub fn security_control(&self) -> u8 {
-        self.bytes()[field::CONTROL]
+        self.bytes().get(field::CONTROL).copied().unwrap_or(0)
     }
 
     /// The security level.
@@ -277,21 +277,24 @@ impl<T: AsRef<[u8]>> AuxHeader<T> {
 
     /// The frame counter.
     pub fn frame_counter(&self) -> u32 {
-        let b = &self.bytes()[field::COUNTER];
-        u32::from_le_bytes([b[0], b[1], b[2], b[3]])
+        match self.bytes().get(field::COUNTER) {
+            Some(&[a, b, c, d]) => u32::from_le_bytes([a, b, c, d]),
+            _ => 0,
+        }
     }
 
     /// The key source as on the air (empty in modes 0 and 1).
     pub fn key_source(&self) -> &[u8] {
         let id_len = key_id_len(self.key_id_mode());
-        &self.bytes()[field::KEY_ID..field::KEY_ID + id_len.saturating_sub(1)]
+        let end = field::KEY_ID + id_len.saturating_sub(1);
+        self.bytes().get(field::KEY_ID..end).unwrap_or(&[])
     }
 
     /// The key index (none in mode 0).
     pub fn key_index(&self) -> Option<u8> {
         match key_id_len(self.key_id_mode()) {
             0 => None,
-            n => Some(self.bytes()[field::KEY_ID + n - 1]),
+            n => self.bytes().get(field::KEY_ID + n - 1).copied(),
         }
     }
 
@@ -353,20 +356,23 @@ impl AuxRepr {
     pub fn emit(&self, buf: &mut [u8]) -> Result<usize, SecError> {
         let len = self.buffer_len();
         let buf = buf.get_mut(..len).ok_or(SecError::NoRoom)?;
-        buf[field::CONTROL] = self.level.bits() | (self.key_id.mode() << CONTROL_KEY_ID_MODE_SHIFT);
-        buf[field::COUNTER].copy_from_slice(&self.frame_counter.to_le_bytes());
-        let id = &mut buf[field::KEY_ID..];
-        match self.key_id {
-            KeyId::Implicit => {}
-            KeyId::Index(index) => id[0] = index,
-            KeyId::Source4 { source, index } => {
-                id[..4].copy_from_slice(&source);
-                id[4] = index;
+        let (head, id) = buf.split_at_mut(field::KEY_ID.min(len));
+        let control = self.level.bits() | (self.key_id.mode() << CONTROL_KEY_ID_MODE_SHIFT);
+        let counter = self.frame_counter.to_le_bytes();
+        match head {
+            [c, f0, f1, f2, f3] => {
+                *c = control;
+                [*f0, *f1, *f2, *f3] = counter;
             }
-            KeyId::Source8 { source, index } => {
-                id[..8].copy_from_slice(&source);
-                id[8] = index;
-            }
+            _ => return Err(SecError::NoRoom),
+        }
+        // `id` is exactly the key identifier's length (`buffer_len`).
+        match (self.key_id, id) {
+            (KeyId::Implicit, []) => {}
+            (KeyId::Index(index), [i]) => *i = index,
+            (KeyId::Source4 { source, index }, id) => emit_key_id(id, &source, index)?,
+            (KeyId::Source8 { source, index }, id) => emit_key_id(id, &source, index)?,
+            _ => return Err(SecError::NoRoom),
         }
         Ok(len)
     }
@@ -376,6 +382,20 @@ impl AuxRepr {
 /// `PAN id (2) | 00 FF FE 00 | short address (2)`, big-endian (the layout of RFC 4944's
 /// interface identifier for a short address, no bit flipped). E.g. PAN 0xBEEF, node 0x0001:
 /// `be:ef:00:ff:fe:00:00:01`, which is what Wireshark's "Static Addresses" table of IEEE
+/// Writes a key source and index into `id` (exactly their length).
+fn emit_key_id(id: &mut [u8], source: &[u8], index: u8) -> Result<(), SecError> {
+    let (src, last) = id
+        .split_last_mut()
+        .map(|(last, src)| (src, last))
+        .ok_or(SecError::NoRoom)?;
+    if src.len() != source.len() {
+        return Err(SecError::NoRoom);
+    }
+    src.copy_from_slice(source);
+    *last = index;
+    Ok(())
+}
+
 /// 802.15.4 takes for short address 0x0001 on PAN 0xbeef.
 pub const fn ext_addr(pan_id: u16, short: u16) -> [u8; 8] {
     let p = pan_id.to_be_bytes();
