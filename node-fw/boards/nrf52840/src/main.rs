@@ -210,10 +210,17 @@ async fn main(_spawner: Spawner) {
                     Some(c)
                 }
                 Err(e) => {
+                    // Named, not formatted: no `Debug` of the error (and its flash error)
+                    // in the image.
+                    let why = match e {
+                        node_fw::frame_counter::CounterError::Geometry => "geometry",
+                        node_fw::frame_counter::CounterError::Exhausted => "exhausted",
+                        node_fw::frame_counter::CounterError::Flash(_) => "flash error",
+                    };
                     defmt::error!(
-                        "node {=u16:#06x}: frame counter: {}: staying off the air",
+                        "node {=u16:#06x}: frame counter: {=str}: staying off the air",
                         addr,
-                        defmt::Debug2Format(&e)
+                        why
                     );
                     loop {
                         Timer::after_secs(3600).await;
