@@ -129,7 +129,7 @@ impl<F: NorFlash> FrameCounter<F> {
             sector,
             step,
             active,
-            free: free[active as usize],
+            free: free.get(active as usize).copied().flatten(),
             next: reserved,
             reserved,
         })

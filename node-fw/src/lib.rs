@@ -1,5 +1,6 @@
 //! The generic node firmware.
 //!
+//! - [`cipher`]: the AES-128 under frame security (software, or the board's hardware).
 //! - [`cylinder`]: the pneumatic plant's rules (valve, power-up, sensors, travel), pure.
 //! - [`ecc`]: the table interpreter (pure, `no_std`, no allocation, no Embassy).
 //! - [`link`]: reliable, ordered event delivery over a lossy radio (pure state machines).
@@ -14,6 +15,7 @@
 #![cfg_attr(not(feature = "std"), no_std)]
 #![forbid(unsafe_code)]
 
+pub mod cipher;
 pub mod cylinder;
 pub mod ecc;
 pub mod frame_counter;

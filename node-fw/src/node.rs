@@ -16,6 +16,7 @@ use config_schema::wire::security::{self, ext_addr, replay::ReplayGuard, AuxRepr
 use config_schema::{Publication, Table};
 use heapless::Vec;
 
+use crate::cipher::NodeCipher;
 use crate::ecc::{Effects, Engine, EngineState, Fault};
 use crate::link::{self, LinkState};
 use crate::ota::{self, Outcome};
@@ -226,7 +227,7 @@ impl Radio<'_> {
                 };
                 let aux = AuxRepr::new(MANAGEMENT_KEY_INDEX, counter);
                 let src_ext = ext_addr(pan_id, self.addr);
-                security::secure_default(
+                security::secure_default_with::<NodeCipher>(
                     &header,
                     &aux,
                     key.expose(),
@@ -1004,7 +1005,7 @@ impl NodeCore {
             return Err(Refused::Dropped);
         };
         let me = self.addr;
-        let opened = security::open_default(
+        let opened = security::open_default_with::<NodeCipher, _>(
             psdu,
             |header, aux| {
                 // Our own frames reflected back are not the tool's.

@@ -36,6 +36,8 @@ use config_schema::wire::security::{
 };
 use heapless::Vec;
 
+use crate::cipher::NodeCipher;
+
 /// How long after a switch the previous generation's keys still open a peer's frames.
 pub const OVERLAP_MS: u64 = 10_000;
 /// At most one challenge, and one answer, per peer per this many ms (each spends a frame
@@ -194,7 +196,7 @@ impl PeerSecurity {
         let keys = self.current.as_ref()?;
         let send = keys.of(header.dst)?.send;
         let aux = AuxRepr::new(link_key_index(keys.generation), counter);
-        Some(security::secure_default(
+        Some(security::secure_default_with::<NodeCipher>(
             header,
             &aux,
             &send,
@@ -238,7 +240,7 @@ impl PeerSecurity {
             return Verdict::Dropped;
         }
         self.overlap_until.get_or_insert(now + OVERLAP_MS);
-        let opened = security::open_default(
+        let opened = security::open_default_with::<NodeCipher, _>(
             psdu,
             |header, aux| {
                 let index = aux.key_id.index()?;

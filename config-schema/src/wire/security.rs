@@ -28,6 +28,7 @@ pub mod replay;
 #[cfg(test)]
 mod tests;
 
+use core::cell::Cell;
 use core::fmt;
 
 use ccm::aead::array::{Array, ArraySize};
@@ -35,6 +36,7 @@ use ccm::consts::{U13, U16, U4, U8};
 use ccm::{AeadInOut, Ccm, TagSize};
 
 use block::OneBlock;
+pub use block::{BlockCipher, CipherFault, SoftAes, BLOCK_LEN};
 
 use super::mac::{self, Frame, FrameError, Header, DATA_HEADER_LEN, FCS_LEN, MAX_PSDU};
 
@@ -180,6 +182,9 @@ pub enum SecError {
         got: SecurityLevel,
         required: SecurityLevel,
     },
+    /// The block cipher failed (a board's hardware AES aborted or timed out): nothing is
+    /// sent, nothing accepted.
+    Cipher,
 }
 
 impl fmt::Display for SecError {
@@ -196,6 +201,7 @@ impl fmt::Display for SecError {
             SecError::Level { got, required } => {
                 write!(f, "security level {got:?}, not the required {required:?}")
             }
+            SecError::Cipher => f.write_str("block cipher failed"),
         }
     }
 }
@@ -256,7 +262,7 @@ impl<T: AsRef<[u8]>> AuxHeader<T> {
 
     /// The security control byte.
     pub fn security_control(&self) -> u8 {
-        self.bytes()[field::CONTROL]
+        self.bytes().get(field::CONTROL).copied().unwrap_or(0)
     }
 
     /// The security level.
@@ -271,21 +277,24 @@ impl<T: AsRef<[u8]>> AuxHeader<T> {
 
     /// The frame counter.
     pub fn frame_counter(&self) -> u32 {
-        let b = &self.bytes()[field::COUNTER];
-        u32::from_le_bytes([b[0], b[1], b[2], b[3]])
+        match self.bytes().get(field::COUNTER) {
+            Some(&[a, b, c, d]) => u32::from_le_bytes([a, b, c, d]),
+            _ => 0,
+        }
     }
 
     /// The key source as on the air (empty in modes 0 and 1).
     pub fn key_source(&self) -> &[u8] {
         let id_len = key_id_len(self.key_id_mode());
-        &self.bytes()[field::KEY_ID..field::KEY_ID + id_len.saturating_sub(1)]
+        let end = field::KEY_ID + id_len.saturating_sub(1);
+        self.bytes().get(field::KEY_ID..end).unwrap_or(&[])
     }
 
     /// The key index (none in mode 0).
     pub fn key_index(&self) -> Option<u8> {
         match key_id_len(self.key_id_mode()) {
             0 => None,
-            n => Some(self.bytes()[field::KEY_ID + n - 1]),
+            n => self.bytes().get(field::KEY_ID + n - 1).copied(),
         }
     }
 
@@ -347,20 +356,23 @@ impl AuxRepr {
     pub fn emit(&self, buf: &mut [u8]) -> Result<usize, SecError> {
         let len = self.buffer_len();
         let buf = buf.get_mut(..len).ok_or(SecError::NoRoom)?;
-        buf[field::CONTROL] = self.level.bits() | (self.key_id.mode() << CONTROL_KEY_ID_MODE_SHIFT);
-        buf[field::COUNTER].copy_from_slice(&self.frame_counter.to_le_bytes());
-        let id = &mut buf[field::KEY_ID..];
-        match self.key_id {
-            KeyId::Implicit => {}
-            KeyId::Index(index) => id[0] = index,
-            KeyId::Source4 { source, index } => {
-                id[..4].copy_from_slice(&source);
-                id[4] = index;
+        let (head, id) = buf.split_at_mut(field::KEY_ID.min(len));
+        let control = self.level.bits() | (self.key_id.mode() << CONTROL_KEY_ID_MODE_SHIFT);
+        let counter = self.frame_counter.to_le_bytes();
+        match head {
+            [c, f0, f1, f2, f3] => {
+                *c = control;
+                [*f0, *f1, *f2, *f3] = counter;
             }
-            KeyId::Source8 { source, index } => {
-                id[..8].copy_from_slice(&source);
-                id[8] = index;
-            }
+            _ => return Err(SecError::NoRoom),
+        }
+        // `id` is exactly the key identifier's length (`buffer_len`).
+        match (self.key_id, id) {
+            (KeyId::Implicit, []) => {}
+            (KeyId::Index(index), [i]) => *i = index,
+            (KeyId::Source4 { source, index }, id) => emit_key_id(id, &source, index)?,
+            (KeyId::Source8 { source, index }, id) => emit_key_id(id, &source, index)?,
+            _ => return Err(SecError::NoRoom),
         }
         Ok(len)
     }
@@ -370,6 +382,20 @@ impl AuxRepr {
 /// `PAN id (2) | 00 FF FE 00 | short address (2)`, big-endian (the layout of RFC 4944's
 /// interface identifier for a short address, no bit flipped). E.g. PAN 0xBEEF, node 0x0001:
 /// `be:ef:00:ff:fe:00:00:01`, which is what Wireshark's "Static Addresses" table of IEEE
+/// Writes a key source and index into `id` (exactly their length).
+fn emit_key_id(id: &mut [u8], source: &[u8], index: u8) -> Result<(), SecError> {
+    let (src, last) = id
+        .split_last_mut()
+        .map(|(last, src)| (src, last))
+        .ok_or(SecError::NoRoom)?;
+    if src.len() != source.len() {
+        return Err(SecError::NoRoom);
+    }
+    src.copy_from_slice(source);
+    *last = index;
+    Ok(())
+}
+
 /// 802.15.4 takes for short address 0x0001 on PAN 0xbeef.
 pub const fn ext_addr(pan_id: u16, short: u16) -> [u8; 8] {
     let p = pan_id.to_be_bytes();
@@ -398,17 +424,21 @@ pub const fn nonce(src_ext: &[u8; 8], frame_counter: u32, level: SecurityLevel) 
     ]
 }
 
-fn seal_with<M: ArraySize + TagSize>(
-    cipher: OneBlock,
+fn seal_with<M: ArraySize + TagSize, C: BlockCipher>(
+    key: &[u8; KEY_LEN],
     nonce: &[u8; NONCE_LEN],
     a: &[u8],
     m: &mut [u8],
     mic: &mut [u8],
 ) -> Result<(), SecError> {
-    let ccm = Ccm::<OneBlock, M, U13>::from(cipher);
+    let fault = Cell::new(false);
+    let ccm = Ccm::<OneBlock<'_, C>, M, U13>::from(OneBlock::new(key, &fault));
     let tag = ccm
         .encrypt_inout_detached(&Array::from(*nonce), a, m.into())
         .map_err(|_| SecError::NoRoom)?;
+    if fault.get() {
+        return Err(SecError::Cipher);
+    }
     if mic.len() != tag.len() {
         return Err(SecError::NoRoom);
     }
@@ -416,17 +446,25 @@ fn seal_with<M: ArraySize + TagSize>(
     Ok(())
 }
 
-fn open_with<M: ArraySize + TagSize>(
-    cipher: OneBlock,
+fn open_with<M: ArraySize + TagSize, C: BlockCipher>(
+    key: &[u8; KEY_LEN],
     nonce: &[u8; NONCE_LEN],
     a: &[u8],
     m: &mut [u8],
     mic: &[u8],
 ) -> Result<(), SecError> {
-    let ccm = Ccm::<OneBlock, M, U13>::from(cipher);
+    let fault = Cell::new(false);
+    let ccm = Ccm::<OneBlock<'_, C>, M, U13>::from(OneBlock::new(key, &fault));
     let tag = Array::<u8, M>::try_from(mic).map_err(|_| SecError::Malformed)?;
-    ccm.decrypt_inout_detached(&Array::from(*nonce), a, m.into(), &tag)
-        .map_err(|_| SecError::BadMic)
+    let opened = ccm
+        .decrypt_inout_detached(&Array::from(*nonce), a, m.into(), &tag)
+        .map_err(|_| SecError::BadMic);
+    if fault.get() {
+        // Whatever the MIC check said, a failed block leaves nothing to trust.
+        m.fill(0);
+        return Err(SecError::Cipher);
+    }
+    opened
 }
 
 /// Splits `body` (MAC header, aux header, payload) into CCM*'s a data and m data: with
@@ -452,11 +490,10 @@ pub(crate) fn seal(
     m: &mut [u8],
     mic: &mut [u8],
 ) -> Result<(), SecError> {
-    let cipher = OneBlock::new(key);
     match level.mic_len() {
-        4 => seal_with::<U4>(cipher, nonce, a, m, mic),
-        8 => seal_with::<U8>(cipher, nonce, a, m, mic),
-        16 => seal_with::<U16>(cipher, nonce, a, m, mic),
+        4 => seal_with::<U4, SoftAes>(key, nonce, a, m, mic),
+        8 => seal_with::<U8, SoftAes>(key, nonce, a, m, mic),
+        16 => seal_with::<U16, SoftAes>(key, nonce, a, m, mic),
         _ => Err(SecError::NoMic),
     }
 }
@@ -471,17 +508,17 @@ pub(crate) fn unseal(
     m: &mut [u8],
     mic: &[u8],
 ) -> Result<(), SecError> {
-    let cipher = OneBlock::new(key);
     match level.mic_len() {
-        4 => open_with::<U4>(cipher, nonce, a, m, mic),
-        8 => open_with::<U8>(cipher, nonce, a, m, mic),
-        16 => open_with::<U16>(cipher, nonce, a, m, mic),
+        4 => open_with::<U4, SoftAes>(key, nonce, a, m, mic),
+        8 => open_with::<U8, SoftAes>(key, nonce, a, m, mic),
+        16 => open_with::<U16, SoftAes>(key, nonce, a, m, mic),
         _ => Err(SecError::NoMic),
     }
 }
 
-/// [`seal`] at ENC-MIC-64 only: one CCM* instance (a node's; [`secure_default`]).
-fn seal_default(
+/// [`seal`] at ENC-MIC-64 only, with the block cipher `C`: one CCM* instance (a node's;
+/// [`secure_default`]).
+fn seal_default<C: BlockCipher>(
     key: &[u8; KEY_LEN],
     nonce: &[u8; NONCE_LEN],
     level: SecurityLevel,
@@ -490,11 +527,11 @@ fn seal_default(
     mic: &mut [u8],
 ) -> Result<(), SecError> {
     default_level(level)?;
-    seal_with::<U8>(OneBlock::new(key), nonce, a, m, mic)
+    seal_with::<U8, C>(key, nonce, a, m, mic)
 }
 
-/// [`unseal`] at ENC-MIC-64 only (a node's; [`open_default`]).
-fn unseal_default(
+/// [`unseal`] at ENC-MIC-64 only, with the block cipher `C` (a node's; [`open_default`]).
+fn unseal_default<C: BlockCipher>(
     key: &[u8; KEY_LEN],
     nonce: &[u8; NONCE_LEN],
     level: SecurityLevel,
@@ -503,7 +540,7 @@ fn unseal_default(
     mic: &[u8],
 ) -> Result<(), SecError> {
     default_level(level)?;
-    open_with::<U8>(OneBlock::new(key), nonce, a, m, mic)
+    open_with::<U8, C>(key, nonce, a, m, mic)
 }
 
 fn default_level(level: SecurityLevel) -> Result<(), SecError> {
@@ -562,7 +599,8 @@ pub fn secure(
 
 /// [`secure`] at ENC-MIC-64 only, our frames' level ([`AuxRepr::new`]); another level is
 /// refused ([`SecError::Level`]). The same frames, one CCM* instance linked instead of
-/// three: what a node calls.
+/// three: what a node calls. Software AES ([`SoftAes`]); [`secure_default_with`] takes
+/// another block cipher.
 pub fn secure_default(
     header: &Header,
     aux: &AuxRepr,
@@ -571,7 +609,20 @@ pub fn secure_default(
     payload: &[u8],
     out: &mut [u8],
 ) -> Result<usize, SecError> {
-    secure_by(header, aux, key, src_ext, payload, out, seal_default)
+    secure_default_with::<SoftAes>(header, aux, key, src_ext, payload, out)
+}
+
+/// [`secure_default`] with the AES-128 of `C` (a board's hardware cipher): the same
+/// frames; a failed block is [`SecError::Cipher`] and nothing is to be sent.
+pub fn secure_default_with<C: BlockCipher>(
+    header: &Header,
+    aux: &AuxRepr,
+    key: &[u8; KEY_LEN],
+    src_ext: [u8; 8],
+    payload: &[u8],
+    out: &mut [u8],
+) -> Result<usize, SecError> {
+    secure_by(header, aux, key, src_ext, payload, out, seal_default::<C>)
 }
 
 fn secure_by(
@@ -644,8 +695,21 @@ where
 }
 
 /// [`open_at`] ENC-MIC-64, with one CCM* instance linked instead of three: what a node
-/// calls.
+/// calls. Software AES ([`SoftAes`]); [`open_default_with`] takes another block cipher.
 pub fn open_default<'a, F>(
+    psdu: &[u8],
+    lookup: F,
+    scratch: &'a mut [u8],
+) -> Result<Opened<'a>, SecError>
+where
+    F: FnOnce(&Header, &AuxRepr) -> Option<([u8; KEY_LEN], [u8; 8])>,
+{
+    open_default_with::<SoftAes, F>(psdu, lookup, scratch)
+}
+
+/// [`open_default`] with the AES-128 of `C` (a board's hardware cipher): the same checks;
+/// a failed block is [`SecError::Cipher`], with the scratch zeroed.
+pub fn open_default_with<'a, C: BlockCipher, F>(
     psdu: &[u8],
     lookup: F,
     scratch: &'a mut [u8],
@@ -658,7 +722,7 @@ where
         Some(SecurityLevel::EncMic64),
         lookup,
         scratch,
-        unseal_default,
+        unseal_default::<C>,
     )
 }
 

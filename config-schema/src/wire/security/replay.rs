@@ -13,6 +13,8 @@
 
 use core::fmt;
 
+use heapless::vec::VecView;
+
 /// One (sender, key index) pair and the last counter accepted from it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Entry {
@@ -60,22 +62,9 @@ impl<const N: usize> ReplayGuard<N> {
         }
     }
 
-    fn find(&self, sender: u16, key_index: u8) -> Option<usize> {
-        self.entries
-            .iter()
-            .position(|e| e.sender == sender && e.key_index == key_index)
-    }
-
     /// Whether `counter` would be accepted, without recording it.
     pub fn check(&self, sender: u16, key_index: u8, counter: u32) -> Result<(), ReplayError> {
-        match self.find(sender, key_index) {
-            Some(i) => match self.entries.get(i) {
-                Some(e) if counter <= e.last => Err(ReplayError::Replayed { last: e.last }),
-                _ => Ok(()),
-            },
-            None if self.entries.is_full() => Err(ReplayError::Full),
-            None => Ok(()),
-        }
+        check(self.entries.as_view(), sender, key_index, counter)
     }
 
     /// Accepts `counter` if it is above the last one from (sender, key index), and records
@@ -86,30 +75,12 @@ impl<const N: usize> ReplayGuard<N> {
         key_index: u8,
         counter: u32,
     ) -> Result<(), ReplayError> {
-        self.check(sender, key_index, counter)?;
-        match self.find(sender, key_index) {
-            Some(i) => {
-                if let Some(e) = self.entries.get_mut(i) {
-                    e.last = counter;
-                }
-                Ok(())
-            }
-            None => self
-                .entries
-                .push(Entry {
-                    sender,
-                    key_index,
-                    last: counter,
-                })
-                .map_err(|_| ReplayError::Full),
-        }
+        check_and_accept(self.entries.as_mut_view(), sender, key_index, counter)
     }
 
     /// The last counter accepted from (sender, key index).
     pub fn last(&self, sender: u16, key_index: u8) -> Option<u32> {
-        self.find(sender, key_index)
-            .and_then(|i| self.entries.get(i))
-            .map(|e| e.last)
+        find(self.entries.as_view(), sender, key_index).map(|e| e.last)
     }
 
     /// Drops every pair of `key_index` (a key no longer accepted), making room.
@@ -130,6 +101,54 @@ impl<const N: usize> ReplayGuard<N> {
     /// Whether no pair is recorded.
     pub fn is_empty(&self) -> bool {
         self.entries.is_empty()
+    }
+}
+
+// The work of every `ReplayGuard<N>`, on its entries whatever `N`: one copy in an image
+// with tables of several sizes (a node has one per PAN).
+
+fn find(entries: &VecView<Entry>, sender: u16, key_index: u8) -> Option<&Entry> {
+    entries
+        .iter()
+        .find(|e| e.sender == sender && e.key_index == key_index)
+}
+
+fn check(
+    entries: &VecView<Entry>,
+    sender: u16,
+    key_index: u8,
+    counter: u32,
+) -> Result<(), ReplayError> {
+    match find(entries, sender, key_index) {
+        Some(e) if counter <= e.last => Err(ReplayError::Replayed { last: e.last }),
+        Some(_) => Ok(()),
+        None if entries.is_full() => Err(ReplayError::Full),
+        None => Ok(()),
+    }
+}
+
+fn check_and_accept(
+    entries: &mut VecView<Entry>,
+    sender: u16,
+    key_index: u8,
+    counter: u32,
+) -> Result<(), ReplayError> {
+    let found = entries
+        .iter_mut()
+        .find(|e| e.sender == sender && e.key_index == key_index);
+    match found {
+        Some(e) if counter <= e.last => Err(ReplayError::Replayed { last: e.last }),
+        Some(e) => {
+            e.last = counter;
+            Ok(())
+        }
+        None => entries
+            .push(Entry {
+                sender,
+                key_index,
+                last: counter,
+            })
+            .map_err(|_| ReplayError::Full),
     }
 }
 

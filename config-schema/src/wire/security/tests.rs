@@ -816,10 +816,10 @@ fn the_enc_mic_64_only_path_is_the_same_codec() {
     let mut m = [m[0]];
     let mut mic = [0u8; 8];
     let level = SecurityLevel::EncMic64;
-    seal_default(&ANNEX_KEY, &C23_NONCE, level, a, &mut m, &mut mic).unwrap();
+    seal_default::<SoftAes>(&ANNEX_KEY, &C23_NONCE, level, a, &mut m, &mut mic).unwrap();
     assert_eq!(m[0], C23_SECURED_TAIL[0]);
     assert_eq!(mic, C23_SECURED_TAIL[1..]);
-    unseal_default(&ANNEX_KEY, &C23_NONCE, level, a, &mut m, &mic).unwrap();
+    unseal_default::<SoftAes>(&ANNEX_KEY, &C23_NONCE, level, a, &mut m, &mic).unwrap();
     assert_eq!(m, [0xCE]);
 
     let mut general = [0u8; MAX_PSDU];
@@ -856,4 +856,108 @@ fn the_enc_mic_64_only_path_is_the_same_codec() {
     let mut scratch = [0u8; MAX_PAYLOAD];
     let refused = open_default(&general[..n], node_lookup(ANNEX_KEY), &mut scratch);
     assert_eq!(refused, Err(want));
+}
+
+/// A board's block cipher as the node path takes it: software AES underneath, counting the
+/// blocks it encrypts, and failing the block numbered [`FAIL_AT`] (as the nRF52840's ECB
+/// would on ERRORECB or a timeout).
+struct BoardCipher {
+    aes: SoftAes,
+    blocks: core::cell::Cell<usize>,
+    fail_at: usize,
+}
+
+std::thread_local! {
+    /// The block (counted from 0 per key) a [`BoardCipher`] made on this thread fails.
+    static FAIL_AT: core::cell::Cell<usize> = const { core::cell::Cell::new(usize::MAX) };
+    /// Blocks encrypted by the [`BoardCipher`]s of this thread.
+    static BLOCKS: core::cell::Cell<usize> = const { core::cell::Cell::new(0) };
+}
+
+impl BlockCipher for BoardCipher {
+    fn new(key: &[u8; KEY_LEN]) -> Self {
+        BoardCipher {
+            aes: SoftAes::new(key),
+            blocks: core::cell::Cell::new(0),
+            fail_at: FAIL_AT.get(),
+        }
+    }
+
+    fn encrypt(&self, block: &mut [u8; BLOCK_LEN]) -> Result<(), CipherFault> {
+        let n = self.blocks.get();
+        self.blocks.set(n + 1);
+        BLOCKS.set(BLOCKS.get() + 1);
+        if n == self.fail_at {
+            *block = [0xEE; BLOCK_LEN];
+            return Err(CipherFault);
+        }
+        self.aes.encrypt(block)
+    }
+}
+
+/// The ENC-MIC-64 path with a block cipher of the caller's (a board's hardware AES) is
+/// the same codec: Annex C.2.3 through it, and our data frame byte for byte as the
+/// general path makes it, opened again; the cipher really is the one asked for.
+#[test]
+fn the_enc_mic_64_path_takes_a_board_block_cipher() {
+    FAIL_AT.set(usize::MAX);
+    BLOCKS.set(0);
+    let (a, m) = C23_FRAME.split_at(29);
+    let mut m = [m[0]];
+    let mut mic = [0u8; 8];
+    let level = SecurityLevel::EncMic64;
+    seal_default::<BoardCipher>(&ANNEX_KEY, &C23_NONCE, level, a, &mut m, &mut mic).unwrap();
+    assert_eq!(m[0], C23_SECURED_TAIL[0]);
+    assert_eq!(mic, C23_SECURED_TAIL[1..]);
+    // CBC-MAC: B0, two blocks of a (29 bytes + its 2-byte length), one of m; CTR: A0
+    // (the MIC) and A1.
+    assert_eq!(BLOCKS.get(), 6);
+    unseal_default::<BoardCipher>(&ANNEX_KEY, &C23_NONCE, level, a, &mut m, &mic).unwrap();
+    assert_eq!(m, [0xCE]);
+    assert_eq!(BLOCKS.get(), 12);
+
+    let mut general = [0u8; MAX_PSDU];
+    let mut board = [0u8; MAX_PSDU];
+    let src = ext_addr(0xBEEF, 0x0001);
+    let aux = AuxRepr::new(1, 5);
+    let n = secure(&header(), &aux, &ANNEX_KEY, src, b"abcd", &mut general).unwrap();
+    let k =
+        secure_default_with::<BoardCipher>(&header(), &aux, &ANNEX_KEY, src, b"abcd", &mut board)
+            .unwrap();
+    assert_eq!((k, &board[..k]), (n, &general[..n]));
+    let mut scratch = [0u8; MAX_PAYLOAD];
+    let opened =
+        open_default_with::<BoardCipher, _>(&general[..n], node_lookup(ANNEX_KEY), &mut scratch)
+            .unwrap();
+    assert_eq!((opened.aux, opened.payload), (aux, &b"abcd"[..]));
+}
+
+/// A block the cipher fails, wherever it falls (CBC-MAC or CTR), is an error, never a
+/// frame: nothing is emitted as sent, nothing opened, the scratch holds no plaintext.
+#[test]
+fn a_failed_block_is_an_error_not_a_frame() {
+    let src = ext_addr(0xBEEF, 0x0001);
+    let aux = AuxRepr::new(1, 5);
+    let mut good = [0u8; MAX_PSDU];
+    let n = secure(&header(), &aux, &ANNEX_KEY, src, b"abcd", &mut good).unwrap();
+    // 9-byte header, 6-byte aux, 4-byte payload: B0, a (15 + 2 bytes: 2 blocks), m (1),
+    // then A0 and A1.
+    for fail_at in 0..6 {
+        FAIL_AT.set(fail_at);
+        let mut out = [0u8; MAX_PSDU];
+        let sealed =
+            secure_default_with::<BoardCipher>(&header(), &aux, &ANNEX_KEY, src, b"abcd", &mut out);
+        assert_eq!(sealed, Err(SecError::Cipher), "seal, block {fail_at}");
+        let mut scratch = [0x55u8; MAX_PAYLOAD];
+        let opened =
+            open_default_with::<BoardCipher, _>(&good[..n], node_lookup(ANNEX_KEY), &mut scratch);
+        assert_eq!(opened, Err(SecError::Cipher), "open, block {fail_at}");
+        assert_eq!(scratch[..4], [0; 4], "open, block {fail_at}");
+    }
+    FAIL_AT.set(6);
+    let mut out = [0u8; MAX_PSDU];
+    let sealed =
+        secure_default_with::<BoardCipher>(&header(), &aux, &ANNEX_KEY, src, b"abcd", &mut out);
+    assert_eq!(sealed, Ok(n));
+    FAIL_AT.set(usize::MAX);
 }

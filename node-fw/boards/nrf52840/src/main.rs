@@ -8,7 +8,8 @@
 //! - pins: 16 GPIOs, outputs or inputs as the table uses them ([`gpio`]);
 //! - frame counter, table slots and boot counter: the last 28 KiB of the internal flash
 //!   ([`flash`]);
-//! - security: with a management key, the config PAN is secured (`runtime::run_secured`);
+//! - security: with a management key, the config PAN is secured (`runtime::run_secured`),
+//!   AES-128 on the AES-ECB peripheral ([`ecb`]);
 //! - log: defmt over RTT (`cargo run --release` flashes a DK with probe-rs and prints it).
 //!
 //! With the feature `gateway` the image is the serial <-> radio gateway instead
@@ -16,6 +17,8 @@
 #![no_std]
 #![no_main]
 
+#[cfg(all(feature = "ecb", not(feature = "gateway")))]
+mod ecb;
 #[cfg(not(feature = "gateway"))]
 mod flash;
 #[cfg(feature = "gateway")]
@@ -207,10 +210,17 @@ async fn main(_spawner: Spawner) {
                     Some(c)
                 }
                 Err(e) => {
+                    // Named, not formatted: no `Debug` of the error (and its flash error)
+                    // in the image.
+                    let why = match e {
+                        node_fw::frame_counter::CounterError::Geometry => "geometry",
+                        node_fw::frame_counter::CounterError::Exhausted => "exhausted",
+                        node_fw::frame_counter::CounterError::Flash(_) => "flash error",
+                    };
                     defmt::error!(
-                        "node {=u16:#06x}: frame counter: {}: staying off the air",
+                        "node {=u16:#06x}: frame counter: {=str}: staying off the air",
                         addr,
-                        defmt::Debug2Format(&e)
+                        why
                     );
                     loop {
                         Timer::after_secs(3600).await;
@@ -227,6 +237,8 @@ async fn main(_spawner: Spawner) {
             flash,
             pin_mask: runtime::pin_range(gpio::PINS),
         };
+        #[cfg(feature = "ecb")]
+        ecb::install();
         #[cfg(feature = "frame-security")]
         let (stop, stats) = {
             let mut next = || counter.as_mut().and_then(|c| block_on(c.next()).ok());
