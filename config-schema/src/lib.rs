@@ -5,13 +5,15 @@
 //! - [`limits`]: every capacity, in one place.
 //! - [`table`]: the table one node runs.
 //! - [`guard`]: the expression bytecode of guards and assignments.
-//! - [`validate`]: semantic checks of a decoded table.
+//! - [`validate`]: semantic checks of a decoded table; [`cost`]: the worst-case work of one
+//!   stimulus, which it bounds.
 //! - [`blob`]: the versioned, CRC-protected envelope, [`encode`] and [`decode`].
 //! - [`link_keys`]: the link key block that follows a blob in a secured transfer.
 #![no_std]
 #![forbid(unsafe_code)]
 
 pub mod blob;
+pub mod cost;
 pub mod guard;
 pub mod limits;
 pub mod link_keys;

@@ -3,6 +3,7 @@
 
 use core::fmt;
 
+use crate::cost::{worst_stimulus, STIMULUS_BUDGET};
 use crate::guard::{self, Expr, ExprError};
 use crate::limits::*;
 use crate::table::{Action, Chart, Table, Transition};
@@ -61,6 +62,8 @@ pub enum Invalid {
     Duplicate { at: Place },
     /// A `Publish` action for an event without a publication.
     NotPublished { at: Place, event: u8 },
+    /// One stimulus of `event` may cost more than the budget (`crate::cost`).
+    Slow { event: u8, cost: u64, budget: u64 },
 }
 
 impl fmt::Display for Place {
@@ -144,6 +147,16 @@ impl fmt::Display for Invalid {
             Invalid::NotPublished { at, event } => {
                 write!(f, "{at}: publishes event {event}, which has no publication")
             }
+            Invalid::Slow {
+                event,
+                cost,
+                budget,
+            } => write!(
+                f,
+                "a stimulus of event {event} may cost {cost} instructions, over the budget of \
+                 {budget} (1 ms at 64 MHz) by {}",
+                cost.saturating_sub(*budget)
+            ),
         }
     }
 }
@@ -178,7 +191,22 @@ pub fn validate(t: &Table) -> Result<(), Invalid> {
         action_ok(t, Place::Action(idx(a)), action)?;
     }
     routes(t)?;
-    links(t)
+    links(t)?;
+    time(t)
+}
+
+/// The worst stimulus within [`STIMULUS_BUDGET`] (checked last: it reads the pools the
+/// checks above found in range).
+fn time(t: &Table) -> Result<(), Invalid> {
+    let worst = worst_stimulus(t);
+    if worst.cost > STIMULUS_BUDGET {
+        return Err(Invalid::Slow {
+            event: worst.event,
+            cost: worst.cost,
+            budget: STIMULUS_BUDGET,
+        });
+    }
+    Ok(())
 }
 
 /// A node event id below `Table::events`.

@@ -129,6 +129,31 @@ pub fn homing_line(ir: &Ir) -> Option<String> {
     ))
 }
 
+/// One line per role: its worst stimulus (a bound, in instructions: `config_schema::cost`)
+/// and the event it is, against the budget.
+pub fn stimulus_lines(c: &Compiled) -> Vec<String> {
+    let budget = config_schema::cost::STIMULUS_BUDGET;
+    c.ir.roles
+        .iter()
+        .zip(&c.tables)
+        .map(|(r, t)| {
+            let w = config_schema::cost::worst_stimulus(t);
+            let event = r
+                .events
+                .get(usize::from(w.event))
+                .map_or("?", String::as_str);
+            format!(
+                "{:<12} worst stimulus {:>6} instructions ({:>2}% of {budget}): `{event}`, \
+                 {} event(s)",
+                r.name,
+                w.cost,
+                w.cost * 100 / budget,
+                w.cascade
+            )
+        })
+        .collect()
+}
+
 /// One summary line per role: node address, charts, states, transitions, blob bytes.
 pub fn summary(c: &Compiled) -> Vec<String> {
     c.ir.roles
@@ -137,12 +162,14 @@ pub fn summary(c: &Compiled) -> Vec<String> {
         .zip(&c.blobs)
         .map(|((r, t), b)| {
             format!(
-                "{:<12} node {:#06x}  charts {}  states {:>3}  transitions {:>3}  bytes {:>4}",
+                "{:<12} node {:#06x}  charts {}  states {:>3}  transitions {:>3}  stimulus \
+                 {:>5}  bytes {:>4}",
                 r.name,
                 r.address,
                 t.charts.len(),
                 t.states.len(),
                 t.transitions.len(),
+                config_schema::cost::worst_stimulus(t).cost,
                 b.len()
             )
         })

@@ -386,9 +386,13 @@ pub fn build(raw: &Raw) -> Table {
     t
 }
 
-/// Valid tables.
+/// Valid tables (the structure above, and a worst stimulus within the budget, which
+/// `validate` checks last).
 pub fn table() -> impl Strategy<Value = Table> {
-    raw().prop_map(|r| build(&r))
+    raw().prop_map(|r| build(&r)).prop_filter(
+        "a worst stimulus over the budget (validate refuses it)",
+        |t| config_schema::cost::worst_stimulus(t).cost <= config_schema::cost::STIMULUS_BUDGET,
+    )
 }
 
 /// One change to a payload.

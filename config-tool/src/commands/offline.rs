@@ -42,6 +42,11 @@ pub fn check(robot: &Path) -> Result<(), Failure> {
     if let Some(line) = checked.ir.as_ref().and_then(pipeline::homing_line) {
         println!("{line}");
     }
+    if let Ok(compiled) = pipeline::lower_checked(&src, checked) {
+        for line in pipeline::stimulus_lines(&compiled) {
+            println!("{line}");
+        }
+    }
     println!("{}: ok", src.name);
     Ok(())
 }

@@ -16,6 +16,7 @@ mod network;
 mod pins;
 mod sequence;
 mod tables;
+mod time;
 mod timing;
 
 use crate::diag::{self, Diagnostic};
@@ -48,6 +49,7 @@ pub const STRUCTURE: &[(&str, Pass)] = &[
 pub const SEMANTIC: &[(&str, IrPass)] = &[
     ("events", events::check),
     ("capacity", tables::check),
+    ("time", time::check),
     ("interlocks", interlocks::check),
     ("homing", homing::check_ir),
 ];

@@ -1,0 +1,313 @@
+//! The worst-case work of one stimulus (an input edge, a timer expiry, a remote event, a
+//! command), computed from the table alone, so that [`validate`](crate::validate) can
+//! refuse a table whose stimulus could keep the node deaf for long (docs/ecc-semantics.md).
+//!
+//! The model follows the interpreter (`node_fw::ecc`): a stimulus is dispatched, then every
+//! event its charts emit, up to [`MAX_CASCADE`](crate::limits::MAX_CASCADE) events. One
+//! dispatch scans every route; each route of the event delivers to its chart, which scans
+//! the chart's transitions (every guard evaluated, in the worst case), fires one and runs
+//! the target state's actions, then (a chart with event-less transitions) up to
+//! [`MAX_CHAIN`](crate::limits::MAX_CHAIN) more. Each frame a publication sends costs
+//! [`weights::FRAME`]. The count of events a cascade processes follows the emit graph: an
+//! event reaches the events its charts' states emit; a cycle counts as the whole cascade.
+//!
+//! Work is counted in instructions of the node's Cortex-M, with the weights below (the
+//! interpreter's loops as QEMU counts them on the Cortex-M3 image, and one secured frame
+//! with the nRF52840's AES peripheral); the budget keeps one stimulus under 1 ms at
+//! 64 MHz. Everything is a bound: a real stimulus takes less.
+
+use crate::limits::{MAX_CASCADE, MAX_CHAIN, MAX_CHARTS, MAX_EVENTS, MAX_STATES};
+use crate::table::{Action, EventId, Table};
+
+/// Instructions per unit of work (docs/ecc-semantics.md, "Time per stimulus").
+pub mod weights {
+    /// An event taken from the queue and dispatched.
+    pub const EVENT: u64 = 60;
+    /// A route looked at during a dispatch.
+    pub const ROUTE: u64 = 6;
+    /// A delivery to a chart.
+    pub const DELIVER: u64 = 40;
+    /// A transition looked at when a chart selects one.
+    pub const TRANSITION: u64 = 12;
+    /// One operation of a guard or an assignment.
+    pub const OP: u64 = 15;
+    /// A transition fired.
+    pub const FIRE: u64 = 30;
+    /// One action run.
+    pub const ACTION: u64 = 25;
+    /// One output driven.
+    pub const PIN: u64 = 20;
+    /// One secured event frame put on a link (a publication sends one per subscriber):
+    /// CCM* of a short event frame is about seven AES blocks, each a few hundred cycles on
+    /// the nRF52840's AES peripheral, plus the header, the encoding and the link's queue
+    /// (an estimate: the QEMU image's software AES costs about 36,500, `demo --qemu
+    /// --icount`).
+    pub const FRAME: u64 = 4_000;
+}
+
+/// The most a table's worst stimulus may cost: 1 ms at 64 MHz.
+pub const STIMULUS_BUDGET: u64 = 64_000;
+
+/// A table's worst stimulus: what it may cost and which event it is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Worst {
+    /// Instructions (a bound).
+    pub cost: u64,
+    /// The node event whose stimulus costs that much.
+    pub event: EventId,
+    /// The events its cascade may process (at most `MAX_CASCADE`).
+    pub cascade: u32,
+}
+
+/// The worst stimulus of `t` (every node event taken as a stimulus). `t` must have passed
+/// the structural checks of [`validate`](crate::validate) (ranges); anything out of range
+/// is counted as nothing.
+pub fn worst_stimulus(t: &Table) -> Worst {
+    let model = Model::of(t);
+    let mut worst = Worst {
+        cost: 0,
+        event: 0,
+        cascade: 0,
+    };
+    for e in 0..t.events.min(MAX_EVENTS as u8) {
+        let (cost, cascade) = model.stimulus(t, e);
+        if cost > worst.cost {
+            worst = Worst {
+                cost,
+                event: e,
+                cascade,
+            };
+        }
+    }
+    worst
+}
+
+/// What every dispatch of an event needs, computed once.
+struct Model {
+    /// Per event: the work of one dispatch (its own publication not included).
+    dispatch: [u64; MAX_EVENTS],
+    /// Per event: the events its deliveries may emit (bit i: event i).
+    reaches: [u64; MAX_EVENTS],
+    /// Per event: how many events one dispatch may emit.
+    emits: [u64; MAX_EVENTS],
+}
+
+impl Model {
+    fn of(t: &Table) -> Model {
+        let charts: [ChartCost; MAX_CHARTS] =
+            core::array::from_fn(|c| ChartCost::of(t, c).unwrap_or_default());
+        let mut model = Model {
+            dispatch: [weights::EVENT + weights::ROUTE * t.routes.len() as u64; MAX_EVENTS],
+            reaches: [0; MAX_EVENTS],
+            emits: [0; MAX_EVENTS],
+        };
+        for r in &t.routes {
+            let (e, c) = (usize::from(r.event), usize::from(r.chart));
+            let (Some(chart), true) = (charts.get(c), e < MAX_EVENTS) else {
+                continue;
+            };
+            // The transitions this input can fire: the dearest target, its emits, then the
+            // event-less chain.
+            let mut fire = 0u64;
+            let mut emitted = 0u64;
+            for tr in t.transitions.get(t.chart_transitions(c)).unwrap_or(&[]) {
+                if tr.trigger != Some(r.input) {
+                    continue;
+                }
+                let to = state_cost(t, c, tr.to);
+                fire = fire.max(to.fire);
+                emitted = emitted.max(to.emits);
+                model.reaches[e] |= to.emit_set;
+            }
+            let chain = chart.chain;
+            model.dispatch[e] += weights::DELIVER
+                + chart.select
+                + fire
+                + chain * (chart.select + chart.eventless.fire)
+                + if chain > 0 { chart.select } else { 0 };
+            model.emits[e] += emitted + chain * chart.eventless.emits;
+            if chain > 0 {
+                model.reaches[e] |= chart.eventless.emit_set;
+            }
+        }
+        model
+    }
+
+    /// (cost, events processed) of stimulus `e`: its own publication, then its cascade.
+    fn stimulus(&self, t: &Table, e: EventId) -> (u64, u32) {
+        let mut memo = [Cascade::default(); MAX_EVENTS];
+        let mut state = [Visit::New; MAX_EVENTS];
+        let c = self.cascade(usize::from(e), &mut memo, &mut state);
+        let own = t.publication(e).map_or(0, |p| {
+            weights::FRAME * u64::from(p.subscribers.count_ones())
+        });
+        (own.saturating_add(c.cost), c.events)
+    }
+
+    /// The cascade of one dispatch of `e`: the dispatch, then what its deliveries may emit,
+    /// each with its own cascade (the dearest of the events it may emit, as many times as
+    /// it may emit). A cycle, or more than `MAX_CASCADE` events, is the whole cascade:
+    /// `MAX_CASCADE` events, each at most the dearest dispatch of the table. The recursion
+    /// is at most `MAX_EVENTS` deep (an event open on the path is a cycle).
+    fn cascade(
+        &self,
+        e: usize,
+        memo: &mut [Cascade; MAX_EVENTS],
+        state: &mut [Visit; MAX_EVENTS],
+    ) -> Cascade {
+        let whole = Cascade {
+            cost: MAX_CASCADE as u64 * self.dispatch.iter().copied().max().unwrap_or(0),
+            events: MAX_CASCADE as u32,
+        };
+        match state.get(e).copied() {
+            None | Some(Visit::Open) => return whole,
+            Some(Visit::Done) => return memo[e],
+            Some(Visit::New) => {}
+        }
+        state[e] = Visit::Open;
+        let mut dearest = Cascade::default();
+        let mut next = self.reaches[e];
+        while next != 0 {
+            let s = next.trailing_zeros() as usize;
+            next &= next - 1;
+            let c = self.cascade(s, memo, state);
+            dearest.cost = dearest.cost.max(c.cost);
+            dearest.events = dearest.events.max(c.events);
+        }
+        let k = self.emits[e];
+        let events = u64::from(dearest.events)
+            .saturating_mul(k)
+            .saturating_add(1);
+        let c = if events > MAX_CASCADE as u64 {
+            whole
+        } else {
+            Cascade {
+                cost: self.dispatch[e]
+                    .saturating_add(dearest.cost.saturating_mul(k))
+                    .min(whole.cost),
+                events: events as u32,
+            }
+        };
+        state[e] = Visit::Done;
+        memo[e] = c;
+        c
+    }
+}
+
+/// What selecting in a chart costs, and its event-less transitions.
+#[derive(Debug, Clone, Copy, Default)]
+struct ChartCost {
+    /// Looking at every transition of the chart, every guard evaluated.
+    select: u64,
+    /// Event-less transitions that can fire in a row ([`chain_bound`]).
+    chain: u64,
+    /// The dearest target of an event-less transition.
+    eventless: StateCost,
+}
+
+impl ChartCost {
+    fn of(t: &Table, c: usize) -> Option<ChartCost> {
+        t.charts.get(c)?;
+        let transitions = t.transitions.get(t.chart_transitions(c)).unwrap_or(&[]);
+        let select = transitions
+            .iter()
+            .map(|tr| weights::TRANSITION + weights::OP * u64::from(tr.guard.map_or(0, |g| g.len)))
+            .sum();
+        let mut eventless = StateCost::default();
+        for tr in transitions.iter().filter(|tr| tr.trigger.is_none()) {
+            let to = state_cost(t, c, tr.to);
+            eventless.fire = eventless.fire.max(to.fire);
+            eventless.emits = eventless.emits.max(to.emits);
+            eventless.emit_set |= to.emit_set;
+        }
+        Some(ChartCost {
+            select,
+            chain: chain_bound(t, c),
+            eventless,
+        })
+    }
+}
+
+/// Entering one state: its actions' work, how many events it emits, and which.
+#[derive(Debug, Clone, Copy, Default)]
+struct StateCost {
+    fire: u64,
+    emits: u64,
+    emit_set: u64,
+}
+
+/// Entering chart-local state `state` of chart `c`.
+fn state_cost(t: &Table, c: usize, state: u8) -> StateCost {
+    let s = t.chart_states(c).start + usize::from(state);
+    let actions = t.actions.get(t.state_actions(s)).unwrap_or(&[]);
+    let mut out = StateCost {
+        fire: weights::FIRE,
+        ..StateCost::default()
+    };
+    for a in actions {
+        out.fire += weights::ACTION + action_cost(t, a);
+        if let Action::Emit(e) = a {
+            out.emits += 1;
+            out.emit_set |= 1u64.checked_shl(u32::from(*e)).unwrap_or(0);
+        }
+    }
+    out
+}
+
+/// The work and the events of a cascade.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+struct Cascade {
+    cost: u64,
+    events: u32,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Visit {
+    New,
+    Open,
+    Done,
+}
+
+/// How many event-less transitions of chart `c` can fire in a row: the longest path of its
+/// event-less transitions, or `MAX_CHAIN` when they form a cycle (the interpreter faults
+/// past it).
+fn chain_bound(t: &Table, c: usize) -> u64 {
+    let transitions = t.transitions.get(t.chart_transitions(c)).unwrap_or(&[]);
+    let states = t.chart_states(c).len().min(MAX_STATES);
+    // Longest path by relaxation: still growing after as many rounds as states: a cycle.
+    let mut longest = [0u64; MAX_STATES];
+    for _ in 0..=states {
+        let mut changed = false;
+        for tr in transitions.iter().filter(|tr| tr.trigger.is_none()) {
+            let (from, to) = (usize::from(tr.from), usize::from(tr.to));
+            if from >= states || to >= states {
+                continue;
+            }
+            let through = longest[to] + 1;
+            if through > longest[from] {
+                longest[from] = through;
+                changed = true;
+            }
+        }
+        if !changed {
+            let most = longest.iter().copied().max().unwrap_or(0);
+            return most.min(MAX_CHAIN as u64);
+        }
+    }
+    MAX_CHAIN as u64
+}
+
+/// What one action costs besides [`weights::ACTION`].
+fn action_cost(t: &Table, a: &Action) -> u64 {
+    let frames = |e: EventId| {
+        t.publication(e).map_or(0, |p| {
+            weights::FRAME * u64::from(p.subscribers.count_ones())
+        })
+    };
+    match *a {
+        Action::Set { expr, .. } => weights::OP * u64::from(expr.len),
+        Action::Drive { mask, .. } => weights::PIN * u64::from(mask.count_ones()),
+        Action::Emit(e) | Action::Publish(e) => frames(e),
+        Action::StartTimer { .. } | Action::CancelTimer(_) | Action::Fault(_) => 0,
+    }
+}
