@@ -300,7 +300,7 @@ fn place_one(
         return Err(vec![Diagnostic::error(
             here,
             format!(
-                "automaton `{}` needs {} charts on role `{role_name}` (one per transition) besides its {own} other charts: {charts} charts, but a node holds at most MAX_CHARTS = {MAX_CHARTS} (over by {})",
+                "automaton `{}` needs {} charts (one per transition) on role `{role_name}`, which has {own} of its own: {charts} charts, but a node holds at most MAX_CHARTS = {MAX_CHARTS} (over by {})",
                 a.name,
                 net.instances.len(),
                 charts - MAX_CHARTS
@@ -456,4 +456,157 @@ fn colour_events(
         out.insert(c, local);
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::automata::from_facts;
+
+    const FIG1: &str = "state(s0). state(s1).
+transition(t1,s0,s1,black,_,ordinary). transition(t2,s0,s0,orange,999,ordinary).
+transition(t3,s1,s1,gray,2,ordinary). transition(t4,s1,s0,black,_,final).
+initial_state(s0).";
+
+    fn robot(automaton: &str) -> String {
+        format!(
+            r#"Robot(
+    name: "sorter",
+    network: (pan_id: 0x0101, channel: 11),
+    nodes: [(name: "n1", address: 0x0001)],
+    assign: [("sorter", "n1")],
+    roles: [(name: "sorter")],
+    colours: ["black", "gray", "orange"],
+    automata: [{automaton}],
+)"#
+        )
+    }
+
+    fn errors(text: &str) -> Vec<String> {
+        let src = Source::new("sorter.ron", text);
+        match crate::compile(&src) {
+            Ok(_) => Vec::new(),
+            Err(d) => d
+                .iter()
+                .filter(|d| d.is_error())
+                .map(|d| d.message.clone())
+                .collect(),
+        }
+    }
+
+    /// The shipped type parses and has the paper's interface and six states (plus START).
+    #[test]
+    fn the_fb_type_has_the_papers_interface() {
+        let t = fb_type().expect("parses");
+        assert_eq!(t.inputs, ["Set", "Reset", "WP", "Setup"]);
+        assert_eq!(t.outputs, ["OutSet", "OutReset", "Out", "EOS"]);
+        assert_eq!(t.params, ["C", "T", "R", "M"]);
+        let states: Vec<&str> = t.states.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(
+            states,
+            ["START", "Reset", "Setup", "Set", "WP", "WP1", "WP2"]
+        );
+    }
+
+    /// Fig. 1's network: the parameters of the paper's four rules and every arc.
+    #[test]
+    fn fig1_network_by_the_rules() {
+        let a = from_facts("fig1", FIG1).expect("facts").automaton;
+        let net = network(&a);
+        let params: Vec<(String, i32, bool, bool, i32, bool)> = net
+            .instances
+            .iter()
+            .map(|i| (i.chart.clone(), i.c, i.t, i.r, i.m, i.is_final))
+            .collect();
+        let want = [
+            ("fig1.t1", 0, true, false, 1, false),
+            ("fig1.t2", 1, true, true, 999, false),
+            ("fig1.t3", 2, false, true, 2, false),
+            ("fig1.t4", 0, false, false, 1, true),
+        ];
+        let want: Vec<_> = want
+            .iter()
+            .map(|&(n, c, t, r, m, f)| (n.to_string(), c, t, r, m, f))
+            .collect();
+        assert_eq!(params, want);
+        let arcs: Vec<String> = net
+            .connections
+            .iter()
+            .map(|c| {
+                let id = |t: TransitionId| a.get(t).expect("t").id.clone();
+                format!("{} -{:?}-> {}", id(c.from), c.arc, id(c.to))
+            })
+            .collect();
+        assert_eq!(
+            arcs,
+            [
+                "t1 -Set-> t3",
+                "t1 -Set-> t4",
+                "t1 -Reset-> t2",
+                "t4 -Set-> t1",
+                "t4 -Set-> t2",
+                "t4 -Reset-> t3",
+            ]
+        );
+        assert_eq!(delivery_order(&a).len(), 4);
+    }
+
+    /// Nine transitions on one node: the error names MAX_CHARTS, by how much, what to do.
+    #[test]
+    fn too_many_charts_for_a_node() {
+        let ts: Vec<String> = (0..9)
+            .map(|k| format!("transition(t{k},s0,s1,black,_,final)."))
+            .collect();
+        let decl = format!(
+            "(name: \"big\", role: \"sorter\", deterministic: false, facts: \"state(s0). state(s1). {} initial_state(s0).\")",
+            ts.join(" ")
+        );
+        assert_eq!(
+            errors(&robot(&decl)),
+            ["automaton `big` needs 9 charts (one per transition) on role `sorter`, which has 0 of its own: 9 charts, but a node holds at most MAX_CHARTS = 8 (over by 1)"]
+        );
+    }
+
+    #[test]
+    fn unknown_role() {
+        let decl = format!("(name: \"fig1\", role: \"nowhere\", facts: \"{FIG1}\")");
+        assert_eq!(
+            errors(&robot(&decl)),
+            ["unknown role `nowhere` for automaton `fig1`"]
+        );
+    }
+
+    /// A loop and a leaving transition of one colour beside a loop of another colour.
+    #[test]
+    fn a_state_the_network_cannot_run() {
+        let decl =
+            "(name: \"x\", role: \"sorter\", deterministic: false, facts: \"state(s0). state(s1).
+transition(a,s0,s0,black,2,ordinary). transition(b,s0,s1,black,_,final).
+transition(c,s0,s0,gray,2,ordinary). initial_state(s0).\")";
+        assert_eq!(
+            errors(&robot(decl)),
+            ["automaton `x` cannot be compiled to a token network: in state `s0`, loop `a` and `b` (which leaves it) take the same colour, and loop `c` takes another; when `a` keeps `s0` active, the tokens it gives back would restart `c`'s count"]
+        );
+    }
+
+    /// Fig. 1 on its role: four charts, its colour events and the automaton's EOS.
+    #[test]
+    fn fig1_joins_its_role() {
+        let decl = format!("(name: \"fig1\", role: \"sorter\", facts: \"{FIG1}\")");
+        let text = robot(&decl);
+        let c = crate::compile(&Source::new("sorter.ron", text.as_str())).expect("compiles");
+        let r = &c.ir.roles[0];
+        let charts: Vec<&str> = r.charts.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(charts, ["fig1.t1", "fig1.t2", "fig1.t3", "fig1.t4"]);
+        for e in [
+            "part.black",
+            "part.gray",
+            "part.orange",
+            "fig1.EOS",
+            "fig1.t1.Out",
+        ] {
+            assert!(r.events.iter().any(|x| x == e), "{e}: {:?}", r.events);
+        }
+        assert!(!r.events.iter().any(|x| x == "fig1.t1.EOS"));
+    }
 }
