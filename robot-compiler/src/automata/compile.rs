@@ -270,6 +270,21 @@ pub fn place(robot: &Robot, src: &Source, ir: &mut Ir) -> Result<(), Vec<Diagnos
     Ok(())
 }
 
+/// The robot's automata placed on `role` (for `diagram`).
+pub fn placed(robot: &Robot, src: &Source, role: &str) -> Vec<Automaton> {
+    load(robot, src)
+        .automata
+        .into_iter()
+        .map(|l| l.automaton)
+        .filter(|a| {
+            robot
+                .automata
+                .iter()
+                .any(|d| d.name == a.name && d.role.as_deref() == Some(role))
+        })
+        .collect()
+}
+
 fn place_one(
     robot: &Robot,
     src: &Source,
@@ -589,11 +604,16 @@ transition(c,s0,s0,gray,2,ordinary). initial_state(s0).\")";
         );
     }
 
+    pub(super) fn fig1_robot() -> String {
+        robot(&format!(
+            "(name: \"fig1\", role: \"sorter\", facts: \"{FIG1}\")"
+        ))
+    }
+
     /// Fig. 1 on its role: four charts, its colour events and the automaton's EOS.
     #[test]
     fn fig1_joins_its_role() {
-        let decl = format!("(name: \"fig1\", role: \"sorter\", facts: \"{FIG1}\")");
-        let text = robot(&decl);
+        let text = fig1_robot();
         let c = crate::compile(&Source::new("sorter.ron", text.as_str())).expect("compiles");
         let r = &c.ir.roles[0];
         let charts: Vec<&str> = r.charts.iter().map(|c| c.name.as_str()).collect();
@@ -608,5 +628,35 @@ transition(c,s0,s0,gray,2,ordinary). initial_state(s0).\")";
             assert!(r.events.iter().any(|x| x == e), "{e}: {:?}", r.events);
         }
         assert!(!r.events.iter().any(|x| x == "fig1.t1.EOS"));
+    }
+}
+
+#[cfg(test)]
+mod diagram_tests {
+    use super::*;
+
+    /// `diagram` draws fig. 1 as its FB network (set and reset arcs, colour events, EOS)
+    /// and the FB type's ECC once, not the four instance charts.
+    #[test]
+    fn diagram_draws_the_network_and_the_ecc() {
+        let text = super::tests::fig1_robot();
+        let src = Source::new("sorter.ron", text.as_str());
+        let c = crate::compile(&src).expect("compiles");
+        let automata = placed(&c.robot, &src, "sorter");
+        let dot = crate::diagram::dot_with_automata(&c.ir, &automata, "sorter").expect("dot");
+        for line in [
+            "    n0t0 [shape=box, style=\"\", label=\"fig1.t1\\ls0 -> s1\\lC=black T=1 R=0 M=1\\l\"];",
+            "    n0t3 [shape=box, style=\"\", label=\"fig1.t4\\ls1 -> s0\\lC=black T=0 R=0 M=1\\lEOS\\l\"];",
+            "    n0t0 -> n0t2 [label=\"OutSet -> Set\"];",
+            "    n0t0 -> n0t1 [label=\"OutReset -> Reset\", style=dashed];",
+            "    n0c0 -> n0t3 [label=\"WP\", style=dotted];",
+            "    n0t3 -> n0eos [label=\"EOS\", style=dotted];",
+            "    label=\"ECC of FB type SelectingTransition\";",
+            "    ts0 -> ts4 [label=\"WP [token]\"];",
+            "    ts4 -> ts5 [label=\"[R && count + 1 < M]\"];",
+        ] {
+            assert!(dot.lines().any(|l| l == line), "{line}\n{dot}");
+        }
+        assert!(!dot.contains("cluster_0 "), "{dot}");
     }
 }
