@@ -3,7 +3,7 @@
 //! guards, and turns connections that cross roles into imports (publications /
 //! subscriptions after lowering). Problems come back as diagnostics with spans.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 
 use crate::diag::Diagnostic;
 use crate::expr::{self, Operand};
@@ -365,18 +365,45 @@ fn chart(
                 .join(", ")
         ))]);
     };
+    instantiate(
+        src,
+        &format!("chart_types[{ti}]"),
+        role,
+        c,
+        t,
+        &BTreeMap::new(),
+        r,
+        &at,
+    )
+}
+
+/// Instantiates chart type `t` (written at `tp` of `src`) as chart `c` of `role` into `r`
+/// (`at`: the instance's path). `bind` names the event a chart output is emitted as
+/// (default `CHART.OUTPUT`): the generated charts of an automaton emit its `EOS` so.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn instantiate(
+    src: &Source,
+    tp: &str,
+    role: &Role,
+    c: &ChartInstance,
+    t: &ChartType,
+    bind: &BTreeMap<String, String>,
+    r: &mut RoleIr,
+    at: &str,
+) -> Result<ChartIr, Vec<Diagnostic>> {
     let mut cx = ChartCx {
         src,
         role,
         c,
         t,
-        tp: format!("chart_types[{ti}]"),
+        tp: tp.to_string(),
+        bind,
         var_base: r.vars.len(),
         timer_base: 0,
         inputs: Vec::new(),
         diags: Vec::new(),
     };
-    cx.params(&at);
+    cx.params(at);
     cx.declare(r);
     let mut states = Vec::new();
     for (si, s) in t.states.iter().enumerate() {
@@ -415,6 +442,8 @@ struct ChartCx<'a> {
     t: &'a ChartType,
     /// The path of the chart type (`chart_types[i]`).
     tp: String,
+    /// Outputs emitted as another event than `CHART.OUTPUT`.
+    bind: &'a BTreeMap<String, String>,
     var_base: usize,
     timer_base: usize,
     /// The role's inputs (expressions may read them).
@@ -532,7 +561,11 @@ impl ChartCx<'_> {
                 });
             }
             ActionDecl::Emit(o) if t.outputs.contains(o) => {
-                let e = format!("{}.{o}", c.name);
+                let e = self
+                    .bind
+                    .get(o)
+                    .cloned()
+                    .unwrap_or_else(|| format!("{}.{o}", c.name));
                 r.event(&e);
                 return Some(ActionIr::Emit(e));
             }

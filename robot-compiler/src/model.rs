@@ -111,6 +111,15 @@ pub struct AutomatonDecl {
     /// nondeterministic (`false`: it is expected, not reported).
     #[serde(default)]
     pub deterministic: Option<bool>,
+    /// The role whose node runs the automaton: its network of generated charts joins that
+    /// role's table (docs/selecting-automata.md). None: the automaton is only checked.
+    #[serde(default)]
+    pub role: Option<String>,
+    /// Where a part's colour comes from: the events `PARTS.COLOUR`, one per colour
+    /// (`part.black`), of the automaton's role, or of another role as `ROLE/PARTS`.
+    /// Default `part`.
+    #[serde(default)]
+    pub parts: Option<String>,
 }
 
 /// One transition of an automaton: `from` -> `to` on a part of `colour`. `max`: how many

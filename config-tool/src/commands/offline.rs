@@ -89,8 +89,9 @@ pub fn dump(blob: &Path) -> Result<(), Failure> {
 }
 
 pub fn diagram(robot: &Path, role: &str, format: Format) -> Result<(), Failure> {
-    let (_, compiled) = load_compiled(robot)?;
-    let dot = diagram::dot(&compiled.ir, role).map_err(Failure::error)?;
+    let (src, compiled) = load_compiled(robot)?;
+    let automata = robot_compiler::automata::compile::placed(&compiled.robot, &src, role);
+    let dot = diagram::dot_with_automata(&compiled.ir, &automata, role).map_err(Failure::error)?;
     match format {
         Format::Dot => print!("{dot}"),
         Format::Svg => print!("{}", diagram::svg(&dot).map_err(Failure::error)?),

@@ -8,6 +8,7 @@
 //! - [`check`]: the `check` pass: determinism, reachability, caps, colours, conflicts.
 
 pub mod check;
+pub mod compile;
 mod load;
 pub mod prolog;
 

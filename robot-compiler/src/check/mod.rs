@@ -114,8 +114,15 @@ pub fn check(src: &Source) -> Checked {
 }
 
 /// Elaborates a robot that passed the structural checks: synthesis for a sequence,
-/// elaboration of explicit charts otherwise.
+/// elaboration of explicit charts otherwise; then the charts of the selecting automata
+/// placed on a role join it.
 fn build_ir(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
+    let mut ir = build_charts(robot, src)?;
+    crate::automata::compile::place(robot, src, &mut ir)?;
+    Ok(ir)
+}
+
+fn build_charts(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
     match &robot.sequence {
         Some(text) => {
             let steps: Vec<_> = parse_steps(text)

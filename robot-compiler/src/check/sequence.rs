@@ -12,7 +12,9 @@ use crate::source::Source;
 
 pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
     let has_charts = robot.roles.iter().any(|r| !r.charts.is_empty());
-    match (&robot.sequence, has_charts) {
+    // An automaton placed on a role brings its own charts.
+    let placed = robot.automata.iter().any(|a| a.role.is_some());
+    match (&robot.sequence, has_charts || placed) {
         (Some(_), true) => out.push(Diagnostic::error(
             src.key_span("sequence"),
             "a robot has either a `sequence` or explicit `charts`, not both",
