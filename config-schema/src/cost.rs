@@ -94,8 +94,7 @@ struct Model {
 
 impl Model {
     fn of(t: &Table) -> Model {
-        let charts: [ChartCost; MAX_CHARTS] =
-            core::array::from_fn(|c| ChartCost::of(t, c).unwrap_or_default());
+        let charts: [Option<ChartCost>; MAX_CHARTS] = core::array::from_fn(|c| ChartCost::of(t, c));
         let mut model = Model {
             dispatch: [weights::EVENT + weights::ROUTE * t.routes.len() as u64; MAX_EVENTS],
             reaches: [0; MAX_EVENTS],
@@ -103,32 +102,13 @@ impl Model {
         };
         for r in &t.routes {
             let (e, c) = (usize::from(r.event), usize::from(r.chart));
-            let (Some(chart), true) = (charts.get(c), e < MAX_EVENTS) else {
+            let (Some(Some(chart)), true) = (charts.get(c), e < MAX_EVENTS) else {
                 continue;
             };
-            // The transitions this input can fire: the dearest target, its emits, then the
-            // event-less chain.
-            let mut fire = 0u64;
-            let mut emitted = 0u64;
-            for tr in t.transitions.get(t.chart_transitions(c)).unwrap_or(&[]) {
-                if tr.trigger != Some(r.input) {
-                    continue;
-                }
-                let to = state_cost(t, c, tr.to);
-                fire = fire.max(to.fire);
-                emitted = emitted.max(to.emits);
-                model.reaches[e] |= to.emit_set;
-            }
-            let chain = chart.chain;
-            model.dispatch[e] += weights::DELIVER
-                + chart.select
-                + fire
-                + chain * (chart.select + chart.eventless.fire)
-                + if chain > 0 { chart.select } else { 0 };
-            model.emits[e] += emitted + chain * chart.eventless.emits;
-            if chain > 0 {
-                model.reaches[e] |= chart.eventless.emit_set;
-            }
+            let d = chart.delivery(t, c, r.input);
+            model.dispatch[e] += d.cost;
+            model.reaches[e] |= d.emit_set;
+            model.emits[e] += d.emits;
         }
         model
     }
@@ -194,15 +174,23 @@ impl Model {
     }
 }
 
-/// What selecting in a chart costs, and its event-less transitions.
-#[derive(Debug, Clone, Copy, Default)]
+/// What selecting in a chart costs, and how long its event-less chains can be.
 struct ChartCost {
     /// Looking at every transition of the chart, every guard evaluated.
     select: u64,
-    /// Event-less transitions that can fire in a row ([`chain_bound`]).
-    chain: u64,
-    /// The dearest target of an event-less transition.
-    eventless: StateCost,
+    /// Whether it has event-less transitions (a delivery then ends with a select that
+    /// finds none).
+    eventless: bool,
+    /// Per chart-local state: how many event-less transitions can fire in a row from it
+    /// (the longest path; `MAX_CHAIN` from a state that reaches a cycle).
+    chain: [u64; MAX_STATES],
+}
+
+/// One delivery of a chart input.
+struct Delivery {
+    cost: u64,
+    emits: u64,
+    emit_set: u64,
 }
 
 impl ChartCost {
@@ -213,18 +201,69 @@ impl ChartCost {
             .iter()
             .map(|tr| weights::TRANSITION + weights::OP * u64::from(tr.guard.map_or(0, |g| g.len)))
             .sum();
-        let mut eventless = StateCost::default();
-        for tr in transitions.iter().filter(|tr| tr.trigger.is_none()) {
-            let to = state_cost(t, c, tr.to);
-            eventless.fire = eventless.fire.max(to.fire);
-            eventless.emits = eventless.emits.max(to.emits);
-            eventless.emit_set |= to.emit_set;
-        }
         Some(ChartCost {
             select,
-            chain: chain_bound(t, c),
-            eventless,
+            eventless: transitions.iter().any(|tr| tr.trigger.is_none()),
+            chain: chains(t, c),
         })
+    }
+
+    /// Input `input` delivered to chart `c`: the dearest transition it can fire, then the
+    /// event-less chain from where that leads (each step the dearest event-less target
+    /// reachable from there), the events all of these may emit.
+    fn delivery(&self, t: &Table, c: usize, input: u8) -> Delivery {
+        let transitions = t.transitions.get(t.chart_transitions(c)).unwrap_or(&[]);
+        let n = t.chart_states(c).len().min(MAX_STATES);
+        let mut first = StateCost::default();
+        let mut chain = 0u64;
+        // States entered by an event-less transition from where the input leads.
+        let mut reached = [false; MAX_STATES];
+        let mut todo = [0u8; MAX_STATES];
+        let mut top = 0usize;
+        for tr in transitions.iter().filter(|tr| tr.trigger == Some(input)) {
+            let to = state_cost(t, c, tr.to);
+            first.fire = first.fire.max(to.fire);
+            first.emits = first.emits.max(to.emits);
+            first.emit_set |= to.emit_set;
+            chain = chain.max(self.chain.get(usize::from(tr.to)).copied().unwrap_or(0));
+            if top < MAX_STATES {
+                todo[top] = tr.to;
+                top += 1;
+            }
+        }
+        let mut then = StateCost::default();
+        while top > 0 {
+            top -= 1;
+            let from = todo[top];
+            for tr in transitions
+                .iter()
+                .filter(|tr| tr.trigger.is_none() && tr.from == from)
+            {
+                let to = usize::from(tr.to);
+                if to >= n || reached[to] {
+                    continue;
+                }
+                reached[to] = true;
+                let cost = state_cost(t, c, tr.to);
+                then.fire = then.fire.max(cost.fire);
+                then.emits = then.emits.max(cost.emits);
+                then.emit_set |= cost.emit_set;
+                if top < MAX_STATES {
+                    todo[top] = tr.to;
+                    top += 1;
+                }
+            }
+        }
+        let last = if self.eventless { self.select } else { 0 };
+        Delivery {
+            cost: weights::DELIVER
+                + self.select
+                + first.fire
+                + chain * (self.select + then.fire)
+                + last,
+            emits: first.emits + chain * then.emits,
+            emit_set: first.emit_set | then.emit_set,
+        }
     }
 }
 
@@ -268,33 +307,40 @@ enum Visit {
     Done,
 }
 
-/// How many event-less transitions of chart `c` can fire in a row: the longest path of its
-/// event-less transitions, or `MAX_CHAIN` when they form a cycle (the interpreter faults
-/// past it).
-fn chain_bound(t: &Table, c: usize) -> u64 {
+/// Per chart-local state of chart `c`: how many event-less transitions can fire in a row
+/// from it: the longest path of event-less transitions, or `MAX_CHAIN` from a state that
+/// reaches a cycle of them (the interpreter faults past `MAX_CHAIN`).
+fn chains(t: &Table, c: usize) -> [u64; MAX_STATES] {
     let transitions = t.transitions.get(t.chart_transitions(c)).unwrap_or(&[]);
-    let states = t.chart_states(c).len().min(MAX_STATES);
-    // Longest path by relaxation: still growing after as many rounds as states: a cycle.
+    let n = t.chart_states(c).len().min(MAX_STATES);
+    // Longest paths by relaxation: after n + 1 rounds a state still over n - 1 reaches a
+    // cycle (an acyclic path visits each state once).
     let mut longest = [0u64; MAX_STATES];
-    for _ in 0..=states {
+    for _ in 0..=n {
         let mut changed = false;
         for tr in transitions.iter().filter(|tr| tr.trigger.is_none()) {
             let (from, to) = (usize::from(tr.from), usize::from(tr.to));
-            if from >= states || to >= states {
+            if from >= n || to >= n {
                 continue;
             }
-            let through = longest[to] + 1;
+            let through = longest[to].saturating_add(1);
             if through > longest[from] {
                 longest[from] = through;
                 changed = true;
             }
         }
         if !changed {
-            let most = longest.iter().copied().max().unwrap_or(0);
-            return most.min(MAX_CHAIN as u64);
+            break;
         }
     }
-    MAX_CHAIN as u64
+    for l in longest.iter_mut() {
+        *l = if *l >= n as u64 && *l > 0 {
+            MAX_CHAIN as u64
+        } else {
+            (*l).min(MAX_CHAIN as u64)
+        };
+    }
+    longest
 }
 
 /// What one action costs besides [`weights::ACTION`].
