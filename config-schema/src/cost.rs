@@ -5,7 +5,8 @@
 //! The model follows the interpreter (`node_fw::ecc`): a stimulus is dispatched, then every
 //! event its charts emit, up to [`MAX_CASCADE`](crate::limits::MAX_CASCADE) events. One
 //! dispatch scans every route; each route of the event delivers to its chart, which scans
-//! the chart's transitions (every guard evaluated, in the worst case), fires one and runs
+//! the chart's transitions (evaluating the guards of those that leave its current state on
+//! that input: the state with the longest of them, in the worst case), fires one and runs
 //! the target state's actions, then (a chart with event-less transitions) up to
 //! [`MAX_CHAIN`](crate::limits::MAX_CHAIN) more. Each frame a publication sends costs
 //! [`weights::FRAME`]. The count of events a cascade processes follows the emit graph: an
@@ -19,24 +20,29 @@
 use crate::limits::{MAX_CASCADE, MAX_CHAIN, MAX_CHARTS, MAX_EVENTS, MAX_STATES};
 use crate::table::{Action, EventId, Table};
 
-/// Instructions per unit of work (docs/ecc-semantics.md, "Time per stimulus").
+/// Instructions per unit of work (docs/ecc-semantics.md, "Time per stimulus"). Measured on
+/// the QEMU Cortex-M3 image (`-icount shift=0`) with the worst table the budget allows (a
+/// transition with a 31-operation guard: 834 instructions; the rest of one stimulus: about
+/// 1,130), with a margin; the others are estimates of the same loops.
 pub mod weights {
+    /// Entering the node with one stimulus (its engine resumed, its effects applied).
+    pub const STIMULUS: u64 = 1_200;
     /// An event taken from the queue and dispatched.
-    pub const EVENT: u64 = 60;
+    pub const EVENT: u64 = 120;
     /// A route looked at during a dispatch.
-    pub const ROUTE: u64 = 6;
+    pub const ROUTE: u64 = 10;
     /// A delivery to a chart.
-    pub const DELIVER: u64 = 40;
+    pub const DELIVER: u64 = 60;
     /// A transition looked at when a chart selects one.
-    pub const TRANSITION: u64 = 12;
+    pub const TRANSITION: u64 = 30;
     /// One operation of a guard or an assignment.
-    pub const OP: u64 = 15;
+    pub const OP: u64 = 30;
     /// A transition fired.
-    pub const FIRE: u64 = 30;
+    pub const FIRE: u64 = 60;
     /// One action run.
-    pub const ACTION: u64 = 25;
+    pub const ACTION: u64 = 40;
     /// One output driven.
-    pub const PIN: u64 = 20;
+    pub const PIN: u64 = 40;
     /// One secured event frame put on a link (a publication sends one per subscriber):
     /// CCM* of a short event frame is about seven AES blocks, each a few hundred cycles on
     /// the nRF52840's AES peripheral, plus the header, the encoding and the link's queue
@@ -121,7 +127,10 @@ impl Model {
         let own = t.publication(e).map_or(0, |p| {
             weights::FRAME * u64::from(p.subscribers.count_ones())
         });
-        (own.saturating_add(c.cost), c.events)
+        (
+            weights::STIMULUS.saturating_add(own).saturating_add(c.cost),
+            c.events,
+        )
     }
 
     /// The cascade of one dispatch of `e`: the dispatch, then what its deliveries may emit,
@@ -176,14 +185,17 @@ impl Model {
 
 /// What selecting in a chart costs, and how long its event-less chains can be.
 struct ChartCost {
-    /// Looking at every transition of the chart, every guard evaluated.
-    select: u64,
+    /// Looking at every transition of the chart (the interpreter scans them all; it
+    /// evaluates the guards of those leaving the current state on the input only).
+    scan: u64,
     /// Whether it has event-less transitions (a delivery then ends with a select that
     /// finds none).
     eventless: bool,
     /// Per chart-local state: how many event-less transitions can fire in a row from it
     /// (the longest path; `MAX_CHAIN` from a state that reaches a cycle).
     chain: [u64; MAX_STATES],
+    /// Per chart-local state: the guard operations of its event-less transitions.
+    eventless_ops: [u64; MAX_STATES],
 }
 
 /// One delivery of a chart input.
@@ -197,36 +209,47 @@ impl ChartCost {
     fn of(t: &Table, c: usize) -> Option<ChartCost> {
         t.charts.get(c)?;
         let transitions = t.transitions.get(t.chart_transitions(c)).unwrap_or(&[]);
-        let select = transitions
-            .iter()
-            .map(|tr| weights::TRANSITION + weights::OP * u64::from(tr.guard.map_or(0, |g| g.len)))
-            .sum();
+        let mut eventless_ops = [0u64; MAX_STATES];
+        for tr in transitions.iter().filter(|tr| tr.trigger.is_none()) {
+            if let Some(ops) = eventless_ops.get_mut(usize::from(tr.from)) {
+                *ops += u64::from(tr.guard.map_or(0, |g| g.len));
+            }
+        }
         Some(ChartCost {
-            select,
+            scan: weights::TRANSITION * transitions.len() as u64,
             eventless: transitions.iter().any(|tr| tr.trigger.is_none()),
             chain: chains(t, c),
+            eventless_ops,
         })
     }
 
-    /// Input `input` delivered to chart `c`: the dearest transition it can fire, then the
-    /// event-less chain from where that leads (each step the dearest event-less target
-    /// reachable from there), the events all of these may emit.
+    /// Input `input` delivered to chart `c`: the select (from whatever state the chart is
+    /// in: the one whose transitions on the input have the longest guards), the dearest
+    /// transition it can fire, then the event-less chain from where that leads (each step
+    /// a select and the dearest event-less target reachable from there), and the events
+    /// all of these may emit.
     fn delivery(&self, t: &Table, c: usize, input: u8) -> Delivery {
         let transitions = t.transitions.get(t.chart_transitions(c)).unwrap_or(&[]);
         let n = t.chart_states(c).len().min(MAX_STATES);
+        let mut on_input = [0u64; MAX_STATES];
         let mut first = StateCost::default();
         let mut chain = 0u64;
-        // States entered by an event-less transition from where the input leads.
+        // States a chain may pass: where the input leads, then event-less targets.
         let mut reached = [false; MAX_STATES];
         let mut todo = [0u8; MAX_STATES];
         let mut top = 0usize;
         for tr in transitions.iter().filter(|tr| tr.trigger == Some(input)) {
+            if let Some(ops) = on_input.get_mut(usize::from(tr.from)) {
+                *ops += u64::from(tr.guard.map_or(0, |g| g.len));
+            }
             let to = state_cost(t, c, tr.to);
             first.fire = first.fire.max(to.fire);
             first.emits = first.emits.max(to.emits);
             first.emit_set |= to.emit_set;
             chain = chain.max(self.chain.get(usize::from(tr.to)).copied().unwrap_or(0));
-            if top < MAX_STATES {
+            let at = usize::from(tr.to);
+            if at < n && !reached[at] && top < MAX_STATES {
+                reached[at] = true;
                 todo[top] = tr.to;
                 top += 1;
             }
@@ -254,12 +277,20 @@ impl ChartCost {
                 }
             }
         }
-        let last = if self.eventless { self.select } else { 0 };
+        let guards = on_input.iter().copied().max().unwrap_or(0);
+        let chain_guards = (0..n)
+            .filter(|&s| reached[s])
+            .map(|s| self.eventless_ops[s])
+            .max()
+            .unwrap_or(0);
+        let select = self.scan + weights::OP * guards;
+        let chain_select = self.scan + weights::OP * chain_guards;
+        let last = if self.eventless { chain_select } else { 0 };
         Delivery {
             cost: weights::DELIVER
-                + self.select
+                + select
                 + first.fire
-                + chain * (self.select + then.fire)
+                + chain * (chain_select + then.fire)
                 + last,
             emits: first.emits + chain * then.emits,
             emit_set: first.emit_set | then.emit_set,

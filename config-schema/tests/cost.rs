@@ -52,7 +52,7 @@ fn a_small_table_costs_exactly_its_dispatch() {
     assert_eq!(
         worst_stimulus(&t),
         Worst {
-            cost: dispatch,
+            cost: w::STIMULUS + dispatch,
             event: 0,
             cascade: 1
         }
@@ -87,7 +87,7 @@ fn an_emit_cycle_counts_as_the_whole_cascade() {
     let worst = worst_stimulus(&t);
     let dispatch = w::EVENT + w::ROUTE + w::DELIVER + w::TRANSITION + w::FIRE + w::ACTION;
     assert_eq!(worst.cascade, MAX_CASCADE as u32);
-    assert_eq!(worst.cost, MAX_CASCADE as u64 * dispatch);
+    assert_eq!(worst.cost, w::STIMULUS + MAX_CASCADE as u64 * dispatch);
 }
 
 /// Event-less transitions: a path of two counts two fires; a cycle counts `MAX_CHAIN`.
@@ -106,7 +106,7 @@ fn an_eventless_chain_counts_its_longest_path_or_the_chain_limit() {
         worst_stimulus(&t).cost
     };
     let select = |n: u64| n * w::TRANSITION;
-    let base = w::EVENT + w::ROUTE + w::DELIVER;
+    let base = w::STIMULUS + w::EVENT + w::ROUTE + w::DELIVER;
     // Three transitions: the triggered fire, two event-less ones, the select that finds none.
     assert_eq!(chain(false), base + 3 * (select(3) + w::FIRE) + select(3));
     let cycle = 1 + MAX_CHAIN as u64;
@@ -148,7 +148,7 @@ fn the_table_of_half_a_billion_instructions_is_refused() {
     let select = 123 * (w::TRANSITION + n * w::OP) + w::TRANSITION;
     let deliver = w::DELIVER + select + w::FIRE + w::ACTION;
     let dispatch = w::EVENT + 94 * w::ROUTE + 94 * deliver;
-    assert_eq!(worst.cost, MAX_CASCADE as u64 * dispatch);
+    assert_eq!(worst.cost, w::STIMULUS + MAX_CASCADE as u64 * dispatch);
     let refused = validate(&t).unwrap_err();
     assert_eq!(
         refused,

@@ -33,10 +33,10 @@ fn check_accepts_a_good_robot_and_rejects_a_broken_one_with_status_1() {
         text(&ok.stdout),
         "homing: VC- HC- RC- GR- (derived from the actuators and interlocks; HOME goes to role \
          VC)\n\
-         VC           worst stimulus  12432 instructions (19% of 64000): `VC.watchdog`, 2 event(s)\n\
-         GR           worst stimulus   8664 instructions (13% of 64000): `GR.dwell`, 3 event(s)\n\
-         HC           worst stimulus  12360 instructions (19% of 64000): `HC.watchdog`, 2 event(s)\n\
-         RC           worst stimulus  12348 instructions (19% of 64000): `RC.watchdog`, 2 event(s)\n\
+         VC           worst stimulus  13980 instructions (21% of 64000): `VC.watchdog`, 2 event(s)\n\
+         GR           worst stimulus  10510 instructions (16% of 64000): `GR.dwell`, 3 event(s)\n\
+         HC           worst stimulus  13860 instructions (21% of 64000): `HC.watchdog`, 2 event(s)\n\
+         RC           worst stimulus  13840 instructions (21% of 64000): `RC.watchdog`, 2 event(s)\n\
          robot-configs/paint-robot.ron: ok\n"
     );
     // The sensorless gripper's two steps are warned of (a jam goes undetected).

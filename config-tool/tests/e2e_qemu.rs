@@ -216,3 +216,134 @@ fn qemu_nodes_killed_mid_cycle_boot_unhomed_and_homing_then_one_start_gives_an_e
     let flash = TempDir::new("qemu-homing");
     killed_mid_cycle_then_homed(qemu_options(&elf, &flash));
 }
+
+/// The worst table the time budget allows (`config_schema::cost`): one input routed to a
+/// chart whose state 0 has as many transitions on it, each with a 31-operation guard that
+/// never holds, as `validate` lets through. On a counting QEMU node (`-icount shift=0`: an
+/// instruction a nanosecond) the rise of that input costs, inside `NodeCore`, no more than
+/// the bound: the weights are an upper bound of the real work. Prints both.
+#[test]
+fn the_worst_table_the_budget_allows_costs_at_most_its_bound_on_qemu() {
+    use config_schema::cost::{worst_stimulus, STIMULUS_BUDGET};
+    use config_schema::wire::medium::{Link, Peer};
+    use config_schema::{Input, Op, Route, Table, Transition};
+    use robot_net::push;
+
+    let Some(elf) = qemu_image() else {
+        return;
+    };
+    const NODE: u16 = 0x0021;
+    const PIN: u8 = 3;
+    let table = |transitions: usize| {
+        let mut t = Table::empty("worst");
+        t.generation = 1;
+        let rise = t.push_event().unwrap();
+        t.inputs
+            .push(Input {
+                pin: PIN,
+                rise: Some(rise),
+                fall: None,
+                var: None,
+            })
+            .unwrap();
+        let mut ops = vec![Op::Const(0)];
+        for _ in 0..15 {
+            ops.extend([Op::Input(0), Op::And]);
+        }
+        let never = t.push_expr(&ops).unwrap();
+        let tr: Vec<Transition> = (0..transitions)
+            .map(|_| Transition {
+                from: 0,
+                to: 1,
+                trigger: Some(0),
+                guard: Some(never),
+            })
+            .collect();
+        t.push_chart(0, 1, &[&[], &[]], &tr).unwrap();
+        t.routes
+            .push(Route {
+                event: rise,
+                chart: 0,
+                input: 0,
+            })
+            .unwrap();
+        t
+    };
+    let n = (1..=config_schema::limits::MAX_TRANSITIONS)
+        .rev()
+        .find(|&n| config_schema::validate(&table(n)).is_ok())
+        .expect("some table fits");
+    let t = table(n);
+    let bound = worst_stimulus(&t).cost;
+    assert!(
+        bound <= STIMULUS_BUDGET && bound > STIMULUS_BUDGET * 9 / 10,
+        "{n}: {bound}"
+    );
+
+    let count = TempDir::new("worst-count");
+    let medium = medium::Medium::start(medium::Config::default()).expect("medium");
+    let at = medium.addr();
+    let mut node = std::process::Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["qemu-node", "--addr", &format!("{NODE:#06x}"), "--medium"])
+        .arg(at.to_string())
+        .arg("--elf")
+        .arg(&elf)
+        .arg("--count")
+        .arg(&count.0)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("qemu-node");
+    let mut radio = robot_net::radio::ToolRadio::connect(at, 0x0100).expect("tool");
+    let targets = [push::Target {
+        role: String::from("worst"),
+        addr: NODE,
+        blob: robot_compiler::compile::encode(&t).expect("encodes"),
+        generation: 1,
+    }];
+    let mut pushed = push::push(&mut radio, &targets, false, &mut |_, _, _| {}).expect("push");
+    let verdict = push::switch_over(
+        &mut radio,
+        &mut pushed,
+        1,
+        true,
+        std::time::Duration::from_secs(30),
+    )
+    .expect("switch");
+    assert_eq!(verdict, node_fw::switch::Verdict::Switched);
+    // Counts of the node's input changes so far, as it logs them (every second).
+    let inputs = |want: u64| {
+        let end = std::time::Instant::now() + TIMEOUT;
+        loop {
+            if let Some(c) = demo::read_counts(&count.0, NODE).filter(|c| c.core_inputs >= want) {
+                return c;
+            }
+            assert!(
+                std::time::Instant::now() < end,
+                "no count of {want} input(s)"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        }
+    };
+    let before = inputs(0);
+    let mut plant = medium::Conn::join(at, Peer::Plant).expect("plant");
+    plant
+        .send(&Link::Pin {
+            addr: NODE,
+            pin: PIN,
+            level: true,
+        })
+        .expect("pin");
+    let after = inputs(before.core_inputs + 1);
+    let measured =
+        (after.core_input - before.core_input) / (after.core_inputs - before.core_inputs);
+    eprintln!(
+        "worst table the budget allows: {n} transitions, bound {bound} instructions, measured \
+         {measured} on QEMU ({:.2} of the bound)",
+        measured as f64 / bound as f64
+    );
+    assert!(measured <= bound, "measured {measured} > bound {bound}");
+    let _ = node.kill();
+    let _ = node.wait();
+    medium.stop();
+}
