@@ -32,12 +32,12 @@ fn lockstep(c: &Compiled, nets: &[Net], toggles: &[usize]) -> Vec<Vec<String>> {
     let mut levels = vec![false; role.inputs.len()];
     let mut trace = Vec::new();
     let agree = |engine: &Engine, reference: &Controller, at: usize| {
-        for f in 0..nets.len() {
+        for (f, net) in nets.iter().enumerate() {
             assert_eq!(
                 engine.state(f).map(usize::from),
                 reference.place(f),
                 "function {} after toggle {at} of {toggles:?}",
-                nets[f].name
+                net.name
             );
         }
     };
