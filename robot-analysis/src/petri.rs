@@ -149,8 +149,18 @@ impl<'n> Controller<'n> {
     /// One occurrence and every place change it causes, to completion; `inputs` gives
     /// the input levels (after the edge). The transitions fired, in order.
     pub fn occur(&mut self, o: Occurrence, inputs: &dyn Fn(&str) -> Option<bool>) -> Vec<Fired> {
+        self.occur_all(vec![o], inputs)
+    }
+
+    /// Simultaneous occurrences (one input edge sensed by the nodes of several roles),
+    /// queued in this order, and every place change they cause, to completion.
+    pub fn occur_all(
+        &mut self,
+        occurrences: Vec<Occurrence>,
+        inputs: &dyn Fn(&str) -> Option<bool>,
+    ) -> Vec<Fired> {
         let mut fired = Vec::new();
-        let mut queue = VecDeque::from([o]);
+        let mut queue = VecDeque::from(occurrences);
         while let Some(o) = queue.pop_front() {
             for (f, net) in self.nets.iter().enumerate() {
                 let xe = enabled(&net.precondition(), self.marking(f));

@@ -276,3 +276,113 @@ proptest! {
         lockstep(&c, &nets, &toggles);
     }
 }
+
+/// Collects a node's publications (the radio delivers them once its stimulus is done).
+#[derive(Default)]
+struct Radio(Vec<config_schema::Publication>);
+
+impl node_fw::ecc::Effects for Radio {
+    fn publish(&mut self, p: &config_schema::Publication) {
+        self.0.push(*p);
+    }
+}
+
+const TWO_ROLES: &str = include_str!("../../tests/fixtures/petri-two-roles.ron");
+
+/// The same scenario with the pusher on a node of its own: Transport reads Pusher's
+/// places through its published place changes (the `Pusher.seen` chart), one hop later.
+/// Once every publication has arrived (a radio without loss, in order), both nodes are
+/// where the controller is after each input change; both nodes sense the shared sensors,
+/// so an edge is an occurrence on each role at once (`occur_all`): the pusher at its end
+/// stops on its own node before Transport's Step3 arrives and sends it back.
+#[test]
+fn across_the_radio_the_charts_reach_the_controllers_places() {
+    let c = compile("petri-two-roles.ron", TWO_ROLES);
+    let nets = nets(&c, TWO_ROLES);
+    let tables = tables(&c).expect("blobs decode");
+    let mut engines: Vec<Engine> = tables.iter().map(Engine::new).collect();
+    let mut reference = Controller::new(&nets);
+    let names = ["START", "FAULT", "RELEASE", "PUSHER_END", "PUSHER_HOME"];
+    let mut levels = [false; 5];
+    // (role, chart) of each function: Transport after CELL's `Pusher.seen`.
+    let charts = [(0, 1), (1, 0)];
+    let script = [
+        "PUSHER_HOME",
+        "START",
+        "START",
+        "PUSHER_HOME",
+        "PUSHER_END",
+        "PUSHER_END",
+        "PUSHER_HOME",
+        "START",
+        "START",
+        "PUSHER_HOME",
+        "FAULT",
+        "RELEASE",
+        "RELEASE",
+        "FAULT",
+        "RELEASE",
+        "PUSHER_HOME",
+        "START",
+        "START",
+        "PUSHER_HOME",
+        "PUSHER_END",
+        "PUSHER_END",
+        "PUSHER_HOME",
+    ];
+    let mut hops = 0;
+    for (k, name) in script.iter().enumerate() {
+        let i = names.iter().position(|n| n == name).expect("input");
+        levels[i] = !levels[i];
+        let mut pending: Vec<(usize, config_schema::Publication)> = Vec::new();
+        for (ri, role) in c.ir.roles.iter().enumerate() {
+            if let Some(pin) = role.inputs.iter().position(|x| x.name == *name) {
+                let mut radio = Radio::default();
+                engines[ri].input(pin as u8, levels[i], &mut radio);
+                pending.extend(radio.0.into_iter().map(|p| (ri, p)));
+            }
+        }
+        while !pending.is_empty() {
+            let (from, p) = pending.remove(0);
+            hops += 1;
+            let address = c.ir.roles[from].address;
+            for (ri, engine) in engines.iter_mut().enumerate() {
+                let Some(peer) = tables[ri].peers.iter().position(|&a| a == address) else {
+                    continue;
+                };
+                let mut radio = Radio::default();
+                engine.remote(peer as u8, p.topic, &mut radio);
+                pending.extend(radio.0.into_iter().map(|q| (ri, q)));
+            }
+        }
+        let lv = levels;
+        let level = |n: &str| names.iter().position(|x| *x == n).map(|p| lv[p]);
+        let event = if levels[i] {
+            name.to_string()
+        } else {
+            format!("{name}.fall")
+        };
+        // The edge happens on every role that senses it, at once.
+        let sensed: Vec<Occurrence> = (c.ir.roles.iter())
+            .filter(|r| r.inputs.iter().any(|x| x.name == *name))
+            .map(|r| Occurrence::Role {
+                role: r.name.clone(),
+                event: event.clone(),
+            })
+            .collect();
+        reference.occur_all(sensed, &level);
+        for (f, (ri, ci)) in charts.iter().enumerate() {
+            assert_eq!(engines[*ri].fault(), None);
+            assert_eq!(
+                engines[*ri].state(*ci).map(usize::from),
+                reference.place(f),
+                "{} after step {k} ({name})",
+                nets[f].name
+            );
+        }
+    }
+    // A cycle crosses the radio 6 times (Step1, Clockwise, Step3, Stopped at the end,
+    // CounterClockwise, Stopped at home); the faulted one 5 (Step1, Clockwise, Stopped
+    // on the fault, CounterClockwise on the release, Stopped at home): 6 + 6 + 5.
+    assert_eq!(hops, 17);
+}

@@ -166,3 +166,14 @@ pub fn csv(net: &Net) -> String {
     lines.push(l.join(","));
     lines.join("\n") + "\n"
 }
+
+#[cfg(test)]
+mod tests {
+    /// A CSV field with a comma, a quote or a line break is quoted (RFC 4180).
+    #[test]
+    fn csv_fields_are_quoted_when_they_must_be() {
+        assert_eq!(super::field("A && B"), "A && B");
+        assert_eq!(super::field("A, B"), "\"A, B\"");
+        assert_eq!(super::field("say \"x\""), "\"say \"\"x\"\"\"");
+    }
+}

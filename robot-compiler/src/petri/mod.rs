@@ -150,3 +150,42 @@ pub fn levels(role: &crate::model::Role) -> Vec<String> {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{Event, Net, Transition};
+
+    fn row(name: &str, from: usize, to: usize) -> Transition {
+        Transition {
+            name: name.to_string(),
+            on: String::from("E"),
+            event: Event::Timer(0),
+            from,
+            to,
+            when: None,
+        }
+    }
+
+    /// M has one -1 (precondition) and one 1 (result) per row; F is its -1 part; m(0)
+    /// one token.
+    #[test]
+    fn incidence_precondition_and_initial_marking() {
+        let net = Net {
+            name: String::from("F"),
+            role: String::from("R"),
+            places: vec![String::from("a"), String::from("b"), String::from("c")],
+            initial: 1,
+            transitions: vec![row("t1", 1, 2), row("t2", 2, 0)],
+            timers: vec![String::from("E")],
+            actions: vec![Vec::new(); 3],
+        };
+        assert_eq!(net.incidence(), [[0, -1, 1], [1, 0, -1]]);
+        assert_eq!(
+            net.precondition(),
+            [[false, true, false], [false, false, true]]
+        );
+        assert_eq!(net.initial_marking(), [0, 1, 0]);
+        assert_eq!(net.place("c"), Some(2));
+        assert_eq!(super::place_ref(&[net], "F.b"), Some((0, 1)));
+    }
+}
