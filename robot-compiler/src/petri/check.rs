@@ -7,6 +7,7 @@
 
 use std::collections::BTreeSet;
 
+use super::compile::rewrite;
 use super::{levels, load, reads, Event, Located, Net, Reads};
 use crate::diag::Diagnostic;
 use crate::expr::{may_overlap, Ast};
@@ -64,36 +65,34 @@ fn unreachable(src: &Source, l: &Located, reach: &[Vec<bool>], out: &mut Vec<Dia
     }
 }
 
-/// The value of each name of a condition of transition `t` that is known: the
-/// function's own places (it is in `from`) and unreachable places of others (never
-/// marked).
-fn fixed<'a>(
-    nets: &'a [Net],
-    levels: &'a [String],
-    reach: &'a [Vec<bool>],
-    own: usize,
-    from: usize,
-) -> impl Fn(&str) -> Option<i32> + 'a {
-    move |name| match reads(nets, levels, name)? {
-        Reads::Place { function, place } if function == own => Some(i32::from(place == from)),
-        Reads::Place { function, place } => {
-            let marked = reach.get(function)?.get(place).copied().unwrap_or(true);
-            (!marked).then_some(0)
-        }
-        Reads::Input(_) => None,
-    }
+/// A condition of transition `from` of function `own` as `check` compares it: places
+/// read as the function's place variable (two places of one function never hold
+/// together), its own places and unreachable places of others known.
+fn compared(
+    when: &Option<(String, Ast)>,
+    nets: &[Net],
+    levels: &[String],
+    reach: &[Vec<bool>],
+    (own, from): (usize, usize),
+) -> Option<Ast> {
+    let (_, ast) = when.as_ref()?;
+    let known = |f: usize, p: usize| {
+        let marked = reach.get(f)?.get(p).copied().unwrap_or(true);
+        (!marked).then_some(0)
+    };
+    Some(rewrite(ast, nets, levels, (own, from), &known))
 }
 
 /// Whether a condition can hold (none: always).
-fn can_hold(when: &Option<(String, Ast)>, fixed: &dyn Fn(&str) -> Option<i32>) -> bool {
-    when.as_ref().is_none_or(|(_, a)| may_overlap(a, a, fixed))
+fn can_hold(when: &Option<Ast>) -> bool {
+    when.as_ref().is_none_or(|a| may_overlap(a, a, &|_| None))
 }
 
 /// Whether a condition always holds (none: it does).
-fn always(when: &Option<(String, Ast)>, fixed: &dyn Fn(&str) -> Option<i32>) -> bool {
-    when.as_ref().is_none_or(|(_, a)| {
+fn always(when: &Option<Ast>) -> bool {
+    when.as_ref().is_none_or(|a| {
         let not = Ast::Not(Box::new(a.clone()));
-        !may_overlap(&not, &not, fixed)
+        !may_overlap(&not, &not, &|_| None)
     })
 }
 
@@ -112,8 +111,10 @@ fn transitions(
         .map(|(_, r)| levels(r))
         .unwrap_or_default();
     let mut dead = BTreeSet::new();
+    let conditions: Vec<Option<Ast>> = (net.transitions.iter())
+        .map(|t| compared(&t.when, nets, &levels, reach, (own, t.from)))
+        .collect();
     for (k, t) in net.transitions.iter().enumerate() {
-        let fixed = fixed(nets, &levels, reach, own, t.from);
         let here = src.span(l.rows.get(k).map_or("", String::as_str));
         let why = if !reach[own].get(t.from).copied().unwrap_or(true) {
             Some(format!("its place `{}` is unreachable", net.places[t.from]))
@@ -133,7 +134,7 @@ fn transitions(
             None
         };
         let why = why.or_else(|| {
-            (!can_hold(&t.when, &fixed)).then(|| {
+            (!can_hold(&conditions[k])).then(|| {
                 format!(
                     "its condition `{}` never holds in `{}`",
                     t.when.as_ref().map_or("", |w| w.0.as_str()),
@@ -144,8 +145,9 @@ fn transitions(
         let why = why.or_else(|| {
             net.transitions[..k]
                 .iter()
-                .find(|u| u.from == t.from && u.event == t.event && always(&u.when, &fixed))
-                .map(|u| {
+                .zip(&conditions)
+                .find(|(u, c)| u.from == t.from && u.event == t.event && always(c))
+                .map(|(u, _)| {
                     format!(
                         "`{}`, declared before it, leaves `{}` on `{}` whenever it is enabled (the choice rule takes the first declared)",
                         u.name, net.places[t.from], t.on
@@ -167,9 +169,10 @@ fn transitions(
             if dead.contains(&j) || u.from != t.from || u.event != t.event {
                 continue;
             }
-            let both = match (&u.when, &t.when) {
-                (Some((_, a)), Some((_, b))) => may_overlap(a, b, &fixed),
-                _ => true,
+            let both = match (&conditions[j], &conditions[k]) {
+                (Some(a), Some(b)) => may_overlap(a, b, &|_| None),
+                (Some(a), None) | (None, Some(a)) => can_hold(&Some(a.clone())),
+                (None, None) => true,
             };
             if both {
                 out.push(Diagnostic::warning(
@@ -285,4 +288,58 @@ pub fn publication_lines(robot: &Robot, nets: &[Net]) -> Vec<String> {
             )
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::source::Source;
+
+    /// A robot whose function `F` leaves `a` on `X` twice, under `first` and `second`.
+    fn robot(first: &str, second: &str) -> String {
+        format!(
+            r#"Robot(
+    name: "choice", network: (pan_id: 0x0101, channel: 11),
+    nodes: [(name: "n1", address: 0x0001)], assign: [("R", "n1")],
+    roles: [(name: "R", inputs: [(name: "X", pin: 0), (name: "Y", pin: 1)])],
+    functions: [
+        (name: "G", role: "R", places: ["s", "t", "u"], initial: "s", transitions: [
+            (on: "Y", from: "s", to: "t"), (on: "Y", from: "t", to: "s")]),
+        (name: "F", role: "R", places: ["a", "b", "c"], initial: "a", transitions: [
+            (on: "X", from: "a", to: "b", when: "{first}"),
+            (on: "X", from: "a", to: "c", when: "{second}"),
+            (on: "Y", from: "b", to: "a"), (on: "Y", from: "c", to: "a")]),
+    ],
+)"#
+        )
+    }
+
+    fn warnings(first: &str, second: &str) -> Vec<String> {
+        let src = Source::new("choice.ron", robot(first, second));
+        crate::check::check(&src)
+            .diagnostics
+            .iter()
+            .map(|d| d.message.clone())
+            .collect()
+    }
+
+    /// Two places of one function never hold together, an unreachable place never
+    /// holds, a function is in the place its transition leaves: no choice to report.
+    /// Otherwise the choice rule's pick is named.
+    #[test]
+    fn the_choice_rule_is_reported_only_where_both_conditions_can_hold() {
+        let u = "place `u` of function `G` is unreachable from its initial place `s`";
+        let choice = "transitions `t1` and `t2` of function `F` both leave `a` on `X` under conditions that can both hold: the choice rule fires `t1`, declared first";
+        assert_eq!(warnings("G.s", "G.t"), [u]);
+        assert_eq!(warnings("G.s && X", "!X"), [u]);
+        assert_eq!(warnings("F.a && G.s", "F.b"), [
+            u,
+            "transition `t2` of function `F` can never fire: its condition `F.b` never holds in `a`",
+        ]);
+        assert_eq!(warnings("G.u", "G.s"), [
+            u,
+            "transition `t1` of function `F` can never fire: its condition `G.u` never holds in `a`",
+        ]);
+        assert_eq!(warnings("G.s", "X"), [u, choice]);
+        assert_eq!(warnings("G.s", "G.s || G.t"), [u, choice]);
+    }
 }

@@ -204,29 +204,37 @@ fn seen_chart(nets: &[Net], p: &Publication, r: &mut RoleIr) -> Result<(), Strin
     Ok(())
 }
 
-/// A condition with each place rewritten to its reading: `F.P` -> `F.state == j`, the
-/// function's own places to whether it is in them (`from`).
-fn rewrite(ast: &Ast, nets: &[Net], levels: &[String], own: usize, from: usize) -> Ast {
+/// A condition of a transition of function `own` leaving `from`, with each place
+/// rewritten to its reading: `F.P` -> `F.state == j` (one variable per function, so two
+/// of its places never hold together), the function's own places to whether it is in
+/// them; `known` may give a place's value outright (`check`: an unreachable place, 0).
+pub fn rewrite(
+    ast: &Ast,
+    nets: &[Net],
+    levels: &[String],
+    (own, from): (usize, usize),
+    known: &dyn Fn(usize, usize) -> Option<i32>,
+) -> Ast {
+    let again = |a: &Ast| Box::new(rewrite(a, nets, levels, (own, from), known));
     match ast {
         Ast::Name(n, span) => match reads(nets, levels, n) {
             Some(Reads::Place { function, place }) if function == own => {
                 Ast::Int(i32::from(place == from))
             }
-            Some(Reads::Place { function, place }) => Ast::Bin(
-                BinOp::Eq,
-                Box::new(Ast::Name(state_var(&nets[function].name), span.clone())),
-                Box::new(Ast::Int(place as i32)),
-            ),
+            Some(Reads::Place { function, place }) => match known(function, place) {
+                Some(v) => Ast::Int(v),
+                None => Ast::Bin(
+                    BinOp::Eq,
+                    Box::new(Ast::Name(state_var(&nets[function].name), span.clone())),
+                    Box::new(Ast::Int(place as i32)),
+                ),
+            },
             _ => ast.clone(),
         },
         Ast::Int(_) => ast.clone(),
-        Ast::Not(a) => Ast::Not(Box::new(rewrite(a, nets, levels, own, from))),
-        Ast::Neg(a) => Ast::Neg(Box::new(rewrite(a, nets, levels, own, from))),
-        Ast::Bin(op, a, b) => Ast::Bin(
-            *op,
-            Box::new(rewrite(a, nets, levels, own, from)),
-            Box::new(rewrite(b, nets, levels, own, from)),
-        ),
+        Ast::Not(a) => Ast::Not(again(a)),
+        Ast::Neg(a) => Ast::Neg(again(a)),
+        Ast::Bin(op, a, b) => Ast::Bin(*op, again(a), again(b)),
     }
 }
 
@@ -288,7 +296,7 @@ fn function_chart(
         };
         let guard = match &t.when {
             Some((text, ast)) => {
-                let ast = rewrite(ast, nets, &levels, g, t.from);
+                let ast = rewrite(ast, nets, &levels, (g, t.from), &|_, _| None);
                 let resolve = |name: &str| {
                     if let Some(v) = r.vars.iter().position(|(v, _)| v == name) {
                         return u8::try_from(v).ok().map(Operand::Var);
