@@ -386,3 +386,38 @@ fn across_the_radio_the_charts_reach_the_controllers_places() {
     // on the fault, CounterClockwise on the release, Stopped at home): 6 + 6 + 5.
     assert_eq!(hops, 17);
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+    /// Damaged function declarations (a range cut out, text spliced in) never panic
+    /// `check`, the matrix export or the compilation, every error has a place in the
+    /// file, and what checks clean compiles.
+    #[test]
+    fn damaged_nets_never_panic(
+        which in 0usize..2,
+        cut in 0usize..4000,
+        len in 0usize..30,
+        insert in "[ -~\"(){}\\[\\],:.!&|\\-1\n]{0,10}",
+    ) {
+        let text = [TRANSPORT, TWO_ROLES][which];
+        let mut at = cut.min(text.len());
+        while !text.is_char_boundary(at) { at -= 1; }
+        let mut end = (at + len).min(text.len());
+        while !text.is_char_boundary(end) { end -= 1; }
+        let damaged = format!("{}{}{}", &text[..at], insert, &text[end..]);
+        let src = Source::new("damaged.ron", damaged);
+        let checked = robot_compiler::check::check(&src);
+        for d in &checked.diagnostics {
+            let (line, col) = d.line_col(&src);
+            prop_assert!(line >= 1 && col >= 1);
+        }
+        if let Some(robot) = &checked.robot {
+            for n in robot_compiler::petri::load(robot, &src).nets() {
+                let _ = (robot_compiler::petri::matrix::text(&n), robot_compiler::petri::matrix::csv(&n));
+            }
+        }
+        if !checked.has_errors() {
+            prop_assert!(robot_compiler::compile(&src).is_ok());
+        }
+    }
+}
