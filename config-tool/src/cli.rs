@@ -32,6 +32,16 @@ pub enum Command {
     },
     /// Print a table blob in readable form.
     Dump { blob: PathBuf },
+    /// Print each control function's matrices: M, F, m(0), x and u (docs/petri-nets.md).
+    Matrix {
+        robot: PathBuf,
+        /// Only this function.
+        #[arg(long)]
+        function: Option<String>,
+        /// The same as CSV.
+        #[arg(long)]
+        csv: bool,
+    },
     /// Print a role's charts as Graphviz DOT (or SVG through `dot`).
     Diagram {
         robot: PathBuf,

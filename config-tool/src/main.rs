@@ -24,6 +24,11 @@ fn run(command: Command) -> Result<(), Failure> {
             generation,
         } => offline::compile(&robot, &out, generation),
         Command::Dump { blob } => offline::dump(&blob),
+        Command::Matrix {
+            robot,
+            function,
+            csv,
+        } => commands::matrix::matrix(&robot, function.as_deref(), csv),
         Command::Diagram {
             robot,
             role,

@@ -243,3 +243,62 @@ fn diagram_svg_renders_through_graphviz() {
     // The states and the transition labels made it into the picture.
     assert!(svg.contains("dwell"), "{svg}");
 }
+
+/// `matrix` prints each control function's M, F, m(0), x and u (`--csv`: as CSV); an
+/// unknown function or a robot without functions is a usage error (status 2); `check`
+/// says which place changes cross the radio and the delay they imply.
+#[test]
+fn matrix_prints_the_papers_objects_and_check_names_the_publications() {
+    let out = tool(&[
+        "matrix",
+        "tests/fixtures/petri.ron",
+        "--function",
+        "Transport",
+        "--csv",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let csv = text(&out.stdout);
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len(), 12);
+    assert_eq!(
+        lines[0],
+        "function,object,row,x,u,ReadyToCut,Step1,Step2,Step3"
+    );
+    assert_eq!(lines[11], "Transport,m(0),,,,1,0,0,0");
+    let out = tool(&["matrix", "tests/fixtures/petri.ron"]);
+    assert!(out.status.success());
+    let all = text(&out.stdout);
+    assert!(
+        all.starts_with("function Transport on role CELL: 4 places, 5 transitions\n"),
+        "{all}"
+    );
+    assert!(
+        all.contains("\nfunction Pusher on role CELL: 3 places, 6 transitions\n"),
+        "{all}"
+    );
+    let out = tool(&["matrix", "tests/fixtures/petri.ron", "--function", "Nope"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(
+        text(&out.stderr),
+        "error: tests/fixtures/petri.ron: no function `Nope` (functions: Transport, Pusher)\n"
+    );
+    let out = tool(&["matrix", "robot-configs/paint-robot.ron"]);
+    assert_eq!(out.status.code(), Some(2));
+    let out = tool(&["matrix", "tests/fixtures/broken/petri-row.ron"]);
+    assert_eq!(out.status.code(), Some(1));
+
+    let out = tool(&["check", "tests/fixtures/petri-two-roles.ron"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert_eq!(
+        text(&out.stdout),
+        "function Transport (role CELL) publishes Transport.Step1, Transport.Step3 to role PUSHER \
+         (events Transport.Step1, Transport.Step3): one radio hop later: 2.47 ms of airtime (at \
+         most 8.2 ms on host processes)\nfunction Pusher (role PUSHER) publishes Pusher.Stopped, \
+         Pusher.Clockwise, Pusher.CounterClockwise to role CELL (conditions read Pusher.Stopped; \
+         events Pusher.Stopped, Pusher.Clockwise): one radio hop later: 2.47 ms of airtime (at \
+         most 8.2 ms on host processes)\n\
+         CELL         worst stimulus   6150 instructions ( 9% of 64000): `START`, 2 event(s)\n\
+         PUSHER       worst stimulus   6210 instructions ( 9% of 64000): `RELEASE`, 2 event(s)\n\
+         tests/fixtures/petri-two-roles.ron: ok\n"
+    );
+}

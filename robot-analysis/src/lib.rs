@@ -5,10 +5,13 @@
 //! - [`sim`]: the world of a compiled robot, cycles checked against the sequence.
 //! - [`inject`]: faults injected into the simulation, their detection and what followed.
 //! - [`timeline`]: a state-timing diagram (SVG) of a run.
+//! - [`petri`]: the reference modular logic controller of control functions (the
+//!   paper's matrix algebra), what their compiled charts are tested against.
 //! - [`verify`]: every reachable state of charts, plant and radio; the properties.
 
 pub mod automata;
 pub mod inject;
+pub mod petri;
 pub mod sim;
 pub mod timeline;
 pub mod verify;

@@ -119,6 +119,8 @@ pub fn split_source<'a>(source: &'a str, own: &'a str) -> (&'a str, &'a str) {
 pub fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
     let mut diags = Vec::new();
     let mut wanted = wanted(robot, src, &mut diags);
+    let nets = crate::petri::load(robot, src).nets();
+    wanted.extend(crate::petri::compile::wanted(&nets));
     let start = match start_input(robot) {
         Ok(s) => s,
         Err(e) => {
@@ -144,6 +146,9 @@ pub fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
             }
         }
         routes(robot, src, &mut r, role, ri, &mut diags);
+        if let Err(e) = crate::petri::compile::charts(robot, &nets, &mut r) {
+            diags.push(Diagnostic::error(src.span("functions"), e));
+        }
         roles.push(r);
     }
     let expect = match &robot.expect {

@@ -10,6 +10,8 @@
 //!   each actuator's wiring.
 //! - [`homing`]: the homing sequence, derived or declared, and the interlocks it keeps.
 //! - [`automata`]: selecting automata (RON or the paper's Prolog facts), their checks.
+//! - [`petri`]: control functions as state-machine Petri nets (places and transitions or
+//!   the paper's matrices), their checks, their charts, their matrix export.
 //! - [`lower`]: IR -> tables. [`compile`]: the pipeline. [`dump`], [`diagram`].
 //!
 //! It knows nothing of the node firmware, the simulator or the radio (see
@@ -30,6 +32,7 @@ pub mod ir;
 pub mod locate;
 pub mod lower;
 pub mod model;
+pub mod petri;
 pub mod source;
 pub mod synth;
 

@@ -77,6 +77,10 @@ pub struct Robot {
     /// out of a stream of parts.
     #[serde(default)]
     pub automata: Vec<AutomatonDecl>,
+    /// Control functions (docs/petri-nets.md): state-machine Petri nets placed on roles,
+    /// as places and transitions or as their incidence matrix.
+    #[serde(default)]
+    pub functions: Vec<crate::petri::model::FunctionDecl>,
 }
 
 /// A selecting automaton as written: either `states` / `initial` / `transitions`, or the
@@ -422,7 +426,7 @@ pub struct StateDecl {
 }
 
 /// What a state does when it is entered, in order.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize)]
 pub enum ActionDecl {
     /// `Set("count", "count + 1")`: assign an expression to a variable.
     Set(String, String),

@@ -132,6 +132,7 @@ fn every_broken_file_is_in_the_table() {
         .expect("fixtures/broken")
         .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
         .filter(|f| !f.starts_with("automata-")) // tests/automata.rs
+        .filter(|f| !f.starts_with("petri-")) // tests/petri.rs
         .collect();
     on_disk.sort();
     let mut listed: Vec<String> = BROKEN.iter().map(|(f, _)| f.to_string()).collect();

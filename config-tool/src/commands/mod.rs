@@ -2,5 +2,6 @@
 
 pub mod demo;
 pub mod keys;
+pub mod matrix;
 pub mod offline;
 pub mod radio;

@@ -42,6 +42,12 @@ pub fn check(robot: &Path) -> Result<(), Failure> {
     if let Some(line) = checked.ir.as_ref().and_then(pipeline::homing_line) {
         println!("{line}");
     }
+    if let Some(robot) = &checked.robot {
+        let nets = robot_compiler::petri::load(robot, &src).nets();
+        for line in robot_compiler::petri::check::publication_lines(robot, &nets) {
+            println!("{line}");
+        }
+    }
     if let Ok(compiled) = pipeline::lower_checked(&src, checked) {
         for line in pipeline::stimulus_lines(&compiled) {
             println!("{line}");

@@ -42,6 +42,7 @@ pub const STRUCTURE: &[(&str, Pass)] = &[
     ("homing", homing::check),
     ("charts", charts::check),
     ("automata", crate::automata::check::check),
+    ("functions", crate::petri::check::check),
 ];
 
 /// Passes over the elaborated robot (run when `STRUCTURE` and the elaboration found no

@@ -11,17 +11,18 @@ use crate::model::{ActuatorKind, Robot};
 use crate::source::Source;
 
 pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
-    let has_charts = robot.roles.iter().any(|r| !r.charts.is_empty());
+    let has_charts =
+        robot.roles.iter().any(|r| !r.charts.is_empty()) || !robot.functions.is_empty();
     // An automaton placed on a role brings its own charts.
     let placed = robot.automata.iter().any(|a| a.role.is_some());
     match (&robot.sequence, has_charts || placed) {
         (Some(_), true) => out.push(Diagnostic::error(
             src.key_span("sequence"),
-            "a robot has either a `sequence` or explicit `charts`, not both",
+            "a robot has either a `sequence` or explicit `charts` (or `functions`), not both",
         )),
         (None, false) => out.push(
             Diagnostic::error(src.span(""), "the robot has no behaviour")
-                .help("add a `sequence` or give the roles `charts`"),
+                .help("add a `sequence`, give the roles `charts` or declare `functions`"),
         ),
         _ => {}
     }
