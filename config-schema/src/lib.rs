@@ -24,4 +24,4 @@ pub mod wire;
 pub use blob::{decode, encode, DecodeError, EncodeError, SCHEMA_VERSION};
 pub use guard::{Expr, ExprError, Op};
 pub use table::*;
-pub use validate::{validate, Invalid, Place};
+pub use validate::{validate, validate_structure, Invalid, Place};

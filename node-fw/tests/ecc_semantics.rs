@@ -802,6 +802,8 @@ fn storm_table(emits: usize) -> Table {
     route(&mut t, 0, 0, 0);
     route(&mut t, 3, 1, 0);
     // X is published: a publication must not go out for an event that was not queued.
+    // (Sixteen frames in one stimulus are over the time bound: `decode` would refuse this
+    // table; the interpreter still bounds it at run time.)
     t.peers.push(0x0002).unwrap();
     t.publications
         .push(Publication {
@@ -810,12 +812,19 @@ fn storm_table(emits: usize) -> Table {
             subscribers: 1,
         })
         .unwrap();
-    load(t)
+    test_tables::load_untimed(t)
 }
 
 #[test]
 fn a_full_queue_is_allowed() {
     let t = storm_table(EVENT_QUEUE);
+    assert!(
+        matches!(
+            config_schema::validate(&t),
+            Err(config_schema::Invalid::Slow { .. })
+        ),
+        "sixteen frames in one stimulus: over the time bound"
+    );
     let mut e = Engine::new(&t);
     let mut fx = Rec::default();
     e.event(0, &mut fx);

@@ -26,25 +26,23 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
             ),
         );
     }
-    if robot.trial_seconds == Some(0) {
-        out.push(
-            Diagnostic::error(
-                src.span("trial_seconds"),
-                "a trial of 0 seconds rolls back at once: give it the time the operator needs \
-                 to see the new sequence run",
-            )
-            .label("zero"),
-        );
-    }
-    if robot.trial_cycles == Some(0) {
-        out.push(
-            Diagnostic::error(
-                src.span("trial_cycles"),
-                "a trial of 0 cycles rolls back at once: give it the cycles the operator needs \
-                 to see the new sequence run",
-            )
-            .label("zero"),
-        );
+    // A trial window of nothing rolls back at once.
+    for (key, value, unit, what) in [
+        ("trial_seconds", robot.trial_seconds, "seconds", "time"),
+        ("trial_cycles", robot.trial_cycles, "cycles", "cycles"),
+    ] {
+        if value == Some(0) {
+            out.push(
+                Diagnostic::error(
+                    src.span(key),
+                    format!(
+                        "a trial of 0 {unit} rolls back at once: give it the {what} the operator \
+                         needs to see the new sequence run"
+                    ),
+                )
+                .label("zero"),
+            );
+        }
     }
     if !CHANNELS.contains(&robot.network.channel) {
         out.push(
