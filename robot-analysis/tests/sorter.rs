@@ -102,3 +102,22 @@ ok
 "
     );
 }
+
+/// A gate that closes before the ball has fallen past it: the ball meets it moving (a
+/// fault of the run), is not taken, and falls on. Gate 1 opened for the black (t = 102
+/// to 182 ms), the pusher fed at 304, ENTRY at 334 (gate 1 hears it at 336, retracts at
+/// 346), the ball meets gate 1 at 374 and gate 2, still open, takes it.
+#[test]
+fn a_gate_closing_too_early_is_met_moving_and_the_run_fails() {
+    let text = load(SORTER).text.replacen(
+        r#"(name: "HOLD", actions: [StartTimer("hold", 150)]),   // the ball falls in"#,
+        r#"(name: "HOLD", actions: [StartTimer("hold", 10)]),"#,
+        1,
+    );
+    let c = build(&robot_compiler::Source::new("early.ron", text));
+    let feed = [String::from("black")];
+    let run = sorter::simulate(&c, Some(&feed)).expect("runs");
+    assert!(!run.ok());
+    assert_eq!(run.faults, ["at 374 ms: ball 1 met gate G1 moving"]);
+    assert_eq!(bins(&run.balls), [2]);
+}
