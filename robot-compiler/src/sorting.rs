@@ -408,9 +408,10 @@ mod tests {
             errors(&text),
             [
                 "107:22 this sensor combination is no colour: `grey` is not one of the robot's `colours`",
-                "115:53 no sensor combination gives `gray`",
-                "116:16 no sensor combination gives `gray`",
-                "116:43 no sensor combination gives `gray`",
+                "115:16 no sensor combination gives `gray`",
+                "115:61 no sensor combination gives `gray`",
+                "116:26 no sensor combination gives `gray`",
+                "116:53 no sensor combination gives `gray`",
                 "134:17 automaton `nd` selects `gray` (transition `t5`), but no sensor combination of `sorting.table` gives it",
                 "147:17 automaton `fig1` selects `gray` (transition `t3`), but no sensor combination of `sorting.table` gives it",
             ]
