@@ -58,7 +58,7 @@ pub struct Ball {
 pub struct SortRun {
     pub balls: Vec<Ball>,
     pub duration_ms: u64,
-    /// Faults, as text; balls that met a moving gate.
+    /// Faults, as text; balls that met a moving gate; pusher strokes while a gate moved.
     pub faults: Vec<String>,
     /// Every trace entry, as text.
     pub trace: Vec<String>,
@@ -214,9 +214,11 @@ pub fn simulate(c: &Compiled, feed: Option<&[String]>) -> Result<SortRun, SortEr
     let balls = (feed.iter())
         .map(|f| s.levels(f).map(<[bool]>::to_vec).ok_or_else(|| missing(f)))
         .collect::<Result<_, _>>()?;
+    let pusher = plant(&s.pusher)?;
+    let gate_plants = gates.clone();
     let f = Feed {
         node,
-        pusher: plant(&s.pusher)?,
+        pusher,
         sensors,
         entry: input(&s.entry)?,
         balls,
@@ -247,9 +249,29 @@ pub fn simulate(c: &Compiled, feed: Option<&[String]>) -> Result<SortRun, SortEr
         faults: Vec::new(),
         trace: world.trace().iter().map(ToString::to_string).collect(),
     };
+    let mut moving: Vec<usize> = Vec::new();
     let mut fed = 0;
     for e in world.trace() {
         match &e.what {
+            What::Step { plant: p, .. } if gate_plants.contains(p) => {
+                if !moving.contains(p) {
+                    moving.push(*p);
+                }
+            }
+            What::Arrived { plant: p, .. } => moving.retain(|m| m != p),
+            What::Step {
+                plant: p,
+                plus: true,
+                ..
+            } if *p == pusher => {
+                for g in &moving {
+                    run.faults.push(format!(
+                        "at {} ms: the pusher fed while gate {} moved",
+                        e.t_ms,
+                        world.plants()[*g].name()
+                    ));
+                }
+            }
             What::Fed { .. } => fed += 1,
             What::Binned { ball, bin, .. } => {
                 if let Some(b) = run.balls.get_mut(*ball) {

@@ -121,3 +121,34 @@ fn a_gate_closing_too_early_is_met_moving_and_the_run_fails() {
     assert_eq!(run.faults, ["at 374 ms: ball 1 met gate G1 moving"]);
     assert_eq!(bins(&run.balls), [2]);
 }
+
+/// Gates that answer `ready` as they start to open (not once open): the pusher feeds
+/// while they move, which the run reports.
+#[test]
+fn a_gate_ready_before_it_is_open_lets_the_pusher_feed_while_it_moves() {
+    let text = load(SORTER).text.replacen(
+        r#"(name: "OPENING", actions: [Extend("G1")]),
+                (name: "OPEN", actions: [Emit("ready")]),"#,
+        r#"(name: "OPENING", actions: [Extend("G1"), Emit("ready")]),
+                (name: "OPEN"),"#,
+        1,
+    );
+    let text = text.replacen(
+        r#"(name: "OPENING", actions: [Extend("G2")]),
+                (name: "OPEN", actions: [Emit("ready")]),"#,
+        r#"(name: "OPENING", actions: [Extend("G2"), Emit("ready")]),
+                (name: "OPEN"),"#,
+        1,
+    );
+    let c = build(&robot_compiler::Source::new("hasty.ron", text));
+    let feed = [String::from("black")];
+    let run = sorter::simulate(&c, Some(&feed)).expect("runs");
+    assert!(!run.ok());
+    assert_eq!(
+        run.faults,
+        [
+            "at 104 ms: the pusher fed while gate G1 moved",
+            "at 104 ms: the pusher fed while gate G2 moved"
+        ]
+    );
+}
