@@ -253,11 +253,10 @@ pub fn simulate(c: &Compiled, feed: Option<&[String]>) -> Result<SortRun, SortEr
     let mut fed = 0;
     for e in world.trace() {
         match &e.what {
-            What::Step { plant: p, .. } if gate_plants.contains(p) => {
-                if !moving.contains(p) {
-                    moving.push(*p);
-                }
+            What::Step { plant: p, .. } if gate_plants.contains(p) && !moving.contains(p) => {
+                moving.push(*p);
             }
+            What::Step { plant: p, .. } if gate_plants.contains(p) => {}
             What::Arrived { plant: p, .. } => moving.retain(|m| m != p),
             What::Step {
                 plant: p,
