@@ -163,6 +163,11 @@ fn sim_of_the_ball_sorter_prints_each_ball_and_its_bin() {
          6 ball(s) in 3264 ms: bin 1: 4, bin 2: 1, bin 3: 1; 2 EOS\n\
          ok\n"
     );
+    let out = tool(&["verify", "robot-configs/ball-sorter.ron"]);
+    assert!(text(&out.stdout).starts_with(
+        "robot-configs/ball-sorter.ron: a sorting station: verify has no ball feed (the \
+         magazine reads empty, the station stops at once); `sim` checks each ball\n"
+    ));
     let out = tool(&["sim", "robot-configs/ball-sorter.ron", "--feed", "B purple"]);
     assert_eq!(out.status.code(), Some(1));
     assert_eq!(

@@ -161,6 +161,12 @@ pub fn verification(
     how: VerifyHow,
 ) -> Result<Verification, verify::ModelError> {
     let mut text = String::new();
+    if compiled.robot.sorting.is_some() {
+        text.push_str(&format!(
+            "{name}: a sorting station: verify has no ball feed (the magazine reads empty, the \
+             station stops at once); `sim` checks each ball\n"
+        ));
+    }
     let declared = compiled.robot.assume_prompt_radio && !how.prompt && !how.any_delay;
     if declared {
         text.push_str(&format!(
