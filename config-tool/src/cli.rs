@@ -222,6 +222,10 @@ pub struct SimArgs {
     /// Write a time diagram of the run (SVG): actuator positions, chart states, events.
     #[arg(long)]
     pub timeline: Option<PathBuf>,
+    /// A sorting station's balls, front first, as colours or their first letters
+    /// (`"B G O"`); default: the robot's `sorting.feed`.
+    #[arg(long)]
+    pub feed: Option<String>,
 }
 
 /// `verify`'s arguments.

@@ -141,6 +141,41 @@ fn dump_prints_a_blob_and_fails_clearly_on_a_bad_one() {
     );
 }
 
+/// A sorting station's `sim` sorts its feed: each ball's colour, the automata that took
+/// it, its bin and every EOS; `--feed` replaces the robot's; a bad item names itself.
+#[test]
+fn sim_of_the_ball_sorter_prints_each_ball_and_its_bin() {
+    let out = tool(&[
+        "sim",
+        "robot-configs/ball-sorter.ron",
+        "--feed",
+        "G B B O B G",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert_eq!(
+        text(&out.stdout),
+        "ball   1: gray     taken by -          bin 3\n\
+         ball   2: black    taken by nd, fig1   bin 1\n\
+         ball   3: black    taken by nd, fig1   bin 1  EOS fig1\n\
+         ball   4: orange   taken by nd, fig1   bin 1  EOS nd\n\
+         ball   5: black    taken by nd, fig1   bin 1\n\
+         ball   6: gray     taken by fig1       bin 2\n\
+         6 ball(s) in 3264 ms: bin 1: 4, bin 2: 1, bin 3: 1; 2 EOS\n\
+         ok\n"
+    );
+    let out = tool(&["verify", "robot-configs/ball-sorter.ron"]);
+    assert!(text(&out.stdout).starts_with(
+        "robot-configs/ball-sorter.ron: a sorting station: verify has no ball feed (the \
+         magazine reads empty, the station stops at once); `sim` checks each ball\n"
+    ));
+    let out = tool(&["sim", "robot-configs/ball-sorter.ron", "--feed", "B purple"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(
+        text(&out.stderr),
+        "error: feed item 2 `purple` is no colour of the sensor table (black, gray, orange)\n"
+    );
+}
+
 #[test]
 fn sim_prints_each_cycle_and_fails_on_a_sequence_that_differs() {
     let out = tool(&["sim", "robot-configs/paint-robot.ron", "--cycles", "2"]);

@@ -164,7 +164,7 @@ fn verify_passes_every_robot_of_robot_configs_as_declared() {
             .filter(|f| f.ends_with(".ron"))
             .collect();
     files.sort();
-    assert_eq!(files.len(), 6, "{files:?}");
+    assert_eq!(files.len(), 7, "{files:?}");
     for f in &files {
         let out = tool(&["verify", &format!("robot-configs/{f}")]);
         assert_eq!(out.status.code(), Some(0), "{f}: {}", text(&out.stdout));

@@ -3,6 +3,8 @@
 //! `node_fw::cylinder`.
 //!
 //! - [`sim`]: the world of a compiled robot, cycles checked against the sequence.
+//! - [`sorter`]: a sorting station sorting its ball feed, and the bins the reference
+//!   semantics gives.
 //! - [`inject`]: faults injected into the simulation, their detection and what followed.
 //! - [`timeline`]: a state-timing diagram (SVG) of a run.
 //! - [`petri`]: the reference modular logic controller of control functions (the
@@ -13,5 +15,6 @@ pub mod automata;
 pub mod inject;
 pub mod petri;
 pub mod sim;
+pub mod sorter;
 pub mod timeline;
 pub mod verify;

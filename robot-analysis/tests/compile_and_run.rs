@@ -24,7 +24,10 @@ fn configs() -> Vec<String> {
 
 #[test]
 fn every_config_reproduces_its_sequence_for_20_cycles_through_its_blobs() {
-    let configs = configs();
+    // A sorting station sorts a feed instead of repeating a cycle: tests/sorter.rs.
+    let configs: Vec<String> = (configs().into_iter())
+        .filter(|p| !p.ends_with("ball-sorter.ron"))
+        .collect();
     assert_eq!(configs.len(), 6);
     for path in configs {
         let c = build(&load(&path));

@@ -107,6 +107,10 @@ pub fn role_events(robot: &Robot, role: &Role) -> Vec<String> {
             }
         }
     }
+    // A sorting station's classification chart (crate::sorting).
+    if let Some(s) = robot.sorting.as_ref().filter(|s| s.role == role.name) {
+        out.extend(s.events());
+    }
     out
 }
 

@@ -12,6 +12,8 @@
 //! - [`automata`]: selecting automata (RON or the paper's Prolog facts), their checks.
 //! - [`petri`]: control functions as state-machine Petri nets (places and transitions or
 //!   the paper's matrices), their checks, their charts, their matrix export.
+//! - [`sorting`]: a sorting station's colour truth table, compiled to a classification
+//!   chart.
 //! - [`lower`]: IR -> tables. [`compile`]: the pipeline. [`dump`], [`diagram`].
 //!
 //! It knows nothing of the node firmware, the simulator or the radio (see
@@ -33,6 +35,7 @@ pub mod locate;
 pub mod lower;
 pub mod model;
 pub mod petri;
+pub mod sorting;
 pub mod source;
 pub mod synth;
 

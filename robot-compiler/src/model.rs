@@ -81,6 +81,11 @@ pub struct Robot {
     /// as places and transitions or as their incidence matrix.
     #[serde(default)]
     pub functions: Vec<crate::petri::model::FunctionDecl>,
+    /// A sorting station's sensing side (docs/selecting-automata.md, "The station"): the
+    /// colour sensors' truth table, compiled into a classification chart, and the feed
+    /// `sim` runs.
+    #[serde(default)]
+    pub sorting: Option<crate::sorting::Sorting>,
 }
 
 /// A selecting automaton as written: either `states` / `initial` / `transitions`, or the
@@ -124,6 +129,10 @@ pub struct AutomatonDecl {
     /// Default `part`.
     #[serde(default)]
     pub parts: Option<String>,
+    /// A chart input of the automaton's role (`CHART.INPUT`) that every transition's
+    /// `Out` reaches: "the automaton took this part" (a sorting gate opens on it).
+    #[serde(default)]
+    pub out: Option<String>,
 }
 
 /// One transition of an automaton: `from` -> `to` on a part of `colour`. `max`: how many

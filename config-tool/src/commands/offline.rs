@@ -161,6 +161,12 @@ pub fn verification(
     how: VerifyHow,
 ) -> Result<Verification, verify::ModelError> {
     let mut text = String::new();
+    if compiled.robot.sorting.is_some() {
+        text.push_str(&format!(
+            "{name}: a sorting station: verify has no ball feed (the magazine reads empty, the \
+             station stops at once); `sim` checks each ball\n"
+        ));
+    }
     let declared = compiled.robot.assume_prompt_radio && !how.prompt && !how.any_delay;
     if declared {
         text.push_str(&format!(
@@ -208,6 +214,9 @@ pub fn verification(
 pub fn sim(args: &SimArgs) -> Result<(), Failure> {
     let (cycles, trace, timeline) = (args.cycles, args.trace, args.timeline.as_deref());
     let (_, compiled) = load_compiled(&args.robot)?;
+    if compiled.robot.sorting.is_some() {
+        return sim_station(&compiled, args);
+    }
     if let Some(spec) = &args.fault {
         return sim_fault(&compiled, spec, trace, timeline);
     }
@@ -228,6 +237,32 @@ pub fn sim(args: &SimArgs) -> Result<(), Failure> {
     }
     print!("{}", result.report());
     if result.ok() {
+        Ok(())
+    } else {
+        Err(Failure::reported())
+    }
+}
+
+/// `sim` of a sorting station: the whole feed, one line per ball.
+fn sim_station(compiled: &Compiled, args: &SimArgs) -> Result<(), Failure> {
+    use robot_analysis::sorter;
+    if args.fault.is_some() || args.timeline.is_some() {
+        return Err(Failure::error(
+            "a sorting station's `sim` takes no --fault or --timeline (yet): it runs its feed",
+        ));
+    }
+    let feed = match (&args.feed, &compiled.robot.sorting) {
+        (Some(text), Some(s)) => Some(sorter::parse_feed(s, text).map_err(Failure::error)?),
+        _ => None,
+    };
+    let run = sorter::simulate(compiled, feed.as_deref()).map_err(Failure::error)?;
+    if args.trace {
+        for line in &run.trace {
+            println!("{line}");
+        }
+    }
+    print!("{}", run.report());
+    if run.ok() {
         Ok(())
     } else {
         Err(Failure::reported())

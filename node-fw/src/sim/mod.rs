@@ -15,6 +15,7 @@
 //! the same tables, plants and calls give the same trace, always. Every run is bounded by a
 //! virtual-time limit and by a number of processed events ([`RUN_EVENT_LIMIT`]).
 
+mod feed;
 mod lossy;
 mod plant;
 mod trace;
@@ -30,6 +31,7 @@ use crate::cylinder::{self, Command, Cylinder};
 use crate::ecc::{Effects, Engine, Fault};
 
 pub use crate::cylinder::{Outcome as RodOutcome, Position, Rod};
+pub use feed::{Feed, ENTRY_PULSE_MS};
 pub use plant::{Button, DoubleActing, Plant, SingleActing};
 pub use trace::{cycles, steps, Cycle, TraceEntry, What};
 
@@ -171,6 +173,22 @@ enum Ev {
         to: usize,
         gen: u64,
     },
+    /// A feed's next ball reaches the sensors.
+    BallRoll {
+        feed: usize,
+        ball: usize,
+    },
+    /// A fed ball passes the shaft's entry sensor.
+    BallEntry {
+        feed: usize,
+        ball: usize,
+    },
+    /// A falling ball meets gate `gate` (past the last: the bottom bin).
+    BallAt {
+        feed: usize,
+        ball: usize,
+        gate: usize,
+    },
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -302,6 +320,8 @@ pub struct World<'t> {
     alarmed: Vec<(usize, usize)>,
     /// The lossy radio, once [`World::set_loss`] chose it.
     lossy: Option<lossy::Lossy>,
+    /// Ball feeds ([`World::add_feed`]) and where their balls are.
+    feeds: Vec<(Feed, feed::FeedState)>,
 }
 
 /// Time from a publication to the link alarm when the subscriber never acknowledges: the
@@ -396,6 +416,7 @@ impl<'t> World<'t> {
             cut: Vec::new(),
             alarmed: Vec::new(),
             lossy: None,
+            feeds: Vec::new(),
         };
         // Power-up: each rod rests where its node's safe outputs hold it, and the node reads
         // the sensors closed there as levels before its charts start.
@@ -792,8 +813,10 @@ impl<'t> World<'t> {
                     if let Some(pin) = self.plants[plant].cylinder().and_then(|c| c.sensor(end)) {
                         self.set_input(node, pin, true);
                     }
+                    self.feed_arrived(plant, end);
                 }
             }
+            Ev::BallRoll { .. } | Ev::BallEntry { .. } | Ev::BallAt { .. } => self.feed_event(ev),
             Ev::Timer { node, timer, .. } => {
                 self.nodes[node].timers[usize::from(timer)] = 0;
                 self.log(What::TimerExpired { node, timer });

@@ -88,6 +88,22 @@ pub enum What {
     /// ([`QUEUE`](crate::link::QUEUE) events unacknowledged): it is broken and sends nothing
     /// more in this epoch.
     LinkBroken { node: usize, peer: usize },
+    /// A feed's ball `ball` (0-based) lies at the sensors (the first from t = 0, untraced).
+    BallReady { feed: usize, ball: usize },
+    /// The pusher pushed ball `ball` into the shaft.
+    Fed { feed: usize, ball: usize },
+    /// Ball `ball` landed in bin `bin` (1-based).
+    Binned {
+        feed: usize,
+        ball: usize,
+        bin: usize,
+    },
+    /// Ball `ball` met gate plant `plant` while the gate moved.
+    GateMoving {
+        feed: usize,
+        ball: usize,
+        plant: usize,
+    },
 }
 
 impl What {
@@ -175,6 +191,12 @@ impl fmt::Display for What {
                     f,
                     "node {node} LINK ALARM: node {peer} does not acknowledge"
                 )
+            }
+            What::BallReady { feed, ball } => write!(f, "feed {feed}: ball {ball} at the sensors"),
+            What::Fed { feed, ball } => write!(f, "feed {feed}: ball {ball} pushed into the shaft"),
+            What::Binned { feed, ball, bin } => write!(f, "feed {feed}: ball {ball} in bin {bin}"),
+            What::GateMoving { feed, ball, plant } => {
+                write!(f, "feed {feed}: ball {ball} met gate plant #{plant} moving")
             }
             What::LinkBroken { node, peer } => {
                 write!(

@@ -401,6 +401,9 @@ fn place_one(
         r.event(&event);
         r.routes.push((event, chart_of(t), input("WP")));
     }
+    if let Some(out) = &decl.out {
+        took_routes(src, &at, a, &net, r, out)?;
+    }
     for c in &net.connections {
         let (output, port) = match c.arc {
             Arc::Set => ("OutSet", "Set"),
@@ -409,6 +412,39 @@ fn place_one(
         let event = format!("{}.{output}", chart_name(a, c.from));
         r.event(&event);
         r.routes.push((event, chart_of(c.to), input(port)));
+    }
+    Ok(())
+}
+
+/// `out: "CHART.INPUT"`: every instance's `Out` also reaches that chart input of the
+/// role ("the automaton took this part"), after the instance's own outputs are queued.
+fn took_routes(
+    src: &Source,
+    at: &str,
+    a: &Automaton,
+    net: &Network,
+    r: &mut RoleIr,
+    out: &str,
+) -> Result<(), Vec<Diagnostic>> {
+    let target = out.split_once('.').and_then(|(chart, input)| {
+        let ci = r.charts.iter().position(|c| c.name == chart)?;
+        let ii = r.charts.get(ci)?.inputs.iter().position(|i| i == input)?;
+        Some((ci, ii))
+    });
+    let Some((ci, ii)) = target else {
+        return Err(vec![Diagnostic::error(
+            src.span(&format!("{at}.out")),
+            format!(
+                "automaton `{}`: `{out}` is not an input of a chart of role `{}`",
+                a.name, r.name
+            ),
+        )
+        .help("write `CHART.INPUT`, an input of one of the role's charts")]);
+    };
+    for inst in &net.instances {
+        let event = format!("{}.Out", inst.chart);
+        r.event(&event);
+        r.routes.push((event, ci, ii));
     }
     Ok(())
 }

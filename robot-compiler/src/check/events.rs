@@ -49,6 +49,10 @@ pub fn check(robot: &Robot, _ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>) {
             }
         }
     }
+    // A sorting station's classification chart listens to its `sample`.
+    if let Some(s) = &robot.sorting {
+        listened.push((s.role.clone(), s.sample.clone()));
+    }
     if let Ok(Some((r, name))) = crate::elab::start_input(robot) {
         listened.push((robot.roles[r].name.clone(), name));
     }
@@ -73,8 +77,15 @@ pub fn check(robot: &Robot, _ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>) {
                     );
                 }
             }
+            // An automaton's `out` wires a chart input to its transitions' Outs.
+            let took = |i: &str| {
+                robot.automata.iter().any(|a| {
+                    a.role.as_deref() == Some(role.name.as_str())
+                        && a.out.as_deref() == Some(format!("{}.{i}", c.name).as_str())
+                })
+            };
             for i in &t.inputs {
-                if !c.on.contains_key(i) {
+                if !c.on.contains_key(i) && !took(i) {
                     out.push(Diagnostic::warning(
                         here.clone(),
                         format!("input `{i}` of chart `{}` is connected to no event", c.name),

@@ -43,6 +43,7 @@ pub const STRUCTURE: &[(&str, Pass)] = &[
     ("charts", charts::check),
     ("automata", crate::automata::check::check),
     ("functions", crate::petri::check::check),
+    ("sorting", crate::sorting::check),
 ];
 
 /// Passes over the elaborated robot (run when `STRUCTURE` and the elaboration found no
@@ -119,6 +120,7 @@ pub fn check(src: &Source) -> Checked {
 /// placed on a role join it.
 fn build_ir(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
     let mut ir = build_charts(robot, src)?;
+    crate::sorting::place(robot, src, &mut ir)?;
     crate::automata::compile::place(robot, src, &mut ir)?;
     Ok(ir)
 }
