@@ -33,6 +33,7 @@ pub mod locate;
 pub mod lower;
 pub mod model;
 pub mod petri;
+pub mod plants;
 pub mod source;
 pub mod synth;
 

@@ -81,6 +81,10 @@ pub struct Robot {
     /// as places and transitions or as their incidence matrix.
     #[serde(default)]
     pub functions: Vec<crate::petri::model::FunctionDecl>,
+    /// Plant models for `sim` beyond the actuators (a motor with a continuous position,
+    /// what it moves, maintained contacts, buttons), wired to role pins by name.
+    #[serde(default)]
+    pub plants: Vec<crate::plants::PlantDecl>,
 }
 
 /// A selecting automaton as written: either `states` / `initial` / `transitions`, or the

@@ -1109,9 +1109,9 @@ impl<'t> World<'t> {
         let mut changes = Vec::new();
         for (p, plant) in self.plants.iter().enumerate() {
             let Plant::Motor(m) = plant else { continue };
-            let touched = effects.iter().any(|e| {
-                matches!(*e, Effect::Output(o, _) if o == m.cw_out || o == m.ccw_out)
-            });
+            let touched = effects
+                .iter()
+                .any(|e| matches!(*e, Effect::Output(o, _) if o == m.cw_out || o == m.ccw_out));
             if m.node != node || !touched {
                 continue;
             }
@@ -1186,9 +1186,7 @@ impl<'t> World<'t> {
             .enumerate()
             .filter_map(|(p, plant)| match plant {
                 Plant::Motor(m) if p == motor => Some((m.node, pick(m.home_in, m.end_in)?)),
-                Plant::Driven(d) if d.motor == motor => {
-                    Some((d.node, pick(d.home_in, d.end_in)?))
-                }
+                Plant::Driven(d) if d.motor == motor => Some((d.node, pick(d.home_in, d.end_in)?)),
                 _ => None,
             })
             .collect()

@@ -123,7 +123,9 @@ impl Motor {
 
     /// The carriage's position at `now_ms` (on its way, or where it stands).
     pub fn position_um(&self, c: &Carriage, now_ms: u64) -> u64 {
-        let moved = now_ms.saturating_sub(c.since_ms).saturating_mul(self.speed());
+        let moved = now_ms
+            .saturating_sub(c.since_ms)
+            .saturating_mul(self.speed());
         match c.run {
             Run::Stopped => c.at_um,
             Run::Clockwise => c.at_um.saturating_add(moved).min(self.stroke_um()),

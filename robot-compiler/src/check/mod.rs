@@ -43,6 +43,7 @@ pub const STRUCTURE: &[(&str, Pass)] = &[
     ("charts", charts::check),
     ("automata", crate::automata::check::check),
     ("functions", crate::petri::check::check),
+    ("plants", crate::plants::check),
 ];
 
 /// Passes over the elaborated robot (run when `STRUCTURE` and the elaboration found no
