@@ -49,18 +49,15 @@ fn plant(world: &World, name: &str) -> usize {
     world.plant_by_name(name).expect(name)
 }
 
-/// Runs until nothing is pending; returns the trace entries of that run.
-fn settle(world: &mut World) -> usize {
-    let mark = world.trace().len();
+/// Runs until nothing is pending.
+fn settle(world: &mut World) {
     world.run_until_idle(60_000).expect("settles");
-    mark
 }
 
-#[test]
-fn the_papers_fault_scenario_stops_the_pusher_at_once_and_a_restart_completes_a_cycle() {
-    let c = build(&load("../robot-configs/waterjet-transport.ron"));
-    let tables = sim::tables(&c).expect("blobs decode");
-    let (mut world, start) = sim::world(&c, &tables).expect("world");
+/// Fig. 9 on the compiled robot: its whole trace (asserting each stage on the way).
+fn fig9(c: &Compiled) -> Vec<TraceEntry> {
+    let tables = sim::tables(c).expect("blobs decode");
+    let (mut world, start) = sim::world(c, &tables).expect("world");
     let (pusher, belt) = (plant(&world, "PUSHER"), plant(&world, "BELT"));
     let (fault, release, restart) = (
         plant(&world, "FAULT"),
@@ -138,7 +135,14 @@ fn the_papers_fault_scenario_stops_the_pusher_at_once_and_a_restart_completes_a_
             .any(|e| matches!(e.what, What::Fault { .. })),
         "no node faulted"
     );
-    let got = places(&c, world.trace());
+    world.take_trace()
+}
+
+#[test]
+fn the_papers_fault_scenario_stops_the_pusher_at_once_and_a_restart_completes_a_cycle() {
+    let c = build(&load("../robot-configs/waterjet-transport.ron"));
+    let trace = fig9(&c);
+    let got = places(&c, &trace);
     let want = [
         // (1)-(3): step 2, the pusher clockwise, the belt forward.
         "    0 Operation: Manual -> Auto",
@@ -176,4 +180,54 @@ fn the_papers_fault_scenario_stops_the_pusher_at_once_and_a_restart_completes_a_
         " 6066 Transport: Step3 -> ReadyToCut",
     ];
     assert_eq!(got, want, "{}", got.join("\n"));
+}
+
+/// The lanes of an SVG: (kind, name) of every `<g class="lane KIND" data-name="NAME">`.
+fn lanes(svg: &str) -> Vec<(String, String)> {
+    svg.lines()
+        .filter_map(|l| {
+            let rest = l.strip_prefix(r#"<g class="lane "#)?;
+            let (kind, rest) = rest.split_once('"')?;
+            let name = rest.strip_prefix(r#" data-name=""#)?.split('"').next()?;
+            Some((kind.to_string(), name.to_string()))
+        })
+        .collect()
+}
+
+/// `sim --timeline` draws fig. 9: a lane per continuous position (the pusher's and the
+/// belt's, the same stroke over time), a lane per control function's place (not the
+/// `.seen` charts mirroring another node's function), the radio.
+#[test]
+fn the_timeline_of_fig_9_has_a_lane_per_function_and_per_position() {
+    let c = build(&load("../robot-configs/waterjet-transport.ron"));
+    let trace = fig9(&c);
+    let svg = robot_analysis::timeline::svg(&c, &trace).expect("svg");
+    let want = [
+        ("position", "PUSHER"),
+        ("position", "BELT"),
+        ("chart", "CABINET.Operation"),
+        ("chart", "CABINET.Transport"),
+        ("chart", "PUSHER.FaultDetection"),
+        ("chart", "PUSHER.Pusher"),
+        ("chart", "BELT.Belt"),
+        ("radio", "radio"),
+    ];
+    let want: Vec<(String, String)> = want
+        .iter()
+        .map(|(k, n)| (k.to_string(), n.to_string()))
+        .collect();
+    assert_eq!(lanes(&svg), want);
+    // The pusher's position: out to 199.6 mm, stopped by the fault, home, then a full
+    // stroke out and back.
+    let pusher = svg
+        .split(r#"data-name="PUSHER">"#)
+        .nth(1)
+        .and_then(|s| s.split("points=\"").nth(1))
+        .and_then(|s| s.split('"').next())
+        .expect("the pusher's polyline");
+    assert_eq!(
+        pusher,
+        "150.0,70.0 150.4,70.0 331.3,57.0 332.4,57.0 513.4,70.0 513.4,70.0 523.6,70.0 886.2,44.0 \
+         886.2,44.0 887.0,44.0 1249.6,70.0 1249.6,70.0 1250.0,70.0"
+    );
 }
