@@ -931,3 +931,114 @@ fn a_lossy_link_raises_its_alarm_after_the_retries_and_breaks_when_its_queue_ove
         .iter()
         .any(|e| matches!(e.what, What::Deliver { .. })));
 }
+
+/// The cylinder node's chart driving a motor (output 0 clockwise, 1 counter-clockwise,
+/// 300 mm at 150 mm/s) that moves a belt whose sensors are on node 1; a fault contact on
+/// node 2. Out 2 s, back 2 s; the belt's sensors switch with the motor's, on its node;
+/// at home the motor stalls (still commanded counter-clockwise).
+#[test]
+fn a_motor_moves_its_carriage_and_what_it_drives_at_its_speed() {
+    let (chart, plain) = (cylinder_table(true), cylinder_table(false));
+    let nodes = [
+        NodeSpec {
+            addr: 1,
+            table: &chart,
+        },
+        NodeSpec {
+            addr: 2,
+            table: &plain,
+        },
+        NodeSpec {
+            addr: 3,
+            table: &plain,
+        },
+    ];
+    let motor = Motor {
+        name: "M".into(),
+        node: 0,
+        cw_out: 0,
+        ccw_out: 1,
+        home_in: Some(0),
+        end_in: Some(1),
+        stroke_mm: 300,
+        speed_mm_s: 150,
+    };
+    let belt = Driven {
+        name: "B".into(),
+        node: 1,
+        motor: 0,
+        home_in: Some(0),
+        end_in: Some(1),
+    };
+    let contact = Switch {
+        name: "F".into(),
+        node: 2,
+        input: 1,
+    };
+    let mut world = World::new(&nodes, vec![motor.into(), belt.into(), contact.into()]).unwrap();
+    // Both home sensors read high at power-up, no edge.
+    assert_eq!(world.engine(0).inputs(), 0b01);
+    assert_eq!(world.engine(1).inputs(), 0b01);
+    world.start(0).unwrap();
+    world.run_for(1000).unwrap();
+    assert_eq!(world.run(0), Some(Run::Clockwise));
+    assert_eq!(
+        (world.carriage_um(0), world.carriage_um(1)),
+        (Some(150_000), Some(150_000))
+    );
+    assert_eq!(world.run_until_idle(10_000), Ok(4000));
+    assert_eq!(world.run(0), Some(Run::CounterClockwise));
+    assert_eq!(world.carriage_um(1), Some(0));
+    world.set_switch(2, true).unwrap();
+    world.run_until_idle(10).unwrap();
+    assert_eq!(world.engine(2).inputs(), 0b10);
+    let motion: Vec<String> = world
+        .trace()
+        .iter()
+        .filter(|e| {
+            !matches!(
+                e.what,
+                What::Fired { .. } | What::Output { .. } | What::Start { .. }
+            )
+        })
+        .map(|e| e.to_string())
+        .collect();
+    let want = [
+        "       0 ms  plant #0 runs clockwise at 0.000 mm",
+        "       0 ms  step M+",
+        "       0 ms  node 0 input 0 = 0",
+        "       0 ms  node 1 input 0 = 0",
+        "    2000 ms  plant #0 at end",
+        "    2000 ms  node 0 input 1 = 1",
+        // The chart reverses on the end sensor, in that engine step.
+        "    2000 ms  plant #0 runs counter-clockwise at 300.000 mm",
+        "    2000 ms  step M-",
+        "    2000 ms  node 1 input 1 = 1",
+        "    2000 ms  node 0 input 1 = 0",
+        "    2000 ms  node 1 input 1 = 0",
+        "    4000 ms  plant #0 at home",
+        "    4000 ms  node 0 input 0 = 1",
+        "    4000 ms  node 1 input 0 = 1",
+        "    4000 ms  switch plant #2 set to 1",
+        "    4000 ms  node 2 input 1 = 1",
+    ];
+    assert_eq!(motion, want);
+    assert_eq!(
+        World::new(
+            &nodes,
+            vec![Driven {
+                name: "B".into(),
+                node: 1,
+                motor: 0,
+                home_in: None,
+                end_in: None,
+            }
+            .into()]
+        )
+        .err(),
+        Some(SimError::NoSuchPlant {
+            plant: 0,
+            want: "a motor"
+        })
+    );
+}

@@ -6,11 +6,15 @@
 use std::fmt::{Display, Write};
 
 use config_schema::{DecodeError, Table};
-use node_fw::sim::{Button, DoubleActing, NodeSpec, Plant, SimError, SingleActing, What, World};
+use node_fw::sim::{
+    Button, DoubleActing, Driven, Motor, NodeSpec, Plant, SimError, SingleActing, Switch, What,
+    World,
+};
 
 use robot_compiler::compile::Compiled;
 use robot_compiler::ir::{Step, Valves};
 use robot_compiler::model::ActuatorKind;
+use robot_compiler::plants::PlantDecl;
 
 /// Why a compiled robot could not be simulated.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -22,6 +26,10 @@ pub enum SimulationError {
     /// A compiled blob does not decode as a node decodes it.
     #[error("blob of role {role}: {error}")]
     Blob { role: String, error: DecodeError },
+    /// A declared plant names a role or pin the compiled robot does not have (`check`
+    /// reports it at its place).
+    #[error("plant {plant}: no {what}")]
+    PlantPin { plant: String, what: String },
     /// The world could not be built, or a run did not finish.
     #[error(transparent)]
     World(#[from] SimError),
@@ -188,6 +196,7 @@ pub fn plants(c: &Compiled) -> Result<(Vec<Plant>, usize), SimulationError> {
             }
         }
     }
+    declared(c, &mut plants)?;
     let (sr, name) = c.ir.start.clone().ok_or(SimulationError::NoStart)?;
     let input = c.ir.roles[sr]
         .inputs
@@ -200,6 +209,76 @@ pub fn plants(c: &Compiled) -> Result<(Vec<Plant>, usize), SimulationError> {
     plants.push(Plant::Button(Button::new(&name, sr, input as u8)));
     let button = plants.len() - 1;
     Ok((plants, button))
+}
+
+/// The robot's declared plants (`plants`), in order, after those already in `plants`.
+fn declared(c: &Compiled, plants: &mut Vec<Plant>) -> Result<(), SimulationError> {
+    let base = plants.len();
+    for p in &c.robot.plants {
+        let missing = |what: String| SimulationError::PlantPin {
+            plant: p.name().to_string(),
+            what,
+        };
+        let node = (c.ir.roles.iter())
+            .position(|r| r.name == p.role())
+            .ok_or_else(|| missing(format!("role {}", p.role())))?;
+        let role = &c.ir.roles[node];
+        let input = |name: &str| {
+            (role.inputs.iter())
+                .position(|i| i.name == name)
+                .map(|i| i as u8)
+                .ok_or_else(|| missing(format!("input {name} on role {}", role.name)))
+        };
+        let output = |name: &str| {
+            (role.outputs.iter())
+                .position(|o| o.name == name)
+                .map(|o| o as u8)
+                .ok_or_else(|| missing(format!("output {name} on role {}", role.name)))
+        };
+        let opt = |name: &Option<String>| name.as_deref().map(input).transpose();
+        let name = p.name().to_string();
+        plants.push(match p {
+            PlantDecl::Motor {
+                cw,
+                ccw,
+                home,
+                end,
+                stroke_mm,
+                speed_mm_s,
+                ..
+            } => Plant::Motor(Motor {
+                name,
+                node,
+                cw_out: output(cw)?,
+                ccw_out: output(ccw)?,
+                home_in: opt(home)?,
+                end_in: opt(end)?,
+                stroke_mm: *stroke_mm,
+                speed_mm_s: *speed_mm_s,
+            }),
+            PlantDecl::Driven {
+                motor, home, end, ..
+            } => Plant::Driven(Driven {
+                name,
+                node,
+                motor: (c.robot.plants.iter())
+                    .position(|q| matches!(q, PlantDecl::Motor { name, .. } if name == motor))
+                    .map(|m| base + m)
+                    .ok_or_else(|| missing(format!("motor {motor}")))?,
+                home_in: opt(home)?,
+                end_in: opt(end)?,
+            }),
+            PlantDecl::Switch { input: i, .. } => Plant::Switch(Switch {
+                name,
+                node,
+                input: input(i)?,
+            }),
+            PlantDecl::Button { input: i, .. } => {
+                Plant::Button(Button::new(&name, node, input(i)?))
+            }
+        });
+    }
+    Ok(())
 }
 
 /// Runs `cycles` cycles of the compiled robot from its blobs.

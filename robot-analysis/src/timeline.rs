@@ -1,14 +1,17 @@
 //! `sim --timeline FILE.svg`: a state-timing diagram of a simulated run, like seed 001's:
 //! one lane per actuator (home / moving / end, drawn as the rod's stroke over time), one
-//! lane per chart (its state over time, a tick per transition), a radio lane (a tick per
-//! publication), and faults, link alarms and injected faults as vertical lines.
+//! lane per continuous position (a motor and what it moves: position over time), one lane
+//! per chart (its state over time, a tick per transition; a control function's chart is its
+//! place, the `.seen` charts that mirror another node's function are left out), a radio
+//! lane (a tick per publication), and faults, link alarms and injected faults as vertical
+//! lines.
 //!
-//! Every lane is a `<g class="lane KIND" data-name="NAME">` (KIND: `actuator`, `chart`,
-//! `radio`), so tools and tests can find them.
+//! Every lane is a `<g class="lane KIND" data-name="NAME">` (KIND: `actuator`,
+//! `position`, `chart`, `radio`), so tools and tests can find them.
 
 use std::fmt::Write;
 
-use node_fw::sim::{TraceEntry, What};
+use node_fw::sim::{Plant, TraceEntry, What};
 
 use crate::sim::{SimulationError, CYCLE_LIMIT_MS};
 use robot_compiler::compile::Compiled;
@@ -60,11 +63,29 @@ pub fn svg(c: &Compiled, trace: &[TraceEntry]) -> Result<String, SimulationError
         .filter(|(_, p)| p.travel().is_some())
         .map(|(i, p)| (i, p.name()))
         .collect();
+    // (its name, the motor that moves it, the motor's stroke in µm)
+    let positions: Vec<(&str, usize, u64)> = (plants.iter().enumerate())
+        .filter_map(|(i, p)| {
+            let motor = match p {
+                Plant::Motor(_) => i,
+                Plant::Driven(d) => d.motor,
+                _ => return None,
+            };
+            match plants.get(motor) {
+                Some(Plant::Motor(m)) => Some((p.name(), motor, u64::from(m.stroke_mm) * 1000)),
+                _ => None,
+            }
+        })
+        .collect();
     let charts: Vec<(usize, usize)> =
         c.ir.roles
             .iter()
             .enumerate()
-            .flat_map(|(r, role)| (0..role.charts.len()).map(move |ch| (r, ch)))
+            .flat_map(|(r, role)| {
+                (0..role.charts.len())
+                    .filter(move |&ch| !role.charts[ch].name.ends_with(".seen"))
+                    .map(move |ch| (r, ch))
+            })
             .collect();
     let end_ms = trace.last().map_or(1, |e| e.t_ms).max(1);
     let mut d = Drawing {
@@ -73,12 +94,19 @@ pub fn svg(c: &Compiled, trace: &[TraceEntry]) -> Result<String, SimulationError
         end_ms,
         o: String::new(),
     };
-    let height =
-        TOP + ACT_H * actuators.len() as f64 + CHART_H * charts.len() as f64 + RADIO_H + 40.0;
+    let height = TOP
+        + ACT_H * (actuators.len() + positions.len()) as f64
+        + CHART_H * charts.len() as f64
+        + RADIO_H
+        + 40.0;
     d.header(height);
     let mut y = TOP;
     for (plant, name) in &actuators {
         d.actuator_lane(*plant, name, y);
+        y += ACT_H;
+    }
+    for &(name, motor, stroke_um) in &positions {
+        d.position_lane(name, motor, stroke_um, y);
         y += ACT_H;
     }
     for &(r, ch) in &charts {
@@ -201,6 +229,52 @@ impl Drawing<'_> {
                 }
             }
         }
+        self.o.push_str("</g>\n");
+    }
+
+    /// The lane at `y` of a continuous position (`name`, moved by motor `motor` over
+    /// `stroke_um`): the position over time, straight between the motor's changes of run
+    /// and its arrivals.
+    fn position_lane(&mut self, name: &str, motor: usize, stroke_um: u64, y: f64) {
+        let (lo, hi) = (y + ACT_H - 10.0, y + 8.0);
+        let (trace, end_ms) = (self.trace, self.end_ms);
+        let level = |um: u64| lo - (lo - hi) * um as f64 / stroke_um.max(1) as f64;
+        let _ = writeln!(
+            self.o,
+            r##"<g class="lane position" data-name="{}"><rect x="{LEFT}" y="{y}" width="{WIDTH}" height="{ACT_H}" fill="#f4f7fb" stroke="#dde"/><text x="10" y="{:.1}" font-weight="bold">{} Pos</text><text x="{:.1}" y="{:.1}" font-size="9" fill="gray" text-anchor="end">{} mm</text><text x="{:.1}" y="{:.1}" font-size="9" fill="gray" text-anchor="end">0</text>"##,
+            esc(name),
+            y + ACT_H / 2.0 + 4.0,
+            esc(name),
+            LEFT - 4.0,
+            hi + 3.0,
+            stroke_um / 1000,
+            LEFT - 4.0,
+            lo + 3.0
+        );
+        let mut points = vec![(self.x(0), lo)];
+        let mut at = lo;
+        for e in trace {
+            match e.what {
+                What::Motor {
+                    plant: p, at_um, ..
+                } if p == motor => at = level(at_um),
+                What::Arrived { plant: p, end } if p == motor => {
+                    at = level(if end { stroke_um } else { 0 })
+                }
+                _ => continue,
+            }
+            points.push((self.x(e.t_ms), at));
+        }
+        points.push((self.x(end_ms), at));
+        let pts: Vec<String> = points
+            .iter()
+            .map(|(a, b)| format!("{a:.1},{b:.1}"))
+            .collect();
+        let _ = writeln!(
+            self.o,
+            r##"<polyline points="{}" fill="none" stroke="#1f4e9c" stroke-width="2"/>"##,
+            pts.join(" ")
+        );
         self.o.push_str("</g>\n");
     }
 

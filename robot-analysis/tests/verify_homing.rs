@@ -108,6 +108,7 @@ fn every_robot_of_robot_configs_homes_or_has_no_homing() {
                 h("VC- HC- RC- GR-", 81, 4320)
             ),
             ("paint-robot.ron", h("VC- HC- RC- GR-", 81, 1440)),
+            ("waterjet-transport.ron", None),
         ]
     );
 }

@@ -35,6 +35,7 @@ pub mod locate;
 pub mod lower;
 pub mod model;
 pub mod petri;
+pub mod plants;
 pub mod sorting;
 pub mod source;
 pub mod synth;

@@ -86,6 +86,10 @@ pub struct Robot {
     /// `sim` runs.
     #[serde(default)]
     pub sorting: Option<crate::sorting::Sorting>,
+    /// Plant models for `sim` beyond the actuators (a motor with a continuous position,
+    /// what it moves, maintained contacts, buttons), wired to role pins by name.
+    #[serde(default)]
+    pub plants: Vec<crate::plants::PlantDecl>,
 }
 
 /// A selecting automaton as written: either `states` / `initial` / `transitions`, or the

@@ -120,6 +120,8 @@ pub fn actuators(c: &Compiled) -> Result<Vec<Actuator>, NetError> {
                 });
             }
             Plant::Button(_) => {}
+            // Host-simulation plants: not driven in real time.
+            Plant::Motor(_) | Plant::Driven(_) | Plant::Switch(_) => {}
         }
     }
     Ok(out)

@@ -17,6 +17,7 @@
 
 mod feed;
 mod lossy;
+mod motor;
 mod plant;
 mod trace;
 
@@ -32,6 +33,7 @@ use crate::ecc::{Effects, Engine, Fault};
 
 pub use crate::cylinder::{Outcome as RodOutcome, Position, Rod};
 pub use feed::{Feed, ENTRY_PULSE_MS};
+pub use motor::{Carriage, Driven, Motor, Run, Switch};
 pub use plant::{Button, DoubleActing, Plant, SingleActing};
 pub use trace::{cycles, steps, Cycle, TraceEntry, What};
 
@@ -304,6 +306,8 @@ pub struct World<'t> {
     plants: Vec<Plant>,
     /// Rod of each plant (buttons keep `Home`).
     rods: Vec<Rod>,
+    /// Carriage of each plant (only a motor's moves).
+    carriages: Vec<Carriage>,
     /// Motion generation of each plant: a stale arrival is dropped.
     gens: Vec<u64>,
     timer_gen: u64,
@@ -384,6 +388,16 @@ impl<'t> World<'t> {
                 used.push((node, input, false));
             }
         }
+        for p in &plants {
+            if let Plant::Driven(d) = p {
+                if !matches!(plants.get(d.motor), Some(Plant::Motor(_))) {
+                    return Err(SimError::NoSuchPlant {
+                        plant: d.motor,
+                        want: "a motor",
+                    });
+                }
+            }
+        }
         let plants_len = plants.len();
         let mut world = World {
             now: 0,
@@ -403,6 +417,7 @@ impl<'t> World<'t> {
                 })
                 .collect(),
             rods: vec![Rod::Home; plants.len()],
+            carriages: vec![Carriage::default(); plants.len()],
             gens: vec![0; plants.len()],
             plants,
             timer_gen: 0,
@@ -430,6 +445,15 @@ impl<'t> World<'t> {
                 if let Some(sensor) = closed {
                     engine.sense(sensor, true);
                 }
+            }
+            // A motor and what it moves start at home, their home sensors closed.
+            let home = match plant {
+                Plant::Motor(m) => m.home_in,
+                Plant::Driven(d) => d.home_in,
+                _ => None,
+            };
+            if let Some(sensor) = home {
+                world.nodes[plant.node()].engine.sense(sensor, true);
             }
         }
         Ok(world)
@@ -507,6 +531,43 @@ impl<'t> World<'t> {
     pub fn position(&self, plant: usize) -> Option<Position> {
         self.plants.get(plant)?.travel()?;
         Some(self.rods[plant].position())
+    }
+
+    /// Where a motor's carriage (or what it moves) is now, µm from home (`None` for
+    /// another plant).
+    pub fn carriage_um(&self, plant: usize) -> Option<u64> {
+        let motor = match self.plants.get(plant)? {
+            Plant::Motor(_) => plant,
+            Plant::Driven(d) => d.motor,
+            _ => return None,
+        };
+        let Some(Plant::Motor(m)) = self.plants.get(motor) else {
+            return None;
+        };
+        Some(m.position_um(&self.carriages[motor], self.now))
+    }
+
+    /// How a motor runs now (`None` for another plant).
+    pub fn run(&self, plant: usize) -> Option<Run> {
+        match self.plants.get(plant)? {
+            Plant::Motor(_) => Some(self.carriages[plant].run),
+            _ => None,
+        }
+    }
+
+    /// Sets a maintained contact ([`Switch`]) to `level` now; setting the level it has
+    /// does nothing. Takes effect when the world runs.
+    pub fn set_switch(&mut self, plant: usize, level: bool) -> Result<(), SimError> {
+        let Some(Plant::Switch(s)) = self.plants.get(plant) else {
+            return Err(SimError::NoSuchPlant {
+                plant,
+                want: "a switch",
+            });
+        };
+        let (node, input) = (s.node, s.input);
+        self.log(What::Switched { plant, level });
+        self.schedule(0, Ev::Input { node, input, level });
+        Ok(())
     }
 
     /// Everything that happened so far.
@@ -806,6 +867,9 @@ impl<'t> World<'t> {
             Ev::Home { node } => self.call(node, |e, fx| {
                 e.home(fx);
             }),
+            Ev::Arrive { plant, .. } if matches!(self.plants[plant], Plant::Motor(_)) => {
+                self.motor_arrive(plant);
+            }
             Ev::Arrive { plant, .. } => {
                 if let Some(end) = self.rods[plant].arrive() {
                     self.log(What::Arrived { plant, end });
@@ -1057,6 +1121,98 @@ impl<'t> World<'t> {
                 Command::Drive(extend) => self.command(plant, extend),
             }
         }
+        self.drive_motors(node, effects);
+    }
+
+    /// The motors of node `node` whose outputs the step `effects` drove: each runs as its
+    /// two outputs now say (both high: a conflict, it stops).
+    fn drive_motors(&mut self, node: usize, effects: &[Effect]) {
+        let outputs = self.nodes[node].engine.outputs();
+        let level = |o: u8| outputs & (1u16 << (o & 15)) != 0;
+        let mut changes = Vec::new();
+        for (p, plant) in self.plants.iter().enumerate() {
+            let Plant::Motor(m) = plant else { continue };
+            let touched = effects
+                .iter()
+                .any(|e| matches!(*e, Effect::Output(o, _) if o == m.cw_out || o == m.ccw_out));
+            if m.node != node || !touched {
+                continue;
+            }
+            let (cw, ccw) = (level(m.cw_out), level(m.ccw_out));
+            changes.push((p, cw && ccw, Run::of(cw, ccw)));
+        }
+        for (plant, conflict, run) in changes {
+            if conflict {
+                self.log(What::Conflict { plant });
+            }
+            if self.carriages[plant].run != run {
+                self.motor_run(plant, run);
+            }
+        }
+    }
+
+    /// Motor `plant` runs `run` from now on.
+    fn motor_run(&mut self, plant: usize, run: Run) {
+        let Some(Plant::Motor(m)) = self.plants.get(plant) else {
+            return;
+        };
+        let change = m.change(&mut self.carriages[plant], run, self.now);
+        let at_um = self.carriages[plant].at_um;
+        let name = m.name.clone();
+        self.log(What::Motor { plant, run, at_um });
+        self.gens[plant] += 1;
+        let Some(arrive) = change.arrive_ms else {
+            return;
+        };
+        self.log(What::Step {
+            plant,
+            actuator: name,
+            plus: run == Run::Clockwise,
+        });
+        if let Some(end) = change.left {
+            for (node, input) in self.carriage_sensors(plant, end) {
+                self.schedule(
+                    0,
+                    Ev::Input {
+                        node,
+                        input,
+                        level: false,
+                    },
+                );
+            }
+        }
+        let gen = self.gens[plant];
+        self.schedule(arrive - self.now, Ev::Arrive { plant, gen });
+    }
+
+    /// Motor `plant`'s carriage reaches the end it runs to: the sensors there close (its
+    /// own and those of what it moves).
+    fn motor_arrive(&mut self, plant: usize) {
+        let Some(Plant::Motor(m)) = self.plants.get(plant) else {
+            return;
+        };
+        let Some(end) = m.arrive(&mut self.carriages[plant], self.now) else {
+            return;
+        };
+        self.log(What::Arrived { plant, end });
+        for (node, input) in self.carriage_sensors(plant, end) {
+            self.set_input(node, input, true);
+        }
+    }
+
+    /// The sensors (node, input) at one end (`end`, else home) of motor `motor`'s stroke:
+    /// its own, then those of the plants it moves.
+    fn carriage_sensors(&self, motor: usize, end: bool) -> Vec<(usize, u8)> {
+        let pick = |home: Option<u8>, far: Option<u8>| if end { far } else { home };
+        self.plants
+            .iter()
+            .enumerate()
+            .filter_map(|(p, plant)| match plant {
+                Plant::Motor(m) if p == motor => Some((m.node, pick(m.home_in, m.end_in)?)),
+                Plant::Driven(d) if d.motor == motor => Some((d.node, pick(d.home_in, d.end_in)?)),
+                _ => None,
+            })
+            .collect()
     }
 
     fn publish(&mut self, node: usize, p: &Publication) {

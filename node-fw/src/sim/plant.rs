@@ -4,6 +4,7 @@
 //! indices of that node's table). Travel times are in milliseconds of virtual time. The
 //! rules (valve, power-up, sensors, travel) are [`crate::cylinder`]'s.
 
+use super::motor::{Driven, Motor, Switch};
 use crate::cylinder::{Cylinder, Valve};
 
 /// A double-acting cylinder with a bistable 5/2 valve (the paper's `Bistabilni_C`).
@@ -94,6 +95,12 @@ pub enum Plant {
     DoubleActing(DoubleActing),
     SingleActing(SingleActing),
     Button(Button),
+    /// A motor with a continuous position ([`Motor`]).
+    Motor(Motor),
+    /// What a motor moves with it ([`Driven`]).
+    Driven(Driven),
+    /// A maintained contact ([`Switch`]).
+    Switch(Switch),
 }
 
 impl Plant {
@@ -103,6 +110,9 @@ impl Plant {
             Plant::DoubleActing(p) => &p.name,
             Plant::SingleActing(p) => &p.name,
             Plant::Button(p) => &p.name,
+            Plant::Motor(p) => &p.name,
+            Plant::Driven(p) => &p.name,
+            Plant::Switch(p) => &p.name,
         }
     }
 
@@ -112,6 +122,9 @@ impl Plant {
             Plant::DoubleActing(p) => p.node,
             Plant::SingleActing(p) => p.node,
             Plant::Button(p) => p.node,
+            Plant::Motor(p) => p.node,
+            Plant::Driven(p) => p.node,
+            Plant::Switch(p) => p.node,
         }
     }
 
@@ -120,7 +133,8 @@ impl Plant {
         match self {
             Plant::DoubleActing(p) => vec![p.extend_out, p.retract_out],
             Plant::SingleActing(p) => vec![p.out],
-            Plant::Button(_) => vec![],
+            Plant::Motor(p) => vec![p.cw_out, p.ccw_out],
+            Plant::Button(_) | Plant::Driven(_) | Plant::Switch(_) => vec![],
         }
     }
 
@@ -130,15 +144,18 @@ impl Plant {
             Plant::DoubleActing(p) => p.home_in.into_iter().chain(p.end_in).collect(),
             Plant::SingleActing(p) => p.home_in.into_iter().chain(p.end_in).collect(),
             Plant::Button(p) => vec![p.input],
+            Plant::Motor(p) => p.home_in.into_iter().chain(p.end_in).collect(),
+            Plant::Driven(p) => p.home_in.into_iter().chain(p.end_in).collect(),
+            Plant::Switch(p) => vec![p.input],
         }
     }
 
-    /// The node and the (home, end) switch inputs of an actuator.
+    /// The node and the (home, end) switch inputs of an actuator (a cylinder).
     pub fn switches(&self) -> Option<(usize, Option<u8>, Option<u8>)> {
         match self {
             Plant::DoubleActing(p) => Some((p.node, p.home_in, p.end_in)),
             Plant::SingleActing(p) => Some((p.node, p.home_in, p.end_in)),
-            Plant::Button(_) => None,
+            _ => None,
         }
     }
 
@@ -158,7 +175,7 @@ impl Plant {
                 home: p.home_in,
                 end: p.end_in,
             }),
-            Plant::Button(_) => None,
+            _ => None,
         }
     }
 
@@ -167,7 +184,7 @@ impl Plant {
         match self {
             Plant::DoubleActing(p) => Some((p.extend_ms, p.retract_ms)),
             Plant::SingleActing(p) => Some((p.extend_ms, p.retract_ms)),
-            Plant::Button(_) => None,
+            _ => None,
         }
     }
 }
@@ -187,5 +204,23 @@ impl From<SingleActing> for Plant {
 impl From<Button> for Plant {
     fn from(p: Button) -> Plant {
         Plant::Button(p)
+    }
+}
+
+impl From<Motor> for Plant {
+    fn from(p: Motor) -> Plant {
+        Plant::Motor(p)
+    }
+}
+
+impl From<Driven> for Plant {
+    fn from(p: Driven) -> Plant {
+        Plant::Driven(p)
+    }
+}
+
+impl From<Switch> for Plant {
+    fn from(p: Switch) -> Plant {
+        Plant::Switch(p)
     }
 }

@@ -33,7 +33,17 @@ pub enum What {
     },
     /// An actuator reached the end (`end`) or home.
     Arrived { plant: usize, end: bool },
-    /// Both solenoids of a bistable valve were energised by one engine step: no change.
+    /// A motor's run changed (its two outputs): it runs `run` from position `at_um` (µm
+    /// from home).
+    Motor {
+        plant: usize,
+        run: super::Run,
+        at_um: u64,
+    },
+    /// [`World::set_switch`](super::World::set_switch) set a maintained contact.
+    Switched { plant: usize, level: bool },
+    /// Both solenoids of a bistable valve (or both outputs of a motor) were energised by
+    /// one engine step: no change (a motor stops).
     Conflict { plant: usize },
     /// A node input changed level.
     Input { node: usize, input: u8, level: bool },
@@ -133,6 +143,20 @@ impl fmt::Display for What {
                 write!(f, "plant #{plant} at {}", if *end { "end" } else { "home" })
             }
             What::Conflict { plant } => write!(f, "plant #{plant}: both solenoids energised"),
+            What::Motor { plant, run, at_um } => write!(
+                f,
+                "plant #{plant} {} at {}.{:03} mm",
+                match run {
+                    super::Run::Stopped => "stops",
+                    super::Run::Clockwise => "runs clockwise",
+                    super::Run::CounterClockwise => "runs counter-clockwise",
+                },
+                at_um / 1000,
+                at_um % 1000
+            ),
+            What::Switched { plant, level } => {
+                write!(f, "switch plant #{plant} set to {}", lv(*level))
+            }
             What::Input { node, input, level } => {
                 write!(f, "node {node} input {input} = {}", lv(*level))
             }

@@ -44,6 +44,7 @@ pub const STRUCTURE: &[(&str, Pass)] = &[
     ("automata", crate::automata::check::check),
     ("functions", crate::petri::check::check),
     ("sorting", crate::sorting::check),
+    ("plants", crate::plants::check),
 ];
 
 /// Passes over the elaborated robot (run when `STRUCTURE` and the elaboration found no
