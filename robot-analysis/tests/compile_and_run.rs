@@ -11,15 +11,9 @@ mod common;
 use common::{build, load};
 
 fn configs() -> Vec<String> {
-    let dir = format!("{}/../robot-configs", env!("CARGO_MANIFEST_DIR"));
-    let mut out: Vec<String> = std::fs::read_dir(dir)
-        .expect("robot-configs")
-        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
-        .filter(|n| n.ends_with(".ron"))
+    (common::robot_configs().into_iter())
         .map(|n| format!("../robot-configs/{n}"))
-        .collect();
-    out.sort();
-    out
+        .collect()
 }
 
 #[test]

@@ -34,14 +34,7 @@ fn run_prompt(c: &Compiled) -> Report {
 /// (below).
 #[test]
 fn every_robot_of_robot_configs_passes_with_a_prompt_radio() {
-    let dir = format!("{}/../robot-configs", env!("CARGO_MANIFEST_DIR"));
-    let mut files: Vec<String> = std::fs::read_dir(&dir)
-        .expect("robot-configs")
-        .filter_map(|e| e.ok())
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| n.ends_with(".ron"))
-        .collect();
-    files.sort();
+    let files = common::robot_configs();
     let mut counts = Vec::new();
     for f in &files {
         let c = build(&load(&format!("../robot-configs/{f}")));

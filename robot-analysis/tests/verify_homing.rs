@@ -73,14 +73,7 @@ fn the_paint_robots_derived_homing_reaches_idle_from_all_81_start_positions() {
 /// (with any radio delay), the explicit-chart ones have no homing to prove.
 #[test]
 fn every_robot_of_robot_configs_homes_or_has_no_homing() {
-    let dir = format!("{}/../robot-configs", env!("CARGO_MANIFEST_DIR"));
-    let mut files: Vec<String> = std::fs::read_dir(&dir)
-        .expect("robot-configs")
-        .filter_map(|e| e.ok())
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| n.ends_with(".ron"))
-        .collect();
-    files.sort();
+    let files = common::robot_configs();
     let mut seen = Vec::new();
     for f in &files {
         let c = build(&load(&format!("../robot-configs/{f}")));

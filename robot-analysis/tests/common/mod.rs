@@ -24,3 +24,16 @@ pub fn build(src: &Source) -> Compiled {
         ),
     }
 }
+
+/// The robot files of `robot-configs/`, by file name, sorted.
+pub fn robot_configs() -> Vec<String> {
+    let dir = format!("{}/../robot-configs", env!("CARGO_MANIFEST_DIR"));
+    let mut files: Vec<String> = std::fs::read_dir(&dir)
+        .expect("robot-configs")
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".ron"))
+        .collect();
+    files.sort();
+    files
+}
