@@ -197,6 +197,26 @@ fn a_node_that_rebooted_between_cycles_takes_part_in_the_next_cycle() {
     bed.stop();
 }
 
+/// A second tool, in a thread, watching the trial of `addrs` (back to generation 1 unless
+/// confirmed) for `window`, asking every 200 ms; `wait`: how long a rollback waits for the
+/// idle point.
+fn watch_from_a_second_tool(
+    bed: &robot_net::demo::Bed,
+    addrs: &[u16],
+    window: push::TrialWindow,
+    wait: Duration,
+) -> std::thread::JoinHandle<push::TrialEnd> {
+    let secret = bed.secret().expect("secured").clone();
+    let at = bed.medium().addr();
+    let watched = addrs.to_vec();
+    std::thread::spawn(move || {
+        let mut radio = second_tool(at, &secret);
+        let every = Duration::from_millis(200);
+        let mut ids = push::Ids::default();
+        push::watch_trial_for(&mut radio, &mut ids, &watched, 1, window, every, wait).unwrap()
+    })
+}
+
 /// A trial the tool watches: a node that faults during it sends every node back to the
 /// previous generation at once; a window that ends unconfirmed sends them back at the idle
 /// point.
@@ -244,22 +264,11 @@ fn a_watched_trial_rolls_back_on_a_fault_or_when_its_window_ends_unconfirmed() {
         }),
     )
     .unwrap();
-    let secret = bed.secret().unwrap().clone();
-    let at = bed.medium().addr();
-    let watched = addrs.clone();
-    let watcher = std::thread::spawn(move || {
-        let mut radio = second_tool(at, &secret);
-        push::watch_trial(
-            &mut radio,
-            &mut push::Ids::default(),
-            &watched,
-            1,
-            Duration::from_secs(60),
-            Duration::from_millis(200),
-            Duration::from_secs(30),
-        )
-        .unwrap()
-    });
+    let window = push::TrialWindow {
+        time: Some(Duration::from_secs(60)),
+        cycles: None,
+    };
+    let watcher = watch_from_a_second_tool(&bed, &addrs, window, Duration::from_secs(30));
     let (start_role, _) = dip3.ir.start.clone().unwrap();
     bed.command(
         dip3.ir.roles[start_role].address,
@@ -300,26 +309,11 @@ fn a_trial_watched_for_two_cycles_rolls_back_after_the_second() {
     let addrs: Vec<u16> = paint.ir.roles.iter().map(|r| r.address).collect();
     push_and_home(&mut bed, &paint);
     on_trial(&mut bed, &dip);
-    let secret = bed.secret().unwrap().clone();
-    let at = bed.medium().addr();
-    let watched = addrs.clone();
-    let watcher = std::thread::spawn(move || {
-        let mut radio = second_tool(at, &secret);
-        let window = push::TrialWindow {
-            time: None,
-            cycles: Some(2),
-        };
-        push::watch_trial_for(
-            &mut radio,
-            &mut push::Ids::default(),
-            &watched,
-            1,
-            window,
-            Duration::from_millis(200),
-            Duration::from_secs(60),
-        )
-        .unwrap()
-    });
+    let window = push::TrialWindow {
+        time: None,
+        cycles: Some(2),
+    };
+    let watcher = watch_from_a_second_tool(&bed, &addrs, window, Duration::from_secs(60));
     for n in 1..=2 {
         exact_cycle(&mut bed, &dip, n);
     }
