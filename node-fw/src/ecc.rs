@@ -275,36 +275,18 @@ impl<'t> Engine<'t> {
     /// button wired to this node was pressed (so it is published like the button's edge).
     /// Returns whether it did.
     pub fn start(&mut self, fx: &mut impl Effects) -> bool {
-        match self.table.start {
-            Some(event) => {
-                self.raise(event, true, fx);
-                true
-            }
-            None => false,
-        }
+        self.raise_own(self.table.start, fx)
     }
 
     /// Raises the table's HOME event (the HOME command), if it has one; false if not.
     pub fn home(&mut self, fx: &mut impl Effects) -> bool {
-        match self.table.home {
-            Some(event) => {
-                self.raise(event, true, fx);
-                true
-            }
-            None => false,
-        }
+        self.raise_own(self.table.home, fx)
     }
 
     /// Raises the table's boot event (once, when the node boots with the table), if it has
     /// one; false if not.
     pub fn boot(&mut self, fx: &mut impl Effects) -> bool {
-        match self.table.boot {
-            Some(event) => {
-                self.raise(event, true, fx);
-                true
-            }
-            None => false,
-        }
+        self.raise_own(self.table.boot, fx)
     }
 
     /// Puts every chart in its idle state, running no action: a table activated at the
@@ -313,6 +295,18 @@ impl<'t> Engine<'t> {
     pub fn rest(&mut self) {
         for (slot, chart) in self.current.iter_mut().zip(self.table.charts.iter()) {
             *slot = chart.idle;
+        }
+    }
+
+    /// Raises one of the table's own events (START, HOME, boot) as if locally originated
+    /// (published); false if the table has none.
+    fn raise_own(&mut self, event: Option<EventId>, fx: &mut impl Effects) -> bool {
+        match event {
+            Some(event) => {
+                self.raise(event, true, fx);
+                true
+            }
+            None => false,
         }
     }
 

@@ -13,7 +13,7 @@
 //! step, so every chart ends homing in its idle state.
 
 use crate::homing;
-use crate::ir::{ActionIr, ChartIr, InputIr, Ir, RoleIr, StateIr, Step, TransitionIr};
+use crate::ir::{ActionIr, ChartIr, Ir, RoleIr, StateIr, Step, TransitionIr};
 use crate::model::Robot;
 
 use super::{Motion, Sequence, SynthError, Timers, CYCLE_DONE_EVENT};
@@ -239,23 +239,7 @@ fn home_input(robot: &Robot, ir: &mut Ir, first: usize) -> Result<String, SynthE
     let Some((hr, name)) = crate::elab::home_input(robot)? else {
         return Ok(String::from(HOME_COMMAND_EVENT));
     };
-    let pin = robot.roles[hr]
-        .inputs
-        .iter()
-        .find(|i| i.name == name)
-        .map(|i| i.pin)
-        .ok_or_else(|| SynthError::UnknownInput(name.clone()))?;
-    let r = &mut ir.roles[hr];
-    r.event(&name);
-    if !r.inputs.iter().any(|i| i.name == name) {
-        r.inputs.push(InputIr {
-            name: name.clone(),
-            pin,
-            rise: Some(name.clone()),
-            fall: None,
-            var: None,
-        });
-    }
+    super::button(&mut ir.roles[hr], &robot.roles[hr], &name)?;
     if hr != first {
         let from = ir.roles[hr].name.clone();
         let r = &mut ir.roles[first];

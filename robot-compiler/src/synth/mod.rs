@@ -243,22 +243,7 @@ impl<'a> Sequence<'a> {
 
     /// The START button's input, on the button's role.
     fn start_button(&self, r: &mut RoleIr, role: &Role) -> Result<(), SynthError> {
-        let start = &self.start_input;
-        let pin = role
-            .inputs
-            .iter()
-            .find(|i| i.name == *start)
-            .map(|i| i.pin)
-            .ok_or_else(|| SynthError::UnknownInput(start.clone()))?;
-        r.event(start);
-        r.inputs.push(InputIr {
-            name: start.clone(),
-            pin,
-            rise: Some(start.clone()),
-            fall: None,
-            var: None,
-        });
-        Ok(())
+        button(r, role, &self.start_input)
     }
 
     /// What starts a cycle on step 1's role: START itself, or the gate's `cycle.start`.
@@ -416,6 +401,28 @@ fn start_chart(robot: &Robot, r: &mut RoleIr, start_input: &str, reopen: &str, f
             },
         ],
     });
+}
+
+/// Declares button `name` of `role` (START, HOME) in its IR `r`, once: an input whose
+/// rising edge raises the node event of the same name.
+fn button(r: &mut RoleIr, role: &Role, name: &str) -> Result<(), SynthError> {
+    let pin = role
+        .inputs
+        .iter()
+        .find(|i| i.name == name)
+        .map(|i| i.pin)
+        .ok_or_else(|| SynthError::UnknownInput(name.to_string()))?;
+    r.event(name);
+    if !r.inputs.iter().any(|i| i.name == name) {
+        r.inputs.push(InputIr {
+            name: name.to_string(),
+            pin,
+            rise: Some(name.to_string()),
+            fall: None,
+            var: None,
+        });
+    }
+    Ok(())
 }
 
 /// The timers of one actuator's chart (indices into the role's `timers`).
