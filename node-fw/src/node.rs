@@ -628,10 +628,21 @@ impl NodeCore {
     /// Raises the table's START event: a START at the idle point that sets the node going
     /// begins a cycle.
     fn run_start(&mut self, now: u64, io: &mut impl Io) {
-        let was_idle = self.idle();
-        self.run(now, io, |e, fx| {
+        self.run_starting(now, io, |e, fx| {
             e.start(fx);
         });
+    }
+
+    /// [`NodeCore::run`] of a START (the command or the button): one at the idle point
+    /// that sets the node going opens a cycle (`Status::cycles`).
+    fn run_starting<I: Io>(
+        &mut self,
+        now: u64,
+        io: &mut I,
+        f: impl FnOnce(&mut Engine, &mut NodeEffects<'_, I>),
+    ) {
+        let was_idle = self.idle();
+        self.run(now, io, f);
         self.cycle_open |= was_idle && !self.idle();
     }
 
@@ -717,9 +728,13 @@ impl NodeCore {
         let is_start = self.table.as_ref().is_some_and(|t| {
             level && t.start.is_some() && t.inputs.get(index).and_then(|i| i.rise) == t.start
         });
-        let was_idle = self.idle();
-        self.run(now, io, |e, fx| e.input(index as u8, level, fx));
-        self.cycle_open |= is_start && was_idle && !self.idle();
+        let stimulus =
+            |e: &mut Engine, fx: &mut NodeEffects<'_, _>| e.input(index as u8, level, fx);
+        if is_start {
+            self.run_starting(now, io, stimulus);
+        } else {
+            self.run(now, io, stimulus);
+        }
         self.note_idle();
     }
 
