@@ -193,14 +193,11 @@ impl Sender {
 
     /// The subscriber lost its side of the link (it rebooted): the events it has not
     /// acknowledged are numbered again from 0 in `epoch` (newer than this link's) and sent
-    /// at the next poll. A broken link stays broken (only a reset re-establishes it).
+    /// at the next poll. That is no progress: an alarm stays until an acknowledgement. A
+    /// broken link stays broken (only a reset re-establishes it).
     pub fn renumber(&mut self, epoch: u16, now: u64) {
         self.epoch = epoch;
         self.base = 0;
-        self.timeouts = 0;
-        if self.state == LinkState::Alarm {
-            self.state = LinkState::Ok;
-        }
         self.deadline = (!self.pending.is_empty()).then_some(now);
     }
 

@@ -23,7 +23,9 @@
 //! challenges every peer it knows no floor of as soon as it runs with keys. A peer
 //! answers a challenge even if it has no floor for the challenger itself (answering takes
 //! nothing in; with a floor, a replayed challenge is refused like any replay), at most
-//! once per [`HANDSHAKE_MS`] per peer, as it challenges.
+//! once per [`ANSWER_MS`] per peer; it challenges a peer at most once per
+//! [`CHALLENGE_MS`], and an answer to either of its last two challenges sets the floor (on
+//! a busy medium an answer can arrive after the next challenge went out).
 
 use config_schema::limits::MAX_PEERS;
 use config_schema::link_keys::LinkKeys;
@@ -40,9 +42,12 @@ use crate::cipher::NodeCipher;
 
 /// How long after a switch the previous generation's keys still open a peer's frames.
 pub const OVERLAP_MS: u64 = 10_000;
-/// At most one challenge, and one answer, per peer per this many ms (each spends a frame
-/// counter: a flood of replays must not use it up).
-pub const HANDSHAKE_MS: u64 = 50;
+/// At most one answer per peer per this many ms (each spends a frame counter: a flood of
+/// replays must not use it up).
+pub const ANSWER_MS: u64 = 50;
+/// At most one challenge per peer per this many ms: twice [`ANSWER_MS`], so a live peer
+/// answers every challenge (with equal intervals, jitter held some answers back).
+pub const CHALLENGE_MS: u64 = 2 * ANSWER_MS;
 
 /// Challenges a node sends a peer it knows no floor of once it runs with keys, one per
 /// this many ms (until answered).
@@ -62,7 +67,7 @@ pub enum Verdict<'s> {
     /// `challenge` is set; else the last challenge is too recent). Not acted on.
     Challenge { peer: u16, challenge: bool },
     /// Authentic: the peer asks this node to prove freshness; answer it with `nonce` (if
-    /// `answer`: at most once per [`HANDSHAKE_MS`]).
+    /// `answer`: at most once per [`ANSWER_MS`]).
     Answer {
         peer: u16,
         nonce: u32,
@@ -99,18 +104,20 @@ pub struct PeerSecurity {
     next_answer: Vec<(u16, u64), MAX_PEERS>,
 }
 
-fn may(times: &mut Vec<(u16, u64), MAX_PEERS>, peer: u16, now: u64) -> bool {
+/// Whether `peer` may be sent another handshake frame at `now`, at most one per
+/// `every` ms (if so, the next may go at `now + every`).
+fn may(times: &mut Vec<(u16, u64), MAX_PEERS>, peer: u16, now: u64, every: u64) -> bool {
     match times.iter_mut().find(|(p, _)| *p == peer) {
         Some((_, next)) if now < *next => false,
         Some((_, next)) => {
-            *next = now + HANDSHAKE_MS;
+            *next = now + every;
             true
         }
         None => {
             if times.is_full() {
                 times.remove(0);
             }
-            let _ = times.push((peer, now + HANDSHAKE_MS));
+            let _ = times.push((peer, now + every));
             true
         }
     }
@@ -170,7 +177,7 @@ impl PeerSecurity {
         *tries -= 1;
         *next = now + GREET_EVERY_MS;
         let peer = *peer;
-        may(&mut self.next_challenge, peer, now).then_some(peer)
+        may(&mut self.next_challenge, peer, now, CHALLENGE_MS).then_some(peer)
     }
 
     /// When the next greeting is due, if any is.
@@ -275,10 +282,10 @@ impl PeerSecurity {
         let floor = self.replay.last(src, ANY_LINK_KEY);
         if let (None, Ok(Message::Challenge { nonce })) = (floor, &message) {
             // Answering takes nothing in: no floor needed (the peer rebooted, or both did).
-            let answer = may(&mut self.next_answer, src, now);
+            let answer = may(&mut self.next_answer, src, now, ANSWER_MS);
             // (A challenge of ours still unanswered may have gone to the peer before it had
             // this generation's keys: challenged again, at the handshake's rate.)
-            let challenge = may(&mut self.next_challenge, src, now);
+            let challenge = may(&mut self.next_challenge, src, now, CHALLENGE_MS);
             return Verdict::Answer {
                 peer: src,
                 nonce: *nonce,
@@ -298,7 +305,7 @@ impl PeerSecurity {
                 return Verdict::Answered;
             }
             counters.challenged += 1;
-            let challenge = may(&mut self.next_challenge, src, now);
+            let challenge = may(&mut self.next_challenge, src, now, CHALLENGE_MS);
             return Verdict::Challenge {
                 peer: src,
                 challenge,
@@ -320,7 +327,7 @@ impl PeerSecurity {
             Ok(Message::Challenge { nonce }) => Verdict::Answer {
                 peer: src,
                 nonce,
-                answer: may(&mut self.next_answer, src, now),
+                answer: may(&mut self.next_answer, src, now, ANSWER_MS),
                 challenge: false,
             },
             _ => Verdict::Accept(payload),
@@ -333,24 +340,33 @@ impl PeerSecurity {
     }
 }
 
-/// Challenges a node sent and that were not answered yet: per sender the nonce, the
-/// oldest forgotten when full (shared by the management path and the peers').
+/// Challenges a node sent and that were not answered yet: per sender the nonces of its
+/// last [`OUTSTANDING`] challenges, newest first; the sender challenged longest ago
+/// forgotten when full (shared by the management path and the peers').
 #[derive(Debug, Default)]
 pub struct Pending<const N: usize> {
-    sent: Vec<(u16, u32), N>,
+    sent: Vec<(u16, [Option<u32>; OUTSTANDING]), N>,
 }
 
+/// Challenges per sender whose answer still sets the floor.
+pub const OUTSTANDING: usize = 2;
+
 impl<const N: usize> Pending<N> {
-    /// `sender` was challenged with `nonce` (its earlier challenge, if any, no longer
-    /// counts).
+    /// `sender` was challenged with `nonce` (of its earlier challenges, the last
+    /// [`OUTSTANDING`] - 1 still count).
     pub fn sent(&mut self, sender: u16, nonce: u32) {
         match self.sent.iter_mut().find(|(s, _)| *s == sender) {
-            Some(c) => c.1 = nonce,
+            Some((_, nonces)) => {
+                nonces.rotate_right(1);
+                nonces[0] = Some(nonce);
+            }
             None => {
                 if self.sent.is_full() {
                     self.sent.remove(0);
                 }
-                let _ = self.sent.push((sender, nonce));
+                let mut nonces = [None; OUTSTANDING];
+                nonces[0] = Some(nonce);
+                let _ = self.sent.push((sender, nonces));
             }
         }
     }
@@ -364,7 +380,7 @@ impl<const N: usize> Pending<N> {
         let Some(i) = self
             .sent
             .iter()
-            .position(|&(s, n)| s == sender && n == *nonce)
+            .position(|(s, n)| *s == sender && n.contains(&Some(*nonce)))
         else {
             return false;
         };
@@ -611,7 +627,7 @@ mod tests {
             &frame(1, 4, &ch),
             ME,
             0,
-            HANDSHAKE_MS - 1,
+            ANSWER_MS - 1,
             &mut scratch,
             &mut c,
         );
@@ -672,6 +688,67 @@ mod tests {
             Verdict::Dropped
         ));
         assert_eq!(c.unknown_key, 1, "nothing staged: an unknown key");
+    }
+
+    #[test]
+    fn an_answer_to_the_challenge_before_the_last_still_sets_the_floor() {
+        // On a busy medium the answer to one challenge can arrive after the next was
+        // sent: it proves freshness as well (before, every answer came one challenge late,
+        // and two nodes of the eight-actuator robot challenged each other for a minute).
+        let mut s = PeerSecurity::default();
+        let mut c = SecurityCounters::default();
+        s.install(Some(keys(1)), &[PEER]);
+        s.challenged(PEER, 77);
+        s.challenged(PEER, 78);
+        let late = Message::ChallengeAnswer { nonce: 77 };
+        assert_eq!(verdict(&mut s, &frame(1, 10, &late), 0, &mut c), "answered");
+        assert_eq!(verdict(&mut s, &frame(1, 11, &EVENT), 0, &mut c), "accept");
+        // Only the last two count, and each once.
+        let mut s = PeerSecurity::default();
+        s.install(Some(keys(1)), &[PEER]);
+        for nonce in [77, 78, 79] {
+            s.challenged(PEER, nonce);
+        }
+        let oldest = Message::ChallengeAnswer { nonce: 77 };
+        assert_eq!(
+            verdict(&mut s, &frame(1, 10, &oldest), 0, &mut c),
+            "challenge"
+        );
+    }
+
+    #[test]
+    fn a_peer_is_challenged_at_half_the_rate_it_answers() {
+        // A peer's answer is never held back by its own rate limit: a challenge comes at
+        // most every CHALLENGE_MS, twice the interval of answers.
+        let mut s = PeerSecurity::default();
+        let mut c = SecurityCounters::default();
+        s.install(Some(keys(1)), &[PEER]);
+        let mut scratch = [0u8; MAX_PAYLOAD];
+        let challenged: Vec<bool, 8> = [0, ANSWER_MS, CHALLENGE_MS - 1, CHALLENGE_MS]
+            .iter()
+            .zip(20..)
+            .map(|(&t, counter)| {
+                match s.open(&frame(1, counter, &EVENT), ME, 0, t, &mut scratch, &mut c) {
+                    Verdict::Challenge { challenge, .. } => challenge,
+                    _ => panic!("no floor: challenged"),
+                }
+            })
+            .collect();
+        assert_eq!(challenged, [true, false, false, true]);
+        let mut s = PeerSecurity::default();
+        s.install(Some(keys(1)), &[PEER]);
+        let answered: Vec<bool, 8> = [0, ANSWER_MS - 1, ANSWER_MS]
+            .iter()
+            .zip(20..)
+            .map(|(&t, counter)| {
+                let ch = Message::Challenge { nonce: counter };
+                match s.open(&frame(1, counter, &ch), ME, 0, t, &mut scratch, &mut c) {
+                    Verdict::Answer { answer, .. } => answer,
+                    _ => panic!("a challenge is answered"),
+                }
+            })
+            .collect();
+        assert_eq!(answered, [true, false, true]);
     }
 
     #[test]

@@ -171,6 +171,35 @@ fn the_alarm_needs_alarm_after_timeouts_and_clears_on_progress() {
 }
 
 #[test]
+fn a_renumbered_link_resends_at_once_and_stays_in_alarm_until_acknowledged() {
+    // A peer that challenges (it booted) has not acknowledged anything yet: a renumbering
+    // is no progress (before, every challenge cleared the alarm, and a link that never
+    // delivered for a minute showed none).
+    let mut s = Sender::new(1);
+    s.push(9, 0, |_| {}).unwrap();
+    let mut now = 0;
+    while s.state() == LinkState::Ok {
+        now = s.deadline().unwrap();
+        s.poll(now, |_| {});
+    }
+    now += 1;
+    s.renumber(2, now);
+    assert_eq!((s.state(), s.deadline()), (LinkState::Alarm, Some(now)));
+    let mut sent = Vec::new();
+    s.poll(now, |m| sent.push(m));
+    assert_eq!(
+        sent,
+        vec![Message::Event {
+            epoch: 2,
+            seq: 0,
+            topic: 9
+        }]
+    );
+    s.on_ack(2, 1, now + 1, |_| {});
+    assert_eq!((s.state(), s.unacked()), (LinkState::Ok, 0));
+}
+
+#[test]
 fn only_the_window_is_in_flight_and_acks_open_it() {
     let mut s = Sender::new(0);
     let mut sent = Vec::new();
