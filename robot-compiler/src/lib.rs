@@ -29,6 +29,7 @@ pub mod dump;
 pub mod elab;
 pub mod expr;
 pub mod homing;
+pub mod iec61499;
 pub mod interlock;
 pub mod ir;
 pub mod locate;

@@ -44,6 +44,11 @@ pub struct Robot {
     /// Explicit chart types, instantiated by the roles' `charts`.
     #[serde(default)]
     pub chart_types: Vec<ChartType>,
+    /// Basic FB types in IEC 61499-2 XML (`.fbt`), relative to the robot file: each becomes
+    /// a chart type of its `Name`, instantiated like those of `chart_types`
+    /// (docs/iec61499-xml.md).
+    #[serde(default)]
+    pub fb_types: Vec<String>,
     /// For explicit charts: the actuator sequence one cycle must produce (checked by `sim`).
     #[serde(default)]
     pub expect: Option<String>,

@@ -22,10 +22,10 @@ use robot_compiler::{compile, Compiled, Source};
 use robot_tests::paper_robot;
 use robot_tests::vc_dispatch::{engine, run_hand, run_interpreter, HandVc, Sum};
 
-const E_CTU: &str = include_str!("../../bench/robots/e-ctu.ron");
-
 fn e_ctu() -> Result<Compiled, String> {
-    compile::compile(&Source::new("bench/robots/e-ctu.ron", E_CTU))
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../bench/robots/e-ctu.ron");
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
+    compile::compile(&Source::new(path, text))
         .map_err(|d| format!("e-ctu.ron does not compile: {d:?}"))
 }
 

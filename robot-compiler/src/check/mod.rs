@@ -78,7 +78,7 @@ impl Checked {
 
 /// Parses, checks and elaborates a robot: every problem found, sorted by position.
 pub fn check(src: &Source) -> Checked {
-    let robot = match model::parse(src) {
+    let mut robot = match model::parse(src) {
         Ok(r) => r,
         Err(d) => {
             return Checked {
@@ -88,7 +88,8 @@ pub fn check(src: &Source) -> Checked {
             }
         }
     };
-    let mut diags = Vec::new();
+    // Imported FB types join the chart types before anything reads them.
+    let mut diags = crate::iec61499::import(&mut robot, src);
     for (_, pass) in STRUCTURE {
         pass(&robot, src, &mut diags);
     }

@@ -1,0 +1,443 @@
+//! An IEC 61499-2 basic FB type (`.fbt`: `FBType` with `BasicFB`) -> a chart type
+//! ([`ChartType`]) the robot uses like one written in RON (docs/iec61499-xml.md).
+//!
+//! - the interface: event inputs and outputs (their `With` associations checked against
+//!   the variables), input variables (the chart type's parameters: the instance gives
+//!   their values), output and internal variables (the chart's variables, with their
+//!   `InitialValue`s), of BOOL, SINT, INT, DINT, USINT, UINT or UDINT;
+//! - the ECC: `ECState`s in order (the first is the initial state), each `ECAction` its
+//!   algorithm's assignments then its output event; `ECTransition`s with conditions as
+//!   the tools write them: `EI[guard]`, `EI & guard` (1st edition, FBDK), `[guard]`, `EI`,
+//!   `guard`, `1` / `TRUE`;
+//! - algorithms in Structured Text ([`super::st`]).
+//!
+//! Anything else (another algorithm language, REAL, STRING, adapters, a service or
+//! composite FB) is an error naming the element and its line:col; nothing is half
+//! imported.
+
+use roxmltree::{Document, Node, ParsingOptions};
+
+use super::st::{self, Name, StError, Ty};
+use crate::model::{ActionDecl, ChartType, StateDecl, TransitionDecl, VarDecl};
+
+/// An import error at a line and column (1-based) of the XML file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct XmlError {
+    pub line: u32,
+    pub col: u32,
+    pub message: String,
+}
+
+impl std::fmt::Display for XmlError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}:{}: {}", self.line, self.col, self.message)
+    }
+}
+
+/// The element types of IEC 61499 that are not a basic FB, named in errors.
+const OTHER_FB_KINDS: [&str; 3] = ["FBNetwork", "Service", "SimpleFB"];
+
+/// The integer and boolean types a variable may have.
+fn ty_of(name: &str) -> Option<Ty> {
+    match name.to_ascii_uppercase().as_str() {
+        "BOOL" => Some(Ty::Bool),
+        "SINT" | "INT" | "DINT" | "USINT" | "UINT" | "UDINT" => Some(Ty::Int),
+        _ => None,
+    }
+}
+
+#[derive(Clone, Copy)]
+struct Cx<'a, 'i> {
+    doc: &'a Document<'i>,
+}
+
+impl<'a, 'i> Cx<'a, 'i> {
+    fn at(&self, pos: usize, message: impl Into<String>) -> XmlError {
+        let p = self.doc.text_pos_at(pos);
+        XmlError {
+            line: p.row,
+            col: p.col,
+            message: message.into(),
+        }
+    }
+
+    fn node_err(&self, n: Node<'a, 'i>, message: impl Into<String>) -> XmlError {
+        self.at(n.range().start, message)
+    }
+
+    /// An attribute's value, or an error at the element.
+    fn attr(&self, n: Node<'a, 'i>, name: &str) -> Result<&'a str, XmlError> {
+        n.attribute(name).ok_or_else(|| {
+            self.node_err(
+                n,
+                format!("`{}` needs the attribute `{name}`", n.tag_name().name()),
+            )
+        })
+    }
+
+    /// An error inside attribute `name` of `n` at byte span `span` of its value (exact
+    /// when the value has no character references, else at the value's start).
+    fn in_attr(&self, n: Node<'a, 'i>, name: &str, e: StError) -> XmlError {
+        let pos = n
+            .attributes()
+            .find(|a| a.name() == name)
+            .map_or(n.range().start, |a| {
+                let raw = a.range_value();
+                let exact = !self.doc.input_text()[raw.clone()].contains('&');
+                raw.start + if exact { e.span.start } else { 0 }
+            });
+        self.at(pos, e.message)
+    }
+}
+
+/// Element children of `n` (comments and text skipped).
+fn elements<'a, 'i>(n: Node<'a, 'i>) -> impl Iterator<Item = Node<'a, 'i>> {
+    n.children().filter(Node::is_element)
+}
+
+fn child<'a, 'i>(n: Node<'a, 'i>, name: &str) -> Option<Node<'a, 'i>> {
+    elements(n).find(|c| c.tag_name().name() == name)
+}
+
+/// One declared variable.
+struct Var {
+    name: String,
+    ty: Ty,
+    init: Option<String>,
+}
+
+/// Parses the `.fbt` text into a chart type.
+pub fn import(text: &str) -> Result<ChartType, XmlError> {
+    let options = ParsingOptions {
+        allow_dtd: true,
+        ..ParsingOptions::default()
+    };
+    let doc = Document::parse_with_options(text, options).map_err(|e| {
+        let p = e.pos();
+        XmlError {
+            line: p.row,
+            col: p.col,
+            message: format!("not well-formed XML: {e}"),
+        }
+    })?;
+    let cx = Cx { doc: &doc };
+    let root = doc.root_element();
+    if root.tag_name().name() != "FBType" {
+        return Err(cx.node_err(
+            root,
+            format!(
+                "`{}` is not a function block type (`FBType`)",
+                root.tag_name().name()
+            ),
+        ));
+    }
+    let name = cx.attr(root, "Name")?.to_string();
+    for kind in OTHER_FB_KINDS {
+        if let Some(n) = child(root, kind) {
+            return Err(cx.node_err(
+                n,
+                format!(
+                    "`{name}` is a {kind} FB type: only basic FB types (`BasicFB`) are supported"
+                ),
+            ));
+        }
+    }
+    let Some(basic) = child(root, "BasicFB") else {
+        return Err(cx.node_err(
+            root,
+            format!("`{name}` has no `BasicFB`: only basic FB types are supported"),
+        ));
+    };
+    let interface = child(root, "InterfaceList")
+        .ok_or_else(|| cx.node_err(root, format!("`{name}` has no `InterfaceList`")))?;
+    for n in elements(interface) {
+        let tag = n.tag_name().name();
+        if matches!(tag, "Sockets" | "Plugs") && elements(n).next().is_some() {
+            return Err(cx.node_err(n, "adapters (sockets and plugs) are not supported"));
+        }
+    }
+    let vars_of = |list: Option<Node<'_, '_>>| -> Result<Vec<Var>, XmlError> {
+        let mut out = Vec::new();
+        for v in list.into_iter().flat_map(elements) {
+            if v.tag_name().name() != "VarDeclaration" {
+                return Err(cx.node_err(v, format!("unexpected `{}`", v.tag_name().name())));
+            }
+            let vname = cx.attr(v, "Name")?.to_string();
+            let tname = cx.attr(v, "Type")?;
+            let Some(ty) = ty_of(tname) else {
+                return Err(cx.node_err(
+                    v,
+                    format!(
+                        "`{vname}` is of type {tname}: supported are BOOL, SINT, INT, DINT, \
+                         USINT, UINT and UDINT"
+                    ),
+                ));
+            };
+            if v.attribute("ArraySize").is_some_and(|s| !s.is_empty()) {
+                return Err(cx.node_err(v, format!("`{vname}` is an array: not supported")));
+            }
+            let init = match v.attribute("InitialValue").filter(|s| !s.trim().is_empty()) {
+                Some(text) => Some(
+                    st::literal(text.trim(), ty).map_err(|e| cx.in_attr(v, "InitialValue", e))?,
+                ),
+                None => None,
+            };
+            out.push(Var {
+                name: vname,
+                ty,
+                init,
+            });
+        }
+        Ok(out)
+    };
+    let inputs = vars_of(child(interface, "InputVars"))?;
+    let outputs = vars_of(child(interface, "OutputVars"))?;
+    let internal = vars_of(child(basic, "InternalVars"))?;
+    let mut names: Vec<Name> = Vec::new();
+    let mut declared: Vec<(String, Node<'_, '_>)> = Vec::new();
+    let mut events_in = Vec::new();
+    let mut events_out = Vec::new();
+    for (list, out) in [
+        ("EventInputs", &mut events_in),
+        ("EventOutputs", &mut events_out),
+    ] {
+        for e in child(interface, list).into_iter().flat_map(elements) {
+            let ename = cx.attr(e, "Name")?.to_string();
+            out.push((ename, e));
+        }
+    }
+    for (vars, writable) in [(&inputs, false), (&outputs, true), (&internal, true)] {
+        for v in vars.iter() {
+            names.push(Name {
+                name: v.name.clone(),
+                ty: v.ty,
+                writable,
+            });
+        }
+    }
+    // One namespace for events and variables, case-insensitive as IEC 61131-3 has it.
+    for (n, node) in events_in
+        .iter()
+        .chain(events_out.iter())
+        .map(|(n, e)| (n.clone(), *e))
+        .chain(names.iter().map(|n| (n.name.clone(), interface)))
+    {
+        if declared.iter().any(|(d, _)| d.eq_ignore_ascii_case(&n)) {
+            return Err(cx.node_err(node, format!("`{n}` is declared twice")));
+        }
+        declared.push((n, node));
+    }
+    // `With`: each names a variable of its side (inputs with input events, outputs with
+    // output events). Data arrives with its event: with parameters for the input
+    // variables, the sampled value is the instance's.
+    for ((_, e), vars) in events_in
+        .iter()
+        .map(|x| (x, &inputs))
+        .chain(events_out.iter().map(|x| (x, &outputs)))
+    {
+        for w in elements(*e).filter(|w| w.tag_name().name() == "With") {
+            let var = cx.attr(w, "Var")?;
+            if !vars.iter().any(|v| v.name == var) {
+                return Err(cx.node_err(
+                    w,
+                    format!("`With` names `{var}`, which is not a variable of this side of the interface"),
+                ));
+            }
+        }
+    }
+    // Algorithms: Structured Text only.
+    let mut algorithms: Vec<(String, Vec<(String, String)>)> = Vec::new();
+    for a in elements(basic).filter(|a| a.tag_name().name() == "Algorithm") {
+        let aname = cx.attr(a, "Name")?.to_string();
+        let Some(body) = elements(a).next() else {
+            return Err(cx.node_err(a, format!("algorithm `{aname}` has no body")));
+        };
+        if body.tag_name().name() != "ST" {
+            return Err(cx.node_err(
+                body,
+                format!(
+                    "algorithm `{aname}` is in {}: only Structured Text (`ST`) is supported",
+                    body.tag_name().name()
+                ),
+            ));
+        }
+        let (text, err_at): (String, Box<dyn Fn(StError) -> XmlError + '_>) =
+            match body.attribute("Text") {
+                Some(t) => (
+                    t.to_string(),
+                    Box::new(move |e| cx.in_attr(body, "Text", e)),
+                ),
+                None => {
+                    let t: String = body.children().filter_map(|c| c.text()).collect();
+                    let start = body
+                        .children()
+                        .find(|c| c.is_text())
+                        .map_or(body.range().start, |c| c.range().start);
+                    let cdata = doc.input_text()[start..].starts_with("<![CDATA[");
+                    let base = start + if cdata { 9 } else { 0 };
+                    (
+                        t,
+                        Box::new(move |e: StError| cx.at(base + e.span.start, e.message)),
+                    )
+                }
+            };
+        let statements = st::algorithm(&text, &names).map_err(err_at)?;
+        algorithms.push((aname, statements));
+    }
+    let ecc =
+        child(basic, "ECC").ok_or_else(|| cx.node_err(basic, format!("`{name}` has no `ECC`")))?;
+    let mut states = Vec::new();
+    for s in elements(ecc).filter(|s| s.tag_name().name() == "ECState") {
+        let sname = cx.attr(s, "Name")?.to_string();
+        if states.iter().any(|d: &StateDecl| d.name == sname) {
+            return Err(cx.node_err(s, format!("state `{sname}` is declared twice")));
+        }
+        let mut actions = Vec::new();
+        for a in elements(s).filter(|a| a.tag_name().name() == "ECAction") {
+            if let Some(alg) = a.attribute("Algorithm").filter(|x| !x.is_empty()) {
+                let Some((_, body)) = algorithms.iter().find(|(n, _)| n == alg) else {
+                    return Err(cx.node_err(a, format!("no algorithm `{alg}`")));
+                };
+                actions.extend(
+                    body.iter()
+                        .map(|(v, e)| ActionDecl::Set(v.clone(), e.clone())),
+                );
+            }
+            if let Some(out) = a.attribute("Output").filter(|x| !x.is_empty()) {
+                if !events_out.iter().any(|(n, _)| n == out) {
+                    return Err(cx.node_err(a, format!("`{out}` is not an output event")));
+                }
+                actions.push(ActionDecl::Emit(out.to_string()));
+            }
+        }
+        states.push(StateDecl {
+            name: sname,
+            actions,
+        });
+    }
+    if states.is_empty() {
+        return Err(cx.node_err(ecc, "the ECC has no state"));
+    }
+    let mut transitions = Vec::new();
+    for t in elements(ecc).filter(|t| t.tag_name().name() == "ECTransition") {
+        let mut ends = Vec::new();
+        for field in ["Source", "Destination"] {
+            let s = cx.attr(t, field)?;
+            if !states.iter().any(|d| d.name == s) {
+                return Err(cx.in_attr(
+                    t,
+                    field,
+                    StError {
+                        message: format!("no state `{s}`"),
+                        span: 0..0,
+                    },
+                ));
+            }
+            ends.push(s.to_string());
+        }
+        let cond = cx.attr(t, "Condition")?;
+        let (on, when) =
+            condition(cond, &events_in, &names).map_err(|e| cx.in_attr(t, "Condition", e))?;
+        transitions.push(TransitionDecl {
+            from: ends[0].clone(),
+            to: ends[1].clone(),
+            on,
+            when,
+        });
+    }
+    let vars = outputs
+        .iter()
+        .chain(internal.iter())
+        .map(|v| VarDecl {
+            name: v.name.clone(),
+            init: v.init.clone().unwrap_or_else(|| String::from("0")),
+        })
+        .collect();
+    Ok(ChartType {
+        name,
+        params: inputs.iter().map(|v| v.name.clone()).collect(),
+        inputs: events_in.iter().map(|(n, _)| n.clone()).collect(),
+        outputs: events_out.iter().map(|(n, _)| n.clone()).collect(),
+        vars,
+        timers: Vec::new(),
+        states,
+        transitions,
+    })
+}
+
+/// A transition condition -> (event input, guard).
+fn condition(
+    text: &str,
+    events: &[(String, Node<'_, '_>)],
+    names: &[Name],
+) -> Result<(Option<String>, Option<String>), StError> {
+    let trimmed = text.trim();
+    let lead = text.len() - text.trim_start().len();
+    let shift = |mut e: StError, by: usize| {
+        e.span = e.span.start + by..e.span.end + by;
+        e
+    };
+    if trimmed == "1" || trimmed.eq_ignore_ascii_case("TRUE") {
+        return Ok((None, None));
+    }
+    let word_end = trimmed
+        .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+        .unwrap_or(trimmed.len());
+    let word = &trimmed[..word_end];
+    let event = events
+        .iter()
+        .find(|(n, _)| !word.is_empty() && n.eq_ignore_ascii_case(word))
+        .map(|(n, _)| n.clone());
+    let Some(event) = event else {
+        if !word.is_empty() && trimmed[word_end..].trim_start().starts_with('[') {
+            return Err(StError {
+                message: format!("`{word}` is not an event input of this FB type"),
+                span: lead..lead + word_end,
+            });
+        }
+        // `[guard]` or a bare guard.
+        let (inner, at) = match trimmed.strip_prefix('[') {
+            Some(rest) => match rest.strip_suffix(']') {
+                Some(inner) => (inner, lead + 1),
+                None => {
+                    return Err(StError {
+                        message: String::from("`[` without its `]`"),
+                        span: lead..lead + 1,
+                    })
+                }
+            },
+            None => (trimmed, lead),
+        };
+        let guard = st::condition(inner, names).map_err(|e| shift(e, at))?;
+        return Ok((None, Some(guard)));
+    };
+    let rest = &trimmed[word_end..];
+    let rest_at = lead + word_end;
+    let after = rest.trim_start();
+    let after_at = rest_at + (rest.len() - after.len());
+    if after.is_empty() {
+        return Ok((Some(event), None));
+    }
+    let (guard, at) = if let Some(g) = after.strip_prefix('[') {
+        match g.trim_end().strip_suffix(']') {
+            Some(inner) => (inner, after_at + 1),
+            None => {
+                return Err(StError {
+                    message: String::from("`[` without its `]`"),
+                    span: after_at..after_at + 1,
+                })
+            }
+        }
+    } else if let Some(g) = after.strip_prefix('&') {
+        (g, after_at + 1)
+    } else if after.len() >= 3 && after[..3].eq_ignore_ascii_case("AND") {
+        (&after[3..], after_at + 3)
+    } else {
+        return Err(StError {
+            message: format!("expected `[guard]` or `& guard` after the event `{event}`"),
+            span: after_at..after_at + 1,
+        });
+    };
+    let guard = st::condition(guard, names).map_err(|e| shift(e, at))?;
+    Ok((Some(event), Some(guard)))
+}

@@ -1,0 +1,539 @@
+//! The Structured Text (IEC 61131-3) of basic FB algorithms and ECC transition
+//! conditions, translated into the chart types' own expressions (`crate::expr`).
+//!
+//! Supported: assignments `NAME := expr;` (and empty statements); expressions with
+//! integer and boolean literals (`42`, `16#FF`, `2#1010`, `8#17`, `UINT#5`, `1_000`,
+//! `TRUE`, `FALSE`), names, parentheses, unary `-` and `NOT`, `+ -`, `= <> < > <= >=`,
+//! `AND` / `&`, `XOR`, `OR`; comments `(* *)` and `//`. `NOT`, `AND`, `XOR` and `OR` take
+//! BOOL operands (on integers they are bitwise in IEC 61131-3, which the tables cannot
+//! compute). Refused with a message naming the construct: `*`, `/`, `MOD`, `**`,
+//! `IF`, `CASE`, `FOR`, `WHILE`, `REPEAT`, function calls, and anything else.
+//!
+//! Names are case-insensitive, as IEC 61131-3 has them: each resolves to its declared
+//! spelling. Offsets in errors are byte offsets into the text given.
+
+use std::ops::Range;
+
+/// The type of a value: what the operators accept.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ty {
+    Bool,
+    Int,
+}
+
+/// A name an algorithm or condition may use.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Name {
+    /// As declared.
+    pub name: String,
+    pub ty: Ty,
+    /// Whether an algorithm may assign it (output and internal variables).
+    pub writable: bool,
+}
+
+/// A translation error at a byte span of the text.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct StError {
+    pub message: String,
+    pub span: Range<usize>,
+}
+
+fn err<T>(span: Range<usize>, message: impl Into<String>) -> Result<T, StError> {
+    Err(StError {
+        message: message.into(),
+        span,
+    })
+}
+
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Tok {
+    Int(i64),
+    Word(String),
+    Sym(&'static str),
+    End,
+}
+
+const SYMS: [&str; 16] = [
+    ":=", "<>", "<=", ">=", "**", "<", ">", "=", "+", "-", "*", "/", "(", ")", ";", "&",
+];
+
+fn lex(text: &str) -> Result<Vec<(Tok, Range<usize>)>, StError> {
+    let bytes = text.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < bytes.len() {
+        let c = bytes[i];
+        if c.is_ascii_whitespace() {
+            i += 1;
+            continue;
+        }
+        if text[i..].starts_with("(*") {
+            let Some(end) = text[i + 2..].find("*)") else {
+                return err(i..i + 2, "a comment `(*` that is never closed");
+            };
+            i += end + 4;
+            continue;
+        }
+        if text[i..].starts_with("//") {
+            i = text[i..].find('\n').map_or(bytes.len(), |n| i + n);
+            continue;
+        }
+        if c.is_ascii_digit() {
+            let start = i;
+            while i < bytes.len()
+                && (bytes[i].is_ascii_alphanumeric() || bytes[i] == b'_' || bytes[i] == b'#')
+            {
+                i += 1;
+            }
+            out.push((Tok::Int(number(&text[start..i], start..i)?), start..i));
+            continue;
+        }
+        if c.is_ascii_alphabetic() || c == b'_' {
+            let start = i;
+            while i < bytes.len() && (bytes[i].is_ascii_alphanumeric() || bytes[i] == b'_') {
+                i += 1;
+            }
+            // A typed literal: `UINT#5`, `BOOL#TRUE`.
+            if i < bytes.len() && bytes[i] == b'#' {
+                let at = i + 1;
+                let mut j = at;
+                while j < bytes.len()
+                    && (bytes[j].is_ascii_alphanumeric() || bytes[j] == b'_' || bytes[j] == b'#')
+                {
+                    j += 1;
+                }
+                let value = &text[at..j];
+                i = j;
+                let tok = match value.to_ascii_uppercase().as_str() {
+                    "TRUE" => Tok::Word(String::from("TRUE")),
+                    "FALSE" => Tok::Word(String::from("FALSE")),
+                    _ => Tok::Int(number(value, at..j)?),
+                };
+                out.push((tok, start..j));
+                continue;
+            }
+            out.push((Tok::Word(text[start..i].to_string()), start..i));
+            continue;
+        }
+        match SYMS.iter().find(|s| text[i..].starts_with(**s)) {
+            Some(s) => {
+                out.push((Tok::Sym(s), i..i + s.len()));
+                i += s.len();
+            }
+            None => {
+                let ch = text[i..].chars().next().map_or(1, char::len_utf8);
+                return err(i..i + ch, format!("unexpected `{}`", &text[i..i + ch]));
+            }
+        }
+    }
+    out.push((Tok::End, bytes.len()..bytes.len()));
+    Ok(out)
+}
+
+/// An integer literal: decimal, or `16#`, `8#`, `2#`; `_` separates digits.
+fn number(text: &str, span: Range<usize>) -> Result<i64, StError> {
+    let digits: String = text.chars().filter(|&c| c != '_').collect();
+    let (radix, body) = match digits.split_once('#') {
+        Some(("16", b)) => (16, b.to_string()),
+        Some(("8", b)) => (8, b.to_string()),
+        Some(("2", b)) => (2, b.to_string()),
+        Some(_) => return err(span, format!("`{text}` is not an integer literal")),
+        None => (10, digits.clone()),
+    };
+    match i64::from_str_radix(&body, radix) {
+        Ok(v) if v <= i64::from(i32::MAX) => Ok(v),
+        Ok(_) => err(
+            span,
+            format!("`{text}` does not fit 32 bits (the tables' integers)"),
+        ),
+        Err(_) => err(span, format!("`{text}` is not an integer literal")),
+    }
+}
+
+/// Words that start a statement or construct the subset does not have.
+const UNSUPPORTED: [&str; 9] = [
+    "IF", "CASE", "FOR", "WHILE", "REPEAT", "EXIT", "RETURN", "ELSIF", "ELSE",
+];
+
+struct Parser<'n> {
+    toks: Vec<(Tok, Range<usize>)>,
+    at: usize,
+    names: &'n [Name],
+}
+
+impl Parser<'_> {
+    fn peek(&self) -> &Tok {
+        self.toks.get(self.at).map_or(&Tok::End, |(t, _)| t)
+    }
+
+    fn span(&self) -> Range<usize> {
+        self.toks.get(self.at).map_or(0..0, |(_, s)| s.clone())
+    }
+
+    fn bump(&mut self) -> (Tok, Range<usize>) {
+        let t = self.toks.get(self.at).cloned().unwrap_or((Tok::End, 0..0));
+        self.at += 1;
+        t
+    }
+
+    fn word(&self, w: &str) -> bool {
+        matches!(self.peek(), Tok::Word(x) if x.eq_ignore_ascii_case(w))
+    }
+
+    fn sym(&self, s: &str) -> bool {
+        matches!(self.peek(), Tok::Sym(x) if *x == s)
+    }
+
+    fn resolve(&self, word: &str, span: Range<usize>) -> Result<&Name, StError> {
+        match self
+            .names
+            .iter()
+            .find(|n| n.name.eq_ignore_ascii_case(word))
+        {
+            Some(n) => Ok(n),
+            None => err(span, format!("unknown name `{word}`")),
+        }
+    }
+
+    fn statements(&mut self) -> Result<Vec<(String, String)>, StError> {
+        let mut out = Vec::new();
+        loop {
+            match self.peek().clone() {
+                Tok::End => return Ok(out),
+                Tok::Sym(";") => {
+                    self.bump();
+                }
+                Tok::Word(w) => {
+                    let span = self.span();
+                    if let Some(kw) = UNSUPPORTED.iter().find(|k| w.eq_ignore_ascii_case(k)) {
+                        return err(
+                            span,
+                            format!("`{kw}` is not supported yet (the subset: assignments)"),
+                        );
+                    }
+                    let target = self.resolve(&w, span.clone())?.clone();
+                    self.bump();
+                    if !self.sym(":=") {
+                        return err(self.span(), format!("expected `:=` after `{w}`"));
+                    }
+                    self.bump();
+                    if !target.writable {
+                        return err(
+                            span,
+                            format!(
+                                "`{}` is an input variable: an algorithm may not assign it",
+                                target.name
+                            ),
+                        );
+                    }
+                    let (value, ty) = self.expr()?;
+                    let value = match (target.ty, ty) {
+                        (Ty::Bool, Ty::Int) => {
+                            return err(
+                                span,
+                                format!("`{}` is BOOL: assign it a BOOL", target.name),
+                            )
+                        }
+                        _ => value,
+                    };
+                    if !self.sym(";") {
+                        return err(self.span(), "expected `;`");
+                    }
+                    self.bump();
+                    out.push((target.name.clone(), value));
+                }
+                _ => return err(self.span(), "expected a statement (`NAME := expression;`)"),
+            }
+        }
+    }
+
+    fn expr(&mut self) -> Result<(String, Ty), StError> {
+        self.binary(0)
+    }
+
+    /// Levels, loosest first: OR, XOR, AND, equality, relational, additive.
+    fn binary(&mut self, level: usize) -> Result<(String, Ty), StError> {
+        if level == 6 {
+            return self.multiplicative();
+        }
+        let mut left = self.binary(level + 1)?;
+        loop {
+            let span = self.span();
+            let op = match (level, self.peek()) {
+                (0, Tok::Word(w)) if w.eq_ignore_ascii_case("OR") => "||",
+                (1, Tok::Word(w)) if w.eq_ignore_ascii_case("XOR") => "!=",
+                (2, Tok::Word(w)) if w.eq_ignore_ascii_case("AND") => "&&",
+                (2, Tok::Sym("&")) => "&&",
+                (3, Tok::Sym("=")) => "==",
+                (3, Tok::Sym("<>")) => "!=",
+                (4, Tok::Sym("<")) => "<",
+                (4, Tok::Sym(">")) => ">",
+                (4, Tok::Sym("<=")) => "<=",
+                (4, Tok::Sym(">=")) => ">=",
+                (5, Tok::Sym("+")) => "+",
+                (5, Tok::Sym("-")) => "-",
+                _ => return Ok(left),
+            };
+            self.bump();
+            let right = self.binary(level + 1)?;
+            let ty = match level {
+                0..=2 => {
+                    if left.1 != Ty::Bool || right.1 != Ty::Bool {
+                        return err(
+                            span,
+                            "AND, OR and XOR take BOOL operands here (on integers they are \
+                             bitwise, which the tables cannot compute)",
+                        );
+                    }
+                    Ty::Bool
+                }
+                3 | 4 => Ty::Bool,
+                _ => {
+                    if left.1 != Ty::Int || right.1 != Ty::Int {
+                        return err(span, "`+` and `-` take integer operands");
+                    }
+                    Ty::Int
+                }
+            };
+            left = (format!("({} {op} {})", left.0, right.0), ty);
+        }
+    }
+
+    fn multiplicative(&mut self) -> Result<(String, Ty), StError> {
+        let left = self.unary()?;
+        let span = self.span();
+        let op = match self.peek() {
+            Tok::Sym("*") => Some("*"),
+            Tok::Sym("/") => Some("/"),
+            Tok::Sym("**") => Some("**"),
+            Tok::Word(w) if w.eq_ignore_ascii_case("MOD") => Some("MOD"),
+            _ => None,
+        };
+        match op {
+            Some(op) => err(
+                span,
+                format!("`{op}` is not supported yet (the tables' expressions add and subtract)"),
+            ),
+            None => Ok(left),
+        }
+    }
+
+    fn unary(&mut self) -> Result<(String, Ty), StError> {
+        let span = self.span();
+        if self.sym("-") {
+            self.bump();
+            let (v, ty) = self.unary()?;
+            if ty != Ty::Int {
+                return err(span, "unary `-` takes an integer");
+            }
+            return Ok((format!("(-{v})"), Ty::Int));
+        }
+        if self.word("NOT") {
+            self.bump();
+            let (v, ty) = self.unary()?;
+            if ty != Ty::Bool {
+                return err(
+                    span,
+                    "NOT takes a BOOL here (on an integer it is bitwise, which the tables \
+                     cannot compute)",
+                );
+            }
+            return Ok((format!("(!{v})"), Ty::Bool));
+        }
+        self.primary()
+    }
+
+    fn primary(&mut self) -> Result<(String, Ty), StError> {
+        let (tok, span) = self.bump();
+        match tok {
+            Tok::Int(v) => Ok((v.to_string(), Ty::Int)),
+            Tok::Word(w) if w.eq_ignore_ascii_case("TRUE") => Ok((String::from("true"), Ty::Bool)),
+            Tok::Word(w) if w.eq_ignore_ascii_case("FALSE") => {
+                Ok((String::from("false"), Ty::Bool))
+            }
+            Tok::Word(w) => {
+                if self.sym("(") {
+                    return err(
+                        span,
+                        format!("function calls (`{w}(...)`) are not supported"),
+                    );
+                }
+                let n = self.resolve(&w, span)?;
+                Ok((n.name.clone(), n.ty))
+            }
+            Tok::Sym("(") => {
+                let inner = self.expr()?;
+                if !self.sym(")") {
+                    return err(self.span(), "expected `)`");
+                }
+                self.bump();
+                Ok(inner)
+            }
+            Tok::End => err(span, "expected an expression, found the end"),
+            Tok::Sym(s) => err(span, format!("expected an expression, found `{s}`")),
+        }
+    }
+}
+
+/// An algorithm's statements: `(variable, expression)` assignments in order, each
+/// expression in the chart types' syntax.
+pub fn algorithm(text: &str, names: &[Name]) -> Result<Vec<(String, String)>, StError> {
+    let mut p = Parser {
+        toks: lex(text)?,
+        at: 0,
+        names,
+    };
+    p.statements()
+}
+
+/// A BOOL expression (a transition's guard) in the chart types' syntax.
+pub fn condition(text: &str, names: &[Name]) -> Result<String, StError> {
+    let mut p = Parser {
+        toks: lex(text)?,
+        at: 0,
+        names,
+    };
+    let span = p.span();
+    let (v, ty) = p.expr()?;
+    if !matches!(p.peek(), Tok::End) {
+        return err(p.span(), "unexpected text after the condition");
+    }
+    if ty != Ty::Bool {
+        return err(span, "a transition condition must be BOOL");
+    }
+    Ok(v)
+}
+
+/// An initial value: an integer or boolean literal (`-` allowed), as the chart types'
+/// syntax writes it.
+pub fn literal(text: &str, ty: Ty) -> Result<String, StError> {
+    let toks = lex(text)?;
+    let (neg, rest) = match toks.first() {
+        Some((Tok::Sym("-"), _)) => (true, &toks[1..]),
+        _ => (false, &toks[..]),
+    };
+    let whole = 0..text.len();
+    match (rest, ty) {
+        ([(Tok::Int(v), _), (Tok::End, _)], Ty::Int) => {
+            Ok(if neg { format!("-{v}") } else { v.to_string() })
+        }
+        ([(Tok::Word(w), _), (Tok::End, _)], Ty::Bool)
+            if !neg && w.eq_ignore_ascii_case("TRUE") =>
+        {
+            Ok(String::from("1"))
+        }
+        ([(Tok::Word(w), _), (Tok::End, _)], Ty::Bool)
+            if !neg && w.eq_ignore_ascii_case("FALSE") =>
+        {
+            Ok(String::from("0"))
+        }
+        ([(Tok::Int(v @ (0 | 1)), _), (Tok::End, _)], Ty::Bool) if !neg => Ok(v.to_string()),
+        _ => err(
+            whole,
+            format!("`{text}` is not a literal of this variable's type"),
+        ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names() -> Vec<Name> {
+        let n = |name: &str, ty, writable| Name {
+            name: name.to_string(),
+            ty,
+            writable,
+        };
+        vec![
+            n("CV", Ty::Int, true),
+            n("Q", Ty::Bool, true),
+            n("PV", Ty::Int, false),
+            n("G", Ty::Bool, false),
+        ]
+    }
+
+    #[test]
+    fn assignments_translate_with_declared_spellings() {
+        assert_eq!(
+            algorithm(
+                "cv := CV + 1;\n(* compare *) Q := (Cv >= pv); // done",
+                &names()
+            ),
+            Ok(vec![
+                ("CV".to_string(), "(CV + 1)".to_string()),
+                ("Q".to_string(), "(CV >= PV)".to_string()),
+            ])
+        );
+        assert_eq!(
+            algorithm("Q := NOT Q AND G XOR TRUE OR FALSE;;", &names()),
+            Ok(vec![(
+                "Q".to_string(),
+                "((((!Q) && G) != true) || false)".to_string()
+            )])
+        );
+        assert_eq!(
+            algorithm("CV := 16#FF - UINT#2 - 1_000;", &names()),
+            Ok(vec![("CV".to_string(), "((255 - 2) - 1000)".to_string())])
+        );
+    }
+
+    #[test]
+    fn conditions_are_bool() {
+        assert_eq!(
+            condition("CV < 65535", &names()),
+            Ok("(CV < 65535)".to_string())
+        );
+        assert_eq!(
+            condition("CV + 1", &names()),
+            Err(StError {
+                message: "a transition condition must be BOOL".to_string(),
+                span: 0..2
+            })
+        );
+    }
+
+    #[test]
+    fn what_the_subset_lacks_is_named_at_its_place() {
+        let e = |text: &str| algorithm(text, &names()).unwrap_err();
+        assert_eq!(
+            e("IF G THEN CV := 0; END_IF;"),
+            StError {
+                message: "`IF` is not supported yet (the subset: assignments)".to_string(),
+                span: 0..2
+            }
+        );
+        assert_eq!(e("CV := CV * 2;").span, 9..10);
+        assert_eq!(
+            e("CV := CV MOD 2;").message,
+            "`MOD` is not supported yet (the tables' expressions add and subtract)"
+        );
+        assert_eq!(
+            e("PV := 1;").message,
+            "`PV` is an input variable: an algorithm may not assign it"
+        );
+        assert_eq!(e("X := 1;").message, "unknown name `X`");
+        assert_eq!(e("Q := 1;").message, "`Q` is BOOL: assign it a BOOL");
+        assert_eq!(e("CV := CV + 1").message, "expected `;`");
+        assert_eq!(e("CV := CV AND 1;").span, 9..12);
+        assert_eq!(e("(* open").message, "a comment `(*` that is never closed");
+        assert_eq!(
+            e("CV := 99999999999;").message,
+            "`99999999999` does not fit 32 bits (the tables' integers)"
+        );
+        assert_eq!(
+            e("CV := ABS(CV);").message,
+            "function calls (`ABS(...)`) are not supported"
+        );
+    }
+
+    #[test]
+    fn literals_of_each_type() {
+        assert_eq!(literal("TRUE", Ty::Bool), Ok("1".to_string()));
+        assert_eq!(literal("0", Ty::Bool), Ok("0".to_string()));
+        assert_eq!(literal("-5", Ty::Int), Ok("-5".to_string()));
+        assert_eq!(literal("16#10", Ty::Int), Ok("16".to_string()));
+        assert!(literal("2", Ty::Bool).is_err());
+        assert!(literal("TRUE", Ty::Int).is_err());
+    }
+}

@@ -1,0 +1,197 @@
+//! Importing IEC 61499-2 basic FB types (`.fbt`): what becomes of a good one, and the
+//! exact error, with its line:col in the XML, of each kind of bad one.
+
+use robot_compiler::iec61499::fbt::{import, XmlError};
+use robot_compiler::model::{ActionDecl, TransitionDecl};
+use robot_compiler::{check, Source};
+
+/// A basic FB `T` with the given interface variables, ECC and algorithms.
+fn fbt(vars: &str, ecc: &str, algorithms: &str) -> String {
+    format!(
+        r#"<?xml version="1.0" encoding="UTF-8"?>
+<FBType Name="T">
+  <InterfaceList>
+    <EventInputs><Event Name="EI"/></EventInputs>
+    <EventOutputs><Event Name="EO"/></EventOutputs>
+{vars}
+  </InterfaceList>
+  <BasicFB>
+    <ECC>
+{ecc}
+    </ECC>
+{algorithms}
+  </BasicFB>
+</FBType>
+"#
+    )
+}
+
+const VARS: &str = r#"    <InputVars><VarDeclaration Name="N" Type="INT"/></InputVars>
+    <OutputVars><VarDeclaration Name="C" Type="INT" InitialValue="16#10"/></OutputVars>"#;
+
+const ECC: &str = r#"      <ECState Name="START"/>
+      <ECState Name="GO"><ECAction Algorithm="A" Output="EO"/></ECState>
+      <ECTransition Source="START" Destination="GO" Condition="EI[C &lt; N]"/>
+      <ECTransition Source="GO" Destination="START" Condition="1"/>"#;
+
+const ALG: &str = r#"    <Algorithm Name="A"><ST Text="C := C + 1;"/></Algorithm>"#;
+
+fn error(text: &str) -> String {
+    let e: XmlError = import(text).expect_err("refused");
+    e.to_string()
+}
+
+#[test]
+fn a_basic_fb_becomes_a_chart_type() {
+    let t = import(&fbt(VARS, ECC, ALG)).expect("imports");
+    assert_eq!(
+        (
+            t.name.as_str(),
+            t.params.clone(),
+            t.inputs.clone(),
+            t.outputs.clone()
+        ),
+        (
+            "T",
+            vec!["N".to_string()],
+            vec!["EI".to_string()],
+            vec!["EO".to_string()]
+        )
+    );
+    assert_eq!(
+        t.vars
+            .iter()
+            .map(|v| (v.name.as_str(), v.init.as_str()))
+            .collect::<Vec<_>>(),
+        [("C", "16")]
+    );
+    assert_eq!(
+        t.states[1].actions,
+        [
+            ActionDecl::Set("C".to_string(), "(C + 1)".to_string()),
+            ActionDecl::Emit("EO".to_string())
+        ]
+    );
+    let tr = |t: &TransitionDecl| (t.from.clone(), t.to.clone(), t.on.clone(), t.when.clone());
+    assert_eq!(
+        t.transitions.iter().map(tr).collect::<Vec<_>>(),
+        [
+            (
+                "START".into(),
+                "GO".into(),
+                Some("EI".into()),
+                Some("(C < N)".into())
+            ),
+            ("GO".into(), "START".into(), None, None),
+        ]
+    );
+}
+
+#[test]
+fn every_condition_form_the_tools_write() {
+    let with = |cond: &str| {
+        let ecc = ECC.replace("EI[C &lt; N]", cond);
+        let t = import(&fbt(VARS, &ecc, ALG)).expect("imports");
+        (t.transitions[0].on.clone(), t.transitions[0].when.clone())
+    };
+    let guard = Some("(C < N)".to_string());
+    let ei = Some("EI".to_string());
+    assert_eq!(with("EI[C &lt; N]"), (ei.clone(), guard.clone()));
+    assert_eq!(
+        with("EI &amp; C &lt; N"),
+        (ei.clone(), guard.clone()),
+        "1st edition, FBDK"
+    );
+    assert_eq!(with("ei AND C &lt; N"), (ei.clone(), guard.clone()));
+    assert_eq!(with("[C &lt; N]"), (None, guard.clone()));
+    assert_eq!(with("C &lt; N"), (None, guard));
+    assert_eq!(with("EI"), (ei, None));
+    assert_eq!(with("TRUE"), (None, None));
+}
+
+#[test]
+fn bad_xml_is_refused_with_its_place() {
+    assert_eq!(
+        error("<FBType Name=\"T\">\n  <InterfaceList>\n</FBType>"),
+        "3:1: not well-formed XML: expected 'InterfaceList' tag, not 'FBType' at 3:1"
+    );
+    assert_eq!(
+        error("<ResourceType Name=\"R\"/>"),
+        "1:1: `ResourceType` is not a function block type (`FBType`)"
+    );
+    let composite = fbt(VARS, ECC, ALG).replace("<BasicFB>", "<FBNetwork/>\n  <BasicFB>");
+    assert_eq!(
+        error(&composite),
+        "9:3: `T` is a FBNetwork FB type: only basic FB types (`BasicFB`) are supported"
+    );
+    let real = fbt(
+        &VARS.replace("Name=\"C\" Type=\"INT\"", "Name=\"C\" Type=\"REAL\""),
+        ECC,
+        ALG,
+    );
+    assert_eq!(
+        error(&real),
+        "7:17: `C` is of type REAL: supported are BOOL, SINT, INT, DINT, USINT, UINT and UDINT"
+    );
+    let missing = fbt(
+        VARS,
+        &ECC.replace("Destination=\"GO\"", "Destination=\"GOO\""),
+        ALG,
+    );
+    assert_eq!(error(&missing), "13:49: no state `GOO`");
+    let st = fbt(VARS, ECC, &ALG.replace("C := C + 1;", "C := C + ;"));
+    assert_eq!(error(&st), "16:44: expected an expression, found `;`");
+    let ld = fbt(
+        VARS,
+        ECC,
+        &ALG.replace("<ST Text=\"C := C + 1;\"/>", "<LD/>"),
+    );
+    assert_eq!(
+        error(&ld),
+        "16:25: algorithm `A` is in LD: only Structured Text (`ST`) is supported"
+    );
+    let cond = fbt(VARS, &ECC.replace("EI[C &lt; N]", "EI[C + N]"), ALG);
+    assert_eq!(error(&cond), "13:67: a transition condition must be BOOL");
+    let unknown = fbt(VARS, &ECC.replace("EI[C &lt; N]", "EJ[C]"), ALG);
+    assert_eq!(
+        error(&unknown),
+        "13:64: `EJ` is not an event input of this FB type"
+    );
+}
+
+#[test]
+fn a_robot_names_the_file_and_its_place_and_imports_nothing_of_a_bad_type() {
+    let dir = std::env::temp_dir().join(format!("iec61499-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        dir.join("T.fbt"),
+        fbt(VARS, ECC, &ALG.replace("C + 1", "C * 2")),
+    )
+    .unwrap();
+    let robot = "Robot(name: \"r\", network: (pan_id: 1, channel: 11), \
+        nodes: [(name: \"n1\", address: 1)], assign: [(\"A\", \"n1\")], \
+        roles: [(name: \"A\", inputs: [(name: \"I\", pin: 0)], \
+        charts: [(name: \"t\", type: \"T\", params: {\"N\": 3}, on: {\"EI\": \"I\"})])], \
+        fb_types: [\"T.fbt\"])";
+    let src = Source::new(
+        dir.join("r.ron").to_string_lossy().as_ref(),
+        robot.to_string(),
+    );
+    let checked = check::check(&src);
+    let errors: Vec<String> = checked
+        .diagnostics
+        .iter()
+        .filter(|d| d.is_error())
+        .map(|d| d.short(&src).replace(&*src.name, "r.ron"))
+        .collect();
+    assert_eq!(
+        errors[0],
+        "r.ron:1:244: error: T.fbt:16:42: `*` is not supported yet (the tables' expressions add \
+         and subtract)"
+    );
+    // Nothing of it was imported, and nothing was compiled.
+    assert_eq!(errors.len(), 1, "{errors:#?}");
+    assert!(checked.robot.expect("parsed").chart_types.is_empty());
+    assert!(checked.ir.is_none());
+    let _ = std::fs::remove_dir_all(&dir);
+}
