@@ -38,6 +38,15 @@ pub enum Op {
     Add,
     /// `a - b` (wrapping).
     Sub,
+    /// `a * b` (wrapping).
+    Mul,
+    /// `a / b`, rounded toward zero (`i32::MIN / -1` wraps); dividing by zero is a fault.
+    Div,
+    /// The remainder of `a / b`, of the sign of `a`; by zero is a fault.
+    Rem,
+    /// The top truncated to its low `bits` bits (8 or 16), sign-extended if `signed`: the
+    /// integer widths of IEC 61131-3 (SINT, INT, USINT, UINT) wrap so.
+    Wrap { bits: u8, signed: bool },
 }
 
 impl Op {
@@ -45,7 +54,7 @@ impl Op {
     pub const fn stack_effect(self) -> (usize, usize) {
         match self {
             Op::Const(_) | Op::Var(_) | Op::Input(_) => (0, 1),
-            Op::Not => (1, 1),
+            Op::Not | Op::Wrap { .. } => (1, 1),
             _ => (2, 1),
         }
     }
@@ -75,6 +84,25 @@ pub enum ExprError {
     Var { at: usize, var: u8 },
     /// Operation `at` reads input `input`, which the table does not have.
     Input { at: usize, input: u8 },
+    /// Operation `at` wraps to a width other than 8 or 16 bits.
+    Wrap { at: usize, bits: u8 },
+}
+
+/// The widths [`Op::Wrap`] takes.
+pub const WRAP_BITS: [u8; 2] = [8, 16];
+
+/// `v` truncated to its low `bits` bits, sign-extended if `signed` (`bits` in
+/// [`WRAP_BITS`]; any other width leaves `v` as it is).
+pub const fn wrap(v: i32, bits: u8, signed: bool) -> i32 {
+    if bits == 0 || bits >= 32 {
+        return v;
+    }
+    let shift = 32 - bits as u32;
+    if signed {
+        (v << shift) >> shift
+    } else {
+        ((v as u32) << shift >> shift) as i32
+    }
 }
 
 /// Checks that `ops` evaluates to exactly one value without leaving the stack bounds and
@@ -89,6 +117,9 @@ pub fn check(ops: &[Op], vars: usize, inputs: usize) -> Result<(), ExprError> {
             Op::Var(v) if usize::from(v) >= vars => return Err(ExprError::Var { at, var: v }),
             Op::Input(i) if usize::from(i) >= inputs => {
                 return Err(ExprError::Input { at, input: i })
+            }
+            Op::Wrap { bits, .. } if !WRAP_BITS.contains(&bits) => {
+                return Err(ExprError::Wrap { at, bits })
             }
             _ => {}
         }
@@ -124,6 +155,11 @@ pub fn eval(
                 depth -= 1;
                 i32::from(a == 0)
             }
+            Op::Wrap { bits, signed } => {
+                let a = *stack.get(depth.checked_sub(1)?)?;
+                depth -= 1;
+                wrap(a, bits, signed)
+            }
             binary => {
                 let b = *stack.get(depth.checked_sub(1)?)?;
                 let a = *stack.get(depth.checked_sub(2)?)?;
@@ -139,7 +175,12 @@ pub fn eval(
                     Op::Ge => i32::from(a >= b),
                     Op::Add => a.wrapping_add(b),
                     Op::Sub => a.wrapping_sub(b),
-                    Op::Const(_) | Op::Var(_) | Op::Input(_) | Op::Not => return None,
+                    Op::Mul => a.wrapping_mul(b),
+                    Op::Div => a.checked_div(b).or((b != 0).then_some(i32::MIN))?,
+                    Op::Rem => a.checked_rem(b).or((b != 0).then_some(0))?,
+                    Op::Const(_) | Op::Var(_) | Op::Input(_) | Op::Not | Op::Wrap { .. } => {
+                        return None
+                    }
                 }
             }
         };
@@ -150,5 +191,57 @@ pub fn eval(
         Some(stack[0])
     } else {
         None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(ops: &[Op]) -> Option<i32> {
+        check(ops, 0, 0).ok()?;
+        eval(ops, |_| None, |_| None)
+    }
+
+    fn bin(a: i32, b: i32, op: Op) -> Option<i32> {
+        run(&[Op::Const(a), Op::Const(b), op])
+    }
+
+    #[test]
+    fn multiplication_and_division_as_iec_61131_3_integers() {
+        assert_eq!(bin(6, 7, Op::Mul), Some(42));
+        assert_eq!(bin(i32::MAX, 2, Op::Mul), Some(-2), "wraps");
+        assert_eq!(bin(-7, 2, Op::Div), Some(-3), "toward zero");
+        assert_eq!(bin(-7, 2, Op::Rem), Some(-1), "the sign of the left side");
+        assert_eq!(bin(7, -2, Op::Rem), Some(1));
+        assert_eq!(bin(i32::MIN, -1, Op::Div), Some(i32::MIN), "wraps");
+        assert_eq!(bin(i32::MIN, -1, Op::Rem), Some(0));
+        assert_eq!(bin(1, 0, Op::Div), None, "a fault");
+        assert_eq!(bin(1, 0, Op::Rem), None, "a fault");
+    }
+
+    #[test]
+    fn wrapping_to_the_narrow_integer_types() {
+        let w = |v, bits, signed| run(&[Op::Const(v), Op::Wrap { bits, signed }]);
+        assert_eq!(w(65_536 + 4_464, 16, false), Some(4_464), "UINT");
+        assert_eq!(w(-1, 16, false), Some(65_535), "UINT");
+        assert_eq!(w(40_000, 16, true), Some(-25_536), "INT");
+        assert_eq!(w(32_767, 16, true), Some(32_767), "INT");
+        assert_eq!(w(200, 8, true), Some(-56), "SINT");
+        assert_eq!(w(-1, 8, false), Some(255), "USINT");
+        assert_eq!(
+            check(
+                &[
+                    Op::Const(1),
+                    Op::Wrap {
+                        bits: 12,
+                        signed: false
+                    }
+                ],
+                0,
+                0
+            ),
+            Err(ExprError::Wrap { at: 1, bits: 12 })
+        );
     }
 }

@@ -104,6 +104,9 @@ impl fmt::Display for ExprError {
             ExprError::Input { at, input } => {
                 write!(f, "operation {at} reads missing input {input}")
             }
+            ExprError::Wrap { at, bits } => {
+                write!(f, "operation {at} wraps to {bits} bits (8 or 16)")
+            }
         }
     }
 }

@@ -45,6 +45,15 @@ pub fn expr_text(ops: &[Op]) -> String {
             Op::Ge => (">=", 3),
             Op::Add => ("+", 4),
             Op::Sub => ("-", 4),
+            Op::Mul => ("*", 5),
+            Op::Div => ("/", 5),
+            Op::Rem => ("%", 5),
+            Op::Wrap { bits, signed } => {
+                let (a, _) = stack.pop().unwrap_or_default();
+                let name = crate::expr::wrap_name(*bits, *signed);
+                stack.push((format!("{name}({a})"), 9));
+                continue;
+            }
         };
         let (b, pb) = stack.pop().unwrap_or_default();
         let (a, pa) = stack.pop().unwrap_or_default();

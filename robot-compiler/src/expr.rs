@@ -5,11 +5,16 @@
 //! or    := and ("||" and)*
 //! and   := cmp ("&&" cmp)*
 //! cmp   := sum (("==" | "!=" | "<" | "<=" | ">" | ">=") sum)?
-//! sum   := unary (("+" | "-") unary)*
+//! sum   := prod (("+" | "-") prod)*
+//! prod  := unary (("*" | "/" | "%") unary)*
 //! unary := "!" unary | "-" unary | atom
-//! atom  := INTEGER | "true" | "false" | NAME | "(" expr ")"
+//! atom  := INTEGER | "true" | "false" | WIDTH "(" expr ")" | NAME | "(" expr ")"
+//! WIDTH := "sint" | "int" | "usint" | "uint"
 //! ```
-//! Names (letters, digits, `_`, `.`) are variables, inputs or chart parameters.
+//! Names (letters, digits, `_`, `.`) are variables, inputs or chart parameters. Values
+//! are 32-bit and wrap; `/` rounds toward zero and `%` takes the sign of its left side
+//! (dividing by zero faults the node); `int(x)` wraps `x` to 16 bits as IEC 61131-3's INT
+//! does (`sint`: 8 bits, `usint` and `uint` unsigned).
 
 use std::ops::Range;
 
@@ -35,6 +40,9 @@ pub enum BinOp {
     Ge,
     Add,
     Sub,
+    Mul,
+    Div,
+    Rem,
 }
 
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -44,6 +52,28 @@ pub enum Ast {
     Not(Box<Ast>),
     Neg(Box<Ast>),
     Bin(BinOp, Box<Ast>, Box<Ast>),
+    /// `int(x)` and its kin: `x` wrapped to `bits`, sign-extended if `signed`.
+    Wrap {
+        bits: u8,
+        signed: bool,
+        of: Box<Ast>,
+    },
+}
+
+/// The integer widths an expression may wrap to: (name, bits, signed).
+pub const WIDTHS: [(&str, u8, bool); 4] = [
+    ("sint", 8, true),
+    ("int", 16, true),
+    ("usint", 8, false),
+    ("uint", 16, false),
+];
+
+/// The name of a width (`int` for 16 bits signed).
+pub fn wrap_name(bits: u8, signed: bool) -> &'static str {
+    WIDTHS
+        .iter()
+        .find(|(_, b, s)| *b == bits && *s == signed)
+        .map_or("wrap", |(n, _, _)| n)
 }
 
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -55,8 +85,8 @@ enum Tok {
 }
 
 fn lex(text: &str) -> Result<Vec<(Tok, Range<usize>)>, ExprError> {
-    const SYMS: [&str; 14] = [
-        "&&", "||", "==", "!=", "<=", ">=", "<", ">", "!", "+", "-", "(", ")", "=",
+    const SYMS: [&str; 17] = [
+        "&&", "||", "==", "!=", "<=", ">=", "<", ">", "!", "+", "-", "*", "/", "%", "(", ")", "=",
     ];
     let b = text.as_bytes();
     let mut out = Vec::new();
@@ -193,7 +223,15 @@ impl Parser {
     }
 
     fn sum(&mut self) -> Result<Ast, ExprError> {
-        self.binary(&[("+", BinOp::Add), ("-", BinOp::Sub)], Parser::unary, true)
+        self.binary(&[("+", BinOp::Add), ("-", BinOp::Sub)], Parser::prod, true)
+    }
+
+    fn prod(&mut self) -> Result<Ast, ExprError> {
+        self.binary(
+            &[("*", BinOp::Mul), ("/", BinOp::Div), ("%", BinOp::Rem)],
+            Parser::unary,
+            true,
+        )
     }
 
     fn unary(&mut self) -> Result<Ast, ExprError> {
@@ -223,6 +261,19 @@ impl Parser {
             }
             Tok::Name(n) => {
                 self.at += 1;
+                if let Some(&(_, bits, signed)) = WIDTHS.iter().find(|(w, _, _)| *w == n) {
+                    if self.eat("(") {
+                        let of = self.or()?;
+                        if !self.eat(")") {
+                            return Err(self.unexpected("`)`"));
+                        }
+                        return Ok(Ast::Wrap {
+                            bits,
+                            signed,
+                            of: Box::new(of),
+                        });
+                    }
+                }
                 Ok(Ast::Name(n, span))
             }
             Tok::Sym("(") => {
@@ -316,6 +367,16 @@ fn emit(
                 BinOp::Ge => Op::Ge,
                 BinOp::Add => Op::Add,
                 BinOp::Sub => Op::Sub,
+                BinOp::Mul => Op::Mul,
+                BinOp::Div => Op::Div,
+                BinOp::Rem => Op::Rem,
+            });
+        }
+        Ast::Wrap { bits, signed, of } => {
+            emit(of, resolve, ops)?;
+            ops.push(Op::Wrap {
+                bits: *bits,
+                signed: *signed,
             });
         }
     }
@@ -342,7 +403,13 @@ pub fn eval(ast: &Ast, value: &dyn Fn(&str) -> Option<i32>) -> Option<i32> {
                 BinOp::Ge => i32::from(a >= b),
                 BinOp::Add => a.wrapping_add(b),
                 BinOp::Sub => a.wrapping_sub(b),
+                BinOp::Mul => a.wrapping_mul(b),
+                BinOp::Div => a.checked_div(b).or((b != 0).then_some(i32::MIN))?,
+                BinOp::Rem => a.checked_rem(b).or((b != 0).then_some(0))?,
             }
+        }
+        Ast::Wrap { bits, signed, of } => {
+            config_schema::guard::wrap(eval(of, value)?, *bits, *signed)
         }
     })
 }
@@ -361,7 +428,7 @@ fn collect_names(ast: &Ast, seen: &mut std::collections::BTreeSet<String>, out: 
                 out.push(n.clone());
             }
         }
-        Ast::Not(a) | Ast::Neg(a) => collect_names(a, seen, out),
+        Ast::Not(a) | Ast::Neg(a) | Ast::Wrap { of: a, .. } => collect_names(a, seen, out),
         Ast::Bin(_, a, b) => {
             collect_names(a, seen, out);
             collect_names(b, seen, out);
@@ -373,7 +440,7 @@ fn constants(ast: &Ast, out: &mut Vec<i32>) {
     match ast {
         Ast::Int(n) => out.push(*n),
         Ast::Name(..) => {}
-        Ast::Not(a) | Ast::Neg(a) => constants(a, out),
+        Ast::Not(a) | Ast::Neg(a) | Ast::Wrap { of: a, .. } => constants(a, out),
         Ast::Bin(_, a, b) => {
             constants(a, out);
             constants(b, out);

@@ -256,7 +256,7 @@ fn name_spans<'a>(ast: &'a Ast, out: &mut Vec<(&'a str, std::ops::Range<usize>)>
     match ast {
         Ast::Int(_) => {}
         Ast::Name(n, span) => out.push((n, span.clone())),
-        Ast::Not(a) | Ast::Neg(a) => name_spans(a, out),
+        Ast::Not(a) | Ast::Neg(a) | Ast::Wrap { of: a, .. } => name_spans(a, out),
         Ast::Bin(_, a, b) => {
             name_spans(a, out);
             name_spans(b, out);

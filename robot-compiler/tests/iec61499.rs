@@ -68,7 +68,7 @@ fn a_basic_fb_becomes_a_chart_type() {
     assert_eq!(
         t.states[1].actions,
         [
-            ActionDecl::Set("C".to_string(), "(C + 1)".to_string()),
+            ActionDecl::Set("C".to_string(), "int(C + 1)".to_string()),
             ActionDecl::Emit("EO".to_string())
         ]
     );
@@ -165,7 +165,11 @@ fn a_robot_names_the_file_and_its_place_and_imports_nothing_of_a_bad_type() {
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(
         dir.join("T.fbt"),
-        fbt(VARS, ECC, &ALG.replace("C + 1", "C * 2")),
+        fbt(
+            VARS,
+            ECC,
+            &ALG.replace("C := C + 1;", "IF C &gt; 0 THEN C := 0; END_IF;"),
+        ),
     )
     .unwrap();
     let robot = "Robot(name: \"r\", network: (pan_id: 1, channel: 11), \
@@ -186,8 +190,7 @@ fn a_robot_names_the_file_and_its_place_and_imports_nothing_of_a_bad_type() {
         .collect();
     assert_eq!(
         errors[0],
-        "r.ron:1:244: error: T.fbt:16:42: `*` is not supported yet (the tables' expressions add \
-         and subtract)"
+        "r.ron:1:244: error: T.fbt:16:35: `IF` is not supported yet (the subset: assignments)"
     );
     // Nothing of it was imported, and nothing was compiled.
     assert_eq!(errors.len(), 1, "{errors:#?}");

@@ -19,6 +19,11 @@ fn robot(ty: &str, params: &[(&str, i32)]) -> Compiled {
         .join("robot-compiler")
         .join("types")
         .join("iec61499");
+    robot_in(&dir, ty, params)
+}
+
+/// [`robot`], with the type's `.fbt` in `dir`.
+fn robot_in(dir: &Path, ty: &str, params: &[(&str, i32)]) -> Compiled {
     let file = format!("{ty}.fbt");
     let text = std::fs::read_to_string(dir.join(&file)).expect("library type");
     let t = robot_compiler::iec61499::fbt::import(&text).expect("imports");
@@ -258,5 +263,52 @@ fn the_edge_detectors_fire_once_per_edge() {
     assert_eq!(
         drive(&robot("E_F_TRIG", &[("QI", 0)]), &["EI", "EI"], &[]),
         ["EI: [] ", "EI: [] "]
+    );
+}
+
+#[test]
+fn integer_arithmetic_wraps_at_the_declared_width_on_the_node() {
+    // An INT that steps by 10000 and a USINT that steps by 100: IEC 61131-3 wraps them at
+    // 16 and 8 bits; MOD and / as the standard rounds them.
+    let dir = std::env::temp_dir().join(format!("iec61499-wrap-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let fbt = r#"<?xml version="1.0" encoding="UTF-8"?>
+<FBType Name="STEP">
+  <InterfaceList>
+    <EventInputs><Event Name="EI"/></EventInputs>
+    <EventOutputs><Event Name="EO"/></EventOutputs>
+    <OutputVars>
+      <VarDeclaration Name="I" Type="INT"/>
+      <VarDeclaration Name="U" Type="USINT"/>
+      <VarDeclaration Name="M" Type="DINT"/>
+    </OutputVars>
+  </InterfaceList>
+  <BasicFB>
+    <ECC>
+      <ECState Name="START"/>
+      <ECState Name="STEP"><ECAction Algorithm="STEP" Output="EO"/></ECState>
+      <ECTransition Source="START" Destination="STEP" Condition="EI"/>
+      <ECTransition Source="STEP" Destination="START" Condition="1"/>
+    </ECC>
+    <Algorithm Name="STEP"><ST><![CDATA[I := I + 10000;
+U := U + 100;
+M := I MOD 7 + I / 1000;]]></ST></Algorithm>
+  </BasicFB>
+</FBType>
+"#;
+    std::fs::write(dir.join("STEP.fbt"), fbt).expect("write");
+    let c = robot_in(&dir, "STEP", &[]);
+    let trace = drive(&c, &["EI"; 4], &["I", "U", "M"]);
+    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(
+        trace,
+        [
+            "EI: [EO] I=10000 U=100 M=14",
+            "EI: [EO] I=20000 U=200 M=21",
+            "EI: [EO] I=30000 U=44 M=35",
+            // 40000 wraps to -25536 (= 7 * -3648: MOD 0); -25536 / 1000 rounds toward
+            // zero: -25.
+            "EI: [EO] I=-25536 U=144 M=-25",
+        ]
     );
 }

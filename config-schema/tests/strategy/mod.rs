@@ -25,11 +25,13 @@ pub enum Tree {
     Var(u8),
     Input(u8),
     Not(Box<Tree>),
-    /// Binary operation number `op % 11` of [`BINARY`].
+    /// `Op::Wrap` to 8 or 16 bits (bit 0 of the number), signed or not (bit 1).
+    Wrap(u8, Box<Tree>),
+    /// Binary operation number `op % 14` of [`BINARY`].
     Bin(u8, Box<Tree>, Box<Tree>),
 }
 
-pub const BINARY: [Op; 11] = [
+pub const BINARY: [Op; 14] = [
     Op::And,
     Op::Or,
     Op::Eq,
@@ -40,6 +42,9 @@ pub const BINARY: [Op; 11] = [
     Op::Ge,
     Op::Add,
     Op::Sub,
+    Op::Mul,
+    Op::Div,
+    Op::Rem,
     Op::And,
 ];
 
@@ -55,6 +60,7 @@ pub fn tree() -> impl Strategy<Value = Tree> {
     leaf.prop_recursive(4, 31, 2, |inner| {
         prop_oneof![
             1 => inner.clone().prop_map(|t| Tree::Not(Box::new(t))),
+            1 => (any::<u8>(), inner.clone()).prop_map(|(k, t)| Tree::Wrap(k, Box::new(t))),
             4 => (any::<u8>(), inner.clone(), inner)
                 .prop_map(|(op, a, b)| Tree::Bin(op, Box::new(a), Box::new(b))),
         ]
@@ -72,6 +78,13 @@ pub fn lower(tree: &Tree, vars: usize, inputs: usize, out: &mut Vec<Op>) {
         Tree::Not(a) => {
             lower(a, vars, inputs, out);
             out.push(Op::Not);
+        }
+        Tree::Wrap(k, a) => {
+            lower(a, vars, inputs, out);
+            out.push(Op::Wrap {
+                bits: if k & 1 == 0 { 8 } else { 16 },
+                signed: k & 2 != 0,
+            });
         }
         Tree::Bin(op, a, b) => {
             lower(a, vars, inputs, out);

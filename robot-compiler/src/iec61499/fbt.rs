@@ -37,15 +37,6 @@ impl std::fmt::Display for XmlError {
 /// The element types of IEC 61499 that are not a basic FB, named in errors.
 const OTHER_FB_KINDS: [&str; 3] = ["FBNetwork", "Service", "SimpleFB"];
 
-/// The integer and boolean types a variable may have.
-fn ty_of(name: &str) -> Option<Ty> {
-    match name.to_ascii_uppercase().as_str() {
-        "BOOL" => Some(Ty::Bool),
-        "SINT" | "INT" | "DINT" | "USINT" | "UINT" | "UDINT" => Some(Ty::Int),
-        _ => None,
-    }
-}
-
 #[derive(Clone, Copy)]
 struct Cx<'a, 'i> {
     doc: &'a Document<'i>,
@@ -164,7 +155,7 @@ pub fn import(text: &str) -> Result<ChartType, XmlError> {
             }
             let vname = cx.attr(v, "Name")?.to_string();
             let tname = cx.attr(v, "Type")?;
-            let Some(ty) = ty_of(tname) else {
+            let Some(ty) = Ty::of(tname) else {
                 return Err(cx.node_err(
                     v,
                     format!(

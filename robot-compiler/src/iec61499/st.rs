@@ -3,11 +3,16 @@
 //!
 //! Supported: assignments `NAME := expr;` (and empty statements); expressions with
 //! integer and boolean literals (`42`, `16#FF`, `2#1010`, `8#17`, `UINT#5`, `1_000`,
-//! `TRUE`, `FALSE`), names, parentheses, unary `-` and `NOT`, `+ -`, `= <> < > <= >=`,
-//! `AND` / `&`, `XOR`, `OR`; comments `(* *)` and `//`. `NOT`, `AND`, `XOR` and `OR` take
-//! BOOL operands (on integers they are bitwise in IEC 61131-3, which the tables cannot
-//! compute). Refused with a message naming the construct: `*`, `/`, `MOD`, `**`,
-//! `IF`, `CASE`, `FOR`, `WHILE`, `REPEAT`, function calls, and anything else.
+//! `TRUE`, `FALSE`), names, parentheses, unary `-` and `NOT`, `* / MOD`, `+ -`,
+//! `= <> < > <= >=`, `AND` / `&`, `XOR`, `OR`; comments `(* *)` and `//`. `NOT`, `AND`,
+//! `XOR` and `OR` take BOOL operands (on integers they are bitwise in IEC 61131-3, which
+//! the tables cannot compute). Integer arithmetic wraps at its type's width, as
+//! IEC 61131-3 has it: an operation on SINT, INT, USINT or UINT values (a literal takes
+//! the other side's type) is wrapped to 8 or 16 bits (`int(...)`, `uint(...)` in the
+//! chart's expression), and so is a value assigned to a variable of a narrower type;
+//! DINT and UDINT compute in 32 bits (UDINT exact below 2^31). Refused with a message
+//! naming the construct: `**`, `IF`, `CASE`, `FOR`, `WHILE`, `REPEAT`, function calls,
+//! and anything else.
 //!
 //! Names are case-insensitive, as IEC 61131-3 has them: each resolves to its declared
 //! spelling. Offsets in errors are byte offsets into the text given.
@@ -18,7 +23,74 @@ use std::ops::Range;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Ty {
     Bool,
-    Int,
+    /// An integer of `bits` (8, 16 or 32), signed or not; a literal has no width yet.
+    Int(Option<Width>),
+}
+
+/// An integer type's width.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Width {
+    pub bits: u8,
+    pub signed: bool,
+}
+
+impl Ty {
+    /// The type of an IEC 61131-3 elementary type name, if the subset has it.
+    pub fn of(name: &str) -> Option<Ty> {
+        let w = |bits, signed| Some(Ty::Int(Some(Width { bits, signed })));
+        match name.to_ascii_uppercase().as_str() {
+            "BOOL" => Some(Ty::Bool),
+            "SINT" => w(8, true),
+            "INT" => w(16, true),
+            "DINT" => w(32, true),
+            "USINT" => w(8, false),
+            "UINT" => w(16, false),
+            "UDINT" => w(32, false),
+            _ => None,
+        }
+    }
+
+    fn is_int(self) -> bool {
+        matches!(self, Ty::Int(_))
+    }
+}
+
+/// `inner` (an integer operation of width `w`, unparenthesised) wrapped to `w` if it is
+/// narrower than 32 bits, else in parentheses.
+fn wrapped(inner: String, w: Option<Width>) -> String {
+    match w {
+        Some(w) if w.bits < 32 => {
+            format!("{}({inner})", crate::expr::wrap_name(w.bits, w.signed))
+        }
+        _ => format!("({inner})"),
+    }
+}
+
+/// Whether `text` is an integer literal within width `w`.
+fn literal_fits(text: &str, w: Option<Width>) -> bool {
+    let Ok(v) = text.parse::<i64>() else {
+        return false;
+    };
+    match w {
+        Some(Width { bits, signed: true }) if bits < 32 => {
+            (-(1i64 << (bits - 1))..1i64 << (bits - 1)).contains(&v)
+        }
+        Some(Width {
+            bits,
+            signed: false,
+        }) if bits < 32 => (0..1i64 << bits).contains(&v),
+        _ => true,
+    }
+}
+
+/// The width of an operation on `a` and `b`: the declared one (a literal takes the other
+/// side's), the wider if both are declared.
+fn join(a: Option<Width>, b: Option<Width>) -> Option<Width> {
+    match (a, b) {
+        (Some(x), Some(y)) if y.bits > x.bits => Some(y),
+        (Some(x), _) => Some(x),
+        (None, y) => y,
+    }
 }
 
 /// A name an algorithm or condition may use.
@@ -228,13 +300,28 @@ impl Parser<'_> {
                     }
                     let (value, ty) = self.expr()?;
                     let value = match (target.ty, ty) {
-                        (Ty::Bool, Ty::Int) => {
+                        (Ty::Bool, Ty::Bool) => value,
+                        (Ty::Bool, Ty::Int(_)) => {
                             return err(
                                 span,
                                 format!("`{}` is BOOL: assign it a BOOL", target.name),
                             )
                         }
-                        _ => value,
+                        (Ty::Int(_), Ty::Bool) => {
+                            return err(
+                                span,
+                                format!("`{}` is an integer: assign it an integer", target.name),
+                            )
+                        }
+                        // Already of the target's width, or wrapped to it here.
+                        (Ty::Int(to), Ty::Int(from)) if to == from => value,
+                        (Ty::Int(to), Ty::Int(None)) if literal_fits(&value, to) => value,
+                        (Ty::Int(to), Ty::Int(_)) => match to {
+                            Some(w) if w.bits < 32 => {
+                                format!("{}({value})", crate::expr::wrap_name(w.bits, w.signed))
+                            }
+                            _ => value,
+                        },
                     };
                     if !self.sym(";") {
                         return err(self.span(), "expected `;`");
@@ -251,10 +338,11 @@ impl Parser<'_> {
         self.binary(0)
     }
 
-    /// Levels, loosest first: OR, XOR, AND, equality, relational, additive.
+    /// Levels, loosest first: OR, XOR, AND, equality, relational, additive,
+    /// multiplicative.
     fn binary(&mut self, level: usize) -> Result<(String, Ty), StError> {
-        if level == 6 {
-            return self.multiplicative();
+        if level == 7 {
+            return self.unary();
         }
         let mut left = self.binary(level + 1)?;
         loop {
@@ -272,49 +360,43 @@ impl Parser<'_> {
                 (4, Tok::Sym(">=")) => ">=",
                 (5, Tok::Sym("+")) => "+",
                 (5, Tok::Sym("-")) => "-",
+                (6, Tok::Sym("*")) => "*",
+                (6, Tok::Sym("/")) => "/",
+                (6, Tok::Word(w)) if w.eq_ignore_ascii_case("MOD") => "%",
+                (6, Tok::Sym("**")) => {
+                    return err(span, "`**` is not supported yet");
+                }
                 _ => return Ok(left),
             };
             self.bump();
             let right = self.binary(level + 1)?;
-            let ty = match level {
-                0..=2 => {
-                    if left.1 != Ty::Bool || right.1 != Ty::Bool {
-                        return err(
-                            span,
-                            "AND, OR and XOR take BOOL operands here (on integers they are \
-                             bitwise, which the tables cannot compute)",
-                        );
-                    }
-                    Ty::Bool
+            left = match (level, left.1, right.1) {
+                (0..=2, Ty::Bool, Ty::Bool) => (format!("({} {op} {})", left.0, right.0), Ty::Bool),
+                (0..=2, _, _) => {
+                    return err(
+                        span,
+                        "AND, OR and XOR take BOOL operands here (on integers they are \
+                         bitwise, which the tables cannot compute)",
+                    )
                 }
-                3 | 4 => Ty::Bool,
-                _ => {
-                    if left.1 != Ty::Int || right.1 != Ty::Int {
-                        return err(span, "`+` and `-` take integer operands");
-                    }
-                    Ty::Int
+                (3, a, b) if a.is_int() == b.is_int() => {
+                    (format!("({} {op} {})", left.0, right.0), Ty::Bool)
                 }
+                (4, Ty::Int(_), Ty::Int(_)) => (format!("({} {op} {})", left.0, right.0), Ty::Bool),
+                (3 | 4, _, _) => return err(span, "a comparison of a BOOL with an integer"),
+                (_, Ty::Int(None), Ty::Int(None)) if fold(&left.0, op, &right.0).is_some() => {
+                    let v = fold(&left.0, op, &right.0).unwrap_or_default();
+                    (v.to_string(), Ty::Int(None))
+                }
+                (_, Ty::Int(a), Ty::Int(b)) => {
+                    let w = join(a, b);
+                    (
+                        wrapped(format!("{} {op} {}", left.0, right.0), w),
+                        Ty::Int(w),
+                    )
+                }
+                _ => return err(span, format!("`{}` takes integer operands", sym_name(op))),
             };
-            left = (format!("({} {op} {})", left.0, right.0), ty);
-        }
-    }
-
-    fn multiplicative(&mut self) -> Result<(String, Ty), StError> {
-        let left = self.unary()?;
-        let span = self.span();
-        let op = match self.peek() {
-            Tok::Sym("*") => Some("*"),
-            Tok::Sym("/") => Some("/"),
-            Tok::Sym("**") => Some("**"),
-            Tok::Word(w) if w.eq_ignore_ascii_case("MOD") => Some("MOD"),
-            _ => None,
-        };
-        match op {
-            Some(op) => err(
-                span,
-                format!("`{op}` is not supported yet (the tables' expressions add and subtract)"),
-            ),
-            None => Ok(left),
         }
     }
 
@@ -323,10 +405,13 @@ impl Parser<'_> {
         if self.sym("-") {
             self.bump();
             let (v, ty) = self.unary()?;
-            if ty != Ty::Int {
+            let Ty::Int(w) = ty else {
                 return err(span, "unary `-` takes an integer");
+            };
+            if let (None, Ok(n)) = (w, v.parse::<i64>()) {
+                return Ok(((-n).to_string(), ty));
             }
-            return Ok((format!("(-{v})"), Ty::Int));
+            return Ok((wrapped(format!("-{v}"), w), ty));
         }
         if self.word("NOT") {
             self.bump();
@@ -346,7 +431,7 @@ impl Parser<'_> {
     fn primary(&mut self) -> Result<(String, Ty), StError> {
         let (tok, span) = self.bump();
         match tok {
-            Tok::Int(v) => Ok((v.to_string(), Ty::Int)),
+            Tok::Int(v) => Ok((v.to_string(), Ty::Int(None))),
             Tok::Word(w) if w.eq_ignore_ascii_case("TRUE") => Ok((String::from("true"), Ty::Bool)),
             Tok::Word(w) if w.eq_ignore_ascii_case("FALSE") => {
                 Ok((String::from("false"), Ty::Bool))
@@ -372,6 +457,33 @@ impl Parser<'_> {
             Tok::End => err(span, "expected an expression, found the end"),
             Tok::Sym(s) => err(span, format!("expected an expression, found `{s}`")),
         }
+    }
+}
+
+/// `a op b` of two integer literals, computed (as 64-bit: a literal is of any width
+/// until it meets a typed value); `None` if either is not a literal, or for a division by
+/// zero (left to the node, which faults).
+fn fold(a: &str, op: &str, b: &str) -> Option<i64> {
+    let (a, b) = (a.parse::<i64>().ok()?, b.parse::<i64>().ok()?);
+    let v = match op {
+        "+" => a.checked_add(b)?,
+        "-" => a.checked_sub(b)?,
+        "*" => a.checked_mul(b)?,
+        "/" => a.checked_div(b)?,
+        "%" => a.checked_rem(b)?,
+        _ => return None,
+    };
+    (i64::from(i32::MIN)..=i64::from(i32::MAX))
+        .contains(&v)
+        .then_some(v)
+}
+
+/// An operator as ST writes it.
+fn sym_name(op: &str) -> &str {
+    if op == "%" {
+        "MOD"
+    } else {
+        op
     }
 }
 
@@ -414,8 +526,12 @@ pub fn literal(text: &str, ty: Ty) -> Result<String, StError> {
     };
     let whole = 0..text.len();
     match (rest, ty) {
-        ([(Tok::Int(v), _), (Tok::End, _)], Ty::Int) => {
-            Ok(if neg { format!("-{v}") } else { v.to_string() })
+        ([(Tok::Int(v), _), (Tok::End, _)], Ty::Int(w)) => {
+            let v = if neg { -*v } else { *v };
+            if !literal_fits(&v.to_string(), w) {
+                return err(whole, format!("`{text}` is out of the variable's range"));
+            }
+            Ok(v.to_string())
         }
         ([(Tok::Word(w), _), (Tok::End, _)], Ty::Bool)
             if !neg && w.eq_ignore_ascii_case("TRUE") =>
@@ -446,9 +562,11 @@ mod tests {
             writable,
         };
         vec![
-            n("CV", Ty::Int, true),
+            n("CV", Ty::of("UINT").unwrap(), true),
             n("Q", Ty::Bool, true),
-            n("PV", Ty::Int, false),
+            n("PV", Ty::of("UINT").unwrap(), false),
+            n("D", Ty::of("DINT").unwrap(), true),
+            n("S", Ty::of("SINT").unwrap(), true),
             n("G", Ty::Bool, false),
         ]
     }
@@ -461,7 +579,7 @@ mod tests {
                 &names()
             ),
             Ok(vec![
-                ("CV".to_string(), "(CV + 1)".to_string()),
+                ("CV".to_string(), "uint(CV + 1)".to_string()),
                 ("Q".to_string(), "(CV >= PV)".to_string()),
             ])
         );
@@ -474,8 +592,33 @@ mod tests {
         );
         assert_eq!(
             algorithm("CV := 16#FF - UINT#2 - 1_000;", &names()),
-            Ok(vec![("CV".to_string(), "((255 - 2) - 1000)".to_string())])
+            Ok(vec![("CV".to_string(), "uint(-747)".to_string())])
         );
+    }
+
+    #[test]
+    fn integer_arithmetic_wraps_at_its_types_width() {
+        let one = |text: &str| algorithm(text, &names()).map(|v| v[0].1.clone());
+        // A literal takes the other side's type; an operation on UINT wraps to 16 bits.
+        assert_eq!(
+            one("CV := CV * 2 / 3 MOD 4;"),
+            Ok("uint(uint(uint(CV * 2) / 3) % 4)".into())
+        );
+        // DINT computes in 32 bits: nothing to wrap.
+        assert_eq!(one("D := D * 2 - 1;"), Ok("((D * 2) - 1)".into()));
+        // Assigned to a narrower type: wrapped there; a literal in range is not.
+        assert_eq!(one("S := D;"), Ok("sint(D)".into()));
+        assert_eq!(one("S := -5;"), Ok("-5".into()));
+        assert_eq!(
+            one("S := 100 + 100;"),
+            Ok("sint(200)".into()),
+            "folded, then wrapped"
+        );
+        assert_eq!(one("S := 5;"), Ok("5".into()));
+        assert_eq!(one("S := 300;"), Ok("sint(300)".into()));
+        // Mixed widths compute in the wider.
+        assert_eq!(one("D := S + CV;"), Ok("uint(S + CV)".into()));
+        assert_eq!(one("D := S + D;"), Ok("(S + D)".into()));
     }
 
     #[test]
@@ -503,10 +646,12 @@ mod tests {
                 span: 0..2
             }
         );
-        assert_eq!(e("CV := CV * 2;").span, 9..10);
+        assert_eq!(e("CV := CV ** 2;").span, 9..11);
+        assert_eq!(e("CV := CV ** 2;").message, "`**` is not supported yet");
+        assert_eq!(e("CV := G * 2;").message, "`*` takes integer operands");
         assert_eq!(
-            e("CV := CV MOD 2;").message,
-            "`MOD` is not supported yet (the tables' expressions add and subtract)"
+            e("Q := G = 2;").message,
+            "a comparison of a BOOL with an integer"
         );
         assert_eq!(
             e("PV := 1;").message,
@@ -531,9 +676,12 @@ mod tests {
     fn literals_of_each_type() {
         assert_eq!(literal("TRUE", Ty::Bool), Ok("1".to_string()));
         assert_eq!(literal("0", Ty::Bool), Ok("0".to_string()));
-        assert_eq!(literal("-5", Ty::Int), Ok("-5".to_string()));
-        assert_eq!(literal("16#10", Ty::Int), Ok("16".to_string()));
+        assert_eq!(literal("-5", Ty::of("INT").unwrap()), Ok("-5".to_string()));
+        assert_eq!(
+            literal("16#10", Ty::of("INT").unwrap()),
+            Ok("16".to_string())
+        );
         assert!(literal("2", Ty::Bool).is_err());
-        assert!(literal("TRUE", Ty::Int).is_err());
+        assert!(literal("TRUE", Ty::of("INT").unwrap()).is_err());
     }
 }

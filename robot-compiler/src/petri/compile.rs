@@ -234,6 +234,11 @@ pub fn rewrite(
         Ast::Int(_) => ast.clone(),
         Ast::Not(a) => Ast::Not(again(a)),
         Ast::Neg(a) => Ast::Neg(again(a)),
+        Ast::Wrap { bits, signed, of } => Ast::Wrap {
+            bits: *bits,
+            signed: *signed,
+            of: again(of),
+        },
         Ast::Bin(op, a, b) => Ast::Bin(*op, again(a), again(b)),
     }
 }

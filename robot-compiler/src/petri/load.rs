@@ -566,7 +566,7 @@ pub fn spans(ast: &Ast, out: &mut Vec<(String, Range<usize>)>) {
     match ast {
         Ast::Int(_) => {}
         Ast::Name(n, s) => out.push((n.clone(), s.clone())),
-        Ast::Not(a) | Ast::Neg(a) => spans(a, out),
+        Ast::Not(a) | Ast::Neg(a) | Ast::Wrap { of: a, .. } => spans(a, out),
         Ast::Bin(_, a, b) => {
             spans(a, out);
             spans(b, out);
