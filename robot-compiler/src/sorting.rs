@@ -51,6 +51,10 @@ pub struct Sorting {
     /// The gates, `ROLE/ACTUATOR`, in shaft order: a ball meets gate i (bin i + 1) first;
     /// one that no gate takes falls to the last bin.
     pub gates: Vec<String>,
+    /// The bins' sensors, inputs of the role, one per bin (`gates` + 1, in bin order): a
+    /// ball landing pulses its bin's. None: the station has no bin sensors.
+    #[serde(default)]
+    pub bins: Vec<String>,
     /// Plant times for `sim`: pusher at its end -> entry sensor.
     #[serde(default = "default_drop")]
     pub drop_ms: u32,
@@ -213,6 +217,28 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
             src.span("sorting.entry"),
             format!("`{}` is not an input of role `{}`", s.entry, s.role),
         ));
+    }
+    for (i, n) in s.bins.iter().enumerate() {
+        if !is_input(n) {
+            out.push(Diagnostic::error(
+                src.span(&format!("sorting.bins[{i}]")),
+                format!("`{n}` is not an input of role `{}`", s.role),
+            ));
+        }
+    }
+    if !s.bins.is_empty() && s.bins.len() != s.gates.len() + 1 {
+        out.push(
+            Diagnostic::error(
+                src.span("sorting.bins"),
+                format!(
+                    "{} bin sensor(s) for {} bins ({} gates and the bottom bin)",
+                    s.bins.len(),
+                    s.gates.len() + 1,
+                    s.gates.len()
+                ),
+            )
+            .help("name one sensor per bin, in bin order, the bottom bin last"),
+        );
     }
     if !role.actuators.iter().any(|a| a.name == s.pusher) {
         out.push(Diagnostic::error(
