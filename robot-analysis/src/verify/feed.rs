@@ -102,7 +102,9 @@ impl FeedModel {
         };
         let act = |n: &str| {
             let n = n.split_once('/').map_or(n, |(_, a)| a);
-            acts.iter().position(|a| a.name == n).ok_or_else(|| missing(n))
+            acts.iter()
+                .position(|a| a.name == n)
+                .ok_or_else(|| missing(n))
         };
         let loaded = robot_compiler::automata::load_with(
             &c.robot,
@@ -151,9 +153,13 @@ impl FeedModel {
             node,
             pusher: act(&s.pusher)?,
             gates: (s.gates.iter()).map(|g| act(g)).collect::<Result<_, _>>()?,
-            sensors: (s.sensors.iter()).map(|n| input(n)).collect::<Result<_, _>>()?,
+            sensors: (s.sensors.iter())
+                .map(|n| input(n))
+                .collect::<Result<_, _>>()?,
             entry: input(&s.entry)?,
-            bins: (s.bins.iter()).map(|n| input(n)).collect::<Result<_, _>>()?,
+            bins: (s.bins.iter())
+                .map(|n| input(n))
+                .collect::<Result<_, _>>()?,
             colours: (s.table.iter())
                 .map(|r| (r.colour.clone(), r.levels.clone()))
                 .collect(),
@@ -203,7 +209,9 @@ impl FeedModel {
     }
 
     pub(super) fn colour_name(&self, c: u8) -> &str {
-        self.colours.get(usize::from(c)).map_or("?", |r| r.0.as_str())
+        self.colours
+            .get(usize::from(c))
+            .map_or("?", |r| r.0.as_str())
     }
 
     /// `ball feed: ...` (a counterexample's start).
@@ -439,7 +447,11 @@ impl FeedModel {
         match (stage, self.gates.get(g)) {
             (0, _) => format!("{ball} passes the entry sensor"),
             (_, Some(&a)) if pos.get(a) == Some(&Place::Rod(Pos::End)) => {
-                format!("{ball} meets gate {}, open: it lands in bin {}", names[a], g + 1)
+                format!(
+                    "{ball} meets gate {}, open: it lands in bin {}",
+                    names[a],
+                    g + 1
+                )
             }
             (_, Some(&a)) => format!("{ball} falls past gate {}", names[a]),
             (_, None) => format!("{ball} lands in the bottom bin {}", g + 1),
@@ -455,11 +467,17 @@ impl FeedModel {
         };
         let shaft = match b.shaft {
             None => String::from("shaft empty"),
-            Some((k, c, 0)) => format!("ball {k} ({}) dropping to the entry sensor", self.colour_name(c)),
+            Some((k, c, 0)) => format!(
+                "ball {k} ({}) dropping to the entry sensor",
+                self.colour_name(c)
+            ),
             Some((k, c, s)) if usize::from(s) <= self.gates.len() => {
                 format!("ball {k} ({}) falling to gate {s}", self.colour_name(c))
             }
-            Some((k, c, _)) => format!("ball {k} ({}) falling to the bottom bin", self.colour_name(c)),
+            Some((k, c, _)) => format!(
+                "ball {k} ({}) falling to the bottom bin",
+                self.colour_name(c)
+            ),
         };
         format!("{front}, {shaft}")
     }

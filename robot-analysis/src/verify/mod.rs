@@ -1097,11 +1097,18 @@ impl<'c> Model<'c> {
             Move::Roll(p, front) => {
                 let next = match (&self.feed, &s.ball, front) {
                     (Some(f), Some(b), feed::Front::Ball(c)) => {
-                        format!("ball {} ({}) rolls to the sensors", b.count + 1, f.colour_name(c))
+                        format!(
+                            "ball {} ({}) rolls to the sensors",
+                            b.count + 1,
+                            f.colour_name(c)
+                        )
                     }
                     _ => String::from("the magazine is empty"),
                 };
-                format!("{} reaches its home switch; {next}", self.acts[usize::from(p)].name)
+                format!(
+                    "{} reaches its home switch; {next}",
+                    self.acts[usize::from(p)].name
+                )
             }
             Move::Fall => match (&self.feed, &s.ball) {
                 (Some(f), Some(b)) => {
