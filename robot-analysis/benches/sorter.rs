@@ -42,7 +42,11 @@ fn per_transition(text: &str, c: &Compiled) {
         let Some(role) = a.role.as_deref() else {
             continue;
         };
-        let r = c.ir.roles.iter().position(|x| x.name == role).expect("role");
+        let r =
+            c.ir.roles
+                .iter()
+                .position(|x| x.name == role)
+                .expect("role");
         let decl = format!(
             "role: \"{role}\",\n            parts: \"SENSING/part\",\n            out: \"gate.TOOK\","
         );
