@@ -84,3 +84,37 @@ fn the_station_sorts_its_feed_at_20_percent_loss_into_sims_bins() {
         .expect("the medium's totals");
     assert!(!medium.contains(" 0 lost"), "{medium}");
 }
+
+/// The same on QEMU nodes booting the firmware image (`cd node-fw/boards/qemu-mps2 &&
+/// cargo build --release`); without the image or `qemu-system-arm` it says so and passes,
+/// unless `REQUIRE_QEMU` is set.
+#[test]
+fn the_station_sorts_its_feed_on_qemu_nodes_into_sims_bins() {
+    let elf = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(robot_net::demo::QEMU_ELF);
+    if let Err(e) = robot_net::demo::check_elf(&elf).and(robot_net::demo::check_qemu()) {
+        assert!(
+            std::env::var_os("REQUIRE_QEMU").is_none(),
+            "REQUIRE_QEMU is set: {e}"
+        );
+        eprintln!("skipped: {e}");
+        return;
+    }
+    let elf = elf.to_string_lossy().into_owned();
+    let out = demo(&[
+        "robot-configs/ball-sorter.ron",
+        "--qemu",
+        "--elf",
+        &elf,
+        "--loss",
+        "0.2",
+        "--seed",
+        "7",
+    ]);
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert!(out.status.success(), "{stdout}\n{stderr}");
+    let bins: Vec<usize> = balls(&stdout).iter().map(|b| b.2).collect();
+    assert_eq!(bins, [3, 1, 1, 1, 1, 2, 2, 2, 1, 1, 2, 1, 1], "{stdout}");
+    assert!(balls(&stdout).iter().all(|b| b.3 == "as sim"), "{stdout}");
+}
