@@ -259,6 +259,9 @@ pub struct VerifyHow {
     /// Stop (inconclusive) beyond this many states.
     #[arg(long, default_value_t = MAX_STATES)]
     pub max_states: usize,
+    /// A sorting station: explore every colour sequence of up to this many balls.
+    #[arg(long, default_value_t = robot_analysis::verify::DEFAULT_BALLS, value_parser = balls)]
+    pub balls: usize,
     /// Explore only the cycle (from the machine homed) or only homing (from every start
     /// position); both without it.
     #[arg(long, value_enum)]
@@ -272,6 +275,15 @@ pub enum VerifyPart {
     Homing,
 }
 
+/// `--balls N`: 0 to [`robot_analysis::verify::MAX_BALLS`].
+fn balls(text: &str) -> Result<usize, String> {
+    let max = robot_analysis::verify::MAX_BALLS;
+    match text.parse::<usize>() {
+        Ok(n) if n <= max => Ok(n),
+        _ => Err(format!("a number of balls from 0 to {max}")),
+    }
+}
+
 impl Default for VerifyHow {
     /// `verify` without options.
     fn default() -> Self {
@@ -281,6 +293,7 @@ impl Default for VerifyHow {
             any_delay: false,
             start_anytime: false,
             max_states: MAX_STATES,
+            balls: robot_analysis::verify::DEFAULT_BALLS,
             only: None,
         }
     }

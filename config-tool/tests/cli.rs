@@ -160,14 +160,29 @@ fn sim_of_the_ball_sorter_prints_each_ball_and_its_bin() {
          ball   4: orange   taken by nd, fig1   bin 1  EOS nd\n\
          ball   5: black    taken by nd, fig1   bin 1\n\
          ball   6: gray     taken by fig1       bin 2\n\
-         6 ball(s) in 3264 ms: bin 1: 4, bin 2: 1, bin 3: 1; 2 EOS\n\
+         6 ball(s) in 2808 ms: bin 1: 4, bin 2: 1, bin 3: 1; 2 EOS\n\
          ok\n"
     );
-    let out = tool(&["verify", "robot-configs/ball-sorter.ron"]);
-    assert!(text(&out.stdout).starts_with(
-        "robot-configs/ball-sorter.ron: a sorting station: verify has no ball feed (the \
-         magazine reads empty, the station stops at once); `sim` checks each ball\n"
-    ));
+    let out = tool(&["verify", "robot-configs/ball-sorter.ron", "--balls", "2"]);
+    assert!(out.status.success(), "{}", text(&out.stdout));
+    let stdout = text(&out.stdout);
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(
+        lines[0],
+        "robot-configs/ball-sorter.ron: ball feed: every sequence of up to 2 balls of black, \
+         gray, orange"
+    );
+    assert!(lines[1].starts_with("robot-configs/ball-sorter.ron: 753 states, 1398 transitions in "));
+    assert_eq!(
+        lines[3],
+        "ok: deadlock freedom, sequence conformance, 0 interlock(s), no double actuation, no \
+         engine fault, a fault stops every node, each ball in exactly one bin, no gate moves \
+         while a ball falls past it, the pusher never feeds while a gate moves, selections as \
+         the reference semantics"
+    );
+    let out = tool(&["verify", "robot-configs/ball-sorter.ron", "--balls", "201"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("a number of balls from 0 to 200"));
     let out = tool(&["sim", "robot-configs/ball-sorter.ron", "--feed", "B purple"]);
     assert_eq!(out.status.code(), Some(1));
     assert_eq!(

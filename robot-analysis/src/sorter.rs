@@ -215,6 +215,9 @@ pub fn simulate(c: &Compiled, feed: Option<&[String]>) -> Result<SortRun, SortEr
         .map(|f| s.levels(f).map(<[bool]>::to_vec).ok_or_else(|| missing(f)))
         .collect::<Result<_, _>>()?;
     let pusher = plant(&s.pusher)?;
+    let bins = (s.bins.iter())
+        .map(|n| input(n))
+        .collect::<Result<_, _>>()?;
     let gate_plants = gates.clone();
     let f = Feed {
         node,
@@ -223,6 +226,7 @@ pub fn simulate(c: &Compiled, feed: Option<&[String]>) -> Result<SortRun, SortEr
         entry: input(&s.entry)?,
         balls,
         gates,
+        bins,
         drop_ms: u64::from(s.drop_ms),
         fall_ms: u64::from(s.fall_ms),
         roll_ms: u64::from(s.roll_ms),

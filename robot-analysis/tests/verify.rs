@@ -50,8 +50,8 @@ fn every_robot_of_robot_configs_passes_with_a_prompt_radio() {
     assert_eq!(
         counts,
         [
-            // verify has no ball feed: the magazine reads empty, the station stops at once.
-            ("ball-sorter.ron", 2),
+            // Every colour sequence of up to 4 balls (verify_sorter.rs).
+            ("ball-sorter.ron", 4139),
             ("paint-robot-counted.ron", 125),
             ("paint-robot-double-dip.ron", 376),
             ("paint-robot-paper-charts.ron", 87),

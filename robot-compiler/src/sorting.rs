@@ -51,6 +51,10 @@ pub struct Sorting {
     /// The gates, `ROLE/ACTUATOR`, in shaft order: a ball meets gate i (bin i + 1) first;
     /// one that no gate takes falls to the last bin.
     pub gates: Vec<String>,
+    /// The bins' sensors, inputs of the role, one per bin (`gates` + 1, in bin order): a
+    /// ball landing pulses its bin's. None: the station has no bin sensors.
+    #[serde(default)]
+    pub bins: Vec<String>,
     /// Plant times for `sim`: pusher at its end -> entry sensor.
     #[serde(default = "default_drop")]
     pub drop_ms: u32,
@@ -213,6 +217,28 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
             src.span("sorting.entry"),
             format!("`{}` is not an input of role `{}`", s.entry, s.role),
         ));
+    }
+    for (i, n) in s.bins.iter().enumerate() {
+        if !is_input(n) {
+            out.push(Diagnostic::error(
+                src.span(&format!("sorting.bins[{i}]")),
+                format!("`{n}` is not an input of role `{}`", s.role),
+            ));
+        }
+    }
+    if !s.bins.is_empty() && s.bins.len() != s.gates.len() + 1 {
+        out.push(
+            Diagnostic::error(
+                src.span("sorting.bins"),
+                format!(
+                    "{} bin sensor(s) for {} bins ({} gates and the bottom bin)",
+                    s.bins.len(),
+                    s.gates.len() + 1,
+                    s.gates.len()
+                ),
+            )
+            .help("name one sensor per bin, in bin order, the bottom bin last"),
+        );
     }
     if !role.actuators.iter().any(|a| a.name == s.pusher) {
         out.push(Diagnostic::error(
@@ -386,8 +412,8 @@ mod tests {
         let c = crate::compile(&src).expect("compiles");
         let sensing = &c.ir.roles[0];
         let names: Vec<&str> = sensing.charts.iter().map(|c| c.name.as_str()).collect();
-        assert_eq!(names, ["feed", "part"]);
-        let states: Vec<&str> = sensing.charts[1]
+        assert_eq!(names, ["feed", "bins", "part"]);
+        let states: Vec<&str> = sensing.charts[2]
             .states
             .iter()
             .map(|s| s.name.as_str())
@@ -407,13 +433,13 @@ mod tests {
         assert_eq!(
             errors(&text),
             [
-                "107:22 this sensor combination is no colour: `grey` is not one of the robot's `colours`",
-                "115:16 no sensor combination gives `gray`",
-                "115:61 no sensor combination gives `gray`",
-                "116:26 no sensor combination gives `gray`",
-                "116:53 no sensor combination gives `gray`",
-                "134:17 automaton `nd` selects `gray` (transition `t5`), but no sensor combination of `sorting.table` gives it",
-                "147:17 automaton `fig1` selects `gray` (transition `t3`), but no sensor combination of `sorting.table` gives it",
+                "114:22 this sensor combination is no colour: `grey` is not one of the robot's `colours`",
+                "123:16 no sensor combination gives `gray`",
+                "123:61 no sensor combination gives `gray`",
+                "124:26 no sensor combination gives `gray`",
+                "124:53 no sensor combination gives `gray`",
+                "142:17 automaton `nd` selects `gray` (transition `t5`), but no sensor combination of `sorting.table` gives it",
+                "155:17 automaton `fig1` selects `gray` (transition `t3`), but no sensor combination of `sorting.table` gives it",
             ]
         );
     }
@@ -423,17 +449,17 @@ mod tests {
         let text = edit("[true, true, true]", "[true, false, false]");
         assert_eq!(
             errors(&text)[0],
-            "107:38 `gray` has the sensor combination of `black`: the sensors cannot tell them apart"
+            "114:38 `gray` has the sensor combination of `black`: the sensors cannot tell them apart"
         );
         let text = edit("[true, true, true]", "[false, false, false]");
         assert_eq!(
             errors(&text)[0],
-            "107:38 `gray` with every sensor low cannot be told from no ball"
+            "114:38 `gray` with every sensor low cannot be told from no ball"
         );
         let text = edit("[true, true, true]", "[true, true]");
         assert_eq!(
             errors(&text)[0],
-            "107:38 2 levels for 3 sensors (CAP, IND, OPT)"
+            "114:38 2 levels for 3 sensors (CAP, IND, OPT)"
         );
     }
 
@@ -445,17 +471,37 @@ mod tests {
         );
         assert_eq!(
             errors(&text),
-            ["103:33 `OPTO` is not an input of role `SENSING`"]
+            ["110:33 `OPTO` is not an input of role `SENSING`"]
         );
         let text = edit(r#"gates: ["GATE1/G1", "#, r#"gates: ["GATE1/G3", "#);
         assert_eq!(
             errors(&text),
-            ["113:17 `GATE1/G3` is not an actuator of a role"]
+            ["120:17 `GATE1/G3` is not an actuator of a role"]
         );
         let text = edit(r#"out: "gate.TOOK","#, r#"out: "gate.TAKEN","#);
         assert_eq!(
             errors(&text),
-            ["138:18 automaton `nd`: `gate.TAKEN` is not an input of a chart of role `GATE1`"]
+            ["146:18 automaton `nd`: `gate.TAKEN` is not an input of a chart of role `GATE1`"]
+        );
+    }
+
+    #[test]
+    fn the_bin_sensors_are_inputs_of_the_role_one_per_bin() {
+        let text = edit(
+            r#"bins: ["BIN1", "BIN2", "BIN3"]"#,
+            r#"bins: ["BIN1", "BIN4", "BIN3"]"#,
+        );
+        assert_eq!(
+            errors(&text),
+            ["121:24 `BIN4` is not an input of role `SENSING`"]
+        );
+        let text = edit(
+            r#"bins: ["BIN1", "BIN2", "BIN3"]"#,
+            r#"bins: ["BIN1", "BIN2"]"#,
+        );
+        assert_eq!(
+            errors(&text),
+            ["121:15 2 bin sensor(s) for 3 bins (2 gates and the bottom bin)"]
         );
     }
 }

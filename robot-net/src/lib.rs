@@ -7,6 +7,7 @@
 pub mod demo;
 mod error;
 pub mod home;
+pub mod live_feed;
 pub mod live_plant;
 pub mod push;
 pub mod radio;

@@ -21,6 +21,7 @@ use robot_compiler::compile::Compiled;
 use robot_compiler::ir::Step;
 
 use crate::error::NetError;
+use crate::live_feed::{BallFeed, Landing, Running};
 
 /// One actuator, wired by node address and board pin numbers.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -199,6 +200,26 @@ pub fn attach(medium: SocketAddr, actuators: &[Actuator]) -> io::Result<Conn> {
     Ok(conn)
 }
 
+/// [`attach`], with a sorting station's front ball at its colour sensors: its levels are at
+/// the sensing node when this returns.
+pub fn attach_fed(medium: SocketAddr, actuators: &[Actuator], feed: &BallFeed) -> io::Result<Conn> {
+    let mut conn = Conn::join(medium, Peer::Plant)?;
+    for a in actuators {
+        send_switches(&mut conn, a, &rest())?;
+    }
+    let front = feed.balls.first().map_or(&[][..], Vec::as_slice);
+    for (i, &pin) in feed.sensors.iter().enumerate() {
+        let level = front.get(i).copied().unwrap_or(false);
+        conn.send(&Link::Pin {
+            addr: feed.addr,
+            pin,
+            level,
+        })?;
+    }
+    conn.sync()?;
+    Ok(conn)
+}
+
 /// Runs the plant until `stop` is set or the medium goes away. Every step is sent to
 /// `steps` as it starts, stamped with the medium's clock.
 pub fn run(
@@ -213,12 +234,38 @@ pub fn run(
 
 /// [`run`] on a connection made by [`attach`], with an optional injected fault.
 pub fn run_attached(
-    mut conn: Conn,
+    conn: Conn,
     actuators: Vec<Actuator>,
     injection: Option<Injection>,
     steps: Sender<Stroke>,
     stop: Arc<AtomicBool>,
 ) -> io::Result<()> {
+    run_with(conn, actuators, injection, None, steps, stop)
+}
+
+/// [`run_attached`] with a sorting station's ball feed ([`crate::live_feed`]), on a
+/// connection made by [`attach_fed`]; every ball that lands is sent to `landed`.
+pub fn run_fed(
+    conn: Conn,
+    actuators: Vec<Actuator>,
+    feed: BallFeed,
+    landed: Sender<Landing>,
+    steps: Sender<Stroke>,
+    stop: Arc<AtomicBool>,
+) -> io::Result<()> {
+    let feed = Running::new(feed, landed, Instant::now());
+    run_with(conn, actuators, None, Some(feed), steps, stop)
+}
+
+fn run_with(
+    mut conn: Conn,
+    actuators: Vec<Actuator>,
+    injection: Option<Injection>,
+    mut feed: Option<Running>,
+    steps: Sender<Stroke>,
+    stop: Arc<AtomicBool>,
+) -> io::Result<()> {
+    let names: Vec<String> = actuators.iter().map(|a| a.name.clone()).collect();
     let start = Instant::now();
     let ms = |t: Instant| t.duration_since(start).as_millis() as u64;
     let mut states: Vec<State> = actuators.iter().map(|_| rest()).collect();
@@ -243,13 +290,21 @@ pub fn run_attached(
     while !stop.load(Ordering::Relaxed) {
         let now = Instant::now();
         // Arrivals: the far switch closes.
-        for (a, s) in actuators.iter().zip(states.iter_mut()) {
+        for (i, (a, s)) in actuators.iter().zip(states.iter_mut()).enumerate() {
             if s.arrival.is_some_and(|due| due <= now) {
                 s.arrival = None;
                 if s.rod.arrive().is_some() {
                     send_switches(&mut conn, a, s)?;
+                    if let Some(f) = feed.as_mut() {
+                        f.arrived(&mut conn, i, s.rod.position() == Position::End)?;
+                    }
                 }
             }
+        }
+        if let Some(f) = feed.as_mut() {
+            f.tick(&mut conn, &names, &|a| {
+                states.get(a).map_or(Position::Home, |s| s.rod.position())
+            })?;
         }
         // The switches' levels, again and again: a node that (re)starts or gets a new table
         // learns where the rods are (levels, not edges: repeats raise no event).
@@ -258,10 +313,14 @@ pub fn run_attached(
             for (a, s) in actuators.iter().zip(&states) {
                 send_switches(&mut conn, a, s)?;
             }
+            if let Some(f) = &feed {
+                f.send_levels(&mut conn)?;
+            }
         }
         let wake = states
             .iter()
             .filter_map(|s| s.arrival)
+            .chain(feed.as_ref().and_then(Running::wake))
             .chain([next_refresh])
             .min()
             .unwrap_or(next_refresh);

@@ -161,12 +161,6 @@ pub fn verification(
     how: VerifyHow,
 ) -> Result<Verification, verify::ModelError> {
     let mut text = String::new();
-    if compiled.robot.sorting.is_some() {
-        text.push_str(&format!(
-            "{name}: a sorting station: verify has no ball feed (the magazine reads empty, the \
-             station stops at once); `sim` checks each ball\n"
-        ));
-    }
     let declared = compiled.robot.assume_prompt_radio && !how.prompt && !how.any_delay;
     if declared {
         text.push_str(&format!(
@@ -175,7 +169,7 @@ pub fn verification(
         ));
     }
     let prompt = (how.prompt || compiled.robot.assume_prompt_radio) && !how.any_delay;
-    let model = verify::Model::new(compiled)?;
+    let model = verify::Model::with_balls(compiled, how.balls)?;
     let opts = verify::ExploreOptions {
         lossy: how.lossy,
         prompt,

@@ -10,6 +10,8 @@
 //!   the end) when the ball meets it takes it into its bin (`i + 1`); a gate in motion
 //!   there is traced ([`What::GateMoving`]) and does not take it. A ball no gate takes
 //!   falls into bin `gates + 1`.
+//! - A ball landing in bin `b` pulses the node's bin sensor `bins[b - 1]` (if the feed
+//!   has bin sensors) for [`ENTRY_PULSE_MS`].
 //! - The pusher back home lets the next ball roll to the sensors `roll_ms` later.
 
 use super::{Ev, SimError, What, World};
@@ -33,6 +35,8 @@ pub struct Feed {
     pub balls: Vec<Vec<bool>>,
     /// Plant indices of the gates, in shaft order (gate i empties into bin i + 1).
     pub gates: Vec<usize>,
+    /// Input indices of the bins' sensors, one per bin (`gates + 1`), or none.
+    pub bins: Vec<u8>,
     pub drop_ms: u64,
     pub fall_ms: u64,
     pub roll_ms: u64,
@@ -58,7 +62,7 @@ impl World<'_> {
             });
         };
         let inputs = node.engine.table().inputs.len();
-        for &input in feed.sensors.iter().chain([&feed.entry]) {
+        for &input in feed.sensors.iter().chain([&feed.entry]).chain(&feed.bins) {
             if usize::from(input) >= inputs {
                 return Err(SimError::NoSuchInput {
                     plant,
@@ -166,15 +170,11 @@ impl World<'_> {
                 let (f, _) = &self.feeds[feed];
                 let fall = f.fall_ms;
                 let Some(&plant) = f.gates.get(gate) else {
-                    let bin = gate + 1;
-                    self.log(What::Binned { feed, ball, bin });
+                    self.land(feed, ball, gate + 1);
                     return;
                 };
                 match self.rods[plant].position() {
-                    Position::End => {
-                        let bin = gate + 1;
-                        self.log(What::Binned { feed, ball, bin });
-                    }
+                    Position::End => self.land(feed, ball, gate + 1),
                     at => {
                         if matches!(at, Position::Extending | Position::Retracting) {
                             self.log(What::GateMoving { feed, ball, plant });
@@ -185,6 +185,23 @@ impl World<'_> {
                 }
             }
             _ => {}
+        }
+    }
+
+    /// Ball `ball` of feed `feed` lands in bin `bin` (1-based): traced, and its bin
+    /// sensor pulses.
+    fn land(&mut self, feed: usize, ball: usize, bin: usize) {
+        self.log(What::Binned { feed, ball, bin });
+        let (f, _) = &self.feeds[feed];
+        let node = f.node;
+        if let Some(&input) = bin.checked_sub(1).and_then(|i| f.bins.get(i)) {
+            self.set_input(node, input, true);
+            let low = Ev::Input {
+                node,
+                input,
+                level: false,
+            };
+            self.schedule(ENTRY_PULSE_MS, low);
         }
     }
 }

@@ -172,6 +172,7 @@ fn start(
         alarms: 0,
         progress: 0,
         homing: Some(false),
+        ball: None,
     };
     (s, Some(label))
 }

@@ -29,8 +29,11 @@ use robot_compiler::ir::Step;
 
 use crate::sim::SimulationError;
 
+mod feed;
 mod homing;
 mod place;
+
+pub use feed::{DEFAULT_BALLS, MAX_BALLS};
 
 pub use homing::{explore_homing, HomingReport};
 use place::Place;
@@ -46,6 +49,9 @@ pub enum ModelError {
     /// A `never:` interlock (by index) does not resolve.
     #[error("never[{index}]: {message}")]
     Interlock { index: usize, message: String },
+    /// A sorting station the verifier cannot model.
+    #[error("the sorting station: {0}")]
+    Station(String),
     #[error(transparent)]
     Simulation(#[from] SimulationError),
 }
@@ -101,6 +107,16 @@ pub enum Property {
     UnhomedStart,
     /// Homing: an actuator motion that is not one of the homing steps left, in order.
     Homing,
+    /// A sorting station: a ball that ends in no bin (the station stopped with it in the
+    /// shaft or at the sensors, or fed another on top of it).
+    Bins,
+    /// A sorting station: a gate moved while a ball was falling toward it.
+    GateFall,
+    /// A sorting station: the pusher fed while a gate moved.
+    PusherGate,
+    /// A sorting station: a ball's automata, EOSs or bin differ from the reference
+    /// semantics on the same feed.
+    Selection,
 }
 
 impl std::fmt::Display for Property {
@@ -115,6 +131,10 @@ impl std::fmt::Display for Property {
             Property::FaultStop => "a fault stops every node",
             Property::UnhomedStart => "nothing moves before HOME",
             Property::Homing => "homing conformance",
+            Property::Bins => "each ball in exactly one bin",
+            Property::GateFall => "no gate moves while a ball falls past it",
+            Property::PusherGate => "the pusher never feeds while a gate moves",
+            Property::Selection => "selections as the reference semantics",
         })
     }
 }
@@ -153,6 +173,8 @@ pub struct Report {
     pub growing: Vec<String>,
     pub lossy: bool,
     pub prompt: bool,
+    /// A sorting station: its feed, as the report names it.
+    pub feed: Option<String>,
 }
 
 impl Report {
@@ -174,17 +196,30 @@ impl Report {
             growing: Vec::new(),
             lossy: opts.lossy,
             prompt: opts.prompt,
+            feed: None,
         }
     }
 
     /// The text `config-tool verify` prints.
     pub fn render(&self, name: &str, interlocks: usize) -> String {
-        let mut o = self.figures(&format!("{name}: "), "idle");
+        let mut o = String::new();
+        if let Some(feed) = &self.feed {
+            let _ = writeln!(o, "{name}: {feed}");
+        }
+        o += &self.figures(&format!("{name}: "), "idle");
+        let station = match self.feed {
+            Some(_) => {
+                ", each ball in exactly one bin, no gate moves while a ball falls past it, \
+                 the pusher never feeds while a gate moves, selections as the reference \
+                 semantics"
+            }
+            None => "",
+        };
         self.verdict(
             &mut o,
             &format!(
                 "ok: deadlock freedom, sequence conformance, {interlocks} interlock(s), no \
-                 double actuation, no engine fault, a fault stops every node"
+                 double actuation, no engine fault, a fault stops every node{station}"
             ),
         );
         o
@@ -237,8 +272,14 @@ impl Report {
             None => {}
             Some(v) => {
                 let _ = writeln!(o, "FAILED {}: {}", v.property, v.message);
-                if let Some(start) = &v.start {
-                    let _ = writeln!(o, "start positions: {start}");
+                match &v.start {
+                    Some(start) if start.starts_with("ball feed: ") => {
+                        let _ = writeln!(o, "{start}");
+                    }
+                    Some(start) => {
+                        let _ = writeln!(o, "start positions: {start}");
+                    }
+                    None => {}
                 }
                 let _ = writeln!(o, "shortest counterexample ({} steps):", v.steps);
                 for line in &v.trace {
@@ -274,6 +315,8 @@ struct Sys {
     progress: u16,
     /// Homing explorations only: whether the HOME command was given (`None`: the cycle).
     homing: Option<bool>,
+    /// A sorting station: its balls.
+    ball: Option<feed::Balls>,
 }
 
 /// One move of the environment.
@@ -285,6 +328,11 @@ enum Move {
     Expire(u8, u8),
     Deliver(u8, u8),
     Lose(u8, u8),
+    /// A sorting station: the pusher arrives home and the next ball (or none) rolls to
+    /// the sensors.
+    Roll(u8, feed::Front),
+    /// A sorting station: the ball in the shaft falls on one step.
+    Fall,
 }
 
 /// What an engine call reported, in order.
@@ -341,13 +389,21 @@ pub struct Model<'c> {
     expect: Vec<Step>,
     interlocks: Vec<Interlock>,
     init: Sys,
+    feed: Option<feed::FeedModel>,
 }
 
 type Bad = (Property, String);
 
 impl<'c> Model<'c> {
-    /// The model of `c`, from its blobs decoded as a node decodes them.
+    /// The model of `c`, from its blobs decoded as a node decodes them; a sorting
+    /// station's feed is every colour sequence of up to [`DEFAULT_BALLS`] balls.
     pub fn new(c: &'c Compiled) -> Result<Model<'c>, ModelError> {
+        Model::with_balls(c, DEFAULT_BALLS)
+    }
+
+    /// [`Model::new`], a sorting station fed every colour sequence of up to `balls` balls
+    /// (at most [`MAX_BALLS`]).
+    pub fn with_balls(c: &'c Compiled, balls: usize) -> Result<Model<'c>, ModelError> {
         let tables = crate::sim::tables(c)?;
         if tables.len() > 8 {
             return Err(ModelError::TooManyRoles(tables.len()));
@@ -411,8 +467,10 @@ impl<'c> Model<'c> {
             alarms: 0,
             progress: 0,
             homing: None,
+            ball: None,
         };
         let home = (c.ir.home).filter(|&r| tables.get(r).is_some_and(|t| t.home.is_some()));
+        let feed = feed::FeedModel::new(c, &acts, balls)?;
         Ok(Model {
             c,
             tables,
@@ -423,7 +481,34 @@ impl<'c> Model<'c> {
             expect,
             interlocks,
             init,
+            feed,
         })
+    }
+
+    /// A sorting station's feed, as the report names it.
+    pub fn feed(&self) -> Option<String> {
+        self.feed.as_ref().map(feed::FeedModel::describe)
+    }
+
+    /// The initial states: the machine homed; a sorting station's with each ball 1 (or an
+    /// empty magazine) at the sensors, read as levels at power-up.
+    fn roots(&self) -> Vec<(Sys, Option<String>)> {
+        let Some(f) = &self.feed else {
+            return vec![(self.init.clone(), None)];
+        };
+        f.choices(0)
+            .map(|front| {
+                let mut s = self.init.clone();
+                let node = f.node();
+                let mut e = Engine::resume(&self.tables[node], &s.nodes[node]);
+                for i in f.levels(front) {
+                    e.sense(i, true);
+                }
+                s.nodes[node] = e.snapshot();
+                s.ball = Some(f.start(front));
+                (s, Some(f.label(front)))
+            })
+            .collect()
     }
 
     /// The number of `never:` interlocks.
@@ -499,9 +584,22 @@ impl<'c> Model<'c> {
             if opts.prompt && radio_busy {
                 break;
             }
-            if pos.moving() {
-                out.push(Move::Arrive(p as u8));
+            if !pos.moving() {
+                continue;
             }
+            match (&self.feed, &s.ball) {
+                (Some(f), Some(b))
+                    if f.is_pusher(p)
+                        && *pos == Place::Rod(Pos::Retracting)
+                        && b.front == feed::Front::Gone =>
+                {
+                    out.extend(f.choices(b.count).map(|c| Move::Roll(p as u8, c)));
+                }
+                _ => out.push(Move::Arrive(p as u8)),
+            }
+        }
+        if s.ball.as_ref().is_some_and(|b| b.shaft.is_some()) && !(opts.prompt && radio_busy) {
+            out.push(Move::Fall);
         }
         for (node, t) in s.timers.iter().enumerate() {
             if opts.prompt && radio_busy {
@@ -547,14 +645,24 @@ impl<'c> Model<'c> {
                     self.call(s, node, Call::Home, &mut inputs, &mut bad, &mut log);
                 }
             }
-            Move::Arrive(p) => {
+            Move::Arrive(p) | Move::Roll(p, _) => {
                 let p = usize::from(p);
                 let a = &self.acts[p];
-                let pin = s.pos[p]
-                    .finish_travel()
-                    .and_then(|end| a.cylinder.sensor(end));
-                if let Some(pin) = pin {
+                let end = s.pos[p].finish_travel();
+                if let (Some(f), Some(b)) = (&self.feed, s.ball.as_mut()) {
+                    if let Move::Roll(_, front) = m {
+                        f.rolled(b, front, &mut inputs);
+                    } else if end == Some(true) && f.is_pusher(p) {
+                        bad = f.pushed(b, &mut inputs);
+                    }
+                }
+                if let Some(pin) = end.and_then(|end| a.cylinder.sensor(end)) {
                     inputs.push_back((a.node, pin, true));
+                }
+            }
+            Move::Fall => {
+                if let (Some(f), Some(b)) = (&self.feed, s.ball.as_mut()) {
+                    bad = f.fall(b, &s.pos, &mut inputs);
                 }
             }
             Move::Expire(node, t) => {
@@ -606,6 +714,13 @@ impl<'c> Model<'c> {
         bad
     }
 
+    /// A sorting station's properties in `s`.
+    fn check_station(&self, s: &Sys) -> Option<Bad> {
+        let (f, b) = (self.feed.as_ref()?, s.ball.as_ref()?);
+        let names: Vec<&str> = self.acts.iter().map(|a| a.name.as_str()).collect();
+        f.check(b, &s.pos, &names, self.idle(s))
+    }
+
     fn check_state(&self, s: &Sys) -> Option<Bad> {
         for (i, e) in s.nodes.iter().enumerate() {
             if let Some(f) = e.fault {
@@ -644,6 +759,9 @@ impl<'c> Model<'c> {
                     self.c.ir.roles[l % n].name
                 ),
             ));
+        }
+        if let Some(bad) = self.check_station(s) {
+            return Some(bad);
         }
         if s.homing.is_none() && !self.expect.is_empty() && s.progress != 0 && self.idle(s) {
             return Some((
@@ -720,8 +838,12 @@ impl<'c> Model<'c> {
                 }
                 Effect::Start(t) => s.timers[node] |= 1 << t,
                 Effect::Cancel(t) => s.timers[node] &= !(1 << t),
-                Effect::Output(..) | Effect::Fault(_) | Effect::Fired(..) | Effect::Ignored(..) => {
+                Effect::Fired(chart, _, to) => {
+                    if let (Some(f), Some(b)) = (&self.feed, s.ball.as_mut()) {
+                        f.fired(node, chart, to, b);
+                    }
                 }
+                Effect::Output(..) | Effect::Fault(_) | Effect::Ignored(..) => {}
             }
         }
         for (p, command) in valves {
@@ -972,6 +1094,29 @@ impl<'c> Model<'c> {
                 role(t),
                 role(f)
             ),
+            Move::Roll(p, front) => {
+                let next = match (&self.feed, &s.ball, front) {
+                    (Some(f), Some(b), feed::Front::Ball(c)) => {
+                        format!(
+                            "ball {} ({}) rolls to the sensors",
+                            b.count + 1,
+                            f.colour_name(c)
+                        )
+                    }
+                    _ => String::from("the magazine is empty"),
+                };
+                format!(
+                    "{} reaches its home switch; {next}",
+                    self.acts[usize::from(p)].name
+                )
+            }
+            Move::Fall => match (&self.feed, &s.ball) {
+                (Some(f), Some(b)) => {
+                    let names: Vec<&str> = self.acts.iter().map(|a| a.name.as_str()).collect();
+                    f.describe_fall(b, &s.pos, &names)
+                }
+                _ => String::from("the ball falls"),
+            },
         }
     }
 
@@ -1022,8 +1167,12 @@ impl<'c> Model<'c> {
                 )
             })
             .collect();
+        let balls = match (&self.feed, &s.ball) {
+            (Some(f), Some(b)) => format!("; balls: {}", f.describe_state(b)),
+            _ => String::new(),
+        };
         format!(
-            "charts {}; actuators {}; in flight: {}",
+            "charts {}; actuators {}; in flight: {}{balls}",
             parts.join(" "),
             pos.join(", "),
             if flight.is_empty() {
@@ -1066,7 +1215,9 @@ pub fn verify(c: &Compiled, opts: ExploreOptions) -> Result<Report, ModelError> 
 
 /// [`verify`] on a built model.
 pub fn explore(model: &Model<'_>, opts: ExploreOptions) -> Report {
-    run(model, vec![(model.init.clone(), None)], opts)
+    let mut r = run(model, model.roots(), opts);
+    r.feed = model.feed();
+    r
 }
 
 /// Explores every state reachable from `roots` (each with the start positions a
@@ -1099,6 +1250,7 @@ fn run(model: &Model<'_>, roots: Vec<(Sys, Option<String>)>, opts: ExploreOption
         incomplete: search.incomplete,
         lossy: opts.lossy,
         prompt: opts.prompt,
+        feed: None,
     }
 }
 

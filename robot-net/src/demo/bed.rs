@@ -306,6 +306,33 @@ impl Bed {
         Ok(())
     }
 
+    /// [`Bed::set_plant`] with a sorting station's ball feed: every ball that lands is
+    /// sent to the receiver returned.
+    pub fn set_plant_fed(
+        &mut self,
+        actuators: Vec<Actuator>,
+        feed: crate::live_feed::BallFeed,
+    ) -> Result<Receiver<crate::live_feed::Landing>, NetError> {
+        self.stop_plant();
+        let stop = Arc::new(AtomicBool::new(false));
+        let conn = live_plant::attach_fed(self.medium.addr(), &actuators, &feed)
+            .map_err(NetError::Plant)?;
+        let (tx, flag) = (self.steps_tx.clone(), stop.clone());
+        let (landed_tx, landed) = mpsc::channel();
+        let handle = std::thread::spawn(move || {
+            live_plant::run_fed(conn, actuators, feed, landed_tx, tx, flag)
+        });
+        self.plant = Some((stop, handle));
+        self.steps_seen = 0;
+        while self.steps.try_recv().is_ok() {}
+        Ok(landed)
+    }
+
+    /// The bed's bound on waiting (one cycle, one ball).
+    pub fn timeout(&self) -> Duration {
+        self.options.timeout
+    }
+
     /// Watches the air for the faults of robot `c` (and every output level) from now on.
     pub fn watch(&mut self, c: &Compiled) -> Result<(), NetError> {
         self.watch = None;

@@ -7,6 +7,7 @@ mod bed;
 mod qemu;
 mod report;
 mod run;
+mod station;
 
 pub use bed::{node_addrs, targets, Bed, BedFault, Cycle, FaultReport, Homing, Options};
 pub use qemu::{
@@ -15,3 +16,4 @@ pub use qemu::{
 };
 pub use report::{cycle_line, fault_meaning, fault_text, homed_line, homing_line, push_line, say};
 pub use run::{generation_of, load, run, Demo, Verdict};
+pub use station::{sort, Sorted};

@@ -122,6 +122,10 @@ fn place_fault(
 /// The demo: pushes, runs the cycles, reports each; says how it ended.
 pub fn run(demo: &Demo, options: bed::Options, out: &mut dyn Write) -> Result<Verdict, NetError> {
     let c = generation_of(load(demo.robot)?, None)?;
+    if c.robot.sorting.is_some() {
+        // A sorting station: its feed, once (no cycles, no reconfiguration).
+        return super::station::run(&c, options, out);
+    }
     let next = match demo.then {
         Some(p) => Some(generation_of(load(p)?, Some(c.ir.generation + 1))?),
         None => None,
@@ -174,7 +178,7 @@ pub fn run(demo: &Demo, options: bed::Options, out: &mut dyn Write) -> Result<Ve
 
 /// Starts the bed: the medium, one unconfigured node per address, the plant; says what
 /// announced itself.
-fn bring_up(
+pub(super) fn bring_up(
     options: bed::Options,
     addrs: &[u16],
     actuators: Vec<live_plant::Actuator>,
@@ -208,7 +212,7 @@ fn bring_up(
 }
 
 /// Pushes every role of `robot`; says how each push went. `false` if one failed.
-fn push_robot(
+pub(super) fn push_robot(
     bed: &mut Bed,
     label: &Path,
     robot: &Compiled,
@@ -313,6 +317,15 @@ fn run_cycles(
 
 /// The medium's totals and the verdict in words; stops the bed.
 fn finish(bed: Bed, verdict: Verdict, out: &mut dyn Write) {
+    finish_as(bed, verdict, false, out)
+}
+
+/// [`finish`] of a sorting station's demo.
+pub(super) fn finish_with(bed: Bed, verdict: Verdict, out: &mut dyn Write) {
+    finish_as(bed, verdict, true, out)
+}
+
+fn finish_as(bed: Bed, verdict: Verdict, station: bool, out: &mut dyn Write) {
     let s = bed.medium().stats();
     demo_report::say(
         out,
@@ -327,11 +340,13 @@ fn finish(bed: Bed, verdict: Verdict, out: &mut dyn Write) {
     bed.stop();
     demo_report::say(
         out,
-        match verdict {
-            Verdict::Matched => "demo: every cycle matched",
-            Verdict::PushFailed => "demo: FAILED (push)",
-            Verdict::Mismatch => "demo: FAILED (sequence mismatch)",
-            Verdict::Faulted => "demo: FAULTED",
+        match (verdict, station) {
+            (Verdict::Matched, false) => "demo: every cycle matched",
+            (Verdict::Matched, true) => "demo: every ball sorted into sim's bin",
+            (Verdict::PushFailed, _) => "demo: FAILED (push)",
+            (Verdict::Mismatch, false) => "demo: FAILED (sequence mismatch)",
+            (Verdict::Mismatch, true) => "demo: FAILED (bins differ from sim's)",
+            (Verdict::Faulted, _) => "demo: FAULTED",
         },
     );
 }
