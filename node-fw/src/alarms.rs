@@ -41,13 +41,17 @@ pub struct Alarms {
     estop: bool,
     links: u8,
     declared: u8,
+    /// Alarms latched so far (wrapping): what one observation latched.
+    raised: u16,
 }
 
 impl Alarms {
     /// Looks at the node after a stimulus at `now_ms` (ms since boot) and raises an alarm
-    /// for each cause that rose since the last look.
-    pub fn observe(&mut self, seen: Seen<'_>, now_ms: u64) {
+    /// for each cause that rose since the last look. Returns how many it latched (the
+    /// newest of [`Alarms::list`]).
+    pub fn observe(&mut self, seen: Seen<'_>, now_ms: u64) -> usize {
         let now = now_ms as u32;
+        let list = self.raised;
         let estop = estop_pressed(seen);
         if estop && !self.estop {
             self.raise(AlarmSource::EStop, AlarmLevel::Fault, now);
@@ -99,6 +103,8 @@ impl Alarms {
             }
         }
         self.declared = declared;
+        let n = self.raised.wrapping_sub(list);
+        usize::from(n)
     }
 
     fn raise(&mut self, source: AlarmSource, level: AlarmLevel, now: u32) {
@@ -129,7 +135,9 @@ impl Alarms {
                 }
             }
         }
-        let _ = self.list.push(alarm);
+        if self.list.push(alarm).is_ok() {
+            self.raised = self.raised.wrapping_add(1);
+        }
     }
 
     /// Whether the cause of `source` persists.
