@@ -366,3 +366,53 @@ fn condition(nets: &[Net], levels: &[String], ast: &Ast, r: &RoleIr) -> Result<V
     };
     expr::bytecode(&ast, &resolve).map_err(|e| e.message)
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::source::Source;
+
+    const ROBOT: &str = r#"Robot(
+    name: "m",
+    network: (pan_id: 1, channel: 11),
+    nodes: [(name: "n1", address: 1)],
+    assign: [("R", "n1")],
+    roles: [(name: "R", inputs: [(name: "GO", pin: 0), (name: "F", pin: 1)], estop: "STOPX")],
+    start: "GO",
+    restart: ["AGAIN"],
+    alarms: [
+        (name: "a", level: Fault, when: "F && Pusher.Gone"),
+        (name: "b", level: Warning, when: "F", role: "Q"),
+        (name: "a", level: Info, when: "F &&"),
+    ],
+)"#;
+
+    /// Every error names its place in the file: the unknown name inside the condition.
+    #[test]
+    fn bad_alarms_are_reported_at_their_place() {
+        let src = Source::new("m.ron", ROBOT);
+        let robot = crate::model::parse(&src).expect("parses");
+        let mut out = Vec::new();
+        super::check(&robot, &src, &mut out);
+        let mut got: Vec<(String, (usize, usize))> = out
+            .iter()
+            .map(|d| (d.message.clone(), src.line_col(d.span.start)))
+            .collect();
+        got.sort_by_key(|g| g.1);
+        let want = [
+            ("e-stop: role `R` has no input `STOPX`", (6, 85)),
+            ("restart: no input `AGAIN` (`NAME` or `ROLE/NAME`)", (8, 15)),
+            (
+                "alarm `a`: `Pusher.Gone` is neither a function's place (`F.P`) nor an input of role `R`",
+                (10, 47),
+            ),
+            ("alarm `b`: no role `Q`", (11, 54)),
+            ("alarm `a` is declared twice", (12, 16)),
+        ];
+        let want: Vec<(String, (usize, usize))> =
+            want.iter().map(|(m, p)| (m.to_string(), *p)).collect();
+        assert_eq!(got[..5], want[..], "{got:#?}");
+        assert_eq!(got.len(), 6, "{got:#?}");
+        assert!(got[5].0.starts_with("alarm `a`: "), "{got:#?}");
+        assert_eq!(got[5].1, (12, 40));
+    }
+}

@@ -25,10 +25,7 @@ pub fn source_text(c: &Compiled, role: &str, source: AlarmSource) -> String {
                 .then(|| ri.and_then(|r| c.ir.roles[r].charts.get(usize::from(chart))))
                 .flatten()
                 .map_or_else(String::new, |ch| format!("chart `{}`: ", ch.name));
-            format!(
-                "{name}{} (code {code:#04x})",
-                demo::fault_meaning(code)
-            )
+            format!("{name}{} (code {code:#04x})", demo::fault_meaning(code))
         }
         AlarmSource::EStop => {
             let input = ri

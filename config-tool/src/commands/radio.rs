@@ -668,7 +668,9 @@ pub fn alarms(robot: &Path, at: &MediumAddr, keys: &KeysArg, watch: bool) -> Res
         // Compared without the wall time (it moves with every read).
         let now: Vec<String> = alarms::lines(&c, &nodes);
         let key = |l: &[String]| -> Vec<String> {
-            l.iter().map(|x| x.split("UTC").last().unwrap_or(x).to_string()).collect()
+            l.iter()
+                .map(|x| x.split("UTC").last().unwrap_or(x).to_string())
+                .collect()
         };
         if key(&now) != key(&last) {
             if watch && !last.is_empty() {
