@@ -96,7 +96,7 @@ pub fn alarm_role<'a>(robot: &'a Robot, a: &'a AlarmDeclRon) -> Option<&'a str> 
 }
 
 /// The parsed conditions of the alarms on `role` (those that parse).
-pub fn conditions<'a>(robot: &'a Robot, role: &str) -> Vec<Ast> {
+pub fn conditions(robot: &Robot, role: &str) -> Vec<Ast> {
     robot
         .alarms
         .iter()
@@ -289,7 +289,7 @@ pub fn place(robot: &Robot, src: &Source, ir: &mut Ir) -> Result<(), Vec<Diagnos
         .enumerate()
         .filter_map(|(i, r)| r.estop.clone().map(|e| (i, e)))
         .collect();
-    for (ri, r) in ir.roles.iter_mut().enumerate() {
+    for r in ir.roles.iter_mut() {
         let Some((mi, _)) = robot.role(&r.name) else {
             continue;
         };
@@ -314,10 +314,8 @@ pub fn place(robot: &Robot, src: &Source, ir: &mut Ir) -> Result<(), Vec<Diagnos
                 stop_chart(r, &local, vec![ActionIr::Fault(FAULT_ESTOP_PEER)]);
             }
         }
-        let _ = ri;
         for (k, s) in robot.restart.iter().enumerate() {
-            if let Some((role, input)) = restart_ref(robot, s).filter(|(role, _)| *role == r.name) {
-                let _ = role;
+            if let Some((_, input)) = restart_ref(robot, s).filter(|(role, _)| *role == r.name) {
                 declare_input(robot, r, input, false)
                     .map_err(|e| fail(format!("restart[{k}]"), e))?;
                 r.safety.restart.push(input.to_string());
