@@ -139,3 +139,48 @@ fn start_is_refused_until_the_fault_alarm_is_acknowledged_and_ack_while_its_caus
     node.input(BUTTON, true, 520, &mut board);
     assert!(!board.lamp, "the button toggles the lamp again");
 }
+
+/// `on_link_alarm: Fault`: a peer that never acknowledges faults the publisher once its
+/// link goes into alarm (code 0x85), with a fault alarm naming the link; without it the
+/// node only stalls, with a warning.
+#[test]
+fn a_link_alarm_faults_the_node_only_under_link_fault() {
+    use config_schema::Publication;
+    for link_fault in [false, true] {
+        let mut t = lamp_table(1);
+        t.peers.push(0x0002).unwrap();
+        let press = t.inputs[0].rise.unwrap();
+        t.publications
+            .push(Publication {
+                event: press,
+                topic: 0,
+                subscribers: 1,
+            })
+            .unwrap();
+        t.safety.link_fault = link_fault;
+        let mut node = NodeCore::new(NODE, u64::MAX, Some(load(t)), 1);
+        let mut board = Board::default();
+        node.input(BUTTON, true, 0, &mut board);
+        let mut now = 0;
+        while node.link_alarms() == 0 && now < 5_000 {
+            now = node.deadline().max(now + 1);
+            node.poll(now, &mut board);
+        }
+        assert_eq!(node.link_alarms(), 1, "the silent peer's link is in alarm");
+        let fault = node.status(0, Default::default()).fault;
+        let r = node.alarm_report(9, now);
+        let got: Vec<_> = r.alarms.iter().map(|a| (a.source, a.level)).collect();
+        let link = AlarmSource::Link { peer: 0 };
+        if link_fault {
+            assert_eq!(fault, Some(0x85));
+            let chart = AlarmSource::Chart {
+                chart: config_schema::alarm::NO_CHART,
+                code: 0x85,
+            };
+            assert_eq!(got, [(chart, AlarmLevel::Fault), (link, AlarmLevel::Fault)]);
+        } else {
+            assert_eq!(fault, None);
+            assert_eq!(got, [(link, AlarmLevel::Warning)]);
+        }
+    }
+}
