@@ -20,8 +20,10 @@ use crate::validate::{validate, Invalid};
 pub const MAGIC: [u8; 4] = *b"ECCT";
 /// The schema version this crate reads and writes (2: each output has fault, start and
 /// home levels instead of one safe level; 3: each chart has an idle state besides its
-/// initial one, and the table the events of the HOME command and of its boot).
-pub const SCHEMA_VERSION: u16 = 3;
+/// initial one, and the table the events of the HOME command and of its boot; 4: the
+/// table's safety declarations: emergency stop, restart inputs, link alarm policy,
+/// declared alarms).
+pub const SCHEMA_VERSION: u16 = 4;
 /// Bytes before the payload.
 pub const HEADER_LEN: usize = 12;
 /// Bytes after the payload.

@@ -8,10 +8,12 @@
 //! - [`validate`]: semantic checks of a decoded table; [`cost`]: the worst-case work of one
 //!   stimulus, which it bounds.
 //! - [`blob`]: the versioned, CRC-protected envelope, [`encode`] and [`decode`].
+//! - [`alarm`]: alarms a node latches, and the table's safety declarations.
 //! - [`link_keys`]: the link key block that follows a blob in a secured transfer.
 #![no_std]
 #![forbid(unsafe_code)]
 
+pub mod alarm;
 pub mod blob;
 pub mod cost;
 pub mod guard;

@@ -8,6 +8,7 @@
 use heapless::{String, Vec};
 use serde::{Deserialize, Serialize};
 
+use crate::alarm::Safety;
 use crate::guard::{Expr, Op};
 use crate::limits::*;
 
@@ -50,6 +51,8 @@ pub struct Table {
     pub peers: Vec<u16, MAX_PEERS>,
     pub publications: Vec<Publication, MAX_PUBLICATIONS>,
     pub subscriptions: Vec<Subscription, MAX_SUBSCRIPTIONS>,
+    /// The emergency stop, restart inputs, link alarm policy and declared alarms.
+    pub safety: Safety,
 }
 
 /// Identity and network facts of the role.
@@ -248,6 +251,7 @@ impl Table {
             peers: Vec::new(),
             publications: Vec::new(),
             subscriptions: Vec::new(),
+            safety: Safety::default(),
         }
     }
 

@@ -23,6 +23,10 @@ pub enum Place {
     Peer(u8),
     Publication(u8),
     Subscription(u8),
+    /// The table's safety declarations (emergency stop, restart inputs).
+    Safety,
+    /// A declared alarm.
+    Alarm(u8),
 }
 
 /// A table that decoded but does not make sense.
@@ -81,6 +85,8 @@ impl fmt::Display for Place {
             Place::Peer(i) => write!(f, "peer #{i}"),
             Place::Publication(i) => write!(f, "publication #{i}"),
             Place::Subscription(i) => write!(f, "subscription #{i}"),
+            Place::Safety => write!(f, "safety"),
+            Place::Alarm(i) => write!(f, "alarm #{i}"),
         }
     }
 }
@@ -202,7 +208,35 @@ pub fn validate_structure(t: &Table) -> Result<(), Invalid> {
         action_ok(t, Place::Action(idx(a)), action)?;
     }
     routes(t)?;
-    links(t)
+    links(t)?;
+    safety(t)
+}
+
+/// The emergency stop and the restart inputs name inputs the table has; each declared
+/// alarm's condition is a well-formed expression.
+fn safety(t: &Table) -> Result<(), Invalid> {
+    let s = &t.safety;
+    let inputs = t.inputs.len();
+    if let Some(i) = s.estop.filter(|&i| usize::from(i) >= inputs) {
+        return Err(Invalid::Expr {
+            at: Place::Safety,
+            error: ExprError::Input { at: 0, input: i },
+        });
+    }
+    let all = 1u32.checked_shl(inputs as u32).map_or(u32::MAX, |b| b - 1);
+    if u32::from(s.restart) & !all != 0 {
+        return Err(Invalid::Expr {
+            at: Place::Safety,
+            error: ExprError::Input {
+                at: 0,
+                input: idx(inputs),
+            },
+        });
+    }
+    for (i, a) in s.alarms.iter().enumerate() {
+        expr_ok(t, Place::Alarm(idx(i)), a.when)?;
+    }
+    Ok(())
 }
 
 /// The worst stimulus within [`STIMULUS_BUDGET`] (checked last: it reads the pools the

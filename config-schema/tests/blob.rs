@@ -32,7 +32,7 @@ fn the_envelope_layout_is_exact() {
     let n = b.len() - HEADER_LEN - TRAILER_LEN;
     assert_eq!(&b[0..4], b"ECCT");
     assert_eq!(MAGIC, *b"ECCT");
-    assert_eq!(&b[4..6], &[3, 0], "schema version 3, little-endian");
+    assert_eq!(&b[4..6], &[4, 0], "schema version 4, little-endian");
     assert_eq!(
         &b[6..10],
         &[0x04, 0x03, 0x02, 0x01],
@@ -44,7 +44,7 @@ fn the_envelope_layout_is_exact() {
     assert_eq!(
         envelope(&b),
         Ok(Envelope {
-            version: 3,
+            version: 4,
             generation: 0x0102_0304,
             payload_len: n,
             crc,
@@ -70,6 +70,7 @@ fn the_payload_of_an_empty_table_is_postcard_field_by_field() {
         0, 0, 0, 0, // vars, inputs, outputs, timers: empty
         0, 0, 0, 0, // charts, states, transitions, actions
         0, 0, 0, 0, 0, // code, routes, peers, publications, subscriptions
+        0, 0, 0, 0,    // safety: estop None, link_fault false, restart 0, alarms empty
     ];
     assert_eq!(p, want);
     assert_eq!(decode(&seal(&want, 9)).map(|t| t.generation), Ok(9));
@@ -99,6 +100,7 @@ fn an_output_is_pin_fault_start_home() {
         9, 2, 0, 0,           //   pin 9, fault Hold, start Low, home low
         10, 1, 1, 1,          //   pin 10, High, High, high
         0, 0, 0, 0, 0, 0, 0, 0, 0, 0, // timers .. subscriptions
+        0, 0, 0, 0,           // safety: none
     ];
     assert_eq!(p, want);
     assert_eq!(decode(&seal(&want, 0)), Ok(t));
@@ -141,13 +143,15 @@ fn bad_magic() {
 fn unsupported_version() {
     let mut b = blob(&realistic());
     // Version 1: one safe level per output, not read by this build; version 2: no idle
-    // states, no HOME event.
+    // states, no HOME event; version 3: no safety declarations.
     b[4] = 1;
     assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(1)));
     b[4] = 2;
     assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(2)));
-    b[4] = 4;
-    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(4)));
+    b[4] = 3;
+    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(3)));
+    b[4] = 5;
+    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(5)));
     b[4] = 0;
     b[5] = 1;
     assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(256)));

@@ -106,6 +106,27 @@ pub enum Command {
     /// until every chart of every node rests in its idle state. Refused while a node is
     /// faulted (reset first) or a cycle runs.
     Home(HomeArgs),
+    /// Every node's latched alarms: level, wall time, node and role, source, whether it
+    /// is acknowledged and whether its cause persists.
+    Alarms {
+        robot: PathBuf,
+        #[command(flatten)]
+        at: MediumAddr,
+        /// Print them again whenever they change, until interrupted.
+        #[arg(long)]
+        watch: bool,
+        #[command(flatten)]
+        keys: KeysArg,
+    },
+    /// Acknowledge the alarms on every node of the robot; prints what stayed and why (a
+    /// fault alarm whose cause persists stays: exit 6).
+    Ack {
+        robot: PathBuf,
+        #[command(flatten)]
+        at: MediumAddr,
+        #[command(flatten)]
+        keys: KeysArg,
+    },
     /// Leave a fault: back to the initial state.
     Reset {
         #[command(flatten)]

@@ -55,6 +55,13 @@ fn run(command: Command) -> Result<(), Failure> {
         } => radio::start(robot.as_deref(), &at, node, &keys),
         Command::Home(args) => radio::home(&args),
         Command::Reset { at, node, keys } => radio::reset(&at, node, &keys),
+        Command::Alarms {
+            robot,
+            at,
+            watch,
+            keys,
+        } => radio::alarms(&robot, &at, &keys, watch),
+        Command::Ack { robot, at, keys } => radio::ack(&robot, &at, &keys),
         Command::Plant { robot, at } => radio::plant(&robot, &at),
         Command::Monitor {
             at,

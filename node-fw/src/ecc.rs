@@ -215,6 +215,16 @@ impl<'t> Engine<'t> {
         self.init();
     }
 
+    /// Faults the node from outside the charts (a link alarm under `on_link_alarm:
+    /// Fault`): as a `Fault(code)` action of no chart ([`config_schema::alarm::NO_CHART`]).
+    /// A faulted node stays in its fault.
+    pub fn fail(&mut self, code: u8, fx: &mut impl Effects) {
+        if self.fault.is_none() {
+            let chart = config_schema::alarm::NO_CHART;
+            self.set_fault(Fault::Action { chart, code }, fx);
+        }
+    }
+
     /// Input `input` is at `level` when the engine starts (a switch that was already
     /// closed): sets the level and its mirror variable without raising any event.
     pub fn sense(&mut self, input: u8, level: bool) {

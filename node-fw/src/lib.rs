@@ -1,5 +1,6 @@
 //! The generic node firmware.
 //!
+//! - [`alarms`]: the node's latched alarms (pure, shared with the simulator).
 //! - [`cipher`]: the AES-128 under frame security (software, or the board's hardware).
 //! - [`cylinder`]: the pneumatic plant's rules (valve, power-up, sensors, travel), pure.
 //! - [`ecc`]: the table interpreter (pure, `no_std`, no allocation, no Embassy).
@@ -15,6 +16,7 @@
 #![cfg_attr(not(feature = "std"), no_std)]
 #![forbid(unsafe_code)]
 
+pub mod alarms;
 pub mod cipher;
 pub mod cylinder;
 pub mod ecc;

@@ -16,6 +16,7 @@ use config_schema::wire::security::{self, ext_addr, replay::ReplayGuard, AuxRepr
 use config_schema::{Publication, Table};
 use heapless::Vec;
 
+use crate::alarms::{Alarms, Seen};
 use crate::cipher::NodeCipher;
 use crate::ecc::{Effects, Engine, EngineState, Fault};
 use crate::link::{self, LinkState};
@@ -144,6 +145,8 @@ pub struct NodeCore {
     /// The link keys of the running table (and the previous one's, for the overlap), the
     /// peers' replay floors and handshakes.
     peer_security: PeerSecurity,
+    /// The latched alarms.
+    alarms: Alarms,
 }
 
 /// Why a management frame is not acted on.
@@ -312,6 +315,7 @@ impl NodeCore {
             challenges: Pending::default(),
             next_challenge: 0,
             peer_security: PeerSecurity::default(),
+            alarms: Alarms::default(),
         };
         if let Some(t) = table.filter(|t| t.missing_pin(board_pins).is_none()) {
             node.install(t, None, false);
@@ -443,6 +447,7 @@ impl NodeCore {
         self.restarted = 0;
         self.cycle_open = false;
         self.boot_pending = false;
+        self.alarms.new_table();
         for _ in &table.peers {
             let _ = self.senders.push(link::Sender::new(self.epoch));
         }
@@ -728,6 +733,18 @@ impl NodeCore {
         let is_start = self.table.as_ref().is_some_and(|t| {
             level && t.start.is_some() && t.inputs.get(index).and_then(|i| i.rise) == t.start
         });
+        let restarts = self.table.as_ref().is_some_and(|t| {
+            level && (is_start || (index < 16 && t.safety.restart & (1 << index) != 0))
+        });
+        if restarts && self.alarms.blocking().is_some() {
+            // A fault alarm is latched: the press is refused (the level is kept).
+            if let (Some(table), Some(state)) = (&self.table, &mut self.state) {
+                let mut engine = Engine::resume(table, state);
+                engine.sense(index as u8, level);
+                *state = engine.snapshot();
+            }
+            return;
+        }
         let stimulus =
             |e: &mut Engine, fx: &mut NodeEffects<'_, _>| e.input(index as u8, level, fx);
         if is_start {
@@ -735,12 +752,53 @@ impl NodeCore {
         } else {
             self.run(now, io, stimulus);
         }
+        self.look(now, io);
         self.note_idle();
+    }
+
+    /// After a stimulus: a link alarm faults the node under `on_link_alarm: Fault`; then
+    /// the alarms look at the node.
+    fn look(&mut self, now: u64, io: &mut impl Io) {
+        let link_alarms = self.link_alarms();
+        let link_fault = self.table.as_ref().is_some_and(|t| t.safety.link_fault);
+        if link_fault && link_alarms != 0 {
+            let code = config_schema::alarm::FAULT_LINK;
+            self.run(now, io, |e, fx| e.fail(code, fx));
+        }
+        if let (Some(table), Some(state)) = (&self.table, &self.state) {
+            let seen = Seen {
+                table,
+                state,
+                link_alarms,
+            };
+            self.alarms.observe(seen, now);
+        }
+    }
+
+    /// The latched alarms.
+    pub fn alarms(&self) -> &Alarms {
+        &self.alarms
+    }
+
+    /// The alarms as reported to command `ack` at `now`.
+    pub fn alarm_report(&self, ack: u16, now: u64) -> config_schema::alarm::AlarmReport {
+        let seen = self.seen();
+        self.alarms.report(ack, seen, now)
+    }
+
+    fn seen(&self) -> Option<Seen<'_>> {
+        let (table, state) = (self.table.as_ref()?, self.state.as_ref()?);
+        Some(Seen {
+            table,
+            state,
+            link_alarms: self.link_alarms(),
+        })
     }
 
     /// Expired timers, link retransmissions, announcements.
     pub fn poll(&mut self, now: u64, io: &mut impl Io) {
         self.poll_due(now, io);
+        self.look(now, io);
         self.note_idle();
     }
 
@@ -834,6 +892,7 @@ impl NodeCore {
     /// A PSDU arrived.
     pub fn receive(&mut self, psdu: &[u8], now: u64, io: &mut impl Io) {
         self.receive_frame(psdu, now, io);
+        self.look(now, io);
         self.note_idle();
     }
 
@@ -1301,7 +1360,10 @@ impl NodeCore {
                     let _ = self.commands.push((src, id));
                 }
             }
+            // A latched fault alarm: nothing starts or moves until it is acknowledged.
+            let blocked = self.alarms.blocking().is_some();
             match cmd {
+                Command::Start | Command::Home if blocked => {}
                 // Armed for a switch-over: the START waits for it.
                 Command::Start if self.switch.hold_start() => {}
                 Command::Start => self.run_start(now, io),
@@ -1315,8 +1377,26 @@ impl NodeCore {
                     self.restart_links();
                     self.run(now, io, |e, fx| e.reset(fx));
                 }
-                Command::Identify | Command::Status | Command::Security => {}
+                Command::Ack => {
+                    // Alarms raised by what happened so far are latched before the ack.
+                    self.look(now, io);
+                    let link_alarms = self.link_alarms();
+                    if let (Some(table), Some(state)) = (&self.table, &self.state) {
+                        let seen = Seen {
+                            table,
+                            state,
+                            link_alarms,
+                        };
+                        self.alarms.ack(seen);
+                    }
+                }
+                Command::Identify | Command::Status | Command::Security | Command::Alarms => {}
             }
+        }
+        if matches!(cmd, Command::Alarms | Command::Ack) {
+            let report = Message::Alarms(self.alarm_report(id, now));
+            self.send(io, pan, src, &report);
+            return;
         }
         if cmd == Command::Security {
             let report = Message::Security(SecurityReport {

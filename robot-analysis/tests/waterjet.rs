@@ -8,6 +8,7 @@
 //! fault is cleared; the operator restarts the automatic transport and a full cycle
 //! completes.
 
+use config_schema::alarm::{AlarmLevel, AlarmSource};
 use node_fw::sim::{Run, TraceEntry, What, World};
 use robot_analysis::sim;
 use robot_compiler::Compiled;
@@ -66,6 +67,7 @@ fn fig9(c: &Compiled) -> Vec<TraceEntry> {
     );
     let node = |role: &str| c.ir.roles.iter().position(|r| r.name == role).expect(role);
     let (pusher_node, belt_node) = (node("PUSHER"), node("BELT"));
+    let cabinet = node("CABINET");
 
     // (1)-(3): automatic start; in step 2 the pusher turns clockwise, the belt forward.
     world.press(start).expect("START");
@@ -115,15 +117,54 @@ fn fig9(c: &Compiled) -> Vec<TraceEntry> {
     assert_eq!(world.carriage_um(pusher), Some(0));
     assert_eq!(world.carriage_um(belt), Some(0));
 
+    // The operator's panel latched the fault alarm one hop after the fault; it cannot be
+    // acknowledged while the fault persists.
+    let pusher_fault = AlarmSource::Declared { index: 0 };
+    let alarm = |world: &World| {
+        let r = world.alarms(cabinet).expect("the cabinet's alarms");
+        (r.alarms.iter())
+            .map(|a| (a.source, a.level, a.raised_ms, a.acked, a.persists))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(
+        alarm(&world),
+        [(pusher_fault, AlarmLevel::Fault, 1002, false, true)]
+    );
+    assert_eq!(world.ack(cabinet), Ok(0));
+
     // A restart is refused while the fault persists.
     world.press(restart).expect("RESTART");
     settle(&mut world);
     assert_eq!(world.run(pusher), Some(Run::Stopped));
 
-    // (10): the fault is cleared; the operator restarts the automatic transport; a full
-    // transport cycle completes.
+    // (10): the fault is cleared; the restart is refused until the operator acknowledges
+    // the alarm; then the automatic transport restarts and a full cycle completes.
     world.set_switch(fault, false).expect("cleared");
     settle(&mut world);
+    assert_eq!(
+        alarm(&world),
+        [(pusher_fault, AlarmLevel::Fault, 1002, false, false)]
+    );
+    let mark = world.trace().len();
+    world.press(restart).expect("RESTART");
+    settle(&mut world);
+    assert_eq!(world.carriage_um(pusher), Some(0));
+    let refused: Vec<String> = (world.trace()[mark..].iter())
+        .filter(|e| matches!(e.what, What::Refused { .. }))
+        .map(|e| format!("{} {}", e.t_ms, e.what))
+        .collect();
+    assert_eq!(
+        refused,
+        [format!(
+            "{} node {cabinet} refused input 2: a fault alarm is latched",
+            world.trace()[mark].t_ms
+        )]
+    );
+    assert_eq!(world.ack(cabinet), Ok(1));
+    assert_eq!(
+        alarm(&world),
+        [(pusher_fault, AlarmLevel::Fault, 1002, true, false)]
+    );
     world.press(restart).expect("RESTART");
     settle(&mut world);
     assert_eq!(world.carriage_um(pusher), Some(0));
@@ -162,22 +203,23 @@ fn the_papers_fault_scenario_stops_the_pusher_at_once_and_a_restart_completes_a_
         " 1008 Belt: Stopped -> Back",
         " 2004 Pusher: CounterClockwise -> Stopped",
         " 2004 Belt: Back -> Stopped",
-        // (a restart pressed here is refused: the fault persists) the fault is cleared,
+        // (a restart pressed here is refused: the fault persists) the fault is cleared;
+        // a restart at 2058 is refused (the alarm is latched), the operator acknowledges,
         // (10): the restart, and a full transport cycle.
         " 2056 FaultDetection: Faulted -> Ok",
-        " 2058 Operation: Releasing -> Auto",
-        " 2058 Transport: ReadyToCut -> Step1",
-        " 2060 Pusher: Stopped -> Clockwise",
-        " 2062 Transport: Step1 -> Step2",
-        " 2062 Belt: Stopped -> Forward",
-        " 4060 Pusher: Clockwise -> Stopped",
-        " 4060 Belt: Forward -> Stopped",
-        " 4062 Transport: Step2 -> Step3",
-        " 4064 Pusher: Stopped -> CounterClockwise",
-        " 4066 Belt: Stopped -> Back",
-        " 6064 Pusher: CounterClockwise -> Stopped",
-        " 6064 Belt: Back -> Stopped",
-        " 6066 Transport: Step3 -> ReadyToCut",
+        " 2108 Operation: Releasing -> Auto",
+        " 2108 Transport: ReadyToCut -> Step1",
+        " 2110 Pusher: Stopped -> Clockwise",
+        " 2112 Transport: Step1 -> Step2",
+        " 2112 Belt: Stopped -> Forward",
+        " 4110 Pusher: Clockwise -> Stopped",
+        " 4110 Belt: Forward -> Stopped",
+        " 4112 Transport: Step2 -> Step3",
+        " 4114 Pusher: Stopped -> CounterClockwise",
+        " 4116 Belt: Stopped -> Back",
+        " 6114 Pusher: CounterClockwise -> Stopped",
+        " 6114 Belt: Back -> Stopped",
+        " 6116 Transport: Step3 -> ReadyToCut",
     ];
     assert_eq!(got, want, "{}", got.join("\n"));
 }
@@ -227,7 +269,7 @@ fn the_timeline_of_fig_9_has_a_lane_per_function_and_per_position() {
         .expect("the pusher's polyline");
     assert_eq!(
         pusher,
-        "150.0,70.0 150.4,70.0 331.3,57.0 332.4,57.0 513.4,70.0 513.4,70.0 523.6,70.0 886.2,44.0 \
-         886.2,44.0 887.0,44.0 1249.6,70.0 1249.6,70.0 1250.0,70.0"
+        "150.0,70.0 150.4,70.0 329.9,57.0 330.9,57.0 510.4,70.0 510.4,70.0 529.5,70.0 889.2,44.0 \
+         889.2,44.0 889.9,44.0 1249.6,70.0 1249.6,70.0 1250.0,70.0"
     );
 }

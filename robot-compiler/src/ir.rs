@@ -70,6 +70,8 @@ pub struct RoleIr {
     /// The actuators declared here, in declaration order: which outputs and inputs are
     /// their valves and switches.
     pub actuators: Vec<Wiring>,
+    /// The e-stop, restart inputs, link alarm policy and declared alarms.
+    pub safety: crate::alarms::SafetyIr,
 }
 
 /// An index into a role's `outputs` (the table's output index).

@@ -19,6 +19,7 @@
 //! It knows nothing of the node firmware, the simulator or the radio (see
 //! `docs/architecture.md`).
 
+pub mod alarms;
 pub mod automata;
 pub mod bounds;
 pub mod check;

@@ -255,6 +255,7 @@ impl Lowering<'_> {
                 .map_err(|_| RoleError::PoolFull("routes"))?;
         }
         self.links(&mut t)?;
+        self.safety(&mut t)?;
         config_schema::validate(&t).map_err(RoleError::Invalid)?;
         Ok(t)
     }
@@ -265,6 +266,34 @@ impl Lowering<'_> {
             .event_id(name)
             .ok_or_else(|| RoleError::UnknownEvent(name.to_string()))
             .and_then(|e| u8_of(e, "event"))
+    }
+
+    /// The e-stop, restart inputs, link alarm policy and declared alarms.
+    fn safety(&self, t: &mut Table) -> Result<(), RoleError> {
+        let s = &self.r.safety;
+        let input = |name: &str| {
+            let i = self.r.inputs.iter().position(|i| i.name == name);
+            i.ok_or_else(|| RoleError::UnknownEvent(name.to_string()))
+                .and_then(|i| u8_of(i, "input"))
+        };
+        t.safety.estop = s.estop.as_deref().map(input).transpose()?;
+        t.safety.link_fault = s.link_fault;
+        for name in &s.restart {
+            let i = input(name)?;
+            t.safety.restart |= 1u16.checked_shl(u32::from(i)).unwrap_or(0);
+        }
+        for (_, level, _, ops) in &s.alarms {
+            let when = t.push_expr(ops)?;
+            let decl = config_schema::alarm::AlarmDecl {
+                level: *level,
+                when,
+            };
+            t.safety
+                .alarms
+                .push(decl)
+                .map_err(|_| RoleError::PoolFull("alarms"))?;
+        }
+        Ok(())
     }
 
     /// Variables, inputs, outputs and timers.

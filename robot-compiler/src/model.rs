@@ -95,6 +95,17 @@ pub struct Robot {
     /// what it moves, maintained contacts, buttons), wired to role pins by name.
     #[serde(default)]
     pub plants: Vec<crate::plants::PlantDecl>,
+    /// Alarms the operator acknowledges (docs/robot-format.md, "Alarms and stops"):
+    /// raised when a condition over inputs and places becomes true.
+    #[serde(default)]
+    pub alarms: Vec<crate::alarms::AlarmDeclRon>,
+    /// Inputs (`NAME` or `ROLE/NAME`) that restart the machine besides START: refused
+    /// while a fault alarm is latched on their node.
+    #[serde(default)]
+    pub restart: Vec<String>,
+    /// What a link alarm does: `Stall` (default: the node keeps retrying) or `Fault`.
+    #[serde(default)]
+    pub on_link_alarm: crate::alarms::LinkAlarmPolicy,
 }
 
 /// A selecting automaton as written: either `states` / `initial` / `transitions`, or the
@@ -211,6 +222,9 @@ pub struct Role {
     pub outputs: Vec<OutputPin>,
     #[serde(default)]
     pub charts: Vec<ChartInstance>,
+    /// The emergency-stop input: pressing it faults every node of the machine.
+    #[serde(default)]
+    pub estop: Option<String>,
 }
 
 #[derive(Debug, Clone, Deserialize)]

@@ -7,6 +7,7 @@
 use heapless::{String, Vec};
 use serde::{Deserialize, Serialize};
 
+use crate::alarm::AlarmReport;
 use crate::limits::{MAX_CHARTS, MAX_ROLE_NAME};
 use crate::table::Topic;
 
@@ -59,6 +60,8 @@ pub enum Message<'a> {
     /// The switch-over to `generation`, the staged one or (a rollback) the previous one
     /// (answered by `ConfigReply`).
     Switch { generation: u32, step: SwitchStep },
+    /// The node's latched alarms: the answer to `Command::Alarms` and `Command::Ack`.
+    Alarms(AlarmReport),
 }
 
 /// One step of the two-phase switch-over (docs/reconfiguration.md).
@@ -203,6 +206,11 @@ pub enum Command {
     Security,
     /// Start homing: raise the table's `home` event (docs/reconfiguration.md).
     Home,
+    /// Answer with the latched alarms (`Message::Alarms`) instead of the status.
+    Alarms,
+    /// Acknowledge every latched alarm whose cause is gone (a fault alarm whose cause
+    /// persists stays); answered with the alarms as they are after it.
+    Ack,
 }
 
 /// What a node counted of frame security (every reason a frame was dropped, and what it
@@ -433,6 +441,35 @@ mod tests {
                 no_counter: c,
                 challenged: c,
             },
+        });
+        let mut buf = [0u8; 256];
+        let n = msg.emit(&mut buf).unwrap();
+        assert!(n <= MAX_PAYLOAD, "{n} > {MAX_PAYLOAD}");
+        assert_eq!(Message::parse(&buf[..n]), Ok(msg));
+    }
+
+    #[test]
+    fn the_largest_alarm_report_fits_one_secured_frame() {
+        use crate::alarm::{Alarm, AlarmLevel, AlarmSource, MAX_ALARMS};
+        let mut alarms = Vec::new();
+        for _ in 0..MAX_ALARMS {
+            let alarm = Alarm {
+                source: AlarmSource::Chart {
+                    chart: u8::MAX,
+                    code: u8::MAX,
+                },
+                level: AlarmLevel::Fault,
+                raised_ms: u32::MAX,
+                acked: true,
+                persists: true,
+            };
+            alarms.push(alarm).unwrap();
+        }
+        let msg = Message::Alarms(AlarmReport {
+            ack: u16::MAX,
+            now_ms: u32::MAX,
+            alarms,
+            dropped: u16::MAX,
         });
         let mut buf = [0u8; 256];
         let n = msg.emit(&mut buf).unwrap();

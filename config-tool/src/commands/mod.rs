@@ -1,5 +1,6 @@
 //! One function per command.
 
+pub mod alarms;
 pub mod demo;
 pub mod keys;
 pub mod matrix;

@@ -21,7 +21,7 @@ use robot_net::{home, live_plant, show};
 use robot_compiler::model::Security;
 
 use crate::cli::{HomeArgs, KeysArg, MediumAddr, PushArgs, QemuNodeArgs, SwitchArgs, VerifyHow};
-use crate::commands::offline;
+use crate::commands::{alarms, offline};
 use crate::failure::{exit, Failure};
 use crate::tool_keys::{self, KeysFrom, KEYS_ENV};
 
@@ -612,10 +612,103 @@ pub fn start(
         if let Some(why) = home::refusal(&home::nodes(c, &statuses), false) {
             return Err(Failure::refused(format!("{why}; START was not sent")));
         }
+        let nodes = node_alarms(&mut radio, &mut ids, c, Command::Alarms)?;
+        if let Some(why) = alarms::blocking_text(c, &nodes) {
+            return Err(Failure::refused(format!("{why}; START was not sent")));
+        }
     }
     command(&mut radio, &mut ids, node, Command::Start)?;
     println!("{node:#06x}: started");
     Ok(())
+}
+
+/// Every node's alarms of robot `c` (`Command::Alarms`, or `Command::Ack` to acknowledge).
+fn node_alarms(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    c: &robot_compiler::Compiled,
+    cmd: Command,
+) -> Result<Vec<alarms::NodeAlarms>, Failure> {
+    let mut out = Vec::new();
+    for r in &c.ir.roles {
+        let report = ask(radio, ids, r.address, cmd, |m, id| match m {
+            Message::Alarms(a) if a.ack == id => Some(a),
+            _ => None,
+        })?;
+        out.push(alarms::NodeAlarms {
+            role: r.name.clone(),
+            addr: r.address,
+            report,
+            read_at: std::time::SystemTime::now(),
+        });
+    }
+    Ok(out)
+}
+
+/// The robot, and the tool's radio to its nodes with the robot's keys.
+fn robot_radio(
+    robot: &Path,
+    at: &MediumAddr,
+    keys: &KeysArg,
+) -> Result<(robot_compiler::Compiled, ToolRadio), Failure> {
+    let c = demo::load(robot)?;
+    let keys = push_keys(robot, &c, KeysFrom::resolve(keys.keys.as_deref()))?;
+    let radio = connect_keyed(at, keys.as_ref())?;
+    Ok((c, radio))
+}
+
+/// `alarms`: every node's alarms; with `watch`, again whenever they change (until
+/// interrupted).
+pub fn alarms(robot: &Path, at: &MediumAddr, keys: &KeysArg, watch: bool) -> Result<(), Failure> {
+    let (c, mut radio) = robot_radio(robot, at, keys)?;
+    let mut ids = Ids::default();
+    let mut last: Vec<String> = Vec::new();
+    loop {
+        let nodes = node_alarms(&mut radio, &mut ids, &c, Command::Alarms)?;
+        // Compared without the wall time (it moves with every read).
+        let now: Vec<String> = alarms::lines(&c, &nodes);
+        let key = |l: &[String]| -> Vec<String> {
+            l.iter()
+                .map(|x| x.split("UTC").last().unwrap_or(x).to_string())
+                .collect()
+        };
+        if key(&now) != key(&last) {
+            if watch && !last.is_empty() {
+                println!("--");
+            }
+            for l in &now {
+                println!("{l}");
+            }
+            last = now;
+        }
+        if !watch {
+            return Ok(());
+        }
+        std::thread::sleep(Duration::from_millis(500));
+    }
+}
+
+/// `ack`: acknowledge on every node; print what stayed and why (exit 6 if a fault alarm
+/// stayed).
+pub fn ack(robot: &Path, at: &MediumAddr, keys: &KeysArg) -> Result<(), Failure> {
+    let (c, mut radio) = robot_radio(robot, at, keys)?;
+    let mut ids = Ids::default();
+    let nodes = node_alarms(&mut radio, &mut ids, &c, Command::Ack)?;
+    let acked: usize = nodes
+        .iter()
+        .map(|n| n.report.alarms.iter().filter(|a| a.acked).count())
+        .sum();
+    println!("acknowledged: {acked} alarm(s) on {} node(s)", nodes.len());
+    let stayed = alarms::stayed(&c, &nodes);
+    for l in &stayed {
+        println!("{l}");
+    }
+    match alarms::blocking_text(&c, &nodes) {
+        Some(why) => Err(Failure::refused(format!(
+            "{why}: the machine cannot restart"
+        ))),
+        None => Ok(()),
+    }
 }
 
 /// `home`: HOME to the robot's home role's node, then every node's status until each

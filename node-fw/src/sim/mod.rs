@@ -221,6 +221,8 @@ impl Ord for Queued {
 struct Node<'t> {
     addr: u16,
     engine: Engine<'t>,
+    /// Its latched alarms (as a node keeps them: [`crate::alarms`]).
+    alarms: crate::alarms::Alarms,
     /// Generation of each armed timer (0 = not armed).
     timers: [u64; MAX_TIMERS],
 }
@@ -414,6 +416,7 @@ impl<'t> World<'t> {
                         e
                     },
                     timers: [0; MAX_TIMERS],
+                    alarms: crate::alarms::Alarms::default(),
                 })
                 .collect(),
             rods: vec![Rod::Home; plants.len()],
@@ -861,6 +864,9 @@ impl<'t> World<'t> {
     fn process(&mut self, ev: Ev) {
         match ev {
             Ev::Input { node, input, level } => self.set_input(node, input, level),
+            Ev::Start { node } if self.blocked(node) => {
+                self.log(What::Refused { node, input: None });
+            }
             Ev::Start { node } => self.call(node, |e, fx| {
                 e.start(fx);
             }),
@@ -1062,7 +1068,57 @@ impl<'t> World<'t> {
             return;
         }
         self.log(What::Input { node, input, level });
+        let engine = &self.nodes[node].engine;
+        let table = engine.table();
+        let rise = table.inputs.get(usize::from(input)).and_then(|i| i.rise);
+        let restarts = level
+            && !self.stopped[node]
+            && ((rise.is_some() && rise == table.start)
+                || (input < 16 && table.safety.restart & (1 << input) != 0));
+        if restarts && self.blocked(node) {
+            self.log(What::Refused {
+                node,
+                input: Some(input),
+            });
+            self.nodes[node].engine.sense(input, level);
+            return;
+        }
         self.call(node, |e, fx| e.input(input, level, fx));
+    }
+
+    /// Whether a fault alarm is latched on node `node` (a START is refused).
+    fn blocked(&self, node: usize) -> bool {
+        self.nodes[node].alarms.blocking().is_some()
+    }
+
+    /// Node `node`'s alarms now (`ack` 0).
+    pub fn alarms(&self, node: usize) -> Option<config_schema::alarm::AlarmReport> {
+        let n = self.nodes.get(node)?;
+        let state = n.engine.snapshot();
+        let seen = crate::alarms::Seen {
+            table: n.engine.table(),
+            state: &state,
+            link_alarms: 0,
+        };
+        Some(n.alarms.report(0, Some(seen), self.now))
+    }
+
+    /// The operator acknowledges node `node`'s alarms (a fault alarm whose cause persists
+    /// stays). Applied at once; returns how many were acknowledged.
+    pub fn ack(&mut self, node: usize) -> Result<usize, SimError> {
+        let n = self
+            .nodes
+            .get_mut(node)
+            .ok_or(SimError::NoSuchNodeIndex { node })?;
+        let state = n.engine.snapshot();
+        let seen = crate::alarms::Seen {
+            table: n.engine.table(),
+            state: &state,
+            link_alarms: 0,
+        };
+        let acked = n.alarms.ack(seen);
+        self.log(What::Ack { node, acked });
+        Ok(acked)
     }
 
     /// Runs one engine call with a tracing sink, then applies its effects.
@@ -1083,6 +1139,30 @@ impl<'t> World<'t> {
         self.apply(node, &todo);
         todo.clear();
         self.scratch = todo;
+        self.look(node);
+    }
+
+    /// The node's alarms look at it after an engine call.
+    fn look(&mut self, node: usize) {
+        let n = &mut self.nodes[node];
+        let state = n.engine.snapshot();
+        let seen = crate::alarms::Seen {
+            table: n.engine.table(),
+            state: &state,
+            link_alarms: 0,
+        };
+        let latched = n.alarms.observe(seen, self.now);
+        let raised: Vec<_> = (n.alarms.list().iter().rev())
+            .take(latched)
+            .map(|a| (a.source, a.level))
+            .collect();
+        for (source, level) in raised.into_iter().rev() {
+            self.log(What::Alarm {
+                node,
+                source,
+                level,
+            });
+        }
     }
 
     fn apply(&mut self, node: usize, effects: &[Effect]) {

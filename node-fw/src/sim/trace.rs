@@ -88,6 +88,17 @@ pub enum What {
     Reset { node: usize },
     /// [`World::reboot`](super::World::reboot): a power cut of one node.
     Reboot { node: usize },
+    /// A node latched an alarm.
+    Alarm {
+        node: usize,
+        source: config_schema::alarm::AlarmSource,
+        level: config_schema::alarm::AlarmLevel,
+    },
+    /// A START or restart press (input `input`, `None`: the command) was refused: a fault
+    /// alarm is latched on the node.
+    Refused { node: usize, input: Option<u8> },
+    /// [`World::ack`](super::World::ack): the operator acknowledged `acked` alarms.
+    Ack { node: usize, acked: usize },
     /// A fault was injected (`jam`, `break_switch`, `stop_node`, `cut_link`), as text.
     Injected { fault: String },
     /// A valve command reached a jammed actuator: it did not move.
@@ -204,6 +215,19 @@ impl fmt::Display for What {
             What::Fault { node, fault } => write!(f, "node {node} FAULT {fault:?}"),
             What::Reset { node } => write!(f, "node {node} reset"),
             What::Reboot { node } => write!(f, "node {node} rebooted"),
+            What::Alarm {
+                node,
+                source,
+                level,
+            } => write!(f, "node {node} ALARM {level} {source:?}"),
+            What::Refused { node, input: None } => {
+                write!(f, "node {node} refused START: a fault alarm is latched")
+            }
+            What::Refused {
+                node,
+                input: Some(i),
+            } => write!(f, "node {node} refused input {i}: a fault alarm is latched"),
+            What::Ack { node, acked } => write!(f, "node {node} ack: {acked} acknowledged"),
             What::Injected { fault } => write!(f, "INJECTED {fault}"),
             What::Jammed { plant, plus } => write!(
                 f,

@@ -45,6 +45,7 @@ pub const STRUCTURE: &[(&str, Pass)] = &[
     ("functions", crate::petri::check::check),
     ("sorting", crate::sorting::check),
     ("plants", crate::plants::check),
+    ("alarms", crate::alarms::check),
 ];
 
 /// Passes over the elaborated robot (run when `STRUCTURE` and the elaboration found no
@@ -124,6 +125,7 @@ fn build_ir(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
     let mut ir = build_charts(robot, src)?;
     crate::sorting::place(robot, src, &mut ir)?;
     crate::automata::compile::place(robot, src, &mut ir)?;
+    crate::alarms::place(robot, src, &mut ir)?;
     Ok(ir)
 }
 

@@ -235,6 +235,18 @@ pub fn publications(robot: &Robot, nets: &[Net]) -> Vec<Publication> {
                     }
                 }
             }
+            // A declared alarm on this role reads places like a condition.
+            for ast in crate::alarms::conditions(robot, &role.name) {
+                let mut names = Vec::new();
+                crate::expr::names(&ast, &mut names);
+                for name in &names {
+                    if let Some(Reads::Place { function, place }) = reads(nets, &levels, name) {
+                        if function == g {
+                            read.insert(place);
+                        }
+                    }
+                }
+            }
             if read.is_empty() && events.is_empty() {
                 continue;
             }

@@ -51,7 +51,14 @@ fn read_on(robot: &Robot, nets: &[Net], g: usize, role: &str) -> bool {
         return false;
     };
     let levels = levels(r);
-    nets.iter().filter(|n| n.role == role).any(|n| {
+    let by_alarm = crate::alarms::conditions(robot, role).iter().any(|a| {
+        let mut names = Vec::new();
+        expr::names(a, &mut names);
+        names.iter().any(|name| {
+            matches!(reads(nets, &levels, name), Some(Reads::Place { function, .. }) if function == g)
+        })
+    });
+    by_alarm || nets.iter().filter(|n| n.role == role).any(|n| {
         n.transitions.iter().any(|t| {
             let mut names = Vec::new();
             if let Some((_, a)) = &t.when {

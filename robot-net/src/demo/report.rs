@@ -111,6 +111,13 @@ pub fn fault_meaning(code: u8) -> String {
             "its motion watchdog expired".into()
         }
         c if c == ACTION | robot_compiler::synth::FAULT_PEER => "stopped by a peer's fault".into(),
+        c if c == ACTION | config_schema::alarm::FAULT_ESTOP => "its emergency stop".into(),
+        c if c == ACTION | config_schema::alarm::FAULT_ESTOP_PEER => {
+            "stopped by another node's emergency stop".into()
+        }
+        c if c == ACTION | config_schema::alarm::FAULT_LINK => {
+            "a link alarm (on_link_alarm: Fault)".into()
+        }
         c if c & ACTION != 0 => format!("fault action {}", c & !ACTION),
         c => format!("fault {c:#04x}"),
     }

@@ -1,0 +1,151 @@
+//! `alarms` and `ack`: every node's latched alarms in words, and the operator's
+//! acknowledgement (docs/running-a-robot.md, "Alarms").
+
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use config_schema::alarm::{Alarm, AlarmLevel, AlarmReport, AlarmSource, NO_CHART};
+use robot_compiler::Compiled;
+use robot_net::demo;
+
+/// One node's alarms as the tool read them: its role, address, the report and when
+/// (wall clock) it came.
+pub struct NodeAlarms {
+    pub role: String,
+    pub addr: u16,
+    pub report: AlarmReport,
+    pub read_at: SystemTime,
+}
+
+/// The source of an alarm in words, with the robot's names.
+pub fn source_text(c: &Compiled, role: &str, source: AlarmSource) -> String {
+    let ri = c.ir.roles.iter().position(|r| r.name == role);
+    match source {
+        AlarmSource::Chart { chart, code } => {
+            let name = (chart != NO_CHART)
+                .then(|| ri.and_then(|r| c.ir.roles[r].charts.get(usize::from(chart))))
+                .flatten()
+                .map_or_else(String::new, |ch| format!("chart `{}`: ", ch.name));
+            format!("{name}{} (code {code:#04x})", demo::fault_meaning(code))
+        }
+        AlarmSource::EStop => {
+            let input = ri
+                .and_then(|r| c.ir.roles[r].safety.estop.clone())
+                .unwrap_or_default();
+            format!("emergency stop `{input}` pressed")
+        }
+        AlarmSource::Link { peer } => {
+            let addr = ri.and_then(|r| c.tables[r].peers.get(usize::from(peer)).copied());
+            let who = addr.map_or_else(
+                || format!("peer #{peer}"),
+                |a| match c.ir.roles.iter().find(|r| r.address == a) {
+                    Some(r) => format!("{} ({a:#06x})", r.name),
+                    None => format!("{a:#06x}"),
+                },
+            );
+            format!("link alarm: {who} does not acknowledge")
+        }
+        AlarmSource::Declared { index } => {
+            let decl = ri.and_then(|r| c.ir.roles[r].safety.alarms.get(usize::from(index)));
+            match decl {
+                Some((name, _, when, _)) => format!("alarm \"{name}\" ({when})"),
+                None => format!("declared alarm #{index}"),
+            }
+        }
+    }
+}
+
+/// `latched`, `acknowledged`, and whether the cause persists.
+pub fn state_text(a: &Alarm) -> &'static str {
+    match (a.acked, a.persists) {
+        (false, true) => "latched, cause persists",
+        (false, false) => "latched",
+        (true, true) => "acknowledged, cause persists",
+        (true, false) => "acknowledged",
+    }
+}
+
+/// When the node raised it, on the wall clock: the report's time less the alarm's age.
+pub fn raised_at(n: &NodeAlarms, a: &Alarm) -> SystemTime {
+    let age = n.report.now_ms.wrapping_sub(a.raised_ms);
+    n.read_at - Duration::from_millis(u64::from(age))
+}
+
+/// `HH:MM:SS.mmm` UTC.
+pub fn clock(t: SystemTime) -> String {
+    let ms = t.duration_since(UNIX_EPOCH).unwrap_or_default().as_millis() as u64;
+    let (s, ms) = (ms / 1000, ms % 1000);
+    format!(
+        "{:02}:{:02}:{:02}.{ms:03}",
+        (s / 3600) % 24,
+        (s / 60) % 60,
+        s % 60
+    )
+}
+
+/// One line per alarm of every node (and a line per node that dropped some); `no
+/// alarms` if none.
+pub fn lines(c: &Compiled, nodes: &[NodeAlarms]) -> Vec<String> {
+    let mut out = Vec::new();
+    for n in nodes {
+        for a in &n.report.alarms {
+            out.push(format!(
+                "{:<7}  {} UTC  {:#06x} {:<8}  {}  [{}]",
+                a.level.to_string(),
+                clock(raised_at(n, a)),
+                n.addr,
+                n.role,
+                source_text(c, &n.role, a.source),
+                state_text(a)
+            ));
+        }
+        if n.report.dropped > 0 {
+            out.push(format!(
+                "{:#06x} {}: {} alarm(s) dropped (the list was full)",
+                n.addr, n.role, n.report.dropped
+            ));
+        }
+    }
+    if out.is_empty() {
+        out.push(String::from("no alarms"));
+    }
+    out
+}
+
+/// The fault alarm that keeps the machine from restarting, in words, if any.
+pub fn blocking_text(c: &Compiled, nodes: &[NodeAlarms]) -> Option<String> {
+    nodes.iter().find_map(|n| {
+        let a = n.report.blocking()?;
+        let why = if a.persists {
+            "its cause persists"
+        } else {
+            "not acknowledged: config-tool ack"
+        };
+        Some(format!(
+            "node {:#06x} ({}) has a fault alarm latched: {} ({why})",
+            n.addr,
+            n.role,
+            source_text(c, &n.role, a.source)
+        ))
+    })
+}
+
+/// What `ack` left latched, one line per alarm, and why.
+pub fn stayed(c: &Compiled, nodes: &[NodeAlarms]) -> Vec<String> {
+    let mut out = Vec::new();
+    for n in nodes {
+        for a in n.report.alarms.iter().filter(|a| !a.acked) {
+            let why = if a.level == AlarmLevel::Fault && a.persists {
+                "its cause persists"
+            } else {
+                "raised after the acknowledgement"
+            };
+            out.push(format!(
+                "stayed: {:#06x} {}: {} ({why})",
+                n.addr,
+                n.role,
+                source_text(c, &n.role, a.source)
+            ));
+        }
+    }
+    out
+}

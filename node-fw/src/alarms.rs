@@ -1,0 +1,230 @@
+//! The node's latched alarms (docs/running-a-robot.md, "Alarms"): `no_std`, allocation
+//! free, shared by [`crate::node::NodeCore`] and the simulator.
+//!
+//! After every stimulus the node calls [`Alarms::observe`] with its table and engine
+//! state: a fault of the node, the emergency stop pressed, a link gone into alarm or a
+//! declared condition become true raises an alarm (one per rising cause; a cause that
+//! rises again while its alarm is still latched raises nothing new). An alarm stays latched
+//! until [`Alarms::ack`]; a fault alarm whose cause persists is not acknowledged. While a
+//! fault alarm is latched the machine may not restart ([`Alarms::blocking`]).
+//!
+//! The list holds [`MAX_ALARMS`]. A new alarm when it is full replaces the oldest
+//! acknowledged one, else (a fault alarm) the oldest info or warning one; else it is
+//! dropped and counted: the oldest fault alarms are kept.
+
+use config_schema::alarm::{
+    Alarm, AlarmLevel, AlarmReport, AlarmSource, MAX_ALARMS, MAX_DECLARED_ALARMS, NO_CHART,
+};
+use config_schema::{guard, Table};
+use heapless::Vec;
+
+use crate::ecc::{EngineState, Fault};
+use crate::node::fault_code;
+
+/// What the node's alarms are made of at one moment.
+#[derive(Debug, Clone, Copy)]
+pub struct Seen<'a> {
+    pub table: &'a Table,
+    pub state: &'a EngineState,
+    /// Bit i: the link to peer i is in alarm.
+    pub link_alarms: u8,
+}
+
+/// The latched alarms of one node.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Alarms {
+    list: Vec<Alarm, MAX_ALARMS>,
+    dropped: u16,
+    /// Causes as of the last observation: the node faulted, the e-stop pressed, bit i of
+    /// `links` peer i in alarm, bit i of `declared` declared alarm i holding.
+    faulted: bool,
+    estop: bool,
+    links: u8,
+    declared: u8,
+    /// Alarms latched so far (wrapping): what one observation latched.
+    raised: u16,
+}
+
+impl Alarms {
+    /// Looks at the node after a stimulus at `now_ms` (ms since boot) and raises an alarm
+    /// for each cause that rose since the last look. Returns how many it latched (the
+    /// newest of [`Alarms::list`]).
+    pub fn observe(&mut self, seen: Seen<'_>, now_ms: u64) -> usize {
+        let now = now_ms as u32;
+        let list = self.raised;
+        let estop = estop_pressed(seen);
+        if estop && !self.estop {
+            self.raise(AlarmSource::EStop, AlarmLevel::Fault, now);
+        }
+        self.estop = estop;
+        let faulted = seen.state.fault;
+        if let (Some(f), false) = (faulted, self.faulted) {
+            // The emergency stop's own fault is its alarm already.
+            if !estop {
+                let chart = match f {
+                    Fault::ChainLimit { chart }
+                    | Fault::Action { chart, .. }
+                    | Fault::Expr { chart } => chart,
+                    Fault::QueueFull { .. } | Fault::Cascade { .. } => NO_CHART,
+                };
+                let source = AlarmSource::Chart {
+                    chart,
+                    code: fault_code(f),
+                };
+                self.raise(source, AlarmLevel::Fault, now);
+            }
+        }
+        self.faulted = faulted.is_some();
+        let rose = seen.link_alarms & !self.links;
+        let level = if seen.table.safety.link_fault {
+            AlarmLevel::Fault
+        } else {
+            AlarmLevel::Warning
+        };
+        for peer in (0..8u8).filter(|p| rose & (1 << p) != 0) {
+            self.raise(AlarmSource::Link { peer }, level, now);
+        }
+        self.links = seen.link_alarms;
+        let mut declared = 0u8;
+        for (i, a) in seen
+            .table
+            .safety
+            .alarms
+            .iter()
+            .enumerate()
+            .take(MAX_DECLARED_ALARMS)
+        {
+            if holds(seen, a.when) {
+                declared |= 1 << i;
+                if self.declared & (1 << i) == 0 {
+                    let source = AlarmSource::Declared { index: i as u8 };
+                    self.raise(source, a.level, now);
+                }
+            }
+        }
+        self.declared = declared;
+        let n = self.raised.wrapping_sub(list);
+        usize::from(n)
+    }
+
+    fn raise(&mut self, source: AlarmSource, level: AlarmLevel, now: u32) {
+        if self.list.iter().any(|a| a.source == source && !a.acked) {
+            return; // still latched: the same alarm
+        }
+        let alarm = Alarm {
+            source,
+            level,
+            raised_ms: now,
+            acked: false,
+            persists: true,
+        };
+        if self.list.is_full() {
+            let acked = self.list.iter().position(|a| a.acked);
+            let lesser = || {
+                (level == AlarmLevel::Fault)
+                    .then(|| self.list.iter().position(|a| a.level != AlarmLevel::Fault))
+                    .flatten()
+            };
+            match acked.or_else(lesser) {
+                Some(i) => {
+                    self.list.remove(i);
+                }
+                None => {
+                    self.dropped = self.dropped.saturating_add(1);
+                    return;
+                }
+            }
+        }
+        if self.list.push(alarm).is_ok() {
+            self.raised = self.raised.wrapping_add(1);
+        }
+    }
+
+    /// Whether the cause of `source` persists.
+    pub fn persists(seen: Seen<'_>, source: AlarmSource) -> bool {
+        match source {
+            AlarmSource::Chart { .. } => seen.state.fault.is_some(),
+            AlarmSource::EStop => estop_pressed(seen),
+            AlarmSource::Link { peer } => seen.link_alarms & (1u8 << (peer & 7)) != 0,
+            AlarmSource::Declared { index } => (seen.table.safety.alarms)
+                .get(usize::from(index))
+                .is_some_and(|a| holds(seen, a.when)),
+        }
+    }
+
+    /// The operator acknowledges: every latched alarm is acknowledged but a fault alarm
+    /// whose cause persists. Returns how many were.
+    pub fn ack(&mut self, seen: Seen<'_>) -> usize {
+        let mut n = 0;
+        for a in self.list.iter_mut().filter(|a| !a.acked) {
+            if a.level == AlarmLevel::Fault && Alarms::persists(seen, a.source) {
+                continue;
+            }
+            a.acked = true;
+            n += 1;
+        }
+        n
+    }
+
+    /// The oldest fault alarm not acknowledged: while there is one, the machine may not
+    /// restart.
+    pub fn blocking(&self) -> Option<&Alarm> {
+        self.list
+            .iter()
+            .find(|a| a.level == AlarmLevel::Fault && !a.acked)
+    }
+
+    /// The alarms, oldest first (`persists` as of the last report).
+    pub fn list(&self) -> &[Alarm] {
+        &self.list
+    }
+
+    /// Alarms dropped because the list was full.
+    pub fn dropped(&self) -> u16 {
+        self.dropped
+    }
+
+    /// The report of command `ack` at `now_ms`, each alarm's `persists` as of `seen`.
+    pub fn report(&self, ack: u16, seen: Option<Seen<'_>>, now_ms: u64) -> AlarmReport {
+        let mut alarms = self.list.clone();
+        for a in alarms.iter_mut() {
+            a.persists = seen.is_some_and(|s| Alarms::persists(s, a.source));
+        }
+        AlarmReport {
+            ack,
+            now_ms: now_ms as u32,
+            alarms,
+            dropped: self.dropped,
+        }
+    }
+
+    /// A new table: its causes are looked at afresh (the latched alarms stay).
+    pub fn new_table(&mut self) {
+        self.faulted = false;
+        self.estop = false;
+        self.links = 0;
+        self.declared = 0;
+    }
+}
+
+/// Whether the table's emergency-stop input is high.
+fn estop_pressed(seen: Seen<'_>) -> bool {
+    seen.table
+        .safety
+        .estop
+        .is_some_and(|i| i < 16 && seen.state.inputs & (1 << i) != 0)
+}
+
+/// Whether a declared condition holds (an expression that does not evaluate: no).
+fn holds(seen: Seen<'_>, when: config_schema::Expr) -> bool {
+    let (vars, inputs) = (&seen.state.vars, seen.state.inputs);
+    let value = guard::eval(
+        seen.table.expr(when),
+        |v| vars.get(usize::from(v)).copied(),
+        |i| (i < 16).then(|| inputs & (1 << i) != 0),
+    );
+    value.is_some_and(|v| v != 0)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,259 @@
+//! The latching rules, on a table of two inputs: input 0 the emergency stop, input 1 the
+//! cause of a declared fault alarm, input 2 of a declared warning.
+
+extern crate std;
+use std::vec::Vec;
+
+use config_schema::alarm::{AlarmDecl, AlarmLevel, AlarmSource, MAX_ALARMS};
+use config_schema::{Input, Op, Table};
+
+use super::{Alarms, Seen};
+use crate::ecc::{EngineState, Fault};
+
+fn table() -> Table {
+    let mut t = Table::empty("r");
+    for pin in 0..3 {
+        let input = Input {
+            pin,
+            rise: None,
+            fall: None,
+            var: None,
+        };
+        t.inputs.push(input).unwrap();
+    }
+    t.safety.estop = Some(0);
+    for (input, level) in [(1, AlarmLevel::Fault), (2, AlarmLevel::Warning)] {
+        let when = t.push_expr(&[Op::Input(input)]).unwrap();
+        t.safety.alarms.push(AlarmDecl { level, when }).unwrap();
+    }
+    t
+}
+
+fn state(inputs: u16, fault: Option<Fault>) -> EngineState {
+    EngineState {
+        current: [0; 8],
+        vars: [0; 32],
+        inputs,
+        outputs: 0,
+        fault,
+    }
+}
+
+fn look(a: &mut Alarms, t: &Table, s: &EngineState, links: u8, now: u64) {
+    a.observe(
+        Seen {
+            table: t,
+            state: s,
+            link_alarms: links,
+        },
+        now,
+    );
+}
+
+fn seen<'a>(t: &'a Table, s: &'a EngineState) -> Seen<'a> {
+    Seen {
+        table: t,
+        state: s,
+        link_alarms: 0,
+    }
+}
+
+/// (source, level, raised, acked, persists) of every alarm.
+fn listed(
+    a: &Alarms,
+    t: &Table,
+    s: &EngineState,
+) -> Vec<(AlarmSource, AlarmLevel, u32, bool, bool)> {
+    let r = a.report(7, Some(seen(t, s)), 0);
+    assert_eq!(r.ack, 7);
+    r.alarms
+        .iter()
+        .map(|a| (a.source, a.level, a.raised_ms, a.acked, a.persists))
+        .collect()
+}
+
+const DECLARED: AlarmSource = AlarmSource::Declared { index: 0 };
+
+#[test]
+fn a_declared_alarm_latches_once_and_is_refused_an_ack_while_its_cause_persists() {
+    let (t, mut a) = (table(), Alarms::default());
+    look(&mut a, &t, &state(0, None), 0, 10);
+    assert!(a.list().is_empty());
+    let on = state(0b010, None);
+    look(&mut a, &t, &on, 0, 20);
+    look(&mut a, &t, &on, 0, 30);
+    assert_eq!(
+        listed(&a, &t, &on),
+        [(DECLARED, AlarmLevel::Fault, 20, false, true)]
+    );
+    assert!(a.blocking().is_some());
+    assert_eq!(a.ack(seen(&t, &on)), 0);
+    assert_eq!(
+        listed(&a, &t, &on),
+        [(DECLARED, AlarmLevel::Fault, 20, false, true)]
+    );
+
+    // The cause goes: still latched until acknowledged, then acknowledged.
+    let off = state(0, None);
+    look(&mut a, &t, &off, 0, 40);
+    assert_eq!(
+        listed(&a, &t, &off),
+        [(DECLARED, AlarmLevel::Fault, 20, false, false)]
+    );
+    assert!(a.blocking().is_some());
+    assert_eq!(a.ack(seen(&t, &off)), 1);
+    assert_eq!(
+        listed(&a, &t, &off),
+        [(DECLARED, AlarmLevel::Fault, 20, true, false)]
+    );
+    assert_eq!(a.blocking(), None);
+
+    // It rises again: a new alarm.
+    look(&mut a, &t, &on, 0, 50);
+    assert_eq!(
+        listed(&a, &t, &on),
+        [
+            (DECLARED, AlarmLevel::Fault, 20, true, true),
+            (DECLARED, AlarmLevel::Fault, 50, false, true)
+        ]
+    );
+}
+
+#[test]
+fn a_warning_is_acknowledged_while_its_cause_persists_and_does_not_block() {
+    let (t, mut a) = (table(), Alarms::default());
+    let on = state(0b100, None);
+    look(&mut a, &t, &on, 0, 5);
+    let warning = AlarmSource::Declared { index: 1 };
+    assert_eq!(
+        listed(&a, &t, &on),
+        [(warning, AlarmLevel::Warning, 5, false, true)]
+    );
+    assert_eq!(a.blocking(), None);
+    assert_eq!(a.ack(seen(&t, &on)), 1);
+    assert_eq!(
+        listed(&a, &t, &on),
+        [(warning, AlarmLevel::Warning, 5, true, true)]
+    );
+}
+
+#[test]
+fn the_estop_is_one_fault_alarm_that_persists_while_pressed() {
+    let (t, mut a) = (table(), Alarms::default());
+    // Pressed: the node faults in the same stimulus (its e-stop chart); one alarm.
+    let fault = Some(Fault::Action { chart: 2, code: 3 });
+    let pressed = state(0b001, fault);
+    look(&mut a, &t, &pressed, 0, 100);
+    let estop = (AlarmSource::EStop, AlarmLevel::Fault, 100, false, true);
+    assert_eq!(listed(&a, &t, &pressed), [estop]);
+    assert_eq!(a.ack(seen(&t, &pressed)), 0);
+    // Released, still faulted: the e-stop's cause is gone.
+    let released = state(0, fault);
+    look(&mut a, &t, &released, 0, 200);
+    assert_eq!(a.ack(seen(&t, &released)), 1);
+    assert_eq!(a.blocking(), None);
+}
+
+#[test]
+fn a_chart_fault_raises_a_fault_alarm_until_the_reset() {
+    let (t, mut a) = (table(), Alarms::default());
+    let faulted = state(0, Some(Fault::Action { chart: 1, code: 1 }));
+    look(&mut a, &t, &faulted, 0, 2460);
+    let source = AlarmSource::Chart {
+        chart: 1,
+        code: 0x81,
+    };
+    assert_eq!(
+        listed(&a, &t, &faulted),
+        [(source, AlarmLevel::Fault, 2460, false, true)]
+    );
+    assert_eq!(a.ack(seen(&t, &faulted)), 0);
+    let reset = state(0, None);
+    look(&mut a, &t, &reset, 0, 3000);
+    assert_eq!(a.ack(seen(&t, &reset)), 1);
+    assert_eq!(
+        listed(&a, &t, &reset),
+        [(source, AlarmLevel::Fault, 2460, true, false)]
+    );
+    // The interpreter's own bounds name no chart.
+    look(
+        &mut a,
+        &t,
+        &state(0, Some(Fault::QueueFull { event: 3 })),
+        0,
+        4000,
+    );
+    assert_eq!(
+        a.list()[1].source,
+        AlarmSource::Chart {
+            chart: super::NO_CHART,
+            code: 2
+        }
+    );
+}
+
+#[test]
+fn a_link_alarm_is_a_warning_or_with_link_fault_a_fault() {
+    let mut t = table();
+    let mut a = Alarms::default();
+    let s = state(0, None);
+    look(&mut a, &t, &s, 0b100, 1);
+    assert_eq!(a.list()[0].source, AlarmSource::Link { peer: 2 });
+    assert_eq!(a.list()[0].level, AlarmLevel::Warning);
+    t.safety.link_fault = true;
+    look(&mut a, &t, &s, 0b101, 2);
+    assert_eq!(a.list()[1].source, AlarmSource::Link { peer: 0 });
+    assert_eq!(a.list()[1].level, AlarmLevel::Fault);
+    // Fault alarm on peer 0 persists while its link is in alarm.
+    assert_eq!(
+        a.ack(Seen {
+            table: &t,
+            state: &s,
+            link_alarms: 0b001
+        }),
+        1
+    );
+    assert!(a.blocking().is_some());
+}
+
+#[test]
+fn a_full_list_keeps_the_oldest_fault_alarms_and_counts_the_dropped() {
+    let (t, mut a) = (table(), Alarms::default());
+    let s = state(0, None);
+    // A warning (link 7), then fault alarms from links 0..: with link_fault off they are
+    // warnings, so raise faults through chart faults and resets instead.
+    look(&mut a, &t, &s, 0b1000_0000, 0);
+    for i in 0..MAX_ALARMS as u8 {
+        let f = state(0, Some(Fault::Action { chart: i, code: i }));
+        look(&mut a, &t, &f, 0b1000_0000, 10 + u64::from(i));
+        look(&mut a, &t, &s, 0b1000_0000, 10 + u64::from(i));
+    }
+    // The warning made room for the eighth fault; the ninth is dropped.
+    let f = state(0, Some(Fault::Action { chart: 9, code: 9 }));
+    look(&mut a, &t, &f, 0b1000_0000, 99);
+    assert_eq!(a.list().len(), MAX_ALARMS);
+    assert!(a.list().iter().all(|x| x.level == AlarmLevel::Fault));
+    let times: Vec<u32> = a.list().iter().map(|x| x.raised_ms).collect();
+    assert_eq!(times, [10, 11, 12, 13, 14, 15, 16, 17]);
+    assert_eq!(a.dropped(), 1);
+    assert_eq!(a.report(0, None, 0).dropped, 1);
+    // Acknowledged alarms make room first.
+    assert_eq!(a.ack(seen(&t, &s)), MAX_ALARMS);
+    look(&mut a, &t, &s, 0b1100_0000, 120);
+    assert_eq!(a.list().len(), MAX_ALARMS);
+    assert_eq!(a.list()[0].raised_ms, 11);
+    assert_eq!(
+        a.list()[MAX_ALARMS - 1].source,
+        AlarmSource::Link { peer: 6 }
+    );
+}
+
+#[test]
+fn garbage_conditions_never_hold() {
+    let mut t = table();
+    // A condition past the code pool (a table that skipped validation).
+    t.safety.alarms[0].when.start = 200;
+    let mut a = Alarms::default();
+    look(&mut a, &t, &state(0xFFFF, None), 0xFF, 0);
+    assert!(a.list().iter().all(|x| x.source != DECLARED));
+}
