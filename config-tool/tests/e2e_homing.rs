@@ -68,6 +68,18 @@ fn homing_is_refused_on_a_faulted_machine_and_a_jammed_homing_step_faults() {
             .unwrap();
     }
     assert_not_homed(&mut bed, &c);
+    // The watchdog's fault alarm is latched on VC: homing is refused, naming it, until the
+    // operator acknowledges it.
+    assert_eq!(
+        bed.home(&c).unwrap().end,
+        robot_net::home::HomeEnd::Refused(
+            "node 0x0011 (VC) has a fault alarm latched: chart `fault`: its motion watchdog \
+             expired (code 0x81): acknowledge it first (config-tool ack)"
+                .to_string()
+        )
+    );
+    let acked = bed.alarms(&c, true).unwrap();
+    assert!(acked.iter().all(|r| r.blocking().is_none()), "{acked:?}");
     // Homing commands VC- first: the rod (at its end) is still jammed.
     let homing = bed.home(&c).unwrap();
     assert_eq!(

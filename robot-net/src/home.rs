@@ -6,7 +6,7 @@
 
 use std::time::{Duration, Instant};
 
-use config_schema::wire::msg::{Command, Status};
+use config_schema::wire::msg::{Command, Message, Status};
 use config_schema::Table;
 use robot_compiler::compile::Compiled;
 
@@ -180,6 +180,34 @@ pub fn home(
     let before = nodes(c, &statuses(radio, ids, c, answer_within)?);
     if let Some(why) = refusal(&before, true) {
         return Ok((HomeEnd::Refused(why), Duration::ZERO));
+    }
+    // A node refuses HOME while a fault alarm is latched: say so, naming it.
+    for r in &c.ir.roles {
+        let report = push::ask(
+            radio,
+            ids,
+            r.address,
+            Command::Alarms,
+            answer_within,
+            |m, id| match m {
+                Message::Alarms(a) if a.ack == id => Some(a),
+                _ => None,
+            },
+        )?
+        .ok_or_else(|| NetError::NoAnswer {
+            addr: r.address,
+            command: "Alarms".to_string(),
+        })?;
+        if let Some(a) = report.blocking() {
+            let why = format!(
+                "node {:#06x} ({}) has a fault alarm latched: {}: acknowledge it first \
+                 (config-tool ack)",
+                r.address,
+                r.name,
+                crate::demo::alarm_text(c, &r.name, a.source)
+            );
+            return Ok((HomeEnd::Refused(why), Duration::ZERO));
+        }
     }
     let t0 = Instant::now();
     let s = push::command(radio, ids, role.address, Command::Home, answer_within)?.ok_or_else(

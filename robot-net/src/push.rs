@@ -435,6 +435,22 @@ pub fn command(
     command: Command,
     timeout: Duration,
 ) -> io::Result<Option<Status>> {
+    ask(radio, ids, addr, command, timeout, |m, id| match m {
+        Message::Status(s) if s.ack == id => Some(s),
+        _ => None,
+    })
+}
+
+/// Sends `command` to node `addr` (again every 150 ms) until `pick` takes an answer of
+/// that node (given the command's id), at most `timeout`.
+pub fn ask<T>(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    addr: u16,
+    command: Command,
+    timeout: Duration,
+    pick: impl Fn(Message<'_>, u16) -> Option<T>,
+) -> io::Result<Option<T>> {
     let id = ids.fresh();
     let end = Instant::now() + timeout;
     let retry = Duration::from_millis(150);
@@ -442,10 +458,11 @@ pub fn command(
         radio.send(addr, &Message::Command { id, command })?;
         let until = (Instant::now() + retry).min(end);
         while let Some(r) = radio.recv(until)? {
-            if let (true, Some(Message::Status(s))) = (r.src == addr, r.message()) {
-                if s.ack == id {
-                    return Ok(Some(s));
-                }
+            if r.src != addr {
+                continue;
+            }
+            if let Some(t) = r.message().and_then(|m| pick(m, id)) {
+                return Ok(Some(t));
             }
         }
     }

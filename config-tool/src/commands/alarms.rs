@@ -3,7 +3,7 @@
 
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
-use config_schema::alarm::{Alarm, AlarmLevel, AlarmReport, AlarmSource, NO_CHART};
+use config_schema::alarm::{Alarm, AlarmLevel, AlarmReport};
 use robot_compiler::Compiled;
 use robot_net::demo;
 
@@ -14,44 +14,6 @@ pub struct NodeAlarms {
     pub addr: u16,
     pub report: AlarmReport,
     pub read_at: SystemTime,
-}
-
-/// The source of an alarm in words, with the robot's names.
-pub fn source_text(c: &Compiled, role: &str, source: AlarmSource) -> String {
-    let ri = c.ir.roles.iter().position(|r| r.name == role);
-    match source {
-        AlarmSource::Chart { chart, code } => {
-            let name = (chart != NO_CHART)
-                .then(|| ri.and_then(|r| c.ir.roles[r].charts.get(usize::from(chart))))
-                .flatten()
-                .map_or_else(String::new, |ch| format!("chart `{}`: ", ch.name));
-            format!("{name}{} (code {code:#04x})", demo::fault_meaning(code))
-        }
-        AlarmSource::EStop => {
-            let input = ri
-                .and_then(|r| c.ir.roles[r].safety.estop.clone())
-                .unwrap_or_default();
-            format!("emergency stop `{input}` pressed")
-        }
-        AlarmSource::Link { peer } => {
-            let addr = ri.and_then(|r| c.tables[r].peers.get(usize::from(peer)).copied());
-            let who = addr.map_or_else(
-                || format!("peer #{peer}"),
-                |a| match c.ir.roles.iter().find(|r| r.address == a) {
-                    Some(r) => format!("{} ({a:#06x})", r.name),
-                    None => format!("{a:#06x}"),
-                },
-            );
-            format!("link alarm: {who} does not acknowledge")
-        }
-        AlarmSource::Declared { index } => {
-            let decl = ri.and_then(|r| c.ir.roles[r].safety.alarms.get(usize::from(index)));
-            match decl {
-                Some((name, _, when, _)) => format!("alarm \"{name}\" ({when})"),
-                None => format!("declared alarm #{index}"),
-            }
-        }
-    }
 }
 
 /// `latched`, `acknowledged`, and whether the cause persists.
@@ -94,7 +56,7 @@ pub fn lines(c: &Compiled, nodes: &[NodeAlarms]) -> Vec<String> {
                 clock(raised_at(n, a)),
                 n.addr,
                 n.role,
-                source_text(c, &n.role, a.source),
+                demo::alarm_text(c, &n.role, a.source),
                 state_text(a)
             ));
         }
@@ -124,7 +86,7 @@ pub fn blocking_text(c: &Compiled, nodes: &[NodeAlarms]) -> Option<String> {
             "node {:#06x} ({}) has a fault alarm latched: {} ({why})",
             n.addr,
             n.role,
-            source_text(c, &n.role, a.source)
+            demo::alarm_text(c, &n.role, a.source)
         ))
     })
 }
@@ -143,7 +105,7 @@ pub fn stayed(c: &Compiled, nodes: &[NodeAlarms]) -> Vec<String> {
                 "stayed: {:#06x} {}: {} ({why})",
                 n.addr,
                 n.role,
-                source_text(c, &n.role, a.source)
+                demo::alarm_text(c, &n.role, a.source)
             ));
         }
     }

@@ -12,7 +12,8 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use config_schema::wire::msg::{Announce, Command, Status};
+use config_schema::alarm::AlarmReport;
+use config_schema::wire::msg::{Announce, Command, Message, Status};
 
 use crate::error::NetError;
 use crate::home::{self, HomeEnd};
@@ -437,6 +438,40 @@ impl Bed {
             addr,
             command: format!("{command:?}"),
         })
+    }
+
+    /// `Command::Alarms` (or, with `acknowledge`, `Command::Ack`) to every role's node of
+    /// `c`: each node's alarm report, in role order.
+    pub fn alarms(
+        &mut self,
+        c: &Compiled,
+        acknowledge: bool,
+    ) -> Result<Vec<AlarmReport>, NetError> {
+        let command = if acknowledge {
+            Command::Ack
+        } else {
+            Command::Alarms
+        };
+        c.ir.roles
+            .iter()
+            .map(|r| {
+                push::ask(
+                    &mut self.radio,
+                    &mut self.ids,
+                    r.address,
+                    command,
+                    self.options.timeout,
+                    |m, id| match m {
+                        Message::Alarms(a) if a.ack == id => Some(a),
+                        _ => None,
+                    },
+                )?
+                .ok_or_else(|| NetError::NoAnswer {
+                    addr: r.address,
+                    command: format!("{command:?}"),
+                })
+            })
+            .collect()
     }
 
     /// Homes the machine of `c` (`robot_net::home::home`) and returns how it ended with

@@ -14,6 +14,8 @@ pub use qemu::{
     check_elf, check_qemu, count_log, provision_loaders, provision_word, qemu_args, read_counts,
     Counts, PROVISION_AT, QEMU_ELF, QEMU_MACHINE,
 };
-pub use report::{cycle_line, fault_meaning, fault_text, homed_line, homing_line, push_line, say};
+pub use report::{
+    alarm_text, cycle_line, fault_meaning, fault_text, homed_line, homing_line, push_line, say,
+};
 pub use run::{generation_of, load, run, Demo, Verdict};
 pub use station::{sort, Sorted};

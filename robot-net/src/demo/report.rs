@@ -2,6 +2,7 @@
 
 use std::io::Write;
 
+use config_schema::alarm::{AlarmSource, NO_CHART};
 use robot_compiler::compile::Compiled;
 
 use super::bed::{Cycle, FaultReport, Homing};
@@ -202,6 +203,44 @@ pub fn say(out: &mut dyn Write, line: &str) {
     let _ = writeln!(out, "{line}");
     let _ = out.flush();
 }
+/// The source of an alarm in words, with the robot's names.
+pub fn alarm_text(c: &Compiled, role: &str, source: AlarmSource) -> String {
+    let ri = c.ir.roles.iter().position(|r| r.name == role);
+    match source {
+        AlarmSource::Chart { chart, code } => {
+            let name = (chart != NO_CHART)
+                .then(|| ri.and_then(|r| c.ir.roles[r].charts.get(usize::from(chart))))
+                .flatten()
+                .map_or_else(String::new, |ch| format!("chart `{}`: ", ch.name));
+            format!("{name}{} (code {code:#04x})", fault_meaning(code))
+        }
+        AlarmSource::EStop => {
+            let input = ri
+                .and_then(|r| c.ir.roles[r].safety.estop.clone())
+                .unwrap_or_default();
+            format!("emergency stop `{input}` pressed")
+        }
+        AlarmSource::Link { peer } => {
+            let addr = ri.and_then(|r| c.tables[r].peers.get(usize::from(peer)).copied());
+            let who = addr.map_or_else(
+                || format!("peer #{peer}"),
+                |a| match c.ir.roles.iter().find(|r| r.address == a) {
+                    Some(r) => format!("{} ({a:#06x})", r.name),
+                    None => format!("{a:#06x}"),
+                },
+            );
+            format!("link alarm: {who} does not acknowledge")
+        }
+        AlarmSource::Declared { index } => {
+            let decl = ri.and_then(|r| c.ir.roles[r].safety.alarms.get(usize::from(index)));
+            match decl {
+                Some((name, _, when, _)) => format!("alarm \"{name}\" ({when})"),
+                None => format!("declared alarm #{index}"),
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use std::time::Duration;
