@@ -168,7 +168,7 @@ fn a_robot_names_the_file_and_its_place_and_imports_nothing_of_a_bad_type() {
         fbt(
             VARS,
             ECC,
-            &ALG.replace("C := C + 1;", "IF C &gt; 0 THEN C := 0; END_IF;"),
+            &ALG.replace("C := C + 1;", "WHILE C &gt; 0 DO C := 0; END_WHILE;"),
         ),
     )
     .unwrap();
@@ -190,7 +190,8 @@ fn a_robot_names_the_file_and_its_place_and_imports_nothing_of_a_bad_type() {
         .collect();
     assert_eq!(
         errors[0],
-        "r.ron:1:244: error: T.fbt:16:35: `IF` is not supported yet (the subset: assignments)"
+        "r.ron:1:244: error: T.fbt:16:35: `WHILE` is not supported yet (the subset: \
+         assignments, IF, CASE)"
     );
     // Nothing of it was imported, and nothing was compiled.
     assert_eq!(errors.len(), 1, "{errors:#?}");

@@ -312,3 +312,74 @@ M := I MOD 7 + I / 1000;]]></ST></Algorithm>
         ]
     );
 }
+
+#[test]
+fn if_and_case_choose_on_the_node_and_the_ecc_rests_in_its_state() {
+    let dir = std::env::temp_dir().join(format!("iec61499-if-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let fbt = r#"<?xml version="1.0" encoding="UTF-8"?>
+<FBType Name="PICK">
+  <InterfaceList>
+    <EventInputs><Event Name="CU"/><Event Name="K"/></EventInputs>
+    <EventOutputs><Event Name="EO"/></EventOutputs>
+    <InputVars><VarDeclaration Name="PV" Type="INT"/></InputVars>
+    <OutputVars>
+      <VarDeclaration Name="CV" Type="INT"/>
+      <VarDeclaration Name="Q" Type="BOOL"/>
+      <VarDeclaration Name="Y" Type="INT"/>
+    </OutputVars>
+  </InterfaceList>
+  <BasicFB>
+    <ECC>
+      <ECState Name="START"/>
+      <ECState Name="CU"><ECAction Algorithm="CU" Output="EO"/></ECState>
+      <ECState Name="K"><ECAction Algorithm="K"/></ECState>
+      <ECTransition Source="START" Destination="CU" Condition="CU"/>
+      <ECTransition Source="CU" Destination="START" Condition="1"/>
+      <ECTransition Source="START" Destination="K" Condition="K"/>
+      <ECTransition Source="K" Destination="START" Condition="1"/>
+    </ECC>
+    <Algorithm Name="CU"><ST><![CDATA[
+IF CV < PV THEN
+  CV := CV + 1;
+  Q := FALSE;
+ELSE
+  Q := TRUE;
+END_IF;]]></ST></Algorithm>
+    <Algorithm Name="K"><ST><![CDATA[
+CASE CV OF
+  0: Y := 10;
+  1, 2: Y := 20;
+ELSE
+  IF Q THEN Y := 40; ELSE Y := 30; END_IF;
+END_CASE;]]></ST></Algorithm>
+  </BasicFB>
+</FBType>
+"#;
+    std::fs::write(dir.join("PICK.fbt"), fbt).expect("write");
+    let c = robot_in(&dir, "PICK", &[("PV", 3)]);
+    let _ = std::fs::remove_dir_all(&dir);
+    let trace = drive(
+        &c,
+        &["K", "CU", "K", "CU", "CU", "K", "CU", "K"],
+        &["CV", "Q", "Y"],
+    );
+    assert_eq!(
+        trace,
+        [
+            "K: [] CV=0 Q=0 Y=10",
+            "CU: [EO] CV=1 Q=0 Y=10",
+            "K: [] CV=1 Q=0 Y=20",
+            "CU: [EO] CV=2 Q=0 Y=20",
+            "CU: [EO] CV=3 Q=0 Y=20",
+            "K: [] CV=3 Q=0 Y=30",
+            "CU: [EO] CV=3 Q=1 Y=30",
+            "K: [] CV=3 Q=1 Y=40",
+        ]
+    );
+    // Between stimuli the chart rests in START, as the ECC does (the chains of CU and K
+    // ran within their stimulus).
+    let chart = &c.ir.roles[0].charts[0];
+    assert_eq!(chart.states[0].name, "START");
+    assert!(chart.states.iter().any(|s| s.name == "CU.0"));
+}

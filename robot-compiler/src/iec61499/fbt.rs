@@ -17,7 +17,7 @@
 
 use roxmltree::{Document, Node, ParsingOptions};
 
-use super::st::{self, Name, StError, Ty};
+use super::st::{self, Name, StError, Stmt, Ty};
 use crate::model::{ActionDecl, ChartType, StateDecl, TransitionDecl, VarDecl};
 
 /// An import error at a line and column (1-based) of the XML file.
@@ -237,7 +237,7 @@ pub fn import(text: &str) -> Result<ChartType, XmlError> {
         }
     }
     // Algorithms: Structured Text only.
-    let mut algorithms: Vec<(String, Vec<(String, String)>)> = Vec::new();
+    let mut algorithms: Vec<(String, Vec<Stmt>)> = Vec::new();
     for a in elements(basic).filter(|a| a.tag_name().name() == "Algorithm") {
         let aname = cx.attr(a, "Name")?.to_string();
         let Some(body) = elements(a).next() else {
@@ -277,34 +277,34 @@ pub fn import(text: &str) -> Result<ChartType, XmlError> {
     }
     let ecc =
         child(basic, "ECC").ok_or_else(|| cx.node_err(basic, format!("`{name}` has no `ECC`")))?;
-    let mut states = Vec::new();
+    let mut states: Vec<StateDecl> = Vec::new();
+    // Per state: what it does when entered, in order (assignments, choices, emits).
+    let mut bodies: Vec<(Vec<Step>, Node<'_, '_>)> = Vec::new();
     for s in elements(ecc).filter(|s| s.tag_name().name() == "ECState") {
         let sname = cx.attr(s, "Name")?.to_string();
         if states.iter().any(|d: &StateDecl| d.name == sname) {
             return Err(cx.node_err(s, format!("state `{sname}` is declared twice")));
         }
-        let mut actions = Vec::new();
+        let mut body = Vec::new();
         for a in elements(s).filter(|a| a.tag_name().name() == "ECAction") {
             if let Some(alg) = a.attribute("Algorithm").filter(|x| !x.is_empty()) {
-                let Some((_, body)) = algorithms.iter().find(|(n, _)| n == alg) else {
+                let Some((_, stmts)) = algorithms.iter().find(|(n, _)| n == alg) else {
                     return Err(cx.node_err(a, format!("no algorithm `{alg}`")));
                 };
-                actions.extend(
-                    body.iter()
-                        .map(|(v, e)| ActionDecl::Set(v.clone(), e.clone())),
-                );
+                body.extend(stmts.iter().cloned().map(Step::Stmt));
             }
             if let Some(out) = a.attribute("Output").filter(|x| !x.is_empty()) {
                 if !events_out.iter().any(|(n, _)| n == out) {
                     return Err(cx.node_err(a, format!("`{out}` is not an output event")));
                 }
-                actions.push(ActionDecl::Emit(out.to_string()));
+                body.push(Step::Emit(out.to_string()));
             }
         }
         states.push(StateDecl {
             name: sname,
-            actions,
+            actions: Vec::new(),
         });
+        bodies.push((body, s));
     }
     if states.is_empty() {
         return Err(cx.node_err(ecc, "the ECC has no state"));
@@ -336,6 +336,7 @@ pub fn import(text: &str) -> Result<ChartType, XmlError> {
             when,
         });
     }
+    let (states, transitions) = split(states, bodies, transitions, &cx)?;
     let vars = outputs
         .iter()
         .chain(internal.iter())
@@ -354,6 +355,184 @@ pub fn import(text: &str) -> Result<ChartType, XmlError> {
         states,
         transitions,
     })
+}
+
+/// What a state does when entered: a statement of one of its algorithms, or its output
+/// event.
+enum Step {
+    Stmt(Stmt),
+    Emit(String),
+}
+
+/// The states with their actions. A state whose algorithms only assign and emit does so
+/// on entry. One that chooses (`IF`, `CASE`) becomes a small chain: its entry `S.0` runs
+/// what comes before the first choice; each arm is a state `S.k` entered by an
+/// event-less transition guarded by its condition (and the negation of the arms before
+/// it: the guards are disjoint); the arms meet where the choice ends; the last meeting
+/// point is `S` itself, which keeps the state's own transitions (transitions into `S` go
+/// to `S.0`). An ECC rests in `S` after its actions, as the standard's does; the chain
+/// runs within the one stimulus (run to completion).
+fn split(
+    mut states: Vec<StateDecl>,
+    bodies: Vec<(Vec<Step>, Node<'_, '_>)>,
+    mut transitions: Vec<TransitionDecl>,
+    cx: &Cx<'_, '_>,
+) -> Result<(Vec<StateDecl>, Vec<TransitionDecl>), XmlError> {
+    let mut extra: Vec<StateDecl> = Vec::new();
+    let mut chains: Vec<TransitionDecl> = Vec::new();
+    for (si, (body, node)) in bodies.into_iter().enumerate() {
+        let name = states[si].name.clone();
+        if !body
+            .iter()
+            .any(|s| matches!(s, Step::Stmt(st) if st.chooses()))
+        {
+            states[si].actions = body
+                .into_iter()
+                .flat_map(|s| match s {
+                    Step::Stmt(st) => flat(st),
+                    Step::Emit(e) => vec![ActionDecl::Emit(e)],
+                })
+                .collect();
+            continue;
+        }
+        let mut chain = Chain {
+            base: name.clone(),
+            states: vec![StateDecl {
+                name: format!("{name}.0"),
+                actions: Vec::new(),
+            }],
+            transitions: Vec::new(),
+        };
+        let mut at = 0;
+        for step in body {
+            match step {
+                Step::Emit(e) => chain.states[at].actions.push(ActionDecl::Emit(e)),
+                Step::Stmt(st) => at = chain.run(at, &st),
+            }
+        }
+        // The last meeting point is the state itself.
+        let last = chain.states[at].name.clone();
+        let mut generated: Vec<StateDecl> = chain.states;
+        let rest_actions = std::mem::take(&mut generated[at].actions);
+        generated.remove(at);
+        let rename = |n: &str| {
+            if n == last {
+                name.clone()
+            } else {
+                n.to_string()
+            }
+        };
+        for t in &mut chain.transitions {
+            t.from = rename(&t.from);
+            t.to = rename(&t.to);
+        }
+        let taken =
+            |n: &str| states.iter().any(|d| d.name == n) || extra.iter().any(|d| d.name == n);
+        if let Some(clash) = generated.iter().find(|g| taken(&g.name)) {
+            return Err(cx.node_err(
+                node,
+                format!(
+                    "state `{}` chooses, and its chain's state `{}` is taken by another state",
+                    name, clash.name
+                ),
+            ));
+        }
+        for t in &mut transitions {
+            if t.to == name {
+                t.to = format!("{name}.0");
+            }
+        }
+        states[si].actions = rest_actions;
+        // The entry takes the state's place (it may be the initial state).
+        let entry = generated.remove(0);
+        let own = std::mem::replace(&mut states[si], entry);
+        extra.push(own);
+        extra.extend(generated);
+        chains.extend(chain.transitions);
+    }
+    states.extend(extra);
+    // The chains' event-less transitions first: they fire as soon as their state is
+    // entered, before any of the state's own.
+    chains.extend(transitions);
+    Ok((states, chains))
+}
+
+/// An assignment's action (a statement without a choice).
+fn flat(st: Stmt) -> Vec<ActionDecl> {
+    match st {
+        Stmt::Assign(v, e) => vec![ActionDecl::Set(v, e)],
+        Stmt::If { .. } => Vec::new(),
+    }
+}
+
+/// The states and transitions one choosing state becomes.
+struct Chain {
+    base: String,
+    states: Vec<StateDecl>,
+    transitions: Vec<TransitionDecl>,
+}
+
+impl Chain {
+    fn state(&mut self) -> usize {
+        self.states.push(StateDecl {
+            name: format!("{}.{}", self.base, self.states.len()),
+            actions: Vec::new(),
+        });
+        self.states.len() - 1
+    }
+
+    fn go(&mut self, from: usize, to: usize, when: Option<String>) {
+        self.transitions.push(TransitionDecl {
+            from: self.states[from].name.clone(),
+            to: self.states[to].name.clone(),
+            on: None,
+            when,
+        });
+    }
+
+    /// Runs `st` from state `at`; the state where it ends.
+    fn run(&mut self, at: usize, st: &Stmt) -> usize {
+        match st {
+            Stmt::Assign(v, e) => {
+                self.states[at]
+                    .actions
+                    .push(ActionDecl::Set(v.clone(), e.clone()));
+                at
+            }
+            Stmt::If { arms, otherwise } => {
+                let join = self.state();
+                let mut before: Vec<String> = Vec::new();
+                let guard = |before: &[String], cond: Option<&str>| {
+                    let mut parts: Vec<String> = before.iter().map(|c| format!("(!{c})")).collect();
+                    parts.extend(cond.map(str::to_string));
+                    parts.join(" && ")
+                };
+                for (cond, body) in arms {
+                    let start = self.state();
+                    self.go(at, start, Some(guard(&before, Some(cond))));
+                    let mut end = start;
+                    for s in body {
+                        end = self.run(end, s);
+                    }
+                    self.go(end, join, None);
+                    before.push(cond.clone());
+                }
+                let rest = guard(&before, None);
+                if otherwise.is_empty() {
+                    self.go(at, join, Some(rest));
+                } else {
+                    let start = self.state();
+                    self.go(at, start, Some(rest));
+                    let mut end = start;
+                    for s in otherwise {
+                        end = self.run(end, s);
+                    }
+                    self.go(end, join, None);
+                }
+                join
+            }
+        }
+    }
 }
 
 /// A transition condition -> (event input, guard).

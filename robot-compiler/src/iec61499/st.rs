@@ -125,8 +125,9 @@ enum Tok {
     End,
 }
 
-const SYMS: [&str; 16] = [
-    ":=", "<>", "<=", ">=", "**", "<", ">", "=", "+", "-", "*", "/", "(", ")", ";", "&",
+const SYMS: [&str; 19] = [
+    ":=", "<>", "<=", ">=", "**", "..", "<", ">", "=", "+", "-", "*", "/", "(", ")", ";", "&", ",",
+    ":",
 ];
 
 fn lex(text: &str) -> Result<Vec<(Tok, Range<usize>)>, StError> {
@@ -223,9 +224,30 @@ fn number(text: &str, span: Range<usize>) -> Result<i64, StError> {
 }
 
 /// Words that start a statement or construct the subset does not have.
-const UNSUPPORTED: [&str; 9] = [
-    "IF", "CASE", "FOR", "WHILE", "REPEAT", "EXIT", "RETURN", "ELSIF", "ELSE",
-];
+const UNSUPPORTED: [&str; 5] = ["FOR", "WHILE", "REPEAT", "EXIT", "RETURN"];
+
+/// Words that end a statement list (of an `IF` arm or a `CASE` branch).
+const ENDS: [&str; 5] = ["ELSIF", "ELSE", "END_IF", "END_CASE", "THEN"];
+
+/// One statement: an assignment in the chart types' syntax, or a choice.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Stmt {
+    /// `variable := expression`.
+    Assign(String, String),
+    /// `IF` / `ELSIF` / `ELSE` (and `CASE`, as its conditions): the first arm whose
+    /// condition holds runs, else `otherwise`.
+    If {
+        arms: Vec<(String, Vec<Stmt>)>,
+        otherwise: Vec<Stmt>,
+    },
+}
+
+impl Stmt {
+    /// Whether it (or anything inside it) chooses.
+    pub fn chooses(&self) -> bool {
+        matches!(self, Stmt::If { .. })
+    }
+}
 
 struct Parser<'n> {
     toks: Vec<(Tok, Range<usize>)>,
@@ -267,71 +289,203 @@ impl Parser<'_> {
         }
     }
 
-    fn statements(&mut self) -> Result<Vec<(String, String)>, StError> {
+    fn at_word(&self, words: &[&str]) -> bool {
+        matches!(self.peek(), Tok::Word(w) if words.iter().any(|k| w.eq_ignore_ascii_case(k)))
+    }
+
+    fn expect_word(&mut self, word: &str) -> Result<(), StError> {
+        if !self.word(word) {
+            return err(self.span(), format!("expected `{word}`"));
+        }
+        self.bump();
+        Ok(())
+    }
+
+    /// A `CASE` label starts here: an integer (or `-` integer) followed by `:`, `,` or
+    /// `..`.
+    fn at_label(&self) -> bool {
+        let tok = |k: usize| self.toks.get(self.at + k).map(|(t, _)| t);
+        let after = match (tok(0), tok(1)) {
+            (Some(Tok::Sym("-")), Some(Tok::Int(_))) => tok(2),
+            (Some(Tok::Int(_)), _) => tok(1),
+            _ => return false,
+        };
+        matches!(after, Some(Tok::Sym(":" | "," | "..")))
+    }
+
+    /// Statements until the end of the text, or (`nested`) a word that ends a list or a
+    /// `CASE` label.
+    fn statements(&mut self, nested: bool) -> Result<Vec<Stmt>, StError> {
         let mut out = Vec::new();
         loop {
+            if nested && (self.at_word(&ENDS) || self.at_label()) {
+                return Ok(out);
+            }
             match self.peek().clone() {
                 Tok::End => return Ok(out),
                 Tok::Sym(";") => {
                     self.bump();
                 }
-                Tok::Word(w) => {
-                    let span = self.span();
-                    if let Some(kw) = UNSUPPORTED.iter().find(|k| w.eq_ignore_ascii_case(k)) {
-                        return err(
-                            span,
-                            format!("`{kw}` is not supported yet (the subset: assignments)"),
-                        );
-                    }
-                    let target = self.resolve(&w, span.clone())?.clone();
-                    self.bump();
-                    if !self.sym(":=") {
-                        return err(self.span(), format!("expected `:=` after `{w}`"));
-                    }
-                    self.bump();
-                    if !target.writable {
-                        return err(
-                            span,
-                            format!(
-                                "`{}` is an input variable: an algorithm may not assign it",
-                                target.name
-                            ),
-                        );
-                    }
-                    let (value, ty) = self.expr()?;
-                    let value = match (target.ty, ty) {
-                        (Ty::Bool, Ty::Bool) => value,
-                        (Ty::Bool, Ty::Int(_)) => {
-                            return err(
-                                span,
-                                format!("`{}` is BOOL: assign it a BOOL", target.name),
-                            )
-                        }
-                        (Ty::Int(_), Ty::Bool) => {
-                            return err(
-                                span,
-                                format!("`{}` is an integer: assign it an integer", target.name),
-                            )
-                        }
-                        // Already of the target's width, or wrapped to it here.
-                        (Ty::Int(to), Ty::Int(from)) if to == from => value,
-                        (Ty::Int(to), Ty::Int(None)) if literal_fits(&value, to) => value,
-                        (Ty::Int(to), Ty::Int(_)) => match to {
-                            Some(w) if w.bits < 32 => {
-                                format!("{}({value})", crate::expr::wrap_name(w.bits, w.signed))
-                            }
-                            _ => value,
-                        },
-                    };
-                    if !self.sym(";") {
-                        return err(self.span(), "expected `;`");
-                    }
-                    self.bump();
-                    out.push((target.name.clone(), value));
+                Tok::Word(w) if w.eq_ignore_ascii_case("IF") => out.push(self.if_statement()?),
+                Tok::Word(w) if w.eq_ignore_ascii_case("CASE") => out.push(self.case_statement()?),
+                Tok::Word(w) if self.at_word(&ENDS) => {
+                    return err(self.span(), format!("`{w}` without its `IF` or `CASE`"));
                 }
+                Tok::Word(w) => out.push(self.assignment(&w)?),
                 _ => return err(self.span(), "expected a statement (`NAME := expression;`)"),
             }
         }
+    }
+
+    fn if_statement(&mut self) -> Result<Stmt, StError> {
+        let mut arms = Vec::new();
+        let mut otherwise = Vec::new();
+        self.bump(); // IF
+        loop {
+            let cond = self.bool_expr()?;
+            self.expect_word("THEN")?;
+            let body = self.statements(true)?;
+            arms.push((cond, body));
+            if self.word("ELSIF") {
+                self.bump();
+                continue;
+            }
+            if self.word("ELSE") {
+                self.bump();
+                otherwise = self.statements(true)?;
+            }
+            break;
+        }
+        self.expect_word("END_IF")?;
+        Ok(Stmt::If { arms, otherwise })
+    }
+
+    fn case_statement(&mut self) -> Result<Stmt, StError> {
+        self.bump(); // CASE
+        let span = self.span();
+        let (selector, ty) = self.expr()?;
+        if !ty.is_int() {
+            return err(span, "CASE selects on an integer");
+        }
+        self.expect_word("OF")?;
+        let mut arms = Vec::new();
+        let mut otherwise = Vec::new();
+        while self.at_label() {
+            let mut alternatives = Vec::new();
+            loop {
+                let low = self.label()?;
+                let alt = if self.sym("..") {
+                    self.bump();
+                    let high = self.label()?;
+                    format!("(({selector} >= {low}) && ({selector} <= {high}))")
+                } else {
+                    format!("({selector} == {low})")
+                };
+                alternatives.push(alt);
+                if !self.sym(",") {
+                    break;
+                }
+                self.bump();
+            }
+            if !self.sym(":") {
+                return err(self.span(), "expected `:` after the CASE labels");
+            }
+            self.bump();
+            let cond = if alternatives.len() == 1 {
+                alternatives.remove(0)
+            } else {
+                format!("({})", alternatives.join(" || "))
+            };
+            arms.push((cond, self.statements(true)?));
+        }
+        if !self.at_word(&["ELSE", "END_CASE"]) {
+            return err(
+                self.span(),
+                "a CASE label is an integer literal (or a range `a..b`)",
+            );
+        }
+        if self.word("ELSE") {
+            self.bump();
+            otherwise = self.statements(true)?;
+        }
+        self.expect_word("END_CASE")?;
+        if arms.is_empty() {
+            return err(span, "a CASE without labels");
+        }
+        Ok(Stmt::If { arms, otherwise })
+    }
+
+    /// A `CASE` label: an integer literal, `-` allowed.
+    fn label(&mut self) -> Result<i64, StError> {
+        let neg = self.sym("-");
+        if neg {
+            self.bump();
+        }
+        match self.bump() {
+            (Tok::Int(v), _) => Ok(if neg { -v } else { v }),
+            (_, span) => err(span, "a CASE label is an integer literal"),
+        }
+    }
+
+    fn bool_expr(&mut self) -> Result<String, StError> {
+        let span = self.span();
+        let (v, ty) = self.expr()?;
+        if ty != Ty::Bool {
+            return err(span, "a condition must be BOOL");
+        }
+        Ok(v)
+    }
+
+    fn assignment(&mut self, w: &str) -> Result<Stmt, StError> {
+        let span = self.span();
+        if let Some(kw) = UNSUPPORTED.iter().find(|k| w.eq_ignore_ascii_case(k)) {
+            return err(
+                span,
+                format!("`{kw}` is not supported yet (the subset: assignments, IF, CASE)"),
+            );
+        }
+        let target = self.resolve(w, span.clone())?.clone();
+        self.bump();
+        if !self.sym(":=") {
+            return err(self.span(), format!("expected `:=` after `{w}`"));
+        }
+        self.bump();
+        if !target.writable {
+            return err(
+                span,
+                format!(
+                    "`{}` is an input variable: an algorithm may not assign it",
+                    target.name
+                ),
+            );
+        }
+        let (value, ty) = self.expr()?;
+        let value = match (target.ty, ty) {
+            (Ty::Bool, Ty::Bool) => value,
+            (Ty::Bool, Ty::Int(_)) => {
+                return err(span, format!("`{}` is BOOL: assign it a BOOL", target.name))
+            }
+            (Ty::Int(_), Ty::Bool) => {
+                return err(
+                    span,
+                    format!("`{}` is an integer: assign it an integer", target.name),
+                )
+            }
+            // Already of the target's width, or wrapped to it here.
+            (Ty::Int(to), Ty::Int(from)) if to == from => value,
+            (Ty::Int(to), Ty::Int(None)) if literal_fits(&value, to) => value,
+            (Ty::Int(to), Ty::Int(_)) => match to {
+                Some(w) if w.bits < 32 => {
+                    format!("{}({value})", crate::expr::wrap_name(w.bits, w.signed))
+                }
+                _ => value,
+            },
+        };
+        if !self.sym(";") {
+            return err(self.span(), "expected `;`");
+        }
+        self.bump();
+        Ok(Stmt::Assign(target.name.clone(), value))
     }
 
     fn expr(&mut self) -> Result<(String, Ty), StError> {
@@ -487,15 +641,14 @@ fn sym_name(op: &str) -> &str {
     }
 }
 
-/// An algorithm's statements: `(variable, expression)` assignments in order, each
-/// expression in the chart types' syntax.
-pub fn algorithm(text: &str, names: &[Name]) -> Result<Vec<(String, String)>, StError> {
+/// An algorithm's statements, each expression in the chart types' syntax.
+pub fn algorithm(text: &str, names: &[Name]) -> Result<Vec<Stmt>, StError> {
     let mut p = Parser {
         toks: lex(text)?,
         at: 0,
         names,
     };
-    p.statements()
+    p.statements(false)
 }
 
 /// A BOOL expression (a transition's guard) in the chart types' syntax.
@@ -571,34 +724,42 @@ mod tests {
         ]
     }
 
+    /// The assignments of a choice-free algorithm.
+    fn assigns(text: &str) -> Result<Vec<(String, String)>, StError> {
+        Ok(algorithm(text, &names())?
+            .into_iter()
+            .map(|s| match s {
+                Stmt::Assign(v, e) => (v, e),
+                other => panic!("a choice: {other:?}"),
+            })
+            .collect())
+    }
+
     #[test]
     fn assignments_translate_with_declared_spellings() {
         assert_eq!(
-            algorithm(
-                "cv := CV + 1;\n(* compare *) Q := (Cv >= pv); // done",
-                &names()
-            ),
+            assigns("cv := CV + 1;\n(* compare *) Q := (Cv >= pv); // done"),
             Ok(vec![
                 ("CV".to_string(), "uint(CV + 1)".to_string()),
                 ("Q".to_string(), "(CV >= PV)".to_string()),
             ])
         );
         assert_eq!(
-            algorithm("Q := NOT Q AND G XOR TRUE OR FALSE;;", &names()),
+            assigns("Q := NOT Q AND G XOR TRUE OR FALSE;;"),
             Ok(vec![(
                 "Q".to_string(),
                 "((((!Q) && G) != true) || false)".to_string()
             )])
         );
         assert_eq!(
-            algorithm("CV := 16#FF - UINT#2 - 1_000;", &names()),
+            assigns("CV := 16#FF - UINT#2 - 1_000;"),
             Ok(vec![("CV".to_string(), "uint(-747)".to_string())])
         );
     }
 
     #[test]
     fn integer_arithmetic_wraps_at_its_types_width() {
-        let one = |text: &str| algorithm(text, &names()).map(|v| v[0].1.clone());
+        let one = |text: &str| assigns(text).map(|v| v[0].1.clone());
         // A literal takes the other side's type; an operation on UINT wraps to 16 bits.
         assert_eq!(
             one("CV := CV * 2 / 3 MOD 4;"),
@@ -640,12 +801,29 @@ mod tests {
     fn what_the_subset_lacks_is_named_at_its_place() {
         let e = |text: &str| algorithm(text, &names()).unwrap_err();
         assert_eq!(
-            e("IF G THEN CV := 0; END_IF;"),
+            e("WHILE G DO CV := 0; END_WHILE;"),
             StError {
-                message: "`IF` is not supported yet (the subset: assignments)".to_string(),
-                span: 0..2
+                message: "`WHILE` is not supported yet (the subset: assignments, IF, CASE)"
+                    .to_string(),
+                span: 0..5
             }
         );
+        assert_eq!(
+            e("IF CV THEN Q := TRUE; END_IF;").message,
+            "a condition must be BOOL"
+        );
+        assert_eq!(e("IF G THEN Q := TRUE;").message, "expected `END_IF`");
+        assert_eq!(e("IF G Q := TRUE; END_IF;").message, "expected `THEN`");
+        assert_eq!(e("END_IF;").message, "`END_IF` without its `IF` or `CASE`");
+        assert_eq!(
+            e("CASE G OF 1: Q := TRUE; END_CASE;").message,
+            "CASE selects on an integer"
+        );
+        assert_eq!(
+            e("CASE CV OF Q: Q := TRUE; END_CASE;").message,
+            "a CASE label is an integer literal (or a range `a..b`)"
+        );
+        assert_eq!(e("CASE CV OF END_CASE;").message, "a CASE without labels");
         assert_eq!(e("CV := CV ** 2;").span, 9..11);
         assert_eq!(e("CV := CV ** 2;").message, "`**` is not supported yet");
         assert_eq!(e("CV := G * 2;").message, "`*` takes integer operands");
@@ -669,6 +847,49 @@ mod tests {
         assert_eq!(
             e("CV := ABS(CV);").message,
             "function calls (`ABS(...)`) are not supported"
+        );
+    }
+
+    #[test]
+    fn if_and_case_become_choices_in_order() {
+        let a = |v: &str, e: &str| Stmt::Assign(v.to_string(), e.to_string());
+        assert_eq!(
+            algorithm(
+                "IF CV > 3 THEN Q := TRUE; ELSIF G THEN Q := FALSE; CV := 0; ELSE CV := 1; \
+                 END_IF; Q := NOT Q;",
+                &names()
+            ),
+            Ok(vec![
+                Stmt::If {
+                    arms: vec![
+                        ("(CV > 3)".to_string(), vec![a("Q", "true")]),
+                        ("G".to_string(), vec![a("Q", "false"), a("CV", "0")]),
+                    ],
+                    otherwise: vec![a("CV", "1")],
+                },
+                a("Q", "(!Q)"),
+            ])
+        );
+        assert_eq!(
+            algorithm(
+                "CASE CV OF 1: Q := TRUE; 2, 3: Q := FALSE; 4..6, -1: CV := 0; ELSE CV := 9; \
+                 END_CASE",
+                &names()
+            ),
+            Ok(vec![Stmt::If {
+                arms: vec![
+                    ("(CV == 1)".to_string(), vec![a("Q", "true")]),
+                    (
+                        "((CV == 2) || (CV == 3))".to_string(),
+                        vec![a("Q", "false")]
+                    ),
+                    (
+                        "(((CV >= 4) && (CV <= 6)) || (CV == -1))".to_string(),
+                        vec![a("CV", "0")]
+                    ),
+                ],
+                otherwise: vec![a("CV", "9")],
+            }])
         );
     }
 
