@@ -140,12 +140,20 @@ impl Conn {
                 });
             }
             let now = Instant::now();
-            if now >= until {
-                return Ok(Next::TimedOut);
+            // Past `until`, what the medium already sent is still taken (without waiting):
+            // a caller that comes late must not take an answer waiting here for a timeout.
+            let late = now >= until;
+            if late {
+                self.stream.set_nonblocking(true)?;
+            } else {
+                self.stream
+                    .set_read_timeout(Some((until - now).max(Duration::from_millis(1))))?;
             }
-            self.stream
-                .set_read_timeout(Some((until - now).max(Duration::from_millis(1))))?;
-            match self.stream.read(self.incoming.space()) {
+            let read = self.stream.read(self.incoming.space());
+            if late {
+                self.stream.set_nonblocking(false)?;
+            }
+            match read {
                 Ok(0) => {
                     return Err(io::Error::new(
                         io::ErrorKind::UnexpectedEof,
@@ -157,7 +165,12 @@ impl Conn {
                     if matches!(
                         e.kind(),
                         io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
-                    ) => {}
+                    ) =>
+                {
+                    if late {
+                        return Ok(Next::TimedOut);
+                    }
+                }
                 Err(e) => return Err(e),
             }
         }

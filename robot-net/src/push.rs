@@ -123,8 +123,11 @@ pub fn push(
             .map(|s| s.deadline())
             .min()
             .unwrap_or(0);
-        let until = start + Duration::from_millis(next);
-        if let Some(r) = radio.recv(until.max(Instant::now()))? {
+        // The first answer by the earliest deadline, then every answer already here: no
+        // timeout is declared while its answer waits to be read (a tool that ran late,
+        // descheduled on a busy host, resent to every node whose answer was queued).
+        let mut until = (start + Duration::from_millis(next)).max(Instant::now());
+        while let Some(r) = radio.recv(until)? {
             if let Some(Message::ConfigReply { generation, reply }) = r.message() {
                 for (i, (s, t)) in senders.iter_mut().zip(targets).enumerate() {
                     if t.addr == r.src {
@@ -133,6 +136,7 @@ pub fn push(
                     }
                 }
             }
+            until = Instant::now();
         }
         let now = now_ms();
         for (s, t) in senders.iter_mut().zip(targets) {
