@@ -305,11 +305,8 @@ impl Drawing<'_> {
         let Some(ball) = run.balls.get(i) else {
             return;
         };
-        let at = |f: &dyn Fn(&What) -> bool| {
-            (self.trace.iter())
-                .find(|e| f(&e.what))
-                .map(|e| e.t_ms)
-        };
+        let at =
+            |f: &dyn Fn(&What) -> bool| (self.trace.iter()).find(|e| f(&e.what)).map(|e| e.t_ms);
         // The first ball lies at the sensors from power-up.
         let ready = if i == 0 {
             Some(0)
@@ -318,7 +315,9 @@ impl Drawing<'_> {
         };
         let fed = at(&|w| matches!(w, What::Fed { ball, .. } if *ball == i));
         let landed = at(&|w| matches!(w, What::Binned { ball, .. } if *ball == i));
-        let bin = ball.bin.map_or_else(|| String::from("none"), |b| b.to_string());
+        let bin = ball
+            .bin
+            .map_or_else(|| String::from("none"), |b| b.to_string());
         let took = ball.took.join(" ");
         let _ = writeln!(
             self.o,
@@ -402,10 +401,22 @@ mod tests {
         let trace = [
             at(5, step(1, true)),
             at(6, step(2, true)),
-            at(85, What::Arrived { plant: 1, end: true }),
+            at(
+                85,
+                What::Arrived {
+                    plant: 1,
+                    end: true,
+                },
+            ),
             at(90, step(1, false)),
             at(100, step(1, true)),
-            at(120, What::Arrived { plant: 1, end: true }),
+            at(
+                120,
+                What::Arrived {
+                    plant: 1,
+                    end: true,
+                },
+            ),
         ];
         assert_eq!(
             actuator_states(&trace, 1, GATE),
