@@ -368,10 +368,16 @@ impl Drawing<'_> {
             }
         }
         let by = if took.is_empty() { "-" } else { &took };
+        // Right of where it landed; left of where it appeared when that is near the end.
+        let right = self.x(landed.unwrap_or(end_ms)) + 3.0;
+        let (x, anchor) = if right > LEFT + WIDTH - 150.0 {
+            (self.x(ready.unwrap_or(0)) - 3.0, "end")
+        } else {
+            (right, "start")
+        };
         let _ = writeln!(
             self.o,
-            r#"<text x="{:.1}" y="{:.1}" font-size="9">bin {bin} (taken by {})</text>"#,
-            self.x(landed.unwrap_or(end_ms)) + 3.0,
+            r#"<text x="{x:.1}" y="{:.1}" font-size="9" text-anchor="{anchor}">bin {bin} (taken by {})</text>"#,
             y + BALL_H / 2.0 + 4.0,
             esc(by)
         );
