@@ -191,6 +191,60 @@ fn sim_of_the_ball_sorter_prints_each_ball_and_its_bin() {
     );
 }
 
+/// `sim --timeline` of the station writes its SVG (a lane per gate, sensor and ball)
+/// beside the same report; `--fault` is refused, naming what a station's `sim` takes.
+#[test]
+fn sim_timeline_of_the_ball_sorter_draws_its_lanes() {
+    let dir = scratch("sorter-timeline");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let svg = dir.join("sorter.svg");
+    let out = tool(&[
+        "sim",
+        "robot-configs/ball-sorter.ron",
+        "--feed",
+        "G B",
+        "--timeline",
+        svg.to_str().expect("utf-8"),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert_eq!(
+        text(&out.stdout),
+        "ball   1: gray     taken by -          bin 3\n\
+         ball   2: black    taken by nd, fig1   bin 1\n\
+         2 ball(s) in 936 ms: bin 1: 1, bin 2: 0, bin 3: 1; 0 EOS\n\
+         ok\n"
+    );
+    assert_eq!(text(&out.stderr), format!("timeline: {}\n", svg.display()));
+    let written = std::fs::read_to_string(&svg).expect("written");
+    let doc = roxmltree::Document::parse(&written).expect("parses");
+    let lanes = |kind: &str| -> Vec<String> {
+        let class = format!("lane {kind}");
+        doc.descendants()
+            .filter(|n| n.attribute("class") == Some(class.as_str()))
+            .map(|n| n.attribute("data-name").unwrap_or("").to_string())
+            .collect()
+    };
+    assert_eq!(lanes("pusher"), ["PUSHER"]);
+    assert_eq!(lanes("gate"), ["G1", "G2"]);
+    assert_eq!(
+        lanes("sensor"),
+        ["CAP", "IND", "OPT", "ENTRY", "BIN1", "BIN2", "BIN3"]
+    );
+    assert_eq!(lanes("ball"), ["ball 1", "ball 2"]);
+    let out = tool(&[
+        "sim",
+        "robot-configs/ball-sorter.ron",
+        "--fault",
+        "stuck:G1@1",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(
+        text(&out.stderr),
+        "error: a sorting station's `sim` takes no --fault: it runs its feed (--feed, --trace, \
+         --timeline)\n"
+    );
+}
+
 #[test]
 fn sim_prints_each_cycle_and_fails_on_a_sequence_that_differs() {
     let out = tool(&["sim", "robot-configs/paint-robot.ron", "--cycles", "2"]);

@@ -6,7 +6,7 @@
 
 use std::fmt::Write;
 
-use node_fw::sim::{Feed, What};
+use node_fw::sim::{Feed, TraceEntry, What};
 use robot_compiler::automata::{Automaton, Colour};
 use robot_compiler::sorting::Sorting;
 use robot_compiler::Compiled;
@@ -53,6 +53,18 @@ pub struct Ball {
     pub eos: Vec<String>,
 }
 
+/// When an automaton took a ball, or ended a sequence with it (the first of each per
+/// ball and automaton, as [`Ball::took`] and [`Ball::eos`] list them).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Selection {
+    pub t_ms: u64,
+    /// The ball (0-based).
+    pub ball: usize,
+    pub automaton: String,
+    /// An EOS (else: it took the ball).
+    pub eos: bool,
+}
+
 /// A run of the station.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SortRun {
@@ -62,6 +74,10 @@ pub struct SortRun {
     pub faults: Vec<String>,
     /// Every trace entry, as text.
     pub trace: Vec<String>,
+    /// Every trace entry (for `--timeline`).
+    pub entries: Vec<TraceEntry>,
+    /// Each ball's selections, in time order.
+    pub selections: Vec<Selection>,
 }
 
 impl SortRun {
@@ -252,6 +268,8 @@ pub fn simulate(c: &Compiled, feed: Option<&[String]>) -> Result<SortRun, SortEr
         duration_ms: end,
         faults: Vec::new(),
         trace: world.trace().iter().map(ToString::to_string).collect(),
+        entries: world.trace().to_vec(),
+        selections: Vec::new(),
     };
     let mut moving: Vec<usize> = Vec::new();
     let mut fed = 0;
@@ -297,7 +315,14 @@ pub fn simulate(c: &Compiled, feed: Option<&[String]>) -> Result<SortRun, SortEr
                 let Some(b) = run.balls.get_mut(fed) else {
                     continue;
                 };
-                entered(c, *node, *chart, *to, b);
+                for (automaton, eos) in entered(c, *node, *chart, *to, b) {
+                    run.selections.push(Selection {
+                        t_ms: e.t_ms,
+                        ball: fed,
+                        automaton,
+                        eos,
+                    });
+                }
             }
             _ => {}
         }
@@ -307,16 +332,17 @@ pub fn simulate(c: &Compiled, feed: Option<&[String]>) -> Result<SortRun, SortEr
 
 /// A chart of node `node` entered state `to` while ball `b` was being decided: an
 /// automaton's instance that emits its `Out` took it, one that emits `NAME.EOS` ended a
-/// sequence.
-fn entered(c: &Compiled, node: usize, chart: u8, to: u8, b: &mut Ball) {
+/// sequence. Returns what it newly recorded: (automaton, an EOS).
+fn entered(c: &Compiled, node: usize, chart: u8, to: u8, b: &mut Ball) -> Vec<(String, bool)> {
+    let mut new = Vec::new();
     let Some(role) = c.ir.roles.get(node) else {
-        return;
+        return new;
     };
     let Some(ch) = role.charts.get(usize::from(chart)) else {
-        return;
+        return new;
     };
     let Some(state) = ch.states.get(usize::from(to)) else {
-        return;
+        return new;
     };
     let emits = |e: &str| {
         state
@@ -332,9 +358,12 @@ fn entered(c: &Compiled, node: usize, chart: u8, to: u8, b: &mut Ball) {
         }
         if emits(&format!("{}.Out", ch.name)) && !b.took.contains(&a.name) {
             b.took.push(a.name.clone());
+            new.push((a.name.clone(), false));
         }
         if emits(&format!("{}.EOS", a.name)) && !b.eos.contains(&a.name) {
             b.eos.push(a.name.clone());
+            new.push((a.name.clone(), true));
         }
     }
+    new
 }

@@ -7,7 +7,8 @@
 //! lines.
 //!
 //! Every lane is a `<g class="lane KIND" data-name="NAME">` (KIND: `actuator`,
-//! `position`, `chart`, `radio`), so tools and tests can find them.
+//! `position`, `chart`, `radio`), so tools and tests can find them. A sorting station's
+//! run has its own lanes first ([`station`]).
 
 use std::fmt::Write;
 
@@ -15,6 +16,8 @@ use node_fw::sim::{Plant, TraceEntry, What};
 
 use crate::sim::{SimulationError, CYCLE_LIMIT_MS};
 use robot_compiler::compile::Compiled;
+
+pub mod station;
 
 const LEFT: f64 = 150.0;
 const WIDTH: f64 = 1100.0;

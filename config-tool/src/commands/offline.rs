@@ -240,9 +240,10 @@ pub fn sim(args: &SimArgs) -> Result<(), Failure> {
 /// `sim` of a sorting station: the whole feed, one line per ball.
 fn sim_station(compiled: &Compiled, args: &SimArgs) -> Result<(), Failure> {
     use robot_analysis::sorter;
-    if args.fault.is_some() || args.timeline.is_some() {
+    if args.fault.is_some() {
         return Err(Failure::error(
-            "a sorting station's `sim` takes no --fault or --timeline (yet): it runs its feed",
+            "a sorting station's `sim` takes no --fault: it runs its feed (--feed, --trace, \
+             --timeline)",
         ));
     }
     let feed = match (&args.feed, &compiled.robot.sorting) {
@@ -254,6 +255,12 @@ fn sim_station(compiled: &Compiled, args: &SimArgs) -> Result<(), Failure> {
         for line in &run.trace {
             println!("{line}");
         }
+    }
+    if let Some(path) = &args.timeline {
+        let svg = timeline::station::svg(compiled, &run).map_err(Failure::error)?;
+        std::fs::write(path, svg)
+            .map_err(|e| Failure::error(format!("{}: {e}", path.display())))?;
+        eprintln!("timeline: {}", path.display());
     }
     print!("{}", run.report());
     if run.ok() {
