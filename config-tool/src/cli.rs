@@ -245,8 +245,15 @@ pub struct SimArgs {
     pub timeline: Option<PathBuf>,
     /// A sorting station's balls, front first, as colours or their first letters
     /// (`"B G O"`); default: the robot's `sorting.feed`.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "random")]
     pub feed: Option<String>,
+    /// A sorting station's feed of this many balls of random colours (those the sensors
+    /// tell apart), from `--seed`: the same seed, the same feed.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=10_000))]
+    pub random: Option<u16>,
+    /// The seed of `--random`.
+    #[arg(long, default_value_t = 1, requires = "random")]
+    pub seed: u64,
 }
 
 /// `verify`'s arguments.

@@ -191,6 +191,48 @@ fn sim_of_the_ball_sorter_prints_each_ball_and_its_bin() {
     );
 }
 
+/// `sim --random N --seed S` sorts a seeded random feed: the same seed, the same balls.
+#[test]
+fn sim_of_the_ball_sorter_takes_a_seeded_random_feed() {
+    let run = |seed: &str| {
+        let out = tool(&[
+            "sim",
+            "robot-configs/ball-sorter.ron",
+            "--random",
+            "20",
+            "--seed",
+            seed,
+        ]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        text(&out.stdout)
+    };
+    let seven = run("7");
+    assert_eq!(seven, run("7"));
+    assert_ne!(seven, run("8"));
+    let lines: Vec<&str> = seven.lines().collect();
+    assert_eq!(lines.len(), 22);
+    assert_eq!(
+        lines[20],
+        "20 ball(s) in 9380 ms: bin 1: 8, bin 2: 9, bin 3: 3; 8 EOS"
+    );
+    let out = tool(&["sim", "robot-configs/ball-sorter.ron", "--random", "0"]);
+    assert_eq!(out.status.code(), Some(2));
+    let out = tool(&[
+        "sim",
+        "robot-configs/ball-sorter.ron",
+        "--feed",
+        "B",
+        "--random",
+        "3",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("cannot be used with"),
+        "{}",
+        text(&out.stderr)
+    );
+}
+
 /// `sim --timeline` of the station writes its SVG (a lane per gate, sensor and ball)
 /// beside the same report; `--fault` is refused, naming what a station's `sim` takes.
 #[test]

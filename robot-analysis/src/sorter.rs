@@ -132,6 +132,21 @@ impl SortRun {
     }
 }
 
+/// A feed of `balls` balls, each of a colour of the truth table (what the sensors tell
+/// apart) drawn uniformly from a generator seeded with `seed`: the same seed, the same
+/// feed (ChaCha, `rand::rngs::StdRng`, pinned by `Cargo.lock`).
+pub fn random_feed(s: &Sorting, balls: usize, seed: u64) -> Vec<String> {
+    use rand::{Rng, SeedableRng};
+    let colours: Vec<&str> = s.table.iter().map(|r| r.colour.as_str()).collect();
+    if colours.is_empty() {
+        return Vec::new();
+    }
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    (0..balls)
+        .map(|_| colours[rng.random_range(0..colours.len())].to_string())
+        .collect()
+}
+
 /// A feed written `B G O` or `black gray orange`: each item a colour of the table, or
 /// the start of exactly one.
 pub fn parse_feed(s: &Sorting, text: &str) -> Result<Vec<String>, SortError> {

@@ -246,8 +246,9 @@ fn sim_station(compiled: &Compiled, args: &SimArgs) -> Result<(), Failure> {
              --timeline)",
         ));
     }
-    let feed = match (&args.feed, &compiled.robot.sorting) {
-        (Some(text), Some(s)) => Some(sorter::parse_feed(s, text).map_err(Failure::error)?),
+    let feed = match (&args.feed, args.random, &compiled.robot.sorting) {
+        (Some(text), _, Some(s)) => Some(sorter::parse_feed(s, text).map_err(Failure::error)?),
+        (None, Some(n), Some(s)) => Some(sorter::random_feed(s, usize::from(n), args.seed)),
         _ => None,
     };
     let run = sorter::simulate(compiled, feed.as_deref()).map_err(Failure::error)?;
