@@ -145,3 +145,50 @@ fn a_chart_that_moves_on_the_estop_instead_of_faulting_is_caught_with_its_counte
         ]
     );
 }
+
+/// The painting robot with `on_link_alarm: Fault`.
+fn link_fault_robot() -> Compiled {
+    let src = load("../robot-configs/paint-robot.ron");
+    let text = src.text.replacen(
+        "    motion_timeout_ms: 2000,\n",
+        "    motion_timeout_ms: 2000,\n    on_link_alarm: Fault,\n",
+        1,
+    );
+    build(&robot_compiler::Source::new(
+        "paint-robot-link-fault.ron",
+        text,
+    ))
+}
+
+fn lossy(c: &Compiled) -> Report {
+    let opts = ExploreOptions {
+        lossy: true,
+        ..ExploreOptions::default()
+    };
+    verify::verify(c, opts).expect("model builds")
+}
+
+#[test]
+fn with_on_link_alarm_fault_a_link_alarm_faults_its_node_and_a_table_that_lost_it_is_caught() {
+    let c = link_fault_robot();
+    let r = lossy(&c);
+    assert!(r.ok(), "{}", r.render("paint-robot-link-fault.ron", 2));
+    // As many states as the stalling robot (docs/verification.md): a node faulted on its
+    // link alarm does nothing more, as a stalled one waits.
+    assert_eq!((r.states, r.transitions), (1475, 4360));
+
+    // VC's table without `link_fault`: its first link alarm leaves it running.
+    let mut c = link_fault_robot();
+    let vc = role(&c, "VC");
+    c.tables[vc].safety.link_fault = false;
+    reencode(&mut c, vc);
+    let v = lossy(&c).violation.expect("caught");
+    assert_eq!(
+        (v.property, v.message.as_str(), v.steps),
+        (
+            Property::LinkFault,
+            "VC's link to GR is in alarm and VC still runs (the robot says on_link_alarm: Fault)",
+            3
+        )
+    );
+}

@@ -121,6 +121,8 @@ pub enum Property {
     /// The e-stop: its node did not fault at once, a node is not reached in one hop (or
     /// did not fault on it), or a node it reached commanded a motion.
     EStop,
+    /// `on_link_alarm: Fault`: a link went into alarm and its node did not fault.
+    LinkFault,
 }
 
 impl std::fmt::Display for Property {
@@ -140,6 +142,7 @@ impl std::fmt::Display for Property {
             Property::PusherGate => "the pusher never feeds while a gate moves",
             Property::Selection => "selections as the reference semantics",
             Property::EStop => "the e-stop stops every node within one hop",
+            Property::LinkFault => "a link alarm faults its node",
         })
     }
 }
@@ -738,6 +741,25 @@ impl<'c> Model<'c> {
             Move::Lose(f, t) => {
                 let l = usize::from(f) * n + usize::from(t);
                 s.alarms |= 1 << l;
+                let f = usize::from(f);
+                // As the node: its table's `link_fault` faults it on the alarm.
+                if self.tables[f].safety.link_fault {
+                    let code = config_schema::alarm::FAULT_LINK;
+                    self.call(s, f, Call::Fail(code), &mut inputs, &mut bad, &mut log);
+                }
+                // Checked against the description: a table that lost it is caught.
+                if self.c.ir.roles[f].safety.link_fault && s.nodes[f].fault.is_none() {
+                    bad = bad.or(Some((
+                        Property::LinkFault,
+                        format!(
+                            "{}'s link to {} is in alarm and {} still runs (the robot says \
+                             on_link_alarm: Fault)",
+                            self.c.ir.roles[f].name,
+                            self.c.ir.roles[usize::from(t)].name,
+                            self.c.ir.roles[f].name
+                        ),
+                    )));
+                }
             }
             Move::EStop => {
                 if let Some(e) = &self.estop {
@@ -872,6 +894,7 @@ impl<'c> Model<'c> {
             Call::Home => {
                 e.home(&mut fx);
             }
+            Call::Fail(code) => e.fail(code, &mut fx),
         }
         s.nodes[node] = e.snapshot();
         let faulted = s.nodes[node].fault.is_some();
@@ -1056,6 +1079,7 @@ impl<'c> Model<'c> {
                 }
             }
             Call::Home => String::from("HOME command"),
+            Call::Fail(_) => String::from("link alarm: faults (on_link_alarm: Fault)"),
         }
     }
 
@@ -1288,6 +1312,8 @@ enum Call {
     Timer(u8),
     Remote(u8, Topic),
     Home,
+    /// The node faults with this code (a link alarm under `on_link_alarm: Fault`).
+    Fail(u8),
 }
 
 /// Explores every reachable state of `c` and checks the properties.
