@@ -173,6 +173,7 @@ fn start(
         progress: 0,
         homing: Some(false),
         ball: None,
+        estop: None,
     };
     (s, Some(label))
 }

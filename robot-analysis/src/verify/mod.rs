@@ -29,6 +29,7 @@ use robot_compiler::ir::Step;
 
 use crate::sim::SimulationError;
 
+mod estop;
 mod feed;
 mod homing;
 mod place;
@@ -117,6 +118,11 @@ pub enum Property {
     /// A sorting station: a ball's automata, EOSs or bin differ from the reference
     /// semantics on the same feed.
     Selection,
+    /// The e-stop: its node did not fault at once, a node is not reached in one hop (or
+    /// did not fault on it), or a node it reached commanded a motion.
+    EStop,
+    /// `on_link_alarm: Fault`: a link went into alarm and its node did not fault.
+    LinkFault,
 }
 
 impl std::fmt::Display for Property {
@@ -135,6 +141,8 @@ impl std::fmt::Display for Property {
             Property::GateFall => "no gate moves while a ball falls past it",
             Property::PusherGate => "the pusher never feeds while a gate moves",
             Property::Selection => "selections as the reference semantics",
+            Property::EStop => "the e-stop stops every node within one hop",
+            Property::LinkFault => "a link alarm faults its node",
         })
     }
 }
@@ -175,6 +183,8 @@ pub struct Report {
     pub prompt: bool,
     /// A sorting station: its feed, as the report names it.
     pub feed: Option<String>,
+    /// The e-stop explored (`VC/ESTOP`), if the robot has one.
+    pub estop: Option<String>,
 }
 
 impl Report {
@@ -197,6 +207,7 @@ impl Report {
             lossy: opts.lossy,
             prompt: opts.prompt,
             feed: None,
+            estop: None,
         }
     }
 
@@ -215,11 +226,17 @@ impl Report {
             }
             None => "",
         };
+        let estop = match &self.estop {
+            Some(e) => format!(
+                ", the e-stop ({e}) stops every node within one hop and nothing moves after it"
+            ),
+            None => String::new(),
+        };
         self.verdict(
             &mut o,
             &format!(
                 "ok: deadlock freedom, sequence conformance, {interlocks} interlock(s), no \
-                 double actuation, no engine fault, a fault stops every node{station}"
+                 double actuation, no engine fault, a fault stops every node{station}{estop}"
             ),
         );
         o
@@ -317,6 +334,9 @@ struct Sys {
     homing: Option<bool>,
     /// A sorting station: its balls.
     ball: Option<feed::Balls>,
+    /// The e-stop: pressed, and bit i: node i has been reached by it (the e-stop node
+    /// when pressed, another when its `estop` was delivered).
+    estop: Option<u8>,
 }
 
 /// One move of the environment.
@@ -333,6 +353,8 @@ enum Move {
     Roll(u8, feed::Front),
     /// A sorting station: the ball in the shaft falls on one step.
     Fall,
+    /// The operator presses the emergency stop (and holds it).
+    EStop,
 }
 
 /// What an engine call reported, in order.
@@ -390,6 +412,7 @@ pub struct Model<'c> {
     interlocks: Vec<Interlock>,
     init: Sys,
     feed: Option<feed::FeedModel>,
+    estop: Option<estop::EStop>,
 }
 
 type Bad = (Property, String);
@@ -468,9 +491,11 @@ impl<'c> Model<'c> {
             progress: 0,
             homing: None,
             ball: None,
+            estop: None,
         };
         let home = (c.ir.home).filter(|&r| tables.get(r).is_some_and(|t| t.home.is_some()));
         let feed = feed::FeedModel::new(c, &acts, balls)?;
+        let estop = estop::EStop::new(c, &tables);
         Ok(Model {
             c,
             tables,
@@ -482,6 +507,7 @@ impl<'c> Model<'c> {
             interlocks,
             init,
             feed,
+            estop,
         })
     }
 
@@ -509,6 +535,11 @@ impl<'c> Model<'c> {
                 (s, Some(f.label(front)))
             })
             .collect()
+    }
+
+    /// The e-stop the exploration presses (`VC/ESTOP`), if the robot has one.
+    pub fn estop(&self) -> Option<String> {
+        self.estop.as_ref().map(|e| e.name(self.c))
     }
 
     /// The number of `never:` interlocks.
@@ -579,6 +610,11 @@ impl<'c> Model<'c> {
             None if self.idle(s) || opts.start_anytime => out.push(Move::Press),
             None => {}
         }
+        if let Some(e) = &self.estop {
+            if s.homing.is_none() && s.estop.is_none() && s.nodes[e.node].fault.is_none() {
+                out.push(Move::EStop);
+            }
+        }
         let radio_busy = s.flight.iter().any(|(l, _)| s.alarms & (1 << l) == 0);
         for (p, pos) in s.pos.iter().enumerate() {
             if opts.prompt && radio_busy {
@@ -633,6 +669,8 @@ impl<'c> Model<'c> {
         let mut bad = None;
         let mut inputs: VecDeque<(usize, u8, bool)> = VecDeque::new();
         let n = self.n();
+        // The node an `estop` publication is delivered to by this move.
+        let mut told = None;
         match m {
             Move::Press => {
                 let (node, input) = self.start;
@@ -681,6 +719,13 @@ impl<'c> Model<'c> {
                 let at = s.flight.partition_point(|e| usize::from(e.0) < l);
                 let topic = s.flight.remove(at).1;
                 let (f, t) = (usize::from(f), usize::from(t));
+                let estop = (self.estop.as_ref())
+                    .filter(|e| e.node == f && e.topic == Some(topic))
+                    .is_some();
+                if let (true, Some(reached)) = (estop, s.estop.as_mut()) {
+                    *reached |= 1 << t;
+                    told = Some(t);
+                }
                 let from_addr = self.c.ir.roles[f].address;
                 if let Some(peer) = self.tables[t].peers.iter().position(|a| *a == from_addr) {
                     self.call(
@@ -696,6 +741,31 @@ impl<'c> Model<'c> {
             Move::Lose(f, t) => {
                 let l = usize::from(f) * n + usize::from(t);
                 s.alarms |= 1 << l;
+                let f = usize::from(f);
+                // As the node: its table's `link_fault` faults it on the alarm.
+                if self.tables[f].safety.link_fault {
+                    let code = config_schema::alarm::FAULT_LINK;
+                    self.call(s, f, Call::Fail(code), &mut inputs, &mut bad, &mut log);
+                }
+                // Checked against the description: a table that lost it is caught.
+                if self.c.ir.roles[f].safety.link_fault && s.nodes[f].fault.is_none() {
+                    bad = bad.or(Some((
+                        Property::LinkFault,
+                        format!(
+                            "{}'s link to {} is in alarm and {} still runs (the robot says \
+                             on_link_alarm: Fault)",
+                            self.c.ir.roles[f].name,
+                            self.c.ir.roles[usize::from(t)].name,
+                            self.c.ir.roles[f].name
+                        ),
+                    )));
+                }
+            }
+            Move::EStop => {
+                if let Some(e) = &self.estop {
+                    s.estop = Some(1 << e.node);
+                    inputs.push_back((e.node, e.input, true));
+                }
             }
         }
         while let Some((node, input, level)) = inputs.pop_front() {
@@ -709,9 +779,28 @@ impl<'c> Model<'c> {
             );
         }
         if bad.is_none() {
+            bad = self.check_estop(s, m, told);
+        }
+        if bad.is_none() {
             bad = self.check_state(s);
         }
         bad
+    }
+
+    /// After a move of the e-stop: its node faulted at once with its `estop` in flight to
+    /// every other node (a press), the node it reached faulted (a delivery).
+    fn check_estop(&self, s: &Sys, m: Move, told: Option<usize>) -> Option<Bad> {
+        let e = self.estop.as_ref()?;
+        let faulted: Vec<bool> = s.nodes.iter().map(|x| x.fault.is_some()).collect();
+        let why = match (m, told) {
+            (Move::EStop, _) => e.after_press(self.c, &faulted, &s.flight),
+            (_, Some(t)) if !faulted[t] => Some(format!(
+                "{} received the e-stop from {} and did not fault",
+                self.c.ir.roles[t].name, self.c.ir.roles[e.node].name
+            )),
+            _ => None,
+        };
+        why.map(|w| (Property::EStop, w))
     }
 
     /// A sorting station's properties in `s`.
@@ -805,6 +894,7 @@ impl<'c> Model<'c> {
             Call::Home => {
                 e.home(&mut fx);
             }
+            Call::Fail(code) => e.fail(code, &mut fx),
         }
         s.nodes[node] = e.snapshot();
         let faulted = s.nodes[node].fault.is_some();
@@ -899,6 +989,16 @@ impl<'c> Model<'c> {
         if safe || bad.is_some() {
             return;
         }
+        if s.estop.is_some_and(|reached| reached & (1 << a.node) != 0) {
+            *bad = Some((
+                Property::EStop,
+                format!(
+                    "{step} commanded by {} after the e-stop reached it",
+                    self.c.ir.roles[a.node].name
+                ),
+            ));
+            return;
+        }
         // A monostable valve just follows its level: a sensorless actuator may reverse.
         if a.cylinder.double() && before.moving() {
             *bad = Some((
@@ -979,6 +1079,7 @@ impl<'c> Model<'c> {
                 }
             }
             Call::Home => String::from("HOME command"),
+            Call::Fail(_) => String::from("link alarm: faults (on_link_alarm: Fault)"),
         }
     }
 
@@ -1117,6 +1218,12 @@ impl<'c> Model<'c> {
                 }
                 _ => String::from("the ball falls"),
             },
+            Move::EStop => format!(
+                "operator presses the e-stop (at {})",
+                self.estop
+                    .as_ref()
+                    .map_or_else(String::new, |e| e.name(self.c))
+            ),
         }
     }
 
@@ -1205,6 +1312,8 @@ enum Call {
     Timer(u8),
     Remote(u8, Topic),
     Home,
+    /// The node faults with this code (a link alarm under `on_link_alarm: Fault`).
+    Fail(u8),
 }
 
 /// Explores every reachable state of `c` and checks the properties.
@@ -1217,6 +1326,7 @@ pub fn verify(c: &Compiled, opts: ExploreOptions) -> Result<Report, ModelError> 
 pub fn explore(model: &Model<'_>, opts: ExploreOptions) -> Report {
     let mut r = run(model, model.roots(), opts);
     r.feed = model.feed();
+    r.estop = model.estop();
     r
 }
 
@@ -1251,6 +1361,7 @@ fn run(model: &Model<'_>, roots: Vec<(Sys, Option<String>)>, opts: ExploreOption
         lossy: opts.lossy,
         prompt: opts.prompt,
         feed: None,
+        estop: None,
     }
 }
 
