@@ -61,6 +61,11 @@ fn finish(bed: Bed, verdict: Verdict, out: &mut dyn Write) {
     )
 }
 
+/// A motion of the motor: with the address of the node that commanded it (0 for an
+/// arrival), the medium's time and where the carriage was (µm from home; 0 for an
+/// arrival).
+type Motioned = (Moved, u16, Duration, u64);
+
 /// The script's side of the bed.
 struct Live<'a> {
     c: &'a Compiled,
@@ -129,8 +134,8 @@ impl Live<'_> {
             say(out, &format!("  DIFFERENT from sim: {}", sim.join(", ")));
             ok = false;
         }
-        if let (Act::Fault(true), Some((_, addr, at))) = (&want.act, moved.first()) {
-            self.say_stop(*addr, *at, &fault, out);
+        if let (Act::Fault(true), Some(&(_, addr, at, at_um))) = (&want.act, moved.first()) {
+            self.say_stop(addr, at, at_um, &fault, out);
         }
         let functions = self.functions(bed, &want.functions)?;
         say(
@@ -185,16 +190,21 @@ impl Live<'_> {
             .collect())
     }
 
-    /// Waits (at most the bed's timeout) for `n` motions of the motor: each with the
-    /// address of the node that commanded it (0 for an arrival) and the medium's time.
-    fn moved(&mut self, bed: &Bed, n: usize) -> Result<Vec<(Moved, u16, Duration)>, NetError> {
+    /// Waits (at most the bed's timeout) for `n` motions of the motor.
+    fn moved(&mut self, bed: &Bed, n: usize) -> Result<Vec<Motioned>, NetError> {
         let end = Instant::now() + bed.timeout();
         let mut got = Vec::new();
         loop {
             for m in self.pending.drain(..) {
                 match m {
-                    Motion::Run { run, addr, at, .. } => got.push((Moved::Run(run), addr, at)),
-                    Motion::Arrived { end, at, .. } => got.push((Moved::Arrived(end), 0, at)),
+                    Motion::Run {
+                        run,
+                        addr,
+                        at,
+                        at_um,
+                        ..
+                    } => got.push((Moved::Run(run), addr, at, at_um)),
+                    Motion::Arrived { end, at, .. } => got.push((Moved::Arrived(end), 0, at, 0)),
                     Motion::Input { .. } => {}
                 }
             }
@@ -220,7 +230,7 @@ impl Live<'_> {
     }
 
     /// Which node stopped the motor and how long after the fault contact closed.
-    fn say_stop(&self, addr: u16, at: Duration, fault: &str, out: &mut dyn Write) {
+    fn say_stop(&self, addr: u16, at: Duration, at_um: u64, fault: &str, out: &mut dyn Write) {
         let c = self.c;
         let role = |a: u16| {
             (c.ir.roles.iter())
@@ -244,8 +254,10 @@ impl Live<'_> {
         say(
             out,
             &format!(
-                "  stopped by node {addr:#06x} ({}), {bound}; {after} after the fault",
-                role(addr)
+                "  stopped by node {addr:#06x} ({}), {bound}; {after} after the fault, at \
+                 {:.1} mm",
+                role(addr),
+                at_um as f64 / 1e3
             ),
         );
     }
