@@ -303,9 +303,8 @@ impl Running {
             if c.run == run {
                 continue;
             }
-            let now = Instant::now();
-            let now_ms = now.saturating_duration_since(self.medium).as_millis() as u64;
-            let change = m.model.change(c, run, now_ms);
+            // From when the medium saw the output change (its clock is the carriages').
+            let change = m.model.change(c, run, at_us / 1000);
             let at_um = c.at_um;
             let _ = self.seen.send(Motion::Run {
                 motor: i,
@@ -333,7 +332,7 @@ impl Running {
         let now = Instant::now();
         for i in 0..self.plant.motors.len() {
             let due = self.arrival.get(i).copied().flatten();
-            if !due.is_some_and(|d| d <= now) {
+            if due.is_none_or(|d| d > now) {
                 continue;
             }
             if let Some(a) = self.arrival.get_mut(i) {
