@@ -66,6 +66,77 @@ fn finish(bed: Bed, verdict: Verdict, out: &mut dyn Write) {
 /// arrival).
 type Motioned = (Moved, u16, Duration, u64);
 
+/// What one step did on the bed.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Observed {
+    moved: Vec<Moved>,
+    /// The fault's step: which node stopped the motor ([`Live::stop_line`]).
+    stop: Option<String>,
+    functions: Vec<(String, String)>,
+    /// [`Act::Ack`]: the alarms of the role of `start` after it.
+    alarms: Vec<AlarmSeen>,
+}
+
+fn start_role(c: &Compiled) -> String {
+    (c.ir.start.as_ref())
+        .and_then(|(r, _)| c.ir.roles.get(*r))
+        .map_or_else(String::new, |r| r.name.clone())
+}
+
+/// Step `n`'s lines (what it did, with every difference from `sim`'s `want`), and whether
+/// it did what `sim` does.
+fn judge(
+    c: &Compiled,
+    motor: &str,
+    n: usize,
+    want: &Expected,
+    seen: &Observed,
+) -> (Vec<String>, bool) {
+    let words = |m: &[Moved]| {
+        let w: Vec<String> = m.iter().map(|m| format!("{motor} {m}")).collect();
+        if w.is_empty() {
+            String::from("nothing moves")
+        } else {
+            w.join(", ")
+        }
+    };
+    let mut lines = vec![format!("step {n}: {}: {}", want.act, words(&seen.moved))];
+    let mut ok = true;
+    if seen.moved != want.moved {
+        lines.push(format!("  DIFFERENT from sim: {}", words(&want.moved)));
+        ok = false;
+    }
+    lines.extend(seen.stop.clone());
+    lines.push(format!(
+        "  functions: {}",
+        script::functions_text(&seen.functions)
+    ));
+    if seen.functions != want.functions {
+        lines.push(format!(
+            "  DIFFERENT from sim: {}",
+            script::functions_text(&want.functions)
+        ));
+        ok = false;
+    }
+    if want.act == Act::Ack {
+        let role = start_role(c);
+        for a in &seen.alarms {
+            lines.push(format!(
+                "  alarm on {role}: {} ({:?}){}{}",
+                alarm_text(c, &role, a.0),
+                a.1,
+                if a.2 { ", acknowledged" } else { "" },
+                if a.3 { ", persists" } else { "" }
+            ));
+        }
+        if seen.alarms != want.alarms {
+            lines.push(String::from("  DIFFERENT from sim's alarms"));
+            ok = false;
+        }
+    }
+    (lines, ok)
+}
+
 /// The script's side of the bed.
 struct Live<'a> {
     c: &'a Compiled,
@@ -99,7 +170,6 @@ impl Live<'_> {
     ) -> Result<bool, NetError> {
         let (motor, fault) = script::names(self.c)?;
         let mut alarms: Vec<AlarmSeen> = Vec::new();
-        let mut ok = true;
         match &want.act {
             Act::Start => {
                 bed.press_start(self.c)?;
@@ -115,70 +185,23 @@ impl Live<'_> {
             }
         }
         let moved = self.moved(bed, want.moved.len())?;
-        let words: Vec<String> = moved.iter().map(|(m, ..)| format!("{motor} {m}")).collect();
-        let got: Vec<Moved> = moved.iter().map(|m| m.0).collect();
-        say(
-            out,
-            &format!(
-                "step {n}: {}: {}",
-                want.act,
-                if words.is_empty() {
-                    String::from("nothing moves")
-                } else {
-                    words.join(", ")
-                }
-            ),
-        );
-        if got != want.moved {
-            let sim: Vec<String> = want.moved.iter().map(|m| format!("{motor} {m}")).collect();
-            say(out, &format!("  DIFFERENT from sim: {}", sim.join(", ")));
-            ok = false;
-        }
-        if let (Act::Fault(true), Some(&(_, addr, at, at_um))) = (&want.act, moved.first()) {
-            self.say_stop(addr, at, at_um, &fault, out);
-        }
-        let functions = self.functions(bed, &want.functions)?;
-        say(
-            out,
-            &format!("  functions: {}", script::functions_text(&functions)),
-        );
-        if functions != want.functions {
-            say(
-                out,
-                &format!(
-                    "  DIFFERENT from sim: {}",
-                    script::functions_text(&want.functions)
-                ),
-            );
-            ok = false;
-        }
-        if want.act == Act::Ack {
-            let role = self.start_role();
-            for a in &alarms {
-                say(
-                    out,
-                    &format!(
-                        "  alarm on {role}: {} ({:?}){}{}",
-                        alarm_text(self.c, &role, a.0),
-                        a.1,
-                        if a.2 { ", acknowledged" } else { "" },
-                        if a.3 { ", persists" } else { "" }
-                    ),
-                );
+        let stop = match (&want.act, moved.first()) {
+            (Act::Fault(true), Some(&(_, addr, at, at_um))) => {
+                Some(self.stop_line(addr, at, at_um, &fault))
             }
-            if alarms != want.alarms {
-                say(out, "  DIFFERENT from sim's alarms");
-                ok = false;
-            }
+            _ => None,
+        };
+        let seen = Observed {
+            moved: moved.iter().map(|m| m.0).collect(),
+            stop,
+            functions: self.functions(bed, &want.functions)?,
+            alarms,
+        };
+        let (lines, ok) = judge(self.c, &motor, n, want, &seen);
+        for line in &lines {
+            say(out, line);
         }
         Ok(ok)
-    }
-
-    fn start_role(&self) -> String {
-        let c = self.c;
-        (c.ir.start.as_ref())
-            .and_then(|(r, _)| c.ir.roles.get(*r))
-            .map_or_else(String::new, |r| r.name.clone())
     }
 
     /// The alarms of the role of `start` (after an acknowledgement, with `ack`).
@@ -229,8 +252,8 @@ impl Live<'_> {
         }
     }
 
-    /// Which node stopped the motor and how long after the fault contact closed.
-    fn say_stop(&self, addr: u16, at: Duration, at_um: u64, fault: &str, out: &mut dyn Write) {
+    /// Which node stopped the motor, how long after the fault contact closed, where.
+    fn stop_line(&self, addr: u16, at: Duration, at_um: u64, fault: &str) -> String {
         let c = self.c;
         let role = |a: u16| {
             (c.ir.roles.iter())
@@ -251,15 +274,11 @@ impl Live<'_> {
         let after = (self.last_input)
             .map(|t| format!("{:.1} ms", at.saturating_sub(t).as_secs_f64() * 1e3))
             .unwrap_or_else(|| String::from("?"));
-        say(
-            out,
-            &format!(
-                "  stopped by node {addr:#06x} ({}), {bound}; {after} after the fault, at \
-                 {:.1} mm",
-                role(addr),
-                at_um as f64 / 1e3
-            ),
-        );
+        format!(
+            "  stopped by node {addr:#06x} ({}), {bound}; {after} after the fault, at {:.1} mm",
+            role(addr),
+            at_um as f64 / 1e3
+        )
     }
 
     /// The functions' places from the nodes' statuses, asked until they are `want` (a
@@ -281,5 +300,89 @@ impl Live<'_> {
                 return Ok(got);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use config_schema::alarm::{AlarmLevel, AlarmSource};
+    use node_fw::sim::Run;
+
+    fn waterjet() -> Compiled {
+        let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("../robot-configs/waterjet-transport.ron");
+        super::super::load(&path).expect("compiles")
+    }
+
+    fn seen(want: &Expected) -> Observed {
+        Observed {
+            moved: want.moved.clone(),
+            stop: None,
+            functions: want.functions.clone(),
+            alarms: want.alarms.clone(),
+        }
+    }
+
+    /// A step as sim has it is said and passes; a motion, a place or an alarm that
+    /// differs is said beside sim's and fails the step (the demo then exits non-zero).
+    #[test]
+    fn a_step_that_differs_from_sim_says_how_and_fails() {
+        let c = waterjet();
+        let want = script::simulate(&c, &script::fig9()).expect("sim");
+        let (lines, ok) = judge(&c, "PUSHER", 1, &want[0], &seen(&want[0]));
+        assert!(ok);
+        assert_eq!(
+            lines,
+            [
+                "step 1: START: PUSHER clockwise",
+                "  functions: Operation: Auto, Transport: Step2, FaultDetection: Ok, Pusher: \
+                 Clockwise, Belt: Forward"
+            ]
+        );
+
+        // The motor never stopped and the belt went on: both said, the step fails.
+        let mut bad = seen(&want[1]);
+        bad.moved.clear();
+        if let Some(belt) = bad.functions.iter_mut().find(|f| f.0 == "Belt") {
+            belt.1 = "Forward".into();
+        }
+        let (lines, ok) = judge(&c, "PUSHER", 2, &want[1], &bad);
+        assert!(!ok);
+        assert_eq!(
+            lines,
+            [
+                "step 2: the fault contact closes: nothing moves",
+                "  DIFFERENT from sim: PUSHER stopped",
+                "  functions: Operation: Halted, Transport: ReadyToCut, FaultDetection: \
+                 Faulted, Pusher: Stopped, Belt: Forward",
+                "  DIFFERENT from sim: Operation: Halted, Transport: ReadyToCut, \
+                 FaultDetection: Faulted, Pusher: Stopped, Belt: Stopped",
+            ]
+        );
+
+        // The alarm still persisting after the acknowledgement.
+        let mut bad = seen(&want[4]);
+        bad.alarms = vec![(
+            AlarmSource::Declared { index: 0 },
+            AlarmLevel::Fault,
+            false,
+            true,
+        )];
+        let (lines, ok) = judge(&c, "PUSHER", 5, &want[4], &bad);
+        assert!(!ok);
+        assert_eq!(
+            lines[2..],
+            [
+                "  alarm on CABINET: alarm \"pusher fault\" (FaultDetection.Faulted) (Fault), \
+                 persists",
+                "  DIFFERENT from sim's alarms",
+            ]
+        );
+        // A motion out of order is a difference too.
+        let mut bad = seen(&want[2]);
+        bad.moved.swap(0, 2);
+        assert_eq!(bad.moved[0], Moved::Run(Run::Stopped));
+        assert!(!judge(&c, "PUSHER", 3, &want[2], &bad).1);
     }
 }
