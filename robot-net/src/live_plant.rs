@@ -2,7 +2,8 @@
 //! valve outputs and drives their limit switches after each actuator's travel time, with
 //! the same plant rules as `sim` and `verify` (`node_fw::cylinder`: valve, sensors, travel).
 //! Plants are wired by node address and pin number, so a node never learns which role it
-//! plays.
+//! plays. It also runs a sorting station's ball feed ([`crate::live_feed`]) or a robot's
+//! declared motors and operator inputs ([`crate::live_motor`]).
 
 use std::collections::HashMap;
 use std::io;
