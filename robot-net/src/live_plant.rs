@@ -2,13 +2,14 @@
 //! valve outputs and drives their limit switches after each actuator's travel time, with
 //! the same plant rules as `sim` and `verify` (`node_fw::cylinder`: valve, sensors, travel).
 //! Plants are wired by node address and pin number, so a node never learns which role it
-//! plays.
+//! plays. It also runs a sorting station's ball feed ([`crate::live_feed`]) or a robot's
+//! declared motors and operator inputs ([`crate::live_motor`]).
 
 use std::collections::HashMap;
 use std::io;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::Sender;
+use std::sync::mpsc::{Receiver, Sender};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -22,6 +23,7 @@ use robot_compiler::ir::Step;
 
 use crate::error::NetError;
 use crate::live_feed::{BallFeed, Landing, Running};
+use crate::live_motor::{self, Motion, Motors, Operate};
 
 /// One actuator, wired by node address and board pin numbers.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -220,6 +222,24 @@ pub fn attach_fed(medium: SocketAddr, actuators: &[Actuator], feed: &BallFeed) -
     Ok(conn)
 }
 
+/// [`attach`], with the declared motors home (their home sensors closed, the end ones
+/// open) and the operator's inputs open: set at the nodes when this returns.
+pub fn attach_motors(
+    medium: SocketAddr,
+    actuators: &[Actuator],
+    motors: &Motors,
+) -> io::Result<Conn> {
+    let mut conn = Conn::join(medium, Peer::Plant)?;
+    for a in actuators {
+        send_switches(&mut conn, a, &rest())?;
+    }
+    for (addr, pin, level) in live_motor::rest_levels(motors) {
+        conn.send(&Link::Pin { addr, pin, level })?;
+    }
+    conn.sync()?;
+    Ok(conn)
+}
+
 /// Runs the plant until `stop` is set or the medium goes away. Every step is sent to
 /// `steps` as it starts, stamped with the medium's clock.
 pub fn run(
@@ -240,7 +260,7 @@ pub fn run_attached(
     steps: Sender<Stroke>,
     stop: Arc<AtomicBool>,
 ) -> io::Result<()> {
-    run_with(conn, actuators, injection, None, steps, stop)
+    run_with(conn, actuators, injection, None, None, steps, stop)
 }
 
 /// [`run_attached`] with a sorting station's ball feed ([`crate::live_feed`]), on a
@@ -254,7 +274,23 @@ pub fn run_fed(
     stop: Arc<AtomicBool>,
 ) -> io::Result<()> {
     let feed = Running::new(feed, landed, Instant::now());
-    run_with(conn, actuators, None, Some(feed), steps, stop)
+    run_with(conn, actuators, None, Some(feed), None, steps, stop)
+}
+
+/// [`run_attached`] with the declared motors and operator inputs ([`crate::live_motor`]),
+/// on a connection made by [`attach_motors`]: the operator's requests come from
+/// `operate`, every motion and input change goes to `seen`, stamped with the clock of the
+/// medium started at `medium_start`.
+pub fn run_motors(
+    conn: Conn,
+    actuators: Vec<Actuator>,
+    plant: (Motors, Receiver<Operate>, Sender<Motion>, Instant),
+    steps: Sender<Stroke>,
+    stop: Arc<AtomicBool>,
+) -> io::Result<()> {
+    let (motors, operate, seen, medium_start) = plant;
+    let motors = live_motor::Running::new(motors, operate, seen, medium_start);
+    run_with(conn, actuators, None, None, Some(motors), steps, stop)
 }
 
 fn run_with(
@@ -262,6 +298,7 @@ fn run_with(
     actuators: Vec<Actuator>,
     injection: Option<Injection>,
     mut feed: Option<Running>,
+    mut motors: Option<live_motor::Running>,
     steps: Sender<Stroke>,
     stop: Arc<AtomicBool>,
 ) -> io::Result<()> {
@@ -301,6 +338,9 @@ fn run_with(
                 }
             }
         }
+        if let Some(m) = motors.as_mut() {
+            m.tick(&mut conn)?;
+        }
         if let Some(f) = feed.as_mut() {
             f.tick(&mut conn, &names, &|a| {
                 states.get(a).map_or(Position::Home, |s| s.rod.position())
@@ -316,11 +356,15 @@ fn run_with(
             if let Some(f) = &feed {
                 f.send_levels(&mut conn)?;
             }
+            if let Some(m) = &motors {
+                m.send_levels(&mut conn)?;
+            }
         }
         let wake = states
             .iter()
             .filter_map(|s| s.arrival)
             .chain(feed.as_ref().and_then(Running::wake))
+            .chain(motors.as_ref().map(live_motor::Running::wake))
             .chain([next_refresh])
             .min()
             .unwrap_or(next_refresh);
@@ -339,6 +383,9 @@ fn run_with(
             Err(e) => return Err(e),
         };
         let (at_us, addr, pin, level) = seen;
+        if let Some(m) = motors.as_mut() {
+            m.output(&mut conn, addr, pin, level, at_us)?;
+        }
         let generation = running.get(&addr).copied().unwrap_or(0);
         let was = outputs.insert((addr, pin), level).unwrap_or(false);
         let (rose, fell) = (level && !was, !level && was);

@@ -26,6 +26,12 @@ use medium::{self, Medium};
 use robot_compiler::compile::Compiled;
 use robot_compiler::ir::Step;
 
+/// The operator's side of a plant with motors: requests to it, motions from it.
+pub type MotorPlant = (
+    mpsc::Sender<crate::live_motor::Operate>,
+    Receiver<crate::live_motor::Motion>,
+);
+
 /// How to run the test bed.
 #[derive(Debug, Clone)]
 pub struct Options {
@@ -327,6 +333,30 @@ impl Bed {
         self.steps_seen = 0;
         while self.steps.try_recv().is_ok() {}
         Ok(landed)
+    }
+
+    /// [`Bed::set_plant`] with the robot's declared motors and operator inputs
+    /// ([`crate::live_motor`]): the operator's requests go to the sender returned, every
+    /// motion and input change comes from the receiver, on the medium's clock.
+    pub fn set_plant_motors(
+        &mut self,
+        actuators: Vec<Actuator>,
+        motors: crate::live_motor::Motors,
+    ) -> Result<MotorPlant, NetError> {
+        self.stop_plant();
+        let stop = Arc::new(AtomicBool::new(false));
+        let conn = live_plant::attach_motors(self.medium.addr(), &actuators, &motors)
+            .map_err(NetError::Plant)?;
+        let (tx, flag) = (self.steps_tx.clone(), stop.clone());
+        let (operate, operated) = mpsc::channel();
+        let (seen_tx, seen) = mpsc::channel();
+        let plant = (motors, operated, seen_tx, self.medium.started());
+        let handle =
+            std::thread::spawn(move || live_plant::run_motors(conn, actuators, plant, tx, flag));
+        self.plant = Some((stop, handle));
+        self.steps_seen = 0;
+        while self.steps.try_recv().is_ok() {}
+        Ok((operate, seen))
     }
 
     /// The bed's bound on waiting (one cycle, one ball).

@@ -7,9 +7,13 @@ mod bed;
 mod qemu;
 mod report;
 mod run;
+mod script;
 mod station;
+mod transport;
 
-pub use bed::{node_addrs, targets, Bed, BedFault, Cycle, FaultReport, Homing, Options};
+pub use bed::{
+    node_addrs, targets, Bed, BedFault, Cycle, FaultReport, Homing, MotorPlant, Options,
+};
 pub use qemu::{
     check_elf, check_qemu, count_log, provision_loaders, provision_word, qemu_args, read_counts,
     Counts, PROVISION_AT, QEMU_ELF, QEMU_MACHINE,
@@ -18,4 +22,5 @@ pub use report::{
     alarm_text, cycle_line, fault_meaning, fault_text, homed_line, homing_line, push_line, say,
 };
 pub use run::{generation_of, load, run, Demo, Verdict};
+pub use script::{fig9, simulate as simulate_script, Act, Expected, Moved};
 pub use station::{sort, Sorted};

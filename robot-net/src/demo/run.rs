@@ -126,6 +126,10 @@ pub fn run(demo: &Demo, options: bed::Options, out: &mut dyn Write) -> Result<Ve
         // A sorting station: its feed, once (no cycles, no reconfiguration).
         return super::station::run(&c, options, out);
     }
+    if !c.robot.functions.is_empty() {
+        // Control functions: the operator's script of fig. 9, step by step against sim.
+        return super::transport::run(&c, options, out);
+    }
     let next = match demo.then {
         Some(p) => Some(generation_of(load(p)?, Some(c.ir.generation + 1))?),
         None => None,
@@ -317,15 +321,34 @@ fn run_cycles(
 
 /// The medium's totals and the verdict in words; stops the bed.
 fn finish(bed: Bed, verdict: Verdict, out: &mut dyn Write) {
-    finish_as(bed, verdict, false, out)
+    finish_as(
+        bed,
+        verdict,
+        "demo: every cycle matched",
+        "demo: FAILED (sequence mismatch)",
+        out,
+    )
 }
 
 /// [`finish`] of a sorting station's demo.
 pub(super) fn finish_with(bed: Bed, verdict: Verdict, out: &mut dyn Write) {
-    finish_as(bed, verdict, true, out)
+    finish_as(
+        bed,
+        verdict,
+        "demo: every ball sorted into sim's bin",
+        "demo: FAILED (bins differ from sim's)",
+        out,
+    )
 }
 
-fn finish_as(bed: Bed, verdict: Verdict, station: bool, out: &mut dyn Write) {
+/// [`finish`], saying `matched` or `mismatch` for those verdicts.
+pub(super) fn finish_as(
+    bed: Bed,
+    verdict: Verdict,
+    matched: &str,
+    mismatch: &str,
+    out: &mut dyn Write,
+) {
     let s = bed.medium().stats();
     demo_report::say(
         out,
@@ -340,13 +363,11 @@ fn finish_as(bed: Bed, verdict: Verdict, station: bool, out: &mut dyn Write) {
     bed.stop();
     demo_report::say(
         out,
-        match (verdict, station) {
-            (Verdict::Matched, false) => "demo: every cycle matched",
-            (Verdict::Matched, true) => "demo: every ball sorted into sim's bin",
-            (Verdict::PushFailed, _) => "demo: FAILED (push)",
-            (Verdict::Mismatch, false) => "demo: FAILED (sequence mismatch)",
-            (Verdict::Mismatch, true) => "demo: FAILED (bins differ from sim's)",
-            (Verdict::Faulted, _) => "demo: FAULTED",
+        match verdict {
+            Verdict::Matched => matched,
+            Verdict::PushFailed => "demo: FAILED (push)",
+            Verdict::Mismatch => mismatch,
+            Verdict::Faulted => "demo: FAULTED",
         },
     );
 }

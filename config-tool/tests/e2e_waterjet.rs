@@ -1,0 +1,102 @@
+//! End to end: `config-tool demo robot-configs/waterjet-transport.ron` on real processes
+//! (the medium, three unconfigured node processes, the live plant with the pusher's motor,
+//! the belt it moves, the fault contact and the operator's buttons) runs seed 001's fig. 9
+//! as the operator would: START, the fault in step 2, RELEASE, the fault cleared, the
+//! alarm acknowledged, RESTART and a full transport cycle; every step's motions and
+//! function places as `sim` has them, the pusher stopped by the fault contact's own node.
+//! The test waits for the demo process to end (each of its steps waits for events); no
+//! sleeps, no timing asserted.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn demo(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .arg("demo")
+        .args(args)
+        .current_dir(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .output()
+        .expect("runs")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+/// The script's lines: each step, its functions, the stop (up to its timing) and the
+/// alarm.
+fn steps(stdout: &str) -> Vec<String> {
+    stdout
+        .lines()
+        .filter(|l| {
+            l.starts_with("step ")
+                || l.starts_with("  functions: ")
+                || l.starts_with("  stopped by ")
+                || l.starts_with("  alarm on ")
+                || l.contains("DIFFERENT")
+        })
+        .map(|l| l.split(';').next().unwrap_or(l).to_string())
+        .collect()
+}
+
+const FIG9: &[&str] = &[
+    "step 1: START: PUSHER clockwise",
+    "  functions: Operation: Auto, Transport: Step2, FaultDetection: Ok, Pusher: Clockwise, \
+     Belt: Forward",
+    "step 2: the fault contact closes: PUSHER stopped",
+    "  stopped by node 0x0032 (PUSHER), the fault contact's own node: same node",
+    "  functions: Operation: Halted, Transport: ReadyToCut, FaultDetection: Faulted, Pusher: \
+     Stopped, Belt: Stopped",
+    "step 3: RELEASE pressed: PUSHER counter-clockwise, PUSHER home, PUSHER stopped",
+    "  functions: Operation: Releasing, Transport: ReadyToCut, FaultDetection: Faulted, \
+     Pusher: Stopped, Belt: Stopped",
+    "step 4: the fault contact opens: nothing moves",
+    "  functions: Operation: Releasing, Transport: ReadyToCut, FaultDetection: Ok, Pusher: \
+     Stopped, Belt: Stopped",
+    "step 5: the alarm acknowledged: nothing moves",
+    "  functions: Operation: Releasing, Transport: ReadyToCut, FaultDetection: Ok, Pusher: \
+     Stopped, Belt: Stopped",
+    "  alarm on CABINET: alarm \"pusher fault\" (FaultDetection.Faulted) (Fault), acknowledged",
+    "step 6: RESTART pressed: PUSHER clockwise, PUSHER at its end, PUSHER stopped, PUSHER \
+     counter-clockwise, PUSHER home, PUSHER stopped",
+    "  functions: Operation: Auto, Transport: ReadyToCut, FaultDetection: Ok, Pusher: \
+     Stopped, Belt: Stopped",
+];
+
+fn fig9() -> Vec<String> {
+    FIG9.iter().map(|l| l.to_string()).collect()
+}
+
+fn assert_fig9(args: &[&str]) -> Vec<String> {
+    let out = demo(args);
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert!(out.status.success(), "{stdout}\n{stderr}");
+    assert_eq!(steps(&stdout), fig9(), "{stdout}");
+    let lines: Vec<String> = stdout.lines().map(str::to_string).collect();
+    assert_eq!(
+        lines.last().map(String::as_str),
+        Some("demo: every step as sim")
+    );
+    lines
+}
+
+#[test]
+fn fig_9_on_real_processes_runs_every_step_as_sim() {
+    assert_fig9(&["robot-configs/waterjet-transport.ron"]);
+}
+
+#[test]
+fn fig_9_at_20_percent_loss_runs_every_step_as_sim() {
+    let lines = assert_fig9(&[
+        "robot-configs/waterjet-transport.ron",
+        "--loss",
+        "0.2",
+        "--seed",
+        "7",
+    ]);
+    // The lossy radio did lose frames (the figure is the medium's, for this seed).
+    let medium = (lines.iter())
+        .find(|l| l.starts_with("medium: "))
+        .expect("the medium's totals");
+    assert!(!medium.contains(" 0 lost"), "{medium}");
+}
