@@ -3,20 +3,9 @@
 //! said to be one; every step carries the time it happened.
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
 
-fn demo(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .arg("demo")
-        .args(args)
-        .current_dir(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".."))
-        .output()
-        .expect("runs")
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
+mod cli_support;
+use cli_support::{demo, text};
 
 /// `  0.460 s  VC-  (jammed: no motion)` -> (0.460, "VC-", jammed).
 fn steps(stderr: &str) -> Vec<(f64, String, bool)> {

@@ -5,20 +5,9 @@
 //! or on the bed's timeout); no sleeps.
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
 
-fn demo(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .arg("demo")
-        .args(args)
-        .current_dir(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".."))
-        .output()
-        .expect("runs")
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
+mod cli_support;
+use cli_support::{demo, text};
 
 /// `    0.743 s  ball   1: gray     bin 3  (as sim)` -> (1, "gray", 3, "as sim").
 fn balls(stdout: &str) -> Vec<(usize, String, usize, String)> {

@@ -7,21 +7,8 @@
 //! The test waits for the demo process to end (each of its steps waits for events); no
 //! sleeps, no timing asserted.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
-
-fn demo(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .arg("demo")
-        .args(args)
-        .current_dir(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".."))
-        .output()
-        .expect("runs")
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
+mod cli_support;
+use cli_support::{demo, text};
 
 /// The script's lines: each step, its functions, the stop (up to its timing) and the
 /// alarm.
