@@ -192,6 +192,10 @@ pub struct Report {
     pub feed: Option<String>,
     /// The e-stop explored (`VC/ESTOP`), if the robot has one.
     pub estop: Option<String>,
+    /// Declared plants (motors, switches, buttons), as the report names them.
+    pub plants: Option<String>,
+    /// Control functions (each a chart: one token in every state, by construction).
+    pub functions: usize,
 }
 
 impl Report {
@@ -215,6 +219,8 @@ impl Report {
             prompt: opts.prompt,
             feed: None,
             estop: None,
+            plants: None,
+            functions: 0,
         }
     }
 
@@ -223,6 +229,9 @@ impl Report {
         let mut o = String::new();
         if let Some(feed) = &self.feed {
             let _ = writeln!(o, "{name}: {feed}");
+        }
+        if let Some(plants) = &self.plants {
+            let _ = writeln!(o, "{name}: {plants}");
         }
         o += &self.figures(&format!("{name}: "), "idle");
         let station = match self.feed {
@@ -239,11 +248,20 @@ impl Report {
             ),
             None => String::new(),
         };
+        let functions = match self.functions {
+            0 => String::new(),
+            f => format!(", each of the {f} functions in exactly one place in every state"),
+        };
+        let plants = match &self.plants {
+            Some(_) => ", after a fault no motor turns clockwise until the operator has cleared it",
+            None => "",
+        };
         self.verdict(
             &mut o,
             &format!(
                 "ok: deadlock freedom, sequence conformance, {interlocks} interlock(s), no \
-                 double actuation, no engine fault, a fault stops every node{station}{estop}"
+                 double actuation, no engine fault, a fault stops every node{station}{estop}\
+                 {functions}{plants}"
             ),
         );
         o
@@ -530,6 +548,11 @@ impl<'c> Model<'c> {
         let home = (c.ir.home).filter(|&r| tables.get(r).is_some_and(|t| t.home.is_some()));
         let feed = feed::FeedModel::new(c, &acts, balls)?;
         let estop = estop::EStop::new(c, &tables);
+        // The e-stop's own contact is the e-stop's move, not a switch.
+        let mut declared = declared;
+        if let Some(e) = &estop {
+            (declared.switches).retain(|&(_, node, input)| (node, input) != (e.node, e.input));
+        }
         Ok(Model {
             c,
             tables,
@@ -570,6 +593,11 @@ impl<'c> Model<'c> {
                 (s, Some(f.label(front)))
             })
             .collect()
+    }
+
+    /// The declared plants, as the report names them (`None`: none).
+    pub fn plants(&self) -> Option<String> {
+        self.plants.any().then(|| self.plants.describe())
     }
 
     /// The e-stop the exploration presses (`VC/ESTOP`), if the robot has one.
@@ -939,7 +967,28 @@ impl<'c> Model<'c> {
         if bad.is_none() {
             bad = self.check_state(s);
         }
+        if bad.is_none() {
+            bad = self.check_cleared(s);
+        }
         bad
+    }
+
+    /// After a move: while a fault is not cleared (the switch set since the operator last
+    /// cleared it), no motor runs clockwise (one that ran must have stopped in the same
+    /// move that set the switch).
+    fn check_cleared(&self, s: &Sys) -> Option<Bad> {
+        if !s.uncleared {
+            return None;
+        }
+        let m = (self.plants.motors.iter())
+            .find(|m| m.run(s.nodes[m.node].outputs) == node_fw::sim::Run::Clockwise)?;
+        Some((
+            Property::FaultClear,
+            format!(
+                "{} runs clockwise after the fault, before the operator cleared it",
+                m.name
+            ),
+        ))
     }
 
     /// After a move of the e-stop: its node faulted at once with its `estop` in flight to
@@ -1054,7 +1103,7 @@ impl<'c> Model<'c> {
         }
         s.nodes[node] = e.snapshot();
         let faulted = s.nodes[node].fault.is_some();
-        self.drive_motors(s, node, before, inputs, bad, log);
+        self.drive_motors(s, node, before, inputs, log);
         let n = self.n();
         let cylinders: Vec<(usize, Cylinder)> = (self.acts.iter().enumerate())
             .filter(|(_, a)| a.node == node)
@@ -1111,16 +1160,14 @@ impl<'c> Model<'c> {
     }
 
     /// After an engine call on `node` (outputs `before` it): each motor it drives starts
-    /// as its outputs now run it (a carriage leaves its end at once), a fault alarm of the
-    /// node latches while its cause holds, and a motor turned clockwise while a fault is
-    /// not cleared breaks [`Property::FaultClear`].
+    /// as its outputs now run it (a carriage leaves its end at once), and a fault alarm of
+    /// the node latches while its cause holds.
     fn drive_motors(
         &self,
         s: &mut Sys,
         node: usize,
         before: u16,
         inputs: &mut VecDeque<(usize, u8, bool)>,
-        bad: &mut Option<Bad>,
         log: &mut Option<&mut Vec<String>>,
     ) {
         if self.alarm_cause(s, node) && self.plants.any() {
@@ -1137,15 +1184,6 @@ impl<'c> Model<'c> {
             }
             if let Some(log) = log.as_deref_mut() {
                 log.push(format!("      {}: {run:?}", m.name));
-            }
-            if run == node_fw::sim::Run::Clockwise && s.uncleared && bad.is_none() {
-                *bad = Some((
-                    Property::FaultClear,
-                    format!(
-                        "{} turns clockwise after the fault, before the operator cleared it",
-                        m.name
-                    ),
-                ));
             }
             let mut leave = Vec::new();
             m.start(&mut s.regions[i], run, &mut leave);
@@ -1577,6 +1615,8 @@ pub fn explore(model: &Model<'_>, opts: ExploreOptions) -> Report {
     let mut r = run(model, model.roots(), opts);
     r.feed = model.feed();
     r.estop = model.estop();
+    r.plants = model.plants();
+    r.functions = model.c.robot.functions.len();
     r
 }
 
@@ -1612,6 +1652,8 @@ fn run(model: &Model<'_>, roots: Vec<(Sys, Option<String>)>, opts: ExploreOption
         prompt: opts.prompt,
         feed: None,
         estop: None,
+        plants: None,
+        functions: 0,
     }
 }
 

@@ -125,6 +125,35 @@ impl Plants {
         out
     }
 
+    /// The plants in one line, for the report.
+    pub(super) fn describe(&self) -> String {
+        let mut parts: Vec<String> = (self.motors.iter())
+            .map(|m| {
+                let with = match m.driven.is_empty() {
+                    true => String::new(),
+                    false => format!(" moving {}", m.driven.join(", ")),
+                };
+                format!("motor {}{with} (home, between, end)", m.name)
+            })
+            .collect();
+        let names = |v: &[(String, usize, u8)]| {
+            v.iter()
+                .map(|x| x.0.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        if !self.switches.is_empty() {
+            parts.push(format!(
+                "switch {} set and released at any time",
+                names(&self.switches)
+            ));
+        }
+        if !self.buttons.is_empty() {
+            parts.push(format!("{} pressed at any time", names(&self.buttons)));
+        }
+        format!("plants: {}; alarms acknowledged", parts.join("; "))
+    }
+
     /// Whether there is anything to drive.
     pub(super) fn any(&self) -> bool {
         !self.motors.is_empty() || !self.switches.is_empty()
