@@ -162,17 +162,15 @@ fn verify_passes_every_robot_of_robot_configs_as_declared() {
             .filter_map(|e| e.ok())
             .map(|e| e.file_name().to_string_lossy().into_owned())
             .filter(|f| f.ends_with(".ron"))
-            // The verifier does not model the water-jet transport's motor plant yet.
-            .filter(|f| f != "waterjet-transport.ron")
             .collect();
     files.sort();
-    assert_eq!(files.len(), 7, "{files:?}");
+    assert_eq!(files.len(), 8, "{files:?}");
     for f in &files {
         let out = tool(&["verify", &format!("robot-configs/{f}")]);
         assert_eq!(out.status.code(), Some(0), "{f}: {}", text(&out.stdout));
         let stdout = text(&out.stdout);
         // The robots that count shared position events say which assumption they rest on.
-        let assumes = f.contains("paper-charts") || f.contains("counted");
+        let assumes = f.contains("paper-charts") || f.contains("counted") || f.contains("waterjet");
         assert_eq!(
             stdout.contains("assumes a prompt radio (`assume_prompt_radio`)"),
             assumes,

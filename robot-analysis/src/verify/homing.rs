@@ -174,6 +174,10 @@ fn start(
         homing: Some(false),
         ball: None,
         estop: None,
+        regions: model.init.regions.clone(),
+        switches: 0,
+        latched: 0,
+        uncleared: false,
     };
     (s, Some(label))
 }

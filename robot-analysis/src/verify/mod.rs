@@ -32,6 +32,7 @@ use crate::sim::SimulationError;
 mod estop;
 mod feed;
 mod homing;
+mod motor;
 mod place;
 
 pub use feed::{DEFAULT_BALLS, MAX_BALLS};
@@ -123,6 +124,9 @@ pub enum Property {
     EStop,
     /// `on_link_alarm: Fault`: a link went into alarm and its node did not fault.
     LinkFault,
+    /// A motor turned clockwise after a fault (a switch set) before the operator cleared
+    /// it (the switch released and the alarm acknowledged).
+    FaultClear,
 }
 
 impl std::fmt::Display for Property {
@@ -143,6 +147,9 @@ impl std::fmt::Display for Property {
             Property::Selection => "selections as the reference semantics",
             Property::EStop => "the e-stop stops every node within one hop",
             Property::LinkFault => "a link alarm faults its node",
+            Property::FaultClear => {
+                "after a fault, no motor turns clockwise until the operator has cleared it"
+            }
         })
     }
 }
@@ -185,6 +192,10 @@ pub struct Report {
     pub feed: Option<String>,
     /// The e-stop explored (`VC/ESTOP`), if the robot has one.
     pub estop: Option<String>,
+    /// Declared plants (motors, switches, buttons), as the report names them.
+    pub plants: Option<String>,
+    /// Control functions (each a chart: one token in every state, by construction).
+    pub functions: usize,
 }
 
 impl Report {
@@ -208,6 +219,8 @@ impl Report {
             prompt: opts.prompt,
             feed: None,
             estop: None,
+            plants: None,
+            functions: 0,
         }
     }
 
@@ -216,6 +229,9 @@ impl Report {
         let mut o = String::new();
         if let Some(feed) = &self.feed {
             let _ = writeln!(o, "{name}: {feed}");
+        }
+        if let Some(plants) = &self.plants {
+            let _ = writeln!(o, "{name}: {plants}");
         }
         o += &self.figures(&format!("{name}: "), "idle");
         let station = match self.feed {
@@ -232,11 +248,20 @@ impl Report {
             ),
             None => String::new(),
         };
+        let functions = match self.functions {
+            0 => String::new(),
+            f => format!(", each of the {f} functions in exactly one place in every state"),
+        };
+        let plants = match &self.plants {
+            Some(_) => ", after a fault no motor turns clockwise until the operator has cleared it",
+            None => "",
+        };
         self.verdict(
             &mut o,
             &format!(
                 "ok: deadlock freedom, sequence conformance, {interlocks} interlock(s), no \
-                 double actuation, no engine fault, a fault stops every node{station}{estop}"
+                 double actuation, no engine fault, a fault stops every node{station}{estop}\
+                 {functions}{plants}"
             ),
         );
         o
@@ -337,6 +362,14 @@ struct Sys {
     /// The e-stop: pressed, and bit i: node i has been reached by it (the e-stop node
     /// when pressed, another when its `estop` was delivered).
     estop: Option<u8>,
+    /// Declared motors: where each carriage is.
+    regions: Vec<motor::Region>,
+    /// Declared switches: bit i set.
+    switches: u8,
+    /// Bit i: node i has a fault alarm latched, not acknowledged.
+    latched: u8,
+    /// A switch was set and the operator has not cleared it since.
+    uncleared: bool,
 }
 
 /// One move of the environment.
@@ -355,6 +388,14 @@ enum Move {
     Fall,
     /// The operator presses the emergency stop (and holds it).
     EStop,
+    /// A running motor reaches the next region toward its direction.
+    Motor(u8),
+    /// A declared switch is set or released.
+    Switch(u8),
+    /// The operator presses (and releases) a declared button.
+    Button(u8),
+    /// The operator acknowledges the alarms of a node.
+    Ack(u8),
 }
 
 /// What an engine call reported, in order.
@@ -413,6 +454,7 @@ pub struct Model<'c> {
     init: Sys,
     feed: Option<feed::FeedModel>,
     estop: Option<estop::EStop>,
+    plants: motor::Plants,
 }
 
 type Bad = (Property, String);
@@ -445,6 +487,7 @@ impl<'c> Model<'c> {
             return Err(ModelError::NoStartButton);
         };
         let start = (b.node, b.input);
+        let declared = motor::Plants::new(&plants, button);
         let peers = tables
             .iter()
             .map(|t| {
@@ -481,6 +524,11 @@ impl<'c> Model<'c> {
             }
             pos.push(Place::Rod(at));
         }
+        for m in &declared.motors {
+            for &(node, input) in &m.home {
+                engines[node].sense(input, true);
+            }
+        }
         let nodes = engines.iter().map(Engine::snapshot).collect();
         let init = Sys {
             nodes,
@@ -492,10 +540,19 @@ impl<'c> Model<'c> {
             homing: None,
             ball: None,
             estop: None,
+            regions: vec![motor::Region::Home; declared.motors.len()],
+            switches: 0,
+            latched: 0,
+            uncleared: false,
         };
         let home = (c.ir.home).filter(|&r| tables.get(r).is_some_and(|t| t.home.is_some()));
         let feed = feed::FeedModel::new(c, &acts, balls)?;
         let estop = estop::EStop::new(c, &tables);
+        // The e-stop's own contact is the e-stop's move, not a switch.
+        let mut declared = declared;
+        if let Some(e) = &estop {
+            (declared.switches).retain(|&(_, node, input)| (node, input) != (e.node, e.input));
+        }
         Ok(Model {
             c,
             tables,
@@ -508,6 +565,7 @@ impl<'c> Model<'c> {
             init,
             feed,
             estop,
+            plants: declared,
         })
     }
 
@@ -537,6 +595,11 @@ impl<'c> Model<'c> {
             .collect()
     }
 
+    /// The declared plants, as the report names them (`None`: none).
+    pub fn plants(&self) -> Option<String> {
+        self.plants.any().then(|| self.plants.describe())
+    }
+
     /// The e-stop the exploration presses (`VC/ESTOP`), if the robot has one.
     pub fn estop(&self) -> Option<String> {
         self.estop.as_ref().map(|e| e.name(self.c))
@@ -552,6 +615,9 @@ impl<'c> Model<'c> {
     }
 
     fn idle(&self, s: &Sys) -> bool {
+        if self.plants.any() {
+            return self.ready(s);
+        }
         s.alarms == 0
             && s.timers.iter().all(|t| *t == 0)
             && s.flight.is_empty()
@@ -560,6 +626,55 @@ impl<'c> Model<'c> {
                 .iter()
                 .zip(&self.init.nodes)
                 .all(|(a, b)| a.fault.is_none() && a.current == b.current)
+    }
+
+    /// With declared plants: idle is ready for START: nothing in flight or armed, every
+    /// carriage home, no switch set, no alarm latched, no node faulted, and a START press
+    /// here fires a chart (the machine takes a new cycle, in whatever mode it rests in).
+    fn ready(&self, s: &Sys) -> bool {
+        let quiet = s.alarms == 0
+            && s.timers.iter().all(|t| *t == 0)
+            && s.flight.is_empty()
+            && s.pos == self.init.pos
+            && s.regions == self.init.regions
+            && s.switches == 0
+            && s.latched == 0
+            && !s.uncleared
+            && s.nodes.iter().all(|e| e.fault.is_none());
+        if !quiet {
+            return false;
+        }
+        let (node, input) = self.start;
+        let mut e = Engine::resume(&self.tables[node], &s.nodes[node]);
+        let mut fx = EffectLog::default();
+        e.input(input, true, &mut fx);
+        fx.0.iter().any(|f| matches!(f, Effect::Fired(..)))
+    }
+
+    /// Whether a press of `input` on `node` is refused (a restart input, or START, while
+    /// a fault alarm is latched there).
+    fn refused(&self, s: &Sys, node: usize, input: u8) -> bool {
+        let restarts = self.start == (node, input)
+            || (input < 16 && self.tables[node].safety.restart & (1 << input) != 0);
+        restarts && s.latched & (1 << node) != 0
+    }
+
+    /// Whether a cause of a fault alarm on `node` persists (its own fault, a declared
+    /// fault alarm's condition).
+    fn alarm_cause(&self, s: &Sys, node: usize) -> bool {
+        let seen = node_fw::alarms::Seen {
+            table: &self.tables[node],
+            state: &s.nodes[node],
+            link_alarms: 0,
+        };
+        s.nodes[node].fault.is_some()
+            || (self.tables[node].safety.alarms.iter().enumerate()).any(|(i, a)| {
+                a.level == config_schema::alarm::AlarmLevel::Fault
+                    && node_fw::alarms::Alarms::persists(
+                        seen,
+                        config_schema::alarm::AlarmSource::Declared { index: i as u8 },
+                    )
+            })
     }
 
     /// In a state where nothing more can happen: a role still running although a node
@@ -607,8 +722,15 @@ impl<'c> Model<'c> {
                 out.push(Move::Home);
             }
             Some(true) => {}
-            None if self.idle(s) || opts.start_anytime => out.push(Move::Press),
+            None if (self.idle(s) || opts.start_anytime)
+                && !self.refused(s, self.start.0, self.start.1) =>
+            {
+                out.push(Move::Press)
+            }
             None => {}
+        }
+        if s.homing.is_none() {
+            self.plant_moves(s, opts, out);
         }
         if let Some(e) = &self.estop {
             if s.homing.is_none() && s.estop.is_none() && s.nodes[e.node].fault.is_none() {
@@ -659,6 +781,36 @@ impl<'c> Model<'c> {
             out.push(Move::Deliver(f, t));
             if lossy {
                 out.push(Move::Lose(f, t));
+            }
+        }
+    }
+
+    /// The declared plants' moves: a running motor arrives, a switch toggles, the operator
+    /// presses a button (not one refused) or acknowledges a node's alarms (once no cause
+    /// persists).
+    fn plant_moves(&self, s: &Sys, opts: ExploreOptions, out: &mut Vec<Move>) {
+        let radio_busy = s.flight.iter().any(|(l, _)| s.alarms & (1 << l) == 0);
+        for (i, m) in self.plants.motors.iter().enumerate() {
+            let run = m.run(s.nodes[m.node].outputs);
+            if !(opts.prompt && radio_busy) && motor::MotorModel::moving(run, s.regions[i]) {
+                out.push(Move::Motor(i as u8));
+            }
+        }
+        // Prompt radio: a contact holds while a publication is in flight (the fault lasts
+        // longer than a delivery).
+        for i in 0..self.plants.switches.len().min(8) {
+            if !(opts.prompt && radio_busy) {
+                out.push(Move::Switch(i as u8));
+            }
+        }
+        for (i, &(_, node, input)) in self.plants.buttons.iter().enumerate() {
+            if !self.refused(s, node, input) {
+                out.push(Move::Button(i as u8));
+            }
+        }
+        for node in 0..self.n() {
+            if s.latched & (1 << node) != 0 && !self.alarm_cause(s, node) {
+                out.push(Move::Ack(node as u8));
             }
         }
     }
@@ -767,6 +919,37 @@ impl<'c> Model<'c> {
                     inputs.push_back((e.node, e.input, true));
                 }
             }
+            Move::Motor(i) => {
+                let i = usize::from(i);
+                if let Some(m) = self.plants.motors.get(i) {
+                    let run = m.run(s.nodes[m.node].outputs);
+                    let mut rise = Vec::new();
+                    m.arrive(&mut s.regions[i], run, &mut rise);
+                    inputs.extend(rise);
+                }
+            }
+            Move::Switch(i) => {
+                if let Some(&(_, node, input)) = self.plants.switches.get(usize::from(i)) {
+                    let set = s.switches & (1 << i) == 0;
+                    s.switches ^= 1 << i;
+                    if set {
+                        s.uncleared = true;
+                    }
+                    inputs.push_back((node, input, set));
+                }
+            }
+            Move::Button(i) => {
+                if let Some(&(_, node, input)) = self.plants.buttons.get(usize::from(i)) {
+                    inputs.push_back((node, input, true));
+                    inputs.push_back((node, input, false));
+                }
+            }
+            Move::Ack(node) => {
+                s.latched &= !(1 << node);
+                if s.latched == 0 && s.switches == 0 {
+                    s.uncleared = false;
+                }
+            }
         }
         while let Some((node, input, level)) = inputs.pop_front() {
             self.call(
@@ -784,7 +967,28 @@ impl<'c> Model<'c> {
         if bad.is_none() {
             bad = self.check_state(s);
         }
+        if bad.is_none() {
+            bad = self.check_cleared(s);
+        }
         bad
+    }
+
+    /// After a move: while a fault is not cleared (the switch set since the operator last
+    /// cleared it), no motor runs clockwise (one that ran must have stopped in the same
+    /// move that set the switch).
+    fn check_cleared(&self, s: &Sys) -> Option<Bad> {
+        if !s.uncleared {
+            return None;
+        }
+        let m = (self.plants.motors.iter())
+            .find(|m| m.run(s.nodes[m.node].outputs) == node_fw::sim::Run::Clockwise)?;
+        Some((
+            Property::FaultClear,
+            format!(
+                "{} runs clockwise after the fault, before the operator cleared it",
+                m.name
+            ),
+        ))
     }
 
     /// After a move of the e-stop: its node faulted at once with its `estop` in flight to
@@ -876,6 +1080,7 @@ impl<'c> Model<'c> {
     ) {
         let table = &self.tables[node];
         let role = &self.c.ir.roles[node];
+        let before = s.nodes[node].outputs;
         let mut e = Engine::resume(table, &s.nodes[node]);
         let mut fx = EffectLog::default();
         if let Some(log) = log.as_deref_mut() {
@@ -898,6 +1103,7 @@ impl<'c> Model<'c> {
         }
         s.nodes[node] = e.snapshot();
         let faulted = s.nodes[node].fault.is_some();
+        self.drive_motors(s, node, before, inputs, log);
         let n = self.n();
         let cylinders: Vec<(usize, Cylinder)> = (self.acts.iter().enumerate())
             .filter(|(_, a)| a.node == node)
@@ -950,6 +1156,38 @@ impl<'c> Model<'c> {
                 Command::Drive(extend) => extend,
             };
             self.command(s, p, extend, faulted, inputs, bad, log);
+        }
+    }
+
+    /// After an engine call on `node` (outputs `before` it): each motor it drives starts
+    /// as its outputs now run it (a carriage leaves its end at once), and a fault alarm of
+    /// the node latches while its cause holds.
+    fn drive_motors(
+        &self,
+        s: &mut Sys,
+        node: usize,
+        before: u16,
+        inputs: &mut VecDeque<(usize, u8, bool)>,
+        log: &mut Option<&mut Vec<String>>,
+    ) {
+        if self.alarm_cause(s, node) && self.plants.any() {
+            s.latched |= 1 << node;
+        }
+        let now = s.nodes[node].outputs;
+        for (i, m) in self.plants.motors.iter().enumerate() {
+            if m.node != node {
+                continue;
+            }
+            let (was, run) = (m.run(before), m.run(now));
+            if was == run {
+                continue;
+            }
+            if let Some(log) = log.as_deref_mut() {
+                log.push(format!("      {}: {run:?}", m.name));
+            }
+            let mut leave = Vec::new();
+            m.start(&mut s.regions[i], run, &mut leave);
+            inputs.extend(leave);
         }
     }
 
@@ -1224,6 +1462,33 @@ impl<'c> Model<'c> {
                     .as_ref()
                     .map_or_else(String::new, |e| e.name(self.c))
             ),
+            Move::Motor(i) => match self.plants.motors.get(usize::from(i)) {
+                Some(m) => {
+                    let run = m.run(s.nodes[m.node].outputs);
+                    let to = match run {
+                        node_fw::sim::Run::Clockwise => "end",
+                        _ => "home",
+                    };
+                    let with = match m.driven.is_empty() {
+                        true => String::new(),
+                        false => format!(" (with {})", m.driven.join(", ")),
+                    };
+                    format!("{}{with} reaches its {to} sensor", m.name)
+                }
+                None => String::from("a motor arrives"),
+            },
+            Move::Switch(i) => {
+                let name = (self.plants.switches.get(usize::from(i))).map_or("?", |w| &w.0);
+                match s.switches & (1 << i) == 0 {
+                    true => format!("switch {name} is set"),
+                    false => format!("switch {name} is released"),
+                }
+            }
+            Move::Button(i) => format!(
+                "operator presses {}",
+                (self.plants.buttons.get(usize::from(i))).map_or("?", |b| &b.0)
+            ),
+            Move::Ack(node) => format!("operator acknowledges the alarms of {}", role(node)),
         }
     }
 
@@ -1274,10 +1539,33 @@ impl<'c> Model<'c> {
                 )
             })
             .collect();
-        let balls = match (&self.feed, &s.ball) {
+        let mut balls = match (&self.feed, &s.ball) {
             (Some(f), Some(b)) => format!("; balls: {}", f.describe_state(b)),
             _ => String::new(),
         };
+        if self.plants.any() {
+            let motors: Vec<String> = (self.plants.motors.iter().zip(&s.regions))
+                .map(|(m, r)| format!("{} {}", m.name, r.name()))
+                .collect();
+            let switches: Vec<&str> = (self.plants.switches.iter().enumerate())
+                .filter(|(i, _)| s.switches & (1 << i) != 0)
+                .map(|(_, w)| w.0.as_str())
+                .collect();
+            let latched: Vec<&str> = (0..self.n())
+                .filter(|i| s.latched & (1 << i) != 0)
+                .map(|i| self.c.ir.roles[i].name.as_str())
+                .collect();
+            let list = |v: &[&str]| match v.is_empty() {
+                true => String::from("none"),
+                false => v.join(", "),
+            };
+            balls += &format!(
+                "; motors {}; set: {}; alarms latched: {}",
+                motors.join(", "),
+                list(&switches),
+                list(&latched)
+            );
+        }
         format!(
             "charts {}; actuators {}; in flight: {}{balls}",
             parts.join(" "),
@@ -1327,6 +1615,8 @@ pub fn explore(model: &Model<'_>, opts: ExploreOptions) -> Report {
     let mut r = run(model, model.roots(), opts);
     r.feed = model.feed();
     r.estop = model.estop();
+    r.plants = model.plants();
+    r.functions = model.c.robot.functions.len();
     r
 }
 
@@ -1362,6 +1652,8 @@ fn run(model: &Model<'_>, roots: Vec<(Sys, Option<String>)>, opts: ExploreOption
         prompt: opts.prompt,
         feed: None,
         estop: None,
+        plants: None,
+        functions: 0,
     }
 }
 
