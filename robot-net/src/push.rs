@@ -238,11 +238,14 @@ fn coordinate(
         for (dst, m) in out.drain(..) {
             radio.send(dst, &m)?;
         }
-        let until = start + Duration::from_millis(c.deadline());
-        if let Some(r) = radio.recv(until.max(Instant::now()))? {
+        // The first answer by the deadline, then every answer already here, before the
+        // coordinator's next poll can declare a timeout (as `push` does).
+        let mut until = (start + Duration::from_millis(c.deadline())).max(Instant::now());
+        while let Some(r) = radio.recv(until)? {
             if let Some(Message::ConfigReply { generation, reply }) = r.message() {
                 c.on_reply(r.src, generation, reply, now_ms(), |a, m| out.push((a, m)));
             }
+            until = Instant::now();
         }
     }
     Ok((c.verdict(), c.nodes().collect()))
