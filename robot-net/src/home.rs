@@ -6,6 +6,7 @@
 
 use std::time::{Duration, Instant};
 
+use config_schema::alarm::AlarmReport;
 use config_schema::wire::msg::{Command, Message, Status};
 use config_schema::Table;
 use robot_compiler::compile::Compiled;
@@ -164,6 +165,31 @@ pub fn statuses(
         .collect()
 }
 
+/// `command` (`Command::Alarms`, or `Command::Ack` to acknowledge) to every role's node of
+/// `c` (each asked until it answers, at most `timeout`): each node's alarm report, in role
+/// order.
+pub fn alarms(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    c: &Compiled,
+    command: Command,
+    timeout: Duration,
+) -> Result<Vec<AlarmReport>, NetError> {
+    c.ir.roles
+        .iter()
+        .map(|r| {
+            push::ask(radio, ids, r.address, command, timeout, |m, id| match m {
+                Message::Alarms(a) if a.ack == id => Some(a),
+                _ => None,
+            })?
+            .ok_or_else(|| NetError::NoAnswer {
+                addr: r.address,
+                command: format!("{command:?}"),
+            })
+        })
+        .collect()
+}
+
 /// Homes the machine of `c`: refuses one with a node faulted, moving or not running the
 /// robot's table; else sends HOME to the home role's node and asks every node's status
 /// (every [`POLL`]) until every chart rests in its idle state, a node faults, or `wait`
@@ -182,22 +208,8 @@ pub fn home(
         return Ok((HomeEnd::Refused(why), Duration::ZERO));
     }
     // A node refuses HOME while a fault alarm is latched: say so, naming it.
-    for r in &c.ir.roles {
-        let report = push::ask(
-            radio,
-            ids,
-            r.address,
-            Command::Alarms,
-            answer_within,
-            |m, id| match m {
-                Message::Alarms(a) if a.ack == id => Some(a),
-                _ => None,
-            },
-        )?
-        .ok_or_else(|| NetError::NoAnswer {
-            addr: r.address,
-            command: "Alarms".to_string(),
-        })?;
+    let reports = alarms(radio, ids, c, Command::Alarms, answer_within)?;
+    for (r, report) in c.ir.roles.iter().zip(&reports) {
         if let Some(a) = report.blocking() {
             let why = format!(
                 "node {:#06x} ({}) has a fault alarm latched: {}: acknowledge it first \

@@ -71,23 +71,11 @@ fn ask<T>(
     cmd: Command,
     pick: impl Fn(Message<'_>, u16) -> Option<T>,
 ) -> Result<T, Failure> {
-    let id = ids.fresh();
     let sent_before = radio.stats.sent;
-    let end = Instant::now() + ANSWER_WITHIN;
-    let retry = Duration::from_millis(150);
-    while Instant::now() < end {
-        radio
-            .send(node, &Message::Command { id, command: cmd })
-            .map_err(Failure::error)?;
-        let until = (Instant::now() + retry).min(end);
-        while let Some(r) = radio.recv(until).map_err(Failure::error)? {
-            if r.src != node {
-                continue;
-            }
-            if let Some(t) = r.message().and_then(|m| pick(m, id)) {
-                return Ok(t);
-            }
-        }
+    if let Some(t) =
+        push::ask(radio, ids, node, cmd, ANSWER_WITHIN, pick).map_err(Failure::error)?
+    {
+        return Ok(t);
     }
     let asked = radio.stats.sent - sent_before;
     let hint = if radio.secured() {

@@ -13,7 +13,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use config_schema::alarm::AlarmReport;
-use config_schema::wire::msg::{Announce, Command, Message, Status};
+use config_schema::wire::msg::{Announce, Command, Status};
 
 use crate::error::NetError;
 use crate::home::{self, HomeEnd};
@@ -482,26 +482,13 @@ impl Bed {
         } else {
             Command::Alarms
         };
-        c.ir.roles
-            .iter()
-            .map(|r| {
-                push::ask(
-                    &mut self.radio,
-                    &mut self.ids,
-                    r.address,
-                    command,
-                    self.options.timeout,
-                    |m, id| match m {
-                        Message::Alarms(a) if a.ack == id => Some(a),
-                        _ => None,
-                    },
-                )?
-                .ok_or_else(|| NetError::NoAnswer {
-                    addr: r.address,
-                    command: format!("{command:?}"),
-                })
-            })
-            .collect()
+        home::alarms(
+            &mut self.radio,
+            &mut self.ids,
+            c,
+            command,
+            self.options.timeout,
+        )
     }
 
     /// Homes the machine of `c` (`robot_net::home::home`) and returns how it ended with
