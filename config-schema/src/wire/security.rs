@@ -36,7 +36,7 @@ use ccm::consts::{U13, U16, U4, U8};
 use ccm::{AeadInOut, Ccm, TagSize};
 
 use block::OneBlock;
-pub use block::{BlockCipher, CipherFault, SoftAes, BLOCK_LEN};
+pub use block::{fips197, BlockCipher, CipherFault, SoftAes, BLOCK_LEN};
 
 use super::mac::{self, Frame, FrameError, Header, DATA_HEADER_LEN, FCS_LEN, MAX_PSDU};
 
