@@ -382,19 +382,6 @@ fn split(
     let mut chains: Vec<TransitionDecl> = Vec::new();
     for (si, (body, node)) in bodies.into_iter().enumerate() {
         let name = states[si].name.clone();
-        if !body
-            .iter()
-            .any(|s| matches!(s, Step::Stmt(st) if st.chooses()))
-        {
-            states[si].actions = body
-                .into_iter()
-                .flat_map(|s| match s {
-                    Step::Stmt(st) => flat(st),
-                    Step::Emit(e) => vec![ActionDecl::Emit(e)],
-                })
-                .collect();
-            continue;
-        }
         let mut chain = Chain {
             base: name.clone(),
             states: vec![StateDecl {
@@ -409,6 +396,11 @@ fn split(
                 Step::Emit(e) => chain.states[at].actions.push(ActionDecl::Emit(e)),
                 Step::Stmt(st) => at = chain.run(at, &st),
             }
+        }
+        if chain.states.len() == 1 {
+            // Nothing chose: the state does it all on entry.
+            states[si].actions = chain.states.remove(0).actions;
+            continue;
         }
         // The last meeting point is the state itself.
         let last = chain.states[at].name.clone();
@@ -455,14 +447,6 @@ fn split(
     // entered, before any of the state's own.
     chains.extend(transitions);
     Ok((states, chains))
-}
-
-/// An assignment's action (a statement without a choice).
-fn flat(st: Stmt) -> Vec<ActionDecl> {
-    match st {
-        Stmt::Assign(v, e) => vec![ActionDecl::Set(v, e)],
-        Stmt::If { .. } => Vec::new(),
-    }
 }
 
 /// The states and transitions one choosing state becomes.

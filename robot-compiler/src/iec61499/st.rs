@@ -242,13 +242,6 @@ pub enum Stmt {
     },
 }
 
-impl Stmt {
-    /// Whether it (or anything inside it) chooses.
-    pub fn chooses(&self) -> bool {
-        matches!(self, Stmt::If { .. })
-    }
-}
-
 struct Parser<'n> {
     toks: Vec<(Tok, Range<usize>)>,
     at: usize,
