@@ -112,16 +112,7 @@ pub fn svg(c: &Compiled, trace: &[TraceEntry]) -> Result<String, SimulationError
         d.position_lane(name, motor, stroke_um, y);
         y += ACT_H;
     }
-    for &(r, ch) in &charts {
-        d.chart_lane(r, ch, y);
-        y += CHART_H;
-    }
-    d.radio_lane(y);
-    y += RADIO_H;
-    d.marks(y);
-    d.time_axis(y);
-    d.o.push_str("</svg>\n");
-    Ok(d.o)
+    Ok(d.finish(&charts, y))
 }
 
 /// An SVG being drawn: the robot, the trace, and the text so far.
@@ -138,6 +129,21 @@ const PALETTE: [&str; 6] = [
 ];
 
 impl Drawing<'_> {
+    /// The lanes every timeline ends with, from `y`: a lane per chart of `charts` (role,
+    /// chart), the radio, the marks and the time axis; the finished SVG.
+    fn finish(mut self, charts: &[(usize, usize)], mut y: f64) -> String {
+        for &(r, ch) in charts {
+            self.chart_lane(r, ch, y);
+            y += CHART_H;
+        }
+        self.radio_lane(y);
+        y += RADIO_H;
+        self.marks(y);
+        self.time_axis(y);
+        self.o.push_str("</svg>\n");
+        self.o
+    }
+
     /// The x coordinate of time `t`.
     fn x(&self, t: u64) -> f64 {
         LEFT + WIDTH * t as f64 / self.end_ms as f64

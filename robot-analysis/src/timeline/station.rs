@@ -185,16 +185,7 @@ pub fn svg(c: &Compiled, run: &SortRun) -> Result<String, SortError> {
         d.ball_lane(run, i, y);
         y += BALL_H;
     }
-    for &(r, ch) in &charts {
-        d.chart_lane(r, ch, y);
-        y += CHART_H;
-    }
-    d.radio_lane(y);
-    y += RADIO_H;
-    d.marks(y);
-    d.time_axis(y);
-    d.o.push_str("</svg>\n");
-    Ok(d.o)
+    Ok(d.finish(&charts, y))
 }
 
 /// Background colours of the states of [`PUSHER`] and [`GATE`]: home, moving, end.
