@@ -207,3 +207,39 @@ fn any_delay_drops_the_declared_assumption_and_finds_the_race() {
         "clap refuses the contradiction"
     );
 }
+
+#[test]
+fn verify_faults_sets_the_fault_pulses_explored_and_refuses_a_count_out_of_range() {
+    let out = tool(&[
+        "verify",
+        "robot-configs/waterjet-transport.ron",
+        "--faults",
+        "1",
+    ]);
+    let stdout = text(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{stdout}");
+    assert!(
+        stdout.contains("switch FAULT set once and released, each at any time"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("robot-configs/waterjet-transport.ron: 1110 states, 4391 transitions"),
+        "{stdout}"
+    );
+    for bad in ["0", "9", "two"] {
+        let out = tool(&[
+            "verify",
+            "robot-configs/waterjet-transport.ron",
+            "--faults",
+            bad,
+        ]);
+        assert_eq!(out.status.code(), Some(2));
+        let stderr = text(&out.stderr);
+        assert!(
+            stderr.contains(&format!(
+                "invalid value '{bad}' for '--faults <FAULTS>': a number of fault pulses from 1 to 8"
+            )),
+            "{stderr}"
+        );
+    }
+}

@@ -175,6 +175,7 @@ pub fn verification(
         prompt,
         start_anytime: how.start_anytime,
         max_states: how.max_states,
+        faults: how.faults,
     };
     let interlocks = model.interlock_count();
     let report = match how.only {
