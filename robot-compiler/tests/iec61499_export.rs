@@ -222,3 +222,187 @@ fn explicit_chart_types_round_trip_to_the_same_tables() {
         ]
     );
 }
+
+/// The `.sys` of a robot, parsed: (application FBs as (name, type), application
+/// connections as (source, destination), mapping as (from, to), resources as
+/// (device, resource)).
+#[allow(clippy::type_complexity)]
+fn system(
+    text: &str,
+) -> (
+    Vec<(String, String)>,
+    Vec<(String, String)>,
+    Vec<(String, String)>,
+    Vec<(String, String)>,
+) {
+    let options = roxmltree::ParsingOptions {
+        allow_dtd: true,
+        ..Default::default()
+    };
+    let doc = roxmltree::Document::parse_with_options(text, options).unwrap();
+    let a = |n: roxmltree::Node, k: &str| n.attribute(k).unwrap().to_string();
+    let app = doc
+        .descendants()
+        .find(|n| n.has_tag_name("Application"))
+        .unwrap();
+    let fbs = app
+        .descendants()
+        .filter(|n| n.has_tag_name("FB"))
+        .map(|n| (a(n, "Name"), a(n, "Type")))
+        .collect();
+    let conns = app
+        .descendants()
+        .filter(|n| n.has_tag_name("Connection"))
+        .map(|n| (a(n, "Source"), a(n, "Destination")))
+        .collect();
+    let mapping = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("Mapping"))
+        .map(|n| (a(n, "From"), a(n, "To")))
+        .collect();
+    let resources = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("Resource"))
+        .map(|n| (a(n.parent().unwrap(), "Name"), a(n, "Name")))
+        .collect();
+    (fbs, conns, mapping, resources)
+}
+
+/// The exported system is the robot: an FB per chart (of its exported type) and a
+/// service FB per role, each mapped to the resource of its role on the device of the
+/// role's node; every chart input fed by as many connections as the robot routes to it.
+/// The paper's charts: exactly the connections the paper draws, the cut ones as
+/// PUBLISH / SUBSCRIBE pairs on the resources.
+#[test]
+fn the_system_has_the_robots_instances_connections_and_mapping() {
+    for path in robots() {
+        let (_, c) = compiled(&path);
+        let e = exported(&c);
+        let (fbs, conns, mapping, resources) = system(file(&e, &export::sys_file(&c)));
+        let app = format!("{}App", export::fbt::identifier(&c.ir.name));
+        let mut want: Vec<(String, String)> = e
+            .instances
+            .iter()
+            .map(|i| (i.name.clone(), i.ty.clone()))
+            .collect();
+        for ri in 0..c.ir.roles.len() {
+            let io = export::sys::io_name(&c, ri);
+            want.push((io.clone(), io));
+        }
+        assert_eq!(fbs, want, "{}", path.display());
+        let mut want_mapping = Vec::new();
+        let mut want_resources = Vec::new();
+        for node in &c.robot.nodes {
+            for (ri, r) in c.ir.roles.iter().enumerate() {
+                if !c
+                    .robot
+                    .assign
+                    .iter()
+                    .any(|(role, n)| *role == r.name && *n == node.name)
+                {
+                    continue;
+                }
+                want_resources.push((node.name.replace('-', "_"), r.name.clone()));
+                for (name, _) in fbs.iter().filter(|(name, _)| {
+                    e.instances.iter().any(|i| i.role == ri && &i.name == name)
+                        || *name == export::sys::io_name(&c, ri)
+                }) {
+                    want_mapping.push((
+                        format!("{app}.{name}"),
+                        format!("{}.{}.{name}", node.name.replace('-', "_"), r.name),
+                    ));
+                }
+            }
+        }
+        assert_eq!(resources, want_resources, "{}", path.display());
+        assert_eq!(mapping, want_mapping, "{}", path.display());
+        for i in &e.instances {
+            let r = &c.ir.roles[i.role];
+            for (k, input) in i.inputs.iter().enumerate() {
+                let routed = r
+                    .routes
+                    .iter()
+                    .filter(|(_, ch, x)| *ch == i.chart && *x == k)
+                    .count();
+                let dest = format!("{}.{input}", i.name);
+                let fed = conns.iter().filter(|(_, d)| *d == dest).count();
+                assert_eq!(fed, routed, "{}: {dest}", path.display());
+            }
+        }
+    }
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../robot-configs/paint-robot-paper-charts.ron");
+    let (_, c) = compiled(&path);
+    let e = exported(&c);
+    let sys = file(&e, &export::sys_file(&c));
+    let (_, conns, _, _) = system(sys);
+    let charts: Vec<String> = conns
+        .iter()
+        .filter(|(s, d)| !s.contains("_IO.") && !d.contains("_IO."))
+        .map(|(s, d)| format!("{s} -> {d}"))
+        .collect();
+    assert_eq!(
+        charts,
+        ["GR_gr.GR1 -> VC_vc.GR1", "GR_gr.GR0 -> VC_vc.GR0",]
+    );
+    let from_io: Vec<String> = conns
+        .iter()
+        .filter(|(s, _)| s.contains("_IO."))
+        .map(|(s, d)| format!("{s} -> {d}"))
+        .collect();
+    assert_eq!(
+        from_io,
+        [
+            "VC_IO.START -> VC_vc.START",
+            "VC_IO.VC_home -> VC_vc.VC0",
+            "VC_IO.VC_end -> VC_vc.VC1",
+            "HC_IO.HC_end -> VC_vc.HC1",
+            "HC_IO.HC_home -> VC_vc.HC0",
+            "VC_IO.VC_end -> GR_gr.VC1",
+            "GR_IO.gr_T -> GR_gr.T",
+            "VC_IO.VC_home -> HC_hc.VC0",
+            "RC_IO.RC_home -> HC_hc.RC0",
+            "VC_IO.VC_home -> RC_rc.VC0",
+            "RC_IO.RC_end -> RC_rc.RC1",
+        ]
+    );
+    // Seven topics cross nodes (GR's two outputs, HC's two switches, VC's two, RC's home
+    // switch), each published once; VC subscribes to four, GR to one, HC to two, RC to
+    // one.
+    assert_eq!(sys.matches("Type=\"PUBLISH_0\"").count(), 7, "{sys}");
+    assert_eq!(sys.matches("Type=\"SUBSCRIBE_0\"").count(), 8, "{sys}");
+}
+
+/// The full `.sys` round trip, for when the `.sys` import lands: export `robot`,
+/// import its `.sys` (with the exported `.fbt` types beside it) into a robot, compile it
+/// and compare with the original: the same tables where the names are the same, else
+/// the same `sim` trace. Wire `import` to the `.sys` importer and call it from a test
+/// for each robot of `robot-configs/`.
+#[allow(dead_code)]
+pub fn sys_reimport_round_trip(
+    robot: &Path,
+    import: &dyn Fn(&Path) -> Result<Compiled, String>,
+) -> Result<(), String> {
+    let (_, c) = compiled(robot);
+    let e = exported(&c);
+    let dir = std::env::temp_dir().join(format!(
+        "sys-round-trip-{}-{}",
+        std::process::id(),
+        c.ir.name
+    ));
+    std::fs::create_dir_all(&dir).map_err(|x| x.to_string())?;
+    for (name, text) in &e.files {
+        std::fs::write(dir.join(name), text).map_err(|x| x.to_string())?;
+    }
+    let back = import(&dir.join(export::sys_file(&c)));
+    std::fs::remove_dir_all(&dir).map_err(|x| x.to_string())?;
+    let back = back?;
+    if back.blobs == c.blobs {
+        Ok(())
+    } else {
+        Err(format!(
+            "{}: the re-imported robot's tables differ",
+            robot.display()
+        ))
+    }
+}

@@ -61,7 +61,8 @@ fn value(ast: &Ast, names: Names<'_>) -> Result<(String, Kind), String> {
                 BinOp::Mul => ("*", Kind::Int),
                 BinOp::Div => ("/", Kind::Int),
                 BinOp::Rem => ("MOD", Kind::Int),
-                BinOp::Or | BinOp::And => unreachable_pair(),
+                // Matched by the arm above.
+                BinOp::Or | BinOp::And => ("OR", Kind::Bool),
             };
             let (ta, ka) = value(a, names)?;
             let (tb, kb) = value(b, names)?;
@@ -81,11 +82,6 @@ fn value(ast: &Ast, names: Names<'_>) -> Result<(String, Kind), String> {
             ))
         }
     })
-}
-
-/// `Or` and `And` are matched before the comparison arm.
-fn unreachable_pair() -> (&'static str, Kind) {
-    ("OR", Kind::Bool)
 }
 
 /// The expression a chart's bytecode computes, as an AST (names from `name_of`: a

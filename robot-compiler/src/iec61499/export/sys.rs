@@ -33,13 +33,13 @@ pub fn io_name(c: &Compiled, ri: usize) -> String {
     format!("{}_IO", identifier(&c.ir.roles[ri].name))
 }
 
+/// A role's service FB's event outputs and inputs.
+pub type IoEvents = (Vec<String>, Vec<String>);
+
 /// Every connection of the application, and per role the service FB's event outputs and
 /// inputs (in order of first use).
-pub fn connections(
-    c: &Compiled,
-    instances: &[Instance],
-) -> (Vec<Connection>, Vec<(Vec<String>, Vec<String>)>) {
-    let mut io: Vec<(Vec<String>, Vec<String>)> = vec![(Vec::new(), Vec::new()); c.ir.roles.len()];
+pub fn connections(c: &Compiled, instances: &[Instance]) -> (Vec<Connection>, Vec<IoEvents>) {
+    let mut io: Vec<IoEvents> = vec![(Vec::new(), Vec::new()); c.ir.roles.len()];
     let mut out = Vec::new();
     let push = |v: &mut Vec<String>, n: &str| {
         if !v.iter().any(|x| x == n) {
