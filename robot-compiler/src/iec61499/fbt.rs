@@ -9,7 +9,9 @@
 //!   algorithm's assignments then its output event; `ECTransition`s with conditions as
 //!   the tools write them: `EI[guard]`, `EI & guard` (1st edition, FBDK), `[guard]`, `EI`,
 //!   `guard`, `1` / `TRUE`;
-//! - algorithms in Structured Text ([`super::st`]).
+//! - algorithms in Structured Text ([`super::st`]);
+//! - in a type the export marked, the node's services as output events of reserved
+//!   names and its timers as the event inputs they start ([`super::services`]).
 //!
 //! Anything else (another algorithm language, REAL, STRING, adapters, a service or
 //! composite FB) is an error naming the element and its line:col; nothing is half
