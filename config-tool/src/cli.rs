@@ -30,6 +30,14 @@ pub enum Command {
         #[arg(long)]
         generation: Option<u32>,
     },
+    /// Write each chart type as an IEC 61499-2 basic FB type (`DIR/TYPE.fbt`) and the
+    /// robot as a system (`DIR/ROBOT.sys`) for Eclipse 4diac IDE (docs/iec61499-xml.md).
+    #[command(name = "export-4diac")]
+    Export4diac {
+        robot: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Print a table blob in readable form.
     Dump { blob: PathBuf },
     /// Print each control function's matrices: M, F, m(0), x and u (docs/petri-nets.md).

@@ -1,7 +1,11 @@
 //! IEC 61499-2 XML in: basic FB types (`.fbt`) become chart types of the robot
 //! (docs/iec61499-xml.md). [`fbt`] reads one file, [`st`] translates its Structured Text.
+//! Out: [`export`] writes a compiled robot as `.fbt` types and a `.sys`; [`services`] is
+//! the naming of the node's services both directions share.
 
+pub mod export;
 pub mod fbt;
+pub mod services;
 pub mod st;
 
 use std::io;
