@@ -141,7 +141,7 @@ impl Types {
     }
 
     /// Makes `name` known if the library has it; whether it did.
-    fn from_library(&mut self, name: &str, at: &At) -> Result<bool, SysError> {
+    fn load_library(&mut self, name: &str, at: &At) -> Result<bool, SysError> {
         let Some((_, text)) = LIBRARY.iter().find(|(n, _)| *n == name) else {
             return Ok(false);
         };
@@ -351,7 +351,7 @@ impl Flat {
                 c.outputs.clone(),
             ));
         }
-        if types.basic(&fb.ty).is_none() && !types.from_library(&fb.ty, &fb.at)? {
+        if types.basic(&fb.ty).is_none() && !types.load_library(&fb.ty, &fb.at)? {
             return Err(fb.at.error(unknown_type(&fb.name, &fb.ty)));
         }
         let Some((t, i)) = types.basic(&fb.ty) else {
@@ -501,7 +501,7 @@ pub fn time_ms(text: &str) -> Option<u32> {
         us = us.checked_add(n.checked_mul(scale)?)?;
         rest = &rest[unit..];
     }
-    if us % 1000 != 0 {
+    if !us.is_multiple_of(1000) {
         return None;
     }
     u32::try_from(us / 1000).ok()

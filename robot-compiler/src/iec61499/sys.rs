@@ -89,13 +89,12 @@ pub fn parse(text: &str, file: &str) -> Result<System, SysError> {
     for n in maps {
         let from = x.attr(n, "From")?;
         let to = x.attr(n, "To")?;
-        let Some((a, fb)) = from.split_once('.').filter(|(a, _)| *a == app) else {
+        let Some((_, fb)) = from.split_once('.').filter(|(a, _)| *a == app) else {
             return Err(x.error(
                 n,
                 format!("`From=\"{from}\"` names no FB of the application `{app}` (`{app}.FB`)"),
             ));
         };
-        let _ = a;
         let mut parts = to.splitn(3, '.');
         let (Some(device), Some(resource)) = (parts.next(), parts.next()) else {
             return Err(x.error(
