@@ -28,14 +28,20 @@ fn chain(n: usize) -> String {
     let mut conns = String::new();
     let mut maps = String::new();
     for i in 0..n {
-        fbs += &format!("      <FB Name=\"c{i}\" Type=\"E_CTU\"><Parameter Name=\"PV\" Value=\"3\"/></FB>\n");
+        fbs += &format!(
+            "      <FB Name=\"c{i}\" Type=\"E_CTU\"><Parameter Name=\"PV\" Value=\"3\"/></FB>\n"
+        );
         if i > 0 {
             conns += &format!(
                 "        <Connection Source=\"c{}.CUO\" Destination=\"c{i}.CU\"/>\n",
                 i - 1
             );
         }
-        maps += &format!("  <Mapping From=\"App.c{i}\" To=\"n{}.R{}\"/>\n", i % 4, i % 4);
+        maps += &format!(
+            "  <Mapping From=\"App.c{i}\" To=\"n{}.R{}\"/>\n",
+            i % 4,
+            i % 4
+        );
     }
     let devices: String = (0..4)
         .map(|d| format!("  <Device Name=\"n{d}\"><Resource Name=\"R{d}\"/></Device>\n"))
@@ -89,7 +95,10 @@ fn main() {
         let src = Source::new(dir.join("b.ron").to_string_lossy().as_ref(), ROBOT);
         match compile(&src) {
             Ok(c) => println!("  {name:<10} {:>5} bytes", c.blobs[0].len()),
-            Err(d) => println!("  {name:<10} does not compile: {:?}", d.first().map(|d| &d.message)),
+            Err(d) => println!(
+                "  {name:<10} does not compile: {:?}",
+                d.first().map(|d| &d.message)
+            ),
         }
     }
     let _ = std::fs::remove_dir_all(&dir);
