@@ -164,13 +164,16 @@ fn verify_passes_every_robot_of_robot_configs_as_declared() {
             .filter(|f| f.ends_with(".ron"))
             .collect();
     files.sort();
-    assert_eq!(files.len(), 8, "{files:?}");
+    assert_eq!(files.len(), 9, "{files:?}");
     for f in &files {
         let out = tool(&["verify", &format!("robot-configs/{f}")]);
         assert_eq!(out.status.code(), Some(0), "{f}: {}", text(&out.stdout));
         let stdout = text(&out.stdout);
         // The robots that count shared position events say which assumption they rest on.
-        let assumes = f.contains("paper-charts") || f.contains("counted") || f.contains("waterjet");
+        let assumes = f.contains("paper-charts")
+            || f.contains("4diac")
+            || f.contains("counted")
+            || f.contains("waterjet");
         assert_eq!(
             stdout.contains("assumes a prompt radio (`assume_prompt_radio`)"),
             assumes,

@@ -99,8 +99,24 @@ struct Var {
     init: Option<String>,
 }
 
+/// The typed interface of an imported basic FB type, beyond its chart type: what an
+/// application (`.sys`) needs to give its instances' parameters and check its connections.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Interface {
+    /// The input variables (the chart type's parameters, in order): name, type, and the
+    /// `InitialValue` as a chart literal (a parameter without a value takes it, else 0).
+    pub inputs: Vec<(String, Ty, Option<String>)>,
+    /// The output variables' names.
+    pub outputs: Vec<String>,
+}
+
 /// Parses the `.fbt` text into a chart type.
 pub fn import(text: &str) -> Result<ChartType, XmlError> {
+    import_typed(text).map(|(t, _)| t)
+}
+
+/// [`import`], with the type's typed [`Interface`].
+pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
     let options = ParsingOptions {
         allow_dtd: true,
         ..ParsingOptions::default()
@@ -373,7 +389,14 @@ pub fn import(text: &str) -> Result<ChartType, XmlError> {
             init: v.init.clone().unwrap_or_else(|| String::from("0")),
         })
         .collect();
-    Ok(ChartType {
+    let interface = Interface {
+        inputs: inputs
+            .iter()
+            .map(|v| (v.name.clone(), v.ty, v.init.clone()))
+            .collect(),
+        outputs: outputs.iter().map(|v| v.name.clone()).collect(),
+    };
+    let chart = ChartType {
         name,
         params: inputs.iter().map(|v| v.name.clone()).collect(),
         inputs: in_names
@@ -390,7 +413,8 @@ pub fn import(text: &str) -> Result<ChartType, XmlError> {
         timers,
         states,
         transitions,
-    })
+    };
+    Ok((chart, interface))
 }
 
 /// What a state does when entered: a statement of one of its algorithms, or its output
