@@ -186,7 +186,9 @@ fn explicit_chart_types_round_trip_to_the_same_tables() {
     let mut robots_done = Vec::new();
     for path in robots() {
         let (src, c) = compiled(&path);
-        if c.robot.chart_types.is_empty() {
+        // A robot that brings a 4diac application has no `chart_types` of its own to
+        // replace (its types come with the application).
+        if c.robot.chart_types.is_empty() || c.robot.application.is_some() {
             continue;
         }
         let e = exported(&c);

@@ -834,7 +834,18 @@ pub fn bring(
             t.name.clone()
         } else {
             let mut s = t.clone();
-            s.name = format!("{}@{}", t.name, l.name);
+            // `TYPE_FB`: an IEC 61131-3 identifier (so the robot exports back to 4diac),
+            // made unique against the types already there.
+            let taken = |n: &str| {
+                robot.chart_types.iter().any(|x| x.name == n)
+                    || chart_types.iter().any(|x| x.name == n)
+            };
+            s.name = format!("{}_{}", t.name, l.name);
+            let mut k = 2;
+            while taken(&s.name) {
+                s.name = format!("{}_{}_{k}", t.name, l.name);
+                k += 1;
+            }
             s.outputs.retain(|o| !own_acts.iter().any(|(x, _)| *x == o));
             s.inputs.retain(|i| !own_timers.contains(i));
             s.timers.extend(own_timers.iter().cloned());
