@@ -314,6 +314,53 @@ M := I MOD 7 + I / 1000;]]></ST></Algorithm>
 }
 
 #[test]
+fn a_for_loop_with_constant_bounds_runs_unrolled_on_the_node() {
+    // Sums 1..4 (and, nested, a 2 x 3 grid with a downward step) into DINTs per event;
+    // the control variables are left past their last value, as the loop leaves them.
+    let dir = std::env::temp_dir().join(format!("iec61499-for-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let fbt = r#"<?xml version="1.0" encoding="UTF-8"?>
+<FBType Name="SUMS">
+  <InterfaceList>
+    <EventInputs><Event Name="EI"/></EventInputs>
+    <EventOutputs><Event Name="EO"/></EventOutputs>
+    <OutputVars>
+      <VarDeclaration Name="SUM" Type="DINT"/>
+      <VarDeclaration Name="GRID" Type="DINT"/>
+    </OutputVars>
+  </InterfaceList>
+  <BasicFB>
+    <InternalVars>
+      <VarDeclaration Name="I" Type="INT"/>
+      <VarDeclaration Name="J" Type="INT"/>
+    </InternalVars>
+    <ECC>
+      <ECState Name="START"/>
+      <ECState Name="RUN"><ECAction Algorithm="RUN" Output="EO"/></ECState>
+      <ECTransition Source="START" Destination="RUN" Condition="EI"/>
+      <ECTransition Source="RUN" Destination="START" Condition="1"/>
+    </ECC>
+    <Algorithm Name="RUN"><ST><![CDATA[FOR I := 1 TO 4 DO
+  SUM := SUM + I;
+END_FOR;
+FOR I := 20 TO 10 BY -10 DO
+  FOR J := 1 TO 3 DO GRID := GRID + I * J; END_FOR;
+END_FOR;]]></ST></Algorithm>
+  </BasicFB>
+</FBType>
+"#;
+    std::fs::write(dir.join("SUMS.fbt"), fbt).expect("write");
+    let c = robot_in(&dir, "SUMS", &[]);
+    let trace = drive(&c, &["EI"; 2], &["SUM", "GRID"]);
+    let _ = std::fs::remove_dir_all(&dir);
+    // 1 + 2 + 3 + 4 = 10 per event; (20 + 10) * (1 + 2 + 3) = 180 per event.
+    assert_eq!(
+        trace,
+        ["EI: [EO] SUM=10 GRID=180", "EI: [EO] SUM=20 GRID=360"]
+    );
+}
+
+#[test]
 fn if_and_case_choose_on_the_node_and_the_ecc_rests_in_its_state() {
     let dir = std::env::temp_dir().join(format!("iec61499-if-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");

@@ -10,9 +10,12 @@
 //! IEC 61131-3 has it: an operation on SINT, INT, USINT or UINT values (a literal takes
 //! the other side's type) is wrapped to 8 or 16 bits (`int(...)`, `uint(...)` in the
 //! chart's expression), and so is a value assigned to a variable of a narrower type;
-//! DINT and UDINT compute in 32 bits (UDINT exact below 2^31). Refused with a message
-//! naming the construct: `**`, `IF`, `CASE`, `FOR`, `WHILE`, `REPEAT`, function calls,
-//! and anything else.
+//! DINT and UDINT compute in 32 bits (UDINT exact below 2^31). `IF` / `ELSIF` / `ELSE`
+//! and `CASE` become choices ([`Stmt::If`]); `FOR i := a TO b [BY c] DO ... END_FOR`
+//! with constant bounds is unrolled (at most [`MAX_UNROLL`] iterations), `i` read as
+//! its value in each. Refused with a message naming the construct: `**`, `WHILE`,
+//! `REPEAT`, `EXIT`, `RETURN`, function calls, a FOR bound that is not a constant, and
+//! anything else.
 //!
 //! Names are case-insensitive, as IEC 61131-3 has them: each resolves to its declared
 //! spelling. Offsets in errors are byte offsets into the text given.
@@ -224,10 +227,13 @@ fn number(text: &str, span: Range<usize>) -> Result<i64, StError> {
 }
 
 /// Words that start a statement or construct the subset does not have.
-const UNSUPPORTED: [&str; 5] = ["FOR", "WHILE", "REPEAT", "EXIT", "RETURN"];
+const UNSUPPORTED: [&str; 4] = ["WHILE", "REPEAT", "EXIT", "RETURN"];
 
-/// Words that end a statement list (of an `IF` arm or a `CASE` branch).
-const ENDS: [&str; 5] = ["ELSIF", "ELSE", "END_IF", "END_CASE", "THEN"];
+/// Words that end a statement list (of an `IF` arm, a `CASE` branch or a `FOR` body).
+const ENDS: [&str; 6] = ["ELSIF", "ELSE", "END_IF", "END_CASE", "END_FOR", "THEN"];
+
+/// A `FOR` loop is unrolled (its bounds are constants): at most this many iterations.
+pub const MAX_UNROLL: i64 = 32;
 
 /// One statement: an assignment in the chart types' syntax, or a choice.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -246,6 +252,9 @@ struct Parser<'n> {
     toks: Vec<(Tok, Range<usize>)>,
     at: usize,
     names: &'n [Name],
+    /// The control variables of the `FOR` loops being unrolled, each with its value in
+    /// the iteration being read.
+    unrolling: Vec<(String, i64)>,
 }
 
 impl Parser<'_> {
@@ -321,8 +330,12 @@ impl Parser<'_> {
                 }
                 Tok::Word(w) if w.eq_ignore_ascii_case("IF") => out.push(self.if_statement()?),
                 Tok::Word(w) if w.eq_ignore_ascii_case("CASE") => out.push(self.case_statement()?),
+                Tok::Word(w) if w.eq_ignore_ascii_case("FOR") => out.extend(self.for_statement()?),
                 Tok::Word(w) if self.at_word(&ENDS) => {
-                    return err(self.span(), format!("`{w}` without its `IF` or `CASE`"));
+                    return err(
+                        self.span(),
+                        format!("`{w}` without its `IF`, `CASE` or `FOR`"),
+                    );
                 }
                 Tok::Word(w) => out.push(self.assignment(&w)?),
                 _ => return err(self.span(), "expected a statement (`NAME := expression;`)"),
@@ -408,6 +421,100 @@ impl Parser<'_> {
         Ok(Stmt::If { arms, otherwise })
     }
 
+    /// `FOR i := a TO b [BY c] DO ... END_FOR`, bounds and step constant: unrolled, the
+    /// body read once per value of `i` with `i` that value (an integer of `i`'s type),
+    /// then `i` assigned the value after the last (as the loop would leave it).
+    fn for_statement(&mut self) -> Result<Vec<Stmt>, StError> {
+        let for_span = self.span();
+        self.bump(); // FOR
+        let (name, span) = match self.bump() {
+            (Tok::Word(w), span) => (w, span),
+            (_, span) => return err(span, "expected the FOR loop's control variable"),
+        };
+        let var = self.resolve(&name, span.clone())?.clone();
+        if !var.ty.is_int() || !var.writable {
+            return err(
+                span,
+                format!(
+                    "`{}` cannot count a FOR loop: it must be an integer output or internal \
+                     variable",
+                    var.name
+                ),
+            );
+        }
+        if self.unrolling.iter().any(|(n, _)| *n == var.name) {
+            return err(
+                span,
+                format!("`{}` already counts an outer FOR loop", var.name),
+            );
+        }
+        if !self.sym(":=") {
+            return err(self.span(), format!("expected `:=` after `{name}`"));
+        }
+        self.bump();
+        let from = self.constant("FOR loop's start")?;
+        self.expect_word("TO")?;
+        let to = self.constant("FOR loop's end")?;
+        let by = if self.word("BY") {
+            self.bump();
+            let by_span = self.span();
+            match self.constant("FOR loop's step")? {
+                0 => return err(by_span, "a FOR loop's step is not 0"),
+                by => by,
+            }
+        } else {
+            1
+        };
+        self.expect_word("DO")?;
+        let count = match (to - from).checked_div(by) {
+            Some(n) if n >= 0 => n + 1,
+            _ => 0,
+        };
+        if count > MAX_UNROLL {
+            return err(
+                for_span,
+                format!("a FOR loop of {count} iterations (it is unrolled: at most {MAX_UNROLL})"),
+            );
+        }
+        let body = self.at;
+        let mut out = Vec::new();
+        // An empty loop's body is still read (checked) once, and dropped.
+        for k in 0..count.max(1) {
+            self.at = body;
+            self.unrolling.push((var.name.clone(), from + k * by));
+            let stmts = self.statements(true);
+            self.unrolling.pop();
+            if k < count {
+                out.extend(stmts?);
+            } else {
+                stmts?;
+            }
+        }
+        self.expect_word("END_FOR")?;
+        if self.sym(";") {
+            self.bump();
+        }
+        let after = from + count * by;
+        let after = match var.ty {
+            Ty::Int(Some(w)) if !literal_fits(&after.to_string(), Some(w)) => {
+                format!("{}({after})", crate::expr::wrap_name(w.bits, w.signed))
+            }
+            _ => after.to_string(),
+        };
+        out.push(Stmt::Assign(var.name.clone(), after));
+        Ok(out)
+    }
+
+    /// An integer constant (a literal, or literals folded): a FOR loop's bound or step.
+    fn constant(&mut self, what: &str) -> Result<i64, StError> {
+        let span = self.span();
+        let (v, ty) = self.expr()?;
+        match (ty, v.parse::<i64>()) {
+            (Ty::Int(_), Ok(v)) => Ok(v),
+            _ => err(span, format!("the {what} must be an integer constant")),
+        }
+    }
+
     /// A `CASE` label: an integer literal, `-` allowed.
     fn label(&mut self) -> Result<i64, StError> {
         let neg = self.sym("-");
@@ -434,10 +541,19 @@ impl Parser<'_> {
         if let Some(kw) = UNSUPPORTED.iter().find(|k| w.eq_ignore_ascii_case(k)) {
             return err(
                 span,
-                format!("`{kw}` is not supported yet (the subset: assignments, IF, CASE)"),
+                format!("`{kw}` is not supported yet (the subset: assignments, IF, CASE, FOR with constant bounds)"),
             );
         }
         let target = self.resolve(w, span.clone())?.clone();
+        if self.unrolling.iter().any(|(n, _)| *n == target.name) {
+            return err(
+                span,
+                format!(
+                    "`{}` counts the FOR loop: its body may not assign it",
+                    target.name
+                ),
+            );
+        }
         self.bump();
         if !self.sym(":=") {
             return err(self.span(), format!("expected `:=` after `{w}`"));
@@ -591,6 +707,9 @@ impl Parser<'_> {
                     );
                 }
                 let n = self.resolve(&w, span)?;
+                if let Some((_, k)) = self.unrolling.iter().find(|(v, _)| *v == n.name) {
+                    return Ok((k.to_string(), n.ty));
+                }
                 Ok((n.name.clone(), n.ty))
             }
             Tok::Sym("(") => {
@@ -640,6 +759,7 @@ pub fn algorithm(text: &str, names: &[Name]) -> Result<Vec<Stmt>, StError> {
         toks: lex(text)?,
         at: 0,
         names,
+        unrolling: Vec::new(),
     };
     p.statements(false)
 }
@@ -650,6 +770,7 @@ pub fn condition(text: &str, names: &[Name]) -> Result<String, StError> {
         toks: lex(text)?,
         at: 0,
         names,
+        unrolling: Vec::new(),
     };
     let span = p.span();
     let (v, ty) = p.expr()?;
@@ -796,7 +917,7 @@ mod tests {
         assert_eq!(
             e("WHILE G DO CV := 0; END_WHILE;"),
             StError {
-                message: "`WHILE` is not supported yet (the subset: assignments, IF, CASE)"
+                message: "`WHILE` is not supported yet (the subset: assignments, IF, CASE, FOR with constant bounds)"
                     .to_string(),
                 span: 0..5
             }
@@ -807,7 +928,10 @@ mod tests {
         );
         assert_eq!(e("IF G THEN Q := TRUE;").message, "expected `END_IF`");
         assert_eq!(e("IF G Q := TRUE; END_IF;").message, "expected `THEN`");
-        assert_eq!(e("END_IF;").message, "`END_IF` without its `IF` or `CASE`");
+        assert_eq!(
+            e("END_IF;").message,
+            "`END_IF` without its `IF`, `CASE` or `FOR`"
+        );
         assert_eq!(
             e("CASE G OF 1: Q := TRUE; END_CASE;").message,
             "CASE selects on an integer"
@@ -840,6 +964,81 @@ mod tests {
         assert_eq!(
             e("CV := ABS(CV);").message,
             "function calls (`ABS(...)`) are not supported"
+        );
+    }
+
+    #[test]
+    fn a_for_loop_with_constant_bounds_is_unrolled() {
+        let a = |v: &str, e: &str| (v.to_string(), e.to_string());
+        // The control variable reads as its value, of its type (DINT: no wrap), and is
+        // left at the value after the last iteration.
+        assert_eq!(
+            assigns("FOR D := 1 TO 3 DO CV := CV + D; END_FOR; Q := TRUE;"),
+            Ok(vec![
+                a("CV", "uint((CV + 1))"),
+                a("CV", "uint((CV + 2))"),
+                a("CV", "uint((CV + 3))"),
+                a("D", "4"),
+                a("Q", "true"),
+            ])
+        );
+        // A step, downwards; nested loops; the bounds folded from literals.
+        assert_eq!(
+            assigns("FOR D := 2 * 3 TO 1 BY -3 DO FOR S := 0 TO 1 DO CV := D + S; END_FOR END_FOR"),
+            Ok(vec![
+                a("CV", "uint((6 + 0))"),
+                a("CV", "uint((6 + 1))"),
+                a("S", "2"),
+                a("CV", "uint((3 + 0))"),
+                a("CV", "uint((3 + 1))"),
+                a("S", "2"),
+                a("D", "0"),
+            ])
+        );
+        // No iteration: the body is checked and dropped; the variable gets the start.
+        assert_eq!(
+            assigns("FOR D := 5 TO 1 DO CV := 0; END_FOR;"),
+            Ok(vec![a("D", "5")])
+        );
+        // A SINT left past its range wraps as the loop's increment would.
+        assert_eq!(
+            assigns("FOR S := 120 TO 127 BY 7 DO END_FOR;"),
+            Ok(vec![a("S", "sint(134)")])
+        );
+        let e = |text: &str| algorithm(text, &names()).unwrap_err();
+        assert_eq!(
+            e("FOR D := 0 TO 32 DO CV := D; END_FOR;"),
+            StError {
+                message: "a FOR loop of 33 iterations (it is unrolled: at most 32)".into(),
+                span: 0..3
+            }
+        );
+        assert_eq!(
+            e("FOR D := 0 TO CV DO END_FOR;"),
+            StError {
+                message: "the FOR loop's end must be an integer constant".into(),
+                span: 14..16
+            }
+        );
+        assert_eq!(
+            e("FOR D := 0 TO 3 DO D := 1; END_FOR;").message,
+            "`D` counts the FOR loop: its body may not assign it"
+        );
+        assert_eq!(
+            e("FOR PV := 0 TO 3 DO END_FOR;").message,
+            "`PV` cannot count a FOR loop: it must be an integer output or internal variable"
+        );
+        assert_eq!(
+            e("FOR D := 0 TO 3 BY 0 DO END_FOR;").message,
+            "a FOR loop's step is not 0"
+        );
+        assert_eq!(
+            e("FOR D := 0 TO 3 DO CV := 1;").message,
+            "expected `END_FOR`"
+        );
+        assert_eq!(
+            e("FOR D := 0 TO 1 DO FOR D := 0 TO 1 DO END_FOR; END_FOR;").message,
+            "`D` already counts an outer FOR loop"
         );
     }
 
