@@ -59,38 +59,34 @@ pub struct EngineState {
     pub fault: Option<Fault>,
 }
 
-/// Where a chart's pieces are in the table's pools, worked out once per engine so the hot
-/// path does not recompute them per event.
-#[derive(Debug, Clone, Copy, Default)]
-struct Layout {
-    transitions: (usize, usize),
-    first_state: usize,
-    /// The chart has event-less transitions: only then is it re-scanned after a firing.
-    eventless: bool,
+mod index;
+
+pub use index::Index;
+use index::NONE;
+
+/// The engine's index: its own (built with the engine) or the one its runtime keeps
+/// beside the table (built once at activation, not per stimulus).
+#[derive(Debug, Clone)]
+enum IndexRef<'t> {
+    Own(Index),
+    Kept(&'t Index),
 }
 
-fn layouts(table: &Table) -> [Layout; MAX_CHARTS] {
-    let mut out = [Layout::default(); MAX_CHARTS];
-    for (c, slot) in out.iter_mut().enumerate().take(table.charts.len()) {
-        let range = table.chart_transitions(c);
-        let eventless = table
-            .transitions
-            .get(range.clone())
-            .is_some_and(|ts| ts.iter().any(|t| t.trigger.is_none()));
-        *slot = Layout {
-            transitions: (range.start, range.end),
-            first_state: table.chart_states(c).start,
-            eventless,
-        };
+impl IndexRef<'_> {
+    #[inline]
+    fn get(&self) -> &Index {
+        match self {
+            IndexRef::Own(ix) => ix,
+            IndexRef::Kept(ix) => ix,
+        }
     }
-    out
 }
 
 /// One node's charts running one table.
 #[derive(Debug, Clone)]
 pub struct Engine<'t> {
     table: &'t Table,
-    layout: [Layout; MAX_CHARTS],
+    index: IndexRef<'t>,
     current: [u8; MAX_CHARTS],
     vars: [i32; MAX_VARS],
     inputs: u16,
@@ -119,7 +115,7 @@ impl<'t> Engine<'t> {
     pub fn new_holding(table: &'t Table, before: u16) -> Self {
         let mut engine = Engine {
             table,
-            layout: layouts(table),
+            index: IndexRef::Own(Index::new(table)),
             current: [0; MAX_CHARTS],
             vars: [0; MAX_VARS],
             inputs: 0,
@@ -162,9 +158,19 @@ impl<'t> Engine<'t> {
     /// An engine over `table` in a state taken by [`snapshot`](Engine::snapshot) of an
     /// engine running the same table.
     pub fn resume(table: &'t Table, state: &EngineState) -> Self {
+        Engine::resume_with(table, IndexRef::Own(Index::new(table)), state)
+    }
+
+    /// [`resume`](Engine::resume) with `index`, the [`Index`] of `table` its runtime keeps
+    /// (built once when the table was activated).
+    pub fn resume_indexed(table: &'t Table, index: &'t Index, state: &EngineState) -> Self {
+        Engine::resume_with(table, IndexRef::Kept(index), state)
+    }
+
+    fn resume_with(table: &'t Table, index: IndexRef<'t>, state: &EngineState) -> Self {
         Engine {
             table,
-            layout: layouts(table),
+            index,
             current: state.current,
             vars: state.vars,
             inputs: state.inputs,
@@ -331,9 +337,7 @@ impl<'t> Engine<'t> {
             return;
         }
         if local {
-            if let Some(p) = self.table.publication(event) {
-                fx.publish(p);
-            }
+            self.publish(event, fx);
         }
         // The queue is empty between stimuli: the stimulus goes straight to its routes, and
         // only events emitted by actions wait in the FIFO.
@@ -352,15 +356,40 @@ impl<'t> Engine<'t> {
         }
     }
 
+    /// Publishes `event` if it has a publication.
+    #[inline]
+    fn publish(&self, event: EventId, fx: &mut impl Effects) {
+        let p = self.index.get().publication(event);
+        if p != NONE {
+            if let Some(p) = self.table.publications.get(usize::from(p)) {
+                fx.publish(p);
+            }
+        }
+    }
+
     /// Delivers `event` to all its routes, in order, each chart running to a stable state.
     fn dispatch(&mut self, event: EventId, fx: &mut impl Effects) {
         let table = self.table;
-        for route in table.routes.iter().filter(|r| r.event == event) {
+        let mut r = self.index.get().first_route(event);
+        while r != NONE {
+            let Some(route) = table.routes.get(usize::from(r)) else {
+                return;
+            };
             self.deliver(route.chart, route.input, fx);
             if self.fault.is_some() {
                 return;
             }
+            r = self.index.get().next_route(r);
         }
+    }
+
+    /// The global index (into `Table::states`) of `chart`'s current state.
+    #[inline]
+    fn current_state(&self, chart: u8) -> Option<usize> {
+        let c = usize::from(chart);
+        let current = *self.current.get(c)?;
+        let layout = self.index.get().layout.get(c)?;
+        (current < layout.states).then(|| usize::from(layout.first_state) + usize::from(current))
     }
 
     /// Delivers chart input `input` to `chart` and runs its event-less transitions until it
@@ -377,15 +406,15 @@ impl<'t> Engine<'t> {
                 return;
             }
         }
-        if !self
-            .layout
-            .get(usize::from(chart))
-            .is_some_and(|l| l.eventless)
-        {
-            return;
-        }
         let mut steps = 0usize;
         while self.fault.is_none() {
+            // Only a state with event-less transitions leaving it can move on its own.
+            if !self
+                .current_state(chart)
+                .is_some_and(|s| self.index.get().eventless(s))
+            {
+                return;
+            }
             let t = match self.select(chart, None) {
                 Ok(Some(t)) => t,
                 Ok(None) => return,
@@ -408,33 +437,25 @@ impl<'t> Engine<'t> {
     /// cannot be evaluated (only in a table that skipped validation) is a fault.
     fn select(&self, chart: u8, input: Option<u8>) -> Result<Option<usize>, Fault> {
         let table = self.table;
-        let c = usize::from(chart);
-        let Some(&current) = self.current.get(c) else {
+        let Some(state) = self.current_state(chart) else {
             return Ok(None);
         };
-        let Some(&Layout {
-            transitions: (start, end),
-            ..
-        }) = self.layout.get(c)
-        else {
-            return Ok(None);
-        };
-        let Some(transitions) = table.transitions.get(start..end) else {
-            return Ok(None);
-        };
-        for (i, t) in transitions.iter().enumerate() {
-            if t.from != current
-                || !(t.trigger.is_none() || (input.is_some() && t.trigger == input))
-            {
-                continue;
-            }
-            let holds = match t.guard {
-                None => true,
-                Some(g) => self.eval(g).ok_or(Fault::Expr { chart })? != 0,
+        let ix = self.index.get();
+        let mut t = ix.first_from(state);
+        while t != NONE {
+            let Some(tr) = table.transitions.get(usize::from(t)) else {
+                return Ok(None);
             };
-            if holds {
-                return Ok(Some(start + i));
+            if tr.trigger.is_none() || (input.is_some() && tr.trigger == input) {
+                let holds = match tr.guard {
+                    None => true,
+                    Some(g) => self.eval(g).ok_or(Fault::Expr { chart })? != 0,
+                };
+                if holds {
+                    return Ok(Some(usize::from(t)));
+                }
             }
+            t = ix.next_from(t);
         }
         Ok(None)
     }
@@ -458,10 +479,8 @@ impl<'t> Engine<'t> {
         };
         *current = t.to;
         fx.fired(chart, transition as u8, t.from, t.to);
-        let first_state = self
-            .layout
-            .get(usize::from(chart))
-            .map_or(0, |l| l.first_state);
+        let first_state = (self.index.get().layout.get(usize::from(chart)))
+            .map_or(0, |l| usize::from(l.first_state));
         let state = first_state + usize::from(t.to);
         let actions = table.actions.get(table.state_actions(state)).unwrap_or(&[]);
         for action in actions {
@@ -484,11 +503,7 @@ impl<'t> Engine<'t> {
             },
             Action::Drive { mask, value } => self.drive(mask, value, fx),
             Action::Emit(event) => self.emit(event, fx),
-            Action::Publish(event) => {
-                if let Some(p) = self.table.publication(event) {
-                    fx.publish(p);
-                }
-            }
+            Action::Publish(event) => self.publish(event, fx),
             Action::StartTimer { timer, ms } => fx.start_timer(timer, ms),
             Action::CancelTimer(timer) => fx.cancel_timer(timer),
             Action::Fault(code) => self.set_fault(Fault::Action { chart, code }, fx),
@@ -502,9 +517,7 @@ impl<'t> Engine<'t> {
             self.set_fault(Fault::QueueFull { event }, fx);
             return;
         }
-        if let Some(p) = self.table.publication(event) {
-            fx.publish(p);
-        }
+        self.publish(event, fx);
     }
 
     fn drive(&mut self, mask: u16, value: u16, fx: &mut impl Effects) {
