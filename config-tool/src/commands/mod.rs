@@ -5,4 +5,5 @@ pub mod demo;
 pub mod keys;
 pub mod matrix;
 pub mod offline;
+pub mod panel;
 pub mod radio;

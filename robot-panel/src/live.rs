@@ -1,0 +1,307 @@
+//! The machine as it runs: what the medium said of the pins (each actuator's valves and
+//! switches, stamped with the medium's clock), the cycle's step and count, and what the
+//! nodes answered (status, alarms, security counters). Fed by [`crate::feed`] (pins) and
+//! [`crate::poll`] (answers); read by the page through [`crate::view`].
+
+use std::collections::BTreeMap;
+use std::time::SystemTime;
+
+use config_schema::alarm::AlarmReport;
+use config_schema::wire::msg::{SecurityCounters, Status};
+use robot_compiler::compile::Compiled;
+
+use crate::model::Machine;
+
+/// Where an actuator's rod is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Position {
+    /// Nothing said yet.
+    #[default]
+    Unknown,
+    Home,
+    Moving,
+    End,
+}
+
+impl Position {
+    pub fn text(self) -> &'static str {
+        match self {
+            Position::Unknown => "unknown",
+            Position::Home => "home",
+            Position::Moving => "moving",
+            Position::End => "end",
+        }
+    }
+}
+
+/// One actuator as the pins say.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct LaneLive {
+    pub position: Position,
+    /// The last command: `Some(true)` extend, `Some(false)` retract.
+    pub commanded: Option<bool>,
+    /// When it was commanded (medium clock, µs).
+    pub since_us: u64,
+    /// The last completed travel: (extend, ms from command to the switch).
+    pub last: Option<(bool, u64)>,
+    /// A motion under way has gone past its plant time (still not there).
+    pub late: bool,
+}
+
+/// One node as it last answered.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct NodeLive {
+    pub status: Option<Status>,
+    pub alarms: Option<(AlarmReport, SystemTime)>,
+    pub security: Option<(bool, SecurityCounters)>,
+    /// It did not answer the last question (and since when, wall clock).
+    pub silent: Option<SystemTime>,
+}
+
+/// Everything the panel knows of the running machine.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Live {
+    pub lanes: Vec<LaneLive>,
+    /// Pin levels by (node, board pin, output).
+    pins: BTreeMap<(u16, u8, bool), bool>,
+    /// The step of the cycle under way (an index into the sequence), if one is.
+    pub step: Option<usize>,
+    next: usize,
+    cycle_start_us: Option<u64>,
+    /// Cycles completed since the panel started.
+    pub cycles: u32,
+    /// The last cycles' times, ms, newest last (at most [`KEPT_CYCLES`]).
+    pub cycle_ms: Vec<u64>,
+    pub nodes: Vec<NodeLive>,
+    /// The medium's clock as last heard (µs).
+    pub now_us: u64,
+    /// The medium went away (why), or the tool's radio failed on it.
+    pub medium_lost: Option<String>,
+    /// START runs cycles until STOP: START is pressed again at each idle point.
+    pub running: bool,
+    /// A command under way.
+    pub busy: Option<String>,
+    /// How the last command ended, in words.
+    pub said: Option<String>,
+}
+
+/// Cycle times kept for the page.
+pub const KEPT_CYCLES: usize = 8;
+
+impl Live {
+    pub fn new(m: &Machine) -> Live {
+        Live {
+            lanes: vec![LaneLive::default(); m.actuators.len()],
+            nodes: vec![NodeLive::default(); m.nodes.len()],
+            ..Live::default()
+        }
+    }
+
+    fn level(&self, addr: u16, pin: Option<u8>, output: bool) -> Option<bool> {
+        pin.and_then(|p| self.pins.get(&(addr, p, output)).copied())
+    }
+
+    /// A pin level the medium saw at `at_us` (its clock): a valve the node drove
+    /// (`output`) or a switch the plant set.
+    pub fn pin(&mut self, m: &Machine, at_us: u64, addr: u16, pin: u8, level: bool, output: bool) {
+        self.now_us = self.now_us.max(at_us);
+        self.pins.insert((addr, pin, output), level);
+        for i in 0..m.wiring.len() {
+            let Some(a) = m.wiring.get(i) else { continue };
+            if a.addr != addr {
+                continue;
+            }
+            let valve = output && (pin == a.valves.0 || pin == a.valves.1);
+            let switch = !output && (Some(pin) == a.home || Some(pin) == a.end);
+            if valve {
+                self.valve(m, i, at_us);
+            } else if switch {
+                self.switch(m, i, at_us);
+            }
+        }
+    }
+
+    /// The command of actuator `i` from its valve levels; a new one is a step.
+    fn valve(&mut self, m: &Machine, i: usize, at_us: u64) {
+        let Some(a) = m.wiring.get(i) else { return };
+        let extend = self.level(a.addr, Some(a.valves.0), true).unwrap_or(false);
+        let retract = self.level(a.addr, Some(a.valves.1), true).unwrap_or(false);
+        let commanded = match (a.double, extend, retract) {
+            (false, e, _) => Some(e),
+            (true, true, false) => Some(true),
+            (true, false, true) => Some(false),
+            _ => None,
+        };
+        let Some(lane) = self.lanes.get_mut(i) else {
+            return;
+        };
+        let Some(dir) = commanded.filter(|d| lane.commanded != Some(*d)) else {
+            return;
+        };
+        lane.commanded = Some(dir);
+        lane.since_us = at_us;
+        lane.late = false;
+        if (a.home.is_none() && a.end.is_none()) || !self.at_target(m, i) {
+            if let Some(lane) = self.lanes.get_mut(i) {
+                lane.position = Position::Moving;
+            }
+        }
+        self.stepped(m, &format!("{}{}", a.name, if dir { '+' } else { '-' }), at_us);
+    }
+
+    /// Whether actuator `i`'s switch for its commanded target reads closed already.
+    fn at_target(&self, m: &Machine, i: usize) -> bool {
+        let (Some(a), Some(lane)) = (m.wiring.get(i), self.lanes.get(i)) else {
+            return false;
+        };
+        let target = match lane.commanded {
+            Some(true) => a.end,
+            Some(false) => a.home,
+            None => return false,
+        };
+        self.level(a.addr, target, false) == Some(true)
+    }
+
+    fn switch(&mut self, m: &Machine, i: usize, at_us: u64) {
+        let Some(a) = m.wiring.get(i) else { return };
+        let home = self.level(a.addr, a.home, false) == Some(true);
+        let end = self.level(a.addr, a.end, false) == Some(true);
+        let position = match (home, end) {
+            (_, true) => Position::End,
+            (true, false) => Position::Home,
+            (false, false) => Position::Moving,
+        };
+        self.arrive(m, i, position, at_us);
+    }
+
+    fn arrive(&mut self, m: &Machine, i: usize, position: Position, at_us: u64) {
+        let Some(lane) = self.lanes.get_mut(i) else {
+            return;
+        };
+        let was = lane.position;
+        lane.position = position;
+        let target = match lane.commanded {
+            Some(true) => Position::End,
+            Some(false) => Position::Home,
+            None => return,
+        };
+        if position != target || was == position {
+            return;
+        }
+        let extend = target == Position::End;
+        lane.last = Some((extend, at_us.saturating_sub(lane.since_us) / 1000));
+        lane.late = false;
+        let name = m.wiring.get(i).map(|a| a.name.as_str());
+        let last = m.sequence.len().checked_sub(1);
+        let last_step = last.and_then(|l| m.sequence.get(l));
+        let this = name.map(|n| format!("{n}{}", if extend { '+' } else { '-' }));
+        if self.step.is_some() && self.step == last && this.as_ref() == last_step {
+            self.cycles = self.cycles.saturating_add(1);
+            if let Some(t0) = self.cycle_start_us {
+                self.cycle_ms.push(at_us.saturating_sub(t0) / 1000);
+                let extra = self.cycle_ms.len().saturating_sub(KEPT_CYCLES);
+                self.cycle_ms.drain(..extra);
+            }
+            self.step = None;
+            self.next = 0;
+            self.cycle_start_us = None;
+        }
+    }
+
+    /// A commanded step: the cycle's next, its first (a new cycle), or outside it
+    /// (homing, or a machine out of step).
+    fn stepped(&mut self, m: &Machine, step: &str, at_us: u64) {
+        let is = |i: usize| m.sequence.get(i).is_some_and(|s| s == step);
+        if self.step.is_some() && is(self.next) {
+            self.step = Some(self.next);
+            self.next += 1;
+        } else if is(0) {
+            self.step = Some(0);
+            self.next = 1;
+            self.cycle_start_us = Some(at_us);
+        } else {
+            self.step = None;
+            self.next = 0;
+            self.cycle_start_us = None;
+        }
+    }
+
+    /// Time passing on the medium's clock (`now_us`): actuators without switches arrive
+    /// after their plant time; a motion past its plant time is late.
+    pub fn tick(&mut self, m: &Machine, now_us: u64) {
+        self.now_us = self.now_us.max(now_us);
+        for i in 0..self.lanes.len() {
+            let (Some(a), Some(lane)) = (m.wiring.get(i), self.lanes.get(i)) else {
+                continue;
+            };
+            let Some(dir) = lane.commanded else { continue };
+            if lane.position != Position::Moving {
+                continue;
+            }
+            let travel = if dir { a.travel_ms.0 } else { a.travel_ms.1 };
+            let due = lane.since_us.saturating_add(travel.saturating_mul(1000));
+            if self.now_us < due {
+                continue;
+            }
+            if a.home.is_none() && a.end.is_none() {
+                let to = if dir { Position::End } else { Position::Home };
+                self.arrive(m, i, to, due);
+            } else if let Some(lane) = self.lanes.get_mut(i) {
+                lane.late = true;
+            }
+        }
+    }
+
+    /// Levels a node's status reports, for pins the medium has not spoken of yet (its
+    /// outputs and inputs by table index).
+    pub fn levels_from(&mut self, c: &Compiled, m: &Machine, role: usize, s: &Status) {
+        let Some(r) = c.ir.roles.get(role) else { return };
+        let mut fresh = Vec::new();
+        for (i, o) in r.outputs.iter().enumerate() {
+            if !self.pins.contains_key(&(r.address, o.pin, true)) {
+                fresh.push((o.pin, (s.outputs >> i) & 1 == 1, true));
+            }
+        }
+        for (i, input) in r.inputs.iter().enumerate() {
+            if !self.pins.contains_key(&(r.address, input.pin, false)) {
+                fresh.push((input.pin, (s.inputs >> i) & 1 == 1, false));
+            }
+        }
+        for (pin, level, output) in fresh {
+            self.pins.insert((r.address, pin, output), level);
+        }
+        for i in 0..m.wiring.len() {
+            let Some(a) = m.wiring.get(i) else { continue };
+            let known = self.lanes.get(i).map(|l| l.position) != Some(Position::Unknown);
+            if a.addr != r.address || known {
+                continue;
+            }
+            self.init_lane(m, i);
+        }
+    }
+
+    /// A lane's first position, from the levels as they are (no step, no travel).
+    fn init_lane(&mut self, m: &Machine, i: usize) {
+        let Some(a) = m.wiring.get(i) else { return };
+        let extend = self.level(a.addr, Some(a.valves.0), true) == Some(true);
+        let retract = self.level(a.addr, Some(a.valves.1), true) == Some(true);
+        let home = self.level(a.addr, a.home, false) == Some(true);
+        let end = self.level(a.addr, a.end, false) == Some(true);
+        let position = match (a.home.is_some() || a.end.is_some(), home, end) {
+            (true, _, true) => Position::End,
+            (true, true, false) => Position::Home,
+            (true, false, false) => Position::Moving,
+            (false, ..) if extend => Position::End,
+            (false, ..) => Position::Home,
+        };
+        if let Some(lane) = self.lanes.get_mut(i) {
+            lane.position = position;
+            lane.commanded = match (a.double, extend, retract) {
+                (false, e, _) => Some(e),
+                (true, true, false) => Some(true),
+                (true, false, true) => Some(false),
+                _ => None,
+            };
+        }
+    }
+}
