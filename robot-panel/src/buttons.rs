@@ -123,7 +123,11 @@ pub fn check(b: Button, c: &Compiled, live: &Live) -> Result<(), String> {
             }
         }
         Button::Ack => {
-            let open = || alarms().flat_map(|(r, _)| r.alarms.iter()).filter(|a| !a.acked);
+            let open = || {
+                alarms()
+                    .flat_map(|(r, _)| r.alarms.iter())
+                    .filter(|a| !a.acked)
+            };
             if open().any(|a| !a.persists) {
                 Ok(())
             } else if open().next().is_some() {
@@ -222,7 +226,10 @@ mod tests {
         let mut live = machine(&c, false);
         live.nodes[2].status = Some(status(&c, 2, false, Some(0x81)));
         let fault = |persists| Alarm {
-            source: AlarmSource::Chart { chart: 1, code: 0x81 },
+            source: AlarmSource::Chart {
+                chart: 1,
+                code: 0x81,
+            },
             level: AlarmLevel::Fault,
             raised_ms: 0,
             acked: false,

@@ -146,7 +146,11 @@ impl Live {
                 lane.position = Position::Moving;
             }
         }
-        self.stepped(m, &format!("{}{}", a.name, if dir { '+' } else { '-' }), at_us);
+        self.stepped(
+            m,
+            &format!("{}{}", a.name, if dir { '+' } else { '-' }),
+            at_us,
+        );
     }
 
     /// Whether actuator `i`'s switch for its commanded target reads closed already.
@@ -255,7 +259,9 @@ impl Live {
     /// Levels a node's status reports, for pins the medium has not spoken of yet (its
     /// outputs and inputs by table index).
     pub fn levels_from(&mut self, c: &Compiled, m: &Machine, role: usize, s: &Status) {
-        let Some(r) = c.ir.roles.get(role) else { return };
+        let Some(r) = c.ir.roles.get(role) else {
+            return;
+        };
         let mut fresh = Vec::new();
         for (i, o) in r.outputs.iter().enumerate() {
             if !self.pins.contains_key(&(r.address, o.pin, true)) {
@@ -303,5 +309,117 @@ impl Live {
                 _ => None,
             };
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::tests::paint;
+
+    /// Drives step `step` (`VC+`) of the paint robot's wiring at `t_ms`, arriving
+    /// `travel_ms` later (a switch, or by the plant time for the gripper); the steps the
+    /// panel names as the valve changes and at arrival.
+    fn stroke(l: &mut Live, m: &Machine, step: &str, t_ms: u64) -> u64 {
+        let (name, sign) = step.split_at(step.len() - 1);
+        let extend = sign == "+";
+        let a = m.wiring.iter().find(|a| a.name == name).unwrap().clone();
+        let us = t_ms * 1000;
+        if a.double {
+            let (on, off) = if extend {
+                a.valves
+            } else {
+                (a.valves.1, a.valves.0)
+            };
+            l.pin(m, us, a.addr, off, false, true);
+            l.pin(m, us, a.addr, on, true, true);
+        } else {
+            l.pin(m, us, a.addr, a.valves.0, extend, true);
+        }
+        let travel = if extend { a.travel_ms.0 } else { a.travel_ms.1 };
+        let at = us + travel * 1000 + 3000;
+        let (from, to) = if extend {
+            (a.home, a.end)
+        } else {
+            (a.end, a.home)
+        };
+        if let (Some(from), Some(to)) = (from, to) {
+            l.pin(m, us + 1000, a.addr, from, false, false);
+            assert_eq!(
+                l.lanes[m.wiring.iter().position(|w| w.name == name).unwrap()].position,
+                Position::Moving
+            );
+            l.pin(m, at, a.addr, to, true, false);
+        } else {
+            l.tick(m, at);
+        }
+        at / 1000
+    }
+
+    #[test]
+    fn a_cycle_of_pin_changes_walks_the_steps_in_order_and_is_counted_with_its_time() {
+        let c = paint();
+        let m = Machine::of(&c).unwrap();
+        let mut l = Live::new(&m);
+        let mut t = 100;
+        let mut seen = Vec::new();
+        for cycle in 0..2 {
+            for (i, step) in m.sequence.clone().iter().enumerate() {
+                let done = stroke(&mut l, &m, step, t);
+                seen.push(l.step);
+                if i + 1 < m.sequence.len() {
+                    assert_eq!(l.step, Some(i), "{step} of cycle {cycle}");
+                }
+                t = done + 2;
+            }
+            assert_eq!((l.step, l.cycles), (None, cycle + 1));
+        }
+        assert_eq!(l.cycle_ms.len(), 2);
+        // Each stroke: its plant time and 3 ms to the switch, 2 ms to the next command.
+        let plant: u64 = (m.sequence.iter())
+            .map(|s| {
+                let a = m.wiring.iter().find(|a| s.starts_with(&a.name)).unwrap();
+                if s.ends_with('+') {
+                    a.travel_ms.0
+                } else {
+                    a.travel_ms.1
+                }
+            })
+            .sum();
+        let strokes = m.sequence.len() as u64;
+        assert_eq!(l.cycle_ms[0], plant + strokes * 5 - 2);
+        let vc = &l.lanes[0];
+        assert_eq!((vc.position, vc.last), (Position::Home, Some((false, 253))));
+        // The gripper has no switches: it arrived by its plant time.
+        assert_eq!(l.lanes[1].position, Position::Home);
+    }
+
+    #[test]
+    fn a_step_out_of_sequence_is_no_step_of_the_cycle() {
+        let c = paint();
+        let m = Machine::of(&c).unwrap();
+        let mut l = Live::new(&m);
+        stroke(&mut l, &m, "HC-", 0);
+        assert_eq!(l.step, None);
+        stroke(&mut l, &m, "VC+", 900);
+        assert_eq!(l.step, Some(0));
+        stroke(&mut l, &m, "RC+", 1500);
+        assert_eq!((l.step, l.cycles), (None, 0));
+    }
+
+    #[test]
+    fn a_motion_past_its_plant_time_is_late() {
+        let c = paint();
+        let m = Machine::of(&c).unwrap();
+        let mut l = Live::new(&m);
+        let hc = m.wiring.iter().position(|a| a.name == "HC").unwrap();
+        let a = m.wiring[hc].clone();
+        l.pin(&m, 0, a.addr, a.home.unwrap(), true, false);
+        l.pin(&m, 1000, a.addr, a.valves.0, true, true);
+        assert_eq!(l.lanes[hc].position, Position::Moving);
+        l.tick(&m, 800_000);
+        assert!(!l.lanes[hc].late);
+        l.tick(&m, 801_001);
+        assert!(l.lanes[hc].late);
     }
 }

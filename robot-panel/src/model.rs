@@ -124,7 +124,10 @@ pub(crate) mod tests {
     use super::*;
 
     pub(crate) fn paint() -> Compiled {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../robot-configs/paint-robot.ron");
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../robot-configs/paint-robot.ron"
+        );
         let text = std::fs::read_to_string(path).unwrap();
         robot_compiler::compile::compile(&robot_compiler::Source::new("paint-robot.ron", text))
             .unwrap()

@@ -138,7 +138,7 @@ impl Poll {
                     _ => None,
                 },
             )?;
-            let security = if round % SECURITY_EVERY == 0 {
+            let security = if round.is_multiple_of(SECURITY_EVERY) {
                 push::ask(
                     &mut self.radio,
                     &mut self.ids,
@@ -161,7 +161,15 @@ impl Poll {
                 };
                 let mut changed = n.silent.take().is_some();
                 // The command id moves with every answer: compared without it.
-                let same = |a: &Status, b: &Status| Status { ack: 0, ..a.clone() } == Status { ack: 0, ..b.clone() };
+                let same = |a: &Status, b: &Status| {
+                    Status {
+                        ack: 0,
+                        ..a.clone()
+                    } == Status {
+                        ack: 0,
+                        ..b.clone()
+                    }
+                };
                 if !n.status.as_ref().is_some_and(|old| same(old, &s)) {
                     changed = true;
                 }
@@ -230,13 +238,16 @@ impl Poll {
             true
         });
         let out = match b {
-            Button::Start => self.start().map(|s| {
-                self.shared.update(|l| {
-                    l.running = true;
-                    true
-                });
-                s
-            }),
+            Button::Start => match self.start() {
+                Ok(s) if !s.starts_with("refused: ") => {
+                    self.shared.update(|l| {
+                        l.running = true;
+                        true
+                    });
+                    Ok(s)
+                }
+                other => other,
+            },
             Button::Stop => {
                 self.shared.update(|l| {
                     l.running = false;
@@ -306,21 +317,19 @@ impl Poll {
             }
         }
         self.node_command(r.address, Command::Start)?;
-        Ok(format!("START sent to node {:#06x} ({})", r.address, r.name))
+        Ok(format!(
+            "START sent to node {:#06x} ({})",
+            r.address, r.name
+        ))
     }
 
     fn node_command(&mut self, addr: u16, command: Command) -> Result<Status, NetError> {
-        push::command(
-            &mut self.radio,
-            &mut self.ids,
-            addr,
-            command,
-            ANSWER_WITHIN,
-        )?
-        .ok_or_else(|| NetError::NoAnswer {
-            addr,
-            command: format!("{command:?}"),
-        })
+        push::command(&mut self.radio, &mut self.ids, addr, command, ANSWER_WITHIN)?.ok_or_else(
+            || NetError::NoAnswer {
+                addr,
+                command: format!("{command:?}"),
+            },
+        )
     }
 
     /// RESET to every node that is faulted or has a broken link (as `config-tool reset`).
@@ -328,7 +337,12 @@ impl Poll {
         let statuses = self.statuses()?;
         let c = self.c.clone();
         let mut said = Vec::new();
-        for ((r, s), n) in c.ir.roles.iter().zip(&statuses).zip(home::nodes(&c, &statuses)) {
+        for ((r, s), n) in
+            c.ir.roles
+                .iter()
+                .zip(&statuses)
+                .zip(home::nodes(&c, &statuses))
+        {
             if matches!(n.standing, Standing::Faulted(_)) || s.links_broken != 0 {
                 let after = self.node_command(r.address, Command::Reset)?;
                 said.push(show::reset_text(r.address, &after));
@@ -340,7 +354,13 @@ impl Poll {
     /// ACK on every node (as `config-tool ack`): what stayed latched, and why.
     fn ack(&mut self) -> Result<String, NetError> {
         let c = self.c.clone();
-        let reports = home::alarms(&mut self.radio, &mut self.ids, &c, Command::Ack, ANSWER_WITHIN)?;
+        let reports = home::alarms(
+            &mut self.radio,
+            &mut self.ids,
+            &c,
+            Command::Ack,
+            ANSWER_WITHIN,
+        )?;
         let acked: usize = (reports.iter())
             .map(|r| r.alarms.iter().filter(|a| a.acked).count())
             .sum();
@@ -362,7 +382,10 @@ impl Poll {
             }
             true
         });
-        let mut text = format!("acknowledged: {acked} alarm(s) on {} node(s)", c.ir.roles.len());
+        let mut text = format!(
+            "acknowledged: {acked} alarm(s) on {} node(s)",
+            c.ir.roles.len()
+        );
         for s in stayed {
             text.push_str("; ");
             text.push_str(&s);

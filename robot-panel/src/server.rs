@@ -106,11 +106,12 @@ impl Panel {
         let shared = Arc::new(Shared::new(Live::new(&machine)));
         let stop = Arc::new(AtomicBool::new(false));
         let token = (!listener.addr.ip().is_loopback()).then(new_token);
-        let feed = feed::start(medium, machine.clone(), shared.clone(), stop.clone())
-            .map_err(|source| PanelError::Medium {
+        let feed = feed::start(medium, machine.clone(), shared.clone(), stop.clone()).map_err(
+            |source| PanelError::Medium {
                 addr: medium,
                 source,
-            })?;
+            },
+        )?;
         let (orders, inbox) = mpsc::channel();
         let run = Run {
             c: c.clone(),
@@ -119,13 +120,12 @@ impl Panel {
             inbox,
         };
         let addr = listener.addr;
-        let server = Arc::new(
-            Server::from_listener(listener.listener, None)
-                .map_err(|e| PanelError::Listen {
-                    addr,
-                    source: io::Error::other(e.to_string()),
-                })?,
-        );
+        let server = Arc::new(Server::from_listener(listener.listener, None).map_err(|e| {
+            PanelError::Listen {
+                addr,
+                source: io::Error::other(e.to_string()),
+            }
+        })?);
         let ctx = Arc::new(Ctx {
             c,
             machine,
@@ -201,9 +201,7 @@ impl Drop for Panel {
 /// The path and the query's token.
 fn split(url: &str) -> (&str, Option<&str>) {
     let (path, query) = url.split_once('?').unwrap_or((url, ""));
-    let token = query
-        .split('&')
-        .find_map(|kv| kv.strip_prefix("token="));
+    let token = query.split('&').find_map(|kv| kv.strip_prefix("token="));
     (path, token)
 }
 
@@ -275,7 +273,10 @@ fn command(ctx: &Ctx, name: &str) -> (u16, String) {
     match outcome.recv_timeout(ORDER_WITHIN) {
         Ok(Ok(said)) => (200, said),
         Ok(Err(said)) => (409, said),
-        Err(_) => (504, format!("{name}: no outcome within {} s", ORDER_WITHIN.as_secs())),
+        Err(_) => (
+            504,
+            format!("{name}: no outcome within {} s", ORDER_WITHIN.as_secs()),
+        ),
     }
 }
 

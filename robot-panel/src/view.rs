@@ -64,7 +64,9 @@ pub fn state(c: &Compiled, m: &Machine, live: &Live) -> Value {
         .map(|(i, r)| {
             let n = live.nodes.get(i);
             let s = n.and_then(|n| n.status.as_ref());
-            let standing = s.zip(c.tables.get(i)).map(|(s, t)| home::standing(&r.name, t, s));
+            let standing = s
+                .zip(c.tables.get(i))
+                .map(|(s, t)| home::standing(&r.name, t, s));
             let latched = n
                 .and_then(|n| n.alarms.as_ref())
                 .map_or(0, |(a, _)| a.alarms.iter().filter(|a| !a.acked).count());

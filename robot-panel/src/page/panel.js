@@ -131,7 +131,7 @@ function showNodes(s) {
   body.replaceChildren();
   for (const n of s.nodes) {
     const tr = el("tr", { class: n.answering ? "node" : "node silent", "data-role": n.role });
-    const state = n.answering ? (n.standing || "?") + (n.fault ? " " + n.fault : "")
+    const state = n.answering ? n.standing || "?"
       : "NOT ANSWERING" + (n.silent_since ? " since " + n.silent_since + " UTC" : "");
     const gen = n.generation === null ? "" : n.generation +
       (n.staged ? " (staged " + n.staged + ")" : "") + (n.trial ? " on trial" : "");

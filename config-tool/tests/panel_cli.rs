@@ -1,0 +1,119 @@
+//! `config-tool panel` without a browser: a second panel on the same port is refused
+//! with a clear error; a node that stops answering and a medium that goes away are said
+//! in the page's state (its server-sent events) and the buttons refused, by the server
+//! too; a panel off loopback needs its token; nothing hangs.
+
+mod e2e_support;
+mod panel_support;
+
+use e2e_support::TempDir;
+use panel_support::{Machine, Panel, ROBOT};
+
+fn buttons_enabled(state: &serde_json::Value) -> Vec<String> {
+    let b = state["buttons"].as_object().expect("buttons");
+    b.iter()
+        .filter(|(_, v)| v["enabled"] == true)
+        .map(|(k, _)| k.clone())
+        .collect()
+}
+
+#[test]
+fn a_second_panel_on_the_same_port_is_refused_with_a_clear_error() {
+    let dir = TempDir::new("panel-port");
+    let key = dir.0.join("machine.key");
+    let k = key.to_str().unwrap();
+    let made = std::process::Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["keys", "new", "--out", k])
+        .output()
+        .unwrap();
+    assert!(made.status.success());
+    let medium = medium::Medium::start(medium::Config::default()).unwrap();
+    let m = medium.addr().to_string();
+    let first = Panel::start(&[
+        ROBOT,
+        "--keys",
+        k,
+        "--medium",
+        &m,
+        "--listen",
+        "127.0.0.1:0",
+    ])
+    .expect("the first panel");
+    let port = first.addr.to_string();
+    let second = Panel::start(&[ROBOT, "--keys", k, "--medium", &m, "--listen", &port]);
+    let Err((status, err)) = second else {
+        panic!("a second panel on {port} started");
+    };
+    assert_eq!(
+        (status, err),
+        (
+            Some(1),
+            format!(
+                "error: cannot listen on {port}: the address is in use (another panel, or \
+                 another program, listens there): give another --listen\n"
+            )
+        )
+    );
+    // The first one still serves.
+    assert_eq!(first.get("/").0, 200);
+}
+
+#[test]
+fn a_silent_node_and_a_medium_gone_are_said_and_every_command_refused() {
+    let mut m = Machine::up("panel-bad", None);
+    let panel = m.panel();
+    let mut events = panel.events();
+    events.until("HOME offered", |s| buttons_enabled(s) == ["HOME"]);
+    m.bed.kill_node(0x0012);
+    let s = events.until("GR not answering", |s| s["nodes"][1]["answering"] == false);
+    assert_eq!(buttons_enabled(&s), Vec::<String>::new());
+    assert_eq!(
+        s["buttons"]["HOME"]["why"],
+        "node 0x0012 (GR) does not answer"
+    );
+    assert_eq!(
+        panel.press("HOME"),
+        (409, "refused: node 0x0012 (GR) does not answer".to_string())
+    );
+    m.bed.medium().stop();
+    let s = events.until("the medium gone", |s| s["medium_ok"] == false);
+    assert_eq!(s["medium"], "the medium closed");
+    assert_eq!(
+        panel.press("HOME"),
+        (409, "refused: no medium: the medium closed".to_string())
+    );
+    // The page is still served.
+    assert_eq!(panel.get("/").0, 200);
+    assert_eq!(panel.get("/nothing").0, 404);
+}
+
+#[test]
+fn a_panel_off_loopback_prints_a_token_and_refuses_requests_without_it() {
+    let dir = TempDir::new("panel-token");
+    let key = dir.0.join("machine.key");
+    let k = key.to_str().unwrap();
+    let made = std::process::Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["keys", "new", "--out", k])
+        .output()
+        .unwrap();
+    assert!(made.status.success());
+    let medium = medium::Medium::start(medium::Config::default()).unwrap();
+    let m = medium.addr().to_string();
+    let panel = Panel::start(&[ROBOT, "--keys", k, "--medium", &m, "--listen", "0.0.0.0:0"])
+        .expect("the panel");
+    let (_, token) = panel
+        .url
+        .split_once("?token=")
+        .expect("a token in the address");
+    assert_eq!(token.len(), 32);
+    let at: std::net::SocketAddr = ([127, 0, 0, 1], panel.addr.port()).into();
+    let get = |p: &str| panel_support::request(at, "GET", p, None).0;
+    assert_eq!(get("/"), 403);
+    assert_eq!(get("/state.json"), 403);
+    assert_eq!(get("/state.json?token=wrong"), 403);
+    assert_eq!(get(&format!("/state.json?token={token}")), 200);
+    assert_eq!(
+        panel_support::request(at, "POST", "/command/HOME", Some("")).0,
+        403
+    );
+}
