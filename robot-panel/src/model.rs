@@ -158,4 +158,26 @@ pub(crate) mod tests {
         assert_eq!((m.watchdog_ms, m.start_role.as_deref()), (2000, Some("VC")));
         assert!(m.charts.iter().all(|ch| ch.states.len() > ch.idle));
     }
+
+    fn robot(name: &str) -> Compiled {
+        let path = format!("{}/../robot-configs/{name}", env!("CARGO_MANIFEST_DIR"));
+        let text = std::fs::read_to_string(path).unwrap();
+        robot_compiler::compile::compile(&robot_compiler::Source::new(name, text)).unwrap()
+    }
+
+    #[test]
+    fn the_sorter_and_the_transport_give_a_page_with_every_chart() {
+        for name in ["ball-sorter.ron", "waterjet-transport.ron"] {
+            let c = robot(name);
+            let m = Machine::of(&c).unwrap();
+            let charts: usize = c.ir.roles.iter().map(|r| r.charts.len()).sum();
+            assert_eq!(m.charts.len(), charts, "{name}");
+            let lanes: Vec<&str> = m.actuators.iter().map(|a| &a.name[..]).collect();
+            let want: &[&str] = match name {
+                "ball-sorter.ron" => &["PUSHER", "G1", "G2"],
+                _ => &[],
+            };
+            assert_eq!(lanes, want, "{name}");
+        }
+    }
 }
