@@ -117,3 +117,40 @@ fn a_panel_off_loopback_prints_a_token_and_refuses_requests_without_it() {
         403
     );
 }
+
+#[test]
+fn the_sorters_page_shows_each_ball_in_the_bin_it_landed_in() {
+    let mut m = Machine::of("ball-sorter.ron", "panel-sorter", None);
+    let c = e2e_support::robot("ball-sorter.ron", 1);
+    let feed: Vec<String> = ["gray", "black", "orange", "black"]
+        .map(String::from)
+        .to_vec();
+    let sim = robot_analysis::sorter::simulate(&c, Some(&feed)).expect("sim");
+    let actuators = robot_net::live_plant::actuators(&c).expect("actuators");
+    let balls = robot_net::live_feed::ball_feed(&c, &actuators, &feed).expect("feed");
+    let landed = m.bed.set_plant_fed(actuators, balls).expect("fed plant");
+    let panel = m.panel();
+    let mut events = panel.events();
+    let s = events.until("START offered", |s| {
+        s["buttons"]["START"]["enabled"] == true
+    });
+    assert_eq!(
+        s["station"]["at_sensors"], "gray",
+        "the front ball lies at the sensors"
+    );
+    assert_eq!(panel.press("START").0, 200);
+    // One feed: START is not pressed again at its end.
+    assert_eq!(panel.press("STOP").0, 200);
+    let mut want = vec![Vec::<String>::new(); 3];
+    for (colour, b) in feed.iter().zip(&sim.balls) {
+        let bin = b.bin.expect("sim lands every ball");
+        want[bin - 1].push(colour.clone());
+        landed
+            .recv_timeout(e2e_support::TIMEOUT)
+            .expect("a ball lands");
+    }
+    let s = events.until("every ball in its bin", |s| {
+        s["station"]["bins"] == serde_json::json!(want)
+    });
+    assert_eq!(s["station"]["falling"], 0);
+}

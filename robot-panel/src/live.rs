@@ -58,6 +58,17 @@ pub struct NodeLive {
     pub silent: Option<SystemTime>,
 }
 
+/// A sorting station as its sensors say.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct StationLive {
+    /// The ball at the colour sensors: its colour (`unknown`: no row had its levels).
+    pub at_sensors: Option<String>,
+    /// Balls pushed into the shaft, not landed yet (their colours, first pushed first).
+    pub falling: std::collections::VecDeque<String>,
+    /// The balls each bin's sensor saw land, by colour, oldest first.
+    pub bins: Vec<Vec<String>>,
+}
+
 /// Everything the panel knows of the running machine.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Live {
@@ -83,6 +94,7 @@ pub struct Live {
     pub busy: Option<String>,
     /// How the last command ended, in words.
     pub said: Option<String>,
+    pub station: StationLive,
 }
 
 /// Cycle times kept for the page.
@@ -93,8 +105,17 @@ impl Live {
         Live {
             lanes: vec![LaneLive::default(); m.actuators.len()],
             nodes: vec![NodeLive::default(); m.nodes.len()],
+            station: StationLive {
+                bins: vec![Vec::new(); m.station.as_ref().map_or(0, |s| s.bins.len())],
+                ..StationLive::default()
+            },
             ..Live::default()
         }
+    }
+
+    /// An input pin's level as last heard (low until heard).
+    pub fn input(&self, addr: u16, pin: u8) -> bool {
+        self.level(addr, Some(pin), false) == Some(true)
     }
 
     fn level(&self, addr: u16, pin: Option<u8>, output: bool) -> Option<bool> {
@@ -105,7 +126,10 @@ impl Live {
     /// (`output`) or a switch the plant set.
     pub fn pin(&mut self, m: &Machine, at_us: u64, addr: u16, pin: u8, level: bool, output: bool) {
         self.now_us = self.now_us.max(at_us);
-        self.pins.insert((addr, pin, output), level);
+        let was = self.pins.insert((addr, pin, output), level);
+        if !output {
+            self.station_pin(m, addr, pin, level, was);
+        }
         for i in 0..m.wiring.len() {
             let Some(a) = m.wiring.get(i) else { continue };
             if a.addr != addr {
@@ -117,6 +141,45 @@ impl Live {
                 self.valve(m, i, at_us);
             } else if switch {
                 self.switch(m, i, at_us);
+            }
+        }
+    }
+
+    /// A station's sensor: the colour sensors say which ball lies there (all low: none;
+    /// a ball that goes from there falls), a bin's sensor rising is the first falling ball
+    /// landing in it.
+    fn station_pin(&mut self, m: &Machine, addr: u16, pin: u8, level: bool, was: Option<bool>) {
+        let Some(s) = m.station.as_ref().filter(|s| s.addr == addr) else {
+            return;
+        };
+        if s.sensors.iter().any(|x| x.1 == pin) {
+            let levels: Vec<bool> = (s.sensors.iter())
+                .map(|x| self.level(addr, Some(x.1), false) == Some(true))
+                .collect();
+            // The levels change one pin at a time: the ball's colour is the last row they
+            // matched while one was high (the ones in between are no colour).
+            let row = (s.colours.iter())
+                .find(|c| c.1 == levels)
+                .map(|c| c.0.clone());
+            let st = &mut self.station;
+            match (levels.iter().any(|l| *l), row) {
+                (false, _) => {
+                    if let Some(gone) = st.at_sensors.take() {
+                        st.falling.push_back(gone);
+                    }
+                }
+                (true, Some(colour)) => st.at_sensors = Some(colour),
+                (true, None) => {
+                    st.at_sensors.get_or_insert_with(|| "unknown".to_string());
+                }
+            }
+        } else if let Some(bin) = s.bins.iter().position(|x| x.1 == pin) {
+            if level && was != Some(true) {
+                let st = &mut self.station;
+                let ball = st.falling.pop_front().unwrap_or_else(|| "unknown".into());
+                if let Some(b) = st.bins.get_mut(bin) {
+                    b.push(ball);
+                }
             }
         }
     }
@@ -273,8 +336,23 @@ impl Live {
                 fresh.push((input.pin, (s.inputs >> i) & 1 == 1, false));
             }
         }
+        let sensed = fresh.iter().any(|(pin, _, output)| {
+            !output
+                && (m.station.as_ref())
+                    .is_some_and(|s| s.addr == r.address && s.sensors.iter().any(|x| x.1 == *pin))
+        });
         for (pin, level, output) in fresh {
             self.pins.insert((r.address, pin, output), level);
+        }
+        // The ball at a station's sensors before the panel heard a pin (no bin counted).
+        if let Some(first) = m
+            .station
+            .as_ref()
+            .and_then(|s| s.sensors.first())
+            .filter(|_| sensed)
+        {
+            let level = self.input(r.address, first.1);
+            self.station_pin(m, r.address, first.1, level, Some(level));
         }
         for i in 0..m.wiring.len() {
             let Some(a) = m.wiring.get(i) else { continue };
@@ -405,6 +483,42 @@ mod tests {
         assert_eq!(l.step, Some(0));
         stroke(&mut l, &m, "RC+", 1500);
         assert_eq!((l.step, l.cycles), (None, 0));
+    }
+
+    #[test]
+    fn a_sorters_balls_are_seen_at_the_sensors_and_in_their_bins() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../robot-configs/ball-sorter.ron"
+        );
+        let text = std::fs::read_to_string(path).unwrap();
+        let c = robot_compiler::compile::compile(&robot_compiler::Source::new("b", text)).unwrap();
+        let m = Machine::of(&c).unwrap();
+        let s = m.station.clone().unwrap();
+        let mut l = Live::new(&m);
+        let sense = |l: &mut Live, levels: [bool; 3], t: u64| {
+            for (x, lv) in s.sensors.iter().zip(levels) {
+                l.pin(&m, t, s.addr, x.1, lv, false);
+            }
+        };
+        let land = |l: &mut Live, bin: usize, t: u64| {
+            l.pin(&m, t, s.addr, s.bins[bin].1, true, false);
+            l.pin(&m, t + 5, s.addr, s.bins[bin].1, false, false);
+        };
+        sense(&mut l, [true, true, true], 0);
+        assert_eq!(l.station.at_sensors.as_deref(), Some("gray"));
+        sense(&mut l, [false, false, false], 10);
+        assert_eq!(l.station.at_sensors, None);
+        sense(&mut l, [true, false, false], 20);
+        assert_eq!(l.station.at_sensors.as_deref(), Some("black"));
+        land(&mut l, 1, 30);
+        sense(&mut l, [false, false, false], 40);
+        land(&mut l, 0, 50);
+        sense(&mut l, [false, true, false], 60);
+        assert_eq!(l.station.at_sensors.as_deref(), Some("unknown"));
+        sense(&mut l, [true, false, true], 70);
+        assert_eq!(l.station.at_sensors.as_deref(), Some("orange"));
+        assert_eq!(l.station.bins, [vec!["black"], vec!["gray"], vec![]]);
     }
 
     #[test]

@@ -21,9 +21,47 @@ pub struct Machine {
     pub watchdog_ms: u32,
     /// The role whose node takes START (none: no start input).
     pub start_role: Option<String>,
+    /// A sorting station's sensors and bins (`sorting:`).
+    pub station: Option<Station>,
     /// The wiring the live feed reads the pins with (board pins); not sent.
     #[serde(skip)]
     pub wiring: Vec<Actuator>,
+}
+
+/// A sorting station as the page draws it: a light per sensor, the ball at the colour
+/// sensors in its colour, each bin with the balls that landed in it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct Station {
+    pub role: String,
+    pub addr: u16,
+    /// The colour sensors, in truth-table column order: (name, board pin).
+    pub sensors: Vec<(String, u8)>,
+    /// Each colour and its sensors' levels.
+    pub colours: Vec<(String, Vec<bool>)>,
+    pub entry: (String, u8),
+    /// The bins' sensors, in bin order (none: the station has none).
+    pub bins: Vec<(String, u8)>,
+}
+
+impl Station {
+    fn of(c: &Compiled) -> Option<Station> {
+        let s = c.robot.sorting.as_ref()?;
+        let role = c.ir.roles.iter().find(|r| r.name == s.role)?;
+        let pin = |n: &String| {
+            let i = role.inputs.iter().find(|i| &i.name == n)?;
+            Some((n.clone(), i.pin))
+        };
+        Some(Station {
+            role: role.name.clone(),
+            addr: role.address,
+            sensors: s.sensors.iter().map(pin).collect::<Option<_>>()?,
+            colours: (s.table.iter())
+                .map(|r| (r.colour.clone(), r.levels.clone()))
+                .collect(),
+            entry: pin(&s.entry)?,
+            bins: s.bins.iter().map(pin).collect::<Option<_>>()?,
+        })
+    }
 }
 
 /// One actuator's lane.
@@ -114,6 +152,7 @@ impl Machine {
             start_role: (c.ir.start.as_ref())
                 .and_then(|(r, _)| c.ir.roles.get(*r))
                 .map(|r| r.name.clone()),
+            station: Station::of(c),
             wiring,
         })
     }
@@ -166,6 +205,24 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn the_sorters_station_has_its_sensors_colours_and_bins() {
+        let m = Machine::of(&robot("ball-sorter.ron")).unwrap();
+        let s = m.station.unwrap();
+        let names = |v: &[(String, u8)]| v.iter().map(|x| x.0.clone()).collect::<Vec<_>>();
+        assert_eq!(names(&s.sensors), ["CAP", "IND", "OPT"]);
+        assert_eq!(names(&s.bins), ["BIN1", "BIN2", "BIN3"]);
+        assert_eq!(s.entry.0, "ENTRY");
+        assert_eq!(
+            s.colours,
+            [
+                ("black".to_string(), vec![true, false, false]),
+                ("gray".to_string(), vec![true, true, true]),
+                ("orange".to_string(), vec![true, false, true]),
+            ]
+        );
+    }
+
+    #[test]
     fn the_sorter_and_the_transport_give_a_page_with_every_chart() {
         for name in ["ball-sorter.ron", "waterjet-transport.ron"] {
             let c = robot(name);
@@ -178,6 +235,7 @@ pub(crate) mod tests {
                 _ => &[],
             };
             assert_eq!(lanes, want, "{name}");
+            assert_eq!(m.station.is_some(), name == "ball-sorter.ron");
         }
     }
 }

@@ -149,5 +149,13 @@ pub fn state(c: &Compiled, m: &Machine, live: &Live) -> Value {
         "running": live.running,
         "busy": live.busy,
         "said": live.said,
+        "station": m.station.as_ref().map(|s| json!({
+            "at_sensors": live.station.at_sensors,
+            "falling": live.station.falling.len(),
+            "bins": live.station.bins,
+            "sensors": (s.sensors.iter().chain([&s.entry]).chain(&s.bins))
+                .map(|(_, pin)| live.input(s.addr, *pin))
+                .collect::<Vec<_>>(),
+        })),
     })
 }

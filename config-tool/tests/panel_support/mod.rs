@@ -35,11 +35,19 @@ pub struct Machine {
     pub bed: Bed,
     pub dir: TempDir,
     pub key: PathBuf,
+    /// The robot file, from the workspace root.
+    pub robot: String,
 }
 
 impl Machine {
+    /// The paint robot.
     pub fn up(tag: &str, injection: Option<Injection>) -> Machine {
-        let c = e2e_support::robot("paint-robot.ron", 1);
+        Machine::of("paint-robot.ron", tag, injection)
+    }
+
+    /// `robot-configs/NAME`.
+    pub fn of(name: &str, tag: &str, injection: Option<Injection>) -> Machine {
+        let c = e2e_support::robot(name, 1);
         let dir = TempDir::new(tag);
         let mut bed =
             Bed::start(e2e_support::options(medium::Config::default(), None)).expect("bed");
@@ -56,8 +64,14 @@ impl Machine {
         // Scans in clear: the tool's counter file is the only one to secure frames.
         bed.wait_for_nodes(&addrs)
             .expect("every node announces itself");
-        let m = Machine { bed, dir, key };
-        let pushed = m.tool(&["push", ROBOT]);
+        let robot = format!("robot-configs/{name}");
+        let m = Machine {
+            bed,
+            dir,
+            key,
+            robot,
+        };
+        let pushed = m.tool(&["push", &m.robot]);
         assert!(
             pushed.status.success(),
             "{}{}",
@@ -87,7 +101,7 @@ impl Machine {
     /// `config-tool panel ROBOT` on this machine, on a free loopback port.
     pub fn panel(&self) -> Panel {
         Panel::start(&[
-            ROBOT,
+            &self.robot,
             "--keys",
             self.key.to_str().expect("utf-8 path"),
             "--medium",

@@ -87,6 +87,48 @@ function drawCharts() {
   });
 }
 
+// A sorting station: a light per sensor (colour sensors, entry, bins), the ball at the
+// sensors in its colour, each bin with the balls that landed in it.
+function drawStation() {
+  const st = model.station;
+  if (!st) return;
+  document.getElementById("station").hidden = false;
+  const lights = document.getElementById("lights");
+  for (const [name] of st.sensors.concat([st.entry], st.bins)) {
+    const l = el("span", { class: "light" });
+    l.append(el("i"), el("span", {}, name));
+    lights.append(l);
+  }
+  const bins = document.getElementById("bins");
+  st.bins.forEach(([name], i) => {
+    const b = el("div", { class: "bin", "data-bin": i + 1 });
+    b.append(el("h3", {}, "bin " + (i + 1) + " (" + name + "): 0"));
+    bins.append(b);
+  });
+}
+
+function ball(colour) {
+  const b = el("span", { class: "ball", title: colour, "data-colour": colour });
+  b.style.background = colour === "unknown" ? "repeating-linear-gradient(45deg,#fff,#fff 3px,#c00 3px,#c00 6px)" : colour;
+  return b;
+}
+
+function showStation(s) {
+  const st = s.station;
+  if (!st) return;
+  document.querySelectorAll(".light").forEach((l, i) => l.classList.toggle("on", !!st.sensors[i]));
+  const at = document.getElementById("at-sensors");
+  at.replaceChildren(st.at_sensors ? ball(st.at_sensors) : "no ball");
+  if (st.at_sensors) at.append(" " + st.at_sensors);
+  document.getElementById("falling").textContent = st.falling;
+  document.querySelectorAll(".bin").forEach((b, i) => {
+    const balls = st.bins[i] || [];
+    const h = b.querySelector("h3");
+    h.textContent = "bin " + (i + 1) + " (" + model.station.bins[i][0] + "): " + balls.length;
+    b.replaceChildren(h, ...balls.map(ball));
+  });
+}
+
 function showLanes(s) {
   document.querySelectorAll(".lane").forEach((lane, i) => {
     const l = s.lanes[i], a = model.actuators[i];
@@ -177,7 +219,7 @@ function show(s) {
   const silent = s.nodes.filter((n) => !n.answering).map((n) => n.role + " (" + n.addr + ")");
   banner(!s.medium_ok ? "The medium is gone: " + s.medium + ". Nothing can be commanded."
     : silent.length ? "Not answering: " + silent.join(", ") : "");
-  showLanes(s); showCycle(s); showCharts(s); showNodes(s); showAlarms(s); showButtons(s);
+  showLanes(s); showStation(s); showCycle(s); showCharts(s); showNodes(s); showAlarms(s); showButtons(s);
   document.body.dataset.version = Number(document.body.dataset.version || 0) + 1;
 }
 
@@ -204,7 +246,7 @@ async function main() {
   model = await (await fetch("model.json" + q)).json();
   document.getElementById("name").textContent = model.name;
   document.title = model.name + " panel";
-  drawSteps(); drawLanes(); drawCharts();
+  drawSteps(); drawStation(); drawLanes(); drawCharts();
   for (const name of BUTTONS) document.getElementById(name).onclick = () => press(name);
   listen();
 }
