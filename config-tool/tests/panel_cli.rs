@@ -154,3 +154,26 @@ fn the_sorters_page_shows_each_ball_in_the_bin_it_landed_in() {
     });
     assert_eq!(s["station"]["falling"], 0);
 }
+
+#[test]
+fn the_transports_page_shows_each_control_functions_place() {
+    let m = Machine::of("waterjet-transport.ron", "panel-transport", None);
+    let c = e2e_support::robot("waterjet-transport.ron", 1);
+    let panel = m.panel();
+    let model: serde_json::Value =
+        serde_json::from_str(&panel.get("/model.json").1).expect("the model");
+    let mut events = panel.events();
+    // Booted with its tables: every function in its chart's initial place.
+    let s = events.until("every node answering", |s| {
+        (s["nodes"].as_array().unwrap().iter()).all(|n| n["answering"] == true)
+    });
+    let functions = model["functions"].as_array().expect("functions");
+    assert_eq!(functions.len(), c.robot.functions.len());
+    for f in functions {
+        let (name, chart) = (f[0].as_str().unwrap(), f[1].as_u64().unwrap() as usize);
+        let ch = &model["charts"][chart];
+        let place = s["charts"][chart].as_u64().expect("a state") as usize;
+        assert_eq!(ch["name"], name);
+        assert_eq!(place, ch["initial"].as_u64().unwrap() as usize, "{name}");
+    }
+}

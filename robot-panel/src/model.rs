@@ -23,6 +23,9 @@ pub struct Machine {
     pub start_role: Option<String>,
     /// A sorting station's sensors and bins (`sorting:`).
     pub station: Option<Station>,
+    /// Each control function (`functions:`): its name and the index of its chart in
+    /// `charts` (whose states are its places; the current one holds the token).
+    pub functions: Vec<(String, usize)>,
     /// The wiring the live feed reads the pins with (board pins); not sent.
     #[serde(skip)]
     pub wiring: Vec<Actuator>,
@@ -114,7 +117,7 @@ impl Machine {
                 sensors: a.home.is_some() || a.end.is_some(),
             })
             .collect();
-        let charts = (c.ir.roles.iter())
+        let charts: Vec<Chart> = (c.ir.roles.iter())
             .flat_map(|r| {
                 r.charts.iter().map(|ch| Chart {
                     role: r.name.clone(),
@@ -137,6 +140,9 @@ impl Machine {
                 })
             })
             .collect();
+        let charts_of: Vec<(String, String)> = (charts.iter())
+            .map(|ch| (ch.role.clone(), ch.name.clone()))
+            .collect();
         Ok(Machine {
             name: c.ir.name.clone(),
             sequence: c.ir.expect.iter().map(|s| s.to_string()).collect(),
@@ -153,9 +159,21 @@ impl Machine {
                 .and_then(|(r, _)| c.ir.roles.get(*r))
                 .map(|r| r.name.clone()),
             station: Station::of(c),
+            functions: functions(c, &charts_of),
             wiring,
         })
     }
+}
+
+/// Each control function and its chart's index among `charts` (role, chart name): the
+/// chart of the function's own name (not the `.seen` mirrors on other roles).
+fn functions(c: &Compiled, charts: &[(String, String)]) -> Vec<(String, usize)> {
+    (c.robot.functions.iter())
+        .filter_map(|f| {
+            let i = charts.iter().position(|(_, name)| *name == f.name)?;
+            Some((f.name.clone(), i))
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -236,6 +254,20 @@ pub(crate) mod tests {
             };
             assert_eq!(lanes, want, "{name}");
             assert_eq!(m.station.is_some(), name == "ball-sorter.ron");
+            let functions: Vec<String> = (m.functions.iter())
+                .map(|(f, i)| format!("{f} {}/{}", m.charts[*i].role, m.charts[*i].name))
+                .collect();
+            let want: &[&str] = match name {
+                "ball-sorter.ron" => &[],
+                _ => &[
+                    "Operation CABINET/Operation",
+                    "Transport CABINET/Transport",
+                    "FaultDetection PUSHER/FaultDetection",
+                    "Pusher PUSHER/Pusher",
+                    "Belt BELT/Belt",
+                ],
+            };
+            assert_eq!(functions, want, "{name}");
         }
     }
 }

@@ -107,6 +107,28 @@ function drawStation() {
   });
 }
 
+// Control functions: each one's places in a row, the one holding the token marked.
+function drawFunctions() {
+  if (!model.functions.length) return;
+  document.getElementById("functions").hidden = false;
+  const places = document.getElementById("places");
+  for (const [name, ci] of model.functions) {
+    const row = el("div", { class: "function", "data-function": name, "data-place": "" });
+    row.append(el("b", {}, name));
+    for (const p of model.charts[ci].states) row.append(el("span", { class: "place" }, p));
+    places.append(row);
+  }
+}
+
+function showFunctions(s) {
+  document.querySelectorAll(".function").forEach((row, i) => {
+    const st = s.charts[model.functions[i][1]];
+    const names = model.charts[model.functions[i][1]].states;
+    row.dataset.place = st === null ? "" : names[st] || "";
+    row.querySelectorAll(".place").forEach((p, j) => p.classList.toggle("marked", j === st));
+  });
+}
+
 function ball(colour) {
   const b = el("span", { class: "ball", title: colour, "data-colour": colour });
   b.style.background = colour === "unknown" ? "repeating-linear-gradient(45deg,#fff,#fff 3px,#c00 3px,#c00 6px)" : colour;
@@ -219,7 +241,7 @@ function show(s) {
   const silent = s.nodes.filter((n) => !n.answering).map((n) => n.role + " (" + n.addr + ")");
   banner(!s.medium_ok ? "The medium is gone: " + s.medium + ". Nothing can be commanded."
     : silent.length ? "Not answering: " + silent.join(", ") : "");
-  showLanes(s); showStation(s); showCycle(s); showCharts(s); showNodes(s); showAlarms(s); showButtons(s);
+  showLanes(s); showStation(s); showFunctions(s); showCycle(s); showCharts(s); showNodes(s); showAlarms(s); showButtons(s);
   document.body.dataset.version = Number(document.body.dataset.version || 0) + 1;
 }
 
@@ -246,7 +268,7 @@ async function main() {
   model = await (await fetch("model.json" + q)).json();
   document.getElementById("name").textContent = model.name;
   document.title = model.name + " panel";
-  drawSteps(); drawStation(); drawLanes(); drawCharts();
+  drawSteps(); drawStation(); drawFunctions(); drawLanes(); drawCharts();
   for (const name of BUTTONS) document.getElementById(name).onclick = () => press(name);
   listen();
 }
