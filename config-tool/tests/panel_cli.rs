@@ -149,10 +149,17 @@ fn the_sorters_page_shows_each_ball_in_the_bin_it_landed_in() {
             .recv_timeout(e2e_support::TIMEOUT)
             .expect("a ball lands");
     }
-    let s = events.until("every ball in its bin", |s| {
-        s["station"]["bins"] == serde_json::json!(want)
+    // The radio's events are opened with the machine's keys: the last ball's landing is
+    // told (published by the sensing node after its bin's sensor pulsed).
+    let told = |s: &serde_json::Value| {
+        (s["events"].as_array().unwrap().iter())
+            .any(|e| e["role"] == "SENSING" && e["event"] == "bins.landed")
+    };
+    let s = events.until("every ball in its bin, the landing told", |s| {
+        s["station"]["bins"] == serde_json::json!(want) && told(s)
     });
     assert_eq!(s["station"]["falling"], 0);
+    assert!(s["event_count"].as_u64().unwrap() >= 4 * 3, "{s:#}");
 }
 
 #[test]

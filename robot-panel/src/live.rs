@@ -95,7 +95,17 @@ pub struct Live {
     /// How the last command ended, in words.
     pub said: Option<String>,
     pub station: StationLive,
+    /// The last events published on the radio, newest last (at most [`KEPT_EVENTS`]):
+    /// (medium clock µs, role, event).
+    pub events: std::collections::VecDeque<(u64, String, String)>,
+    /// Events published since the panel started (each once, however often resent).
+    pub event_count: u64,
+    /// The last events heard, to tell a resent one: (publisher, epoch, seq, topic).
+    heard: std::collections::VecDeque<(u16, u16, u16, u8)>,
 }
+
+/// Events kept for the page.
+pub const KEPT_EVENTS: usize = 12;
 
 /// Cycle times kept for the page.
 pub const KEPT_CYCLES: usize = 8;
@@ -110,6 +120,29 @@ impl Live {
                 ..StationLive::default()
             },
             ..Live::default()
+        }
+    }
+
+    /// Node `src` published `topic` (event `seq` of link epoch `epoch`) at `at_us`; a
+    /// retransmission or a copy to another subscriber is not a new event.
+    pub fn event(&mut self, m: &Machine, at_us: u64, src: u16, epoch: u16, seq: u16, topic: u8) {
+        let key = (src, epoch, seq, topic);
+        if self.heard.contains(&key) {
+            return;
+        }
+        self.heard.push_back(key);
+        if self.heard.len() > 64 {
+            self.heard.pop_front();
+        }
+        let (role, event) = m
+            .topics
+            .get(usize::from(topic))
+            .cloned()
+            .unwrap_or_else(|| (format!("{src:#06x}"), format!("topic {topic}")));
+        self.event_count += 1;
+        self.events.push_back((at_us, role, event));
+        if self.events.len() > KEPT_EVENTS {
+            self.events.pop_front();
         }
     }
 
@@ -519,6 +552,28 @@ mod tests {
         sense(&mut l, [true, false, true], 70);
         assert_eq!(l.station.at_sensors.as_deref(), Some("orange"));
         assert_eq!(l.station.bins, [vec!["black"], vec!["gray"], vec![]]);
+    }
+
+    #[test]
+    fn an_event_is_counted_once_however_often_it_is_resent() {
+        let c = paint();
+        let m = Machine::of(&c).unwrap();
+        let mut l = Live::new(&m);
+        let (topic, _) = (m.topics.iter().enumerate())
+            .find(|(_, (r, _))| r == "GR")
+            .unwrap();
+        let topic = topic as u8;
+        l.event(&m, 10, 0x0012, 1, 5, topic);
+        l.event(&m, 20, 0x0012, 1, 5, topic);
+        l.event(&m, 30, 0x0012, 1, 6, topic);
+        assert_eq!(l.event_count, 2);
+        let (at, role, _) = l.events.back().unwrap();
+        assert_eq!((*at, role.as_str()), (30, "GR"));
+        l.event(&m, 40, 0x0099, 0, 0, 250);
+        assert_eq!(
+            l.events.back().map(|e| (&e.1[..], &e.2[..])),
+            Some(("0x0099", "topic 250"))
+        );
     }
 
     #[test]

@@ -29,6 +29,9 @@ pub struct Machine {
     /// The wiring the live feed reads the pins with (board pins); not sent.
     #[serde(skip)]
     pub wiring: Vec<Actuator>,
+    /// Each radio topic's publishing role and event, by topic number; not sent.
+    #[serde(skip)]
+    pub topics: Vec<(String, String)>,
 }
 
 /// A sorting station as the page draws it: a light per sensor, the ball at the colour
@@ -161,6 +164,13 @@ impl Machine {
             station: Station::of(c),
             functions: functions(c, &charts_of),
             wiring,
+            topics: (robot_compiler::lower::topics(&c.ir).into_iter())
+                .map(|(ri, e)| {
+                    let r = c.ir.roles.get(ri);
+                    let event = r.and_then(|r| r.events.get(e)).cloned().unwrap_or_default();
+                    (r.map_or_else(String::new, |r| r.name.clone()), event)
+                })
+                .collect(),
         })
     }
 }

@@ -13,6 +13,7 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use robot_compiler::compile::Compiled;
+use robot_keys::MachineSecret;
 use robot_net::radio::ToolRadio;
 use tiny_http::{Header, Method, Request, Response, Server};
 
@@ -95,10 +96,16 @@ fn new_token() -> String {
 }
 
 impl Panel {
-    /// Serves the page of `c` on `listener`, the pins from the medium at `medium`; the
+    /// Serves the page of `c` on `listener`, the pins and events from the medium at
+    /// `medium` (secured events opened with `secret`); the
     /// nodes' answers and the buttons once [`Panel::serve`] runs the radio. A token is
     /// made when the listener is not on loopback.
-    pub fn start(listener: Listener, c: Compiled, medium: SocketAddr) -> Result<Panel, PanelError> {
+    pub fn start(
+        listener: Listener,
+        c: Compiled,
+        medium: SocketAddr,
+        secret: Option<MachineSecret>,
+    ) -> Result<Panel, PanelError> {
         let machine = Arc::new(Machine::of(&c)?);
         let model = serde_json::to_string(&*machine)
             .map_err(|e| PanelError::Robot(format!("the page model: {e}")))?;
@@ -106,12 +113,12 @@ impl Panel {
         let shared = Arc::new(Shared::new(Live::new(&machine)));
         let stop = Arc::new(AtomicBool::new(false));
         let token = (!listener.addr.ip().is_loopback()).then(new_token);
-        let feed = feed::start(medium, machine.clone(), shared.clone(), stop.clone()).map_err(
-            |source| PanelError::Medium {
+        let keys = (secret, c.ir.generation);
+        let feed = feed::start(medium, machine.clone(), shared.clone(), keys, stop.clone())
+            .map_err(|source| PanelError::Medium {
                 addr: medium,
                 source,
-            },
-        )?;
+            })?;
         let (orders, inbox) = mpsc::channel();
         let run = Run {
             c: c.clone(),

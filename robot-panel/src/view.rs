@@ -149,6 +149,14 @@ pub fn state(c: &Compiled, m: &Machine, live: &Live) -> Value {
         "running": live.running,
         "busy": live.busy,
         "said": live.said,
+        "event_count": live.event_count,
+        "events": (live.events.iter().rev())
+            .map(|(at, role, event)| json!({
+                "at": format!("{:.3}", *at as f64 / 1e6),
+                "role": role,
+                "event": event,
+            }))
+            .collect::<Vec<_>>(),
         "station": m.station.as_ref().map(|s| json!({
             "at_sensors": live.station.at_sensors,
             "falling": live.station.falling.len(),

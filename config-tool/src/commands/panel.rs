@@ -30,10 +30,11 @@ pub fn panel(
     let medium = resolve(at)?;
     let mut radio = ToolRadio::connect(medium, TOOL_ADDR)
         .map_err(|e| Failure::error(format!("cannot reach the medium at {medium}: {e}")))?;
+    let secret = keys.as_ref().map(|k| k.secret.clone());
     if let Some(k) = keys {
         radio.secure(k.secret, k.counter);
     }
-    let panel = Panel::start(listener, c, medium).map_err(Failure::error)?;
+    let panel = Panel::start(listener, c, medium, secret).map_err(Failure::error)?;
     println!("panel of {} on {}", robot.display(), panel.url());
     if let Some(t) = panel.token() {
         println!(

@@ -234,6 +234,12 @@ function showButtons(s) {
   document.getElementById("said").textContent = s.busy ? s.busy + "..." : s.said || "";
 }
 
+function showEvents(s) {
+  document.getElementById("event-count").textContent = s.event_count;
+  document.getElementById("events").replaceChildren(...s.events.map((e) =>
+    el("li", {}, e.at + " s  " + e.role + ": " + e.event)));
+}
+
 function show(s) {
   const m = document.getElementById("medium");
   m.textContent = s.medium_ok ? "medium ok" : "medium: " + s.medium;
@@ -241,7 +247,7 @@ function show(s) {
   const silent = s.nodes.filter((n) => !n.answering).map((n) => n.role + " (" + n.addr + ")");
   banner(!s.medium_ok ? "The medium is gone: " + s.medium + ". Nothing can be commanded."
     : silent.length ? "Not answering: " + silent.join(", ") : "");
-  showLanes(s); showStation(s); showFunctions(s); showCycle(s); showCharts(s); showNodes(s); showAlarms(s); showButtons(s);
+  showLanes(s); showStation(s); showFunctions(s); showCycle(s); showCharts(s); showNodes(s); showAlarms(s); showEvents(s); showButtons(s);
   document.body.dataset.version = Number(document.body.dataset.version || 0) + 1;
 }
 
