@@ -30,8 +30,11 @@ pub struct Order {
 pub const POLL_ANSWER: Duration = Duration::from_millis(450);
 /// How long an order's command to one node is resent until answered (as the CLI's).
 pub const ANSWER_WITHIN: Duration = Duration::from_secs(5);
-/// Between two rounds of questions.
-pub const ROUND: Duration = Duration::from_millis(100);
+/// Between two rounds of questions (the pins come from the medium as they change; the
+/// questions are for the charts' states, the alarms and the counters, and take air).
+pub const ROUND: Duration = Duration::from_millis(200);
+/// The alarms are asked every so many rounds.
+const ALARMS_EVERY: u64 = 2;
 /// The security counters are asked every so many rounds.
 const SECURITY_EVERY: u64 = 10;
 /// How long homing may take.
@@ -127,17 +130,21 @@ impl Poll {
                 });
                 continue;
             };
-            let alarms = push::ask(
-                &mut self.radio,
-                &mut self.ids,
-                addr,
-                Command::Alarms,
-                POLL_ANSWER,
-                |m, id| match m {
-                    Message::Alarms(a) if a.ack == id => Some(a),
-                    _ => None,
-                },
-            )?;
+            let alarms = if round.is_multiple_of(ALARMS_EVERY) {
+                push::ask(
+                    &mut self.radio,
+                    &mut self.ids,
+                    addr,
+                    Command::Alarms,
+                    POLL_ANSWER,
+                    |m, id| match m {
+                        Message::Alarms(a) if a.ack == id => Some(a),
+                        _ => None,
+                    },
+                )?
+            } else {
+                None
+            };
             let security = if round.is_multiple_of(SECURITY_EVERY) {
                 push::ask(
                     &mut self.radio,
