@@ -64,6 +64,12 @@ fn a_silent_node_and_a_medium_gone_are_said_and_every_command_refused() {
     let panel = m.panel();
     let mut events = panel.events();
     events.until("HOME offered", |s| buttons_enabled(s) == ["HOME"]);
+    // What the page greys out the server refuses too, with the same reason.
+    assert_eq!(
+        panel.press("START"),
+        (409, "refused: not homed: HOME first".to_string())
+    );
+    assert_eq!(panel.press("JUMP"), (404, "no button JUMP".to_string()));
     m.bed.kill_node(0x0012);
     let s = events.until("GR not answering", |s| s["nodes"][1]["answering"] == false);
     assert_eq!(buttons_enabled(&s), Vec::<String>::new());

@@ -31,6 +31,8 @@ const STYLE: &str = include_str!("page/panel.css");
 
 /// At most this many pages stream at once (each holds a thread).
 const MAX_STREAMS: usize = 32;
+/// At most this many other requests are served at once (each holds a thread).
+const MAX_REQUESTS: usize = 64;
 /// A stream with no change says something this often (a page that went away is found).
 const KEEPALIVE: Duration = Duration::from_secs(5);
 /// The longest an order may take (homing waits for the machine).
@@ -86,6 +88,7 @@ struct Ctx {
     orders: Mutex<Sender<Order>>,
     token: Option<String>,
     streams: AtomicUsize,
+    requests: AtomicUsize,
     stop: Arc<AtomicBool>,
 }
 
@@ -141,6 +144,7 @@ impl Panel {
             orders: Mutex::new(orders),
             token: token.clone(),
             streams: AtomicUsize::new(0),
+            requests: AtomicUsize::new(0),
             stop: stop.clone(),
         });
         let (srv, flag) = (server.clone(), stop.clone());
@@ -151,10 +155,24 @@ impl Panel {
                     let Ok(Some(rq)) = srv.recv_timeout(Duration::from_millis(200)) else {
                         continue;
                     };
+                    if ctx.requests.fetch_add(1, Ordering::SeqCst) >= MAX_REQUESTS {
+                        ctx.requests.fetch_sub(1, Ordering::SeqCst);
+                        let _ = rq.respond(text(503, "text/plain", "the panel is busy\n"));
+                        continue;
+                    }
                     let ctx = ctx.clone();
-                    let _ = std::thread::Builder::new()
+                    let spawned = std::thread::Builder::new()
                         .name("panel-request".into())
-                        .spawn(move || handle(&ctx, rq));
+                        .spawn({
+                            let ctx = ctx.clone();
+                            move || {
+                                handle(&ctx, rq);
+                                ctx.requests.fetch_sub(1, Ordering::SeqCst);
+                            }
+                        });
+                    if spawned.is_err() {
+                        ctx.requests.fetch_sub(1, Ordering::SeqCst);
+                    }
                 }
             })
             .map_err(PanelError::Thread)?;
