@@ -281,9 +281,29 @@ pub const INSTALL: &str = "the panel's browser test needs Debian's headless chro
 /// A WebDriver session of headless chromium (`chromedriver`, the W3C protocol spoken
 /// directly: a handful of JSON requests).
 pub struct Browser {
-    _driver: Killed,
+    _driver: Driver,
     addr: SocketAddr,
     session: String,
+}
+
+/// The chromedriver process: asked to shut down (it closes the browsers it started)
+/// before it is killed, so no browser outlives the test, even one that failed.
+struct Driver {
+    process: Killed,
+    addr: SocketAddr,
+}
+
+impl Drop for Driver {
+    fn drop(&mut self) {
+        let _ = TcpStream::connect_timeout(&self.addr, TIMEOUT).and_then(|mut s| {
+            s.set_read_timeout(Some(TIMEOUT))?;
+            write!(s, "GET /shutdown HTTP/1.1\r\nHost: {}\r\n\r\n", self.addr)?;
+            // Its answer, or the connection closing as it exits.
+            let _ = s.read(&mut [0u8; 256]);
+            Ok(())
+        });
+        // Then killed and reaped (`Killed`).
+    }
 }
 
 impl Browser {
@@ -311,8 +331,11 @@ impl Browser {
             .any(|l| l.contains("started successfully"));
         assert!(ready, "chromedriver did not start: {INSTALL}");
         std::thread::spawn(move || for _ in lines {});
-        let driver = Killed(driver);
         let addr: SocketAddr = ([127, 0, 0, 1], port).into();
+        let driver = Driver {
+            process: Killed(driver),
+            addr,
+        };
         let binary = ["/usr/bin/chromium", "/usr/bin/chromium-browser"]
             .into_iter()
             .find(|p| Path::new(p).exists())
