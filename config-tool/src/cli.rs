@@ -30,6 +30,14 @@ pub enum Command {
         #[arg(long)]
         generation: Option<u32>,
     },
+    /// Write each chart type as an IEC 61499-2 basic FB type (`DIR/TYPE.fbt`) and the
+    /// robot as a system (`DIR/ROBOT.sys`) for Eclipse 4diac IDE (docs/iec61499-xml.md).
+    #[command(name = "export-4diac")]
+    Export4diac {
+        robot: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Print a table blob in readable form.
     Dump { blob: PathBuf },
     /// Print each control function's matrices: M, F, m(0), x and u (docs/petri-nets.md).
@@ -304,6 +312,10 @@ pub struct VerifyHow {
     /// A sorting station: explore every colour sequence of up to this many balls.
     #[arg(long, default_value_t = robot_analysis::verify::DEFAULT_BALLS, value_parser = balls)]
     pub balls: usize,
+    /// Declared fault contacts: explore up to this many fault pulses in a run (1 to 8),
+    /// each set and released at any moment against the radio's delays.
+    #[arg(long, default_value_t = robot_analysis::verify::DEFAULT_FAULTS, value_parser = faults)]
+    pub faults: u8,
     /// Explore only the cycle (from the machine homed) or only homing (from every start
     /// position); both without it.
     #[arg(long, value_enum)]
@@ -326,6 +338,14 @@ fn balls(text: &str) -> Result<usize, String> {
     }
 }
 
+/// `--faults N`: 1 to 8.
+fn faults(text: &str) -> Result<u8, String> {
+    match text.parse::<u8>() {
+        Ok(n @ 1..=8) => Ok(n),
+        _ => Err("a number of fault pulses from 1 to 8".to_string()),
+    }
+}
+
 impl Default for VerifyHow {
     /// `verify` without options.
     fn default() -> Self {
@@ -336,6 +356,7 @@ impl Default for VerifyHow {
             start_anytime: false,
             max_states: MAX_STATES,
             balls: robot_analysis::verify::DEFAULT_BALLS,
+            faults: robot_analysis::verify::DEFAULT_FAULTS,
             only: None,
         }
     }

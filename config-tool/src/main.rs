@@ -23,6 +23,7 @@ fn run(command: Command) -> Result<(), Failure> {
             out,
             generation,
         } => offline::compile(&robot, &out, generation),
+        Command::Export4diac { robot, out } => commands::export::export(&robot, &out),
         Command::Dump { blob } => offline::dump(&blob),
         Command::Matrix {
             robot,

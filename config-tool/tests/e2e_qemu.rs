@@ -9,10 +9,10 @@
 //! it (or without `qemu-system-arm`) these tests say so and pass, unless `REQUIRE_QEMU` is
 //! set (CI sets it once the image is built), where they fail.
 
+mod cli_support;
 mod e2e_support;
 
 use std::ffi::OsString;
-use std::path::PathBuf;
 
 use config_schema::wire::mac::Frame;
 use config_schema::wire::msg::{Command, Message, SecurityCounters};
@@ -20,30 +20,8 @@ use config_schema::wire::security::AuxHeader;
 use node_fw::node::CONFIG_PAN;
 use robot_net::demo::{self, Bed, Options};
 
+use cli_support::qemu_image;
 use e2e_support::*;
-
-/// The image (`QEMU_ELF`, else the release build's) and QEMU, if both are there; panics
-/// if they are not and `REQUIRE_QEMU` is set.
-fn qemu_image() -> Option<PathBuf> {
-    let elf = std::env::var_os("QEMU_ELF").map_or_else(
-        || {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-                .join("..")
-                .join(demo::QEMU_ELF)
-        },
-        PathBuf::from,
-    );
-    let missing = match (demo::check_elf(&elf), demo::check_qemu()) {
-        (Ok(()), Ok(())) => return Some(elf),
-        (Err(e), _) | (_, Err(e)) => e.to_string(),
-    };
-    assert!(
-        std::env::var_os("REQUIRE_QEMU").is_none(),
-        "REQUIRE_QEMU is set: {missing}"
-    );
-    eprintln!("skipped: {missing}");
-    None
-}
 
 /// Bed options: secured, every node a QEMU instance, its flash in `flash_dir`.
 fn qemu_options(elf: &std::path::Path, flash_dir: &TempDir) -> Options {

@@ -164,13 +164,16 @@ fn verify_passes_every_robot_of_robot_configs_as_declared() {
             .filter(|f| f.ends_with(".ron"))
             .collect();
     files.sort();
-    assert_eq!(files.len(), 8, "{files:?}");
+    assert_eq!(files.len(), 9, "{files:?}");
     for f in &files {
         let out = tool(&["verify", &format!("robot-configs/{f}")]);
         assert_eq!(out.status.code(), Some(0), "{f}: {}", text(&out.stdout));
         let stdout = text(&out.stdout);
         // The robots that count shared position events say which assumption they rest on.
-        let assumes = f.contains("paper-charts") || f.contains("counted") || f.contains("waterjet");
+        let assumes = f.contains("paper-charts")
+            || f.contains("4diac")
+            || f.contains("counted")
+            || f.contains("waterjet");
         assert_eq!(
             stdout.contains("assumes a prompt radio (`assume_prompt_radio`)"),
             assumes,
@@ -206,4 +209,40 @@ fn any_delay_drops_the_declared_assumption_and_finds_the_race() {
         Some(2),
         "clap refuses the contradiction"
     );
+}
+
+#[test]
+fn verify_faults_sets_the_fault_pulses_explored_and_refuses_a_count_out_of_range() {
+    let out = tool(&[
+        "verify",
+        "robot-configs/waterjet-transport.ron",
+        "--faults",
+        "1",
+    ]);
+    let stdout = text(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{stdout}");
+    assert!(
+        stdout.contains("switch FAULT set once and released, each at any time"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("robot-configs/waterjet-transport.ron: 1110 states, 4391 transitions"),
+        "{stdout}"
+    );
+    for bad in ["0", "9", "two"] {
+        let out = tool(&[
+            "verify",
+            "robot-configs/waterjet-transport.ron",
+            "--faults",
+            bad,
+        ]);
+        assert_eq!(out.status.code(), Some(2));
+        let stderr = text(&out.stderr);
+        assert!(
+            stderr.contains(&format!(
+                "invalid value '{bad}' for '--faults <FAULTS>': a number of fault pulses from 1 to 8"
+            )),
+            "{stderr}"
+        );
+    }
 }

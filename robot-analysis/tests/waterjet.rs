@@ -200,13 +200,15 @@ fn the_papers_fault_scenario_stops_the_pusher_at_once_and_a_restart_completes_a_
         // (7)-(9): the release; pusher and belt home (the belt on its own sensor).
         " 1004 Operation: Halted -> Releasing",
         " 1006 Pusher: Stopped -> CounterClockwise",
+        // The fault stays latched until its cause is gone: released, it persists.
+        " 1006 FaultDetection: Faulted -> Released",
         " 1008 Belt: Stopped -> Back",
         " 2004 Pusher: CounterClockwise -> Stopped",
         " 2004 Belt: Back -> Stopped",
         // (a restart pressed here is refused: the fault persists) the fault is cleared;
         // a restart at 2058 is refused (the alarm is latched), the operator acknowledges,
         // (10): the restart, and a full transport cycle.
-        " 2056 FaultDetection: Faulted -> Ok",
+        " 2056 FaultDetection: Released -> Ok",
         " 2108 Operation: Releasing -> Auto",
         " 2108 Transport: ReadyToCut -> Step1",
         " 2110 Pusher: Stopped -> Clockwise",
@@ -249,8 +251,8 @@ fn the_timeline_of_fig_9_has_a_lane_per_function_and_per_position() {
         ("position", "BELT"),
         ("chart", "CABINET.Operation"),
         ("chart", "CABINET.Transport"),
-        ("chart", "PUSHER.FaultDetection"),
         ("chart", "PUSHER.Pusher"),
+        ("chart", "PUSHER.FaultDetection"),
         ("chart", "BELT.Belt"),
         ("radio", "radio"),
     ];

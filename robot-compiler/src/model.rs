@@ -20,7 +20,9 @@ pub struct Robot {
     pub nodes: Vec<Node>,
     pub roles: Vec<Role>,
     /// Which node plays which role: `(ROLE, NODE)` pairs. Moving a role to a spare node is
-    /// a one-line edit here.
+    /// a one-line edit here. A robot with an `application` gets its resources' pairs from
+    /// the application's mapping.
+    #[serde(default)]
     pub assign: Vec<(String, String)>,
     /// The input (`NAME` or `ROLE/NAME`) whose rising edge starts a cycle.
     #[serde(default)]
@@ -49,6 +51,10 @@ pub struct Robot {
     /// (docs/iec61499-xml.md).
     #[serde(default)]
     pub fb_types: Vec<String>,
+    /// An IEC 61499 application (`.sys`): its resources become roles, its devices nodes,
+    /// its FB instances charts (docs/iec61499-xml.md, "How to bring a 4diac project").
+    #[serde(default)]
+    pub application: Option<ApplicationDecl>,
     /// For explicit charts: the actuator sequence one cycle must produce (checked by `sim`).
     #[serde(default)]
     pub expect: Option<String>,
@@ -106,6 +112,23 @@ pub struct Robot {
     /// What a link alarm does: `Stall` (default: the node keeps retrying) or `Fault`.
     #[serde(default)]
     pub on_link_alarm: crate::alarms::LinkAlarmPolicy,
+}
+
+/// An IEC 61499 application brought into the robot: the `.sys` file (relative to the
+/// robot file) and what the XML cannot say: which plant events feed FB event inputs and
+/// which FB output events drive the plant.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ApplicationDecl {
+    pub file: String,
+    /// `"FB.EVENT": "EVENT"` (of the FB's role) or `"ROLE/EVENT"`: an event input fed by
+    /// an input, a switch or a chart output, as a chart instance's `on`.
+    #[serde(default)]
+    pub on: BTreeMap<String, String>,
+    /// `"FB.EVENT": Extend("VC")`: what an output event of an FB does instead of being
+    /// an event (`Extend`, `Retract`, `Out` or `Fault`).
+    #[serde(default)]
+    pub actions: BTreeMap<String, ActionDecl>,
 }
 
 /// A selecting automaton as written: either `states` / `initial` / `transitions`, or the

@@ -2,6 +2,7 @@
 
 pub mod alarms;
 pub mod demo;
+pub mod export;
 pub mod keys;
 pub mod matrix;
 pub mod offline;

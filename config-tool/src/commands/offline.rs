@@ -15,7 +15,7 @@ fn load(path: &Path) -> Result<Source, Failure> {
 }
 
 /// Reads and compiles a robot; on failure every diagnostic is reported.
-fn load_compiled(path: &Path) -> Result<(Source, Compiled), Failure> {
+pub(crate) fn load_compiled(path: &Path) -> Result<(Source, Compiled), Failure> {
     let src = load(path)?;
     match pipeline::compile(&src) {
         Ok(compiled) => Ok((src, compiled)),
@@ -175,6 +175,7 @@ pub fn verification(
         prompt,
         start_anytime: how.start_anytime,
         max_states: how.max_states,
+        faults: how.faults,
     };
     let interlocks = model.interlock_count();
     let report = match how.only {

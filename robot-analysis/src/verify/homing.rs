@@ -176,6 +176,7 @@ fn start(
         estop: None,
         regions: model.init.regions.clone(),
         switches: 0,
+        sets: 0,
         latched: 0,
         uncleared: false,
     };

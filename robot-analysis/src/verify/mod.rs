@@ -71,7 +71,14 @@ pub struct ExploreOptions {
     pub start_anytime: bool,
     /// Give up (inconclusive) beyond this many states.
     pub max_states: usize,
+    /// Declared switches (fault contacts): how many times in all one may be set in a run,
+    /// each set released at any time after ([`DEFAULT_FAULTS`]).
+    pub faults: u8,
 }
+
+/// Fault pulses explored by default: two, each at any moment of the cycle and of any length
+/// against the radio's delays.
+pub const DEFAULT_FAULTS: u8 = 2;
 
 impl Default for ExploreOptions {
     fn default() -> Self {
@@ -80,6 +87,7 @@ impl Default for ExploreOptions {
             prompt: false,
             start_anytime: false,
             max_states: 2_000_000,
+            faults: DEFAULT_FAULTS,
         }
     }
 }
@@ -366,6 +374,8 @@ struct Sys {
     regions: Vec<motor::Region>,
     /// Declared switches: bit i set.
     switches: u8,
+    /// Declared switches: how many times one was set so far.
+    sets: u8,
     /// Bit i: node i has a fault alarm latched, not acknowledged.
     latched: u8,
     /// A switch was set and the operator has not cleared it since.
@@ -542,6 +552,7 @@ impl<'c> Model<'c> {
             estop: None,
             regions: vec![motor::Region::Home; declared.motors.len()],
             switches: 0,
+            sets: 0,
             latched: 0,
             uncleared: false,
         };
@@ -596,8 +607,8 @@ impl<'c> Model<'c> {
     }
 
     /// The declared plants, as the report names them (`None`: none).
-    pub fn plants(&self) -> Option<String> {
-        self.plants.any().then(|| self.plants.describe())
+    pub fn plants(&self, faults: u8) -> Option<String> {
+        self.plants.any().then(|| self.plants.describe(faults))
     }
 
     /// The e-stop the exploration presses (`VC/ESTOP`), if the robot has one.
@@ -796,10 +807,12 @@ impl<'c> Model<'c> {
                 out.push(Move::Motor(i as u8));
             }
         }
-        // Prompt radio: a contact holds while a publication is in flight (the fault lasts
-        // longer than a delivery).
+        // A contact is set or released at any time, also with a prompt radio (which is
+        // faster than a motion, not than a fault's pulse): at most `opts.faults` sets in a
+        // run; a set switch may always be released.
         for i in 0..self.plants.switches.len().min(8) {
-            if !(opts.prompt && radio_busy) {
+            let set = s.switches & (1 << i) != 0;
+            if set || s.sets < opts.faults {
                 out.push(Move::Switch(i as u8));
             }
         }
@@ -934,6 +947,7 @@ impl<'c> Model<'c> {
                     s.switches ^= 1 << i;
                     if set {
                         s.uncleared = true;
+                        s.sets = s.sets.saturating_add(1);
                     }
                     inputs.push_back((node, input, set));
                 }
@@ -1615,7 +1629,7 @@ pub fn explore(model: &Model<'_>, opts: ExploreOptions) -> Report {
     let mut r = run(model, model.roots(), opts);
     r.feed = model.feed();
     r.estop = model.estop();
-    r.plants = model.plants();
+    r.plants = model.plants(opts.faults);
     r.functions = model.c.robot.functions.len();
     r
 }

@@ -126,7 +126,7 @@ impl Plants {
     }
 
     /// The plants in one line, for the report.
-    pub(super) fn describe(&self) -> String {
+    pub(super) fn describe(&self, faults: u8) -> String {
         let mut parts: Vec<String> = (self.motors.iter())
             .map(|m| {
                 let with = match m.driven.is_empty() {
@@ -143,8 +143,12 @@ impl Plants {
                 .join(", ")
         };
         if !self.switches.is_empty() {
+            let times = match faults {
+                1 => "once".to_string(),
+                n => format!("up to {n} times"),
+            };
             parts.push(format!(
-                "switch {} set and released at any time",
+                "switch {} set {times} and released, each at any time",
                 names(&self.switches)
             ));
         }

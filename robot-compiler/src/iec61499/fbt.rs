@@ -9,7 +9,9 @@
 //!   algorithm's assignments then its output event; `ECTransition`s with conditions as
 //!   the tools write them: `EI[guard]`, `EI & guard` (1st edition, FBDK), `[guard]`, `EI`,
 //!   `guard`, `1` / `TRUE`;
-//! - algorithms in Structured Text ([`super::st`]).
+//! - algorithms in Structured Text ([`super::st`]);
+//! - in a type the export marked, the node's services as output events of reserved
+//!   names and its timers as the event inputs they start ([`super::services`]).
 //!
 //! Anything else (another algorithm language, REAL, STRING, adapters, a service or
 //! composite FB) is an error naming the element and its line:col; nothing is half
@@ -97,8 +99,24 @@ struct Var {
     init: Option<String>,
 }
 
+/// The typed interface of an imported basic FB type, beyond its chart type: what an
+/// application (`.sys`) needs to give its instances' parameters and check its connections.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Interface {
+    /// The input variables (the chart type's parameters, in order): name, type, and the
+    /// `InitialValue` as a chart literal (a parameter without a value takes it, else 0).
+    pub inputs: Vec<(String, Ty, Option<String>)>,
+    /// The output variables' names.
+    pub outputs: Vec<String>,
+}
+
 /// Parses the `.fbt` text into a chart type.
 pub fn import(text: &str) -> Result<ChartType, XmlError> {
+    import_typed(text).map(|(t, _)| t)
+}
+
+/// [`import`], with the type's typed [`Interface`].
+pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
     let options = ParsingOptions {
         allow_dtd: true,
         ..ParsingOptions::default()
@@ -197,6 +215,30 @@ pub fn import(text: &str) -> Result<ChartType, XmlError> {
             out.push((ename, e));
         }
     }
+    // A chart this project exported: its reserved output events are node services, and
+    // the event inputs they start or stop are its timers (`super::services`).
+    let marked = child(root, "Identification")
+        .and_then(|i| i.attribute("Classification"))
+        .is_some_and(|c| c == super::services::MARK);
+    let in_names: Vec<String> = events_in.iter().map(|(n, _)| n.clone()).collect();
+    let timers: Vec<String> = if marked {
+        in_names
+            .iter()
+            .filter(|i| {
+                events_out
+                    .iter()
+                    .any(|(o, _)| super::services::timer_of(o, &in_names) == Some(*i))
+            })
+            .cloned()
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let service = |out: &str| {
+        marked
+            .then(|| super::services::action(out, &timers))
+            .flatten()
+    };
     for (vars, writable) in [(&inputs, false), (&outputs, true), (&internal, true)] {
         for v in vars.iter() {
             names.push(Name {
@@ -297,7 +339,9 @@ pub fn import(text: &str) -> Result<ChartType, XmlError> {
                 if !events_out.iter().any(|(n, _)| n == out) {
                     return Err(cx.node_err(a, format!("`{out}` is not an output event")));
                 }
-                body.push(Step::Emit(out.to_string()));
+                body.push(Step::Act(
+                    service(out).unwrap_or_else(|| ActionDecl::Emit(out.to_string())),
+                ));
             }
         }
         states.push(StateDecl {
@@ -345,23 +389,39 @@ pub fn import(text: &str) -> Result<ChartType, XmlError> {
             init: v.init.clone().unwrap_or_else(|| String::from("0")),
         })
         .collect();
-    Ok(ChartType {
+    let interface = Interface {
+        inputs: inputs
+            .iter()
+            .map(|v| (v.name.clone(), v.ty, v.init.clone()))
+            .collect(),
+        outputs: outputs.iter().map(|v| v.name.clone()).collect(),
+    };
+    let chart = ChartType {
         name,
         params: inputs.iter().map(|v| v.name.clone()).collect(),
-        inputs: events_in.iter().map(|(n, _)| n.clone()).collect(),
-        outputs: events_out.iter().map(|(n, _)| n.clone()).collect(),
+        inputs: in_names
+            .iter()
+            .filter(|n| !timers.contains(n))
+            .cloned()
+            .collect(),
+        outputs: events_out
+            .iter()
+            .filter(|(n, _)| service(n).is_none())
+            .map(|(n, _)| n.clone())
+            .collect(),
         vars,
-        timers: Vec::new(),
+        timers,
         states,
         transitions,
-    })
+    };
+    Ok((chart, interface))
 }
 
 /// What a state does when entered: a statement of one of its algorithms, or its output
-/// event.
+/// event (emitted, or a node service).
 enum Step {
     Stmt(Stmt),
-    Emit(String),
+    Act(ActionDecl),
 }
 
 /// The states with their actions. A state whose algorithms only assign and emit does so
@@ -393,7 +453,7 @@ fn split(
         let mut at = 0;
         for step in body {
             match step {
-                Step::Emit(e) => chain.states[at].actions.push(ActionDecl::Emit(e)),
+                Step::Act(a) => chain.states[at].actions.push(a),
                 Step::Stmt(st) => at = chain.run(at, &st),
             }
         }

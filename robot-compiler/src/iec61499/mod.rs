@@ -1,8 +1,18 @@
-//! IEC 61499-2 XML in: basic FB types (`.fbt`) become chart types of the robot
-//! (docs/iec61499-xml.md). [`fbt`] reads one file, [`st`] translates its Structured Text.
+//! IEC 61499-2 XML in: basic FB types (`.fbt`) become chart types of the robot, an
+//! application (`.sys`) its roles and charts (docs/iec61499-xml.md). [`fbt`] reads one
+//! basic type, [`st`] translates its Structured Text; [`sys`] reads a system, [`composite`]
+//! a composite type ([`net`]: the FB networks both have), [`app`] makes the robot of them.
+//! Out: [`export`] writes a compiled robot as `.fbt` types and a `.sys`; [`services`] is
+//! the naming of the node's services both directions share.
 
+pub mod app;
+pub mod composite;
+pub mod export;
 pub mod fbt;
+pub mod net;
+pub mod services;
 pub mod st;
+pub mod sys;
 
 use std::io;
 use std::path::Path;
@@ -12,8 +22,9 @@ use crate::model::Robot;
 use crate::source::Source;
 
 /// Imports the robot's `fb_types` (files next to the robot file, `src.name`) into its
-/// `chart_types`; every problem is an error at its `fb_types` entry naming the file's
-/// line:col. A type with an error is not imported.
+/// `chart_types`, then its `application`; every problem is an error at its `fb_types` or
+/// `application` entry naming the file's line:col. A type with an error is not imported;
+/// an application with an error changes nothing.
 pub fn import(robot: &mut Robot, src: &Source) -> Vec<Diagnostic> {
     let dir = Path::new(&src.name)
         .parent()
@@ -29,6 +40,8 @@ pub fn import_with(
     read: &dyn Fn(&str) -> io::Result<Vec<u8>>,
 ) -> Vec<Diagnostic> {
     let mut diags = Vec::new();
+    let mut interfaces = Vec::new();
+    let mut composites = Vec::new();
     for (i, file) in robot.fb_types.clone().iter().enumerate() {
         let at = src.span(&format!("fb_types[{i}]"));
         let bytes = match read(file) {
@@ -42,12 +55,67 @@ pub fn import_with(
             diags.push(Diagnostic::error(at, format!("`{file}` is not UTF-8 text")));
             continue;
         };
-        match fbt::import(&text) {
-            Ok(t) => robot.chart_types.push(t),
+        if robot.application.is_some() && composite::is_composite(&text) == Some(true) {
+            match composite::parse(&text, file) {
+                Ok(c) => composites.push(c),
+                Err(e) => diags.push(Diagnostic::error(at, e.to_string()).label("imported here")),
+            }
+            continue;
+        }
+        match fbt::import_typed(&text) {
+            Ok((t, i)) => {
+                interfaces.push((t.name.clone(), i));
+                robot.chart_types.push(t);
+            }
             Err(e) => {
                 diags.push(Diagnostic::error(at, format!("{file}:{e}")).label("imported here"))
             }
         }
     }
+    if diags.is_empty() {
+        if let Some(d) = application(robot, src, read, &interfaces, composites) {
+            diags.push(d);
+        }
+    }
     diags
+}
+
+/// Brings the robot's `application`, if it has one: the error that kept it out.
+fn application(
+    robot: &mut Robot,
+    src: &Source,
+    read: &dyn Fn(&str) -> io::Result<Vec<u8>>,
+    interfaces: &[(String, fbt::Interface)],
+    composites: Vec<composite::Composite>,
+) -> Option<Diagnostic> {
+    let decl = robot.application.clone()?;
+    let at = src.span("application.file");
+    let file = &decl.file;
+    let text = match read(file) {
+        Ok(bytes) => match String::from_utf8(bytes) {
+            Ok(t) => t,
+            Err(_) => return Some(Diagnostic::error(at, format!("`{file}` is not UTF-8 text"))),
+        },
+        Err(e) => return Some(Diagnostic::error(at, format!("cannot read `{file}`: {e}"))),
+    };
+    let xml =
+        |e: net::SysError| Diagnostic::error(at.clone(), e.to_string()).label("imported here");
+    let system = match sys::parse(&text, file) {
+        Ok(s) => s,
+        Err(e) => return Some(xml(e)),
+    };
+    let mut types = app::Types::of(robot, interfaces);
+    types.composites = composites;
+    match app::bring(robot, &decl, &system, &mut types) {
+        Ok(b) => {
+            robot.roles = b.roles;
+            robot.assign = b.assign;
+            robot.chart_types.extend(b.chart_types);
+            None
+        }
+        Err(app::AppError::Xml(e)) => Some(xml(e)),
+        Err(app::AppError::Ron { path, message }) => {
+            Some(Diagnostic::error(src.span(&path), message))
+        }
+    }
 }

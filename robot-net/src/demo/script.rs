@@ -232,18 +232,18 @@ mod tests {
         assert_eq!(
             lines,
             [
-                "START: [clockwise] Operation: Auto, Transport: Step2, FaultDetection: Ok, \
-                 Pusher: Clockwise, Belt: Forward",
+                "START: [clockwise] Operation: Auto, Transport: Step2, Pusher: Clockwise, \
+                 FaultDetection: Ok, Belt: Forward",
                 "the fault contact closes: [stopped] Operation: Halted, Transport: ReadyToCut, \
-                 FaultDetection: Faulted, Pusher: Stopped, Belt: Stopped",
+                 Pusher: Stopped, FaultDetection: Faulted, Belt: Stopped",
                 "RELEASE pressed: [counter-clockwise home stopped] Operation: Releasing, \
-                 Transport: ReadyToCut, FaultDetection: Faulted, Pusher: Stopped, Belt: Stopped",
+                 Transport: ReadyToCut, Pusher: Stopped, FaultDetection: Released, Belt: Stopped",
                 "the fault contact opens: [] Operation: Releasing, Transport: ReadyToCut, \
-                 FaultDetection: Ok, Pusher: Stopped, Belt: Stopped",
+                 Pusher: Stopped, FaultDetection: Ok, Belt: Stopped",
                 "the alarm acknowledged: [] Operation: Releasing, Transport: ReadyToCut, \
-                 FaultDetection: Ok, Pusher: Stopped, Belt: Stopped",
+                 Pusher: Stopped, FaultDetection: Ok, Belt: Stopped",
                 "RESTART pressed: [clockwise at its end stopped counter-clockwise home stopped] \
-                 Operation: Auto, Transport: ReadyToCut, FaultDetection: Ok, Pusher: Stopped, \
+                 Operation: Auto, Transport: ReadyToCut, Pusher: Stopped, FaultDetection: Ok, \
                  Belt: Stopped",
             ],
             "{}",

@@ -1,0 +1,62 @@
+//! `export-4diac`: the robot's chart types as `.fbt` files and the robot as a `.sys`
+//! (robot_compiler::iec61499::export).
+
+use std::path::Path;
+
+use robot_compiler::iec61499::export;
+
+use super::offline::load_compiled;
+use crate::failure::Failure;
+
+pub fn export(robot: &Path, out: &Path) -> Result<(), Failure> {
+    let (_, compiled) = load_compiled(robot)?;
+    let exported = export::export(&compiled, &today())
+        .map_err(|e| Failure::error(format!("{}: cannot export: {e}", robot.display())))?;
+    std::fs::create_dir_all(out).map_err(|e| Failure::error(format!("{}: {e}", out.display())))?;
+    for (name, text) in &exported.files {
+        let path = out.join(name);
+        std::fs::write(&path, text)
+            .map_err(|e| Failure::error(format!("{}: {e}", path.display())))?;
+        println!("{}", path.display());
+    }
+    let lifted = exported.instances.iter().filter(|i| i.lifted).count();
+    println!(
+        "{} FB types ({lifted} lifted from compiled charts), {} FB instances",
+        exported.types.len(),
+        exported.instances.len()
+    );
+    Ok(())
+}
+
+/// Today's date (UTC), `YYYY-MM-DD`, for `VersionInfo`.
+fn today() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    civil(i64::try_from(secs / 86_400).unwrap_or(0))
+}
+
+/// The civil date of day `z` since 1970-01-01 (the proleptic Gregorian calendar).
+fn civil(z: i64) -> String {
+    let z = z + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!("{y:04}-{m:02}-{d:02}")
+}
+
+#[cfg(test)]
+mod tests {
+    /// Days since 1970 become their dates (leap years included).
+    #[test]
+    fn civil_dates() {
+        assert_eq!(super::civil(0), "1970-01-01");
+        assert_eq!(super::civil(11_016), "2000-02-29");
+        assert_eq!(super::civil(20_454), "2026-01-01");
+    }
+}

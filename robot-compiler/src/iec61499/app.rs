@@ -1,0 +1,918 @@
+//! An application (`.sys`) -> the robot's roles, charts and assignments
+//! (docs/iec61499-xml.md, "How to bring a 4diac project"):
+//!
+//! - each resource a role, each device a node (named in the robot's `nodes`);
+//! - composite FB instances flattened into the basic FBs inside (`comp.inner`);
+//! - each basic FB instance a chart of its resource's role, its `Parameter`s (or input
+//!   variables' initial values) the chart's parameters;
+//! - each event connection an `on` entry of its destination: `FB.OUT` inside a resource,
+//!   `ROLE/FB.OUT` across the mapping (a publication / subscription after lowering);
+//! - an `E_DELAY` serving one FB (START from it, EO back to it) that FB's timer;
+//! - the robot file's `on` and `actions` feed FB inputs from the plant and make FB
+//!   outputs drive it.
+//!
+//! Anything else is an error at its element; nothing is half imported (the robot is
+//! changed only when the whole application imported).
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use super::composite::Composite;
+use super::fbt::Interface;
+use super::net::{At, Fb, Network, SysError};
+use super::st::{self, Ty};
+use super::sys::{self, System};
+use crate::model::{ActionDecl, ApplicationDecl, ChartInstance, ChartType, Robot, Role};
+
+/// The event FB library, written for this project in the 4diac style: a `.sys` may use
+/// these types without listing them in `fb_types`.
+pub const LIBRARY: &[(&str, &str)] = &[
+    ("E_CTU", include_str!("../../types/iec61499/E_CTU.fbt")),
+    ("E_CTD", include_str!("../../types/iec61499/E_CTD.fbt")),
+    ("E_CTUD", include_str!("../../types/iec61499/E_CTUD.fbt")),
+    ("E_SR", include_str!("../../types/iec61499/E_SR.fbt")),
+    ("E_RS", include_str!("../../types/iec61499/E_RS.fbt")),
+    (
+        "E_SWITCH",
+        include_str!("../../types/iec61499/E_SWITCH.fbt"),
+    ),
+    ("E_DEMUX", include_str!("../../types/iec61499/E_DEMUX.fbt")),
+    (
+        "E_PERMIT",
+        include_str!("../../types/iec61499/E_PERMIT.fbt"),
+    ),
+    (
+        "E_R_TRIG",
+        include_str!("../../types/iec61499/E_R_TRIG.fbt"),
+    ),
+    (
+        "E_F_TRIG",
+        include_str!("../../types/iec61499/E_F_TRIG.fbt"),
+    ),
+    ("E_D_FF", include_str!("../../types/iec61499/E_D_FF.fbt")),
+    ("E_T_FF", include_str!("../../types/iec61499/E_T_FF.fbt")),
+    ("E_SPLIT", include_str!("../../types/iec61499/E_SPLIT.fbt")),
+    ("E_MERGE", include_str!("../../types/iec61499/E_MERGE.fbt")),
+];
+
+/// The delay FB folded into the timer of the FB it serves.
+const DELAY: &str = "E_DELAY";
+
+/// Service FBs of the 4diac library (their behaviour is not an ECC), named in errors.
+const SERVICE: &[&str] = &[
+    "E_RESTART",
+    "E_CYCLE",
+    "E_TRAIN",
+    "E_TABLE",
+    "E_N_TABLE",
+    "E_TIMEOUT",
+    "E_STOPWATCH",
+    "IX",
+    "QX",
+    "IW",
+    "QW",
+    "ID",
+    "QD",
+];
+
+/// Why the application did not import: an error in one of its files, or in the robot
+/// file's `application` entry (at the RON path `path`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum AppError {
+    Xml(SysError),
+    Ron { path: String, message: String },
+}
+
+impl From<SysError> for AppError {
+    fn from(e: SysError) -> AppError {
+        AppError::Xml(e)
+    }
+}
+
+fn ron(path: &str, message: impl Into<String>) -> AppError {
+    AppError::Ron {
+        path: path.to_string(),
+        message: message.into(),
+    }
+}
+
+/// The FB types an application may instantiate: basic ones with their typed interfaces
+/// (the robot's, then the library's as used) and composite ones.
+#[derive(Debug, Clone, Default)]
+pub struct Types {
+    pub basic: Vec<(ChartType, Interface)>,
+    pub composites: Vec<Composite>,
+}
+
+impl Types {
+    /// The robot's chart types (written in RON: parameters as DINT, variables as outputs)
+    /// and its imported FB types' interfaces.
+    pub fn of(robot: &Robot, interfaces: &[(String, Interface)]) -> Types {
+        let basic = robot
+            .chart_types
+            .iter()
+            .map(|t| {
+                let i = interfaces
+                    .iter()
+                    .find(|(n, _)| *n == t.name)
+                    .map(|(_, i)| i.clone())
+                    .unwrap_or_else(|| Interface {
+                        inputs: t
+                            .params
+                            .iter()
+                            .map(|p| (p.clone(), Ty::of("DINT").unwrap_or(Ty::Bool), None))
+                            .collect(),
+                        outputs: t.vars.iter().map(|v| v.name.clone()).collect(),
+                    });
+                (t.clone(), i)
+            })
+            .collect();
+        Types {
+            basic,
+            composites: Vec::new(),
+        }
+    }
+
+    fn basic(&self, name: &str) -> Option<&(ChartType, Interface)> {
+        self.basic.iter().find(|(t, _)| t.name == name)
+    }
+
+    fn composite(&self, name: &str) -> Option<&Composite> {
+        self.composites.iter().find(|c| c.name == name)
+    }
+
+    /// Makes `name` known if the library has it; whether it did.
+    fn load_library(&mut self, name: &str, at: &At) -> Result<bool, SysError> {
+        let Some((_, text)) = LIBRARY.iter().find(|(n, _)| *n == name) else {
+            return Ok(false);
+        };
+        let typed = super::fbt::import_typed(text)
+            .map_err(|e| at.error(format!("library type `{name}`: {e}")))?;
+        self.basic.push(typed);
+        Ok(true)
+    }
+}
+
+/// What an application adds to the robot.
+#[derive(Debug, Clone)]
+pub struct Brought {
+    /// Every role: the robot file's, with the charts of their resources, then the other
+    /// resources'.
+    pub roles: Vec<Role>,
+    pub assign: Vec<(String, String)>,
+    /// The chart types the charts use that the robot does not have yet (library types,
+    /// and per-instance copies where the robot file binds outputs or a delay is folded).
+    pub chart_types: Vec<ChartType>,
+}
+
+/// One basic FB after flattening: its full name (`comp.inner`), type, parameters and the
+/// top-level FB whose mapping places it.
+struct Leaf {
+    name: String,
+    ty: String,
+    top: String,
+    params: Vec<super::net::Param>,
+    at: At,
+}
+
+/// A connection between two ports (`FB`, `PORT`), full names.
+#[derive(Clone)]
+struct Edge {
+    from: (String, String),
+    to: (String, String),
+    at: At,
+}
+
+/// The flattened application.
+#[derive(Default)]
+struct Flat {
+    leaves: Vec<Leaf>,
+    /// Composite instances (full name) and their types.
+    composites: BTreeMap<String, String>,
+    /// Parameters of composite instances: (instance, input) -> value.
+    cparams: BTreeMap<(String, String), (String, At)>,
+    events: Vec<Edge>,
+    data: Vec<Edge>,
+}
+
+/// The ports of an FB kind: event inputs, event outputs, data inputs, data outputs.
+type Ports = (Vec<String>, Vec<String>, Vec<String>, Vec<String>);
+
+fn delay_ports() -> Ports {
+    (
+        vec!["START".into(), "STOP".into()],
+        vec!["EO".into()],
+        vec!["DT".into()],
+        Vec::new(),
+    )
+}
+
+impl Flat {
+    /// Expands `net` (of the composite instance `prefix`, typed `iface`; the application's
+    /// own network without).
+    fn expand(
+        &mut self,
+        types: &mut Types,
+        net: &Network,
+        prefix: Option<&str>,
+        iface: Option<&Composite>,
+        top: Option<&str>,
+        stack: &mut Vec<String>,
+    ) -> Result<(), SysError> {
+        let full = |n: &str| prefix.map_or(n.to_string(), |p| format!("{p}.{n}"));
+        let mut ports: BTreeMap<String, (String, Ports)> = BTreeMap::new();
+        for fb in &net.fbs {
+            if ports.contains_key(&fb.name) {
+                return Err(fb.at.error(format!("FB `{}` is declared twice", fb.name)));
+            }
+            let name = full(&fb.name);
+            let top = top.unwrap_or(&fb.name);
+            let p = self.fb(types, fb, &name, top, stack)?;
+            ports.insert(fb.name.clone(), (fb.ty.clone(), p));
+        }
+        let end = |text: &str,
+                   source: bool,
+                   event: bool,
+                   at: &At|
+         -> Result<(String, String), SysError> {
+            let what = match (event, source) {
+                (true, true) => "event output",
+                (true, false) => "event input",
+                (false, true) => "data output",
+                (false, false) => "data input",
+            };
+            match text.split_once('.') {
+                Some((fb, port)) => {
+                    let Some((ty, (ei, eo, di, dout))) = ports.get(fb) else {
+                        return Err(at.error(format!("`{text}`: no FB `{fb}` in this network")));
+                    };
+                    let list = match (event, source) {
+                        (true, true) => eo,
+                        (true, false) => ei,
+                        (false, true) => dout,
+                        (false, false) => di,
+                    };
+                    if !list.iter().any(|x| x == port) {
+                        return Err(at.error(format!(
+                            "`{text}`: `{fb}` (of type `{ty}`) has no {what} `{port}`"
+                        )));
+                    }
+                    Ok((full(fb), port.to_string()))
+                }
+                None => {
+                    // A port of the enclosing composite's interface: its inputs are
+                    // sources inside, its outputs destinations.
+                    let found = iface.is_some_and(|c| {
+                        let list = match (event, source) {
+                            (true, true) => &c.events_in,
+                            (true, false) => &c.events_out,
+                            (false, false) => &c.outputs,
+                            (false, true) => {
+                                return c.inputs.iter().any(|(n, _)| n == text);
+                            }
+                        };
+                        list.iter().any(|x| x == text)
+                    });
+                    match (found, prefix) {
+                        (true, Some(p)) => Ok((p.to_string(), text.to_string())),
+                        _ => Err(at.error(format!(
+                            "`{text}` names no FB port (`FB.PORT`){}",
+                            iface.map_or(String::new(), |c| format!(
+                                " nor a {} of `{}`",
+                                if source { "input" } else { "output" },
+                                c.name
+                            ))
+                        ))),
+                    }
+                }
+            }
+        };
+        for (list, event) in [(&net.events, true), (&net.data, false)] {
+            for c in list {
+                let edge = Edge {
+                    from: end(&c.source, true, event, &c.at)?,
+                    to: end(&c.dest, false, event, &c.at)?,
+                    at: c.at.clone(),
+                };
+                if event {
+                    self.events.push(edge);
+                } else {
+                    self.data.push(edge);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// One FB of a network (full name `name`): a leaf, or a composite expanded; its ports.
+    fn fb(
+        &mut self,
+        types: &mut Types,
+        fb: &Fb,
+        name: &str,
+        top: &str,
+        stack: &mut Vec<String>,
+    ) -> Result<Ports, SysError> {
+        let leaf = |params: Vec<super::net::Param>| Leaf {
+            name: name.to_string(),
+            ty: fb.ty.clone(),
+            top: top.to_string(),
+            params,
+            at: fb.at.clone(),
+        };
+        if fb.ty == DELAY {
+            self.leaves.push(leaf(fb.params.clone()));
+            return Ok(delay_ports());
+        }
+        if let Some(c) = types.composite(&fb.ty).cloned() {
+            if stack.contains(&c.name) {
+                return Err(fb
+                    .at
+                    .error(format!("composite FB type `{}` contains itself", c.name)));
+            }
+            self.composites.insert(name.to_string(), c.name.clone());
+            for p in &fb.params {
+                if !c.inputs.iter().any(|(n, _)| *n == p.name) {
+                    return Err(p
+                        .at
+                        .error(format!("`{}` has no input variable `{}`", c.name, p.name)));
+                }
+                self.cparams.insert(
+                    (name.to_string(), p.name.clone()),
+                    (p.value.clone(), p.at.clone()),
+                );
+            }
+            stack.push(c.name.clone());
+            self.expand(types, &c.net, Some(name), Some(&c), Some(top), stack)?;
+            stack.pop();
+            return Ok((
+                c.events_in.clone(),
+                c.events_out.clone(),
+                c.inputs.iter().map(|(n, _)| n.clone()).collect(),
+                c.outputs.clone(),
+            ));
+        }
+        if types.basic(&fb.ty).is_none() && !types.load_library(&fb.ty, &fb.at)? {
+            return Err(fb.at.error(unknown_type(&fb.name, &fb.ty)));
+        }
+        let Some((t, i)) = types.basic(&fb.ty) else {
+            return Err(fb.at.error(unknown_type(&fb.name, &fb.ty)));
+        };
+        for p in &fb.params {
+            if !t.params.contains(&p.name) {
+                return Err(p
+                    .at
+                    .error(format!("`{}` has no input variable `{}`", t.name, p.name)));
+            }
+        }
+        let ports = (
+            t.inputs.clone(),
+            t.outputs.clone(),
+            t.params.clone(),
+            i.outputs.clone(),
+        );
+        self.leaves.push(leaf(fb.params.clone()));
+        Ok(ports)
+    }
+
+    /// The leaf ports an event reaching `at` ends in (through composite interfaces).
+    fn ends(
+        &self,
+        at: &(String, String),
+        seen: &mut BTreeSet<(String, String)>,
+    ) -> Vec<(String, String)> {
+        if !self.composites.contains_key(&at.0) {
+            return vec![at.clone()];
+        }
+        if !seen.insert(at.clone()) {
+            return Vec::new();
+        }
+        let mut out = Vec::new();
+        for e in self.events.iter().filter(|e| e.from == *at) {
+            out.extend(self.ends(&e.to, seen));
+        }
+        out
+    }
+
+    /// Every connection from a basic FB's output to a basic FB's input.
+    fn leaf_edges(&self) -> Vec<Edge> {
+        let mut out = Vec::new();
+        for e in &self.events {
+            if self.composites.contains_key(&e.from.0) {
+                continue;
+            }
+            for to in self.ends(&e.to, &mut BTreeSet::new()) {
+                out.push(Edge {
+                    from: e.from.clone(),
+                    to,
+                    at: e.at.clone(),
+                });
+            }
+        }
+        out
+    }
+
+    /// The value of data input `port` of `leaf` given by no own `Parameter`: a composite
+    /// instance's parameter (or its input's initial value) reaching it, if any.
+    fn data_value(
+        &self,
+        types: &Types,
+        to: &(String, String),
+    ) -> Result<Option<(String, At)>, SysError> {
+        let into: Vec<&Edge> = self.data.iter().filter(|e| e.to == *to).collect();
+        let Some(e) = into.first() else {
+            return Ok(None);
+        };
+        if let Some(second) = into.get(1) {
+            return Err(second
+                .at
+                .error(format!("`{}.{}` has a second data connection", to.0, to.1)));
+        }
+        let from = &e.from;
+        let Some(cty) = self.composites.get(&from.0) else {
+            return Err(e.at.error(format!(
+                "data connection `{}.{}` -> `{}.{}`: data connections between FBs are not \
+                 supported yet (events between nodes carry no data); give `{}` a parameter",
+                from.0, from.1, to.0, to.1, to.1
+            )));
+        };
+        if let Some(v) = self.cparams.get(from) {
+            return Ok(Some(v.clone()));
+        }
+        if let Some(v) = self.data_value(types, from)? {
+            return Ok(Some(v));
+        }
+        let init = types
+            .composite(cty)
+            .and_then(|c| c.inputs.iter().find(|(n, _)| *n == from.1))
+            .and_then(|(_, v)| v.clone());
+        Ok(init.map(|v| (v, e.at.clone())))
+    }
+}
+
+fn unknown_type(fb: &str, ty: &str) -> String {
+    let service = SERVICE.contains(&ty)
+        || ["PUBLISH", "SUBSCRIBE", "CLIENT", "SERVER"]
+            .iter()
+            .any(|p| ty.starts_with(p));
+    if service {
+        format!(
+            "FB `{fb}` is of type `{ty}`, a service FB: not supported (only basic and \
+             composite FB types, and E_DELAY)"
+        )
+    } else {
+        format!(
+            "FB `{fb}` is of type `{ty}`: no basic or composite FB type of that name in the \
+             robot's `fb_types`, its `chart_types` or the library"
+        )
+    }
+}
+
+/// A `TIME` literal (`T#150ms`, `TIME#1s500ms`) in whole milliseconds.
+pub fn time_ms(text: &str) -> Option<u32> {
+    let t = text.trim();
+    let (head, body) = t.split_once('#')?;
+    if !["T", "TIME"].iter().any(|p| head.eq_ignore_ascii_case(p)) {
+        return None;
+    }
+    let body = body.replace('_', "").to_ascii_lowercase();
+    let mut us: u64 = 0;
+    let mut rest = body.as_str();
+    if rest.is_empty() {
+        return None;
+    }
+    while !rest.is_empty() {
+        let digits = rest
+            .find(|c: char| !c.is_ascii_digit())
+            .unwrap_or(rest.len());
+        let n: u64 = rest[..digits].parse().ok()?;
+        rest = &rest[digits..];
+        let unit = rest
+            .find(|c: char| c.is_ascii_digit())
+            .unwrap_or(rest.len());
+        let scale: u64 = match &rest[..unit] {
+            "d" => 86_400_000_000,
+            "h" => 3_600_000_000,
+            "m" => 60_000_000,
+            "s" => 1_000_000,
+            "ms" => 1_000,
+            "us" => 1,
+            _ => return None,
+        };
+        us = us.checked_add(n.checked_mul(scale)?)?;
+        rest = &rest[unit..];
+    }
+    if !us.is_multiple_of(1000) {
+        return None;
+    }
+    u32::try_from(us / 1000).ok()
+}
+
+/// Brings the application `sys` into `robot` (its `application` entry `decl`), with the
+/// FB types `types`.
+pub fn bring(
+    robot: &Robot,
+    decl: &ApplicationDecl,
+    sys: &System,
+    types: &mut Types,
+) -> Result<Brought, AppError> {
+    // Devices and resources: nodes and roles.
+    let mut places: BTreeMap<String, (String, At)> = BTreeMap::new(); // role -> device
+    let mut order: Vec<String> = Vec::new();
+    for d in &sys.devices {
+        if !robot.nodes.iter().any(|n| n.name == d.name) {
+            return Err(d
+                .at
+                .error(format!(
+                    "device `{}` is no node of the robot: add it to the robot file's `nodes` \
+                     with its 802.15.4 short address",
+                    d.name
+                ))
+                .into());
+        }
+        for r in &d.resources {
+            if places.contains_key(&r.name) {
+                return Err(r
+                    .at
+                    .error(format!(
+                        "a second resource `{}`: each resource is a role, so their names are \
+                         unique in the system",
+                        r.name
+                    ))
+                    .into());
+            }
+            places.insert(r.name.clone(), (d.name.clone(), r.at.clone()));
+            order.push(r.name.clone());
+        }
+    }
+    // The mapping: each application FB onto one resource.
+    let mut mapped: BTreeMap<String, String> = BTreeMap::new(); // top FB -> role
+    for m in &sys.mapping {
+        if !sys.net.fbs.iter().any(|f| f.name == m.fb) {
+            return Err(m
+                .at
+                .error(format!(
+                    "maps `{}`: no FB of that name in the application",
+                    m.fb
+                ))
+                .into());
+        }
+        match places.get(&m.resource) {
+            Some((d, _)) if *d == m.device => {}
+            _ => {
+                return Err(m
+                    .at
+                    .error(format!(
+                        "maps onto `{}.{}`: no such resource",
+                        m.device, m.resource
+                    ))
+                    .into())
+            }
+        }
+        if mapped.insert(m.fb.clone(), m.resource.clone()).is_some() {
+            return Err(m.at.error(format!("`{}` is mapped twice", m.fb)).into());
+        }
+    }
+    for fb in &sys.net.fbs {
+        if !mapped.contains_key(&fb.name) {
+            return Err(fb
+                .at
+                .error(format!(
+                    "FB `{}` is mapped to no resource (no `Mapping From=\"{}.{}\"`)",
+                    fb.name, sys.app, fb.name
+                ))
+                .into());
+        }
+    }
+    // A resource's own network: the mapped FBs' copies (as 4diac keeps them) and an idle
+    // E_RESTART; anything else would be lost.
+    for d in &sys.devices {
+        for r in &d.resources {
+            for fb in &r.net.fbs {
+                let ours = mapped.get(&fb.name) == Some(&r.name);
+                if !ours && !sys::idle_restart(fb, &r.net) {
+                    return Err(fb
+                        .at
+                        .error(format!(
+                            "FB `{}` of resource `{}` is not in the application: put it in the \
+                             application and map it",
+                            fb.name, r.name
+                        ))
+                        .into());
+                }
+            }
+        }
+    }
+    let mut flat = Flat::default();
+    flat.expand(types, &sys.net, None, None, None, &mut Vec::new())?;
+    let role_of = |leaf: &str| -> String {
+        flat.leaves
+            .iter()
+            .find(|l| l.name == leaf)
+            .and_then(|l| mapped.get(&l.top))
+            .cloned()
+            .unwrap_or_default()
+    };
+    let edges = flat.leaf_edges();
+    let is_delay = |leaf: &str| flat.leaves.iter().any(|l| l.name == leaf && l.ty == DELAY);
+    // Fan-in: one source per event input.
+    let mut fed: BTreeMap<(String, String), At> = BTreeMap::new();
+    for e in &edges {
+        if fed.insert(e.to.clone(), e.at.clone()).is_some() {
+            return Err(e
+                .at
+                .error(format!(
+                    "`{}.{}` has a second event connection: join its sources with an E_MERGE",
+                    e.to.0, e.to.1
+                ))
+                .into());
+        }
+    }
+    // Per basic FB: what its outputs become, its timers.
+    let mut acts: BTreeMap<(String, String), ActionDecl> = BTreeMap::new();
+    let mut timers: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    for d in flat.leaves.iter().filter(|l| l.ty == DELAY) {
+        let fold = |msg: &str| {
+            d.at.error(format!(
+                "E_DELAY `{}` {msg}: an E_DELAY is the timer of one FB (START, and STOP if \
+                 used, from that FB's outputs, EO to one of its inputs, on its resource)",
+                d.name
+            ))
+        };
+        let into = |port: &str| {
+            edges
+                .iter()
+                .filter(|e| e.to == (d.name.clone(), port.to_string()))
+                .collect::<Vec<_>>()
+        };
+        let starts = into("START");
+        let [start] = starts.as_slice() else {
+            return Err(fold("is not started by one FB output").into());
+        };
+        let owner = start.from.0.clone();
+        let eo: Vec<&Edge> = edges.iter().filter(|e| e.from.0 == d.name).collect();
+        let [eo] = eo.as_slice() else {
+            return Err(fold("does not end in one event input").into());
+        };
+        let stops = into("STOP");
+        if eo.to.0 != owner
+            || stops.iter().any(|s| s.from.0 != owner)
+            || role_of(&d.name) != role_of(&owner)
+            || is_delay(&owner)
+        {
+            return Err(fold("serves more than one FB").into());
+        }
+        let dt = d.params.iter().find(|p| p.name == "DT");
+        let Some(ms) = dt.and_then(|p| time_ms(&p.value)) else {
+            return Err(dt
+                .map_or(&d.at, |p| &p.at)
+                .error(format!(
+                    "E_DELAY `{}` needs its `DT` as a TIME in whole milliseconds (`T#150ms`)",
+                    d.name
+                ))
+                .into());
+        };
+        let timer = eo.to.1.clone();
+        for (s, action) in std::iter::once((start, ActionDecl::StartTimer(timer.clone(), ms)))
+            .chain(
+                stops
+                    .iter()
+                    .map(|s| (s, ActionDecl::CancelTimer(timer.clone()))),
+            )
+        {
+            if edges.iter().filter(|e| e.from == s.from).count() > 1 {
+                return Err(s
+                    .at
+                    .error(format!(
+                        "`{}.{}` drives E_DELAY `{}` and other inputs: give the delay its own output",
+                        s.from.0, s.from.1, d.name
+                    ))
+                    .into());
+            }
+            acts.insert(s.from.clone(), action);
+        }
+        timers.entry(owner).or_default().push(timer);
+    }
+    // The robot file's bindings.
+    let leaf_type = |fb: &str| -> Option<&ChartType> {
+        let l = flat.leaves.iter().find(|l| l.name == fb && l.ty != DELAY)?;
+        types.basic(&l.ty).map(|(t, _)| t)
+    };
+    let split = |key: &str, path: &str| -> Result<(String, String, ChartType), AppError> {
+        let Some((fb, port)) = key.rsplit_once('.') else {
+            return Err(ron(path, format!("`{key}` names no FB port (`FB.EVENT`)")));
+        };
+        let Some(t) = leaf_type(fb) else {
+            return Err(ron(
+                path,
+                format!("`{key}`: no basic FB `{fb}` in the application"),
+            ));
+        };
+        Ok((fb.to_string(), port.to_string(), t.clone()))
+    };
+    let mut plant_on: BTreeMap<String, BTreeMap<String, String>> = BTreeMap::new();
+    for (key, source) in &decl.on {
+        let (fb, port, t) = split(key, "application.on")?;
+        if !t.inputs.contains(&port) {
+            return Err(ron(
+                "application.on",
+                format!("`{key}`: `{}` has no event input `{port}`", t.name),
+            ));
+        }
+        if fed.contains_key(&(fb.clone(), port.clone())) {
+            return Err(ron(
+                "application.on",
+                format!("`{key}` is fed by the application already"),
+            ));
+        }
+        plant_on.entry(fb).or_default().insert(port, source.clone());
+    }
+    for (key, action) in &decl.actions {
+        let (fb, port, t) = split(key, "application.actions")?;
+        if !t.outputs.contains(&port) {
+            return Err(ron(
+                "application.actions",
+                format!("`{key}`: `{}` has no event output `{port}`", t.name),
+            ));
+        }
+        let end = (fb.clone(), port.clone());
+        if edges.iter().any(|e| e.from == end) || acts.contains_key(&end) {
+            return Err(ron(
+                "application.actions",
+                format!("`{key}` is connected in the application already"),
+            ));
+        }
+        if !matches!(
+            action,
+            ActionDecl::Extend(_)
+                | ActionDecl::Retract(_)
+                | ActionDecl::Out(..)
+                | ActionDecl::Fault(_)
+        ) {
+            return Err(ron(
+                "application.actions",
+                format!("`{key}`: an output event may `Extend`, `Retract`, `Out` or `Fault`"),
+            ));
+        }
+        acts.insert(end, action.clone());
+    }
+    // The charts.
+    let mut roles: Vec<Role> = robot.roles.clone();
+    for name in &order {
+        if !roles.iter().any(|r| r.name == *name) {
+            roles.push(Role {
+                name: name.clone(),
+                actuators: Vec::new(),
+                inputs: Vec::new(),
+                outputs: Vec::new(),
+                charts: Vec::new(),
+                estop: None,
+            });
+        }
+    }
+    let mut chart_types: Vec<ChartType> = Vec::new();
+    for l in flat.leaves.iter().filter(|l| l.ty != DELAY) {
+        let Some((t, iface)) = types.basic(&l.ty).cloned() else {
+            continue;
+        };
+        let role = role_of(&l.name);
+        let mut params = BTreeMap::new();
+        for (input, ty, init) in &iface.inputs {
+            let own = l
+                .params
+                .iter()
+                .find(|p| p.name == *input)
+                .map(|p| (p.value.clone(), p.at.clone()));
+            let given = match own {
+                Some(v) => Some(v),
+                None => flat.data_value(types, &(l.name.clone(), input.clone()))?,
+            };
+            let value = match given {
+                Some((text, at)) => st::literal(text.trim(), *ty).map_err(|e| {
+                    at.error(format!(
+                        "parameter `{input}` of `{}`: {}",
+                        l.name, e.message
+                    ))
+                })?,
+                None => init.clone().unwrap_or_else(|| String::from("0")),
+            };
+            let v: i32 = value.parse().map_err(|_| {
+                l.at.error(format!(
+                    "parameter `{input}` of `{}`: `{value}` is out of range",
+                    l.name
+                ))
+            })?;
+            params.insert(input.clone(), v);
+        }
+        let mut on = plant_on.remove(&l.name).unwrap_or_default();
+        for e in edges.iter().filter(|e| e.to.0 == l.name) {
+            if is_delay(&e.from.0) {
+                continue;
+            }
+            let from_role = role_of(&e.from.0);
+            let event = format!("{}.{}", e.from.0, e.from.1);
+            on.insert(
+                e.to.1.clone(),
+                if from_role == role {
+                    event
+                } else {
+                    format!("{from_role}/{event}")
+                },
+            );
+        }
+        let own_acts: Vec<(&String, &ActionDecl)> = acts
+            .iter()
+            .filter(|((fb, _), _)| *fb == l.name)
+            .map(|((_, o), a)| (o, a))
+            .collect();
+        let own_timers = timers.get(&l.name).cloned().unwrap_or_default();
+        let type_name = if own_acts.is_empty() && own_timers.is_empty() {
+            if !robot.chart_types.iter().any(|x| x.name == t.name)
+                && !chart_types.iter().any(|x| x.name == t.name)
+            {
+                chart_types.push(t.clone());
+            }
+            t.name.clone()
+        } else {
+            let mut s = t.clone();
+            // `TYPE_FB`: an IEC 61131-3 identifier (so the robot exports back to 4diac),
+            // made unique against the types already there.
+            let taken = |n: &str| {
+                robot.chart_types.iter().any(|x| x.name == n)
+                    || chart_types.iter().any(|x| x.name == n)
+            };
+            s.name = format!("{}_{}", t.name, l.name);
+            let mut k = 2;
+            while taken(&s.name) {
+                s.name = format!("{}_{}_{k}", t.name, l.name);
+                k += 1;
+            }
+            s.outputs.retain(|o| !own_acts.iter().any(|(x, _)| *x == o));
+            s.inputs.retain(|i| !own_timers.contains(i));
+            s.timers.extend(own_timers.iter().cloned());
+            for st in &mut s.states {
+                for a in &mut st.actions {
+                    if let ActionDecl::Emit(o) = a {
+                        if let Some((_, b)) = own_acts.iter().find(|(x, _)| *x == o) {
+                            *a = (*b).clone();
+                        }
+                    }
+                }
+            }
+            let n = s.name.clone();
+            chart_types.push(s);
+            n
+        };
+        if let Some(r) = roles.iter_mut().find(|r| r.name == role) {
+            r.charts.push(ChartInstance {
+                name: l.name.clone(),
+                type_: type_name,
+                params,
+                on,
+            });
+        }
+    }
+    // Assignments: the robot file's for its other roles, the mapping's for resources.
+    let mut assign: Vec<(String, String)> = Vec::new();
+    for (role, node) in &robot.assign {
+        match places.get(role) {
+            Some((d, _)) if d != node => {
+                return Err(ron(
+                    "assign",
+                    format!(
+                        "role `{role}` is assigned to `{node}`, but the application places its \
+                         resource on device `{d}`"
+                    ),
+                ))
+            }
+            Some(_) => {}
+            None => assign.push((role.clone(), node.clone())),
+        }
+    }
+    for name in &order {
+        if let Some((d, _)) = places.get(name) {
+            assign.push((name.clone(), d.clone()));
+        }
+    }
+    Ok(Brought {
+        roles,
+        assign,
+        chart_types,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::time_ms;
+
+    #[test]
+    fn time_literals_in_milliseconds() {
+        assert_eq!(time_ms("T#150ms"), Some(150));
+        assert_eq!(time_ms("TIME#1s500ms"), Some(1500));
+        assert_eq!(time_ms("t#2m"), Some(120_000));
+        assert_eq!(time_ms("T#1_000ms"), Some(1000));
+        assert_eq!(time_ms("T#1500us"), None);
+        assert_eq!(time_ms("150"), None);
+        assert_eq!(time_ms("T#"), None);
+        assert_eq!(time_ms("T#5x"), None);
+    }
+}

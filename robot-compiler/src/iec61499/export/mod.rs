@@ -1,0 +1,169 @@
+//! IEC 61499-2 XML out (`config-tool export-4diac`): each chart type of a compiled robot
+//! as a basic FB type (`.fbt`, [`fbt`]) and the robot as a system (`.sys`, [`sys`]) that
+//! Eclipse 4diac IDE opens: the application's FB network, a device per node, a resource
+//! per role, the mapping, and the connections the mapping cuts as PUBLISH / SUBSCRIBE
+//! pairs (docs/iec61499-xml.md, "The export").
+//!
+//! Chart types written in the robot (and imported ones) are exported as they are, with
+//! their parameters; a chart no type describes (synthesised, a control function's, an
+//! automaton's, a sorting station's) is lifted into one ([`lift`]).
+
+pub mod fbt;
+pub mod lift;
+pub mod st;
+pub mod sys;
+pub mod xml;
+
+use std::collections::BTreeMap;
+
+use crate::compile::Compiled;
+
+/// Why a robot cannot be exported.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ExportError {
+    #[error("chart type `{ty}`: {message}")]
+    Type { ty: String, message: String },
+}
+
+/// One chart of the robot as an FB instance of the application.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Instance {
+    /// Its role (a resource), by index.
+    pub role: usize,
+    /// Its chart in the role's IR.
+    pub chart: usize,
+    /// The FB's name in the application (unique).
+    pub name: String,
+    /// Its FB type.
+    pub ty: String,
+    /// Parameter values (the input variables).
+    pub params: BTreeMap<String, i32>,
+    /// The type's event input for each chart input, by index.
+    pub inputs: Vec<String>,
+    /// The node events it emits and the type's output event for each.
+    pub emits: Vec<(String, String)>,
+    /// The service output events its type has (each wired to the role's IO block).
+    pub services: Vec<String>,
+    /// Whether its type was lifted from the IR (no chart type of the robot describes it).
+    pub lifted: bool,
+}
+
+/// An exported robot: the files to write (name, text), and what they contain.
+#[derive(Debug, Clone)]
+pub struct Export {
+    pub files: Vec<(String, String)>,
+    /// The chart types written, in file order (each `NAME.fbt`).
+    pub types: Vec<crate::model::ChartType>,
+    pub instances: Vec<Instance>,
+}
+
+/// The name of the `.sys` file of a robot.
+pub fn sys_file(c: &Compiled) -> String {
+    format!("{}.sys", fbt::identifier(&c.ir.name))
+}
+
+/// Exports a compiled robot; `date` (`YYYY-MM-DD`) goes in every `VersionInfo`.
+pub fn export(c: &Compiled, date: &str) -> Result<Export, ExportError> {
+    let robot = &c.robot;
+    let mut files = Vec::new();
+    let mut types: Vec<crate::model::ChartType> = Vec::new();
+    for t in &robot.chart_types {
+        let t = &fbt::rename_clashing_vars(t);
+        let spec = fbt::FbSpec {
+            ty: t,
+            comment: format!("Chart type `{}` of robot {}", t.name, robot.name),
+            bools: &[],
+            date,
+        };
+        files.push((format!("{}.fbt", t.name), fbt::write(&spec)?));
+        types.push(t.clone());
+    }
+    let mut taken: Vec<String> = types.iter().map(|t| t.name.to_ascii_uppercase()).collect();
+    let mut fb_names: Vec<String> = Vec::new();
+    let mut instances = Vec::new();
+    for (ri, r) in c.ir.roles.iter().enumerate() {
+        let role = robot.roles.get(ri);
+        for (ci, chart) in r.charts.iter().enumerate() {
+            let explicit = robot
+                .sequence
+                .is_none()
+                .then(|| role.and_then(|x| x.charts.get(ci)))
+                .flatten()
+                .filter(|d| d.name == chart.name)
+                .and_then(|d| robot.chart_type(&d.type_).map(|(_, t)| (d, t)));
+            let mut fb = fbt::identifier(&format!("{}_{}", r.name, chart.name));
+            let base = fb.clone();
+            let mut k = 2;
+            while fb_names.iter().any(|n| n.eq_ignore_ascii_case(&fb)) {
+                fb = format!("{base}_{k}");
+                k += 1;
+            }
+            fb_names.push(fb.clone());
+            let inst = match explicit {
+                Some((d, t)) => Instance {
+                    role: ri,
+                    chart: ci,
+                    name: fb,
+                    ty: t.name.clone(),
+                    params: d.params.clone(),
+                    inputs: t.inputs.iter().chain(&t.timers).cloned().collect(),
+                    emits: t
+                        .outputs
+                        .iter()
+                        .map(|o| (format!("{}.{o}", d.name), o.clone()))
+                        .collect(),
+                    services: services_of(t),
+                    lifted: false,
+                },
+                None => {
+                    let mut name = fbt::identifier(&format!("{}_{}", r.name, chart.name));
+                    let base = name.clone();
+                    let mut k = 2;
+                    while taken.contains(&name.to_ascii_uppercase()) {
+                        name = format!("{base}_{k}");
+                        k += 1;
+                    }
+                    taken.push(name.to_ascii_uppercase());
+                    let l = lift::lift(r, ci, &name);
+                    let spec = fbt::FbSpec {
+                        ty: &l.ty,
+                        comment: format!(
+                            "Chart `{}` of role {} of robot {}, as the robot compiles it",
+                            chart.name, r.name, robot.name
+                        ),
+                        bools: &l.bools,
+                        date,
+                    };
+                    files.push((format!("{name}.fbt"), fbt::write(&spec)?));
+                    let services = services_of(&l.ty);
+                    types.push(l.ty);
+                    Instance {
+                        role: ri,
+                        chart: ci,
+                        name: fb,
+                        ty: name,
+                        params: BTreeMap::new(),
+                        inputs: l.inputs,
+                        emits: l.emits,
+                        services,
+                        lifted: true,
+                    }
+                }
+            };
+            instances.push(inst);
+        }
+    }
+    let (ios, sys_text) = sys::write(c, &instances, date);
+    files.extend(ios);
+    files.push((sys_file(c), sys_text));
+    Ok(Export {
+        files,
+        types,
+        instances,
+    })
+}
+
+/// The service output events of a chart type (after its own outputs).
+fn services_of(t: &crate::model::ChartType) -> Vec<String> {
+    fbt::output_events(t).split_off(t.outputs.len())
+}

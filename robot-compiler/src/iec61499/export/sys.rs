@@ -1,0 +1,377 @@
+//! The robot as an IEC 61499-2 system (`.sys`), in the element order Eclipse 4diac IDE
+//! writes: `VersionInfo`, the `Application` (its `SubAppNetwork`: an FB per chart and a
+//! service FB per role, `<ROLE>_IO`, for the node's pins, timers and faults; the event
+//! connections), a `Device` per node with a `Resource` per role it plays (the FBs mapped
+//! there, the connections inside it, and each connection the mapping cuts as a
+//! `PUBLISH_0` on the publishing resource and a `SUBSCRIBE_0` on the subscribing one, the
+//! paper's step), then the `Mapping` of every FB.
+
+use super::fbt::identifier;
+use super::xml::Writer;
+use super::Instance;
+use crate::compile::Compiled;
+
+/// One event connection of the application: (source role, `FB.EVENT`) -> (destination
+/// role, `FB.EVENT`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Connection {
+    pub from_role: usize,
+    pub source: String,
+    pub to_role: usize,
+    pub destination: String,
+}
+
+impl Connection {
+    /// Whether the mapping cuts it (its ends are on different resources).
+    pub fn cut(&self) -> bool {
+        self.from_role != self.to_role
+    }
+}
+
+/// The name of role `ri`'s service FB (and its type).
+pub fn io_name(c: &Compiled, ri: usize) -> String {
+    format!("{}_IO", identifier(&c.ir.roles[ri].name))
+}
+
+/// A role's service FB's event outputs and inputs.
+pub type IoEvents = (Vec<String>, Vec<String>);
+
+/// Every connection of the application, and per role the service FB's event outputs and
+/// inputs (in order of first use).
+pub fn connections(c: &Compiled, instances: &[Instance]) -> (Vec<Connection>, Vec<IoEvents>) {
+    let mut io: Vec<IoEvents> = vec![(Vec::new(), Vec::new()); c.ir.roles.len()];
+    let mut out = Vec::new();
+    let push = |v: &mut Vec<String>, n: &str| {
+        if !v.iter().any(|x| x == n) {
+            v.push(n.to_string());
+        }
+    };
+    for inst in instances {
+        let r = &c.ir.roles[inst.role];
+        for (k, input) in inst.inputs.iter().enumerate() {
+            for (e, _, _) in r
+                .routes
+                .iter()
+                .filter(|(_, ch, i)| *ch == inst.chart && *i == k)
+            {
+                let (from, event) = match r.imports.iter().find(|(_, _, local)| local == e) {
+                    Some((role, their, _)) => (
+                        c.ir.roles.iter().position(|x| &x.name == role).unwrap_or(0),
+                        their.clone(),
+                    ),
+                    None => (inst.role, e.clone()),
+                };
+                let source = instances
+                    .iter()
+                    .filter(|i| i.role == from)
+                    .find_map(|i| {
+                        i.emits
+                            .iter()
+                            .find(|(ev, _)| *ev == event)
+                            .map(|(_, o)| format!("{}.{o}", i.name))
+                    })
+                    .unwrap_or_else(|| {
+                        let n = identifier(&event);
+                        push(&mut io[from].0, &n);
+                        format!("{}.{n}", io_name(c, from))
+                    });
+                let conn = Connection {
+                    from_role: from,
+                    source,
+                    to_role: inst.role,
+                    destination: format!("{}.{input}", inst.name),
+                };
+                if !out.contains(&conn) {
+                    out.push(conn);
+                }
+            }
+        }
+        for s in &inst.services {
+            let n = format!("{}_{s}", inst.name);
+            push(&mut io[inst.role].1, &n);
+            out.push(Connection {
+                from_role: inst.role,
+                source: format!("{}.{s}", inst.name),
+                to_role: inst.role,
+                destination: format!("{}.{n}", io_name(c, inst.role)),
+            });
+        }
+    }
+    (out, io)
+}
+
+/// The service FB types (`<ROLE>_IO.fbt`, an interface only) and the `.sys` text.
+pub fn write(c: &Compiled, instances: &[Instance], date: &str) -> (Vec<(String, String)>, String) {
+    let (conns, io) = connections(c, instances);
+    let mut files = Vec::new();
+    for (ri, (outs, ins)) in io.iter().enumerate() {
+        files.push((
+            format!("{}.fbt", io_name(c, ri)),
+            io_type(c, ri, outs, ins, date),
+        ));
+    }
+    let sys = identifier(&c.ir.name);
+    let app = format!("{sys}App");
+    let mut w = Writer::new("System");
+    w.open(
+        "System",
+        &[("Name", &sys), ("Comment", &format!("robot {}", c.ir.name))],
+    );
+    version(&mut w, date);
+    w.open("Application", &[("Name", &app), ("Comment", "")]);
+    w.open("SubAppNetwork", &[]);
+    let fbs = fb_list(c, instances);
+    for (i, (name, ty, params, _)) in fbs.iter().enumerate() {
+        fb(&mut w, name, ty, params, i);
+    }
+    event_connections(&mut w, conns.iter());
+    w.close();
+    w.close();
+    // Cut connections: one topic per (publishing role, source pin).
+    let topic = |conn: &Connection| format!("{}/{}", c.ir.roles[conn.from_role].name, conn.source);
+    let mut topics: Vec<String> = Vec::new();
+    for conn in conns.iter().filter(|x| x.cut()) {
+        if !topics.contains(&topic(conn)) {
+            topics.push(topic(conn));
+        }
+    }
+    let mut mapping = Vec::new();
+    for (ni, node) in c.robot.nodes.iter().enumerate() {
+        let dev = identifier(&node.name);
+        let roles: Vec<usize> = (c.ir.roles.iter().enumerate())
+            .filter(|(_, r)| {
+                c.robot
+                    .assign
+                    .iter()
+                    .any(|(role, n)| *role == r.name && *n == node.name)
+            })
+            .map(|(i, _)| i)
+            .collect();
+        let (x, y) = ((ni * 1500).to_string(), String::from("0"));
+        w.open(
+            "Device",
+            &[
+                ("Name", &dev),
+                ("Type", ""),
+                (
+                    "Comment",
+                    &format!(
+                        "node {}, IEEE 802.15.4 short address {:#06x}",
+                        node.name, node.address
+                    ),
+                ),
+                ("x", &x),
+                ("y", &y),
+            ],
+        );
+        for ri in roles {
+            let res = identifier(&c.ir.roles[ri].name);
+            w.open(
+                "Resource",
+                &[
+                    ("Name", &res),
+                    ("Type", "EMB_RES"),
+                    ("Comment", &format!("role {}", c.ir.roles[ri].name)),
+                    ("x", "0"),
+                    ("y", "0"),
+                ],
+            );
+            w.open("FBNetwork", &[]);
+            let mut local: Vec<Connection> = Vec::new();
+            let mut k = 0;
+            for (name, ty, params, role) in fbs.iter().filter(|f| f.3 == ri) {
+                fb(&mut w, name, ty, params, k);
+                k += 1;
+                mapping.push((format!("{app}.{name}"), format!("{dev}.{res}.{name}")));
+                let _ = role;
+            }
+            for (ti, t) in topics.iter().enumerate() {
+                let id = format!("\"{t}\"");
+                let publishes = conns
+                    .iter()
+                    .any(|x| x.cut() && x.from_role == ri && &topic(x) == t);
+                let subscribes: Vec<&Connection> = (conns.iter())
+                    .filter(|x| x.cut() && x.to_role == ri && &topic(x) == t)
+                    .collect();
+                if publishes {
+                    let name = format!("PUBLISH_{}", ti + 1);
+                    fb(
+                        &mut w,
+                        &name,
+                        "PUBLISH_0",
+                        &[
+                            (String::from("QI"), String::from("TRUE")),
+                            (String::from("ID"), id.clone()),
+                        ],
+                        k,
+                    );
+                    k += 1;
+                    let source = conns
+                        .iter()
+                        .find(|x| &topic(x) == t)
+                        .map(|x| x.source.clone())
+                        .unwrap_or_default();
+                    local.push(Connection {
+                        from_role: ri,
+                        source,
+                        to_role: ri,
+                        destination: format!("{name}.REQ"),
+                    });
+                }
+                if !subscribes.is_empty() {
+                    let name = format!("SUBSCRIBE_{}", ti + 1);
+                    fb(
+                        &mut w,
+                        &name,
+                        "SUBSCRIBE_0",
+                        &[
+                            (String::from("QI"), String::from("TRUE")),
+                            (String::from("ID"), id),
+                        ],
+                        k,
+                    );
+                    k += 1;
+                    for s in subscribes {
+                        local.push(Connection {
+                            from_role: ri,
+                            source: format!("{name}.IND"),
+                            to_role: ri,
+                            destination: s.destination.clone(),
+                        });
+                    }
+                }
+            }
+            local.splice(
+                0..0,
+                conns
+                    .iter()
+                    .filter(|x| !x.cut() && x.to_role == ri)
+                    .cloned(),
+            );
+            event_connections(&mut w, local.iter());
+            w.close();
+            w.close();
+        }
+        w.close();
+    }
+    for (from, to) in &mapping {
+        w.empty("Mapping", &[("From", from), ("To", to)]);
+    }
+    (files, w.finish())
+}
+
+/// The application's FBs: (name, type, parameters, role), charts then service FBs.
+#[allow(clippy::type_complexity)]
+fn fb_list(
+    c: &Compiled,
+    instances: &[Instance],
+) -> Vec<(String, String, Vec<(String, String)>, usize)> {
+    let mut out: Vec<_> = instances
+        .iter()
+        .map(|i| {
+            let params = i
+                .params
+                .iter()
+                .map(|(k, v)| (k.clone(), v.to_string()))
+                .collect();
+            (i.name.clone(), i.ty.clone(), params, i.role)
+        })
+        .collect();
+    for ri in 0..c.ir.roles.len() {
+        out.push((io_name(c, ri), io_name(c, ri), Vec::new(), ri));
+    }
+    out
+}
+
+fn version(w: &mut Writer, date: &str) {
+    w.empty(
+        "VersionInfo",
+        &[
+            ("Organization", "ecc-nodes"),
+            ("Version", "1.0"),
+            ("Author", "config-tool export-4diac"),
+            ("Date", date),
+        ],
+    );
+}
+
+fn fb(w: &mut Writer, name: &str, ty: &str, params: &[(String, String)], i: usize) {
+    let (x, y) = (((i % 4) * 1200).to_string(), ((i / 4) * 800).to_string());
+    let attrs = [
+        ("Name", name),
+        ("Type", ty),
+        ("Comment", ""),
+        ("x", &x),
+        ("y", &y),
+    ];
+    if params.is_empty() {
+        w.empty("FB", &attrs);
+        return;
+    }
+    w.open("FB", &attrs);
+    for (k, v) in params {
+        w.empty("Parameter", &[("Name", k), ("Value", v)]);
+    }
+    w.close();
+}
+
+fn event_connections<'a>(w: &mut Writer, conns: impl Iterator<Item = &'a Connection>) {
+    let mut conns = conns.peekable();
+    if conns.peek().is_none() {
+        return;
+    }
+    w.open("EventConnections", &[]);
+    for conn in conns {
+        w.empty(
+            "Connection",
+            &[
+                ("Source", &conn.source),
+                ("Destination", &conn.destination),
+                ("Comment", ""),
+            ],
+        );
+    }
+    w.close();
+}
+
+/// Role `ri`'s service FB type: the node's pins, timers and faults as events.
+fn io_type(c: &Compiled, ri: usize, outs: &[String], ins: &[String], date: &str) -> String {
+    let name = io_name(c, ri);
+    let mut w = Writer::new("FBType");
+    w.open(
+        "FBType",
+        &[
+            ("Name", &name),
+            ("Comment", &format!("The node services of role {}: its inputs, switches and timers raise the event outputs; the event inputs drive its valves and outputs, start and stop its timers, fault it", c.ir.roles[ri].name)),
+        ],
+    );
+    w.empty(
+        "Identification",
+        &[
+            ("Standard", "61499-2"),
+            ("Classification", "ecc-nodes services"),
+        ],
+    );
+    version(&mut w, date);
+    w.open("InterfaceList", &[]);
+    for (list, names) in [("EventInputs", ins), ("EventOutputs", outs)] {
+        if names.is_empty() {
+            continue;
+        }
+        w.open(list, &[]);
+        for n in names {
+            w.empty("Event", &[("Name", n), ("Type", "Event"), ("Comment", "")]);
+        }
+        w.close();
+    }
+    w.close();
+    w.empty(
+        "Service",
+        &[
+            ("RightInterface", "RESOURCE"),
+            ("LeftInterface", &name),
+            ("Comment", ""),
+        ],
+    );
+    w.finish()
+}

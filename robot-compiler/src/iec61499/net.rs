@@ -1,0 +1,226 @@
+//! The pieces of IEC 61499-2 XML an application (`.sys`) and a composite FB type share:
+//! an FB network (`SubAppNetwork` / `FBNetwork`: `FB`s with `Parameter`s, then
+//! `EventConnections` and `DataConnections` of `Connection Source="FB.PORT"
+//! Destination="FB.PORT"`), read with every element's file:line:col for the errors.
+
+use roxmltree::{Document, Node, ParsingOptions};
+
+/// A line and column (1-based) of an XML file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Pos {
+    pub line: u32,
+    pub col: u32,
+}
+
+/// An error at a place of one of the application's files.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SysError {
+    /// The file as the robot (or the application) names it.
+    pub file: String,
+    pub at: Pos,
+    pub message: String,
+}
+
+impl std::fmt::Display for SysError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}:{}:{}: {}",
+            self.file, self.at.line, self.at.col, self.message
+        )
+    }
+}
+
+/// A place of a named file, to make errors from later.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct At {
+    pub file: String,
+    pub pos: Pos,
+}
+
+impl At {
+    pub fn error(&self, message: impl Into<String>) -> SysError {
+        SysError {
+            file: self.file.clone(),
+            at: self.pos,
+            message: message.into(),
+        }
+    }
+}
+
+/// An `FB` instance: its name, its type (the last part of a `::` path), its parameters.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Fb {
+    pub name: String,
+    pub ty: String,
+    pub params: Vec<Param>,
+    pub at: At,
+}
+
+/// A `Parameter`: the value as written.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Param {
+    pub name: String,
+    pub value: String,
+    pub at: At,
+}
+
+/// A `Connection`, as written (`FB.PORT`, or `PORT` of the enclosing type's interface).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Conn {
+    pub source: String,
+    pub dest: String,
+    pub at: At,
+}
+
+/// An FB network.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Network {
+    pub fbs: Vec<Fb>,
+    pub events: Vec<Conn>,
+    pub data: Vec<Conn>,
+}
+
+/// One XML file being read.
+#[derive(Clone, Copy)]
+pub struct Xml<'a, 'i> {
+    pub doc: &'a Document<'i>,
+    pub file: &'a str,
+}
+
+/// Parses `text` (DTD allowed, as the tools write one), or an error at the first place
+/// that is not well formed.
+pub fn parse<'i>(text: &'i str, file: &str) -> Result<Document<'i>, SysError> {
+    let options = ParsingOptions {
+        allow_dtd: true,
+        ..ParsingOptions::default()
+    };
+    Document::parse_with_options(text, options).map_err(|e| {
+        let p = e.pos();
+        SysError {
+            file: file.to_string(),
+            at: Pos {
+                line: p.row,
+                col: p.col,
+            },
+            message: format!("not well-formed XML: {e}"),
+        }
+    })
+}
+
+impl<'a, 'i> Xml<'a, 'i> {
+    pub fn at(&self, n: Node<'a, 'i>) -> At {
+        let p = self.doc.text_pos_at(n.range().start);
+        At {
+            file: self.file.to_string(),
+            pos: Pos {
+                line: p.row,
+                col: p.col,
+            },
+        }
+    }
+
+    pub fn error(&self, n: Node<'a, 'i>, message: impl Into<String>) -> SysError {
+        self.at(n).error(message)
+    }
+
+    /// An attribute's value, or an error at the element.
+    pub fn attr(&self, n: Node<'a, 'i>, name: &str) -> Result<&'a str, SysError> {
+        n.attribute(name).ok_or_else(|| {
+            self.error(
+                n,
+                format!("`{}` needs the attribute `{name}`", n.tag_name().name()),
+            )
+        })
+    }
+
+    /// An error for an element that has no place here.
+    pub fn unknown(&self, n: Node<'a, 'i>, parent: Node<'a, 'i>) -> SysError {
+        self.error(
+            n,
+            format!(
+                "unknown element `{}` in `{}`",
+                n.tag_name().name(),
+                parent.tag_name().name()
+            ),
+        )
+    }
+
+    /// The FB network `n` (`SubAppNetwork` or `FBNetwork`).
+    pub fn network(&self, n: Node<'a, 'i>) -> Result<Network, SysError> {
+        let mut net = Network::default();
+        for c in elements(n) {
+            match c.tag_name().name() {
+                "FB" => net.fbs.push(self.fb(c)?),
+                "EventConnections" => net.events.extend(self.connections(c)?),
+                "DataConnections" => net.data.extend(self.connections(c)?),
+                "AdapterConnections" => {
+                    if let Some(first) = elements(c).next() {
+                        return Err(self.error(first, "adapter connections are not supported"));
+                    }
+                }
+                "SubApp" => {
+                    let name = c.attribute("Name").unwrap_or("");
+                    return Err(self.error(
+                        c,
+                        format!(
+                            "`{name}` is a subapplication: not supported (make it a composite \
+                             FB type, `.fbt` with an `FBNetwork`)"
+                        ),
+                    ));
+                }
+                "Attribute" | "Comment" => {}
+                _ => return Err(self.unknown(c, n)),
+            }
+        }
+        Ok(net)
+    }
+
+    fn fb(&self, n: Node<'a, 'i>) -> Result<Fb, SysError> {
+        let name = self.attr(n, "Name")?.to_string();
+        let ty = self.attr(n, "Type")?;
+        let ty = ty.rsplit("::").next().unwrap_or(ty).to_string();
+        let mut params = Vec::new();
+        for p in elements(n) {
+            match p.tag_name().name() {
+                "Parameter" => params.push(Param {
+                    name: self.attr(p, "Name")?.to_string(),
+                    value: self.attr(p, "Value")?.to_string(),
+                    at: self.at(p),
+                }),
+                "Attribute" => {}
+                _ => return Err(self.unknown(p, n)),
+            }
+        }
+        Ok(Fb {
+            name,
+            ty,
+            params,
+            at: self.at(n),
+        })
+    }
+
+    fn connections(&self, n: Node<'a, 'i>) -> Result<Vec<Conn>, SysError> {
+        let mut out = Vec::new();
+        for c in elements(n) {
+            if c.tag_name().name() != "Connection" {
+                return Err(self.unknown(c, n));
+            }
+            out.push(Conn {
+                source: self.attr(c, "Source")?.to_string(),
+                dest: self.attr(c, "Destination")?.to_string(),
+                at: self.at(c),
+            });
+        }
+        Ok(out)
+    }
+}
+
+/// Element children of `n` (comments and text skipped).
+pub fn elements<'a, 'i>(n: Node<'a, 'i>) -> impl Iterator<Item = Node<'a, 'i>> {
+    n.children().filter(Node::is_element)
+}
+
+pub fn child<'a, 'i>(n: Node<'a, 'i>, name: &str) -> Option<Node<'a, 'i>> {
+    elements(n).find(|c| c.tag_name().name() == name)
+}

@@ -1,0 +1,107 @@
+//! The node's own services in a basic FB type: what a chart does besides assigning and
+//! emitting (drive an actuator or an output, start or stop a timer, fault the node)
+//! written as output events of reserved names, and a timer's expiry as the event input
+//! of the timer's name. `export` writes them, the `.fbt` import reads them back, in a
+//! type marked as a chart of this project ([`MARK`]) only: elsewhere such names are
+//! ordinary events (docs/iec61499-xml.md, "The export").
+
+use crate::model::ActionDecl;
+
+/// The `Classification` of the `Identification` of an FB type whose reserved output
+/// events are node services.
+pub const MARK: &str = "ecc-nodes chart";
+
+/// `EXTEND_A`, `RETRACT_A`, `SET_O`, `RESET_O`, `START_T_150` (ms), `STOP_T`, `FAULT_3`.
+const PREFIXES: [&str; 7] = [
+    "EXTEND_", "RETRACT_", "SET_", "RESET_", "START_", "STOP_", "FAULT_",
+];
+
+/// The output event that asks for `action`; none for an assignment or a chart output.
+pub fn event(action: &ActionDecl) -> Option<String> {
+    Some(match action {
+        ActionDecl::Set(..) | ActionDecl::Emit(_) => return None,
+        ActionDecl::Extend(a) => format!("EXTEND_{a}"),
+        ActionDecl::Retract(a) => format!("RETRACT_{a}"),
+        ActionDecl::Out(o, true) => format!("SET_{o}"),
+        ActionDecl::Out(o, false) => format!("RESET_{o}"),
+        ActionDecl::StartTimer(t, ms) => format!("START_{t}_{ms}"),
+        ActionDecl::CancelTimer(t) => format!("STOP_{t}"),
+        ActionDecl::Fault(code) => format!("FAULT_{code}"),
+    })
+}
+
+/// Whether `name` is a reserved service name (of any timer).
+pub fn is_reserved(name: &str) -> bool {
+    PREFIXES.iter().any(|p| name.starts_with(p))
+}
+
+/// The action an output event of a marked type asks for; `timers` are its timers (the
+/// event inputs some `START_` or `STOP_` names). `None`: an ordinary output event.
+pub fn action(name: &str, timers: &[String]) -> Option<ActionDecl> {
+    let rest = |p: &str| name.strip_prefix(p).filter(|r| !r.is_empty());
+    if let Some(a) = rest("EXTEND_") {
+        return Some(ActionDecl::Extend(a.to_string()));
+    }
+    if let Some(a) = rest("RETRACT_") {
+        return Some(ActionDecl::Retract(a.to_string()));
+    }
+    if let Some(o) = rest("SET_") {
+        return Some(ActionDecl::Out(o.to_string(), true));
+    }
+    if let Some(o) = rest("RESET_") {
+        return Some(ActionDecl::Out(o.to_string(), false));
+    }
+    if let Some(t) = rest("STOP_").filter(|t| timers.iter().any(|x| x == t)) {
+        return Some(ActionDecl::CancelTimer(t.to_string()));
+    }
+    if let Some((t, ms)) = rest("START_").and_then(|r| r.rsplit_once('_')) {
+        if let (true, Ok(ms)) = (timers.iter().any(|x| x == t), ms.parse::<u32>()) {
+            return Some(ActionDecl::StartTimer(t.to_string(), ms));
+        }
+    }
+    rest("FAULT_")
+        .and_then(|c| c.parse::<u8>().ok())
+        .map(ActionDecl::Fault)
+}
+
+/// The timers an output event `START_T_MS` or `STOP_T` names, among `inputs`.
+pub fn timer_of<'a>(name: &str, inputs: &'a [String]) -> Option<&'a String> {
+    let t = match name.strip_prefix("STOP_") {
+        Some(t) => t,
+        None => name.strip_prefix("START_")?.rsplit_once('_')?.0,
+    };
+    inputs.iter().find(|i| *i == t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{action, event, timer_of};
+    use crate::model::ActionDecl;
+
+    /// Every service action goes to its event name and back; ordinary names stay events.
+    #[test]
+    fn service_events_round_trip() {
+        let timers = vec![String::from("T"), String::from("WATCH_DOG")];
+        for a in [
+            ActionDecl::Extend(String::from("VC")),
+            ActionDecl::Retract(String::from("GR")),
+            ActionDecl::Out(String::from("AUTO_LAMP"), true),
+            ActionDecl::Out(String::from("AUTO_LAMP"), false),
+            ActionDecl::StartTimer(String::from("T"), 150),
+            ActionDecl::StartTimer(String::from("WATCH_DOG"), 2000),
+            ActionDecl::CancelTimer(String::from("WATCH_DOG")),
+            ActionDecl::Fault(3),
+        ] {
+            let e = event(&a).unwrap();
+            assert_eq!(action(&e, &timers), Some(a), "{e}");
+        }
+        assert_eq!(event(&ActionDecl::Emit(String::from("X"))), None);
+        assert_eq!(action("EO", &timers), None);
+        assert_eq!(action("START_X_5", &timers), None, "not a timer");
+        assert_eq!(action("FAULT_300", &timers), None, "not a code");
+        let inputs = vec![String::from("CU"), String::from("WATCH_DOG")];
+        assert_eq!(timer_of("START_WATCH_DOG_20", &inputs), Some(&inputs[1]));
+        assert_eq!(timer_of("STOP_CU", &inputs), Some(&inputs[0]));
+        assert_eq!(timer_of("EO", &inputs), None);
+    }
+}
