@@ -264,17 +264,22 @@ pub(crate) mod tests {
             };
             assert_eq!(lanes, want, "{name}");
             assert_eq!(m.station.is_some(), name == "ball-sorter.ron");
-            let functions: Vec<String> = (m.functions.iter())
+            // In the robot's declaration order: each on its own role's chart.
+            let mut functions: Vec<String> = (m.functions.iter())
                 .map(|(f, i)| format!("{f} {}/{}", m.charts[*i].role, m.charts[*i].name))
                 .collect();
+            let declared: Vec<&str> = c.robot.functions.iter().map(|f| &f.name[..]).collect();
+            let order: Vec<&str> = m.functions.iter().map(|f| &f.0[..]).collect();
+            assert_eq!(order, declared, "{name}");
+            functions.sort();
             let want: &[&str] = match name {
                 "ball-sorter.ron" => &[],
                 _ => &[
-                    "Operation CABINET/Operation",
-                    "Transport CABINET/Transport",
-                    "FaultDetection PUSHER/FaultDetection",
-                    "Pusher PUSHER/Pusher",
                     "Belt BELT/Belt",
+                    "FaultDetection PUSHER/FaultDetection",
+                    "Operation CABINET/Operation",
+                    "Pusher PUSHER/Pusher",
+                    "Transport CABINET/Transport",
                 ],
             };
             assert_eq!(functions, want, "{name}");
