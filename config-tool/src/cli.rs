@@ -151,6 +151,20 @@ pub enum Command {
         #[command(flatten)]
         at: MediumAddr,
     },
+    /// The operator's panel: one web page of the running machine (actuator lanes, the
+    /// cycle, charts, nodes, alarms) fed live from the medium, with the operator's buttons
+    /// (START, STOP, RESET, ACK, HOME, CONFIRM), each offered only when the machine allows
+    /// it. Loopback by default; another address needs the token printed at start-up.
+    Panel {
+        robot: PathBuf,
+        #[command(flatten)]
+        at: MediumAddr,
+        /// Where the page is served.
+        #[arg(long, default_value = "127.0.0.1:15480")]
+        listen: SocketAddr,
+        #[command(flatten)]
+        keys: KeysArg,
+    },
     /// A live trace of frames, events and pin changes on the medium.
     Monitor {
         #[command(flatten)]

@@ -64,6 +64,12 @@ fn run(command: Command) -> Result<(), Failure> {
         } => radio::alarms(&robot, &at, &keys, watch),
         Command::Ack { robot, at, keys } => radio::ack(&robot, &at, &keys),
         Command::Plant { robot, at } => radio::plant(&robot, &at),
+        Command::Panel {
+            robot,
+            at,
+            listen,
+            keys,
+        } => commands::panel::panel(&robot, &at, listen, &keys),
         Command::Monitor {
             at,
             seconds,

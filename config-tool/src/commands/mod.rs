@@ -6,4 +6,5 @@ pub mod export;
 pub mod keys;
 pub mod matrix;
 pub mod offline;
+pub mod panel;
 pub mod radio;

@@ -27,7 +27,7 @@ use crate::tool_keys::{self, KeysFrom, KEYS_ENV};
 
 /// The medium to talk to: the one at `--medium`, or with `--serial` one bridged to the air
 /// started here (it lives as long as the command).
-fn resolve(at: &MediumAddr) -> Result<SocketAddr, Failure> {
+pub(crate) fn resolve(at: &MediumAddr) -> Result<SocketAddr, Failure> {
     match &at.serial {
         None => Ok(at.medium),
         Some(serial) => {
@@ -273,7 +273,7 @@ fn watch(
 
 /// The keys `push` secures with: a secured robot (the default) needs them; an unsecured one
 /// (`security: Off`) is pushed without, and refuses an explicit `--keys`.
-fn push_keys(
+pub(crate) fn push_keys(
     robot: &Path,
     c: &robot_compiler::Compiled,
     keys: Option<KeysFrom>,

@@ -1,0 +1,192 @@
+//! `config-tool panel` without a browser: a second panel on the same port is refused
+//! with a clear error; a node that stops answering and a medium that goes away are said
+//! in the page's state (its server-sent events) and the buttons refused, by the server
+//! too; a panel off loopback needs its token; nothing hangs.
+
+mod e2e_support;
+mod panel_support;
+
+use e2e_support::TempDir;
+use panel_support::{Machine, Panel, ROBOT};
+
+fn buttons_enabled(state: &serde_json::Value) -> Vec<String> {
+    let b = state["buttons"].as_object().expect("buttons");
+    b.iter()
+        .filter(|(_, v)| v["enabled"] == true)
+        .map(|(k, _)| k.clone())
+        .collect()
+}
+
+#[test]
+fn a_second_panel_on_the_same_port_is_refused_with_a_clear_error() {
+    let dir = TempDir::new("panel-port");
+    let key = dir.0.join("machine.key");
+    let k = key.to_str().unwrap();
+    let made = std::process::Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["keys", "new", "--out", k])
+        .output()
+        .unwrap();
+    assert!(made.status.success());
+    let medium = medium::Medium::start(medium::Config::default()).unwrap();
+    let m = medium.addr().to_string();
+    let first = Panel::start(&[
+        ROBOT,
+        "--keys",
+        k,
+        "--medium",
+        &m,
+        "--listen",
+        "127.0.0.1:0",
+    ])
+    .expect("the first panel");
+    let port = first.addr.to_string();
+    let second = Panel::start(&[ROBOT, "--keys", k, "--medium", &m, "--listen", &port]);
+    let Err((status, err)) = second else {
+        panic!("a second panel on {port} started");
+    };
+    assert_eq!(
+        (status, err),
+        (
+            Some(1),
+            format!(
+                "error: cannot listen on {port}: the address is in use (another panel, or \
+                 another program, listens there): give another --listen\n"
+            )
+        )
+    );
+    // The first one still serves.
+    assert_eq!(first.get("/").0, 200);
+}
+
+#[test]
+fn a_silent_node_and_a_medium_gone_are_said_and_every_command_refused() {
+    let mut m = Machine::up("panel-bad", None);
+    let panel = m.panel();
+    let mut events = panel.events();
+    events.until("HOME offered", |s| buttons_enabled(s) == ["HOME"]);
+    // What the page greys out the server refuses too, with the same reason.
+    assert_eq!(
+        panel.press("START"),
+        (409, "refused: not homed: HOME first".to_string())
+    );
+    assert_eq!(panel.press("JUMP"), (404, "no button JUMP".to_string()));
+    m.bed.kill_node(0x0012);
+    let s = events.until("GR not answering", |s| s["nodes"][1]["answering"] == false);
+    assert_eq!(buttons_enabled(&s), Vec::<String>::new());
+    assert_eq!(
+        s["buttons"]["HOME"]["why"],
+        "node 0x0012 (GR) does not answer"
+    );
+    assert_eq!(
+        panel.press("HOME"),
+        (409, "refused: node 0x0012 (GR) does not answer".to_string())
+    );
+    m.bed.medium().stop();
+    let s = events.until("the medium gone", |s| s["medium_ok"] == false);
+    assert_eq!(s["medium"], "the medium closed");
+    assert_eq!(
+        panel.press("HOME"),
+        (409, "refused: no medium: the medium closed".to_string())
+    );
+    // The page is still served.
+    assert_eq!(panel.get("/").0, 200);
+    assert_eq!(panel.get("/nothing").0, 404);
+}
+
+#[test]
+fn a_panel_off_loopback_prints_a_token_and_refuses_requests_without_it() {
+    let dir = TempDir::new("panel-token");
+    let key = dir.0.join("machine.key");
+    let k = key.to_str().unwrap();
+    let made = std::process::Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["keys", "new", "--out", k])
+        .output()
+        .unwrap();
+    assert!(made.status.success());
+    let medium = medium::Medium::start(medium::Config::default()).unwrap();
+    let m = medium.addr().to_string();
+    let panel = Panel::start(&[ROBOT, "--keys", k, "--medium", &m, "--listen", "0.0.0.0:0"])
+        .expect("the panel");
+    let (_, token) = panel
+        .url
+        .split_once("?token=")
+        .expect("a token in the address");
+    assert_eq!(token.len(), 32);
+    let at: std::net::SocketAddr = ([127, 0, 0, 1], panel.addr.port()).into();
+    let get = |p: &str| panel_support::request(at, "GET", p, None).0;
+    assert_eq!(get("/"), 403);
+    assert_eq!(get("/state.json"), 403);
+    assert_eq!(get("/state.json?token=wrong"), 403);
+    assert_eq!(get(&format!("/state.json?token={token}")), 200);
+    assert_eq!(
+        panel_support::request(at, "POST", "/command/HOME", Some("")).0,
+        403
+    );
+}
+
+#[test]
+fn the_sorters_page_shows_each_ball_in_the_bin_it_landed_in() {
+    let mut m = Machine::of("ball-sorter.ron", "panel-sorter", None);
+    let c = e2e_support::robot("ball-sorter.ron", 1);
+    let feed: Vec<String> = ["gray", "black", "orange", "black"]
+        .map(String::from)
+        .to_vec();
+    let sim = robot_analysis::sorter::simulate(&c, Some(&feed)).expect("sim");
+    let actuators = robot_net::live_plant::actuators(&c).expect("actuators");
+    let balls = robot_net::live_feed::ball_feed(&c, &actuators, &feed).expect("feed");
+    let landed = m.bed.set_plant_fed(actuators, balls).expect("fed plant");
+    let panel = m.panel();
+    let mut events = panel.events();
+    let s = events.until("START offered", |s| {
+        s["buttons"]["START"]["enabled"] == true
+    });
+    assert_eq!(
+        s["station"]["at_sensors"], "gray",
+        "the front ball lies at the sensors"
+    );
+    assert_eq!(panel.press("START").0, 200);
+    // One feed: START is not pressed again at its end.
+    assert_eq!(panel.press("STOP").0, 200);
+    let mut want = vec![Vec::<String>::new(); 3];
+    for (colour, b) in feed.iter().zip(&sim.balls) {
+        let bin = b.bin.expect("sim lands every ball");
+        want[bin - 1].push(colour.clone());
+        landed
+            .recv_timeout(e2e_support::TIMEOUT)
+            .expect("a ball lands");
+    }
+    // The radio's events are opened with the machine's keys: the last ball's landing is
+    // told (published by the sensing node after its bin's sensor pulsed).
+    let told = |s: &serde_json::Value| {
+        (s["events"].as_array().unwrap().iter())
+            .any(|e| e["role"] == "SENSING" && e["event"] == "bins.landed")
+    };
+    let s = events.until("every ball in its bin, the landing told", |s| {
+        s["station"]["bins"] == serde_json::json!(want) && told(s)
+    });
+    assert_eq!(s["station"]["falling"], 0);
+    assert!(s["event_count"].as_u64().unwrap() >= 4 * 3, "{s:#}");
+}
+
+#[test]
+fn the_transports_page_shows_each_control_functions_place() {
+    let m = Machine::of("waterjet-transport.ron", "panel-transport", None);
+    let c = e2e_support::robot("waterjet-transport.ron", 1);
+    let panel = m.panel();
+    let model: serde_json::Value =
+        serde_json::from_str(&panel.get("/model.json").1).expect("the model");
+    let mut events = panel.events();
+    // Booted with its tables: every function in its chart's initial place.
+    let s = events.until("every node answering", |s| {
+        (s["nodes"].as_array().unwrap().iter()).all(|n| n["answering"] == true)
+    });
+    let functions = model["functions"].as_array().expect("functions");
+    assert_eq!(functions.len(), c.robot.functions.len());
+    for f in functions {
+        let (name, chart) = (f[0].as_str().unwrap(), f[1].as_u64().unwrap() as usize);
+        let ch = &model["charts"][chart];
+        let place = s["charts"][chart].as_u64().expect("a state") as usize;
+        assert_eq!(ch["name"], name);
+        assert_eq!(place, ch["initial"].as_u64().unwrap() as usize, "{name}");
+    }
+}
