@@ -65,8 +65,10 @@ pub use index::Index;
 use index::NONE;
 
 /// The engine's index: its own (built with the engine) or the one its runtime keeps
-/// beside the table (built once at activation, not per stimulus).
+/// beside the table (built once at activation, not per stimulus). No allocator: an
+/// engine that builds its own holds it inline.
 #[derive(Debug, Clone)]
+#[allow(clippy::large_enum_variant)]
 enum IndexRef<'t> {
     Own(Index),
     Kept(&'t Index),
