@@ -75,7 +75,7 @@ enum IndexRef<'t> {
 }
 
 impl IndexRef<'_> {
-    #[inline]
+    #[inline(always)]
     fn get(&self) -> &Index {
         match self {
             IndexRef::Own(ix) => ix,
@@ -256,8 +256,16 @@ impl<'t> Engine<'t> {
         let Some(binding) = self.table.inputs.get(usize::from(input)) else {
             return;
         };
-        let was = self.inputs & (1u16 << (input & 15)) != 0;
-        self.sense(input, level);
+        let bit = 1u16 << (input & 15);
+        let was = self.inputs & bit != 0;
+        if level {
+            self.inputs |= bit;
+        } else {
+            self.inputs &= !bit;
+        }
+        if let Some(var) = binding.var.and_then(|v| self.vars.get_mut(usize::from(v))) {
+            *var = i32::from(level);
+        }
         if was != level {
             if let Some(event) = if level { binding.rise } else { binding.fall } {
                 self.raise(event, true, fx);
@@ -524,12 +532,17 @@ impl<'t> Engine<'t> {
 
     fn drive(&mut self, mask: u16, value: u16, fx: &mut impl Effects) {
         let next = (self.outputs & !mask) | (value & mask);
-        let changed = self.outputs ^ next;
+        let outputs = self.table.outputs.len().min(16) as u32;
+        let mut changed = (self.outputs ^ next) & (u16::MAX >> (16 - outputs.min(16)) as u16);
+        if outputs == 0 {
+            changed = 0;
+        }
         self.outputs = next;
-        for i in 0..self.table.outputs.len().min(16) {
-            if changed & (1 << i) != 0 {
-                fx.output(i as u8, next & (1 << i) != 0);
-            }
+        // Each changed output, lowest first.
+        while changed != 0 {
+            let i = changed.trailing_zeros();
+            changed &= changed - 1;
+            fx.output(i as u8, next & (1 << i) != 0);
         }
     }
 
