@@ -234,6 +234,9 @@ impl PeerSecurity {
     /// checks its counter, and runs the handshake. Every refusal is counted.
     /// A frame under the key index of `staged` (the generation this node has staged) is a
     /// peer that switched a moment earlier: dropped, not counted as a security refusal.
+    /// (The node does the same in its parts, sharing the open and the message parse with
+    /// its management path: [`PeerSecurity::note_frame`], [`PeerSecurity::lookup`],
+    /// [`PeerSecurity::refused`], [`PeerSecurity::admit`].)
     pub fn open<'s>(
         &mut self,
         psdu: &[u8],
@@ -246,41 +249,76 @@ impl PeerSecurity {
         if !crate::FRAME_SECURITY {
             return Verdict::Dropped;
         }
-        self.overlap_until.get_or_insert(now + OVERLAP_MS);
+        self.note_frame(now);
         let opened = security::open_default_with::<NodeCipher, _>(
             psdu,
-            |header, aux| {
-                let index = aux.key_id.index()?;
-                if header.src == me {
-                    return None;
-                }
-                self.key_for(header.src, index, now)
-                    .map(|k| (k, ext_addr(header.pan_id, header.src)))
-            },
+            |header, aux| self.lookup(header, aux, me, now),
             scratch,
         );
+        match opened {
+            Ok(opened) => {
+                let message = Message::parse(opened.payload);
+                self.admit(&opened, &message, now, counters)
+            }
+            Err(e) => {
+                self.refused(psdu, staged, e, counters);
+                Verdict::Dropped
+            }
+        }
+    }
+
+    /// A secured frame from a peer arrived at `now` (before it is opened): the overlap of
+    /// the previous generation's keys runs from the first one after a switch.
+    pub fn note_frame(&mut self, now: u64) {
+        self.overlap_until.get_or_insert(now + OVERLAP_MS);
+    }
+
+    /// The receive key and the sender's extended address that open a frame with `header`
+    /// and `aux` at `now` (`me`: this node, never a sender), if any.
+    pub fn lookup(
+        &self,
+        header: &Header,
+        aux: &AuxRepr,
+        me: u16,
+        now: u64,
+    ) -> Option<([u8; KEY_LEN], [u8; 8])> {
+        let index = aux.key_id.index()?;
+        if header.src == me {
+            return None;
+        }
+        self.key_for(header.src, index, now)
+            .map(|k| (k, ext_addr(header.pan_id, header.src)))
+    }
+
+    /// A peer's frame `psdu` did not open (`e`): counted by its reason, unless it is under
+    /// the key index of `staged` (a peer that switched a moment earlier).
+    pub fn refused(&self, psdu: &[u8], staged: u32, e: SecError, counters: &mut SecurityCounters) {
+        if !(e == SecError::UnknownKey && staged != 0 && ahead(psdu, staged)) {
+            count_refusal(e, counters);
+        }
+    }
+
+    /// The replay check and the handshake of a peer's frame that opened, whose payload
+    /// parsed to `message`.
+    pub fn admit<'s, E>(
+        &mut self,
+        opened: &Opened<'s>,
+        message: &Result<Message<'_>, E>,
+        now: u64,
+        counters: &mut SecurityCounters,
+    ) -> Verdict<'s> {
         let Opened {
             header,
             aux,
             payload,
-        } = match opened {
-            Ok(o) => o,
-            Err(SecError::UnknownKey) if staged != 0 && ahead(psdu, staged) => {
-                return Verdict::Dropped;
-            }
-            Err(e) => {
-                count_refusal(e, counters);
-                return Verdict::Dropped;
-            }
-        };
+        } = opened;
         let src = header.src;
         let current = self
             .current
             .as_ref()
             .is_some_and(|k| aux.key_id.index() == Some(link_key_index(k.generation)));
-        let message = Message::parse(payload);
         let floor = self.replay.last(src, ANY_LINK_KEY);
-        if let (None, Ok(Message::Challenge { nonce })) = (floor, &message) {
+        if let (None, Ok(Message::Challenge { nonce })) = (floor, message) {
             // Answering takes nothing in: no floor needed (the peer rebooted, or both did).
             let answer = may(&mut self.next_answer, src, now, ANSWER_MS);
             // (A challenge of ours still unanswered may have gone to the peer before it had
@@ -294,7 +332,7 @@ impl PeerSecurity {
             };
         }
         if floor.is_none() {
-            if self.challenges.answered(src, &message) {
+            if self.challenges.answered(src, message) {
                 accept(
                     &mut self.replay,
                     src,
@@ -326,7 +364,7 @@ impl PeerSecurity {
         match message {
             Ok(Message::Challenge { nonce }) => Verdict::Answer {
                 peer: src,
-                nonce,
+                nonce: *nonce,
                 answer: may(&mut self.next_answer, src, now, ANSWER_MS),
                 challenge: false,
             },
