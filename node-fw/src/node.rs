@@ -212,33 +212,32 @@ impl Radio<'_> {
         let key = self
             .key
             .filter(|_| crate::FRAME_SECURITY && pan_id == CONFIG_PAN);
-        let emitted = match key {
-            None if links => {
+        // The key that secures the frame and its key index: the management key on the
+        // config PAN, the send key for `dst` under link keys (`Some(None)`: `dst` is not a
+        // peer), none (`None`): unsecured. One secured branch, one `secure` call.
+        let secured = match key {
+            Some(key) => Some(Some((*key.expose(), MANAGEMENT_KEY_INDEX))),
+            None if links => Some(self.links.send_key(dst)),
+            None => None,
+        };
+        let emitted = match secured {
+            Some(send) => {
                 let Some(counter) = counter.or_else(|| io.next_frame_counter()) else {
                     self.security.no_counter += 1;
                     return;
                 };
                 // No key for `dst` (not a peer): nothing is sent in clear instead.
-                self.links
-                    .seal(&header, counter, &payload[..n], &mut psdu)
-                    .and_then(Result::ok)
-            }
-            Some(key) => {
-                let Some(counter) = counter.or_else(|| io.next_frame_counter()) else {
-                    self.security.no_counter += 1;
-                    return;
-                };
-                let aux = AuxRepr::new(MANAGEMENT_KEY_INDEX, counter);
-                let src_ext = ext_addr(pan_id, self.addr);
-                security::secure_default_with::<NodeCipher>(
-                    &header,
-                    &aux,
-                    key.expose(),
-                    src_ext,
-                    &payload[..n],
-                    &mut psdu,
-                )
-                .ok()
+                send.and_then(|(key, index)| {
+                    security::secure_default_with::<NodeCipher>(
+                        &header,
+                        &AuxRepr::new(index, counter),
+                        &key,
+                        ext_addr(pan_id, self.addr),
+                        &payload[..n],
+                        &mut psdu,
+                    )
+                    .ok()
+                })
             }
             None => mac::emit_data(&header, &payload[..n], &mut psdu).ok(),
         };
@@ -1132,20 +1131,25 @@ impl NodeCore {
         }
     }
 
-    /// Sends `src` a challenge whose nonce is the counter of the challenge frame itself.
+    /// Sends `src` a challenge on the config PAN (see [`NodeCore::challenge_on`]).
     fn challenge(&mut self, src: u16, io: &mut impl Io) {
+        self.challenge_on(CONFIG_PAN, src, io);
+    }
+
+    /// Sends `dst` on `pan` a challenge whose nonce is the counter of the challenge frame
+    /// itself, and remembers it: on the config PAN for the management path, on the
+    /// robot's for the peers' (one sender for both).
+    fn challenge_on(&mut self, pan: u16, dst: u16, io: &mut impl Io) {
         let Some(nonce) = io.next_frame_counter() else {
             self.security.no_counter += 1;
             return;
         };
-        self.challenges.sent(src, nonce);
-        self.send_numbered(
-            io,
-            CONFIG_PAN,
-            src,
-            &Message::Challenge { nonce },
-            Some(nonce),
-        );
+        if pan == CONFIG_PAN {
+            self.challenges.sent(dst, nonce);
+        } else {
+            self.peer_security.challenged(dst, nonce);
+        }
+        self.send_numbered(io, pan, dst, &Message::Challenge { nonce }, Some(nonce));
     }
 
     /// Our link to `peer` starts again from seq 0 in a new epoch (the peer rebooted: its
@@ -1164,12 +1168,7 @@ impl NodeCore {
         let Some(pan) = self.table.as_ref().map(|t| t.header.pan_id) else {
             return;
         };
-        let Some(nonce) = io.next_frame_counter() else {
-            self.security.no_counter += 1;
-            return;
-        };
-        self.peer_security.challenged(peer, nonce);
-        self.send_numbered(io, pan, peer, &Message::Challenge { nonce }, Some(nonce));
+        self.challenge_on(pan, peer, io);
     }
 
     fn peer(&self, addr: u16) -> Option<usize> {

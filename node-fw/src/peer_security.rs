@@ -36,6 +36,7 @@ use config_schema::wire::security::{
     replay::{ReplayError, ReplayGuard},
     AuxRepr, Opened, SecError, KEY_LEN,
 };
+use heapless::vec::VecView;
 use heapless::Vec;
 
 use crate::cipher::NodeCipher;
@@ -188,29 +189,12 @@ impl PeerSecurity {
         self.greet.iter().map(|(_, _, at)| *at).min()
     }
 
-    /// Secures `payload` to `dst` under the send key of the running generation; `None` if
-    /// there is no key for `dst`.
-    pub fn seal(
-        &self,
-        header: &Header,
-        counter: u32,
-        payload: &[u8],
-        out: &mut [u8],
-    ) -> Option<Result<usize, SecError>> {
-        if !crate::FRAME_SECURITY {
-            return None;
-        }
+    /// The send key to `dst` of the running generation and its key index, if `dst` is a
+    /// peer of it: the node secures its frames to `dst` with it (in the one secured
+    /// branch it shares with its management frames).
+    pub fn send_key(&self, dst: u16) -> Option<([u8; KEY_LEN], u8)> {
         let keys = self.current.as_ref()?;
-        let send = keys.of(header.dst)?.send;
-        let aux = AuxRepr::new(link_key_index(keys.generation), counter);
-        Some(security::secure_default_with::<NodeCipher>(
-            header,
-            &aux,
-            &send,
-            ext_addr(header.pan_id, header.src),
-            payload,
-            out,
-        ))
+        Some((keys.of(dst)?.send, link_key_index(keys.generation)))
     }
 
     /// The receive key for a frame from `src` under `key_index`, at `now`.
@@ -389,24 +373,14 @@ pub struct Pending<const N: usize> {
 /// Challenges per sender whose answer still sets the floor.
 pub const OUTSTANDING: usize = 2;
 
+/// A sender and the nonces of its pending challenges.
+type Challenged = (u16, [Option<u32>; OUTSTANDING]);
+
 impl<const N: usize> Pending<N> {
     /// `sender` was challenged with `nonce` (of its earlier challenges, the last
     /// [`OUTSTANDING`] - 1 still count).
     pub fn sent(&mut self, sender: u16, nonce: u32) {
-        match self.sent.iter_mut().find(|(s, _)| *s == sender) {
-            Some((_, nonces)) => {
-                nonces.rotate_right(1);
-                nonces[0] = Some(nonce);
-            }
-            None => {
-                if self.sent.is_full() {
-                    self.sent.remove(0);
-                }
-                let mut nonces = [None; OUTSTANDING];
-                nonces[0] = Some(nonce);
-                let _ = self.sent.push((sender, nonces));
-            }
-        }
+        sent(self.sent.as_mut_view(), sender, nonce)
     }
 
     /// Whether `message` from `sender` answers its pending challenge; if so it is no
@@ -415,21 +389,43 @@ impl<const N: usize> Pending<N> {
         let Ok(Message::ChallengeAnswer { nonce }) = message else {
             return false;
         };
-        let Some(i) = self
-            .sent
-            .iter()
-            .position(|(s, n)| *s == sender && n.contains(&Some(*nonce)))
-        else {
-            return false;
-        };
-        self.sent.remove(i);
-        true
+        answered(self.sent.as_mut_view(), sender, *nonce)
     }
 
     /// Forgets the challenges of senders not in `keep`.
     pub fn retain(&mut self, keep: &[u16]) {
         self.sent.retain(|(s, _)| keep.contains(s));
     }
+}
+
+// `Pending`'s work on its entries' `VecView`: one copy for the management (4) and the
+// peer tables.
+fn sent(sent: &mut VecView<Challenged>, sender: u16, nonce: u32) {
+    match sent.iter_mut().find(|(s, _)| *s == sender) {
+        Some((_, nonces)) => {
+            nonces.rotate_right(1);
+            nonces[0] = Some(nonce);
+        }
+        None => {
+            if sent.is_full() {
+                sent.remove(0);
+            }
+            let mut nonces = [None; OUTSTANDING];
+            nonces[0] = Some(nonce);
+            let _ = sent.push((sender, nonces));
+        }
+    }
+}
+
+fn answered(sent: &mut VecView<Challenged>, sender: u16, nonce: u32) -> bool {
+    let Some(i) = sent
+        .iter()
+        .position(|(s, n)| *s == sender && n.contains(&Some(nonce)))
+    else {
+        return false;
+    };
+    sent.remove(i);
+    true
 }
 
 /// Takes `counter` from `sender` under `key_index` if it is above the sender's floor (and
