@@ -12,7 +12,7 @@ use config_schema::wire::msg::{
     Announce, Command, ConfigReply, Counters, Message, Refusal, RuntimeCounters, SecurityCounters,
     SecurityReport, Status, SwitchStep,
 };
-use config_schema::wire::security::{self, ext_addr, replay::ReplayGuard, AuxRepr};
+use config_schema::wire::security::{self, ext_addr, replay::ReplayGuard, AuxRepr, Opened};
 use config_schema::{Publication, Table};
 use heapless::Vec;
 
@@ -212,33 +212,32 @@ impl Radio<'_> {
         let key = self
             .key
             .filter(|_| crate::FRAME_SECURITY && pan_id == CONFIG_PAN);
-        let emitted = match key {
-            None if links => {
+        // The key that secures the frame and its key index: the management key on the
+        // config PAN, the send key for `dst` under link keys (`Some(None)`: `dst` is not a
+        // peer), none (`None`): unsecured. One secured branch, one `secure` call.
+        let secured = match key {
+            Some(key) => Some(Some((*key.expose(), MANAGEMENT_KEY_INDEX))),
+            None if links => Some(self.links.send_key(dst)),
+            None => None,
+        };
+        let emitted = match secured {
+            Some(send) => {
                 let Some(counter) = counter.or_else(|| io.next_frame_counter()) else {
                     self.security.no_counter += 1;
                     return;
                 };
                 // No key for `dst` (not a peer): nothing is sent in clear instead.
-                self.links
-                    .seal(&header, counter, &payload[..n], &mut psdu)
-                    .and_then(Result::ok)
-            }
-            Some(key) => {
-                let Some(counter) = counter.or_else(|| io.next_frame_counter()) else {
-                    self.security.no_counter += 1;
-                    return;
-                };
-                let aux = AuxRepr::new(MANAGEMENT_KEY_INDEX, counter);
-                let src_ext = ext_addr(pan_id, self.addr);
-                security::secure_default_with::<NodeCipher>(
-                    &header,
-                    &aux,
-                    key.expose(),
-                    src_ext,
-                    &payload[..n],
-                    &mut psdu,
-                )
-                .ok()
+                send.and_then(|(key, index)| {
+                    security::secure_default_with::<NodeCipher>(
+                        &header,
+                        &AuxRepr::new(index, counter),
+                        &key,
+                        ext_addr(pan_id, self.addr),
+                        &payload[..n],
+                        &mut psdu,
+                    )
+                    .ok()
+                })
             }
             None => mac::emit_data(&header, &payload[..n], &mut psdu).ok(),
         };
@@ -920,30 +919,65 @@ impl NodeCore {
             // announcements (secured with their own keys), which a node never reads.
             return;
         }
-        let (payload, authentic) = if management && header.secured {
-            match self.open_management(psdu, &mut scratch, now, io) {
-                Ok(payload) => (payload, true),
+        let peers = header.pan_id != CONFIG_PAN && self.peer_security.secured();
+        if peers && !header.secured {
+            self.security.not_secured += 1;
+            self.counters.dropped += 1;
+            return;
+        }
+        // One open and one parse for both secured paths (and the unsecured one).
+        let opened = if (management || peers) && header.secured {
+            if peers {
+                self.peer_security.note_frame(now);
+            }
+            let opened = security::open_default_with::<NodeCipher, _>(
+                psdu,
+                |header, aux| self.lookup(header, aux, now),
+                &mut scratch,
+            );
+            match opened {
+                Ok(opened) => Some(opened),
+                Err(e) => {
+                    if management {
+                        peer_security::count_refusal(e, &mut self.security);
+                    } else {
+                        let staged = self.switch.staged();
+                        self.peer_security
+                            .refused(psdu, staged, e, &mut self.security);
+                    }
+                    self.counters.dropped += 1;
+                    return;
+                }
+            }
+        } else if header.secured {
+            // Secured, and no key for it: a table without link keys counts it; an
+            // unconfigured node (a machine's traffic it is not part of yet), or one with
+            // that generation staged (a peer that switched a moment earlier), does not.
+            let ahead = self.switch.staged() != 0 && header.pan_id != CONFIG_PAN;
+            if self.table.is_some() && !ahead {
+                self.security.unknown_key += 1;
+            }
+            self.counters.dropped += 1;
+            return;
+        } else {
+            None
+        };
+        let parsed = Message::parse(opened.as_ref().map_or(payload, |o| o.payload));
+        let authentic = match &opened {
+            None => false,
+            Some(opened) if management => match self.admit_management(opened, &parsed, now, io) {
+                Ok(()) => true,
                 Err(Refused::Dropped) => {
                     self.counters.dropped += 1;
                     return;
                 }
                 Err(Refused::Handshake) => return,
-            }
-        } else if header.pan_id != CONFIG_PAN && self.peer_security.secured() {
-            if !header.secured {
-                self.security.not_secured += 1;
-                self.counters.dropped += 1;
-                return;
-            }
-            match self.peer_security.open(
-                psdu,
-                self.addr,
-                self.switch.staged(),
-                now,
-                &mut scratch,
-                &mut self.security,
-            ) {
-                Verdict::Accept(payload) => (payload, true),
+            },
+            Some(opened) => match self
+                .peer_security
+                .admit(opened, &parsed, now, &mut self.security)
+            {
+                Verdict::Accept(_) => true,
                 Verdict::Dropped => {
                     self.counters.dropped += 1;
                     return;
@@ -973,21 +1007,9 @@ impl NodeCore {
                     return;
                 }
                 Verdict::Answered => return,
-            }
-        } else if header.secured {
-            // Secured, and no key for it: a table without link keys counts it; an
-            // unconfigured node (a machine's traffic it is not part of yet), or one with
-            // that generation staged (a peer that switched a moment earlier), does not.
-            let ahead = self.switch.staged() != 0 && header.pan_id != CONFIG_PAN;
-            if self.table.is_some() && !ahead {
-                self.security.unknown_key += 1;
-            }
-            self.counters.dropped += 1;
-            return;
-        } else {
-            (payload, false)
+            },
         };
-        let Ok(msg) = Message::parse(payload) else {
+        let Ok(msg) = parsed else {
             self.counters.dropped += 1;
             return;
         };
@@ -1058,82 +1080,76 @@ impl NodeCore {
         }
     }
 
-    /// Opens a secured frame on the config PAN with the management key (ENC-MIC-64, key
-    /// index 0, the sender's extended address from its short address), then checks its
-    /// counter against the last one accepted from that sender. Every refusal is counted by
-    /// its reason.
+    /// The key and the sender's extended address that open a secured frame with `header`
+    /// and `aux` at `now`: on the config PAN the management key (key index 0; our own
+    /// frames reflected back are not the tool's), on the robot's PAN the peer's link key.
+    fn lookup(&self, header: &Header, aux: &AuxRepr, now: u64) -> Option<([u8; 16], [u8; 8])> {
+        if header.pan_id != CONFIG_PAN {
+            return self.peer_security.lookup(header, aux, self.addr, now);
+        }
+        let key = gated(&self.key)?;
+        (aux.key_id.index() == Some(MANAGEMENT_KEY_INDEX) && header.src != self.addr)
+            .then(|| (*key.expose(), ext_addr(header.pan_id, header.src)))
+    }
+
+    /// Checks the counter of a management frame that opened (ENC-MIC-64, key index 0, the
+    /// sender's extended address from its short address) against the last one accepted
+    /// from that sender; `message` is its payload parsed. Every refusal is counted by its
+    /// reason.
     ///
     /// A sender whose counter the node does not know (none since boot) is challenged
     /// instead: its frame is not acted on; the node answers `Challenge { nonce }`, the nonce
     /// being that frame's own counter (never used before), and takes the counter of the
     /// sender's `ChallengeAnswer` with that nonce as its floor. A frame captured before
     /// the answer has a lower counter: no replay passes a reboot.
-    fn open_management<'s>(
+    fn admit_management<E>(
         &mut self,
-        psdu: &[u8],
-        scratch: &'s mut [u8],
+        opened: &Opened<'_>,
+        message: &Result<Message<'_>, E>,
         now: u64,
         io: &mut impl Io,
-    ) -> Result<&'s [u8], Refused> {
-        let Some(key) = gated(&self.key) else {
-            return Err(Refused::Dropped);
-        };
-        let me = self.addr;
-        let opened = security::open_default_with::<NodeCipher, _>(
-            psdu,
-            |header, aux| {
-                // Our own frames reflected back are not the tool's.
-                (aux.key_id.index() == Some(MANAGEMENT_KEY_INDEX) && header.src != me)
-                    .then(|| (*key.expose(), ext_addr(header.pan_id, header.src)))
-            },
-            scratch,
-        );
-        let c = &mut self.security;
-        let opened = match opened {
-            Ok(o) => o,
-            Err(e) => {
-                peer_security::count_refusal(e, c);
-                return Err(Refused::Dropped);
-            }
-        };
+    ) -> Result<(), Refused> {
         let src = opened.header.src;
         let counter = opened.aux.frame_counter;
+        let c = &mut self.security;
         if self.replay.last(src, MANAGEMENT_KEY_INDEX).is_none() {
-            let message = Message::parse(opened.payload);
-            if self.challenges.answered(src, &message) {
-                let c = &mut self.security;
+            if self.challenges.answered(src, message) {
                 peer_security::accept(&mut self.replay, src, MANAGEMENT_KEY_INDEX, counter, c);
                 return Err(Refused::Handshake);
             }
-            self.security.challenged += 1;
+            c.challenged += 1;
             if now >= self.next_challenge {
                 self.next_challenge = now + CHALLENGE_MS;
                 self.challenge(src, io);
             }
             return Err(Refused::Handshake);
         }
-        let c = &mut self.security;
         if peer_security::accept(&mut self.replay, src, MANAGEMENT_KEY_INDEX, counter, c) {
-            Ok(opened.payload)
+            Ok(())
         } else {
             Err(Refused::Dropped)
         }
     }
 
-    /// Sends `src` a challenge whose nonce is the counter of the challenge frame itself.
+    /// Sends `src` a challenge on the config PAN (see [`NodeCore::challenge_on`]).
     fn challenge(&mut self, src: u16, io: &mut impl Io) {
+        self.challenge_on(CONFIG_PAN, src, io);
+    }
+
+    /// Sends `dst` on `pan` a challenge whose nonce is the counter of the challenge frame
+    /// itself, and remembers it: on the config PAN for the management path, on the
+    /// robot's for the peers' (one sender for both).
+    fn challenge_on(&mut self, pan: u16, dst: u16, io: &mut impl Io) {
         let Some(nonce) = io.next_frame_counter() else {
             self.security.no_counter += 1;
             return;
         };
-        self.challenges.sent(src, nonce);
-        self.send_numbered(
-            io,
-            CONFIG_PAN,
-            src,
-            &Message::Challenge { nonce },
-            Some(nonce),
-        );
+        if pan == CONFIG_PAN {
+            self.challenges.sent(dst, nonce);
+        } else {
+            self.peer_security.challenged(dst, nonce);
+        }
+        self.send_numbered(io, pan, dst, &Message::Challenge { nonce }, Some(nonce));
     }
 
     /// Our link to `peer` starts again from seq 0 in a new epoch (the peer rebooted: its
@@ -1152,12 +1168,7 @@ impl NodeCore {
         let Some(pan) = self.table.as_ref().map(|t| t.header.pan_id) else {
             return;
         };
-        let Some(nonce) = io.next_frame_counter() else {
-            self.security.no_counter += 1;
-            return;
-        };
-        self.peer_security.challenged(peer, nonce);
-        self.send_numbered(io, pan, peer, &Message::Challenge { nonce }, Some(nonce));
+        self.challenge_on(pan, peer, io);
     }
 
     fn peer(&self, addr: u16) -> Option<usize> {

@@ -36,6 +36,7 @@ use config_schema::wire::security::{
     replay::{ReplayError, ReplayGuard},
     AuxRepr, Opened, SecError, KEY_LEN,
 };
+use heapless::vec::VecView;
 use heapless::Vec;
 
 use crate::cipher::NodeCipher;
@@ -188,29 +189,12 @@ impl PeerSecurity {
         self.greet.iter().map(|(_, _, at)| *at).min()
     }
 
-    /// Secures `payload` to `dst` under the send key of the running generation; `None` if
-    /// there is no key for `dst`.
-    pub fn seal(
-        &self,
-        header: &Header,
-        counter: u32,
-        payload: &[u8],
-        out: &mut [u8],
-    ) -> Option<Result<usize, SecError>> {
-        if !crate::FRAME_SECURITY {
-            return None;
-        }
+    /// The send key to `dst` of the running generation and its key index, if `dst` is a
+    /// peer of it: the node secures its frames to `dst` with it (in the one secured
+    /// branch it shares with its management frames).
+    pub fn send_key(&self, dst: u16) -> Option<([u8; KEY_LEN], u8)> {
         let keys = self.current.as_ref()?;
-        let send = keys.of(header.dst)?.send;
-        let aux = AuxRepr::new(link_key_index(keys.generation), counter);
-        Some(security::secure_default_with::<NodeCipher>(
-            header,
-            &aux,
-            &send,
-            ext_addr(header.pan_id, header.src),
-            payload,
-            out,
-        ))
+        Some((keys.of(dst)?.send, link_key_index(keys.generation)))
     }
 
     /// The receive key for a frame from `src` under `key_index`, at `now`.
@@ -234,6 +218,9 @@ impl PeerSecurity {
     /// checks its counter, and runs the handshake. Every refusal is counted.
     /// A frame under the key index of `staged` (the generation this node has staged) is a
     /// peer that switched a moment earlier: dropped, not counted as a security refusal.
+    /// (The node does the same in its parts, sharing the open and the message parse with
+    /// its management path: [`PeerSecurity::note_frame`], [`PeerSecurity::lookup`],
+    /// [`PeerSecurity::refused`], [`PeerSecurity::admit`].)
     pub fn open<'s>(
         &mut self,
         psdu: &[u8],
@@ -246,41 +233,76 @@ impl PeerSecurity {
         if !crate::FRAME_SECURITY {
             return Verdict::Dropped;
         }
-        self.overlap_until.get_or_insert(now + OVERLAP_MS);
+        self.note_frame(now);
         let opened = security::open_default_with::<NodeCipher, _>(
             psdu,
-            |header, aux| {
-                let index = aux.key_id.index()?;
-                if header.src == me {
-                    return None;
-                }
-                self.key_for(header.src, index, now)
-                    .map(|k| (k, ext_addr(header.pan_id, header.src)))
-            },
+            |header, aux| self.lookup(header, aux, me, now),
             scratch,
         );
+        match opened {
+            Ok(opened) => {
+                let message = Message::parse(opened.payload);
+                self.admit(&opened, &message, now, counters)
+            }
+            Err(e) => {
+                self.refused(psdu, staged, e, counters);
+                Verdict::Dropped
+            }
+        }
+    }
+
+    /// A secured frame from a peer arrived at `now` (before it is opened): the overlap of
+    /// the previous generation's keys runs from the first one after a switch.
+    pub fn note_frame(&mut self, now: u64) {
+        self.overlap_until.get_or_insert(now + OVERLAP_MS);
+    }
+
+    /// The receive key and the sender's extended address that open a frame with `header`
+    /// and `aux` at `now` (`me`: this node, never a sender), if any.
+    pub fn lookup(
+        &self,
+        header: &Header,
+        aux: &AuxRepr,
+        me: u16,
+        now: u64,
+    ) -> Option<([u8; KEY_LEN], [u8; 8])> {
+        let index = aux.key_id.index()?;
+        if header.src == me {
+            return None;
+        }
+        self.key_for(header.src, index, now)
+            .map(|k| (k, ext_addr(header.pan_id, header.src)))
+    }
+
+    /// A peer's frame `psdu` did not open (`e`): counted by its reason, unless it is under
+    /// the key index of `staged` (a peer that switched a moment earlier).
+    pub fn refused(&self, psdu: &[u8], staged: u32, e: SecError, counters: &mut SecurityCounters) {
+        if !(e == SecError::UnknownKey && staged != 0 && ahead(psdu, staged)) {
+            count_refusal(e, counters);
+        }
+    }
+
+    /// The replay check and the handshake of a peer's frame that opened, whose payload
+    /// parsed to `message`.
+    pub fn admit<'s, E>(
+        &mut self,
+        opened: &Opened<'s>,
+        message: &Result<Message<'_>, E>,
+        now: u64,
+        counters: &mut SecurityCounters,
+    ) -> Verdict<'s> {
         let Opened {
             header,
             aux,
             payload,
-        } = match opened {
-            Ok(o) => o,
-            Err(SecError::UnknownKey) if staged != 0 && ahead(psdu, staged) => {
-                return Verdict::Dropped;
-            }
-            Err(e) => {
-                count_refusal(e, counters);
-                return Verdict::Dropped;
-            }
-        };
+        } = opened;
         let src = header.src;
         let current = self
             .current
             .as_ref()
             .is_some_and(|k| aux.key_id.index() == Some(link_key_index(k.generation)));
-        let message = Message::parse(payload);
         let floor = self.replay.last(src, ANY_LINK_KEY);
-        if let (None, Ok(Message::Challenge { nonce })) = (floor, &message) {
+        if let (None, Ok(Message::Challenge { nonce })) = (floor, message) {
             // Answering takes nothing in: no floor needed (the peer rebooted, or both did).
             let answer = may(&mut self.next_answer, src, now, ANSWER_MS);
             // (A challenge of ours still unanswered may have gone to the peer before it had
@@ -294,7 +316,7 @@ impl PeerSecurity {
             };
         }
         if floor.is_none() {
-            if self.challenges.answered(src, &message) {
+            if self.challenges.answered(src, message) {
                 accept(
                     &mut self.replay,
                     src,
@@ -326,7 +348,7 @@ impl PeerSecurity {
         match message {
             Ok(Message::Challenge { nonce }) => Verdict::Answer {
                 peer: src,
-                nonce,
+                nonce: *nonce,
                 answer: may(&mut self.next_answer, src, now, ANSWER_MS),
                 challenge: false,
             },
@@ -351,24 +373,14 @@ pub struct Pending<const N: usize> {
 /// Challenges per sender whose answer still sets the floor.
 pub const OUTSTANDING: usize = 2;
 
+/// A sender and the nonces of its pending challenges.
+type Challenged = (u16, [Option<u32>; OUTSTANDING]);
+
 impl<const N: usize> Pending<N> {
     /// `sender` was challenged with `nonce` (of its earlier challenges, the last
     /// [`OUTSTANDING`] - 1 still count).
     pub fn sent(&mut self, sender: u16, nonce: u32) {
-        match self.sent.iter_mut().find(|(s, _)| *s == sender) {
-            Some((_, nonces)) => {
-                nonces.rotate_right(1);
-                nonces[0] = Some(nonce);
-            }
-            None => {
-                if self.sent.is_full() {
-                    self.sent.remove(0);
-                }
-                let mut nonces = [None; OUTSTANDING];
-                nonces[0] = Some(nonce);
-                let _ = self.sent.push((sender, nonces));
-            }
-        }
+        sent(self.sent.as_mut_view(), sender, nonce)
     }
 
     /// Whether `message` from `sender` answers its pending challenge; if so it is no
@@ -377,21 +389,43 @@ impl<const N: usize> Pending<N> {
         let Ok(Message::ChallengeAnswer { nonce }) = message else {
             return false;
         };
-        let Some(i) = self
-            .sent
-            .iter()
-            .position(|(s, n)| *s == sender && n.contains(&Some(*nonce)))
-        else {
-            return false;
-        };
-        self.sent.remove(i);
-        true
+        answered(self.sent.as_mut_view(), sender, *nonce)
     }
 
     /// Forgets the challenges of senders not in `keep`.
     pub fn retain(&mut self, keep: &[u16]) {
         self.sent.retain(|(s, _)| keep.contains(s));
     }
+}
+
+// `Pending`'s work on its entries' `VecView`: one copy for the management (4) and the
+// peer tables.
+fn sent(sent: &mut VecView<Challenged>, sender: u16, nonce: u32) {
+    match sent.iter_mut().find(|(s, _)| *s == sender) {
+        Some((_, nonces)) => {
+            nonces.rotate_right(1);
+            nonces[0] = Some(nonce);
+        }
+        None => {
+            if sent.is_full() {
+                sent.remove(0);
+            }
+            let mut nonces = [None; OUTSTANDING];
+            nonces[0] = Some(nonce);
+            let _ = sent.push((sender, nonces));
+        }
+    }
+}
+
+fn answered(sent: &mut VecView<Challenged>, sender: u16, nonce: u32) -> bool {
+    let Some(i) = sent
+        .iter()
+        .position(|(s, n)| *s == sender && n.contains(&Some(nonce)))
+    else {
+        return false;
+    };
+    sent.remove(i);
+    true
 }
 
 /// Takes `counter` from `sender` under `key_index` if it is above the sender's floor (and

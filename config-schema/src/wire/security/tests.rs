@@ -961,3 +961,38 @@ fn a_failed_block_is_an_error_not_a_frame() {
     assert_eq!(sealed, Ok(n));
     FAIL_AT.set(usize::MAX);
 }
+
+mod star_is_ccm {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The node's CCM* ([`star::ccm_star_64`]) is the `ccm` crate's at M = 8: the same
+        /// ciphertext and MIC for any key, nonce and lengths of a (none too) and m (none,
+        /// part of a block, several), and it opens what the crate sealed; a flipped MIC bit
+        /// is refused with m zeroed.
+        #[test]
+        fn for_any_lengths(
+            key in any::<[u8; 16]>(),
+            nonce in any::<[u8; 13]>(),
+            a in proptest::collection::vec(any::<u8>(), 0..48),
+            m in proptest::collection::vec(any::<u8>(), 0..120),
+            flip in 0usize..64,
+        ) {
+            let level = SecurityLevel::EncMic64;
+            let (mut by_crate, mut crate_mic) = (m.clone(), [0u8; 8]);
+            seal(&key, &nonce, level, &a, &mut by_crate, &mut crate_mic).unwrap();
+            let (mut ours, mut mic) = (m.clone(), [0u8; 8]);
+            seal_default::<SoftAes>(&key, &nonce, level, &a, &mut ours, &mut mic).unwrap();
+            prop_assert_eq!(&ours, &by_crate);
+            prop_assert_eq!(mic, crate_mic);
+            unseal_default::<SoftAes>(&key, &nonce, level, &a, &mut ours, &crate_mic).unwrap();
+            prop_assert_eq!(&ours, &m);
+            let mut bad = crate_mic;
+            bad[flip / 8] ^= 1 << (flip % 8);
+            let refused = unseal_default::<SoftAes>(&key, &nonce, level, &a, &mut by_crate, &bad);
+            prop_assert_eq!(refused, Err(SecError::BadMic));
+            prop_assert!(by_crate.iter().all(|b| *b == 0));
+        }
+    }
+}
