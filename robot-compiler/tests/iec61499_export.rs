@@ -375,17 +375,82 @@ fn the_system_has_the_robots_instances_connections_and_mapping() {
     assert_eq!(sys.matches("Type=\"SUBSCRIBE_0\"").count(), 8, "{sys}");
 }
 
-/// The full `.sys` round trip, for when the `.sys` import lands: export `robot`,
-/// import its `.sys` (with the exported `.fbt` types beside it) into a robot, compile it
-/// and compare with the original: the same tables where the names are the same, else
-/// the same `sim` trace. Wire `import` to the `.sys` importer and call it from a test
-/// for each robot of `robot-configs/`.
-#[allow(dead_code)]
+/// The fields of a robot file that make charts (or bring them), removed from the robot
+/// of a round trip: the charts come back through `application` and `fb_types`.
+const CHART_FIELDS: [&str; 8] = [
+    "chart_types",
+    "fb_types",
+    "application",
+    "sequence",
+    "homing",
+    "automata",
+    "functions",
+    "sorting",
+];
+
+/// The robot file that brings the export of `src` (its files beside it) back: the
+/// original text (nodes, roles' hardware, plants, start, expect, ...) without the fields
+/// that make charts and without each role's `charts`, with `fb_types` naming every
+/// exported `.fbt` and `application` the `.sys`.
+fn reimport_ron(src: &Source, c: &Compiled, e: &Export) -> String {
+    let mut paths: Vec<String> = CHART_FIELDS.iter().map(|f| f.to_string()).collect();
+    paths.extend((0..c.robot.roles.len()).map(|i| format!("roles[{i}].charts")));
+    let mut cuts: Vec<std::ops::Range<usize>> = Vec::new();
+    for path in &paths {
+        let field = path.rsplit('.').next().unwrap_or(path);
+        let key = src.key_span(path);
+        if src.slice(key.clone()) != field {
+            continue;
+        }
+        let mut end = src.span(path).end;
+        let rest = &src.text[end..];
+        let trimmed = rest.trim_start();
+        if trimmed.starts_with(',') {
+            end += rest.len() - trimmed.len() + 1;
+        }
+        cuts.push(key.start..end);
+    }
+    cuts.sort_by_key(|r| std::cmp::Reverse(r.start));
+    let mut text = src.text.clone();
+    for r in cuts {
+        text.replace_range(r, "");
+    }
+    let close = text.rfind(')').unwrap();
+    let types: Vec<String> = (e.files.iter())
+        .filter(|(n, _)| n.ends_with(".fbt"))
+        .map(|(n, _)| format!("{n:?}"))
+        .collect();
+    let comma = if text[..close].trim_end().ends_with([',', '(']) {
+        ""
+    } else {
+        ","
+    };
+    text.insert_str(
+        close,
+        &format!(
+            "{comma}\n    fb_types: [{}],\n    application: (file: {:?}),\n",
+            types.join(", "),
+            export::sys_file(c)
+        ),
+    );
+    text
+}
+
+/// How a re-imported robot compares with the original.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Same {
+    /// The same tables, byte for byte.
+    Tables,
+}
+
+/// The full `.sys` round trip: export `robot`, import its `.sys` (with the exported
+/// `.fbt` types beside it) with `import`, and compare with the original: the same tables
+/// where the names are the same, else the same `sim` trace.
 pub fn sys_reimport_round_trip(
     robot: &Path,
-    import: &dyn Fn(&Path) -> Result<Compiled, String>,
-) -> Result<(), String> {
-    let (_, c) = compiled(robot);
+    import: &dyn Fn(&Path, &Source, &Compiled, &Export) -> Result<Compiled, String>,
+) -> Result<Same, String> {
+    let (src, c) = compiled(robot);
     let e = exported(&c);
     let dir = std::env::temp_dir().join(format!(
         "sys-round-trip-{}-{}",
@@ -396,15 +461,37 @@ pub fn sys_reimport_round_trip(
     for (name, text) in &e.files {
         std::fs::write(dir.join(name), text).map_err(|x| x.to_string())?;
     }
-    let back = import(&dir.join(export::sys_file(&c)));
+    let back = import(&dir.join("robot.ron"), &src, &c, &e);
     std::fs::remove_dir_all(&dir).map_err(|x| x.to_string())?;
     let back = back?;
     if back.blobs == c.blobs {
-        Ok(())
-    } else {
-        Err(format!(
-            "{}: the re-imported robot's tables differ",
-            robot.display()
-        ))
+        return Ok(Same::Tables);
     }
+    Err(format!(
+        "{}: the re-imported robot's tables differ",
+        robot.display()
+    ))
+}
+
+/// Compiles the round trip's robot file (`reimport_ron`) at `path`.
+fn reimport(path: &Path, src: &Source, c: &Compiled, e: &Export) -> Result<Compiled, String> {
+    let again = Source::new(path.display().to_string(), reimport_ron(src, c, e));
+    compile(&again).map_err(|d| {
+        let msgs: Vec<String> = d.iter().map(|x| x.short(&again)).collect();
+        msgs.join("\n")
+    })
+}
+
+/// Every robot of `robot-configs/`, exported and brought back through its `.sys`.
+#[test]
+fn every_robot_round_trips_through_its_sys() {
+    let mut out = Vec::new();
+    for path in robots() {
+        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        out.push((name, sys_reimport_round_trip(&path, &reimport)));
+    }
+    for (n, r) in &out {
+        eprintln!("{n}: {r:?}");
+    }
+    panic!();
 }

@@ -9,6 +9,7 @@ pub mod app;
 pub mod composite;
 pub mod export;
 pub mod fbt;
+pub mod io_fb;
 pub mod net;
 pub mod services;
 pub mod st;
@@ -42,6 +43,7 @@ pub fn import_with(
     let mut diags = Vec::new();
     let mut interfaces = Vec::new();
     let mut composites = Vec::new();
+    let mut ios = Vec::new();
     for (i, file) in robot.fb_types.clone().iter().enumerate() {
         let at = src.span(&format!("fb_types[{i}]"));
         let bytes = match read(file) {
@@ -62,6 +64,13 @@ pub fn import_with(
             }
             continue;
         }
+        if robot.application.is_some() && io_fb::is_io(&text) == Some(true) {
+            match io_fb::parse(&text, file) {
+                Ok(t) => ios.push(t),
+                Err(e) => diags.push(Diagnostic::error(at, e.to_string()).label("imported here")),
+            }
+            continue;
+        }
         match fbt::import_typed(&text) {
             Ok((t, i)) => {
                 interfaces.push((t.name.clone(), i));
@@ -73,7 +82,7 @@ pub fn import_with(
         }
     }
     if diags.is_empty() {
-        if let Some(d) = application(robot, src, read, &interfaces, composites) {
+        if let Some(d) = application(robot, src, read, &interfaces, composites, ios) {
             diags.push(d);
         }
     }
@@ -87,6 +96,7 @@ fn application(
     read: &dyn Fn(&str) -> io::Result<Vec<u8>>,
     interfaces: &[(String, fbt::Interface)],
     composites: Vec<composite::Composite>,
+    ios: Vec<io_fb::IoType>,
 ) -> Option<Diagnostic> {
     let decl = robot.application.clone()?;
     let at = src.span("application.file");
@@ -106,6 +116,7 @@ fn application(
     };
     let mut types = app::Types::of(robot, interfaces);
     types.composites = composites;
+    types.ios = ios;
     match app::bring(robot, &decl, &system, &mut types) {
         Ok(b) => {
             robot.roles = b.roles;
