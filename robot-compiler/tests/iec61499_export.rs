@@ -473,25 +473,90 @@ pub fn sys_reimport_round_trip(
     ))
 }
 
-/// Compiles the round trip's robot file (`reimport_ron`) at `path`.
+/// Compiles the round trip's robot file (`reimport_ron`) at `path`; its errors as
+/// `check` prints them, the file named `robot.ron`.
 fn reimport(path: &Path, src: &Source, c: &Compiled, e: &Export) -> Result<Compiled, String> {
     let again = Source::new(path.display().to_string(), reimport_ron(src, c, e));
     compile(&again).map_err(|d| {
-        let msgs: Vec<String> = d.iter().map(|x| x.short(&again)).collect();
+        let msgs: Vec<String> = (d.iter())
+            .filter(|x| x.is_error())
+            .map(|x| {
+                x.short(&again)
+                    .replace(&path.display().to_string(), "robot.ron")
+            })
+            .collect();
         msgs.join("\n")
     })
 }
 
-/// Every robot of `robot-configs/`, exported and brought back through its `.sys`.
+/// Every robot of `robot-configs/`, exported and brought back through its `.sys` (a
+/// robot file keeping the original's nodes, roles' hardware, plants, start, expect, with
+/// `application` and `fb_types` naming the exported files; `reimport_ron`):
+///
+/// - paint-robot-paper-charts, paint-robot-counted, paint-robot-4diac: the same tables,
+///   byte for byte. Their charts are instances of chart types; the FBs are named
+///   `ROLE_chart` and the timers `ROLE_chart.T`, but no name is in a table, and the
+///   charts, events, variables and timers come back in the same order.
+/// - the sequence robots (paint-robot, -double-dip, -spare-node, -start-on-gr) do not
+///   compile back: their lifted charts share what a chart type cannot say. The
+///   watchdog `VC.watchdog` is one timer of the role, started by both the step chart and
+///   the homing chart and read by the fault chart; `boot` and `home` are events the
+///   synthesiser gives the role (the node's boot, the homing command), no input, switch
+///   or timer of the role file.
+/// - the water-jet transport: its alarm's condition names the places of the control
+///   functions (`FaultDetection.Faulted`), which are gone once the functions come back as
+///   lifted charts.
+/// - the ball sorter: two events feed one chart input (`GATE1_gate.TOOK`, taken from
+///   either automaton's accepting chart); the export writes two connections, which the
+///   import refuses as it refuses every fan-in (an E_MERGE would say it), and with the
+///   application refused the robot has no charts.
+///
+/// None compiles back to other tables, so no robot needs the `sim` trace comparison yet.
 #[test]
-fn every_robot_round_trips_through_its_sys() {
+fn every_robot_round_trips_through_its_sys_or_says_why_not() {
     let mut out = Vec::new();
     for path in robots() {
-        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        let name = path.file_stem().unwrap().to_string_lossy().to_string();
         out.push((name, sys_reimport_round_trip(&path, &reimport)));
     }
-    for (n, r) in &out {
-        eprintln!("{n}: {r:?}");
-    }
-    panic!();
+    let sequence = "robot.ron:26:9: error: unknown event `VC.watchdog` of role `VC`
+robot.ron:26:9: error: unknown event `boot` of role `GR`
+robot.ron:26:9: error: unknown event `home` of role `VC`
+robot.ron:44:9: error: unknown event `HC.watchdog` of role `HC`
+robot.ron:51:9: error: unknown event `RC.watchdog` of role `RC`";
+    let want: Vec<(&str, Result<Same, String>)> = vec![
+        (
+            "ball-sorter",
+            Err(String::from(
+                "robot.ron:32:1: error: the robot has no behaviour
+robot.ron:86:25: error: ball_sorter.sys:45:9: `GATE1_gate.TOOK` has a second event \
+                 connection: join its sources with an E_MERGE",
+            )),
+        ),
+        ("paint-robot-4diac", Ok(Same::Tables)),
+        ("paint-robot-counted", Ok(Same::Tables)),
+        ("paint-robot-double-dip", Err(sequence.to_string())),
+        ("paint-robot-paper-charts", Ok(Same::Tables)),
+        ("paint-robot-spare-node", Err(sequence.to_string())),
+        (
+            "paint-robot-start-on-gr",
+            Err(sequence
+                .replace("26:9", "27:9")
+                .replace("44:9", "46:9")
+                .replace("51:9", "53:9")),
+        ),
+        ("paint-robot", Err(sequence.to_string())),
+        (
+            "waterjet-transport",
+            Err(String::from(
+                "robot.ron:71:22: error: alarm `pusher fault`: `FaultDetection.Faulted` is \
+                 neither a function's place (`F.P`) nor an input of role `CABINET`
+robot.ron:71:48: error: alarm `pusher fault`: `FaultDetection.Released` is neither a \
+                 function's place (`F.P`) nor an input of role `CABINET`",
+            )),
+        ),
+    ];
+    let got: Vec<(&str, Result<Same, String>)> =
+        out.iter().map(|(n, r)| (n.as_str(), r.clone())).collect();
+    assert_eq!(got, want);
 }

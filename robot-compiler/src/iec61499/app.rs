@@ -520,7 +520,8 @@ fn node_services(
             (true, false) if timer && same => {}
             (true, false) if timer => {
                 return err(format!(
-                    "`{to}` is a timer of `{}`: its expiry comes from the node services FB of                      its own resource, not `{from}`",
+                    "`{to}` is a timer of `{}`: its expiry comes from the node services FB of \
+                     its own resource, not `{from}`",
                     e.to.0
                 ))
             }
@@ -536,19 +537,22 @@ fn node_services(
             (false, true) if service && same => {}
             (false, true) => {
                 return err(format!(
-                    "`{to}` takes the node services of its resource's charts (`EXTEND_A`,                      `START_T_150`, ... of a type marked `{}`): `{from}` is none",
+                    "`{to}` takes the node services of its resource's charts (`EXTEND_A`, \
+                     `START_T_150`, ... of a type marked `{}`): `{from}` is none",
                     super::services::MARK
                 ))
             }
             (false, false) if timer => {
                 return err(format!(
-                    "`{to}` is a timer of `{}` (its `START_` / `STOP_` events): only the node                      services FB of its resource connects to it",
+                    "`{to}` is a timer of `{}` (its `START_` / `STOP_` events): only the node \
+                     services FB of its resource connects to it",
                     e.to.0
                 ))
             }
             (false, false) if service => {
                 return err(format!(
-                    "`{from}` is a node service: it connects to the node services FB of its                      resource only"
+                    "`{from}` is a node service: it connects to the node services FB of its \
+                     resource only"
                 ))
             }
             (false, false) => kept.push(e),
