@@ -115,12 +115,12 @@ fn an_application_becomes_roles_charts_and_a_subscription_across_the_mapping() {
         BTreeMap::from([("CU".to_string(), "PULSE".to_string())])
     );
     // The connection the mapping cuts: B subscribes to A's `c.CUO`.
-    assert_eq!((b[0].name.as_str(), b[0].type_.as_str()), ("sr", "E_SR@sr"));
+    assert_eq!((b[0].name.as_str(), b[0].type_.as_str()), ("sr", "E_SR_sr"));
     assert_eq!(
         b[0].on,
         BTreeMap::from([("S".to_string(), "A/c.CUO".to_string())])
     );
-    let sr = robot.chart_type("E_SR@sr").expect("the bound copy").1;
+    let sr = robot.chart_type("E_SR_sr").expect("the bound copy").1;
     assert!(!sr.outputs.contains(&"EO".to_string()));
     // And it compiles: the whole robot checks.
     let text = ROBOT
