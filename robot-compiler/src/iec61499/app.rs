@@ -479,6 +479,9 @@ impl Flat {
     }
 }
 
+/// An edge from a node services FB's output to a chart input, with the node event.
+type PlantEdge = (Edge, String);
+
 /// The edges of the node services FBs (`ROLE_IO`, [`super::io_fb`]) taken out of `edges`:
 /// the other edges, and each from a node services FB's output to a chart input with the
 /// node event it is. Into a node services FB go the service events of the charts of its
@@ -490,7 +493,7 @@ fn node_services(
     flat: &Flat,
     types: &Types,
     role_of: &dyn Fn(&str) -> String,
-) -> Result<(Vec<Edge>, Vec<(Edge, String)>), SysError> {
+) -> Result<(Vec<Edge>, Vec<PlantEdge>), SysError> {
     let basic = |fb: &str| {
         (flat.leaves.iter())
             .find(|l| l.name == fb)

@@ -1,7 +1,8 @@
 //! IEC 61499-2 XML in: basic FB types (`.fbt`) become chart types of the robot, an
 //! application (`.sys`) its roles and charts (docs/iec61499-xml.md). [`fbt`] reads one
 //! basic type, [`st`] translates its Structured Text; [`sys`] reads a system, [`composite`]
-//! a composite type ([`net`]: the FB networks both have), [`app`] makes the robot of them.
+//! a composite type ([`net`]: the FB networks both have), [`io_fb`] a role's node services
+//! type as the export writes it, [`app`] makes the robot of them.
 //! Out: [`export`] writes a compiled robot as `.fbt` types and a `.sys`; [`services`] is
 //! the naming of the node's services both directions share.
 
