@@ -375,17 +375,85 @@ fn the_system_has_the_robots_instances_connections_and_mapping() {
     assert_eq!(sys.matches("Type=\"SUBSCRIBE_0\"").count(), 8, "{sys}");
 }
 
-/// The full `.sys` round trip, for when the `.sys` import lands: export `robot`,
-/// import its `.sys` (with the exported `.fbt` types beside it) into a robot, compile it
-/// and compare with the original: the same tables where the names are the same, else
-/// the same `sim` trace. Wire `import` to the `.sys` importer and call it from a test
-/// for each robot of `robot-configs/`.
-#[allow(dead_code)]
-pub fn sys_reimport_round_trip(
-    robot: &Path,
-    import: &dyn Fn(&Path) -> Result<Compiled, String>,
-) -> Result<(), String> {
-    let (_, c) = compiled(robot);
+/// The fields of a robot file that make charts (or bring them), removed from the robot
+/// of a round trip: the charts come back through `application` and `fb_types`.
+const CHART_FIELDS: [&str; 8] = [
+    "chart_types",
+    "fb_types",
+    "application",
+    "sequence",
+    "homing",
+    "automata",
+    "functions",
+    "sorting",
+];
+
+/// The robot file that brings the export of `src` (its files beside it) back: the
+/// original text (nodes, roles' hardware, plants, start, expect, ...) without the fields
+/// that make charts and without each role's `charts`, with `fb_types` naming every
+/// exported `.fbt` and `application` the `.sys`.
+fn reimport_ron(src: &Source, c: &Compiled, e: &Export) -> String {
+    let mut paths: Vec<String> = CHART_FIELDS.iter().map(|f| f.to_string()).collect();
+    paths.extend((0..c.robot.roles.len()).map(|i| format!("roles[{i}].charts")));
+    let mut cuts: Vec<std::ops::Range<usize>> = Vec::new();
+    for path in &paths {
+        let field = path.rsplit('.').next().unwrap_or(path);
+        let key = src.key_span(path);
+        if src.slice(key.clone()) != field {
+            continue;
+        }
+        let mut end = src.span(path).end;
+        let rest = &src.text[end..];
+        let trimmed = rest.trim_start();
+        if trimmed.starts_with(',') {
+            end += rest.len() - trimmed.len() + 1;
+        }
+        cuts.push(key.start..end);
+    }
+    cuts.sort_by_key(|r| std::cmp::Reverse(r.start));
+    let mut text = src.text.clone();
+    for r in cuts {
+        text.replace_range(r, "");
+    }
+    let close = text.rfind(')').unwrap();
+    let types: Vec<String> = (e.files.iter())
+        .filter(|(n, _)| n.ends_with(".fbt"))
+        .map(|(n, _)| format!("{n:?}"))
+        .collect();
+    let comma = if text[..close].trim_end().ends_with([',', '(']) {
+        ""
+    } else {
+        ","
+    };
+    text.insert_str(
+        close,
+        &format!(
+            "{comma}\n    fb_types: [{}],\n    application: (file: {:?}),\n",
+            types.join(", "),
+            export::sys_file(c)
+        ),
+    );
+    text
+}
+
+/// How a re-imported robot compares with the original.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Same {
+    /// The same tables, byte for byte.
+    Tables,
+}
+
+/// Compiles the round trip's robot file at a path, from the original's source, compiled
+/// robot and export.
+type Reimport = dyn Fn(&Path, &Source, &Compiled, &Export) -> Result<Compiled, String>;
+
+/// The full `.sys` round trip: export `robot`, import its `.sys` (with the exported
+/// `.fbt` types beside it) with `import`, and compare with the original: the same tables.
+/// Other tables are an error here: the `sim` trace comparison the issue allows where
+/// names differ is not wired, as no robot of `robot-configs/` compiles back to other
+/// tables (`every_robot_round_trips_through_its_sys_or_says_why_not`).
+pub fn sys_reimport_round_trip(robot: &Path, import: &Reimport) -> Result<Same, String> {
+    let (src, c) = compiled(robot);
     let e = exported(&c);
     let dir = std::env::temp_dir().join(format!(
         "sys-round-trip-{}-{}",
@@ -396,15 +464,102 @@ pub fn sys_reimport_round_trip(
     for (name, text) in &e.files {
         std::fs::write(dir.join(name), text).map_err(|x| x.to_string())?;
     }
-    let back = import(&dir.join(export::sys_file(&c)));
+    let back = import(&dir.join("robot.ron"), &src, &c, &e);
     std::fs::remove_dir_all(&dir).map_err(|x| x.to_string())?;
     let back = back?;
     if back.blobs == c.blobs {
-        Ok(())
-    } else {
-        Err(format!(
-            "{}: the re-imported robot's tables differ",
-            robot.display()
-        ))
+        return Ok(Same::Tables);
     }
+    Err(format!(
+        "{}: the re-imported robot's tables differ",
+        robot.display()
+    ))
+}
+
+/// Compiles the round trip's robot file (`reimport_ron`) at `path`; its errors as
+/// `check` prints them, the file named `robot.ron`.
+fn reimport(path: &Path, src: &Source, c: &Compiled, e: &Export) -> Result<Compiled, String> {
+    let again = Source::new(path.display().to_string(), reimport_ron(src, c, e));
+    compile(&again).map_err(|d| {
+        let msgs: Vec<String> = (d.iter())
+            .filter(|x| x.is_error())
+            .map(|x| {
+                x.short(&again)
+                    .replace(&path.display().to_string(), "robot.ron")
+            })
+            .collect();
+        msgs.join("\n")
+    })
+}
+
+/// Every robot of `robot-configs/`, exported and brought back through its `.sys` (a
+/// robot file keeping the original's nodes, roles' hardware, plants, start, expect, with
+/// `application` and `fb_types` naming the exported files; `reimport_ron`):
+///
+/// - paint-robot-paper-charts, paint-robot-counted, paint-robot-4diac: the same tables,
+///   byte for byte. Their charts are instances of chart types; the FBs are named
+///   `ROLE_chart` and the timers `ROLE_chart.T`, but no name is in a table, and the
+///   charts, events, variables and timers come back in the same order.
+/// - the sequence robots (paint-robot, -double-dip, -spare-node, -start-on-gr) do not
+///   compile back: their lifted charts share what a chart type cannot say. The
+///   watchdog `VC.watchdog` is one timer of the role, started by both the step chart and
+///   the homing chart and read by the fault chart; `boot` and `home` are events the
+///   synthesiser gives the role (the node's boot, the homing command), no input, switch
+///   or timer of the role file.
+/// - the water-jet transport: its alarm's condition names the places of the control
+///   functions (`FaultDetection.Faulted`), which are gone once the functions come back as
+///   lifted charts.
+/// - the ball sorter: two events feed one chart input (`GATE1_gate.TOOK`, taken from
+///   either automaton's accepting chart); the export writes two connections, which the
+///   import refuses as it refuses every fan-in (an E_MERGE would say it), and with the
+///   application refused the robot has no charts.
+///
+/// None compiles back to other tables, so no robot needs the `sim` trace comparison yet.
+#[test]
+fn every_robot_round_trips_through_its_sys_or_says_why_not() {
+    let mut out = Vec::new();
+    for path in robots() {
+        let name = path.file_stem().unwrap().to_string_lossy().to_string();
+        out.push((name, sys_reimport_round_trip(&path, &reimport)));
+    }
+    let sequence = "robot.ron:26:9: error: unknown event `VC.watchdog` of role `VC`
+robot.ron:26:9: error: unknown event `boot` of role `GR`
+robot.ron:26:9: error: unknown event `home` of role `VC`
+robot.ron:44:9: error: unknown event `HC.watchdog` of role `HC`
+robot.ron:51:9: error: unknown event `RC.watchdog` of role `RC`";
+    let want: Vec<(&str, Result<Same, String>)> = vec![
+        (
+            "ball-sorter",
+            Err(String::from(
+                "robot.ron:32:1: error: the robot has no behaviour
+robot.ron:86:25: error: ball_sorter.sys:45:9: `GATE1_gate.TOOK` has a second event \
+                 connection: join its sources with an E_MERGE",
+            )),
+        ),
+        ("paint-robot-4diac", Ok(Same::Tables)),
+        ("paint-robot-counted", Ok(Same::Tables)),
+        ("paint-robot-double-dip", Err(sequence.to_string())),
+        ("paint-robot-paper-charts", Ok(Same::Tables)),
+        ("paint-robot-spare-node", Err(sequence.to_string())),
+        (
+            "paint-robot-start-on-gr",
+            Err(sequence
+                .replace("26:9", "27:9")
+                .replace("44:9", "46:9")
+                .replace("51:9", "53:9")),
+        ),
+        ("paint-robot", Err(sequence.to_string())),
+        (
+            "waterjet-transport",
+            Err(String::from(
+                "robot.ron:71:22: error: alarm `pusher fault`: `FaultDetection.Faulted` is \
+                 neither a function's place (`F.P`) nor an input of role `CABINET`
+robot.ron:71:48: error: alarm `pusher fault`: `FaultDetection.Released` is neither a \
+                 function's place (`F.P`) nor an input of role `CABINET`",
+            )),
+        ),
+    ];
+    let got: Vec<(&str, Result<Same, String>)> =
+        out.iter().map(|(n, r)| (n.as_str(), r.clone())).collect();
+    assert_eq!(got, want);
 }

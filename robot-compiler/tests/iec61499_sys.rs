@@ -115,12 +115,12 @@ fn an_application_becomes_roles_charts_and_a_subscription_across_the_mapping() {
         BTreeMap::from([("CU".to_string(), "PULSE".to_string())])
     );
     // The connection the mapping cuts: B subscribes to A's `c.CUO`.
-    assert_eq!((b[0].name.as_str(), b[0].type_.as_str()), ("sr", "E_SR@sr"));
+    assert_eq!((b[0].name.as_str(), b[0].type_.as_str()), ("sr", "E_SR_sr"));
     assert_eq!(
         b[0].on,
         BTreeMap::from([("S".to_string(), "A/c.CUO".to_string())])
     );
-    let sr = robot.chart_type("E_SR@sr").expect("the bound copy").1;
+    let sr = robot.chart_type("E_SR_sr").expect("the bound copy").1;
     assert!(!sr.outputs.contains(&"EO".to_string()));
     // And it compiles: the whole robot checks.
     let text = ROBOT
@@ -318,4 +318,132 @@ fn a_device_that_is_no_node_and_a_bad_binding_are_refused() {
         ["r.ron:5:66: error: `sr.NOPE`: `E_SR` has no event output `NOPE`"]
     );
     assert!(robot.roles.iter().all(|r| r.charts.is_empty()));
+}
+
+/// Role A's node services FB type, as `export-4diac` writes one: its input `PULSE` as an
+/// event output (the `Comment` names the node event), an event input for services.
+const A_IO: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<FBType Name="A_IO">
+  <Identification Standard="61499-2" Classification="ecc-nodes services"/>
+  <InterfaceList>
+    <EventInputs><Event Name="c_FAULT_1" Type="Event" Comment=""/></EventInputs>
+    <EventOutputs><Event Name="PULSE_IN" Type="Event" Comment="PULSE"/></EventOutputs>
+  </InterfaceList>
+  <Service RightInterface="RESOURCE" LeftInterface="A_IO"/>
+</FBType>
+"#;
+
+/// `SYS` with A's node services FB feeding `c.CU`, and the cut connection rendered in
+/// the resources as `export-4diac` does (`EXTRA` goes into the application network,
+/// `TOPIC` is the PUBLISH's `ID`).
+const SYS_IO: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<System Name="S">
+  <Application Name="App">
+    <SubAppNetwork>
+      <FB Name="c" Type="E_CTU"><Parameter Name="PV" Value="UINT#3"/></FB>
+      <FB Name="sr" Type="E_SR"/>
+      <FB Name="A_IO" Type="A_IO"/>
+      <EventConnections>
+        <Connection Source="c.CUO" Destination="sr.S"/>
+        <Connection Source="A_IO.PULSE_IN" Destination="c.CU"/>EXTRA
+      </EventConnections>
+    </SubAppNetwork>
+  </Application>
+  <Device Name="n_1"><Resource Name="A"><FBNetwork>
+    <FB Name="c" Type="E_CTU"/><FB Name="A_IO" Type="A_IO"/>
+    <FB Name="PUBLISH_1" Type="PUBLISH_0"><Parameter Name="ID" Value="&quot;TOPIC&quot;"/></FB>
+  </FBNetwork></Resource></Device>
+  <Device Name="n2"><Resource Name="B"><FBNetwork>
+    <FB Name="sr" Type="E_SR"/>
+    <FB Name="SUBSCRIBE_1" Type="SUBSCRIBE_0"><Parameter Name="ID" Value="&quot;A/c.CUO&quot;"/></FB>
+  </FBNetwork></Resource></Device>
+  <Mapping From="App.c" To="n_1.A"/>
+  <Mapping From="App.sr" To="n2.B"/>
+  <Mapping From="App.A_IO" To="n_1.A.A_IO"/>
+</System>
+"#;
+
+/// The robot of `ROBOT` with node `n1` named `n-1` (a device `n_1` stands for it) and no
+/// `on` (A's node services FB feeds `c.CU`), checked with `SYS_IO`'s `EXTRA` and `TOPIC`.
+fn run_io(extra: &str, id: &str) -> (Robot, Vec<String>) {
+    let text = ROBOT
+        .replace("\"n1\"", "\"n-1\"")
+        .replace("FBT", "[\"A_IO.fbt\"]")
+        .replace("on: {\"c.CU\": \"PULSE\"}, ", "")
+        .replace("ACTIONS", "{\"sr.EO\": Out(\"LAMP\", true)}");
+    let src = Source::new("r.ron", text);
+    let mut robot = model::parse(&src).expect("parses");
+    let sys = SYS_IO.replace("EXTRA", extra).replace("TOPIC", id);
+    let read = |name: &str| match name {
+        "a.sys" => Ok(sys.as_bytes().to_vec()),
+        "A_IO.fbt" => Ok(A_IO.as_bytes().to_vec()),
+        _ => Err(std::io::Error::new(
+            std::io::ErrorKind::NotFound,
+            "no such file",
+        )),
+    };
+    let diags = import_with(&mut robot, &src, &read);
+    (robot, diags.iter().map(|d| d.short(&src)).collect())
+}
+
+/// A node services FB (`ROLE_IO`, as `export-4diac` writes it) stands for its resource's
+/// node: its output feeds `c.CU` with the node event its `Comment` names; the PUBLISH /
+/// SUBSCRIBE pair the export writes for a cut connection is accepted; the device `n_1`
+/// is the node `n-1`.
+#[test]
+fn a_node_services_fb_feeds_its_roles_events_and_export_pub_sub_pairs_are_accepted() {
+    let (robot, errors) = run_io("", "A/c.CUO");
+    assert!(errors.is_empty(), "{errors:?}");
+    assert_eq!(
+        robot.assign,
+        [("A".into(), "n-1".into()), ("B".into(), "n2".into())]
+    );
+    let (a, b) = (&robot.roles[0].charts, &robot.roles[1].charts);
+    assert_eq!(
+        (a.len(), a[0].name.as_str(), b.len(), b[0].name.as_str()),
+        (1, "c", 1, "sr")
+    );
+    assert_eq!(
+        a[0].on,
+        BTreeMap::from([("CU".to_string(), "PULSE".to_string())])
+    );
+    assert_eq!(
+        b[0].on,
+        BTreeMap::from([("S".to_string(), "A/c.CUO".to_string())])
+    );
+}
+
+/// A PUBLISH in a resource carrying no cut connection, a chart's own output into a node
+/// services FB, two node services FBs joined, a node services FB into a timer of another
+/// role: each refused at its place, nothing imported.
+#[test]
+fn misused_node_services_fbs_and_stray_pub_sub_fbs_are_refused_at_their_place() {
+    let cases = [
+        (
+            "",
+            "A/c.CV",
+            "r.ron:5:25: error: a.sys:16:43: `PUBLISH_1` (`PUBLISH_0`) of resource `A` publishes \
+             `A/c.CV`, no connection of the application that the mapping cuts from this \
+             resource: a PUBLISH / SUBSCRIBE FB in a resource may only carry one \
+             (`\"ROLE/FB.EVENT\"`); connect the FBs in the application",
+        ),
+        (
+            "<Connection Source=\"sr.EO\" Destination=\"A_IO.c_FAULT_1\"/>",
+            "A/c.CUO",
+            "r.ron:5:25: error: a.sys:10:64: `A_IO.c_FAULT_1` takes the node services of its \
+             resource's charts (`EXTEND_A`, `START_T_150`, ... of a type marked `ecc-nodes \
+             chart`): `sr.EO` is none",
+        ),
+        (
+            "<Connection Source=\"A_IO.PULSE_IN\" Destination=\"A_IO.c_FAULT_1\"/>",
+            "A/c.CUO",
+            "r.ron:5:25: error: a.sys:10:64: `A_IO.PULSE_IN` -> `A_IO.c_FAULT_1` joins two node \
+             services FBs",
+        ),
+    ];
+    for (extra, id, want) in cases {
+        let (robot, errors) = run_io(extra, id);
+        assert_eq!(errors, [want.to_string()], "{extra}");
+        assert!(robot.roles.iter().all(|r| r.charts.is_empty()));
+    }
 }

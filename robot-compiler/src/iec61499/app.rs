@@ -18,6 +18,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use super::composite::Composite;
 use super::fbt::Interface;
+use super::io_fb::IoType;
 use super::net::{At, Fb, Network, SysError};
 use super::st::{self, Ty};
 use super::sys::{self, System};
@@ -101,6 +102,8 @@ fn ron(path: &str, message: impl Into<String>) -> AppError {
 pub struct Types {
     pub basic: Vec<(ChartType, Interface)>,
     pub composites: Vec<Composite>,
+    /// The node services types (`ROLE_IO`, [`super::io_fb`]).
+    pub ios: Vec<IoType>,
 }
 
 impl Types {
@@ -122,6 +125,7 @@ impl Types {
                             .map(|p| (p.clone(), Ty::of("DINT").unwrap_or(Ty::Bool), None))
                             .collect(),
                         outputs: t.vars.iter().map(|v| v.name.clone()).collect(),
+                        services: Vec::new(),
                     });
                 (t.clone(), i)
             })
@@ -129,11 +133,16 @@ impl Types {
         Types {
             basic,
             composites: Vec::new(),
+            ios: Vec::new(),
         }
     }
 
     fn basic(&self, name: &str) -> Option<&(ChartType, Interface)> {
         self.basic.iter().find(|(t, _)| t.name == name)
+    }
+
+    fn io(&self, name: &str) -> Option<&IoType> {
+        self.ios.iter().find(|c| c.name == name)
     }
 
     fn composite(&self, name: &str) -> Option<&Composite> {
@@ -188,6 +197,9 @@ struct Flat {
     leaves: Vec<Leaf>,
     /// Composite instances (full name) and their types.
     composites: BTreeMap<String, String>,
+    /// Node services FBs (full name): the top-level FB whose mapping places them, and
+    /// their type.
+    ios: BTreeMap<String, (String, String)>,
     /// Parameters of composite instances: (instance, input) -> value.
     cparams: BTreeMap<(String, String), (String, At)>,
     events: Vec<Edge>,
@@ -351,6 +363,22 @@ impl Flat {
                 c.outputs.clone(),
             ));
         }
+        if let Some(io) = types.io(&fb.ty) {
+            if let Some(p) = fb.params.first() {
+                return Err(p.at.error(format!(
+                    "`{}` has no input variable `{}` (a node services type has events only)",
+                    io.name, p.name
+                )));
+            }
+            self.ios
+                .insert(name.to_string(), (top.to_string(), fb.ty.clone()));
+            return Ok((
+                io.events_in.clone(),
+                io.events_out.iter().map(|(p, _)| p.clone()).collect(),
+                Vec::new(),
+                Vec::new(),
+            ));
+        }
         if types.basic(&fb.ty).is_none() && !types.load_library(&fb.ty, &fb.at)? {
             return Err(fb.at.error(unknown_type(&fb.name, &fb.ty)));
         }
@@ -364,9 +392,11 @@ impl Flat {
                     .error(format!("`{}` has no input variable `{}`", t.name, p.name)));
             }
         }
+        // A timer's expiry and the service events are ports too: only the role's node
+        // services FB may connect to them (checked in `bring`).
         let ports = (
-            t.inputs.clone(),
-            t.outputs.clone(),
+            t.inputs.iter().chain(&t.timers).cloned().collect(),
+            t.outputs.iter().chain(&i.services).cloned().collect(),
             t.params.clone(),
             i.outputs.clone(),
         );
@@ -449,6 +479,107 @@ impl Flat {
     }
 }
 
+/// An edge from a node services FB's output to a chart input, with the node event.
+type PlantEdge = (Edge, String);
+
+/// The edges of the node services FBs (`ROLE_IO`, [`super::io_fb`]) taken out of `edges`:
+/// the other edges, and each from a node services FB's output to a chart input with the
+/// node event it is. Into a node services FB go the service events of the charts of its
+/// role, and from it a timer's expiry to the timer's own chart: the charts' types say
+/// both already. Any other edge touching a node services FB, a timer or a service is an
+/// error.
+fn node_services(
+    edges: Vec<Edge>,
+    flat: &Flat,
+    types: &Types,
+    role_of: &dyn Fn(&str) -> String,
+) -> Result<(Vec<Edge>, Vec<PlantEdge>), SysError> {
+    let basic = |fb: &str| {
+        (flat.leaves.iter())
+            .find(|l| l.name == fb)
+            .and_then(|l| types.basic(&l.ty))
+    };
+    let event_of = |fb: &str, port: &str| {
+        (flat.ios.get(fb))
+            .and_then(|(_, ty)| types.io(ty))
+            .and_then(|io| io.events_out.iter().find(|(p, _)| p == port))
+            .map(|(_, e)| e.clone())
+    };
+    let mut kept = Vec::new();
+    let mut plant = Vec::new();
+    for e in edges {
+        let (from, to) = (
+            format!("{}.{}", e.from.0, e.from.1),
+            format!("{}.{}", e.to.0, e.to.1),
+        );
+        let from_io = flat.ios.contains_key(&e.from.0);
+        let to_io = flat.ios.contains_key(&e.to.0);
+        let timer = basic(&e.to.0).is_some_and(|(t, _)| t.timers.contains(&e.to.1));
+        let service = basic(&e.from.0).is_some_and(|(_, i)| i.services.contains(&e.from.1));
+        let same = role_of(&e.from.0) == role_of(&e.to.0);
+        let err = |m: String| Err(e.at.error(m));
+        match (from_io, to_io) {
+            (true, true) => return err(format!("`{from}` -> `{to}` joins two node services FBs")),
+            (true, false) if timer && same => {}
+            (true, false) if timer => {
+                return err(format!(
+                    "`{to}` is a timer of `{}`: its expiry comes from the node services FB of \
+                     its own resource, not `{from}`",
+                    e.to.0
+                ))
+            }
+            (true, false) if basic(&e.to.0).is_none() => {
+                return err(format!(
+                    "`{from}` -> `{to}`: a node services FB feeds the inputs of basic FBs only"
+                ))
+            }
+            (true, false) => {
+                let event = event_of(&e.from.0, &e.from.1).unwrap_or_default();
+                plant.push((e, event));
+            }
+            (false, true) if service && same => {}
+            (false, true) => {
+                return err(format!(
+                    "`{to}` takes the node services of its resource's charts (`EXTEND_A`, \
+                     `START_T_150`, ... of a type marked `{}`): `{from}` is none",
+                    super::services::MARK
+                ))
+            }
+            (false, false) if timer => {
+                return err(format!(
+                    "`{to}` is a timer of `{}` (its `START_` / `STOP_` events): only the node \
+                     services FB of its resource connects to it",
+                    e.to.0
+                ))
+            }
+            (false, false) if service => {
+                return err(format!(
+                    "`{from}` is a node service: it connects to the node services FB of its \
+                     resource only"
+                ))
+            }
+            (false, false) => kept.push(e),
+        }
+    }
+    Ok((kept, plant))
+}
+
+/// The robot's node a device stands for: the node of its name, or else the one node whose
+/// name made an IEC 61131-3 identifier is it (`node-1` exported as `node_1`).
+fn node_of(robot: &Robot, device: &str) -> Option<String> {
+    if let Some(n) = robot.nodes.iter().find(|n| n.name == device) {
+        return Some(n.name.clone());
+    }
+    let like: Vec<&str> = (robot.nodes.iter())
+        .filter(|n| super::export::fbt::identifier(&n.name) == device)
+        .map(|n| n.name.as_str())
+        .collect();
+    match like.as_slice() {
+        [one] => Some(one.to_string()),
+        _ => None,
+    }
+}
+
 fn unknown_type(fb: &str, ty: &str) -> String {
     let service = SERVICE.contains(&ty)
         || ["PUBLISH", "SUBSCRIBE", "CLIENT", "SERVER"]
@@ -516,10 +647,11 @@ pub fn bring(
     types: &mut Types,
 ) -> Result<Brought, AppError> {
     // Devices and resources: nodes and roles.
-    let mut places: BTreeMap<String, (String, At)> = BTreeMap::new(); // role -> device
+    // role -> (device, node)
+    let mut places: BTreeMap<String, (String, String)> = BTreeMap::new();
     let mut order: Vec<String> = Vec::new();
     for d in &sys.devices {
-        if !robot.nodes.iter().any(|n| n.name == d.name) {
+        let Some(node) = node_of(robot, &d.name) else {
             return Err(d
                 .at
                 .error(format!(
@@ -528,7 +660,7 @@ pub fn bring(
                     d.name
                 ))
                 .into());
-        }
+        };
         for r in &d.resources {
             if places.contains_key(&r.name) {
                 return Err(r
@@ -540,7 +672,7 @@ pub fn bring(
                     ))
                     .into());
             }
-            places.insert(r.name.clone(), (d.name.clone(), r.at.clone()));
+            places.insert(r.name.clone(), (d.name.clone(), node.clone()));
             order.push(r.name.clone());
         }
     }
@@ -583,12 +715,17 @@ pub fn bring(
                 .into());
         }
     }
-    // A resource's own network: the mapped FBs' copies (as 4diac keeps them) and an idle
-    // E_RESTART; anything else would be lost.
+    // A resource's own network: the mapped FBs' copies (as 4diac keeps them), an idle
+    // E_RESTART, and the PUBLISH / SUBSCRIBE pairs of the connections the mapping cuts (as
+    // `export` writes them); anything else would be lost.
     for d in &sys.devices {
         for r in &d.resources {
             for fb in &r.net.fbs {
                 let ours = mapped.get(&fb.name) == Some(&r.name);
+                if let Some(topic) = super::io_fb::pub_sub(fb) {
+                    super::io_fb::check_pub_sub(fb, topic, &r.name, &sys.net, &mapped)?;
+                    continue;
+                }
                 if !ours && !sys::idle_restart(fb, &r.net) {
                     return Err(fb
                         .at
@@ -605,10 +742,11 @@ pub fn bring(
     let mut flat = Flat::default();
     flat.expand(types, &sys.net, None, None, None, &mut Vec::new())?;
     let role_of = |leaf: &str| -> String {
-        flat.leaves
-            .iter()
+        (flat.leaves.iter())
             .find(|l| l.name == leaf)
-            .and_then(|l| mapped.get(&l.top))
+            .map(|l| &l.top)
+            .or_else(|| flat.ios.get(leaf).map(|(top, _)| top))
+            .and_then(|top| mapped.get(top))
             .cloned()
             .unwrap_or_default()
     };
@@ -627,6 +765,7 @@ pub fn bring(
                 .into());
         }
     }
+    let (edges, plant_edges) = node_services(edges, &flat, types, &role_of)?;
     // Per basic FB: what its outputs become, its timers.
     let mut acts: BTreeMap<(String, String), ActionDecl> = BTreeMap::new();
     let mut timers: BTreeMap<String, Vec<String>> = BTreeMap::new();
@@ -804,6 +943,17 @@ pub fn bring(
             params.insert(input.clone(), v);
         }
         let mut on = plant_on.remove(&l.name).unwrap_or_default();
+        for (e, event) in plant_edges.iter().filter(|(e, _)| e.to.0 == l.name) {
+            let from_role = role_of(&e.from.0);
+            on.insert(
+                e.to.1.clone(),
+                if from_role == role {
+                    event.clone()
+                } else {
+                    format!("{from_role}/{event}")
+                },
+            );
+        }
         for e in edges.iter().filter(|e| e.to.0 == l.name) {
             if is_delay(&e.from.0) {
                 continue;
@@ -875,7 +1025,7 @@ pub fn bring(
     let mut assign: Vec<(String, String)> = Vec::new();
     for (role, node) in &robot.assign {
         match places.get(role) {
-            Some((d, _)) if d != node => {
+            Some((d, n)) if n != node => {
                 return Err(ron(
                     "assign",
                     format!(
@@ -889,8 +1039,8 @@ pub fn bring(
         }
     }
     for name in &order {
-        if let Some((d, _)) = places.get(name) {
-            assign.push((name.clone(), d.clone()));
+        if let Some((_, node)) = places.get(name) {
+            assign.push((name.clone(), node.clone()));
         }
     }
     Ok(Brought {

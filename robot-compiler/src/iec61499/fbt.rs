@@ -108,6 +108,10 @@ pub struct Interface {
     pub inputs: Vec<(String, Ty, Option<String>)>,
     /// The output variables' names.
     pub outputs: Vec<String>,
+    /// The output events that are node services (of a type marked
+    /// [`super::services::MARK`]): in an application, each may connect to its role's
+    /// node services FB (`ROLE_IO`) only.
+    pub services: Vec<String>,
 }
 
 /// Parses the `.fbt` text into a chart type.
@@ -395,6 +399,11 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
             .map(|v| (v.name.clone(), v.ty, v.init.clone()))
             .collect(),
         outputs: outputs.iter().map(|v| v.name.clone()).collect(),
+        services: events_out
+            .iter()
+            .filter(|(n, _)| service(n).is_some())
+            .map(|(n, _)| n.clone())
+            .collect(),
     };
     let chart = ChartType {
         name,

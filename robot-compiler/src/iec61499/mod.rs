@@ -1,7 +1,8 @@
 //! IEC 61499-2 XML in: basic FB types (`.fbt`) become chart types of the robot, an
 //! application (`.sys`) its roles and charts (docs/iec61499-xml.md). [`fbt`] reads one
 //! basic type, [`st`] translates its Structured Text; [`sys`] reads a system, [`composite`]
-//! a composite type ([`net`]: the FB networks both have), [`app`] makes the robot of them.
+//! a composite type ([`net`]: the FB networks both have), [`io_fb`] a role's node services
+//! type as the export writes it, [`app`] makes the robot of them.
 //! Out: [`export`] writes a compiled robot as `.fbt` types and a `.sys`; [`services`] is
 //! the naming of the node's services both directions share.
 
@@ -9,6 +10,7 @@ pub mod app;
 pub mod composite;
 pub mod export;
 pub mod fbt;
+pub mod io_fb;
 pub mod net;
 pub mod services;
 pub mod st;
@@ -42,6 +44,7 @@ pub fn import_with(
     let mut diags = Vec::new();
     let mut interfaces = Vec::new();
     let mut composites = Vec::new();
+    let mut ios = Vec::new();
     for (i, file) in robot.fb_types.clone().iter().enumerate() {
         let at = src.span(&format!("fb_types[{i}]"));
         let bytes = match read(file) {
@@ -62,6 +65,13 @@ pub fn import_with(
             }
             continue;
         }
+        if robot.application.is_some() && io_fb::is_io(&text) == Some(true) {
+            match io_fb::parse(&text, file) {
+                Ok(t) => ios.push(t),
+                Err(e) => diags.push(Diagnostic::error(at, e.to_string()).label("imported here")),
+            }
+            continue;
+        }
         match fbt::import_typed(&text) {
             Ok((t, i)) => {
                 interfaces.push((t.name.clone(), i));
@@ -73,7 +83,7 @@ pub fn import_with(
         }
     }
     if diags.is_empty() {
-        if let Some(d) = application(robot, src, read, &interfaces, composites) {
+        if let Some(d) = application(robot, src, read, &interfaces, composites, ios) {
             diags.push(d);
         }
     }
@@ -87,6 +97,7 @@ fn application(
     read: &dyn Fn(&str) -> io::Result<Vec<u8>>,
     interfaces: &[(String, fbt::Interface)],
     composites: Vec<composite::Composite>,
+    ios: Vec<io_fb::IoType>,
 ) -> Option<Diagnostic> {
     let decl = robot.application.clone()?;
     let at = src.span("application.file");
@@ -106,6 +117,7 @@ fn application(
     };
     let mut types = app::Types::of(robot, interfaces);
     types.composites = composites;
+    types.ios = ios;
     match app::bring(robot, &decl, &system, &mut types) {
         Ok(b) => {
             robot.roles = b.roles;

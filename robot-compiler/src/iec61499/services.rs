@@ -11,6 +11,11 @@ use crate::model::ActionDecl;
 /// events are node services.
 pub const MARK: &str = "ecc-nodes chart";
 
+/// The `Classification` of a role's interface-only FB type (`ROLE_IO`) standing for the
+/// node's inputs, switches and timers (its event outputs, each `Comment` the node event)
+/// and its services (its event inputs, fed by the marked charts' service events).
+pub const IO_MARK: &str = "ecc-nodes services";
+
 /// `EXTEND_A`, `RETRACT_A`, `SET_O`, `RESET_O`, `START_T_150` (ms), `STOP_T`, `FAULT_3`.
 const PREFIXES: [&str; 7] = [
     "EXTEND_", "RETRACT_", "SET_", "RESET_", "START_", "STOP_", "FAULT_",

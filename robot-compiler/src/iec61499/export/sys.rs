@@ -10,6 +10,7 @@ use super::fbt::identifier;
 use super::xml::Writer;
 use super::Instance;
 use crate::compile::Compiled;
+use crate::iec61499::services;
 
 /// One event connection of the application: (source role, `FB.EVENT`) -> (destination
 /// role, `FB.EVENT`).
@@ -33,8 +34,9 @@ pub fn io_name(c: &Compiled, ri: usize) -> String {
     format!("{}_IO", identifier(&c.ir.roles[ri].name))
 }
 
-/// A role's service FB's event outputs and inputs.
-pub type IoEvents = (Vec<String>, Vec<String>);
+/// A role's service FB's event outputs (each with the node event it stands for) and
+/// inputs.
+pub type IoEvents = (Vec<(String, String)>, Vec<String>);
 
 /// Every connection of the application, and per role the service FB's event outputs and
 /// inputs (in order of first use).
@@ -72,7 +74,9 @@ pub fn connections(c: &Compiled, instances: &[Instance]) -> (Vec<Connection>, Ve
                     })
                     .unwrap_or_else(|| {
                         let n = identifier(&event);
-                        push(&mut io[from].0, &n);
+                        if !io[from].0.iter().any(|(x, _)| *x == n) {
+                            io[from].0.push((n.clone(), event.clone()));
+                        }
                         format!("{}.{n}", io_name(c, from))
                     });
                 let conn = Connection {
@@ -334,8 +338,16 @@ fn event_connections<'a>(w: &mut Writer, conns: impl Iterator<Item = &'a Connect
     w.close();
 }
 
-/// Role `ri`'s service FB type: the node's pins, timers and faults as events.
-fn io_type(c: &Compiled, ri: usize, outs: &[String], ins: &[String], date: &str) -> String {
+/// Role `ri`'s service FB type: the node's pins, timers and faults as events, marked
+/// [`services::IO_MARK`]; each event output's `Comment` is the node event it stands for
+/// (`VC.home`), which the import reads back.
+fn io_type(
+    c: &Compiled,
+    ri: usize,
+    outs: &[(String, String)],
+    ins: &[String],
+    date: &str,
+) -> String {
     let name = io_name(c, ri);
     let mut w = Writer::new("FBType");
     w.open(
@@ -349,18 +361,22 @@ fn io_type(c: &Compiled, ri: usize, outs: &[String], ins: &[String], date: &str)
         "Identification",
         &[
             ("Standard", "61499-2"),
-            ("Classification", "ecc-nodes services"),
+            ("Classification", services::IO_MARK),
         ],
     );
     version(&mut w, date);
     w.open("InterfaceList", &[]);
-    for (list, names) in [("EventInputs", ins), ("EventOutputs", outs)] {
+    let ins: Vec<(String, String)> = ins.iter().map(|n| (n.clone(), String::new())).collect();
+    for (list, names) in [("EventInputs", &ins[..]), ("EventOutputs", outs)] {
         if names.is_empty() {
             continue;
         }
         w.open(list, &[]);
-        for n in names {
-            w.empty("Event", &[("Name", n), ("Type", "Event"), ("Comment", "")]);
+        for (n, event) in names {
+            w.empty(
+                "Event",
+                &[("Name", n), ("Type", "Event"), ("Comment", event)],
+            );
         }
         w.close();
     }

@@ -1,0 +1,85 @@
+//! `config-tool export-4diac` end to end: the binary writes, for the paper charts'
+//! painting robot, each chart type as a `.fbt`, each role's node services type and the
+//! `.sys` into the directory `--out` names, prints each file written and one summary
+//! line, and the files are what `robot_compiler::iec61499::export` gives (the date
+//! aside).
+
+use std::path::PathBuf;
+use std::process::Command;
+
+const ROBOT: &str = "robot-configs/paint-robot-paper-charts.ron";
+
+/// `Date="YYYY-MM-DD"` of every `VersionInfo` as `Date="DATE"`.
+fn undated(text: &str) -> String {
+    let mut out = String::new();
+    let mut rest = text;
+    while let Some(i) = rest.find("Date=\"") {
+        out.push_str(&rest[..i + 6]);
+        rest = &rest[i + 6..];
+        let end = rest.find('"').unwrap_or(rest.len());
+        out.push_str("DATE");
+        rest = &rest[end..];
+    }
+    out.push_str(rest);
+    out
+}
+
+#[test]
+fn export_4diac_writes_the_types_and_the_system_and_says_so() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let dir = std::env::temp_dir().join(format!("export-4diac-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["export-4diac", ROBOT, "--out"])
+        .arg(&dir)
+        .current_dir(&root)
+        .output()
+        .expect("runs");
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout).to_string(),
+        String::from_utf8_lossy(&out.stderr).to_string(),
+    );
+    assert_eq!(out.status.code(), Some(0), "{stdout}\n{stderr}");
+    let names = [
+        "Vc.fbt",
+        "Gr.fbt",
+        "Hc.fbt",
+        "Rc.fbt",
+        "VC_IO.fbt",
+        "GR_IO.fbt",
+        "HC_IO.fbt",
+        "RC_IO.fbt",
+        "paint_robot_paper_charts.sys",
+    ];
+    let mut want: Vec<String> = names
+        .iter()
+        .map(|n| dir.join(n).display().to_string())
+        .collect();
+    want.push(String::from(
+        "4 FB types (0 lifted from compiled charts), 4 FB instances",
+    ));
+    assert_eq!(stdout.lines().collect::<Vec<_>>(), want, "{stderr}");
+    let mut written: Vec<String> = std::fs::read_dir(&dir)
+        .expect("the directory")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().to_string())
+        .collect();
+    written.sort();
+    let mut sorted = names.map(String::from).to_vec();
+    sorted.sort();
+    assert_eq!(written, sorted);
+    let src = robot_compiler::Source::read(&root.join(ROBOT)).expect("reads");
+    let c = robot_compiler::compile(&src).expect("compiles");
+    let e = robot_compiler::iec61499::export::export(&c, "2026-01-01").expect("exports");
+    for (name, text) in &e.files {
+        let on_disk = std::fs::read_to_string(dir.join(name)).expect("written");
+        assert_eq!(undated(&on_disk), undated(text), "{name}");
+    }
+    // Each role's node services type names the node events it stands for.
+    let gr = std::fs::read_to_string(dir.join("GR_IO.fbt")).expect("written");
+    assert!(
+        gr.contains("<Event Name=\"gr_T\" Type=\"Event\" Comment=\"gr.T\"/>"),
+        "{gr}"
+    );
+    assert!(gr.contains("Classification=\"ecc-nodes services\""), "{gr}");
+    std::fs::remove_dir_all(&dir).expect("removed");
+}
