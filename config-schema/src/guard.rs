@@ -136,9 +136,53 @@ pub fn check(ops: &[Op], vars: usize, inputs: usize) -> Result<(), ExprError> {
     Ok(())
 }
 
+/// `a op b` for a binary operation (`None` for any other, and for a division by zero).
+#[inline]
+fn binary(op: Op, a: i32, b: i32) -> Option<i32> {
+    Some(match op {
+        Op::And => i32::from(a != 0 && b != 0),
+        Op::Or => i32::from(a != 0 || b != 0),
+        Op::Eq => i32::from(a == b),
+        Op::Ne => i32::from(a != b),
+        Op::Lt => i32::from(a < b),
+        Op::Le => i32::from(a <= b),
+        Op::Gt => i32::from(a > b),
+        Op::Ge => i32::from(a >= b),
+        Op::Add => a.wrapping_add(b),
+        Op::Sub => a.wrapping_sub(b),
+        Op::Mul => a.wrapping_mul(b),
+        Op::Div => a.checked_div(b).or((b != 0).then_some(i32::MIN))?,
+        Op::Rem => a.checked_rem(b).or((b != 0).then_some(0))?,
+        Op::Const(_) | Op::Var(_) | Op::Input(_) | Op::Not | Op::Wrap { .. } => return None,
+    })
+}
+
 /// Evaluates `ops`. `var` and `input` read the operands. Returns `None` only for an
 /// expression that [`check`] would reject (the interpreter turns that into a fault).
+///
+/// The shapes most guards and assignments have (`v`, `v op c`, `v op w`, `v op c`
+/// wrapped: `CV < 65535`, `uint(CV + 1)`, `CV >= PV`) are computed directly, the rest on
+/// the stack machine; both give the same value.
+#[inline]
 pub fn eval(
+    ops: &[Op],
+    mut var: impl FnMut(u8) -> Option<i32>,
+    input: impl FnMut(u8) -> Option<bool>,
+) -> Option<i32> {
+    match *ops {
+        [Op::Const(c)] => Some(c),
+        [Op::Var(v)] => var(v),
+        [Op::Var(v), Op::Const(c), op] => binary(op, var(v)?, c),
+        [Op::Var(a), Op::Var(b), op] => binary(op, var(a)?, var(b)?),
+        [Op::Var(v), Op::Const(c), op, Op::Wrap { bits, signed }] => {
+            Some(wrap(binary(op, var(v)?, c)?, bits, signed))
+        }
+        _ => eval_stack(ops, var, input),
+    }
+}
+
+/// [`eval`] on the stack machine.
+fn eval_stack(
     ops: &[Op],
     mut var: impl FnMut(u8) -> Option<i32>,
     mut input: impl FnMut(u8) -> Option<bool>,
@@ -164,24 +208,7 @@ pub fn eval(
                 let b = *stack.get(depth.checked_sub(1)?)?;
                 let a = *stack.get(depth.checked_sub(2)?)?;
                 depth -= 2;
-                match binary {
-                    Op::And => i32::from(a != 0 && b != 0),
-                    Op::Or => i32::from(a != 0 || b != 0),
-                    Op::Eq => i32::from(a == b),
-                    Op::Ne => i32::from(a != b),
-                    Op::Lt => i32::from(a < b),
-                    Op::Le => i32::from(a <= b),
-                    Op::Gt => i32::from(a > b),
-                    Op::Ge => i32::from(a >= b),
-                    Op::Add => a.wrapping_add(b),
-                    Op::Sub => a.wrapping_sub(b),
-                    Op::Mul => a.wrapping_mul(b),
-                    Op::Div => a.checked_div(b).or((b != 0).then_some(i32::MIN))?,
-                    Op::Rem => a.checked_rem(b).or((b != 0).then_some(0))?,
-                    Op::Const(_) | Op::Var(_) | Op::Input(_) | Op::Not | Op::Wrap { .. } => {
-                        return None
-                    }
-                }
+                self::binary(binary, a, b)?
             }
         };
         *stack.get_mut(depth)? = value;
@@ -205,6 +232,52 @@ mod tests {
 
     fn bin(a: i32, b: i32, op: Op) -> Option<i32> {
         run(&[Op::Const(a), Op::Const(b), op])
+    }
+
+    /// The shapes computed directly give what the stack machine gives, for every binary
+    /// operation and wrap, on values at and around the edges (and a division by zero is
+    /// `None` either way).
+    #[test]
+    fn the_direct_shapes_agree_with_the_stack_machine() {
+        let ops = [
+            Op::And,
+            Op::Or,
+            Op::Eq,
+            Op::Ne,
+            Op::Lt,
+            Op::Le,
+            Op::Gt,
+            Op::Ge,
+            Op::Add,
+            Op::Sub,
+            Op::Mul,
+            Op::Div,
+            Op::Rem,
+            Op::Not,
+        ];
+        let values = [i32::MIN, -65_536, -1, 0, 1, 2, 255, 65_535, i32::MAX];
+        let vars = [7, -3];
+        let var = |v: u8| vars.get(usize::from(v)).copied();
+        let input = |_| Some(false);
+        let mut shapes = 0;
+        for op in ops {
+            for c in values {
+                for wrap in [None, Some((8, true)), Some((16, false))] {
+                    let (bits, signed) = wrap.unwrap_or((8, false));
+                    let full = [Op::Var(0), Op::Const(c), op, Op::Wrap { bits, signed }];
+                    let e = &full[..if wrap.is_some() { 4 } else { 3 }];
+                    assert_eq!(eval(e, var, input), eval_stack(e, var, input), "{e:?}");
+                    shapes += 1;
+                }
+            }
+            let e = [Op::Var(0), Op::Var(1), op];
+            assert_eq!(eval(&e, var, input), eval_stack(&e, var, input), "{e:?}");
+        }
+        for e in [&[Op::Var(1)][..], &[Op::Const(5)], &[Op::Var(9)]] {
+            assert_eq!(eval(e, var, input), eval_stack(e, var, input), "{e:?}");
+        }
+        assert_eq!(eval(&[Op::Var(0), Op::Const(0), Op::Div], var, input), None);
+        assert_eq!(shapes, 14 * 9 * 3);
     }
 
     #[test]

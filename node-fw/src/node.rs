@@ -18,7 +18,7 @@ use heapless::Vec;
 
 use crate::alarms::{Alarms, Seen};
 use crate::cipher::NodeCipher;
-use crate::ecc::{Effects, Engine, EngineState, Fault};
+use crate::ecc::{Effects, Engine, EngineState, Fault, Index};
 use crate::link::{self, LinkState};
 use crate::ota::{self, Outcome};
 use crate::peer_security::{self, PeerSecurity, Pending, Verdict};
@@ -105,6 +105,8 @@ pub struct NodeCore {
     /// Bit n: the board has pin n. A table naming another pin is refused.
     board_pins: u64,
     table: Option<Table>,
+    /// The running table's index, built once when it was installed.
+    index: Option<Index>,
     state: Option<EngineState>,
     timers: [Option<u64>; MAX_TIMERS],
     senders: Vec<link::Sender, MAX_PEERS>,
@@ -290,6 +292,7 @@ impl NodeCore {
             addr,
             board_pins,
             table: None,
+            index: None,
             state: None,
             timers: [None; MAX_TIMERS],
             senders: Vec::new(),
@@ -373,8 +376,9 @@ impl NodeCore {
     /// raising events for switches that were already closed.
     pub fn seed_pins(&mut self, pins: u64) {
         self.pins = pins;
-        if let (Some(table), Some(state)) = (&self.table, &mut self.state) {
-            let mut engine = Engine::resume(table, state);
+        if let (Some(table), Some(index), Some(state)) = (&self.table, &self.index, &mut self.state)
+        {
+            let mut engine = Engine::resume_indexed(table, index, state);
             for (i, input) in table.inputs.iter().enumerate() {
                 engine.sense(i as u8, level(pins, input.pin));
             }
@@ -452,6 +456,7 @@ impl NodeCore {
         }
         // Links from peers that stay keep their place in the publisher's numbering.
         self.receivers.retain(|(a, _)| table.peers.contains(a));
+        self.index = Some(Index::new(&table));
         self.table = Some(table);
     }
 
@@ -665,10 +670,11 @@ impl NodeCore {
         io: &mut I,
         f: impl FnOnce(&mut Engine, &mut NodeEffects<'_, I>),
     ) {
-        let (Some(table), Some(state)) = (&self.table, &mut self.state) else {
+        let (Some(table), Some(index), Some(state)) = (&self.table, &self.index, &mut self.state)
+        else {
             return;
         };
-        let mut engine = Engine::resume(table, state);
+        let mut engine = Engine::resume_indexed(table, index, state);
         let mut fx = NodeEffects {
             now,
             table,
@@ -737,8 +743,10 @@ impl NodeCore {
         });
         if restarts && self.alarms.blocking().is_some() {
             // A fault alarm is latched: the press is refused (the level is kept).
-            if let (Some(table), Some(state)) = (&self.table, &mut self.state) {
-                let mut engine = Engine::resume(table, state);
+            if let (Some(table), Some(ix), Some(state)) =
+                (&self.table, &self.index, &mut self.state)
+            {
+                let mut engine = Engine::resume_indexed(table, ix, state);
                 engine.sense(index as u8, level);
                 *state = engine.snapshot();
             }

@@ -41,7 +41,7 @@ fn every_config_reproduces_its_sequence_for_20_cycles_through_its_blobs() {
             assert!(cycle.faults.is_empty(), "{path}");
         }
     }
-    assert_eq!(sequences, 6);
+    assert_eq!(sequences, 7);
 }
 
 /// The water-jet transport (control functions, a motor plant) runs 20 transport cycles

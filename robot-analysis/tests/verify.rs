@@ -52,6 +52,8 @@ fn every_robot_of_robot_configs_passes_with_a_prompt_radio() {
         [
             // Every colour sequence of up to 4 balls (verify_sorter.rs).
             ("ball-sorter.ron", 4139),
+            // The paper's charts, brought as a 4diac application: the same tables.
+            ("paint-robot-4diac.ron", 87),
             ("paint-robot-counted.ron", 125),
             ("paint-robot-double-dip.ron", 376),
             ("paint-robot-paper-charts.ron", 87),

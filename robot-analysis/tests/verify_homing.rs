@@ -91,6 +91,7 @@ fn every_robot_of_robot_configs_homes_or_has_no_homing() {
         seen,
         [
             ("ball-sorter.ron", None),
+            ("paint-robot-4diac.ron", None),
             ("paint-robot-counted.ron", None),
             ("paint-robot-double-dip.ron", h("VC- HC- RC- GR-", 81, 1440)),
             ("paint-robot-paper-charts.ron", None),

@@ -191,7 +191,7 @@ fn a_robot_names_the_file_and_its_place_and_imports_nothing_of_a_bad_type() {
     assert_eq!(
         errors[0],
         "r.ron:1:244: error: T.fbt:16:35: `WHILE` is not supported yet (the subset: \
-         assignments, IF, CASE)"
+         assignments, IF, CASE, FOR with constant bounds)"
     );
     // Nothing of it was imported, and nothing was compiled.
     assert_eq!(errors.len(), 1, "{errors:#?}");

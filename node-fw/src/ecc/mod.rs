@@ -532,11 +532,10 @@ impl<'t> Engine<'t> {
 
     fn drive(&mut self, mask: u16, value: u16, fx: &mut impl Effects) {
         let next = (self.outputs & !mask) | (value & mask);
-        let outputs = self.table.outputs.len().min(16) as u32;
-        let mut changed = (self.outputs ^ next) & (u16::MAX >> (16 - outputs.min(16)) as u16);
-        if outputs == 0 {
-            changed = 0;
-        }
+        // The table's outputs (at most 16): bits 0..n.
+        let n = self.table.outputs.len().min(16) as u32;
+        let valid = ((1u32 << n) - 1) as u16;
+        let mut changed = (self.outputs ^ next) & valid;
         self.outputs = next;
         // Each changed output, lowest first.
         while changed != 0 {

@@ -20,7 +20,7 @@ use std::time::{Duration, Instant};
 use config_schema::{Publication, Table, Topic};
 use indexmap::IndexSet;
 use node_fw::cylinder::{self, Command, Cylinder, Motion, Position as Pos};
-use node_fw::ecc::{Effects, Engine, EngineState, Fault};
+use node_fw::ecc::{Effects, Engine, EngineState, Fault, Index};
 use rustc_hash::FxBuildHasher;
 
 use robot_compiler::compile::Compiled;
@@ -452,6 +452,8 @@ impl Effects for EffectLog {
 pub struct Model<'c> {
     c: &'c Compiled,
     tables: Vec<Table>,
+    /// Each table's index, built once (an engine is resumed per move).
+    indexes: Vec<Index>,
     acts: Vec<Act>,
     /// (node, input) of START.
     start: (usize, u8),
@@ -566,6 +568,7 @@ impl<'c> Model<'c> {
         }
         Ok(Model {
             c,
+            indexes: tables.iter().map(Index::new).collect(),
             tables,
             acts,
             start,
@@ -595,7 +598,8 @@ impl<'c> Model<'c> {
             .map(|front| {
                 let mut s = self.init.clone();
                 let node = f.node();
-                let mut e = Engine::resume(&self.tables[node], &s.nodes[node]);
+                let mut e =
+                    Engine::resume_indexed(&self.tables[node], &self.indexes[node], &s.nodes[node]);
                 for i in f.levels(front) {
                     e.sense(i, true);
                 }
@@ -656,7 +660,7 @@ impl<'c> Model<'c> {
             return false;
         }
         let (node, input) = self.start;
-        let mut e = Engine::resume(&self.tables[node], &s.nodes[node]);
+        let mut e = Engine::resume_indexed(&self.tables[node], &self.indexes[node], &s.nodes[node]);
         let mut fx = EffectLog::default();
         e.input(input, true, &mut fx);
         fx.0.iter().any(|f| matches!(f, Effect::Fired(..)))
@@ -1095,7 +1099,7 @@ impl<'c> Model<'c> {
         let table = &self.tables[node];
         let role = &self.c.ir.roles[node];
         let before = s.nodes[node].outputs;
-        let mut e = Engine::resume(table, &s.nodes[node]);
+        let mut e = Engine::resume_indexed(table, &self.indexes[node], &s.nodes[node]);
         let mut fx = EffectLog::default();
         if let Some(log) = log.as_deref_mut() {
             log.push(format!(
