@@ -362,6 +362,7 @@ pub fn place(robot: &Robot, src: &Source, ir: &mut Ir) -> Result<(), Vec<Diagnos
         type_: t.name.clone(),
         params: BTreeMap::new(),
         on: BTreeMap::new(),
+        timers: BTreeMap::new(),
     };
     let chart =
         crate::elab::instantiate(src, "sorting", role, &c, &t, &BTreeMap::new(), r, "sorting")?;

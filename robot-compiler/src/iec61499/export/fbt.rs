@@ -20,6 +20,9 @@ pub struct FbSpec<'a> {
     pub ty: &'a ChartType,
     pub comment: String,
     pub bools: &'a [String],
+    /// (parameter, role input): the BOOL parameters that read a role input's level, each
+    /// written with its `Comment` ([`services::level_comment`]).
+    pub levels: &'a [(String, String)],
     /// The `VersionInfo` date (`YYYY-MM-DD`).
     pub date: &'a str,
 }
@@ -244,9 +247,12 @@ pub fn write(spec: &FbSpec<'_>) -> Result<String, ExportError> {
             } else {
                 "DINT"
             };
+            let comment = (spec.levels.iter())
+                .find(|(n, _)| n == p)
+                .map_or_else(String::new, |(_, i)| services::level_comment(i));
             w.empty(
                 "VarDeclaration",
-                &[("Name", p), ("Type", ty), ("Comment", "")],
+                &[("Name", p), ("Type", ty), ("Comment", &comment)],
             );
         }
         w.close();
