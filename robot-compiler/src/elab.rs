@@ -178,8 +178,6 @@ pub fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
     if !diags.is_empty() {
         return Err(diags);
     }
-    // The role the HOME command homes (an application brings it, `home`).
-    let home = roles.iter().position(|r| r.home.is_some());
     Ok(Ir {
         name: robot.name.clone(),
         generation: robot.generation,
@@ -188,7 +186,7 @@ pub fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
         roles,
         start,
         expect,
-        home,
+        home: None,
         homing: Vec::new(),
         homing_derived: false,
     })
@@ -456,11 +454,14 @@ pub(crate) fn instantiate(
     if !cx.diags.is_empty() {
         return Err(cx.diags);
     }
+    let idle = (t.idle.as_ref())
+        .and_then(|i| t.states.iter().position(|s| s.name == *i))
+        .unwrap_or(0);
     Ok(ChartIr {
         name: c.name.clone(),
         inputs,
         initial: 0,
-        idle: 0,
+        idle,
         states,
         transitions,
     })

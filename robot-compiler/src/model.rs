@@ -463,6 +463,12 @@ pub struct ChartType {
     pub states: Vec<StateDecl>,
     #[serde(default)]
     pub transitions: Vec<TransitionDecl>,
+    /// Where the chart rests between cycles, when not its first state (a lifted chart of
+    /// a sequence robot starts not homed and rests at its idle state); no robot file
+    /// writes it, the `.fbt` import of a marked type reads it
+    /// (`iec61499::services::IDLE`).
+    #[serde(skip)]
+    pub idle: Option<String>,
 }
 
 /// A chart variable and its initial value (an expression over the parameters).

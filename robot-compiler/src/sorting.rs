@@ -179,6 +179,7 @@ impl Sorting {
             timers: vec![],
             states,
             transitions,
+            idle: None,
         }
     }
 }

@@ -390,8 +390,12 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
     let mut states: Vec<StateDecl> = Vec::new();
     // Per state: what it does when entered, in order (assignments, choices, emits).
     let mut bodies: Vec<(Vec<Step>, Node<'_, '_>)> = Vec::new();
+    let mut idle = None;
     for s in elements(ecc).filter(|s| s.tag_name().name() == "ECState") {
         let sname = cx.attr(s, "Name")?.to_string();
+        if marked && !states.is_empty() && s.attribute("Comment") == Some(super::services::IDLE) {
+            idle = Some(sname.clone());
+        }
         if states.iter().any(|d: &StateDecl| d.name == sname) {
             return Err(cx.node_err(s, format!("state `{sname}` is declared twice")));
         }
@@ -490,6 +494,7 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
         timers,
         states,
         transitions,
+        idle,
     };
     Ok((chart, interface))
 }

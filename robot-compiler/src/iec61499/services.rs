@@ -25,6 +25,10 @@ const LEVEL: &str = "level of ";
 /// pin or timer (`node event boot`): [`NODE_EVENTS`].
 const NODE_EVENT: &str = "node event ";
 
+/// The `Comment` of a marked type's `ECState` where the chart rests between cycles, when
+/// that is not its first (initial) state.
+pub const IDLE: &str = "Idle State";
+
 /// The node events a role raises besides its pins, timers and charts' outputs: the
 /// node's boot with its table (published to the roles that import it) and the HOME
 /// command (the synthesised homing of a sequence robot reads both).

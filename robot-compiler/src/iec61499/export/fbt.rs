@@ -291,7 +291,13 @@ pub fn write(spec: &FbSpec<'_>) -> Result<String, ExportError> {
             return Err(fail(format!("state `{}` is not an identifier", s.name)));
         }
         let (x, y) = place(si);
-        let comment = if si == 0 { "Initial State" } else { "" };
+        let comment = if si == 0 {
+            "Initial State"
+        } else if t.idle.as_ref() == Some(&s.name) {
+            services::IDLE
+        } else {
+            ""
+        };
         let mut actions: Vec<(Option<String>, Option<String>)> = Vec::new();
         let mut pending: Vec<String> = Vec::new();
         for (ai, a) in s.actions.iter().enumerate() {

@@ -241,6 +241,9 @@ pub fn lift(r: &RoleIr, ci: usize, name: &str) -> Lifted {
             timers,
             states,
             transitions,
+            idle: (c.idle != c.initial)
+                .then(|| state_names.get(c.idle).cloned())
+                .flatten(),
         },
         inputs: inputs_of,
         emits,
