@@ -111,7 +111,20 @@ pub fn role_events(robot: &Robot, role: &Role) -> Vec<String> {
     if let Some(s) = robot.sorting.as_ref().filter(|s| s.role == role.name) {
         out.extend(s.events());
     }
+    // What an application brings: node events of their own, timers its charts share.
+    out.extend(role.node_events.iter().cloned());
+    for t in role.charts.iter().flat_map(|c| c.timers.values()) {
+        if !out.contains(t) {
+            out.push(t.clone());
+        }
+    }
     out
+}
+
+/// The name of timer `timer` of chart `c` in its role: the role's timer it shares, or
+/// its own `CHART.TIMER`.
+fn timer_name(c: &ChartInstance, timer: &str) -> String {
+    (c.timers.get(timer).cloned()).unwrap_or_else(|| format!("{}.{timer}", c.name))
 }
 
 /// Splits a connection source `ROLE/EVENT` or `EVENT` (of `own`).
@@ -251,6 +264,15 @@ fn hardware(robot: &Robot, role: &Role, wanted: &BTreeSet<(String, String)>) -> 
             r.event(&e);
         }
     }
+    // The node's boot and the HOME command, when a chart reads them.
+    for e in role.node_events.iter().filter(|e| want(e)) {
+        r.event(e);
+        if e == crate::synth::BOOT_EVENT {
+            r.boot = Some(e.clone());
+        } else if e == crate::synth::HOME_COMMAND_EVENT && r.home.is_none() {
+            r.home = Some(e.clone());
+        }
+    }
     r
 }
 
@@ -294,7 +316,7 @@ fn routes(
             r.routes.push((local, ci, input));
         }
         for (k, timer) in t.timers.iter().enumerate() {
-            let name = format!("{}.{timer}", c.name);
+            let name = timer_name(c, timer);
             r.event(&name);
             r.routes.push((name, ci, t.inputs.len() + k));
         }
@@ -408,7 +430,7 @@ pub(crate) fn instantiate(
         tp: tp.to_string(),
         bind,
         var_base: r.vars.len(),
-        timer_base: 0,
+        timers: Vec::new(),
         inputs: Vec::new(),
         diags: Vec::new(),
     };
@@ -432,11 +454,14 @@ pub(crate) fn instantiate(
     if !cx.diags.is_empty() {
         return Err(cx.diags);
     }
+    let idle = (t.idle.as_ref())
+        .and_then(|i| t.states.iter().position(|s| s.name == *i))
+        .unwrap_or(0);
     Ok(ChartIr {
         name: c.name.clone(),
         inputs,
         initial: 0,
-        idle: 0,
+        idle,
         states,
         transitions,
     })
@@ -454,7 +479,8 @@ struct ChartCx<'a> {
     /// Outputs emitted as another event than `CHART.OUTPUT`.
     bind: &'a BTreeMap<String, String>,
     var_base: usize,
-    timer_base: usize,
+    /// The role's timer of each of the type's timers.
+    timers: Vec<usize>,
     /// The role's inputs (expressions may read them).
     inputs: Vec<InputIr>,
     diags: Vec<Diagnostic>,
@@ -514,13 +540,20 @@ impl ChartCx<'_> {
             };
             r.vars.push((format!("{}.{}", c.name, v.name), init));
         }
-        self.timer_base = r.timers.len();
+        self.timers.clear();
         for timer in &t.timers {
-            let name = format!("{}.{timer}", c.name);
-            r.timers.push(TimerIr {
-                name: name.clone(),
-                event: name,
-            });
+            let name = timer_name(c, timer);
+            let k = match r.timers.iter().position(|x| x.name == name) {
+                Some(k) => k,
+                None => {
+                    r.timers.push(TimerIr {
+                        name: name.clone(),
+                        event: name,
+                    });
+                    r.timers.len() - 1
+                }
+            };
+            self.timers.push(k);
         }
         self.inputs = r.inputs.clone();
     }
@@ -615,13 +648,15 @@ impl ChartCx<'_> {
             ActionDecl::StartTimer(name, ms) => {
                 let k = t.timers.iter().position(|x| x == name).unwrap_or(0);
                 return Some(ActionIr::StartTimer {
-                    timer: self.timer_base + k,
+                    timer: self.timers.get(k).copied().unwrap_or(0),
                     ms: *ms,
                 });
             }
             ActionDecl::CancelTimer(name) => {
                 let k = t.timers.iter().position(|x| x == name).unwrap_or(0);
-                return Some(ActionIr::CancelTimer(self.timer_base + k));
+                return Some(ActionIr::CancelTimer(
+                    self.timers.get(k).copied().unwrap_or(0),
+                ));
             }
             ActionDecl::Fault(code) => return Some(ActionIr::Fault(*code)),
         };

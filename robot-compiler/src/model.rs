@@ -248,6 +248,12 @@ pub struct Role {
     /// The emergency-stop input: pressing it faults every node of the machine.
     #[serde(default)]
     pub estop: Option<String>,
+    /// Node events its charts may read besides its pins and charts' outputs (of
+    /// `iec61499::services::NODE_EVENTS`: the node's boot, the HOME command); no robot
+    /// file writes them, an application brings them (a `ROLE_IO` event output marked
+    /// `node event boot`).
+    #[serde(skip)]
+    pub node_events: Vec<String>,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -457,6 +463,12 @@ pub struct ChartType {
     pub states: Vec<StateDecl>,
     #[serde(default)]
     pub transitions: Vec<TransitionDecl>,
+    /// Where the chart rests between cycles, when not its first state (a lifted chart of
+    /// a sequence robot starts not homed and rests at its idle state); no robot file
+    /// writes it, the `.fbt` import of a marked type reads it
+    /// (`iec61499::services::IDLE`).
+    #[serde(skip)]
+    pub idle: Option<String>,
 }
 
 /// A chart variable and its initial value (an expression over the parameters).
@@ -525,6 +537,12 @@ pub struct ChartInstance {
     pub params: BTreeMap<String, i32>,
     #[serde(default)]
     pub on: BTreeMap<String, String>,
+    /// Timers of its type that are a timer of the role shared with the role's other
+    /// charts (type's timer -> the role's timer event, `VC.watchdog`); a timer not named
+    /// is the chart's own, `CHART.TIMER`. No robot file writes them, an application
+    /// brings them (the charts whose timer the role's `ROLE_IO` output feeds).
+    #[serde(skip)]
+    pub timers: BTreeMap<String, String>,
 }
 
 /// Parses a RON robot; a syntax or shape error becomes a diagnostic at ron's position.

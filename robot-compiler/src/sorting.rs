@@ -179,6 +179,7 @@ impl Sorting {
             timers: vec![],
             states,
             transitions,
+            idle: None,
         }
     }
 }
@@ -362,6 +363,7 @@ pub fn place(robot: &Robot, src: &Source, ir: &mut Ir) -> Result<(), Vec<Diagnos
         type_: t.name.clone(),
         params: BTreeMap::new(),
         on: BTreeMap::new(),
+        timers: BTreeMap::new(),
     };
     let chart =
         crate::elab::instantiate(src, "sorting", role, &c, &t, &BTreeMap::new(), r, "sorting")?;

@@ -380,6 +380,7 @@ fn place_one(
             type_: t.name.clone(),
             params: inst.params(),
             on: BTreeMap::new(),
+            timers: BTreeMap::new(),
         };
         let bind = BTreeMap::from([(String::from("EOS"), eos_event(a))]);
         match crate::elab::instantiate(&fb_src, "", role, &c, &t, &bind, r, &at) {

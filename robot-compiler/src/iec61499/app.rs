@@ -126,6 +126,7 @@ impl Types {
                             .collect(),
                         outputs: t.vars.iter().map(|v| v.name.clone()).collect(),
                         services: Vec::new(),
+                        levels: Vec::new(),
                     });
                 (t.clone(), i)
             })
@@ -486,14 +487,24 @@ type PlantEdge = (Edge, String);
 /// the other edges, and each from a node services FB's output to a chart input with the
 /// node event it is. Into a node services FB go the service events of the charts of its
 /// role, and from it a timer's expiry to the timer's own chart: the charts' types say
-/// both already. Any other edge touching a node services FB, a timer or a service is an
-/// error.
+/// both already; a timer's expiry is also the role's timer event the output stands for
+/// (`VC.watchdog`), which every chart it feeds shares (the third part: (FB, timer) -> the
+/// role's timer event). Any other edge touching a node services FB, a timer or a service
+/// is an error.
+#[allow(clippy::type_complexity)]
 fn node_services(
     edges: Vec<Edge>,
     flat: &Flat,
     types: &Types,
     role_of: &dyn Fn(&str) -> String,
-) -> Result<(Vec<Edge>, Vec<PlantEdge>), SysError> {
+) -> Result<
+    (
+        Vec<Edge>,
+        Vec<PlantEdge>,
+        BTreeMap<(String, String), String>,
+    ),
+    SysError,
+> {
     let basic = |fb: &str| {
         (flat.leaves.iter())
             .find(|l| l.name == fb)
@@ -507,6 +518,7 @@ fn node_services(
     };
     let mut kept = Vec::new();
     let mut plant = Vec::new();
+    let mut shared = BTreeMap::new();
     for e in edges {
         let (from, to) = (
             format!("{}.{}", e.from.0, e.from.1),
@@ -520,7 +532,10 @@ fn node_services(
         let err = |m: String| Err(e.at.error(m));
         match (from_io, to_io) {
             (true, true) => return err(format!("`{from}` -> `{to}` joins two node services FBs")),
-            (true, false) if timer && same => {}
+            (true, false) if timer && same => {
+                let event = event_of(&e.from.0, &e.from.1).unwrap_or_default();
+                shared.insert(e.to.clone(), event);
+            }
             (true, false) if timer => {
                 return err(format!(
                     "`{to}` is a timer of `{}`: its expiry comes from the node services FB of \
@@ -561,7 +576,7 @@ fn node_services(
             (false, false) => kept.push(e),
         }
     }
-    Ok((kept, plant))
+    Ok((kept, plant, shared))
 }
 
 /// The robot's node a device stands for: the node of its name, or else the one node whose
@@ -765,7 +780,18 @@ pub fn bring(
                 .into());
         }
     }
-    let (edges, plant_edges) = node_services(edges, &flat, types, &role_of)?;
+    let (edges, plant_edges, shared_timers) = node_services(edges, &flat, types, &role_of)?;
+    // The node events of their own (`boot`, `home`) the charts read, per role.
+    let mut node_events: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    for (e, event) in &plant_edges {
+        let node = (flat.ios.get(&e.from.0))
+            .and_then(|(_, ty)| types.io(ty))
+            .is_some_and(|io| io.node_events.contains(&e.from.1));
+        let list = node_events.entry(role_of(&e.from.0)).or_default();
+        if node && !list.contains(event) {
+            list.push(event.clone());
+        }
+    }
     // Per basic FB: what its outputs become, its timers.
     let mut acts: BTreeMap<(String, String), ActionDecl> = BTreeMap::new();
     let mut timers: BTreeMap<String, Vec<String>> = BTreeMap::new();
@@ -905,7 +931,13 @@ pub fn bring(
                 outputs: Vec::new(),
                 charts: Vec::new(),
                 estop: None,
+                node_events: Vec::new(),
             });
+        }
+    }
+    for r in &mut roles {
+        if let Some(events) = node_events.remove(&r.name) {
+            r.node_events = events;
         }
     }
     let mut chart_types: Vec<ChartType> = Vec::new();
@@ -1013,11 +1045,16 @@ pub fn bring(
             n
         };
         if let Some(r) = roles.iter_mut().find(|r| r.name == role) {
+            let timers = (shared_timers.iter())
+                .filter(|((fb, _), _)| *fb == l.name)
+                .map(|((_, t), event)| (t.clone(), event.clone()))
+                .collect();
             r.charts.push(ChartInstance {
                 name: l.name.clone(),
                 type_: type_name,
                 params,
                 on,
+                timers,
             });
         }
     }

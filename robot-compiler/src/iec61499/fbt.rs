@@ -97,6 +97,8 @@ struct Var {
     name: String,
     ty: Ty,
     init: Option<String>,
+    /// The role input whose level it reads, by its `Comment` (in a marked type only).
+    level: Option<String>,
 }
 
 /// The typed interface of an imported basic FB type, beyond its chart type: what an
@@ -112,6 +114,63 @@ pub struct Interface {
     /// [`super::services::MARK`]): in an application, each may connect to its role's
     /// node services FB (`ROLE_IO`) only.
     pub services: Vec<String>,
+    /// (input variable, role input): the BOOL input variables of a marked type that read
+    /// the level of one of their role's inputs (`Comment="level of VC.home"`,
+    /// [`bind_levels`]).
+    pub levels: Vec<(String, String)>,
+}
+
+/// A marked type's input variables that read their role's input levels
+/// ([`Interface::levels`]) made reads of those inputs: no longer parameters, each name in
+/// a guard or assignment the input's (`VC_home_2` -> `VC.home`), as the chart the type
+/// was lifted from reads them.
+pub fn bind_levels(t: &mut ChartType, i: &mut Interface) {
+    if i.levels.is_empty() {
+        return;
+    }
+    let levels = std::mem::take(&mut i.levels);
+    let of = |n: &str| levels.iter().find(|(p, _)| p == n).map(|(_, l)| l.clone());
+    t.params.retain(|p| of(p).is_none());
+    i.inputs.retain(|(p, _, _)| of(p).is_none());
+    let rename = |text: &mut String| {
+        if let Ok(ast) = crate::expr::parse(text) {
+            *text = super::export::lift::print(&rename_names(ast, &of));
+        }
+    };
+    for s in &mut t.states {
+        for a in &mut s.actions {
+            if let ActionDecl::Set(_, text) = a {
+                rename(text);
+            }
+        }
+    }
+    for tr in &mut t.transitions {
+        if let Some(g) = &mut tr.when {
+            rename(g);
+        }
+    }
+}
+
+/// `a` with each name `of` renames renamed.
+fn rename_names(a: crate::expr::Ast, of: &dyn Fn(&str) -> Option<String>) -> crate::expr::Ast {
+    use crate::expr::Ast;
+    let b = |x: Box<Ast>| Box::new(rename_names(*x, of));
+    match a {
+        Ast::Name(n, span) => Ast::Name(of(&n).unwrap_or(n), span),
+        Ast::Not(x) => Ast::Not(b(x)),
+        Ast::Neg(x) => Ast::Neg(b(x)),
+        Ast::Bin(op, x, y) => Ast::Bin(op, b(x), b(y)),
+        Ast::Wrap {
+            bits,
+            signed,
+            of: x,
+        } => Ast::Wrap {
+            bits,
+            signed,
+            of: b(x),
+        },
+        other => other,
+    }
 }
 
 /// Parses the `.fbt` text into a chart type.
@@ -195,10 +254,15 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
                 ),
                 None => None,
             };
+            let level = (v.attribute("Comment"))
+                .and_then(super::services::level_of)
+                .filter(|_| ty == Ty::Bool)
+                .map(str::to_string);
             out.push(Var {
                 name: vname,
                 ty,
                 init,
+                level,
             });
         }
         Ok(out)
@@ -326,8 +390,12 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
     let mut states: Vec<StateDecl> = Vec::new();
     // Per state: what it does when entered, in order (assignments, choices, emits).
     let mut bodies: Vec<(Vec<Step>, Node<'_, '_>)> = Vec::new();
+    let mut idle = None;
     for s in elements(ecc).filter(|s| s.tag_name().name() == "ECState") {
         let sname = cx.attr(s, "Name")?.to_string();
+        if marked && !states.is_empty() && s.attribute("Comment") == Some(super::services::IDLE) {
+            idle = Some(sname.clone());
+        }
         if states.iter().any(|d: &StateDecl| d.name == sname) {
             return Err(cx.node_err(s, format!("state `{sname}` is declared twice")));
         }
@@ -404,6 +472,10 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
             .filter(|(n, _)| service(n).is_some())
             .map(|(n, _)| n.clone())
             .collect(),
+        levels: (inputs.iter())
+            .filter(|_| marked)
+            .filter_map(|v| Some((v.name.clone(), v.level.clone()?)))
+            .collect(),
     };
     let chart = ChartType {
         name,
@@ -422,6 +494,7 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
         timers,
         states,
         transitions,
+        idle,
     };
     Ok((chart, interface))
 }

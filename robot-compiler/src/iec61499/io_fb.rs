@@ -1,7 +1,8 @@
 //! A role's node services as an FB type (`ROLE_IO.fbt`, as `export` writes it): an
 //! interface-only type marked [`super::services::IO_MARK`] whose event outputs are the
 //! role's inputs, switches and timers (each `Comment` the node event it stands for,
-//! `VC.home`; the event's name without one) and whose event inputs take the service
+//! `VC.home`, or `node event boot` for a node event of its own; the event's name without
+//! one) and whose event inputs take the service
 //! events of the role's charts. In an application, an FB of such a type stands for the
 //! node of the resource it is mapped onto ([`super::app`]).
 
@@ -17,6 +18,9 @@ pub struct IoType {
     pub events_in: Vec<String>,
     /// (port, node event).
     pub events_out: Vec<(String, String)>,
+    /// The ports that are node events of their own (`boot`, `home`:
+    /// [`super::services::NODE_EVENTS`]), no pin or timer.
+    pub node_events: Vec<String>,
     pub at: At,
 }
 
@@ -58,6 +62,7 @@ pub fn parse(text: &str, file: &str) -> Result<IoType, SysError> {
         name,
         events_in: Vec::new(),
         events_out: Vec::new(),
+        node_events: Vec::new(),
         at: x.at(root),
     };
     let Some(interface) = child(root, "InterfaceList") else {
@@ -70,11 +75,13 @@ pub fn parse(text: &str, file: &str) -> Result<IoType, SysError> {
             match (tag, item.tag_name().name()) {
                 ("EventInputs", "Event") => io.events_in.push(n),
                 ("EventOutputs", "Event") => {
-                    let event = item
-                        .attribute("Comment")
-                        .map(str::trim)
+                    let comment = (item.attribute("Comment").map(str::trim))
                         .filter(|c| !c.is_empty())
-                        .map_or_else(|| n.clone(), str::to_string);
+                        .map(super::services::io_event);
+                    if comment.is_some_and(|(_, node)| node) {
+                        io.node_events.push(n.clone());
+                    }
+                    let event = comment.map_or_else(|| n.clone(), |(e, _)| e.to_string());
                     io.events_out.push((n, event));
                 }
                 _ => {

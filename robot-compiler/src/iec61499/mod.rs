@@ -73,7 +73,8 @@ pub fn import_with(
             continue;
         }
         match fbt::import_typed(&text) {
-            Ok((t, i)) => {
+            Ok((mut t, mut i)) => {
+                fbt::bind_levels(&mut t, &mut i);
                 interfaces.push((t.name.clone(), i));
                 robot.chart_types.push(t);
             }

@@ -16,6 +16,53 @@ pub const MARK: &str = "ecc-nodes chart";
 /// and its services (its event inputs, fed by the marked charts' service events).
 pub const IO_MARK: &str = "ecc-nodes services";
 
+/// The `Comment` prefix of a marked type's BOOL input variable that stands for the level
+/// of one of its role's inputs (`level of VC.home`): a lifted chart reads the level in
+/// its guards, and the import reads the input again instead of a parameter.
+const LEVEL: &str = "level of ";
+
+/// The `Comment` prefix of a `ROLE_IO` event output that is a node event of its own, no
+/// pin or timer (`node event boot`): [`NODE_EVENTS`].
+const NODE_EVENT: &str = "node event ";
+
+/// The `Comment` of a marked type's `ECState` where the chart rests between cycles, when
+/// that is not its first (initial) state.
+pub const IDLE: &str = "Idle State";
+
+/// The node events a role raises besides its pins, timers and charts' outputs: the
+/// node's boot with its table (published to the roles that import it) and the HOME
+/// command (the synthesised homing of a sequence robot reads both).
+pub const NODE_EVENTS: [&str; 2] = [crate::synth::BOOT_EVENT, crate::synth::HOME_COMMAND_EVENT];
+
+/// The `Comment` of a BOOL input variable reading the level of role input `input`.
+pub fn level_comment(input: &str) -> String {
+    format!("{LEVEL}{input}")
+}
+
+/// The role input whose level a marked type's input variable reads, from its `Comment`.
+pub fn level_of(comment: &str) -> Option<&str> {
+    comment.trim().strip_prefix(LEVEL).filter(|i| !i.is_empty())
+}
+
+/// The `Comment` of a `ROLE_IO` event output standing for node event `event`: the event
+/// itself, or `node event boot` for one of [`NODE_EVENTS`].
+pub fn io_comment(event: &str) -> String {
+    if NODE_EVENTS.contains(&event) {
+        format!("{NODE_EVENT}{event}")
+    } else {
+        event.to_string()
+    }
+}
+
+/// The node event of a `ROLE_IO` event output's `Comment`, and whether it is one of
+/// [`NODE_EVENTS`] (`node event boot`).
+pub fn io_event(comment: &str) -> (&str, bool) {
+    match comment.strip_prefix(NODE_EVENT) {
+        Some(e) if NODE_EVENTS.contains(&e) => (e, true),
+        _ => (comment, false),
+    }
+}
+
 /// `EXTEND_A`, `RETRACT_A`, `SET_O`, `RESET_O`, `START_T_150` (ms), `STOP_T`, `FAULT_3`.
 const PREFIXES: [&str; 7] = [
     "EXTEND_", "RETRACT_", "SET_", "RESET_", "START_", "STOP_", "FAULT_",
@@ -80,7 +127,7 @@ pub fn timer_of<'a>(name: &str, inputs: &'a [String]) -> Option<&'a String> {
 
 #[cfg(test)]
 mod tests {
-    use super::{action, event, timer_of};
+    use super::{action, event, io_comment, io_event, level_comment, level_of, timer_of};
     use crate::model::ActionDecl;
 
     /// Every service action goes to its event name and back; ordinary names stay events.
@@ -108,5 +155,23 @@ mod tests {
         assert_eq!(timer_of("START_WATCH_DOG_20", &inputs), Some(&inputs[1]));
         assert_eq!(timer_of("STOP_CU", &inputs), Some(&inputs[0]));
         assert_eq!(timer_of("EO", &inputs), None);
+    }
+
+    /// Input levels and node events go to their comments and back; other comments are
+    /// what they say.
+    #[test]
+    fn levels_and_node_events_round_trip() {
+        assert_eq!(level_comment("VC.home"), "level of VC.home");
+        assert_eq!(level_of("level of VC.home"), Some("VC.home"));
+        assert_eq!(level_of("level of "), None);
+        assert_eq!(level_of(""), None);
+        assert_eq!(io_comment("boot"), "node event boot");
+        assert_eq!(io_event("node event boot"), ("boot", true));
+        assert_eq!(io_comment("home"), "node event home");
+        assert_eq!(io_event("node event home"), ("home", true));
+        assert_eq!(io_comment("VC.home"), "VC.home");
+        assert_eq!(io_event("VC.home"), ("VC.home", false));
+        assert_eq!(io_event("home"), ("home", false), "an input named `home`");
+        assert_eq!(io_event("node event x"), ("node event x", false));
     }
 }

@@ -20,6 +20,9 @@ pub struct FbSpec<'a> {
     pub ty: &'a ChartType,
     pub comment: String,
     pub bools: &'a [String],
+    /// (parameter, role input): the BOOL parameters that read a role input's level, each
+    /// written with its `Comment` ([`services::level_comment`]).
+    pub levels: &'a [(String, String)],
     /// The `VersionInfo` date (`YYYY-MM-DD`).
     pub date: &'a str,
 }
@@ -244,9 +247,12 @@ pub fn write(spec: &FbSpec<'_>) -> Result<String, ExportError> {
             } else {
                 "DINT"
             };
+            let comment = (spec.levels.iter())
+                .find(|(n, _)| n == p)
+                .map_or_else(String::new, |(_, i)| services::level_comment(i));
             w.empty(
                 "VarDeclaration",
-                &[("Name", p), ("Type", ty), ("Comment", "")],
+                &[("Name", p), ("Type", ty), ("Comment", &comment)],
             );
         }
         w.close();
@@ -285,7 +291,13 @@ pub fn write(spec: &FbSpec<'_>) -> Result<String, ExportError> {
             return Err(fail(format!("state `{}` is not an identifier", s.name)));
         }
         let (x, y) = place(si);
-        let comment = if si == 0 { "Initial State" } else { "" };
+        let comment = if si == 0 {
+            "Initial State"
+        } else if t.idle.as_ref() == Some(&s.name) {
+            services::IDLE
+        } else {
+            ""
+        };
         let mut actions: Vec<(Option<String>, Option<String>)> = Vec::new();
         let mut pending: Vec<String> = Vec::new();
         for (ai, a) in s.actions.iter().enumerate() {

@@ -10,12 +10,18 @@ use crate::ir::{ActionIr, ChartIr, RoleIr};
 use crate::model::{ActionDecl, ChartType, StateDecl, TransitionDecl, VarDecl};
 
 /// A lifted chart: its type, the type's name for each chart input (by index), the
-/// output name of each node event it emits, and the BOOL parameters (input levels).
+/// output name of each node event it emits, the BOOL parameters (input levels), each with
+/// the role input it reads, and its timers, each with the role's timer event.
 pub struct Lifted {
     pub ty: ChartType,
     pub inputs: Vec<String>,
     pub emits: Vec<(String, String)>,
     pub bools: Vec<String>,
+    /// (parameter, role input): the level a BOOL parameter reads.
+    pub levels: Vec<(String, String)>,
+    /// (the type's timer, the role's timer event it is): the charts of a role that start
+    /// one timer share it.
+    pub timers: Vec<(String, String)>,
 }
 
 /// A name not yet in `taken` (case-insensitive), from `base`.
@@ -214,7 +220,18 @@ pub fn lift(r: &RoleIr, ci: usize, name: &str) -> Lifted {
             init: r.vars.get(*v).map_or(0, |x| x.1).to_string(),
         })
         .collect();
+    let levels = (read_inputs.iter())
+        .filter_map(|(i, n)| Some((n.clone(), r.inputs.get(usize::from(*i))?.name.clone())))
+        .collect();
+    let timer_events = (own_timers.iter())
+        .filter_map(|t| {
+            let x = r.timers.get(*t)?;
+            Some((timer_name.get(*t)?.clone(), x.event.clone()))
+        })
+        .collect();
     Lifted {
+        levels,
+        timers: timer_events,
         ty: ChartType {
             name: name.to_string(),
             params: params.iter().map(|p| p.0.clone()).collect(),
@@ -224,6 +241,9 @@ pub fn lift(r: &RoleIr, ci: usize, name: &str) -> Lifted {
             timers,
             states,
             transitions,
+            idle: (c.idle != c.initial)
+                .then(|| state_names.get(c.idle).cloned())
+                .flatten(),
         },
         inputs: inputs_of,
         emits,

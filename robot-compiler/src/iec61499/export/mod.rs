@@ -46,6 +46,9 @@ pub struct Instance {
     pub services: Vec<String>,
     /// Whether its type was lifted from the IR (no chart type of the robot describes it).
     pub lifted: bool,
+    /// A lifted chart's timers, each with the role's timer event it is (each fed from
+    /// the role's IO block, so the charts that share it share it again on import).
+    pub timers: Vec<(String, String)>,
 }
 
 /// An exported robot: the files to write (name, text), and what they contain.
@@ -73,6 +76,7 @@ pub fn export(c: &Compiled, date: &str) -> Result<Export, ExportError> {
             ty: t,
             comment: format!("Chart type `{}` of robot {}", t.name, robot.name),
             bools: &[],
+            levels: &[],
             date,
         };
         files.push((format!("{}.fbt", t.name), fbt::write(&spec)?));
@@ -114,6 +118,7 @@ pub fn export(c: &Compiled, date: &str) -> Result<Export, ExportError> {
                         .collect(),
                     services: services_of(t),
                     lifted: false,
+                    timers: Vec::new(),
                 },
                 None => {
                     let mut name = fbt::identifier(&format!("{}_{}", r.name, chart.name));
@@ -132,6 +137,7 @@ pub fn export(c: &Compiled, date: &str) -> Result<Export, ExportError> {
                             chart.name, r.name, robot.name
                         ),
                         bools: &l.bools,
+                        levels: &l.levels,
                         date,
                     };
                     files.push((format!("{name}.fbt"), fbt::write(&spec)?));
@@ -147,6 +153,7 @@ pub fn export(c: &Compiled, date: &str) -> Result<Export, ExportError> {
                         emits: l.emits,
                         services,
                         lifted: true,
+                        timers: l.timers,
                     }
                 }
             };

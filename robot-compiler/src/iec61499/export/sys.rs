@@ -90,6 +90,24 @@ pub fn connections(c: &Compiled, instances: &[Instance]) -> (Vec<Connection>, Ve
                 }
             }
         }
+        // A lifted chart's timers: each fed from the role's IO block, the output of the
+        // role's timer event, so the import gives the charts sharing it one timer.
+        for (timer, event) in &inst.timers {
+            let destination = format!("{}.{timer}", inst.name);
+            if out.iter().any(|x| x.destination == destination) {
+                continue;
+            }
+            let n = identifier(event);
+            if !io[inst.role].0.iter().any(|(x, _)| *x == n) {
+                io[inst.role].0.push((n.clone(), event.clone()));
+            }
+            out.push(Connection {
+                from_role: inst.role,
+                source: format!("{}.{n}", io_name(c, inst.role)),
+                to_role: inst.role,
+                destination,
+            });
+        }
         for s in &inst.services {
             let n = format!("{}_{s}", inst.name);
             push(&mut io[inst.role].1, &n);
@@ -373,9 +391,15 @@ fn io_type(
         }
         w.open(list, &[]);
         for (n, event) in names {
+            // `boot` and `home` are node events unless an input has the name.
+            let input = (c.ir.roles[ri].inputs.iter()).any(|i| i.name == *event);
+            let comment = match input {
+                true => event.clone(),
+                false => services::io_comment(event),
+            };
             w.empty(
                 "Event",
-                &[("Name", n), ("Type", "Event"), ("Comment", event)],
+                &[("Name", n), ("Type", "Event"), ("Comment", &comment)],
             );
         }
         w.close();
