@@ -543,6 +543,26 @@ pub struct ChartInstance {
     /// brings them (the charts whose timer the role's `ROLE_IO` output feeds).
     #[serde(skip)]
     pub timers: BTreeMap<String, String>,
+    /// Further sources of an input besides its `on` one, in order (the `on` source
+    /// first): an input several events feed, each its own route. No robot file writes
+    /// them, an application brings them (the sources an `E_MERGE` chain joins).
+    #[serde(skip)]
+    pub more: BTreeMap<String, Vec<String>>,
+}
+
+impl ChartInstance {
+    /// Every (input, source) connection: per input of `on` (in its order), its `on`
+    /// source, then its further ones ([`ChartInstance::more`]).
+    pub fn sources(&self) -> Vec<(&str, &str)> {
+        let mut out = Vec::new();
+        for (key, source) in &self.on {
+            out.push((key.as_str(), source.as_str()));
+            for s in self.more.get(key).into_iter().flatten() {
+                out.push((key.as_str(), s.as_str()));
+            }
+        }
+        out
+    }
 }
 
 /// Parses a RON robot; a syntax or shape error becomes a diagnostic at ron's position.
