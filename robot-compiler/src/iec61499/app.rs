@@ -22,7 +22,7 @@ use super::io_fb::IoType;
 use super::net::{At, Fb, Network, SysError};
 use super::st::{self, Ty};
 use super::sys::{self, System};
-use crate::model::{ActionDecl, ApplicationDecl, ChartInstance, ChartType, Robot, Role};
+use crate::model::{ActionDecl, ApplicationDecl, ChartInstance, ChartType, PlacesVar, Robot, Role};
 
 /// The event FB library, written for this project in the 4diac style: a `.sys` may use
 /// these types without listing them in `fb_types`.
@@ -127,6 +127,7 @@ impl Types {
                         outputs: t.vars.iter().map(|v| v.name.clone()).collect(),
                         services: Vec::new(),
                         levels: Vec::new(),
+                        places: Vec::new(),
                     });
                 (t.clone(), i)
             })
@@ -172,6 +173,8 @@ pub struct Brought {
     /// The chart types the charts use that the robot does not have yet (library types,
     /// and per-instance copies where the robot file binds outputs or a delay is folded).
     pub chart_types: Vec<ChartType>,
+    /// The chart variables holding a control function's place ([`Interface::places`]).
+    pub places: Vec<PlacesVar>,
 }
 
 /// One basic FB after flattening: its full name (`comp.inner`), type, parameters and the
@@ -1037,6 +1040,7 @@ pub fn bring(
         }
     }
     let mut chart_types: Vec<ChartType> = Vec::new();
+    let mut place_vars: Vec<PlacesVar> = Vec::new();
     for l in flat.leaves.iter().filter(|l| l.ty != DELAY) {
         let Some((t, iface)) = types.basic(&l.ty).cloned() else {
             continue;
@@ -1170,6 +1174,14 @@ pub fn bring(
             chart_types.push(s);
             n
         };
+        for (var, function, names) in &iface.places {
+            place_vars.push(PlacesVar {
+                role: role.clone(),
+                function: function.clone(),
+                places: names.clone(),
+                var: format!("{}.{var}", l.name),
+            });
+        }
         if let Some(r) = roles.iter_mut().find(|r| r.name == role) {
             let timers = (shared_timers.iter())
                 .filter(|((fb, _), _)| *fb == l.name)
@@ -1211,6 +1223,7 @@ pub fn bring(
         roles,
         assign,
         chart_types,
+        places: place_vars,
     })
 }
 
