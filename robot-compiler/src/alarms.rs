@@ -19,7 +19,7 @@ use serde::Deserialize;
 use crate::diag::Diagnostic;
 use crate::expr::{self, Ast, Operand};
 use crate::ir::{ActionIr, ChartIr, InputIr, Ir, RoleIr, StateIr, TransitionIr};
-use crate::model::Robot;
+use crate::model::{PlacesVar, Robot};
 use crate::petri::{self, Net, Reads};
 use crate::source::Source;
 
@@ -173,7 +173,9 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
         let mut names = Vec::new();
         expr::names(&ast, &mut names);
         for name in names {
-            if petri::reads(&nets, &levels, &name).is_some() {
+            if petri::reads(&nets, &levels, &name).is_some()
+                || PlacesVar::read(&robot.places, role_name, &name).is_some()
+            {
                 continue;
             }
             // The name's own place inside the string (after its opening quote).
@@ -341,6 +343,7 @@ pub fn place(robot: &Robot, src: &Source, ir: &mut Ir) -> Result<(), Vec<Diagnos
                     }
                 }
             }
+            let ast = chart_places(&ast, &robot.places, &r.name);
             let ops = condition(&nets, &levels, &ast, r).map_err(|e| fail(at.clone(), e))?;
             r.safety
                 .alarms
@@ -348,6 +351,32 @@ pub fn place(robot: &Robot, src: &Source, ir: &mut Ir) -> Result<(), Vec<Diagnos
         }
     }
     Ok(())
+}
+
+/// A condition with each place of a function that is a chart (`F.P`, brought by an
+/// application: [`PlacesVar`]) read through the chart's variable: `VAR == column`.
+fn chart_places(ast: &Ast, vars: &[PlacesVar], role: &str) -> Ast {
+    use crate::expr::BinOp;
+    let again = |a: &Ast| Box::new(chart_places(a, vars, role));
+    match ast {
+        Ast::Name(n, span) => match PlacesVar::read(vars, role, n) {
+            Some((var, column)) => Ast::Bin(
+                BinOp::Eq,
+                Box::new(Ast::Name(var.to_string(), span.clone())),
+                Box::new(Ast::Int(column as i32)),
+            ),
+            None => ast.clone(),
+        },
+        Ast::Int(_) => ast.clone(),
+        Ast::Not(a) => Ast::Not(again(a)),
+        Ast::Neg(a) => Ast::Neg(again(a)),
+        Ast::Wrap { bits, signed, of } => Ast::Wrap {
+            bits: *bits,
+            signed: *signed,
+            of: again(of),
+        },
+        Ast::Bin(op, a, b) => Ast::Bin(*op, again(a), again(b)),
+    }
 }
 
 /// The bytecode of an alarm's condition on role `r`: places read through the role's

@@ -198,7 +198,7 @@ fn wanted(robot: &Robot, src: &Source, diags: &mut Vec<Diagnostic>) -> BTreeSet<
     let mut wanted = BTreeSet::new();
     for (ri, role) in robot.roles.iter().enumerate() {
         for (ci, c) in role.charts.iter().enumerate() {
-            for (key, source) in &c.on {
+            for (key, source) in c.sources() {
                 let (r, e) = split_source(source, &role.name);
                 let path = format!("roles[{ri}].charts[{ci}].on.{key}");
                 match robot.role(r) {
@@ -290,7 +290,7 @@ fn routes(
         let Some((_, t)) = robot.chart_type(&c.type_) else {
             continue;
         };
-        for (key, source) in &c.on {
+        for (key, source) in c.sources() {
             let Some(input) = t.inputs.iter().position(|i| i == key) else {
                 diags.push(
                     Diagnostic::error(

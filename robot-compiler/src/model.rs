@@ -112,6 +112,32 @@ pub struct Robot {
     /// What a link alarm does: `Stall` (default: the node keeps retrying) or `Fault`.
     #[serde(default)]
     pub on_link_alarm: crate::alarms::LinkAlarmPolicy,
+    /// Chart variables holding a control function's place, for the robot's conditions
+    /// naming its places (`F.P`) where the function is a chart: no robot file writes
+    /// them, an application brings them (docs/iec61499-xml.md, "Importing it back").
+    #[serde(skip)]
+    pub places: Vec<PlacesVar>,
+}
+
+/// A chart variable of a role holding function `function`'s place, by its column in
+/// `places`: `F.P` on that role reads `var == column of P`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PlacesVar {
+    pub role: String,
+    pub function: String,
+    pub places: Vec<String>,
+    /// The role's variable (`CHART.VAR`).
+    pub var: String,
+}
+
+impl PlacesVar {
+    /// The (variable, column) `name` (`F.P`) reads on role `role`, among `vars`.
+    pub fn read<'a>(vars: &'a [PlacesVar], role: &str, name: &str) -> Option<(&'a str, usize)> {
+        let (f, p) = name.split_once('.')?;
+        vars.iter()
+            .filter(|v| v.role == role && v.function == f)
+            .find_map(|v| Some((v.var.as_str(), v.places.iter().position(|x| x == p)?)))
+    }
 }
 
 /// An IEC 61499 application brought into the robot: the `.sys` file (relative to the
@@ -543,6 +569,26 @@ pub struct ChartInstance {
     /// brings them (the charts whose timer the role's `ROLE_IO` output feeds).
     #[serde(skip)]
     pub timers: BTreeMap<String, String>,
+    /// Further sources of an input besides its `on` one, in order (the `on` source
+    /// first): an input several events feed, each its own route. No robot file writes
+    /// them, an application brings them (the sources an `E_MERGE` chain joins).
+    #[serde(skip)]
+    pub more: BTreeMap<String, Vec<String>>,
+}
+
+impl ChartInstance {
+    /// Every (input, source) connection: per input of `on` (in its order), its `on`
+    /// source, then its further ones ([`ChartInstance::more`]).
+    pub fn sources(&self) -> Vec<(&str, &str)> {
+        let mut out = Vec::new();
+        for (key, source) in &self.on {
+            out.push((key.as_str(), source.as_str()));
+            for s in self.more.get(key).into_iter().flatten() {
+                out.push((key.as_str(), s.as_str()));
+            }
+        }
+        out
+    }
 }
 
 /// Parses a RON robot; a syntax or shape error becomes a diagnostic at ron's position.

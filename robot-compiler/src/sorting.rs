@@ -364,6 +364,7 @@ pub fn place(robot: &Robot, src: &Source, ir: &mut Ir) -> Result<(), Vec<Diagnos
         params: BTreeMap::new(),
         on: BTreeMap::new(),
         timers: BTreeMap::new(),
+        more: BTreeMap::new(),
     };
     let chart =
         crate::elab::instantiate(src, "sorting", role, &c, &t, &BTreeMap::new(), r, "sorting")?;

@@ -270,9 +270,11 @@ fn system(
     (fbs, conns, mapping, resources)
 }
 
-/// The exported system is the robot: an FB per chart (of its exported type) and a
-/// service FB per role, each mapped to the resource of its role on the device of the
-/// role's node; every chart input fed by as many connections as the robot routes to it.
+/// The exported system is the robot: an FB per chart (of its exported type), the
+/// E_MERGEs joining the sources of the inputs several events feed, and a service FB per
+/// role, each mapped to the resource of its role on the device of the role's node; every
+/// chart input fed by one connection, from as many sources (through the E_MERGEs) as the
+/// robot routes to it.
 /// The paper's charts: exactly the connections the paper draws, the cut ones as
 /// PUBLISH / SUBSCRIBE pairs on the resources.
 #[test]
@@ -287,11 +289,32 @@ fn the_system_has_the_robots_instances_connections_and_mapping() {
             .iter()
             .map(|i| (i.name.clone(), i.ty.clone()))
             .collect();
+        let merges: Vec<String> = (fbs.iter())
+            .filter(|(_, ty)| ty == "E_MERGE")
+            .map(|(n, _)| n.clone())
+            .collect();
+        want.extend(merges.iter().map(|m| (m.clone(), String::from("E_MERGE"))));
         for ri in 0..c.ir.roles.len() {
             let io = export::sys::io_name(&c, ri);
             want.push((io.clone(), io));
         }
         assert_eq!(fbs, want, "{}", path.display());
+        // The chart an E_MERGE's chain ends in.
+        let chart_of = |m: &str| -> Option<usize> {
+            let mut at = m.to_string();
+            for _ in 0..=merges.len() {
+                let (_, d) = conns.iter().find(|(s, _)| *s == format!("{at}.EO"))?;
+                let fb = d.split_once('.')?.0;
+                if !merges.iter().any(|x| x == fb) {
+                    return e.instances.iter().find(|i| i.name == fb).map(|i| i.role);
+                }
+                at = fb.to_string();
+            }
+            None
+        };
+        for m in &merges {
+            assert!(chart_of(m).is_some(), "{}: {m}", path.display());
+        }
         let mut want_mapping = Vec::new();
         let mut want_resources = Vec::new();
         for node in &c.robot.nodes {
@@ -307,6 +330,7 @@ fn the_system_has_the_robots_instances_connections_and_mapping() {
                 want_resources.push((node.name.replace('-', "_"), r.name.clone()));
                 for (name, _) in fbs.iter().filter(|(name, _)| {
                     e.instances.iter().any(|i| i.role == ri && &i.name == name)
+                        || (merges.contains(name) && chart_of(name) == Some(ri))
                         || *name == export::sys::io_name(&c, ri)
                 }) {
                     want_mapping.push((
@@ -327,7 +351,20 @@ fn the_system_has_the_robots_instances_connections_and_mapping() {
                     .filter(|(_, ch, x)| *ch == i.chart && *x == k)
                     .count();
                 let dest = format!("{}.{input}", i.name);
-                let fed = conns.iter().filter(|(_, d)| *d == dest).count();
+                let direct = conns.iter().filter(|(_, d)| *d == dest).count();
+                assert!(direct <= 1, "{}: {dest}", path.display());
+                fn sources(conns: &[(String, String)], merges: &[String], d: &str) -> usize {
+                    (conns.iter().filter(|(_, x)| x == d))
+                        .map(|(s, _)| match s.strip_suffix(".EO") {
+                            Some(m) if merges.iter().any(|x| x == m) => {
+                                sources(conns, merges, &format!("{m}.EI1"))
+                                    + sources(conns, merges, &format!("{m}.EI2"))
+                            }
+                            _ => 1,
+                        })
+                        .sum()
+                }
+                let fed = sources(&conns, &merges, &dest);
                 assert_eq!(fed, routed, "{}: {dest}", path.display());
             }
         }

@@ -381,6 +381,7 @@ fn place_one(
             params: inst.params(),
             on: BTreeMap::new(),
             timers: BTreeMap::new(),
+            more: BTreeMap::new(),
         };
         let bind = BTreeMap::from([(String::from("EOS"), eos_event(a))]);
         match crate::elab::instantiate(&fb_src, "", role, &c, &t, &bind, r, &at) {

@@ -20,7 +20,7 @@ pub fn check(robot: &Robot, _ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>) {
     let mut listened: Vec<(String, String)> = Vec::new();
     for (ri, role) in robot.roles.iter().enumerate() {
         for (ci, c) in role.charts.iter().enumerate() {
-            for (key, source) in &c.on {
+            for (key, source) in c.sources() {
                 let (r, e) = split_source(source, &role.name);
                 listened.push((r.to_string(), e.to_string()));
                 let Some((_, rr)) = robot.role(r) else {

@@ -22,7 +22,7 @@ use super::io_fb::IoType;
 use super::net::{At, Fb, Network, SysError};
 use super::st::{self, Ty};
 use super::sys::{self, System};
-use crate::model::{ActionDecl, ApplicationDecl, ChartInstance, ChartType, Robot, Role};
+use crate::model::{ActionDecl, ApplicationDecl, ChartInstance, ChartType, PlacesVar, Robot, Role};
 
 /// The event FB library, written for this project in the 4diac style: a `.sys` may use
 /// these types without listing them in `fb_types`.
@@ -127,6 +127,7 @@ impl Types {
                         outputs: t.vars.iter().map(|v| v.name.clone()).collect(),
                         services: Vec::new(),
                         levels: Vec::new(),
+                        places: Vec::new(),
                     });
                 (t.clone(), i)
             })
@@ -172,6 +173,8 @@ pub struct Brought {
     /// The chart types the charts use that the robot does not have yet (library types,
     /// and per-instance copies where the robot file binds outputs or a delay is folded).
     pub chart_types: Vec<ChartType>,
+    /// The chart variables holding a control function's place ([`Interface::places`]).
+    pub places: Vec<PlacesVar>,
 }
 
 /// One basic FB after flattening: its full name (`comp.inner`), type, parameters and the
@@ -480,6 +483,99 @@ impl Flat {
     }
 }
 
+/// The library's merge, folded where a chain of them feeds one input.
+const MERGE: &str = "E_MERGE";
+
+/// The E_MERGEs whose `EO` feeds one chart input and nothing else, folded (IEC 61499's
+/// way of giving an input several sources, as `export` writes it): each taken out of the
+/// leaves, its chain's edges replaced by an edge from each source it joins (through the
+/// E_MERGEs feeding its `EI1`, then `EI2`) to the input at the chain's end, where the
+/// chain's last edge was; and per such input, its sources in that order. Any other
+/// E_MERGE stays a chart.
+#[allow(clippy::type_complexity)]
+fn fold_merges(
+    edges: Vec<Edge>,
+    flat: &mut Flat,
+    types: &Types,
+) -> (Vec<Edge>, BTreeMap<(String, String), Vec<(String, String)>>) {
+    let merge_type = types.basic(MERGE).is_some_and(|(t, _)| {
+        t.inputs == ["EI1", "EI2"] && t.outputs == ["EO"] && t.params.is_empty()
+    });
+    let leaf = |fb: &str| flat.leaves.iter().find(|l| l.name == fb);
+    let into = |fb: &str, port: &str| {
+        (edges.iter())
+            .filter(|e| e.to.0 == fb && e.to.1 == port)
+            .count()
+    };
+    // A merge whose EO has one edge and each EI at most one.
+    let mut folded: BTreeSet<String> = (flat.leaves.iter())
+        .filter(|l| merge_type && l.ty == MERGE)
+        .filter(|l| {
+            let outs = edges.iter().filter(|e| e.from.0 == l.name).count();
+            outs == 1 && into(&l.name, "EI1") <= 1 && into(&l.name, "EI2") <= 1
+        })
+        .map(|l| l.name.clone())
+        .collect();
+    // Where a chain ends: a chart input (a loop or another FB: not folded).
+    let end = |start: &str, folded: &BTreeSet<String>| -> Option<(String, String)> {
+        let mut at = start.to_string();
+        for _ in 0..=folded.len() {
+            let e = edges.iter().find(|e| e.from.0 == at)?;
+            if !folded.contains(&e.to.0) {
+                return leaf(&e.to.0)
+                    .filter(|l| l.ty != DELAY)
+                    .map(|_| e.to.clone());
+            }
+            at = e.to.0.clone();
+        }
+        None
+    };
+    let ends: BTreeMap<String, (String, String)> = (folded.iter())
+        .filter_map(|m| Some((m.clone(), end(m, &folded)?)))
+        .collect();
+    folded.retain(|m| ends.contains_key(m));
+    fn sources(
+        m: &str,
+        edges: &[Edge],
+        folded: &BTreeSet<String>,
+        depth: usize,
+        out: &mut Vec<Edge>,
+    ) {
+        for port in ["EI1", "EI2"] {
+            for e in edges.iter().filter(|e| e.to.0 == m && e.to.1 == port) {
+                if folded.contains(&e.from.0) && depth > 0 {
+                    sources(&e.from.0, edges, folded, depth - 1, out);
+                } else {
+                    out.push(e.clone());
+                }
+            }
+        }
+    }
+    let mut joined: BTreeMap<(String, String), Vec<(String, String)>> = BTreeMap::new();
+    let mut out: Vec<Edge> = Vec::new();
+    for e in &edges {
+        let (from, to) = (folded.contains(&e.from.0), folded.contains(&e.to.0));
+        if from && !to {
+            // The chain's last edge: the sources it joins, in order.
+            let mut list = Vec::new();
+            sources(&e.from.0, &edges, &folded, folded.len(), &mut list);
+            let joins = joined.entry(e.to.clone()).or_default();
+            for s in list {
+                joins.push(s.from.clone());
+                out.push(Edge {
+                    from: s.from,
+                    to: e.to.clone(),
+                    at: s.at,
+                });
+            }
+        } else if !from && !to {
+            out.push(e.clone());
+        }
+    }
+    flat.leaves.retain(|l| !folded.contains(&l.name));
+    (out, joined)
+}
+
 /// An edge from a node services FB's output to a chart input, with the node event.
 type PlantEdge = (Edge, String);
 
@@ -756,6 +852,8 @@ pub fn bring(
     }
     let mut flat = Flat::default();
     flat.expand(types, &sys.net, None, None, None, &mut Vec::new())?;
+    let edges = flat.leaf_edges();
+    let (edges, joined) = fold_merges(edges, &mut flat, types);
     let role_of = |leaf: &str| -> String {
         (flat.leaves.iter())
             .find(|l| l.name == leaf)
@@ -765,12 +863,13 @@ pub fn bring(
             .cloned()
             .unwrap_or_default()
     };
-    let edges = flat.leaf_edges();
     let is_delay = |leaf: &str| flat.leaves.iter().any(|l| l.name == leaf && l.ty == DELAY);
-    // Fan-in: one source per event input.
+    // Fan-in: one source per event input, or the sources an E_MERGE chain joins.
     let mut fed: BTreeMap<(String, String), At> = BTreeMap::new();
     for e in &edges {
-        if fed.insert(e.to.clone(), e.at.clone()).is_some() {
+        let first = joined.get(&e.to).and_then(|s| s.first()) == Some(&e.from);
+        let several = joined.contains_key(&e.to) && !first;
+        if !several && fed.insert(e.to.clone(), e.at.clone()).is_some() {
             return Err(e
                 .at
                 .error(format!(
@@ -941,6 +1040,7 @@ pub fn bring(
         }
     }
     let mut chart_types: Vec<ChartType> = Vec::new();
+    let mut place_vars: Vec<PlacesVar> = Vec::new();
     for l in flat.leaves.iter().filter(|l| l.ty != DELAY) {
         let Some((t, iface)) = types.basic(&l.ty).cloned() else {
             continue;
@@ -986,20 +1086,50 @@ pub fn bring(
                 },
             );
         }
+        // An input an E_MERGE chain feeds: its sources in the chain's order, the first
+        // in `on`, the others its further sources.
+        let mut several: BTreeMap<String, Vec<(usize, String)>> = BTreeMap::new();
+        let rank = |e: &Edge| {
+            let list = joined.get(&e.to)?;
+            list.iter().position(|s| *s == e.from)
+        };
+        for (e, event) in plant_edges.iter().filter(|(e, _)| e.to.0 == l.name) {
+            if let Some(k) = rank(e) {
+                let from_role = role_of(&e.from.0);
+                let text = if from_role == role {
+                    event.clone()
+                } else {
+                    format!("{from_role}/{event}")
+                };
+                several.entry(e.to.1.clone()).or_default().push((k, text));
+            }
+        }
         for e in edges.iter().filter(|e| e.to.0 == l.name) {
             if is_delay(&e.from.0) {
                 continue;
             }
             let from_role = role_of(&e.from.0);
             let event = format!("{}.{}", e.from.0, e.from.1);
-            on.insert(
-                e.to.1.clone(),
-                if from_role == role {
-                    event
-                } else {
-                    format!("{from_role}/{event}")
-                },
-            );
+            let text = if from_role == role {
+                event
+            } else {
+                format!("{from_role}/{event}")
+            };
+            match rank(e) {
+                Some(k) => several.entry(e.to.1.clone()).or_default().push((k, text)),
+                None => {
+                    on.insert(e.to.1.clone(), text);
+                }
+            }
+        }
+        let mut more = BTreeMap::new();
+        for (input, mut list) in several {
+            list.sort_by_key(|x| x.0);
+            let mut texts = list.into_iter().map(|x| x.1);
+            if let Some(first) = texts.next() {
+                on.insert(input.clone(), first);
+            }
+            more.insert(input, texts.collect::<Vec<_>>());
         }
         let own_acts: Vec<(&String, &ActionDecl)> = acts
             .iter()
@@ -1044,6 +1174,14 @@ pub fn bring(
             chart_types.push(s);
             n
         };
+        for (var, function, names) in &iface.places {
+            place_vars.push(PlacesVar {
+                role: role.clone(),
+                function: function.clone(),
+                places: names.clone(),
+                var: format!("{}.{var}", l.name),
+            });
+        }
         if let Some(r) = roles.iter_mut().find(|r| r.name == role) {
             let timers = (shared_timers.iter())
                 .filter(|((fb, _), _)| *fb == l.name)
@@ -1055,6 +1193,7 @@ pub fn bring(
                 params,
                 on,
                 timers,
+                more,
             });
         }
     }
@@ -1084,6 +1223,7 @@ pub fn bring(
         roles,
         assign,
         chart_types,
+        places: place_vars,
     })
 }
 

@@ -99,6 +99,8 @@ struct Var {
     init: Option<String>,
     /// The role input whose level it reads, by its `Comment` (in a marked type only).
     level: Option<String>,
+    /// The function and places it holds, by its `Comment` (in a marked type only).
+    places: Option<(String, Vec<String>)>,
 }
 
 /// The typed interface of an imported basic FB type, beyond its chart type: what an
@@ -118,6 +120,10 @@ pub struct Interface {
     /// the level of one of their role's inputs (`Comment="level of VC.home"`,
     /// [`bind_levels`]).
     pub levels: Vec<(String, String)>,
+    /// (variable, function, its places in column order): the variables of a marked type
+    /// that hold a control function's place (`Comment="places of F: A B"`), which the
+    /// robot's alarms read as `F.A` again.
+    pub places: Vec<(String, String, Vec<String>)>,
 }
 
 /// A marked type's input variables that read their role's input levels
@@ -258,11 +264,13 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
                 .and_then(super::services::level_of)
                 .filter(|_| ty == Ty::Bool)
                 .map(str::to_string);
+            let places = (v.attribute("Comment")).and_then(super::services::places_of);
             out.push(Var {
                 name: vname,
                 ty,
                 init,
                 level,
+                places,
             });
         }
         Ok(out)
@@ -475,6 +483,13 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
         levels: (inputs.iter())
             .filter(|_| marked)
             .filter_map(|v| Some((v.name.clone(), v.level.clone()?)))
+            .collect(),
+        places: (outputs.iter().chain(internal.iter()))
+            .filter(|_| marked)
+            .filter_map(|v| {
+                let (f, places) = v.places.clone()?;
+                Some((v.name.clone(), f, places))
+            })
             .collect(),
     };
     let chart = ChartType {

@@ -124,6 +124,7 @@ fn application(
             robot.roles = b.roles;
             robot.assign = b.assign;
             robot.chart_types.extend(b.chart_types);
+            robot.places = b.places;
             None
         }
         Err(app::AppError::Xml(e)) => Some(xml(e)),

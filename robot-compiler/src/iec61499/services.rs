@@ -21,6 +21,12 @@ pub const IO_MARK: &str = "ecc-nodes services";
 /// its guards, and the import reads the input again instead of a parameter.
 const LEVEL: &str = "level of ";
 
+/// The `Comment` prefix of a marked type's internal variable that holds a control
+/// function's place, by its column (`places of Pusher: Stopped Clockwise
+/// CounterClockwise`): the robot's own conditions (alarms) read the function's places
+/// (`Pusher.Stopped`) through it again once the function is a lifted chart.
+const PLACES: &str = "places of ";
+
 /// The `Comment` prefix of a `ROLE_IO` event output that is a node event of its own, no
 /// pin or timer (`node event boot`): [`NODE_EVENTS`].
 const NODE_EVENT: &str = "node event ";
@@ -42,6 +48,21 @@ pub fn level_comment(input: &str) -> String {
 /// The role input whose level a marked type's input variable reads, from its `Comment`.
 pub fn level_of(comment: &str) -> Option<&str> {
     comment.trim().strip_prefix(LEVEL).filter(|i| !i.is_empty())
+}
+
+/// The `Comment` of a variable holding function `function`'s place, of `places` in
+/// column order.
+pub fn places_comment(function: &str, places: &[String]) -> String {
+    format!("{PLACES}{function}: {}", places.join(" "))
+}
+
+/// The function and its places (in column order) a marked type's variable holds, from
+/// its `Comment`.
+pub fn places_of(comment: &str) -> Option<(String, Vec<String>)> {
+    let (f, places) = comment.trim().strip_prefix(PLACES)?.split_once(':')?;
+    let places: Vec<String> = places.split_whitespace().map(str::to_string).collect();
+    let f = f.trim();
+    (!f.is_empty() && !places.is_empty()).then(|| (f.to_string(), places))
 }
 
 /// The `Comment` of a `ROLE_IO` event output standing for node event `event`: the event
@@ -173,5 +194,21 @@ mod tests {
         assert_eq!(io_event("VC.home"), ("VC.home", false));
         assert_eq!(io_event("home"), ("home", false), "an input named `home`");
         assert_eq!(io_event("node event x"), ("node event x", false));
+    }
+
+    /// A function's places go to a variable's comment and back.
+    #[test]
+    fn places_round_trip() {
+        use super::{places_comment, places_of};
+        let places = vec![String::from("Ok"), String::from("Faulted")];
+        let c = places_comment("FaultDetection", &places);
+        assert_eq!(c, "places of FaultDetection: Ok Faulted");
+        assert_eq!(
+            places_of(&c),
+            Some((String::from("FaultDetection"), places))
+        );
+        assert_eq!(places_of("places of F:"), None);
+        assert_eq!(places_of("places of : A"), None);
+        assert_eq!(places_of("the places"), None);
     }
 }

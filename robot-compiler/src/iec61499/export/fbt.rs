@@ -23,6 +23,9 @@ pub struct FbSpec<'a> {
     /// (parameter, role input): the BOOL parameters that read a role input's level, each
     /// written with its `Comment` ([`services::level_comment`]).
     pub levels: &'a [(String, String)],
+    /// (variable, comment): the variables holding a control function's place, each
+    /// written with its `Comment` ([`services::places_comment`]).
+    pub places: &'a [(String, String)],
     /// The `VersionInfo` date (`YYYY-MM-DD`).
     pub date: &'a str,
 }
@@ -272,13 +275,16 @@ pub fn write(spec: &FbSpec<'_>) -> Result<String, ExportError> {
                         v.name, v.init
                     ))
                 })?;
+            let comment = (spec.places.iter())
+                .find(|(n, _)| *n == v.name)
+                .map_or("", |(_, c)| c.as_str());
             w.empty(
                 "VarDeclaration",
                 &[
                     ("Name", &v.name),
                     ("Type", "DINT"),
                     ("InitialValue", &init.to_string()),
-                    ("Comment", ""),
+                    ("Comment", comment),
                 ],
             );
         }

@@ -22,6 +22,8 @@ pub struct Lifted {
     /// (the type's timer, the role's timer event it is): the charts of a role that start
     /// one timer share it.
     pub timers: Vec<(String, String)>,
+    /// (the type's variable, the role's variable it is), of its own variables.
+    pub vars: Vec<(String, String)>,
 }
 
 /// A name not yet in `taken` (case-insensitive), from `base`.
@@ -229,7 +231,11 @@ pub fn lift(r: &RoleIr, ci: usize, name: &str) -> Lifted {
             Some((timer_name.get(*t)?.clone(), x.event.clone()))
         })
         .collect();
+    let role_vars = (own_vars.iter().zip(&var_names))
+        .filter_map(|(v, n)| Some((n.clone(), r.vars.get(*v)?.0.clone())))
+        .collect();
     Lifted {
+        vars: role_vars,
         levels,
         timers: timer_events,
         ty: ChartType {

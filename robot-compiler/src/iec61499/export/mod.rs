@@ -77,6 +77,7 @@ pub fn export(c: &Compiled, date: &str) -> Result<Export, ExportError> {
             comment: format!("Chart type `{}` of robot {}", t.name, robot.name),
             bools: &[],
             levels: &[],
+            places: &[],
             date,
         };
         files.push((format!("{}.fbt", t.name), fbt::write(&spec)?));
@@ -130,6 +131,7 @@ pub fn export(c: &Compiled, date: &str) -> Result<Export, ExportError> {
                     }
                     taken.push(name.to_ascii_uppercase());
                     let l = lift::lift(r, ci, &name);
+                    let places = places_vars(c, &l.vars);
                     let spec = fbt::FbSpec {
                         ty: &l.ty,
                         comment: format!(
@@ -138,6 +140,7 @@ pub fn export(c: &Compiled, date: &str) -> Result<Export, ExportError> {
                         ),
                         bools: &l.bools,
                         levels: &l.levels,
+                        places: &places,
                         date,
                     };
                     files.push((format!("{name}.fbt"), fbt::write(&spec)?));
@@ -168,6 +171,25 @@ pub fn export(c: &Compiled, date: &str) -> Result<Export, ExportError> {
         types,
         instances,
     })
+}
+
+/// (variable, comment) of each of `vars` (a lifted type's variable, the role's) that
+/// holds a control function's place (`F.state`): the function and its places.
+fn places_vars(c: &Compiled, vars: &[(String, String)]) -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    for (v, role_var) in vars {
+        let f = c
+            .robot
+            .functions
+            .iter()
+            .find(|f| crate::petri::compile::state_var(&f.name) == *role_var);
+        if let Some(f) = f {
+            let places = f.matrix.as_ref().map_or(&f.places, |m| &m.places);
+            let comment = crate::iec61499::services::places_comment(&f.name, places);
+            out.push((v.clone(), comment));
+        }
+    }
+    out
 }
 
 /// The service output events of a chart type (after its own outputs).

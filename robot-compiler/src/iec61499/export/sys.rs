@@ -38,9 +38,20 @@ pub fn io_name(c: &Compiled, ri: usize) -> String {
 /// inputs.
 pub type IoEvents = (Vec<(String, String)>, Vec<String>);
 
-/// Every connection of the application, and per role the service FB's event outputs and
-/// inputs (in order of first use).
-pub fn connections(c: &Compiled, instances: &[Instance]) -> (Vec<Connection>, Vec<IoEvents>) {
+/// The type of the FBs joining the sources of a chart input fed by several events.
+pub const MERGE: &str = "E_MERGE";
+
+/// An `E_MERGE` of the application (its name, its role), joining two sources of one
+/// chart input.
+pub type Merge = (String, usize);
+
+/// Every connection of the application, the `E_MERGE`s joining the sources of each chart
+/// input that several events feed ([`merged`]), and per role the service FB's event
+/// outputs and inputs (in order of first use).
+pub fn connections(
+    c: &Compiled,
+    instances: &[Instance],
+) -> (Vec<Connection>, Vec<Merge>, Vec<IoEvents>) {
     let mut io: Vec<IoEvents> = vec![(Vec::new(), Vec::new()); c.ir.roles.len()];
     let mut out = Vec::new();
     let push = |v: &mut Vec<String>, n: &str| {
@@ -119,12 +130,67 @@ pub fn connections(c: &Compiled, instances: &[Instance]) -> (Vec<Connection>, Ve
             });
         }
     }
-    (out, io)
+    let taken: Vec<String> = (instances.iter().map(|i| i.name.clone()))
+        .chain((0..c.ir.roles.len()).map(|ri| io_name(c, ri)))
+        .collect();
+    let (out, merges) = merged(out, taken);
+    (out, merges, io)
+}
+
+/// The connections with each input that several sources feed fed by a chain of
+/// `E_MERGE`s on the input's resource instead, as IEC 61499 has it (an event input has
+/// one source): the first joins the first two sources (`EI1`, `EI2`), each next one the
+/// chain so far (`EI1`) and the next source (`EI2`), the last's `EO` feeds the input.
+/// The import folds the chain back into the input's sources, in this order (the order of
+/// the role's routes). `taken`: the FB names already used.
+fn merged(conns: Vec<Connection>, mut taken: Vec<String>) -> (Vec<Connection>, Vec<Merge>) {
+    let mut out: Vec<Connection> = Vec::new();
+    let mut merges = Vec::new();
+    for conn in &conns {
+        let sources: Vec<&Connection> = (conns.iter())
+            .filter(|x| x.destination == conn.destination)
+            .collect();
+        if sources.len() < 2 {
+            out.push(conn.clone());
+            continue;
+        }
+        if !std::ptr::eq(sources[0], conn) {
+            continue;
+        }
+        let role = conn.to_role;
+        let mut fed = sources[0].clone();
+        for s in &sources[1..] {
+            let base = identifier(&format!("{}_MERGE", conn.destination));
+            let mut name = base.clone();
+            let mut k = 2;
+            while taken.iter().any(|n| n.eq_ignore_ascii_case(&name)) {
+                name = format!("{base}_{k}");
+                k += 1;
+            }
+            taken.push(name.clone());
+            for (input, from) in [("EI1", &fed), ("EI2", *s)] {
+                out.push(Connection {
+                    destination: format!("{name}.{input}"),
+                    to_role: role,
+                    ..from.clone()
+                });
+            }
+            fed = Connection {
+                from_role: role,
+                source: format!("{name}.EO"),
+                to_role: role,
+                destination: conn.destination.clone(),
+            };
+            merges.push((name, role));
+        }
+        out.push(fed);
+    }
+    (out, merges)
 }
 
 /// The service FB types (`<ROLE>_IO.fbt`, an interface only) and the `.sys` text.
 pub fn write(c: &Compiled, instances: &[Instance], date: &str) -> (Vec<(String, String)>, String) {
-    let (conns, io) = connections(c, instances);
+    let (conns, merges, io) = connections(c, instances);
     let mut files = Vec::new();
     for (ri, (outs, ins)) in io.iter().enumerate() {
         files.push((
@@ -142,7 +208,7 @@ pub fn write(c: &Compiled, instances: &[Instance], date: &str) -> (Vec<(String, 
     version(&mut w, date);
     w.open("Application", &[("Name", &app), ("Comment", "")]);
     w.open("SubAppNetwork", &[]);
-    let fbs = fb_list(c, instances);
+    let fbs = fb_list(c, instances, &merges);
     for (i, (name, ty, params, _)) in fbs.iter().enumerate() {
         fb(&mut w, name, ty, params, i);
     }
@@ -282,11 +348,13 @@ pub fn write(c: &Compiled, instances: &[Instance], date: &str) -> (Vec<(String, 
     (files, w.finish())
 }
 
-/// The application's FBs: (name, type, parameters, role), charts then service FBs.
+/// The application's FBs: (name, type, parameters, role), charts, the `E_MERGE`s, then
+/// service FBs.
 #[allow(clippy::type_complexity)]
 fn fb_list(
     c: &Compiled,
     instances: &[Instance],
+    merges: &[Merge],
 ) -> Vec<(String, String, Vec<(String, String)>, usize)> {
     let mut out: Vec<_> = instances
         .iter()
@@ -299,6 +367,9 @@ fn fb_list(
             (i.name.clone(), i.ty.clone(), params, i.role)
         })
         .collect();
+    for (name, ri) in merges {
+        out.push((name.clone(), String::from(MERGE), Vec::new(), *ri));
+    }
     for ri in 0..c.ir.roles.len() {
         out.push((io_name(c, ri), io_name(c, ri), Vec::new(), ri));
     }
