@@ -404,6 +404,7 @@ impl<'t> Engine<'t> {
 
     /// Delivers chart input `input` to `chart` and runs its event-less transitions until it
     /// is stable.
+    #[inline]
     fn deliver(&mut self, chart: u8, input: u8, fx: &mut impl Effects) {
         match self.select(chart, Some(input)) {
             Ok(Some(t)) => self.fire(chart, t, fx),
@@ -445,6 +446,7 @@ impl<'t> Engine<'t> {
     /// The first transition of `chart`, in declaration order, leaving the current state
     /// whose trigger matches (`None`: event-less only) and whose guard holds. A guard that
     /// cannot be evaluated (only in a table that skipped validation) is a fault.
+    #[inline]
     fn select(&self, chart: u8, input: Option<u8>) -> Result<Option<usize>, Fault> {
         let table = self.table;
         let Some(state) = self.current_state(chart) else {
@@ -470,6 +472,7 @@ impl<'t> Engine<'t> {
         Ok(None)
     }
 
+    #[inline]
     fn eval(&self, expr: Expr) -> Option<i32> {
         let inputs = self.inputs;
         guard::eval(
@@ -479,6 +482,7 @@ impl<'t> Engine<'t> {
         )
     }
 
+    #[inline]
     fn fire(&mut self, chart: u8, transition: usize, fx: &mut impl Effects) {
         let table = self.table;
         let Some(t) = table.transitions.get(transition) else {
@@ -501,6 +505,7 @@ impl<'t> Engine<'t> {
         }
     }
 
+    #[inline]
     fn act(&mut self, chart: u8, action: Action, fx: &mut impl Effects) {
         match action {
             Action::Set { var, expr } => match self.eval(expr) {
