@@ -83,6 +83,37 @@ awk -v s="$secured" -v u="$unsecured" 'BEGIN {
     printf "%-11s target: < 8 KiB added: %s\n", "", (d < 8 * 1024 ? "met" : "MISSED")
 }'
 
+# Panic locations carry their source file's path, those of the checkout's own crates with
+# the checkout's directory in it. The figure above is independent of where the checkout
+# lives only if both images name the same checkout files (each path is stored once per
+# image); a file named by one image only moves the figure with the directory's length.
+OBJCOPY=""
+for c in "$(dirname "$(command -v "$SIZE" || echo "$SIZE")")/llvm-objcopy" llvm-objcopy; do
+    if command -v "$c" >/dev/null; then OBJCOPY="$c"; break; fi
+done
+# checkout files named in the read-only data of ELF $1, one a line
+checkout_paths() {
+    local ro
+    ro="$(mktemp)"
+    "$OBJCOPY" -O binary --only-section=.rodata "$1" "$ro"
+    tr -c '[:print:]' '\n' <"$ro" | awk -v root="$PWD/" '{
+            while ((i = index($0, root)) > 0) {
+                $0 = substr($0, i + length(root))
+                if (match($0, /^([A-Za-z0-9_-]+\/)*[A-Za-z0-9_-]+\.rs/)) print substr($0, 1, RLENGTH)
+            }
+        }' | sort -u
+    rm -f "$ro"
+}
+if [ -n "$OBJCOPY" ]; then
+    only="$(comm -3 <(checkout_paths "$NRF_ELF") <(checkout_paths "$NRF_UNSECURED_ELF") |
+        tr -d '\t' | tr '\n' ' ')"
+    if [ -z "$only" ]; then
+        echo "            both images name the same checkout files: the figure does not depend on the checkout's path"
+    else
+        echo "            DEPENDS ON THE CHECKOUT'S PATH: named by one image only: $only"
+    fi
+fi
+
 echo
 echo "largest static RAM objects (nrf52840)"
 nm -S --size-sort -C -t d "$NRF_ELF" 2>/dev/null | awk '$3 ~ /^[bBdD]$/' | tail -n 4 |

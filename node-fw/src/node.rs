@@ -197,7 +197,7 @@ impl Radio<'_> {
         counter: Option<u32>,
     ) {
         let mut payload = [0u8; mac::MAX_PAYLOAD];
-        let Ok(n) = msg.emit(&mut payload) else {
+        let Some(payload) = msg.emit(&mut payload).ok().and_then(|n| payload.get(..n)) else {
             return;
         };
         let header = Header {
@@ -235,13 +235,13 @@ impl Radio<'_> {
                         &AuxRepr::new(index, counter),
                         &key,
                         ext_addr(pan_id, self.addr),
-                        &payload[..n],
+                        payload,
                         &mut psdu,
                     )
                     .ok()
                 })
             }
-            None => mac::emit_data(&header, &payload[..n], &mut psdu).ok(),
+            None => mac::emit_data(&header, payload, &mut psdu).ok(),
         };
         if let Some(len) = emitted {
             self.counters.sent += 1;

@@ -210,7 +210,7 @@ impl Receiver {
                     && data.len() == t.chunk_len(index)
                 {
                     if let Some(dst) = self.staging.get_mut(offset..offset + data.len()) {
-                        dst.copy_from_slice(data);
+                        copy(dst, data);
                         t.have |= 1 << index;
                         t.update_received();
                     }
@@ -488,4 +488,13 @@ impl<'b> Sender<'b> {
     pub fn deadline(&self) -> u64 {
         self.deadline
     }
+}
+
+/// `dst = src` (as long: the caller sliced `dst` to `src`'s length). A loop of its own, not
+/// `copy_from_slice`: where the optimizer leaves that out of line its panic location (this
+/// file's path) stays in the image, in the secured image and not the unsecured one, and
+/// what security costs would move with the checkout's path (bench/footprint.sh).
+#[inline(never)]
+fn copy(dst: &mut [u8], src: &[u8]) {
+    dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
 }

@@ -179,13 +179,16 @@ pub fn emit_data(header: &Header, payload: &[u8], buf: &mut [u8]) -> Result<usiz
         return Err(FrameError::NoRoom);
     }
     emit_data_header(header, buf)?;
-    buf[DATA_HEADER_LEN..body_len].copy_from_slice(payload);
+    let body = buf.get_mut(DATA_HEADER_LEN..body_len);
+    super::copy(body.ok_or(FrameError::NoRoom)?, payload).ok_or(FrameError::NoRoom)?;
     finish(buf, body_len)
 }
 
 /// Writes the [`DATA_HEADER_LEN`] bytes of a data frame's MAC header into `buf`.
 pub(crate) fn emit_data_header(header: &Header, buf: &mut [u8]) -> Result<(), FrameError> {
-    let buf = buf.get_mut(..DATA_HEADER_LEN).ok_or(FrameError::NoRoom)?;
+    let buf = buf
+        .first_chunk_mut::<DATA_HEADER_LEN>()
+        .ok_or(FrameError::NoRoom)?;
     let mut fc = TYPE_DATA
         | FC_PAN_COMPRESSION
         | (ADDR_SHORT << 10)
@@ -197,11 +200,12 @@ pub(crate) fn emit_data_header(header: &Header, buf: &mut [u8]) -> Result<(), Fr
     if header.secured {
         fc |= FC_SECURITY;
     }
-    buf[0..2].copy_from_slice(&fc.to_le_bytes());
-    buf[2] = header.seq;
-    buf[3..5].copy_from_slice(&header.pan_id.to_le_bytes());
-    buf[5..7].copy_from_slice(&header.dst.to_le_bytes());
-    buf[7..9].copy_from_slice(&header.src.to_le_bytes());
+    // Put together from its fields, no slice copies (no panic locations).
+    let [f0, f1] = fc.to_le_bytes();
+    let [p0, p1] = header.pan_id.to_le_bytes();
+    let [d0, d1] = header.dst.to_le_bytes();
+    let [s0, s1] = header.src.to_le_bytes();
+    *buf = [f0, f1, header.seq, p0, p1, d0, d1, s0, s1];
     Ok(())
 }
 

@@ -11,3 +11,14 @@ pub mod mac;
 pub mod medium;
 pub mod msg;
 pub mod security;
+
+/// `dst = src` if they are as long (else `None`, nothing copied). Not `copy_from_slice`:
+/// where the optimizer leaves that out of line, its panic location (the caller's source
+/// path) stays in a firmware image, whose size then depends on where the checkout lives.
+pub(crate) fn copy(dst: &mut [u8], src: &[u8]) -> Option<()> {
+    if dst.len() != src.len() {
+        return None;
+    }
+    dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
+    Some(())
+}

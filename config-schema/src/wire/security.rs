@@ -40,6 +40,7 @@ use block::OneBlock;
 pub use block::{fips197, BlockCipher, CipherFault, SoftAes, BLOCK_LEN};
 use star::Direction;
 
+use super::copy;
 use super::mac::{self, Frame, FrameError, Header, DATA_HEADER_LEN, FCS_LEN, MAX_PSDU};
 
 /// AES-128 key length.
@@ -333,12 +334,12 @@ impl AuxRepr {
             1 => KeyId::Index(index),
             2 => {
                 let mut s = [0u8; 4];
-                s.copy_from_slice(source);
+                copy(&mut s, source);
                 KeyId::Source4 { source: s, index }
             }
             _ => {
                 let mut s = [0u8; 8];
-                s.copy_from_slice(source);
+                copy(&mut s, source);
                 KeyId::Source8 { source: s, index }
             }
         };
@@ -358,7 +359,9 @@ impl AuxRepr {
     pub fn emit(&self, buf: &mut [u8]) -> Result<usize, SecError> {
         let len = self.buffer_len();
         let buf = buf.get_mut(..len).ok_or(SecError::NoRoom)?;
-        let (head, id) = buf.split_at_mut(field::KEY_ID.min(len));
+        let (head, id) = buf
+            .split_at_mut_checked(field::KEY_ID)
+            .ok_or(SecError::NoRoom)?;
         let control = self.level.bits() | (self.key_id.mode() << CONTROL_KEY_ID_MODE_SHIFT);
         let counter = self.frame_counter.to_le_bytes();
         match head {
@@ -390,10 +393,7 @@ fn emit_key_id(id: &mut [u8], source: &[u8], index: u8) -> Result<(), SecError> 
         .split_last_mut()
         .map(|(last, src)| (src, last))
         .ok_or(SecError::NoRoom)?;
-    if src.len() != source.len() {
-        return Err(SecError::NoRoom);
-    }
-    src.copy_from_slice(source);
+    copy(src, source).ok_or(SecError::NoRoom)?;
     *last = index;
     Ok(())
 }
@@ -477,8 +477,10 @@ fn split_a_m(body: &mut [u8], a_len: usize, level: SecurityLevel) -> (&[u8], &mu
     } else {
         body.len()
     };
-    let (a, m) = body.split_at_mut(at);
-    (a, m)
+    match body.split_at_mut_checked(at) {
+        Some((a, m)) => (a, m),
+        None => (&[], &mut []),
+    }
 }
 
 /// CCM* forward transformation: authenticates `a` and `m`, encrypts `m` in place (empty
@@ -664,10 +666,12 @@ fn secure_by(
     };
     mac::emit_data_header(&header, out)?;
     aux.emit(out.get_mut(DATA_HEADER_LEN..).ok_or(SecError::NoRoom)?)?;
-    out.get_mut(a_len..body_len)
-        .ok_or(SecError::NoRoom)?
-        .copy_from_slice(payload);
-    let (body, rest) = out.split_at_mut(body_len);
+    copy(
+        out.get_mut(a_len..body_len).ok_or(SecError::NoRoom)?,
+        payload,
+    )
+    .ok_or(SecError::NoRoom)?;
+    let (body, rest) = out.split_at_mut_checked(body_len).ok_or(SecError::NoRoom)?;
     let mic = rest.get_mut(..mic_len).ok_or(SecError::NoRoom)?;
     let nonce = nonce(&src_ext, aux.frame_counter, aux.level);
     let (a, m) = split_a_m(body, a_len, aux.level);
@@ -784,14 +788,14 @@ where
     let nonce = nonce(&src_ext, aux.frame_counter, aux.level);
     if aux.level.encrypts() {
         // a: header || aux, from the PSDU; m: the payload, decrypted in the scratch.
-        out.copy_from_slice(payload);
+        copy(out, payload).ok_or(SecError::Malformed)?;
         let a = psdu.get(..a_len).ok_or(SecError::Malformed)?;
         unseal(&key, &nonce, aux.level, a, out, mic)?;
     } else {
         // a: header || aux || payload; the payload is handed out only once authentic.
         let a = psdu.get(..body_len).ok_or(SecError::Malformed)?;
         unseal(&key, &nonce, aux.level, a, &mut [], mic)?;
-        out.copy_from_slice(payload);
+        copy(out, payload).ok_or(SecError::Malformed)?;
     }
     Ok(Opened {
         header,
