@@ -303,8 +303,13 @@ fn run_with(
     stop: Arc<AtomicBool>,
 ) -> io::Result<()> {
     let names: Vec<String> = actuators.iter().map(|a| a.name.clone()).collect();
-    let start = Instant::now();
-    let ms = |t: Instant| t.duration_since(start).as_millis() as u64;
+    // Motions are timed on the medium's clock, from its stamp of the valve change (`at_us`),
+    // in microseconds: not from when this process got round to the change, nor rounded to
+    // a millisecond. Where the medium's zero is on this process's clock is estimated from
+    // below, as the earliest any stamped message could have been sent: the least of
+    // (received - stamp) over every one heard (a stamp is never after its receipt; the
+    // least is off by the shortest relay, tens of microseconds).
+    let mut medium_zero: Option<Instant> = None;
     let mut states: Vec<State> = actuators.iter().map(|_| rest()).collect();
     let mut outputs: HashMap<(u16, u8), bool> = HashMap::new();
     // The generation each node says it runs.
@@ -383,6 +388,10 @@ fn run_with(
             Err(e) => return Err(e),
         };
         let (at_us, addr, pin, level) = seen;
+        let heard_at = Instant::now();
+        if let Some(zero) = heard_at.checked_sub(Duration::from_micros(at_us)) {
+            medium_zero = Some(medium_zero.map_or(zero, |z| z.min(zero)));
+        }
         if let Some(m) = motors.as_mut() {
             m.output(&mut conn, addr, pin, level, at_us)?;
         }
@@ -415,8 +424,8 @@ fn run_with(
                 }
                 continue;
             }
-            let now = Instant::now();
-            let outcome = s.rod.command(ms(now), extend, a.travel_ms);
+            let us = (a.travel_ms.0 * 1000, a.travel_ms.1 * 1000);
+            let outcome = s.rod.command(at_us, extend, us);
             let arrive = match outcome {
                 RodOutcome::Nothing => continue,
                 RodOutcome::Left { arrive, .. } | RodOutcome::Reversed { arrive } => arrive,
@@ -434,7 +443,10 @@ fn run_with(
             if let RodOutcome::Left { .. } = outcome {
                 send_switches(&mut conn, a, s)?;
             }
-            s.arrival = Some(start + Duration::from_millis(arrive));
+            s.arrival = Some(match medium_zero {
+                Some(zero) => zero + Duration::from_micros(arrive),
+                None => heard_at + Duration::from_micros(arrive.saturating_sub(at_us)),
+            });
         }
         inject(&mut states, seen_steps);
     }
