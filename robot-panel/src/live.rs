@@ -590,6 +590,7 @@ mod tests {
         l.pin(&m, 0, a.addr, a.home.unwrap(), true, false);
         l.pin(&m, 1000, a.addr, a.valves.0, true, true);
         assert_eq!(l.lanes[hc].position, Position::Moving);
+        assert_eq!(l.pin_us, Some(1000));
         l.tick(&m, 800_000);
         assert!(!l.lanes[hc].late);
         l.tick(&m, 801_001);
