@@ -86,6 +86,9 @@ pub struct Live {
     pub nodes: Vec<NodeLive>,
     /// The medium's clock as last heard (µs).
     pub now_us: u64,
+    /// The medium's stamp of the last pin change applied (µs): a page, or the latency
+    /// bench, tells from it which pin changes a state carries.
+    pub pin_us: Option<u64>,
     /// The medium went away (why), or the tool's radio failed on it.
     pub medium_lost: Option<String>,
     /// START runs cycles until STOP: START is pressed again at each idle point.
@@ -159,6 +162,7 @@ impl Live {
     /// (`output`) or a switch the plant set.
     pub fn pin(&mut self, m: &Machine, at_us: u64, addr: u16, pin: u8, level: bool, output: bool) {
         self.now_us = self.now_us.max(at_us);
+        self.pin_us = Some(self.pin_us.map_or(at_us, |p| p.max(at_us)));
         let was = self.pins.insert((addr, pin, output), level);
         if !output {
             self.station_pin(m, addr, pin, level, was);
@@ -586,6 +590,7 @@ mod tests {
         l.pin(&m, 0, a.addr, a.home.unwrap(), true, false);
         l.pin(&m, 1000, a.addr, a.valves.0, true, true);
         assert_eq!(l.lanes[hc].position, Position::Moving);
+        assert_eq!(l.pin_us, Some(1000));
         l.tick(&m, 800_000);
         assert!(!l.lanes[hc].late);
         l.tick(&m, 801_001);

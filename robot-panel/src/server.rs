@@ -54,6 +54,13 @@ impl Listener {
         let addr = listener
             .local_addr()
             .map_err(|source| PanelError::Listen { addr, source })?;
+        // Each server-sent event is one small write, often while the page has not yet
+        // acknowledged the one before: with Nagle's algorithm it would wait for that
+        // acknowledgement (the page's delayed ACK, 40 ms on Linux). The connections
+        // accepted inherit the option from the listener (Linux, the BSDs).
+        socket2::SockRef::from(&listener)
+            .set_tcp_nodelay(true)
+            .map_err(|source| PanelError::Listen { addr, source })?;
         Ok(Listener { listener, addr })
     }
 

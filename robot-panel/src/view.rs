@@ -142,6 +142,7 @@ pub fn state(c: &Compiled, m: &Machine, live: &Live) -> Value {
         "step": live.step,
         "cycles": live.cycles,
         "cycle_ms": live.cycle_ms,
+        "pin_us": live.pin_us,
         "charts": charts,
         "nodes": nodes,
         "alarms": alarms,
