@@ -735,6 +735,11 @@ impl NodeCore {
         let Some(index) = index else {
             return;
         };
+        if self.senses(index, level) {
+            // Not an edge: the engine raises nothing, its mirror variable holds the level
+            // already and the alarms see what they saw (the plant repeats levels).
+            return;
+        }
         let is_start = self.table.as_ref().is_some_and(|t| {
             level && t.start.is_some() && t.inputs.get(index).and_then(|i| i.rise) == t.start
         });
@@ -761,6 +766,20 @@ impl NodeCore {
         }
         self.look(now, io);
         self.note_idle();
+    }
+
+    /// The running engine senses table input `index` at `level` already, and its mirror
+    /// variable (if any) holds it.
+    fn senses(&self, index: usize, level: bool) -> bool {
+        let (Some(table), Some(state)) = (&self.table, &self.state) else {
+            return false;
+        };
+        let bit = 1u16 << (index & 15);
+        let var = table.inputs.get(index).and_then(|i| i.var);
+        let mirrored = var.is_none_or(|v| {
+            (state.vars.get(usize::from(v))).is_some_and(|&x| x == i32::from(level))
+        });
+        (state.inputs & bit != 0) == level && mirrored
     }
 
     /// After a stimulus: a link alarm faults the node under `on_link_alarm: Fault`; then
