@@ -11,7 +11,10 @@
 # per pulse, one chart and two in series (the second counting the first's CUO; the
 # difference is what one more chart in a chain costs); the paper robot's VC chart per
 # stimulus (one cycle as its node sees it: 18 input edges and remote events), interpreted
-# and hand-written as a `match` (tests/src/vc_dispatch.rs), and their ratio.
+# and hand-written as a `match` (tests/src/vc_dispatch.rs), and their ratio. Then the whole
+# node core (`NodeCore`, unsecured, every frame delivered): a button on node A published to
+# node B, whose chart toggles a lamp, counted only inside one call of the core each (A's
+# input edge, A told a level it has, B receiving the event, A receiving B's ack).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -27,6 +30,20 @@ bin=target/release/examples/instructions
 count() {
     valgrind --tool=callgrind --callgrind-out-file=/dev/null "$bin" "$1" "$2" 2>&1 >/dev/null |
         awk '/Collected :/ { print $NF }'
+}
+
+# inside FN COUNT: the instructions callgrind counted inside `node::FN` of `bin node COUNT`
+inside() {
+    valgrind --tool=callgrind --callgrind-out-file=/dev/null --toggle-collect="*node::$1" \
+        "$bin" node "$2" 2>&1 >/dev/null | awk '/Collected :/ { print $NF }'
+}
+
+# per_call FN UNITS: instructions per call of `node::FN`, UNITS calls per press
+per_call() {
+    local a b
+    a=$(inside "$1" "$n")
+    b=$(inside "$1" $((2 * n)))
+    awk -v a="$a" -v b="$b" -v n="$n" -v u="$2" 'BEGIN { printf "%.1f", (b - a) / (n * u) }'
 }
 
 # per RUN UNITS: instructions per stimulus of RUN, whose COUNT is in units of UNITS stimuli
@@ -50,3 +67,9 @@ printf '  VC chart, interpreted     %8s per stimulus\n' "$vc"
 printf '  VC chart, hand-written    %8s per stimulus\n' "$hand"
 awk -v a="$vc" -v b="$hand" 'BEGIN { printf "  interpreted / hand        %8.2fx  (target: within 1.5x)\n", a / b }'
 echo "  (Eclipse 4diac FORTE's E_CTU, measured the same way for the issue: 313 per event)"
+
+printf 'instructions per call inside the node core (NodeCore, unsecured)\n'
+printf '  input edge on A (publishes on rise)   %8s\n' "$(per_call a_edge 2)"
+printf '  input level A has already             %8s\n' "$(per_call a_level 2)"
+printf '  event received by B (ack, chart)      %8s  (target: under 300)\n' "$(per_call b_event 1)"
+printf '  ack received by A                     %8s\n' "$(per_call a_ack 1)"
