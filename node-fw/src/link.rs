@@ -278,9 +278,9 @@ impl Receiver {
             next = next.wrapping_add(1);
             // Re-index the held frames from the new `next`, releasing those now in order.
             loop {
-                let first = self.held[0];
-                self.held.rotate_left(1);
-                self.held[WINDOW - 1] = None;
+                let [first, rest @ ..] = self.held;
+                self.held = [None; WINDOW];
+                self.held[..WINDOW - 1].copy_from_slice(&rest);
                 match first {
                     Some(t) => {
                         let _ = deliver.push(t);

@@ -333,6 +333,14 @@ impl core::error::Error for MessageError {}
 impl<'a> Message<'a> {
     /// Parses a MAC payload. Never panics; trailing bytes are an error.
     pub fn parse(payload: &'a [u8]) -> Result<Message<'a>, MessageError> {
+        if let Some(msg) = link::parse(payload) {
+            return Ok(msg);
+        }
+        Self::parse_postcard(payload)
+    }
+
+    /// [`Message::parse`] through serde, for every message.
+    fn parse_postcard(payload: &'a [u8]) -> Result<Message<'a>, MessageError> {
         match postcard::take_from_bytes::<Message<'a>>(payload) {
             Ok((msg, [])) => Ok(msg),
             Ok(_) => Err(MessageError(postcard::Error::DeserializeBadEncoding)),
@@ -342,14 +350,155 @@ impl<'a> Message<'a> {
 
     /// Writes the message into `buf`; returns its length.
     pub fn emit(&self, buf: &mut [u8]) -> Result<usize, MessageError> {
+        if let Some(n) = link::emit(self, buf) {
+            return Ok(n);
+        }
         postcard::to_slice(self, buf)
             .map(|b| b.len())
             .map_err(MessageError)
     }
 }
 
+/// `Event` and `EventAck`, the messages of every step of a running machine, written and read
+/// without serde: the same bytes as postcard's (variant index, then each `u16` as a
+/// varint, the topic one raw byte). Only canonical encodings are read here; anything else
+/// goes to postcard, so [`Message::parse`] answers exactly as postcard does.
+mod link {
+    use super::Message;
+
+    const EVENT: u8 = 0;
+    const EVENT_ACK: u8 = 1;
+
+    pub(super) fn emit(msg: &Message<'_>, buf: &mut [u8]) -> Option<usize> {
+        let mut out = [0u8; 8];
+        let n = match *msg {
+            Message::Event { epoch, seq, topic } => {
+                out[0] = EVENT;
+                let n = put(epoch, &mut out, 1);
+                let n = put(seq, &mut out, n);
+                out[n] = topic;
+                n + 1
+            }
+            Message::EventAck { epoch, next } => {
+                out[0] = EVENT_ACK;
+                let n = put(epoch, &mut out, 1);
+                put(next, &mut out, n)
+            }
+            _ => return None,
+        };
+        // Too small a buffer: postcard says so in its own words.
+        buf.get_mut(..n)?.copy_from_slice(out.get(..n)?);
+        Some(n)
+    }
+
+    /// Writes `v` as a varint into `out` from `at` (at most 3 bytes); returns the end.
+    fn put(v: u16, out: &mut [u8; 8], at: usize) -> usize {
+        let mut v = v;
+        let mut at = at;
+        while v >= 0x80 {
+            out[at & 7] = (v as u8) | 0x80;
+            v >>= 7;
+            at += 1;
+        }
+        out[at & 7] = v as u8;
+        at + 1
+    }
+
+    pub(super) fn parse(payload: &[u8]) -> Option<Message<'static>> {
+        let (&tag, rest) = payload.split_first()?;
+        match tag {
+            EVENT => {
+                let (epoch, rest) = take(rest)?;
+                let (seq, rest) = take(rest)?;
+                match rest {
+                    [topic] => Some(Message::Event {
+                        epoch,
+                        seq,
+                        topic: *topic,
+                    }),
+                    _ => None,
+                }
+            }
+            EVENT_ACK => {
+                let (epoch, rest) = take(rest)?;
+                let (next, rest) = take(rest)?;
+                rest.is_empty().then_some(Message::EventAck { epoch, next })
+            }
+            _ => None,
+        }
+    }
+
+    /// A canonical varint `u16` (the shortest encoding) at the start of `b`.
+    fn take(b: &[u8]) -> Option<(u16, &[u8])> {
+        match *b {
+            [a, ref rest @ ..] if a < 0x80 => Some((u16::from(a), rest)),
+            [a, b1, ref rest @ ..] if b1 != 0 && b1 < 0x80 => {
+                Some((u16::from(a & 0x7F) | u16::from(b1) << 7, rest))
+            }
+            [a, b1, c, ref rest @ ..] if b1 >= 0x80 && c != 0 && c <= 0x03 => Some((
+                u16::from(a & 0x7F) | u16::from(b1 & 0x7F) << 7 | u16::from(c) << 14,
+                rest,
+            )),
+            _ => None,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn events_and_acks_are_written_as_postcard_writes_them(
+            epoch: u16, seq: u16, topic: u8, len in 0usize..10,
+        ) {
+            for msg in [Message::Event { epoch, seq, topic }, Message::EventAck { epoch, next: seq }] {
+                let (mut ours, mut theirs) = ([0u8; 10], [0u8; 10]);
+                let a = msg.emit(&mut ours[..len]).ok();
+                let b = postcard::to_slice(&msg, &mut theirs[..len]).ok().map(|b| b.len());
+                prop_assert_eq!(a, b);
+                if let Some(n) = a {
+                    prop_assert_eq!(&ours[..n], &theirs[..n]);
+                    prop_assert_eq!(Message::parse(&ours[..n]), Ok(msg.clone()));
+                }
+            }
+        }
+
+        #[test]
+        fn short_payloads_are_read_as_postcard_reads_them(
+            tag in 0u8..3, body in proptest::collection::vec(any::<u8>(), 0..8),
+        ) {
+            let mut payload = [tag; 9];
+            payload[1..=body.len()].copy_from_slice(&body);
+            let payload = &payload[..=body.len()];
+            prop_assert_eq!(Message::parse(payload), Message::parse_postcard(payload));
+        }
+    }
+
+    #[test]
+    fn an_event_is_its_variant_then_varints_then_the_topic() {
+        let mut buf = [0u8; 8];
+        let msg = Message::Event {
+            epoch: 300,
+            seq: 0x4000,
+            topic: 7,
+        };
+        let n = msg.emit(&mut buf).unwrap();
+        assert_eq!(&buf[..n], &[0x00, 0xAC, 0x02, 0x80, 0x80, 0x01, 0x07]);
+        let ack = Message::EventAck {
+            epoch: 1,
+            next: 127,
+        };
+        let n = ack.emit(&mut buf).unwrap();
+        assert_eq!(&buf[..n], &[0x01, 0x01, 0x7F]);
+        // A longer encoding of 1 than needed: postcard's answer, whatever it is.
+        assert_eq!(
+            Message::parse(&[0x01, 0x81, 0x00, 0x7F]),
+            Message::parse_postcard(&[0x01, 0x81, 0x00, 0x7F])
+        );
+    }
+
     use super::*;
     // Every message must fit a secured frame (the auxiliary header and MIC taken).
     use crate::wire::security::MAX_SECURED_PAYLOAD as MAX_PAYLOAD;
