@@ -17,18 +17,25 @@ fn buttons_enabled(state: &serde_json::Value) -> Vec<String> {
         .collect()
 }
 
-#[test]
-fn a_second_panel_on_the_same_port_is_refused_with_a_clear_error() {
-    let dir = TempDir::new("panel-port");
+/// A directory with a new `machine.key` (made by `config-tool keys new`) and a medium with
+/// no node on it: what a panel needs that is not a machine.
+fn keyed_medium(tag: &str) -> (TempDir, medium::Medium) {
+    let dir = TempDir::new(tag);
     let key = dir.0.join("machine.key");
-    let k = key.to_str().unwrap();
     let made = std::process::Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .args(["keys", "new", "--out", k])
+        .args(["keys", "new", "--out", key.to_str().unwrap()])
         .output()
         .unwrap();
     assert!(made.status.success());
     let medium = medium::Medium::start(medium::Config::default()).unwrap();
-    let m = medium.addr().to_string();
+    (dir, medium)
+}
+
+#[test]
+fn a_second_panel_on_the_same_port_is_refused_with_a_clear_error() {
+    let (dir, medium) = keyed_medium("panel-port");
+    let (k, m) = (dir.0.join("machine.key"), medium.addr().to_string());
+    let k = k.to_str().unwrap();
     let first = Panel::start(&[
         ROBOT,
         "--keys",
@@ -95,16 +102,9 @@ fn a_silent_node_and_a_medium_gone_are_said_and_every_command_refused() {
 
 #[test]
 fn a_panel_off_loopback_prints_a_token_and_refuses_requests_without_it() {
-    let dir = TempDir::new("panel-token");
-    let key = dir.0.join("machine.key");
-    let k = key.to_str().unwrap();
-    let made = std::process::Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .args(["keys", "new", "--out", k])
-        .output()
-        .unwrap();
-    assert!(made.status.success());
-    let medium = medium::Medium::start(medium::Config::default()).unwrap();
-    let m = medium.addr().to_string();
+    let (dir, medium) = keyed_medium("panel-token");
+    let (k, m) = (dir.0.join("machine.key"), medium.addr().to_string());
+    let k = k.to_str().unwrap();
     let panel = Panel::start(&[ROBOT, "--keys", k, "--medium", &m, "--listen", "0.0.0.0:0"])
         .expect("the panel");
     let (_, token) = panel
