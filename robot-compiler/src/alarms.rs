@@ -357,26 +357,14 @@ pub fn place(robot: &Robot, src: &Source, ir: &mut Ir) -> Result<(), Vec<Diagnos
 /// application: [`PlacesVar`]) read through the chart's variable: `VAR == column`.
 fn chart_places(ast: &Ast, vars: &[PlacesVar], role: &str) -> Ast {
     use crate::expr::BinOp;
-    let again = |a: &Ast| Box::new(chart_places(a, vars, role));
-    match ast {
-        Ast::Name(n, span) => match PlacesVar::read(vars, role, n) {
-            Some((var, column)) => Ast::Bin(
-                BinOp::Eq,
-                Box::new(Ast::Name(var.to_string(), span.clone())),
-                Box::new(Ast::Int(column as i32)),
-            ),
-            None => ast.clone(),
-        },
-        Ast::Int(_) => ast.clone(),
-        Ast::Not(a) => Ast::Not(again(a)),
-        Ast::Neg(a) => Ast::Neg(again(a)),
-        Ast::Wrap { bits, signed, of } => Ast::Wrap {
-            bits: *bits,
-            signed: *signed,
-            of: again(of),
-        },
-        Ast::Bin(op, a, b) => Ast::Bin(*op, again(a), again(b)),
-    }
+    ast.map_names(&|n, span| {
+        let (var, column) = PlacesVar::read(vars, role, n)?;
+        Some(Ast::Bin(
+            BinOp::Eq,
+            Box::new(Ast::Name(var.to_string(), span.clone())),
+            Box::new(Ast::Int(column as i32)),
+        ))
+    })
 }
 
 /// The bytecode of an alarm's condition on role `r`: places read through the role's

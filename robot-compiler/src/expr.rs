@@ -60,6 +60,26 @@ pub enum Ast {
     },
 }
 
+impl Ast {
+    /// This expression with each name `f` answers for replaced by its answer (the rest
+    /// kept): how a condition's `F.P` places become reads of a chart's variable.
+    pub fn map_names(&self, f: &dyn Fn(&str, &Range<usize>) -> Option<Ast>) -> Ast {
+        let again = |a: &Ast| Box::new(a.map_names(f));
+        match self {
+            Ast::Name(n, span) => f(n, span).unwrap_or_else(|| self.clone()),
+            Ast::Int(_) => self.clone(),
+            Ast::Not(a) => Ast::Not(again(a)),
+            Ast::Neg(a) => Ast::Neg(again(a)),
+            Ast::Wrap { bits, signed, of } => Ast::Wrap {
+                bits: *bits,
+                signed: *signed,
+                of: again(of),
+            },
+            Ast::Bin(op, a, b) => Ast::Bin(*op, again(a), again(b)),
+        }
+    }
+}
+
 /// The integer widths an expression may wrap to: (name, bits, signed).
 pub const WIDTHS: [(&str, u8, bool); 4] = [
     ("sint", 8, true),

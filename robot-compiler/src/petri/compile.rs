@@ -222,32 +222,20 @@ pub fn rewrite(
     (own, from): (usize, usize),
     known: &dyn Fn(usize, usize) -> Option<i32>,
 ) -> Ast {
-    let again = |a: &Ast| Box::new(rewrite(a, nets, levels, (own, from), known));
-    match ast {
-        Ast::Name(n, span) => match reads(nets, levels, n) {
-            Some(Reads::Place { function, place }) if function == own => {
-                Ast::Int(i32::from(place == from))
-            }
-            Some(Reads::Place { function, place }) => match known(function, place) {
-                Some(v) => Ast::Int(v),
-                None => Ast::Bin(
-                    BinOp::Eq,
-                    Box::new(Ast::Name(state_var(&nets[function].name), span.clone())),
-                    Box::new(Ast::Int(place as i32)),
-                ),
-            },
-            _ => ast.clone(),
-        },
-        Ast::Int(_) => ast.clone(),
-        Ast::Not(a) => Ast::Not(again(a)),
-        Ast::Neg(a) => Ast::Neg(again(a)),
-        Ast::Wrap { bits, signed, of } => Ast::Wrap {
-            bits: *bits,
-            signed: *signed,
-            of: again(of),
-        },
-        Ast::Bin(op, a, b) => Ast::Bin(*op, again(a), again(b)),
-    }
+    ast.map_names(&|n, span| match reads(nets, levels, n)? {
+        Reads::Place { function, place } if function == own => {
+            Some(Ast::Int(i32::from(place == from)))
+        }
+        Reads::Place { function, place } => Some(match known(function, place) {
+            Some(v) => Ast::Int(v),
+            None => Ast::Bin(
+                BinOp::Eq,
+                Box::new(Ast::Name(state_var(&nets[function].name), span.clone())),
+                Box::new(Ast::Int(place as i32)),
+            ),
+        }),
+        _ => None,
+    })
 }
 
 fn function_chart(
