@@ -158,7 +158,9 @@ impl<'t> Engine<'t> {
     }
 
     /// An engine over `table` in a state taken by [`snapshot`](Engine::snapshot) of an
-    /// engine running the same table.
+    /// engine running the same table. It builds the table's [`Index`] on every call: for a
+    /// test or a one-off; whatever resumes per stimulus keeps the index and calls
+    /// [`resume_indexed`](Engine::resume_indexed) (`NodeCore`, `sim`, `verify` do).
     pub fn resume(table: &'t Table, state: &EngineState) -> Self {
         Engine::resume_with(table, IndexRef::Own(Index::new(table)), state)
     }
