@@ -411,3 +411,36 @@ fn the_system_has_the_robots_instances_connections_and_mapping() {
     assert_eq!(sys.matches("Type=\"PUBLISH_0\"").count(), 7, "{sys}");
     assert_eq!(sys.matches("Type=\"SUBSCRIBE_0\"").count(), 8, "{sys}");
 }
+
+/// A lifted chart that reads another chart's variable says which, in the export's
+/// vocabulary: the water-jet transport's `Transport` reads the operator's place
+/// (`Operation.state`) and the places the cabinet has seen of the other nodes' functions
+/// (`Pusher.state`, kept by the `Pusher.seen` chart) as input variables `value of` the
+/// FB and its variable, which the import reads again instead of a constant.
+#[test]
+fn a_lifted_chart_reading_another_charts_variable_says_whose() {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../robot-configs/waterjet-transport.ron");
+    let (_, c) = compiled(&path);
+    let e = exported(&c);
+    let fbt = file(&e, "CABINET_Transport.fbt");
+    let inputs: Vec<&str> = (fbt.lines())
+        .skip_while(|l| !l.contains("<InputVars>"))
+        .take_while(|l| !l.contains("</InputVars>"))
+        .skip(1)
+        .map(str::trim)
+        .collect();
+    assert_eq!(
+        inputs,
+        [
+            "<VarDeclaration Name=\"Operation_state\" Type=\"DINT\" \
+             Comment=\"value of CABINET_Operation.Operation_state\"/>",
+            "<VarDeclaration Name=\"Pusher_state\" Type=\"DINT\" \
+             Comment=\"value of CABINET_Pusher_seen.Pusher_state\"/>",
+            "<VarDeclaration Name=\"Belt_state\" Type=\"DINT\" \
+             Comment=\"value of CABINET_Belt_seen.Belt_state\"/>",
+            "<VarDeclaration Name=\"FaultDetection_state\" Type=\"DINT\" \
+             Comment=\"value of CABINET_FaultDetection_seen.FaultDetection_state\"/>",
+        ]
+    );
+}

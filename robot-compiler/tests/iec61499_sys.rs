@@ -271,7 +271,7 @@ fn an_unknown_or_service_fb_type_is_refused_at_its_place() {
 }
 
 #[test]
-fn adapters_fan_in_and_data_connections_between_fbs_are_refused_at_their_place() {
+fn adapters_fan_in_and_data_connections_across_resources_are_refused_at_their_place() {
     assert_eq!(
         sys_error(&SYS.replace(
             "<EventConnections>",
@@ -292,9 +292,9 @@ fn adapters_fan_in_and_data_connections_between_fbs_are_refused_at_their_place()
             "</EventConnections>",
             "</EventConnections>\n      <DataConnections><Connection Source=\"sr.Q\" Destination=\"c.PV\"/></DataConnections>"
         ).replace("<Parameter Name=\"PV\" Value=\"UINT#3\"/>", "")),
-        "r.ron:5:25: error: a.sys:10:24: data connection `sr.Q` -> `c.PV`: data connections \
-         between FBs are not supported yet (events between nodes carry no data); give `PV` a \
-         parameter"
+        "r.ron:5:25: error: a.sys:10:24: data connection `sr.Q` -> `c.PV` crosses resources \
+         (`sr` is on `B`, `c` on `A`): events between nodes carry no data; map both FBs onto \
+         one resource, or give `PV` a parameter"
     );
 }
 
@@ -446,4 +446,77 @@ fn misused_node_services_fbs_and_stray_pub_sub_fbs_are_refused_at_their_place() 
         assert_eq!(errors, [want.to_string()], "{extra}");
         assert!(robot.roles.iter().all(|r| r.charts.is_empty()));
     }
+}
+
+/// A chart type as the export marks it, whose input variable `N` reads the value of
+/// `SOURCE` (`value of FB.VAR`).
+const READER: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<FBType Name="Rd">
+  <Identification Standard="61499-2" Classification="ecc-nodes chart"/>
+  <InterfaceList>
+    <EventInputs><Event Name="REQ"/></EventInputs>
+    <EventOutputs><Event Name="HIGH"/></EventOutputs>
+    <InputVars><VarDeclaration Name="N" Type="DINT" Comment="value of SOURCE"/></InputVars>
+  </InterfaceList>
+  <BasicFB>
+    <ECC>
+      <ECState Name="S0"/>
+      <ECState Name="S1"><ECAction Output="HIGH"/></ECState>
+      <ECTransition Source="S0" Destination="S1" Condition="REQ[N &gt; 1]"/>
+      <ECTransition Source="S1" Destination="S0" Condition="1"/>
+    </ECC>
+  </BasicFB>
+</FBType>
+"#;
+
+/// `rd` (of `READER`) on resource A beside the counter `c`, and `sr` on B.
+fn reader(source: &str) -> (Robot, Vec<String>) {
+    let sys = SYS
+        .replace(
+            r#"<FB Name="sr" Type="E_SR"/>"#,
+            r#"<FB Name="sr" Type="E_SR"/><FB Name="rd" Type="Rd"/>"#,
+        )
+        .replace(
+            r#"<Mapping From="App.c" To="n1.A"/>"#,
+            r#"<Mapping From="App.c" To="n1.A"/><Mapping From="App.rd" To="n1.A"/>"#,
+        );
+    run(
+        "[\"Rd.fbt\"]",
+        "{}",
+        &[("a.sys", sys), ("Rd.fbt", READER.replace("SOURCE", source))],
+    )
+}
+
+#[test]
+fn an_input_variable_reading_another_fbs_variable_reads_it_on_its_resource() {
+    let (robot, errors) = reader("c.CV");
+    assert!(errors.is_empty(), "{errors:?}");
+    let rd = &robot.roles[0].charts[1];
+    assert_eq!(rd.name, "rd");
+    assert!(rd.params.is_empty());
+    assert_eq!(
+        rd.reads,
+        BTreeMap::from([("N".to_string(), "c.CV".to_string())])
+    );
+    assert_eq!(
+        reader("nope.CV").1,
+        [
+            "r.ron:5:25: error: a.sys:6:34: input `N` of `rd` (of type `Rd`) reads `nope.CV` \
+          (its `Comment`): no basic FB `nope` on its resource `A`"
+        ]
+    );
+    assert_eq!(
+        reader("sr.Q").1,
+        [
+            "r.ron:5:25: error: a.sys:6:34: input `N` of `rd` (of type `Rd`) reads `sr.Q` (its \
+          `Comment`): no basic FB `sr` on its resource `A`"
+        ]
+    );
+    assert_eq!(
+        reader("c.XV").1,
+        [
+            "r.ron:5:25: error: a.sys:6:34: input `N` of `rd` (of type `Rd`) reads `c.XV` (its \
+          `Comment`): `c` (of type `E_CTU`) has no variable `XV`"
+        ]
+    );
 }

@@ -128,6 +128,7 @@ impl Types {
                         services: Vec::new(),
                         levels: Vec::new(),
                         places: Vec::new(),
+                        values: Vec::new(),
                     });
                 (t.clone(), i)
             })
@@ -445,13 +446,11 @@ impl Flat {
         out
     }
 
-    /// The value of data input `port` of `leaf` given by no own `Parameter`: a composite
-    /// instance's parameter (or its input's initial value) reaching it, if any.
-    fn data_value(
-        &self,
-        types: &Types,
-        to: &(String, String),
-    ) -> Result<Option<(String, At)>, SysError> {
+    /// Where the value of data input `to` (of a leaf or a composite instance) given by no
+    /// own `Parameter` comes from: a composite instance's parameter (or its input's
+    /// initial value) reaching it, or a basic FB's data output connected to it (through
+    /// composite interfaces), if any.
+    fn data_value(&self, types: &Types, to: &(String, String)) -> Result<Option<Data>, SysError> {
         let into: Vec<&Edge> = self.data.iter().filter(|e| e.to == *to).collect();
         let Some(e) = into.first() else {
             return Ok(None);
@@ -463,14 +462,14 @@ impl Flat {
         }
         let from = &e.from;
         let Some(cty) = self.composites.get(&from.0) else {
-            return Err(e.at.error(format!(
-                "data connection `{}.{}` -> `{}.{}`: data connections between FBs are not \
-                 supported yet (events between nodes carry no data); give `{}` a parameter",
-                from.0, from.1, to.0, to.1, to.1
-            )));
+            return Ok(Some(Data::Var {
+                fb: from.0.clone(),
+                var: from.1.clone(),
+                at: e.at.clone(),
+            }));
         };
-        if let Some(v) = self.cparams.get(from) {
-            return Ok(Some(v.clone()));
+        if let Some((v, at)) = self.cparams.get(from) {
+            return Ok(Some(Data::Literal(v.clone(), at.clone())));
         }
         if let Some(v) = self.data_value(types, from)? {
             return Ok(Some(v));
@@ -479,8 +478,18 @@ impl Flat {
             .composite(cty)
             .and_then(|c| c.inputs.iter().find(|(n, _)| *n == from.1))
             .and_then(|(_, v)| v.clone());
-        Ok(init.map(|v| (v, e.at.clone())))
+        Ok(init.map(|v| Data::Literal(v, e.at.clone())))
     }
+}
+
+/// Where a data input's value comes from ([`Flat::data_value`]).
+enum Data {
+    /// A literal as written (a composite instance's parameter or its input's initial
+    /// value), at its place.
+    Literal(String, At),
+    /// Data output `var` of basic FB `fb`, by the connection at `at`: within a resource,
+    /// the input reads the FB's variable.
+    Var { fb: String, var: String, at: At },
 }
 
 /// The library's merge, folded where a chain of them feeds one input.
@@ -1047,16 +1056,64 @@ pub fn bring(
         };
         let role = role_of(&l.name);
         let mut params = BTreeMap::new();
+        let mut reads = BTreeMap::new();
         for (input, ty, init) in &iface.inputs {
             let own = l
                 .params
                 .iter()
                 .find(|p| p.name == *input)
-                .map(|p| (p.value.clone(), p.at.clone()));
+                .map(|p| Data::Literal(p.value.clone(), p.at.clone()));
             let given = match own {
                 Some(v) => Some(v),
                 None => flat.data_value(types, &(l.name.clone(), input.clone()))?,
             };
+            let given = match given {
+                Some(Data::Var { fb, var, at }) => {
+                    let from_role = role_of(&fb);
+                    if from_role != role {
+                        return Err(at
+                            .error(format!(
+                                "data connection `{fb}.{var}` -> `{}.{input}` crosses resources \
+                                 (`{fb}` is on `{from_role}`, `{}` on `{role}`): events between \
+                                 nodes carry no data; map both FBs onto one resource, or give \
+                                 `{input}` a parameter",
+                                l.name, l.name
+                            ))
+                            .into());
+                    }
+                    reads.insert(input.clone(), format!("{fb}.{var}"));
+                    continue;
+                }
+                Some(Data::Literal(text, at)) => Some((text, at)),
+                None => None,
+            };
+            if let (None, Some((_, fb, var))) =
+                (&given, iface.values.iter().find(|(p, _, _)| p == input))
+            {
+                let found = leaf_type(fb).filter(|_| role_of(fb) == role);
+                let Some(ft) = found else {
+                    return Err(l
+                        .at
+                        .error(format!(
+                            "input `{input}` of `{}` (of type `{}`) reads `{fb}.{var}` (its \
+                             `Comment`): no basic FB `{fb}` on its resource `{role}`",
+                            l.name, t.name
+                        ))
+                        .into());
+                };
+                if !ft.vars.iter().any(|v| v.name == *var) {
+                    return Err(l
+                        .at
+                        .error(format!(
+                            "input `{input}` of `{}` (of type `{}`) reads `{fb}.{var}` (its \
+                             `Comment`): `{fb}` (of type `{}`) has no variable `{var}`",
+                            l.name, t.name, ft.name
+                        ))
+                        .into());
+                }
+                reads.insert(input.clone(), format!("{fb}.{var}"));
+                continue;
+            }
             let value = match given {
                 Some((text, at)) => st::literal(text.trim(), *ty).map_err(|e| {
                     at.error(format!(
@@ -1194,6 +1251,7 @@ pub fn bring(
                 on,
                 timers,
                 more,
+                reads,
             });
         }
     }
