@@ -4,33 +4,11 @@
 //! run (`robot_analysis::sim`: this test spans the compiler and the simulator, so it
 //! lives here rather than with either).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use robot_compiler::iec61499::export::{self, Export};
 use robot_compiler::{compile, Compiled, Source};
-
-const DATE: &str = "2026-01-01";
-
-fn robots() -> Vec<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../robot-configs");
-    let mut out: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|x| x == "ron"))
-        .collect();
-    out.sort();
-    out
-}
-
-fn compiled(path: &Path) -> (Source, Compiled) {
-    let src = Source::read(path).unwrap();
-    let c = compile(&src).unwrap_or_else(|d| panic!("{}: {d:?}", path.display()));
-    (src, c)
-}
-
-fn exported(c: &Compiled) -> Export {
-    export::export(c, DATE).unwrap_or_else(|e| panic!("{}: {e}", c.ir.name))
-}
+use test_tables::robots::{compiled, exported, robots};
 
 /// The fields of a robot file that make charts (or bring them), removed from the robot
 /// of a round trip: the charts come back through `application` and `fb_types`.
