@@ -33,7 +33,7 @@ const DATA: &str = r#"Robot(name: "dc", network: (pan_id: 1, channel: 11),
     nodes: [(name: "n1", address: 1)],
     start: "START",
     roles: [(name: "A", inputs: [(name: "START", pin: 0)], outputs: [(name: "LAMP", pin: 1)])],
-    fb_types: ["Lamp.fbt"],
+    fb_types: ["Lamp.fbt", "Cnt.fbt"],
     application: (file: "app.sys", on: {"cnt.CU": "START"},
                   actions: {"lamp.ON": Out("LAMP", true), "lamp.OFF": Out("LAMP", false)}),
 )"#;
@@ -52,20 +52,30 @@ fn a_data_connection_within_a_resource_reads_the_sources_variable() {
         .collect();
     assert_eq!(charts, [("lamp", vec![("N", "cnt.CV")]), ("cnt", vec![])]);
     assert!(c.robot.roles[0].charts[0].params.is_empty());
+    // What the export cannot write yet, it refuses (rather than a constant coming back).
+    assert_eq!(
+        robot_compiler::iec61499::export::export(&c, "2026-01-01")
+            .err()
+            .map(|e| e.to_string()),
+        Some(String::from(
+            "chart `lamp` of role `A` reads `cnt.CV` into its parameter `N` (a data \
+             connection): the export does not write data connections yet"
+        ))
+    );
     assert_eq!(
         trace(&c, 3),
         [
             "       0 ms  press button #0",
             "       0 ms  node 0 input 0 = 1",
             "       0 ms  node 0 chart 1: S0 -> S1 (transition 4)",
-            "       0 ms  node 0 chart 1: S1 -> S0 (transition 6)",
+            "       0 ms  node 0 chart 1: S1 -> S0 (transition 5)",
             "       0 ms  node 0 chart 0: S0 -> S2 (transition 1)",
             "       0 ms  node 0 chart 0: S2 -> S0 (transition 3)",
             "      50 ms  node 0 input 0 = 0",
             "      50 ms  press button #0",
             "      50 ms  node 0 input 0 = 1",
             "      50 ms  node 0 chart 1: S0 -> S1 (transition 4)",
-            "      50 ms  node 0 chart 1: S1 -> S0 (transition 6)",
+            "      50 ms  node 0 chart 1: S1 -> S0 (transition 5)",
             "      50 ms  node 0 chart 0: S0 -> S1 (transition 0)",
             "      50 ms  node 0 output 0 = 1",
             "      50 ms  node 0 chart 0: S1 -> S0 (transition 2)",
@@ -73,7 +83,7 @@ fn a_data_connection_within_a_resource_reads_the_sources_variable() {
             "     100 ms  press button #0",
             "     100 ms  node 0 input 0 = 1",
             "     100 ms  node 0 chart 1: S0 -> S1 (transition 4)",
-            "     100 ms  node 0 chart 1: S1 -> S0 (transition 6)",
+            "     100 ms  node 0 chart 1: S1 -> S0 (transition 5)",
             "     100 ms  node 0 chart 0: S0 -> S1 (transition 0)",
             "     100 ms  node 0 chart 0: S1 -> S0 (transition 2)",
             "     150 ms  node 0 input 0 = 0",

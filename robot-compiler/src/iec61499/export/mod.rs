@@ -23,6 +23,19 @@ use crate::compile::Compiled;
 pub enum ExportError {
     #[error("chart type `{ty}`: {message}")]
     Type { ty: String, message: String },
+    /// A chart reads another chart's variable into a parameter (a data connection of the
+    /// application it came from): the export writes no data connections yet, and the
+    /// parameter would come back a constant.
+    #[error(
+        "chart `{chart}` of role `{role}` reads `{var}` into its parameter `{param}` (a data \
+         connection): the export does not write data connections yet"
+    )]
+    Reads {
+        role: String,
+        chart: String,
+        param: String,
+        var: String,
+    },
 }
 
 /// One chart of the robot as an FB instance of the application.
@@ -114,6 +127,14 @@ pub fn export(c: &Compiled, date: &str) -> Result<Export, ExportError> {
             fb_names.push(fb.clone());
             let inst = match explicit {
                 Some((d, t)) => {
+                    if let Some((param, var)) = d.reads.iter().next() {
+                        return Err(ExportError::Reads {
+                            role: r.name.clone(),
+                            chart: d.name.clone(),
+                            param: param.clone(),
+                            var: var.clone(),
+                        });
+                    }
                     let renamed = fbt::rename_clashing_vars(t);
                     for (v, n) in t.vars.iter().zip(&renamed.vars) {
                         owner.insert(
