@@ -520,3 +520,60 @@ fn an_input_variable_reading_another_fbs_variable_reads_it_on_its_resource() {
         ]
     );
 }
+
+/// A data connection reaches through a composite's output: `k.CV` (the composite's
+/// output, its inner `c.CV` connected to it) into the counter `c` beside it on resource
+/// A: `c` reads `k.c.CV` for its `PV`.
+#[test]
+fn a_data_connection_through_a_composites_output_reads_the_inner_fbs_variable() {
+    let composite = COMPOSITE
+        .replace(
+            "</InputVars>",
+            "</InputVars>\n    <OutputVars><VarDeclaration Name=\"CV\" Type=\"UINT\"/></OutputVars>",
+        )
+        .replace(
+            "<Connection Source=\"N\" Destination=\"c.PV\"/>",
+            "<Connection Source=\"N\" Destination=\"c.PV\"/>\n      <Connection Source=\"c.CV\" Destination=\"CV\"/>",
+        );
+    let sys = SYS
+        .replace(
+            r#"<FB Name="c" Type="iec61499::events::E_CTU"><Parameter Name="PV" Value="UINT#3"/></FB>"#,
+            r#"<FB Name="k" Type="CNT2"/><FB Name="c" Type="E_CTU"/>"#,
+        )
+        .replace(
+            "</EventConnections>",
+            "</EventConnections>\n      <DataConnections><Connection Source=\"k.CV\" Destination=\"c.PV\"/></DataConnections>",
+        )
+        .replace(
+            r#"<Mapping From="App.c" To="n1.A"/>"#,
+            r#"<Mapping From="App.c" To="n1.A"/><Mapping From="App.k" To="n1.A"/>"#,
+        );
+    let (robot, errors) = run(
+        "[\"CNT2.fbt\"]",
+        "{}",
+        &[("a.sys", sys), ("CNT2.fbt", composite)],
+    );
+    assert!(errors.is_empty(), "{errors:?}");
+    let charts: Vec<(&str, Vec<(&str, i32)>, Vec<(&str, &str)>)> = (robot.roles.iter())
+        .flat_map(|r| &r.charts)
+        .map(|c| {
+            (
+                c.name.as_str(),
+                c.params.iter().map(|(k, v)| (k.as_str(), *v)).collect(),
+                c.reads
+                    .iter()
+                    .map(|(k, v)| (k.as_str(), v.as_str()))
+                    .collect(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        charts,
+        [
+            ("k.c", vec![("PV", 2)], vec![]),
+            ("k.sr", vec![], vec![]),
+            ("c", vec![], vec![("PV", "k.c.CV")]),
+            ("sr", vec![], vec![]),
+        ]
+    );
+}

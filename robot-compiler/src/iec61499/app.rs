@@ -585,12 +585,13 @@ fn fold_merges(
     let mut ends: BTreeMap<String, Option<(String, String)>> = BTreeMap::new();
     for m in &folded {
         let mut path: Vec<&str> = Vec::new();
+        let mut on_path: BTreeSet<&str> = BTreeSet::new();
         let mut at = m.as_str();
         let end = loop {
             if let Some(known) = ends.get(at) {
                 break known.clone();
             }
-            if path.contains(&at) {
+            if !on_path.insert(at) {
                 break None;
             }
             path.push(at);
