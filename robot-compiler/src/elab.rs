@@ -613,7 +613,9 @@ impl ChartCx<'_> {
             return Some(Operand::Var((self.var_base + i) as u8));
         }
         if let Some(var) = self.c.reads.get(n) {
-            return self.pool.get(var).map(|k| Operand::Var(*k as u8));
+            // A variable the pool lacks is an error of `params` already: no second one.
+            let k = self.pool.get(var);
+            return Some(k.map_or(Operand::Const(0), |k| Operand::Var(*k as u8)));
         }
         if let Some(x) = self.param(n) {
             return Some(Operand::Const(x));

@@ -577,3 +577,65 @@ fn a_data_connection_through_a_composites_output_reads_the_inner_fbs_variable() 
         ]
     );
 }
+
+/// Two charts of one role, `b` (declared first) of a type guarding on its parameter `N`,
+/// `a` of a type with a variable `v`.
+const POOL: &str = r#"Robot(name: "p", network: (pan_id: 1, channel: 11),
+    nodes: [(name: "n1", address: 1)], assign: [("A", "n1")],
+    roles: [(name: "A", inputs: [(name: "GO", pin: 0)], charts: [
+        (name: "b", type: "Reader", on: {"GO": "GO"}),
+        (name: "a", type: "Holder"),
+    ])],
+    chart_types: [
+        (name: "Reader", params: ["N"], inputs: ["GO"],
+         states: [(name: "S0"), (name: "S1")],
+         transitions: [(from: "S0", to: "S1", on: "GO", when: "N > 1")]),
+        (name: "Holder", vars: [(name: "w", init: "7"), (name: "v", init: "5")],
+         states: [(name: "S0")]),
+    ],
+)"#;
+
+/// A parameter an instance reads from another chart's variable
+/// ([`model::ChartInstance::reads`], as an application brings it) is that variable in
+/// the role's pool, though its chart comes later; one naming no variable of the role,
+/// or no parameter, is an error.
+#[test]
+fn a_parameter_read_from_another_charts_variable_is_that_variable() {
+    let src = Source::new("p.ron", POOL);
+    let with = |param: &str, var: &str| {
+        let mut robot = model::parse(&src).expect("parses");
+        robot.roles[0].charts[0]
+            .reads
+            .insert(param.to_string(), var.to_string());
+        robot_compiler::elab::elaborate(&robot, &src)
+            .map_err(|d| d.iter().map(|x| x.message.clone()).collect::<Vec<String>>())
+    };
+    let ir = with("N", "a.v").expect("elaborates");
+    let r = &ir.roles[0];
+    assert_eq!(r.vars, [("a.w".to_string(), 7), ("a.v".to_string(), 5)]);
+    let guard = r.charts[0].transitions[0].guard.clone().expect("a guard");
+    assert_eq!(
+        guard.1,
+        [
+            config_schema::Op::Var(1),
+            config_schema::Op::Const(1),
+            config_schema::Op::Gt
+        ]
+    );
+    assert_eq!(
+        with("N", "a.x").err(),
+        Some(vec![String::from(
+            "parameter `N` of chart `b` reads `a.x`: no chart of role `A` has that variable"
+        )])
+    );
+    assert_eq!(
+        with("M", "a.v").err(),
+        Some(vec![
+            String::from(
+                "chart type `Reader` has no parameter `M` (chart `b` reads `a.v` into it)"
+            ),
+            String::from("parameter `N` of chart type `Reader` has no value"),
+            String::from("unknown name `N`: not a variable, input or parameter of this chart"),
+        ])
+    );
+}
