@@ -554,7 +554,8 @@ fn a_data_connection_through_a_composites_output_reads_the_inner_fbs_variable() 
         &[("a.sys", sys), ("CNT2.fbt", composite)],
     );
     assert!(errors.is_empty(), "{errors:?}");
-    let charts: Vec<(&str, Vec<(&str, i32)>, Vec<(&str, &str)>)> = (robot.roles.iter())
+    type Reads<'a> = (&'a str, Vec<(&'a str, i32)>, Vec<(&'a str, &'a str)>);
+    let charts: Vec<Reads<'_>> = (robot.roles.iter())
         .flat_map(|r| &r.charts)
         .map(|c| {
             (
