@@ -1,6 +1,7 @@
 //! IEC 61499 import, printed: the import time of each type of the event FB library
 //! (`.fbt` -> chart type), of an application per 100 FB instances (a generated `.sys` of
-//! chained E_CTUs on four devices -> the robot's roles and charts), and the table bytes of
+//! chained E_CTUs on four devices -> the robot's roles and charts; at 100, 400 and 1600
+//! instances, with the ratio to the figure at 100), and the table bytes of
 //! each library type (one instance on one node, compiled).
 //!
 //!     cargo bench -p robot-compiler --bench iec61499
@@ -67,7 +68,10 @@ fn main() {
     }
     println!("import of an application (.sys -> roles and charts):");
     let src = Source::new("b.ron", ROBOT);
-    for n in [100, 400] {
+    // Per 100 FB instances, and its ratio to the figure at 100: flat when the import
+    // scales linearly.
+    let mut at_100 = None;
+    for n in [100, 400, 1600] {
         let sys = chain(n).into_bytes();
         let read = |_: &str| Ok(sys.clone());
         let s = time(5, || {
@@ -76,10 +80,13 @@ fn main() {
             assert!(d.is_empty(), "{d:?}");
             black_box(robot);
         });
+        let per_100 = s * 1e3 * 100.0 / n as f64;
+        let base = *at_100.get_or_insert(per_100);
         println!(
-            "  {n:>4} FB instances  {:>8.2} ms  ({:.2} ms per 100 FB instances)",
+            "  {n:>4} FB instances  {:>8.2} ms  ({per_100:.2} ms per 100 FB instances, {:.2}x the \
+             figure at 100)",
             s * 1e3,
-            s * 1e3 * 100.0 / n as f64
+            per_100 / base
         );
     }
     println!("table bytes of each library type (one instance on one node):");

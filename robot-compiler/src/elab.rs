@@ -156,8 +156,9 @@ pub fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
                 r.start = Some(name.clone());
             }
         }
+        let pool = var_pool(robot, role, r.vars.len());
         for ci in 0..role.charts.len() {
-            match chart(robot, src, &mut r, role, ri, ci) {
+            match chart(robot, src, &mut r, role, ri, ci, &pool) {
                 Ok(chart) => r.charts.push(chart),
                 Err(mut d) => diags.append(&mut d),
             }
@@ -190,6 +191,25 @@ pub fn elaborate(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
         homing: Vec::new(),
         homing_derived: false,
     })
+}
+
+/// Where each variable of the role's charts will be in the role's pool (`CHART.VAR` ->
+/// index), the first at `base`: the charts declare theirs in order, so a chart may read
+/// the variable of one declared after it ([`ChartInstance::reads`]). Stops at a chart of
+/// an unknown type (an error of its own).
+fn var_pool(robot: &Robot, role: &Role, base: usize) -> BTreeMap<String, usize> {
+    let mut pool = BTreeMap::new();
+    let mut k = base;
+    for c in &role.charts {
+        let Some((_, t)) = robot.chart_type(&c.type_) else {
+            break;
+        };
+        for v in &t.vars {
+            pool.insert(format!("{}.{}", c.name, v.name), k);
+            k += 1;
+        }
+    }
+    pool
 }
 
 /// Which (role, event) the connections ask for; an error for each connection from an
@@ -378,6 +398,7 @@ fn chart(
     role: &Role,
     ri: usize,
     ci: usize,
+    pool: &BTreeMap<String, usize>,
 ) -> Result<ChartIr, Vec<Diagnostic>> {
     let c = &role.charts[ci];
     let at = format!("roles[{ri}].charts[{ci}]");
@@ -403,6 +424,7 @@ fn chart(
         c,
         t,
         &BTreeMap::new(),
+        pool,
         r,
         &at,
     )
@@ -411,6 +433,8 @@ fn chart(
 /// Instantiates chart type `t` (written at `tp` of `src`) as chart `c` of `role` into `r`
 /// (`at`: the instance's path). `bind` names the event a chart output is emitted as
 /// (default `CHART.OUTPUT`): the generated charts of an automaton emit its `EOS` so.
+/// `pool`: where the role's charts' variables are (`CHART.VAR` -> index, [`var_pool`]),
+/// for the parameters the instance reads from another chart's variable.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn instantiate(
     src: &Source,
@@ -419,6 +443,7 @@ pub(crate) fn instantiate(
     c: &ChartInstance,
     t: &ChartType,
     bind: &BTreeMap<String, String>,
+    pool: &BTreeMap<String, usize>,
     r: &mut RoleIr,
     at: &str,
 ) -> Result<ChartIr, Vec<Diagnostic>> {
@@ -429,6 +454,7 @@ pub(crate) fn instantiate(
         t,
         tp: tp.to_string(),
         bind,
+        pool,
         var_base: r.vars.len(),
         timers: Vec::new(),
         inputs: Vec::new(),
@@ -478,6 +504,8 @@ struct ChartCx<'a> {
     tp: String,
     /// Outputs emitted as another event than `CHART.OUTPUT`.
     bind: &'a BTreeMap<String, String>,
+    /// The role's variables (`CHART.VAR` -> index) the instance's reads name.
+    pool: &'a BTreeMap<String, usize>,
     var_base: usize,
     /// The role's timer of each of the type's timers.
     timers: Vec<usize>,
@@ -495,8 +523,28 @@ impl ChartCx<'_> {
     /// instance's path).
     fn params(&mut self, at: &str) {
         let (src, c, t) = (self.src, self.c, self.t);
+        for (p, var) in &c.reads {
+            if !t.params.contains(p) {
+                self.diags.push(Diagnostic::error(
+                    src.span(at),
+                    format!(
+                        "chart type `{}` has no parameter `{p}` (chart `{}` reads `{var}` into it)",
+                        t.name, c.name
+                    ),
+                ));
+            } else if !self.pool.contains_key(var) {
+                self.diags.push(Diagnostic::error(
+                    src.span(at),
+                    format!(
+                        "parameter `{p}` of chart `{}` reads `{var}`: no chart of role `{}` has \
+                         that variable",
+                        c.name, self.role.name
+                    ),
+                ));
+            }
+        }
         for p in &t.params {
-            if !c.params.contains_key(p) {
+            if !c.params.contains_key(p) && !c.reads.contains_key(p) {
                 self.diags.push(Diagnostic::error(
                     src.span(&format!("{at}.params")),
                     format!("parameter `{p}` of chart type `{}` has no value", t.name),
@@ -558,11 +606,16 @@ impl ChartCx<'_> {
         self.inputs = r.inputs.clone();
     }
 
-    /// What a name of an expression reads: a variable of the chart, a parameter or an
-    /// input of the role.
+    /// What a name of an expression reads: a variable of the chart, a parameter (a
+    /// constant, or the role's variable it reads) or an input of the role.
     fn resolve(&self, n: &str) -> Option<Operand> {
         if let Some(i) = self.t.vars.iter().position(|v| v.name == n) {
             return Some(Operand::Var((self.var_base + i) as u8));
+        }
+        if let Some(var) = self.c.reads.get(n) {
+            // A variable the pool lacks is an error of `params` already: no second one.
+            let k = self.pool.get(var);
+            return Some(k.map_or(Operand::Const(0), |k| Operand::Var(*k as u8)));
         }
         if let Some(x) = self.param(n) {
             return Some(Operand::Const(x));

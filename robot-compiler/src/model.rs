@@ -574,6 +574,13 @@ pub struct ChartInstance {
     /// them, an application brings them (the sources an `E_MERGE` chain joins).
     #[serde(skip)]
     pub more: BTreeMap<String, Vec<String>>,
+    /// Parameters of its type that read a variable of another chart of its role instead
+    /// of a constant (parameter -> the role's variable, `CHART.VAR`; the role's
+    /// variables are one pool, so the chart may be declared later). No robot file writes
+    /// them, an application brings them (a data connection within a resource, a lifted
+    /// chart's input variable `value of FB.VAR`).
+    #[serde(skip)]
+    pub reads: BTreeMap<String, String>,
 }
 
 impl ChartInstance {

@@ -365,9 +365,19 @@ pub fn place(robot: &Robot, src: &Source, ir: &mut Ir) -> Result<(), Vec<Diagnos
         on: BTreeMap::new(),
         timers: BTreeMap::new(),
         more: BTreeMap::new(),
+        reads: BTreeMap::new(),
     };
-    let chart =
-        crate::elab::instantiate(src, "sorting", role, &c, &t, &BTreeMap::new(), r, "sorting")?;
+    let chart = crate::elab::instantiate(
+        src,
+        "sorting",
+        role,
+        &c,
+        &t,
+        &BTreeMap::new(),
+        &BTreeMap::new(),
+        r,
+        "sorting",
+    )?;
     let ci = r.charts.len();
     r.charts.push(chart);
     let (sr, e) = crate::elab::split_source(&s.sample, &s.role);

@@ -5,37 +5,15 @@
 
 mod support;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use robot_compiler::expr::{Ast, BinOp};
 use robot_compiler::iec61499::export::{self, lift::print, Export};
 use robot_compiler::iec61499::fbt::import;
 use robot_compiler::model::{ActionDecl, ChartType};
-use robot_compiler::{compile, Compiled, Source};
+use robot_compiler::{compile, Source};
 use support::schema::validate;
-
-const DATE: &str = "2026-01-01";
-
-fn robots() -> Vec<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../robot-configs");
-    let mut out: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|x| x == "ron"))
-        .collect();
-    out.sort();
-    out
-}
-
-fn compiled(path: &Path) -> (Source, Compiled) {
-    let src = Source::read(path).unwrap();
-    let c = compile(&src).unwrap_or_else(|d| panic!("{}: {d:?}", path.display()));
-    (src, c)
-}
-
-fn exported(c: &Compiled) -> Export {
-    export::export(c, DATE).unwrap_or_else(|e| panic!("{}: {e}", c.ir.name))
-}
+use test_tables::robots::{compiled, exported, robots};
 
 fn file<'a>(e: &'a Export, name: &str) -> &'a str {
     &e.files.iter().find(|(n, _)| n == name).unwrap().1
@@ -58,8 +36,9 @@ fn every_exported_file_meets_the_schema() {
     assert!(checked > 80, "{checked} files");
 }
 
-/// The schema check finds a required attribute missing, an unknown element and
-/// elements out of order, each at its line:col.
+/// The schema check finds a required attribute missing, an attribute not allowed, an
+/// unknown element, a child not allowed, a child too few times and one out of order,
+/// each at its line:col.
 #[test]
 fn the_schema_refuses_a_broken_file() {
     let path =
@@ -101,6 +80,35 @@ fn the_schema_refuses_a_broken_file() {
         Err(format!(
             "{}:5: `EventOutputs`: `Bogus` is not allowed inside",
             row - 1
+        ))
+    );
+    let broken = good.replace("<FBType Name=", "<FBType Bogus=\"1\" Name=");
+    let row = line_of(&broken, "<FBType ");
+    assert_eq!(
+        validate(&broken),
+        Err(format!(
+            "{row}:1: `FBType`: attribute `Bogus` is not allowed"
+        ))
+    );
+    let broken = good.replace("</ECC>", "  <ECState Name=\"LATE\"/>\n    </ECC>");
+    let row = line_of(&broken, "<ECC>");
+    assert_eq!(
+        validate(&broken),
+        Err(format!("{row}:5: `ECC`: `ECState` is out of order"))
+    );
+    let broken = good.replace("<InterfaceList>", "<InterfaceList Comment=\"\">");
+    let row = line_of(&broken, "<InterfaceList");
+    assert_eq!(
+        validate(&broken),
+        Err(format!(
+            "{row}:3: `InterfaceList`: attribute `Comment` is not allowed"
+        ))
+    );
+    assert_eq!(
+        validate(&good.replace("<BasicFB>", "<BasicFB>\n<DataConnections/>")),
+        Err(format!(
+            "{}:3: `BasicFB`: `DataConnections` is not allowed inside",
+            line_of(good, "<BasicFB>")
         ))
     );
     assert!(validate("<FBType Name=\"T\">")
@@ -410,4 +418,37 @@ fn the_system_has_the_robots_instances_connections_and_mapping() {
     // one.
     assert_eq!(sys.matches("Type=\"PUBLISH_0\"").count(), 7, "{sys}");
     assert_eq!(sys.matches("Type=\"SUBSCRIBE_0\"").count(), 8, "{sys}");
+}
+
+/// A lifted chart that reads another chart's variable says which, in the export's
+/// vocabulary: the water-jet transport's `Transport` reads the operator's place
+/// (`Operation.state`) and the places the cabinet has seen of the other nodes' functions
+/// (`Pusher.state`, kept by the `Pusher.seen` chart) as input variables `value of` the
+/// FB and its variable, which the import reads again instead of a constant.
+#[test]
+fn a_lifted_chart_reading_another_charts_variable_says_whose() {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../robot-configs/waterjet-transport.ron");
+    let (_, c) = compiled(&path);
+    let e = exported(&c);
+    let fbt = file(&e, "CABINET_Transport.fbt");
+    let inputs: Vec<&str> = (fbt.lines())
+        .skip_while(|l| !l.contains("<InputVars>"))
+        .take_while(|l| !l.contains("</InputVars>"))
+        .skip(1)
+        .map(str::trim)
+        .collect();
+    assert_eq!(
+        inputs,
+        [
+            "<VarDeclaration Name=\"Operation_state\" Type=\"DINT\" \
+             Comment=\"value of CABINET_Operation.Operation_state\"/>",
+            "<VarDeclaration Name=\"Pusher_state\" Type=\"DINT\" \
+             Comment=\"value of CABINET_Pusher_seen.Pusher_state\"/>",
+            "<VarDeclaration Name=\"Belt_state\" Type=\"DINT\" \
+             Comment=\"value of CABINET_Belt_seen.Belt_state\"/>",
+            "<VarDeclaration Name=\"FaultDetection_state\" Type=\"DINT\" \
+             Comment=\"value of CABINET_FaultDetection_seen.FaultDetection_state\"/>",
+        ]
+    );
 }

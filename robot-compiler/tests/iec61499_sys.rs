@@ -271,7 +271,7 @@ fn an_unknown_or_service_fb_type_is_refused_at_its_place() {
 }
 
 #[test]
-fn adapters_fan_in_and_data_connections_between_fbs_are_refused_at_their_place() {
+fn adapters_fan_in_and_data_connections_across_resources_are_refused_at_their_place() {
     assert_eq!(
         sys_error(&SYS.replace(
             "<EventConnections>",
@@ -292,9 +292,9 @@ fn adapters_fan_in_and_data_connections_between_fbs_are_refused_at_their_place()
             "</EventConnections>",
             "</EventConnections>\n      <DataConnections><Connection Source=\"sr.Q\" Destination=\"c.PV\"/></DataConnections>"
         ).replace("<Parameter Name=\"PV\" Value=\"UINT#3\"/>", "")),
-        "r.ron:5:25: error: a.sys:10:24: data connection `sr.Q` -> `c.PV`: data connections \
-         between FBs are not supported yet (events between nodes carry no data); give `PV` a \
-         parameter"
+        "r.ron:5:25: error: a.sys:10:24: data connection `sr.Q` -> `c.PV` crosses resources \
+         (`sr` is on `B`, `c` on `A`): events between nodes carry no data; map both FBs onto \
+         one resource, or give `PV` a parameter"
     );
 }
 
@@ -446,4 +446,197 @@ fn misused_node_services_fbs_and_stray_pub_sub_fbs_are_refused_at_their_place() 
         assert_eq!(errors, [want.to_string()], "{extra}");
         assert!(robot.roles.iter().all(|r| r.charts.is_empty()));
     }
+}
+
+/// A chart type as the export marks it, whose input variable `N` reads the value of
+/// `SOURCE` (`value of FB.VAR`).
+const READER: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<FBType Name="Rd">
+  <Identification Standard="61499-2" Classification="ecc-nodes chart"/>
+  <InterfaceList>
+    <EventInputs><Event Name="REQ"/></EventInputs>
+    <EventOutputs><Event Name="HIGH"/></EventOutputs>
+    <InputVars><VarDeclaration Name="N" Type="DINT" Comment="value of SOURCE"/></InputVars>
+  </InterfaceList>
+  <BasicFB>
+    <ECC>
+      <ECState Name="S0"/>
+      <ECState Name="S1"><ECAction Output="HIGH"/></ECState>
+      <ECTransition Source="S0" Destination="S1" Condition="REQ[N &gt; 1]"/>
+      <ECTransition Source="S1" Destination="S0" Condition="1"/>
+    </ECC>
+  </BasicFB>
+</FBType>
+"#;
+
+/// `rd` (of `READER`) on resource A beside the counter `c`, and `sr` on B.
+fn reader(source: &str) -> (Robot, Vec<String>) {
+    let sys = SYS
+        .replace(
+            r#"<FB Name="sr" Type="E_SR"/>"#,
+            r#"<FB Name="sr" Type="E_SR"/><FB Name="rd" Type="Rd"/>"#,
+        )
+        .replace(
+            r#"<Mapping From="App.c" To="n1.A"/>"#,
+            r#"<Mapping From="App.c" To="n1.A"/><Mapping From="App.rd" To="n1.A"/>"#,
+        );
+    run(
+        "[\"Rd.fbt\"]",
+        "{}",
+        &[("a.sys", sys), ("Rd.fbt", READER.replace("SOURCE", source))],
+    )
+}
+
+#[test]
+fn an_input_variable_reading_another_fbs_variable_reads_it_on_its_resource() {
+    let (robot, errors) = reader("c.CV");
+    assert!(errors.is_empty(), "{errors:?}");
+    let rd = &robot.roles[0].charts[1];
+    assert_eq!(rd.name, "rd");
+    assert!(rd.params.is_empty());
+    assert_eq!(
+        rd.reads,
+        BTreeMap::from([("N".to_string(), "c.CV".to_string())])
+    );
+    assert_eq!(
+        reader("nope.CV").1,
+        [
+            "r.ron:5:25: error: a.sys:6:34: input `N` of `rd` (of type `Rd`) reads `nope.CV` \
+          (its `Comment`): no basic FB `nope` on its resource `A`"
+        ]
+    );
+    assert_eq!(
+        reader("sr.Q").1,
+        [
+            "r.ron:5:25: error: a.sys:6:34: input `N` of `rd` (of type `Rd`) reads `sr.Q` (its \
+          `Comment`): no basic FB `sr` on its resource `A`"
+        ]
+    );
+    assert_eq!(
+        reader("c.XV").1,
+        [
+            "r.ron:5:25: error: a.sys:6:34: input `N` of `rd` (of type `Rd`) reads `c.XV` (its \
+          `Comment`): `c` (of type `E_CTU`) has no variable `XV`"
+        ]
+    );
+}
+
+/// A data connection reaches through a composite's output: `k.CV` (the composite's
+/// output, its inner `c.CV` connected to it) into the counter `c` beside it on resource
+/// A: `c` reads `k.c.CV` for its `PV`.
+#[test]
+fn a_data_connection_through_a_composites_output_reads_the_inner_fbs_variable() {
+    let composite = COMPOSITE
+        .replace(
+            "</InputVars>",
+            "</InputVars>\n    <OutputVars><VarDeclaration Name=\"CV\" Type=\"UINT\"/></OutputVars>",
+        )
+        .replace(
+            "<Connection Source=\"N\" Destination=\"c.PV\"/>",
+            "<Connection Source=\"N\" Destination=\"c.PV\"/>\n      <Connection Source=\"c.CV\" Destination=\"CV\"/>",
+        );
+    let sys = SYS
+        .replace(
+            r#"<FB Name="c" Type="iec61499::events::E_CTU"><Parameter Name="PV" Value="UINT#3"/></FB>"#,
+            r#"<FB Name="k" Type="CNT2"/><FB Name="c" Type="E_CTU"/>"#,
+        )
+        .replace(
+            "</EventConnections>",
+            "</EventConnections>\n      <DataConnections><Connection Source=\"k.CV\" Destination=\"c.PV\"/></DataConnections>",
+        )
+        .replace(
+            r#"<Mapping From="App.c" To="n1.A"/>"#,
+            r#"<Mapping From="App.c" To="n1.A"/><Mapping From="App.k" To="n1.A"/>"#,
+        );
+    let (robot, errors) = run(
+        "[\"CNT2.fbt\"]",
+        "{}",
+        &[("a.sys", sys), ("CNT2.fbt", composite)],
+    );
+    assert!(errors.is_empty(), "{errors:?}");
+    type Reads<'a> = (&'a str, Vec<(&'a str, i32)>, Vec<(&'a str, &'a str)>);
+    let charts: Vec<Reads<'_>> = (robot.roles.iter())
+        .flat_map(|r| &r.charts)
+        .map(|c| {
+            (
+                c.name.as_str(),
+                c.params.iter().map(|(k, v)| (k.as_str(), *v)).collect(),
+                c.reads
+                    .iter()
+                    .map(|(k, v)| (k.as_str(), v.as_str()))
+                    .collect(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        charts,
+        [
+            ("k.c", vec![("PV", 2)], vec![]),
+            ("k.sr", vec![], vec![]),
+            ("c", vec![], vec![("PV", "k.c.CV")]),
+            ("sr", vec![], vec![]),
+        ]
+    );
+}
+
+/// Two charts of one role, `b` (declared first) of a type guarding on its parameter `N`,
+/// `a` of a type with a variable `v`.
+const POOL: &str = r#"Robot(name: "p", network: (pan_id: 1, channel: 11),
+    nodes: [(name: "n1", address: 1)], assign: [("A", "n1")],
+    roles: [(name: "A", inputs: [(name: "GO", pin: 0)], charts: [
+        (name: "b", type: "Reader", on: {"GO": "GO"}),
+        (name: "a", type: "Holder"),
+    ])],
+    chart_types: [
+        (name: "Reader", params: ["N"], inputs: ["GO"],
+         states: [(name: "S0"), (name: "S1")],
+         transitions: [(from: "S0", to: "S1", on: "GO", when: "N > 1")]),
+        (name: "Holder", vars: [(name: "w", init: "7"), (name: "v", init: "5")],
+         states: [(name: "S0")]),
+    ],
+)"#;
+
+/// A parameter an instance reads from another chart's variable
+/// ([`model::ChartInstance::reads`], as an application brings it) is that variable in
+/// the role's pool, though its chart comes later; one naming no variable of the role,
+/// or no parameter, is an error.
+#[test]
+fn a_parameter_read_from_another_charts_variable_is_that_variable() {
+    let src = Source::new("p.ron", POOL);
+    let with = |param: &str, var: &str| {
+        let mut robot = model::parse(&src).expect("parses");
+        robot.roles[0].charts[0]
+            .reads
+            .insert(param.to_string(), var.to_string());
+        robot_compiler::elab::elaborate(&robot, &src)
+            .map_err(|d| d.iter().map(|x| x.message.clone()).collect::<Vec<String>>())
+    };
+    let ir = with("N", "a.v").expect("elaborates");
+    let r = &ir.roles[0];
+    assert_eq!(r.vars, [("a.w".to_string(), 7), ("a.v".to_string(), 5)]);
+    let guard = r.charts[0].transitions[0].guard.clone().expect("a guard");
+    assert_eq!(
+        guard.1,
+        [
+            config_schema::Op::Var(1),
+            config_schema::Op::Const(1),
+            config_schema::Op::Gt
+        ]
+    );
+    assert_eq!(
+        with("N", "a.x").err(),
+        Some(vec![String::from(
+            "parameter `N` of chart `b` reads `a.x`: no chart of role `A` has that variable"
+        )])
+    );
+    assert_eq!(
+        with("M", "a.v").err(),
+        Some(vec![
+            String::from(
+                "chart type `Reader` has no parameter `M` (chart `b` reads `a.v` into it)"
+            ),
+            String::from("parameter `N` of chart type `Reader` has no value"),
+            String::from("unknown name `N`: not a variable, input or parameter of this chart"),
+        ])
+    );
 }

@@ -382,9 +382,10 @@ fn place_one(
             on: BTreeMap::new(),
             timers: BTreeMap::new(),
             more: BTreeMap::new(),
+            reads: BTreeMap::new(),
         };
         let bind = BTreeMap::from([(String::from("EOS"), eos_event(a))]);
-        match crate::elab::instantiate(&fb_src, "", role, &c, &t, &bind, r, &at) {
+        match crate::elab::instantiate(&fb_src, "", role, &c, &t, &bind, &BTreeMap::new(), r, &at) {
             Ok(chart) => r.charts.push(chart),
             Err(mut d) => diags.append(&mut d),
         }

@@ -104,20 +104,25 @@ pub struct Types {
     pub composites: Vec<Composite>,
     /// The node services types (`ROLE_IO`, [`super::io_fb`]).
     pub ios: Vec<IoType>,
+    /// Where each of `basic` is, by name (an application of lifted charts has a type per
+    /// FB): the first of a name, checked on use.
+    index: BTreeMap<String, usize>,
 }
 
 impl Types {
     /// The robot's chart types (written in RON: parameters as DINT, variables as outputs)
     /// and its imported FB types' interfaces.
     pub fn of(robot: &Robot, interfaces: &[(String, Interface)]) -> Types {
+        let mut by_name: BTreeMap<&str, &Interface> = BTreeMap::new();
+        for (n, i) in interfaces {
+            by_name.entry(n.as_str()).or_insert(i);
+        }
         let basic = robot
             .chart_types
             .iter()
             .map(|t| {
-                let i = interfaces
-                    .iter()
-                    .find(|(n, _)| *n == t.name)
-                    .map(|(_, i)| i.clone())
+                let i = (by_name.get(t.name.as_str()))
+                    .map(|i| (*i).clone())
                     .unwrap_or_else(|| Interface {
                         inputs: t
                             .params
@@ -128,19 +133,34 @@ impl Types {
                         services: Vec::new(),
                         levels: Vec::new(),
                         places: Vec::new(),
+                        values: Vec::new(),
                     });
                 (t.clone(), i)
             })
             .collect();
-        Types {
+        let mut types = Types {
             basic,
             composites: Vec::new(),
             ios: Vec::new(),
+            index: BTreeMap::new(),
+        };
+        types.reindex();
+        types
+    }
+
+    fn reindex(&mut self) {
+        self.index.clear();
+        for (k, (t, _)) in self.basic.iter().enumerate() {
+            self.index.entry(t.name.clone()).or_insert(k);
         }
     }
 
     fn basic(&self, name: &str) -> Option<&(ChartType, Interface)> {
-        self.basic.iter().find(|(t, _)| t.name == name)
+        let indexed = (self.index.get(name))
+            .and_then(|k| self.basic.get(*k))
+            .filter(|(t, _)| t.name == name);
+        // `basic` is public: a type pushed by hand is found all the same.
+        indexed.or_else(|| self.basic.iter().find(|(t, _)| t.name == name))
     }
 
     fn io(&self, name: &str) -> Option<&IoType> {
@@ -158,6 +178,9 @@ impl Types {
         };
         let typed = super::fbt::import_typed(text)
             .map_err(|e| at.error(format!("library type `{name}`: {e}")))?;
+        self.index
+            .entry(typed.0.name.clone())
+            .or_insert(self.basic.len());
         self.basic.push(typed);
         Ok(true)
     }
@@ -208,6 +231,10 @@ struct Flat {
     cparams: BTreeMap<(String, String), (String, At)>,
     events: Vec<Edge>,
     data: Vec<Edge>,
+    /// The event connections from each port, the data connections into each (by index
+    /// of `events` / `data`), once expanded ([`Flat::index`]).
+    events_from: BTreeMap<(String, String), Vec<usize>>,
+    data_into: BTreeMap<(String, String), Vec<usize>>,
 }
 
 /// The ports of an FB kind: event inputs, event outputs, data inputs, data outputs.
@@ -408,6 +435,18 @@ impl Flat {
         Ok(ports)
     }
 
+    /// Indexes the connections of the expanded application ([`Flat::events_from`]).
+    fn index(&mut self) {
+        self.events_from.clear();
+        self.data_into.clear();
+        for (k, e) in self.events.iter().enumerate() {
+            self.events_from.entry(e.from.clone()).or_default().push(k);
+        }
+        for (k, e) in self.data.iter().enumerate() {
+            self.data_into.entry(e.to.clone()).or_default().push(k);
+        }
+    }
+
     /// The leaf ports an event reaching `at` ends in (through composite interfaces).
     fn ends(
         &self,
@@ -421,8 +460,10 @@ impl Flat {
             return Vec::new();
         }
         let mut out = Vec::new();
-        for e in self.events.iter().filter(|e| e.from == *at) {
-            out.extend(self.ends(&e.to, seen));
+        for k in self.events_from.get(at).into_iter().flatten() {
+            if let Some(e) = self.events.get(*k) {
+                out.extend(self.ends(&e.to, seen));
+            }
         }
         out
     }
@@ -445,14 +486,14 @@ impl Flat {
         out
     }
 
-    /// The value of data input `port` of `leaf` given by no own `Parameter`: a composite
-    /// instance's parameter (or its input's initial value) reaching it, if any.
-    fn data_value(
-        &self,
-        types: &Types,
-        to: &(String, String),
-    ) -> Result<Option<(String, At)>, SysError> {
-        let into: Vec<&Edge> = self.data.iter().filter(|e| e.to == *to).collect();
+    /// Where the value of data input `to` (of a leaf or a composite instance) given by no
+    /// own `Parameter` comes from: a composite instance's parameter (or its input's
+    /// initial value) reaching it, or a basic FB's data output connected to it (through
+    /// composite interfaces), if any.
+    fn data_value(&self, types: &Types, to: &(String, String)) -> Result<Option<Data>, SysError> {
+        let into: Vec<&Edge> = (self.data_into.get(to).into_iter().flatten())
+            .filter_map(|k| self.data.get(*k))
+            .collect();
         let Some(e) = into.first() else {
             return Ok(None);
         };
@@ -463,14 +504,14 @@ impl Flat {
         }
         let from = &e.from;
         let Some(cty) = self.composites.get(&from.0) else {
-            return Err(e.at.error(format!(
-                "data connection `{}.{}` -> `{}.{}`: data connections between FBs are not \
-                 supported yet (events between nodes carry no data); give `{}` a parameter",
-                from.0, from.1, to.0, to.1, to.1
-            )));
+            return Ok(Some(Data::Var {
+                fb: from.0.clone(),
+                var: from.1.clone(),
+                at: e.at.clone(),
+            }));
         };
-        if let Some(v) = self.cparams.get(from) {
-            return Ok(Some(v.clone()));
+        if let Some((v, at)) = self.cparams.get(from) {
+            return Ok(Some(Data::Literal(v.clone(), at.clone())));
         }
         if let Some(v) = self.data_value(types, from)? {
             return Ok(Some(v));
@@ -479,8 +520,24 @@ impl Flat {
             .composite(cty)
             .and_then(|c| c.inputs.iter().find(|(n, _)| *n == from.1))
             .and_then(|(_, v)| v.clone());
-        Ok(init.map(|v| (v, e.at.clone())))
+        Ok(init.map(|v| Data::Literal(v, e.at.clone())))
     }
+}
+
+/// Where a data input's value comes from ([`Flat::data_value`]).
+enum Data {
+    /// A literal as written (a composite instance's parameter or its input's initial
+    /// value), at its place.
+    Literal(String, At),
+    /// Data output `var` of basic FB `fb`, by the connection at `at`: within a resource,
+    /// the input reads the FB's variable.
+    Var { fb: String, var: String, at: At },
+}
+
+/// The keys of a map by (FB, port) from FB `fb`'s first on: its keys are those the range
+/// starts with (`take_while` the FB is `fb`).
+fn own_range(fb: &str) -> std::ops::RangeFrom<(String, String)> {
+    (fb.to_string(), String::new())..
 }
 
 /// The library's merge, folded where a chain of them feeds one input.
@@ -501,52 +558,71 @@ fn fold_merges(
     let merge_type = types.basic(MERGE).is_some_and(|(t, _)| {
         t.inputs == ["EI1", "EI2"] && t.outputs == ["EO"] && t.params.is_empty()
     });
-    let leaf = |fb: &str| flat.leaves.iter().find(|l| l.name == fb);
-    let into = |fb: &str, port: &str| {
-        (edges.iter())
-            .filter(|e| e.to.0 == fb && e.to.1 == port)
-            .count()
-    };
+    let leaves: BTreeMap<&str, &Leaf> = (flat.leaves.iter().rev())
+        .map(|l| (l.name.as_str(), l))
+        .collect();
+    // The edges from each FB and into each port, in order.
+    let mut from_fb: BTreeMap<&str, Vec<&Edge>> = BTreeMap::new();
+    let mut into_port: BTreeMap<(&str, &str), Vec<&Edge>> = BTreeMap::new();
+    for e in &edges {
+        from_fb.entry(e.from.0.as_str()).or_default().push(e);
+        (into_port.entry((e.to.0.as_str(), e.to.1.as_str())))
+            .or_default()
+            .push(e);
+    }
+    let into = |fb: &str, port: &str| into_port.get(&(fb, port)).map_or(0, Vec::len);
     // A merge whose EO has one edge and each EI at most one.
     let mut folded: BTreeSet<String> = (flat.leaves.iter())
         .filter(|l| merge_type && l.ty == MERGE)
         .filter(|l| {
-            let outs = edges.iter().filter(|e| e.from.0 == l.name).count();
+            let outs = from_fb.get(l.name.as_str()).map_or(0, Vec::len);
             outs == 1 && into(&l.name, "EI1") <= 1 && into(&l.name, "EI2") <= 1
         })
         .map(|l| l.name.clone())
         .collect();
-    // Where a chain ends: a chart input (a loop or another FB: not folded).
-    let end = |start: &str, folded: &BTreeSet<String>| -> Option<(String, String)> {
-        let mut at = start.to_string();
-        for _ in 0..=folded.len() {
-            let e = edges.iter().find(|e| e.from.0 == at)?;
+    // Where each chain ends: a chart input (a loop or another FB: not folded). Each merge
+    // is walked once: a chain's merges share its end.
+    let mut ends: BTreeMap<String, Option<(String, String)>> = BTreeMap::new();
+    for m in &folded {
+        let mut path: Vec<&str> = Vec::new();
+        let mut on_path: BTreeSet<&str> = BTreeSet::new();
+        let mut at = m.as_str();
+        let end = loop {
+            if let Some(known) = ends.get(at) {
+                break known.clone();
+            }
+            if !on_path.insert(at) {
+                break None;
+            }
+            path.push(at);
+            let Some(e) = from_fb.get(at).and_then(|list| list.first()) else {
+                break None;
+            };
             if !folded.contains(&e.to.0) {
-                return leaf(&e.to.0)
+                break (leaves.get(e.to.0.as_str()))
                     .filter(|l| l.ty != DELAY)
                     .map(|_| e.to.clone());
             }
-            at = e.to.0.clone();
+            at = e.to.0.as_str();
+        };
+        for p in path {
+            ends.insert(p.to_string(), end.clone());
         }
-        None
-    };
-    let ends: BTreeMap<String, (String, String)> = (folded.iter())
-        .filter_map(|m| Some((m.clone(), end(m, &folded)?)))
-        .collect();
-    folded.retain(|m| ends.contains_key(m));
-    fn sources(
+    }
+    folded.retain(|m| ends.get(m).is_some_and(Option::is_some));
+    fn sources<'e>(
         m: &str,
-        edges: &[Edge],
+        into_port: &BTreeMap<(&str, &str), Vec<&'e Edge>>,
         folded: &BTreeSet<String>,
         depth: usize,
-        out: &mut Vec<Edge>,
+        out: &mut Vec<&'e Edge>,
     ) {
         for port in ["EI1", "EI2"] {
-            for e in edges.iter().filter(|e| e.to.0 == m && e.to.1 == port) {
+            for e in into_port.get(&(m, port)).into_iter().flatten() {
                 if folded.contains(&e.from.0) && depth > 0 {
-                    sources(&e.from.0, edges, folded, depth - 1, out);
+                    sources(&e.from.0, into_port, folded, depth - 1, out);
                 } else {
-                    out.push(e.clone());
+                    out.push(e);
                 }
             }
         }
@@ -558,14 +634,14 @@ fn fold_merges(
         if from && !to {
             // The chain's last edge: the sources it joins, in order.
             let mut list = Vec::new();
-            sources(&e.from.0, &edges, &folded, folded.len(), &mut list);
+            sources(&e.from.0, &into_port, &folded, folded.len(), &mut list);
             let joins = joined.entry(e.to.clone()).or_default();
             for s in list {
                 joins.push(s.from.clone());
                 out.push(Edge {
-                    from: s.from,
+                    from: s.from.clone(),
                     to: e.to.clone(),
-                    at: s.at,
+                    at: s.at.clone(),
                 });
             }
         } else if !from && !to {
@@ -591,6 +667,7 @@ type PlantEdge = (Edge, String);
 fn node_services(
     edges: Vec<Edge>,
     flat: &Flat,
+    leaf_of: &BTreeMap<&str, &Leaf>,
     types: &Types,
     role_of: &dyn Fn(&str) -> String,
 ) -> Result<
@@ -601,11 +678,7 @@ fn node_services(
     ),
     SysError,
 > {
-    let basic = |fb: &str| {
-        (flat.leaves.iter())
-            .find(|l| l.name == fb)
-            .and_then(|l| types.basic(&l.ty))
-    };
+    let basic = |fb: &str| leaf_of.get(fb).and_then(|l| types.basic(&l.ty));
     let event_of = |fb: &str, port: &str| {
         (flat.ios.get(fb))
             .and_then(|(_, ty)| types.io(ty))
@@ -789,8 +862,9 @@ pub fn bring(
     }
     // The mapping: each application FB onto one resource.
     let mut mapped: BTreeMap<String, String> = BTreeMap::new(); // top FB -> role
+    let app_fbs: BTreeSet<&str> = sys.net.fbs.iter().map(|f| f.name.as_str()).collect();
     for m in &sys.mapping {
-        if !sys.net.fbs.iter().any(|f| f.name == m.fb) {
+        if !app_fbs.contains(m.fb.as_str()) {
             return Err(m
                 .at
                 .error(format!(
@@ -829,12 +903,13 @@ pub fn bring(
     // A resource's own network: the mapped FBs' copies (as 4diac keeps them), an idle
     // E_RESTART, and the PUBLISH / SUBSCRIBE pairs of the connections the mapping cuts (as
     // `export` writes them); anything else would be lost.
+    let by_source = super::io_fb::by_source(&sys.net);
     for d in &sys.devices {
         for r in &d.resources {
             for fb in &r.net.fbs {
                 let ours = mapped.get(&fb.name) == Some(&r.name);
                 if let Some(topic) = super::io_fb::pub_sub(fb) {
-                    super::io_fb::check_pub_sub(fb, topic, &r.name, &sys.net, &mapped)?;
+                    super::io_fb::check_pub_sub(fb, topic, &r.name, &by_source, &mapped)?;
                     continue;
                 }
                 if !ours && !sys::idle_restart(fb, &r.net) {
@@ -852,18 +927,23 @@ pub fn bring(
     }
     let mut flat = Flat::default();
     flat.expand(types, &sys.net, None, None, None, &mut Vec::new())?;
+    flat.index();
     let edges = flat.leaf_edges();
     let (edges, joined) = fold_merges(edges, &mut flat, types);
+    // The leaves by name (the first of a name: names are unique in a network, and a
+    // composite's are prefixed).
+    let leaf_of: BTreeMap<&str, &Leaf> = (flat.leaves.iter().rev())
+        .map(|l| (l.name.as_str(), l))
+        .collect();
     let role_of = |leaf: &str| -> String {
-        (flat.leaves.iter())
-            .find(|l| l.name == leaf)
+        (leaf_of.get(leaf))
             .map(|l| &l.top)
             .or_else(|| flat.ios.get(leaf).map(|(top, _)| top))
             .and_then(|top| mapped.get(top))
             .cloned()
             .unwrap_or_default()
     };
-    let is_delay = |leaf: &str| flat.leaves.iter().any(|l| l.name == leaf && l.ty == DELAY);
+    let is_delay = |leaf: &str| leaf_of.get(leaf).is_some_and(|l| l.ty == DELAY);
     // Fan-in: one source per event input, or the sources an E_MERGE chain joins.
     let mut fed: BTreeMap<(String, String), At> = BTreeMap::new();
     for e in &edges {
@@ -879,7 +959,31 @@ pub fn bring(
                 .into());
         }
     }
-    let (edges, plant_edges, shared_timers) = node_services(edges, &flat, types, &role_of)?;
+    let (edges, plant_edges, shared_timers) =
+        node_services(edges, &flat, &leaf_of, types, &role_of)?;
+    // The edges from each FB port and into each FB, in order (by index of `edges`).
+    let mut edges_from: BTreeMap<(&str, &str), Vec<usize>> = BTreeMap::new();
+    let mut edges_into: BTreeMap<&str, Vec<usize>> = BTreeMap::new();
+    for (k, e) in edges.iter().enumerate() {
+        (edges_from.entry((e.from.0.as_str(), e.from.1.as_str())))
+            .or_default()
+            .push(k);
+        edges_into.entry(e.to.0.as_str()).or_default().push(k);
+    }
+    let from_port = |fb: &str, port: &str| -> Vec<&Edge> {
+        (edges_from.get(&(fb, port)).into_iter().flatten())
+            .filter_map(|k| edges.get(*k))
+            .collect()
+    };
+    let into_fb = |fb: &str| -> Vec<&Edge> {
+        (edges_into.get(fb).into_iter().flatten())
+            .filter_map(|k| edges.get(*k))
+            .collect()
+    };
+    let mut plant_into: BTreeMap<&str, Vec<&PlantEdge>> = BTreeMap::new();
+    for p in &plant_edges {
+        plant_into.entry(p.0.to.0.as_str()).or_default().push(p);
+    }
     // The node events of their own (`boot`, `home`) the charts read, per role.
     let mut node_events: BTreeMap<String, Vec<String>> = BTreeMap::new();
     for (e, event) in &plant_edges {
@@ -903,9 +1007,8 @@ pub fn bring(
             ))
         };
         let into = |port: &str| {
-            edges
-                .iter()
-                .filter(|e| e.to == (d.name.clone(), port.to_string()))
+            (into_fb(&d.name).into_iter())
+                .filter(|e| e.to.1 == port)
                 .collect::<Vec<_>>()
         };
         let starts = into("START");
@@ -913,7 +1016,8 @@ pub fn bring(
             return Err(fold("is not started by one FB output").into());
         };
         let owner = start.from.0.clone();
-        let eo: Vec<&Edge> = edges.iter().filter(|e| e.from.0 == d.name).collect();
+        // An E_DELAY's one event output is `EO`.
+        let eo: Vec<&Edge> = from_port(&d.name, "EO");
         let [eo] = eo.as_slice() else {
             return Err(fold("does not end in one event input").into());
         };
@@ -943,7 +1047,7 @@ pub fn bring(
                     .map(|s| (s, ActionDecl::CancelTimer(timer.clone()))),
             )
         {
-            if edges.iter().filter(|e| e.from == s.from).count() > 1 {
+            if from_port(&s.from.0, &s.from.1).len() > 1 {
                 return Err(s
                     .at
                     .error(format!(
@@ -958,7 +1062,7 @@ pub fn bring(
     }
     // The robot file's bindings.
     let leaf_type = |fb: &str| -> Option<&ChartType> {
-        let l = flat.leaves.iter().find(|l| l.name == fb && l.ty != DELAY)?;
+        let l = leaf_of.get(fb).filter(|l| l.ty != DELAY)?;
         types.basic(&l.ty).map(|(t, _)| t)
     };
     let split = |key: &str, path: &str| -> Result<(String, String, ChartType), AppError> {
@@ -999,7 +1103,7 @@ pub fn bring(
             ));
         }
         let end = (fb.clone(), port.clone());
-        if edges.iter().any(|e| e.from == end) || acts.contains_key(&end) {
+        if !from_port(&end.0, &end.1).is_empty() || acts.contains_key(&end) {
             return Err(ron(
                 "application.actions",
                 format!("`{key}` is connected in the application already"),
@@ -1021,8 +1125,9 @@ pub fn bring(
     }
     // The charts.
     let mut roles: Vec<Role> = robot.roles.clone();
+    let mut role_names: BTreeSet<String> = roles.iter().map(|r| r.name.clone()).collect();
     for name in &order {
-        if !roles.iter().any(|r| r.name == *name) {
+        if role_names.insert(name.clone()) {
             roles.push(Role {
                 name: name.clone(),
                 actuators: Vec::new(),
@@ -1040,6 +1145,14 @@ pub fn bring(
         }
     }
     let mut chart_types: Vec<ChartType> = Vec::new();
+    // The names of the robot's chart types and of those brought so far.
+    let mut type_names: BTreeSet<String> =
+        robot.chart_types.iter().map(|x| x.name.clone()).collect();
+    // Each role's place in `roles` (the first of a name).
+    let mut role_at: BTreeMap<String, usize> = BTreeMap::new();
+    for (k, r) in roles.iter().enumerate() {
+        role_at.entry(r.name.clone()).or_insert(k);
+    }
     let mut place_vars: Vec<PlacesVar> = Vec::new();
     for l in flat.leaves.iter().filter(|l| l.ty != DELAY) {
         let Some((t, iface)) = types.basic(&l.ty).cloned() else {
@@ -1047,16 +1160,64 @@ pub fn bring(
         };
         let role = role_of(&l.name);
         let mut params = BTreeMap::new();
+        let mut reads = BTreeMap::new();
         for (input, ty, init) in &iface.inputs {
             let own = l
                 .params
                 .iter()
                 .find(|p| p.name == *input)
-                .map(|p| (p.value.clone(), p.at.clone()));
+                .map(|p| Data::Literal(p.value.clone(), p.at.clone()));
             let given = match own {
                 Some(v) => Some(v),
                 None => flat.data_value(types, &(l.name.clone(), input.clone()))?,
             };
+            let given = match given {
+                Some(Data::Var { fb, var, at }) => {
+                    let from_role = role_of(&fb);
+                    if from_role != role {
+                        return Err(at
+                            .error(format!(
+                                "data connection `{fb}.{var}` -> `{}.{input}` crosses resources \
+                                 (`{fb}` is on `{from_role}`, `{}` on `{role}`): events between \
+                                 nodes carry no data; map both FBs onto one resource, or give \
+                                 `{input}` a parameter",
+                                l.name, l.name
+                            ))
+                            .into());
+                    }
+                    reads.insert(input.clone(), format!("{fb}.{var}"));
+                    continue;
+                }
+                Some(Data::Literal(text, at)) => Some((text, at)),
+                None => None,
+            };
+            if let (None, Some((_, fb, var))) =
+                (&given, iface.values.iter().find(|(p, _, _)| p == input))
+            {
+                let found = leaf_type(fb).filter(|_| role_of(fb) == role);
+                let Some(ft) = found else {
+                    return Err(l
+                        .at
+                        .error(format!(
+                            "input `{input}` of `{}` (of type `{}`) reads `{fb}.{var}` (its \
+                             `Comment`): no basic FB `{fb}` on its resource `{role}`",
+                            l.name, t.name
+                        ))
+                        .into());
+                };
+                if !ft.vars.iter().any(|v| v.name == *var) {
+                    return Err(l
+                        .at
+                        .error(format!(
+                            "input `{input}` of `{}` (of type `{}`) reads `{fb}.{var}` (its \
+                             `Comment`): `{fb}` (of type `{}`) has no variable `{var}`",
+                            l.name, t.name, ft.name
+                        ))
+                        .into());
+                }
+                reads.insert(input.clone(), format!("{fb}.{var}"));
+                continue;
+            }
             let value = match given {
                 Some((text, at)) => st::literal(text.trim(), *ty).map_err(|e| {
                     at.error(format!(
@@ -1075,7 +1236,10 @@ pub fn bring(
             params.insert(input.clone(), v);
         }
         let mut on = plant_on.remove(&l.name).unwrap_or_default();
-        for (e, event) in plant_edges.iter().filter(|(e, _)| e.to.0 == l.name) {
+        let plant_here = plant_into
+            .get(l.name.as_str())
+            .map_or(&[][..], Vec::as_slice);
+        for (e, event) in plant_here.iter().copied() {
             let from_role = role_of(&e.from.0);
             on.insert(
                 e.to.1.clone(),
@@ -1093,7 +1257,7 @@ pub fn bring(
             let list = joined.get(&e.to)?;
             list.iter().position(|s| *s == e.from)
         };
-        for (e, event) in plant_edges.iter().filter(|(e, _)| e.to.0 == l.name) {
+        for (e, event) in plant_here.iter().copied() {
             if let Some(k) = rank(e) {
                 let from_role = role_of(&e.from.0);
                 let text = if from_role == role {
@@ -1104,7 +1268,7 @@ pub fn bring(
                 several.entry(e.to.1.clone()).or_default().push((k, text));
             }
         }
-        for e in edges.iter().filter(|e| e.to.0 == l.name) {
+        for e in into_fb(&l.name) {
             if is_delay(&e.from.0) {
                 continue;
             }
@@ -1131,16 +1295,13 @@ pub fn bring(
             }
             more.insert(input, texts.collect::<Vec<_>>());
         }
-        let own_acts: Vec<(&String, &ActionDecl)> = acts
-            .iter()
-            .filter(|((fb, _), _)| *fb == l.name)
+        let own_acts: Vec<(&String, &ActionDecl)> = (acts.range(own_range(&l.name)))
+            .take_while(|((fb, _), _)| *fb == l.name)
             .map(|((_, o), a)| (o, a))
             .collect();
         let own_timers = timers.get(&l.name).cloned().unwrap_or_default();
         let type_name = if own_acts.is_empty() && own_timers.is_empty() {
-            if !robot.chart_types.iter().any(|x| x.name == t.name)
-                && !chart_types.iter().any(|x| x.name == t.name)
-            {
+            if type_names.insert(t.name.clone()) {
                 chart_types.push(t.clone());
             }
             t.name.clone()
@@ -1148,16 +1309,13 @@ pub fn bring(
             let mut s = t.clone();
             // `TYPE_FB`: an IEC 61131-3 identifier (so the robot exports back to 4diac),
             // made unique against the types already there.
-            let taken = |n: &str| {
-                robot.chart_types.iter().any(|x| x.name == n)
-                    || chart_types.iter().any(|x| x.name == n)
-            };
             s.name = format!("{}_{}", t.name, l.name);
             let mut k = 2;
-            while taken(&s.name) {
+            while type_names.contains(&s.name) {
                 s.name = format!("{}_{}_{k}", t.name, l.name);
                 k += 1;
             }
+            type_names.insert(s.name.clone());
             s.outputs.retain(|o| !own_acts.iter().any(|(x, _)| *x == o));
             s.inputs.retain(|i| !own_timers.contains(i));
             s.timers.extend(own_timers.iter().cloned());
@@ -1182,9 +1340,9 @@ pub fn bring(
                 var: format!("{}.{var}", l.name),
             });
         }
-        if let Some(r) = roles.iter_mut().find(|r| r.name == role) {
-            let timers = (shared_timers.iter())
-                .filter(|((fb, _), _)| *fb == l.name)
+        if let Some(r) = role_at.get(&role).and_then(|k| roles.get_mut(*k)) {
+            let timers = (shared_timers.range(own_range(&l.name)))
+                .take_while(|((fb, _), _)| *fb == l.name)
                 .map(|((_, t), event)| (t.clone(), event.clone()))
                 .collect();
             r.charts.push(ChartInstance {
@@ -1194,6 +1352,7 @@ pub fn bring(
                 on,
                 timers,
                 more,
+                reads,
             });
         }
     }

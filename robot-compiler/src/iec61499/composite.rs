@@ -27,7 +27,12 @@ pub fn is_composite(text: &str) -> Option<bool> {
 /// Reads a composite FB type (`file`: its name, for the errors).
 pub fn parse(text: &str, file: &str) -> Result<Composite, SysError> {
     let doc = net::parse(text, file)?;
-    let x = Xml { doc: &doc, file };
+    let lines = net::Lines::of(text);
+    let x = Xml {
+        doc: &doc,
+        file,
+        lines: &lines,
+    };
     let root = doc.root_element();
     let name = x.attr(root, "Name")?.to_string();
     let Some(network) = child(root, "FBNetwork") else {

@@ -101,6 +101,9 @@ struct Var {
     level: Option<String>,
     /// The function and places it holds, by its `Comment` (in a marked type only).
     places: Option<(String, Vec<String>)>,
+    /// The FB and variable whose value it reads, by its `Comment` (in a marked type
+    /// only).
+    value: Option<(String, String)>,
 }
 
 /// The typed interface of an imported basic FB type, beyond its chart type: what an
@@ -124,6 +127,10 @@ pub struct Interface {
     /// that hold a control function's place (`Comment="places of F: A B"`), which the
     /// robot's alarms read as `F.A` again.
     pub places: Vec<(String, String, Vec<String>)>,
+    /// (input variable, FB, its variable): the input variables of a marked type that
+    /// read another chart's variable (`Comment="value of FB.VAR"`): in an application,
+    /// the instance reads FB's variable ([`crate::model::ChartInstance::reads`]).
+    pub values: Vec<(String, String, String)>,
 }
 
 /// A marked type's input variables that read their role's input levels
@@ -265,12 +272,17 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
                 .filter(|_| ty == Ty::Bool)
                 .map(str::to_string);
             let places = (v.attribute("Comment")).and_then(super::services::places_of);
+            let value = (v.attribute("Comment"))
+                .and_then(super::services::value_of)
+                .filter(|_| ty != Ty::Bool)
+                .map(|(fb, var)| (fb.to_string(), var.to_string()));
             out.push(Var {
                 name: vname,
                 ty,
                 init,
                 level,
                 places,
+                value,
             });
         }
         Ok(out)
@@ -483,6 +495,13 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
         levels: (inputs.iter())
             .filter(|_| marked)
             .filter_map(|v| Some((v.name.clone(), v.level.clone()?)))
+            .collect(),
+        values: (inputs.iter())
+            .filter(|_| marked)
+            .filter_map(|v| {
+                let (fb, var) = v.value.clone()?;
+                Some((v.name.clone(), fb, var))
+            })
             .collect(),
         places: (outputs.iter().chain(internal.iter()))
             .filter(|_| marked)

@@ -8,7 +8,7 @@
 
 use std::collections::BTreeMap;
 
-use super::net::{self, child, elements, At, Fb, Network, SysError, Xml};
+use super::net::{self, child, elements, At, Conn, Fb, Network, SysError, Xml};
 use super::services::IO_MARK;
 
 /// An IO type: its name, event inputs, and event outputs with the node events they are.
@@ -40,7 +40,12 @@ pub fn is_io(text: &str) -> Option<bool> {
 /// no ECC, no network.
 pub fn parse(text: &str, file: &str) -> Result<IoType, SysError> {
     let doc = net::parse(text, file)?;
-    let x = Xml { doc: &doc, file };
+    let lines = net::Lines::of(text);
+    let x = Xml {
+        doc: &doc,
+        file,
+        lines: &lines,
+    };
     let root = doc.root_element();
     let name = x.attr(root, "Name")?.to_string();
     for n in elements(root) {
@@ -120,6 +125,18 @@ pub fn pub_sub(fb: &Fb) -> Option<PubSub> {
         .then_some(PubSub::Subscribe)
 }
 
+/// The event connections of an application by their source (`FB.EVENT`), in order.
+pub type BySource<'n> = BTreeMap<&'n str, Vec<&'n Conn>>;
+
+/// [`BySource`] of `app`.
+pub fn by_source(app: &Network) -> BySource<'_> {
+    let mut out: BySource<'_> = BTreeMap::new();
+    for c in &app.events {
+        out.entry(c.source.as_str()).or_default().push(c);
+    }
+    out
+}
+
 /// Checks a `PUBLISH_n` / `SUBSCRIBE_n` FB of resource `resource` is what `export` writes
 /// for a connection the mapping cuts: its `ID` the topic `"ROLE/FB.EVENT"` of an
 /// application connection from `FB.EVENT` (mapped onto `ROLE`) to an FB on another
@@ -129,7 +146,7 @@ pub fn check_pub_sub(
     fb: &Fb,
     kind: PubSub,
     resource: &str,
-    app: &Network,
+    by_source: &BySource<'_>,
     mapped: &BTreeMap<String, String>,
 ) -> Result<(), SysError> {
     let Some(id) = fb.params.iter().find(|p| p.name == "ID") else {
@@ -143,8 +160,8 @@ pub fn check_pub_sub(
     let topic = id.value.trim().trim_matches(|c| c == '"' || c == '\'');
     let role_of = |end: &str| end.split_once('.').and_then(|(f, _)| mapped.get(f));
     let carried = topic.split_once('/').is_some_and(|(role, source)| {
-        let cut: Vec<&String> = (app.events.iter())
-            .filter(|c| c.source == source && role_of(&c.source).is_some_and(|r| r == role))
+        let cut: Vec<&String> = (by_source.get(source).into_iter().flatten())
+            .filter(|c| role_of(&c.source).is_some_and(|r| r == role))
             .filter_map(|c| role_of(&c.dest))
             .filter(|r| *r != role)
             .collect();

@@ -81,11 +81,41 @@ pub struct Network {
     pub data: Vec<Conn>,
 }
 
+/// Where the lines of a text start, to turn a byte offset into a line and column (as
+/// roxmltree's `text_pos_at` counts them: 1-based, columns in characters) without
+/// scanning the text from its start each time: a file's every element has its place.
+pub struct Lines(Vec<usize>);
+
+impl Lines {
+    pub fn of(text: &str) -> Lines {
+        let starts = std::iter::once(0).chain(
+            (text.bytes().enumerate())
+                .filter(|(_, b)| *b == b'\n')
+                .map(|(i, _)| i + 1),
+        );
+        Lines(starts.collect())
+    }
+
+    /// The line and column of byte `offset` of `text` (the text the lines are of).
+    pub fn pos(&self, text: &str, offset: usize) -> Pos {
+        let offset = offset.min(text.len());
+        let row = self.0.partition_point(|s| *s <= offset).max(1);
+        let start = self.0.get(row - 1).copied().unwrap_or(0);
+        let col = text.get(start..offset).map_or(0, |t| t.chars().count()) + 1;
+        Pos {
+            line: u32::try_from(row).unwrap_or(u32::MAX),
+            col: u32::try_from(col).unwrap_or(u32::MAX),
+        }
+    }
+}
+
 /// One XML file being read.
 #[derive(Clone, Copy)]
 pub struct Xml<'a, 'i> {
     pub doc: &'a Document<'i>,
     pub file: &'a str,
+    /// The lines of the document's text.
+    pub lines: &'a Lines,
 }
 
 /// Parses `text` (DTD allowed, as the tools write one), or an error at the first place
@@ -110,13 +140,9 @@ pub fn parse<'i>(text: &'i str, file: &str) -> Result<Document<'i>, SysError> {
 
 impl<'a, 'i> Xml<'a, 'i> {
     pub fn at(&self, n: Node<'a, 'i>) -> At {
-        let p = self.doc.text_pos_at(n.range().start);
         At {
             file: self.file.to_string(),
-            pos: Pos {
-                line: p.row,
-                col: p.col,
-            },
+            pos: self.lines.pos(self.doc.input_text(), n.range().start),
         }
     }
 
@@ -223,4 +249,23 @@ pub fn elements<'a, 'i>(n: Node<'a, 'i>) -> impl Iterator<Item = Node<'a, 'i>> {
 
 pub fn child<'a, 'i>(n: Node<'a, 'i>, name: &str) -> Option<Node<'a, 'i>> {
     elements(n).find(|c| c.tag_name().name() == name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Lines;
+
+    /// Lines and columns as roxmltree counts them, at every offset of a text with
+    /// several lines, an empty one and characters of more than one byte.
+    #[test]
+    fn lines_give_roxmltree_positions() {
+        let text = "<a>\n  <b é=\"ü\"/>\n\n<c/>\n</a>";
+        let doc = roxmltree::Document::parse(text).expect("parses");
+        let lines = Lines::of(text);
+        for (offset, _) in text.char_indices().chain([(text.len(), ' ')]) {
+            let want = doc.text_pos_at(offset);
+            let got = lines.pos(text, offset);
+            assert_eq!((got.line, got.col), (want.row, want.col), "at {offset}");
+        }
+    }
 }

@@ -27,6 +27,13 @@ const LEVEL: &str = "level of ";
 /// (`Pusher.Stopped`) through it again once the function is a lifted chart.
 const PLACES: &str = "places of ";
 
+/// The `Comment` prefix of a marked type's input variable that stands for the value of
+/// another chart's variable on its role (`value of CABINET_Operation.Operation_state`:
+/// the FB of that chart in the application, the variable in its type): a lifted chart
+/// reads the variable in its guards and assignments, and the import reads it again
+/// (the role's variables are one pool), no parameter.
+const VALUE: &str = "value of ";
+
 /// The `Comment` prefix of a `ROLE_IO` event output that is a node event of its own, no
 /// pin or timer (`node event boot`): [`NODE_EVENTS`].
 const NODE_EVENT: &str = "node event ";
@@ -48,6 +55,23 @@ pub fn level_comment(input: &str) -> String {
 /// The role input whose level a marked type's input variable reads, from its `Comment`.
 pub fn level_of(comment: &str) -> Option<&str> {
     comment.trim().strip_prefix(LEVEL).filter(|i| !i.is_empty())
+}
+
+/// The `Comment` of an input variable reading variable `var` of FB `fb`.
+pub fn value_comment(fb: &str, var: &str) -> String {
+    format!("{VALUE}{fb}.{var}")
+}
+
+/// The FB and its variable a marked type's input variable reads, from its `Comment`
+/// (`value of FB.VAR`; the FB's name may have dots of its own, a composite's FBs'
+/// names do, the variable's not).
+pub fn value_of(comment: &str) -> Option<(&str, &str)> {
+    let (fb, var) = comment.trim().strip_prefix(VALUE)?.rsplit_once('.')?;
+    (!fb.is_empty()
+        && !var.is_empty()
+        && !fb.contains(char::is_whitespace)
+        && !var.contains(char::is_whitespace))
+    .then_some((fb, var))
 }
 
 /// The `Comment` of a variable holding function `function`'s place, of `places` in
@@ -194,6 +218,21 @@ mod tests {
         assert_eq!(io_event("VC.home"), ("VC.home", false));
         assert_eq!(io_event("home"), ("home", false), "an input named `home`");
         assert_eq!(io_event("node event x"), ("node event x", false));
+    }
+
+    /// Another chart's variable goes to an input variable's comment and back.
+    #[test]
+    fn values_round_trip() {
+        use super::{value_comment, value_of};
+        let c = value_comment("CABINET_Operation", "Operation_state");
+        assert_eq!(c, "value of CABINET_Operation.Operation_state");
+        assert_eq!(value_of(&c), Some(("CABINET_Operation", "Operation_state")));
+        assert_eq!(value_of("value of k.c.CV"), Some(("k.c", "CV")));
+        assert_eq!(value_of("value of CV"), None);
+        assert_eq!(value_of("value of .CV"), None);
+        assert_eq!(value_of("value of c."), None);
+        assert_eq!(value_of("value of a b.c"), None);
+        assert_eq!(value_of("level of VC.home"), None);
     }
 
     /// A function's places go to a variable's comment and back.

@@ -43,7 +43,12 @@ pub struct Mapping {
 /// Reads the `.sys` text (`file`: its name, for the errors).
 pub fn parse(text: &str, file: &str) -> Result<System, SysError> {
     let doc = net::parse(text, file)?;
-    let x = Xml { doc: &doc, file };
+    let lines = net::Lines::of(text);
+    let x = Xml {
+        doc: &doc,
+        file,
+        lines: &lines,
+    };
     let root = doc.root_element();
     if root.tag_name().name() != "System" {
         return Err(x.error(

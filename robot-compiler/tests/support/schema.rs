@@ -6,7 +6,7 @@
 
 /// How often a child may occur.
 #[derive(Clone, Copy)]
-pub enum Many {
+enum Many {
     /// `?`
     Opt,
     /// `+`
@@ -17,241 +17,77 @@ pub enum Many {
     One,
 }
 
-pub struct Element {
-    pub name: &'static str,
-    pub required: &'static [&'static str],
-    pub optional: &'static [&'static str],
-    /// Children in the order the DTD's sequence has them; a group of alternatives is
-    /// written as one entry per alternative with the same position.
-    pub children: &'static [(&'static str, Many)],
+/// IEC 61499-2 Annex B, the elements of FB types and system configurations used here, a
+/// row each as the DTD declares them: the element, its required attributes, its optional
+/// ones (`?name`), then after `:` its children in the order of the DTD's sequence, each
+/// with its multiplicity (`?`, `+`, `*`, none: exactly once).
+const SCHEMA: &[&str] = &[
+    "FBType Name ?Comment : Identification? VersionInfo+ CompilerInfo? InterfaceList BasicFB? \
+     Service?",
+    "Identification ?Standard ?Classification ?ApplicationDomain ?Function ?Type ?Description",
+    "VersionInfo Organization Version Author Date ?Remarks",
+    "InterfaceList : EventInputs? EventOutputs? InputVars? OutputVars?",
+    "EventInputs : Event+",
+    "EventOutputs : Event+",
+    "Event Name ?Type ?Comment : With*",
+    "With Var",
+    "InputVars : VarDeclaration+",
+    "OutputVars : VarDeclaration+",
+    "InternalVars : VarDeclaration+",
+    "VarDeclaration Name Type ?ArraySize ?InitialValue ?Comment",
+    "BasicFB : InternalVars? ECC? Algorithm*",
+    "ECC : ECState+ ECTransition*",
+    "ECState Name ?Comment ?x ?y : ECAction*",
+    "ECAction ?Algorithm ?Output",
+    "ECTransition Source Destination Condition ?Comment ?x ?y",
+    "Algorithm Name ?Comment : ST",
+    "ST Text",
+    "Service RightInterface LeftInterface ?Comment : ServiceSequence*",
+    "System Name ?Comment : Identification? VersionInfo+ Application* Device+ Mapping*",
+    "Application Name ?Comment : SubAppNetwork",
+    "SubAppNetwork : FB* EventConnections? DataConnections?",
+    "FBNetwork : FB* EventConnections? DataConnections?",
+    "FB Name Type ?Comment ?x ?y : Parameter*",
+    "Parameter Name Value ?Comment",
+    "EventConnections : Connection+",
+    "Connection Source Destination ?Comment ?dx1 ?dx2 ?dy",
+    "Device Name Type ?Comment ?x ?y : Parameter* Resource*",
+    "Resource Name Type ?Comment ?x ?y : Parameter* FBNetwork?",
+    "Mapping From To",
+];
+
+/// One row of [`SCHEMA`], read.
+struct Element<'s> {
+    required: Vec<&'s str>,
+    optional: Vec<&'s str>,
+    children: Vec<(&'s str, Many)>,
 }
 
-use Many::{One, Opt, Plus, Star};
-
-const XY: &[&str] = &["Comment", "x", "y"];
-
-/// IEC 61499-2 Annex B, the elements of FB types and system configurations used here.
-pub const SCHEMA: &[Element] = &[
-    Element {
-        name: "FBType",
-        required: &["Name"],
-        optional: &["Comment"],
-        children: &[
-            ("Identification", Opt),
-            ("VersionInfo", Plus),
-            ("CompilerInfo", Opt),
-            ("InterfaceList", One),
-            ("BasicFB", Opt),
-            ("Service", Opt),
-        ],
-    },
-    Element {
-        name: "Identification",
-        required: &[],
-        optional: &[
-            "Standard",
-            "Classification",
-            "ApplicationDomain",
-            "Function",
-            "Type",
-            "Description",
-        ],
-        children: &[],
-    },
-    Element {
-        name: "VersionInfo",
-        required: &["Organization", "Version", "Author", "Date"],
-        optional: &["Remarks"],
-        children: &[],
-    },
-    Element {
-        name: "InterfaceList",
-        required: &[],
-        optional: &[],
-        children: &[
-            ("EventInputs", Opt),
-            ("EventOutputs", Opt),
-            ("InputVars", Opt),
-            ("OutputVars", Opt),
-        ],
-    },
-    Element {
-        name: "EventInputs",
-        required: &[],
-        optional: &[],
-        children: &[("Event", Plus)],
-    },
-    Element {
-        name: "EventOutputs",
-        required: &[],
-        optional: &[],
-        children: &[("Event", Plus)],
-    },
-    Element {
-        name: "Event",
-        required: &["Name"],
-        optional: &["Type", "Comment"],
-        children: &[("With", Star)],
-    },
-    Element {
-        name: "With",
-        required: &["Var"],
-        optional: &[],
-        children: &[],
-    },
-    Element {
-        name: "InputVars",
-        required: &[],
-        optional: &[],
-        children: &[("VarDeclaration", Plus)],
-    },
-    Element {
-        name: "OutputVars",
-        required: &[],
-        optional: &[],
-        children: &[("VarDeclaration", Plus)],
-    },
-    Element {
-        name: "InternalVars",
-        required: &[],
-        optional: &[],
-        children: &[("VarDeclaration", Plus)],
-    },
-    Element {
-        name: "VarDeclaration",
-        required: &["Name", "Type"],
-        optional: &["ArraySize", "InitialValue", "Comment"],
-        children: &[],
-    },
-    Element {
-        name: "BasicFB",
-        required: &[],
-        optional: &[],
-        children: &[("InternalVars", Opt), ("ECC", Opt), ("Algorithm", Star)],
-    },
-    Element {
-        name: "ECC",
-        required: &[],
-        optional: &[],
-        children: &[("ECState", Plus), ("ECTransition", Star)],
-    },
-    Element {
-        name: "ECState",
-        required: &["Name"],
-        optional: XY,
-        children: &[("ECAction", Star)],
-    },
-    Element {
-        name: "ECAction",
-        required: &[],
-        optional: &["Algorithm", "Output"],
-        children: &[],
-    },
-    Element {
-        name: "ECTransition",
-        required: &["Source", "Destination", "Condition"],
-        optional: XY,
-        children: &[],
-    },
-    Element {
-        name: "Algorithm",
-        required: &["Name"],
-        optional: &["Comment"],
-        children: &[("ST", One)],
-    },
-    Element {
-        name: "ST",
-        required: &["Text"],
-        optional: &[],
-        children: &[],
-    },
-    Element {
-        name: "Service",
-        required: &["RightInterface", "LeftInterface"],
-        optional: &["Comment"],
-        children: &[("ServiceSequence", Star)],
-    },
-    Element {
-        name: "System",
-        required: &["Name"],
-        optional: &["Comment"],
-        children: &[
-            ("Identification", Opt),
-            ("VersionInfo", Plus),
-            ("Application", Star),
-            ("Device", Plus),
-            ("Mapping", Star),
-        ],
-    },
-    Element {
-        name: "Application",
-        required: &["Name"],
-        optional: &["Comment"],
-        children: &[("SubAppNetwork", One)],
-    },
-    Element {
-        name: "SubAppNetwork",
-        required: &[],
-        optional: &[],
-        children: &[
-            ("FB", Star),
-            ("EventConnections", Opt),
-            ("DataConnections", Opt),
-        ],
-    },
-    Element {
-        name: "FBNetwork",
-        required: &[],
-        optional: &[],
-        children: &[
-            ("FB", Star),
-            ("EventConnections", Opt),
-            ("DataConnections", Opt),
-        ],
-    },
-    Element {
-        name: "FB",
-        required: &["Name", "Type"],
-        optional: XY,
-        children: &[("Parameter", Star)],
-    },
-    Element {
-        name: "Parameter",
-        required: &["Name", "Value"],
-        optional: &["Comment"],
-        children: &[],
-    },
-    Element {
-        name: "EventConnections",
-        required: &[],
-        optional: &[],
-        children: &[("Connection", Plus)],
-    },
-    Element {
-        name: "Connection",
-        required: &["Source", "Destination"],
-        optional: &["Comment", "dx1", "dx2", "dy"],
-        children: &[],
-    },
-    Element {
-        name: "Device",
-        required: &["Name", "Type"],
-        optional: XY,
-        children: &[("Parameter", Star), ("Resource", Star)],
-    },
-    Element {
-        name: "Resource",
-        required: &["Name", "Type"],
-        optional: XY,
-        children: &[("Parameter", Star), ("FBNetwork", Opt)],
-    },
-    Element {
-        name: "Mapping",
-        required: &["From", "To"],
-        optional: &[],
-        children: &[],
-    },
-];
+/// The row of element `name`, if [`SCHEMA`] has one.
+fn element(name: &str) -> Option<Element<'static>> {
+    let row = SCHEMA
+        .iter()
+        .find(|r| r.split_whitespace().next() == Some(name))?;
+    let (attrs, children) = row.split_once(':').unwrap_or((row, ""));
+    let attrs: Vec<&str> = attrs.split_whitespace().skip(1).collect();
+    let children = children
+        .split_whitespace()
+        .map(|c| match c.strip_suffix(['?', '+', '*']) {
+            Some(n) if c.ends_with('?') => (n, Many::Opt),
+            Some(n) if c.ends_with('+') => (n, Many::Plus),
+            Some(n) => (n, Many::Star),
+            None => (c, Many::One),
+        });
+    Some(Element {
+        required: attrs
+            .iter()
+            .filter(|a| !a.starts_with('?'))
+            .copied()
+            .collect(),
+        optional: attrs.iter().filter_map(|a| a.strip_prefix('?')).collect(),
+        children: children.collect(),
+    })
+}
 
 /// Checks `text` (an `.fbt` or `.sys`) against [`SCHEMA`]: well formed, the root an
 /// `FBType` or a `System`, every element known, its attributes allowed and the required
@@ -274,7 +110,7 @@ pub fn validate(text: &str) -> Result<(), String> {
         let at = doc.text_pos_at(n.range().start);
         let name = n.tag_name().name();
         let here = |m: String| format!("{}:{}: `{name}`: {m}", at.row, at.col);
-        let Some(e) = SCHEMA.iter().find(|e| e.name == name) else {
+        let Some(e) = element(name) else {
             return Err(here(String::from("not an element of IEC 61499-2 here")));
         };
         for a in n.attributes() {
@@ -282,7 +118,7 @@ pub fn validate(text: &str) -> Result<(), String> {
                 return Err(here(format!("attribute `{}` is not allowed", a.name())));
             }
         }
-        for r in e.required {
+        for r in &e.required {
             if n.attribute(*r).is_none() {
                 return Err(here(format!("the attribute `{r}` is required")));
             }
@@ -319,10 +155,10 @@ pub fn validate(text: &str) -> Result<(), String> {
 
 fn check_count((name, many): (&str, Many), count: usize) -> Result<(), String> {
     let ok = match many {
-        Opt => count <= 1,
-        Plus => count >= 1,
-        Star => true,
-        One => count == 1,
+        Many::Opt => count <= 1,
+        Many::Plus => count >= 1,
+        Many::Star => true,
+        Many::One => count == 1,
     };
     if ok {
         Ok(())

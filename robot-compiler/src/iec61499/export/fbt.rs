@@ -23,6 +23,9 @@ pub struct FbSpec<'a> {
     /// (parameter, role input): the BOOL parameters that read a role input's level, each
     /// written with its `Comment` ([`services::level_comment`]).
     pub levels: &'a [(String, String)],
+    /// (parameter, comment): the DINT parameters that read another chart's variable,
+    /// each written with its `Comment` ([`services::value_comment`]).
+    pub values: &'a [(String, String)],
     /// (variable, comment): the variables holding a control function's place, each
     /// written with its `Comment` ([`services::places_comment`]).
     pub places: &'a [(String, String)],
@@ -252,7 +255,13 @@ pub fn write(spec: &FbSpec<'_>) -> Result<String, ExportError> {
             };
             let comment = (spec.levels.iter())
                 .find(|(n, _)| n == p)
-                .map_or_else(String::new, |(_, i)| services::level_comment(i));
+                .map(|(_, i)| services::level_comment(i))
+                .or_else(|| {
+                    (spec.values.iter())
+                        .find(|(n, _)| n == p)
+                        .map(|(_, c)| c.clone())
+                })
+                .unwrap_or_default();
             w.empty(
                 "VarDeclaration",
                 &[("Name", p), ("Type", ty), ("Comment", &comment)],

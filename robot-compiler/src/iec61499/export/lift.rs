@@ -24,6 +24,9 @@ pub struct Lifted {
     pub timers: Vec<(String, String)>,
     /// (the type's variable, the role's variable it is), of its own variables.
     pub vars: Vec<(String, String)>,
+    /// (DINT parameter, the role's variable it reads): the other charts' variables it
+    /// reads.
+    pub reads: Vec<(String, String)>,
 }
 
 /// A name not yet in `taken` (case-insensitive), from `base`.
@@ -234,8 +237,12 @@ pub fn lift(r: &RoleIr, ci: usize, name: &str) -> Lifted {
     let role_vars = (own_vars.iter().zip(&var_names))
         .filter_map(|(v, n)| Some((n.clone(), r.vars.get(*v)?.0.clone())))
         .collect();
+    let reads = (read_vars.iter())
+        .filter_map(|(v, n)| Some((n.clone(), r.vars.get(usize::from(*v))?.0.clone())))
+        .collect();
     Lifted {
         vars: role_vars,
+        reads,
         levels,
         timers: timer_events,
         ty: ChartType {

@@ -23,6 +23,19 @@ use crate::compile::Compiled;
 pub enum ExportError {
     #[error("chart type `{ty}`: {message}")]
     Type { ty: String, message: String },
+    /// A chart reads another chart's variable into a parameter (a data connection of the
+    /// application it came from): the export writes no data connections yet, and the
+    /// parameter would come back a constant.
+    #[error(
+        "chart `{chart}` of role `{role}` reads `{var}` into its parameter `{param}` (a data \
+         connection): the export does not write data connections yet"
+    )]
+    Reads {
+        role: String,
+        chart: String,
+        param: String,
+        var: String,
+    },
 }
 
 /// One chart of the robot as an FB instance of the application.
@@ -77,17 +90,25 @@ pub fn export(c: &Compiled, date: &str) -> Result<Export, ExportError> {
             comment: format!("Chart type `{}` of robot {}", t.name, robot.name),
             bools: &[],
             levels: &[],
+            values: &[],
             places: &[],
             date,
         };
         files.push((format!("{}.fbt", t.name), fbt::write(&spec)?));
         types.push(t.clone());
     }
+    // Per role: each variable of the role's pool, the FB of its chart and its name in
+    // the FB's type (for the `value of` comments of the lifted charts reading it).
+    let mut owners: Vec<BTreeMap<String, (String, String)>> = Vec::new();
+    // The lifted charts, written once every FB's name is known: (instance index, its
+    // lifted type, the `.fbt` comment).
+    let mut lifted: Vec<(usize, lift::Lifted, String)> = Vec::new();
     let mut taken: Vec<String> = types.iter().map(|t| t.name.to_ascii_uppercase()).collect();
     let mut fb_names: Vec<String> = Vec::new();
     let mut instances = Vec::new();
     for (ri, r) in c.ir.roles.iter().enumerate() {
         let role = robot.roles.get(ri);
+        let mut owner: BTreeMap<String, (String, String)> = BTreeMap::new();
         for (ci, chart) in r.charts.iter().enumerate() {
             let explicit = robot
                 .sequence
@@ -105,22 +126,39 @@ pub fn export(c: &Compiled, date: &str) -> Result<Export, ExportError> {
             }
             fb_names.push(fb.clone());
             let inst = match explicit {
-                Some((d, t)) => Instance {
-                    role: ri,
-                    chart: ci,
-                    name: fb,
-                    ty: t.name.clone(),
-                    params: d.params.clone(),
-                    inputs: t.inputs.iter().chain(&t.timers).cloned().collect(),
-                    emits: t
-                        .outputs
-                        .iter()
-                        .map(|o| (format!("{}.{o}", d.name), o.clone()))
-                        .collect(),
-                    services: services_of(t),
-                    lifted: false,
-                    timers: Vec::new(),
-                },
+                Some((d, t)) => {
+                    if let Some((param, var)) = d.reads.iter().next() {
+                        return Err(ExportError::Reads {
+                            role: r.name.clone(),
+                            chart: d.name.clone(),
+                            param: param.clone(),
+                            var: var.clone(),
+                        });
+                    }
+                    let renamed = fbt::rename_clashing_vars(t);
+                    for (v, n) in t.vars.iter().zip(&renamed.vars) {
+                        owner.insert(
+                            format!("{}.{}", d.name, v.name),
+                            (fb.clone(), n.name.clone()),
+                        );
+                    }
+                    Instance {
+                        role: ri,
+                        chart: ci,
+                        name: fb,
+                        ty: t.name.clone(),
+                        params: d.params.clone(),
+                        inputs: t.inputs.iter().chain(&t.timers).cloned().collect(),
+                        emits: t
+                            .outputs
+                            .iter()
+                            .map(|o| (format!("{}.{o}", d.name), o.clone()))
+                            .collect(),
+                        services: services_of(t),
+                        lifted: false,
+                        timers: Vec::new(),
+                    }
+                }
                 None => {
                     let mut name = fbt::identifier(&format!("{}_{}", r.name, chart.name));
                     let base = name.clone();
@@ -131,37 +169,56 @@ pub fn export(c: &Compiled, date: &str) -> Result<Export, ExportError> {
                     }
                     taken.push(name.to_ascii_uppercase());
                     let l = lift::lift(r, ci, &name);
-                    let places = places_vars(c, &l.vars);
-                    let spec = fbt::FbSpec {
-                        ty: &l.ty,
-                        comment: format!(
-                            "Chart `{}` of role {} of robot {}, as the robot compiles it",
-                            chart.name, r.name, robot.name
-                        ),
-                        bools: &l.bools,
-                        levels: &l.levels,
-                        places: &places,
-                        date,
-                    };
-                    files.push((format!("{name}.fbt"), fbt::write(&spec)?));
+                    for (v, role_var) in &l.vars {
+                        owner.insert(role_var.clone(), (fb.clone(), v.clone()));
+                    }
+                    let comment = format!(
+                        "Chart `{}` of role {} of robot {}, as the robot compiles it",
+                        chart.name, r.name, robot.name
+                    );
                     let services = services_of(&l.ty);
-                    types.push(l.ty);
-                    Instance {
+                    let inst = Instance {
                         role: ri,
                         chart: ci,
                         name: fb,
                         ty: name,
                         params: BTreeMap::new(),
-                        inputs: l.inputs,
-                        emits: l.emits,
+                        inputs: l.inputs.clone(),
+                        emits: l.emits.clone(),
                         services,
                         lifted: true,
-                        timers: l.timers,
-                    }
+                        timers: l.timers.clone(),
+                    };
+                    lifted.push((instances.len(), l, comment));
+                    inst
                 }
             };
             instances.push(inst);
         }
+        owners.push(owner);
+    }
+    for (k, l, comment) in lifted {
+        let Some(inst) = instances.get(k) else {
+            continue;
+        };
+        let places = places_vars(c, &l.vars);
+        let values: Vec<(String, String)> = (l.reads.iter())
+            .filter_map(|(p, role_var)| {
+                let (fb, var) = owners.get(inst.role)?.get(role_var)?;
+                Some((p.clone(), crate::iec61499::services::value_comment(fb, var)))
+            })
+            .collect();
+        let spec = fbt::FbSpec {
+            ty: &l.ty,
+            comment,
+            bools: &l.bools,
+            levels: &l.levels,
+            values: &values,
+            places: &places,
+            date,
+        };
+        files.push((format!("{}.fbt", l.ty.name), fbt::write(&spec)?));
+        types.push(l.ty);
     }
     let (ios, sys_text) = sys::write(c, &instances, date);
     files.extend(ios);
