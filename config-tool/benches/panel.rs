@@ -11,6 +11,9 @@
 //!
 //! `cargo bench -p config-tool --bench panel`
 
+mod support;
+use support::paint_robot;
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::sync::mpsc;
@@ -19,7 +22,6 @@ use std::time::{Duration, Instant};
 
 use config_schema::wire::medium::{Link, Peer};
 use medium::Conn;
-use robot_compiler::{compile, Source};
 use robot_net::demo::{Bed, Options};
 use robot_net::live_plant;
 use robot_net::radio::{ToolRadio, TOOL_ADDR};
@@ -31,21 +33,6 @@ const CYCLES: u32 = 4;
 const TARGET_MS: f64 = 100.0;
 /// Any wait here.
 const WAIT: Duration = Duration::from_secs(60);
-
-fn paint_robot() -> robot_compiler::Compiled {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../robot-configs/paint-robot.ron"
-    );
-    let src = Source::new(
-        "paint-robot.ron",
-        std::fs::read_to_string(path).expect("robot"),
-    );
-    compile::compile(&src)
-        .expect("paint robot compiles")
-        .with_generation(1)
-        .expect("generation")
-}
 
 /// One HTTP/1.1 POST with an empty body (`Connection: close`): the status and the body.
 fn post(addr: SocketAddr, path: &str) -> (u16, String) {

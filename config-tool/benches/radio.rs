@@ -12,6 +12,9 @@
 //!
 //! `cargo bench -p config-tool --bench radio`
 
+mod support;
+use support::paint_robot;
+
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -22,25 +25,9 @@ use config_schema::wire::medium::{Link, Peer};
 use config_schema::wire::msg::{ConfigReply, Message, SwitchStep, CHUNK_DATA};
 use config_schema::wire::security::DEFAULT_OVERHEAD;
 use medium::{self, Conn};
-use robot_compiler::{compile, Source};
 use robot_net::demo::{self, Bed, Options};
 use robot_net::live_plant;
 use robot_net::radio::TOOL_ADDR;
-
-fn paint_robot() -> robot_compiler::Compiled {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../robot-configs/paint-robot.ron"
-    );
-    let src = Source::new(
-        "paint-robot.ron",
-        std::fs::read_to_string(path).expect("robot"),
-    );
-    compile::compile(&src)
-        .expect("paint robot compiles")
-        .with_generation(1)
-        .expect("generation")
-}
 
 /// Airtime of one message in a secured data frame (ENC-MIC-64: the auxiliary header and
 /// the MIC on top), us.
