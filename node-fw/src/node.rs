@@ -1431,6 +1431,36 @@ impl NodeCore {
     }
 }
 
+/// The bytes of [`NodeCore`] and of its larger parts, as this build lays them out (the
+/// RAM breakdown of docs/boards.md: `cargo test -p node-fw --features std --test
+/// host_runtime runtime_future_size -- --nocapture`).
+pub fn footprint() -> [(&'static str, usize); 12] {
+    use core::mem::size_of;
+    [
+        ("NodeCore", size_of::<NodeCore>()),
+        ("  Option<Table>", size_of::<Option<Table>>()),
+        ("  Option<Index>", size_of::<Option<Index>>()),
+        ("  Option<EngineState>", size_of::<Option<EngineState>>()),
+        ("  ota::Receiver", size_of::<ota::Receiver>()),
+        ("  senders", size_of::<Vec<link::Sender, MAX_PEERS>>()),
+        (
+            "  receivers",
+            size_of::<Vec<(u16, link::Receiver), MAX_PEERS>>(),
+        ),
+        ("  PeerSecurity", size_of::<PeerSecurity>()),
+        ("  Alarms", size_of::<Alarms>()),
+        ("  SwitchOver", size_of::<SwitchOver>()),
+        (
+            "  ReplayGuard + Pending",
+            size_of::<ReplayGuard<MANAGEMENT_SENDERS>>() + size_of::<Pending<MANAGEMENT_SENDERS>>(),
+        ),
+        (
+            "  Option<ManagementKey>",
+            size_of::<Option<ManagementKey>>(),
+        ),
+    ]
+}
+
 /// Whether pin `pin` is high in `pins` (bit = pin number; pins past 63 never are).
 fn level(pins: u64, pin: u8) -> bool {
     pins.checked_shr(u32::from(pin)).is_some_and(|p| p & 1 != 0)

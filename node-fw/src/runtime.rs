@@ -26,18 +26,23 @@ use embassy_time::{with_timeout, Duration, Instant, Timer};
 use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_hal_async::digital::Wait;
 use embedded_storage_async::nor_flash::NorFlash;
-use heapless::{Deque, Vec};
+use heapless::Vec;
 use log::{info, warn};
 
 use config_schema::wire::msg::RuntimeCounters;
 
 use crate::node::{fault_code, FlashRequest, Io, NodeCore};
 use crate::provision::ManagementKey;
-use crate::slots::{Boot, Slots};
+use crate::slots::{Slots, Survey};
 
 /// Frames the core may queue between two flushes (a poll that retransmits to every peer
 /// queues at most `WINDOW` frames per peer).
 pub const TX_QUEUE: usize = 32;
+/// Bytes of the frames the core may queue between two flushes (each frame takes its
+/// length and one byte more): the `TX_QUEUE` event frames of a full retransmission round
+/// (8 peers x `link::WINDOW`, at most 33 bytes each secured: 1,088 bytes), or 9 frames of
+/// the longest PSDU.
+pub const TX_BYTES: usize = 1152;
 /// How long the radio may take to accept one frame before it is dropped.
 pub const SEND_TIMEOUT_MS: u64 = 100;
 /// The longest single sleep of the main loop (the deadline is recomputed after it).
@@ -217,21 +222,85 @@ pub trait Probe {
 
 impl Probe for () {}
 
+/// The frames the core queued since the last flush: appended while the core runs, all
+/// sent (in order) before it runs again, so one linear buffer of [`TX_BYTES`] holds them
+/// (each as its length byte and its bytes), at most [`TX_QUEUE`] of them.
+struct TxQueue {
+    bytes: [u8; TX_BYTES],
+    /// Bytes in use (`bytes[..end]`), frames in them, and where the next to send starts.
+    end: usize,
+    frames: usize,
+    head: usize,
+}
+
+impl TxQueue {
+    const fn new() -> Self {
+        TxQueue {
+            bytes: [0; TX_BYTES],
+            end: 0,
+            frames: 0,
+            head: 0,
+        }
+    }
+
+    /// Appends `psdu`; `false` (nothing queued) if the queue is full.
+    fn push(&mut self, psdu: &[u8]) -> bool {
+        let Ok(len) = u8::try_from(psdu.len()) else {
+            return false;
+        };
+        let Some(dst) = self.bytes.get_mut(self.end..self.end + 1 + psdu.len()) else {
+            return false;
+        };
+        if self.frames >= TX_QUEUE {
+            return false;
+        }
+        if let Some((first, rest)) = dst.split_first_mut() {
+            *first = len;
+            rest.copy_from_slice(psdu);
+        }
+        self.end += 1 + psdu.len();
+        self.frames += 1;
+        true
+    }
+
+    fn len(&self) -> usize {
+        self.frames
+    }
+
+    /// The next frame to send.
+    fn front(&self) -> Option<&[u8]> {
+        let len = usize::from(*self.bytes.get(self.head).filter(|_| self.head < self.end)?);
+        self.bytes.get(self.head + 1..self.head + 1 + len)
+    }
+
+    /// Drops the frame [`TxQueue::front`] gave; the queue starts over once empty.
+    fn pop(&mut self) {
+        let len = self.front().map_or(0, <[u8]>::len);
+        self.head += 1 + len;
+        self.frames = self.frames.saturating_sub(1);
+        if self.head >= self.end || self.frames == 0 {
+            self.head = 0;
+            self.end = 0;
+            self.frames = 0;
+        }
+    }
+}
+
 /// The core's view of the board: pins directly, frames into the bounded queue.
 struct CoreIo<'a, P> {
     pins: &'a mut P,
-    tx: Deque<Psdu, TX_QUEUE>,
+    tx: TxQueue,
     stats: &'a mut Stats,
     counter: &'a mut dyn FnMut() -> Option<u32>,
 }
 
 impl<P: Pins> Io for CoreIo<'_, P> {
     fn transmit(&mut self, psdu: &[u8]) {
-        let Ok(frame) = Psdu::from_slice(psdu) else {
+        if psdu.len() > MAX_PSDU {
             self.stats.tx_failed += 1;
             return;
-        };
-        if self.tx.push_back(frame).is_err() {
+        }
+        if !self.tx.push(psdu) {
             self.stats.tx_queue_full += 1;
         }
         self.stats.tx_queue_high = self.stats.tx_queue_high.max(self.tx.len() as u32);
@@ -262,6 +331,17 @@ pub const fn pin_range(count: usize) -> u64 {
     } else {
         (1u64 << count) - 1
     }
+}
+
+/// The bytes of the runtime's own parts of its future (besides the [`NodeCore`] and the
+/// board's seams), as this build lays them out (docs/boards.md).
+pub fn footprint() -> [(&'static str, usize); 3] {
+    use core::mem::size_of;
+    [
+        ("transmit queue", size_of::<TxQueue>()),
+        ("receive buffer", MAX_PSDU),
+        ("Stats", size_of::<Stats>()),
+    ]
 }
 
 /// The hardware of one node.
@@ -298,55 +378,82 @@ struct SlotsAt {
 }
 
 /// The node on the slot activated last (an unreadable flash boots unconfigured), with a
-/// staged table reported; a trial a power cut interrupted is revoked. (A function of its
-/// own: the future is 4.7 KB smaller than inline.)
+/// staged table reported; a trial a power cut interrupted is revoked. The slots are read
+/// into `core`'s transfer buffer (an unconfigured core's) and the running one decoded
+/// after the last await (in [`boot_core`]): neither a blob buffer nor a table lives in
+/// the runtime's future.
 async fn load<F: NorFlash>(
     addr: u16,
     pin_mask: u64,
     epoch: u16,
     slots: &mut Slots<F>,
-) -> (NodeCore, SlotsAt) {
-    let boot = match slots.load().await {
-        Ok(boot) => boot,
+    core: &mut NodeCore,
+) -> SlotsAt {
+    let survey = match slots.survey(core.lend_buffer()).await {
+        Ok(survey) => survey,
         Err(e) => {
             warn!("node {addr:#06x}: flash unreadable ({e:?}): booting unconfigured");
-            Boot::default()
+            Survey::default()
         }
     };
-    if let Some(slot) = boot.abandoned {
+    if let Some(slot) = survey.abandoned {
         warn!("node {addr:#06x}: a trial was cut short (slot {slot}): back to the confirmed table");
         if slots.revoke(slot).await.is_err() {
             warn!("node {addr:#06x}: cannot revoke slot {slot}");
         }
     }
     let at = SlotsAt {
-        running: boot.running.as_ref().map(|l| l.slot),
-        staged: boot.staged.map(|s| s.slot),
-        previous: boot.previous.map(|p| p.slot),
+        running: survey.running.map(|l| l.slot),
+        staged: survey.staged.map(|s| s.slot),
+        previous: survey.previous.map(|p| p.slot),
         trial: false,
-        next_serial: boot.next_serial,
+        next_serial: survey.next_serial,
     };
-    if let Some(pin) = boot
-        .running
+    let len = match survey.running {
+        Some(running) => match slots.read_into(running.slot, core.lend_buffer()).await {
+            Ok(len) => len,
+            Err(e) => {
+                warn!("node {addr:#06x}: flash unreadable ({e:?}): booting unconfigured");
+                None
+            }
+        },
+        None => None,
+    };
+    boot_core(addr, pin_mask, epoch, core, len, &survey);
+    at
+}
+
+/// The boot node: the running table decoded from the first `len` bytes of `core`'s
+/// buffer (none: unconfigured) with its keys, the staged or previous generation noted.
+fn boot_core(
+    addr: u16,
+    pin_mask: u64,
+    epoch: u16,
+    core: &mut NodeCore,
+    len: Option<usize>,
+    survey: &Survey,
+) {
+    let deployed = len.and_then(|len| decode_deployment(core.lent(len)).ok());
+    if let Some(pin) = deployed
         .as_ref()
-        .and_then(|l| l.table.missing_pin(pin_mask))
+        .and_then(|(table, _)| table.missing_pin(pin_mask))
     {
         warn!("node {addr:#06x}: the stored table uses pin {pin}, which this board lacks");
     }
-    let (table, keys) = match boot.running {
-        Some(l) => (Some(l.table), l.keys),
+    let (table, keys) = match deployed {
+        Some((table, keys)) => (Some(table), keys),
         None => (None, None),
     };
-    let mut core = NodeCore::new(addr, pin_mask, table, epoch);
+    let mut booted = NodeCore::new(addr, pin_mask, table, epoch);
     if let Some(keys) = keys {
-        core = core.with_link_keys(keys);
+        booted = booted.with_link_keys(keys);
     }
-    if let Some(staged) = boot.staged {
-        core = core.with_staged(staged.generation);
-    } else if let Some(previous) = boot.previous {
-        core = core.with_previous(previous.generation);
+    if let Some(staged) = survey.staged {
+        booted = booted.with_staged(staged.generation);
+    } else if let Some(previous) = survey.previous {
+        booted = booted.with_previous(previous.generation);
     }
-    (core, at)
+    *core = booted;
 }
 
 /// Does what the core asks of the flash, and tells it how it went.
@@ -556,7 +663,8 @@ where
     } = board;
     outputs.all_off();
     let mut slots = Slots::new(flash).map_err(|_| Stop::FlashGeometry)?;
-    let (mut core, mut at) = load(addr, pin_mask, epoch, &mut slots).await;
+    let mut core = NodeCore::new(addr, pin_mask, None, epoch);
+    let mut at = load(addr, pin_mask, epoch, &mut slots, &mut core).await;
     let mut no_counter = || None;
     let counter: &mut dyn FnMut() -> Option<u32> = match security {
         Some(Security { key, counter }) => {
@@ -568,7 +676,7 @@ where
     core.seed_pins(inputs.levels());
     let mut io = CoreIo {
         pins: &mut outputs,
-        tx: Deque::new(),
+        tx: TxQueue::new(),
         stats,
         counter,
     };
@@ -605,12 +713,12 @@ where
             fault = now;
         }
 
-        while let Some(psdu) = io.tx.pop_front() {
-            let sent =
-                with_timeout(Duration::from_millis(SEND_TIMEOUT_MS), radio.send(&psdu)).await;
+        while let Some(psdu) = io.tx.front() {
+            let sent = with_timeout(Duration::from_millis(SEND_TIMEOUT_MS), radio.send(psdu)).await;
             if !matches!(sent, Ok(Ok(()))) {
                 io.stats.tx_failed += 1;
             }
+            io.tx.pop();
         }
 
         let sleep = core.deadline().saturating_sub(now_ms()).min(MAX_SLEEP_MS);

@@ -626,5 +626,17 @@ fn runtime_future_size() {
         std::mem::size_of::<node_fw::node::NodeCore>(),
         std::mem::size_of::<Table>()
     );
+    for (part, bytes) in node_fw::node::footprint()
+        .into_iter()
+        .chain(runtime::footprint())
+    {
+        eprintln!("  {part:<28} {bytes:>6}");
+    }
+    let mut slots = Slots::new(Flash::default()).unwrap();
+    eprintln!(
+        "  {:<28} {:>6}",
+        "Slots::load future",
+        std::mem::size_of_val(&slots.load())
+    );
     assert!(size > std::mem::size_of::<node_fw::node::NodeCore>());
 }
