@@ -6,7 +6,11 @@
 //!   `embedded_hal::digital::OutputPin`, index = pin number);
 //! - [`Inputs`]: the next input level change (implemented by [`WaitInputs`] for arrays of
 //!   `embedded_hal_async::digital::Wait` + `InputPin`, index = pin number);
-//! - a `NorFlash` (`embedded-storage-async`) for the two table [`Slots`];
+//! - a `NorFlash` (`embedded-storage-async`) for the two table [`Slots`], whose
+//!   operations complete when first polled (the slots are read back with
+//!   `embassy_futures::block_on`, into a buffer on the stack);
+//! - a [`Staging`] for a pushed table's chunks ([`run_staged`]: an MCU board's flash
+//!   page; [`RamStaging`] otherwise);
 //! - `embassy-time` for the time and the timer until [`NodeCore::deadline`].
 //!
 //! [`run`] boots (outputs safe, the slot activated last, `NodeCore::new`) and then loops:
@@ -19,8 +23,10 @@
 
 use core::convert::Infallible;
 
+use config_schema::limits::MAX_BLOB;
 use config_schema::link_keys::decode_deployment;
 use config_schema::wire::mac::MAX_PSDU;
+use embassy_futures::block_on;
 use embassy_futures::select::{select3, select_array, Either3};
 use embassy_time::{with_timeout, Duration, Instant, Timer};
 use embedded_hal::digital::{InputPin, OutputPin};
@@ -32,6 +38,7 @@ use log::{info, warn};
 use config_schema::wire::msg::RuntimeCounters;
 
 use crate::node::{fault_code, FlashRequest, Io, NodeCore};
+use crate::ota::{RamStaging, Staging};
 use crate::provision::ManagementKey;
 use crate::slots::{Slots, Survey};
 
@@ -360,7 +367,7 @@ fn now_ms() -> u64 {
 }
 
 /// The running engine's fault code, if faulted.
-fn fault_of(core: &NodeCore) -> Option<u8> {
+fn fault_of<S: Staging>(core: &NodeCore<S>) -> Option<u8> {
     core.engine_state().and_then(|s| s.fault).map(fault_code)
 }
 
@@ -377,25 +384,48 @@ struct SlotsAt {
     next_serial: u32,
 }
 
-/// The node on the slot activated last (an unreadable flash boots unconfigured), with a
-/// staged table reported; a trial a power cut interrupted is revoked. The slots are read
-/// into `core`'s transfer buffer (an unconfigured core's) and the running one decoded
-/// after the last await (in [`boot_core`]): neither a blob buffer nor a table lives in
-/// the runtime's future.
-async fn load<F: NorFlash>(
-    addr: u16,
-    pin_mask: u64,
-    epoch: u16,
+/// Reads slot `slot`'s blob into a buffer on the stack and hands it to `f` (`None`: the
+/// slot holds no blob, or the flash failed). Run to completion in place
+/// (`embassy_futures::block_on`: every board's flash completes at once, see
+/// docs/boards.md), so the 4 KiB buffer is never part of the runtime's future.
+fn with_slot<F: NorFlash, R>(
     slots: &mut Slots<F>,
-    core: &mut NodeCore,
-) -> SlotsAt {
-    let survey = match slots.survey(core.lend_buffer()).await {
+    slot: usize,
+    f: impl FnOnce(&[u8]) -> R,
+) -> Option<R> {
+    let mut buf = [0u8; MAX_BLOB];
+    let len = block_on(slots.read_into(slot, &mut buf)).ok().flatten()?;
+    buf.get(..len).map(f)
+}
+
+/// Whether slot `slot` holds a deployment that decodes (the table is not kept).
+fn decodes<F: NorFlash>(slots: &mut Slots<F>, slot: usize) -> bool {
+    with_slot(slots, slot, |blob| decode_deployment(blob).is_ok()).unwrap_or(false)
+}
+
+/// What the slots hold (read into a buffer on the stack: [`with_slot`]).
+fn survey<F: NorFlash>(addr: u16, slots: &mut Slots<F>) -> Survey {
+    let mut buf = [0u8; MAX_BLOB];
+    match block_on(slots.survey(&mut buf)) {
         Ok(survey) => survey,
         Err(e) => {
             warn!("node {addr:#06x}: flash unreadable ({e:?}): booting unconfigured");
             Survey::default()
         }
-    };
+    }
+}
+
+/// The node on the slot activated last (an unreadable flash boots unconfigured), with a
+/// staged table reported; a trial a power cut interrupted is revoked. The slots are read
+/// and the running table decoded outside the runtime's future ([`with_slot`]).
+async fn load<F: NorFlash, S: Staging>(
+    addr: u16,
+    pin_mask: u64,
+    epoch: u16,
+    slots: &mut Slots<F>,
+    staging: S,
+) -> (NodeCore<S>, SlotsAt) {
+    let survey = survey(addr, slots);
     if let Some(slot) = survey.abandoned {
         warn!("node {addr:#06x}: a trial was cut short (slot {slot}): back to the confirmed table");
         if slots.revoke(slot).await.is_err() {
@@ -409,31 +439,24 @@ async fn load<F: NorFlash>(
         trial: false,
         next_serial: survey.next_serial,
     };
-    let len = match survey.running {
-        Some(running) => match slots.read_into(running.slot, core.lend_buffer()).await {
-            Ok(len) => len,
-            Err(e) => {
-                warn!("node {addr:#06x}: flash unreadable ({e:?}): booting unconfigured");
-                None
-            }
-        },
-        None => None,
-    };
-    boot_core(addr, pin_mask, epoch, core, len, &survey);
-    at
+    let core = boot_core(addr, pin_mask, epoch, slots, &survey, staging);
+    (core, at)
 }
 
-/// The boot node: the running table decoded from the first `len` bytes of `core`'s
-/// buffer (none: unconfigured) with its keys, the staged or previous generation noted.
-fn boot_core(
+/// The boot node: the running slot's table (none: unconfigured) with its keys, the
+/// staged or previous generation noted.
+fn boot_core<F: NorFlash, S: Staging>(
     addr: u16,
     pin_mask: u64,
     epoch: u16,
-    core: &mut NodeCore,
-    len: Option<usize>,
+    slots: &mut Slots<F>,
     survey: &Survey,
-) {
-    let deployed = len.and_then(|len| decode_deployment(core.lent(len)).ok());
+    staging: S,
+) -> NodeCore<S> {
+    let deployed = survey
+        .running
+        .and_then(|r| with_slot(slots, r.slot, |blob| decode_deployment(blob).ok()))
+        .flatten();
     if let Some(pin) = deployed
         .as_ref()
         .and_then(|(table, _)| table.missing_pin(pin_mask))
@@ -444,22 +467,22 @@ fn boot_core(
         Some((table, keys)) => (Some(table), keys),
         None => (None, None),
     };
-    let mut booted = NodeCore::new(addr, pin_mask, table, epoch);
+    let mut core = NodeCore::staging_in(addr, pin_mask, table, epoch, staging);
     if let Some(keys) = keys {
-        booted = booted.with_link_keys(keys);
+        core = core.with_link_keys(keys);
     }
     if let Some(staged) = survey.staged {
-        booted = booted.with_staged(staged.generation);
+        core = core.with_staged(staged.generation);
     } else if let Some(previous) = survey.previous {
-        booted = booted.with_previous(previous.generation);
+        core = core.with_previous(previous.generation);
     }
-    *core = booted;
+    core
 }
 
 /// Does what the core asks of the flash, and tells it how it went.
-async fn serve_flash<F: NorFlash, P: Pins>(
+async fn serve_flash<F: NorFlash, P: Pins, S: Staging>(
     addr: u16,
-    core: &mut NodeCore,
+    core: &mut NodeCore<S>,
     slots: &mut Slots<F>,
     at: &mut SlotsAt,
     io: &mut CoreIo<'_, P>,
@@ -497,31 +520,28 @@ async fn serve_flash<F: NorFlash, P: Pins>(
         Some(FlashRequest::Rollback) => {
             let read = match (at.previous, at.running) {
                 // Revoked first: a power cut after it boots the previous table too.
-                (Some(slot), Some(running)) => {
-                    match slots.read_into(slot, core.lend_buffer()).await {
-                        Ok(Some(len)) => match slots.revoke(running).await {
-                            Ok(()) => {
-                                at.running = Some(slot);
-                                at.previous = None;
-                                at.trial = false;
-                                Some(len)
-                            }
-                            Err(e) => {
-                                warn!("node {addr:#06x}: cannot revoke slot {running}: {e:?}");
-                                None
-                            }
-                        },
-                        _ => None,
+                (Some(slot), Some(running)) if decodes(slots, slot) => {
+                    match slots.revoke(running).await {
+                        Ok(()) => {
+                            at.running = Some(slot);
+                            at.previous = None;
+                            at.trial = false;
+                            Some(slot)
+                        }
+                        Err(e) => {
+                            warn!("node {addr:#06x}: cannot revoke slot {running}: {e:?}");
+                            None
+                        }
                     }
                 }
                 _ => None,
             };
-            switched(addr, core, at, io, read, "rolled back to");
+            switched(addr, core, slots, at, io, read, "rolled back to");
         }
         Some(FlashRequest::Activate { trial }) => {
             let read = match at.staged {
-                Some(slot) => match slots.read_into(slot, core.lend_buffer()).await {
-                    Ok(Some(len)) => match slots.activate(slot, at.next_serial, trial).await {
+                Some(slot) if decodes(slots, slot) => {
+                    match slots.activate(slot, at.next_serial, trial).await {
                         Ok(()) => {
                             at.next_serial = at.next_serial.wrapping_add(1);
                             if !at.trial {
@@ -530,34 +550,36 @@ async fn serve_flash<F: NorFlash, P: Pins>(
                             at.running = Some(slot);
                             at.staged = None;
                             at.trial = trial;
-                            Some(len)
+                            Some(slot)
                         }
                         Err(e) => {
                             warn!("node {addr:#06x}: cannot activate slot {slot}: {e:?}");
                             None
                         }
-                    },
-                    _ => None,
-                },
-                None => None,
+                    }
+                }
+                _ => None,
             };
-            switched(addr, core, at, io, read, "activated");
+            switched(addr, core, slots, at, io, read, "activated");
         }
     }
 }
 
-/// The slot (its blob read back into the core's buffer, `len` bytes, or `None`: the flash
-/// failed) is the boot table now: the core switches to it. Decoded here, after the last
-/// await, so the table never lives in the runtime's future.
-fn switched<P: Pins>(
+/// The slot `read` (`None`: the flash failed) is the boot table now: the core switches
+/// to it, read back and decoded here, after the last await, so the table never lives in
+/// the runtime's future.
+fn switched<F: NorFlash, P: Pins, S: Staging>(
     addr: u16,
-    core: &mut NodeCore,
+    core: &mut NodeCore<S>,
+    slots: &mut Slots<F>,
     at: &SlotsAt,
     io: &mut CoreIo<'_, P>,
     read: Option<usize>,
     what: &str,
 ) {
-    let deployed = read.and_then(|len| decode_deployment(core.lent(len)).ok());
+    let deployed = read
+        .and_then(|slot| with_slot(slots, slot, |blob| decode_deployment(blob).ok()))
+        .flatten();
     let ok = deployed.is_some();
     if !ok {
         io.stats.flash_failures += 1;
@@ -632,20 +654,44 @@ where
     F: NorFlash,
     Q: Probe,
 {
+    // Held here, lent to the core: one copy in the future, not one per async layer.
+    let mut staging = RamStaging::new();
+    run_staged(addr, epoch, board, probe, security, &mut staging).await
+}
+
+/// [`run_secured`], staging pushed tables in `staging` instead of a RAM buffer of the
+/// runtime's own (an MCU board: a memory-mapped flash page, see [`Staging`]).
+pub async fn run_staged<R, P, I, F, Q, S>(
+    addr: u16,
+    epoch: u16,
+    board: Board<R, P, I, F>,
+    probe: &mut Q,
+    security: Option<Security<'_>>,
+    staging: S,
+) -> (Stop<R::Error>, Stats)
+where
+    R: Radio,
+    P: Pins,
+    I: Inputs,
+    F: NorFlash,
+    Q: Probe,
+    S: Staging,
+{
     let mut stats = Stats::default();
-    match run_inner(addr, epoch, board, &mut stats, probe, security).await {
+    match run_inner(addr, epoch, board, &mut stats, probe, security, staging).await {
         Ok(never) => match never {},
         Err(stop) => (stop, stats),
     }
 }
 
-async fn run_inner<R, P, I, F, Q>(
+async fn run_inner<R, P, I, F, Q, S>(
     addr: u16,
     epoch: u16,
     board: Board<R, P, I, F>,
     stats: &mut Stats,
     probe: &mut Q,
     security: Option<Security<'_>>,
+    staging: S,
 ) -> Result<Infallible, Stop<R::Error>>
 where
     R: Radio,
@@ -653,6 +699,7 @@ where
     I: Inputs,
     F: NorFlash,
     Q: Probe,
+    S: Staging,
 {
     let Board {
         mut radio,
@@ -663,8 +710,7 @@ where
     } = board;
     outputs.all_off();
     let mut slots = Slots::new(flash).map_err(|_| Stop::FlashGeometry)?;
-    let mut core = NodeCore::new(addr, pin_mask, None, epoch);
-    let mut at = load(addr, pin_mask, epoch, &mut slots, &mut core).await;
+    let (mut core, mut at) = load(addr, pin_mask, epoch, &mut slots, staging).await;
     let mut no_counter = || None;
     let counter: &mut dyn FnMut() -> Option<u32> = match security {
         Some(Security { key, counter }) => {

@@ -213,7 +213,7 @@ impl<F: NorFlash> Slots<F> {
     }
 
     /// Reads slot `slot`'s blob into `buf` if the slot is staged and the blob fits;
-    /// returns its length. (No buffer of its own: the node lends its transfer buffer.)
+    /// returns its length. (No buffer of its own: the runtime reads into one on its stack.)
     pub async fn read_into(
         &mut self,
         slot: usize,
@@ -272,10 +272,10 @@ impl<F: NorFlash> Slots<F> {
     }
 
     /// What [`Slots::load`] finds, the running table named, not decoded into RAM of its
-    /// own: each blob is read into `buf` (the node lends its transfer buffer, at least
-    /// `MAX_BLOB` bytes) and decoded there, one at a time, only to be checked. The
-    /// runtime reads the running slot back into `buf` and decodes it after its last
-    /// await, so no table and no blob buffer live in its future.
+    /// own: each blob is read into `buf` (at least `MAX_BLOB` bytes) and decoded there, one
+    /// at a time, only to be checked. The runtime runs it with a buffer on its stack and
+    /// reads the running slot back the same way, so no table and no blob buffer live in
+    /// its future.
     pub async fn survey(&mut self, buf: &mut [u8]) -> Result<Survey, F::Error> {
         let mut survey = Survey::default();
         let mut best: Option<u32> = None;

@@ -6,8 +6,8 @@
 //!   CUSTOMER[2..=5] when the word's flag bit 2 says so (`node_fw::provision`);
 //! - radio: the IEEE 802.15.4 radio ([`radio`]);
 //! - pins: 16 GPIOs, outputs or inputs as the table uses them ([`gpio`]);
-//! - frame counter, table slots and boot counter: the last 28 KiB of the internal flash
-//!   ([`flash`]);
+//! - OTA transfer page, frame counter, table slots and boot counter: the last 32 KiB of
+//!   the internal flash ([`flash`]);
 //! - security: with a management key, the config PAN is secured (`runtime::run_secured`),
 //!   AES-128 on the AES-ECB peripheral ([`ecb`]);
 //! - log: defmt over RTT (`cargo run --release` flashes a DK with probe-rs and prints it).
@@ -230,6 +230,7 @@ async fn main(_spawner: Spawner) {
             None => None,
         };
 
+        let staging = flash::NrfStaging::new(&flash);
         let board = Board {
             radio,
             outputs: GpioPins(&gpio),
@@ -246,11 +247,11 @@ async fn main(_spawner: Spawner) {
                 key,
                 counter: &mut next,
             });
-            runtime::run_secured(addr, epoch, board, &mut (), security).await
+            runtime::run_staged(addr, epoch, board, &mut (), security, staging).await
         };
         // The unsecured node (a measurement: what frame security costs).
         #[cfg(not(feature = "frame-security"))]
-        let (stop, stats) = runtime::run(addr, epoch, board).await;
+        let (stop, stats) = runtime::run_staged(addr, epoch, board, &mut (), None, staging).await;
         defmt::error!(
             "node stopped ({=bool}): {=u32} activations",
             matches!(stop, runtime::Stop::FlashGeometry),
