@@ -28,9 +28,10 @@ use config_schema::link_keys::decode_deployment;
 use config_schema::wire::mac::MAX_PSDU;
 use embassy_futures::block_on;
 use embassy_futures::select::{select3, select_array, Either3};
-use embassy_time::{with_timeout, Duration, Instant, Timer};
+use embassy_time::{with_timeout, Duration, Instant, Timer, TICK_HZ};
 use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_hal_async::digital::Wait;
+use embedded_storage::nor_flash::{NorFlashError, NorFlashErrorKind};
 use embedded_storage_async::nor_flash::NorFlash;
 use heapless::Vec;
 use log::{info, warn};
@@ -40,7 +41,7 @@ use config_schema::wire::msg::RuntimeCounters;
 use crate::node::{fault_code, FlashRequest, Io, NodeCore};
 use crate::ota::{RamStaging, Staging};
 use crate::provision::ManagementKey;
-use crate::slots::{Slots, Survey};
+use crate::slots::{SlotError, Slots, Survey};
 
 /// Frames the core may queue between two flushes (a poll that retransmits to every peer
 /// queues at most `WINDOW` frames per peer).
@@ -229,6 +230,121 @@ pub trait Probe {
 
 impl Probe for () {}
 
+/// Why a flash operation of the runtime failed, without the board's error type (what a
+/// board's log needs, no `Debug` of its own error).
+pub type FlashFailure = SlotError<NorFlashErrorKind>;
+
+fn failure<E: NorFlashError>(e: SlotError<E>) -> FlashFailure {
+    match e {
+        SlotError::Geometry => SlotError::Geometry,
+        SlotError::TooLong => SlotError::TooLong,
+        SlotError::NotStaged => SlotError::NotStaged,
+        SlotError::Flash(e) => SlotError::Flash(e.kind()),
+    }
+}
+
+/// What the runtime tells the operator: the boot, activations, flash failures, faults.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Note<'a> {
+    /// The slots could not be read at boot: the node boots unconfigured.
+    FlashUnreadable(NorFlashErrorKind),
+    /// A trial a power cut interrupted (slot `slot`): back to the confirmed table.
+    TrialCutShort { slot: usize },
+    /// Slot `slot` could not be revoked.
+    CannotRevoke {
+        slot: usize,
+        why: Option<FlashFailure>,
+    },
+    /// The stored table uses pin `pin`, which the board lacks: it is not run.
+    MissingPin { pin: u8 },
+    /// A pushed table could not be staged.
+    CannotStage(FlashFailure),
+    /// Slot `slot` could not be activated.
+    CannotActivate { slot: usize, why: FlashFailure },
+    /// The node switched (`rollback`: back to the previous table) to `role` `generation`
+    /// in slot `slot`.
+    Switched {
+        rollback: bool,
+        role: &'a str,
+        generation: u32,
+        slot: usize,
+    },
+    /// The node booted with `role` `generation` from slot `slot`.
+    Boot {
+        role: &'a str,
+        generation: u32,
+        slot: usize,
+    },
+    /// The node booted with no table.
+    BootUnconfigured,
+    /// `generation` is staged in slot `slot` (at boot).
+    Staged { generation: u32, slot: usize },
+    /// The engine faulted (status code `code`): outputs safe.
+    Fault { code: u8 },
+    /// The fault was cleared.
+    FaultCleared,
+}
+
+/// Where the runtime's [`Note`]s go. The default writes them to the `log` crate (the host,
+/// QEMU's semihosting console); a board may print them its own way (the nRF52840: defmt,
+/// no `core::fmt` in the image).
+pub trait Notes {
+    fn note(&mut self, addr: u16, note: Note<'_>) {
+        log_note(addr, note);
+    }
+}
+
+impl Notes for () {}
+
+/// `note` as a `log` record (warnings for failures and faults).
+pub fn log_note(addr: u16, note: Note<'_>) {
+    match note {
+        Note::FlashUnreadable(e) => {
+            warn!("node {addr:#06x}: flash unreadable ({e:?}): booting unconfigured")
+        }
+        Note::TrialCutShort { slot } => warn!(
+            "node {addr:#06x}: a trial was cut short (slot {slot}): back to the confirmed table"
+        ),
+        Note::CannotRevoke { slot, why: None } => {
+            warn!("node {addr:#06x}: cannot revoke slot {slot}")
+        }
+        Note::CannotRevoke { slot, why: Some(e) } => {
+            warn!("node {addr:#06x}: cannot revoke slot {slot}: {e:?}")
+        }
+        Note::MissingPin { pin } => {
+            warn!("node {addr:#06x}: the stored table uses pin {pin}, which this board lacks")
+        }
+        Note::CannotStage(e) => warn!("node {addr:#06x}: cannot stage the pushed table: {e:?}"),
+        Note::CannotActivate { slot, why } => {
+            warn!("node {addr:#06x}: cannot activate slot {slot}: {why:?}")
+        }
+        Note::Switched {
+            rollback,
+            role,
+            generation,
+            slot,
+        } => {
+            let what = if rollback {
+                "rolled back to"
+            } else {
+                "activated"
+            };
+            info!("node {addr:#06x}: {what} role {role} generation {generation} (slot {slot})")
+        }
+        Note::Boot {
+            role,
+            generation,
+            slot,
+        } => info!("node {addr:#06x}: boot: role {role} generation {generation} from slot {slot}"),
+        Note::BootUnconfigured => info!("node {addr:#06x}: boot: unconfigured"),
+        Note::Staged { generation, slot } => {
+            info!("node {addr:#06x}: generation {generation} staged (slot {slot})")
+        }
+        Note::Fault { code } => warn!("node {addr:#06x}: fault {code:#04x}: outputs safe"),
+        Note::FaultCleared => info!("node {addr:#06x}: fault cleared"),
+    }
+}
+
 /// The frames the core queued since the last flush: appended while the core runs, all
 /// sent (in order) before it runs again, so one linear buffer of [`TX_BYTES`] holds them
 /// (each as its length byte and its bytes), at most [`TX_QUEUE`] of them.
@@ -366,6 +482,33 @@ fn now_ms() -> u64 {
     Instant::now().as_millis()
 }
 
+const fn gcd(a: u64, b: u64) -> u64 {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
+}
+
+/// Ticks per `TICK_PER_MS.1` ms: `Duration::from_millis`'s reduced fraction.
+const TICK_PER_MS: (u64, u64) = {
+    let g = gcd(TICK_HZ, 1000);
+    (TICK_HZ / g, 1000 / g)
+};
+
+/// `ms` (at most [`MAX_SLEEP_MS`]) as `Duration::from_millis(ms)`, rounded up the same
+/// way, computed in `u32` where the tick rate lets it (the nRF52840's 32,768 Hz): a
+/// Cortex-M divides a `u32` in one instruction, a `u64` division links 0.9 KB.
+fn sleep_for(ms: u64) -> Duration {
+    let (num, den) = TICK_PER_MS;
+    if MAX_SLEEP_MS * num + den <= u32::MAX as u64 {
+        let ms = ms.min(MAX_SLEEP_MS) as u32;
+        Duration::from_ticks(u64::from((ms * num as u32).div_ceil(den as u32)))
+    } else {
+        Duration::from_millis(ms)
+    }
+}
+
 /// The running engine's fault code, if faulted.
 fn fault_of<S: Staging>(core: &NodeCore<S>) -> Option<u8> {
     core.engine_state().and_then(|s| s.fault).map(fault_code)
@@ -404,12 +547,12 @@ fn decodes<F: NorFlash>(slots: &mut Slots<F>, slot: usize) -> bool {
 }
 
 /// What the slots hold (read into a buffer on the stack: [`with_slot`]).
-fn survey<F: NorFlash>(addr: u16, slots: &mut Slots<F>) -> Survey {
+fn survey<F: NorFlash, N: Notes>(addr: u16, slots: &mut Slots<F>, notes: &mut N) -> Survey {
     let mut buf = [0u8; MAX_BLOB];
     match block_on(slots.survey(&mut buf)) {
         Ok(survey) => survey,
         Err(e) => {
-            warn!("node {addr:#06x}: flash unreadable ({e:?}): booting unconfigured");
+            notes.note(addr, Note::FlashUnreadable(e.kind()));
             Survey::default()
         }
     }
@@ -418,18 +561,19 @@ fn survey<F: NorFlash>(addr: u16, slots: &mut Slots<F>) -> Survey {
 /// The node on the slot activated last (an unreadable flash boots unconfigured), with a
 /// staged table reported; a trial a power cut interrupted is revoked. The slots are read
 /// and the running table decoded outside the runtime's future ([`with_slot`]).
-async fn load<F: NorFlash, S: Staging>(
+async fn load<F: NorFlash, S: Staging, N: Notes>(
     addr: u16,
     pin_mask: u64,
     epoch: u16,
     slots: &mut Slots<F>,
     staging: S,
+    notes: &mut N,
 ) -> (NodeCore<S>, SlotsAt) {
-    let survey = survey(addr, slots);
+    let survey = survey(addr, slots, notes);
     if let Some(slot) = survey.abandoned {
-        warn!("node {addr:#06x}: a trial was cut short (slot {slot}): back to the confirmed table");
+        notes.note(addr, Note::TrialCutShort { slot });
         if slots.revoke(slot).await.is_err() {
-            warn!("node {addr:#06x}: cannot revoke slot {slot}");
+            notes.note(addr, Note::CannotRevoke { slot, why: None });
         }
     }
     let at = SlotsAt {
@@ -439,19 +583,20 @@ async fn load<F: NorFlash, S: Staging>(
         trial: false,
         next_serial: survey.next_serial,
     };
-    let core = boot_core(addr, pin_mask, epoch, slots, &survey, staging);
+    let core = boot_core(addr, pin_mask, epoch, slots, &survey, staging, notes);
     (core, at)
 }
 
 /// The boot node: the running slot's table (none: unconfigured) with its keys, the
 /// staged or previous generation noted.
-fn boot_core<F: NorFlash, S: Staging>(
+fn boot_core<F: NorFlash, S: Staging, N: Notes>(
     addr: u16,
     pin_mask: u64,
     epoch: u16,
     slots: &mut Slots<F>,
     survey: &Survey,
     staging: S,
+    notes: &mut N,
 ) -> NodeCore<S> {
     let deployed = survey
         .running
@@ -461,7 +606,7 @@ fn boot_core<F: NorFlash, S: Staging>(
         .as_ref()
         .and_then(|(table, _)| table.missing_pin(pin_mask))
     {
-        warn!("node {addr:#06x}: the stored table uses pin {pin}, which this board lacks");
+        notes.note(addr, Note::MissingPin { pin });
     }
     let (table, keys) = match deployed {
         Some((table, keys)) => (Some(table), keys),
@@ -480,12 +625,13 @@ fn boot_core<F: NorFlash, S: Staging>(
 }
 
 /// Does what the core asks of the flash, and tells it how it went.
-async fn serve_flash<F: NorFlash, P: Pins, S: Staging>(
+async fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
     addr: u16,
     core: &mut NodeCore<S>,
     slots: &mut Slots<F>,
     at: &mut SlotsAt,
     io: &mut CoreIo<'_, P>,
+    notes: &mut N,
 ) {
     match core.flash_request() {
         None => {}
@@ -498,7 +644,7 @@ async fn serve_flash<F: NorFlash, P: Pins, S: Staging>(
                     true
                 }
                 Err(e) => {
-                    warn!("node {addr:#06x}: cannot stage the pushed table: {e:?}");
+                    notes.note(addr, Note::CannotStage(failure(e)));
                     io.stats.flash_failures += 1;
                     false
                 }
@@ -529,14 +675,15 @@ async fn serve_flash<F: NorFlash, P: Pins, S: Staging>(
                             Some(slot)
                         }
                         Err(e) => {
-                            warn!("node {addr:#06x}: cannot revoke slot {running}: {e:?}");
+                            let why = Some(failure(e));
+                            notes.note(addr, Note::CannotRevoke { slot: running, why });
                             None
                         }
                     }
                 }
                 _ => None,
             };
-            switched(addr, core, slots, at, io, read, "rolled back to");
+            switched(addr, core, slots, at, io, read, true, notes);
         }
         Some(FlashRequest::Activate { trial }) => {
             let read = match at.staged {
@@ -553,14 +700,15 @@ async fn serve_flash<F: NorFlash, P: Pins, S: Staging>(
                             Some(slot)
                         }
                         Err(e) => {
-                            warn!("node {addr:#06x}: cannot activate slot {slot}: {e:?}");
+                            let why = failure(e);
+                            notes.note(addr, Note::CannotActivate { slot, why });
                             None
                         }
                     }
                 }
                 _ => None,
             };
-            switched(addr, core, slots, at, io, read, "activated");
+            switched(addr, core, slots, at, io, read, false, notes);
         }
     }
 }
@@ -568,14 +716,16 @@ async fn serve_flash<F: NorFlash, P: Pins, S: Staging>(
 /// The slot `read` (`None`: the flash failed) is the boot table now: the core switches
 /// to it, read back and decoded here, after the last await, so the table never lives in
 /// the runtime's future.
-fn switched<F: NorFlash, P: Pins, S: Staging>(
+#[allow(clippy::too_many_arguments)]
+fn switched<F: NorFlash, P: Pins, S: Staging, N: Notes>(
     addr: u16,
     core: &mut NodeCore<S>,
     slots: &mut Slots<F>,
     at: &SlotsAt,
     io: &mut CoreIo<'_, P>,
     read: Option<usize>,
-    what: &str,
+    rollback: bool,
+    notes: &mut N,
 ) {
     let deployed = read
         .and_then(|slot| with_slot(slots, slot, |blob| decode_deployment(blob).ok()))
@@ -587,12 +737,13 @@ fn switched<F: NorFlash, P: Pins, S: Staging>(
     core.activated(deployed, now_ms(), io);
     if let Some(t) = core.table().filter(|_| ok) {
         io.stats.activations += 1;
-        info!(
-            "node {addr:#06x}: {what} role {} generation {} (slot {})",
-            t.header.role,
-            t.generation,
-            at.running.unwrap_or(0)
-        );
+        let note = Note::Switched {
+            rollback,
+            role: &t.header.role,
+            generation: t.generation,
+            slot: at.running.unwrap_or(0),
+        };
+        notes.note(addr, note);
     }
 }
 
@@ -656,18 +807,20 @@ where
 {
     // Held here, lent to the core: one copy in the future, not one per async layer.
     let mut staging = RamStaging::new();
-    run_staged(addr, epoch, board, probe, security, &mut staging).await
+    run_staged(addr, epoch, board, probe, security, &mut staging, &mut ()).await
 }
 
 /// [`run_secured`], staging pushed tables in `staging` instead of a RAM buffer of the
-/// runtime's own (an MCU board: a memory-mapped flash page, see [`Staging`]).
-pub async fn run_staged<R, P, I, F, Q, S>(
+/// runtime's own (an MCU board: a memory-mapped flash page, see [`Staging`]), its
+/// [`Note`]s to `notes` (`()`: the `log` crate).
+pub async fn run_staged<R, P, I, F, Q, S, N>(
     addr: u16,
     epoch: u16,
     board: Board<R, P, I, F>,
     probe: &mut Q,
     security: Option<Security<'_>>,
     staging: S,
+    notes: &mut N,
 ) -> (Stop<R::Error>, Stats)
 where
     R: Radio,
@@ -676,22 +829,36 @@ where
     F: NorFlash,
     Q: Probe,
     S: Staging,
+    N: Notes,
 {
     let mut stats = Stats::default();
-    match run_inner(addr, epoch, board, &mut stats, probe, security, staging).await {
+    let parts = Parts {
+        stats: &mut stats,
+        probe,
+        security,
+        staging,
+        notes,
+    };
+    match run_inner(addr, epoch, board, parts).await {
         Ok(never) => match never {},
         Err(stop) => (stop, stats),
     }
 }
 
-async fn run_inner<R, P, I, F, Q, S>(
+/// What [`run_inner`] runs with besides the board.
+struct Parts<'a, 'k, Q, S, N> {
+    stats: &'a mut Stats,
+    probe: &'a mut Q,
+    security: Option<Security<'k>>,
+    staging: S,
+    notes: &'a mut N,
+}
+
+async fn run_inner<R, P, I, F, Q, S, N>(
     addr: u16,
     epoch: u16,
     board: Board<R, P, I, F>,
-    stats: &mut Stats,
-    probe: &mut Q,
-    security: Option<Security<'_>>,
-    staging: S,
+    parts: Parts<'_, '_, Q, S, N>,
 ) -> Result<Infallible, Stop<R::Error>>
 where
     R: Radio,
@@ -700,7 +867,15 @@ where
     F: NorFlash,
     Q: Probe,
     S: Staging,
+    N: Notes,
 {
+    let Parts {
+        stats,
+        probe,
+        security,
+        staging,
+        notes,
+    } = parts;
     let Board {
         mut radio,
         mut outputs,
@@ -710,7 +885,7 @@ where
     } = board;
     outputs.all_off();
     let mut slots = Slots::new(flash).map_err(|_| Stop::FlashGeometry)?;
-    let (mut core, mut at) = load(addr, pin_mask, epoch, &mut slots, staging).await;
+    let (mut core, mut at) = load(addr, pin_mask, epoch, &mut slots, staging, notes).await;
     let mut no_counter = || None;
     let counter: &mut dyn FnMut() -> Option<u32> = match security {
         Some(Security { key, counter }) => {
@@ -727,34 +902,34 @@ where
         counter,
     };
     core.boot(&mut io);
-    match core.table() {
-        Some(t) => info!(
-            "node {addr:#06x}: boot: role {} generation {} from slot {}",
-            t.header.role,
-            t.generation,
-            at.running.unwrap_or(0)
-        ),
-        None => info!("node {addr:#06x}: boot: unconfigured"),
-    }
+    let booted = match core.table() {
+        Some(t) => Note::Boot {
+            role: &t.header.role,
+            generation: t.generation,
+            slot: at.running.unwrap_or(0),
+        },
+        None => Note::BootUnconfigured,
+    };
+    notes.note(addr, booted);
     if core.staged_generation() != 0 {
-        info!(
-            "node {addr:#06x}: generation {} staged (slot {})",
-            core.staged_generation(),
-            at.staged.unwrap_or(0)
-        );
+        let note = Note::Staged {
+            generation: core.staged_generation(),
+            slot: at.staged.unwrap_or(0),
+        };
+        notes.note(addr, note);
     }
     let mut fault = fault_of(&core);
     let mut rx = [0u8; MAX_PSDU];
     loop {
         core.poll(now_ms(), &mut io);
 
-        serve_flash(addr, &mut core, &mut slots, &mut at, &mut io).await;
+        serve_flash(addr, &mut core, &mut slots, &mut at, &mut io, notes).await;
 
         let now = fault_of(&core);
         if now != fault {
             match now {
-                Some(code) => warn!("node {addr:#06x}: fault {code:#04x}: outputs safe"),
-                None => info!("node {addr:#06x}: fault cleared"),
+                Some(code) => notes.note(addr, Note::Fault { code }),
+                None => notes.note(addr, Note::FaultCleared),
             }
             fault = now;
         }
@@ -771,7 +946,7 @@ where
         match select3(
             radio.receive(&mut rx),
             inputs.change(),
-            Timer::after_millis(sleep),
+            Timer::after(sleep_for(sleep)),
         )
         .await
         {

@@ -643,6 +643,7 @@ fn runtime_future_size() {
         &mut (),
         None,
         &mut staging,
+        &mut (),
     ));
     eprintln!(
         "runtime future, staging outside it (run_staged, as the boards): {staged} bytes \

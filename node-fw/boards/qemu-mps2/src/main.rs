@@ -137,7 +137,7 @@ async fn node(
     });
     let staging = flash::QemuStaging::new();
     let (stop, stats) =
-        runtime::run_staged(addr, epoch, board, &mut probe, security, staging).await;
+        runtime::run_staged(addr, epoch, board, &mut probe, security, staging, &mut ()).await;
     log::error!("node {addr:#06x}: stopped: {stop:?} ({stats:?})");
 }
 
