@@ -279,7 +279,7 @@ impl Receiver {
             // Re-index the held frames from the new `next`, releasing those now in order.
             loop {
                 let first = self.held[0];
-                self.held.rotate_left(1);
+                crate::to_end(&mut self.held, 0);
                 self.held[WINDOW - 1] = None;
                 match first {
                     Some(t) => {

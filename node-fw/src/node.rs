@@ -1378,7 +1378,7 @@ impl<S: StagingArea> NodeCore<S> {
                 Some(i) => self.commands[i].1 = id,
                 None => {
                     if self.commands.is_full() {
-                        self.commands.remove(0);
+                        crate::remove_at(&mut self.commands, 0);
                     }
                     let _ = self.commands.push((src, id));
                 }

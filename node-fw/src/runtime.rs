@@ -24,8 +24,9 @@
 use core::convert::Infallible;
 
 use config_schema::limits::MAX_BLOB;
-use config_schema::link_keys::decode_deployment;
+use config_schema::link_keys::{decode_deployment, LinkKeys};
 use config_schema::wire::mac::MAX_PSDU;
+use config_schema::Table;
 use embassy_futures::block_on;
 use embassy_futures::select::{select3, select_array, Either3};
 use embassy_time::{with_timeout, Duration, Instant, Timer, TICK_HZ};
@@ -541,9 +542,16 @@ fn with_slot<F: NorFlash, R>(
     buf.get(..len).map(f)
 }
 
+/// The deployment (table and link keys) in slot `slot`, if it decodes; one copy of the
+/// read and the decode for every caller.
+#[inline(never)]
+fn deployment<F: NorFlash>(slots: &mut Slots<F>, slot: usize) -> Option<(Table, Option<LinkKeys>)> {
+    with_slot(slots, slot, |blob| decode_deployment(blob).ok()).flatten()
+}
+
 /// Whether slot `slot` holds a deployment that decodes (the table is not kept).
 fn decodes<F: NorFlash>(slots: &mut Slots<F>, slot: usize) -> bool {
-    with_slot(slots, slot, |blob| decode_deployment(blob).is_ok()).unwrap_or(false)
+    deployment(slots, slot).is_some()
 }
 
 /// What the slots hold (read into a buffer on the stack: [`with_slot`]).
@@ -598,10 +606,7 @@ fn boot_core<F: NorFlash, S: Staging, N: Notes>(
     staging: S,
     notes: &mut N,
 ) -> NodeCore<S> {
-    let deployed = survey
-        .running
-        .and_then(|r| with_slot(slots, r.slot, |blob| decode_deployment(blob).ok()))
-        .flatten();
+    let deployed = survey.running.and_then(|r| deployment(slots, r.slot));
     if let Some(pin) = deployed
         .as_ref()
         .and_then(|(table, _)| table.missing_pin(pin_mask))
@@ -727,9 +732,7 @@ fn switched<F: NorFlash, P: Pins, S: Staging, N: Notes>(
     rollback: bool,
     notes: &mut N,
 ) {
-    let deployed = read
-        .and_then(|slot| with_slot(slots, slot, |blob| decode_deployment(blob).ok()))
-        .flatten();
+    let deployed = read.and_then(|slot| deployment(slots, slot));
     let ok = deployed.is_some();
     if !ok {
         io.stats.flash_failures += 1;
