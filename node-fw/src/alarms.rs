@@ -127,7 +127,7 @@ impl Alarms {
             };
             match acked.or_else(lesser) {
                 Some(i) => {
-                    self.list.remove(i);
+                    crate::remove_at(&mut self.list, i);
                 }
                 None => {
                     self.dropped = self.dropped.saturating_add(1);

@@ -39,3 +39,63 @@ pub mod switch;
 /// the secured paths are dead code and the crypto is not linked. Only for measuring what
 /// frame security costs (`bench/footprint.sh`): such a node is not for a machine.
 pub const FRAME_SECURITY: bool = cfg!(feature = "frame-security");
+
+/// Moves element `i` of `s` to its end, the others keeping their order (`rotate_left(1)`
+/// of `s[i..]`; a `Vec` then pops it: `remove(i)`). By swaps: `Vec::remove` and `rotate`
+/// are a `ptr::copy`, which links compiler_builtins' `memmove` (1.5 KB on the nRF52840).
+pub(crate) fn to_end<T>(s: &mut [T], i: usize) {
+    for j in i..s.len().saturating_sub(1) {
+        if let Some([a, b]) = s.get_mut(j..j + 2) {
+            core::mem::swap(a, b);
+        }
+    }
+}
+
+/// Moves the last element of `s` to its front, the others keeping their order
+/// (`rotate_right(1)`, by swaps: see [`to_end`]).
+pub(crate) fn last_to_front<T>(s: &mut [T]) {
+    for j in (1..s.len()).rev() {
+        if let Some([a, b]) = s.get_mut(j - 1..j + 1) {
+            core::mem::swap(a, b);
+        }
+    }
+}
+
+/// `v.remove(i)` (nothing if `i` is out of range) without `ptr::copy` ([`to_end`]).
+pub(crate) fn remove_at<T, const N: usize>(v: &mut heapless::Vec<T, N>, i: usize) {
+    if i < v.len() {
+        to_end(v, i);
+        v.pop();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// The swaps do what `rotate_left`, `rotate_right` and `Vec::remove` do.
+    #[test]
+    fn the_swaps_rotate_and_remove_as_the_std_ones() {
+        for len in 0..6 {
+            for i in 0..=len {
+                let mut a: std::vec::Vec<u8> = (0..len as u8).collect();
+                let mut b = a.clone();
+                super::to_end(&mut a, i);
+                if i < len {
+                    b[i..].rotate_left(1);
+                }
+                assert_eq!(a, b, "to_end {i} of {len}");
+                let mut v: heapless::Vec<u8, 8> = (0..len as u8).collect();
+                let mut w: std::vec::Vec<u8> = (0..len as u8).collect();
+                super::remove_at(&mut v, i);
+                if i < len {
+                    w.remove(i);
+                }
+                assert_eq!(v.as_slice(), w.as_slice(), "remove {i} of {len}");
+            }
+            let mut a: std::vec::Vec<u8> = (0..len as u8).collect();
+            let mut b = a.clone();
+            super::last_to_front(&mut a);
+            b.rotate_right(usize::from(len > 0));
+            assert_eq!(a, b, "last_to_front of {len}");
+        }
+    }
+}

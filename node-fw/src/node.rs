@@ -20,7 +20,7 @@ use crate::alarms::{Alarms, Seen};
 use crate::cipher::NodeCipher;
 use crate::ecc::{Effects, Engine, EngineState, Fault, Index};
 use crate::link::{self, LinkState};
-use crate::ota::{self, Outcome};
+use crate::ota::{self, Outcome, RamStaging, Staging as StagingArea};
 use crate::peer_security::{self, PeerSecurity, Pending, Verdict};
 use crate::provision::ManagementKey;
 use crate::switch::{self, SwitchOver};
@@ -99,8 +99,9 @@ fn gated(key: &Option<ManagementKey>) -> Option<&ManagementKey> {
     key.as_ref().filter(|_| crate::FRAME_SECURITY)
 }
 
-/// The generic node.
-pub struct NodeCore {
+/// The generic node, staging pushed tables in `S` ([`ota::RamStaging`]: a RAM buffer of
+/// its own; an MCU board's flash page: [`NodeCore::staging_in`]).
+pub struct NodeCore<S = RamStaging> {
     addr: u16,
     /// Bit n: the board has pin n. A table naming another pin is refused.
     board_pins: u64,
@@ -112,7 +113,7 @@ pub struct NodeCore {
     senders: Vec<link::Sender, MAX_PEERS>,
     /// (peer address, link) for every peer that sent events.
     receivers: Vec<(u16, link::Receiver), MAX_PEERS>,
-    ota: ota::Receiver,
+    ota: ota::Receiver<S>,
     staging: Option<Staging>,
     /// The staged generation and the switch-over to it.
     switch: SwitchOver,
@@ -284,10 +285,25 @@ impl<I: Io> Effects for NodeEffects<'_, I> {
 
 impl NodeCore {
     /// A node at `addr` on a board with pins `board_pins` (bit n: the board has pin n),
+    /// booting with `table` (the newest valid slot) or none, staging pushed tables in RAM
+    /// ([`NodeCore::staging_in`]).
+    pub fn new(addr: u16, board_pins: u64, table: Option<Table>, epoch: u16) -> Self {
+        NodeCore::staging_in(addr, board_pins, table, epoch, RamStaging::new())
+    }
+}
+
+impl<S: StagingArea> NodeCore<S> {
+    /// A node at `addr` on a board with pins `board_pins` (bit n: the board has pin n),
     /// booting with `table` (the newest valid slot) or none; a table naming a pin the board
     /// lacks is not run (the node boots unconfigured). `epoch` must differ from (be newer
     /// than) the previous boot's: peers only accept newer epochs.
-    pub fn new(addr: u16, board_pins: u64, table: Option<Table>, epoch: u16) -> Self {
+    pub fn staging_in(
+        addr: u16,
+        board_pins: u64,
+        table: Option<Table>,
+        epoch: u16,
+        staging: S,
+    ) -> Self {
         let mut node = NodeCore {
             addr,
             board_pins,
@@ -297,7 +313,7 @@ impl NodeCore {
             timers: [None; MAX_TIMERS],
             senders: Vec::new(),
             receivers: Vec::new(),
-            ota: ota::Receiver::for_board(board_pins),
+            ota: ota::Receiver::staging_in(board_pins, staging),
             staging: None,
             switch: SwitchOver::default(),
             epoch,
@@ -541,18 +557,6 @@ impl NodeCore {
             switch::Target::Staged { trial } => FlashRequest::Activate { trial },
             switch::Target::Previous => FlashRequest::Rollback,
         })
-    }
-
-    /// The transfer buffer, lent to the board to read a slot back into (any transfer in
-    /// progress is dropped: the tool starts it again); [`NodeCore::lent`] reads it.
-    pub fn lend_buffer(&mut self) -> &mut [u8] {
-        self.ota.abort();
-        self.ota.buffer_mut()
-    }
-
-    /// The first `len` bytes of the lent buffer.
-    pub fn lent(&self, len: usize) -> &[u8] {
-        self.ota.blob(len)
     }
 
     /// The node booted with `generation` confirmed in its other slot: what a rollback
@@ -1393,7 +1397,7 @@ impl NodeCore {
                 Some(i) => self.commands[i].1 = id,
                 None => {
                     if self.commands.is_full() {
-                        self.commands.remove(0);
+                        crate::remove_at(&mut self.commands, 0);
                     }
                     let _ = self.commands.push((src, id));
                 }
@@ -1448,6 +1452,39 @@ impl NodeCore {
         let status = Message::Status(self.status(id, io.runtime_counters()));
         self.send(io, pan, src, &status);
     }
+}
+
+/// The bytes of [`NodeCore`] and of its larger parts, as this build lays them out, with
+/// the transfer staged outside it as on a board (the RAM breakdown of docs/boards.md:
+/// `cargo test -p node-fw --features std --test host_runtime runtime_future_size --
+/// --nocapture`).
+pub fn footprint() -> [(&'static str, usize); 13] {
+    use core::mem::size_of;
+    type Board = &'static mut RamStaging;
+    [
+        ("NodeCore<RamStaging>", size_of::<NodeCore>()),
+        ("NodeCore (staging outside)", size_of::<NodeCore<Board>>()),
+        ("  Option<Table>", size_of::<Option<Table>>()),
+        ("  Option<Index>", size_of::<Option<Index>>()),
+        ("  Option<EngineState>", size_of::<Option<EngineState>>()),
+        ("  ota::Receiver", size_of::<ota::Receiver<Board>>()),
+        ("  senders", size_of::<Vec<link::Sender, MAX_PEERS>>()),
+        (
+            "  receivers",
+            size_of::<Vec<(u16, link::Receiver), MAX_PEERS>>(),
+        ),
+        ("  PeerSecurity", size_of::<PeerSecurity>()),
+        ("  Alarms", size_of::<Alarms>()),
+        ("  SwitchOver", size_of::<SwitchOver>()),
+        (
+            "  ReplayGuard + Pending",
+            size_of::<ReplayGuard<MANAGEMENT_SENDERS>>() + size_of::<Pending<MANAGEMENT_SENDERS>>(),
+        ),
+        (
+            "  Option<ManagementKey>",
+            size_of::<Option<ManagementKey>>(),
+        ),
+    ]
 }
 
 /// Whether pin `pin` is high in `pins` (bit = pin number; pins past 63 never are).

@@ -65,13 +65,73 @@ impl Transfer {
     }
 }
 
-/// The node's side: stages one incoming blob in RAM.
+/// Where the node puts a transfer's chunks as they come, and reads the whole blob back
+/// from (contiguous) to check and persist it. [`RamStaging`] is a RAM buffer (the host,
+/// tests); an MCU board puts them in a flash page of its own, memory-mapped, so that no
+/// blob is held in RAM (node-fw/boards: `Staging` of the nRF52840 and QEMU boards).
+pub trait Staging {
+    /// Makes the area ready for a new transfer (a flash page erased); `false`: it failed.
+    fn clear(&mut self) -> bool;
+    /// Puts `data` (at most `CHUNK_DATA` bytes) at `offset` (a multiple of `CHUNK_DATA`,
+    /// each place put once after a clear); `false`: it failed.
+    fn put(&mut self, offset: usize, data: &[u8]) -> bool;
+    /// The first `len` bytes (empty if `len` is past the area).
+    fn get(&self, len: usize) -> &[u8];
+}
+
+/// A transfer staged in RAM: [`MAX_BLOB`] bytes.
 #[derive(Debug, Clone)]
-pub struct Receiver {
+pub struct RamStaging([u8; MAX_BLOB]);
+
+impl RamStaging {
+    pub const fn new() -> Self {
+        RamStaging([0; MAX_BLOB])
+    }
+}
+
+impl Default for RamStaging {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Staging for RamStaging {
+    fn clear(&mut self) -> bool {
+        true
+    }
+    fn put(&mut self, offset: usize, data: &[u8]) -> bool {
+        match self.0.get_mut(offset..offset + data.len()) {
+            Some(dst) => {
+                copy(dst, data);
+                true
+            }
+            None => false,
+        }
+    }
+    fn get(&self, len: usize) -> &[u8] {
+        self.0.get(..len).unwrap_or(&[])
+    }
+}
+
+impl<S: Staging + ?Sized> Staging for &mut S {
+    fn clear(&mut self) -> bool {
+        (**self).clear()
+    }
+    fn put(&mut self, offset: usize, data: &[u8]) -> bool {
+        (**self).put(offset, data)
+    }
+    fn get(&self, len: usize) -> &[u8] {
+        (**self).get(len)
+    }
+}
+
+/// The node's side: stages one incoming blob in its [`Staging`].
+#[derive(Debug, Clone)]
+pub struct Receiver<S = RamStaging> {
     transfer: Option<Transfer>,
     /// Bit n: the board has pin n.
     board_pins: u64,
-    staging: [u8; MAX_BLOB],
+    staging: S,
 }
 
 impl Default for Receiver {
@@ -96,18 +156,25 @@ pub enum Outcome {
 }
 
 impl Receiver {
-    /// A receiver that takes any pin a table may name (`0..MAX_PINS`).
+    /// A receiver that takes any pin a table may name (`0..MAX_PINS`), staging in RAM.
     pub const fn new() -> Self {
         Self::for_board(u64::MAX)
     }
 
-    /// A receiver on a board with pins `board_pins` (bit n: the board has pin n): a table
-    /// naming another pin is refused with `Refusal::Pin`.
+    /// A receiver on a board with pins `board_pins` (bit n: the board has pin n), staging
+    /// in RAM: a table naming another pin is refused with `Refusal::Pin`.
     pub const fn for_board(board_pins: u64) -> Self {
+        Receiver::staging_in(board_pins, RamStaging::new())
+    }
+}
+
+impl<S: Staging> Receiver<S> {
+    /// A receiver on a board with pins `board_pins`, staging in `staging`.
+    pub const fn staging_in(board_pins: u64, staging: S) -> Self {
         Receiver {
             transfer: None,
             board_pins,
-            staging: [0; MAX_BLOB],
+            staging,
         }
     }
 
@@ -118,12 +185,7 @@ impl Receiver {
 
     /// The blob of the last completed transfer (what `Stage` is to persist).
     pub fn blob(&self, len: usize) -> &[u8] {
-        self.staging.get(..len).unwrap_or(&[])
-    }
-
-    /// The whole staging buffer (to read a stored table back into).
-    pub fn buffer_mut(&mut self) -> &mut [u8] {
-        &mut self.staging
+        self.staging.get(len)
     }
 
     /// Forgets any transfer in progress.
@@ -177,6 +239,10 @@ impl Receiver {
                 if usize::from(len) > MAX_BLOB {
                     return reply(ConfigReply::Refused(Refusal::TooLong));
                 }
+                self.transfer = None;
+                if !self.staging.clear() {
+                    return reply(ConfigReply::Refused(Refusal::Flash));
+                }
                 self.transfer = Some(Transfer {
                     generation,
                     len,
@@ -208,12 +274,15 @@ impl Receiver {
                 if offset % CHUNK_DATA == 0
                     && index < t.chunks()
                     && data.len() == t.chunk_len(index)
+                    && t.have & (1 << index) == 0
                 {
-                    if let Some(dst) = self.staging.get_mut(offset..offset + data.len()) {
-                        copy(dst, data);
-                        t.have |= 1 << index;
-                        t.update_received();
+                    // Each place is put once (a flash word is written once per erase).
+                    if !self.staging.put(offset, data) {
+                        self.transfer = None;
+                        return reply(ConfigReply::Refused(Refusal::Flash));
                     }
+                    t.have |= 1 << index;
+                    t.update_received();
                 }
                 reply(ConfigReply::Next { next: t.received })
             }

@@ -116,7 +116,7 @@ fn may(times: &mut Vec<(u16, u64), MAX_PEERS>, peer: u16, now: u64, every: u64) 
         }
         None => {
             if times.is_full() {
-                times.remove(0);
+                crate::remove_at(times, 0);
             }
             let _ = times.push((peer, now + every));
             true
@@ -403,12 +403,13 @@ impl<const N: usize> Pending<N> {
 fn sent(sent: &mut VecView<Challenged>, sender: u16, nonce: u32) {
     match sent.iter_mut().find(|(s, _)| *s == sender) {
         Some((_, nonces)) => {
-            nonces.rotate_right(1);
+            crate::last_to_front(nonces);
             nonces[0] = Some(nonce);
         }
         None => {
             if sent.is_full() {
-                sent.remove(0);
+                crate::to_end(sent, 0);
+                sent.pop();
             }
             let mut nonces = [None; OUTSTANDING];
             nonces[0] = Some(nonce);
@@ -424,7 +425,8 @@ fn answered(sent: &mut VecView<Challenged>, sender: u16, nonce: u32) -> bool {
     else {
         return false;
     };
-    sent.remove(i);
+    crate::to_end(sent, i);
+    sent.pop();
     true
 }
 

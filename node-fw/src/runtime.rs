@@ -6,7 +6,11 @@
 //!   `embedded_hal::digital::OutputPin`, index = pin number);
 //! - [`Inputs`]: the next input level change (implemented by [`WaitInputs`] for arrays of
 //!   `embedded_hal_async::digital::Wait` + `InputPin`, index = pin number);
-//! - a `NorFlash` (`embedded-storage-async`) for the two table [`Slots`];
+//! - a `NorFlash` (`embedded-storage-async`) for the two table [`Slots`], whose
+//!   operations complete when first polled (the slots are read back with
+//!   `embassy_futures::block_on`, into a buffer on the stack);
+//! - a [`Staging`] for a pushed table's chunks ([`run_staged`]: an MCU board's flash
+//!   page; [`RamStaging`] otherwise);
 //! - `embassy-time` for the time and the timer until [`NodeCore::deadline`].
 //!
 //! [`run`] boots (outputs safe, the slot activated last, `NodeCore::new`) and then loops:
@@ -19,25 +23,35 @@
 
 use core::convert::Infallible;
 
-use config_schema::link_keys::decode_deployment;
+use config_schema::limits::MAX_BLOB;
+use config_schema::link_keys::{decode_deployment, LinkKeys};
 use config_schema::wire::mac::MAX_PSDU;
+use config_schema::Table;
+use embassy_futures::block_on;
 use embassy_futures::select::{select3, select_array, Either3};
-use embassy_time::{with_timeout, Duration, Instant, Timer};
+use embassy_time::{with_timeout, Duration, Instant, Timer, TICK_HZ};
 use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_hal_async::digital::Wait;
+use embedded_storage::nor_flash::{NorFlashError, NorFlashErrorKind};
 use embedded_storage_async::nor_flash::NorFlash;
-use heapless::{Deque, Vec};
+use heapless::Vec;
 use log::{info, warn};
 
 use config_schema::wire::msg::RuntimeCounters;
 
 use crate::node::{fault_code, FlashRequest, Io, NodeCore};
+use crate::ota::{RamStaging, Staging};
 use crate::provision::ManagementKey;
-use crate::slots::{Boot, Slots};
+use crate::slots::{SlotError, Slots, Survey};
 
 /// Frames the core may queue between two flushes (a poll that retransmits to every peer
 /// queues at most `WINDOW` frames per peer).
 pub const TX_QUEUE: usize = 32;
+/// Bytes of the frames the core may queue between two flushes (each frame takes its
+/// length and one byte more): the `TX_QUEUE` event frames of a full retransmission round
+/// (8 peers x `link::WINDOW`, at most 33 bytes each secured: 1,088 bytes), or 9 frames of
+/// the longest PSDU.
+pub const TX_BYTES: usize = 1152;
 /// How long the radio may take to accept one frame before it is dropped.
 pub const SEND_TIMEOUT_MS: u64 = 100;
 /// The longest single sleep of the main loop (the deadline is recomputed after it).
@@ -217,21 +231,200 @@ pub trait Probe {
 
 impl Probe for () {}
 
+/// Why a flash operation of the runtime failed, without the board's error type (what a
+/// board's log needs, no `Debug` of its own error).
+pub type FlashFailure = SlotError<NorFlashErrorKind>;
+
+fn failure<E: NorFlashError>(e: SlotError<E>) -> FlashFailure {
+    match e {
+        SlotError::Geometry => SlotError::Geometry,
+        SlotError::TooLong => SlotError::TooLong,
+        SlotError::NotStaged => SlotError::NotStaged,
+        SlotError::Flash(e) => SlotError::Flash(e.kind()),
+    }
+}
+
+/// What the runtime tells the operator: the boot, activations, flash failures, faults.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Note<'a> {
+    /// The slots could not be read at boot: the node boots unconfigured.
+    FlashUnreadable(NorFlashErrorKind),
+    /// A trial a power cut interrupted (slot `slot`): back to the confirmed table.
+    TrialCutShort { slot: usize },
+    /// Slot `slot` could not be revoked.
+    CannotRevoke {
+        slot: usize,
+        why: Option<FlashFailure>,
+    },
+    /// The stored table uses pin `pin`, which the board lacks: it is not run.
+    MissingPin { pin: u8 },
+    /// A pushed table could not be staged.
+    CannotStage(FlashFailure),
+    /// Slot `slot` could not be activated.
+    CannotActivate { slot: usize, why: FlashFailure },
+    /// The node switched (`rollback`: back to the previous table) to `role` `generation`
+    /// in slot `slot`.
+    Switched {
+        rollback: bool,
+        role: &'a str,
+        generation: u32,
+        slot: usize,
+    },
+    /// The node booted with `role` `generation` from slot `slot`.
+    Boot {
+        role: &'a str,
+        generation: u32,
+        slot: usize,
+    },
+    /// The node booted with no table.
+    BootUnconfigured,
+    /// `generation` is staged in slot `slot` (at boot).
+    Staged { generation: u32, slot: usize },
+    /// The engine faulted (status code `code`): outputs safe.
+    Fault { code: u8 },
+    /// The fault was cleared.
+    FaultCleared,
+}
+
+/// Where the runtime's [`Note`]s go. The default writes them to the `log` crate (the host,
+/// QEMU's semihosting console); a board may print them its own way (the nRF52840: defmt,
+/// no `core::fmt` in the image).
+pub trait Notes {
+    fn note(&mut self, addr: u16, note: Note<'_>) {
+        log_note(addr, note);
+    }
+}
+
+impl Notes for () {}
+
+/// `note` as a `log` record (warnings for failures and faults).
+pub fn log_note(addr: u16, note: Note<'_>) {
+    match note {
+        Note::FlashUnreadable(e) => {
+            warn!("node {addr:#06x}: flash unreadable ({e:?}): booting unconfigured")
+        }
+        Note::TrialCutShort { slot } => warn!(
+            "node {addr:#06x}: a trial was cut short (slot {slot}): back to the confirmed table"
+        ),
+        Note::CannotRevoke { slot, why: None } => {
+            warn!("node {addr:#06x}: cannot revoke slot {slot}")
+        }
+        Note::CannotRevoke { slot, why: Some(e) } => {
+            warn!("node {addr:#06x}: cannot revoke slot {slot}: {e:?}")
+        }
+        Note::MissingPin { pin } => {
+            warn!("node {addr:#06x}: the stored table uses pin {pin}, which this board lacks")
+        }
+        Note::CannotStage(e) => warn!("node {addr:#06x}: cannot stage the pushed table: {e:?}"),
+        Note::CannotActivate { slot, why } => {
+            warn!("node {addr:#06x}: cannot activate slot {slot}: {why:?}")
+        }
+        Note::Switched {
+            rollback,
+            role,
+            generation,
+            slot,
+        } => {
+            let what = if rollback {
+                "rolled back to"
+            } else {
+                "activated"
+            };
+            info!("node {addr:#06x}: {what} role {role} generation {generation} (slot {slot})")
+        }
+        Note::Boot {
+            role,
+            generation,
+            slot,
+        } => info!("node {addr:#06x}: boot: role {role} generation {generation} from slot {slot}"),
+        Note::BootUnconfigured => info!("node {addr:#06x}: boot: unconfigured"),
+        Note::Staged { generation, slot } => {
+            info!("node {addr:#06x}: generation {generation} staged (slot {slot})")
+        }
+        Note::Fault { code } => warn!("node {addr:#06x}: fault {code:#04x}: outputs safe"),
+        Note::FaultCleared => info!("node {addr:#06x}: fault cleared"),
+    }
+}
+
+/// The frames the core queued since the last flush: appended while the core runs, all
+/// sent (in order) before it runs again, so one linear buffer of [`TX_BYTES`] holds them
+/// (each as its length byte and its bytes), at most [`TX_QUEUE`] of them.
+struct TxQueue {
+    bytes: [u8; TX_BYTES],
+    /// Bytes in use (`bytes[..end]`), frames in them, and where the next to send starts.
+    end: usize,
+    frames: usize,
+    head: usize,
+}
+
+impl TxQueue {
+    const fn new() -> Self {
+        TxQueue {
+            bytes: [0; TX_BYTES],
+            end: 0,
+            frames: 0,
+            head: 0,
+        }
+    }
+
+    /// Appends `psdu`; `false` (nothing queued) if the queue is full.
+    fn push(&mut self, psdu: &[u8]) -> bool {
+        let Ok(len) = u8::try_from(psdu.len()) else {
+            return false;
+        };
+        let Some(dst) = self.bytes.get_mut(self.end..self.end + 1 + psdu.len()) else {
+            return false;
+        };
+        if self.frames >= TX_QUEUE {
+            return false;
+        }
+        if let Some((first, rest)) = dst.split_first_mut() {
+            *first = len;
+            rest.copy_from_slice(psdu);
+        }
+        self.end += 1 + psdu.len();
+        self.frames += 1;
+        true
+    }
+
+    fn len(&self) -> usize {
+        self.frames
+    }
+
+    /// The next frame to send.
+    fn front(&self) -> Option<&[u8]> {
+        let len = usize::from(*self.bytes.get(self.head).filter(|_| self.head < self.end)?);
+        self.bytes.get(self.head + 1..self.head + 1 + len)
+    }
+
+    /// Drops the frame [`TxQueue::front`] gave; the queue starts over once empty.
+    fn pop(&mut self) {
+        let len = self.front().map_or(0, <[u8]>::len);
+        self.head += 1 + len;
+        self.frames = self.frames.saturating_sub(1);
+        if self.head >= self.end || self.frames == 0 {
+            self.head = 0;
+            self.end = 0;
+            self.frames = 0;
+        }
+    }
+}
+
 /// The core's view of the board: pins directly, frames into the bounded queue.
 struct CoreIo<'a, P> {
     pins: &'a mut P,
-    tx: Deque<Psdu, TX_QUEUE>,
+    tx: TxQueue,
     stats: &'a mut Stats,
     counter: &'a mut dyn FnMut() -> Option<u32>,
 }
 
 impl<P: Pins> Io for CoreIo<'_, P> {
     fn transmit(&mut self, psdu: &[u8]) {
-        let Ok(frame) = Psdu::from_slice(psdu) else {
+        if psdu.len() > MAX_PSDU {
             self.stats.tx_failed += 1;
             return;
-        };
-        if self.tx.push_back(frame).is_err() {
+        }
+        if !self.tx.push(psdu) {
             self.stats.tx_queue_full += 1;
         }
         self.stats.tx_queue_high = self.stats.tx_queue_high.max(self.tx.len() as u32);
@@ -264,6 +457,17 @@ pub const fn pin_range(count: usize) -> u64 {
     }
 }
 
+/// The bytes of the runtime's own parts of its future (besides the [`NodeCore`] and the
+/// board's seams), as this build lays them out (docs/boards.md).
+pub fn footprint() -> [(&'static str, usize); 3] {
+    use core::mem::size_of;
+    [
+        ("transmit queue", size_of::<TxQueue>()),
+        ("receive buffer", MAX_PSDU),
+        ("Stats", size_of::<Stats>()),
+    ]
+}
+
 /// The hardware of one node.
 pub struct Board<R, P, I, F> {
     pub radio: R,
@@ -279,8 +483,35 @@ fn now_ms() -> u64 {
     Instant::now().as_millis()
 }
 
+const fn gcd(a: u64, b: u64) -> u64 {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
+}
+
+/// Ticks per `TICK_PER_MS.1` ms: `Duration::from_millis`'s reduced fraction.
+const TICK_PER_MS: (u64, u64) = {
+    let g = gcd(TICK_HZ, 1000);
+    (TICK_HZ / g, 1000 / g)
+};
+
+/// `ms` (at most [`MAX_SLEEP_MS`]) as `Duration::from_millis(ms)`, rounded up the same
+/// way, computed in `u32` where the tick rate lets it (the nRF52840's 32,768 Hz): a
+/// Cortex-M divides a `u32` in one instruction, a `u64` division links 0.9 KB.
+fn sleep_for(ms: u64) -> Duration {
+    let (num, den) = TICK_PER_MS;
+    if MAX_SLEEP_MS * num + den <= u32::MAX as u64 {
+        let ms = ms.min(MAX_SLEEP_MS) as u32;
+        Duration::from_ticks(u64::from((ms * num as u32).div_ceil(den as u32)))
+    } else {
+        Duration::from_millis(ms)
+    }
+}
+
 /// The running engine's fault code, if faulted.
-fn fault_of(core: &NodeCore) -> Option<u8> {
+fn fault_of<S: Staging>(core: &NodeCore<S>) -> Option<u8> {
     core.engine_state().and_then(|s| s.fault).map(fault_code)
 }
 
@@ -297,65 +528,115 @@ struct SlotsAt {
     next_serial: u32,
 }
 
+/// Reads slot `slot`'s blob into a buffer on the stack and hands it to `f` (`None`: the
+/// slot holds no blob, or the flash failed). Run to completion in place
+/// (`embassy_futures::block_on`: every board's flash completes at once, see
+/// docs/boards.md), so the 4 KiB buffer is never part of the runtime's future.
+fn with_slot<F: NorFlash, R>(
+    slots: &mut Slots<F>,
+    slot: usize,
+    f: impl FnOnce(&[u8]) -> R,
+) -> Option<R> {
+    let mut buf = [0u8; MAX_BLOB];
+    let len = block_on(slots.read_into(slot, &mut buf)).ok().flatten()?;
+    buf.get(..len).map(f)
+}
+
+/// The deployment (table and link keys) in slot `slot`, if it decodes; one copy of the
+/// read and the decode for every caller.
+#[inline(never)]
+fn deployment<F: NorFlash>(slots: &mut Slots<F>, slot: usize) -> Option<(Table, Option<LinkKeys>)> {
+    with_slot(slots, slot, |blob| decode_deployment(blob).ok()).flatten()
+}
+
+/// Whether slot `slot` holds a deployment that decodes (the table is not kept).
+fn decodes<F: NorFlash>(slots: &mut Slots<F>, slot: usize) -> bool {
+    deployment(slots, slot).is_some()
+}
+
+/// What the slots hold (read into a buffer on the stack: [`with_slot`]).
+fn survey<F: NorFlash, N: Notes>(addr: u16, slots: &mut Slots<F>, notes: &mut N) -> Survey {
+    let mut buf = [0u8; MAX_BLOB];
+    match block_on(slots.survey(&mut buf)) {
+        Ok(survey) => survey,
+        Err(e) => {
+            notes.note(addr, Note::FlashUnreadable(e.kind()));
+            Survey::default()
+        }
+    }
+}
+
 /// The node on the slot activated last (an unreadable flash boots unconfigured), with a
-/// staged table reported; a trial a power cut interrupted is revoked. (A function of its
-/// own: the future is 4.7 KB smaller than inline.)
-async fn load<F: NorFlash>(
+/// staged table reported; a trial a power cut interrupted is revoked. The slots are read
+/// and the running table decoded outside the runtime's future ([`with_slot`]).
+async fn load<F: NorFlash, S: Staging, N: Notes>(
     addr: u16,
     pin_mask: u64,
     epoch: u16,
     slots: &mut Slots<F>,
-) -> (NodeCore, SlotsAt) {
-    let boot = match slots.load().await {
-        Ok(boot) => boot,
-        Err(e) => {
-            warn!("node {addr:#06x}: flash unreadable ({e:?}): booting unconfigured");
-            Boot::default()
-        }
-    };
-    if let Some(slot) = boot.abandoned {
-        warn!("node {addr:#06x}: a trial was cut short (slot {slot}): back to the confirmed table");
+    staging: S,
+    notes: &mut N,
+) -> (NodeCore<S>, SlotsAt) {
+    let survey = survey(addr, slots, notes);
+    if let Some(slot) = survey.abandoned {
+        notes.note(addr, Note::TrialCutShort { slot });
         if slots.revoke(slot).await.is_err() {
-            warn!("node {addr:#06x}: cannot revoke slot {slot}");
+            notes.note(addr, Note::CannotRevoke { slot, why: None });
         }
     }
     let at = SlotsAt {
-        running: boot.running.as_ref().map(|l| l.slot),
-        staged: boot.staged.map(|s| s.slot),
-        previous: boot.previous.map(|p| p.slot),
+        running: survey.running.map(|l| l.slot),
+        staged: survey.staged.map(|s| s.slot),
+        previous: survey.previous.map(|p| p.slot),
         trial: false,
-        next_serial: boot.next_serial,
+        next_serial: survey.next_serial,
     };
-    if let Some(pin) = boot
-        .running
-        .as_ref()
-        .and_then(|l| l.table.missing_pin(pin_mask))
-    {
-        warn!("node {addr:#06x}: the stored table uses pin {pin}, which this board lacks");
-    }
-    let (table, keys) = match boot.running {
-        Some(l) => (Some(l.table), l.keys),
-        None => (None, None),
-    };
-    let mut core = NodeCore::new(addr, pin_mask, table, epoch);
-    if let Some(keys) = keys {
-        core = core.with_link_keys(keys);
-    }
-    if let Some(staged) = boot.staged {
-        core = core.with_staged(staged.generation);
-    } else if let Some(previous) = boot.previous {
-        core = core.with_previous(previous.generation);
-    }
+    let core = boot_core(addr, pin_mask, epoch, slots, &survey, staging, notes);
     (core, at)
 }
 
-/// Does what the core asks of the flash, and tells it how it went.
-async fn serve_flash<F: NorFlash, P: Pins>(
+/// The boot node: the running slot's table (none: unconfigured) with its keys, the
+/// staged or previous generation noted.
+fn boot_core<F: NorFlash, S: Staging, N: Notes>(
     addr: u16,
-    core: &mut NodeCore,
+    pin_mask: u64,
+    epoch: u16,
+    slots: &mut Slots<F>,
+    survey: &Survey,
+    staging: S,
+    notes: &mut N,
+) -> NodeCore<S> {
+    let deployed = survey.running.and_then(|r| deployment(slots, r.slot));
+    if let Some(pin) = deployed
+        .as_ref()
+        .and_then(|(table, _)| table.missing_pin(pin_mask))
+    {
+        notes.note(addr, Note::MissingPin { pin });
+    }
+    let (table, keys) = match deployed {
+        Some((table, keys)) => (Some(table), keys),
+        None => (None, None),
+    };
+    let mut core = NodeCore::staging_in(addr, pin_mask, table, epoch, staging);
+    if let Some(keys) = keys {
+        core = core.with_link_keys(keys);
+    }
+    if let Some(staged) = survey.staged {
+        core = core.with_staged(staged.generation);
+    } else if let Some(previous) = survey.previous {
+        core = core.with_previous(previous.generation);
+    }
+    core
+}
+
+/// Does what the core asks of the flash, and tells it how it went.
+async fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
+    addr: u16,
+    core: &mut NodeCore<S>,
     slots: &mut Slots<F>,
     at: &mut SlotsAt,
     io: &mut CoreIo<'_, P>,
+    notes: &mut N,
 ) {
     match core.flash_request() {
         None => {}
@@ -368,7 +649,7 @@ async fn serve_flash<F: NorFlash, P: Pins>(
                     true
                 }
                 Err(e) => {
-                    warn!("node {addr:#06x}: cannot stage the pushed table: {e:?}");
+                    notes.note(addr, Note::CannotStage(failure(e)));
                     io.stats.flash_failures += 1;
                     false
                 }
@@ -390,31 +671,29 @@ async fn serve_flash<F: NorFlash, P: Pins>(
         Some(FlashRequest::Rollback) => {
             let read = match (at.previous, at.running) {
                 // Revoked first: a power cut after it boots the previous table too.
-                (Some(slot), Some(running)) => {
-                    match slots.read_into(slot, core.lend_buffer()).await {
-                        Ok(Some(len)) => match slots.revoke(running).await {
-                            Ok(()) => {
-                                at.running = Some(slot);
-                                at.previous = None;
-                                at.trial = false;
-                                Some(len)
-                            }
-                            Err(e) => {
-                                warn!("node {addr:#06x}: cannot revoke slot {running}: {e:?}");
-                                None
-                            }
-                        },
-                        _ => None,
+                (Some(slot), Some(running)) if decodes(slots, slot) => {
+                    match slots.revoke(running).await {
+                        Ok(()) => {
+                            at.running = Some(slot);
+                            at.previous = None;
+                            at.trial = false;
+                            Some(slot)
+                        }
+                        Err(e) => {
+                            let why = Some(failure(e));
+                            notes.note(addr, Note::CannotRevoke { slot: running, why });
+                            None
+                        }
                     }
                 }
                 _ => None,
             };
-            switched(addr, core, at, io, read, "rolled back to");
+            switched(addr, core, slots, at, io, read, true, notes);
         }
         Some(FlashRequest::Activate { trial }) => {
             let read = match at.staged {
-                Some(slot) => match slots.read_into(slot, core.lend_buffer()).await {
-                    Ok(Some(len)) => match slots.activate(slot, at.next_serial, trial).await {
+                Some(slot) if decodes(slots, slot) => {
+                    match slots.activate(slot, at.next_serial, trial).await {
                         Ok(()) => {
                             at.next_serial = at.next_serial.wrapping_add(1);
                             if !at.trial {
@@ -423,34 +702,37 @@ async fn serve_flash<F: NorFlash, P: Pins>(
                             at.running = Some(slot);
                             at.staged = None;
                             at.trial = trial;
-                            Some(len)
+                            Some(slot)
                         }
                         Err(e) => {
-                            warn!("node {addr:#06x}: cannot activate slot {slot}: {e:?}");
+                            let why = failure(e);
+                            notes.note(addr, Note::CannotActivate { slot, why });
                             None
                         }
-                    },
-                    _ => None,
-                },
-                None => None,
+                    }
+                }
+                _ => None,
             };
-            switched(addr, core, at, io, read, "activated");
+            switched(addr, core, slots, at, io, read, false, notes);
         }
     }
 }
 
-/// The slot (its blob read back into the core's buffer, `len` bytes, or `None`: the flash
-/// failed) is the boot table now: the core switches to it. Decoded here, after the last
-/// await, so the table never lives in the runtime's future.
-fn switched<P: Pins>(
+/// The slot `read` (`None`: the flash failed) is the boot table now: the core switches
+/// to it, read back and decoded here, after the last await, so the table never lives in
+/// the runtime's future.
+#[allow(clippy::too_many_arguments)]
+fn switched<F: NorFlash, P: Pins, S: Staging, N: Notes>(
     addr: u16,
-    core: &mut NodeCore,
+    core: &mut NodeCore<S>,
+    slots: &mut Slots<F>,
     at: &SlotsAt,
     io: &mut CoreIo<'_, P>,
     read: Option<usize>,
-    what: &str,
+    rollback: bool,
+    notes: &mut N,
 ) {
-    let deployed = read.and_then(|len| decode_deployment(core.lent(len)).ok());
+    let deployed = read.and_then(|slot| deployment(slots, slot));
     let ok = deployed.is_some();
     if !ok {
         io.stats.flash_failures += 1;
@@ -458,12 +740,13 @@ fn switched<P: Pins>(
     core.activated(deployed, now_ms(), io);
     if let Some(t) = core.table().filter(|_| ok) {
         io.stats.activations += 1;
-        info!(
-            "node {addr:#06x}: {what} role {} generation {} (slot {})",
-            t.header.role,
-            t.generation,
-            at.running.unwrap_or(0)
-        );
+        let note = Note::Switched {
+            rollback,
+            role: &t.header.role,
+            generation: t.generation,
+            slot: at.running.unwrap_or(0),
+        };
+        notes.note(addr, note);
     }
 }
 
@@ -525,20 +808,60 @@ where
     F: NorFlash,
     Q: Probe,
 {
+    // Held here, lent to the core: one copy in the future, not one per async layer.
+    let mut staging = RamStaging::new();
+    run_staged(addr, epoch, board, probe, security, &mut staging, &mut ()).await
+}
+
+/// [`run_secured`], staging pushed tables in `staging` instead of a RAM buffer of the
+/// runtime's own (an MCU board: a memory-mapped flash page, see [`Staging`]), its
+/// [`Note`]s to `notes` (`()`: the `log` crate).
+pub async fn run_staged<R, P, I, F, Q, S, N>(
+    addr: u16,
+    epoch: u16,
+    board: Board<R, P, I, F>,
+    probe: &mut Q,
+    security: Option<Security<'_>>,
+    staging: S,
+    notes: &mut N,
+) -> (Stop<R::Error>, Stats)
+where
+    R: Radio,
+    P: Pins,
+    I: Inputs,
+    F: NorFlash,
+    Q: Probe,
+    S: Staging,
+    N: Notes,
+{
     let mut stats = Stats::default();
-    match run_inner(addr, epoch, board, &mut stats, probe, security).await {
+    let parts = Parts {
+        stats: &mut stats,
+        probe,
+        security,
+        staging,
+        notes,
+    };
+    match run_inner(addr, epoch, board, parts).await {
         Ok(never) => match never {},
         Err(stop) => (stop, stats),
     }
 }
 
-async fn run_inner<R, P, I, F, Q>(
+/// What [`run_inner`] runs with besides the board.
+struct Parts<'a, 'k, Q, S, N> {
+    stats: &'a mut Stats,
+    probe: &'a mut Q,
+    security: Option<Security<'k>>,
+    staging: S,
+    notes: &'a mut N,
+}
+
+async fn run_inner<R, P, I, F, Q, S, N>(
     addr: u16,
     epoch: u16,
     board: Board<R, P, I, F>,
-    stats: &mut Stats,
-    probe: &mut Q,
-    security: Option<Security<'_>>,
+    parts: Parts<'_, '_, Q, S, N>,
 ) -> Result<Infallible, Stop<R::Error>>
 where
     R: Radio,
@@ -546,7 +869,16 @@ where
     I: Inputs,
     F: NorFlash,
     Q: Probe,
+    S: Staging,
+    N: Notes,
 {
+    let Parts {
+        stats,
+        probe,
+        security,
+        staging,
+        notes,
+    } = parts;
     let Board {
         mut radio,
         mut outputs,
@@ -556,7 +888,7 @@ where
     } = board;
     outputs.all_off();
     let mut slots = Slots::new(flash).map_err(|_| Stop::FlashGeometry)?;
-    let (mut core, mut at) = load(addr, pin_mask, epoch, &mut slots).await;
+    let (mut core, mut at) = load(addr, pin_mask, epoch, &mut slots, staging, notes).await;
     let mut no_counter = || None;
     let counter: &mut dyn FnMut() -> Option<u32> = match security {
         Some(Security { key, counter }) => {
@@ -568,56 +900,56 @@ where
     core.seed_pins(inputs.levels());
     let mut io = CoreIo {
         pins: &mut outputs,
-        tx: Deque::new(),
+        tx: TxQueue::new(),
         stats,
         counter,
     };
     core.boot(&mut io);
-    match core.table() {
-        Some(t) => info!(
-            "node {addr:#06x}: boot: role {} generation {} from slot {}",
-            t.header.role,
-            t.generation,
-            at.running.unwrap_or(0)
-        ),
-        None => info!("node {addr:#06x}: boot: unconfigured"),
-    }
+    let booted = match core.table() {
+        Some(t) => Note::Boot {
+            role: &t.header.role,
+            generation: t.generation,
+            slot: at.running.unwrap_or(0),
+        },
+        None => Note::BootUnconfigured,
+    };
+    notes.note(addr, booted);
     if core.staged_generation() != 0 {
-        info!(
-            "node {addr:#06x}: generation {} staged (slot {})",
-            core.staged_generation(),
-            at.staged.unwrap_or(0)
-        );
+        let note = Note::Staged {
+            generation: core.staged_generation(),
+            slot: at.staged.unwrap_or(0),
+        };
+        notes.note(addr, note);
     }
     let mut fault = fault_of(&core);
     let mut rx = [0u8; MAX_PSDU];
     loop {
         core.poll(now_ms(), &mut io);
 
-        serve_flash(addr, &mut core, &mut slots, &mut at, &mut io).await;
+        serve_flash(addr, &mut core, &mut slots, &mut at, &mut io, notes).await;
 
         let now = fault_of(&core);
         if now != fault {
             match now {
-                Some(code) => warn!("node {addr:#06x}: fault {code:#04x}: outputs safe"),
-                None => info!("node {addr:#06x}: fault cleared"),
+                Some(code) => notes.note(addr, Note::Fault { code }),
+                None => notes.note(addr, Note::FaultCleared),
             }
             fault = now;
         }
 
-        while let Some(psdu) = io.tx.pop_front() {
-            let sent =
-                with_timeout(Duration::from_millis(SEND_TIMEOUT_MS), radio.send(&psdu)).await;
+        while let Some(psdu) = io.tx.front() {
+            let sent = with_timeout(Duration::from_millis(SEND_TIMEOUT_MS), radio.send(psdu)).await;
             if !matches!(sent, Ok(Ok(()))) {
                 io.stats.tx_failed += 1;
             }
+            io.tx.pop();
         }
 
         let sleep = core.deadline().saturating_sub(now_ms()).min(MAX_SLEEP_MS);
         match select3(
             radio.receive(&mut rx),
             inputs.change(),
-            Timer::after_millis(sleep),
+            Timer::after(sleep_for(sleep)),
         )
         .await
         {

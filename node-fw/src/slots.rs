@@ -93,6 +93,25 @@ pub struct Boot {
     pub next_serial: u32,
 }
 
+/// What the slots hold at boot, as [`Boot`] without the running table: where it is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Survey {
+    /// The slot to run: confirmed, not revoked, activated last, and it decodes.
+    pub running: Option<StagedSlot>,
+    pub staged: Option<StagedSlot>,
+    pub abandoned: Option<usize>,
+    pub previous: Option<StagedSlot>,
+    pub next_serial: u32,
+}
+
+/// The generation of a deployment blob, if it decodes and validates (the table is not
+/// kept: a function of its own, so no caller holds it across an await).
+fn generation(blob: &[u8]) -> Option<u32> {
+    decode_deployment(blob)
+        .ok()
+        .map(|(table, _)| table.generation)
+}
+
 /// The state words of one slot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SlotState {
@@ -194,7 +213,7 @@ impl<F: NorFlash> Slots<F> {
     }
 
     /// Reads slot `slot`'s blob into `buf` if the slot is staged and the blob fits;
-    /// returns its length. (No buffer of its own: the node lends its transfer buffer.)
+    /// returns its length. (No buffer of its own: the runtime reads into one on its stack.)
     pub async fn read_into(
         &mut self,
         slot: usize,
@@ -237,53 +256,76 @@ impl<F: NorFlash> Slots<F> {
 
     /// What the slots hold: the table to boot, a staged one, an abandoned trial.
     pub async fn load(&mut self) -> Result<Boot, F::Error> {
-        let mut boot = Boot::default();
+        let mut buf = [0u8; MAX_BLOB];
+        let survey = self.survey(&mut buf).await?;
+        let mut boot = Boot {
+            running: None,
+            staged: survey.staged,
+            abandoned: survey.abandoned,
+            previous: survey.previous,
+            next_serial: survey.next_serial,
+        };
+        if let Some(running) = survey.running {
+            boot.running = self.read_table(running.slot).await?;
+        }
+        Ok(boot)
+    }
+
+    /// What [`Slots::load`] finds, the running table named, not decoded into RAM of its
+    /// own: each blob is read into `buf` (at least `MAX_BLOB` bytes) and decoded there, one
+    /// at a time, only to be checked. The runtime runs it with a buffer on its stack and
+    /// reads the running slot back the same way, so no table and no blob buffer live in
+    /// its future.
+    pub async fn survey(&mut self, buf: &mut [u8]) -> Result<Survey, F::Error> {
+        let mut survey = Survey::default();
         let mut best: Option<u32> = None;
         for slot in 0..2 {
             let st = self.state(slot).await?;
             if let Some(serial) = st.serial {
-                boot.next_serial = boot.next_serial.max(serial.saturating_add(1));
+                survey.next_serial = survey.next_serial.max(serial.saturating_add(1));
             }
             if !st.staged || st.revoked {
                 continue;
             }
-            match (st.serial, st.confirmed) {
-                (None, _) => {
-                    // Checked when it was staged; its generation is in the envelope.
-                    let mut buf = [0u8; MAX_BLOB + MAX_ALIGN];
-                    if let Some(len) = self.read_blob(slot, &mut buf).await? {
-                        if let Ok((table, _)) = decode_deployment(buf.get(..len).unwrap_or(&[])) {
-                            boot.staged = Some(StagedSlot {
-                                slot,
-                                generation: table.generation,
-                            });
-                        }
-                    }
-                }
-                (Some(_), false) => boot.abandoned = Some(slot),
-                (Some(serial), true) => {
-                    let Some(loaded) = self.read_table(slot).await? else {
-                        continue;
-                    };
+            if let (Some(_), false) = (st.serial, st.confirmed) {
+                survey.abandoned = Some(slot);
+                continue;
+            }
+            // Checked when it was staged; its generation is in the envelope. A confirmed
+            // slot that no longer decodes is not booted.
+            let Some(generation) = self.generation_of(slot, buf).await? else {
+                continue;
+            };
+            let here = StagedSlot { slot, generation };
+            match st.serial {
+                None => survey.staged = Some(here),
+                Some(serial) => {
                     if best.is_some_and(|b| b >= serial) {
-                        boot.previous = Some(StagedSlot {
-                            slot,
-                            generation: loaded.table.generation,
-                        });
+                        survey.previous = Some(here);
                         continue;
                     }
-                    if let Some(old) = boot.running.take() {
-                        boot.previous = Some(StagedSlot {
-                            slot: old.slot,
-                            generation: old.table.generation,
-                        });
+                    if let Some(old) = survey.running.take() {
+                        survey.previous = Some(old);
                     }
                     best = Some(serial);
-                    boot.running = Some(loaded);
+                    survey.running = Some(here);
                 }
             }
         }
-        Ok(boot)
+        Ok(survey)
+    }
+
+    /// The generation of the deployment staged in slot `slot`, if it decodes and
+    /// validates (read into `buf`).
+    async fn generation_of(
+        &mut self,
+        slot: usize,
+        buf: &mut [u8],
+    ) -> Result<Option<u32>, F::Error> {
+        let Some(len) = self.read_into(slot, buf).await? else {
+            return Ok(None);
+        };
+        Ok(generation(buf.get(..len).unwrap_or(&[])))
     }
 
     /// Erases slot `slot` and writes `blob` and its length, not yet staged.

@@ -626,5 +626,41 @@ fn runtime_future_size() {
         std::mem::size_of::<node_fw::node::NodeCore>(),
         std::mem::size_of::<Table>()
     );
+    // As on a board: the transfer staged outside the future (a flash page).
+    let mut ins: [FakeIn; 10] = std::array::from_fn(|i| FakeIn(lines[i].clone()));
+    let board = Board {
+        radio: FakeRadio(Rc::default()),
+        outputs: outputs(&pins),
+        inputs: WaitInputs::new(&mut ins),
+        flash: Flash::default(),
+        pin_mask: runtime::pin_range(10),
+    };
+    let mut staging = ota::RamStaging::new();
+    let staged = std::mem::size_of_val(&runtime::run_staged(
+        ADDR,
+        1,
+        board,
+        &mut (),
+        None,
+        &mut staging,
+        &mut (),
+    ));
+    eprintln!(
+        "runtime future, staging outside it (run_staged, as the boards): {staged} bytes \
+         (NodeCore {})",
+        std::mem::size_of::<node_fw::node::NodeCore<&mut ota::RamStaging>>()
+    );
+    for (part, bytes) in node_fw::node::footprint()
+        .into_iter()
+        .chain(runtime::footprint())
+    {
+        eprintln!("  {part:<28} {bytes:>6}");
+    }
+    let mut slots = Slots::new(Flash::default()).unwrap();
+    eprintln!(
+        "  {:<28} {:>6}",
+        "Slots::load future",
+        std::mem::size_of_val(&slots.load())
+    );
     assert!(size > std::mem::size_of::<node_fw::node::NodeCore>());
 }

@@ -1,7 +1,9 @@
-//! The internal flash (NVMC) pages holding the frame counter, the two table slots and the
-//! boot counter: the last 28 KiB, outside memory.x.
+//! The internal flash (NVMC) pages holding the OTA transfer page, the frame counter, the
+//! two table slots and the boot counter: the last 32 KiB, outside memory.x.
 //!
 //! ```text
+//! 0x000F_8000  STAGING_AT        the OTA transfer page (node_fw::ota::Staging): a pushed
+//!                                table's chunks as they come, read memory-mapped
 //! 0x000F_9000  FRAME_COUNTER_AT  two pages: the frame counter's log (node_fw::frame_counter)
 //! 0x000F_B000  SLOTS_AT          slot 0, slot 1 (Slots::slot_size() = 8 KiB each)
 //! 0x000F_F000  BOOT_AT           boot counter page: word i = the count of the i-th boot
@@ -35,6 +37,9 @@ pub const SLOTS_BYTES: usize = 2 * Slots::<NrfFlash>::slot_size();
 const BOOT_AT: u32 = SLOTS_AT + SLOTS_BYTES as u32;
 const BOOT_WORDS: usize = PAGE / 4;
 const _: () = assert!(SLOTS_AT == 0x000F_B000 && BOOT_AT + PAGE as u32 == 0x0010_0000);
+/// The OTA transfer page: the first byte not the linker's (see memory.x).
+pub const STAGING_AT: u32 = FRAME_COUNTER_AT - PAGE as u32;
+const _: () = assert!(PAGE >= config_schema::limits::MAX_BLOB && STAGING_AT == 0x000F_8000);
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum FlashError {
@@ -168,5 +173,59 @@ impl NorFlash for NrfFlash {
             return Err(FlashError::NotAligned);
         }
         self.nvmc()?.write(at, bytes).map_err(|_| FlashError::Nvmc)
+    }
+}
+
+/// The OTA transfer page: chunks are written as they come (word by word, the last one
+/// padded with 0xFF), and the whole blob is checked and persisted where it lies
+/// (memory-mapped flash): the node holds no blob in RAM. One erase per transfer.
+pub struct NrfStaging {
+    nvmc: &'static RefCell<Nvmc<'static>>,
+}
+
+impl NrfStaging {
+    /// The transfer page (call once: the page has one owner).
+    pub fn new(flash: &NrfFlash) -> Self {
+        NrfStaging { nvmc: flash.nvmc }
+    }
+
+    fn write(&mut self, at: u32, words: &[u8]) -> bool {
+        match self.nvmc.try_borrow_mut() {
+            Ok(mut nvmc) => words.is_empty() || nvmc.write(at, words).is_ok(),
+            Err(_) => false,
+        }
+    }
+}
+
+impl node_fw::ota::Staging for NrfStaging {
+    fn clear(&mut self) -> bool {
+        match self.nvmc.try_borrow_mut() {
+            Ok(mut nvmc) => nvmc.erase(STAGING_AT, STAGING_AT + PAGE as u32).is_ok(),
+            Err(_) => false,
+        }
+    }
+
+    fn put(&mut self, offset: usize, data: &[u8]) -> bool {
+        if offset.checked_add(data.len()).is_none_or(|end| end > PAGE) || !offset.is_multiple_of(4)
+        {
+            return false;
+        }
+        let Some((body, tail)) = data.split_at_checked(data.len() / 4 * 4) else {
+            return false;
+        };
+        let at = STAGING_AT + offset as u32;
+        let mut last = [0xFFu8; 4];
+        last.iter_mut().zip(tail).for_each(|(d, s)| *d = *s);
+        self.write(at, body) && (tail.is_empty() || self.write(at + body.len() as u32, &last))
+    }
+
+    fn get(&self, len: usize) -> &[u8] {
+        if len > PAGE {
+            return &[];
+        }
+        // SAFETY: the transfer page is internal flash, memory-mapped, outside every linker
+        // region, written only through this NrfStaging (`&mut self`), so no write happens
+        // while the slice is borrowed.
+        unsafe { core::slice::from_raw_parts(STAGING_AT as *const u8, len) }
     }
 }

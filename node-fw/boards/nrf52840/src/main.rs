@@ -6,11 +6,12 @@
 //!   CUSTOMER[2..=5] when the word's flag bit 2 says so (`node_fw::provision`);
 //! - radio: the IEEE 802.15.4 radio ([`radio`]);
 //! - pins: 16 GPIOs, outputs or inputs as the table uses them ([`gpio`]);
-//! - frame counter, table slots and boot counter: the last 28 KiB of the internal flash
-//!   ([`flash`]);
+//! - OTA transfer page, frame counter, table slots and boot counter: the last 32 KiB of
+//!   the internal flash ([`flash`]);
 //! - security: with a management key, the config PAN is secured (`runtime::run_secured`),
 //!   AES-128 on the AES-ECB peripheral ([`ecb`]);
-//! - log: defmt over RTT (`cargo run --release` flashes a DK with probe-rs and prints it).
+//! - log: defmt over RTT (`cargo run --release` flashes a DK with probe-rs and prints it):
+//!   the runtime's notes ([`DefmtNotes`]), a panic's location; no `core::fmt` in the image.
 //!
 //! With the feature `gateway` the image is the serial <-> radio gateway instead
 //! ([`gateway`]; a separate build so that the node image does not carry the UART).
@@ -27,8 +28,6 @@ mod gateway;
 mod gpio;
 mod radio;
 
-use core::fmt::Write as _;
-
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use embassy_nrf::config::{Config, HfclkSource};
@@ -36,7 +35,6 @@ use embassy_nrf::radio::ieee802154::{Packet, Radio};
 use embassy_nrf::{bind_interrupts, peripherals};
 use embassy_time::Timer;
 use node_fw::provision;
-use panic_probe as _;
 
 #[cfg(not(feature = "gateway"))]
 bind_interrupts!(struct Irqs {
@@ -61,35 +59,116 @@ fn uicr(at: usize) -> u32 {
     unsafe { core::ptr::read_volatile(at as *const u32) }
 }
 
-/// The runtime's `log` messages, as defmt strings.
-struct DefmtLog;
-
-impl log::Log for DefmtLog {
-    fn enabled(&self, m: &log::Metadata<'_>) -> bool {
-        m.level() <= log::max_level()
-    }
-    fn log(&self, r: &log::Record<'_>) {
-        let mut s = heapless::String::<128>::new();
-        let _ = write!(s, "{}", r.args());
-        match r.level() {
-            log::Level::Error => defmt::error!("{=str}", s.as_str()),
-            log::Level::Warn => defmt::warn!("{=str}", s.as_str()),
-            _ => defmt::info!("{=str}", s.as_str()),
-        }
-    }
-    fn flush(&self) {}
+/// A panic (none is expected: no data from outside reaches one) halts as panic-probe
+/// does: a HardFault, where the probe prints the backtrace (the image has its debug info),
+/// so the panic's place is known. The handler does not look at the panic: the message and
+/// its location would keep the panic sites' formatting (`core::fmt`, 3.4 KB) in the image.
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo<'_>) -> ! {
+    cortex_m::interrupt::disable();
+    defmt::error!("panicked: see the backtrace");
+    cortex_m::asm::udf()
 }
 
-static LOG: DefmtLog = DefmtLog;
+/// The runtime's notes as defmt messages: the texts of `runtime::log_note`, formatted on
+/// the host that reads the log, so no `core::fmt` is in the image.
+#[cfg(not(feature = "gateway"))]
+struct DefmtNotes;
+
+/// A flash failure's name.
+#[cfg(not(feature = "gateway"))]
+fn failure(why: node_fw::runtime::FlashFailure) -> &'static str {
+    use embedded_storage::nor_flash::NorFlashErrorKind as Kind;
+    use node_fw::slots::SlotError;
+    match why {
+        SlotError::Geometry => "geometry",
+        SlotError::TooLong => "too long",
+        SlotError::NotStaged => "not staged",
+        SlotError::Flash(Kind::NotAligned) => "flash: not aligned",
+        SlotError::Flash(Kind::OutOfBounds) => "flash: out of bounds",
+        SlotError::Flash(_) => "flash error",
+    }
+}
+
+#[cfg(not(feature = "gateway"))]
+impl node_fw::runtime::Notes for DefmtNotes {
+    fn note(&mut self, addr: u16, note: node_fw::runtime::Note<'_>) {
+        use node_fw::runtime::Note;
+        match note {
+            Note::FlashUnreadable(_) => {
+                defmt::warn!("node {=u16:#06x}: flash unreadable: booting unconfigured", addr)
+            }
+            Note::TrialCutShort { slot } => defmt::warn!(
+                "node {=u16:#06x}: a trial was cut short (slot {=usize}): back to the confirmed table",
+                addr,
+                slot
+            ),
+            Note::CannotRevoke { slot, why } => defmt::warn!(
+                "node {=u16:#06x}: cannot revoke slot {=usize}: {=str}",
+                addr,
+                slot,
+                why.map_or("flash error", failure)
+            ),
+            Note::MissingPin { pin } => defmt::warn!(
+                "node {=u16:#06x}: the stored table uses pin {=u8}, which this board lacks",
+                addr,
+                pin
+            ),
+            Note::CannotStage(why) => defmt::warn!(
+                "node {=u16:#06x}: cannot stage the pushed table: {=str}",
+                addr,
+                failure(why)
+            ),
+            Note::CannotActivate { slot, why } => defmt::warn!(
+                "node {=u16:#06x}: cannot activate slot {=usize}: {=str}",
+                addr,
+                slot,
+                failure(why)
+            ),
+            Note::Switched {
+                rollback,
+                role,
+                generation,
+                slot,
+            } => defmt::info!(
+                "node {=u16:#06x}: {=str} role {=str} generation {=u32} (slot {=usize})",
+                addr,
+                if rollback { "rolled back to" } else { "activated" },
+                role,
+                generation,
+                slot
+            ),
+            Note::Boot {
+                role,
+                generation,
+                slot,
+            } => defmt::info!(
+                "node {=u16:#06x}: boot: role {=str} generation {=u32} from slot {=usize}",
+                addr,
+                role,
+                generation,
+                slot
+            ),
+            Note::BootUnconfigured => defmt::info!("node {=u16:#06x}: boot: unconfigured", addr),
+            Note::Staged { generation, slot } => defmt::info!(
+                "node {=u16:#06x}: generation {=u32} staged (slot {=usize})",
+                addr,
+                generation,
+                slot
+            ),
+            Note::Fault { code } => {
+                defmt::warn!("node {=u16:#06x}: fault {=u8:#04x}: outputs safe", addr, code)
+            }
+            Note::FaultCleared => defmt::info!("node {=u16:#06x}: fault cleared", addr),
+        }
+    }
+}
 
 #[embassy_executor::main]
 async fn main(_spawner: Spawner) {
     let mut config = Config::default();
     config.hfclk_source = HfclkSource::ExternalXtal;
     let p = embassy_nrf::init(config);
-    if log::set_logger(&LOG).is_ok() {
-        log::set_max_level(log::LevelFilter::Info);
-    }
 
     let Ok(word) = provision::parse_word(uicr(PROVISION_AT)) else {
         defmt::error!(
@@ -230,6 +309,7 @@ async fn main(_spawner: Spawner) {
             None => None,
         };
 
+        let staging = flash::NrfStaging::new(&flash);
         let board = Board {
             radio,
             outputs: GpioPins(&gpio),
@@ -246,11 +326,21 @@ async fn main(_spawner: Spawner) {
                 key,
                 counter: &mut next,
             });
-            runtime::run_secured(addr, epoch, board, &mut (), security).await
+            runtime::run_staged(
+                addr,
+                epoch,
+                board,
+                &mut (),
+                security,
+                staging,
+                &mut DefmtNotes,
+            )
+            .await
         };
         // The unsecured node (a measurement: what frame security costs).
         #[cfg(not(feature = "frame-security"))]
-        let (stop, stats) = runtime::run(addr, epoch, board).await;
+        let (stop, stats) =
+            runtime::run_staged(addr, epoch, board, &mut (), None, staging, &mut DefmtNotes).await;
         defmt::error!(
             "node stopped ({=bool}): {=u32} activations",
             matches!(stop, runtime::Stop::FlashGeometry),

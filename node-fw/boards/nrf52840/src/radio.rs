@@ -5,10 +5,21 @@
 use config_schema::wire::mac::{FCS, MAX_PSDU};
 use embassy_nrf::radio::ieee802154::{Packet, Radio};
 use embassy_nrf::radio::Error;
-use embassy_time::Timer;
+use embassy_time::{Duration, Timer};
 
 /// Clear-channel assessments before a frame is given up (backing off 320 us, 640 us, ...).
-const CCA_ATTEMPTS: u32 = 4;
+const CCA_ATTEMPTS: usize = 4;
+/// The back-off after the n-th busy channel: 320 us x 2^n, in ticks at compile time (no
+/// 64-bit division in the image).
+const BACKOFF: [Duration; CCA_ATTEMPTS] = {
+    let mut b = [Duration::from_ticks(0); CCA_ATTEMPTS];
+    let mut n = 0;
+    while n < CCA_ATTEMPTS {
+        b[n] = Duration::from_micros(320 << n);
+        n += 1;
+    }
+    b
+};
 
 pub struct NrfRadio {
     pub radio: Radio<'static>,
@@ -35,12 +46,10 @@ impl node_fw::runtime::Radio for NrfRadio {
             .filter(|b| b.len() <= usize::from(Packet::CAPACITY))
             .ok_or(SendError::Length)?;
         self.packet.copy_from_slice(body);
-        for attempt in 0..CCA_ATTEMPTS {
+        for backoff in BACKOFF {
             match self.radio.try_send(&mut self.packet).await {
                 Ok(()) => return Ok(()),
-                Err(Error::ChannelInUse) => {
-                    Timer::after_micros(320 << attempt).await;
-                }
+                Err(Error::ChannelInUse) => Timer::after(backoff).await,
                 Err(_) => break,
             }
         }

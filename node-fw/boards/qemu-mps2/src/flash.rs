@@ -37,6 +37,12 @@ pub const FRAME_COUNTER_BYTES: usize = 2 * ERASE_SIZE;
 /// The size of a host node's flash file: the slots and the boot page.
 pub const HOST_FILE: usize = FRAME_COUNTER_AT;
 pub const TOTAL: usize = FRAME_COUNTER_AT + FRAME_COUNTER_BYTES;
+/// The transfer page (`node_fw::ota::Staging`): where a pushed table's chunks go as they
+/// come, right after the flash regions. Not in the host file: a transfer does not survive
+/// a power cut anyway (only what was staged in a slot does).
+pub const STAGING_AT: usize = TOTAL;
+pub const STAGING_BYTES: usize = ERASE_SIZE;
+const _: () = assert!(STAGING_BYTES >= config_schema::limits::MAX_BLOB);
 const _: () = assert!(SLOTS_BYTES.is_multiple_of(ERASE_SIZE));
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -214,5 +220,44 @@ impl NorFlash for QemuFlash {
             *cell &= *b;
         }
         self.sync(start, bytes.len())
+    }
+}
+
+/// The transfer page, NOR semantics (erase sets 0xFF, a write only clears bits),
+/// memory-mapped: the node checks and persists a pushed blob where its chunks were put,
+/// holding none in RAM.
+pub struct QemuStaging(());
+
+impl QemuStaging {
+    /// The transfer page (call once: the page has one owner).
+    pub fn new() -> Self {
+        QemuStaging(())
+    }
+
+    fn page() -> &'static mut [u8] {
+        // SAFETY: emulated SSRAM outside every linker region and past the flash regions
+        // (memory.x), used only through the one QemuStaging.
+        unsafe { core::slice::from_raw_parts_mut((BASE + STAGING_AT) as *mut u8, STAGING_BYTES) }
+    }
+}
+
+impl node_fw::ota::Staging for QemuStaging {
+    fn clear(&mut self) -> bool {
+        Self::page().fill(0xFF);
+        true
+    }
+
+    fn put(&mut self, offset: usize, data: &[u8]) -> bool {
+        let Some(cells) = Self::page().get_mut(offset..offset + data.len()) else {
+            return false;
+        };
+        for (cell, b) in cells.iter_mut().zip(data) {
+            *cell &= *b;
+        }
+        true
+    }
+
+    fn get(&self, len: usize) -> &[u8] {
+        Self::page().get(..len).unwrap_or(&[])
     }
 }

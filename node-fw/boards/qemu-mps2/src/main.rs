@@ -135,7 +135,9 @@ async fn node(
         key,
         counter: &mut next,
     });
-    let (stop, stats) = runtime::run_secured(addr, epoch, board, &mut probe, security).await;
+    let staging = flash::QemuStaging::new();
+    let (stop, stats) =
+        runtime::run_staged(addr, epoch, board, &mut probe, security, staging, &mut ()).await;
     log::error!("node {addr:#06x}: stopped: {stop:?} ({stats:?})");
 }
 
