@@ -90,9 +90,6 @@ pub enum EncodeError {
     BufferTooSmall,
     /// The payload is longer than a `u16` length.
     TooLarge,
-    /// The table cannot be packed (an invalid table: a reference past its count, pools not
-    /// laid out chart by chart; see [`crate::pack`]).
-    Unencodable(&'static str),
 }
 
 impl fmt::Display for EncodeError {
@@ -100,7 +97,6 @@ impl fmt::Display for EncodeError {
         match self {
             EncodeError::BufferTooSmall => write!(f, "output buffer too small for the blob"),
             EncodeError::TooLarge => write!(f, "table payload exceeds 65535 bytes"),
-            EncodeError::Unencodable(what) => write!(f, "table cannot be encoded: {what}"),
         }
     }
 }
@@ -112,12 +108,7 @@ pub fn encode(table: &Table, buf: &mut [u8]) -> Result<usize, EncodeError> {
     let body = buf
         .get_mut(HEADER_LEN..)
         .ok_or(EncodeError::BufferTooSmall)?;
-    let payload_len = match pack::encode(table, body, None) {
-        Ok(n) => n,
-        Err(PackError::Full) => return Err(EncodeError::BufferTooSmall),
-        Err(PackError::Unencodable(what)) => return Err(EncodeError::Unencodable(what)),
-        Err(_) => return Err(EncodeError::Unencodable("table")),
-    };
+    let payload_len = pack::encode(table, body, None).map_err(|_| EncodeError::BufferTooSmall)?;
     let len16 = u16::try_from(payload_len).map_err(|_| EncodeError::TooLarge)?;
     let total = HEADER_LEN + payload_len + TRAILER_LEN;
     if buf.len() < total {

@@ -1,15 +1,20 @@
 //! The payload of a table blob (schema 5): the [`Table`] as a stream of bit fields, each
-//! as wide as the table's own counts make it (docs/table-format.md, "Payload").
+//! as wide as the table's own counts make it. docs/table-format.md ("Payload") gives it
+//! field by field.
 //!
 //! Fields go least significant bit first, from bit 0 of byte 0 on; the last byte is padded
-//! with zero bits. A reference is as wide as the count it indexes (an event id takes
-//! `bits(events)`, a chart-local state `bits(states of the chart)`), an optional reference
-//! takes one value more (0 is `None`, `n + 1` is `Some(n)`), and the common shapes of a
-//! compiled table are one-bit flags (a transition from where the previous one went, to the
-//! next state; a route to the next input of the same chart; a publication of the next
-//! topic; an expression right after the previous one). Timer durations are declared once
-//! and referenced. `encode` fails with [`PackError::Unencodable`] on a table it cannot
-//! write so (only an invalid one: a reference past its count, pools not laid out chart by
+//! with zero bits. Counts are Elias gamma codes (`n + 1`: as many zero bits as it has bits
+//! after its leading one, a one, then those bits), so a small count is short. A reference
+//! is as wide as the count it indexes (an event id takes `bits(events)`, a chart-local
+//! state `bits(states of the chart)`); an optional one takes one value more (0 is `None`,
+//! `n + 1` is `Some(n)`). The shapes a compiled table has are one-bit flags: an event
+//! named for the first time is the lowest not named yet, a transition leaves the state the
+//! previous one entered and enters the next state, triggers on its chart's next unused
+//! input, a route feeds the next input of the same chart, a publication publishes the
+//! event emitted after the previous one's under the next topic, an expression follows the
+//! previous one. Timer durations are declared once (in decimal floating point) and
+//! referenced. `encode` fails with [`PackError::Unencodable`] on a table it cannot write
+//! so (only an invalid one: a reference past its count, pools not laid out chart by
 //! chart); `decode` reads whatever bytes it is given without panicking, and the blob's
 //! `decode` validates the result.
 
@@ -23,7 +28,7 @@ use crate::limits::*;
 use crate::table::*;
 
 /// Why a payload could not be read (or a table written).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub enum PackError {
     /// The payload ends inside a field.
     End,
@@ -36,8 +41,10 @@ pub enum PackError {
     Utf8,
     /// The output buffer is too small.
     Full,
-    /// (encoding) The table cannot be written in this form: see the module docs.
+    /// (encoding) The table cannot be written in the packed form: see the module docs.
     Unencodable(&'static str),
+    /// A table in the raw form is not a postcard table.
+    Raw(postcard::Error),
 }
 
 impl fmt::Display for PackError {
@@ -49,6 +56,7 @@ impl fmt::Display for PackError {
             PackError::Utf8 => write!(f, "the role name is not UTF-8"),
             PackError::Full => write!(f, "output buffer too small"),
             PackError::Unencodable(what) => write!(f, "{what}: cannot be encoded"),
+            PackError::Raw(e) => write!(f, "raw table: {e}"),
         }
     }
 }
@@ -66,23 +74,10 @@ pub const fn bits(n: usize) -> u32 {
     }
 }
 
-/// Bits of the field widths (`uv`: 0..=32).
-const WIDTH_BITS: u32 = 6;
-
-/// Action codes.
-const A_SET: u32 = 0;
-const A_DRIVE: u32 = 1;
-const A_EMIT: u32 = 2;
-const A_PUBLISH: u32 = 3;
-const A_START: u32 = 4;
-const A_CANCEL: u32 = 5;
-const A_FAULT: u32 = 6;
-
-/// Section names, in stream order (for [`sections`]).
+/// Section names, in stream order (for [`encode`]'s marks).
 pub const SECTIONS: [&str; 16] = [
     "role, network",
-    "events, commands",
-    "vars",
+    "events, vars",
     "inputs",
     "outputs",
     "timers, durations",
@@ -92,11 +87,27 @@ pub const SECTIONS: [&str; 16] = [
     "actions",
     "transitions",
     "routes",
+    "commands",
     "peers",
     "publications",
     "subscriptions",
     "safety",
 ];
+
+/// Distinct timer durations a table may have.
+pub const MAX_TIMER_DURATIONS: usize = MAX_ACTIONS;
+
+/// Fixed field widths.
+const ROLE_LEN_BITS: u32 = 4;
+const CHANNEL_BITS: u32 = 5;
+const PIN_WIDTH_BITS: u32 = 3;
+const OP_BITS: u32 = 5;
+const COUNT_WIDTH_BITS: u32 = 3;
+const FAULT_BITS: u32 = 8;
+const EXPR_LEN_BITS: u32 = 5;
+const PEER_WIDTH_BITS: u32 = 5;
+const TOPIC_WIDTH_BITS: u32 = 4;
+const DECADE_BITS: u32 = 2;
 
 struct Writer<'a> {
     buf: &'a mut [u8],
@@ -133,16 +144,27 @@ impl Writer<'_> {
         self.put(u32::from(b), 1)
     }
 
-    /// An unsigned value of any size: its width (6 bits), then that many bits.
-    fn uv(&mut self, v: u32) -> R<()> {
-        let w = 32 - v.leading_zeros();
-        self.put(w, WIDTH_BITS)?;
-        self.put(v, w)
+    /// `n` as the Elias gamma code of `n + 1`.
+    fn gamma(&mut self, n: u64) -> R<()> {
+        let v = n + 1;
+        let tail = 63 - v.leading_zeros();
+        for _ in 0..tail {
+            self.put(0, 1)?;
+        }
+        self.put(1, 1)?;
+        for i in 0..tail {
+            self.put(((v >> i) & 1) as u32, 1)?;
+        }
+        Ok(())
     }
 
-    /// A signed value: zigzag, then [`Writer::uv`].
+    fn count(&mut self, n: usize) -> R<()> {
+        self.gamma(n as u64)
+    }
+
+    /// A signed value: zigzag, then gamma.
     fn sv(&mut self, v: i32) -> R<()> {
-        self.uv(((v << 1) ^ (v >> 31)) as u32)
+        self.gamma(u64::from(((v << 1) ^ (v >> 31)) as u32))
     }
 }
 
@@ -172,16 +194,28 @@ impl Reader<'_> {
         Ok(self.get(1)? != 0)
     }
 
-    fn uv(&mut self) -> R<u32> {
-        let w = self.get(WIDTH_BITS)?;
-        if w > 32 {
-            return Err(PackError::Value("width"));
+    /// A gamma code (at most 32 bits after the leading one).
+    fn gamma(&mut self) -> R<u64> {
+        let mut tail = 0u32;
+        while !self.flag()? {
+            tail += 1;
+            if tail > 32 {
+                return Err(PackError::Value("count"));
+            }
         }
-        self.get(w)
+        let mut v = 1u64 << tail;
+        for i in 0..tail {
+            v |= u64::from(self.get(1)?) << i;
+        }
+        Ok(v - 1)
+    }
+
+    fn count(&mut self) -> R<usize> {
+        usize::try_from(self.gamma()?).map_err(|_| PackError::Value("count"))
     }
 
     fn sv(&mut self) -> R<i32> {
-        let z = self.uv()?;
+        let z = u32::try_from(self.gamma()?).map_err(|_| PackError::Value("constant"))?;
         Ok(((z >> 1) as i32) ^ -((z & 1) as i32))
     }
 
@@ -190,7 +224,9 @@ impl Reader<'_> {
         let v = self.get(width)?;
         match v.checked_sub(1) {
             None => Ok(None),
-            Some(n) => u8::try_from(n).map(Some).map_err(|_| PackError::Value("reference")),
+            Some(n) => u8::try_from(n)
+                .map(Some)
+                .map_err(|_| PackError::Value("reference")),
         }
     }
 }
@@ -271,33 +307,73 @@ impl Widths {
     }
 }
 
-/// Field widths of the fixed-size counts.
-const ROLE_LEN_BITS: u32 = 4;
-const CHANNEL_BITS: u32 = 5;
-const EVENTS_BITS: u32 = 7;
-const VARS_BITS: u32 = 6;
-const INPUTS_BITS: u32 = 5;
-const OUTPUTS_BITS: u32 = 5;
-const PIN_WIDTH_BITS: u32 = 3;
-const TIMERS_BITS: u32 = 4;
-const DURATIONS_BITS: u32 = 4;
-const CODE_BITS: u32 = 8;
-const OP_BITS: u32 = 5;
-const CHARTS_BITS: u32 = 4;
-const CHART_STATES_BITS: u32 = 7;
-const CHART_TRANSITIONS_BITS: u32 = 8;
-const CHART_INPUTS_BITS: u32 = 6;
-const ACTION_COUNT_WIDTH_BITS: u32 = 3;
-const ACTION_BITS: u32 = 3;
-const FAULT_BITS: u32 = 8;
-const EXPR_LEN_BITS: u32 = 5;
-const ROUTES_BITS: u32 = 7;
-const PEERS_BITS: u32 = 4;
-const PEER_WIDTH_BITS: u32 = 5;
-const PUBLICATIONS_BITS: u32 = 5;
-const SUBSCRIPTIONS_BITS: u32 = 6;
-const TOPIC_WIDTH_BITS: u32 = 4;
-const ALARMS_BITS: u32 = 4;
+/// The events named so far (inputs, timers, actions, routes, commands, in stream order):
+/// an event named for the first time is most often the lowest not named yet.
+#[derive(Default)]
+struct Seen(u64);
+
+impl Seen {
+    /// The lowest event not named yet (64 when all are).
+    fn fresh(&self) -> u8 {
+        (!self.0).trailing_zeros() as u8
+    }
+
+    fn mark(&mut self, e: u8) {
+        if let Some(bit) = 1u64.checked_shl(u32::from(e)) {
+            self.0 |= bit;
+        }
+    }
+}
+
+impl Writer<'_> {
+    /// An event: a flag (it is the lowest not named yet), else its id.
+    fn event(&mut self, e: u8, seen: &mut Seen, wd: &Widths) -> R<()> {
+        let fresh = e == seen.fresh();
+        self.flag(fresh)?;
+        if !fresh {
+            self.field(usize::from(e), wd.event, "event")?;
+        }
+        seen.mark(e);
+        Ok(())
+    }
+
+    /// An optional event: a flag (it is the lowest not named yet), else `0` or `id + 1`.
+    fn event_opt(&mut self, e: Option<u8>, seen: &mut Seen, wd: &Widths) -> R<()> {
+        let fresh = e.is_some() && e == Some(seen.fresh());
+        self.flag(fresh)?;
+        if !fresh {
+            self.field(opt_value(e), wd.event_opt, "event")?;
+        }
+        if let Some(e) = e {
+            seen.mark(e);
+        }
+        Ok(())
+    }
+}
+
+impl Reader<'_> {
+    fn event(&mut self, seen: &mut Seen, wd: &Widths) -> R<u8> {
+        let e = if self.flag()? {
+            seen.fresh()
+        } else {
+            self.u8(wd.event)?
+        };
+        seen.mark(e);
+        Ok(e)
+    }
+
+    fn event_opt(&mut self, seen: &mut Seen, wd: &Widths) -> R<Option<u8>> {
+        let e = if self.flag()? {
+            Some(seen.fresh())
+        } else {
+            self.opt(wd.event_opt)?
+        };
+        if let Some(e) = e {
+            seen.mark(e);
+        }
+        Ok(e)
+    }
+}
 
 /// The distinct durations of the table's timer starts, in order of first use.
 fn durations(t: &Table) -> R<Vec<u32, MAX_TIMER_DURATIONS>> {
@@ -313,8 +389,49 @@ fn durations(t: &Table) -> R<Vec<u32, MAX_TIMER_DURATIONS>> {
     Ok(d)
 }
 
-/// Distinct timer durations a table may have (a field of 4 bits counts them).
-pub const MAX_TIMER_DURATIONS: usize = 15;
+/// The events the table's actions emit or publish, each once, in action order.
+fn emitted(actions: &[Action]) -> Vec<u8, MAX_ACTIONS> {
+    let mut out: Vec<u8, MAX_ACTIONS> = Vec::new();
+    for a in actions {
+        if let Action::Emit(e) | Action::Publish(e) = *a {
+            if !out.contains(&e) {
+                // As many as the actions: never full.
+                let _ = out.push(e);
+            }
+        }
+    }
+    out
+}
+
+/// The event a publication is expected to publish: the one emitted after the previous
+/// publication's (the first emitted for the first publication).
+fn expected_publication(emitted: &[u8], prev: Option<u8>) -> Option<u8> {
+    let next = match prev {
+        None => 0,
+        Some(p) => emitted.iter().position(|&e| e == p)? + 1,
+    };
+    emitted.get(next).copied()
+}
+
+/// A duration in decimal floating point: `m * 10^k` (`k` in 2 bits, the largest that
+/// divides), `m` a gamma code.
+fn put_duration(w: &mut Writer, ms: u32) -> R<()> {
+    let mut k = 0;
+    let mut m = ms;
+    while k < 3 && m != 0 && m % 10 == 0 {
+        m /= 10;
+        k += 1;
+    }
+    w.put(k, DECADE_BITS)?;
+    w.gamma(u64::from(m))
+}
+
+fn get_duration(r: &mut Reader) -> R<u32> {
+    let k = r.get(DECADE_BITS)?;
+    let m = u32::try_from(r.gamma()?).map_err(|_| PackError::Value("duration"))?;
+    m.checked_mul(10u32.pow(k))
+        .ok_or(PackError::Value("duration"))
+}
 
 fn put_expr(w: &mut Writer, e: Expr, cursor: &mut usize, wd: &Widths) -> R<()> {
     let start = usize::from(e.start);
@@ -339,236 +456,6 @@ fn get_expr(r: &mut Reader, cursor: &mut usize, wd: &Widths) -> R<Expr> {
     let len = r.u8(EXPR_LEN_BITS)? + 1;
     *cursor = usize::from(start) + usize::from(len);
     Ok(Expr { start, len })
-}
-
-/// Writes `t`'s payload into `buf`; returns its length in bytes. `marks`, if given, gets
-/// the bit offset where each of [`SECTIONS`] ends.
-pub fn encode(t: &Table, buf: &mut [u8], mut marks: Option<&mut [usize; 16]>) -> R<usize> {
-    let mut w = Writer { buf, bit: 0 };
-    let mut mark = |w: &Writer, i: usize| {
-        if let Some(m) = marks.as_deref_mut() {
-            if let Some(slot) = m.get_mut(i) {
-                *slot = w.bit;
-            }
-        }
-    };
-    let durations = durations(t)?;
-    let wd = Widths::of(t, durations.len());
-    // Role and network.
-    let role = t.header.role.as_bytes();
-    w.field(role.len(), ROLE_LEN_BITS, "role")?;
-    for &b in role {
-        w.put(u32::from(b), 8)?;
-    }
-    w.put(u32::from(t.header.pan_id), 16)?;
-    let channel = usize::from(t.header.channel)
-        .checked_sub(usize::from(*CHANNELS.start()))
-        .ok_or(PackError::Unencodable("channel"))?;
-    w.field(channel, CHANNEL_BITS, "channel")?;
-    mark(&w, 0);
-    // Events and the commands' events.
-    w.field(usize::from(t.events), EVENTS_BITS, "events")?;
-    for e in [t.start, t.home, t.boot] {
-        w.field(opt_value(e), wd.event_opt, "event")?;
-    }
-    mark(&w, 1);
-    w.field(t.vars.len(), VARS_BITS, "vars")?;
-    for &v in &t.vars {
-        w.sv(v)?;
-    }
-    mark(&w, 2);
-    // Pins: one width for inputs and outputs.
-    let pins = t.inputs.iter().map(|i| i.pin).chain(t.outputs.iter().map(|o| o.pin));
-    let pin_width = bits(usize::from(pins.max().unwrap_or(0)) + 1);
-    w.field(pin_width as usize, PIN_WIDTH_BITS, "pin")?;
-    w.field(t.inputs.len(), INPUTS_BITS, "inputs")?;
-    for i in &t.inputs {
-        w.field(usize::from(i.pin), pin_width, "pin")?;
-        w.field(opt_value(i.rise), wd.event_opt, "event")?;
-        w.field(opt_value(i.fall), wd.event_opt, "event")?;
-        w.field(opt_value(i.var), wd.var_opt, "variable")?;
-    }
-    mark(&w, 3);
-    w.field(t.outputs.len(), OUTPUTS_BITS, "outputs")?;
-    for o in &t.outputs {
-        w.field(usize::from(o.pin), pin_width, "pin")?;
-        w.put(level(o.fault), 2)?;
-        w.put(level(o.start), 2)?;
-        w.flag(o.home)?;
-    }
-    mark(&w, 4);
-    w.field(t.timers.len(), TIMERS_BITS, "timers")?;
-    for tm in &t.timers {
-        w.field(usize::from(tm.event), wd.event, "event")?;
-    }
-    w.field(durations.len(), DURATIONS_BITS, "timer durations")?;
-    for &d in &durations {
-        w.uv(d)?;
-    }
-    mark(&w, 5);
-    w.field(t.code.len(), CODE_BITS, "code")?;
-    for &op in &t.code {
-        put_op(&mut w, op, &wd)?;
-    }
-    mark(&w, 6);
-    // Charts: their counts, then the states, actions and transitions pools in order.
-    w.field(t.charts.len(), CHARTS_BITS, "charts")?;
-    let mut prev = (0usize, 0usize);
-    for c in &t.charts {
-        let (s_end, t_end) = (usize::from(c.states_end), usize::from(c.transitions_end));
-        let states = s_end
-            .checked_sub(prev.0)
-            .ok_or(PackError::Unencodable("chart states"))?;
-        let transitions = t_end
-            .checked_sub(prev.1)
-            .ok_or(PackError::Unencodable("chart transitions"))?;
-        prev = (s_end, t_end);
-        w.field(states, CHART_STATES_BITS, "chart states")?;
-        w.field(transitions, CHART_TRANSITIONS_BITS, "chart transitions")?;
-        w.field(usize::from(c.inputs), CHART_INPUTS_BITS, "chart inputs")?;
-        let sw = bits(states);
-        w.field(usize::from(c.initial), sw, "initial state")?;
-        w.field(usize::from(c.idle), sw, "idle state")?;
-    }
-    if prev != (t.states.len(), t.transitions.len()) {
-        return Err(PackError::Unencodable("chart pools"));
-    }
-    mark(&w, 7);
-    let mut counts = [0usize; MAX_STATES];
-    let mut start = 0usize;
-    for (s, count) in t.states.iter().zip(counts.iter_mut()) {
-        let end = usize::from(s.actions_end);
-        *count = end
-            .checked_sub(start)
-            .ok_or(PackError::Unencodable("state actions"))?;
-        start = end;
-    }
-    if start != t.actions.len() {
-        return Err(PackError::Unencodable("state actions"));
-    }
-    let counts = counts.get(..t.states.len()).unwrap_or(&[]);
-    let count_width = bits(counts.iter().copied().max().unwrap_or(0) + 1);
-    w.field(count_width as usize, ACTION_COUNT_WIDTH_BITS, "state actions")?;
-    for &n in counts {
-        w.field(n, count_width, "state actions")?;
-    }
-    mark(&w, 8);
-    let mut cursor = 0usize;
-    for &a in &t.actions {
-        put_action(&mut w, a, &wd, &durations, &mut cursor)?;
-    }
-    mark(&w, 9);
-    let mut first = 0usize;
-    for (i, c) in t.charts.iter().enumerate() {
-        let end = usize::from(c.transitions_end);
-        let states = t.chart_states(i).len();
-        let sw = bits(states);
-        let mut prev_to = usize::from(c.idle);
-        for tr in t.transitions.get(first..end).unwrap_or(&[]) {
-            let (from, to) = (usize::from(tr.from), usize::from(tr.to));
-            w.flag(from == prev_to)?;
-            if from != prev_to {
-                w.field(from, sw, "state")?;
-            }
-            w.flag(to == from + 1)?;
-            if to != from + 1 {
-                w.field(to, sw, "state")?;
-            }
-            w.field(
-                opt_value(tr.trigger),
-                bits(usize::from(c.inputs) + 1),
-                "trigger",
-            )?;
-            w.flag(tr.guard.is_some())?;
-            if let Some(g) = tr.guard {
-                put_expr(&mut w, g, &mut cursor, &wd)?;
-            }
-            prev_to = to;
-        }
-        first = end;
-    }
-    mark(&w, 10);
-    w.field(t.routes.len(), ROUTES_BITS, "routes")?;
-    let mut chart = 0usize;
-    let mut next_input = [0usize; MAX_CHARTS];
-    for r in &t.routes {
-        w.field(usize::from(r.event), wd.event, "event")?;
-        let c = usize::from(r.chart);
-        w.flag(c == chart)?;
-        if c != chart {
-            w.field(c, wd.chart, "chart")?;
-        }
-        chart = c;
-        let inputs = t.charts.get(c).ok_or(PackError::Unencodable("chart"))?.inputs;
-        let next = next_input.get_mut(c).ok_or(PackError::Unencodable("chart"))?;
-        let input = usize::from(r.input);
-        w.flag(input == *next)?;
-        if input != *next {
-            w.field(input, bits(usize::from(inputs)), "chart input")?;
-        }
-        *next = input + 1;
-    }
-    mark(&w, 11);
-    w.field(t.peers.len(), PEERS_BITS, "peers")?;
-    let peer_width = bits(usize::from(t.peers.iter().copied().max().unwrap_or(0)) + 1);
-    w.field(peer_width as usize, PEER_WIDTH_BITS, "peer")?;
-    for &p in &t.peers {
-        w.field(usize::from(p), peer_width, "peer")?;
-    }
-    mark(&w, 12);
-    let topics = t
-        .publications
-        .iter()
-        .map(|p| p.topic)
-        .chain(t.subscriptions.iter().map(|s| s.topic));
-    let topic_width = bits(usize::from(topics.max().unwrap_or(0)) + 1);
-    w.field(t.publications.len(), PUBLICATIONS_BITS, "publications")?;
-    w.field(topic_width as usize, TOPIC_WIDTH_BITS, "topic")?;
-    let mut next_topic = 0usize;
-    for p in &t.publications {
-        w.field(usize::from(p.event), wd.event, "event")?;
-        let topic = usize::from(p.topic);
-        w.flag(topic == next_topic)?;
-        if topic != next_topic {
-            w.field(topic, topic_width, "topic")?;
-        }
-        next_topic = topic + 1;
-        w.field(usize::from(p.subscribers), wd.peers, "subscribers")?;
-    }
-    mark(&w, 13);
-    w.field(t.subscriptions.len(), SUBSCRIPTIONS_BITS, "subscriptions")?;
-    let mut prev_event: Option<usize> = None;
-    for s in &t.subscriptions {
-        w.field(usize::from(s.publisher), wd.peer, "publisher")?;
-        w.field(usize::from(s.topic), topic_width, "topic")?;
-        let e = usize::from(s.event);
-        let same = prev_event == Some(e);
-        let next = prev_event.map(|p| p + 1) == Some(e);
-        w.flag(same)?;
-        if !same {
-            w.flag(next)?;
-            if !next {
-                w.field(e, wd.event, "event")?;
-            }
-        }
-        prev_event = Some(e);
-    }
-    mark(&w, 14);
-    let safety = &t.safety;
-    w.field(opt_value(safety.estop), wd.input_opt, "estop")?;
-    w.flag(safety.link_fault)?;
-    w.field(usize::from(safety.restart), t.inputs.len() as u32, "restart")?;
-    w.field(safety.alarms.len(), ALARMS_BITS, "alarms")?;
-    for a in &safety.alarms {
-        w.put(a.level as u32, 2)?;
-        put_expr(&mut w, a.when, &mut cursor, &wd)?;
-    }
-    mark(&w, 15);
-    let len = w.bit.div_ceil(8);
-    // Zero the padding of the last byte.
-    let pad = (8 - w.bit % 8) % 8;
-    w.put(0, pad as u32)?;
-    Ok(len)
 }
 
 fn level(l: Level) -> u32 {
@@ -649,71 +536,91 @@ fn get_op(r: &mut Reader, wd: &Widths) -> R<Op> {
     })
 }
 
-fn put_action(
-    w: &mut Writer,
-    a: Action,
-    wd: &Widths,
-    durations: &[u32],
-    cursor: &mut usize,
-) -> R<()> {
+/// Action codes (a prefix code: the three a motion step uses take two bits).
+const A_DRIVE: (u32, u32) = (0b00, 2);
+const A_START: (u32, u32) = (0b10, 2);
+const A_EMIT: (u32, u32) = (0b01, 2);
+const A_CANCEL: (u32, u32) = (0b0011, 4);
+const A_SET: (u32, u32) = (0b0111, 4);
+const A_PUBLISH: (u32, u32) = (0b1011, 4);
+const A_FAULT: (u32, u32) = (0b1111, 4);
+
+struct ActionCtx<'a> {
+    wd: Widths,
+    durations: &'a [u32],
+    cursor: usize,
+    seen: Seen,
+}
+
+fn put_action(w: &mut Writer, a: Action, cx: &mut ActionCtx) -> R<()> {
+    let code = |w: &mut Writer, (c, n): (u32, u32)| w.put(c, n);
+    let wd = cx.wd;
     match a {
         Action::Set { var, expr } => {
-            w.put(A_SET, ACTION_BITS)?;
+            code(w, A_SET)?;
             w.field(usize::from(var), wd.var, "variable")?;
-            put_expr(w, expr, cursor, wd)
+            put_expr(w, expr, &mut cx.cursor, &wd)
         }
         Action::Drive { mask, value } => {
-            w.put(A_DRIVE, ACTION_BITS)?;
+            code(w, A_DRIVE)?;
             w.field(usize::from(mask), wd.outputs, "drive mask")?;
             w.field(usize::from(value), wd.outputs, "drive value")
         }
         Action::Emit(e) => {
-            w.put(A_EMIT, ACTION_BITS)?;
-            w.field(usize::from(e), wd.event, "event")
+            code(w, A_EMIT)?;
+            w.event(e, &mut cx.seen, &wd)
         }
         Action::Publish(e) => {
-            w.put(A_PUBLISH, ACTION_BITS)?;
-            w.field(usize::from(e), wd.event, "event")
+            code(w, A_PUBLISH)?;
+            w.event(e, &mut cx.seen, &wd)
         }
         Action::StartTimer { timer, ms } => {
-            w.put(A_START, ACTION_BITS)?;
+            code(w, A_START)?;
             w.field(usize::from(timer), wd.timer, "timer")?;
-            let d = durations
+            let d = cx
+                .durations
                 .iter()
                 .position(|&d| d == ms)
                 .ok_or(PackError::Unencodable("timer duration"))?;
             w.field(d, wd.duration, "timer duration")
         }
         Action::CancelTimer(timer) => {
-            w.put(A_CANCEL, ACTION_BITS)?;
+            code(w, A_CANCEL)?;
             w.field(usize::from(timer), wd.timer, "timer")
         }
-        Action::Fault(code) => {
-            w.put(A_FAULT, ACTION_BITS)?;
-            w.put(u32::from(code), FAULT_BITS)
+        Action::Fault(c) => {
+            code(w, A_FAULT)?;
+            w.put(u32::from(c), FAULT_BITS)
         }
     }
 }
 
-fn get_action(r: &mut Reader, wd: &Widths, durations: &[u32], cursor: &mut usize) -> R<Action> {
-    Ok(match r.get(ACTION_BITS)? {
+fn get_action(r: &mut Reader, cx: &mut ActionCtx) -> R<Action> {
+    let wd = cx.wd;
+    let short = r.get(2)?;
+    let code = if short == 0b11 {
+        (short | r.get(2)? << 2, 4)
+    } else {
+        (short, 2)
+    };
+    Ok(match code {
         A_SET => Action::Set {
             var: r.u8(wd.var)?,
-            expr: get_expr(r, cursor, wd)?,
+            expr: get_expr(r, &mut cx.cursor, &wd)?,
         },
         A_DRIVE => Action::Drive {
             mask: get_u16(r, wd.outputs)?,
             value: get_u16(r, wd.outputs)?,
         },
-        A_EMIT => Action::Emit(r.u8(wd.event)?),
-        A_PUBLISH => Action::Publish(r.u8(wd.event)?),
+        A_EMIT => Action::Emit(r.event(&mut cx.seen, &wd)?),
+        A_PUBLISH => Action::Publish(r.event(&mut cx.seen, &wd)?),
         A_START => Action::StartTimer {
             timer: r.u8(wd.timer)?,
             ms: {
                 let d = r.get(wd.duration)?;
                 *usize::try_from(d)
                     .ok()
-                    .and_then(|d| durations.get(d))
+                    .and_then(|d| cx.durations.get(d))
                     .ok_or(PackError::Value("timer duration"))?
             },
         },
@@ -731,22 +638,334 @@ fn end8(n: usize, what: &'static str) -> R<u8> {
     u8::try_from(n).map_err(|_| PackError::Capacity(what))
 }
 
-/// Reads a payload written by [`encode`]: the table (generation 0) and the bytes left
-/// after it (non-zero only past the padding byte, which must be zero bits).
+/// Writes `t`'s payload into `buf`; returns its length in bytes. The packed form (first
+/// bit 1) if it can hold `t`, else the raw form: a zero byte, then postcard(`t`), so that
+/// any table, even one the packing cannot express (an invalid one), has a payload and the
+/// validator, not the encoder, names its problem. `marks`, if given, gets the bit offset
+/// where each of [`SECTIONS`] ends (packed form only).
+pub fn encode(t: &Table, buf: &mut [u8], marks: Option<&mut [usize; SECTIONS.len()]>) -> R<usize> {
+    match encode_packed(t, buf, marks) {
+        Err(PackError::Unencodable(_)) => {
+            let (mode, rest) = buf.split_first_mut().ok_or(PackError::Full)?;
+            *mode = 0;
+            let n = postcard::to_slice(t, rest)
+                .map_err(|_| PackError::Full)?
+                .len();
+            Ok(n + 1)
+        }
+        other => other,
+    }
+}
+
+/// Whether [`encode`] writes `t` in the packed form (every table the compiler makes).
+pub fn is_packed(t: &Table) -> bool {
+    let mut buf = [0u8; crate::limits::MAX_TABLE_BLOB];
+    encode_packed(t, &mut buf, None).is_ok()
+}
+
+/// The packed form of `t`, or `Unencodable`.
+pub fn encode_packed(
+    t: &Table,
+    buf: &mut [u8],
+    mut marks: Option<&mut [usize; SECTIONS.len()]>,
+) -> R<usize> {
+    let mut w = Writer { buf, bit: 0 };
+    // The form: packed.
+    w.flag(true)?;
+    let mut mark = |w: &Writer, i: usize| {
+        if let Some(slot) = marks.as_deref_mut().and_then(|m| m.get_mut(i)) {
+            *slot = w.bit;
+        }
+    };
+    let durations = durations(t)?;
+    let wd = Widths::of(t, durations.len());
+    let mut seen = Seen::default();
+    // Role and network.
+    let role = t.header.role.as_bytes();
+    w.field(role.len(), ROLE_LEN_BITS, "role")?;
+    for &b in role {
+        w.put(u32::from(b), 8)?;
+    }
+    w.put(u32::from(t.header.pan_id), 16)?;
+    let channel = usize::from(t.header.channel)
+        .checked_sub(usize::from(*CHANNELS.start()))
+        .ok_or(PackError::Unencodable("channel"))?;
+    w.field(channel, CHANNEL_BITS, "channel")?;
+    mark(&w, 0);
+    w.count(usize::from(t.events))?;
+    w.count(t.vars.len())?;
+    for &v in &t.vars {
+        w.sv(v)?;
+    }
+    mark(&w, 1);
+    // Pins: one width for inputs and outputs.
+    let pins = t.inputs.iter().map(|i| i.pin);
+    let pins = pins.chain(t.outputs.iter().map(|o| o.pin));
+    let pin_width = bits(usize::from(pins.max().unwrap_or(0)) + 1);
+    w.field(pin_width as usize, PIN_WIDTH_BITS, "pin")?;
+    w.count(t.inputs.len())?;
+    for i in &t.inputs {
+        w.field(usize::from(i.pin), pin_width, "pin")?;
+        w.event_opt(i.rise, &mut seen, &wd)?;
+        w.event_opt(i.fall, &mut seen, &wd)?;
+        w.field(opt_value(i.var), wd.var_opt, "variable")?;
+    }
+    mark(&w, 2);
+    w.count(t.outputs.len())?;
+    for o in &t.outputs {
+        w.field(usize::from(o.pin), pin_width, "pin")?;
+        w.put(level(o.fault), 2)?;
+        w.put(level(o.start), 2)?;
+        w.flag(o.home)?;
+    }
+    mark(&w, 3);
+    w.count(t.timers.len())?;
+    for tm in &t.timers {
+        w.event(tm.event, &mut seen, &wd)?;
+    }
+    w.count(durations.len())?;
+    for &d in &durations {
+        put_duration(&mut w, d)?;
+    }
+    mark(&w, 4);
+    w.count(t.code.len())?;
+    for &op in &t.code {
+        put_op(&mut w, op, &wd)?;
+    }
+    mark(&w, 5);
+    // Charts: their counts, then the states, actions and transitions pools in order.
+    w.count(t.charts.len())?;
+    let mut prev = (0usize, 0usize);
+    for c in &t.charts {
+        let (s_end, t_end) = (usize::from(c.states_end), usize::from(c.transitions_end));
+        let states = s_end
+            .checked_sub(prev.0)
+            .ok_or(PackError::Unencodable("chart states"))?;
+        let transitions = t_end
+            .checked_sub(prev.1)
+            .ok_or(PackError::Unencodable("chart transitions"))?;
+        prev = (s_end, t_end);
+        w.count(states)?;
+        w.count(transitions)?;
+        w.count(usize::from(c.inputs))?;
+        let sw = bits(states);
+        w.field(usize::from(c.initial), sw, "initial state")?;
+        w.flag(c.idle == c.initial)?;
+        if c.idle != c.initial {
+            w.field(usize::from(c.idle), sw, "idle state")?;
+        }
+    }
+    if prev != (t.states.len(), t.transitions.len()) {
+        return Err(PackError::Unencodable("chart pools"));
+    }
+    mark(&w, 6);
+    let mut counts = [0usize; MAX_STATES];
+    let mut start = 0usize;
+    for (s, count) in t.states.iter().zip(counts.iter_mut()) {
+        let end = usize::from(s.actions_end);
+        *count = end
+            .checked_sub(start)
+            .ok_or(PackError::Unencodable("state actions"))?;
+        start = end;
+    }
+    if start != t.actions.len() {
+        return Err(PackError::Unencodable("state actions"));
+    }
+    let counts = counts.get(..t.states.len()).unwrap_or(&[]);
+    let count_width = bits(counts.iter().copied().max().unwrap_or(0) + 1);
+    w.field(count_width as usize, COUNT_WIDTH_BITS, "state actions")?;
+    for &n in counts {
+        w.field(n, count_width, "state actions")?;
+    }
+    mark(&w, 7);
+    let mut cx = ActionCtx {
+        wd,
+        durations: &durations,
+        cursor: 0,
+        seen,
+    };
+    for &a in &t.actions {
+        put_action(&mut w, a, &mut cx)?;
+    }
+    let ActionCtx {
+        mut cursor,
+        mut seen,
+        ..
+    } = cx;
+    mark(&w, 8);
+    let mut first = 0usize;
+    for (i, c) in t.charts.iter().enumerate() {
+        let end = usize::from(c.transitions_end);
+        let sw = bits(t.chart_states(i).len());
+        let transitions = t.transitions.get(first..end).unwrap_or(&[]);
+        let guarded = transitions.iter().any(|tr| tr.guard.is_some());
+        w.flag(guarded)?;
+        let mut prev_to = usize::from(c.idle);
+        let mut next_input = 0usize;
+        for tr in transitions {
+            let (from, to) = (usize::from(tr.from), usize::from(tr.to));
+            w.flag(from == prev_to)?;
+            if from != prev_to {
+                w.field(from, sw, "state")?;
+            }
+            w.flag(to == from + 1)?;
+            if to != from + 1 {
+                w.field(to, sw, "state")?;
+            }
+            let fresh = tr.trigger.map(usize::from) == Some(next_input);
+            w.flag(fresh)?;
+            if !fresh {
+                w.field(
+                    opt_value(tr.trigger),
+                    bits(usize::from(c.inputs) + 1),
+                    "trigger",
+                )?;
+            }
+            if let Some(i) = tr.trigger {
+                next_input = next_input.max(usize::from(i) + 1);
+            }
+            if guarded {
+                w.flag(tr.guard.is_some())?;
+            }
+            if let Some(g) = tr.guard {
+                put_expr(&mut w, g, &mut cursor, &wd)?;
+            }
+            prev_to = to;
+        }
+        first = end;
+    }
+    mark(&w, 9);
+    w.count(t.routes.len())?;
+    let mut chart = 0usize;
+    let mut next_input = [0usize; MAX_CHARTS];
+    for r in &t.routes {
+        w.event(r.event, &mut seen, &wd)?;
+        let c = usize::from(r.chart);
+        w.flag(c == chart)?;
+        if c != chart {
+            w.field(c, wd.chart, "chart")?;
+        }
+        chart = c;
+        let inputs = t
+            .charts
+            .get(c)
+            .ok_or(PackError::Unencodable("chart"))?
+            .inputs;
+        let next = next_input
+            .get_mut(c)
+            .ok_or(PackError::Unencodable("chart"))?;
+        let input = usize::from(r.input);
+        w.flag(input == *next)?;
+        if input != *next {
+            w.field(input, bits(usize::from(inputs)), "chart input")?;
+        }
+        *next = input + 1;
+    }
+    mark(&w, 10);
+    for e in [t.start, t.home, t.boot] {
+        w.event_opt(e, &mut seen, &wd)?;
+    }
+    mark(&w, 11);
+    w.count(t.peers.len())?;
+    let peer_width = bits(usize::from(t.peers.iter().copied().max().unwrap_or(0)) + 1);
+    w.field(peer_width as usize, PEER_WIDTH_BITS, "peer")?;
+    for &p in &t.peers {
+        w.field(usize::from(p), peer_width, "peer")?;
+    }
+    mark(&w, 12);
+    let topics = t.publications.iter().map(|p| p.topic);
+    let topics = topics.chain(t.subscriptions.iter().map(|s| s.topic));
+    let topic_width = bits(usize::from(topics.max().unwrap_or(0)) + 1);
+    w.field(topic_width as usize, TOPIC_WIDTH_BITS, "topic")?;
+    w.count(t.publications.len())?;
+    let emitted = emitted(&t.actions);
+    let mut prev_event = None;
+    let mut next_topic = 0usize;
+    for p in &t.publications {
+        let expected = expected_publication(&emitted, prev_event) == Some(p.event);
+        w.flag(expected)?;
+        if !expected {
+            w.field(usize::from(p.event), wd.event, "event")?;
+        }
+        prev_event = Some(p.event);
+        let topic = usize::from(p.topic);
+        w.flag(topic == next_topic)?;
+        if topic != next_topic {
+            w.field(topic, topic_width, "topic")?;
+        }
+        next_topic = topic + 1;
+        w.field(usize::from(p.subscribers), wd.peers, "subscribers")?;
+    }
+    mark(&w, 13);
+    w.count(t.subscriptions.len())?;
+    let mut prev_event: Option<usize> = None;
+    for s in &t.subscriptions {
+        w.field(usize::from(s.publisher), wd.peer, "publisher")?;
+        w.field(usize::from(s.topic), topic_width, "topic")?;
+        let e = usize::from(s.event);
+        let same = prev_event == Some(e);
+        let next = prev_event.map(|p| p + 1) == Some(e);
+        w.flag(same)?;
+        if !same {
+            w.flag(next)?;
+            if !next {
+                w.field(e, wd.event, "event")?;
+            }
+        }
+        prev_event = Some(e);
+    }
+    mark(&w, 14);
+    let safety = &t.safety;
+    w.field(opt_value(safety.estop), wd.input_opt, "estop")?;
+    w.flag(safety.link_fault)?;
+    w.field(
+        usize::from(safety.restart),
+        t.inputs.len() as u32,
+        "restart",
+    )?;
+    w.count(safety.alarms.len())?;
+    for a in &safety.alarms {
+        w.put(a.level as u32, 2)?;
+        put_expr(&mut w, a.when, &mut cursor, &wd)?;
+    }
+    mark(&w, 15);
+    let len = w.bit.div_ceil(8);
+    // Zero the padding of the last byte.
+    let pad = (8 - w.bit % 8) % 8;
+    w.put(0, pad as u32)?;
+    Ok(len)
+}
+
+/// Reads a payload written by [`encode`]: the table (generation 0) and the count of bytes
+/// left after it (the padding bits of its last byte must be zero).
 pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
-    let mut r = Reader { bytes, bit: 0 };
+    match bytes.first() {
+        None => Err(PackError::End),
+        Some(0) => {
+            let rest = bytes.get(1..).unwrap_or(&[]);
+            let (t, left) = postcard::take_from_bytes::<Table>(rest).map_err(PackError::Raw)?;
+            Ok((t, left.len()))
+        }
+        Some(b) if b & 1 == 0 => Err(PackError::Value("form")),
+        Some(_) => decode_packed(bytes),
+    }
+}
+
+fn decode_packed(bytes: &[u8]) -> R<(Table, usize)> {
+    // Bit 0 (the form) is read.
+    let mut r = Reader { bytes, bit: 1 };
     let mut t = Table::empty("");
-    let role_len = r.get(ROLE_LEN_BITS)?;
-    let mut role = [0u8; 16];
-    let role_len = usize::try_from(role_len).map_err(|_| PackError::Capacity("role"))?;
+    let mut seen = Seen::default();
+    let role_len = r.get(ROLE_LEN_BITS)? as usize;
     if role_len > MAX_ROLE_NAME {
         return Err(PackError::Capacity("role"));
     }
+    let mut role = [0u8; MAX_ROLE_NAME];
     for b in role.iter_mut().take(role_len) {
         *b = r.u8(8)?;
     }
-    let name = core::str::from_utf8(role.get(..role_len).unwrap_or(&[]))
-        .map_err(|_| PackError::Utf8)?;
+    let name =
+        core::str::from_utf8(role.get(..role_len).unwrap_or(&[])).map_err(|_| PackError::Utf8)?;
     let mut role_name = String::new();
     role_name
         .push_str(name)
@@ -754,31 +973,24 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
     t.header.role = role_name;
     t.header.pan_id = u16::try_from(r.get(16)?).map_err(|_| PackError::Value("pan"))?;
     t.header.channel = r.u8(CHANNEL_BITS)? + CHANNELS.start();
-    t.events = r.u8(EVENTS_BITS)?;
-    // Counts known so far; the rest follow.
+    t.events = u8::try_from(r.count()?).map_err(|_| PackError::Capacity("events"))?;
     let mut wd = Widths::new(usize::from(t.events));
-    t.start = r.opt(wd.event_opt)?;
-    t.home = r.opt(wd.event_opt)?;
-    t.boot = r.opt(wd.event_opt)?;
-    let vars = r.get(VARS_BITS)?;
-    for _ in 0..vars {
+    for _ in 0..r.count()? {
         push(&mut t.vars, r.sv()?, "vars")?;
     }
     wd.vars(t.vars.len());
     let pin_width = r.get(PIN_WIDTH_BITS)?;
-    let inputs = r.get(INPUTS_BITS)?;
-    for _ in 0..inputs {
+    for _ in 0..r.count()? {
         let input = Input {
             pin: r.u8(pin_width)?,
-            rise: r.opt(wd.event_opt)?,
-            fall: r.opt(wd.event_opt)?,
+            rise: r.event_opt(&mut seen, &wd)?,
+            fall: r.event_opt(&mut seen, &wd)?,
             var: r.opt(wd.var_opt)?,
         };
         push(&mut t.inputs, input, "inputs")?;
     }
     wd.inputs(t.inputs.len());
-    let outputs = r.get(OUTPUTS_BITS)?;
-    for _ in 0..outputs {
+    for _ in 0..r.count()? {
         let output = Output {
             pin: r.u8(pin_width)?,
             fault: get_level(&mut r)?,
@@ -788,38 +1000,37 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
         push(&mut t.outputs, output, "outputs")?;
     }
     wd.outputs = t.outputs.len() as u32;
-    let timers = r.get(TIMERS_BITS)?;
-    for _ in 0..timers {
-        let event = r.u8(wd.event)?;
+    for _ in 0..r.count()? {
+        let event = r.event(&mut seen, &wd)?;
         push(&mut t.timers, Timer { event }, "timers")?;
     }
     wd.timer = bits(t.timers.len());
     let mut durations: Vec<u32, MAX_TIMER_DURATIONS> = Vec::new();
-    for _ in 0..r.get(DURATIONS_BITS)? {
-        push(&mut durations, r.uv()?, "timer durations")?;
+    for _ in 0..r.count()? {
+        push(&mut durations, get_duration(&mut r)?, "timer durations")?;
     }
     wd.duration = bits(durations.len());
-    let code = r.get(CODE_BITS)?;
-    for _ in 0..code {
+    for _ in 0..r.count()? {
         let op = get_op(&mut r, &wd)?;
         push(&mut t.code, op, "code")?;
     }
     wd.code = bits(t.code.len() + 1);
-    let charts = r.get(CHARTS_BITS)?;
     let (mut s_end, mut t_end) = (0usize, 0usize);
-    for _ in 0..charts {
-        let states = r.get(CHART_STATES_BITS)? as usize;
-        let transitions = r.get(CHART_TRANSITIONS_BITS)? as usize;
-        let inputs = r.u8(CHART_INPUTS_BITS)?;
+    for _ in 0..r.count()? {
+        let states = r.count()?;
+        let transitions = r.count()?;
+        let inputs = u8::try_from(r.count()?).map_err(|_| PackError::Value("chart inputs"))?;
         let sw = bits(states);
-        s_end += states;
-        t_end += transitions;
+        s_end = s_end.saturating_add(states);
+        t_end = t_end.saturating_add(transitions);
+        let initial = r.u8(sw)?;
+        let idle = if r.flag()? { initial } else { r.u8(sw)? };
         let chart = Chart {
             states_end: end8(s_end, "states")?,
             transitions_end: end8(t_end, "transitions")?,
             inputs,
-            initial: r.u8(sw)?,
-            idle: r.u8(sw)?,
+            initial,
+            idle,
         };
         push(&mut t.charts, chart, "charts")?;
     }
@@ -830,7 +1041,7 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
         return Err(PackError::Capacity("transitions"));
     }
     wd.chart = bits(t.charts.len());
-    let count_width = r.get(ACTION_COUNT_WIDTH_BITS)?;
+    let count_width = r.get(COUNT_WIDTH_BITS)?;
     let mut actions = 0usize;
     for _ in 0..s_end {
         actions += r.get(count_width)? as usize;
@@ -840,18 +1051,29 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
     if actions > MAX_ACTIONS {
         return Err(PackError::Capacity("actions"));
     }
-    let mut cursor = 0usize;
+    let mut cx = ActionCtx {
+        wd,
+        durations: &durations,
+        cursor: 0,
+        seen,
+    };
     for _ in 0..actions {
-        let a = get_action(&mut r, &wd, &durations, &mut cursor)?;
+        let a = get_action(&mut r, &mut cx)?;
         push(&mut t.actions, a, "actions")?;
     }
+    let ActionCtx {
+        mut cursor,
+        mut seen,
+        ..
+    } = cx;
     let mut s_first = 0usize;
     for c in t.charts.clone().iter() {
-        let states = usize::from(c.states_end).saturating_sub(s_first);
+        let sw = bits(usize::from(c.states_end).saturating_sub(s_first));
         s_first = usize::from(c.states_end);
-        let sw = bits(states);
         let tw = bits(usize::from(c.inputs) + 1);
+        let guarded = r.flag()?;
         let mut prev_to = c.idle;
+        let mut next_input = 0u8;
         let n = usize::from(c.transitions_end).saturating_sub(t.transitions.len());
         for _ in 0..n {
             let from = if r.flag()? { prev_to } else { r.u8(sw)? };
@@ -860,8 +1082,15 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
             } else {
                 r.u8(sw)?
             };
-            let trigger = r.opt(tw)?;
-            let guard = if r.flag()? {
+            let trigger = if r.flag()? {
+                Some(next_input)
+            } else {
+                r.opt(tw)?
+            };
+            if let Some(i) = trigger {
+                next_input = next_input.max(i.checked_add(1).ok_or(PackError::Value("trigger"))?);
+            }
+            let guard = if guarded && r.flag()? {
                 Some(get_expr(&mut r, &mut cursor, &wd)?)
             } else {
                 None
@@ -876,11 +1105,10 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
             prev_to = to;
         }
     }
-    let routes = r.get(ROUTES_BITS)?;
     let mut chart = 0u8;
     let mut next_input = [0u8; MAX_CHARTS];
-    for _ in 0..routes {
-        let event = r.u8(wd.event)?;
+    for _ in 0..r.count()? {
+        let event = r.event(&mut seen, &wd)?;
         if !r.flag()? {
             chart = r.u8(wd.chart)?;
         }
@@ -897,80 +1125,78 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
         } else {
             r.u8(bits(usize::from(inputs)))?
         };
-        *next = input.checked_add(1).ok_or(PackError::Value("chart input"))?;
-        push(
-            &mut t.routes,
-            Route {
-                event,
-                chart,
-                input,
-            },
-            "routes",
-        )?;
+        *next = input
+            .checked_add(1)
+            .ok_or(PackError::Value("chart input"))?;
+        let route = Route {
+            event,
+            chart,
+            input,
+        };
+        push(&mut t.routes, route, "routes")?;
     }
-    let peers = r.get(PEERS_BITS)?;
+    t.start = r.event_opt(&mut seen, &wd)?;
+    t.home = r.event_opt(&mut seen, &wd)?;
+    t.boot = r.event_opt(&mut seen, &wd)?;
+    let peers = r.count()?;
     let peer_width = r.get(PEER_WIDTH_BITS)?;
     for _ in 0..peers {
         let p = u16::try_from(r.get(peer_width)?).map_err(|_| PackError::Value("peer"))?;
         push(&mut t.peers, p, "peers")?;
     }
     wd.peers(t.peers.len());
-    let publications = r.get(PUBLICATIONS_BITS)?;
     let topic_width = r.get(TOPIC_WIDTH_BITS)?;
-    let mut next_topic = 0u8;
-    for _ in 0..publications {
-        let event = r.u8(wd.event)?;
+    let emitted = emitted(&t.actions);
+    let mut prev_event = None;
+    let mut next_topic = 0u16;
+    for _ in 0..r.count()? {
+        let event = if r.flag()? {
+            expected_publication(&emitted, prev_event).ok_or(PackError::Value("event"))?
+        } else {
+            r.u8(wd.event)?
+        };
+        prev_event = Some(event);
         let topic = if r.flag()? {
-            next_topic
+            u8::try_from(next_topic).map_err(|_| PackError::Value("topic"))?
         } else {
             r.u8(topic_width)?
         };
-        next_topic = topic.checked_add(1).ok_or(PackError::Value("topic"))?;
+        next_topic = u16::from(topic) + 1;
         let subscribers = r.u8(wd.peers)?;
-        push(
-            &mut t.publications,
-            Publication {
-                event,
-                topic,
-                subscribers,
-            },
-            "publications",
-        )?;
+        let p = Publication {
+            event,
+            topic,
+            subscribers,
+        };
+        push(&mut t.publications, p, "publications")?;
     }
-    let subscriptions = r.get(SUBSCRIPTIONS_BITS)?;
     let mut prev_event: Option<u8> = None;
-    for _ in 0..subscriptions {
+    for _ in 0..r.count()? {
         let publisher = r.u8(wd.peer)?;
         let topic = r.u8(topic_width)?;
+        let same = r.flag()?;
         let event = match prev_event {
-            Some(p) if r.flag()? => p,
+            Some(p) if same => p,
+            _ if same => return Err(PackError::Value("event")),
             Some(p) if r.flag()? => p.checked_add(1).ok_or(PackError::Value("event"))?,
             Some(_) => r.u8(wd.event)?,
-            None => {
-                // Neither flag can hold for the first: both are written as zero.
-                if r.flag()? || r.flag()? {
-                    return Err(PackError::Value("event"));
-                }
-                r.u8(wd.event)?
-            }
+            None if r.flag()? => return Err(PackError::Value("event")),
+            None => r.u8(wd.event)?,
         };
         prev_event = Some(event);
-        push(
-            &mut t.subscriptions,
-            Subscription {
-                publisher,
-                topic,
-                event,
-            },
-            "subscriptions",
-        )?;
+        let s = Subscription {
+            publisher,
+            topic,
+            event,
+        };
+        push(&mut t.subscriptions, s, "subscriptions")?;
     }
     let estop = r.opt(wd.input_opt)?;
     let link_fault = r.flag()?;
-    let restart = u16::try_from(r.get(t.inputs.len() as u32)?)
-        .map_err(|_| PackError::Value("restart"))?;
+    let restart =
+        u16::try_from(r.get(t.inputs.len() as u32)?).map_err(|_| PackError::Value("restart"))?;
     let mut alarms = Vec::new();
-    for _ in 0..r.get(ALARMS_BITS)? {
+    for _ in 0..r.count()? {
         let level = match r.get(2)? {
             0 => AlarmLevel::Info,
             1 => AlarmLevel::Warning,

@@ -1,0 +1,74 @@
+//! Where the bytes of each paint-robot role's blob go, and whether it fits one frame.
+//!
+//!     cargo test -p robot-compiler --test frame_budget -- --nocapture
+//!
+//! prints, per role, the bits of each section of the packed payload (`config_schema::pack`)
+//! beside the bytes its postcard encoding (schema 4) took, then a line per role against
+//! the data of one `ConfigChunk` (`CHUNK_DATA`, the largest a secured frame carries):
+//! `VC 84 B of 88: one frame`. docs/table-format.md ("Size") has the figures.
+
+use std::path::Path;
+
+use config_schema::blob::{HEADER_LEN, TRAILER_LEN};
+use config_schema::pack::{self, SECTIONS};
+use config_schema::wire::msg::CHUNK_DATA;
+use robot_compiler::{compile, Compiled, Source};
+
+fn paint_robot() -> Compiled {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../robot-configs/paint-robot.ron");
+    let text = std::fs::read_to_string(&path).expect("read paint-robot.ron");
+    compile(&Source::new(path.display().to_string(), text)).expect("paint robot compiles")
+}
+
+#[test]
+fn every_paint_robot_role_fits_one_frame() {
+    let c = paint_robot();
+    let mut lines = Vec::new();
+    println!("{:<20} {}", "section (bits)", {
+        let names: Vec<_> =
+            c.ir.roles
+                .iter()
+                .map(|r| format!("{:>5}", r.name))
+                .collect();
+        names.join(" ")
+    });
+    let mut marks = Vec::new();
+    for t in &c.tables {
+        let mut m = [0usize; SECTIONS.len()];
+        let mut buf = [0u8; 4096];
+        let n = pack::encode(t, &mut buf, Some(&mut m)).expect("packs");
+        assert_eq!(n, m[SECTIONS.len() - 1].div_ceil(8));
+        marks.push(m);
+    }
+    for (i, name) in SECTIONS.iter().enumerate() {
+        let cells: Vec<_> = marks
+            .iter()
+            .map(|m| format!("{:>5}", m[i] - i.checked_sub(1).map_or(0, |p| m[p])))
+            .collect();
+        println!("{name:<20} {}", cells.join(" "));
+    }
+    for ((role, blob), m) in c.ir.roles.iter().zip(&c.blobs).zip(&marks) {
+        let payload = m[SECTIONS.len() - 1].div_ceil(8);
+        assert_eq!(blob.len(), HEADER_LEN + payload + TRAILER_LEN);
+        let frames = blob.len().div_ceil(CHUNK_DATA);
+        let line = format!(
+            "{} {} B of {CHUNK_DATA}: {} (payload {payload} B, envelope {})",
+            role.name,
+            blob.len(),
+            if frames == 1 {
+                "one frame".to_string()
+            } else {
+                format!("{frames} frames")
+            },
+            HEADER_LEN + TRAILER_LEN
+        );
+        println!("{line}");
+        lines.push((line, frames));
+    }
+    let over: Vec<_> = lines
+        .iter()
+        .filter(|(_, f)| *f > 1)
+        .map(|(l, _)| l)
+        .collect();
+    assert!(over.is_empty(), "more than one frame: {over:?}");
+}
