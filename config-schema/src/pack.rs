@@ -8,14 +8,17 @@
 //! is as wide as the count it indexes (an event id takes `bits(events)`, a chart-local
 //! state `bits(states of the chart)`); an optional one takes one value more (0 is `None`,
 //! `n + 1` is `Some(n)`). The shapes a compiled table has are one-bit flags: an event
-//! named for the first time is the lowest not named yet, a transition leaves the state the
-//! previous one entered and enters the next state, triggers on its chart's next unused
-//! input, a route feeds the next input of the same chart, a publication publishes the
-//! event emitted after the previous one's under the next topic, an expression follows the
-//! previous one. Timer durations are declared once (in decimal floating point) and
-//! referenced. `encode` fails with [`PackError::Unencodable`] on a table it cannot write
-//! so (only an invalid one: a reference past its count, pools not laid out chart by
-//! chart); `decode` reads whatever bytes it is given without panicking, and the blob's
+//! reference is most often the lowest event not named yet, a transition leaves the state
+//! the previous one entered and enters the next state and triggers on its chart's next
+//! unused input, a route feeds the next input of the same chart, a publication publishes
+//! the event emitted after the previous one's under the next topic, an expression follows
+//! the previous one. Timer durations are declared once (in decimal floating point) and
+//! referenced.
+//!
+//! A table the packing cannot express (only an invalid one: a reference past its count,
+//! pools not laid out chart by chart, a channel outside 11..=26) takes the raw form, a zero
+//! byte then its postcard encoding, so that the validator, not the encoder, names its
+//! problem. `decode` reads whatever bytes it is given without panicking, and the blob's
 //! `decode` validates the result.
 
 use core::fmt;
@@ -76,18 +79,18 @@ pub const fn bits(n: usize) -> u32 {
 
 /// Section names, in stream order (for [`encode`]'s marks).
 pub const SECTIONS: [&str; 16] = [
-    "role, network",
+    "form, role, network",
     "events, vars",
     "inputs",
     "outputs",
     "timers, durations",
     "code",
     "charts",
-    "states",
+    "states (action counts)",
     "actions",
     "transitions",
     "routes",
-    "commands",
+    "start, home, boot",
     "peers",
     "publications",
     "subscriptions",

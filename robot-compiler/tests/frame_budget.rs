@@ -32,7 +32,7 @@ fn where_the_bytes_of_each_role_go_and_the_frames_it_takes() {
             .iter()
             .map(|r| format!("{:>5}", r.name))
             .collect();
-    println!("{:<20} {}", "section (bits)", names.join(" "));
+    println!("{:<24} {}", "section (bits)", names.join(" "));
     let mut marks = Vec::new();
     for t in &c.tables {
         let mut m = [0usize; SECTIONS.len()];
@@ -46,8 +46,13 @@ fn where_the_bytes_of_each_role_go_and_the_frames_it_takes() {
             .iter()
             .map(|m| format!("{:>5}", m[i] - i.checked_sub(1).map_or(0, |p| m[p])))
             .collect();
-        println!("{name:<20} {}", cells.join(" "));
+        println!("{name:<24} {}", cells.join(" "));
     }
+    let totals: Vec<_> = marks
+        .iter()
+        .map(|m| format!("{:>5}", m[SECTIONS.len() - 1]))
+        .collect();
+    println!("{:<24} {}", "payload", totals.join(" "));
     let mut sizes = Vec::new();
     for ((role, blob), m) in c.ir.roles.iter().zip(&c.blobs).zip(&marks) {
         let payload = m[SECTIONS.len() - 1].div_ceil(8);
