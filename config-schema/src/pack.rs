@@ -421,7 +421,7 @@ fn expected_publication(emitted: &[u8], prev: Option<u8>) -> Option<u8> {
 fn put_duration(w: &mut Writer, ms: u32) -> R<()> {
     let mut k = 0;
     let mut m = ms;
-    while k < 3 && m != 0 && m % 10 == 0 {
+    while k < 3 && m != 0 && m.is_multiple_of(10) {
         m /= 10;
         k += 1;
     }

@@ -67,7 +67,7 @@ fn bits(fields: &[(u32, u32)]) -> Vec<u8> {
             "{value} in {width} bits"
         );
         for i in 0..width {
-            if at % 8 == 0 {
+            if at.is_multiple_of(8) {
                 out.push(0);
             }
             if (value >> i) & 1 != 0 {
