@@ -15,11 +15,12 @@
 //! the previous one. Timer durations are declared once (in decimal floating point) and
 //! referenced.
 //!
-//! A table the packing cannot express (only an invalid one: a reference past its count,
-//! pools not laid out chart by chart, a channel outside 11..=26) takes the raw form, a zero
-//! byte then its postcard encoding, so that the validator, not the encoder, names its
-//! problem. `decode` reads whatever bytes it is given without panicking, and the blob's
-//! `decode` validates the result.
+//! A table the compact form cannot express (only an invalid one: a reference past its
+//! count, pools not laid out chart by chart, a channel outside 11..=26) takes the wide
+//! form: the same fields with every reference at the full width of its type and the pools'
+//! ends as they are, so that the validator, not the encoder, names its problem. `decode`
+//! reads whatever bytes it is given without panicking, and the blob's `decode` validates
+//! the result.
 
 use core::fmt;
 
@@ -31,7 +32,7 @@ use crate::limits::*;
 use crate::table::*;
 
 /// Why a payload could not be read (or a table written).
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PackError {
     /// The payload ends inside a field.
     End,
@@ -44,10 +45,8 @@ pub enum PackError {
     Utf8,
     /// The output buffer is too small.
     Full,
-    /// (encoding) The table cannot be written in the packed form: see the module docs.
+    /// (encoding) The table cannot be written in the compact form: see the module docs.
     Unencodable(&'static str),
-    /// A table in the raw form is not a postcard table.
-    Raw(postcard::Error),
 }
 
 impl fmt::Display for PackError {
@@ -59,7 +58,6 @@ impl fmt::Display for PackError {
             PackError::Utf8 => write!(f, "the role name is not UTF-8"),
             PackError::Full => write!(f, "output buffer too small"),
             PackError::Unencodable(what) => write!(f, "{what}: cannot be encoded"),
-            PackError::Raw(e) => write!(f, "raw table: {e}"),
         }
     }
 }
@@ -258,6 +256,8 @@ struct Widths {
     chart: u32,
     peer: u32,
     peers: u32,
+    /// The wide form: every reference at the full width of its type.
+    wide: bool,
 }
 
 impl Widths {
@@ -277,6 +277,64 @@ impl Widths {
             chart: 0,
             peer: 0,
             peers: 0,
+            wide: false,
+        }
+    }
+
+    /// The widths of the wide form: a `u8` reference 8 bits (an optional one 9), a mask
+    /// as wide as its type.
+    fn wide(durations: usize) -> Widths {
+        Widths {
+            event: 8,
+            event_opt: 9,
+            var: 8,
+            var_opt: 9,
+            input: 8,
+            input_opt: 9,
+            outputs: 16,
+            timer: 8,
+            duration: bits(durations),
+            code: 8,
+            chart: 8,
+            peer: 8,
+            peers: 8,
+            wide: true,
+        }
+    }
+
+    /// A chart-local state.
+    fn state(&self, states: usize) -> u32 {
+        if self.wide {
+            8
+        } else {
+            bits(states)
+        }
+    }
+
+    /// An optional chart input (a trigger).
+    fn trigger(&self, inputs: u8) -> u32 {
+        if self.wide {
+            9
+        } else {
+            bits(usize::from(inputs) + 1)
+        }
+    }
+
+    /// A chart input of a route.
+    fn chart_input(&self, inputs: u8) -> u32 {
+        if self.wide {
+            8
+        } else {
+            bits(usize::from(inputs))
+        }
+    }
+
+    /// The restart mask over `inputs` inputs.
+    fn restart(&self, inputs: usize) -> u32 {
+        if self.wide {
+            16
+        } else {
+            inputs as u32
         }
     }
 
@@ -442,10 +500,14 @@ fn put_expr(w: &mut Writer, e: Expr, cursor: &mut usize, wd: &Widths) -> R<()> {
     if start != *cursor {
         w.field(start, wd.code, "expression start")?;
     }
-    let len = usize::from(e.len)
-        .checked_sub(1)
-        .ok_or(PackError::Unencodable("expression length"))?;
-    w.field(len, EXPR_LEN_BITS, "expression length")?;
+    if wd.wide {
+        w.put(u32::from(e.len), 8)?;
+    } else {
+        let len = usize::from(e.len)
+            .checked_sub(1)
+            .ok_or(PackError::Unencodable("expression length"))?;
+        w.field(len, EXPR_LEN_BITS, "expression length")?;
+    }
     *cursor = start + usize::from(e.len);
     Ok(())
 }
@@ -456,7 +518,11 @@ fn get_expr(r: &mut Reader, cursor: &mut usize, wd: &Widths) -> R<Expr> {
     } else {
         r.u8(wd.code)?
     };
-    let len = r.u8(EXPR_LEN_BITS)? + 1;
+    let len = if wd.wide {
+        r.u8(8)?
+    } else {
+        r.u8(EXPR_LEN_BITS)? + 1
+    };
     *cursor = usize::from(start) + usize::from(len);
     Ok(Expr { start, len })
 }
@@ -641,47 +707,46 @@ fn end8(n: usize, what: &'static str) -> R<u8> {
     u8::try_from(n).map_err(|_| PackError::Capacity(what))
 }
 
-/// Writes `t`'s payload into `buf`; returns its length in bytes. The packed form (first
-/// bit 1) if it can hold `t`, else the raw form: a zero byte, then postcard(`t`), so that
-/// any table, even one the packing cannot express (an invalid one), has a payload and the
-/// validator, not the encoder, names its problem. `marks`, if given, gets the bit offset
-/// where each of [`SECTIONS`] ends (packed form only).
+/// Writes `t`'s payload into `buf`; returns its length in bytes. The compact form (first
+/// bit 0) if it can hold `t` (every table the compiler makes), else the wide form (first
+/// bit 1): every reference at the full width of its type and the pools' ends as they are,
+/// so that any table, even one the compact form cannot express (an invalid one), has a
+/// payload and the validator, not the encoder, names its problem. `marks`, if given, gets
+/// the bit offset where each of [`SECTIONS`] ends.
 pub fn encode(t: &Table, buf: &mut [u8], marks: Option<&mut [usize; SECTIONS.len()]>) -> R<usize> {
-    match encode_packed(t, buf, marks) {
-        Err(PackError::Unencodable(_)) => {
-            let (mode, rest) = buf.split_first_mut().ok_or(PackError::Full)?;
-            *mode = 0;
-            let n = postcard::to_slice(t, rest)
-                .map_err(|_| PackError::Full)?
-                .len();
-            Ok(n + 1)
-        }
+    match encode_form(t, buf, marks, false) {
+        Err(PackError::Unencodable(_)) => encode_form(t, buf, None, true),
         other => other,
     }
 }
 
-/// Whether [`encode`] writes `t` in the packed form (every table the compiler makes).
-pub fn is_packed(t: &Table) -> bool {
+/// Whether [`encode`] writes `t` in the compact form.
+pub fn is_compact(t: &Table) -> bool {
     let mut buf = [0u8; crate::limits::MAX_TABLE_BLOB];
-    encode_packed(t, &mut buf, None).is_ok()
+    encode_form(t, &mut buf, None, false).is_ok()
 }
 
-/// The packed form of `t`, or `Unencodable`.
-pub fn encode_packed(
+/// The compact form of `t` (`wide` false: `Unencodable` if it cannot hold `t`) or its
+/// wide form (`wide` true: never `Unencodable`).
+pub fn encode_form(
     t: &Table,
     buf: &mut [u8],
     mut marks: Option<&mut [usize; SECTIONS.len()]>,
+    wide: bool,
 ) -> R<usize> {
     let mut w = Writer { buf, bit: 0 };
-    // The form: packed.
-    w.flag(true)?;
     let mut mark = |w: &Writer, i: usize| {
         if let Some(slot) = marks.as_deref_mut().and_then(|m| m.get_mut(i)) {
             *slot = w.bit;
         }
     };
+    w.flag(wide)?;
     let durations = durations(t)?;
-    let wd = Widths::of(t, durations.len());
+    let wd = if wide {
+        Widths::wide(durations.len())
+    } else {
+        Widths::of(t, durations.len())
+    };
     let mut seen = Seen::default();
     // Role and network.
     let role = t.header.role.as_bytes();
@@ -690,10 +755,14 @@ pub fn encode_packed(
         w.put(u32::from(b), 8)?;
     }
     w.put(u32::from(t.header.pan_id), 16)?;
-    let channel = usize::from(t.header.channel)
-        .checked_sub(usize::from(*CHANNELS.start()))
-        .ok_or(PackError::Unencodable("channel"))?;
-    w.field(channel, CHANNEL_BITS, "channel")?;
+    if wide {
+        w.put(u32::from(t.header.channel), 8)?;
+    } else {
+        let channel = usize::from(t.header.channel)
+            .checked_sub(usize::from(*CHANNELS.start()))
+            .ok_or(PackError::Unencodable("channel"))?;
+        w.field(channel, CHANNEL_BITS, "channel")?;
+    }
     mark(&w, 0);
     w.count(usize::from(t.events))?;
     w.count(t.vars.len())?;
@@ -701,11 +770,16 @@ pub fn encode_packed(
         w.sv(v)?;
     }
     mark(&w, 1);
-    // Pins: one width for inputs and outputs.
-    let pins = t.inputs.iter().map(|i| i.pin);
-    let pins = pins.chain(t.outputs.iter().map(|o| o.pin));
-    let pin_width = bits(usize::from(pins.max().unwrap_or(0)) + 1);
-    w.field(pin_width as usize, PIN_WIDTH_BITS, "pin")?;
+    // Pins: one width for inputs and outputs (8 in the wide form).
+    let pin_width = if wide {
+        8
+    } else {
+        let pins = t.inputs.iter().map(|i| i.pin);
+        let pins = pins.chain(t.outputs.iter().map(|o| o.pin));
+        let pin_width = bits(usize::from(pins.max().unwrap_or(0)) + 1);
+        w.field(pin_width as usize, PIN_WIDTH_BITS, "pin")?;
+        pin_width
+    };
     w.count(t.inputs.len())?;
     for i in &t.inputs {
         w.field(usize::from(i.pin), pin_width, "pin")?;
@@ -736,49 +810,64 @@ pub fn encode_packed(
         put_op(&mut w, op, &wd)?;
     }
     mark(&w, 5);
-    // Charts: their counts, then the states, actions and transitions pools in order.
+    // Charts: their counts (compact) or ends (wide), then the pools.
     w.count(t.charts.len())?;
     let mut prev = (0usize, 0usize);
     for c in &t.charts {
         let (s_end, t_end) = (usize::from(c.states_end), usize::from(c.transitions_end));
-        let states = s_end
-            .checked_sub(prev.0)
-            .ok_or(PackError::Unencodable("chart states"))?;
-        let transitions = t_end
-            .checked_sub(prev.1)
-            .ok_or(PackError::Unencodable("chart transitions"))?;
+        if wide {
+            w.put(u32::from(c.states_end), 8)?;
+            w.put(u32::from(c.transitions_end), 8)?;
+        } else {
+            let states = s_end
+                .checked_sub(prev.0)
+                .ok_or(PackError::Unencodable("chart states"))?;
+            let transitions = t_end
+                .checked_sub(prev.1)
+                .ok_or(PackError::Unencodable("chart transitions"))?;
+            w.count(states)?;
+            w.count(transitions)?;
+        }
+        let sw = wd.state(s_end.saturating_sub(prev.0));
         prev = (s_end, t_end);
-        w.count(states)?;
-        w.count(transitions)?;
         w.count(usize::from(c.inputs))?;
-        let sw = bits(states);
         w.field(usize::from(c.initial), sw, "initial state")?;
         w.flag(c.idle == c.initial)?;
         if c.idle != c.initial {
             w.field(usize::from(c.idle), sw, "idle state")?;
         }
     }
-    if prev != (t.states.len(), t.transitions.len()) {
+    if wide {
+        w.count(t.states.len())?;
+        w.count(t.transitions.len())?;
+    } else if prev != (t.states.len(), t.transitions.len()) {
         return Err(PackError::Unencodable("chart pools"));
     }
     mark(&w, 6);
-    let mut counts = [0usize; MAX_STATES];
-    let mut start = 0usize;
-    for (s, count) in t.states.iter().zip(counts.iter_mut()) {
-        let end = usize::from(s.actions_end);
-        *count = end
-            .checked_sub(start)
-            .ok_or(PackError::Unencodable("state actions"))?;
-        start = end;
-    }
-    if start != t.actions.len() {
-        return Err(PackError::Unencodable("state actions"));
-    }
-    let counts = counts.get(..t.states.len()).unwrap_or(&[]);
-    let count_width = bits(counts.iter().copied().max().unwrap_or(0) + 1);
-    w.field(count_width as usize, COUNT_WIDTH_BITS, "state actions")?;
-    for &n in counts {
-        w.field(n, count_width, "state actions")?;
+    if wide {
+        w.count(t.actions.len())?;
+        for s in &t.states {
+            w.put(u32::from(s.actions_end), 8)?;
+        }
+    } else {
+        let mut counts = [0usize; MAX_STATES];
+        let mut start = 0usize;
+        for (s, count) in t.states.iter().zip(counts.iter_mut()) {
+            let end = usize::from(s.actions_end);
+            *count = end
+                .checked_sub(start)
+                .ok_or(PackError::Unencodable("state actions"))?;
+            start = end;
+        }
+        if start != t.actions.len() {
+            return Err(PackError::Unencodable("state actions"));
+        }
+        let counts = counts.get(..t.states.len()).unwrap_or(&[]);
+        let count_width = bits(counts.iter().copied().max().unwrap_or(0) + 1);
+        w.field(count_width as usize, COUNT_WIDTH_BITS, "state actions")?;
+        for &n in counts {
+            w.field(n, count_width, "state actions")?;
+        }
     }
     mark(&w, 7);
     let mut cx = ActionCtx {
@@ -796,14 +885,24 @@ pub fn encode_packed(
         ..
     } = cx;
     mark(&w, 8);
-    let mut first = 0usize;
-    for (i, c) in t.charts.iter().enumerate() {
-        let end = usize::from(c.transitions_end);
-        let sw = bits(t.chart_states(i).len());
-        let transitions = t.transitions.get(first..end).unwrap_or(&[]);
+    // Transitions chart by chart (compact), or the pool as one run (wide).
+    let mut runs: Vec<(core::ops::Range<usize>, u32, u32, usize), MAX_CHARTS> = Vec::new();
+    if wide {
+        let _ = runs.push((0..t.transitions.len(), 8, 9, 0));
+    } else {
+        let mut first = 0usize;
+        for (i, c) in t.charts.iter().enumerate() {
+            let end = usize::from(c.transitions_end);
+            let sw = wd.state(t.chart_states(i).len());
+            let _ = runs.push((first..end, sw, wd.trigger(c.inputs), usize::from(c.idle)));
+            first = end;
+        }
+    }
+    for (range, sw, tw, idle) in runs {
+        let transitions = t.transitions.get(range).unwrap_or(&[]);
         let guarded = transitions.iter().any(|tr| tr.guard.is_some());
         w.flag(guarded)?;
-        let mut prev_to = usize::from(c.idle);
+        let mut prev_to = idle;
         let mut next_input = 0usize;
         for tr in transitions {
             let (from, to) = (usize::from(tr.from), usize::from(tr.to));
@@ -818,11 +917,7 @@ pub fn encode_packed(
             let fresh = tr.trigger.map(usize::from) == Some(next_input);
             w.flag(fresh)?;
             if !fresh {
-                w.field(
-                    opt_value(tr.trigger),
-                    bits(usize::from(c.inputs) + 1),
-                    "trigger",
-                )?;
+                w.field(opt_value(tr.trigger), tw, "trigger")?;
             }
             if let Some(i) = tr.trigger {
                 next_input = next_input.max(usize::from(i) + 1);
@@ -835,12 +930,11 @@ pub fn encode_packed(
             }
             prev_to = to;
         }
-        first = end;
     }
     mark(&w, 9);
     w.count(t.routes.len())?;
     let mut chart = 0usize;
-    let mut next_input = [0usize; MAX_CHARTS];
+    let mut next_input = [0usize; 256];
     for r in &t.routes {
         w.event(r.event, &mut seen, &wd)?;
         let c = usize::from(r.chart);
@@ -849,18 +943,18 @@ pub fn encode_packed(
             w.field(c, wd.chart, "chart")?;
         }
         chart = c;
-        let inputs = t
-            .charts
-            .get(c)
-            .ok_or(PackError::Unencodable("chart"))?
-            .inputs;
+        let inputs = match t.charts.get(c) {
+            Some(chart) => chart.inputs,
+            None if wide => 0,
+            None => return Err(PackError::Unencodable("chart")),
+        };
         let next = next_input
             .get_mut(c)
             .ok_or(PackError::Unencodable("chart"))?;
         let input = usize::from(r.input);
         w.flag(input == *next)?;
         if input != *next {
-            w.field(input, bits(usize::from(inputs)), "chart input")?;
+            w.field(input, wd.chart_input(inputs), "chart input")?;
         }
         *next = input + 1;
     }
@@ -921,11 +1015,8 @@ pub fn encode_packed(
     let safety = &t.safety;
     w.field(opt_value(safety.estop), wd.input_opt, "estop")?;
     w.flag(safety.link_fault)?;
-    w.field(
-        usize::from(safety.restart),
-        t.inputs.len() as u32,
-        "restart",
-    )?;
+    let restart_width = wd.restart(t.inputs.len());
+    w.field(usize::from(safety.restart), restart_width, "restart")?;
     w.count(safety.alarms.len())?;
     for a in &safety.alarms {
         w.put(a.level as u32, 2)?;
@@ -942,21 +1033,8 @@ pub fn encode_packed(
 /// Reads a payload written by [`encode`]: the table (generation 0) and the count of bytes
 /// left after it (the padding bits of its last byte must be zero).
 pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
-    match bytes.first() {
-        None => Err(PackError::End),
-        Some(0) => {
-            let rest = bytes.get(1..).unwrap_or(&[]);
-            let (t, left) = postcard::take_from_bytes::<Table>(rest).map_err(PackError::Raw)?;
-            Ok((t, left.len()))
-        }
-        Some(b) if b & 1 == 0 => Err(PackError::Value("form")),
-        Some(_) => decode_packed(bytes),
-    }
-}
-
-fn decode_packed(bytes: &[u8]) -> R<(Table, usize)> {
-    // Bit 0 (the form) is read.
-    let mut r = Reader { bytes, bit: 1 };
+    let mut r = Reader { bytes, bit: 0 };
+    let wide = r.flag()?;
     let mut t = Table::empty("");
     let mut seen = Seen::default();
     let role_len = r.get(ROLE_LEN_BITS)? as usize;
@@ -975,14 +1053,24 @@ fn decode_packed(bytes: &[u8]) -> R<(Table, usize)> {
         .map_err(|_| PackError::Capacity("role"))?;
     t.header.role = role_name;
     t.header.pan_id = u16::try_from(r.get(16)?).map_err(|_| PackError::Value("pan"))?;
-    t.header.channel = r.u8(CHANNEL_BITS)? + CHANNELS.start();
+    t.header.channel = if wide {
+        r.u8(8)?
+    } else {
+        r.u8(CHANNEL_BITS)? + CHANNELS.start()
+    };
     t.events = u8::try_from(r.count()?).map_err(|_| PackError::Capacity("events"))?;
-    let mut wd = Widths::new(usize::from(t.events));
+    let mut wd = if wide {
+        Widths::wide(0)
+    } else {
+        Widths::new(usize::from(t.events))
+    };
     for _ in 0..r.count()? {
         push(&mut t.vars, r.sv()?, "vars")?;
     }
-    wd.vars(t.vars.len());
-    let pin_width = r.get(PIN_WIDTH_BITS)?;
+    if !wide {
+        wd.vars(t.vars.len());
+    }
+    let pin_width = if wide { 8 } else { r.get(PIN_WIDTH_BITS)? };
     for _ in 0..r.count()? {
         let input = Input {
             pin: r.u8(pin_width)?,
@@ -992,7 +1080,9 @@ fn decode_packed(bytes: &[u8]) -> R<(Table, usize)> {
         };
         push(&mut t.inputs, input, "inputs")?;
     }
-    wd.inputs(t.inputs.len());
+    if !wide {
+        wd.inputs(t.inputs.len());
+    }
     for _ in 0..r.count()? {
         let output = Output {
             pin: r.u8(pin_width)?,
@@ -1002,12 +1092,16 @@ fn decode_packed(bytes: &[u8]) -> R<(Table, usize)> {
         };
         push(&mut t.outputs, output, "outputs")?;
     }
-    wd.outputs = t.outputs.len() as u32;
+    if !wide {
+        wd.outputs = t.outputs.len() as u32;
+    }
     for _ in 0..r.count()? {
         let event = r.event(&mut seen, &wd)?;
         push(&mut t.timers, Timer { event }, "timers")?;
     }
-    wd.timer = bits(t.timers.len());
+    if !wide {
+        wd.timer = bits(t.timers.len());
+    }
     let mut durations: Vec<u32, MAX_TIMER_DURATIONS> = Vec::new();
     for _ in 0..r.count()? {
         push(&mut durations, get_duration(&mut r)?, "timer durations")?;
@@ -1017,15 +1111,21 @@ fn decode_packed(bytes: &[u8]) -> R<(Table, usize)> {
         let op = get_op(&mut r, &wd)?;
         push(&mut t.code, op, "code")?;
     }
-    wd.code = bits(t.code.len() + 1);
+    if !wide {
+        wd.code = bits(t.code.len() + 1);
+    }
     let (mut s_end, mut t_end) = (0usize, 0usize);
     for _ in 0..r.count()? {
-        let states = r.count()?;
-        let transitions = r.count()?;
+        let s_first = s_end;
+        if wide {
+            s_end = usize::from(r.u8(8)?);
+            t_end = usize::from(r.u8(8)?);
+        } else {
+            s_end = s_end.saturating_add(r.count()?);
+            t_end = t_end.saturating_add(r.count()?);
+        }
+        let sw = wd.state(s_end.saturating_sub(s_first));
         let inputs = u8::try_from(r.count()?).map_err(|_| PackError::Value("chart inputs"))?;
-        let sw = bits(states);
-        s_end = s_end.saturating_add(states);
-        t_end = t_end.saturating_add(transitions);
         let initial = r.u8(sw)?;
         let idle = if r.flag()? { initial } else { r.u8(sw)? };
         let chart = Chart {
@@ -1037,20 +1137,37 @@ fn decode_packed(bytes: &[u8]) -> R<(Table, usize)> {
         };
         push(&mut t.charts, chart, "charts")?;
     }
-    if s_end > MAX_STATES {
+    let (states, transitions) = if wide {
+        (r.count()?, r.count()?)
+    } else {
+        (s_end, t_end)
+    };
+    if states > MAX_STATES {
         return Err(PackError::Capacity("states"));
     }
-    if t_end > MAX_TRANSITIONS {
+    if transitions > MAX_TRANSITIONS {
         return Err(PackError::Capacity("transitions"));
     }
-    wd.chart = bits(t.charts.len());
-    let count_width = r.get(COUNT_WIDTH_BITS)?;
-    let mut actions = 0usize;
-    for _ in 0..s_end {
-        actions += r.get(count_width)? as usize;
-        let actions_end = end8(actions, "actions")?;
-        push(&mut t.states, State { actions_end }, "states")?;
+    if !wide {
+        wd.chart = bits(t.charts.len());
     }
+    let actions = if wide {
+        let actions = r.count()?;
+        for _ in 0..states {
+            let actions_end = r.u8(8)?;
+            push(&mut t.states, State { actions_end }, "states")?;
+        }
+        actions
+    } else {
+        let count_width = r.get(COUNT_WIDTH_BITS)?;
+        let mut actions = 0usize;
+        for _ in 0..states {
+            actions += r.get(count_width)? as usize;
+            let actions_end = end8(actions, "actions")?;
+            push(&mut t.states, State { actions_end }, "states")?;
+        }
+        actions
+    };
     if actions > MAX_ACTIONS {
         return Err(PackError::Capacity("actions"));
     }
@@ -1069,15 +1186,25 @@ fn decode_packed(bytes: &[u8]) -> R<(Table, usize)> {
         mut seen,
         ..
     } = cx;
-    let mut s_first = 0usize;
-    for c in t.charts.clone().iter() {
-        let sw = bits(usize::from(c.states_end).saturating_sub(s_first));
-        s_first = usize::from(c.states_end);
-        let tw = bits(usize::from(c.inputs) + 1);
+    // (transitions, state width, trigger width, idle state) of each run.
+    let mut runs: Vec<(usize, u32, u32, u8), MAX_CHARTS> = Vec::new();
+    if wide {
+        let _ = runs.push((transitions, 8, 9, 0));
+    } else {
+        let mut s_first = 0usize;
+        let mut t_first = 0usize;
+        for c in &t.charts {
+            let sw = wd.state(usize::from(c.states_end).saturating_sub(s_first));
+            let n = usize::from(c.transitions_end).saturating_sub(t_first);
+            s_first = usize::from(c.states_end);
+            t_first = usize::from(c.transitions_end);
+            let _ = runs.push((n, sw, wd.trigger(c.inputs), c.idle));
+        }
+    }
+    for (n, sw, tw, idle) in runs {
         let guarded = r.flag()?;
-        let mut prev_to = c.idle;
+        let mut prev_to = idle;
         let mut next_input = 0u8;
-        let n = usize::from(c.transitions_end).saturating_sub(t.transitions.len());
         for _ in 0..n {
             let from = if r.flag()? { prev_to } else { r.u8(sw)? };
             let to = if r.flag()? {
@@ -1091,7 +1218,8 @@ fn decode_packed(bytes: &[u8]) -> R<(Table, usize)> {
                 r.opt(tw)?
             };
             if let Some(i) = trigger {
-                next_input = next_input.max(i.checked_add(1).ok_or(PackError::Value("trigger"))?);
+                let after = i.checked_add(1).ok_or(PackError::Value("trigger"))?;
+                next_input = next_input.max(after);
             }
             let guard = if guarded && r.flag()? {
                 Some(get_expr(&mut r, &mut cursor, &wd)?)
@@ -1109,24 +1237,24 @@ fn decode_packed(bytes: &[u8]) -> R<(Table, usize)> {
         }
     }
     let mut chart = 0u8;
-    let mut next_input = [0u8; MAX_CHARTS];
+    let mut next_input = [0u8; 256];
     for _ in 0..r.count()? {
         let event = r.event(&mut seen, &wd)?;
         if !r.flag()? {
             chart = r.u8(wd.chart)?;
         }
-        let inputs = t
-            .charts
-            .get(usize::from(chart))
-            .ok_or(PackError::Value("chart"))?
-            .inputs;
+        let inputs = match t.charts.get(usize::from(chart)) {
+            Some(c) => c.inputs,
+            None if wide => 0,
+            None => return Err(PackError::Value("chart")),
+        };
         let next = next_input
             .get_mut(usize::from(chart))
             .ok_or(PackError::Value("chart"))?;
         let input = if r.flag()? {
             *next
         } else {
-            r.u8(bits(usize::from(inputs)))?
+            r.u8(wd.chart_input(inputs))?
         };
         *next = input
             .checked_add(1)
@@ -1147,7 +1275,9 @@ fn decode_packed(bytes: &[u8]) -> R<(Table, usize)> {
         let p = u16::try_from(r.get(peer_width)?).map_err(|_| PackError::Value("peer"))?;
         push(&mut t.peers, p, "peers")?;
     }
-    wd.peers(t.peers.len());
+    if !wide {
+        wd.peers(t.peers.len());
+    }
     let topic_width = r.get(TOPIC_WIDTH_BITS)?;
     let emitted = emitted(&t.actions);
     let mut prev_event = None;
@@ -1196,8 +1326,8 @@ fn decode_packed(bytes: &[u8]) -> R<(Table, usize)> {
     }
     let estop = r.opt(wd.input_opt)?;
     let link_fault = r.flag()?;
-    let restart =
-        u16::try_from(r.get(t.inputs.len() as u32)?).map_err(|_| PackError::Value("restart"))?;
+    let restart = u16::try_from(r.get(wd.restart(t.inputs.len()))?)
+        .map_err(|_| PackError::Value("restart"))?;
     let mut alarms = Vec::new();
     for _ in 0..r.count()? {
         let level = match r.get(2)? {

@@ -106,7 +106,7 @@ fn the_payload_of_an_empty_table_bit_by_bit() {
     let p = payload(&blob(&t));
     #[rustfmt::skip]
     let mut fields = vec![
-        (1, 1),                       // the packed form
+        (0, 1),                       // the compact form
         (1, 4), (u32::from(b'r'), 8), // role: length, bytes
         (0, 16),                      // pan_id
         (0, 5),                       // channel 11 (11 + 0)
@@ -115,7 +115,7 @@ fn the_payload_of_an_empty_table_bit_by_bit() {
     fields.push((1, 1)); // alarms: none
     let want = bits(&fields);
     assert_eq!(p, want);
-    assert_eq!(p, [0x43, 0x0E, 0x00, 0x00, 0x8C, 0x1F, 0x11, 0xC0, 0x02]);
+    assert_eq!(p, [0x42, 0x0E, 0x00, 0x00, 0x8C, 0x1F, 0x11, 0xC0, 0x02]);
     assert_eq!(decode(&seal(&want, 9)).map(|t| t.generation), Ok(9));
 }
 
@@ -136,7 +136,7 @@ fn an_output_is_pin_fault_start_home() {
     let outputs = |fault_of_first: u32| {
         #[rustfmt::skip]
         let fields = vec![
-            (1, 1), (1, 4), (u32::from(b'r'), 8), (0, 16), (0, 5), // form, role, pan, channel
+            (0, 1), (1, 4), (u32::from(b'r'), 8), (0, 16), (0, 5), // form, role, pan, channel
             (1, 1), (1, 1),      // events, vars
             (4, 3),              // pin width 4 (pins up to 10)
             (1, 1),              // inputs: none
@@ -283,15 +283,9 @@ fn payload_errors() {
         decode(&seal(&q, 0))
     };
     let payload_error = |e| Err(DecodeError::Payload(e));
-    // The first byte of the raw form is zero; bit 0 clear with another set is no form.
-    assert_eq!(
-        case(&|q| q[0] = 0x02),
-        payload_error(PackError::Value("form"))
-    );
-    assert!(matches!(
-        case(&|q| q[0] = 0),
-        Err(DecodeError::Payload(PackError::Raw(_)))
-    ));
+    // The wide form (bit 0 set) reads the same bits otherwise: here the channel is 8 bits
+    // wide and the stream ends early.
+    assert_eq!(case(&|q| q[0] |= 1), payload_error(PackError::End));
     // The payload ends early.
     assert_eq!(
         case(&|q| q.truncate(q.len() - 1)),
@@ -319,7 +313,7 @@ fn payload_errors() {
     // 33 variables: over MAX_VARS (32) while decoding. The count is bit 35 (after the
     // form, role, pan and channel, and the events' gamma code); gamma(33) is 00000100010.
     let mut fields = vec![
-        (1, 1),
+        (0, 1),
         (1, 4),
         (u32::from(b'r'), 8),
         (0, 16),
@@ -396,11 +390,11 @@ fn semantic_errors_come_after_the_envelope_and_payload_checks() {
     b2[HEADER_LEN] ^= 1;
     assert!(matches!(decode(&b2), Err(DecodeError::Crc { .. })));
     t.events = 7;
-    // A reference past its count cannot be packed: the table goes in the raw form, and
-    // the validator names the problem.
+    // A reference past its count does not fit the compact form: the table goes in the
+    // wide form, and the validator names the problem.
     t.routes[0].chart = 2;
-    assert!(!config_schema::pack::is_packed(&t));
-    assert_eq!(payload(&blob(&t))[0], 0, "the raw form");
+    assert!(!config_schema::pack::is_compact(&t));
+    assert_eq!(payload(&blob(&t))[0] & 1, 1, "the wide form");
     assert_eq!(
         decode(&blob(&t)),
         Err(DecodeError::Invalid(Invalid::Chart {
@@ -429,4 +423,39 @@ fn errors_display_readably() {
     for (e, s) in shown {
         assert_eq!(e.to_string(), s);
     }
+}
+
+/// Tables the compact form cannot hold (invalid ones) take the wide form and come back
+/// exactly, so `decode` hands the validator the table that was encoded.
+#[test]
+fn the_wide_form_holds_any_table() {
+    use config_schema::pack;
+    let mutations: [&dyn Fn(&mut Table); 8] = [
+        &|t| t.routes[0].chart = 2,
+        &|t| t.header.channel = 200,
+        &|t| t.inputs[0].pin = 200,
+        &|t| t.charts[0].states_end = 9,
+        &|t| t.states[0].actions_end = 200,
+        &|t| t.transitions[0].guard = Some(config_schema::Expr { start: 250, len: 0 }),
+        &|t| {
+            t.actions[0] = config_schema::Action::Drive {
+                mask: 0xFFFF,
+                value: 0x8001,
+            }
+        },
+        &|t| t.code[0] = Op::Var(200),
+    ];
+    for (i, mutate) in mutations.iter().enumerate() {
+        let mut t = realistic();
+        mutate(&mut t);
+        assert!(!pack::is_compact(&t), "mutation {i}");
+        let p = payload(&blob(&t));
+        assert_eq!(p[0] & 1, 1, "mutation {i}: the wide form");
+        let (back, left) = pack::decode(&p).expect("decodes");
+        assert_eq!(left, 0);
+        t.generation = 0;
+        assert_eq!(back, t, "mutation {i}");
+    }
+    // A valid table takes the compact form.
+    assert!(pack::is_compact(&realistic()));
 }

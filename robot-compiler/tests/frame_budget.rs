@@ -37,7 +37,7 @@ fn where_the_bytes_of_each_role_go_and_the_frames_it_takes() {
     for t in &c.tables {
         let mut m = [0usize; SECTIONS.len()];
         let mut buf = [0u8; 4096];
-        let n = pack::encode_packed(t, &mut buf, Some(&mut m)).expect("packs");
+        let n = pack::encode_form(t, &mut buf, Some(&mut m), false).expect("compact");
         assert_eq!(n, m[SECTIONS.len() - 1].div_ceil(8));
         marks.push(m);
     }

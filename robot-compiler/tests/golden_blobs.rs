@@ -64,11 +64,11 @@ fn current() -> String {
         let name = root().join(&file).display().to_string();
         match compile(&Source::new(name, text)) {
             Ok(c) => {
-                // Every compiled table takes the packed form, none the raw (postcard) one.
+                // Every compiled table takes the compact form, none the wide one.
                 for (role, t) in c.ir.roles.iter().zip(&c.tables) {
                     assert!(
-                        config_schema::pack::is_packed(t),
-                        "{file} {}: not packed",
+                        config_schema::pack::is_compact(t),
+                        "{file} {}: not compact",
                         role.name
                     );
                 }
