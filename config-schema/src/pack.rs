@@ -175,6 +175,7 @@ struct Reader<'a> {
 }
 
 impl Reader<'_> {
+    #[inline(never)]
     fn get(&mut self, width: u32) -> R<u32> {
         let mut v = 0u32;
         for i in 0..width.min(32) {
@@ -187,15 +188,18 @@ impl Reader<'_> {
         Ok(v)
     }
 
+    #[inline(never)]
     fn u8(&mut self, width: u32) -> R<u8> {
         u8::try_from(self.get(width)?).map_err(|_| PackError::Value("byte"))
     }
 
+    #[inline(never)]
     fn flag(&mut self) -> R<bool> {
         Ok(self.get(1)? != 0)
     }
 
     /// A gamma code (at most 32 bits after the leading one).
+    #[inline(never)]
     fn gamma(&mut self) -> R<u64> {
         let mut tail = 0u32;
         while !self.flag()? {
@@ -211,16 +215,19 @@ impl Reader<'_> {
         Ok(v - 1)
     }
 
+    #[inline(never)]
     fn count(&mut self) -> R<usize> {
         usize::try_from(self.gamma()?).map_err(|_| PackError::Value("count"))
     }
 
+    #[inline(never)]
     fn sv(&mut self) -> R<i32> {
         let z = u32::try_from(self.gamma()?).map_err(|_| PackError::Value("constant"))?;
         Ok(((z >> 1) as i32) ^ -((z & 1) as i32))
     }
 
     /// An optional reference (`0`: none, `n + 1`: `Some(n)`) `width` wide.
+    #[inline(never)]
     fn opt(&mut self, width: u32) -> R<Option<u8>> {
         let v = self.get(width)?;
         match v.checked_sub(1) {
@@ -413,6 +420,7 @@ impl Writer<'_> {
 }
 
 impl Reader<'_> {
+    #[inline(never)]
     fn event(&mut self, seen: &mut Seen, wd: &Widths) -> R<u8> {
         let e = if self.flag()? {
             seen.fresh()
@@ -423,6 +431,7 @@ impl Reader<'_> {
         Ok(e)
     }
 
+    #[inline(never)]
     fn event_opt(&mut self, seen: &mut Seen, wd: &Widths) -> R<Option<u8>> {
         let e = if self.flag()? {
             Some(seen.fresh())
@@ -487,6 +496,7 @@ fn put_duration(w: &mut Writer, ms: u32) -> R<()> {
     w.gamma(u64::from(m))
 }
 
+#[inline(never)]
 fn get_duration(r: &mut Reader) -> R<u32> {
     let k = r.get(DECADE_BITS)?;
     let m = u32::try_from(r.gamma()?).map_err(|_| PackError::Value("duration"))?;
@@ -512,6 +522,7 @@ fn put_expr(w: &mut Writer, e: Expr, cursor: &mut usize, wd: &Widths) -> R<()> {
     Ok(())
 }
 
+#[inline(never)]
 fn get_expr(r: &mut Reader, cursor: &mut usize, wd: &Widths) -> R<Expr> {
     let start = if r.flag()? {
         u8::try_from(*cursor).map_err(|_| PackError::Value("expression start"))?
@@ -535,6 +546,7 @@ fn level(l: Level) -> u32 {
     }
 }
 
+#[inline(never)]
 fn get_level(r: &mut Reader) -> R<Level> {
     match r.get(2)? {
         0 => Ok(Level::Low),
@@ -578,6 +590,7 @@ fn put_op(w: &mut Writer, op: Op, wd: &Widths) -> R<()> {
     }
 }
 
+#[inline(never)]
 fn get_op(r: &mut Reader, wd: &Widths) -> R<Op> {
     Ok(match r.get(OP_BITS)? {
         0 => Op::Const(r.sv()?),
@@ -664,6 +677,7 @@ fn put_action(w: &mut Writer, a: Action, cx: &mut ActionCtx) -> R<()> {
     }
 }
 
+#[inline(never)]
 fn get_action(r: &mut Reader, cx: &mut ActionCtx) -> R<Action> {
     let wd = cx.wd;
     let short = r.get(2)?;
@@ -699,6 +713,7 @@ fn get_action(r: &mut Reader, cx: &mut ActionCtx) -> R<Action> {
     })
 }
 
+#[inline(never)]
 fn get_u16(r: &mut Reader, width: u32) -> R<u16> {
     u16::try_from(r.get(width)?).map_err(|_| PackError::Value("mask"))
 }
