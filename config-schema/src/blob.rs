@@ -1,31 +1,35 @@
-//! The table blob: a versioned, length-prefixed, CRC-protected envelope around the postcard
-//! encoding of a [`Table`].
+//! The table blob: a versioned, length-prefixed, CRC-protected envelope around the
+//! bit-packed encoding of a [`Table`] ([`crate::pack`]).
 //!
 //! ```text
 //! offset  size  field
-//! 0       4     magic "ECCT"
-//! 4       2     schema version (LE)
-//! 6       4     generation (LE)
-//! 10      2     payload length N (LE)
-//! 12      N     postcard(Table)
-//! 12+N    4     CRC-32/ISO-HDLC over bytes 0..12+N (LE)
+//! 0       1     magic 0xEC
+//! 1       1     schema version
+//! 2       4     generation (LE)
+//! 6       2     payload length N (LE)
+//! 8       N     pack(Table)
+//! 8+N     4     CRC-32/ISO-HDLC over bytes 0..8+N (LE)
 //! ```
 
 use core::fmt;
 
+use crate::pack::{self, PackError};
 use crate::table::Table;
 use crate::validate::{validate, Invalid};
 
-/// First bytes of every blob.
-pub const MAGIC: [u8; 4] = *b"ECCT";
+/// First byte of every blob.
+pub const MAGIC: [u8; 1] = [0xEC];
 /// The schema version this crate reads and writes (2: each output has fault, start and
 /// home levels instead of one safe level; 3: each chart has an idle state besides its
 /// initial one, and the table the events of the HOME command and of its boot; 4: the
 /// table's safety declarations: emergency stop, restart inputs, link alarm policy,
-/// declared alarms).
-pub const SCHEMA_VERSION: u16 = 4;
+/// declared alarms; 5: the bit-packed payload of [`crate::pack`] in an envelope of 12
+/// bytes instead of postcard in one of 16).
+pub const SCHEMA_VERSION: u16 = 5;
 /// Bytes before the payload.
-pub const HEADER_LEN: usize = 12;
+pub const HEADER_LEN: usize = 8;
+/// Offset of the payload length (2 bytes, LE) in the header.
+pub const LENGTH_AT: usize = 6;
 /// Bytes after the payload.
 pub const TRAILER_LEN: usize = 4;
 /// The CRC of the blob (and of an OTA transfer as a whole).
@@ -44,8 +48,8 @@ pub enum DecodeError {
     LengthMismatch { len: usize, expected: usize },
     /// The bytes were damaged.
     Crc { stored: u32, computed: u32 },
-    /// The payload is not a postcard table (or overflows a capacity while decoding).
-    Postcard(postcard::Error),
+    /// The payload is not a packed table (or overflows a capacity while decoding).
+    Payload(PackError),
     /// The payload has bytes left after the table.
     TrailingBytes(usize),
     /// The table decoded but breaks a semantic rule.
@@ -70,7 +74,7 @@ impl fmt::Display for DecodeError {
                 f,
                 "CRC mismatch: stored {stored:#010x}, computed {computed:#010x}"
             ),
-            DecodeError::Postcard(e) => write!(f, "malformed table payload: {e}"),
+            DecodeError::Payload(e) => write!(f, "malformed table payload: {e}"),
             DecodeError::TrailingBytes(n) => write!(f, "{n} bytes left after the table"),
             DecodeError::Invalid(e) => write!(f, "invalid table: {e}"),
         }
@@ -104,18 +108,17 @@ pub fn encode(table: &Table, buf: &mut [u8]) -> Result<usize, EncodeError> {
     let body = buf
         .get_mut(HEADER_LEN..)
         .ok_or(EncodeError::BufferTooSmall)?;
-    let payload_len = postcard::to_slice(table, body)
-        .map_err(|_| EncodeError::BufferTooSmall)?
-        .len();
+    let payload_len = pack::encode(table, body, None).map_err(|_| EncodeError::BufferTooSmall)?;
     let len16 = u16::try_from(payload_len).map_err(|_| EncodeError::TooLarge)?;
     let total = HEADER_LEN + payload_len + TRAILER_LEN;
     if buf.len() < total {
         return Err(EncodeError::BufferTooSmall);
     }
-    buf[0..4].copy_from_slice(&MAGIC);
-    buf[4..6].copy_from_slice(&SCHEMA_VERSION.to_le_bytes());
-    buf[6..10].copy_from_slice(&table.generation.to_le_bytes());
-    buf[10..12].copy_from_slice(&len16.to_le_bytes());
+    let version = u8::try_from(SCHEMA_VERSION).map_err(|_| EncodeError::TooLarge)?;
+    buf[0] = MAGIC[0];
+    buf[1] = version;
+    buf[2..6].copy_from_slice(&table.generation.to_le_bytes());
+    buf[LENGTH_AT..HEADER_LEN].copy_from_slice(&len16.to_le_bytes());
     let crc = CRC32.checksum(&buf[..HEADER_LEN + payload_len]);
     buf[HEADER_LEN + payload_len..total].copy_from_slice(&crc.to_le_bytes());
     Ok(total)
@@ -139,15 +142,15 @@ pub fn envelope(bytes: &[u8]) -> Result<Envelope, DecodeError> {
             need,
         });
     }
-    if bytes[0..4] != MAGIC {
+    if bytes[0..1] != MAGIC {
         return Err(DecodeError::BadMagic);
     }
-    let version = u16::from_le_bytes([bytes[4], bytes[5]]);
+    let version = u16::from(bytes[1]);
     if version != SCHEMA_VERSION {
         return Err(DecodeError::UnsupportedVersion(version));
     }
-    let generation = u32::from_le_bytes([bytes[6], bytes[7], bytes[8], bytes[9]]);
-    let payload_len = usize::from(u16::from_le_bytes([bytes[10], bytes[11]]));
+    let generation = u32::from_le_bytes([bytes[2], bytes[3], bytes[4], bytes[5]]);
+    let payload_len = usize::from(u16::from_le_bytes([bytes[6], bytes[7]]));
     let expected = HEADER_LEN + payload_len + TRAILER_LEN;
     if bytes.len() < expected {
         return Err(DecodeError::Truncated {
@@ -184,10 +187,9 @@ pub fn envelope(bytes: &[u8]) -> Result<Envelope, DecodeError> {
 pub fn decode(bytes: &[u8]) -> Result<Table, DecodeError> {
     let env = envelope(bytes)?;
     let payload = &bytes[HEADER_LEN..HEADER_LEN + env.payload_len];
-    let (mut table, rest): (Table, _) =
-        postcard::take_from_bytes(payload).map_err(DecodeError::Postcard)?;
-    if !rest.is_empty() {
-        return Err(DecodeError::TrailingBytes(rest.len()));
+    let (mut table, rest) = pack::decode(payload).map_err(DecodeError::Payload)?;
+    if rest != 0 {
+        return Err(DecodeError::TrailingBytes(rest));
     }
     table.generation = env.generation;
     validate(&table).map_err(DecodeError::Invalid)?;

@@ -7,7 +7,8 @@
 //! - [`guard`]: the expression bytecode of guards and assignments.
 //! - [`validate`]: semantic checks of a decoded table; [`cost`]: the worst-case work of one
 //!   stimulus, which it bounds.
-//! - [`blob`]: the versioned, CRC-protected envelope, [`encode`] and [`decode`].
+//! - [`blob`]: the versioned, CRC-protected envelope, [`encode`] and [`decode`]; [`pack`]:
+//!   the bit-packed payload inside it.
 //! - [`alarm`]: alarms a node latches, and the table's safety declarations.
 //! - [`link_keys`]: the link key block that follows a blob in a secured transfer.
 #![no_std]
@@ -19,6 +20,7 @@ pub mod cost;
 pub mod guard;
 pub mod limits;
 pub mod link_keys;
+pub mod pack;
 pub mod table;
 pub mod validate;
 pub mod wire;

@@ -23,7 +23,7 @@ use core::fmt;
 
 use heapless::Vec;
 
-use crate::blob::{self, CRC32, HEADER_LEN, TRAILER_LEN};
+use crate::blob::{self, CRC32, HEADER_LEN, LENGTH_AT, TRAILER_LEN};
 use crate::limits::MAX_PEERS;
 use crate::table::Table;
 use crate::wire::security::KEY_LEN;
@@ -241,7 +241,10 @@ pub fn split(bytes: &[u8]) -> Result<(&[u8], &[u8]), DecodeError> {
         len: bytes.len(),
         need: HEADER_LEN + TRAILER_LEN,
     })?;
-    let payload_len = usize::from(u16::from_le_bytes([head[10], head[11]]));
+    let payload_len = usize::from(u16::from_le_bytes([
+        head.get(LENGTH_AT).copied().unwrap_or(0),
+        head.get(LENGTH_AT + 1).copied().unwrap_or(0),
+    ]));
     let blob_len = HEADER_LEN + payload_len + TRAILER_LEN;
     if bytes.len() < blob_len {
         return Err(DecodeError::Truncated {

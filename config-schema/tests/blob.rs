@@ -5,8 +5,9 @@ mod common;
 
 use common::{blob, payload, realistic, seal};
 use config_schema::blob::{envelope, Envelope, CRC32, HEADER_LEN, MAGIC, TRAILER_LEN};
+use config_schema::pack::PackError;
 use config_schema::{
-    decode, encode, DecodeError, EncodeError, Invalid, Level, Output, Place, Table,
+    decode, encode, DecodeError, EncodeError, Invalid, Level, Op, Output, Place, Table,
 };
 
 #[test]
@@ -30,21 +31,22 @@ fn the_envelope_layout_is_exact() {
     let t = realistic();
     let b = blob(&t);
     let n = b.len() - HEADER_LEN - TRAILER_LEN;
-    assert_eq!(&b[0..4], b"ECCT");
-    assert_eq!(MAGIC, *b"ECCT");
-    assert_eq!(&b[4..6], &[4, 0], "schema version 4, little-endian");
+    assert_eq!(HEADER_LEN + TRAILER_LEN, 12);
+    assert_eq!(b[0], 0xEC);
+    assert_eq!(MAGIC, [0xEC]);
+    assert_eq!(b[1], 5, "schema version 5");
     assert_eq!(
-        &b[6..10],
+        &b[2..6],
         &[0x04, 0x03, 0x02, 0x01],
         "generation, little-endian"
     );
-    assert_eq!(usize::from(u16::from_le_bytes([b[10], b[11]])), n);
+    assert_eq!(usize::from(u16::from_le_bytes([b[6], b[7]])), n);
     let crc = CRC32.checksum(&b[..HEADER_LEN + n]);
     assert_eq!(&b[HEADER_LEN + n..], &crc.to_le_bytes());
     assert_eq!(
         envelope(&b),
         Ok(Envelope {
-            version: 4,
+            version: 5,
             generation: 0x0102_0304,
             payload_len: n,
             crc,
@@ -54,30 +56,71 @@ fn the_envelope_layout_is_exact() {
     assert_eq!(CRC32.checksum(b"123456789"), 0xCBF4_3926);
 }
 
+/// Fields `(value, width)` packed least significant bit first, the last byte padded with
+/// zero bits: what `config_schema::pack` writes.
+fn bits(fields: &[(u32, u32)]) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut at = 0usize;
+    for &(value, width) in fields {
+        assert!(
+            width == 32 || value >> width == 0,
+            "{value} in {width} bits"
+        );
+        for i in 0..width {
+            if at.is_multiple_of(8) {
+                out.push(0);
+            }
+            if (value >> i) & 1 != 0 {
+                *out.last_mut().unwrap() |= 1 << (at % 8);
+            }
+            at += 1;
+        }
+    }
+    out
+}
+
+/// Fields of an empty table for role "r" after the role (`Table::empty`): every count
+/// zero, as one-bit gamma codes.
+#[rustfmt::skip]
+const EMPTY_REST: [(u32, u32); 20] = [
+    (1, 1),          // events: gamma(0)
+    (1, 1),          // vars: none
+    (0, 3),          // pin width 0
+    (1, 1),          // inputs: none
+    (1, 1),          // outputs: none
+    (1, 1), (1, 1),  // timers, durations: none
+    (1, 1),          // code: none
+    (1, 1),          // charts: none
+    (0, 3),          // width of the states' action counts: 0
+    (1, 1),          // routes: none
+    (0, 1), (0, 1), (0, 1), // start, home, boot: not fresh, None (0 bits: one event value)
+    (1, 1), (0, 5),  // peers: none, address width 0
+    (0, 4), (1, 1),  // topic width 0, publications: none
+    (1, 1),          // subscriptions: none
+    (0, 1),          // safety: estop None (0 bits), link_fault false, restart (0 bits)
+];
+
 #[test]
-fn the_payload_of_an_empty_table_is_postcard_field_by_field() {
+fn the_payload_of_an_empty_table_bit_by_bit() {
     let t = Table::empty("r");
     let p = payload(&blob(&t));
     #[rustfmt::skip]
-    let want = [
-        1, b'r', // role: length, bytes
-        0,       // pan_id (varint)
-        11,      // channel
-        0,       // events
-        0,       // start: None
-        0,       // home: None
-        0,       // boot: None
-        0, 0, 0, 0, // vars, inputs, outputs, timers: empty
-        0, 0, 0, 0, // charts, states, transitions, actions
-        0, 0, 0, 0, 0, // code, routes, peers, publications, subscriptions
-        0, 0, 0, 0,    // safety: estop None, link_fault false, restart 0, alarms empty
+    let mut fields = vec![
+        (0, 1),                       // the compact form
+        (1, 4), (u32::from(b'r'), 8), // role: length, bytes
+        (0, 16),                      // pan_id
+        (0, 5),                       // channel 11 (11 + 0)
     ];
+    fields.extend_from_slice(&EMPTY_REST);
+    fields.push((1, 1)); // alarms: none
+    let want = bits(&fields);
     assert_eq!(p, want);
+    assert_eq!(p, [0x42, 0x0E, 0x00, 0x00, 0x8C, 0x1F, 0x11, 0xC0, 0x02]);
     assert_eq!(decode(&seal(&want, 9)).map(|t| t.generation), Ok(9));
 }
 
-/// An output is its pin, its fault and start levels (`Low` 0, `High` 1, `Hold` 2) and its
-/// home level (a bool).
+/// An output is its pin (as wide as the table's largest pin needs), its fault and start
+/// levels (`Low` 0, `High` 1, `Hold` 2, two bits) and its home level (a bit).
 #[test]
 fn an_output_is_pin_fault_start_home() {
     let mut t = Table::empty("r");
@@ -90,27 +133,30 @@ fn an_output_is_pin_fault_start_home() {
     t.outputs.push(gripper).unwrap();
     t.outputs.push(Output::safe(10, true)).unwrap();
     let p = payload(&blob(&t));
-    #[rustfmt::skip]
-    let want = [
-        1, b'r', 0, 11, 0, 0, // role, pan_id, channel, events, start
-        0, 0,                 // home, boot
-        0,                    // vars
-        0,                    // inputs
-        2,                    // outputs: two
-        9, 2, 0, 0,           //   pin 9, fault Hold, start Low, home low
-        10, 1, 1, 1,          //   pin 10, High, High, high
-        0, 0, 0, 0, 0, 0, 0, 0, 0, 0, // timers .. subscriptions
-        0, 0, 0, 0,           // safety: none
-    ];
+    let outputs = |fault_of_first: u32| {
+        #[rustfmt::skip]
+        let fields = vec![
+            (0, 1), (1, 4), (u32::from(b'r'), 8), (0, 16), (0, 5), // form, role, pan, channel
+            (1, 1), (1, 1),      // events, vars
+            (4, 3),              // pin width 4 (pins up to 10)
+            (1, 1),              // inputs: none
+            (0b110, 3),          // outputs: gamma(2): 0, 1, then 1
+            (9, 4), (fault_of_first, 2), (0, 2), (0, 1), // pin 9, Hold, Low, low
+            (10, 4), (1, 2), (1, 2), (1, 1),             // pin 10, High, High, high
+        ];
+        let mut fields = fields;
+        fields.extend_from_slice(&EMPTY_REST[5..]);
+        fields.push((1, 1)); // alarms: none
+        bits(&fields)
+    };
+    let want = outputs(2);
     assert_eq!(p, want);
     assert_eq!(decode(&seal(&want, 0)), Ok(t));
     // A level past `Hold` is not a level.
-    let mut bad = want;
-    bad[12] = 3;
-    assert!(matches!(
-        decode(&seal(&bad, 1)),
-        Err(DecodeError::Postcard(_))
-    ));
+    assert_eq!(
+        decode(&seal(&outputs(3), 1)),
+        Err(DecodeError::Payload(PackError::Value("level")))
+    );
 }
 
 #[test]
@@ -135,7 +181,7 @@ fn bad_magic() {
     b[0] = b'X';
     assert_eq!(decode(&b), Err(DecodeError::BadMagic));
     let mut b = blob(&realistic());
-    b[3] ^= 0x01;
+    b[0] ^= 0x01;
     assert_eq!(decode(&b), Err(DecodeError::BadMagic));
 }
 
@@ -143,18 +189,18 @@ fn bad_magic() {
 fn unsupported_version() {
     let mut b = blob(&realistic());
     // Version 1: one safe level per output, not read by this build; version 2: no idle
-    // states, no HOME event; version 3: no safety declarations.
-    b[4] = 1;
+    // states, no HOME event; version 3: no safety declarations; version 4: postcard.
+    b[1] = 1;
     assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(1)));
-    b[4] = 2;
+    b[1] = 2;
     assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(2)));
-    b[4] = 3;
+    b[1] = 3;
     assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(3)));
-    b[4] = 5;
-    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(5)));
-    b[4] = 0;
-    b[5] = 1;
-    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(256)));
+    // Version 4: postcard in a 16-byte envelope (its version sat at bytes 4..6).
+    b[1] = 4;
+    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(4)));
+    b[1] = 6;
+    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(6)));
 }
 
 #[test]
@@ -162,14 +208,14 @@ fn truncated() {
     let b = blob(&realistic());
     let n = b.len();
     // Shorter than an envelope.
-    for len in [0, 1, 15] {
+    for len in [0, 1, 11] {
         assert_eq!(
             decode(&b[..len]),
-            Err(DecodeError::Truncated { len, need: 16 })
+            Err(DecodeError::Truncated { len, need: 12 })
         );
     }
     // Shorter than the envelope says.
-    for len in [16, n - 4, n - 1] {
+    for len in [12, n - 4, n - 1] {
         assert_eq!(
             decode(&b[..len]),
             Err(DecodeError::Truncated { len, need: n })
@@ -191,8 +237,8 @@ fn length_mismatch() {
     );
     // The header's length field says one byte less than the blob has.
     let mut b = blob(&realistic());
-    let len = u16::from_le_bytes([b[10], b[11]]) - 1;
-    b[10..12].copy_from_slice(&len.to_le_bytes());
+    let len = u16::from_le_bytes([b[6], b[7]]) - 1;
+    b[6..8].copy_from_slice(&len.to_le_bytes());
     assert_eq!(
         decode(&b),
         Err(DecodeError::LengthMismatch {
@@ -208,7 +254,7 @@ fn crc_mismatch() {
     let n = good.len();
     let stored = u32::from_le_bytes(good[n - 4..].try_into().unwrap());
     // A payload bit, a generation bit, a CRC bit.
-    for (at, bit) in [(HEADER_LEN + 3, 0x10), (7, 0x01), (n - 1, 0x80)] {
+    for (at, bit) in [(HEADER_LEN + 3, 0x10), (3, 0x01), (n - 1, 0x80)] {
         let mut b = good.clone();
         b[at] ^= bit;
         let stored_now = u32::from_le_bytes(b[n - 4..].try_into().unwrap());
@@ -229,75 +275,93 @@ fn crc_mismatch() {
 }
 
 #[test]
-fn postcard_errors() {
+fn payload_errors() {
     let p = payload(&blob(&Table::empty("r")));
     let case = |f: &dyn Fn(&mut Vec<u8>)| {
         let mut q = p.clone();
         f(&mut q);
         decode(&seal(&q, 0))
     };
-    use postcard::Error::*;
+    let payload_error = |e| Err(DecodeError::Payload(e));
+    // The wide form (bit 0 set) reads the same bits otherwise: here the channel is 8 bits
+    // wide and the stream ends early.
+    assert_eq!(case(&|q| q[0] |= 1), payload_error(PackError::End));
     // The payload ends early.
     assert_eq!(
         case(&|q| q.truncate(q.len() - 1)),
-        Err(DecodeError::Postcard(DeserializeUnexpectedEnd))
+        payload_error(PackError::End)
     );
-    assert_eq!(
-        case(&|q| q.clear()),
-        Err(DecodeError::Postcard(DeserializeUnexpectedEnd))
-    );
-    // `start` is an Option: tag 2 is neither None nor Some.
-    assert_eq!(
-        case(&|q| q[5] = 2),
-        Err(DecodeError::Postcard(DeserializeBadOption))
-    );
-    // The role is not UTF-8.
-    assert_eq!(
-        case(&|q| q[1] = 0xFF),
-        Err(DecodeError::Postcard(DeserializeBadUtf8))
-    );
-    // pan_id varint that never ends (u16 takes at most 3 bytes).
+    assert_eq!(case(&|q| q.clear()), payload_error(PackError::End));
+    // The role is not UTF-8: its byte is bits 5..13.
     assert_eq!(
         case(&|q| {
-            q.splice(2..3, [0x80, 0x80, 0x80, 0x01]);
+            q[0] |= 0xE0;
+            q[1] |= 0x1F;
         }),
-        Err(DecodeError::Postcard(DeserializeBadVarint))
+        payload_error(PackError::Utf8)
     );
-    // A role longer than its 12-byte capacity.
+    // A role longer than its 12-byte capacity (the length field is bits 1..5).
     assert_eq!(
-        case(&|q| {
-            q.splice(0..2, std::iter::once(13).chain(*b"ABCDEFGHIJKLM"));
-        }),
-        Err(DecodeError::Postcard(SerdeDeCustom))
+        case(&|q| q[0] = (q[0] & 0xE1) | (13 << 1)),
+        payload_error(PackError::Capacity("role"))
     );
-    // 33 variables: over MAX_VARS (32) while decoding.
+    // A padding bit set (the payload is 66 bits: bit 2 of the last byte on are padding).
     assert_eq!(
-        case(&|q| {
-            q.splice(8..9, std::iter::once(33).chain([0; 33]));
-        }),
-        Err(DecodeError::Postcard(SerdeDeCustom))
+        case(&|q| *q.last_mut().unwrap() |= 0x80),
+        payload_error(PackError::Value("padding"))
+    );
+    // 33 variables: over MAX_VARS (32) while decoding. The count is bit 35 (after the
+    // form, role, pan and channel, and the events' gamma code); gamma(33) is 00000100010.
+    let mut fields = vec![
+        (0, 1),
+        (1, 4),
+        (u32::from(b'r'), 8),
+        (0, 16),
+        (0, 5),
+        (1, 1),
+    ];
+    fields.extend([(0, 5), (1, 1), (0b00010, 5)]);
+    fields.extend([(1, 1); 33]);
+    let mut q = bits(&fields);
+    q.extend_from_slice(&[0; 8]);
+    assert_eq!(
+        decode(&seal(&q, 0)),
+        payload_error(PackError::Capacity("vars"))
     );
 }
 
 #[test]
-fn postcard_rejects_an_unknown_action_variant() {
-    // One chart with one state whose action is Fault(9); Action::Fault is variant 6.
+fn an_unknown_operation_is_refused() {
+    // One expression of one operation: `Const(0)` is code 0; 18 and over are no
+    // operation.
     let mut t = Table::empty("r");
-    t.push_chart(0, 0, &[&[config_schema::Action::Fault(9)]], &[])
+    t.push_expr(&[Op::Const(0)]).unwrap();
+    t.safety
+        .alarms
+        .push(config_schema::alarm::AlarmDecl {
+            level: config_schema::alarm::AlarmLevel::Info,
+            when: config_schema::Expr { start: 0, len: 1 },
+        })
         .unwrap();
     let p = payload(&blob(&t));
-    let at = p
-        .windows(2)
-        .position(|w| w == [6, 9])
-        .expect("Fault(9) in the payload");
+    assert_eq!(decode(&seal(&p, 0)), Ok(t));
+    // The code pool's count (gamma(1): 0, 1, 0) is at bit 43, its operation at bit 46.
+    let code_at = 1 + 33 + 1 + 1 + 3 + 1 + 1 + 1 + 1;
+    let get = |q: &[u8], at: usize| (q[at / 8] >> (at % 8)) & 1;
+    assert_eq!(
+        (0..3).map(|i| get(&p, code_at + i)).collect::<Vec<_>>(),
+        [0, 1, 0]
+    );
     let mut q = p.clone();
-    q[at] = 7;
+    // 18 = 0b10010, least significant bit first.
+    for (i, b) in [0, 1, 0, 0, 1].into_iter().enumerate() {
+        let at = code_at + 3 + i;
+        q[at / 8] = (q[at / 8] & !(1 << (at % 8))) | (b << (at % 8));
+    }
     assert_eq!(
         decode(&seal(&q, 0)),
-        // serde's derived visitor reports an unknown variant index as a custom error.
-        Err(DecodeError::Postcard(postcard::Error::SerdeDeCustom))
+        Err(DecodeError::Payload(PackError::Value("operation")))
     );
-    assert_eq!(decode(&seal(&p, 0)), Ok(t));
 }
 
 #[test]
@@ -326,7 +390,11 @@ fn semantic_errors_come_after_the_envelope_and_payload_checks() {
     b2[HEADER_LEN] ^= 1;
     assert!(matches!(decode(&b2), Err(DecodeError::Crc { .. })));
     t.events = 7;
+    // A reference past its count does not fit the compact form: the table goes in the
+    // wide form, and the validator names the problem.
     t.routes[0].chart = 2;
+    assert!(!config_schema::pack::is_compact(&t));
+    assert_eq!(payload(&blob(&t))[0] & 1, 1, "the wide form");
     assert_eq!(
         decode(&blob(&t)),
         Err(DecodeError::Invalid(Invalid::Chart {
@@ -340,8 +408,8 @@ fn semantic_errors_come_after_the_envelope_and_payload_checks() {
 fn errors_display_readably() {
     let shown = [
         (
-            DecodeError::Truncated { len: 3, need: 16 },
-            "truncated blob: 3 bytes, need 16",
+            DecodeError::Truncated { len: 3, need: 12 },
+            "truncated blob: 3 bytes, need 12",
         ),
         (DecodeError::BadMagic, "not a table blob (bad magic)"),
         (
@@ -355,4 +423,39 @@ fn errors_display_readably() {
     for (e, s) in shown {
         assert_eq!(e.to_string(), s);
     }
+}
+
+/// Tables the compact form cannot hold (invalid ones) take the wide form and come back
+/// exactly, so `decode` hands the validator the table that was encoded.
+#[test]
+fn the_wide_form_holds_any_table() {
+    use config_schema::pack;
+    let mutations: [&dyn Fn(&mut Table); 8] = [
+        &|t| t.routes[0].chart = 2,
+        &|t| t.header.channel = 200,
+        &|t| t.inputs[0].pin = 200,
+        &|t| t.charts[0].states_end = 9,
+        &|t| t.states[0].actions_end = 200,
+        &|t| t.transitions[0].guard = Some(config_schema::Expr { start: 250, len: 0 }),
+        &|t| {
+            t.actions[0] = config_schema::Action::Drive {
+                mask: 0xFFFF,
+                value: 0x8001,
+            }
+        },
+        &|t| t.code[0] = Op::Var(200),
+    ];
+    for (i, mutate) in mutations.iter().enumerate() {
+        let mut t = realistic();
+        mutate(&mut t);
+        assert!(!pack::is_compact(&t), "mutation {i}");
+        let p = payload(&blob(&t));
+        assert_eq!(p[0] & 1, 1, "mutation {i}: the wide form");
+        let (back, left) = pack::decode(&p).expect("decodes");
+        assert_eq!(left, 0);
+        t.generation = 0;
+        assert_eq!(back, t, "mutation {i}");
+    }
+    // A valid table takes the compact form.
+    assert!(pack::is_compact(&realistic()));
 }

@@ -69,7 +69,7 @@ proptest! {
                 prop_assert!(
                     matches!(
                         e,
-                        DecodeError::Postcard(_)
+                        DecodeError::Payload(_)
                             | DecodeError::TrailingBytes(_)
                             | DecodeError::Invalid(_)
                     ),
@@ -99,12 +99,16 @@ fn mutations_reach_the_parser_the_validator_and_the_interpreter() {
                 ok += 1
             }
             Err(DecodeError::Invalid(_)) => invalid += 1,
-            Err(DecodeError::Postcard(_) | DecodeError::TrailingBytes(_)) => postcard += 1,
+            Err(DecodeError::Payload(_) | DecodeError::TrailingBytes(_)) => postcard += 1,
             Err(e) => panic!("envelope error on a resealed blob: {e:?}"),
         }
     }
     println!("of {n} mutated blobs: {postcard} rejected by the parser, {invalid} by the validator, {ok} decode");
     assert!(postcard >= n / 10, "parser: {postcard}");
-    assert!(invalid >= n / 10, "validator: {invalid}");
+    // The packed payload (schema 5) has fewer invalid tables to reach: a reference is as
+    // wide as its count, so most out-of-range values cannot be written at all, and a
+    // mutated flag or count shifts every field after it, which the parser mostly refuses
+    // (about 5 % reach the validator; over 10 % did under postcard's byte-aligned fields).
+    assert!(invalid >= n / 25, "validator: {invalid}");
     assert!(ok >= n / 20, "decoded: {ok}");
 }

@@ -92,11 +92,17 @@ fn compile_writes_one_blob_per_role_and_a_summary_line_each() {
             "{}",
             lines[i]
         );
+        let frames = match blob.len().div_ceil(88) {
+            1 => "one frame".to_string(),
+            n => format!("{n} frames"),
+        };
         assert!(
-            lines[i].ends_with(&format!("bytes {:>4}", blob.len())),
+            lines[i].ends_with(&format!("bytes {:>4} of 88: {frames}", blob.len())),
             "{}",
             lines[i]
         );
+        // GR, HC and RC fit one frame's chunk; VC takes two (docs/table-format.md, "Size").
+        assert_eq!(blob.len() <= 88, *role != "VC", "{}", lines[i]);
     }
     assert_eq!(lines[4], "radio publications per cycle: 9");
 

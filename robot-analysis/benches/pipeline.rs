@@ -1,6 +1,7 @@
 //! config-tool performance: compile time of the paint robot and of a generated
 //! 8-actuator, 64-step sequence; simulated cycles per wall second of the paint robot; the
-//! paint robot's blob sizes (target: one 802.15.4 frame, about 100 bytes, each); `check`
+//! paint robot's blob sizes against one frame's chunk data (`CHUNK_DATA`, 88 bytes; target:
+//! one frame each, docs/table-format.md "Size"); `check`
 //! diagnostics on 5k vs 20k duplicate node addresses (printed ratio: linear scaling).
 
 use std::hint::black_box;
@@ -61,7 +62,13 @@ fn benches(c: &mut Criterion) {
     let compiled = compile(&paint).expect("paint robot compiles");
     let eight_compiled = compile(&eight).expect("8 x 64 compiles");
     for (role, blob) in compiled.ir.roles.iter().zip(&compiled.blobs) {
-        println!("paint-robot blob {}: {} bytes", role.name, blob.len());
+        let chunk = config_schema::wire::msg::CHUNK_DATA;
+        println!(
+            "paint-robot blob {}: {} B of {chunk}: {}",
+            role.name,
+            blob.len(),
+            robot_compiler::compile::frames_text(blob.len().div_ceil(chunk))
+        );
     }
     let largest = eight_compiled.blobs.iter().map(Vec::len).max().unwrap_or(0);
     println!("8 x 64 largest blob: {largest} bytes");

@@ -259,9 +259,9 @@ fn dump_shows_the_decoded_table_and_names_a_bad_blob_clearly() {
     let c = build(&load("fixtures/small-sequence.ron"));
     let text = dump::dump(&c.blobs[1]).expect("dumps");
     let expected = format!(
-        "blob: {} bytes (payload {}), schema 4, generation 0, CRC-32 {:#010x}\n",
+        "blob: {} bytes (payload {}), schema 5, generation 0, CRC-32 {:#010x}\n",
         c.blobs[1].len(),
-        c.blobs[1].len() - 16,
+        c.blobs[1].len() - 12,
         u32::from_le_bytes(c.blobs[1][c.blobs[1].len() - 4..].try_into().expect("4"))
     ) + "role B  generation 0  pan 0x0101  channel 11
 events 10  start -  home -  boot e7
@@ -317,7 +317,7 @@ subscribe p0 topic 2 -> e8
     );
     assert_eq!(
         dump::dump(b"ECCT\x01\x00").expect_err("short").to_string(),
-        "truncated blob: 6 bytes, need 16"
+        "truncated blob: 6 bytes, need 12"
     );
     assert_eq!(
         dump::dump(&[0u8; 20]).expect_err("magic").to_string(),

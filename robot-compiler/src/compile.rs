@@ -154,24 +154,38 @@ pub fn stimulus_lines(c: &Compiled) -> Vec<String> {
         .collect()
 }
 
-/// One summary line per role: node address, charts, states, transitions, blob bytes.
+/// One summary line per role: node address, charts, states, transitions, blob bytes
+/// against the data of one `ConfigChunk` (what one secured frame carries), and the frames
+/// the blob takes.
 pub fn summary(c: &Compiled) -> Vec<String> {
+    use config_schema::wire::msg::CHUNK_DATA;
     c.ir.roles
         .iter()
         .zip(&c.tables)
         .zip(&c.blobs)
         .map(|((r, t), b)| {
+            let frames = b.len().div_ceil(CHUNK_DATA);
             format!(
                 "{:<12} node {:#06x}  charts {}  states {:>3}  transitions {:>3}  stimulus \
-                 {:>5}  bytes {:>4}",
+                 {:>5}  bytes {:>4} of {CHUNK_DATA}: {}",
                 r.name,
                 r.address,
                 t.charts.len(),
                 t.states.len(),
                 t.transitions.len(),
                 config_schema::cost::worst_stimulus(t).cost,
-                b.len()
+                b.len(),
+                frames_text(frames)
             )
         })
         .collect()
+}
+
+/// "one frame", "2 frames".
+pub fn frames_text(frames: usize) -> String {
+    if frames == 1 {
+        "one frame".to_string()
+    } else {
+        format!("{frames} frames")
+    }
 }

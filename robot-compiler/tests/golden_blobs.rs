@@ -64,6 +64,14 @@ fn current() -> String {
         let name = root().join(&file).display().to_string();
         match compile(&Source::new(name, text)) {
             Ok(c) => {
+                // Every compiled table takes the compact form, none the wide one.
+                for (role, t) in c.ir.roles.iter().zip(&c.tables) {
+                    assert!(
+                        config_schema::pack::is_compact(t),
+                        "{file} {}: not compact",
+                        role.name
+                    );
+                }
                 for (role, blob) in c.ir.roles.iter().zip(&c.blobs) {
                     out.push_str(&format!(
                         "{file} {} {} {}\n",

@@ -44,8 +44,8 @@ pub fn payload(blob: &[u8]) -> Vec<u8> {
 /// CRC recomputed), so decoding reaches the payload parser and the validator.
 pub fn seal(payload: &[u8], generation: u32) -> Vec<u8> {
     let mut b = Vec::with_capacity(payload.len() + HEADER_LEN + TRAILER_LEN);
-    b.extend_from_slice(b"ECCT");
-    b.extend_from_slice(&config_schema::SCHEMA_VERSION.to_le_bytes());
+    b.extend_from_slice(&config_schema::blob::MAGIC);
+    b.push(config_schema::SCHEMA_VERSION as u8);
     b.extend_from_slice(&generation.to_le_bytes());
     b.extend_from_slice(&(payload.len() as u16).to_le_bytes());
     b.extend_from_slice(payload);

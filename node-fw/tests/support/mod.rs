@@ -67,6 +67,14 @@ impl<M: Clone> Channel<M> {
 }
 /// A valid table of `generation`: one chart cycling through `states` states (its blob grows
 /// with `states`), and its encoded blob.
+fn gcd(a: usize, b: usize) -> usize {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
+}
+
 pub fn blob(generation: u32, states: usize) -> (Table, Vec<u8>) {
     let mut t = Table::empty("VC");
     t.generation = generation;
@@ -74,15 +82,23 @@ pub fn blob(generation: u32, states: usize) -> (Table, Vec<u8>) {
     t.outputs.push(Output::safe(3, false)).unwrap();
     let drive = [Action::Drive { mask: 1, value: 1 }];
     let actions: Vec<&[Action]> = (0..states).map(|_| &drive[..]).collect();
+    // A ring visited out of order and variables of large initial values, so that the
+    // packed blob (schema 5) still spans several chunks: no field takes its short form.
+    let step = (1..states)
+        .find(|k| gcd(*k, states) == 1 && *k > 1)
+        .unwrap_or(1);
     let transitions: Vec<Transition> = (0..states)
         .map(|s| Transition {
-            from: s as u8,
-            to: ((s + 1) % states) as u8,
+            from: (s * step % states) as u8,
+            to: ((s + 1) * step % states) as u8,
             trigger: Some(0),
             guard: None,
         })
         .collect();
     t.push_chart(0, 1, &actions, &transitions).unwrap();
+    for v in 0..states.min(config_schema::limits::MAX_VARS) {
+        t.vars.push(i32::MIN + v as i32).unwrap();
+    }
     route(&mut t, ev, 0, 0);
     let buf = encoded(&t);
     (t, buf)
