@@ -358,6 +358,8 @@ pub struct Sender<'b> {
     /// When the tool's frames sent so far are off the air ([`Sender::on_air`]).
     air_clear: u64,
     timeouts: u8,
+    /// Timeouts the node answered with a challenge ([`Sender::challenged`]).
+    challenges: u8,
     /// Times the node lost the transfer (`OutOfSequence`) and it started over.
     restarts: u8,
     stats: TransferStats,
@@ -377,6 +379,7 @@ impl<'b> Sender<'b> {
             deadline: 0,
             air_clear: 0,
             timeouts: 0,
+            challenges: 0,
             restarts: 0,
             stats: TransferStats::default(),
         }
@@ -551,6 +554,19 @@ impl<'b> Sender<'b> {
         self.fill(true, &mut send);
         self.stats.retries += self.stats.frames - before;
         self.arm(now);
+    }
+
+    /// The node answered the last message with a challenge (a secured node that does not
+    /// know the tool's frame counter yet; the tool answered it and resent): the node is
+    /// there, so the timeout does not count toward giving up. A lost answer costs a whole
+    /// round (the node challenges again only on a retry, at most once per
+    /// `node::CHALLENGE_MS`), so on a lossy channel this may take many rounds; a node that
+    /// never takes an answer is given up on after [`GIVE_UP_AFTER`] of them more.
+    pub fn challenged(&mut self) {
+        if self.challenges < GIVE_UP_AFTER && self.timeouts > 0 {
+            self.challenges += 1;
+            self.timeouts -= 1;
+        }
     }
 
     /// When [`Sender::poll`] next has work.

@@ -346,3 +346,42 @@ fn an_older_begin_does_not_replace_a_newer_transfer_and_a_staged_one_is_answered
     );
     assert_eq!(rx.receiving(), None);
 }
+
+/// Polls `tx`, the node silent, until it gives up, calling `challenged` after each timeout
+/// `i` the node answered with a challenge (`answered(i)`); returns the timeouts it took
+/// after the first send.
+fn timeouts_until_given_up(tx: &mut Sender, answered: impl Fn(u32) -> bool) -> u32 {
+    let mut now = 0;
+    tx.poll(now, |_| {});
+    for i in 0..1000 {
+        now = tx.deadline();
+        tx.poll(now, |_| {});
+        if tx.progress() == Progress::GaveUp {
+            return i + 1;
+        }
+        if answered(i) {
+            tx.challenged();
+        }
+    }
+    1000
+}
+
+#[test]
+fn a_node_that_challenges_is_not_silent_a_timeout_it_answered_does_not_count() {
+    let (_, bytes) = blob(6, 3);
+    // Silent: gives up after GIVE_UP_AFTER timeouts.
+    let mut silent = Sender::new(&bytes, 6, false);
+    let limit = u32::from(node_fw::ota::GIVE_UP_AFTER);
+    assert_eq!(timeouts_until_given_up(&mut silent, |_| false), limit);
+    // Every other timeout answered by a challenge whose answer was lost: those do not count
+    // toward giving up...
+    let mut half = Sender::new(&bytes, 6, false);
+    assert_eq!(
+        timeouts_until_given_up(&mut half, |i| i % 2 == 0),
+        2 * limit - 1
+    );
+    // ...but a node that challenges forever and never takes an answer is given up on too,
+    // after at most GIVE_UP_AFTER answered timeouts more.
+    let mut always = Sender::new(&bytes, 6, false);
+    assert_eq!(timeouts_until_given_up(&mut always, |_| true), 2 * limit);
+}

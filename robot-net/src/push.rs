@@ -138,6 +138,13 @@ pub fn push(
             }
             until = Instant::now();
         }
+        for challenger in radio.take_challengers() {
+            for (s, t) in senders.iter_mut().zip(targets) {
+                if t.addr == challenger {
+                    s.challenged();
+                }
+            }
+        }
         let now = now_ms();
         for (s, t) in senders.iter_mut().zip(targets) {
             s.poll(now, |m| out.push((t.addr, m)));

@@ -69,6 +69,8 @@ struct Keys {
     /// The last message sent to each node and when, while unanswered: sent again after
     /// answering the node's challenge.
     last_sent: std::collections::HashMap<u16, (Instant, Vec<u8>)>,
+    /// Nodes whose challenge was answered since [`ToolRadio::take_challengers`].
+    challengers: std::collections::BTreeSet<u16>,
 }
 
 /// The tool on the medium.
@@ -108,6 +110,7 @@ impl ToolRadio {
             counter,
             replay: ReplayGuard::new(),
             last_sent: Default::default(),
+            challengers: Default::default(),
         });
     }
 
@@ -210,7 +213,14 @@ impl ToolRadio {
                     let n = Message::ChallengeAnswer { nonce }
                         .emit(&mut answer)
                         .map_err(|_| io::Error::other("challenge answer"))?;
+                    // Twice: a lost answer costs a whole round (the node challenges again
+                    // only when a retry reaches it, at most once per `CHALLENGE_MS`); a
+                    // second copy is one more authentic frame the node ignores.
                     self.send_payload(r.src, &answer[..n])?;
+                    self.send_payload(r.src, &answer[..n])?;
+                    if let Some(k) = self.keys.as_mut() {
+                        k.challengers.insert(r.src);
+                    }
                     // Sent again once, and only if it is still unanswered and recent: a
                     // challenge an attacker provokes later (by replaying a frame) must not
                     // make the tool repeat a command the node already took.
@@ -228,6 +238,14 @@ impl ToolRadio {
                 }
             }
         }
+    }
+
+    /// The nodes that challenged this radio (and were answered) since the last call: they
+    /// are there, even if what was sent to them is not answered yet.
+    pub fn take_challengers(&mut self) -> Vec<u16> {
+        (self.keys.as_mut())
+            .map(|k| std::mem::take(&mut k.challengers).into_iter().collect())
+            .unwrap_or_default()
     }
 
     fn recv_one(&mut self, until: Instant) -> io::Result<Option<Received>> {
@@ -411,7 +429,7 @@ mod tests {
     }
 
     #[test]
-    fn a_challenge_is_answered_and_only_an_unanswered_message_sent_again() {
+    fn a_challenge_is_answered_twice_and_only_an_unanswered_message_sent_again() {
         let medium = medium::Medium::start(medium::Config::default()).unwrap();
         let mut tool = ToolRadio::connect(medium.addr(), TOOL_ADDR).unwrap();
         tool.secure(secret(1), counter_from(0));
@@ -440,7 +458,12 @@ mod tests {
             assert_eq!(r, None);
         }
         let answer = Message::ChallengeAnswer { nonce: 70 };
-        assert_eq!(node_gets(&mut node, 2), [emit(&answer), emit(&start)]);
+        assert_eq!(
+            node_gets(&mut node, 3),
+            [emit(&answer), emit(&answer), emit(&start)]
+        );
+        assert_eq!(tool.take_challengers(), [NODE]);
+        assert_eq!(tool.take_challengers(), []);
         // The node answers; a later challenge (a replay provoked it) repeats nothing.
         node.send(&Link::Frame(&from_node(
             Some(&secret(1)),
@@ -463,7 +486,10 @@ mod tests {
         };
         tool.send(NODE, &marker).unwrap();
         let answer = Message::ChallengeAnswer { nonce: 72 };
-        assert_eq!(node_gets(&mut node, 2), [emit(&answer), emit(&marker)]);
+        assert_eq!(
+            node_gets(&mut node, 3),
+            [emit(&answer), emit(&answer), emit(&marker)]
+        );
         assert_eq!(tool.stats.challenges, 2);
         medium.stop();
     }

@@ -249,7 +249,9 @@ impl Bed {
         self.keys.as_ref().map(|k| &k.secret)
     }
 
-    /// Starts (or restarts) the node process at `addr`.
+    /// Starts (or restarts) the node process at `addr`. Its log goes nowhere unless
+    /// `BED_NODE_LOG` is set in the environment (then to this process's stderr): for
+    /// reading what a node did in a failing end-to-end test.
     pub fn start_node(&mut self, addr: u16) -> Result<(), NetError> {
         self.kill_node(addr);
         let (program, lead) = self
@@ -265,7 +267,11 @@ impl Bed {
             .arg(self.medium.addr().to_string())
             .stdin(Stdio::null())
             .stdout(Stdio::null())
-            .stderr(Stdio::null());
+            .stderr(if std::env::var_os("BED_NODE_LOG").is_some() {
+                Stdio::inherit()
+            } else {
+                Stdio::null()
+            });
         if let Some(dir) = &self.options.flash_dir {
             cmd.arg("--flash")
                 .arg(dir.join(format!("node-{addr:04x}.flash")));
