@@ -71,6 +71,9 @@ struct Keys {
     last_sent: std::collections::HashMap<u16, (Instant, Vec<u8>)>,
     /// Nodes whose challenge was answered since [`ToolRadio::take_challengers`].
     challengers: std::collections::BTreeSet<u16>,
+    /// Nodes whose challenge was answered and that have sent nothing else since: the
+    /// answer was lost, so the next one goes out twice.
+    unheard: std::collections::BTreeSet<u16>,
 }
 
 /// The tool on the medium.
@@ -111,6 +114,7 @@ impl ToolRadio {
             replay: ReplayGuard::new(),
             last_sent: Default::default(),
             challengers: Default::default(),
+            unheard: Default::default(),
         });
     }
 
@@ -213,13 +217,17 @@ impl ToolRadio {
                     let n = Message::ChallengeAnswer { nonce }
                         .emit(&mut answer)
                         .map_err(|_| io::Error::other("challenge answer"))?;
-                    // Twice: a lost answer costs a whole round (the node challenges again
-                    // only when a retry reaches it, at most once per `CHALLENGE_MS`); a
-                    // second copy is one more authentic frame the node ignores.
-                    self.send_payload(r.src, &answer[..n])?;
-                    self.send_payload(r.src, &answer[..n])?;
-                    if let Some(k) = self.keys.as_mut() {
+                    // A lost answer costs a whole round (the node challenges again only
+                    // when a retry reaches it, at most once per `CHALLENGE_MS`): once one
+                    // was lost, the answers to that node go out twice (the second copy is
+                    // an authentic frame the node ignores).
+                    let again = self.keys.as_mut().is_some_and(|k| {
                         k.challengers.insert(r.src);
+                        !k.unheard.insert(r.src)
+                    });
+                    self.send_payload(r.src, &answer[..n])?;
+                    if again {
+                        self.send_payload(r.src, &answer[..n])?;
                     }
                     // Sent again once, and only if it is still unanswered and recent: a
                     // challenge an attacker provokes later (by replaying a frame) must not
@@ -233,6 +241,7 @@ impl ToolRadio {
                     // An answer: what was sent to that node was taken.
                     if let Some(k) = self.keys.as_mut() {
                         k.last_sent.remove(&r.src);
+                        k.unheard.remove(&r.src);
                     }
                     return Ok(Some(r));
                 }
@@ -429,7 +438,8 @@ mod tests {
     }
 
     #[test]
-    fn a_challenge_is_answered_twice_and_only_an_unanswered_message_sent_again() {
+    fn a_challenge_is_answered_twice_once_an_answer_was_lost_and_only_an_unanswered_message_sent_again(
+    ) {
         let medium = medium::Medium::start(medium::Config::default()).unwrap();
         let mut tool = ToolRadio::connect(medium.addr(), TOOL_ADDR).unwrap();
         tool.secure(secret(1), counter_from(0));
@@ -458,10 +468,7 @@ mod tests {
             assert_eq!(r, None);
         }
         let answer = Message::ChallengeAnswer { nonce: 70 };
-        assert_eq!(
-            node_gets(&mut node, 3),
-            [emit(&answer), emit(&answer), emit(&start)]
-        );
+        assert_eq!(node_gets(&mut node, 2), [emit(&answer), emit(&start)]);
         assert_eq!(tool.take_challengers(), [NODE]);
         assert_eq!(tool.take_challengers(), []);
         // The node answers; a later challenge (a replay provoked it) repeats nothing.
@@ -486,11 +493,19 @@ mod tests {
         };
         tool.send(NODE, &marker).unwrap();
         let answer = Message::ChallengeAnswer { nonce: 72 };
-        assert_eq!(
-            node_gets(&mut node, 3),
-            [emit(&answer), emit(&answer), emit(&marker)]
-        );
+        assert_eq!(node_gets(&mut node, 2), [emit(&answer), emit(&marker)]);
         assert_eq!(tool.stats.challenges, 2);
+        // Challenged again with nothing else heard: that answer was lost, this one goes
+        // out twice.
+        node.send(&Link::Frame(&challenge(74, 74))).unwrap();
+        while tool.stats.challenges < 3 && Instant::now() < end {
+            let r = tool
+                .recv(Instant::now() + Duration::from_millis(50))
+                .unwrap();
+            assert_eq!(r, None);
+        }
+        let answer = Message::ChallengeAnswer { nonce: 74 };
+        assert_eq!(node_gets(&mut node, 2), [emit(&answer), emit(&answer)]);
         medium.stop();
     }
 
