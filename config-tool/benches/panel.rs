@@ -12,7 +12,7 @@
 //! `cargo bench -p config-tool --bench panel`
 
 mod support;
-use support::paint_robot;
+use support::{bed_of, paint_robot};
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream};
@@ -22,8 +22,6 @@ use std::time::{Duration, Instant};
 
 use config_schema::wire::medium::{Link, Peer};
 use medium::Conn;
-use robot_net::demo::{Bed, Options};
-use robot_net::live_plant;
 use robot_net::radio::{ToolRadio, TOOL_ADDR};
 use robot_panel::{Listener, Panel};
 
@@ -113,21 +111,7 @@ fn line(name: &str, v: &mut [f64]) -> String {
 
 fn main() {
     let c = paint_robot();
-    let options = Options {
-        medium: medium::Config::default(),
-        node_command: vec![env!("CARGO_BIN_EXE_config-tool").into(), "node".into()],
-        flash_dir: None,
-        timeout: WAIT,
-        secured: true,
-    };
-    let mut bed = Bed::start(options).expect("bed");
-    let addrs: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
-    for a in &addrs {
-        bed.start_node(*a).expect("node");
-    }
-    bed.set_plant(live_plant::actuators(&c).expect("plant"))
-        .expect("plant");
-    bed.wait_for_nodes(&addrs).expect("nodes");
+    let (mut bed, _) = bed_of(&c, WAIT);
     bed.push(&c, false, &mut |_, _, _| {}).expect("push");
     let medium_at = bed.medium().addr();
     let zero = bed.medium().started();

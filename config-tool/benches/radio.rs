@@ -13,7 +13,7 @@
 //! `cargo bench -p config-tool --bench radio`
 
 mod support;
-use support::paint_robot;
+use support::{bed_of, paint_robot};
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -25,8 +25,7 @@ use config_schema::wire::medium::{Link, Peer};
 use config_schema::wire::msg::{ConfigReply, Message, SwitchStep, CHUNK_DATA};
 use config_schema::wire::security::DEFAULT_OVERHEAD;
 use medium::{self, Conn};
-use robot_net::demo::{self, Bed, Options};
-use robot_net::live_plant;
+use robot_net::demo;
 use robot_net::radio::TOOL_ADDR;
 
 /// Airtime of one message in a secured data frame (ENC-MIC-64: the auxiliary header and
@@ -138,21 +137,7 @@ fn median(v: &mut [f64]) -> f64 {
 
 fn main() {
     let c = paint_robot();
-    let options = Options {
-        medium: medium::Config::default(),
-        node_command: vec![env!("CARGO_BIN_EXE_config-tool").into(), "node".into()],
-        flash_dir: None,
-        timeout: Duration::from_secs(60),
-        secured: true,
-    };
-    let mut bed = Bed::start(options).expect("bed");
-    let addrs: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
-    for a in &addrs {
-        bed.start_node(*a).expect("node");
-    }
-    let actuators = live_plant::actuators(&c).expect("plant");
-    bed.set_plant(actuators.clone()).expect("plant");
-    bed.wait_for_nodes(&addrs).expect("nodes");
+    let (mut bed, actuators) = bed_of(&c, Duration::from_secs(60));
     let counted = Arc::new(Counted::default());
     let monitor = Conn::join(bed.medium().addr(), Peer::Monitor).expect("monitor");
     counted
