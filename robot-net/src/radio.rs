@@ -437,6 +437,17 @@ mod tests {
         buf[..n].to_vec()
     }
 
+    /// Receives until `tool` has answered `n` challenges in all (by `end` at the latest):
+    /// they are handled inside recv, never handed up.
+    fn challenged_until(tool: &mut ToolRadio, n: u64, end: Instant) {
+        while tool.stats.challenges < n && Instant::now() < end {
+            let r = tool
+                .recv(Instant::now() + Duration::from_millis(50))
+                .unwrap();
+            assert_eq!(r, None);
+        }
+    }
+
     #[test]
     fn a_challenge_is_answered_twice_once_an_answer_was_lost_and_only_an_unanswered_message_sent_again(
     ) {
@@ -460,13 +471,7 @@ mod tests {
         };
         node.send(&Link::Frame(&challenge(70, 70))).unwrap();
         let end = Instant::now() + Duration::from_secs(30);
-        // Handled inside recv, never handed up (waits for the event, bounded).
-        while tool.stats.challenges < 1 && Instant::now() < end {
-            let r = tool
-                .recv(Instant::now() + Duration::from_millis(50))
-                .unwrap();
-            assert_eq!(r, None);
-        }
+        challenged_until(&mut tool, 1, end);
         let answer = Message::ChallengeAnswer { nonce: 70 };
         assert_eq!(node_gets(&mut node, 2), [emit(&answer), emit(&start)]);
         assert_eq!(tool.take_challengers(), [NODE]);
@@ -480,12 +485,7 @@ mod tests {
         .unwrap();
         node.send(&Link::Frame(&challenge(72, 72))).unwrap();
         assert!(tool.recv(end).unwrap().is_some(), "the answer");
-        while tool.stats.challenges < 2 && Instant::now() < end {
-            let r = tool
-                .recv(Instant::now() + Duration::from_millis(50))
-                .unwrap();
-            assert_eq!(r, None);
-        }
+        challenged_until(&mut tool, 2, end);
         // Nothing else came before a marker the tool sends next.
         let marker = Message::Command {
             id: 2,
@@ -498,12 +498,7 @@ mod tests {
         // Challenged again with nothing else heard: that answer was lost, this one goes
         // out twice.
         node.send(&Link::Frame(&challenge(74, 74))).unwrap();
-        while tool.stats.challenges < 3 && Instant::now() < end {
-            let r = tool
-                .recv(Instant::now() + Duration::from_millis(50))
-                .unwrap();
-            assert_eq!(r, None);
-        }
+        challenged_until(&mut tool, 3, end);
         let answer = Message::ChallengeAnswer { nonce: 74 };
         assert_eq!(node_gets(&mut node, 2), [emit(&answer), emit(&answer)]);
         medium.stop();
