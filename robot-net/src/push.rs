@@ -91,6 +91,8 @@ pub fn push(
         .collect();
     let mut finished: Vec<Option<Duration>> = vec![None; targets.len()];
     let mut out: Vec<(u16, Message)> = Vec::new();
+    // Challenges answered before this push (a command's) do not count for its transfers.
+    radio.take_challengers();
     for (s, t) in senders.iter_mut().zip(targets) {
         s.start(now_ms(), |m| out.push((t.addr, m)));
     }
