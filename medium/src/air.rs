@@ -1,9 +1,12 @@
 //! The shared channel: who is connected, what is in flight, and the faults of each
-//! delivery. One thread; it never waits on a client (every client has its own outbox).
+//! delivery. The [`Hub`] holds it under one lock: a connection's thread hands its client's
+//! messages to it in order (levels are relayed at once, frames put on the air), and the air
+//! thread delivers each frame when its airtime ends. Nobody waits on a client while
+//! holding it (every client has its own outbox).
 
 use std::cmp::Reverse;
 use std::collections::{BTreeMap, BTreeSet, BinaryHeap, HashMap, VecDeque};
-use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::sync::{Condvar, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use config_schema::wire::mac::{self, BROADCAST};
@@ -45,6 +48,65 @@ pub(super) struct Air {
     /// The generation each connected node last said it runs: told to a plant or monitor
     /// that joins later (one entry per connected node).
     running: BTreeMap<u16, u32>,
+    /// Told to stop: nothing more is relayed.
+    stopped: bool,
+}
+
+/// The air, shared by the connections' threads and the air thread.
+pub(super) struct Hub {
+    air: Mutex<Air>,
+    /// Signalled when the earliest delivery moves earlier, or the medium stops.
+    due: Condvar,
+}
+
+impl Hub {
+    pub fn new(air: Air) -> Hub {
+        Hub {
+            air: Mutex::new(air),
+            due: Condvar::new(),
+        }
+    }
+
+    fn lock(&self) -> MutexGuard<'_, Air> {
+        self.air.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Handles `event` on the caller's thread; `false` once the medium stopped.
+    pub fn handle(&self, event: Event) -> bool {
+        let mut air = self.lock();
+        if air.stopped {
+            return false;
+        }
+        let before = air.next_due();
+        air.handle(event);
+        air.count_clients();
+        let after = air.next_due();
+        if air.stopped || after.is_some_and(|a| before.is_none_or(|b| a < b)) {
+            self.due.notify_one();
+        }
+        true
+    }
+
+    /// The air thread: delivers every frame when it is due, until the medium stops; then
+    /// closes every connection.
+    pub fn run(&self) {
+        let mut air = self.lock();
+        while !air.stopped {
+            air.deliver_due();
+            air.count_clients();
+            let timeout = air
+                .next_due()
+                .map(|at| at.saturating_duration_since(Instant::now()))
+                .unwrap_or(Duration::from_millis(100));
+            air = match self.due.wait_timeout(air, timeout) {
+                Ok((air, _)) => air,
+                Err(p) => p.into_inner().0,
+            };
+        }
+        for client in air.clients.values() {
+            client.outbox.close();
+        }
+    }
 }
 
 impl Air {
@@ -61,31 +123,21 @@ impl Air {
             counters,
             cuts: BTreeSet::new(),
             running: BTreeMap::new(),
+            stopped: false,
         }
     }
 
-    pub fn run(mut self, rx: Receiver<Event>) {
-        loop {
-            let (clients, queued) = (self.clients.len() as u64, self.due.len() as u64);
-            self.counters.count(|s| {
-                s.clients = clients;
-                s.queued = queued;
-            });
-            let timeout = self
-                .due
-                .peek()
-                .map(|d| d.0.at.saturating_duration_since(Instant::now()))
-                .unwrap_or(Duration::from_millis(100));
-            match rx.recv_timeout(timeout) {
-                Ok(Event::Stop) | Err(RecvTimeoutError::Disconnected) => break,
-                Ok(event) => self.handle(event),
-                Err(RecvTimeoutError::Timeout) => {}
-            }
-            self.deliver_due();
-        }
-        for client in self.clients.values() {
-            client.outbox.close();
-        }
+    /// The clients and the frames in flight, as the stats show them.
+    fn count_clients(&self) {
+        let (clients, queued) = (self.clients.len() as u64, self.due.len() as u64);
+        self.counters.count(|s| {
+            s.clients = clients;
+            s.queued = queued;
+        });
+    }
+
+    fn next_due(&self) -> Option<Instant> {
+        self.due.peek().map(|d| d.0.at)
     }
 
     fn handle(&mut self, event: Event) {
@@ -123,7 +175,7 @@ impl Air {
                 // tool process (not a client) can cut.
                 self.cuts.insert((from, to));
             }
-            Event::Stop => {}
+            Event::Stop => self.stopped = true,
         }
     }
 

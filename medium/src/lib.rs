@@ -33,7 +33,6 @@ use std::io;
 use std::net::{SocketAddr, TcpListener};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::mpsc::{self, SyncSender};
 use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
@@ -67,8 +66,6 @@ pub mod limits {
     pub const SOCKET_BUFFER: usize = 32 * 1024;
     /// A write to a client that takes longer than this disconnects it.
     pub const WRITE_TIMEOUT: Duration = Duration::from_secs(2);
-    /// Messages from every client waiting for the air thread.
-    pub const INBOX: usize = 4096;
 }
 
 /// What the medium does to frames.
@@ -138,13 +135,13 @@ pub struct Stats {
 pub struct Medium {
     addr: SocketAddr,
     stats: Arc<Mutex<Stats>>,
-    events: SyncSender<Event>,
+    hub: Arc<air::Hub>,
     start: Instant,
 }
 
 type ClientId = u64;
 
-/// What the connection threads tell the air thread.
+/// What the connection threads (and the tool) tell the air.
 enum Event {
     Joined(ClientId, Peer, outbox::Outbox),
     Frame(ClientId, Vec<u8>),
@@ -185,21 +182,25 @@ impl Medium {
         };
         let stats = Arc::new(Mutex::new(Stats::default()));
         let counters = Counters(stats.clone());
-        let (events, rx) = mpsc::sync_channel(limits::INBOX);
         let start = Instant::now();
-        let accept_events = events.clone();
-        let accept_counters = counters.clone();
+        let hub = Arc::new(air::Hub::new(air::Air::new(
+            config,
+            start,
+            pcap,
+            counters.clone(),
+        )));
+        let accept_hub = hub.clone();
         thread::Builder::new()
             .name("medium-accept".into())
-            .spawn(move || accept(listener, accept_events, accept_counters))?;
-        let air = air::Air::new(config, start, pcap, counters);
+            .spawn(move || accept(listener, accept_hub, counters))?;
+        let air_hub = hub.clone();
         thread::Builder::new()
             .name("medium-air".into())
-            .spawn(move || air.run(rx))?;
+            .spawn(move || air_hub.run())?;
         Ok(Medium {
             addr,
             stats,
-            events,
+            hub,
             start,
         })
     }
@@ -239,17 +240,17 @@ impl Medium {
     /// puts on the air after this reaches `to` (the other direction, and every other
     /// receiver, are untouched). Frames already in flight still arrive.
     pub fn cut(&self, from: u16, to: u16) {
-        let _ = self.events.send(Event::Cut { from, to });
+        self.hub.handle(Event::Cut { from, to });
     }
 
     /// Stops relaying (connections are closed).
     pub fn stop(&self) {
-        let _ = self.events.send(Event::Stop);
+        self.hub.handle(Event::Stop);
     }
 }
 
 /// Accepts connections, each served by its own thread, within the connection caps.
-fn accept(listener: TcpListener, events: SyncSender<Event>, counters: Counters) {
+fn accept(listener: TcpListener, hub: Arc<air::Hub>, counters: Counters) {
     let open = Arc::new(AtomicUsize::new(0));
     let greeting = Arc::new(AtomicUsize::new(0));
     let mut next_id: ClientId = 0;
@@ -267,7 +268,7 @@ fn accept(listener: TcpListener, events: SyncSender<Event>, counters: Counters) 
         greeting.fetch_add(1, Ordering::SeqCst);
         let conn = serve::Connection {
             id: next_id,
-            events: events.clone(),
+            hub: hub.clone(),
             counters: counters.clone(),
             open: open.clone(),
             greeting: greeting.clone(),

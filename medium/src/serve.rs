@@ -1,23 +1,23 @@
 //! One client's connection: waits for its hello (within `HELLO_TIMEOUT`), then reads its
-//! messages, within its rate, and hands them to the air thread in order.
+//! messages, within its rate, and hands them to the air in order.
 
 use std::io::{self, Read};
 use std::net::TcpStream;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::mpsc::SyncSender;
 use std::sync::Arc;
 use std::time::Instant;
 
 use config_schema::wire::mac;
 use config_schema::wire::medium::{Deframer, Link, MAX_LINK};
 
+use super::air::Hub;
 use super::outbox::Outbox;
 use super::{limits, ClientId, Counters, Event};
 
 /// What a connection thread needs.
 pub(super) struct Connection {
     pub id: ClientId,
-    pub events: SyncSender<Event>,
+    pub hub: Arc<Hub>,
     pub counters: Counters,
     /// Connections open, and those not past their hello (the accept thread's caps).
     pub open: Arc<AtomicUsize>,
@@ -66,7 +66,7 @@ impl Connection {
             self.greeting.fetch_sub(1, Ordering::SeqCst);
         }
         let _ = stream.shutdown(std::net::Shutdown::Both);
-        let _ = self.events.send(Event::Left(self.id));
+        self.hub.handle(Event::Left(self.id));
         self.open.fetch_sub(1, Ordering::SeqCst);
     }
 
@@ -112,8 +112,11 @@ impl Connection {
                     // A client that speaks nonsense (or the medium's words) is disconnected.
                     _ => return Err(nonsense()),
                 };
-                // Blocks while the air thread is behind: the client's TCP then waits.
-                self.events.send(event).map_err(|_| gone())?;
+                // Handled here, in order (the hub's lock orders it with every other
+                // client's): a level is relayed before the next byte is read.
+                if !self.hub.handle(event) {
+                    return Err(gone());
+                }
             }
         }
     }
