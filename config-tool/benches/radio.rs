@@ -316,7 +316,7 @@ fn main() {
     let per_hop = (node_air() - air0) as f64 / (cycles * publications) as f64;
     println!("  airtime per hop (measured) {:.2} ms: every frame between nodes over {cycles} cycles / {} hops   event + ack {:.2} ms   ratio {:.2}x   (target: within 1.1x)",
         per_hop / 1e3, cycles * publications, (event + ack) as f64 / 1e3, per_hop / (event + ack) as f64);
-    println!("  (wall latency includes the host: the plant's wake-up, processes, TCP, thread wake-ups; docs/simulation.md has where a hop's time goes)");
+    println!("  (wall latency includes the host: the plant's wake-up, processes, TCP, thread wake-ups; docs/node-runtime.md has where a hop's time goes)");
     println!("frames between nodes per cycle: {per_cycle:?}   lower bound {} ({publications} publications, each an event and an ack)", 2 * publications);
     bed.stop();
 }

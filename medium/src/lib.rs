@@ -17,7 +17,8 @@
 //! Nothing grows without bound, whatever clients do ([`limits`]): a client's frames wait
 //! for the air in a bounded transmit queue (past it they are dropped, as a radio reports a
 //! channel access failure); each client has a bounded rate of messages; each receiver has
-//! its own bounded outbox written by its own thread (a radio that cannot keep up loses
+//! its own bounded outbox (straight into the socket when nothing waits, else by its own
+//! thread) (a radio that cannot keep up loses
 //! frames, as a radio's receive buffer overruns; a plant or monitor that does not read is
 //! disconnected); connections that do not say hello in time are closed; connections are
 //! capped. Every drop is counted in [`Stats`].
