@@ -586,3 +586,28 @@ pub fn interpreter_safe(t: &Table) -> Result<(), String> {
     }
     Ok(())
 }
+
+/// A valid table with mutations applied to its fields rather than to its packed bits: the
+/// table's postcard form (byte-aligned, one value per field) mutated and read back, then
+/// encoded as a blob (the wide form where the compact one cannot hold it). `None` when the
+/// mutated bytes are no table (postcard refuses them) or the table no blob. Every blob it
+/// gives parses, so what it tests is the validator: whatever it lets through must be safe.
+pub fn field_mutated_blob() -> impl Strategy<Value = Option<Vec<u8>>> {
+    // One byte of the form flipped or set (mostly to a small value): a field's value.
+    let field = prop_oneof![
+        (any::<usize>(), any::<u8>()).prop_map(|(at, bit)| Mutation::Flip { at, bit }),
+        (any::<usize>(), prop_oneof![0u8..8, any::<u8>()])
+            .prop_map(|(at, value)| Mutation::Set { at, value }),
+    ];
+    (table(), field).prop_map(|(t, m)| {
+        let mut form = [0u8; 8 * 1024];
+        let used = postcard::to_slice(&t, &mut form).ok()?.len();
+        let mut bytes = form[..used].to_vec();
+        mutate(&mut bytes, &m);
+        let (mut mutated, _) = postcard::take_from_bytes::<Table>(&bytes).ok()?;
+        mutated.generation = t.generation;
+        let mut buf = [0u8; 8 * 1024];
+        let n = config_schema::blob::encode(&mutated, &mut buf).ok()?;
+        Some(buf[..n].to_vec())
+    })
+}
