@@ -90,6 +90,8 @@ impl Hub {
     /// The air thread: delivers every frame when it is due, until the medium stops; then
     /// closes every connection.
     pub fn run(&self) {
+        // A delivery is a timed wait: let it end when the airtime does.
+        super::precise_timers();
         let mut air = self.lock();
         while !air.stopped {
             air.deliver_due();

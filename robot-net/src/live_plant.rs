@@ -302,6 +302,8 @@ fn run_with(
     steps: Sender<Stroke>,
     stop: Arc<AtomicBool>,
 ) -> io::Result<()> {
+    // A motion ends on a timed wait: let it end on time, not up to 50 us late.
+    medium::precise_timers();
     let names: Vec<String> = actuators.iter().map(|a| a.name.clone()).collect();
     // Motions are timed on the medium's clock, from its stamp of the valve change (`at_us`),
     // in microseconds: not from when this process got round to the change, nor rounded to
