@@ -1,4 +1,4 @@
-//! The payload of a table blob (schema 5): the [`Table`] as a stream of bit fields, each
+//! The payload of a table blob (schema 6): the [`Table`] as a stream of bit fields, each
 //! as wide as the table's own counts make it. docs/table-format.md ("Payload") gives it
 //! field by field.
 //!
@@ -10,10 +10,12 @@
 //! `n + 1` is `Some(n)`). The shapes a compiled table has are one-bit flags: an event
 //! reference is most often the lowest event not named yet, a transition leaves the state
 //! the previous one entered and enters the next state and triggers on its chart's next
-//! unused input, a route feeds the next input of the same chart, a publication publishes
-//! the event emitted after the previous one's under the next topic, an expression follows
-//! the previous one. Timer durations are declared once (in decimal floating point) and
-//! referenced.
+//! unused input (all three: one bit), routes one per chart input are only their events, a
+//! chart's inputs are the ones its transitions use, a publication publishes the event
+//! emitted after the previous one's under the next topic, a subscription raises the next
+//! event nothing on the node raises, an expression follows the previous one; an output low
+//! on fault and start, no safety declaration, a drive of every output take a bit. Timer
+//! durations are declared once (in decimal floating point) and referenced.
 //!
 //! A table the compact form cannot express (only an invalid one: a reference past its
 //! count, pools not laid out chart by chart, a channel outside 11..=26) takes the wide
