@@ -24,8 +24,10 @@ pub const MAGIC: [u8; 1] = [0xEC];
 /// initial one, and the table the events of the HOME command and of its boot; 4: the
 /// table's safety declarations: emergency stop, restart inputs, link alarm policy,
 /// declared alarms; 5: the bit-packed payload of [`crate::pack`] in an envelope of 12
-/// bytes instead of postcard in one of 16).
-pub const SCHEMA_VERSION: u16 = 5;
+/// bytes instead of postcard in one of 16; 6: the packed payload's implicit shapes
+/// (routes one per chart input, chart inputs as their transitions use them, chain steps,
+/// default levels and safety) and its shorter codes, docs/table-format.md).
+pub const SCHEMA_VERSION: u16 = 6;
 /// Bytes before the payload.
 pub const HEADER_LEN: usize = 8;
 /// Offset of the payload length (2 bytes, LE) in the header.

@@ -1,4 +1,4 @@
-//! The payload of a table blob (schema 5): the [`Table`] as a stream of bit fields, each
+//! The payload of a table blob (schema 6): the [`Table`] as a stream of bit fields, each
 //! as wide as the table's own counts make it. docs/table-format.md ("Payload") gives it
 //! field by field.
 //!
@@ -10,10 +10,12 @@
 //! `n + 1` is `Some(n)`). The shapes a compiled table has are one-bit flags: an event
 //! reference is most often the lowest event not named yet, a transition leaves the state
 //! the previous one entered and enters the next state and triggers on its chart's next
-//! unused input, a route feeds the next input of the same chart, a publication publishes
-//! the event emitted after the previous one's under the next topic, an expression follows
-//! the previous one. Timer durations are declared once (in decimal floating point) and
-//! referenced.
+//! unused input (all three: one bit), routes one per chart input are only their events, a
+//! chart's inputs are the ones its transitions use, a publication publishes the event
+//! emitted after the previous one's under the next topic, a subscription raises the next
+//! event nothing on the node raises, an expression follows the previous one; an output low
+//! on fault and start, no safety declaration, a drive of every output take a bit. Timer
+//! durations are declared once (in decimal floating point) and referenced.
 //!
 //! A table the compact form cannot express (only an invalid one: a reference past its
 //! count, pools not laid out chart by chart, a channel outside 11..=26) takes the wide
@@ -104,10 +106,9 @@ const CHANNEL_BITS: u32 = 5;
 const PIN_WIDTH_BITS: u32 = 3;
 const OP_BITS: u32 = 5;
 const COUNT_WIDTH_BITS: u32 = 3;
-const FAULT_BITS: u32 = 8;
 const EXPR_LEN_BITS: u32 = 5;
 const PEER_WIDTH_BITS: u32 = 5;
-const TOPIC_WIDTH_BITS: u32 = 4;
+const TOPIC_WIDTH_BITS: u32 = 3;
 const DECADE_BITS: u32 = 2;
 
 struct Writer<'a> {
@@ -251,7 +252,6 @@ fn opt_value(o: Option<u8>) -> usize {
 #[derive(Clone, Copy)]
 struct Widths {
     event: u32,
-    event_opt: u32,
     var: u32,
     var_opt: u32,
     input: u32,
@@ -272,7 +272,6 @@ impl Widths {
     fn new(events: usize) -> Widths {
         Widths {
             event: bits(events),
-            event_opt: bits(events + 1),
             var: 0,
             var_opt: 0,
             input: 0,
@@ -293,7 +292,6 @@ impl Widths {
     fn wide(durations: usize) -> Widths {
         Widths {
             event: 8,
-            event_opt: 9,
             var: 8,
             var_opt: 9,
             input: 8,
@@ -405,12 +403,16 @@ impl Writer<'_> {
         Ok(())
     }
 
-    /// An optional event: a flag (it is the lowest not named yet), else `0` or `id + 1`.
+    /// An optional event: a flag (it is the lowest not named yet), else a flag (`Some`) and
+    /// then its id.
     fn event_opt(&mut self, e: Option<u8>, seen: &mut Seen, wd: &Widths) -> R<()> {
         let fresh = e.is_some() && e == Some(seen.fresh());
         self.flag(fresh)?;
         if !fresh {
-            self.field(opt_value(e), wd.event_opt, "event")?;
+            self.flag(e.is_some())?;
+            if let Some(e) = e {
+                self.field(usize::from(e), wd.event, "event")?;
+            }
         }
         if let Some(e) = e {
             seen.mark(e);
@@ -435,8 +437,10 @@ impl Reader<'_> {
     fn event_opt(&mut self, seen: &mut Seen, wd: &Widths) -> R<Option<u8>> {
         let e = if self.flag()? {
             Some(seen.fresh())
+        } else if self.flag()? {
+            Some(self.u8(wd.event)?)
         } else {
-            self.opt(wd.event_opt)?
+            None
         };
         if let Some(e) = e {
             seen.mark(e);
@@ -459,12 +463,13 @@ fn durations(t: &Table) -> R<Vec<u32, MAX_TIMER_DURATIONS>> {
     Ok(d)
 }
 
-/// The events the table's actions emit or publish, each once, in action order.
-fn emitted(actions: &[Action]) -> Vec<u8, MAX_ACTIONS> {
+/// The events the table's actions emit or publish, each once, in action order, but those
+/// routed to a chart (kept on the node, seldom published).
+fn emitted(actions: &[Action], routes: &[Route]) -> Vec<u8, MAX_ACTIONS> {
     let mut out: Vec<u8, MAX_ACTIONS> = Vec::new();
     for a in actions {
         if let Action::Emit(e) | Action::Publish(e) = *a {
-            if !out.contains(&e) {
+            if !out.contains(&e) && !routes.iter().any(|r| r.event == e) {
                 // As many as the actions: never full.
                 let _ = out.push(e);
             }
@@ -618,14 +623,15 @@ fn get_op(r: &mut Reader, wd: &Widths) -> R<Op> {
     })
 }
 
-/// Action codes (a prefix code: the three a motion step uses take two bits).
+/// Action codes (a prefix code, by how often a compiled table has each: the three a motion
+/// step uses take two bits, a watchdog's cancel three).
 const A_DRIVE: (u32, u32) = (0b00, 2);
 const A_START: (u32, u32) = (0b10, 2);
 const A_EMIT: (u32, u32) = (0b01, 2);
-const A_CANCEL: (u32, u32) = (0b0011, 4);
-const A_SET: (u32, u32) = (0b0111, 4);
-const A_PUBLISH: (u32, u32) = (0b1011, 4);
-const A_FAULT: (u32, u32) = (0b1111, 4);
+const A_CANCEL: (u32, u32) = (0b011, 3);
+const A_FAULT: (u32, u32) = (0b0111, 4);
+const A_SET: (u32, u32) = (0b01111, 5);
+const A_PUBLISH: (u32, u32) = (0b11111, 5);
 
 struct ActionCtx<'a> {
     wd: Widths,
@@ -645,7 +651,11 @@ fn put_action(w: &mut Writer, a: Action, cx: &mut ActionCtx) -> R<()> {
         }
         Action::Drive { mask, value } => {
             code(w, A_DRIVE)?;
-            w.field(usize::from(mask), wd.outputs, "drive mask")?;
+            let all = all_outputs(&wd);
+            w.flag(mask == all)?;
+            if mask != all {
+                w.field(usize::from(mask), wd.outputs, "drive mask")?;
+            }
             w.field(usize::from(value), wd.outputs, "drive value")
         }
         Action::Emit(e) => {
@@ -672,7 +682,7 @@ fn put_action(w: &mut Writer, a: Action, cx: &mut ActionCtx) -> R<()> {
         }
         Action::Fault(c) => {
             code(w, A_FAULT)?;
-            w.put(u32::from(c), FAULT_BITS)
+            w.count(usize::from(c))
         }
     }
 }
@@ -680,19 +690,22 @@ fn put_action(w: &mut Writer, a: Action, cx: &mut ActionCtx) -> R<()> {
 #[inline(never)]
 fn get_action(r: &mut Reader, cx: &mut ActionCtx) -> R<Action> {
     let wd = cx.wd;
-    let short = r.get(2)?;
-    let code = if short == 0b11 {
-        (short | r.get(2)? << 2, 4)
-    } else {
-        (short, 2)
-    };
+    // Each further bit of a code that starts `1 1`: 0 ends it.
+    let mut code = (r.get(2)?, 2);
+    while code.0 == (1 << code.1) - 1 && code.1 < 5 {
+        code = (code.0 | r.get(1)? << code.1, code.1 + 1);
+    }
     Ok(match code {
         A_SET => Action::Set {
             var: r.u8(wd.var)?,
             expr: get_expr(r, &mut cx.cursor, &wd)?,
         },
         A_DRIVE => Action::Drive {
-            mask: get_u16(r, wd.outputs)?,
+            mask: if r.flag()? {
+                all_outputs(&wd)
+            } else {
+                get_u16(r, wd.outputs)?
+            },
             value: get_u16(r, wd.outputs)?,
         },
         A_EMIT => Action::Emit(r.event(&mut cx.seen, &wd)?),
@@ -708,14 +721,100 @@ fn get_action(r: &mut Reader, cx: &mut ActionCtx) -> R<Action> {
             },
         },
         A_CANCEL => Action::CancelTimer(r.u8(wd.timer)?),
-        A_FAULT => Action::Fault(r.u8(FAULT_BITS)?),
+        A_FAULT => Action::Fault(u8::try_from(r.count()?).map_err(|_| PackError::Value("fault"))?),
         _ => return Err(PackError::Value("action")),
     })
+}
+
+/// The drive mask of every output.
+fn all_outputs(wd: &Widths) -> u16 {
+    u16::try_from((1u32 << wd.outputs.min(16)) - 1).unwrap_or(u16::MAX)
 }
 
 #[inline(never)]
 fn get_u16(r: &mut Reader, width: u32) -> R<u16> {
     u16::try_from(r.get(width)?).map_err(|_| PackError::Value("mask"))
+}
+
+/// The event a subscription is expected to raise: the lowest after the previous one's
+/// (from 0 for the first) that nothing on the node raises (an input's edge, a timer, an
+/// action, START, HOME, the boot).
+fn next_subscribed(t: &Table, prev: Option<u8>) -> Option<u8> {
+    let first = match prev {
+        Some(p) => p.checked_add(1)?,
+        None => 0,
+    };
+    (first..t.events).find(|&e| {
+        let edge = t
+            .inputs
+            .iter()
+            .any(|i| i.rise == Some(e) || i.fall == Some(e));
+        let timer = t.timers.iter().any(|tm| tm.event == e);
+        let action = t.actions.iter().any(|a| match *a {
+            Action::Emit(x) | Action::Publish(x) => x == e,
+            _ => false,
+        });
+        let command = [t.start, t.home, t.boot].contains(&Some(e));
+        !(edge || timer || action || command)
+    })
+}
+
+/// Whether chart `c`'s inputs are the ones its `transitions` trigger on, each first used
+/// in input order (as the compiler numbers them): then the chart's count of inputs is
+/// where its transitions' triggers end, and a trigger used before is `opt` of those used
+/// so far.
+fn inputs_are_implicit(c: &Chart, transitions: Option<&[Transition]>) -> bool {
+    let mut next = 0u8;
+    for tr in transitions.unwrap_or(&[]) {
+        match tr.trigger {
+            Some(i) if i == next => next += 1,
+            Some(i) if i > next => return false,
+            _ => {}
+        }
+    }
+    transitions.is_some() && next == c.inputs
+}
+
+/// Whether `t`'s routes are one per chart input, chart by chart and input by input (as
+/// the compiler lays them out): then each is only its event.
+fn routes_are_implicit(t: &Table) -> bool {
+    let inputs = t.charts.iter().enumerate();
+    let mut inputs = inputs.flat_map(|(c, chart)| (0..chart.inputs).map(move |i| (c, i)));
+    t.routes
+        .iter()
+        .all(|r| inputs.next() == Some((usize::from(r.chart), r.input)))
+        && inputs.next().is_none()
+}
+
+/// Routes of any other shape: a count, then each route's event, chart and input.
+fn put_routes(w: &mut Writer, t: &Table, seen: &mut Seen, wd: &Widths) -> R<()> {
+    w.count(t.routes.len())?;
+    let mut chart = 0usize;
+    let mut next_input = [0usize; 256];
+    for r in &t.routes {
+        w.event(r.event, seen, wd)?;
+        let c = usize::from(r.chart);
+        w.flag(c == chart)?;
+        if c != chart {
+            w.field(c, wd.chart, "chart")?;
+        }
+        chart = c;
+        let inputs = match t.charts.get(c) {
+            Some(chart) => chart.inputs,
+            None if wd.wide => 0,
+            None => return Err(PackError::Unencodable("chart")),
+        };
+        let next = next_input
+            .get_mut(c)
+            .ok_or(PackError::Unencodable("chart"))?;
+        let input = usize::from(r.input);
+        w.flag(input == *next)?;
+        if input != *next {
+            w.field(input, wd.chart_input(inputs), "chart input")?;
+        }
+        *next = input + 1;
+    }
+    Ok(())
 }
 
 fn end8(n: usize, what: &'static str) -> R<u8> {
@@ -806,8 +905,13 @@ pub fn encode_form(
     w.count(t.outputs.len())?;
     for o in &t.outputs {
         w.field(usize::from(o.pin), pin_width, "pin")?;
-        w.put(level(o.fault), 2)?;
-        w.put(level(o.start), 2)?;
+        // Low on a fault and at the start (most outputs): a bit.
+        let low = o.fault == Level::Low && o.start == Level::Low;
+        w.flag(low)?;
+        if !low {
+            w.put(level(o.fault), 2)?;
+            w.put(level(o.start), 2)?;
+        }
         w.flag(o.home)?;
     }
     mark(&w, 3);
@@ -844,12 +948,20 @@ pub fn encode_form(
             w.count(transitions)?;
         }
         let sw = wd.state(s_end.saturating_sub(prev.0));
+        let implicit = !wide && inputs_are_implicit(c, t.transitions.get(prev.1..t_end));
         prev = (s_end, t_end);
-        w.count(usize::from(c.inputs))?;
-        w.field(usize::from(c.initial), sw, "initial state")?;
-        w.flag(c.idle == c.initial)?;
-        if c.idle != c.initial {
+        w.flag(implicit)?;
+        if !implicit {
+            w.count(usize::from(c.inputs))?;
+        }
+        // Idle most often the first state, initial most often idle.
+        w.flag(c.idle == 0)?;
+        if c.idle != 0 {
             w.field(usize::from(c.idle), sw, "idle state")?;
+        }
+        w.flag(c.initial == c.idle)?;
+        if c.initial != c.idle {
+            w.field(usize::from(c.initial), sw, "initial state")?;
         }
     }
     if wide {
@@ -880,7 +992,25 @@ pub fn encode_form(
         let counts = counts.get(..t.states.len()).unwrap_or(&[]);
         let count_width = bits(counts.iter().copied().max().unwrap_or(0) + 1);
         w.field(count_width as usize, COUNT_WIDTH_BITS, "state actions")?;
+        // The most common count (the lowest of a tie), if a bit for it and the count for
+        // the others is shorter than every count.
+        let freq = |m: usize| counts.iter().filter(|&&n| n == m).count();
+        let mode = (0..=counts.iter().copied().max().unwrap_or(0))
+            .max_by_key(|&m| (freq(m), core::cmp::Reverse(m)));
+        let w_ = count_width as usize;
+        let mode =
+            mode.filter(|&m| w_ + counts.len() + (counts.len() - freq(m)) * w_ < counts.len() * w_);
+        w.flag(mode.is_some())?;
+        if let Some(m) = mode {
+            w.field(m, count_width, "state actions")?;
+        }
         for &n in counts {
+            if let Some(m) = mode {
+                w.flag(n == m)?;
+                if n == m {
+                    continue;
+                }
+            }
             w.field(n, count_width, "state actions")?;
         }
     }
@@ -901,15 +1031,18 @@ pub fn encode_form(
     } = cx;
     mark(&w, 8);
     // Transitions chart by chart (compact), or the pool as one run (wide).
-    let mut runs: Vec<(core::ops::Range<usize>, u32, u32, usize), MAX_CHARTS> = Vec::new();
+    // (transitions, state width, trigger width (none: as the chart's inputs so far), idle).
+    let mut runs: Vec<(core::ops::Range<usize>, u32, Option<u32>, usize), MAX_CHARTS> = Vec::new();
     if wide {
-        let _ = runs.push((0..t.transitions.len(), 8, 9, 0));
+        let _ = runs.push((0..t.transitions.len(), 8, Some(9), 0));
     } else {
         let mut first = 0usize;
         for (i, c) in t.charts.iter().enumerate() {
             let end = usize::from(c.transitions_end);
             let sw = wd.state(t.chart_states(i).len());
-            let _ = runs.push((first..end, sw, wd.trigger(c.inputs), usize::from(c.idle)));
+            let transitions = t.transitions.get(first..end);
+            let tw = (!inputs_are_implicit(c, transitions)).then(|| wd.trigger(c.inputs));
+            let _ = runs.push((first..end, sw, tw, usize::from(c.idle)));
             first = end;
         }
     }
@@ -921,18 +1054,24 @@ pub fn encode_form(
         let mut next_input = 0usize;
         for tr in transitions {
             let (from, to) = (usize::from(tr.from), usize::from(tr.to));
-            w.flag(from == prev_to)?;
-            if from != prev_to {
-                w.field(from, sw, "state")?;
-            }
-            w.flag(to == from + 1)?;
-            if to != from + 1 {
-                w.field(to, sw, "state")?;
-            }
             let fresh = tr.trigger.map(usize::from) == Some(next_input);
-            w.flag(fresh)?;
-            if !fresh {
-                w.field(opt_value(tr.trigger), tw, "trigger")?;
+            // A step of a chain (the most common shape): a bit.
+            let step = from == prev_to && to == from + 1 && fresh;
+            w.flag(step)?;
+            if !step {
+                w.flag(from == prev_to)?;
+                if from != prev_to {
+                    w.field(from, sw, "state")?;
+                }
+                w.flag(to == from + 1)?;
+                if to != from + 1 {
+                    w.field(to, sw, "state")?;
+                }
+                w.flag(fresh)?;
+                if !fresh {
+                    let tw = tw.unwrap_or_else(|| bits(next_input + 1));
+                    w.field(opt_value(tr.trigger), tw, "trigger")?;
+                }
             }
             if let Some(i) = tr.trigger {
                 next_input = next_input.max(usize::from(i) + 1);
@@ -947,31 +1086,14 @@ pub fn encode_form(
         }
     }
     mark(&w, 9);
-    w.count(t.routes.len())?;
-    let mut chart = 0usize;
-    let mut next_input = [0usize; 256];
-    for r in &t.routes {
-        w.event(r.event, &mut seen, &wd)?;
-        let c = usize::from(r.chart);
-        w.flag(c == chart)?;
-        if c != chart {
-            w.field(c, wd.chart, "chart")?;
+    let implicit = !wide && routes_are_implicit(t);
+    w.flag(implicit)?;
+    if implicit {
+        for r in &t.routes {
+            w.event(r.event, &mut seen, &wd)?;
         }
-        chart = c;
-        let inputs = match t.charts.get(c) {
-            Some(chart) => chart.inputs,
-            None if wide => 0,
-            None => return Err(PackError::Unencodable("chart")),
-        };
-        let next = next_input
-            .get_mut(c)
-            .ok_or(PackError::Unencodable("chart"))?;
-        let input = usize::from(r.input);
-        w.flag(input == *next)?;
-        if input != *next {
-            w.field(input, wd.chart_input(inputs), "chart input")?;
-        }
-        *next = input + 1;
+    } else {
+        put_routes(&mut w, t, &mut seen, &wd)?;
     }
     mark(&w, 10);
     for e in [t.start, t.home, t.boot] {
@@ -981,16 +1103,26 @@ pub fn encode_form(
     w.count(t.peers.len())?;
     let peer_width = bits(usize::from(t.peers.iter().copied().max().unwrap_or(0)) + 1);
     w.field(peer_width as usize, PEER_WIDTH_BITS, "peer")?;
+    let mut next = None;
     for &p in &t.peers {
-        w.field(usize::from(p), peer_width, "peer")?;
+        w.flag(next == Some(p))?;
+        if next != Some(p) {
+            w.field(usize::from(p), peer_width, "peer")?;
+        }
+        next = p.checked_add(1);
     }
     mark(&w, 12);
     let topics = t.publications.iter().map(|p| p.topic);
     let topics = topics.chain(t.subscriptions.iter().map(|s| s.topic));
-    let topic_width = bits(usize::from(topics.max().unwrap_or(0)) + 1);
-    w.field(topic_width as usize, TOPIC_WIDTH_BITS, "topic")?;
+    let topic_width = if wide {
+        8
+    } else {
+        let topic_width = bits(usize::from(topics.max().unwrap_or(0)) + 1);
+        w.field(topic_width as usize, TOPIC_WIDTH_BITS, "topic")?;
+        topic_width
+    };
     w.count(t.publications.len())?;
-    let emitted = emitted(&t.actions);
+    let emitted = emitted(&t.actions, &t.routes);
     let mut prev_event = None;
     let mut next_topic = 0usize;
     for p in &t.publications {
@@ -1016,7 +1148,7 @@ pub fn encode_form(
         w.field(usize::from(s.topic), topic_width, "topic")?;
         let e = usize::from(s.event);
         let same = prev_event == Some(e);
-        let next = prev_event.map(|p| p + 1) == Some(e);
+        let next = next_subscribed(t, prev_event.map(|p| p as u8)) == Some(s.event);
         w.flag(same)?;
         if !same {
             w.flag(next)?;
@@ -1028,14 +1160,19 @@ pub fn encode_form(
     }
     mark(&w, 14);
     let safety = &t.safety;
-    w.field(opt_value(safety.estop), wd.input_opt, "estop")?;
-    w.flag(safety.link_fault)?;
-    let restart_width = wd.restart(t.inputs.len());
-    w.field(usize::from(safety.restart), restart_width, "restart")?;
-    w.count(safety.alarms.len())?;
-    for a in &safety.alarms {
-        w.put(a.level as u32, 2)?;
-        put_expr(&mut w, a.when, &mut cursor, &wd)?;
+    // No e-stop, no link fault, no restart input, no alarm: a bit.
+    let none = *safety == Safety::default();
+    w.flag(none)?;
+    if !none {
+        w.field(opt_value(safety.estop), wd.input_opt, "estop")?;
+        w.flag(safety.link_fault)?;
+        let restart_width = wd.restart(t.inputs.len());
+        w.field(usize::from(safety.restart), restart_width, "restart")?;
+        w.count(safety.alarms.len())?;
+        for a in &safety.alarms {
+            w.put(a.level as u32, 2)?;
+            put_expr(&mut w, a.when, &mut cursor, &wd)?;
+        }
     }
     mark(&w, 15);
     let len = w.bit.div_ceil(8);
@@ -1043,6 +1180,68 @@ pub fn encode_form(
     let pad = (8 - w.bit % 8) % 8;
     w.put(0, pad as u32)?;
     Ok(len)
+}
+
+/// Routes of any other shape (see `put_routes`).
+#[inline(never)]
+fn get_routes(r: &mut Reader, t: &mut Table, seen: &mut Seen, wd: &Widths) -> R<()> {
+    let mut chart = 0u8;
+    let mut next_input = [0u8; 256];
+    for _ in 0..r.count()? {
+        let event = r.event(seen, wd)?;
+        if !r.flag()? {
+            chart = r.u8(wd.chart)?;
+        }
+        let inputs = match t.charts.get(usize::from(chart)) {
+            Some(c) => c.inputs,
+            None if wd.wide => 0,
+            None => return Err(PackError::Value("chart")),
+        };
+        let next = next_input
+            .get_mut(usize::from(chart))
+            .ok_or(PackError::Value("chart"))?;
+        let input = if r.flag()? {
+            *next
+        } else {
+            r.u8(wd.chart_input(inputs))?
+        };
+        *next = input
+            .checked_add(1)
+            .ok_or(PackError::Value("chart input"))?;
+        let route = Route {
+            event,
+            chart,
+            input,
+        };
+        push(&mut t.routes, route, "routes")?;
+    }
+    Ok(())
+}
+
+/// The safety declarations (when not all default).
+#[inline(never)]
+fn get_safety(r: &mut Reader, t: &Table, cursor: &mut usize, wd: &Widths) -> R<Safety> {
+    let estop = r.opt(wd.input_opt)?;
+    let link_fault = r.flag()?;
+    let restart = u16::try_from(r.get(wd.restart(t.inputs.len()))?)
+        .map_err(|_| PackError::Value("restart"))?;
+    let mut alarms = Vec::new();
+    for _ in 0..r.count()? {
+        let level = match r.get(2)? {
+            0 => AlarmLevel::Info,
+            1 => AlarmLevel::Warning,
+            2 => AlarmLevel::Fault,
+            _ => return Err(PackError::Value("alarm level")),
+        };
+        let when = get_expr(r, cursor, wd)?;
+        push(&mut alarms, AlarmDecl { level, when }, "alarms")?;
+    }
+    Ok(Safety {
+        estop,
+        link_fault,
+        restart,
+        alarms,
+    })
 }
 
 /// Reads a payload written by [`encode`]: the table (generation 0) and the count of bytes
@@ -1099,10 +1298,16 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
         wd.inputs(t.inputs.len());
     }
     for _ in 0..r.count()? {
+        let pin = r.u8(pin_width)?;
+        let (fault, start) = if r.flag()? {
+            (Level::Low, Level::Low)
+        } else {
+            (get_level(&mut r)?, get_level(&mut r)?)
+        };
         let output = Output {
-            pin: r.u8(pin_width)?,
-            fault: get_level(&mut r)?,
-            start: get_level(&mut r)?,
+            pin,
+            fault,
+            start,
             home: r.flag()?,
         };
         push(&mut t.outputs, output, "outputs")?;
@@ -1130,6 +1335,7 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
         wd.code = bits(t.code.len() + 1);
     }
     let (mut s_end, mut t_end) = (0usize, 0usize);
+    let mut implicit_inputs = [false; MAX_CHARTS];
     for _ in 0..r.count()? {
         let s_first = s_end;
         if wide {
@@ -1140,9 +1346,18 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
             t_end = t_end.saturating_add(r.count()?);
         }
         let sw = wd.state(s_end.saturating_sub(s_first));
-        let inputs = u8::try_from(r.count()?).map_err(|_| PackError::Value("chart inputs"))?;
-        let initial = r.u8(sw)?;
-        let idle = if r.flag()? { initial } else { r.u8(sw)? };
+        // Implicit inputs: counted as the chart's transitions are read.
+        let implicit = r.flag()?;
+        if let Some(slot) = implicit_inputs.get_mut(t.charts.len()) {
+            *slot = implicit;
+        }
+        let inputs = if implicit {
+            0
+        } else {
+            u8::try_from(r.count()?).map_err(|_| PackError::Value("chart inputs"))?
+        };
+        let idle = if r.flag()? { 0 } else { r.u8(sw)? };
+        let initial = if r.flag()? { idle } else { r.u8(sw)? };
         let chart = Chart {
             states_end: end8(s_end, "states")?,
             transitions_end: end8(t_end, "transitions")?,
@@ -1175,9 +1390,17 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
         actions
     } else {
         let count_width = r.get(COUNT_WIDTH_BITS)?;
+        let mode = if r.flag()? {
+            Some(r.get(count_width)? as usize)
+        } else {
+            None
+        };
         let mut actions = 0usize;
         for _ in 0..states {
-            actions += r.get(count_width)? as usize;
+            actions += match mode {
+                Some(m) if r.flag()? => m,
+                _ => r.get(count_width)? as usize,
+            };
             let actions_end = end8(actions, "actions")?;
             push(&mut t.states, State { actions_end }, "states")?;
         }
@@ -1202,35 +1425,49 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
         ..
     } = cx;
     // (transitions, state width, trigger width, idle state) of each run.
-    let mut runs: Vec<(usize, u32, u32, u8), MAX_CHARTS> = Vec::new();
+    // (transitions, state width, trigger width (none: implicit inputs), idle state).
+    let mut runs: Vec<(usize, u32, Option<u32>, u8), MAX_CHARTS> = Vec::new();
     if wide {
-        let _ = runs.push((transitions, 8, 9, 0));
+        let _ = runs.push((transitions, 8, Some(9), 0));
     } else {
         let mut s_first = 0usize;
         let mut t_first = 0usize;
-        for c in &t.charts {
+        for (c, &implicit) in t.charts.iter().zip(&implicit_inputs) {
             let sw = wd.state(usize::from(c.states_end).saturating_sub(s_first));
             let n = usize::from(c.transitions_end).saturating_sub(t_first);
             s_first = usize::from(c.states_end);
             t_first = usize::from(c.transitions_end);
-            let _ = runs.push((n, sw, wd.trigger(c.inputs), c.idle));
+            let tw = (!implicit).then(|| wd.trigger(c.inputs));
+            let _ = runs.push((n, sw, tw, c.idle));
         }
     }
-    for (n, sw, tw, idle) in runs {
+    for (ci, (n, sw, tw, idle)) in runs.into_iter().enumerate() {
         let guarded = r.flag()?;
         let mut prev_to = idle;
         let mut next_input = 0u8;
         for _ in 0..n {
-            let from = if r.flag()? { prev_to } else { r.u8(sw)? };
-            let to = if r.flag()? {
+            let step = r.flag()?;
+            let from = if step || r.flag()? {
+                prev_to
+            } else {
+                r.u8(sw)?
+            };
+            let to = if step || r.flag()? {
                 from.checked_add(1).ok_or(PackError::Value("state"))?
             } else {
                 r.u8(sw)?
             };
-            let trigger = if r.flag()? {
+            let trigger = if step || r.flag()? {
                 Some(next_input)
             } else {
-                r.opt(tw)?
+                match tw {
+                    Some(tw) => r.opt(tw)?,
+                    // One of the inputs used so far, or none.
+                    None => match r.opt(bits(usize::from(next_input) + 1))? {
+                        Some(i) if i >= next_input => return Err(PackError::Value("trigger")),
+                        other => other,
+                    },
+                }
             };
             if let Some(i) = trigger {
                 let after = i.checked_add(1).ok_or(PackError::Value("trigger"))?;
@@ -1250,51 +1487,49 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
             push(&mut t.transitions, tr, "transitions")?;
             prev_to = to;
         }
-    }
-    let mut chart = 0u8;
-    let mut next_input = [0u8; 256];
-    for _ in 0..r.count()? {
-        let event = r.event(&mut seen, &wd)?;
-        if !r.flag()? {
-            chart = r.u8(wd.chart)?;
+        if tw.is_none() {
+            if let Some(c) = t.charts.get_mut(ci) {
+                c.inputs = next_input;
+            }
         }
-        let inputs = match t.charts.get(usize::from(chart)) {
-            Some(c) => c.inputs,
-            None if wide => 0,
-            None => return Err(PackError::Value("chart")),
-        };
-        let next = next_input
-            .get_mut(usize::from(chart))
-            .ok_or(PackError::Value("chart"))?;
-        let input = if r.flag()? {
-            *next
-        } else {
-            r.u8(wd.chart_input(inputs))?
-        };
-        *next = input
-            .checked_add(1)
-            .ok_or(PackError::Value("chart input"))?;
-        let route = Route {
-            event,
-            chart,
-            input,
-        };
-        push(&mut t.routes, route, "routes")?;
+    }
+    if r.flag()? {
+        // One route per chart input, chart by chart.
+        for (c, chart) in t.charts.iter().enumerate() {
+            let c = u8::try_from(c).map_err(|_| PackError::Value("chart"))?;
+            for input in 0..chart.inputs {
+                let event = r.event(&mut seen, &wd)?;
+                let route = Route {
+                    event,
+                    chart: c,
+                    input,
+                };
+                push(&mut t.routes, route, "routes")?;
+            }
+        }
+    } else {
+        get_routes(&mut r, &mut t, &mut seen, &wd)?;
     }
     t.start = r.event_opt(&mut seen, &wd)?;
     t.home = r.event_opt(&mut seen, &wd)?;
     t.boot = r.event_opt(&mut seen, &wd)?;
     let peers = r.count()?;
     let peer_width = r.get(PEER_WIDTH_BITS)?;
+    let mut next = None;
     for _ in 0..peers {
-        let p = u16::try_from(r.get(peer_width)?).map_err(|_| PackError::Value("peer"))?;
+        let p = match next {
+            Some(p) if r.flag()? => p,
+            None if r.flag()? => return Err(PackError::Value("peer")),
+            _ => u16::try_from(r.get(peer_width)?).map_err(|_| PackError::Value("peer"))?,
+        };
         push(&mut t.peers, p, "peers")?;
+        next = p.checked_add(1);
     }
     if !wide {
         wd.peers(t.peers.len());
     }
-    let topic_width = r.get(TOPIC_WIDTH_BITS)?;
-    let emitted = emitted(&t.actions);
+    let topic_width = if wide { 8 } else { r.get(TOPIC_WIDTH_BITS)? };
+    let emitted = emitted(&t.actions, &t.routes);
     let mut prev_event = None;
     let mut next_topic = 0u16;
     for _ in 0..r.count()? {
@@ -1326,10 +1561,8 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
         let event = match prev_event {
             Some(p) if same => p,
             _ if same => return Err(PackError::Value("event")),
-            Some(p) if r.flag()? => p.checked_add(1).ok_or(PackError::Value("event"))?,
-            Some(_) => r.u8(wd.event)?,
-            None if r.flag()? => return Err(PackError::Value("event")),
-            None => r.u8(wd.event)?,
+            p if r.flag()? => next_subscribed(&t, p).ok_or(PackError::Value("event"))?,
+            _ => r.u8(wd.event)?,
         };
         prev_event = Some(event);
         let s = Subscription {
@@ -1339,27 +1572,9 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
         };
         push(&mut t.subscriptions, s, "subscriptions")?;
     }
-    let estop = r.opt(wd.input_opt)?;
-    let link_fault = r.flag()?;
-    let restart = u16::try_from(r.get(wd.restart(t.inputs.len()))?)
-        .map_err(|_| PackError::Value("restart"))?;
-    let mut alarms = Vec::new();
-    for _ in 0..r.count()? {
-        let level = match r.get(2)? {
-            0 => AlarmLevel::Info,
-            1 => AlarmLevel::Warning,
-            2 => AlarmLevel::Fault,
-            _ => return Err(PackError::Value("alarm level")),
-        };
-        let when = get_expr(&mut r, &mut cursor, &wd)?;
-        push(&mut alarms, AlarmDecl { level, when }, "alarms")?;
+    if !r.flag()? {
+        t.safety = get_safety(&mut r, &t, &mut cursor, &wd)?;
     }
-    t.safety = Safety {
-        estop,
-        link_fault,
-        restart,
-        alarms,
-    };
     let used = r.bit.div_ceil(8);
     let pad = (8 - r.bit % 8) % 8;
     if r.get(pad as u32)? != 0 {

@@ -34,7 +34,7 @@ fn the_envelope_layout_is_exact() {
     assert_eq!(HEADER_LEN + TRAILER_LEN, 12);
     assert_eq!(b[0], 0xEC);
     assert_eq!(MAGIC, [0xEC]);
-    assert_eq!(b[1], 5, "schema version 5");
+    assert_eq!(b[1], 6, "schema version 6");
     assert_eq!(
         &b[2..6],
         &[0x04, 0x03, 0x02, 0x01],
@@ -46,7 +46,7 @@ fn the_envelope_layout_is_exact() {
     assert_eq!(
         envelope(&b),
         Ok(Envelope {
-            version: 5,
+            version: 6,
             generation: 0x0102_0304,
             payload_len: n,
             crc,
@@ -82,7 +82,7 @@ fn bits(fields: &[(u32, u32)]) -> Vec<u8> {
 /// Fields of an empty table for role "r" after the role (`Table::empty`): every count
 /// zero, as one-bit gamma codes.
 #[rustfmt::skip]
-const EMPTY_REST: [(u32, u32); 20] = [
+const EMPTY_REST: [(u32, u32); 21] = [
     (1, 1),          // events: gamma(0)
     (1, 1),          // vars: none
     (0, 3),          // pin width 0
@@ -91,13 +91,13 @@ const EMPTY_REST: [(u32, u32); 20] = [
     (1, 1), (1, 1),  // timers, durations: none
     (1, 1),          // code: none
     (1, 1),          // charts: none
-    (0, 3),          // width of the states' action counts: 0
-    (1, 1),          // routes: none
-    (0, 1), (0, 1), (0, 1), // start, home, boot: not fresh, None (0 bits: one event value)
+    (0, 3), (0, 1),  // width of the states' action counts: 0; no common count
+    (1, 1),          // routes: one per chart input (there is none)
+    (0, 2), (0, 2), (0, 2), // start, home, boot: not fresh, None
     (1, 1), (0, 5),  // peers: none, address width 0
-    (0, 4), (1, 1),  // topic width 0, publications: none
+    (0, 3), (1, 1),  // topic width 0, publications: none
     (1, 1),          // subscriptions: none
-    (0, 1),          // safety: estop None (0 bits), link_fault false, restart (0 bits)
+    (1, 1),          // safety: none declared
 ];
 
 #[test]
@@ -112,10 +112,9 @@ fn the_payload_of_an_empty_table_bit_by_bit() {
         (0, 5),                       // channel 11 (11 + 0)
     ];
     fields.extend_from_slice(&EMPTY_REST);
-    fields.push((1, 1)); // alarms: none
     let want = bits(&fields);
     assert_eq!(p, want);
-    assert_eq!(p, [0x42, 0x0E, 0x00, 0x00, 0x8C, 0x1F, 0x11, 0xC0, 0x02]);
+    assert_eq!(p, [0x42, 0x0E, 0x00, 0x00, 0x8C, 0x1F, 0x02, 0x01, 0x0E]);
     assert_eq!(decode(&seal(&want, 9)).map(|t| t.generation), Ok(9));
 }
 
@@ -141,12 +140,12 @@ fn an_output_is_pin_fault_start_home() {
             (4, 3),              // pin width 4 (pins up to 10)
             (1, 1),              // inputs: none
             (0b110, 3),          // outputs: gamma(2): 0, 1, then 1
-            (9, 4), (fault_of_first, 2), (0, 2), (0, 1), // pin 9, Hold, Low, low
-            (10, 4), (1, 2), (1, 2), (1, 1),             // pin 10, High, High, high
+            // pin 9, not both levels low: Hold, Low; home low
+            (9, 4), (0, 1), (fault_of_first, 2), (0, 2), (0, 1),
+            (10, 4), (0, 1), (1, 2), (1, 2), (1, 1), // pin 10, High, High, high
         ];
         let mut fields = fields;
         fields.extend_from_slice(&EMPTY_REST[5..]);
-        fields.push((1, 1)); // alarms: none
         bits(&fields)
     };
     let want = outputs(2);
@@ -199,8 +198,11 @@ fn unsupported_version() {
     // Version 4: postcard in a 16-byte envelope (its version sat at bytes 4..6).
     b[1] = 4;
     assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(4)));
-    b[1] = 6;
-    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(6)));
+    // Version 5: the first packed payload, without its implicit shapes.
+    b[1] = 5;
+    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(5)));
+    b[1] = 7;
+    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(7)));
 }
 
 #[test]

@@ -150,7 +150,7 @@ fn mutations_reach_the_parser_the_validator_and_the_interpreter() {
     }
     println!("of {n} mutated blobs: {postcard} rejected by the parser, {invalid} by the validator, {ok} decode");
     assert!(postcard >= n / 10, "parser: {postcard}");
-    // The packed payload (schema 5) has fewer invalid tables to reach: a reference is as
+    // The packed payload has fewer invalid tables to reach: a reference is as
     // wide as its count, so most out-of-range values cannot be written at all, and a
     // mutated flag or count shifts every field after it, which the parser mostly refuses
     // (about 5 % reach the validator; over 10 % did under postcard's byte-aligned fields).

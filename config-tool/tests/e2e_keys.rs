@@ -170,7 +170,7 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
         assert!(line.ends_with("activated"), "{pushed}");
     }
     assert!(
-        lines[c.ir.roles.len() + 1].starts_with("pushed 4 table(s): 329 bytes"),
+        lines[c.ir.roles.len() + 1].starts_with("pushed 4 table(s): 263 bytes"),
         "{pushed}"
     );
     assert_eq!(

@@ -68,7 +68,7 @@ fn a_lost_chunk_is_resent_and_a_corrupted_one_dropped() {
     let mut bed = bring_up(&c, options(medium::Config::default(), None));
     push_and_home(&mut bed, &c);
     let blob = &dip.blobs[vc];
-    // Two chunks (the packed tables of schema 5 fit one or two: 117 bytes here).
+    // Two chunks (the packed tables fit one or two: the double dip's VC is 92 bytes).
     assert!(blob.len() > CHUNK_DATA, "two chunks at least");
     let before = status(&mut bed, node);
 

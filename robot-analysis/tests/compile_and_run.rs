@@ -259,12 +259,12 @@ fn dump_shows_the_decoded_table_and_names_a_bad_blob_clearly() {
     let c = build(&load("fixtures/small-sequence.ron"));
     let text = dump::dump(&c.blobs[1]).expect("dumps");
     let expected = format!(
-        "blob: {} bytes (payload {}), schema 5, generation 0, CRC-32 {:#010x}\n",
+        "blob: {} bytes (payload {}), schema 6, generation 0, CRC-32 {:#010x}\n",
         c.blobs[1].len(),
         c.blobs[1].len() - 12,
         u32::from_le_bytes(c.blobs[1][c.blobs[1].len() - 4..].try_into().expect("4"))
     ) + "role B  generation 0  pan 0x0101  channel 11
-events 10  start -  home -  boot e7
+events 10  start -  home -  boot e9
 input in0: pin 2  rise e0  fall -  mirror -
 input in1: pin 3  rise e1  fall -  mirror -
 output out0: pin 0  fault 0  start 0  home 0
@@ -286,25 +286,25 @@ chart 1: 2 inputs, initial S0, idle S0
 chart 2: 2 inputs, initial S0, idle S0
   S0: 
   S1: drive out0=0,out1=1; start t0 2000 ms
-  S2: cancel t0; emit e9
+  S2: cancel t0; emit e5
   T5: S0 --in0 [in0]--> S2
   T6: S0 --in0--> S1
   T7: S1 --in1--> S2
   T8: S2 --(no event)--> S0
-route e5 -> chart 0 in0
+route e6 -> chart 0 in0
 route e1 -> chart 0 in1
 route e0 -> chart 0 in2
 route e2 -> chart 1 in0
-route e6 -> chart 1 in1
+route e7 -> chart 1 in1
 route e8 -> chart 2 in0
 route e0 -> chart 2 in1
 peer p0: 0x0001
-publish e3 as topic 3 to peers 0b00000001
-publish e4 as topic 4 to peers 0b00000001
-publish e7 as topic 5 to peers 0b00000001
-publish e9 as topic 6 to peers 0b00000001
-subscribe p0 topic 0 -> e5
-subscribe p0 topic 1 -> e6
+publish e3 as topic 0 to peers 0b00000001
+publish e4 as topic 1 to peers 0b00000001
+publish e5 as topic 2 to peers 0b00000001
+publish e9 as topic 3 to peers 0b00000001
+subscribe p0 topic 0 -> e6
+subscribe p0 topic 1 -> e7
 subscribe p0 topic 2 -> e8
 ";
     assert_eq!(text, expected);

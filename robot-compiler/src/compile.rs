@@ -94,7 +94,7 @@ pub fn lower_checked(src: &Source, checked: Checked) -> Result<Compiled, Vec<Dia
 pub fn radio_events(ir: &Ir) -> Vec<(String, String, String)> {
     let mut out = Vec::new();
     let homing = crate::synth::homing_events(ir);
-    for (ri, e) in lower::topics(ir) {
+    for (ri, e, _) in lower::topics(ir) {
         let from = &ir.roles[ri];
         if from.events[e] == crate::synth::FAULT_EVENT || homing.contains(&from.events[e]) {
             continue; // only on a fault, or when homing

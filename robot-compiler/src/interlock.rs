@@ -313,7 +313,7 @@ mod tests {
             (
                 String::from(
                     "`VC.VC.NOWHERE`: chart VC.VC has no state `NOWHERE` (states: IDLE, STEP1, \
-                     WAIT3, STEP3, WAIT5, STEP5, STEP6, WAIT10, STEP10, WAIT12, STEP12, HOMING, UNHOMED)"
+                     WAIT3, STEP3, WAIT5, STEP5, STEP6, WAIT10, STEP10, WAIT12, STEP12, UNHOMED, HOMING)"
                 ),
                 1..14
             )

@@ -14,7 +14,8 @@
 //!   the paper's matrices), their checks, their charts, their matrix export.
 //! - [`sorting`]: a sorting station's colour truth table, compiled to a classification
 //!   chart.
-//! - [`lower`]: IR -> tables. [`compile`]: the pipeline. [`dump`], [`diagram`].
+//! - [`numbering`]: event ids, routes and imports in the order the packed table reads
+//!   them. [`lower`]: IR -> tables. [`compile`]: the pipeline. [`dump`], [`diagram`].
 //!
 //! It knows nothing of the node firmware, the simulator or the radio (see
 //! `docs/architecture.md`).
@@ -36,6 +37,7 @@ pub mod ir;
 pub mod locate;
 pub mod lower;
 pub mod model;
+pub mod numbering;
 pub mod petri;
 pub mod plants;
 pub mod sorting;

@@ -1,5 +1,5 @@
 //! IR -> `config_schema::Table` per role: event ids, pins, timers, charts, routes, and the
-//! radio links (robot-wide topic ids, peers, publications, subscriptions). Everything is
+//! radio links (topic ids per publisher, peers, publications, subscriptions). Everything is
 //! ordered by declaration, never by hash order, so the same robot gives the same bytes.
 
 use config_schema::limits::*;
@@ -36,10 +36,14 @@ impl std::fmt::Display for Over {
     }
 }
 
-/// A published event: (publishing role, event id), in topic order.
-pub fn topics(ir: &Ir) -> Vec<(usize, usize)> {
+/// A published event: (publishing role, event id, topic), role by role and each role's
+/// by event id. Topics are numbered per publisher, from 0 in that order: a subscription
+/// names its publisher, so the topic need only tell that publisher's events apart (and is
+/// then as narrow as its publisher's count of publications).
+pub fn topics(ir: &Ir) -> Vec<(usize, usize, usize)> {
     let mut out = Vec::new();
     for (ri, r) in ir.roles.iter().enumerate() {
+        let mut topic = 0;
         for (e, name) in r.events.iter().enumerate() {
             let used = ir.roles.iter().any(|q| {
                 q.imports
@@ -47,7 +51,8 @@ pub fn topics(ir: &Ir) -> Vec<(usize, usize)> {
                     .any(|(from, ev, _)| *from == r.name && ev == name)
             });
             if used {
-                out.push((ri, e));
+                out.push((ri, e, topic));
+                topic += 1;
             }
         }
     }
@@ -89,7 +94,7 @@ pub fn capacity(ir: &Ir) -> Vec<Over> {
             .collect();
         let code: usize = exprs.iter().sum();
         let longest_expr = exprs.iter().copied().max().unwrap_or(0);
-        let published = topics(ir).iter().filter(|(q, _)| *q == ri).count();
+        let published = topics(ir).iter().filter(|(q, _, _)| *q == ri).count();
         let checks: [(&'static str, usize, usize); 15] = [
             ("MAX_EVENTS", r.events.len(), MAX_EVENTS),
             ("MAX_VARS", r.vars.len(), MAX_VARS),
@@ -226,7 +231,7 @@ struct Lowering<'a> {
     ir: &'a Ir,
     ri: usize,
     r: &'a RoleIr,
-    topics: &'a [(usize, usize)],
+    topics: &'a [(usize, usize, usize)],
 }
 
 impl Lowering<'_> {
@@ -410,7 +415,7 @@ impl Lowering<'_> {
                 .push(ir.roles[q].address)
                 .map_err(|_| RoleError::PoolFull("peers"))?;
         }
-        for (topic, &(q, e)) in self.topics.iter().enumerate() {
+        for &(q, e, topic) in self.topics {
             if q != ri {
                 continue;
             }
@@ -442,7 +447,8 @@ impl Lowering<'_> {
             let topic = self
                 .topics
                 .iter()
-                .position(|&(tq, te)| tq == q && ir.roles[q].events[te] == *x)
+                .find(|&&(tq, te, _)| tq == q && ir.roles[q].events[te] == *x)
+                .map(|&(_, _, topic)| topic)
                 .ok_or_else(|| RoleError::NotPublished {
                     from: from.clone(),
                     event: x.clone(),

@@ -42,8 +42,7 @@ pub enum Seen {
 pub fn fault_topics(c: &Compiled) -> HashMap<(u16, u8), String> {
     robot_compiler::lower::topics(&c.ir)
         .into_iter()
-        .enumerate()
-        .filter_map(|(topic, (ri, e))| {
+        .filter_map(|(ri, e, topic)| {
             let role = c.ir.roles.get(ri)?;
             let name = role.events.get(e)?;
             let topic = u8::try_from(topic).ok()?;

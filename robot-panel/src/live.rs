@@ -137,10 +137,9 @@ impl Live {
         if self.heard.len() > 64 {
             self.heard.pop_front();
         }
-        let (role, event) = m
-            .topics
-            .get(usize::from(topic))
-            .cloned()
+        let (role, event) = (m.topics.iter())
+            .find(|(key, _)| *key == (src, topic))
+            .map(|(_, named)| named.clone())
             .unwrap_or_else(|| (format!("{src:#06x}"), format!("topic {topic}")));
         self.event_count += 1;
         self.events.push_back((at_us, role, event));
@@ -563,10 +562,9 @@ mod tests {
         let c = paint();
         let m = Machine::of(&c).unwrap();
         let mut l = Live::new(&m);
-        let (topic, _) = (m.topics.iter().enumerate())
-            .find(|(_, (r, _))| r == "GR")
-            .unwrap();
-        let topic = topic as u8;
+        let ((src, topic), _) = (m.topics.iter()).find(|(_, (r, _))| r == "GR").unwrap();
+        assert_eq!(*src, 0x0012);
+        let topic = *topic;
         l.event(&m, 10, 0x0012, 1, 5, topic);
         l.event(&m, 20, 0x0012, 1, 5, topic);
         l.event(&m, 30, 0x0012, 1, 6, topic);

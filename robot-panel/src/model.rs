@@ -29,9 +29,10 @@ pub struct Machine {
     /// The wiring the live feed reads the pins with (board pins); not sent.
     #[serde(skip)]
     pub wiring: Vec<Actuator>,
-    /// Each radio topic's publishing role and event, by topic number; not sent.
+    /// Each radio topic: its publisher's address and its number (topics are numbered per
+    /// publisher), the publishing role and the event; not sent.
     #[serde(skip)]
-    pub topics: Vec<(String, String)>,
+    pub topics: Vec<((u16, u8), (String, String))>,
 }
 
 /// A sorting station as the page draws it: a light per sensor, the ball at the colour
@@ -165,10 +166,13 @@ impl Machine {
             functions: functions(c, &charts_of),
             wiring,
             topics: (robot_compiler::lower::topics(&c.ir).into_iter())
-                .map(|(ri, e)| {
-                    let r = c.ir.roles.get(ri);
-                    let event = r.and_then(|r| r.events.get(e)).cloned().unwrap_or_default();
-                    (r.map_or_else(String::new, |r| r.name.clone()), event)
+                .filter_map(|(ri, e, topic)| {
+                    let r = c.ir.roles.get(ri)?;
+                    let event = r.events.get(e).cloned().unwrap_or_default();
+                    Some((
+                        (r.address, u8::try_from(topic).ok()?),
+                        (r.name.clone(), event),
+                    ))
                 })
                 .collect(),
         })

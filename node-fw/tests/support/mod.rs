@@ -83,7 +83,7 @@ pub fn blob(generation: u32, states: usize) -> (Table, Vec<u8>) {
     let drive = [Action::Drive { mask: 1, value: 1 }];
     let actions: Vec<&[Action]> = (0..states).map(|_| &drive[..]).collect();
     // A ring visited out of order and variables of large initial values, so that the
-    // packed blob (schema 5) still spans several chunks: no field takes its short form.
+    // packed blob still spans several chunks: no field takes its short form.
     let step = (1..states)
         .find(|k| gcd(*k, states) == 1 && *k > 1)
         .unwrap_or(1);

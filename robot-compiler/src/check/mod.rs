@@ -126,6 +126,7 @@ fn build_ir(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
     crate::sorting::place(robot, src, &mut ir)?;
     crate::automata::compile::place(robot, src, &mut ir)?;
     crate::alarms::place(robot, src, &mut ir)?;
+    crate::numbering::number(&mut ir);
     Ok(ir)
 }
 

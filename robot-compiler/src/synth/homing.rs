@@ -111,31 +111,6 @@ pub(super) fn add(seq: &Sequence<'_>, ir: &mut Ir) -> Result<(), SynthError> {
             .position(|c| c.name == seq.steps[0].actuator)
             .ok_or_else(|| SynthError::Undeclared(seq.steps[0].actuator.clone()))?;
         let c = &mut r.charts[ci];
-        let (home_in, homed_in) = (c.inputs.len(), c.inputs.len() + 1);
-        c.inputs.push(String::from("home"));
-        c.inputs.push(String::from("homed"));
-        let homing_state = c.states.len();
-        c.states.push(StateIr {
-            name: String::from("HOMING"),
-            actions: vec![ActionIr::Emit(String::from(HOME_START_EVENT))],
-        });
-        let unhomed = c.states.len();
-        c.states.push(StateIr {
-            name: String::from("UNHOMED"),
-            actions: vec![],
-        });
-        for (from, to, trigger) in [
-            (unhomed, homing_state, home_in),
-            (c.idle, homing_state, home_in),
-            (homing_state, c.idle, homed_in),
-        ] {
-            c.transitions.push(TransitionIr {
-                from,
-                to,
-                trigger: Some(trigger),
-                guard: None,
-            });
-        }
         // Another node that boots (a power cut of that node alone) may have left its
         // actuators anywhere: at rest, the machine is no longer homed. (During a cycle or
         // homing its chart waits, from its first state, for an event that has passed: the
@@ -144,6 +119,20 @@ pub(super) fn add(seq: &Sequence<'_>, ir: &mut Ir) -> Result<(), SynthError> {
         let booters: Vec<usize> = (0..roles_names.len())
             .filter(|&q| q != first && seq.moves_in(q))
             .collect();
+        // States, inputs and transitions in the order that chains them (idle, UNHOMED,
+        // HOMING, idle): each transition leaves the state the one before entered, most
+        // enter the next state and trigger on the next input, which the packed table
+        // says in a bit each.
+        let unhomed = c.states.len();
+        c.states.push(StateIr {
+            name: String::from("UNHOMED"),
+            actions: vec![],
+        });
+        let homing_state = c.states.len();
+        c.states.push(StateIr {
+            name: String::from("HOMING"),
+            actions: vec![ActionIr::Emit(String::from(HOME_START_EVENT))],
+        });
         let mut unhome_input = None;
         if !booters.is_empty() {
             let unhome = c.inputs.len();
@@ -153,6 +142,21 @@ pub(super) fn add(seq: &Sequence<'_>, ir: &mut Ir) -> Result<(), SynthError> {
                 from: c.idle,
                 to: unhomed,
                 trigger: Some(unhome),
+                guard: None,
+            });
+        }
+        let (home_in, homed_in) = (c.inputs.len(), c.inputs.len() + 1);
+        c.inputs.push(String::from("home"));
+        c.inputs.push(String::from("homed"));
+        for (from, to, trigger) in [
+            (unhomed, homing_state, home_in),
+            (homing_state, c.idle, homed_in),
+            (c.idle, homing_state, home_in),
+        ] {
+            c.transitions.push(TransitionIr {
+                from,
+                to,
+                trigger: Some(trigger),
                 guard: None,
             });
         }
