@@ -366,16 +366,15 @@ impl<'a> Message<'a> {
     /// trailing bytes are an error.
     pub fn parse(payload: &'a [u8]) -> Result<Message<'a>, MessageError> {
         let mut r = codec::In::new(payload);
-        let msg = codec::message(&mut r)?;
-        r.end()?;
-        Ok(msg)
+        let msg = codec::message(&mut r);
+        r.end().map(|()| msg)
     }
 
     /// Writes the message into `buf` (postcard's bytes); returns its length.
     pub fn emit(&self, buf: &mut [u8]) -> Result<usize, MessageError> {
         let mut w = codec::Out::new(buf);
-        codec::emit(self, &mut w)?;
-        Ok(w.len())
+        codec::emit(self, &mut w);
+        w.len()
     }
 }
 
