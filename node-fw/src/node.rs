@@ -152,6 +152,15 @@ pub struct NodeCore<S = RamStaging> {
     alarms: Alarms,
 }
 
+/// Why a payload is not a message the node acts on.
+enum Unacted {
+    /// Not a message.
+    Malformed,
+    /// A message meant for the tool (an answer or report of a node): received, nothing
+    /// to do.
+    ForTheTool,
+}
+
 /// Why a management frame is not acted on.
 enum Refused {
     /// Refused (counted by its reason, and as dropped).
@@ -993,7 +1002,11 @@ impl<S: StagingArea> NodeCore<S> {
         } else {
             None
         };
-        let parsed = Message::parse(opened.as_ref().map_or(payload, |o| o.payload));
+        let parsed = match Message::parse_node(opened.as_ref().map_or(payload, |o| o.payload)) {
+            Ok(Some(msg)) => Ok(msg),
+            Ok(None) => Err(Unacted::ForTheTool),
+            Err(_) => Err(Unacted::Malformed),
+        };
         let authentic = match &opened {
             None => false,
             Some(opened) if management => match self.admit_management(opened, &parsed, now, io) {
@@ -1040,9 +1053,17 @@ impl<S: StagingArea> NodeCore<S> {
                 Verdict::Answered => return,
             },
         };
-        let Ok(msg) = parsed else {
-            self.counters.dropped += 1;
-            return;
+        let msg = match parsed {
+            Ok(msg) => msg,
+            // Replies, statuses and announcements are for the tool.
+            Err(Unacted::ForTheTool) => {
+                self.counters.received += 1;
+                return;
+            }
+            Err(Unacted::Malformed) => {
+                self.counters.dropped += 1;
+                return;
+            }
         };
         let is_management = matches!(
             msg,
@@ -1106,7 +1127,7 @@ impl<S: StagingArea> NodeCore<S> {
             Message::Switch { generation, step } => {
                 self.on_switch(generation, step, src, reply_pan, now, io)
             }
-            // Replies, statuses and announcements are for the tool.
+            // Parsed as `Unacted::ForTheTool`.
             _ => {}
         }
     }

@@ -370,6 +370,16 @@ impl<'a> Message<'a> {
         r.end().map(|()| msg)
     }
 
+    /// [`Message::parse`] as a node needs it: the messages it acts on, `None` for a
+    /// message meant for the tool (`ConfigReply`, `Status`, `Announce`, `Security`,
+    /// `Alarms`: answers and reports of nodes), which is checked as `parse` checks it but
+    /// not built. The same errors as `parse`.
+    pub fn parse_node(payload: &'a [u8]) -> Result<Option<Message<'a>>, MessageError> {
+        let mut r = codec::In::new(payload);
+        let msg = codec::heard(&mut r);
+        r.end().map(|()| msg)
+    }
+
     /// Writes the message into `buf` (postcard's bytes); returns its length.
     pub fn emit(&self, buf: &mut [u8]) -> Result<usize, MessageError> {
         let mut w = codec::Out::new(buf);

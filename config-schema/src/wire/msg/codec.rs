@@ -169,7 +169,24 @@ impl<'a> In<'a> {
 
 /// Reads one message (what follows it is the caller's).
 pub(super) fn message<'a>(r: &mut In<'a>) -> Message<'a> {
-    match r.variant(14) {
+    let v = r.variant(14);
+    for_nodes(r, v).unwrap_or_else(|| for_the_tool(r, v))
+}
+
+/// Reads one message as a node hears it: the ones it acts on whole, the ones meant for the
+/// tool only checked (`None`), so a node builds none of them.
+pub(super) fn heard<'a>(r: &mut In<'a>) -> Option<Message<'a>> {
+    let v = r.variant(14);
+    let msg = for_nodes(r, v);
+    if msg.is_none() {
+        let _ = for_the_tool(r, v);
+    }
+    msg
+}
+
+/// The message of variant `v` if it is one nodes act on.
+fn for_nodes<'a>(r: &mut In<'a>, v: u32) -> Option<Message<'a>> {
+    Some(match v {
         0 => Message::Event {
             epoch: r.u16(),
             seq: r.u16(),
@@ -193,13 +210,27 @@ pub(super) fn message<'a>(r: &mut In<'a>) -> Message<'a> {
         4 => Message::ConfigEnd {
             generation: r.u32(),
         },
-        5 => Message::ConfigReply {
-            generation: r.u32(),
-            reply: config_reply(r),
-        },
         6 => Message::Command {
             id: r.u16(),
             command: command(r),
+        },
+        10 => Message::Challenge { nonce: r.u32() },
+        11 => Message::ChallengeAnswer { nonce: r.u32() },
+        12 => Message::Switch {
+            generation: r.u32(),
+            step: switch_step(r),
+        },
+        _ => return None,
+    })
+}
+
+/// The message of variant `v`, one meant for the tool (answers and reports of nodes:
+/// `ConfigReply` 5, `Status` 7, `Announce` 8, `Security` 9, `Alarms` 13).
+fn for_the_tool<'a>(r: &mut In<'a>, v: u32) -> Message<'a> {
+    match v {
+        5 => Message::ConfigReply {
+            generation: r.u32(),
+            reply: config_reply(r),
         },
         7 => Message::Status(status(r)),
         8 => Message::Announce(Announce {
@@ -209,12 +240,6 @@ pub(super) fn message<'a>(r: &mut In<'a>) -> Message<'a> {
             staged: r.u32(),
         }),
         9 => Message::Security(security(r)),
-        10 => Message::Challenge { nonce: r.u32() },
-        11 => Message::ChallengeAnswer { nonce: r.u32() },
-        12 => Message::Switch {
-            generation: r.u32(),
-            step: switch_step(r),
-        },
         _ => Message::Alarms(alarms(r)),
     }
 }

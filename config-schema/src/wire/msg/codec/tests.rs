@@ -29,6 +29,19 @@ fn postcard_parse(payload: &[u8]) -> Result<Message<'_>, MessageError> {
     }
 }
 
+/// What a node hears of `msg`: nothing of an answer or report meant for the tool.
+fn acted(msg: Message<'_>) -> Option<Message<'_>> {
+    let for_the_tool = matches!(
+        msg,
+        Message::ConfigReply { .. }
+            | Message::Status(_)
+            | Message::Announce(_)
+            | Message::Security(_)
+            | Message::Alarms(_)
+    );
+    (!for_the_tool).then_some(msg)
+}
+
 fn ours(payload: &[u8]) -> Result<Message<'_>, MessageError> {
     Message::parse(payload).map_err(|e| match e {
         MessageError::Capacity => MessageError::Variant,
@@ -316,6 +329,14 @@ proptest! {
             }
         }
         prop_assert_eq!(ours(&bytes), postcard_parse(&bytes));
+        prop_assert_eq!(Message::parse_node(&bytes), Message::parse(&bytes).map(acted));
+    }
+
+    #[test]
+    fn a_node_hears_what_it_acts_on(msg in message()) {
+        let mut buf = [0u8; 140];
+        let n = msg.emit(&mut buf).expect("fits");
+        prop_assert_eq!(Message::parse_node(&buf[..n]), Ok(acted(msg.clone())));
     }
 
     #[test]
@@ -326,6 +347,7 @@ proptest! {
         let mut bytes = vec![tag];
         bytes.extend_from_slice(&body);
         prop_assert_eq!(ours(&bytes), postcard_parse(&bytes));
+        prop_assert_eq!(Message::parse_node(&bytes), Message::parse(&bytes).map(acted));
     }
 }
 
