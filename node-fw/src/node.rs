@@ -646,18 +646,18 @@ impl<S: StagingArea> NodeCore<S> {
 
     /// The earliest time [`NodeCore::poll`] has work.
     pub fn deadline(&self) -> u64 {
-        let timers = self.timers.iter().flatten().copied();
-        let links = self.senders.iter().filter_map(|s| s.deadline());
+        let mut at = u64::MAX;
+        let links = self.senders.iter().map(|s| s.deadline());
         let announce = self.table.is_none().then_some(self.next_announce);
-        let disarm = self.switch.deadline();
-        let greet = self.peer_security.greeting();
-        timers
-            .chain(links)
-            .chain(announce)
-            .chain(greet)
-            .chain(disarm)
-            .min()
-            .unwrap_or(u64::MAX)
+        let others = [
+            announce,
+            self.peer_security.greeting(),
+            self.switch.deadline(),
+        ];
+        for t in self.timers.iter().copied().chain(links).chain(others) {
+            at = at.min(t.unwrap_or(u64::MAX));
+        }
+        at
     }
 
     /// Raises the table's START event: a START at the idle point that sets the node going
