@@ -287,9 +287,19 @@ impl Reader<'_> {
 
     /// `x` pushed onto `v`, or `Capacity(what)`.
     fn push<T, const N: usize>(&mut self, v: &mut Vec<T, N>, x: T, what: &'static str) {
-        if v.push(x).is_err() {
+        if self.room(v.is_full(), what) {
+            let _ = v.push(x);
+        }
+    }
+
+    /// Whether a list has room (`full`: none, `Capacity(what)`): the check out of line,
+    /// not in each element type's push.
+    #[inline(never)]
+    fn room(&mut self, full: bool, what: &'static str) -> bool {
+        if full {
             self.fail(PackError::Capacity(what));
         }
+        !full
     }
 }
 
