@@ -26,9 +26,9 @@
 
 use core::fmt;
 
-use heapless::{String, Vec};
+use heapless::Vec;
 
-use crate::alarm::{AlarmDecl, AlarmLevel, Safety};
+use crate::alarm::{AlarmDecl, AlarmLevel, Safety, MAX_DECLARED_ALARMS};
 use crate::guard::{Expr, Op};
 use crate::limits::*;
 use crate::table::*;
@@ -170,78 +170,138 @@ impl Writer<'_> {
     }
 }
 
+/// Reads the payload field by field. The first error is kept and every field after it
+/// reads as 0, so the fields need no error path each (what is built after an error is
+/// thrown away); every list is read to at most one element past its capacity, so every
+/// loop ends.
 struct Reader<'a> {
     bytes: &'a [u8],
     bit: usize,
+    err: Option<PackError>,
 }
 
 impl Reader<'_> {
+    /// Keeps `e` if it is the first error.
     #[inline(never)]
-    fn get(&mut self, width: u32) -> R<u32> {
+    fn fail(&mut self, e: PackError) {
+        if self.err.is_none() {
+            self.err = Some(e);
+        }
+    }
+
+    /// The first error, else `e` (a check that stops the decoder).
+    #[inline(never)]
+    fn stop(&self, e: PackError) -> PackError {
+        self.err.unwrap_or(e)
+    }
+
+    /// `x`, or `e` and 0 if it does not fit.
+    #[inline(never)]
+    fn ok_u8(&mut self, x: Option<u8>, e: PackError) -> u8 {
+        x.unwrap_or_else(|| {
+            self.fail(e);
+            0
+        })
+    }
+
+    #[inline(never)]
+    fn get(&mut self, width: u32) -> u32 {
         let mut v = 0u32;
+        if self.err.is_some() {
+            return 0;
+        }
         for i in 0..width.min(32) {
-            let byte = self.bytes.get(self.bit / 8).ok_or(PackError::End)?;
+            let Some(byte) = self.bytes.get(self.bit / 8) else {
+                self.fail(PackError::End);
+                return 0;
+            };
             if (byte >> (self.bit % 8)) & 1 != 0 {
                 v |= 1 << i;
             }
             self.bit += 1;
         }
-        Ok(v)
+        v
     }
 
     #[inline(never)]
-    fn u8(&mut self, width: u32) -> R<u8> {
-        u8::try_from(self.get(width)?).map_err(|_| PackError::Value("byte"))
+    fn u8(&mut self, width: u32) -> u8 {
+        let v = self.get(width);
+        self.ok_u8(u8::try_from(v).ok(), PackError::Value("byte"))
     }
 
-    #[inline(never)]
-    fn flag(&mut self) -> R<bool> {
-        Ok(self.get(1)? != 0)
+    fn flag(&mut self) -> bool {
+        self.get(1) != 0
     }
 
     /// A gamma code (at most 32 bits after the leading one).
     #[inline(never)]
-    fn gamma(&mut self) -> R<u64> {
+    fn gamma(&mut self) -> u64 {
         let mut tail = 0u32;
-        while !self.flag()? {
+        while !self.flag() {
             tail += 1;
             if tail > 32 {
-                return Err(PackError::Value("count"));
+                self.fail(PackError::Value("count"));
+            }
+            if self.err.is_some() {
+                return 0;
             }
         }
         let mut v = 1u64 << tail;
         for i in 0..tail {
-            v |= u64::from(self.get(1)?) << i;
+            v |= u64::from(self.get(1)) << i;
         }
-        Ok(v - 1)
+        v - 1
     }
 
     #[inline(never)]
-    fn count(&mut self) -> R<usize> {
-        usize::try_from(self.gamma()?).map_err(|_| PackError::Value("count"))
+    fn count(&mut self) -> usize {
+        let n = self.gamma();
+        usize::try_from(n).unwrap_or_else(|_| {
+            self.fail(PackError::Value("count"));
+            0
+        })
+    }
+
+    /// A list's count, at most one past `cap`: the element past the capacity is read,
+    /// then refused.
+    #[inline(never)]
+    fn list(&mut self, cap: usize) -> usize {
+        self.count().min(cap + 1)
     }
 
     #[inline(never)]
-    fn sv(&mut self) -> R<i32> {
-        let z = u32::try_from(self.gamma()?).map_err(|_| PackError::Value("constant"))?;
-        Ok(((z >> 1) as i32) ^ -((z & 1) as i32))
+    fn sv(&mut self) -> i32 {
+        let z = u32::try_from(self.gamma()).unwrap_or_else(|_| {
+            self.fail(PackError::Value("constant"));
+            0
+        });
+        ((z >> 1) as i32) ^ -((z & 1) as i32)
     }
 
     /// An optional reference (`0`: none, `n + 1`: `Some(n)`) `width` wide.
     #[inline(never)]
-    fn opt(&mut self, width: u32) -> R<Option<u8>> {
-        let v = self.get(width)?;
-        match v.checked_sub(1) {
-            None => Ok(None),
-            Some(n) => u8::try_from(n)
-                .map(Some)
-                .map_err(|_| PackError::Value("reference")),
+    fn opt(&mut self, width: u32) -> Option<u8> {
+        let v = self.get(width);
+        let n = v.checked_sub(1)?;
+        Some(self.ok_u8(u8::try_from(n).ok(), PackError::Value("reference")))
+    }
+
+    /// `x` pushed onto `v`, or `Capacity(what)`.
+    fn push<T, const N: usize>(&mut self, v: &mut Vec<T, N>, x: T, what: &'static str) {
+        if self.room(v.is_full(), what) {
+            let _ = v.push(x);
         }
     }
-}
 
-fn push<T, const N: usize>(v: &mut Vec<T, N>, x: T, what: &'static str) -> R<()> {
-    v.push(x).map_err(|_| PackError::Capacity(what))
+    /// Whether a list has room (`full`: none, `Capacity(what)`): the check out of line,
+    /// not in each element type's push.
+    #[inline(never)]
+    fn room(&mut self, full: bool, what: &'static str) -> bool {
+        if full {
+            self.fail(PackError::Capacity(what));
+        }
+        !full
+    }
 }
 
 fn opt_value(o: Option<u8>) -> usize {
@@ -423,29 +483,29 @@ impl Writer<'_> {
 
 impl Reader<'_> {
     #[inline(never)]
-    fn event(&mut self, seen: &mut Seen, wd: &Widths) -> R<u8> {
-        let e = if self.flag()? {
+    fn event(&mut self, seen: &mut Seen, wd: &Widths) -> u8 {
+        let e = if self.flag() {
             seen.fresh()
         } else {
-            self.u8(wd.event)?
+            self.u8(wd.event)
         };
         seen.mark(e);
-        Ok(e)
+        e
     }
 
     #[inline(never)]
-    fn event_opt(&mut self, seen: &mut Seen, wd: &Widths) -> R<Option<u8>> {
-        let e = if self.flag()? {
+    fn event_opt(&mut self, seen: &mut Seen, wd: &Widths) -> Option<u8> {
+        let e = if self.flag() {
             Some(seen.fresh())
-        } else if self.flag()? {
-            Some(self.u8(wd.event)?)
+        } else if self.flag() {
+            Some(self.u8(wd.event))
         } else {
             None
         };
         if let Some(e) = e {
             seen.mark(e);
         }
-        Ok(e)
+        e
     }
 }
 
@@ -502,11 +562,14 @@ fn put_duration(w: &mut Writer, ms: u32) -> R<()> {
 }
 
 #[inline(never)]
-fn get_duration(r: &mut Reader) -> R<u32> {
-    let k = r.get(DECADE_BITS)?;
-    let m = u32::try_from(r.gamma()?).map_err(|_| PackError::Value("duration"))?;
-    m.checked_mul(10u32.pow(k))
-        .ok_or(PackError::Value("duration"))
+fn get_duration(r: &mut Reader) -> u32 {
+    let k = r.get(DECADE_BITS);
+    let m = u32::try_from(r.gamma()).ok();
+    m.and_then(|m| m.checked_mul(10u32.pow(k)))
+        .unwrap_or_else(|| {
+            r.fail(PackError::Value("duration"));
+            0
+        })
 }
 
 fn put_expr(w: &mut Writer, e: Expr, cursor: &mut usize, wd: &Widths) -> R<()> {
@@ -528,19 +591,22 @@ fn put_expr(w: &mut Writer, e: Expr, cursor: &mut usize, wd: &Widths) -> R<()> {
 }
 
 #[inline(never)]
-fn get_expr(r: &mut Reader, cursor: &mut usize, wd: &Widths) -> R<Expr> {
-    let start = if r.flag()? {
-        u8::try_from(*cursor).map_err(|_| PackError::Value("expression start"))?
+fn get_expr(r: &mut Reader, cursor: &mut usize, wd: &Widths) -> Expr {
+    let start = if r.flag() {
+        r.ok_u8(
+            u8::try_from(*cursor).ok(),
+            PackError::Value("expression start"),
+        )
     } else {
-        r.u8(wd.code)?
+        r.u8(wd.code)
     };
     let len = if wd.wide {
-        r.u8(8)?
+        r.u8(8)
     } else {
-        r.u8(EXPR_LEN_BITS)? + 1
+        r.u8(EXPR_LEN_BITS) + 1
     };
     *cursor = usize::from(start) + usize::from(len);
-    Ok(Expr { start, len })
+    Expr { start, len }
 }
 
 fn level(l: Level) -> u32 {
@@ -552,12 +618,15 @@ fn level(l: Level) -> u32 {
 }
 
 #[inline(never)]
-fn get_level(r: &mut Reader) -> R<Level> {
-    match r.get(2)? {
-        0 => Ok(Level::Low),
-        1 => Ok(Level::High),
-        2 => Ok(Level::Hold),
-        _ => Err(PackError::Value("level")),
+fn get_level(r: &mut Reader) -> Level {
+    match r.get(2) {
+        0 => Level::Low,
+        1 => Level::High,
+        2 => Level::Hold,
+        _ => {
+            r.fail(PackError::Value("level"));
+            Level::Low
+        }
     }
 }
 
@@ -596,11 +665,11 @@ fn put_op(w: &mut Writer, op: Op, wd: &Widths) -> R<()> {
 }
 
 #[inline(never)]
-fn get_op(r: &mut Reader, wd: &Widths) -> R<Op> {
-    Ok(match r.get(OP_BITS)? {
-        0 => Op::Const(r.sv()?),
-        1 => Op::Var(r.u8(wd.var)?),
-        2 => Op::Input(r.u8(wd.input)?),
+fn get_op(r: &mut Reader, wd: &Widths) -> Op {
+    match r.get(OP_BITS) {
+        0 => Op::Const(r.sv()),
+        1 => Op::Var(r.u8(wd.var)),
+        2 => Op::Input(r.u8(wd.input)),
         3 => Op::Not,
         4 => Op::And,
         5 => Op::Or,
@@ -616,11 +685,14 @@ fn get_op(r: &mut Reader, wd: &Widths) -> R<Op> {
         15 => Op::Div,
         16 => Op::Rem,
         17 => Op::Wrap {
-            bits: r.u8(8)?,
-            signed: r.flag()?,
+            bits: r.u8(8),
+            signed: r.flag(),
         },
-        _ => return Err(PackError::Value("operation")),
-    })
+        _ => {
+            r.fail(PackError::Value("operation"));
+            Op::Not
+        }
+    }
 }
 
 /// Action codes (a prefix code, by how often a compiled table has each: the three a motion
@@ -688,42 +760,49 @@ fn put_action(w: &mut Writer, a: Action, cx: &mut ActionCtx) -> R<()> {
 }
 
 #[inline(never)]
-fn get_action(r: &mut Reader, cx: &mut ActionCtx) -> R<Action> {
+fn get_action(r: &mut Reader, cx: &mut ActionCtx) -> Action {
     let wd = cx.wd;
     // Each further bit of a code that starts `1 1`: 0 ends it.
-    let mut code = (r.get(2)?, 2);
+    let mut code = (r.get(2), 2);
     while code.0 == (1 << code.1) - 1 && code.1 < 5 {
-        code = (code.0 | r.get(1)? << code.1, code.1 + 1);
+        code = (code.0 | r.get(1) << code.1, code.1 + 1);
     }
-    Ok(match code {
+    match code {
         A_SET => Action::Set {
-            var: r.u8(wd.var)?,
-            expr: get_expr(r, &mut cx.cursor, &wd)?,
+            var: r.u8(wd.var),
+            expr: get_expr(r, &mut cx.cursor, &wd),
         },
         A_DRIVE => Action::Drive {
-            mask: if r.flag()? {
+            mask: if r.flag() {
                 all_outputs(&wd)
             } else {
-                get_u16(r, wd.outputs)?
+                get_u16(r, wd.outputs)
             },
-            value: get_u16(r, wd.outputs)?,
+            value: get_u16(r, wd.outputs),
         },
-        A_EMIT => Action::Emit(r.event(&mut cx.seen, &wd)?),
-        A_PUBLISH => Action::Publish(r.event(&mut cx.seen, &wd)?),
+        A_EMIT => Action::Emit(r.event(&mut cx.seen, &wd)),
+        A_PUBLISH => Action::Publish(r.event(&mut cx.seen, &wd)),
         A_START => Action::StartTimer {
-            timer: r.u8(wd.timer)?,
+            timer: r.u8(wd.timer),
             ms: {
-                let d = r.get(wd.duration)?;
-                *usize::try_from(d)
-                    .ok()
-                    .and_then(|d| cx.durations.get(d))
-                    .ok_or(PackError::Value("timer duration"))?
+                let d = r.get(wd.duration);
+                let ms = usize::try_from(d).ok().and_then(|d| cx.durations.get(d));
+                ms.copied().unwrap_or_else(|| {
+                    r.fail(PackError::Value("timer duration"));
+                    0
+                })
             },
         },
-        A_CANCEL => Action::CancelTimer(r.u8(wd.timer)?),
-        A_FAULT => Action::Fault(u8::try_from(r.count()?).map_err(|_| PackError::Value("fault"))?),
-        _ => return Err(PackError::Value("action")),
-    })
+        A_CANCEL => Action::CancelTimer(r.u8(wd.timer)),
+        A_FAULT => {
+            let n = r.count();
+            Action::Fault(r.ok_u8(u8::try_from(n).ok(), PackError::Value("fault")))
+        }
+        _ => {
+            r.fail(PackError::Value("action"));
+            Action::Fault(0)
+        }
+    }
 }
 
 /// The drive mask of every output.
@@ -732,8 +811,12 @@ fn all_outputs(wd: &Widths) -> u16 {
 }
 
 #[inline(never)]
-fn get_u16(r: &mut Reader, width: u32) -> R<u16> {
-    u16::try_from(r.get(width)?).map_err(|_| PackError::Value("mask"))
+fn get_u16(r: &mut Reader, width: u32) -> u16 {
+    let v = r.get(width);
+    u16::try_from(v).unwrap_or_else(|_| {
+        r.fail(PackError::Value("mask"));
+        0
+    })
 }
 
 /// The event a subscription is expected to raise: the lowest after the previous one's
@@ -817,8 +900,9 @@ fn put_routes(w: &mut Writer, t: &Table, seen: &mut Seen, wd: &Widths) -> R<()> 
     Ok(())
 }
 
-fn end8(n: usize, what: &'static str) -> R<u8> {
-    u8::try_from(n).map_err(|_| PackError::Capacity(what))
+/// A pool's end, or `Capacity(what)` past 255.
+fn end8(r: &mut Reader, n: usize, what: &'static str) -> u8 {
+    r.ok_u8(u8::try_from(n).ok(), PackError::Capacity(what))
 }
 
 /// Writes `t`'s payload into `buf`; returns its length in bytes. The compact form (first
@@ -1187,227 +1271,243 @@ pub fn encode_form(
 fn get_routes(r: &mut Reader, t: &mut Table, seen: &mut Seen, wd: &Widths) -> R<()> {
     let mut chart = 0u8;
     let mut next_input = [0u8; 256];
-    for _ in 0..r.count()? {
-        let event = r.event(seen, wd)?;
-        if !r.flag()? {
-            chart = r.u8(wd.chart)?;
+    for _ in 0..r.list(t.routes.capacity()) {
+        let event = r.event(seen, wd);
+        if !r.flag() {
+            chart = r.u8(wd.chart);
         }
         let inputs = match t.charts.get(usize::from(chart)) {
             Some(c) => c.inputs,
             None if wd.wide => 0,
-            None => return Err(PackError::Value("chart")),
+            None => return Err(r.stop(PackError::Value("chart"))),
         };
-        let next = next_input
-            .get_mut(usize::from(chart))
-            .ok_or(PackError::Value("chart"))?;
-        let input = if r.flag()? {
+        let Some(next) = next_input.get_mut(usize::from(chart)) else {
+            return Err(r.stop(PackError::Value("chart")));
+        };
+        let input = if r.flag() {
             *next
         } else {
-            r.u8(wd.chart_input(inputs))?
+            r.u8(wd.chart_input(inputs))
         };
-        *next = input
-            .checked_add(1)
-            .ok_or(PackError::Value("chart input"))?;
+        *next = r.ok_u8(input.checked_add(1), PackError::Value("chart input"));
         let route = Route {
             event,
             chart,
             input,
         };
-        push(&mut t.routes, route, "routes")?;
+        r.push(&mut t.routes, route, "routes");
     }
     Ok(())
 }
 
 /// The safety declarations (when not all default).
 #[inline(never)]
-fn get_safety(r: &mut Reader, t: &Table, cursor: &mut usize, wd: &Widths) -> R<Safety> {
-    let estop = r.opt(wd.input_opt)?;
-    let link_fault = r.flag()?;
-    let restart = u16::try_from(r.get(wd.restart(t.inputs.len()))?)
-        .map_err(|_| PackError::Value("restart"))?;
-    let mut alarms = Vec::new();
-    for _ in 0..r.count()? {
-        let level = match r.get(2)? {
+fn get_safety(r: &mut Reader, t: &Table, cursor: &mut usize, wd: &Widths) -> Safety {
+    let estop = r.opt(wd.input_opt);
+    let link_fault = r.flag();
+    let restart = r.get(wd.restart(t.inputs.len()));
+    let restart = u16::try_from(restart).unwrap_or_else(|_| {
+        r.fail(PackError::Value("restart"));
+        0
+    });
+    let mut alarms: Vec<AlarmDecl, MAX_DECLARED_ALARMS> = Vec::new();
+    for _ in 0..r.list(alarms.capacity()) {
+        let level = match r.get(2) {
             0 => AlarmLevel::Info,
             1 => AlarmLevel::Warning,
             2 => AlarmLevel::Fault,
-            _ => return Err(PackError::Value("alarm level")),
+            _ => {
+                r.fail(PackError::Value("alarm level"));
+                AlarmLevel::Info
+            }
         };
-        let when = get_expr(r, cursor, wd)?;
-        push(&mut alarms, AlarmDecl { level, when }, "alarms")?;
+        let when = get_expr(r, cursor, wd);
+        r.push(&mut alarms, AlarmDecl { level, when }, "alarms");
     }
-    Ok(Safety {
+    Safety {
         estop,
         link_fault,
         restart,
         alarms,
-    })
+    }
 }
+
+#[cfg(test)]
+mod oracle;
 
 /// Reads a payload written by [`encode`]: the table (generation 0) and the count of bytes
 /// left after it (the padding bits of its last byte must be zero).
 pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
-    let mut r = Reader { bytes, bit: 0 };
-    let wide = r.flag()?;
+    let mut r = Reader {
+        bytes,
+        bit: 0,
+        err: None,
+    };
+    let wide = r.flag();
     let mut t = Table::empty("");
     let mut seen = Seen::default();
-    let role_len = r.get(ROLE_LEN_BITS)? as usize;
+    let role_len = r.get(ROLE_LEN_BITS) as usize;
     if role_len > MAX_ROLE_NAME {
-        return Err(PackError::Capacity("role"));
+        return Err(r.stop(PackError::Capacity("role")));
     }
     let mut role = [0u8; MAX_ROLE_NAME];
     for b in role.iter_mut().take(role_len) {
-        *b = r.u8(8)?;
+        *b = r.u8(8);
     }
-    let name =
-        core::str::from_utf8(role.get(..role_len).unwrap_or(&[])).map_err(|_| PackError::Utf8)?;
-    let mut role_name = String::new();
-    role_name
-        .push_str(name)
-        .map_err(|_| PackError::Capacity("role"))?;
-    t.header.role = role_name;
-    t.header.pan_id = u16::try_from(r.get(16)?).map_err(|_| PackError::Value("pan"))?;
+    match core::str::from_utf8(role.get(..role_len).unwrap_or(&[])) {
+        // At most MAX_ROLE_NAME bytes: it fits.
+        Ok(name) => {
+            let _ = t.header.role.push_str(name);
+        }
+        Err(_) => r.fail(PackError::Utf8),
+    }
+    // 16 bits: a u16.
+    t.header.pan_id = r.get(16) as u16;
     t.header.channel = if wide {
-        r.u8(8)?
+        r.u8(8)
     } else {
-        r.u8(CHANNEL_BITS)? + CHANNELS.start()
+        r.u8(CHANNEL_BITS) + CHANNELS.start()
     };
-    t.events = u8::try_from(r.count()?).map_err(|_| PackError::Capacity("events"))?;
+    let events = u8::try_from(r.count()).ok();
+    t.events = r.ok_u8(events, PackError::Capacity("events"));
     let mut wd = if wide {
         Widths::wide(0)
     } else {
         Widths::new(usize::from(t.events))
     };
-    for _ in 0..r.count()? {
-        push(&mut t.vars, r.sv()?, "vars")?;
+    for _ in 0..r.list(t.vars.capacity()) {
+        let v = r.sv();
+        r.push(&mut t.vars, v, "vars");
     }
     if !wide {
         wd.vars(t.vars.len());
     }
-    let pin_width = if wide { 8 } else { r.get(PIN_WIDTH_BITS)? };
-    for _ in 0..r.count()? {
+    let pin_width = if wide { 8 } else { r.get(PIN_WIDTH_BITS) };
+    for _ in 0..r.list(t.inputs.capacity()) {
         let input = Input {
-            pin: r.u8(pin_width)?,
-            rise: r.event_opt(&mut seen, &wd)?,
-            fall: r.event_opt(&mut seen, &wd)?,
-            var: r.opt(wd.var_opt)?,
+            pin: r.u8(pin_width),
+            rise: r.event_opt(&mut seen, &wd),
+            fall: r.event_opt(&mut seen, &wd),
+            var: r.opt(wd.var_opt),
         };
-        push(&mut t.inputs, input, "inputs")?;
+        r.push(&mut t.inputs, input, "inputs");
     }
     if !wide {
         wd.inputs(t.inputs.len());
     }
-    for _ in 0..r.count()? {
-        let pin = r.u8(pin_width)?;
-        let (fault, start) = if r.flag()? {
+    for _ in 0..r.list(t.outputs.capacity()) {
+        let pin = r.u8(pin_width);
+        let (fault, start) = if r.flag() {
             (Level::Low, Level::Low)
         } else {
-            (get_level(&mut r)?, get_level(&mut r)?)
+            (get_level(&mut r), get_level(&mut r))
         };
         let output = Output {
             pin,
             fault,
             start,
-            home: r.flag()?,
+            home: r.flag(),
         };
-        push(&mut t.outputs, output, "outputs")?;
+        r.push(&mut t.outputs, output, "outputs");
     }
     if !wide {
         wd.outputs = t.outputs.len() as u32;
     }
-    for _ in 0..r.count()? {
-        let event = r.event(&mut seen, &wd)?;
-        push(&mut t.timers, Timer { event }, "timers")?;
+    for _ in 0..r.list(t.timers.capacity()) {
+        let event = r.event(&mut seen, &wd);
+        r.push(&mut t.timers, Timer { event }, "timers");
     }
     if !wide {
         wd.timer = bits(t.timers.len());
     }
     let mut durations: Vec<u32, MAX_TIMER_DURATIONS> = Vec::new();
-    for _ in 0..r.count()? {
-        push(&mut durations, get_duration(&mut r)?, "timer durations")?;
+    for _ in 0..r.list(durations.capacity()) {
+        let d = get_duration(&mut r);
+        r.push(&mut durations, d, "timer durations");
     }
     wd.duration = bits(durations.len());
-    for _ in 0..r.count()? {
-        let op = get_op(&mut r, &wd)?;
-        push(&mut t.code, op, "code")?;
+    for _ in 0..r.list(t.code.capacity()) {
+        let op = get_op(&mut r, &wd);
+        r.push(&mut t.code, op, "code");
     }
     if !wide {
         wd.code = bits(t.code.len() + 1);
     }
     let (mut s_end, mut t_end) = (0usize, 0usize);
     let mut implicit_inputs = [false; MAX_CHARTS];
-    for _ in 0..r.count()? {
+    for _ in 0..r.list(t.charts.capacity()) {
         let s_first = s_end;
         if wide {
-            s_end = usize::from(r.u8(8)?);
-            t_end = usize::from(r.u8(8)?);
+            s_end = usize::from(r.u8(8));
+            t_end = usize::from(r.u8(8));
         } else {
-            s_end = s_end.saturating_add(r.count()?);
-            t_end = t_end.saturating_add(r.count()?);
+            s_end = s_end.saturating_add(r.count());
+            t_end = t_end.saturating_add(r.count());
         }
         let sw = wd.state(s_end.saturating_sub(s_first));
         // Implicit inputs: counted as the chart's transitions are read.
-        let implicit = r.flag()?;
+        let implicit = r.flag();
         if let Some(slot) = implicit_inputs.get_mut(t.charts.len()) {
             *slot = implicit;
         }
         let inputs = if implicit {
             0
         } else {
-            u8::try_from(r.count()?).map_err(|_| PackError::Value("chart inputs"))?
+            let n = u8::try_from(r.count()).ok();
+            r.ok_u8(n, PackError::Value("chart inputs"))
         };
-        let idle = if r.flag()? { 0 } else { r.u8(sw)? };
-        let initial = if r.flag()? { idle } else { r.u8(sw)? };
+        let idle = if r.flag() { 0 } else { r.u8(sw) };
+        let initial = if r.flag() { idle } else { r.u8(sw) };
         let chart = Chart {
-            states_end: end8(s_end, "states")?,
-            transitions_end: end8(t_end, "transitions")?,
+            states_end: end8(&mut r, s_end, "states"),
+            transitions_end: end8(&mut r, t_end, "transitions"),
             inputs,
             initial,
             idle,
         };
-        push(&mut t.charts, chart, "charts")?;
+        r.push(&mut t.charts, chart, "charts");
     }
     let (states, transitions) = if wide {
-        (r.count()?, r.count()?)
+        (r.count(), r.count())
     } else {
         (s_end, t_end)
     };
     if states > MAX_STATES {
-        return Err(PackError::Capacity("states"));
+        return Err(r.stop(PackError::Capacity("states")));
     }
     if transitions > MAX_TRANSITIONS {
-        return Err(PackError::Capacity("transitions"));
+        return Err(r.stop(PackError::Capacity("transitions")));
     }
     if !wide {
         wd.chart = bits(t.charts.len());
     }
     let actions = if wide {
-        let actions = r.count()?;
+        let actions = r.count();
         for _ in 0..states {
-            let actions_end = r.u8(8)?;
-            push(&mut t.states, State { actions_end }, "states")?;
+            let actions_end = r.u8(8);
+            r.push(&mut t.states, State { actions_end }, "states");
         }
         actions
     } else {
-        let count_width = r.get(COUNT_WIDTH_BITS)?;
-        let mode = if r.flag()? {
-            Some(r.get(count_width)? as usize)
+        let count_width = r.get(COUNT_WIDTH_BITS);
+        let mode = if r.flag() {
+            Some(r.get(count_width) as usize)
         } else {
             None
         };
         let mut actions = 0usize;
         for _ in 0..states {
             actions += match mode {
-                Some(m) if r.flag()? => m,
-                _ => r.get(count_width)? as usize,
+                Some(m) if r.flag() => m,
+                _ => r.get(count_width) as usize,
             };
-            let actions_end = end8(actions, "actions")?;
-            push(&mut t.states, State { actions_end }, "states")?;
+            let actions_end = end8(&mut r, actions, "actions");
+            r.push(&mut t.states, State { actions_end }, "states");
         }
         actions
     };
     if actions > MAX_ACTIONS {
-        return Err(PackError::Capacity("actions"));
+        return Err(r.stop(PackError::Capacity("actions")));
     }
     let mut cx = ActionCtx {
         wd,
@@ -1416,15 +1516,14 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
         seen,
     };
     for _ in 0..actions {
-        let a = get_action(&mut r, &mut cx)?;
-        push(&mut t.actions, a, "actions")?;
+        let a = get_action(&mut r, &mut cx);
+        r.push(&mut t.actions, a, "actions");
     }
     let ActionCtx {
         mut cursor,
         mut seen,
         ..
     } = cx;
-    // (transitions, state width, trigger width, idle state) of each run.
     // (transitions, state width, trigger width (none: implicit inputs), idle state).
     let mut runs: Vec<(usize, u32, Option<u32>, u8), MAX_CHARTS> = Vec::new();
     if wide {
@@ -1442,39 +1541,38 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
         }
     }
     for (ci, (n, sw, tw, idle)) in runs.into_iter().enumerate() {
-        let guarded = r.flag()?;
+        let guarded = r.flag();
         let mut prev_to = idle;
         let mut next_input = 0u8;
         for _ in 0..n {
-            let step = r.flag()?;
-            let from = if step || r.flag()? {
-                prev_to
+            let step = r.flag();
+            let from = if step || r.flag() { prev_to } else { r.u8(sw) };
+            let to = if step || r.flag() {
+                r.ok_u8(from.checked_add(1), PackError::Value("state"))
             } else {
-                r.u8(sw)?
+                r.u8(sw)
             };
-            let to = if step || r.flag()? {
-                from.checked_add(1).ok_or(PackError::Value("state"))?
-            } else {
-                r.u8(sw)?
-            };
-            let trigger = if step || r.flag()? {
+            let trigger = if step || r.flag() {
                 Some(next_input)
             } else {
                 match tw {
-                    Some(tw) => r.opt(tw)?,
+                    Some(tw) => r.opt(tw),
                     // One of the inputs used so far, or none.
-                    None => match r.opt(bits(usize::from(next_input) + 1))? {
-                        Some(i) if i >= next_input => return Err(PackError::Value("trigger")),
+                    None => match r.opt(bits(usize::from(next_input) + 1)) {
+                        Some(i) if i >= next_input => {
+                            r.fail(PackError::Value("trigger"));
+                            None
+                        }
                         other => other,
                     },
                 }
             };
             if let Some(i) = trigger {
-                let after = i.checked_add(1).ok_or(PackError::Value("trigger"))?;
+                let after = r.ok_u8(i.checked_add(1), PackError::Value("trigger"));
                 next_input = next_input.max(after);
             }
-            let guard = if guarded && r.flag()? {
-                Some(get_expr(&mut r, &mut cursor, &wd)?)
+            let guard = if guarded && r.flag() {
+                Some(get_expr(&mut r, &mut cursor, &wd))
             } else {
                 None
             };
@@ -1484,7 +1582,7 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
                 trigger,
                 guard,
             };
-            push(&mut t.transitions, tr, "transitions")?;
+            r.push(&mut t.transitions, tr, "transitions");
             prev_to = to;
         }
         if tw.is_none() {
@@ -1493,76 +1591,89 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
             }
         }
     }
-    if r.flag()? {
+    if r.flag() {
         // One route per chart input, chart by chart.
         for (c, chart) in t.charts.iter().enumerate() {
-            let c = u8::try_from(c).map_err(|_| PackError::Value("chart"))?;
+            let c = r.ok_u8(u8::try_from(c).ok(), PackError::Value("chart"));
             for input in 0..chart.inputs {
-                let event = r.event(&mut seen, &wd)?;
+                let event = r.event(&mut seen, &wd);
                 let route = Route {
                     event,
                     chart: c,
                     input,
                 };
-                push(&mut t.routes, route, "routes")?;
+                r.push(&mut t.routes, route, "routes");
             }
         }
     } else {
         get_routes(&mut r, &mut t, &mut seen, &wd)?;
     }
-    t.start = r.event_opt(&mut seen, &wd)?;
-    t.home = r.event_opt(&mut seen, &wd)?;
-    t.boot = r.event_opt(&mut seen, &wd)?;
-    let peers = r.count()?;
-    let peer_width = r.get(PEER_WIDTH_BITS)?;
+    t.start = r.event_opt(&mut seen, &wd);
+    t.home = r.event_opt(&mut seen, &wd);
+    t.boot = r.event_opt(&mut seen, &wd);
+    let peers = r.list(t.peers.capacity());
+    let peer_width = r.get(PEER_WIDTH_BITS);
     let mut next = None;
     for _ in 0..peers {
         let p = match next {
-            Some(p) if r.flag()? => p,
-            None if r.flag()? => return Err(PackError::Value("peer")),
-            _ => u16::try_from(r.get(peer_width)?).map_err(|_| PackError::Value("peer"))?,
+            Some(p) if r.flag() => p,
+            None if r.flag() => {
+                r.fail(PackError::Value("peer"));
+                0
+            }
+            _ => {
+                let p = r.get(peer_width);
+                u16::try_from(p).unwrap_or_else(|_| {
+                    r.fail(PackError::Value("peer"));
+                    0
+                })
+            }
         };
-        push(&mut t.peers, p, "peers")?;
+        r.push(&mut t.peers, p, "peers");
         next = p.checked_add(1);
     }
     if !wide {
         wd.peers(t.peers.len());
     }
-    let topic_width = if wide { 8 } else { r.get(TOPIC_WIDTH_BITS)? };
+    let topic_width = if wide { 8 } else { r.get(TOPIC_WIDTH_BITS) };
     let emitted = emitted(&t.actions, &t.routes);
     let mut prev_event = None;
     let mut next_topic = 0u16;
-    for _ in 0..r.count()? {
-        let event = if r.flag()? {
-            expected_publication(&emitted, prev_event).ok_or(PackError::Value("event"))?
+    for _ in 0..r.list(t.publications.capacity()) {
+        let event = if r.flag() {
+            let e = expected_publication(&emitted, prev_event);
+            r.ok_u8(e, PackError::Value("event"))
         } else {
-            r.u8(wd.event)?
+            r.u8(wd.event)
         };
         prev_event = Some(event);
-        let topic = if r.flag()? {
-            u8::try_from(next_topic).map_err(|_| PackError::Value("topic"))?
+        let topic = if r.flag() {
+            r.ok_u8(u8::try_from(next_topic).ok(), PackError::Value("topic"))
         } else {
-            r.u8(topic_width)?
+            r.u8(topic_width)
         };
         next_topic = u16::from(topic) + 1;
-        let subscribers = r.u8(wd.peers)?;
+        let subscribers = r.u8(wd.peers);
         let p = Publication {
             event,
             topic,
             subscribers,
         };
-        push(&mut t.publications, p, "publications")?;
+        r.push(&mut t.publications, p, "publications");
     }
     let mut prev_event: Option<u8> = None;
-    for _ in 0..r.count()? {
-        let publisher = r.u8(wd.peer)?;
-        let topic = r.u8(topic_width)?;
-        let same = r.flag()?;
+    for _ in 0..r.list(t.subscriptions.capacity()) {
+        let publisher = r.u8(wd.peer);
+        let topic = r.u8(topic_width);
+        let same = r.flag();
         let event = match prev_event {
             Some(p) if same => p,
-            _ if same => return Err(PackError::Value("event")),
-            p if r.flag()? => next_subscribed(&t, p).ok_or(PackError::Value("event"))?,
-            _ => r.u8(wd.event)?,
+            _ if same => r.ok_u8(None, PackError::Value("event")),
+            p if r.flag() => {
+                let e = next_subscribed(&t, p);
+                r.ok_u8(e, PackError::Value("event"))
+            }
+            _ => r.u8(wd.event),
         };
         prev_event = Some(event);
         let s = Subscription {
@@ -1570,15 +1681,18 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
             topic,
             event,
         };
-        push(&mut t.subscriptions, s, "subscriptions")?;
+        r.push(&mut t.subscriptions, s, "subscriptions");
     }
-    if !r.flag()? {
-        t.safety = get_safety(&mut r, &t, &mut cursor, &wd)?;
+    if !r.flag() {
+        t.safety = get_safety(&mut r, &t, &mut cursor, &wd);
     }
     let used = r.bit.div_ceil(8);
     let pad = (8 - r.bit % 8) % 8;
-    if r.get(pad as u32)? != 0 {
-        return Err(PackError::Value("padding"));
+    if r.get(pad as u32) != 0 {
+        r.fail(PackError::Value("padding"));
     }
-    Ok((t, bytes.len().saturating_sub(used)))
+    match r.err {
+        Some(e) => Err(e),
+        None => Ok((t, bytes.len().saturating_sub(used))),
+    }
 }

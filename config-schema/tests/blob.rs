@@ -461,3 +461,18 @@ fn the_wide_form_holds_any_table() {
     // A valid table takes the compact form.
     assert!(pack::is_compact(&realistic()));
 }
+
+/// The wide form is not only for invalid tables: a state of more than 127 actions is over
+/// the compact form's 3-bit count width, and such a table may be valid. So the node reads
+/// the wide form too (refusing it would refuse a table the tool accepts).
+#[test]
+fn a_valid_table_may_need_the_wide_form() {
+    use config_schema::{pack, validate, Action};
+    let on = [Action::Drive { mask: 1, value: 1 }; 128];
+    let t = test_tables::lamp_with(3, &on);
+    assert_eq!(validate(&t), Ok(()));
+    assert!(!pack::is_compact(&t));
+    let b = blob(&t);
+    assert_eq!(payload(&b)[0] & 1, 1, "the wide form");
+    assert_eq!(decode(&b), Ok(t));
+}

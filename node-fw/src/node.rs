@@ -152,6 +152,28 @@ pub struct NodeCore<S = RamStaging> {
     alarms: Alarms,
 }
 
+/// What the running engine is given (one [`NodeCore::run`] for all of them).
+#[derive(Debug, Clone, Copy)]
+enum Stimulus {
+    Start,
+    Home,
+    Boot,
+    Reset,
+    Timer(u8),
+    Fail(u8),
+    Input { index: u8, level: bool },
+    Remote { peer: u8, topic: u8 },
+}
+
+/// Why a payload is not a message the node acts on.
+enum Unacted {
+    /// Not a message.
+    Malformed,
+    /// A message meant for the tool (an answer or report of a node): received, nothing
+    /// to do.
+    ForTheTool,
+}
+
 /// Why a management frame is not acted on.
 enum Refused {
     /// Refused (counted by its reason, and as dropped).
@@ -624,38 +646,31 @@ impl<S: StagingArea> NodeCore<S> {
 
     /// The earliest time [`NodeCore::poll`] has work.
     pub fn deadline(&self) -> u64 {
-        let timers = self.timers.iter().flatten().copied();
-        let links = self.senders.iter().filter_map(|s| s.deadline());
+        let mut at = u64::MAX;
+        let links = self.senders.iter().map(|s| s.deadline());
         let announce = self.table.is_none().then_some(self.next_announce);
-        let disarm = self.switch.deadline();
-        let greet = self.peer_security.greeting();
-        timers
-            .chain(links)
-            .chain(announce)
-            .chain(greet)
-            .chain(disarm)
-            .min()
-            .unwrap_or(u64::MAX)
+        let others = [
+            announce,
+            self.peer_security.greeting(),
+            self.switch.deadline(),
+        ];
+        for t in self.timers.iter().copied().chain(links).chain(others) {
+            at = at.min(t.unwrap_or(u64::MAX));
+        }
+        at
     }
 
     /// Raises the table's START event: a START at the idle point that sets the node going
     /// begins a cycle.
     fn run_start(&mut self, now: u64, io: &mut impl Io) {
-        self.run_starting(now, io, |e, fx| {
-            e.start(fx);
-        });
+        self.run_starting(now, io, Stimulus::Start);
     }
 
     /// [`NodeCore::run`] of a START (the command or the button): one at the idle point
     /// that sets the node going opens a cycle (`Status::cycles`).
-    fn run_starting<I: Io>(
-        &mut self,
-        now: u64,
-        io: &mut I,
-        f: impl FnOnce(&mut Engine, &mut NodeEffects<'_, I>),
-    ) {
+    fn run_starting(&mut self, now: u64, io: &mut impl Io, stimulus: Stimulus) {
         let was_idle = self.idle();
-        self.run(now, io, f);
+        self.run(now, io, stimulus);
         self.cycle_open |= was_idle && !self.idle();
     }
 
@@ -667,13 +682,9 @@ impl<S: StagingArea> NodeCore<S> {
         }
     }
 
-    /// Runs the engine on the running table with effects applied to this node.
-    fn run<I: Io>(
-        &mut self,
-        now: u64,
-        io: &mut I,
-        f: impl FnOnce(&mut Engine, &mut NodeEffects<'_, I>),
-    ) {
+    /// Runs the engine on the running table with effects applied to this node: one
+    /// function for every stimulus.
+    fn run(&mut self, now: u64, io: &mut impl Io, stimulus: Stimulus) {
         let (Some(table), Some(index), Some(state)) = (&self.table, &self.index, &mut self.state)
         else {
             return;
@@ -694,7 +705,25 @@ impl<S: StagingArea> NodeCore<S> {
             },
             io,
         };
-        f(&mut engine, &mut fx);
+        let fx = &mut fx;
+        match stimulus {
+            Stimulus::Start => {
+                engine.start(fx);
+            }
+            Stimulus::Home => {
+                engine.home(fx);
+            }
+            Stimulus::Boot => {
+                engine.boot(fx);
+            }
+            Stimulus::Reset => engine.reset(fx),
+            Stimulus::Timer(timer) => engine.timer_expired(timer, fx),
+            Stimulus::Fail(code) => engine.fail(code, fx),
+            Stimulus::Input { index, level } => engine.input(index, level, fx),
+            Stimulus::Remote { peer, topic } => {
+                engine.remote(peer, topic, fx);
+            }
+        }
         *state = engine.snapshot();
     }
 
@@ -761,8 +790,10 @@ impl<S: StagingArea> NodeCore<S> {
             }
             return;
         }
-        let stimulus =
-            |e: &mut Engine, fx: &mut NodeEffects<'_, _>| e.input(index as u8, level, fx);
+        let stimulus = Stimulus::Input {
+            index: index as u8,
+            level,
+        };
         if is_start {
             self.run_starting(now, io, stimulus);
         } else {
@@ -793,7 +824,7 @@ impl<S: StagingArea> NodeCore<S> {
         let link_fault = self.table.as_ref().is_some_and(|t| t.safety.link_fault);
         if link_fault && link_alarms != 0 {
             let code = config_schema::alarm::FAULT_LINK;
-            self.run(now, io, |e, fx| e.fail(code, fx));
+            self.run(now, io, Stimulus::Fail(code));
         }
         if let (Some(table), Some(state)) = (&self.table, &self.state) {
             let seen = Seen {
@@ -835,14 +866,12 @@ impl<S: StagingArea> NodeCore<S> {
     fn poll_due(&mut self, now: u64, io: &mut impl Io) {
         if core::mem::take(&mut self.boot_pending) {
             // Peers learn that this node's actuators may stand anywhere.
-            self.run(now, io, |e, fx| {
-                e.boot(fx);
-            });
+            self.run(now, io, Stimulus::Boot);
         }
         for timer in 0..MAX_TIMERS {
             if self.timers[timer].is_some_and(|t| t <= now) {
                 self.timers[timer] = None;
-                self.run(now, io, |e, fx| e.timer_expired(timer as u8, fx));
+                self.run(now, io, Stimulus::Timer(timer as u8));
             }
         }
         if self.switch.poll(now) {
@@ -993,7 +1022,11 @@ impl<S: StagingArea> NodeCore<S> {
         } else {
             None
         };
-        let parsed = Message::parse(opened.as_ref().map_or(payload, |o| o.payload));
+        let parsed = match Message::parse_node(opened.as_ref().map_or(payload, |o| o.payload)) {
+            Ok(Some(msg)) => Ok(msg),
+            Ok(None) => Err(Unacted::ForTheTool),
+            Err(_) => Err(Unacted::Malformed),
+        };
         let authentic = match &opened {
             None => false,
             Some(opened) if management => match self.admit_management(opened, &parsed, now, io) {
@@ -1040,9 +1073,17 @@ impl<S: StagingArea> NodeCore<S> {
                 Verdict::Answered => return,
             },
         };
-        let Ok(msg) = parsed else {
-            self.counters.dropped += 1;
-            return;
+        let msg = match parsed {
+            Ok(msg) => msg,
+            // Replies, statuses and announcements are for the tool.
+            Err(Unacted::ForTheTool) => {
+                self.counters.received += 1;
+                return;
+            }
+            Err(Unacted::Malformed) => {
+                self.counters.dropped += 1;
+                return;
+            }
         };
         let is_management = matches!(
             msg,
@@ -1106,7 +1147,7 @@ impl<S: StagingArea> NodeCore<S> {
             Message::Switch { generation, step } => {
                 self.on_switch(generation, step, src, reply_pan, now, io)
             }
-            // Replies, statuses and announcements are for the tool.
+            // Parsed as `Unacted::ForTheTool`.
             _ => {}
         }
     }
@@ -1227,9 +1268,8 @@ impl<S: StagingArea> NodeCore<S> {
         }
         for topic in received.deliver {
             self.counters.delivered += 1;
-            self.run(now, io, |e, fx| {
-                e.remote(peer as u8, topic, fx);
-            });
+            let peer = peer as u8;
+            self.run(now, io, Stimulus::Remote { peer, topic });
         }
     }
 
@@ -1411,13 +1451,11 @@ impl<S: StagingArea> NodeCore<S> {
                 Command::Start => self.run_start(now, io),
                 // Homing moves actuators: not while armed for a switch-over.
                 Command::Home if self.switch.armed() => {}
-                Command::Home => self.run(now, io, |e, fx| {
-                    e.home(fx);
-                }),
+                Command::Home => self.run(now, io, Stimulus::Home),
                 Command::Reset => {
                     // Links first: what the reset publishes goes out in the new epoch.
                     self.restart_links();
-                    self.run(now, io, |e, fx| e.reset(fx));
+                    self.run(now, io, Stimulus::Reset);
                 }
                 Command::Ack => {
                     // Alarms raised by what happened so far are latched before the ack.

@@ -1,0 +1,716 @@
+//! Every [`Message`] written and read by hand, byte for byte as postcard writes and reads
+//! it (the wire format is postcard's; the tool, the monitor and the nodes keep it), without
+//! serde: one small reader and writer, no code per element type. postcard's rules, as its
+//! deserializer applies them: an enum is its variant index as a varint `u32`; `u16`,
+//! `u32`, `u64` and lengths (`usize`) are varints (LEB128, at most `ceil(bits / 7)` bytes,
+//! the last one holding only the bits left; longer encodings of a value than the shortest
+//! are read too); `u8` is one byte; `bool` and an `Option`'s tag are one byte, 0 or 1; a
+//! text or a byte string is its length, then its bytes; a list is its length, then its
+//! elements; a struct is its fields in order. The tests hold both directions equal to
+//! postcard's, errors included.
+
+use heapless::{String, Vec};
+
+use super::*;
+use crate::alarm::{Alarm, AlarmLevel, AlarmReport, AlarmSource};
+
+type R<T> = Result<T, MessageError>;
+
+/// Reads a message's fields from the front of a payload. The first error is kept and
+/// every field after it reads as 0 (empty), so the fields need no error path each: what
+/// is built after an error is thrown away, and a length read as 0 ends every loop.
+pub(super) struct In<'a> {
+    rest: &'a [u8],
+    err: Option<MessageError>,
+}
+
+impl<'a> In<'a> {
+    pub(super) fn new(payload: &'a [u8]) -> Self {
+        In {
+            rest: payload,
+            err: None,
+        }
+    }
+
+    /// The first error, or that something follows the message.
+    pub(super) fn end(&self) -> R<()> {
+        match self.err {
+            Some(e) => Err(e),
+            None if self.rest.is_empty() => Ok(()),
+            None => Err(MessageError::Trailing),
+        }
+    }
+
+    /// Keeps `e` if it is the first error.
+    #[inline(never)]
+    fn fail(&mut self, e: MessageError) {
+        if self.err.is_none() {
+            self.err = Some(e);
+        }
+    }
+
+    #[inline(never)]
+    fn byte(&mut self) -> u8 {
+        match self.rest.split_first() {
+            Some((&b, rest)) if self.err.is_none() => {
+                self.rest = rest;
+                b
+            }
+            _ => {
+                self.fail(MessageError::End);
+                0
+            }
+        }
+    }
+
+    /// A varint of a `bits`-bit type (16, 32 or 64).
+    #[inline(never)]
+    fn varint(&mut self, bits: u32) -> u64 {
+        let max = bits.div_ceil(7);
+        let last = (1u8 << (bits % 7)) - 1;
+        let mut out = 0u64;
+        for i in 0..max {
+            let b = self.byte();
+            out |= u64::from(b & 0x7F) << (7 * i);
+            if b & 0x80 == 0 {
+                if i + 1 == max && b > last {
+                    self.fail(MessageError::Varint);
+                }
+                return out;
+            }
+        }
+        self.fail(MessageError::Varint);
+        0
+    }
+
+    fn u16(&mut self) -> u16 {
+        // At most 16 bits: the last byte is checked.
+        self.varint(16) as u16
+    }
+
+    fn u32(&mut self) -> u32 {
+        self.varint(32) as u32
+    }
+
+    /// A list's length, or `cap + 1` if it is longer than `cap` (postcard reads the element
+    /// past the capacity, then refuses it).
+    fn len(&mut self, cap: usize) -> usize {
+        (self.varint(usize::BITS) as usize).min(cap + 1)
+    }
+
+    /// A variant index below `n` (0 if it is not).
+    #[inline(never)]
+    fn variant(&mut self, n: u32) -> u32 {
+        let v = self.u32();
+        if v < n {
+            v
+        } else {
+            self.fail(MessageError::Variant);
+            0
+        }
+    }
+
+    #[inline(never)]
+    fn bool(&mut self) -> bool {
+        match self.byte() {
+            0 => false,
+            1 => true,
+            _ => {
+                self.fail(MessageError::Bool);
+                false
+            }
+        }
+    }
+
+    #[inline(never)]
+    fn bytes(&mut self) -> &'a [u8] {
+        let n = self.varint(usize::BITS) as usize;
+        match self.rest.split_at_checked(n) {
+            Some((b, rest)) if self.err.is_none() => {
+                self.rest = rest;
+                b
+            }
+            _ => {
+                self.fail(MessageError::End);
+                &[]
+            }
+        }
+    }
+
+    #[inline(never)]
+    fn role(&mut self) -> String<MAX_ROLE_NAME> {
+        let mut role = String::new();
+        match core::str::from_utf8(self.bytes()) {
+            Ok(text) => {
+                if role.push_str(text).is_err() {
+                    self.fail(MessageError::Capacity);
+                }
+            }
+            Err(_) => self.fail(MessageError::Utf8),
+        }
+        role
+    }
+
+    /// `u32`s into `c`, in order.
+    #[inline(never)]
+    fn fill(&mut self, c: &mut [u32]) {
+        for x in c {
+            *x = self.u32();
+        }
+    }
+
+    /// `x` pushed onto `list`: `Capacity` if it is full.
+    fn push<T, const N: usize>(&mut self, list: &mut Vec<T, N>, x: T) {
+        if list.push(x).is_err() {
+            self.fail(MessageError::Capacity);
+        }
+    }
+}
+
+/// Reads one message (what follows it is the caller's).
+pub(super) fn message<'a>(r: &mut In<'a>) -> Message<'a> {
+    let v = r.variant(14);
+    for_nodes(r, v).unwrap_or_else(|| for_the_tool(r, v))
+}
+
+/// Reads one message as a node hears it: the ones it acts on whole, the ones meant for the
+/// tool only checked (`None`), so a node builds none of them.
+pub(super) fn heard<'a>(r: &mut In<'a>) -> Option<Message<'a>> {
+    let v = r.variant(14);
+    let msg = for_nodes(r, v);
+    if msg.is_none() {
+        let _ = for_the_tool(r, v);
+    }
+    msg
+}
+
+/// The message of variant `v` if it is one nodes act on.
+fn for_nodes<'a>(r: &mut In<'a>, v: u32) -> Option<Message<'a>> {
+    Some(match v {
+        0 => Message::Event {
+            epoch: r.u16(),
+            seq: r.u16(),
+            topic: r.byte(),
+        },
+        1 => Message::EventAck {
+            epoch: r.u16(),
+            next: r.u16(),
+        },
+        2 => Message::ConfigBegin {
+            generation: r.u32(),
+            len: r.u16(),
+            crc: r.u32(),
+            force: r.bool(),
+        },
+        3 => Message::ConfigChunk {
+            generation: r.u32(),
+            offset: r.u16(),
+            data: r.bytes(),
+        },
+        4 => Message::ConfigEnd {
+            generation: r.u32(),
+        },
+        6 => Message::Command {
+            id: r.u16(),
+            command: command(r),
+        },
+        10 => Message::Challenge { nonce: r.u32() },
+        11 => Message::ChallengeAnswer { nonce: r.u32() },
+        12 => Message::Switch {
+            generation: r.u32(),
+            step: switch_step(r),
+        },
+        _ => return None,
+    })
+}
+
+/// The message of variant `v`, one meant for the tool (answers and reports of nodes:
+/// `ConfigReply` 5, `Status` 7, `Announce` 8, `Security` 9, `Alarms` 13).
+fn for_the_tool<'a>(r: &mut In<'a>, v: u32) -> Message<'a> {
+    match v {
+        5 => Message::ConfigReply {
+            generation: r.u32(),
+            reply: config_reply(r),
+        },
+        7 => Message::Status(status(r)),
+        8 => Message::Announce(Announce {
+            firmware: r.u16(),
+            generation: r.u32(),
+            role: r.role(),
+            staged: r.u32(),
+        }),
+        9 => Message::Security(security(r)),
+        _ => Message::Alarms(alarms(r)),
+    }
+}
+
+fn config_reply(r: &mut In) -> ConfigReply {
+    match r.variant(8) {
+        0 => ConfigReply::Next { next: r.u16() },
+        1 => ConfigReply::Activated,
+        2 => ConfigReply::Refused(refusal(r)),
+        3 => ConfigReply::Staged,
+        4 => ConfigReply::Armed { idle: r.bool() },
+        5 => ConfigReply::Busy,
+        6 => ConfigReply::Disarmed,
+        _ => ConfigReply::Confirmed,
+    }
+}
+
+fn refusal(r: &mut In) -> Refusal {
+    match r.variant(10) {
+        0 => Refusal::Stale { running: r.u32() },
+        1 => Refusal::TooLong,
+        2 => Refusal::OutOfSequence,
+        3 => Refusal::Crc,
+        4 => Refusal::Invalid,
+        5 => Refusal::Flash,
+        6 => Refusal::Pin {
+            pin: r.byte(),
+            board: r.varint(64),
+        },
+        7 => Refusal::NotStaged { staged: r.u32() },
+        8 => Refusal::Superseded { transfer: r.u32() },
+        _ => Refusal::OnTrial,
+    }
+}
+
+/// The commands in variant order.
+const COMMANDS: [Command; 8] = [
+    Command::Start,
+    Command::Reset,
+    Command::Identify,
+    Command::Status,
+    Command::Security,
+    Command::Home,
+    Command::Alarms,
+    Command::Ack,
+];
+
+fn command(r: &mut In) -> Command {
+    let v = r.variant(COMMANDS.len() as u32);
+    COMMANDS.get(v as usize).copied().unwrap_or(Command::Start)
+}
+
+fn switch_step(r: &mut In) -> SwitchStep {
+    match r.variant(4) {
+        0 => SwitchStep::Arm,
+        1 => SwitchStep::Go {
+            now: r.bool(),
+            trial: r.bool(),
+        },
+        2 => SwitchStep::Disarm,
+        _ => SwitchStep::Confirm,
+    }
+}
+
+fn status(r: &mut In) -> Status {
+    let ack = r.u16();
+    let role = r.role();
+    let mut g = [0u32; 3];
+    r.fill(&mut g);
+    let [generation, staged, previous] = g;
+    let trial = r.bool();
+    let mut states = Vec::new();
+    for _ in 0..r.len(MAX_CHARTS) {
+        // Element by element, as postcard: the one past the capacity is read, then refused.
+        let s = r.byte();
+        r.push(&mut states, s);
+    }
+    let outputs = r.u16();
+    let inputs = r.u16();
+    let fault = match r.byte() {
+        0 => None,
+        1 => Some(r.byte()),
+        _ => {
+            r.fail(MessageError::Option);
+            None
+        }
+    };
+    let [link_alarms, links_broken, links_restarted] = [r.byte(), r.byte(), r.byte()];
+    let epoch = r.u16();
+    let mut c = [0u32; 5];
+    r.fill(&mut c);
+    let [sent, received, retried, dropped, delivered] = c;
+    let mut rt = [0u32; 4];
+    r.fill(&mut rt);
+    let [tx_queue_full, tx_queue_high, tx_failed, flash_failures] = rt;
+    Status {
+        ack,
+        role,
+        generation,
+        staged,
+        previous,
+        trial,
+        states,
+        outputs,
+        inputs,
+        fault,
+        link_alarms,
+        links_broken,
+        links_restarted,
+        epoch,
+        counters: Counters {
+            sent,
+            received,
+            retried,
+            dropped,
+            delivered,
+        },
+        runtime: RuntimeCounters {
+            tx_queue_full,
+            tx_queue_high,
+            tx_failed,
+            flash_failures,
+        },
+        cycles: r.byte(),
+    }
+}
+
+fn security(r: &mut In) -> SecurityReport {
+    let ack = r.u16();
+    let keyed = r.bool();
+    let mut c = [0u32; 9];
+    r.fill(&mut c);
+    let [not_secured, bad_mic, replayed, unknown_key, wrong_level, malformed, table_full, no_counter, challenged] =
+        c;
+    SecurityReport {
+        ack,
+        keyed,
+        counters: SecurityCounters {
+            not_secured,
+            bad_mic,
+            replayed,
+            unknown_key,
+            wrong_level,
+            malformed,
+            table_full,
+            no_counter,
+            challenged,
+        },
+    }
+}
+
+fn alarms(r: &mut In) -> AlarmReport {
+    let ack = r.u16();
+    let now_ms = r.u32();
+    let mut alarms = Vec::new();
+    for _ in 0..r.len(crate::alarm::MAX_ALARMS) {
+        let source = match r.variant(4) {
+            0 => AlarmSource::Chart {
+                chart: r.byte(),
+                code: r.byte(),
+            },
+            1 => AlarmSource::EStop,
+            2 => AlarmSource::Link { peer: r.byte() },
+            _ => AlarmSource::Declared { index: r.byte() },
+        };
+        let level = match r.variant(3) {
+            0 => AlarmLevel::Info,
+            1 => AlarmLevel::Warning,
+            _ => AlarmLevel::Fault,
+        };
+        let alarm = Alarm {
+            source,
+            level,
+            raised_ms: r.u32(),
+            acked: r.bool(),
+            persists: r.bool(),
+        };
+        r.push(&mut alarms, alarm);
+    }
+    AlarmReport {
+        ack,
+        now_ms,
+        alarms,
+        dropped: r.u16(),
+    }
+}
+
+/// Writes a message's fields into a buffer. A byte past its end is not written and the
+/// message comes out as `Full`, so the fields need no error path each.
+pub(super) struct Out<'b> {
+    buf: &'b mut [u8],
+    at: usize,
+    full: bool,
+}
+
+impl<'b> Out<'b> {
+    pub(super) fn new(buf: &'b mut [u8]) -> Self {
+        Out {
+            buf,
+            at: 0,
+            full: false,
+        }
+    }
+
+    /// The bytes written, or `Full`.
+    pub(super) fn len(&self) -> R<usize> {
+        if self.full {
+            Err(MessageError::Full)
+        } else {
+            Ok(self.at)
+        }
+    }
+
+    #[inline(never)]
+    fn byte(&mut self, b: u8) {
+        match self.buf.get_mut(self.at) {
+            Some(slot) => {
+                *slot = b;
+                self.at += 1;
+            }
+            None => self.full = true,
+        }
+    }
+
+    #[inline(never)]
+    fn varint(&mut self, v: u64) {
+        let mut v = v;
+        while v >= 0x80 {
+            self.byte((v as u8) | 0x80);
+            v >>= 7;
+        }
+        self.byte(v as u8);
+    }
+
+    fn u32(&mut self, v: u32) {
+        self.varint(u64::from(v))
+    }
+
+    fn u16(&mut self, v: u16) {
+        self.varint(u64::from(v))
+    }
+
+    fn bool(&mut self, b: bool) {
+        self.byte(u8::from(b))
+    }
+
+    #[inline(never)]
+    fn bytes(&mut self, b: &[u8]) {
+        self.varint(b.len() as u64);
+        for &x in b {
+            self.byte(x);
+        }
+    }
+
+    fn counters(&mut self, c: &[u32]) {
+        for &x in c {
+            self.u32(x);
+        }
+    }
+}
+
+/// Writes `m`.
+pub(super) fn emit(m: &Message<'_>, w: &mut Out) {
+    match m {
+        Message::Event { epoch, seq, topic } => {
+            w.byte(0);
+            w.u16(*epoch);
+            w.u16(*seq);
+            w.byte(*topic)
+        }
+        Message::EventAck { epoch, next } => {
+            w.byte(1);
+            w.u16(*epoch);
+            w.u16(*next)
+        }
+        Message::ConfigBegin {
+            generation,
+            len,
+            crc,
+            force,
+        } => {
+            w.byte(2);
+            w.u32(*generation);
+            w.u16(*len);
+            w.u32(*crc);
+            w.bool(*force)
+        }
+        Message::ConfigChunk {
+            generation,
+            offset,
+            data,
+        } => {
+            w.byte(3);
+            w.u32(*generation);
+            w.u16(*offset);
+            w.bytes(data)
+        }
+        Message::ConfigEnd { generation } => {
+            w.byte(4);
+            w.u32(*generation)
+        }
+        Message::ConfigReply { generation, reply } => {
+            w.byte(5);
+            w.u32(*generation);
+            emit_reply(reply, w)
+        }
+        Message::Command { id, command } => {
+            w.byte(6);
+            w.u16(*id);
+            w.byte(*command as u8)
+        }
+        Message::Status(s) => {
+            w.byte(7);
+            emit_status(s, w)
+        }
+        Message::Announce(a) => {
+            w.byte(8);
+            w.u16(a.firmware);
+            w.u32(a.generation);
+            w.bytes(a.role.as_bytes());
+            w.u32(a.staged)
+        }
+        Message::Security(s) => {
+            w.byte(9);
+            w.u16(s.ack);
+            w.bool(s.keyed);
+            let c = &s.counters;
+            w.counters(&[
+                c.not_secured,
+                c.bad_mic,
+                c.replayed,
+                c.unknown_key,
+                c.wrong_level,
+                c.malformed,
+                c.table_full,
+                c.no_counter,
+                c.challenged,
+            ])
+        }
+        Message::Challenge { nonce } => {
+            w.byte(10);
+            w.u32(*nonce)
+        }
+        Message::ChallengeAnswer { nonce } => {
+            w.byte(11);
+            w.u32(*nonce)
+        }
+        Message::Switch { generation, step } => {
+            w.byte(12);
+            w.u32(*generation);
+            match *step {
+                SwitchStep::Arm => w.byte(0),
+                SwitchStep::Go { now, trial } => {
+                    w.byte(1);
+                    w.bool(now);
+                    w.bool(trial)
+                }
+                SwitchStep::Disarm => w.byte(2),
+                SwitchStep::Confirm => w.byte(3),
+            }
+        }
+        Message::Alarms(a) => {
+            w.byte(13);
+            emit_alarms(a, w)
+        }
+    }
+}
+
+fn emit_reply(reply: &ConfigReply, w: &mut Out) {
+    match *reply {
+        ConfigReply::Next { next } => {
+            w.byte(0);
+            w.u16(next)
+        }
+        ConfigReply::Activated => w.byte(1),
+        ConfigReply::Refused(refusal) => {
+            w.byte(2);
+            emit_refusal(refusal, w)
+        }
+        ConfigReply::Staged => w.byte(3),
+        ConfigReply::Armed { idle } => {
+            w.byte(4);
+            w.bool(idle)
+        }
+        ConfigReply::Busy => w.byte(5),
+        ConfigReply::Disarmed => w.byte(6),
+        ConfigReply::Confirmed => w.byte(7),
+    }
+}
+
+fn emit_refusal(refusal: Refusal, w: &mut Out) {
+    let (variant, value) = match refusal {
+        Refusal::Stale { running } => (0, Some(running)),
+        Refusal::TooLong => (1, None),
+        Refusal::OutOfSequence => (2, None),
+        Refusal::Crc => (3, None),
+        Refusal::Invalid => (4, None),
+        Refusal::Flash => (5, None),
+        Refusal::Pin { pin, board } => {
+            w.byte(6);
+            w.byte(pin);
+            return w.varint(board);
+        }
+        Refusal::NotStaged { staged } => (7, Some(staged)),
+        Refusal::Superseded { transfer } => (8, Some(transfer)),
+        Refusal::OnTrial => (9, None),
+    };
+    w.byte(variant);
+    if let Some(v) = value {
+        w.u32(v);
+    }
+}
+
+fn emit_status(s: &Status, w: &mut Out) {
+    w.u16(s.ack);
+    w.bytes(s.role.as_bytes());
+    w.counters(&[s.generation, s.staged, s.previous]);
+    w.bool(s.trial);
+    w.bytes(&s.states);
+    w.u16(s.outputs);
+    w.u16(s.inputs);
+    match s.fault {
+        None => w.byte(0),
+        Some(f) => {
+            w.byte(1);
+            w.byte(f);
+        }
+    }
+    w.byte(s.link_alarms);
+    w.byte(s.links_broken);
+    w.byte(s.links_restarted);
+    w.u16(s.epoch);
+    let (c, rt) = (&s.counters, &s.runtime);
+    w.counters(&[c.sent, c.received, c.retried, c.dropped, c.delivered]);
+    w.counters(&[
+        rt.tx_queue_full,
+        rt.tx_queue_high,
+        rt.tx_failed,
+        rt.flash_failures,
+    ]);
+    w.byte(s.cycles)
+}
+
+fn emit_alarms(a: &AlarmReport, w: &mut Out) {
+    w.u16(a.ack);
+    w.u32(a.now_ms);
+    w.varint(a.alarms.len() as u64);
+    for alarm in &a.alarms {
+        match alarm.source {
+            AlarmSource::Chart { chart, code } => {
+                w.byte(0);
+                w.byte(chart);
+                w.byte(code);
+            }
+            AlarmSource::EStop => w.byte(1),
+            AlarmSource::Link { peer } => {
+                w.byte(2);
+                w.byte(peer);
+            }
+            AlarmSource::Declared { index } => {
+                w.byte(3);
+                w.byte(index);
+            }
+        }
+        w.byte(alarm.level as u8);
+        w.u32(alarm.raised_ms);
+        w.bool(alarm.acked);
+        w.bool(alarm.persists);
+    }
+    w.u16(a.dropped)
+}
+
+#[cfg(test)]
+mod tests;
