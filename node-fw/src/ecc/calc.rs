@@ -1,12 +1,14 @@
 //! Guards and assignments lowered once, when a table's [`Index`](super::Index) is built,
 //! to one flat five-byte operation each: the shapes nearly every expression has (`c`, `v`,
-//! `v op c`, `v op c` wrapped to a narrow integer, `v op w`) are computed in one step; any
+//! `v op c`, `v + c` wrapped to a narrow integer, `v op w`) are computed in one step, one
+//! operation per shape and binary operator (a super-instruction: `v < c`, `v >= w`,
+//! `uint(v + c)`); any
 //! other expression keeps its place in the table's code pool and runs on the stack machine
 //! ([`config_schema::guard::eval`]). Both give the same value for every expression (a test
 //! below holds them equal), and the same `None` (a fault) for one that cannot be evaluated.
 //!
 //! Lowered only when the operands are proven in range at build time (a variable below
-//! `MAX_VARS`, a constant in `-65536..=65535`, a binary operation, a wrap of 8 or 16 bits):
+//! `MAX_VARS`, a constant of 24 bits, a binary operation, a wrap of 8 or 16 bits):
 //! evaluating a lowered form then reads the engine's variables without a bounds check.
 
 use config_schema::guard::{self, Op};
@@ -18,42 +20,41 @@ use config_schema::{Expr, Table};
 const VAR_MASK: usize = MAX_VARS - 1;
 const _: () = assert!(MAX_VARS.is_power_of_two());
 
-// Shapes: the high nibble of `Calc::code` (the low nibble is the binary operation).
-/// No expression: a missing guard (holds).
-const TRUE: u8 = 0x00;
-/// A constant: `k`, negative when bit 3 of `b` is set.
-const CONST: u8 = 0x10;
-/// Variable `a`.
-const VAR: u8 = 0x20;
-/// Variable `a` op constant `k` (negative when bit 3 of `b`), wrapped by `b & 7`.
-const VAR_IMM: u8 = 0x30;
-/// Variable `a` op variable `b`.
-const VAR_VAR: u8 = 0x40;
-/// Anything else: `len` = `k[1]` operations from `start` = `k[0]` of the code pool.
-const STACK: u8 = 0x50;
-
-/// Bit of `b` that makes the 16-bit immediate negative (`k - 65536`).
-const NEG: u8 = 0x08;
-
-/// Wrap codes (`b & 7` of `VAR_IMM`).
-const WRAP_NONE: u8 = 0;
-const WRAP_U8: u8 = 1;
-const WRAP_S8: u8 = 2;
-const WRAP_U16: u8 = 3;
-const WRAP_S16: u8 = 4;
-
-/// One lowered expression (see the shapes above).
+/// One lowered expression: an operation `code` on variable `a` and a 24-bit signed
+/// immediate `imm` (little-endian; for `v op w`, `imm[0]` is `w`; on the stack machine,
+/// `imm[0..2]` are the expression's start and length in the code pool).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(C)]
 pub(super) struct Calc {
     code: u8,
     a: u8,
-    b: u8,
-    k: [u8; 2],
+    imm: [u8; 3],
 }
 
 const _: () = assert!(core::mem::size_of::<Calc>() == 5);
 
-/// The binary operations, numbered as the low nibble of `Calc::code`.
+/// The operations: one per shape and binary operation, so that evaluating is one jump.
+mod code {
+    /// No expression: a missing guard (holds).
+    pub const TRUE: u8 = 0;
+    /// The immediate.
+    pub const CONST: u8 = 1;
+    /// Variable `a`.
+    pub const VAR: u8 = 2;
+    /// Anything else, on the stack machine.
+    pub const STACK: u8 = 3;
+    /// `a + imm` wrapped to USINT, SINT, UINT, INT.
+    pub const ADD_U8: u8 = 4;
+    pub const ADD_S8: u8 = 5;
+    pub const ADD_U16: u8 = 6;
+    pub const ADD_S16: u8 = 7;
+    /// `a op imm`: `IMM + op`, `op` numbered as in [`super::binary_code`].
+    pub const IMM: u8 = 16;
+    /// `a op w`: `VARS + op`.
+    pub const VARS: u8 = 32;
+}
+
+/// The binary operations, numbered as added to `code::IMM` and `code::VARS`.
 fn binary_code(op: Op) -> Option<u8> {
     Some(match op {
         Op::And => 0,
@@ -73,57 +74,22 @@ fn binary_code(op: Op) -> Option<u8> {
     })
 }
 
-/// `a op b` for the operation numbered `op` ([`binary_code`]): what
-/// [`config_schema::guard`] computes (`None`: a division by zero).
-#[inline(always)]
-fn binary(op: u8, a: i32, b: i32) -> Option<i32> {
-    Some(match op {
-        0 => i32::from(a != 0 && b != 0),
-        1 => i32::from(a != 0 || b != 0),
-        2 => i32::from(a == b),
-        3 => i32::from(a != b),
-        4 => i32::from(a < b),
-        5 => i32::from(a <= b),
-        6 => i32::from(a > b),
-        7 => i32::from(a >= b),
-        8 => a.wrapping_add(b),
-        9 => a.wrapping_sub(b),
-        10 => a.wrapping_mul(b),
-        11 => a.checked_div(b).or((b != 0).then_some(i32::MIN))?,
-        12 => a.checked_rem(b).or((b != 0).then_some(0))?,
-        _ => return None,
-    })
+/// `a / b` as [`config_schema::guard`] computes it (`None`: by zero).
+#[inline(never)]
+fn div(a: i32, b: i32) -> Option<i32> {
+    a.checked_div(b).or((b != 0).then_some(i32::MIN))
 }
 
-/// The wrap code of `Op::Wrap { bits, signed }` (8 or 16 bits only).
-fn wrap_code(bits: u8, signed: bool) -> Option<u8> {
-    match (bits, signed) {
-        (8, false) => Some(WRAP_U8),
-        (8, true) => Some(WRAP_S8),
-        (16, false) => Some(WRAP_U16),
-        (16, true) => Some(WRAP_S16),
-        _ => None,
-    }
+/// `a % b` as [`config_schema::guard`] computes it (`None`: by zero).
+#[inline(never)]
+fn rem(a: i32, b: i32) -> Option<i32> {
+    a.checked_rem(b).or((b != 0).then_some(0))
 }
 
-#[inline(always)]
-fn wrap(v: i32, code: u8) -> i32 {
-    match code {
-        WRAP_U8 => i32::from(v as u8),
-        WRAP_S8 => i32::from(v as i8),
-        WRAP_U16 => i32::from(v as u16),
-        WRAP_S16 => i32::from(v as i16),
-        _ => v,
-    }
-}
-
-/// (the 16-bit immediate, the `NEG` bit) of `c`, if it is in `-65536..=65535`.
-fn immediate(c: i32) -> Option<([u8; 2], u8)> {
-    match c {
-        0..=65_535 => Some(((c as u16).to_le_bytes(), 0)),
-        -65_536..=-1 => Some((((c + 65_536) as u16).to_le_bytes(), NEG)),
-        _ => None,
-    }
+/// The 24-bit immediate of `c`, if it fits.
+fn immediate(c: i32) -> Option<[u8; 3]> {
+    let [b0, b1, b2, _] = c.to_le_bytes();
+    ((-(1 << 23)..1 << 23).contains(&c)).then_some([b0, b1, b2])
 }
 
 /// A variable operand proven in range.
@@ -134,10 +100,9 @@ fn var(v: u8) -> Option<u8> {
 impl Calc {
     /// A missing guard: holds.
     pub(super) const TRUE: Calc = Calc {
-        code: TRUE,
+        code: code::TRUE,
         a: 0,
-        b: 0,
-        k: [0; 2],
+        imm: [0; 3],
     };
 
     /// `expr` of `table`, lowered (`None`: a missing guard, which holds).
@@ -146,68 +111,104 @@ impl Calc {
             return Calc::TRUE;
         };
         Calc::direct(table.expr(expr)).unwrap_or(Calc {
-            code: STACK,
+            code: code::STACK,
             a: 0,
-            b: 0,
-            k: [expr.start, expr.len],
+            imm: [expr.start, expr.len, 0],
         })
     }
 
     /// The one-step form of `ops`, if it has one of the direct shapes.
     fn direct(ops: &[Op]) -> Option<Calc> {
-        let calc = |code, a, b, k| Some(Calc { code, a, b, k });
+        let calc = |code, a, imm| Some(Calc { code, a, imm });
         match *ops {
-            [Op::Const(c)] => {
-                let (k, neg) = immediate(c)?;
-                calc(CONST, 0, neg, k)
-            }
-            [Op::Var(v)] => calc(VAR, var(v)?, 0, [0; 2]),
+            [Op::Const(c)] => calc(code::CONST, 0, immediate(c)?),
+            [Op::Var(v)] => calc(code::VAR, var(v)?, [0; 3]),
             [Op::Var(v), Op::Const(c), op] => {
-                let (k, neg) = immediate(c)?;
-                calc(VAR_IMM | binary_code(op)?, var(v)?, neg | WRAP_NONE, k)
+                calc(code::IMM + binary_code(op)?, var(v)?, immediate(c)?)
             }
+            // `v + c` and `v - c` wrapped to a narrow integer: `v + c` (or `v + -c`), then
+            // the wrap. Other wrapped operations run on the stack machine.
             [Op::Var(v), Op::Const(c), op, Op::Wrap { bits, signed }] => {
-                let (k, neg) = immediate(c)?;
-                let w = wrap_code(bits, signed)?;
-                calc(VAR_IMM | binary_code(op)?, var(v)?, neg | w, k)
+                let c = match op {
+                    Op::Add => c,
+                    Op::Sub => c.checked_neg()?,
+                    _ => return None,
+                };
+                let code = match (bits, signed) {
+                    (8, false) => code::ADD_U8,
+                    (8, true) => code::ADD_S8,
+                    (16, false) => code::ADD_U16,
+                    (16, true) => code::ADD_S16,
+                    _ => return None,
+                };
+                calc(code, var(v)?, immediate(c)?)
             }
-            [Op::Var(a), Op::Var(b), op] => calc(VAR_VAR | binary_code(op)?, var(a)?, var(b)?, [0; 2]),
+            [Op::Var(a), Op::Var(b), op] => {
+                calc(code::VARS + binary_code(op)?, var(a)?, [var(b)?, 0, 0])
+            }
             _ => None,
         }
     }
 
     /// Whether this is a missing guard.
     #[inline(always)]
-    pub(super) fn is_true(self) -> bool {
-        self.code == TRUE
-    }
-
-    #[inline(always)]
-    fn imm(self) -> i32 {
-        i32::from(u16::from_le_bytes(self.k)) - (i32::from(self.b & NEG) << 13)
+    pub(super) fn is_true(&self) -> bool {
+        self.code == code::TRUE
     }
 
     /// The value (`None`: the expression cannot be evaluated, a fault). `vars` are the
     /// engine's variables, `inputs` its input levels; `table` holds the code of the
     /// expressions that run on the stack machine.
     #[inline(always)]
-    pub(super) fn eval(self, vars: &[i32; MAX_VARS], inputs: u16, table: &Table) -> Option<i32> {
-        let var = |v: u8| vars[usize::from(v) & VAR_MASK];
-        let op = self.code & 0x0f;
-        match self.code & 0xf0 {
-            TRUE => Some(1),
-            CONST => Some(self.imm()),
-            VAR => Some(var(self.a)),
-            VAR_IMM => Some(wrap(binary(op, var(self.a), self.imm())?, self.b & 7)),
-            VAR_VAR => binary(op, var(self.a), var(self.b)),
+    pub(super) fn eval(&self, vars: &[i32; MAX_VARS], inputs: u16, table: &Table) -> Option<i32> {
+        // Each operation reads only its operands (loaded where used).
+        let x = || vars[usize::from(self.a) & VAR_MASK];
+        let y = || vars[usize::from(self.imm[0]) & VAR_MASK];
+        // Sign-extended from 24 bits: one load of `a` and `imm`, one shift.
+        let k = || i32::from_le_bytes([self.a, self.imm[0], self.imm[1], self.imm[2]]) >> 8;
+        let b = |v: bool| Some(i32::from(v));
+        match self.code {
+            code::TRUE => Some(1),
+            code::CONST => Some(k()),
+            code::VAR => Some(x()),
+            code::ADD_U8 => Some(i32::from(x().wrapping_add(k()) as u8)),
+            code::ADD_S8 => Some(i32::from(x().wrapping_add(k()) as i8)),
+            code::ADD_U16 => Some(i32::from(x().wrapping_add(k()) as u16)),
+            code::ADD_S16 => Some(i32::from(x().wrapping_add(k()) as i16)),
+            16 => b(x() != 0 && k() != 0),
+            17 => b(x() != 0 || k() != 0),
+            18 => b(x() == k()),
+            19 => b(x() != k()),
+            20 => b(x() < k()),
+            21 => b(x() <= k()),
+            22 => b(x() > k()),
+            23 => b(x() >= k()),
+            24 => Some(x().wrapping_add(k())),
+            25 => Some(x().wrapping_sub(k())),
+            26 => Some(x().wrapping_mul(k())),
+            27 => div(x(), k()),
+            28 => rem(x(), k()),
+            32 => b(x() != 0 && y() != 0),
+            33 => b(x() != 0 || y() != 0),
+            34 => b(x() == y()),
+            35 => b(x() != y()),
+            36 => b(x() < y()),
+            37 => b(x() <= y()),
+            38 => b(x() > y()),
+            39 => b(x() >= y()),
+            40 => Some(x().wrapping_add(y())),
+            41 => Some(x().wrapping_sub(y())),
+            42 => Some(x().wrapping_mul(y())),
+            43 => div(x(), y()),
+            44 => rem(x(), y()),
             _ => self.stack(vars, inputs, table),
         }
     }
 
     /// An expression of no direct shape, on the stack machine.
     #[inline(never)]
-    fn stack(self, vars: &[i32; MAX_VARS], inputs: u16, table: &Table) -> Option<i32> {
-        let [start, len] = self.k;
+    fn stack(&self, vars: &[i32; MAX_VARS], inputs: u16, table: &Table) -> Option<i32> {
+        let [start, len, _] = self.imm;
         guard::eval(
             table.expr(Expr { start, len }),
             |v| vars.get(usize::from(v)).copied(),
@@ -249,9 +250,9 @@ mod tests {
         ];
         let constants = [
             i32::MIN,
-            -65_537,
+            -(1 << 23) - 1,
+            -(1 << 23),
             -65_536,
-            -65_535,
             -32_768,
             -1,
             0,
@@ -259,7 +260,8 @@ mod tests {
             2,
             255,
             65_535,
-            65_536,
+            (1 << 23) - 1,
+            1 << 23,
             i32::MAX,
         ];
         let wraps = [
@@ -286,7 +288,7 @@ mod tests {
                 |i| Some(inputs & (1 << i) != 0),
             );
             assert_eq!(calc.eval(&vars, inputs, &t), stack, "{e:?} as {calc:?}");
-            lowered += usize::from(calc.code & 0xf0 != STACK);
+            lowered += usize::from(calc.code != code::STACK);
             cases += 1;
         };
         for op in ops {
@@ -312,10 +314,15 @@ mod tests {
         check(&[Op::Var(0), Op::Not]);
         check(&[Op::Const(1), Op::And]);
         check(&[]);
-        // Lowered: the 13 binary operations with the 9 constants in range on the 4
-        // variables below MAX_VARS, unwrapped or with the 4 wraps, and on the 4 pairs of
-        // such variables; the 9 constants and the 2 variables alone.
-        assert_eq!(lowered, 13 * 9 * 4 * 5 + 13 * 4 + 9 + 2, "of {cases}");
+        // Lowered: the 13 binary operations with the 10 constants of 24 bits on the 4
+        // variables below MAX_VARS, and on the 4 pairs of such variables; `v + c` and
+        // `v - c` with the 4 wraps, 10 constants each (`v - c` lowered as `v + -c`: not
+        // for c = -2^23, but for c = 2^23); the 10 constants and the 2 variables alone.
+        assert_eq!(
+            lowered,
+            13 * 10 * 4 + 13 * 4 + 2 * 10 * 4 * 4 + 10 + 2,
+            "of {cases}"
+        );
     }
 
     #[test]
@@ -324,6 +331,9 @@ mod tests {
         assert_eq!(Calc::lower(&t, None).eval(&[0; MAX_VARS], 0, &t), Some(1));
         assert!(Calc::lower(&t, None).is_true());
         let outside = Expr { start: 5, len: 3 };
-        assert_eq!(Calc::lower(&t, Some(outside)).eval(&[0; MAX_VARS], 0, &t), None);
+        assert_eq!(
+            Calc::lower(&t, Some(outside)).eval(&[0; MAX_VARS], 0, &t),
+            None
+        );
     }
 }

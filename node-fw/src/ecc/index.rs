@@ -27,12 +27,11 @@ pub(super) const NONE: u8 = u8::MAX;
 /// The trigger of an event-less transition.
 pub(super) const EVENTLESS: u8 = u8::MAX;
 
-// Every pool index and span end fits a `u8` below `NONE`, and a state set fits a `u128`.
+// Every pool index and span end fits a `u8` below `NONE`.
 const _: () = assert!(MAX_ROUTES < NONE as usize);
 const _: () = assert!(MAX_TRANSITIONS < NONE as usize);
 const _: () = assert!(MAX_ACTIONS < NONE as usize);
 const _: () = assert!(MAX_EVENTS <= NONE as usize);
-const _: () = assert!(MAX_STATES <= 128);
 
 /// Where a chart's states are in the table's pool.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -74,18 +73,34 @@ const NO_STEP: Step = Step {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Act {
     /// `var := calc` (`var` below `MAX_VARS`).
-    Set { var: u8, calc: Calc },
+    Set {
+        var: u8,
+        calc: Calc,
+    },
     /// An assignment to a variable the engine does not have: evaluated (it may fault),
     /// the value dropped.
-    Eval { calc: Calc },
+    Eval {
+        calc: Calc,
+    },
     /// Drive the outputs of `mask` to `value` (little-endian `u16`s).
-    Drive { mask: [u8; 2], value: [u8; 2] },
+    Drive {
+        mask: [u8; 2],
+        value: [u8; 2],
+    },
     /// Queue `event`; once queued, publish `publication` (`NONE`: it has none).
-    Emit { event: EventId, publication: u8 },
+    Emit {
+        event: EventId,
+        publication: u8,
+    },
     /// Publish `publication` (`NONE`: the event has none, nothing to do).
-    Publish { publication: u8 },
+    Publish {
+        publication: u8,
+    },
     /// Start `timer` for `ms` (a little-endian `u32`).
-    StartTimer { timer: u8, ms: [u8; 4] },
+    StartTimer {
+        timer: u8,
+        ms: [u8; 4],
+    },
     CancelTimer(u8),
     Fault(u8),
 }
@@ -100,24 +115,35 @@ pub(super) struct Span {
     pub end: u8,
 }
 
+/// Per event: its routes and its publication.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct EventRec {
+    /// Its routes in `Index::routes`, in table order.
+    pub routes: Span,
+    /// Its publication's index (`NONE`: not published).
+    pub publication: u8,
+}
+
+/// Per global state: the transitions leaving it and the actions run on entering it.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(super) struct StateRec {
+    /// Its transitions in `Index::steps`, in declaration order.
+    pub steps: Span,
+    /// Its actions in `Index::acts` (the same indices as `Table::actions`).
+    pub acts: Span,
+    /// Whether an event-less transition leaves it.
+    pub eventless: bool,
+}
+
 /// A table's compiled form, built once by [`Index::new`].
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Index {
     pub(super) layout: [Layout; MAX_CHARTS],
-    /// Per event: its routes, `routes[route_at[e]..route_at[e + 1]]`, in table order.
-    route_at: [u8; MAX_EVENTS + 1],
+    events: [EventRec; MAX_EVENTS],
     routes: [Target; MAX_ROUTES],
-    /// Per event: its publication's index (`NONE`: not published).
-    publication: [u8; MAX_EVENTS],
-    /// Per global state: the transitions leaving it, `steps[step_at[s]..step_at[s + 1]]`,
-    /// in declaration order.
-    step_at: [u8; MAX_STATES + 1],
+    states: [StateRec; MAX_STATES],
     steps: [Step; MAX_TRANSITIONS],
-    /// Per global state: the actions run on entering it (indices of `Table::actions`).
-    acts_of: [Span; MAX_STATES],
     acts: [Act; MAX_ACTIONS],
-    /// Bit s: global state s has an event-less transition leaving it.
-    eventless: u128,
     /// The table's outputs (bit i: output i exists), the start drive and the fault drive
     /// (mask, levels).
     pub(super) outputs: u16,
@@ -133,14 +159,14 @@ impl Index {
     pub fn new(table: &Table) -> Index {
         let mut ix = Index {
             layout: [Layout::default(); MAX_CHARTS],
-            route_at: [0; MAX_EVENTS + 1],
+            events: [EventRec {
+                routes: Span::default(),
+                publication: NONE,
+            }; MAX_EVENTS],
             routes: [Target::default(); MAX_ROUTES],
-            publication: [NONE; MAX_EVENTS],
-            step_at: [0; MAX_STATES + 1],
+            states: [StateRec::default(); MAX_STATES],
             steps: [NO_STEP; MAX_TRANSITIONS],
-            acts_of: [Span::default(); MAX_STATES],
             acts: [Act::Fault(0); MAX_ACTIONS],
-            eventless: 0,
             outputs: ((1u32 << table.outputs.len().min(16)) - 1) as u16,
             start_drive: table.start_drive(),
             fault_drive: table.fault_drive(),
@@ -153,8 +179,8 @@ impl Index {
             };
         }
         for (p, publication) in table.publications.iter().enumerate().rev() {
-            if let Some(slot) = ix.publication.get_mut(usize::from(publication.event)) {
-                *slot = p.min(usize::from(NONE)) as u8;
+            if let Some(slot) = ix.events.get_mut(usize::from(publication.event)) {
+                slot.publication = p.min(usize::from(NONE)) as u8;
             }
         }
         ix.build_routes(table);
@@ -172,12 +198,14 @@ impl Index {
             }
         }
         let mut at = 0u8;
-        for (e, n) in count.iter().enumerate() {
-            self.route_at[e] = at;
+        for (rec, n) in self.events.iter_mut().zip(count) {
+            rec.routes = Span {
+                start: at,
+                end: at + n,
+            };
             at += n;
         }
-        self.route_at[MAX_EVENTS] = at;
-        let mut next: [u8; MAX_EVENTS] = core::array::from_fn(|e| self.route_at[e]);
+        let mut next: [u8; MAX_EVENTS] = core::array::from_fn(|e| self.events[e].routes.start);
         for r in table.routes.iter().take(MAX_ROUTES) {
             if let Some(n) = next.get_mut(usize::from(r.event)) {
                 if let Some(slot) = self.routes.get_mut(usize::from(*n)) {
@@ -196,7 +224,7 @@ impl Index {
     fn build_steps(&mut self, table: &Table) {
         let mut n = 0usize;
         for s in 0..MAX_STATES {
-            self.step_at[s] = n as u8;
+            let start = n as u8;
             for (c, layout) in self.layout.iter().enumerate().take(table.charts.len()) {
                 let first = usize::from(layout.first_state);
                 if s < first || s - first >= usize::from(layout.states) {
@@ -223,22 +251,24 @@ impl Index {
                     };
                     n += 1;
                     if trigger == EVENTLESS {
-                        self.eventless |= 1u128 << s;
+                        self.states[s].eventless = true;
                     }
                 }
             }
+            self.states[s].steps = Span {
+                start,
+                end: n as u8,
+            };
         }
-        self.step_at[MAX_STATES] = n as u8;
     }
 
     /// The actions, lowered one for one, and each state's span of them.
     fn build_acts(&mut self, table: &Table) {
         for (slot, action) in self.acts.iter_mut().zip(table.actions.iter()) {
             let publication = |e: EventId| {
-                (self.publication)
+                (self.events)
                     .get(usize::from(e))
-                    .copied()
-                    .unwrap_or(NONE)
+                    .map_or(NONE, |rec| rec.publication)
             };
             *slot = match *action {
                 Action::Set { var, expr } => {
@@ -268,10 +298,10 @@ impl Index {
                 Action::Fault(code) => Act::Fault(code),
             };
         }
-        for (s, span) in self.acts_of.iter_mut().enumerate() {
+        for (s, rec) in self.states.iter_mut().enumerate() {
             let range = table.state_actions(s);
             if range.end <= table.actions.len() {
-                *span = Span {
+                rec.acts = Span {
                     start: range.start as u8,
                     end: range.end as u8,
                 };
@@ -279,52 +309,45 @@ impl Index {
         }
     }
 
-    /// The routes of `event`, in table order.
+    /// The record of `event` (`None` past `MAX_EVENTS`).
     #[inline(always)]
-    pub(super) fn routes(&self, event: EventId) -> &[Target] {
-        let e = usize::from(event);
-        match (self.route_at.get(e), self.route_at.get(e + 1)) {
-            (Some(&start), Some(&end)) => (self.routes)
-                .get(usize::from(start)..usize::from(end))
-                .unwrap_or(&[]),
-            _ => &[],
-        }
+    pub(super) fn event(&self, event: EventId) -> Option<&EventRec> {
+        self.events.get(usize::from(event))
     }
 
-    /// The transitions leaving global state `state`, in declaration order.
+    /// The record of global state `state` (`None` past `MAX_STATES`).
     #[inline(always)]
-    pub(super) fn steps(&self, state: usize) -> &[Step] {
-        match (self.step_at.get(state), self.step_at.get(state + 1)) {
-            (Some(&start), Some(&end)) => (self.steps)
-                .get(usize::from(start)..usize::from(end))
-                .unwrap_or(&[]),
-            _ => &[],
-        }
+    pub(super) fn state(&self, state: usize) -> Option<&StateRec> {
+        self.states.get(state)
     }
 
-    /// The actions run on entering global state `state`, in order.
+    /// The routes of a span.
     #[inline(always)]
-    pub(super) fn acts(&self, state: usize) -> &[Act] {
-        match self.acts_of.get(state) {
-            Some(span) => (self.acts)
-                .get(usize::from(span.start)..usize::from(span.end))
-                .unwrap_or(&[]),
-            None => &[],
-        }
+    pub(super) fn routes(&self, span: Span) -> &[Target] {
+        (self.routes)
+            .get(usize::from(span.start)..usize::from(span.end))
+            .unwrap_or(&[])
+    }
+
+    /// The transitions of a span.
+    #[inline(always)]
+    pub(super) fn steps(&self, span: Span) -> &[Step] {
+        (self.steps)
+            .get(usize::from(span.start)..usize::from(span.end))
+            .unwrap_or(&[])
+    }
+
+    /// The actions of a span.
+    #[inline(always)]
+    pub(super) fn acts(&self, span: Span) -> &[Act] {
+        (self.acts)
+            .get(usize::from(span.start)..usize::from(span.end))
+            .unwrap_or(&[])
     }
 
     /// The index of `event`'s publication (`NONE`: not published).
     #[inline(always)]
     pub(super) fn publication(&self, event: EventId) -> u8 {
-        self.publication
-            .get(usize::from(event))
-            .copied()
-            .unwrap_or(NONE)
-    }
-
-    /// Whether global state `state` has an event-less transition leaving it.
-    #[inline(always)]
-    pub(super) fn eventless(&self, state: usize) -> bool {
-        state < 128 && self.eventless & (1u128 << state) != 0
+        self.event(event).map_or(NONE, |rec| rec.publication)
     }
 }

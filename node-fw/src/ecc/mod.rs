@@ -335,7 +335,8 @@ impl<'t> Engine<'t> {
 
     #[inline]
     fn raise(&mut self, event: EventId, local: bool, fx: &mut impl Effects) {
-        self.run.raise(self.index.get(), self.table, event, local, fx);
+        self.run
+            .raise(self.index.get(), self.table, event, local, fx);
     }
 }
 
@@ -401,7 +402,8 @@ impl Run {
             }
             // Delivers `next` to all its routes, in order, each chart running to a stable
             // state.
-            for route in ix.routes(next) {
+            let routes = ix.event(next).map_or(&[][..], |rec| ix.routes(rec.routes));
+            for route in routes {
                 self.deliver(ix, table, route.chart, route.input, fx);
                 if self.fault.is_some() {
                     return;
@@ -430,15 +432,12 @@ impl Run {
         // The input first, then event-less transitions only (`chained` of them so far).
         let mut want = input;
         let mut chained = 0usize;
+        let mut current = self.current.get(c).copied().unwrap_or(0);
         loop {
-            let Some(&current) = self.current.get(c) else {
-                return;
-            };
-            let state = usize::from(first_state) + usize::from(current);
-            let step = if current < states {
-                self.select(ix.steps(state), want, table)
-            } else {
-                Ok(None)
+            let state = ix.state(usize::from(first_state) + usize::from(current));
+            let step = match state {
+                Some(rec) if current < states => self.select(ix.steps(rec.steps), want, table),
+                _ => Ok(None),
             };
             let step = match step {
                 Ok(Some(step)) => step,
@@ -458,12 +457,16 @@ impl Run {
                 return;
             }
             // Fire: the target becomes current, then its actions run in order.
+            let from = current;
+            current = step.to;
             if let Some(slot) = self.current.get_mut(c) {
-                *slot = step.to;
+                *slot = current;
             }
-            fx.fired(chart, step.index, current, step.to);
-            let target = usize::from(first_state) + usize::from(step.to);
-            for act in ix.acts(target) {
+            fx.fired(chart, step.index, from, current);
+            let Some(target) = ix.state(usize::from(first_state) + usize::from(current)) else {
+                return;
+            };
+            for act in ix.acts(target.acts) {
                 self.act(ix, table, chart, act, fx);
                 if self.fault.is_some() {
                     return;
@@ -471,7 +474,7 @@ impl Run {
             }
             // Then event-less transitions only; only a state with event-less transitions
             // leaving it can move on its own.
-            if step.to >= states || !ix.eventless(target) {
+            if current >= states || !target.eventless {
                 return;
             }
             want = EVENTLESS;
@@ -483,7 +486,12 @@ impl Run {
     /// `want` or which is event-less, and whose guard holds. A guard that cannot be
     /// evaluated (only in a table that skipped validation) is an error.
     #[inline(always)]
-    fn select<'i>(&self, steps: &'i [Step], want: u8, table: &Table) -> Result<Option<&'i Step>, ()> {
+    fn select<'i>(
+        &self,
+        steps: &'i [Step],
+        want: u8,
+        table: &Table,
+    ) -> Result<Option<&'i Step>, ()> {
         for step in steps {
             if step.trigger == want || step.trigger == EVENTLESS {
                 if step.guard.is_true() {
@@ -499,10 +507,10 @@ impl Run {
 
     #[inline(always)]
     fn act(&mut self, ix: &Index, table: &Table, chart: u8, act: &Act, fx: &mut impl Effects) {
-        match *act {
+        match act {
             Act::Set { var, calc } => match calc.eval(&self.vars, self.inputs, table) {
                 Some(value) => {
-                    if let Some(slot) = self.vars.get_mut(usize::from(var)) {
+                    if let Some(slot) = self.vars.get_mut(usize::from(*var)) {
                         *slot = value;
                     }
                 }
@@ -514,10 +522,10 @@ impl Run {
                 }
             }
             Act::Drive { mask, value } => {
-                let (mask, value) = (u16::from_le_bytes(mask), u16::from_le_bytes(value));
+                let (mask, value) = (u16::from_le_bytes(*mask), u16::from_le_bytes(*value));
                 self.drive(ix, mask, value, fx);
             }
-            Act::Emit { event, publication } => {
+            &Act::Emit { event, publication } => {
                 // Queued and, once queued, published; an event that does not fit faults
                 // the node and is not published.
                 if self.queue.push(event).is_err() {
@@ -526,10 +534,10 @@ impl Run {
                     publish(ix, table, publication, fx);
                 }
             }
-            Act::Publish { publication } => publish(ix, table, publication, fx),
-            Act::StartTimer { timer, ms } => fx.start_timer(timer, u32::from_le_bytes(ms)),
-            Act::CancelTimer(timer) => fx.cancel_timer(timer),
-            Act::Fault(code) => self.set_fault(ix, table, Fault::Action { chart, code }, fx),
+            &Act::Publish { publication } => publish(ix, table, publication, fx),
+            Act::StartTimer { timer, ms } => fx.start_timer(*timer, u32::from_le_bytes(*ms)),
+            &Act::CancelTimer(timer) => fx.cancel_timer(timer),
+            &Act::Fault(code) => self.set_fault(ix, table, Fault::Action { chart, code }, fx),
         }
     }
 
