@@ -12,11 +12,11 @@
 //! (validation refuses such tables anyway), and so is a transition triggered by chart
 //! input 255 (no chart has that many inputs).
 //!
-//! Its size is fixed by the capacities of `config_schema::limits` (8 bytes a transition,
+//! Its size is fixed by the capacities of `config_schema::limits` (9 bytes a transition,
 //! 7 an action, 2 a route, plus per-event and per-state spans): `Index::BYTES`.
 
 use config_schema::limits::{
-    MAX_ACTIONS, MAX_CHARTS, MAX_EVENTS, MAX_ROUTES, MAX_STATES, MAX_TRANSITIONS,
+    MAX_ACTIONS, MAX_CHARTS, MAX_EVENTS, MAX_INPUTS, MAX_ROUTES, MAX_STATES, MAX_TRANSITIONS,
 };
 use config_schema::{Action, EventId, Table};
 
@@ -56,6 +56,8 @@ pub(super) struct Step {
     pub trigger: u8,
     /// Its target, chart-local.
     pub to: u8,
+    /// Its target in `Table::states` (`NONE`: past `MAX_STATES`).
+    pub target: u8,
     /// Its index in `Table::transitions` (for the trace).
     pub index: u8,
     /// Its guard ([`Calc::TRUE`] if it has none).
@@ -65,6 +67,7 @@ pub(super) struct Step {
 const NO_STEP: Step = Step {
     trigger: EVENTLESS,
     to: 0,
+    target: NONE,
     index: 0,
     guard: Calc::TRUE,
 };
@@ -105,7 +108,7 @@ pub(super) enum Act {
     Fault(u8),
 }
 
-const _: () = assert!(core::mem::size_of::<Step>() == 8);
+const _: () = assert!(core::mem::size_of::<Step>() == 9);
 const _: () = assert!(core::mem::size_of::<Act>() == 7);
 
 /// A range `start..end` of one of the index's pools.
@@ -135,6 +138,21 @@ pub(super) struct StateRec {
     pub eventless: bool,
 }
 
+/// Per input: the events of its edges and its mirror variable (`NONE`: none, or a
+/// variable past `MAX_VARS`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct InputRec {
+    pub rise: EventId,
+    pub fall: EventId,
+    pub var: u8,
+}
+
+/// The entries of `pool` in `span` (built in range: an entry past the pool ends it).
+#[inline(always)]
+fn span_of<T>(pool: &[T], span: Span) -> impl Iterator<Item = &T> {
+    (span.start..span.end).map_while(move |i| pool.get(usize::from(i)))
+}
+
 /// A table's compiled form, built once by [`Index::new`].
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Index {
@@ -144,6 +162,8 @@ pub struct Index {
     states: [StateRec; MAX_STATES],
     steps: [Step; MAX_TRANSITIONS],
     acts: [Act; MAX_ACTIONS],
+    inputs: [InputRec; MAX_INPUTS],
+    input_count: u8,
     /// The table's outputs (bit i: output i exists), the start drive and the fault drive
     /// (mask, levels).
     pub(super) outputs: u16,
@@ -167,6 +187,12 @@ impl Index {
             states: [StateRec::default(); MAX_STATES],
             steps: [NO_STEP; MAX_TRANSITIONS],
             acts: [Act::Fault(0); MAX_ACTIONS],
+            inputs: [InputRec {
+                rise: NONE,
+                fall: NONE,
+                var: NONE,
+            }; MAX_INPUTS],
+            input_count: table.inputs.len().min(MAX_INPUTS) as u8,
             outputs: ((1u32 << table.outputs.len().min(16)) - 1) as u16,
             start_drive: table.start_drive(),
             fault_drive: table.fault_drive(),
@@ -182,6 +208,16 @@ impl Index {
             if let Some(slot) = ix.events.get_mut(usize::from(publication.event)) {
                 slot.publication = p.min(usize::from(NONE)) as u8;
             }
+        }
+        for (rec, input) in ix.inputs.iter_mut().zip(table.inputs.iter()) {
+            *rec = InputRec {
+                rise: input.rise.unwrap_or(NONE),
+                fall: input.fall.unwrap_or(NONE),
+                var: input
+                    .var
+                    .filter(|&v| usize::from(v) < config_schema::limits::MAX_VARS)
+                    .unwrap_or(NONE),
+            };
         }
         ix.build_routes(table);
         ix.build_steps(table);
@@ -243,9 +279,15 @@ impl Index {
                     let Some(slot) = self.steps.get_mut(n) else {
                         continue;
                     };
+                    let target = first + usize::from(t.to);
                     *slot = Step {
                         trigger,
                         to: t.to,
+                        target: if target < MAX_STATES {
+                            target as u8
+                        } else {
+                            NONE
+                        },
                         index: (range.start + i) as u8,
                         guard: Calc::lower(table, t.guard),
                     };
@@ -321,28 +363,30 @@ impl Index {
         self.states.get(state)
     }
 
-    /// The routes of a span.
+    /// The routes of a span, in order.
     #[inline(always)]
-    pub(super) fn routes(&self, span: Span) -> &[Target] {
-        (self.routes)
-            .get(usize::from(span.start)..usize::from(span.end))
-            .unwrap_or(&[])
+    pub(super) fn routes(&self, span: Span) -> impl Iterator<Item = &Target> {
+        span_of(&self.routes, span)
     }
 
-    /// The transitions of a span.
+    /// The transitions of a span, in order.
     #[inline(always)]
-    pub(super) fn steps(&self, span: Span) -> &[Step] {
-        (self.steps)
-            .get(usize::from(span.start)..usize::from(span.end))
-            .unwrap_or(&[])
+    pub(super) fn steps(&self, span: Span) -> impl Iterator<Item = &Step> {
+        span_of(&self.steps, span)
     }
 
-    /// The actions of a span.
+    /// The actions of a span, in order.
     #[inline(always)]
-    pub(super) fn acts(&self, span: Span) -> &[Act] {
-        (self.acts)
-            .get(usize::from(span.start)..usize::from(span.end))
-            .unwrap_or(&[])
+    pub(super) fn acts(&self, span: Span) -> impl Iterator<Item = &Act> {
+        span_of(&self.acts, span)
+    }
+
+    /// The record of input `input` (`None` past the table's inputs).
+    #[inline(always)]
+    pub(super) fn input(&self, input: u8) -> Option<&InputRec> {
+        self.inputs
+            .get(usize::from(input))
+            .filter(|_| input < self.input_count)
     }
 
     /// The index of `event`'s publication (`NONE`: not published).

@@ -64,7 +64,7 @@ mod index;
 
 use fifo::Fifo;
 pub use index::Index;
-use index::{Act, Layout, Step, EVENTLESS, NONE};
+use index::{Act, Layout, Span, Step, EVENTLESS, NONE};
 
 /// The engine's index: its own (built with the engine) or the one its runtime keeps
 /// beside the table (built once at activation, not per stimulus). No allocator: an
@@ -245,22 +245,23 @@ impl<'t> Engine<'t> {
     /// Input `input` is at `level` when the engine starts (a switch that was already
     /// closed): sets the level and its mirror variable without raising any event.
     pub fn sense(&mut self, input: u8, level: bool) {
-        if let Some(binding) = self.table.inputs.get(usize::from(input)) {
-            self.run.level(input, binding.var, level);
+        if let Some(rec) = self.index.get().input(input) {
+            self.run.level(input, rec.var, level);
         }
     }
 
     /// Input `input` is now at `level`: updates its mirror variable and, on an edge, raises
     /// its rise or fall event (published if it has a publication).
+    #[inline]
     pub fn input(&mut self, input: u8, level: bool, fx: &mut impl Effects) {
-        let Some(binding) = self.table.inputs.get(usize::from(input)) else {
+        let ix = self.index.get();
+        let Some(rec) = ix.input(input) else {
             return;
         };
-        let was = self.run.level(input, binding.var, level);
-        if was != level {
-            if let Some(event) = if level { binding.rise } else { binding.fall } {
-                self.raise(event, true, fx);
-            }
+        let was = self.run.level(input, rec.var, level);
+        let event = if level { rec.rise } else { rec.fall };
+        if was != level && event != NONE {
+            self.run.raise(ix, self.table, event, true, fx);
         }
     }
 
@@ -360,7 +361,7 @@ impl Run {
 
     /// Sets input `input`'s level and its mirror variable `var`; returns the level it had.
     #[inline]
-    fn level(&mut self, input: u8, var: Option<u8>, level: bool) -> bool {
+    fn level(&mut self, input: u8, var: u8, level: bool) -> bool {
         let bit = 1u16 << (input & 15);
         let was = self.inputs & bit != 0;
         if level {
@@ -368,8 +369,8 @@ impl Run {
         } else {
             self.inputs &= !bit;
         }
-        if let Some(var) = var.and_then(|v| self.vars.get_mut(usize::from(v))) {
-            *var = i32::from(level);
+        if var != NONE {
+            self.vars[usize::from(var) & (MAX_VARS - 1)] = i32::from(level);
         }
         was
     }
@@ -402,8 +403,8 @@ impl Run {
             }
             // Delivers `next` to all its routes, in order, each chart running to a stable
             // state.
-            let routes = ix.event(next).map_or(&[][..], |rec| ix.routes(rec.routes));
-            for route in routes {
+            let routes = ix.event(next).map_or(Span::default(), |rec| rec.routes);
+            for route in ix.routes(routes) {
                 self.deliver(ix, table, route.chart, route.input, fx);
                 if self.fault.is_some() {
                     return;
@@ -433,13 +434,15 @@ impl Run {
         let mut want = input;
         let mut chained = 0usize;
         let mut current = self.current.get(c).copied().unwrap_or(0);
+        let mut state = match ix.state(usize::from(first_state) + usize::from(current)) {
+            Some(rec) if current < states => rec,
+            _ => {
+                fx.ignored(chart, input);
+                return;
+            }
+        };
         loop {
-            let state = ix.state(usize::from(first_state) + usize::from(current));
-            let step = match state {
-                Some(rec) if current < states => self.select(ix.steps(rec.steps), want, table),
-                _ => Ok(None),
-            };
-            let step = match step {
+            let step = match self.select(ix.steps(state.steps), want, table) {
                 Ok(Some(step)) => step,
                 Ok(None) => {
                     if chained == 0 {
@@ -463,7 +466,7 @@ impl Run {
                 *slot = current;
             }
             fx.fired(chart, step.index, from, current);
-            let Some(target) = ix.state(usize::from(first_state) + usize::from(current)) else {
+            let Some(target) = ix.state(usize::from(step.target)) else {
                 return;
             };
             for act in ix.acts(target.acts) {
@@ -477,6 +480,7 @@ impl Run {
             if current >= states || !target.eventless {
                 return;
             }
+            state = target;
             want = EVENTLESS;
             chained += 1;
         }
@@ -488,7 +492,7 @@ impl Run {
     #[inline(always)]
     fn select<'i>(
         &self,
-        steps: &'i [Step],
+        steps: impl Iterator<Item = &'i Step>,
         want: u8,
         table: &Table,
     ) -> Result<Option<&'i Step>, ()> {
