@@ -20,16 +20,19 @@ use config_schema::{Expr, Table};
 const VAR_MASK: usize = MAX_VARS - 1;
 const _: () = assert!(MAX_VARS.is_power_of_two());
 
-/// One lowered expression: an operation `code` on variable `a` and a 24-bit signed
-/// immediate `imm` (little-endian; for `v op w`, `imm[0]` is `w`; on the stack machine,
-/// `imm[0..2]` are the expression's start and length in the code pool).
+/// One lowered expression: an operation `code` on its operands `w`: variable `w[0]` and
+/// the 24-bit signed immediate `w[1..4]` (little-endian: `w` read as an `i32`, shifted
+/// right by 8); for `v op w`, variable `w[1]`; on the stack machine, `w[1]` and `w[2]`
+/// are the expression's start and length in the code pool.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(C)]
 pub(super) struct Calc {
-    code: u8,
-    a: u8,
-    imm: [u8; 3],
+    pub code: u8,
+    pub w: [u8; 4],
 }
+
+/// The highest operation code (codes above it are free for the actions).
+pub(super) const LAST_CODE: u8 = 44;
 
 const _: () = assert!(core::mem::size_of::<Calc>() == 5);
 
@@ -43,6 +46,7 @@ mod code {
     pub const VAR: u8 = 2;
     /// Anything else, on the stack machine.
     pub const STACK: u8 = 3;
+    const _: () = assert!(super::LAST_CODE == VARS + 12);
     /// `a + imm` wrapped to USINT, SINT, UINT, INT.
     pub const ADD_U8: u8 = 4;
     pub const ADD_S8: u8 = 5;
@@ -101,8 +105,7 @@ impl Calc {
     /// A missing guard: holds.
     pub(super) const TRUE: Calc = Calc {
         code: code::TRUE,
-        a: 0,
-        imm: [0; 3],
+        w: [0; 4],
     };
 
     /// `expr` of `table`, lowered (`None`: a missing guard, which holds).
@@ -112,14 +115,18 @@ impl Calc {
         };
         Calc::direct(table.expr(expr)).unwrap_or(Calc {
             code: code::STACK,
-            a: 0,
-            imm: [expr.start, expr.len, 0],
+            w: [0, expr.start, expr.len, 0],
         })
     }
 
     /// The one-step form of `ops`, if it has one of the direct shapes.
     fn direct(ops: &[Op]) -> Option<Calc> {
-        let calc = |code, a, imm| Some(Calc { code, a, imm });
+        let calc = |code, a, [i0, i1, i2]: [u8; 3]| {
+            Some(Calc {
+                code,
+                w: [a, i0, i1, i2],
+            })
+        };
         match *ops {
             [Op::Const(c)] => calc(code::CONST, 0, immediate(c)?),
             [Op::Var(v)] => calc(code::VAR, var(v)?, [0; 3]),
@@ -161,13 +168,26 @@ impl Calc {
     /// expressions that run on the stack machine.
     #[inline(always)]
     pub(super) fn eval(&self, vars: &[i32; MAX_VARS], inputs: u16, table: &Table) -> Option<i32> {
+        Calc::run(self.code, &self.w, vars, inputs, table)
+    }
+
+    /// [`Calc::eval`] of the operation `code` on `w` (an action's assignment holds its
+    /// expression so, beside the variable it sets).
+    #[inline(always)]
+    pub(super) fn run(
+        code: u8,
+        w: &[u8; 4],
+        vars: &[i32; MAX_VARS],
+        inputs: u16,
+        table: &Table,
+    ) -> Option<i32> {
         // Each operation reads only its operands (loaded where used).
-        let x = || vars[usize::from(self.a) & VAR_MASK];
-        let y = || vars[usize::from(self.imm[0]) & VAR_MASK];
-        // Sign-extended from 24 bits: one load of `a` and `imm`, one shift.
-        let k = || i32::from_le_bytes([self.a, self.imm[0], self.imm[1], self.imm[2]]) >> 8;
+        let x = || vars[usize::from(w[0]) & VAR_MASK];
+        let y = || vars[usize::from(w[1]) & VAR_MASK];
+        // Sign-extended from 24 bits: one load, one shift.
+        let k = || i32::from_le_bytes(*w) >> 8;
         let b = |v: bool| Some(i32::from(v));
-        match self.code {
+        match code {
             code::TRUE => Some(1),
             code::CONST => Some(k()),
             code::VAR => Some(x()),
@@ -201,20 +221,20 @@ impl Calc {
             42 => Some(x().wrapping_mul(y())),
             43 => div(x(), y()),
             44 => rem(x(), y()),
-            _ => self.stack(vars, inputs, table),
+            _ => stack(w, vars, inputs, table),
         }
     }
+}
 
-    /// An expression of no direct shape, on the stack machine.
-    #[inline(never)]
-    fn stack(&self, vars: &[i32; MAX_VARS], inputs: u16, table: &Table) -> Option<i32> {
-        let [start, len, _] = self.imm;
-        guard::eval(
-            table.expr(Expr { start, len }),
-            |v| vars.get(usize::from(v)).copied(),
-            |i| (i < 16).then(|| inputs & (1 << i) != 0),
-        )
-    }
+/// An expression of no direct shape, on the stack machine.
+#[inline(never)]
+fn stack(w: &[u8; 4], vars: &[i32; MAX_VARS], inputs: u16, table: &Table) -> Option<i32> {
+    let [_, start, len, _] = *w;
+    guard::eval(
+        table.expr(Expr { start, len }),
+        |v| vars.get(usize::from(v)).copied(),
+        |i| (i < 16).then(|| inputs & (1 << i) != 0),
+    )
 }
 
 #[cfg(test)]

@@ -13,14 +13,14 @@
 //! input 255 (no chart has that many inputs).
 //!
 //! Its size is fixed by the capacities of `config_schema::limits` (9 bytes a transition,
-//! 7 an action, 2 a route, plus per-event and per-state spans): `Index::BYTES`.
+//! 6 an action, 2 a route, plus per-event and per-state spans): `Index::BYTES`.
 
 use config_schema::limits::{
     MAX_ACTIONS, MAX_CHARTS, MAX_EVENTS, MAX_INPUTS, MAX_ROUTES, MAX_STATES, MAX_TRANSITIONS,
 };
 use config_schema::{Action, EventId, Table};
 
-use super::calc::Calc;
+use super::calc::{self, Calc};
 
 /// No entry (a publication, a pool index).
 pub(super) const NONE: u8 = u8::MAX;
@@ -72,44 +72,37 @@ const NO_STEP: Step = Step {
     guard: Calc::TRUE,
 };
 
-/// An action as the interpreter runs it (multi-byte fields as bytes: 7 bytes an action).
+/// An action as the interpreter runs it: `code` up to [`calc::LAST_CODE`] is an assignment
+/// `dst := (code, w)` (a lowered expression, [`Calc`]; `dst` = `NONE`: a variable the engine
+/// does not have, evaluated for its fault and dropped); above, one of the `act` codes with
+/// its operands in `dst` and `w`. Six bytes an action.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Act {
-    /// `var := calc` (`var` below `MAX_VARS`).
-    Set {
-        var: u8,
-        calc: Calc,
-    },
-    /// An assignment to a variable the engine does not have: evaluated (it may fault),
-    /// the value dropped.
-    Eval {
-        calc: Calc,
-    },
-    /// Drive the outputs of `mask` to `value` (little-endian `u16`s).
-    Drive {
-        mask: [u8; 2],
-        value: [u8; 2],
-    },
-    /// Queue `event`; once queued, publish `publication` (`NONE`: it has none).
-    Emit {
-        event: EventId,
-        publication: u8,
-    },
-    /// Publish `publication` (`NONE`: the event has none, nothing to do).
-    Publish {
-        publication: u8,
-    },
-    /// Start `timer` for `ms` (a little-endian `u32`).
-    StartTimer {
-        timer: u8,
-        ms: [u8; 4],
-    },
-    CancelTimer(u8),
-    Fault(u8),
+#[repr(C)]
+pub(super) struct Act {
+    pub code: u8,
+    pub dst: u8,
+    pub w: [u8; 4],
+}
+
+/// The action codes above the assignments'.
+pub(super) mod act {
+    use super::calc::LAST_CODE;
+    /// Drive outputs: `w` = mask, levels (little-endian `u16`s).
+    pub const DRIVE: u8 = LAST_CODE + 1;
+    /// Queue event `dst`; once queued, publish publication `w[0]` (`NONE`: none).
+    pub const EMIT: u8 = LAST_CODE + 2;
+    /// Publish publication `w[0]` (`NONE`: none, nothing to do).
+    pub const PUBLISH: u8 = LAST_CODE + 3;
+    /// Start timer `dst` for `w` ms (a little-endian `u32`).
+    pub const START_TIMER: u8 = LAST_CODE + 4;
+    /// Cancel timer `dst`.
+    pub const CANCEL_TIMER: u8 = LAST_CODE + 5;
+    /// Fault the node with code `dst`.
+    pub const FAULT: u8 = LAST_CODE + 6;
 }
 
 const _: () = assert!(core::mem::size_of::<Step>() == 9);
-const _: () = assert!(core::mem::size_of::<Act>() == 7);
+const _: () = assert!(core::mem::size_of::<Act>() == 6);
 
 /// A range `start..end` of one of the index's pools.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -186,7 +179,11 @@ impl Index {
             routes: [Target::default(); MAX_ROUTES],
             states: [StateRec::default(); MAX_STATES],
             steps: [NO_STEP; MAX_TRANSITIONS],
-            acts: [Act::Fault(0); MAX_ACTIONS],
+            acts: [Act {
+                code: act::FAULT,
+                dst: 0,
+                w: [0; 4],
+            }; MAX_ACTIONS],
             inputs: [InputRec {
                 rise: NONE,
                 fall: NONE,
@@ -312,32 +309,26 @@ impl Index {
                     .get(usize::from(e))
                     .map_or(NONE, |rec| rec.publication)
             };
+            let of = |code, dst, w| Act { code, dst, w };
             *slot = match *action {
                 Action::Set { var, expr } => {
                     let calc = Calc::lower(table, Some(expr));
-                    if usize::from(var) < config_schema::limits::MAX_VARS {
-                        Act::Set { var, calc }
+                    let dst = if usize::from(var) < config_schema::limits::MAX_VARS {
+                        var
                     } else {
-                        Act::Eval { calc }
-                    }
+                        NONE
+                    };
+                    of(calc.code, dst, calc.w)
                 }
-                Action::Drive { mask, value } => Act::Drive {
-                    mask: mask.to_le_bytes(),
-                    value: value.to_le_bytes(),
-                },
-                Action::Emit(event) => Act::Emit {
-                    event,
-                    publication: publication(event),
-                },
-                Action::Publish(event) => Act::Publish {
-                    publication: publication(event),
-                },
-                Action::StartTimer { timer, ms } => Act::StartTimer {
-                    timer,
-                    ms: ms.to_le_bytes(),
-                },
-                Action::CancelTimer(timer) => Act::CancelTimer(timer),
-                Action::Fault(code) => Act::Fault(code),
+                Action::Drive { mask, value } => {
+                    let ([m0, m1], [v0, v1]) = (mask.to_le_bytes(), value.to_le_bytes());
+                    of(act::DRIVE, 0, [m0, m1, v0, v1])
+                }
+                Action::Emit(event) => of(act::EMIT, event, [publication(event), 0, 0, 0]),
+                Action::Publish(event) => of(act::PUBLISH, 0, [publication(event), 0, 0, 0]),
+                Action::StartTimer { timer, ms } => of(act::START_TIMER, timer, ms.to_le_bytes()),
+                Action::CancelTimer(timer) => of(act::CANCEL_TIMER, timer, [0; 4]),
+                Action::Fault(code) => of(act::FAULT, code, [0; 4]),
             };
         }
         for (s, rec) in self.states.iter_mut().enumerate() {

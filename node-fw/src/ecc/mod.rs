@@ -62,9 +62,10 @@ mod calc;
 mod fifo;
 mod index;
 
+use calc::Calc;
 use fifo::Fifo;
 pub use index::Index;
-use index::{Act, Layout, Span, Step, EVENTLESS, NONE};
+use index::{act, Act, Layout, Span, Step, EVENTLESS, NONE};
 
 /// The engine's index: its own (built with the engine) or the one its runtime keeps
 /// beside the table (built once at activation, not per stimulus). No allocator: an
@@ -510,38 +511,39 @@ impl Run {
     }
 
     #[inline(always)]
-    fn act(&mut self, ix: &Index, table: &Table, chart: u8, act: &Act, fx: &mut impl Effects) {
-        match act {
-            Act::Set { var, calc } => match calc.eval(&self.vars, self.inputs, table) {
+    fn act(&mut self, ix: &Index, table: &Table, chart: u8, a: &Act, fx: &mut impl Effects) {
+        let Act { code, dst, w } = *a;
+        if code <= calc::LAST_CODE {
+            // `dst := expression`.
+            match Calc::run(code, &w, &self.vars, self.inputs, table) {
                 Some(value) => {
-                    if let Some(slot) = self.vars.get_mut(usize::from(*var)) {
+                    if let Some(slot) = self.vars.get_mut(usize::from(dst)) {
                         *slot = value;
                     }
                 }
                 None => self.set_fault(ix, table, Fault::Expr { chart }, fx),
-            },
-            Act::Eval { calc } => {
-                if calc.eval(&self.vars, self.inputs, table).is_none() {
-                    self.set_fault(ix, table, Fault::Expr { chart }, fx);
-                }
             }
-            Act::Drive { mask, value } => {
-                let (mask, value) = (u16::from_le_bytes(*mask), u16::from_le_bytes(*value));
+            return;
+        }
+        match code {
+            act::DRIVE => {
+                let [m0, m1, v0, v1] = w;
+                let (mask, value) = (u16::from_le_bytes([m0, m1]), u16::from_le_bytes([v0, v1]));
                 self.drive(ix, mask, value, fx);
             }
-            &Act::Emit { event, publication } => {
+            act::EMIT => {
                 // Queued and, once queued, published; an event that does not fit faults
                 // the node and is not published.
-                if self.queue.push(event).is_err() {
-                    self.set_fault(ix, table, Fault::QueueFull { event }, fx);
+                if self.queue.push(dst).is_err() {
+                    self.set_fault(ix, table, Fault::QueueFull { event: dst }, fx);
                 } else {
-                    publish(ix, table, publication, fx);
+                    publish(ix, table, w[0], fx);
                 }
             }
-            &Act::Publish { publication } => publish(ix, table, publication, fx),
-            Act::StartTimer { timer, ms } => fx.start_timer(*timer, u32::from_le_bytes(*ms)),
-            &Act::CancelTimer(timer) => fx.cancel_timer(timer),
-            &Act::Fault(code) => self.set_fault(ix, table, Fault::Action { chart, code }, fx),
+            act::PUBLISH => publish(ix, table, w[0], fx),
+            act::START_TIMER => fx.start_timer(dst, u32::from_le_bytes(w)),
+            act::CANCEL_TIMER => fx.cancel_timer(dst),
+            _ => self.set_fault(ix, table, Fault::Action { chart, code: dst }, fx),
         }
     }
 
