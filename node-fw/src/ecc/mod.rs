@@ -423,36 +423,31 @@ impl Run {
     #[inline(always)]
     fn deliver(&mut self, ix: &Index, table: &Table, chart: u8, input: u8, fx: &mut impl Effects) {
         let c = usize::from(chart);
-        let Some(&Layout {
+        let layout = ix.layout.get(c).copied().unwrap_or_default();
+        let Layout {
             first_state,
             states,
-        }) = ix.layout.get(c)
-        else {
-            fx.ignored(chart, input);
-            return;
-        };
+        } = layout;
         // The input first, then event-less transitions only (`chained` of them so far).
         let mut want = input;
         let mut chained = 0usize;
         let mut current = self.current.get(c).copied().unwrap_or(0);
-        let mut state = match ix.state(usize::from(first_state) + usize::from(current)) {
-            Some(rec) if current < states => rec,
-            _ => {
-                fx.ignored(chart, input);
-                return;
-            }
-        };
+        // A chart outside the table, or in a state outside its chart, has no state: it
+        // ignores its input (only a table that skipped validation gets here).
+        let mut state = ix
+            .state(usize::from(first_state) + usize::from(current))
+            .filter(|_| current < states);
         loop {
-            let step = match self.select(ix.steps(state.steps), want, table) {
-                Ok(Some(step)) => step,
-                Ok(None) => {
+            let step = match state.map(|rec| self.select(ix.steps(rec.steps), want, table)) {
+                Some(Ok(Some(step))) => step,
+                Some(Err(())) => {
+                    self.set_fault(ix, table, Fault::Expr { chart }, fx);
+                    return;
+                }
+                None | Some(Ok(None)) => {
                     if chained == 0 {
                         fx.ignored(chart, input);
                     }
-                    return;
-                }
-                Err(()) => {
-                    self.set_fault(ix, table, Fault::Expr { chart }, fx);
                     return;
                 }
             };
@@ -481,7 +476,7 @@ impl Run {
             if current >= states || !target.eventless {
                 return;
             }
-            state = target;
+            state = Some(target);
             want = EVENTLESS;
             chained += 1;
         }
