@@ -16,9 +16,10 @@
 //! 6 an action, 2 a route, plus per-event and per-state spans): `Index::BYTES`.
 
 use config_schema::limits::{
-    MAX_ACTIONS, MAX_CHARTS, MAX_EVENTS, MAX_INPUTS, MAX_ROUTES, MAX_STATES, MAX_TRANSITIONS,
+    MAX_ACTIONS, MAX_CHARTS, MAX_EVENTS, MAX_INPUTS, MAX_PUBLICATIONS, MAX_ROUTES, MAX_STATES,
+    MAX_TRANSITIONS,
 };
-use config_schema::{Action, EventId, Table};
+use config_schema::{Action, EventId, Publication, Table};
 
 use super::calc::{self, Calc};
 
@@ -157,6 +158,10 @@ pub struct Index {
     acts: [Act; MAX_ACTIONS],
     inputs: [InputRec; MAX_INPUTS],
     input_count: u8,
+    /// The table's publications (what `Effects::publish` reports), node events and timers.
+    publications: [Publication; MAX_PUBLICATIONS],
+    pub(super) event_count: u8,
+    pub(super) timer_count: u8,
     /// The table's outputs (bit i: output i exists), the start drive and the fault drive
     /// (mask, levels).
     pub(super) outputs: u16,
@@ -190,6 +195,13 @@ impl Index {
                 var: NONE,
             }; MAX_INPUTS],
             input_count: table.inputs.len().min(MAX_INPUTS) as u8,
+            publications: [Publication {
+                event: 0,
+                topic: 0,
+                subscribers: 0,
+            }; MAX_PUBLICATIONS],
+            event_count: table.events,
+            timer_count: table.timers.len().min(usize::from(NONE)) as u8,
             outputs: ((1u32 << table.outputs.len().min(16)) - 1) as u16,
             start_drive: table.start_drive(),
             fault_drive: table.fault_drive(),
@@ -200,6 +212,9 @@ impl Index {
                 first_state: states.start.min(usize::from(NONE)) as u8,
                 states: states.len().min(usize::from(NONE)) as u8,
             };
+        }
+        for (slot, p) in ix.publications.iter_mut().zip(table.publications.iter()) {
+            *slot = *p;
         }
         for (p, publication) in table.publications.iter().enumerate().rev() {
             if let Some(slot) = ix.events.get_mut(usize::from(publication.event)) {
@@ -378,6 +393,12 @@ impl Index {
         self.inputs
             .get(usize::from(input))
             .filter(|_| input < self.input_count)
+    }
+
+    /// Publication `p` of the table (`None` for `NONE`).
+    #[inline(always)]
+    pub(super) fn publication_at(&self, p: u8) -> Option<&Publication> {
+        self.publications.get(usize::from(p))
     }
 
     /// The index of `event`'s publication (`NONE`: not published).

@@ -239,7 +239,7 @@ impl<'t> Engine<'t> {
         if self.run.fault.is_none() {
             let chart = config_schema::alarm::NO_CHART;
             let fault = Fault::Action { chart, code };
-            self.run.set_fault(self.index.get(), self.table, fault, fx);
+            self.run.set_fault(self.index.get(), fault, fx);
         }
     }
 
@@ -386,11 +386,11 @@ impl Run {
         local: bool,
         fx: &mut impl Effects,
     ) {
-        if self.fault.is_some() || usize::from(event) >= usize::from(table.events) {
+        if self.fault.is_some() || event >= ix.event_count {
             return;
         }
         if local {
-            publish(ix, table, ix.publication(event), fx);
+            publish(ix, ix.publication(event), fx);
         }
         // The queue is empty between stimuli: the stimulus goes straight to its routes, and
         // only events emitted by actions wait in the FIFO.
@@ -399,7 +399,7 @@ impl Run {
         loop {
             processed += 1;
             if processed > MAX_CASCADE {
-                self.set_fault(ix, table, Fault::Cascade { event }, fx);
+                self.set_fault(ix, Fault::Cascade { event }, fx);
                 return;
             }
             // Delivers `next` to all its routes, in order, each chart running to a stable
@@ -441,7 +441,7 @@ impl Run {
             let step = match state.map(|rec| self.select(ix.steps(rec.steps), want, table)) {
                 Some(Ok(Some(step))) => step,
                 Some(Err(())) => {
-                    self.set_fault(ix, table, Fault::Expr { chart }, fx);
+                    self.set_fault(ix, Fault::Expr { chart }, fx);
                     return;
                 }
                 None | Some(Ok(None)) => {
@@ -452,7 +452,7 @@ impl Run {
                 }
             };
             if chained > MAX_CHAIN {
-                self.set_fault(ix, table, Fault::ChainLimit { chart }, fx);
+                self.set_fault(ix, Fault::ChainLimit { chart }, fx);
                 return;
             }
             // Fire: the target becomes current, then its actions run in order.
@@ -516,7 +516,7 @@ impl Run {
                         *slot = value;
                     }
                 }
-                None => self.set_fault(ix, table, Fault::Expr { chart }, fx),
+                None => self.set_fault(ix, Fault::Expr { chart }, fx),
             }
             return;
         }
@@ -530,15 +530,15 @@ impl Run {
                 // Queued and, once queued, published; an event that does not fit faults
                 // the node and is not published.
                 if self.queue.push(dst).is_err() {
-                    self.set_fault(ix, table, Fault::QueueFull { event: dst }, fx);
+                    self.set_fault(ix, Fault::QueueFull { event: dst }, fx);
                 } else {
-                    publish(ix, table, w[0], fx);
+                    publish(ix, w[0], fx);
                 }
             }
-            act::PUBLISH => publish(ix, table, w[0], fx),
+            act::PUBLISH => publish(ix, w[0], fx),
             act::START_TIMER => fx.start_timer(dst, u32::from_le_bytes(w)),
             act::CANCEL_TIMER => fx.cancel_timer(dst),
-            _ => self.set_fault(ix, table, Fault::Action { chart, code: dst }, fx),
+            _ => self.set_fault(ix, Fault::Action { chart, code: dst }, fx),
         }
     }
 
@@ -556,13 +556,13 @@ impl Run {
     }
 
     #[inline(never)]
-    fn set_fault(&mut self, ix: &Index, table: &Table, fault: Fault, fx: &mut impl Effects) {
+    fn set_fault(&mut self, ix: &Index, fault: Fault, fx: &mut impl Effects) {
         self.fault = Some(fault);
         self.queue.clear();
         let (mask, value) = ix.fault_drive;
         self.drive(ix, mask, value, fx);
-        for timer in 0..table.timers.len() {
-            fx.cancel_timer(timer as u8);
+        for timer in 0..ix.timer_count {
+            fx.cancel_timer(timer);
         }
         fx.fault(fault);
     }
@@ -570,9 +570,9 @@ impl Run {
 
 /// Reports publication `p` of the table (`NONE`: the event has none).
 #[inline(always)]
-fn publish(_ix: &Index, table: &Table, p: u8, fx: &mut impl Effects) {
+fn publish(ix: &Index, p: u8, fx: &mut impl Effects) {
     if p != NONE {
-        if let Some(p) = table.publications.get(usize::from(p)) {
+        if let Some(p) = ix.publication_at(p) {
             fx.publish(p);
         }
     }
