@@ -4,7 +4,7 @@
 //! operation per shape and binary operator (a super-instruction: `v < c`, `v >= w`,
 //! `uint(v + c)`); any
 //! other expression keeps its place in the table's code pool and runs on the stack machine
-//! ([`config_schema::guard::eval`]). Both give the same value for every expression (a test
+//! ([`config_schema::guard::eval_stack`]). Both give the same value for every expression (a test
 //! below holds them equal), and the same `None` (a fault) for one that cannot be evaluated.
 //!
 //! Lowered only when the operands are proven in range at build time (a variable below
@@ -230,7 +230,7 @@ impl Calc {
 #[inline(never)]
 fn stack(w: &[u8; 4], vars: &[i32; MAX_VARS], inputs: u16, table: &Table) -> Option<i32> {
     let [_, start, len, _] = *w;
-    guard::eval(
+    guard::eval_stack(
         table.expr(Expr { start, len }),
         |v| vars.get(usize::from(v)).copied(),
         |i| (i < 16).then(|| inputs & (1 << i) != 0),
