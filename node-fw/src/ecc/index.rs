@@ -407,3 +407,26 @@ impl Index {
         self.event(event).map_or(NONE, |rec| rec.publication)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The index's RAM is its pools at the capacities of `limits.rs`, nothing per table:
+    /// what docs/ecc-semantics.md and docs/boards.md count.
+    #[test]
+    fn the_index_is_its_pools_at_the_capacities() {
+        let pools = 2 * MAX_CHARTS
+            + 3 * MAX_EVENTS
+            + 2 * MAX_ROUTES
+            + 5 * MAX_STATES
+            + 9 * MAX_TRANSITIONS
+            + 6 * MAX_ACTIONS
+            + 3 * MAX_INPUTS
+            + 3 * MAX_PUBLICATIONS;
+        // The input, event and timer counts, the output mask and the two drives (u16s).
+        let rest = 3 + 2 + 2 * 4;
+        assert_eq!(Index::BYTES, (pools + rest).next_multiple_of(2));
+        assert_eq!(Index::BYTES, 3126);
+    }
+}
