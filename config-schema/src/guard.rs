@@ -181,8 +181,9 @@ pub fn eval(
     }
 }
 
-/// [`eval`] on the stack machine.
-fn eval_stack(
+/// [`eval`] on the stack machine, whatever the expression's shape (the same value: a test
+/// holds them equal). For an interpreter that computes the direct shapes itself.
+pub fn eval_stack(
     ops: &[Op],
     mut var: impl FnMut(u8) -> Option<i32>,
     mut input: impl FnMut(u8) -> Option<bool>,

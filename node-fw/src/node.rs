@@ -474,7 +474,9 @@ impl<S: StagingArea> NodeCore<S> {
     /// idle states when `at_idle` (it replaces a table that rested at its idle point).
     fn install(&mut self, table: Table, keys: Option<LinkKeys>, at_idle: bool) {
         self.peer_security.install(keys, &table.peers);
-        let mut engine = Engine::new_holding(&table, self.driven_levels(&table));
+        // The table's index is built once, here, and kept beside it.
+        let index = Index::new(&table);
+        let mut engine = Engine::new_indexed(&table, &index, self.driven_levels(&table));
         if at_idle {
             engine.rest();
         }
@@ -494,7 +496,7 @@ impl<S: StagingArea> NodeCore<S> {
         }
         // Links from peers that stay keep their place in the publisher's numbering.
         self.receivers.retain(|(a, _)| table.peers.contains(a));
-        self.index = Some(Index::new(&table));
+        self.index = Some(index);
         self.table = Some(table);
     }
 

@@ -105,9 +105,9 @@ fn ratio_summary(table: &Table, rounds: usize, cycles: u64) {
     println!("  table interpreter   {i:8.2} ns/event");
     println!("  hand-written match  {m:8.2} ns/event");
     println!(
-        "  ratio               {:8.2}x  (target: within 3x) {}",
+        "  ratio               {:8.2}x  (target: within 1.5x) {}",
         i / m,
-        if i / m <= 3.0 { "OK" } else { "OVER" }
+        if i / m <= 1.5 { "OK" } else { "OVER" }
     );
 }
 

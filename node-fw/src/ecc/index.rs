@@ -1,26 +1,40 @@
-//! Where the interpreter finds a table's pieces, worked out once per table (at activation)
-//! so that a stimulus follows short chains instead of scanning the table's pools: the
-//! routes of each event, the transitions leaving each state (in declaration order), each
-//! event's publication, and which states have event-less transitions.
+//! A table compiled once, when it is installed, into the form the interpreter runs: each
+//! event's routes as (chart, input) pairs, each state's transitions in declaration order
+//! with their guards lowered ([`Calc`]), each state's actions with their assignments
+//! lowered and their publications resolved, each event's publication, the states with
+//! event-less transitions, and the output masks. A stimulus then walks short arrays with
+//! one bounds check each and never decodes or re-validates the table.
 //!
 //! Derived data only: the table stays the one validated form, and an index built from it
 //! gives exactly the order the pools have (the first matching transition in declaration
 //! order, the routes in table order). Built without panics from any table: an entry that
-//! points outside the pools is left out (validation refuses such tables anyway).
+//! points outside the pools is left out, as the interpreter over the bare table skipped it
+//! (validation refuses such tables anyway), and so is a transition triggered by chart
+//! input 255 (no chart has that many inputs).
+//!
+//! Its size is fixed by the capacities of `config_schema::limits` (9 bytes a transition,
+//! 6 an action, 2 a route, plus per-event and per-state spans): `Index::BYTES`.
 
-use config_schema::limits::{MAX_CHARTS, MAX_EVENTS, MAX_ROUTES, MAX_STATES, MAX_TRANSITIONS};
-use config_schema::Table;
+use config_schema::limits::{
+    MAX_ACTIONS, MAX_CHARTS, MAX_EVENTS, MAX_INPUTS, MAX_PUBLICATIONS, MAX_ROUTES, MAX_STATES,
+    MAX_TRANSITIONS,
+};
+use config_schema::{Action, EventId, Publication, Table};
 
-/// The end of a chain.
+use super::calc::{self, Calc};
+
+/// No entry (a publication, a pool index).
 pub(super) const NONE: u8 = u8::MAX;
+/// The trigger of an event-less transition.
+pub(super) const EVENTLESS: u8 = u8::MAX;
 
-// Every pool index fits a `u8` below `NONE`, and a state set fits a `u128`.
+// Every pool index and span end fits a `u8` below `NONE`.
 const _: () = assert!(MAX_ROUTES < NONE as usize);
 const _: () = assert!(MAX_TRANSITIONS < NONE as usize);
+const _: () = assert!(MAX_ACTIONS < NONE as usize);
 const _: () = assert!(MAX_EVENTS <= NONE as usize);
-const _: () = assert!(MAX_STATES <= 128);
 
-/// Where a chart's pieces are in the table's pools.
+/// Where a chart's states are in the table's pool.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub(super) struct Layout {
     /// Its first state in `Table::states` (chart-local state `s` is `first_state + s`).
@@ -29,128 +43,390 @@ pub(super) struct Layout {
     pub states: u8,
 }
 
-/// A table's index: chains through its pools, built once by [`Index::new`].
+/// Where a route delivers.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(super) struct Target {
+    pub chart: u8,
+    pub input: u8,
+}
+
+/// A transition as the interpreter takes it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct Step {
+    /// The chart input that triggers it, or [`EVENTLESS`].
+    pub trigger: u8,
+    /// Its target, chart-local.
+    pub to: u8,
+    /// Its target in `Table::states` (`NONE`: past `MAX_STATES`).
+    pub target: u8,
+    /// Its index in `Table::transitions` (for the trace).
+    pub index: u8,
+    /// Its guard ([`Calc::TRUE`] if it has none).
+    pub guard: Calc,
+}
+
+const NO_STEP: Step = Step {
+    trigger: EVENTLESS,
+    to: 0,
+    target: NONE,
+    index: 0,
+    guard: Calc::TRUE,
+};
+
+/// An action as the interpreter runs it: `code` up to [`calc::LAST_CODE`] is an assignment
+/// `dst := (code, w)` (a lowered expression, [`Calc`]; `dst` = `NONE`: a variable the engine
+/// does not have, evaluated for its fault and dropped); above, one of the `act` codes with
+/// its operands in `dst` and `w`. Six bytes an action.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(C)]
+pub(super) struct Act {
+    pub code: u8,
+    pub dst: u8,
+    pub w: [u8; 4],
+}
+
+/// The action codes above the assignments'.
+pub(super) mod act {
+    use super::calc::LAST_CODE;
+    /// Drive outputs: `w` = mask, levels (little-endian `u16`s).
+    pub const DRIVE: u8 = LAST_CODE + 1;
+    /// Queue event `dst`; once queued, publish publication `w[0]` (`NONE`: none).
+    pub const EMIT: u8 = LAST_CODE + 2;
+    /// Publish publication `w[0]` (`NONE`: none, nothing to do).
+    pub const PUBLISH: u8 = LAST_CODE + 3;
+    /// Start timer `dst` for `w` ms (a little-endian `u32`).
+    pub const START_TIMER: u8 = LAST_CODE + 4;
+    /// Cancel timer `dst`.
+    pub const CANCEL_TIMER: u8 = LAST_CODE + 5;
+    /// Fault the node with code `dst`.
+    pub const FAULT: u8 = LAST_CODE + 6;
+}
+
+const _: () = assert!(core::mem::size_of::<Step>() == 9);
+const _: () = assert!(core::mem::size_of::<Act>() == 6);
+
+/// A range `start..end` of one of the index's pools.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(super) struct Span {
+    pub start: u8,
+    pub end: u8,
+}
+
+/// Per event: its routes and its publication.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct EventRec {
+    /// Its routes in `Index::routes`, in table order.
+    pub routes: Span,
+    /// Its publication's index (`NONE`: not published).
+    pub publication: u8,
+}
+
+/// Per global state: the transitions leaving it and the actions run on entering it.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(super) struct StateRec {
+    /// Its transitions in `Index::steps`, in declaration order.
+    pub steps: Span,
+    /// Its actions in `Index::acts` (the same indices as `Table::actions`).
+    pub acts: Span,
+    /// Whether an event-less transition leaves it.
+    pub eventless: bool,
+}
+
+/// Per input: the events of its edges and its mirror variable (`NONE`: none, or a
+/// variable past `MAX_VARS`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct InputRec {
+    pub rise: EventId,
+    pub fall: EventId,
+    pub var: u8,
+}
+
+/// The entries of `pool` in `span` (built in range: an entry past the pool ends it).
+#[inline(always)]
+fn span_of<T>(pool: &[T], span: Span) -> impl Iterator<Item = &T> {
+    (span.start..span.end).map_while(move |i| pool.get(usize::from(i)))
+}
+
+/// A table's compiled form, built once by [`Index::new`].
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Index {
     pub(super) layout: [Layout; MAX_CHARTS],
-    /// Per event: its first route (`NONE`: none); `next_route` chains the rest in order.
-    first_route: [u8; MAX_EVENTS],
-    next_route: [u8; MAX_ROUTES],
-    /// Per global state: the first transition leaving it; `next_from` chains the rest in
-    /// declaration order.
-    first_from: [u8; MAX_STATES],
-    next_from: [u8; MAX_TRANSITIONS],
-    /// Per event: its publication's index (`NONE`: not published).
-    publication: [u8; MAX_EVENTS],
-    /// Bit s: global state s has an event-less transition leaving it.
-    eventless: u128,
+    events: [EventRec; MAX_EVENTS],
+    routes: [Target; MAX_ROUTES],
+    states: [StateRec; MAX_STATES],
+    steps: [Step; MAX_TRANSITIONS],
+    acts: [Act; MAX_ACTIONS],
+    inputs: [InputRec; MAX_INPUTS],
+    input_count: u8,
+    /// The table's publications (what `Effects::publish` reports), node events and timers.
+    publications: [Publication; MAX_PUBLICATIONS],
+    pub(super) event_count: u8,
+    pub(super) timer_count: u8,
+    /// The table's outputs (bit i: output i exists), the start drive and the fault drive
+    /// (mask, levels).
+    pub(super) outputs: u16,
+    pub(super) start_drive: (u16, u16),
+    pub(super) fault_drive: (u16, u16),
 }
 
 impl Index {
+    /// Bytes of an index (every table's: the pools are sized by the capacities).
+    pub const BYTES: usize = core::mem::size_of::<Index>();
+
     /// The index of `table`.
     pub fn new(table: &Table) -> Index {
         let mut ix = Index {
             layout: [Layout::default(); MAX_CHARTS],
-            first_route: [NONE; MAX_EVENTS],
-            next_route: [NONE; MAX_ROUTES],
-            first_from: [NONE; MAX_STATES],
-            next_from: [NONE; MAX_TRANSITIONS],
-            publication: [NONE; MAX_EVENTS],
-            eventless: 0,
+            events: [EventRec {
+                routes: Span::default(),
+                publication: NONE,
+            }; MAX_EVENTS],
+            routes: [Target::default(); MAX_ROUTES],
+            states: [StateRec::default(); MAX_STATES],
+            steps: [NO_STEP; MAX_TRANSITIONS],
+            acts: [Act {
+                code: act::FAULT,
+                dst: 0,
+                w: [0; 4],
+            }; MAX_ACTIONS],
+            inputs: [InputRec {
+                rise: NONE,
+                fall: NONE,
+                var: NONE,
+            }; MAX_INPUTS],
+            input_count: table.inputs.len().min(MAX_INPUTS) as u8,
+            publications: [Publication {
+                event: 0,
+                topic: 0,
+                subscribers: 0,
+            }; MAX_PUBLICATIONS],
+            event_count: table.events,
+            timer_count: table.timers.len().min(usize::from(NONE)) as u8,
+            outputs: ((1u32 << table.outputs.len().min(16)) - 1) as u16,
+            start_drive: table.start_drive(),
+            fault_drive: table.fault_drive(),
         };
         for (c, slot) in ix.layout.iter_mut().enumerate().take(table.charts.len()) {
             let states = table.chart_states(c);
             *slot = Layout {
-                first_state: states.start as u8,
-                states: states.len() as u8,
+                first_state: states.start.min(usize::from(NONE)) as u8,
+                states: states.len().min(usize::from(NONE)) as u8,
             };
         }
-        // Chains are built back to front, so each lists its entries in pool order.
-        for (r, route) in table.routes.iter().enumerate().take(MAX_ROUTES).rev() {
-            if let Some(first) = ix.first_route.get_mut(usize::from(route.event)) {
-                if let Some(next) = ix.next_route.get_mut(r) {
-                    *next = *first;
-                    *first = r as u8;
-                }
-            }
-        }
-        for c in (0..table.charts.len().min(MAX_CHARTS)).rev() {
-            let Layout {
-                first_state,
-                states,
-            } = ix.layout[c];
-            let range = table.chart_transitions(c);
-            let Some(ts) = table.transitions.get(range.clone()) else {
-                continue;
-            };
-            for (i, t) in ts.iter().enumerate().rev() {
-                let global = range.start + i;
-                if t.from >= states || global >= MAX_TRANSITIONS {
-                    continue;
-                }
-                let state = usize::from(first_state) + usize::from(t.from);
-                if let Some(first) = ix.first_from.get_mut(state) {
-                    ix.next_from[global] = *first;
-                    *first = global as u8;
-                    if t.trigger.is_none() {
-                        ix.eventless |= 1u128 << state;
-                    }
-                }
-            }
+        for (slot, p) in ix.publications.iter_mut().zip(table.publications.iter()) {
+            *slot = *p;
         }
         for (p, publication) in table.publications.iter().enumerate().rev() {
-            if let Some(slot) = ix.publication.get_mut(usize::from(publication.event)) {
-                *slot = p as u8;
+            if let Some(slot) = ix.events.get_mut(usize::from(publication.event)) {
+                slot.publication = p.min(usize::from(NONE)) as u8;
             }
         }
+        for (rec, input) in ix.inputs.iter_mut().zip(table.inputs.iter()) {
+            *rec = InputRec {
+                rise: input.rise.unwrap_or(NONE),
+                fall: input.fall.unwrap_or(NONE),
+                var: input
+                    .var
+                    .filter(|&v| usize::from(v) < config_schema::limits::MAX_VARS)
+                    .unwrap_or(NONE),
+            };
+        }
+        ix.build_routes(table);
+        ix.build_steps(table);
+        ix.build_acts(table);
         ix
     }
 
-    /// The first route of `event` (`NONE`: none).
-    #[inline]
-    pub(super) fn first_route(&self, event: u8) -> u8 {
-        self.first_route
-            .get(usize::from(event))
-            .copied()
-            .unwrap_or(NONE)
+    /// The routes, grouped by event (a counting sort: table order within an event).
+    fn build_routes(&mut self, table: &Table) {
+        let mut count = [0u8; MAX_EVENTS];
+        for r in table.routes.iter().take(MAX_ROUTES) {
+            if let Some(n) = count.get_mut(usize::from(r.event)) {
+                *n += 1;
+            }
+        }
+        let mut at = 0u8;
+        for (rec, n) in self.events.iter_mut().zip(count) {
+            rec.routes = Span {
+                start: at,
+                end: at + n,
+            };
+            at += n;
+        }
+        let mut next: [u8; MAX_EVENTS] = core::array::from_fn(|e| self.events[e].routes.start);
+        for r in table.routes.iter().take(MAX_ROUTES) {
+            if let Some(n) = next.get_mut(usize::from(r.event)) {
+                if let Some(slot) = self.routes.get_mut(usize::from(*n)) {
+                    *slot = Target {
+                        chart: r.chart,
+                        input: r.input,
+                    };
+                }
+                *n += 1;
+            }
+        }
     }
 
-    /// The route after `route` of the same event (`NONE`: the last).
-    #[inline]
-    pub(super) fn next_route(&self, route: u8) -> u8 {
-        self.next_route
-            .get(usize::from(route))
-            .copied()
-            .unwrap_or(NONE)
+    /// The transitions, grouped by the global state they leave (charts in order, then
+    /// declaration order).
+    fn build_steps(&mut self, table: &Table) {
+        let mut n = 0usize;
+        for s in 0..MAX_STATES {
+            let start = n as u8;
+            for (c, layout) in self.layout.iter().enumerate().take(table.charts.len()) {
+                let first = usize::from(layout.first_state);
+                if s < first || s - first >= usize::from(layout.states) {
+                    continue;
+                }
+                let local = (s - first) as u8;
+                let range = table.chart_transitions(c);
+                let Some(ts) = table.transitions.get(range.clone()) else {
+                    continue;
+                };
+                for (i, t) in ts.iter().enumerate() {
+                    let trigger = t.trigger.unwrap_or(EVENTLESS);
+                    if t.from != local || t.trigger == Some(EVENTLESS) {
+                        continue;
+                    }
+                    let Some(slot) = self.steps.get_mut(n) else {
+                        continue;
+                    };
+                    let target = first + usize::from(t.to);
+                    *slot = Step {
+                        trigger,
+                        to: t.to,
+                        target: if target < MAX_STATES {
+                            target as u8
+                        } else {
+                            NONE
+                        },
+                        index: (range.start + i) as u8,
+                        guard: Calc::lower(table, t.guard),
+                    };
+                    n += 1;
+                    if trigger == EVENTLESS {
+                        self.states[s].eventless = true;
+                    }
+                }
+            }
+            self.states[s].steps = Span {
+                start,
+                end: n as u8,
+            };
+        }
     }
 
-    /// The first transition leaving global state `state` (`NONE`: none).
-    #[inline]
-    pub(super) fn first_from(&self, state: usize) -> u8 {
-        self.first_from.get(state).copied().unwrap_or(NONE)
+    /// The actions, lowered one for one, and each state's span of them.
+    fn build_acts(&mut self, table: &Table) {
+        for (slot, action) in self.acts.iter_mut().zip(table.actions.iter()) {
+            let publication = |e: EventId| {
+                (self.events)
+                    .get(usize::from(e))
+                    .map_or(NONE, |rec| rec.publication)
+            };
+            let of = |code, dst, w| Act { code, dst, w };
+            *slot = match *action {
+                Action::Set { var, expr } => {
+                    let calc = Calc::lower(table, Some(expr));
+                    let dst = if usize::from(var) < config_schema::limits::MAX_VARS {
+                        var
+                    } else {
+                        NONE
+                    };
+                    of(calc.code, dst, calc.w)
+                }
+                Action::Drive { mask, value } => {
+                    let ([m0, m1], [v0, v1]) = (mask.to_le_bytes(), value.to_le_bytes());
+                    of(act::DRIVE, 0, [m0, m1, v0, v1])
+                }
+                Action::Emit(event) => of(act::EMIT, event, [publication(event), 0, 0, 0]),
+                Action::Publish(event) => of(act::PUBLISH, 0, [publication(event), 0, 0, 0]),
+                Action::StartTimer { timer, ms } => of(act::START_TIMER, timer, ms.to_le_bytes()),
+                Action::CancelTimer(timer) => of(act::CANCEL_TIMER, timer, [0; 4]),
+                Action::Fault(code) => of(act::FAULT, code, [0; 4]),
+            };
+        }
+        for (s, rec) in self.states.iter_mut().enumerate() {
+            let range = table.state_actions(s);
+            if range.end <= table.actions.len() {
+                rec.acts = Span {
+                    start: range.start as u8,
+                    end: range.end as u8,
+                };
+            }
+        }
     }
 
-    /// The transition after `transition` leaving the same state (`NONE`: the last).
-    #[inline]
-    pub(super) fn next_from(&self, transition: u8) -> u8 {
-        self.next_from
-            .get(usize::from(transition))
-            .copied()
-            .unwrap_or(NONE)
+    /// The record of `event` (`None` past `MAX_EVENTS`).
+    #[inline(always)]
+    pub(super) fn event(&self, event: EventId) -> Option<&EventRec> {
+        self.events.get(usize::from(event))
+    }
+
+    /// The record of global state `state` (`None` past `MAX_STATES`).
+    #[inline(always)]
+    pub(super) fn state(&self, state: usize) -> Option<&StateRec> {
+        self.states.get(state)
+    }
+
+    /// The routes of a span, in order.
+    #[inline(always)]
+    pub(super) fn routes(&self, span: Span) -> impl Iterator<Item = &Target> {
+        span_of(&self.routes, span)
+    }
+
+    /// The transitions of a span, in order.
+    #[inline(always)]
+    pub(super) fn steps(&self, span: Span) -> impl Iterator<Item = &Step> {
+        span_of(&self.steps, span)
+    }
+
+    /// The actions of a span, in order.
+    #[inline(always)]
+    pub(super) fn acts(&self, span: Span) -> impl Iterator<Item = &Act> {
+        span_of(&self.acts, span)
+    }
+
+    /// The record of input `input` (`None` past the table's inputs).
+    #[inline(always)]
+    pub(super) fn input(&self, input: u8) -> Option<&InputRec> {
+        self.inputs
+            .get(usize::from(input))
+            .filter(|_| input < self.input_count)
+    }
+
+    /// Publication `p` of the table (`None` for `NONE`).
+    #[inline(always)]
+    pub(super) fn publication_at(&self, p: u8) -> Option<&Publication> {
+        self.publications.get(usize::from(p))
     }
 
     /// The index of `event`'s publication (`NONE`: not published).
-    #[inline]
-    pub(super) fn publication(&self, event: u8) -> u8 {
-        self.publication
-            .get(usize::from(event))
-            .copied()
-            .unwrap_or(NONE)
+    #[inline(always)]
+    pub(super) fn publication(&self, event: EventId) -> u8 {
+        self.event(event).map_or(NONE, |rec| rec.publication)
     }
+}
 
-    /// Whether global state `state` has an event-less transition leaving it.
-    #[inline]
-    pub(super) fn eventless(&self, state: usize) -> bool {
-        state < 128 && self.eventless & (1u128 << state) != 0
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The index's RAM is its pools at the capacities of `limits.rs`, nothing per table:
+    /// what docs/ecc-semantics.md and docs/boards.md count.
+    #[test]
+    fn the_index_is_its_pools_at_the_capacities() {
+        let pools = 2 * MAX_CHARTS
+            + 3 * MAX_EVENTS
+            + 2 * MAX_ROUTES
+            + 5 * MAX_STATES
+            + 9 * MAX_TRANSITIONS
+            + 6 * MAX_ACTIONS
+            + 3 * MAX_INPUTS
+            + 3 * MAX_PUBLICATIONS;
+        // The input, event and timer counts, the output mask and the two drives (u16s).
+        let rest = 3 + 2 + 2 * 4;
+        assert_eq!(Index::BYTES, (pools + rest).next_multiple_of(2));
+        assert_eq!(Index::BYTES, 3126);
     }
 }

@@ -5,9 +5,8 @@
 //! [`Effects`], so the MCU runtime, the simulator and the tests share this engine.
 //! Semantics: `docs/ecc-semantics.md`.
 
-use config_schema::limits::{EVENT_QUEUE, MAX_CASCADE, MAX_CHAIN, MAX_CHARTS, MAX_VARS};
-use config_schema::{guard, Action, EventId, Expr, Publication, Table, Topic};
-use heapless::Deque;
+use config_schema::limits::{MAX_CASCADE, MAX_CHAIN, MAX_CHARTS, MAX_VARS};
+use config_schema::{EventId, Publication, Table, Topic};
 
 /// Why a node faulted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -59,10 +58,14 @@ pub struct EngineState {
     pub fault: Option<Fault>,
 }
 
+mod calc;
+mod fifo;
 mod index;
 
+use calc::Calc;
+use fifo::Fifo;
 pub use index::Index;
-use index::NONE;
+use index::{act, Act, Layout, Span, Step, EVENTLESS, NONE};
 
 /// The engine's index: its own (built with the engine) or the one its runtime keeps
 /// beside the table (built once at activation, not per stimulus). No allocator: an
@@ -89,18 +92,18 @@ impl IndexRef<'_> {
 pub struct Engine<'t> {
     table: &'t Table,
     index: IndexRef<'t>,
+    run: Run,
+}
+
+/// What changes while the charts run: the engine without its table and index.
+#[derive(Debug, Clone)]
+struct Run {
     current: [u8; MAX_CHARTS],
     vars: [i32; MAX_VARS],
     inputs: u16,
     outputs: u16,
-    queue: Deque<EventId, EVENT_QUEUE>,
+    queue: Fifo,
     fault: Option<Fault>,
-}
-
-/// The outputs at their start levels, a held one at its bit of `before`.
-fn start_outputs(table: &Table, before: u16) -> u16 {
-    let (mask, value) = table.start_drive();
-    (before & !mask) | (value & mask)
 }
 
 impl<'t> Engine<'t> {
@@ -115,45 +118,42 @@ impl<'t> Engine<'t> {
     /// level is `Hold` keeps its bit of `before` (bit i: the level its pin has now, as the
     /// previous table left it).
     pub fn new_holding(table: &'t Table, before: u16) -> Self {
-        let mut engine = Engine {
-            table,
-            index: IndexRef::Own(Index::new(table)),
-            current: [0; MAX_CHARTS],
-            vars: [0; MAX_VARS],
-            inputs: 0,
-            outputs: start_outputs(table, before),
-            queue: Deque::new(),
-            fault: None,
-        };
-        engine.init();
-        engine
+        Engine::start_with(table, IndexRef::Own(Index::new(table)), before)
     }
 
-    fn init(&mut self) {
-        for (slot, chart) in self.current.iter_mut().zip(self.table.charts.iter()) {
-            *slot = chart.initial;
-        }
-        for (slot, value) in self.vars.iter_mut().zip(self.table.vars.iter()) {
-            *slot = *value;
-        }
-        // Inputs keep their levels and mirrors: the switches did not move.
-        for (i, input) in self.table.inputs.iter().enumerate().take(16) {
-            if let Some(var) = input.var.and_then(|v| self.vars.get_mut(usize::from(v))) {
-                *var = i32::from(self.inputs & (1 << i) != 0);
-            }
-        }
-        self.queue.clear();
-        self.fault = None;
+    /// [`Engine::new_holding`] with `index`, the [`Index`] of `table` its runtime keeps.
+    pub fn new_indexed(table: &'t Table, index: &'t Index, before: u16) -> Self {
+        Engine::start_with(table, IndexRef::Kept(index), before)
+    }
+
+    fn start_with(table: &'t Table, index: IndexRef<'t>, before: u16) -> Self {
+        let (mask, value) = index.get().start_drive;
+        let mut engine = Engine {
+            table,
+            index,
+            run: Run {
+                current: [0; MAX_CHARTS],
+                vars: [0; MAX_VARS],
+                inputs: 0,
+                // The outputs at their start levels, a held one at its bit of `before`.
+                outputs: (before & !mask) | (value & mask),
+                queue: Fifo::new(),
+                fault: None,
+            },
+        };
+        engine.run.init(table);
+        engine
     }
 
     /// The state to [`resume`](Engine::resume) from later.
     pub fn snapshot(&self) -> EngineState {
+        let r = &self.run;
         EngineState {
-            current: self.current,
-            vars: self.vars,
-            inputs: self.inputs,
-            outputs: self.outputs,
-            fault: self.fault,
+            current: r.current,
+            vars: r.vars,
+            inputs: r.inputs,
+            outputs: r.outputs,
+            fault: r.fault,
         }
     }
 
@@ -175,12 +175,14 @@ impl<'t> Engine<'t> {
         Engine {
             table,
             index,
-            current: state.current,
-            vars: state.vars,
-            inputs: state.inputs,
-            outputs: state.outputs,
-            queue: Deque::new(),
-            fault: state.fault,
+            run: Run {
+                current: state.current,
+                vars: state.vars,
+                inputs: state.inputs,
+                outputs: state.outputs,
+                queue: Fifo::new(),
+                fault: state.fault,
+            },
         }
     }
 
@@ -191,27 +193,31 @@ impl<'t> Engine<'t> {
 
     /// The chart-local current state of `chart`.
     pub fn state(&self, chart: usize) -> Option<u8> {
-        (chart < self.table.charts.len()).then(|| self.current[chart])
+        (chart < self.table.charts.len())
+            .then(|| self.run.current.get(chart).copied())
+            .flatten()
     }
 
     /// The value of variable `var`.
     pub fn var(&self, var: usize) -> Option<i32> {
-        (var < self.table.vars.len()).then(|| self.vars[var])
+        (var < self.table.vars.len())
+            .then(|| self.run.vars.get(var).copied())
+            .flatten()
     }
 
     /// The output levels, bit i = output i.
     pub fn outputs(&self) -> u16 {
-        self.outputs
+        self.run.outputs
     }
 
     /// The input levels, bit i = input i.
     pub fn inputs(&self) -> u16 {
-        self.inputs
+        self.run.inputs
     }
 
     /// The fault the node is in, if any.
     pub fn fault(&self) -> Option<Fault> {
-        self.fault
+        self.run.fault
     }
 
     /// Back to the initial state: clears a fault, cancels every timer, charts and variables
@@ -220,58 +226,43 @@ impl<'t> Engine<'t> {
         for timer in 0..self.table.timers.len() {
             fx.cancel_timer(timer as u8);
         }
-        let (mask, value) = self.table.start_drive();
-        self.drive(mask, value, fx);
-        self.init();
+        let ix = self.index.get();
+        let (mask, value) = ix.start_drive;
+        self.run.drive(ix, mask, value, fx);
+        self.run.init(self.table);
     }
 
     /// Faults the node from outside the charts (a link alarm under `on_link_alarm:
     /// Fault`): as a `Fault(code)` action of no chart ([`config_schema::alarm::NO_CHART`]).
     /// A faulted node stays in its fault.
     pub fn fail(&mut self, code: u8, fx: &mut impl Effects) {
-        if self.fault.is_none() {
+        if self.run.fault.is_none() {
             let chart = config_schema::alarm::NO_CHART;
-            self.set_fault(Fault::Action { chart, code }, fx);
+            let fault = Fault::Action { chart, code };
+            self.run.set_fault(self.index.get(), fault, fx);
         }
     }
 
     /// Input `input` is at `level` when the engine starts (a switch that was already
     /// closed): sets the level and its mirror variable without raising any event.
     pub fn sense(&mut self, input: u8, level: bool) {
-        let Some(binding) = self.table.inputs.get(usize::from(input)) else {
-            return;
-        };
-        let bit = 1u16 << (input & 15);
-        if level {
-            self.inputs |= bit;
-        } else {
-            self.inputs &= !bit;
-        }
-        if let Some(var) = binding.var.and_then(|v| self.vars.get_mut(usize::from(v))) {
-            *var = i32::from(level);
+        if let Some(rec) = self.index.get().input(input) {
+            self.run.level(input, rec.var, level);
         }
     }
 
     /// Input `input` is now at `level`: updates its mirror variable and, on an edge, raises
     /// its rise or fall event (published if it has a publication).
+    #[inline]
     pub fn input(&mut self, input: u8, level: bool, fx: &mut impl Effects) {
-        let Some(binding) = self.table.inputs.get(usize::from(input)) else {
+        let ix = self.index.get();
+        let Some(rec) = ix.input(input) else {
             return;
         };
-        let bit = 1u16 << (input & 15);
-        let was = self.inputs & bit != 0;
-        if level {
-            self.inputs |= bit;
-        } else {
-            self.inputs &= !bit;
-        }
-        if let Some(var) = binding.var.and_then(|v| self.vars.get_mut(usize::from(v))) {
-            *var = i32::from(level);
-        }
-        if was != level {
-            if let Some(event) = if level { binding.rise } else { binding.fall } {
-                self.raise(event, true, fx);
-            }
+        let was = self.run.level(input, rec.var, level);
+        let event = if level { rec.rise } else { rec.fall };
+        if was != level && event != NONE {
+            self.run.raise(ix, self.table, event, true, fx);
         }
     }
 
@@ -321,7 +312,7 @@ impl<'t> Engine<'t> {
     /// idle point of the one it replaces starts where that one rested (every actuator
     /// home), not in its initial (not homed) state.
     pub fn rest(&mut self) {
-        for (slot, chart) in self.current.iter_mut().zip(self.table.charts.iter()) {
+        for (slot, chart) in self.run.current.iter_mut().zip(self.table.charts.iter()) {
             *slot = chart.idle;
         }
     }
@@ -344,205 +335,217 @@ impl<'t> Engine<'t> {
         self.raise(event, false, fx);
     }
 
+    #[inline]
     fn raise(&mut self, event: EventId, local: bool, fx: &mut impl Effects) {
-        if self.fault.is_some() || usize::from(event) >= usize::from(self.table.events) {
+        self.run
+            .raise(self.index.get(), self.table, event, local, fx);
+    }
+}
+
+impl Run {
+    fn init(&mut self, table: &Table) {
+        for (slot, chart) in self.current.iter_mut().zip(table.charts.iter()) {
+            *slot = chart.initial;
+        }
+        for (slot, value) in self.vars.iter_mut().zip(table.vars.iter()) {
+            *slot = *value;
+        }
+        // Inputs keep their levels and mirrors: the switches did not move.
+        for (i, input) in table.inputs.iter().enumerate().take(16) {
+            if let Some(var) = input.var.and_then(|v| self.vars.get_mut(usize::from(v))) {
+                *var = i32::from(self.inputs & (1 << i) != 0);
+            }
+        }
+        self.queue.clear();
+        self.fault = None;
+    }
+
+    /// Sets input `input`'s level and its mirror variable `var`; returns the level it had.
+    #[inline]
+    fn level(&mut self, input: u8, var: u8, level: bool) -> bool {
+        let bit = 1u16 << (input & 15);
+        let was = self.inputs & bit != 0;
+        if level {
+            self.inputs |= bit;
+        } else {
+            self.inputs &= !bit;
+        }
+        if var != NONE {
+            self.vars[usize::from(var) & (MAX_VARS - 1)] = i32::from(level);
+        }
+        was
+    }
+
+    /// One stimulus, run to completion: `event` (published first if `local`), then every
+    /// event the charts emit, oldest first.
+    fn raise(
+        &mut self,
+        ix: &Index,
+        table: &Table,
+        event: EventId,
+        local: bool,
+        fx: &mut impl Effects,
+    ) {
+        if self.fault.is_some() || event >= ix.event_count {
             return;
         }
         if local {
-            self.publish(event, fx);
+            publish(ix, ix.publication(event), fx);
         }
         // The queue is empty between stimuli: the stimulus goes straight to its routes, and
         // only events emitted by actions wait in the FIFO.
-        self.dispatch(event, fx);
-        let mut processed = 1usize;
-        while self.fault.is_none() {
-            let Some(next) = self.queue.pop_front() else {
-                return;
-            };
+        let mut next = event;
+        let mut processed = 0usize;
+        loop {
             processed += 1;
             if processed > MAX_CASCADE {
-                self.set_fault(Fault::Cascade { event }, fx);
+                self.set_fault(ix, Fault::Cascade { event }, fx);
                 return;
             }
-            self.dispatch(next, fx);
-        }
-    }
-
-    /// Publishes `event` if it has a publication.
-    #[inline]
-    fn publish(&self, event: EventId, fx: &mut impl Effects) {
-        let p = self.index.get().publication(event);
-        if p != NONE {
-            if let Some(p) = self.table.publications.get(usize::from(p)) {
-                fx.publish(p);
+            // Delivers `next` to all its routes, in order, each chart running to a stable
+            // state.
+            let routes = ix.event(next).map_or(Span::default(), |rec| rec.routes);
+            for route in ix.routes(routes) {
+                self.deliver(ix, table, route.chart, route.input, fx);
+                if self.fault.is_some() {
+                    return;
+                }
+            }
+            match self.queue.pop() {
+                Some(e) => next = e,
+                None => return,
             }
         }
-    }
-
-    /// Delivers `event` to all its routes, in order, each chart running to a stable state.
-    fn dispatch(&mut self, event: EventId, fx: &mut impl Effects) {
-        let table = self.table;
-        let mut r = self.index.get().first_route(event);
-        while r != NONE {
-            let Some(route) = table.routes.get(usize::from(r)) else {
-                return;
-            };
-            self.deliver(route.chart, route.input, fx);
-            if self.fault.is_some() {
-                return;
-            }
-            r = self.index.get().next_route(r);
-        }
-    }
-
-    /// The global index (into `Table::states`) of `chart`'s current state.
-    #[inline]
-    fn current_state(&self, chart: u8) -> Option<usize> {
-        let c = usize::from(chart);
-        let current = *self.current.get(c)?;
-        let layout = self.index.get().layout.get(c)?;
-        (current < layout.states).then(|| usize::from(layout.first_state) + usize::from(current))
     }
 
     /// Delivers chart input `input` to `chart` and runs its event-less transitions until it
     /// is stable.
-    #[inline]
-    fn deliver(&mut self, chart: u8, input: u8, fx: &mut impl Effects) {
-        match self.select(chart, Some(input)) {
-            Ok(Some(t)) => self.fire(chart, t, fx),
-            Ok(None) => {
-                fx.ignored(chart, input);
-                return;
-            }
-            Err(fault) => {
-                self.set_fault(fault, fx);
-                return;
-            }
-        }
-        let mut steps = 0usize;
-        while self.fault.is_none() {
-            // Only a state with event-less transitions leaving it can move on its own.
-            if !self
-                .current_state(chart)
-                .is_some_and(|s| self.index.get().eventless(s))
-            {
-                return;
-            }
-            let t = match self.select(chart, None) {
-                Ok(Some(t)) => t,
-                Ok(None) => return,
-                Err(fault) => {
-                    self.set_fault(fault, fx);
+    #[inline(always)]
+    fn deliver(&mut self, ix: &Index, table: &Table, chart: u8, input: u8, fx: &mut impl Effects) {
+        let c = usize::from(chart);
+        let layout = ix.layout.get(c).copied().unwrap_or_default();
+        let Layout {
+            first_state,
+            states,
+        } = layout;
+        // The input first, then event-less transitions only (`chained` of them so far).
+        let mut want = input;
+        let mut chained = 0usize;
+        let mut current = self.current.get(c).copied().unwrap_or(0);
+        // A chart outside the table, or in a state outside its chart, has no state: it
+        // ignores its input (only a table that skipped validation gets here).
+        let mut state = ix
+            .state(usize::from(first_state) + usize::from(current))
+            .filter(|_| current < states);
+        loop {
+            let step = match state.map(|rec| self.select(ix.steps(rec.steps), want, table)) {
+                Some(Ok(Some(step))) => step,
+                Some(Err(())) => {
+                    self.set_fault(ix, Fault::Expr { chart }, fx);
+                    return;
+                }
+                None | Some(Ok(None)) => {
+                    if chained == 0 {
+                        fx.ignored(chart, input);
+                    }
                     return;
                 }
             };
-            steps += 1;
-            if steps > MAX_CHAIN {
-                self.set_fault(Fault::ChainLimit { chart }, fx);
+            if chained > MAX_CHAIN {
+                self.set_fault(ix, Fault::ChainLimit { chart }, fx);
                 return;
             }
-            self.fire(chart, t, fx);
+            // Fire: the target becomes current, then its actions run in order.
+            let from = current;
+            current = step.to;
+            if let Some(slot) = self.current.get_mut(c) {
+                *slot = current;
+            }
+            fx.fired(chart, step.index, from, current);
+            let Some(target) = ix.state(usize::from(step.target)) else {
+                return;
+            };
+            for act in ix.acts(target.acts) {
+                self.act(ix, table, chart, act, fx);
+                if self.fault.is_some() {
+                    return;
+                }
+            }
+            // Then event-less transitions only; only a state with event-less transitions
+            // leaving it can move on its own.
+            if current >= states || !target.eventless {
+                return;
+            }
+            state = Some(target);
+            want = EVENTLESS;
+            chained += 1;
         }
     }
 
-    /// The first transition of `chart`, in declaration order, leaving the current state
-    /// whose trigger matches (`None`: event-less only) and whose guard holds. A guard that
-    /// cannot be evaluated (only in a table that skipped validation) is a fault.
-    #[inline]
-    fn select(&self, chart: u8, input: Option<u8>) -> Result<Option<usize>, Fault> {
-        let table = self.table;
-        let Some(state) = self.current_state(chart) else {
-            return Ok(None);
-        };
-        let ix = self.index.get();
-        let mut t = ix.first_from(state);
-        while t != NONE {
-            let Some(tr) = table.transitions.get(usize::from(t)) else {
-                return Ok(None);
-            };
-            if tr.trigger.is_none() || (input.is_some() && tr.trigger == input) {
-                let holds = match tr.guard {
-                    None => true,
-                    Some(g) => self.eval(g).ok_or(Fault::Expr { chart })? != 0,
-                };
-                if holds {
-                    return Ok(Some(usize::from(t)));
+    /// The first of `steps` (a state's transitions, in declaration order) whose trigger is
+    /// `want` or which is event-less, and whose guard holds. A guard that cannot be
+    /// evaluated (only in a table that skipped validation) is an error.
+    #[inline(always)]
+    fn select<'i>(
+        &self,
+        steps: impl Iterator<Item = &'i Step>,
+        want: u8,
+        table: &Table,
+    ) -> Result<Option<&'i Step>, ()> {
+        for step in steps {
+            if step.trigger == want || step.trigger == EVENTLESS {
+                if step.guard.is_true() {
+                    return Ok(Some(step));
+                }
+                if step.guard.eval(&self.vars, self.inputs, table).ok_or(())? != 0 {
+                    return Ok(Some(step));
                 }
             }
-            t = ix.next_from(t);
         }
         Ok(None)
     }
 
-    #[inline]
-    fn eval(&self, expr: Expr) -> Option<i32> {
-        let inputs = self.inputs;
-        guard::eval(
-            self.table.expr(expr),
-            |v| self.vars.get(usize::from(v)).copied(),
-            |i| (i < 16).then(|| inputs & (1 << i) != 0),
-        )
-    }
-
-    #[inline]
-    fn fire(&mut self, chart: u8, transition: usize, fx: &mut impl Effects) {
-        let table = self.table;
-        let Some(t) = table.transitions.get(transition) else {
-            return;
-        };
-        let Some(current) = self.current.get_mut(usize::from(chart)) else {
-            return;
-        };
-        *current = t.to;
-        fx.fired(chart, transition as u8, t.from, t.to);
-        let first_state = (self.index.get().layout.get(usize::from(chart)))
-            .map_or(0, |l| usize::from(l.first_state));
-        let state = first_state + usize::from(t.to);
-        let actions = table.actions.get(table.state_actions(state)).unwrap_or(&[]);
-        for action in actions {
-            self.act(chart, *action, fx);
-            if self.fault.is_some() {
-                return;
-            }
-        }
-    }
-
-    #[inline]
-    fn act(&mut self, chart: u8, action: Action, fx: &mut impl Effects) {
-        match action {
-            Action::Set { var, expr } => match self.eval(expr) {
+    #[inline(always)]
+    fn act(&mut self, ix: &Index, table: &Table, chart: u8, a: &Act, fx: &mut impl Effects) {
+        let Act { code, dst, w } = *a;
+        if code <= calc::LAST_CODE {
+            // `dst := expression`.
+            match Calc::run(code, &w, &self.vars, self.inputs, table) {
                 Some(value) => {
-                    if let Some(slot) = self.vars.get_mut(usize::from(var)) {
+                    if let Some(slot) = self.vars.get_mut(usize::from(dst)) {
                         *slot = value;
                     }
                 }
-                None => self.set_fault(Fault::Expr { chart }, fx),
-            },
-            Action::Drive { mask, value } => self.drive(mask, value, fx),
-            Action::Emit(event) => self.emit(event, fx),
-            Action::Publish(event) => self.publish(event, fx),
-            Action::StartTimer { timer, ms } => fx.start_timer(timer, ms),
-            Action::CancelTimer(timer) => fx.cancel_timer(timer),
-            Action::Fault(code) => self.set_fault(Fault::Action { chart, code }, fx),
-        }
-    }
-
-    /// A locally originated event: queued and, once queued, published if it has a
-    /// publication. An event that does not fit faults the node and is not published.
-    fn emit(&mut self, event: EventId, fx: &mut impl Effects) {
-        if self.queue.push_back(event).is_err() {
-            self.set_fault(Fault::QueueFull { event }, fx);
+                None => self.set_fault(ix, Fault::Expr { chart }, fx),
+            }
             return;
         }
-        self.publish(event, fx);
+        match code {
+            act::DRIVE => {
+                let [m0, m1, v0, v1] = w;
+                let (mask, value) = (u16::from_le_bytes([m0, m1]), u16::from_le_bytes([v0, v1]));
+                self.drive(ix, mask, value, fx);
+            }
+            act::EMIT => {
+                // Queued and, once queued, published; an event that does not fit faults
+                // the node and is not published.
+                if self.queue.push(dst).is_err() {
+                    self.set_fault(ix, Fault::QueueFull { event: dst }, fx);
+                } else {
+                    publish(ix, w[0], fx);
+                }
+            }
+            act::PUBLISH => publish(ix, w[0], fx),
+            act::START_TIMER => fx.start_timer(dst, u32::from_le_bytes(w)),
+            act::CANCEL_TIMER => fx.cancel_timer(dst),
+            _ => self.set_fault(ix, Fault::Action { chart, code: dst }, fx),
+        }
     }
 
-    fn drive(&mut self, mask: u16, value: u16, fx: &mut impl Effects) {
+    fn drive(&mut self, ix: &Index, mask: u16, value: u16, fx: &mut impl Effects) {
         let next = (self.outputs & !mask) | (value & mask);
         // The table's outputs (at most 16): bits 0..n.
-        let n = self.table.outputs.len().min(16) as u32;
-        let valid = ((1u32 << n) - 1) as u16;
-        let mut changed = (self.outputs ^ next) & valid;
+        let mut changed = (self.outputs ^ next) & ix.outputs;
         self.outputs = next;
         // Each changed output, lowest first.
         while changed != 0 {
@@ -552,14 +555,25 @@ impl<'t> Engine<'t> {
         }
     }
 
-    fn set_fault(&mut self, fault: Fault, fx: &mut impl Effects) {
+    #[inline(never)]
+    fn set_fault(&mut self, ix: &Index, fault: Fault, fx: &mut impl Effects) {
         self.fault = Some(fault);
         self.queue.clear();
-        let (mask, value) = self.table.fault_drive();
-        self.drive(mask, value, fx);
-        for timer in 0..self.table.timers.len() {
-            fx.cancel_timer(timer as u8);
+        let (mask, value) = ix.fault_drive;
+        self.drive(ix, mask, value, fx);
+        for timer in 0..ix.timer_count {
+            fx.cancel_timer(timer);
         }
         fx.fault(fault);
+    }
+}
+
+/// Reports publication `p` of the table (`NONE`: the event has none).
+#[inline(always)]
+fn publish(ix: &Index, p: u8, fx: &mut impl Effects) {
+    if p != NONE {
+        if let Some(p) = ix.publication_at(p) {
+            fx.publish(p);
+        }
     }
 }
