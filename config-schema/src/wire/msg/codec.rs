@@ -159,6 +159,22 @@ impl<'a> In<'a> {
         }
     }
 
+    /// `n` `u32`s read and dropped.
+    #[inline(never)]
+    fn skip_u32s(&mut self, n: usize) {
+        for _ in 0..n {
+            self.u32();
+        }
+    }
+
+    /// A list of `n` elements read (`n` from [`In::len`]) is refused if it is longer than
+    /// its capacity `cap`, as pushing its elements would be.
+    fn full_past(&mut self, n: usize, cap: usize) {
+        if n > cap {
+            self.fail(MessageError::Capacity);
+        }
+    }
+
     /// `x` pushed onto `list`: `Capacity` if it is full.
     fn push<T, const N: usize>(&mut self, list: &mut Vec<T, N>, x: T) {
         if list.push(x).is_err() {
@@ -179,7 +195,7 @@ pub(super) fn heard<'a>(r: &mut In<'a>) -> Option<Message<'a>> {
     let v = r.variant(14);
     let msg = for_nodes(r, v);
     if msg.is_none() {
-        let _ = for_the_tool(r, v);
+        check_for_the_tool(r, v);
     }
     msg
 }
@@ -241,6 +257,100 @@ fn for_the_tool<'a>(r: &mut In<'a>, v: u32) -> Message<'a> {
         }),
         9 => Message::Security(security(r)),
         _ => Message::Alarms(alarms(r)),
+    }
+}
+
+/// Reads a message meant for the tool without building it: the fields of
+/// [`for_the_tool`], in its order, with its checks (the tests hold `parse_node` to `parse`).
+fn check_for_the_tool(r: &mut In, v: u32) {
+    match v {
+        5 => {
+            r.u32();
+            match r.variant(8) {
+                0 => {
+                    r.u16();
+                }
+                2 => match r.variant(10) {
+                    0 | 7 | 8 => {
+                        r.u32();
+                    }
+                    6 => {
+                        r.byte();
+                        r.varint(64);
+                    }
+                    _ => {}
+                },
+                4 => {
+                    r.bool();
+                }
+                _ => {}
+            }
+        }
+        7 => {
+            // Status: ack, role, generation, staged, previous, trial, states, outputs,
+            // inputs, fault, link alarms, broken, restarted, epoch, counters, runtime
+            // counters, cycles.
+            r.u16();
+            r.role();
+            r.skip_u32s(3);
+            r.bool();
+            let n = r.len(MAX_CHARTS);
+            for _ in 0..n {
+                r.byte();
+            }
+            r.full_past(n, MAX_CHARTS);
+            r.u16();
+            r.u16();
+            match r.byte() {
+                0 => {}
+                1 => {
+                    r.byte();
+                }
+                _ => r.fail(MessageError::Option),
+            }
+            r.byte();
+            r.byte();
+            r.byte();
+            r.u16();
+            r.skip_u32s(9);
+            r.byte();
+        }
+        8 => {
+            r.u16();
+            r.u32();
+            r.role();
+            r.u32();
+        }
+        9 => {
+            r.u16();
+            r.bool();
+            r.skip_u32s(9);
+        }
+        _ => {
+            // Alarms: ack, now, the alarms (source, level, raised, acked, persists),
+            // dropped.
+            r.u16();
+            r.u32();
+            let n = r.len(crate::alarm::MAX_ALARMS);
+            for _ in 0..n {
+                match r.variant(4) {
+                    0 => {
+                        r.byte();
+                        r.byte();
+                    }
+                    1 => {}
+                    _ => {
+                        r.byte();
+                    }
+                }
+                r.variant(3);
+                r.u32();
+                r.bool();
+                r.bool();
+            }
+            r.full_past(n, crate::alarm::MAX_ALARMS);
+            r.u16();
+        }
     }
 }
 
