@@ -365,6 +365,9 @@ impl<'a> Message<'a> {
     /// Parses a MAC payload (postcard's bytes, read by hand: [`codec`]). Never panics;
     /// trailing bytes are an error.
     pub fn parse(payload: &'a [u8]) -> Result<Message<'a>, MessageError> {
+        if let Some(msg) = link::parse(payload) {
+            return Ok(msg);
+        }
         let mut r = codec::In::new(payload);
         let msg = codec::message(&mut r);
         r.end().map(|()| msg)
@@ -375,6 +378,9 @@ impl<'a> Message<'a> {
     /// `Alarms`: answers and reports of nodes), which is checked as `parse` checks it but
     /// not built. The same errors as `parse`.
     pub fn parse_node(payload: &'a [u8]) -> Result<Option<Message<'a>>, MessageError> {
+        if let Some(msg) = link::parse(payload) {
+            return Ok(Some(msg));
+        }
         let mut r = codec::In::new(payload);
         let msg = codec::heard(&mut r);
         r.end().map(|()| msg)
@@ -382,6 +388,9 @@ impl<'a> Message<'a> {
 
     /// Writes the message into `buf` (postcard's bytes); returns its length.
     pub fn emit(&self, buf: &mut [u8]) -> Result<usize, MessageError> {
+        if let Some(n) = link::emit(self, buf) {
+            return Ok(n);
+        }
         let mut w = codec::Out::new(buf);
         codec::emit(self, &mut w);
         w.len()
@@ -389,6 +398,7 @@ impl<'a> Message<'a> {
 }
 
 mod codec;
+mod link;
 
 #[cfg(test)]
 mod tests {

@@ -66,20 +66,31 @@ impl<'a> In<'a> {
     /// A varint of a `bits`-bit type (16, 32 or 64).
     #[inline(never)]
     fn varint(&mut self, bits: u32) -> u64 {
-        let max = bits.div_ceil(7);
+        if self.err.is_some() {
+            return 0;
+        }
+        // Read in place (not byte by byte through `byte`): the hot path of every event.
+        let max = bits.div_ceil(7) as usize;
         let last = (1u8 << (bits % 7)) - 1;
         let mut out = 0u64;
-        for i in 0..max {
-            let b = self.byte();
+        for (i, &b) in self.rest.iter().take(max).enumerate() {
             out |= u64::from(b & 0x7F) << (7 * i);
             if b & 0x80 == 0 {
+                self.rest = self.rest.get(i + 1..).unwrap_or_default();
                 if i + 1 == max && b > last {
                     self.fail(MessageError::Varint);
                 }
                 return out;
             }
         }
-        self.fail(MessageError::Varint);
+        // Every byte there had its continuation bit: the payload ended inside the varint,
+        // or it is longer than its type allows.
+        let e = if self.rest.len() < max {
+            MessageError::End
+        } else {
+            MessageError::Varint
+        };
+        self.fail(e);
         0
     }
 

@@ -1,0 +1,134 @@
+//! `Event` and `EventAck`, the messages of every step of a running machine, written and
+//! read on a short path of their own: the same bytes as the codec's (variant index, then
+//! each `u16` as a varint, the topic one raw byte). Only canonical encodings are read
+//! here and only into a buffer they fit; anything else goes to the codec, so
+//! [`Message::parse`], [`Message::parse_node`] and [`Message::emit`] answer exactly as
+//! without it. About a quarter of the codec's instructions for these two
+//! (`bench/instructions.sh`, the node core's figures).
+
+use super::Message;
+
+const EVENT: u8 = 0;
+const EVENT_ACK: u8 = 1;
+
+pub(super) fn emit(msg: &Message<'_>, buf: &mut [u8]) -> Option<usize> {
+    let mut out = [0u8; 8];
+    let n = match *msg {
+        Message::Event { epoch, seq, topic } => {
+            out[0] = EVENT;
+            let n = put(epoch, &mut out, 1);
+            let n = put(seq, &mut out, n);
+            out[n] = topic;
+            n + 1
+        }
+        Message::EventAck { epoch, next } => {
+            out[0] = EVENT_ACK;
+            let n = put(epoch, &mut out, 1);
+            put(next, &mut out, n)
+        }
+        _ => return None,
+    };
+    // Too small a buffer: postcard says so in its own words.
+    buf.get_mut(..n)?.copy_from_slice(out.get(..n)?);
+    Some(n)
+}
+
+/// Writes `v` as a varint into `out` from `at` (at most 3 bytes); returns the end.
+fn put(v: u16, out: &mut [u8; 8], at: usize) -> usize {
+    let mut v = v;
+    let mut at = at;
+    while v >= 0x80 {
+        out[at & 7] = (v as u8) | 0x80;
+        v >>= 7;
+        at += 1;
+    }
+    out[at & 7] = v as u8;
+    at + 1
+}
+
+pub(super) fn parse(payload: &[u8]) -> Option<Message<'static>> {
+    let (&tag, rest) = payload.split_first()?;
+    match tag {
+        EVENT => {
+            let (epoch, rest) = take(rest)?;
+            let (seq, rest) = take(rest)?;
+            match rest {
+                [topic] => Some(Message::Event {
+                    epoch,
+                    seq,
+                    topic: *topic,
+                }),
+                _ => None,
+            }
+        }
+        EVENT_ACK => {
+            let (epoch, rest) = take(rest)?;
+            let (next, rest) = take(rest)?;
+            rest.is_empty().then_some(Message::EventAck { epoch, next })
+        }
+        _ => None,
+    }
+}
+
+/// A canonical varint `u16` (the shortest encoding) at the start of `b`.
+fn take(b: &[u8]) -> Option<(u16, &[u8])> {
+    match *b {
+        [a, ref rest @ ..] if a < 0x80 => Some((u16::from(a), rest)),
+        [a, b1, ref rest @ ..] if b1 != 0 && b1 < 0x80 => {
+            Some((u16::from(a & 0x7F) | u16::from(b1) << 7, rest))
+        }
+        [a, b1, c, ref rest @ ..] if b1 >= 0x80 && c != 0 && c <= 0x03 => Some((
+            u16::from(a & 0x7F) | u16::from(b1 & 0x7F) << 7 | u16::from(c) << 14,
+            rest,
+        )),
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::super::{codec, MessageError};
+    use super::*;
+
+    fn by_codec(payload: &[u8]) -> Result<Message<'_>, MessageError> {
+        let mut r = codec::In::new(payload);
+        let msg = codec::message(&mut r);
+        r.end().map(|()| msg)
+    }
+
+    proptest! {
+        /// Any short payload of the first variants reads as the codec alone reads it.
+        #[test]
+        fn short_payloads_read_as_the_codec_reads_them(
+            tag in 0u8..3, body in proptest::collection::vec(any::<u8>(), 0..8),
+        ) {
+            let mut payload = [tag; 9];
+            payload[1..=body.len()].copy_from_slice(&body);
+            let payload = &payload[..=body.len()];
+            prop_assert_eq!(Message::parse(payload), by_codec(payload));
+            let mut r = codec::In::new(payload);
+            let heard = codec::heard(&mut r);
+            prop_assert_eq!(Message::parse_node(payload), r.end().map(|()| heard));
+        }
+
+        /// Events and acks are written as the codec writes them, into any buffer.
+        #[test]
+        fn events_and_acks_are_written_as_the_codec_writes_them(
+            epoch: u16, seq: u16, topic: u8, len in 0usize..10,
+        ) {
+            for msg in [Message::Event { epoch, seq, topic }, Message::EventAck { epoch, next: seq }] {
+                let (mut ours, mut theirs) = ([0u8; 10], [0u8; 10]);
+                let a = msg.emit(&mut ours[..len]);
+                let mut w = codec::Out::new(&mut theirs[..len]);
+                codec::emit(&msg, &mut w);
+                prop_assert_eq!(a, w.len());
+                if let Ok(n) = a {
+                    prop_assert_eq!(&ours[..n], &theirs[..n]);
+                    prop_assert_eq!(Message::parse(&ours[..n]), Ok(msg.clone()));
+                }
+            }
+        }
+    }
+}
