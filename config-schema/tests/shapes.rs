@@ -3,7 +3,8 @@
 //! table not of the shape takes the explicit form and still round-trips.
 
 use config_schema::pack::{self, PackError, SECTIONS};
-use config_schema::{Action, Level, Output, Route, Subscription, Table, Transition};
+use config_schema::{Action, Level, Output, Subscription, Table, Transition};
+use test_tables::route;
 
 /// Bits of each section of `t`'s compact payload.
 fn sections(t: &Table) -> Vec<usize> {
@@ -60,13 +61,7 @@ fn two_charts() -> Table {
     t.push_chart(0, 1, &[&[], &[]], &[step(0, 1, Some(0))])
         .unwrap();
     for (event, chart, input) in [(0, 0, 0), (1, 0, 1), (2, 1, 0)] {
-        t.routes
-            .push(Route {
-                event,
-                chart,
-                input,
-            })
-            .unwrap();
+        route(&mut t, event, chart, input);
     }
     t
 }

@@ -142,6 +142,24 @@ impl Effects for Check<'_> {
 }
 
 /// Runs `stimuli` on a fresh engine, checking the invariants after each; returns the trace.
+/// A drawn index `x` into a list of `n`: in range, or one or two past it (which the engine
+/// must ignore).
+fn wrap(x: u8, n: usize) -> u8 {
+    x % (n as u8).saturating_add(2)
+}
+
+/// The (publisher, topic) a `Remote` stimulus comes from: one of the table's
+/// subscriptions for an even `pick` (when it has any), else the drawn one.
+fn remote_of(t: &Table, pick: u8, publisher: u8, topic: u8) -> (u8, u8) {
+    match t.subscriptions.len() {
+        n if n > 0 && pick.is_multiple_of(2) => {
+            let s = t.subscriptions[usize::from(pick / 2) % n];
+            (s.publisher, s.topic)
+        }
+        _ => (publisher, topic),
+    }
+}
+
 fn run(t: &Table, stimuli: &[Stimulus]) -> Vec<Ev> {
     let mut e = Engine::new(t);
     let mut fx = Check {
@@ -150,7 +168,6 @@ fn run(t: &Table, stimuli: &[Stimulus]) -> Vec<Ev> {
         trace: Vec::new(),
     };
     assert_eq!(e.outputs(), fx.outputs);
-    let wrap = |x: u8, n: usize| x % (n as u8).saturating_add(2);
     for s in stimuli {
         match *s {
             Stimulus::Input(i, level) => e.input(wrap(i, t.inputs.len()), level, &mut fx),
@@ -160,13 +177,7 @@ fn run(t: &Table, stimuli: &[Stimulus]) -> Vec<Ev> {
                 publisher,
                 topic,
             } => {
-                let (publisher, topic) = match t.subscriptions.len() {
-                    n if n > 0 && pick % 2 == 0 => {
-                        let s = t.subscriptions[usize::from(pick / 2) % n];
-                        (s.publisher, s.topic)
-                    }
-                    _ => (publisher, topic),
-                };
+                let (publisher, topic) = remote_of(t, pick, publisher, topic);
                 let subscribed = t
                     .subscriptions
                     .iter()
@@ -247,7 +258,6 @@ fn against_reference(t: &Table, stimuli: &[Stimulus]) -> Vec<Ev> {
     let mut e = Engine::new(t);
     let mut r = reference::Reference::new(t);
     let (mut fe, mut fr) = (Loose(Vec::new()), Loose(Vec::new()));
-    let wrap = |x: u8, n: usize| x % (n as u8).saturating_add(2);
     for (at, s) in stimuli.iter().enumerate() {
         match *s {
             Stimulus::Input(i, level) => {
@@ -265,13 +275,7 @@ fn against_reference(t: &Table, stimuli: &[Stimulus]) -> Vec<Ev> {
                 publisher,
                 topic,
             } => {
-                let (publisher, topic) = match t.subscriptions.len() {
-                    n if n > 0 && pick % 2 == 0 => {
-                        let s = t.subscriptions[usize::from(pick / 2) % n];
-                        (s.publisher, s.topic)
-                    }
-                    _ => (publisher, topic),
-                };
+                let (publisher, topic) = remote_of(t, pick, publisher, topic);
                 assert_eq!(
                     e.remote(publisher, topic, &mut fe),
                     r.remote(publisher, topic, &mut fr)

@@ -110,18 +110,8 @@ fn reply() -> impl Strategy<Value = ConfigReply> {
 }
 
 fn command() -> impl Strategy<Value = Command> {
-    (0usize..8).prop_map(|i| {
-        [
-            Command::Start,
-            Command::Reset,
-            Command::Identify,
-            Command::Status,
-            Command::Security,
-            Command::Home,
-            Command::Alarms,
-            Command::Ack,
-        ][i]
-    })
+    // Every command; the properties compare their bytes to postcard's (serde's order).
+    (0..super::COMMANDS.len()).prop_map(|i| super::COMMANDS[i])
 }
 
 fn step() -> impl Strategy<Value = SwitchStep> {
