@@ -3,8 +3,8 @@
 //! each `u16` as a varint, the topic one raw byte). Only canonical encodings are read
 //! here and only into a buffer they fit; anything else goes to the codec, so
 //! [`Message::parse`], [`Message::parse_node`] and [`Message::emit`] answer exactly as
-//! without it. About a quarter of the codec's instructions for these two
-//! (`bench/instructions.sh`, the node core's figures).
+//! without it. With it the node core takes 1,363 instructions per event received
+//! instead of 1,736, 631 per ack instead of 950 (`bench/instructions.sh`, x86-64).
 
 use super::Message;
 
