@@ -238,11 +238,13 @@ pub fn home(
         }
     }
     let end = t0 + wait;
+    let mut links = Settling::default();
     loop {
+        let asked = Instant::now();
         let answers = statuses(radio, ids, c, answer_within)?;
         let now = nodes(c, &answers);
-        // Homed, and what homing published acknowledged (a link in alarm still retries).
-        let settled = answers.iter().all(|s| s.link_alarms == 0);
+        // Homed, and what homing published acknowledged.
+        let settled = links.settled(asked, Instant::now(), &answers);
         if now
             .iter()
             .any(|n| matches!(n.standing, Standing::Faulted(_)))
@@ -266,6 +268,41 @@ pub fn home(
         // Whatever comes meanwhile (late answers) is not for the watch.
         let until = (Instant::now() + POLL).min(end);
         while radio.recv(until)?.is_some() {}
+    }
+}
+
+/// How long no node may have retransmitted before its links count as settled: twice a
+/// link's longest retransmission timeout (a link holding an unacknowledged event resends
+/// it at least every `RTO_MAX_MS`, so a quiet node has none; twice, for a node that polls
+/// its links late).
+pub const QUIET: Duration = Duration::from_millis(2 * node_fw::link::RTO_MAX_MS);
+
+/// Whether what the nodes published has been acknowledged, from their statuses in
+/// successive rounds. A link in alarm is not settled, and neither is one that has not
+/// reached its alarm yet but still resends: homing that ended while an event's
+/// acknowledgement was still being retried would leave the link to fall into alarm just
+/// after `home` said the machine was homed. So the links settle once no link is in alarm
+/// and every node's retransmission counter stayed the same for [`QUIET`].
+#[derive(Debug, Default)]
+struct Settling {
+    /// The nodes' retransmission counters, and when the round that first showed them ended.
+    since: Option<(Vec<u32>, Instant)>,
+}
+
+impl Settling {
+    /// The round asked from `asked` to `answered` gave `answers`.
+    fn settled(&mut self, asked: Instant, answered: Instant, answers: &[Status]) -> bool {
+        let retried: Vec<u32> = answers.iter().map(|s| s.counters.retried).collect();
+        let since = match &self.since {
+            Some((before, at)) if *before == retried => *at,
+            _ => {
+                self.since = Some((retried, answered));
+                answered
+            }
+        };
+        // Each node's two snapshots were taken at least `asked - since` apart.
+        let quiet = asked.saturating_duration_since(since) >= QUIET;
+        quiet && answers.iter().all(|s| s.link_alarms == 0)
     }
 }
 
@@ -364,6 +401,40 @@ mod tests {
             addr,
             standing,
         }
+    }
+
+    fn retrying(retried: u32, link_alarms: u8) -> Status {
+        let mut s = status("VC", &[0, 0], None);
+        s.counters.retried = retried;
+        s.link_alarms = link_alarms;
+        s
+    }
+
+    #[test]
+    fn links_settle_only_once_no_node_retransmitted_for_the_quiet_time() {
+        let t0 = Instant::now();
+        let ms = |n: u64| t0 + Duration::from_millis(n);
+        let mut links = Settling::default();
+        let round = |links: &mut Settling, at: u64, answers: &[Status]| {
+            links.settled(ms(at), ms(at + 10), answers)
+        };
+        let quiet = QUIET.as_millis() as u64;
+        let resending = [retrying(3, 0), retrying(1, 0)];
+        let resent = [retrying(3, 0), retrying(2, 0)];
+        let again = [retrying(4, 0), retrying(2, 0)];
+        let alarm = [retrying(4, 0b10), retrying(2, 0)];
+        // No alarm, but the second node still resends: not settled, however long.
+        assert!(!round(&mut links, 0, &resending));
+        assert!(!round(&mut links, 50, &resent));
+        assert!(!round(&mut links, 60 + quiet - 1, &resent));
+        // The same counters over the quiet time, asked from the end of the first round
+        // that showed them: settled.
+        assert!(round(&mut links, 60 + quiet, &resent));
+        // One more resend starts the quiet time again.
+        assert!(!round(&mut links, 100 + quiet, &again));
+        assert!(round(&mut links, 110 + 2 * quiet, &again));
+        // A link in alarm is never settled.
+        assert!(!round(&mut links, 200 + 4 * quiet, &alarm));
     }
 
     #[test]
