@@ -36,6 +36,7 @@ const _: () = assert!(MAX_ROUTES < NONE as usize);
 const _: () = assert!(MAX_TRANSITIONS < CHOOSE as usize);
 const _: () = assert!(MAX_ACTIONS < NONE as usize);
 const _: () = assert!(MAX_EVENTS <= NONE as usize);
+const _: () = assert!(MAX_INPUTS.is_power_of_two());
 
 /// Where a chart's states are in the table's pool.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -449,9 +450,9 @@ impl Index {
     /// The record of input `input` (`None` past the table's inputs).
     #[inline(always)]
     pub(super) fn input(&self, input: u8) -> Option<&InputRec> {
-        self.inputs
-            .get(usize::from(input))
-            .filter(|_| input < self.input_count)
+        // `input_count` is at most `MAX_INPUTS`, a power of two: the mask keeps the index
+        // in range without a second check.
+        (input < self.input_count).then(|| &self.inputs[usize::from(input) & (MAX_INPUTS - 1)])
     }
 
     /// Publication `p` of the table (`None` for `NONE`).

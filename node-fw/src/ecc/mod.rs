@@ -538,17 +538,7 @@ impl Run {
         fx: &mut impl Effects,
     ) -> Flow {
         let Act { code, dst, w } = *a;
-        if code <= calc::LAST_CODE {
-            // `dst := expression` (`dst` below `MAX_VARS`: the index lowers an assignment
-            // to any other variable to `DISCARD`).
-            return match Calc::run(code, &w, &self.vars, self.inputs, table) {
-                Some(value) => {
-                    self.vars[usize::from(dst) & (MAX_VARS - 1)] = value;
-                    Flow::Go
-                }
-                None => self.fail_expr(ix, chart, fx),
-            };
-        }
+        // One `match` for the actions and the assignments' operations (one jump).
         match code {
             act::DRIVE => {
                 let [m0, m1, v0, v1] = w;
@@ -572,10 +562,17 @@ impl Run {
                     return self.fail_expr(ix, chart, fx);
                 }
             }
-            _ => {
+            act::FAULT => {
                 self.set_fault(ix, Fault::Action { chart, code: dst }, fx);
                 return Flow::Stop;
             }
+            // `dst := expression`: the index builds no other codes than the actions' and
+            // the operations' (up to `calc::LAST_CODE`), and `dst` below `MAX_VARS` (an
+            // assignment to any other variable is a `DISCARD`).
+            _ => match Calc::run(code, &w, &self.vars, self.inputs, table) {
+                Some(value) => self.vars[usize::from(dst) & (MAX_VARS - 1)] = value,
+                None => return self.fail_expr(ix, chart, fx),
+            },
         }
         Flow::Go
     }
