@@ -1,9 +1,10 @@
 //! A table compiled once, when it is installed, into the form the interpreter runs: each
 //! event's routes as (chart, input) pairs, each state's transitions in declaration order
 //! with their guards lowered ([`Calc`]), each state's actions with their assignments
-//! lowered and their publications resolved, each event's publication, the states with
-//! event-less transitions, and the output masks. A stimulus then walks short arrays with
-//! one bounds check each and never decodes or re-validates the table.
+//! lowered and their publications resolved, each event's publication, per state the
+//! event-less transition that always follows its entry (fused: taken without a choice) or
+//! whether its event-less transitions are chosen by their guards, and the output masks. A stimulus then walks short arrays with one bounds check
+//! an entry and never decodes or re-validates the table.
 //!
 //! Derived data only: the table stays the one validated form, and an index built from it
 //! gives exactly the order the pools have (the first matching transition in declaration
