@@ -782,6 +782,97 @@ fn an_event_less_loop_faults_with_chain_limit() {
     assert_eq!(e.state(0), Some(1));
 }
 
+/// An event-less loop without a guard (taken without a choice, fused when the index is
+/// built) counts towards `MAX_CHAIN` like a guarded one: S0 -GO-> S1 [n := n + 1], S1 -> S1.
+#[test]
+fn an_unguarded_event_less_loop_faults_with_chain_limit() {
+    let mut t = fault_base();
+    t.vars.push(0).unwrap();
+    let inc = t.push_expr(&[Op::Var(0), Op::Const(1), Op::Add]).unwrap();
+    t.push_chart(
+        0,
+        2,
+        &[&[], &[Action::Set { var: 0, expr: inc }]],
+        &[on(0, 0, 1), always(1, 1)],
+    )
+    .unwrap();
+    route(&mut t, 0, 0, 0);
+    let t = load(t);
+    let mut e = Engine::new(&t);
+    let mut fx = Rec::default();
+    e.event(0, &mut fx);
+    let mut want = vec![fired(0, 0, 0, 1)];
+    want.extend(std::iter::repeat_n(fired(0, 1, 1, 1), MAX_CHAIN));
+    let fault = Fault::ChainLimit { chart: 0 };
+    // The outputs are at their fault levels already: only the timers are cancelled.
+    want.push(CancelTimer { timer: 0 });
+    want.push(CancelTimer { timer: 1 });
+    want.push(Ev::Fault(fault));
+    assert_eq!(fx.take(), want);
+    assert_eq!(e.fault(), Some(fault));
+    assert_eq!(e.var(0), Some(MAX_CHAIN as i32 + 1));
+}
+
+/// Of a state's event-less transitions the first whose guard holds is taken, also when a
+/// later one always holds: S1 -[n = 1]-> S2, S1 -> S3 (and a constant-true guard is
+/// taken like a missing one).
+#[test]
+fn an_always_true_event_less_transition_waits_behind_a_guarded_one() {
+    let build = |first_guard: i32| {
+        let mut t = fault_base();
+        t.vars.push(0).unwrap();
+        let one = t.push_expr(&[Op::Var(0), Op::Const(1), Op::Eq]).unwrap();
+        let yes = t.push_expr(&[Op::Const(first_guard)]).unwrap();
+        let set = t.push_expr(&[Op::Const(1)]).unwrap();
+        t.push_chart(
+            0,
+            4,
+            &[&[], &[], &[], &[]],
+            &[
+                on(0, 0, 1),
+                when(1, 2, one),
+                when(1, 3, yes),
+                on(2, 1, 0),
+                on(3, 1, 0),
+            ],
+        )
+        .unwrap();
+        t.push_chart(
+            0,
+            1,
+            &[&[Action::Set { var: 0, expr: set }]],
+            &[on(0, 0, 0)],
+        )
+        .unwrap();
+        route(&mut t, 0, 0, 0);
+        route(&mut t, 3, 1, 0);
+        route(&mut t, 3, 0, 1);
+        load(t)
+    };
+    let t = build(7);
+    let mut e = Engine::new(&t);
+    let mut fx = Rec::default();
+    e.event(0, &mut fx);
+    assert_eq!(fx.take(), [fired(0, 0, 0, 1), fired(0, 2, 1, 3)]);
+    e.event(3, &mut fx);
+    e.event(0, &mut fx);
+    assert_eq!(
+        fx.take(),
+        [
+            fired(1, 5, 0, 0),
+            fired(0, 4, 3, 0),
+            fired(0, 0, 0, 1),
+            fired(0, 1, 1, 2)
+        ]
+    );
+    // A constant-false guard never holds: the chart rests in S1.
+    let t = build(0);
+    let mut e = Engine::new(&t);
+    e.event(0, &mut fx);
+    assert_eq!(fx.take(), [fired(0, 0, 0, 1)]);
+    assert_eq!(e.state(0), Some(1));
+}
+
 /// Chart 0: S0 -GO-> S1 [RUN, emit X * `emits`, out0 off]; X (event 3) is counted by
 /// chart 1: S0 -X-> S0 [n := n + 1].
 fn storm_table(emits: usize) -> Table {

@@ -163,6 +163,12 @@ impl Calc {
         self.code == code::TRUE
     }
 
+    /// Whether this guard holds whatever the variables and inputs are, and cannot fault:
+    /// a missing guard or a non-zero constant.
+    pub(super) fn always_holds(&self) -> bool {
+        self.is_true() || (self.code == code::CONST && i32::from_le_bytes(self.w) >> 8 != 0)
+    }
+
     /// The value (`None`: the expression cannot be evaluated, a fault). `vars` are the
     /// engine's variables, `inputs` its input levels; `table` holds the code of the
     /// expressions that run on the stack machine.

@@ -1,9 +1,10 @@
 //! A table compiled once, when it is installed, into the form the interpreter runs: each
 //! event's routes as (chart, input) pairs, each state's transitions in declaration order
 //! with their guards lowered ([`Calc`]), each state's actions with their assignments
-//! lowered and their publications resolved, each event's publication, the states with
-//! event-less transitions, and the output masks. A stimulus then walks short arrays with
-//! one bounds check each and never decodes or re-validates the table.
+//! lowered and their publications resolved, each event's publication, per state the
+//! event-less transition that always follows its entry (fused: taken without a choice) or
+//! whether its event-less transitions are chosen by their guards, and the output masks. A stimulus then walks short arrays with one bounds check
+//! an entry and never decodes or re-validates the table.
 //!
 //! Derived data only: the table stays the one validated form, and an index built from it
 //! gives exactly the order the pools have (the first matching transition in declaration
@@ -27,12 +28,16 @@ use super::calc::{self, Calc};
 pub(super) const NONE: u8 = u8::MAX;
 /// The trigger of an event-less transition.
 pub(super) const EVENTLESS: u8 = u8::MAX;
+/// [`StateRec::next`] of a state whose event-less transitions are chosen by their guards
+/// at run time.
+pub(super) const CHOOSE: u8 = u8::MAX - 1;
 
 // Every pool index and span end fits a `u8` below `NONE`.
 const _: () = assert!(MAX_ROUTES < NONE as usize);
-const _: () = assert!(MAX_TRANSITIONS < NONE as usize);
+const _: () = assert!(MAX_TRANSITIONS < CHOOSE as usize);
 const _: () = assert!(MAX_ACTIONS < NONE as usize);
 const _: () = assert!(MAX_EVENTS <= NONE as usize);
+const _: () = assert!(MAX_INPUTS.is_power_of_two());
 
 /// Where a chart's states are in the table's pool.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -100,36 +105,84 @@ pub(super) mod act {
     pub const CANCEL_TIMER: u8 = LAST_CODE + 5;
     /// Fault the node with code `dst`.
     pub const FAULT: u8 = LAST_CODE + 6;
+    /// An assignment to a variable the engine does not have: the expression `(dst, w)`
+    /// evaluated for its fault, its value dropped.
+    pub const DISCARD: u8 = LAST_CODE + 7;
 }
 
 const _: () = assert!(core::mem::size_of::<Step>() == 9);
 const _: () = assert!(core::mem::size_of::<Act>() == 6);
 
-/// A range `start..end` of one of the index's pools.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub(super) struct Span {
-    pub start: u8,
-    pub end: u8,
+/// A range `start..end` of one of the index's pools, a pool of `N` entries: always
+/// `start <= end <= N`. [`Span::new`] is its only constructor and establishes that (a range
+/// outside is made empty), so a span is read from its pool without a bounds check
+/// ([`span_of`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct Span<const N: usize> {
+    start: u8,
+    end: u8,
 }
+
+impl<const N: usize> Span<N> {
+    /// The empty span.
+    pub(super) const EMPTY: Span<N> = Span { start: 0, end: 0 };
+
+    /// `start..end`, or the empty span if that is not inside a pool of `N` entries.
+    fn new(start: usize, end: usize) -> Span<N> {
+        if start <= end && end <= N && end <= usize::from(u8::MAX) {
+            Span {
+                start: start as u8,
+                end: end as u8,
+            }
+        } else {
+            Span::EMPTY
+        }
+    }
+}
+
+impl<const N: usize> Default for Span<N> {
+    fn default() -> Self {
+        Span::EMPTY
+    }
+}
+
+type RouteSpan = Span<MAX_ROUTES>;
+type StepSpan = Span<MAX_TRANSITIONS>;
+type ActSpan = Span<MAX_ACTIONS>;
 
 /// Per event: its routes and its publication.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) struct EventRec {
     /// Its routes in `Index::routes`, in table order.
-    pub routes: Span,
+    pub routes: RouteSpan,
     /// Its publication's index (`NONE`: not published).
     pub publication: u8,
 }
 
-/// Per global state: the transitions leaving it and the actions run on entering it.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+/// Per global state: the transitions leaving it, the actions run on entering it and what
+/// follows the entry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) struct StateRec {
     /// Its transitions in `Index::steps`, in declaration order.
-    pub steps: Span,
+    pub steps: StepSpan,
     /// Its actions in `Index::acts` (the same indices as `Table::actions`).
-    pub acts: Span,
-    /// Whether an event-less transition leaves it.
-    pub eventless: bool,
+    pub acts: ActSpan,
+    /// The event-less step after its entry, fused at build time: `NONE`, no event-less
+    /// transition leaves it (the chart is stable); a step index, its first event-less
+    /// transition in declaration order, whose guard always holds (taken without a choice:
+    /// no earlier event-less transition is a candidate and its guard cannot fault);
+    /// [`CHOOSE`], its event-less transitions are chosen by their guards.
+    pub next: u8,
+}
+
+impl Default for StateRec {
+    fn default() -> Self {
+        StateRec {
+            steps: Span::EMPTY,
+            acts: Span::EMPTY,
+            next: NONE,
+        }
+    }
 }
 
 /// Per input: the events of its edges and its mirror variable (`NONE`: none, or a
@@ -141,9 +194,11 @@ pub(super) struct InputRec {
     pub var: u8,
 }
 
-/// The entries of `pool` in `span` (built in range: an entry past the pool ends it).
+/// The entries of `pool` in `span`, in order. A `Span<N>` is inside a pool of `N` entries,
+/// so the walk never stops early; it checks each index as it goes (one compare an entry:
+/// cheaper than taking a slice for the one or two entries a span mostly has).
 #[inline(always)]
-fn span_of<T>(pool: &[T], span: Span) -> impl Iterator<Item = &T> {
+fn span_of<T, const N: usize>(pool: &[T; N], span: Span<N>) -> impl Iterator<Item = &T> {
     (span.start..span.end).map_while(move |i| pool.get(usize::from(i)))
 }
 
@@ -178,7 +233,7 @@ impl Index {
         let mut ix = Index {
             layout: [Layout::default(); MAX_CHARTS],
             events: [EventRec {
-                routes: Span::default(),
+                routes: Span::EMPTY,
                 publication: NONE,
             }; MAX_EVENTS],
             routes: [Target::default(); MAX_ROUTES],
@@ -247,10 +302,7 @@ impl Index {
         }
         let mut at = 0u8;
         for (rec, n) in self.events.iter_mut().zip(count) {
-            rec.routes = Span {
-                start: at,
-                end: at + n,
-            };
+            rec.routes = Span::new(usize::from(at), usize::from(at) + usize::from(n));
             at += n;
         }
         let mut next: [u8; MAX_EVENTS] = core::array::from_fn(|e| self.events[e].routes.start);
@@ -304,14 +356,21 @@ impl Index {
                         guard: Calc::lower(table, t.guard),
                     };
                     n += 1;
-                    if trigger == EVENTLESS {
-                        self.states[s].eventless = true;
-                    }
                 }
             }
-            self.states[s].steps = Span {
-                start,
-                end: n as u8,
+            let steps = Span::new(usize::from(start), n);
+            let first_eventless =
+                span_of(&self.steps, steps).position(|step| step.trigger == EVENTLESS);
+            self.states[s].steps = steps;
+            self.states[s].next = match first_eventless {
+                None => NONE,
+                Some(i) => {
+                    let at = usize::from(start) + i;
+                    match self.steps.get(at) {
+                        Some(step) if step.guard.always_holds() => at as u8,
+                        _ => CHOOSE,
+                    }
+                }
             };
         }
     }
@@ -328,12 +387,11 @@ impl Index {
             *slot = match *action {
                 Action::Set { var, expr } => {
                     let calc = Calc::lower(table, Some(expr));
-                    let dst = if usize::from(var) < config_schema::limits::MAX_VARS {
-                        var
+                    if usize::from(var) < config_schema::limits::MAX_VARS {
+                        of(calc.code, var, calc.w)
                     } else {
-                        NONE
-                    };
-                    of(calc.code, dst, calc.w)
+                        of(act::DISCARD, calc.code, calc.w)
+                    }
                 }
                 Action::Drive { mask, value } => {
                     let ([m0, m1], [v0, v1]) = (mask.to_le_bytes(), value.to_le_bytes());
@@ -349,10 +407,7 @@ impl Index {
         for (s, rec) in self.states.iter_mut().enumerate() {
             let range = table.state_actions(s);
             if range.end <= table.actions.len() {
-                rec.acts = Span {
-                    start: range.start as u8,
-                    end: range.end as u8,
-                };
+                rec.acts = Span::new(range.start, range.end);
             }
         }
     }
@@ -371,28 +426,34 @@ impl Index {
 
     /// The routes of a span, in order.
     #[inline(always)]
-    pub(super) fn routes(&self, span: Span) -> impl Iterator<Item = &Target> {
+    pub(super) fn routes(&self, span: RouteSpan) -> impl Iterator<Item = &Target> {
         span_of(&self.routes, span)
     }
 
     /// The transitions of a span, in order.
     #[inline(always)]
-    pub(super) fn steps(&self, span: Span) -> impl Iterator<Item = &Step> {
+    pub(super) fn steps(&self, span: StepSpan) -> impl Iterator<Item = &Step> {
         span_of(&self.steps, span)
+    }
+
+    /// Step `step` (`None` past `MAX_TRANSITIONS`).
+    #[inline(always)]
+    pub(super) fn step(&self, step: u8) -> Option<&Step> {
+        self.steps.get(usize::from(step))
     }
 
     /// The actions of a span, in order.
     #[inline(always)]
-    pub(super) fn acts(&self, span: Span) -> impl Iterator<Item = &Act> {
+    pub(super) fn acts(&self, span: ActSpan) -> impl Iterator<Item = &Act> {
         span_of(&self.acts, span)
     }
 
     /// The record of input `input` (`None` past the table's inputs).
     #[inline(always)]
     pub(super) fn input(&self, input: u8) -> Option<&InputRec> {
-        self.inputs
-            .get(usize::from(input))
-            .filter(|_| input < self.input_count)
+        // `input_count` is at most `MAX_INPUTS`, a power of two: the mask keeps the index
+        // in range without a second check.
+        (input < self.input_count).then(|| &self.inputs[usize::from(input) & (MAX_INPUTS - 1)])
     }
 
     /// Publication `p` of the table (`None` for `NONE`).
@@ -428,5 +489,18 @@ mod tests {
         let rest = 3 + 2 + 2 * 4;
         assert_eq!(Index::BYTES, (pools + rest).next_multiple_of(2));
         assert_eq!(Index::BYTES, 3126);
+    }
+
+    /// A span is always inside its pool: any other range is made empty.
+    #[test]
+    fn a_span_outside_its_pool_is_empty() {
+        assert_eq!(Span::<4>::new(1, 3), Span { start: 1, end: 3 });
+        assert_eq!(Span::<4>::new(0, 4), Span { start: 0, end: 4 });
+        assert_eq!(Span::<4>::new(2, 5), Span::EMPTY);
+        assert_eq!(Span::<4>::new(3, 2), Span::EMPTY);
+        assert_eq!(Span::<300>::new(0, 256), Span::EMPTY);
+        let pool = [10, 11, 12, 13];
+        let got: Vec<_> = span_of(&pool, Span::new(1, 3)).copied().collect();
+        assert_eq!(got, [11, 12]);
     }
 }

@@ -65,7 +65,14 @@ mod index;
 use calc::Calc;
 use fifo::Fifo;
 pub use index::Index;
-use index::{act, Act, Layout, Span, Step, EVENTLESS, NONE};
+use index::{act, Act, Layout, Span, Step, CHOOSE, EVENTLESS, NONE};
+
+/// Whether a delivery goes on or the node faulted (and the stimulus ends).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Flow {
+    Go,
+    Stop,
+}
 
 /// The engine's index: its own (built with the engine) or the one its runtime keeps
 /// beside the table (built once at activation, not per stimulus). No allocator: an
@@ -404,10 +411,9 @@ impl Run {
             }
             // Delivers `next` to all its routes, in order, each chart running to a stable
             // state.
-            let routes = ix.event(next).map_or(Span::default(), |rec| rec.routes);
+            let routes = ix.event(next).map_or(Span::EMPTY, |rec| rec.routes);
             for route in ix.routes(routes) {
-                self.deliver(ix, table, route.chart, route.input, fx);
-                if self.fault.is_some() {
+                if self.deliver(ix, table, route.chart, route.input, fx) == Flow::Stop {
                     return;
                 }
             }
@@ -419,66 +425,82 @@ impl Run {
     }
 
     /// Delivers chart input `input` to `chart` and runs its event-less transitions until it
-    /// is stable.
+    /// is stable. [`Flow::Stop`]: the node faulted.
     #[inline(always)]
-    fn deliver(&mut self, ix: &Index, table: &Table, chart: u8, input: u8, fx: &mut impl Effects) {
+    fn deliver(
+        &mut self,
+        ix: &Index,
+        table: &Table,
+        chart: u8,
+        input: u8,
+        fx: &mut impl Effects,
+    ) -> Flow {
         let c = usize::from(chart);
-        let layout = ix.layout.get(c).copied().unwrap_or_default();
+        // A chart outside the table, or in a state outside its chart, has no state: it
+        // ignores its input (only a table that skipped validation gets here).
+        let (Some(layout), Some(&current)) = (ix.layout.get(c), self.current.get(c)) else {
+            fx.ignored(chart, input);
+            return Flow::Go;
+        };
         let Layout {
             first_state,
             states,
-        } = layout;
-        // The input first, then event-less transitions only (`chained` of them so far).
-        let mut want = input;
-        let mut chained = 0usize;
-        let mut current = self.current.get(c).copied().unwrap_or(0);
-        // A chart outside the table, or in a state outside its chart, has no state: it
-        // ignores its input (only a table that skipped validation gets here).
-        let mut state = ix
+        } = *layout;
+        let state = ix
             .state(usize::from(first_state) + usize::from(current))
             .filter(|_| current < states);
+        // The input first: the first of the state's transitions it triggers (or an
+        // event-less one) whose guard holds.
+        let mut step = match state.map(|rec| self.select(ix.steps(rec.steps), input, table)) {
+            Some(Ok(Some(step))) => step,
+            Some(Err(())) => return self.fail_expr(ix, chart, fx),
+            None | Some(Ok(None)) => {
+                fx.ignored(chart, input);
+                return Flow::Go;
+            }
+        };
+        // Then event-less transitions only, `chained` of them so far.
+        let mut chained = 0usize;
+        let mut from = current;
         loop {
-            let step = match state.map(|rec| self.select(ix.steps(rec.steps), want, table)) {
-                Some(Ok(Some(step))) => step,
-                Some(Err(())) => {
-                    self.set_fault(ix, Fault::Expr { chart }, fx);
-                    return;
+            // Fire: the target becomes current, then its actions run in order.
+            let to = step.to;
+            if let Some(slot) = self.current.get_mut(c) {
+                *slot = to;
+            }
+            fx.fired(chart, step.index, from, to);
+            let Some(target) = ix.state(usize::from(step.target)) else {
+                return Flow::Go;
+            };
+            for act in ix.acts(target.acts) {
+                if self.act(ix, table, chart, act, fx) == Flow::Stop {
+                    return Flow::Stop;
                 }
-                None | Some(Ok(None)) => {
-                    if chained == 0 {
-                        fx.ignored(chart, input);
-                    }
-                    return;
-                }
+            }
+            // Only a state with event-less transitions leaving it can move on its own; one
+            // whose first event-less transition always holds takes it without a choice
+            // (fused when the index was built).
+            if to >= states {
+                return Flow::Go;
+            }
+            chained += 1;
+            step = match target.next {
+                NONE => return Flow::Go,
+                CHOOSE => match self.select(ix.steps(target.steps), EVENTLESS, table) {
+                    Ok(Some(step)) => step,
+                    Ok(None) => return Flow::Go,
+                    Err(()) => return self.fail_expr(ix, chart, fx),
+                },
+                at => match ix.step(at) {
+                    Some(step) => step,
+                    None => return Flow::Go,
+                },
             };
             if chained > MAX_CHAIN {
                 self.set_fault(ix, Fault::ChainLimit { chart }, fx);
-                return;
+                return Flow::Stop;
             }
-            // Fire: the target becomes current, then its actions run in order.
-            let from = current;
-            current = step.to;
-            if let Some(slot) = self.current.get_mut(c) {
-                *slot = current;
-            }
-            fx.fired(chart, step.index, from, current);
-            let Some(target) = ix.state(usize::from(step.target)) else {
-                return;
-            };
-            for act in ix.acts(target.acts) {
-                self.act(ix, table, chart, act, fx);
-                if self.fault.is_some() {
-                    return;
-                }
-            }
-            // Then event-less transitions only; only a state with event-less transitions
-            // leaving it can move on its own.
-            if current >= states || !target.eventless {
-                return;
-            }
-            state = Some(target);
-            want = EVENTLESS;
-            chained += 1;
+            from = to;
         }
     }
 
@@ -505,21 +527,18 @@ impl Run {
         Ok(None)
     }
 
+    /// Runs one action; [`Flow::Stop`]: the node faulted.
     #[inline(always)]
-    fn act(&mut self, ix: &Index, table: &Table, chart: u8, a: &Act, fx: &mut impl Effects) {
+    fn act(
+        &mut self,
+        ix: &Index,
+        table: &Table,
+        chart: u8,
+        a: &Act,
+        fx: &mut impl Effects,
+    ) -> Flow {
         let Act { code, dst, w } = *a;
-        if code <= calc::LAST_CODE {
-            // `dst := expression`.
-            match Calc::run(code, &w, &self.vars, self.inputs, table) {
-                Some(value) => {
-                    if let Some(slot) = self.vars.get_mut(usize::from(dst)) {
-                        *slot = value;
-                    }
-                }
-                None => self.set_fault(ix, Fault::Expr { chart }, fx),
-            }
-            return;
-        }
+        // One `match` for the actions and the assignments' operations (one jump).
         match code {
             act::DRIVE => {
                 let [m0, m1, v0, v1] = w;
@@ -531,15 +550,39 @@ impl Run {
                 // the node and is not published.
                 if self.queue.push(dst).is_err() {
                     self.set_fault(ix, Fault::QueueFull { event: dst }, fx);
-                } else {
-                    publish(ix, w[0], fx);
+                    return Flow::Stop;
                 }
+                publish(ix, w[0], fx);
             }
             act::PUBLISH => publish(ix, w[0], fx),
             act::START_TIMER => fx.start_timer(dst, u32::from_le_bytes(w)),
             act::CANCEL_TIMER => fx.cancel_timer(dst),
-            _ => self.set_fault(ix, Fault::Action { chart, code: dst }, fx),
+            act::DISCARD => {
+                if Calc::run(dst, &w, &self.vars, self.inputs, table).is_none() {
+                    return self.fail_expr(ix, chart, fx);
+                }
+            }
+            act::FAULT => {
+                self.set_fault(ix, Fault::Action { chart, code: dst }, fx);
+                return Flow::Stop;
+            }
+            // `dst := expression`: the index builds no other codes than the actions' and
+            // the operations' (up to `calc::LAST_CODE`), and `dst` below `MAX_VARS` (an
+            // assignment to any other variable is a `DISCARD`).
+            _ => match Calc::run(code, &w, &self.vars, self.inputs, table) {
+                Some(value) => self.vars[usize::from(dst) & (MAX_VARS - 1)] = value,
+                None => return self.fail_expr(ix, chart, fx),
+            },
         }
+        Flow::Go
+    }
+
+    /// Faults the node on an expression of `chart` that cannot be evaluated.
+    #[cold]
+    #[inline(never)]
+    fn fail_expr(&mut self, ix: &Index, chart: u8, fx: &mut impl Effects) -> Flow {
+        self.set_fault(ix, Fault::Expr { chart }, fx);
+        Flow::Stop
     }
 
     fn drive(&mut self, ix: &Index, mask: u16, value: u16, fx: &mut impl Effects) {
@@ -555,6 +598,7 @@ impl Run {
         }
     }
 
+    #[cold]
     #[inline(never)]
     fn set_fault(&mut self, ix: &Index, fault: Fault, fx: &mut impl Effects) {
         self.fault = Some(fault);
