@@ -7,7 +7,7 @@
 
 use config_schema::limits::{MAX_PEERS, MAX_TIMERS};
 use config_schema::link_keys::LinkKeys;
-use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
+use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_MPDU, MAX_PSDU};
 use config_schema::wire::msg::{
     Announce, Command, ConfigReply, Counters, Message, Refusal, RuntimeCounters, SecurityCounters,
     SecurityReport, Status, SwitchStep,
@@ -34,8 +34,22 @@ pub const CONFIG_PAN: u16 = 0xFFFF;
 
 /// What the node does to the world.
 pub trait Io {
-    /// Transmit a PSDU (FCS included).
+    /// Transmit a PSDU (FCS included): a harness on a medium that carries the FCS.
     fn transmit(&mut self, psdu: &[u8]);
+    /// Transmit an MPDU (no FCS: the radio edge appends it, `mac::append_fcs`, or the
+    /// radio does in hardware). The core sends every frame through this; the default
+    /// appends the FCS here and hands the PSDU to [`Io::transmit`], a board's radio path
+    /// takes the MPDU as it is.
+    fn transmit_mpdu(&mut self, mpdu: &[u8]) {
+        let mut psdu = [0u8; MAX_PSDU];
+        let Some(body) = psdu.get_mut(..mpdu.len()) else {
+            return;
+        };
+        body.copy_from_slice(mpdu);
+        if let Ok(n) = mac::append_fcs(&mut psdu, mpdu.len()) {
+            self.transmit(psdu.get(..n).unwrap_or(&[]));
+        }
+    }
     /// Drive board pin `pin` to `level`.
     fn set_pin(&mut self, pin: u8, level: bool);
     /// The node runs table generation `generation` from now on (at boot and at every
@@ -232,7 +246,7 @@ impl Radio<'_> {
             secured: false,
         };
         *self.mac_seq = self.mac_seq.wrapping_add(1);
-        let mut psdu = [0u8; MAX_PSDU];
+        let mut mpdu = [0u8; MAX_MPDU];
         let links = pan_id != CONFIG_PAN && self.links.secured();
         let key = self
             .key
@@ -253,22 +267,22 @@ impl Radio<'_> {
                 };
                 // No key for `dst` (not a peer): nothing is sent in clear instead.
                 send.and_then(|(key, index)| {
-                    security::secure_default_with::<NodeCipher>(
+                    security::secure_default_mpdu_with::<NodeCipher>(
                         &header,
                         &AuxRepr::new(index, counter),
                         &key,
                         ext_addr(pan_id, self.addr),
                         payload,
-                        &mut psdu,
+                        &mut mpdu,
                     )
                     .ok()
                 })
             }
-            None => mac::emit_data(&header, payload, &mut psdu).ok(),
+            None => mac::emit_data_mpdu(&header, payload, &mut mpdu).ok(),
         };
-        if let Some(len) = emitted {
+        if let Some(frame) = emitted.and_then(|len| mpdu.get(..len)) {
             self.counters.sent += 1;
-            io.transmit(&psdu[..len]);
+            io.transmit_mpdu(frame);
         }
     }
 }
@@ -950,15 +964,33 @@ impl<S: StagingArea> NodeCore<S> {
         s
     }
 
-    /// A PSDU arrived.
+    /// A PSDU arrived (FCS included): a harness on a medium that carries the FCS. The FCS
+    /// is checked and cut off here, a bad one dropped and counted as the radio edge does
+    /// ([`NodeCore::dropped_at_edge`]), and the MPDU goes to [`NodeCore::receive_mpdu`].
     pub fn receive(&mut self, psdu: &[u8], now: u64, io: &mut impl Io) {
-        self.receive_frame(psdu, now, io);
+        match mac::strip_fcs(psdu) {
+            Ok(mpdu) => self.receive_mpdu(mpdu, now, io),
+            Err(_) => self.dropped_at_edge(),
+        }
+    }
+
+    /// An MPDU arrived (the frame without its FCS, checked at the radio edge: the board's
+    /// radio in hardware, the host medium transport or the QEMU UART in software).
+    pub fn receive_mpdu(&mut self, mpdu: &[u8], now: u64, io: &mut impl Io) {
+        self.receive_frame(mpdu, now, io);
         self.look(now, io);
         self.note_idle();
     }
 
-    fn receive_frame(&mut self, psdu: &[u8], now: u64, io: &mut impl Io) {
-        let (header, payload) = match Frame::parse(psdu) {
+    /// The radio edge dropped a frame (its FCS did not match, or it was not a PSDU):
+    /// counted with the frames the core drops. Nothing else changes (no stimulus: the
+    /// alarms have nothing new to look at).
+    pub fn dropped_at_edge(&mut self) {
+        self.counters.dropped += 1;
+    }
+
+    fn receive_frame(&mut self, mpdu: &[u8], now: u64, io: &mut impl Io) {
+        let (header, payload) = match Frame::parse_mpdu(mpdu) {
             Ok(Frame::Data { header, payload }) => (header, payload),
             _ => {
                 self.counters.dropped += 1;
@@ -992,8 +1024,8 @@ impl<S: StagingArea> NodeCore<S> {
             if peers {
                 self.peer_security.note_frame(now);
             }
-            let opened = security::open_default_with::<NodeCipher, _>(
-                psdu,
+            let opened = security::open_default_mpdu_with::<NodeCipher, _>(
+                mpdu,
                 |header, aux| self.lookup(header, aux, now),
                 &mut scratch,
             );
@@ -1005,7 +1037,7 @@ impl<S: StagingArea> NodeCore<S> {
                     } else {
                         let staged = self.switch.staged();
                         self.peer_security
-                            .refused(psdu, staged, e, &mut self.security);
+                            .refused(mpdu, staged, e, &mut self.security);
                     }
                     self.counters.dropped += 1;
                     return;
