@@ -164,6 +164,9 @@ pub struct NodeCore<S = RamStaging> {
     peer_security: PeerSecurity,
     /// The latched alarms.
     alarms: Alarms,
+    /// The engine state was written since the alarms last looked (they look at the rest,
+    /// the links, every time): set wherever `state` is written.
+    state_changed: bool,
 }
 
 /// What the running engine is given (one [`NodeCore::run`] for all of them).
@@ -370,6 +373,7 @@ impl<S: StagingArea> NodeCore<S> {
             next_challenge: 0,
             peer_security: PeerSecurity::default(),
             alarms: Alarms::default(),
+            state_changed: true,
         };
         if let Some(t) = table.filter(|t| t.missing_pin(board_pins).is_none()) {
             node.install(t, None, false);
@@ -435,6 +439,7 @@ impl<S: StagingArea> NodeCore<S> {
                 engine.sense(i as u8, level(pins, input.pin));
             }
             *state = engine.snapshot();
+            self.state_changed = true;
         }
     }
 
@@ -498,6 +503,7 @@ impl<S: StagingArea> NodeCore<S> {
             engine.sense(i as u8, level(self.pins, input.pin));
         }
         self.state = Some(engine.snapshot());
+        self.state_changed = true;
         self.timers = [None; MAX_TIMERS];
         self.epoch = self.epoch.wrapping_add(1);
         self.senders.clear();
@@ -740,6 +746,9 @@ impl<S: StagingArea> NodeCore<S> {
                 engine.remote(peer, topic, fx);
             }
         }
+        let (fault, inputs) = (engine.fault(), engine.inputs());
+        self.state_changed |=
+            crate::alarms::reads_changed(table, state, fault, inputs, |v| engine.var(v));
         *state = engine.snapshot();
     }
 
@@ -803,6 +812,7 @@ impl<S: StagingArea> NodeCore<S> {
                 let mut engine = Engine::resume_indexed(table, ix, state);
                 engine.sense(index as u8, level);
                 *state = engine.snapshot();
+                self.state_changed = true;
             }
             return;
         }
@@ -848,7 +858,8 @@ impl<S: StagingArea> NodeCore<S> {
                 state,
                 link_alarms,
             };
-            self.alarms.observe(seen, now);
+            let changed = core::mem::take(&mut self.state_changed);
+            self.alarms.look(seen, now, changed);
         }
     }
 
