@@ -63,11 +63,16 @@ impl Alarms {
     /// state, so with the state unchanged only the links are compared, and a look that
     /// finds them as they were returns at once: the same alarms at the same moments as
     /// [`Alarms::observe`], which looks at everything.
+    #[inline]
     pub fn look(&mut self, seen: Seen<'_>, now_ms: u64, state_changed: bool) -> usize {
-        let state_changed = state_changed || !self.looked;
-        if !state_changed && seen.link_alarms == self.links {
+        // Inline: the common look (nothing changed) costs its caller a compare.
+        if !state_changed && self.looked && seen.link_alarms == self.links {
             return 0;
         }
+        self.look_again(seen, now_ms, state_changed || !self.looked)
+    }
+
+    fn look_again(&mut self, seen: Seen<'_>, now_ms: u64, state_changed: bool) -> usize {
         self.looked = true;
         let now = now_ms as u32;
         let list = self.raised;

@@ -109,6 +109,7 @@ pub enum FlashRequest<'a> {
 
 /// `key`, if the image has frame security ([`crate::FRAME_SECURITY`]: without it every
 /// secured path is dead code and the crypto is not linked).
+#[inline(always)]
 fn gated(key: &Option<ManagementKey>) -> Option<&ManagementKey> {
     key.as_ref().filter(|_| crate::FRAME_SECURITY)
 }
@@ -236,20 +237,6 @@ impl Radio<'_> {
         msg: &Message<'_>,
         counter: Option<u32>,
     ) {
-        let mut payload = [0u8; mac::MAX_PAYLOAD];
-        let Some(payload) = msg.emit(&mut payload).ok().and_then(|n| payload.get(..n)) else {
-            return;
-        };
-        let header = Header {
-            seq: *self.mac_seq,
-            pan_id,
-            dst,
-            src: self.addr,
-            ack_request: false,
-            secured: false,
-        };
-        *self.mac_seq = self.mac_seq.wrapping_add(1);
-        let mut mpdu = [0u8; MAX_MPDU];
         let links = pan_id != CONFIG_PAN && self.links.secured();
         let key = self
             .key
@@ -262,8 +249,15 @@ impl Radio<'_> {
             None if links => Some(self.links.send_key(dst)),
             None => None,
         };
+        let mut mpdu = [0u8; MAX_MPDU];
         let emitted = match secured {
             Some(send) => {
+                let mut payload = [0u8; mac::MAX_PAYLOAD];
+                let Some(payload) = msg.emit(&mut payload).ok().and_then(|n| payload.get(..n))
+                else {
+                    return;
+                };
+                let header = self.header(pan_id, dst);
                 let Some(counter) = counter.or_else(|| io.next_frame_counter()) else {
                     self.security.no_counter += 1;
                     return;
@@ -281,12 +275,35 @@ impl Radio<'_> {
                     .ok()
                 })
             }
-            None => mac::emit_data_mpdu(&header, payload, &mut mpdu).ok(),
+            None => {
+                // The message straight into the frame after its MAC header.
+                let at = mpdu.get_mut(mac::DATA_HEADER_LEN..).unwrap_or_default();
+                let Ok(n) = msg.emit(at) else {
+                    return;
+                };
+                let header = self.header(pan_id, dst);
+                mac::finish_data_mpdu(&header, &mut mpdu, n).ok()
+            }
         };
         if let Some(frame) = emitted.and_then(|len| mpdu.get(..len)) {
             self.counters.sent += 1;
             io.transmit_mpdu(frame);
         }
+    }
+
+    /// The MAC header of the next frame to `dst` on `pan_id`: it takes the next sequence
+    /// number.
+    fn header(&mut self, pan_id: u16, dst: u16) -> Header {
+        let header = Header {
+            seq: *self.mac_seq,
+            pan_id,
+            dst,
+            src: self.addr,
+            ack_request: false,
+            secured: false,
+        };
+        *self.mac_seq = self.mac_seq.wrapping_add(1);
+        header
     }
 }
 

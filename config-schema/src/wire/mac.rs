@@ -220,7 +220,25 @@ pub fn emit_data_mpdu(
     Ok(body_len)
 }
 
+/// Finishes a data frame's MPDU whose payload (`payload_len` bytes) was written in place at
+/// `buf[DATA_HEADER_LEN..]`: writes the MAC header before it; returns the MPDU length. What
+/// a node's unsecured send does (no payload buffer, no copy).
+#[inline]
+pub fn finish_data_mpdu(
+    header: &Header,
+    buf: &mut [u8],
+    payload_len: usize,
+) -> Result<usize, FrameError> {
+    let body_len = DATA_HEADER_LEN + payload_len;
+    if body_len > MAX_MPDU || buf.len() < body_len {
+        return Err(FrameError::NoRoom);
+    }
+    emit_data_header(header, buf)?;
+    Ok(body_len)
+}
+
 /// Writes the [`DATA_HEADER_LEN`] bytes of a data frame's MAC header into `buf`.
+#[inline]
 pub(crate) fn emit_data_header(header: &Header, buf: &mut [u8]) -> Result<(), FrameError> {
     let buf = buf
         .first_chunk_mut::<DATA_HEADER_LEN>()
@@ -377,6 +395,19 @@ mod tests {
             Err(FrameError::NoRoom)
         );
         assert_eq!(append_fcs(&mut big, MAX_MPDU + 1), Err(FrameError::NoRoom));
+        // The payload written in place, the header before it: the same MPDU.
+        let mut inplace = [0u8; MAX_MPDU];
+        inplace[DATA_HEADER_LEN..DATA_HEADER_LEN + 2].copy_from_slice(&[0xAA, 0xBB]);
+        assert_eq!(finish_data_mpdu(&header(), &mut inplace, 2), Ok(m));
+        assert_eq!(&inplace[..m], &psdu[..m]);
+        assert_eq!(
+            finish_data_mpdu(&header(), &mut inplace, MAX_PAYLOAD + 1),
+            Err(FrameError::NoRoom)
+        );
+        assert_eq!(
+            finish_data_mpdu(&header(), &mut inplace[..10], 2),
+            Err(FrameError::NoRoom)
+        );
     }
 
     #[test]
