@@ -1,8 +1,10 @@
 //! The node's latched alarms (docs/running-a-robot.md, "Alarms"): `no_std`, allocation
 //! free, shared by [`crate::node::NodeCore`] and the simulator.
 //!
-//! After every stimulus the node calls [`Alarms::observe`] with its table and engine
-//! state: a fault of the node, the emergency stop pressed, a link gone into alarm or a
+//! After every stimulus the node calls [`Alarms::look`] with its table and engine state
+//! (and whether it wrote the state since the last look: if not, only the links are
+//! compared, the rest cannot have changed; the simulator calls [`Alarms::observe`], which
+//! looks at everything): a fault of the node, the emergency stop pressed, a link gone into alarm or a
 //! declared condition become true raises an alarm (one per rising cause; a cause that
 //! rises again while its alarm is still latched raises nothing new). An alarm stays latched
 //! until [`Alarms::ack`]; a fault alarm whose cause persists is not acknowledged. While a
@@ -43,6 +45,8 @@ pub struct Alarms {
     declared: u8,
     /// Alarms latched so far (wrapping): what one observation latched.
     raised: u16,
+    /// The causes above are those of the running table (false: looked at afresh next).
+    looked: bool,
 }
 
 impl Alarms {
@@ -50,8 +54,56 @@ impl Alarms {
     /// for each cause that rose since the last look. Returns how many it latched (the
     /// newest of [`Alarms::list`]).
     pub fn observe(&mut self, seen: Seen<'_>, now_ms: u64) -> usize {
+        self.look(seen, now_ms, true)
+    }
+
+    /// [`Alarms::observe`] for a caller that knows whether the engine state changed since
+    /// the last look (`state_changed`; the node core sets it wherever it writes the state).
+    /// The fault, the e-stop and the declared conditions read only the table and the
+    /// state, so with the state unchanged only the links are compared, and a look that
+    /// finds them as they were returns at once: the same alarms at the same moments as
+    /// [`Alarms::observe`], which looks at everything.
+    #[inline]
+    pub fn look(&mut self, seen: Seen<'_>, now_ms: u64, state_changed: bool) -> usize {
+        // Inline: the common look (nothing changed) costs its caller a compare.
+        if !state_changed && self.looked && seen.link_alarms == self.links {
+            return 0;
+        }
+        self.look_again(seen, now_ms, state_changed || !self.looked)
+    }
+
+    fn look_again(&mut self, seen: Seen<'_>, now_ms: u64, state_changed: bool) -> usize {
+        self.looked = true;
         let now = now_ms as u32;
         let list = self.raised;
+        if state_changed {
+            self.look_at_state(seen, now);
+        }
+        let mut rose = seen.link_alarms & !self.links;
+        if rose != 0 {
+            let level = if seen.table.safety.link_fault {
+                AlarmLevel::Fault
+            } else {
+                AlarmLevel::Warning
+            };
+            // Lowest peer first.
+            while rose != 0 {
+                let peer = rose.trailing_zeros() as u8;
+                self.raise(AlarmSource::Link { peer }, level, now);
+                rose &= rose - 1;
+            }
+        }
+        self.links = seen.link_alarms;
+        if state_changed {
+            self.look_at_declared(seen, now);
+        }
+        let n = self.raised.wrapping_sub(list);
+        usize::from(n)
+    }
+
+    /// The causes read from the table and the engine state before the links: the e-stop,
+    /// then the node's fault.
+    fn look_at_state(&mut self, seen: Seen<'_>, now: u32) {
         let estop = estop_pressed(seen);
         if estop && !self.estop {
             self.raise(AlarmSource::EStop, AlarmLevel::Fault, now);
@@ -75,16 +127,10 @@ impl Alarms {
             }
         }
         self.faulted = faulted.is_some();
-        let rose = seen.link_alarms & !self.links;
-        let level = if seen.table.safety.link_fault {
-            AlarmLevel::Fault
-        } else {
-            AlarmLevel::Warning
-        };
-        for peer in (0..8u8).filter(|p| rose & (1 << p) != 0) {
-            self.raise(AlarmSource::Link { peer }, level, now);
-        }
-        self.links = seen.link_alarms;
+    }
+
+    /// The declared conditions, raised after the links as [`Alarms::observe`] always did.
+    fn look_at_declared(&mut self, seen: Seen<'_>, now: u32) {
         let mut declared = 0u8;
         for (i, a) in seen
             .table
@@ -103,8 +149,6 @@ impl Alarms {
             }
         }
         self.declared = declared;
-        let n = self.raised.wrapping_sub(list);
-        usize::from(n)
     }
 
     fn raise(&mut self, source: AlarmSource, level: AlarmLevel, now: u32) {
@@ -204,7 +248,30 @@ impl Alarms {
         self.estop = false;
         self.links = 0;
         self.declared = 0;
+        self.looked = false;
     }
+}
+
+/// Whether an engine that now has `fault`, `inputs` and variables `var` (the engine's
+/// accessors, read before its snapshot) changed what the alarms read from the state since
+/// `before`: the inputs (the e-stop's) and the fault; the table's variables too if it
+/// declares alarms (their conditions read inputs and variables; a variable past the
+/// table's is never written). The node core asks this where a stimulus writes the state
+/// ([`Alarms::look`]'s `state_changed`): a chart that moves without touching any of these
+/// leaves the alarms nothing to look at.
+pub fn reads_changed(
+    table: &Table,
+    before: &EngineState,
+    fault: Option<Fault>,
+    inputs: u16,
+    var: impl Fn(usize) -> Option<i32>,
+) -> bool {
+    before.fault != fault
+        || before.inputs != inputs
+        || (!table.safety.alarms.is_empty()
+            && (before.vars.iter().take(table.vars.len()))
+                .enumerate()
+                .any(|(v, &x)| var(v) != Some(x)))
 }
 
 /// Whether the table's emergency-stop input is high.

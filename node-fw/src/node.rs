@@ -7,7 +7,7 @@
 
 use config_schema::limits::{MAX_PEERS, MAX_TIMERS};
 use config_schema::link_keys::LinkKeys;
-use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
+use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_MPDU, MAX_PSDU};
 use config_schema::wire::msg::{
     Announce, Command, ConfigReply, Counters, Message, Refusal, RuntimeCounters, SecurityCounters,
     SecurityReport, Status, SwitchStep,
@@ -34,8 +34,22 @@ pub const CONFIG_PAN: u16 = 0xFFFF;
 
 /// What the node does to the world.
 pub trait Io {
-    /// Transmit a PSDU (FCS included).
+    /// Transmit a PSDU (FCS included): a harness on a medium that carries the FCS.
     fn transmit(&mut self, psdu: &[u8]);
+    /// Transmit an MPDU (no FCS: the radio edge appends it, `mac::append_fcs`, or the
+    /// radio does in hardware). The core sends every frame through this; the default
+    /// appends the FCS here and hands the PSDU to [`Io::transmit`], a board's radio path
+    /// takes the MPDU as it is.
+    fn transmit_mpdu(&mut self, mpdu: &[u8]) {
+        let mut psdu = [0u8; MAX_PSDU];
+        let Some(body) = psdu.get_mut(..mpdu.len()) else {
+            return;
+        };
+        body.copy_from_slice(mpdu);
+        if let Ok(n) = mac::append_fcs(&mut psdu, mpdu.len()) {
+            self.transmit(psdu.get(..n).unwrap_or(&[]));
+        }
+    }
     /// Drive board pin `pin` to `level`.
     fn set_pin(&mut self, pin: u8, level: bool);
     /// The node runs table generation `generation` from now on (at boot and at every
@@ -95,6 +109,7 @@ pub enum FlashRequest<'a> {
 
 /// `key`, if the image has frame security ([`crate::FRAME_SECURITY`]: without it every
 /// secured path is dead code and the crypto is not linked).
+#[inline(always)]
 fn gated(key: &Option<ManagementKey>) -> Option<&ManagementKey> {
     key.as_ref().filter(|_| crate::FRAME_SECURITY)
 }
@@ -150,6 +165,9 @@ pub struct NodeCore<S = RamStaging> {
     peer_security: PeerSecurity,
     /// The latched alarms.
     alarms: Alarms,
+    /// The engine state was written since the alarms last looked (they look at the rest,
+    /// the links, every time): set wherever `state` is written.
+    state_changed: bool,
 }
 
 /// What the running engine is given (one [`NodeCore::run`] for all of them).
@@ -219,20 +237,6 @@ impl Radio<'_> {
         msg: &Message<'_>,
         counter: Option<u32>,
     ) {
-        let mut payload = [0u8; mac::MAX_PAYLOAD];
-        let Some(payload) = msg.emit(&mut payload).ok().and_then(|n| payload.get(..n)) else {
-            return;
-        };
-        let header = Header {
-            seq: *self.mac_seq,
-            pan_id,
-            dst,
-            src: self.addr,
-            ack_request: false,
-            secured: false,
-        };
-        *self.mac_seq = self.mac_seq.wrapping_add(1);
-        let mut psdu = [0u8; MAX_PSDU];
         let links = pan_id != CONFIG_PAN && self.links.secured();
         let key = self
             .key
@@ -245,31 +249,61 @@ impl Radio<'_> {
             None if links => Some(self.links.send_key(dst)),
             None => None,
         };
+        let mut mpdu = [0u8; MAX_MPDU];
         let emitted = match secured {
             Some(send) => {
+                let mut payload = [0u8; mac::MAX_PAYLOAD];
+                let Some(payload) = msg.emit(&mut payload).ok().and_then(|n| payload.get(..n))
+                else {
+                    return;
+                };
+                let header = self.header(pan_id, dst);
                 let Some(counter) = counter.or_else(|| io.next_frame_counter()) else {
                     self.security.no_counter += 1;
                     return;
                 };
                 // No key for `dst` (not a peer): nothing is sent in clear instead.
                 send.and_then(|(key, index)| {
-                    security::secure_default_with::<NodeCipher>(
+                    security::secure_default_mpdu_with::<NodeCipher>(
                         &header,
                         &AuxRepr::new(index, counter),
                         &key,
                         ext_addr(pan_id, self.addr),
                         payload,
-                        &mut psdu,
+                        &mut mpdu,
                     )
                     .ok()
                 })
             }
-            None => mac::emit_data(&header, payload, &mut psdu).ok(),
+            None => {
+                // The message straight into the frame after its MAC header.
+                let at = mpdu.get_mut(mac::DATA_HEADER_LEN..).unwrap_or_default();
+                let Ok(n) = msg.emit(at) else {
+                    return;
+                };
+                let header = self.header(pan_id, dst);
+                mac::finish_data_mpdu(&header, &mut mpdu, n).ok()
+            }
         };
-        if let Some(len) = emitted {
+        if let Some(frame) = emitted.and_then(|len| mpdu.get(..len)) {
             self.counters.sent += 1;
-            io.transmit(&psdu[..len]);
+            io.transmit_mpdu(frame);
         }
+    }
+
+    /// The MAC header of the next frame to `dst` on `pan_id`: it takes the next sequence
+    /// number.
+    fn header(&mut self, pan_id: u16, dst: u16) -> Header {
+        let header = Header {
+            seq: *self.mac_seq,
+            pan_id,
+            dst,
+            src: self.addr,
+            ack_request: false,
+            secured: false,
+        };
+        *self.mac_seq = self.mac_seq.wrapping_add(1);
+        header
     }
 }
 
@@ -356,6 +390,7 @@ impl<S: StagingArea> NodeCore<S> {
             next_challenge: 0,
             peer_security: PeerSecurity::default(),
             alarms: Alarms::default(),
+            state_changed: true,
         };
         if let Some(t) = table.filter(|t| t.missing_pin(board_pins).is_none()) {
             node.install(t, None, false);
@@ -421,6 +456,7 @@ impl<S: StagingArea> NodeCore<S> {
                 engine.sense(i as u8, level(pins, input.pin));
             }
             *state = engine.snapshot();
+            self.state_changed = true;
         }
     }
 
@@ -484,6 +520,7 @@ impl<S: StagingArea> NodeCore<S> {
             engine.sense(i as u8, level(self.pins, input.pin));
         }
         self.state = Some(engine.snapshot());
+        self.state_changed = true;
         self.timers = [None; MAX_TIMERS];
         self.epoch = self.epoch.wrapping_add(1);
         self.senders.clear();
@@ -726,6 +763,9 @@ impl<S: StagingArea> NodeCore<S> {
                 engine.remote(peer, topic, fx);
             }
         }
+        let (fault, inputs) = (engine.fault(), engine.inputs());
+        self.state_changed |=
+            crate::alarms::reads_changed(table, state, fault, inputs, |v| engine.var(v));
         *state = engine.snapshot();
     }
 
@@ -789,6 +829,7 @@ impl<S: StagingArea> NodeCore<S> {
                 let mut engine = Engine::resume_indexed(table, ix, state);
                 engine.sense(index as u8, level);
                 *state = engine.snapshot();
+                self.state_changed = true;
             }
             return;
         }
@@ -834,7 +875,8 @@ impl<S: StagingArea> NodeCore<S> {
                 state,
                 link_alarms,
             };
-            self.alarms.observe(seen, now);
+            let changed = core::mem::take(&mut self.state_changed);
+            self.alarms.look(seen, now, changed);
         }
     }
 
@@ -950,15 +992,33 @@ impl<S: StagingArea> NodeCore<S> {
         s
     }
 
-    /// A PSDU arrived.
+    /// A PSDU arrived (FCS included): a harness on a medium that carries the FCS. The FCS
+    /// is checked and cut off here, a bad one dropped and counted as the radio edge does
+    /// ([`NodeCore::dropped_at_edge`]), and the MPDU goes to [`NodeCore::receive_mpdu`].
     pub fn receive(&mut self, psdu: &[u8], now: u64, io: &mut impl Io) {
-        self.receive_frame(psdu, now, io);
+        match mac::strip_fcs(psdu) {
+            Ok(mpdu) => self.receive_mpdu(mpdu, now, io),
+            Err(_) => self.dropped_at_edge(),
+        }
+    }
+
+    /// An MPDU arrived (the frame without its FCS, checked at the radio edge: the board's
+    /// radio in hardware, the host medium transport or the QEMU UART in software).
+    pub fn receive_mpdu(&mut self, mpdu: &[u8], now: u64, io: &mut impl Io) {
+        self.receive_frame(mpdu, now, io);
         self.look(now, io);
         self.note_idle();
     }
 
-    fn receive_frame(&mut self, psdu: &[u8], now: u64, io: &mut impl Io) {
-        let (header, payload) = match Frame::parse(psdu) {
+    /// The radio edge dropped a frame (its FCS did not match, or it was not a PSDU):
+    /// counted with the frames the core drops. Nothing else changes (no stimulus: the
+    /// alarms have nothing new to look at).
+    pub fn dropped_at_edge(&mut self) {
+        self.counters.dropped += 1;
+    }
+
+    fn receive_frame(&mut self, mpdu: &[u8], now: u64, io: &mut impl Io) {
+        let (header, payload) = match Frame::parse_mpdu(mpdu) {
             Ok(Frame::Data { header, payload }) => (header, payload),
             _ => {
                 self.counters.dropped += 1;
@@ -992,8 +1052,8 @@ impl<S: StagingArea> NodeCore<S> {
             if peers {
                 self.peer_security.note_frame(now);
             }
-            let opened = security::open_default_with::<NodeCipher, _>(
-                psdu,
+            let opened = security::open_default_mpdu_with::<NodeCipher, _>(
+                mpdu,
                 |header, aux| self.lookup(header, aux, now),
                 &mut scratch,
             );
@@ -1005,7 +1065,7 @@ impl<S: StagingArea> NodeCore<S> {
                     } else {
                         let staged = self.switch.staged();
                         self.peer_security
-                            .refused(psdu, staged, e, &mut self.security);
+                            .refused(mpdu, staged, e, &mut self.security);
                     }
                     self.counters.dropped += 1;
                     return;

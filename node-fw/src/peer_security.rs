@@ -234,18 +234,25 @@ impl PeerSecurity {
             return Verdict::Dropped;
         }
         self.note_frame(now);
-        let opened = security::open_default_with::<NodeCipher, _>(
-            psdu,
-            |header, aux| self.lookup(header, aux, me, now),
-            scratch,
-        );
+        // The FCS is the radio edge's: checked here for a PSDU off the medium.
+        let (mpdu, opened) = match config_schema::wire::mac::strip_fcs(psdu) {
+            Ok(mpdu) => (
+                mpdu,
+                security::open_default_mpdu_with::<NodeCipher, _>(
+                    mpdu,
+                    |header, aux| self.lookup(header, aux, me, now),
+                    scratch,
+                ),
+            ),
+            Err(e) => (psdu, Err(SecError::from(e))),
+        };
         match opened {
             Ok(opened) => {
                 let message = Message::parse(opened.payload);
                 self.admit(&opened, &message, now, counters)
             }
             Err(e) => {
-                self.refused(psdu, staged, e, counters);
+                self.refused(mpdu, staged, e, counters);
                 Verdict::Dropped
             }
         }
@@ -274,10 +281,10 @@ impl PeerSecurity {
             .map(|k| (k, ext_addr(header.pan_id, header.src)))
     }
 
-    /// A peer's frame `psdu` did not open (`e`): counted by its reason, unless it is under
+    /// A peer's frame `mpdu` (no FCS) did not open (`e`): counted by its reason, unless it is under
     /// the key index of `staged` (a peer that switched a moment earlier).
-    pub fn refused(&self, psdu: &[u8], staged: u32, e: SecError, counters: &mut SecurityCounters) {
-        if !(e == SecError::UnknownKey && staged != 0 && ahead(psdu, staged)) {
+    pub fn refused(&self, mpdu: &[u8], staged: u32, e: SecError, counters: &mut SecurityCounters) {
+        if !(e == SecError::UnknownKey && staged != 0 && ahead(mpdu, staged)) {
             count_refusal(e, counters);
         }
     }
@@ -452,9 +459,9 @@ pub fn accept<const N: usize>(
     }
 }
 
-/// Whether `psdu` is secured under the key index of generation `staged`.
-fn ahead(psdu: &[u8], staged: u32) -> bool {
-    match config_schema::wire::mac::Frame::parse(psdu) {
+/// Whether `mpdu` is secured under the key index of generation `staged`.
+fn ahead(mpdu: &[u8], staged: u32) -> bool {
+    match config_schema::wire::mac::Frame::parse_mpdu(mpdu) {
         Ok(config_schema::wire::mac::Frame::Data { payload, .. }) => {
             security::AuxHeader::new_checked(payload)
                 .is_ok_and(|aux| aux.key_index() == Some(link_key_index(staged)))

@@ -25,7 +25,7 @@ use core::convert::Infallible;
 
 use config_schema::limits::MAX_BLOB;
 use config_schema::link_keys::{decode_deployment, LinkKeys};
-use config_schema::wire::mac::MAX_PSDU;
+use config_schema::wire::mac::{MAX_MPDU, MAX_PSDU};
 use config_schema::Table;
 use embassy_futures::block_on;
 use embassy_futures::select::{select3, select_array, Either3};
@@ -57,19 +57,58 @@ pub const SEND_TIMEOUT_MS: u64 = 100;
 /// The longest single sleep of the main loop (the deadline is recomputed after it).
 pub const MAX_SLEEP_MS: u64 = 60_000;
 
-/// One PSDU (FCS included).
+/// One PSDU (FCS included): a frame as the medium and the UART carry it.
 pub type Psdu = Vec<u8, MAX_PSDU>;
 
-/// The radio: an IEEE 802.15.4 transceiver, or a connection to a simulated medium.
+/// What the radio received.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Received {
+    /// An MPDU of this many bytes (its FCS checked and cut off at the radio edge).
+    Mpdu(usize),
+    /// A frame the edge refused (its FCS did not match, or not a PSDU): the core counts it
+    /// ([`NodeCore::dropped_at_edge`]).
+    Dropped,
+}
+
+/// The radio edge in software, for a transport that carries PSDUs (the host medium, the
+/// QEMU UART): checks `psdu`'s FCS and copies its MPDU to the start of `buf`.
+pub fn mpdu_of(psdu: &[u8], buf: &mut [u8; MAX_PSDU]) -> Received {
+    let Ok(mpdu) = config_schema::wire::mac::strip_fcs(psdu) else {
+        return Received::Dropped;
+    };
+    match buf.get_mut(..mpdu.len()) {
+        Some(dst) => {
+            dst.copy_from_slice(mpdu);
+            Received::Mpdu(mpdu.len())
+        }
+        None => Received::Dropped,
+    }
+}
+
+/// The radio edge in software on transmit: `mpdu` with its FCS appended, as the medium and
+/// the UART carry it (`None`: longer than an MPDU).
+pub fn psdu_of(mpdu: &[u8]) -> Option<Psdu> {
+    let mut psdu = Psdu::new();
+    psdu.extend_from_slice(mpdu).ok()?;
+    psdu.extend_from_slice(&[0, 0]).ok()?;
+    let n = config_schema::wire::mac::append_fcs(&mut psdu, mpdu.len()).ok()?;
+    psdu.truncate(n);
+    Some(psdu)
+}
+
+/// The radio: an IEEE 802.15.4 transceiver, or a connection to a simulated medium. The
+/// core deals in MPDUs (frames without their FCS); the radio adds and checks the FCS, in
+/// hardware (the nRF52840) or at the transport's edge ([`psdu_of`], [`mpdu_of`]).
 #[allow(async_fn_in_trait)]
 pub trait Radio {
     type Error: core::fmt::Debug;
-    /// Transmits one PSDU (FCS included).
-    async fn send(&mut self, psdu: &[u8]) -> Result<(), Self::Error>;
-    /// Receives one PSDU into `buf`; returns its length. Must be cancel-safe: the runtime
-    /// drops an unfinished receive when an input or a timer wins, losing at most the frame
-    /// in flight. An error stops the runtime (the radio is gone).
-    async fn receive(&mut self, buf: &mut [u8; MAX_PSDU]) -> Result<usize, Self::Error>;
+    /// Transmits one MPDU (the radio appends the FCS).
+    async fn send(&mut self, mpdu: &[u8]) -> Result<(), Self::Error>;
+    /// Receives one frame into `buf`: its MPDU, the FCS checked and cut off, or that the
+    /// edge dropped it. Must be cancel-safe: the runtime drops an unfinished receive when
+    /// an input or a timer wins, losing at most the frame in flight. An error stops the
+    /// runtime (the radio is gone).
+    async fn receive(&mut self, buf: &mut [u8; MAX_PSDU]) -> Result<Received, Self::Error>;
 }
 
 /// The outputs, addressed by the table's pin numbers.
@@ -367,12 +406,12 @@ impl TxQueue {
         }
     }
 
-    /// Appends `psdu`; `false` (nothing queued) if the queue is full.
-    fn push(&mut self, psdu: &[u8]) -> bool {
-        let Ok(len) = u8::try_from(psdu.len()) else {
+    /// Appends `mpdu`; `false` (nothing queued) if the queue is full.
+    fn push(&mut self, mpdu: &[u8]) -> bool {
+        let Ok(len) = u8::try_from(mpdu.len()) else {
             return false;
         };
-        let Some(dst) = self.bytes.get_mut(self.end..self.end + 1 + psdu.len()) else {
+        let Some(dst) = self.bytes.get_mut(self.end..self.end + 1 + mpdu.len()) else {
             return false;
         };
         if self.frames >= TX_QUEUE {
@@ -380,9 +419,9 @@ impl TxQueue {
         }
         if let Some((first, rest)) = dst.split_first_mut() {
             *first = len;
-            rest.copy_from_slice(psdu);
+            rest.copy_from_slice(mpdu);
         }
-        self.end += 1 + psdu.len();
+        self.end += 1 + mpdu.len();
         self.frames += 1;
         true
     }
@@ -419,12 +458,19 @@ struct CoreIo<'a, P> {
 }
 
 impl<P: Pins> Io for CoreIo<'_, P> {
+    /// The core sends MPDUs ([`Io::transmit_mpdu`]); a PSDU is queued as its MPDU.
     fn transmit(&mut self, psdu: &[u8]) {
-        if psdu.len() > MAX_PSDU {
+        match config_schema::wire::mac::strip_fcs(psdu) {
+            Ok(mpdu) => self.transmit_mpdu(mpdu),
+            Err(_) => self.stats.tx_failed += 1,
+        }
+    }
+    fn transmit_mpdu(&mut self, mpdu: &[u8]) {
+        if mpdu.len() > MAX_MPDU {
             self.stats.tx_failed += 1;
             return;
         }
-        if !self.tx.push(psdu) {
+        if !self.tx.push(mpdu) {
             self.stats.tx_queue_full += 1;
         }
         self.stats.tx_queue_high = self.stats.tx_queue_high.max(self.tx.len() as u32);
@@ -937,8 +983,8 @@ where
             fault = now;
         }
 
-        while let Some(psdu) = io.tx.front() {
-            let sent = with_timeout(Duration::from_millis(SEND_TIMEOUT_MS), radio.send(psdu)).await;
+        while let Some(mpdu) = io.tx.front() {
+            let sent = with_timeout(Duration::from_millis(SEND_TIMEOUT_MS), radio.send(mpdu)).await;
             if !matches!(sent, Ok(Ok(()))) {
                 io.stats.tx_failed += 1;
             }
@@ -953,12 +999,13 @@ where
         )
         .await
         {
-            Either3::First(Ok(n)) => {
-                let psdu = rx.get(..n).unwrap_or(&rx);
+            Either3::First(Ok(Received::Mpdu(n))) => {
+                let mpdu = rx.get(..n).unwrap_or(&rx);
                 probe.start();
-                core.receive(psdu, now_ms(), &mut io);
+                core.receive_mpdu(mpdu, now_ms(), &mut io);
                 probe.stop(Work::Frame);
             }
+            Either3::First(Ok(Received::Dropped)) => core.dropped_at_edge(),
             Either3::First(Err(e)) => return Err(Stop::Radio(e)),
             Either3::Second((pin, level)) => {
                 probe.start();

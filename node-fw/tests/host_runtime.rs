@@ -23,7 +23,9 @@ use embedded_hal_async::digital::Wait;
 use embedded_storage_async::nor_flash::{self as nor, NorFlash, ReadNorFlash};
 use node_fw::host::block_on;
 use node_fw::node::CONFIG_PAN;
-use node_fw::runtime::{self, Board, Inputs, Pins, Radio, Stats, Stop, WaitInputs};
+use node_fw::runtime::{
+    self, mpdu_of, psdu_of, Board, Inputs, Pins, Radio, Received, Stats, Stop, WaitInputs,
+};
 use node_fw::slots::{PowerCut, RamFlash, Slots};
 use node_fw::{ota, switch};
 use test_tables::{blob, lamp_table, BEACON, BUTTON, LAMP};
@@ -146,18 +148,19 @@ struct FakeRadio(Rc<Air>);
 
 impl Radio for FakeRadio {
     type Error = &'static str;
-    async fn send(&mut self, psdu: &[u8]) -> Result<(), &'static str> {
+    // The radio edge in software: the air carries PSDUs.
+    async fn send(&mut self, mpdu: &[u8]) -> Result<(), &'static str> {
         if self.0.swallow.get() > 0 {
             self.0.swallow.set(self.0.swallow.get() - 1);
             return core::future::pending().await;
         }
+        let psdu = psdu_of(mpdu).ok_or("not an MPDU")?;
         self.0.from_node.borrow_mut().push(psdu.to_vec());
         Ok(())
     }
-    async fn receive(&mut self, buf: &mut [u8; MAX_PSDU]) -> Result<usize, &'static str> {
+    async fn receive(&mut self, buf: &mut [u8; MAX_PSDU]) -> Result<Received, &'static str> {
         let psdu = self.0.to_node.receive().await.ok_or("gone")?;
-        buf[..psdu.len()].copy_from_slice(&psdu);
-        Ok(psdu.len())
+        Ok(mpdu_of(&psdu, buf))
     }
 }
 

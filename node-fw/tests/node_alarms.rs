@@ -184,3 +184,48 @@ fn a_link_alarm_faults_the_node_only_under_link_fault() {
         }
     }
 }
+
+/// A press refused while a fault alarm is latched still changes what the node senses
+/// (the engine senses the level, and returns before the alarms look): a declared warning on
+/// the button is raised at the next look, the poll at 250, and not missed by the looks
+/// after it (the alarms look at the state only when the core says it changed).
+#[test]
+fn a_refused_press_raises_the_warning_it_causes_at_the_next_look() {
+    let mut node = {
+        let mut t = lamp_table(1);
+        t.start = t.inputs[0].rise;
+        let cause = Input {
+            pin: CAUSE,
+            rise: None,
+            fall: None,
+            var: None,
+        };
+        t.inputs.push(cause).unwrap();
+        for (input, level) in [(1, AlarmLevel::Fault), (0, AlarmLevel::Warning)] {
+            let when = t.push_expr(&[Op::Input(input)]).unwrap();
+            t.safety.alarms.push(AlarmDecl { level, when }).unwrap();
+        }
+        NodeCore::new(NODE, u64::MAX, Some(load(t)), 1)
+    };
+    let mut board = Board::default();
+    node.poll(0, &mut board);
+    node.input(CAUSE, true, 100, &mut board);
+    node.input(BUTTON, true, 210, &mut board);
+    assert!(!board.lamp, "START was refused");
+    node.poll(250, &mut board);
+    // Frames and polls that change nothing raise nothing.
+    node.poll(260, &mut board);
+    let r = alarms(&mut node, &mut board, 1, Command::Alarms, 300);
+    let got: Vec<_> = r
+        .alarms
+        .iter()
+        .map(|a| (a.source, a.level, a.raised_ms))
+        .collect();
+    assert_eq!(
+        got,
+        [
+            (AlarmSource::Declared { index: 0 }, AlarmLevel::Fault, 100),
+            (AlarmSource::Declared { index: 1 }, AlarmLevel::Warning, 250),
+        ]
+    );
+}

@@ -158,11 +158,18 @@ mod node {
 
     impl Io for Board {
         fn transmit(&mut self, psdu: &[u8]) {
+            // The core sends MPDUs (`transmit_mpdu`): a PSDU is kept as its MPDU.
+            if let Ok(mpdu) = config_schema::wire::mac::strip_fcs(psdu) {
+                self.transmit_mpdu(mpdu);
+            }
+        }
+        /// A board's radio path: the MPDU as the core sends it (the FCS is the radio's).
+        fn transmit_mpdu(&mut self, mpdu: &[u8]) {
             if let (Some(f), Some(l)) =
                 (self.frames.get_mut(self.sent), self.lens.get_mut(self.sent))
             {
-                let n = psdu.len().min(127);
-                f[..n].copy_from_slice(&psdu[..n]);
+                let n = mpdu.len().min(127);
+                f[..n].copy_from_slice(&mpdu[..n]);
                 *l = n;
                 self.sent += 1;
             }
@@ -213,15 +220,15 @@ mod node {
     }
 
     #[inline(never)]
-    fn b_event(b: &mut NodeCore, psdu: &[u8], now: u64, io: &mut Board) {
+    fn b_event(b: &mut NodeCore, mpdu: &[u8], now: u64, io: &mut Board) {
         black_box(3u8); // keeps the four probes apart (no identical-code folding)
-        b.receive(black_box(psdu), now, io);
+        b.receive_mpdu(black_box(mpdu), now, io);
     }
 
     #[inline(never)]
-    fn a_ack(a: &mut NodeCore, psdu: &[u8], now: u64, io: &mut Board) {
+    fn a_ack(a: &mut NodeCore, mpdu: &[u8], now: u64, io: &mut Board) {
         black_box(4u8); // keeps the four probes apart (no identical-code folding)
-        a.receive(black_box(psdu), now, io);
+        a.receive_mpdu(black_box(mpdu), now, io);
     }
 
     /// Moves what `from` sent to `to` through `deliver`; returns how many frames.

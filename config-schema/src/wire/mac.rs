@@ -5,6 +5,13 @@
 //! Anything else (beacons, MAC commands, extended addresses, inter-PAN frames) is parsed far
 //! enough to be rejected with [`FrameError::Unsupported`].
 //!
+//! The FCS seam: the node core deals in MPDUs, the frame without its FCS
+//! ([`Frame::parse_mpdu`], [`emit_data_mpdu`]); the radio edge adds and checks the FCS
+//! ([`append_fcs`], [`strip_fcs`]): the nRF52840's radio in hardware, the host medium
+//! transport and the QEMU UART in software. What travels on the medium, in pcap files and
+//! through the tool's radio are PSDUs with a correct FCS ([`Frame::parse`], [`emit_data`],
+//! [`emit_ack`]: the same codec with the FCS step at either end).
+//!
 //! Security: the frame-control "security enabled" bit is carried in [`Header::secured`].
 //! A secured frame has an auxiliary security header after the addressing fields and a MIC
 //! before the FCS; this module hands its payload out untouched, and [`super::security`]
@@ -22,6 +29,8 @@ use core::fmt;
 pub const MAX_PSDU: usize = 127;
 /// Frame check sequence length.
 pub const FCS_LEN: usize = 2;
+/// Largest MPDU (a PSDU without its FCS): what the node core sends and receives.
+pub const MAX_MPDU: usize = MAX_PSDU - FCS_LEN;
 /// MAC header length of a data frame with short addresses and PAN ID compression.
 pub const DATA_HEADER_LEN: usize = 9;
 /// Largest payload of such a data frame.
@@ -92,7 +101,10 @@ pub enum Frame<'a> {
     Ack { seq: u8, pending: bool },
 }
 
-fn check_fcs(psdu: &[u8]) -> Result<&[u8], FrameError> {
+/// The radio edge on receipt: checks a PSDU's FCS and returns the MPDU before it.
+/// [`FrameError::Oversized`] past [`MAX_PSDU`], [`FrameError::Truncated`] shorter than the
+/// FCS, [`FrameError::BadFcs`] if it does not match. Never panics.
+pub fn strip_fcs(psdu: &[u8]) -> Result<&[u8], FrameError> {
     if psdu.len() > MAX_PSDU {
         return Err(FrameError::Oversized);
     }
@@ -116,9 +128,17 @@ fn le16(bytes: &[u8], at: usize) -> Result<u16, FrameError> {
 }
 
 impl<'a> Frame<'a> {
-    /// Parses a PSDU (FCS included). Never panics.
+    /// Parses a PSDU (FCS included): [`strip_fcs`], then [`Frame::parse_mpdu`]. Never
+    /// panics.
     pub fn parse(psdu: &'a [u8]) -> Result<Frame<'a>, FrameError> {
-        let body = check_fcs(psdu)?;
+        Frame::parse_mpdu(strip_fcs(psdu)?)
+    }
+
+    /// Parses an MPDU (the frame without its FCS, checked at the radio edge). Never panics.
+    pub fn parse_mpdu(body: &'a [u8]) -> Result<Frame<'a>, FrameError> {
+        if body.len() > MAX_MPDU {
+            return Err(FrameError::Oversized);
+        }
         let fc = le16(body, 0)?;
         let seq = *body.get(2).ok_or(FrameError::Truncated)?;
         let frame_type = fc & 0b111;
@@ -159,8 +179,9 @@ impl<'a> Frame<'a> {
     }
 }
 
-/// Appends the FCS over `buf[..body_len]`; returns the PSDU length.
-pub(crate) fn finish(buf: &mut [u8], body_len: usize) -> Result<usize, FrameError> {
+/// The radio edge on transmit: appends the FCS over the MPDU `buf[..body_len]`; returns the
+/// PSDU length.
+pub fn append_fcs(buf: &mut [u8], body_len: usize) -> Result<usize, FrameError> {
     let total = body_len + FCS_LEN;
     if total > MAX_PSDU {
         return Err(FrameError::NoRoom);
@@ -175,16 +196,49 @@ pub(crate) fn finish(buf: &mut [u8], body_len: usize) -> Result<usize, FrameErro
 /// Writes a data frame (FCS included) into `buf`; returns the PSDU length.
 pub fn emit_data(header: &Header, payload: &[u8], buf: &mut [u8]) -> Result<usize, FrameError> {
     let body_len = DATA_HEADER_LEN + payload.len();
-    if body_len + FCS_LEN > MAX_PSDU || buf.len() < body_len + FCS_LEN {
+    if buf.len() < body_len + FCS_LEN {
+        return Err(FrameError::NoRoom);
+    }
+    let body_len = emit_data_mpdu(header, payload, buf)?;
+    append_fcs(buf, body_len)
+}
+
+/// Writes a data frame's MPDU (no FCS: the radio edge appends it) into `buf`; returns its
+/// length, at most [`MAX_MPDU`].
+pub fn emit_data_mpdu(
+    header: &Header,
+    payload: &[u8],
+    buf: &mut [u8],
+) -> Result<usize, FrameError> {
+    let body_len = DATA_HEADER_LEN + payload.len();
+    if body_len > MAX_MPDU || buf.len() < body_len {
         return Err(FrameError::NoRoom);
     }
     emit_data_header(header, buf)?;
     let body = buf.get_mut(DATA_HEADER_LEN..body_len);
     super::copy(body.ok_or(FrameError::NoRoom)?, payload).ok_or(FrameError::NoRoom)?;
-    finish(buf, body_len)
+    Ok(body_len)
+}
+
+/// Finishes a data frame's MPDU whose payload (`payload_len` bytes) was written in place at
+/// `buf[DATA_HEADER_LEN..]`: writes the MAC header before it; returns the MPDU length. What
+/// a node's unsecured send does (no payload buffer, no copy).
+#[inline]
+pub fn finish_data_mpdu(
+    header: &Header,
+    buf: &mut [u8],
+    payload_len: usize,
+) -> Result<usize, FrameError> {
+    let body_len = DATA_HEADER_LEN + payload_len;
+    if body_len > MAX_MPDU || buf.len() < body_len {
+        return Err(FrameError::NoRoom);
+    }
+    emit_data_header(header, buf)?;
+    Ok(body_len)
 }
 
 /// Writes the [`DATA_HEADER_LEN`] bytes of a data frame's MAC header into `buf`.
+#[inline]
 pub(crate) fn emit_data_header(header: &Header, buf: &mut [u8]) -> Result<(), FrameError> {
     let buf = buf
         .first_chunk_mut::<DATA_HEADER_LEN>()
@@ -220,7 +274,7 @@ pub fn emit_ack(seq: u8, pending: bool, buf: &mut [u8]) -> Result<usize, FrameEr
     }
     buf[0..2].copy_from_slice(&fc.to_le_bytes());
     buf[2] = seq;
-    finish(buf, 3)
+    append_fcs(buf, 3)
 }
 
 /// Airtime of a PSDU at 250 kbit/s in microseconds, PHY overhead included (4 bytes preamble,
@@ -305,6 +359,55 @@ mod tests {
         let fcs = FCS.checksum(&beacon[..3]).to_le_bytes();
         beacon[3..5].copy_from_slice(&fcs);
         assert_eq!(Frame::parse(&beacon), Err(FrameError::Unsupported));
+    }
+
+    #[test]
+    fn the_mpdu_is_the_psdu_without_its_fcs() {
+        let mut psdu = [0u8; MAX_PSDU];
+        let n = emit_data(&header(), &[0xAA, 0xBB], &mut psdu).unwrap();
+        let mut mpdu = [0u8; MAX_MPDU];
+        let m = emit_data_mpdu(&header(), &[0xAA, 0xBB], &mut mpdu).unwrap();
+        assert_eq!((m, &mpdu[..m]), (n - FCS_LEN, &psdu[..n - FCS_LEN]));
+        assert_eq!(strip_fcs(&psdu[..n]), Ok(&mpdu[..m]));
+        assert_eq!(Frame::parse_mpdu(&mpdu[..m]), Frame::parse(&psdu[..n]));
+        // The edge appends the FCS: the same PSDU.
+        let mut again = [0u8; MAX_PSDU];
+        again[..m].copy_from_slice(&mpdu[..m]);
+        assert_eq!(append_fcs(&mut again, m), Ok(n));
+        assert_eq!(again, psdu);
+        // The edge refuses by kind.
+        let mut bad = psdu;
+        bad[n - 1] ^= 0x55;
+        assert_eq!(strip_fcs(&bad[..n]), Err(FrameError::BadFcs));
+        assert_eq!(strip_fcs(&psdu[..1]), Err(FrameError::Truncated));
+        assert_eq!(strip_fcs(&[0u8; MAX_PSDU + 1]), Err(FrameError::Oversized));
+        // An MPDU longer than a PSDU leaves room for is not one.
+        assert_eq!(
+            Frame::parse_mpdu(&[0u8; MAX_MPDU + 1]),
+            Err(FrameError::Oversized)
+        );
+        let max = [0x55u8; MAX_PAYLOAD];
+        assert_eq!(emit_data_mpdu(&header(), &max, &mut mpdu), Ok(MAX_MPDU));
+        let over = [0x55u8; MAX_PAYLOAD + 1];
+        let mut big = [0u8; MAX_PSDU];
+        assert_eq!(
+            emit_data_mpdu(&header(), &over, &mut big),
+            Err(FrameError::NoRoom)
+        );
+        assert_eq!(append_fcs(&mut big, MAX_MPDU + 1), Err(FrameError::NoRoom));
+        // The payload written in place, the header before it: the same MPDU.
+        let mut inplace = [0u8; MAX_MPDU];
+        inplace[DATA_HEADER_LEN..DATA_HEADER_LEN + 2].copy_from_slice(&[0xAA, 0xBB]);
+        assert_eq!(finish_data_mpdu(&header(), &mut inplace, 2), Ok(m));
+        assert_eq!(&inplace[..m], &psdu[..m]);
+        assert_eq!(
+            finish_data_mpdu(&header(), &mut inplace, MAX_PAYLOAD + 1),
+            Err(FrameError::NoRoom)
+        );
+        assert_eq!(
+            finish_data_mpdu(&header(), &mut inplace[..10], 2),
+            Err(FrameError::NoRoom)
+        );
     }
 
     #[test]

@@ -5,6 +5,9 @@
 //! secured data frame, PSDU:
 //! | MAC header (9) | aux security header (5/6/10/14) | payload (n, encrypted) | MIC (4/8/16) | FCS (2) |
 //!  \_____________ a data (authenticated) ____________/ \___ m data ___/
+//! (the FCS is outside the MIC: the node core secures and opens MPDUs, the frame without
+//! its FCS, with `secure_default_mpdu_with` / `open_default_mpdu_with`; the radio edge adds
+//! and checks the FCS, `mac::append_fcs` / `mac::strip_fcs`)
 //! aux security header:
 //! | security control (1) | frame counter (4, LE) | key source (0/4/8) | key index (0/1) |
 //! security control: bits 0-2 security level, bits 3-4 key identifier mode, bits 5-7 zero
@@ -612,7 +615,17 @@ pub fn secure(
     payload: &[u8],
     out: &mut [u8],
 ) -> Result<usize, SecError> {
-    secure_by(header, aux, key, src_ext, payload, out, seal)
+    let mpdu = out.len().saturating_sub(FCS_LEN);
+    let n = secure_by(
+        header,
+        aux,
+        key,
+        src_ext,
+        payload,
+        out.get_mut(..mpdu).ok_or(SecError::NoRoom)?,
+        seal,
+    )?;
+    Ok(mac::append_fcs(out, n)?)
 }
 
 /// [`secure`] at ENC-MIC-64 only, our frames' level ([`AuxRepr::new`]); another level is
@@ -640,6 +653,30 @@ pub fn secure_default_with<C: BlockCipher>(
     payload: &[u8],
     out: &mut [u8],
 ) -> Result<usize, SecError> {
+    let mpdu = out.len().saturating_sub(FCS_LEN);
+    let n = secure_by(
+        header,
+        aux,
+        key,
+        src_ext,
+        payload,
+        out.get_mut(..mpdu).ok_or(SecError::NoRoom)?,
+        seal_default::<C>,
+    )?;
+    Ok(mac::append_fcs(out, n)?)
+}
+
+/// [`secure_default_with`] writing the MPDU only (no FCS: the radio edge appends it,
+/// [`mac::append_fcs`]); returns its length. The MIC covers the same bytes: the FCS is
+/// never part of it. What a node calls.
+pub fn secure_default_mpdu_with<C: BlockCipher>(
+    header: &Header,
+    aux: &AuxRepr,
+    key: &[u8; KEY_LEN],
+    src_ext: [u8; 8],
+    payload: &[u8],
+    out: &mut [u8],
+) -> Result<usize, SecError> {
     secure_by(header, aux, key, src_ext, payload, out, seal_default::<C>)
 }
 
@@ -657,7 +694,7 @@ fn secure_by(
     let body_len = a_len + payload.len();
     let mic_len = aux.level.mic_len();
     let total = body_len + mic_len + FCS_LEN;
-    if total > MAX_PSDU || out.len() < total {
+    if total > MAX_PSDU || out.len() < body_len + mic_len {
         return Err(SecError::NoRoom);
     }
     let header = Header {
@@ -676,7 +713,7 @@ fn secure_by(
     let nonce = nonce(&src_ext, aux.frame_counter, aux.level);
     let (a, m) = split_a_m(body, a_len, aux.level);
     seal(key, &nonce, aux.level, a, m, mic)?;
-    Ok(mac::finish(out, body_len + mic_len)?)
+    Ok(body_len + mic_len)
 }
 
 /// An authenticated frame: its header fields and its decrypted payload (in the scratch).
@@ -696,7 +733,7 @@ pub fn open<'a, F>(psdu: &[u8], lookup: F, scratch: &'a mut [u8]) -> Result<Open
 where
     F: FnOnce(&Header, &AuxRepr) -> Option<([u8; KEY_LEN], [u8; 8])>,
 {
-    open_checked(psdu, None, lookup, scratch, unseal)
+    open_checked(mac::strip_fcs(psdu)?, None, lookup, scratch, unseal)
 }
 
 /// [`open`], for a receiver that requires one security level (ours: ENC-MIC-64): a frame
@@ -711,7 +748,13 @@ pub fn open_at<'a, F>(
 where
     F: FnOnce(&Header, &AuxRepr) -> Option<([u8; KEY_LEN], [u8; 8])>,
 {
-    open_checked(psdu, Some(required), lookup, scratch, unseal)
+    open_checked(
+        mac::strip_fcs(psdu)?,
+        Some(required),
+        lookup,
+        scratch,
+        unseal,
+    )
 }
 
 /// [`open_at`] ENC-MIC-64, with one CCM* instance linked instead of three: what a node
@@ -737,8 +780,21 @@ pub fn open_default_with<'a, C: BlockCipher, F>(
 where
     F: FnOnce(&Header, &AuxRepr) -> Option<([u8; KEY_LEN], [u8; 8])>,
 {
+    open_default_mpdu_with::<C, F>(mac::strip_fcs(psdu)?, lookup, scratch)
+}
+
+/// [`open_default_with`] of an MPDU (the FCS checked and cut off at the radio edge,
+/// [`mac::strip_fcs`]): the same checks of everything the MIC covers. What a node calls.
+pub fn open_default_mpdu_with<'a, C: BlockCipher, F>(
+    mpdu: &[u8],
+    lookup: F,
+    scratch: &'a mut [u8],
+) -> Result<Opened<'a>, SecError>
+where
+    F: FnOnce(&Header, &AuxRepr) -> Option<([u8; KEY_LEN], [u8; 8])>,
+{
     open_checked(
-        psdu,
+        mpdu,
         Some(SecurityLevel::EncMic64),
         lookup,
         scratch,
@@ -747,7 +803,7 @@ where
 }
 
 fn open_checked<'a, F>(
-    psdu: &[u8],
+    mpdu: &[u8],
     required: Option<SecurityLevel>,
     lookup: F,
     scratch: &'a mut [u8],
@@ -756,7 +812,7 @@ fn open_checked<'a, F>(
 where
     F: FnOnce(&Header, &AuxRepr) -> Option<([u8; KEY_LEN], [u8; 8])>,
 {
-    let (header, secured) = match Frame::parse(psdu)? {
+    let (header, secured) = match Frame::parse_mpdu(mpdu)? {
         Frame::Data { header, payload } => (header, payload),
         Frame::Ack { .. } => return Err(SecError::Frame(FrameError::Unsupported)),
     };
@@ -780,20 +836,20 @@ where
         .ok_or(SecError::Malformed)?;
     let (key, src_ext) = lookup(&header, &aux).ok_or(SecError::UnknownKey)?;
     let body_len = a_len + n;
-    let mic = psdu
+    let mic = mpdu
         .get(body_len..body_len + mic_len)
         .ok_or(SecError::Malformed)?;
-    let payload = psdu.get(a_len..body_len).ok_or(SecError::Malformed)?;
+    let payload = mpdu.get(a_len..body_len).ok_or(SecError::Malformed)?;
     let out = scratch.get_mut(..n).ok_or(SecError::NoRoom)?;
     let nonce = nonce(&src_ext, aux.frame_counter, aux.level);
     if aux.level.encrypts() {
-        // a: header || aux, from the PSDU; m: the payload, decrypted in the scratch.
+        // a: header || aux, from the MPDU; m: the payload, decrypted in the scratch.
         copy(out, payload).ok_or(SecError::Malformed)?;
-        let a = psdu.get(..a_len).ok_or(SecError::Malformed)?;
+        let a = mpdu.get(..a_len).ok_or(SecError::Malformed)?;
         unseal(&key, &nonce, aux.level, a, out, mic)?;
     } else {
         // a: header || aux || payload; the payload is handed out only once authentic.
-        let a = psdu.get(..body_len).ok_or(SecError::Malformed)?;
+        let a = mpdu.get(..body_len).ok_or(SecError::Malformed)?;
         unseal(&key, &nonce, aux.level, a, &mut [], mic)?;
         copy(out, payload).ok_or(SecError::Malformed)?;
     }

@@ -29,7 +29,7 @@ use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::{Channel, TrySendError};
 use embassy_sync::signal::Signal;
 
-use crate::runtime::{Inputs, Pins, Psdu, Radio};
+use crate::runtime::{mpdu_of, psdu_of, Inputs, Pins, Psdu, Radio, Received};
 
 /// Received frames buffered between the reader thread and the runtime.
 pub const RX_QUEUE: usize = 64;
@@ -263,27 +263,27 @@ pub struct HostRadio {
 impl Radio for HostRadio {
     type Error = Closed;
 
-    async fn send(&mut self, psdu: &[u8]) -> Result<(), Closed> {
+    /// The radio edge: the MPDU goes on the medium with its FCS appended.
+    async fn send(&mut self, mpdu: &[u8]) -> Result<(), Closed> {
+        // Longer than an MPDU: the runtime's queue never holds one.
+        let Some(psdu) = psdu_of(mpdu) else {
+            return Ok(());
+        };
         let mut stream = self.writer.lock().map_err(|_| Closed)?;
-        write_link(&mut stream, &Link::Frame(psdu)).map_err(|_| Closed)
+        write_link(&mut stream, &Link::Frame(&psdu)).map_err(|_| Closed)
     }
 
-    async fn receive(&mut self, buf: &mut [u8; MAX_PSDU]) -> Result<usize, Closed> {
+    /// The radio edge: a PSDU off the medium, its FCS checked and cut off.
+    async fn receive(&mut self, buf: &mut [u8; MAX_PSDU]) -> Result<Received, Closed> {
         // Frames first: those that arrived before the connection closed are delivered.
         match select(self.shared.frames.receive(), self.shared.closed.wait()).await {
-            Either::First(frame) => Ok(copy(&frame, buf)),
+            Either::First(frame) => Ok(mpdu_of(&frame, buf)),
             Either::Second(()) => {
                 self.shared.closed.signal(());
                 Err(Closed)
             }
         }
     }
-}
-
-fn copy(frame: &[u8], buf: &mut [u8; MAX_PSDU]) -> usize {
-    let n = frame.len().min(MAX_PSDU);
-    buf[..n].copy_from_slice(&frame[..n]);
-    n
 }
 
 /// The outputs: `Pin` messages to the medium.

@@ -12,25 +12,37 @@ const EVENT: u8 = 0;
 const EVENT_ACK: u8 = 1;
 
 pub(super) fn emit(msg: &Message<'_>, buf: &mut [u8]) -> Option<usize> {
+    if !matches!(msg, Message::Event { .. } | Message::EventAck { .. }) {
+        return None;
+    }
+    // Room for the longest (8 bytes): written in place, only its own bytes touched.
+    if let Some(out) = buf.first_chunk_mut::<8>() {
+        return write(msg, out);
+    }
     let mut out = [0u8; 8];
-    let n = match *msg {
-        Message::Event { epoch, seq, topic } => {
-            out[0] = EVENT;
-            let n = put(epoch, &mut out, 1);
-            let n = put(seq, &mut out, n);
-            out[n] = topic;
-            n + 1
-        }
-        Message::EventAck { epoch, next } => {
-            out[0] = EVENT_ACK;
-            let n = put(epoch, &mut out, 1);
-            put(next, &mut out, n)
-        }
-        _ => return None,
-    };
+    let n = write(msg, &mut out)?;
     // Too small a buffer: postcard says so in its own words.
     buf.get_mut(..n)?.copy_from_slice(out.get(..n)?);
     Some(n)
+}
+
+/// Writes an `Event` or `EventAck` into `out`; returns its length (`None`: another message).
+fn write(msg: &Message<'_>, out: &mut [u8; 8]) -> Option<usize> {
+    match *msg {
+        Message::Event { epoch, seq, topic } => {
+            out[0] = EVENT;
+            let n = put(epoch, out, 1);
+            let n = put(seq, out, n);
+            out[n & 7] = topic;
+            Some(n + 1)
+        }
+        Message::EventAck { epoch, next } => {
+            out[0] = EVENT_ACK;
+            let n = put(epoch, out, 1);
+            Some(put(next, out, n))
+        }
+        _ => None,
+    }
 }
 
 /// Writes `v` as a varint into `out` from `at` (at most 3 bytes); returns the end.

@@ -996,3 +996,34 @@ mod star_is_ccm {
         }
     }
 }
+
+#[test]
+fn the_mpdu_forms_are_the_psdu_forms_without_the_fcs() {
+    // What a node sends: the same bytes as `secure_default` less the FCS (the MIC never
+    // covers the FCS), and what it opens: the same frame, the FCS cut off at the edge.
+    let (aux, ext) = (AuxRepr::new(1, 9), ext_addr(0xBEEF, 0x0001));
+    let mut psdu = [0u8; MAX_PSDU];
+    let n = secure_default(&header(), &aux, &ANNEX_KEY, ext, b"abcd", &mut psdu).unwrap();
+    let mut mpdu = [0u8; MAX_PSDU];
+    let m =
+        secure_default_mpdu_with::<SoftAes>(&header(), &aux, &ANNEX_KEY, ext, b"abcd", &mut mpdu)
+            .unwrap();
+    assert_eq!(&mpdu[..m], &psdu[..n - 2]);
+    let mut scratch = [0u8; mac::MAX_PAYLOAD];
+    let opened =
+        open_default_mpdu_with::<SoftAes, _>(&mpdu[..m], node_lookup(ANNEX_KEY), &mut scratch)
+            .unwrap();
+    assert_eq!((opened.aux, opened.payload), (aux, &b"abcd"[..]));
+    // A bit flipped under the MIC: refused, FCS or not.
+    mpdu[10] ^= 1;
+    assert_eq!(
+        open_default_mpdu_with::<SoftAes, _>(&mpdu[..m], node_lookup(ANNEX_KEY), &mut scratch),
+        Err(SecError::BadMic)
+    );
+    // No room for the MIC in the MPDU buffer.
+    let mut small = [0u8; 20];
+    assert_eq!(
+        secure_default_mpdu_with::<SoftAes>(&header(), &aux, &ANNEX_KEY, ext, b"abcd", &mut small),
+        Err(SecError::NoRoom)
+    );
+}

@@ -1,16 +1,17 @@
 //! Gateway mode: the node bridges its radio to a serial line in the medium's framing (u16 LE
 //! length + postcard `Link`, as on the QEMU board's UART). Every frame the radio hears goes
-//! out as `Link::Frame` (FCS appended); every `Link::Frame` that comes in is transmitted.
+//! out as `Link::Frame` (FCS appended: the serial line carries PSDUs, the radio MPDUs);
+//! every `Link::Frame` that comes in is transmitted if its FCS matches.
 //! `config-tool gateway --serial DEV` puts it on a medium, where `push`, `scan`, `status`
 //! and `monitor` reach the real nodes in range.
 //!
 //! Serial: UARTE0 on P0.08 (RX) / P0.06 (TX) at 1 Mbaud, the DK's J-Link virtual COM port.
 
-use config_schema::wire::mac::MAX_PSDU;
+use config_schema::wire::mac::{strip_fcs, MAX_PSDU};
 use config_schema::wire::medium::{Deframer, Link, MAX_LINK};
 use embassy_futures::select::{select, Either};
 use embassy_nrf::buffered_uarte::{BufferedUarteRx, BufferedUarteTx};
-use node_fw::runtime::Radio as _;
+use node_fw::runtime::{psdu_of, Radio as _, Received};
 
 use crate::radio::NrfRadio;
 
@@ -56,14 +57,18 @@ pub async fn run(
     let mut reader = Reader {
         incoming: Deframer::new(),
     };
-    let mut psdu = [0u8; MAX_PSDU];
+    let mut mpdu = [0u8; MAX_PSDU];
     let mut out = [0u8; MAX_LINK];
     let (mut to_air, mut from_air) = (0u32, 0u32);
     loop {
-        match select(reader.wait(&mut rx), radio.receive(&mut psdu)).await {
+        match select(reader.wait(&mut rx), radio.receive(&mut mpdu)).await {
             Either::First(()) => {
                 let body = reader.incoming.take().ok().flatten().unwrap_or_default();
-                if let Ok(Link::Frame(frame)) = Link::parse(body) {
+                let frame = match Link::parse(body) {
+                    Ok(Link::Frame(psdu)) => strip_fcs(psdu).ok(),
+                    _ => None,
+                };
+                if let Some(frame) = frame {
                     if radio.send(frame).await.is_ok() {
                         to_air += 1;
                         if to_air.is_multiple_of(100) {
@@ -72,8 +77,9 @@ pub async fn run(
                     }
                 }
             }
-            Either::Second(Ok(n)) => {
-                if let Ok(m) = Link::Frame(&psdu[..n]).emit(&mut out) {
+            Either::Second(Ok(Received::Mpdu(n))) => {
+                let psdu = mpdu.get(..n).and_then(psdu_of).unwrap_or_default();
+                if let Ok(m) = Link::Frame(&psdu).emit(&mut out) {
                     write_all(&mut tx, &out[..m]).await;
                     from_air += 1;
                     if from_air.is_multiple_of(100) {
@@ -81,7 +87,7 @@ pub async fn run(
                     }
                 }
             }
-            Either::Second(Err(_)) => {}
+            Either::Second(Ok(Received::Dropped) | Err(_)) => {}
         }
     }
 }

@@ -1,11 +1,13 @@
 //! The runtime's radio on the nRF52840's IEEE 802.15.4 radio. The hardware computes the FCS
 //! on transmit and checks it on receive (frames that fail it are dropped here); the runtime
-//! deals in PSDUs with the FCS, so it is cut off before sending and appended on receipt.
+//! deals in MPDUs (frames without the FCS), so they go to and come from the radio as they
+//! are: no CRC in software.
 
-use config_schema::wire::mac::{FCS, MAX_PSDU};
+use config_schema::wire::mac::{MAX_MPDU, MAX_PSDU};
 use embassy_nrf::radio::ieee802154::{Packet, Radio};
 use embassy_nrf::radio::Error;
 use embassy_time::{Duration, Timer};
+use node_fw::runtime::Received;
 
 /// Clear-channel assessments before a frame is given up (backing off 320 us, 640 us, ...).
 const CCA_ATTEMPTS: usize = 4;
@@ -28,7 +30,7 @@ pub struct NrfRadio {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SendError {
-    /// Not a PSDU (shorter than the FCS or longer than 127 bytes).
+    /// Not an MPDU (longer than 125 bytes).
     Length,
     /// The channel stayed busy.
     ChannelBusy,
@@ -38,14 +40,11 @@ impl node_fw::runtime::Radio for NrfRadio {
     /// Only sending fails; receiving never does (the runtime stops only if the radio is gone).
     type Error = SendError;
 
-    async fn send(&mut self, psdu: &[u8]) -> Result<(), SendError> {
-        let body = psdu
-            .len()
-            .checked_sub(2)
-            .and_then(|n| psdu.get(..n))
-            .filter(|b| b.len() <= usize::from(Packet::CAPACITY))
-            .ok_or(SendError::Length)?;
-        self.packet.copy_from_slice(body);
+    async fn send(&mut self, mpdu: &[u8]) -> Result<(), SendError> {
+        if mpdu.len() > MAX_MPDU || mpdu.len() > usize::from(Packet::CAPACITY) {
+            return Err(SendError::Length);
+        }
+        self.packet.copy_from_slice(mpdu);
         for backoff in BACKOFF {
             match self.radio.try_send(&mut self.packet).await {
                 Ok(()) => return Ok(()),
@@ -56,19 +55,16 @@ impl node_fw::runtime::Radio for NrfRadio {
         Err(SendError::ChannelBusy)
     }
 
-    async fn receive(&mut self, buf: &mut [u8; MAX_PSDU]) -> Result<usize, SendError> {
+    async fn receive(&mut self, buf: &mut [u8; MAX_PSDU]) -> Result<Received, SendError> {
         loop {
             if self.radio.receive(&mut self.packet).await.is_err() {
                 continue; // bad FCS: as if never heard
             }
             let n = self.packet.len() as usize;
-            if n + 2 > MAX_PSDU {
-                continue;
+            if let Some(dst) = buf.get_mut(..n).filter(|_| n <= MAX_MPDU) {
+                dst.copy_from_slice(&self.packet);
+                return Ok(Received::Mpdu(n));
             }
-            buf[..n].copy_from_slice(&self.packet);
-            let fcs = FCS.checksum(&buf[..n]).to_le_bytes();
-            buf[n..n + 2].copy_from_slice(&fcs);
-            return Ok(n + 2);
         }
     }
 }

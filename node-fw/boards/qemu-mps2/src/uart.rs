@@ -1,6 +1,6 @@
 //! The radio of this board: CMSDK UART0, connected by QEMU (`-chardev socket`) to the
 //! simulated medium, carrying the medium's own framing (`config_schema::wire::medium`:
-//! u16 LE length + postcard `Link`). Frames are PSDUs with FCS; output pins go out as
+//! u16 LE length + postcard `Link`). Frames are PSDUs with FCS (added and checked here, the radio edge: the core deals in MPDUs); output pins go out as
 //! `Link::Pin`; inputs come in as `Link::Pin` for this node's address (from the plant).
 //!
 //! Both directions are interrupt driven through byte rings. Receive: the interrupt moves
@@ -22,7 +22,7 @@ use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::waitqueue::AtomicWaker;
 use heapless::Deque;
-use node_fw::runtime::{Inputs, Pins, Psdu, Radio};
+use node_fw::runtime::{mpdu_of, psdu_of, Inputs, Pins, Psdu, Radio, Received};
 
 use crate::vectors::{self, Irq};
 
@@ -271,19 +271,22 @@ pub struct UartRadio;
 impl Radio for UartRadio {
     type Error = Infallible;
 
-    async fn send(&mut self, psdu: &[u8]) -> Result<(), Infallible> {
+    /// The radio edge: the MPDU goes out with its FCS appended.
+    async fn send(&mut self, mpdu: &[u8]) -> Result<(), Infallible> {
         let mut buf = [0u8; MAX_LINK];
-        if let Ok(n) = Link::Frame(psdu).emit(&mut buf) {
+        let Some(psdu) = psdu_of(mpdu) else {
+            return Ok(());
+        };
+        if let Ok(n) = Link::Frame(&psdu).emit(&mut buf) {
             send_async(&buf[..n]).await;
         }
         Ok(())
     }
 
-    async fn receive(&mut self, buf: &mut [u8; MAX_PSDU]) -> Result<usize, Infallible> {
+    /// The radio edge: a PSDU off the UART, its FCS checked and cut off.
+    async fn receive(&mut self, buf: &mut [u8; MAX_PSDU]) -> Result<Received, Infallible> {
         let frame = FRAMES.receive().await;
-        let n = frame.len().min(MAX_PSDU);
-        buf[..n].copy_from_slice(&frame[..n]);
-        Ok(n)
+        Ok(mpdu_of(&frame, buf))
     }
 }
 
