@@ -26,6 +26,7 @@ mod flash;
 mod gateway;
 #[cfg(not(feature = "gateway"))]
 mod gpio;
+mod mem;
 mod radio;
 
 use defmt_rtt as _;
