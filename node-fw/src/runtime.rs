@@ -7,9 +7,10 @@
 //! - [`Inputs`]: the next input level change (implemented by [`WaitInputs`] for arrays of
 //!   `embedded_hal_async::digital::Wait` + `InputPin`, index = pin number);
 //! - a `NorFlash` (`embedded-storage-async`) for the two table [`Slots`], whose
-//!   operations complete when first polled: every slot operation is run to completion in
-//!   place with `embassy_futures::block_on` (a slot read back into a buffer on the stack),
-//!   so none is a state of the runtime's future (its code 1.3 KB less on the nRF52840);
+//!   operations complete when first polled: the runtime calls the slots' blocking forms
+//!   (`Slots::stage_now`, ...: each flash access run to completion in place), so no slot
+//!   operation is a state of the runtime's future (a slot is read back into a buffer on
+//!   the stack);
 //! - a [`Staging`] for a pushed table's chunks ([`run_staged`]: an MCU board's flash
 //!   page; [`RamStaging`] otherwise);
 //! - `embassy-time` for the time and the timer until [`NodeCore::deadline`].
@@ -28,7 +29,6 @@ use config_schema::limits::MAX_BLOB;
 use config_schema::link_keys::{decode_deployment, LinkKeys};
 use config_schema::wire::mac::MAX_PSDU;
 use config_schema::Table;
-use embassy_futures::block_on;
 use embassy_futures::select::{select3, select_array, Either3};
 use embassy_time::{with_timeout, Duration, Instant, Timer, TICK_HZ};
 use embedded_hal::digital::{InputPin, OutputPin};
@@ -531,15 +531,15 @@ struct SlotsAt {
 
 /// Reads slot `slot`'s blob into a buffer on the stack and hands it to `f` (`None`: the
 /// slot holds no blob, or the flash failed). Run to completion in place
-/// (`embassy_futures::block_on`: every board's flash completes at once, see
-/// docs/boards.md), so the 4 KiB buffer is never part of the runtime's future.
+/// (`Slots::read_into_now`: every board's flash completes at once, see docs/boards.md),
+/// so the 4 KiB buffer is never part of the runtime's future.
 fn with_slot<F: NorFlash, R>(
     slots: &mut Slots<F>,
     slot: usize,
     f: impl FnOnce(&[u8]) -> R,
 ) -> Option<R> {
     let mut buf = [0u8; MAX_BLOB];
-    let len = block_on(slots.read_into(slot, &mut buf)).ok().flatten()?;
+    let len = slots.read_into_now(slot, &mut buf).ok().flatten()?;
     buf.get(..len).map(f)
 }
 
@@ -558,7 +558,7 @@ fn decodes<F: NorFlash>(slots: &mut Slots<F>, slot: usize) -> bool {
 /// What the slots hold (read into a buffer on the stack: [`with_slot`]).
 fn survey<F: NorFlash, N: Notes>(addr: u16, slots: &mut Slots<F>, notes: &mut N) -> Survey {
     let mut buf = [0u8; MAX_BLOB];
-    match block_on(slots.survey(&mut buf)) {
+    match slots.survey_now(&mut buf) {
         Ok(survey) => survey,
         Err(e) => {
             notes.note(addr, Note::FlashUnreadable(e.kind()));
@@ -581,7 +581,7 @@ fn load<F: NorFlash, S: Staging, N: Notes>(
     let survey = survey(addr, slots, notes);
     if let Some(slot) = survey.abandoned {
         notes.note(addr, Note::TrialCutShort { slot });
-        if block_on(slots.revoke(slot)).is_err() {
+        if slots.revoke_now(slot).is_err() {
             notes.note(addr, Note::CannotRevoke { slot, why: None });
         }
     }
@@ -642,7 +642,7 @@ fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
     match core.flash_request() {
         None => {}
         Some(FlashRequest::Stage(blob)) => {
-            let ok = match block_on(slots.stage(at.running, blob)) {
+            let ok = match slots.stage_now(at.running, blob) {
                 Ok(slot) => {
                     at.staged = Some(slot);
                     // It went over the previous table.
@@ -659,7 +659,7 @@ fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
         }
         Some(FlashRequest::Confirm) => {
             let ok = match at.running {
-                Some(slot) => block_on(slots.confirm(slot)).is_ok(),
+                Some(slot) => slots.confirm_now(slot).is_ok(),
                 None => false,
             };
             if ok {
@@ -673,7 +673,7 @@ fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
             let read = match (at.previous, at.running) {
                 // Revoked first: a power cut after it boots the previous table too.
                 (Some(slot), Some(running)) if decodes(slots, slot) => {
-                    match block_on(slots.revoke(running)) {
+                    match slots.revoke_now(running) {
                         Ok(()) => {
                             at.running = Some(slot);
                             at.previous = None;
@@ -694,7 +694,7 @@ fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
         Some(FlashRequest::Activate { trial }) => {
             let read = match at.staged {
                 Some(slot) if decodes(slots, slot) => {
-                    match block_on(slots.activate(slot, at.next_serial, trial)) {
+                    match slots.activate_now(slot, at.next_serial, trial) {
                         Ok(()) => {
                             at.next_serial = at.next_serial.wrapping_add(1);
                             if !at.trial {
