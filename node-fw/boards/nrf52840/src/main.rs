@@ -34,7 +34,6 @@ use embassy_executor::Spawner;
 use embassy_nrf::config::{Config, HfclkSource};
 use embassy_nrf::radio::ieee802154::{Packet, Radio};
 use embassy_nrf::{bind_interrupts, peripherals};
-use embassy_time::Timer;
 use node_fw::provision;
 
 #[cfg(not(feature = "gateway"))]
@@ -69,6 +68,15 @@ fn panic(_: &core::panic::PanicInfo<'_>) -> ! {
     cortex_m::interrupt::disable();
     defmt::error!("panicked: see the backtrace");
     cortex_m::asm::udf()
+}
+
+/// A node that cannot run (no id, a key announced but erased, no frame counter) stays off
+/// the air: asleep until reset, its log line already in the RTT buffer. Not an await in
+/// `main`: no state of its future per place it stops (flash, docs/boards.md).
+fn stay_off() -> ! {
+    loop {
+        cortex_m::asm::wfi();
+    }
 }
 
 /// The runtime's notes as defmt messages: the texts of `runtime::log_note`, formatted on
@@ -175,9 +183,7 @@ async fn main(_spawner: Spawner) {
         defmt::error!(
             "no node id: write UICR CUSTOMER[0] = 0xA500_0000 | address (see docs/boards.md)"
         );
-        loop {
-            Timer::after_secs(3600).await;
-        }
+        stay_off()
     };
     let addr = word.addr;
     // The management key (CUSTOMER[2..=5]): the node secures its config PAN with it. An
@@ -189,9 +195,7 @@ async fn main(_spawner: Spawner) {
                 "node {=u16:#06x}: CUSTOMER[0] announces a key but CUSTOMER[2..=5] are erased",
                 addr
             );
-            loop {
-                Timer::after_secs(3600).await;
-            }
+            stay_off()
         };
         Some(key)
     } else {
@@ -302,9 +306,7 @@ async fn main(_spawner: Spawner) {
                         addr,
                         why
                     );
-                    loop {
-                        Timer::after_secs(3600).await;
-                    }
+                    stay_off()
                 }
             },
             None => None,
