@@ -241,8 +241,6 @@ async fn main(_spawner: Spawner) {
     {
         use core::cell::RefCell;
 
-        #[cfg(feature = "frame-security")]
-        use embassy_futures::block_on;
         use embassy_nrf::gpio::Flex;
         use embassy_nrf::nvmc::Nvmc;
         #[cfg(feature = "frame-security")]
@@ -283,11 +281,11 @@ async fn main(_spawner: Spawner) {
             epoch,
             key.is_some()
         );
-        // A keyed node's frame counter. The NVMC blocks: its futures complete when first
-        // polled.
+        // A keyed node's frame counter. The NVMC blocks: the counter's plain functions
+        // (`open_now`, `next_now`) complete in place.
         #[cfg(feature = "frame-security")]
         let mut counter = match key {
-            Some(_) => match block_on(FrameCounter::open(flash.frame_counter())) {
+            Some(_) => match FrameCounter::open_now(flash.frame_counter()) {
                 Ok(c) => {
                     // The counter's value only: the key is never logged.
                     defmt::info!("node {=u16:#06x}: frame counter {=u32}", addr, c.peek());
@@ -324,7 +322,7 @@ async fn main(_spawner: Spawner) {
         ecb::install();
         #[cfg(feature = "frame-security")]
         let (stop, stats) = {
-            let mut next = || counter.as_mut().and_then(|c| block_on(c.next()).ok());
+            let mut next = || counter.as_mut().and_then(|c| c.next_now().ok());
             let security = key.map(|key| runtime::Security {
                 key,
                 counter: &mut next,
