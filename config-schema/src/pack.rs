@@ -288,19 +288,16 @@ impl Reader<'_> {
 
     /// `x` pushed onto `v`, or `Capacity(what)`.
     fn push<T, const N: usize>(&mut self, v: &mut Vec<T, N>, x: T, what: &'static str) {
-        if self.room(v.is_full(), what) {
-            let _ = v.push(x);
+        if v.push(x).is_err() {
+            self.full(what);
         }
     }
 
-    /// Whether a list has room (`full`: none, `Capacity(what)`): the check out of line,
-    /// not in each element type's push.
+    /// A list that had no room: `Capacity(what)`. Out of line, not in each element type's
+    /// push; the push itself says whether it had room (no check of its own before it).
     #[inline(never)]
-    fn room(&mut self, full: bool, what: &'static str) -> bool {
-        if full {
-            self.fail(PackError::Capacity(what));
-        }
-        !full
+    fn full(&mut self, what: &'static str) {
+        self.fail(PackError::Capacity(what));
     }
 }
 

@@ -30,6 +30,7 @@
 //! starts it again at 0.
 
 use crc::{Crc, CRC_32_ISO_HDLC};
+use embassy_futures::block_on;
 use embedded_storage_async::nor_flash::NorFlash;
 
 /// Counters reserved by one flash write.
@@ -82,11 +83,28 @@ impl<F: NorFlash> FrameCounter<F> {
     /// Opens the counter of a region of exactly two erase sectors (a fresh, erased region
     /// starts at 0), reserving [`STEP`] counters per write.
     pub async fn open(flash: F) -> Result<Self, CounterError<F::Error>> {
-        Self::open_with_step(flash, STEP).await
+        Self::open_now(flash)
     }
 
     /// As [`FrameCounter::open`], with `step` counters per write.
-    pub async fn open_with_step(mut flash: F, step: u32) -> Result<Self, CounterError<F::Error>> {
+    pub async fn open_with_step(flash: F, step: u32) -> Result<Self, CounterError<F::Error>> {
+        Self::open_with_step_now(flash, step)
+    }
+
+    /// A counter never handed out before, by this node, whatever power cuts came between.
+    pub async fn next(&mut self) -> Result<u32, CounterError<F::Error>> {
+        self.next_now()
+    }
+
+    /// [`FrameCounter::open`] as a plain function, each flash access run to completion in
+    /// place (`embassy_futures::block_on`: a board's `NorFlash` completes when first
+    /// polled), so no state machine of it is in a board's image.
+    pub fn open_now(flash: F) -> Result<Self, CounterError<F::Error>> {
+        Self::open_with_step_now(flash, STEP)
+    }
+
+    /// [`FrameCounter::open_with_step`] as a plain function ([`FrameCounter::open_now`]).
+    pub fn open_with_step_now(mut flash: F, step: u32) -> Result<Self, CounterError<F::Error>> {
         let sector = F::ERASE_SIZE;
         let fits = sector.is_multiple_of(RECORD)
             && RECORD.is_multiple_of(F::WRITE_SIZE)
@@ -105,10 +123,7 @@ impl<F: NorFlash> FrameCounter<F> {
             let mut at = 0;
             while at < sector {
                 let mut r = [0u8; RECORD];
-                flash
-                    .read(base + at, &mut r)
-                    .await
-                    .map_err(CounterError::Flash)?;
+                block_on(flash.read(base + at, &mut r)).map_err(CounterError::Flash)?;
                 if r.iter().all(|b| *b == 0xFF) {
                     free.get_or_insert(at);
                 } else if let Some(v) = decode(&r) {
@@ -135,14 +150,14 @@ impl<F: NorFlash> FrameCounter<F> {
         })
     }
 
-    /// A counter never handed out before, by this node, whatever power cuts came between.
-    pub async fn next(&mut self) -> Result<u32, CounterError<F::Error>> {
+    /// [`FrameCounter::next`] as a plain function ([`FrameCounter::open_now`]).
+    pub fn next_now(&mut self) -> Result<u32, CounterError<F::Error>> {
         if self.next >= self.reserved {
             let reserve = self
                 .next
                 .checked_add(self.step)
                 .ok_or(CounterError::Exhausted)?;
-            self.persist(reserve).await?;
+            self.persist(reserve)?;
             self.reserved = reserve;
         }
         let n = self.next;
@@ -160,16 +175,14 @@ impl<F: NorFlash> FrameCounter<F> {
         self.flash
     }
 
-    async fn persist(&mut self, reserve: u32) -> Result<(), CounterError<F::Error>> {
+    fn persist(&mut self, reserve: u32) -> Result<(), CounterError<F::Error>> {
         let at = match self.free {
             Some(at) => at,
             None => {
                 // The active sector is full: the log goes on in the other one.
                 let other = 1 - self.active;
                 let base = other * self.sector;
-                self.flash
-                    .erase(base, base + self.sector)
-                    .await
+                block_on(self.flash.erase(base, base + self.sector))
                     .map_err(CounterError::Flash)?;
                 self.active = other;
                 0
@@ -179,10 +192,7 @@ impl<F: NorFlash> FrameCounter<F> {
         // Past this point the slot is used, written whole or torn.
         let after = at + RECORD as u32;
         self.free = (after < self.sector).then_some(after);
-        self.flash
-            .write(base + at, &encode(reserve))
-            .await
-            .map_err(CounterError::Flash)
+        block_on(self.flash.write(base + at, &encode(reserve))).map_err(CounterError::Flash)
     }
 }
 

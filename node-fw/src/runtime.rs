@@ -7,8 +7,10 @@
 //! - [`Inputs`]: the next input level change (implemented by [`WaitInputs`] for arrays of
 //!   `embedded_hal_async::digital::Wait` + `InputPin`, index = pin number);
 //! - a `NorFlash` (`embedded-storage-async`) for the two table [`Slots`], whose
-//!   operations complete when first polled (the slots are read back with
-//!   `embassy_futures::block_on`, into a buffer on the stack);
+//!   operations complete when first polled: the runtime calls the slots' blocking forms
+//!   (`Slots::stage_now`, ...: each flash access run to completion in place), so no slot
+//!   operation is a state of the runtime's future (a slot is read back into a buffer on
+//!   the stack);
 //! - a [`Staging`] for a pushed table's chunks ([`run_staged`]: an MCU board's flash
 //!   page; [`RamStaging`] otherwise);
 //! - `embassy-time` for the time and the timer until [`NodeCore::deadline`].
@@ -27,7 +29,6 @@ use config_schema::limits::MAX_BLOB;
 use config_schema::link_keys::{decode_deployment, LinkKeys};
 use config_schema::wire::mac::{MAX_MPDU, MAX_PSDU};
 use config_schema::Table;
-use embassy_futures::block_on;
 use embassy_futures::select::{select3, select_array, Either3};
 use embassy_time::{with_timeout, Duration, Instant, Timer, TICK_HZ};
 use embedded_hal::digital::{InputPin, OutputPin};
@@ -576,15 +577,15 @@ struct SlotsAt {
 
 /// Reads slot `slot`'s blob into a buffer on the stack and hands it to `f` (`None`: the
 /// slot holds no blob, or the flash failed). Run to completion in place
-/// (`embassy_futures::block_on`: every board's flash completes at once, see
-/// docs/boards.md), so the 4 KiB buffer is never part of the runtime's future.
+/// (`Slots::read_into_now`: every board's flash completes at once, see docs/boards.md),
+/// so the 4 KiB buffer is never part of the runtime's future.
 fn with_slot<F: NorFlash, R>(
     slots: &mut Slots<F>,
     slot: usize,
     f: impl FnOnce(&[u8]) -> R,
 ) -> Option<R> {
     let mut buf = [0u8; MAX_BLOB];
-    let len = block_on(slots.read_into(slot, &mut buf)).ok().flatten()?;
+    let len = slots.read_into_now(slot, &mut buf).ok().flatten()?;
     buf.get(..len).map(f)
 }
 
@@ -603,7 +604,7 @@ fn decodes<F: NorFlash>(slots: &mut Slots<F>, slot: usize) -> bool {
 /// What the slots hold (read into a buffer on the stack: [`with_slot`]).
 fn survey<F: NorFlash, N: Notes>(addr: u16, slots: &mut Slots<F>, notes: &mut N) -> Survey {
     let mut buf = [0u8; MAX_BLOB];
-    match block_on(slots.survey(&mut buf)) {
+    match slots.survey_now(&mut buf) {
         Ok(survey) => survey,
         Err(e) => {
             notes.note(addr, Note::FlashUnreadable(e.kind()));
@@ -615,7 +616,7 @@ fn survey<F: NorFlash, N: Notes>(addr: u16, slots: &mut Slots<F>, notes: &mut N)
 /// The node on the slot activated last (an unreadable flash boots unconfigured), with a
 /// staged table reported; a trial a power cut interrupted is revoked. The slots are read
 /// and the running table decoded outside the runtime's future ([`with_slot`]).
-async fn load<F: NorFlash, S: Staging, N: Notes>(
+fn load<F: NorFlash, S: Staging, N: Notes>(
     addr: u16,
     pin_mask: u64,
     epoch: u16,
@@ -626,7 +627,7 @@ async fn load<F: NorFlash, S: Staging, N: Notes>(
     let survey = survey(addr, slots, notes);
     if let Some(slot) = survey.abandoned {
         notes.note(addr, Note::TrialCutShort { slot });
-        if slots.revoke(slot).await.is_err() {
+        if slots.revoke_now(slot).is_err() {
             notes.note(addr, Note::CannotRevoke { slot, why: None });
         }
     }
@@ -676,7 +677,7 @@ fn boot_core<F: NorFlash, S: Staging, N: Notes>(
 }
 
 /// Does what the core asks of the flash, and tells it how it went.
-async fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
+fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
     addr: u16,
     core: &mut NodeCore<S>,
     slots: &mut Slots<F>,
@@ -687,7 +688,7 @@ async fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
     match core.flash_request() {
         None => {}
         Some(FlashRequest::Stage(blob)) => {
-            let ok = match slots.stage(at.running, blob).await {
+            let ok = match slots.stage_now(at.running, blob) {
                 Ok(slot) => {
                     at.staged = Some(slot);
                     // It went over the previous table.
@@ -704,7 +705,7 @@ async fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
         }
         Some(FlashRequest::Confirm) => {
             let ok = match at.running {
-                Some(slot) => slots.confirm(slot).await.is_ok(),
+                Some(slot) => slots.confirm_now(slot).is_ok(),
                 None => false,
             };
             if ok {
@@ -718,7 +719,7 @@ async fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
             let read = match (at.previous, at.running) {
                 // Revoked first: a power cut after it boots the previous table too.
                 (Some(slot), Some(running)) if decodes(slots, slot) => {
-                    match slots.revoke(running).await {
+                    match slots.revoke_now(running) {
                         Ok(()) => {
                             at.running = Some(slot);
                             at.previous = None;
@@ -739,7 +740,7 @@ async fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
         Some(FlashRequest::Activate { trial }) => {
             let read = match at.staged {
                 Some(slot) if decodes(slots, slot) => {
-                    match slots.activate(slot, at.next_serial, trial).await {
+                    match slots.activate_now(slot, at.next_serial, trial) {
                         Ok(()) => {
                             at.next_serial = at.next_serial.wrapping_add(1);
                             if !at.trial {
@@ -934,7 +935,7 @@ where
     } = board;
     outputs.all_off();
     let mut slots = Slots::new(flash).map_err(|_| Stop::FlashGeometry)?;
-    let (mut core, mut at) = load(addr, pin_mask, epoch, &mut slots, staging, notes).await;
+    let (mut core, mut at) = load(addr, pin_mask, epoch, &mut slots, staging, notes);
     let mut no_counter = || None;
     let counter: &mut dyn FnMut() -> Option<u32> = match security {
         Some(Security { key, counter }) => {
@@ -972,7 +973,7 @@ where
     loop {
         core.poll(now_ms(), &mut io);
 
-        serve_flash(addr, &mut core, &mut slots, &mut at, &mut io, notes).await;
+        serve_flash(addr, &mut core, &mut slots, &mut at, &mut io, notes);
 
         let now = fault_of(&core);
         if now != fault {

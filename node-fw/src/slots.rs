@@ -18,10 +18,18 @@
 //! activated but never confirmed is a trial that a power cut interrupted: it is not
 //! booted ([`Boot::abandoned`]; the runtime revokes it). A staged slot that was never
 //! activated is reported ([`Boot::staged`]) so the tool can finish the switch-over.
+//!
+//! Every operation is a plain function (`stage_now`, `load_now`, ...), each flash access
+//! run to completion in place (`embassy_futures::block_on`: a board's `NorFlash`
+//! completes when first polled, docs/boards.md), with the same operation as a future
+//! beside it (`stage`, `load`, ...) for async callers. The runtime calls the plain ones:
+//! no slot operation is a state machine in the node's image (docs/boards.md, "Where the
+//! flash goes").
 
 use config_schema::limits::MAX_BLOB;
 use config_schema::link_keys::{decode_deployment, LinkKeys};
 use config_schema::Table;
+use embassy_futures::block_on;
 use embedded_storage::nor_flash::{ErrorType, NorFlashError, NorFlashErrorKind};
 use embedded_storage_async::nor_flash::{NorFlash, ReadNorFlash};
 
@@ -162,91 +170,85 @@ impl<F: NorFlash> Slots<F> {
         }
     }
 
-    async fn read_word(&mut self, at: u32) -> Result<u32, F::Error> {
+    fn read_word(&mut self, at: u32) -> Result<u32, F::Error> {
         let mut word = [0u8; MAX_ALIGN];
-        self.flash
-            .read(at, &mut word[..F::READ_SIZE.max(4)])
-            .await?;
+        block_on(self.flash.read(at, &mut word[..F::READ_SIZE.max(4)]))?;
         Ok(u32::from_le_bytes([word[0], word[1], word[2], word[3]]))
     }
 
-    async fn write_word(&mut self, at: u32, value: u32) -> Result<(), SlotError<F::Error>> {
+    fn write_word(&mut self, at: u32, value: u32) -> Result<(), SlotError<F::Error>> {
         let mut word = [0xFFu8; MAX_ALIGN];
         word[..4].copy_from_slice(&value.to_le_bytes());
-        self.flash
-            .write(at, &word[..F::WRITE_SIZE.max(4)])
-            .await
-            .map_err(SlotError::Flash)
+        block_on(self.flash.write(at, &word[..F::WRITE_SIZE.max(4)])).map_err(SlotError::Flash)
     }
 
     /// The state words of slot `slot`.
-    pub async fn state(&mut self, slot: usize) -> Result<SlotState, F::Error> {
+    pub fn state_now(&mut self, slot: usize) -> Result<SlotState, F::Error> {
         let base = self.base(slot);
-        let serial = self.read_word(base + SERIAL_AT).await?;
+        let serial = self.read_word(base + SERIAL_AT)?;
         Ok(SlotState {
-            staged: self.read_word(base + STAGED_AT).await? == STAGED,
+            staged: self.read_word(base + STAGED_AT)? == STAGED,
             serial: (serial != ERASED).then_some(serial),
-            confirmed: self.read_word(base + CONFIRMED_AT).await? == CONFIRMED,
-            revoked: self.read_word(base + REVOKED_AT).await? == REVOKED,
+            confirmed: self.read_word(base + CONFIRMED_AT)? == CONFIRMED,
+            revoked: self.read_word(base + REVOKED_AT)? == REVOKED,
         })
     }
 
     /// Reads slot `slot`'s blob into `buf` if the slot is staged; returns its length.
-    pub async fn read_blob(
+    pub fn read_blob_now(
         &mut self,
         slot: usize,
         buf: &mut [u8; MAX_BLOB + MAX_ALIGN],
     ) -> Result<Option<usize>, F::Error> {
         let base = self.base(slot);
-        if self.read_word(base + STAGED_AT).await? != STAGED {
+        if self.read_word(base + STAGED_AT)? != STAGED {
             return Ok(None);
         }
-        let len = self.read_word(base + LEN_AT).await? as usize;
+        let len = self.read_word(base + LEN_AT)? as usize;
         if len > MAX_BLOB {
             return Ok(None);
         }
         let padded = round_up(len, F::READ_SIZE);
-        self.flash
-            .read(base + HEADER as u32, &mut buf[..padded])
-            .await?;
+        block_on(self.flash.read(base + HEADER as u32, &mut buf[..padded]))?;
         Ok(Some(len))
     }
 
     /// Reads slot `slot`'s blob into `buf` if the slot is staged and the blob fits;
     /// returns its length. (No buffer of its own: the runtime reads into one on its stack.)
-    pub async fn read_into(
+    pub fn read_into_now(
         &mut self,
         slot: usize,
         buf: &mut [u8],
     ) -> Result<Option<usize>, F::Error> {
         let base = self.base(slot);
-        if self.read_word(base + STAGED_AT).await? != STAGED {
+        if self.read_word(base + STAGED_AT)? != STAGED {
             return Ok(None);
         }
-        let len = self.read_word(base + LEN_AT).await? as usize;
+        let len = self.read_word(base + LEN_AT)? as usize;
         let Some(dst) = buf.get_mut(..len).filter(|_| len <= MAX_BLOB) else {
             return Ok(None);
         };
         let whole = len / F::READ_SIZE.max(1) * F::READ_SIZE.max(1);
         let (body, tail) = dst.split_at_mut(whole);
         if !body.is_empty() {
-            self.flash.read(base + HEADER as u32, body).await?;
+            block_on(self.flash.read(base + HEADER as u32, body))?;
         }
         if !tail.is_empty() {
             let mut last = [0u8; MAX_ALIGN];
             let n = F::READ_SIZE.max(1);
-            self.flash
-                .read(base + (HEADER + whole) as u32, &mut last[..n])
-                .await?;
+            block_on(
+                self.flash
+                    .read(base + (HEADER + whole) as u32, &mut last[..n]),
+            )?;
             tail.copy_from_slice(&last[..tail.len()]);
         }
         Ok(Some(len))
     }
 
     /// The table (and its keys) staged in slot `slot`, if it decodes and validates.
-    pub async fn read_table(&mut self, slot: usize) -> Result<Option<Loaded>, F::Error> {
+    pub fn read_table_now(&mut self, slot: usize) -> Result<Option<Loaded>, F::Error> {
         let mut buf = [0u8; MAX_BLOB + MAX_ALIGN];
-        let Some(len) = self.read_blob(slot, &mut buf).await? else {
+        let Some(len) = self.read_blob_now(slot, &mut buf)? else {
             return Ok(None);
         };
         Ok(decode_deployment(buf.get(..len).unwrap_or(&[]))
@@ -255,9 +257,9 @@ impl<F: NorFlash> Slots<F> {
     }
 
     /// What the slots hold: the table to boot, a staged one, an abandoned trial.
-    pub async fn load(&mut self) -> Result<Boot, F::Error> {
+    pub fn load_now(&mut self) -> Result<Boot, F::Error> {
         let mut buf = [0u8; MAX_BLOB];
-        let survey = self.survey(&mut buf).await?;
+        let survey = self.survey_now(&mut buf)?;
         let mut boot = Boot {
             running: None,
             staged: survey.staged,
@@ -266,7 +268,7 @@ impl<F: NorFlash> Slots<F> {
             next_serial: survey.next_serial,
         };
         if let Some(running) = survey.running {
-            boot.running = self.read_table(running.slot).await?;
+            boot.running = self.read_table_now(running.slot)?;
         }
         Ok(boot)
     }
@@ -276,11 +278,11 @@ impl<F: NorFlash> Slots<F> {
     /// at a time, only to be checked. The runtime runs it with a buffer on its stack and
     /// reads the running slot back the same way, so no table and no blob buffer live in
     /// its future.
-    pub async fn survey(&mut self, buf: &mut [u8]) -> Result<Survey, F::Error> {
+    pub fn survey_now(&mut self, buf: &mut [u8]) -> Result<Survey, F::Error> {
         let mut survey = Survey::default();
         let mut best: Option<u32> = None;
         for slot in 0..2 {
-            let st = self.state(slot).await?;
+            let st = self.state_now(slot)?;
             if let Some(serial) = st.serial {
                 survey.next_serial = survey.next_serial.max(serial.saturating_add(1));
             }
@@ -293,7 +295,7 @@ impl<F: NorFlash> Slots<F> {
             }
             // Checked when it was staged; its generation is in the envelope. A confirmed
             // slot that no longer decodes is not booted.
-            let Some(generation) = self.generation_of(slot, buf).await? else {
+            let Some(generation) = self.generation_of(slot, buf)? else {
                 continue;
             };
             let here = StagedSlot { slot, generation };
@@ -317,49 +319,40 @@ impl<F: NorFlash> Slots<F> {
 
     /// The generation of the deployment staged in slot `slot`, if it decodes and
     /// validates (read into `buf`).
-    async fn generation_of(
-        &mut self,
-        slot: usize,
-        buf: &mut [u8],
-    ) -> Result<Option<u32>, F::Error> {
-        let Some(len) = self.read_into(slot, buf).await? else {
+    fn generation_of(&mut self, slot: usize, buf: &mut [u8]) -> Result<Option<u32>, F::Error> {
+        let Some(len) = self.read_into_now(slot, buf)? else {
             return Ok(None);
         };
         Ok(generation(buf.get(..len).unwrap_or(&[])))
     }
 
     /// Erases slot `slot` and writes `blob` and its length, not yet staged.
-    pub async fn persist(&mut self, slot: usize, blob: &[u8]) -> Result<(), SlotError<F::Error>> {
+    pub fn persist_now(&mut self, slot: usize, blob: &[u8]) -> Result<(), SlotError<F::Error>> {
         if blob.len() > MAX_BLOB {
             return Err(SlotError::TooLong);
         }
         let base = self.base(slot);
-        self.flash
-            .erase(base, base + self.slot_size)
-            .await
-            .map_err(SlotError::Flash)?;
+        block_on(self.flash.erase(base, base + self.slot_size)).map_err(SlotError::Flash)?;
         let whole = blob.len() / F::WRITE_SIZE * F::WRITE_SIZE;
         let (body, tail) = blob.split_at(whole);
         if !body.is_empty() {
-            self.flash
-                .write(base + HEADER as u32, body)
-                .await
-                .map_err(SlotError::Flash)?;
+            block_on(self.flash.write(base + HEADER as u32, body)).map_err(SlotError::Flash)?;
         }
         if !tail.is_empty() {
             let mut last = [0xFFu8; MAX_ALIGN];
             last[..tail.len()].copy_from_slice(tail);
-            self.flash
-                .write(base + (HEADER + whole) as u32, &last[..F::WRITE_SIZE])
-                .await
-                .map_err(SlotError::Flash)?;
+            block_on(
+                self.flash
+                    .write(base + (HEADER + whole) as u32, &last[..F::WRITE_SIZE]),
+            )
+            .map_err(SlotError::Flash)?;
         }
-        self.write_word(base + LEN_AT, blob.len() as u32).await
+        self.write_word(base + LEN_AT, blob.len() as u32)
     }
 
     /// Persists `blob` in the slot not holding `running` and marks it staged: checked,
     /// not running. Returns the slot written.
-    pub async fn stage(
+    pub fn stage_now(
         &mut self,
         running: Option<usize>,
         blob: &[u8],
@@ -368,53 +361,137 @@ impl<F: NorFlash> Slots<F> {
             Some(0) => 1,
             _ => 0,
         };
-        self.persist(slot, blob).await?;
-        self.write_word(self.base(slot) + STAGED_AT, STAGED).await?;
+        self.persist_now(slot, blob)?;
+        self.write_word(self.base(slot) + STAGED_AT, STAGED)?;
         Ok(slot)
     }
 
     /// Makes staged slot `slot` the boot table with activation `serial`; unless `trial`,
     /// confirmed at once.
+    pub fn activate_now(
+        &mut self,
+        slot: usize,
+        serial: u32,
+        trial: bool,
+    ) -> Result<(), SlotError<F::Error>> {
+        let st = self.state_now(slot).map_err(SlotError::Flash)?;
+        if !st.staged || st.revoked || st.serial.is_some() {
+            return Err(SlotError::NotStaged);
+        }
+        let base = self.base(slot);
+        self.write_word(base + SERIAL_AT, serial)?;
+        if !trial {
+            self.write_word(base + CONFIRMED_AT, CONFIRMED)?;
+        }
+        Ok(())
+    }
+
+    /// Confirms slot `slot`'s activation (a trial that passed).
+    pub fn confirm_now(&mut self, slot: usize) -> Result<(), SlotError<F::Error>> {
+        self.write_word(self.base(slot) + CONFIRMED_AT, CONFIRMED)
+    }
+
+    /// Revokes slot `slot`: it never boots again (a rollback, an abandoned trial).
+    pub fn revoke_now(&mut self, slot: usize) -> Result<(), SlotError<F::Error>> {
+        self.write_word(self.base(slot) + REVOKED_AT, REVOKED)
+    }
+
+    /// Stages `blob` beside the running table (in slot `running`, if any) and activates it,
+    /// confirmed, with `serial`: the one-step store. Returns the slot written.
+    pub fn store_now(
+        &mut self,
+        running: Option<usize>,
+        blob: &[u8],
+        serial: u32,
+    ) -> Result<usize, SlotError<F::Error>> {
+        let slot = self.stage_now(running, blob)?;
+        self.activate_now(slot, serial, false)?;
+        Ok(slot)
+    }
+
+    // The same operations as futures (for callers in async code; each completes when
+    // first polled, as the flash does).
+
+    /// [`Slots::state_now`] as a future.
+    pub async fn state(&mut self, slot: usize) -> Result<SlotState, F::Error> {
+        self.state_now(slot)
+    }
+
+    /// [`Slots::read_blob_now`] as a future.
+    pub async fn read_blob(
+        &mut self,
+        slot: usize,
+        buf: &mut [u8; MAX_BLOB + MAX_ALIGN],
+    ) -> Result<Option<usize>, F::Error> {
+        self.read_blob_now(slot, buf)
+    }
+
+    /// [`Slots::read_into_now`] as a future.
+    pub async fn read_into(
+        &mut self,
+        slot: usize,
+        buf: &mut [u8],
+    ) -> Result<Option<usize>, F::Error> {
+        self.read_into_now(slot, buf)
+    }
+
+    /// [`Slots::read_table_now`] as a future.
+    pub async fn read_table(&mut self, slot: usize) -> Result<Option<Loaded>, F::Error> {
+        self.read_table_now(slot)
+    }
+
+    /// [`Slots::load_now`] as a future.
+    pub async fn load(&mut self) -> Result<Boot, F::Error> {
+        self.load_now()
+    }
+
+    /// [`Slots::survey_now`] as a future.
+    pub async fn survey(&mut self, buf: &mut [u8]) -> Result<Survey, F::Error> {
+        self.survey_now(buf)
+    }
+
+    /// [`Slots::persist_now`] as a future.
+    pub async fn persist(&mut self, slot: usize, blob: &[u8]) -> Result<(), SlotError<F::Error>> {
+        self.persist_now(slot, blob)
+    }
+
+    /// [`Slots::stage_now`] as a future.
+    pub async fn stage(
+        &mut self,
+        running: Option<usize>,
+        blob: &[u8],
+    ) -> Result<usize, SlotError<F::Error>> {
+        self.stage_now(running, blob)
+    }
+
+    /// [`Slots::activate_now`] as a future.
     pub async fn activate(
         &mut self,
         slot: usize,
         serial: u32,
         trial: bool,
     ) -> Result<(), SlotError<F::Error>> {
-        let st = self.state(slot).await.map_err(SlotError::Flash)?;
-        if !st.staged || st.revoked || st.serial.is_some() {
-            return Err(SlotError::NotStaged);
-        }
-        let base = self.base(slot);
-        self.write_word(base + SERIAL_AT, serial).await?;
-        if !trial {
-            self.write_word(base + CONFIRMED_AT, CONFIRMED).await?;
-        }
-        Ok(())
+        self.activate_now(slot, serial, trial)
     }
 
-    /// Confirms slot `slot`'s activation (a trial that passed).
+    /// [`Slots::confirm_now`] as a future.
     pub async fn confirm(&mut self, slot: usize) -> Result<(), SlotError<F::Error>> {
-        self.write_word(self.base(slot) + CONFIRMED_AT, CONFIRMED)
-            .await
+        self.confirm_now(slot)
     }
 
-    /// Revokes slot `slot`: it never boots again (a rollback, an abandoned trial).
+    /// [`Slots::revoke_now`] as a future.
     pub async fn revoke(&mut self, slot: usize) -> Result<(), SlotError<F::Error>> {
-        self.write_word(self.base(slot) + REVOKED_AT, REVOKED).await
+        self.revoke_now(slot)
     }
 
-    /// Stages `blob` beside the running table (in slot `running`, if any) and activates it,
-    /// confirmed, with `serial`: the one-step store. Returns the slot written.
+    /// [`Slots::store_now`] as a future.
     pub async fn store(
         &mut self,
         running: Option<usize>,
         blob: &[u8],
         serial: u32,
     ) -> Result<usize, SlotError<F::Error>> {
-        let slot = self.stage(running, blob).await?;
-        self.activate(slot, serial, false).await?;
-        Ok(slot)
+        self.store_now(running, blob, serial)
     }
 }
 

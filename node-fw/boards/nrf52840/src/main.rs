@@ -26,6 +26,7 @@ mod flash;
 mod gateway;
 #[cfg(not(feature = "gateway"))]
 mod gpio;
+mod mem;
 mod radio;
 
 use defmt_rtt as _;
@@ -33,7 +34,6 @@ use embassy_executor::Spawner;
 use embassy_nrf::config::{Config, HfclkSource};
 use embassy_nrf::radio::ieee802154::{Packet, Radio};
 use embassy_nrf::{bind_interrupts, peripherals};
-use embassy_time::Timer;
 use node_fw::provision;
 
 #[cfg(not(feature = "gateway"))]
@@ -68,6 +68,15 @@ fn panic(_: &core::panic::PanicInfo<'_>) -> ! {
     cortex_m::interrupt::disable();
     defmt::error!("panicked: see the backtrace");
     cortex_m::asm::udf()
+}
+
+/// A node that cannot run (no id, a key announced but erased, no frame counter) stays off
+/// the air: asleep until reset, its log line already in the RTT buffer. Not an await in
+/// `main`: no state of its future per place it stops (flash, docs/boards.md).
+fn stay_off() -> ! {
+    loop {
+        cortex_m::asm::wfi();
+    }
 }
 
 /// The runtime's notes as defmt messages: the texts of `runtime::log_note`, formatted on
@@ -174,9 +183,7 @@ async fn main(_spawner: Spawner) {
         defmt::error!(
             "no node id: write UICR CUSTOMER[0] = 0xA500_0000 | address (see docs/boards.md)"
         );
-        loop {
-            Timer::after_secs(3600).await;
-        }
+        stay_off()
     };
     let addr = word.addr;
     // The management key (CUSTOMER[2..=5]): the node secures its config PAN with it. An
@@ -188,9 +195,7 @@ async fn main(_spawner: Spawner) {
                 "node {=u16:#06x}: CUSTOMER[0] announces a key but CUSTOMER[2..=5] are erased",
                 addr
             );
-            loop {
-                Timer::after_secs(3600).await;
-            }
+            stay_off()
         };
         Some(key)
     } else {
@@ -236,8 +241,6 @@ async fn main(_spawner: Spawner) {
     {
         use core::cell::RefCell;
 
-        #[cfg(feature = "frame-security")]
-        use embassy_futures::block_on;
         use embassy_nrf::gpio::Flex;
         use embassy_nrf::nvmc::Nvmc;
         #[cfg(feature = "frame-security")]
@@ -278,11 +281,11 @@ async fn main(_spawner: Spawner) {
             epoch,
             key.is_some()
         );
-        // A keyed node's frame counter. The NVMC blocks: its futures complete when first
-        // polled.
+        // A keyed node's frame counter. The NVMC blocks: the counter's plain functions
+        // (`open_now`, `next_now`) complete in place.
         #[cfg(feature = "frame-security")]
         let mut counter = match key {
-            Some(_) => match block_on(FrameCounter::open(flash.frame_counter())) {
+            Some(_) => match FrameCounter::open_now(flash.frame_counter()) {
                 Ok(c) => {
                     // The counter's value only: the key is never logged.
                     defmt::info!("node {=u16:#06x}: frame counter {=u32}", addr, c.peek());
@@ -301,9 +304,7 @@ async fn main(_spawner: Spawner) {
                         addr,
                         why
                     );
-                    loop {
-                        Timer::after_secs(3600).await;
-                    }
+                    stay_off()
                 }
             },
             None => None,
@@ -321,7 +322,7 @@ async fn main(_spawner: Spawner) {
         ecb::install();
         #[cfg(feature = "frame-security")]
         let (stop, stats) = {
-            let mut next = || counter.as_mut().and_then(|c| block_on(c.next()).ok());
+            let mut next = || counter.as_mut().and_then(|c| c.next_now().ok());
             let security = key.map(|key| runtime::Security {
                 key,
                 counter: &mut next,
