@@ -837,13 +837,7 @@ fn an_always_true_event_less_transition_waits_behind_a_guarded_one() {
             ],
         )
         .unwrap();
-        t.push_chart(
-            0,
-            1,
-            &[&[Action::Set { var: 0, expr: set }]],
-            &[on(0, 0, 0)],
-        )
-        .unwrap();
+        push_setter(&mut t, set);
         route(&mut t, 0, 0, 0);
         route(&mut t, 3, 1, 0);
         route(&mut t, 3, 0, 1);
@@ -873,6 +867,13 @@ fn an_always_true_event_less_transition_waits_behind_a_guarded_one() {
     assert_eq!(e.state(0), Some(1));
 }
 
+/// Pushes a chart of one state that sets variable 0 to `expr` whenever its input 0 fires
+/// (S0 -in0-> S0 [v0 := expr]).
+fn push_setter(t: &mut Table, expr: Expr) {
+    t.push_chart(0, 1, &[&[Action::Set { var: 0, expr }]], &[on(0, 0, 0)])
+        .unwrap();
+}
+
 /// Chart 0: S0 -GO-> S1 [RUN, emit X * `emits`, out0 off]; X (event 3) is counted by
 /// chart 1: S0 -X-> S0 [n := n + 1].
 fn storm_table(emits: usize) -> Table {
@@ -883,13 +884,7 @@ fn storm_table(emits: usize) -> Table {
     s1.extend(std::iter::repeat_n(Action::Emit(3), emits));
     s1.push(drive(0, false));
     t.push_chart(0, 1, &[&[], &s1], &[on(0, 0, 1)]).unwrap();
-    t.push_chart(
-        0,
-        1,
-        &[&[Action::Set { var: 0, expr: inc }]],
-        &[on(0, 0, 0)],
-    )
-    .unwrap();
+    push_setter(&mut t, inc);
     route(&mut t, 0, 0, 0);
     route(&mut t, 3, 1, 0);
     // X is published: a publication must not go out for an event that was not queued.

@@ -615,16 +615,19 @@ pub fn secure(
     payload: &[u8],
     out: &mut [u8],
 ) -> Result<usize, SecError> {
+    with_fcs(out, |mpdu| {
+        secure_by(header, aux, key, src_ext, payload, mpdu, seal)
+    })
+}
+
+/// A PSDU: `secure_mpdu` writes the MPDU into `out` short of the FCS, which is then
+/// appended; returns the PSDU length.
+fn with_fcs(
+    out: &mut [u8],
+    secure_mpdu: impl FnOnce(&mut [u8]) -> Result<usize, SecError>,
+) -> Result<usize, SecError> {
     let mpdu = out.len().saturating_sub(FCS_LEN);
-    let n = secure_by(
-        header,
-        aux,
-        key,
-        src_ext,
-        payload,
-        out.get_mut(..mpdu).ok_or(SecError::NoRoom)?,
-        seal,
-    )?;
+    let n = secure_mpdu(out.get_mut(..mpdu).ok_or(SecError::NoRoom)?)?;
     Ok(mac::append_fcs(out, n)?)
 }
 
@@ -653,17 +656,9 @@ pub fn secure_default_with<C: BlockCipher>(
     payload: &[u8],
     out: &mut [u8],
 ) -> Result<usize, SecError> {
-    let mpdu = out.len().saturating_sub(FCS_LEN);
-    let n = secure_by(
-        header,
-        aux,
-        key,
-        src_ext,
-        payload,
-        out.get_mut(..mpdu).ok_or(SecError::NoRoom)?,
-        seal_default::<C>,
-    )?;
-    Ok(mac::append_fcs(out, n)?)
+    with_fcs(out, |mpdu| {
+        secure_default_mpdu_with::<C>(header, aux, key, src_ext, payload, mpdu)
+    })
 }
 
 /// [`secure_default_with`] writing the MPDU only (no FCS: the radio edge appends it,
