@@ -34,7 +34,7 @@ group() {
         local out="$log/$name-$i.txt" code=0
         timeout 300 "$tool" demo "$@" --seed "$i" >"$out" 2>&1 || code=$?
         local t
-        t=$(sed -n 's/^first motion \([0-9.]*\) ms.*/\1/p' "$out" | head -1)
+        t=$(sed -n 's/^first motion of the cycle \([0-9.]*\) ms.*/\1/p' "$out" | head -1)
         [ -n "$t" ] && lat+=("$t")
         if [ "$code" = 0 ]; then
             rm -f "$out"
@@ -44,7 +44,9 @@ group() {
         fi
     done
     echo "$name: $n runs, $fails failures"
-    if [ ${#lat[@]} -gt 0 ]; then
+    if [ ${#lat[@]} -eq 0 ]; then
+        echo "  no first-motion figure in any run: the demo's summary line changed"
+    else
         printf '%s\n' "${lat[@]}" | sort -n | awk '
             { v[NR] = $1 }
             END {
