@@ -728,7 +728,9 @@ impl<S: StagingArea> NodeCore<S> {
         else {
             return;
         };
-        let mut engine = Engine::resume_indexed(table, index, state);
+        // What the alarms read of the state, as it was: the engine runs on it in place.
+        let before = crate::alarms::Reads::of(table, state);
+        let mut engine = Engine::on(table, index, state);
         let mut fx = NodeEffects {
             now,
             table,
@@ -763,10 +765,8 @@ impl<S: StagingArea> NodeCore<S> {
                 engine.remote(peer, topic, fx);
             }
         }
-        let (fault, inputs) = (engine.fault(), engine.inputs());
-        self.state_changed |=
-            crate::alarms::reads_changed(table, state, fault, inputs, |v| engine.var(v));
-        *state = engine.snapshot();
+        drop(engine);
+        self.state_changed |= before.changed(state);
     }
 
     fn send(&mut self, io: &mut impl Io, pan: u16, dst: u16, msg: &Message<'_>) {
@@ -826,9 +826,7 @@ impl<S: StagingArea> NodeCore<S> {
             if let (Some(table), Some(ix), Some(state)) =
                 (&self.table, &self.index, &mut self.state)
             {
-                let mut engine = Engine::resume_indexed(table, ix, state);
-                engine.sense(index as u8, level);
-                *state = engine.snapshot();
+                Engine::on(table, ix, state).sense(index as u8, level);
                 self.state_changed = true;
             }
             return;
