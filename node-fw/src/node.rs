@@ -9,8 +9,8 @@ use config_schema::limits::{MAX_PEERS, MAX_TIMERS};
 use config_schema::link_keys::LinkKeys;
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_MPDU, MAX_PSDU};
 use config_schema::wire::msg::{
-    Announce, Command, ConfigReply, Counters, Message, Refusal, RuntimeCounters, SecurityCounters,
-    SecurityReport, Status, SwitchStep,
+    Announce, Command, ConfigReply, Counters, LinkMessage, Message, Refusal, RuntimeCounters,
+    SecurityCounters, SecurityReport, Status, SwitchStep,
 };
 use config_schema::wire::security::{self, ext_addr, replay::ReplayGuard, AuxRepr, Opened};
 use config_schema::{Publication, Table};
@@ -224,7 +224,38 @@ struct Radio<'a> {
 
 impl Radio<'_> {
     fn send(&mut self, io: &mut impl Io, pan_id: u16, dst: u16, msg: &Message<'_>) {
-        self.send_numbered(io, pan_id, dst, msg, None)
+        match LinkMessage::of(msg) {
+            Some(m) if self.in_clear(pan_id) => self.send_link(io, pan_id, dst, m),
+            _ => self.send_numbered(io, pan_id, dst, msg, None),
+        }
+    }
+
+    /// Whether a frame on `pan_id` goes unsecured ([`Radio::send_numbered`]'s choice: no
+    /// management key on the config PAN, no link keys on the robot's).
+    #[inline]
+    fn in_clear(&self, pan_id: u16) -> bool {
+        let links = pan_id != CONFIG_PAN && self.links.secured();
+        let key = self
+            .key
+            .filter(|_| crate::FRAME_SECURITY && pan_id == CONFIG_PAN);
+        !links && key.is_none()
+    }
+
+    /// [`Radio::send_numbered`] of an `Event` or `EventAck` in clear (see
+    /// [`Radio::in_clear`]): the same frame, put together in a buffer its size.
+    #[inline]
+    fn send_link(&mut self, io: &mut impl Io, pan_id: u16, dst: u16, m: LinkMessage) {
+        let mut mpdu = [0u8; mac::DATA_HEADER_LEN + LinkMessage::MAX_LEN];
+        let Some(at) = mpdu.last_chunk_mut::<{ LinkMessage::MAX_LEN }>() else {
+            return;
+        };
+        let n = m.write(at);
+        let header = self.header(pan_id, dst);
+        let emitted = mac::finish_data_mpdu(&header, &mut mpdu, n).ok();
+        if let Some(frame) = emitted.and_then(|len| mpdu.get(..len)) {
+            self.counters.sent += 1;
+            io.transmit_mpdu(frame);
+        }
     }
 
     /// [`Radio::send`]; a secured frame takes `counter` if given (already drawn from the
@@ -770,7 +801,20 @@ impl<S: StagingArea> NodeCore<S> {
     }
 
     fn send(&mut self, io: &mut impl Io, pan: u16, dst: u16, msg: &Message<'_>) {
-        self.send_numbered(io, pan, dst, msg, None);
+        self.radio().send(io, pan, dst, msg);
+    }
+
+    /// What sending a message needs, borrowed from the node.
+    #[inline(always)]
+    fn radio(&mut self) -> Radio<'_> {
+        Radio {
+            addr: self.addr,
+            mac_seq: &mut self.mac_seq,
+            counters: &mut self.counters,
+            key: gated(&self.key),
+            links: &self.peer_security,
+            security: &mut self.security,
+        }
     }
 
     /// [`NodeCore::send`]; a secured frame takes `counter` if given.
@@ -782,15 +826,7 @@ impl<S: StagingArea> NodeCore<S> {
         msg: &Message<'_>,
         counter: Option<u32>,
     ) {
-        let mut radio = Radio {
-            addr: self.addr,
-            mac_seq: &mut self.mac_seq,
-            counters: &mut self.counters,
-            key: gated(&self.key),
-            links: &self.peer_security,
-            security: &mut self.security,
-        };
-        radio.send_numbered(io, pan, dst, msg, counter);
+        self.radio().send_numbered(io, pan, dst, msg, counter);
     }
 
     /// The level of board pin `pin` is `level` (repeating an unchanged level is harmless:
@@ -1032,7 +1068,8 @@ impl<S: StagingArea> NodeCore<S> {
             self.counters.dropped += 1;
             return;
         }
-        let mut scratch = [0u8; mac::MAX_PAYLOAD];
+        // The opened payload's buffer, zeroed only for a secured frame.
+        let mut scratch: [u8; mac::MAX_PAYLOAD];
         let management = header.pan_id == CONFIG_PAN && self.key().is_some();
         if management && header.secured && header.dst == BROADCAST {
             // No one key secures a broadcast to every node: these are other nodes'
@@ -1050,6 +1087,7 @@ impl<S: StagingArea> NodeCore<S> {
             if peers {
                 self.peer_security.note_frame(now);
             }
+            scratch = [0u8; mac::MAX_PAYLOAD];
             let opened = security::open_default_mpdu_with::<NodeCipher, _>(
                 mpdu,
                 |header, aux| self.lookup(header, aux, now),
@@ -1080,6 +1118,13 @@ impl<S: StagingArea> NodeCore<S> {
             self.counters.dropped += 1;
             return;
         } else {
+            // In clear: an event or an acknowledgement is acted on at once (as below: not
+            // management, received, then its handler).
+            if let Some(m) = LinkMessage::parse(payload) {
+                self.counters.received += 1;
+                self.on_link(m, header.src, now, io);
+                return;
+            }
             None
         };
         let parsed = match Message::parse_node(opened.as_ref().map_or(payload, |o| o.payload)) {
@@ -1180,24 +1225,11 @@ impl<S: StagingArea> NodeCore<S> {
         self.counters.received += 1;
         let src = header.src;
         let reply_pan = header.pan_id;
+        if let Some(m) = LinkMessage::of(&msg) {
+            self.on_link(m, src, now, io);
+            return;
+        }
         match msg {
-            Message::Event { epoch, seq, topic } => self.on_event(src, epoch, seq, topic, now, io),
-            Message::EventAck { epoch, next } => {
-                let Some(peer) = self.peer(src) else { return };
-                let (Some(table), Some(sender)) = (&self.table, self.senders.get_mut(peer)) else {
-                    return;
-                };
-                let pan = table.header.pan_id;
-                let mut radio = Radio {
-                    addr: self.addr,
-                    mac_seq: &mut self.mac_seq,
-                    counters: &mut self.counters,
-                    key: gated(&self.key),
-                    links: &self.peer_security,
-                    security: &mut self.security,
-                };
-                sender.on_ack(epoch, next, now, |m| radio.send(io, pan, src, &m));
-            }
             Message::ConfigBegin { .. }
             | Message::ConfigChunk { .. }
             | Message::ConfigEnd { .. } => self.on_config(&msg, src, reply_pan, io),
@@ -1307,6 +1339,31 @@ impl<S: StagingArea> NodeCore<S> {
         self.table.as_ref()?.peers.iter().position(|&p| p == addr)
     }
 
+    /// An event or an acknowledgement from `src`.
+    fn on_link(&mut self, m: LinkMessage, src: u16, now: u64, io: &mut impl Io) {
+        match m {
+            LinkMessage::Event { epoch, seq, topic } => {
+                self.on_event(src, epoch, seq, topic, now, io)
+            }
+            LinkMessage::EventAck { epoch, next } => {
+                let Some(peer) = self.peer(src) else { return };
+                let (Some(table), Some(sender)) = (&self.table, self.senders.get_mut(peer)) else {
+                    return;
+                };
+                let pan = table.header.pan_id;
+                let mut radio = Radio {
+                    addr: self.addr,
+                    mac_seq: &mut self.mac_seq,
+                    counters: &mut self.counters,
+                    key: gated(&self.key),
+                    links: &self.peer_security,
+                    security: &mut self.security,
+                };
+                sender.on_ack(epoch, next, now, |m| radio.send(io, pan, src, &m));
+            }
+        }
+    }
+
     fn on_event(&mut self, src: u16, epoch: u16, seq: u16, topic: u8, now: u64, io: &mut impl Io) {
         let Some(peer) = self.peer(src) else {
             self.counters.dropped += 1;
@@ -1321,12 +1378,15 @@ impl<S: StagingArea> NodeCore<S> {
                 self.receivers.len() - 1
             }
         };
-        let received = self.receivers[slot].1.on_event(epoch, seq, topic);
-        if let Some(ack) = &received.ack {
+        let mut deliver = Vec::new();
+        let Some((_, receiver)) = self.receivers.get_mut(slot) else {
+            return;
+        };
+        if let Some(next) = receiver.receive(epoch, seq, topic, &mut deliver) {
             let pan = self.table.as_ref().map_or(CONFIG_PAN, |t| t.header.pan_id);
-            self.send(io, pan, src, ack);
+            self.send(io, pan, src, &Message::EventAck { epoch, next });
         }
-        for topic in received.deliver {
+        for &topic in deliver.iter() {
             self.counters.delivered += 1;
             let peer = peer as u8;
             self.run(now, io, Stimulus::Remote { peer, topic });
