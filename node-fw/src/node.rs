@@ -896,12 +896,12 @@ impl<S: StagingArea> NodeCore<S> {
 
     /// After a stimulus: a link alarm faults the node under `on_link_alarm: Fault`; then
     /// the alarms look at the node.
+    #[inline]
     fn look(&mut self, now: u64, io: &mut impl Io) {
         let link_alarms = self.link_alarms();
         let link_fault = self.table.as_ref().is_some_and(|t| t.safety.link_fault);
         if link_fault && link_alarms != 0 {
-            let code = config_schema::alarm::FAULT_LINK;
-            self.run(now, io, Stimulus::Fail(code));
+            self.fail_link(now, io);
         }
         if let (Some(table), Some(state)) = (&self.table, &self.state) {
             let seen = Seen {
@@ -912,6 +912,14 @@ impl<S: StagingArea> NodeCore<S> {
             let changed = core::mem::take(&mut self.state_changed);
             self.alarms.look(seen, now, changed);
         }
+    }
+
+    /// A link alarm faults the node (`on_link_alarm: Fault`): out of [`NodeCore::look`],
+    /// which runs after every stimulus.
+    #[inline(never)]
+    fn fail_link(&mut self, now: u64, io: &mut impl Io) {
+        let code = config_schema::alarm::FAULT_LINK;
+        self.run(now, io, Stimulus::Fail(code));
     }
 
     /// The latched alarms.

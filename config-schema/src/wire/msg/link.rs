@@ -113,15 +113,19 @@ pub(super) fn emit(msg: &Message<'_>, buf: &mut [u8]) -> Option<usize> {
 /// Writes `v` as a varint into `out` from `at` (at most 3 bytes); returns the end.
 #[inline]
 fn put(v: u16, out: &mut [u8; 8], at: usize) -> usize {
-    let mut v = v;
-    let mut at = at;
-    while v >= 0x80 {
+    if v < 0x80 {
+        out[at & 7] = v as u8;
+        at + 1
+    } else if v < 0x4000 {
         out[at & 7] = (v as u8) | 0x80;
-        v >>= 7;
-        at += 1;
+        out[(at + 1) & 7] = (v >> 7) as u8;
+        at + 2
+    } else {
+        out[at & 7] = (v as u8) | 0x80;
+        out[(at + 1) & 7] = ((v >> 7) as u8) | 0x80;
+        out[(at + 2) & 7] = (v >> 14) as u8;
+        at + 3
     }
-    out[at & 7] = v as u8;
-    at + 1
 }
 
 pub(super) fn parse(payload: &[u8]) -> Option<Message<'static>> {
