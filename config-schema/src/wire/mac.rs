@@ -135,7 +135,6 @@ impl<'a> Frame<'a> {
     }
 
     /// Parses an MPDU (the frame without its FCS, checked at the radio edge). Never panics.
-    #[inline]
     pub fn parse_mpdu(body: &'a [u8]) -> Result<Frame<'a>, FrameError> {
         if body.len() > MAX_MPDU {
             return Err(FrameError::Oversized);
