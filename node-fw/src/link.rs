@@ -286,9 +286,8 @@ impl Receiver {
         if ahead == 0 {
             let _ = deliver.push(topic);
             next = next.wrapping_add(1);
-            // Re-index the held frames from the new `next`, releasing those now in order
-            // (none held: nothing moves).
-            while self.held != [None; WINDOW] {
+            // Re-index the held frames from the new `next`, releasing those now in order.
+            loop {
                 let [first, rest @ ..] = self.held;
                 self.held = [None; WINDOW];
                 self.held[..WINDOW - 1].copy_from_slice(&rest);

@@ -230,16 +230,6 @@ impl Radio<'_> {
         }
     }
 
-    /// [`Radio::send`] of an `Event` or `EventAck`.
-    #[inline]
-    fn send_link_message(&mut self, io: &mut impl Io, pan_id: u16, dst: u16, m: LinkMessage) {
-        if self.in_clear(pan_id) {
-            self.send_link(io, pan_id, dst, m);
-        } else {
-            self.send_numbered(io, pan_id, dst, &Message::from(m), None);
-        }
-    }
-
     /// Whether a frame on `pan_id` goes unsecured ([`Radio::send_numbered`]'s choice: no
     /// management key on the config PAN, no link keys on the robot's).
     #[inline]
@@ -1402,8 +1392,7 @@ impl<S: StagingArea> NodeCore<S> {
         };
         if let Some(next) = receiver.receive(epoch, seq, topic, &mut deliver) {
             let pan = self.table.as_ref().map_or(CONFIG_PAN, |t| t.header.pan_id);
-            self.radio()
-                .send_link_message(io, pan, src, LinkMessage::EventAck { epoch, next });
+            self.send(io, pan, src, &Message::EventAck { epoch, next });
         }
         for &topic in deliver.iter() {
             self.counters.delivered += 1;
