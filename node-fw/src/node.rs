@@ -796,7 +796,6 @@ impl<S: StagingArea> NodeCore<S> {
                 engine.remote(peer, topic, fx);
             }
         }
-        drop(engine);
         self.state_changed |= before.changed(state);
     }
 
