@@ -274,6 +274,37 @@ pub fn reads_changed(
                 .any(|(v, &x)| var(v) != Some(x)))
 }
 
+/// What the alarms read from an engine state, kept before a stimulus that runs the engine
+/// on the state in place (nothing copied): the fault and the inputs. A table that declares
+/// alarms has their conditions read its variables too: for it every such stimulus counts
+/// as a change ([`Alarms::look`] then looks at everything, as [`Alarms::observe`] does:
+/// the same alarms at the same moments).
+#[derive(Debug, Clone, Copy)]
+pub struct Reads {
+    fault: Option<Fault>,
+    inputs: u16,
+    declared: bool,
+}
+
+impl Reads {
+    /// What the alarms read of `state` (running `table`) now.
+    #[inline]
+    pub fn of(table: &Table, state: &EngineState) -> Reads {
+        Reads {
+            fault: state.fault,
+            inputs: state.inputs,
+            declared: !table.safety.alarms.is_empty(),
+        }
+    }
+
+    /// Whether the alarms may read something else in `now` ([`reads_changed`], with the
+    /// variables of a table that declares alarms taken as changed).
+    #[inline]
+    pub fn changed(&self, now: &EngineState) -> bool {
+        self.declared || self.fault != now.fault || self.inputs != now.inputs
+    }
+}
+
 /// Whether the table's emergency-stop input is high.
 fn estop_pressed(seen: Seen<'_>) -> bool {
     seen.table

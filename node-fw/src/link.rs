@@ -249,16 +249,27 @@ impl Receiver {
         Self::default()
     }
 
-    fn drop_frame(&mut self) -> Received {
-        self.dropped += 1;
+    /// An event frame arrived.
+    pub fn on_event(&mut self, epoch: u16, seq: u16, topic: Topic) -> Received {
+        let mut deliver = heapless::Vec::new();
+        let ack = self.receive(epoch, seq, topic, &mut deliver);
         Received {
-            deliver: heapless::Vec::new(),
-            ack: None,
+            deliver,
+            ack: ack.map(|next| Message::EventAck { epoch, next }),
         }
     }
 
-    /// An event frame arrived.
-    pub fn on_event(&mut self, epoch: u16, seq: u16, topic: Topic) -> Received {
+    /// [`Receiver::on_event`] without building the [`Received`]: the topics to deliver are
+    /// pushed onto `deliver` (empty), and `Some(next)` says to acknowledge with
+    /// `EventAck { epoch, next }` (`None`: say nothing).
+    #[inline]
+    pub fn receive(
+        &mut self,
+        epoch: u16,
+        seq: u16,
+        topic: Topic,
+        deliver: &mut heapless::Vec<Topic, { WINDOW + 1 }>,
+    ) -> Option<u16> {
         let next = match self.cursor {
             Some((current, next)) if current == epoch => next,
             // An older epoch: a frame from before the publisher restarted.
@@ -270,7 +281,6 @@ impl Receiver {
                 0
             }
         };
-        let mut deliver = heapless::Vec::new();
         let ahead = usize::from(seq.wrapping_sub(next));
         let mut next = next;
         if ahead == 0 {
@@ -295,9 +305,11 @@ impl Receiver {
             self.dropped += 1; // a duplicate, or beyond the sender's window
         }
         self.cursor = Some((epoch, next));
-        Received {
-            deliver,
-            ack: Some(Message::EventAck { epoch, next }),
-        }
+        Some(next)
+    }
+
+    fn drop_frame(&mut self) -> Option<u16> {
+        self.dropped += 1;
+        None
     }
 }

@@ -9,8 +9,8 @@ use config_schema::limits::{MAX_PEERS, MAX_TIMERS};
 use config_schema::link_keys::LinkKeys;
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_MPDU, MAX_PSDU};
 use config_schema::wire::msg::{
-    Announce, Command, ConfigReply, Counters, Message, Refusal, RuntimeCounters, SecurityCounters,
-    SecurityReport, Status, SwitchStep,
+    Announce, Command, ConfigReply, Counters, LinkMessage, Message, Refusal, RuntimeCounters,
+    SecurityCounters, SecurityReport, Status, SwitchStep,
 };
 use config_schema::wire::security::{self, ext_addr, replay::ReplayGuard, AuxRepr, Opened};
 use config_schema::{Publication, Table};
@@ -224,7 +224,38 @@ struct Radio<'a> {
 
 impl Radio<'_> {
     fn send(&mut self, io: &mut impl Io, pan_id: u16, dst: u16, msg: &Message<'_>) {
-        self.send_numbered(io, pan_id, dst, msg, None)
+        match LinkMessage::of(msg) {
+            Some(m) if self.in_clear(pan_id) => self.send_link(io, pan_id, dst, m),
+            _ => self.send_numbered(io, pan_id, dst, msg, None),
+        }
+    }
+
+    /// Whether a frame on `pan_id` goes unsecured ([`Radio::send_numbered`]'s choice: no
+    /// management key on the config PAN, no link keys on the robot's).
+    #[inline]
+    fn in_clear(&self, pan_id: u16) -> bool {
+        let links = pan_id != CONFIG_PAN && self.links.secured();
+        let key = self
+            .key
+            .filter(|_| crate::FRAME_SECURITY && pan_id == CONFIG_PAN);
+        !links && key.is_none()
+    }
+
+    /// [`Radio::send_numbered`] of an `Event` or `EventAck` in clear (see
+    /// [`Radio::in_clear`]): the same frame, put together in a buffer its size.
+    #[inline]
+    fn send_link(&mut self, io: &mut impl Io, pan_id: u16, dst: u16, m: LinkMessage) {
+        let mut mpdu = [0u8; mac::DATA_HEADER_LEN + LinkMessage::MAX_LEN];
+        let Some(at) = mpdu.last_chunk_mut::<{ LinkMessage::MAX_LEN }>() else {
+            return;
+        };
+        let n = m.write(at);
+        let header = self.header(pan_id, dst);
+        let emitted = mac::finish_data_mpdu(&header, &mut mpdu, n).ok();
+        if let Some(frame) = emitted.and_then(|len| mpdu.get(..len)) {
+            self.counters.sent += 1;
+            io.transmit_mpdu(frame);
+        }
     }
 
     /// [`Radio::send`]; a secured frame takes `counter` if given (already drawn from the
@@ -728,7 +759,9 @@ impl<S: StagingArea> NodeCore<S> {
         else {
             return;
         };
-        let mut engine = Engine::resume_indexed(table, index, state);
+        // What the alarms read of the state, as it was: the engine runs on it in place.
+        let before = crate::alarms::Reads::of(table, state);
+        let mut engine = Engine::on(table, index, state);
         let mut fx = NodeEffects {
             now,
             table,
@@ -763,14 +796,24 @@ impl<S: StagingArea> NodeCore<S> {
                 engine.remote(peer, topic, fx);
             }
         }
-        let (fault, inputs) = (engine.fault(), engine.inputs());
-        self.state_changed |=
-            crate::alarms::reads_changed(table, state, fault, inputs, |v| engine.var(v));
-        *state = engine.snapshot();
+        self.state_changed |= before.changed(state);
     }
 
     fn send(&mut self, io: &mut impl Io, pan: u16, dst: u16, msg: &Message<'_>) {
-        self.send_numbered(io, pan, dst, msg, None);
+        self.radio().send(io, pan, dst, msg);
+    }
+
+    /// What sending a message needs, borrowed from the node.
+    #[inline(always)]
+    fn radio(&mut self) -> Radio<'_> {
+        Radio {
+            addr: self.addr,
+            mac_seq: &mut self.mac_seq,
+            counters: &mut self.counters,
+            key: gated(&self.key),
+            links: &self.peer_security,
+            security: &mut self.security,
+        }
     }
 
     /// [`NodeCore::send`]; a secured frame takes `counter` if given.
@@ -782,15 +825,7 @@ impl<S: StagingArea> NodeCore<S> {
         msg: &Message<'_>,
         counter: Option<u32>,
     ) {
-        let mut radio = Radio {
-            addr: self.addr,
-            mac_seq: &mut self.mac_seq,
-            counters: &mut self.counters,
-            key: gated(&self.key),
-            links: &self.peer_security,
-            security: &mut self.security,
-        };
-        radio.send_numbered(io, pan, dst, msg, counter);
+        self.radio().send_numbered(io, pan, dst, msg, counter);
     }
 
     /// The level of board pin `pin` is `level` (repeating an unchanged level is harmless:
@@ -826,9 +861,7 @@ impl<S: StagingArea> NodeCore<S> {
             if let (Some(table), Some(ix), Some(state)) =
                 (&self.table, &self.index, &mut self.state)
             {
-                let mut engine = Engine::resume_indexed(table, ix, state);
-                engine.sense(index as u8, level);
-                *state = engine.snapshot();
+                Engine::on(table, ix, state).sense(index as u8, level);
                 self.state_changed = true;
             }
             return;
@@ -862,12 +895,12 @@ impl<S: StagingArea> NodeCore<S> {
 
     /// After a stimulus: a link alarm faults the node under `on_link_alarm: Fault`; then
     /// the alarms look at the node.
+    #[inline]
     fn look(&mut self, now: u64, io: &mut impl Io) {
         let link_alarms = self.link_alarms();
         let link_fault = self.table.as_ref().is_some_and(|t| t.safety.link_fault);
         if link_fault && link_alarms != 0 {
-            let code = config_schema::alarm::FAULT_LINK;
-            self.run(now, io, Stimulus::Fail(code));
+            self.fail_link(now, io);
         }
         if let (Some(table), Some(state)) = (&self.table, &self.state) {
             let seen = Seen {
@@ -878,6 +911,14 @@ impl<S: StagingArea> NodeCore<S> {
             let changed = core::mem::take(&mut self.state_changed);
             self.alarms.look(seen, now, changed);
         }
+    }
+
+    /// A link alarm faults the node (`on_link_alarm: Fault`): out of [`NodeCore::look`],
+    /// which runs after every stimulus.
+    #[inline(never)]
+    fn fail_link(&mut self, now: u64, io: &mut impl Io) {
+        let code = config_schema::alarm::FAULT_LINK;
+        self.run(now, io, Stimulus::Fail(code));
     }
 
     /// The latched alarms.
@@ -1034,7 +1075,8 @@ impl<S: StagingArea> NodeCore<S> {
             self.counters.dropped += 1;
             return;
         }
-        let mut scratch = [0u8; mac::MAX_PAYLOAD];
+        // The opened payload's buffer, zeroed only for a secured frame.
+        let mut scratch: [u8; mac::MAX_PAYLOAD];
         let management = header.pan_id == CONFIG_PAN && self.key().is_some();
         if management && header.secured && header.dst == BROADCAST {
             // No one key secures a broadcast to every node: these are other nodes'
@@ -1052,6 +1094,7 @@ impl<S: StagingArea> NodeCore<S> {
             if peers {
                 self.peer_security.note_frame(now);
             }
+            scratch = [0u8; mac::MAX_PAYLOAD];
             let opened = security::open_default_mpdu_with::<NodeCipher, _>(
                 mpdu,
                 |header, aux| self.lookup(header, aux, now),
@@ -1082,6 +1125,13 @@ impl<S: StagingArea> NodeCore<S> {
             self.counters.dropped += 1;
             return;
         } else {
+            // In clear: an event or an acknowledgement is acted on at once (as below: not
+            // management, received, then its handler).
+            if let Some(m) = LinkMessage::parse(payload) {
+                self.counters.received += 1;
+                self.on_link(m, header.src, now, io);
+                return;
+            }
             None
         };
         let parsed = match Message::parse_node(opened.as_ref().map_or(payload, |o| o.payload)) {
@@ -1182,24 +1232,11 @@ impl<S: StagingArea> NodeCore<S> {
         self.counters.received += 1;
         let src = header.src;
         let reply_pan = header.pan_id;
+        if let Some(m) = LinkMessage::of(&msg) {
+            self.on_link(m, src, now, io);
+            return;
+        }
         match msg {
-            Message::Event { epoch, seq, topic } => self.on_event(src, epoch, seq, topic, now, io),
-            Message::EventAck { epoch, next } => {
-                let Some(peer) = self.peer(src) else { return };
-                let (Some(table), Some(sender)) = (&self.table, self.senders.get_mut(peer)) else {
-                    return;
-                };
-                let pan = table.header.pan_id;
-                let mut radio = Radio {
-                    addr: self.addr,
-                    mac_seq: &mut self.mac_seq,
-                    counters: &mut self.counters,
-                    key: gated(&self.key),
-                    links: &self.peer_security,
-                    security: &mut self.security,
-                };
-                sender.on_ack(epoch, next, now, |m| radio.send(io, pan, src, &m));
-            }
             Message::ConfigBegin { .. }
             | Message::ConfigChunk { .. }
             | Message::ConfigEnd { .. } => self.on_config(&msg, src, reply_pan, io),
@@ -1309,6 +1346,31 @@ impl<S: StagingArea> NodeCore<S> {
         self.table.as_ref()?.peers.iter().position(|&p| p == addr)
     }
 
+    /// An event or an acknowledgement from `src`.
+    fn on_link(&mut self, m: LinkMessage, src: u16, now: u64, io: &mut impl Io) {
+        match m {
+            LinkMessage::Event { epoch, seq, topic } => {
+                self.on_event(src, epoch, seq, topic, now, io)
+            }
+            LinkMessage::EventAck { epoch, next } => {
+                let Some(peer) = self.peer(src) else { return };
+                let (Some(table), Some(sender)) = (&self.table, self.senders.get_mut(peer)) else {
+                    return;
+                };
+                let pan = table.header.pan_id;
+                let mut radio = Radio {
+                    addr: self.addr,
+                    mac_seq: &mut self.mac_seq,
+                    counters: &mut self.counters,
+                    key: gated(&self.key),
+                    links: &self.peer_security,
+                    security: &mut self.security,
+                };
+                sender.on_ack(epoch, next, now, |m| radio.send(io, pan, src, &m));
+            }
+        }
+    }
+
     fn on_event(&mut self, src: u16, epoch: u16, seq: u16, topic: u8, now: u64, io: &mut impl Io) {
         let Some(peer) = self.peer(src) else {
             self.counters.dropped += 1;
@@ -1323,12 +1385,15 @@ impl<S: StagingArea> NodeCore<S> {
                 self.receivers.len() - 1
             }
         };
-        let received = self.receivers[slot].1.on_event(epoch, seq, topic);
-        if let Some(ack) = &received.ack {
+        let mut deliver = Vec::new();
+        let Some((_, receiver)) = self.receivers.get_mut(slot) else {
+            return;
+        };
+        if let Some(next) = receiver.receive(epoch, seq, topic, &mut deliver) {
             let pan = self.table.as_ref().map_or(CONFIG_PAN, |t| t.header.pan_id);
-            self.send(io, pan, src, ack);
+            self.send(io, pan, src, &Message::EventAck { epoch, next });
         }
-        for topic in received.deliver {
+        for &topic in deliver.iter() {
             self.counters.delivered += 1;
             let peer = peer as u8;
             self.run(now, io, Stimulus::Remote { peer, topic });

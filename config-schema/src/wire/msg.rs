@@ -400,6 +400,8 @@ impl<'a> Message<'a> {
 mod codec;
 mod link;
 
+pub use link::LinkMessage;
+
 #[cfg(test)]
 mod tests {
     #[test]

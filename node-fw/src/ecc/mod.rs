@@ -6,6 +6,9 @@
 //! Semantics: `docs/ecc-semantics.md`.
 
 use config_schema::limits::{MAX_CASCADE, MAX_CHAIN, MAX_CHARTS, MAX_VARS};
+use core::borrow::BorrowMut;
+use core::ops::{Deref, DerefMut};
+
 use config_schema::{EventId, Publication, Table, Topic};
 
 /// Why a node faulted.
@@ -94,23 +97,37 @@ impl IndexRef<'_> {
     }
 }
 
-/// One node's charts running one table.
+/// One node's charts running one table, holding its state in `S`: its own
+/// ([`EngineState`], the default), or a runtime's borrowed in place (`&mut EngineState`,
+/// [`Engine::on`]: nothing copied in or out per stimulus).
 #[derive(Debug, Clone)]
-pub struct Engine<'t> {
+pub struct Engine<'t, S: BorrowMut<EngineState> = EngineState> {
     table: &'t Table,
     index: IndexRef<'t>,
-    run: Run,
+    state: S,
+    queue: Fifo,
 }
 
-/// What changes while the charts run: the engine without its table and index.
-#[derive(Debug, Clone)]
-struct Run {
-    current: [u8; MAX_CHARTS],
-    vars: [i32; MAX_VARS],
-    inputs: u16,
-    outputs: u16,
-    queue: Fifo,
-    fault: Option<Fault>,
+/// What changes while the charts run: the engine's state (read and written in place
+/// through `Deref`) and its event queue, without the table and index.
+struct Run<'s> {
+    state: &'s mut EngineState,
+    queue: &'s mut Fifo,
+}
+
+impl Deref for Run<'_> {
+    type Target = EngineState;
+    #[inline(always)]
+    fn deref(&self) -> &EngineState {
+        self.state
+    }
+}
+
+impl DerefMut for Run<'_> {
+    #[inline(always)]
+    fn deref_mut(&mut self) -> &mut EngineState {
+        self.state
+    }
 }
 
 impl<'t> Engine<'t> {
@@ -138,36 +155,25 @@ impl<'t> Engine<'t> {
         let mut engine = Engine {
             table,
             index,
-            run: Run {
+            state: EngineState {
                 current: [0; MAX_CHARTS],
                 vars: [0; MAX_VARS],
                 inputs: 0,
                 // The outputs at their start levels, a held one at its bit of `before`.
                 outputs: (before & !mask) | (value & mask),
-                queue: Fifo::new(),
                 fault: None,
             },
+            queue: Fifo::new(),
         };
-        engine.run.init(table);
+        engine.run().init(table);
         engine
-    }
-
-    /// The state to [`resume`](Engine::resume) from later.
-    pub fn snapshot(&self) -> EngineState {
-        let r = &self.run;
-        EngineState {
-            current: r.current,
-            vars: r.vars,
-            inputs: r.inputs,
-            outputs: r.outputs,
-            fault: r.fault,
-        }
     }
 
     /// An engine over `table` in a state taken by [`snapshot`](Engine::snapshot) of an
     /// engine running the same table. It builds the table's [`Index`] on every call: for a
     /// test or a one-off; whatever resumes per stimulus keeps the index and calls
-    /// [`resume_indexed`](Engine::resume_indexed) (`NodeCore`, `sim`, `verify` do).
+    /// [`resume_indexed`](Engine::resume_indexed) (`sim`, `verify` do) or runs on its
+    /// state in place ([`Engine::on`]: `NodeCore` does).
     pub fn resume(table: &'t Table, state: &EngineState) -> Self {
         Engine::resume_with(table, IndexRef::Own(Index::new(table)), state)
     }
@@ -182,15 +188,47 @@ impl<'t> Engine<'t> {
         Engine {
             table,
             index,
-            run: Run {
-                current: state.current,
-                vars: state.vars,
-                inputs: state.inputs,
-                outputs: state.outputs,
-                queue: Fifo::new(),
-                fault: state.fault,
-            },
+            state: state.clone(),
+            queue: Fifo::new(),
         }
+    }
+}
+
+impl<'t, 's> Engine<'t, &'s mut EngineState> {
+    /// An engine over `table` (with `index`, the [`Index`] its runtime keeps) running on
+    /// `state` in place: what [`resume_indexed`](Engine::resume_indexed) then
+    /// [`snapshot`](Engine::snapshot) into `state` do, without the two copies. `state`
+    /// must be one of an engine running the same table.
+    #[inline]
+    pub fn on(table: &'t Table, index: &'t Index, state: &'s mut EngineState) -> Self {
+        Engine {
+            table,
+            index: IndexRef::Kept(index),
+            state,
+            queue: Fifo::new(),
+        }
+    }
+}
+
+impl<'t, S: BorrowMut<EngineState>> Engine<'t, S> {
+    /// The state and the queue, for the interpreter.
+    #[inline(always)]
+    fn run(&mut self) -> Run<'_> {
+        Run {
+            state: self.state.borrow_mut(),
+            queue: &mut self.queue,
+        }
+    }
+
+    /// The engine's state.
+    #[inline(always)]
+    fn st(&self) -> &EngineState {
+        self.state.borrow()
+    }
+
+    /// The state to [`resume`](Engine::resume) from later.
+    pub fn snapshot(&self) -> EngineState {
+        self.st().clone()
     }
 
     /// The table this engine runs.
@@ -201,30 +239,30 @@ impl<'t> Engine<'t> {
     /// The chart-local current state of `chart`.
     pub fn state(&self, chart: usize) -> Option<u8> {
         (chart < self.table.charts.len())
-            .then(|| self.run.current.get(chart).copied())
+            .then(|| self.st().current.get(chart).copied())
             .flatten()
     }
 
     /// The value of variable `var`.
     pub fn var(&self, var: usize) -> Option<i32> {
         (var < self.table.vars.len())
-            .then(|| self.run.vars.get(var).copied())
+            .then(|| self.st().vars.get(var).copied())
             .flatten()
     }
 
     /// The output levels, bit i = output i.
     pub fn outputs(&self) -> u16 {
-        self.run.outputs
+        self.st().outputs
     }
 
     /// The input levels, bit i = input i.
     pub fn inputs(&self) -> u16 {
-        self.run.inputs
+        self.st().inputs
     }
 
     /// The fault the node is in, if any.
     pub fn fault(&self) -> Option<Fault> {
-        self.run.fault
+        self.st().fault
     }
 
     /// Back to the initial state: clears a fault, cancels every timer, charts and variables
@@ -233,28 +271,42 @@ impl<'t> Engine<'t> {
         for timer in 0..self.table.timers.len() {
             fx.cancel_timer(timer as u8);
         }
-        let ix = self.index.get();
+        let table = self.table;
+        let (ix, mut run) = self.parts();
         let (mask, value) = ix.start_drive;
-        self.run.drive(ix, mask, value, fx);
-        self.run.init(self.table);
+        run.drive(ix, mask, value, fx);
+        run.init(table);
+    }
+
+    /// The index and the interpreter's run, borrowed apart.
+    #[inline(always)]
+    fn parts(&mut self) -> (&Index, Run<'_>) {
+        let ix = self.index.get();
+        let run = Run {
+            state: self.state.borrow_mut(),
+            queue: &mut self.queue,
+        };
+        (ix, run)
     }
 
     /// Faults the node from outside the charts (a link alarm under `on_link_alarm:
     /// Fault`): as a `Fault(code)` action of no chart ([`config_schema::alarm::NO_CHART`]).
     /// A faulted node stays in its fault.
     pub fn fail(&mut self, code: u8, fx: &mut impl Effects) {
-        if self.run.fault.is_none() {
+        if self.st().fault.is_none() {
             let chart = config_schema::alarm::NO_CHART;
             let fault = Fault::Action { chart, code };
-            self.run.set_fault(self.index.get(), fault, fx);
+            let (ix, mut run) = self.parts();
+            run.set_fault(ix, fault, fx);
         }
     }
 
     /// Input `input` is at `level` when the engine starts (a switch that was already
     /// closed): sets the level and its mirror variable without raising any event.
     pub fn sense(&mut self, input: u8, level: bool) {
-        if let Some(rec) = self.index.get().input(input) {
-            self.run.level(input, rec.var, level);
+        let (ix, mut run) = self.parts();
+        if let Some(rec) = ix.input(input) {
+            run.level(input, rec.var, level);
         }
     }
 
@@ -262,14 +314,15 @@ impl<'t> Engine<'t> {
     /// its rise or fall event (published if it has a publication).
     #[inline]
     pub fn input(&mut self, input: u8, level: bool, fx: &mut impl Effects) {
-        let ix = self.index.get();
+        let table = self.table;
+        let (ix, mut run) = self.parts();
         let Some(rec) = ix.input(input) else {
             return;
         };
-        let was = self.run.level(input, rec.var, level);
+        let was = run.level(input, rec.var, level);
         let event = if level { rec.rise } else { rec.fall };
         if was != level && event != NONE {
-            self.run.raise(ix, self.table, event, true, fx);
+            run.raise(ix, table, event, true, fx);
         }
     }
 
@@ -319,7 +372,9 @@ impl<'t> Engine<'t> {
     /// idle point of the one it replaces starts where that one rested (every actuator
     /// home), not in its initial (not homed) state.
     pub fn rest(&mut self) {
-        for (slot, chart) in self.run.current.iter_mut().zip(self.table.charts.iter()) {
+        let table = self.table;
+        let state = self.state.borrow_mut();
+        for (slot, chart) in state.current.iter_mut().zip(table.charts.iter()) {
             *slot = chart.idle;
         }
     }
@@ -344,27 +399,29 @@ impl<'t> Engine<'t> {
 
     #[inline]
     fn raise(&mut self, event: EventId, local: bool, fx: &mut impl Effects) {
-        self.run
-            .raise(self.index.get(), self.table, event, local, fx);
+        let table = self.table;
+        let (ix, mut run) = self.parts();
+        run.raise(ix, table, event, local, fx);
     }
 }
 
-impl Run {
+impl Run<'_> {
     fn init(&mut self, table: &Table) {
-        for (slot, chart) in self.current.iter_mut().zip(table.charts.iter()) {
+        let s = &mut *self.state;
+        for (slot, chart) in s.current.iter_mut().zip(table.charts.iter()) {
             *slot = chart.initial;
         }
-        for (slot, value) in self.vars.iter_mut().zip(table.vars.iter()) {
+        for (slot, value) in s.vars.iter_mut().zip(table.vars.iter()) {
             *slot = *value;
         }
         // Inputs keep their levels and mirrors: the switches did not move.
         for (i, input) in table.inputs.iter().enumerate().take(16) {
-            if let Some(var) = input.var.and_then(|v| self.vars.get_mut(usize::from(v))) {
-                *var = i32::from(self.inputs & (1 << i) != 0);
+            if let Some(var) = input.var.and_then(|v| s.vars.get_mut(usize::from(v))) {
+                *var = i32::from(s.inputs & (1 << i) != 0);
             }
         }
         self.queue.clear();
-        self.fault = None;
+        s.fault = None;
     }
 
     /// Sets input `input`'s level and its mirror variable `var`; returns the level it had.

@@ -11,78 +11,129 @@ use super::Message;
 const EVENT: u8 = 0;
 const EVENT_ACK: u8 = 1;
 
-pub(super) fn emit(msg: &Message<'_>, buf: &mut [u8]) -> Option<usize> {
-    if !matches!(msg, Message::Event { .. } | Message::EventAck { .. }) {
-        return None;
+/// An `Event` or an `EventAck` alone: the messages of a running machine, read and written
+/// on the short path without the whole [`Message`] (a node core's per-event path).
+/// [`LinkMessage::parse`] takes exactly the payloads [`Message::parse_node`] reads on this
+/// path, as the same message; [`LinkMessage::write`] writes [`Message::emit`]'s bytes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum LinkMessage {
+    /// [`Message::Event`].
+    Event { epoch: u16, seq: u16, topic: u8 },
+    /// [`Message::EventAck`].
+    EventAck { epoch: u16, next: u16 },
+}
+
+impl LinkMessage {
+    /// The longest encoding.
+    pub const MAX_LEN: usize = 8;
+
+    /// `payload` as an `Event` or `EventAck` in its canonical encoding; `None`: anything
+    /// else (another message, a longer encoding, trailing bytes: [`Message::parse_node`]'s
+    /// codec path).
+    #[inline]
+    pub fn parse(payload: &[u8]) -> Option<LinkMessage> {
+        let (&tag, rest) = payload.split_first()?;
+        match tag {
+            EVENT => {
+                let (epoch, rest) = take(rest)?;
+                let (seq, rest) = take(rest)?;
+                match rest {
+                    [topic] => Some(LinkMessage::Event {
+                        epoch,
+                        seq,
+                        topic: *topic,
+                    }),
+                    _ => None,
+                }
+            }
+            EVENT_ACK => {
+                let (epoch, rest) = take(rest)?;
+                let (next, rest) = take(rest)?;
+                rest.is_empty()
+                    .then_some(LinkMessage::EventAck { epoch, next })
+            }
+            _ => None,
+        }
     }
+
+    /// `msg` if it is an `Event` or `EventAck`.
+    #[inline]
+    pub fn of(msg: &Message<'_>) -> Option<LinkMessage> {
+        match *msg {
+            Message::Event { epoch, seq, topic } => Some(LinkMessage::Event { epoch, seq, topic }),
+            Message::EventAck { epoch, next } => Some(LinkMessage::EventAck { epoch, next }),
+            _ => None,
+        }
+    }
+
+    /// Writes the message into `out` (the bytes [`Message::emit`] writes); returns its
+    /// length.
+    #[inline]
+    pub fn write(&self, out: &mut [u8; Self::MAX_LEN]) -> usize {
+        match *self {
+            LinkMessage::Event { epoch, seq, topic } => {
+                out[0] = EVENT;
+                let n = put(epoch, out, 1);
+                let n = put(seq, out, n);
+                out[n & 7] = topic;
+                n + 1
+            }
+            LinkMessage::EventAck { epoch, next } => {
+                out[0] = EVENT_ACK;
+                let n = put(epoch, out, 1);
+                put(next, out, n)
+            }
+        }
+    }
+}
+
+impl From<LinkMessage> for Message<'_> {
+    #[inline]
+    fn from(m: LinkMessage) -> Self {
+        match m {
+            LinkMessage::Event { epoch, seq, topic } => Message::Event { epoch, seq, topic },
+            LinkMessage::EventAck { epoch, next } => Message::EventAck { epoch, next },
+        }
+    }
+}
+
+pub(super) fn emit(msg: &Message<'_>, buf: &mut [u8]) -> Option<usize> {
+    let m = LinkMessage::of(msg)?;
     // Room for the longest (8 bytes): written in place, only its own bytes touched.
     if let Some(out) = buf.first_chunk_mut::<8>() {
-        return write(msg, out);
+        return Some(m.write(out));
     }
     let mut out = [0u8; 8];
-    let n = write(msg, &mut out)?;
+    let n = m.write(&mut out);
     // Too small a buffer: postcard says so in its own words.
     buf.get_mut(..n)?.copy_from_slice(out.get(..n)?);
     Some(n)
 }
 
-/// Writes an `Event` or `EventAck` into `out`; returns its length (`None`: another message).
-fn write(msg: &Message<'_>, out: &mut [u8; 8]) -> Option<usize> {
-    match *msg {
-        Message::Event { epoch, seq, topic } => {
-            out[0] = EVENT;
-            let n = put(epoch, out, 1);
-            let n = put(seq, out, n);
-            out[n & 7] = topic;
-            Some(n + 1)
-        }
-        Message::EventAck { epoch, next } => {
-            out[0] = EVENT_ACK;
-            let n = put(epoch, out, 1);
-            Some(put(next, out, n))
-        }
-        _ => None,
-    }
-}
-
 /// Writes `v` as a varint into `out` from `at` (at most 3 bytes); returns the end.
+#[inline]
 fn put(v: u16, out: &mut [u8; 8], at: usize) -> usize {
-    let mut v = v;
-    let mut at = at;
-    while v >= 0x80 {
+    if v < 0x80 {
+        out[at & 7] = v as u8;
+        at + 1
+    } else if v < 0x4000 {
         out[at & 7] = (v as u8) | 0x80;
-        v >>= 7;
-        at += 1;
+        out[(at + 1) & 7] = (v >> 7) as u8;
+        at + 2
+    } else {
+        out[at & 7] = (v as u8) | 0x80;
+        out[(at + 1) & 7] = ((v >> 7) as u8) | 0x80;
+        out[(at + 2) & 7] = (v >> 14) as u8;
+        at + 3
     }
-    out[at & 7] = v as u8;
-    at + 1
 }
 
 pub(super) fn parse(payload: &[u8]) -> Option<Message<'static>> {
-    let (&tag, rest) = payload.split_first()?;
-    match tag {
-        EVENT => {
-            let (epoch, rest) = take(rest)?;
-            let (seq, rest) = take(rest)?;
-            match rest {
-                [topic] => Some(Message::Event {
-                    epoch,
-                    seq,
-                    topic: *topic,
-                }),
-                _ => None,
-            }
-        }
-        EVENT_ACK => {
-            let (epoch, rest) = take(rest)?;
-            let (next, rest) = take(rest)?;
-            rest.is_empty().then_some(Message::EventAck { epoch, next })
-        }
-        _ => None,
-    }
+    LinkMessage::parse(payload).map(Message::from)
 }
 
 /// A canonical varint `u16` (the shortest encoding) at the start of `b`.
+#[inline]
 fn take(b: &[u8]) -> Option<(u16, &[u8])> {
     match *b {
         [a, ref rest @ ..] if a < 0x80 => Some((u16::from(a), rest)),
