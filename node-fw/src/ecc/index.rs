@@ -36,6 +36,15 @@ pub(super) const CHOOSE: u8 = u8::MAX - 1;
 const _: () = assert!(MAX_ROUTES < NONE as usize);
 const _: () = assert!(MAX_TRANSITIONS < CHOOSE as usize);
 const _: () = assert!(MAX_ACTIONS < NONE as usize);
+/// The operations' pool: every state's actions and close fit, and an index is a `u8`.
+const OPS: usize = 256;
+const _: () = assert!(MAX_ACTIONS + MAX_STATES <= OPS);
+
+const END: Act = Act {
+    code: act::END,
+    dst: 0,
+    w: [0; 4],
+};
 const _: () = assert!(MAX_EVENTS <= NONE as usize);
 const _: () = assert!(MAX_INPUTS.is_power_of_two());
 
@@ -108,6 +117,17 @@ pub(super) mod act {
     /// An assignment to a variable the engine does not have: the expression `(dst, w)`
     /// evaluated for its fault, its value dropped.
     pub const DISCARD: u8 = LAST_CODE + 7;
+    /// The close of an entry after which the chart is stable (no event-less transition
+    /// leaves the state).
+    pub const END: u8 = LAST_CODE + 8;
+    /// The close of an entry whose first event-less transition always holds (taken
+    /// without a choice: no earlier event-less transition is a candidate and its guard
+    /// cannot fault): fire it, to chart-local `dst`, `w[0]` its table index, `w[1]` its
+    /// target in `Table::states` (`NONE`: past `MAX_STATES`).
+    pub const FIRE: u8 = LAST_CODE + 9;
+    /// The close of an entry whose event-less transitions are chosen by their guards: the
+    /// transitions of global state `dst`.
+    pub const CHOOSE: u8 = LAST_CODE + 10;
 }
 
 const _: () = assert!(core::mem::size_of::<Step>() == 9);
@@ -148,7 +168,6 @@ impl<const N: usize> Default for Span<N> {
 
 type RouteSpan = Span<MAX_ROUTES>;
 type StepSpan = Span<MAX_TRANSITIONS>;
-type ActSpan = Span<MAX_ACTIONS>;
 
 /// Per event: its routes and its publication.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -159,28 +178,22 @@ pub(super) struct EventRec {
     pub publication: u8,
 }
 
-/// Per global state: the transitions leaving it, the actions run on entering it and what
-/// follows the entry.
+/// Per global state: the transitions leaving it and where its entry's walk starts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) struct StateRec {
     /// Its transitions in `Index::steps`, in declaration order.
     pub steps: StepSpan,
-    /// Its actions in `Index::acts` (the same indices as `Table::actions`).
-    pub acts: ActSpan,
-    /// The event-less step after its entry, fused at build time: `NONE`, no event-less
-    /// transition leaves it (the chart is stable); a step index, its first event-less
-    /// transition in declaration order, whose guard always holds (taken without a choice:
-    /// no earlier event-less transition is a candidate and its guard cannot fault);
-    /// [`CHOOSE`], its event-less transitions are chosen by their guards.
-    pub next: u8,
+    /// Its entry in `Index::ops`: its actions in order (the same order as
+    /// `Table::actions`), then one closing operation saying what follows the entry
+    /// ([`act::END`], [`act::FIRE`], [`act::CHOOSE`]).
+    pub entry: u8,
 }
 
 impl Default for StateRec {
     fn default() -> Self {
         StateRec {
             steps: Span::EMPTY,
-            acts: Span::EMPTY,
-            next: NONE,
+            entry: 0,
         }
     }
 }
@@ -210,7 +223,10 @@ pub struct Index {
     routes: [Target; MAX_ROUTES],
     states: [StateRec; MAX_STATES],
     steps: [Step; MAX_TRANSITIONS],
-    acts: [Act; MAX_ACTIONS],
+    /// The states' entries, one after the other (each its actions and its close): at most
+    /// `MAX_ACTIONS + MAX_STATES` operations (then one shared [`act::END`], the entry of
+    /// a state the table does not have), 256: an operation's index is a `u8`.
+    ops: [Act; OPS],
     inputs: [InputRec; MAX_INPUTS],
     input_count: u8,
     /// The table's publications (what `Effects::publish` reports), node events and timers.
@@ -239,11 +255,7 @@ impl Index {
             routes: [Target::default(); MAX_ROUTES],
             states: [StateRec::default(); MAX_STATES],
             steps: [NO_STEP; MAX_TRANSITIONS],
-            acts: [Act {
-                code: act::FAULT,
-                dst: 0,
-                w: [0; 4],
-            }; MAX_ACTIONS],
+            ops: [END; OPS],
             inputs: [InputRec {
                 rise: NONE,
                 fall: NONE,
@@ -287,8 +299,8 @@ impl Index {
             };
         }
         ix.build_routes(table);
-        ix.build_steps(table);
-        ix.build_acts(table);
+        let next = ix.build_steps(table);
+        ix.build_ops(table, &next);
         ix
     }
 
@@ -321,7 +333,8 @@ impl Index {
 
     /// The transitions, grouped by the global state they leave (charts in order, then
     /// declaration order).
-    fn build_steps(&mut self, table: &Table) {
+    fn build_steps(&mut self, table: &Table) -> [u8; MAX_STATES] {
+        let mut next = [NONE; MAX_STATES];
         let mut n = 0usize;
         for s in 0..MAX_STATES {
             let start = n as u8;
@@ -362,7 +375,7 @@ impl Index {
             let first_eventless =
                 span_of(&self.steps, steps).position(|step| step.trigger == EVENTLESS);
             self.states[s].steps = steps;
-            self.states[s].next = match first_eventless {
+            next[s] = match first_eventless {
                 None => NONE,
                 Some(i) => {
                     let at = usize::from(start) + i;
@@ -373,42 +386,89 @@ impl Index {
                 }
             };
         }
+        next
     }
 
-    /// The actions, lowered one for one, and each state's span of them.
-    fn build_acts(&mut self, table: &Table) {
-        for (slot, action) in self.acts.iter_mut().zip(table.actions.iter()) {
-            let publication = |e: EventId| {
-                (self.events)
-                    .get(usize::from(e))
-                    .map_or(NONE, |rec| rec.publication)
-            };
-            let of = |code, dst, w| Act { code, dst, w };
-            *slot = match *action {
-                Action::Set { var, expr } => {
-                    let calc = Calc::lower(table, Some(expr));
-                    if usize::from(var) < config_schema::limits::MAX_VARS {
-                        of(calc.code, var, calc.w)
-                    } else {
-                        of(act::DISCARD, calc.code, calc.w)
-                    }
-                }
-                Action::Drive { mask, value } => {
-                    let ([m0, m1], [v0, v1]) = (mask.to_le_bytes(), value.to_le_bytes());
-                    of(act::DRIVE, 0, [m0, m1, v0, v1])
-                }
-                Action::Emit(event) => of(act::EMIT, event, [publication(event), 0, 0, 0]),
-                Action::Publish(event) => of(act::PUBLISH, 0, [publication(event), 0, 0, 0]),
-                Action::StartTimer { timer, ms } => of(act::START_TIMER, timer, ms.to_le_bytes()),
-                Action::CancelTimer(timer) => of(act::CANCEL_TIMER, timer, [0; 4]),
-                Action::Fault(code) => of(act::FAULT, code, [0; 4]),
-            };
-        }
-        for (s, rec) in self.states.iter_mut().enumerate() {
-            let range = table.state_actions(s);
-            if range.end <= table.actions.len() {
-                rec.acts = Span::new(range.start, range.end);
+    /// Each state's entry: its actions, lowered one for one, then its close, from `next`
+    /// (per state: `NONE`, no event-less transition leaves it; a step index, its first
+    /// event-less transition, which always holds; [`CHOOSE`], chosen by their guards).
+    fn build_ops(&mut self, table: &Table, next: &[u8; MAX_STATES]) {
+        let mut pc = 0usize;
+        let push = |ops: &mut [Act; OPS], pc: &mut usize, op: Act| {
+            if let Some(slot) = ops.get_mut(*pc) {
+                *slot = op;
             }
+            *pc += 1;
+        };
+        // A state with no actions and no event-less transition shares one `END`, after
+        // the entries: with at most `MAX_ACTIONS` actions (over the states, in a validated
+        // table) and `MAX_STATES` states, the entries and that `END` fit in the pool.
+        let mut shared = [false; MAX_STATES];
+        for s in 0..MAX_STATES {
+            // A range past the actions (only in a table that skipped validation) is none.
+            let actions = table.actions.get(table.state_actions(s)).unwrap_or(&[]);
+            if actions.is_empty() && next[s] == NONE {
+                shared[s] = true;
+                continue;
+            }
+            self.states[s].entry = pc.min(OPS - 1) as u8;
+            for action in actions {
+                let op = self.lower_action(table, action);
+                push(&mut self.ops, &mut pc, op);
+            }
+            let close = match next[s] {
+                NONE => END,
+                CHOOSE => Act {
+                    code: act::CHOOSE,
+                    dst: s as u8,
+                    w: [0; 4],
+                },
+                at => match self.steps.get(usize::from(at)) {
+                    Some(step) => Act {
+                        code: act::FIRE,
+                        dst: step.to,
+                        w: [step.index, step.target, 0, 0],
+                    },
+                    None => END,
+                },
+            };
+            push(&mut self.ops, &mut pc, close);
+        }
+        // The pool's default is `END`: the shared one is the first after the entries.
+        let end = pc.min(OPS - 1) as u8;
+        for (rec, shared) in self.states.iter_mut().zip(shared) {
+            if shared {
+                rec.entry = end;
+            }
+        }
+    }
+
+    /// `action`, lowered.
+    fn lower_action(&self, table: &Table, action: &Action) -> Act {
+        let publication = |e: EventId| {
+            (self.events)
+                .get(usize::from(e))
+                .map_or(NONE, |rec| rec.publication)
+        };
+        let of = |code, dst, w| Act { code, dst, w };
+        match *action {
+            Action::Set { var, expr } => {
+                let calc = Calc::lower(table, Some(expr));
+                if usize::from(var) < config_schema::limits::MAX_VARS {
+                    of(calc.code, var, calc.w)
+                } else {
+                    of(act::DISCARD, calc.code, calc.w)
+                }
+            }
+            Action::Drive { mask, value } => {
+                let ([m0, m1], [v0, v1]) = (mask.to_le_bytes(), value.to_le_bytes());
+                of(act::DRIVE, 0, [m0, m1, v0, v1])
+            }
+            Action::Emit(event) => of(act::EMIT, event, [publication(event), 0, 0, 0]),
+            Action::Publish(event) => of(act::PUBLISH, 0, [publication(event), 0, 0, 0]),
+            Action::StartTimer { timer, ms } => of(act::START_TIMER, timer, ms.to_le_bytes()),
+            Action::CancelTimer(timer) => of(act::CANCEL_TIMER, timer, [0; 4]),
+            Action::Fault(code) => of(act::FAULT, code, [0; 4]),
         }
     }
 
@@ -436,16 +496,10 @@ impl Index {
         span_of(&self.steps, span)
     }
 
-    /// Step `step` (`None` past `MAX_TRANSITIONS`).
+    /// The operation at `pc` (a `u8`: always inside the pool).
     #[inline(always)]
-    pub(super) fn step(&self, step: u8) -> Option<&Step> {
-        self.steps.get(usize::from(step))
-    }
-
-    /// The actions of a span, in order.
-    #[inline(always)]
-    pub(super) fn acts(&self, span: ActSpan) -> impl Iterator<Item = &Act> {
-        span_of(&self.acts, span)
+    pub(super) fn op(&self, pc: u8) -> &Act {
+        &self.ops[usize::from(pc)]
     }
 
     /// The record of input `input` (`None` past the table's inputs).
@@ -480,15 +534,15 @@ mod tests {
         let pools = 2 * MAX_CHARTS
             + 3 * MAX_EVENTS
             + 2 * MAX_ROUTES
-            + 5 * MAX_STATES
+            + 3 * MAX_STATES
             + 9 * MAX_TRANSITIONS
-            + 6 * MAX_ACTIONS
+            + 6 * 256
             + 3 * MAX_INPUTS
             + 3 * MAX_PUBLICATIONS;
         // The input, event and timer counts, the output mask and the two drives (u16s).
         let rest = 3 + 2 + 2 * 4;
         assert_eq!(Index::BYTES, (pools + rest).next_multiple_of(2));
-        assert_eq!(Index::BYTES, 3126);
+        assert_eq!(Index::BYTES, 3510);
     }
 
     /// A span is always inside its pool: any other range is made empty.

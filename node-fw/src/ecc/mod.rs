@@ -62,10 +62,11 @@ mod calc;
 mod fifo;
 mod index;
 
+use calc::calc_match;
 use calc::Calc;
 use fifo::Fifo;
 pub use index::Index;
-use index::{act, Act, Layout, Span, Step, CHOOSE, EVENTLESS, NONE};
+use index::{act, Act, Layout, Span, Step, EVENTLESS, NONE};
 
 /// Whether a delivery goes on or the node faulted (and the stimulus ends).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -402,13 +403,9 @@ impl Run {
         // The queue is empty between stimuli: the stimulus goes straight to its routes, and
         // only events emitted by actions wait in the FIFO.
         let mut next = event;
-        let mut processed = 0usize;
+        // Deliveries so far, this one included (the first cannot be one too many).
+        let mut processed = 1usize;
         loop {
-            processed += 1;
-            if processed > MAX_CASCADE {
-                self.set_fault(ix, Fault::Cascade { event }, fx);
-                return;
-            }
             // Delivers `next` to all its routes, in order, each chart running to a stable
             // state.
             let routes = ix.event(next).map_or(Span::EMPTY, |rec| rec.routes);
@@ -420,6 +417,11 @@ impl Run {
             match self.queue.pop() {
                 Some(e) => next = e,
                 None => return,
+            }
+            processed += 1;
+            if processed > MAX_CASCADE {
+                self.set_fault(ix, Fault::Cascade { event }, fx);
+                return;
             }
         }
     }
@@ -451,7 +453,7 @@ impl Run {
             .filter(|_| current < states);
         // The input first: the first of the state's transitions it triggers (or an
         // event-less one) whose guard holds.
-        let mut step = match state.map(|rec| self.select(ix.steps(rec.steps), input, table)) {
+        let step = match state.map(|rec| self.select(ix.steps(rec.steps), input, table)) {
             Some(Ok(Some(step))) => step,
             Some(Err(())) => return self.fail_expr(ix, chart, fx),
             None | Some(Ok(None)) => {
@@ -461,46 +463,96 @@ impl Run {
         };
         // Then event-less transitions only, `chained` of them so far.
         let mut chained = 0usize;
-        let mut from = current;
+        let (mut from, mut to, mut index, mut target) = (current, step.to, step.index, step.target);
         loop {
-            // Fire: the target becomes current, then its actions run in order.
-            let to = step.to;
+            // Fire: the target becomes current, then its entry runs: its actions in order,
+            // then its close (what follows the entry, fused when the index was built).
             if let Some(slot) = self.current.get_mut(c) {
                 *slot = to;
             }
-            fx.fired(chart, step.index, from, to);
-            let Some(target) = ix.state(usize::from(step.target)) else {
+            fx.fired(chart, index, from, to);
+            let Some(rec) = ix.state(usize::from(target)) else {
                 return Flow::Go;
             };
-            for act in ix.acts(target.acts) {
-                if self.act(ix, table, chart, act, fx) == Flow::Stop {
-                    return Flow::Stop;
+            let mut pc = rec.entry;
+            // The entry's walk: one jump an operation.
+            loop {
+                let Act { code, dst, w } = *ix.op(pc);
+                pc = pc.wrapping_add(1);
+                let value = calc_match!(code, &w, &self.vars, self.inputs, table, {
+                    act::END => return Flow::Go,
+                    act::FIRE | act::CHOOSE => {
+                        // Only a state of the chart moves on its own.
+                        if to >= states {
+                            return Flow::Go;
+                        }
+                        chained += 1;
+                        let step = if code == act::FIRE {
+                            (dst, w[0], w[1])
+                        } else {
+                            let steps = ix.state(usize::from(dst)).map_or(Span::EMPTY, |r| r.steps);
+                            match self.select(ix.steps(steps), EVENTLESS, table) {
+                                Ok(Some(step)) => (step.to, step.index, step.target),
+                                Ok(None) => return Flow::Go,
+                                Err(()) => return self.fail_expr(ix, chart, fx),
+                            }
+                        };
+                        if chained > MAX_CHAIN {
+                            self.set_fault(ix, Fault::ChainLimit { chart }, fx);
+                            return Flow::Stop;
+                        }
+                        from = to;
+                        (to, index, target) = step;
+                        break;
+                    }
+                    act::DRIVE => {
+                        let [m0, m1, v0, v1] = w;
+                        let (mask, value) =
+                            (u16::from_le_bytes([m0, m1]), u16::from_le_bytes([v0, v1]));
+                        self.drive(ix, mask, value, fx);
+                        continue;
+                    }
+                    act::EMIT => {
+                        // Queued and, once queued, published; an event that does not fit
+                        // faults the node and is not published.
+                        if self.queue.push(dst).is_err() {
+                            self.set_fault(ix, Fault::QueueFull { event: dst }, fx);
+                            return Flow::Stop;
+                        }
+                        publish(ix, w[0], fx);
+                        continue;
+                    }
+                    act::PUBLISH => {
+                        publish(ix, w[0], fx);
+                        continue;
+                    }
+                    act::START_TIMER => {
+                        fx.start_timer(dst, u32::from_le_bytes(w));
+                        continue;
+                    }
+                    act::CANCEL_TIMER => {
+                        fx.cancel_timer(dst);
+                        continue;
+                    }
+                    act::DISCARD => {
+                        if Calc::run(dst, &w, &self.vars, self.inputs, table).is_none() {
+                            return self.fail_expr(ix, chart, fx);
+                        }
+                        continue;
+                    }
+                    act::FAULT => {
+                        self.set_fault(ix, Fault::Action { chart, code: dst }, fx);
+                        return Flow::Stop;
+                    }
+                });
+                // `dst := expression`: the index builds no other codes than the actions'
+                // and the operations' (up to `calc::LAST_CODE`), and `dst` below
+                // `MAX_VARS` (an assignment to any other variable is a `DISCARD`).
+                match value {
+                    Some(value) => self.vars[usize::from(dst) & (MAX_VARS - 1)] = value,
+                    None => return self.fail_expr(ix, chart, fx),
                 }
             }
-            // Only a state with event-less transitions leaving it can move on its own; one
-            // whose first event-less transition always holds takes it without a choice
-            // (fused when the index was built).
-            if to >= states {
-                return Flow::Go;
-            }
-            chained += 1;
-            step = match target.next {
-                NONE => return Flow::Go,
-                CHOOSE => match self.select(ix.steps(target.steps), EVENTLESS, table) {
-                    Ok(Some(step)) => step,
-                    Ok(None) => return Flow::Go,
-                    Err(()) => return self.fail_expr(ix, chart, fx),
-                },
-                at => match ix.step(at) {
-                    Some(step) => step,
-                    None => return Flow::Go,
-                },
-            };
-            if chained > MAX_CHAIN {
-                self.set_fault(ix, Fault::ChainLimit { chart }, fx);
-                return Flow::Stop;
-            }
-            from = to;
         }
     }
 
@@ -525,56 +577,6 @@ impl Run {
             }
         }
         Ok(None)
-    }
-
-    /// Runs one action; [`Flow::Stop`]: the node faulted.
-    #[inline(always)]
-    fn act(
-        &mut self,
-        ix: &Index,
-        table: &Table,
-        chart: u8,
-        a: &Act,
-        fx: &mut impl Effects,
-    ) -> Flow {
-        let Act { code, dst, w } = *a;
-        // One `match` for the actions and the assignments' operations (one jump).
-        match code {
-            act::DRIVE => {
-                let [m0, m1, v0, v1] = w;
-                let (mask, value) = (u16::from_le_bytes([m0, m1]), u16::from_le_bytes([v0, v1]));
-                self.drive(ix, mask, value, fx);
-            }
-            act::EMIT => {
-                // Queued and, once queued, published; an event that does not fit faults
-                // the node and is not published.
-                if self.queue.push(dst).is_err() {
-                    self.set_fault(ix, Fault::QueueFull { event: dst }, fx);
-                    return Flow::Stop;
-                }
-                publish(ix, w[0], fx);
-            }
-            act::PUBLISH => publish(ix, w[0], fx),
-            act::START_TIMER => fx.start_timer(dst, u32::from_le_bytes(w)),
-            act::CANCEL_TIMER => fx.cancel_timer(dst),
-            act::DISCARD => {
-                if Calc::run(dst, &w, &self.vars, self.inputs, table).is_none() {
-                    return self.fail_expr(ix, chart, fx);
-                }
-            }
-            act::FAULT => {
-                self.set_fault(ix, Fault::Action { chart, code: dst }, fx);
-                return Flow::Stop;
-            }
-            // `dst := expression`: the index builds no other codes than the actions' and
-            // the operations' (up to `calc::LAST_CODE`), and `dst` below `MAX_VARS` (an
-            // assignment to any other variable is a `DISCARD`).
-            _ => match Calc::run(code, &w, &self.vars, self.inputs, table) {
-                Some(value) => self.vars[usize::from(dst) & (MAX_VARS - 1)] = value,
-                None => return self.fail_expr(ix, chart, fx),
-            },
-        }
-        Flow::Go
     }
 
     /// Faults the node on an expression of `chart` that cannot be evaluated.
