@@ -123,7 +123,8 @@ pub(super) mod act {
     /// The close of an entry whose first event-less transition always holds (taken
     /// without a choice: no earlier event-less transition is a candidate and its guard
     /// cannot fault): fire it, to chart-local `dst`, `w[0]` its table index, `w[1]` its
-    /// target in `Table::states` (`NONE`: past `MAX_STATES`).
+    /// target's entry; `w[2]` non-zero: the chart is stable after the firing (the target
+    /// has no actions and no event-less transition, or is past `MAX_STATES`).
     pub const FIRE: u8 = LAST_CODE + 9;
     /// The close of an entry whose event-less transitions are chosen by their guards: the
     /// transitions of global state `dst`.
@@ -393,6 +394,29 @@ impl Index {
     /// (per state: `NONE`, no event-less transition leaves it; a step index, its first
     /// event-less transition, which always holds; [`CHOOSE`], chosen by their guards).
     fn build_ops(&mut self, table: &Table, next: &[u8; MAX_STATES]) {
+        // A range past the actions (only in a table that skipped validation) is none.
+        let actions = |s: usize| table.actions.get(table.state_actions(s)).unwrap_or(&[]);
+        // The entries laid out first (a close names its target's entry). A state with no
+        // actions and no event-less transition has none: it shares one `END`, after the
+        // entries (with at most `MAX_ACTIONS` actions over the states, in a validated
+        // table, and `MAX_STATES` states, the entries and that `END` fit in the pool).
+        let mut shared = [false; MAX_STATES];
+        let mut pc = 0usize;
+        for s in 0..MAX_STATES {
+            let n = actions(s).len();
+            if n == 0 && next[s] == NONE {
+                shared[s] = true;
+            } else {
+                self.states[s].entry = pc.min(OPS - 1) as u8;
+                pc += n + 1;
+            }
+        }
+        let end = pc.min(OPS - 1) as u8;
+        for (rec, shared) in self.states.iter_mut().zip(shared) {
+            if shared {
+                rec.entry = end;
+            }
+        }
         let mut pc = 0usize;
         let push = |ops: &mut [Act; OPS], pc: &mut usize, op: Act| {
             if let Some(slot) = ops.get_mut(*pc) {
@@ -400,19 +424,11 @@ impl Index {
             }
             *pc += 1;
         };
-        // A state with no actions and no event-less transition shares one `END`, after
-        // the entries: with at most `MAX_ACTIONS` actions (over the states, in a validated
-        // table) and `MAX_STATES` states, the entries and that `END` fit in the pool.
-        let mut shared = [false; MAX_STATES];
         for s in 0..MAX_STATES {
-            // A range past the actions (only in a table that skipped validation) is none.
-            let actions = table.actions.get(table.state_actions(s)).unwrap_or(&[]);
-            if actions.is_empty() && next[s] == NONE {
-                shared[s] = true;
+            if shared[s] {
                 continue;
             }
-            self.states[s].entry = pc.min(OPS - 1) as u8;
-            for action in actions {
+            for action in actions(s) {
                 let op = self.lower_action(table, action);
                 push(&mut self.ops, &mut pc, op);
             }
@@ -424,22 +440,23 @@ impl Index {
                     w: [0; 4],
                 },
                 at => match self.steps.get(usize::from(at)) {
-                    Some(step) => Act {
-                        code: act::FIRE,
-                        dst: step.to,
-                        w: [step.index, step.target, 0, 0],
-                    },
+                    Some(step) => {
+                        // Its target's entry, or stop after the firing: a target past
+                        // `MAX_STATES`, or one whose entry is the shared `END`.
+                        let (entry, stop) = match shared.get(usize::from(step.target)) {
+                            Some(false) => (self.states[usize::from(step.target)].entry, 0),
+                            _ => (end, 1),
+                        };
+                        Act {
+                            code: act::FIRE,
+                            dst: step.to,
+                            w: [step.index, entry, stop, 0],
+                        }
+                    }
                     None => END,
                 },
             };
             push(&mut self.ops, &mut pc, close);
-        }
-        // The pool's default is `END`: the shared one is the first after the entries.
-        let end = pc.min(OPS - 1) as u8;
-        for (rec, shared) in self.states.iter_mut().zip(shared) {
-            if shared {
-                rec.entry = end;
-            }
         }
     }
 

@@ -481,28 +481,47 @@ impl Run {
                 pc = pc.wrapping_add(1);
                 let value = calc_match!(code, &w, &self.vars, self.inputs, table, {
                     act::END => return Flow::Go,
-                    act::FIRE | act::CHOOSE => {
+                    act::FIRE => {
                         // Only a state of the chart moves on its own.
                         if to >= states {
                             return Flow::Go;
                         }
                         chained += 1;
-                        let step = if code == act::FIRE {
-                            (dst, w[0], w[1])
-                        } else {
-                            let steps = ix.state(usize::from(dst)).map_or(Span::EMPTY, |r| r.steps);
-                            match self.select(ix.steps(steps), EVENTLESS, table) {
-                                Ok(Some(step)) => (step.to, step.index, step.target),
-                                Ok(None) => return Flow::Go,
-                                Err(()) => return self.fail_expr(ix, chart, fx),
-                            }
+                        if chained > MAX_CHAIN {
+                            self.set_fault(ix, Fault::ChainLimit { chart }, fx);
+                            return Flow::Stop;
+                        }
+                        // Fired here, and its target's entry walked on.
+                        let [index, entry, stop, _] = w;
+                        from = to;
+                        to = dst;
+                        if let Some(slot) = self.current.get_mut(c) {
+                            *slot = to;
+                        }
+                        fx.fired(chart, index, from, to);
+                        if stop != 0 {
+                            return Flow::Go;
+                        }
+                        pc = entry;
+                        continue;
+                    }
+                    act::CHOOSE => {
+                        if to >= states {
+                            return Flow::Go;
+                        }
+                        chained += 1;
+                        let steps = ix.state(usize::from(dst)).map_or(Span::EMPTY, |r| r.steps);
+                        let step = match self.select(ix.steps(steps), EVENTLESS, table) {
+                            Ok(Some(step)) => step,
+                            Ok(None) => return Flow::Go,
+                            Err(()) => return self.fail_expr(ix, chart, fx),
                         };
                         if chained > MAX_CHAIN {
                             self.set_fault(ix, Fault::ChainLimit { chart }, fx);
                             return Flow::Stop;
                         }
                         from = to;
-                        (to, index, target) = step;
+                        (to, index, target) = (step.to, step.index, step.target);
                         break;
                     }
                     act::DRIVE => {
