@@ -71,8 +71,9 @@ pub(super) struct Step {
     pub trigger: u8,
     /// Its target, chart-local.
     pub to: u8,
-    /// Its target in `Table::states` (`NONE`: past `MAX_STATES`).
-    pub target: u8,
+    /// Its target's entry in `Index::ops` (a target past `MAX_STATES`: the shared
+    /// [`act::END`]).
+    pub entry: u8,
     /// Its index in `Table::transitions` (for the trace).
     pub index: u8,
     /// Its guard ([`Calc::TRUE`] if it has none).
@@ -82,7 +83,7 @@ pub(super) struct Step {
 const NO_STEP: Step = Step {
     trigger: EVENTLESS,
     to: 0,
-    target: NONE,
+    entry: 0,
     index: 0,
     guard: Calc::TRUE,
 };
@@ -300,8 +301,8 @@ impl Index {
             };
         }
         ix.build_routes(table);
-        let next = ix.build_steps(table);
-        ix.build_ops(table, &next);
+        let (next, targets) = ix.build_steps(table);
+        ix.build_ops(table, &next, &targets);
         ix
     }
 
@@ -334,8 +335,9 @@ impl Index {
 
     /// The transitions, grouped by the global state they leave (charts in order, then
     /// declaration order).
-    fn build_steps(&mut self, table: &Table) -> [u8; MAX_STATES] {
+    fn build_steps(&mut self, table: &Table) -> ([u8; MAX_STATES], [u8; MAX_TRANSITIONS]) {
         let mut next = [NONE; MAX_STATES];
+        let mut targets = [NONE; MAX_TRANSITIONS];
         let mut n = 0usize;
         for s in 0..MAX_STATES {
             let start = n as u8;
@@ -358,14 +360,17 @@ impl Index {
                         continue;
                     };
                     let target = first + usize::from(t.to);
-                    *slot = Step {
-                        trigger,
-                        to: t.to,
-                        target: if target < MAX_STATES {
+                    if let Some(slot) = targets.get_mut(n) {
+                        *slot = if target < MAX_STATES {
                             target as u8
                         } else {
                             NONE
-                        },
+                        };
+                    }
+                    *slot = Step {
+                        trigger,
+                        to: t.to,
+                        entry: 0,
                         index: (range.start + i) as u8,
                         guard: Calc::lower(table, t.guard),
                     };
@@ -387,13 +392,18 @@ impl Index {
                 }
             };
         }
-        next
+        (next, targets)
     }
 
     /// Each state's entry: its actions, lowered one for one, then its close, from `next`
     /// (per state: `NONE`, no event-less transition leaves it; a step index, its first
     /// event-less transition, which always holds; [`CHOOSE`], chosen by their guards).
-    fn build_ops(&mut self, table: &Table, next: &[u8; MAX_STATES]) {
+    fn build_ops(
+        &mut self,
+        table: &Table,
+        next: &[u8; MAX_STATES],
+        targets: &[u8; MAX_TRANSITIONS],
+    ) {
         // A range past the actions (only in a table that skipped validation) is none.
         let actions = |s: usize| table.actions.get(table.state_actions(s)).unwrap_or(&[]);
         // The entries laid out first (a close names its target's entry). A state with no
@@ -443,8 +453,9 @@ impl Index {
                     Some(step) => {
                         // Its target's entry, or stop after the firing: a target past
                         // `MAX_STATES`, or one whose entry is the shared `END`.
-                        let (entry, stop) = match shared.get(usize::from(step.target)) {
-                            Some(false) => (self.states[usize::from(step.target)].entry, 0),
+                        let target = usize::from(targets[usize::from(at)]);
+                        let (entry, stop) = match shared.get(target) {
+                            Some(false) => (self.states[target].entry, 0),
                             _ => (end, 1),
                         };
                         Act {
@@ -457,6 +468,13 @@ impl Index {
                 },
             };
             push(&mut self.ops, &mut pc, close);
+        }
+        // Each transition to its target's entry.
+        for (step, target) in self.steps.iter_mut().zip(targets) {
+            step.entry = match self.states.get(usize::from(*target)) {
+                Some(rec) => rec.entry,
+                None => end,
+            };
         }
     }
 

@@ -463,7 +463,7 @@ impl Run {
         };
         // Then event-less transitions only, `chained` of them so far.
         let mut chained = 0usize;
-        let (mut from, mut to, mut index, mut target) = (current, step.to, step.index, step.target);
+        let (mut from, mut to, mut index, mut entry) = (current, step.to, step.index, step.entry);
         loop {
             // Fire: the target becomes current, then its entry runs: its actions in order,
             // then its close (what follows the entry, fused when the index was built).
@@ -471,10 +471,7 @@ impl Run {
                 *slot = to;
             }
             fx.fired(chart, index, from, to);
-            let Some(rec) = ix.state(usize::from(target)) else {
-                return Flow::Go;
-            };
-            let mut pc = rec.entry;
+            let mut pc = entry;
             // The entry's walk: one jump an operation.
             loop {
                 let Act { code, dst, w } = *ix.op(pc);
@@ -492,7 +489,7 @@ impl Run {
                             return Flow::Stop;
                         }
                         // Fired here, and its target's entry walked on.
-                        let [index, entry, stop, _] = w;
+                        let [index, next, stop, _] = w;
                         from = to;
                         to = dst;
                         if let Some(slot) = self.current.get_mut(c) {
@@ -502,7 +499,7 @@ impl Run {
                         if stop != 0 {
                             return Flow::Go;
                         }
-                        pc = entry;
+                        pc = next;
                         continue;
                     }
                     act::CHOOSE => {
@@ -521,7 +518,7 @@ impl Run {
                             return Flow::Stop;
                         }
                         from = to;
-                        (to, index, target) = (step.to, step.index, step.target);
+                        (to, index, entry) = (step.to, step.index, step.entry);
                         break;
                     }
                     act::DRIVE => {
