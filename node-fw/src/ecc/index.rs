@@ -130,6 +130,13 @@ pub(super) mod act {
     /// The close of an entry whose event-less transitions are chosen by their guards: the
     /// transitions of global state `dst`.
     pub const CHOOSE: u8 = LAST_CODE + 10;
+    /// A drive (as [`DRIVE`]) closing an entry as [`END`] does.
+    pub const DRIVE_END: u8 = LAST_CODE + 11;
+    /// An emit (as [`EMIT`]) closing an entry as [`END`] does.
+    pub const EMIT_END: u8 = LAST_CODE + 12;
+    /// An emit of event `dst` (publication `w[0]`), then a close as [`FIRE`] after which
+    /// the chart is stable: to chart-local `w[1]`, `w[2]` its table index.
+    pub const EMIT_FIRE: u8 = LAST_CODE + 13;
 }
 
 const _: () = assert!(core::mem::size_of::<Step>() == 9);
@@ -406,19 +413,35 @@ impl Index {
     ) {
         // A range past the actions (only in a table that skipped validation) is none.
         let actions = |s: usize| table.actions.get(table.state_actions(s)).unwrap_or(&[]);
-        // The entries laid out first (a close names its target's entry). A state with no
-        // actions and no event-less transition has none: it shares one `END`, after the
-        // entries (with at most `MAX_ACTIONS` actions over the states, in a validated
-        // table, and `MAX_STATES` states, the entries and that `END` fit in the pool).
-        let mut shared = [false; MAX_STATES];
+        // A state with no actions and no event-less transition has no entry of its own:
+        // it shares one `END`, after the entries (with at most `MAX_ACTIONS` actions over
+        // the states, in a validated table, and `MAX_STATES` states, the entries and that
+        // `END` fit in the pool).
+        let shared: [bool; MAX_STATES] =
+            core::array::from_fn(|s| actions(s).is_empty() && next[s] == NONE);
+        // Whether the fused step of state `s` leaves the chart stable: its target has no
+        // entry of its own (or is past `MAX_STATES`).
+        let stops = |s: usize| {
+            let at = usize::from(next[s]);
+            let target = targets.get(at).map_or(NONE, |t| *t);
+            shared.get(usize::from(target)).copied().unwrap_or(true)
+        };
+        // Whether state `s`'s last action and its close are one operation (a drive or an
+        // emit, then `END`; an emit, then a fused step that leaves the chart stable).
+        let fused = |s: usize| match actions(s).last() {
+            Some(Action::Drive { .. }) => next[s] == NONE,
+            Some(Action::Emit(_)) => {
+                next[s] == NONE
+                    || (next[s] != CHOOSE && usize::from(next[s]) < MAX_TRANSITIONS && stops(s))
+            }
+            _ => false,
+        };
+        // The entries laid out first (a close names its target's entry).
         let mut pc = 0usize;
         for s in 0..MAX_STATES {
-            let n = actions(s).len();
-            if n == 0 && next[s] == NONE {
-                shared[s] = true;
-            } else {
+            if !shared[s] {
                 self.states[s].entry = pc.min(OPS - 1) as u8;
-                pc += n + 1;
+                pc += actions(s).len() + 1 - usize::from(fused(s));
             }
         }
         let end = pc.min(OPS - 1) as u8;
@@ -438,10 +461,6 @@ impl Index {
             if shared[s] {
                 continue;
             }
-            for action in actions(s) {
-                let op = self.lower_action(table, action);
-                push(&mut self.ops, &mut pc, op);
-            }
             let close = match next[s] {
                 NONE => END,
                 CHOOSE => Act {
@@ -451,11 +470,10 @@ impl Index {
                 },
                 at => match self.steps.get(usize::from(at)) {
                     Some(step) => {
-                        // Its target's entry, or stop after the firing: a target past
-                        // `MAX_STATES`, or one whose entry is the shared `END`.
-                        let target = usize::from(targets[usize::from(at)]);
-                        let (entry, stop) = match shared.get(target) {
-                            Some(false) => (self.states[target].entry, 0),
+                        // Its target's entry, or stop after the firing.
+                        let target = targets.get(usize::from(at)).map_or(NONE, |t| *t);
+                        let (entry, stop) = match self.states.get(usize::from(target)) {
+                            Some(rec) if !stops(s) => (rec.entry, 0),
                             _ => (end, 1),
                         };
                         Act {
@@ -467,7 +485,31 @@ impl Index {
                     None => END,
                 },
             };
-            push(&mut self.ops, &mut pc, close);
+            let n = actions(s).len();
+            for (i, action) in actions(s).iter().enumerate() {
+                let mut op = self.lower_action(table, action);
+                if i + 1 == n && fused(s) {
+                    op = match (op.code, close.code) {
+                        (act::DRIVE, _) => Act {
+                            code: act::DRIVE_END,
+                            ..op
+                        },
+                        (_, act::END) => Act {
+                            code: act::EMIT_END,
+                            ..op
+                        },
+                        _ => Act {
+                            code: act::EMIT_FIRE,
+                            dst: op.dst,
+                            w: [op.w[0], close.dst, close.w[0], 0],
+                        },
+                    };
+                }
+                push(&mut self.ops, &mut pc, op);
+            }
+            if !fused(s) {
+                push(&mut self.ops, &mut pc, close);
+            }
         }
         // Each transition to its target's entry.
         for (step, target) in self.steps.iter_mut().zip(targets) {

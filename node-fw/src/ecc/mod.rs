@@ -522,21 +522,40 @@ impl Run {
                         break;
                     }
                     act::DRIVE => {
-                        let [m0, m1, v0, v1] = w;
-                        let (mask, value) =
-                            (u16::from_le_bytes([m0, m1]), u16::from_le_bytes([v0, v1]));
-                        self.drive(ix, mask, value, fx);
+                        self.drive_op(ix, w, fx);
                         continue;
                     }
+                    act::DRIVE_END => {
+                        self.drive_op(ix, w, fx);
+                        return Flow::Go;
+                    }
                     act::EMIT => {
-                        // Queued and, once queued, published; an event that does not fit
-                        // faults the node and is not published.
-                        if self.queue.push(dst).is_err() {
-                            self.set_fault(ix, Fault::QueueFull { event: dst }, fx);
+                        if self.emit(ix, dst, w[0], fx) == Flow::Stop {
                             return Flow::Stop;
                         }
-                        publish(ix, w[0], fx);
                         continue;
+                    }
+                    act::EMIT_END => return self.emit(ix, dst, w[0], fx),
+                    act::EMIT_FIRE => {
+                        if self.emit(ix, dst, w[0], fx) == Flow::Stop {
+                            return Flow::Stop;
+                        }
+                        // Then the close, as `FIRE` with a stable target.
+                        if to >= states {
+                            return Flow::Go;
+                        }
+                        chained += 1;
+                        if chained > MAX_CHAIN {
+                            self.set_fault(ix, Fault::ChainLimit { chart }, fx);
+                            return Flow::Stop;
+                        }
+                        from = to;
+                        to = w[1];
+                        if let Some(slot) = self.current.get_mut(c) {
+                            *slot = to;
+                        }
+                        fx.fired(chart, w[2], from, to);
+                        return Flow::Go;
                     }
                     act::PUBLISH => {
                         publish(ix, w[0], fx);
@@ -593,6 +612,27 @@ impl Run {
             }
         }
         Ok(None)
+    }
+
+    /// A drive action: `w` = mask, levels (little-endian `u16`s).
+    #[inline(always)]
+    fn drive_op(&mut self, ix: &Index, w: [u8; 4], fx: &mut impl Effects) {
+        let [m0, m1, v0, v1] = w;
+        let (mask, value) = (u16::from_le_bytes([m0, m1]), u16::from_le_bytes([v0, v1]));
+        self.drive(ix, mask, value, fx);
+    }
+
+    /// An emit action: event `event` queued and, once queued, published (publication
+    /// `p`); an event that does not fit faults the node ([`Flow::Stop`]) and is not
+    /// published.
+    #[inline(always)]
+    fn emit(&mut self, ix: &Index, event: EventId, p: u8, fx: &mut impl Effects) -> Flow {
+        if self.queue.push(event).is_err() {
+            self.set_fault(ix, Fault::QueueFull { event }, fx);
+            return Flow::Stop;
+        }
+        publish(ix, p, fx);
+        Flow::Go
     }
 
     /// Faults the node on an expression of `chart` that cannot be evaluated.
