@@ -592,12 +592,6 @@ impl Index {
     pub(super) fn publication_at(&self, p: u8) -> Option<&Publication> {
         self.publications.get(usize::from(p))
     }
-
-    /// The index of `event`'s publication (`NONE`: not published).
-    #[inline(always)]
-    pub(super) fn publication(&self, event: EventId) -> u8 {
-        self.event(event).map_or(NONE, |rec| rec.publication)
-    }
 }
 
 #[cfg(test)]

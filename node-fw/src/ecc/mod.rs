@@ -397,27 +397,28 @@ impl Run {
         if self.fault.is_some() || event >= ix.event_count {
             return;
         }
+        let rec = ix.event(event);
         if local {
-            publish(ix, ix.publication(event), fx);
+            publish(ix, rec.map_or(NONE, |rec| rec.publication), fx);
         }
         // The queue is empty between stimuli: the stimulus goes straight to its routes, and
         // only events emitted by actions wait in the FIFO.
-        let mut next = event;
+        let mut routes = rec.map_or(Span::EMPTY, |rec| rec.routes);
         // Deliveries so far, this one included (the first cannot be one too many).
         let mut processed = 1usize;
         loop {
             // Delivers `next` to all its routes, in order, each chart running to a stable
             // state.
-            let routes = ix.event(next).map_or(Span::EMPTY, |rec| rec.routes);
             for route in ix.routes(routes) {
                 if self.deliver(ix, table, route.chart, route.input, fx) == Flow::Stop {
                     return;
                 }
             }
-            match self.queue.pop() {
-                Some(e) => next = e,
+            let next = match self.queue.pop() {
+                Some(e) => e,
                 None => return,
-            }
+            };
+            routes = ix.event(next).map_or(Span::EMPTY, |rec| rec.routes);
             processed += 1;
             if processed > MAX_CASCADE {
                 self.set_fault(ix, Fault::Cascade { event }, fx);
