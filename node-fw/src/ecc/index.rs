@@ -346,7 +346,7 @@ impl Index {
         let mut next = [NONE; MAX_STATES];
         let mut targets = [NONE; MAX_TRANSITIONS];
         let mut n = 0usize;
-        for s in 0..MAX_STATES {
+        for (s, next) in next.iter_mut().enumerate() {
             let start = n as u8;
             for (c, layout) in self.layout.iter().enumerate().take(table.charts.len()) {
                 let first = usize::from(layout.first_state);
@@ -388,7 +388,7 @@ impl Index {
             let first_eventless =
                 span_of(&self.steps, steps).position(|step| step.trigger == EVENTLESS);
             self.states[s].steps = steps;
-            next[s] = match first_eventless {
+            *next = match first_eventless {
                 None => NONE,
                 Some(i) => {
                     let at = usize::from(start) + i;
@@ -438,9 +438,9 @@ impl Index {
         };
         // The entries laid out first (a close names its target's entry).
         let mut pc = 0usize;
-        for s in 0..MAX_STATES {
+        for (s, rec) in self.states.iter_mut().enumerate() {
             if !shared[s] {
-                self.states[s].entry = pc.min(OPS - 1) as u8;
+                rec.entry = pc.min(OPS - 1) as u8;
                 pc += actions(s).len() + 1 - usize::from(fused(s));
             }
         }
