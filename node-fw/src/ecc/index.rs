@@ -1,20 +1,23 @@
 //! A table compiled once, when it is installed, into the form the interpreter runs: each
 //! event's routes as (chart, input) pairs, each state's transitions in declaration order
-//! with their guards lowered ([`Calc`]), each state's actions with their assignments
-//! lowered and their publications resolved, each event's publication, per state the
-//! event-less transition that always follows its entry (fused: taken without a choice) or
-//! whether its event-less transitions are chosen by their guards, and the output masks. A stimulus then walks short arrays with one bounds check
-//! an entry and never decodes or re-validates the table.
+//! with their guards lowered ([`Calc`]) and each one's target entry, each state's entry
+//! (its actions with their assignments lowered and their publications resolved, then one
+//! operation that closes it: the chart is stable, the event-less transition that always
+//! follows the entry is fired (fused: taken without a choice), or the event-less
+//! transitions are chosen by their guards), each event's publication and the output
+//! masks. A stimulus then walks short arrays, an entry one operation after the other, and
+//! never decodes or re-validates the table.
 //!
 //! Derived data only: the table stays the one validated form, and an index built from it
 //! gives exactly the order the pools have (the first matching transition in declaration
-//! order, the routes in table order). Built without panics from any table: an entry that
-//! points outside the pools is left out, as the interpreter over the bare table skipped it
-//! (validation refuses such tables anyway), and so is a transition triggered by chart
-//! input 255 (no chart has that many inputs).
+//! order, the routes in table order, a state's actions in table order). Built without
+//! panics from any table: an entry that points outside the pools is left out, as the
+//! interpreter over the bare table skipped it (validation refuses such tables anyway),
+//! and so is a transition triggered by chart input 255 (no chart has that many inputs).
 //!
 //! Its size is fixed by the capacities of `config_schema::limits` (9 bytes a transition,
-//! 6 an action, 2 a route, plus per-event and per-state spans): `Index::BYTES`.
+//! 6 an operation, 256 operations, 2 a route, plus per-event and per-state records):
+//! `Index::BYTES`.
 
 use config_schema::limits::{
     MAX_ACTIONS, MAX_CHARTS, MAX_EVENTS, MAX_INPUTS, MAX_PUBLICATIONS, MAX_ROUTES, MAX_STATES,
@@ -28,8 +31,8 @@ use super::calc::{self, Calc};
 pub(super) const NONE: u8 = u8::MAX;
 /// The trigger of an event-less transition.
 pub(super) const EVENTLESS: u8 = u8::MAX;
-/// [`StateRec::next`] of a state whose event-less transitions are chosen by their guards
-/// at run time.
+/// What follows the entry of a state whose event-less transitions are chosen by their
+/// guards at run time (while the index is built).
 pub(super) const CHOOSE: u8 = u8::MAX - 1;
 
 // Every pool index and span end fits a `u8` below `NONE`.
