@@ -15,10 +15,65 @@ use config_schema::guard::{self, Op};
 use config_schema::limits::MAX_VARS;
 use config_schema::{Expr, Table};
 
-/// The variable slots: a variable index masked with this is in range (`MAX_VARS` is a
-/// power of two).
-const VAR_MASK: usize = MAX_VARS - 1;
+// A variable index masked with `MAX_VARS - 1` is in range.
 const _: () = assert!(MAX_VARS.is_power_of_two());
+
+/// The value of the operation `$code` on `$w` (an `Option<i32>`, `None`: a fault), as one
+/// `match` together with the arms `$arms` for other codes (above [`LAST_CODE`]): an
+/// entry's walk runs an action or an assignment with one jump.
+macro_rules! calc_match {
+    ($code:expr, $w:expr, $vars:expr, $inputs:expr, $table:expr, { $($arms:tt)* }) => {{
+        let w: &[u8; 4] = $w;
+        let vars: &[i32; config_schema::limits::MAX_VARS] = $vars;
+        // Each operation reads only its operands (loaded where used); a variable index
+        // masked is in range (`MAX_VARS` is a power of two).
+        let x = || vars[usize::from(w[0]) & (config_schema::limits::MAX_VARS - 1)];
+        let y = || vars[usize::from(w[1]) & (config_schema::limits::MAX_VARS - 1)];
+        // Sign-extended from 24 bits: one load, one shift.
+        let k = || i32::from_le_bytes(*w) >> 8;
+        let b = |v: bool| Some(i32::from(v));
+        // Every code is below 64 (a const assertion below): masked, the jump needs no range
+        // check.
+        match $code {
+            $($arms)*
+            0 => Some(1),
+            1 => Some(k()),
+            2 => Some(x()),
+            4 => Some(i32::from(x().wrapping_add(k()) as u8)),
+            5 => Some(i32::from(x().wrapping_add(k()) as i8)),
+            6 => Some(i32::from(x().wrapping_add(k()) as u16)),
+            7 => Some(i32::from(x().wrapping_add(k()) as i16)),
+            16 => b(x() != 0 && k() != 0),
+            17 => b(x() != 0 || k() != 0),
+            18 => b(x() == k()),
+            19 => b(x() != k()),
+            20 => b(x() < k()),
+            21 => b(x() <= k()),
+            22 => b(x() > k()),
+            23 => b(x() >= k()),
+            24 => Some(x().wrapping_add(k())),
+            25 => Some(x().wrapping_sub(k())),
+            26 => Some(x().wrapping_mul(k())),
+            27 => $crate::ecc::calc::div(x(), k()),
+            28 => $crate::ecc::calc::rem(x(), k()),
+            32 => b(x() != 0 && y() != 0),
+            33 => b(x() != 0 || y() != 0),
+            34 => b(x() == y()),
+            35 => b(x() != y()),
+            36 => b(x() < y()),
+            37 => b(x() <= y()),
+            38 => b(x() > y()),
+            39 => b(x() >= y()),
+            40 => Some(x().wrapping_add(y())),
+            41 => Some(x().wrapping_sub(y())),
+            42 => Some(x().wrapping_mul(y())),
+            43 => $crate::ecc::calc::div(x(), y()),
+            44 => $crate::ecc::calc::rem(x(), y()),
+            _ => $crate::ecc::calc::stack(w, vars, $inputs, $table),
+        }
+    }};
+}
+pub(super) use calc_match;
 
 /// One lowered expression: an operation `code` on its operands `w`: variable `w[0]` and
 /// the 24-bit signed immediate `w[1..4]` (little-endian: `w` read as an `i32`, shifted
@@ -80,13 +135,13 @@ fn binary_code(op: Op) -> Option<u8> {
 
 /// `a / b` as [`config_schema::guard`] computes it (`None`: by zero).
 #[inline(never)]
-fn div(a: i32, b: i32) -> Option<i32> {
+pub(super) fn div(a: i32, b: i32) -> Option<i32> {
     a.checked_div(b).or((b != 0).then_some(i32::MIN))
 }
 
 /// `a % b` as [`config_schema::guard`] computes it (`None`: by zero).
 #[inline(never)]
-fn rem(a: i32, b: i32) -> Option<i32> {
+pub(super) fn rem(a: i32, b: i32) -> Option<i32> {
     a.checked_rem(b).or((b != 0).then_some(0))
 }
 
@@ -177,8 +232,7 @@ impl Calc {
         Calc::run(self.code, &self.w, vars, inputs, table)
     }
 
-    /// [`Calc::eval`] of the operation `code` on `w` (an action's assignment holds its
-    /// expression so, beside the variable it sets).
+    /// [`Calc::eval`] of the operation `code` on `w`.
     #[inline(always)]
     pub(super) fn run(
         code: u8,
@@ -187,54 +241,33 @@ impl Calc {
         inputs: u16,
         table: &Table,
     ) -> Option<i32> {
-        // Each operation reads only its operands (loaded where used).
-        let x = || vars[usize::from(w[0]) & VAR_MASK];
-        let y = || vars[usize::from(w[1]) & VAR_MASK];
-        // Sign-extended from 24 bits: one load, one shift.
-        let k = || i32::from_le_bytes(*w) >> 8;
-        let b = |v: bool| Some(i32::from(v));
-        match code {
-            code::TRUE => Some(1),
-            code::CONST => Some(k()),
-            code::VAR => Some(x()),
-            code::ADD_U8 => Some(i32::from(x().wrapping_add(k()) as u8)),
-            code::ADD_S8 => Some(i32::from(x().wrapping_add(k()) as i8)),
-            code::ADD_U16 => Some(i32::from(x().wrapping_add(k()) as u16)),
-            code::ADD_S16 => Some(i32::from(x().wrapping_add(k()) as i16)),
-            16 => b(x() != 0 && k() != 0),
-            17 => b(x() != 0 || k() != 0),
-            18 => b(x() == k()),
-            19 => b(x() != k()),
-            20 => b(x() < k()),
-            21 => b(x() <= k()),
-            22 => b(x() > k()),
-            23 => b(x() >= k()),
-            24 => Some(x().wrapping_add(k())),
-            25 => Some(x().wrapping_sub(k())),
-            26 => Some(x().wrapping_mul(k())),
-            27 => div(x(), k()),
-            28 => rem(x(), k()),
-            32 => b(x() != 0 && y() != 0),
-            33 => b(x() != 0 || y() != 0),
-            34 => b(x() == y()),
-            35 => b(x() != y()),
-            36 => b(x() < y()),
-            37 => b(x() <= y()),
-            38 => b(x() > y()),
-            39 => b(x() >= y()),
-            40 => Some(x().wrapping_add(y())),
-            41 => Some(x().wrapping_sub(y())),
-            42 => Some(x().wrapping_mul(y())),
-            43 => div(x(), y()),
-            44 => rem(x(), y()),
-            _ => stack(w, vars, inputs, table),
-        }
+        calc_match!(code, w, vars, inputs, table, {})
     }
 }
 
+// The codes the `match` above spells as numbers.
+const _: () = assert!(
+    code::TRUE == 0
+        && code::CONST == 1
+        && code::VAR == 2
+        && code::STACK == 3
+        && code::ADD_U8 == 4
+        && code::ADD_S16 == 7
+        && code::IMM == 16
+        && code::VARS == 32
+        && LAST_CODE == 44
+);
+// The codes above `LAST_CODE` (the actions') stay below 64 too.
+const _: () = assert!(LAST_CODE + 16 < 64);
+
 /// An expression of no direct shape, on the stack machine.
 #[inline(never)]
-fn stack(w: &[u8; 4], vars: &[i32; MAX_VARS], inputs: u16, table: &Table) -> Option<i32> {
+pub(super) fn stack(
+    w: &[u8; 4],
+    vars: &[i32; MAX_VARS],
+    inputs: u16,
+    table: &Table,
+) -> Option<i32> {
     let [_, start, len, _] = *w;
     guard::eval_stack(
         table.expr(Expr { start, len }),

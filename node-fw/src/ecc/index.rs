@@ -1,20 +1,23 @@
 //! A table compiled once, when it is installed, into the form the interpreter runs: each
 //! event's routes as (chart, input) pairs, each state's transitions in declaration order
-//! with their guards lowered ([`Calc`]), each state's actions with their assignments
-//! lowered and their publications resolved, each event's publication, per state the
-//! event-less transition that always follows its entry (fused: taken without a choice) or
-//! whether its event-less transitions are chosen by their guards, and the output masks. A stimulus then walks short arrays with one bounds check
-//! an entry and never decodes or re-validates the table.
+//! with their guards lowered ([`Calc`]) and each one's target entry, each state's entry
+//! (its actions with their assignments lowered and their publications resolved, then one
+//! operation that closes it: the chart is stable, the event-less transition that always
+//! follows the entry is fired (fused: taken without a choice), or the event-less
+//! transitions are chosen by their guards), each event's publication and the output
+//! masks. A stimulus then walks short arrays, an entry one operation after the other, and
+//! never decodes or re-validates the table.
 //!
 //! Derived data only: the table stays the one validated form, and an index built from it
 //! gives exactly the order the pools have (the first matching transition in declaration
-//! order, the routes in table order). Built without panics from any table: an entry that
-//! points outside the pools is left out, as the interpreter over the bare table skipped it
-//! (validation refuses such tables anyway), and so is a transition triggered by chart
-//! input 255 (no chart has that many inputs).
+//! order, the routes in table order, a state's actions in table order). Built without
+//! panics from any table: an entry that points outside the pools is left out, as the
+//! interpreter over the bare table skipped it (validation refuses such tables anyway),
+//! and so is a transition triggered by chart input 255 (no chart has that many inputs).
 //!
 //! Its size is fixed by the capacities of `config_schema::limits` (9 bytes a transition,
-//! 6 an action, 2 a route, plus per-event and per-state spans): `Index::BYTES`.
+//! 6 an operation, 256 operations, 2 a route, plus per-event and per-state records):
+//! `Index::BYTES`.
 
 use config_schema::limits::{
     MAX_ACTIONS, MAX_CHARTS, MAX_EVENTS, MAX_INPUTS, MAX_PUBLICATIONS, MAX_ROUTES, MAX_STATES,
@@ -28,14 +31,23 @@ use super::calc::{self, Calc};
 pub(super) const NONE: u8 = u8::MAX;
 /// The trigger of an event-less transition.
 pub(super) const EVENTLESS: u8 = u8::MAX;
-/// [`StateRec::next`] of a state whose event-less transitions are chosen by their guards
-/// at run time.
+/// What follows the entry of a state whose event-less transitions are chosen by their
+/// guards at run time (while the index is built).
 pub(super) const CHOOSE: u8 = u8::MAX - 1;
 
 // Every pool index and span end fits a `u8` below `NONE`.
 const _: () = assert!(MAX_ROUTES < NONE as usize);
 const _: () = assert!(MAX_TRANSITIONS < CHOOSE as usize);
 const _: () = assert!(MAX_ACTIONS < NONE as usize);
+/// The operations' pool: every state's actions and close fit, and an index is a `u8`.
+const OPS: usize = 256;
+const _: () = assert!(MAX_ACTIONS + MAX_STATES <= OPS);
+
+const END: Act = Act {
+    code: act::END,
+    dst: 0,
+    w: [0; 4],
+};
 const _: () = assert!(MAX_EVENTS <= NONE as usize);
 const _: () = assert!(MAX_INPUTS.is_power_of_two());
 
@@ -62,8 +74,9 @@ pub(super) struct Step {
     pub trigger: u8,
     /// Its target, chart-local.
     pub to: u8,
-    /// Its target in `Table::states` (`NONE`: past `MAX_STATES`).
-    pub target: u8,
+    /// Its target's entry in `Index::ops` (a target past `MAX_STATES`: the shared
+    /// [`act::END`]).
+    pub entry: u8,
     /// Its index in `Table::transitions` (for the trace).
     pub index: u8,
     /// Its guard ([`Calc::TRUE`] if it has none).
@@ -73,7 +86,7 @@ pub(super) struct Step {
 const NO_STEP: Step = Step {
     trigger: EVENTLESS,
     to: 0,
-    target: NONE,
+    entry: 0,
     index: 0,
     guard: Calc::TRUE,
 };
@@ -108,6 +121,25 @@ pub(super) mod act {
     /// An assignment to a variable the engine does not have: the expression `(dst, w)`
     /// evaluated for its fault, its value dropped.
     pub const DISCARD: u8 = LAST_CODE + 7;
+    /// The close of an entry after which the chart is stable (no event-less transition
+    /// leaves the state).
+    pub const END: u8 = LAST_CODE + 8;
+    /// The close of an entry whose first event-less transition always holds (taken
+    /// without a choice: no earlier event-less transition is a candidate and its guard
+    /// cannot fault): fire it, to chart-local `dst`, `w[0]` its table index, `w[1]` its
+    /// target's entry; `w[2]` non-zero: the chart is stable after the firing (the target
+    /// has no actions and no event-less transition, or is past `MAX_STATES`).
+    pub const FIRE: u8 = LAST_CODE + 9;
+    /// The close of an entry whose event-less transitions are chosen by their guards: the
+    /// transitions of global state `dst`.
+    pub const CHOOSE: u8 = LAST_CODE + 10;
+    /// A drive (as [`DRIVE`]) closing an entry as [`END`] does.
+    pub const DRIVE_END: u8 = LAST_CODE + 11;
+    /// An emit (as [`EMIT`]) closing an entry as [`END`] does.
+    pub const EMIT_END: u8 = LAST_CODE + 12;
+    /// An emit of event `dst` (publication `w[0]`), then a close as [`FIRE`] after which
+    /// the chart is stable: to chart-local `w[1]`, `w[2]` its table index.
+    pub const EMIT_FIRE: u8 = LAST_CODE + 13;
 }
 
 const _: () = assert!(core::mem::size_of::<Step>() == 9);
@@ -148,7 +180,6 @@ impl<const N: usize> Default for Span<N> {
 
 type RouteSpan = Span<MAX_ROUTES>;
 type StepSpan = Span<MAX_TRANSITIONS>;
-type ActSpan = Span<MAX_ACTIONS>;
 
 /// Per event: its routes and its publication.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -159,28 +190,22 @@ pub(super) struct EventRec {
     pub publication: u8,
 }
 
-/// Per global state: the transitions leaving it, the actions run on entering it and what
-/// follows the entry.
+/// Per global state: the transitions leaving it and where its entry's walk starts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) struct StateRec {
     /// Its transitions in `Index::steps`, in declaration order.
     pub steps: StepSpan,
-    /// Its actions in `Index::acts` (the same indices as `Table::actions`).
-    pub acts: ActSpan,
-    /// The event-less step after its entry, fused at build time: `NONE`, no event-less
-    /// transition leaves it (the chart is stable); a step index, its first event-less
-    /// transition in declaration order, whose guard always holds (taken without a choice:
-    /// no earlier event-less transition is a candidate and its guard cannot fault);
-    /// [`CHOOSE`], its event-less transitions are chosen by their guards.
-    pub next: u8,
+    /// Its entry in `Index::ops`: its actions in order (the same order as
+    /// `Table::actions`), then one closing operation saying what follows the entry
+    /// ([`act::END`], [`act::FIRE`], [`act::CHOOSE`]).
+    pub entry: u8,
 }
 
 impl Default for StateRec {
     fn default() -> Self {
         StateRec {
             steps: Span::EMPTY,
-            acts: Span::EMPTY,
-            next: NONE,
+            entry: 0,
         }
     }
 }
@@ -210,7 +235,10 @@ pub struct Index {
     routes: [Target; MAX_ROUTES],
     states: [StateRec; MAX_STATES],
     steps: [Step; MAX_TRANSITIONS],
-    acts: [Act; MAX_ACTIONS],
+    /// The states' entries, one after the other (each its actions and its close): at most
+    /// `MAX_ACTIONS + MAX_STATES` operations (then one shared [`act::END`], the entry of
+    /// a state the table does not have), 256: an operation's index is a `u8`.
+    ops: [Act; OPS],
     inputs: [InputRec; MAX_INPUTS],
     input_count: u8,
     /// The table's publications (what `Effects::publish` reports), node events and timers.
@@ -239,11 +267,7 @@ impl Index {
             routes: [Target::default(); MAX_ROUTES],
             states: [StateRec::default(); MAX_STATES],
             steps: [NO_STEP; MAX_TRANSITIONS],
-            acts: [Act {
-                code: act::FAULT,
-                dst: 0,
-                w: [0; 4],
-            }; MAX_ACTIONS],
+            ops: [END; OPS],
             inputs: [InputRec {
                 rise: NONE,
                 fall: NONE,
@@ -287,8 +311,8 @@ impl Index {
             };
         }
         ix.build_routes(table);
-        ix.build_steps(table);
-        ix.build_acts(table);
+        let (next, targets) = ix.build_steps(table);
+        ix.build_ops(table, &next, &targets);
         ix
     }
 
@@ -321,9 +345,11 @@ impl Index {
 
     /// The transitions, grouped by the global state they leave (charts in order, then
     /// declaration order).
-    fn build_steps(&mut self, table: &Table) {
+    fn build_steps(&mut self, table: &Table) -> ([u8; MAX_STATES], [u8; MAX_TRANSITIONS]) {
+        let mut next = [NONE; MAX_STATES];
+        let mut targets = [NONE; MAX_TRANSITIONS];
         let mut n = 0usize;
-        for s in 0..MAX_STATES {
+        for (s, next) in next.iter_mut().enumerate() {
             let start = n as u8;
             for (c, layout) in self.layout.iter().enumerate().take(table.charts.len()) {
                 let first = usize::from(layout.first_state);
@@ -344,14 +370,17 @@ impl Index {
                         continue;
                     };
                     let target = first + usize::from(t.to);
-                    *slot = Step {
-                        trigger,
-                        to: t.to,
-                        target: if target < MAX_STATES {
+                    if let Some(slot) = targets.get_mut(n) {
+                        *slot = if target < MAX_STATES {
                             target as u8
                         } else {
                             NONE
-                        },
+                        };
+                    }
+                    *slot = Step {
+                        trigger,
+                        to: t.to,
+                        entry: 0,
                         index: (range.start + i) as u8,
                         guard: Calc::lower(table, t.guard),
                     };
@@ -362,7 +391,7 @@ impl Index {
             let first_eventless =
                 span_of(&self.steps, steps).position(|step| step.trigger == EVENTLESS);
             self.states[s].steps = steps;
-            self.states[s].next = match first_eventless {
+            *next = match first_eventless {
                 None => NONE,
                 Some(i) => {
                     let at = usize::from(start) + i;
@@ -373,42 +402,153 @@ impl Index {
                 }
             };
         }
+        (next, targets)
     }
 
-    /// The actions, lowered one for one, and each state's span of them.
-    fn build_acts(&mut self, table: &Table) {
-        for (slot, action) in self.acts.iter_mut().zip(table.actions.iter()) {
-            let publication = |e: EventId| {
-                (self.events)
-                    .get(usize::from(e))
-                    .map_or(NONE, |rec| rec.publication)
-            };
-            let of = |code, dst, w| Act { code, dst, w };
-            *slot = match *action {
-                Action::Set { var, expr } => {
-                    let calc = Calc::lower(table, Some(expr));
-                    if usize::from(var) < config_schema::limits::MAX_VARS {
-                        of(calc.code, var, calc.w)
-                    } else {
-                        of(act::DISCARD, calc.code, calc.w)
+    /// Each state's entry: its actions, lowered one for one, then its close, from `next`
+    /// (per state: `NONE`, no event-less transition leaves it; a step index, its first
+    /// event-less transition, which always holds; [`CHOOSE`], chosen by their guards).
+    fn build_ops(
+        &mut self,
+        table: &Table,
+        next: &[u8; MAX_STATES],
+        targets: &[u8; MAX_TRANSITIONS],
+    ) {
+        // A range past the actions (only in a table that skipped validation) is none.
+        let actions = |s: usize| table.actions.get(table.state_actions(s)).unwrap_or(&[]);
+        // A state with no actions and no event-less transition has no entry of its own:
+        // it shares one `END`, after the entries (with at most `MAX_ACTIONS` actions over
+        // the states, in a validated table, and `MAX_STATES` states, the entries and that
+        // `END` fit in the pool).
+        let shared: [bool; MAX_STATES] =
+            core::array::from_fn(|s| actions(s).is_empty() && next[s] == NONE);
+        // Whether the fused step of state `s` leaves the chart stable: its target has no
+        // entry of its own (or is past `MAX_STATES`).
+        let stops = |s: usize| {
+            let at = usize::from(next[s]);
+            let target = targets.get(at).map_or(NONE, |t| *t);
+            shared.get(usize::from(target)).copied().unwrap_or(true)
+        };
+        // Whether state `s`'s last action and its close are one operation (a drive or an
+        // emit, then `END`; an emit, then a fused step that leaves the chart stable).
+        let fused = |s: usize| match actions(s).last() {
+            Some(Action::Drive { .. }) => next[s] == NONE,
+            Some(Action::Emit(_)) => {
+                next[s] == NONE
+                    || (next[s] != CHOOSE && usize::from(next[s]) < MAX_TRANSITIONS && stops(s))
+            }
+            _ => false,
+        };
+        // The entries laid out first (a close names its target's entry).
+        let mut pc = 0usize;
+        for (s, rec) in self.states.iter_mut().enumerate() {
+            if !shared[s] {
+                rec.entry = pc.min(OPS - 1) as u8;
+                pc += actions(s).len() + 1 - usize::from(fused(s));
+            }
+        }
+        let end = pc.min(OPS - 1) as u8;
+        for (rec, shared) in self.states.iter_mut().zip(shared) {
+            if shared {
+                rec.entry = end;
+            }
+        }
+        let mut pc = 0usize;
+        let push = |ops: &mut [Act; OPS], pc: &mut usize, op: Act| {
+            if let Some(slot) = ops.get_mut(*pc) {
+                *slot = op;
+            }
+            *pc += 1;
+        };
+        for s in 0..MAX_STATES {
+            if shared[s] {
+                continue;
+            }
+            let close = match next[s] {
+                NONE => END,
+                CHOOSE => Act {
+                    code: act::CHOOSE,
+                    dst: s as u8,
+                    w: [0; 4],
+                },
+                at => match self.steps.get(usize::from(at)) {
+                    Some(step) => {
+                        // Its target's entry, or stop after the firing.
+                        let target = targets.get(usize::from(at)).map_or(NONE, |t| *t);
+                        let (entry, stop) = match self.states.get(usize::from(target)) {
+                            Some(rec) if !stops(s) => (rec.entry, 0),
+                            _ => (end, 1),
+                        };
+                        Act {
+                            code: act::FIRE,
+                            dst: step.to,
+                            w: [step.index, entry, stop, 0],
+                        }
                     }
+                    None => END,
+                },
+            };
+            let n = actions(s).len();
+            for (i, action) in actions(s).iter().enumerate() {
+                let mut op = self.lower_action(table, action);
+                if i + 1 == n && fused(s) {
+                    op = match (op.code, close.code) {
+                        (act::DRIVE, _) => Act {
+                            code: act::DRIVE_END,
+                            ..op
+                        },
+                        (_, act::END) => Act {
+                            code: act::EMIT_END,
+                            ..op
+                        },
+                        _ => Act {
+                            code: act::EMIT_FIRE,
+                            dst: op.dst,
+                            w: [op.w[0], close.dst, close.w[0], 0],
+                        },
+                    };
                 }
-                Action::Drive { mask, value } => {
-                    let ([m0, m1], [v0, v1]) = (mask.to_le_bytes(), value.to_le_bytes());
-                    of(act::DRIVE, 0, [m0, m1, v0, v1])
-                }
-                Action::Emit(event) => of(act::EMIT, event, [publication(event), 0, 0, 0]),
-                Action::Publish(event) => of(act::PUBLISH, 0, [publication(event), 0, 0, 0]),
-                Action::StartTimer { timer, ms } => of(act::START_TIMER, timer, ms.to_le_bytes()),
-                Action::CancelTimer(timer) => of(act::CANCEL_TIMER, timer, [0; 4]),
-                Action::Fault(code) => of(act::FAULT, code, [0; 4]),
+                push(&mut self.ops, &mut pc, op);
+            }
+            if !fused(s) {
+                push(&mut self.ops, &mut pc, close);
+            }
+        }
+        // Each transition to its target's entry.
+        for (step, target) in self.steps.iter_mut().zip(targets) {
+            step.entry = match self.states.get(usize::from(*target)) {
+                Some(rec) => rec.entry,
+                None => end,
             };
         }
-        for (s, rec) in self.states.iter_mut().enumerate() {
-            let range = table.state_actions(s);
-            if range.end <= table.actions.len() {
-                rec.acts = Span::new(range.start, range.end);
+    }
+
+    /// `action`, lowered.
+    fn lower_action(&self, table: &Table, action: &Action) -> Act {
+        let publication = |e: EventId| {
+            (self.events)
+                .get(usize::from(e))
+                .map_or(NONE, |rec| rec.publication)
+        };
+        let of = |code, dst, w| Act { code, dst, w };
+        match *action {
+            Action::Set { var, expr } => {
+                let calc = Calc::lower(table, Some(expr));
+                if usize::from(var) < config_schema::limits::MAX_VARS {
+                    of(calc.code, var, calc.w)
+                } else {
+                    of(act::DISCARD, calc.code, calc.w)
+                }
             }
+            Action::Drive { mask, value } => {
+                let ([m0, m1], [v0, v1]) = (mask.to_le_bytes(), value.to_le_bytes());
+                of(act::DRIVE, 0, [m0, m1, v0, v1])
+            }
+            Action::Emit(event) => of(act::EMIT, event, [publication(event), 0, 0, 0]),
+            Action::Publish(event) => of(act::PUBLISH, 0, [publication(event), 0, 0, 0]),
+            Action::StartTimer { timer, ms } => of(act::START_TIMER, timer, ms.to_le_bytes()),
+            Action::CancelTimer(timer) => of(act::CANCEL_TIMER, timer, [0; 4]),
+            Action::Fault(code) => of(act::FAULT, code, [0; 4]),
         }
     }
 
@@ -436,16 +576,10 @@ impl Index {
         span_of(&self.steps, span)
     }
 
-    /// Step `step` (`None` past `MAX_TRANSITIONS`).
+    /// The operation at `pc` (a `u8`: always inside the pool).
     #[inline(always)]
-    pub(super) fn step(&self, step: u8) -> Option<&Step> {
-        self.steps.get(usize::from(step))
-    }
-
-    /// The actions of a span, in order.
-    #[inline(always)]
-    pub(super) fn acts(&self, span: ActSpan) -> impl Iterator<Item = &Act> {
-        span_of(&self.acts, span)
+    pub(super) fn op(&self, pc: u8) -> &Act {
+        &self.ops[usize::from(pc)]
     }
 
     /// The record of input `input` (`None` past the table's inputs).
@@ -461,12 +595,6 @@ impl Index {
     pub(super) fn publication_at(&self, p: u8) -> Option<&Publication> {
         self.publications.get(usize::from(p))
     }
-
-    /// The index of `event`'s publication (`NONE`: not published).
-    #[inline(always)]
-    pub(super) fn publication(&self, event: EventId) -> u8 {
-        self.event(event).map_or(NONE, |rec| rec.publication)
-    }
 }
 
 #[cfg(test)]
@@ -480,15 +608,15 @@ mod tests {
         let pools = 2 * MAX_CHARTS
             + 3 * MAX_EVENTS
             + 2 * MAX_ROUTES
-            + 5 * MAX_STATES
+            + 3 * MAX_STATES
             + 9 * MAX_TRANSITIONS
-            + 6 * MAX_ACTIONS
+            + 6 * 256
             + 3 * MAX_INPUTS
             + 3 * MAX_PUBLICATIONS;
         // The input, event and timer counts, the output mask and the two drives (u16s).
         let rest = 3 + 2 + 2 * 4;
         assert_eq!(Index::BYTES, (pools + rest).next_multiple_of(2));
-        assert_eq!(Index::BYTES, 3126);
+        assert_eq!(Index::BYTES, 3510);
     }
 
     /// A span is always inside its pool: any other range is made empty.

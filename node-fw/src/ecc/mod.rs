@@ -65,10 +65,11 @@ mod calc;
 mod fifo;
 mod index;
 
+use calc::calc_match;
 use calc::Calc;
 use fifo::Fifo;
 pub use index::Index;
-use index::{act, Act, Layout, Span, Step, CHOOSE, EVENTLESS, NONE};
+use index::{act, Act, Layout, Span, Step, EVENTLESS, NONE};
 
 /// Whether a delivery goes on or the node faulted (and the stimulus ends).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -453,30 +454,32 @@ impl Run<'_> {
         if self.fault.is_some() || event >= ix.event_count {
             return;
         }
+        let rec = ix.event(event);
         if local {
-            publish(ix, ix.publication(event), fx);
+            publish(ix, rec.map_or(NONE, |rec| rec.publication), fx);
         }
         // The queue is empty between stimuli: the stimulus goes straight to its routes, and
         // only events emitted by actions wait in the FIFO.
-        let mut next = event;
-        let mut processed = 0usize;
+        let mut routes = rec.map_or(Span::EMPTY, |rec| rec.routes);
+        // Deliveries so far, this one included (the first cannot be one too many).
+        let mut processed = 1usize;
         loop {
-            processed += 1;
-            if processed > MAX_CASCADE {
-                self.set_fault(ix, Fault::Cascade { event }, fx);
-                return;
-            }
             // Delivers `next` to all its routes, in order, each chart running to a stable
             // state.
-            let routes = ix.event(next).map_or(Span::EMPTY, |rec| rec.routes);
             for route in ix.routes(routes) {
                 if self.deliver(ix, table, route.chart, route.input, fx) == Flow::Stop {
                     return;
                 }
             }
-            match self.queue.pop() {
-                Some(e) => next = e,
+            let next = match self.queue.pop() {
+                Some(e) => e,
                 None => return,
+            };
+            routes = ix.event(next).map_or(Span::EMPTY, |rec| rec.routes);
+            processed += 1;
+            if processed > MAX_CASCADE {
+                self.set_fault(ix, Fault::Cascade { event }, fx);
+                return;
             }
         }
     }
@@ -508,7 +511,7 @@ impl Run<'_> {
             .filter(|_| current < states);
         // The input first: the first of the state's transitions it triggers (or an
         // event-less one) whose guard holds.
-        let mut step = match state.map(|rec| self.select(ix.steps(rec.steps), input, table)) {
+        let step = match state.map(|rec| self.select(ix.steps(rec.steps), input, table)) {
             Some(Ok(Some(step))) => step,
             Some(Err(())) => return self.fail_expr(ix, chart, fx),
             None | Some(Ok(None)) => {
@@ -518,46 +521,131 @@ impl Run<'_> {
         };
         // Then event-less transitions only, `chained` of them so far.
         let mut chained = 0usize;
-        let mut from = current;
+        let (mut from, mut to, mut index, mut entry) = (current, step.to, step.index, step.entry);
         loop {
-            // Fire: the target becomes current, then its actions run in order.
-            let to = step.to;
+            // Fire: the target becomes current, then its entry runs: its actions in order,
+            // then its close (what follows the entry, fused when the index was built).
             if let Some(slot) = self.current.get_mut(c) {
                 *slot = to;
             }
-            fx.fired(chart, step.index, from, to);
-            let Some(target) = ix.state(usize::from(step.target)) else {
-                return Flow::Go;
-            };
-            for act in ix.acts(target.acts) {
-                if self.act(ix, table, chart, act, fx) == Flow::Stop {
-                    return Flow::Stop;
+            fx.fired(chart, index, from, to);
+            let mut pc = entry;
+            // The entry's walk: one jump an operation.
+            loop {
+                let Act { code, dst, w } = *ix.op(pc);
+                pc = pc.wrapping_add(1);
+                let value = calc_match!(code, &w, &self.vars, self.inputs, table, {
+                    act::END => return Flow::Go,
+                    act::FIRE => {
+                        // Only a state of the chart moves on its own.
+                        if to >= states {
+                            return Flow::Go;
+                        }
+                        chained += 1;
+                        if chained > MAX_CHAIN {
+                            self.set_fault(ix, Fault::ChainLimit { chart }, fx);
+                            return Flow::Stop;
+                        }
+                        // Fired here, and its target's entry walked on.
+                        let [index, next, stop, _] = w;
+                        from = to;
+                        to = dst;
+                        if let Some(slot) = self.current.get_mut(c) {
+                            *slot = to;
+                        }
+                        fx.fired(chart, index, from, to);
+                        if stop != 0 {
+                            return Flow::Go;
+                        }
+                        pc = next;
+                        continue;
+                    }
+                    act::CHOOSE => {
+                        if to >= states {
+                            return Flow::Go;
+                        }
+                        chained += 1;
+                        let steps = ix.state(usize::from(dst)).map_or(Span::EMPTY, |r| r.steps);
+                        let step = match self.select(ix.steps(steps), EVENTLESS, table) {
+                            Ok(Some(step)) => step,
+                            Ok(None) => return Flow::Go,
+                            Err(()) => return self.fail_expr(ix, chart, fx),
+                        };
+                        if chained > MAX_CHAIN {
+                            self.set_fault(ix, Fault::ChainLimit { chart }, fx);
+                            return Flow::Stop;
+                        }
+                        from = to;
+                        (to, index, entry) = (step.to, step.index, step.entry);
+                        break;
+                    }
+                    act::DRIVE => {
+                        self.drive_op(ix, w, fx);
+                        continue;
+                    }
+                    act::DRIVE_END => {
+                        self.drive_op(ix, w, fx);
+                        return Flow::Go;
+                    }
+                    act::EMIT => {
+                        if self.emit(ix, dst, w[0], fx) == Flow::Stop {
+                            return Flow::Stop;
+                        }
+                        continue;
+                    }
+                    act::EMIT_END => return self.emit(ix, dst, w[0], fx),
+                    act::EMIT_FIRE => {
+                        if self.emit(ix, dst, w[0], fx) == Flow::Stop {
+                            return Flow::Stop;
+                        }
+                        // Then the close, as `FIRE` with a stable target.
+                        if to >= states {
+                            return Flow::Go;
+                        }
+                        chained += 1;
+                        if chained > MAX_CHAIN {
+                            self.set_fault(ix, Fault::ChainLimit { chart }, fx);
+                            return Flow::Stop;
+                        }
+                        from = to;
+                        to = w[1];
+                        if let Some(slot) = self.current.get_mut(c) {
+                            *slot = to;
+                        }
+                        fx.fired(chart, w[2], from, to);
+                        return Flow::Go;
+                    }
+                    act::PUBLISH => {
+                        publish(ix, w[0], fx);
+                        continue;
+                    }
+                    act::START_TIMER => {
+                        fx.start_timer(dst, u32::from_le_bytes(w));
+                        continue;
+                    }
+                    act::CANCEL_TIMER => {
+                        fx.cancel_timer(dst);
+                        continue;
+                    }
+                    act::DISCARD => {
+                        if Calc::run(dst, &w, &self.vars, self.inputs, table).is_none() {
+                            return self.fail_expr(ix, chart, fx);
+                        }
+                        continue;
+                    }
+                    act::FAULT => {
+                        self.set_fault(ix, Fault::Action { chart, code: dst }, fx);
+                        return Flow::Stop;
+                    }
+                });
+                // `dst := expression`: the index builds no other codes than the actions'
+                // and the operations' (up to `calc::LAST_CODE`), and `dst` below
+                // `MAX_VARS` (an assignment to any other variable is a `DISCARD`).
+                match value {
+                    Some(value) => self.vars[usize::from(dst) & (MAX_VARS - 1)] = value,
+                    None => return self.fail_expr(ix, chart, fx),
                 }
             }
-            // Only a state with event-less transitions leaving it can move on its own; one
-            // whose first event-less transition always holds takes it without a choice
-            // (fused when the index was built).
-            if to >= states {
-                return Flow::Go;
-            }
-            chained += 1;
-            step = match target.next {
-                NONE => return Flow::Go,
-                CHOOSE => match self.select(ix.steps(target.steps), EVENTLESS, table) {
-                    Ok(Some(step)) => step,
-                    Ok(None) => return Flow::Go,
-                    Err(()) => return self.fail_expr(ix, chart, fx),
-                },
-                at => match ix.step(at) {
-                    Some(step) => step,
-                    None => return Flow::Go,
-                },
-            };
-            if chained > MAX_CHAIN {
-                self.set_fault(ix, Fault::ChainLimit { chart }, fx);
-                return Flow::Stop;
-            }
-            from = to;
         }
     }
 
@@ -584,53 +672,24 @@ impl Run<'_> {
         Ok(None)
     }
 
-    /// Runs one action; [`Flow::Stop`]: the node faulted.
+    /// A drive action: `w` = mask, levels (little-endian `u16`s).
     #[inline(always)]
-    fn act(
-        &mut self,
-        ix: &Index,
-        table: &Table,
-        chart: u8,
-        a: &Act,
-        fx: &mut impl Effects,
-    ) -> Flow {
-        let Act { code, dst, w } = *a;
-        // One `match` for the actions and the assignments' operations (one jump).
-        match code {
-            act::DRIVE => {
-                let [m0, m1, v0, v1] = w;
-                let (mask, value) = (u16::from_le_bytes([m0, m1]), u16::from_le_bytes([v0, v1]));
-                self.drive(ix, mask, value, fx);
-            }
-            act::EMIT => {
-                // Queued and, once queued, published; an event that does not fit faults
-                // the node and is not published.
-                if self.queue.push(dst).is_err() {
-                    self.set_fault(ix, Fault::QueueFull { event: dst }, fx);
-                    return Flow::Stop;
-                }
-                publish(ix, w[0], fx);
-            }
-            act::PUBLISH => publish(ix, w[0], fx),
-            act::START_TIMER => fx.start_timer(dst, u32::from_le_bytes(w)),
-            act::CANCEL_TIMER => fx.cancel_timer(dst),
-            act::DISCARD => {
-                if Calc::run(dst, &w, &self.vars, self.inputs, table).is_none() {
-                    return self.fail_expr(ix, chart, fx);
-                }
-            }
-            act::FAULT => {
-                self.set_fault(ix, Fault::Action { chart, code: dst }, fx);
-                return Flow::Stop;
-            }
-            // `dst := expression`: the index builds no other codes than the actions' and
-            // the operations' (up to `calc::LAST_CODE`), and `dst` below `MAX_VARS` (an
-            // assignment to any other variable is a `DISCARD`).
-            _ => match Calc::run(code, &w, &self.vars, self.inputs, table) {
-                Some(value) => self.vars[usize::from(dst) & (MAX_VARS - 1)] = value,
-                None => return self.fail_expr(ix, chart, fx),
-            },
+    fn drive_op(&mut self, ix: &Index, w: [u8; 4], fx: &mut impl Effects) {
+        let [m0, m1, v0, v1] = w;
+        let (mask, value) = (u16::from_le_bytes([m0, m1]), u16::from_le_bytes([v0, v1]));
+        self.drive(ix, mask, value, fx);
+    }
+
+    /// An emit action: event `event` queued and, once queued, published (publication
+    /// `p`); an event that does not fit faults the node ([`Flow::Stop`]) and is not
+    /// published.
+    #[inline(always)]
+    fn emit(&mut self, ix: &Index, event: EventId, p: u8, fx: &mut impl Effects) -> Flow {
+        if self.queue.push(event).is_err() {
+            self.set_fault(ix, Fault::QueueFull { event }, fx);
+            return Flow::Stop;
         }
+        publish(ix, p, fx);
         Flow::Go
     }
 
