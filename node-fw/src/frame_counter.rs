@@ -29,7 +29,7 @@
 //! (a new management key, which erases this region with the rest of the node's flash)
 //! starts it again at 0.
 
-use crc::{Crc, CRC_32_ISO_HDLC};
+use crc::{Crc, NoTable, CRC_32_ISO_HDLC};
 use embassy_futures::block_on;
 use embedded_storage_async::nor_flash::NorFlash;
 
@@ -37,7 +37,7 @@ use embedded_storage_async::nor_flash::NorFlash;
 pub const STEP: u32 = 1024;
 const RECORD: usize = 16;
 const MAGIC: u32 = 0xFC0C_0017;
-const CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
+const CRC: Crc<u32, NoTable> = Crc::<u32, NoTable>::new(&CRC_32_ISO_HDLC);
 
 /// Why no counter can be handed out.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
