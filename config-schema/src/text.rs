@@ -79,7 +79,9 @@ mod tests {
             assert_eq!(role_name(&[a]), core_says(&[a]), "{a:02x}");
             for b in 0..=255u8 {
                 assert_eq!(role_name(&[a, b]), core_says(&[a, b]), "{a:02x} {b:02x}");
-                for c in [0x00, 0x7F, 0x80, 0x8F, 0x90, 0x9F, 0xA0, 0xBF, 0xC0, 0xF4, 0xFF] {
+                for c in [
+                    0x00, 0x7F, 0x80, 0x8F, 0x90, 0x9F, 0xA0, 0xBF, 0xC0, 0xF4, 0xFF,
+                ] {
                     let s = [a, b, c];
                     assert_eq!(role_name(&s), core_says(&s), "{s:02x?}");
                 }
