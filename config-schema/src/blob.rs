@@ -34,8 +34,10 @@ pub const HEADER_LEN: usize = 8;
 pub const LENGTH_AT: usize = 6;
 /// Bytes after the payload.
 pub const TRAILER_LEN: usize = 4;
-/// The CRC of the blob (and of an OTA transfer as a whole).
-pub const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+/// The CRC of the blob (and of an OTA transfer as a whole). Bit by bit, no lookup table
+/// (1 KiB of flash on a node, which checks a table's CRC when it is pushed or activated).
+pub const CRC32: crc::Crc<u32, crc::NoTable> =
+    crc::Crc::<u32, crc::NoTable>::new(&crc::CRC_32_ISO_HDLC);
 
 /// Why a byte string is not a table.
 #[derive(Debug, Clone, PartialEq, Eq)]

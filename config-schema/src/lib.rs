@@ -10,6 +10,7 @@
 //! - [`blob`]: the versioned, CRC-protected envelope, [`encode`] and [`decode`]; [`pack`]:
 //!   the bit-packed payload inside it.
 //! - [`alarm`]: alarms a node latches, and the table's safety declarations.
+//! - [`text`]: a role name read from bytes (UTF-8 checked).
 //! - [`link_keys`]: the link key block that follows a blob in a secured transfer.
 #![no_std]
 #![forbid(unsafe_code)]
@@ -22,6 +23,7 @@ pub mod limits;
 pub mod link_keys;
 pub mod pack;
 pub mod table;
+pub mod text;
 pub mod validate;
 pub mod wire;
 

@@ -1351,11 +1351,9 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
     for b in role.iter_mut().take(role_len) {
         *b = r.u8(8);
     }
-    match core::str::from_utf8(role.get(..role_len).unwrap_or(&[])) {
-        // At most MAX_ROLE_NAME bytes: it fits.
-        Ok(name) => {
-            let _ = t.header.role.push_str(name);
-        }
+    // At most MAX_ROLE_NAME bytes: it fits.
+    match crate::text::role_name(role.get(..role_len).unwrap_or(&[])) {
+        Ok(name) => t.header.role = name,
         Err(_) => r.fail(PackError::Utf8),
     }
     // 16 bits: a u16.

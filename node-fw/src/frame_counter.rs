@@ -29,7 +29,7 @@
 //! (a new management key, which erases this region with the rest of the node's flash)
 //! starts it again at 0.
 
-use crc::{Crc, CRC_32_ISO_HDLC};
+use crc::{Crc, NoTable, CRC_32_ISO_HDLC};
 use embassy_futures::block_on;
 use embedded_storage_async::nor_flash::NorFlash;
 
@@ -37,7 +37,7 @@ use embedded_storage_async::nor_flash::NorFlash;
 pub const STEP: u32 = 1024;
 const RECORD: usize = 16;
 const MAGIC: u32 = 0xFC0C_0017;
-const CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
+const CRC: Crc<u32, NoTable> = Crc::<u32, NoTable>::new(&CRC_32_ISO_HDLC);
 
 /// Why no counter can be handed out.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -81,30 +81,15 @@ fn decode(r: &[u8; RECORD]) -> Option<u32> {
 
 impl<F: NorFlash> FrameCounter<F> {
     /// Opens the counter of a region of exactly two erase sectors (a fresh, erased region
-    /// starts at 0), reserving [`STEP`] counters per write.
-    pub async fn open(flash: F) -> Result<Self, CounterError<F::Error>> {
-        Self::open_now(flash)
+    /// starts at 0), reserving [`STEP`] counters per write. A plain function, each flash
+    /// access run to completion in place (`embassy_futures::block_on`: a board's `NorFlash`
+    /// completes when first polled), so no state machine of it is in a board's image.
+    pub fn open(flash: F) -> Result<Self, CounterError<F::Error>> {
+        Self::open_with_step(flash, STEP)
     }
 
     /// As [`FrameCounter::open`], with `step` counters per write.
-    pub async fn open_with_step(flash: F, step: u32) -> Result<Self, CounterError<F::Error>> {
-        Self::open_with_step_now(flash, step)
-    }
-
-    /// A counter never handed out before, by this node, whatever power cuts came between.
-    pub async fn next(&mut self) -> Result<u32, CounterError<F::Error>> {
-        self.next_now()
-    }
-
-    /// [`FrameCounter::open`] as a plain function, each flash access run to completion in
-    /// place (`embassy_futures::block_on`: a board's `NorFlash` completes when first
-    /// polled), so no state machine of it is in a board's image.
-    pub fn open_now(flash: F) -> Result<Self, CounterError<F::Error>> {
-        Self::open_with_step_now(flash, STEP)
-    }
-
-    /// [`FrameCounter::open_with_step`] as a plain function ([`FrameCounter::open_now`]).
-    pub fn open_with_step_now(mut flash: F, step: u32) -> Result<Self, CounterError<F::Error>> {
+    pub fn open_with_step(mut flash: F, step: u32) -> Result<Self, CounterError<F::Error>> {
         let sector = F::ERASE_SIZE;
         let fits = sector.is_multiple_of(RECORD)
             && RECORD.is_multiple_of(F::WRITE_SIZE)
@@ -150,8 +135,11 @@ impl<F: NorFlash> FrameCounter<F> {
         })
     }
 
-    /// [`FrameCounter::next`] as a plain function ([`FrameCounter::open_now`]).
-    pub fn next_now(&mut self) -> Result<u32, CounterError<F::Error>> {
+    /// A counter never handed out before, by this node, whatever power cuts came between
+    /// (a plain function, as [`FrameCounter::open`]).
+    // Not an iterator: the counter ends in an error, and a flash failure is not the end.
+    #[allow(clippy::should_implement_trait)]
+    pub fn next(&mut self) -> Result<u32, CounterError<F::Error>> {
         if self.next >= self.reserved {
             let reserve = self
                 .next
@@ -203,12 +191,11 @@ mod tests {
 
     use super::*;
     use crate::slots::RamFlash;
-    use embassy_futures::block_on;
 
     type Flash = RamFlash<2048>;
 
     fn open(flash: Flash, step: u32) -> FrameCounter<Flash> {
-        block_on(FrameCounter::open_with_step(flash, step)).expect("opens")
+        FrameCounter::open_with_step(flash, step).expect("opens")
     }
 
     #[test]
@@ -227,11 +214,11 @@ mod tests {
     #[test]
     fn counters_resume_above_everything_handed_out_after_a_reboot() {
         let mut c = open(Flash::new(), 8);
-        let first: Vec<u32> = (0..20).map(|_| block_on(c.next()).unwrap()).collect();
+        let first: Vec<u32> = (0..20).map(|_| c.next().unwrap()).collect();
         assert_eq!(first, (0..20).collect::<Vec<_>>());
         let mut c = open(c.into_inner(), 8);
         // 20 handed out, 24 reserved: the reboot skips to the reservation.
-        assert_eq!(block_on(c.next()), Ok(24));
+        assert_eq!(c.next(), Ok(24));
     }
 
     #[test]
@@ -242,14 +229,14 @@ mod tests {
             flash.fail_after = Some(cut);
             let mut c = open(flash, 4);
             let mut seen = Vec::new();
-            while let Ok(n) = block_on(c.next()) {
+            while let Ok(n) = c.next() {
                 seen.push(n);
             }
             let mut flash = c.into_inner();
             flash.fail_after = None;
             let mut c = open(flash, 4);
             for _ in 0..600 {
-                seen.push(block_on(c.next()).expect("powered"));
+                seen.push(c.next().expect("powered"));
             }
             assert!(
                 seen.windows(2).all(|w| w[0] < w[1]),
@@ -265,7 +252,7 @@ mod tests {
         for _ in 0..500 {
             let mut c = open(flash, 3);
             for _ in 0..5 {
-                let n = block_on(c.next()).expect("next");
+                let n = c.next().expect("next");
                 assert!(last.is_none_or(|l| n > l));
                 last = Some(n);
             }
@@ -281,14 +268,14 @@ mod tests {
         flash.bytes[..64].fill(0x00);
         flash.bytes[64..80].copy_from_slice(&encode(u32::MAX - 2));
         let mut c = open(flash, 8);
-        assert_eq!(block_on(c.next()), Err(CounterError::Exhausted));
+        assert_eq!(c.next(), Err(CounterError::Exhausted));
         let mut c = open(Flash::new(), 1);
-        assert_eq!(block_on(c.next()), Ok(0));
+        assert_eq!(c.next(), Ok(0));
     }
 
     #[test]
     fn a_region_that_is_not_two_sectors_is_refused() {
-        let r = block_on(FrameCounter::open(RamFlash::<1024>::new()));
+        let r = FrameCounter::open(RamFlash::<1024>::new());
         assert!(matches!(r, Err(CounterError::Geometry)));
     }
 }

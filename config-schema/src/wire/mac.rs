@@ -210,14 +210,14 @@ pub fn emit_data_mpdu(
     payload: &[u8],
     buf: &mut [u8],
 ) -> Result<usize, FrameError> {
-    let body_len = DATA_HEADER_LEN + payload.len();
-    if body_len > MAX_MPDU || buf.len() < body_len {
-        return Err(FrameError::NoRoom);
+    if DATA_HEADER_LEN + payload.len() > MAX_MPDU {
+        return Err(FrameError::NoRoom); // nothing written
     }
-    emit_data_header(header, buf)?;
-    let body = buf.get_mut(DATA_HEADER_LEN..body_len);
+    let body = buf
+        .get_mut(DATA_HEADER_LEN..)
+        .and_then(|b| b.get_mut(..payload.len()));
     super::copy(body.ok_or(FrameError::NoRoom)?, payload).ok_or(FrameError::NoRoom)?;
-    Ok(body_len)
+    finish_data_mpdu(header, buf, payload.len())
 }
 
 /// Finishes a data frame's MPDU whose payload (`payload_len` bytes) was written in place at

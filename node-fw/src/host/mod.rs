@@ -259,11 +259,9 @@ pub fn frame_counter(flash: Option<&std::path::Path>) -> Result<CounterSource, H
     let path = flash::counter_path(flash);
     let file = HostFlash::open_counter(&path).map_err(HostError::Flash)?;
     // The host flash does its I/O synchronously: these futures complete when first polled.
-    let mut counter = embassy_futures::block_on(crate::frame_counter::FrameCounter::open(file))
+    let mut counter = crate::frame_counter::FrameCounter::open(file)
         .map_err(|_| HostError::FrameCounter(path))?;
-    Ok(Box::new(move || {
-        embassy_futures::block_on(counter.next()).ok()
-    }))
+    Ok(Box::new(move || counter.next().ok()))
 }
 
 /// Where the frame counter of a node without a flash file starts: 16 per second since

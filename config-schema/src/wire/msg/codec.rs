@@ -150,16 +150,16 @@ impl<'a> In<'a> {
 
     #[inline(never)]
     fn role(&mut self) -> String<MAX_ROLE_NAME> {
-        let mut role = String::new();
-        match core::str::from_utf8(self.bytes()) {
-            Ok(text) => {
-                if role.push_str(text).is_err() {
-                    self.fail(MessageError::Capacity);
-                }
+        match crate::text::role_name(self.bytes()) {
+            Ok(role) => role,
+            Err(e) => {
+                self.fail(match e {
+                    crate::text::NameError::Utf8 => MessageError::Utf8,
+                    crate::text::NameError::Capacity => MessageError::Capacity,
+                });
+                String::new()
             }
-            Err(_) => self.fail(MessageError::Utf8),
         }
-        role
     }
 
     /// `u32`s into `c`, in order.

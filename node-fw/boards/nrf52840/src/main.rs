@@ -282,10 +282,10 @@ async fn main(_spawner: Spawner) {
             key.is_some()
         );
         // A keyed node's frame counter. The NVMC blocks: the counter's plain functions
-        // (`open_now`, `next_now`) complete in place.
+        // (`open`, `next`) complete in place.
         #[cfg(feature = "frame-security")]
         let mut counter = match key {
-            Some(_) => match FrameCounter::open_now(flash.frame_counter()) {
+            Some(_) => match FrameCounter::open(flash.frame_counter()) {
                 Ok(c) => {
                     // The counter's value only: the key is never logged.
                     defmt::info!("node {=u16:#06x}: frame counter {=u32}", addr, c.peek());
@@ -322,7 +322,7 @@ async fn main(_spawner: Spawner) {
         ecb::install();
         #[cfg(feature = "frame-security")]
         let (stop, stats) = {
-            let mut next = || counter.as_mut().and_then(|c| c.next_now().ok());
+            let mut next = || counter.as_mut().and_then(|c| c.next().ok());
             let security = key.map(|key| runtime::Security {
                 key,
                 counter: &mut next,

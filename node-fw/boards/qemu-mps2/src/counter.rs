@@ -4,9 +4,8 @@
 //! the host clock, as the host board does without a flash file.
 //!
 //! The runtime asks for counters synchronously; the emulated flash's futures never pend
-//! (memory and semihosting calls), so `block_on` drives `FrameCounter::next` in one poll.
+//! (memory and semihosting calls), so `FrameCounter::next` completes in place.
 
-use embassy_futures::block_on;
 use node_fw::frame_counter::{CounterError, FrameCounter};
 
 use crate::flash::{Backing, FlashError, QemuFlash};
@@ -35,7 +34,7 @@ impl Counter {
     /// The counter of a flash backed by `backing`, its pages `pages`.
     pub fn open(pages: QemuFlash, backing: Backing) -> Result<Counter, CounterError<FlashError>> {
         match backing {
-            Backing::File => block_on(FrameCounter::open(pages)).map(Counter::Flash),
+            Backing::File => FrameCounter::open(pages).map(Counter::Flash),
             Backing::Ram | Backing::FileRefused => Ok(Counter::Ram(Some(clock_seed()))),
         }
     }
@@ -56,7 +55,7 @@ impl Counter {
     /// A counter never handed out before (`None`: used up, or the flash failed).
     pub fn next(&mut self) -> Option<u32> {
         match self {
-            Counter::Flash(c) => block_on(c.next()).ok(),
+            Counter::Flash(c) => c.next().ok(),
             Counter::Ram(next) => {
                 let n = (*next)?;
                 *next = n.checked_add(1).filter(|n| *n != u32::MAX);
