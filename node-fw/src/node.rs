@@ -230,15 +230,21 @@ impl Radio<'_> {
         }
     }
 
-    /// Whether a frame on `pan_id` goes unsecured ([`Radio::send_numbered`]'s choice: no
-    /// management key on the config PAN, no link keys on the robot's).
-    #[inline]
-    fn in_clear(&self, pan_id: u16) -> bool {
+    /// What secures a frame on `pan_id`: the management key on the config PAN (if the
+    /// node has one), and whether the link keys do on the robot's PAN. Neither: in clear.
+    #[inline(always)]
+    fn securing(&self, pan_id: u16) -> (Option<&ManagementKey>, bool) {
         let links = pan_id != CONFIG_PAN && self.links.secured();
         let key = self
             .key
             .filter(|_| crate::FRAME_SECURITY && pan_id == CONFIG_PAN);
-        !links && key.is_none()
+        (key, links)
+    }
+
+    /// Whether a frame on `pan_id` goes unsecured ([`Radio::securing`]).
+    #[inline]
+    fn in_clear(&self, pan_id: u16) -> bool {
+        matches!(self.securing(pan_id), (None, false))
     }
 
     /// [`Radio::send_numbered`] of an `Event` or `EventAck` in clear (see
@@ -252,7 +258,13 @@ impl Radio<'_> {
         let n = m.write(at);
         let header = self.header(pan_id, dst);
         let emitted = mac::finish_data_mpdu(&header, &mut mpdu, n).ok();
-        if let Some(frame) = emitted.and_then(|len| mpdu.get(..len)) {
+        self.transmit(io, emitted.and_then(|len| mpdu.get(..len)));
+    }
+
+    /// Counts and transmits `frame`, if one was put together.
+    #[inline(always)]
+    fn transmit(&mut self, io: &mut impl Io, frame: Option<&[u8]>) {
+        if let Some(frame) = frame {
             self.counters.sent += 1;
             io.transmit_mpdu(frame);
         }
@@ -268,10 +280,7 @@ impl Radio<'_> {
         msg: &Message<'_>,
         counter: Option<u32>,
     ) {
-        let links = pan_id != CONFIG_PAN && self.links.secured();
-        let key = self
-            .key
-            .filter(|_| crate::FRAME_SECURITY && pan_id == CONFIG_PAN);
+        let (key, links) = self.securing(pan_id);
         // The key that secures the frame and its key index: the management key on the
         // config PAN, the send key for `dst` under link keys (`Some(None)`: `dst` is not a
         // peer), none (`None`): unsecured. One secured branch, one `secure` call.
@@ -316,10 +325,7 @@ impl Radio<'_> {
                 mac::finish_data_mpdu(&header, &mut mpdu, n).ok()
             }
         };
-        if let Some(frame) = emitted.and_then(|len| mpdu.get(..len)) {
-            self.counters.sent += 1;
-            io.transmit_mpdu(frame);
-        }
+        self.transmit(io, emitted.and_then(|len| mpdu.get(..len)));
     }
 
     /// The MAC header of the next frame to `dst` on `pan_id`: it takes the next sequence

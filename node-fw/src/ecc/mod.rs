@@ -166,7 +166,7 @@ impl<'t> Engine<'t> {
             },
             queue: Fifo::new(),
         };
-        engine.run().init(table);
+        engine.parts().1.init(table);
         engine
     }
 
@@ -212,15 +212,6 @@ impl<'t, 's> Engine<'t, &'s mut EngineState> {
 }
 
 impl<'t, S: BorrowMut<EngineState>> Engine<'t, S> {
-    /// The state and the queue, for the interpreter.
-    #[inline(always)]
-    fn run(&mut self) -> Run<'_> {
-        Run {
-            state: self.state.borrow_mut(),
-            queue: &mut self.queue,
-        }
-    }
-
     /// The engine's state.
     #[inline(always)]
     fn st(&self) -> &EngineState {
