@@ -31,6 +31,12 @@ impl Fifo {
         self.len = 0;
     }
 
+    /// Whether no event is pending.
+    #[inline(always)]
+    pub(super) fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
     /// Appends `event`, unless the FIFO is full.
     #[inline(always)]
     pub(super) fn push(&mut self, event: EventId) -> Result<(), Full> {

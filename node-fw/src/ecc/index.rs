@@ -172,6 +172,14 @@ impl<const N: usize> Span<N> {
     }
 }
 
+impl<const N: usize> Span<N> {
+    /// `(start, end)`.
+    #[inline(always)]
+    pub(super) fn bounds(self) -> (u8, u8) {
+        (self.start, self.end)
+    }
+}
+
 impl<const N: usize> Default for Span<N> {
     fn default() -> Self {
         Span::EMPTY
@@ -564,10 +572,10 @@ impl Index {
         self.states.get(state)
     }
 
-    /// The routes of a span, in order.
+    /// Route `at` (`None` past the pool).
     #[inline(always)]
-    pub(super) fn routes(&self, span: RouteSpan) -> impl Iterator<Item = &Target> {
-        span_of(&self.routes, span)
+    pub(super) fn route(&self, at: u8) -> Option<&Target> {
+        self.routes.get(usize::from(at))
     }
 
     /// The transitions of a span, in order.

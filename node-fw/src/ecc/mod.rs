@@ -76,6 +76,10 @@ use index::{act, Act, Layout, Span, Step, EVENTLESS, NONE};
 enum Flow {
     Go,
     Stop,
+    /// The delivery ended with an emit of this event while the FIFO was empty: it is the
+    /// next event to deliver once the event's remaining routes are done, so it is queued
+    /// only if routes remain (published already).
+    Emit(EventId),
 }
 
 /// The engine's index: its own (built with the engine) or the one its runtime keeps
@@ -457,14 +461,31 @@ impl Run<'_> {
         loop {
             // Delivers `next` to all its routes, in order, each chart running to a stable
             // state.
-            for route in ix.routes(routes) {
-                if self.deliver(ix, table, route.chart, route.input, fx) == Flow::Stop {
-                    return;
+            let (mut at, end) = routes.bounds();
+            // An event the last route's delivery emitted last into the empty FIFO: the
+            // next one the FIFO would give.
+            let mut emitted = None;
+            while at < end {
+                let Some(route) = ix.route(at) else { break };
+                at += 1;
+                match self.deliver(ix, table, route.chart, route.input, fx) {
+                    Flow::Go => {}
+                    Flow::Stop => return,
+                    Flow::Emit(e) if at < end => {
+                        if self.queue.push(e).is_err() {
+                            self.set_fault(ix, Fault::QueueFull { event: e }, fx);
+                            return;
+                        }
+                    }
+                    Flow::Emit(e) => emitted = Some(e),
                 }
             }
-            let next = match self.queue.pop() {
+            let next = match emitted {
                 Some(e) => e,
-                None => return,
+                None => match self.queue.pop() {
+                    Some(e) => e,
+                    None => return,
+                },
             };
             routes = ix.event(next).map_or(Span::EMPTY, |rec| rec.routes);
             processed += 1;
@@ -584,14 +605,15 @@ impl Run<'_> {
                         }
                         continue;
                     }
-                    act::EMIT_END => return self.emit(ix, dst, w[0], fx),
+                    act::EMIT_END => return self.emit_last(ix, dst, w[0], fx),
                     act::EMIT_FIRE => {
-                        if self.emit(ix, dst, w[0], fx) == Flow::Stop {
+                        let flow = self.emit_last(ix, dst, w[0], fx);
+                        if flow == Flow::Stop {
                             return Flow::Stop;
                         }
                         // Then the close, as `FIRE` with a stable target.
                         if to >= states {
-                            return Flow::Go;
+                            return flow;
                         }
                         chained += 1;
                         if chained > MAX_CHAIN {
@@ -604,7 +626,7 @@ impl Run<'_> {
                             *slot = to;
                         }
                         fx.fired(chart, w[2], from, to);
-                        return Flow::Go;
+                        return flow;
                     }
                     act::PUBLISH => {
                         publish(ix, w[0], fx);
@@ -682,6 +704,19 @@ impl Run<'_> {
         }
         publish(ix, p, fx);
         Flow::Go
+    }
+
+    /// An emit that ends the delivery: as [`Run::emit`], but into an empty FIFO it is
+    /// only published and handed back ([`Flow::Emit`]) to be delivered next without the
+    /// FIFO's round trip (the same order: nothing else is pending, nothing else is
+    /// queued before the delivery ends).
+    #[inline(always)]
+    fn emit_last(&mut self, ix: &Index, event: EventId, p: u8, fx: &mut impl Effects) -> Flow {
+        if self.queue.is_empty() {
+            publish(ix, p, fx);
+            return Flow::Emit(event);
+        }
+        self.emit(ix, event, p, fx)
     }
 
     /// Faults the node on an expression of `chart` that cannot be evaluated.
