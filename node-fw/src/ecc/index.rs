@@ -37,6 +37,9 @@ pub(super) const CHOOSE: u8 = u8::MAX - 1;
 
 // Every pool index and span end fits a `u8` below `NONE`.
 const _: () = assert!(MAX_ROUTES < NONE as usize);
+/// The routes' pool: a power of two, so that a route's index masked is in range.
+const ROUTES: usize = 128;
+const _: () = assert!(MAX_ROUTES <= ROUTES && ROUTES.is_power_of_two());
 const _: () = assert!(MAX_TRANSITIONS < CHOOSE as usize);
 const _: () = assert!(MAX_ACTIONS < NONE as usize);
 /// The operations' pool: every state's actions and close fit, and an index is a `u8`.
@@ -186,7 +189,7 @@ impl<const N: usize> Default for Span<N> {
     }
 }
 
-type RouteSpan = Span<MAX_ROUTES>;
+type RouteSpan = Span<ROUTES>;
 type StepSpan = Span<MAX_TRANSITIONS>;
 
 /// Per event: its routes and its publication.
@@ -240,7 +243,8 @@ fn span_of<T, const N: usize>(pool: &[T; N], span: Span<N>) -> impl Iterator<Ite
 pub struct Index {
     pub(super) layout: [Layout; MAX_CHARTS],
     events: [EventRec; MAX_EVENTS],
-    routes: [Target; MAX_ROUTES],
+    /// The routes, grouped by event (at most `MAX_ROUTES`, in a pool of `ROUTES`).
+    routes: [Target; ROUTES],
     states: [StateRec; MAX_STATES],
     steps: [Step; MAX_TRANSITIONS],
     /// The states' entries, one after the other (each its actions and its close): at most
@@ -272,7 +276,7 @@ impl Index {
                 routes: Span::EMPTY,
                 publication: NONE,
             }; MAX_EVENTS],
-            routes: [Target::default(); MAX_ROUTES],
+            routes: [Target::default(); ROUTES],
             states: [StateRec::default(); MAX_STATES],
             steps: [NO_STEP; MAX_TRANSITIONS],
             ops: [END; OPS],
@@ -572,10 +576,10 @@ impl Index {
         self.states.get(state)
     }
 
-    /// Route `at` (`None` past the pool).
+    /// Route `at` (masked: inside the pool; a span's routes are below its end).
     #[inline(always)]
-    pub(super) fn route(&self, at: u8) -> Option<&Target> {
-        self.routes.get(usize::from(at))
+    pub(super) fn route(&self, at: u8) -> &Target {
+        &self.routes[usize::from(at) & (ROUTES - 1)]
     }
 
     /// The transitions of a span, in order.
@@ -615,7 +619,7 @@ mod tests {
     fn the_index_is_its_pools_at_the_capacities() {
         let pools = 2 * MAX_CHARTS
             + 3 * MAX_EVENTS
-            + 2 * MAX_ROUTES
+            + 2 * ROUTES
             + 3 * MAX_STATES
             + 9 * MAX_TRANSITIONS
             + 6 * 256
@@ -624,7 +628,7 @@ mod tests {
         // The input, event and timer counts, the output mask and the two drives (u16s).
         let rest = 3 + 2 + 2 * 4;
         assert_eq!(Index::BYTES, (pools + rest).next_multiple_of(2));
-        assert_eq!(Index::BYTES, 3510);
+        assert_eq!(Index::BYTES, 3574);
     }
 
     /// A span is always inside its pool: any other range is made empty.

@@ -466,7 +466,7 @@ impl Run<'_> {
             // next one the FIFO would give.
             let mut emitted = None;
             while at < end {
-                let Some(route) = ix.route(at) else { break };
+                let route = ix.route(at);
                 at += 1;
                 match self.deliver(ix, table, route.chart, route.input, fx) {
                     Flow::Go => {}
