@@ -6,7 +6,7 @@
 //! Semantics: `docs/ecc-semantics.md`.
 
 use config_schema::limits::{MAX_CASCADE, MAX_CHAIN, MAX_CHARTS, MAX_VARS};
-use core::borrow::BorrowMut;
+use core::borrow::{Borrow, BorrowMut};
 use core::ops::{Deref, DerefMut};
 
 use config_schema::{EventId, Publication, Table, Topic};
@@ -82,33 +82,16 @@ enum Flow {
     Emit(EventId),
 }
 
-/// The engine's index: its own (built with the engine) or the one its runtime keeps
-/// beside the table (built once at activation, not per stimulus). No allocator: an
-/// engine that builds its own holds it inline.
-#[derive(Debug, Clone)]
-#[allow(clippy::large_enum_variant)]
-enum IndexRef<'t> {
-    Own(Index),
-    Kept(&'t Index),
-}
-
-impl IndexRef<'_> {
-    #[inline(always)]
-    fn get(&self) -> &Index {
-        match self {
-            IndexRef::Own(ix) => ix,
-            IndexRef::Kept(ix) => ix,
-        }
-    }
-}
-
 /// One node's charts running one table, holding its state in `S`: its own
 /// ([`EngineState`], the default), or a runtime's borrowed in place (`&mut EngineState`,
-/// [`Engine::on`]: nothing copied in or out per stimulus).
+/// [`Engine::on`]: nothing copied in or out per stimulus); and the table's [`Index`] in
+/// `I`: its own (built with the engine and held inline: no allocator, the default), or
+/// the one its runtime keeps beside the table (`&Index`, built once at activation, not
+/// per stimulus). Both are type parameters: a call reaches them without a choice.
 #[derive(Debug, Clone)]
-pub struct Engine<'t, S: BorrowMut<EngineState> = EngineState> {
+pub struct Engine<'t, S: BorrowMut<EngineState> = EngineState, I: Borrow<Index> = Index> {
     table: &'t Table,
-    index: IndexRef<'t>,
+    index: I,
     state: S,
     queue: Fifo,
 }
@@ -147,16 +130,41 @@ impl<'t> Engine<'t> {
     /// level is `Hold` keeps its bit of `before` (bit i: the level its pin has now, as the
     /// previous table left it).
     pub fn new_holding(table: &'t Table, before: u16) -> Self {
-        Engine::start_with(table, IndexRef::Own(Index::new(table)), before)
+        Engine::start_with(table, Index::new(table), before)
     }
 
     /// [`Engine::new_holding`] with `index`, the [`Index`] of `table` its runtime keeps.
-    pub fn new_indexed(table: &'t Table, index: &'t Index, before: u16) -> Self {
-        Engine::start_with(table, IndexRef::Kept(index), before)
+    pub fn new_indexed(
+        table: &'t Table,
+        index: &'t Index,
+        before: u16,
+    ) -> Engine<'t, EngineState, &'t Index> {
+        Engine::start_with(table, index, before)
     }
 
-    fn start_with(table: &'t Table, index: IndexRef<'t>, before: u16) -> Self {
-        let (mask, value) = index.get().start_drive;
+    /// An engine over `table` in a state taken by [`snapshot`](Engine::snapshot) of an
+    /// engine running the same table. It builds the table's [`Index`] on every call: for a
+    /// test or a one-off; whatever resumes per stimulus keeps the index and calls
+    /// [`resume_indexed`](Engine::resume_indexed) (`sim`, `verify` do) or runs on its
+    /// state in place ([`Engine::on`]: `NodeCore` does).
+    pub fn resume(table: &'t Table, state: &EngineState) -> Self {
+        Engine::resume_with(table, Index::new(table), state)
+    }
+
+    /// [`resume`](Engine::resume) with `index`, the [`Index`] of `table` its runtime keeps
+    /// (built once when the table was activated).
+    pub fn resume_indexed(
+        table: &'t Table,
+        index: &'t Index,
+        state: &EngineState,
+    ) -> Engine<'t, EngineState, &'t Index> {
+        Engine::resume_with(table, index, state)
+    }
+}
+
+impl<'t, I: Borrow<Index>> Engine<'t, EngineState, I> {
+    fn start_with(table: &'t Table, index: I, before: u16) -> Self {
+        let (mask, value) = index.borrow().start_drive;
         let mut engine = Engine {
             table,
             index,
@@ -174,22 +182,7 @@ impl<'t> Engine<'t> {
         engine
     }
 
-    /// An engine over `table` in a state taken by [`snapshot`](Engine::snapshot) of an
-    /// engine running the same table. It builds the table's [`Index`] on every call: for a
-    /// test or a one-off; whatever resumes per stimulus keeps the index and calls
-    /// [`resume_indexed`](Engine::resume_indexed) (`sim`, `verify` do) or runs on its
-    /// state in place ([`Engine::on`]: `NodeCore` does).
-    pub fn resume(table: &'t Table, state: &EngineState) -> Self {
-        Engine::resume_with(table, IndexRef::Own(Index::new(table)), state)
-    }
-
-    /// [`resume`](Engine::resume) with `index`, the [`Index`] of `table` its runtime keeps
-    /// (built once when the table was activated).
-    pub fn resume_indexed(table: &'t Table, index: &'t Index, state: &EngineState) -> Self {
-        Engine::resume_with(table, IndexRef::Kept(index), state)
-    }
-
-    fn resume_with(table: &'t Table, index: IndexRef<'t>, state: &EngineState) -> Self {
+    fn resume_with(table: &'t Table, index: I, state: &EngineState) -> Self {
         Engine {
             table,
             index,
@@ -199,7 +192,7 @@ impl<'t> Engine<'t> {
     }
 }
 
-impl<'t, 's> Engine<'t, &'s mut EngineState> {
+impl<'t, 's> Engine<'t, &'s mut EngineState, &'t Index> {
     /// An engine over `table` (with `index`, the [`Index`] its runtime keeps) running on
     /// `state` in place: what [`resume_indexed`](Engine::resume_indexed) then
     /// [`snapshot`](Engine::snapshot) into `state` do, without the two copies. `state`
@@ -208,14 +201,14 @@ impl<'t, 's> Engine<'t, &'s mut EngineState> {
     pub fn on(table: &'t Table, index: &'t Index, state: &'s mut EngineState) -> Self {
         Engine {
             table,
-            index: IndexRef::Kept(index),
+            index,
             state,
             queue: Fifo::new(),
         }
     }
 }
 
-impl<'t, S: BorrowMut<EngineState>> Engine<'t, S> {
+impl<'t, S: BorrowMut<EngineState>, I: Borrow<Index>> Engine<'t, S, I> {
     /// The engine's state.
     #[inline(always)]
     fn st(&self) -> &EngineState {
@@ -277,7 +270,7 @@ impl<'t, S: BorrowMut<EngineState>> Engine<'t, S> {
     /// The index and the interpreter's run, borrowed apart.
     #[inline(always)]
     fn parts(&mut self) -> (&Index, Run<'_>) {
-        let ix = self.index.get();
+        let ix = self.index.borrow();
         let run = Run {
             state: self.state.borrow_mut(),
             queue: &mut self.queue,
