@@ -540,7 +540,10 @@ impl Run<'_> {
                 let Act { code, dst, w } = *ix.op(pc);
                 pc = pc.wrapping_add(1);
                 let value = calc_match!(code, &w, &self.vars, self.inputs, table, {
-                    act::END => return Flow::Go,
+                    // Code 0 (a missing guard) is no assignment's: the index builds none
+                    // (taken as `END` here, so that the walk's jump has no arm of its own
+                    // for it).
+                    0 | act::END => return Flow::Go,
                     act::FIRE => {
                         // Only a state of the chart moves on its own.
                         if to >= states {
