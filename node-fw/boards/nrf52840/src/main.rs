@@ -39,6 +39,7 @@ use node_fw::provision;
 #[cfg(not(feature = "gateway"))]
 bind_interrupts!(struct Irqs {
     RADIO => embassy_nrf::radio::InterruptHandler<peripherals::RADIO>;
+    GPIOTE => gpio::PortHandler;
 });
 
 #[cfg(feature = "gateway")]
