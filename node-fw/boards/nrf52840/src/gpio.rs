@@ -6,14 +6,14 @@
 //! the ports' IN registers and woken by the GPIOTE PORT event: one waker for every pin
 //! ([`PortHandler`]), each input pin sensing the level it does not have.
 
-use core::cell::{Cell, RefCell};
+use core::cell::Cell;
 use core::future::poll_fn;
 use core::task::Poll;
 
-use embassy_nrf::gpio::{Flex, OutputDrive, Pull};
+use embassy_nrf::gpio::{Flex, Pull};
 use embassy_nrf::interrupt::{self, typelevel, InterruptExt};
 use embassy_nrf::pac;
-use embassy_nrf::pac::gpio::vals::{Detectmode, Sense};
+use embassy_nrf::pac::gpio::vals::{Detectmode, Dir, Drive, Input, Pull as PinPull, Sense};
 use embassy_sync::waitqueue::AtomicWaker;
 use node_fw::runtime::{Inputs, Pins};
 
@@ -81,10 +81,11 @@ fn listen() {
     unsafe { interrupt::GPIOTE.enable() };
 }
 
-/// The pins, shared by the outputs and the inputs (one task uses both, never at once: the
-/// runtime drives outputs only while no input wait is pending).
+/// The pins, shared by the outputs and the inputs (one task uses both). Levels are set and read
+/// through the ports' registers (`OUTSET` / `OUTCLR`, `IN`); the `Flex`es only own the
+/// pins (dropped, a pin would be disconnected).
 pub struct Gpio {
-    pins: [RefCell<Flex<'static>>; PINS],
+    _pins: [Flex<'static>; PINS],
     /// Bit n: table pin n is an output.
     outputs: Cell<u32>,
 }
@@ -96,7 +97,7 @@ impl Gpio {
         }
         listen();
         Gpio {
-            pins: pins.map(RefCell::new),
+            _pins: pins,
             outputs: Cell::new(0),
         }
     }
@@ -106,35 +107,45 @@ impl Gpio {
     }
 }
 
+/// Physical pin `physical`'s output latch to `level` (a pin that is not yet an output
+/// drives it once it becomes one).
+fn drive(physical: u8, level: bool) {
+    let (p, pin) = port(physical);
+    if level {
+        p.outset().write(|w| w.0 = 1 << pin);
+    } else {
+        p.outclr().write(|w| w.0 = 1 << pin);
+    }
+}
+
 /// The outputs.
 pub struct GpioPins<'a>(pub &'a Gpio);
 
 impl Pins for GpioPins<'_> {
     fn set(&mut self, pin: u8, level: bool) {
         let i = usize::from(pin);
-        let Some(cell) = self.0.pins.get(i) else {
+        let Some(&physical) = PHYSICAL.get(i) else {
             return;
         };
-        let Ok(mut p) = cell.try_borrow_mut() else {
-            return;
-        };
-        if level {
-            p.set_high();
-        } else {
-            p.set_low();
-        }
+        drive(physical, level);
         if !self.0.is_output(i) {
-            p.set_as_output(OutputDrive::Standard);
+            // As `Flex::set_as_output(OutputDrive::Standard)` does.
+            let (p, pin) = port(physical);
+            p.pin_cnf(pin).write(|w| {
+                w.set_dir(Dir::Output);
+                w.set_input(Input::Disconnect);
+                w.set_pull(PinPull::Disabled);
+                w.set_drive(Drive::S0s1);
+                w.set_sense(Sense::Disabled);
+            });
             self.0.outputs.set(self.0.outputs.get() | 1 << i);
         }
     }
 
     fn all_off(&mut self) {
-        for (i, cell) in self.0.pins.iter().enumerate() {
+        for (i, &physical) in PHYSICAL.iter().enumerate() {
             if self.0.is_output(i) {
-                if let Ok(mut p) = cell.try_borrow_mut() {
-                    p.set_low();
-                }
+                drive(physical, false);
             }
         }
     }
