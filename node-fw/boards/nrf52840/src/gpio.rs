@@ -10,10 +10,11 @@ use core::cell::Cell;
 use core::future::poll_fn;
 use core::task::Poll;
 
-use embassy_nrf::gpio::{Flex, Pull};
+use embassy_nrf::gpio::AnyPin;
 use embassy_nrf::interrupt::{self, typelevel, InterruptExt};
 use embassy_nrf::pac;
 use embassy_nrf::pac::gpio::vals::{Detectmode, Dir, Drive, Input, Pull as PinPull, Sense};
+use embassy_nrf::Peri;
 use embassy_sync::waitqueue::AtomicWaker;
 use node_fw::runtime::{Inputs, Pins};
 
@@ -82,18 +83,27 @@ fn listen() {
 }
 
 /// The pins, shared by the outputs and the inputs (one task uses both). Levels are set and read
-/// through the ports' registers (`OUTSET` / `OUTCLR`, `IN`); the `Flex`es only own the
-/// pins (dropped, a pin would be disconnected).
+/// through the ports' registers (`OUTSET` / `OUTCLR`, `IN`, `PIN_CNF`): the pins are only
+/// owned here, configured by their numbers (`PHYSICAL`).
 pub struct Gpio {
-    _pins: [Flex<'static>; PINS],
+    _pins: [Peri<'static, AnyPin>; PINS],
     /// Bit n: table pin n is an output.
     outputs: Cell<u32>,
 }
 
 impl Gpio {
-    pub fn new(mut pins: [Flex<'static>; PINS]) -> Self {
-        for p in pins.iter_mut() {
-            p.set_as_input(Pull::Down);
+    /// `pins` are the pins of `PHYSICAL`, in its order.
+    pub fn new(pins: [Peri<'static, AnyPin>; PINS]) -> Self {
+        for &physical in &PHYSICAL {
+            // As `Flex::set_as_input(Pull::Down)` does.
+            let (p, pin) = port(physical);
+            p.pin_cnf(pin).write(|w| {
+                w.set_dir(Dir::Input);
+                w.set_input(Input::Connect);
+                w.set_pull(PinPull::Pulldown);
+                w.set_drive(Drive::S0s1);
+                w.set_sense(Sense::Disabled);
+            });
         }
         listen();
         Gpio {
