@@ -175,16 +175,30 @@ impl<'a> GpioInputs<'a> {
     /// The levels of the input pins (bit n: table pin n), from the ports' IN registers.
     fn read(&self) -> u32 {
         let (p0, p1) = (pac::P0.in_().read().0, pac::P1.in_().read().0);
-        let mut levels = 0;
-        for (i, &physical) in PHYSICAL.iter().enumerate() {
-            let word = if physical & 32 != 0 { p1 } else { p0 };
-            if !self.gpio.is_output(i) && word & (1 << (physical & 31)) != 0 {
-                levels |= 1 << i;
-            }
-        }
-        levels
+        table_pins(p0, p1) & !self.gpio.outputs.get()
     }
 }
+
+/// Port words (P0, P1) as table pins (bit n: table pin n): P1.01..=P1.08 are pins 0..=7,
+/// P1.10..=P1.15 pins 8..=13, P0.03 and P0.04 pins 14 and 15 (`PHYSICAL`, checked below).
+const fn table_pins(p0: u32, p1: u32) -> u32 {
+    ((p1 >> 1) & 0xFF) | ((p1 >> 10) & 0x3F) << 8 | ((p0 >> 3) & 0x3) << 14
+}
+
+// `table_pins` moves each pin of `PHYSICAL` to its table pin.
+const _: () = {
+    let mut i = 0;
+    while i < PINS {
+        let bit = 1u32 << (PHYSICAL[i] & 31);
+        let (p0, p1) = if PHYSICAL[i] & 32 != 0 {
+            (0, bit)
+        } else {
+            (bit, 0)
+        };
+        assert!(table_pins(p0, p1) == 1 << i);
+        i += 1;
+    }
+};
 
 impl Inputs for GpioInputs<'_> {
     fn levels(&mut self) -> u64 {
