@@ -301,10 +301,25 @@ fn header(t: &Table) -> Result<(), Invalid> {
     Ok(())
 }
 
+// `pins` keeps the pins taken in a `u64`.
+const _: () = assert!(MAX_PINS <= 64);
+
 /// Inputs (pin, events, variable) and outputs: each pin used once.
 fn pins(t: &Table) -> Result<(), Invalid> {
+    // Bit n: pin n is taken (every pin below `MAX_PINS` = 64 once `pin_ok` passed).
+    let mut taken = 0u64;
+    let mut take = |at: Place, pin: u8| -> Result<(), Invalid> {
+        pin_ok(at, pin)?;
+        let bit = 1u64 << (pin & 63);
+        if taken & bit != 0 {
+            return Err(Invalid::Duplicate { at });
+        }
+        taken |= bit;
+        Ok(())
+    };
     for (i, input) in t.inputs.iter().enumerate() {
         let at = Place::Input(idx(i));
+        // The pin's range first, its duplicate last (after the events and the variable).
         pin_ok(at, input.pin)?;
         if let Some(e) = input.rise {
             event_ok(t, at, e)?;
@@ -317,20 +332,11 @@ fn pins(t: &Table) -> Result<(), Invalid> {
                 return Err(Invalid::Var { at, var: v });
             }
         }
-        if t.inputs.iter().take(i).any(|o| o.pin == input.pin) {
-            return Err(Invalid::Duplicate { at });
-        }
+        take(at, input.pin)?;
     }
+    // A pin is an input or an output, once.
     for (i, output) in t.outputs.iter().enumerate() {
-        pin_ok(Place::Output(idx(i)), output.pin)?;
-        // A pin is an input or an output, once.
-        if t.outputs.iter().take(i).any(|o| o.pin == output.pin)
-            || t.inputs.iter().any(|input| input.pin == output.pin)
-        {
-            return Err(Invalid::Duplicate {
-                at: Place::Output(idx(i)),
-            });
-        }
+        take(Place::Output(idx(i)), output.pin)?;
     }
     Ok(())
 }

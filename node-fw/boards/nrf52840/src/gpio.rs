@@ -2,13 +2,20 @@
 //! outputs is the table's business, not the board's: every pin starts as an input with a
 //! pull-down (a valve driver sees low: off), and becomes a push-pull output the first time
 //! the table drives it (at boot or activation the table drives every output to its safe
-//! level, so outputs are outputs before anything moves). Inputs are read as levels and
-//! woken by GPIOTE PORT events (`wait_for_any_edge`).
+//! level, so outputs are outputs before anything moves). Inputs are read as levels from
+//! the ports' IN registers and woken by the GPIOTE PORT event: one waker for every pin
+//! ([`PortHandler`]), each input pin sensing the level it does not have.
 
-use core::cell::{Cell, RefCell};
+use core::cell::Cell;
+use core::future::poll_fn;
+use core::task::Poll;
 
-use embassy_futures::select::select_array;
-use embassy_nrf::gpio::{Flex, OutputDrive, Pull};
+use embassy_nrf::gpio::AnyPin;
+use embassy_nrf::interrupt::{self, typelevel, InterruptExt};
+use embassy_nrf::pac;
+use embassy_nrf::pac::gpio::vals::{Detectmode, Dir, Drive, Input, Pull as PinPull, Sense};
+use embassy_nrf::Peri;
+use embassy_sync::waitqueue::AtomicWaker;
 use node_fw::runtime::{Inputs, Pins};
 
 /// Table pins this board has.
@@ -22,21 +29,85 @@ pub const PIN_NAMES: [&str; PINS] = [
     "P1.12", "P1.13", "P1.14", "P1.15", "P0.03", "P0.04",
 ];
 
-/// The pins, shared by the outputs and the inputs (one task uses both, never at once: the
-/// runtime drives outputs only while no input wait is pending).
+/// `PIN_NAMES` as numbers: 32 x port + pin.
+const PHYSICAL: [u8; PINS] = [33, 34, 35, 36, 37, 38, 39, 40, 42, 43, 44, 45, 46, 47, 3, 4];
+
+/// The port of a physical pin and the pin's number in it.
+fn port(physical: u8) -> (pac::gpio::Gpio, usize) {
+    let port = if physical & 32 != 0 { pac::P1 } else { pac::P0 };
+    (port, usize::from(physical & 31))
+}
+
+/// Woken by every PORT event (the input wait: one future, one waker for all pins).
+static PORT_WAKER: AtomicWaker = AtomicWaker::new();
+
+/// The GPIOTE interrupt (embassy-nrf's `gpiote` driver is not linked: its waker per pin,
+/// 48 of them, and a future per pin): a PORT event turns off the sense of each pin that
+/// latched (else it latches again at once), clears the latches and wakes the input wait,
+/// which arms the pins again.
+pub struct PortHandler;
+
+impl typelevel::Handler<typelevel::GPIOTE> for PortHandler {
+    unsafe fn on_interrupt() {
+        let event = pac::GPIOTE.events_port(0);
+        if event.read() == 0 {
+            return;
+        }
+        event.write_value(0);
+        for p in [pac::P0, pac::P1] {
+            let latched = p.latch().read().0;
+            let mut bits = latched;
+            while bits != 0 {
+                let pin = bits.trailing_zeros() as usize;
+                p.pin_cnf(pin).modify(|w| w.set_sense(Sense::Disabled));
+                bits &= bits - 1;
+            }
+            p.latch().write(|w| w.0 = latched);
+        }
+        PORT_WAKER.wake();
+    }
+}
+
+/// Latched detection on both ports, the PORT event's interrupt on (once, at boot).
+fn listen() {
+    for p in [pac::P0, pac::P1] {
+        p.detectmode()
+            .write(|w| w.set_detectmode(Detectmode::Ldetect));
+        p.latch().write(|w| w.0 = u32::MAX);
+    }
+    pac::GPIOTE.intenset(0).write(|w| w.set_port(true));
+    interrupt::GPIOTE.unpend();
+    // SAFETY: the handler (`PortHandler`, bound in main) touches only the ports' sense,
+    // latches and the waker, which the input wait expects to change under it.
+    unsafe { interrupt::GPIOTE.enable() };
+}
+
+/// The pins, shared by the outputs and the inputs (one task uses both). Levels are set and read
+/// through the ports' registers (`OUTSET` / `OUTCLR`, `IN`, `PIN_CNF`): the pins are only
+/// owned here, configured by their numbers (`PHYSICAL`).
 pub struct Gpio {
-    pins: [RefCell<Flex<'static>>; PINS],
+    _pins: [Peri<'static, AnyPin>; PINS],
     /// Bit n: table pin n is an output.
     outputs: Cell<u32>,
 }
 
 impl Gpio {
-    pub fn new(mut pins: [Flex<'static>; PINS]) -> Self {
-        for p in pins.iter_mut() {
-            p.set_as_input(Pull::Down);
+    /// `pins` are the pins of `PHYSICAL`, in its order.
+    pub fn new(pins: [Peri<'static, AnyPin>; PINS]) -> Self {
+        for &physical in &PHYSICAL {
+            // As `Flex::set_as_input(Pull::Down)` does.
+            let (p, pin) = port(physical);
+            p.pin_cnf(pin).write(|w| {
+                w.set_dir(Dir::Input);
+                w.set_input(Input::Connect);
+                w.set_pull(PinPull::Pulldown);
+                w.set_drive(Drive::S0s1);
+                w.set_sense(Sense::Disabled);
+            });
         }
+        listen();
         Gpio {
-            pins: pins.map(RefCell::new),
+            _pins: pins,
             outputs: Cell::new(0),
         }
     }
@@ -46,35 +117,45 @@ impl Gpio {
     }
 }
 
+/// Physical pin `physical`'s output latch to `level` (a pin that is not yet an output
+/// drives it once it becomes one).
+fn drive(physical: u8, level: bool) {
+    let (p, pin) = port(physical);
+    if level {
+        p.outset().write(|w| w.0 = 1 << pin);
+    } else {
+        p.outclr().write(|w| w.0 = 1 << pin);
+    }
+}
+
 /// The outputs.
 pub struct GpioPins<'a>(pub &'a Gpio);
 
 impl Pins for GpioPins<'_> {
     fn set(&mut self, pin: u8, level: bool) {
         let i = usize::from(pin);
-        let Some(cell) = self.0.pins.get(i) else {
+        let Some(&physical) = PHYSICAL.get(i) else {
             return;
         };
-        let Ok(mut p) = cell.try_borrow_mut() else {
-            return;
-        };
-        if level {
-            p.set_high();
-        } else {
-            p.set_low();
-        }
+        drive(physical, level);
         if !self.0.is_output(i) {
-            p.set_as_output(OutputDrive::Standard);
+            // As `Flex::set_as_output(OutputDrive::Standard)` does.
+            let (p, pin) = port(physical);
+            p.pin_cnf(pin).write(|w| {
+                w.set_dir(Dir::Output);
+                w.set_input(Input::Disconnect);
+                w.set_pull(PinPull::Disabled);
+                w.set_drive(Drive::S0s1);
+                w.set_sense(Sense::Disabled);
+            });
             self.0.outputs.set(self.0.outputs.get() | 1 << i);
         }
     }
 
     fn all_off(&mut self) {
-        for (i, cell) in self.0.pins.iter().enumerate() {
+        for (i, &physical) in PHYSICAL.iter().enumerate() {
             if self.0.is_output(i) {
-                if let Ok(mut p) = cell.try_borrow_mut() {
-                    p.set_low();
-                }
+                drive(physical, false);
             }
         }
     }
@@ -91,20 +172,33 @@ impl<'a> GpioInputs<'a> {
         GpioInputs { gpio, reported: 0 }
     }
 
+    /// The levels of the input pins (bit n: table pin n), from the ports' IN registers.
     fn read(&self) -> u32 {
-        let mut levels = 0;
-        for (i, cell) in self.gpio.pins.iter().enumerate() {
-            if !self.gpio.is_output(i) {
-                if let Ok(p) = cell.try_borrow() {
-                    if p.is_high() {
-                        levels |= 1 << i;
-                    }
-                }
-            }
-        }
-        levels
+        let (p0, p1) = (pac::P0.in_().read().0, pac::P1.in_().read().0);
+        table_pins(p0, p1) & !self.gpio.outputs.get()
     }
 }
+
+/// Port words (P0, P1) as table pins (bit n: table pin n): P1.01..=P1.08 are pins 0..=7,
+/// P1.10..=P1.15 pins 8..=13, P0.03 and P0.04 pins 14 and 15 (`PHYSICAL`, checked below).
+const fn table_pins(p0: u32, p1: u32) -> u32 {
+    ((p1 >> 1) & 0xFF) | ((p1 >> 10) & 0x3F) << 8 | ((p0 >> 3) & 0x3) << 14
+}
+
+// `table_pins` moves each pin of `PHYSICAL` to its table pin.
+const _: () = {
+    let mut i = 0;
+    while i < PINS {
+        let bit = 1u32 << (PHYSICAL[i] & 31);
+        let (p0, p1) = if PHYSICAL[i] & 32 != 0 {
+            (0, bit)
+        } else {
+            (bit, 0)
+        };
+        assert!(table_pins(p0, p1) == 1 << i);
+        i += 1;
+    }
+};
 
 impl Inputs for GpioInputs<'_> {
     fn levels(&mut self) -> u64 {
@@ -112,29 +206,34 @@ impl Inputs for GpioInputs<'_> {
         u64::from(self.reported)
     }
 
-    // The borrows held across the wait end when the runtime drops this future, which it
-    // does before it drives any output; `Pins` use `try_borrow_mut` all the same.
-    #[allow(clippy::await_holding_refcell_ref)]
     async fn change(&mut self) -> (u8, bool) {
-        loop {
+        let now = poll_fn(|cx| {
+            // Registered first: a change from here on wakes this wait again.
+            PORT_WAKER.register(cx.waker());
             let now = self.read();
-            let changed = now ^ self.reported;
-            if changed != 0 {
-                let pin = changed.trailing_zeros();
-                self.reported ^= 1 << pin;
-                return (pin as u8, now & (1 << pin) != 0);
+            if now != self.reported {
+                return Poll::Ready(now);
             }
-            let gpio = self.gpio;
-            let waits: [_; PINS] = core::array::from_fn(|i| async move {
-                if gpio.is_output(i) {
-                    core::future::pending::<()>().await;
+            // Each input pin senses the level it does not have (again: the interrupt
+            // turned off the sense of a pin that latched, a glitch's too): a change from
+            // here on latches and the PORT event wakes the wait; one between the read
+            // and the arming latches at once.
+            for (i, &physical) in PHYSICAL.iter().enumerate() {
+                if !self.gpio.is_output(i) {
+                    let sense = if now & (1 << i) != 0 {
+                        Sense::Low
+                    } else {
+                        Sense::High
+                    };
+                    let (p, pin) = port(physical);
+                    p.pin_cnf(pin).modify(|w| w.set_sense(sense));
                 }
-                match gpio.pins[i].try_borrow_mut() {
-                    Ok(mut p) => p.wait_for_any_edge().await,
-                    Err(_) => core::future::pending::<()>().await,
-                }
-            });
-            select_array(waits).await;
-        }
+            }
+            Poll::Pending
+        })
+        .await;
+        let pin = (now ^ self.reported).trailing_zeros();
+        self.reported ^= 1 << pin;
+        (pin as u8, now & (1 << pin) != 0)
     }
 }

@@ -39,6 +39,7 @@ use node_fw::provision;
 #[cfg(not(feature = "gateway"))]
 bind_interrupts!(struct Irqs {
     RADIO => embassy_nrf::radio::InterruptHandler<peripherals::RADIO>;
+    GPIOTE => gpio::PortHandler;
 });
 
 #[cfg(feature = "gateway")]
@@ -241,7 +242,6 @@ async fn main(_spawner: Spawner) {
     {
         use core::cell::RefCell;
 
-        use embassy_nrf::gpio::Flex;
         use embassy_nrf::nvmc::Nvmc;
         #[cfg(feature = "frame-security")]
         use node_fw::frame_counter::FrameCounter;
@@ -251,22 +251,22 @@ async fn main(_spawner: Spawner) {
         use gpio::{Gpio, GpioInputs, GpioPins};
 
         let gpio = Gpio::new([
-            Flex::new(p.P1_01),
-            Flex::new(p.P1_02),
-            Flex::new(p.P1_03),
-            Flex::new(p.P1_04),
-            Flex::new(p.P1_05),
-            Flex::new(p.P1_06),
-            Flex::new(p.P1_07),
-            Flex::new(p.P1_08),
-            Flex::new(p.P1_10),
-            Flex::new(p.P1_11),
-            Flex::new(p.P1_12),
-            Flex::new(p.P1_13),
-            Flex::new(p.P1_14),
-            Flex::new(p.P1_15),
-            Flex::new(p.P0_03),
-            Flex::new(p.P0_04),
+            p.P1_01.into(),
+            p.P1_02.into(),
+            p.P1_03.into(),
+            p.P1_04.into(),
+            p.P1_05.into(),
+            p.P1_06.into(),
+            p.P1_07.into(),
+            p.P1_08.into(),
+            p.P1_10.into(),
+            p.P1_11.into(),
+            p.P1_12.into(),
+            p.P1_13.into(),
+            p.P1_14.into(),
+            p.P1_15.into(),
+            p.P0_03.into(),
+            p.P0_04.into(),
         ]);
         let nvmc = cortex_m::singleton!(: RefCell<Nvmc<'static>> = RefCell::new(Nvmc::new(p.NVMC)))
             .expect("once");
