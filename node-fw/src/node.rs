@@ -126,7 +126,7 @@ pub struct NodeCore<S = RamStaging> {
     state: Option<EngineState>,
     timers: [Option<u64>; MAX_TIMERS],
     senders: Vec<link::Sender, MAX_PEERS>,
-    /// (peer address, link) for every peer that sent events.
+    /// (peer address, link) for each of the table's peers, by peer index.
     receivers: Vec<(u16, link::Receiver), MAX_PEERS>,
     ota: ota::Receiver<S>,
     staging: Option<Staging>,
@@ -568,8 +568,13 @@ impl<S: StagingArea> NodeCore<S> {
         for _ in &table.peers {
             let _ = self.senders.push(link::Sender::new(self.epoch));
         }
-        // Links from peers that stay keep their place in the publisher's numbering.
-        self.receivers.retain(|(a, _)| table.peers.contains(a));
+        // Links from peers that stay keep their place in the publisher's numbering; the
+        // receivers follow the table's peers by index (`receivers[i]` hears `peers[i]`).
+        let old = core::mem::take(&mut self.receivers);
+        for &p in &table.peers {
+            let kept = old.iter().find(|(a, _)| *a == p).map(|&(_, r)| r);
+            let _ = self.receivers.push((p, kept.unwrap_or_default()));
+        }
         self.index = Some(index);
         self.table = Some(table);
     }
@@ -1382,17 +1387,8 @@ impl<S: StagingArea> NodeCore<S> {
             self.counters.dropped += 1;
             return;
         };
-        let slot = match self.receivers.iter().position(|(a, _)| *a == src) {
-            Some(i) => i,
-            None => {
-                if self.receivers.push((src, link::Receiver::new())).is_err() {
-                    return;
-                }
-                self.receivers.len() - 1
-            }
-        };
         let mut deliver = Vec::new();
-        let Some((_, receiver)) = self.receivers.get_mut(slot) else {
+        let Some((_, receiver)) = self.receivers.get_mut(peer) else {
             return;
         };
         if let Some(next) = receiver.receive(epoch, seq, topic, &mut deliver) {
