@@ -117,7 +117,8 @@ fn gated(key: &Option<ManagementKey>) -> Option<&ManagementKey> {
 /// The generic node, staging pushed tables in `S` ([`ota::RamStaging`]: a RAM buffer of
 /// its own; an MCU board's flash page: [`NodeCore::staging_in`]).
 pub struct NodeCore<S = RamStaging> {
-    addr: u16,
+    /// The node's address, frame numbering, counters, keys: what sending needs.
+    radio: Radio,
     /// Bit n: the board has pin n. A table naming another pin is refused.
     board_pins: u64,
     table: Option<Table>,
@@ -141,28 +142,20 @@ pub struct NodeCore<S = RamStaging> {
     cycle_open: bool,
     /// The table's boot event is still to be raised (the node booted with a table).
     boot_pending: bool,
-    mac_seq: u8,
     next_announce: u64,
-    counters: Counters,
     /// The last command id run per sender: a repeat is answered, not run again.
     commands: Vec<(u16, u16), 4>,
     /// Board pin levels as last reported (bit = pin number), kept while unconfigured too,
     /// so a new table starts from the switches' real positions.
     pins: u64,
-    /// The management key: with it, every frame on the config PAN is secured both ways.
-    key: Option<ManagementKey>,
     /// The last frame counter accepted per management sender.
     replay: ReplayGuard<MANAGEMENT_SENDERS>,
-    security: SecurityCounters,
     /// When an unsecured broadcast `Identify` may be answered again.
     next_open_identify: u64,
     /// Challenges sent and not answered yet: (sender, nonce).
     challenges: Pending<MANAGEMENT_SENDERS>,
     /// When the next challenge may be sent.
     next_challenge: u64,
-    /// The link keys of the running table (and the previous one's, for the overlap), the
-    /// peers' replay floors and handshakes.
-    peer_security: PeerSecurity,
     /// The latched alarms.
     alarms: Alarms,
     /// The engine state was written since the alarms last looked (they look at the rest,
@@ -206,23 +199,25 @@ struct NodeEffects<'a, I: Io> {
     table: &'a Table,
     timers: &'a mut [Option<u64>; MAX_TIMERS],
     senders: &'a mut Vec<link::Sender, MAX_PEERS>,
-    radio: Radio<'a>,
+    radio: &'a mut Radio,
     io: &'a mut I,
 }
 
-/// What sending a message needs.
-struct Radio<'a> {
+/// What sending a message needs, owned by the node (one pointer to pass).
+struct Radio {
     addr: u16,
-    mac_seq: &'a mut u8,
-    counters: &'a mut Counters,
-    /// The management key: frames on the config PAN are secured with it.
-    key: Option<&'a ManagementKey>,
-    /// The link keys: frames on the robot's PAN are secured with them, if any.
-    links: &'a PeerSecurity,
-    security: &'a mut SecurityCounters,
+    mac_seq: u8,
+    counters: Counters,
+    /// The management key: with it, every frame on the config PAN is secured both ways.
+    key: Option<ManagementKey>,
+    /// The link keys of the running table (and the previous one's, for the overlap), the
+    /// peers' replay floors and handshakes: frames on the robot's PAN are secured with
+    /// them, if any.
+    links: PeerSecurity,
+    security: SecurityCounters,
 }
 
-impl Radio<'_> {
+impl Radio {
     fn send(&mut self, io: &mut impl Io, pan_id: u16, dst: u16, msg: &Message<'_>) {
         match LinkMessage::of(msg) {
             Some(m) if self.in_clear(pan_id) => self.send_link(io, pan_id, dst, m),
@@ -235,9 +230,7 @@ impl Radio<'_> {
     #[inline(always)]
     fn securing(&self, pan_id: u16) -> (Option<&ManagementKey>, bool) {
         let links = pan_id != CONFIG_PAN && self.links.secured();
-        let key = self
-            .key
-            .filter(|_| crate::FRAME_SECURITY && pan_id == CONFIG_PAN);
+        let key = gated(&self.key).filter(|_| crate::FRAME_SECURITY && pan_id == CONFIG_PAN);
         (key, links)
     }
 
@@ -332,14 +325,14 @@ impl Radio<'_> {
     /// number.
     fn header(&mut self, pan_id: u16, dst: u16) -> Header {
         let header = Header {
-            seq: *self.mac_seq,
+            seq: self.mac_seq,
             pan_id,
             dst,
             src: self.addr,
             ack_request: false,
             secured: false,
         };
-        *self.mac_seq = self.mac_seq.wrapping_add(1);
+        self.mac_seq = self.mac_seq.wrapping_add(1);
         header
     }
 }
@@ -398,7 +391,14 @@ impl<S: StagingArea> NodeCore<S> {
         staging: S,
     ) -> Self {
         let mut node = NodeCore {
-            addr,
+            radio: Radio {
+                addr,
+                mac_seq: 0,
+                counters: Counters::default(),
+                key: None,
+                links: PeerSecurity::default(),
+                security: SecurityCounters::default(),
+            },
             board_pins,
             table: None,
             index: None,
@@ -414,18 +414,13 @@ impl<S: StagingArea> NodeCore<S> {
             cycles: 0,
             cycle_open: false,
             boot_pending: false,
-            mac_seq: 0,
             next_announce: 0,
-            counters: Counters::default(),
             commands: Vec::new(),
             pins: 0,
-            key: None,
             replay: ReplayGuard::new(),
-            security: SecurityCounters::default(),
             next_open_identify: 0,
             challenges: Pending::default(),
             next_challenge: 0,
-            peer_security: PeerSecurity::default(),
             alarms: Alarms::default(),
             state_changed: true,
         };
@@ -442,7 +437,7 @@ impl<S: StagingArea> NodeCore<S> {
     pub fn with_link_keys(mut self, keys: LinkKeys) -> Self {
         if let Some(t) = &self.table {
             if keys.check(t).is_ok() {
-                self.peer_security.install(Some(keys), &t.peers);
+                self.radio.links.install(Some(keys), &t.peers);
             }
         }
         self
@@ -450,14 +445,14 @@ impl<S: StagingArea> NodeCore<S> {
 
     /// Whether the running table's events are secured (it came with link keys).
     pub fn links_secured(&self) -> bool {
-        self.peer_security.secured()
+        self.radio.links.secured()
     }
 
     /// The node with its management key (provisioned): from now on it accepts on the
     /// config PAN only frames secured at ENC-MIC-64 with it, replay-checked, and secures
     /// every frame it sends there (the board's [`Io::next_frame_counter`] numbers them).
     pub fn with_management_key(mut self, key: ManagementKey) -> Self {
-        self.key = Some(key);
+        self.radio.key = Some(key);
         self
     }
 
@@ -468,12 +463,12 @@ impl<S: StagingArea> NodeCore<S> {
 
     /// The management key, if the node has one and the image has frame security.
     fn key(&self) -> Option<&ManagementKey> {
-        gated(&self.key)
+        gated(&self.radio.key)
     }
 
     /// What the node counted of frame security.
     pub fn security_counters(&self) -> SecurityCounters {
-        self.security
+        self.radio.security
     }
 
     /// The board's pins (bit n: pin n).
@@ -546,7 +541,7 @@ impl<S: StagingArea> NodeCore<S> {
     /// Runs `table` from now on: its charts start in their initial states, or in their
     /// idle states when `at_idle` (it replaces a table that rested at its idle point).
     fn install(&mut self, table: Table, keys: Option<LinkKeys>, at_idle: bool) {
-        self.peer_security.install(keys, &table.peers);
+        self.radio.links.install(keys, &table.peers);
         // The table's index is built once, here, and kept beside it.
         let index = Index::new(&table);
         let mut engine = Engine::new_indexed(&table, &index, self.driven_levels(&table));
@@ -580,7 +575,7 @@ impl<S: StagingArea> NodeCore<S> {
     }
 
     pub fn addr(&self) -> u16 {
-        self.addr
+        self.radio.addr
     }
 
     /// The running table, if configured.
@@ -597,7 +592,7 @@ impl<S: StagingArea> NodeCore<S> {
     }
 
     pub fn counters(&self) -> Counters {
-        self.counters
+        self.radio.counters
     }
 
     fn links_in(&self, state: LinkState) -> u8 {
@@ -732,7 +727,7 @@ impl<S: StagingArea> NodeCore<S> {
         let announce = self.table.is_none().then_some(self.next_announce);
         let others = [
             announce,
-            self.peer_security.greeting(),
+            self.radio.links.greeting(),
             self.switch.deadline(),
         ];
         for t in self.timers.iter().copied().chain(links).chain(others) {
@@ -778,14 +773,7 @@ impl<S: StagingArea> NodeCore<S> {
             table,
             timers: &mut self.timers,
             senders: &mut self.senders,
-            radio: Radio {
-                addr: self.addr,
-                mac_seq: &mut self.mac_seq,
-                counters: &mut self.counters,
-                key: gated(&self.key),
-                links: &self.peer_security,
-                security: &mut self.security,
-            },
+            radio: &mut self.radio,
             io,
         };
         let fx = &mut fx;
@@ -816,15 +804,8 @@ impl<S: StagingArea> NodeCore<S> {
 
     /// What sending a message needs, borrowed from the node.
     #[inline(always)]
-    fn radio(&mut self) -> Radio<'_> {
-        Radio {
-            addr: self.addr,
-            mac_seq: &mut self.mac_seq,
-            counters: &mut self.counters,
-            key: gated(&self.key),
-            links: &self.peer_security,
-            security: &mut self.security,
-        }
+    fn radio(&mut self) -> &mut Radio {
+        &mut self.radio
     }
 
     /// [`NodeCore::send`]; a secured frame takes `counter` if given.
@@ -973,19 +954,12 @@ impl<S: StagingArea> NodeCore<S> {
         if self.switch.poll(now) {
             self.run_start(now, io);
         }
-        while let Some(peer) = self.peer_security.next_greeting(now) {
+        while let Some(peer) = self.radio.links.next_greeting(now) {
             self.challenge_peer(peer, io);
         }
         if let Some(table) = &self.table {
             let pan = table.header.pan_id;
-            let mut radio = Radio {
-                addr: self.addr,
-                mac_seq: &mut self.mac_seq,
-                counters: &mut self.counters,
-                key: gated(&self.key),
-                links: &self.peer_security,
-                security: &mut self.security,
-            };
+            let radio = &mut self.radio;
             for (sender, &dst) in self.senders.iter_mut().zip(table.peers.iter()) {
                 let before = sender.counters().retried;
                 sender.poll(now, |m| radio.send(io, pan, dst, &m));
@@ -1028,7 +1002,7 @@ impl<S: StagingArea> NodeCore<S> {
             links_broken: self.links_broken(),
             links_restarted: self.restarted,
             epoch: self.epoch,
-            counters: self.counters,
+            counters: self.radio.counters,
             runtime,
             cycles: self.cycles,
         };
@@ -1066,14 +1040,14 @@ impl<S: StagingArea> NodeCore<S> {
     /// counted with the frames the core drops. Nothing else changes (no stimulus: the
     /// alarms have nothing new to look at).
     pub fn dropped_at_edge(&mut self) {
-        self.counters.dropped += 1;
+        self.radio.counters.dropped += 1;
     }
 
     fn receive_frame(&mut self, mpdu: &[u8], now: u64, io: &mut impl Io) {
         let (header, payload) = match Frame::parse_mpdu(mpdu) {
             Ok(Frame::Data { header, payload }) => (header, payload),
             _ => {
-                self.counters.dropped += 1;
+                self.radio.counters.dropped += 1;
                 return;
             }
         };
@@ -1082,8 +1056,8 @@ impl<S: StagingArea> NodeCore<S> {
                 .table
                 .as_ref()
                 .is_none_or(|t| t.header.pan_id == header.pan_id);
-        if (header.dst != self.addr && header.dst != BROADCAST) || !pan_ok {
-            self.counters.dropped += 1;
+        if (header.dst != self.radio.addr && header.dst != BROADCAST) || !pan_ok {
+            self.radio.counters.dropped += 1;
             return;
         }
         // The opened payload's buffer, zeroed only for a secured frame.
@@ -1094,16 +1068,16 @@ impl<S: StagingArea> NodeCore<S> {
             // announcements (secured with their own keys), which a node never reads.
             return;
         }
-        let peers = header.pan_id != CONFIG_PAN && self.peer_security.secured();
+        let peers = header.pan_id != CONFIG_PAN && self.radio.links.secured();
         if peers && !header.secured {
-            self.security.not_secured += 1;
-            self.counters.dropped += 1;
+            self.radio.security.not_secured += 1;
+            self.radio.counters.dropped += 1;
             return;
         }
         // One open and one parse for both secured paths (and the unsecured one).
         let opened = if (management || peers) && header.secured {
             if peers {
-                self.peer_security.note_frame(now);
+                self.radio.links.note_frame(now);
             }
             scratch = [0u8; mac::MAX_PAYLOAD];
             let opened = security::open_default_mpdu_with::<NodeCipher, _>(
@@ -1115,13 +1089,14 @@ impl<S: StagingArea> NodeCore<S> {
                 Ok(opened) => Some(opened),
                 Err(e) => {
                     if management {
-                        peer_security::count_refusal(e, &mut self.security);
+                        peer_security::count_refusal(e, &mut self.radio.security);
                     } else {
                         let staged = self.switch.staged();
-                        self.peer_security
-                            .refused(mpdu, staged, e, &mut self.security);
+                        self.radio
+                            .links
+                            .refused(mpdu, staged, e, &mut self.radio.security);
                     }
-                    self.counters.dropped += 1;
+                    self.radio.counters.dropped += 1;
                     return;
                 }
             }
@@ -1131,15 +1106,15 @@ impl<S: StagingArea> NodeCore<S> {
             // that generation staged (a peer that switched a moment earlier), does not.
             let ahead = self.switch.staged() != 0 && header.pan_id != CONFIG_PAN;
             if self.table.is_some() && !ahead {
-                self.security.unknown_key += 1;
+                self.radio.security.unknown_key += 1;
             }
-            self.counters.dropped += 1;
+            self.radio.counters.dropped += 1;
             return;
         } else {
             // In clear: an event or an acknowledgement is acted on at once (as below: not
             // management, received, then its handler).
             if let Some(m) = LinkMessage::parse(payload) {
-                self.counters.received += 1;
+                self.radio.counters.received += 1;
                 self.on_link(m, header.src, now, io);
                 return;
             }
@@ -1155,56 +1130,59 @@ impl<S: StagingArea> NodeCore<S> {
             Some(opened) if management => match self.admit_management(opened, &parsed, now, io) {
                 Ok(()) => true,
                 Err(Refused::Dropped) => {
-                    self.counters.dropped += 1;
+                    self.radio.counters.dropped += 1;
                     return;
                 }
                 Err(Refused::Handshake) => return,
             },
-            Some(opened) => match self
-                .peer_security
-                .admit(opened, &parsed, now, &mut self.security)
-            {
-                Verdict::Accept(_) => true,
-                Verdict::Dropped => {
-                    self.counters.dropped += 1;
-                    return;
-                }
-                Verdict::Challenge { peer, challenge } => {
-                    if challenge {
-                        self.challenge_peer(peer, io);
+            Some(opened) => {
+                match self
+                    .radio
+                    .links
+                    .admit(opened, &parsed, now, &mut self.radio.security)
+                {
+                    Verdict::Accept(_) => true,
+                    Verdict::Dropped => {
+                        self.radio.counters.dropped += 1;
+                        return;
                     }
-                    return;
-                }
-                Verdict::Answer {
-                    peer,
-                    nonce,
-                    answer,
-                    challenge,
-                } => {
-                    // It knows no counter of ours: it booted (or is new to this table),
-                    // and has no receiving side of our link to it either.
-                    self.renumber_link(peer, now);
-                    if answer {
-                        let pan = header.pan_id;
-                        self.send(io, pan, peer, &Message::ChallengeAnswer { nonce });
+                    Verdict::Challenge { peer, challenge } => {
+                        if challenge {
+                            self.challenge_peer(peer, io);
+                        }
+                        return;
                     }
-                    if challenge {
-                        self.challenge_peer(peer, io);
+                    Verdict::Answer {
+                        peer,
+                        nonce,
+                        answer,
+                        challenge,
+                    } => {
+                        // It knows no counter of ours: it booted (or is new to this table),
+                        // and has no receiving side of our link to it either.
+                        self.renumber_link(peer, now);
+                        if answer {
+                            let pan = header.pan_id;
+                            self.send(io, pan, peer, &Message::ChallengeAnswer { nonce });
+                        }
+                        if challenge {
+                            self.challenge_peer(peer, io);
+                        }
+                        return;
                     }
-                    return;
+                    Verdict::Answered => return,
                 }
-                Verdict::Answered => return,
-            },
+            }
         };
         let msg = match parsed {
             Ok(msg) => msg,
             // Replies, statuses and announcements are for the tool.
             Err(Unacted::ForTheTool) => {
-                self.counters.received += 1;
+                self.radio.counters.received += 1;
                 return;
             }
             Err(Unacted::Malformed) => {
-                self.counters.dropped += 1;
+                self.radio.counters.dropped += 1;
                 return;
             }
         };
@@ -1229,18 +1207,18 @@ impl<S: StagingArea> NodeCore<S> {
                     }
                 );
             if !scan {
-                self.security.not_secured += 1;
-                self.counters.dropped += 1;
+                self.radio.security.not_secured += 1;
+                self.radio.counters.dropped += 1;
                 return;
             }
             if now < self.next_open_identify {
                 // A scan asked again within the second: not a security refusal.
-                self.counters.dropped += 1;
+                self.radio.counters.dropped += 1;
                 return;
             }
             self.next_open_identify = now + OPEN_IDENTIFY_MS;
         }
-        self.counters.received += 1;
+        self.radio.counters.received += 1;
         let src = header.src;
         let reply_pan = header.pan_id;
         if let Some(m) = LinkMessage::of(&msg) {
@@ -1267,10 +1245,10 @@ impl<S: StagingArea> NodeCore<S> {
     /// frames reflected back are not the tool's), on the robot's PAN the peer's link key.
     fn lookup(&self, header: &Header, aux: &AuxRepr, now: u64) -> Option<([u8; 16], [u8; 8])> {
         if header.pan_id != CONFIG_PAN {
-            return self.peer_security.lookup(header, aux, self.addr, now);
+            return self.radio.links.lookup(header, aux, self.radio.addr, now);
         }
-        let key = gated(&self.key)?;
-        (aux.key_id.index() == Some(MANAGEMENT_KEY_INDEX) && header.src != self.addr)
+        let key = gated(&self.radio.key)?;
+        (aux.key_id.index() == Some(MANAGEMENT_KEY_INDEX) && header.src != self.radio.addr)
             .then(|| (*key.expose(), ext_addr(header.pan_id, header.src)))
     }
 
@@ -1293,7 +1271,7 @@ impl<S: StagingArea> NodeCore<S> {
     ) -> Result<(), Refused> {
         let src = opened.header.src;
         let counter = opened.aux.frame_counter;
-        let c = &mut self.security;
+        let c = &mut self.radio.security;
         if self.replay.last(src, MANAGEMENT_KEY_INDEX).is_none() {
             if self.challenges.answered(src, message) {
                 peer_security::accept(&mut self.replay, src, MANAGEMENT_KEY_INDEX, counter, c);
@@ -1323,13 +1301,13 @@ impl<S: StagingArea> NodeCore<S> {
     /// robot's for the peers' (one sender for both).
     fn challenge_on(&mut self, pan: u16, dst: u16, io: &mut impl Io) {
         let Some(nonce) = io.next_frame_counter() else {
-            self.security.no_counter += 1;
+            self.radio.security.no_counter += 1;
             return;
         };
         if pan == CONFIG_PAN {
             self.challenges.sent(dst, nonce);
         } else {
-            self.peer_security.challenged(dst, nonce);
+            self.radio.links.challenged(dst, nonce);
         }
         self.send_numbered(io, pan, dst, &Message::Challenge { nonce }, Some(nonce));
     }
@@ -1369,14 +1347,7 @@ impl<S: StagingArea> NodeCore<S> {
                     return;
                 };
                 let pan = table.header.pan_id;
-                let mut radio = Radio {
-                    addr: self.addr,
-                    mac_seq: &mut self.mac_seq,
-                    counters: &mut self.counters,
-                    key: gated(&self.key),
-                    links: &self.peer_security,
-                    security: &mut self.security,
-                };
+                let radio = &mut self.radio;
                 sender.on_ack(epoch, next, now, |m| radio.send(io, pan, src, &m));
             }
         }
@@ -1384,7 +1355,7 @@ impl<S: StagingArea> NodeCore<S> {
 
     fn on_event(&mut self, src: u16, epoch: u16, seq: u16, topic: u8, now: u64, io: &mut impl Io) {
         let Some(peer) = self.peer(src) else {
-            self.counters.dropped += 1;
+            self.radio.counters.dropped += 1;
             return;
         };
         let mut deliver = Vec::new();
@@ -1396,7 +1367,7 @@ impl<S: StagingArea> NodeCore<S> {
             self.send(io, pan, src, &Message::EventAck { epoch, next });
         }
         for &topic in deliver.iter() {
-            self.counters.delivered += 1;
+            self.radio.counters.delivered += 1;
             let peer = peer as u8;
             self.run(now, io, Stimulus::Remote { peer, topic });
         }
@@ -1611,7 +1582,7 @@ impl<S: StagingArea> NodeCore<S> {
             let report = Message::Security(SecurityReport {
                 ack: id,
                 keyed: self.key().is_some(),
-                counters: self.security,
+                counters: self.radio.security,
             });
             self.send(io, pan, src, &report);
             return;
