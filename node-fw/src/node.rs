@@ -126,7 +126,7 @@ pub struct NodeCore<S = RamStaging> {
     index: Option<Index>,
     state: Option<EngineState>,
     timers: [Option<u64>; MAX_TIMERS],
-    senders: Vec<link::Sender, MAX_PEERS>,
+    senders: Senders,
     /// (peer address, link) for each of the table's peers, by peer index.
     receivers: Vec<(u16, link::Receiver), MAX_PEERS>,
     ota: ota::Receiver<S>,
@@ -198,9 +198,56 @@ struct NodeEffects<'a, I: Io> {
     now: u64,
     table: &'a Table,
     timers: &'a mut [Option<u64>; MAX_TIMERS],
-    senders: &'a mut Vec<link::Sender, MAX_PEERS>,
+    senders: &'a mut Senders,
     radio: &'a mut Radio,
     io: &'a mut I,
+}
+
+/// The node's link senders (by peer index), with the links in alarm as counted at the
+/// last look: any access that can change a sender (`DerefMut`) has them counted again.
+#[derive(Default)]
+struct Senders {
+    list: Vec<link::Sender, MAX_PEERS>,
+    /// Bit i: `list[i]` is in alarm, as of the last [`Senders::alarms`] (valid unless
+    /// `touched`).
+    alarms: u8,
+    /// The list was borrowed mutably since `alarms` was counted.
+    touched: bool,
+}
+
+impl core::ops::Deref for Senders {
+    type Target = Vec<link::Sender, MAX_PEERS>;
+    fn deref(&self) -> &Self::Target {
+        &self.list
+    }
+}
+
+impl core::ops::DerefMut for Senders {
+    fn deref_mut(&mut self) -> &mut Self::Target {
+        self.touched = true;
+        &mut self.list
+    }
+}
+
+impl Senders {
+    /// Bit i: the link to peer i is in alarm; counted again only after a mutable borrow.
+    #[inline(always)]
+    fn alarms(&mut self) -> u8 {
+        if self.touched {
+            self.touched = false;
+            self.alarms = links_in(&self.list, LinkState::Alarm);
+        }
+        self.alarms
+    }
+}
+
+/// Bit i: `senders[i]` is in `state`.
+fn links_in(senders: &[link::Sender], state: LinkState) -> u8 {
+    senders
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.state() == state)
+        .fold(0, |m, (i, _)| m | (1 << i))
 }
 
 /// What sending a message needs, owned by the node (one pointer to pass).
@@ -404,7 +451,7 @@ impl<S: StagingArea> NodeCore<S> {
             index: None,
             state: None,
             timers: [None; MAX_TIMERS],
-            senders: Vec::new(),
+            senders: Senders::default(),
             receivers: Vec::new(),
             ota: ota::Receiver::staging_in(board_pins, staging),
             staging: None,
@@ -596,11 +643,7 @@ impl<S: StagingArea> NodeCore<S> {
     }
 
     fn links_in(&self, state: LinkState) -> u8 {
-        self.senders
-            .iter()
-            .enumerate()
-            .filter(|(_, s)| s.state() == state)
-            .fold(0, |m, (i, _)| m | (1 << i))
+        links_in(&self.senders, state)
     }
 
     /// Bit i: the link to peer i is in alarm (the peer stopped acknowledging).
@@ -889,7 +932,7 @@ impl<S: StagingArea> NodeCore<S> {
     /// the alarms look at the node.
     #[inline]
     fn look(&mut self, now: u64, io: &mut impl Io) {
-        let link_alarms = self.link_alarms();
+        let link_alarms = self.senders.alarms();
         let link_fault = self.table.as_ref().is_some_and(|t| t.safety.link_fault);
         if link_fault && link_alarms != 0 {
             self.fail_link(now, io);
