@@ -286,8 +286,9 @@ impl Receiver {
         if ahead == 0 {
             let _ = deliver.push(topic);
             next = next.wrapping_add(1);
-            // Re-index the held frames from the new `next`, releasing those now in order.
-            loop {
+            // Re-index the held frames from the new `next`, releasing those now in order
+            // (none held: nothing to re-index).
+            while self.held.iter().any(Option::is_some) {
                 let [first, rest @ ..] = self.held;
                 self.held = [None; WINDOW];
                 self.held[..WINDOW - 1].copy_from_slice(&rest);
