@@ -239,6 +239,29 @@ impl Senders {
         }
         self.alarms
     }
+
+    /// An acknowledgement for the link to peer `peer` (see [`link::Sender::on_ack`]): the
+    /// cached alarm bit of that one sender is set from its state after the ack, the others
+    /// are not touched (so the look after it need not count them again).
+    fn on_ack(
+        &mut self,
+        peer: usize,
+        epoch: u16,
+        next: u16,
+        now: u64,
+        send: impl FnMut(Message<'static>),
+    ) {
+        let Some(sender) = self.list.get_mut(peer) else {
+            return;
+        };
+        sender.on_ack(epoch, next, now, send);
+        let bit = 1u8 << peer;
+        if sender.state() == LinkState::Alarm {
+            self.alarms |= bit;
+        } else {
+            self.alarms &= !bit;
+        }
+    }
 }
 
 /// Bit i: `senders[i]` is in `state`.
@@ -1386,12 +1409,11 @@ impl<S: StagingArea> NodeCore<S> {
             }
             LinkMessage::EventAck { epoch, next } => {
                 let Some(peer) = self.peer(src) else { return };
-                let (Some(table), Some(sender)) = (&self.table, self.senders.get_mut(peer)) else {
-                    return;
-                };
+                let Some(table) = &self.table else { return };
                 let pan = table.header.pan_id;
                 let radio = &mut self.radio;
-                sender.on_ack(epoch, next, now, |m| radio.send(io, pan, src, &m));
+                let send = |m: Message<'static>| radio.send(io, pan, src, &m);
+                self.senders.on_ack(peer, epoch, next, now, send);
             }
         }
     }
@@ -1682,5 +1704,41 @@ pub fn fault_code(f: Fault) -> u8 {
         Fault::Cascade { .. } => 3,
         Fault::Expr { .. } => 4,
         Fault::Action { code, .. } => 0x80 | code,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`Senders::on_ack`] keeps the cached alarm bits exactly what a count gives.
+    #[test]
+    fn senders_ack_keeps_the_alarm_cache_right() {
+        let mut s = Senders::default();
+        for _ in 0..2 {
+            s.push(link::Sender::new(0)).ok().unwrap();
+        }
+        let mut now = 0;
+        s[1].push(7, now, |_| {}).unwrap();
+        assert_eq!(s.alarms(), 0);
+        // No acknowledgement: the link to peer 1 goes into alarm.
+        while s.list[1].state() != LinkState::Alarm {
+            now = s.list[1].deadline().unwrap();
+            s[1].poll(now, |_| {});
+        }
+        assert_eq!(s.alarms(), 0b10);
+        // An ack that is not about this window changes nothing.
+        s.on_ack(1, 1, 1, now, |_| {});
+        assert!(!s.touched);
+        assert_eq!(s.alarms(), links_in(&s.list, LinkState::Alarm));
+        assert_eq!(s.alarms(), 0b10);
+        // The ack for it ends the alarm, without a count.
+        s.on_ack(1, 0, 1, now, |_| {});
+        assert!(!s.touched);
+        assert_eq!(s.alarms(), links_in(&s.list, LinkState::Alarm));
+        assert_eq!(s.alarms(), 0);
+        // No such peer: nothing.
+        s.on_ack(5, 0, 1, now, |_| {});
+        assert_eq!(s.alarms(), 0);
     }
 }
