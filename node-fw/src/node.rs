@@ -204,7 +204,8 @@ struct NodeEffects<'a, I: Io> {
 }
 
 /// The node's link senders (by peer index), with the links in alarm as counted at the
-/// last look: any access that can change a sender (`DerefMut`) has them counted again.
+/// last look: any access that can change a sender (`DerefMut`) has them counted again;
+/// [`Senders::with`] keeps the count of the one sender it changes.
 #[derive(Default)]
 struct Senders {
     list: Vec<link::Sender, MAX_PEERS>,
@@ -240,9 +241,23 @@ impl Senders {
         self.alarms
     }
 
-    /// An acknowledgement for the link to peer `peer` (see [`link::Sender::on_ack`]): the
-    /// cached alarm bit of that one sender is set from its state after the ack, the others
-    /// are not touched (so the look after it need not count them again).
+    /// `f` on the sender to peer `peer` (if there is one): the cached alarm bit of that one
+    /// sender is then set from its state, the others are not touched (so the look after it
+    /// need not count them again).
+    #[inline(always)]
+    fn with<R>(&mut self, peer: usize, f: impl FnOnce(&mut link::Sender) -> R) -> Option<R> {
+        let sender = self.list.get_mut(peer)?;
+        let r = f(sender);
+        let bit = 1u8 << peer;
+        if sender.state() == LinkState::Alarm {
+            self.alarms |= bit;
+        } else {
+            self.alarms &= !bit;
+        }
+        Some(r)
+    }
+
+    /// An acknowledgement for the link to peer `peer` ([`link::Sender::on_ack`]).
     fn on_ack(
         &mut self,
         peer: usize,
@@ -251,16 +266,7 @@ impl Senders {
         now: u64,
         send: impl FnMut(Message<'static>),
     ) {
-        let Some(sender) = self.list.get_mut(peer) else {
-            return;
-        };
-        sender.on_ack(epoch, next, now, send);
-        let bit = 1u8 << peer;
-        if sender.state() == LinkState::Alarm {
-            self.alarms |= bit;
-        } else {
-            self.alarms &= !bit;
-        }
+        self.with(peer, |s| s.on_ack(epoch, next, now, send));
     }
 }
 
@@ -415,16 +421,17 @@ impl<I: Io> Effects for NodeEffects<'_, I> {
     }
     fn publish(&mut self, p: &Publication) {
         let (pan, table) = (self.table.header.pan_id, self.table);
-        for (i, sender) in self.senders.iter_mut().enumerate() {
+        for i in 0..self.senders.len() {
             if p.subscribers & (1 << i) == 0 {
                 continue;
             }
             let Some(&dst) = table.peers.get(i) else {
                 continue;
             };
-            let (radio, io) = (&mut self.radio, &mut *self.io);
+            let (radio, io, now) = (&mut self.radio, &mut *self.io, self.now);
+            let send = |m: Message<'static>| radio.send(io, pan, dst, &m);
             // A broken link refuses the event: the subscriber stalls rather than skips.
-            let _ = sender.push(p.topic, self.now, |m| radio.send(io, pan, dst, &m));
+            let _ = self.senders.with(i, |s| s.push(p.topic, now, send));
         }
     }
     fn start_timer(&mut self, timer: u8, ms: u32) {
@@ -1740,5 +1747,22 @@ mod tests {
         // No such peer: nothing.
         s.on_ack(5, 0, 1, now, |_| {});
         assert_eq!(s.alarms(), 0);
+        assert_eq!(s.with(5, |_| ()), None);
+        // A push through `with` keeps the cache right, without a count.
+        let mut sent = 0;
+        s.with(0, |x| x.push(3, now, |_| sent += 1))
+            .unwrap()
+            .unwrap();
+        assert_eq!(sent, 1);
+        assert!(!s.touched);
+        assert_eq!(s.alarms(), links_in(&s.list, LinkState::Alarm));
+        // And so does a poll that puts the link into alarm.
+        while s.list[0].state() != LinkState::Alarm {
+            let at = s.list[0].deadline().unwrap();
+            s.with(0, |x| x.poll(at, |_| {}));
+            assert!(!s.touched);
+            assert_eq!(s.alarms(), links_in(&s.list, LinkState::Alarm));
+        }
+        assert_eq!(s.alarms(), 0b01);
     }
 }
