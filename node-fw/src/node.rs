@@ -256,18 +256,6 @@ impl Senders {
         }
         Some(r)
     }
-
-    /// An acknowledgement for the link to peer `peer` ([`link::Sender::on_ack`]).
-    fn on_ack(
-        &mut self,
-        peer: usize,
-        epoch: u16,
-        next: u16,
-        now: u64,
-        send: impl FnMut(Message<'static>),
-    ) {
-        self.with(peer, |s| s.on_ack(epoch, next, now, send));
-    }
 }
 
 /// Bit i: `senders[i]` is in `state`.
@@ -872,13 +860,7 @@ impl<S: StagingArea> NodeCore<S> {
     }
 
     fn send(&mut self, io: &mut impl Io, pan: u16, dst: u16, msg: &Message<'_>) {
-        self.radio().send(io, pan, dst, msg);
-    }
-
-    /// What sending a message needs, borrowed from the node.
-    #[inline(always)]
-    fn radio(&mut self) -> &mut Radio {
-        &mut self.radio
+        self.radio.send(io, pan, dst, msg);
     }
 
     /// [`NodeCore::send`]; a secured frame takes `counter` if given.
@@ -890,7 +872,7 @@ impl<S: StagingArea> NodeCore<S> {
         msg: &Message<'_>,
         counter: Option<u32>,
     ) {
-        self.radio().send_numbered(io, pan, dst, msg, counter);
+        self.radio.send_numbered(io, pan, dst, msg, counter);
     }
 
     /// The level of board pin `pin` is `level` (repeating an unchanged level is harmless:
@@ -1420,7 +1402,8 @@ impl<S: StagingArea> NodeCore<S> {
                 let pan = table.header.pan_id;
                 let radio = &mut self.radio;
                 let send = |m: Message<'static>| radio.send(io, pan, src, &m);
-                self.senders.on_ack(peer, epoch, next, now, send);
+                self.senders
+                    .with(peer, |s| s.on_ack(epoch, next, now, send));
             }
         }
     }
@@ -1718,7 +1701,7 @@ pub fn fault_code(f: Fault) -> u8 {
 mod tests {
     use super::*;
 
-    /// [`Senders::on_ack`] keeps the cached alarm bits exactly what a count gives.
+    /// An ack through [`Senders::with`] keeps the cached alarm bits exactly what a count gives.
     #[test]
     fn senders_ack_keeps_the_alarm_cache_right() {
         let mut s = Senders::default();
@@ -1735,17 +1718,17 @@ mod tests {
         }
         assert_eq!(s.alarms(), 0b10);
         // An ack that is not about this window changes nothing.
-        s.on_ack(1, 1, 1, now, |_| {});
+        s.with(1, |x| x.on_ack(1, 1, now, |_| {}));
         assert!(!s.touched);
         assert_eq!(s.alarms(), links_in(&s.list, LinkState::Alarm));
         assert_eq!(s.alarms(), 0b10);
         // The ack for it ends the alarm, without a count.
-        s.on_ack(1, 0, 1, now, |_| {});
+        s.with(1, |x| x.on_ack(0, 1, now, |_| {}));
         assert!(!s.touched);
         assert_eq!(s.alarms(), links_in(&s.list, LinkState::Alarm));
         assert_eq!(s.alarms(), 0);
         // No such peer: nothing.
-        s.on_ack(5, 0, 1, now, |_| {});
+        s.with(5, |x| x.on_ack(0, 1, now, |_| {}));
         assert_eq!(s.alarms(), 0);
         assert_eq!(s.with(5, |_| ()), None);
         // A push through `with` keeps the cache right, without a count.

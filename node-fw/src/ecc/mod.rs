@@ -465,8 +465,7 @@ impl Run<'_> {
                     Flow::Go => {}
                     Flow::Stop => return,
                     Flow::Emit(e) if at < end => {
-                        if self.queue.push(e).is_err() {
-                            self.set_fault(ix, Fault::QueueFull { event: e }, fx);
+                        if self.enqueue(ix, e, fx) == Flow::Stop {
                             return;
                         }
                     }
@@ -694,11 +693,20 @@ impl Run<'_> {
     /// published.
     #[inline(always)]
     fn emit(&mut self, ix: &Index, event: EventId, p: u8, fx: &mut impl Effects) -> Flow {
+        if self.enqueue(ix, event, fx) == Flow::Stop {
+            return Flow::Stop;
+        }
+        publish(ix, p, fx);
+        Flow::Go
+    }
+
+    /// Queues `event` for delivery; a full FIFO faults the node.
+    #[inline(always)]
+    fn enqueue(&mut self, ix: &Index, event: EventId, fx: &mut impl Effects) -> Flow {
         if self.queue.push(event).is_err() {
             self.set_fault(ix, Fault::QueueFull { event }, fx);
             return Flow::Stop;
         }
-        publish(ix, p, fx);
         Flow::Go
     }
 
