@@ -95,15 +95,7 @@ impl Gpio {
     /// `pins` are the pins of `PHYSICAL`, in its order.
     pub fn new(pins: [Peri<'static, AnyPin>; PINS]) -> Self {
         for &physical in &PHYSICAL {
-            // As `Flex::set_as_input(Pull::Down)` does.
-            let (p, pin) = port(physical);
-            p.pin_cnf(pin).write(|w| {
-                w.set_dir(Dir::Input);
-                w.set_input(Input::Connect);
-                w.set_pull(PinPull::Pulldown);
-                w.set_drive(Drive::S0s1);
-                w.set_sense(Sense::Disabled);
-            });
+            configure(physical, false);
         }
         listen();
         Gpio {
@@ -115,6 +107,26 @@ impl Gpio {
     fn is_output(&self, pin: usize) -> bool {
         self.outputs.get() & (1 << pin) != 0
     }
+}
+
+/// Physical pin `physical` as a push-pull output (as `Flex::set_as_output(OutputDrive::Standard)`
+/// writes `PIN_CNF`) or as an input with a pull-down (as `Flex::set_as_input(Pull::Down)`
+/// does), its sense off.
+fn configure(physical: u8, output: bool) {
+    let (p, pin) = port(physical);
+    p.pin_cnf(pin).write(|w| {
+        if output {
+            w.set_dir(Dir::Output);
+            w.set_input(Input::Disconnect);
+            w.set_pull(PinPull::Disabled);
+        } else {
+            w.set_dir(Dir::Input);
+            w.set_input(Input::Connect);
+            w.set_pull(PinPull::Pulldown);
+        }
+        w.set_drive(Drive::S0s1);
+        w.set_sense(Sense::Disabled);
+    });
 }
 
 /// Physical pin `physical`'s output latch to `level` (a pin that is not yet an output
@@ -139,15 +151,7 @@ impl Pins for GpioPins<'_> {
         };
         drive(physical, level);
         if !self.0.is_output(i) {
-            // As `Flex::set_as_output(OutputDrive::Standard)` does.
-            let (p, pin) = port(physical);
-            p.pin_cnf(pin).write(|w| {
-                w.set_dir(Dir::Output);
-                w.set_input(Input::Disconnect);
-                w.set_pull(PinPull::Disabled);
-                w.set_drive(Drive::S0s1);
-                w.set_sense(Sense::Disabled);
-            });
+            configure(physical, true);
             self.0.outputs.set(self.0.outputs.get() | 1 << i);
         }
     }
