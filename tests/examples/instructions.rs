@@ -4,8 +4,13 @@
 //! out.
 //!
 //! ```text
-//! instructions ctu1 N      N pulses into one E_CTU chart (bench/robots/e-ctu.ron, ONE)
-//! instructions ctu2 N      N pulses into two E_CTU charts in series (TWO)
+//! instructions ctu1 N      N pulses into one E_CTU chart (bench/robots/e-ctu.ron, ONE),
+//!                          its effects taken as a node takes them (outputs, publications,
+//!                          timers, faults; no trace: `NodeEffects` keeps none)
+//! instructions ctu2 N      N pulses into two E_CTU charts in series (TWO), likewise
+//! instructions ctu1-trace N, ctu2-trace N
+//!                          the same with every transition's trace taken too (the sink
+//!                          the VC figures use, which a node does not have)
 //! instructions vc N        N cycles of the paper robot's VC chart, interpreted
 //! instructions vc-hand N   the same N cycles through the hand-written `match`
 //! instructions node N       N presses of a button on node A, published to node B, whose
@@ -22,8 +27,8 @@
 use std::hint::black_box;
 use std::process::ExitCode;
 
-use config_schema::{Table, Topic};
-use node_fw::ecc::Engine;
+use config_schema::{Publication, Table, Topic};
+use node_fw::ecc::{Effects, Engine};
 use robot_compiler::{compile, Compiled, Source};
 use robot_tests::paper_robot;
 use robot_tests::vc_dispatch::{engine, run_hand, run_interpreter, HandVc, Sum};
@@ -68,21 +73,55 @@ fn counter<'c>(
     Ok((table, sub.publisher, sub.topic, v))
 }
 
-fn pulses(c: &Compiled, role: &str, var: &str, n: u64) -> Result<String, String> {
+/// The effects a node takes from its charts (outputs, publications; timers and faults
+/// are none here), folded as `Sum` folds them, without the trace of each transition:
+/// `NodeCore`'s effects keep no trace.
+#[derive(Default)]
+struct Untraced(Sum);
+
+impl Effects for Untraced {
+    #[inline]
+    fn output(&mut self, output: u8, value: bool) {
+        self.0.output(output, value);
+    }
+    #[inline]
+    fn publish(&mut self, p: &Publication) {
+        self.0.publish(p);
+    }
+}
+
+/// `n` pulses of SRC/PULSE into role `role`, the effects taken by `fx`.
+fn pulses<F: Effects>(
+    c: &Compiled,
+    role: &str,
+    var: &str,
+    n: u64,
+    mut fx: F,
+    folded: impl Fn(&F) -> u64,
+) -> Result<String, String> {
     let (table, publisher, topic, cv) = counter(c, role, var)?;
     let mut e = Engine::new(table);
-    let mut fx = Sum::default();
     e.reset(&mut fx);
     for _ in 0..n {
         e.remote(black_box(publisher), black_box(topic), &mut fx);
     }
-    Ok(format!("{var} = {:?}, effects {:#x}", e.var(cv), fx.0))
+    Ok(format!(
+        "{var} = {:?}, effects {:#x}",
+        e.var(cv),
+        folded(&fx)
+    ))
 }
 
 fn run(what: &str, n: u64) -> Result<String, String> {
     match what {
-        "ctu1" => pulses(&e_ctu()?, "ONE", "c1.CV", n),
-        "ctu2" => pulses(&e_ctu()?, "TWO", "c2.CV", n),
+        "ctu1" => pulses(&e_ctu()?, "ONE", "c1.CV", n, Untraced::default(), |f| {
+            f.0 .0
+        }),
+        "ctu2" => pulses(&e_ctu()?, "TWO", "c2.CV", n, Untraced::default(), |f| {
+            f.0 .0
+        }),
+        "ctu1-trace" => pulses(&e_ctu()?, "ONE", "c1.CV", n, Sum::default(), |f| f.0),
+        "ctu2-trace" => pulses(&e_ctu()?, "TWO", "c2.CV", n, Sum::default(), |f| f.0),
         "vc" | "vc-hand" => {
             let table = paper_robot::vc_table().map_err(|e| format!("{e:?}"))?;
             let mut fx = Sum::default();
@@ -101,7 +140,7 @@ fn run(what: &str, n: u64) -> Result<String, String> {
         }
         "node" => node::presses(n),
         _ => Err(format!(
-            "unknown run `{what}`: ctu1, ctu2, vc, vc-hand or node"
+            "unknown run `{what}`: ctu1, ctu2, ctu1-trace, ctu2-trace, vc, vc-hand or node"
         )),
     }
 }
@@ -109,7 +148,7 @@ fn run(what: &str, n: u64) -> Result<String, String> {
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let (Some(what), Some(n)) = (args.first(), args.get(1).and_then(|n| n.parse().ok())) else {
-        eprintln!("usage: instructions ctu1|ctu2|vc|vc-hand|node N");
+        eprintln!("usage: instructions ctu1|ctu2|ctu1-trace|ctu2-trace|vc|vc-hand|node N");
         return ExitCode::from(2);
     };
     match run(what, n) {
