@@ -1219,13 +1219,8 @@ impl<S: StagingArea> NodeCore<S> {
             self.radio.counters.dropped += 1;
             return;
         } else {
-            // In clear: an event or an acknowledgement is acted on at once (as below: not
-            // management, received, then its handler).
-            if let Some(m) = LinkMessage::parse(payload) {
-                self.radio.counters.received += 1;
-                self.on_link(m, header.src, now, io);
-                return;
-            }
+            // In clear (an event or an acknowledgement in the frame this firmware writes
+            // took `link_in_clear` before).
             None
         };
         let parsed = match Message::parse_node(opened.as_ref().map_or(payload, |o| o.payload)) {

@@ -68,7 +68,7 @@ impl LinkMessage {
 
     /// Writes the message into `out` (the bytes [`Message::emit`] writes); returns its
     /// length.
-    #[inline]
+    #[inline(always)]
     pub fn write(&self, out: &mut [u8; Self::MAX_LEN]) -> usize {
         match *self {
             LinkMessage::Event { epoch, seq, topic } => {
