@@ -305,17 +305,28 @@ impl Radio {
     }
 
     /// [`Radio::send_numbered`] of an `Event` or `EventAck` in clear (see
-    /// [`Radio::in_clear`]): the same frame, put together in a buffer its size.
-    #[inline]
+    /// [`Radio::in_clear`]): the same frame, put together in a buffer its size, its MAC
+    /// header written as the bytes [`mac::finish_data_mpdu`] writes for
+    /// [`Radio::header`] (no security, no acknowledgement request:
+    /// [`mac::PLAIN_DATA_FC`]).
+    #[inline(always)]
     fn send_link(&mut self, io: &mut impl Io, pan_id: u16, dst: u16, m: LinkMessage) {
+        let [f0, f1] = mac::PLAIN_DATA_FC.to_le_bytes();
+        let [p0, p1] = pan_id.to_le_bytes();
+        let [d0, d1] = dst.to_le_bytes();
+        let [s0, s1] = self.addr.to_le_bytes();
         let mut mpdu = [0u8; mac::DATA_HEADER_LEN + LinkMessage::MAX_LEN];
-        let Some(at) = mpdu.last_chunk_mut::<{ LinkMessage::MAX_LEN }>() else {
+        let (head, at) = mpdu.split_at_mut(mac::DATA_HEADER_LEN);
+        let (Ok(head), Ok(at)) = (
+            <&mut [u8; mac::DATA_HEADER_LEN]>::try_from(head),
+            <&mut [u8; LinkMessage::MAX_LEN]>::try_from(at),
+        ) else {
             return;
         };
+        *head = [f0, f1, self.mac_seq, p0, p1, d0, d1, s0, s1];
+        self.mac_seq = self.mac_seq.wrapping_add(1);
         let n = m.write(at);
-        let header = self.header(pan_id, dst);
-        let emitted = mac::finish_data_mpdu(&header, &mut mpdu, n).ok();
-        self.transmit(io, emitted.and_then(|len| mpdu.get(..len)));
+        self.transmit(io, mpdu.get(..mac::DATA_HEADER_LEN + n));
     }
 
     /// Counts and transmits `frame`, if one was put together.
@@ -1086,7 +1097,9 @@ impl<S: StagingArea> NodeCore<S> {
     /// An MPDU arrived (the frame without its FCS, checked at the radio edge: the board's
     /// radio in hardware, the host medium transport or the QEMU UART in software).
     pub fn receive_mpdu(&mut self, mpdu: &[u8], now: u64, io: &mut impl Io) {
-        self.receive_frame(mpdu, now, io);
+        if !self.link_in_clear(mpdu, now, io) {
+            self.receive_frame(mpdu, now, io);
+        }
         self.look(now, io);
         self.note_idle();
     }
@@ -1098,6 +1111,46 @@ impl<S: StagingArea> NodeCore<S> {
         self.radio.counters.dropped += 1;
     }
 
+    /// The short path of an unsecured `Event` or `EventAck` to this node on the running
+    /// table's PAN, in the frame this firmware writes ([`mac::PLAIN_DATA_FC`]: no security,
+    /// no acknowledgement request): the MAC header checked as three compares against what
+    /// the node expects, the message read in place and handled at once. `false`: not such
+    /// a frame, nothing done; [`NodeCore::receive_frame`] takes it (and does for these
+    /// frames exactly what this does: counted as received, [`NodeCore::on_link`]).
+    #[inline(always)]
+    fn link_in_clear(&mut self, mpdu: &[u8], now: u64, io: &mut impl Io) -> bool {
+        let Some((head, payload)) = mpdu.split_first_chunk::<{ mac::DATA_HEADER_LEN }>() else {
+            return false;
+        };
+        let Some(table) = &self.table else {
+            return false;
+        };
+        let pan = table.header.pan_id;
+        let [f0, f1, _, p0, p1, d0, d1, s0, s1] = *head;
+        if u16::from_le_bytes([f0, f1]) != mac::PLAIN_DATA_FC
+            || u16::from_le_bytes([p0, p1]) != pan
+            || u16::from_le_bytes([d0, d1]) != self.radio.addr
+            || pan == CONFIG_PAN
+            || self.radio.links.secured()
+        {
+            return false;
+        }
+        let Some(m) = LinkMessage::parse(payload) else {
+            return false;
+        };
+        self.radio.counters.received += 1;
+        let src = u16::from_le_bytes([s0, s1]);
+        match m {
+            LinkMessage::Event { epoch, seq, topic } => {
+                // `on_link`'s event arm; this path's ack goes in clear.
+                self.event_in_clear(pan, src, (epoch, seq, topic), now, io)
+            }
+            LinkMessage::EventAck { .. } => self.on_link(m, src, now, io),
+        }
+        true
+    }
+
+    #[inline(never)]
     fn receive_frame(&mut self, mpdu: &[u8], now: u64, io: &mut impl Io) {
         let (header, payload) = match Frame::parse_mpdu(mpdu) {
             Ok(Frame::Data { header, payload }) => (header, payload),
@@ -1166,13 +1219,8 @@ impl<S: StagingArea> NodeCore<S> {
             self.radio.counters.dropped += 1;
             return;
         } else {
-            // In clear: an event or an acknowledgement is acted on at once (as below: not
-            // management, received, then its handler).
-            if let Some(m) = LinkMessage::parse(payload) {
-                self.radio.counters.received += 1;
-                self.on_link(m, header.src, now, io);
-                return;
-            }
+            // In clear (an event or an acknowledgement in the frame this firmware writes
+            // took `link_in_clear` before).
             None
         };
         let parsed = match Message::parse_node(opened.as_ref().map_or(payload, |o| o.payload)) {
@@ -1426,6 +1474,59 @@ impl<S: StagingArea> NodeCore<S> {
             let peer = peer as u8;
             self.run(now, io, Stimulus::Remote { peer, topic });
         }
+    }
+
+    /// [`NodeCore::on_event`] of an event that came in clear on the running table's PAN
+    /// `pan` with no link keys (so its ack goes in clear: [`Radio::send_link`]), written
+    /// out for [`NodeCore::link_in_clear`]: the same steps, the engine run without the
+    /// stimulus' dispatch ([`NodeCore::run_remote`]).
+    #[inline(always)]
+    fn event_in_clear(
+        &mut self,
+        pan: u16,
+        src: u16,
+        m: (u16, u16, u8),
+        now: u64,
+        io: &mut impl Io,
+    ) {
+        let (epoch, seq, topic) = m;
+        let Some(peer) = self.peer(src) else {
+            self.radio.counters.dropped += 1;
+            return;
+        };
+        let mut deliver = Vec::new();
+        let Some((_, receiver)) = self.receivers.get_mut(peer) else {
+            return;
+        };
+        if let Some(next) = receiver.receive(epoch, seq, topic, &mut deliver) {
+            let ack = LinkMessage::EventAck { epoch, next };
+            self.radio.send_link(io, pan, src, ack);
+        }
+        for &topic in deliver.iter() {
+            self.radio.counters.delivered += 1;
+            self.run_remote(now, io, peer as u8, topic);
+        }
+    }
+
+    /// [`NodeCore::run`] of a remote event: `topic` from peer `peer` (written out for the
+    /// event path, without the stimulus' dispatch).
+    #[inline(always)]
+    fn run_remote(&mut self, now: u64, io: &mut impl Io, peer: u8, topic: u8) {
+        let (Some(table), Some(index), Some(state)) = (&self.table, &self.index, &mut self.state)
+        else {
+            return;
+        };
+        let before = crate::alarms::Reads::of(table, state);
+        let mut fx = NodeEffects {
+            now,
+            table,
+            timers: &mut self.timers,
+            senders: &mut self.senders,
+            radio: &mut self.radio,
+            io,
+        };
+        Engine::on(table, index, state).remote(peer, topic, &mut fx);
+        self.state_changed |= before.changed(state);
     }
 
     fn on_config(&mut self, msg: &Message<'_>, src: u16, pan: u16, io: &mut impl Io) {
@@ -1700,6 +1801,199 @@ pub fn fault_code(f: Fault) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use config_schema::{Action, Output, Subscription};
+    use proptest::prelude::*;
+
+    const PAN: u16 = 0x4242;
+    const A: u16 = 1;
+    const B: u16 = 2;
+    const C: u16 = 3;
+
+    /// B: a button published to peer A (topic 3), a lamp toggled by A's topic 3; peers A
+    /// and C.
+    fn table_b(link_fault: bool) -> Table {
+        let mut t = Table::empty("B");
+        t.header.pan_id = PAN;
+        t.safety.link_fault = link_fault;
+        let press = test_tables::button(&mut t, 5);
+        t.peers.push(A).unwrap();
+        t.peers.push(C).unwrap();
+        t.publications
+            .push(Publication {
+                event: press,
+                topic: 3,
+                subscribers: 0b01,
+            })
+            .unwrap();
+        let remote = t.push_event().unwrap();
+        t.outputs.push(Output::safe(7, false)).unwrap();
+        t.subscriptions
+            .push(Subscription {
+                publisher: 0,
+                topic: 3,
+                event: remote,
+            })
+            .unwrap();
+        test_tables::toggle(&mut t, remote, &[Action::Drive { mask: 1, value: 1 }]);
+        t
+    }
+
+    #[derive(Default, Debug, PartialEq)]
+    struct Board {
+        out: std::vec::Vec<std::vec::Vec<u8>>,
+        pins: std::vec::Vec<(u8, bool)>,
+    }
+
+    impl Io for Board {
+        fn transmit(&mut self, psdu: &[u8]) {
+            self.out.push(psdu.to_vec());
+        }
+        fn set_pin(&mut self, pin: u8, level: bool) {
+            self.pins.push((pin, level));
+        }
+    }
+
+    #[derive(Debug, Clone)]
+    enum Op {
+        Frame(std::vec::Vec<u8>),
+        Press(bool),
+        Poll(u64),
+    }
+
+    fn frame() -> impl Strategy<Value = std::vec::Vec<u8>> {
+        let fc = prop_oneof![
+            6 => Just(mac::PLAIN_DATA_FC),
+            1 => Just(mac::PLAIN_DATA_FC | 1 << 5),
+            1 => Just(mac::PLAIN_DATA_FC & !(1 << 12)),
+            1 => Just(mac::PLAIN_DATA_FC | 1 << 3),
+            1 => any::<u16>(),
+        ];
+        let pan = prop_oneof![6 => Just(PAN), 1 => Just(0x1111u16), 1 => Just(CONFIG_PAN)];
+        let dst = prop_oneof![6 => Just(B), 1 => Just(BROADCAST), 1 => Just(9u16)];
+        let src = prop_oneof![6 => Just(A), 1 => Just(C), 1 => Just(9u16)];
+        let varint = prop_oneof![4 => 0u16..6, 1 => any::<u16>()];
+        let payload = prop_oneof![
+            4 => (0u16..3, varint.clone(), prop_oneof![Just(3u8), Just(4u8)])
+                .prop_map(|(epoch, seq, topic)| LinkMessage::Event { epoch, seq, topic }),
+            2 => (0u16..3, varint).prop_map(|(epoch, next)| LinkMessage::EventAck { epoch, next }),
+        ]
+        .prop_map(|m| {
+            let mut out = [0u8; LinkMessage::MAX_LEN];
+            let n = m.write(&mut out);
+            out[..n].to_vec()
+        });
+        let payload = prop_oneof![
+            6 => payload,
+            1 => proptest::collection::vec(any::<u8>(), 0..12),
+        ];
+        (fc, any::<u8>(), pan, dst, src, payload, 0usize..40).prop_map(
+            |(fc, seq, pan, dst, src, payload, cut)| {
+                let mut f = std::vec::Vec::new();
+                f.extend_from_slice(&fc.to_le_bytes());
+                f.push(seq);
+                for v in [pan, dst, src] {
+                    f.extend_from_slice(&v.to_le_bytes());
+                }
+                f.extend_from_slice(&payload);
+                if cut < f.len() && cut % 8 == 0 {
+                    f.truncate(cut);
+                }
+                f
+            },
+        )
+    }
+
+    fn op() -> impl Strategy<Value = Op> {
+        prop_oneof![
+            6 => frame().prop_map(Op::Frame),
+            2 => any::<bool>().prop_map(Op::Press),
+            1 => (0u64..3000).prop_map(Op::Poll),
+        ]
+    }
+
+    /// Everything of a node the short path could change.
+    fn observe(n: &NodeCore) -> std::string::String {
+        format!(
+            "{:?} {:?} {:?} {:?} {:?} {:?} {:?} {} {} {} {:?}",
+            n.radio.counters,
+            n.radio.security,
+            n.radio.mac_seq,
+            n.receivers,
+            n.senders.list,
+            n.state,
+            n.timers,
+            n.senders.alarms,
+            n.state_changed,
+            n.cycles,
+            n.alarms,
+        )
+    }
+
+    proptest! {
+        /// The short path of an unsecured link frame ([`NodeCore::link_in_clear`]) does
+        /// exactly what the general path does: the same frames out, the same pins, the same
+        /// counters, links, engine state and alarms, over random frames (the short path's
+        /// and every near miss), presses and polls.
+        #[test]
+        fn the_short_path_of_a_link_frame_is_the_general_path(
+            link_fault in any::<bool>(),
+            ops in proptest::collection::vec(op(), 1..60),
+        ) {
+            let mut fast = NodeCore::new(B, 1 << 5 | 1 << 7, Some(table_b(link_fault)), 1);
+            let mut general = NodeCore::new(B, 1 << 5 | 1 << 7, Some(table_b(link_fault)), 1);
+            let (mut bf, mut bg) = (Board::default(), Board::default());
+            let mut now = 0;
+            fast.poll(now, &mut bf);
+            general.poll(now, &mut bg);
+            for op in ops {
+                match op {
+                    Op::Frame(mpdu) => {
+                        fast.receive_mpdu(&mpdu, now, &mut bf);
+                        general.receive_frame(&mpdu, now, &mut bg);
+                        general.look(now, &mut bg);
+                        general.note_idle();
+                    }
+                    Op::Press(level) => {
+                        fast.input(5, level, now, &mut bf);
+                        general.input(5, level, now, &mut bg);
+                    }
+                    Op::Poll(dt) => {
+                        now += dt;
+                        fast.poll(now, &mut bf);
+                        general.poll(now, &mut bg);
+                    }
+                }
+                prop_assert_eq!(&bf, &bg);
+                prop_assert_eq!(observe(&fast), observe(&general));
+            }
+        }
+    }
+
+    /// The short path takes the frames it is for, and only those.
+    #[test]
+    fn the_short_path_takes_an_unsecured_event_to_this_node() {
+        let mut node = NodeCore::new(B, 1 << 5 | 1 << 7, Some(table_b(false)), 1);
+        let mut board = Board::default();
+        let event = |fc: u16, dst: u16| {
+            let mut f = std::vec::Vec::new();
+            f.extend_from_slice(&fc.to_le_bytes());
+            f.push(0);
+            for v in [PAN, dst, A] {
+                f.extend_from_slice(&v.to_le_bytes());
+            }
+            f.extend_from_slice(&[0, 0, 0, 3]);
+            f
+        };
+        assert!(node.link_in_clear(&event(mac::PLAIN_DATA_FC, B), 0, &mut board));
+        assert_eq!(board.pins, [(7, true)]);
+        assert_eq!(board.out.len(), 1);
+        assert!(!node.link_in_clear(&event(mac::PLAIN_DATA_FC, BROADCAST), 0, &mut board));
+        assert!(!node.link_in_clear(&event(mac::PLAIN_DATA_FC | 1 << 3, B), 0, &mut board));
+        assert!(!node.link_in_clear(&event(mac::PLAIN_DATA_FC | 1 << 5, B), 0, &mut board));
+        // The frame as the node writes it starts with the control field compared.
+        let fc = u16::from_le_bytes([board.out[0][0], board.out[0][1]]);
+        assert_eq!(fc, mac::PLAIN_DATA_FC);
+    }
 
     /// An ack through [`Senders::with`] keeps the cached alarm bits exactly what a count gives.
     #[test]

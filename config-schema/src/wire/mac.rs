@@ -52,6 +52,12 @@ const FC_PAN_COMPRESSION: u16 = 1 << 6;
 const ADDR_SHORT: u16 = 0b10;
 const VERSION_2006: u16 = 0b01;
 
+/// The frame control field of a data frame as [`finish_data_mpdu`] writes it without
+/// security or an acknowledgement request (short addresses, PAN id compression, 2006): a
+/// receiver's short path can compare the first two bytes against it.
+pub const PLAIN_DATA_FC: u16 =
+    TYPE_DATA | FC_PAN_COMPRESSION | (ADDR_SHORT << 10) | (VERSION_2006 << 12) | (ADDR_SHORT << 14);
+
 /// Why bytes are not a frame we accept.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FrameError {
