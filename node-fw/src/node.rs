@@ -1457,15 +1457,11 @@ impl<S: StagingArea> NodeCore<S> {
     }
 
     fn on_event(&mut self, src: u16, epoch: u16, seq: u16, topic: u8, now: u64, io: &mut impl Io) {
-        let Some(peer) = self.peer(src) else {
-            self.radio.counters.dropped += 1;
-            return;
-        };
         let mut deliver = Vec::new();
-        let Some((_, receiver)) = self.receivers.get_mut(peer) else {
+        let Some((peer, ack)) = self.receive_event(src, (epoch, seq, topic), &mut deliver) else {
             return;
         };
-        if let Some(next) = receiver.receive(epoch, seq, topic, &mut deliver) {
+        if let Some(next) = ack {
             let pan = self.table.as_ref().map_or(CONFIG_PAN, |t| t.header.pan_id);
             self.send(io, pan, src, &Message::EventAck { epoch, next });
         }
@@ -1474,6 +1470,25 @@ impl<S: StagingArea> NodeCore<S> {
             let peer = peer as u8;
             self.run(now, io, Stimulus::Remote { peer, topic });
         }
+    }
+
+    /// Event `seq` (`topic`, `epoch`) from `src` to its link receiver, which pushes the
+    /// topics to deliver now onto `deliver` (empty), in order: the peer's index and the
+    /// ack's `next` if one is due. `None`: `src` is no peer (the frame counted as
+    /// dropped) or has no receiver.
+    #[inline(always)]
+    fn receive_event(
+        &mut self,
+        src: u16,
+        (epoch, seq, topic): (u16, u16, u8),
+        deliver: &mut Vec<u8, { link::WINDOW + 1 }>,
+    ) -> Option<(usize, Option<u16>)> {
+        let Some(peer) = self.peer(src) else {
+            self.radio.counters.dropped += 1;
+            return None;
+        };
+        let (_, receiver) = self.receivers.get_mut(peer)?;
+        Some((peer, receiver.receive(epoch, seq, topic, deliver)))
     }
 
     /// [`NodeCore::on_event`] of an event that came in clear on the running table's PAN
@@ -1489,16 +1504,12 @@ impl<S: StagingArea> NodeCore<S> {
         now: u64,
         io: &mut impl Io,
     ) {
-        let (epoch, seq, topic) = m;
-        let Some(peer) = self.peer(src) else {
-            self.radio.counters.dropped += 1;
-            return;
-        };
         let mut deliver = Vec::new();
-        let Some((_, receiver)) = self.receivers.get_mut(peer) else {
+        let Some((peer, ack)) = self.receive_event(src, m, &mut deliver) else {
             return;
         };
-        if let Some(next) = receiver.receive(epoch, seq, topic, &mut deliver) {
+        let epoch = m.0;
+        if let Some(next) = ack {
             let ack = LinkMessage::EventAck { epoch, next };
             self.radio.send_link(io, pan, src, ack);
         }
