@@ -833,23 +833,7 @@ impl<S: StagingArea> NodeCore<S> {
     /// Runs the engine on the running table with effects applied to this node: one
     /// function for every stimulus.
     fn run(&mut self, now: u64, io: &mut impl Io, stimulus: Stimulus) {
-        let (Some(table), Some(index), Some(state)) = (&self.table, &self.index, &mut self.state)
-        else {
-            return;
-        };
-        // What the alarms read of the state, as it was: the engine runs on it in place.
-        let before = crate::alarms::Reads::of(table, state);
-        let mut engine = Engine::on(table, index, state);
-        let mut fx = NodeEffects {
-            now,
-            table,
-            timers: &mut self.timers,
-            senders: &mut self.senders,
-            radio: &mut self.radio,
-            io,
-        };
-        let fx = &mut fx;
-        match stimulus {
+        self.on_engine(now, io, |engine, fx| match stimulus {
             Stimulus::Start => {
                 engine.start(fx);
             }
@@ -866,7 +850,34 @@ impl<S: StagingArea> NodeCore<S> {
             Stimulus::Remote { peer, topic } => {
                 engine.remote(peer, topic, fx);
             }
-        }
+        });
+    }
+
+    /// `f` with the engine on the running table's state in place and the effects applied
+    /// to this node (nothing without a table); then whether the alarms may read
+    /// something else is noted.
+    #[inline(always)]
+    fn on_engine<I: Io>(
+        &mut self,
+        now: u64,
+        io: &mut I,
+        f: impl FnOnce(&mut Engine<'_, &mut EngineState, &Index>, &mut NodeEffects<'_, I>),
+    ) {
+        let (Some(table), Some(index), Some(state)) = (&self.table, &self.index, &mut self.state)
+        else {
+            return;
+        };
+        // What the alarms read of the state, as it was: the engine runs on it in place.
+        let before = crate::alarms::Reads::of(table, state);
+        let mut fx = NodeEffects {
+            now,
+            table,
+            timers: &mut self.timers,
+            senders: &mut self.senders,
+            radio: &mut self.radio,
+            io,
+        };
+        f(&mut Engine::on(table, index, state), &mut fx);
         self.state_changed |= before.changed(state);
     }
 
@@ -1523,21 +1534,9 @@ impl<S: StagingArea> NodeCore<S> {
     /// event path, without the stimulus' dispatch).
     #[inline(always)]
     fn run_remote(&mut self, now: u64, io: &mut impl Io, peer: u8, topic: u8) {
-        let (Some(table), Some(index), Some(state)) = (&self.table, &self.index, &mut self.state)
-        else {
-            return;
-        };
-        let before = crate::alarms::Reads::of(table, state);
-        let mut fx = NodeEffects {
-            now,
-            table,
-            timers: &mut self.timers,
-            senders: &mut self.senders,
-            radio: &mut self.radio,
-            io,
-        };
-        Engine::on(table, index, state).remote(peer, topic, &mut fx);
-        self.state_changed |= before.changed(state);
+        self.on_engine(now, io, |engine, fx| {
+            engine.remote(peer, topic, fx);
+        });
     }
 
     fn on_config(&mut self, msg: &Message<'_>, src: u16, pan: u16, io: &mut impl Io) {
