@@ -275,13 +275,16 @@ pub fn reads_changed(
 }
 
 /// What the alarms read from an engine state, kept before a stimulus that runs the engine
-/// on the state in place (nothing copied): the fault and the inputs. A table that declares
-/// alarms has their conditions read its variables too: for it every such stimulus counts
+/// on the state in place (nothing copied): the fault and the emergency stop's input (the
+/// other inputs are read by declared conditions only). A table that declares alarms has
+/// their conditions read its inputs and variables too: for it every such stimulus counts
 /// as a change ([`Alarms::look`] then looks at everything, as [`Alarms::observe`] does:
 /// the same alarms at the same moments).
 #[derive(Debug, Clone, Copy)]
 pub struct Reads {
     fault: Option<Fault>,
+    /// The emergency stop's input bit (none: 0), and the inputs masked with it.
+    estop: u16,
     inputs: u16,
     declared: bool,
 }
@@ -290,18 +293,23 @@ impl Reads {
     /// What the alarms read of `state` (running `table`) now.
     #[inline]
     pub fn of(table: &Table, state: &EngineState) -> Reads {
+        let estop = (table.safety.estop)
+            .and_then(|i| 1u16.checked_shl(u32::from(i)))
+            .unwrap_or(0);
         Reads {
             fault: state.fault,
-            inputs: state.inputs,
+            estop,
+            inputs: state.inputs & estop,
             declared: !table.safety.alarms.is_empty(),
         }
     }
 
-    /// Whether the alarms may read something else in `now` ([`reads_changed`], with the
-    /// variables of a table that declares alarms taken as changed).
+    /// Whether the alarms may read something else in `now`: the fault or the emergency
+    /// stop's input changed, or the table declares alarms (their conditions taken as
+    /// changed).
     #[inline]
     pub fn changed(&self, now: &EngineState) -> bool {
-        self.declared || self.fault != now.fault || self.inputs != now.inputs
+        self.declared || self.fault != now.fault || self.inputs != now.inputs & self.estop
     }
 }
 

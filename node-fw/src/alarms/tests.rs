@@ -7,7 +7,7 @@ use std::vec::Vec;
 use config_schema::alarm::{AlarmDecl, AlarmLevel, AlarmSource, MAX_ALARMS};
 use config_schema::{Input, Op, Table};
 
-use super::{Alarms, Seen};
+use super::{Alarms, Reads, Seen};
 use crate::ecc::{EngineState, Fault};
 
 fn table() -> Table {
@@ -286,6 +286,24 @@ fn a_look_without_a_state_change_compares_the_links_only() {
     assert_eq!(a.list().len(), 5);
 }
 
+/// What a stimulus that runs the engine in place tells the look: on a table without
+/// declared alarms only the fault and the emergency stop's input are read, so another
+/// input's edge is no change; with declared alarms every stimulus is one.
+#[test]
+fn only_the_fault_and_the_estop_input_are_a_change_without_declared_alarms() {
+    let mut t = table();
+    t.safety.alarms.clear();
+    let idle = state(0b000, None);
+    let reads = Reads::of(&t, &idle);
+    assert!(!reads.changed(&state(0b110, None)));
+    assert!(reads.changed(&state(0b001, None)));
+    assert!(reads.changed(&state(0b000, Some(Fault::Expr { chart: 0 }))));
+    t.safety.estop = None;
+    assert!(!Reads::of(&t, &idle).changed(&state(0b111, None)));
+    let declared = table();
+    assert!(Reads::of(&declared, &idle).changed(&idle));
+}
+
 mod props {
     use super::*;
     use proptest::prelude::*;
@@ -334,6 +352,35 @@ mod props {
                     prop_assert_eq!(full.ack(seen), lean.ack(seen));
                 }
                 before = Some(s);
+            }
+        }
+        /// The same with the node core's own [`Reads`] taken before each stimulus, on a
+        /// table with or without declared alarms: every input (the e-stop's and the
+        /// others) and the fault may change at each step.
+        #[test]
+        fn the_node_cores_reads_raise_the_same_alarms(
+            declared in any::<bool>(),
+            steps in proptest::collection::vec(step(), 1..60),
+        ) {
+            let mut t = table();
+            if !declared {
+                t.safety.alarms.clear();
+            }
+            let (mut full, mut lean) = (Alarms::default(), Alarms::default());
+            let mut before: Option<Reads> = None;
+            for (now, (inputs, _, _, fault, links, ack)) in steps.into_iter().enumerate() {
+                let fault = fault.map(|c| Fault::Action { chart: c, code: c });
+                let s = state(inputs, fault);
+                let changed = before.is_none_or(|b| b.changed(&s));
+                let seen = Seen { table: &t, state: &s, link_alarms: links };
+                let now = now as u64;
+                prop_assert_eq!(full.observe(seen, now), lean.look(seen, now, changed));
+                prop_assert_eq!(full.list(), lean.list());
+                prop_assert_eq!(full.dropped(), lean.dropped());
+                if ack {
+                    prop_assert_eq!(full.ack(seen), lean.ack(seen));
+                }
+                before = Some(Reads::of(&t, &s));
             }
         }
     }
