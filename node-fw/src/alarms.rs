@@ -256,9 +256,10 @@ impl Alarms {
 /// accessors, read before its snapshot) changed what the alarms read from the state since
 /// `before`: the inputs (the e-stop's) and the fault; the table's variables too if it
 /// declares alarms (their conditions read inputs and variables; a variable past the
-/// table's is never written). The node core asks this where a stimulus writes the state
-/// ([`Alarms::look`]'s `state_changed`): a chart that moves without touching any of these
-/// leaves the alarms nothing to look at.
+/// table's is never written): a chart that moves without touching any of these leaves the
+/// alarms nothing to look at. The tests' reference for [`Alarms::look`]'s `state_changed`;
+/// the node core notes it with [`Reads`], which compares the e-stop's input only and
+/// takes every stimulus of a table that declares alarms as a change.
 pub fn reads_changed(
     table: &Table,
     before: &EngineState,

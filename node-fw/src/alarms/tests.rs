@@ -322,6 +322,26 @@ mod props {
         )
     }
 
+    /// After one stimulus: a look at everything (`full`) and the node core's look told
+    /// `changed` (`lean`) give the same count, list and drops, and the same count to an
+    /// acknowledgement if the operator gives one (`ack`).
+    fn same_alarms(
+        full: &mut Alarms,
+        lean: &mut Alarms,
+        seen: Seen<'_>,
+        now: u64,
+        changed: bool,
+        ack: bool,
+    ) -> Result<(), TestCaseError> {
+        prop_assert_eq!(full.observe(seen, now), lean.look(seen, now, changed));
+        prop_assert_eq!(full.list(), lean.list());
+        prop_assert_eq!(full.dropped(), lean.dropped());
+        if ack {
+            prop_assert_eq!(full.ack(seen), lean.ack(seen));
+        }
+        Ok(())
+    }
+
     proptest! {
         /// The node core's look (told whether the state changed) raises exactly the alarms
         /// of a look at everything after every stimulus, at the same moments, and returns
@@ -344,16 +364,11 @@ mod props {
                 // What the node core tells the look.
                 let changed = before.as_ref().is_none_or(|b| super::super::reads_changed(&t, b, s.fault, s.inputs, |v| s.vars.get(v).copied()));
                 let seen = Seen { table: &t, state: &s, link_alarms: links };
-                let now = now as u64;
-                prop_assert_eq!(full.observe(seen, now), lean.look(seen, now, changed));
-                prop_assert_eq!(full.list(), lean.list());
-                prop_assert_eq!(full.dropped(), lean.dropped());
-                if ack {
-                    prop_assert_eq!(full.ack(seen), lean.ack(seen));
-                }
+                same_alarms(&mut full, &mut lean, seen, now as u64, changed, ack)?;
                 before = Some(s);
             }
         }
+
         /// The same with the node core's own [`Reads`] taken before each stimulus, on a
         /// table with or without declared alarms: every input (the e-stop's and the
         /// others) and the fault may change at each step.
@@ -373,13 +388,7 @@ mod props {
                 let s = state(inputs, fault);
                 let changed = before.is_none_or(|b| b.changed(&s));
                 let seen = Seen { table: &t, state: &s, link_alarms: links };
-                let now = now as u64;
-                prop_assert_eq!(full.observe(seen, now), lean.look(seen, now, changed));
-                prop_assert_eq!(full.list(), lean.list());
-                prop_assert_eq!(full.dropped(), lean.dropped());
-                if ack {
-                    prop_assert_eq!(full.ack(seen), lean.ack(seen));
-                }
+                same_alarms(&mut full, &mut lean, seen, now as u64, changed, ack)?;
                 before = Some(Reads::of(&t, &s));
             }
         }
