@@ -1,10 +1,10 @@
 //! The AES-128 block cipher under the node's frame security ([`NodeCipher`]): the `aes`
 //! crate in software, or, with the feature `board-aes`, the board's hardware unit (the
-//! nRF52840's AES-ECB), which the board installs once at boot with [`install`] before it
+//! nRF52840's AES-ECB), which the board installs once at boot with `install` before it
 //! runs the node. The codec is the same (`config_schema::wire::security`); only the block
 //! cipher differs, and with `board-aes` the software AES is not linked.
 //!
-//! A block the board's cipher fails (or any block before [`install`]) is
+//! A block the board's cipher fails (or any block before `install`) is
 //! `SecError::Cipher`: the frame is not sent, or not accepted.
 
 #[cfg(feature = "board-aes")]
