@@ -252,29 +252,6 @@ impl Alarms {
     }
 }
 
-/// Whether an engine that now has `fault`, `inputs` and variables `var` (the engine's
-/// accessors, read before its snapshot) changed what the alarms read from the state since
-/// `before`: the inputs (the e-stop's) and the fault; the table's variables too if it
-/// declares alarms (their conditions read inputs and variables; a variable past the
-/// table's is never written): a chart that moves without touching any of these leaves the
-/// alarms nothing to look at. The tests' reference for [`Alarms::look`]'s `state_changed`;
-/// the node core notes it with [`Reads`], which compares the e-stop's input only and
-/// takes every stimulus of a table that declares alarms as a change.
-pub fn reads_changed(
-    table: &Table,
-    before: &EngineState,
-    fault: Option<Fault>,
-    inputs: u16,
-    var: impl Fn(usize) -> Option<i32>,
-) -> bool {
-    before.fault != fault
-        || before.inputs != inputs
-        || (!table.safety.alarms.is_empty()
-            && (before.vars.iter().take(table.vars.len()))
-                .enumerate()
-                .any(|(v, &x)| var(v) != Some(x)))
-}
-
 /// What the alarms read from an engine state, kept before a stimulus that runs the engine
 /// on the state in place (nothing copied): the fault and the emergency stop's input (the
 /// other inputs are read by declared conditions only). A table that declares alarms has
@@ -294,9 +271,7 @@ impl Reads {
     /// What the alarms read of `state` (running `table`) now.
     #[inline]
     pub fn of(table: &Table, state: &EngineState) -> Reads {
-        let estop = (table.safety.estop)
-            .and_then(|i| 1u16.checked_shl(u32::from(i)))
-            .unwrap_or(0);
+        let estop = estop_bit(table);
         Reads {
             fault: state.fault,
             estop,
@@ -314,12 +289,17 @@ impl Reads {
     }
 }
 
+/// The table's emergency-stop input as a bit of the engine's inputs (none, or past them:
+/// 0).
+fn estop_bit(table: &Table) -> u16 {
+    (table.safety.estop)
+        .and_then(|i| 1u16.checked_shl(u32::from(i)))
+        .unwrap_or(0)
+}
+
 /// Whether the table's emergency-stop input is high.
 fn estop_pressed(seen: Seen<'_>) -> bool {
-    seen.table
-        .safety
-        .estop
-        .is_some_and(|i| i < 16 && seen.state.inputs & (1 << i) != 0)
+    estop_bit(seen.table) & seen.state.inputs != 0
 }
 
 /// Whether a declared condition holds (an expression that does not evaluate: no).

@@ -1,8 +1,8 @@
 //! The pneumatic plant's rules, once: how a cylinder's valve turns output changes into a
 //! command, where the rod rests at power-up, which sensor a motion opens or closes, and how
 //! long a stroke takes. Pure (`no_std`, no allocation); used by the virtual-time simulator
-//! (`crate::sim`, feature `std`), the verifier's state exploration (a [`Position`] is a small `Copy` +
-//! `Hash` state) and `config-tool`'s real-time plant.
+//! (`crate::sim`, feature `std`), the verifier's state exploration (a [`Position`] is a
+//! small `Copy` + `Hash` state) and `config-tool`'s real-time plant.
 //!
 //! Pins are whatever the caller numbers them by: table output / input indices in the
 //! simulator and the verifier, board pins in the real-time plant.

@@ -322,6 +322,20 @@ mod props {
         )
     }
 
+    /// Whether an engine state `now` changed what the alarms read since `before`: the
+    /// inputs and the fault; the table's variables too if it declares alarms (their
+    /// conditions read inputs and variables). The first proptest's notion of a change,
+    /// exact in the variables, where the node core's [`Reads`] takes every stimulus of a
+    /// table that declares alarms as one (and compares the e-stop's input only).
+    fn reads_changed(table: &Table, before: &EngineState, now: &EngineState) -> bool {
+        before.fault != now.fault
+            || before.inputs != now.inputs
+            || (!table.safety.alarms.is_empty()
+                && (before.vars.iter().take(table.vars.len()))
+                    .zip(&now.vars)
+                    .any(|(x, y)| x != y))
+    }
+
     /// After one stimulus: a look at everything (`full`) and the node core's look told
     /// `changed` (`lean`) give the same count, list and drops, and the same count to an
     /// acknowledgement if the operator gives one (`ack`).
@@ -362,7 +376,7 @@ mod props {
                 let mut s = state(inputs, fault);
                 (s.vars[0], s.current[0]) = (var, chart);
                 // What the node core tells the look.
-                let changed = before.as_ref().is_none_or(|b| super::super::reads_changed(&t, b, s.fault, s.inputs, |v| s.vars.get(v).copied()));
+                let changed = before.as_ref().is_none_or(|b| reads_changed(&t, b, &s));
                 let seen = Seen { table: &t, state: &s, link_alarms: links };
                 same_alarms(&mut full, &mut lean, seen, now as u64, changed, ack)?;
                 before = Some(s);

@@ -59,7 +59,8 @@ pub struct SingleActing {
     pub home_in: Option<u8>,
     /// Input index of a position sensor at the end (extended), if wired.
     pub end_in: Option<u8>,
-    /// Full stroke time out (reported through [`Position`](crate::cylinder::Position) and the sensors, if any).
+    /// Full stroke time out (reported through [`Position`](crate::cylinder::Position) and
+    /// the sensors, if any).
     pub extend_ms: u64,
     /// Full stroke time back.
     pub retract_ms: u64,
