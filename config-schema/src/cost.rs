@@ -1,14 +1,14 @@
 //! The worst-case work of one stimulus (an input edge, a timer expiry, a remote event, a
-//! command), computed from the table alone, so that [`validate`](crate::validate) can
+//! command), computed from the table alone, so that [`validate`](fn@crate::validate) can
 //! refuse a table whose stimulus could keep the node deaf for long (docs/ecc-semantics.md).
 //!
 //! The model follows the interpreter (`node_fw::ecc`): a stimulus is dispatched, then every
-//! event its charts emit, up to [`MAX_CASCADE`](crate::limits::MAX_CASCADE) events. One
+//! event its charts emit, up to [`MAX_CASCADE`] events. One
 //! dispatch scans every route; each route of the event delivers to its chart, which scans
 //! the chart's transitions (evaluating the guards of those that leave its current state on
 //! that input: the state with the longest of them, in the worst case), fires one and runs
 //! the target state's actions, then (a chart with event-less transitions) up to
-//! [`MAX_CHAIN`](crate::limits::MAX_CHAIN) more. Each frame a publication sends costs
+//! [`MAX_CHAIN`] more. Each frame a publication sends costs
 //! [`weights::FRAME`]. The count of events a cascade processes follows the emit graph: an
 //! event reaches the events its charts' states emit; a cycle counts as the whole cascade.
 //!
@@ -66,7 +66,7 @@ pub struct Worst {
 }
 
 /// The worst stimulus of `t` (every node event taken as a stimulus). `t` must have passed
-/// the structural checks of [`validate`](crate::validate) (ranges); anything out of range
+/// the structural checks of [`validate`](fn@crate::validate) (ranges); anything out of range
 /// is counted as nothing.
 pub fn worst_stimulus(t: &Table) -> Worst {
     let model = Model::of(t);

@@ -1,6 +1,6 @@
 //! Guard and assignment expressions: a tiny stack bytecode with a statically checked
 //! stack depth, so evaluating a validated expression can neither underflow nor overflow
-//! and costs at most [`MAX_EXPR_LEN`](crate::limits::MAX_EXPR_LEN) operations.
+//! and costs at most [`MAX_EXPR_LEN`] operations.
 
 use serde::{Deserialize, Serialize};
 

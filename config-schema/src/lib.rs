@@ -5,7 +5,7 @@
 //! - [`limits`]: every capacity, in one place.
 //! - [`table`]: the table one node runs.
 //! - [`guard`]: the expression bytecode of guards and assignments.
-//! - [`validate`]: semantic checks of a decoded table; [`cost`]: the worst-case work of one
+//! - [`validate`](mod@validate): semantic checks of a decoded table; [`cost`]: the worst-case work of one
 //!   stimulus, which it bounds.
 //! - [`blob`]: the versioned, CRC-protected envelope, [`encode`] and [`decode`]; [`pack`]:
 //!   the bit-packed payload inside it.

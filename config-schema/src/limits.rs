@@ -2,7 +2,7 @@
 //!
 //! These bound the decoded [`Table`](crate::Table) (its RAM footprint is fixed at compile time)
 //! and the interpreter's work per delivered event. config-tool checks a robot against them
-//! before it compiles, and [`validate`](crate::validate) checks every decoded blob again.
+//! before it compiles, and [`validate`](fn@crate::validate) checks every decoded blob again.
 
 /// Node events (ids `0..MAX_EVENTS`): input edges, timer expiries, subscribed remote events,
 /// events emitted by charts.

@@ -378,7 +378,7 @@ fn end(len: usize, what: &'static str) -> Result<u8, Full> {
 }
 
 /// Building a table chart by chart (config-tool and tests). The result still has to pass
-/// [`validate`](crate::validate); these only keep the pools' layout right.
+/// [`validate`](fn@crate::validate); these only keep the pools' layout right.
 impl Table {
     /// Appends an expression to the code pool.
     pub fn push_expr(&mut self, ops: &[Op]) -> Result<Expr, Full> {

@@ -6,7 +6,7 @@
 //! actuator, every actuator homed (or driven) by an earlier step is where that step left
 //! it, and every other one may be anywhere at rest. A step breaches an interlock when some
 //! such placement makes the interlock hold ([`breaches`]). A robot without a declared
-//! `homing` gets one derived ([`derive`]): actuators with a home switch first (a step on
+//! `homing` gets one derived ([`derive`](fn@derive)): actuators with a home switch first (a step on
 //! one already home is skipped), sensorless ones last (a gripper lets its part go only
 //! once everything else is home), each as early as the interlocks allow.
 

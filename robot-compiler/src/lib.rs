@@ -15,7 +15,7 @@
 //! - [`sorting`]: a sorting station's colour truth table, compiled to a classification
 //!   chart.
 //! - [`numbering`]: event ids, routes and imports in the order the packed table reads
-//!   them. [`lower`]: IR -> tables. [`compile`]: the pipeline. [`dump`], [`diagram`].
+//!   them. [`lower`]: IR -> tables. [`compile`](mod@compile): the pipeline. [`dump`], [`diagram`].
 //!
 //! It knows nothing of the node firmware, the simulator or the radio (see
 //! `docs/architecture.md`).

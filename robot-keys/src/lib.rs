@@ -1,6 +1,6 @@
 //! The tool's keys (docs/security.md): the machine secret ([`MachineSecret`], one per
-//! machine, in a key file only its owner can read: [`file`]) and the keys derived from it
-//! ([`derive`]): each node's management key and the per-generation pairwise link keys.
+//! machine, in a key file only its owner can read: [`file`](mod@file)) and the keys derived from it
+//! ([`derive`](mod@derive)): each node's management key and the per-generation pairwise link keys.
 //!
 //! The node never derives: it is provisioned with its management key at flash time, and
 //! gets its link keys inside its authenticated push. Secrets print as `<secret>` in

@@ -1,7 +1,7 @@
 //! Table builders and blob helpers shared by the tests of the workspace's crates (a
 //! dev-dependency only): a table's blob, a table as a node loads it, a hand-sealed envelope,
 //! and the small "lamp" role the node and runtime tests push. With feature `robots`:
-//! [`robots`], the robots of `robot-configs/` compiled and exported.
+//! `robots`, the robots of `robot-configs/` compiled and exported.
 
 #[cfg(feature = "robots")]
 pub mod robots;

@@ -362,7 +362,7 @@ impl core::fmt::Display for MessageError {
 impl core::error::Error for MessageError {}
 
 impl<'a> Message<'a> {
-    /// Parses a MAC payload (postcard's bytes, read by hand: [`codec`]). Never panics;
+    /// Parses a MAC payload (postcard's bytes, read by hand: the private `codec`). Never panics;
     /// trailing bytes are an error.
     pub fn parse(payload: &'a [u8]) -> Result<Message<'a>, MessageError> {
         if let Some(msg) = link::parse(payload) {

@@ -1,5 +1,5 @@
 //! The `check` pass over the robot's control functions (docs/petri-nets.md, "Checks"):
-//! what [`super::load`] finds (a row of M that is not one `-1` and one `1`, not one
+//! what [`load`](mod@super::load) finds (a row of M that is not one `-1` and one `1`, not one
 //! token, unknown places, events and names), then per function: unreachable places,
 //! transitions that can never fire, and two transitions that one event enables from one
 //! place under conditions that can both hold (the choice rule fires the first declared).

@@ -4,7 +4,7 @@
 //! evaluates, and compiled into one chart per function.
 //!
 //! - [`model`]: the robot file's `functions:` as serde types.
-//! - [`load`]: `functions:` -> [`Net`]s with the place in the file of every part, or
+//! - [`load`](mod@load): `functions:` -> [`Net`]s with the place in the file of every part, or
 //!   diagnostics (a row that is not one `-1` and one `1`, not one token, unknown names).
 //! - [`check`]: the `check` pass: reachability, dead transitions, the choice rule,
 //!   publications across the radio.

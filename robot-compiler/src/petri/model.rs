@@ -1,5 +1,5 @@
 //! Control functions as written in the robot file (`functions:`), as serde types.
-//! docs/robot-format.md ("Control functions") documents them; [`super::load`] resolves
+//! docs/robot-format.md ("Control functions") documents them; [`load`](mod@super::load) resolves
 //! them into [`super::Net`]s.
 
 use std::collections::BTreeMap;

@@ -46,7 +46,7 @@ pub const MERGE: &str = "E_MERGE";
 pub type Merge = (String, usize);
 
 /// Every connection of the application, the `E_MERGE`s joining the sources of each chart
-/// input that several events feed ([`merged`]), and per role the service FB's event
+/// input that several events feed (`merged`), and per role the service FB's event
 /// outputs and inputs (in order of first use).
 pub fn connections(
     c: &Compiled,
