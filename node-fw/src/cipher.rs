@@ -1,5 +1,6 @@
 //! The AES-128 block cipher under the node's frame security ([`NodeCipher`]): the `aes`
-//! crate in software, or, with the feature `board-aes`, the board's hardware unit (the
+//! crate in software, its key schedules kept for the keys in use (computed once per key,
+//! not once per frame), or, with the feature `board-aes`, the board's hardware unit (the
 //! nRF52840's AES-ECB), which the board installs once at boot with `install` before it
 //! runs the node. The codec is the same (`config_schema::wire::security`); only the block
 //! cipher differs, and with `board-aes` the software AES is not linked.
@@ -15,7 +16,12 @@ use config_schema::wire::security::{BlockCipher, CipherFault, BLOCK_LEN, KEY_LEN
 
 /// The block cipher the node secures and opens its frames with.
 #[cfg(not(feature = "board-aes"))]
-pub type NodeCipher = config_schema::wire::security::SoftAes;
+pub type NodeCipher = kept::KeptSoftAes;
+#[cfg(not(feature = "board-aes"))]
+pub use kept::SCHEDULES;
+
+#[cfg(not(feature = "board-aes"))]
+mod kept;
 /// The block cipher the node secures and opens its frames with.
 #[cfg(feature = "board-aes")]
 pub type NodeCipher = BoardAes;

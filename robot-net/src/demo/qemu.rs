@@ -234,7 +234,7 @@ pub fn security_cost_lines(dir: &Path, addrs: &[u16]) -> Vec<String> {
     }
     if let Some((schedule, block)) = read_aes_cost(dir, addr) {
         lines.push(format!(
-            "  of which AES-128 alone: key schedule {schedule:>6} (every frame), one block {block:>6}"
+            "  of which AES-128 alone: key schedule {schedule:>6} (in each figure above; a node keeps it per key), one block {block:>6}"
         ));
     }
     lines
@@ -406,7 +406,7 @@ mod tests {
                 "frame security (AES-128-CCM*, ENC-MIC-64, software AES), instructions per frame:",
                 "  payload   4 bytes: secure   9000, open   9100",
                 "  payload 102 bytes: secure  30000, open  30500",
-                "  of which AES-128 alone: key schedule   7000 (every frame), one block   2000",
+                "  of which AES-128 alone: key schedule   7000 (in each figure above; a node keeps it per key), one block   2000",
             ]
         );
         std::fs::remove_dir_all(&dir).unwrap();

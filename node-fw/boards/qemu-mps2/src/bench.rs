@@ -4,7 +4,8 @@
 //! (`security::secure`, `security::open_at` at ENC-MIC-64, the AES key schedule included),
 //! with a fixed key of its own (never the node's), interrupts masked, for a short payload
 //! (a command) and the largest one (a chunk); and the AES alone: its key schedule (which
-//! the codec does for every frame) and one block.
+//! the codec does for every frame it is given a key's bytes; the node keeps the schedules
+//! of its keys, `node_fw::cipher`) and one block.
 
 use aes::cipher::{BlockCipherEncrypt, KeyInit};
 use aes::Aes128;
