@@ -22,6 +22,13 @@ pub use kept::SCHEDULES;
 
 #[cfg(not(feature = "board-aes"))]
 mod kept;
+
+/// Forgets the key schedules the node's cipher keeps, wiped (software AES; a hardware
+/// unit keeps none): the node's link keys changed.
+pub fn forget_keys() {
+    #[cfg(not(feature = "board-aes"))]
+    kept::forget();
+}
 /// The block cipher the node secures and opens its frames with.
 #[cfg(feature = "board-aes")]
 pub type NodeCipher = BoardAes;

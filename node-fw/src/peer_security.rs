@@ -147,6 +147,8 @@ impl PeerSecurity {
             _ => old,
         };
         self.current = keys;
+        // The cipher's kept schedules of the keys dropped go too.
+        crate::cipher::forget_keys();
         self.switched.clear();
         self.overlap_until = None;
         let mut floors = ReplayGuard::new();

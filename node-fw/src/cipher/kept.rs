@@ -1,6 +1,6 @@
 //! Software AES-128 with its key schedules kept: the node secures and opens every frame
-//! under one of a few keys (its management key, the link key of each peer it talks
-//! with), and the `aes` crate's key schedule costs more than one block (5,500
+//! under one of a few keys (its management key, the send and receive keys of each peer
+//! it talks with), and the `aes` crate's key schedule costs more than one block (5,500
 //! instructions against 4,300 on a Cortex-M3, docs/security.md): computed once per key
 //! and kept in [`SCHEDULES`] slots, the oldest replaced first, not computed again for
 //! every frame. The schedule is a function of the key alone, so a kept one is the one a
@@ -9,13 +9,15 @@
 //! The slots are one static behind a critical section (the codec asks for a cipher by
 //! its key, without a place of the node's to keep it); a schedule is computed outside the
 //! critical section (interrupts are not held off for it) and copied out of it. The
-//! slots hold what the node's RAM holds already: its keys, expanded.
+//! slots hold what the node's RAM holds already, its keys, expanded; a new generation's
+//! link keys make the node forget them ([`forget`], wiped), as it drops the old keys.
 
 use core::cell::RefCell;
 
 use config_schema::wire::security::{BlockCipher, CipherFault, SoftAes, BLOCK_LEN, KEY_LEN};
+use zeroize::Zeroize;
 
-/// Key schedules kept: the management key and the link keys of three peers.
+/// Key schedules kept: the management key and the send and receive keys of three peers.
 pub const SCHEDULES: usize = 8;
 
 /// Keys and their schedules, the oldest replaced first.
@@ -53,6 +55,21 @@ impl Slots {
         }
         self.next = (self.next + 1) % SCHEDULES;
     }
+}
+
+impl Drop for Slots {
+    /// The keys wiped (each schedule wipes itself: the `aes` crate's `zeroize`).
+    fn drop(&mut self) {
+        for (key, _) in self.slots.iter_mut().flatten() {
+            key.zeroize();
+        }
+    }
+}
+
+/// Forgets every kept schedule, the keys and schedules wiped: the node's link keys
+/// changed, and the schedules of keys it no longer holds are not kept on.
+pub fn forget() {
+    critical_section::with(|cs| drop(KEPT.borrow(cs).replace(Slots::new())));
 }
 
 static KEPT: critical_section::Mutex<RefCell<Slots>> =
@@ -104,6 +121,20 @@ mod tests {
             assert_eq!(block(&KeptSoftAes::new(&k)), block(&SoftAes::new(&k)));
         }
         assert_eq!(block(&KeptSoftAes::new(&KEY)), CIPHER);
+    }
+
+    /// Forgotten, the slots hold nothing; a key is expanded again, the same.
+    #[test]
+    fn forgotten_schedules_are_computed_again() {
+        assert_eq!(block(&KeptSoftAes::new(&KEY)), CIPHER);
+        forget();
+        assert_eq!(block(&KeptSoftAes::new(&KEY)), CIPHER);
+        let mut slots = Slots::new();
+        slots.keep(&KEY, &SoftAes::new(&KEY));
+        assert!(slots.find(&KEY).is_some());
+        let old = core::mem::replace(&mut slots, Slots::new());
+        drop(old);
+        assert!(slots.find(&KEY).is_none());
     }
 
     /// The slots keep the last `SCHEDULES` keys, each once, the oldest replaced first;
