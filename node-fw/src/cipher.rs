@@ -29,6 +29,7 @@ pub fn forget_keys() {
     #[cfg(not(feature = "board-aes"))]
     kept::forget();
 }
+
 /// The block cipher the node secures and opens its frames with.
 #[cfg(feature = "board-aes")]
 pub type NodeCipher = BoardAes;
