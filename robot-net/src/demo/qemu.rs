@@ -224,7 +224,7 @@ pub fn security_cost_lines(dir: &Path, addrs: &[u16]) -> Vec<String> {
         return vec!["frame security: no node measured it".into()];
     };
     let mut lines = vec![
-        "frame security (AES-128-CCM*, ENC-MIC-64, software AES), instructions per frame:".into(),
+        "frame security (AES-128-CCM*, ENC-MIC-64, software AES, the node's path), instructions per frame:".into(),
     ];
     for c in costs {
         lines.push(format!(
@@ -234,7 +234,7 @@ pub fn security_cost_lines(dir: &Path, addrs: &[u16]) -> Vec<String> {
     }
     if let Some((schedule, block)) = read_aes_cost(dir, addr) {
         lines.push(format!(
-            "  of which AES-128 alone: key schedule {schedule:>6} (in each figure above; a node keeps it per key), one block {block:>6}"
+            "  of which AES-128 alone: key schedule {schedule:>6} (once per key: the node keeps it), one block {block:>6}"
         ));
     }
     lines
@@ -403,10 +403,10 @@ mod tests {
         assert_eq!(
             security_cost_lines(&dir, &[0x0012, 0x0011]),
             [
-                "frame security (AES-128-CCM*, ENC-MIC-64, software AES), instructions per frame:",
+                "frame security (AES-128-CCM*, ENC-MIC-64, software AES, the node's path), instructions per frame:",
                 "  payload   4 bytes: secure   9000, open   9100",
                 "  payload 102 bytes: secure  30000, open  30500",
-                "  of which AES-128 alone: key schedule   7000 (in each figure above; a node keeps it per key), one block   2000",
+                "  of which AES-128 alone: key schedule   7000 (once per key: the node keeps it), one block   2000",
             ]
         );
         std::fs::remove_dir_all(&dir).unwrap();

@@ -986,6 +986,18 @@ mod star_is_ccm {
             seal_default::<SoftAes>(&key, &nonce, level, &a, &mut ours, &mut mic).unwrap();
             prop_assert_eq!(&ours, &by_crate);
             prop_assert_eq!(mic, crate_mic);
+            // A board's cipher (the keystream one block after the other): the same
+            // frame, and exactly CCM's blocks: B0, a with its length, m, and A0..An.
+            FAIL_AT.set(usize::MAX);
+            BLOCKS.set(0);
+            let (mut by_board, mut board_mic) = (m.clone(), [0u8; 8]);
+            seal_default::<BoardCipher>(&key, &nonce, level, &a, &mut by_board, &mut board_mic)
+                .unwrap();
+            prop_assert_eq!(&by_board, &by_crate);
+            prop_assert_eq!(board_mic, crate_mic);
+            let a_blocks = if a.is_empty() { 0 } else { (a.len() + 2).div_ceil(16) };
+            let m_blocks = m.len().div_ceil(16);
+            prop_assert_eq!(BLOCKS.get(), 1 + a_blocks + m_blocks + 1 + m_blocks);
             unseal_default::<SoftAes>(&key, &nonce, level, &a, &mut ours, &crate_mic).unwrap();
             prop_assert_eq!(&ours, &m);
             let mut bad = crate_mic;
