@@ -18,7 +18,7 @@ use config_schema::wire::security::{BlockCipher, CipherFault, BLOCK_LEN, KEY_LEN
 #[cfg(not(feature = "board-aes"))]
 pub type NodeCipher = kept::KeptSoftAes;
 #[cfg(not(feature = "board-aes"))]
-pub use kept::SCHEDULES;
+pub use kept::{work as aes_work, AesWork, SCHEDULES};
 
 #[cfg(not(feature = "board-aes"))]
 mod kept;

@@ -13,6 +13,7 @@
 //! link keys make the node forget them ([`forget`], wiped), as it drops the old keys.
 
 use core::cell::RefCell;
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use config_schema::wire::security::{BlockCipher, CipherFault, SoftAes, BLOCK_LEN, KEY_LEN};
 use zeroize::Zeroize;
@@ -75,6 +76,28 @@ pub fn forget() {
 static KEPT: critical_section::Mutex<RefCell<Slots>> =
     critical_section::Mutex::new(RefCell::new(Slots::new()));
 
+/// Key schedules computed and blocks encrypted so far (wrapping): what a board that counts
+/// its instructions attributes to the AES (the QEMU board's `--icount` figures). Shared
+/// by every node of a process (one on a board).
+static SCHEDULED: AtomicU32 = AtomicU32::new(0);
+static BLOCKS: AtomicU32 = AtomicU32::new(0);
+
+/// The software AES's work so far: key schedules computed, blocks encrypted (each
+/// wrapping; a difference of two readings is the work between them).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct AesWork {
+    pub schedules: u32,
+    pub blocks: u32,
+}
+
+/// The software AES's work so far.
+pub fn work() -> AesWork {
+    AesWork {
+        schedules: SCHEDULED.load(Ordering::Relaxed),
+        blocks: BLOCKS.load(Ordering::Relaxed),
+    }
+}
+
 /// The `aes` crate's AES-128 under one key, its schedule kept between frames.
 #[derive(Clone)]
 pub struct KeptSoftAes(SoftAes);
@@ -85,11 +108,13 @@ impl BlockCipher for KeptSoftAes {
             return KeptSoftAes(cipher);
         }
         let cipher = SoftAes::new(key);
+        SCHEDULED.fetch_add(1, Ordering::Relaxed);
         critical_section::with(|cs| KEPT.borrow_ref_mut(cs).keep(key, &cipher));
         KeptSoftAes(cipher)
     }
 
     fn encrypt(&self, block: &mut [u8; BLOCK_LEN]) -> Result<(), CipherFault> {
+        BLOCKS.fetch_add(1, Ordering::Relaxed);
         self.0.encrypt(block)
     }
 }
@@ -121,6 +146,21 @@ mod tests {
             assert_eq!(block(&KeptSoftAes::new(&k)), block(&SoftAes::new(&k)));
         }
         assert_eq!(block(&KeptSoftAes::new(&KEY)), CIPHER);
+    }
+
+    /// Every schedule computed and every block encrypted is counted (other tests' work
+    /// may add to the counts meanwhile: at least these).
+    #[test]
+    fn the_work_is_counted() {
+        let before = work();
+        let fresh = [0xA7; KEY_LEN];
+        let cipher = KeptSoftAes::new(&fresh);
+        let mut b = PLAIN;
+        cipher.encrypt(&mut b).unwrap();
+        cipher.encrypt(&mut b).unwrap();
+        let after = work();
+        assert!(after.schedules.wrapping_sub(before.schedules) >= 1);
+        assert!(after.blocks.wrapping_sub(before.blocks) >= 2);
     }
 
     /// Forgotten, a key is expanded again, the same.

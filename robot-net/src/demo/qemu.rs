@@ -142,6 +142,36 @@ pub struct Counts {
     /// The same for `Pin` messages (every one goes to the core; repeats raise no event).
     pub core_input: u64,
     pub core_inputs: u64,
+    /// The software AES's key schedules and blocks inside the core for frames, and for
+    /// `Pin` messages (a changed input's event published, secured).
+    pub core_frame_aes: Aes,
+    pub core_input_aes: Aes,
+}
+
+/// AES work as a node counts it: key schedules computed, blocks encrypted.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Aes {
+    pub schedules: u64,
+    pub blocks: u64,
+}
+
+impl Aes {
+    fn since(self, before: Aes) -> Aes {
+        Aes {
+            schedules: self.schedules.saturating_sub(before.schedules),
+            blocks: self.blocks.saturating_sub(before.blocks),
+        }
+    }
+
+    fn add(&mut self, other: Aes) {
+        self.schedules += other.schedules;
+        self.blocks += other.blocks;
+    }
+
+    /// Instructions, at `cost` = (one key schedule, one block) as the node measured.
+    fn instructions(self, (schedule, block): (u64, u64)) -> u64 {
+        self.schedules * schedule + self.blocks * block
+    }
 }
 
 /// The last `count:` line of a counting node's log.
@@ -162,7 +192,17 @@ pub fn read_counts(dir: &Path, addr: u16) -> Option<Counts> {
         core_frames: next("core_frames")?,
         core_input: next("core_input_ns")?,
         core_inputs: next("core_inputs")?,
+        core_frame_aes: aes_after(line, "core_frame_aes")?,
+        core_input_aes: aes_after(line, "core_input_aes")?,
     })
+}
+
+/// The two numbers after `key` in `line`: key schedules, blocks.
+fn aes_after(line: &str, key: &str) -> Option<Aes> {
+    let mut words = line.split_whitespace().skip_while(|w| *w != key).skip(1);
+    let schedules = words.next()?.parse().ok()?;
+    let blocks = words.next()?.parse().ok()?;
+    Some(Aes { schedules, blocks })
 }
 
 /// What securing and opening one frame costs on the emulated Cortex-M3, as a counting node
@@ -278,11 +318,14 @@ pub fn settled_counts(dir: &Path, addrs: &[u16]) -> Vec<Option<Counts>> {
 }
 
 /// Instructions per node over `cycles` cycles, per cycle and per stimulus.
+/// `aes`: one key schedule's and one block's instructions, as the node measured them (the
+/// core's figures then also without the AES).
 pub fn count_lines(
     addrs: &[u16],
     before: &[Option<Counts>],
     after: &[Option<Counts>],
     cycles: usize,
+    aes: Option<(u64, u64)>,
 ) -> Vec<String> {
     let mut lines = vec![format!(
         "instructions executed during the {cycles} cycle(s) (QEMU -icount shift=0):"
@@ -302,6 +345,8 @@ pub fn count_lines(
             core_frames: e.core_frames.saturating_sub(b.core_frames),
             core_input: e.core_input.saturating_sub(b.core_input),
             core_inputs: e.core_inputs.saturating_sub(b.core_inputs),
+            core_frame_aes: e.core_frame_aes.since(b.core_frame_aes),
+            core_input_aes: e.core_input_aes.since(b.core_input_aes),
         };
         total.instructions += d.instructions;
         total.frames += d.frames;
@@ -311,13 +356,16 @@ pub fn count_lines(
         total.core_frames += d.core_frames;
         total.core_input += d.core_input;
         total.core_inputs += d.core_inputs;
-        lines.push(count_line(&format!("node {a:#06x}"), &d, cycles));
+        total.core_frame_aes.add(d.core_frame_aes);
+        total.core_input_aes.add(d.core_input_aes);
+        lines.push(count_line(&format!("node {a:#06x}"), &d, cycles, aes));
     }
-    lines.push(count_line("all nodes  ", &total, cycles));
+    lines.push(count_line("all nodes  ", &total, cycles, aes));
     lines
 }
 
-fn count_line(who: &str, d: &Counts, cycles: usize) -> String {
+fn count_line(who: &str, d: &Counts, cycles: usize, aes: Option<(u64, u64)>) -> String {
+    let per = |n: u64, of: u64| n as f64 / of.max(1) as f64;
     // A stimulus is what the node must react to: a frame, or an input that changed (the
     // plant's repeated levels cost instructions too, but are not events).
     let stimuli = d.frames + d.changes;
@@ -333,10 +381,25 @@ fn count_line(who: &str, d: &Counts, cycles: usize) -> String {
     ) + &format!(
         "\n  {:w$}  of which in the node core: {:>6.0} per frame, {:>5.0} per level message",
         "",
-        d.core_frame as f64 / d.core_frames.max(1) as f64,
-        d.core_input as f64 / d.core_inputs.max(1) as f64,
+        per(d.core_frame, d.core_frames),
+        per(d.core_input, d.core_inputs),
         w = who.len()
-    )
+    ) + &aes.map_or(String::new(), |cost| {
+        let (frame, input) = (
+            d.core_frame_aes.instructions(cost),
+            d.core_input_aes.instructions(cost),
+        );
+        format!(
+            "\n  {:w$}    the core without the AES: {:>6.0} per frame, {:>5.0} per level message \
+             (AES: {:.2} schedules and {:.1} blocks per frame)",
+            "",
+            per(d.core_frame.saturating_sub(frame), d.core_frames),
+            per(d.core_input.saturating_sub(input), d.core_inputs),
+            per(d.core_frame_aes.schedules, d.core_frames),
+            per(d.core_frame_aes.blocks, d.core_frames),
+            w = who.len()
+        )
+    })
 }
 
 #[cfg(test)]
@@ -388,7 +451,7 @@ mod tests {
              INFO  node 0x0011: security cost: payload 102 secure_ns 30000 open_ns 30500\n\
              INFO  node 0x0011: security cost: aes key_schedule_ns 7000 block_ns 2000\n\
              INFO  node 0x0011: count: busy_ns 1 frames 0 pins 0 changes 0 core_frame_ns 0 \
-             core_frames 0 core_input_ns 0 core_inputs 0\n",
+             core_frames 0 core_input_ns 0 core_inputs 0 core_frame_aes 0 0 core_input_aes 0 0\n",
         )
         .unwrap();
         let cost = |payload, secure, open| SecurityCost {
@@ -408,6 +471,75 @@ mod tests {
                 "  payload 102 bytes: secure  30000, open  30500",
                 "  of which AES-128 alone: key schedule   7000 (once per key: the node keeps it), one block   2000",
             ]
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A node's count line read back, AES work included; the core's figures printed with
+    /// and without the AES (at the node's measured cost), over the difference of two
+    /// readings.
+    #[test]
+    fn the_core_is_counted_with_and_without_the_aes() {
+        let dir = std::env::temp_dir().join(format!("robot-net-counts-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(
+            count_log(&dir, 0x0011),
+            "INFO  node 0x0011: count: busy_ns 900 frames 4 pins 10 changes 2 \
+             core_frame_ns 500 core_frames 3 core_input_ns 40 core_inputs 10 \
+             core_frame_aes 1 20 core_input_aes 0 1\n\
+             INFO  node 0x0011: count: busy_ns 1900000 frames 14 pins 30 changes 4 \
+             core_frame_ns 400500 core_frames 13 core_input_ns 3040 core_inputs 30 \
+             core_frame_aes 2 90 core_input_aes 0 1\n",
+        )
+        .unwrap();
+        let after = read_counts(&dir, 0x0011).unwrap();
+        assert_eq!(
+            (after.core_frame_aes, after.core_input_aes),
+            (
+                Aes {
+                    schedules: 2,
+                    blocks: 90
+                },
+                Aes {
+                    schedules: 0,
+                    blocks: 1
+                }
+            )
+        );
+        let before = Counts {
+            instructions: 900,
+            frames: 4,
+            pins: 10,
+            changes: 2,
+            core_frame: 500,
+            core_frames: 3,
+            core_input: 40,
+            core_inputs: 10,
+            core_frame_aes: Aes {
+                schedules: 1,
+                blocks: 20,
+            },
+            core_input_aes: Aes {
+                schedules: 0,
+                blocks: 1,
+            },
+        };
+        // 10 frames: 400,000 instructions in the core, 1 schedule (5,000) and 70 blocks
+        // (4,000 each) among them; 20 level messages: 3,000, no block.
+        let lines = count_lines(
+            &[0x0011],
+            &[Some(before)],
+            &[Some(after)],
+            2,
+            Some((5000, 4000)),
+        );
+        assert_eq!(
+            lines[1],
+            "  node 0x0011:   1899100 instructions,   949550 per cycle;   10 frames +   2 input \
+             changes ( 20 level messages): 158258 per stimulus\n\
+             \x20              of which in the node core:  40000 per frame,   150 per level message\n\
+             \x20                the core without the AES:  11500 per frame,   150 per level message \
+             (AES: 0.10 schedules and 7.0 blocks per frame)"
         );
         std::fs::remove_dir_all(&dir).unwrap();
     }

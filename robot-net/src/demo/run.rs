@@ -309,7 +309,8 @@ fn run_cycles(
     }
     if let Some((dir, before)) = counted {
         let after = qemu::settled_counts(dir, addrs);
-        for line in qemu::count_lines(addrs, &before, &after, n) {
+        let aes = addrs.iter().find_map(|a| qemu::read_aes_cost(dir, *a));
+        for line in qemu::count_lines(addrs, &before, &after, n, aes) {
             demo_report::say(out, &line);
         }
         for line in qemu::security_cost_lines(dir, addrs) {

@@ -34,6 +34,7 @@ use core::sync::atomic::{AtomicBool, Ordering};
 use config_schema::wire::medium::{Link, Peer};
 use cortex_m_rt::entry;
 use embassy_executor::raw;
+use node_fw::cipher;
 use node_fw::provision::ManagementKey;
 use node_fw::runtime::{self, Board};
 
@@ -78,32 +79,58 @@ fn pender(_context: *mut ()) {
     WORK.store(true, Ordering::Release);
 }
 
-/// Timer cycles inside `NodeCore` per kind of stimulus: (cycles, count) for frames and for
-/// input changes.
-static CORE: critical_section::Mutex<core::cell::Cell<[(u64, u32); 2]>> =
-    critical_section::Mutex::new(core::cell::Cell::new([(0, 0); 2]));
+/// Inside `NodeCore`, per kind of stimulus (frames, input changes): timer cycles, the
+/// stimuli, and the software AES's key schedules and blocks among them.
+#[derive(Clone, Copy, Default)]
+struct CoreCount {
+    cycles: u64,
+    stimuli: u32,
+    schedules: u32,
+    blocks: u32,
+}
 
-/// Times the core's handling of each stimulus (when counting).
+static CORE: critical_section::Mutex<core::cell::Cell<[CoreCount; 2]>> =
+    critical_section::Mutex::new(core::cell::Cell::new(
+        [CoreCount {
+            cycles: 0,
+            stimuli: 0,
+            schedules: 0,
+            blocks: 0,
+        }; 2],
+    ));
+
+/// Times the core's handling of each stimulus, and counts its AES work (when counting).
 struct CoreProbe {
     on: bool,
     at: u64,
+    aes: cipher::AesWork,
 }
 
 impl runtime::Probe for CoreProbe {
     fn start(&mut self) {
         if self.on {
+            self.aes = cipher::aes_work();
             self.at = time::cycles();
         }
     }
     fn stop(&mut self, work: runtime::Work) {
         if self.on {
             let spent = time::cycles().saturating_sub(self.at);
+            let aes = cipher::aes_work();
             let i = usize::from(work == runtime::Work::Input);
             critical_section::with(|cs| {
                 let cell = CORE.borrow(cs);
                 let mut v = cell.get();
-                v[i].0 += spent;
-                v[i].1 += 1;
+                if let Some(c) = v.get_mut(i) {
+                    c.cycles += spent;
+                    c.stimuli += 1;
+                    c.schedules = c
+                        .schedules
+                        .wrapping_add(aes.schedules.wrapping_sub(self.aes.schedules));
+                    c.blocks = c
+                        .blocks
+                        .wrapping_add(aes.blocks.wrapping_sub(self.aes.blocks));
+                }
                 cell.set(v);
             });
         }
@@ -129,6 +156,7 @@ async fn node(
     let mut probe = CoreProbe {
         on: counting,
         at: 0,
+        aes: cipher::AesWork::default(),
     };
     let mut next = || counter.as_mut().and_then(Counter::next);
     let security = key.map(|key| runtime::Security {
@@ -154,18 +182,24 @@ async fn count(addr: u16) {
         embassy_time::Timer::after_secs(1).await;
         let busy = critical_section::with(|cs| BUSY.borrow(cs).get()) * time::NS_PER_CYCLE;
         let c = uart::counters();
-        let [(frame_cycles, frames), (input_cycles, inputs)] =
-            critical_section::with(|cs| CORE.borrow(cs).get());
+        let [frame, input] = critical_section::with(|cs| CORE.borrow(cs).get());
         if (busy, c.frames, c.pins) != last {
             last = (busy, c.frames, c.pins);
             log::info!(
                 "node {addr:#06x}: count: busy_ns {busy} frames {} pins {} changes {} \
-                 core_frame_ns {} core_frames {frames} core_input_ns {} core_inputs {inputs}",
+                 core_frame_ns {} core_frames {} core_input_ns {} core_inputs {} \
+                 core_frame_aes {} {} core_input_aes {} {}",
                 c.frames,
                 c.pins,
                 c.changes,
-                frame_cycles * time::NS_PER_CYCLE,
-                input_cycles * time::NS_PER_CYCLE,
+                frame.cycles * time::NS_PER_CYCLE,
+                frame.stimuli,
+                input.cycles * time::NS_PER_CYCLE,
+                input.stimuli,
+                frame.schedules,
+                frame.blocks,
+                input.schedules,
+                input.blocks,
             );
         }
     }
