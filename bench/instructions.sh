@@ -34,17 +34,18 @@ count() {
         awk '/Collected :/ { print $NF }'
 }
 
-# inside FN COUNT: the instructions callgrind counted inside `node::FN` of `bin node COUNT`
+# inside FN COUNT [RUN]: the instructions callgrind counted inside `node::FN` of
+# `bin RUN COUNT` (RUN: node, the default, or node-secured)
 inside() {
     valgrind --tool=callgrind --callgrind-out-file=/dev/null --toggle-collect="*node::$1" \
-        "$bin" node "$2" 2>&1 >/dev/null | awk '/Collected :/ { print $NF }'
+        "$bin" "${3:-node}" "$2" 2>&1 >/dev/null | awk '/Collected :/ { print $NF }'
 }
 
-# per_call FN UNITS: instructions per call of `node::FN`, UNITS calls per press
+# per_call FN UNITS [RUN]: instructions per call of `node::FN`, UNITS calls per press
 per_call() {
     local a b
-    a=$(inside "$1" "$n")
-    b=$(inside "$1" $((2 * n)))
+    a=$(inside "$1" "$n" "${3:-node}")
+    b=$(inside "$1" $((2 * n)) "${3:-node}")
     awk -v a="$a" -v b="$b" -v n="$n" -v u="$2" 'BEGIN { printf "%.1f", (b - a) / (n * u) }'
 }
 
@@ -81,3 +82,10 @@ printf '  input edge on A (publishes on rise)   %8s\n' "$(per_call a_edge 2)"
 printf '  input level A has already             %8s\n' "$(per_call a_level 2)"
 printf '  event received by B (ack, chart)      %8s  (target: under 300)\n' "$(per_call b_event 1)"
 printf '  ack received by A                     %8s\n' "$(per_call a_ack 1)"
+
+printf 'the same with link keys (events and acks secured at ENC-MIC-64, as machines run by\n'
+printf 'default; the aes crate takes the CPU'"'"'s AES instructions: a hardware AES, as the\n'
+printf 'nRF52840'"'"'s ECB unit)\n'
+printf '  input edge on A (publishes on rise)   %8s\n' "$(per_call a_edge 2 node-secured)"
+printf '  event received by B (ack, chart)      %8s\n' "$(per_call b_event 1 node-secured)"
+printf '  ack received by A                     %8s\n' "$(per_call a_ack 1 node-secured)"

@@ -19,6 +19,10 @@
 //!                           that publishes), `a_level` (A told a level it has), `b_event`
 //!                           (B receives the event: MAC, link, ack, chart, lamp) and
 //!                           `a_ack` (A receives B's ack)
+//! instructions node-secured N
+//!                           the same with link keys (events and acks secured at
+//!                           ENC-MIC-64, as a machine's nodes run by default; the `aes`
+//!                           crate picks the CPU's AES instructions where it has them)
 //! ```
 //!
 //! Prints what the run left (counts, states), so the work cannot be optimised away and a
@@ -138,9 +142,11 @@ fn run(what: &str, n: u64) -> Result<String, String> {
             }
             Ok(format!("effects {:#x}", fx.0))
         }
-        "node" => node::presses(n),
+        "node" => node::presses(n, false),
+        "node-secured" => node::presses(n, true),
         _ => Err(format!(
-            "unknown run `{what}`: ctu1, ctu2, ctu1-trace, ctu2-trace, vc, vc-hand or node"
+            "unknown run `{what}`: ctu1, ctu2, ctu1-trace, ctu2-trace, vc, vc-hand, node or \
+             node-secured"
         )),
     }
 }
@@ -148,7 +154,9 @@ fn run(what: &str, n: u64) -> Result<String, String> {
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let (Some(what), Some(n)) = (args.first(), args.get(1).and_then(|n| n.parse().ok())) else {
-        eprintln!("usage: instructions ctu1|ctu2|ctu1-trace|ctu2-trace|vc|vc-hand|node N");
+        eprintln!(
+            "usage: instructions ctu1|ctu2|ctu1-trace|ctu2-trace|vc|vc-hand|node|node-secured N"
+        );
         return ExitCode::from(2);
     };
     match run(what, n) {
@@ -165,6 +173,7 @@ fn main() -> ExitCode {
 
 /// Two `NodeCore`s on a perfect radio, for the figures per stimulus inside the node core.
 mod node {
+    use config_schema::link_keys::{LinkKeys, PeerKeys};
     use config_schema::{Action, Output, Publication, Subscription, Table};
     use node_fw::node::{Io, NodeCore};
     use std::hint::black_box;
@@ -182,6 +191,8 @@ mod node {
         lens: [usize; 4],
         sent: usize,
         pins: u64,
+        /// The last frame counter handed out (secured frames).
+        counter: u32,
     }
 
     impl Board {
@@ -191,6 +202,7 @@ mod node {
                 lens: [0; 4],
                 sent: 0,
                 pins: 0,
+                counter: 0,
             }
         }
     }
@@ -216,6 +228,27 @@ mod node {
         fn set_pin(&mut self, pin: u8, level: bool) {
             self.pins ^= u64::from(level) << pin;
         }
+        fn next_frame_counter(&mut self) -> Option<u32> {
+            self.counter += 1;
+            Some(self.counter)
+        }
+    }
+
+    /// `node`'s link keys with its one `peer` (each direction its own key, as the tool
+    /// derives them).
+    fn link_keys(node: u16, peer: u16) -> Result<LinkKeys, String> {
+        let key = |from: u16, to: u16| [(from as u8) << 4 | to as u8; 16];
+        let mut keys = LinkKeys {
+            generation: 1,
+            peers: Default::default(),
+        };
+        (keys.peers.push(PeerKeys {
+            peer,
+            send: key(node, peer),
+            receive: key(peer, node),
+        }))
+        .map_err(|_| "link keys")?;
+        Ok(keys)
     }
 
     fn tables() -> Result<(Table, Table), String> {
@@ -287,10 +320,18 @@ mod node {
         n
     }
 
-    pub fn presses(n: u64) -> Result<String, String> {
+    /// `n` presses, the events and acks secured with link keys if `secured`.
+    pub fn presses(n: u64, secured: bool) -> Result<String, String> {
         let (ta, tb) = tables()?;
         let mut a = NodeCore::new(A, u64::MAX, Some(ta), 1);
         let mut b = NodeCore::new(B, u64::MAX, Some(tb), 1);
+        if secured {
+            a = a.with_link_keys(link_keys(A, B)?);
+            b = b.with_link_keys(link_keys(B, A)?);
+            if !(a.links_secured() && b.links_secured()) {
+                return Err("the link keys were not taken".into());
+            }
+        }
         let (mut ia, mut ib) = (Board::new(), Board::new());
         a.boot(&mut ia);
         b.boot(&mut ib);
@@ -301,12 +342,19 @@ mod node {
                 now += 10;
                 a_edge(&mut a, level, now, &mut ia);
                 a_level(&mut a, level, now, &mut ia);
-                events += carry(&mut ia, &mut b, &mut ib, now, b_event);
-                acks += carry(&mut ib, &mut a, &mut ia, now, a_ack);
                 a.poll(now, &mut ia);
                 b.poll(now, &mut ib);
-                ia.sent = 0;
-                ib.sent = 0;
+                // Until nothing is left to carry: a secured link's first frames run its
+                // freshness handshake (greetings, a challenge and its answer).
+                loop {
+                    let e = carry(&mut ia, &mut b, &mut ib, now, b_event);
+                    let k = carry(&mut ib, &mut a, &mut ia, now, a_ack);
+                    events += e;
+                    acks += k;
+                    if e + k == 0 {
+                        break;
+                    }
+                }
             }
         }
         Ok(format!(

@@ -24,38 +24,71 @@ pub(crate) enum Direction {
     Open,
 }
 
+/// `x ^= bytes` (up to a block; shorter is zero-padded): a whole block as one 128-bit
+/// xor, a shorter one byte by byte.
+fn xor_into(x: &mut [u8; BLOCK_LEN], bytes: &[u8]) {
+    for (x, b) in x.iter_mut().zip(bytes) {
+        *x ^= *b;
+    }
+}
+
+/// `block ^= s` (a block of m, whole or its last part).
+fn xor_keystream(block: &mut [u8], s: &[u8; BLOCK_LEN]) {
+    for (b, s) in block.iter_mut().zip(s) {
+        *b ^= *s;
+    }
+}
+
 /// `x ^= bytes` (up to a block; shorter is zero-padded), then `x = E(x)`.
 fn absorb<C: BlockCipher>(
     cipher: &C,
     x: &mut [u8; BLOCK_LEN],
     bytes: &[u8],
 ) -> Result<(), SecError> {
-    for (x, b) in x.iter_mut().zip(bytes) {
-        *x ^= *b;
-    }
+    xor_into(x, bytes);
     cipher.encrypt(x).map_err(|_| SecError::Cipher)
 }
 
-/// The block `flags || nonce || n` (`n` big-endian): B0 and the A`i`. Put together from
-/// its parts, no slice copies: `copy_from_slice` left out of line keeps a panic location
-/// (this file's path) in the image.
-fn nonce_block(flags: u8, nonce: &[u8; NONCE_LEN], n: u16) -> [u8; BLOCK_LEN] {
-    let [n0, n1, n2, n3, n4, n5, n6, n7, n8, n9, n10, n11, n12] = *nonce;
-    let [c0, c1] = n.to_be_bytes();
-    [
-        flags, n0, n1, n2, n3, n4, n5, n6, n7, n8, n9, n10, n11, n12, c0, c1,
-    ]
+/// The blocks `flags || nonce || n` (`n` big-endian) of one nonce: B0 and the A`i`, as
+/// one big-endian 128-bit number with the flags and the counter zero (put together once
+/// from the nonce's bytes, no slice copies: `copy_from_slice` left out of line keeps a
+/// panic location, this file's path, in the image).
+struct NonceBlocks(u128);
+
+impl NonceBlocks {
+    fn new(nonce: &[u8; NONCE_LEN]) -> NonceBlocks {
+        let [n0, n1, n2, n3, n4, n5, n6, n7, n8, n9, n10, n11, n12] = *nonce;
+        NonceBlocks(u128::from_be_bytes([
+            0, n0, n1, n2, n3, n4, n5, n6, n7, n8, n9, n10, n11, n12, 0, 0,
+        ]))
+    }
+
+    /// The block with `flags` and `n`.
+    fn block(&self, flags: u8, n: u16) -> [u8; BLOCK_LEN] {
+        (self.0 | u128::from(flags) << 120 | u128::from(n)).to_be_bytes()
+    }
 }
 
-/// The keystream block A`i`: flags L - 1 = 1, the nonce, the counter `i` (big-endian).
+/// The keystream block A`i`: flags L - 1 = 1, the nonce, the counter `i`.
 fn keystream<C: BlockCipher>(
     cipher: &C,
-    nonce: &[u8; NONCE_LEN],
+    nonce: &NonceBlocks,
     i: u16,
 ) -> Result<[u8; BLOCK_LEN], SecError> {
-    let mut a = nonce_block(1, nonce, i);
+    let mut a = nonce.block(1, i);
     cipher.encrypt(&mut a).map_err(|_| SecError::Cipher)?;
     Ok(a)
+}
+
+/// The first block of the a data: its 2-byte length `len`, then its first 14 bytes
+/// (`head`; fewer: zero-padded).
+fn first_a_block(len: u16, head: &[u8]) -> [u8; BLOCK_LEN] {
+    let [l0, l1] = len.to_be_bytes();
+    let mut first = [0u8; BLOCK_LEN];
+    for (f, b) in first.iter_mut().zip([l0, l1].iter().chain(head)) {
+        *f = *b;
+    }
+    first
 }
 
 /// CCM* at M = 8 under `cipher`: transforms `m` in place (`direction`) and returns the
@@ -77,40 +110,33 @@ pub(crate) fn ccm_star_64<C: BlockCipher>(
     }
     // B0: flags (Adata, M' = (M - 2) / 2 = 3, L' = L - 1 = 1), nonce, l(m).
     let flags = if a.is_empty() { 0 } else { 0x40 } | 0x18 | 0x01;
-    let mut x = nonce_block(flags, nonce, m_len);
+    let nonce = NonceBlocks::new(nonce);
+    let mut x = nonce.block(flags, m_len);
     cipher.encrypt(&mut x).map_err(|_| SecError::Cipher)?;
     if !a.is_empty() {
         // l(a) (2 bytes), then a: the first block holds 14 bytes of it.
         let head = a.get(..BLOCK_LEN - 2).unwrap_or(a);
         let tail = a.get(BLOCK_LEN - 2..).unwrap_or(&[]);
-        let [l0, l1] = a_len.to_be_bytes();
-        let mut first = [0u8; BLOCK_LEN];
-        for (f, b) in first.iter_mut().zip([l0, l1].iter().chain(head)) {
-            *f = *b;
-        }
-        absorb(cipher, &mut x, &first)?;
+        absorb(cipher, &mut x, &first_a_block(a_len, head))?;
         for block in tail.chunks(BLOCK_LEN) {
             absorb(cipher, &mut x, block)?;
         }
     }
     for (i, block) in m.chunks_mut(BLOCK_LEN).enumerate() {
         // i < 0x1000: m is below 0x1_0000 bytes.
-        let s = keystream(cipher, nonce, i as u16 + 1)?;
-        let xor = |block: &mut [u8]| block.iter_mut().zip(&s).for_each(|(b, s)| *b ^= *s);
+        let s = keystream(cipher, &nonce, i as u16 + 1)?;
         if direction == Direction::Open {
-            xor(block);
+            xor_keystream(block, &s);
         }
         absorb(cipher, &mut x, block)?;
         if direction == Direction::Seal {
-            xor(block);
+            xor_keystream(block, &s);
         }
     }
-    let s0 = keystream(cipher, nonce, 0)?;
-    let mut mic = [0u8; MIC_LEN];
-    for ((t, x), s) in mic.iter_mut().zip(&x).zip(&s0) {
-        *t = x ^ s;
-    }
-    Ok(mic)
+    let s0 = keystream(cipher, &nonce, 0)?;
+    let [t0, t1, t2, t3, t4, t5, t6, t7, ..] =
+        (u128::from_ne_bytes(x) ^ u128::from_ne_bytes(s0)).to_ne_bytes();
+    Ok([t0, t1, t2, t3, t4, t5, t6, t7])
 }
 
 /// Whether `a` and `b` are equal, in time independent of where they differ.
