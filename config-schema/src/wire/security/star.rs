@@ -84,8 +84,9 @@ fn keystream<C: BlockCipher>(
 /// (`head`; fewer: zero-padded).
 fn first_a_block(len: u16, head: &[u8]) -> [u8; BLOCK_LEN] {
     let [l0, l1] = len.to_be_bytes();
-    let mut first = [0u8; BLOCK_LEN];
-    for (f, b) in first.iter_mut().zip([l0, l1].iter().chain(head)) {
+    let mut first = [l0, l1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0];
+    let [_, _, rest @ ..] = &mut first;
+    for (f, b) in rest.iter_mut().zip(head) {
         *f = *b;
     }
     first
