@@ -16,7 +16,9 @@
 # and hand-written as a `match` (tests/src/vc_dispatch.rs), and their ratio. Then the whole
 # node core (`NodeCore`, unsecured, every frame delivered): a button on node A published to
 # node B, whose chart toggles a lamp, counted only inside one call of the core each (A's
-# input edge, A told a level it has, B receiving the event, A receiving B's ack).
+# input edge, A told a level it has, B receiving the event, A receiving B's ack); then the
+# same two nodes with link keys, their events and acks secured (ENC-MIC-64), as a
+# machine's nodes run by default.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
