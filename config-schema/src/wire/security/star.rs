@@ -24,28 +24,15 @@ pub(crate) enum Direction {
     Open,
 }
 
-/// `x ^= bytes` (up to a block; shorter is zero-padded): a whole block as one 128-bit
-/// xor, a shorter one byte by byte.
-fn xor_into(x: &mut [u8; BLOCK_LEN], bytes: &[u8]) {
-    for (x, b) in x.iter_mut().zip(bytes) {
-        *x ^= *b;
-    }
-}
-
-/// `block ^= s` (a block of m, whole or its last part).
-fn xor_keystream(block: &mut [u8], s: &[u8; BLOCK_LEN]) {
-    for (b, s) in block.iter_mut().zip(s) {
-        *b ^= *s;
-    }
-}
-
 /// `x ^= bytes` (up to a block; shorter is zero-padded), then `x = E(x)`.
 fn absorb<C: BlockCipher>(
     cipher: &C,
     x: &mut [u8; BLOCK_LEN],
     bytes: &[u8],
 ) -> Result<(), SecError> {
-    xor_into(x, bytes);
+    for (x, b) in x.iter_mut().zip(bytes) {
+        *x ^= *b;
+    }
     cipher.encrypt(x).map_err(|_| SecError::Cipher)
 }
 
@@ -126,12 +113,13 @@ pub(crate) fn ccm_star_64<C: BlockCipher>(
     for (i, block) in m.chunks_mut(BLOCK_LEN).enumerate() {
         // i < 0x1000: m is below 0x1_0000 bytes.
         let s = keystream(cipher, &nonce, i as u16 + 1)?;
+        let xor = |block: &mut [u8]| block.iter_mut().zip(&s).for_each(|(b, s)| *b ^= *s);
         if direction == Direction::Open {
-            xor_keystream(block, &s);
+            xor(block);
         }
         absorb(cipher, &mut x, block)?;
         if direction == Direction::Seal {
-            xor_keystream(block, &s);
+            xor(block);
         }
     }
     let s0 = keystream(cipher, &nonce, 0)?;
