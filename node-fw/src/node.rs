@@ -12,6 +12,7 @@ use config_schema::wire::msg::{
     Announce, Command, ConfigReply, Counters, LinkMessage, Message, Refusal, RuntimeCounters,
     SecurityCounters, SecurityReport, Status, SwitchStep,
 };
+use config_schema::wire::security::link::{self as sealed, SealedLink};
 use config_schema::wire::security::{self, ext_addr, replay::ReplayGuard, AuxRepr, Opened};
 use config_schema::{Publication, Table};
 use heapless::Vec;
@@ -283,8 +284,8 @@ struct Radio {
 
 impl Radio {
     fn send(&mut self, io: &mut impl Io, pan_id: u16, dst: u16, msg: &Message<'_>) {
-        match LinkMessage::of(msg) {
-            Some(m) if self.in_clear(pan_id) => self.send_link(io, pan_id, dst, m),
+        match (LinkMessage::of(msg), self.securing(pan_id)) {
+            (Some(m), (None, false)) => self.send_link(io, pan_id, dst, m),
             _ => self.send_numbered(io, pan_id, dst, msg, None),
         }
     }
@@ -298,14 +299,8 @@ impl Radio {
         (key, links)
     }
 
-    /// Whether a frame on `pan_id` goes unsecured ([`Radio::securing`]).
-    #[inline]
-    fn in_clear(&self, pan_id: u16) -> bool {
-        matches!(self.securing(pan_id), (None, false))
-    }
-
     /// [`Radio::send_numbered`] of an `Event` or `EventAck` in clear (see
-    /// [`Radio::in_clear`]): the same frame, put together in a buffer its size, its MAC
+    /// [`Radio::securing`]: neither key): the same frame, put together in a buffer its size, its MAC
     /// header written as the bytes [`mac::finish_data_mpdu`] writes for
     /// [`Radio::header`] (no security, no acknowledgement request:
     /// [`mac::PLAIN_DATA_FC`]).
@@ -360,9 +355,11 @@ impl Radio {
         let mut mpdu = [0u8; MAX_MPDU];
         let emitted = match secured {
             Some(send) => {
-                let mut payload = [0u8; mac::MAX_PAYLOAD];
-                let Some(payload) = msg.emit(&mut payload).ok().and_then(|n| payload.get(..n))
-                else {
+                // The message straight into the frame after its MAC and aux headers,
+                // secured there ([`security::link::seal_in_place`]: the frame
+                // `security::secure_default_mpdu_with` writes).
+                let at = mpdu.get_mut(sealed::A_LEN..).unwrap_or_default();
+                let Ok(n) = msg.emit(at) else {
                     return;
                 };
                 let header = self.header(pan_id, dst);
@@ -372,15 +369,8 @@ impl Radio {
                 };
                 // No key for `dst` (not a peer): nothing is sent in clear instead.
                 send.and_then(|(key, index)| {
-                    security::secure_default_mpdu_with::<NodeCipher>(
-                        &header,
-                        &AuxRepr::new(index, counter),
-                        &key,
-                        ext_addr(pan_id, self.addr),
-                        payload,
-                        &mut mpdu,
-                    )
-                    .ok()
+                    sealed::seal_in_place::<NodeCipher>(&header, index, counter, &key, &mut mpdu, n)
+                        .ok()
                 })
             }
             None => {
@@ -1108,7 +1098,7 @@ impl<S: StagingArea> NodeCore<S> {
     /// An MPDU arrived (the frame without its FCS, checked at the radio edge: the board's
     /// radio in hardware, the host medium transport or the QEMU UART in software).
     pub fn receive_mpdu(&mut self, mpdu: &[u8], now: u64, io: &mut impl Io) {
-        if !self.link_in_clear(mpdu, now, io) {
+        if !self.link_in_clear(mpdu, now, io) && !self.link_secured(mpdu, now, io) {
             self.receive_frame(mpdu, now, io);
         }
         self.look(now, io);
@@ -1159,6 +1149,95 @@ impl<S: StagingArea> NodeCore<S> {
             LinkMessage::EventAck { .. } => self.on_link(m, src, now, io),
         }
         true
+    }
+
+    /// The short path of a secured `Event` or `EventAck` from a peer to this node on the
+    /// running table's PAN under link keys, in the frame this firmware writes
+    /// ([`security::link`]): the headers compared as bytes, the peer's receive key looked
+    /// up, the payload opened in a buffer its size and read in place, then the replay
+    /// check and the handshake ([`PeerSecurity::admit`]) and [`NodeCore::on_link`].
+    /// `false`: not such a frame, or its key is not found, or it opened to another message
+    /// (a challenge, an answer), nothing done but the overlap's start
+    /// ([`PeerSecurity::note_frame`], which the general path notes too);
+    /// [`NodeCore::receive_frame`] takes it, and does for these frames exactly what this
+    /// does.
+    #[inline(never)]
+    fn link_secured(&mut self, mpdu: &[u8], now: u64, io: &mut impl Io) -> bool {
+        let Some(table) = &self.table else {
+            return false;
+        };
+        let pan = table.header.pan_id;
+        if pan == CONFIG_PAN || !self.radio.links.secured() {
+            return false;
+        }
+        let Some(frame) = SealedLink::new(mpdu, pan, self.radio.addr) else {
+            return false;
+        };
+        let src = frame.src();
+        let links = &mut self.radio.links;
+        links.note_frame(now);
+        let Some(key) = links.receive_key(src, frame.key_index(), self.radio.addr, now) else {
+            return false;
+        };
+        let mut plain = [0u8; LinkMessage::MAX_LEN];
+        let payload = match frame.open::<NodeCipher>(&key, &mut plain) {
+            Ok(payload) => payload,
+            Err(e) => {
+                let staged = self.switch.staged();
+                links.refused(mpdu, staged, e, &mut self.radio.security);
+                self.radio.counters.dropped += 1;
+                return true;
+            }
+        };
+        let Some(m) = LinkMessage::parse(payload) else {
+            return false;
+        };
+        let opened = Opened {
+            header: frame.header(),
+            aux: frame.aux(),
+            payload,
+        };
+        let parsed = Ok::<_, Unacted>(Message::from(m));
+        match links.admit(&opened, &parsed, now, &mut self.radio.security) {
+            Verdict::Accept(_) => {}
+            verdict => {
+                self.not_accepted(verdict, pan, now, io);
+                return true;
+            }
+        }
+        self.radio.counters.received += 1;
+        self.on_link(m, src, now, io);
+        true
+    }
+
+    /// A peer's frame that opened on `pan` and is not to be acted on (any [`Verdict`] but
+    /// `Accept`): counted, answered or challenged back as the verdict says.
+    fn not_accepted(&mut self, verdict: Verdict<'_>, pan: u16, now: u64, io: &mut impl Io) {
+        match verdict {
+            Verdict::Accept(_) | Verdict::Answered => {}
+            Verdict::Dropped => self.radio.counters.dropped += 1,
+            Verdict::Challenge { peer, challenge } => {
+                if challenge {
+                    self.challenge_peer(peer, io);
+                }
+            }
+            Verdict::Answer {
+                peer,
+                nonce,
+                answer,
+                challenge,
+            } => {
+                // It knows no counter of ours: it booted (or is new to this table),
+                // and has no receiving side of our link to it either.
+                self.renumber_link(peer, now);
+                if answer {
+                    self.send(io, pan, peer, &Message::ChallengeAnswer { nonce });
+                }
+                if challenge {
+                    self.challenge_peer(peer, io);
+                }
+            }
+        }
     }
 
     #[inline(never)]
@@ -1256,35 +1335,10 @@ impl<S: StagingArea> NodeCore<S> {
                     .admit(opened, &parsed, now, &mut self.radio.security)
                 {
                     Verdict::Accept(_) => true,
-                    Verdict::Dropped => {
-                        self.radio.counters.dropped += 1;
+                    verdict => {
+                        self.not_accepted(verdict, header.pan_id, now, io);
                         return;
                     }
-                    Verdict::Challenge { peer, challenge } => {
-                        if challenge {
-                            self.challenge_peer(peer, io);
-                        }
-                        return;
-                    }
-                    Verdict::Answer {
-                        peer,
-                        nonce,
-                        answer,
-                        challenge,
-                    } => {
-                        // It knows no counter of ours: it booted (or is new to this table),
-                        // and has no receiving side of our link to it either.
-                        self.renumber_link(peer, now);
-                        if answer {
-                            let pan = header.pan_id;
-                            self.send(io, pan, peer, &Message::ChallengeAnswer { nonce });
-                        }
-                        if challenge {
-                            self.challenge_peer(peer, io);
-                        }
-                        return;
-                    }
-                    Verdict::Answered => return,
                 }
             }
         };
@@ -1976,6 +2030,298 @@ mod tests {
                 prop_assert_eq!(&bf, &bg);
                 prop_assert_eq!(observe(&fast), observe(&general));
             }
+        }
+    }
+
+    /// The link key `from` secures its frames to `to` with.
+    fn link_key(from: u16, to: u16) -> [u8; 16] {
+        [(from * 16 + to) as u8; 16]
+    }
+
+    /// B's link keys (peers A and C), for table `t`'s generation.
+    fn keys_b(t: &Table) -> LinkKeys {
+        let mut keys = LinkKeys {
+            generation: t.generation,
+            peers: Vec::new(),
+        };
+        for p in [A, C] {
+            let peer = config_schema::link_keys::PeerKeys {
+                peer: p,
+                send: link_key(B, p),
+                receive: link_key(p, B),
+            };
+            keys.peers.push(peer).unwrap();
+        }
+        keys
+    }
+
+    /// A board with a frame counter.
+    #[derive(Default, Debug, PartialEq)]
+    struct Counting {
+        board: Board,
+        counter: u32,
+    }
+
+    impl Io for Counting {
+        fn transmit(&mut self, psdu: &[u8]) {
+            self.board.transmit(psdu);
+        }
+        fn set_pin(&mut self, pin: u8, level: bool) {
+            self.board.set_pin(pin, level);
+        }
+        fn next_frame_counter(&mut self) -> Option<u32> {
+            self.counter = self.counter.wrapping_add(1);
+            Some(self.counter)
+        }
+    }
+
+    /// A frame to B, secured by `src` (under its key to B unless `wrong_key`), with key
+    /// index `index`, counter `counter`, its control field `fc`'s flags, then `damage`d
+    /// (a byte xored) if any.
+    #[derive(Debug, Clone)]
+    struct Secured {
+        src: u16,
+        dst: u16,
+        ack_request: bool,
+        msg: SecuredMsg,
+        index: u8,
+        counter: u32,
+        wrong_key: bool,
+        damage: Option<(usize, u8)>,
+    }
+
+    #[derive(Debug, Clone)]
+    enum SecuredMsg {
+        Link(LinkMessage),
+        Challenge(u32),
+        /// The answer to B's last challenge to the sender (if any).
+        Answer,
+        Other(std::vec::Vec<u8>),
+    }
+
+    /// The nonce of the last challenge B sent to `peer` (read from `out`).
+    fn last_challenge(out: &[std::vec::Vec<u8>], peer: u16) -> Option<u32> {
+        out.iter().rev().find_map(|psdu| {
+            let mut scratch = [0u8; mac::MAX_PAYLOAD];
+            let opened = security::open_default(
+                psdu,
+                |h, _| (h.dst == peer).then(|| (link_key(B, peer), ext_addr(h.pan_id, B))),
+                &mut scratch,
+            )
+            .ok()?;
+            match Message::parse(opened.payload) {
+                Ok(Message::Challenge { nonce }) => Some(nonce),
+                _ => None,
+            }
+        })
+    }
+
+    impl Secured {
+        fn mpdu(&self, out: &[std::vec::Vec<u8>]) -> std::vec::Vec<u8> {
+            let mut payload = [0u8; mac::MAX_PAYLOAD];
+            let n = match &self.msg {
+                SecuredMsg::Link(m) => Message::from(*m).emit(&mut payload).unwrap(),
+                SecuredMsg::Challenge(nonce) => {
+                    let m = Message::Challenge { nonce: *nonce };
+                    m.emit(&mut payload).unwrap()
+                }
+                SecuredMsg::Answer => {
+                    let nonce = last_challenge(out, self.src).unwrap_or(0);
+                    let m = Message::ChallengeAnswer { nonce };
+                    m.emit(&mut payload).unwrap()
+                }
+                SecuredMsg::Other(bytes) => {
+                    payload[..bytes.len()].copy_from_slice(bytes);
+                    bytes.len()
+                }
+            };
+            let header = Header {
+                seq: 0,
+                pan_id: PAN,
+                dst: self.dst,
+                src: self.src,
+                ack_request: self.ack_request,
+                secured: false,
+            };
+            let key = if self.wrong_key {
+                link_key(self.src, C)
+            } else {
+                link_key(self.src, B)
+            };
+            let mut mpdu = [0u8; MAX_MPDU];
+            let Ok(len) = security::secure_default_mpdu_with::<security::SoftAes>(
+                &header,
+                &AuxRepr::new(self.index, self.counter),
+                &key,
+                ext_addr(PAN, self.src),
+                &payload[..n],
+                &mut mpdu,
+            ) else {
+                return std::vec::Vec::new();
+            };
+            let mut f = mpdu[..len].to_vec();
+            if let Some((at, x)) = self.damage {
+                let at = at % f.len();
+                f[at] ^= x;
+            }
+            f
+        }
+    }
+
+    fn secured() -> impl Strategy<Value = Secured> {
+        let src = prop_oneof![4 => Just(A), 2 => Just(C), 1 => Just(B), 1 => Just(9u16)];
+        let dst = prop_oneof![8 => Just(B), 1 => Just(BROADCAST), 1 => Just(C)];
+        let link = prop_oneof![
+            4 => (0u16..3, prop_oneof![4 => 0u16..6, 1 => any::<u16>()], prop_oneof![Just(3u8), Just(4u8)])
+                .prop_map(|(epoch, seq, topic)| LinkMessage::Event { epoch, seq, topic }),
+            2 => (0u16..3, 0u16..6).prop_map(|(epoch, next)| LinkMessage::EventAck { epoch, next }),
+        ];
+        let msg = prop_oneof![
+            8 => link.prop_map(SecuredMsg::Link),
+            2 => Just(SecuredMsg::Answer),
+            1 => any::<u32>().prop_map(SecuredMsg::Challenge),
+            1 => proptest::collection::vec(any::<u8>(), 0..12).prop_map(SecuredMsg::Other),
+        ];
+        let index = prop_oneof![8 => Just(security::link_key_index(0)), 1 => any::<u8>()];
+        let counter = prop_oneof![8 => 1u32..200, 1 => Just(u32::MAX), 1 => any::<u32>()];
+        let damage = prop_oneof![8 => Just(None), 1 => (any::<usize>(), 1u8..=255).prop_map(Some)];
+        (
+            src,
+            dst,
+            any::<bool>(),
+            msg,
+            index,
+            counter,
+            prop_oneof![9 => Just(false), 1 => Just(true)],
+            damage,
+        )
+            .prop_map(
+                |(src, dst, ack, msg, index, counter, wrong_key, damage)| Secured {
+                    src,
+                    dst,
+                    ack_request: ack && counter % 7 == 0,
+                    msg,
+                    index,
+                    counter,
+                    wrong_key,
+                    damage,
+                },
+            )
+    }
+
+    #[derive(Debug, Clone)]
+    enum SecuredOp {
+        Frame(Secured),
+        Press(bool),
+        Poll(u64),
+    }
+
+    proptest! {
+        /// The short path of a secured link frame ([`NodeCore::link_secured`]) does exactly
+        /// what the general path does: the same frames out (the acks, challenges and
+        /// answers it sends, byte for byte), the same pins, counters, security counters,
+        /// links, engine state and alarms, over random secured frames from peers and
+        /// others (events, acks, challenges, answers, anything; wrong keys and key
+        /// indices, replayed and exhausted counters, damaged bytes), presses and polls.
+        #[test]
+        fn the_short_path_of_a_secured_link_frame_is_the_general_path(
+            link_fault in any::<bool>(),
+            ops in proptest::collection::vec(
+                prop_oneof![
+                    8 => secured().prop_map(SecuredOp::Frame),
+                    2 => any::<bool>().prop_map(SecuredOp::Press),
+                    1 => (0u64..3000).prop_map(SecuredOp::Poll),
+                ],
+                1..60,
+            ),
+        ) {
+            let table = table_b(link_fault);
+            let keys = keys_b(&table);
+            let node = || {
+                NodeCore::new(B, 1 << 5 | 1 << 7, Some(table_b(link_fault)), 1)
+                    .with_link_keys(keys.clone())
+            };
+            let (mut fast, mut general) = (node(), node());
+            prop_assert!(fast.links_secured());
+            let (mut bf, mut bg) = (Counting::default(), Counting::default());
+            let mut now = 0;
+            fast.poll(now, &mut bf);
+            general.poll(now, &mut bg);
+            for op in ops {
+                match op {
+                    SecuredOp::Frame(f) => {
+                        let mpdu = f.mpdu(&bf.board.out);
+                        fast.receive_mpdu(&mpdu, now, &mut bf);
+                        general.receive_frame(&mpdu, now, &mut bg);
+                        general.look(now, &mut bg);
+                        general.note_idle();
+                    }
+                    SecuredOp::Press(level) => {
+                        fast.input(5, level, now, &mut bf);
+                        general.input(5, level, now, &mut bg);
+                    }
+                    SecuredOp::Poll(dt) => {
+                        now += dt;
+                        fast.poll(now, &mut bf);
+                        general.poll(now, &mut bg);
+                    }
+                }
+                prop_assert_eq!(&bf, &bg);
+                prop_assert_eq!(observe(&fast), observe(&general));
+            }
+        }
+
+        /// A secured message ([`Radio::send_numbered`], under link keys or the management
+        /// key) is the frame the general codec writes
+        /// (`security::secure_default_with`, FCS and all), with the sequence number and frame
+        /// counter it takes; nothing to a node that is no peer, or past the last counter.
+        #[test]
+        fn a_secured_message_is_the_general_codecs_frame(
+            m in prop_oneof![
+                (any::<u16>(), any::<u16>(), any::<u8>())
+                    .prop_map(|(epoch, seq, topic)| Message::Event { epoch, seq, topic }),
+                (any::<u16>(), any::<u16>())
+                    .prop_map(|(epoch, next)| Message::EventAck { epoch, next }),
+                any::<u32>().prop_map(|nonce| Message::Challenge { nonce }),
+                any::<u32>().prop_map(|nonce| Message::ChallengeAnswer { nonce }),
+            ],
+            dst in prop_oneof![Just(A), Just(C), Just(9u16)],
+            counter in prop_oneof![any::<u32>(), Just(u32::MAX - 1)],
+            seq in any::<u8>(),
+        ) {
+            let t = table_b(false);
+            let keys = keys_b(&t);
+            let mut node = NodeCore::new(B, 1 << 5 | 1 << 7, Some(t), 1).with_link_keys(keys);
+            node.radio.mac_seq = seq;
+            let mut board = Counting { counter, ..Counting::default() };
+            node.radio.send(&mut board, PAN, dst, &m);
+            let sent = counter.wrapping_add(1);
+            let mut payload = [0u8; mac::MAX_PAYLOAD];
+            let n = m.emit(&mut payload).unwrap();
+            let header = Header {
+                seq,
+                pan_id: PAN,
+                dst,
+                src: B,
+                ack_request: false,
+                secured: false,
+            };
+            let mut mpdu = [0u8; MAX_PSDU];
+            let general = security::secure_default_with::<security::SoftAes>(
+                &header,
+                &AuxRepr::new(security::link_key_index(0), sent),
+                &link_key(B, dst),
+                ext_addr(PAN, B),
+                &payload[..n],
+                &mut mpdu,
+            )
+            .ok()
+            .filter(|_| dst != 9)
+            .map(|len| mpdu[..len].to_vec());
+            prop_assert_eq!(board.board.out.first(), general.as_ref());
+            prop_assert_eq!(board.board.out.len(), usize::from(general.is_some()));
+            prop_assert_eq!(node.radio.mac_seq, seq.wrapping_add(1));
+            prop_assert_eq!(board.counter, sent);
         }
     }
 

@@ -276,11 +276,17 @@ impl PeerSecurity {
         now: u64,
     ) -> Option<([u8; KEY_LEN], [u8; 8])> {
         let index = aux.key_id.index()?;
-        if header.src == me {
+        self.receive_key(header.src, index, me, now)
+            .map(|k| (k, ext_addr(header.pan_id, header.src)))
+    }
+
+    /// The receive key that opens a frame from `src` under key index `key_index` at
+    /// `now` (`me`: this node, never a sender), if any.
+    pub fn receive_key(&self, src: u16, key_index: u8, me: u16, now: u64) -> Option<[u8; KEY_LEN]> {
+        if src == me {
             return None;
         }
-        self.key_for(header.src, index, now)
-            .map(|k| (k, ext_addr(header.pan_id, header.src)))
+        self.key_for(src, key_index, now)
     }
 
     /// A peer's frame `mpdu` (no FCS) did not open (`e`): counted by its reason, unless it is under

@@ -58,6 +58,10 @@ const VERSION_2006: u16 = 0b01;
 pub const PLAIN_DATA_FC: u16 =
     TYPE_DATA | FC_PAN_COMPRESSION | (ADDR_SHORT << 10) | (VERSION_2006 << 12) | (ADDR_SHORT << 14);
 
+/// [`PLAIN_DATA_FC`] with the security bit: the frame control field of a data frame as
+/// frame security writes it (`security::secure_default_mpdu_with`).
+pub const SECURED_DATA_FC: u16 = PLAIN_DATA_FC | FC_SECURITY;
+
 /// Why bytes are not a frame we accept.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FrameError {

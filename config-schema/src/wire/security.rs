@@ -27,6 +27,7 @@
 //! and so is rejecting replays (receiver), for which [`replay::ReplayGuard`] is the table.
 
 mod block;
+pub mod link;
 pub mod replay;
 mod star;
 #[cfg(test)]
