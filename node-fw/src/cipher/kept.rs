@@ -21,9 +21,10 @@ use zeroize::Zeroize;
 /// Key schedules kept: the management key and the send and receive keys of three peers.
 pub const SCHEDULES: usize = 8;
 
-/// Keys and their schedules, the oldest replaced first.
+/// Keys (as one 128-bit word each: a key compares in four word compares on a 32-bit
+/// core, not a `memcmp` call) and their schedules, the oldest replaced first.
 struct Slots {
-    slots: [Option<([u8; KEY_LEN], SoftAes)>; SCHEDULES],
+    slots: [Option<(u128, SoftAes)>; SCHEDULES],
     /// The slot the next new key takes.
     next: usize,
 }
@@ -38,21 +39,23 @@ impl Slots {
 
     /// The schedule kept for `key`.
     fn find(&self, key: &[u8; KEY_LEN]) -> Option<SoftAes> {
+        let key = u128::from_ne_bytes(*key);
         self.slots
             .iter()
             .flatten()
-            .find(|(k, _)| k == key)
+            .find(|(k, _)| *k == key)
             .map(|(_, cipher)| cipher.clone())
     }
 
     /// Keeps `cipher`, the schedule of `key`, in place of the oldest (unless `key` has
     /// one already: another caller computed it meanwhile).
     fn keep(&mut self, key: &[u8; KEY_LEN], cipher: &SoftAes) {
-        if self.slots.iter().flatten().any(|(k, _)| k == key) {
+        let key = u128::from_ne_bytes(*key);
+        if self.slots.iter().flatten().any(|(k, _)| *k == key) {
             return;
         }
         if let Some(slot) = self.slots.get_mut(self.next % SCHEDULES) {
-            *slot = Some((*key, cipher.clone()));
+            *slot = Some((key, cipher.clone()));
         }
         self.next = (self.next + 1) % SCHEDULES;
     }
