@@ -2003,33 +2003,62 @@ mod tests {
             link_fault in any::<bool>(),
             ops in proptest::collection::vec(op(), 1..60),
         ) {
-            let mut fast = NodeCore::new(B, 1 << 5 | 1 << 7, Some(table_b(link_fault)), 1);
-            let mut general = NodeCore::new(B, 1 << 5 | 1 << 7, Some(table_b(link_fault)), 1);
-            let (mut bf, mut bg) = (Board::default(), Board::default());
-            let mut now = 0;
-            fast.poll(now, &mut bf);
-            general.poll(now, &mut bg);
+            let node = || NodeCore::new(B, 1 << 5 | 1 << 7, Some(table_b(link_fault)), 1);
+            let mut pair = Pair::<Board>::new(node);
             for op in ops {
-                match op {
-                    Op::Frame(mpdu) => {
-                        fast.receive_mpdu(&mpdu, now, &mut bf);
-                        general.receive_frame(&mpdu, now, &mut bg);
-                        general.look(now, &mut bg);
-                        general.note_idle();
-                    }
-                    Op::Press(level) => {
-                        fast.input(5, level, now, &mut bf);
-                        general.input(5, level, now, &mut bg);
-                    }
-                    Op::Poll(dt) => {
-                        now += dt;
-                        fast.poll(now, &mut bf);
-                        general.poll(now, &mut bg);
-                    }
-                }
-                prop_assert_eq!(&bf, &bg);
-                prop_assert_eq!(observe(&fast), observe(&general));
+                pair.apply(op)?;
             }
+        }
+    }
+
+    /// The same node twice, on its own board each: one takes frames as a node does
+    /// (`receive_mpdu`, its short paths first), the other on the general path only.
+    struct Pair<B> {
+        fast: NodeCore,
+        general: NodeCore,
+        bf: B,
+        bg: B,
+        now: u64,
+    }
+
+    impl<B: Io + Default + PartialEq + core::fmt::Debug> Pair<B> {
+        fn new(node: impl Fn() -> NodeCore) -> Self {
+            let mut pair = Pair {
+                fast: node(),
+                general: node(),
+                bf: B::default(),
+                bg: B::default(),
+                now: 0,
+            };
+            pair.fast.poll(0, &mut pair.bf);
+            pair.general.poll(0, &mut pair.bg);
+            pair
+        }
+
+        /// `op` to both: the same frames out, pins, counters, links, engine state and
+        /// alarms after it.
+        fn apply(&mut self, op: Op) -> Result<(), TestCaseError> {
+            let now = self.now;
+            match op {
+                Op::Frame(mpdu) => {
+                    self.fast.receive_mpdu(&mpdu, now, &mut self.bf);
+                    self.general.receive_frame(&mpdu, now, &mut self.bg);
+                    self.general.look(now, &mut self.bg);
+                    self.general.note_idle();
+                }
+                Op::Press(level) => {
+                    self.fast.input(5, level, now, &mut self.bf);
+                    self.general.input(5, level, now, &mut self.bg);
+                }
+                Op::Poll(dt) => {
+                    self.now += dt;
+                    self.fast.poll(self.now, &mut self.bf);
+                    self.general.poll(self.now, &mut self.bg);
+                }
+            }
+            prop_assert_eq!(&self.bf, &self.bg);
+            prop_assert_eq!(observe(&self.fast), observe(&self.general));
+            Ok(())
         }
     }
 
@@ -2241,33 +2270,15 @@ mod tests {
                 NodeCore::new(B, 1 << 5 | 1 << 7, Some(table_b(link_fault)), 1)
                     .with_link_keys(keys.clone())
             };
-            let (mut fast, mut general) = (node(), node());
-            prop_assert!(fast.links_secured());
-            let (mut bf, mut bg) = (Counting::default(), Counting::default());
-            let mut now = 0;
-            fast.poll(now, &mut bf);
-            general.poll(now, &mut bg);
+            let mut pair = Pair::<Counting>::new(node);
+            prop_assert!(pair.fast.links_secured());
             for op in ops {
-                match op {
-                    SecuredOp::Frame(f) => {
-                        let mpdu = f.mpdu(&bf.board.out);
-                        fast.receive_mpdu(&mpdu, now, &mut bf);
-                        general.receive_frame(&mpdu, now, &mut bg);
-                        general.look(now, &mut bg);
-                        general.note_idle();
-                    }
-                    SecuredOp::Press(level) => {
-                        fast.input(5, level, now, &mut bf);
-                        general.input(5, level, now, &mut bg);
-                    }
-                    SecuredOp::Poll(dt) => {
-                        now += dt;
-                        fast.poll(now, &mut bf);
-                        general.poll(now, &mut bg);
-                    }
-                }
-                prop_assert_eq!(&bf, &bg);
-                prop_assert_eq!(observe(&fast), observe(&general));
+                let op = match op {
+                    SecuredOp::Frame(f) => Op::Frame(f.mpdu(&pair.bf.board.out)),
+                    SecuredOp::Press(level) => Op::Press(level),
+                    SecuredOp::Poll(dt) => Op::Poll(dt),
+                };
+                pair.apply(op)?;
             }
         }
 
