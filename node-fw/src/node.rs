@@ -282,6 +282,14 @@ struct Radio {
     security: SecurityCounters,
 }
 
+/// [`Radio::send_numbered`]'s frame buffer: an MPDU, or the secured headers and the
+/// largest payload.
+const SEND_BUFFER: usize = if MAX_MPDU > sealed::A_LEN + mac::MAX_PAYLOAD {
+    MAX_MPDU
+} else {
+    sealed::A_LEN + mac::MAX_PAYLOAD
+};
+
 impl Radio {
     fn send(&mut self, io: &mut impl Io, pan_id: u16, dst: u16, msg: &Message<'_>) {
         match (LinkMessage::of(msg), self.securing(pan_id)) {
@@ -352,13 +360,18 @@ impl Radio {
             None if links => Some(self.links.send_key(dst)),
             None => None,
         };
-        let mut mpdu = [0u8; MAX_MPDU];
+        // Room for the largest payload after the secured headers, as the general codec
+        // takes it (one that does not fit a frame is refused once the frame's sequence
+        // number and counter are taken, as there).
+        let mut mpdu = [0u8; SEND_BUFFER];
         let emitted = match secured {
             Some(send) => {
                 // The message straight into the frame after its MAC and aux headers,
                 // secured there ([`security::link::seal_in_place`]: the frame
                 // `security::secure_default_mpdu_with` writes).
-                let at = mpdu.get_mut(sealed::A_LEN..).unwrap_or_default();
+                let at = mpdu
+                    .get_mut(sealed::A_LEN..sealed::A_LEN + mac::MAX_PAYLOAD)
+                    .unwrap_or_default();
                 let Ok(n) = msg.emit(at) else {
                     return;
                 };
@@ -375,7 +388,9 @@ impl Radio {
             }
             None => {
                 // The message straight into the frame after its MAC header.
-                let at = mpdu.get_mut(mac::DATA_HEADER_LEN..).unwrap_or_default();
+                let at = mpdu
+                    .get_mut(mac::DATA_HEADER_LEN..MAX_MPDU)
+                    .unwrap_or_default();
                 let Ok(n) = msg.emit(at) else {
                     return;
                 };
@@ -1156,11 +1171,11 @@ impl<S: StagingArea> NodeCore<S> {
     /// ([`security::link`]): the headers compared as bytes, the peer's receive key looked
     /// up, the payload opened in a buffer its size and read in place, then the replay
     /// check and the handshake ([`PeerSecurity::admit`]) and [`NodeCore::on_link`].
-    /// `false`: not such a frame, or its key is not found, or it opened to another message
-    /// (a challenge, an answer), nothing done but the overlap's start
-    /// ([`PeerSecurity::note_frame`], which the general path notes too);
-    /// [`NodeCore::receive_frame`] takes it, and does for these frames exactly what this
-    /// does.
+    /// One that opens to another message (a challenge, an answer) goes on as the general
+    /// path's does ([`NodeCore::receive_opened`]). `false`: not such a frame, or its key
+    /// is not found, nothing done but the overlap's start ([`PeerSecurity::note_frame`],
+    /// which the general path notes too); [`NodeCore::receive_frame`] takes it, and does
+    /// for these frames exactly what this does.
     #[inline(never)]
     fn link_secured(&mut self, mpdu: &[u8], now: u64, io: &mut impl Io) -> bool {
         let Some(table) = &self.table else {
@@ -1189,13 +1204,15 @@ impl<S: StagingArea> NodeCore<S> {
                 return true;
             }
         };
-        let Some(m) = LinkMessage::parse(payload) else {
-            return false;
-        };
         let opened = Opened {
             header: frame.header(),
             aux: frame.aux(),
             payload,
+        };
+        let Some(m) = LinkMessage::parse(payload) else {
+            // Another message (a challenge, an answer): the general path's, opened once.
+            self.receive_opened(&opened.header, Some(&opened), payload, false, now, io);
+            return true;
         };
         let parsed = Ok::<_, Unacted>(Message::from(m));
         match links.admit(&opened, &parsed, now, &mut self.radio.security) {
@@ -1313,12 +1330,31 @@ impl<S: StagingArea> NodeCore<S> {
             // took `link_in_clear` before).
             None
         };
-        let parsed = match Message::parse_node(opened.as_ref().map_or(payload, |o| o.payload)) {
+        self.receive_opened(&header, opened.as_ref(), payload, management, now, io);
+    }
+
+    /// A frame to this node past the MAC checks (`header`; `payload` its payload) and,
+    /// secured, opened (`opened`; `management`: on the config PAN under the management
+    /// key, else from a peer): its message parsed, the replay floor and the handshake
+    /// checked, and the message acted on. Out of line: the secured short path hands it a
+    /// peer's frame it opened that holds another message (a challenge, an answer), which
+    /// is not opened a second time.
+    #[inline(never)]
+    fn receive_opened(
+        &mut self,
+        header: &Header,
+        opened: Option<&Opened<'_>>,
+        payload: &[u8],
+        management: bool,
+        now: u64,
+        io: &mut impl Io,
+    ) {
+        let parsed = match Message::parse_node(opened.map_or(payload, |o| o.payload)) {
             Ok(Some(msg)) => Ok(msg),
             Ok(None) => Err(Unacted::ForTheTool),
             Err(_) => Err(Unacted::Malformed),
         };
-        let authentic = match &opened {
+        let authentic = match opened {
             None => false,
             Some(opened) if management => match self.admit_management(opened, &parsed, now, io) {
                 Ok(()) => true,
@@ -1978,9 +2014,10 @@ mod tests {
     /// Everything of a node the short path could change.
     fn observe(n: &NodeCore) -> std::string::String {
         format!(
-            "{:?} {:?} {:?} {:?} {:?} {:?} {:?} {} {} {} {:?}",
+            "{:?} {:?} {:?} {:?} {:?} {:?} {:?} {:?} {} {} {} {:?}",
             n.radio.counters,
             n.radio.security,
+            n.radio.links,
             n.radio.mac_seq,
             n.receivers,
             n.senders.list,
@@ -2062,22 +2099,24 @@ mod tests {
         }
     }
 
-    /// The link key `from` secures its frames to `to` with.
-    fn link_key(from: u16, to: u16) -> [u8; 16] {
-        [(from * 16 + to) as u8; 16]
+    /// The link key `from` secures its frames to `to` with in generation `generation`.
+    fn link_key(generation: u32, from: u16, to: u16) -> [u8; 16] {
+        let mut key = [(from * 16 + to) as u8; 16];
+        key[0] = generation as u8;
+        key
     }
 
-    /// B's link keys (peers A and C), for table `t`'s generation.
-    fn keys_b(t: &Table) -> LinkKeys {
+    /// B's link keys (peers A and C) for generation `generation`.
+    fn keys_b(generation: u32) -> LinkKeys {
         let mut keys = LinkKeys {
-            generation: t.generation,
+            generation,
             peers: Vec::new(),
         };
         for p in [A, C] {
             let peer = config_schema::link_keys::PeerKeys {
                 peer: p,
-                send: link_key(B, p),
-                receive: link_key(p, B),
+                send: link_key(generation, B, p),
+                receive: link_key(generation, p, B),
             };
             keys.peers.push(peer).unwrap();
         }
@@ -2113,7 +2152,9 @@ mod tests {
         dst: u16,
         ack_request: bool,
         msg: SecuredMsg,
-        index: u8,
+        /// The generation whose key (and key index, unless `index`) secures it.
+        generation: u32,
+        index: Option<u8>,
         counter: u32,
         wrong_key: bool,
         damage: Option<(usize, u8)>,
@@ -2128,13 +2169,15 @@ mod tests {
         Other(std::vec::Vec<u8>),
     }
 
-    /// The nonce of the last challenge B sent to `peer` (read from `out`).
-    fn last_challenge(out: &[std::vec::Vec<u8>], peer: u16) -> Option<u32> {
+    /// The nonce of the last challenge B sent to `peer` (read from `out`) under
+    /// generation `generation`'s keys.
+    fn last_challenge(out: &[std::vec::Vec<u8>], peer: u16, generation: u32) -> Option<u32> {
         out.iter().rev().find_map(|psdu| {
             let mut scratch = [0u8; mac::MAX_PAYLOAD];
+            let key = link_key(generation, B, peer);
             let opened = security::open_default(
                 psdu,
-                |h, _| (h.dst == peer).then(|| (link_key(B, peer), ext_addr(h.pan_id, B))),
+                |h, _| (h.dst == peer).then(|| (key, ext_addr(h.pan_id, B))),
                 &mut scratch,
             )
             .ok()?;
@@ -2146,7 +2189,8 @@ mod tests {
     }
 
     impl Secured {
-        fn mpdu(&self, out: &[std::vec::Vec<u8>]) -> std::vec::Vec<u8> {
+        /// The frame, an answer answering B's last challenge under generation `running`.
+        fn mpdu(&self, out: &[std::vec::Vec<u8>], running: u32) -> std::vec::Vec<u8> {
             let mut payload = [0u8; mac::MAX_PAYLOAD];
             let n = match &self.msg {
                 SecuredMsg::Link(m) => Message::from(*m).emit(&mut payload).unwrap(),
@@ -2155,7 +2199,7 @@ mod tests {
                     m.emit(&mut payload).unwrap()
                 }
                 SecuredMsg::Answer => {
-                    let nonce = last_challenge(out, self.src).unwrap_or(0);
+                    let nonce = last_challenge(out, self.src, running).unwrap_or(0);
                     let m = Message::ChallengeAnswer { nonce };
                     m.emit(&mut payload).unwrap()
                 }
@@ -2173,14 +2217,17 @@ mod tests {
                 secured: false,
             };
             let key = if self.wrong_key {
-                link_key(self.src, C)
+                link_key(self.generation, self.src, C)
             } else {
-                link_key(self.src, B)
+                link_key(self.generation, self.src, B)
             };
+            let index = self
+                .index
+                .unwrap_or(security::link_key_index(self.generation));
             let mut mpdu = [0u8; MAX_MPDU];
             let Ok(len) = security::secure_default_mpdu_with::<security::SoftAes>(
                 &header,
-                &AuxRepr::new(self.index, self.counter),
+                &AuxRepr::new(index, self.counter),
                 &key,
                 ext_addr(PAN, self.src),
                 &payload[..n],
@@ -2211,25 +2258,22 @@ mod tests {
             1 => any::<u32>().prop_map(SecuredMsg::Challenge),
             1 => proptest::collection::vec(any::<u8>(), 0..12).prop_map(SecuredMsg::Other),
         ];
-        let index = prop_oneof![8 => Just(security::link_key_index(0)), 1 => any::<u8>()];
+        let index = prop_oneof![8 => Just(None), 1 => any::<u8>().prop_map(Some)];
         let counter = prop_oneof![8 => 1u32..200, 1 => Just(u32::MAX), 1 => any::<u32>()];
         let damage = prop_oneof![8 => Just(None), 1 => (any::<usize>(), 1u8..=255).prop_map(Some)];
         (
-            src,
-            dst,
-            any::<bool>(),
-            msg,
-            index,
-            counter,
+            (src, dst, any::<bool>(), msg),
+            (0u32..3, index, counter),
             prop_oneof![9 => Just(false), 1 => Just(true)],
             damage,
         )
             .prop_map(
-                |(src, dst, ack, msg, index, counter, wrong_key, damage)| Secured {
+                |((src, dst, ack, msg), (generation, index, counter), wrong_key, damage)| Secured {
                     src,
                     dst,
                     ack_request: ack && counter % 7 == 0,
                     msg,
+                    generation,
                     index,
                     counter,
                     wrong_key,
@@ -2255,6 +2299,8 @@ mod tests {
         #[test]
         fn the_short_path_of_a_secured_link_frame_is_the_general_path(
             link_fault in any::<bool>(),
+            switched in any::<bool>(),
+            staged in any::<bool>(),
             ops in proptest::collection::vec(
                 prop_oneof![
                     8 => secured().prop_map(SecuredOp::Frame),
@@ -2264,17 +2310,28 @@ mod tests {
                 1..60,
             ),
         ) {
-            let table = table_b(link_fault);
-            let keys = keys_b(&table);
+            // Generation 0 running, or 1 switched to from it (0's receive keys kept for
+            // the overlap); the next one staged or not.
+            let running = u32::from(switched);
             let node = || {
-                NodeCore::new(B, 1 << 5 | 1 << 7, Some(table_b(link_fault)), 1)
-                    .with_link_keys(keys.clone())
+                let mut node = NodeCore::new(B, 1 << 5 | 1 << 7, Some(table_b(link_fault)), 1)
+                    .with_link_keys(keys_b(0));
+                if switched {
+                    let mut next = table_b(link_fault);
+                    next.generation = 1;
+                    node.install(next, Some(keys_b(1)), false);
+                }
+                if staged {
+                    node = node.with_staged(running + 1);
+                }
+                node
             };
             let mut pair = Pair::<Counting>::new(node);
             prop_assert!(pair.fast.links_secured());
+            prop_assert_eq!(pair.fast.generation(), running);
             for op in ops {
                 let op = match op {
-                    SecuredOp::Frame(f) => Op::Frame(f.mpdu(&pair.bf.board.out)),
+                    SecuredOp::Frame(f) => Op::Frame(f.mpdu(&pair.bf.board.out, running)),
                     SecuredOp::Press(level) => Op::Press(level),
                     SecuredOp::Poll(dt) => Op::Poll(dt),
                 };
@@ -2299,19 +2356,30 @@ mod tests {
             dst in prop_oneof![Just(A), Just(C), Just(9u16)],
             counter in prop_oneof![any::<u32>(), Just(u32::MAX - 1)],
             seq in any::<u8>(),
+            management in any::<bool>(),
         ) {
+            const MK: [u8; 16] = [0x5C; 16];
             let t = table_b(false);
-            let keys = keys_b(&t);
-            let mut node = NodeCore::new(B, 1 << 5 | 1 << 7, Some(t), 1).with_link_keys(keys);
+            let mut node = NodeCore::new(B, 1 << 5 | 1 << 7, Some(t), 1).with_link_keys(keys_b(0));
+            if management {
+                node = node.with_management_key(ManagementKey::from_bytes(MK));
+            }
+            // On the config PAN under the management key, else on the robot's under
+            // link keys.
+            let (pan, key, index) = if management {
+                (CONFIG_PAN, MK, MANAGEMENT_KEY_INDEX)
+            } else {
+                (PAN, link_key(0, B, dst), security::link_key_index(0))
+            };
             node.radio.mac_seq = seq;
             let mut board = Counting { counter, ..Counting::default() };
-            node.radio.send(&mut board, PAN, dst, &m);
+            node.radio.send(&mut board, pan, dst, &m);
             let sent = counter.wrapping_add(1);
             let mut payload = [0u8; mac::MAX_PAYLOAD];
             let n = m.emit(&mut payload).unwrap();
             let header = Header {
                 seq,
-                pan_id: PAN,
+                pan_id: pan,
                 dst,
                 src: B,
                 ack_request: false,
@@ -2320,20 +2388,100 @@ mod tests {
             let mut mpdu = [0u8; MAX_PSDU];
             let general = security::secure_default_with::<security::SoftAes>(
                 &header,
-                &AuxRepr::new(security::link_key_index(0), sent),
-                &link_key(B, dst),
-                ext_addr(PAN, B),
+                &AuxRepr::new(index, sent),
+                &key,
+                ext_addr(pan, B),
                 &payload[..n],
                 &mut mpdu,
             )
             .ok()
-            .filter(|_| dst != 9)
+            .filter(|_| management || dst != 9)
             .map(|len| mpdu[..len].to_vec());
             prop_assert_eq!(board.board.out.first(), general.as_ref());
             prop_assert_eq!(board.board.out.len(), usize::from(general.is_some()));
             prop_assert_eq!(node.radio.mac_seq, seq.wrapping_add(1));
             prop_assert_eq!(board.counter, sent);
         }
+    }
+
+    /// The secured short path takes a peer's secured event or ack to this node (accepted,
+    /// challenged, replayed, forged alike) and a peer's challenge answer it opened, and
+    /// leaves every other frame to the general path.
+    #[test]
+    fn the_secured_short_path_takes_a_peers_secured_frames_to_this_node() {
+        let mut node =
+            NodeCore::new(B, 1 << 5 | 1 << 7, Some(table_b(false)), 1).with_link_keys(keys_b(0));
+        let mut board = Counting::default();
+        let frame = |msg: SecuredMsg, counter: u32, out: &[std::vec::Vec<u8>]| {
+            let f = Secured {
+                src: A,
+                dst: B,
+                ack_request: false,
+                msg,
+                generation: 0,
+                index: None,
+                counter,
+                wrong_key: false,
+                damage: None,
+            };
+            f.mpdu(out, 0)
+        };
+        let event = |seq| {
+            SecuredMsg::Link(LinkMessage::Event {
+                epoch: 0,
+                seq,
+                topic: 3,
+            })
+        };
+        // No floor for A yet: challenged, not acted on.
+        let first = frame(event(0), 10, &board.board.out);
+        assert!(node.link_secured(&first, 0, &mut board));
+        assert_eq!(node.radio.security.challenged, 1);
+        assert!(board.board.pins.is_empty());
+        assert_eq!(last_challenge(&board.board.out, A, 0), Some(1));
+        // A's answer, opened once, sets the floor.
+        let answer = frame(SecuredMsg::Answer, 11, &board.board.out);
+        assert!(node.link_secured(&answer, 0, &mut board));
+        // The event now runs the chart and is acknowledged.
+        let sent = board.board.out.len();
+        let again = frame(event(0), 12, &board.board.out);
+        assert!(node.link_secured(&again, 0, &mut board));
+        assert_eq!(board.board.pins, [(7, true)]);
+        assert_eq!(board.board.out.len(), sent + 1);
+        // (The answer is the handshake's, not counted as received.)
+        assert_eq!(node.radio.counters.received, 1);
+        // Replayed, and forged: refused and counted here.
+        assert!(node.link_secured(&again, 0, &mut board));
+        assert_eq!(node.radio.security.replayed, 1);
+        let mut forged = frame(event(1), 13, &board.board.out);
+        let last = forged.len() - 1;
+        forged[last] ^= 1;
+        assert!(node.link_secured(&forged, 0, &mut board));
+        assert_eq!(node.radio.security.bad_mic, 1);
+        assert_eq!(node.radio.counters.dropped, 2);
+        // Not this path's: broadcast, from this node itself, under a key index it has no
+        // key for, in clear.
+        let other = |src: u16, dst: u16, index: Option<u8>| Secured {
+            src,
+            dst,
+            ack_request: false,
+            msg: event(2),
+            generation: 0,
+            index,
+            counter: 20,
+            wrong_key: false,
+            damage: None,
+        };
+        for f in [
+            other(A, BROADCAST, None),
+            other(B, B, None),
+            other(A, B, Some(security::link_key_index(7))),
+        ] {
+            assert!(!node.link_secured(&f.mpdu(&[], 0), 0, &mut board), "{f:?}");
+        }
+        let mut clear = first.clone();
+        clear.truncate(mac::DATA_HEADER_LEN);
+        assert!(!node.link_secured(&clear, 0, &mut board));
     }
 
     /// The short path takes the frames it is for, and only those.

@@ -175,8 +175,9 @@ pub fn seal<C: BlockCipher>(
 /// Secures the frame in `out` whose payload, `n` bytes, is in place already (from
 /// [`A_LEN`], where such a frame's payload starts): writes its MAC and aux headers in
 /// front of it (the frame this firmware writes, for any payload: data, short addresses,
-/// PAN id compression, no acknowledgement request, ENC-MIC-64 with key index
-/// `key_index`, frame counter `counter`), encrypts the payload under `key` and writes the
+/// PAN id compression, no acknowledgement request whatever `header.ack_request` says,
+/// ENC-MIC-64 with key index `key_index`, frame counter `counter`), encrypts the payload
+/// under `key` and writes the
 /// MIC after it. Returns the MPDU's length: the bytes [`secure_default_mpdu_with`] writes
 /// for the same payload, without a copy of it. [`SecError::NoRoom`] if the MPDU would not
 /// fit `out` or a frame; nothing to send on that, [`SecError::CounterExhausted`]
@@ -194,8 +195,8 @@ pub fn seal_in_place<C: BlockCipher>(
     if counter == u32::MAX {
         return Err(SecError::CounterExhausted);
     }
-    let len = A_LEN + n + MIC_LEN;
-    if len + FCS_LEN > MAX_PSDU {
+    let len = n.saturating_add(A_LEN + MIC_LEN);
+    if len.saturating_add(FCS_LEN) > MAX_PSDU {
         return Err(SecError::NoRoom);
     }
     let [f0, f1] = SECURED_DATA_FC.to_le_bytes();
