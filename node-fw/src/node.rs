@@ -308,16 +308,12 @@ impl Radio {
     }
 
     /// [`Radio::send_numbered`] of an `Event` or `EventAck` in clear (see
-    /// [`Radio::securing`]: neither key): the same frame, put together in a buffer its size, its MAC
-    /// header written as the bytes [`mac::finish_data_mpdu`] writes for
-    /// [`Radio::header`] (no security, no acknowledgement request:
-    /// [`mac::PLAIN_DATA_FC`]).
+    /// [`Radio::securing`]: neither key): the same frame, put together in a buffer its
+    /// size, its MAC header [`mac::data_header`] of [`Radio::header`] (no security, no
+    /// acknowledgement request: [`mac::PLAIN_DATA_FC`]).
     #[inline(always)]
     fn send_link(&mut self, io: &mut impl Io, pan_id: u16, dst: u16, m: LinkMessage) {
-        let [f0, f1] = mac::PLAIN_DATA_FC.to_le_bytes();
-        let [p0, p1] = pan_id.to_le_bytes();
-        let [d0, d1] = dst.to_le_bytes();
-        let [s0, s1] = self.addr.to_le_bytes();
+        let header = mac::data_header(&self.header(pan_id, dst));
         let mut mpdu = [0u8; mac::DATA_HEADER_LEN + LinkMessage::MAX_LEN];
         let (head, at) = mpdu.split_at_mut(mac::DATA_HEADER_LEN);
         let (Ok(head), Ok(at)) = (
@@ -326,8 +322,7 @@ impl Radio {
         ) else {
             return;
         };
-        *head = [f0, f1, self.mac_seq, p0, p1, d0, d1, s0, s1];
-        self.mac_seq = self.mac_seq.wrapping_add(1);
+        *head = header;
         let n = m.write(at);
         self.transmit(io, mpdu.get(..mac::DATA_HEADER_LEN + n));
     }

@@ -253,11 +253,15 @@ pub(crate) fn emit_data_header(header: &Header, buf: &mut [u8]) -> Result<(), Fr
     let buf = buf
         .first_chunk_mut::<DATA_HEADER_LEN>()
         .ok_or(FrameError::NoRoom)?;
-    let mut fc = TYPE_DATA
-        | FC_PAN_COMPRESSION
-        | (ADDR_SHORT << 10)
-        | (VERSION_2006 << 12)
-        | (ADDR_SHORT << 14);
+    *buf = data_header(header);
+    Ok(())
+}
+
+/// The [`DATA_HEADER_LEN`] bytes of a data frame's MAC header (short addresses, PAN id
+/// compression, 2006; the acknowledgement request and security bits from `header`).
+#[inline]
+pub const fn data_header(header: &Header) -> [u8; DATA_HEADER_LEN] {
+    let mut fc = PLAIN_DATA_FC;
     if header.ack_request {
         fc |= FC_ACK_REQUEST;
     }
@@ -269,8 +273,7 @@ pub(crate) fn emit_data_header(header: &Header, buf: &mut [u8]) -> Result<(), Fr
     let [p0, p1] = header.pan_id.to_le_bytes();
     let [d0, d1] = header.dst.to_le_bytes();
     let [s0, s1] = header.src.to_le_bytes();
-    *buf = [f0, f1, header.seq, p0, p1, d0, d1, s0, s1];
-    Ok(())
+    [f0, f1, header.seq, p0, p1, d0, d1, s0, s1]
 }
 
 /// Writes an acknowledgement frame for `seq` into `buf`; returns the PSDU length (5).

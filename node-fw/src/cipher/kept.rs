@@ -37,21 +37,24 @@ impl Slots {
         }
     }
 
-    /// The schedule kept for `key`.
-    fn find(&self, key: &[u8; KEY_LEN]) -> Option<SoftAes> {
-        let key = u128::from_ne_bytes(*key);
+    /// The schedule kept for `key`, in its slot.
+    fn kept(&self, key: u128) -> Option<&SoftAes> {
         self.slots
             .iter()
             .flatten()
-            .find(|(k, _)| *k == key)
-            .map(|(_, cipher)| cipher.clone())
+            .find_map(|(k, cipher)| (*k == key).then_some(cipher))
+    }
+
+    /// The schedule kept for `key`.
+    fn find(&self, key: &[u8; KEY_LEN]) -> Option<SoftAes> {
+        self.kept(u128::from_ne_bytes(*key)).cloned()
     }
 
     /// Keeps `cipher`, the schedule of `key`, in place of the oldest (unless `key` has
     /// one already: another caller computed it meanwhile).
     fn keep(&mut self, key: &[u8; KEY_LEN], cipher: &SoftAes) {
         let key = u128::from_ne_bytes(*key);
-        if self.slots.iter().flatten().any(|(k, _)| *k == key) {
+        if self.kept(key).is_some() {
             return;
         }
         if let Some(slot) = self.slots.get_mut(self.next % SCHEDULES) {

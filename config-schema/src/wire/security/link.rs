@@ -21,7 +21,7 @@ use super::{
     ext_addr, nonce, AuxRepr, BlockCipher, SecError, SecurityLevel, AUX_LEN_KEY_INDEX,
     CONTROL_KEY_ID_MODE_SHIFT, KEY_LEN,
 };
-use crate::wire::mac::{Header, DATA_HEADER_LEN, FCS_LEN, MAX_PSDU, SECURED_DATA_FC};
+use crate::wire::mac::{data_header, Header, DATA_HEADER_LEN, FCS_LEN, MAX_PSDU, SECURED_DATA_FC};
 use crate::wire::msg::LinkMessage;
 
 /// The security control byte of these frames: ENC-MIC-64, key identifier mode 1 (a key
@@ -29,8 +29,6 @@ use crate::wire::msg::LinkMessage;
 pub const CONTROL: u8 = SecurityLevel::EncMic64.bits() | 1 << CONTROL_KEY_ID_MODE_SHIFT;
 /// The a data: MAC header and aux header.
 pub const A_LEN: usize = DATA_HEADER_LEN + AUX_LEN_KEY_INDEX;
-/// The longest such frame (MPDU: no FCS).
-pub const MAX_LEN: usize = A_LEN + LinkMessage::MAX_LEN + MIC_LEN;
 
 mod field {
     pub type Field = core::ops::Range<usize>;
@@ -148,30 +146,6 @@ impl<'a> SealedLink<'a> {
     }
 }
 
-/// Writes `m` from `header.src` to `header.dst` on `header.pan_id` (sequence number
-/// `header.seq`) as such a frame into `out`, secured under `key` (key index `key_index`,
-/// frame counter `counter`): its length, the bytes [`secure_default_mpdu_with`] writes
-/// for the same message. Nothing to send on [`SecError::CounterExhausted`] (`u32::MAX`
-/// is never sent) or [`SecError::Cipher`].
-///
-/// [`secure_default_mpdu_with`]: super::secure_default_mpdu_with
-pub fn seal<C: BlockCipher>(
-    header: &Header,
-    key_index: u8,
-    counter: u32,
-    key: &[u8; KEY_LEN],
-    m: LinkMessage,
-    out: &mut [u8; MAX_LEN],
-) -> Result<usize, SecError> {
-    let mut payload = [0u8; LinkMessage::MAX_LEN];
-    let n = m.write(&mut payload);
-    let body = out.get_mut(A_LEN..).ok_or(SecError::NoRoom)?;
-    body.iter_mut()
-        .zip(payload.get(..n).unwrap_or_default())
-        .for_each(|(b, p)| *b = *p);
-    seal_in_place::<C>(header, key_index, counter, key, out, n)
-}
-
 /// Secures the frame in `out` whose payload, `n` bytes, is in place already (from
 /// [`A_LEN`], where such a frame's payload starts): writes its MAC and aux headers in
 /// front of it (the frame this firmware writes, for any payload: data, short addresses,
@@ -199,16 +173,17 @@ pub fn seal_in_place<C: BlockCipher>(
     if len.saturating_add(FCS_LEN) > MAX_PSDU {
         return Err(SecError::NoRoom);
     }
-    let [f0, f1] = SECURED_DATA_FC.to_le_bytes();
-    let [p0, p1] = header.pan_id.to_le_bytes();
-    let [d0, d1] = header.dst.to_le_bytes();
-    let [s0, s1] = header.src.to_le_bytes();
+    let [h0, h1, h2, h3, h4, h5, h6, h7, h8] = data_header(&Header {
+        ack_request: false,
+        secured: true,
+        ..*header
+    });
     let [c0, c1, c2, c3] = counter.to_le_bytes();
     let (a, rest) = out
         .split_first_chunk_mut::<A_LEN>()
         .ok_or(SecError::NoRoom)?;
     *a = [
-        f0, f1, header.seq, p0, p1, d0, d1, s0, s1, CONTROL, c0, c1, c2, c3, key_index,
+        h0, h1, h2, h3, h4, h5, h6, h7, h8, CONTROL, c0, c1, c2, c3, key_index,
     ];
     // The payload, then the MIC right after it.
     let (body, after) = rest.split_at_mut_checked(n).ok_or(SecError::NoRoom)?;
@@ -265,10 +240,13 @@ mod tests {
         Some(out[..len].to_vec())
     }
 
+    /// `m` written after the headers and sealed in place, as a node sends it.
     fn sealed(h: &Header, index: u8, counter: u32, m: LinkMessage) -> Option<Vec<u8>> {
-        let mut out = [0u8; MAX_LEN];
-        let n = seal::<SoftAes>(h, index, counter, &KEY, m, &mut out).ok()?;
-        Some(out[..n].to_vec())
+        let mut out = [0u8; MAX_MPDU];
+        let payload = out[A_LEN..].first_chunk_mut::<{ LinkMessage::MAX_LEN }>()?;
+        let n = m.write(payload);
+        let len = seal_in_place::<SoftAes>(h, index, counter, &KEY, &mut out, n).ok()?;
+        Some(out[..len].to_vec())
     }
 
     fn message() -> impl Strategy<Value = LinkMessage> {
@@ -307,7 +285,7 @@ mod tests {
     }
 
     proptest! {
-        /// `seal` writes the general codec's frame for every message, address, counter and
+        /// A message sealed in place is the general codec's frame for every message, address, counter and
         /// key index (nothing where the codec sends nothing: the last counter), and
         /// `SealedLink` opens it to the message, where the general path opens it to the
         /// same payload.
@@ -348,7 +326,7 @@ mod tests {
         #[test]
         fn a_damaged_frame_does_not_open(
             m in message(),
-            at in 0usize..MAX_LEN,
+            at in 0usize..A_LEN + LinkMessage::MAX_LEN + MIC_LEN,
             flip in 1u8..=255,
         ) {
             let mut frame = sealed(&header(0, 2, 1), 1, 10, m).unwrap();
