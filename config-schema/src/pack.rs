@@ -1286,7 +1286,9 @@ fn get_routes(r: &mut Reader, t: &mut Table, seen: &mut Seen, wd: &Widths) -> R<
         } else {
             r.u8(wd.chart_input(inputs))
         };
-        *next = r.ok_u8(input.checked_add(1), PackError::Value("chart input"));
+        // Saturating, as a trigger's: the encoder writes an input of 255 and never a
+        // fresh one after it.
+        *next = input.saturating_add(1);
         let route = Route {
             event,
             chart,
@@ -1563,8 +1565,9 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
                 }
             };
             if let Some(i) = trigger {
-                let after = r.ok_u8(i.checked_add(1), PackError::Value("trigger"));
-                next_input = next_input.max(after);
+                // Saturating: the encoder writes a trigger of 255 (no chart has an input
+                // past it: the validator refuses it) and never a fresh input after it.
+                next_input = next_input.max(i.saturating_add(1));
             }
             let guard = if guarded && r.flag() {
                 Some(get_expr(&mut r, &mut cursor, &wd))

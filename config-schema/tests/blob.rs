@@ -432,8 +432,11 @@ fn errors_display_readably() {
 #[test]
 fn the_wide_form_holds_any_table() {
     use config_schema::pack;
-    let mutations: [&dyn Fn(&mut Table); 8] = [
+    let mutations: [&dyn Fn(&mut Table); 10] = [
         &|t| t.routes[0].chart = 2,
+        // The largest chart input a `u8` holds: no chart has an input past it.
+        &|t| t.transitions[0].trigger = Some(255),
+        &|t| t.routes[0].input = 255,
         &|t| t.header.channel = 200,
         &|t| t.inputs[0].pin = 200,
         &|t| t.charts[0].states_end = 9,
@@ -475,4 +478,49 @@ fn a_valid_table_may_need_the_wide_form() {
     let b = blob(&t);
     assert_eq!(payload(&b)[0] & 1, 1, "the wide form");
     assert_eq!(decode(&b), Ok(t));
+}
+
+/// Every byte of a table's serde form set to each edge value (and each bit of it flipped),
+/// deterministically: whatever table that makes, its blob decodes to it exactly or the
+/// validator refuses it; the parser never refuses a blob the encoder wrote. (The random
+/// field mutations of `props.rs` found a trigger of 255 that did; this sweeps the class.)
+#[test]
+fn any_one_field_at_an_edge_value_decodes_exactly_or_is_refused_by_the_validator() {
+    let tables = [realistic(), test_tables::lamp_table(3)];
+    let (mut exact, mut refused) = (0, 0);
+    for t in &tables {
+        let mut form = [0u8; 4096];
+        let form = postcard::to_slice(t, &mut form)
+            .expect("the form fits")
+            .to_vec();
+        for at in 0..form.len() {
+            let sets = [0u8, 1, 2, 7, 8, 15, 16, 127, 128, 254, 255].map(|v| (v, None));
+            let flips = (0..8).map(|bit| (form[at] ^ (1 << bit), Some(bit)));
+            for (value, bit) in sets.into_iter().chain(flips) {
+                let mut bytes = form.clone();
+                bytes[at] = value;
+                let Ok((mut mutated, _)) = postcard::take_from_bytes::<Table>(&bytes) else {
+                    continue;
+                };
+                mutated.generation = t.generation;
+                let mut buf = [0u8; 8 * 1024];
+                let Ok(n) = encode(&mutated, &mut buf) else {
+                    continue;
+                };
+                match decode(&buf[..n]) {
+                    Ok(back) => {
+                        assert_eq!(back, mutated, "byte {at} = {value} (flip {bit:?})");
+                        exact += 1;
+                    }
+                    Err(DecodeError::Invalid(_)) => refused += 1,
+                    Err(e) => panic!("byte {at} = {value} (flip {bit:?}): {e:?}"),
+                }
+            }
+        }
+    }
+    // The sweep reaches both outcomes.
+    assert!(
+        exact > 100 && refused > 100,
+        "{exact} exact, {refused} refused"
+    );
 }

@@ -234,9 +234,7 @@ fn get_routes(r: &mut Reader, t: &mut Table, seen: &mut Seen, wd: &Widths) -> R<
         } else {
             r.u8(wd.chart_input(inputs))?
         };
-        *next = input
-            .checked_add(1)
-            .ok_or(PackError::Value("chart input"))?;
+        *next = input.saturating_add(1);
         let route = Route {
             event,
             chart,
@@ -498,8 +496,7 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
                 }
             };
             if let Some(i) = trigger {
-                let after = i.checked_add(1).ok_or(PackError::Value("trigger"))?;
-                next_input = next_input.max(after);
+                next_input = next_input.max(i.saturating_add(1));
             }
             let guard = if guarded && r.flag()? {
                 Some(get_expr(&mut r, &mut cursor, &wd)?)
