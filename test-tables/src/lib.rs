@@ -9,7 +9,7 @@ pub mod robots;
 use config_schema::blob::{CRC32, HEADER_LEN, TRAILER_LEN};
 use config_schema::limits::MAX_BLOB;
 use config_schema::{
-    decode, encode, validate, Action, EventId, Input, Output, Route, Table, Transition,
+    decode, encode, validate, Action, DecodeError, EventId, Input, Output, Route, Table, Transition,
 };
 
 /// The blob of a (valid) table.
@@ -52,6 +52,51 @@ pub fn seal(payload: &[u8], generation: u32) -> Vec<u8> {
     let crc = CRC32.checksum(&b);
     b.extend_from_slice(&crc.to_le_bytes());
     b
+}
+
+/// What [`edge_sweep`] saw: tables whose blob decoded to them exactly, tables the
+/// validator refused.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct Sweep {
+    pub exact: usize,
+    pub refused: usize,
+}
+
+/// Every byte of `t`'s serde form set to each edge value (and each of its bits flipped),
+/// one at a time: whatever table that makes and `encode` writes must decode to itself
+/// exactly or be refused by the validator. Panics, naming the byte, if the parser refuses
+/// a blob the encoder wrote or a table comes back changed.
+pub fn edge_sweep(t: &Table) -> Sweep {
+    let mut sweep = Sweep::default();
+    let mut buf = vec![0u8; 8 * MAX_BLOB];
+    let form = postcard::to_slice(t, &mut buf)
+        .expect("the form fits")
+        .to_vec();
+    for at in 0..form.len() {
+        let sets = [0u8, 1, 2, 7, 8, 15, 16, 127, 128, 254, 255].map(|v| (v, None));
+        let flips = (0..8).map(|bit| (form[at] ^ (1 << bit), Some(bit)));
+        for (value, bit) in sets.into_iter().chain(flips) {
+            let mut bytes = form.clone();
+            bytes[at] = value;
+            let Ok((mut mutated, _)) = postcard::take_from_bytes::<Table>(&bytes) else {
+                continue;
+            };
+            mutated.generation = t.generation;
+            let Ok(n) = encode(&mutated, &mut buf) else {
+                continue;
+            };
+            let role = &t.header.role;
+            match decode(&buf[..n]) {
+                Ok(back) => {
+                    assert_eq!(back, mutated, "{role}: byte {at} = {value} (flip {bit:?})");
+                    sweep.exact += 1;
+                }
+                Err(DecodeError::Invalid(_)) => sweep.refused += 1,
+                Err(e) => panic!("{role}: byte {at} = {value} (flip {bit:?}): {e:?}"),
+            }
+        }
+    }
+    sweep
 }
 
 /// Routes `event` to input `input` of chart `chart`.
