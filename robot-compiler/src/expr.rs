@@ -96,6 +96,16 @@ pub fn wrap_name(bits: u8, signed: bool) -> &'static str {
         .map_or("wrap", |(n, _, _)| n)
 }
 
+/// The most tokens an expression may have. Every value in a node's expression is an
+/// operation of its code (at most `MAX_EXPR_LEN`), so this refuses nothing a table can
+/// hold; it bounds the tree's height, so that the walks over it (checks, bytecode, drop)
+/// cannot run out of stack on a long chain such as `a && b && ...`.
+pub const MAX_TOKENS: usize = 1024;
+
+/// The most parentheses, widths and unary operators an expression may nest: each level is
+/// a few frames of the parser's recursion.
+pub const MAX_NESTING: usize = 64;
+
 #[derive(Debug, Clone, PartialEq, Eq)]
 enum Tok {
     Int(i32),
@@ -113,6 +123,12 @@ fn lex(text: &str) -> Result<Vec<(Tok, Range<usize>)>, ExprError> {
     let mut i = 0;
     while i < b.len() {
         let c = b[i];
+        if out.len() == MAX_TOKENS && !c.is_ascii_whitespace() {
+            return Err(ExprError {
+                message: format!("an expression of more than {MAX_TOKENS} tokens"),
+                span: i..i + 1,
+            });
+        }
         if c.is_ascii_whitespace() {
             i += 1;
         } else if c.is_ascii_digit() {
@@ -155,6 +171,8 @@ fn lex(text: &str) -> Result<Vec<(Tok, Range<usize>)>, ExprError> {
 struct Parser {
     toks: Vec<(Tok, Range<usize>)>,
     at: usize,
+    /// Parentheses, widths and unary operators open at this point.
+    nesting: usize,
 }
 
 impl Parser {
@@ -173,6 +191,26 @@ impl Parser {
         } else {
             false
         }
+    }
+
+    /// Parses one more level of nesting with `inner`, refused past [`MAX_NESTING`].
+    fn nested<T>(
+        &mut self,
+        span: Range<usize>,
+        inner: impl FnOnce(&mut Parser) -> Result<T, ExprError>,
+    ) -> Result<T, ExprError> {
+        if self.nesting >= MAX_NESTING {
+            return Err(ExprError {
+                message: format!(
+                    "parentheses, widths and unary operators nested more than {MAX_NESTING} deep"
+                ),
+                span,
+            });
+        }
+        self.nesting += 1;
+        let parsed = inner(self);
+        self.nesting -= 1;
+        parsed
     }
 
     fn unexpected(&self, wanted: &str) -> ExprError {
@@ -255,11 +293,14 @@ impl Parser {
     }
 
     fn unary(&mut self) -> Result<Ast, ExprError> {
+        let span = self.span();
         if self.eat("!") {
-            return Ok(Ast::Not(Box::new(self.unary()?)));
+            let of = self.nested(span, Parser::unary)?;
+            return Ok(Ast::Not(Box::new(of)));
         }
         if self.eat("-") {
-            return Ok(Ast::Neg(Box::new(self.unary()?)));
+            let of = self.nested(span, Parser::unary)?;
+            return Ok(Ast::Neg(Box::new(of)));
         }
         self.atom()
     }
@@ -283,7 +324,7 @@ impl Parser {
                 self.at += 1;
                 if let Some(&(_, bits, signed)) = WIDTHS.iter().find(|(w, _, _)| *w == n) {
                     if self.eat("(") {
-                        let of = self.or()?;
+                        let of = self.nested(span, Parser::or)?;
                         if !self.eat(")") {
                             return Err(self.unexpected("`)`"));
                         }
@@ -298,7 +339,7 @@ impl Parser {
             }
             Tok::Sym("(") => {
                 self.at += 1;
-                let inner = self.or()?;
+                let inner = self.nested(span, Parser::or)?;
                 if !self.eat(")") {
                     return Err(self.unexpected("`)`"));
                 }
@@ -312,7 +353,11 @@ impl Parser {
 /// Parses expression text.
 pub fn parse(text: &str) -> Result<Ast, ExprError> {
     let toks = lex(text)?;
-    let mut p = Parser { toks, at: 0 };
+    let mut p = Parser {
+        toks,
+        at: 0,
+        nesting: 0,
+    };
     if *p.peek() == Tok::End {
         return Err(ExprError {
             message: String::from("empty expression"),

@@ -145,3 +145,34 @@ fn overlap_is_found_when_both_guards_can_hold_and_not_otherwise() {
     assert!(!may_overlap(&g("count < M"), &g("count > 5"), &m3));
     assert!(may_overlap(&g("count < M"), &g("count > 5"), &m9));
 }
+
+/// Deep nesting and long chains are refused where they pass the limits, with the place,
+/// instead of running the parser (or a walk over the tree) out of stack.
+#[test]
+fn deep_nesting_and_long_chains_are_refused_at_their_place() {
+    let deep = |n: usize| format!("{}count{}", "(".repeat(n), ")".repeat(n));
+    assert_eq!(ops(&deep(64)), [Op::Var(0)]);
+    assert_eq!(
+        error(&deep(100)),
+        (
+            String::from("parentheses, widths and unary operators nested more than 64 deep"),
+            64..65
+        )
+    );
+    assert_eq!(
+        error(&format!("{}count", "!".repeat(65))).1,
+        64..65,
+        "unary operators nest"
+    );
+    assert_eq!(error(&format!("{}count", "- ".repeat(65))).1, 128..129);
+    let wraps = format!("{}count{}", "int(".repeat(65), ")".repeat(65));
+    assert_eq!(error(&wraps).1, 256..259, "widths nest");
+    // 512 names and 511 `&&`: the most tokens an expression has.
+    let chain = |n: usize| vec!["END"; n].join(" && ");
+    assert!(parse(&chain(512)).is_ok());
+    let long = chain(100_000);
+    let (message, span) = error(&long);
+    assert_eq!(message, "an expression of more than 1024 tokens");
+    assert_eq!(&long[span.clone()], "E", "the 1025th token: {span:?}");
+    assert_eq!(span.start, 512 * "END && ".len());
+}

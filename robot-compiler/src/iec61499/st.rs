@@ -255,9 +255,56 @@ struct Parser<'n> {
     /// The control variables of the `FOR` loops being unrolled, each with its value in
     /// the iteration being read.
     unrolling: Vec<(String, i64)>,
+    /// Parentheses, unary operators and statement bodies open at this point.
+    nesting: usize,
+    /// Where the outermost expression being read starts (a token index).
+    expr_from: usize,
+    /// Tokens read again so far by unrolled `FOR` loops.
+    unrolled: usize,
 }
 
-impl Parser<'_> {
+/// The most tokens unrolled `FOR` loops may read again (nested loops unroll to the product
+/// of their counts).
+pub const MAX_UNROLLED: usize = 65_536;
+
+/// The most parentheses, unary operators and `IF` / `CASE` / `FOR` bodies ST text may
+/// nest: each level is a few frames of the parser's recursion.
+pub const MAX_NESTING: usize = 64;
+
+impl<'n> Parser<'n> {
+    fn new(text: &str, names: &'n [Name]) -> Result<Parser<'n>, StError> {
+        Ok(Parser {
+            toks: lex(text)?,
+            at: 0,
+            names,
+            unrolling: Vec::new(),
+            nesting: 0,
+            expr_from: 0,
+            unrolled: 0,
+        })
+    }
+
+    /// Reads one more level of nesting with `inner`, refused past [`MAX_NESTING`].
+    fn nested<T>(
+        &mut self,
+        span: Range<usize>,
+        inner: impl FnOnce(&mut Self) -> Result<T, StError>,
+    ) -> Result<T, StError> {
+        if self.nesting >= MAX_NESTING {
+            return err(
+                span,
+                format!(
+                    "parentheses, unary operators and statements nested more than \
+                     {MAX_NESTING} deep"
+                ),
+            );
+        }
+        self.nesting += 1;
+        let read = inner(self);
+        self.nesting -= 1;
+        read
+    }
+
     fn peek(&self) -> &Tok {
         self.toks.get(self.at).map_or(&Tok::End, |(t, _)| t)
     }
@@ -346,11 +393,12 @@ impl Parser<'_> {
     fn if_statement(&mut self) -> Result<Stmt, StError> {
         let mut arms = Vec::new();
         let mut otherwise = Vec::new();
+        let if_span = self.span();
         self.bump(); // IF
         loop {
             let cond = self.bool_expr()?;
             self.expect_word("THEN")?;
-            let body = self.statements(true)?;
+            let body = self.nested(if_span.clone(), |p| p.statements(true))?;
             arms.push((cond, body));
             if self.word("ELSIF") {
                 self.bump();
@@ -358,7 +406,7 @@ impl Parser<'_> {
             }
             if self.word("ELSE") {
                 self.bump();
-                otherwise = self.statements(true)?;
+                otherwise = self.nested(if_span.clone(), |p| p.statements(true))?;
             }
             break;
         }
@@ -367,6 +415,7 @@ impl Parser<'_> {
     }
 
     fn case_statement(&mut self) -> Result<Stmt, StError> {
+        let case_span = self.span();
         self.bump(); // CASE
         let span = self.span();
         let (selector, ty) = self.expr()?;
@@ -402,7 +451,8 @@ impl Parser<'_> {
             } else {
                 format!("({})", alternatives.join(" || "))
             };
-            arms.push((cond, self.statements(true)?));
+            let body = self.nested(case_span.clone(), |p| p.statements(true))?;
+            arms.push((cond, body));
         }
         if !self.at_word(&["ELSE", "END_CASE"]) {
             return err(
@@ -412,7 +462,7 @@ impl Parser<'_> {
         }
         if self.word("ELSE") {
             self.bump();
-            otherwise = self.statements(true)?;
+            otherwise = self.nested(case_span, |p| p.statements(true))?;
         }
         self.expect_word("END_CASE")?;
         if arms.is_empty() {
@@ -482,8 +532,15 @@ impl Parser<'_> {
         for k in 0..count.max(1) {
             self.at = body;
             self.unrolling.push((var.name.clone(), from + k * by));
-            let stmts = self.statements(true);
+            let stmts = self.nested(for_span.clone(), |p| p.statements(true));
             self.unrolling.pop();
+            self.unrolled += self.at.saturating_sub(body);
+            if self.unrolled > MAX_UNROLLED {
+                return err(
+                    for_span,
+                    format!("FOR loops unrolled to more than {MAX_UNROLLED} tokens"),
+                );
+            }
             if k < count {
                 out.extend(stmts?);
             } else {
@@ -597,7 +654,9 @@ impl Parser<'_> {
         Ok(Stmt::Assign(target.name.clone(), value))
     }
 
+    /// An expression of a statement (a parenthesised one inside it is read by `binary`).
     fn expr(&mut self) -> Result<(String, Ty), StError> {
+        self.expr_from = self.at;
         self.binary(0)
     }
 
@@ -631,6 +690,15 @@ impl Parser<'_> {
                 }
                 _ => return Ok(left),
             };
+            if self.at.saturating_sub(self.expr_from) + 1 >= crate::expr::MAX_TOKENS {
+                return err(
+                    span,
+                    format!(
+                        "an expression of more than {} tokens",
+                        crate::expr::MAX_TOKENS
+                    ),
+                );
+            }
             self.bump();
             let right = self.binary(level + 1)?;
             left = match (level, left.1, right.1) {
@@ -667,7 +735,7 @@ impl Parser<'_> {
         let span = self.span();
         if self.sym("-") {
             self.bump();
-            let (v, ty) = self.unary()?;
+            let (v, ty) = self.nested(span.clone(), Self::unary)?;
             let Ty::Int(w) = ty else {
                 return err(span, "unary `-` takes an integer");
             };
@@ -678,7 +746,7 @@ impl Parser<'_> {
         }
         if self.word("NOT") {
             self.bump();
-            let (v, ty) = self.unary()?;
+            let (v, ty) = self.nested(span.clone(), Self::unary)?;
             if ty != Ty::Bool {
                 return err(
                     span,
@@ -713,7 +781,7 @@ impl Parser<'_> {
                 Ok((n.name.clone(), n.ty))
             }
             Tok::Sym("(") => {
-                let inner = self.expr()?;
+                let inner = self.nested(span, |p| p.binary(0))?;
                 if !self.sym(")") {
                     return err(self.span(), "expected `)`");
                 }
@@ -755,23 +823,13 @@ fn sym_name(op: &str) -> &str {
 
 /// An algorithm's statements, each expression in the chart types' syntax.
 pub fn algorithm(text: &str, names: &[Name]) -> Result<Vec<Stmt>, StError> {
-    let mut p = Parser {
-        toks: lex(text)?,
-        at: 0,
-        names,
-        unrolling: Vec::new(),
-    };
+    let mut p = Parser::new(text, names)?;
     p.statements(false)
 }
 
 /// A BOOL expression (a transition's guard) in the chart types' syntax.
 pub fn condition(text: &str, names: &[Name]) -> Result<String, StError> {
-    let mut p = Parser {
-        toks: lex(text)?,
-        at: 0,
-        names,
-        unrolling: Vec::new(),
-    };
+    let mut p = Parser::new(text, names)?;
     let span = p.span();
     let (v, ty) = p.expr()?;
     if !matches!(p.peek(), Tok::End) {
@@ -847,6 +905,52 @@ mod tests {
                 other => panic!("a choice: {other:?}"),
             })
             .collect())
+    }
+
+    /// Deep nesting and long expressions are refused at their place instead of running
+    /// the parser out of stack.
+    #[test]
+    fn deep_nesting_and_long_expressions_are_refused_at_their_place() {
+        let e = |text: &str| algorithm(text, &names()).unwrap_err();
+        let nested = "parentheses, unary operators and statements nested more than 64 deep";
+        let parens = |n: usize| format!("CV := {}1{};", "(".repeat(n), ")".repeat(n));
+        assert_eq!(assigns(&parens(64)), Ok(vec![("CV".into(), "1".into())]));
+        let deep = e(&parens(10_000));
+        assert_eq!((deep.message.as_str(), deep.span), (nested, 70..71));
+        let nots = format!("Q := {}G;", "NOT ".repeat(65));
+        assert_eq!(e(&nots).span, 5 + 64 * 4..5 + 64 * 4 + 3);
+        let ifs = |n: usize| format!("{}Q := G;{}", "IF G THEN ".repeat(n), " END_IF;".repeat(n));
+        assert!(algorithm(&ifs(64), &names()).is_ok());
+        let deep_ifs = e(&ifs(10_000));
+        assert_eq!(
+            (deep_ifs.message.as_str(), deep_ifs.span),
+            (nested, 640..642)
+        );
+        let deep_case = e(&"CASE CV OF 1: ".repeat(10_000));
+        assert_eq!(
+            (deep_case.message.as_str(), deep_case.span),
+            (nested, 896..900)
+        );
+        // Nested loops unroll to a product: their reading is bounded too.
+        let fors = |vars: &[&str]| {
+            let heads: String = vars
+                .iter()
+                .map(|v| format!("FOR {v} := 1 TO 32 DO "))
+                .collect();
+            format!("{heads}Q := G;{}", " END_FOR;".repeat(vars.len()))
+        };
+        assert!(algorithm(&fors(&["D", "CV"]), &names()).is_ok());
+        let product = e(&fors(&["D", "CV", "S"]));
+        assert_eq!(
+            (product.message.as_str(), product.span),
+            ("FOR loops unrolled to more than 65536 tokens", 0..3)
+        );
+        // 512 terms: 1,023 tokens after `:=`; 100,000 are refused at the 1,025th.
+        let sum = |n: usize| format!("D := {};", vec!["D"; n].join(" + "));
+        assert!(algorithm(&sum(512), &names()).is_ok());
+        let long = e(&sum(100_000));
+        assert_eq!(long.message, "an expression of more than 1024 tokens");
+        assert_eq!(long.span.start, 5 + 512 * 4 - 2, "{long:?}");
     }
 
     #[test]
