@@ -120,6 +120,28 @@ fn compile_writes_one_blob_per_role_and_a_summary_line_each() {
 }
 
 #[test]
+fn compile_writes_every_blob_or_none() {
+    let dir = scratch("compile-none");
+    std::fs::create_dir_all(dir.join("RC.bin")).expect("a directory where RC's blob goes");
+    let out = tool(&[
+        "compile",
+        "robot-configs/paint-robot.ron",
+        "--out",
+        dir.to_str().expect("utf-8"),
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    let rc = dir.join("RC.bin");
+    let want = format!("error: {}: exists and is not a file: nothing written\n", rc.display());
+    assert!(text(&out.stderr).ends_with(&want), "{}", text(&out.stderr));
+    let mut left: Vec<String> = std::fs::read_dir(&dir)
+        .expect("dir")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["RC.bin"], "no other blob written");
+}
+
+#[test]
 fn dump_prints_a_blob_and_fails_clearly_on_a_bad_one() {
     let dir = scratch("dump");
     let out = tool(&[

@@ -44,6 +44,9 @@ const BROKEN: &[(&str, &[&str])] = &[
         "9:28: error: unknown role `B`",
         "17:19: error: duplicate role name `A`",
     ]),
+    ("role-name-path.ron", &[
+        "17:19: error: role name \"../B\": letters, digits, `_` and `-` only (it names the role's blob file, ROLE.bin)",
+    ]),
     ("pin-twice.ron", &["14:43: error: pin 3 of role `A` is used twice: by `A.end` and `START`"]),
     ("role-unassigned.ron", &["17:19: error: role `B` is assigned to no node"]),
     ("role-twice.ron", &[

@@ -12,11 +12,11 @@ pub fn export(robot: &Path, out: &Path) -> Result<(), Failure> {
     let (_, compiled) = load_compiled(robot)?;
     let exported = export::export(&compiled, &today())
         .map_err(|e| Failure::error(format!("{}: cannot export: {e}", robot.display())))?;
-    std::fs::create_dir_all(out).map_err(|e| Failure::error(format!("{}: {e}", out.display())))?;
-    for (name, text) in &exported.files {
-        let path = out.join(name);
-        std::fs::write(&path, text)
-            .map_err(|e| Failure::error(format!("{}: {e}", path.display())))?;
+    let files = exported
+        .files
+        .iter()
+        .map(|(name, text)| (name.as_str(), text.as_bytes()));
+    for path in super::outputs::write_all(out, files)? {
         println!("{}", path.display());
     }
     let lifted = exported.instances.iter().filter(|i| i.lifted).count();

@@ -6,5 +6,6 @@ pub mod export;
 pub mod keys;
 pub mod matrix;
 pub mod offline;
+pub mod outputs;
 pub mod panel;
 pub mod radio;

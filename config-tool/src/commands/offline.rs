@@ -63,12 +63,14 @@ pub fn compile(robot: &Path, out: &Path, generation: Option<u32>) -> Result<(), 
         compiled = compiled.with_generation(g).map_err(Failure::error)?;
     }
     report(&src, &compiled.warnings);
-    std::fs::create_dir_all(out).map_err(|e| Failure::error(format!("{}: {e}", out.display())))?;
-    for (role, blob) in compiled.ir.roles.iter().zip(&compiled.blobs) {
-        let path = out.join(format!("{}.bin", role.name));
-        std::fs::write(&path, blob)
-            .map_err(|e| Failure::error(format!("{}: {e}", path.display())))?;
-    }
+    let names: Vec<String> = compiled
+        .ir
+        .roles
+        .iter()
+        .map(|r| format!("{}.bin", r.name))
+        .collect();
+    let blobs = compiled.blobs.iter().map(Vec::as_slice);
+    super::outputs::write_all(out, names.iter().map(String::as_str).zip(blobs))?;
     for line in pipeline::summary(&compiled) {
         println!("{line}");
     }

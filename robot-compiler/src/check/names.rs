@@ -26,6 +26,15 @@ fn dups<'a>(
     }
 }
 
+/// Whether `name` can name a file in any directory as it is: not empty, letters, digits,
+/// `_` and `-` only (no separator, no `..`, no hidden or control character).
+pub(crate) fn is_file_name(name: &str) -> bool {
+    !name.is_empty()
+        && name
+            .chars()
+            .all(|c| c.is_alphanumeric() || c == '_' || c == '-')
+}
+
 pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
     dups(
         src,
@@ -47,6 +56,18 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
             .map(|(i, r)| (r.name.as_str(), format!("roles[{i}].name"))),
         out,
     );
+    for (i, r) in robot.roles.iter().enumerate() {
+        if !is_file_name(&r.name) {
+            out.push(Diagnostic::error(
+                src.span(&format!("roles[{i}].name")),
+                format!(
+                    "role name {:?}: letters, digits, `_` and `-` only (it names the role's blob \
+                     file, ROLE.bin)",
+                    r.name
+                ),
+            ));
+        }
+    }
     dups(
         src,
         "actuator name",
