@@ -253,7 +253,8 @@ pub enum Board {
 #[derive(Args, Debug)]
 pub struct SimArgs {
     pub robot: PathBuf,
-    #[arg(long, default_value_t = 3)]
+    /// Cycles to run (1 to 10,000).
+    #[arg(long, default_value_t = 3, value_parser = sim_cycles)]
     pub cycles: usize,
     /// Print every trace entry.
     #[arg(long)]
@@ -335,6 +336,15 @@ fn balls(text: &str) -> Result<usize, String> {
     match text.parse::<usize>() {
         Ok(n) if n <= max => Ok(n),
         _ => Err(format!("a number of balls from 0 to {max}")),
+    }
+}
+
+/// `sim --cycles N`: 1 to [`robot_analysis::sim::MAX_CYCLES`].
+fn sim_cycles(text: &str) -> Result<usize, String> {
+    let max = robot_analysis::sim::MAX_CYCLES;
+    match text.parse::<usize>() {
+        Ok(n) if (1..=max).contains(&n) => Ok(n),
+        _ => Err(format!("a number of cycles from 1 to {max}")),
     }
 }
 

@@ -131,7 +131,10 @@ fn compile_writes_every_blob_or_none() {
     ]);
     assert_eq!(out.status.code(), Some(1));
     let rc = dir.join("RC.bin");
-    let want = format!("error: {}: exists and is not a file: nothing written\n", rc.display());
+    let want = format!(
+        "error: {}: exists and is not a file: nothing written\n",
+        rc.display()
+    );
     assert!(text(&out.stderr).ends_with(&want), "{}", text(&out.stderr));
     let mut left: Vec<String> = std::fs::read_dir(&dir)
         .expect("dir")
@@ -166,6 +169,26 @@ fn dump_prints_a_blob_and_fails_clearly_on_a_bad_one() {
     assert!(
         err.contains("not a valid table blob: truncated blob:"),
         "{err}"
+    );
+
+    // A file larger than any blob is not read to its end: a device that never ends too.
+    let big = dir.join("big.bin");
+    std::fs::write(&big, vec![0u8; 4097]).expect("write");
+    for (path, what) in [
+        (big.to_str().expect("utf-8"), "4097 bytes"),
+        ("/dev/zero", "endless"),
+    ] {
+        let out = tool(&["dump", path]);
+        assert_eq!(out.status.code(), Some(1), "{what}");
+        let want = format!("error: cannot read {path}: larger than 4096 bytes\n");
+        assert_eq!(text(&out.stderr), want, "{what}");
+    }
+    let out = tool(&["check", "/dev/zero"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        text(&out.stderr).ends_with("cannot read /dev/zero: larger than 8388608 bytes\n"),
+        "{}",
+        text(&out.stderr)
     );
 }
 
@@ -313,6 +336,39 @@ fn sim_timeline_of_the_ball_sorter_draws_its_lanes() {
         "error: a sorting station's `sim` takes no --fault: it runs its feed (--feed, --trace, \
          --timeline)\n"
     );
+}
+
+#[test]
+fn sim_refuses_arguments_it_cannot_honour() {
+    let sim = |args: &[&str]| {
+        let out = tool(&[&["sim", "robot-configs/paint-robot.ron"], args].concat());
+        (out.status.code(), text(&out.stderr))
+    };
+    for cycles in ["0", "10001", "99999999999", "x"] {
+        let (code, err) = sim(&["--cycles", cycles]);
+        assert_eq!(code, Some(2), "{cycles}");
+        assert!(
+            err.contains(&format!(
+                "invalid value '{cycles}' for '--cycles <CYCLES>': a number of cycles from 1 to 10000"
+            )),
+            "{err}"
+        );
+    }
+    let (code, err) = sim(&["--fault", "stuck:HC@4294967296.1"]);
+    assert_eq!(code, Some(1));
+    assert_eq!(
+        err,
+        "error: `stuck:HC@4294967296.1`: `4294967296` is not a step or cycle number (1 to 10000)\n"
+    );
+    for args in [&["--feed", "B"][..], &["--random", "3"]] {
+        let (code, err) = sim(args);
+        assert_eq!(code, Some(2), "{args:?}");
+        assert_eq!(
+            err,
+            "error: --feed and --random are a sorting station's: robot-configs/paint-robot.ron \
+             has no `sorting:`\n"
+        );
+    }
 }
 
 #[test]

@@ -59,7 +59,10 @@ pub enum ParseError {
     NoStep { spec: String },
     #[error("`{spec}`: no `KIND:`: {}", USAGE)]
     NoKind { spec: String },
-    #[error("`{spec}`: `{number}` is not a step or cycle number (1, 2, ...)")]
+    #[error(
+        "`{spec}`: `{number}` is not a step or cycle number (1 to {})",
+        crate::sim::MAX_CYCLES
+    )]
     BadNumber { spec: String, number: String },
     #[error("`{spec}`: a link is FROM->TO")]
     BadLink { spec: String },
@@ -79,7 +82,7 @@ pub fn parse(spec: &str) -> Result<FaultSpec, ParseError> {
     let number = |s: &str| -> Result<usize, ParseError> {
         s.parse::<usize>()
             .ok()
-            .filter(|n| *n > 0)
+            .filter(|n| (1..=crate::sim::MAX_CYCLES).contains(n))
             .ok_or_else(|| ParseError::BadNumber {
                 spec: owned(),
                 number: s.to_string(),
@@ -630,7 +633,13 @@ mod tests {
         );
         assert_eq!(
             parse("stop:GR@x.1").unwrap_err().to_string(),
-            "`stop:GR@x.1`: `x` is not a step or cycle number (1, 2, ...)"
+            "`stop:GR@x.1`: `x` is not a step or cycle number (1 to 10000)"
+        );
+        // A cycle past the simulation's bound is refused, not run to.
+        assert_eq!(parse("stuck:HC@10000.1").map(|s| s.cycle), Ok(10_000));
+        assert_eq!(
+            parse("stuck:HC@4294967296.1").unwrap_err().to_string(),
+            "`stuck:HC@4294967296.1`: `4294967296` is not a step or cycle number (1 to 10000)"
         );
         assert_eq!(
             parse("GR@1").unwrap_err(),

@@ -281,6 +281,10 @@ fn declared(c: &Compiled, plants: &mut Vec<Plant>) -> Result<(), SimulationError
     Ok(())
 }
 
+/// The most cycles one simulation runs (`sim --cycles`, a fault's cycle): its report
+/// keeps every cycle.
+pub const MAX_CYCLES: usize = 10_000;
+
 /// Runs `cycles` cycles of the compiled robot from its blobs.
 pub fn simulate(c: &Compiled, cycles: usize) -> Result<SimResult, SimulationError> {
     run(c, cycles, false)

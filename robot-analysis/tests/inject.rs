@@ -170,7 +170,7 @@ fn fault_specs_parse_or_say_what_is_wrong() {
     );
     assert_eq!(
         inject::parse("stuck:HC@0").unwrap_err().to_string(),
-        "`stuck:HC@0`: `0` is not a step or cycle number (1, 2, ...)"
+        "`stuck:HC@0`: `0` is not a step or cycle number (1 to 10000)"
     );
     let c = paint();
     let err = inject::simulate(&c, &inject::parse("stuck:XX@1").expect("parses")).unwrap_err();

@@ -5,6 +5,27 @@ use std::path::PathBuf;
 
 use crate::locate::{self, Value};
 
+/// The largest file the tool reads as a robot, an FB type, an application or facts: far
+/// more than any machine's description; a larger one (or a device such as `/dev/zero`) is
+/// refused without being read to its end.
+pub const MAX_FILE: u64 = 8 << 20;
+
+/// The bytes of file `path`, or an error if it has more than `limit` (read no further).
+pub fn read_at_most(path: &std::path::Path, limit: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)?
+        .take(limit.saturating_add(1))
+        .read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("larger than {limit} bytes"),
+        ));
+    }
+    Ok(bytes)
+}
+
 /// Why a robot file could not be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum LoadError {
@@ -74,10 +95,10 @@ impl Source {
         }
     }
 
-    /// Reads a robot file: a clear error if it cannot be read or is not UTF-8 (at its
-    /// first bad byte).
+    /// Reads a robot file: a clear error if it cannot be read, is larger than
+    /// [`MAX_FILE`] or is not UTF-8 (at its first bad byte).
     pub fn read(path: &std::path::Path) -> Result<Source, LoadError> {
-        let bytes = std::fs::read(path).map_err(|source| LoadError::Read {
+        let bytes = read_at_most(path, MAX_FILE).map_err(|source| LoadError::Read {
             path: path.to_path_buf(),
             source,
         })?;

@@ -88,7 +88,8 @@ pub fn compile(robot: &Path, out: &Path, generation: Option<u32>) -> Result<(), 
 }
 
 pub fn dump(blob: &Path) -> Result<(), Failure> {
-    let bytes = std::fs::read(blob)
+    let limit = config_schema::limits::MAX_BLOB as u64;
+    let bytes = robot_compiler::source::read_at_most(blob, limit)
         .map_err(|e| Failure::error(format!("cannot read {}: {e}", blob.display())))?;
     let text = dump::dump(&bytes)
         .map_err(|e| Failure::error(format!("{}: not a valid table blob: {e}", blob.display())))?;
@@ -213,6 +214,12 @@ pub fn sim(args: &SimArgs) -> Result<(), Failure> {
     let (_, compiled) = load_compiled(&args.robot)?;
     if compiled.robot.sorting.is_some() {
         return sim_station(&compiled, args);
+    }
+    if args.feed.is_some() || args.random.is_some() {
+        return Err(Failure::usage(format!(
+            "--feed and --random are a sorting station's: {} has no `sorting:`",
+            args.robot.display()
+        )));
     }
     if let Some(spec) = &args.fault {
         return sim_fault(&compiled, spec, trace, timeline);

@@ -57,7 +57,9 @@ pub struct Loaded {
 /// (`src.name`).
 pub fn load(robot: &Robot, src: &Source) -> Loaded {
     let dir = facts_dir(src);
-    load_with(robot, src, &|name: &str| std::fs::read(dir.join(name)))
+    load_with(robot, src, &|name: &str| {
+        crate::source::read_at_most(&dir.join(name), crate::source::MAX_FILE)
+    })
 }
 
 /// [`load`], with `read` giving the bytes of a `facts_file` as the robot names it.

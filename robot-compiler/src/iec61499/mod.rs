@@ -32,7 +32,9 @@ pub fn import(robot: &mut Robot, src: &Source) -> Vec<Diagnostic> {
         .parent()
         .map(Path::to_path_buf)
         .unwrap_or_default();
-    import_with(robot, src, &|name: &str| std::fs::read(dir.join(name)))
+    import_with(robot, src, &|name: &str| {
+        crate::source::read_at_most(&dir.join(name), crate::source::MAX_FILE)
+    })
 }
 
 /// [`import`], with `read` giving the bytes of a file as the robot names it.
