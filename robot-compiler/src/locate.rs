@@ -318,6 +318,28 @@ fn segments(path: &str) -> Vec<Seg<'_>> {
 }
 
 impl Value {
+    /// Every key a map has twice (`{"DIPS": 2, "DIPS": 5}`: ron keeps the last silently),
+    /// as (key, the first key's span, the second's), in the order of the text.
+    pub fn duplicate_keys(&self, out: &mut Vec<(String, Range<usize>, Range<usize>)>) {
+        match &self.kind {
+            Kind::Atom => {}
+            Kind::Fields(fields) => fields.iter().for_each(|(_, _, v)| v.duplicate_keys(out)),
+            Kind::Items(items) => items.iter().for_each(|v| v.duplicate_keys(out)),
+            Kind::Map(entries) => {
+                let mut seen = std::collections::HashMap::new();
+                for (key, k, v) in entries {
+                    match seen.get(key.as_str()) {
+                        Some(first) => out.push((key.clone(), Range::clone(first), k.span.clone())),
+                        None => {
+                            seen.insert(key.as_str(), k.span.clone());
+                        }
+                    }
+                    v.duplicate_keys(out);
+                }
+            }
+        }
+    }
+
     /// `Some(x)` and single-item wrappers are transparent to paths.
     fn unwrap_some(&self) -> &Value {
         match &self.kind {

@@ -226,6 +226,15 @@ impl Source {
         }
     }
 
+    /// Every key a map of the file has twice: (key, the first's span, the second's).
+    pub fn duplicate_keys(&self) -> Vec<(String, Range<usize>, Range<usize>)> {
+        let mut out = Vec::new();
+        if let Some(tree) = &self.tree {
+            tree.duplicate_keys(&mut out);
+        }
+        out
+    }
+
     /// The text of a span.
     pub fn slice(&self, span: Range<usize>) -> &str {
         self.text.get(span).unwrap_or("")

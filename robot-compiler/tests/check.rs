@@ -44,6 +44,7 @@ const BROKEN: &[(&str, &[&str])] = &[
         "9:28: error: unknown role `B`",
         "17:19: error: duplicate role name `A`",
     ]),
+    ("duplicate-key.ron", &["15:66: error: duplicate key `M`"]),
     ("role-name-path.ron", &[
         "17:19: error: role name \"../B\": letters, digits, `_` and `-` only (it names the role's blob file, ROLE.bin)",
     ]),

@@ -1,4 +1,4 @@
-//! Duplicate names: nodes, roles, actuators (robot-wide: sequences name them), pins of a
+//! Duplicate names: the keys of a map, nodes, roles, actuators (robot-wide: sequences name them), pins of a
 //! role, charts of a role, chart types, and the states, variables, inputs, outputs,
 //! timers and parameters of a chart type.
 
@@ -36,6 +36,13 @@ pub(crate) fn is_file_name(name: &str) -> bool {
 }
 
 pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
+    for (key, first, second) in src.duplicate_keys() {
+        let (line, col) = src.line_col(first.start);
+        out.push(
+            Diagnostic::error(second, format!("duplicate key `{key}`"))
+                .label(format!("first at {line}:{col}")),
+        );
+    }
     dups(
         src,
         "node name",
