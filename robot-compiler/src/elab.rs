@@ -216,17 +216,25 @@ fn var_pool(robot: &Robot, role: &Role, base: usize) -> BTreeMap<String, usize> 
 /// unknown role or event.
 fn wanted(robot: &Robot, src: &Source, diags: &mut Vec<Diagnostic>) -> BTreeSet<(String, String)> {
     let mut wanted = BTreeSet::new();
+    // Each role's events, found once (a role of many charts has many sources).
+    let mut events: BTreeMap<usize, BTreeSet<String>> = BTreeMap::new();
     for (ri, role) in robot.roles.iter().enumerate() {
         for (ci, c) in role.charts.iter().enumerate() {
             for (key, source) in c.sources() {
                 let (r, e) = split_source(source, &role.name);
                 let path = format!("roles[{ri}].charts[{ci}].on.{key}");
+                let mut known = |at: usize, rr: &Role| {
+                    events
+                        .entry(at)
+                        .or_insert_with(|| role_events(robot, rr).into_iter().collect())
+                        .contains(e)
+                };
                 match robot.role(r) {
                     None => diags.push(
                         Diagnostic::error(src.span(&path), format!("unknown role `{r}`"))
                             .label("no role has this name"),
                     ),
-                    Some((_, rr)) if !role_events(robot, rr).iter().any(|x| x == e) => diags.push(
+                    Some((at, rr)) if !known(at, rr) => diags.push(
                         Diagnostic::error(
                             src.span(&path),
                             format!("unknown event `{e}` of role `{r}`"),

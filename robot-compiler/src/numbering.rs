@@ -14,6 +14,8 @@
 //! - Imports (subscriptions) go by local event, so that each names the event of the
 //!   previous one or the next: one or two bits.
 
+use std::collections::{HashMap, HashSet};
+
 use crate::ir::{ActionIr, Ir, RoleIr};
 
 /// Numbers every role's events and orders its routes and imports (see the module docs).
@@ -26,8 +28,14 @@ pub fn number(ir: &mut Ir) {
 fn number_role(r: &mut RoleIr) {
     order_routes(r);
     number_events(r);
+    let ids: HashMap<&str, usize> = r
+        .events
+        .iter()
+        .enumerate()
+        .map(|(id, e)| (e.as_str(), id))
+        .collect();
     let mut imports = std::mem::take(&mut r.imports);
-    imports.sort_by_key(|(_, _, local)| r.event_id(local).unwrap_or(usize::MAX));
+    imports.sort_by_key(|(_, _, local)| ids.get(local.as_str()).copied().unwrap_or(usize::MAX));
     r.imports = imports;
 }
 
@@ -35,26 +43,26 @@ fn number_role(r: &mut RoleIr) {
 fn order_routes(r: &mut RoleIr) {
     let mut sorted = r.routes.clone();
     sorted.sort_by_key(|&(_, chart, input)| (chart, input));
-    let of = |routes: &[(String, usize, usize)], e: &str| -> Vec<(usize, usize)> {
-        routes
-            .iter()
-            .filter(|(x, _, _)| x == e)
-            .map(|&(_, c, i)| (c, i))
-            .collect()
-    };
-    if r.routes
-        .iter()
-        .all(|(e, _, _)| of(&r.routes, e) == of(&sorted, e))
-    {
+    if by_event(&r.routes) == by_event(&sorted) {
         r.routes = sorted;
     }
+}
+
+/// Each event's routes (chart, input), in order.
+fn by_event(routes: &[(String, usize, usize)]) -> HashMap<&str, Vec<(usize, usize)>> {
+    let mut by_event: HashMap<&str, Vec<(usize, usize)>> = HashMap::new();
+    for (e, c, i) in routes {
+        by_event.entry(e.as_str()).or_default().push((*c, *i));
+    }
+    by_event
 }
 
 /// Event ids in the order the packed stream names them first.
 fn number_events(r: &mut RoleIr) {
     let mut order: Vec<String> = Vec::with_capacity(r.events.len());
+    let mut named: HashSet<String> = HashSet::with_capacity(r.events.len());
     let mut add = |name: &str| {
-        if !order.iter().any(|e| e == name) {
+        if named.insert(name.to_string()) {
             order.push(name.to_string());
         }
     };
@@ -88,7 +96,8 @@ fn number_events(r: &mut RoleIr) {
         add(e);
     }
     // Only names the role has (every name above is one of its events).
-    order.retain(|e| r.events.contains(e));
+    let events: HashSet<&str> = r.events.iter().map(String::as_str).collect();
+    order.retain(|e| events.contains(e.as_str()));
     r.events = order;
 }
 

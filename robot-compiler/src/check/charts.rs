@@ -114,6 +114,11 @@ fn overlaps(
     src: &Source,
     out: &mut Vec<Diagnostic>,
 ) {
+    // A chart type of more transitions than a table holds is refused by the capacity
+    // check: its pairs are not compared (their number grows with its square).
+    if t.transitions.len() > config_schema::limits::MAX_TRANSITIONS {
+        return;
+    }
     let always = expr::Ast::Int(1);
     let guards: Vec<Option<expr::Ast>> = t
         .transitions
