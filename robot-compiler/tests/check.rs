@@ -129,6 +129,55 @@ fn each_broken_file_gives_exactly_its_diagnostics() {
     }
 }
 
+/// A chart type of more states or transitions than a table holds is refused at the first
+/// one too many, and nothing compares its states or transitions in pairs (10,000 of each
+/// here: 50 million pairs).
+#[test]
+fn a_chart_type_past_the_capacities_is_refused_at_the_first_one_too_many() {
+    let path = format!(
+        "{}/../tests/fixtures/small-charts.ron",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let text = std::fs::read_to_string(path).expect("small-charts.ron");
+    let states: String = (0..10_000).map(|i| format!("(name: \"S{i}\"),")).collect();
+    let transitions: String = (0..10_000)
+        .map(|i| format!("(from: \"IDLE\", to: \"OUT\", on: \"GO\", when: \"count == {i}\"),"))
+        .collect();
+    let big = text
+        .replacen(
+            "(name: \"IDLE\"),",
+            &format!("(name: \"IDLE\"),{states}"),
+            1,
+        )
+        .replacen("transitions: [", &format!("transitions: [{transitions}"), 1);
+    let src = Source::new("big.ron", big);
+    let got: Vec<String> = check(&src)
+        .diagnostics
+        .iter()
+        .map(|d| {
+            let (line, col) = d.line_col(&src);
+            format!("{line}:{col}: {}", d.message)
+        })
+        .collect();
+    let state_at = 32
+        + (0..95)
+            .map(|i| format!("(name: \"S{i}\"),").len())
+            .sum::<usize>();
+    let transition_at = 27
+        + (0..128)
+            .map(|i| {
+                format!("(from: \"IDLE\", to: \"OUT\", on: \"GO\", when: \"count == {i}\"),").len()
+            })
+            .sum::<usize>();
+    assert_eq!(
+        got,
+        [
+            format!("31:{state_at}: chart type `Mover` has 10003 states: a table holds at most 96 (MAX_STATES)"),
+            format!("35:{transition_at}: chart type `Mover` has 10003 transitions: a table holds at most 128 (MAX_TRANSITIONS)"),
+        ]
+    );
+}
+
 #[test]
 fn every_broken_file_is_in_the_table() {
     let dir = format!("{}/../tests/fixtures/broken", env!("CARGO_MANIFEST_DIR"));

@@ -109,6 +109,35 @@ fn every_condition_form_the_tools_write() {
     assert_eq!(with("TRUE"), (None, None));
 }
 
+/// An ECC of more states or transitions than a table holds is refused at the first one
+/// too many, before anything compares them in pairs.
+#[test]
+fn an_ecc_past_the_capacities_is_refused_at_the_first_one_too_many() {
+    let states: String = (0..100_000)
+        .map(|i| format!("<ECState Name=\"S{i}\"/>"))
+        .collect();
+    let ecc = ECC.replace(
+        "<ECState Name=\"START\"/>",
+        &format!("<ECState Name=\"START\"/>{states}"),
+    );
+    let at = 1
+        + r#"      <ECState Name="START"/>"#.len()
+        + (0..95)
+            .map(|i| format!("<ECState Name=\"S{i}\"/>").len())
+            .sum::<usize>();
+    assert_eq!(
+        error(&fbt(VARS, &ecc, ALG)),
+        format!("11:{at}: an ECC of more than 96 states: a table holds at most 96 (MAX_STATES)")
+    );
+    let back = r#"<ECTransition Source="GO" Destination="START" Condition="1"/>"#;
+    let ecc = ECC.replace(back, &back.repeat(100_000));
+    let at = 7 + back.len() * 127;
+    assert_eq!(
+        error(&fbt(VARS, &ecc, ALG)),
+        format!("14:{at}: an ECC of more than 128 transitions: a table holds at most 128 (MAX_TRANSITIONS)")
+    );
+}
+
 #[test]
 fn bad_xml_is_refused_with_its_place() {
     assert_eq!(

@@ -1,8 +1,10 @@
-//! Chart types: states unreachable from the initial state (warning), and two transitions
+//! Chart types: more states or transitions than a table holds (error), states unreachable from the initial state (warning), and two transitions
 //! from one state on one event whose guards can both hold (warning: the first declared
 //! wins, which may not be what was meant).
 
 use std::collections::BTreeMap;
+
+use config_schema::limits::{MAX_STATES, MAX_TRANSITIONS};
 
 use crate::diag::Diagnostic;
 use crate::elab;
@@ -11,22 +13,58 @@ use crate::model::{ActionDecl, ChartType, Robot};
 use crate::source::Source;
 
 pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
+    // Parameter values of every instance of each type.
+    let mut instances: BTreeMap<&str, Vec<BTreeMap<String, i32>>> = BTreeMap::new();
+    for c in robot.roles.iter().flat_map(|r| r.charts.iter()) {
+        instances
+            .entry(c.type_.as_str())
+            .or_default()
+            .push(c.params.clone());
+    }
+    // A type no chart instantiates: its parameters free.
+    let free = vec![BTreeMap::new()];
     for (ti, t) in robot.chart_types.iter().enumerate() {
+        if !fits(t, ti, src, out) {
+            continue;
+        }
         names(t, ti, src, out);
         unreachable(t, ti, src, out);
-        // Parameter values of every instance (or none: parameters free).
-        let mut instances: Vec<BTreeMap<String, i32>> = robot
-            .roles
-            .iter()
-            .flat_map(|r| r.charts.iter())
-            .filter(|c| c.type_ == t.name)
-            .map(|c| c.params.clone())
-            .collect();
-        if instances.is_empty() {
-            instances.push(BTreeMap::new());
-        }
-        overlaps(t, ti, &instances, src, out);
+        overlaps(
+            t,
+            ti,
+            instances.get(t.name.as_str()).unwrap_or(&free),
+            src,
+            out,
+        );
     }
+}
+
+/// Whether a chart type's states and transitions fit a table (an error if not: no table
+/// holds the type, and its other checks, which compare states and transitions in pairs,
+/// are skipped).
+fn fits(t: &ChartType, ti: usize, src: &Source, out: &mut Vec<Diagnostic>) -> bool {
+    let mut fits = true;
+    for (what, n, max, name) in [
+        ("states", t.states.len(), MAX_STATES, "MAX_STATES"),
+        (
+            "transitions",
+            t.transitions.len(),
+            MAX_TRANSITIONS,
+            "MAX_TRANSITIONS",
+        ),
+    ] {
+        if n > max {
+            fits = false;
+            out.push(Diagnostic::error(
+                src.span(&format!("chart_types[{ti}].{what}[{max}]")),
+                format!(
+                    "chart type `{}` has {n} {what}: a table holds at most {max} ({name})",
+                    t.name
+                ),
+            ));
+        }
+    }
+    fits
 }
 
 /// Names inside a chart type (states and events of its transitions) and the syntax of its
@@ -114,11 +152,6 @@ fn overlaps(
     src: &Source,
     out: &mut Vec<Diagnostic>,
 ) {
-    // A chart type of more transitions than a table holds is refused by the capacity
-    // check: its pairs are not compared (their number grows with its square).
-    if t.transitions.len() > config_schema::limits::MAX_TRANSITIONS {
-        return;
-    }
     let always = expr::Ast::Int(1);
     let guards: Vec<Option<expr::Ast>> = t
         .transitions

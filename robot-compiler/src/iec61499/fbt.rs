@@ -17,6 +17,7 @@
 //! composite FB) is an error naming the element and its line:col; nothing is half
 //! imported.
 
+use config_schema::limits::{MAX_STATES, MAX_TRANSITIONS};
 use roxmltree::{Document, Node, ParsingOptions};
 
 use super::st::{self, Name, StError, Stmt, Ty};
@@ -412,6 +413,12 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
     let mut bodies: Vec<(Vec<Step>, Node<'_, '_>)> = Vec::new();
     let mut idle = None;
     for s in elements(ecc).filter(|s| s.tag_name().name() == "ECState") {
+        if states.len() == MAX_STATES {
+            return Err(cx.node_err(
+                s,
+                format!("an ECC of more than {MAX_STATES} states: a table holds at most {MAX_STATES} (MAX_STATES)"),
+            ));
+        }
         let sname = cx.attr(s, "Name")?.to_string();
         if marked && !states.is_empty() && s.attribute("Comment") == Some(super::services::IDLE) {
             idle = Some(sname.clone());
@@ -447,6 +454,15 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
     }
     let mut transitions = Vec::new();
     for t in elements(ecc).filter(|t| t.tag_name().name() == "ECTransition") {
+        if transitions.len() == MAX_TRANSITIONS {
+            return Err(cx.node_err(
+                t,
+                format!(
+                    "an ECC of more than {MAX_TRANSITIONS} transitions: a table holds at most \
+                     {MAX_TRANSITIONS} (MAX_TRANSITIONS)"
+                ),
+            ));
+        }
         let mut ends = Vec::new();
         for field in ["Source", "Destination"] {
             let s = cx.attr(t, field)?;
