@@ -4,6 +4,7 @@
 //! subscriptions after lowering). Problems come back as diagnostics with spans.
 
 use std::collections::{BTreeMap, BTreeSet};
+use std::ops::Range;
 
 use crate::diag::Diagnostic;
 use crate::expr::{self, Operand};
@@ -353,8 +354,10 @@ fn routes(
 
 /// An expression error at its span inside the string value at `path`.
 pub fn expr_error(src: &Source, path: &str, e: &expr::ExprError) -> Diagnostic {
-    let base = string_start(src, path);
-    Diagnostic::error(base + e.span.start..base + e.span.end, e.message.clone())
+    Diagnostic::error(
+        StrMap::new(src, path).span(e.span.clone()),
+        e.message.clone(),
+    )
 }
 
 /// A transition naming a state its chart type does not have.
@@ -385,16 +388,79 @@ pub fn unknown_chart_event(src: &Source, t: &ChartType, path: &str, on: &str) ->
     .help(format!("inputs and timers: {}", inputs.join(", ")))
 }
 
-/// Offset of a string value's first character (after the opening quote).
-pub fn string_start(src: &Source, path: &str) -> usize {
-    let span = src.span(path);
-    let text = src.slice(span.clone());
-    let skip = if text.starts_with('r') {
-        text.find('"').map_or(0, |i| i + 1)
-    } else {
-        usize::from(text.starts_with('"'))
-    };
-    span.start + skip
+/// Where the text of the RON string at `path` lies in the file: a span of the string's
+/// value (escapes decoded) mapped to the bytes of the file that wrote it.
+pub struct StrMap {
+    /// The file offset of the value's first byte.
+    start: usize,
+    /// After each escape: (offset in the value, offset in the literal after the quote).
+    escapes: Vec<(usize, usize)>,
+}
+
+impl StrMap {
+    /// The string at `path` (raw strings `r#"..."#` have no escapes).
+    pub fn new(src: &Source, path: &str) -> StrMap {
+        let span = src.span(path);
+        let text = src.slice(span.clone());
+        let (skip, escaped) = if text.starts_with('r') {
+            (text.find('"').map_or(0, |i| i + 1), false)
+        } else {
+            (usize::from(text.starts_with('"')), true)
+        };
+        let mut escapes = Vec::new();
+        if escaped {
+            let body = text.get(skip..).unwrap_or("").as_bytes();
+            let (mut raw, mut value) = (0, 0);
+            while let Some(&b) = body.get(raw) {
+                if b == b'"' {
+                    break;
+                }
+                if b != b'\\' {
+                    raw += 1;
+                    value += 1;
+                    continue;
+                }
+                // `\u{X..}`: the char's UTF-8 length; `\xNN` and one-char escapes: one byte.
+                let (len, decoded) = match body.get(raw + 1) {
+                    Some(b'u') => {
+                        let close = body
+                            .get(raw..)
+                            .unwrap_or(&[])
+                            .iter()
+                            .position(|&c| c == b'}');
+                        let code = close.and_then(|c| {
+                            let hex = std::str::from_utf8(body.get(raw + 3..raw + c)?).ok()?;
+                            char::from_u32(u32::from_str_radix(hex, 16).ok()?)
+                        });
+                        (close.map_or(2, |c| c + 1), code.map_or(1, char::len_utf8))
+                    }
+                    Some(b'x') => (4, 1),
+                    _ => (2, 1),
+                };
+                raw += len;
+                value += decoded;
+                escapes.push((value, raw));
+            }
+        }
+        StrMap {
+            start: span.start + skip,
+            escapes,
+        }
+    }
+
+    /// The file offset of byte `offset` of the value.
+    pub fn at(&self, offset: usize) -> usize {
+        let k = self.escapes.partition_point(|&(value, _)| value <= offset);
+        match k.checked_sub(1).and_then(|k| self.escapes.get(k)) {
+            Some(&(value, raw)) => self.start + raw + (offset - value),
+            None => self.start + offset,
+        }
+    }
+
+    /// The file span of a span of the value.
+    pub fn span(&self, span: Range<usize>) -> Range<usize> {
+        self.at(span.start)..self.at(span.end)
+    }
 }
 
 /// Instantiates chart `ci` of role `ri` (its type with the instance's parameters) into

@@ -178,6 +178,34 @@ fn a_chart_type_past_the_capacities_is_refused_at_the_first_one_too_many() {
     );
 }
 
+/// An error inside an expression points at its place in the file when the string writes
+/// escapes (`\u{63}` or `\x63` for `c`, `\t`, `\n`) or is a raw string.
+#[test]
+fn an_expression_error_points_into_the_file_through_escapes() {
+    let path = format!(
+        "{}/../tests/fixtures/small-charts.ron",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let text = std::fs::read_to_string(path).expect("small-charts.ron");
+    let guard = r#"when: "count < M || true""#;
+    assert!(text.contains(guard));
+    for written in [
+        r#"when: "count < M || zz""#,
+        r#"when: "\u{63}\u{6f}unt\t< M || zz""#,
+        r#"when: "\x63ount\r\n< M || zz""#,
+        r##"when: r#"count < M || zz"#"##,
+    ] {
+        let src = Source::new("esc.ron", text.replacen(guard, written, 1));
+        let diags = check(&src).diagnostics;
+        let zz = diags
+            .iter()
+            .find(|d| d.message.starts_with("unknown name `zz`"))
+            .unwrap_or_else(|| panic!("{written}: {diags:?}"));
+        let (line, col) = src.line_col(src.text.find("zz").expect("zz"));
+        assert_eq!(zz.line_col(&src), (line, col), "{written}");
+    }
+}
+
 #[test]
 fn every_broken_file_is_in_the_table() {
     let dir = format!("{}/../tests/fixtures/broken", env!("CARGO_MANIFEST_DIR"));

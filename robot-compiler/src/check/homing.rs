@@ -4,7 +4,7 @@
 //! while the actuators it has not homed yet may be anywhere ([`check_ir`]).
 
 use crate::diag::Diagnostic;
-use crate::elab::{home_input, string_start};
+use crate::elab::{home_input, StrMap};
 use crate::homing;
 use crate::ir::{parse_steps, Ir};
 use crate::model::Robot;
@@ -35,7 +35,7 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
     let Some(text) = &robot.homing else {
         return;
     };
-    let base = string_start(src, "homing");
+    let base = StrMap::new(src, "homing");
     let parsed = parse_steps(text);
     if parsed.is_empty() {
         out.push(
@@ -53,7 +53,7 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
         .filter_map(|(s, _)| s.ok().map(|s| s.actuator))
         .collect();
     for (step, span) in parsed {
-        let here = base + span.start..base + span.end;
+        let here = base.span(span.clone());
         match step {
             Err(e) => out.push(Diagnostic::error(here, e.to_string())),
             Ok(s) if robot.actuator(&s.actuator).is_none() => out.push(
@@ -79,10 +79,10 @@ pub fn check_ir(robot: &Robot, ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>)
     // Where to point: the declared step, or (derived) the `sequence`.
     let step_spans: Vec<std::ops::Range<usize>> = match &robot.homing {
         Some(text) => {
-            let base = string_start(src, "homing");
+            let base = StrMap::new(src, "homing");
             parse_steps(text)
                 .into_iter()
-                .map(|(_, s)| base + s.start..base + s.end)
+                .map(|(_, s)| base.span(s))
                 .collect()
         }
         None => Vec::new(),

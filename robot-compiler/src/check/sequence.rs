@@ -5,7 +5,7 @@
 //! Also the `expect` sequence of explicit robots.
 
 use crate::diag::Diagnostic;
-use crate::elab::{start_input, string_start};
+use crate::elab::{start_input, StrMap};
 use crate::ir::parse_steps;
 use crate::model::{ActuatorKind, Robot};
 use crate::source::Source;
@@ -50,7 +50,7 @@ fn steps(
     synth: bool,
     out: &mut Vec<Diagnostic>,
 ) {
-    let base = string_start(src, path);
+    let base = StrMap::new(src, path);
     let mut out_now: Vec<(String, std::ops::Range<usize>)> = Vec::new();
     let parsed = parse_steps(text);
     if parsed.is_empty() {
@@ -61,7 +61,7 @@ fn steps(
         return;
     }
     for (step, span) in &parsed {
-        let here = base + span.start..base + span.end;
+        let here = base.span(span.clone());
         let step = match step {
             Ok(s) => s,
             Err(e) => {

@@ -9,7 +9,7 @@ use std::ops::Range;
 use super::model::{FunctionDecl, MatrixDecl};
 use super::{levels, place_ref, reads, Event, Net, Transition};
 use crate::diag::Diagnostic;
-use crate::elab::{expr_error, role_events, string_start};
+use crate::elab::{expr_error, role_events, StrMap};
 use crate::expr::{self, Ast};
 use crate::model::{ActionDecl, Robot};
 use crate::source::Source;
@@ -482,7 +482,7 @@ fn resolve(
             ),
         }
         if let Some((_, ast)) = &l.net.transitions[k].when {
-            let base = string_start(src, &l.field(k, "when"));
+            let base = StrMap::new(src, &l.field(k, "when"));
             let mut found = Vec::new();
             spans(ast, &mut found);
             for (name, span) in found {
@@ -499,10 +499,7 @@ fn resolve(
                         l.net.role
                     ),
                 };
-                diags.push(Diagnostic::error(
-                    base + span.start..base + span.end,
-                    message,
-                ));
+                diags.push(Diagnostic::error(base.span(span.clone()), message));
             }
         }
     }
