@@ -109,24 +109,8 @@ impl Source {
     /// UTF-8.
     pub fn from_bytes(name: impl Into<String>, bytes: Vec<u8>) -> Result<Source, LoadError> {
         let name = name.into();
-        match String::from_utf8(bytes) {
-            Ok(text) => Ok(Source::new(name, text)),
-            Err(e) => {
-                let at = e.utf8_error().valid_up_to();
-                let bytes = e.as_bytes();
-                let valid = std::str::from_utf8(bytes.get(..at).unwrap_or(&[])).unwrap_or("");
-                let line = valid.matches('\n').count() + 1;
-                let start = valid.rfind('\n').map_or(0, |i| i + 1);
-                let col = valid[start..].chars().count() + 1;
-                Err(LoadError::NotUtf8 {
-                    byte: bytes.get(at).copied().unwrap_or(0),
-                    path: name,
-                    line,
-                    col,
-                    offset: at,
-                })
-            }
-        }
+        let text = utf8(&name, bytes)?;
+        Ok(Source::new(name, text))
     }
 
     /// Characters before byte `offset` (a character boundary).
@@ -238,6 +222,29 @@ impl Source {
     /// The text of a span.
     pub fn slice(&self, span: Range<usize>) -> &str {
         self.text.get(span).unwrap_or("")
+    }
+}
+
+/// `bytes` as text, or [`LoadError::NotUtf8`] at the first byte that is not UTF-8 (`name`
+/// names the file in the error).
+pub fn utf8(name: &str, bytes: Vec<u8>) -> Result<String, LoadError> {
+    match String::from_utf8(bytes) {
+        Ok(text) => Ok(text),
+        Err(e) => {
+            let at = e.utf8_error().valid_up_to();
+            let bytes = e.as_bytes();
+            let valid = std::str::from_utf8(bytes.get(..at).unwrap_or(&[])).unwrap_or("");
+            let line = valid.matches('\n').count() + 1;
+            let start = valid.rfind('\n').map_or(0, |i| i + 1);
+            let col = valid[start..].chars().count() + 1;
+            Err(LoadError::NotUtf8 {
+                byte: bytes.get(at).copied().unwrap_or(0),
+                path: name.to_string(),
+                line,
+                col,
+                offset: at,
+            })
+        }
     }
 }
 

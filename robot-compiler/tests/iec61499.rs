@@ -226,5 +226,48 @@ fn a_robot_names_the_file_and_its_place_and_imports_nothing_of_a_bad_type() {
     assert_eq!(errors.len(), 1, "{errors:#?}");
     assert!(checked.robot.expect("parsed").chart_types.is_empty());
     assert!(checked.ir.is_none());
+
+    // A file that is not UTF-8: the place of its first bad byte.
+    let mut latin1 = fbt(VARS, ECC, ALG).into_bytes();
+    let at = latin1
+        .windows(5)
+        .position(|w| w == b"START")
+        .expect("START");
+    latin1[at + 1] = 0xC4; // `SÄART` in ISO-8859-1
+    std::fs::write(dir.join("T.fbt"), latin1).unwrap();
+    let checked = check::check(&src);
+    let first = checked.diagnostics.first().expect("an error");
+    assert_eq!(
+        first.short(&src).replace(&*src.name, "r.ron"),
+        "r.ron:1:244: error: `T.fbt` is not UTF-8 text: byte 0xc4 at 11:23 (offset 393)"
+    );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// XML that ends too early is refused at its end, where the parser found it out.
+#[test]
+fn truncated_xml_is_refused_at_its_end() {
+    let text = fbt(VARS, ECC, ALG);
+    let end = |cut: &str| {
+        (
+            cut.lines().count(),
+            cut.lines().last().map_or(0, str::len) + 1,
+        )
+    };
+    let cut = &text[..text.find("<ECTransition").expect("a transition")];
+    let (line, col) = end(cut);
+    assert_eq!(
+        error(cut),
+        format!("{line}:{col}: not well-formed XML: the root node was opened but never closed")
+    );
+    let cut = &text[..text.find("C := C").expect("an algorithm") + 2];
+    let (line, col) = end(cut);
+    assert_eq!(
+        error(cut),
+        format!("{line}:{col}: not well-formed XML: unexpected end of stream")
+    );
+    assert_eq!(
+        error("  \n  "),
+        "2:3: not well-formed XML: the document does not have a root node"
+    );
 }

@@ -199,10 +199,10 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
         ..ParsingOptions::default()
     };
     let doc = Document::parse_with_options(text, options).map_err(|e| {
-        let p = e.pos();
+        let (line, col) = super::xml_error_at(text, &e);
         XmlError {
-            line: p.row,
-            col: p.col,
+            line,
+            col,
             message: format!("not well-formed XML: {e}"),
         }
     })?;

@@ -56,9 +56,12 @@ pub fn import_with(
                 continue;
             }
         };
-        let Ok(text) = String::from_utf8(bytes) else {
-            diags.push(Diagnostic::error(at, format!("`{file}` is not UTF-8 text")));
-            continue;
+        let text = match utf8_text(file, bytes) {
+            Ok(text) => text,
+            Err(e) => {
+                diags.push(Diagnostic::error(at, e));
+                continue;
+            }
         };
         if robot.application.is_some() && composite::is_composite(&text) == Some(true) {
             match composite::parse(&text, file) {
@@ -106,9 +109,9 @@ fn application(
     let at = src.span("application.file");
     let file = &decl.file;
     let text = match read(file) {
-        Ok(bytes) => match String::from_utf8(bytes) {
+        Ok(bytes) => match utf8_text(file, bytes) {
             Ok(t) => t,
-            Err(_) => return Some(Diagnostic::error(at, format!("`{file}` is not UTF-8 text"))),
+            Err(e) => return Some(Diagnostic::error(at, e)),
         },
         Err(e) => return Some(Diagnostic::error(at, format!("cannot read `{file}`: {e}"))),
     };
@@ -134,4 +137,38 @@ fn application(
             Some(Diagnostic::error(src.span(&path), message))
         }
     }
+}
+
+/// Where an XML parse error of `text` is, as (line, column): the place roxmltree gives,
+/// or for an error only found at the end (the text ended inside an element, or holds
+/// none) the end of the text, where roxmltree says 1:1.
+pub(crate) fn xml_error_at(text: &str, e: &roxmltree::Error) -> (u32, u32) {
+    use roxmltree::Error::{NoRootNode, UnclosedRootNode, UnexpectedEndOfStream};
+    if !matches!(e, UnexpectedEndOfStream | UnclosedRootNode | NoRootNode) {
+        let p = e.pos();
+        return (p.row, p.col);
+    }
+    let line = text.matches('\n').count() + 1;
+    let last = text.rfind('\n').map_or(text, |i| &text[i + 1..]);
+    let col = last.chars().count() + 1;
+    (
+        u32::try_from(line).unwrap_or(u32::MAX),
+        u32::try_from(col).unwrap_or(u32::MAX),
+    )
+}
+
+/// `bytes` of `file` as text, or why not: the place of the first byte that is not UTF-8.
+pub(crate) fn utf8_text(file: &str, bytes: Vec<u8>) -> Result<String, String> {
+    crate::source::utf8(file, bytes).map_err(|e| match e {
+        crate::source::LoadError::NotUtf8 {
+            byte,
+            line,
+            col,
+            offset,
+            ..
+        } => format!(
+            "`{file}` is not UTF-8 text: byte {byte:#04x} at {line}:{col} (offset {offset})"
+        ),
+        other => other.to_string(),
+    })
 }

@@ -126,13 +126,10 @@ pub fn parse<'i>(text: &'i str, file: &str) -> Result<Document<'i>, SysError> {
         ..ParsingOptions::default()
     };
     Document::parse_with_options(text, options).map_err(|e| {
-        let p = e.pos();
+        let (line, col) = super::xml_error_at(text, &e);
         SysError {
             file: file.to_string(),
-            at: Pos {
-                line: p.row,
-                col: p.col,
-            },
+            at: Pos { line, col },
             message: format!("not well-formed XML: {e}"),
         }
     })
