@@ -169,9 +169,20 @@ fn lex(text: &str) -> Result<Vec<(Tok, Range<usize>)>, StError> {
             while i < bytes.len() && (bytes[i].is_ascii_alphanumeric() || bytes[i] == b'_') {
                 i += 1;
             }
-            // A typed literal: `UINT#5`, `BOOL#TRUE`.
+            // A typed literal: `UINT#5`, `DINT#-5`, `BOOL#TRUE`, `BOOL#0`.
             if i < bytes.len() && bytes[i] == b'#' {
-                let at = i + 1;
+                let name = &text[start..i];
+                let Some(ty) = Ty::of(name) else {
+                    return err(
+                        start..i,
+                        format!(
+                            "`{name}#`: a typed literal is of BOOL, SINT, INT, DINT, USINT, \
+                             UINT or UDINT"
+                        ),
+                    );
+                };
+                let neg = bytes.get(i + 1) == Some(&b'-');
+                let at = i + 1 + usize::from(neg);
                 let mut j = at;
                 while j < bytes.len()
                     && (bytes[j].is_ascii_alphanumeric() || bytes[j] == b'_' || bytes[j] == b'#')
@@ -179,11 +190,26 @@ fn lex(text: &str) -> Result<Vec<(Tok, Range<usize>)>, StError> {
                     j += 1;
                 }
                 let value = &text[at..j];
+                let literal = &text[start..j];
                 i = j;
-                let tok = match value.to_ascii_uppercase().as_str() {
-                    "TRUE" => Tok::Word(String::from("TRUE")),
-                    "FALSE" => Tok::Word(String::from("FALSE")),
-                    _ => Tok::Int(number(value, at..j)?),
+                let tok = match (ty, value.to_ascii_uppercase().as_str(), neg) {
+                    (Ty::Bool, "TRUE" | "1", false) => Tok::Word(String::from("TRUE")),
+                    (Ty::Bool, "FALSE" | "0", false) => Tok::Word(String::from("FALSE")),
+                    (Ty::Bool, _, _) => {
+                        return err(
+                            start..j,
+                            format!("`{literal}`: BOOL# takes TRUE, FALSE, 1 or 0"),
+                        )
+                    }
+                    (Ty::Int(w), _, _) => {
+                        let magnitude = number(value, at..j)?;
+                        let n = if neg { -magnitude } else { magnitude };
+                        let unsigned = w.is_some_and(|w| !w.signed);
+                        if !literal_fits(&n.to_string(), w) || (unsigned && n < 0) {
+                            return err(start..j, format!("`{literal}` does not fit in {name}"));
+                        }
+                        Tok::Int(n)
+                    }
                 };
                 out.push((tok, start..j));
                 continue;
@@ -213,16 +239,19 @@ fn number(text: &str, span: Range<usize>) -> Result<i64, StError> {
         Some(("16", b)) => (16, b.to_string()),
         Some(("8", b)) => (8, b.to_string()),
         Some(("2", b)) => (2, b.to_string()),
-        Some(_) => return err(span, format!("`{text}` is not an integer literal")),
+        Some(_) => return err(span, format!("`{}` is not an integer literal", short(text))),
         None => (10, digits.clone()),
     };
     match i64::from_str_radix(&body, radix) {
         Ok(v) if v <= i64::from(i32::MAX) => Ok(v),
         Ok(_) => err(
             span,
-            format!("`{text}` does not fit 32 bits (the tables' integers)"),
+            format!(
+                "`{}` does not fit 32 bits (the tables' integers)",
+                short(text)
+            ),
         ),
-        Err(_) => err(span, format!("`{text}` is not an integer literal")),
+        Err(_) => err(span, format!("`{}` is not an integer literal", short(text))),
     }
 }
 
@@ -551,7 +580,9 @@ impl<'n> Parser<'n> {
         if self.sym(";") {
             self.bump();
         }
-        let after = from + count * by;
+        // Past the last value: wrapped to 32 bits as the node's arithmetic wraps (a DINT
+        // counted to its maximum), then to the variable's width.
+        let after = i64::from((from + count * by) as i32);
         let after = match var.ty {
             Ty::Int(Some(w)) if !literal_fits(&after.to_string(), Some(w)) => {
                 format!("{}({after})", crate::expr::wrap_name(w.bits, w.signed))
@@ -841,6 +872,14 @@ pub fn condition(text: &str, names: &[Name]) -> Result<String, StError> {
     Ok(v)
 }
 
+/// `text` as an error message quotes it: at most 40 characters, then `...`.
+fn short(text: &str) -> String {
+    match text.char_indices().nth(40) {
+        Some((cut, _)) => format!("{}...", &text[..cut]),
+        None => text.to_string(),
+    }
+}
+
 /// An initial value: an integer or boolean literal (`-` allowed), as the chart types'
 /// syntax writes it.
 pub fn literal(text: &str, ty: Ty) -> Result<String, StError> {
@@ -854,7 +893,10 @@ pub fn literal(text: &str, ty: Ty) -> Result<String, StError> {
         ([(Tok::Int(v), _), (Tok::End, _)], Ty::Int(w)) => {
             let v = if neg { -*v } else { *v };
             if !literal_fits(&v.to_string(), w) {
-                return err(whole, format!("`{text}` is out of the variable's range"));
+                return err(
+                    whole,
+                    format!("`{}` is out of the variable's range", short(text)),
+                );
             }
             Ok(v.to_string())
         }
@@ -871,7 +913,7 @@ pub fn literal(text: &str, ty: Ty) -> Result<String, StError> {
         ([(Tok::Int(v @ (0 | 1)), _), (Tok::End, _)], Ty::Bool) if !neg => Ok(v.to_string()),
         _ => err(
             whole,
-            format!("`{text}` is not a literal of this variable's type"),
+            format!("`{}` is not a literal of this variable's type", short(text)),
         ),
     }
 }
@@ -1098,6 +1140,56 @@ mod tests {
                 a("S", "2"),
                 a("D", "0"),
             ])
+        );
+        // A bad initial value is quoted short.
+        let long = "7".repeat(200_000);
+        let e = literal(&long, Ty::Bool).unwrap_err();
+        let quoted = format!("`{}...`", "7".repeat(40));
+        assert_eq!(e.message, format!("{quoted} is not an integer literal"));
+        let e = literal(&format!("X{long}"), Ty::Bool).unwrap_err();
+        let quoted = format!("`X{}...`", "7".repeat(39));
+        assert_eq!(
+            e.message,
+            format!("{quoted} is not a literal of this variable's type")
+        );
+        // Typed literals: of a type of the subset, within it.
+        assert_eq!(
+            assigns("D := DINT#-5; S := SINT#-128; CV := UINT#65535; Q := BOOL#1;"),
+            Ok(vec![
+                a("D", "-5"),
+                a("S", "-128"),
+                a("CV", "65535"),
+                a("Q", "true")
+            ])
+        );
+        let e = |text: &str| algorithm(text, &names()).unwrap_err();
+        assert_eq!(
+            e("CV := FOO#7;"),
+            StError {
+                message:
+                    "`FOO#`: a typed literal is of BOOL, SINT, INT, DINT, USINT, UINT or UDINT"
+                        .into(),
+                span: 6..9
+            }
+        );
+        assert_eq!(
+            e("Q := BOOL#7;").message,
+            "`BOOL#7`: BOOL# takes TRUE, FALSE, 1 or 0"
+        );
+        assert_eq!(
+            e("CV := UINT#70000;").message,
+            "`UINT#70000` does not fit in UINT"
+        );
+        assert_eq!(e("S := SINT#-129;").span, 5..14);
+        assert_eq!(
+            e("CV := UINT#-1;").message,
+            "`UINT#-1` does not fit in UINT"
+        );
+        // Counted to the top of DINT: left past it, wrapped as the node's arithmetic wraps.
+        assert_eq!(
+            assigns("FOR D := 2147483600 TO 2147483647 BY 10 DO Q := TRUE; END_FOR;")
+                .map(|a| a.last().cloned()),
+            Ok(Some(a("D", "-2147483646")))
         );
         // No iteration: the body is checked and dropped; the variable gets the start.
         assert_eq!(
