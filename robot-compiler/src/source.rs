@@ -225,11 +225,15 @@ impl Source {
     }
 }
 
-/// `bytes` as text, or [`LoadError::NotUtf8`] at the first byte that is not UTF-8 (`name`
-/// names the file in the error).
+/// `bytes` as text (without a byte order mark), or [`LoadError::NotUtf8`] at the first
+/// byte that is not UTF-8 (`name` names the file in the error).
 pub fn utf8(name: &str, bytes: Vec<u8>) -> Result<String, LoadError> {
     match String::from_utf8(bytes) {
-        Ok(text) => Ok(text),
+        // A byte order mark is no part of the text (editors show none; RON takes none).
+        Ok(text) => match text.strip_prefix('\u{FEFF}') {
+            Some(rest) => Ok(rest.to_string()),
+            None => Ok(text),
+        },
         Err(e) => {
             let at = e.utf8_error().valid_up_to();
             let bytes = e.as_bytes();
@@ -293,6 +297,14 @@ mod tests {
         );
         let ok = Source::from_bytes("r.ron", b"ok".to_vec()).expect("utf-8");
         assert_eq!(ok.text, "ok");
+    }
+
+    /// A byte order mark is dropped: a robot saved with one reads as without it.
+    #[test]
+    fn a_byte_order_mark_is_no_part_of_the_text() {
+        let bom = Source::from_bytes("r.ron", b"\xef\xbb\xbfRobot(\n)".to_vec()).expect("utf-8");
+        assert_eq!(bom.text, "Robot(\n)");
+        assert_eq!(bom.line_col(bom.text.find(')').expect(")")), (2, 1));
     }
 
     /// A file that cannot be read is an error naming it, with the I/O error as its source.
