@@ -64,6 +64,8 @@ pub enum ParseError {
         crate::sim::MAX_CYCLES
     )]
     BadNumber { spec: String, number: String },
+    #[error("`{spec}`: a link joins two roles, not `{role}` with itself")]
+    SelfLink { spec: String, role: String },
     #[error("`{spec}`: a link is FROM->TO")]
     BadLink { spec: String },
     #[error("`{spec}`: unknown fault kind `{kind}`: {}", USAGE)]
@@ -100,6 +102,12 @@ pub fn parse(spec: &str) -> Result<FaultSpec, ParseError> {
             let (f, t) = target
                 .split_once("->")
                 .ok_or_else(|| ParseError::BadLink { spec: owned() })?;
+            if f == t {
+                return Err(ParseError::SelfLink {
+                    spec: owned(),
+                    role: f.to_string(),
+                });
+            }
             FaultKind::Link(f.to_string(), t.to_string())
         }
         other => {
@@ -634,6 +642,10 @@ mod tests {
         assert_eq!(
             parse("stop:GR@x.1").unwrap_err().to_string(),
             "`stop:GR@x.1`: `x` is not a step or cycle number (1 to 10000)"
+        );
+        assert_eq!(
+            parse("link:VC->VC@4").unwrap_err().to_string(),
+            "`link:VC->VC@4`: a link joins two roles, not `VC` with itself"
         );
         // A cycle past the simulation's bound is refused, not run to.
         assert_eq!(parse("stuck:HC@10000.1").map(|s| s.cycle), Ok(10_000));
