@@ -235,6 +235,36 @@ fn an_unknown_element_is_refused_at_its_place() {
     );
 }
 
+/// `check` of a robot whose application fails to import reports that failure alone, not
+/// what follows from it (a robot without behaviour, its roles on no node).
+#[test]
+fn a_failed_import_is_the_only_error_check_reports() {
+    let dir = std::env::temp_dir().join(format!("sys-import-{}", std::process::id()));
+    let types = dir.join("4diac/paint-robot");
+    std::fs::create_dir_all(&types).expect("dir");
+    let configs = root().join("robot-configs");
+    for entry in std::fs::read_dir(configs.join("4diac/paint-robot")).expect("4diac files") {
+        let path = entry.expect("entry").path();
+        let text = std::fs::read_to_string(&path).expect("reads");
+        let text = text.replace("Source=\"gr.GR1\"", "Source=\"gr.ZZ\"");
+        std::fs::write(types.join(path.file_name().expect("name")), text).expect("writes");
+    }
+    let robot = std::fs::read_to_string(configs.join("paint-robot-4diac.ron")).expect("robot");
+    std::fs::write(dir.join("r.ron"), robot).expect("writes");
+    let src = Source::read(&dir.join("r.ron")).expect("reads");
+    let errors: Vec<String> = check::check(&src)
+        .diagnostics
+        .iter()
+        .map(|d| d.short(&src).replace(&*src.name, "r.ron"))
+        .collect();
+    assert_eq!(
+        errors,
+        ["r.ron:52:15: error: 4diac/paint-robot/PaintRobot.sys:19:9: `gr.ZZ`: `gr` (of type `Gr`) \
+          has no event output `ZZ`"]
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn a_connection_to_a_missing_fb_or_port_is_refused_at_its_place() {
     assert_eq!(

@@ -91,6 +91,17 @@ pub fn check(src: &Source) -> Checked {
     };
     // Imported FB types join the chart types before anything reads them.
     let mut diags = crate::iec61499::import(&mut robot, src);
+    if diags.iter().any(Diagnostic::is_error) {
+        // What failed to import is missing from the robot: what the passes would find
+        // now (a robot without behaviour, roles on no node) follows from it.
+        diag::sort(&mut diags);
+        diags.dedup();
+        return Checked {
+            robot: Some(robot),
+            ir: None,
+            diagnostics: diags,
+        };
+    }
     for (_, pass) in STRUCTURE {
         pass(&robot, src, &mut diags);
     }
