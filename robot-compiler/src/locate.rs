@@ -387,6 +387,18 @@ impl Value {
         self.walk(path).1.span.clone()
     }
 
+    /// The span of key `key` of the map at `path` (or of the value at `path`).
+    pub fn find_map_key(&self, path: &str, key: &str) -> Range<usize> {
+        let (_, v) = self.walk(path);
+        match &v.kind {
+            Kind::Map(entries) => entries
+                .iter()
+                .find(|(k, _, _)| k == key)
+                .map_or_else(|| v.span.clone(), |(_, k, _)| k.span.clone()),
+            _ => v.span.clone(),
+        }
+    }
+
     /// The span of the key naming the value at `path` (or the value's span).
     pub fn find_key(&self, path: &str) -> Range<usize> {
         let (key, v) = self.walk(path);

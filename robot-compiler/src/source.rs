@@ -210,6 +210,15 @@ impl Source {
         }
     }
 
+    /// The span of key `key` (as written, unquoted) of the map at `path`, or of the map if it
+    /// has no such key: for keys that are not names (`"vc.GR1"`), which a path cannot name.
+    pub fn map_key_span(&self, path: &str, key: &str) -> Range<usize> {
+        match &self.tree {
+            Some(tree) => tree.find_map_key(path, key),
+            None => 0..self.text.len(),
+        }
+    }
+
     /// Every key a map of the file has twice: (key, the first's span, the second's).
     pub fn duplicate_keys(&self) -> Vec<(String, Range<usize>, Range<usize>)> {
         let mut out = Vec::new();

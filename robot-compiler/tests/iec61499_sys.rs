@@ -345,7 +345,7 @@ fn a_device_that_is_no_node_and_a_bad_binding_are_refused() {
     );
     assert_eq!(
         errors,
-        ["r.ron:5:66: error: `sr.NOPE`: `E_SR` has no event output `NOPE`"]
+        ["r.ron:5:67: error: `sr.NOPE`: `E_SR` has no event output `NOPE`"]
     );
     assert!(robot.roles.iter().all(|r| r.charts.is_empty()));
 }

@@ -80,7 +80,12 @@ const SERVICE: &[&str] = &[
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum AppError {
     Xml(SysError),
-    Ron { path: String, message: String },
+    /// At the value at `path` of the robot file, or the key `key` of the map there.
+    Ron {
+        path: String,
+        key: Option<String>,
+        message: String,
+    },
 }
 
 impl From<SysError> for AppError {
@@ -92,6 +97,16 @@ impl From<SysError> for AppError {
 fn ron(path: &str, message: impl Into<String>) -> AppError {
     AppError::Ron {
         path: path.to_string(),
+        key: None,
+        message: message.into(),
+    }
+}
+
+/// An error at key `key` of the map at `path` of the robot file.
+fn ron_key(path: &str, key: &str, message: impl Into<String>) -> AppError {
+    AppError::Ron {
+        path: path.to_string(),
+        key: Some(key.to_string()),
         message: message.into(),
     }
 }
@@ -1067,11 +1082,16 @@ pub fn bring(
     };
     let split = |key: &str, path: &str| -> Result<(String, String, ChartType), AppError> {
         let Some((fb, port)) = key.rsplit_once('.') else {
-            return Err(ron(path, format!("`{key}` names no FB port (`FB.EVENT`)")));
+            return Err(ron_key(
+                path,
+                key,
+                format!("`{key}` names no FB port (`FB.EVENT`)"),
+            ));
         };
         let Some(t) = leaf_type(fb) else {
-            return Err(ron(
+            return Err(ron_key(
                 path,
+                key,
                 format!("`{key}`: no basic FB `{fb}` in the application"),
             ));
         };
@@ -1081,14 +1101,16 @@ pub fn bring(
     for (key, source) in &decl.on {
         let (fb, port, t) = split(key, "application.on")?;
         if !t.inputs.contains(&port) {
-            return Err(ron(
+            return Err(ron_key(
                 "application.on",
+                key,
                 format!("`{key}`: `{}` has no event input `{port}`", t.name),
             ));
         }
         if fed.contains_key(&(fb.clone(), port.clone())) {
-            return Err(ron(
+            return Err(ron_key(
                 "application.on",
+                key,
                 format!("`{key}` is fed by the application already"),
             ));
         }
@@ -1097,15 +1119,17 @@ pub fn bring(
     for (key, action) in &decl.actions {
         let (fb, port, t) = split(key, "application.actions")?;
         if !t.outputs.contains(&port) {
-            return Err(ron(
+            return Err(ron_key(
                 "application.actions",
+                key,
                 format!("`{key}`: `{}` has no event output `{port}`", t.name),
             ));
         }
         let end = (fb.clone(), port.clone());
         if !from_port(&end.0, &end.1).is_empty() || acts.contains_key(&end) {
-            return Err(ron(
+            return Err(ron_key(
                 "application.actions",
+                key,
                 format!("`{key}` is connected in the application already"),
             ));
         }
@@ -1116,8 +1140,9 @@ pub fn bring(
                 | ActionDecl::Out(..)
                 | ActionDecl::Fault(_)
         ) {
-            return Err(ron(
+            return Err(ron_key(
                 "application.actions",
+                key,
                 format!("`{key}`: an output event may `Extend`, `Retract`, `Out` or `Fault`"),
             ));
         }

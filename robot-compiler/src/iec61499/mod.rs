@@ -133,8 +133,12 @@ fn application(
             None
         }
         Err(app::AppError::Xml(e)) => Some(xml(e)),
-        Err(app::AppError::Ron { path, message }) => {
-            Some(Diagnostic::error(src.span(&path), message))
+        Err(app::AppError::Ron { path, key, message }) => {
+            let at = match key {
+                Some(key) => src.map_key_span(&path, &key),
+                None => src.span(&path),
+            };
+            Some(Diagnostic::error(at, message))
         }
     }
 }
