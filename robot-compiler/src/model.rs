@@ -495,6 +495,10 @@ pub struct ChartType {
     /// (`iec61499::services::IDLE`).
     #[serde(skip)]
     pub idle: Option<String>,
+    /// For a type the robot file does not write: the place in it that brought the type
+    /// (`fb_types[2]`, `application.file`), where its diagnostics point.
+    #[serde(skip)]
+    pub imported: Option<String>,
 }
 
 /// A chart variable and its initial value (an expression over the parameters).

@@ -180,6 +180,7 @@ impl Sorting {
             states,
             transitions,
             idle: None,
+            imported: None,
         }
     }
 }

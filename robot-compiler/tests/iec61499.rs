@@ -244,6 +244,41 @@ fn a_robot_names_the_file_and_its_place_and_imports_nothing_of_a_bad_type() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A diagnostic about an imported type points at the `fb_types` entry that brought it.
+#[test]
+fn a_warning_about_an_imported_type_points_at_its_import() {
+    let dir = std::env::temp_dir().join(format!("iec61499-warn-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let lost = ECC.replace(
+        "<ECState Name=\"START\"/>",
+        "<ECState Name=\"START\"/><ECState Name=\"LOST\"/>",
+    );
+    std::fs::write(dir.join("T.fbt"), fbt(VARS, &lost, ALG)).unwrap();
+    let robot = "Robot(name: \"r\", network: (pan_id: 1, channel: 11), \
+        nodes: [(name: \"n1\", address: 1)], assign: [(\"A\", \"n1\")], \
+        roles: [(name: \"A\", inputs: [(name: \"I\", pin: 0)], \
+        charts: [(name: \"t\", type: \"T\", params: {\"N\": 3}, on: {\"EI\": \"I\"})])], \
+        fb_types: [\"T.fbt\"])";
+    let src = Source::new(
+        dir.join("r.ron").to_string_lossy().as_ref(),
+        robot.to_string(),
+    );
+    let lost: Vec<String> = check::check(&src)
+        .diagnostics
+        .iter()
+        .filter(|d| d.message.contains("LOST"))
+        .map(|d| d.short(&src).replace(&*src.name, "r.ron"))
+        .collect();
+    assert_eq!(
+        lost,
+        [
+            "r.ron:1:244: warning: state `LOST` of chart type `T` is unreachable from its initial \
+          state `START`"
+        ]
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// XML that ends too early is refused at its end, where the parser found it out.
 #[test]
 fn truncated_xml_is_refused_at_its_end() {

@@ -56,7 +56,7 @@ fn fits(t: &ChartType, ti: usize, src: &Source, out: &mut Vec<Diagnostic>) -> bo
         if n > max {
             fits = false;
             out.push(Diagnostic::error(
-                src.span(&format!("chart_types[{ti}].{what}[{max}]")),
+                type_span(t, src, &format!("chart_types[{ti}].{what}[{max}]")),
                 format!(
                     "chart type `{}` has {n} {what}: a table holds at most {max} ({name})",
                     t.name
@@ -65,6 +65,12 @@ fn fits(t: &ChartType, ti: usize, src: &Source, out: &mut Vec<Diagnostic>) -> bo
         }
     }
     fits
+}
+
+/// The span of `path` inside chart type `t`, or for a type the robot file does not write
+/// the place that imported it.
+fn type_span(t: &ChartType, src: &Source, path: &str) -> std::ops::Range<usize> {
+    src.span(t.imported.as_deref().unwrap_or(path))
 }
 
 /// Names inside a chart type (states and events of its transitions) and the syntax of its
@@ -113,7 +119,7 @@ fn names(t: &ChartType, ti: usize, src: &Source, out: &mut Vec<Diagnostic>) {
 fn unreachable(t: &ChartType, ti: usize, src: &Source, out: &mut Vec<Diagnostic>) {
     let Some(initial) = t.states.first() else {
         out.push(Diagnostic::error(
-            src.span(&format!("chart_types[{ti}].states")),
+            type_span(t, src, &format!("chart_types[{ti}].states")),
             format!("chart type `{}` has no states", t.name),
         ));
         return;
@@ -133,7 +139,7 @@ fn unreachable(t: &ChartType, ti: usize, src: &Source, out: &mut Vec<Diagnostic>
         if !reached.contains(&s.name.as_str()) {
             out.push(
                 Diagnostic::warning(
-                    src.span(&format!("chart_types[{ti}].states[{si}].name")),
+                    type_span(t, src, &format!("chart_types[{ti}].states[{si}].name")),
                     format!(
                         "state `{}` of chart type `{}` is unreachable from its initial state `{}`",
                         s.name, t.name, initial.name
@@ -179,10 +185,10 @@ fn overlaps(
                     None => String::from("without an event"),
                 };
                 let path = format!("chart_types[{ti}].transitions");
-                let (line, col) = src.line_col(src.span(&format!("{path}[{i}]")).start);
+                let (line, col) = src.line_col(type_span(t, src, &format!("{path}[{i}]")).start);
                 out.push(
                     Diagnostic::warning(
-                        src.span(&format!("{path}[{j}]")),
+                        type_span(t, src, &format!("{path}[{j}]")),
                         format!(
                             "transitions `{} -> {}` and `{} -> {}` leave `{}` {on} and both guards can hold: the first declared wins",
                             a.from, a.to, b.from, b.to, b.from

@@ -545,6 +545,7 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
         states,
         transitions,
         idle,
+        imported: None,
     };
     Ok((chart, interface))
 }

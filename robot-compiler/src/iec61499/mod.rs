@@ -78,9 +78,10 @@ pub fn import_with(
             continue;
         }
         match fbt::import_typed(&text) {
-            Ok((mut t, mut i)) => {
-                fbt::bind_levels(&mut t, &mut i);
-                interfaces.push((t.name.clone(), i));
+            Ok((mut t, mut interface)) => {
+                fbt::bind_levels(&mut t, &mut interface);
+                interfaces.push((t.name.clone(), interface));
+                t.imported = Some(format!("fb_types[{i}]"));
                 robot.chart_types.push(t);
             }
             Err(e) => {
@@ -128,7 +129,13 @@ fn application(
         Ok(b) => {
             robot.roles = b.roles;
             robot.assign = b.assign;
-            robot.chart_types.extend(b.chart_types);
+            robot
+                .chart_types
+                .extend(b.chart_types.into_iter().map(|mut t| {
+                    t.imported
+                        .get_or_insert_with(|| String::from("application.file"));
+                    t
+                }));
             robot.places = b.places;
             None
         }

@@ -257,6 +257,7 @@ pub fn lift(r: &RoleIr, ci: usize, name: &str) -> Lifted {
             idle: (c.idle != c.initial)
                 .then(|| state_names.get(c.idle).cloned())
                 .flatten(),
+            imported: None,
         },
         inputs: inputs_of,
         emits,
