@@ -133,6 +133,8 @@ fn truth(a: Ast) -> Ast {
 fn normal(t: &ChartType) -> String {
     let n = |text: &str| print(&truth(robot_compiler::expr::parse(text).unwrap()));
     let mut t = t.clone();
+    // Where a type came from is no part of it.
+    t.imported = None;
     for s in &mut t.states {
         for a in &mut s.actions {
             if let ActionDecl::Set(_, text) = a {
