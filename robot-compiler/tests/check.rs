@@ -178,6 +178,42 @@ fn a_chart_type_past_the_capacities_is_refused_at_the_first_one_too_many() {
     );
 }
 
+/// A role of more charts than a table holds is refused at the first one too many, before
+/// its charts are elaborated (10,000 of them here).
+#[test]
+fn a_role_of_more_charts_than_a_table_holds_is_refused_at_the_first_one_too_many() {
+    let path = format!(
+        "{}/../tests/fixtures/small-charts.ron",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let text = std::fs::read_to_string(path).expect("small-charts.ron");
+    let chart =
+        r#"(name: "a", type: "Mover", params: {"M": 1}, on: {"GO": "START", "BACK": "B/b.DONE"})"#;
+    let more: String = (0..10_000)
+        .map(|i| format!(", {}", chart.replace("\"a\"", &format!("\"a{i}\""))))
+        .collect();
+    let src = Source::new(
+        "many.ron",
+        text.replacen(chart, &format!("{chart}{more}"), 1),
+    );
+    let got: Vec<String> = check(&src)
+        .diagnostics
+        .iter()
+        .map(|d| {
+            let (line, col) = d.line_col(&src);
+            format!("{line}:{col}: {}", d.message)
+        })
+        .collect();
+    let ninth = src.text.find("(name: \"a7\"").expect("the ninth chart");
+    let (line, col) = src.line_col(ninth);
+    assert_eq!(
+        got,
+        [format!(
+            "{line}:{col}: role `A` has 10001 charts: a table holds at most 8 (MAX_CHARTS)"
+        )]
+    );
+}
+
 /// An error inside an expression points at its place in the file when the string writes
 /// escapes (`\u{63}` or `\x63` for `c`, `\t`, `\n`) or is a raw string.
 #[test]

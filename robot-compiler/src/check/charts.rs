@@ -4,7 +4,7 @@
 
 use std::collections::BTreeMap;
 
-use config_schema::limits::{MAX_STATES, MAX_TRANSITIONS};
+use config_schema::limits::{MAX_CHARTS, MAX_STATES, MAX_TRANSITIONS};
 
 use crate::diag::Diagnostic;
 use crate::elab;
@@ -13,6 +13,27 @@ use crate::model::{ActionDecl, ChartType, Robot};
 use crate::source::Source;
 
 pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
+    // More charts on a role than a table holds: refused before they are elaborated (each
+    // brings events its role's tables look up by name).
+    for (ri, r) in robot.roles.iter().enumerate() {
+        if r.charts.len() > MAX_CHARTS {
+            let path = format!("roles[{ri}].charts[{MAX_CHARTS}]");
+            let at = match robot.application {
+                Some(_) if src.span(&path) == src.span(&format!("roles[{ri}]")) => {
+                    src.span("application.file")
+                }
+                _ => src.span(&path),
+            };
+            out.push(Diagnostic::error(
+                at,
+                format!(
+                    "role `{}` has {} charts: a table holds at most {MAX_CHARTS} (MAX_CHARTS)",
+                    r.name,
+                    r.charts.len()
+                ),
+            ));
+        }
+    }
     // Parameter values of every instance of each type.
     let mut instances: BTreeMap<&str, Vec<BTreeMap<String, i32>>> = BTreeMap::new();
     for c in robot.roles.iter().flat_map(|r| r.charts.iter()) {
