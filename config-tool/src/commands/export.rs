@@ -4,14 +4,33 @@
 use std::path::Path;
 
 use robot_compiler::iec61499::export;
+use robot_compiler::Diagnostic;
 
-use super::offline::load_compiled;
+use super::offline::{load_compiled, report};
 use crate::failure::Failure;
 
 pub fn export(robot: &Path, out: &Path) -> Result<(), Failure> {
-    let (_, compiled) = load_compiled(robot)?;
-    let exported = export::export(&compiled, &today())
-        .map_err(|e| Failure::error(format!("{}: cannot export: {e}", robot.display())))?;
+    let (src, compiled) = load_compiled(robot)?;
+    let exported = export::export(&compiled, &today()).map_err(|e| {
+        // At the chart type it names, where the robot file has it.
+        let at = match &e {
+            export::ExportError::Type { ty, .. } => compiled.robot.chart_type(ty).map(|(i, t)| {
+                let path = format!("chart_types[{i}].name");
+                src.span(t.imported.as_deref().unwrap_or(&path))
+            }),
+            export::ExportError::Reads { .. } => None,
+        };
+        match at {
+            Some(span) => {
+                report(
+                    &src,
+                    &[Diagnostic::error(span, format!("cannot export: {e}"))],
+                );
+                Failure::reported()
+            }
+            None => Failure::error(format!("{}: cannot export: {e}", robot.display())),
+        }
+    })?;
     let files = exported
         .files
         .iter()

@@ -26,7 +26,7 @@ pub(crate) fn load_compiled(path: &Path) -> Result<(Source, Compiled), Failure> 
     }
 }
 
-fn report(src: &Source, diags: &[Diagnostic]) {
+pub(super) fn report(src: &Source, diags: &[Diagnostic]) {
     use std::io::IsTerminal;
     let color = std::io::stderr().is_terminal();
     eprint!("{}", robot_compiler::diag::render_all(src, diags, color));
