@@ -25,6 +25,18 @@ fn diagnostics(path: &str) -> Vec<String> {
         .collect()
 }
 
+/// `line:col: message` of every diagnostic of a source.
+fn located(src: &Source) -> Vec<String> {
+    check(src)
+        .diagnostics
+        .iter()
+        .map(|d| {
+            let (line, col) = d.line_col(src);
+            format!("{line}:{col}: {}", d.message)
+        })
+        .collect()
+}
+
 /// (file, every diagnostic as `line:col: severity: message`), one file per check.
 const BROKEN: &[(&str, &[&str])] = &[
     ("syntax.ron", &["7:21: error: Expected comma"]),
@@ -134,11 +146,7 @@ fn each_broken_file_gives_exactly_its_diagnostics() {
 /// here: 50 million pairs).
 #[test]
 fn a_chart_type_past_the_capacities_is_refused_at_the_first_one_too_many() {
-    let path = format!(
-        "{}/../tests/fixtures/small-charts.ron",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    let text = std::fs::read_to_string(path).expect("small-charts.ron");
+    let text = fixture("small-charts.ron").text;
     let states: String = (0..10_000).map(|i| format!("(name: \"S{i}\"),")).collect();
     let transitions: String = (0..10_000)
         .map(|i| format!("(from: \"IDLE\", to: \"OUT\", on: \"GO\", when: \"count == {i}\"),"))
@@ -151,14 +159,7 @@ fn a_chart_type_past_the_capacities_is_refused_at_the_first_one_too_many() {
         )
         .replacen("transitions: [", &format!("transitions: [{transitions}"), 1);
     let src = Source::new("big.ron", big);
-    let got: Vec<String> = check(&src)
-        .diagnostics
-        .iter()
-        .map(|d| {
-            let (line, col) = d.line_col(&src);
-            format!("{line}:{col}: {}", d.message)
-        })
-        .collect();
+    let got = located(&src);
     let state_at = 32
         + (0..95)
             .map(|i| format!("(name: \"S{i}\"),").len())
@@ -182,11 +183,7 @@ fn a_chart_type_past_the_capacities_is_refused_at_the_first_one_too_many() {
 /// its charts are elaborated (10,000 of them here).
 #[test]
 fn a_role_of_more_charts_than_a_table_holds_is_refused_at_the_first_one_too_many() {
-    let path = format!(
-        "{}/../tests/fixtures/small-charts.ron",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    let text = std::fs::read_to_string(path).expect("small-charts.ron");
+    let text = fixture("small-charts.ron").text;
     let chart =
         r#"(name: "a", type: "Mover", params: {"M": 1}, on: {"GO": "START", "BACK": "B/b.DONE"})"#;
     let more: String = (0..10_000)
@@ -196,14 +193,7 @@ fn a_role_of_more_charts_than_a_table_holds_is_refused_at_the_first_one_too_many
         "many.ron",
         text.replacen(chart, &format!("{chart}{more}"), 1),
     );
-    let got: Vec<String> = check(&src)
-        .diagnostics
-        .iter()
-        .map(|d| {
-            let (line, col) = d.line_col(&src);
-            format!("{line}:{col}: {}", d.message)
-        })
-        .collect();
+    let got = located(&src);
     let ninth = src.text.find("(name: \"a7\"").expect("the ninth chart");
     let (line, col) = src.line_col(ninth);
     assert_eq!(
@@ -218,11 +208,7 @@ fn a_role_of_more_charts_than_a_table_holds_is_refused_at_the_first_one_too_many
 /// escapes (`\u{63}` or `\x63` for `c`, `\t`, `\n`) or is a raw string.
 #[test]
 fn an_expression_error_points_into_the_file_through_escapes() {
-    let path = format!(
-        "{}/../tests/fixtures/small-charts.ron",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    let text = std::fs::read_to_string(path).expect("small-charts.ron");
+    let text = fixture("small-charts.ron").text;
     let guard = r#"when: "count < M || true""#;
     assert!(text.contains(guard));
     for written in [

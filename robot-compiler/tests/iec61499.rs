@@ -36,6 +36,13 @@ const ECC: &str = r#"      <ECState Name="START"/>
 
 const ALG: &str = r#"    <Algorithm Name="A"><ST Text="C := C + 1;"/></Algorithm>"#;
 
+/// A robot of one chart of type `T`, imported from `T.fbt` beside it.
+const ROBOT: &str = "Robot(name: \"r\", network: (pan_id: 1, channel: 11), \
+    nodes: [(name: \"n1\", address: 1)], assign: [(\"A\", \"n1\")], \
+    roles: [(name: \"A\", inputs: [(name: \"I\", pin: 0)], \
+    charts: [(name: \"t\", type: \"T\", params: {\"N\": 3}, on: {\"EI\": \"I\"})])], \
+    fb_types: [\"T.fbt\"])";
+
 fn error(text: &str) -> String {
     let e: XmlError = import(text).expect_err("refused");
     e.to_string()
@@ -201,14 +208,9 @@ fn a_robot_names_the_file_and_its_place_and_imports_nothing_of_a_bad_type() {
         ),
     )
     .unwrap();
-    let robot = "Robot(name: \"r\", network: (pan_id: 1, channel: 11), \
-        nodes: [(name: \"n1\", address: 1)], assign: [(\"A\", \"n1\")], \
-        roles: [(name: \"A\", inputs: [(name: \"I\", pin: 0)], \
-        charts: [(name: \"t\", type: \"T\", params: {\"N\": 3}, on: {\"EI\": \"I\"})])], \
-        fb_types: [\"T.fbt\"])";
     let src = Source::new(
         dir.join("r.ron").to_string_lossy().as_ref(),
-        robot.to_string(),
+        ROBOT.to_string(),
     );
     let checked = check::check(&src);
     let errors: Vec<String> = checked
@@ -254,14 +256,9 @@ fn a_warning_about_an_imported_type_points_at_its_import() {
         "<ECState Name=\"START\"/><ECState Name=\"LOST\"/>",
     );
     std::fs::write(dir.join("T.fbt"), fbt(VARS, &lost, ALG)).unwrap();
-    let robot = "Robot(name: \"r\", network: (pan_id: 1, channel: 11), \
-        nodes: [(name: \"n1\", address: 1)], assign: [(\"A\", \"n1\")], \
-        roles: [(name: \"A\", inputs: [(name: \"I\", pin: 0)], \
-        charts: [(name: \"t\", type: \"T\", params: {\"N\": 3}, on: {\"EI\": \"I\"})])], \
-        fb_types: [\"T.fbt\"])";
     let src = Source::new(
         dir.join("r.ron").to_string_lossy().as_ref(),
-        robot.to_string(),
+        ROBOT.to_string(),
     );
     let lost: Vec<String> = check::check(&src)
         .diagnostics
