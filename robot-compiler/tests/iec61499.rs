@@ -276,6 +276,43 @@ fn a_warning_about_an_imported_type_points_at_its_import() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// An element of more attributes than any IEC 61499 element has is refused at the first
+/// one too many, before the XML parser (whose check of duplicate attributes is quadratic)
+/// reads it; `=` in comments, CDATA and quoted values is no attribute.
+#[test]
+fn an_element_of_too_many_attributes_is_refused_before_parsing() {
+    let text = fbt(VARS, ECC, ALG);
+    let attributes: String = (0..100_000).map(|i| format!(" a{i}=\"x\"")).collect();
+    let many = text.replacen(
+        "<FBType Name=\"T\"",
+        &format!("<FBType Name=\"T\"{attributes}"),
+        1,
+    );
+    let col = "<FBType Name=\"T\"".len()
+        + (0..255)
+            .map(|i| format!(" a{i}=\"x\"").len())
+            .sum::<usize>()
+        + " a255".len()
+        + 1;
+    assert_eq!(
+        error(&many),
+        format!("2:{col}: an element of more than 256 attributes")
+    );
+    let equals = "=".repeat(100_000);
+    let harmless = text
+        .replacen(
+            "<FBType Name=\"T\"",
+            &format!("<!-- {equals} --><FBType Name=\"T\" Comment=\"{equals}\""),
+            1,
+        )
+        .replacen(
+            "C := C + 1;",
+            &format!("C := C + 1; (* {} *)", "&#61;".repeat(10)),
+            1,
+        );
+    assert!(import(&harmless).is_ok(), "{:?}", import(&harmless).err());
+}
+
 /// XML that ends too early is refused at its end, where the parser found it out.
 #[test]
 fn truncated_xml_is_refused_at_its_end() {
