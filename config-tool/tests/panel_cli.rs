@@ -100,6 +100,91 @@ fn a_silent_node_and_a_medium_gone_are_said_and_every_command_refused() {
     assert_eq!(panel.get("/nothing").0, 404);
 }
 
+/// Sends `bytes` to the panel at `at` and reads the answer's status line (empty if the
+/// connection closed without one).
+fn status_of(at: std::net::SocketAddr, bytes: &[u8]) -> String {
+    use std::io::{BufRead, Write};
+    let mut s = std::net::TcpStream::connect(at).expect("connects");
+    s.set_read_timeout(Some(e2e_support::TIMEOUT))
+        .expect("timeout");
+    s.write_all(bytes).expect("sends");
+    let mut line = String::new();
+    let _ = std::io::BufReader::new(s).read_line(&mut line);
+    line.trim_end().to_string()
+}
+
+/// What another site, a client too big or too many clients send is refused with its
+/// status, and the panel goes on serving: a button only from the panel's own page
+/// (`X-Panel: button`, no foreign `Origin`), only requests for the panel's own address
+/// (no other name resolved to it), a body of 10^12 bytes announced, a header of 100 KB;
+/// and with every connection taken, one more is answered 503, and served again once
+/// they close.
+#[test]
+fn requests_from_elsewhere_or_past_the_bounds_are_refused_and_the_panel_goes_on() {
+    let (dir, medium) = keyed_medium("panel-bounds");
+    let (k, m) = (dir.0.join("machine.key"), medium.addr().to_string());
+    let k = k.to_str().unwrap();
+    let panel = Panel::start(&[
+        ROBOT,
+        "--keys",
+        k,
+        "--medium",
+        &m,
+        "--listen",
+        "127.0.0.1:0",
+    ])
+    .expect("the panel");
+    let at = panel.addr;
+    let post = |headers: &str| {
+        panel_support::request_with(at, "POST", "/command/HOME", Some(""), headers).0
+    };
+    assert_eq!(post(""), 403, "no X-Panel: a form or fetch of another site");
+    let foreign = "X-Panel: button\r\nOrigin: http://evil.example\r\n";
+    assert_eq!(post(foreign), 403, "a foreign origin");
+    let own = format!("X-Panel: button\r\nOrigin: http://{at}\r\n");
+    assert_eq!(
+        post(&own),
+        409,
+        "the page's own press: refused by the machine's state"
+    );
+    let rebound = format!(
+        "GET /state.json HTTP/1.1\r\nHost: evil.example:{}\r\n\r\n",
+        at.port()
+    );
+    assert_eq!(status_of(at, rebound.as_bytes()), "HTTP/1.1 403 Forbidden");
+    let huge = format!(
+        "POST /command/STOP HTTP/1.1\r\nHost: {at}\r\nContent-Length: 1000000000000\r\n\r\nx"
+    );
+    assert_eq!(
+        status_of(at, huge.as_bytes()),
+        "HTTP/1.1 413 Content Too Large"
+    );
+    let header = format!(
+        "GET / HTTP/1.1\r\nHost: {at}\r\nX: {}\r\n\r\n",
+        "a".repeat(100_000)
+    );
+    assert_eq!(
+        status_of(at, header.as_bytes()),
+        "HTTP/1.1 431 Request Header Fields Too Large"
+    );
+    assert_eq!(panel.get("/state.json").0, 200);
+    // Every connection taken by a client that says nothing.
+    let idle: Vec<std::net::TcpStream> = (0..robot_panel::server::MAX_CONNECTIONS)
+        .map(|_| std::net::TcpStream::connect(at).expect("connects"))
+        .collect();
+    let get = format!("GET /state.json HTTP/1.1\r\nHost: {at}\r\n\r\n");
+    let busy = (0..100)
+        .map(|_| status_of(at, get.as_bytes()))
+        .find(|s| s == "HTTP/1.1 503 Service Unavailable");
+    assert!(busy.is_some(), "one more connection is answered 503");
+    drop(idle);
+    // Served again once the idle connections' threads have seen them close.
+    let until = std::time::Instant::now() + e2e_support::TIMEOUT;
+    while status_of(at, get.as_bytes()) != "HTTP/1.1 200 OK" {
+        assert!(std::time::Instant::now() < until, "served again");
+    }
+}
+
 #[test]
 fn a_panel_off_loopback_prints_a_token_and_refuses_requests_without_it() {
     let (dir, medium) = keyed_medium("panel-token");

@@ -10,6 +10,7 @@
 pub mod buttons;
 mod error;
 pub mod feed;
+pub mod http;
 pub mod live;
 pub mod model;
 pub mod poll;

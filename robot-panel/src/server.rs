@@ -1,29 +1,32 @@
-//! The panel's HTTP server (tiny_http, a thread per request): the page and its two
-//! scripts' worth of files (embedded, nothing fetched from elsewhere), `model.json`,
-//! `state.json`, `events` (server-sent events: the state again at every change) and
-//! `POST command/NAME`. Off loopback every request must carry the token printed at
-//! start-up (`?token=`).
+//! The panel's HTTP server (a thread per connection, at most [`MAX_CONNECTIONS`], one
+//! request each: [`crate::http`]): the page and its two scripts' worth of files (embedded,
+//! nothing fetched from elsewhere), `model.json`, `state.json`, `events` (server-sent
+//! events: the state again at every change) and `POST command/NAME`. Off loopback every
+//! request must carry the token printed at start-up (`?token=`); on loopback a request
+//! must name the panel's own address as its `Host` (no other site's name resolved to
+//! it). A button's POST must carry `X-Panel: button`, which no page of another origin
+//! can send without the panel's consent (it gives none), and an `Origin`, if any, of the
+//! panel's own.
 
 use std::io::{self, Write};
-use std::net::{SocketAddr, TcpListener};
+use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Sender};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use robot_compiler::compile::Compiled;
-use robot_keys::MachineSecret;
-use robot_net::radio::ToolRadio;
-use tiny_http::{Header, Method, Request, Response, Server};
-
 use crate::buttons::{self, Button};
 use crate::error::PanelError;
+use crate::http::{self, Refused, Request};
 use crate::live::Live;
 use crate::model::Machine;
 use crate::poll::{self, Order};
 use crate::shared::Shared;
 use crate::{feed, view};
+use robot_compiler::compile::Compiled;
+use robot_keys::MachineSecret;
+use robot_net::radio::ToolRadio;
 
 const INDEX: &str = include_str!("page/index.html");
 const SCRIPT: &str = include_str!("page/panel.js");
@@ -33,6 +36,9 @@ const STYLE: &str = include_str!("page/panel.css");
 const MAX_STREAMS: usize = 32;
 /// At most this many other requests are served at once (each holds a thread).
 const MAX_REQUESTS: usize = 64;
+/// At most this many connections at once (each holds a thread): more are answered 503
+/// and closed.
+pub const MAX_CONNECTIONS: usize = MAX_REQUESTS + MAX_STREAMS;
 /// A stream with no change says something this often (a page that went away is found).
 const KEEPALIVE: Duration = Duration::from_secs(5);
 /// The longest an order may take (homing waits for the machine).
@@ -74,7 +80,6 @@ pub struct Panel {
     addr: SocketAddr,
     run: Option<Run>,
     token: Option<String>,
-    server: Arc<Server>,
     stop: Arc<AtomicBool>,
     threads: Vec<JoinHandle<()>>,
 }
@@ -94,8 +99,10 @@ struct Ctx {
     shared: Arc<Shared>,
     orders: Mutex<Sender<Order>>,
     token: Option<String>,
+    /// The panel's own address, as a request's `Host` names it.
+    addr: SocketAddr,
     streams: AtomicUsize,
-    requests: AtomicUsize,
+    connections: AtomicUsize,
     stop: Arc<AtomicBool>,
 }
 
@@ -137,12 +144,6 @@ impl Panel {
             inbox,
         };
         let addr = listener.addr;
-        let server = Arc::new(Server::from_listener(listener.listener, None).map_err(|e| {
-            PanelError::Listen {
-                addr,
-                source: io::Error::other(e.to_string()),
-            }
-        })?);
         let ctx = Arc::new(Ctx {
             c,
             machine,
@@ -150,44 +151,20 @@ impl Panel {
             shared,
             orders: Mutex::new(orders),
             token: token.clone(),
+            addr,
             streams: AtomicUsize::new(0),
-            requests: AtomicUsize::new(0),
+            connections: AtomicUsize::new(0),
             stop: stop.clone(),
         });
-        let (srv, flag) = (server.clone(), stop.clone());
+        let listener = listener.listener;
         let accept = std::thread::Builder::new()
             .name("panel-http".into())
-            .spawn(move || {
-                while !flag.load(Ordering::Relaxed) {
-                    let Ok(Some(rq)) = srv.recv_timeout(Duration::from_millis(200)) else {
-                        continue;
-                    };
-                    if ctx.requests.fetch_add(1, Ordering::SeqCst) >= MAX_REQUESTS {
-                        ctx.requests.fetch_sub(1, Ordering::SeqCst);
-                        let _ = rq.respond(text(503, "text/plain", "the panel is busy\n"));
-                        continue;
-                    }
-                    let ctx = ctx.clone();
-                    let spawned = std::thread::Builder::new()
-                        .name("panel-request".into())
-                        .spawn({
-                            let ctx = ctx.clone();
-                            move || {
-                                handle(&ctx, rq);
-                                ctx.requests.fetch_sub(1, Ordering::SeqCst);
-                            }
-                        });
-                    if spawned.is_err() {
-                        ctx.requests.fetch_sub(1, Ordering::SeqCst);
-                    }
-                }
-            })
+            .spawn(move || accept_loop(&ctx, &listener))
             .map_err(PanelError::Thread)?;
         Ok(Panel {
             addr,
             run: Some(run),
             token,
-            server,
             stop,
             threads: vec![feed, accept],
         })
@@ -226,7 +203,53 @@ impl Panel {
 impl Drop for Panel {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
-        self.server.unblock();
+        // Wakes the accept loop, which then sees the stop.
+        let ip = match self.addr.ip() {
+            IpAddr::V4(ip) if ip.is_unspecified() => IpAddr::V4(Ipv4Addr::LOCALHOST),
+            IpAddr::V6(ip) if ip.is_unspecified() => IpAddr::V6(Ipv6Addr::LOCALHOST),
+            ip => ip,
+        };
+        let _ = TcpStream::connect_timeout(&SocketAddr::new(ip, self.addr.port()), WAKE_WITHIN);
+    }
+}
+
+/// How long dropping the panel waits to wake its accept loop.
+const WAKE_WITHIN: Duration = Duration::from_secs(1);
+
+/// Accepts connections until the panel stops, each served on a thread of its own, at
+/// most [`MAX_CONNECTIONS`] at once. An accept that fails (no file descriptor left) is
+/// tried again a little later: the listener stays.
+fn accept_loop(ctx: &Arc<Ctx>, listener: &TcpListener) {
+    for conn in listener.incoming() {
+        if ctx.stop.load(Ordering::Relaxed) {
+            return;
+        }
+        let mut stream = match conn {
+            Ok(stream) => stream,
+            Err(_) => {
+                std::thread::sleep(Duration::from_millis(50));
+                continue;
+            }
+        };
+        let _ = stream.set_write_timeout(Some(http::WRITE_WITHIN));
+        if ctx.connections.fetch_add(1, Ordering::SeqCst) >= MAX_CONNECTIONS {
+            ctx.connections.fetch_sub(1, Ordering::SeqCst);
+            // A fresh connection's send buffer takes this at once.
+            let _ = http::respond(&mut stream, 503, "text/plain", "the panel is busy\n");
+            continue;
+        }
+        let spawned = std::thread::Builder::new()
+            .name("panel-request".into())
+            .spawn({
+                let ctx = ctx.clone();
+                move || {
+                    serve(&ctx, stream);
+                    ctx.connections.fetch_sub(1, Ordering::SeqCst);
+                }
+            });
+        if spawned.is_err() {
+            ctx.connections.fetch_sub(1, Ordering::SeqCst);
+        }
     }
 }
 
@@ -237,50 +260,101 @@ fn split(url: &str) -> (&str, Option<&str>) {
     (path, token)
 }
 
-fn text(code: u16, kind: &str, body: impl Into<String>) -> Response<io::Cursor<Vec<u8>>> {
-    let mut r = Response::from_string(body.into()).with_status_code(code);
-    // Both headers are ASCII constants of this file.
-    for (name, value) in [("Content-Type", kind), ("Cache-Control", "no-store")] {
-        if let Ok(h) = Header::from_bytes(name.as_bytes(), value.as_bytes()) {
-            r.add_header(h);
-        }
-    }
-    r
+/// Whether `host` (a request's `Host`) names the panel at `addr`: its address, or on
+/// loopback `localhost`, `127.0.0.1` or `[::1]` with its port.
+fn names_panel(host: Option<&str>, addr: SocketAddr) -> bool {
+    let Some(host) = host else {
+        return false;
+    };
+    let port = addr.port();
+    host == addr.to_string()
+        || ["localhost", "127.0.0.1", "[::1]"]
+            .iter()
+            .any(|name| host == format!("{name}:{port}"))
 }
 
-fn handle(ctx: &Ctx, rq: Request) {
-    let (path, token) = split(rq.url());
-    let path = path.to_string();
+/// `a == b` in time that depends on their lengths only.
+fn same(a: &str, b: &str) -> bool {
+    a.len() == b.len() && a.bytes().zip(b.bytes()).fold(0u8, |d, (x, y)| d | (x ^ y)) == 0
+}
+
+/// Serves the one request of a connection.
+fn serve(ctx: &Ctx, mut stream: TcpStream) {
+    let rq = match http::read(&mut stream) {
+        Ok(rq) => rq,
+        Err(Refused::Status(code, why)) => {
+            let _ = http::respond(&mut stream, code, "text/plain", &format!("{why}\n"));
+            return;
+        }
+        Err(Refused::Gone) => return,
+    };
+    let (code, kind, body) = match answer(ctx, &rq) {
+        Answer::Page(code, kind, body) => (code, kind, body),
+        Answer::Events => return stream_events(ctx, stream),
+    };
+    let _ = http::respond(&mut stream, code, kind, &body);
+}
+
+/// What a request is answered with.
+enum Answer {
+    Page(u16, &'static str, String),
+    /// The server-sent events.
+    Events,
+}
+
+fn answer(ctx: &Ctx, rq: &Request) -> Answer {
+    let plain = "text/plain";
+    let page = |code, kind, body: &str| Answer::Page(code, kind, body.to_string());
+    let (path, token) = split(&rq.target);
     // The script and the style say nothing of the machine: fetched without the token.
-    let open = matches!(path.as_str(), "/panel.js" | "/panel.css");
-    if !open && ctx.token.is_some() && token != ctx.token.as_deref() {
-        let _ = rq.respond(text(
-            403,
-            "text/plain",
-            "this panel listens off loopback: open the address it printed at start-up, \
-             with its token\n",
-        ));
-        return;
+    let open = matches!(path, "/panel.js" | "/panel.css");
+    match &ctx.token {
+        Some(t) if !open && !token.is_some_and(|given| same(given, t)) => {
+            return page(
+                403,
+                plain,
+                "this panel listens off loopback: open the address it printed at start-up, \
+                 with its token\n",
+            )
+        }
+        None if !names_panel(rq.header("host"), ctx.addr) => {
+            return page(
+                403,
+                plain,
+                "this panel answers requests for its own address only\n",
+            )
+        }
+        _ => {}
     }
     let json = "application/json";
-    let response = match (rq.method(), path.as_str()) {
-        (Method::Get, "/") => text(200, "text/html; charset=utf-8", INDEX),
-        (Method::Get, "/panel.js") => text(200, "text/javascript", SCRIPT),
-        (Method::Get, "/panel.css") => text(200, "text/css", STYLE),
-        (Method::Get, "/model.json") => text(200, json, ctx.model.clone()),
-        (Method::Get, "/state.json") => {
+    match (rq.method.as_str(), path) {
+        ("GET", "/") => page(200, "text/html; charset=utf-8", INDEX),
+        ("GET", "/panel.js") => page(200, "text/javascript", SCRIPT),
+        ("GET", "/panel.css") => page(200, "text/css", STYLE),
+        ("GET", "/model.json") => page(200, json, &ctx.model),
+        ("GET", "/state.json") => {
             let (_, v) = ctx.shared.read(|l| view::state(&ctx.c, &ctx.machine, l));
-            text(200, json, v.to_string())
+            Answer::Page(200, json, v.to_string())
         }
-        (Method::Get, "/events") => return stream(ctx, rq),
-        (Method::Post, p) if p.starts_with("/command/") => {
+        ("GET", "/events") => Answer::Events,
+        ("POST", p) if p.starts_with("/command/") => {
+            let own = rq.header("host").map(|h| format!("http://{h}"));
+            let foreign = rq
+                .header("origin")
+                .is_some_and(|o| Some(o) != own.as_deref());
+            if rq.header("x-panel") != Some("button") || foreign {
+                return page(
+                    403,
+                    plain,
+                    "a button is pressed from the panel's own page (X-Panel: button)\n",
+                );
+            }
             let name = p.trim_start_matches("/command/");
             let (code, body) = command(ctx, name);
-            text(code, "text/plain; charset=utf-8", body)
+            Answer::Page(code, "text/plain; charset=utf-8", body)
         }
-        _ => text(404, "text/plain", "not found\n"),
-    };
-    let _ = rq.respond(response);
+        _ => page(404, plain, "not found\n"),
+    }
 }
 
 /// A button pressed: refused (409, why) unless the machine allows it now; else carried
@@ -313,14 +387,14 @@ fn command(ctx: &Ctx, name: &str) -> (u16, String) {
 }
 
 /// Server-sent events: the state at once, then at every change (a comment now and then
-/// without one), until the page goes away or the panel stops.
-fn stream(ctx: &Ctx, rq: Request) {
+/// without one), until the page goes away (or takes no write for
+/// [`http::WRITE_WITHIN`]) or the panel stops.
+fn stream_events(ctx: &Ctx, mut out: TcpStream) {
     if ctx.streams.fetch_add(1, Ordering::SeqCst) >= MAX_STREAMS {
         ctx.streams.fetch_sub(1, Ordering::SeqCst);
-        let _ = rq.respond(text(503, "text/plain", "too many pages open\n"));
+        let _ = http::respond(&mut out, 503, "text/plain", "too many pages open\n");
         return;
     }
-    let mut out = rq.into_writer();
     let _ = send_events(ctx, &mut out);
     ctx.streams.fetch_sub(1, Ordering::SeqCst);
 }

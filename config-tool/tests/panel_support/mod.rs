@@ -170,8 +170,10 @@ impl Panel {
         request(self.addr, "GET", path, None)
     }
 
+    /// A button pressed as the panel's page presses it.
     pub fn press(&self, button: &str) -> (u16, String) {
-        request(self.addr, "POST", &format!("/command/{button}"), Some(""))
+        let path = format!("/command/{button}");
+        request_with(self.addr, "POST", &path, Some(""), "X-Panel: button\r\n")
     }
 
     /// The panel's server-sent events.
@@ -182,12 +184,23 @@ impl Panel {
 
 /// One HTTP/1.1 request (`Connection: close`): the status and the body.
 pub fn request(addr: SocketAddr, method: &str, path: &str, body: Option<&str>) -> (u16, String) {
+    request_with(addr, method, path, body, "")
+}
+
+/// [`request`] with more header lines (each ending in CRLF).
+pub fn request_with(
+    addr: SocketAddr,
+    method: &str,
+    path: &str,
+    body: Option<&str>,
+    headers: &str,
+) -> (u16, String) {
     let mut s = TcpStream::connect_timeout(&addr, TIMEOUT).expect("connects");
     s.set_read_timeout(Some(TIMEOUT)).expect("timeout");
     let body = body.unwrap_or("");
     let head = format!(
         "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Type: \
-         application/json\r\nContent-Length: {}\r\n\r\n",
+         application/json\r\n{headers}Content-Length: {}\r\n\r\n",
         body.len()
     );
     s.write_all(head.as_bytes()).expect("sends");
