@@ -32,14 +32,16 @@ const TARGET_MS: f64 = 100.0;
 /// Any wait here.
 const WAIT: Duration = Duration::from_secs(60);
 
-/// One HTTP/1.1 POST with an empty body (`Connection: close`): the status and the body.
+/// One HTTP/1.1 POST with an empty body (`Connection: close`), as the page presses a
+/// button: the status and the body.
 fn post(addr: SocketAddr, path: &str) -> (u16, String) {
     let mut s = TcpStream::connect_timeout(&addr, WAIT).expect("connects");
     s.set_read_timeout(Some(Duration::from_secs(180)))
         .expect("timeout");
     write!(
         s,
-        "POST {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Length: 0\r\n\r\n"
+        "POST {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nX-Panel: button\r\n\
+         Content-Length: 0\r\n\r\n"
     )
     .expect("sends");
     let mut answer = String::new();
