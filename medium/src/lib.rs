@@ -259,13 +259,21 @@ pub fn precise_timers() {
     let _ = rustix::thread::set_current_timer_slack(std::num::NonZeroU64::new(1));
 }
 
+/// How long the accept loop waits after an accept that failed.
+const ACCEPT_RETRY: std::time::Duration = std::time::Duration::from_millis(50);
+
 /// Accepts connections, each served by its own thread, within the connection caps.
 fn accept(listener: TcpListener, hub: Arc<air::Hub>, counters: Counters) {
     let open = Arc::new(AtomicUsize::new(0));
     let greeting = Arc::new(AtomicUsize::new(0));
     let mut next_id: ClientId = 0;
     for stream in listener.incoming() {
-        let Ok(stream) = stream else { continue };
+        let Ok(stream) = stream else {
+            // No descriptor left (or the like): try again once some have closed, without
+            // spinning.
+            thread::sleep(ACCEPT_RETRY);
+            continue;
+        };
         if open.load(Ordering::SeqCst) >= limits::MAX_CONNECTIONS
             || greeting.load(Ordering::SeqCst) >= limits::MAX_GREETING
         {
