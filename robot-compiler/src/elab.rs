@@ -420,7 +420,22 @@ impl StrMap {
                     value += 1;
                     continue;
                 }
-                // `\u{X..}`: the char's UTF-8 length; `\xNN` and one-char escapes: one byte.
+                // `\u{X..}`: the char's UTF-8 length; `\xNN` and one-char escapes: one byte;
+                // a line continuation (`\` at the end of a line): nothing, the next line's
+                // leading whitespace skipped.
+                let continued = match (body.get(raw + 1), body.get(raw + 2)) {
+                    (Some(b'\n'), _) => Some(2),
+                    (Some(b'\r'), Some(b'\n')) => Some(3),
+                    _ => None,
+                };
+                if let Some(newline) = continued {
+                    raw += newline;
+                    while body.get(raw).is_some_and(u8::is_ascii_whitespace) {
+                        raw += 1;
+                    }
+                    escapes.push((value, raw));
+                    continue;
+                }
                 let (len, decoded) = match body.get(raw + 1) {
                     Some(b'u') => {
                         let close = body

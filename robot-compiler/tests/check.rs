@@ -228,6 +228,33 @@ fn an_expression_error_points_into_the_file_through_escapes() {
     }
 }
 
+/// An interlock's error too, through escapes and a line continuation (`\` at the end of a
+/// line: the next line's leading whitespace is no part of the value).
+#[test]
+fn an_interlock_error_points_into_the_file_through_escapes_and_continuations() {
+    let path = format!(
+        "{}/../robot-configs/paint-robot.ron",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let text = std::fs::read_to_string(path).expect("paint-robot.ron");
+    let never = r#"never: ["HC.moving && !VC.home""#;
+    assert!(text.contains(never));
+    for written in [
+        "never: [\"HC.moving && !VC.home && zz\"",
+        "never: [\"HC.moving && \\u{21}VC.home && \\\n          zz\"",
+        "never: [\"HC.moving && !VC.home && \\\r\n\t zz\"",
+    ] {
+        let src = Source::new("never.ron", text.replacen(never, written, 1));
+        let diags = check(&src).diagnostics;
+        let zz = diags
+            .iter()
+            .find(|d| d.message.starts_with("`zz` is not an interlock name"))
+            .unwrap_or_else(|| panic!("{written}: {diags:?}"));
+        let (line, col) = src.line_col(src.text.find("zz").expect("zz"));
+        assert_eq!(zz.line_col(&src), (line, col), "{written}");
+    }
+}
+
 #[test]
 fn every_broken_file_is_in_the_table() {
     let dir = format!("{}/../tests/fixtures/broken", env!("CARGO_MANIFEST_DIR"));

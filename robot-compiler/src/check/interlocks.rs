@@ -2,6 +2,7 @@
 //! or node faults of the elaborated robot.
 
 use crate::diag::Diagnostic;
+use crate::elab::StrMap;
 use crate::interlock;
 use crate::ir::Ir;
 use crate::model::Robot;
@@ -14,12 +15,11 @@ pub fn check(robot: &Robot, ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>) {
     let names = interlock::Scope::of(robot, ir);
     for (i, text) in robot.never.iter().enumerate() {
         if let Err(e) = names.interlock(text) {
-            let span = e.span();
-            let value = src.span(&format!("never[{i}]"));
-            // The value's span starts at its opening quote.
-            let start = value.start + 1 + span.start;
-            let end = (value.start + 1 + span.end).min(value.end);
-            out.push(Diagnostic::error(start..end.max(start), e.to_string()));
+            let path = format!("never[{i}]");
+            let at = StrMap::new(src, &path).span(e.span());
+            let value = src.span(&path);
+            let end = at.end.min(value.end).max(at.start);
+            out.push(Diagnostic::error(at.start..end, e.to_string()));
         }
     }
 }
