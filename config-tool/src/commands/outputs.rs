@@ -5,10 +5,11 @@ use std::path::{Path, PathBuf};
 use crate::failure::Failure;
 
 /// Writes each `(name, bytes)` into directory `dir` (made if missing), every file or none:
-/// a name that is not a plain file name, or a target that exists and is not a file, is
-/// refused before anything is written; each file is written to a temporary file beside it
-/// first, and the temporary files become the targets only once all of them are written.
-/// Returns the paths written, in order.
+/// a name that is not a plain file name or comes twice, or a target that exists and is not
+/// a file, is refused before anything is written; each file is written to a temporary
+/// file beside it first (with the mode `fs::write` would give it: an existing target's,
+/// else 0666 less the umask), and the temporary files become the targets only once all of
+/// them are written. Returns the paths written, in order.
 pub fn write_all<'a>(
     dir: &Path,
     files: impl IntoIterator<Item = (&'a str, &'a [u8])>,
@@ -19,7 +20,14 @@ pub fn write_all<'a>(
     if std::fs::metadata(dir).is_ok_and(|m| !m.is_dir()) {
         return Err(at(dir, &"exists and is not a directory: nothing written"));
     }
+    let mut names = std::collections::HashSet::new();
     for (name, _) in &files {
+        if !names.insert(*name) {
+            return Err(Failure::error(format!(
+                "two files named {name:?}: nothing written to {}",
+                dir.display()
+            )));
+        }
         let plain = Path::new(name).file_name().and_then(|f| f.to_str()) == Some(*name);
         if !plain {
             return Err(Failure::error(format!(
@@ -35,13 +43,20 @@ pub fn write_all<'a>(
     std::fs::create_dir_all(dir).map_err(|e| at(dir, &e))?;
     let mut staged = Vec::with_capacity(files.len());
     for (name, bytes) in &files {
-        let mut tmp = tempfile::Builder::new()
-            .prefix(".")
-            .suffix(".partial")
-            .tempfile_in(dir)
-            .map_err(|e| at(dir, &e))?;
+        let path = dir.join(name);
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(".").suffix(".partial");
+        // 0666 less the umask, as `fs::write` creates a file (tempfile's own is 0600).
+        #[cfg(unix)]
+        builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+        let mut tmp = builder.tempfile_in(dir).map_err(|e| at(dir, &e))?;
+        if let Ok(existing) = std::fs::metadata(&path) {
+            // Created with the umask applied; an existing target keeps its own mode.
+            std::fs::set_permissions(tmp.path(), existing.permissions())
+                .map_err(|e| at(tmp.path(), &e))?;
+        }
         std::io::Write::write_all(&mut tmp, bytes).map_err(|e| at(tmp.path(), &e))?;
-        staged.push((tmp, dir.join(name)));
+        staged.push((tmp, path));
     }
     let mut written = Vec::with_capacity(staged.len());
     for (tmp, path) in staged {
@@ -75,6 +90,47 @@ mod tests {
         // Written again over the old files.
         write_all(&out, [("A.bin", &b"new"[..])]).expect("ok");
         assert_eq!(std::fs::read(out.join("A.bin")).expect("A"), b"new");
+    }
+
+    /// The files get the mode `fs::write` gives: 0666 less the umask when new, an existing
+    /// file's own when replaced.
+    #[cfg(unix)]
+    #[test]
+    fn files_get_the_mode_a_plain_write_gives() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().expect("tempdir");
+        let mode = |name: &str| {
+            let m = std::fs::metadata(dir.path().join(name)).expect("written");
+            m.permissions().mode() & 0o777
+        };
+        std::fs::write(dir.path().join("plain.bin"), b"p").expect("plain");
+        std::fs::write(dir.path().join("kept.bin"), b"k").expect("kept");
+        let kept = std::fs::Permissions::from_mode(0o640);
+        std::fs::set_permissions(dir.path().join("kept.bin"), kept).expect("chmod");
+        write_all(
+            dir.path(),
+            [("new.bin", &b"n"[..]), ("kept.bin", &b"k2"[..])],
+        )
+        .expect("ok");
+        assert_eq!(mode("new.bin"), mode("plain.bin"));
+        assert_eq!(mode("kept.bin"), 0o640);
+    }
+
+    #[test]
+    fn a_name_given_twice_is_refused_before_anything_is_written() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let out = dir.path().join("out");
+        let e = write_all(
+            &out,
+            [("VC_IO.fbt", &b"type"[..]), ("VC_IO.fbt", &b"io"[..])],
+        )
+        .expect_err("twice");
+        let want = format!(
+            "error: two files named \"VC_IO.fbt\": nothing written to {}",
+            out.display()
+        );
+        assert_eq!(e.message, want);
+        assert!(!out.exists());
     }
 
     #[test]
