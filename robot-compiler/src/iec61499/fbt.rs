@@ -198,15 +198,8 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
         allow_dtd: true,
         ..ParsingOptions::default()
     };
-    if let Some((line, col)) = super::too_many_attributes(text) {
-        return Err(XmlError {
-            line,
-            col,
-            message: format!(
-                "an element of more than {} attributes",
-                super::MAX_ATTRIBUTES
-            ),
-        });
+    if let Some((line, col, message)) = super::refused_xml(text) {
+        return Err(XmlError { line, col, message });
     }
     let doc = Document::parse_with_options(text, options).map_err(|e| {
         let (line, col) = super::xml_error_at(text, &e);

@@ -189,11 +189,23 @@ pub(crate) fn utf8_text(file: &str, bytes: Vec<u8>) -> Result<String, String> {
 /// (40,000 took 1.5 s). IEC 61499 elements have a handful.
 pub const MAX_ATTRIBUTES: usize = 256;
 
-/// The (line, column) of the first attribute past [`MAX_ATTRIBUTES`] of one element of
-/// XML `text`, if there is one: a linear scan that skips comments, CDATA, processing
-/// instructions, declarations, end tags and quoted values.
-pub(crate) fn too_many_attributes(text: &str) -> Option<(u32, u32)> {
+/// What the XML parser is not given, found by a linear scan of `text` (comments, CDATA,
+/// processing instructions, end tags and quoted values skipped): the (line, column) and
+/// why of the first attribute past [`MAX_ATTRIBUTES`] of one element, or of a `DOCTYPE`
+/// with an internal subset (declared entities would bring elements this scan does not
+/// see; IEC 61499 files name their DTD only).
+pub(crate) fn refused_xml(text: &str) -> Option<(u32, u32, String)> {
     let b = text.as_bytes();
+    let place = |i: usize| {
+        let before = text.get(..i).unwrap_or(text);
+        let line = before.matches('\n').count() + 1;
+        let start = before.rfind('\n').map_or(0, |n| n + 1);
+        let col = before[start..].chars().count() + 1;
+        (
+            u32::try_from(line).unwrap_or(u32::MAX),
+            u32::try_from(col).unwrap_or(u32::MAX),
+        )
+    };
     let find = |from: usize, what: &str| {
         text.get(from..)
             .and_then(|rest| rest.find(what))
@@ -212,6 +224,14 @@ pub(crate) fn too_many_attributes(text: &str) -> Option<(u32, u32)> {
             i = find(i, "]]>");
         } else if rest.starts_with('?') {
             i = find(i, "?>");
+        } else if rest.starts_with("!DOCTYPE") {
+            let end = find(i, ">");
+            if text.get(i..end).is_some_and(|d| d.contains('[')) {
+                let (line, col) = place(i - 1);
+                let why = "a DOCTYPE with an internal subset (declarations): not taken";
+                return Some((line, col, why.to_string()));
+            }
+            i = end;
         } else if rest.starts_with('!') || rest.starts_with('/') {
             i = find(i, ">");
         } else {
@@ -229,14 +249,10 @@ pub(crate) fn too_many_attributes(text: &str) -> Option<(u32, u32)> {
                     b'=' => {
                         attributes += 1;
                         if attributes > MAX_ATTRIBUTES {
-                            let before = &text[..i];
-                            let line = before.matches('\n').count() + 1;
-                            let start = before.rfind('\n').map_or(0, |n| n + 1);
-                            let col = before[start..].chars().count() + 1;
-                            return Some((
-                                u32::try_from(line).unwrap_or(u32::MAX),
-                                u32::try_from(col).unwrap_or(u32::MAX),
-                            ));
+                            let (line, col) = place(i);
+                            let why =
+                                format!("an element of more than {MAX_ATTRIBUTES} attributes");
+                            return Some((line, col, why));
                         }
                     }
                     _ => {}

@@ -125,14 +125,11 @@ pub fn parse<'i>(text: &'i str, file: &str) -> Result<Document<'i>, SysError> {
         allow_dtd: true,
         ..ParsingOptions::default()
     };
-    if let Some((line, col)) = super::too_many_attributes(text) {
+    if let Some((line, col, message)) = super::refused_xml(text) {
         return Err(SysError {
             file: file.to_string(),
             at: Pos { line, col },
-            message: format!(
-                "an element of more than {} attributes",
-                super::MAX_ATTRIBUTES
-            ),
+            message,
         });
     }
     Document::parse_with_options(text, options).map_err(|e| {
