@@ -179,6 +179,24 @@ fn a_chart_type_past_the_capacities_is_refused_at_the_first_one_too_many() {
     );
 }
 
+/// A chart type no chart is of may be larger than a table: a warning says so.
+#[test]
+fn a_chart_type_past_the_capacities_that_no_chart_uses_is_a_warning() {
+    let text = fixture("small-charts.ron").text;
+    let states: String = (0..97).map(|i| format!("(name: \"S{i}\"),")).collect();
+    let big = format!("chart_types: [(name: \"Big\", states: [{states}]),");
+    let src = Source::new("unused.ron", text.replacen("chart_types: [", &big, 1));
+    let ninety_seventh = src.text.find("(name: \"S96\")").expect("S96");
+    let (line, col) = src.line_col(ninety_seventh);
+    assert_eq!(
+        located(&src),
+        [format!(
+            "{line}:{col}: chart type `Big` has 97 states: a table holds at most 96 (MAX_STATES); \
+             no chart is of it"
+        )]
+    );
+}
+
 /// A role of more charts than a table holds is refused at the first one too many, before
 /// its charts are elaborated (10,000 of them here).
 #[test]

@@ -261,16 +261,25 @@ fn split(url: &str) -> (&str, Option<&str>) {
 }
 
 /// Whether `host` (a request's `Host`) names the panel at `addr`: its address, or on
-/// loopback `localhost`, `127.0.0.1` or `[::1]` with its port.
+/// loopback `localhost`, `127.0.0.1` or `[::1]`, with its port (none for port 80).
 fn names_panel(host: Option<&str>, addr: SocketAddr) -> bool {
     let Some(host) = host else {
         return false;
     };
-    let port = addr.port();
-    host == addr.to_string()
-        || ["localhost", "127.0.0.1", "[::1]"]
-            .iter()
-            .any(|name| host == format!("{name}:{port}"))
+    let (name, port) = match host.strip_prefix('[').and_then(|h| h.split_once(']')) {
+        Some((v6, rest)) => (format!("[{v6}]"), rest.strip_prefix(':')),
+        None => match host.rsplit_once(':') {
+            Some((name, port)) => (name.to_string(), Some(port)),
+            None => (host.to_string(), None),
+        },
+    };
+    let port = port.map_or(Some(80), |p| p.parse::<u16>().ok());
+    let own = match addr.ip() {
+        IpAddr::V4(ip) => ip.to_string(),
+        IpAddr::V6(ip) => format!("[{ip}]"),
+    };
+    port == Some(addr.port())
+        && (name == own || ["localhost", "127.0.0.1", "[::1]"].contains(&name.as_str()))
 }
 
 /// `a == b` in time that depends on their lengths only.
@@ -417,4 +426,40 @@ fn send_events(ctx: &Ctx, out: &mut dyn Write) -> io::Result<()> {
         ctx.shared.wait_change(version, KEEPALIVE);
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_host_names_the_panel_by_its_address_or_a_loopback_name() {
+        let at: SocketAddr = "127.0.0.1:15480".parse().expect("addr");
+        for host in ["127.0.0.1:15480", "localhost:15480", "[::1]:15480"] {
+            assert!(names_panel(Some(host), at), "{host}");
+        }
+        for host in [
+            "evil.example:15480",
+            "127.0.0.1:15481",
+            "127.0.0.1",
+            "localhost.:15480",
+            "",
+        ] {
+            assert!(!names_panel(Some(host), at), "{host}");
+        }
+        assert!(!names_panel(None, at));
+        let http: SocketAddr = "127.0.0.1:80".parse().expect("addr");
+        assert!(names_panel(Some("localhost"), http));
+        assert!(names_panel(Some("127.0.0.1:80"), http));
+        let v6: SocketAddr = "[::1]:8080".parse().expect("addr");
+        assert!(names_panel(Some("[::1]:8080"), v6));
+        assert!(!names_panel(Some("[::2]:8080"), v6));
+    }
+
+    #[test]
+    fn tokens_compare_by_value() {
+        assert!(same("0a1b", "0a1b"));
+        assert!(!same("0a1b", "0a1c"));
+        assert!(!same("0a1b", "0a1"));
+    }
 }

@@ -45,7 +45,8 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
     // A type no chart instantiates: its parameters free.
     let free = vec![BTreeMap::new()];
     for (ti, t) in robot.chart_types.iter().enumerate() {
-        if !fits(t, ti, src, out) {
+        let used = instances.contains_key(t.name.as_str());
+        if !fits(t, ti, used, src, out) {
             continue;
         }
         names(t, ti, src, out);
@@ -60,10 +61,10 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
     }
 }
 
-/// Whether a chart type's states and transitions fit a table (an error if not: no table
-/// holds the type, and its other checks, which compare states and transitions in pairs,
-/// are skipped).
-fn fits(t: &ChartType, ti: usize, src: &Source, out: &mut Vec<Diagnostic>) -> bool {
+/// Whether a chart type's states and transitions fit a table (if not: an error if a chart
+/// is of the type, else a warning; no table holds it, and its other checks, which compare
+/// states and transitions in pairs, are skipped).
+fn fits(t: &ChartType, ti: usize, used: bool, src: &Source, out: &mut Vec<Diagnostic>) -> bool {
     let mut fits = true;
     for (what, n, max, name) in [
         ("states", t.states.len(), MAX_STATES, "MAX_STATES"),
@@ -76,13 +77,16 @@ fn fits(t: &ChartType, ti: usize, src: &Source, out: &mut Vec<Diagnostic>) -> bo
     ] {
         if n > max {
             fits = false;
-            out.push(Diagnostic::error(
-                type_span(t, src, &format!("chart_types[{ti}].{what}[{max}]")),
-                format!(
-                    "chart type `{}` has {n} {what}: a table holds at most {max} ({name})",
-                    t.name
-                ),
-            ));
+            let at = type_span(t, src, &format!("chart_types[{ti}].{what}[{max}]"));
+            let said = format!(
+                "chart type `{}` has {n} {what}: a table holds at most {max} ({name})",
+                t.name
+            );
+            out.push(if used {
+                Diagnostic::error(at, said)
+            } else {
+                Diagnostic::warning(at, format!("{said}; no chart is of it"))
+            });
         }
     }
     fits
