@@ -115,7 +115,8 @@ fn status_of(at: std::net::SocketAddr, bytes: &[u8]) -> String {
 
 /// What another site, a client too big or too many clients send is refused with its
 /// status, and the panel goes on serving: a button only from the panel's own page
-/// (`X-Panel: button`, no foreign `Origin`), only requests for the panel's own address
+/// (`X-Panel: button`), no request of another site's page (a foreign `Origin`: an event
+/// stream would hold one of the few slots), only requests for the panel's own address
 /// (no other name resolved to it), a body of 10^12 bytes announced, a header of 100 KB;
 /// and with every connection taken, one more is answered 503, and served again once
 /// they close.
@@ -146,6 +147,13 @@ fn requests_from_elsewhere_or_past_the_bounds_are_refused_and_the_panel_goes_on(
         post(&own),
         409,
         "the page's own press: refused by the machine's state"
+    );
+    let stream =
+        format!("GET /events HTTP/1.1\r\nHost: {at}\r\nOrigin: http://evil.example\r\n\r\n");
+    assert_eq!(
+        status_of(at, stream.as_bytes()),
+        "HTTP/1.1 403 Forbidden",
+        "another site's stream"
     );
     let rebound = format!(
         "GET /state.json HTTP/1.1\r\nHost: evil.example:{}\r\n\r\n",

@@ -4,9 +4,9 @@
 //! events: the state again at every change) and `POST command/NAME`. Off loopback every
 //! request must carry the token printed at start-up (`?token=`); on loopback a request
 //! must name the panel's own address as its `Host` (no other site's name resolved to
-//! it). A button's POST must carry `X-Panel: button`, which no page of another origin
-//! can send without the panel's consent (it gives none), and an `Origin`, if any, of the
-//! panel's own.
+//! it). A request's `Origin`, if any, must be the panel's own (a page of another site
+//! opens no event stream), and a button's POST must carry `X-Panel: button`, which no
+//! page of another origin can send without the panel's consent (it gives none).
 
 use std::io::{self, Write};
 use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, SocketAddr, TcpListener, TcpStream};
@@ -335,6 +335,15 @@ fn answer(ctx: &Ctx, rq: &Request) -> Answer {
         }
         _ => {}
     }
+    // A page of another site may open connections to the panel (an event stream holds one
+    // of its few slots): the browser says whose page it is.
+    let own = rq.header("host").map(|h| format!("http://{h}"));
+    if rq
+        .header("origin")
+        .is_some_and(|o| Some(o) != own.as_deref())
+    {
+        return page(403, plain, "this panel answers its own page only\n");
+    }
     let json = "application/json";
     match (rq.method.as_str(), path) {
         ("GET", "/") => page(200, "text/html; charset=utf-8", INDEX),
@@ -347,11 +356,7 @@ fn answer(ctx: &Ctx, rq: &Request) -> Answer {
         }
         ("GET", "/events") => Answer::Events,
         ("POST", p) if p.starts_with("/command/") => {
-            let own = rq.header("host").map(|h| format!("http://{h}"));
-            let foreign = rq
-                .header("origin")
-                .is_some_and(|o| Some(o) != own.as_deref());
-            if rq.header("x-panel") != Some("button") || foreign {
+            if rq.header("x-panel") != Some("button") {
                 return page(
                     403,
                     plain,
