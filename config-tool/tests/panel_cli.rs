@@ -31,21 +31,22 @@ fn keyed_medium(tag: &str) -> (TempDir, medium::Medium) {
     (dir, medium)
 }
 
-#[test]
-fn a_second_panel_on_the_same_port_is_refused_with_a_clear_error() {
-    let (dir, medium) = keyed_medium("panel-port");
+/// A panel of the paint robot listening on `listen`, on a medium with no node (with what
+/// it needs: its directory and key, the medium).
+fn panel_on(tag: &str, listen: &str) -> (TempDir, medium::Medium, Panel) {
+    let (dir, medium) = keyed_medium(tag);
     let (k, m) = (dir.0.join("machine.key"), medium.addr().to_string());
     let k = k.to_str().unwrap();
-    let first = Panel::start(&[
-        ROBOT,
-        "--keys",
-        k,
-        "--medium",
-        &m,
-        "--listen",
-        "127.0.0.1:0",
-    ])
-    .expect("the first panel");
+    let panel =
+        Panel::start(&[ROBOT, "--keys", k, "--medium", &m, "--listen", listen]).expect("the panel");
+    (dir, medium, panel)
+}
+
+#[test]
+fn a_second_panel_on_the_same_port_is_refused_with_a_clear_error() {
+    let (dir, medium, first) = panel_on("panel-port", "127.0.0.1:0");
+    let (k, m) = (dir.0.join("machine.key"), medium.addr().to_string());
+    let k = k.to_str().unwrap();
     let port = first.addr.to_string();
     let second = Panel::start(&[ROBOT, "--keys", k, "--medium", &m, "--listen", &port]);
     let Err((status, err)) = second else {
@@ -122,19 +123,7 @@ fn status_of(at: std::net::SocketAddr, bytes: &[u8]) -> String {
 /// they close.
 #[test]
 fn requests_from_elsewhere_or_past_the_bounds_are_refused_and_the_panel_goes_on() {
-    let (dir, medium) = keyed_medium("panel-bounds");
-    let (k, m) = (dir.0.join("machine.key"), medium.addr().to_string());
-    let k = k.to_str().unwrap();
-    let panel = Panel::start(&[
-        ROBOT,
-        "--keys",
-        k,
-        "--medium",
-        &m,
-        "--listen",
-        "127.0.0.1:0",
-    ])
-    .expect("the panel");
+    let (_dir, _medium, panel) = panel_on("panel-bounds", "127.0.0.1:0");
     let at = panel.addr;
     let post = |headers: &str| {
         panel_support::request_with(at, "POST", "/command/HOME", Some(""), headers).0
@@ -195,11 +184,7 @@ fn requests_from_elsewhere_or_past_the_bounds_are_refused_and_the_panel_goes_on(
 
 #[test]
 fn a_panel_off_loopback_prints_a_token_and_refuses_requests_without_it() {
-    let (dir, medium) = keyed_medium("panel-token");
-    let (k, m) = (dir.0.join("machine.key"), medium.addr().to_string());
-    let k = k.to_str().unwrap();
-    let panel = Panel::start(&[ROBOT, "--keys", k, "--medium", &m, "--listen", "0.0.0.0:0"])
-        .expect("the panel");
+    let (_dir, _medium, panel) = panel_on("panel-token", "0.0.0.0:0");
     let (_, token) = panel
         .url
         .split_once("?token=")

@@ -222,28 +222,35 @@ fn a_role_of_more_charts_than_a_table_holds_is_refused_at_the_first_one_too_many
     );
 }
 
+/// Asserts that, with `from` in `text` replaced by each of `written`, the diagnostic
+/// whose message starts with `message` points at the `zz` the replacement brings.
+fn points_at_zz(text: &str, from: &str, written: &[&str], message: &str) {
+    assert!(text.contains(from));
+    for written in written {
+        let src = Source::new("zz.ron", text.replacen(from, written, 1));
+        let diags = check(&src).diagnostics;
+        let zz = diags
+            .iter()
+            .find(|d| d.message.starts_with(message))
+            .unwrap_or_else(|| panic!("{written}: {diags:?}"));
+        let (line, col) = src.line_col(src.text.find("zz").expect("zz"));
+        assert_eq!(zz.line_col(&src), (line, col), "{written}");
+    }
+}
+
 /// An error inside an expression points at its place in the file when the string writes
 /// escapes (`\u{63}` or `\x63` for `c`, `\t`, `\n`) or is a raw string.
 #[test]
 fn an_expression_error_points_into_the_file_through_escapes() {
     let text = fixture("small-charts.ron").text;
-    let guard = r#"when: "count < M || true""#;
-    assert!(text.contains(guard));
-    for written in [
+    let written = [
         r#"when: "count < M || zz""#,
         r#"when: "\u{63}\u{6f}unt\t< M || zz""#,
         r#"when: "\x63ount\r\n< M || zz""#,
         r##"when: r#"count < M || zz"#"##,
-    ] {
-        let src = Source::new("esc.ron", text.replacen(guard, written, 1));
-        let diags = check(&src).diagnostics;
-        let zz = diags
-            .iter()
-            .find(|d| d.message.starts_with("unknown name `zz`"))
-            .unwrap_or_else(|| panic!("{written}: {diags:?}"));
-        let (line, col) = src.line_col(src.text.find("zz").expect("zz"));
-        assert_eq!(zz.line_col(&src), (line, col), "{written}");
-    }
+    ];
+    let guard = r#"when: "count < M || true""#;
+    points_at_zz(&text, guard, &written, "unknown name `zz`");
 }
 
 /// An interlock's error too, through escapes and a line continuation (`\` at the end of a
@@ -255,22 +262,13 @@ fn an_interlock_error_points_into_the_file_through_escapes_and_continuations() {
         env!("CARGO_MANIFEST_DIR")
     );
     let text = std::fs::read_to_string(path).expect("paint-robot.ron");
-    let never = r#"never: ["HC.moving && !VC.home""#;
-    assert!(text.contains(never));
-    for written in [
+    let written = [
         "never: [\"HC.moving && !VC.home && zz\"",
         "never: [\"HC.moving && \\u{21}VC.home && \\\n          zz\"",
         "never: [\"HC.moving && !VC.home && \\\r\n\t zz\"",
-    ] {
-        let src = Source::new("never.ron", text.replacen(never, written, 1));
-        let diags = check(&src).diagnostics;
-        let zz = diags
-            .iter()
-            .find(|d| d.message.starts_with("`zz` is not an interlock name"))
-            .unwrap_or_else(|| panic!("{written}: {diags:?}"));
-        let (line, col) = src.line_col(src.text.find("zz").expect("zz"));
-        assert_eq!(zz.line_col(&src), (line, col), "{written}");
-    }
+    ];
+    let never = r#"never: ["HC.moving && !VC.home""#;
+    points_at_zz(&text, never, &written, "`zz` is not an interlock name");
 }
 
 #[test]
