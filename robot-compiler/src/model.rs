@@ -501,6 +501,14 @@ pub struct ChartType {
     pub imported: Option<String>,
 }
 
+impl ChartType {
+    /// Where a diagnostic about `path` of this type (a path in the robot file) points: the
+    /// path itself, or for a type the robot file does not write the place that imported it.
+    pub fn place<'a>(&'a self, path: &'a str) -> &'a str {
+        self.imported.as_deref().unwrap_or(path)
+    }
+}
+
 /// A chart variable and its initial value (an expression over the parameters).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -14,10 +14,10 @@ pub fn export(robot: &Path, out: &Path) -> Result<(), Failure> {
     let exported = export::export(&compiled, &today()).map_err(|e| {
         // At the chart type it names, where the robot file has it.
         let at = match &e {
-            export::ExportError::Type { ty, .. } => compiled.robot.chart_type(ty).map(|(i, t)| {
-                let path = format!("chart_types[{i}].name");
-                src.span(t.imported.as_deref().unwrap_or(&path))
-            }),
+            export::ExportError::Type { ty, .. } => compiled
+                .robot
+                .chart_type(ty)
+                .map(|(i, t)| src.span(t.place(&format!("chart_types[{i}].name")))),
             export::ExportError::Reads { .. } => None,
         };
         match at {

@@ -1,6 +1,8 @@
-//! Chart types: more states or transitions than a table holds (error), states unreachable from the initial state (warning), and two transitions
-//! from one state on one event whose guards can both hold (warning: the first declared
-//! wins, which may not be what was meant).
+//! Chart types: more states or transitions than a table holds (an error, a warning for a
+//! type no chart is of), states unreachable from the initial state (warning), and two
+//! transitions from one state on one event whose guards can both hold (warning: the first
+//! declared wins, which may not be what was meant). Roles of more charts than a table
+//! holds (error).
 
 use std::collections::BTreeMap;
 
@@ -92,10 +94,9 @@ fn fits(t: &ChartType, ti: usize, used: bool, src: &Source, out: &mut Vec<Diagno
     fits
 }
 
-/// The span of `path` inside chart type `t`, or for a type the robot file does not write
-/// the place that imported it.
+/// The span of `path` inside chart type `t` ([`ChartType::place`]).
 fn type_span(t: &ChartType, src: &Source, path: &str) -> std::ops::Range<usize> {
-    src.span(t.imported.as_deref().unwrap_or(path))
+    src.span(t.place(path))
 }
 
 /// Names inside a chart type (states and events of its transitions) and the syntax of its

@@ -1,6 +1,7 @@
-//! Duplicate names: the keys of a map, nodes, roles, actuators (robot-wide: sequences name them), pins of a
-//! role, charts of a role, chart types, and the states, variables, inputs, outputs,
-//! timers and parameters of a chart type.
+//! Duplicate names: the keys of a map, nodes, roles, actuators (robot-wide: sequences
+//! name them), pins of a role, charts of a role, chart types, and the states, variables,
+//! inputs, outputs, timers and parameters of a chart type. Role names that are no plain
+//! file names.
 
 use std::collections::BTreeMap;
 

@@ -18,7 +18,7 @@
 //! imported.
 
 use config_schema::limits::{MAX_STATES, MAX_TRANSITIONS};
-use roxmltree::{Document, Node, ParsingOptions};
+use roxmltree::{Document, Node};
 
 use super::st::{self, Name, StError, Stmt, Ty};
 use crate::model::{ActionDecl, ChartType, StateDecl, TransitionDecl, VarDecl};
@@ -194,20 +194,10 @@ pub fn import(text: &str) -> Result<ChartType, XmlError> {
 
 /// [`import`], with the type's typed [`Interface`].
 pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
-    let options = ParsingOptions {
-        allow_dtd: true,
-        ..ParsingOptions::default()
-    };
-    if let Some((line, col, message)) = super::refused_xml(text) {
-        return Err(XmlError { line, col, message });
-    }
-    let doc = Document::parse_with_options(text, options).map_err(|e| {
-        let (line, col) = super::xml_error_at(text, &e);
-        XmlError {
-            line,
-            col,
-            message: format!("not well-formed XML: {e}"),
-        }
+    let doc = super::net::document(text).map_err(|(at, message)| XmlError {
+        line: at.line,
+        col: at.col,
+        message,
     })?;
     let cx = Cx { doc: &doc };
     let root = doc.root_element();

@@ -150,22 +150,19 @@ fn application(
     }
 }
 
-/// Where an XML parse error of `text` is, as (line, column): the place roxmltree gives,
-/// or for an error only found at the end (the text ended inside an element, or holds
-/// none) the end of the text, where roxmltree says 1:1.
-pub(crate) fn xml_error_at(text: &str, e: &roxmltree::Error) -> (u32, u32) {
+/// Where an XML parse error of `text` is: the place roxmltree gives, or for an error only
+/// found at the end (the text ended inside an element, or holds none) the end of the
+/// text, where roxmltree says 1:1.
+pub(crate) fn xml_error_at(text: &str, e: &roxmltree::Error) -> net::Pos {
     use roxmltree::Error::{NoRootNode, UnclosedRootNode, UnexpectedEndOfStream};
-    if !matches!(e, UnexpectedEndOfStream | UnclosedRootNode | NoRootNode) {
-        let p = e.pos();
-        return (p.row, p.col);
+    if matches!(e, UnexpectedEndOfStream | UnclosedRootNode | NoRootNode) {
+        return net::Lines::of(text).pos(text, text.len());
     }
-    let line = text.matches('\n').count() + 1;
-    let last = text.rfind('\n').map_or(text, |i| &text[i + 1..]);
-    let col = last.chars().count() + 1;
-    (
-        u32::try_from(line).unwrap_or(u32::MAX),
-        u32::try_from(col).unwrap_or(u32::MAX),
-    )
+    let p = e.pos();
+    net::Pos {
+        line: p.row,
+        col: p.col,
+    }
 }
 
 /// `bytes` of `file` as text, or why not: the place of the first byte that is not UTF-8.
@@ -190,22 +187,13 @@ pub(crate) fn utf8_text(file: &str, bytes: Vec<u8>) -> Result<String, String> {
 pub const MAX_ATTRIBUTES: usize = 256;
 
 /// What the XML parser is not given, found by a linear scan of `text` (comments, CDATA,
-/// processing instructions, end tags and quoted values skipped): the (line, column) and
-/// why of the first attribute past [`MAX_ATTRIBUTES`] of one element, or of a `DOCTYPE`
-/// with an internal subset (declared entities would bring elements this scan does not
-/// see; IEC 61499 files name their DTD only).
-pub(crate) fn refused_xml(text: &str) -> Option<(u32, u32, String)> {
+/// processing instructions, end tags and quoted values skipped): the place and why of the
+/// first attribute past [`MAX_ATTRIBUTES`] of one element, or of a `DOCTYPE` with an
+/// internal subset (declared entities would bring elements this scan does not see; IEC
+/// 61499 files name their DTD only).
+pub(crate) fn refused_xml(text: &str) -> Option<(net::Pos, String)> {
     let b = text.as_bytes();
-    let place = |i: usize| {
-        let before = text.get(..i).unwrap_or(text);
-        let line = before.matches('\n').count() + 1;
-        let start = before.rfind('\n').map_or(0, |n| n + 1);
-        let col = before[start..].chars().count() + 1;
-        (
-            u32::try_from(line).unwrap_or(u32::MAX),
-            u32::try_from(col).unwrap_or(u32::MAX),
-        )
-    };
+    let place = |i: usize| net::Lines::of(text).pos(text, i);
     let find = |from: usize, what: &str| {
         text.get(from..)
             .and_then(|rest| rest.find(what))
@@ -227,9 +215,8 @@ pub(crate) fn refused_xml(text: &str) -> Option<(u32, u32, String)> {
         } else if rest.starts_with("!DOCTYPE") {
             let end = find(i, ">");
             if text.get(i..end).is_some_and(|d| d.contains('[')) {
-                let (line, col) = place(i - 1);
                 let why = "a DOCTYPE with an internal subset (declarations): not taken";
-                return Some((line, col, why.to_string()));
+                return Some((place(i - 1), why.to_string()));
             }
             i = end;
         } else if rest.starts_with('!') || rest.starts_with('/') {
@@ -249,10 +236,9 @@ pub(crate) fn refused_xml(text: &str) -> Option<(u32, u32, String)> {
                     b'=' => {
                         attributes += 1;
                         if attributes > MAX_ATTRIBUTES {
-                            let (line, col) = place(i);
                             let why =
                                 format!("an element of more than {MAX_ATTRIBUTES} attributes");
-                            return Some((line, col, why));
+                            return Some((place(i), why));
                         }
                     }
                     _ => {}

@@ -121,24 +121,29 @@ pub struct Xml<'a, 'i> {
 /// Parses `text` (DTD allowed, as the tools write one), or an error at the first place
 /// that is not well formed.
 pub fn parse<'i>(text: &'i str, file: &str) -> Result<Document<'i>, SysError> {
+    document(text).map_err(|(at, message)| SysError {
+        file: file.to_string(),
+        at,
+        message,
+    })
+}
+
+/// `text` parsed as IEC 61499 XML (a DTD named, as the tools write one), or the place and
+/// why not: what the parser is not given ([`super::refused_xml`]), or the first place that
+/// is not well formed (at the end of the text for what only the end shows).
+pub fn document(text: &str) -> Result<Document<'_>, (Pos, String)> {
+    if let Some((at, message)) = super::refused_xml(text) {
+        return Err((at, message));
+    }
     let options = ParsingOptions {
         allow_dtd: true,
         ..ParsingOptions::default()
     };
-    if let Some((line, col, message)) = super::refused_xml(text) {
-        return Err(SysError {
-            file: file.to_string(),
-            at: Pos { line, col },
-            message,
-        });
-    }
     Document::parse_with_options(text, options).map_err(|e| {
-        let (line, col) = super::xml_error_at(text, &e);
-        SysError {
-            file: file.to_string(),
-            at: Pos { line, col },
-            message: format!("not well-formed XML: {e}"),
-        }
+        (
+            super::xml_error_at(text, &e),
+            format!("not well-formed XML: {e}"),
+        )
     })
 }
 
