@@ -91,19 +91,12 @@ pub fn check(src: &Source) -> Checked {
     };
     // Imported FB types join the chart types before anything reads them.
     let mut diags = crate::iec61499::import(&mut robot, src);
-    if diags.iter().any(Diagnostic::is_error) {
-        // What failed to import is missing from the robot: what the passes would find
-        // now (a robot without behaviour, roles on no node) follows from it.
-        diag::sort(&mut diags);
-        diags.dedup();
-        return Checked {
-            robot: Some(robot),
-            ir: None,
-            diagnostics: diags,
-        };
-    }
-    for (_, pass) in STRUCTURE {
-        pass(&robot, src, &mut diags);
+    // What failed to import is missing from the robot: what the passes would find then (a
+    // robot without behaviour, roles on no node) follows from it, and is not said.
+    if !diags.iter().any(Diagnostic::is_error) {
+        for (_, pass) in STRUCTURE {
+            pass(&robot, src, &mut diags);
+        }
     }
     let mut ir = None;
     if !diags.iter().any(Diagnostic::is_error) {
