@@ -129,8 +129,9 @@ pub fn parse<'i>(text: &'i str, file: &str) -> Result<Document<'i>, SysError> {
 }
 
 /// `text` parsed as IEC 61499 XML (a DTD named, as the tools write one), or the place and
-/// why not: what the parser is not given ([`super::refused_xml`]), or the first place that
-/// is not well formed (at the end of the text for what only the end shows).
+/// why not: what the parser is not given (the module's `refused_xml`: too many attributes,
+/// a DTD's internal subset), or the first place that is not well formed (at the end of the
+/// text for what only the end shows).
 pub fn document(text: &str) -> Result<Document<'_>, (Pos, String)> {
     if let Some((at, message)) = super::refused_xml(text) {
         return Err((at, message));
