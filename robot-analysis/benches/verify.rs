@@ -2,7 +2,8 @@
 //! paint robot (lossless and lossy links), and of synthesised robots of 4, 6 and 8
 //! double-acting cylinders, one node each, 2 steps each per cycle (`A+ B+ .. B- A-`), and
 //! how the state count grows with the number of actuators; homing's proof (from every start
-//! position) of the same robots. Best of 3 runs each.
+//! position) of the same robots. Best of 3 runs each; the bytes a state takes packed in the
+//! visited set, and the peak memory of the largest run (8 actuators homing, once).
 
 use std::time::{Duration, Instant};
 
@@ -92,12 +93,27 @@ fn homing_line(name: &str, r: &HomingReport, t: Duration) {
 
 fn line(name: &str, r: &Report, t: Duration) {
     println!(
-        "{name:<32} {:>9} states {:>10} transitions {:>10.3} ms {:>12.0} states/s",
+        "{name:<32} {:>9} states {:>10} transitions {:>10.3} ms {:>12.0} states/s {:>6.1} B/state",
         r.states,
         r.transitions,
         t.as_secs_f64() * 1e3,
-        r.states as f64 / t.as_secs_f64()
+        r.states as f64 / t.as_secs_f64(),
+        r.packed_bytes as f64 / r.states as f64
     );
+}
+
+/// The process's peak resident memory so far (Linux: `VmHWM`), in MB.
+fn peak_mb() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let kb = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))?
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse::<f64>()
+        .ok()?;
+    Some(kb / 1024.0)
 }
 
 fn main() {
@@ -125,10 +141,24 @@ fn main() {
     homing_line("paint-robot", &r, t);
     let (r, t) = best_homing(&paint, true);
     homing_line("paint-robot --lossy", &r, t);
-    // 8 actuators: 6 561 starts, 1.1 M states, 8 s a run.
     for n in [4, 6] {
         let (r, t) = best_homing(&nested(n), false);
         homing_line(&format!("{n} actuators"), &r, t);
+    }
+    // The largest run, once (6 561 starts, 1.1 M states): the process's peak memory before
+    // and after it is what its visited set took.
+    let before = peak_mb();
+    let eight = nested(8);
+    let model = verify::Model::new(&eight).expect("model");
+    let r = verify::explore_homing(&model, ExploreOptions::default()).expect("homes");
+    assert!(r.ok(), "{}", r.render("bench", 0));
+    homing_line("8 actuators, once", &r, r.report.elapsed);
+    if let (Some(before), Some(after)) = (before, peak_mb()) {
+        println!(
+            "  peak memory {before:.0} MB before it, {after:.0} MB after: {:.0} B a state \
+             with its transitions and the search's bookkeeping",
+            (after - before) * 1024.0 * 1024.0 / r.report.states as f64
+        );
     }
     println!("state count growth (lossless):");
     for w in counts.windows(2) {

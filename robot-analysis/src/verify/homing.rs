@@ -58,6 +58,20 @@ impl HomingReport {
 /// charts).
 pub fn explore_homing(model: &Model<'_>, opts: ExploreOptions) -> Option<HomingReport> {
     model.home?;
+    let roots = roots(model);
+    let report = run(model, roots, opts);
+    let homing: Vec<String> = model.c.ir.homing.iter().map(|s| s.to_string()).collect();
+    Some(HomingReport {
+        positions: 3usize.pow(model.acts.len() as u32),
+        held: held_valves(model).len(),
+        homing: homing.join(" "),
+        report,
+    })
+}
+
+/// Homing's initial states: every start position of the actuators, with every level of
+/// the held valves, each with the positions a counterexample from it names.
+pub(super) fn roots(model: &Model<'_>) -> Vec<(Sys, Option<String>)> {
     let held = held_valves(model);
     let k = model.acts.len();
     let positions = 3usize.pow(k as u32);
@@ -76,14 +90,7 @@ pub fn explore_homing(model: &Model<'_>, opts: ExploreOptions) -> Option<HomingR
             roots.push(start(model, &rests, &before, &held));
         }
     }
-    let report = run(model, roots, opts);
-    let homing: Vec<String> = model.c.ir.homing.iter().map(|s| s.to_string()).collect();
-    Some(HomingReport {
-        positions,
-        held: held.len(),
-        homing: homing.join(" "),
-        report,
-    })
+    roots
 }
 
 /// The valve outputs whose start level is `Hold`, as (node, output).

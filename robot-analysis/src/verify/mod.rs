@@ -33,6 +33,7 @@ mod estop;
 mod feed;
 mod homing;
 mod motor;
+mod packed;
 mod place;
 
 pub use feed::{DEFAULT_BALLS, MAX_BALLS};
@@ -183,6 +184,9 @@ pub struct Violation {
 pub struct Report {
     pub states: usize,
     pub transitions: usize,
+    /// Bytes of the states as the visited set holds them, packed (a few a node; the
+    /// set's own bookkeeping, about 50 bytes a state, and 8 a transition come on top).
+    pub packed_bytes: usize,
     /// States where the machine is idle (ready for START).
     pub idle: usize,
     /// States where a node is faulted or, lossy, a link is in alarm.
@@ -217,6 +221,7 @@ impl Report {
         Report {
             states: 0,
             transitions: 0,
+            packed_bytes: 0,
             idle: 0,
             stopped: 0,
             elapsed: Duration::ZERO,
@@ -1644,8 +1649,10 @@ fn run(model: &Model<'_>, roots: Vec<(Sys, Option<String>)>, opts: ExploreOption
     let t0 = Instant::now();
     let mut search = Search::bfs(model, roots, opts);
     let states = search.seen.len();
-    let idle_flags: Vec<bool> = search.seen.iter().map(|s| model.idle(s)).collect();
-    let stopped_flags: Vec<bool> = search.seen.iter().map(|s| model.stopped(s)).collect();
+    let (idle_flags, stopped_flags): (Vec<bool>, Vec<bool>) = search
+        .states()
+        .map(|s| s.map_or((false, false), |s| (model.idle(&s), model.stopped(&s))))
+        .unzip();
     if search.violation.is_none() && !search.incomplete {
         search.violation = search.deadlock(model, &idle_flags, &stopped_flags);
     }
@@ -1661,6 +1668,7 @@ fn run(model: &Model<'_>, roots: Vec<(Sys, Option<String>)>, opts: ExploreOption
         growing,
         states,
         transitions: search.edges.len(),
+        packed_bytes: search.seen.iter().map(|key| key.len()).sum(),
         idle: idle_flags.iter().filter(|b| **b).count(),
         stopped: stopped_flags.iter().filter(|b| **b).count(),
         elapsed: t0.elapsed(),
@@ -1677,9 +1685,10 @@ fn run(model: &Model<'_>, roots: Vec<(Sys, Option<String>)>, opts: ExploreOption
 
 /// The explored state graph.
 struct Search {
-    /// Every state found, in breadth-first order; the index is the state's number.
+    /// Every state found, packed ([`packed`]: equal states, equal bytes), in breadth-first
+    /// order; the index is the state's number.
     // FxHash: fast and not keyed; the states are our own, no hash flooding to fear.
-    seen: IndexSet<Sys, FxBuildHasher>,
+    seen: IndexSet<Box<[u8]>, FxBuildHasher>,
     /// The initial states are the first `labels.len()`, each with the start positions a
     /// counterexample from it names (none for the cycle's one).
     labels: Vec<Option<String>>,
@@ -1704,9 +1713,10 @@ impl Search {
             violation: None,
             incomplete: false,
         };
+        let mut key = Vec::new();
         for (root, label) in roots {
             let bad = model.check_state(&root);
-            if g.seen.insert(root) {
+            if g.insert(&root, &mut key).1 {
                 g.labels.push(label);
                 g.parent.push((0, Move::Press));
                 if let Some((property, message)) = bad {
@@ -1719,11 +1729,7 @@ impl Search {
         let mut moves = Vec::new();
         let mut next = 0usize;
         'bfs: while next < g.seen.len() {
-            let s = g
-                .seen
-                .get_index(next)
-                .cloned()
-                .unwrap_or_else(|| model.init.clone());
+            let s = g.state(next).unwrap_or_else(|| model.init.clone());
             model.moves(&s, opts, &mut moves);
             for &m in &moves {
                 let mut t = s.clone();
@@ -1733,7 +1739,7 @@ impl Search {
                     g.violation = Some(g.violation(model, property, message, root, &p));
                     break 'bfs;
                 }
-                let (j, new) = g.seen.insert_full(t);
+                let (j, new) = g.insert(&t, &mut key);
                 if new {
                     g.parent.push((next as u32, m));
                     if g.seen.len() >= opts.max_states {
@@ -1746,6 +1752,27 @@ impl Search {
             next += 1;
         }
         g
+    }
+
+    /// Adds state `s` (packed in `key`, a buffer kept between calls) unless it was found
+    /// already: its number, and whether it is new.
+    fn insert(&mut self, s: &Sys, key: &mut Vec<u8>) -> (usize, bool) {
+        packed::pack(s, key);
+        match self.seen.get_index_of(key.as_slice()) {
+            Some(j) => (j, false),
+            None => self.seen.insert_full(key.as_slice().into()),
+        }
+    }
+
+    /// State number `i`.
+    fn state(&self, i: usize) -> Option<Sys> {
+        self.seen.get_index(i).and_then(|b| packed::unpack(b))
+    }
+
+    /// Every state found, in order (`None`: one that does not unpack, which only a bug in
+    /// [`packed`] makes).
+    fn states(&self) -> impl Iterator<Item = Option<Sys>> + '_ {
+        (0..self.seen.len()).map(|i| self.state(i))
     }
 
     /// The initial state state `i` was reached from, and the moves from it.
@@ -1768,14 +1795,14 @@ impl Search {
         root: usize,
         moves: &[Move],
     ) -> Violation {
-        let (init, label) = (self.seen.get_index(root))
+        let (init, label) = (self.state(root))
             .zip(self.labels.get(root))
-            .map_or((&model.init, None), |(s, l)| (s, l.clone()));
+            .map_or((model.init.clone(), None), |(s, l)| (s, l.clone()));
         Violation {
             property,
             message,
             steps: moves.len(),
-            trace: model.replay(init, moves),
+            trace: model.replay(&init, moves),
             start: label,
         }
     }
@@ -1815,10 +1842,7 @@ impl Search {
         }
         let doomed = |i: usize| !good[i] && !stopped_flags[i];
         let first = (0..states).find(|&i| doomed(i))?;
-        let homing = self
-            .seen
-            .get_index(first)
-            .is_some_and(|s| s.homing.is_some());
+        let homing = self.state(first).is_some_and(|s| s.homing.is_some());
         // Homing starts are often doomed from the start: show where homing gets stuck, the
         // first state after which nothing or only a stop (fault, link alarm) can happen.
         let mut dead_end = vec![true; states];
@@ -1866,9 +1890,8 @@ impl Search {
             out_degree[f as usize] += 1;
         }
         let (i, message) = (0..self.seen.len()).find_map(|i| {
-            let s = self.seen.get_index(i)?;
             (out_degree[i] == 0)
-                .then(|| model.unstopped(s))
+                .then(|| model.unstopped(&self.state(i)?))
                 .flatten()
                 .map(|m| (i, m))
         })?;
@@ -1879,7 +1902,7 @@ impl Search {
     /// Variables of the last state explored far from their initial values.
     fn growing(&self, model: &Model<'_>) -> Vec<String> {
         let mut growing = Vec::new();
-        let Some(last) = self.seen.last() else {
+        let Some(last) = self.seen.len().checked_sub(1).and_then(|i| self.state(i)) else {
             return growing;
         };
         for (i, (e, init)) in last.nodes.iter().zip(&model.init.nodes).enumerate() {
