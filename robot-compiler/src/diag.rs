@@ -9,6 +9,7 @@ use miette::{
     SourceCode, SourceSpan, SpanContents,
 };
 
+use crate::model::ChartInstance;
 use crate::source::Source;
 
 /// How bad a problem is. Errors stop `compile` and make `check` fail; warnings do not.
@@ -55,6 +56,22 @@ impl Diagnostic {
 
     pub fn help(mut self, help: impl Into<String>) -> Diagnostic {
         self.help = Some(help.into());
+        self
+    }
+
+    /// This diagnostic about chart `c`, at a span of the robot file: for a chart an
+    /// application declares, moved to the robot's `application` with the place in the
+    /// application first, as an error in its XML is (the connection into `input`, if given
+    /// and the application made one, else the chart's `FB` element).
+    pub fn of_chart(mut self, src: &Source, c: &ChartInstance, input: Option<&str>) -> Diagnostic {
+        if let Some(d) = &c.declared {
+            let place = input.and_then(|i| d.on.get(i)).unwrap_or(&d.fb);
+            self.span = src.span("application.file");
+            self.message = format!("{place}: {}", self.message);
+            if self.label == "here" {
+                self.label = String::from("imported here");
+            }
+        }
         self
     }
 

@@ -593,6 +593,18 @@ pub struct ChartInstance {
     /// chart's input variable `value of FB.VAR`).
     #[serde(skip)]
     pub reads: BTreeMap<String, String>,
+    /// Where an application declares the chart (no robot file writes it): a diagnostic
+    /// about it names that place ([`crate::diag::Diagnostic::of_chart`]).
+    #[serde(skip)]
+    pub declared: Option<Declared>,
+}
+
+/// Where an application declares a chart, each place as `FILE:LINE:COL`: its `FB` element
+/// and the connection into each of its inputs.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Declared {
+    pub fb: String,
+    pub on: BTreeMap<String, String>,
 }
 
 impl ChartInstance {

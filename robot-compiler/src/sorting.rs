@@ -367,6 +367,7 @@ pub fn place(robot: &Robot, src: &Source, ir: &mut Ir) -> Result<(), Vec<Diagnos
         timers: BTreeMap::new(),
         more: BTreeMap::new(),
         reads: BTreeMap::new(),
+        declared: None,
     };
     let chart = crate::elab::instantiate(
         src,

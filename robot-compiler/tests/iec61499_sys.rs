@@ -670,3 +670,71 @@ fn a_parameter_read_from_another_charts_variable_is_that_variable() {
         ])
     );
 }
+
+/// What `check` says of the robot bringing `files` (`a.sys` and the `.fbt`s `fbt` lists),
+/// one line each.
+fn checked(fbt: &str, files: &[(&str, String)]) -> Vec<String> {
+    let text = ROBOT.replace("FBT", fbt).replace("ACTIONS", "{}");
+    let dir = std::env::temp_dir().join(format!(
+        "iec61499-sys-checked-{}-{}",
+        std::process::id(),
+        files.len()
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (name, text) in files {
+        std::fs::write(dir.join(name), text).unwrap();
+    }
+    let path = dir.join("r.ron").to_string_lossy().into_owned();
+    let src = Source::new(&path, text);
+    let checked = check::check(&src);
+    let _ = std::fs::remove_dir_all(&dir);
+    let prefix = format!("{path}:");
+    (checked.diagnostics.iter())
+        .map(|d| d.short(&src).replace(&prefix, "r.ron:"))
+        .collect()
+}
+
+/// A problem of a chart the application declares is reported where the application
+/// declares it (its `FB` element, or the connection into the input), as an error in its
+/// XML is: at the robot file's `application`, the place in the `.sys` first.
+#[test]
+fn a_problem_of_an_application_chart_names_its_place_in_the_application() {
+    assert_eq!(
+        checked("[]", &[("a.sys", SYS.into())]),
+        [
+            "r.ron:5:25: warning: a.sys:5:7: chart `c` publishes `RO` but nobody uses it",
+            "r.ron:5:25: warning: a.sys:5:7: input `R` of chart `c` is connected to no event",
+            "r.ron:5:25: warning: a.sys:6:7: chart `sr` publishes `EO` but nobody uses it",
+            "r.ron:5:25: warning: a.sys:6:7: input `R` of chart `sr` is connected to no event",
+        ]
+    );
+    // `rd` (on A) never emits `HIGH`, which resets `sr` (on B): the connection is where
+    // the application subscribes to nothing.
+    let sys = SYS
+        .replace(
+            r#"<FB Name="sr" Type="E_SR"/>"#,
+            r#"<FB Name="sr" Type="E_SR"/><FB Name="rd" Type="Rd"/>"#,
+        )
+        .replace(
+            r#"<Connection Source="c.CUO" Destination="sr.S"/>"#,
+            "<Connection Source=\"c.CUO\" Destination=\"sr.S\"/>\n        \
+             <Connection Source=\"c.RO\" Destination=\"rd.REQ\"/>\n        \
+             <Connection Source=\"rd.HIGH\" Destination=\"sr.R\"/>",
+        )
+        .replace(
+            r#"<Mapping From="App.c" To="n1.A"/>"#,
+            r#"<Mapping From="App.c" To="n1.A"/><Mapping From="App.rd" To="n1.A"/>"#,
+        );
+    let never = READER
+        .replace("SOURCE", "c.CV")
+        .replace(r#"<ECAction Output="HIGH"/>"#, "");
+    assert_eq!(
+        checked("[\"Rd.fbt\"]", &[("a.sys", sys), ("Rd.fbt", never)]),
+        [
+            "r.ron:5:25: error: a.sys:10:9: `A/rd.HIGH` is subscribed here but nobody \
+             publishes it: no state of chart `rd` emits `HIGH`",
+            "r.ron:5:25: warning: a.sys:5:7: input `R` of chart `c` is connected to no event",
+            "r.ron:5:25: warning: a.sys:6:7: chart `sr` publishes `EO` but nobody uses it",
+        ]
+    );
+}

@@ -383,6 +383,7 @@ fn place_one(
             timers: BTreeMap::new(),
             more: BTreeMap::new(),
             reads: BTreeMap::new(),
+            declared: None,
         };
         let bind = BTreeMap::from([(String::from("EOS"), eos_event(a))]);
         match crate::elab::instantiate(&fb_src, "", role, &c, &t, &bind, &BTreeMap::new(), r, &at) {

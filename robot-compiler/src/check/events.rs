@@ -43,7 +43,8 @@ pub fn check(robot: &Robot, _ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>) {
                                 "`{source}` is subscribed here but nobody publishes it: no state of chart `{chart}` emits `{output}`"
                             ),
                         )
-                        .label("never raised"),
+                        .label("never raised")
+                        .of_chart(src, c, Some(key)),
                     );
                 }
             }
@@ -73,7 +74,8 @@ pub fn check(robot: &Robot, _ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>) {
                         .help(format!(
                             "connect `{}/{event}` to a chart input, or stop emitting it",
                             role.name
-                        )),
+                        ))
+                        .of_chart(src, c, None),
                     );
                 }
             }
@@ -86,10 +88,13 @@ pub fn check(robot: &Robot, _ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>) {
             };
             for i in &t.inputs {
                 if !c.on.contains_key(i) && !took(i) {
-                    out.push(Diagnostic::warning(
-                        here.clone(),
-                        format!("input `{i}` of chart `{}` is connected to no event", c.name),
-                    ));
+                    out.push(
+                        Diagnostic::warning(
+                            here.clone(),
+                            format!("input `{i}` of chart `{}` is connected to no event", c.name),
+                        )
+                        .of_chart(src, c, None),
+                    );
                 }
             }
         }

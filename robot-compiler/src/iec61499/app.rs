@@ -22,7 +22,9 @@ use super::io_fb::IoType;
 use super::net::{At, Fb, Network, SysError};
 use super::st::{self, Ty};
 use super::sys::{self, System};
-use crate::model::{ActionDecl, ApplicationDecl, ChartInstance, ChartType, PlacesVar, Robot, Role};
+use crate::model::{
+    ActionDecl, ApplicationDecl, ChartInstance, ChartType, Declared, PlacesVar, Robot, Role,
+};
 
 /// The event FB library, written for this project in the 4diac style: a `.sys` may use
 /// these types without listing them in `fb_types`.
@@ -1261,9 +1263,19 @@ pub fn bring(
             params.insert(input.clone(), v);
         }
         let mut on = plant_on.remove(&l.name).unwrap_or_default();
+        // Where the chart is declared, and the connection into each input (the first).
+        let mut declared = Declared {
+            fb: l.at.place(),
+            on: BTreeMap::new(),
+        };
         let plant_here = plant_into
             .get(l.name.as_str())
             .map_or(&[][..], Vec::as_slice);
+        for e in plant_here.iter().map(|x| &x.0).chain(into_fb(&l.name)) {
+            (declared.on)
+                .entry(e.to.1.clone())
+                .or_insert_with(|| e.at.place());
+        }
         for (e, event) in plant_here.iter().copied() {
             let from_role = role_of(&e.from.0);
             on.insert(
@@ -1378,6 +1390,7 @@ pub fn bring(
                 timers,
                 more,
                 reads,
+                declared: Some(declared),
             });
         }
     }

@@ -39,6 +39,11 @@ pub struct At {
 }
 
 impl At {
+    /// `FILE:LINE:COL`.
+    pub fn place(&self) -> String {
+        format!("{}:{}:{}", self.file, self.pos.line, self.pos.col)
+    }
+
     pub fn error(&self, message: impl Into<String>) -> SysError {
         SysError {
             file: self.file.clone(),
