@@ -499,17 +499,21 @@ const READER: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
 </FBType>
 "#;
 
+/// `sys` with `rd` (of `READER`) on resource A beside the counter `c`.
+fn with_reader(sys: &str) -> String {
+    sys.replace(
+        r#"<FB Name="sr" Type="E_SR"/>"#,
+        r#"<FB Name="sr" Type="E_SR"/><FB Name="rd" Type="Rd"/>"#,
+    )
+    .replace(
+        r#"<Mapping From="App.c" To="n1.A"/>"#,
+        r#"<Mapping From="App.c" To="n1.A"/><Mapping From="App.rd" To="n1.A"/>"#,
+    )
+}
+
 /// `rd` (of `READER`) on resource A beside the counter `c`, and `sr` on B.
 fn reader(source: &str) -> (Robot, Vec<String>) {
-    let sys = SYS
-        .replace(
-            r#"<FB Name="sr" Type="E_SR"/>"#,
-            r#"<FB Name="sr" Type="E_SR"/><FB Name="rd" Type="Rd"/>"#,
-        )
-        .replace(
-            r#"<Mapping From="App.c" To="n1.A"/>"#,
-            r#"<Mapping From="App.c" To="n1.A"/><Mapping From="App.rd" To="n1.A"/>"#,
-        );
+    let sys = with_reader(SYS);
     run(
         "[\"Rd.fbt\"]",
         "{}",
@@ -710,21 +714,12 @@ fn a_problem_of_an_application_chart_names_its_place_in_the_application() {
     );
     // `rd` (on A) never emits `HIGH`, which resets `sr` (on B): the connection is where
     // the application subscribes to nothing.
-    let sys = SYS
-        .replace(
-            r#"<FB Name="sr" Type="E_SR"/>"#,
-            r#"<FB Name="sr" Type="E_SR"/><FB Name="rd" Type="Rd"/>"#,
-        )
-        .replace(
-            r#"<Connection Source="c.CUO" Destination="sr.S"/>"#,
-            "<Connection Source=\"c.CUO\" Destination=\"sr.S\"/>\n        \
-             <Connection Source=\"c.RO\" Destination=\"rd.REQ\"/>\n        \
-             <Connection Source=\"rd.HIGH\" Destination=\"sr.R\"/>",
-        )
-        .replace(
-            r#"<Mapping From="App.c" To="n1.A"/>"#,
-            r#"<Mapping From="App.c" To="n1.A"/><Mapping From="App.rd" To="n1.A"/>"#,
-        );
+    let sys = with_reader(SYS).replace(
+        r#"<Connection Source="c.CUO" Destination="sr.S"/>"#,
+        "<Connection Source=\"c.CUO\" Destination=\"sr.S\"/>\n        \
+         <Connection Source=\"c.RO\" Destination=\"rd.REQ\"/>\n        \
+         <Connection Source=\"rd.HIGH\" Destination=\"sr.R\"/>",
+    );
     let never = READER
         .replace("SOURCE", "c.CV")
         .replace(r#"<ECAction Output="HIGH"/>"#, "");
