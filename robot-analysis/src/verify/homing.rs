@@ -137,8 +137,9 @@ fn start(
     before: &[u16],
     held: &[(usize, u8)],
 ) -> (Sys, Option<String>) {
-    let mut engines: Vec<Engine<'_>> = (model.tables.iter().zip(before))
-        .map(|(t, &b)| Engine::new_holding(t, b))
+    // On the model's indexes, built once: not one per start position and node.
+    let mut engines: Vec<_> = (model.tables.iter().zip(&model.indexes).zip(before))
+        .map(|((t, ix), &b)| Engine::new_indexed(t, ix, b))
         .collect();
     let mut pos = Vec::new();
     let mut names = Vec::new();

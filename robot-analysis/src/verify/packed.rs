@@ -173,8 +173,8 @@ impl Writer<'_> {
     }
 
     fn engine(&mut self, e: &EngineState) {
-        self.bytes(trimmed(&e.current, |&c| c == 0));
-        let vars = trimmed(&e.vars, |&v| v == 0);
+        self.bytes(trimmed(&e.current));
+        let vars = trimmed(&e.vars);
         self.len(vars.len());
         for &v in vars {
             self.int(v);
@@ -237,9 +237,17 @@ impl Writer<'_> {
     }
 }
 
-/// `a` without its trailing entries that are `zero`.
-fn trimmed<T>(a: &[T], zero: impl Fn(&T) -> bool) -> &[T] {
-    let n = a.iter().rposition(|x| !zero(x)).map_or(0, |i| i + 1);
+/// `a` without its trailing zeros (the default value), skipped eight at a time first:
+/// an engine's arrays are mostly a few values, then zeros.
+fn trimmed<T: Default + PartialEq>(a: &[T]) -> &[T] {
+    let zero = T::default();
+    let mut n = a.len();
+    while n >= 8 && a[n - 8..n].iter().all(|x| *x == zero) {
+        n -= 8;
+    }
+    while n > 0 && a[n - 1] == zero {
+        n -= 1;
+    }
     &a[..n]
 }
 
