@@ -354,7 +354,7 @@ struct Act {
 }
 
 /// The whole machine's state.
-#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+#[derive(Debug, Default, PartialEq, Eq, Hash)]
 struct Sys {
     nodes: Vec<EngineState>,
     /// Armed timers per node, bit i = timer i.
@@ -385,6 +385,33 @@ struct Sys {
     latched: u8,
     /// A switch was set and the operator has not cleared it since.
     uncleared: bool,
+}
+
+impl Clone for Sys {
+    fn clone(&self) -> Sys {
+        let mut s = Sys::default();
+        s.clone_from(self);
+        s
+    }
+
+    /// Field by field, each list into the one `self` has: a search that takes a copy of a
+    /// state for each of its moves allocates nothing once its lists are long enough.
+    fn clone_from(&mut self, o: &Sys) {
+        self.nodes.clone_from(&o.nodes);
+        self.timers.clone_from(&o.timers);
+        self.pos.clone_from(&o.pos);
+        self.flight.clone_from(&o.flight);
+        self.alarms = o.alarms;
+        self.progress = o.progress;
+        self.homing = o.homing;
+        self.ball.clone_from(&o.ball);
+        self.estop = o.estop;
+        self.regions.clone_from(&o.regions);
+        self.switches = o.switches;
+        self.sets = o.sets;
+        self.latched = o.latched;
+        self.uncleared = o.uncleared;
+    }
 }
 
 /// One move of the environment.
@@ -1649,9 +1676,14 @@ fn run(model: &Model<'_>, roots: Vec<(Sys, Option<String>)>, opts: ExploreOption
     let t0 = Instant::now();
     let mut search = Search::bfs(model, roots, opts);
     let states = search.seen.len();
-    let (idle_flags, stopped_flags): (Vec<bool>, Vec<bool>) = search
-        .states()
-        .map(|s| s.map_or((false, false), |s| (model.idle(&s), model.stopped(&s))))
+    // Each state unpacked into one buffer (one that does not unpack, which only a bug in
+    // `packed` makes, is neither).
+    let mut s = Sys::default();
+    let (idle_flags, stopped_flags): (Vec<bool>, Vec<bool>) = (0..states)
+        .map(|i| match search.state_into(i, &mut s) {
+            true => (model.idle(&s), model.stopped(&s)),
+            false => (false, false),
+        })
         .unzip();
     if search.violation.is_none() && !search.incomplete {
         search.violation = search.deadlock(model, &idle_flags, &stopped_flags);
@@ -1728,11 +1760,16 @@ impl Search {
         }
         let mut moves = Vec::new();
         let mut next = 0usize;
+        // The state expanded and its successor, unpacked into and copied into the same
+        // lists every time.
+        let (mut s, mut t) = (Sys::default(), Sys::default());
         'bfs: while next < g.seen.len() {
-            let s = g.state(next).unwrap_or_else(|| model.init.clone());
+            if !g.state_into(next, &mut s) {
+                s.clone_from(&model.init);
+            }
             model.moves(&s, opts, &mut moves);
             for &m in &moves {
-                let mut t = s.clone();
+                t.clone_from(&s);
                 if let Some((property, message)) = model.apply(&mut t, m, None) {
                     let (root, mut p) = g.path(next);
                     p.push(m);
@@ -1766,13 +1803,13 @@ impl Search {
 
     /// State number `i`.
     fn state(&self, i: usize) -> Option<Sys> {
-        self.seen.get_index(i).and_then(|b| packed::unpack(b))
+        let mut s = Sys::default();
+        self.state_into(i, &mut s).then_some(s)
     }
 
-    /// Every state found, in order (`None`: one that does not unpack, which only a bug in
-    /// [`packed`] makes).
-    fn states(&self) -> impl Iterator<Item = Option<Sys>> + '_ {
-        (0..self.seen.len()).map(|i| self.state(i))
+    /// State number `i`, unpacked into `s` (its lists reused); false if there is none.
+    fn state_into(&self, i: usize, s: &mut Sys) -> bool {
+        (self.seen.get_index(i)).is_some_and(|b| packed::unpack_into(b, s).is_some())
     }
 
     /// The initial state state `i` was reached from, and the moves from it.

@@ -2,7 +2,7 @@
 //! where the working form holds 150 and five heap blocks), so that a search keeps millions
 //! of states in a fraction of the memory and hashes a short key.
 //!
-//! The encoding is a function of the state alone and [`unpack`] inverts it, so two states
+//! The encoding is a function of the state alone and [`unpack_into`] inverts it, so two states
 //! are equal exactly when their packed bytes are: the set compares bytes. Integers are
 //! LEB128 varints (signed ones zigzagged first), lists carry their length, and the fixed
 //! arrays of an [`EngineState`] drop their trailing zeros (a table of one chart and two
@@ -78,12 +78,13 @@ pub(super) fn pack(s: &Sys, out: &mut Vec<u8>) {
     w.u8(u8::from(s.uncleared));
 }
 
-/// The state `bytes` were packed from (`None`: they were not made by [`pack`]).
-pub(super) fn unpack(bytes: &[u8]) -> Option<Sys> {
+/// The state `bytes` were packed from, unpacked into `s`, each of its lists refilled in
+/// place (`None`: `bytes` were not made by [`pack`]; `s` is then partly overwritten).
+pub(super) fn unpack_into(bytes: &[u8], s: &mut Sys) -> Option<()> {
     let mut r = Reader(bytes);
-    let nodes = r.list(Reader::engine)?;
-    let timers = r.bytes()?;
-    let pos = r.list(|r| {
+    r.list_into(&mut s.nodes, Reader::engine)?;
+    r.list_into(&mut s.timers, Reader::u8)?;
+    r.list_into(&mut s.pos, |r| {
         Some(match r.u8()? {
             0 => Place::Rod(Pos::Home),
             1 => Place::Rod(Pos::End),
@@ -93,26 +94,26 @@ pub(super) fn unpack(bytes: &[u8]) -> Option<Sys> {
             _ => return None,
         })
     })?;
-    let flight = r.list(|r| Some((r.u8()?, r.u8()?)))?;
-    let alarms = r.uint()?;
-    let progress = u16::try_from(r.uint()?).ok()?;
-    let homing = match r.u8()? {
+    r.list_into(&mut s.flight, |r| Some((r.u8()?, r.u8()?)))?;
+    s.alarms = r.uint()?;
+    s.progress = u16::try_from(r.uint()?).ok()?;
+    s.homing = match r.u8()? {
         0 => None,
         1 => Some(false),
         2 => Some(true),
         _ => return None,
     };
-    let ball = match r.u8()? {
+    s.ball = match r.u8()? {
         0 => None,
         1 => Some(r.balls()?),
         _ => return None,
     };
-    let estop = match r.u8()? {
+    s.estop = match r.u8()? {
         0 => None,
         1 => Some(r.u8()?),
         _ => return None,
     };
-    let regions = r.list(|r| {
+    r.list_into(&mut s.regions, |r| {
         Some(match r.u8()? {
             0 => Region::Home,
             1 => Region::Between,
@@ -120,27 +121,15 @@ pub(super) fn unpack(bytes: &[u8]) -> Option<Sys> {
             _ => return None,
         })
     })?;
-    let s = Sys {
-        nodes,
-        timers,
-        pos,
-        flight,
-        alarms,
-        progress,
-        homing,
-        ball,
-        estop,
-        regions,
-        switches: r.u8()?,
-        sets: r.u8()?,
-        latched: r.u8()?,
-        uncleared: match r.u8()? {
-            0 => false,
-            1 => true,
-            _ => return None,
-        },
+    s.switches = r.u8()?;
+    s.sets = r.u8()?;
+    s.latched = r.u8()?;
+    s.uncleared = match r.u8()? {
+        0 => false,
+        1 => true,
+        _ => return None,
     };
-    r.0.is_empty().then_some(s)
+    r.0.is_empty().then_some(())
 }
 
 struct Writer<'o>(&'o mut Vec<u8>);
@@ -283,13 +272,25 @@ impl Reader<'_> {
 
     /// A list: its length, then each entry as `entry` reads it.
     fn list<T>(&mut self, entry: impl Fn(&mut Self) -> Option<T>) -> Option<Vec<T>> {
+        let mut v = Vec::new();
+        self.list_into(&mut v, entry)?;
+        Some(v)
+    }
+
+    /// [`Reader::list`] into `v` (emptied first, its room kept).
+    fn list_into<T>(
+        &mut self,
+        v: &mut Vec<T>,
+        entry: impl Fn(&mut Self) -> Option<T>,
+    ) -> Option<()> {
         let n = self.len()?;
+        v.clear();
         // Every entry takes a byte at least: no more room than the bytes left.
-        let mut v = Vec::with_capacity(n.min(self.0.len()));
+        v.reserve(n.min(self.0.len()));
         for _ in 0..n {
             v.push(entry(self)?);
         }
-        Some(v)
+        Some(())
     }
 
     fn slice(&mut self) -> Option<&[u8]> {
@@ -297,10 +298,6 @@ impl Reader<'_> {
         let (b, rest) = self.0.split_at_checked(n)?;
         self.0 = rest;
         Some(b)
-    }
-
-    fn bytes(&mut self) -> Option<Vec<u8>> {
-        self.slice().map(<[u8]>::to_vec)
     }
 
     fn engine(&mut self) -> Option<EngineState> {
@@ -374,6 +371,11 @@ mod tests {
 
     use super::super::{homing, ExploreOptions, Model, Search};
     use super::*;
+
+    fn unpack(bytes: &[u8]) -> Option<Sys> {
+        let mut s = Sys::default();
+        unpack_into(bytes, &mut s).map(|()| s)
+    }
 
     fn robot(name: &str) -> Compiled {
         let path = format!("{}/../robot-configs/{name}", env!("CARGO_MANIFEST_DIR"));
