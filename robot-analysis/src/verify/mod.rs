@@ -185,7 +185,8 @@ pub struct Report {
     pub states: usize,
     pub transitions: usize,
     /// Bytes of the states as the visited set holds them, packed (a few a node; the
-    /// set's own bookkeeping, about 50 bytes a state, and 8 a transition come on top).
+    /// set's own bookkeeping and the parent links, about 70 bytes a state, and 8 bytes a
+    /// transition come on top).
     pub packed_bytes: usize,
     /// States where the machine is idle (ready for START).
     pub idle: usize,
