@@ -20,8 +20,8 @@
 //! its own bounded outbox (straight into the socket when nothing waits, else by its own
 //! thread) (a radio that cannot keep up loses
 //! frames, as a radio's receive buffer overruns; a plant or monitor that does not read is
-//! disconnected); connections that do not say hello in time are closed; connections are
-//! capped. Every drop is counted in [`Stats`].
+//! disconnected); connections that do not say hello in time are closed, and so is the
+//! oldest of them when one more comes past their cap; connections are capped. Every drop is counted in [`Stats`].
 
 mod air;
 mod bridge;
@@ -50,7 +50,8 @@ pub mod limits {
 
     /// Connections open at once (more are closed at once, counted in `refused`).
     pub const MAX_CONNECTIONS: usize = 128;
-    /// Connections that have not said hello yet, at once.
+    /// Connections that have not said hello yet, at once: one more closes the oldest of
+    /// them (counted in `silent`).
     pub const MAX_GREETING: usize = 16;
     /// A connection must say hello within this time.
     pub const HELLO_TIMEOUT: Duration = Duration::from_secs(2);
@@ -262,10 +263,11 @@ pub fn precise_timers() {
 /// How long the accept loop waits after an accept that failed.
 const ACCEPT_RETRY: std::time::Duration = std::time::Duration::from_millis(50);
 
-/// Accepts connections, each served by its own thread, within the connection caps.
+/// Accepts connections, each served by its own thread, within the connection caps (a
+/// newcomer past `MAX_GREETING` waiting for their hello closes the oldest of them).
 fn accept(listener: TcpListener, hub: Arc<air::Hub>, counters: Counters) {
     let open = Arc::new(AtomicUsize::new(0));
-    let greeting = Arc::new(AtomicUsize::new(0));
+    let waiting = Arc::new(serve::Waiting::default());
     let mut next_id: ClientId = 0;
     for stream in listener.incoming() {
         let Ok(stream) = stream else {
@@ -274,29 +276,34 @@ fn accept(listener: TcpListener, hub: Arc<air::Hub>, counters: Counters) {
             thread::sleep(ACCEPT_RETRY);
             continue;
         };
-        if open.load(Ordering::SeqCst) >= limits::MAX_CONNECTIONS
-            || greeting.load(Ordering::SeqCst) >= limits::MAX_GREETING
-        {
-            let _ = stream.shutdown(std::net::Shutdown::Both);
-            counters.count(|s| s.refused += 1);
-            continue;
-        }
         next_id += 1;
+        let admitted = match open.load(Ordering::SeqCst) < limits::MAX_CONNECTIONS {
+            true => waiting.admit(next_id, &stream).ok(),
+            false => None,
+        };
+        match admitted {
+            None => {
+                let _ = stream.shutdown(std::net::Shutdown::Both);
+                counters.count(|s| s.refused += 1);
+                continue;
+            }
+            Some(true) => counters.count(|s| s.silent += 1),
+            Some(false) => {}
+        }
         open.fetch_add(1, Ordering::SeqCst);
-        greeting.fetch_add(1, Ordering::SeqCst);
         let conn = serve::Connection {
             id: next_id,
             hub: hub.clone(),
             counters: counters.clone(),
             open: open.clone(),
-            greeting: greeting.clone(),
+            waiting: waiting.clone(),
         };
         let spawned = thread::Builder::new()
             .name(format!("medium-conn-{next_id}"))
             .spawn(move || conn.serve(stream));
         if spawned.is_err() {
             open.fetch_sub(1, Ordering::SeqCst);
-            greeting.fetch_sub(1, Ordering::SeqCst);
+            waiting.done(next_id);
             counters.count(|s| s.refused += 1);
         }
     }

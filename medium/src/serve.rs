@@ -1,10 +1,11 @@
 //! One client's connection: waits for its hello (within `HELLO_TIMEOUT`), then reads its
 //! messages, within its rate, and hands them to the air in order.
 
+use std::collections::VecDeque;
 use std::io::{self, Read};
-use std::net::TcpStream;
+use std::net::{Shutdown, TcpStream};
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use config_schema::wire::mac;
@@ -19,9 +20,42 @@ pub(super) struct Connection {
     pub id: ClientId,
     pub hub: Arc<Hub>,
     pub counters: Counters,
-    /// Connections open, and those not past their hello (the accept thread's caps).
+    /// Connections open (the accept thread's cap), and those not past their hello.
     pub open: Arc<AtomicUsize>,
-    pub greeting: Arc<AtomicUsize>,
+    pub waiting: Arc<Waiting>,
+}
+
+/// The connections that have not said hello yet, oldest first: at most `MAX_GREETING`. A
+/// newcomer past that takes the oldest one's place, which is closed: connections that
+/// never say hello, made again and again, cannot keep a client out.
+#[derive(Default)]
+pub(super) struct Waiting(Mutex<VecDeque<(ClientId, TcpStream)>>);
+
+impl Waiting {
+    /// Adds connection `id`, closing the oldest one waiting if there is no room: whether
+    /// it did. An error: the socket could not be kept (the connection is refused).
+    pub fn admit(&self, id: ClientId, stream: &TcpStream) -> io::Result<bool> {
+        let kept = stream.try_clone()?;
+        let mut waiting = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        waiting.push_back((id, kept));
+        if waiting.len() <= limits::MAX_GREETING {
+            return Ok(false);
+        }
+        // Its thread's read ends; it finds itself no longer waiting and is not counted again.
+        if let Some((_, oldest)) = waiting.pop_front() {
+            let _ = oldest.shutdown(Shutdown::Both);
+        }
+        Ok(true)
+    }
+
+    /// Connection `id` said hello, or ended: whether it was still waiting (not closed for a
+    /// newcomer).
+    pub fn done(&self, id: ClientId) -> bool {
+        let mut waiting = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let before = waiting.len();
+        waiting.retain(|(w, _)| *w != id);
+        waiting.len() < before
+    }
 }
 
 /// A token bucket: `RATE_PER_S` messages a second, `BURST` at once.
@@ -57,15 +91,15 @@ impl Connection {
     pub fn serve(self, stream: TcpStream) {
         let _ = stream.set_nodelay(true);
         let mut greeted = false;
-        if let Err(e) = self.read(&stream, &mut greeted) {
-            if !greeted || e.kind() == io::ErrorKind::InvalidData {
+        let read = self.read(&stream, &mut greeted);
+        // Closed for a newcomer while it waited for its hello: counted when it was closed.
+        let evicted = !greeted && !self.waiting.done(self.id);
+        if let Err(e) = read {
+            if !evicted && (!greeted || e.kind() == io::ErrorKind::InvalidData) {
                 self.counters.count(|s| s.silent += 1);
             }
         }
-        if !greeted {
-            self.greeting.fetch_sub(1, Ordering::SeqCst);
-        }
-        let _ = stream.shutdown(std::net::Shutdown::Both);
+        let _ = stream.shutdown(Shutdown::Both);
         self.hub.handle(Event::Left(self.id));
         self.open.fetch_sub(1, Ordering::SeqCst);
     }
@@ -93,7 +127,7 @@ impl Connection {
                 let event = match link {
                     Link::Hello(peer) if !*greeted => {
                         *greeted = true;
-                        self.greeting.fetch_sub(1, Ordering::SeqCst);
+                        self.waiting.done(self.id);
                         stream.set_read_timeout(None)?;
                         let outbox = Outbox::start(self.id, stream.try_clone()?, peer)?;
                         Event::Joined(self.id, peer, outbox)

@@ -648,3 +648,32 @@ fn silent_connections_are_capped_and_closed() {
     assert_eq!(b.recv(SURE), Some(Got::Frame(f)));
     medium.stop();
 }
+
+/// Issue: `MAX_GREETING` connections that never said hello, made again as the medium
+/// closed them, kept every newcomer out (each refused at once). A newcomer now takes the
+/// place of the oldest connection still waiting for its hello, which is closed.
+#[test]
+fn silent_connections_do_not_keep_a_newcomer_out() {
+    use medium::limits;
+    let medium = Medium::start(Config::default()).unwrap();
+    let silent: Vec<TcpStream> = (0..limits::MAX_GREETING)
+        .map(|_| TcpStream::connect(medium.addr()).unwrap())
+        .collect();
+    // The medium accepts in order: the newcomers come after every silent one.
+    let mut a = Client::join(&medium, Peer::Node { addr: 0x11 });
+    let mut b = Client::join(&medium, Peer::Node { addr: 0x12 });
+    let f = frame(0x11, 0x12, b"let in");
+    a.send(&Link::Frame(&f));
+    assert_eq!(b.recv(SURE), Some(Got::Frame(f)));
+    // The two oldest silent connections made room: closed by the medium, counted silent.
+    for mut s in silent.into_iter().take(2) {
+        s.set_read_timeout(Some(SURE)).unwrap();
+        let mut byte = [0u8; 1];
+        assert!(matches!(s.read(&mut byte), Ok(0)), "closed by the medium");
+    }
+    // None refused; the two closed for the newcomers counted silent (and any that the
+    // hello timeout closed since, on a slow machine).
+    let s = medium.stats();
+    assert!((s.refused, s.clients) == (0, 2) && s.silent >= 2, "{s:?}");
+    medium.stop();
+}
