@@ -553,6 +553,120 @@ mod tests {
         assert_eq!(unpack(&out), Some(sys()));
     }
 
+    mod any {
+        use proptest::collection::vec;
+        use proptest::prelude::*;
+
+        use super::*;
+
+        fn fault() -> impl Strategy<Value = Option<Fault>> {
+            prop_oneof![
+                Just(None),
+                any::<u8>().prop_map(|chart| Some(Fault::ChainLimit { chart })),
+                any::<u8>().prop_map(|event| Some(Fault::QueueFull { event })),
+                any::<u8>().prop_map(|event| Some(Fault::Cascade { event })),
+                (any::<u8>(), any::<u8>())
+                    .prop_map(|(chart, code)| Some(Fault::Action { chart, code })),
+                any::<u8>().prop_map(|chart| Some(Fault::Expr { chart })),
+            ]
+        }
+
+        /// Mostly zeros, as an engine's arrays are, and any value.
+        fn int() -> impl Strategy<Value = i32> {
+            prop_oneof![3 => Just(0), 1 => any::<i32>(), 1 => -300..300]
+        }
+
+        fn engine() -> impl Strategy<Value = EngineState> {
+            let current = proptest::array::uniform8(prop_oneof![3 => Just(0u8), 1 => any::<u8>()]);
+            let vars = proptest::array::uniform32(int());
+            (current, vars, any::<u16>(), any::<u16>(), fault()).prop_map(
+                |(current, vars, inputs, outputs, fault)| EngineState {
+                    current,
+                    vars,
+                    inputs,
+                    outputs,
+                    fault,
+                },
+            )
+        }
+
+        fn place() -> impl Strategy<Value = Place> {
+            prop_oneof![
+                Just(Place::Rod(Pos::Home)),
+                Just(Place::Rod(Pos::End)),
+                Just(Place::Rod(Pos::Extending)),
+                Just(Place::Rod(Pos::Retracting)),
+                Just(Place::Between),
+            ]
+        }
+
+        fn balls() -> impl Strategy<Value = Option<Balls>> {
+            let front = prop_oneof![
+                any::<u8>().prop_map(Front::Ball),
+                Just(Front::Gone),
+                Just(Front::Empty)
+            ];
+            let config = (any::<u64>(), vec(any::<u32>(), 0..4)).prop_map(|(a, counts)| Config {
+                active: StateSet(a),
+                counts,
+            });
+            let balls = (
+                any::<u8>(),
+                front,
+                proptest::option::of(any::<(u8, u8, u8)>()),
+                any::<(u8, u8)>(),
+                vec(config, 0..3),
+            )
+                .prop_map(|(count, front, shaft, (took, eos), refs)| Balls {
+                    count,
+                    front,
+                    shaft,
+                    took,
+                    eos,
+                    refs,
+                });
+            proptest::option::of(balls)
+        }
+
+        prop_compose! {
+            pub fn sys()(
+                nodes in vec(engine(), 0..9),
+                timers in vec(any::<u8>(), 0..9),
+                pos in vec(place(), 0..9),
+                flight in vec(any::<(u8, u8)>(), 0..9),
+                alarms in any::<u64>(),
+                progress in any::<u16>(),
+                homing in proptest::option::of(any::<bool>()),
+                ball in balls(),
+                estop in proptest::option::of(any::<u8>()),
+                regions in vec(prop_oneof![Just(Region::Home), Just(Region::Between), Just(Region::End)], 0..4),
+                (switches, sets, latched, uncleared) in any::<(u8, u8, u8, bool)>(),
+            ) -> Sys {
+                Sys { nodes, timers, pos, flight, alarms, progress, homing, ball, estop, regions, switches, sets, latched, uncleared }
+            }
+        }
+    }
+
+    proptest::proptest! {
+        /// Any state, at the edges of every field too, unpacks to itself, also into the
+        /// lists of another state; two states pack to the same bytes exactly when they are
+        /// equal.
+        #[test]
+        fn any_state_unpacks_to_itself_and_packs_apart_from_any_other(
+            a in any::sys(),
+            b in any::sys(),
+        ) {
+            let (mut ka, mut kb) = (Vec::new(), Vec::new());
+            pack(&a, &mut ka);
+            pack(&b, &mut kb);
+            proptest::prop_assert_eq!(unpack(&ka), Some(a.clone()));
+            let mut into = b.clone();
+            proptest::prop_assert_eq!(unpack_into(&ka, &mut into), Some(()));
+            proptest::prop_assert_eq!(&into, &a);
+            proptest::prop_assert_eq!(ka == kb, a == b);
+        }
+    }
+
     /// Bytes that no state packs to unpack to nothing: every cut of a packed state, one
     /// byte more, a tag out of range, a count past an engine's arrays.
     #[test]
