@@ -127,3 +127,27 @@ fn the_panel_shows_the_running_paint_robot_and_its_buttons_work_in_a_real_browse
         "The medium is gone: the medium closed. Nothing can be commanded."
     );
 }
+
+/// Off loopback, the address the panel prints (with its token) opens the page in a real
+/// browser, which then runs on a cookie: the token is gone from the address bar (and so
+/// from the history and any `Referer`), no script of the page can read it, and the page
+/// still loads its model and opens its event stream.
+#[test]
+fn off_loopback_the_token_leaves_the_address_for_a_cookie_and_the_page_runs() {
+    let (_dir, _medium, panel) = panel_support::panel_on("panel-browser-token", "0.0.0.0:0");
+    let (_, token) = panel.url.split_once("?token=").expect("a token");
+    let browser = Browser::start();
+    browser.goto(&format!(
+        "http://127.0.0.1:{}/?token={token}",
+        panel.addr.port()
+    ));
+    assert_eq!(
+        browser.wait_for("document.querySelectorAll('.lane.actuator').length === 4 && 4"),
+        4
+    );
+    browser.wait_for("document.getElementById('link').textContent === 'live'");
+    assert_eq!(
+        browser.eval("return [location.pathname, location.search, document.cookie];"),
+        serde_json::json!(["/", "", ""])
+    );
+}

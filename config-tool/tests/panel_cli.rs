@@ -6,8 +6,7 @@
 mod e2e_support;
 mod panel_support;
 
-use e2e_support::TempDir;
-use panel_support::{Machine, Panel, ROBOT};
+use panel_support::{panel_on, Machine, Panel, ROBOT};
 
 fn buttons_enabled(state: &serde_json::Value) -> Vec<String> {
     let b = state["buttons"].as_object().expect("buttons");
@@ -15,31 +14,6 @@ fn buttons_enabled(state: &serde_json::Value) -> Vec<String> {
         .filter(|(_, v)| v["enabled"] == true)
         .map(|(k, _)| k.clone())
         .collect()
-}
-
-/// A directory with a new `machine.key` (made by `config-tool keys new`) and a medium with
-/// no node on it: what a panel needs that is not a machine.
-fn keyed_medium(tag: &str) -> (TempDir, medium::Medium) {
-    let dir = TempDir::new(tag);
-    let key = dir.0.join("machine.key");
-    let made = std::process::Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .args(["keys", "new", "--out", key.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(made.status.success());
-    let medium = medium::Medium::start(medium::Config::default()).unwrap();
-    (dir, medium)
-}
-
-/// A panel of the paint robot listening on `listen`, on a medium with no node (with what
-/// it needs: its directory and key, the medium).
-fn panel_on(tag: &str, listen: &str) -> (TempDir, medium::Medium, Panel) {
-    let (dir, medium) = keyed_medium(tag);
-    let (k, m) = (dir.0.join("machine.key"), medium.addr().to_string());
-    let k = k.to_str().unwrap();
-    let panel =
-        Panel::start(&[ROBOT, "--keys", k, "--medium", &m, "--listen", listen]).expect("the panel");
-    (dir, medium, panel)
 }
 
 #[test]
@@ -112,6 +86,24 @@ fn status_of(at: std::net::SocketAddr, bytes: &[u8]) -> String {
     let mut line = String::new();
     let _ = std::io::BufReader::new(s).read_line(&mut line);
     line.trim_end().to_string()
+}
+
+/// The head of the answer to `bytes` (status line and headers).
+fn head_of(at: std::net::SocketAddr, bytes: &[u8]) -> String {
+    use std::io::{BufRead, Write};
+    let mut s = std::net::TcpStream::connect(at).expect("connects");
+    s.set_read_timeout(Some(e2e_support::TIMEOUT))
+        .expect("timeout");
+    s.write_all(bytes).expect("sends");
+    let mut r = std::io::BufReader::new(s);
+    let mut head = String::new();
+    loop {
+        let mut line = String::new();
+        if r.read_line(&mut line).unwrap_or(0) == 0 || line == "\r\n" {
+            return head;
+        }
+        head.push_str(&line);
+    }
 }
 
 /// What another site, a client too big or too many clients send is refused with its
@@ -200,6 +192,48 @@ fn a_panel_off_loopback_prints_a_token_and_refuses_requests_without_it() {
         panel_support::request(at, "POST", "/command/HOME", Some("")).0,
         403
     );
+    // The page's address with the token leads to the page without it, the token kept in
+    // a cookie of this panel's port (the address bar, the history and any `Referer`
+    // carry no token), which then opens everything; no answer sends a `Referer` on.
+    let port = panel.addr.port();
+    let request = |target: &str, cookie: &str| {
+        format!("GET {target} HTTP/1.1\r\nHost: {at}\r\n{cookie}Connection: close\r\n\r\n")
+    };
+    let head = head_of(at, request(&format!("/?token={token}"), "").as_bytes());
+    assert!(head.starts_with("HTTP/1.1 303 See Other\r\n"), "{head}");
+    assert!(head.contains("\r\nLocation: /\r\n"), "{head}");
+    assert!(
+        head.contains(&format!(
+            "\r\nSet-Cookie: panel_token_{port}={token}; HttpOnly; SameSite=Strict; Path=/\r\n"
+        )),
+        "{head}"
+    );
+    for (cookie, status) in [
+        (
+            format!("Cookie: a=1; panel_token_{port}={token}\r\n"),
+            "200 OK",
+        ),
+        (
+            format!("Cookie: panel_token_{port}=wrong\r\n"),
+            "403 Forbidden",
+        ),
+        (
+            format!("Cookie: panel_token_{}={token}\r\n", port ^ 1),
+            "403 Forbidden",
+        ),
+    ] {
+        for target in ["/", "/state.json"] {
+            let head = head_of(at, request(target, &cookie).as_bytes());
+            assert!(
+                head.starts_with(&format!("HTTP/1.1 {status}\r\n")),
+                "{cookie} {target}: {head}"
+            );
+            assert!(
+                head.contains("\r\nReferrer-Policy: no-referrer\r\n"),
+                "{head}"
+            );
+        }
+    }
 }
 
 #[test]

@@ -139,6 +139,7 @@ fn read_before(
 fn reason(code: u16) -> &'static str {
     match code {
         200 => "OK",
+        303 => "See Other",
         400 => "Bad Request",
         403 => "Forbidden",
         404 => "Not Found",
@@ -153,10 +154,25 @@ fn reason(code: u16) -> &'static str {
     }
 }
 
+/// Headers every answer carries: nothing cached, and no `Referer` sent on from the page
+/// (its address may hold the token).
+pub const COMMON: &str = "Cache-Control: no-store\r\nReferrer-Policy: no-referrer\r\n";
+
 /// Writes a whole answer (`Connection: close`) to `out`.
 pub fn respond(out: &mut impl Write, code: u16, kind: &str, body: &str) -> io::Result<()> {
+    respond_with(out, code, kind, body, "")
+}
+
+/// [`respond`] with more header lines (`extra`, each ending in CRLF).
+pub fn respond_with(
+    out: &mut impl Write,
+    code: u16,
+    kind: &str,
+    body: &str,
+    extra: &str,
+) -> io::Result<()> {
     let head = format!(
-        "HTTP/1.1 {code} {}\r\nContent-Type: {kind}\r\nCache-Control: no-store\r\n\
+        "HTTP/1.1 {code} {}\r\nContent-Type: {kind}\r\n{COMMON}{extra}\
          Content-Length: {}\r\nConnection: close\r\n\r\n",
         reason(code),
         body.len()
@@ -252,7 +268,16 @@ mod tests {
         assert_eq!(
             String::from_utf8(out).expect("utf-8"),
             "HTTP/1.1 409 Conflict\r\nContent-Type: text/plain\r\nCache-Control: no-store\r\n\
-             Content-Length: 8\r\nConnection: close\r\n\r\nrefused\n"
+             Referrer-Policy: no-referrer\r\nContent-Length: 8\r\nConnection: close\r\n\r\n\
+             refused\n"
+        );
+        let mut out = Vec::new();
+        respond_with(&mut out, 303, "text/plain", "", "Location: /\r\n").expect("writes");
+        assert_eq!(
+            String::from_utf8(out).expect("utf-8"),
+            "HTTP/1.1 303 See Other\r\nContent-Type: text/plain\r\nCache-Control: no-store\r\n\
+             Referrer-Policy: no-referrer\r\nLocation: /\r\nContent-Length: 0\r\n\
+             Connection: close\r\n\r\n"
         );
     }
 }

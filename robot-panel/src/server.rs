@@ -2,7 +2,10 @@
 //! request each: [`crate::http`]): the page and its two scripts' worth of files (embedded,
 //! nothing fetched from elsewhere), `model.json`, `state.json`, `events` (server-sent
 //! events: the state again at every change) and `POST command/NAME`. Off loopback every
-//! request must carry the token printed at start-up (`?token=`); on loopback a request
+//! request must carry the token printed at start-up: in its address (`?token=`: the
+//! printed address, whose page answers with the page's own address and the token in an
+//! `HttpOnly`, `SameSite=Strict` cookie of the panel's port) or in that cookie (the page's
+//! own requests); no answer lets a `Referer` carry an address on. On loopback a request
 //! must name the panel's own address as its `Host` (no other site's name resolved to
 //! it). A request's `Origin`, if any, must be the panel's own (a page of another site
 //! opens no event stream), and a button's POST must carry `X-Panel: button`, which no
@@ -260,6 +263,20 @@ fn split(url: &str) -> (&str, Option<&str>) {
     (path, token)
 }
 
+/// The name of the cookie that keeps the token of the panel at `addr` (cookies are not
+/// kept apart by port: two panels on one host each have their own).
+fn cookie_name(addr: SocketAddr) -> String {
+    format!("panel_token_{}", addr.port())
+}
+
+/// The value of cookie `name` in a `Cookie` header.
+fn cookie<'a>(header: Option<&'a str>, name: &str) -> Option<&'a str> {
+    header?.split(';').find_map(|kv| {
+        let (k, v) = kv.trim().split_once('=')?;
+        (k == name).then_some(v)
+    })
+}
+
 /// Whether `host` (a request's `Host`) names the panel at `addr`: its address, or on
 /// loopback `localhost`, `127.0.0.1` or `[::1]`, with its port (none for port 80).
 fn names_panel(host: Option<&str>, addr: SocketAddr) -> bool {
@@ -300,6 +317,16 @@ fn serve(ctx: &Ctx, mut stream: TcpStream) {
     let (code, kind, body) = match answer(ctx, &rq) {
         Answer::Page(code, kind, body) => (code, kind, body),
         Answer::Events => return stream_events(ctx, stream),
+        Answer::Enter(token) => {
+            // The page without the token in its address, the token in a cookie only this
+            // site's own requests carry, out of reach of the page's scripts.
+            let extra = format!(
+                "Location: /\r\nSet-Cookie: {}={token}; HttpOnly; SameSite=Strict; Path=/\r\n",
+                cookie_name(ctx.addr)
+            );
+            let _ = http::respond_with(&mut stream, 303, "text/plain", "", &extra);
+            return;
+        }
     };
     let _ = http::respond(&mut stream, code, kind, &body);
 }
@@ -309,16 +336,22 @@ enum Answer {
     Page(u16, &'static str, String),
     /// The server-sent events.
     Events,
+    /// The page's address with this (right) token: on to the page, the token in a cookie.
+    Enter(String),
 }
 
 fn answer(ctx: &Ctx, rq: &Request) -> Answer {
     let plain = "text/plain";
     let page = |code, kind, body: &str| Answer::Page(code, kind, body.to_string());
     let (path, token) = split(&rq.target);
+    // The token in the address (the page's first load, a script's request) or in the
+    // cookie the first load set.
+    let kept = cookie(rq.header("cookie"), &cookie_name(ctx.addr));
+    let given = |t: &str| [token, kept].into_iter().flatten().any(|g| same(g, t));
     // The script and the style say nothing of the machine: fetched without the token.
     let open = matches!(path, "/panel.js" | "/panel.css");
     match &ctx.token {
-        Some(t) if !open && !token.is_some_and(|given| same(given, t)) => {
+        Some(t) if !open && !given(t) => {
             return page(
                 403,
                 plain,
@@ -346,7 +379,10 @@ fn answer(ctx: &Ctx, rq: &Request) -> Answer {
     }
     let json = "application/json";
     match (rq.method.as_str(), path) {
-        ("GET", "/") => page(200, "text/html; charset=utf-8", INDEX),
+        ("GET", "/") => match (&ctx.token, token) {
+            (Some(t), Some(g)) if same(g, t) => Answer::Enter(t.clone()),
+            _ => page(200, "text/html; charset=utf-8", INDEX),
+        },
         ("GET", "/panel.js") => page(200, "text/javascript", SCRIPT),
         ("GET", "/panel.css") => page(200, "text/css", STYLE),
         ("GET", "/model.json") => page(200, json, &ctx.model),
@@ -415,8 +451,11 @@ fn stream_events(ctx: &Ctx, mut out: TcpStream) {
 
 fn send_events(ctx: &Ctx, out: &mut dyn Write) -> io::Result<()> {
     out.write_all(
-        b"HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\nCache-Control: no-store\r\n\
-          Connection: close\r\n\r\n",
+        format!(
+            "HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\n{}Connection: close\r\n\r\n",
+            http::COMMON
+        )
+        .as_bytes(),
     )?;
     let mut seen = None;
     while !ctx.stop.load(Ordering::Relaxed) {

@@ -144,7 +144,11 @@ impl Panel {
             .expect("runs");
         let out = child.stdout.take().expect("stdout");
         let mut first = String::new();
-        let _ = BufReader::new(out).read_line(&mut first);
+        let mut out = BufReader::new(out);
+        let _ = out.read_line(&mut first);
+        // The rest of what it prints (the token's line) read too: a pipe closed under it
+        // would end the panel at its next line.
+        std::thread::spawn(move || std::io::copy(&mut out, &mut std::io::sink()));
         let Some(url) = first.trim().split(" on ").nth(1).map(str::to_string) else {
             let mut err = String::new();
             if let Some(mut e) = child.stderr.take() {
@@ -498,4 +502,29 @@ fn base64(text: &str) -> Vec<u8> {
 fn base64_decodes_what_webdriver_sends() {
     assert_eq!(base64("iVBORw0KGgo="), b"\x89PNG\r\n\x1a\n");
     assert_eq!(base64("TWFu"), b"Man");
+}
+
+/// A directory with a new `machine.key` (made by `config-tool keys new`) and a medium with
+/// no node on it: what a panel needs that is not a machine.
+pub fn keyed_medium(tag: &str) -> (TempDir, medium::Medium) {
+    let dir = TempDir::new(tag);
+    let key = dir.0.join("machine.key");
+    let made = std::process::Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["keys", "new", "--out", key.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(made.status.success());
+    let medium = medium::Medium::start(medium::Config::default()).unwrap();
+    (dir, medium)
+}
+
+/// A panel of the paint robot listening on `listen`, on a medium with no node (with what
+/// it needs: its directory and key, the medium).
+pub fn panel_on(tag: &str, listen: &str) -> (TempDir, medium::Medium, Panel) {
+    let (dir, medium) = keyed_medium(tag);
+    let (k, m) = (dir.0.join("machine.key"), medium.addr().to_string());
+    let k = k.to_str().unwrap();
+    let panel =
+        Panel::start(&[ROBOT, "--keys", k, "--medium", &m, "--listen", listen]).expect("the panel");
+    (dir, medium, panel)
 }
