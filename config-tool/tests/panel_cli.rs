@@ -302,3 +302,80 @@ fn the_transports_page_shows_each_control_functions_place() {
         assert_eq!(place, ch["initial"].as_u64().unwrap() as usize, "{name}");
     }
 }
+
+/// The TCP port process `pid` listens on (Linux): one of its sockets (`/proc/PID/fd`)
+/// found listening in `/proc/net/tcp`. `None` while it has none (or no longer runs).
+#[cfg(target_os = "linux")]
+fn listening_port(pid: u32) -> Option<u16> {
+    let inodes: Vec<String> = std::fs::read_dir(format!("/proc/{pid}/fd"))
+        .ok()?
+        .filter_map(|e| std::fs::read_link(e.ok()?.path()).ok())
+        .filter_map(|l| {
+            let l = l.to_string_lossy().into_owned();
+            Some(l.strip_prefix("socket:[")?.strip_suffix(']')?.to_string())
+        })
+        .collect();
+    let table = std::fs::read_to_string("/proc/net/tcp").ok()?;
+    table.lines().skip(1).find_map(|line| {
+        let f: Vec<&str> = line.split_whitespace().collect();
+        // local address, state (0A: listening), inode
+        let (local, state, inode) = (f.get(1)?, f.get(3)?, f.get(9)?);
+        (*state == "0A" && inodes.iter().any(|i| i == inode))
+            .then(|| u16::from_str_radix(local.split_once(':')?.1, 16).ok())
+            .flatten()
+    })
+}
+
+/// Issue: a panel whose standard output was closed (a pipe whose reader went away, as
+/// `config-tool panel ... | head -1` leaves it) died of it (a panic on printing its
+/// address). A panel is a server: it goes on serving.
+#[test]
+fn a_panel_whose_output_is_closed_goes_on_serving() {
+    let (dir, medium) = panel_support::keyed_medium("panel-closed-output");
+    let key = dir.0.join("machine.key");
+    let (reader, writer) = std::io::pipe().expect("a pipe");
+    drop(reader);
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .current_dir(panel_support::root())
+        .args(["panel", ROBOT, "--keys", key.to_str().unwrap()])
+        .args([
+            "--medium",
+            &medium.addr().to_string(),
+            "--listen",
+            "127.0.0.1:0",
+        ])
+        .env_remove("CONFIG_TOOL_KEYS")
+        .stdin(std::process::Stdio::null())
+        .stdout(writer)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("runs");
+    let mut child = panel_support::Killed(child);
+    // Its port, once it listens (or nothing, if it ended).
+    let until = std::time::Instant::now() + e2e_support::TIMEOUT;
+    let port = loop {
+        if let Some(port) = listening_port(child.0.id()) {
+            break port;
+        }
+        let ended = child.0.try_wait().expect("waits");
+        assert!(
+            ended.is_none() && std::time::Instant::now() < until,
+            "ended: {ended:?}"
+        );
+    };
+    // It prints its address, then asks the nodes how they are: its first question on the
+    // medium comes after the print.
+    while medium.stats().frames == 0 {
+        let ended = child.0.try_wait().expect("waits");
+        assert!(
+            ended.is_none() && std::time::Instant::now() < until,
+            "ended: {ended:?}"
+        );
+    }
+    let at: std::net::SocketAddr = ([127, 0, 0, 1], port).into();
+    assert_eq!(
+        panel_support::request(at, "GET", "/state.json", None).0,
+        200
+    );
+    assert_eq!(child.0.try_wait().expect("waits"), None, "still serving");
+}
