@@ -152,3 +152,44 @@ fn monitor_refuses_a_key_file_others_may_read() {
     );
     assert!(out.stdout.is_empty());
 }
+
+/// Issue: `config-tool monitor ... | head -1` ended with a panic message (printing to a
+/// pipe whose reader went away panicked). It ends as a filter does: quietly, status 0.
+#[test]
+fn monitor_ends_quietly_when_its_reader_goes_away() {
+    let medium = Medium::start(Config::default()).unwrap();
+    let mut radio = Conn::join(medium.addr(), Peer::Tool { addr: TOOL }).unwrap();
+    let mut monitor = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["monitor", "--medium", &medium.addr().to_string()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    assert!(medium.wait_for_clients(2, SURE), "the monitor joins");
+    let mut clear = [0u8; 127];
+    let start = Message::Command {
+        id: 3,
+        command: Cmd::Start,
+    };
+    let n = mac::emit_data(&header(0xFFFF, TOOL, VC), &payload(&start), &mut clear).unwrap();
+    radio.send(&Link::Frame(&clear[..n])).unwrap();
+    // `head -1`: one line read, then the pipe closed.
+    let mut out = BufReader::new(monitor.stdout.take().unwrap());
+    let mut line = String::new();
+    out.read_line(&mut line).unwrap();
+    assert!(line.contains("unsecured: Command"), "{line}");
+    drop(out);
+    // Its next line finds no reader.
+    radio.send(&Link::Frame(&clear[..n])).unwrap();
+    let until = std::time::Instant::now() + SURE;
+    let status = loop {
+        if let Some(status) = monitor.try_wait().unwrap() {
+            break status;
+        }
+        assert!(std::time::Instant::now() < until, "the monitor still runs");
+    };
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut monitor.stderr.take().unwrap(), &mut err).unwrap();
+    medium.stop();
+    assert_eq!((status.code(), err.as_str()), (Some(0), ""));
+}

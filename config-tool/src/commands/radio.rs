@@ -1,7 +1,7 @@
 //! The commands that talk to nodes over the (simulated) radio: medium, scan, push, status,
 //! start, home, reset, plant, monitor, gateway, and the node runners (`node`, `qemu-node`).
 
-use std::io;
+use std::io::{self, Write};
 use std::net::SocketAddr;
 use std::os::fd::AsRawFd;
 use std::path::Path;
@@ -798,6 +798,7 @@ pub fn monitor(
         .map_err(|e| Failure::error(format!("cannot reach the medium at {medium}: {e}")))?;
     let start = Instant::now();
     let end = for_.map(|d| start + d);
+    let mut out = io::stdout();
     loop {
         let until = end.unwrap_or_else(|| Instant::now() + Duration::from_secs(3600));
         let got = conn.recv(until, |link| {
@@ -823,7 +824,12 @@ pub fn monitor(
             }
         });
         match got {
-            Ok(Some(line)) => println!("{line}"),
+            Ok(Some(line)) => match writeln!(out, "{line}") {
+                // Its reader went away (`monitor | head`): done, as a filter is.
+                Err(e) if e.kind() == io::ErrorKind::BrokenPipe => return Ok(()),
+                Err(e) => return Err(Failure::error(format!("monitor: {e}"))),
+                Ok(()) => {}
+            },
             Ok(None) if end.is_some_and(|e| Instant::now() >= e) => return Ok(()),
             Ok(None) => {}
             Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => return Ok(()),
