@@ -2,7 +2,6 @@
 //! taken first (a second panel on it is refused before anything else is opened), then
 //! the keys as `home` takes them (a secured robot needs them), the medium, and the page.
 
-use std::io::Write;
 use std::net::SocketAddr;
 use std::path::Path;
 
@@ -36,19 +35,14 @@ pub fn panel(
         radio.secure(k.secret, k.counter);
     }
     let panel = Panel::start(listener, c, medium, secret).map_err(Failure::error)?;
-    // For the operator; an output closed under the panel (a pipe whose reader went away)
-    // does not stop it: it is a server.
-    let mut out = std::io::stdout().lock();
-    let _ = writeln!(out, "panel of {} on {}", robot.display(), panel.url());
+    let mut lines = vec![format!("panel of {} on {}", robot.display(), panel.url())];
     if let Some(t) = panel.token() {
-        let _ = writeln!(
-            out,
+        lines.push(format!(
             "token: {t} (the panel listens off loopback: every request must carry it, as \
              the address above does)"
-        );
+        ));
     }
-    let _ = out.flush();
-    drop(out);
+    super::announce(&lines);
     panel.serve(radio);
     Ok(())
 }

@@ -115,7 +115,7 @@ pub fn medium(config: medium::Config) -> Result<(), Failure> {
     let listen = config.listen;
     let m = medium::Medium::start(config)
         .map_err(|e| Failure::error(format!("medium on {listen}: {e}")))?;
-    println!("medium listening on {}", m.addr());
+    super::announce(&[format!("medium listening on {}", m.addr())]);
     loop {
         std::thread::sleep(Duration::from_secs(3600));
     }
@@ -842,11 +842,11 @@ pub fn monitor(
 /// serial line closes.
 pub fn gateway(serial: &Path, baud: u32, listen: SocketAddr) -> Result<(), Failure> {
     let (m, up) = medium::bridge(serial, baud, listen)?;
-    println!(
+    super::announce(&[format!(
         "medium listening on {}, bridged to the air through {}",
         m.addr(),
         serial.display()
-    );
+    )]);
     match up.join() {
         Ok(r) => r.map_err(|e| Failure::error(format!("{}: {e}", serial.display()))),
         Err(_) => Err(Failure::error("the gateway bridge stopped")),
