@@ -21,7 +21,8 @@
 //! thread) (a radio that cannot keep up loses
 //! frames, as a radio's receive buffer overruns; a plant or monitor that does not read is
 //! disconnected); connections that do not say hello in time are closed, and so is the
-//! oldest of them when one more comes past their cap; connections are capped. Every drop is counted in [`Stats`].
+//! oldest of them when one more comes past their cap; connections are capped. Every drop
+//! is counted in [`Stats`].
 
 mod air;
 mod bridge;

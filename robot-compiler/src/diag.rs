@@ -66,7 +66,7 @@ impl Diagnostic {
     pub fn of_chart(mut self, src: &Source, c: &ChartInstance, input: Option<&str>) -> Diagnostic {
         if let Some(d) = &c.declared {
             let place = input.and_then(|i| d.on.get(i)).unwrap_or(&d.fb);
-            self.span = src.span("application.file");
+            self.span = src.span(crate::model::APPLICATION_FILE);
             self.message = format!("{place}: {}", self.message);
             if self.label == "here" {
                 self.label = String::from("imported here");

@@ -140,6 +140,10 @@ impl PlacesVar {
     }
 }
 
+/// The path in the robot file of its application's file name: where what the
+/// application brings is reported (its XML errors, its charts' problems, its types).
+pub const APPLICATION_FILE: &str = "application.file";
+
 /// An IEC 61499 application brought into the robot: the `.sys` file (relative to the
 /// robot file) and what the XML cannot say: which plant events feed FB event inputs and
 /// which FB output events drive the plant.

@@ -102,6 +102,8 @@ struct Ctx {
     shared: Arc<Shared>,
     orders: Mutex<Sender<Order>>,
     token: Option<String>,
+    /// The name of the cookie that keeps the token ([`cookie_name`]).
+    cookie: String,
     /// The panel's own address, as a request's `Host` names it.
     addr: SocketAddr,
     streams: AtomicUsize,
@@ -154,6 +156,7 @@ impl Panel {
             shared,
             orders: Mutex::new(orders),
             token: token.clone(),
+            cookie: cookie_name(addr),
             addr,
             streams: AtomicUsize::new(0),
             connections: AtomicUsize::new(0),
@@ -322,7 +325,7 @@ fn serve(ctx: &Ctx, mut stream: TcpStream) {
             // site's own requests carry, out of reach of the page's scripts.
             let extra = format!(
                 "Location: /\r\nSet-Cookie: {}={token}; HttpOnly; SameSite=Strict; Path=/\r\n",
-                cookie_name(ctx.addr)
+                ctx.cookie
             );
             let _ = http::respond_with(&mut stream, 303, "text/plain", "", &extra);
             return;
@@ -346,7 +349,7 @@ fn answer(ctx: &Ctx, rq: &Request) -> Answer {
     let (path, token) = split(&rq.target);
     // The token in the address (the page's first load, a script's request) or in the
     // cookie the first load set.
-    let kept = cookie(rq.header("cookie"), &cookie_name(ctx.addr));
+    let kept = cookie(rq.header("cookie"), &ctx.cookie);
     let given = |t: &str| [token, kept].into_iter().flatten().any(|g| same(g, t));
     // The script and the style say nothing of the machine: fetched without the token.
     let open = matches!(path, "/panel.js" | "/panel.css");

@@ -22,7 +22,7 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
             let path = format!("roles[{ri}].charts[{MAX_CHARTS}]");
             let at = match robot.application {
                 Some(_) if src.span(&path) == src.span(&format!("roles[{ri}]")) => {
-                    src.span("application.file")
+                    src.span(crate::model::APPLICATION_FILE)
                 }
                 _ => src.span(&path),
             };

@@ -107,7 +107,7 @@ fn application(
     ios: Vec<io_fb::IoType>,
 ) -> Option<Diagnostic> {
     let decl = robot.application.clone()?;
-    let at = src.span("application.file");
+    let at = src.span(crate::model::APPLICATION_FILE);
     let file = &decl.file;
     let text = match read(file) {
         Ok(bytes) => match utf8_text(file, bytes) {
@@ -133,7 +133,7 @@ fn application(
                 .chart_types
                 .extend(b.chart_types.into_iter().map(|mut t| {
                     t.imported
-                        .get_or_insert_with(|| String::from("application.file"));
+                        .get_or_insert_with(|| String::from(crate::model::APPLICATION_FILE));
                     t
                 }));
             robot.places = b.places;
