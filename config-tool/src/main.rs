@@ -9,11 +9,13 @@ use clap::Parser;
 mod cli;
 mod commands;
 mod failure;
+mod out;
 mod tool_keys;
 
 use cli::{Cli, Command, KeysCommand};
 use commands::{demo, keys, offline, radio};
 use failure::Failure;
+use out::errln;
 
 fn run(command: Command) -> Result<(), Failure> {
     match command {
@@ -103,11 +105,16 @@ fn run(command: Command) -> Result<(), Failure> {
 }
 
 fn main() -> ExitCode {
-    match run(Cli::parse().command) {
+    let done = run(Cli::parse().command);
+    out::flush();
+    // Its work done, a command whose output could not be written fails (a reader that
+    // went away is no failure: `out`).
+    let done = done.and_then(|()| out::failed().map_or(Ok(()), |e| Err(Failure::error(e))));
+    match done {
         Ok(()) => ExitCode::SUCCESS,
         Err(failure) => {
             if !failure.message.is_empty() {
-                eprintln!("{}", failure.message);
+                errln!("{}", failure.message);
             }
             ExitCode::from(failure.code)
         }

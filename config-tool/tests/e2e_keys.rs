@@ -378,7 +378,22 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
         status(&key_s, &m, "0x0011")[0],
         "0x0011  role VC  generation 2"
     );
-    push_trial("4");
+    // A push whose output nobody reads (`push ... | head -1`) still pushes: it prints
+    // nothing more and ends with its own status (it ended with a panic at its first line).
+    let (reader, writer) = std::io::pipe().expect("pipe");
+    drop(reader);
+    let unread = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .args(["push", ROBOT, "--keys", &key_s, "--medium", &m])
+        .args(["--generation", "4", "--trial"])
+        .env_remove("CONFIG_TOOL_KEYS")
+        .stdout(writer)
+        .output()
+        .expect("runs");
+    assert_eq!(
+        (unread.status.code(), text(&unread.stderr).as_str()),
+        (Some(0), "")
+    );
     let kept = ok(&["confirm", ROBOT, "--keys", &key_s, "--medium", &m]);
     assert!(
         kept.lines().all(|l| l.ends_with("generation 4  confirmed")),

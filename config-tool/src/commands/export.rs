@@ -8,6 +8,7 @@ use robot_compiler::Diagnostic;
 
 use super::offline::{load_compiled, report};
 use crate::failure::Failure;
+use crate::out::outln;
 
 pub fn export(robot: &Path, out: &Path) -> Result<(), Failure> {
     let (src, compiled) = load_compiled(robot)?;
@@ -36,10 +37,10 @@ pub fn export(robot: &Path, out: &Path) -> Result<(), Failure> {
         .iter()
         .map(|(name, text)| (name.as_str(), text.as_bytes()));
     for path in super::outputs::write_all(out, files)? {
-        println!("{}", path.display());
+        outln!("{}", path.display());
     }
     let lifted = exported.instances.iter().filter(|i| i.lifted).count();
-    println!(
+    outln!(
         "{} FB types ({lifted} lifted from compiled charts), {} FB instances",
         exported.types.len(),
         exported.instances.len()

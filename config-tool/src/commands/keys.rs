@@ -9,11 +9,12 @@ use robot_keys::{load_machine_secret, management_key, write_machine_secret, writ
 
 use crate::cli::Board;
 use crate::failure::Failure;
+use crate::out::{out, outln};
 
 /// `keys new --out FILE [--force]`.
 pub fn new(out: &Path, force: bool) -> Result<(), Failure> {
     write_machine_secret(out, force).map_err(Failure::error)?;
-    println!(
+    outln!(
         "wrote a new machine secret to {} (mode 0600): every node's key derives from it; \
          keep it as you keep the machine's root password",
         out.display()
@@ -51,7 +52,7 @@ pub fn provision(
             Board::Nrf52840 => nrf52840(&mut text, node, &key),
         }
     }
-    print!("{text}");
+    out!("{text}");
     Ok(())
 }
 

@@ -7,13 +7,14 @@ use robot_compiler::petri::matrix;
 use robot_compiler::{check, Source};
 
 use crate::failure::Failure;
+use crate::out::{err, out};
 
 /// Prints the matrices of every function of the robot, or of `function` only.
 pub fn matrix(robot: &Path, function: Option<&str>, csv: bool) -> Result<(), Failure> {
     let src = Source::read(robot).map_err(Failure::from)?;
     let checked = check::check(&src);
     if checked.has_errors() {
-        eprint!(
+        err!(
             "{}",
             robot_compiler::diag::render_all(&src, &checked.diagnostics, false)
         );
@@ -48,6 +49,6 @@ pub fn matrix(robot: &Path, function: Option<&str>, csv: bool) -> Result<(), Fai
         .iter()
         .map(|n| if csv { matrix::csv(n) } else { matrix::text(n) })
         .collect();
-    print!("{}", parts.join("\n"));
+    out!("{}", parts.join("\n"));
     Ok(())
 }

@@ -8,6 +8,7 @@ use robot_compiler::{check, diagram, dump, Compiled, Diagnostic, Source};
 
 use crate::cli::{Format, SimArgs, VerifyArgs, VerifyHow, VerifyPart};
 use crate::failure::Failure;
+use crate::out::{err, errln, out, outln};
 
 /// Reads a robot (its errors name the file, and the place of a byte that is not UTF-8).
 fn load(path: &Path) -> Result<Source, Failure> {
@@ -29,7 +30,7 @@ pub(crate) fn load_compiled(path: &Path) -> Result<(Source, Compiled), Failure> 
 pub(super) fn report(src: &Source, diags: &[Diagnostic]) {
     use std::io::IsTerminal;
     let color = std::io::stderr().is_terminal();
-    eprint!("{}", robot_compiler::diag::render_all(src, diags, color));
+    err!("{}", robot_compiler::diag::render_all(src, diags, color));
 }
 
 pub fn check(robot: &Path) -> Result<(), Failure> {
@@ -40,20 +41,20 @@ pub fn check(robot: &Path) -> Result<(), Failure> {
         return Err(Failure::reported());
     }
     if let Some(line) = checked.ir.as_ref().and_then(pipeline::homing_line) {
-        println!("{line}");
+        outln!("{line}");
     }
     if let Some(robot) = &checked.robot {
         let nets = robot_compiler::petri::load(robot, &src).nets();
         for line in robot_compiler::petri::check::publication_lines(robot, &nets) {
-            println!("{line}");
+            outln!("{line}");
         }
     }
     if let Ok(compiled) = pipeline::lower_checked(&src, checked) {
         for line in pipeline::stimulus_lines(&compiled) {
-            println!("{line}");
+            outln!("{line}");
         }
     }
-    println!("{}: ok", src.name);
+    outln!("{}: ok", src.name);
     Ok(())
 }
 
@@ -72,17 +73,17 @@ pub fn compile(robot: &Path, out: &Path, generation: Option<u32>) -> Result<(), 
     let blobs = compiled.blobs.iter().map(Vec::as_slice);
     super::outputs::write_all(out, names.iter().map(String::as_str).zip(blobs))?;
     for line in pipeline::summary(&compiled) {
-        println!("{line}");
+        outln!("{line}");
     }
     if compiled.robot.sequence.is_some() {
         let radio = pipeline::radio_events(&compiled.ir);
-        println!("radio publications per cycle: {}", radio.len());
+        outln!("radio publications per cycle: {}", radio.len());
         for (from, event, to) in radio {
-            println!("  {from} -> {to}: {event}");
+            outln!("  {from} -> {to}: {event}");
         }
     }
     if let Some(line) = pipeline::homing_line(&compiled.ir) {
-        println!("{line}");
+        outln!("{line}");
     }
     Ok(())
 }
@@ -93,7 +94,7 @@ pub fn dump(blob: &Path) -> Result<(), Failure> {
         .map_err(|e| Failure::error(format!("cannot read {}: {e}", blob.display())))?;
     let text = dump::dump(&bytes)
         .map_err(|e| Failure::error(format!("{}: not a valid table blob: {e}", blob.display())))?;
-    print!("{text}");
+    out!("{text}");
     Ok(())
 }
 
@@ -102,16 +103,16 @@ pub fn diagram(robot: &Path, role: &str, format: Format) -> Result<(), Failure> 
     let automata = robot_compiler::automata::compile::placed(&compiled.robot, &src, role);
     let dot = diagram::dot_with_automata(&compiled.ir, &automata, role).map_err(Failure::error)?;
     match format {
-        Format::Dot => print!("{dot}"),
-        Format::Svg => print!("{}", diagram::svg(&dot).map_err(Failure::error)?),
-    }
+        Format::Dot => out!("{dot}"),
+        Format::Svg => out!("{}", diagram::svg(&dot).map_err(Failure::error)?),
+    };
     Ok(())
 }
 
 pub fn verify(flags: &VerifyArgs) -> Result<(), Failure> {
     let (src, compiled) = load_compiled(&flags.robot)?;
     let verified = verification(&src.name, &compiled, flags.how).map_err(Failure::error)?;
-    print!("{}", verified.text);
+    out!("{}", verified.text);
     if verified.ok() {
         Ok(())
     } else {
@@ -232,14 +233,14 @@ pub fn sim(args: &SimArgs) -> Result<(), Failure> {
     .map_err(Failure::error)?;
     if trace {
         for line in &result.trace {
-            println!("{line}");
+            outln!("{line}");
         }
     }
     if let Some(path) = timeline {
         let entries = timeline::run(&compiled, cycles).map_err(Failure::error)?;
         write_timeline(&compiled, &entries, path)?;
     }
-    print!("{}", result.report());
+    out!("{}", result.report());
     if result.ok() {
         Ok(())
     } else {
@@ -264,16 +265,16 @@ fn sim_station(compiled: &Compiled, args: &SimArgs) -> Result<(), Failure> {
     let run = sorter::simulate(compiled, feed.as_deref()).map_err(Failure::error)?;
     if args.trace {
         for line in &run.trace {
-            println!("{line}");
+            outln!("{line}");
         }
     }
     if let Some(path) = &args.timeline {
         let svg = timeline::station::svg(compiled, &run).map_err(Failure::error)?;
         std::fs::write(path, svg)
             .map_err(|e| Failure::error(format!("{}: {e}", path.display())))?;
-        eprintln!("timeline: {}", path.display());
+        errln!("timeline: {}", path.display());
     }
-    print!("{}", run.report());
+    out!("{}", run.report());
     if run.ok() {
         Ok(())
     } else {
@@ -292,13 +293,13 @@ fn sim_fault(
     let run = inject::simulate(compiled, &spec).map_err(Failure::error)?;
     if trace {
         for e in &run.trace {
-            println!("{e}");
+            outln!("{e}");
         }
     }
     if let Some(path) = timeline {
         write_timeline(compiled, &run.trace, path)?;
     }
-    print!("{}", run.report());
+    out!("{}", run.report());
     if run.stopped_safely() {
         Ok(())
     } else {
@@ -313,6 +314,6 @@ fn write_timeline(
 ) -> Result<(), Failure> {
     let svg = timeline::svg(compiled, trace).map_err(Failure::error)?;
     std::fs::write(path, svg).map_err(|e| Failure::error(format!("{}: {e}", path.display())))?;
-    eprintln!("timeline: {}", path.display());
+    errln!("timeline: {}", path.display());
     Ok(())
 }

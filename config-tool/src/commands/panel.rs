@@ -12,6 +12,7 @@ use robot_panel::{Listener, Panel};
 use crate::cli::{KeysArg, MediumAddr};
 use crate::commands::radio::{push_keys, resolve};
 use crate::failure::Failure;
+use crate::out::outln;
 use crate::tool_keys::{self, KeysFrom};
 
 pub fn panel(
@@ -35,14 +36,13 @@ pub fn panel(
         radio.secure(k.secret, k.counter);
     }
     let panel = Panel::start(listener, c, medium, secret).map_err(Failure::error)?;
-    let mut lines = vec![format!("panel of {} on {}", robot.display(), panel.url())];
+    outln!("panel of {} on {}", robot.display(), panel.url());
     if let Some(t) = panel.token() {
-        lines.push(format!(
+        outln!(
             "token: {t} (the panel listens off loopback: every request must carry it, as \
              the address above does)"
-        ));
+        );
     }
-    super::announce(&lines);
     panel.serve(radio);
     Ok(())
 }

@@ -1,7 +1,7 @@
 //! The commands that talk to nodes over the (simulated) radio: medium, scan, push, status,
 //! start, home, reset, plant, monitor, gateway, and the node runners (`node`, `qemu-node`).
 
-use std::io::{self, Write};
+use std::io;
 use std::net::SocketAddr;
 use std::os::fd::AsRawFd;
 use std::path::Path;
@@ -23,6 +23,7 @@ use robot_compiler::model::Security;
 use crate::cli::{HomeArgs, KeysArg, MediumAddr, PushArgs, QemuNodeArgs, SwitchArgs, VerifyHow};
 use crate::commands::{alarms, offline};
 use crate::failure::{exit, Failure};
+use crate::out::{errln, out, outln};
 use crate::tool_keys::{self, KeysFrom, KEYS_ENV};
 
 /// The medium to talk to: the one at `--medium`, or with `--serial` one bridged to the air
@@ -115,7 +116,7 @@ pub fn medium(config: medium::Config) -> Result<(), Failure> {
     let listen = config.listen;
     let m = medium::Medium::start(config)
         .map_err(|e| Failure::error(format!("medium on {listen}: {e}")))?;
-    super::announce(&[format!("medium listening on {}", m.addr())]);
+    outln!("medium listening on {}", m.addr());
     loop {
         std::thread::sleep(Duration::from_secs(3600));
     }
@@ -136,14 +137,14 @@ pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(),
             Some(c) => homed_note(&mut radio, &mut ids, c, *addr)?,
             None => String::new(),
         };
-        println!(
+        outln!(
             "{addr:#06x}  firmware {}  generation {}{}  {role}{homed}",
             a.firmware,
             a.generation,
             show::staged_note(a.staged)
         );
     }
-    println!("{} node(s)", found.len());
+    outln!("{} node(s)", found.len());
     Ok(())
 }
 
@@ -234,7 +235,7 @@ fn watch(
     let mut ids = Ids::default();
     let first = nodes.first().copied().unwrap_or(0);
     let previous = command(radio, &mut ids, first, Command::Status)?.previous;
-    println!(
+    outln!(
         "watching the trial for {} (rolled back to generation {previous} unless confirmed)",
         window_text(window)
     );
@@ -250,7 +251,7 @@ fn watch(
     .map_err(Failure::error)?;
     match end {
         push::TrialEnd::Confirmed => {
-            println!("confirmed: the trial generation stays");
+            outln!("confirmed: the trial generation stays");
             Ok(())
         }
         push::TrialEnd::Faulted { node, rolled_back } => Err(Failure {
@@ -306,7 +307,7 @@ fn verify_before_push(
 ) -> Result<(), Failure> {
     let name = robot.display();
     if skip {
-        eprintln!("warning: push --no-verify: {name} was not verified");
+        errln!("warning: push --no-verify: {name} was not verified");
         return Ok(());
     }
     let unverified = "nothing was sent (--no-verify pushes it unverified)";
@@ -314,10 +315,10 @@ fn verify_before_push(
         .map_err(|e| Failure::error(format!("{name}: verify cannot run: {e}; {unverified}")))?;
     let report = verified.deciding();
     if report.ok() {
-        println!("{}", verified.passed_line());
+        outln!("{}", verified.passed_line());
         return Ok(());
     }
-    print!("{}", verified.text);
+    out!("{}", verified.text);
     let why = match &report.violation {
         Some(v) => format!("fails verify ({})", v.property),
         None => format!(
@@ -369,13 +370,13 @@ fn report_push(
     trial: bool,
 ) -> Result<(), Failure> {
     for o in outcomes {
-        println!("{}", demo::push_line(o));
+        outln!("{}", demo::push_line(o));
     }
     let (bytes, frames, retries) = outcomes.iter().fold((0, 0, 0), |a, o| {
         (a.0 + o.bytes, a.1 + o.stats.frames, a.2 + o.stats.retries)
     });
     let time = outcomes.iter().map(|o| o.elapsed).max().unwrap_or_default();
-    println!(
+    outln!(
         "pushed {} table(s): {bytes} bytes, {frames} frames, {retries} retries, {:.1} ms",
         outcomes.len(),
         time.as_secs_f64() * 1e3
@@ -394,18 +395,18 @@ fn report_push(
     };
     match verdict {
         None => {
-            println!("staged on every node: `push` the same generation again to switch");
+            outln!("staged on every node: `push` the same generation again to switch");
             Ok(())
         }
         Some(Verdict::Switched) if trial => {
-            println!(
+            outln!(
                 "switched on trial: `config-tool confirm` keeps it; a power cut or \
                  `config-tool rollback` returns to the previous generation"
             );
             Ok(())
         }
         Some(Verdict::Switched) => {
-            println!("switched: every node runs the new generation");
+            outln!("switched: every node runs the new generation");
             Ok(())
         }
         Some(Verdict::NotIdle) => failed(concat!(
@@ -434,10 +435,10 @@ pub fn status(
     let mut ids = Ids::default();
     let s = command(&mut radio, &mut ids, node, Command::Status)?;
     let r = security(&mut radio, &mut ids, node)?;
-    println!("{}", show::status_text(node, &s));
-    println!("{}", show::security_text(&r));
+    outln!("{}", show::status_text(node, &s));
+    outln!("{}", show::security_text(&r));
     if let Some(c) = &c {
-        println!("  homing: {}", standing_text(c, node, &s));
+        outln!("  homing: {}", standing_text(c, node, &s));
     }
     Ok(())
 }
@@ -499,7 +500,7 @@ pub fn confirm(flags: &SwitchArgs) -> Result<(), Failure> {
     let (mut radio, nodes) = machine(flags)?;
     let trial: Vec<u16> = nodes.iter().filter(|n| n.2.trial).map(|n| n.1).collect();
     if trial.is_empty() {
-        println!("nothing on trial: every node's generation is confirmed");
+        outln!("nothing on trial: every node's generation is confirmed");
         return Ok(());
     }
     let generation = nodes
@@ -522,7 +523,7 @@ pub fn confirm(flags: &SwitchArgs) -> Result<(), Failure> {
                 "NOT confirmed: no answer".to_string()
             }
         };
-        println!("  {role:<6} {addr:#06x}  generation {generation}  {what}");
+        outln!("  {role:<6} {addr:#06x}  generation {generation}  {what}");
     }
     if all {
         Ok(())
@@ -566,7 +567,7 @@ pub fn rollback(flags: &SwitchArgs) -> Result<(), Failure> {
             Some(NodeState::Switched) => "rolled back".to_string(),
             other => format!("NOT rolled back: {other:?}"),
         };
-        println!("  {role:<6} {addr:#06x}  generation {target}  {what}");
+        outln!("  {role:<6} {addr:#06x}  generation {target}  {what}");
     }
     match verdict {
         Verdict::Switched => Ok(()),
@@ -606,7 +607,7 @@ pub fn start(
         }
     }
     command(&mut radio, &mut ids, node, Command::Start)?;
-    println!("{node:#06x}: started");
+    outln!("{node:#06x}: started");
     Ok(())
 }
 
@@ -661,11 +662,16 @@ pub fn alarms(robot: &Path, at: &MediumAddr, keys: &KeysArg, watch: bool) -> Res
                 .collect()
         };
         if key(&now) != key(&last) {
+            let mut read = true;
             if watch && !last.is_empty() {
-                println!("--");
+                read &= outln!("--");
             }
             for l in &now {
-                println!("{l}");
+                read &= outln!("{l}");
+            }
+            // Watching for a reader that went away (`alarms --watch | head`): done.
+            if !read {
+                return Ok(());
             }
             last = now;
         }
@@ -686,10 +692,10 @@ pub fn ack(robot: &Path, at: &MediumAddr, keys: &KeysArg) -> Result<(), Failure>
         .iter()
         .map(|n| n.report.alarms.iter().filter(|a| a.acked).count())
         .sum();
-    println!("acknowledged: {acked} alarm(s) on {} node(s)", nodes.len());
+    outln!("acknowledged: {acked} alarm(s) on {} node(s)", nodes.len());
     let stayed = alarms::stayed(&c, &nodes);
     for l in &stayed {
-        println!("{l}");
+        outln!("{l}");
     }
     match alarms::blocking_text(&c, &nodes) {
         Some(why) => Err(Failure::refused(format!(
@@ -709,7 +715,7 @@ pub fn home(flags: &HomeArgs) -> Result<(), Failure> {
         KeysFrom::resolve(flags.keys.keys.as_deref()),
     )?;
     let mut radio = connect_keyed(&flags.at, keys.as_ref())?;
-    println!("{}", demo::homing_line(&c));
+    outln!("{}", demo::homing_line(&c));
     let (end, took) = home::home(
         &mut radio,
         &mut Ids::default(),
@@ -719,7 +725,7 @@ pub fn home(flags: &HomeArgs) -> Result<(), Failure> {
     )?;
     match end {
         home::HomeEnd::Homed => {
-            println!("homed: every chart idle in {:.2} s", took.as_secs_f64());
+            outln!("homed: every chart idle in {:.2} s", took.as_secs_f64());
             Ok(())
         }
         home::HomeEnd::Refused(why) => Err(Failure::refused(format!("{why}; HOME was not sent"))),
@@ -746,7 +752,7 @@ pub fn home(flags: &HomeArgs) -> Result<(), Failure> {
 pub fn reset(at: &MediumAddr, node: u16, keys: &KeysArg) -> Result<(), Failure> {
     let mut radio = connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?;
     let s = command(&mut radio, &mut Ids::default(), node, Command::Reset)?;
-    println!("{}", show::reset_text(node, &s));
+    outln!("{}", show::reset_text(node, &s));
     Ok(())
 }
 
@@ -755,9 +761,13 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
     let c = demo::load(robot)?;
     let actuators = live_plant::actuators(&c)?;
     for a in &actuators {
-        println!(
+        outln!(
             "{:<4} on node {:#06x}: valves {:?}, home {:?}, end {:?}",
-            a.name, a.addr, a.valves, a.home, a.end
+            a.name,
+            a.addr,
+            a.valves,
+            a.home,
+            a.end
         );
     }
     if at.serial.is_some() {
@@ -770,7 +780,7 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
     let medium = at.medium;
     let handle = std::thread::spawn(move || live_plant::run(medium, actuators, tx, stop));
     for step in rx {
-        println!("{:>9.3}  {step}", step.at.as_secs_f64());
+        outln!("{:>9.3}  {step}", step.at.as_secs_f64());
     }
     match handle.join() {
         Ok(Ok(())) => Ok(()),
@@ -798,7 +808,6 @@ pub fn monitor(
         .map_err(|e| Failure::error(format!("cannot reach the medium at {medium}: {e}")))?;
     let start = Instant::now();
     let end = for_.map(|d| start + d);
-    let mut out = io::stdout();
     loop {
         let until = end.unwrap_or_else(|| Instant::now() + Duration::from_secs(3600));
         let got = conn.recv(until, |link| {
@@ -824,12 +833,9 @@ pub fn monitor(
             }
         });
         match got {
-            Ok(Some(line)) => match writeln!(out, "{line}") {
-                // Its reader went away (`monitor | head`): done, as a filter is.
-                Err(e) if e.kind() == io::ErrorKind::BrokenPipe => return Ok(()),
-                Err(e) => return Err(Failure::error(format!("monitor: {e}"))),
-                Ok(()) => {}
-            },
+            // Its reader went away (`monitor | head`): done, as a filter is.
+            Ok(Some(line)) if !outln!("{line}") => return Ok(()),
+            Ok(Some(_)) => {}
             Ok(None) if end.is_some_and(|e| Instant::now() >= e) => return Ok(()),
             Ok(None) => {}
             Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => return Ok(()),
@@ -842,11 +848,11 @@ pub fn monitor(
 /// serial line closes.
 pub fn gateway(serial: &Path, baud: u32, listen: SocketAddr) -> Result<(), Failure> {
     let (m, up) = medium::bridge(serial, baud, listen)?;
-    super::announce(&[format!(
+    outln!(
         "medium listening on {}, bridged to the air through {}",
         m.addr(),
         serial.display()
-    )]);
+    );
     match up.join() {
         Ok(r) => r.map_err(|e| Failure::error(format!("{}: {e}", serial.display()))),
         Err(_) => Err(Failure::error("the gateway bridge stopped")),
