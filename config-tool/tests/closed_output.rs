@@ -97,3 +97,41 @@ fn a_report_written_to_a_full_disk_fails_the_command() {
         )
     );
 }
+
+/// A node whose log nobody reads (a supervisor that dropped its standard error) goes on
+/// running: it died of a panic at its first log line, before it joined the medium.
+#[test]
+fn a_node_whose_log_is_closed_goes_on_running() {
+    use config_schema::wire::mac;
+    use config_schema::wire::medium::{Link, Peer};
+    use std::time::{Duration, Instant};
+
+    let medium = medium::Medium::start(medium::Config::default()).expect("medium");
+    let mut monitor = medium::Conn::join(medium.addr(), Peer::Monitor).expect("monitor");
+    let (reader, writer) = std::io::pipe().expect("pipe");
+    drop(reader);
+    let mut node = config_tool(&["node", "--addr", "0x0011"])
+        .args(["--medium", &medium.addr().to_string()])
+        .stdout(Stdio::null())
+        .stderr(writer)
+        .spawn()
+        .expect("runs");
+    // Its first frame (the unconfigured node's announce) comes after its first log lines.
+    let until = Instant::now() + Duration::from_secs(10);
+    let heard = monitor.recv(until, |link| match link {
+        Link::Frame(psdu) => match mac::Frame::parse(psdu) {
+            Ok(mac::Frame::Data { header, .. }) if header.src == 0x0011 => Some(()),
+            _ => None,
+        },
+        _ => None,
+    });
+    let running = node.try_wait().expect("waits").is_none();
+    let _ = node.kill();
+    let status = node.wait().expect("waits");
+    medium.stop();
+    assert_eq!(
+        (heard.ok().flatten(), running),
+        (Some(()), true),
+        "{status}"
+    );
+}

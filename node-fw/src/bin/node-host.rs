@@ -8,7 +8,8 @@ fn main() -> ExitCode {
     match node_fw::host::run(node_fw::host::Args::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("node-host: error: {e}");
+            let line = format_args!("node-host: error: {e}\n");
+            let _ = std::io::Write::write_fmt(&mut std::io::stderr().lock(), line);
             ExitCode::FAILURE
         }
     }

@@ -147,7 +147,10 @@ impl Log for Stderr {
     }
     fn log(&self, record: &Record<'_>) {
         if self.enabled(record.metadata()) {
-            eprintln!("{:<5} {}", record.level(), record.args());
+            // A log nobody reads any more (a supervisor dropped the pipe) is lost; the node
+            // goes on (`eprintln!` would panic).
+            let line = format_args!("{:<5} {}\n", record.level(), record.args());
+            let _ = std::io::Write::write_fmt(&mut std::io::stderr().lock(), line);
         }
     }
     fn flush(&self) {}
