@@ -174,6 +174,49 @@ fn requests_from_elsewhere_or_past_the_bounds_are_refused_and_the_panel_goes_on(
     }
 }
 
+/// Event streams that never read (a stuck tab, a local process holding connections) do
+/// not keep a page out: a newcomer past the bound closes the oldest stream (a page's
+/// `EventSource` opens another by itself). Issue: one more page was answered 503 for as
+/// long as they stayed.
+#[test]
+fn streams_that_never_read_do_not_keep_a_page_out() {
+    use std::io::{BufRead, BufReader, Read, Write};
+    let (_dir, _medium, panel) = panel_on("panel-streams", "127.0.0.1:0");
+    let at = panel.addr;
+    // A stream opened, up to its answer's status line (its slot taken by then).
+    let open = || {
+        let mut s = std::net::TcpStream::connect(at).expect("connects");
+        s.set_read_timeout(Some(e2e_support::TIMEOUT))
+            .expect("timeout");
+        s.write_all(format!("GET /events HTTP/1.1\r\nHost: {at}\r\n\r\n").as_bytes())
+            .expect("sends");
+        let mut r = BufReader::new(s);
+        let mut line = String::new();
+        r.read_line(&mut line).expect("reads");
+        (line, r)
+    };
+    let held: Vec<_> = (0..robot_panel::streams::MAX_STREAMS)
+        .map(|_| open())
+        .collect();
+    assert!(held.iter().all(|(l, _)| l == "HTTP/1.1 200 OK\r\n"));
+    let (line, mut newcomer) = open();
+    assert_eq!(line, "HTTP/1.1 200 OK\r\n");
+    let state = loop {
+        let mut line = String::new();
+        newcomer.read_line(&mut line).expect("reads");
+        if let Some(data) = line.strip_prefix("data: ") {
+            break data.to_string();
+        }
+    };
+    assert!(state.starts_with('{'), "{state}");
+    // The oldest stream is closed: its reader comes to the end.
+    let (_, mut oldest) = held.into_iter().next().expect("the oldest");
+    let mut rest = Vec::new();
+    oldest
+        .read_to_end(&mut rest)
+        .expect("the end, not a timeout");
+}
+
 #[test]
 fn a_panel_off_loopback_prints_a_token_and_refuses_requests_without_it() {
     let (_dir, _medium, panel) = panel_on("panel-token", "0.0.0.0:0");

@@ -16,6 +16,7 @@ pub mod model;
 pub mod poll;
 pub mod server;
 pub mod shared;
+pub mod streams;
 pub mod view;
 
 pub use error::PanelError;

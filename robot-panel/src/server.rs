@@ -26,6 +26,7 @@ use crate::live::Live;
 use crate::model::Machine;
 use crate::poll::{self, Order};
 use crate::shared::Shared;
+use crate::streams::{Streams, MAX_STREAMS};
 use crate::{feed, view};
 use robot_compiler::compile::Compiled;
 use robot_keys::MachineSecret;
@@ -35,8 +36,6 @@ const INDEX: &str = include_str!("page/index.html");
 const SCRIPT: &str = include_str!("page/panel.js");
 const STYLE: &str = include_str!("page/panel.css");
 
-/// At most this many pages stream at once (each holds a thread).
-const MAX_STREAMS: usize = 32;
 /// At most this many other requests are served at once (each holds a thread).
 const MAX_REQUESTS: usize = 64;
 /// At most this many connections at once (each holds a thread): more are answered 503
@@ -106,7 +105,7 @@ struct Ctx {
     cookie: String,
     /// The panel's own address, as a request's `Host` names it.
     addr: SocketAddr,
-    streams: AtomicUsize,
+    streams: Streams,
     connections: AtomicUsize,
     stop: Arc<AtomicBool>,
 }
@@ -158,7 +157,7 @@ impl Panel {
             token: token.clone(),
             cookie: cookie_name(addr),
             addr,
-            streams: AtomicUsize::new(0),
+            streams: Streams::default(),
             connections: AtomicUsize::new(0),
             stop: stop.clone(),
         });
@@ -441,15 +440,14 @@ fn command(ctx: &Ctx, name: &str) -> (u16, String) {
 
 /// Server-sent events: the state at once, then at every change (a comment now and then
 /// without one), until the page goes away (or takes no write for
-/// [`http::WRITE_WITHIN`]) or the panel stops.
+/// [`http::WRITE_WITHIN`]), a newcomer past [`MAX_STREAMS`] closes it (the oldest:
+/// [`Streams`]) or the panel stops.
 fn stream_events(ctx: &Ctx, mut out: TcpStream) {
-    if ctx.streams.fetch_add(1, Ordering::SeqCst) >= MAX_STREAMS {
-        ctx.streams.fetch_sub(1, Ordering::SeqCst);
-        let _ = http::respond(&mut out, 503, "text/plain", "too many pages open\n");
+    let Ok(_slot) = ctx.streams.open(&out) else {
+        let _ = http::respond(&mut out, 503, "text/plain", "the panel is busy\n");
         return;
-    }
+    };
     let _ = send_events(ctx, &mut out);
-    ctx.streams.fetch_sub(1, Ordering::SeqCst);
 }
 
 fn send_events(ctx: &Ctx, out: &mut dyn Write) -> io::Result<()> {
