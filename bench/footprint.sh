@@ -132,6 +132,18 @@ nm -S --size-sort -C -t d "$NRF_ELF" 2>/dev/null | awk '$3 ~ /^[tTrR]$/' |
             printf "  %7d bytes in %d symbols\n", total, n
         }' || true
 
+# An llvm-objdump beside the llvm-size (rustup's llvm-tools), or on PATH.
+OBJDUMP=""
+for c in "$(dirname "$(command -v "$SIZE" || echo "$SIZE")")/llvm-objdump" llvm-objdump; do
+    if command -v "$c" >/dev/null; then OBJDUMP="$c"; break; fi
+done
+if [ -n "$OBJDUMP" ] && command -v python3 >/dev/null; then
+    echo
+    echo "where the nrf52840's code comes from: each instruction counted at the source line it"
+    echo "was compiled from (inlined code where it was written: bench/flash_by_source.py)"
+    "$OBJDUMP" -d -l --no-show-raw-insn "$NRF_ELF" | python3 bench/flash_by_source.py "$PWD"
+fi
+
 echo
 echo "capacities (config-schema/src/limits.rs, node-fw/src/runtime.rs)"
 grep -hE '^pub const [A-Z_]+: usize = ' config-schema/src/limits.rs node-fw/src/runtime.rs |
