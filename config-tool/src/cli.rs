@@ -589,6 +589,10 @@ pub struct QemuNodeArgs {
     /// input changes every second to DIR/node-AAAA.log.
     #[arg(long, value_name = "DIR")]
     pub count: Option<PathBuf>,
+    /// End (killed) when the process that started it ends, however that ends (Linux): how
+    /// `demo` runs its nodes, so that none outlives an interrupted demo.
+    #[arg(long)]
+    pub end_with_parent: bool,
 }
 
 pub fn probability(s: &str) -> Result<f64, String> {

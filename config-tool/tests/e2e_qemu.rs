@@ -28,6 +28,8 @@ fn qemu_options(elf: &std::path::Path, flash_dir: &TempDir) -> Options {
     let node_command: Vec<OsString> = vec![
         env!("CARGO_BIN_EXE_config-tool").into(),
         "qemu-node".into(),
+        // None outlives a test run that is killed.
+        "--end-with-parent".into(),
         "--elf".into(),
         elf.as_os_str().to_owned(),
     ];
@@ -324,4 +326,31 @@ fn the_worst_table_the_budget_allows_costs_at_most_its_bound_on_qemu() {
     let _ = node.kill();
     let _ = node.wait();
     medium.stop();
+}
+
+/// A demo of QEMU nodes stopped by its supervisor (SIGTERM) leaves no QEMU running (each
+/// ends with its parent: `qemu-node --end-with-parent`) and no key behind, status 130.
+/// Issue: its five QEMU processes ran on for good.
+#[cfg(target_os = "linux")]
+#[test]
+fn an_interrupted_qemu_demo_leaves_no_qemu_running() {
+    let Some(elf) = qemu_image() else { return };
+    let elf = elf.to_str().expect("a text path").to_string();
+    let ended = cli_support::interrupt_demo(&[
+        "robot-configs/paint-robot.ron",
+        "--qemu",
+        "--elf",
+        &elf,
+        "--cycles",
+        "50",
+    ]);
+    assert_eq!(
+        ended,
+        cli_support::Interrupted {
+            status: Some(130),
+            said: "demo: interrupted".into(),
+            left: Vec::new(),
+            nodes_running: 0,
+        }
+    );
 }

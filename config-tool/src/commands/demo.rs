@@ -2,7 +2,7 @@
 //! the flags into the bed's options and the verdict into the exit status.
 
 use std::io;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use robot_net::demo::{self, Demo};
@@ -26,6 +26,7 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
     } else {
         None
     };
+    interrupted_cleans_up(count_dir.clone())?;
     let then = match (flags.no_reconfigure, flags.then) {
         (true, _) => None,
         (false, Some(p)) => Some(p),
@@ -67,6 +68,21 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
     Failure::of_verdict(verdict?)
 }
 
+/// An interrupted demo (Ctrl-C, SIGTERM, its terminal closed) ends without the bed's
+/// machine secret and node keys (nor `count_dir`) left in the temporary directory (its
+/// node processes end as its medium closes), status 130.
+fn interrupted_cleans_up(count_dir: Option<PathBuf>) -> Result<(), Failure> {
+    ctrlc::set_handler(move || {
+        demo::remove_key_dirs();
+        if let Some(dir) = &count_dir {
+            let _ = std::fs::remove_dir_all(dir);
+        }
+        crate::out::errln!("demo: interrupted");
+        std::process::exit(130);
+    })
+    .map_err(|e| Failure::error(format!("cannot take the interrupt: {e}")))
+}
+
 /// How the bed starts one node: this binary's `node`, or its `qemu-node` booting `elf`.
 fn node_command(
     qemu: bool,
@@ -83,6 +99,8 @@ fn node_command(
     let mut cmd = vec![
         exe.into_os_string(),
         "qemu-node".into(),
+        // None outlives an interrupted demo.
+        "--end-with-parent".into(),
         "--elf".into(),
         elf.into_os_string(),
     ];

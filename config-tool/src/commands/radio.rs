@@ -883,6 +883,9 @@ pub fn qemu_node(a: QemuNodeArgs) -> Result<(), Failure> {
         a.flash.as_deref(),
         a.count.as_deref(),
     )?;
+    if a.end_with_parent {
+        end_with_parent()?;
+    }
     let mut cmd = std::process::Command::new(&a.qemu);
     cmd.args(&args);
     let failed = |e: io::Error| {
@@ -905,6 +908,20 @@ pub fn qemu_node(a: QemuNodeArgs) -> Result<(), Failure> {
             Err(Failure::error(format!("qemu: {status}")))
         }
     }
+}
+
+/// This process (QEMU after the exec: the setting is kept across it) is killed when its
+/// parent ends.
+#[cfg(target_os = "linux")]
+fn end_with_parent() -> Result<(), Failure> {
+    use rustix::process::{set_parent_process_death_signal, Signal};
+    set_parent_process_death_signal(Some(Signal::KILL))
+        .map_err(|e| Failure::error(format!("--end-with-parent: {e}")))
+}
+
+#[cfg(not(target_os = "linux"))]
+fn end_with_parent() -> Result<(), Failure> {
+    Err(Failure::error("qemu-node --end-with-parent: Linux only"))
 }
 
 /// The key's 16 bytes in an anonymous memory file (no path, owner-only, never on a command

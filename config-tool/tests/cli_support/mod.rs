@@ -44,3 +44,109 @@ pub fn qemu_image() -> Option<PathBuf> {
 pub fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
 }
+
+/// How an interrupted demo ended.
+#[derive(Debug, PartialEq, Eq)]
+pub struct Interrupted {
+    /// Its exit status.
+    pub status: Option<i32>,
+    /// The end of its standard error.
+    pub said: String,
+    /// What it left in its temporary directory.
+    pub left: Vec<String>,
+    /// How many of the node processes it had started still ran once it ended.
+    pub nodes_running: usize,
+}
+
+/// `config-tool demo ARGS` (its own temporary directory) sent SIGTERM once the machine
+/// moves (its first step said), as a supervisor stops it (Linux: node processes are
+/// found in `/proc`).
+#[cfg(target_os = "linux")]
+pub fn interrupt_demo(args: &[&str]) -> Interrupted {
+    use std::io::{BufRead, BufReader, Read};
+    use std::process::Stdio;
+    use std::time::{Duration, Instant};
+    let tmp = std::env::temp_dir().join(format!(
+        "interrupted-demo-{}-{}",
+        std::process::id(),
+        args.len()
+    ));
+    let _ = std::fs::remove_dir_all(&tmp);
+    std::fs::create_dir_all(&tmp).expect("temp dir");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .arg("demo")
+        .args(args)
+        .current_dir(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .env("TMPDIR", &tmp)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("runs");
+    // Its steps, on standard error.
+    let mut steps = BufReader::new(child.stderr.take().expect("stderr"));
+    let mut line = String::new();
+    while !line.trim_end().ends_with("VC+") {
+        line.clear();
+        assert!(
+            steps.read_line(&mut line).expect("reads") > 0,
+            "the demo ended"
+        );
+    }
+    let nodes = children(child.id());
+    assert!(!nodes.is_empty(), "node processes");
+    let killed = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .expect("kill");
+    assert!(killed.success());
+    let status = child.wait().expect("waits").code();
+    let mut err = String::new();
+    steps.read_to_string(&mut err).expect("reads");
+    // A node ends as its medium closes, or by its parent's death signal: soon, not at once.
+    let until = Instant::now() + Duration::from_secs(30);
+    let mut nodes_running = nodes.len();
+    while nodes_running > 0 && Instant::now() < until {
+        nodes_running = nodes.iter().filter(|p| runs(**p)).count();
+        std::thread::yield_now();
+    }
+    let left = std::fs::read_dir(&tmp)
+        .expect("temp dir")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    let _ = std::fs::remove_dir_all(&tmp);
+    Interrupted {
+        status,
+        said: err.lines().last().unwrap_or("").to_string(),
+        left,
+        nodes_running,
+    }
+}
+
+/// The processes whose parent is `pid`.
+#[cfg(target_os = "linux")]
+fn children(pid: u32) -> Vec<u32> {
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir("/proc").expect("/proc").flatten() {
+        let Ok(p) = entry.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        // `pid (comm) state ppid ...`: the fields after the last `)`.
+        let Ok(stat) = std::fs::read_to_string(format!("/proc/{p}/stat")) else {
+            continue;
+        };
+        let after = stat.rsplit_once(')').map_or("", |(_, rest)| rest);
+        if after.split_whitespace().nth(1) == Some(&pid.to_string()) {
+            found.push(p);
+        }
+    }
+    found
+}
+
+/// Whether process `pid` runs (not ended, nor a zombie nobody reaped).
+#[cfg(target_os = "linux")]
+fn runs(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|stat| {
+        let after = stat.rsplit_once(')').map_or("", |(_, rest)| rest);
+        after.split_whitespace().next() != Some("Z")
+    })
+}

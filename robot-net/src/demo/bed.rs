@@ -142,8 +142,22 @@ pub struct Bed {
     keys: Option<KeyDir>,
 }
 
-/// The bed's keys: a directory of its own (removed with the bed) holding the machine
-/// secret (`machine.key`) and each node's key file (`node-AAAA.key`), all mode 0600.
+/// The key directories of the beds alive in this process ([`remove_key_dirs`]).
+static KEY_DIRS: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// Removes the key directories of every bed alive in this process, for a process about to
+/// end without dropping its bed (an interrupted `demo`: its handler then exits), so that
+/// no machine secret or node key is left behind in the temporary directory.
+pub fn remove_key_dirs() {
+    let mut dirs = KEY_DIRS.lock().unwrap_or_else(|e| e.into_inner());
+    for dir in dirs.drain(..) {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}
+
+/// The bed's keys: a directory of its own (removed with the bed, or by
+/// [`remove_key_dirs`]) holding the machine secret (`machine.key`) and each node's key
+/// file (`node-AAAA.key`), all mode 0600.
 struct KeyDir {
     dir: PathBuf,
     secret: robot_keys::MachineSecret,
@@ -156,6 +170,10 @@ impl KeyDir {
         let run = RUN.fetch_add(1, Ordering::Relaxed);
         let dir = std::env::temp_dir().join(format!("robot-bed-{}-{run}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
+        KEY_DIRS
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(dir.clone());
         std::fs::create_dir_all(&dir).map_err(NetError::Radio)?;
         #[cfg(unix)]
         {
@@ -183,6 +201,10 @@ impl KeyDir {
 impl Drop for KeyDir {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.dir);
+        KEY_DIRS
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .retain(|d| *d != self.dir);
     }
 }
 
