@@ -58,6 +58,18 @@ pub struct Interrupted {
     pub nodes_running: usize,
 }
 
+impl Interrupted {
+    /// How an interrupted demo must end: status 130, saying so, nothing left behind.
+    pub fn cleanly() -> Interrupted {
+        Interrupted {
+            status: Some(130),
+            said: "demo: interrupted".into(),
+            left: Vec::new(),
+            nodes_running: 0,
+        }
+    }
+}
+
 /// `config-tool demo ARGS` (its own temporary directory) sent SIGTERM once the machine
 /// moves (its first step said), as a supervisor stops it (Linux: node processes are
 /// found in `/proc`).
