@@ -117,7 +117,8 @@ fn a_node_whose_log_is_closed_goes_on_running() {
         .spawn()
         .expect("runs");
     // Its first frame (the unconfigured node's announce) comes after its first log lines.
-    let until = Instant::now() + Duration::from_secs(10);
+    // A bound, not a pace: a loaded machine starts a debug build slowly.
+    let until = Instant::now() + Duration::from_secs(60);
     let heard = monitor.recv(until, |link| match link {
         Link::Frame(psdu) => match mac::Frame::parse(psdu) {
             Ok(mac::Frame::Data { header, .. }) if header.src == 0x0011 => Some(()),
