@@ -317,15 +317,19 @@ impl Running {
                 cmd.1 = level;
             }
             let run = Run::of(cmd.0, cmd.1);
-            // From when the medium saw the output change (on the carriages' clock).
-            let now_ms = self.ms(self.medium + Duration::from_micros(at_us));
             let Some(c) = self.carriages.get_mut(i) else {
                 continue;
             };
             if c.run == run {
                 continue;
             }
-            let change = m.model.change(c, run, now_ms);
+            // From when the medium saw the output change (on the carriages' clock).
+            let seen_at = self.medium + Duration::from_micros(at_us);
+            let held = self.held.map_or(seen_at, |h| seen_at.min(h));
+            let since = held.saturating_duration_since(self.medium);
+            let change = m
+                .model
+                .change(c, run, since.saturating_sub(self.lost).as_millis() as u64);
             let at_um = c.at_um;
             let _ = self.seen.send(Motion::Run {
                 motor: i,

@@ -142,8 +142,12 @@ fn children(pid: u32) -> Vec<u32> {
         let Ok(p) = entry.file_name().to_string_lossy().parse::<u32>() else {
             continue;
         };
-        let parent = stat(p).and_then(|s| s.split_whitespace().nth(1).map(str::to_string));
-        if parent == Some(pid.to_string()) {
+        // `pid (comm) state ppid ...`: the fields after the last `)`.
+        let Ok(stat) = std::fs::read_to_string(format!("/proc/{p}/stat")) else {
+            continue;
+        };
+        let after = stat.rsplit_once(')').map_or("", |(_, rest)| rest);
+        if after.split_whitespace().nth(1) == Some(&pid.to_string()) {
             found.push(p);
         }
     }
@@ -153,13 +157,8 @@ fn children(pid: u32) -> Vec<u32> {
 /// Whether process `pid` runs (not ended, nor a zombie nobody reaped).
 #[cfg(target_os = "linux")]
 fn runs(pid: u32) -> bool {
-    stat(pid).is_some_and(|s| s.split_whitespace().next() != Some("Z"))
-}
-
-/// Process `pid`'s `/proc/PID/stat` after its name (`pid (comm) state ppid ...`: the
-/// fields after the last `)`), if it has one.
-#[cfg(target_os = "linux")]
-fn stat(pid: u32) -> Option<String> {
-    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
-    stat.rsplit_once(')').map(|(_, rest)| rest.to_string())
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|stat| {
+        let after = stat.rsplit_once(')').map_or("", |(_, rest)| rest);
+        after.split_whitespace().next() != Some("Z")
+    })
 }
