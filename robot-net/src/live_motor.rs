@@ -150,12 +150,6 @@ pub enum Operate {
     Set(usize, bool),
     /// A button pressed (high now, low its press time later).
     Press(usize),
-    /// The plant's time stands still (`true`) or goes on (`false`): while held, the
-    /// carriages stay where they are and none arrives; the nodes, the radio and the
-    /// operator's inputs go on. The demo holds it while it reads the nodes' places, as
-    /// `sim` reads them in virtual time: a reading slowed by a lossy radio does not race
-    /// a motion.
-    Hold(bool),
 }
 
 /// What the live motors did, stamped with the medium's clock.
@@ -199,10 +193,6 @@ pub(crate) struct Running {
     seen: Sender<Motion>,
     /// The medium's start (its clock).
     medium: Instant,
-    /// Since when the plant's time stands still ([`Operate::Hold`]).
-    held: Option<Instant>,
-    /// The time held so far: the carriages' clock is the medium's less this.
-    lost: Duration,
 }
 
 /// How long the plant waits at most for the next message before it looks at what the
@@ -227,17 +217,12 @@ impl Running {
             operate,
             seen,
             medium,
-            held: None,
-            lost: Duration::ZERO,
         }
     }
 
-    /// The carriages' time at `t`, in milliseconds: the medium's clock less the time the
-    /// plant was held, standing still while it is.
+    /// Milliseconds on the medium's clock (the carriages' time).
     fn ms(&self, t: Instant) -> u64 {
-        let t = self.held.map_or(t, |h| t.min(h));
-        let since = t.saturating_duration_since(self.medium);
-        since.saturating_sub(self.lost).as_millis() as u64
+        t.saturating_duration_since(self.medium).as_millis() as u64
     }
 
     /// The levels of every sensor and input for where the carriages stand (sent at attach
@@ -272,12 +257,7 @@ impl Running {
     /// When the next motion or release is due; the plant looks at the operator's
     /// requests at least every [`OPERATOR_POLL`].
     pub(crate) fn wake(&self) -> Instant {
-        let arrivals = self
-            .arrival
-            .iter()
-            .flatten()
-            .filter(|_| self.held.is_none());
-        (arrivals.copied())
+        (self.arrival.iter().flatten().copied())
             .chain(self.releases.iter().map(|r| r.0))
             .chain([Instant::now() + OPERATOR_POLL])
             .min()
@@ -323,13 +303,8 @@ impl Running {
             if c.run == run {
                 continue;
             }
-            // From when the medium saw the output change (on the carriages' clock).
-            let seen_at = self.medium + Duration::from_micros(at_us);
-            let held = self.held.map_or(seen_at, |h| seen_at.min(h));
-            let since = held.saturating_duration_since(self.medium);
-            let change = m
-                .model
-                .change(c, run, since.saturating_sub(self.lost).as_millis() as u64);
+            // From when the medium saw the output change (its clock is the carriages').
+            let change = m.model.change(c, run, at_us / 1000);
             let at_um = c.at_um;
             let _ = self.seen.send(Motion::Run {
                 motor: i,
@@ -344,10 +319,9 @@ impl Running {
                 None => {}
             }
             if let Some(a) = self.arrival.get_mut(i) {
-                // Back on the medium's clock (moved on by the rest of a hold, if held).
                 *a = change
                     .arrive_ms
-                    .map(|ms| self.medium + self.lost + Duration::from_millis(ms));
+                    .map(|ms| self.medium + Duration::from_millis(ms));
             }
         }
         Ok(())
@@ -358,7 +332,7 @@ impl Running {
         let now = Instant::now();
         for i in 0..self.plant.motors.len() {
             let due = self.arrival.get(i).copied().flatten();
-            if self.held.is_some() || due.is_none_or(|d| d > now) {
+            if due.is_none_or(|d| d > now) {
                 continue;
             }
             if let Some(a) = self.arrival.get_mut(i) {
@@ -382,18 +356,6 @@ impl Running {
         while let Ok(op) = self.operate.try_recv() {
             match op {
                 Operate::Set(input, level) => self.drive(conn, input, level)?,
-                Operate::Hold(true) => {
-                    self.held.get_or_insert_with(Instant::now);
-                }
-                Operate::Hold(false) => {
-                    if let Some(since) = self.held.take() {
-                        let held = since.elapsed();
-                        self.lost += held;
-                        for a in self.arrival.iter_mut().flatten() {
-                            *a += held;
-                        }
-                    }
-                }
                 Operate::Press(input) => {
                     let hold = (self.plant.inputs.get(input)).and_then(|i| i.press_ms);
                     self.drive(conn, input, true)?;
@@ -432,61 +394,6 @@ mod tests {
         let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
             .join("../robot-configs/waterjet-transport.ron");
         crate::demo::load(&path).expect("compiles")
-    }
-
-    /// A held plant stands still: a motor stopped while held stops where its carriage
-    /// stood when the hold began, whatever the medium's clock says of the stop, and an
-    /// arrival due comes later by exactly the time held. (Issue: the demo read the
-    /// nodes' places while the pusher ran on; a reading slowed by a lossy radio outlasted
-    /// the stroke and saw the next cycle's places.)
-    #[test]
-    fn a_held_plant_stands_still_and_its_arrivals_wait_for_it() {
-        use config_schema::wire::medium::Peer;
-        let medium = medium::Medium::start(medium::Config::default()).expect("medium");
-        let mut conn = Conn::join(medium.addr(), Peer::Plant).expect("joins");
-        let (operate_tx, operate) = std::sync::mpsc::channel();
-        let (seen, motions) = std::sync::mpsc::channel();
-        // The medium started a second ago: its clock is at 1000 ms.
-        let start = Instant::now() - Duration::from_secs(1);
-        let mut plant = Running::new(motors(&waterjet()).expect("wired"), operate, seen, start);
-        let (addr, cw) = (plant.plant.motors[0].addr, plant.plant.motors[0].cw);
-        // Clockwise from 0 ms: 400 mm at 200 mm/s, at the end at 2000 ms.
-        plant.output(&mut conn, addr, cw, true, 0).expect("sent");
-        assert_eq!(plant.arrival[0], Some(start + Duration::from_millis(2000)));
-        operate_tx.send(Operate::Hold(true)).expect("sends");
-        plant.tick(&mut conn).expect("ticks");
-        let held = plant.held.expect("held");
-        assert!(
-            plant.wake() <= Instant::now() + OPERATOR_POLL,
-            "no arrival while held"
-        );
-        // Stopped at 1.5 s on the medium's clock, after the hold began: where it stood then.
-        plant
-            .output(&mut conn, addr, cw, false, 1_500_000)
-            .expect("sent");
-        let stood_um = (held - start).as_millis() as u64 * 200;
-        let stopped = motions.try_iter().last().expect("the stop");
-        assert!(
-            matches!(stopped, Motion::Run { run: Run::Stopped, at_um, .. } if at_um == stood_um),
-            "{stopped:?}: stood at {stood_um} um"
-        );
-        // Off again, and clockwise once more: the arrival is on the carriages' clock, moved
-        // on by the time held.
-        operate_tx.send(Operate::Hold(false)).expect("sends");
-        plant.tick(&mut conn).expect("ticks");
-        let lost = plant.lost;
-        assert!(plant.held.is_none() && lost > Duration::ZERO);
-        let now_us = (Instant::now() - start).as_micros() as u64;
-        plant
-            .output(&mut conn, addr, cw, true, now_us)
-            .expect("sent");
-        let plant_ms = Duration::from_micros(now_us)
-            .saturating_sub(lost)
-            .as_millis() as u64;
-        let travel_ms = (400_000 - stood_um).div_ceil(200);
-        let due = start + lost + Duration::from_millis(plant_ms + travel_ms);
-        assert_eq!(plant.arrival[0], Some(due));
-        medium.stop();
     }
 
     /// The water-jet transport's plants, by address and pin: the pusher's motor on the

@@ -296,22 +296,8 @@ impl Live<'_> {
     }
 
     /// The functions' places from the nodes' statuses, asked until they are `want` (a
-    /// status arriving is the event) or the bed's timeout passed: the last seen. The plant
-    /// stands still while they are read ([`Operate::Hold`]), as `sim` reads them in
-    /// virtual time: after START the pusher is under way, and a reading slowed by the
-    /// lossy radio (each status a round trip, retried) must not outlast its stroke.
+    /// status arriving is the event) or the bed's timeout passed: the last seen.
     fn functions(
-        &self,
-        bed: &mut Bed,
-        want: &[(String, String)],
-    ) -> Result<Vec<(String, String)>, NetError> {
-        self.send(Operate::Hold(true))?;
-        let read = self.read_functions(bed, want);
-        self.send(Operate::Hold(false))?;
-        read
-    }
-
-    fn read_functions(
         &self,
         bed: &mut Bed,
         want: &[(String, String)],
