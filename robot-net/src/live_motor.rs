@@ -150,6 +150,14 @@ pub enum Operate {
     Set(usize, bool),
     /// A button pressed (high now, low its press time later).
     Press(usize),
+    /// The plant's time stands still `after_ms` after motor `motor` next sets off (on the
+    /// carriages' clock, however late the plant looks): the carriages stay where they
+    /// are and none arrives; the nodes, the radio and the operator's inputs go on. Said
+    /// by [`Motion::Held`]. The demo holds it where `sim` reads a step's places, half the
+    /// stroke after START: a reading slowed by a lossy radio does not race the motion.
+    HoldAfter { motor: usize, after_ms: u64 },
+    /// The plant's time goes on from where it stood (or an armed hold is dropped).
+    Go,
 }
 
 /// What the live motors did, stamped with the medium's clock.
@@ -175,6 +183,78 @@ pub enum Motion {
         level: bool,
         at: Duration,
     },
+    /// The plant's time stands still ([`Operate::HoldAfter`]) from `at` on, motor
+    /// `motor`'s carriage `at_um` from home.
+    Held {
+        motor: usize,
+        at_um: u64,
+        at: Duration,
+    },
+}
+
+/// A hold of the plant's time ([`Operate::HoldAfter`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Hold {
+    /// At motor `motor`'s next start, `after_ms` later.
+    Armed { motor: usize, after_ms: u64 },
+    /// From `from` on the medium's clock; `said` once [`Motion::Held`] went out.
+    From {
+        motor: usize,
+        from: Instant,
+        said: bool,
+    },
+}
+
+/// The carriages' clock: the medium's, standing still while the plant is held.
+#[derive(Debug, Clone, Copy)]
+struct PlantClock {
+    /// The medium's start.
+    medium: Instant,
+    /// The time the plant stood still so far.
+    lost: Duration,
+    hold: Option<Hold>,
+    /// When it last went on after standing still: a change the medium saw while it stood
+    /// (and this process heard later) happened where it stood.
+    went_on: Instant,
+}
+
+impl PlantClock {
+    /// The carriages' time at `t` on the medium's clock, in milliseconds.
+    fn ms(&self, t: Instant) -> u64 {
+        let t = t.max(self.went_on);
+        let t = match self.hold {
+            Some(Hold::From { from, .. }) => t.min(from),
+            _ => t,
+        };
+        let since = t.saturating_duration_since(self.medium);
+        since.saturating_sub(self.lost).as_millis() as u64
+    }
+
+    /// When the carriages' clock reads `ms`, on the medium's clock (were it not held).
+    fn instant(&self, ms: u64) -> Instant {
+        self.medium + self.lost + Duration::from_millis(ms)
+    }
+
+    /// When the carriages' clock reads `ms`, if the plant's time gets there before a
+    /// hold stops it.
+    fn reaches(&self, ms: u64) -> Option<Instant> {
+        let t = self.instant(ms);
+        match self.hold {
+            Some(Hold::From { from, .. }) if t > from => None,
+            _ => Some(t),
+        }
+    }
+
+    /// The plant's time goes on at `now`: the time it stood still is lost.
+    fn go(&mut self, now: Instant) {
+        if let Some(Hold::From { from, .. }) = self.hold {
+            if now > from {
+                self.lost += now - from;
+                self.went_on = now;
+            }
+        }
+        self.hold = None;
+    }
 }
 
 /// The live motors while the plant runs.
@@ -183,16 +263,15 @@ pub(crate) struct Running {
     carriages: Vec<Carriage>,
     /// Each motor's cw / ccw output levels.
     commanded: Vec<(bool, bool)>,
-    /// When each running motor arrives.
-    arrival: Vec<Option<Instant>>,
+    /// When each running motor arrives, on the carriages' clock (ms).
+    arrival: Vec<Option<u64>>,
     /// Each input's level.
     levels: Vec<bool>,
     /// Button releases due.
     releases: Vec<(Instant, usize)>,
     operate: Receiver<Operate>,
     seen: Sender<Motion>,
-    /// The medium's start (its clock).
-    medium: Instant,
+    clock: PlantClock,
 }
 
 /// How long the plant waits at most for the next message before it looks at what the
@@ -216,13 +295,13 @@ impl Running {
             plant,
             operate,
             seen,
-            medium,
+            clock: PlantClock {
+                medium,
+                lost: Duration::ZERO,
+                hold: None,
+                went_on: medium,
+            },
         }
-    }
-
-    /// Milliseconds on the medium's clock (the carriages' time).
-    fn ms(&self, t: Instant) -> u64 {
-        t.saturating_duration_since(self.medium).as_millis() as u64
     }
 
     /// The levels of every sensor and input for where the carriages stand (sent at attach
@@ -254,10 +333,18 @@ impl Running {
         Ok(())
     }
 
-    /// When the next motion or release is due; the plant looks at the operator's
+    /// When the next motion, hold or release is due; the plant looks at the operator's
     /// requests at least every [`OPERATOR_POLL`].
     pub(crate) fn wake(&self) -> Instant {
-        (self.arrival.iter().flatten().copied())
+        let hold = match self.clock.hold {
+            Some(Hold::From {
+                from, said: false, ..
+            }) => Some(from),
+            _ => None,
+        };
+        (self.arrival.iter().flatten())
+            .filter_map(|&ms| self.clock.reaches(ms))
+            .chain(hold)
             .chain(self.releases.iter().map(|r| r.0))
             .chain([Instant::now() + OPERATOR_POLL])
             .min()
@@ -265,7 +352,7 @@ impl Running {
     }
 
     fn now(&self) -> Duration {
-        self.medium.elapsed()
+        self.clock.medium.elapsed()
     }
 
     fn sensors(conn: &mut Conn, sensors: &[(u16, u8)], level: bool) -> io::Result<()> {
@@ -284,6 +371,9 @@ impl Running {
         level: bool,
         at_us: u64,
     ) -> io::Result<()> {
+        // The operator's requests first: a hold asked for before this change (before
+        // START) is armed for it, however late this process got round to either.
+        self.requests(conn)?;
         for i in 0..self.plant.motors.len() {
             let (Some(m), Some(cmd)) = (self.plant.motors.get(i), self.commanded.get_mut(i)) else {
                 continue;
@@ -303,9 +393,20 @@ impl Running {
             if c.run == run {
                 continue;
             }
-            // From when the medium saw the output change (its clock is the carriages').
-            let change = m.model.change(c, run, at_us / 1000);
+            // From when the medium saw the output change, on the carriages' clock.
+            let now_ms = (self.clock).ms(self.clock.medium + Duration::from_micros(at_us));
+            let change = m.model.change(c, run, now_ms);
             let at_um = c.at_um;
+            match self.clock.hold {
+                Some(Hold::Armed { motor, after_ms }) if motor == i && run != Run::Stopped => {
+                    self.clock.hold = Some(Hold::From {
+                        motor,
+                        from: self.clock.instant(now_ms.saturating_add(after_ms)),
+                        said: false,
+                    });
+                }
+                _ => {}
+            }
             let _ = self.seen.send(Motion::Run {
                 motor: i,
                 addr,
@@ -319,9 +420,7 @@ impl Running {
                 None => {}
             }
             if let Some(a) = self.arrival.get_mut(i) {
-                *a = change
-                    .arrive_ms
-                    .map(|ms| self.medium + Duration::from_millis(ms));
+                *a = change.arrive_ms;
             }
         }
         Ok(())
@@ -330,15 +429,15 @@ impl Running {
     /// Runs the arrivals, the button releases and the operator's requests that are due.
     pub(crate) fn tick(&mut self, conn: &mut Conn) -> io::Result<()> {
         let now = Instant::now();
+        let now_ms = self.clock.ms(now);
         for i in 0..self.plant.motors.len() {
             let due = self.arrival.get(i).copied().flatten();
-            if due.is_none_or(|d| d > now) {
+            if due.is_none_or(|d| d > now_ms) {
                 continue;
             }
             if let Some(a) = self.arrival.get_mut(i) {
                 *a = None;
             }
-            let now_ms = self.ms(now);
             let (Some(m), Some(c)) = (self.plant.motors.get(i), self.carriages.get_mut(i)) else {
                 continue;
             };
@@ -348,14 +447,25 @@ impl Running {
                 let _ = self.seen.send(Motion::Arrived { motor: i, end, at });
             }
         }
+        self.say_held(now);
         let (due, later): (Vec<_>, Vec<_>) = self.releases.drain(..).partition(|r| r.0 <= now);
         self.releases = later;
         for (_, input) in due {
             self.drive(conn, input, false)?;
         }
+        self.requests(conn)
+    }
+
+    /// What the operator asked for since the plant last looked.
+    fn requests(&mut self, conn: &mut Conn) -> io::Result<()> {
         while let Ok(op) = self.operate.try_recv() {
             match op {
                 Operate::Set(input, level) => self.drive(conn, input, level)?,
+                Operate::HoldAfter { motor, after_ms } => {
+                    self.clock.go(Instant::now());
+                    self.clock.hold = Some(Hold::Armed { motor, after_ms });
+                }
+                Operate::Go => self.clock.go(Instant::now()),
                 Operate::Press(input) => {
                     let hold = (self.plant.inputs.get(input)).and_then(|i| i.press_ms);
                     self.drive(conn, input, true)?;
@@ -367,6 +477,31 @@ impl Running {
             }
         }
         Ok(())
+    }
+
+    /// [`Motion::Held`] once the plant's time stands still.
+    fn say_held(&mut self, now: Instant) {
+        let Some(Hold::From {
+            motor,
+            from,
+            said: false,
+        }) = self.clock.hold
+        else {
+            return;
+        };
+        if from > now {
+            return;
+        }
+        self.clock.hold = Some(Hold::From {
+            motor,
+            from,
+            said: true,
+        });
+        let at_ms = self.clock.ms(from);
+        let at_um = (self.plant.motors.get(motor).zip(self.carriages.get(motor)))
+            .map_or(0, |(m, c)| m.model.position_um(c, at_ms));
+        let at = from.saturating_duration_since(self.clock.medium);
+        let _ = self.seen.send(Motion::Held { motor, at_um, at });
     }
 
     fn drive(&mut self, conn: &mut Conn, input: usize, level: bool) -> io::Result<()> {
@@ -394,6 +529,83 @@ mod tests {
         let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
             .join("../robot-configs/waterjet-transport.ron");
         crate::demo::load(&path).expect("compiles")
+    }
+
+    /// A plant held half the stroke after its motor sets off stands still there however
+    /// late it looks (here 20 s after the medium started): no arrival, the carriage where
+    /// it was at the hold, a change while it stands (heard then or later) finds it there;
+    /// then it goes on from that place and time. (The demo read the places after START while the pusher ran
+    /// on: under load the reading outlasted the 2 s stroke and saw the next cycle's.)
+    #[test]
+    fn a_held_plant_stands_still_mid_stroke_and_goes_on_from_there() {
+        use config_schema::wire::medium::Peer;
+        let medium = medium::Medium::start(medium::Config::default()).expect("medium");
+        let mut conn = Conn::join(medium.addr(), Peer::Plant).expect("joins");
+        let (operate, operated) = std::sync::mpsc::channel();
+        let (seen, motions) = std::sync::mpsc::channel();
+        let start = Instant::now() - Duration::from_secs(20);
+        let mut plant = Running::new(motors(&waterjet()).expect("wired"), operated, seen, start);
+        let (addr, cw) = (plant.plant.motors[0].addr, plant.plant.motors[0].cw);
+        operate
+            .send(Operate::HoldAfter {
+                motor: 0,
+                after_ms: 1000,
+            })
+            .expect("sends");
+        // Clockwise at 1 s (heard before the plant looked at the request): 400 mm at
+        // 200 mm/s, at its end at 3 s were it not held at 2 s.
+        plant
+            .output(&mut conn, addr, cw, true, 1_000_000)
+            .expect("sent");
+        assert_eq!(plant.arrival[0], Some(3000));
+        plant.tick(&mut conn).expect("ticks");
+        let at = |s: u64| Duration::from_secs(s);
+        let run = |run, at_um, t| Motion::Run {
+            motor: 0,
+            addr,
+            run,
+            at_um,
+            at: t,
+        };
+        let held = Motion::Held {
+            motor: 0,
+            at_um: 200_000,
+            at: at(2),
+        };
+        assert_eq!(
+            motions.try_iter().collect::<Vec<_>>(),
+            [run(Run::Clockwise, 0, at(1)), held]
+        );
+        assert_eq!(plant.arrival[0], Some(3000), "no arrival while held");
+        // Stopped at 9 s (by the fault): where it stood when the hold began.
+        plant
+            .output(&mut conn, addr, cw, false, 9_000_000)
+            .expect("sent");
+        assert_eq!(
+            motions.try_iter().collect::<Vec<_>>(),
+            [run(Run::Stopped, 200_000, at(9))]
+        );
+        // It goes on at 15 s; clockwise again at 14 s, heard after it went on: from 200 mm
+        // and 2 s on the carriages' clock, at its end 1 s after it went on.
+        plant.clock.go(start + at(15));
+        plant
+            .output(&mut conn, addr, cw, true, 14_000_000)
+            .expect("sent");
+        assert_eq!(
+            motions.try_iter().collect::<Vec<_>>(),
+            [run(Run::Clockwise, 200_000, at(14))]
+        );
+        assert_eq!(plant.arrival[0], Some(3000));
+        assert_eq!(plant.clock.reaches(3000), Some(start + at(16)));
+        plant.tick(&mut conn).expect("ticks");
+        let arrived: Vec<_> = (motions.try_iter())
+            .map(|m| match m {
+                Motion::Arrived { motor, end, .. } => Some((motor, end)),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(arrived, [Some((0, true))]);
+        medium.stop();
     }
 
     /// The water-jet transport's plants, by address and pin: the pusher's motor on the

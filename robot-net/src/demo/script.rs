@@ -7,7 +7,7 @@
 use std::fmt;
 
 use config_schema::alarm::{AlarmLevel, AlarmSource};
-use node_fw::sim::{Plant, Run, TraceEntry, What, World};
+use node_fw::sim::{Motor, Plant, Run, TraceEntry, What, World};
 use robot_analysis::sim;
 use robot_compiler::Compiled;
 
@@ -149,6 +149,21 @@ fn moved(trace: &[TraceEntry], motor: usize) -> Vec<Moved> {
         .collect()
 }
 
+/// Where START's step ends and its places are read: half the stroke of `motor` (it is
+/// under way), in milliseconds.
+pub(crate) fn half_stroke_ms(motor: &Motor) -> u64 {
+    u64::from(motor.stroke_mm) * 1000 / u64::from(motor.speed_mm_s.max(1)) / 2
+}
+
+/// Whether `step` leaves the motor under way (its last motion sets it off): its places
+/// are read while it moves.
+pub(crate) fn under_way(step: &Expected) -> bool {
+    matches!(
+        step.moved.last(),
+        Some(Moved::Run(Run::Clockwise | Run::CounterClockwise))
+    )
+}
+
 /// `script` on `c` in `sim`: what each step does.
 pub fn simulate(c: &Compiled, script: &[Act]) -> Result<Vec<Expected>, NetError> {
     let err = |e: &dyn fmt::Display| NetError::Robot(format!("sim: {e}"));
@@ -156,9 +171,8 @@ pub fn simulate(c: &Compiled, script: &[Act]) -> Result<Vec<Expected>, NetError>
     let (mut world, start) = sim::world(c, &tables).map_err(|e| err(&e))?;
     let (motor, fault) = script_plants(world.plants())?;
     let cabinet = c.ir.start.as_ref().map_or(0, |s| s.0);
-    // Half the stroke: the motor is under way when START's step ends.
     let half_ms = match world.plants().get(motor) {
-        Some(Plant::Motor(m)) => u64::from(m.stroke_mm) * 1000 / u64::from(m.speed_mm_s.max(1)) / 2,
+        Some(Plant::Motor(m)) => half_stroke_ms(m),
         _ => 0,
     };
     let settle = |world: &mut World| world.run_until_idle(60_000).map(|_| ());

@@ -40,6 +40,7 @@ pub fn run(c: &Compiled, options: bed::Options, out: &mut dyn Write) -> Result<V
         seen,
         pending: Vec::new(),
         last_input: None,
+        held: false,
     };
     let mut verdict = Verdict::Matched;
     for (i, want) in expected.iter().enumerate() {
@@ -159,6 +160,8 @@ struct Live<'a> {
     pending: Vec<Motion>,
     /// When the operator last drove an input (the medium's clock).
     last_input: Option<Duration>,
+    /// The plant said its time stands still ([`Motion::Held`]).
+    held: bool,
 }
 
 impl Live<'_> {
@@ -182,6 +185,12 @@ impl Live<'_> {
     ) -> Result<bool, NetError> {
         let (motor, fault) = script::names(self.c)?;
         let mut alarms: Vec<AlarmSeen> = Vec::new();
+        // The plant's time goes on from where the last step's places were read.
+        self.send(Operate::Go)?;
+        let hold = script::under_way(want);
+        if hold {
+            self.hold_mid_stroke(&motor)?;
+        }
         match &want.act {
             Act::Start => {
                 bed.press_start(self.c)?;
@@ -199,6 +208,9 @@ impl Live<'_> {
             }
         }
         let moved = self.moved(bed, want.moved.len())?;
+        if hold && moved.len() == want.moved.len() {
+            self.wait_held(bed);
+        }
         let stop = match (&want.act, moved.first()) {
             (Act::Fault(true), Some(&(_, addr, at, at_um))) => {
                 Some(self.stop_line(addr, at, at_um, &fault))
@@ -242,7 +254,7 @@ impl Live<'_> {
                         ..
                     } => got.push((Moved::Run(run), addr, at, at_um)),
                     Motion::Arrived { end, at, .. } => got.push((Moved::Arrived(end), 0, at, 0)),
-                    Motion::Input { .. } => {}
+                    Motion::Input { .. } | Motion::Held { .. } => {}
                 }
             }
             if got.len() >= n {
@@ -259,10 +271,40 @@ impl Live<'_> {
         }
     }
 
-    /// Keeps the time of the operator's last input change (the fault's).
+    /// Keeps the time of the operator's last input change (the fault's) and whether the
+    /// plant's time stands still.
     fn note(&mut self, m: &Motion) {
-        if let Motion::Input { at, .. } = m {
-            self.last_input = Some(*at);
+        match m {
+            Motion::Input { at, .. } => self.last_input = Some(*at),
+            Motion::Held { .. } => self.held = true,
+            _ => {}
+        }
+    }
+
+    /// A step that leaves the motor under way has its places read, as `sim` reads them,
+    /// half the stroke after it sets off: the plant's time stands still there until the
+    /// next step ([`Operate::HoldAfter`]), so a reading slowed by the lossy radio (each
+    /// status a round trip, retried) cannot outlast the motion and see the next one's.
+    fn hold_mid_stroke(&mut self, motor: &str) -> Result<(), NetError> {
+        let i = (self.motors.motor(motor))
+            .ok_or_else(|| NetError::Robot(format!("fig. 9 needs a declared motor {motor}")))?;
+        let after_ms = (self.motors.motors.get(i)).map_or(0, |m| script::half_stroke_ms(&m.model));
+        self.held = false;
+        self.send(Operate::HoldAfter { motor: i, after_ms })
+    }
+
+    /// Waits (at most the bed's timeout) for the plant to say its time stands still.
+    fn wait_held(&mut self, bed: &Bed) {
+        let end = Instant::now() + bed.timeout();
+        while !self.held {
+            let left = end.saturating_duration_since(Instant::now());
+            match self.seen.recv_timeout(left) {
+                Ok(m) => {
+                    self.note(&m);
+                    self.pending.push(m);
+                }
+                Err(_) => break,
+            }
         }
     }
 
