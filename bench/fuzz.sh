@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# Coverage-guided fuzzing (cargo-fuzz, libFuzzer; on nightly) of everything read from
+# outside: `table` (a table payload as a node decodes and validates it, its round trip and
+# the engine run over it), `node_frames` (frames from the air into a running node's core and
+# into an unconfigured node that stages and activates what it is sent), `wire` (every wire
+# reader: MAC frames, messages, the link's fast reader held to the codec, the medium's
+# deframer, security, key blocks, deployment slots) and `robot_ron` (a robot file through
+# `compile`). Seeds: every robot in robot-configs/ and bench/robots/, compiled to tables
+# for `table`. A failure is a bug found: libFuzzer prints the input it saved under
+# fuzz/artifacts/TARGET/; make it a test beside the code it breaks, then fix.
+#
+#   bench/fuzz.sh                       # every target 60 s
+#   FUZZ_SECONDS=600 bench/fuzz.sh table node_frames
+#
+# Needs: rustup toolchain install nightly; cargo install cargo-fuzz.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+each=${FUZZ_SECONDS:-60}
+if ! command -v cargo-fuzz >/dev/null; then
+    echo "fuzz: cargo-fuzz is not installed (cargo install cargo-fuzz; nightly Rust)" >&2
+    exit 1
+fi
+if [ $# -eq 0 ]; then
+    set -- table node_frames wire robot_ron
+fi
+
+# Seeds: the robots, and each role's table payload (the blob without its 8-byte header
+# and 4-byte CRC trailer).
+mkdir -p fuzz/corpus/robot_ron fuzz/corpus/table
+cp robot-configs/*.ron bench/robots/*.ron fuzz/corpus/robot_ron/
+cargo build -q -p config-tool
+blobs=$(mktemp -d)
+trap 'rm -rf "$blobs"' EXIT
+for robot in robot-configs/*.ron; do
+    name=$(basename "$robot" .ron)
+    target/debug/config-tool compile --out "$blobs/$name" "$robot" >/dev/null 2>&1
+    for blob in "$blobs/$name"/*.bin; do
+        tail -c +9 "$blob" | head -c -4 >"fuzz/corpus/table/$name-$(basename "$blob")"
+    done
+done
+
+for target in "$@"; do
+    echo "fuzz: $target for ${each} s"
+    (cd fuzz && cargo +nightly fuzz run "$target" -- \
+        -max_total_time="$each" -timeout=10 -rss_limit_mb=4096 -print_final_stats=1 2>&1) |
+        grep -E '^(stat::number_of_executed_units|stat::peak_rss_mb)|ERROR|SUMMARY|panicked' || true
+    if [ -n "$(ls -A "fuzz/artifacts/$target" 2>/dev/null)" ]; then
+        echo "fuzz: $target FAILED: fuzz/artifacts/$target/ holds the input" >&2
+        exit 1
+    fi
+done
+echo "fuzz: no failure"
