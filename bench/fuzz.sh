@@ -4,8 +4,9 @@
 # the engine run over it), `node_frames` (frames from the air into a running node's core and
 # into an unconfigured node that stages and activates what it is sent), `wire` (every wire
 # reader: MAC frames, messages, the link's fast reader held to the codec, the medium's
-# deframer, security, key blocks, deployment slots) and `robot_ron` (a robot file through
-# `compile`). Seeds: every robot in robot-configs/ and bench/robots/, compiled to tables
+# deframer, security, key blocks, deployment slots), `robot_ron` (a robot file through
+# `compile`) and `iec61499_xml` (each XML reader, and the 4diac paint robot compiled with
+# its VC type or its application replaced by the text). Seeds: every robot in robot-configs/ and bench/robots/, compiled to tables
 # for `table`. A failure is a bug found: libFuzzer prints the input it saved under
 # fuzz/artifacts/TARGET/; make it a test beside the code it breaks, then fix.
 #
@@ -22,13 +23,21 @@ if ! command -v cargo-fuzz >/dev/null; then
     exit 1
 fi
 if [ $# -eq 0 ]; then
-    set -- table node_frames wire robot_ron
+    set -- table node_frames wire robot_ron iec61499_xml
 fi
 
 # Seeds: the robots, and each role's table payload (the blob without its 8-byte header
 # and 4-byte CRC trailer).
-mkdir -p fuzz/corpus/robot_ron fuzz/corpus/table
+mkdir -p fuzz/corpus/robot_ron fuzz/corpus/table fuzz/corpus/iec61499_xml
 cp robot-configs/*.ron bench/robots/*.ron fuzz/corpus/robot_ron/
+# The XML target's first byte says which file the text replaces (even: the VC type, odd:
+# the application).
+for xml in robot-compiler/types/iec61499/*.fbt robot-configs/4diac/*/*.fbt tests/fixtures/4diac/*/*.fbt; do
+    { printf '\000'; cat "$xml"; } >"fuzz/corpus/iec61499_xml/$(basename "$(dirname "$xml")")-$(basename "$xml")"
+done
+for xml in robot-configs/4diac/*/*.sys tests/fixtures/4diac/*/*.sys; do
+    { printf '\001'; cat "$xml"; } >"fuzz/corpus/iec61499_xml/$(basename "$(dirname "$xml")")-$(basename "$xml")"
+done
 cargo build -q -p config-tool
 blobs=$(mktemp -d)
 trap 'rm -rf "$blobs"' EXIT
