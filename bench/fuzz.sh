@@ -49,6 +49,33 @@ for robot in robot-configs/*.ron; do
     done
 done
 
+# `node_frames`: the frames a push and a cycle put on the air for the paint robot's VC node
+# (0x0011), from a demo's capture with security off (the fuzzed nodes hold no keys), as
+# two inputs: every frame to the unconfigured node, and every frame to the running one.
+sed 's/^    name: "paint-robot",/&\n    security: Off,/' robot-configs/paint-robot.ron >"$blobs/paint-robot.ron"
+target/debug/config-tool demo "$blobs/paint-robot.ron" --cycles 1 --no-reconfigure \
+    --pcap "$blobs/air.pcap" >/dev/null 2>&1
+mkdir -p fuzz/corpus/node_frames
+python3 - "$blobs/air.pcap" fuzz/corpus/node_frames/paint-robot <<'PY'
+import struct, sys
+pcap, out = sys.argv[1], sys.argv[2]
+b = open(pcap, "rb").read()
+e = "<" if b[:4] == b"\xd4\xc3\xb2\xa1" else ">"
+link = struct.unpack(e + "I", b[20:24])[0]
+fresh, running, at = bytearray(), bytearray(), 24
+while at + 16 <= len(b):
+    n = struct.unpack(e + "I", b[at + 8 : at + 12])[0]
+    frame, at = b[at + 16 : at + 16 + n], at + 16 + n
+    mpdu = frame[:-2] if link == 195 else frame  # 195: with its FCS
+    if 9 <= len(mpdu) <= 127 and struct.unpack("<H", mpdu[5:7])[0] in (0x0011, 0xFFFF):
+        # A frame to the node (`1`: the unconfigured one, `0`: the running one), then the
+        # clock on by 21 ms.
+        fresh += bytes([1, len(mpdu)]) + mpdu + bytes([2, 3])
+        running += bytes([0, len(mpdu)]) + mpdu + bytes([2, 3])
+open(out + "-fresh", "wb").write(fresh)
+open(out + "-running", "wb").write(running)
+PY
+
 for target in "$@"; do
     echo "fuzz: $target for ${each} s"
     (cd fuzz && cargo +nightly fuzz run "$target" -- \
