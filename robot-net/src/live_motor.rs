@@ -481,22 +481,14 @@ impl Running {
 
     /// [`Motion::Held`] once the plant's time stands still.
     fn say_held(&mut self, now: Instant) {
-        let Some(Hold::From {
-            motor,
-            from,
-            said: false,
-        }) = self.clock.hold
-        else {
+        let Some(Hold::From { motor, from, said }) = &mut self.clock.hold else {
             return;
         };
-        if from > now {
+        if *said || *from > now {
             return;
         }
-        self.clock.hold = Some(Hold::From {
-            motor,
-            from,
-            said: true,
-        });
+        *said = true;
+        let (motor, from) = (*motor, *from);
         let at_ms = self.clock.ms(from);
         let at_um = (self.plant.motors.get(motor).zip(self.carriages.get(motor)))
             .map_or(0, |(m, c)| m.model.position_um(c, at_ms));
@@ -534,8 +526,9 @@ mod tests {
     /// A plant held half the stroke after its motor sets off stands still there however
     /// late it looks (here 20 s after the medium started): no arrival, the carriage where
     /// it was at the hold, a change while it stands (heard then or later) finds it there;
-    /// then it goes on from that place and time. (The demo read the places after START while the pusher ran
-    /// on: under load the reading outlasted the 2 s stroke and saw the next cycle's.)
+    /// then it goes on from that place and time. (The demo read the places after START
+    /// while the pusher ran on: under load the reading outlasted the 2 s stroke and saw
+    /// the next cycle's.)
     #[test]
     fn a_held_plant_stands_still_mid_stroke_and_goes_on_from_there() {
         use config_schema::wire::medium::Peer;

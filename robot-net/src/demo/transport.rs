@@ -257,17 +257,23 @@ impl Live<'_> {
                     Motion::Input { .. } | Motion::Held { .. } => {}
                 }
             }
-            if got.len() >= n {
+            if got.len() >= n || !self.take_motion(end) {
                 return Ok(got);
             }
-            let left = end.saturating_duration_since(Instant::now());
-            match self.seen.recv_timeout(left) {
-                Ok(m) => {
-                    self.note(&m);
-                    self.pending.push(m);
-                }
-                Err(_) => return Ok(got),
+        }
+    }
+
+    /// Takes the plant's next motion into `pending` (noted), waiting until `end`; `false`
+    /// once `end` passed without one.
+    fn take_motion(&mut self, end: Instant) -> bool {
+        let left = end.saturating_duration_since(Instant::now());
+        match self.seen.recv_timeout(left) {
+            Ok(m) => {
+                self.note(&m);
+                self.pending.push(m);
+                true
             }
+            Err(_) => false,
         }
     }
 
@@ -296,16 +302,7 @@ impl Live<'_> {
     /// Waits (at most the bed's timeout) for the plant to say its time stands still.
     fn wait_held(&mut self, bed: &Bed) {
         let end = Instant::now() + bed.timeout();
-        while !self.held {
-            let left = end.saturating_duration_since(Instant::now());
-            match self.seen.recv_timeout(left) {
-                Ok(m) => {
-                    self.note(&m);
-                    self.pending.push(m);
-                }
-                Err(_) => break,
-            }
-        }
+        while !self.held && self.take_motion(end) {}
     }
 
     /// Which node stopped the motor, how long after the fault contact closed, where.
