@@ -182,7 +182,8 @@ pub enum Command {
     /// The whole machine on this host: medium, unconfigured nodes, plant; push, run the
     /// cycles, check them, then push a reconfiguration to the running nodes.
     Demo(DemoArgs),
-    /// Run one emulated node: QEMU booting the firmware image, its UART on the medium.
+    /// Run one emulated node: QEMU booting the firmware image, its UART on the medium; it
+    /// ends when the medium closes the connection, as a host node does.
     QemuNode(QemuNodeArgs),
     /// Run a medium whose frames also go to the air, through an nRF52840 gateway on a
     /// serial port (`nrf52840` image built with `--features gateway`): `push`, `scan`,
@@ -590,7 +591,8 @@ pub struct QemuNodeArgs {
     #[arg(long, value_name = "DIR")]
     pub count: Option<PathBuf>,
     /// End (killed) when the process that started it ends, however that ends (Linux): how
-    /// `demo` runs its nodes, so that none outlives an interrupted demo.
+    /// `demo` runs its nodes, so that none outlives an interrupted demo. The process is
+    /// then QEMU itself (exec), and its parent ends it: it does not watch the medium.
     #[arg(long)]
     pub end_with_parent: bool,
 }

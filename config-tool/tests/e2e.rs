@@ -10,6 +10,7 @@
 //!
 //! OTA faults are in `e2e_ota.rs`.
 
+mod cli_support;
 mod e2e_support;
 
 use config_schema::wire::mac::{self, Header, MAX_PSDU};
@@ -657,4 +658,18 @@ fn after_a_flood_the_real_nodes_answer_take_a_push_and_run_at_once() {
     assert_running(&mut bed, &next);
     exact_cycle(&mut bed, &next, 1);
     bed.stop();
+}
+
+/// A host node started by hand ends when its medium stops, successfully (what a QEMU node
+/// started by hand does too: `e2e_qemu`).
+#[cfg(target_os = "linux")]
+#[test]
+fn a_host_node_started_by_hand_ends_when_its_medium_stops() {
+    let gone = cli_support::node_after_its_medium_stops(&["node", "--addr", "0x0031"]);
+    assert!(
+        gone.status.is_some_and(|s| s.success()),
+        "{:?}",
+        gone.status
+    );
+    assert_eq!(gone.left, 0);
 }

@@ -346,3 +346,27 @@ fn an_interrupted_qemu_demo_leaves_no_qemu_running() {
     ]);
     assert_eq!(ended, cli_support::Interrupted::cleanly());
 }
+
+/// A QEMU node started by hand (no `--end-with-parent`) ends when its medium stops, as a
+/// host node does, says why, and leaves no QEMU running. Found: it ran on for good, its
+/// UART talking to no one.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_qemu_node_started_by_hand_ends_when_its_medium_stops() {
+    let Some(elf) = qemu_image() else { return };
+    let elf = elf.to_str().expect("a text path").to_string();
+    let gone =
+        cli_support::node_after_its_medium_stops(&["qemu-node", "--addr", "0x0031", "--elf", &elf]);
+    assert!(
+        gone.status.is_some_and(|s| s.success()),
+        "{:?}",
+        gone.status
+    );
+    assert!(
+        gone.said
+            .contains("the medium closed the connection: the node stops"),
+        "{}",
+        gone.said
+    );
+    assert_eq!(gone.left, 0, "QEMU processes left running");
+}

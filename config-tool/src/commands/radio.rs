@@ -859,8 +859,11 @@ pub fn gateway(serial: &Path, baud: u32, listen: SocketAddr) -> Result<(), Failu
     }
 }
 
-/// `qemu-node`: becomes QEMU (exec), so whoever started this process stops the node by
-/// stopping it.
+/// `qemu-node`: QEMU running one node. With `--end-with-parent` it becomes QEMU (exec),
+/// which connects the node's UART to the medium: whoever started it ends the node by
+/// ending it. Started by hand (Linux), it stays QEMU's parent: it connects the UART itself
+/// and ends the node, and itself (successfully), when the medium closes that connection,
+/// as a host node does.
 pub fn qemu_node(a: QemuNodeArgs) -> Result<(), Failure> {
     demo::check_elf(&a.elf)?;
     let key = match &a.key {
@@ -870,42 +873,153 @@ pub fn qemu_node(a: QemuNodeArgs) -> Result<(), Failure> {
         ),
         None => None,
     };
-    // Kept open across the exec: QEMU reads the key from it at start-up.
+    // Kept open across the exec (or the spawn): QEMU reads the key from it at start-up.
     let key_fd = key.as_ref().map(key_memfd).transpose()?;
     let key_path = key_fd
         .as_ref()
         .map(|fd| std::path::PathBuf::from(format!("/proc/self/fd/{}", fd.as_raw_fd())));
-    let args = demo::qemu_args(
-        &a.elf,
-        a.addr,
-        key_path.as_deref(),
-        a.medium,
-        a.flash.as_deref(),
-        a.count.as_deref(),
-    )?;
+    let args = |uart| {
+        demo::qemu_args(
+            &a.elf,
+            a.addr,
+            key_path.as_deref(),
+            uart,
+            a.flash.as_deref(),
+            a.count.as_deref(),
+        )
+    };
+    #[cfg(target_os = "linux")]
+    if !a.end_with_parent {
+        return watched::run(&a, args);
+    }
     if a.end_with_parent {
         end_with_parent()?;
     }
     let mut cmd = std::process::Command::new(&a.qemu);
-    cmd.args(&args);
-    let failed = |e: io::Error| {
-        Failure::error(format!(
-            "cannot run {}: {e} (Debian: apt-get install qemu-system-arm)",
-            a.qemu.display()
-        ))
-    };
+    cmd.args(args(demo::Uart::Medium(a.medium))?);
     #[cfg(unix)]
     {
         use std::os::unix::process::CommandExt;
-        Err(failed(cmd.exec()))
+        Err(qemu_failed(&a.qemu, cmd.exec()))
     }
     #[cfg(not(unix))]
     {
-        let status = cmd.status().map_err(failed)?;
-        if status.success() {
-            Ok(())
-        } else {
-            Err(Failure::error(format!("qemu: {status}")))
+        let status = cmd.status().map_err(|e| qemu_failed(&a.qemu, e))?;
+        qemu_ended(status)
+    }
+}
+
+/// QEMU could not be started.
+fn qemu_failed(qemu: &Path, e: io::Error) -> Failure {
+    Failure::error(format!(
+        "cannot run {}: {e} (Debian: apt-get install qemu-system-arm)",
+        qemu.display()
+    ))
+}
+
+/// `qemu-node`'s result once QEMU ended on its own with `status`.
+fn qemu_ended(status: std::process::ExitStatus) -> Result<(), Failure> {
+    if status.success() {
+        Ok(())
+    } else {
+        Err(Failure::error(format!("qemu: {status}")))
+    }
+}
+
+/// A QEMU node started by hand: QEMU a child of this process, its UART a socket this
+/// process connected to the medium and keeps a handle of (never reading from it), so that
+/// it sees the medium close the connection.
+#[cfg(target_os = "linux")]
+mod watched {
+    use std::io;
+    use std::net::TcpStream;
+    use std::os::fd::AsRawFd;
+    use std::os::unix::process::CommandExt;
+    use std::process::{Child, Command};
+
+    use robot_net::demo::Uart;
+    use rustix::event::{poll, PollFd, PollFlags};
+    use rustix::io::{fcntl_setfd, Errno, FdFlags};
+    use rustix::process::{
+        getpid, getppid, pidfd_open, set_parent_process_death_signal, Pid, PidfdFlags, Signal,
+    };
+
+    use super::{qemu_ended, qemu_failed, Failure, QemuNodeArgs};
+    use crate::out::outln;
+
+    /// Starts QEMU with its UART on a connection to the medium, then waits for whichever
+    /// comes first: QEMU ending (its status is this command's), or the medium closing the
+    /// connection (QEMU is ended, and this command succeeds).
+    pub fn run(
+        a: &QemuNodeArgs,
+        args: impl Fn(Uart) -> Result<Vec<std::ffi::OsString>, robot_net::NetError>,
+    ) -> Result<(), Failure> {
+        let medium = TcpStream::connect(a.medium)
+            .map_err(|e| Failure::error(format!("cannot reach the medium at {}: {e}", a.medium)))?;
+        let uart = |e: io::Error| Failure::error(format!("the medium's connection: {e}"));
+        medium.set_nodelay(true).map_err(uart)?;
+        // Inherited by QEMU (the standard library opens it close-on-exec).
+        fcntl_setfd(&medium, FdFlags::empty()).map_err(|e| uart(e.into()))?;
+        let mut cmd = Command::new(&a.qemu);
+        cmd.args(args(Uart::Socket(medium.as_raw_fd()))?);
+        let parent = getpid();
+        // SAFETY: only system calls between the fork and the exec (no allocation, no lock).
+        unsafe {
+            cmd.pre_exec(move || {
+                // QEMU ends with this process, however this one ends.
+                set_parent_process_death_signal(Some(Signal::KILL))?;
+                if getppid() != Some(parent) {
+                    return Err(io::Error::other("qemu-node ended while starting QEMU"));
+                }
+                Ok(())
+            });
+        }
+        let mut qemu = cmd.spawn().map_err(|e| qemu_failed(&a.qemu, e))?;
+        match watch(&medium, &mut qemu) {
+            Ok(Some(status)) => qemu_ended(status),
+            Ok(None) => {
+                let _ = qemu.kill();
+                let _ = qemu.wait();
+                outln!(
+                    "qemu-node {:#06x}: the medium closed the connection: the node stops",
+                    a.addr
+                );
+                Ok(())
+            }
+            Err(e) => {
+                let _ = qemu.kill();
+                let _ = qemu.wait();
+                Err(Failure::error(format!("qemu-node: {e}")))
+            }
+        }
+    }
+
+    /// Waits until QEMU ends (its status) or the medium closes the connection (`None`).
+    fn watch(medium: &TcpStream, qemu: &mut Child) -> io::Result<Option<std::process::ExitStatus>> {
+        // QEMU's end as an event where the kernel has them (Linux 5.3), else looked at
+        // every 100 ms.
+        let pidfd = Pid::from_raw(qemu.id() as i32)
+            .and_then(|pid| pidfd_open(pid, PidfdFlags::empty()).ok());
+        let every = rustix::time::Timespec {
+            tv_sec: 0,
+            tv_nsec: 100_000_000,
+        };
+        loop {
+            let gone = PollFlags::RDHUP | PollFlags::HUP | PollFlags::ERR;
+            let mut fds = vec![PollFd::new(medium, PollFlags::RDHUP)];
+            if let Some(fd) = &pidfd {
+                fds.push(PollFd::new(fd, PollFlags::IN));
+            }
+            match poll(&mut fds, pidfd.is_none().then_some(&every)) {
+                Ok(_) | Err(Errno::INTR) => {}
+                Err(e) => return Err(e.into()),
+            }
+            if fds[0].revents().intersects(gone) {
+                return Ok(None);
+            }
+            if let Some(status) = qemu.try_wait()? {
+                return Ok(Some(status));
+            }
         }
     }
 }

@@ -134,6 +134,61 @@ pub fn interrupt_demo(args: &[&str]) -> Interrupted {
     }
 }
 
+/// What became of a node process started by hand once its medium stopped.
+#[derive(Debug)]
+pub struct MediumGone {
+    /// Its exit status, or `None` if it still ran a minute after the medium stopped (it was
+    /// killed then).
+    pub status: Option<std::process::ExitStatus>,
+    /// What it said on standard output.
+    pub said: String,
+    /// How many of the processes it had started (QEMU) still ran once it ended.
+    pub left: usize,
+}
+
+/// Runs `config-tool ARGS --medium ADDR` (a node started by hand) on a medium of its own,
+/// waits until it joined, stops the medium and waits (at most a minute) for the node to
+/// end.
+#[cfg(target_os = "linux")]
+pub fn node_after_its_medium_stops(args: &[&str]) -> MediumGone {
+    use std::io::Read;
+    use std::process::Stdio;
+    use std::time::{Duration, Instant};
+
+    let medium = medium::Medium::start(medium::Config::default()).expect("medium");
+    let mut node = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(args)
+        .arg("--medium")
+        .arg(medium.addr().to_string())
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("node");
+    let joined = medium.wait_for_clients(1, Duration::from_secs(60));
+    let started = children(node.id());
+    medium.stop();
+    let end = Instant::now() + Duration::from_secs(60);
+    let status = loop {
+        if let Some(status) = node.try_wait().expect("wait") {
+            break Some(status);
+        }
+        if Instant::now() > end {
+            let _ = node.kill();
+            let _ = node.wait();
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert!(joined, "the node never joined its medium");
+    let mut said = String::new();
+    if let Some(mut out) = node.stdout.take() {
+        let _ = out.read_to_string(&mut said);
+    }
+    let left = started.iter().filter(|&&p| runs(p)).count();
+    MediumGone { status, said, left }
+}
+
 /// The processes whose parent is `pid`.
 #[cfg(target_os = "linux")]
 fn children(pid: u32) -> Vec<u32> {

@@ -17,7 +17,7 @@ pub use bed::{
 };
 pub use qemu::{
     check_elf, check_qemu, count_log, provision_loaders, provision_word, qemu_args, read_counts,
-    Counts, PROVISION_AT, QEMU_ELF, QEMU_MACHINE,
+    Counts, Uart, PROVISION_AT, QEMU_ELF, QEMU_MACHINE,
 };
 pub use report::{
     alarm_text, cycle_line, fault_meaning, fault_text, homed_line, homing_line, push_line, say,

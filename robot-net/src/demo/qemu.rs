@@ -43,6 +43,15 @@ pub fn provision_loaders(word: u32, key: Option<&ManagementKey>) -> Vec<String> 
     loaders
 }
 
+/// Where a QEMU node's UART, its radio, goes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Uart {
+    /// QEMU connects to the medium at this address.
+    Medium(SocketAddr),
+    /// A socket connected to the medium already, which QEMU inherits as this descriptor.
+    Socket(i32),
+}
+
 /// QEMU's arguments for one node booting `elf`: its address in the provisioning word (with
 /// the key flag when `key_file` names the file QEMU loads the management key from, 16 raw
 /// bytes, right after the word: never the key itself, since every local user can read a
@@ -52,7 +61,7 @@ pub fn qemu_args(
     elf: &Path,
     addr: u16,
     key_file: Option<&Path>,
-    medium: SocketAddr,
+    uart: Uart,
     flash: Option<&Path>,
     count: Option<&Path>,
 ) -> Result<Vec<OsString>, NetError> {
@@ -104,11 +113,14 @@ pub fn qemu_args(
     }
     args.extend([
         "-chardev".into(),
-        format!(
-            "socket,id=radio,host={},port={},nodelay=on",
-            medium.ip(),
-            medium.port()
-        )
+        match uart {
+            Uart::Medium(medium) => format!(
+                "socket,id=radio,host={},port={},nodelay=on",
+                medium.ip(),
+                medium.port()
+            ),
+            Uart::Socket(fd) => format!("socket,id=radio,fd={fd}"),
+        }
         .into(),
         "-serial".into(),
         "chardev:radio".into(),
@@ -411,7 +423,7 @@ mod tests {
             Path::new("qemu-mps2"),
             0x0011,
             key,
-            "127.0.0.1:15400".parse().unwrap(),
+            Uart::Medium("127.0.0.1:15400".parse().unwrap()),
             Some(Path::new("node-11.flash")),
             None,
         )
