@@ -255,7 +255,7 @@ pub enum Board {
 pub struct SimArgs {
     pub robot: PathBuf,
     /// Cycles to run (1 to 10,000).
-    #[arg(long, default_value_t = 3, value_parser = sim_cycles)]
+    #[arg(long, default_value_t = 3, value_parser = cycles)]
     pub cycles: usize,
     /// Print every trace entry.
     #[arg(long)]
@@ -340,8 +340,8 @@ fn balls(text: &str) -> Result<usize, String> {
     }
 }
 
-/// `sim --cycles N`: 1 to [`robot_analysis::sim::MAX_CYCLES`].
-fn sim_cycles(text: &str) -> Result<usize, String> {
+/// `sim --cycles N`, `demo --cycles N`: 1 to [`robot_analysis::sim::MAX_CYCLES`].
+fn cycles(text: &str) -> Result<usize, String> {
     let max = robot_analysis::sim::MAX_CYCLES;
     match text.parse::<usize>() {
         Ok(n) if (1..=max).contains(&n) => Ok(n),
@@ -509,7 +509,8 @@ impl MediumArgs {
 #[derive(Args, Debug)]
 pub struct DemoArgs {
     pub robot: PathBuf,
-    #[arg(long, default_value_t = 3)]
+    /// Cycles to run (1 to 10,000), each checked against the simulation.
+    #[arg(long, default_value_t = 3, value_parser = cycles)]
     pub cycles: usize,
     /// Frame loss on the medium (with half as much duplication, and reordering).
     #[arg(long, default_value_t = 0.0, value_parser = probability)]

@@ -227,3 +227,20 @@ fn an_interrupted_demo_leaves_no_keys_and_no_nodes_behind() {
     let ended = cli_support::interrupt_demo(&["robot-configs/paint-robot.ron", "--cycles", "50"]);
     assert_eq!(ended, cli_support::Interrupted::cleanly());
 }
+
+/// `demo --cycles` takes what `sim --cycles` takes: 0 ran no cycle (only the
+/// reconfiguration) and was accepted.
+#[test]
+fn demo_refuses_a_number_of_cycles_sim_refuses() {
+    for cycles in ["0", "10001", "x"] {
+        let out = demo(&["robot-configs/paint-robot.ron", "--cycles", cycles]);
+        assert_eq!(out.status.code(), Some(2), "{cycles}");
+        let err = text(&out.stderr);
+        assert!(
+            err.contains(&format!(
+                "invalid value '{cycles}' for '--cycles <CYCLES>': a number of cycles from 1 to 10000"
+            )),
+            "{err}"
+        );
+    }
+}
