@@ -96,6 +96,35 @@ fn verify_only_runs_one_of_the_cycle_and_homing() {
     );
 }
 
+/// `--max-states N` stops both searches at N states, homing's start positions included
+/// (they were all taken first: 109 states for `--max-states 2`), and says INCOMPLETE.
+#[test]
+fn verify_stops_at_max_states_even_among_the_start_positions() {
+    let out = tool(&[
+        "verify",
+        "robot-configs/paint-robot.ron",
+        "--max-states",
+        "2",
+    ]);
+    let stdout = text(&out.stdout);
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(lines.len(), 6, "{stdout}");
+    assert!(
+        lines[0].starts_with("robot-configs/paint-robot.ron: 2 states, "),
+        "{stdout}"
+    );
+    assert_eq!(lines[2], "INCOMPLETE: stopped after 2 states");
+    assert!(
+        lines[3].starts_with(
+            "robot-configs/paint-robot.ron: homing \"VC- HC- RC- GR-\" from 81 start positions \
+             x 2 held valve levels: 2 states, 0 transitions in "
+        ),
+        "{stdout}"
+    );
+    assert_eq!(lines[5], "INCOMPLETE: stopped after 2 states");
+    assert_ne!(out.status.code(), Some(0));
+}
+
 #[test]
 fn verify_prints_a_numbered_counterexample_and_exits_1() {
     let out = tool(&["verify", "tests/fixtures/verify/order-deadlock.ron"]);

@@ -1748,6 +1748,12 @@ impl Search {
         };
         let mut key = Vec::new();
         for (root, label) in roots {
+            // The initial states count towards `max_states` too (homing has one per start
+            // position and held valve level).
+            if g.seen.len() >= opts.max_states {
+                g.incomplete = true;
+                return g;
+            }
             let bad = model.check_state(&root);
             if g.insert(&root, &mut key).1 {
                 g.labels.push(label);
