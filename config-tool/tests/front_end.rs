@@ -367,6 +367,73 @@ fn a_zero_motion_timeout_is_refused() {
     );
 }
 
+/// A stroke the watchdog does not wait for (`out_ms` or `back_ms` at least the motion's
+/// watchdog) faults every such motion: refused. Found: `check` and `verify` said ok, and
+/// `sim` faulted at the first step of every cycle.
+#[test]
+fn a_stroke_the_watchdog_does_not_wait_for_is_refused() {
+    let errors = |src: &Source| -> Vec<String> {
+        diagnostics(src)
+            .into_iter()
+            .filter(|d| d.contains(": error: "))
+            .collect()
+    };
+    let src = paint_with("out_ms: 300, back_ms: 250", "out_ms: 3000, back_ms: 250");
+    assert_eq!(
+        errors(&src),
+        [
+            "29:97: error: `VC+` takes 3000 ms (`out_ms`) and its watchdog fires at 2000 ms \
+          (`motion_timeout_ms`): every `VC+` would fault"
+        ]
+    );
+    let src = paint_with(
+        "out_ms: 800, back_ms: 800)",
+        "out_ms: 800, back_ms: 800, timeout_ms: 800)",
+    );
+    assert_eq!(
+        errors(&src),
+        [
+            "47:97: error: `HC+` takes 800 ms (`out_ms`) and its watchdog fires at 800 ms \
+             (`timeout_ms`): every `HC+` would fault",
+            "47:111: error: `HC-` takes 800 ms (`back_ms`) and its watchdog fires at 800 ms \
+             (`timeout_ms`): every `HC-` would fault",
+        ]
+    );
+    assert!(errors(&paint_with(
+        "out_ms: 800, back_ms: 800)",
+        "out_ms: 800, back_ms: 800, timeout_ms: 801)"
+    ))
+    .is_empty());
+}
+
+/// A dwell shorter than the stroke it stands for lets the next step start while the
+/// actuator still moves: refused. Found: `sim` said every step was as declared while VC
+/// lifted a second before the gripper had closed.
+#[test]
+fn a_dwell_shorter_than_its_stroke_is_refused() {
+    let src = paint_with(
+        GRIPPER,
+        "SingleActing(valve: 0, dwell_ms: 50, out_ms: 1000, back_ms: 50)",
+    );
+    let errors: Vec<String> = diagnostics(&src)
+        .into_iter()
+        .filter(|d| d.contains(": error: "))
+        .collect();
+    assert_eq!(
+        errors,
+        [
+            "39:81: error: `GR+` completes after `dwell_ms` (50 ms) but takes 1000 ms \
+          (`out_ms`): the next step would start while `GR` still moves"
+        ]
+    );
+    // A position sensor completes the motion instead: its watchdog applies.
+    let src = paint_with(
+        GRIPPER,
+        "SingleActing(valve: 0, dwell_ms: 50, out_ms: 1000, back_ms: 50, end: 5)",
+    );
+    assert!(diagnostics(&src).iter().all(|d| !d.contains(": error: ")));
+}
+
 #[test]
 fn an_integer_out_of_bounds_says_the_field_s_range() {
     let cases = [

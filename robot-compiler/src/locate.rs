@@ -382,6 +382,18 @@ impl Value {
         (key, at)
     }
 
+    /// Whether the file has a value at `path` (not a default).
+    pub fn has(&self, path: &str) -> bool {
+        let mut at = self;
+        for seg in segments(path) {
+            match at.step(&seg).or_else(|| at.unwrap_some().step(&seg)) {
+                Some((_, v)) => at = v,
+                None => return false,
+            }
+        }
+        true
+    }
+
     /// The span of the value at `path` (or of its deepest existing ancestor).
     pub fn find(&self, path: &str) -> Range<usize> {
         self.walk(path).1.span.clone()

@@ -201,6 +201,11 @@ impl Source {
         }
     }
 
+    /// Whether the file writes a value at `path` (a field left to its default is not).
+    pub fn has(&self, path: &str) -> bool {
+        self.tree.as_ref().is_some_and(|tree| tree.has(path))
+    }
+
     /// The span of the key of a field or map entry at `path` (the value's span if there is
     /// no key).
     pub fn key_span(&self, path: &str) -> Range<usize> {

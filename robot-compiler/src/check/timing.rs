@@ -1,8 +1,11 @@
 //! Times: a motion watchdog of 0 ms (`motion_timeout_ms`, an actuator's `timeout_ms`)
-//! would fault every motion the moment it is commanded.
+//! would fault every motion the moment it is commanded; in synthesised charts (a
+//! `sequence`), a stroke (`out_ms`, `back_ms`) the watchdog does not wait for faults every
+//! such motion, and a dwell shorter than the stroke it stands for lets the next step start
+//! while the actuator still moves.
 
 use crate::diag::Diagnostic;
-use crate::model::Robot;
+use crate::model::{Actuator, ActuatorKind, Robot};
 use crate::source::Source;
 
 pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
@@ -24,7 +27,81 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
                     &format!("roles[{ri}].actuators[{ai}].kind.timeout_ms"),
                     &format!("the watchdog `timeout_ms` of `{}`", a.name),
                 ));
+            } else if robot.sequence.is_some() {
+                strokes(
+                    robot,
+                    a,
+                    &format!("roles[{ri}].actuators[{ai}].kind"),
+                    src,
+                    out,
+                );
             }
+        }
+    }
+}
+
+/// Each motion of `a` (at `kind` in the file) against what completes it in synthesised
+/// charts: its end switch under the watchdog, or the dwell time.
+fn strokes(robot: &Robot, a: &Actuator, kind: &str, src: &Source, out: &mut Vec<Diagnostic>) {
+    let (out_ms, back_ms, dwell_ms) = match a.kind {
+        ActuatorKind::DoubleActing {
+            out_ms, back_ms, ..
+        } => (out_ms, back_ms, None),
+        ActuatorKind::SingleActing {
+            out_ms,
+            back_ms,
+            dwell_ms,
+            ..
+        } => (out_ms, back_ms, Some(dwell_ms)),
+    };
+    let (watchdog, watchdog_field) = match a.kind.timeout_ms() {
+        Some(ms) => (ms, "`timeout_ms`"),
+        None => (robot.motion_timeout_ms, "`motion_timeout_ms`"),
+    };
+    for (extend, stroke, field) in [(true, out_ms, "out_ms"), (false, back_ms, "back_ms")] {
+        // A stroke the file does not give is `sim`'s guess (200 ms), not the machine's.
+        let path = format!("{kind}.{field}");
+        if !src.has(&path) {
+            continue;
+        }
+        let motion = format!("{}{}", a.name, if extend { '+' } else { '-' });
+        let at = src.span(&path);
+        if a.kind.completion_switch(extend).is_some() {
+            // A watchdog of 0 ms is refused already.
+            if watchdog > 0 && stroke >= watchdog {
+                out.push(
+                    Diagnostic::error(
+                        at,
+                        format!(
+                            "`{motion}` takes {stroke} ms (`{field}`) and its watchdog fires \
+                             at {watchdog} ms ({watchdog_field}): every `{motion}` would fault"
+                        ),
+                    )
+                    .label(format!("less than {watchdog}"))
+                    .help(format!(
+                        "give the stroke's real time, or a longer watchdog (`timeout_ms` of \
+                         `{}`)",
+                        a.name
+                    )),
+                );
+            }
+        } else if let Some(dwell) = dwell_ms.filter(|&d| d < stroke) {
+            out.push(
+                Diagnostic::error(
+                    at,
+                    format!(
+                        "`{motion}` completes after `dwell_ms` ({dwell} ms) but takes {stroke} \
+                         ms (`{field}`): the next step would start while `{}` still moves",
+                        a.name
+                    ),
+                )
+                .label(format!("at most {dwell}"))
+                .help(format!(
+                    "make `dwell_ms` at least the longest stroke, or give `{}` a position \
+                     sensor",
+                    a.name
+                )),
+            );
         }
     }
 }
