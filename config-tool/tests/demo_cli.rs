@@ -244,3 +244,23 @@ fn demo_refuses_a_number_of_cycles_sim_refuses() {
         );
     }
 }
+
+/// `demo --pcap` naming the robot (or the robot pushed after it) is refused before anything
+/// starts, and the file is left as it was. Found: `sim --timeline` overwrote the robot.
+#[test]
+fn demo_pcap_never_overwrites_the_robot() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("pcap-self");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("dir");
+    let robot = dir.join("paint.ron");
+    let before = std::fs::read_to_string("../robot-configs/paint-robot.ron").expect("robot");
+    std::fs::write(&robot, &before).expect("copy");
+    let path = robot.to_str().expect("utf-8");
+    let out = demo(&[path, "--no-reconfigure", "--pcap", path]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert_eq!(
+        text(&out.stderr),
+        format!("error: --pcap {path}: that is {path}, which this command reads: it would be overwritten\n")
+    );
+    assert_eq!(std::fs::read_to_string(&robot).expect("robot"), before);
+}

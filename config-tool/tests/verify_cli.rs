@@ -183,6 +183,45 @@ fn sim_timeline_writes_an_svg() {
     assert_eq!(lanes, 4);
 }
 
+/// `sim --timeline` naming the robot file itself (however written) or a file it imports is
+/// refused before anything runs, and the file is left as it was. Found: the robot file was
+/// replaced by the SVG, status 0.
+#[test]
+fn sim_timeline_never_overwrites_the_robot_or_what_it_imports() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("timeline-self");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("dir");
+    let robot = dir.join("paint.ron");
+    let original = std::fs::read_to_string("../robot-configs/paint-robot.ron").expect("robot");
+    std::fs::write(&robot, &original).expect("copy");
+    let robot_arg = robot.to_str().expect("utf-8");
+    let same = dir.join(".").join("paint.ron");
+    for out in [robot_arg, same.to_str().expect("utf-8")] {
+        let run = tool(&["sim", robot_arg, "--cycles", "1", "--timeline", out]);
+        assert_eq!(run.status.code(), Some(2));
+        assert_eq!(
+            text(&run.stderr),
+            format!(
+                "error: --timeline {out}: that is {robot_arg}, which this command reads: it \
+                 would be overwritten\n"
+            )
+        );
+        assert_eq!(std::fs::read_to_string(&robot).expect("robot"), original);
+    }
+    // A 4diac robot's imported type.
+    let fbt = "robot-configs/4diac/paint-robot/Vc.fbt";
+    let before = std::fs::read("../".to_string() + fbt).expect("fbt");
+    let run = tool(&[
+        "sim",
+        "robot-configs/paint-robot-4diac.ron",
+        "--timeline",
+        fbt,
+    ]);
+    assert_eq!(run.status.code(), Some(2), "{}", text(&run.stderr));
+    assert!(text(&run.stderr).contains("it would be overwritten"));
+    assert_eq!(std::fs::read("../".to_string() + fbt).expect("fbt"), before);
+}
+
 #[test]
 fn verify_passes_every_robot_of_robot_configs_as_declared() {
     let mut files: Vec<String> =

@@ -8,6 +8,7 @@ use std::time::Duration;
 use robot_net::demo::{self, Demo};
 
 use crate::cli::DemoArgs;
+use crate::commands::outputs;
 use crate::failure::Failure;
 
 pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
@@ -26,6 +27,18 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
     } else {
         None
     };
+    if let Some(out) = &flags.pcap {
+        let inputs = [
+            Some(flags.robot.clone()),
+            flags.then.clone(),
+            Some(flags.elf.clone()),
+        ];
+        outputs::not_an_input(
+            "--pcap",
+            out,
+            &inputs.into_iter().flatten().collect::<Vec<_>>(),
+        )?;
+    }
     interrupted_cleans_up(count_dir.clone())?;
     let then = match (flags.no_reconfigure, flags.then) {
         (true, _) => None,

@@ -7,6 +7,7 @@ use robot_compiler::compile as pipeline;
 use robot_compiler::{check, diagram, dump, Compiled, Diagnostic, Source};
 
 use crate::cli::{Format, SimArgs, VerifyArgs, VerifyHow, VerifyPart};
+use crate::commands::outputs;
 use crate::failure::Failure;
 use crate::out::{err, errln, out, outln};
 
@@ -213,6 +214,10 @@ pub fn verification(
 pub fn sim(args: &SimArgs) -> Result<(), Failure> {
     let (cycles, trace, timeline) = (args.cycles, args.trace, args.timeline.as_deref());
     let (_, compiled) = load_compiled(&args.robot)?;
+    if let Some(out) = &args.timeline {
+        let inputs = outputs::robot_files(&args.robot, &compiled.robot);
+        outputs::not_an_input("--timeline", out, &inputs)?;
+    }
     if compiled.robot.sorting.is_some() {
         return sim_station(&compiled, args);
     }

@@ -1,8 +1,37 @@
-//! A command's output files, written all or none: `compile`'s blobs, `export-4diac`'s XML.
+//! A command's output files, written all or none: `compile`'s blobs, `export-4diac`'s XML;
+//! and an output file that is one of the command's inputs, refused before anything runs.
 
 use std::path::{Path, PathBuf};
 
 use crate::failure::Failure;
+
+/// Refuses output file `out` (`what`: its flag) if it is one of `inputs`, however named
+/// (the same file: a link, `./`, another path to it): it would be overwritten with what
+/// the command made of it.
+pub fn not_an_input(what: &str, out: &Path, inputs: &[PathBuf]) -> Result<(), Failure> {
+    match inputs
+        .iter()
+        .find(|input| same_file::is_same_file(out, input).unwrap_or(false))
+    {
+        Some(input) => Err(Failure::usage(format!(
+            "{what} {}: that is {}, which this command reads: it would be overwritten",
+            out.display(),
+            input.display()
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// The robot file at `path` and the files it imports (`fb_types`, its `application`),
+/// named as the robot names them, beside it.
+pub fn robot_files(path: &Path, robot: &robot_compiler::model::Robot) -> Vec<PathBuf> {
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let imported = robot.fb_types.iter().map(String::as_str);
+    let imported = imported.chain(robot.application.iter().map(|a| a.file.as_str()));
+    std::iter::once(path.to_path_buf())
+        .chain(imported.map(|f| dir.join(f)))
+        .collect()
+}
 
 /// Writes each `(name, bytes)` into directory `dir` (made if missing), every file or none:
 /// a name that is not a plain file name or comes twice, or a target that exists and is not
