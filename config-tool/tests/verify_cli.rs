@@ -161,6 +161,49 @@ fn sim_fault_reports_the_detection_and_exits_0_when_everything_stopped() {
     assert!(text(&bad.stderr).starts_with("error: `stuck:HC`: no `@STEP`"));
 }
 
+/// A variant of the paint robot, `from` replaced by `to`, written under the test's
+/// temporary directory as `name`.
+fn paint_variant(name: &str, from: &str, to: &str) -> String {
+    let text = std::fs::read_to_string("../robot-configs/paint-robot.ron").expect("robot");
+    assert!(text.contains(from), "{from}");
+    let path = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::write(&path, text.replace(from, to)).expect("written");
+    path.to_str().expect("utf-8").to_string()
+}
+
+/// `sim` runs as long as the robot's declared times need, past its ten minutes of virtual
+/// time per cycle. Found: a 600 s watchdog's fault was reported with its peers still
+/// running (their faults came after the bound), status 0; a dwell of 2^32 - 1 ms ended the
+/// run with `not idle at the time limit (402 ms)`.
+#[test]
+fn sim_runs_as_long_as_the_declared_times_need() {
+    let slow = paint_variant(
+        "watchdog-600s.ron",
+        "motion_timeout_ms: 2000",
+        "motion_timeout_ms: 600000",
+    );
+    let out = tool(&["sim", &slow, "--fault", "stuck:HC@4"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    for said in [
+        "detected at 600706 ms by HC: motion watchdog (fault 1), 600000 ms after step 4 was \
+         commanded\n",
+        "  at 600708 ms  VC: a peer's fault (fault 2)\n",
+        "  at 600708 ms  GR: a peer's fault (fault 2)\n",
+        "  at 600708 ms  RC: a peer's fault (fault 2)\n",
+    ] {
+        assert!(stdout.contains(said), "{said}\n{stdout}");
+    }
+    let long = paint_variant("dwell-max.ron", "dwell_ms: 150", "dwell_ms: 4294967295");
+    let out = tool(&["sim", &long, "--cycles", "1"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stdout).contains("ok: 1 cycle(s), each 12 step(s) as declared"),
+        "{}",
+        text(&out.stdout)
+    );
+}
+
 #[test]
 fn sim_timeline_writes_an_svg() {
     let path = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("timeline.svg");

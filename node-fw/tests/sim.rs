@@ -506,9 +506,17 @@ fn runs_are_bounded_by_their_time_limit() {
     assert_eq!(
         world.run_until_idle(299),
         Err(SimError::NotIdle {
+            limit_ms: 299,
             now_ms: 0,
             next_ms: 300
         })
+    );
+    assert_eq!(
+        world.run_until_idle(0).map_err(|e| e.to_string()),
+        Err(String::from(
+            "not idle by the time limit (0 ms): the last event at 0 ms, the next one due at \
+             300 ms"
+        ))
     );
     assert_eq!(world.run_until_idle(300), Ok(300));
 }
@@ -654,6 +662,7 @@ fn an_endless_exchange_between_nodes_is_stopped_by_the_run_bounds() {
     assert_eq!(
         world.run_until_idle(9),
         Err(SimError::NotIdle {
+            limit_ms: 9,
             now_ms: 8,
             next_ms: 10
         })

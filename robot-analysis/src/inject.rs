@@ -13,7 +13,7 @@ use std::fmt::Write;
 
 use node_fw::sim::{Plant, SimError, TraceEntry, What, World};
 
-use crate::sim::{step_of, steps_text, SimulationError, CYCLE_LIMIT_MS};
+use crate::sim::{cycle_limit_ms, step_of, steps_text, SimulationError};
 use robot_compiler::compile::Compiled;
 use robot_compiler::ir::Step;
 
@@ -200,7 +200,8 @@ pub fn simulate(c: &Compiled, spec: &FaultSpec) -> Result<FaultRun, InjectError>
             step: spec.step,
         });
     }
-    let (mark, injected_ms) = run_injected(&mut world, button, spec, &target)?;
+    let limit_ms = cycle_limit_ms(c);
+    let (mark, injected_ms) = run_injected(&mut world, button, spec, &target, limit_ms)?;
     let mut trace = world.take_trace();
     // Name the injected fault by roles and actuators rather than indices.
     let named = describe(&spec.kind);
@@ -287,16 +288,17 @@ fn resolve(c: &Compiled, world: &World, kind: &FaultKind) -> Result<Target, Inje
 }
 
 /// Runs the cycles before the fault's, then the fault's cycle with `target` injected
-/// just before its step `spec.step`: the trace index where that cycle starts and the
+/// just before its step `spec.step` (each cycle within `limit_ms`): the trace index where that cycle starts and the
 /// time of the injection.
 fn run_injected(
     world: &mut World,
     button: usize,
     spec: &FaultSpec,
     target: &Target,
+    limit_ms: u64,
 ) -> Result<(usize, u64), InjectError> {
     for _ in 1..spec.cycle {
-        world.run_cycle(button, CYCLE_LIMIT_MS)?;
+        world.run_cycle(button, limit_ms)?;
     }
     let mark = world.trace().len();
     let steps_so_far = |w: &World| {
@@ -310,7 +312,7 @@ fn run_injected(
         injected_ms = Some(inject(world, target)?);
     }
     world.press(button)?;
-    let deadline = world.now() + CYCLE_LIMIT_MS;
+    let deadline = world.now().saturating_add(limit_ms);
     let mut events = 0usize;
     loop {
         if injected_ms.is_none() && steps_so_far(world) + 1 >= spec.step {

@@ -35,8 +35,36 @@ pub enum SimulationError {
     World(#[from] SimError),
 }
 
-/// Virtual-time bound of one cycle.
+/// Virtual-time bound of one cycle, for a robot whose declared times are short (see
+/// [`cycle_limit_ms`]).
 pub const CYCLE_LIMIT_MS: u64 = 600_000;
+
+/// Virtual-time bound of one cycle of `c`: [`CYCLE_LIMIT_MS`], or more for a robot whose
+/// declared times need it: each step, and a few more for a fault and the faults it causes,
+/// may wait for the longest timer of its tables (watchdogs, dwells, chart timers) or the
+/// longest stroke of its actuators.
+pub fn cycle_limit_ms(c: &Compiled) -> u64 {
+    let timers = c.tables.iter().flat_map(|t| t.actions.iter());
+    let timers = timers.filter_map(|a| match *a {
+        config_schema::Action::StartTimer { ms, .. } => Some(ms),
+        _ => None,
+    });
+    let actuators = c.robot.roles.iter().flat_map(|r| r.actuators.iter());
+    let strokes = actuators.flat_map(|a| match a.kind {
+        ActuatorKind::DoubleActing {
+            out_ms, back_ms, ..
+        }
+        | ActuatorKind::SingleActing {
+            out_ms, back_ms, ..
+        } => [out_ms, back_ms],
+    });
+    let longest = u64::from(timers.chain(strokes).max().unwrap_or(0));
+    let steps = c.ir.expect.len().max(MANY_STEPS) as u64;
+    CYCLE_LIMIT_MS.max(longest.saturating_mul(steps + 4))
+}
+
+/// The steps [`cycle_limit_ms`] allows for at least (a robot without a declared sequence).
+const MANY_STEPS: usize = 64;
 
 /// What one simulated cycle did.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -340,7 +368,7 @@ fn run(c: &Compiled, cycles: usize, keep_trace: bool) -> Result<SimResult, Simul
     };
     for _ in 0..cycles {
         let mark = world.trace().len();
-        let cycle = world.run_cycle(button, CYCLE_LIMIT_MS)?;
+        let cycle = world.run_cycle(button, cycle_limit_ms(c))?;
         let entries = &world.trace()[mark..];
         let publications = entries
             .iter()

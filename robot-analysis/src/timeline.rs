@@ -14,7 +14,7 @@ use std::fmt::Write;
 
 use node_fw::sim::{Plant, TraceEntry, What};
 
-use crate::sim::{SimulationError, CYCLE_LIMIT_MS};
+use crate::sim::{cycle_limit_ms, SimulationError};
 use robot_compiler::compile::Compiled;
 
 pub mod station;
@@ -31,7 +31,7 @@ pub fn run(c: &Compiled, cycles: usize) -> Result<Vec<TraceEntry>, SimulationErr
     let tables = crate::sim::tables(c)?;
     let (mut world, button) = crate::sim::world(c, &tables)?;
     for _ in 0..cycles {
-        world.run_cycle(button, CYCLE_LIMIT_MS)?;
+        world.run_cycle(button, cycle_limit_ms(c))?;
     }
     Ok(world.take_trace())
 }

@@ -81,8 +81,13 @@ pub enum SimError {
     NoSuchPlant { plant: usize, want: &'static str },
     /// A node index that does not exist.
     NoSuchNodeIndex { node: usize },
-    /// The run reached its virtual-time limit with events still pending.
-    NotIdle { now_ms: u64, next_ms: u64 },
+    /// The run reached its virtual-time limit (`limit_ms`, a time of the clock) with events
+    /// still pending: the last it processed at `now_ms`, the next due at `next_ms`.
+    NotIdle {
+        limit_ms: u64,
+        now_ms: u64,
+        next_ms: u64,
+    },
     /// The run processed its event limit ([`RUN_EVENT_LIMIT`] by default) without
     /// becoming idle.
     Runaway { now_ms: u64, events: usize },
@@ -117,9 +122,14 @@ impl fmt::Display for SimError {
             ),
             SimError::NoSuchPlant { plant, want } => write!(f, "plant #{plant} is not {want}"),
             SimError::NoSuchNodeIndex { node } => write!(f, "there is no node #{node}"),
-            SimError::NotIdle { now_ms, next_ms } => write!(
+            SimError::NotIdle {
+                limit_ms,
+                now_ms,
+                next_ms,
+            } => write!(
                 f,
-                "not idle at the time limit ({now_ms} ms): next event at {next_ms} ms"
+                "not idle by the time limit ({limit_ms} ms): the last event at {now_ms} ms, \
+                 the next one due at {next_ms} ms"
             ),
             SimError::Runaway { now_ms, events } => write!(
                 f,
@@ -775,6 +785,7 @@ impl<'t> World<'t> {
                 None => return Ok(self.now),
                 Some(q) if q.t > deadline => {
                     return Err(SimError::NotIdle {
+                        limit_ms: deadline,
                         now_ms: self.now,
                         next_ms: q.t,
                     })

@@ -1,8 +1,8 @@
 //! Times: a motion watchdog of 0 ms (`motion_timeout_ms`, an actuator's `timeout_ms`)
 //! would fault every motion the moment it is commanded; in synthesised charts (a
 //! `sequence`), a stroke (`out_ms`, `back_ms`) the watchdog does not wait for faults every
-//! such motion, and a dwell shorter than the stroke it stands for lets the next step start
-//! while the actuator still moves.
+//! such motion (a warning: the machine stops safely), and a dwell shorter than the stroke it
+//! stands for lets the next step start while the actuator still moves (an error).
 
 use crate::diag::Diagnostic;
 use crate::model::{Actuator, ActuatorKind, Robot};
@@ -69,8 +69,9 @@ fn strokes(robot: &Robot, a: &Actuator, kind: &str, src: &Source, out: &mut Vec<
         if a.kind.completion_switch(extend).is_some() {
             // A watchdog of 0 ms is refused already.
             if watchdog > 0 && stroke >= watchdog {
+                // A warning: the machine stops safely, and `sim` shows how.
                 out.push(
-                    Diagnostic::error(
+                    Diagnostic::warning(
                         at,
                         format!(
                             "`{motion}` takes {stroke} ms (`{field}`) and its watchdog fires \
