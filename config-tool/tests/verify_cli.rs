@@ -204,6 +204,33 @@ fn sim_runs_as_long_as_the_declared_times_need() {
     );
 }
 
+/// A switch fault names a switch the machine has: one it lacks is said to be missing, and
+/// what a motor drives has switches too. Found: `switch:GR.end` said "a switch is ACT.end
+/// or ACT.home", `switch:BELT.end` said "`BELT` has no switches" (it declares both).
+#[test]
+fn sim_fault_on_a_switch_says_which_switch_is_missing() {
+    let sim = |robot: &str, fault: &str| {
+        let out = tool(&["sim", robot, "--fault", fault]);
+        (out.status.code(), text(&out.stdout), text(&out.stderr))
+    };
+    let paint = "robot-configs/paint-robot.ron";
+    let (code, _, err) = sim(paint, "switch:GR.end@2");
+    assert_eq!(code, Some(1));
+    assert_eq!(err, "error: `GR` has no end switch (its switches: none)\n");
+    let (code, _, err) = sim(paint, "switch:VC.top@2");
+    assert_eq!(code, Some(1));
+    assert_eq!(err, "error: `VC.top`: a switch is ACT.end or ACT.home\n");
+    let (code, out, err) = sim("robot-configs/waterjet-transport.ron", "switch:BELT.end@1");
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        out.starts_with(
+            "fault: switch BELT.end broken (stays open) at 0 ms (cycle 1, before step 1 \
+             PUSHER+)\nsteps until then: none\n"
+        ),
+        "{out}"
+    );
+}
+
 #[test]
 fn sim_timeline_writes_an_svg() {
     let path = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("timeline.svg");

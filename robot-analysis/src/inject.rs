@@ -133,6 +133,13 @@ pub enum InjectError {
     BadSwitch(String),
     #[error("`{0}` has no switches")]
     NoSwitches(String),
+    /// The actuator lacks the switch named (`which`: end or home); `has`: the ones it has.
+    #[error("`{actuator}` has no {which} switch (its switches: {has})")]
+    NoSuchSwitch {
+        actuator: String,
+        which: &'static str,
+        has: String,
+    },
     /// The declared cycle is shorter than the step named.
     #[error("the cycle has {steps} steps: there is no step {step}")]
     NoSuchStep { steps: usize, step: usize },
@@ -274,12 +281,26 @@ fn resolve(c: &Compiled, world: &World, kind: &FaultKind) -> Result<Target, Inje
             let Some((node, home, end)) = world.plants()[p].switches() else {
                 return Err(InjectError::NoSwitches(a.to_string()));
             };
-            let input = match which {
-                "end" => end,
-                "home" => home,
-                _ => None,
-            }
-            .ok_or_else(|| InjectError::BadSwitch(s.clone()))?;
+            let (which, input) = match which {
+                "end" => ("end", end),
+                "home" => ("home", home),
+                _ => return Err(InjectError::BadSwitch(s.clone())),
+            };
+            let input = input.ok_or_else(|| {
+                let has: Vec<&str> = [("home", home), ("end", end)]
+                    .into_iter()
+                    .filter_map(|(name, pin)| pin.map(|_| name))
+                    .collect();
+                InjectError::NoSuchSwitch {
+                    actuator: a.to_string(),
+                    which,
+                    has: if has.is_empty() {
+                        String::from("none")
+                    } else {
+                        has.join(", ")
+                    },
+                }
+            })?;
             Target::Input(node, input)
         }
         FaultKind::Stop(r) => Target::Node(role(r)?),
@@ -508,7 +529,11 @@ impl FaultRun {
                 .map(|s| format!(" {s}"))
                 .unwrap_or_default()
         );
-        let _ = writeln!(o, "steps until then: {}", steps_text(&self.steps_before));
+        let before = match steps_text(&self.steps_before) {
+            t if t.is_empty() => String::from("none"),
+            t => t,
+        };
+        let _ = writeln!(o, "steps until then: {before}");
         if !self.steps_after.is_empty() {
             let _ = writeln!(
                 o,

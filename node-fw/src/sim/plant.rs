@@ -151,11 +151,14 @@ impl Plant {
         }
     }
 
-    /// The node and the (home, end) switch inputs of an actuator (a cylinder).
+    /// The node and the (home, end) switch inputs of what moves (a cylinder, a motor, what
+    /// a motor drives).
     pub fn switches(&self) -> Option<(usize, Option<u8>, Option<u8>)> {
         match self {
             Plant::DoubleActing(p) => Some((p.node, p.home_in, p.end_in)),
             Plant::SingleActing(p) => Some((p.node, p.home_in, p.end_in)),
+            Plant::Motor(p) => Some((p.node, p.home_in, p.end_in)),
+            Plant::Driven(p) => Some((p.node, p.home_in, p.end_in)),
             _ => None,
         }
     }
