@@ -254,9 +254,9 @@ pub enum Board {
 #[derive(Args, Debug)]
 pub struct SimArgs {
     pub robot: PathBuf,
-    /// Cycles to run (1 to 10,000).
-    #[arg(long, default_value_t = 3, value_parser = cycles)]
-    pub cycles: usize,
+    /// Cycles to run (1 to 10,000; default 3); a sorting station runs its feed instead.
+    #[arg(long, value_parser = cycles)]
+    pub cycles: Option<usize>,
     /// Print every trace entry.
     #[arg(long)]
     pub trace: bool,
@@ -311,13 +311,14 @@ pub struct VerifyHow {
     /// Stop (inconclusive) beyond this many states.
     #[arg(long, default_value_t = MAX_STATES)]
     pub max_states: usize,
-    /// A sorting station: explore every colour sequence of up to this many balls.
-    #[arg(long, default_value_t = robot_analysis::verify::DEFAULT_BALLS, value_parser = balls)]
-    pub balls: usize,
-    /// Declared fault contacts: explore up to this many fault pulses in a run (1 to 8),
-    /// each set and released at any moment against the radio's delays.
-    #[arg(long, default_value_t = robot_analysis::verify::DEFAULT_FAULTS, value_parser = faults)]
-    pub faults: u8,
+    /// A sorting station: explore every colour sequence of up to this many balls (1 to
+    /// 200; default 4).
+    #[arg(long, value_parser = balls)]
+    pub balls: Option<usize>,
+    /// Declared fault contacts: explore up to this many fault pulses in a run (1 to 8;
+    /// default 2), each set and released at any moment against the radio's delays.
+    #[arg(long, value_parser = faults)]
+    pub faults: Option<u8>,
     /// Explore only the cycle (from the machine homed) or only homing (from every start
     /// position); both without it.
     #[arg(long, value_enum)]
@@ -331,12 +332,12 @@ pub enum VerifyPart {
     Homing,
 }
 
-/// `--balls N`: 0 to [`robot_analysis::verify::MAX_BALLS`].
+/// `--balls N`: 1 to [`robot_analysis::verify::MAX_BALLS`].
 fn balls(text: &str) -> Result<usize, String> {
     let max = robot_analysis::verify::MAX_BALLS;
     match text.parse::<usize>() {
-        Ok(n) if n <= max => Ok(n),
-        _ => Err(format!("a number of balls from 0 to {max}")),
+        Ok(n) if (1..=max).contains(&n) => Ok(n),
+        _ => Err(format!("a number of balls from 1 to {max}")),
     }
 }
 
@@ -366,8 +367,8 @@ impl Default for VerifyHow {
             any_delay: false,
             start_anytime: false,
             max_states: MAX_STATES,
-            balls: robot_analysis::verify::DEFAULT_BALLS,
-            faults: robot_analysis::verify::DEFAULT_FAULTS,
+            balls: None,
+            faults: None,
             only: None,
         }
     }

@@ -233,7 +233,7 @@ fn sim_of_the_ball_sorter_prints_each_ball_and_its_bin() {
     );
     let out = tool(&["verify", "robot-configs/ball-sorter.ron", "--balls", "201"]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(text(&out.stderr).contains("a number of balls from 0 to 200"));
+    assert!(text(&out.stderr).contains("a number of balls from 1 to 200"));
     let out = tool(&["sim", "robot-configs/ball-sorter.ron", "--feed", "B purple"]);
     assert_eq!(out.status.code(), Some(1));
     assert_eq!(
@@ -330,11 +330,11 @@ fn sim_timeline_of_the_ball_sorter_draws_its_lanes() {
         "--fault",
         "stuck:G1@1",
     ]);
-    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(out.status.code(), Some(2));
     assert_eq!(
         text(&out.stderr),
-        "error: a sorting station's `sim` takes no --fault: it runs its feed (--feed, --trace, \
-         --timeline)\n"
+        "error: a sorting station's `sim` takes no --fault: it runs its feed (--feed, --random, \
+         --trace, --timeline)\n"
     );
 }
 
@@ -630,4 +630,61 @@ fn the_docs_give_the_paint_robot_s_figures_as_compile_prints_them() {
         vc[4]
     );
     assert!(format_doc.replace('\n', " ").contains(&said), "{said}");
+}
+
+/// Arguments the robot cannot use are refused (status 2) instead of ignored: `verify
+/// --balls` of a robot without `sorting:`, `--faults` of one without fault contacts, a
+/// sorting station's `sim --cycles`, an empty `--feed`, `--balls 0`. Found: all accepted,
+/// `--balls 0` saying "each ball in exactly one bin" of no ball.
+#[test]
+fn arguments_the_robot_cannot_use_are_refused() {
+    let refused = |args: &[&str], said: &str| {
+        let out = tool(args);
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+        assert!(
+            text(&out.stderr).contains(said),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+    };
+    let paint = "robot-configs/paint-robot.ron";
+    let sorter = "robot-configs/ball-sorter.ron";
+    refused(
+        &["verify", paint, "--balls", "3"],
+        "error: --balls is a sorting station's: robot-configs/paint-robot.ron has no `sorting:`",
+    );
+    refused(
+        &["verify", paint, "--faults", "3"],
+        "error: --faults is for declared fault contacts: robot-configs/paint-robot.ron \
+         declares none (`plants: [Switch(...)]`)",
+    );
+    refused(
+        &["verify", sorter, "--balls", "0"],
+        "a number of balls from 1 to 200",
+    );
+    refused(
+        &["sim", sorter, "--cycles", "3"],
+        "error: a sorting station's `sim` takes no --cycles: it runs its feed",
+    );
+    refused(
+        &["sim", sorter, "--fault", "stuck:G1@1"],
+        "error: a sorting station's `sim` takes no --fault: it runs its feed",
+    );
+    refused(
+        &["sim", sorter, "--feed", " "],
+        "error: --feed names no ball",
+    );
+    // Where they apply, they run.
+    let out = tool(&[
+        "verify",
+        "robot-configs/waterjet-transport.ron",
+        "--faults",
+        "1",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
 }

@@ -112,6 +112,23 @@ pub fn diagram(robot: &Path, role: &str, format: Format) -> Result<(), Failure> 
 
 pub fn verify(flags: &VerifyArgs) -> Result<(), Failure> {
     let (src, compiled) = load_compiled(&flags.robot)?;
+    let robot = &compiled.robot;
+    if flags.how.balls.is_some() && robot.sorting.is_none() {
+        return Err(Failure::usage(format!(
+            "--balls is a sorting station's: {} has no `sorting:`",
+            flags.robot.display()
+        )));
+    }
+    let contacts = robot
+        .plants
+        .iter()
+        .any(|p| matches!(p, robot_compiler::plants::PlantDecl::Switch { .. }));
+    if flags.how.faults.is_some() && !contacts {
+        return Err(Failure::usage(format!(
+            "--faults is for declared fault contacts: {} declares none (`plants: [Switch(...)]`)",
+            flags.robot.display()
+        )));
+    }
     let verified = verification(&src.name, &compiled, flags.how).map_err(Failure::error)?;
     out!("{}", verified.text);
     if verified.ok() {
@@ -174,13 +191,14 @@ pub fn verification(
         ));
     }
     let prompt = (how.prompt || compiled.robot.assume_prompt_radio) && !how.any_delay;
-    let model = verify::Model::with_balls(compiled, how.balls)?;
+    let balls = how.balls.unwrap_or(verify::DEFAULT_BALLS);
+    let model = verify::Model::with_balls(compiled, balls)?;
     let opts = verify::ExploreOptions {
         lossy: how.lossy,
         prompt,
         start_anytime: how.start_anytime,
         max_states: how.max_states,
-        faults: how.faults,
+        faults: how.faults.unwrap_or(verify::DEFAULT_FAULTS),
     };
     let interlocks = model.interlock_count();
     let report = match how.only {
@@ -211,8 +229,12 @@ pub fn verification(
     })
 }
 
+/// `sim`'s cycles without `--cycles`.
+const DEFAULT_CYCLES: usize = 3;
+
 pub fn sim(args: &SimArgs) -> Result<(), Failure> {
-    let (cycles, trace, timeline) = (args.cycles, args.trace, args.timeline.as_deref());
+    let (trace, timeline) = (args.trace, args.timeline.as_deref());
+    let cycles = args.cycles.unwrap_or(DEFAULT_CYCLES);
     let (_, compiled) = load_compiled(&args.robot)?;
     if let Some(out) = &args.timeline {
         let inputs = outputs::robot_files(&args.robot, &compiled.robot);
@@ -256,10 +278,20 @@ pub fn sim(args: &SimArgs) -> Result<(), Failure> {
 /// `sim` of a sorting station: the whole feed, one line per ball.
 fn sim_station(compiled: &Compiled, args: &SimArgs) -> Result<(), Failure> {
     use robot_analysis::sorter;
-    if args.fault.is_some() {
-        return Err(Failure::error(
-            "a sorting station's `sim` takes no --fault: it runs its feed (--feed, --trace, \
-             --timeline)",
+    if args.fault.is_some() || args.cycles.is_some() {
+        return Err(Failure::usage(format!(
+            "a sorting station's `sim` takes no {}: it runs its feed (--feed, --random, \
+             --trace, --timeline)",
+            if args.fault.is_some() {
+                "--fault"
+            } else {
+                "--cycles"
+            }
+        )));
+    }
+    if args.feed.as_deref().is_some_and(|f| f.trim().is_empty()) {
+        return Err(Failure::usage(
+            "--feed names no ball: give their colours, front first (`--feed \"B G O\"`)",
         ));
     }
     let feed = match (&args.feed, args.random, &compiled.robot.sorting) {
