@@ -105,7 +105,7 @@ impl Diagnostic {
         let span = src.clamp(self.span.clone());
         let excerpt = Excerpt::around(src, span.clone());
         let clamped = Diagnostic {
-            span: excerpt.label.clone(),
+            span: excerpt.shown_range(excerpt.label.clone()),
             ..self.clone()
         };
         let report = Report {
@@ -142,6 +142,12 @@ struct Excerpt<'a> {
     window: Range<usize>,
     /// The span underlined (inside `window`).
     label: Range<usize>,
+    /// The text of `window` as shown: without the carriage returns that end lines (a
+    /// Windows file), so that it shows and counts lines as the same file with LF ends.
+    /// miette reads it at offsets from `window.start` ([`Excerpt::shown_at`]).
+    shown: String,
+    /// Where in the source those carriage returns were, in order.
+    removed: Vec<usize>,
 }
 
 impl<'a> Excerpt<'a> {
@@ -151,11 +157,7 @@ impl<'a> Excerpt<'a> {
         let from = src.line_start(first.saturating_sub(1));
         let to = src.line_end((last + 1).min(src.line_count().saturating_sub(1)));
         if to - from <= EXCERPT_MAX {
-            return Excerpt {
-                src,
-                window: from..to,
-                label: span,
-            };
+            return Excerpt::new(src, from..to, span);
         }
         // Too much to show: the start of the span on its own line, cut either side.
         let (_, line_start) = src.line_of(span.start);
@@ -163,10 +165,58 @@ impl<'a> Excerpt<'a> {
         let end = src.floor(span.end.min(line_end).min(span.start + CUT_SPAN));
         let window = src.floor(span.start.saturating_sub(CUT_CONTEXT).max(line_start))
             ..src.floor((end + CUT_CONTEXT).min(line_end));
+        Excerpt::new(src, window, span.start..end.max(span.start))
+    }
+
+    fn new(src: &'a Source, window: Range<usize>, label: Range<usize>) -> Excerpt<'a> {
+        let text = src.text.get(window.clone()).unwrap_or("");
+        let mut shown = String::with_capacity(text.len());
+        let mut removed = Vec::new();
+        for (i, c) in text.char_indices() {
+            let at = window.start + i;
+            if c == '\r' && src.text.as_bytes().get(at + 1) == Some(&b'\n') {
+                removed.push(at);
+            } else {
+                shown.push(c);
+            }
+        }
         Excerpt {
             src,
             window,
-            label: span.start..end.max(span.start),
+            label,
+            shown,
+            removed,
+        }
+    }
+
+    /// Where source offset `at` is in what is shown.
+    fn shown_at(&self, at: usize) -> usize {
+        at - self.removed.iter().take_while(|&&r| r < at).count()
+    }
+
+    /// The source offset of offset `at` of what is shown.
+    fn source_at(&self, at: usize) -> usize {
+        let mut real = at;
+        for &r in &self.removed {
+            if r > real {
+                break;
+            }
+            real += 1;
+        }
+        real
+    }
+
+    /// `range` of the source, in what is shown.
+    fn shown_range(&self, range: Range<usize>) -> Range<usize> {
+        self.shown_at(range.start)..self.shown_at(range.end)
+    }
+
+    /// The text shown of `range` (offsets in what is shown).
+    fn text(&self, range: Range<usize>) -> &str {
+        let from = |at: usize| at.checked_sub(self.window.start);
+        match (from(range.start), from(range.end)) {
+            (Some(a), Some(b)) => self.shown.get(a..b).unwrap_or(""),
+            _ => "",
         }
     }
 
@@ -184,15 +234,17 @@ impl SourceCode for Excerpt<'_> {
         context_lines_before: usize,
         context_lines_after: usize,
     ) -> Result<Box<dyn SpanContents<'b> + 'b>, MietteError> {
+        // Offsets in what is shown (see `shown`).
         let (data, at) = if context_lines_before == 0 && context_lines_after == 0 {
             // Where the label starts (miette's `[file:line:col]`).
-            let start = self.src.floor(span.offset());
-            (start..self.src.floor(start + span.len()).max(start), start)
+            let start = self.shown_at(self.src.floor(self.source_at(span.offset())));
+            (start..(start + span.len()).max(start), start)
         } else {
-            (self.window.clone(), self.window.start)
+            let start = self.window.start;
+            (start..start + self.shown.len(), start)
         };
-        let (line, column) = self.line_col0(at);
-        let text = self.src.text.get(data.clone()).unwrap_or("");
+        let (line, column) = self.line_col0(self.source_at(at));
+        let text = self.text(data.clone());
         Ok(Box::new(MietteSpanContents::new_named(
             self.src.name.clone(),
             text.as_bytes(),

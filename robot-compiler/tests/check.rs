@@ -334,6 +334,27 @@ fn a_diagnostic_renders_with_file_line_col_the_line_and_a_caret() {
     assert_eq!(text, expected);
 }
 
+/// A file with Windows line ends (CRLF) renders as the same file with LF ones: the same
+/// line numbers, no carriage return shown. Found: the line after the span was numbered as
+/// the span's, with a stray `^M`.
+#[test]
+fn a_diagnostic_of_a_crlf_file_renders_as_of_the_lf_file() {
+    let render = |src: &Source| {
+        let diags = check(src).diagnostics;
+        diags
+            .iter()
+            .map(|d| d.render(src, false))
+            .collect::<Vec<_>>()
+    };
+    for (file, _) in BROKEN {
+        let lf = fixture(&format!("broken/{file}"));
+        let crlf = Source::new(lf.name.clone(), lf.text.replace('\n', "\r\n"));
+        let want = render(&lf);
+        assert!(!want.is_empty(), "{file}");
+        assert_eq!(render(&crlf), want, "{file}");
+    }
+}
+
 #[test]
 fn the_complete_example_of_the_format_doc_checks_clean_but_sensorless_steps() {
     let doc = std::fs::read_to_string(format!(
