@@ -231,6 +231,47 @@ fn sim_fault_on_a_switch_says_which_switch_is_missing() {
     );
 }
 
+/// `sim` checks the robot's interlocks (`never:`) after every event it simulates: a
+/// sequence that moves HC while VC is out fails, at the moment it happens. Found: `sim`
+/// said ok while `verify` found the interlock broken.
+#[test]
+fn sim_fails_a_cycle_that_breaks_an_interlock() {
+    let broken = paint_variant(
+        "interlock-broken.ron",
+        "sequence: \"VC+ GR+ VC- HC+ VC+ VC- RC+ RC- HC- VC+ GR- VC-\"",
+        "sequence: \"VC+ HC+ VC- HC-\"",
+    );
+    let out = tool(&["sim", &broken, "--cycles", "2"]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out.stderr));
+    assert_eq!(
+        text(&out.stdout),
+        "cycle   1:   2158 ms   4 publications  VC+ HC+ VC- HC-\n  \
+         INTERLOCK at 302 ms: never: \"HC.moving && !VC.home\" holds\n\
+         FAILED: 1 of 1 cycle(s) went wrong: an interlock broken\n"
+    );
+}
+
+/// A robot without a declared sequence (`expect`) says what `sim` did check, not "each 0
+/// step(s) as declared".
+#[test]
+fn sim_without_a_declared_sequence_says_what_it_checked() {
+    let out = tool(&[
+        "sim",
+        "robot-configs/waterjet-transport.ron",
+        "--cycles",
+        "1",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stdout).ends_with(
+            "no expected sequence declared (`expect`): nothing compared\n\
+             ok: 1 cycle(s), no fault, no interlock broken\n"
+        ),
+        "{}",
+        text(&out.stdout)
+    );
+}
+
 #[test]
 fn sim_timeline_writes_an_svg() {
     let path = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("timeline.svg");

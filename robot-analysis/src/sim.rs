@@ -11,7 +11,9 @@ use node_fw::sim::{
     World,
 };
 
+use node_fw::cylinder::Position;
 use robot_compiler::compile::Compiled;
+use robot_compiler::interlock::{self, Atom, Interlock};
 use robot_compiler::ir::{Step, Valves};
 use robot_compiler::model::ActuatorKind;
 use robot_compiler::plants::PlantDecl;
@@ -75,6 +77,9 @@ pub struct SimulatedCycle {
     pub publications: usize,
     /// Faults, as text (`node VC: ...`).
     pub faults: Vec<String>,
+    /// The robot's interlocks (`never:`) that held during the cycle, each the first time:
+    /// `at 302 ms: never: "HC.moving && !VC.home" holds`.
+    pub interlocks: Vec<String>,
 }
 
 /// The outcome of a simulation.
@@ -88,7 +93,9 @@ pub struct SimResult {
 
 impl SimulatedCycle {
     fn ok(&self, expect: &[Step]) -> bool {
-        self.faults.is_empty() && (expect.is_empty() || self.steps == expect)
+        self.faults.is_empty()
+            && self.interlocks.is_empty()
+            && (expect.is_empty() || self.steps == expect)
     }
 }
 
@@ -114,6 +121,9 @@ impl SimResult {
             for f in &c.faults {
                 let _ = writeln!(o, "  FAULT {f}");
             }
+            for i in &c.interlocks {
+                let _ = writeln!(o, "  INTERLOCK {i}");
+            }
             if !c.ok(&self.expect) && !self.expect.is_empty() && c.steps != self.expect {
                 o.push_str(&diff(&self.expect, &c.steps));
             }
@@ -125,7 +135,13 @@ impl SimResult {
                 "no expected sequence declared (`expect`): nothing compared"
             );
         }
-        if bad == 0 {
+        if bad == 0 && self.expect.is_empty() {
+            let _ = writeln!(
+                o,
+                "ok: {} cycle(s), no fault, no interlock broken",
+                self.cycles.len()
+            );
+        } else if bad == 0 {
             let _ = writeln!(
                 o,
                 "ok: {} cycle(s), each {} step(s) as declared",
@@ -133,11 +149,33 @@ impl SimResult {
                 self.expect.len()
             );
         } else {
-            let _ = writeln!(
-                o,
-                "FAILED: {bad} of {} cycle(s) differ from the declared sequence",
-                self.cycles.len()
+            let any = |f: &dyn Fn(&SimulatedCycle) -> bool| self.cycles.iter().any(f);
+            let (faults, interlocks) = (
+                any(&|c| !c.faults.is_empty()),
+                any(&|c| !c.interlocks.is_empty()),
             );
+            let differ = any(&|c| !self.expect.is_empty() && c.steps != self.expect);
+            let n = self.cycles.len();
+            if faults || interlocks {
+                let why: Vec<&str> = [
+                    (faults, "a fault"),
+                    (interlocks, "an interlock broken"),
+                    (differ, "steps not as declared"),
+                ]
+                .into_iter()
+                .filter_map(|(bad, why)| bad.then_some(why))
+                .collect();
+                let _ = writeln!(
+                    o,
+                    "FAILED: {bad} of {n} cycle(s) went wrong: {}",
+                    why.join(", ")
+                );
+            } else {
+                let _ = writeln!(
+                    o,
+                    "FAILED: {bad} of {n} cycle(s) differ from the declared sequence"
+                );
+            }
         }
         o
     }
@@ -366,9 +404,17 @@ fn run(c: &Compiled, cycles: usize, keep_trace: bool) -> Result<SimResult, Simul
         cycles: Vec::new(),
         trace: Vec::new(),
     };
+    let watch = Interlocks::of(c, &world);
     for _ in 0..cycles {
         let mark = world.trace().len();
-        let cycle = world.run_cycle(button, cycle_limit_ms(c))?;
+        let mut broken: Vec<(u64, usize)> = Vec::new();
+        let cycle = world.run_cycle_watched(button, cycle_limit_ms(c), &mut |w| {
+            for i in watch.holding(w) {
+                if broken.iter().all(|&(_, b)| b != i) {
+                    broken.push((w.now(), i));
+                }
+            }
+        })?;
         let entries = &world.trace()[mark..];
         let publications = entries
             .iter()
@@ -393,6 +439,10 @@ fn run(c: &Compiled, cycles: usize, keep_trace: bool) -> Result<SimResult, Simul
             duration_ms,
             publications,
             faults,
+            interlocks: broken
+                .iter()
+                .map(|&(t, i)| format!("at {t} ms: never: \"{}\" holds", watch.list[i].text))
+                .collect(),
         };
         let stop = !r.ok(&result.expect);
         result.cycles.push(r);
@@ -401,6 +451,55 @@ fn run(c: &Compiled, cycles: usize, keep_trace: bool) -> Result<SimResult, Simul
         }
     }
     Ok(result)
+}
+
+/// The robot's interlocks (`never:`), read on a simulated world.
+struct Interlocks {
+    list: Vec<Interlock>,
+    /// The world's plant of each actuator an interlock names (by the IR's index).
+    plants: Vec<Option<usize>>,
+}
+
+impl Interlocks {
+    fn of(c: &Compiled, world: &World<'_>) -> Interlocks {
+        // A robot whose interlocks do not resolve is refused by `check` before this.
+        let list = interlock::interlocks(&c.robot, &c.ir).unwrap_or_default();
+        let plants = interlock::actuator_names(&c.ir)
+            .iter()
+            .map(|name| world.plant_by_name(name))
+            .collect();
+        Interlocks { list, plants }
+    }
+
+    /// The interlocks that hold in `world` now, by index.
+    fn holding<'a>(&'a self, world: &'a World<'_>) -> impl Iterator<Item = usize> + 'a {
+        let read = move |a: Atom| match a {
+            Atom::Position { plant, mask } => {
+                let at = self.plants.get(plant).copied().flatten();
+                at.and_then(|p| world.position(p))
+                    .is_some_and(|pos| position_mask(pos) & mask != 0)
+            }
+            Atom::Chart { role, chart, state } => {
+                role < world.node_count()
+                    && world.engine(role).state(chart).map(usize::from) == Some(state)
+            }
+            Atom::Fault { role } => {
+                role < world.node_count() && world.engine(role).fault().is_some()
+            }
+            Atom::Const(v) => v,
+        };
+        (0..self.list.len()).filter(move |&i| self.list[i].holds(&read))
+    }
+}
+
+/// An actuator's position as an interlock reads it ([`interlock::HOME`] ...).
+fn position_mask(p: Position) -> u8 {
+    match p {
+        Position::Home => interlock::HOME,
+        Position::End => interlock::END,
+        Position::Extending => interlock::EXTENDING,
+        Position::Retracting => interlock::RETRACTING,
+    }
 }
 
 #[cfg(test)]

@@ -779,6 +779,16 @@ impl<'t> World<'t> {
     /// Runs until nothing is scheduled, for at most `limit_ms` of virtual time from now.
     /// Returns the time of the last event processed (the clock stays there).
     pub fn run_until_idle(&mut self, limit_ms: u64) -> Result<u64, SimError> {
+        self.run_until_idle_watched(limit_ms, &mut |_| {})
+    }
+
+    /// [`World::run_until_idle`], showing the world to `after` after every event it
+    /// processes.
+    pub fn run_until_idle_watched(
+        &mut self,
+        limit_ms: u64,
+        after: &mut dyn FnMut(&World<'t>),
+    ) -> Result<u64, SimError> {
         let deadline = self.now.saturating_add(limit_ms);
         for _ in 0..self.event_limit {
             match self.peek() {
@@ -792,6 +802,7 @@ impl<'t> World<'t> {
                 }
                 Some(_) => {
                     self.step();
+                    after(self);
                 }
             }
         }
@@ -823,9 +834,19 @@ impl<'t> World<'t> {
 
     /// Presses `button`, runs until idle (at most `limit_ms`), and returns the cycle it ran.
     pub fn run_cycle(&mut self, button: usize, limit_ms: u64) -> Result<Cycle, SimError> {
+        self.run_cycle_watched(button, limit_ms, &mut |_| {})
+    }
+
+    /// [`World::run_cycle`], showing the world to `after` after every event it processes.
+    pub fn run_cycle_watched(
+        &mut self,
+        button: usize,
+        limit_ms: u64,
+        after: &mut dyn FnMut(&World<'t>),
+    ) -> Result<Cycle, SimError> {
         let mark = self.trace.len();
         self.press(button)?;
-        self.run_until_idle(limit_ms)?;
+        self.run_until_idle_watched(limit_ms, after)?;
         let mut cycles = cycles(&self.trace[mark..]);
         Ok(cycles.pop().unwrap_or(Cycle {
             start_ms: self.now,
