@@ -380,13 +380,13 @@ pub struct MediumArgs {
     #[arg(long, default_value = "127.0.0.1:15400")]
     pub listen: SocketAddr,
     /// Probability a frame is lost (per receiver).
-    #[arg(long, default_value_t = 0.0, value_parser = probability)]
+    #[arg(long, default_value_t = 0.0, value_parser = probability, allow_negative_numbers = true)]
     pub loss: f64,
     /// Probability a frame arrives twice.
-    #[arg(long, default_value_t = 0.0, value_parser = probability)]
+    #[arg(long, default_value_t = 0.0, value_parser = probability, allow_negative_numbers = true)]
     pub dup: f64,
     /// Probability a frame arrives with a flipped bit.
-    #[arg(long, default_value_t = 0.0, value_parser = probability)]
+    #[arg(long, default_value_t = 0.0, value_parser = probability, allow_negative_numbers = true)]
     pub corrupt: f64,
     /// Extra delay per frame, uniform in A..B ms (reorders frames).
     #[arg(long, value_parser = delay_range, default_value = "0..0")]
@@ -514,7 +514,7 @@ pub struct DemoArgs {
     #[arg(long, default_value_t = 3, value_parser = cycles)]
     pub cycles: usize,
     /// Frame loss on the medium (with half as much duplication, and reordering).
-    #[arg(long, default_value_t = 0.0, value_parser = probability)]
+    #[arg(long, default_value_t = 0.0, value_parser = probability, allow_negative_numbers = true)]
     pub loss: f64,
     /// The robot pushed afterwards to the same running nodes (default:
     /// paint-robot-double-dip.ron beside ROBOT, if there is one).
@@ -540,7 +540,8 @@ pub struct DemoArgs {
     pub icount: bool,
     /// Inject a fault into the running machine, as `sim --fault` does: stuck:ACT or
     /// switch:ACT.end|ACT.home (the plant), stop:ROLE (the node's process is killed),
-    /// then @STEP or @CYCLE.STEP. The demo reports the detection and exits "faulted".
+    /// link:FROM->TO (the medium cuts that link), then @STEP or @CYCLE.STEP. The demo
+    /// reports the detection and exits "faulted".
     #[arg(long)]
     pub fault: Option<String>,
 }

@@ -688,3 +688,25 @@ fn arguments_the_robot_cannot_use_are_refused() {
     ]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
 }
+
+/// A negative probability is refused as one, not read as an unknown flag. Found: `demo
+/// --loss -0.1` said "unexpected argument '-0' found".
+#[test]
+fn a_negative_probability_is_refused_as_one() {
+    for args in [
+        &["demo", "robot-configs/paint-robot.ron", "--loss", "-0.1"][..],
+        &["medium", "--dup", "-0.1"],
+    ] {
+        let out = tool(args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let flag = args[args.len() - 2];
+        assert!(
+            text(&out.stderr).starts_with(&format!(
+                "error: invalid value '-0.1' for '{flag} <{}>': `-0.1` is not a probability in 0..1",
+                flag.trim_start_matches('-').to_uppercase()
+            )),
+            "{}",
+            text(&out.stderr)
+        );
+    }
+}
