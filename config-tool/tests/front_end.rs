@@ -342,6 +342,27 @@ fn pins_past_the_table_s_pin_range_are_refused() {
     );
 }
 
+/// A node at the tool's own address (0x0100) is refused: the tool's frames and the node's
+/// answers to it would reach both. Found: `check` accepted it.
+#[test]
+fn a_node_at_the_tool_s_address_is_refused() {
+    let src = paint_with(
+        "(name: \"node-2\", address: 0x0012)",
+        "(name: \"node-2\", address: 0x0100)",
+    );
+    let errors: Vec<String> = diagnostics(&src)
+        .into_iter()
+        .filter(|d| d.contains(": error: "))
+        .collect();
+    assert_eq!(
+        errors,
+        [
+            "10:35: error: address 0x0100 is config-tool's own on the radio: the tool's frames \
+          and the answers to them would reach this node too"
+        ]
+    );
+}
+
 #[test]
 fn a_zero_motion_timeout_is_refused() {
     let src = paint_with("motion_timeout_ms: 2000", "motion_timeout_ms: 0");

@@ -16,8 +16,7 @@ use robot_keys::{management_key, MachineSecret};
 
 use medium::Conn;
 
-/// The tool's default short address.
-pub const TOOL_ADDR: u16 = 0x0100;
+pub use config_schema::wire::TOOL_ADDR;
 
 /// The PSDU length of a node's answer to a frame of the tool (a `ConfigReply::Next` is
 /// 18 bytes; a status is longer, and rarer).

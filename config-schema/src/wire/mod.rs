@@ -10,6 +10,10 @@
 pub mod mac;
 pub mod medium;
 pub mod msg;
+
+/// The short address `config-tool` sends and receives from (push, commands, status): no
+/// node may have it.
+pub const TOOL_ADDR: u16 = 0x0100;
 pub mod security;
 
 /// `dst = src` if they are as long (else `None`, nothing copied). Not `copy_from_slice`:

@@ -71,6 +71,16 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
                 format!("address {:#06x} is reserved by IEEE 802.15.4", n.address),
             ));
         }
+        if n.address == config_schema::wire::TOOL_ADDR {
+            out.push(Diagnostic::error(
+                here.clone(),
+                format!(
+                    "address {:#06x} is config-tool's own on the radio: the tool's frames and \
+                     the answers to them would reach this node too",
+                    n.address
+                ),
+            ));
+        }
         match addrs.get(&n.address) {
             Some(&first) => {
                 let (line, col) = src.line_col(src.span(&format!("nodes[{first}].address")).start);
