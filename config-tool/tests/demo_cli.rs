@@ -263,4 +263,25 @@ fn demo_pcap_never_overwrites_the_robot() {
         format!("error: --pcap {path}: that is {path}, which this command reads: it would be overwritten\n")
     );
     assert_eq!(std::fs::read_to_string(&robot).expect("robot"), before);
+    // The robot pushed after it by default: `paint-robot-double-dip.ron` beside it.
+    let robot = dir.join("paint-robot.ron");
+    std::fs::write(&robot, &before).expect("copy");
+    let then = dir.join("paint-robot-double-dip.ron");
+    let then_text =
+        std::fs::read_to_string("../robot-configs/paint-robot-double-dip.ron").expect("then");
+    std::fs::write(&then, &then_text).expect("copy");
+    let then_path = then.to_str().expect("utf-8");
+    let out = demo(&[
+        robot.to_str().expect("utf-8"),
+        "--cycles",
+        "1",
+        "--pcap",
+        then_path,
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert_eq!(
+        text(&out.stderr),
+        format!("error: --pcap {then_path}: that is {then_path}, which this command reads: it would be overwritten\n")
+    );
+    assert_eq!(std::fs::read_to_string(&then).expect("then"), then_text);
 }

@@ -331,6 +331,74 @@ fn sim_timeline_never_overwrites_the_robot_or_what_it_imports() {
     assert_eq!(run.status.code(), Some(2), "{}", text(&run.stderr));
     assert!(text(&run.stderr).contains("it would be overwritten"));
     assert_eq!(std::fs::read("../".to_string() + fbt).expect("fbt"), before);
+    // An automaton's facts file.
+    let facts = "tests/fixtures/fig1.pl";
+    let before = std::fs::read("../".to_string() + facts).expect("facts");
+    let run = tool(&["sim", "tests/fixtures/automata.ron", "--timeline", facts]);
+    assert_eq!(run.status.code(), Some(2), "{}", text(&run.stderr));
+    assert_eq!(
+        text(&run.stderr),
+        "error: --timeline tests/fixtures/fig1.pl: that is tests/fixtures/fig1.pl, which this \
+         command reads: it would be overwritten\n"
+    );
+    assert_eq!(
+        std::fs::read("../".to_string() + facts).expect("facts"),
+        before
+    );
+}
+
+/// `sim --timeline` to a named pipe writes the SVG into it (the check that it is no input
+/// opens nothing). Found: the check opened the pipe for reading and waited for ever.
+#[cfg(unix)]
+#[test]
+fn sim_timeline_writes_into_a_named_pipe() {
+    use std::io::Read;
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("timeline-fifo");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("dir");
+    let fifo = dir.join("t.svg");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .expect("mkfifo");
+    assert!(made.success());
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || {
+            let mut svg = String::new();
+            std::fs::File::open(&fifo)
+                .expect("opens")
+                .read_to_string(&mut svg)
+                .expect("reads");
+            svg
+        })
+    };
+    let sim = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args([
+            "sim",
+            "robot-configs/paint-robot.ron",
+            "--cycles",
+            "1",
+            "--timeline",
+        ])
+        .arg(&fifo)
+        .current_dir(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("runs");
+    let pid = sim.id();
+    let (done, ended) = std::sync::mpsc::channel();
+    std::thread::spawn(move || done.send(sim.wait_with_output()));
+    // A hang is a failure, not a test that never ends.
+    let Ok(run) = ended.recv_timeout(std::time::Duration::from_secs(60)) else {
+        let _ = Command::new("kill").arg("-9").arg(pid.to_string()).status();
+        let _ = std::fs::OpenOptions::new().write(true).open(&fifo);
+        panic!("sim --timeline on a named pipe did not end");
+    };
+    let run = run.expect("waits");
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    assert!(reader.join().expect("reader").starts_with("<svg"));
 }
 
 #[test]

@@ -647,6 +647,17 @@ pub fn parse(src: &Source) -> Result<Robot, Diagnostic> {
 }
 
 impl Robot {
+    /// The files compiling this robot reads besides the robot file at `path`: its
+    /// `fb_types`, its `application`, its automata's `facts_file`s, each relative to the
+    /// robot file as the loaders read them.
+    pub fn imports(&self, path: &std::path::Path) -> Vec<std::path::PathBuf> {
+        let dir = path.parent().unwrap_or(std::path::Path::new(""));
+        let files = self.fb_types.iter().map(String::as_str);
+        let files = files.chain(self.application.iter().map(|a| a.file.as_str()));
+        let files = files.chain(self.automata.iter().filter_map(|a| a.facts_file.as_deref()));
+        files.map(|f| dir.join(f)).collect()
+    }
+
     pub fn role(&self, name: &str) -> Option<(usize, &Role)> {
         self.roles.iter().enumerate().find(|(_, r)| r.name == name)
     }

@@ -19,6 +19,27 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
         .map(robot_analysis::inject::parse)
         .transpose()
         .map_err(Failure::error)?;
+    let then = match (flags.no_reconfigure, &flags.then) {
+        (true, _) => None,
+        (false, Some(p)) => Some(p.clone()),
+        (false, None) => {
+            let p = robot.with_file_name("paint-robot-double-dip.ron");
+            (p.exists() && p != robot).then_some(p)
+        }
+    };
+    let loaded = demo::load(robot)?;
+    if let Some(out) = &flags.pcap {
+        // What the demo reads: both robots and what they import, and the image.
+        let mut inputs = outputs::robot_files(robot, &loaded.robot);
+        if let Some(then) = &then {
+            match demo::load(then) {
+                Ok(c) => inputs.extend(outputs::robot_files(then, &c.robot)),
+                Err(_) => inputs.push(then.clone()),
+            }
+        }
+        inputs.push(flags.elf.clone());
+        outputs::not_an_input("--pcap", out, &inputs)?;
+    }
     let count_dir = if flags.icount {
         let dir = std::env::temp_dir().join(format!("config-tool-icount-{}", std::process::id()));
         std::fs::create_dir_all(&dir)
@@ -27,27 +48,7 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
     } else {
         None
     };
-    if let Some(out) = &flags.pcap {
-        let inputs = [
-            Some(flags.robot.clone()),
-            flags.then.clone(),
-            Some(flags.elf.clone()),
-        ];
-        outputs::not_an_input(
-            "--pcap",
-            out,
-            &inputs.into_iter().flatten().collect::<Vec<_>>(),
-        )?;
-    }
     interrupted_cleans_up(count_dir.clone())?;
-    let then = match (flags.no_reconfigure, flags.then) {
-        (true, _) => None,
-        (false, Some(p)) => Some(p),
-        (false, None) => {
-            let p = robot.with_file_name("paint-robot-double-dip.ron");
-            (p.exists() && p != robot).then_some(p)
-        }
-    };
     let options = demo::Options {
         medium: medium::Config {
             loss: flags.loss,
@@ -62,7 +63,7 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
         timeout: Duration::from_secs(60),
         // Host and QEMU nodes alike: every node gets its management key, unless the robot
         // says `security: Off` (which `check` warns about).
-        secured: demo::load(robot)?.robot.security == robot_compiler::model::Security::On,
+        secured: loaded.robot.security == robot_compiler::model::Security::On,
     };
     let verdict = demo::run(
         &Demo {

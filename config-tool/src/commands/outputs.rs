@@ -7,11 +7,16 @@ use crate::failure::Failure;
 
 /// Refuses output file `out` (`what`: its flag) if it is one of `inputs`, however named
 /// (the same file: a link, `./`, another path to it): it would be overwritten with what
-/// the command made of it.
+/// the command made of it. Looks at the files' metadata only (opens nothing: a named pipe
+/// to write to stays as it was).
 pub fn not_an_input(what: &str, out: &Path, inputs: &[PathBuf]) -> Result<(), Failure> {
+    let Ok(target) = std::fs::metadata(out) else {
+        // Nothing there yet: no input is it.
+        return Ok(());
+    };
     match inputs
         .iter()
-        .find(|input| same_file::is_same_file(out, input).unwrap_or(false))
+        .find(|input| std::fs::metadata(input).is_ok_and(|m| same_file(&m, &target, input, out)))
     {
         Some(input) => Err(Failure::usage(format!(
             "{what} {}: that is {}, which this command reads: it would be overwritten",
@@ -22,14 +27,26 @@ pub fn not_an_input(what: &str, out: &Path, inputs: &[PathBuf]) -> Result<(), Fa
     }
 }
 
-/// The robot file at `path` and the files it imports (`fb_types`, its `application`),
-/// named as the robot names them, beside it.
+/// Whether two files' metadata are of the same file (`a` at `a_path`, `b` at `b_path`).
+#[cfg(unix)]
+fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata, _: &Path, _: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    (a.dev(), a.ino()) == (b.dev(), b.ino())
+}
+
+#[cfg(not(unix))]
+fn same_file(_: &std::fs::Metadata, _: &std::fs::Metadata, a_path: &Path, b_path: &Path) -> bool {
+    matches!(
+        (std::fs::canonicalize(a_path), std::fs::canonicalize(b_path)),
+        (Ok(a), Ok(b)) if a == b
+    )
+}
+
+/// The robot file at `path` and every file compiling it reads
+/// ([`robot_compiler::model::Robot::imports`]).
 pub fn robot_files(path: &Path, robot: &robot_compiler::model::Robot) -> Vec<PathBuf> {
-    let dir = path.parent().unwrap_or(Path::new(""));
-    let imported = robot.fb_types.iter().map(String::as_str);
-    let imported = imported.chain(robot.application.iter().map(|a| a.file.as_str()));
     std::iter::once(path.to_path_buf())
-        .chain(imported.map(|f| dir.join(f)))
+        .chain(robot.imports(path))
         .collect()
 }
 
