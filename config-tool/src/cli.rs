@@ -182,8 +182,9 @@ pub enum Command {
     /// The whole machine on this host: medium, unconfigured nodes, plant; push, run the
     /// cycles, check them, then push a reconfiguration to the running nodes.
     Demo(DemoArgs),
-    /// Run one emulated node: QEMU booting the firmware image, its UART on the medium; it
-    /// ends when the medium closes the connection, as a host node does.
+    /// Run one emulated node: QEMU booting the firmware image, its UART on the medium;
+    /// started by hand (Linux) it ends when the medium closes the connection, as a host
+    /// node does.
     QemuNode(QemuNodeArgs),
     /// Run a medium whose frames also go to the air, through an nRF52840 gateway on a
     /// serial port (`nrf52840` image built with `--features gateway`): `push`, `scan`,

@@ -679,6 +679,10 @@ fn arguments_the_robot_cannot_use_are_refused() {
         &["sim", sorter, "--feed", " "],
         "error: --feed names no ball",
     );
+    refused(
+        &["sim", paint, "--fault", "stuck:HC@4", "--cycles", "7"],
+        "error: --fault runs up to the fault's cycle (`@CYCLE.STEP`): it takes no --cycles",
+    );
     // Where they apply, they run.
     let out = tool(&[
         "verify",

@@ -368,5 +368,6 @@ fn a_qemu_node_started_by_hand_ends_when_its_medium_stops() {
         "{}",
         gone.said
     );
+    assert_eq!(gone.started, 1, "QEMU, a child of qemu-node");
     assert_eq!(gone.left, 0, "QEMU processes left running");
 }

@@ -28,6 +28,9 @@ pub enum SimulationError {
     /// A compiled blob does not decode as a node decodes it.
     #[error("blob of role {role}: {error}")]
     Blob { role: String, error: DecodeError },
+    /// An interlock does not resolve (`check` reports it at its place).
+    #[error(transparent)]
+    Interlock(#[from] robot_compiler::interlock::NeverError),
     /// A declared plant names a role or pin the compiled robot does not have (`check`
     /// reports it at its place).
     #[error("plant {plant}: no {what}")]
@@ -52,13 +55,9 @@ pub fn cycle_limit_ms(c: &Compiled) -> u64 {
         _ => None,
     });
     let actuators = c.robot.roles.iter().flat_map(|r| r.actuators.iter());
-    let strokes = actuators.flat_map(|a| match a.kind {
-        ActuatorKind::DoubleActing {
-            out_ms, back_ms, ..
-        }
-        | ActuatorKind::SingleActing {
-            out_ms, back_ms, ..
-        } => [out_ms, back_ms],
+    let strokes = actuators.flat_map(|a| {
+        let (out_ms, back_ms) = a.kind.strokes();
+        [out_ms, back_ms]
     });
     let longest = u64::from(timers.chain(strokes).max().unwrap_or(0));
     let steps = c.ir.expect.len().max(MANY_STEPS) as u64;
@@ -404,7 +403,7 @@ fn run(c: &Compiled, cycles: usize, keep_trace: bool) -> Result<SimResult, Simul
         cycles: Vec::new(),
         trace: Vec::new(),
     };
-    let watch = Interlocks::of(c, &world);
+    let watch = Interlocks::of(c, &world)?;
     for _ in 0..cycles {
         let mark = world.trace().len();
         let mut broken: Vec<(u64, usize)> = Vec::new();
@@ -461,14 +460,13 @@ struct Interlocks {
 }
 
 impl Interlocks {
-    fn of(c: &Compiled, world: &World<'_>) -> Interlocks {
-        // A robot whose interlocks do not resolve is refused by `check` before this.
-        let list = interlock::interlocks(&c.robot, &c.ir).unwrap_or_default();
+    fn of(c: &Compiled, world: &World<'_>) -> Result<Interlocks, SimulationError> {
+        let list = interlock::interlocks(&c.robot, &c.ir)?;
         let plants = interlock::actuator_names(&c.ir)
             .iter()
             .map(|name| world.plant_by_name(name))
             .collect();
-        Interlocks { list, plants }
+        Ok(Interlocks { list, plants })
     }
 
     /// The interlocks that hold in `world` now, by index.

@@ -194,11 +194,12 @@ impl<'a> Excerpt<'a> {
         at - self.removed.iter().take_while(|&&r| r < at).count()
     }
 
-    /// The source offset of offset `at` of what is shown.
+    /// The source offset of offset `at` of what is shown (the first that shows there: a
+    /// line's end is its carriage return, where the same file with LF ends has its LF).
     fn source_at(&self, at: usize) -> usize {
         let mut real = at;
         for &r in &self.removed {
-            if r > real {
+            if r >= real {
                 break;
             }
             real += 1;

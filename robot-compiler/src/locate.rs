@@ -367,7 +367,9 @@ impl Value {
         }
     }
 
-    fn walk(&self, path: &str) -> (Option<Range<usize>>, &Value) {
+    /// The key and value at `path`, or `None` and the deepest existing ancestor; and
+    /// whether the whole path was found.
+    fn reach(&self, path: &str) -> (Option<Range<usize>>, &Value, bool) {
         let mut at = self;
         let mut key = None;
         for seg in segments(path) {
@@ -376,22 +378,20 @@ impl Value {
                     key = k;
                     at = v;
                 }
-                None => return (None, at),
+                None => return (None, at, false),
             }
         }
+        (key, at, true)
+    }
+
+    fn walk(&self, path: &str) -> (Option<Range<usize>>, &Value) {
+        let (key, at, _) = self.reach(path);
         (key, at)
     }
 
     /// Whether the file has a value at `path` (not a default).
     pub fn has(&self, path: &str) -> bool {
-        let mut at = self;
-        for seg in segments(path) {
-            match at.step(&seg).or_else(|| at.unwrap_some().step(&seg)) {
-                Some((_, v)) => at = v,
-                None => return false,
-            }
-        }
-        true
+        self.reach(path).2
     }
 
     /// The span of the value at `path` (or of its deepest existing ancestor).

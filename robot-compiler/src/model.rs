@@ -378,6 +378,18 @@ impl ActuatorKind {
         self.completion_switch(true).is_none() || self.completion_switch(false).is_none()
     }
 
+    /// Its strokes' times for `sim`: (`out_ms`, `back_ms`).
+    pub fn strokes(&self) -> (u32, u32) {
+        match *self {
+            ActuatorKind::DoubleActing {
+                out_ms, back_ms, ..
+            }
+            | ActuatorKind::SingleActing {
+                out_ms, back_ms, ..
+            } => (out_ms, back_ms),
+        }
+    }
+
     /// This actuator's motion watchdog, if it sets its own.
     pub fn timeout_ms(&self) -> Option<u32> {
         match *self {

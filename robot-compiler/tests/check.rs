@@ -355,6 +355,38 @@ fn a_diagnostic_of_a_crlf_file_renders_as_of_the_lf_file() {
     }
 }
 
+/// The same for spans at a line's end, across line ends and after them, in text with
+/// multi-byte characters: the CRLF file renders each as the LF file does (a span starting
+/// at the carriage return was one column off).
+#[test]
+fn spans_at_line_ends_of_a_crlf_file_render_as_of_the_lf_file() {
+    let lf = "(\n    name: \"é€😀\",\n    x: 1,\n)\n";
+    let crlf = lf.replace('\n', "\r\n");
+    // An offset of the LF text in the CRLF one.
+    let at = |o: usize| o + lf[..o].matches('\n').count();
+    let render = |text: &str, span: std::ops::Range<usize>| {
+        let src = Source::new("crlf.ron", text);
+        robot_compiler::Diagnostic::error(span, "here").render(&src, false)
+    };
+    for (end, _) in lf.match_indices('\n') {
+        let next = lf[end + 1..].find('\n').map_or(lf.len(), |i| end + 1 + i);
+        let before = lf[..end].char_indices().last().map_or(0, |(i, _)| i);
+        for span in [
+            end..end,
+            end..end + 1,
+            before..end + 1,
+            end..next,
+            end + 1..next,
+        ] {
+            assert_eq!(
+                render(&crlf, at(span.start)..at(span.end)),
+                render(lf, span.clone()),
+                "{span:?}"
+            );
+        }
+    }
+}
+
 #[test]
 fn the_complete_example_of_the_format_doc_checks_clean_but_sensorless_steps() {
     let doc = std::fs::read_to_string(format!(

@@ -249,6 +249,11 @@ pub fn sim(args: &SimArgs) -> Result<(), Failure> {
             args.robot.display()
         )));
     }
+    if args.fault.is_some() && args.cycles.is_some() {
+        return Err(Failure::usage(
+            "--fault runs up to the fault's cycle (`@CYCLE.STEP`): it takes no --cycles",
+        ));
+    }
     if let Some(spec) = &args.fault {
         return sim_fault(&compiled, spec, trace, timeline);
     }

@@ -918,6 +918,7 @@ fn qemu_failed(qemu: &Path, e: io::Error) -> Failure {
 }
 
 /// `qemu-node`'s result once QEMU ended on its own with `status`.
+#[cfg(any(target_os = "linux", not(unix)))]
 fn qemu_ended(status: std::process::ExitStatus) -> Result<(), Failure> {
     if status.success() {
         Ok(())
@@ -933,7 +934,7 @@ fn qemu_ended(status: std::process::ExitStatus) -> Result<(), Failure> {
 mod watched {
     use std::io;
     use std::net::TcpStream;
-    use std::os::fd::AsRawFd;
+    use std::os::fd::{AsRawFd, OwnedFd};
     use std::os::unix::process::CommandExt;
     use std::process::{Child, Command};
 
@@ -941,7 +942,8 @@ mod watched {
     use rustix::event::{poll, PollFd, PollFlags};
     use rustix::io::{fcntl_setfd, Errno, FdFlags};
     use rustix::process::{
-        getpid, getppid, pidfd_open, set_parent_process_death_signal, Pid, PidfdFlags, Signal,
+        getpid, getppid, kill_process, pidfd_open, set_parent_process_death_signal, Pid,
+        PidfdFlags, Signal,
     };
 
     use super::{qemu_ended, qemu_failed, Failure, QemuNodeArgs};
@@ -975,11 +977,14 @@ mod watched {
             });
         }
         let mut qemu = cmd.spawn().map_err(|e| qemu_failed(&a.qemu, e))?;
-        match watch(&medium, &mut qemu) {
+        // QEMU's end as an event where the kernel has them (Linux 5.3), else looked at
+        // every 100 ms.
+        let pid = Pid::from_raw(qemu.id() as i32);
+        let pidfd = pid.and_then(|pid| pidfd_open(pid, PidfdFlags::empty()).ok());
+        match watch(&medium, &mut qemu, pidfd.as_ref()) {
             Ok(Some(status)) => qemu_ended(status),
             Ok(None) => {
-                let _ = qemu.kill();
-                let _ = qemu.wait();
+                end(&mut qemu, pid, pidfd.as_ref());
                 outln!(
                     "qemu-node {:#06x}: the medium closed the connection: the node stops",
                     a.addr
@@ -987,30 +992,36 @@ mod watched {
                 Ok(())
             }
             Err(e) => {
-                let _ = qemu.kill();
-                let _ = qemu.wait();
+                end(&mut qemu, pid, pidfd.as_ref());
                 Err(Failure::error(format!("qemu-node: {e}")))
             }
         }
     }
 
+    /// How long QEMU has to end on SIGTERM before it is killed.
+    const GRACE: rustix::time::Timespec = rustix::time::Timespec {
+        tv_sec: 2,
+        tv_nsec: 0,
+    };
+    /// How often QEMU's end is looked at without a pidfd.
+    const EVERY: rustix::time::Timespec = rustix::time::Timespec {
+        tv_sec: 0,
+        tv_nsec: 100_000_000,
+    };
+
     /// Waits until QEMU ends (its status) or the medium closes the connection (`None`).
-    fn watch(medium: &TcpStream, qemu: &mut Child) -> io::Result<Option<std::process::ExitStatus>> {
-        // QEMU's end as an event where the kernel has them (Linux 5.3), else looked at
-        // every 100 ms.
-        let pidfd = Pid::from_raw(qemu.id() as i32)
-            .and_then(|pid| pidfd_open(pid, PidfdFlags::empty()).ok());
-        let every = rustix::time::Timespec {
-            tv_sec: 0,
-            tv_nsec: 100_000_000,
-        };
+    fn watch(
+        medium: &TcpStream,
+        qemu: &mut Child,
+        pidfd: Option<&OwnedFd>,
+    ) -> io::Result<Option<std::process::ExitStatus>> {
         loop {
             let gone = PollFlags::RDHUP | PollFlags::HUP | PollFlags::ERR;
             let mut fds = vec![PollFd::new(medium, PollFlags::RDHUP)];
-            if let Some(fd) = &pidfd {
+            if let Some(fd) = pidfd {
                 fds.push(PollFd::new(fd, PollFlags::IN));
             }
-            match poll(&mut fds, pidfd.is_none().then_some(&every)) {
+            match poll(&mut fds, pidfd.is_none().then_some(&EVERY)) {
                 Ok(_) | Err(Errno::INTR) => {}
                 Err(e) => return Err(e.into()),
             }
@@ -1021,6 +1032,22 @@ mod watched {
                 return Ok(Some(status));
             }
         }
+    }
+
+    /// Ends QEMU as a shutdown would (SIGTERM: it closes its files), killed if it has not
+    /// ended within [`GRACE`]; reaped.
+    fn end(qemu: &mut Child, pid: Option<Pid>, pidfd: Option<&OwnedFd>) {
+        if let (Some(pid), Some(fd)) = (pid, pidfd) {
+            if kill_process(pid, Signal::TERM).is_ok() {
+                let mut fds = [PollFd::new(fd, PollFlags::IN)];
+                // Interrupted or not, what follows kills it if it still runs.
+                let _ = poll(&mut fds, Some(&GRACE));
+            }
+        }
+        if !matches!(qemu.try_wait(), Ok(Some(_))) {
+            let _ = qemu.kill();
+        }
+        let _ = qemu.wait();
     }
 }
 

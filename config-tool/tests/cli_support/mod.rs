@@ -142,7 +142,9 @@ pub struct MediumGone {
     pub status: Option<std::process::ExitStatus>,
     /// What it said on standard output.
     pub said: String,
-    /// How many of the processes it had started (QEMU) still ran once it ended.
+    /// How many processes it had started (QEMU) when it had joined.
+    pub started: usize,
+    /// How many of them still ran once it ended.
     pub left: usize,
 }
 
@@ -153,7 +155,7 @@ pub struct MediumGone {
 pub fn node_after_its_medium_stops(args: &[&str]) -> MediumGone {
     use std::io::Read;
     use std::process::Stdio;
-    use std::time::{Duration, Instant};
+    use std::time::Duration;
 
     let medium = medium::Medium::start(medium::Config::default()).expect("medium");
     let mut node = Command::new(env!("CARGO_BIN_EXE_config-tool"))
@@ -165,28 +167,35 @@ pub fn node_after_its_medium_stops(args: &[&str]) -> MediumGone {
         .stderr(Stdio::null())
         .spawn()
         .expect("node");
+    // Joined: the node said hello (a QEMU node's firmware: QEMU runs).
     let joined = medium.wait_for_clients(1, Duration::from_secs(60));
     let started = children(node.id());
+    let pid = node.id();
+    let mut stdout = node.stdout.take();
+    let (ended, exit) = std::sync::mpsc::channel();
+    std::thread::spawn(move || ended.send(node.wait()));
     medium.stop();
-    let end = Instant::now() + Duration::from_secs(60);
-    let status = loop {
-        if let Some(status) = node.try_wait().expect("wait") {
-            break Some(status);
+    let status = match exit.recv_timeout(Duration::from_secs(60)) {
+        Ok(status) => Some(status.expect("wait")),
+        Err(_) => {
+            // Still running a minute later: ended here (the waiting thread reaps it).
+            let _ = Command::new("kill").arg("-9").arg(pid.to_string()).status();
+            let _ = exit.recv_timeout(Duration::from_secs(10));
+            None
         }
-        if Instant::now() > end {
-            let _ = node.kill();
-            let _ = node.wait();
-            break None;
-        }
-        std::thread::sleep(Duration::from_millis(20));
     };
     assert!(joined, "the node never joined its medium");
     let mut said = String::new();
-    if let Some(mut out) = node.stdout.take() {
+    if let Some(out) = stdout.as_mut() {
         let _ = out.read_to_string(&mut said);
     }
     let left = started.iter().filter(|&&p| runs(p)).count();
-    MediumGone { status, said, left }
+    MediumGone {
+        status,
+        said,
+        started: started.len(),
+        left,
+    }
 }
 
 /// The processes whose parent is `pid`.

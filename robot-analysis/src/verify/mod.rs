@@ -1765,6 +1765,11 @@ impl Search {
                 }
             }
         }
+        // The initial states alone may come to `max_states`.
+        if g.seen.len() >= opts.max_states {
+            g.incomplete = true;
+            return g;
+        }
         let mut moves = Vec::new();
         let mut next = 0usize;
         // The state expanded and its successor, unpacked into and copied into the same

@@ -43,16 +43,10 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
 /// Each motion of `a` (at `kind` in the file) against what completes it in synthesised
 /// charts: its end switch under the watchdog, or the dwell time.
 fn strokes(robot: &Robot, a: &Actuator, kind: &str, src: &Source, out: &mut Vec<Diagnostic>) {
-    let (out_ms, back_ms, dwell_ms) = match a.kind {
-        ActuatorKind::DoubleActing {
-            out_ms, back_ms, ..
-        } => (out_ms, back_ms, None),
-        ActuatorKind::SingleActing {
-            out_ms,
-            back_ms,
-            dwell_ms,
-            ..
-        } => (out_ms, back_ms, Some(dwell_ms)),
+    let (out_ms, back_ms) = a.kind.strokes();
+    let dwell_ms = match a.kind {
+        ActuatorKind::SingleActing { dwell_ms, .. } => Some(dwell_ms),
+        ActuatorKind::DoubleActing { .. } => None,
     };
     let (watchdog, watchdog_field) = match a.kind.timeout_ms() {
         Some(ms) => (ms, "`timeout_ms`"),
