@@ -97,6 +97,39 @@ fn a_node_killed_between_stage_and_switch_comes_back_staged_and_the_switch_finis
     bed.stop();
 }
 
+/// A push with one node down switches no node: the others keep the new table staged and
+/// run the old one, and nothing is armed. Found: every node that had staged switched while
+/// `push` said "nothing switched", the machine split across two robots.
+#[test]
+fn a_push_that_a_node_missed_switches_no_node() {
+    let paint = robot("paint-robot.ron", 1);
+    let dip = robot("paint-robot-double-dip.ron", 2);
+    let mut bed = bring_up(&paint, options(medium::Config::default(), None));
+    push_and_home(&mut bed, &paint);
+    let gr = addr_of(&paint, "GR");
+    bed.kill_node(gr);
+    let mut pushed = bed.stage(&dip, false, &mut |_, _, _| {}).unwrap();
+    let staged: Vec<(u16, Progress)> = pushed.iter().map(|p| (p.addr, p.progress)).collect();
+    for (addr, progress) in &staged {
+        let want = if *addr == gr {
+            Progress::GaveUp
+        } else {
+            Progress::Done
+        };
+        assert_eq!(*progress, want, "{addr:#06x}");
+    }
+    let verdict = bed
+        .switch_over(&mut pushed, 2, false, Duration::from_secs(30))
+        .unwrap();
+    assert_eq!(verdict, Verdict::Aborted);
+    assert!(pushed.iter().all(|p| p.switch.is_none()), "{pushed:?}");
+    for (addr, _) in staged.iter().filter(|(a, _)| *a != gr) {
+        let s = status(&mut bed, *addr);
+        assert_eq!((s.generation, s.staged), (1, 2), "{addr:#06x}");
+    }
+    bed.stop();
+}
+
 /// Every node's (generation, on trial, previous).
 fn where_all(bed: &mut robot_net::demo::Bed, addrs: &[u16]) -> Vec<(u32, bool, u32)> {
     addrs

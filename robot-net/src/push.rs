@@ -190,9 +190,11 @@ fn transfer(radio: &ToolRadio, t: &Target) -> Vec<u8> {
 /// cycle in progress to end).
 pub const SWITCH_WAIT: Duration = Duration::from_secs(60);
 
-/// Switches every node of `pushed` that staged its table over to it, together
+/// Switches every node of `pushed` over to the table it staged, together
 /// (`node_fw::switch::Coordinator`): at the machine's next idle point within `wait`, or
-/// (`now`) at once. Fills in each one's `switch`; returns the verdict.
+/// (`now`) at once. Fills in each one's `switch`; returns the verdict. Only if every one
+/// staged it: otherwise nothing is armed or switched ([`Verdict::Aborted`]), the staged
+/// tables stay staged, and the machine runs on its old generation, whole.
 pub fn switch_over(
     radio: &mut ToolRadio,
     pushed: &mut [Pushed],
@@ -213,14 +215,10 @@ pub fn switch_over_as(
     trial: bool,
     wait: Duration,
 ) -> io::Result<Verdict> {
-    let nodes: Vec<u16> = pushed
-        .iter()
-        .filter(|p| p.progress == Progress::Done)
-        .map(|p| p.addr)
-        .collect();
-    if nodes.is_empty() {
+    if pushed.is_empty() || pushed.iter().any(|p| p.progress != Progress::Done) {
         return Ok(Verdict::Aborted);
     }
+    let nodes: Vec<u16> = pushed.iter().map(|p| p.addr).collect();
     let mut c = Coordinator::new(&nodes, generation, now, wait.as_millis() as u64, 0);
     if trial {
         c = c.on_trial();
