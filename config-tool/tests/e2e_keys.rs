@@ -444,3 +444,152 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     medium.stop();
     let _ = plant.join();
 }
+
+/// A node started from the command line with its key and a flash file.
+fn start_node(dir: &Path, key: &str, medium: &str, addr: u16) -> Killed {
+    let a = format!("{addr:#06x}");
+    let node_key = dir.join(format!("node-{addr:04x}.key"));
+    if !node_key.exists() {
+        ok(&[
+            "keys",
+            "provision",
+            "--keys",
+            key,
+            "--node",
+            &a,
+            "--board",
+            "host",
+            "--out",
+            s(&node_key),
+        ]);
+    }
+    let flash = dir.join(format!("node-{addr:04x}.flash"));
+    let child = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args([
+            "node",
+            "--addr",
+            &a,
+            "--medium",
+            medium,
+            "--key",
+            s(&node_key),
+        ])
+        .arg("--flash")
+        .arg(&flash)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("node process");
+    Killed(child)
+}
+
+/// A node that a power cut took off a trial (it booted its confirmed generation) keeps
+/// `confirm` from confirming the others: the machine would run two generations. `confirm`
+/// names it and fails, nothing confirmed; `rollback` then brings every node back to one.
+/// Found: `confirm` confirmed the three still on trial, said nothing of the fourth, and
+/// succeeded.
+#[test]
+fn confirm_refuses_a_trial_a_power_cut_split() {
+    let dir = TempDir::new("keys-trial-cut");
+    let key = dir.0.join("machine.key");
+    let key_s = s(&key).to_string();
+    ok(&["keys", "new", "--out", &key_s]);
+    let c = robot("paint-robot.ron", 1);
+    let roles: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
+    let medium = medium::Medium::start(medium::Config::default()).expect("medium");
+    let m = medium.addr().to_string();
+    let mut monitor = Monitor::join(medium.addr());
+    let mut nodes: Vec<(u16, Killed)> = roles
+        .iter()
+        .map(|&a| (a, start_node(&dir.0, &key_s, &m, a)))
+        .collect();
+    let mut heard = std::collections::BTreeSet::new();
+    monitor.psdus_until(|psdu| {
+        if let Ok(mac::Frame::Data { header, .. }) = mac::Frame::parse(psdu) {
+            if roles.contains(&header.src) {
+                heard.insert(header.src);
+            }
+        }
+        heard.len() == roles.len()
+    });
+    let push = |generation: &str, trial: bool| {
+        let mut args = vec!["push", ROBOT, "--keys", &key_s, "--medium", &m];
+        args.extend(["--generation", generation]);
+        if trial {
+            args.push("--trial");
+        }
+        ok(&args)
+    };
+    push("1", false);
+    push("2", true);
+    // A power cut at RC's node: it boots generation 1, the others stay on trial on 2.
+    let rc = e2e_support::role_of(&c, "RC").1;
+    let at = nodes.iter().position(|n| n.0 == rc).expect("RC");
+    drop(nodes.remove(at));
+    nodes.push((rc, start_node(&dir.0, &key_s, &m, rc)));
+    let rc_s = format!("{rc:#06x}");
+    let end = Instant::now() + TIMEOUT;
+    loop {
+        let out = tool(&["status", "--keys", &key_s, "--medium", &m, "--node", &rc_s]);
+        let first = text(&out.stdout).lines().next().map(str::to_string);
+        if first.as_deref() == Some(&format!("{rc_s}  role RC  generation 1")) {
+            break;
+        }
+        assert!(Instant::now() < end, "RC did not come back: {first:?}");
+    }
+    let out = tool(&["confirm", ROBOT, "--keys", &key_s, "--medium", &m]);
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out.stderr));
+    let lines: Vec<String> =
+        c.ir.roles
+            .iter()
+            .map(|r| {
+                let what = if r.address == rc {
+                    "generation 1  NOT on trial"
+                } else {
+                    "generation 2  on trial"
+                };
+                format!("  {:<6} {:#06x}  {what}", r.name, r.address)
+            })
+            .collect();
+    assert_eq!(text(&out.stdout).lines().collect::<Vec<_>>(), lines);
+    assert_eq!(
+        text(&out.stderr),
+        "error: not every node runs generation 2 on trial (a power cut returns a node to its \
+         previous generation): nothing confirmed; `config-tool rollback` returns the others to \
+         theirs\n"
+    );
+    for r in &c.ir.roles {
+        let a = format!("{:#06x}", r.address);
+        let first = status(&key_s, &m, &a).remove(0);
+        let want = if r.address == rc {
+            format!("{a}  role RC  generation 1")
+        } else {
+            format!("{a}  role {}  generation 2  on trial", r.name)
+        };
+        assert_eq!(first, want);
+    }
+    let back = ok(&["rollback", ROBOT, "--keys", &key_s, "--medium", &m]);
+    let lines: Vec<String> =
+        c.ir.roles
+            .iter()
+            .map(|r| {
+                let what = if r.address == rc {
+                    "back already (a power cut)"
+                } else {
+                    "rolled back"
+                };
+                format!("  {:<6} {:#06x}  generation 1  {what}", r.name, r.address)
+            })
+            .collect();
+    assert_eq!(back.lines().collect::<Vec<_>>(), lines);
+    for r in &c.ir.roles {
+        let a = format!("{:#06x}", r.address);
+        assert_eq!(
+            status(&key_s, &m, &a).remove(0),
+            format!("{a}  role {}  generation 1", r.name)
+        );
+    }
+    drop(nodes);
+    medium.stop();
+}

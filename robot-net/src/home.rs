@@ -44,6 +44,42 @@ impl Standing {
     }
 }
 
+/// The generations a machine's nodes run, from their statuses (`(address, status)`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Generations {
+    /// Every node runs `generation` and none is on trial.
+    Confirmed { generation: u32 },
+    /// Every node runs `generation` on trial.
+    OnTrial { generation: u32 },
+    /// Not all the same: the nodes on trial run `trial` (if any is on trial), and `off`
+    /// lists every node on another generation, with the generation it runs (a power cut
+    /// during a trial returns a node to its previous one).
+    Mixed {
+        trial: Option<u32>,
+        off: Vec<(u16, u32)>,
+    },
+}
+
+/// Which generation(s) the nodes of `statuses` run (`None`: no node).
+pub fn generations(statuses: &[(u16, &Status)]) -> Option<Generations> {
+    let reference = statuses
+        .iter()
+        .find(|(_, s)| s.trial)
+        .or_else(|| statuses.first())?;
+    let generation = reference.1.generation;
+    let trial = reference.1.trial.then_some(generation);
+    let off: Vec<(u16, u32)> = statuses
+        .iter()
+        .filter(|(_, s)| s.generation != generation || s.trial != reference.1.trial)
+        .map(|(a, s)| (*a, s.generation))
+        .collect();
+    Some(match (off.is_empty(), trial) {
+        (true, Some(generation)) => Generations::OnTrial { generation },
+        (true, None) => Generations::Confirmed { generation },
+        (false, trial) => Generations::Mixed { trial, off },
+    })
+}
+
 /// Where the node running `s` stands, against `table`, the table of role `role`.
 pub fn standing(role: &str, table: &Table, s: &Status) -> Standing {
     if s.role.as_str() != role || s.states.len() != table.charts.len() {
@@ -353,6 +389,43 @@ mod tests {
             runtime: RuntimeCounters::default(),
             cycles: 0,
         }
+    }
+
+    /// A machine on trial whose node lost the trial in a power cut is mixed, that node
+    /// named with the generation it went back to; all on one generation, on trial or not,
+    /// is not.
+    #[test]
+    fn a_node_off_the_machine_s_generation_is_named() {
+        let on = |generation: u32, trial: bool| Status {
+            generation,
+            trial,
+            ..status("VC", &[0], None)
+        };
+        let (a, b, c) = (on(6, true), on(6, true), on(4, false));
+        assert_eq!(
+            generations(&[(0x11, &a), (0x12, &b), (0x14, &c)]),
+            Some(Generations::Mixed {
+                trial: Some(6),
+                off: vec![(0x14, 4)]
+            })
+        );
+        assert_eq!(
+            generations(&[(0x11, &a), (0x12, &b)]),
+            Some(Generations::OnTrial { generation: 6 })
+        );
+        assert_eq!(
+            generations(&[(0x14, &c), (0x15, &c)]),
+            Some(Generations::Confirmed { generation: 4 })
+        );
+        let d = on(5, false);
+        assert_eq!(
+            generations(&[(0x14, &c), (0x15, &d)]),
+            Some(Generations::Mixed {
+                trial: None,
+                off: vec![(0x15, 5)]
+            })
+        );
+        assert_eq!(generations(&[]), None);
     }
 
     /// Two charts: the first starts in S2 (not homed) and idles in S0, the second

@@ -503,6 +503,30 @@ pub fn confirm(flags: &SwitchArgs) -> Result<(), Failure> {
         outln!("nothing on trial: every node's generation is confirmed");
         return Ok(());
     }
+    // A node that left the trial (a power cut) runs another generation: confirming the
+    // others would leave the machine on two.
+    let statuses: Vec<(u16, &Status)> = nodes.iter().map(|n| (n.1, &n.2)).collect();
+    if let Some(home::Generations::Mixed {
+        trial: Some(generation),
+        off,
+    }) = home::generations(&statuses)
+    {
+        for (role, addr, s) in &nodes {
+            let what = match off.iter().find(|o| o.0 == *addr) {
+                Some(_) => format!("generation {}  NOT on trial", s.generation),
+                None => format!("generation {generation}  on trial"),
+            };
+            outln!("  {role:<6} {addr:#06x}  {what}");
+        }
+        return Err(Failure {
+            code: exit::PUSH_FAILED,
+            ..Failure::error(format!(
+                "not every node runs generation {generation} on trial (a power cut returns a \
+                 node to its previous generation): nothing confirmed; `config-tool rollback` \
+                 returns the others to theirs"
+            ))
+        });
+    }
     let generation = nodes
         .iter()
         .find(|n| n.2.trial)
@@ -540,9 +564,24 @@ pub fn confirm(flags: &SwitchArgs) -> Result<(), Failure> {
 /// `rollback`: every node back to its previous generation, together.
 pub fn rollback(flags: &SwitchArgs) -> Result<(), Failure> {
     let (mut radio, nodes) = machine(flags)?;
-    let previous: Vec<u32> = nodes.iter().map(|n| n.2.previous).collect();
+    // A trial a power cut split: the nodes it took off the trial run the previous
+    // generation already; the others return to it.
+    let statuses: Vec<(u16, &Status)> = nodes.iter().map(|n| (n.1, &n.2)).collect();
+    let back: Vec<u16> = match home::generations(&statuses) {
+        Some(home::Generations::Mixed {
+            trial: Some(_),
+            off,
+        }) => off.iter().map(|o| o.0).collect(),
+        _ => Vec::new(),
+    };
+    let moving: Vec<&RoleStatus> = nodes.iter().filter(|n| !back.contains(&n.1)).collect();
+    let previous: Vec<u32> = moving.iter().map(|n| n.2.previous).collect();
     let target = previous.first().copied().unwrap_or(0);
-    if target == 0 || previous.iter().any(|&p| p != target) {
+    let back_on_target = nodes
+        .iter()
+        .filter(|n| back.contains(&n.1))
+        .all(|n| n.2.generation == target && !n.2.trial);
+    if target == 0 || previous.iter().any(|&p| p != target) || !back_on_target {
         let each: Vec<String> = nodes
             .iter()
             .map(|(role, _, s)| format!("{role} {}", s.previous))
@@ -552,7 +591,7 @@ pub fn rollback(flags: &SwitchArgs) -> Result<(), Failure> {
             each.join(", ")
         )));
     }
-    let addrs: Vec<u16> = nodes.iter().map(|n| n.1).collect();
+    let addrs: Vec<u16> = moving.iter().map(|n| n.1).collect();
     let (verdict, states) = push::rollback(
         &mut radio,
         &addrs,
@@ -564,6 +603,7 @@ pub fn rollback(flags: &SwitchArgs) -> Result<(), Failure> {
     for (role, addr, _) in &nodes {
         let state = states.iter().find(|s| s.0 == *addr).map(|s| s.1);
         let what = match state {
+            _ if back.contains(addr) => "back already (a power cut)".to_string(),
             Some(NodeState::Switched) => "rolled back".to_string(),
             other => format!("NOT rolled back: {other:?}"),
         };
