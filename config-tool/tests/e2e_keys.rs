@@ -334,7 +334,18 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
         assert!(found.contains(&line), "{found}");
     }
     assert!(found.ends_with("5 node(s)\n"), "the spare too: {found}");
-    assert_eq!(ok(&["scan", "--medium", &m]), "0 node(s)\n");
+    let unkeyed = tool(&["scan", "--medium", &m]);
+    assert_eq!(
+        (
+            text(&unkeyed.stdout).as_str(),
+            text(&unkeyed.stderr).as_str()
+        ),
+        (
+            "0 node(s)\n",
+            "no node answered: a node with a management key answers only secured frames (pass \
+             --keys)\n"
+        )
+    );
 
     // Generation 3 on trial; rolled back to 2; on trial again and confirmed.
     let push_trial = |generation: &str| {
@@ -527,6 +538,19 @@ fn confirm_refuses_a_trial_a_power_cut_split() {
     let rc = e2e_support::role_of(&c, "RC").1;
     let at = nodes.iter().position(|n| n.0 == rc).expect("RC");
     drop(nodes.remove(at));
+    // `scan` with the robot names the node that does not answer.
+    let found = ok(&["scan", ROBOT, "--keys", &key_s, "--medium", &m]);
+    let name = &c
+        .robot
+        .nodes
+        .iter()
+        .find(|n| n.address == rc)
+        .expect("node")
+        .name;
+    assert!(
+        found.contains(&format!("{rc:#06x}  RC  did not answer (node {name})\n")),
+        "{found}"
+    );
     nodes.push((rc, start_node(&dir.0, &key_s, &m, rc)));
     let rc_s = format!("{rc:#06x}");
     let end = Instant::now() + TIMEOUT;

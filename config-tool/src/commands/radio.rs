@@ -144,7 +144,36 @@ pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(),
             show::staged_note(a.staged)
         );
     }
+    // The robot's nodes that did not answer, by name and role.
+    if let Some(c) = &c {
+        for n in c
+            .robot
+            .nodes
+            .iter()
+            .filter(|n| !found.contains_key(&n.address))
+        {
+            let role = c.ir.roles.iter().find(|r| r.address == n.address);
+            let role = role.map_or("(spare)", |r| r.name.as_str());
+            outln!(
+                "{:#06x}  {role}  did not answer (node {})",
+                n.address,
+                n.name
+            );
+        }
+    }
     outln!("{} node(s)", found.len());
+    if found.is_empty() {
+        errln!(
+            "{}",
+            if radio.secured() {
+                "no node answered: are they running, on this medium, and keyed by this \
+                 machine secret (a node drops what another machine's keys secure)?"
+            } else {
+                "no node answered: a node with a management key answers only secured frames \
+                 (pass --keys)"
+            }
+        );
+    }
     Ok(())
 }
 
