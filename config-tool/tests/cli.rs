@@ -714,3 +714,20 @@ fn a_negative_probability_is_refused_as_one() {
         );
     }
 }
+
+/// A pcap the medium cannot write is named in the error. Found: `error: medium on ADDR:
+/// Is a directory`.
+#[test]
+fn a_medium_s_pcap_it_cannot_write_is_named() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("pcap-dir");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let path = dir.to_str().expect("utf-8");
+    let out = tool(&["medium", "--listen", "127.0.0.1:0", "--pcap", path]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = text(&out.stderr);
+    assert!(
+        err.starts_with("error: medium on 127.0.0.1:0: pcap ")
+            && err.contains(&format!("pcap {path}: Is a directory")),
+        "{err}"
+    );
+}

@@ -180,7 +180,9 @@ impl Medium {
         }
         let addr = listener.local_addr()?;
         let pcap = match &config.pcap {
-            Some(path) => Some(PcapLog::create(path)?),
+            Some(path) => Some(PcapLog::create(path).map_err(|e| {
+                io::Error::new(e.kind(), format!("pcap {}: {e}", path.display()))
+            })?),
             None => None,
         };
         let stats = Arc::new(Mutex::new(Stats::default()));
