@@ -179,12 +179,13 @@ impl Medium {
             ));
         }
         let addr = listener.local_addr()?;
-        let pcap = match &config.pcap {
-            Some(path) => Some(PcapLog::create(path).map_err(|e| {
-                io::Error::new(e.kind(), format!("pcap {}: {e}", path.display()))
-            })?),
-            None => None,
-        };
+        let pcap =
+            match &config.pcap {
+                Some(path) => Some(PcapLog::create(path).map_err(|e| {
+                    io::Error::new(e.kind(), format!("pcap {}: {e}", path.display()))
+                })?),
+                None => None,
+            };
         let stats = Arc::new(Mutex::new(Stats::default()));
         let counters = Counters(stats.clone());
         let start = Instant::now();
