@@ -638,51 +638,46 @@ fn the_docs_give_the_paint_robot_s_figures_as_compile_prints_them() {
 /// `--balls 0` saying "each ball in exactly one bin" of no ball.
 #[test]
 fn arguments_the_robot_cannot_use_are_refused() {
-    let refused = |args: &[&str], said: &str| {
-        let out = tool(args);
-        assert_eq!(
-            out.status.code(),
-            Some(2),
-            "{args:?}: {}",
-            text(&out.stderr)
-        );
-        assert!(
-            text(&out.stderr).contains(said),
-            "{args:?}: {}",
-            text(&out.stderr)
-        );
-    };
     let paint = "robot-configs/paint-robot.ron";
     let sorter = "robot-configs/ball-sorter.ron";
-    refused(
-        &["verify", paint, "--balls", "3"],
-        "error: --balls is a sorting station's: robot-configs/paint-robot.ron has no `sorting:`",
-    );
-    refused(
-        &["verify", paint, "--faults", "3"],
-        "error: --faults is for declared fault contacts: robot-configs/paint-robot.ron \
-         declares none (`plants: [Switch(...)]`)",
-    );
-    refused(
-        &["verify", sorter, "--balls", "0"],
-        "a number of balls from 1 to 200",
-    );
-    refused(
-        &["sim", sorter, "--cycles", "3"],
-        "error: a sorting station's `sim` takes no --cycles: it runs its feed",
-    );
-    refused(
-        &["sim", sorter, "--fault", "stuck:G1@1"],
-        "error: a sorting station's `sim` takes no --fault: it runs its feed",
-    );
-    refused(
-        &["sim", sorter, "--feed", " "],
-        "error: --feed names no ball",
-    );
-    refused(
-        &["sim", paint, "--fault", "stuck:HC@4", "--cycles", "7"],
-        "error: --fault runs up to the fault's cycle (`@CYCLE.STEP`): it takes no --cycles",
-    );
+    let cases: [(&[&str], &str); 7] = [
+        (
+            &["verify", paint, "--balls", "3"],
+            "error: --balls is a sorting station's: robot-configs/paint-robot.ron has no \
+             `sorting:`",
+        ),
+        (
+            &["verify", paint, "--faults", "3"],
+            "error: --faults is for declared fault contacts: robot-configs/paint-robot.ron \
+             declares none (`plants: [Switch(...)]`)",
+        ),
+        (
+            &["verify", sorter, "--balls", "0"],
+            "a number of balls from 1 to 200",
+        ),
+        (
+            &["sim", sorter, "--cycles", "3"],
+            "error: a sorting station's `sim` takes no --cycles: it runs its feed",
+        ),
+        (
+            &["sim", sorter, "--fault", "stuck:G1@1"],
+            "error: a sorting station's `sim` takes no --fault: it runs its feed",
+        ),
+        (
+            &["sim", sorter, "--feed", " "],
+            "error: --feed names no ball",
+        ),
+        (
+            &["sim", paint, "--fault", "stuck:HC@4", "--cycles", "7"],
+            "error: --fault runs up to the fault's cycle (`@CYCLE.STEP`): it takes no --cycles",
+        ),
+    ];
+    for (args, said) in cases {
+        let out = tool(args);
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(said), "{args:?}: {err}");
+    }
     // Where they apply, they run.
     let out = tool(&[
         "verify",

@@ -28,6 +28,14 @@ fn diagnostics(src: &Source) -> Vec<String> {
         .collect()
 }
 
+/// The errors of `src`'s diagnostics, as [`diagnostics`] gives them.
+fn errors_of(src: &Source) -> Vec<String> {
+    let all = diagnostics(src);
+    all.into_iter()
+        .filter(|d| d.contains(": error: "))
+        .collect()
+}
+
 /// The paint robot without HC in its sequence, with `never` replaced.
 fn without_hc(never: &str) -> Source {
     let text = paint_text()
@@ -45,10 +53,7 @@ fn without_hc(never: &str) -> Source {
 #[test]
 fn an_interlock_may_name_an_actuator_the_sequence_never_moves() {
     let src = without_hc("\"HC.moving && !VC.home\", \"RC.moving && !VC.home\"");
-    let errors: Vec<String> = diagnostics(&src)
-        .into_iter()
-        .filter(|d| d.contains(": error: "))
-        .collect();
+    let errors = errors_of(&src);
     assert_eq!(errors, Vec::<String>::new());
     let c = compile(&src).expect("compiles");
     let sim = robot_analysis::sim::simulate(&c, 3).expect("sim");
@@ -320,10 +325,7 @@ fn pins_past_the_table_s_pin_range_are_refused() {
         "inputs: [(name: \"START\", pin: 4)]",
         "inputs: [(name: \"START\", pin: 64)], outputs: [(name: \"L\", pin: 200)]",
     );
-    let errors: Vec<String> = diagnostics(&src)
-        .into_iter()
-        .filter(|d| d.contains(": error: "))
-        .collect();
+    let errors = errors_of(&src);
     assert_eq!(
         errors,
         [
@@ -332,10 +334,7 @@ fn pins_past_the_table_s_pin_range_are_refused() {
         ]
     );
     let src = paint_with(GRIPPER, "SingleActing(valve: 70, dwell_ms: 150, end: 63)");
-    let errors: Vec<String> = diagnostics(&src)
-        .into_iter()
-        .filter(|d| d.contains(": error: "))
-        .collect();
+    let errors = errors_of(&src);
     assert_eq!(
         errors,
         ["39:56: error: pin 70 of `GR.valve` is out of range: a table names pins 0..=63"]
@@ -350,10 +349,7 @@ fn a_node_at_the_tool_s_address_is_refused() {
         "(name: \"node-2\", address: 0x0012)",
         "(name: \"node-2\", address: 0x0100)",
     );
-    let errors: Vec<String> = diagnostics(&src)
-        .into_iter()
-        .filter(|d| d.contains(": error: "))
-        .collect();
+    let errors = errors_of(&src);
     assert_eq!(
         errors,
         [
@@ -366,10 +362,7 @@ fn a_node_at_the_tool_s_address_is_refused() {
 #[test]
 fn a_zero_motion_timeout_is_refused() {
     let src = paint_with("motion_timeout_ms: 2000", "motion_timeout_ms: 0");
-    let errors: Vec<String> = diagnostics(&src)
-        .into_iter()
-        .filter(|d| d.contains(": error: "))
-        .collect();
+    let errors = errors_of(&src);
     assert_eq!(
         errors,
         ["62:24: error: `motion_timeout_ms` is 0 ms: every motion would fault as soon as it is commanded"]
@@ -378,10 +371,7 @@ fn a_zero_motion_timeout_is_refused() {
         "out_ms: 800, back_ms: 800)",
         "out_ms: 800, back_ms: 800, timeout_ms: 0)",
     );
-    let errors: Vec<String> = diagnostics(&src)
-        .into_iter()
-        .filter(|d| d.contains(": error: "))
-        .collect();
+    let errors = errors_of(&src);
     assert_eq!(
         errors,
         ["47:128: error: the watchdog `timeout_ms` of `HC` is 0 ms: every motion would fault as soon as it is commanded"]
@@ -395,8 +385,8 @@ fn a_zero_motion_timeout_is_refused() {
 #[test]
 fn a_stroke_the_watchdog_does_not_wait_for_is_a_warning() {
     let errors = |src: &Source| -> Vec<String> {
-        diagnostics(src)
-            .into_iter()
+        let all = diagnostics(src);
+        all.into_iter()
             .filter(|d| d.contains(" would fault"))
             .collect()
     };
@@ -437,10 +427,7 @@ fn a_dwell_shorter_than_its_stroke_is_refused() {
         GRIPPER,
         "SingleActing(valve: 0, dwell_ms: 50, out_ms: 1000, back_ms: 50)",
     );
-    let errors: Vec<String> = diagnostics(&src)
-        .into_iter()
-        .filter(|d| d.contains(": error: "))
-        .collect();
+    let errors = errors_of(&src);
     assert_eq!(
         errors,
         [
