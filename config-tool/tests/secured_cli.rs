@@ -78,6 +78,21 @@ fn check_warns_about_an_unsecured_robot_at_its_setting() {
     );
 }
 
+/// `start ROBOT` of a secured robot without keys is refused at once, as `home` and `ack`
+/// are. Found: it asked the node for 5 s and said only "did not answer Status".
+#[test]
+fn start_of_a_secured_robot_without_keys_is_refused_at_once() {
+    let robot = "robot-configs/paint-robot.ron";
+    let out = tool(&["start", robot, "--medium", NO_MEDIUM], None);
+    assert_eq!(out.status.code(), Some(2), "a usage error");
+    assert_eq!(
+        text(&out.stderr),
+        "error: robot-configs/paint-robot.ron is secured (frame security is on unless the \
+         robot says `security: Off`): pass --keys FILE, the machine secret's key file \
+         (`config-tool keys new`), or set CONFIG_TOOL_KEYS\n"
+    );
+}
+
 #[test]
 fn a_secured_robot_is_not_pushed_without_keys_and_an_unsecured_one_takes_none() {
     let robot = "robot-configs/paint-robot.ron";

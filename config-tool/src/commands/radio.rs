@@ -663,7 +663,14 @@ pub fn start(
     let node = node.or(start_node).ok_or_else(|| {
         Failure::usage("the robot has no start input: give the node to START with --node")
     })?;
-    let mut radio = connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?;
+    let keys = KeysFrom::resolve(keys.keys.as_deref());
+    // With the robot, its security decides, as for `home` and `ack`: a secured robot's
+    // nodes take only secured frames.
+    let keys = match (&c, robot) {
+        (Some(c), Some(path)) => push_keys(path, c, keys)?,
+        _ => keys,
+    };
+    let mut radio = connect_keyed(at, keys.as_ref())?;
     let mut ids = Ids::default();
     if let Some(c) = &c {
         let statuses = home::statuses(&mut radio, &mut ids, c, ANSWER_WITHIN)?;
