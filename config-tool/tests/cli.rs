@@ -726,3 +726,31 @@ fn a_medium_s_pcap_it_cannot_write_is_named() {
         "{err}"
     );
 }
+
+/// `home` of a robot that has no homing says so and nothing else, before it reaches for
+/// the medium. Found: it printed an empty `homing:` line first.
+#[test]
+fn home_of_a_robot_without_homing_says_so_first() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("home-none");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("dir");
+    let key = dir.join("machine.key");
+    let key = key.to_str().expect("utf-8");
+    assert!(tool(&["keys", "new", "--out", key]).status.success());
+    let out = tool(&[
+        "home",
+        "robot-configs/waterjet-transport.ron",
+        "--keys",
+        key,
+        "--medium",
+        "127.0.0.1:1",
+    ]);
+    assert_eq!(
+        (out.status.code(), text(&out.stdout), text(&out.stderr)),
+        (
+            Some(1),
+            String::new(),
+            "error: the robot has no homing (only a sequence robot is homed)\n".to_string()
+        )
+    );
+}

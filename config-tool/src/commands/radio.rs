@@ -790,6 +790,9 @@ pub fn home(flags: &HomeArgs) -> Result<(), Failure> {
         &c,
         KeysFrom::resolve(flags.keys.keys.as_deref()),
     )?;
+    if c.ir.home.is_none() {
+        return Err(robot_net::NetError::NoHome.into());
+    }
     let mut radio = connect_keyed(&flags.at, keys.as_ref())?;
     outln!("{}", demo::homing_line(&c));
     let (end, took) = home::home(
