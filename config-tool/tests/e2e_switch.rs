@@ -130,6 +130,43 @@ fn a_push_that_a_node_missed_switches_no_node() {
     bed.stop();
 }
 
+/// A push of the staged generation with another table replaces the staged one. Found: with
+/// the double dip staged as generation 2, a push of the paint robot as generation 2 was
+/// answered `Staged` at once, and the switch-over ran the double dip.
+#[test]
+fn a_push_of_the_staged_generation_with_another_table_replaces_it() {
+    let paint = robot("paint-robot.ron", 1);
+    let dip = robot("paint-robot-double-dip.ron", 2);
+    let paint_2 = robot("paint-robot.ron", 2);
+    let mut bed = bring_up(&paint, options(medium::Config::default(), None));
+    push_and_home(&mut bed, &paint);
+    let staged = bed.stage(&dip, false, &mut |_, _, _| {}).unwrap();
+    assert!(staged.iter().all(|p| p.progress == Progress::Done));
+    let mut pushed = bed.stage(&paint_2, false, &mut |_, _, _| {}).unwrap();
+    assert!(pushed.iter().all(|p| p.progress == Progress::Done));
+    // A role whose table differs is sent again; one whose table is the same (GR, HC
+    // here) is answered `Staged` at its begin.
+    for p in &pushed {
+        let role = |c: &robot_compiler::Compiled| {
+            let i =
+                c.ir.roles
+                    .iter()
+                    .position(|r| r.name == p.role)
+                    .expect("role");
+            c.blobs[i].clone()
+        };
+        let differs = role(&dip) != role(&paint_2);
+        assert_eq!(p.stats.frames > 1, differs, "{}: {p:?}", p.role);
+    }
+    assert!(pushed.iter().any(|p| p.stats.frames > 1));
+    let verdict = bed
+        .switch_over(&mut pushed, 2, false, Duration::from_secs(30))
+        .unwrap();
+    assert_eq!(verdict, Verdict::Switched);
+    exact_cycle(&mut bed, &paint_2, 1);
+    bed.stop();
+}
+
 /// Every node's (generation, on trial, previous).
 fn where_all(bed: &mut robot_net::demo::Bed, addrs: &[u16]) -> Vec<(u32, bool, u32)> {
     addrs

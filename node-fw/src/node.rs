@@ -1680,6 +1680,7 @@ impl<S: StagingArea> NodeCore<S> {
             return;
         };
         let generation = staging.generation;
+        self.ota.persisted(ok);
         let reply = if ok {
             self.switch.set_staged(generation);
             ConfigReply::Staged

@@ -125,10 +125,24 @@ impl<S: Staging + ?Sized> Staging for &mut S {
     }
 }
 
+/// A transfer taken whole: which table it was.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Taken {
+    generation: u32,
+    len: u16,
+    crc: u32,
+}
+
 /// The node's side: stages one incoming blob in its [`Staging`].
 #[derive(Debug, Clone)]
 pub struct Receiver<S = RamStaging> {
     transfer: Option<Transfer>,
+    /// The last transfer taken whole, until the board says whether it persisted it.
+    taken: Option<Taken>,
+    /// The table staged, as far as this receiver knows it (`None` after a boot, or when
+    /// persisting failed): a begin of the staged generation is answered `Staged` only if
+    /// it offers this table; another table of that generation replaces it.
+    staged: Option<Taken>,
     /// Bit n: the board has pin n.
     board_pins: u64,
     staging: S,
@@ -173,9 +187,18 @@ impl<S: Staging> Receiver<S> {
     pub const fn staging_in(board_pins: u64, staging: S) -> Self {
         Receiver {
             transfer: None,
+            taken: None,
+            staged: None,
             board_pins,
             staging,
         }
+    }
+
+    /// The board persisted the last transfer taken whole ([`Outcome::Stage`]) as the staged
+    /// table (`ok`), or failed to (what is staged is then unknown here).
+    pub fn persisted(&mut self, ok: bool) {
+        let taken = self.taken.take();
+        self.staged = if ok { taken } else { None };
     }
 
     /// The generation being received, if a transfer is in progress.
@@ -219,10 +242,17 @@ impl<S: Staging> Receiver<S> {
                     // A repeated begin: say where we are.
                     return reply(ConfigReply::Next { next: t.received });
                 }
-                if generation == staged && staged != 0 && !force {
+                let offered = Taken {
+                    generation,
+                    len,
+                    crc,
+                };
+                if generation == staged && staged != 0 && !force && self.staged == Some(offered) {
                     // Staged already (its answer was lost, or the tool pushes again).
                     return reply(ConfigReply::Staged);
                 }
+                // Another table of the staged generation (or one this receiver cannot tell
+                // apart since a boot) is taken again: it replaces the staged one.
                 if generation <= running && !force {
                     return reply(ConfigReply::Refused(Refusal::Stale { running }));
                 }
@@ -307,10 +337,17 @@ impl<S: Staging> Receiver<S> {
                     Ok((table, _)) if table.generation == generation => {
                         match table.missing_pin(board) {
                             Some(pin) => reply(ConfigReply::Refused(Refusal::Pin { pin, board })),
-                            None => Some(Outcome::Stage {
-                                generation,
-                                len: usize::from(t.len),
-                            }),
+                            None => {
+                                self.taken = Some(Taken {
+                                    generation,
+                                    len: t.len,
+                                    crc: t.crc,
+                                });
+                                Some(Outcome::Stage {
+                                    generation,
+                                    len: usize::from(t.len),
+                                })
+                            }
                         }
                     }
                     _ => reply(ConfigReply::Refused(Refusal::Invalid)),

@@ -338,13 +338,77 @@ fn an_older_begin_does_not_replace_a_newer_transfer_and_a_staged_one_is_answered
     // Forced, it does (the operator's explicit downgrade).
     assert_eq!(rx.on_message(&begin(5, true), 4, 0), next(0));
     assert_eq!(rx.receiving(), Some(5));
-    // Generation 7 staged already: a begin for it is answered so, not restarted.
+    // Generation 7 staged by this receiver: a begin offering that table is answered so,
+    // not restarted.
     let mut rx = Receiver::new();
+    assert_eq!(rx.on_message(&begin(7, false), 4, 0), next(0));
+    for (i, data) in bytes.chunks(CHUNK_DATA).enumerate() {
+        let chunk = Message::ConfigChunk {
+            generation: 7,
+            offset: (i * CHUNK_DATA) as u16,
+            data,
+        };
+        assert!(rx.on_message(&chunk, 4, 0).is_some());
+    }
+    assert_eq!(
+        rx.on_message(&Message::ConfigEnd { generation: 7 }, 4, 0),
+        Some(Outcome::Stage {
+            generation: 7,
+            len: bytes.len()
+        })
+    );
+    rx.persisted(true);
     assert_eq!(
         rx.on_message(&begin(7, false), 4, 7),
         Some(Outcome::Reply(ConfigReply::Staged))
     );
     assert_eq!(rx.receiving(), None);
+}
+
+/// Another table of the staged generation replaces the staged one: a push of generation 7
+/// is not answered `Staged` because some generation 7 is. Found: a node with the double
+/// dip staged as generation 12 answered a push of the paint robot as generation 12
+/// `Staged`, and the switch-over ran the double dip. After a boot, or when persisting
+/// failed, the receiver cannot tell the tables apart: it takes the table again.
+#[test]
+fn another_table_of_the_staged_generation_replaces_it() {
+    let (_, bytes) = blob(7, 30);
+    let begin = |crc: u32| Message::ConfigBegin {
+        generation: 7,
+        len: bytes.len() as u16,
+        crc,
+        force: false,
+    };
+    let crc = config_schema::blob::CRC32.checksum(&bytes);
+    let stage = |rx: &mut Receiver| {
+        assert_eq!(
+            rx.on_message(&begin(crc), 4, 0),
+            Some(Outcome::Reply(ConfigReply::Next { next: 0 }))
+        );
+        for (i, data) in bytes.chunks(CHUNK_DATA).enumerate() {
+            let chunk = Message::ConfigChunk {
+                generation: 7,
+                offset: (i * CHUNK_DATA) as u16,
+                data,
+            };
+            assert!(rx.on_message(&chunk, 4, 0).is_some());
+        }
+        let end = rx.on_message(&Message::ConfigEnd { generation: 7 }, 4, 0);
+        assert!(matches!(end, Some(Outcome::Stage { generation: 7, .. })));
+    };
+    let mut rx = Receiver::new();
+    stage(&mut rx);
+    rx.persisted(true);
+    let next0 = Some(Outcome::Reply(ConfigReply::Next { next: 0 }));
+    assert_eq!(rx.on_message(&begin(crc ^ 1), 4, 7), next0);
+    assert_eq!(rx.receiving(), Some(7));
+    // Persisting failed: what is staged is unknown, the same table is taken again.
+    let mut rx = Receiver::new();
+    stage(&mut rx);
+    rx.persisted(false);
+    assert_eq!(rx.on_message(&begin(crc), 4, 7), next0);
+    // After a boot (a new receiver), too.
+    assert_eq!(Receiver::new().on_message(&begin(crc), 4, 7), next0);
 }
 
 /// Polls `tx`, the node silent, until it gives up, calling `challenged` after each timeout
