@@ -85,25 +85,20 @@ fn start_of_a_secured_robot_without_keys_is_refused_at_once() {
     let robot = "robot-configs/paint-robot.ron";
     let out = tool(&["start", robot, "--medium", NO_MEDIUM], None);
     assert_eq!(out.status.code(), Some(2), "a usage error");
-    assert_eq!(
-        text(&out.stderr),
-        "error: robot-configs/paint-robot.ron is secured (frame security is on unless the \
-         robot says `security: Off`): pass --keys FILE, the machine secret's key file \
-         (`config-tool keys new`), or set CONFIG_TOOL_KEYS\n"
-    );
+    assert_eq!(text(&out.stderr), SECURED_WITHOUT_KEYS);
 }
+
+/// What a command that needs the keys of the secured paint robot says without them.
+const SECURED_WITHOUT_KEYS: &str = "error: robot-configs/paint-robot.ron is secured (frame \
+    security is on unless the robot says `security: Off`): pass --keys FILE, the machine \
+    secret's key file (`config-tool keys new`), or set CONFIG_TOOL_KEYS\n";
 
 #[test]
 fn a_secured_robot_is_not_pushed_without_keys_and_an_unsecured_one_takes_none() {
     let robot = "robot-configs/paint-robot.ron";
     let out = tool(&["push", robot, "--medium", NO_MEDIUM], None);
     assert_eq!(out.status.code(), Some(2), "a usage error");
-    assert_eq!(
-        text(&out.stderr),
-        "error: robot-configs/paint-robot.ron is secured (frame security is on unless the \
-         robot says `security: Off`): pass --keys FILE, the machine secret's key file \
-         (`config-tool keys new`), or set CONFIG_TOOL_KEYS\n"
-    );
+    assert_eq!(text(&out.stderr), SECURED_WITHOUT_KEYS);
     let dir = scratch("push");
     let key = new_key(&dir);
     let unsecured = "tests/fixtures/broken/unsecured.ron";

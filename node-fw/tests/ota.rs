@@ -341,28 +341,43 @@ fn an_older_begin_does_not_replace_a_newer_transfer_and_a_staged_one_is_answered
     // Generation 7 staged by this receiver: a begin offering that table is answered so,
     // not restarted.
     let mut rx = Receiver::new();
-    assert_eq!(rx.on_message(&begin(7, false), 4, 0), next(0));
-    for (i, data) in bytes.chunks(CHUNK_DATA).enumerate() {
-        let chunk = Message::ConfigChunk {
-            generation: 7,
-            offset: (i * CHUNK_DATA) as u16,
-            data,
-        };
-        assert!(rx.on_message(&chunk, 4, 0).is_some());
-    }
-    assert_eq!(
-        rx.on_message(&Message::ConfigEnd { generation: 7 }, 4, 0),
-        Some(Outcome::Stage {
-            generation: 7,
-            len: bytes.len()
-        })
-    );
+    take_whole(&mut rx, 7, &bytes);
     rx.persisted(true);
     assert_eq!(
         rx.on_message(&begin(7, false), 4, 7),
         Some(Outcome::Reply(ConfigReply::Staged))
     );
     assert_eq!(rx.receiving(), None);
+}
+
+/// Takes `bytes` whole as generation `generation` into `rx` (the running generation 4,
+/// nothing staged): begin, every chunk, end, which asks for the blob to be staged.
+fn take_whole(rx: &mut Receiver, generation: u32, bytes: &[u8]) {
+    let begin = Message::ConfigBegin {
+        generation,
+        len: bytes.len() as u16,
+        crc: config_schema::blob::CRC32.checksum(bytes),
+        force: false,
+    };
+    assert_eq!(
+        rx.on_message(&begin, 4, 0),
+        Some(Outcome::Reply(ConfigReply::Next { next: 0 }))
+    );
+    for (i, data) in bytes.chunks(CHUNK_DATA).enumerate() {
+        let chunk = Message::ConfigChunk {
+            generation,
+            offset: (i * CHUNK_DATA) as u16,
+            data,
+        };
+        assert!(rx.on_message(&chunk, 4, 0).is_some());
+    }
+    assert_eq!(
+        rx.on_message(&Message::ConfigEnd { generation }, 4, 0),
+        Some(Outcome::Stage {
+            generation,
+            len: bytes.len()
+        })
+    );
 }
 
 /// Another table of the staged generation replaces the staged one: a push of generation 7
@@ -380,31 +395,15 @@ fn another_table_of_the_staged_generation_replaces_it() {
         force: false,
     };
     let crc = config_schema::blob::CRC32.checksum(&bytes);
-    let stage = |rx: &mut Receiver| {
-        assert_eq!(
-            rx.on_message(&begin(crc), 4, 0),
-            Some(Outcome::Reply(ConfigReply::Next { next: 0 }))
-        );
-        for (i, data) in bytes.chunks(CHUNK_DATA).enumerate() {
-            let chunk = Message::ConfigChunk {
-                generation: 7,
-                offset: (i * CHUNK_DATA) as u16,
-                data,
-            };
-            assert!(rx.on_message(&chunk, 4, 0).is_some());
-        }
-        let end = rx.on_message(&Message::ConfigEnd { generation: 7 }, 4, 0);
-        assert!(matches!(end, Some(Outcome::Stage { generation: 7, .. })));
-    };
     let mut rx = Receiver::new();
-    stage(&mut rx);
+    take_whole(&mut rx, 7, &bytes);
     rx.persisted(true);
     let next0 = Some(Outcome::Reply(ConfigReply::Next { next: 0 }));
     assert_eq!(rx.on_message(&begin(crc ^ 1), 4, 7), next0);
     assert_eq!(rx.receiving(), Some(7));
     // Persisting failed: what is staged is unknown, the same table is taken again.
     let mut rx = Receiver::new();
-    stage(&mut rx);
+    take_whole(&mut rx, 7, &bytes);
     rx.persisted(false);
     assert_eq!(rx.on_message(&begin(crc), 4, 7), next0);
     // After a boot (a new receiver), too.
