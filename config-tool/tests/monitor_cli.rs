@@ -193,3 +193,72 @@ fn monitor_ends_quietly_when_its_reader_goes_away() {
     medium.stop();
     assert_eq!((status.code(), err.as_str()), (Some(0), ""));
 }
+
+/// A pin's level told again (a plant repeats its switches' levels) is no change: the
+/// monitor prints a pin's first level and each change, nothing else. Found: every
+/// repeat, every 200 ms, as a change.
+#[test]
+fn monitor_prints_a_pin_only_when_its_level_changes() {
+    let medium = Medium::start(Config::default()).unwrap();
+    let mut monitor = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["monitor", "--medium", &medium.addr().to_string()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    assert!(medium.wait_for_clients(1, SURE), "the monitor joins");
+    let mut plant = Conn::join(medium.addr(), Peer::Plant).unwrap();
+    for level in [true, true, true, false, false, true] {
+        plant
+            .send(&Link::Pin {
+                addr: VC,
+                pin: 2,
+                level,
+            })
+            .unwrap();
+    }
+    // Handled by the medium before the frame that marks the end of what to read.
+    plant.sync().unwrap();
+    let mut radio = Conn::join(medium.addr(), Peer::Tool { addr: TOOL }).unwrap();
+    let mut clear = [0u8; 127];
+    let start = Message::Command {
+        id: 3,
+        command: Cmd::Start,
+    };
+    let n = mac::emit_data(&header(0xFFFF, TOOL, VC), &payload(&start), &mut clear).unwrap();
+    radio.send(&Link::Frame(&clear[..n])).unwrap();
+    let (tx, rx) = mpsc::channel();
+    let stdout = monitor.stdout.take().unwrap();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            let end = line.contains("unsecured: Command");
+            let _ = tx.send(line);
+            if end {
+                break;
+            }
+        }
+    });
+    let mut pins = Vec::new();
+    loop {
+        let line = rx.recv_timeout(SURE).expect("the monitor's lines");
+        if line.contains("unsecured: Command") {
+            break;
+        }
+        let (_, pin) = line
+            .trim_start()
+            .split_once("  ")
+            .expect("time, then the change");
+        pins.push(pin.to_string());
+    }
+    let _ = monitor.kill();
+    let _ = monitor.wait();
+    medium.stop();
+    assert_eq!(
+        pins,
+        [
+            "pin 0x0011.2 = 1 (input)",
+            "pin 0x0011.2 = 0 (input)",
+            "pin 0x0011.2 = 1 (input)"
+        ]
+    );
+}

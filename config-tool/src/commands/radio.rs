@@ -887,12 +887,22 @@ pub fn monitor(
         .map_err(|e| Failure::error(format!("cannot reach the medium at {medium}: {e}")))?;
     let start = Instant::now();
     let end = for_.map(|d| start + d);
+    // Each pin's last level seen: a level told again (a plant repeats its switches'
+    // levels) is no change.
+    let mut levels: std::collections::HashMap<(u16, u8, bool), bool> = Default::default();
     loop {
         let until = end.unwrap_or_else(|| Instant::now() + Duration::from_secs(3600));
         let got = conn.recv(until, |link| {
             let t = start.elapsed().as_secs_f64();
             match link {
                 Link::Frame(psdu) => Some(format!("{t:>9.3}  {}", sniffer.describe(psdu))),
+                Link::Seen {
+                    addr,
+                    pin,
+                    level,
+                    output,
+                    ..
+                } if levels.insert((addr, pin, output), level) == Some(level) => None,
                 Link::Seen {
                     at_us,
                     addr,
