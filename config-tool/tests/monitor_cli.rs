@@ -153,6 +153,17 @@ fn monitor_refuses_a_key_file_others_may_read() {
     assert!(out.stdout.is_empty());
 }
 
+/// The tool's START to VC, unsecured, as a PSDU.
+fn clear_start() -> Vec<u8> {
+    let mut clear = [0u8; 127];
+    let start = Message::Command {
+        id: 3,
+        command: Cmd::Start,
+    };
+    let n = mac::emit_data(&header(0xFFFF, TOOL, VC), &payload(&start), &mut clear).unwrap();
+    clear[..n].to_vec()
+}
+
 /// Issue: `config-tool monitor ... | head -1` ended with a panic message (printing to a
 /// pipe whose reader went away panicked). It ends as a filter does: quietly, status 0.
 #[test]
@@ -166,13 +177,8 @@ fn monitor_ends_quietly_when_its_reader_goes_away() {
         .spawn()
         .unwrap();
     assert!(medium.wait_for_clients(2, SURE), "the monitor joins");
-    let mut clear = [0u8; 127];
-    let start = Message::Command {
-        id: 3,
-        command: Cmd::Start,
-    };
-    let n = mac::emit_data(&header(0xFFFF, TOOL, VC), &payload(&start), &mut clear).unwrap();
-    radio.send(&Link::Frame(&clear[..n])).unwrap();
+    let start = clear_start();
+    radio.send(&Link::Frame(&start)).unwrap();
     // `head -1`: one line read, then the pipe closed.
     let mut out = BufReader::new(monitor.stdout.take().unwrap());
     let mut line = String::new();
@@ -180,7 +186,7 @@ fn monitor_ends_quietly_when_its_reader_goes_away() {
     assert!(line.contains("unsecured: Command"), "{line}");
     drop(out);
     // Its next line finds no reader.
-    radio.send(&Link::Frame(&clear[..n])).unwrap();
+    radio.send(&Link::Frame(&start)).unwrap();
     let until = std::time::Instant::now() + SURE;
     let status = loop {
         if let Some(status) = monitor.try_wait().unwrap() {
@@ -220,13 +226,8 @@ fn monitor_prints_a_pin_only_when_its_level_changes() {
     // Handled by the medium before the frame that marks the end of what to read.
     plant.sync().unwrap();
     let mut radio = Conn::join(medium.addr(), Peer::Tool { addr: TOOL }).unwrap();
-    let mut clear = [0u8; 127];
-    let start = Message::Command {
-        id: 3,
-        command: Cmd::Start,
-    };
-    let n = mac::emit_data(&header(0xFFFF, TOOL, VC), &payload(&start), &mut clear).unwrap();
-    radio.send(&Link::Frame(&clear[..n])).unwrap();
+    let start = clear_start();
+    radio.send(&Link::Frame(&start)).unwrap();
     let (tx, rx) = mpsc::channel();
     let stdout = monitor.stdout.take().unwrap();
     std::thread::spawn(move || {

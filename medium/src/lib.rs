@@ -179,13 +179,11 @@ impl Medium {
             ));
         }
         let addr = listener.local_addr()?;
-        let pcap =
-            match &config.pcap {
-                Some(path) => Some(PcapLog::create(path).map_err(|e| {
-                    io::Error::new(e.kind(), format!("pcap {}: {e}", path.display()))
-                })?),
-                None => None,
-            };
+        let pcap = config.pcap.as_deref().map(|path| {
+            PcapLog::create(path)
+                .map_err(|e| io::Error::new(e.kind(), format!("pcap {}: {e}", path.display())))
+        });
+        let pcap = pcap.transpose()?;
         let stats = Arc::new(Mutex::new(Stats::default()));
         let counters = Counters(stats.clone());
         let start = Instant::now();

@@ -309,8 +309,8 @@ fn resolve(c: &Compiled, world: &World, kind: &FaultKind) -> Result<Target, Inje
 }
 
 /// Runs the cycles before the fault's, then the fault's cycle with `target` injected
-/// just before its step `spec.step` (each cycle within `limit_ms`): the trace index where that cycle starts and the
-/// time of the injection.
+/// just before its step `spec.step`, each cycle within `limit_ms`: the trace index where
+/// that cycle starts and the time of the injection.
 fn run_injected(
     world: &mut World,
     button: usize,

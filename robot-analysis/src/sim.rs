@@ -11,7 +11,6 @@ use node_fw::sim::{
     World,
 };
 
-use node_fw::cylinder::Position;
 use robot_compiler::compile::Compiled;
 use robot_compiler::interlock::{self, Atom, Interlock};
 use robot_compiler::ir::{Step, Valves};
@@ -404,10 +403,11 @@ fn run(c: &Compiled, cycles: usize, keep_trace: bool) -> Result<SimResult, Simul
         trace: Vec::new(),
     };
     let watch = Interlocks::of(c, &world)?;
+    let limit_ms = cycle_limit_ms(c);
     for _ in 0..cycles {
         let mark = world.trace().len();
         let mut broken: Vec<(u64, usize)> = Vec::new();
-        let cycle = world.run_cycle_watched(button, cycle_limit_ms(c), &mut |w| {
+        let cycle = world.run_cycle_watched(button, limit_ms, &mut |w| {
             for i in watch.holding(w) {
                 if broken.iter().all(|&(_, b)| b != i) {
                     broken.push((w.now(), i));
@@ -475,7 +475,7 @@ impl Interlocks {
             Atom::Position { plant, mask } => {
                 let at = self.plants.get(plant).copied().flatten();
                 at.and_then(|p| world.position(p))
-                    .is_some_and(|pos| position_mask(pos) & mask != 0)
+                    .is_some_and(|pos| crate::verify::rod_mask(pos) & mask != 0)
             }
             Atom::Chart { role, chart, state } => {
                 role < world.node_count()
@@ -487,16 +487,6 @@ impl Interlocks {
             Atom::Const(v) => v,
         };
         (0..self.list.len()).filter(move |&i| self.list[i].holds(&read))
-    }
-}
-
-/// An actuator's position as an interlock reads it ([`interlock::HOME`] ...).
-fn position_mask(p: Position) -> u8 {
-    match p {
-        Position::Home => interlock::HOME,
-        Position::End => interlock::END,
-        Position::Extending => interlock::EXTENDING,
-        Position::Retracting => interlock::RETRACTING,
     }
 }
 

@@ -30,8 +30,9 @@ const TOP: f64 = 36.0;
 pub fn run(c: &Compiled, cycles: usize) -> Result<Vec<TraceEntry>, SimulationError> {
     let tables = crate::sim::tables(c)?;
     let (mut world, button) = crate::sim::world(c, &tables)?;
+    let limit_ms = cycle_limit_ms(c);
     for _ in 0..cycles {
-        world.run_cycle(button, cycle_limit_ms(c))?;
+        world.run_cycle(button, limit_ms)?;
     }
     Ok(world.take_trace())
 }

@@ -524,6 +524,19 @@ fn machine(flags: &SwitchArgs) -> Result<(ToolRadio, Vec<RoleStatus>), Failure> 
     Ok((radio, nodes))
 }
 
+/// A trial a power cut split: the trial's generation and the nodes off it, each with the
+/// generation it runs (`None`: no node on trial, or every node on it).
+fn split_trial(nodes: &[RoleStatus]) -> Option<(u32, Vec<(u16, u32)>)> {
+    let statuses: Vec<(u16, &Status)> = nodes.iter().map(|n| (n.1, &n.2)).collect();
+    match home::generations(&statuses)? {
+        home::Generations::Mixed {
+            trial: Some(generation),
+            off,
+        } => Some((generation, off)),
+        _ => None,
+    }
+}
+
 /// `confirm`: the generation on trial stays.
 pub fn confirm(flags: &SwitchArgs) -> Result<(), Failure> {
     let (mut radio, nodes) = machine(flags)?;
@@ -534,12 +547,7 @@ pub fn confirm(flags: &SwitchArgs) -> Result<(), Failure> {
     }
     // A node that left the trial (a power cut) runs another generation: confirming the
     // others would leave the machine on two.
-    let statuses: Vec<(u16, &Status)> = nodes.iter().map(|n| (n.1, &n.2)).collect();
-    if let Some(home::Generations::Mixed {
-        trial: Some(generation),
-        off,
-    }) = home::generations(&statuses)
-    {
+    if let Some((generation, off)) = split_trial(&nodes) {
         for (role, addr, s) in &nodes {
             let what = match off.iter().find(|o| o.0 == *addr) {
                 Some(_) => format!("generation {}  NOT on trial", s.generation),
@@ -595,14 +603,9 @@ pub fn rollback(flags: &SwitchArgs) -> Result<(), Failure> {
     let (mut radio, nodes) = machine(flags)?;
     // A trial a power cut split: the nodes it took off the trial run the previous
     // generation already; the others return to it.
-    let statuses: Vec<(u16, &Status)> = nodes.iter().map(|n| (n.1, &n.2)).collect();
-    let back: Vec<u16> = match home::generations(&statuses) {
-        Some(home::Generations::Mixed {
-            trial: Some(_),
-            off,
-        }) => off.iter().map(|o| o.0).collect(),
-        _ => Vec::new(),
-    };
+    let back: Vec<u16> = split_trial(&nodes)
+        .map(|(_, off)| off.iter().map(|o| o.0).collect())
+        .unwrap_or_default();
     let moving: Vec<&RoleStatus> = nodes.iter().filter(|n| !back.contains(&n.1)).collect();
     let previous: Vec<u32> = moving.iter().map(|n| n.2.previous).collect();
     let target = previous.first().copied().unwrap_or(0);

@@ -39,6 +39,7 @@ mod place;
 pub use feed::{DEFAULT_BALLS, MAX_BALLS};
 
 pub use homing::{explore_homing, HomingReport};
+pub(crate) use place::rod_mask;
 use place::Place;
 pub use place::Rest;
 
@@ -1749,10 +1750,9 @@ impl Search {
         let mut key = Vec::new();
         for (root, label) in roots {
             // The initial states count towards `max_states` too (homing has one per start
-            // position and held valve level).
+            // position and held valve level): past it, the check below stops the search.
             if g.seen.len() >= opts.max_states {
-                g.incomplete = true;
-                return g;
+                break;
             }
             let bad = model.check_state(&root);
             if g.insert(&root, &mut key).1 {
@@ -1765,7 +1765,7 @@ impl Search {
                 }
             }
         }
-        // The initial states alone may come to `max_states`.
+        // The initial states alone may come to `max_states` (or stopped at it).
         if g.seen.len() >= opts.max_states {
             g.incomplete = true;
             return g;

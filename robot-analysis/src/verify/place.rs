@@ -45,14 +45,22 @@ impl Rest {
     }
 }
 
+/// A rod's interlock bit (`ACT.home`, `ACT.end`, `ACT.extending`, `ACT.retracting`), as
+/// the verifier and `sim` read interlocks.
+pub(crate) fn rod_mask(p: Pos) -> u8 {
+    match p {
+        Pos::Home => interlock::HOME,
+        Pos::End => interlock::END,
+        Pos::Extending => interlock::EXTENDING,
+        Pos::Retracting => interlock::RETRACTING,
+    }
+}
+
 impl Place {
     /// The interlock bits (`ACT.home` ...): none between the switches at rest.
     pub(super) fn mask(self) -> u8 {
         match self {
-            Place::Rod(Pos::Home) => interlock::HOME,
-            Place::Rod(Pos::End) => interlock::END,
-            Place::Rod(Pos::Extending) => interlock::EXTENDING,
-            Place::Rod(Pos::Retracting) => interlock::RETRACTING,
+            Place::Rod(p) => rod_mask(p),
             Place::Between => 0,
         }
     }
