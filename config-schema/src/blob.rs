@@ -13,6 +13,8 @@
 
 use core::fmt;
 
+use serde::{Deserialize, Serialize};
+
 use crate::pack::{self, PackError};
 use crate::table::Table;
 use crate::validate::{validate, Invalid};
@@ -107,6 +109,54 @@ impl fmt::Display for EncodeError {
 
 impl core::error::Error for EncodeError {}
 
+/// A table's identity on the air: the CRC-32 of its blob (the envelope's trailer, over the
+/// generation and the packed table, never a key), as `Status` and `Announce` carry it (4
+/// bytes, little-endian). The tool compares it with the blob of the robot it was given,
+/// compiled at the node's generation: two tables with the same roles and charts are told
+/// apart. Only an identity, not a proof (frame security authenticates the node that
+/// says it).
+#[derive(Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub struct TableId(pub [u8; 4]);
+
+impl TableId {
+    /// What a node without a table reports.
+    pub const NONE: TableId = TableId([0; 4]);
+
+    /// The identity of the blob whose CRC-32 is `crc`.
+    pub const fn from_crc(crc: u32) -> TableId {
+        TableId(crc.to_le_bytes())
+    }
+
+    /// The CRC-32 this identity is.
+    pub const fn crc(self) -> u32 {
+        u32::from_le_bytes(self.0)
+    }
+
+    /// The identity of `table` (at its `generation`): its blob encoded and its CRC taken.
+    /// For the tool and tests; a node takes the identity from the blob it decoded
+    /// ([`crate::link_keys::Deployment`]).
+    pub fn of(table: &Table) -> Result<TableId, EncodeError> {
+        let mut buf = [0u8; crate::limits::MAX_TABLE_BLOB];
+        let len = encode(table, &mut buf)?;
+        let crc = buf
+            .get(len.saturating_sub(TRAILER_LEN)..len)
+            .ok_or(EncodeError::BufferTooSmall)?;
+        Ok(TableId([crc[0], crc[1], crc[2], crc[3]]))
+    }
+}
+
+impl fmt::Debug for TableId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "TableId({:#010x})", self.crc())
+    }
+}
+
+impl fmt::Display for TableId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{:08x}", self.crc())
+    }
+}
+
 /// Encodes `table` as a blob into `buf`; returns the blob's length.
 pub fn encode(table: &Table, buf: &mut [u8]) -> Result<usize, EncodeError> {
     let body = buf
@@ -189,6 +239,11 @@ pub fn envelope(bytes: &[u8]) -> Result<Envelope, DecodeError> {
 
 /// Decodes and validates a blob. Never panics, whatever the bytes.
 pub fn decode(bytes: &[u8]) -> Result<Table, DecodeError> {
+    decode_identified(bytes).map(|(table, _)| table)
+}
+
+/// [`decode`], with the table's identity on the air (the blob's CRC, checked once).
+pub fn decode_identified(bytes: &[u8]) -> Result<(Table, TableId), DecodeError> {
     let env = envelope(bytes)?;
     let payload = &bytes[HEADER_LEN..HEADER_LEN + env.payload_len];
     let (mut table, rest) = pack::decode(payload).map_err(DecodeError::Payload)?;
@@ -197,5 +252,5 @@ pub fn decode(bytes: &[u8]) -> Result<Table, DecodeError> {
     }
     table.generation = env.generation;
     validate(&table).map_err(DecodeError::Invalid)?;
-    Ok(table)
+    Ok((table, TableId::from_crc(env.crc)))
 }

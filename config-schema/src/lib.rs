@@ -27,7 +27,7 @@ pub mod text;
 pub mod validate;
 pub mod wire;
 
-pub use blob::{decode, encode, DecodeError, EncodeError, SCHEMA_VERSION};
+pub use blob::{decode, encode, DecodeError, EncodeError, TableId, SCHEMA_VERSION};
 pub use guard::{Expr, ExprError, Op};
 pub use table::*;
 pub use validate::{validate, validate_structure, Invalid, Place};

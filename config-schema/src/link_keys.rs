@@ -23,7 +23,7 @@ use core::fmt;
 
 use heapless::Vec;
 
-use crate::blob::{self, CRC32, HEADER_LEN, LENGTH_AT, TRAILER_LEN};
+use crate::blob::{self, TableId, CRC32, HEADER_LEN, LENGTH_AT, TRAILER_LEN};
 use crate::limits::MAX_PEERS;
 use crate::table::Table;
 use crate::wire::security::KEY_LEN;
@@ -255,17 +255,28 @@ pub fn split(bytes: &[u8]) -> Result<(&[u8], &[u8]), DecodeError> {
     Ok(bytes.split_at(blob_len))
 }
 
+/// A decoded transfer (or flash slot): the table, its link keys if a block followed, and
+/// the table's identity on the air (its blob's CRC).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Deployment {
+    pub table: Table,
+    pub keys: Option<LinkKeys>,
+    pub id: TableId,
+}
+
 /// Decodes and validates a transfer: the table, and its link keys if a block follows (which
 /// must name exactly the table's peers, for its generation). Never panics.
-pub fn decode_deployment(bytes: &[u8]) -> Result<(Table, Option<LinkKeys>), DeployError> {
+pub fn decode_deployment(bytes: &[u8]) -> Result<Deployment, DeployError> {
     let (blob, rest) = split(bytes).map_err(DeployError::Table)?;
-    let table = blob::decode(blob).map_err(DeployError::Table)?;
-    if rest.is_empty() {
-        return Ok((table, None));
-    }
-    let keys = LinkKeys::decode(rest).map_err(DeployError::Keys)?;
-    keys.check(&table).map_err(DeployError::Keys)?;
-    Ok((table, Some(keys)))
+    let (table, id) = blob::decode_identified(blob).map_err(DeployError::Table)?;
+    let keys = if rest.is_empty() {
+        None
+    } else {
+        let keys = LinkKeys::decode(rest).map_err(DeployError::Keys)?;
+        keys.check(&table).map_err(DeployError::Keys)?;
+        Some(keys)
+    };
+    Ok(Deployment { table, keys, id })
 }
 
 #[cfg(test)]

@@ -316,7 +316,10 @@ fn node_killed_between_persisting_and_flipping_boots_the_old_table() {
         .running
         .expect("the old table is committed");
     assert_eq!(
-        (loaded.table.generation, loaded.table.header.role.as_str()),
+        (
+            loaded.deployed.table.generation,
+            loaded.deployed.table.header.role.as_str()
+        ),
         (1, "VC")
     );
     let inactive = 1 - loaded.slot;
@@ -324,7 +327,10 @@ fn node_killed_between_persisting_and_flipping_boots_the_old_table() {
     let mut buf = [0u8; config_schema::limits::MAX_BLOB + 16];
     assert_eq!(now(slots.read_blob(inactive, &mut buf)).unwrap(), None);
     let reloaded = now(slots.load()).unwrap().running.unwrap();
-    assert_eq!((reloaded.slot, reloaded.table.generation), (loaded.slot, 1));
+    assert_eq!(
+        (reloaded.slot, reloaded.deployed.table.generation),
+        (loaded.slot, 1)
+    );
     drop(slots);
 
     bed.start_node(node).unwrap();
@@ -344,7 +350,10 @@ fn node_killed_between_persisting_and_flipping_boots_the_old_table() {
     bed.kill_node(node);
     let mut slots = Slots::new(HostFlash::open(&path).unwrap()).unwrap();
     let newest = now(slots.load()).unwrap().running.unwrap();
-    assert_eq!((newest.slot, newest.table.generation), (inactive, 2));
+    assert_eq!(
+        (newest.slot, newest.deployed.table.generation),
+        (inactive, 2)
+    );
     drop(slots);
     bed.start_node(node).unwrap();
     assert_eq!(bed.wait_for_nodes(&[node]).unwrap()[&node].generation, 2);

@@ -12,7 +12,7 @@
 
 use std::sync::OnceLock;
 
-use config_schema::link_keys::{decode_deployment, LinkKeys};
+use config_schema::link_keys::{decode_deployment, Deployment};
 use config_schema::Table;
 use libfuzzer_sys::fuzz_target;
 use node_fw::node::{FlashRequest, Io, NodeCore};
@@ -55,7 +55,7 @@ struct Fresh {
 impl Fresh {
     /// Serves what the core asks of its flash, as a board does.
     fn flash(&mut self, now: u64) {
-        let deployed = |b: &Option<Vec<u8>>| -> Option<(Table, Option<LinkKeys>)> {
+        let deployed = |b: &Option<Vec<u8>>| -> Option<Deployment> {
             b.as_deref().and_then(|b| decode_deployment(b).ok())
         };
         // Each request answered moves the core on; a bound, not a pace.

@@ -6,7 +6,7 @@
 //! [`Io`] it asks for, and persists a new table when asked, before the node switches to it.
 
 use config_schema::limits::{MAX_PEERS, MAX_TIMERS};
-use config_schema::link_keys::LinkKeys;
+use config_schema::link_keys::{Deployment, LinkKeys};
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_MPDU, MAX_PSDU};
 use config_schema::wire::msg::{
     Announce, Command, ConfigReply, Counters, LinkMessage, Message, Refusal, RuntimeCounters,
@@ -14,7 +14,7 @@ use config_schema::wire::msg::{
 };
 use config_schema::wire::security::link::{self as sealed, SealedLink};
 use config_schema::wire::security::{self, ext_addr, replay::ReplayGuard, AuxRepr, Opened};
-use config_schema::{Publication, Table};
+use config_schema::{Publication, Table, TableId};
 use heapless::Vec;
 
 use crate::alarms::{Alarms, Seen};
@@ -123,6 +123,8 @@ pub struct NodeCore<S = RamStaging> {
     /// Bit n: the board has pin n. A table naming another pin is refused.
     board_pins: u64,
     table: Option<Table>,
+    /// The running table's identity on the air (its blob's CRC; `NONE` without a table).
+    table_id: TableId,
     /// The running table's index, built once when it was installed.
     index: Option<Index>,
     state: Option<EngineState>,
@@ -448,21 +450,28 @@ impl<I: Io> Effects for NodeEffects<'_, I> {
 impl NodeCore {
     /// A node at `addr` on a board with pins `board_pins` (bit n: the board has pin n),
     /// booting with `table` (the newest valid slot) or none, staging pushed tables in RAM
-    /// ([`NodeCore::staging_in`]).
+    /// ([`NodeCore::staging_in`]). The table's identity is that of its blob, encoded here
+    /// (a board boots from the blob itself: [`NodeCore::staging_in`]).
     pub fn new(addr: u16, board_pins: u64, table: Option<Table>, epoch: u16) -> Self {
-        NodeCore::staging_in(addr, board_pins, table, epoch, RamStaging::new())
+        let boot = table.map(|table| Deployment {
+            id: TableId::of(&table).unwrap_or(TableId::NONE),
+            table,
+            keys: None,
+        });
+        NodeCore::staging_in(addr, board_pins, boot, epoch, RamStaging::new())
     }
 }
 
 impl<S: StagingArea> NodeCore<S> {
     /// A node at `addr` on a board with pins `board_pins` (bit n: the board has pin n),
-    /// booting with `table` (the newest valid slot) or none; a table naming a pin the board
-    /// lacks is not run (the node boots unconfigured). `epoch` must differ from (be newer
-    /// than) the previous boot's: peers only accept newer epochs.
+    /// booting with `boot` (the newest valid slot: its table, link keys and identity) or
+    /// none; a table naming a pin the board lacks is not run (the node boots
+    /// unconfigured). `epoch` must differ from (be newer than) the previous boot's: peers
+    /// only accept newer epochs.
     pub fn staging_in(
         addr: u16,
         board_pins: u64,
-        table: Option<Table>,
+        boot: Option<Deployment>,
         epoch: u16,
         staging: S,
     ) -> Self {
@@ -477,6 +486,7 @@ impl<S: StagingArea> NodeCore<S> {
             },
             board_pins,
             table: None,
+            table_id: TableId::NONE,
             index: None,
             state: None,
             timers: [None; MAX_TIMERS],
@@ -500,8 +510,8 @@ impl<S: StagingArea> NodeCore<S> {
             alarms: Alarms::default(),
             state_changed: true,
         };
-        if let Some(t) = table.filter(|t| t.missing_pin(board_pins).is_none()) {
-            node.install(t, None, false);
+        if let Some(d) = boot.filter(|d| d.table.missing_pin(board_pins).is_none()) {
+            node.install(d, false);
             node.boot_pending = true;
         }
         node
@@ -616,7 +626,8 @@ impl<S: StagingArea> NodeCore<S> {
 
     /// Runs `table` from now on: its charts start in their initial states, or in their
     /// idle states when `at_idle` (it replaces a table that rested at its idle point).
-    fn install(&mut self, table: Table, keys: Option<LinkKeys>, at_idle: bool) {
+    fn install(&mut self, deployed: Deployment, at_idle: bool) {
+        let Deployment { table, keys, id } = deployed;
         self.radio.links.install(keys, &table.peers);
         // The table's index is built once, here, and kept beside it.
         let index = Index::new(&table);
@@ -648,6 +659,7 @@ impl<S: StagingArea> NodeCore<S> {
         }
         self.index = Some(index);
         self.table = Some(table);
+        self.table_id = id;
     }
 
     pub fn addr(&self) -> u16 {
@@ -1058,6 +1070,7 @@ impl<S: StagingArea> NodeCore<S> {
             firmware: FIRMWARE_VERSION,
             generation: self.generation(),
             role,
+            table: self.table_id,
             staged: self.switch.staged(),
         })
     }
@@ -1068,6 +1081,7 @@ impl<S: StagingArea> NodeCore<S> {
             ack,
             role: heapless::String::new(),
             generation: self.generation(),
+            table: self.table_id,
             staged: self.switch.staged(),
             previous: self.switch.previous(),
             trial: self.switch.trial(),
@@ -1699,12 +1713,7 @@ impl<S: StagingArea> NodeCore<S> {
     /// flash failed, or the slot no longer decodes): switch to it atomically (outputs to
     /// their start levels, held ones kept, new engine), answer the tool, and run a START
     /// held during the switch-over.
-    pub fn activated(
-        &mut self,
-        deployed: Option<(Table, Option<LinkKeys>)>,
-        now: u64,
-        io: &mut impl Io,
-    ) {
+    pub fn activated(&mut self, deployed: Option<Deployment>, now: u64, io: &mut impl Io) {
         let rollback = matches!(
             self.switch.activating(),
             Some((_, switch::Target::Previous))
@@ -1714,17 +1723,17 @@ impl<S: StagingArea> NodeCore<S> {
         } else {
             self.switch.staged()
         };
-        let deployed = deployed.filter(|(t, _)| t.generation == generation);
+        let deployed = deployed.filter(|d| d.table.generation == generation);
         let running = self.generation();
         let (from, start) = self.switch.activated(deployed.is_some(), running);
         let reply = match deployed {
-            Some((table, keys)) => {
+            Some(deployed) => {
                 // A machine that rested at its idle point stays homed; one stopped
                 // anywhere else (or a node that was never configured) needs homing.
                 let at_idle = self.table.is_some() && self.idle();
-                io.running(table.generation);
-                self.drive_start(&table, io);
-                self.install(table, keys, at_idle);
+                io.running(deployed.table.generation);
+                self.drive_start(&deployed.table, io);
+                self.install(deployed, at_idle);
                 ConfigReply::Activated
             }
             None => ConfigReply::Refused(Refusal::Flash),
@@ -2315,7 +2324,15 @@ mod tests {
                 if switched {
                     let mut next = table_b(link_fault);
                     next.generation = 1;
-                    node.install(next, Some(keys_b(1)), false);
+                    let id = TableId::of(&next).unwrap();
+                    node.install(
+                        Deployment {
+                            table: next,
+                            keys: Some(keys_b(1)),
+                            id,
+                        },
+                        false,
+                    );
                 }
                 if staged {
                     node = node.with_staged(running + 1);

@@ -334,22 +334,20 @@ impl<S: Staging> Receiver<S> {
                 }
                 let board = self.board_pins;
                 match decode_deployment(blob) {
-                    Ok((table, _)) if table.generation == generation => {
-                        match table.missing_pin(board) {
-                            Some(pin) => reply(ConfigReply::Refused(Refusal::Pin { pin, board })),
-                            None => {
-                                self.taken = Some(Taken {
-                                    generation,
-                                    len: t.len,
-                                    crc: t.crc,
-                                });
-                                Some(Outcome::Stage {
-                                    generation,
-                                    len: usize::from(t.len),
-                                })
-                            }
+                    Ok(d) if d.table.generation == generation => match d.table.missing_pin(board) {
+                        Some(pin) => reply(ConfigReply::Refused(Refusal::Pin { pin, board })),
+                        None => {
+                            self.taken = Some(Taken {
+                                generation,
+                                len: t.len,
+                                crc: t.crc,
+                            });
+                            Some(Outcome::Stage {
+                                generation,
+                                len: usize::from(t.len),
+                            })
                         }
-                    }
+                    },
                     _ => reply(ConfigReply::Refused(Refusal::Invalid)),
                 }
             }

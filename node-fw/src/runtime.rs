@@ -26,9 +26,8 @@
 use core::convert::Infallible;
 
 use config_schema::limits::MAX_BLOB;
-use config_schema::link_keys::{decode_deployment, LinkKeys};
+use config_schema::link_keys::{decode_deployment, Deployment};
 use config_schema::wire::mac::{MAX_MPDU, MAX_PSDU};
-use config_schema::Table;
 use embassy_futures::select::{select3, select_array, Either3};
 use embassy_time::{with_timeout, Duration, Instant, Timer, TICK_HZ};
 use embedded_hal::digital::{InputPin, OutputPin};
@@ -488,7 +487,7 @@ impl<P: Pins> Io for CoreIo<'_, P> {
     fn runtime_counters(&self) -> RuntimeCounters {
         RuntimeCounters {
             tx_queue_full: self.stats.tx_queue_full,
-            tx_queue_high: self.stats.tx_queue_high,
+            tx_queue_high: u8::try_from(self.stats.tx_queue_high).unwrap_or(u8::MAX),
             tx_failed: self.stats.tx_failed,
             flash_failures: self.stats.flash_failures,
         }
@@ -592,7 +591,7 @@ fn with_slot<F: NorFlash, R>(
 /// The deployment (table and link keys) in slot `slot`, if it decodes; one copy of the
 /// read and the decode for every caller.
 #[inline(never)]
-fn deployment<F: NorFlash>(slots: &mut Slots<F>, slot: usize) -> Option<(Table, Option<LinkKeys>)> {
+fn deployment<F: NorFlash>(slots: &mut Slots<F>, slot: usize) -> Option<Deployment> {
     with_slot(slots, slot, |blob| decode_deployment(blob).ok()).flatten()
 }
 
@@ -656,18 +655,11 @@ fn boot_core<F: NorFlash, S: Staging, N: Notes>(
     let deployed = survey.running.and_then(|r| deployment(slots, r.slot));
     if let Some(pin) = deployed
         .as_ref()
-        .and_then(|(table, _)| table.missing_pin(pin_mask))
+        .and_then(|d| d.table.missing_pin(pin_mask))
     {
         notes.note(addr, Note::MissingPin { pin });
     }
-    let (table, keys) = match deployed {
-        Some((table, keys)) => (Some(table), keys),
-        None => (None, None),
-    };
-    let mut core = NodeCore::staging_in(addr, pin_mask, table, epoch, staging);
-    if let Some(keys) = keys {
-        core = core.with_link_keys(keys);
-    }
+    let mut core = NodeCore::staging_in(addr, pin_mask, deployed, epoch, staging);
     if let Some(staged) = survey.staged {
         core = core.with_staged(staged.generation);
     } else if let Some(previous) = survey.previous {

@@ -27,8 +27,7 @@
 //! flash goes").
 
 use config_schema::limits::MAX_BLOB;
-use config_schema::link_keys::{decode_deployment, LinkKeys};
-use config_schema::Table;
+use config_schema::link_keys::{decode_deployment, Deployment};
 use embassy_futures::block_on;
 use embedded_storage::nor_flash::{ErrorType, NorFlashError, NorFlashErrorKind};
 use embedded_storage_async::nor_flash::{NorFlash, ReadNorFlash};
@@ -73,9 +72,8 @@ pub struct Slots<F> {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Loaded {
     pub slot: usize,
-    pub table: Table,
-    /// The link keys stored with the table (a secured push), if any.
-    pub keys: Option<LinkKeys>,
+    /// The table, the link keys stored with it (a secured push) if any, and its identity.
+    pub deployed: Deployment,
 }
 
 /// A staged table: where, and its generation.
@@ -115,9 +113,7 @@ pub struct Survey {
 /// The generation of a deployment blob, if it decodes and validates (the table is not
 /// kept: a function of its own, so no caller holds it across an await).
 fn generation(blob: &[u8]) -> Option<u32> {
-    decode_deployment(blob)
-        .ok()
-        .map(|(table, _)| table.generation)
+    decode_deployment(blob).ok().map(|d| d.table.generation)
 }
 
 /// The state words of one slot.
@@ -253,7 +249,7 @@ impl<F: NorFlash> Slots<F> {
         };
         Ok(decode_deployment(buf.get(..len).unwrap_or(&[]))
             .ok()
-            .map(|(table, keys)| Loaded { slot, table, keys }))
+            .map(|d| Loaded { slot, deployed: d }))
     }
 
     /// What the slots hold: the table to boot, a staged one, an abandoned trial.

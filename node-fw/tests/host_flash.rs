@@ -70,7 +70,7 @@ fn the_boot_counter_and_the_slots_survive_reopening() {
     assert_eq!(f.count_boot().unwrap(), Some(2));
     let mut slots = Slots::new(f).unwrap();
     let loaded = block_on(slots.load()).unwrap().running.unwrap();
-    assert_eq!((loaded.slot, loaded.table), (0, table));
+    assert_eq!((loaded.slot, loaded.deployed.table), (0, table));
     assert_eq!(HostFlash::ram().count_boot().unwrap(), None);
     let _ = std::fs::remove_file(&p);
 }

@@ -7,8 +7,8 @@ use support::{Channel, Rng};
 
 use config_schema::link_keys::decode_deployment;
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
-use config_schema::wire::msg::{Command, Message, Refusal, Status};
-use config_schema::{Action, Level, Output, Publication, Subscription, Table};
+use config_schema::wire::msg::{Announce, Command, Message, Refusal, Status};
+use config_schema::{Action, Level, Output, Publication, Subscription, Table, TableId};
 use node_fw::node::{FlashRequest, Io, NodeCore, CONFIG_PAN};
 use node_fw::{ota, switch};
 use test_tables::{blob, button, toggle};
@@ -265,23 +265,36 @@ impl Net {
     }
 
     fn status(&mut self, dst: u16) -> Status {
+        self.ask(dst, Command::Status, |m| match m {
+            Message::Status(s) => Some(s),
+            _ => None,
+        })
+    }
+
+    fn announce(&mut self, dst: u16) -> Announce {
+        self.ask(dst, Command::Identify, |m| match m {
+            Message::Announce(a) => Some(a),
+            _ => None,
+        })
+    }
+
+    /// Sends `command` to `dst` until an answer `answer` takes comes back from it.
+    fn ask<T>(&mut self, dst: u16, command: Command, answer: impl Fn(Message) -> Option<T>) -> T {
         self.tool_inbox.clear();
         for _ in 0..50 {
-            self.tool_send(
-                dst,
-                &Message::Command {
-                    id: 1,
-                    command: Command::Status,
-                },
-            );
+            self.tool_send(dst, &Message::Command { id: 1, command });
             self.run(30);
             for (src, bytes) in std::mem::take(&mut self.tool_inbox) {
-                if let (true, Ok(Message::Status(s))) = (src == dst, Message::parse(&bytes)) {
-                    return s;
+                if let Some(a) = Message::parse(&bytes)
+                    .ok()
+                    .filter(|_| src == dst)
+                    .and_then(&answer)
+                {
+                    return a;
                 }
             }
         }
-        panic!("no status from {dst:#06x}");
+        panic!("no answer to {command:?} from {dst:#06x}");
     }
 }
 
@@ -337,6 +350,36 @@ fn pushed_tables_carry_events_exactly_once_in_order_under_loss() {
             "seed {seed}: the loss forced retries"
         );
     }
+}
+
+/// The identity a node should report for `table`: the last four bytes of its blob (the
+/// CRC the tool compares).
+fn blob_crc(table: &Table) -> TableId {
+    let mut buf = [0u8; 4096];
+    let n = config_schema::encode(table, &mut buf).unwrap();
+    TableId(buf[n - 4..n].try_into().unwrap())
+}
+
+#[test]
+fn a_node_reports_the_identity_of_the_table_it_runs() {
+    let mut net = Net::new(0.0, 0.0, 3);
+    assert_eq!(net.status(B).table, TableId::NONE);
+    assert_eq!(net.push(B, &table_b(4), false), ota::Progress::Done);
+    assert_eq!(net.status(B).table, blob_crc(&table_b(4)));
+    assert_ne!(blob_crc(&table_b(4)), blob_crc(&table_b(5)));
+    // A table that could not be persisted is not run: the identity stays.
+    net.flash_ok = false;
+    assert_eq!(
+        net.push(B, &table_b(5), false),
+        ota::Progress::Refused(Refusal::Flash)
+    );
+    assert_eq!(net.status(B).table, blob_crc(&table_b(4)));
+    net.flash_ok = true;
+    assert_eq!(net.push(B, &table_b(5), false), ota::Progress::Done);
+    assert_eq!(net.status(B).table, blob_crc(&table_b(5)));
+    // Its answer to Identify says the same.
+    assert_eq!(net.announce(B).table, blob_crc(&table_b(5)));
+    assert_eq!(net.announce(A).table, TableId::NONE);
 }
 
 #[test]

@@ -322,6 +322,7 @@ fn other_nodes_secured_announcements_are_ignored_not_counted() {
         firmware: 1,
         generation: 0,
         role: heapless::String::new(),
+        table: config_schema::TableId::NONE,
         staged: 0,
     })
     .emit(&mut announce)

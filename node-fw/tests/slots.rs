@@ -6,6 +6,8 @@
 mod support;
 use support::blob;
 
+use config_schema::link_keys::Deployment;
+use config_schema::TableId;
 use embassy_futures::block_on;
 use node_fw::slots::{
     Boot, Loaded, RamFlash, SlotError, SlotState, Slots, StagedSlot, CONFIRMED, HEADER, STAGED,
@@ -19,7 +21,14 @@ fn slots(flash: Flash) -> Slots<Flash> {
 
 /// The booted (slot, generation).
 fn running(boot: &Boot) -> Option<(usize, u32)> {
-    boot.running.as_ref().map(|l| (l.slot, l.table.generation))
+    boot.running
+        .as_ref()
+        .map(|l| (l.slot, l.deployed.table.generation))
+}
+
+/// The identity of blob `b`: its last four bytes, the CRC.
+fn trailer(b: &[u8]) -> TableId {
+    TableId(b[b.len() - 4..].try_into().unwrap())
 }
 
 fn load(s: &mut Slots<Flash>) -> Boot {
@@ -51,8 +60,11 @@ fn stores_alternate_slots_and_the_one_activated_last_boots() {
         boot.running,
         Some(Loaded {
             slot: 0,
-            table: t1,
-            keys: None
+            deployed: Deployment {
+                id: trailer(&b1),
+                table: t1,
+                keys: None,
+            }
         })
     );
     assert_eq!(boot.next_serial, 1);
@@ -62,8 +74,11 @@ fn stores_alternate_slots_and_the_one_activated_last_boots() {
         boot.running,
         Some(Loaded {
             slot: 1,
-            table: t2,
-            keys: None
+            deployed: Deployment {
+                id: trailer(&b2),
+                table: t2,
+                keys: None,
+            }
         })
     );
     assert_eq!(

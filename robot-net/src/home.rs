@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use config_schema::alarm::AlarmReport;
 use config_schema::wire::msg::{Command, Message, Status};
-use config_schema::Table;
+use config_schema::{Table, TableId};
 use robot_compiler::compile::Compiled;
 
 use crate::error::NetError;
@@ -27,7 +27,7 @@ pub enum Standing {
     Moving,
     /// Faulted, with its fault code.
     Faulted(u8),
-    /// The node does not run the role's table (another role, or another chart count).
+    /// The node does not run the role's table (another role, or another table of it).
     Other,
 }
 
@@ -80,9 +80,18 @@ pub fn generations(statuses: &[(u16, &Status)]) -> Option<Generations> {
     })
 }
 
+/// Whether the node that answered `s` runs `table`: the identity it reports is that of
+/// `table` compiled at the node's generation (the same roles and charts are not enough:
+/// two robots may share them).
+pub fn runs(table: &Table, s: &Status) -> bool {
+    let mut at = table.clone();
+    at.generation = s.generation;
+    TableId::of(&at).is_ok_and(|id| id == s.table)
+}
+
 /// Where the node running `s` stands, against `table`, the table of role `role`.
 pub fn standing(role: &str, table: &Table, s: &Status) -> Standing {
-    if s.role.as_str() != role || s.states.len() != table.charts.len() {
+    if s.role.as_str() != role || s.states.len() != table.charts.len() || !runs(table, s) {
         return Standing::Other;
     }
     if let Some(code) = s.fault {
@@ -227,15 +236,16 @@ pub fn alarms(
 }
 
 /// Homes the machine of `c`: refuses one with a node faulted, moving or not running the
-/// robot's table; else sends HOME to the home role's node and asks every node's status
+/// robot's table; else calls `sending` (what is about to happen can be said then, not
+/// before a refusal), sends HOME to the home role's node and asks every node's status
 /// (every [`POLL`]) until every chart rests in its idle state, a node faults, or `wait`
 /// passes. Returns how it ended and how long it took from the HOME command.
 pub fn home(
     radio: &mut ToolRadio,
     ids: &mut Ids,
     c: &Compiled,
-    answer_within: Duration,
-    wait: Duration,
+    (answer_within, wait): (Duration, Duration),
+    sending: &mut dyn FnMut(),
 ) -> Result<(HomeEnd, Duration), NetError> {
     let home = c.ir.home.ok_or(NetError::NoHome)?;
     let role = c.ir.roles.get(home).ok_or(NetError::NoHome)?;
@@ -257,6 +267,7 @@ pub fn home(
             return Ok((HomeEnd::Refused(why), Duration::ZERO));
         }
     }
+    sending();
     let t0 = Instant::now();
     let s = push::command(radio, ids, role.address, Command::Home, answer_within)?.ok_or_else(
         || NetError::NoAnswer {
@@ -370,10 +381,13 @@ mod tests {
     use config_schema::wire::msg::{Counters, RuntimeCounters};
 
     fn status(role: &str, states: &[u8], fault: Option<u8>) -> Status {
+        let mut t = table();
+        t.generation = 1;
         Status {
             ack: 1,
             role: heapless::String::try_from(role).unwrap(),
             generation: 1,
+            table: TableId::of(&t).unwrap(),
             staged: 0,
             previous: 0,
             trial: false,
@@ -466,6 +480,19 @@ mod tests {
             Standing::Other
         );
         assert_eq!(standing("VC", &t, &status("", &[], None)), Standing::Other);
+        // The role and its charts, another table: a guard, a timer, anything else.
+        let mut other = t.clone();
+        other.charts[1].idle = 1;
+        assert_eq!(
+            standing("VC", &other, &status("VC", &[0, 0], None)),
+            Standing::Other
+        );
+        // The same table at another generation is another blob.
+        let later = Status {
+            generation: 2,
+            ..status("VC", &[0, 0], None)
+        };
+        assert_eq!(standing("VC", &t, &later), Standing::Other);
     }
 
     fn node(role: &str, addr: u16, standing: Standing) -> Node {

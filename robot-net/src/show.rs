@@ -179,6 +179,7 @@ mod tests {
             ack: 9,
             role: heapless::String::try_from("GR").unwrap(),
             generation: 3,
+            table: config_schema::TableId::NONE,
             staged: 0,
             previous: 0,
             trial: false,

@@ -246,6 +246,7 @@ mod tests {
             firmware: 1,
             generation,
             role: heapless::String::try_from("VC").unwrap(),
+            table: config_schema::TableId::from_crc(0x1234_abcd),
             staged: 0,
         });
         sealed(header(CONFIG_PAN, node, BROADCAST), 0, 9, key.expose(), &m)
@@ -315,7 +316,8 @@ mod tests {
         assert_eq!(
             s.describe(&announce_from(VC, 3)),
             "0x0011 -> 0xffff  secured EncMic64 key 0 counter 9: \
-             Announce(Announce { firmware: 1, generation: 3, role: \"VC\", staged: 0 })"
+             Announce(Announce { firmware: 1, generation: 3, role: \"VC\", \
+             table: TableId(0x1234abcd), staged: 0 })"
         );
         assert_eq!(s.generations().collect::<Vec<_>>(), [3]);
         assert_eq!(

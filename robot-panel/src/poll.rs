@@ -403,7 +403,8 @@ impl Poll {
     /// Homing (as `config-tool home`).
     fn home(&mut self) -> Result<String, NetError> {
         let c = self.c.clone();
-        let (end, took) = home::home(&mut self.radio, &mut self.ids, &c, ANSWER_WITHIN, HOME_WAIT)?;
+        let within = (ANSWER_WITHIN, HOME_WAIT);
+        let (end, took) = home::home(&mut self.radio, &mut self.ids, &c, within, &mut || {})?;
         Ok(match end {
             HomeEnd::Homed => format!("homed: every chart idle in {:.2} s", took.as_secs_f64()),
             HomeEnd::Refused(why) => format!("refused: {why}; HOME was not sent"),

@@ -8,6 +8,7 @@ use heapless::{String, Vec};
 use serde::{Deserialize, Serialize};
 
 use crate::alarm::AlarmReport;
+use crate::blob::TableId;
 use crate::limits::{MAX_CHARTS, MAX_ROLE_NAME};
 use crate::table::Topic;
 
@@ -255,6 +256,8 @@ pub struct Status {
     pub ack: u16,
     pub role: String<MAX_ROLE_NAME>,
     pub generation: u32,
+    /// The running table's identity (its blob's CRC; [`TableId::NONE`] without a table).
+    pub table: TableId,
     /// The generation staged for the switch-over (0: none).
     pub staged: u32,
     /// The previous generation a rollback returns to (0: none).
@@ -289,8 +292,8 @@ pub struct Status {
 pub struct RuntimeCounters {
     /// Frames dropped because the transmit queue was full.
     pub tx_queue_full: u32,
-    /// The most frames the transmit queue ever held.
-    pub tx_queue_high: u32,
+    /// The most frames the transmit queue ever held (a queue holds at most 255).
+    pub tx_queue_high: u8,
     /// Frames the radio refused or did not take in time.
     pub tx_failed: u32,
     /// Pushed tables that could not be persisted.
@@ -314,6 +317,9 @@ pub struct Announce {
     pub generation: u32,
     /// Empty while unconfigured.
     pub role: String<MAX_ROLE_NAME>,
+    /// The running table's identity (its blob's CRC; [`TableId::NONE`] while
+    /// unconfigured).
+    pub table: TableId,
     /// The generation staged for the switch-over (0: none).
     pub staged: u32,
 }
@@ -456,6 +462,24 @@ mod tests {
     }
 
     #[test]
+    fn an_announce_carries_the_table_identity_as_four_bytes_after_the_role() {
+        let msg = Message::Announce(Announce {
+            firmware: 1,
+            generation: 300,
+            role: String::try_from("VC").unwrap(),
+            table: TableId::from_crc(0x1234_ABCD),
+            staged: 0,
+        });
+        let mut buf = [0u8; 32];
+        let n = msg.emit(&mut buf).unwrap();
+        assert_eq!(
+            &buf[..n],
+            &[8, 1, 0xAC, 0x02, 2, b'V', b'C', 0xCD, 0xAB, 0x34, 0x12, 0]
+        );
+        assert_eq!(Message::parse(&buf[..n]), Ok(msg));
+    }
+
+    #[test]
     fn the_largest_status_fits_one_secured_frame() {
         let mut role = String::new();
         while role.push('W').is_ok() {}
@@ -466,6 +490,7 @@ mod tests {
             ack: u16::MAX,
             role,
             generation: u32::MAX,
+            table: TableId([0xFF; 4]),
             staged: u32::MAX,
             previous: u32::MAX,
             trial: true,
@@ -486,7 +511,7 @@ mod tests {
             },
             runtime: RuntimeCounters {
                 tx_queue_full: c,
-                tx_queue_high: c,
+                tx_queue_high: u8::MAX,
                 tx_failed: c,
                 flash_failures: c,
             },

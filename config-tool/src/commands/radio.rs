@@ -401,15 +401,7 @@ fn report_push(
     for o in outcomes {
         outln!("{}", demo::push_line(o));
     }
-    let (bytes, frames, retries) = outcomes.iter().fold((0, 0, 0), |a, o| {
-        (a.0 + o.bytes, a.1 + o.stats.frames, a.2 + o.stats.retries)
-    });
-    let time = outcomes.iter().map(|o| o.elapsed).max().unwrap_or_default();
-    outln!(
-        "pushed {} table(s): {bytes} bytes, {frames} frames, {retries} retries, {:.1} ms",
-        outcomes.len(),
-        time.as_secs_f64() * 1e3
-    );
+    outln!("{}", demo::push_summary(outcomes));
     if !outcomes.iter().all(|o| o.progress == Progress::Done) {
         return Err(Failure {
             code: exit::PUSH_FAILED,
@@ -797,13 +789,14 @@ pub fn home(flags: &HomeArgs) -> Result<(), Failure> {
         return Err(robot_net::NetError::NoHome.into());
     }
     let mut radio = connect_keyed(&flags.at, keys.as_ref())?;
-    outln!("{}", demo::homing_line(&c));
     let (end, took) = home::home(
         &mut radio,
         &mut Ids::default(),
         &c,
-        ANSWER_WITHIN,
-        Duration::from_secs(flags.wait),
+        (ANSWER_WITHIN, Duration::from_secs(flags.wait)),
+        &mut || {
+            outln!("{}", demo::homing_line(&c));
+        },
     )?;
     match end {
         home::HomeEnd::Homed => {

@@ -753,3 +753,31 @@ pub fn killed_mid_cycle_then_homed(options: Options) {
     assert_eq!(robot_analysis::sim::steps_text(&cycle.steps), SEQUENCE_1);
     bed.stop();
 }
+
+/// `robot-configs/NAME` with security off (`security: Off` after its network), written to
+/// `dir`: its path, and the robot compiled for generation 1. For command-line tests that
+/// run the tool without keys.
+pub fn unsecured_robot(dir: &TempDir, name: &str) -> (PathBuf, Compiled) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let text = std::fs::read_to_string(root.join("robot-configs").join(name)).expect("robot");
+    let network = "    network: (pan_id: 0x1234, channel: 15),\n";
+    assert!(text.contains(network), "{name} has the usual network line");
+    let text = text.replacen(network, &format!("{network}    security: Off,\n"), 1);
+    let path = dir.0.join(name);
+    std::fs::write(&path, &text).expect("robot file");
+    let c = compile::compile(&Source::new(name, text))
+        .unwrap_or_else(|d| panic!("{name} does not compile: {d:?}"));
+    (path, c.with_generation(1).expect("re-encodes"))
+}
+
+/// The tool run at the workspace root without keys: (exit status, stdout, stderr).
+pub fn run_tool(args: &[&str]) -> (Option<i32>, String, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .args(args)
+        .env_remove("CONFIG_TOOL_KEYS")
+        .output()
+        .expect("runs");
+    let text = |b: &[u8]| String::from_utf8_lossy(b).into_owned();
+    (out.status.code(), text(&out.stdout), text(&out.stderr))
+}

@@ -523,13 +523,18 @@ impl Bed {
     /// the steps the plant saw since the last cycle, homing or [`Bed::strokes`] (what a
     /// START or a boot before it moved shows there too).
     pub fn home(&mut self, c: &Compiled) -> Result<Homing, NetError> {
-        let (end, took) = home::home(
-            &mut self.radio,
-            &mut self.ids,
-            c,
-            self.options.timeout,
-            self.options.timeout,
-        )?;
+        self.home_saying(c, &mut || {})
+    }
+
+    /// [`Bed::home`], calling `sending` once HOME is about to be sent (not for a machine
+    /// refused).
+    pub fn home_saying(
+        &mut self,
+        c: &Compiled,
+        sending: &mut dyn FnMut(),
+    ) -> Result<Homing, NetError> {
+        let within = (self.options.timeout, self.options.timeout);
+        let (end, took) = home::home(&mut self.radio, &mut self.ids, c, within, sending)?;
         let steps = self.strokes().into_iter().map(|s| s.step).collect();
         Ok(Homing { end, steps, took })
     }

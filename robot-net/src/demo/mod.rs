@@ -20,7 +20,8 @@ pub use qemu::{
     Counts, Uart, PROVISION_AT, QEMU_ELF, QEMU_MACHINE,
 };
 pub use report::{
-    alarm_text, cycle_line, fault_meaning, fault_text, homed_line, homing_line, push_line, say,
+    alarm_text, cycle_line, fault_meaning, fault_text, homed_line, homing_line, push_line,
+    push_summary, say,
 };
 pub use run::{generation_of, load, run, Demo, Verdict};
 pub use script::{fig9, simulate as simulate_script, Act, Expected, Moved};

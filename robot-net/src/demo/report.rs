@@ -8,6 +8,7 @@ use robot_compiler::compile::Compiled;
 use super::bed::{Cycle, FaultReport, Homing};
 use crate::home::HomeEnd;
 use crate::push;
+use node_fw::ota::Progress;
 
 /// A one-line summary of a push.
 pub fn push_line(o: &push::Pushed) -> String {
@@ -24,6 +25,30 @@ pub fn push_line(o: &push::Pushed) -> String {
         o.stats.retries,
         o.elapsed.as_secs_f64() * 1e3,
         o.verdict()
+    )
+}
+
+/// A push's last line: the tables staged (all, or how many of how many) and what the
+/// transfers took (bytes and frames sent, retries; the longest transfer's time).
+pub fn push_summary(outcomes: &[push::Pushed]) -> String {
+    let (bytes, frames, retries) = outcomes.iter().fold((0, 0, 0), |a, o| {
+        (a.0 + o.bytes, a.1 + o.stats.frames, a.2 + o.stats.retries)
+    });
+    let time = outcomes.iter().map(|o| o.elapsed).max().unwrap_or_default();
+    let staged = outcomes
+        .iter()
+        .filter(|o| o.progress == Progress::Done)
+        .count();
+    let what = match outcomes.len() - staged {
+        0 => format!("pushed {staged} table(s)"),
+        not => format!(
+            "staged {staged} of {} table(s) ({not} not: above)",
+            outcomes.len()
+        ),
+    };
+    format!(
+        "{what}: {bytes} bytes, {frames} frames, {retries} retries, {:.1} ms",
+        time.as_secs_f64() * 1e3
     )
 }
 
@@ -246,7 +271,7 @@ mod tests {
     use std::time::Duration;
 
     use config_schema::wire::msg::Refusal;
-    use node_fw::ota::{Progress, TransferStats};
+    use node_fw::ota::TransferStats;
 
     use super::*;
 
@@ -303,6 +328,39 @@ mod tests {
             cycle_line(3, &cy),
             "cycle 3: MISMATCH  1.50 s  7 frames  4.0 ms airtime  A+ B+ A-\n  \
              MIXED generations: A+@1 B+@1 A-@2"
+        );
+    }
+
+    /// A push that every node refused said `pushed 4 table(s)`: the summary counts the
+    /// tables staged, and says how many were not.
+    #[test]
+    fn the_push_summary_counts_the_tables_staged() {
+        let o = |progress| push::Pushed {
+            role: "VC".into(),
+            addr: 0x0011,
+            switch: None,
+            progress,
+            stats: TransferStats {
+                frames: 2,
+                retries: 1,
+                bytes: 88,
+            },
+            bytes: 88,
+            key_bytes: 0,
+            elapsed: Duration::from_micros(12_500),
+        };
+        let stale = Progress::Refused(Refusal::Stale { running: 1 });
+        assert_eq!(
+            push_summary(&[o(Progress::Done), o(Progress::Done)]),
+            "pushed 2 table(s): 176 bytes, 4 frames, 2 retries, 12.5 ms"
+        );
+        assert_eq!(
+            push_summary(&[o(Progress::Done), o(stale), o(Progress::GaveUp)]),
+            "staged 1 of 3 table(s) (2 not: above): 264 bytes, 6 frames, 3 retries, 12.5 ms"
+        );
+        assert_eq!(
+            push_summary(&[o(stale), o(stale)]),
+            "staged 0 of 2 table(s) (2 not: above): 176 bytes, 4 frames, 2 retries, 12.5 ms"
         );
     }
 

@@ -259,8 +259,9 @@ fn home_robot(bed: &mut Bed, robot: &Compiled, out: &mut dyn Write) -> Result<bo
         demo_report::say(out, "homed already: the tables switched at the idle point");
         return Ok(true);
     }
-    demo_report::say(out, &demo_report::homing_line(robot));
-    let homing = bed.home(robot)?;
+    let homing = bed.home_saying(robot, &mut || {
+        demo_report::say(out, &demo_report::homing_line(robot))
+    })?;
     demo_report::say(out, &demo_report::homed_line(&homing));
     Ok(homing.end == home::HomeEnd::Homed)
 }

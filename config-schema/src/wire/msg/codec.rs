@@ -164,6 +164,11 @@ impl<'a> In<'a> {
 
     /// `u32`s into `c`, in order.
     #[inline(never)]
+    /// A table's identity: 4 bytes as they are (postcard's `[u8; 4]`).
+    fn table_id(&mut self) -> TableId {
+        TableId([self.byte(), self.byte(), self.byte(), self.byte()])
+    }
+
     fn fill(&mut self, c: &mut [u32]) {
         for x in c {
             *x = self.u32();
@@ -264,6 +269,7 @@ fn for_the_tool<'a>(r: &mut In<'a>, v: u32) -> Message<'a> {
             firmware: r.u16(),
             generation: r.u32(),
             role: r.role(),
+            table: r.table_id(),
             staged: r.u32(),
         }),
         9 => Message::Security(security(r)),
@@ -298,12 +304,14 @@ fn check_for_the_tool(r: &mut In, v: u32) {
             }
         }
         7 => {
-            // Status: ack, role, generation, staged, previous, trial, states, outputs,
-            // inputs, fault, link alarms, broken, restarted, epoch, counters, runtime
-            // counters, cycles.
+            // Status: ack, role, generation, table, staged, previous, trial, states,
+            // outputs, inputs, fault, link alarms, broken, restarted, epoch, counters,
+            // runtime counters, cycles.
             r.u16();
             r.role();
-            r.skip_u32s(3);
+            r.u32();
+            r.table_id();
+            r.skip_u32s(2);
             r.bool();
             let n = r.len(MAX_CHARTS);
             for _ in 0..n {
@@ -323,13 +331,18 @@ fn check_for_the_tool(r: &mut In, v: u32) {
             r.byte();
             r.byte();
             r.u16();
-            r.skip_u32s(9);
+            // The counters, then the runtime's: tx queue full, its high-water mark (a
+            // byte), tx failed, flash failures.
+            r.skip_u32s(6);
+            r.byte();
+            r.skip_u32s(2);
             r.byte();
         }
         8 => {
             r.u16();
             r.u32();
             r.role();
+            r.table_id();
             r.u32();
         }
         9 => {
@@ -428,9 +441,10 @@ fn switch_step(r: &mut In) -> SwitchStep {
 fn status(r: &mut In) -> Status {
     let ack = r.u16();
     let role = r.role();
-    let mut g = [0u32; 3];
-    r.fill(&mut g);
-    let [generation, staged, previous] = g;
+    let generation = r.u32();
+    let table = r.table_id();
+    let staged = r.u32();
+    let previous = r.u32();
     let trial = r.bool();
     let mut states = Vec::new();
     for _ in 0..r.len(MAX_CHARTS) {
@@ -453,13 +467,15 @@ fn status(r: &mut In) -> Status {
     let mut c = [0u32; 5];
     r.fill(&mut c);
     let [sent, received, retried, dropped, delivered] = c;
-    let mut rt = [0u32; 4];
-    r.fill(&mut rt);
-    let [tx_queue_full, tx_queue_high, tx_failed, flash_failures] = rt;
+    let tx_queue_full = r.u32();
+    let tx_queue_high = r.byte();
+    let tx_failed = r.u32();
+    let flash_failures = r.u32();
     Status {
         ack,
         role,
         generation,
+        table,
         staged,
         previous,
         trial,
@@ -607,6 +623,13 @@ impl<'b> Out<'b> {
         self.byte(u8::from(b))
     }
 
+    /// Bytes as they are (an array: no length).
+    fn raw(&mut self, b: &[u8]) {
+        for &x in b {
+            self.byte(x);
+        }
+    }
+
     #[inline(never)]
     fn bytes(&mut self, b: &[u8]) {
         self.varint(b.len() as u64);
@@ -681,6 +704,7 @@ pub(super) fn emit(m: &Message<'_>, w: &mut Out) {
             w.u16(a.firmware);
             w.u32(a.generation);
             w.bytes(a.role.as_bytes());
+            w.raw(&a.table.0);
             w.u32(a.staged)
         }
         Message::Security(s) => {
@@ -777,7 +801,9 @@ fn emit_refusal(refusal: Refusal, w: &mut Out) {
 fn emit_status(s: &Status, w: &mut Out) {
     w.u16(s.ack);
     w.bytes(s.role.as_bytes());
-    w.counters(&[s.generation, s.staged, s.previous]);
+    w.u32(s.generation);
+    w.raw(&s.table.0);
+    w.counters(&[s.staged, s.previous]);
     w.bool(s.trial);
     w.bytes(&s.states);
     w.u16(s.outputs);
@@ -795,12 +821,9 @@ fn emit_status(s: &Status, w: &mut Out) {
     w.u16(s.epoch);
     let (c, rt) = (&s.counters, &s.runtime);
     w.counters(&[c.sent, c.received, c.retried, c.dropped, c.delivered]);
-    w.counters(&[
-        rt.tx_queue_full,
-        rt.tx_queue_high,
-        rt.tx_failed,
-        rt.flash_failures,
-    ]);
+    w.u32(rt.tx_queue_full);
+    w.byte(rt.tx_queue_high);
+    w.counters(&[rt.tx_failed, rt.flash_failures]);
     w.byte(s.cycles)
 }
 

@@ -123,23 +123,36 @@ fn step() -> impl Strategy<Value = SwitchStep> {
     ]
 }
 
+fn table_id() -> impl Strategy<Value = TableId> {
+    any::<[u8; 4]>().prop_map(TableId)
+}
+
 fn status() -> impl Strategy<Value = Status> {
-    let head = (n16(), role(), n32(), n32(), n32(), any::<bool>());
+    let head = (
+        n16(),
+        role(),
+        n32(),
+        table_id(),
+        n32(),
+        n32(),
+        any::<bool>(),
+    );
     let states = proptest::collection::vec(any::<u8>(), 0..=MAX_CHARTS);
     let pins = (n16(), n16(), proptest::option::of(any::<u8>()));
     let links = (any::<u8>(), any::<u8>(), any::<u8>(), n16());
     let counters = (
         proptest::array::uniform5(n32()),
-        proptest::array::uniform4(n32()),
+        (n32(), any::<u8>(), n32(), n32()),
     );
     (head, states, pins, links, counters, any::<u8>()).prop_map(
         |(head, states, pins, links, (c, rt), cycles)| Status {
             ack: head.0,
             role: head.1,
             generation: head.2,
-            staged: head.3,
-            previous: head.4,
-            trial: head.5,
+            table: head.3,
+            staged: head.4,
+            previous: head.5,
+            trial: head.6,
             states: Vec::from_slice(&states).expect("within capacity"),
             outputs: pins.0,
             inputs: pins.1,
@@ -156,10 +169,10 @@ fn status() -> impl Strategy<Value = Status> {
                 delivered: c[4],
             },
             runtime: RuntimeCounters {
-                tx_queue_full: rt[0],
-                tx_queue_high: rt[1],
-                tx_failed: rt[2],
-                flash_failures: rt[3],
+                tx_queue_full: rt.0,
+                tx_queue_high: rt.1,
+                tx_failed: rt.2,
+                flash_failures: rt.3,
             },
             cycles,
         },
@@ -246,14 +259,17 @@ fn message() -> impl Strategy<Value = Message<'static>> {
         (n32(), reply()).prop_map(|(generation, reply)| Message::ConfigReply { generation, reply }),
         (n16(), command()).prop_map(|(id, command)| Message::Command { id, command }),
         status().prop_map(Message::Status),
-        (n16(), n32(), role(), n32()).prop_map(|(firmware, generation, role, staged)| {
-            Message::Announce(Announce {
-                firmware,
-                generation,
-                role,
-                staged,
-            })
-        }),
+        (n16(), n32(), role(), table_id(), n32()).prop_map(
+            |(firmware, generation, role, table, staged)| {
+                Message::Announce(Announce {
+                    firmware,
+                    generation,
+                    role,
+                    table,
+                    staged,
+                })
+            }
+        ),
         security().prop_map(Message::Security),
         n32().prop_map(|nonce| Message::Challenge { nonce }),
         n32().prop_map(|nonce| Message::ChallengeAnswer { nonce }),

@@ -1,0 +1,93 @@
+//! A node's running table has an identity on the air (its blob's CRC-32, in `Status` and
+//! `Announce`): the tool tells "runs this robot's table" by it, not by the role's name and
+//! chart count, so a robot whose roles and charts look like another's is not taken for it.
+
+mod e2e_support;
+
+use e2e_support::*;
+
+/// With the double dip running (the paint robot's roles, the same chart count, VC's and
+/// RC's tables different), `start paint-robot.ron` started the double dip, exit 0; and
+/// `status` said `homed` of VC. Now the first node whose table is not the robot's is
+/// named, nothing is sent (exit 6); the nodes whose tables are the same in both robots
+/// (GR, HC) are the robot's.
+#[test]
+fn a_robot_with_the_same_roles_and_charts_is_not_taken_for_the_running_one() {
+    let dir = TempDir::new("identity");
+    let (paint, _) = unsecured_robot(&dir, "paint-robot.ron");
+    let (_, dip) = unsecured_robot(&dir, "paint-robot-double-dip.ron");
+    let paint = paint.to_str().expect("utf-8 path");
+    let mut opts = options(medium::Config::default(), None);
+    opts.secured = false;
+    let mut bed = bring_up(&dip, opts);
+    push_and_home(&mut bed, &dip);
+    let medium = bed.medium().addr().to_string();
+    let m = medium.as_str();
+
+    assert_eq!(
+        run_tool(&["start", paint, "--medium", m]),
+        (
+            Some(6),
+            String::new(),
+            "error: node 0x0011 (VC) does not run this robot's table: push it first; \
+             START was not sent\n"
+                .to_string()
+        )
+    );
+    // Refused before anything is sent: no `homing:` line (it was printed before the
+    // refusal, as if HOME had gone out).
+    assert_eq!(
+        run_tool(&["home", paint, "--medium", m]),
+        (
+            Some(6),
+            String::new(),
+            "error: node 0x0011 (VC) does not run this robot's table: push it first; \
+             HOME was not sent\n"
+                .to_string()
+        )
+    );
+    let homing = |node: &str| {
+        let (code, out, err) = run_tool(&["status", paint, "--medium", m, "--node", node]);
+        assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
+        out.lines().last().unwrap_or_default().to_string()
+    };
+    assert_eq!(homing("0x0011"), "  homing: not running this robot's table");
+    assert_eq!(homing("0x0012"), "  homing: homed");
+    let (code, found, err) = run_tool(&["scan", paint, "--medium", m]);
+    assert_eq!((code, err.as_str()), (Some(0), ""), "{found}");
+    assert!(
+        found.contains("0x0011  firmware 1  generation 1  VC  not running this robot's table\n")
+            && found.contains("0x0012  firmware 1  generation 1  GR  homed\n"),
+        "{found}"
+    );
+    // A push of the paint robot at the running generation is refused by every node (a
+    // table is replaced by a newer generation only); the summary counts none staged (it
+    // said `pushed 4 table(s)`).
+    let (code, out, err) = run_tool(&["push", paint, "--medium", m]);
+    assert_eq!(
+        (code, err.as_str()),
+        (
+            Some(3),
+            "error: not every node staged its table: nothing switched\n"
+        ),
+        "{out}"
+    );
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 6, "{out}");
+    for line in &lines[1..5] {
+        assert!(
+            line.ends_with("refused: generation not newer than the running 1"),
+            "{out}"
+        );
+    }
+    assert!(
+        lines[5].starts_with("staged 0 of 4 table(s) (4 not: above): "),
+        "{out}"
+    );
+
+    // Nothing moved: the machine is at rest, and its next cycle is the double dip's,
+    // exactly.
+    assert_running(&mut bed, &dip);
+    exact_cycle(&mut bed, &dip, 1);
+    bed.stop();
+}
