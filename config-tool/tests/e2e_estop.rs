@@ -363,6 +363,15 @@ stayed: 0x0014 RC: chart `estop`: stopped by another node's emergency stop (code
             "".into()
         )
     );
+    // A second `ack` acknowledges nothing new (it counted the four again).
+    assert_eq!(
+        run(&["ack", robot, "--medium", m]),
+        (
+            Some(0),
+            "acknowledged: 0 alarm(s) on 4 node(s) (4 acknowledged before)\n".into(),
+            "".into()
+        )
+    );
     let acknowledged = listed.replace("[latched, cause persists]", "[acknowledged]");
     assert_eq!(
         run(&["alarms", robot, "--medium", m]),

@@ -111,3 +111,72 @@ pub fn stayed(c: &Compiled, nodes: &[NodeAlarms]) -> Vec<String> {
     }
     out
 }
+
+/// What an `ack` acknowledged: (alarms acknowledged now, alarms that were acknowledged
+/// already), from the alarms read just before it (`before`) and its answers (`after`),
+/// node by node in the same order. An alarm is the same one when its source, level and
+/// node time raised are.
+pub fn acknowledged(before: &[NodeAlarms], after: &[NodeAlarms]) -> (usize, usize) {
+    let same =
+        |a: &Alarm, b: &Alarm| (a.source, a.level, a.raised_ms) == (b.source, b.level, b.raised_ms);
+    let mut counts = (0, 0);
+    for (b, n) in before.iter().zip(after) {
+        for a in n.report.alarms.iter().filter(|a| a.acked) {
+            if b.report.alarms.iter().any(|x| x.acked && same(x, a)) {
+                counts.1 += 1;
+            } else {
+                counts.0 += 1;
+            }
+        }
+    }
+    counts
+}
+
+#[cfg(test)]
+mod tests {
+    use config_schema::alarm::AlarmSource;
+
+    use super::*;
+
+    fn node(alarms: &[(AlarmSource, u32, bool)]) -> NodeAlarms {
+        let mut report = AlarmReport {
+            ack: 1,
+            now_ms: 1000,
+            alarms: heapless::Vec::new(),
+            dropped: 0,
+        };
+        for &(source, raised_ms, acked) in alarms {
+            let alarm = Alarm {
+                source,
+                level: AlarmLevel::Fault,
+                raised_ms,
+                acked,
+                persists: false,
+            };
+            report.alarms.push(alarm).unwrap();
+        }
+        NodeAlarms {
+            role: "VC".into(),
+            addr: 0x0011,
+            report,
+            read_at: UNIX_EPOCH,
+        }
+    }
+
+    /// A second `ack` said it acknowledged every alarm again.
+    #[test]
+    fn an_ack_counts_only_the_alarms_it_acknowledged() {
+        let estop = AlarmSource::EStop;
+        let link = AlarmSource::Link { peer: 0x0012 };
+        let before = [node(&[(estop, 100, true), (link, 200, false)])];
+        // The link alarm acknowledged now; another e-stop, raised after the read, too.
+        let after = [node(&[
+            (estop, 100, true),
+            (link, 200, true),
+            (estop, 900, true),
+        ])];
+        assert_eq!(acknowledged(&before, &after), (2, 1));
+        assert_eq!(acknowledged(&after, &after), (0, 3));
+        assert_eq!(acknowledged(&[node(&[])], &[node(&[])]), (0, 0));
+    }
+}

@@ -758,12 +758,18 @@ pub fn alarms(robot: &Path, at: &MediumAddr, keys: &KeysArg, watch: bool) -> Res
 pub fn ack(robot: &Path, at: &MediumAddr, keys: &KeysArg) -> Result<(), Failure> {
     let (c, mut radio) = robot_radio(robot, at, keys)?;
     let mut ids = Ids::default();
+    // What was acknowledged already, so that only what this `ack` did is counted.
+    let before = node_alarms(&mut radio, &mut ids, &c, Command::Alarms)?;
     let nodes = node_alarms(&mut radio, &mut ids, &c, Command::Ack)?;
-    let acked: usize = nodes
-        .iter()
-        .map(|n| n.report.alarms.iter().filter(|a| a.acked).count())
-        .sum();
-    outln!("acknowledged: {acked} alarm(s) on {} node(s)", nodes.len());
+    let (now, already) = alarms::acknowledged(&before, &nodes);
+    let already = match already {
+        0 => String::new(),
+        n => format!(" ({n} acknowledged before)"),
+    };
+    outln!(
+        "acknowledged: {now} alarm(s) on {} node(s){already}",
+        nodes.len()
+    );
     let stayed = alarms::stayed(&c, &nodes);
     for l in &stayed {
         outln!("{l}");
