@@ -407,12 +407,29 @@ fn diagram_prints_dot_and_rejects_an_unknown_role() {
     let dot = text(&out.stdout);
     assert!(dot.starts_with("digraph \"GR\" {\n"), "{dot}");
     assert!(dot.contains("c0s1 -> c0s2 [label=\"dwell\"];"), "{dot}");
-    let out = tool(&["diagram", "robot-configs/paint-robot.ron", "--role", "XX"]);
-    assert_eq!(out.status.code(), Some(1));
-    assert_eq!(
-        text(&out.stderr),
-        "error: unknown role `XX` (roles: VC, GR, HC, RC)\n"
-    );
+    // An unknown role is a bad argument: status 2, as every other (it was 1), for
+    // `diagram` and `push` alike (`push` checks it before anything is sent).
+    for args in [
+        &["diagram", "robot-configs/paint-robot.ron", "--role", "XX"][..],
+        &[
+            "push",
+            "robot-configs/paint-robot.ron",
+            "--role",
+            "XX",
+            "--medium",
+            "127.0.0.1:1",
+        ],
+    ] {
+        let out = tool(args);
+        assert_eq!(
+            (out.status.code(), text(&out.stderr).as_str()),
+            (
+                Some(2),
+                "error: robot-configs/paint-robot.ron: unknown role `XX` (roles: VC, GR, HC, RC)\n"
+            ),
+            "{args:?}"
+        );
+    }
 }
 
 #[test]
@@ -514,6 +531,16 @@ fn matrix_prints_the_papers_objects_and_check_names_the_publications() {
     );
     let out = tool(&["matrix", "robot-configs/paint-robot.ron"]);
     assert_eq!(out.status.code(), Some(2));
+    // A function asked of a robot without any said `(functions: )`.
+    let out = tool(&["matrix", "robot-configs/paint-robot.ron", "--function", "F"]);
+    assert_eq!(
+        (out.status.code(), text(&out.stderr).as_str()),
+        (
+            Some(2),
+            "error: robot-configs/paint-robot.ron: no function `F`: the robot declares no \
+             `functions`\n"
+        )
+    );
     let out = tool(&["matrix", "tests/fixtures/broken/petri-row.ron"]);
     assert_eq!(out.status.code(), Some(1));
 

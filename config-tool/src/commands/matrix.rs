@@ -36,13 +36,17 @@ pub fn matrix(robot: &Path, function: Option<&str>, csv: bool) -> Result<(), Fai
             .iter()
             .map(|l| l.net.name.as_str())
             .collect();
-        return Err(Failure::usage(match function {
-            Some(f) => format!(
+        return Err(Failure::usage(match (function, names.is_empty()) {
+            (Some(f), false) => format!(
                 "{}: no function `{f}` (functions: {})",
                 src.name,
                 names.join(", ")
             ),
-            None => format!("{}: the robot declares no `functions`", src.name),
+            (Some(f), true) => format!(
+                "{}: no function `{f}`: the robot declares no `functions`",
+                src.name
+            ),
+            (None, _) => format!("{}: the robot declares no `functions`", src.name),
         }));
     }
     let parts: Vec<String> = nets

@@ -101,6 +101,7 @@ pub fn dump(blob: &Path) -> Result<(), Failure> {
 
 pub fn diagram(robot: &Path, role: &str, format: Format) -> Result<(), Failure> {
     let (src, compiled) = load_compiled(robot)?;
+    super::known_role(robot, &compiled.ir, role)?;
     let automata = robot_compiler::automata::compile::placed(&compiled.robot, &src, role);
     let dot = diagram::dot_with_automata(&compiled.ir, &automata, role).map_err(Failure::error)?;
     match format {

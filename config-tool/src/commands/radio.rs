@@ -182,13 +182,8 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
     let c = demo::generation_of(demo::load(robot)?, flags.generation)?;
     let mut targets = demo::targets(&c);
     if let Some(role) = &flags.role {
+        super::known_role(robot, &c.ir, role)?;
         targets.retain(|t| &t.role == role);
-        if targets.is_empty() {
-            return Err(Failure::error(format!(
-                "{} has no role {role}",
-                robot.display()
-            )));
-        }
         if let (Some(addr), Some(t)) = (flags.node, targets.first_mut()) {
             t.addr = addr;
         }
