@@ -24,28 +24,21 @@ fn a_robot_with_the_same_roles_and_charts_is_not_taken_for_the_running_one() {
     let medium = bed.medium().addr().to_string();
     let m = medium.as_str();
 
-    assert_eq!(
-        run_tool(&["start", paint, "--medium", m]),
-        (
-            Some(6),
-            String::new(),
-            "error: node 0x0011 (VC) does not run this robot's table: push it first; \
-             START was not sent\n"
-                .to_string()
-        )
-    );
-    // Refused before anything is sent: no `homing:` line (it was printed before the
+    // Both refused before anything is sent (`home` printed its `homing:` line before the
     // refusal, as if HOME had gone out).
-    assert_eq!(
-        run_tool(&["home", paint, "--medium", m]),
-        (
-            Some(6),
-            String::new(),
-            "error: node 0x0011 (VC) does not run this robot's table: push it first; \
-             HOME was not sent\n"
-                .to_string()
-        )
-    );
+    for (command, what) in [("start", "START"), ("home", "HOME")] {
+        assert_eq!(
+            run_tool(&[command, paint, "--medium", m]),
+            (
+                Some(6),
+                String::new(),
+                format!(
+                    "error: node 0x0011 (VC) does not run this robot's table: push it first; \
+                     {what} was not sent\n"
+                )
+            )
+        );
+    }
     let homing = |node: &str| {
         let (code, out, err) = run_tool(&["status", paint, "--medium", m, "--node", node]);
         assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
