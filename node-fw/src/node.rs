@@ -420,6 +420,10 @@ impl<I: Io> Effects for NodeEffects<'_, I> {
             self.io.set_pin(o.pin, value);
         }
     }
+    // Out of line: inlined into the interpreter's cascade (`ecc::Run::raise`), every
+    // field it reads (the links, the radio, the I/O, the clock) was loaded ahead of each
+    // stimulus and kept across the cascade's loop, whether the stimulus published or not.
+    #[inline(never)]
     fn publish(&mut self, p: &Publication) {
         let (pan, table) = (self.table.header.pan_id, self.table);
         for i in 0..self.senders.len() {
