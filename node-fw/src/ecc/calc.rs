@@ -71,7 +71,7 @@ macro_rules! calc_match {
             42 => Some(x().wrapping_mul(y())),
             43 => $crate::ecc::calc::div(x(), y()),
             44 => $crate::ecc::calc::rem(x(), y()),
-            _ => $crate::ecc::calc::stack(w, vars, $inputs, $table),
+            _ => $crate::ecc::calc::stack(*w, vars, $inputs, $table),
         }
     }};
 }
@@ -262,15 +262,11 @@ const _: () = assert!(
 // The codes above `LAST_CODE` (the actions') stay below 64 too.
 const _: () = assert!(LAST_CODE + 16 < 64);
 
-/// An expression of no direct shape, on the stack machine.
+/// An expression of no direct shape, on the stack machine. Its operands by value: the
+/// walk then keeps no copy of an operation's operands in memory for this rare call.
 #[inline(never)]
-pub(super) fn stack(
-    w: &[u8; 4],
-    vars: &[i32; MAX_VARS],
-    inputs: u16,
-    table: &Table,
-) -> Option<i32> {
-    let [_, start, len, _] = *w;
+pub(super) fn stack(w: [u8; 4], vars: &[i32; MAX_VARS], inputs: u16, table: &Table) -> Option<i32> {
+    let [_, start, len, _] = w;
     guard::eval_stack(
         table.expr(Expr { start, len }),
         |v| vars.get(usize::from(v)).copied(),

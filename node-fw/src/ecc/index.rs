@@ -52,7 +52,7 @@ const END: Act = Act {
     w: [0; 4],
 };
 const _: () = assert!(MAX_EVENTS <= NONE as usize);
-const _: () = assert!(MAX_INPUTS.is_power_of_two());
+const _: () = assert!(MAX_INPUTS.is_power_of_two() && MAX_EVENTS.is_power_of_two());
 
 /// Where a chart's states are in the table's pool.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -298,7 +298,9 @@ impl Index {
                 topic: 0,
                 subscribers: 0,
             }; MAX_PUBLICATIONS],
-            event_count: table.events,
+            // At most `MAX_EVENTS` (a table that skipped validation may say more: the
+            // events past it have no record, so they raise nothing).
+            event_count: table.events.min(MAX_EVENTS as u8),
             timer_count: table.timers.len().min(usize::from(NONE)) as u8,
             outputs: ((1u32 << table.outputs.len().min(16)) - 1) as u16,
             start_drive: table.start_drive(),
@@ -575,6 +577,14 @@ impl Index {
     #[inline(always)]
     pub(super) fn event(&self, event: EventId) -> Option<&EventRec> {
         self.events.get(usize::from(event))
+    }
+
+    /// The record of `event`, an event below `event_count` (masked: `MAX_EVENTS` is a power
+    /// of two, so the index is in range without a check; `event_count` is at most
+    /// `MAX_EVENTS`).
+    #[inline(always)]
+    pub(super) fn event_below_count(&self, event: EventId) -> &EventRec {
+        &self.events[usize::from(event) & (MAX_EVENTS - 1)]
     }
 
     /// The record of global state `state` (`None` past `MAX_STATES`).
