@@ -345,6 +345,30 @@ mod tests {
         assert_eq!(LinkKeys::decode(&many), Err(KeyBlockError::TooManyPeers(9)));
     }
 
+    /// A deployment's identity is its blob's CRC (the blob's last four bytes): the same
+    /// with a key block after it or without one, never a function of a key.
+    #[test]
+    fn a_deployment_is_identified_by_its_blob_alone() {
+        let mut table = Table::empty("VC");
+        table.generation = 7;
+        table.peers.push(0x0012).unwrap();
+        let mut buf = [0u8; 512];
+        let n = blob::encode(&table, &mut buf).unwrap();
+        let crc = TableId(buf[n - 4..n].try_into().unwrap());
+        let plain = decode_deployment(&buf[..n]).unwrap();
+        assert_eq!((plain.id, plain.keys), (crc, None));
+        let k = keys().encode(&mut buf[n..]).unwrap();
+        let keyed = decode_deployment(&buf[..n + k]).unwrap();
+        assert_eq!((keyed.id, keyed.keys.is_some()), (crc, true));
+        assert_eq!(TableId::of(&table), Ok(crc));
+        // Other keys, the same identity.
+        buf[n + HEAD_LEN + 2] ^= 0xFF;
+        let crc_at = n + k - TRAILER_LEN;
+        let fixed = CRC32.checksum(&buf[n..crc_at]).to_le_bytes();
+        buf[crc_at..n + k].copy_from_slice(&fixed);
+        assert_eq!(decode_deployment(&buf[..n + k]).unwrap().id, crc);
+    }
+
     #[test]
     fn debug_never_shows_a_key() {
         let shown = alloc_free_debug(&keys());

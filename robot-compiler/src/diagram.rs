@@ -17,8 +17,8 @@ use crate::model::{ActionDecl, ChartType};
 /// Why a diagram could not be drawn.
 #[derive(Debug, thiserror::Error)]
 pub enum DiagramError {
-    #[error("unknown role `{role}` (roles: {})", roles.join(", "))]
-    UnknownRole { role: String, roles: Vec<String> },
+    #[error(transparent)]
+    UnknownRole(#[from] crate::ir::UnknownRole),
     /// Graphviz `dot` could not be started.
     #[error(
         "cannot run Graphviz `dot` ({0}): install graphviz, or use `--format dot` and render it elsewhere"
@@ -52,14 +52,7 @@ pub fn dot_with_automata(
     automata: &[Automaton],
     role: &str,
 ) -> Result<String, DiagramError> {
-    let r = ir
-        .roles
-        .iter()
-        .find(|r| r.name == role)
-        .ok_or_else(|| DiagramError::UnknownRole {
-            role: role.to_string(),
-            roles: ir.roles.iter().map(|r| r.name.clone()).collect(),
-        })?;
+    let r = ir.role(role)?;
     let mut o = String::new();
     let _ = writeln!(o, "digraph \"{}\" {{", esc(&r.name));
     let _ = writeln!(o, "  rankdir=LR;");

@@ -346,6 +346,28 @@ impl RoleIr {
     }
 }
 
+/// A role asked by name (`--role`) that the robot does not have.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown role `{role}` (roles: {})", roles.join(", "))]
+pub struct UnknownRole {
+    pub role: String,
+    /// The robot's roles, in order.
+    pub roles: Vec<String>,
+}
+
+impl Ir {
+    /// Role `name`.
+    pub fn role(&self, name: &str) -> Result<&RoleIr, UnknownRole> {
+        self.roles
+            .iter()
+            .find(|r| r.name == name)
+            .ok_or_else(|| UnknownRole {
+                role: name.to_string(),
+                roles: self.roles.iter().map(|r| r.name.clone()).collect(),
+            })
+    }
+}
+
 /// A token of a step list that is not a step.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("`{token}` is not a step: write an actuator name and `+` or `-`, e.g. `VC+`")]

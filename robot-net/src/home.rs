@@ -6,7 +6,7 @@
 
 use std::time::{Duration, Instant};
 
-use config_schema::alarm::AlarmReport;
+use config_schema::alarm::{Alarm, AlarmReport};
 use config_schema::wire::msg::{Command, Message, Status};
 use config_schema::{Table, TableId};
 use robot_compiler::compile::Compiled;
@@ -42,6 +42,33 @@ impl Standing {
             Standing::Other => "not running this robot's table".to_string(),
         }
     }
+}
+
+/// What an `Ack` acknowledged, as `ack` and the panel say it: `acknowledged: N alarm(s) on
+/// M node(s)`, then ` (K acknowledged before)` if any were. `before` are the nodes' alarms
+/// read just before the `Ack`, `after` its answers, node by node in the same order. An
+/// alarm is the same one when its source, level and node time raised are.
+pub fn acknowledged(before: &[AlarmReport], after: &[AlarmReport]) -> String {
+    let same =
+        |a: &Alarm, b: &Alarm| (a.source, a.level, a.raised_ms) == (b.source, b.level, b.raised_ms);
+    let (mut now, mut already) = (0, 0);
+    for (b, report) in before.iter().zip(after) {
+        for a in report.alarms.iter().filter(|a| a.acked) {
+            if b.alarms.iter().any(|x| x.acked && same(x, a)) {
+                already += 1;
+            } else {
+                now += 1;
+            }
+        }
+    }
+    let already = match already {
+        0 => String::new(),
+        n => format!(" ({n} acknowledged before)"),
+    };
+    format!(
+        "acknowledged: {now} alarm(s) on {} node(s){already}",
+        after.len()
+    )
 }
 
 /// The generations a machine's nodes run, from their statuses (`(address, status)`).
@@ -91,11 +118,16 @@ pub fn runs(table: &Table, s: &Status) -> bool {
 
 /// Where the node running `s` stands, against `table`, the table of role `role`.
 pub fn standing(role: &str, table: &Table, s: &Status) -> Standing {
-    if s.role.as_str() != role || s.states.len() != table.charts.len() || !runs(table, s) {
+    if s.role.as_str() != role || s.states.len() != table.charts.len() {
         return Standing::Other;
     }
+    // A fault first, whatever table the node runs: it needs a reset either way, and the
+    // operator sees it (and the panel offers RESET).
     if let Some(code) = s.fault {
         return Standing::Faulted(code);
+    }
+    if !runs(table, s) {
+        return Standing::Other;
     }
     let mut homed = true;
     for (chart, &state) in table.charts.iter().zip(s.states.iter()) {
@@ -405,6 +437,51 @@ mod tests {
         }
     }
 
+    /// A second `ack` said it acknowledged every alarm again.
+    #[test]
+    fn an_ack_counts_only_the_alarms_it_acknowledged() {
+        use config_schema::alarm::{AlarmLevel, AlarmSource};
+        let node = |alarms: &[(AlarmSource, u32, bool)]| {
+            let mut report = AlarmReport {
+                ack: 1,
+                now_ms: 1000,
+                alarms: heapless::Vec::new(),
+                dropped: 0,
+            };
+            for &(source, raised_ms, acked) in alarms {
+                let alarm = Alarm {
+                    source,
+                    level: AlarmLevel::Fault,
+                    raised_ms,
+                    acked,
+                    persists: false,
+                };
+                report.alarms.push(alarm).unwrap();
+            }
+            report
+        };
+        let estop = AlarmSource::EStop;
+        let link = AlarmSource::Link { peer: 0x0012 };
+        let before = [node(&[(estop, 100, true), (link, 200, false)]), node(&[])];
+        // The link alarm acknowledged now; another e-stop, raised after the read, too.
+        let after = [
+            node(&[(estop, 100, true), (link, 200, true), (estop, 900, true)]),
+            node(&[]),
+        ];
+        assert_eq!(
+            acknowledged(&before, &after),
+            "acknowledged: 2 alarm(s) on 2 node(s) (1 acknowledged before)"
+        );
+        assert_eq!(
+            acknowledged(&after, &after),
+            "acknowledged: 0 alarm(s) on 2 node(s) (3 acknowledged before)"
+        );
+        assert_eq!(
+            acknowledged(&[node(&[])], &[node(&[])]),
+            "acknowledged: 0 alarm(s) on 1 node(s)"
+        );
+    }
+
     /// A machine on trial whose node lost the trial in a power cut is mixed, that node
     /// named with the generation it went back to; all on one generation, on trial or not,
     /// is not.
@@ -486,6 +563,11 @@ mod tests {
         assert_eq!(
             standing("VC", &other, &status("VC", &[0, 0], None)),
             Standing::Other
+        );
+        // Faulted, it says so first, whichever table it runs: a reset is due either way.
+        assert_eq!(
+            standing("VC", &other, &status("VC", &[0, 0], Some(0x81))),
+            Standing::Faulted(0x81)
         );
         // The same table at another generation is another blob.
         let later = Status {

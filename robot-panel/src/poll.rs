@@ -361,16 +361,11 @@ impl Poll {
     /// ACK on every node (as `config-tool ack`): what stayed latched, and why.
     fn ack(&mut self) -> Result<String, NetError> {
         let c = self.c.clone();
-        let reports = home::alarms(
-            &mut self.radio,
-            &mut self.ids,
-            &c,
-            Command::Ack,
-            ANSWER_WITHIN,
-        )?;
-        let acked: usize = (reports.iter())
-            .map(|r| r.alarms.iter().filter(|a| a.acked).count())
-            .sum();
+        // What was acknowledged already, so that only what this ACK did is counted.
+        let (radio, ids) = (&mut self.radio, &mut self.ids);
+        let before = home::alarms(radio, ids, &c, Command::Alarms, ANSWER_WITHIN)?;
+        let reports = home::alarms(radio, ids, &c, Command::Ack, ANSWER_WITHIN)?;
+        let mut text = home::acknowledged(&before, &reports);
         let stayed: Vec<String> = (c.ir.roles.iter().zip(&reports))
             .flat_map(|(r, report)| {
                 report.alarms.iter().filter(|a| !a.acked).map(|a| {
@@ -389,10 +384,6 @@ impl Poll {
             }
             true
         });
-        let mut text = format!(
-            "acknowledged: {acked} alarm(s) on {} node(s)",
-            c.ir.roles.len()
-        );
         for s in stayed {
             text.push_str("; ");
             text.push_str(&s);

@@ -50,11 +50,14 @@ pub fn state(c: &Compiled, m: &Machine, live: &Live) -> Value {
         .collect();
     let mut charts = Vec::new();
     for (ri, r) in c.ir.roles.iter().enumerate() {
+        // Chart states only of a node that runs this role's table (another robot's
+        // charts are not these).
         let status = live
             .nodes
             .get(ri)
             .and_then(|n| n.status.as_ref())
-            .filter(|s| s.role.as_str() == r.name);
+            .filter(|s| s.role.as_str() == r.name)
+            .filter(|s| c.tables.get(ri).is_some_and(|t| home::runs(t, s)));
         for ci in 0..r.charts.len() {
             let state = status.and_then(|s| s.states.get(ci)).copied();
             charts.push(json!(state));

@@ -21,13 +21,7 @@ pub(crate) fn known_role(
     ir: &robot_compiler::ir::Ir,
     role: &str,
 ) -> Result<(), Failure> {
-    if ir.roles.iter().any(|r| r.name == role) {
-        return Ok(());
-    }
-    let roles: Vec<&str> = ir.roles.iter().map(|r| r.name.as_str()).collect();
-    Err(Failure::usage(format!(
-        "{}: unknown role `{role}` (roles: {})",
-        robot.display(),
-        roles.join(", ")
-    )))
+    ir.role(role)
+        .map(|_| ())
+        .map_err(|e| Failure::usage(format!("{}: {e}", robot.display())))
 }

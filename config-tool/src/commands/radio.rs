@@ -756,15 +756,9 @@ pub fn ack(robot: &Path, at: &MediumAddr, keys: &KeysArg) -> Result<(), Failure>
     // What was acknowledged already, so that only what this `ack` did is counted.
     let before = node_alarms(&mut radio, &mut ids, &c, Command::Alarms)?;
     let nodes = node_alarms(&mut radio, &mut ids, &c, Command::Ack)?;
-    let (now, already) = alarms::acknowledged(&before, &nodes);
-    let already = match already {
-        0 => String::new(),
-        n => format!(" ({n} acknowledged before)"),
-    };
-    outln!(
-        "acknowledged: {now} alarm(s) on {} node(s){already}",
-        nodes.len()
-    );
+    let reports = |n: &[alarms::NodeAlarms]| n.iter().map(|n| n.report.clone()).collect();
+    let (before, after): (Vec<_>, Vec<_>) = (reports(&before), reports(&nodes));
+    outln!("{}", home::acknowledged(&before, &after));
     let stayed = alarms::stayed(&c, &nodes);
     for l in &stayed {
         outln!("{l}");

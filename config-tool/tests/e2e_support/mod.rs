@@ -209,6 +209,8 @@ pub fn assert_running(bed: &mut Bed, c: &Compiled) -> Vec<Status> {
             "node {:#06x}",
             r.address
         );
+        // This very table, not another with the same role and charts.
+        assert!(robot_net::home::runs(t, s), "node {:#06x}", r.address);
         assert_eq!(s.states.as_slice(), idle(t).as_slice(), "role {}", r.name);
         assert_eq!(
             (s.fault, s.link_alarms, s.links_broken),

@@ -162,13 +162,13 @@ impl<'a> In<'a> {
         }
     }
 
-    /// `u32`s into `c`, in order.
-    #[inline(never)]
     /// A table's identity: 4 bytes as they are (postcard's `[u8; 4]`).
     fn table_id(&mut self) -> TableId {
         TableId([self.byte(), self.byte(), self.byte(), self.byte()])
     }
 
+    /// `u32`s into `c`, in order.
+    #[inline(never)]
     fn fill(&mut self, c: &mut [u32]) {
         for x in c {
             *x = self.u32();
