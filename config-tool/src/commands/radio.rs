@@ -204,7 +204,7 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
                 flags.trial,
                 Duration::from_secs(flags.wait),
             )
-            .map_err(Failure::error)?,
+            .map_err(|e| lost(e, Phase::Switch))?,
         )
     };
     report_push(&outcomes, verdict, flags.trial)?;
@@ -370,6 +370,32 @@ fn bars(targets: &[push::Target]) -> (MultiProgress, Vec<ProgressBar>) {
     (multi, bars)
 }
 
+/// The two phases of a push.
+#[derive(Debug, Clone, Copy)]
+enum Phase {
+    Transfer,
+    Switch,
+}
+
+/// A push's radio failed (the medium closed the connection: a gateway unplugged): what
+/// that leaves the machine in and what to do, status 3.
+fn lost(e: std::io::Error, phase: Phase) -> Failure {
+    let what = match phase {
+        Phase::Transfer => format!(
+            "{e} during the transfer: nothing switched (what a node staged, it keeps): push \
+             again"
+        ),
+        Phase::Switch => format!(
+            "{e} during the switch-over: nodes may run different generations (`scan` shows \
+             each one's): push again to finish it, or roll back"
+        ),
+    };
+    Failure {
+        code: exit::PUSH_FAILED,
+        ..Failure::error(what)
+    }
+}
+
 fn push_with_bars(
     radio: &mut ToolRadio,
     targets: &[push::Target],
@@ -381,7 +407,7 @@ fn push_with_bars(
             b.set_position(acked as u64);
         }
     })
-    .map_err(Failure::error)?;
+    .map_err(|e| lost(e, Phase::Transfer))?;
     for (b, o) in bars.iter().zip(&outcomes) {
         b.finish_with_message(o.verdict());
     }
