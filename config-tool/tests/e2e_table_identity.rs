@@ -15,7 +15,8 @@ use e2e_support::*;
 fn a_robot_with_the_same_roles_and_charts_is_not_taken_for_the_running_one() {
     let dir = TempDir::new("identity");
     let (paint, _) = unsecured_robot(&dir, "paint-robot.ron");
-    let (_, dip) = unsecured_robot(&dir, "paint-robot-double-dip.ron");
+    let (dip_file, dip) = unsecured_robot(&dir, "paint-robot-double-dip.ron");
+    let dip_file = dip_file.to_str().expect("utf-8 path");
     let paint = paint.to_str().expect("utf-8 path");
     let mut opts = options(medium::Config::default(), None);
     opts.secured = false;
@@ -82,5 +83,38 @@ fn a_robot_with_the_same_roles_and_charts_is_not_taken_for_the_running_one() {
     // exactly.
     assert_running(&mut bed, &dip);
     exact_cycle(&mut bed, &dip, 1);
+
+    // The double dip on trial as generation 2: `confirm` with the paint robot confirmed
+    // it (exit 0); it now names the node whose trial is another table, and confirms
+    // nothing. With the double dip, it confirms.
+    let (code, out, err) = run_tool(&[
+        "push",
+        dip_file,
+        "--medium",
+        m,
+        "--generation",
+        "2",
+        "--trial",
+    ]);
+    assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
+    assert_eq!(
+        run_tool(&["confirm", paint, "--medium", m]),
+        (
+            Some(6),
+            String::new(),
+            "error: node 0x0011 (VC) runs generation 2 on trial, not this robot's table: \
+             nothing confirmed (confirm with the robot that was pushed)\n"
+                .to_string()
+        )
+    );
+    let (code, out, err) = run_tool(&["confirm", dip_file, "--medium", m]);
+    assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
+    assert_eq!(
+        out.lines()
+            .filter(|l| l.ends_with("generation 2  confirmed"))
+            .count(),
+        4,
+        "{out}"
+    );
     bed.stop();
 }

@@ -519,8 +519,10 @@ fn homed_note(
 /// A role's node and its status: (role, address, status).
 type RoleStatus = (String, u16, Status);
 
-/// The radio and the statuses of every node of `flags.robot`.
-fn machine(flags: &SwitchArgs) -> Result<(ToolRadio, Vec<RoleStatus>), Failure> {
+/// The radio, the robot `flags.robot` and the statuses of every node of it.
+fn machine(
+    flags: &SwitchArgs,
+) -> Result<(ToolRadio, robot_compiler::Compiled, Vec<RoleStatus>), Failure> {
     let c = demo::load(&flags.robot)?;
     let keys = push_keys(
         &flags.robot,
@@ -534,7 +536,7 @@ fn machine(flags: &SwitchArgs) -> Result<(ToolRadio, Vec<RoleStatus>), Failure> 
         let s = command(&mut radio, &mut ids, r.address, Command::Status)?;
         nodes.push((r.name.clone(), r.address, s));
     }
-    Ok((radio, nodes))
+    Ok((radio, c, nodes))
 }
 
 /// A trial a power cut split: the trial's generation and the nodes off it, each with the
@@ -552,11 +554,21 @@ fn split_trial(nodes: &[RoleStatus]) -> Option<(u32, Vec<(u16, u32)>)> {
 
 /// `confirm`: the generation on trial stays.
 pub fn confirm(flags: &SwitchArgs) -> Result<(), Failure> {
-    let (mut radio, nodes) = machine(flags)?;
+    let (mut radio, c, nodes) = machine(flags)?;
     let trial: Vec<u16> = nodes.iter().filter(|n| n.2.trial).map(|n| n.1).collect();
     if trial.is_empty() {
         outln!("nothing on trial: every node's generation is confirmed");
         return Ok(());
+    }
+    // A trial of another table (the robot's roles, another robot's tables) is not the
+    // one this robot's file stands for: confirming it would keep what was not asked.
+    let other = (nodes.iter().zip(&c.tables)).find(|((_, _, s), t)| s.trial && !home::runs(t, s));
+    if let Some(((role, addr, s), _)) = other {
+        return Err(Failure::refused(format!(
+            "node {addr:#06x} ({role}) runs generation {} on trial, not this robot's table: \
+             nothing confirmed (confirm with the robot that was pushed)",
+            s.generation
+        )));
     }
     // A node that left the trial (a power cut) runs another generation: confirming the
     // others would leave the machine on two.
@@ -613,7 +625,7 @@ pub fn confirm(flags: &SwitchArgs) -> Result<(), Failure> {
 
 /// `rollback`: every node back to its previous generation, together.
 pub fn rollback(flags: &SwitchArgs) -> Result<(), Failure> {
-    let (mut radio, nodes) = machine(flags)?;
+    let (mut radio, _, nodes) = machine(flags)?;
     // A trial a power cut split: the nodes it took off the trial run the previous
     // generation already; the others return to it.
     let back: Vec<u16> = split_trial(&nodes)
