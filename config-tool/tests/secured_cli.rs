@@ -288,3 +288,29 @@ fn a_counter_file_another_process_holds_is_refused_until_it_is_released() {
     let out = tool(&args, None);
     assert!(text(&out.stderr).contains("cannot reach the medium"));
 }
+
+/// A node that does not answer a command of an unsecured robot's: the hint `pass --keys`
+/// was wrong (`--keys` with that robot is refused); without a robot it stays (a keyed
+/// node takes only secured frames).
+#[test]
+fn a_silent_node_of_an_unsecured_robot_gets_no_keys_hint() {
+    let m = medium::Medium::start(medium::Config::default()).expect("medium");
+    let at = m.addr().to_string();
+    let unsecured = "tests/fixtures/broken/unsecured.ron";
+    let out = tool(
+        &["status", unsecured, "--medium", &at, "--node", "0x0011"],
+        None,
+    );
+    let err = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.starts_with("error: node 0x0011 did not answer (asked ") && err.ends_with(" s)\n"),
+        "{err}"
+    );
+    let out = tool(&["status", "--medium", &at, "--node", "0x0011"], None);
+    let err = text(&out.stderr);
+    assert!(
+        err.ends_with("; a node with a management key takes only secured frames: pass --keys\n"),
+        "{err}"
+    );
+}

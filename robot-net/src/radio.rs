@@ -86,6 +86,8 @@ pub struct ToolRadio {
     air_clear: Instant,
     pub stats: RadioStats,
     keys: Option<Keys>,
+    /// Unsecured because the robot says `security: Off` (not for want of keys).
+    plain_chosen: bool,
 }
 
 impl ToolRadio {
@@ -99,6 +101,7 @@ impl ToolRadio {
             air_clear: Instant::now(),
             stats: RadioStats::default(),
             keys: None,
+            plain_chosen: false,
         })
     }
 
@@ -132,6 +135,17 @@ impl ToolRadio {
     /// Whether the radio secures its frames.
     pub fn secured(&self) -> bool {
         self.keys.is_some()
+    }
+
+    /// Marks this radio unsecured by the robot's choice (`security: Off`): its nodes take
+    /// frames in clear, so a silent one is not one that wants keys.
+    pub fn choose_plain(&mut self) {
+        self.plain_chosen = true;
+    }
+
+    /// Whether the robot chose frames in clear ([`ToolRadio::choose_plain`]).
+    pub fn plain_chosen(&self) -> bool {
+        self.plain_chosen
     }
 
     pub fn addr(&self) -> u16 {

@@ -60,6 +60,27 @@ fn connect_keyed(at: &MediumAddr, keys: Option<&KeysFrom>) -> Result<ToolRadio, 
     Ok(radio)
 }
 
+/// [`connect_keyed`] for robot `c` (`robot`, its file): its security decides the keys
+/// ([`push_keys`]), and an unsecured robot's radio says so ([`plain_if_off`]).
+fn connect_robot(
+    at: &MediumAddr,
+    robot: &Path,
+    c: &robot_compiler::Compiled,
+    keys: &KeysArg,
+) -> Result<ToolRadio, Failure> {
+    let keys = push_keys(robot, c, KeysFrom::resolve(keys.keys.as_deref()))?;
+    let mut radio = connect_keyed(at, keys.as_ref())?;
+    plain_if_off(&mut radio, c);
+    Ok(radio)
+}
+
+/// An unsecured robot's radio says so ([`ToolRadio::choose_plain`]).
+fn plain_if_off(radio: &mut ToolRadio, c: &robot_compiler::Compiled) {
+    if c.robot.security == Security::Off {
+        radio.choose_plain();
+    }
+}
+
 /// How long a command to one node is resent until answered.
 const ANSWER_WITHIN: Duration = Duration::from_secs(5);
 
@@ -79,7 +100,7 @@ fn ask<T>(
         return Ok(t);
     }
     let asked = radio.stats.sent - sent_before;
-    let hint = if radio.secured() {
+    let hint = if radio.secured() || radio.plain_chosen() {
         ""
     } else {
         "; a node with a management key takes only secured frames: pass --keys"
@@ -191,6 +212,7 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
     let keys = push_keys(robot, &c, KeysFrom::resolve(flags.keys.keys.as_deref()))?;
     verify_before_push(robot, &c, flags.no_verify)?;
     let mut radio = connect_keyed(at, keys.as_ref())?;
+    plain_if_off(&mut radio, &c);
     let mut outcomes = push_with_bars(&mut radio, &targets, flags.force)?;
     let verdict = if flags.stage_only {
         None
@@ -473,7 +495,10 @@ pub fn status(
     keys: &KeysArg,
 ) -> Result<(), Failure> {
     let c = robot.map(demo::load).transpose()?;
-    let mut radio = connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?;
+    let mut radio = match (robot, &c) {
+        (Some(path), Some(c)) => connect_robot(at, path, c, keys)?,
+        _ => connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?,
+    };
     let mut ids = Ids::default();
     let s = command(&mut radio, &mut ids, node, Command::Status)?;
     let r = security(&mut radio, &mut ids, node)?;
@@ -524,12 +549,7 @@ fn machine(
     flags: &SwitchArgs,
 ) -> Result<(ToolRadio, robot_compiler::Compiled, Vec<RoleStatus>), Failure> {
     let c = demo::load(&flags.robot)?;
-    let keys = push_keys(
-        &flags.robot,
-        &c,
-        KeysFrom::resolve(flags.keys.keys.as_deref()),
-    )?;
-    let mut radio = connect_keyed(&flags.at, keys.as_ref())?;
+    let mut radio = connect_robot(&flags.at, &flags.robot, &c, &flags.keys)?;
     let mut ids = Ids::default();
     let mut nodes = Vec::new();
     for r in &c.ir.roles {
@@ -691,14 +711,12 @@ pub fn start(
     let node = node.or(start_node).ok_or_else(|| {
         Failure::usage("the robot has no start input: give the node to START with --node")
     })?;
-    let keys = KeysFrom::resolve(keys.keys.as_deref());
     // With the robot, its security decides, as for `home` and `ack`: a secured robot's
     // nodes take only secured frames.
-    let keys = match (&c, robot) {
-        (Some(c), Some(path)) => push_keys(path, c, keys)?,
-        _ => keys,
+    let mut radio = match (&c, robot) {
+        (Some(c), Some(path)) => connect_robot(at, path, c, keys)?,
+        _ => connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?,
     };
-    let mut radio = connect_keyed(at, keys.as_ref())?;
     let mut ids = Ids::default();
     if let Some(c) = &c {
         let statuses = home::statuses(&mut radio, &mut ids, c, ANSWER_WITHIN)?;
@@ -745,8 +763,7 @@ fn robot_radio(
     keys: &KeysArg,
 ) -> Result<(robot_compiler::Compiled, ToolRadio), Failure> {
     let c = demo::load(robot)?;
-    let keys = push_keys(robot, &c, KeysFrom::resolve(keys.keys.as_deref()))?;
-    let radio = connect_keyed(at, keys.as_ref())?;
+    let radio = connect_robot(at, robot, &c, keys)?;
     Ok((c, radio))
 }
 
@@ -822,6 +839,7 @@ pub fn home(flags: &HomeArgs) -> Result<(), Failure> {
         return Err(robot_net::NetError::NoHome.into());
     }
     let mut radio = connect_keyed(&flags.at, keys.as_ref())?;
+    plain_if_off(&mut radio, &c);
     let (end, took) = home::home(
         &mut radio,
         &mut Ids::default(),
