@@ -34,8 +34,9 @@ fn a_robot_with_the_same_roles_and_charts_is_not_taken_for_the_running_one() {
                 Some(6),
                 String::new(),
                 format!(
-                    "error: node 0x0011 (VC) does not run this robot's table: push it first; \
-                     {what} was not sent\n"
+                    "error: node 0x0011 (VC) does not run this robot's table (another \
+                     robot's, or this file changed since its push): check the file, or push \
+                     it; {what} was not sent\n"
                 )
             )
         );
@@ -114,6 +115,25 @@ fn a_robot_with_the_same_roles_and_charts_is_not_taken_for_the_running_one() {
             .filter(|l| l.ends_with("generation 2  confirmed"))
             .count(),
         4,
+        "{out}"
+    );
+
+    // One role pushed: only its node switched (it said `every node runs the new
+    // generation` with the others on generation 2).
+    let (code, out, err) = run_tool(&[
+        "push",
+        dip_file,
+        "--medium",
+        m,
+        "--generation",
+        "3",
+        "--role",
+        "VC",
+    ]);
+    assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
+    assert_eq!(
+        out.lines().last(),
+        Some("switched: VC's node runs generation 3 (the robot's other nodes run theirs)"),
         "{out}"
     );
     bed.stop();

@@ -184,7 +184,10 @@ pub fn refusal(nodes: &[Node], homing: bool) -> Option<String> {
     let n = machine(nodes)?;
     let who = format!("node {:#06x} ({})", n.addr, n.role);
     Some(match n.standing {
-        Standing::Other => format!("{who} does not run this robot's table: push it first"),
+        Standing::Other => format!(
+            "{who} does not run this robot's table (another robot's, or this file changed \
+             since its push): check the file, or push it"
+        ),
         Standing::Faulted(code) => format!(
             "{who} is faulted ({code:#04x}): reset first (config-tool reset --node {:#06x}), \
              then config-tool home",
@@ -685,7 +688,10 @@ mod tests {
         ];
         assert_eq!(
             refusal(&other, true).as_deref(),
-            Some("node 0x0011 (VC) does not run this robot's table: push it first")
+            Some(
+                "node 0x0011 (VC) does not run this robot's table (another robot's, or this \
+                 file changed since its push): check the file, or push it"
+            )
         );
     }
 }

@@ -229,7 +229,8 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
             .map_err(|e| lost(e, Phase::Switch))?,
         )
     };
-    report_push(&outcomes, verdict, flags.trial)?;
+    let one_role = flags.role.as_deref().map(|r| (r, c.ir.generation));
+    report_push(&outcomes, verdict, flags.trial, one_role)?;
     // A trial is watched for --watch / --watch-cycles, else for the window the robot
     // declares.
     let given = flags.watch.is_some() || flags.watch_cycles.is_some();
@@ -436,10 +437,13 @@ fn push_with_bars(
     Ok(outcomes)
 }
 
+/// `push`'s report: a line per node, the summary, how the switch-over ended; `one_role`:
+/// only that role was pushed, as that generation (`--role`).
 fn report_push(
     outcomes: &[push::Pushed],
     verdict: Option<Verdict>,
     trial: bool,
+    one_role: Option<(&str, u32)>,
 ) -> Result<(), Failure> {
     for o in outcomes {
         outln!("{}", demo::push_line(o));
@@ -470,7 +474,13 @@ fn report_push(
             Ok(())
         }
         Some(Verdict::Switched) => {
-            outln!("switched: every node runs the new generation");
+            match one_role {
+                Some((role, generation)) => outln!(
+                    "switched: {role}'s node runs generation {generation} (the robot's other \
+                     nodes run theirs)"
+                ),
+                None => outln!("switched: every node runs the new generation"),
+            };
             Ok(())
         }
         Some(Verdict::NotIdle) => failed(concat!(
