@@ -46,7 +46,39 @@ pub fn clock(t: SystemTime) -> String {
 
 /// One line per alarm of every node (and a line per node that dropped some); `no
 /// alarms` if none.
-pub fn lines(c: &Compiled, nodes: &[NodeAlarms]) -> Vec<String> {
+/// A node of the robot that did not answer: role, address, how often it was asked, within
+/// how long.
+pub struct Silent {
+    pub role: String,
+    pub addr: u16,
+    pub asked: u64,
+    pub within: Duration,
+}
+
+impl Silent {
+    /// Its line among the alarms.
+    pub fn line(&self) -> String {
+        format!(
+            "{:#06x} {:<8}  did not answer: its alarms are unknown",
+            self.addr, self.role
+        )
+    }
+
+    /// The error it ends the command with: that it did not answer, then `what`.
+    pub fn failure(&self, what: &str) -> String {
+        format!(
+            "node {:#06x} ({}) did not answer (asked {} times in {} s): {what}",
+            self.addr,
+            self.role,
+            self.asked,
+            self.within.as_secs()
+        )
+    }
+}
+
+/// The alarms of the nodes that answered, a line each (`no alarms` if none), then a line
+/// per node that did not.
+pub fn lines(c: &Compiled, nodes: &[NodeAlarms], silent: &[Silent]) -> Vec<String> {
     let mut out = Vec::new();
     for n in nodes {
         for a in &n.report.alarms {
@@ -67,9 +99,10 @@ pub fn lines(c: &Compiled, nodes: &[NodeAlarms]) -> Vec<String> {
             ));
         }
     }
-    if out.is_empty() {
+    if out.is_empty() && silent.is_empty() {
         out.push(String::from("no alarms"));
     }
+    out.extend(silent.iter().map(Silent::line));
     out
 }
 

@@ -733,7 +733,10 @@ pub fn start(
         if let Some(why) = home::refusal(&home::nodes(c, &statuses), false) {
             return Err(Failure::refused(format!("{why}; START was not sent")));
         }
-        let nodes = node_alarms(&mut radio, &mut ids, c, Command::Alarms)?;
+        let (nodes, silent) = node_alarms(&mut radio, &mut ids, c, Command::Alarms)?;
+        if let Some(n) = silent.first() {
+            return Err(Failure::error(n.failure("START was not sent")));
+        }
         if let Some(why) = alarms::blocking_text(c, &nodes) {
             return Err(Failure::refused(format!("{why}; START was not sent")));
         }
@@ -743,27 +746,37 @@ pub fn start(
     Ok(())
 }
 
-/// Every node's alarms of robot `c` (`Command::Alarms`, or `Command::Ack` to acknowledge).
+/// Every node's alarms of robot `c` (`Command::Alarms`, or `Command::Ack` to acknowledge),
+/// and the nodes that did not answer: one silent node does not hide the others'.
 fn node_alarms(
     radio: &mut ToolRadio,
     ids: &mut Ids,
     c: &robot_compiler::Compiled,
     cmd: Command,
-) -> Result<Vec<alarms::NodeAlarms>, Failure> {
-    let mut out = Vec::new();
+) -> Result<(Vec<alarms::NodeAlarms>, Vec<alarms::Silent>), Failure> {
+    let (mut out, mut silent) = (Vec::new(), Vec::new());
     for r in &c.ir.roles {
-        let report = ask(radio, ids, r.address, cmd, |m, id| match m {
+        let sent_before = radio.stats.sent;
+        let pick = |m: Message<'_>, id| match m {
             Message::Alarms(a) if a.ack == id => Some(a),
             _ => None,
-        })?;
-        out.push(alarms::NodeAlarms {
-            role: r.name.clone(),
-            addr: r.address,
-            report,
-            read_at: std::time::SystemTime::now(),
-        });
+        };
+        match push::ask(radio, ids, r.address, cmd, ANSWER_WITHIN, pick).map_err(Failure::error)? {
+            Some(report) => out.push(alarms::NodeAlarms {
+                role: r.name.clone(),
+                addr: r.address,
+                report,
+                read_at: std::time::SystemTime::now(),
+            }),
+            None => silent.push(alarms::Silent {
+                role: r.name.clone(),
+                addr: r.address,
+                asked: radio.stats.sent.saturating_sub(sent_before),
+                within: ANSWER_WITHIN,
+            }),
+        }
     }
-    Ok(out)
+    Ok((out, silent))
 }
 
 /// The robot, and the tool's radio to its nodes with the robot's keys.
@@ -784,9 +797,9 @@ pub fn alarms(robot: &Path, at: &MediumAddr, keys: &KeysArg, watch: bool) -> Res
     let mut ids = Ids::default();
     let mut last: Vec<String> = Vec::new();
     loop {
-        let nodes = node_alarms(&mut radio, &mut ids, &c, Command::Alarms)?;
+        let (nodes, silent) = node_alarms(&mut radio, &mut ids, &c, Command::Alarms)?;
         // Compared without the wall time (it moves with every read).
-        let now: Vec<String> = alarms::lines(&c, &nodes);
+        let now: Vec<String> = alarms::lines(&c, &nodes, &silent);
         let key = |l: &[String]| -> Vec<String> {
             l.iter()
                 .map(|x| x.split("UTC").last().unwrap_or(x).to_string())
@@ -807,7 +820,10 @@ pub fn alarms(robot: &Path, at: &MediumAddr, keys: &KeysArg, watch: bool) -> Res
             last = now;
         }
         if !watch {
-            return Ok(());
+            return match silent.first() {
+                Some(n) => Err(Failure::error(n.failure("its alarms are not shown"))),
+                None => Ok(()),
+            };
         }
         std::thread::sleep(Duration::from_millis(500));
     }
@@ -819,19 +835,37 @@ pub fn ack(robot: &Path, at: &MediumAddr, keys: &KeysArg) -> Result<(), Failure>
     let (c, mut radio) = robot_radio(robot, at, keys)?;
     let mut ids = Ids::default();
     // What was acknowledged already, so that only what this `ack` did is counted.
-    let before = node_alarms(&mut radio, &mut ids, &c, Command::Alarms)?;
-    let nodes = node_alarms(&mut radio, &mut ids, &c, Command::Ack)?;
-    let reports = |n: &[alarms::NodeAlarms]| n.iter().map(|n| n.report.clone()).collect();
-    let (before, after): (Vec<_>, Vec<_>) = (reports(&before), reports(&nodes));
+    let (before, _) = node_alarms(&mut radio, &mut ids, &c, Command::Alarms)?;
+    let (nodes, silent) = node_alarms(&mut radio, &mut ids, &c, Command::Ack)?;
+    // Node by node: each answer beside what the same node said before (no alarm, if it
+    // did not answer then).
+    let (before, after): (Vec<_>, Vec<_>) = nodes
+        .iter()
+        .map(|n| {
+            let mut was = n.report.clone();
+            was.alarms = (before.iter().find(|b| b.addr == n.addr))
+                .map(|b| b.report.alarms.clone())
+                .unwrap_or_default();
+            (was, n.report.clone())
+        })
+        .unzip();
     outln!("{}", home::acknowledged(&before, &after));
     let stayed = alarms::stayed(&c, &nodes);
     for l in &stayed {
         outln!("{l}");
     }
-    match alarms::blocking_text(&c, &nodes) {
-        Some(why) => Err(Failure::refused(format!(
+    for n in &silent {
+        outln!("{}", n.line());
+    }
+    if let Some(why) = alarms::blocking_text(&c, &nodes) {
+        return Err(Failure::refused(format!(
             "{why}: the machine cannot restart"
-        ))),
+        )));
+    }
+    match silent.first() {
+        Some(n) => Err(Failure::error(
+            n.failure("its alarms were not acknowledged"),
+        )),
         None => Ok(()),
     }
 }

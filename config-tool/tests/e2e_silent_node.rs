@@ -1,0 +1,41 @@
+//! A node that does not answer (dead, out of range) does not hide what the others say.
+
+mod e2e_support;
+
+use e2e_support::*;
+
+/// With RC's node dead, `alarms` and `ack` printed only `node 0x0014 did not answer`
+/// (status 1): the alarms of the nodes that answered, exactly when the operator needs
+/// them, were not shown, and nothing was acknowledged. Now the answering nodes' alarms
+/// are shown (and acknowledged), the silent node is named on its own line, status 1.
+#[test]
+fn a_silent_node_does_not_hide_the_others_alarms() {
+    let dir = TempDir::new("silent-node");
+    let (paint, c) = unsecured_robot(&dir, "paint-robot.ron");
+    let paint = paint.to_str().expect("utf-8 path");
+    let mut opts = options(medium::Config::default(), None);
+    opts.secured = false;
+    let mut bed = bring_up(&c, opts);
+    push_and_home(&mut bed, &c);
+    bed.kill_node(addr_of(&c, "RC"));
+    let medium = bed.medium().addr().to_string();
+    let m = medium.as_str();
+
+    let silent = "0x0014 RC        did not answer: its alarms are unknown\n";
+    let (code, out, err) = run_tool(&["alarms", paint, "--medium", m]);
+    assert_eq!((code, out.as_str()), (Some(1), silent), "{err}");
+    assert!(
+        err.starts_with("error: node 0x0014 (RC) did not answer (asked "),
+        "{err}"
+    );
+    let (code, out, err) = run_tool(&["ack", paint, "--medium", m]);
+    assert_eq!(
+        (code, out),
+        (
+            Some(1),
+            format!("acknowledged: 0 alarm(s) on 3 node(s)\n{silent}")
+        ),
+        "{err}"
+    );
+    bed.stop();
+}
