@@ -152,6 +152,9 @@ pub struct Node {
     pub role: String,
     pub addr: u16,
     pub standing: Standing,
+    /// The peers its links to are in alarm or broken (they do not acknowledge: a peer
+    /// that restarted, or went away).
+    pub stalled: Vec<u16>,
 }
 
 /// Where every role's node stands; `statuses` in role order.
@@ -164,6 +167,10 @@ pub fn nodes(c: &Compiled, statuses: &[Status]) -> Vec<Node> {
             role: r.name.clone(),
             addr: r.address,
             standing: standing(&r.name, t, s),
+            stalled: (t.peers.iter().enumerate().take(8))
+                .filter(|(i, _)| (s.link_alarms | s.links_broken) & (1 << i) != 0)
+                .map(|(_, &p)| p)
+                .collect(),
         })
         .collect()
 }
@@ -193,16 +200,34 @@ pub fn refusal(nodes: &[Node], homing: bool) -> Option<String> {
              then config-tool home",
             n.addr
         ),
-        Standing::Moving if homing => {
-            format!("{who} is moving (a cycle or homing under way): home once it is at rest")
-        }
         Standing::Moving => {
-            format!("{who} is moving (a cycle or homing under way): START once it is at rest")
+            let then = if homing { "home" } else { "START" };
+            let mut why =
+                format!("{who} is moving (a cycle or homing under way): {then} once it is at rest");
+            if let Some(stall) = stall_note(nodes) {
+                why = format!("{why}; {stall}");
+            }
+            why
         }
         Standing::NotHomed if homing => return None,
         Standing::NotHomed => "not homed: run config-tool home".to_string(),
         Standing::Homed => return None,
     })
+}
+
+/// The first node with a link in alarm, in words, with what re-establishes it: what
+/// keeps a machine `moving` that never comes to rest.
+pub fn stall_note(nodes: &[Node]) -> Option<String> {
+    let n = nodes.iter().find(|n| !n.stalled.is_empty())?;
+    let peers: Vec<String> = n.stalled.iter().map(|p| format!("{p:#06x}")).collect();
+    Some(format!(
+        "node {:#06x} ({}) has its link to {} in alarm (the peer does not acknowledge): \
+         config-tool reset --node {:#06x} re-establishes it",
+        n.addr,
+        n.role,
+        peers.join(", "),
+        n.addr
+    ))
 }
 
 /// How homing ended.
@@ -340,11 +365,12 @@ pub fn home(
             return Ok((HomeEnd::Homed, t0.elapsed()));
         }
         if Instant::now() >= end {
-            let waiting = now
+            let mut waiting: Vec<String> = now
                 .iter()
                 .filter(|n| n.standing != Standing::Homed)
                 .map(|n| format!("{} {}", n.role, n.standing.text()))
                 .collect();
+            waiting.extend(stall_note(&now));
             return Ok((HomeEnd::NotDone(waiting), t0.elapsed()));
         }
         // Whatever comes meanwhile (late answers) is not for the watch.
@@ -585,6 +611,7 @@ mod tests {
             role: role.into(),
             addr,
             standing,
+            stalled: Vec::new(),
         }
     }
 
@@ -680,6 +707,19 @@ mod tests {
             Some(
                 "node 0x0011 (VC) is moving (a cycle or homing under way): home once it is at \
                  rest"
+            )
+        );
+        // A machine stalled by a link in alarm (a peer that restarted and does not take
+        // the events any more) was only `moving`, forever: the link is named, and how to
+        // re-establish it.
+        let mut stalled = moving.clone();
+        stalled[1].stalled = vec![0x0014];
+        assert_eq!(
+            refusal(&stalled, false).as_deref(),
+            Some(
+                "node 0x0011 (VC) is moving (a cycle or homing under way): START once it is \
+                 at rest; node 0x0012 (GR) has its link to 0x0014 in alarm (the peer does not \
+                 acknowledge): config-tool reset --node 0x0012 re-establishes it"
             )
         );
         let other = [
