@@ -136,8 +136,14 @@ impl TableId {
     /// For the tool and tests; a node takes the identity from the blob it decoded
     /// ([`crate::link_keys::Deployment`]).
     pub fn of(table: &Table) -> Result<TableId, EncodeError> {
+        TableId::at(table, table.generation)
+    }
+
+    /// The identity `table` has as generation `generation` (what a node running it at
+    /// that generation reports).
+    pub fn at(table: &Table, generation: u32) -> Result<TableId, EncodeError> {
         let mut buf = [0u8; crate::limits::MAX_TABLE_BLOB];
-        let len = encode(table, &mut buf)?;
+        let len = encode_as(table, generation, &mut buf)?;
         let crc = buf
             .get(len.saturating_sub(TRAILER_LEN)..len)
             .ok_or(EncodeError::BufferTooSmall)?;
@@ -159,6 +165,12 @@ impl fmt::Display for TableId {
 
 /// Encodes `table` as a blob into `buf`; returns the blob's length.
 pub fn encode(table: &Table, buf: &mut [u8]) -> Result<usize, EncodeError> {
+    encode_as(table, table.generation, buf)
+}
+
+/// [`encode`] as generation `generation` (the envelope's; the table's own is not read):
+/// what `table` is as the blob of another generation, without a copy of it.
+pub fn encode_as(table: &Table, generation: u32, buf: &mut [u8]) -> Result<usize, EncodeError> {
     let body = buf
         .get_mut(HEADER_LEN..)
         .ok_or(EncodeError::BufferTooSmall)?;
@@ -171,7 +183,7 @@ pub fn encode(table: &Table, buf: &mut [u8]) -> Result<usize, EncodeError> {
     let version = u8::try_from(SCHEMA_VERSION).map_err(|_| EncodeError::TooLarge)?;
     buf[0] = MAGIC[0];
     buf[1] = version;
-    buf[2..6].copy_from_slice(&table.generation.to_le_bytes());
+    buf[2..6].copy_from_slice(&generation.to_le_bytes());
     buf[LENGTH_AT..HEADER_LEN].copy_from_slice(&len16.to_le_bytes());
     let crc = CRC32.checksum(&buf[..HEADER_LEN + payload_len]);
     buf[HEADER_LEN + payload_len..total].copy_from_slice(&crc.to_le_bytes());

@@ -361,6 +361,12 @@ mod tests {
         let keyed = decode_deployment(&buf[..n + k]).unwrap();
         assert_eq!((keyed.id, keyed.keys.is_some()), (crc, true));
         assert_eq!(TableId::of(&table), Ok(crc));
+        // The identity at a generation is the blob's at it, whatever the table says.
+        let unnumbered = Table {
+            generation: 0,
+            ..table.clone()
+        };
+        assert_eq!(TableId::at(&unnumbered, 7), Ok(crc));
         // Other keys, the same identity.
         buf[n + HEAD_LEN + 2] ^= 0xFF;
         let crc_at = n + k - TRAILER_LEN;

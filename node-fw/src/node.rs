@@ -521,9 +521,11 @@ impl<S: StagingArea> NodeCore<S> {
         node
     }
 
-    /// The node with the link keys its running table came with (from its flash slot):
-    /// its events are secured with them. Keys that do not name exactly the running
-    /// table's peers, for its generation, are not taken (the events stay refused).
+    /// The node (built from a table: [`NodeCore::new`]) with the link keys its running
+    /// table came with: its events are secured with them. Keys that do not name exactly
+    /// the running table's peers, for its generation, are not taken (the events stay
+    /// refused). A board boots table and keys together from its flash slot
+    /// ([`NodeCore::staging_in`]).
     pub fn with_link_keys(mut self, keys: LinkKeys) -> Self {
         if let Some(t) = &self.table {
             if keys.check(t).is_ok() {

@@ -111,9 +111,7 @@ pub fn generations(statuses: &[(u16, &Status)]) -> Option<Generations> {
 /// `table` compiled at the node's generation (the same roles and charts are not enough:
 /// two robots may share them).
 pub fn runs(table: &Table, s: &Status) -> bool {
-    let mut at = table.clone();
-    at.generation = s.generation;
-    TableId::of(&at).is_ok_and(|id| id == s.table)
+    TableId::at(table, s.generation).is_ok_and(|id| id == s.table)
 }
 
 /// Where the node running `s` stands, against `table`, the table of role `role`.
@@ -442,13 +440,11 @@ mod tests {
     use config_schema::wire::msg::{Counters, RuntimeCounters};
 
     fn status(role: &str, states: &[u8], fault: Option<u8>) -> Status {
-        let mut t = table();
-        t.generation = 1;
         Status {
             ack: 1,
             role: heapless::String::try_from(role).unwrap(),
             generation: 1,
-            table: TableId::of(&t).unwrap(),
+            table: TableId::at(&table(), 1).unwrap(),
             staged: 0,
             previous: 0,
             trial: false,

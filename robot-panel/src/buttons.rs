@@ -164,11 +164,7 @@ mod tests {
             ack: 1,
             role: heapless::String::try_from(c.ir.roles[role].name.as_str()).unwrap(),
             generation: 1,
-            table: config_schema::TableId::of(&config_schema::Table {
-                generation: 1,
-                ..t.clone()
-            })
-            .unwrap(),
+            table: config_schema::TableId::at(t, 1).unwrap(),
             staged: 0,
             previous: 0,
             trial: false,

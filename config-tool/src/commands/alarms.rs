@@ -44,8 +44,6 @@ pub fn clock(t: SystemTime) -> String {
     )
 }
 
-/// One line per alarm of every node (and a line per node that dropped some); `no
-/// alarms` if none.
 /// A node of the robot that did not answer: role, address, how often it was asked, within
 /// how long.
 pub struct Silent {
@@ -76,8 +74,8 @@ impl Silent {
     }
 }
 
-/// The alarms of the nodes that answered, a line each (`no alarms` if none), then a line
-/// per node that did not.
+/// One line per alarm of every node that answered (and a line per node that dropped
+/// some; `no alarms` if none), then a line per node that did not answer.
 pub fn lines(c: &Compiled, nodes: &[NodeAlarms], silent: &[Silent]) -> Vec<String> {
     let mut out = Vec::new();
     for n in nodes {

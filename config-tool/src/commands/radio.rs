@@ -74,6 +74,19 @@ fn connect_robot(
     Ok(radio)
 }
 
+/// [`connect_robot`] when a robot is given (`robot`: its file and the robot), else the
+/// radio with the keys given, if any.
+fn connect_maybe_robot(
+    at: &MediumAddr,
+    robot: Option<(&Path, &robot_compiler::Compiled)>,
+    keys: &KeysArg,
+) -> Result<ToolRadio, Failure> {
+    match robot {
+        Some((path, c)) => connect_robot(at, path, c, keys),
+        None => connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref()),
+    }
+}
+
 /// An unsecured robot's radio says so ([`ToolRadio::choose_plain`]).
 fn plain_if_off(radio: &mut ToolRadio, c: &robot_compiler::Compiled) {
     if c.robot.security == Security::Off {
@@ -93,13 +106,10 @@ fn ask<T>(
     cmd: Command,
     pick: impl Fn(Message<'_>, u16) -> Option<T>,
 ) -> Result<T, Failure> {
-    let sent_before = radio.stats.sent;
-    if let Some(t) =
-        push::ask(radio, ids, node, cmd, ANSWER_WITHIN, pick).map_err(Failure::error)?
-    {
-        return Ok(t);
-    }
-    let asked = radio.stats.sent - sent_before;
+    let asked = match ask_counted(radio, ids, node, cmd, pick)? {
+        Ok(t) => return Ok(t),
+        Err(asked) => asked,
+    };
     let hint = if radio.secured() || radio.plain_chosen() {
         ""
     } else {
@@ -109,6 +119,20 @@ fn ask<T>(
         "node {node:#06x} did not answer (asked {asked} times in {} s){hint}",
         ANSWER_WITHIN.as_secs()
     )))
+}
+
+/// [`push::ask`] within [`ANSWER_WITHIN`]: the answer, or how many times the node was
+/// asked without one.
+fn ask_counted<T>(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    node: u16,
+    cmd: Command,
+    pick: impl Fn(Message<'_>, u16) -> Option<T>,
+) -> Result<Result<T, u64>, Failure> {
+    let sent_before = radio.stats.sent;
+    let answer = push::ask(radio, ids, node, cmd, ANSWER_WITHIN, pick).map_err(Failure::error)?;
+    Ok(answer.ok_or(radio.stats.sent.saturating_sub(sent_before)))
 }
 
 /// A command to one node, resent until its status comes back.
@@ -505,10 +529,7 @@ pub fn status(
     keys: &KeysArg,
 ) -> Result<(), Failure> {
     let c = robot.map(demo::load).transpose()?;
-    let mut radio = match (robot, &c) {
-        (Some(path), Some(c)) => connect_robot(at, path, c, keys)?,
-        _ => connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?,
-    };
+    let mut radio = connect_maybe_robot(at, robot.zip(c.as_ref()), keys)?;
     let mut ids = Ids::default();
     let s = command(&mut radio, &mut ids, node, Command::Status)?;
     let r = security(&mut radio, &mut ids, node)?;
@@ -723,10 +744,7 @@ pub fn start(
     })?;
     // With the robot, its security decides, as for `home` and `ack`: a secured robot's
     // nodes take only secured frames.
-    let mut radio = match (&c, robot) {
-        (Some(c), Some(path)) => connect_robot(at, path, c, keys)?,
-        _ => connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?,
-    };
+    let mut radio = connect_maybe_robot(at, robot.zip(c.as_ref()), keys)?;
     let mut ids = Ids::default();
     if let Some(c) = &c {
         let statuses = home::statuses(&mut radio, &mut ids, c, ANSWER_WITHIN)?;
@@ -756,22 +774,21 @@ fn node_alarms(
 ) -> Result<(Vec<alarms::NodeAlarms>, Vec<alarms::Silent>), Failure> {
     let (mut out, mut silent) = (Vec::new(), Vec::new());
     for r in &c.ir.roles {
-        let sent_before = radio.stats.sent;
         let pick = |m: Message<'_>, id| match m {
             Message::Alarms(a) if a.ack == id => Some(a),
             _ => None,
         };
-        match push::ask(radio, ids, r.address, cmd, ANSWER_WITHIN, pick).map_err(Failure::error)? {
-            Some(report) => out.push(alarms::NodeAlarms {
+        match ask_counted(radio, ids, r.address, cmd, pick)? {
+            Ok(report) => out.push(alarms::NodeAlarms {
                 role: r.name.clone(),
                 addr: r.address,
                 report,
                 read_at: std::time::SystemTime::now(),
             }),
-            None => silent.push(alarms::Silent {
+            Err(asked) => silent.push(alarms::Silent {
                 role: r.name.clone(),
                 addr: r.address,
-                asked: radio.stats.sent.saturating_sub(sent_before),
+                asked,
                 within: ANSWER_WITHIN,
             }),
         }
