@@ -95,3 +95,39 @@ fn homing_is_refused_on_a_faulted_machine_and_a_jammed_homing_step_faults() {
     assert_eq!(robot_analysis::sim::steps_text(&homing.steps), "VC-");
     bed.stop();
 }
+
+/// A robot without link keys, RC's node killed and restarted at 20 % loss (it boots its
+/// table from flash, not homed): it lost its side of its links while its publishers
+/// numbered on. Before, the machine stalled (homing waited out its time with VC moving; a
+/// `reset` of HC and VC got it out): the restarted receiver waited for a seq 0 that never
+/// came. Now its first event past seq 0 makes it ask the publisher to number the link
+/// again: homing runs with no reset, and a START gives an exact cycle.
+#[test]
+fn an_unsecured_robots_restarted_node_is_homed_without_a_reset_then_runs_an_exact_cycle() {
+    let dir = TempDir::new("unsecured-restart");
+    let flash = TempDir::new("unsecured-restart-flash");
+    let (_, c) = unsecured_robot(&dir, "paint-robot.ron");
+    let lossy = medium::Config {
+        loss: 0.2,
+        dup: 0.1,
+        delay_ms: (0, 8),
+        seed: 0x5EED_0016,
+        ..medium::Config::default()
+    };
+    let mut opts = options(lossy, Some(&flash));
+    opts.secured = false;
+    let mut bed = bring_up(&c, opts);
+    push_and_home(&mut bed, &c);
+    // A cycle: every link numbers past seq 0.
+    exact_cycle(&mut bed, &c, 1);
+    let rc = addr_of(&c, "RC");
+    bed.kill_node(rc);
+    bed.start_node(rc).unwrap();
+    bed.wait_for_nodes(&[rc]).unwrap();
+    // RC's boot event tells the others the machine is not homed any more. The rods are
+    // home: homing moves nothing.
+    assert_eq!(home_ok(&mut bed, &c), Vec::<String>::new());
+    assert_running(&mut bed, &c);
+    exact_cycle(&mut bed, &c, 2);
+    bed.stop();
+}

@@ -32,8 +32,14 @@ pub const RTO_MS: u64 = 30;
 pub const RTO_MAX_MS: u64 = 120;
 /// Timeouts without progress before the link alarm.
 pub const ALARM_AFTER: u8 = 8;
+/// A fresh receiver asks its publisher to number the link again this many ms after the
+/// first event it dropped, then at most once per this many ms ([`Receiver::ask`]): above
+/// the radio's reordering and the publisher's first timeout, so that a seq 0 behind the
+/// frames it dropped has been sent again once before it asks.
+pub const ASK_MS: u64 = 50;
 
-fn before(a: u16, b: u16) -> bool {
+/// Whether epoch (or seq) `a` comes before `b` (serial order on `u16`).
+pub fn before(a: u16, b: u16) -> bool {
     (a.wrapping_sub(b) as i16) < 0
 }
 
@@ -191,6 +197,11 @@ impl Sender {
         self.deadline = (!self.pending.is_empty()).then(|| now + self.rto());
     }
 
+    /// Whether this link numbers in an epoch older than `epoch` (serial order on `u16`).
+    pub fn older_than(&self, epoch: u16) -> bool {
+        before(self.epoch, epoch)
+    }
+
     /// The subscriber lost its side of the link (it rebooted): the events it has not
     /// acknowledged are numbered again from 0 in `epoch` (newer than this link's) and sent
     /// at the next poll. That is no progress: an alarm stays until an acknowledgement. A
@@ -238,6 +249,11 @@ pub struct Received {
 pub struct Receiver {
     /// (epoch, next expected seq) once the first event of an epoch arrived.
     cursor: Option<(u16, u16)>,
+    /// Before that (a fresh receiver: the node booted), since it dropped a first event:
+    /// the epoch it last asked its publisher to number the link again in (it takes no
+    /// older one; `None`: not asked yet), and when it asked (or dropped that first event)
+    /// ([`Receiver::ask`]).
+    asked: Option<(Option<u16>, u64)>,
     /// Events that arrived early: `held[i]` is seq `next + 1 + i`.
     held: [Option<Topic>; WINDOW],
     /// Duplicates, stale and out-of-window frames dropped.
@@ -276,8 +292,14 @@ impl Receiver {
             Some((current, _)) if before(epoch, current) => return self.drop_frame(),
             // A newer epoch (or the first one seen) is anchored at seq 0 only.
             _ if seq != 0 => return self.drop_frame(),
+            // Fresh, and it asked for a renumbering: not an epoch older than it asked for
+            // (whose events the publisher may be numbering again in a newer one).
+            None if matches!(self.asked, Some((Some(wanted), _)) if before(epoch, wanted)) => {
+                return self.drop_frame()
+            }
             _ => {
                 self.held = [None; WINDOW];
+                self.asked = None;
                 0
             }
         };
@@ -307,6 +329,34 @@ impl Receiver {
         }
         self.cursor = Some((epoch, next));
         Some(next)
+    }
+
+    /// This receiver dropped an event of `epoch` at `now`: the epoch it asks the publisher
+    /// to number the link again in, from seq 0 with the events not acknowledged (sent as
+    /// a `Challenge` in clear on a robot without link keys), if it is to ask. Only a fresh
+    /// receiver asks (it has taken no epoch since the node booted: it lost its side of the
+    /// link while the publisher numbered on), and only [`ASK_MS`] after the first event it
+    /// dropped (a link that just started gets its seq 0 a moment after the seq 1 the radio
+    /// reordered ahead of it), then at most once per `ASK_MS`. From then on it takes no
+    /// epoch older than the one it asked for, and each time it asks again (the publisher
+    /// did not hear, or that epoch's seq 0 was lost) it asks for one newer than every
+    /// epoch it dropped: an event the publisher numbered again in an epoch it asked for
+    /// before is never taken, so nothing is delivered twice.
+    pub fn ask(&mut self, epoch: u16, now: u64) -> Option<u16> {
+        if self.cursor.is_some() {
+            return None;
+        }
+        let wanted = match self.asked {
+            None => {
+                self.asked = Some((None, now));
+                return None;
+            }
+            Some((_, at)) if now < at.saturating_add(ASK_MS) => return None,
+            Some((Some(wanted), _)) if before(epoch, wanted) => wanted,
+            Some(_) => epoch.wrapping_add(1),
+        };
+        self.asked = Some((Some(wanted), now));
+        Some(wanted)
     }
 
     fn drop_frame(&mut self) -> Option<u16> {

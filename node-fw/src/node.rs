@@ -1448,6 +1448,13 @@ impl<S: StagingArea> NodeCore<S> {
             Message::ConfigBegin { .. }
             | Message::ConfigChunk { .. }
             | Message::ConfigEnd { .. } => self.on_config(&msg, src, reply_pan, io),
+            // A peer that booted, on a robot without link keys (a secured robot's challenge
+            // is its handshake's, taken before this).
+            Message::Challenge { nonce }
+                if opened.is_none() && reply_pan != CONFIG_PAN && !self.radio.links.secured() =>
+            {
+                self.renumber_asked(src, nonce, now)
+            }
             Message::Command { id, command } => {
                 self.on_command(id, command, src, reply_pan, now, io)
             }
@@ -1577,9 +1584,10 @@ impl<S: StagingArea> NodeCore<S> {
         let Some((peer, ack)) = self.receive_event(src, (epoch, seq, topic), &mut deliver) else {
             return;
         };
-        if let Some(next) = ack {
-            let pan = self.table.as_ref().map_or(CONFIG_PAN, |t| t.header.pan_id);
-            self.send(io, pan, src, &Message::EventAck { epoch, next });
+        let pan = self.table.as_ref().map_or(CONFIG_PAN, |t| t.header.pan_id);
+        match ack {
+            Some(next) => self.send(io, pan, src, &Message::EventAck { epoch, next }),
+            None => self.ask_renumbering(peer, pan, src, epoch, now, io),
         }
         for &topic in deliver.iter() {
             self.radio.counters.delivered += 1;
@@ -1625,14 +1633,71 @@ impl<S: StagingArea> NodeCore<S> {
             return;
         };
         let epoch = m.0;
-        if let Some(next) = ack {
-            let ack = LinkMessage::EventAck { epoch, next };
-            self.radio.send_link(io, pan, src, ack);
+        match ack {
+            Some(next) => {
+                let ack = LinkMessage::EventAck { epoch, next };
+                self.radio.send_link(io, pan, src, ack);
+            }
+            None => self.ask_renumbering(peer, pan, src, epoch, now, io),
         }
         for &topic in deliver.iter() {
             self.radio.counters.delivered += 1;
             self.run_remote(now, io, peer as u8, topic);
         }
+    }
+
+    /// The receiver of peer `peer` (address `src`) dropped its event of `epoch`: on a
+    /// robot without link keys, a fresh receiver (this node booted while the peer numbered
+    /// on) asks the peer, with a `Challenge` in clear whose nonce is the epoch it asks for,
+    /// to number its link again from seq 0 ([`link::Receiver::ask`]; the peer:
+    /// [`NodeCore::renumber_asked`]). A secured robot's links are numbered again by its
+    /// handshake ([`crate::peer_security`]).
+    #[cold]
+    #[inline(never)]
+    fn ask_renumbering(
+        &mut self,
+        peer: usize,
+        pan: u16,
+        src: u16,
+        epoch: u16,
+        now: u64,
+        io: &mut impl Io,
+    ) {
+        if pan == CONFIG_PAN || self.radio.links.secured() {
+            return;
+        }
+        let Some((_, receiver)) = self.receivers.get_mut(peer) else {
+            return;
+        };
+        if let Some(wanted) = receiver.ask(epoch, now) {
+            let nonce = u32::from(wanted);
+            self.send(io, pan, src, &Message::Challenge { nonce });
+        }
+    }
+
+    /// A peer's `Challenge` in clear on a robot without link keys ([`NodeCore::ask_renumbering`]):
+    /// it booted and asks for our link to it numbered again from seq 0 in an epoch not
+    /// older than `wanted` (the nonce). Taken once: a link that numbers in that epoch or a
+    /// newer one already (a late or repeated challenge) is left as it is.
+    fn renumber_asked(&mut self, src: u16, wanted: u32, now: u64) {
+        let (Some(i), Ok(wanted)) = (self.peer(src), u16::try_from(wanted)) else {
+            self.radio.counters.dropped += 1;
+            return;
+        };
+        let Some(sender) = self.senders.get_mut(i) else {
+            return;
+        };
+        if !sender.older_than(wanted) {
+            return;
+        }
+        // The next epoch of this node's numbering, or the one asked for if that is newer.
+        let next = self.epoch.wrapping_add(1);
+        self.epoch = if link::before(next, wanted) {
+            wanted
+        } else {
+            next
+        };
+        sender.renumber(self.epoch, now);
     }
 
     /// [`NodeCore::run`] of a remote event: `topic` from peer `peer` (written out for the

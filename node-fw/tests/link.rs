@@ -2,7 +2,7 @@
 //! exactly once and in publisher order, or the link stalls with an alarm; never out of turn.
 
 use config_schema::wire::msg::Message;
-use node_fw::link::{LinkState, Receiver, Sender, ALARM_AFTER, QUEUE, WINDOW};
+use node_fw::link::{LinkState, Receiver, Sender, ALARM_AFTER, ASK_MS, QUEUE, WINDOW};
 use proptest::prelude::*;
 
 mod support;
@@ -323,4 +323,67 @@ proptest! {
         prop_assert_eq!(r.sender.unacked(), 0);
         prop_assert_eq!(r.receiver.dropped as usize + r.delivered.len() >= topics.len(), true);
     }
+}
+
+/// A fresh receiver (its node booted while the publisher numbered on) asks for the link
+/// numbered again in the epoch after the one it dropped, `ASK_MS` after the first event it
+/// dropped, then at most once per `ASK_MS`, and takes no older epoch from then on; once it
+/// took an epoch it never asks.
+#[test]
+fn a_fresh_receiver_asks_for_a_newer_epoch_once_per_interval() {
+    let mut r = Receiver::new();
+    // Seq 5 of epoch 7: dropped, noted; its seq 0 may be just behind (reordered).
+    assert_eq!(got(&mut r, 7, 5, 1), vec![]);
+    assert_eq!(r.ask(7, 100 - ASK_MS), None);
+    assert_eq!(r.ask(7, 99), None);
+    // Still only frames past seq 0: ask for 8.
+    assert_eq!(r.ask(7, 100), Some(8));
+    // Within the interval: no second ask.
+    assert_eq!(got(&mut r, 7, 6, 2), vec![]);
+    assert_eq!(r.ask(7, 100 + ASK_MS - 1), None);
+    // Epoch 7's seq 0 (a late copy) is older than what it asked for: not taken.
+    assert_eq!(r.on_event(7, 0, 3).ack, None);
+    // Still epoch 7 after the interval (the publisher did not hear): the same epoch again.
+    assert_eq!(r.ask(7, 100 + ASK_MS), Some(8));
+    // Epoch 8 arrived, seq 1 first (its seq 0 lost): no ask (the publisher heard) until the
+    // interval passes; then one newer than 8, and 8 is not taken any more.
+    assert_eq!(got(&mut r, 8, 1, 4), vec![]);
+    assert_eq!(r.ask(8, 100 + ASK_MS + 10), None);
+    assert_eq!(r.ask(8, 100 + 2 * ASK_MS), Some(9));
+    assert_eq!(
+        r.on_event(8, 0, 5).ack,
+        None,
+        "epoch 8 may be numbered again in 9"
+    );
+    // Epoch 9 from seq 0: taken, in order; no more asks.
+    assert_eq!(got(&mut r, 9, 0, 6), vec![6]);
+    assert_eq!(got(&mut r, 9, 1, 7), vec![7]);
+    assert_eq!(r.ask(9, 10_000), None);
+    assert_eq!(r.ask(3, 10_000), None);
+    assert_eq!(r.dropped, 5);
+}
+
+/// A receiver that took an epoch without asking (the publisher's first event reached it)
+/// never asks: a gap in its epoch is the sender's to fill.
+#[test]
+fn a_receiver_that_took_an_epoch_never_asks() {
+    let mut r = Receiver::new();
+    assert_eq!(got(&mut r, 2, 0, 1), vec![1]);
+    assert_eq!(got(&mut r, 2, 3, 4), vec![]);
+    assert_eq!(r.ask(2, 0), None);
+    assert_eq!(got(&mut r, 3, 2, 4), vec![]);
+    assert_eq!(r.ask(3, 1000), None);
+    assert_eq!(r.ask(3, 2000), None);
+}
+
+/// A link that just started, its seq 1 reordered ahead of its seq 0: the receiver waits
+/// (no ask), and takes the epoch from seq 0 when it comes.
+#[test]
+fn a_new_link_whose_seq_0_comes_second_asks_nothing() {
+    let mut r = Receiver::new();
+    assert_eq!(got(&mut r, 2, 1, 11), vec![]);
+    assert_eq!(r.ask(2, 0), None);
+    assert_eq!(got(&mut r, 2, 0, 10), vec![10]);
+    assert_eq!(got(&mut r, 2, 1, 11), vec![11]);
+    assert_eq!(r.ask(2, ASK_MS), None);
 }

@@ -649,6 +649,57 @@ fn a_flood_breaks_a_link_and_the_operators_reset_re_establishes_it() {
     );
 }
 
+/// A power cut of the subscriber on a robot without link keys: B boots its table from
+/// flash with a fresh receiver (it waits for seq 0), while A numbered on. B's first event
+/// past seq 0 makes it challenge A in clear, naming the epoch it asks for; A numbers its
+/// link to B again from 0 in that epoch, with what B did not acknowledge (the press made
+/// while B was off). No reset: every press from then on toggles B's lamp exactly once, in
+/// order, under loss, duplication and reordering, and A's link ends without an alarm.
+#[test]
+fn after_the_subscriber_restarts_unsecured_links_are_numbered_again_and_events_flow() {
+    for seed in 1..=8 {
+        let mut net = Net::new(0.2, 0.1, 40 + seed);
+        assert_eq!(net.push(A, &table_a(1), false), ota::Progress::Done);
+        assert_eq!(net.push(B, &table_b(1), false), ota::Progress::Done);
+        for _ in 0..3 {
+            net.press();
+        }
+        net.run(1000);
+        let lamp: Vec<bool> = net.nodes[1].1.pins.iter().map(|&(_, l)| l).collect();
+        assert_eq!(
+            lamp,
+            [false, true, false, true],
+            "seed {seed}: activation, three toggles"
+        );
+        // B's power is cut: frames to B reach nobody. A press meanwhile.
+        net.nodes[1] = (NodeCore::new(0x0077, u64::MAX, None, 1), Board::default());
+        net.press();
+        net.run(100);
+        // B boots its table from flash (a boot drives its lamp to the start level).
+        net.nodes[1] = (
+            NodeCore::new(B, u64::MAX, Some(table_b(1)), 2),
+            Board::default(),
+        );
+        let (b, board) = &mut net.nodes[1];
+        b.boot(board);
+        net.run(1000);
+        for _ in 0..4 {
+            net.press();
+        }
+        net.run(3000);
+        let lamp: Vec<bool> = net.nodes[1].1.pins.iter().map(|&(_, l)| l).collect();
+        assert_eq!(
+            lamp,
+            [false, true, false, true, false, true],
+            "seed {seed}: the boot's level, then one toggle per press (the one made while B \
+             was off first)"
+        );
+        assert_eq!(net.status(B).counters.delivered, 5, "seed {seed}");
+        let a = net.status(A);
+        assert_eq!((a.link_alarms, a.links_broken), (0, 0), "seed {seed}");
+    }
+}
+
 /// A board with pins 0..=5 has B's lamp pin 7 nowhere: B refuses the table, naming the pin
 /// and the board's pins, and keeps what it ran; A's button (pin 5) is on the board.
 #[test]
