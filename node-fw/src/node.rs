@@ -1258,10 +1258,13 @@ impl<S: StagingArea> NodeCore<S> {
                 nonce,
                 answer,
                 challenge,
+                renumber,
             } => {
                 // It knows no counter of ours: it booted (or is new to this table),
                 // and has no receiving side of our link to it either.
-                self.renumber_link(peer, now);
+                if renumber {
+                    self.renumber_link(peer, now);
+                }
                 if answer {
                     self.send(io, pan, peer, &Message::ChallengeAnswer { nonce });
                 }

@@ -76,6 +76,9 @@ pub enum Verdict<'s> {
         /// This node knows no floor of the peer either: challenge it back (the peer that
         /// greets last after a push is then known both ways before any event).
         challenge: bool,
+        /// The peer booted: number our link to it again (not for a copy of a challenge
+        /// that did so already: [`PeerSecurity::renumbers`]).
+        renumber: bool,
     },
     /// The answer to this node's challenge: the peer's floor is set. Nothing else to do.
     Answered,
@@ -103,6 +106,9 @@ pub struct PeerSecurity {
     /// Per peer: when it may be challenged, and answered, again.
     next_challenge: Vec<(u16, u64), MAX_PEERS>,
     next_answer: Vec<(u16, u64), MAX_PEERS>,
+    /// Per peer: the frame counter of its last challenge that numbered our link to it
+    /// again.
+    renumbered: Vec<(u16, u32), MAX_PEERS>,
 }
 
 /// Whether `peer` may be sent another handshake frame at `now`, at most one per
@@ -158,6 +164,7 @@ impl PeerSecurity {
         }
         self.replay = floors;
         self.challenges.retain(peers);
+        self.renumbered.retain(|(p, _)| peers.contains(p));
         self.greet.clear();
         if self.current.is_some() {
             for &p in peers {
@@ -328,6 +335,7 @@ impl PeerSecurity {
                 nonce: *nonce,
                 answer,
                 challenge,
+                renumber: self.renumbers(src, aux.frame_counter),
             };
         }
         if floor.is_none() {
@@ -366,8 +374,31 @@ impl PeerSecurity {
                 nonce: *nonce,
                 answer: may(&mut self.next_answer, src, now, ANSWER_MS),
                 challenge: false,
+                renumber: self.renumbers(src, aux.frame_counter),
             },
             _ => Verdict::Accept(payload),
+        }
+    }
+
+    /// Whether a challenge from `peer` in a frame with counter `counter` numbers our link
+    /// to it again: its first, or one newer than the last that did. Before the peer's
+    /// floor is known (both booted) no replay check stops a copy of its challenge that
+    /// the radio duplicated, or an old one replayed: numbered again for it, the events
+    /// the peer took since the first would be delivered to it twice.
+    fn renumbers(&mut self, peer: u16, counter: u32) -> bool {
+        match self.renumbered.iter_mut().find(|(p, _)| *p == peer) {
+            Some((_, last)) if counter <= *last => false,
+            Some((_, last)) => {
+                *last = counter;
+                true
+            }
+            None => {
+                if self.renumbered.is_full() {
+                    crate::remove_at(&mut self.renumbered, 0);
+                }
+                let _ = self.renumbered.push((peer, counter));
+                true
+            }
         }
     }
 
@@ -670,7 +701,8 @@ mod tests {
                 peer: PEER,
                 nonce: 5,
                 answer: true,
-                challenge: true
+                challenge: true,
+                renumber: true,
             }
         ));
         // Within the handshake's rate: neither answered nor challenged again.
@@ -687,9 +719,32 @@ mod tests {
             Verdict::Answer {
                 answer: false,
                 challenge: false,
+                renumber: true,
                 ..
             }
         ));
+        // A copy of that challenge (the radio duplicated it), or an older one replayed:
+        // answered at the handshake's rate, but the link is not numbered again for it.
+        for counter in [4, 2] {
+            let v = s.open(
+                &frame(1, counter, &ch),
+                ME,
+                0,
+                10 * ANSWER_MS,
+                &mut scratch,
+                &mut c,
+            );
+            assert!(
+                matches!(
+                    v,
+                    Verdict::Answer {
+                        renumber: false,
+                        ..
+                    }
+                ),
+                "counter {counter}"
+            );
+        }
     }
 
     #[test]

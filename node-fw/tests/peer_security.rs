@@ -461,3 +461,37 @@ fn after_the_subscriber_reboots_the_publisher_numbers_its_link_again_and_events_
     assert_eq!(net.b.1.lamp, [true, false]);
     assert_eq!(net.a.0.link_alarms(), 0);
 }
+
+/// Both nodes boot at once (a machine's power cut), A with an event for B queued: B's
+/// greeting (a `Challenge`) reaches A twice (the radio duplicated it) before A knows B's
+/// counter. A numbers its link to B again once, not for the copy: B delivers the event
+/// once.
+#[test]
+fn a_duplicated_greeting_numbers_the_link_again_once() {
+    let mut net = Net::new();
+    net.press();
+    net.a.0.poll(1, &mut net.a.1);
+    net.b.0.poll(1, &mut net.b.1);
+    let from_b = std::mem::take(&mut net.b.1.out);
+    let greeting = from_b
+        .iter()
+        .find(|f| {
+            let (h, _, payload) = open(f);
+            h.dst == A && kind(&Message::parse(&payload).unwrap()) == "Challenge"
+        })
+        .expect("B greets A")
+        .clone();
+    for f in &from_b {
+        net.deliver(f);
+    }
+    // A numbers again and sends; B takes A's answer and the event.
+    net.run(1);
+    assert_eq!(net.b.1.lamp, [true]);
+    // The copy, a moment later, before B's answer to A's greeting reached A.
+    net.deliver(&greeting);
+    net.run(400);
+    assert_eq!(net.b.1.lamp, [true], "delivered once");
+    net.press();
+    net.run(400);
+    assert_eq!(net.b.1.lamp, [true, false]);
+}
