@@ -37,5 +37,14 @@ fn a_silent_node_does_not_hide_the_others_alarms() {
         ),
         "{err}"
     );
+    // `home` and `start` name the silent node's role (they said only its address).
+    for command in ["home", "start"] {
+        let (code, out, err) = run_tool(&[command, paint, "--medium", m]);
+        assert_eq!((code, out.as_str()), (Some(1), ""), "{command}: {err}");
+        assert!(
+            err.starts_with("error: node 0x0014 (RC) did not answer Status"),
+            "{command}: {err}"
+        );
+    }
     bed.stop();
 }

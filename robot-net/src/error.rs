@@ -29,8 +29,17 @@ pub enum NetError {
     Monitor(#[source] io::Error),
     #[error("nodes did not answer: {}", .0.join(", "))]
     Silent(Vec<String>),
-    #[error("node {addr:#06x} did not answer {command}")]
-    NoAnswer { addr: u16, command: String },
+    /// A node did not answer `command` in time; `role`: the robot's role it runs, if the
+    /// caller knows it.
+    #[error(
+        "node {addr:#06x}{} did not answer {command}",
+        role.as_deref().map(|r| format!(" ({r})")).unwrap_or_default()
+    )]
+    NoAnswer {
+        addr: u16,
+        role: Option<String>,
+        command: String,
+    },
     #[error("the robot has no start input")]
     NoStart,
     #[error("the plant saw {0} of {1} strokes in time")]

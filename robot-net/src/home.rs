@@ -261,6 +261,7 @@ pub fn statuses(
             push::command(radio, ids, r.address, Command::Status, timeout)?.ok_or_else(|| {
                 NetError::NoAnswer {
                     addr: r.address,
+                    role: Some(r.name.clone()),
                     command: "Status".to_string(),
                 }
             })
@@ -287,6 +288,7 @@ pub fn alarms(
             })?
             .ok_or_else(|| NetError::NoAnswer {
                 addr: r.address,
+                role: Some(r.name.clone()),
                 command: format!("{command:?}"),
             })
         })
@@ -330,6 +332,7 @@ pub fn home(
     let s = push::command(radio, ids, role.address, Command::Home, answer_within)?.ok_or_else(
         || NetError::NoAnswer {
             addr: role.address,
+            role: Some(role.name.clone()),
             command: "Home".to_string(),
         },
     )?;

@@ -334,6 +334,9 @@ impl Poll {
         push::command(&mut self.radio, &mut self.ids, addr, command, ANSWER_WITHIN)?.ok_or_else(
             || NetError::NoAnswer {
                 addr,
+                role: (self.c.ir.roles.iter())
+                    .find(|r| r.address == addr)
+                    .map(|r| r.name.clone()),
                 command: format!("{command:?}"),
             },
         )

@@ -494,6 +494,7 @@ impl Bed {
         )?
         .ok_or_else(|| NetError::NoAnswer {
             addr,
+            role: None,
             command: format!("{command:?}"),
         })
     }
