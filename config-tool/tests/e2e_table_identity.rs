@@ -34,9 +34,9 @@ fn a_robot_with_the_same_roles_and_charts_is_not_taken_for_the_running_one() {
                 Some(6),
                 String::new(),
                 format!(
-                    "error: node 0x0011 (VC) does not run this robot's table (another \
-                     robot's, or this file changed since its push): check the file, or push \
-                     it; {what} was not sent\n"
+                    "error: nodes 0x0011 (VC), 0x0014 (RC) do not run this robot's table \
+                     (another robot's, or this file changed since its push): check the file, \
+                     or push it; {what} was not sent\n"
                 )
             )
         );

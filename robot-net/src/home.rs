@@ -189,10 +189,21 @@ pub fn refusal(nodes: &[Node], homing: bool) -> Option<String> {
     let n = machine(nodes)?;
     let who = format!("node {:#06x} ({})", n.addr, n.role);
     Some(match n.standing {
-        Standing::Other => format!(
-            "{who} does not run this robot's table (another robot's, or this file changed \
-             since its push): check the file, or push it"
-        ),
+        Standing::Other => {
+            // Every one of them: the operator checks or pushes them all.
+            let others: Vec<String> = (nodes.iter())
+                .filter(|n| n.standing == Standing::Other)
+                .map(|n| format!("{:#06x} ({})", n.addr, n.role))
+                .collect();
+            let who = match others.as_slice() {
+                [_] => format!("{who} does not run"),
+                _ => format!("nodes {} do not run", others.join(", ")),
+            };
+            format!(
+                "{who} this robot's table (another robot's, or this file changed since its \
+                 push): check the file, or push it"
+            )
+        }
         Standing::Faulted(code) => format!(
             "{who} is faulted ({code:#04x}): reset first (config-tool reset --node {:#06x}), \
              then config-tool home",
@@ -730,6 +741,19 @@ mod tests {
             Some(
                 "node 0x0011 (VC) does not run this robot's table (another robot's, or this \
                  file changed since its push): check the file, or push it"
+            )
+        );
+        // Every node that does not run it is named (only the first was).
+        let others = [
+            node("VC", 0x11, Standing::Other),
+            node("GR", 0x12, Standing::Homed),
+            node("RC", 0x14, Standing::Other),
+        ];
+        assert_eq!(
+            refusal(&others, false).as_deref(),
+            Some(
+                "nodes 0x0011 (VC), 0x0014 (RC) do not run this robot's table (another \
+                 robot's, or this file changed since its push): check the file, or push it"
             )
         );
     }
