@@ -76,7 +76,7 @@ fn a_robot_with_the_same_roles_and_charts_is_not_taken_for_the_running_one() {
         );
     }
     assert!(
-        lines[5].starts_with("staged 0 of 4 table(s) (4 not: above): "),
+        lines[5].starts_with("staged 0 of 4 table(s) (4 not: above): 0 bytes, "),
         "{out}"
     );
 

@@ -28,11 +28,16 @@ pub fn push_line(o: &push::Pushed) -> String {
     )
 }
 
-/// A push's last line: the tables staged (all, or how many of how many) and what the
-/// transfers took (bytes and frames sent, retries; the longest transfer's time).
+/// A push's last line: the tables staged (all, or how many of how many) and their bytes,
+/// and what the transfers took (frames sent, retries; the longest transfer's time).
 pub fn push_summary(outcomes: &[push::Pushed]) -> String {
     let (bytes, frames, retries) = outcomes.iter().fold((0, 0, 0), |a, o| {
-        (a.0 + o.bytes, a.1 + o.stats.frames, a.2 + o.stats.retries)
+        let staged = if o.progress == Progress::Done {
+            o.bytes
+        } else {
+            0
+        };
+        (a.0 + staged, a.1 + o.stats.frames, a.2 + o.stats.retries)
     });
     let time = outcomes.iter().map(|o| o.elapsed).max().unwrap_or_default();
     let staged = outcomes
@@ -356,11 +361,12 @@ mod tests {
         );
         assert_eq!(
             push_summary(&[o(Progress::Done), o(stale), o(Progress::GaveUp)]),
-            "staged 1 of 3 table(s) (2 not: above): 264 bytes, 6 frames, 3 retries, 12.5 ms"
+            "staged 1 of 3 table(s) (2 not: above): 88 bytes, 6 frames, 3 retries, 12.5 ms"
         );
+        // The bytes are the tables staged' (a refused table's were counted too).
         assert_eq!(
             push_summary(&[o(stale), o(stale)]),
-            "staged 0 of 2 table(s) (2 not: above): 176 bytes, 4 frames, 2 retries, 12.5 ms"
+            "staged 0 of 2 table(s) (2 not: above): 0 bytes, 4 frames, 2 retries, 12.5 ms"
         );
     }
 
