@@ -474,8 +474,8 @@ pub struct HomeArgs {
     pub robot: PathBuf,
     #[command(flatten)]
     pub at: MediumAddr,
-    /// How long to wait for homing to end, seconds.
-    #[arg(long, default_value_t = 60)]
+    /// How long to wait for homing to end, seconds (at least 1: homing takes time).
+    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]
     pub wait: u64,
     #[command(flatten)]
     pub keys: KeysArg,

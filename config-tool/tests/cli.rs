@@ -781,3 +781,23 @@ fn home_of_a_robot_without_homing_says_so_first() {
         )
     );
 }
+
+/// `home --wait 0` sent HOME and said at once that homing did not end: a wait of no time
+/// is refused as a bad argument, before anything is sent.
+#[test]
+fn home_refuses_a_wait_of_no_time() {
+    let out = tool(&[
+        "home",
+        "robot-configs/paint-robot.ron",
+        "--medium",
+        "127.0.0.1:9",
+        "--wait",
+        "0",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("invalid value '0' for '--wait <WAIT>': 0 is not in 1.."),
+        "{}",
+        text(&out.stderr)
+    );
+}
