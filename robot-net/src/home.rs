@@ -44,6 +44,35 @@ impl Standing {
     }
 }
 
+/// The links of a node (running table `t`, status `s`) that its peers do not acknowledge,
+/// in words for `status` and `scan` after its standing (`None`: none): a node at rest
+/// whose link is in alarm or broken is homed, but the machine will not run a cycle
+/// through it. `node`: its address, for the reset that re-establishes a broken link.
+pub fn link_note(node: u16, t: &Table, s: &Status) -> Option<String> {
+    let peers = |bits: u8| -> Vec<String> {
+        (t.peers.iter().enumerate().take(8))
+            .filter(|(i, _)| bits & (1 << i) != 0)
+            .map(|(_, p)| format!("{p:#06x}"))
+            .collect()
+    };
+    let mut notes = Vec::new();
+    let alarm = peers(s.link_alarms & !s.links_broken);
+    if !alarm.is_empty() {
+        notes.push(format!(
+            "link to {} in alarm (the peer does not acknowledge)",
+            alarm.join(", ")
+        ));
+    }
+    let broken = peers(s.links_broken);
+    if !broken.is_empty() {
+        notes.push(format!(
+            "link to {} broken (config-tool reset --node {node:#06x} re-establishes it)",
+            broken.join(", ")
+        ));
+    }
+    (!notes.is_empty()).then(|| notes.join("; "))
+}
+
 /// What an `Ack` acknowledged, as `ack` and the panel say it: `acknowledged: N alarm(s) on
 /// M node(s)`, then ` (K acknowledged before)` if any were. `before` are the nodes' alarms
 /// read just before the `Ack`, `after` its answers, node by node in the same order. An
@@ -566,6 +595,32 @@ mod tests {
         t.push_chart(0, 1, &[&[], &[]], &[]).unwrap();
         t.charts[0].idle = 0;
         t
+    }
+
+    /// `scan` and `status` said `homed` of a node whose link was in alarm: the link is
+    /// named after it.
+    #[test]
+    fn a_link_in_alarm_or_broken_is_named() {
+        let mut t = table();
+        t.peers
+            .extend_from_slice(&[0x0012, 0x0014, 0x0015])
+            .unwrap();
+        let mut s = status("VC", &[0, 0], None);
+        assert_eq!(link_note(0x0011, &t, &s), None);
+        s.link_alarms = 0b010;
+        assert_eq!(
+            link_note(0x0011, &t, &s).as_deref(),
+            Some("link to 0x0014 in alarm (the peer does not acknowledge)")
+        );
+        s.link_alarms = 0b011;
+        s.links_broken = 0b101;
+        assert_eq!(
+            link_note(0x0011, &t, &s).as_deref(),
+            Some(
+                "link to 0x0014 in alarm (the peer does not acknowledge); link to 0x0012, \
+                 0x0015 broken (config-tool reset --node 0x0011 re-establishes it)"
+            )
+        );
     }
 
     #[test]

@@ -549,10 +549,18 @@ fn standing_text(c: &robot_compiler::Compiled, node: u16, s: &Status) -> String 
             .zip(&c.tables)
             .find(|(r, _)| r.address == node);
     match role {
-        Some((r, t)) => match home::standing(&r.name, t, s) {
-            home::Standing::NotHomed => "not homed (config-tool home)".to_string(),
-            other => other.text(),
-        },
+        Some((r, t)) => {
+            let standing = home::standing(&r.name, t, s);
+            let text = match standing {
+                home::Standing::NotHomed => "not homed (config-tool home)".to_string(),
+                other => other.text(),
+            };
+            // Its links, only if it runs this robot's table (whose peers name them).
+            match home::link_note(node, t, s).filter(|_| standing != home::Standing::Other) {
+                Some(links) => format!("{text}; {links}"),
+                None => text,
+            }
+        }
         None => "not a node of this robot".to_string(),
     }
 }
