@@ -190,6 +190,7 @@ pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(),
         );
     }
     // The robot's nodes that did not answer, by name and role.
+    let mut silent = Vec::new();
     if let Some(c) = &c {
         for n in c
             .robot
@@ -198,6 +199,9 @@ pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(),
             .filter(|n| !found.contains_key(&n.address))
         {
             let role = c.ir.roles.iter().find(|r| r.address == n.address);
+            if let Some(r) = role {
+                silent.push(format!("{:#06x} ({})", n.address, r.name));
+            }
             let role = role.map_or("(spare)", |r| r.name.as_str());
             outln!(
                 "{:#06x}  {role}  did not answer (node {})",
@@ -219,7 +223,16 @@ pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(),
             }
         );
     }
-    Ok(())
+    // A node of the robot's roles missing is an error (a spare is not).
+    match (&c, silent.is_empty()) {
+        (Some(c), false) => Err(Failure::error(format!(
+            "{} of the robot's {} nodes did not answer: {}",
+            silent.len(),
+            c.ir.roles.len(),
+            silent.join(", ")
+        ))),
+        _ => Ok(()),
+    }
 }
 
 pub fn push(flags: &PushArgs) -> Result<(), Failure> {
