@@ -48,3 +48,77 @@ fn a_push_cut_off_during_the_transfer_says_nothing_switched() {
         )
     );
 }
+
+/// Cut during the switch-over (the machine faulted, so the nodes are armed and the switch
+/// waits for them to rest): it said what that means and to push again, but not where each
+/// node stood; now a line per node (staged, not switched) comes first, then the summary.
+#[test]
+fn a_push_cut_off_during_the_switch_over_says_where_each_node_stands() {
+    let dir = TempDir::new("push-cut-switch");
+    let (_, c) = unsecured_robot(&dir, "paint-robot.ron");
+    let (dip, _) = unsecured_robot(&dir, "paint-robot-double-dip.ron");
+    let mut opts = options(medium::Config::default(), None);
+    opts.secured = false;
+    let mut bed = bring_up(&c, opts);
+    push_and_home(&mut bed, &c);
+    // VC's rod jams at its first stroke: its watchdog faults the machine, which does not
+    // come to rest until reset.
+    let actuators = robot_net::live_plant::actuators(&c).unwrap();
+    let vc = actuators.iter().position(|a| a.name == "VC").unwrap();
+    bed.set_plant_injected(
+        actuators,
+        Some(robot_net::live_plant::Injection {
+            after: 0,
+            actuator: vc,
+            kind: robot_net::live_plant::Jam::Stuck,
+        }),
+    )
+    .unwrap();
+    bed.watch(&c).unwrap();
+    let cycle = bed.run_cycle(&c, &mut |_, _| {}).unwrap();
+    assert!(
+        cycle.fault.is_some(),
+        "{}",
+        robot_net::demo::cycle_line(1, &cycle)
+    );
+    let mut monitor = Monitor::join(bed.medium().addr());
+    let push = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .current_dir(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .args(["push", dip.to_str().expect("utf-8 path")])
+        .args(["--generation", "2", "--medium"])
+        .arg(bed.medium().addr().to_string())
+        .env_remove("CONFIG_TOOL_KEYS")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("push runs");
+    // The switch-over is under way once a node is asked to arm.
+    monitor.until(|_, payload| matches!(Message::parse(payload), Ok(Message::Switch { .. })));
+    bed.stop();
+    let out = push.wait_with_output().expect("push ends");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let lines: Vec<&str> = stdout.lines().skip(1).collect();
+    assert!(stdout.starts_with("verified: "), "{stdout}");
+    assert_eq!(lines.len(), 5, "{stdout}");
+    for (line, role) in lines.iter().zip(["VC", "GR", "HC", "RC"]) {
+        assert!(
+            line.starts_with(&format!("  {role:<6} ")) && line.ends_with("  staged, not switched"),
+            "{stdout}"
+        );
+    }
+    assert!(lines[4].starts_with("pushed 4 table(s): "), "{stdout}");
+    assert_eq!(
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr).into_owned()
+        ),
+        (
+            Some(3),
+            "error: the medium closed the connection during the switch-over: nodes may run \
+             different generations (`scan` shows each one's): push again to finish it, or roll \
+             back\n"
+                .to_string()
+        )
+    );
+}

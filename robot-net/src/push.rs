@@ -51,6 +51,9 @@ impl Pushed {
             (Progress::Done, Some(NodeState::Silent)) => {
                 "staged, not switched: the node stopped answering".to_string()
             }
+            (Progress::Done, Some(NodeState::Going)) => {
+                "staged, told to switch: its answer not heard".to_string()
+            }
             (Progress::Done, Some(_)) => "staged, not switched".to_string(),
             (progress, _) => Self::transfer_verdict(progress),
         }
@@ -223,20 +226,27 @@ pub fn switch_over_as(
     if trial {
         c = c.on_trial();
     }
-    let (verdict, states) = coordinate(radio, c)?;
+    let (verdict, states) = coordinate(radio, c);
+    // Where each node stands, also when the medium was lost on the way.
     for (addr, state) in states {
         for p in pushed.iter_mut().filter(|p| p.addr == addr) {
             p.switch = Some(state);
         }
     }
-    Ok(verdict)
+    verdict
 }
 
-/// Runs a coordinator to its end: the verdict and where each node stands.
+/// Runs a coordinator to its end: the verdict (or how the medium was lost) and where
+/// each node stands (then, as far as the tool heard).
 fn coordinate(
     radio: &mut ToolRadio,
     mut c: Coordinator,
-) -> io::Result<(Verdict, Vec<(u16, NodeState)>)> {
+) -> (io::Result<Verdict>, Vec<(u16, NodeState)>) {
+    let verdict = run_coordinator(radio, &mut c);
+    (verdict, c.nodes().collect())
+}
+
+fn run_coordinator(radio: &mut ToolRadio, c: &mut Coordinator) -> io::Result<Verdict> {
     let start = Instant::now();
     let now_ms = || start.elapsed().as_millis() as u64;
     let mut out: Vec<(u16, Message<'static>)> = Vec::new();
@@ -255,7 +265,7 @@ fn coordinate(
             until = Instant::now();
         }
     }
-    Ok((c.verdict(), c.nodes().collect()))
+    Ok(c.verdict())
 }
 
 /// Returns every node of `nodes` to its previous generation `generation` together, at the
@@ -268,7 +278,8 @@ pub fn rollback(
     wait: Duration,
 ) -> io::Result<(Verdict, Vec<(u16, NodeState)>)> {
     let c = Coordinator::new(nodes, generation, now, wait.as_millis() as u64, 0);
-    coordinate(radio, c)
+    let (verdict, states) = coordinate(radio, c);
+    Ok((verdict?, states))
 }
 
 /// How a watched trial ended.

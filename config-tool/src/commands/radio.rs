@@ -263,7 +263,14 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
                 flags.trial,
                 Duration::from_secs(flags.wait),
             )
-            .map_err(|e| lost(e, Phase::Switch))?,
+            .map_err(|e| {
+                // Where each node stood when the medium was lost: what `scan` would show.
+                for o in &outcomes {
+                    outln!("{}", demo::push_line(o));
+                }
+                outln!("{}", demo::push_summary(&outcomes));
+                lost(e, Phase::Switch)
+            })?,
         )
     };
     let one_role = flags.role.as_deref().map(|r| (r, c.ir.generation));
