@@ -564,6 +564,27 @@ fn confirm_refuses_a_trial_a_power_cut_split() {
         }
         assert!(Instant::now() < end, "RC did not come back: {first:?}");
     }
+    // `scan` shows who is on trial, and that the trial is split (it showed neither).
+    let found = ok(&["scan", ROBOT, "--keys", &key_s, "--medium", &m]);
+    for r in &c.ir.roles {
+        let want = if r.address == rc {
+            format!("\n{rc:#06x}  firmware 1  generation 1  RC  ")
+        } else {
+            format!(
+                "\n{:#06x}  firmware 1  generation 2 on trial  {}  ",
+                r.address, r.name
+            )
+        };
+        assert!(format!("\n{found}").contains(&want), "{want}{found}");
+    }
+    assert!(
+        found.contains(&format!(
+            "not every node runs generation 2 on trial: {rc:#06x} (RC) runs generation 1 (a \
+             power cut returns a node to its previous generation): `config-tool rollback` \
+             returns the others to theirs\n"
+        )),
+        "{found}"
+    );
     let out = tool(&["confirm", ROBOT, "--keys", &key_s, "--medium", &m]);
     assert_eq!(out.status.code(), Some(3), "{}", text(&out.stderr));
     let lines: Vec<String> =

@@ -172,22 +172,39 @@ pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(),
     let mut radio = connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?;
     let mut ids = Ids::default();
     let found = push::scan(&mut radio, &mut ids, Duration::from_secs(2)).map_err(Failure::error)?;
+    // The robot's nodes' statuses, as they answered.
+    let mut statuses = Vec::new();
     for (addr, a) in &found {
         let role = if a.role.is_empty() {
             "(unconfigured)"
         } else {
             a.role.as_str()
         };
-        let homed = match &c {
-            Some(c) => homed_note(&mut radio, &mut ids, c, *addr)?,
-            None => String::new(),
+        let status = match &c {
+            Some(c) => robot_status(&mut radio, &mut ids, c, *addr)?,
+            None => None,
+        };
+        let (trial, homed) = match (&c, &status) {
+            (Some(c), Some(s)) => (
+                if s.trial { " on trial" } else { "" },
+                format!("  {}", standing_text(c, *addr, s)),
+            ),
+            _ => ("", String::new()),
         };
         outln!(
-            "{addr:#06x}  firmware {}  generation {}{}  {role}{homed}",
+            "{addr:#06x}  firmware {}  generation {}{trial}{}  {role}{homed}",
             a.firmware,
             a.generation,
             show::staged_note(a.staged)
         );
+        statuses.extend(status.map(|s| (*addr, s)));
+    }
+    // Generations apart: a switch-over not finished, or a trial a power cut split.
+    let by_node: Vec<(u16, &Status)> = statuses.iter().map(|(a, s)| (*a, s)).collect();
+    if let (Some(c), Some(home::Generations::Mixed { trial, off })) =
+        (&c, home::generations(&by_node))
+    {
+        outln!("{}", mixed_text(c, trial, &off));
     }
     // The robot's nodes that did not answer, by name and role.
     let mut silent = Vec::new();
@@ -585,19 +602,43 @@ fn standing_text(c: &robot_compiler::Compiled, node: u16, s: &Status) -> String 
     }
 }
 
-/// `  homed` (or `  not homed (config-tool home)`, ...) for a node of robot `c`; nothing
-/// for another node.
-fn homed_note(
+/// The status of `node` if it is a node of robot `c`'s roles (`None`: another node).
+fn robot_status(
     radio: &mut ToolRadio,
     ids: &mut Ids,
     c: &robot_compiler::Compiled,
     node: u16,
-) -> Result<String, Failure> {
+) -> Result<Option<Status>, Failure> {
     if !c.ir.roles.iter().any(|r| r.address == node) {
-        return Ok(String::new());
+        return Ok(None);
     }
-    let s = command(radio, ids, node, Command::Status)?;
-    Ok(format!("  {}", standing_text(c, node, &s)))
+    command(radio, ids, node, Command::Status).map(Some)
+}
+
+/// `scan`'s line for a robot whose nodes run different generations: those on trial run
+/// `trial` (if any), `off` are the others with theirs.
+fn mixed_text(c: &robot_compiler::Compiled, trial: Option<u32>, off: &[(u16, u32)]) -> String {
+    let who = |addr: u16| {
+        let role = c.ir.roles.iter().find(|r| r.address == addr);
+        format!("{addr:#06x} ({})", role.map_or("?", |r| r.name.as_str()))
+    };
+    let off: Vec<String> = off
+        .iter()
+        .map(|&(a, g)| format!("{} runs generation {g}", who(a)))
+        .collect();
+    match trial {
+        Some(generation) => format!(
+            "not every node runs generation {generation} on trial: {} (a power cut returns a \
+             node to its previous generation): `config-tool rollback` returns the others to \
+             theirs",
+            off.join(", ")
+        ),
+        None => format!(
+            "the nodes run different generations: {}: push again to finish the switch-over, \
+             or roll back",
+            off.join(", ")
+        ),
+    }
 }
 
 /// A role's node and its status: (role, address, status).
