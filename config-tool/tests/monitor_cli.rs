@@ -263,3 +263,61 @@ fn monitor_prints_a_pin_only_when_its_level_changes() {
         ]
     );
 }
+
+/// A pin change and then a frame, from one node back to back: the monitor printed the
+/// frame at its own clock (since the monitor started) and the pin at the medium's (since
+/// the medium started), so the frame came out earlier than the pin before it. Both are on
+/// the medium's clock now: the frame's time is not before the pin's.
+#[test]
+fn monitor_stamps_frames_and_pins_with_one_clock() {
+    let medium = Medium::start(Config::default()).unwrap();
+    let mut node = Conn::join(medium.addr(), Peer::Node { addr: VC }).unwrap();
+    let mut monitor = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["monitor", "--medium", &medium.addr().to_string()])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let out = monitor.stdout.take().unwrap();
+    let (tx, lines) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(out).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    assert!(medium.wait_for_clients(2, SURE), "the monitor joins");
+    let event = Message::Event {
+        epoch: 1,
+        seq: 0,
+        topic: 2,
+    };
+    let mut psdu = [0u8; 127];
+    let n = mac::emit_data(&header(0xBEEF, VC, GR), &payload(&event), &mut psdu).unwrap();
+    node.send(&Link::Pin {
+        addr: VC,
+        pin: 3,
+        level: true,
+    })
+    .unwrap();
+    node.send(&Link::Frame(&psdu[..n])).unwrap();
+    let mut times = Vec::new();
+    for what in [
+        "pin 0x0011.3 = 1 (output)",
+        "0x0011 -> 0x0012  unsecured: Event",
+    ] {
+        let line = lines.recv_timeout(SURE).expect("the monitor prints a line");
+        let (time, rest) = line.trim_start().split_once("  ").unwrap();
+        assert!(rest.starts_with(what), "{line}");
+        times.push(time.parse::<f64>().unwrap());
+    }
+    let _ = monitor.kill();
+    let _ = monitor.wait();
+    medium.stop();
+    assert!(
+        times[1] >= times[0],
+        "frame at {} s, the pin before it at {} s",
+        times[1],
+        times[0]
+    );
+}

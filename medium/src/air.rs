@@ -172,6 +172,10 @@ impl Air {
             Event::Sync(id, n) => {
                 self.send(id, &Link::Synced(n));
             }
+            Event::Clock(id) => {
+                let at_us = self.start.elapsed().as_micros() as u64;
+                self.send(id, &Link::Now { at_us });
+            }
             Event::Cut { from, to } => {
                 // Bounded: one entry per pair of 16-bit addresses at most, and only the
                 // tool process (not a client) can cut.

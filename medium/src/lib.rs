@@ -151,6 +151,7 @@ enum Event {
     Pin(ClientId, u16, u8, bool),
     Running(ClientId, u16, u32),
     Sync(ClientId, u32),
+    Clock(ClientId),
     Cut { from: u16, to: u16 },
     Left(ClientId),
     Stop,

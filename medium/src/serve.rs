@@ -143,6 +143,7 @@ impl Connection {
                     Link::Pin { addr, pin, level } => Event::Pin(self.id, addr, pin, level),
                     Link::Running { addr, generation } => Event::Running(self.id, addr, generation),
                     Link::Sync(n) => Event::Sync(self.id, n),
+                    Link::Clock => Event::Clock(self.id),
                     // A client that speaks nonsense (or the medium's words) is disconnected.
                     _ => return Err(nonsense()),
                 };

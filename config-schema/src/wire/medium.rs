@@ -59,6 +59,11 @@ pub enum Link<'a> {
     /// from now on (sent at boot and at every activation, before any pin the new table
     /// drives), so a plant's trace says under which generation each step ran.
     Running { addr: u16, generation: u32 },
+    /// Client -> medium: answer `Now` with the medium's clock.
+    Clock,
+    /// Medium -> client: the answer to `Clock`: `at_us` microseconds after the medium
+    /// started, the clock of `Seen` (a monitor stamps the frames it hears with it).
+    Now { at_us: u64 },
 }
 
 /// Why bytes are not a link message.
@@ -359,6 +364,16 @@ mod tests {
         assert_eq!(&buf[..n], &[1, 0, 3]);
         let n = Link::Sync(300).emit(&mut buf).unwrap();
         assert_eq!(&buf[..n], &[3, 0, 4, 0xAC, 0x02]);
+    }
+
+    #[test]
+    fn the_clock_and_its_answer_are_variants_8_and_9() {
+        let mut buf = [0u8; MAX_LINK];
+        let n = Link::Clock.emit(&mut buf).unwrap();
+        assert_eq!(&buf[..n], &[1, 0, 8]);
+        let n = Link::Now { at_us: 300 }.emit(&mut buf).unwrap();
+        assert_eq!(&buf[..n], &[3, 0, 9, 0xAC, 0x02]);
+        assert_eq!(Link::parse(&[9, 0xAC, 0x02]), Ok(Link::Now { at_us: 300 }));
     }
 
     #[test]

@@ -1046,8 +1046,9 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
 }
 
 /// `monitor`: every frame (decoded; secured ones opened with the keys of `keys`, the
-/// machine secret's file) and pin change on the medium. Pin changes carry the medium's
-/// time; frames the time they reached the monitor.
+/// machine secret's file) and pin change on the medium, on the medium's clock: pin changes
+/// as the medium stamped them, frames (and generation changes) at the time they reached
+/// the monitor, from the medium's clock asked at the start (`Link::Clock`).
 pub fn monitor(
     at: &MediumAddr,
     for_: Option<Duration>,
@@ -1062,51 +1063,137 @@ pub fn monitor(
     let medium = resolve(at)?;
     let mut conn = Conn::join(medium, Peer::Monitor)
         .map_err(|e| Failure::error(format!("cannot reach the medium at {medium}: {e}")))?;
-    let start = Instant::now();
-    let end = for_.map(|d| start + d);
+    let asked = Instant::now();
+    conn.send(&Link::Clock)
+        .map_err(|e| Failure::error(format!("monitor: {e}")))?;
+    let end = for_.map(|d| asked + d);
+    // The medium's clock once its answer came; what is heard before waits for it (a
+    // medium that does not answer within `CLOCK_WITHIN`: the monitor's own, from its start).
+    let mut clock: Option<MediumClock> = None;
+    let mut early: Vec<(Stamp, String)> = Vec::new();
     // Each pin's last level seen: a level told again (a plant repeats its switches'
     // levels) is no change.
     let mut levels: std::collections::HashMap<(u16, u8, bool), bool> = Default::default();
     loop {
-        let until = end.unwrap_or_else(|| Instant::now() + Duration::from_secs(3600));
+        let mut until = end.unwrap_or_else(|| Instant::now() + Duration::from_secs(3600));
+        if clock.is_none() {
+            until = until.min(asked + CLOCK_WITHIN);
+        }
         let got = conn.recv(until, |link| {
-            let t = start.elapsed().as_secs_f64();
-            match link {
-                Link::Frame(psdu) => Some(format!("{t:>9.3}  {}", sniffer.describe(psdu))),
+            let here = Stamp::Here(Instant::now());
+            Some(match link {
+                Link::Now { at_us } => Heard::Now(at_us, Instant::now()),
+                Link::Frame(psdu) => Heard::Line(here, sniffer.describe(psdu)),
                 Link::Seen {
                     addr,
                     pin,
                     level,
                     output,
                     ..
-                } if levels.insert((addr, pin, output), level) == Some(level) => None,
+                } if levels.insert((addr, pin, output), level) == Some(level) => return None,
                 Link::Seen {
                     at_us,
                     addr,
                     pin,
                     level,
                     output,
-                } => Some(format!(
-                    "{:>9.3}  pin {addr:#06x}.{pin} = {} ({})",
-                    at_us as f64 / 1e6,
-                    u8::from(level),
-                    if output { "output" } else { "input" }
-                )),
-                Link::Running { addr, generation } => Some(format!(
-                    "{t:>9.3}  node {addr:#06x} runs generation {generation}"
-                )),
-                _ => None,
-            }
+                } => Heard::Line(
+                    Stamp::Medium(at_us),
+                    format!(
+                        "pin {addr:#06x}.{pin} = {} ({})",
+                        u8::from(level),
+                        if output { "output" } else { "input" }
+                    ),
+                ),
+                Link::Running { addr, generation } => Heard::Line(
+                    here,
+                    format!("node {addr:#06x} runs generation {generation}"),
+                ),
+                _ => return None,
+            })
         });
-        match got {
-            // Its reader went away (`monitor | head`): done, as a filter is.
-            Ok(Some(line)) if !outln!("{line}") => return Ok(()),
-            Ok(Some(_)) => {}
-            Ok(None) if end.is_some_and(|e| Instant::now() >= e) => return Ok(()),
-            Ok(None) => {}
+        let heard = match got {
+            Ok(heard) => heard,
             Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => return Ok(()),
             Err(e) => return Err(Failure::error(format!("monitor: {e}"))),
+        };
+        let mut lines = Vec::new();
+        match (heard, &clock) {
+            (Some(Heard::Now(at_us, received)), None) => {
+                // The answer left the medium about halfway between the ask and its arrival.
+                let half = received.duration_since(asked) / 2;
+                clock = Some(MediumClock {
+                    at_us,
+                    here: asked + half,
+                });
+                lines.append(&mut early);
+            }
+            (Some(Heard::Now(..)), Some(_)) => {}
+            (Some(Heard::Line(stamp, text)), None) => early.push((stamp, text)),
+            (Some(Heard::Line(stamp, text)), Some(_)) => lines.push((stamp, text)),
+            (None, None) if Instant::now() >= asked + CLOCK_WITHIN => {
+                errln!(
+                    "monitor: the medium did not tell its clock: frames are stamped with the \
+                     monitor's (since it started), pins with the medium's"
+                );
+                clock = Some(MediumClock {
+                    at_us: 0,
+                    here: asked,
+                });
+                lines.append(&mut early);
+            }
+            (None, _) => {}
         }
+        if let Some(clock) = &clock {
+            for (stamp, text) in lines {
+                let line = format!("{:>9.3}  {text}", clock.seconds(stamp));
+                // Its reader went away (`monitor | head`): done, as a filter is.
+                if !outln!("{line}") {
+                    return Ok(());
+                }
+            }
+        }
+        if end.is_some_and(|e| Instant::now() >= e) {
+            return Ok(());
+        }
+    }
+}
+
+/// How long `monitor` waits for the medium's clock before it stamps frames with its own.
+const CLOCK_WITHIN: Duration = Duration::from_secs(2);
+
+/// What `monitor` heard: the medium's clock (`at_us` when it answered, and when the
+/// answer arrived here), or a line to print at its stamp.
+enum Heard {
+    Now(u64, Instant),
+    Line(Stamp, String),
+}
+
+/// When something happened: on the medium's clock (µs since it started), or when it
+/// reached the monitor.
+#[derive(Clone, Copy)]
+enum Stamp {
+    Medium(u64),
+    Here(Instant),
+}
+
+/// The medium's clock as the monitor knows it: it read `at_us` at `here`.
+struct MediumClock {
+    at_us: u64,
+    here: Instant,
+}
+
+impl MediumClock {
+    /// `stamp` in seconds since the medium started.
+    fn seconds(&self, stamp: Stamp) -> f64 {
+        let us = match stamp {
+            Stamp::Medium(at_us) => at_us as f64,
+            Stamp::Here(t) if t >= self.here => {
+                self.at_us as f64 + t.duration_since(self.here).as_micros() as f64
+            }
+            Stamp::Here(t) => self.at_us as f64 - self.here.duration_since(t).as_micros() as f64,
+        };
+        us / 1e6
     }
 }
 
