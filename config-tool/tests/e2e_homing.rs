@@ -34,18 +34,7 @@ fn homing_is_refused_on_a_faulted_machine_and_a_jammed_homing_step_faults() {
     let mut bed = bring_up(&c, options(medium::Config::default(), None));
     push_and_home(&mut bed, &c);
     // VC's rod jams once the plant has seen VC+ GR+: VC- (step 3) does not move.
-    let actuators = robot_net::live_plant::actuators(&c).unwrap();
-    let vc = actuators.iter().position(|a| a.name == "VC").unwrap();
-    bed.set_plant_injected(
-        actuators,
-        Some(robot_net::live_plant::Injection {
-            after: 2,
-            actuator: vc,
-            kind: robot_net::live_plant::Jam::Stuck,
-        }),
-    )
-    .unwrap();
-    bed.watch(&c).unwrap();
+    jam_after(&mut bed, &c, "VC", 2);
     let cycle = bed.run_cycle(&c, &mut |_, _| {}).unwrap();
     assert_eq!(
         cycle.fault.as_ref().map(|f| (f.role.as_str(), f.code)),

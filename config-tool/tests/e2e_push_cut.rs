@@ -3,10 +3,27 @@
 
 mod e2e_support;
 
-use std::process::{Command, Stdio};
+use std::process::{Child, Command, Stdio};
 
 use config_schema::wire::msg::Message;
 use e2e_support::*;
+
+/// `config-tool push ROBOT ARGS --medium` to `bed`'s medium, without keys, running.
+fn spawn_push(bed: &robot_net::demo::Bed, robot: &std::path::Path, args: &[&str]) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .current_dir(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .arg("push")
+        .arg(robot)
+        .args(args)
+        .arg("--medium")
+        .arg(bed.medium().addr().to_string())
+        .env_remove("CONFIG_TOOL_KEYS")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("push runs")
+}
 
 /// It said only `error: the medium closed the connection`, status 1, whether the nodes had
 /// switched or not. Cut during the transfer (one node down, so the transfer is still
@@ -21,16 +38,7 @@ fn a_push_cut_off_during_the_transfer_says_nothing_switched() {
     // RC's node is down: its transfer cannot end before the cut.
     bed.kill_node(addr_of(&c, "RC"));
     let mut monitor = Monitor::join(bed.medium().addr());
-    let push = Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .current_dir(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
-        .args(["push", paint.to_str().expect("utf-8 path"), "--medium"])
-        .arg(bed.medium().addr().to_string())
-        .env_remove("CONFIG_TOOL_KEYS")
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("push runs");
+    let push = spawn_push(&bed, &paint, &[]);
     // The transfer is under way once a table's first chunk is on the air.
     monitor.until(|_, payload| matches!(Message::parse(payload), Ok(Message::ConfigChunk { .. })));
     bed.stop();
@@ -63,18 +71,7 @@ fn a_push_cut_off_during_the_switch_over_says_where_each_node_stands() {
     push_and_home(&mut bed, &c);
     // VC's rod jams at its first stroke: its watchdog faults the machine, which does not
     // come to rest until reset.
-    let actuators = robot_net::live_plant::actuators(&c).unwrap();
-    let vc = actuators.iter().position(|a| a.name == "VC").unwrap();
-    bed.set_plant_injected(
-        actuators,
-        Some(robot_net::live_plant::Injection {
-            after: 0,
-            actuator: vc,
-            kind: robot_net::live_plant::Jam::Stuck,
-        }),
-    )
-    .unwrap();
-    bed.watch(&c).unwrap();
+    jam_after(&mut bed, &c, "VC", 0);
     let cycle = bed.run_cycle(&c, &mut |_, _| {}).unwrap();
     assert!(
         cycle.fault.is_some(),
@@ -82,17 +79,7 @@ fn a_push_cut_off_during_the_switch_over_says_where_each_node_stands() {
         robot_net::demo::cycle_line(1, &cycle)
     );
     let mut monitor = Monitor::join(bed.medium().addr());
-    let push = Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .current_dir(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
-        .args(["push", dip.to_str().expect("utf-8 path")])
-        .args(["--generation", "2", "--medium"])
-        .arg(bed.medium().addr().to_string())
-        .env_remove("CONFIG_TOOL_KEYS")
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("push runs");
+    let push = spawn_push(&bed, &dip, &["--generation", "2"]);
     // The switch-over is under way once a node is asked to arm.
     monitor.until(|_, payload| matches!(Message::parse(payload), Ok(Message::Switch { .. })));
     bed.stop();

@@ -4,7 +4,7 @@
 
 use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
-use std::process::{Command, Stdio};
+use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
 use std::time::Duration;
 
@@ -44,6 +44,28 @@ fn payload(m: &Message) -> Vec<u8> {
     buf[..n].to_vec()
 }
 
+/// `config-tool monitor --medium M ARGS` on `medium`, once it joined (`medium` has one
+/// client before it): the process and its lines as they come.
+fn monitor(medium: &Medium, args: &[&str]) -> (Child, mpsc::Receiver<String>) {
+    let mut monitor = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["monitor", "--medium", &medium.addr().to_string()])
+        .args(args)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let out = monitor.stdout.take().unwrap();
+    let (tx, lines) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(out).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    assert!(medium.wait_for_clients(2, SURE), "the monitor joins");
+    (monitor, lines)
+}
+
 fn sealed(h: Header, index: u8, counter: u32, key: &[u8; 16], m: &Message) -> Vec<u8> {
     let mut psdu = [0u8; 127];
     let aux = AuxRepr::new(index, counter);
@@ -60,23 +82,8 @@ fn monitor_with_the_key_file_shows_secured_frames_decrypted_and_marks_the_bad_on
     let secret = load_machine_secret(&keys).unwrap();
     let medium = Medium::start(Config::default()).unwrap();
     let mut radio = Conn::join(medium.addr(), Peer::Tool { addr: TOOL }).unwrap();
-    let mut monitor = Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .args(["monitor", "--medium", &medium.addr().to_string(), "--keys"])
-        .arg(&keys)
-        .args(["--generation", "3"])
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let out = monitor.stdout.take().unwrap();
-    let (tx, lines) = mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(out).lines().map_while(Result::ok) {
-            if tx.send(line).is_err() {
-                break;
-            }
-        }
-    });
-    assert!(medium.wait_for_clients(2, SURE), "the monitor joins");
+    let keys_s = keys.to_str().unwrap();
+    let (mut monitor, lines) = monitor(&medium, &["--keys", keys_s, "--generation", "3"]);
 
     let start = Message::Command {
         id: 3,
@@ -272,21 +279,7 @@ fn monitor_prints_a_pin_only_when_its_level_changes() {
 fn monitor_stamps_frames_and_pins_with_one_clock() {
     let medium = Medium::start(Config::default()).unwrap();
     let mut node = Conn::join(medium.addr(), Peer::Node { addr: VC }).unwrap();
-    let mut monitor = Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .args(["monitor", "--medium", &medium.addr().to_string()])
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let out = monitor.stdout.take().unwrap();
-    let (tx, lines) = mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(out).lines().map_while(Result::ok) {
-            if tx.send(line).is_err() {
-                break;
-            }
-        }
-    });
-    assert!(medium.wait_for_clients(2, SURE), "the monitor joins");
+    let (mut monitor, lines) = monitor(&medium, &[]);
     let event = Message::Event {
         epoch: 1,
         seq: 0,

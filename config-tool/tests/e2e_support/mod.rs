@@ -756,6 +756,23 @@ pub fn killed_mid_cycle_then_homed(options: Options) {
     bed.stop();
 }
 
+/// Jams `actuator`'s rod (it stays where it is) once the plant has seen `after` steps, and
+/// watches the machine (ready for `run_cycle`).
+pub fn jam_after(bed: &mut Bed, c: &Compiled, actuator: &str, after: usize) {
+    let actuators = robot_net::live_plant::actuators(c).unwrap();
+    let at = actuators.iter().position(|a| a.name == actuator).unwrap();
+    bed.set_plant_injected(
+        actuators,
+        Some(robot_net::live_plant::Injection {
+            after,
+            actuator: at,
+            kind: robot_net::live_plant::Jam::Stuck,
+        }),
+    )
+    .unwrap();
+    bed.watch(c).unwrap();
+}
+
 /// `robot-configs/NAME` with security off (`security: Off` after its network), written to
 /// `dir`: its path, and the robot compiled for generation 1. For command-line tests that
 /// run the tool without keys.
