@@ -244,16 +244,26 @@ pub struct Received {
     pub ack: Option<Message<'static>>,
 }
 
+/// Where a receiver stands (eight bytes: a receiver per peer, on every node).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+enum Cursor {
+    /// Fresh (the node booted, or the peer is new to its table): no event taken yet.
+    #[default]
+    Fresh,
+    /// Fresh, and it dropped an event (past seq 0) at `at` (ms, wrapping).
+    Noted { at: u32 },
+    /// Fresh, and it asked its publisher at `at` (ms, wrapping) to number the link again
+    /// in `wanted` ([`Receiver::ask`]): it takes no older epoch.
+    Asked { wanted: u16, at: u32 },
+    /// Epoch `epoch` taken, `next` the next seq expected.
+    At { epoch: u16, next: u16 },
+}
+
 /// The subscriber's side of one link.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
 pub struct Receiver {
-    /// (epoch, next expected seq) once the first event of an epoch arrived.
-    cursor: Option<(u16, u16)>,
-    /// Before that (a fresh receiver: the node booted), since it dropped a first event:
-    /// the epoch it last asked its publisher to number the link again in (it takes no
-    /// older one; `None`: not asked yet), and when it asked (or dropped that first event)
-    /// ([`Receiver::ask`]).
-    asked: Option<(Option<u16>, u64)>,
+    /// Where the link stands.
+    cursor: Cursor,
     /// Events that arrived early: `held[i]` is seq `next + 1 + i`.
     held: [Option<Topic>; WINDOW],
     /// Duplicates, stale and out-of-window frames dropped.
@@ -287,19 +297,21 @@ impl Receiver {
         deliver: &mut heapless::Vec<Topic, { WINDOW + 1 }>,
     ) -> Option<u16> {
         let next = match self.cursor {
-            Some((current, next)) if current == epoch => next,
+            Cursor::At {
+                epoch: current,
+                next,
+            } if current == epoch => next,
             // An older epoch: a frame from before the publisher restarted.
-            Some((current, _)) if before(epoch, current) => return self.drop_frame(),
+            Cursor::At { epoch: current, .. } if before(epoch, current) => {
+                return self.drop_frame()
+            }
             // A newer epoch (or the first one seen) is anchored at seq 0 only.
             _ if seq != 0 => return self.drop_frame(),
             // Fresh, and it asked for a renumbering: not an epoch older than it asked for
             // (whose events the publisher may be numbering again in a newer one).
-            None if matches!(self.asked, Some((Some(wanted), _)) if before(epoch, wanted)) => {
-                return self.drop_frame()
-            }
+            Cursor::Asked { wanted, .. } if before(epoch, wanted) => return self.drop_frame(),
             _ => {
                 self.held = [None; WINDOW];
-                self.asked = None;
                 0
             }
         };
@@ -327,7 +339,7 @@ impl Receiver {
         } else {
             self.dropped += 1; // a duplicate, or beyond the sender's window
         }
-        self.cursor = Some((epoch, next));
+        self.cursor = Cursor::At { epoch, next };
         Some(next)
     }
 
@@ -343,19 +355,20 @@ impl Receiver {
     /// epoch it dropped: an event the publisher numbered again in an epoch it asked for
     /// before is never taken, so nothing is delivered twice.
     pub fn ask(&mut self, epoch: u16, now: u64) -> Option<u16> {
-        if self.cursor.is_some() {
-            return None;
-        }
-        let wanted = match self.asked {
-            None => {
-                self.asked = Some((None, now));
+        // Milliseconds in 32 bits, compared wrapping: an interval is far below 49 days.
+        let now = now as u32;
+        let since = |at: u32| now.wrapping_sub(at) < ASK_MS as u32;
+        let wanted = match self.cursor {
+            Cursor::At { .. } => return None,
+            Cursor::Fresh => {
+                self.cursor = Cursor::Noted { at: now };
                 return None;
             }
-            Some((_, at)) if now < at.saturating_add(ASK_MS) => return None,
-            Some((Some(wanted), _)) if before(epoch, wanted) => wanted,
-            Some(_) => epoch.wrapping_add(1),
+            Cursor::Noted { at } | Cursor::Asked { at, .. } if since(at) => return None,
+            Cursor::Asked { wanted, .. } if before(epoch, wanted) => wanted,
+            Cursor::Noted { .. } | Cursor::Asked { .. } => epoch.wrapping_add(1),
         };
-        self.asked = Some((Some(wanted), now));
+        self.cursor = Cursor::Asked { wanted, at: now };
         Some(wanted)
     }
 

@@ -1263,7 +1263,7 @@ impl<S: StagingArea> NodeCore<S> {
                 // It knows no counter of ours: it booted (or is new to this table),
                 // and has no receiving side of our link to it either.
                 if renumber {
-                    self.renumber_link(peer, now);
+                    self.renumber_link(peer, None, now);
                 }
                 if answer {
                     self.send(io, pan, peer, &Message::ChallengeAnswer { nonce });
@@ -1452,11 +1452,15 @@ impl<S: StagingArea> NodeCore<S> {
             | Message::ConfigChunk { .. }
             | Message::ConfigEnd { .. } => self.on_config(&msg, src, reply_pan, io),
             // A peer that booted, on a robot without link keys (a secured robot's challenge
-            // is its handshake's, taken before this).
+            // is its handshake's, taken before this): it asks for our link to it numbered
+            // again in the epoch its nonce names ([`NodeCore::ask_renumbering`]).
             Message::Challenge { nonce }
                 if opened.is_none() && reply_pan != CONFIG_PAN && !self.radio.links.secured() =>
             {
-                self.renumber_asked(src, nonce, now)
+                match (self.peer(src), u16::try_from(nonce)) {
+                    (Some(_), Ok(wanted)) => self.renumber_link(src, Some(wanted), now),
+                    _ => self.radio.counters.dropped += 1,
+                }
             }
             Message::Command { id, command } => {
                 self.on_command(id, command, src, reply_pan, now, io)
@@ -1542,14 +1546,23 @@ impl<S: StagingArea> NodeCore<S> {
     }
 
     /// Our link to `peer` starts again from seq 0 in a new epoch (the peer rebooted: its
-    /// receiver waits for seq 0), with the events it has not acknowledged.
-    fn renumber_link(&mut self, peer: u16, now: u64) {
+    /// receiver waits for seq 0), with the events it has not acknowledged: this node's
+    /// next epoch, or `wanted` if the peer asked for a newer one (a link that numbers in
+    /// `wanted` or a newer one already is left as it is: the ask came late, or twice).
+    fn renumber_link(&mut self, peer: u16, wanted: Option<u16>, now: u64) {
         let Some(i) = self.peer(peer) else { return };
-        self.epoch = self.epoch.wrapping_add(1);
-        let epoch = self.epoch;
-        if let Some(sender) = self.senders.get_mut(i) {
-            sender.renumber(epoch, now);
+        let Some(sender) = self.senders.get_mut(i) else {
+            return;
+        };
+        if wanted.is_some_and(|w| !sender.older_than(w)) {
+            return;
         }
+        let next = self.epoch.wrapping_add(1);
+        self.epoch = match wanted {
+            Some(w) if link::before(next, w) => w,
+            _ => next,
+        };
+        sender.renumber(self.epoch, now);
     }
 
     /// Challenges peer `peer` on the robot's PAN (see [`crate::peer_security`]).
@@ -1653,7 +1666,7 @@ impl<S: StagingArea> NodeCore<S> {
     /// robot without link keys, a fresh receiver (this node booted while the peer numbered
     /// on) asks the peer, with a `Challenge` in clear whose nonce is the epoch it asks for,
     /// to number its link again from seq 0 ([`link::Receiver::ask`]; the peer:
-    /// [`NodeCore::renumber_asked`]). A secured robot's links are numbered again by its
+    /// [`NodeCore::renumber_link`]). A secured robot's links are numbered again by its
     /// handshake ([`crate::peer_security`]).
     #[cold]
     #[inline(never)]
@@ -1676,31 +1689,6 @@ impl<S: StagingArea> NodeCore<S> {
             let nonce = u32::from(wanted);
             self.send(io, pan, src, &Message::Challenge { nonce });
         }
-    }
-
-    /// A peer's `Challenge` in clear on a robot without link keys ([`NodeCore::ask_renumbering`]):
-    /// it booted and asks for our link to it numbered again from seq 0 in an epoch not
-    /// older than `wanted` (the nonce). Taken once: a link that numbers in that epoch or a
-    /// newer one already (a late or repeated challenge) is left as it is.
-    fn renumber_asked(&mut self, src: u16, wanted: u32, now: u64) {
-        let (Some(i), Ok(wanted)) = (self.peer(src), u16::try_from(wanted)) else {
-            self.radio.counters.dropped += 1;
-            return;
-        };
-        let Some(sender) = self.senders.get_mut(i) else {
-            return;
-        };
-        if !sender.older_than(wanted) {
-            return;
-        }
-        // The next epoch of this node's numbering, or the one asked for if that is newer.
-        let next = self.epoch.wrapping_add(1);
-        self.epoch = if link::before(next, wanted) {
-            wanted
-        } else {
-            next
-        };
-        sender.renumber(self.epoch, now);
     }
 
     /// [`NodeCore::run`] of a remote event: `topic` from peer `peer` (written out for the

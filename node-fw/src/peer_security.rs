@@ -106,9 +106,9 @@ pub struct PeerSecurity {
     /// Per peer: when it may be challenged, and answered, again.
     next_challenge: Vec<(u16, u64), MAX_PEERS>,
     next_answer: Vec<(u16, u64), MAX_PEERS>,
-    /// Per peer: the frame counter of its last challenge that numbered our link to it
-    /// again.
-    renumbered: Vec<(u16, u32), MAX_PEERS>,
+    /// Per peer of the current keys (in their order): the frame counter of its last
+    /// challenge that numbered our link to it again.
+    renumbered: [Option<u32>; MAX_PEERS],
 }
 
 /// Whether `peer` may be sent another handshake frame at `now`, at most one per
@@ -164,7 +164,9 @@ impl PeerSecurity {
         }
         self.replay = floors;
         self.challenges.retain(peers);
-        self.renumbered.retain(|(p, _)| peers.contains(p));
+        // Indexed by the new keys' peers: what the old ones' said is forgotten (a challenge
+        // copied across a switch-over renumbers once more, at most).
+        self.renumbered = [None; MAX_PEERS];
         self.greet.clear();
         if self.current.is_some() {
             for &p in peers {
@@ -386,20 +388,15 @@ impl PeerSecurity {
     /// the radio duplicated, or an old one replayed: numbered again for it, the events
     /// the peer took since the first would be delivered to it twice.
     fn renumbers(&mut self, peer: u16, counter: u32) -> bool {
-        match self.renumbered.iter_mut().find(|(p, _)| *p == peer) {
-            Some((_, last)) if counter <= *last => false,
-            Some((_, last)) => {
-                *last = counter;
-                true
-            }
-            None => {
-                if self.renumbered.is_full() {
-                    crate::remove_at(&mut self.renumbered, 0);
-                }
-                let _ = self.renumbered.push((peer, counter));
-                true
-            }
+        let at = (self.current.as_ref()).and_then(|k| k.peers.iter().position(|p| p.peer == peer));
+        let Some(last) = at.and_then(|i| self.renumbered.get_mut(i)) else {
+            return true;
+        };
+        if last.is_some_and(|last| counter <= last) {
+            return false;
         }
+        *last = Some(counter);
+        true
     }
 
     /// This node challenged `peer` with `nonce` (the challenge frame's own counter).
