@@ -538,10 +538,8 @@ fn confirm_refuses_a_trial_a_power_cut_split() {
     let rc = e2e_support::role_of(&c, "RC").1;
     let at = nodes.iter().position(|n| n.0 == rc).expect("RC");
     drop(nodes.remove(at));
-    // `scan` with the robot names the node that does not answer, and fails.
-    let out = tool(&["scan", ROBOT, "--keys", &key_s, "--medium", &m]);
-    assert_eq!(out.status.code(), Some(1), "{}", text(&out.stderr));
-    let found = text(&out.stdout);
+    // `scan` with the robot names the node that does not answer.
+    let found = ok(&["scan", ROBOT, "--keys", &key_s, "--medium", &m]);
     let name = &c
         .robot
         .nodes
