@@ -77,7 +77,7 @@ pub enum Verdict<'s> {
         /// greets last after a push is then known both ways before any event).
         challenge: bool,
         /// The peer booted: number our link to it again (not for a copy of a challenge
-        /// that did so already: [`PeerSecurity::renumbers`]).
+        /// that did so already: `PeerSecurity::renumbers`).
         renumber: bool,
     },
     /// The answer to this node's challenge: the peer's floor is set. Nothing else to do.
