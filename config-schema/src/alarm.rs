@@ -54,11 +54,13 @@ pub enum AlarmSource {
 }
 
 /// Application fault codes (`Action::Fault`, status `0x80 | code`) of the stops: the
-/// emergency stop pressed on this node, on another node, and a link alarm under
-/// `on_link_alarm: Fault` (raised by the node itself, no chart: [`NO_CHART`]).
+/// emergency stop pressed on this node, on another node, a link alarm under
+/// `on_link_alarm: Fault`, and a peer that restarted while this node was under way (the
+/// last two raised by the node itself, no chart: [`NO_CHART`]).
 pub const FAULT_ESTOP: u8 = 3;
 pub const FAULT_ESTOP_PEER: u8 = 4;
 pub const FAULT_LINK: u8 = 5;
+pub const FAULT_PEER_RESTART: u8 = 6;
 
 /// [`AlarmSource::Chart`] of a fault no chart's action raised.
 pub const NO_CHART: u8 = u8::MAX;

@@ -5,7 +5,10 @@
 
 mod e2e_support;
 
+use config_schema::wire::msg::{Command, Status};
 use e2e_support::*;
+use robot_compiler::Compiled;
+use robot_net::demo::Options;
 
 #[test]
 fn every_node_killed_mid_cycle_boots_unhomed_and_homing_then_one_start_gives_an_exact_cycle() {
@@ -118,5 +121,94 @@ fn an_unsecured_robots_restarted_node_is_homed_without_a_reset_then_runs_an_exac
     assert_eq!(home_ok(&mut bed, &c), Vec::<String>::new());
     assert_running(&mut bed, &c);
     exact_cycle(&mut bed, &c, 2);
+    bed.stop();
+}
+
+/// A secured robot, GR's node alone loses power mid-cycle (the machine under way, the
+/// gripper holding the part): before, every other node waited for an event that had
+/// passed, `moving` for ever, and `home` refused until every node was reset by hand. Now
+/// the restarted node's greeting tells its peers: each one under way stops in a fault
+/// (`0x86`, outputs at their fault levels), a node at rest stays at rest; the operator's
+/// reset of the faulted nodes, acknowledging their alarms, homing and a START give an
+/// exact cycle.
+#[test]
+fn one_node_cut_mid_cycle_faults_the_nodes_under_way_then_reset_and_homing_give_an_exact_cycle() {
+    let flash = TempDir::new("one-cut");
+    let c = robot("paint-robot.ron", 1);
+    one_node_cut_mid_cycle(&c, options(medium::Config::default(), Some(&flash)));
+}
+
+/// As above, on a robot without link keys at 20 % loss: the restarted node's boot notice
+/// (a challenge in clear, sent a few times) tells its peers.
+#[test]
+fn an_unsecured_robots_one_node_cut_mid_cycle_at_20_percent_loss_faults_the_nodes_under_way() {
+    let dir = TempDir::new("one-cut-unsecured");
+    let flash = TempDir::new("one-cut-unsecured-flash");
+    let (_, c) = unsecured_robot(&dir, "paint-robot.ron");
+    let lossy = medium::Config {
+        loss: 0.2,
+        dup: 0.1,
+        delay_ms: (0, 8),
+        seed: 0x5EED_0041,
+        ..medium::Config::default()
+    };
+    let mut opts = options(lossy, Some(&flash));
+    opts.secured = false;
+    one_node_cut_mid_cycle(&c, opts);
+}
+
+/// Push, home, START; once the plant has seen `VC+ GR+ VC- HC+ VC+`, GR's node loses
+/// power and boots again: VC (in the middle of its chart until the cycle's last step) is
+/// faulted `0x86`, GR not homed and not faulted, every other node faulted `0x86` or at
+/// rest; then reset, acknowledge, home, an exact cycle.
+fn one_node_cut_mid_cycle(c: &Compiled, options: Options) {
+    let mut bed = bring_up(c, options);
+    push_and_home(&mut bed, c);
+    bed.press_start(c).expect("START");
+    let seen: Vec<String> = (bed.await_strokes(5).expect("five steps").iter())
+        .map(|s| s.to_string())
+        .collect();
+    assert_eq!(seen.join(" "), "VC+ GR+ VC- HC+ VC+");
+    let gr = addr_of(c, "GR");
+    power_cut(&mut bed, &[gr]);
+
+    let restarted = 0x80 | config_schema::alarm::FAULT_PEER_RESTART;
+    let vc = wait_until(&mut bed, addr_of(c, "VC"), |s| s.fault.is_some());
+    assert_eq!(vc.fault, Some(restarted), "VC: {vc:?}");
+    let mut faulted = Vec::new();
+    for (r, t) in c.ir.roles.iter().zip(&c.tables) {
+        let rests = |s: &Status| {
+            (t.charts.iter().zip(&s.states)).all(|(ch, &at)| at == ch.idle || at == ch.initial)
+        };
+        let s = wait_until(&mut bed, r.address, |s| s.fault.is_some() || rests(s));
+        if r.address == gr {
+            assert_eq!(
+                (s.fault, s.states),
+                (None, initial(t).into_iter().collect())
+            );
+        } else if s.fault.is_some() {
+            assert_eq!(s.fault, Some(restarted), "{}: {s:?}", r.name);
+            faulted.push(r.address);
+        }
+    }
+    assert!(faulted.contains(&addr_of(c, "VC")), "{faulted:?}");
+    for &a in &faulted {
+        bed.command(a, Command::Reset).expect("reset");
+    }
+    // The faults' alarms stay latched until the operator acknowledges them.
+    let refused = bed.home(c).unwrap().end;
+    assert_eq!(
+        refused,
+        robot_net::home::HomeEnd::Refused(
+            "node 0x0011 (VC) has a fault alarm latched: a peer restarted (a power cut?) while \
+             this node was under way (code 0x86): acknowledge it first (config-tool ack)"
+                .to_string()
+        )
+    );
+    let acked = bed.alarms(c, true).unwrap();
+    assert!(acked.iter().all(|r| r.blocking().is_none()), "{acked:?}");
+    home_ok(&mut bed, c);
+    assert_running(&mut bed, c);
+    exact_cycle(&mut bed, c, 2);
     bed.stop();
 }

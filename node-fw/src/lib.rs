@@ -8,6 +8,7 @@
 //! - [`node`]: the whole node as one pure state machine: frames in, frames and pins out.
 //! - [`ota`]: over-the-air table transfer, node and tool sides (pure state machines).
 //! - [`provision`]: what a node is given at flash time (address, flags, management key).
+//! - [`restart`]: a peer's restart told (its greeting) and heard (once per restart).
 //! - [`slots`]: the two table slots in flash, committed last so a power cut loses nothing.
 //! - [`frame_counter`]: the secured frames' counter, reserved ahead in flash, never reused.
 //! - [`runtime`]: the Embassy runtime around the node, generic over radio, pins and flash.
@@ -28,6 +29,7 @@ pub mod node;
 pub mod ota;
 pub mod peer_security;
 pub mod provision;
+pub mod restart;
 pub mod runtime;
 #[cfg(feature = "std")]
 pub mod sim;

@@ -24,6 +24,7 @@ use crate::link::{self, LinkState};
 use crate::ota::{self, Outcome, RamStaging, Staging as StagingArea};
 use crate::peer_security::{self, PeerSecurity, Pending, Verdict};
 use crate::provision::ManagementKey;
+use crate::restart;
 use crate::switch::{self, SwitchOver};
 
 /// Reported in announcements and status.
@@ -145,6 +146,10 @@ pub struct NodeCore<S = RamStaging> {
     cycle_open: bool,
     /// The table's boot event is still to be raised (the node booted with a table).
     boot_pending: bool,
+    /// The greetings still to send after a boot, on a robot without link keys.
+    greetings: restart::Greetings,
+    /// The peers' restarts heard.
+    restarts: restart::Heard,
     next_announce: u64,
     /// The last command id run per sender: a repeat is answered, not run again.
     commands: Vec<(u16, u16), 4>,
@@ -504,6 +509,8 @@ impl<S: StagingArea> NodeCore<S> {
             cycles: 0,
             cycle_open: false,
             boot_pending: false,
+            greetings: restart::Greetings::default(),
+            restarts: restart::Heard::default(),
             next_announce: 0,
             commands: Vec::new(),
             pins: 0,
@@ -652,6 +659,8 @@ impl<S: StagingArea> NodeCore<S> {
         self.restarted = 0;
         self.cycle_open = false;
         self.boot_pending = false;
+        self.greetings = restart::Greetings::default();
+        self.restarts.forget();
         self.alarms.new_table();
         for _ in &table.peers {
             let _ = self.senders.push(link::Sender::new(self.epoch));
@@ -818,6 +827,7 @@ impl<S: StagingArea> NodeCore<S> {
         let others = [
             announce,
             self.radio.links.greeting(),
+            self.greetings.deadline(),
             self.switch.deadline(),
         ];
         for t in self.timers.iter().copied().chain(links).chain(others) {
@@ -1039,6 +1049,13 @@ impl<S: StagingArea> NodeCore<S> {
         if core::mem::take(&mut self.boot_pending) {
             // Peers learn that this node's actuators may stand anywhere.
             self.run(now, io, Stimulus::Boot);
+            // And that its charts started over (a secured node's handshake greets them).
+            if !self.radio.links.secured() {
+                self.greetings.boot(now);
+            }
+        }
+        if self.greetings.due(now) {
+            self.greet_in_clear(io);
         }
         for timer in 0..MAX_TIMERS {
             if self.timers[timer].is_some_and(|t| t <= now) {
@@ -1050,7 +1067,9 @@ impl<S: StagingArea> NodeCore<S> {
             self.run_start(now, io);
         }
         while let Some(peer) = self.radio.links.next_greeting(now) {
-            self.challenge_peer(peer, io);
+            if let Some(pan) = self.table.as_ref().map(|t| t.header.pan_id) {
+                self.challenge_on(pan, peer, restart::GREETING, io);
+            }
         }
         if let Some(table) = &self.table {
             let pan = table.header.pan_id;
@@ -1271,6 +1290,9 @@ impl<S: StagingArea> NodeCore<S> {
                 if challenge {
                     self.challenge_peer(peer, io);
                 }
+                if nonce & restart::GREETING != 0 {
+                    self.peer_restarted(peer, now, io);
+                }
             }
         }
     }
@@ -1459,6 +1481,9 @@ impl<S: StagingArea> NodeCore<S> {
             {
                 match (self.peer(src), u16::try_from(nonce)) {
                     (Some(_), Ok(wanted)) => self.renumber_link(src, Some(wanted), now),
+                    (Some(_), Err(_)) if nonce == restart::GREETING => {
+                        self.peer_restarted(src, now, io)
+                    }
                     _ => self.radio.counters.dropped += 1,
                 }
             }
@@ -1526,23 +1551,25 @@ impl<S: StagingArea> NodeCore<S> {
 
     /// Sends `src` a challenge on the config PAN (see [`NodeCore::challenge_on`]).
     fn challenge(&mut self, src: u16, io: &mut impl Io) {
-        self.challenge_on(CONFIG_PAN, src, io);
+        self.challenge_on(CONFIG_PAN, src, 0, io);
     }
 
     /// Sends `dst` on `pan` a challenge whose nonce is the counter of the challenge frame
-    /// itself, and remembers it: on the config PAN for the management path, on the
-    /// robot's for the peers' (one sender for both).
-    fn challenge_on(&mut self, pan: u16, dst: u16, io: &mut impl Io) {
-        let Some(nonce) = io.next_frame_counter() else {
+    /// itself (with `flags`: [`restart::GREETING`] for a booted node's greeting), and
+    /// remembers it: on the config PAN for the management path, on the robot's for the
+    /// peers' (one sender for both).
+    fn challenge_on(&mut self, pan: u16, dst: u16, flags: u32, io: &mut impl Io) {
+        let Some(counter) = io.next_frame_counter() else {
             self.radio.security.no_counter += 1;
             return;
         };
+        let nonce = counter | flags;
         if pan == CONFIG_PAN {
             self.challenges.sent(dst, nonce);
         } else {
             self.radio.links.challenged(dst, nonce);
         }
-        self.send_numbered(io, pan, dst, &Message::Challenge { nonce }, Some(nonce));
+        self.send_numbered(io, pan, dst, &Message::Challenge { nonce }, Some(counter));
     }
 
     /// Our link to `peer` starts again from seq 0 in a new epoch (the peer rebooted: its
@@ -1570,7 +1597,47 @@ impl<S: StagingArea> NodeCore<S> {
         let Some(pan) = self.table.as_ref().map(|t| t.header.pan_id) else {
             return;
         };
-        self.challenge_on(pan, peer, io);
+        self.challenge_on(pan, peer, 0, io);
+    }
+
+    /// A node without link keys that booted greets each of its peers in clear
+    /// ([`restart`]).
+    #[cold]
+    #[inline(never)]
+    fn greet_in_clear(&mut self, io: &mut impl Io) {
+        let Some(t) = &self.table else { return };
+        let pan = t.header.pan_id;
+        let greeting = Message::Challenge {
+            nonce: restart::GREETING,
+        };
+        for &peer in &t.peers {
+            self.radio.send(io, pan, peer, &greeting);
+        }
+    }
+
+    /// Peer `peer` greeted this node: it booted, its charts started over. A node under
+    /// way ([`NodeCore::under_way`]) waits for events that peer's charts will not send:
+    /// it faults (`FAULT_PEER_RESTART`, its outputs at their fault levels) rather than
+    /// stall, at the first copy of the greeting it hears; a node at rest carries on.
+    #[cold]
+    #[inline(never)]
+    fn peer_restarted(&mut self, peer: u16, now: u64, io: &mut impl Io) {
+        let Some(i) = self.peer(peer) else { return };
+        if self.restarts.first(i, now) && self.under_way() {
+            let code = config_schema::alarm::FAULT_PEER_RESTART;
+            self.run(now, io, Stimulus::Fail(code));
+        }
+    }
+
+    /// Whether the node is under way: it runs a table, is not faulted, and a chart of it
+    /// is neither in its idle nor in its initial state (a cycle or homing under way).
+    pub fn under_way(&self) -> bool {
+        let (Some(t), Some(st)) = (&self.table, &self.state) else {
+            return false;
+        };
+        st.fault.is_none()
+            && (t.charts.iter().zip(st.current.iter()))
+                .any(|(c, &cur)| cur != c.idle && cur != c.initial)
     }
 
     fn peer(&self, addr: u16) -> Option<usize> {

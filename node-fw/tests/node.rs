@@ -525,10 +525,23 @@ fn a_table_loaded_at_boot_starts_from_the_seeded_pin_levels() {
     let mut board = Board::default();
     a.input(BUTTON_PIN, true, 0, &mut board);
     a.poll(0, &mut board);
-    assert!(board.out.is_empty(), "no edge: nothing published");
+    // What the boot sent: its greeting to B, no event.
+    let sent = |board: &Board| Net::events_sent_by(&board.out);
+    let greeting = match Frame::parse(&board.out[0]) {
+        Ok(Frame::Data { header, payload }) => (header.dst, Message::parse(payload).ok()),
+        other => panic!("{other:?}"),
+    };
+    let nonce = node_fw::restart::GREETING;
+    assert_eq!(
+        greeting,
+        (B, Some(Message::Challenge { nonce })),
+        "its greeting"
+    );
+    assert_eq!(board.out.len(), 1, "the greeting alone");
+    assert!(sent(&board).is_empty(), "no edge: nothing published");
     a.input(BUTTON_PIN, false, 1, &mut board);
     a.input(BUTTON_PIN, true, 2, &mut board);
-    assert_eq!(board.out.len(), 1, "one edge: one event frame to B");
+    assert_eq!(sent(&board), [(B, 2, 0)], "one edge: one event frame to B");
 }
 
 impl Net {
@@ -697,6 +710,56 @@ fn after_the_subscriber_restarts_unsecured_links_are_numbered_again_and_events_f
         assert_eq!(net.status(B).counters.delivered, 5, "seed {seed}");
         let a = net.status(A);
         assert_eq!((a.link_alarms, a.links_broken), (0, 0), "seed {seed}");
+    }
+}
+
+/// A node without link keys that boots greets its peers in clear (a `Challenge` whose
+/// nonce is `restart::GREETING`), five times, 100 ms apart. B, its lamp on when A's power
+/// is cut (its chart neither idle nor initial: under way, as a node in the middle of a
+/// cycle), faults `0x86` at the first copy it hears, its lamp at its fault level (off);
+/// the other copies change nothing. Reset, at rest, B carries on through A's next restart,
+/// and a press toggles its lamp. Before, B stayed on, waiting for what A would never send.
+#[test]
+fn a_node_under_way_faults_when_a_peer_restarts_and_one_at_rest_carries_on() {
+    let restarted = 0x80 | config_schema::alarm::FAULT_PEER_RESTART;
+    for seed in 1..=8 {
+        let mut net = Net::new(0.2, 0.1, 70 + seed);
+        assert_eq!(net.push(A, &table_a(1), false), ota::Progress::Done);
+        assert_eq!(net.push(B, &table_b(1), false), ota::Progress::Done);
+        net.press();
+        net.run(1000);
+        assert_eq!(net.status(B).states.as_slice(), [1], "seed {seed}: lamp on");
+        for epoch in [5, 6] {
+            net.nodes[0] = (
+                NodeCore::new(A, u64::MAX, Some(table_a(1)), epoch),
+                Board::default(),
+            );
+            let (a, board) = &mut net.nodes[0];
+            a.boot(board);
+            net.nodes[1].1.pins.clear();
+            net.run(1500);
+            let b = net.status(B);
+            if epoch == 5 {
+                assert_eq!(
+                    (b.fault, b.states.as_slice(), b.outputs),
+                    (Some(restarted), [1].as_slice(), 0),
+                    "seed {seed}"
+                );
+                assert_eq!(net.nodes[1].1.pins, [(LAMP_PIN, false)], "seed {seed}");
+                let reset = net.command(B, 9, Command::Reset);
+                assert_eq!(
+                    (reset.fault, reset.states.as_slice()),
+                    (None, [0].as_slice())
+                );
+            } else {
+                assert_eq!((b.fault, b.states.as_slice()), (None, [0].as_slice()));
+                assert!(net.nodes[1].1.pins.is_empty(), "seed {seed}");
+            }
+        }
+        net.nodes[1].1.pins.clear();
+        net.press();
+        net.run(1000);
+        assert_eq!(net.nodes[1].1.pins, [(LAMP_PIN, true)], "seed {seed}");
     }
 }
 

@@ -367,6 +367,14 @@ pub fn home(
             return Ok((HomeEnd::Refused(why), Duration::ZERO));
         }
     }
+    // A node that booted moments ago may still be greeting its peers (a copy that
+    // reached a node already homing would fault it: `node_fw::restart`): homing starts
+    // once every node has been up that long.
+    let up = reports.iter().map(|r| u64::from(r.now_ms)).min();
+    if let Some(left) = up.and_then(|up| node_fw::restart::GREETED_WITHIN_MS.checked_sub(up)) {
+        let until = Instant::now() + Duration::from_millis(left);
+        while radio.recv(until)?.is_some() {}
+    }
     sending();
     let t0 = Instant::now();
     let s = push::command(radio, ids, role.address, Command::Home, answer_within)?.ok_or_else(

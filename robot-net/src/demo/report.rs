@@ -149,6 +149,9 @@ pub fn fault_meaning(code: u8) -> String {
         c if c == ACTION | config_schema::alarm::FAULT_LINK => {
             "a link alarm (on_link_alarm: Fault)".into()
         }
+        c if c == ACTION | config_schema::alarm::FAULT_PEER_RESTART => {
+            "a peer restarted (a power cut?) while this node was under way".into()
+        }
         c if c & ACTION != 0 => format!("fault action {}", c & !ACTION),
         c => format!("fault {c:#04x}"),
     }

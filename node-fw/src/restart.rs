@@ -1,0 +1,139 @@
+//! A peer's restart, told and heard (docs/radio-protocol.md, "A peer's restart").
+//!
+//! A node that boots with its table has started its charts over: its peers' charts may be
+//! waiting, in the middle of a cycle or of homing, for an event it will now never send.
+//! So it tells them, with a greeting: a `Challenge` whose nonce has [`GREETING`] set. On
+//! a secured robot that is its handshake's challenge (the nonce's other bits the frame's
+//! counter, answered as any challenge); on a robot without link keys a challenge in clear
+//! (no answer: [`Greetings`] sends it [`GREETINGS`] times, a copy making up for a loss).
+//! A peer takes the first copy it hears of one restart ([`Heard::first`]); a node under
+//! way then faults (`config_schema::alarm::FAULT_PEER_RESTART`) instead of stalling, and
+//! one at rest carries on.
+
+use config_schema::limits::MAX_PEERS;
+
+use crate::peer_security::{GREET_EVERY_MS, GREET_TRIES};
+
+/// Bit 31 of a `Challenge`'s nonce: the sender booted (its greeting). A secured nonce is
+/// otherwise the challenge frame's counter (never near 2^31); a nonce in clear without it
+/// is an epoch asked for ([`crate::link::Receiver::ask`]).
+pub const GREETING: u32 = 1 << 31;
+
+/// How many greetings a node without link keys sends each peer after it boots, one per
+/// [`GREET_EVERY_MS`] (a secured node greets as often, until answered).
+pub const GREETINGS: u8 = GREET_TRIES;
+
+/// Within this many ms of booting, a node has greeted its peers for the last time
+/// (secured or not): a tool that sends a machine under way waits until every node has
+/// been up this long, so that no copy of a greeting reaches a node already under way.
+pub const GREETED_WITHIN_MS: u64 = GREETINGS as u64 * GREET_EVERY_MS;
+
+/// Copies of a greeting heard within this many ms of the first are the same restart.
+pub const SAME_RESTART_MS: u32 = 2 * GREETED_WITHIN_MS as u32;
+
+/// The greetings a node without link keys still has to send after its boot.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct Greetings {
+    left: u8,
+    next: u64,
+}
+
+impl Greetings {
+    /// The node booted at `now`: greet from now on.
+    pub fn boot(&mut self, now: u64) {
+        *self = Greetings {
+            left: GREETINGS,
+            next: now,
+        };
+    }
+
+    /// Whether a round of greetings is due at `now` (then counted as sent).
+    pub fn due(&mut self, now: u64) -> bool {
+        if self.left == 0 || now < self.next {
+            return false;
+        }
+        self.left -= 1;
+        self.next = now + GREET_EVERY_MS;
+        true
+    }
+
+    /// When the next round is due, if any is.
+    pub fn deadline(&self) -> Option<u64> {
+        (self.left > 0).then_some(self.next)
+    }
+}
+
+/// The restarts heard, per peer (by index into the table's peers): when the last one was
+/// first heard (ms, wrapping).
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct Heard {
+    /// Bit i: a restart of peer i was heard.
+    heard: u8,
+    at: [u32; MAX_PEERS],
+}
+
+impl Heard {
+    /// A greeting of peer `peer` at `now`: whether it tells a restart not heard yet (not
+    /// a copy or a retry of one heard within [`SAME_RESTART_MS`]).
+    pub fn first(&mut self, peer: usize, now: u64) -> bool {
+        let (Some(at), Some(bit)) = (self.at.get_mut(peer), 1u8.checked_shl(peer as u32)) else {
+            return false;
+        };
+        let now = now as u32;
+        if self.heard & bit != 0 && now.wrapping_sub(*at) < SAME_RESTART_MS {
+            return false;
+        }
+        self.heard |= bit;
+        *at = now;
+        true
+    }
+
+    /// A new table runs: its peers are numbered anew.
+    pub fn forget(&mut self) {
+        self.heard = 0;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_boot_sends_five_rounds_of_greetings_a_hundred_ms_apart() {
+        let mut g = Greetings::default();
+        assert_eq!((g.deadline(), g.due(0)), (None, false));
+        g.boot(1_000);
+        let due: heapless::Vec<u64, 8> = (1_000..2_000).filter(|&t| g.due(t)).collect();
+        assert_eq!(due, [1_000, 1_100, 1_200, 1_300, 1_400]);
+        assert_eq!(g.deadline(), None);
+    }
+
+    #[test]
+    fn copies_of_one_restart_are_heard_once_and_a_later_restart_again() {
+        let mut h = Heard::default();
+        assert!(h.first(2, 10_000));
+        assert!(!h.first(2, 10_000), "a duplicated copy");
+        assert!(!h.first(2, 10_400), "the last retry");
+        assert!(!h.first(2, 10_999));
+        assert!(h.first(1, 10_500), "another peer's");
+        assert!(h.first(2, 11_000), "the peer booted again");
+        assert!(!h.first(MAX_PEERS, 20_000), "no such peer");
+        h.forget();
+        assert!(h.first(2, 11_001), "a new table's peer");
+    }
+
+    #[test]
+    fn the_clock_wrapping_past_u32_does_not_hide_a_restart() {
+        let mut h = Heard::default();
+        let t = u64::from(u32::MAX) - 100;
+        assert!(h.first(0, t));
+        assert!(!h.first(0, t + 200), "across the wrap, the same restart");
+        assert!(h.first(0, t + 1_100));
+    }
+
+    #[test]
+    fn a_greeting_is_bit_31_and_the_greetings_end_within_half_a_second() {
+        assert_eq!(GREETING, 0x8000_0000);
+        assert_eq!((GREETED_WITHIN_MS, SAME_RESTART_MS), (500, 1_000));
+    }
+}
