@@ -148,6 +148,9 @@ pub struct NodeCore<S = RamStaging> {
     boot_pending: bool,
     /// The greetings still to send after a boot, on a robot without link keys.
     greetings: restart::Greetings,
+    /// The running table is the one the node booted with: its greetings say it booted
+    /// ([`restart::GREETING`]; a new table's greetings only ask for a floor).
+    booted: bool,
     /// The peers' restarts heard.
     restarts: restart::Heard,
     next_announce: u64,
@@ -510,6 +513,7 @@ impl<S: StagingArea> NodeCore<S> {
             cycle_open: false,
             boot_pending: false,
             greetings: restart::Greetings::default(),
+            booted: false,
             restarts: restart::Heard::default(),
             next_announce: 0,
             commands: Vec::new(),
@@ -524,6 +528,7 @@ impl<S: StagingArea> NodeCore<S> {
         if let Some(d) = boot.filter(|d| d.table.missing_pin(board_pins).is_none()) {
             node.install(d, false);
             node.boot_pending = true;
+            node.booted = true;
         }
         node
     }
@@ -660,6 +665,7 @@ impl<S: StagingArea> NodeCore<S> {
         self.cycle_open = false;
         self.boot_pending = false;
         self.greetings = restart::Greetings::default();
+        self.booted = false;
         self.restarts.forget();
         self.alarms.new_table();
         for _ in &table.peers {
@@ -1068,7 +1074,8 @@ impl<S: StagingArea> NodeCore<S> {
         }
         while let Some(peer) = self.radio.links.next_greeting(now) {
             if let Some(pan) = self.table.as_ref().map(|t| t.header.pan_id) {
-                self.challenge_on(pan, peer, restart::GREETING, io);
+                let flags = if self.booted { restart::GREETING } else { 0 };
+                self.challenge_on(pan, peer, flags, io);
             }
         }
         if let Some(table) = &self.table {
@@ -1635,9 +1642,7 @@ impl<S: StagingArea> NodeCore<S> {
         let (Some(t), Some(st)) = (&self.table, &self.state) else {
             return false;
         };
-        st.fault.is_none()
-            && (t.charts.iter().zip(st.current.iter()))
-                .any(|(c, &cur)| cur != c.idle && cur != c.initial)
+        st.fault.is_none() && restart::under_way(t, &st.current)
     }
 
     fn peer(&self, addr: u16) -> Option<usize> {

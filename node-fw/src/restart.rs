@@ -11,6 +11,7 @@
 //! one at rest carries on.
 
 use config_schema::limits::MAX_PEERS;
+use config_schema::Table;
 
 use crate::peer_security::{GREET_EVERY_MS, GREET_TRIES};
 
@@ -30,6 +31,13 @@ pub const GREETED_WITHIN_MS: u64 = GREETINGS as u64 * GREET_EVERY_MS;
 
 /// Copies of a greeting heard within this many ms of the first are the same restart.
 pub const SAME_RESTART_MS: u32 = 2 * GREETED_WITHIN_MS as u32;
+
+/// Whether a node running `table`, its charts in states `current` (not faulted), is under
+/// way: a chart of it is neither in its idle nor in its initial state (a cycle or homing
+/// under way). Such a node waits for its peers' events.
+pub fn under_way(table: &Table, current: &[u8]) -> bool {
+    (table.charts.iter().zip(current)).any(|(c, &at)| at != c.idle && at != c.initial)
+}
 
 /// The greetings a node without link keys still has to send after its boot.
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
@@ -129,6 +137,35 @@ mod tests {
         assert!(h.first(0, t));
         assert!(!h.first(0, t + 200), "across the wrap, the same restart");
         assert!(h.first(0, t + 1_100));
+    }
+
+    /// The greeting in clear as it goes on the air (docs/radio-protocol.md's table).
+    #[test]
+    fn a_greeting_in_clear_is_these_bytes() {
+        use config_schema::wire::mac::{self, Header, MAX_PAYLOAD, MAX_PSDU};
+        use config_schema::wire::msg::Message;
+        let mut payload = [0u8; MAX_PAYLOAD];
+        let n = Message::Challenge { nonce: GREETING }
+            .emit(&mut payload)
+            .unwrap();
+        let header = Header {
+            seq: 7,
+            pan_id: 0x4242,
+            dst: 0x0002,
+            src: 0x0001,
+            ack_request: false,
+            secured: false,
+        };
+        let mut psdu = [0u8; MAX_PSDU];
+        let len = mac::emit_data(&header, &payload[..n], &mut psdu).unwrap();
+        let mpdu = &psdu[..len - 2]; // the FCS is the radio's
+        assert_eq!(
+            mpdu,
+            [
+                0x41, 0x88, 0x07, 0x42, 0x42, 0x02, 0x00, 0x01, 0x00, 0x0A, 0x80, 0x80, 0x80, 0x80,
+                0x08
+            ]
+        );
     }
 
     #[test]

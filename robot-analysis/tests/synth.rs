@@ -371,10 +371,12 @@ fn every_sequence_of_the_table_homes_from_half_way_through_a_cycle() {
 
 /// A power cut of one node alone (GR's, whose monostable valve drops the part): at rest, the
 /// machine is no longer homed (VC's chart is back in `UNHOMED`; a START moves nothing; HOME
-/// then an exact cycle); during a cycle (after GR's first step) the machine stalls with
-/// nothing more moving, and after a reset it is not homed.
+/// then an exact cycle); during a cycle (after GR's first step, HC+ under way) GR's
+/// greeting faults the nodes under way (VC, HC: `0x86`) and nothing more moves (before,
+/// the cycle ran on to `VC+` of step 10 and stalled there, waiting for GR-); after a reset
+/// the machine is not homed.
 #[test]
-fn a_power_cut_of_one_node_unhomes_the_machine_at_rest_and_stalls_a_cycle() {
+fn a_power_cut_of_one_node_unhomes_the_machine_at_rest_and_faults_a_cycle_under_way() {
     let text = std::fs::read_to_string(format!(
         "{}/../robot-configs/paint-robot.ron",
         env!("CARGO_MANIFEST_DIR")
@@ -427,11 +429,30 @@ fn a_power_cut_of_one_node_unhomes_the_machine_at_rest_and_stalls_a_cycle() {
     world.run_until_idle(60_000).expect("stops");
     assert_eq!(
         steps(&world, mark).join(" "),
-        "VC+ GR+ VC- HC+ VC+ VC- RC+ RC- HC- VC+",
-        "stalled at GR-: nothing moves from a wrong place"
+        "VC+ GR+ VC- HC+",
+        "nothing moves after the restart"
     );
+    let faults: Vec<(String, Option<u8>)> = (0..world.node_count())
+        .map(|n| {
+            let fault = world.engine(n).fault().map(node_fw::node::fault_code);
+            (c.ir.roles[n].name.clone(), fault)
+        })
+        .collect();
+    let restarted = 0x80 | config_schema::alarm::FAULT_PEER_RESTART;
+    let expected: Vec<(String, Option<u8>)> = [
+        ("VC", Some(restarted)),
+        ("GR", None),
+        ("HC", Some(restarted)),
+        ("RC", None),
+    ]
+    .into_iter()
+    .map(|(r, f)| (r.to_string(), f))
+    .collect();
+    assert_eq!(faults, expected);
+    // The fault's flow: reset, acknowledge (the faults' alarms are latched), home.
     for node in 0..world.node_count() {
         world.reset(node).expect("reset");
+        world.ack(node).expect("ack");
     }
     world.run_until_idle(60_000).expect("settles");
     world.home(home).expect("home");

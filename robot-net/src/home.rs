@@ -367,14 +367,7 @@ pub fn home(
             return Ok((HomeEnd::Refused(why), Duration::ZERO));
         }
     }
-    // A node that booted moments ago may still be greeting its peers (a copy that
-    // reached a node already homing would fault it: `node_fw::restart`): homing starts
-    // once every node has been up that long.
-    let up = reports.iter().map(|r| u64::from(r.now_ms)).min();
-    if let Some(left) = up.and_then(|up| node_fw::restart::GREETED_WITHIN_MS.checked_sub(up)) {
-        let until = Instant::now() + Duration::from_millis(left);
-        while radio.recv(until)?.is_some() {}
-    }
+    after_greetings(radio, reports.iter().map(|r| r.now_ms))?;
     sending();
     let t0 = Instant::now();
     let s = push::command(radio, ids, role.address, Command::Home, answer_within)?.ok_or_else(
@@ -426,6 +419,23 @@ pub fn home(
         let until = (Instant::now() + POLL).min(end);
         while radio.recv(until)?.is_some() {}
     }
+}
+
+/// Waits until every node has been up [`node_fw::restart::GREETED_WITHIN_MS`], given each
+/// node's clock (`up_ms`, ms since its boot, from its `Alarms` answer): a node that booted
+/// moments ago may still be greeting its peers, and a late copy would fault a node that
+/// homing or a START has set going (`node_fw::restart`). Whatever arrives meanwhile is
+/// dropped.
+pub fn after_greetings(
+    radio: &mut ToolRadio,
+    up_ms: impl Iterator<Item = u32>,
+) -> Result<(), NetError> {
+    let up = up_ms.map(u64::from).min();
+    if let Some(left) = up.and_then(|up| node_fw::restart::GREETED_WITHIN_MS.checked_sub(up)) {
+        let until = Instant::now() + Duration::from_millis(left);
+        while radio.recv(until)?.is_some() {}
+    }
+    Ok(())
 }
 
 /// How long no node may have retransmitted before its links count as settled: twice a

@@ -323,6 +323,7 @@ impl Poll {
                 ));
             }
         }
+        home::after_greetings(&mut self.radio, reports.iter().map(|r| r.now_ms))?;
         self.node_command(r.address, Command::Start)?;
         Ok(format!(
             "START sent to node {:#06x} ({})",

@@ -54,7 +54,9 @@ pub enum Message<'a> {
     Security(SecurityReport),
     /// A secured node does not know the sender's frame counter (it rebooted): prove your
     /// frames are fresh by answering `nonce` (the counter of this very frame, which the
-    /// node never used before).
+    /// node never used before; bit 31 set: a greeting, the sender booted). In clear, on a
+    /// robot without link keys: the epoch a booted subscriber asks for, or `0x8000_0000`,
+    /// its greeting (docs/radio-protocol.md).
     Challenge { nonce: u32 },
     /// The answer to a `Challenge`: its counter becomes the sender's floor at the node.
     ChallengeAnswer { nonce: u32 },

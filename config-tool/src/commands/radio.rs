@@ -814,6 +814,7 @@ pub fn start(
         if let Some(why) = alarms::blocking_text(c, &nodes) {
             return Err(Failure::refused(format!("{why}; START was not sent")));
         }
+        home::after_greetings(&mut radio, nodes.iter().map(|n| n.report.now_ms))?;
     }
     command(&mut radio, &mut ids, node, Command::Start)?;
     outln!("{node:#06x}: started");

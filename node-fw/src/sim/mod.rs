@@ -753,7 +753,9 @@ impl<'t> World<'t> {
 
     /// A power cut of node `node` alone: charts back in their initial states, timers
     /// cancelled, outputs at their start levels (as a reset: a held output keeps its level
-    /// here, where a real boot drops it), then its table's boot event raised and published.
+    /// here, where a real boot drops it), then its table's boot event raised and published;
+    /// every peer of it under way faults (`FAULT_PEER_RESTART`), as its greeting makes a
+    /// node do.
     pub fn reboot(&mut self, node: usize) -> Result<(), SimError> {
         if node >= self.nodes.len() {
             return Err(SimError::NoSuchNodeIndex { node });
@@ -763,6 +765,20 @@ impl<'t> World<'t> {
             e.reset(fx);
             e.boot(fx);
         });
+        // Its greeting: each peer under way faults (`crate::restart`).
+        let addr = self.nodes[node].addr;
+        for peer in 0..self.nodes.len() {
+            let e = &self.nodes[peer].engine;
+            let states = self.states(peer);
+            if peer != node
+                && e.table().peers.contains(&addr)
+                && e.fault().is_none()
+                && crate::restart::under_way(e.table(), &states)
+            {
+                let code = config_schema::alarm::FAULT_PEER_RESTART;
+                self.call(peer, |e, fx| e.fail(code, fx));
+            }
+        }
         Ok(())
     }
 
