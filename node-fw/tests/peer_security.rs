@@ -495,3 +495,55 @@ fn a_duplicated_greeting_numbers_the_link_again_once() {
     net.run(400);
     assert_eq!(net.b.1.lamp, [true, false]);
 }
+
+/// A's power is cut while B's lamp is on (B's chart neither idle nor initial: under way).
+/// A boots and greets B: a challenge whose nonce is its frame's counter with bit 31 set
+/// (`restart::GREETING`). B faults `0x86` at once, its lamp at its fault level (off),
+/// instead of waiting for what A's charts will not send; the greeting is answered all the
+/// same. At rest, B carries on through A's boot.
+#[test]
+fn a_peers_boot_greeting_faults_a_node_under_way_and_not_one_at_rest() {
+    let restarted = 0x80 | config_schema::alarm::FAULT_PEER_RESTART;
+    let mut net = Net::established();
+    // (Greetings within a second of the boot's are copies of it: `restart::Heard`.)
+    net.run(1000);
+    net.air.clear();
+    net.trace.clear();
+    net.a.0 = rebooted_a();
+    net.run(300);
+    let greeting = (net.air.iter().map(|f| open(f)))
+        .find_map(|(h, aux, payload)| match Message::parse(&payload) {
+            Ok(Message::Challenge { nonce }) if h.src == A => Some((aux.frame_counter, nonce)),
+            _ => None,
+        })
+        .expect("A greets B");
+    assert_eq!(greeting.1, greeting.0 | node_fw::restart::GREETING);
+    assert!(
+        net.trace.contains(&(B, A, "ChallengeAnswer")),
+        "{:?}",
+        net.trace
+    );
+    let b = net.b.0.status(0, Default::default());
+    assert_eq!(
+        (b.fault, b.states.as_slice()),
+        (Some(restarted), [1].as_slice())
+    );
+    assert_eq!(net.b.1.lamp, [true, false]);
+
+    // At rest (the lamp off again: its initial state), B carries on.
+    let mut net = Net::established();
+    net.press();
+    net.run(1000);
+    net.a.0 = rebooted_a();
+    net.run(300);
+    net.press();
+    net.run(400);
+    assert_eq!(net.b.1.lamp, [true, false, true], "{:?}", net.trace);
+    let b = net.b.0.status(0, Default::default());
+    assert_eq!((b.fault, b.states.as_slice()), (None, [1].as_slice()));
+}
+
+/// A booted again: its table and keys from flash, its links in a new epoch.
+fn rebooted_a() -> NodeCore {
+    NodeCore::new(A, u64::MAX, Some(table_a()), 7).with_link_keys(keys(A, &[B], GENERATION))
+}
