@@ -282,6 +282,39 @@ pub fn rollback(
     Ok((verdict?, states))
 }
 
+/// Where one node stands after a rollback, in words (`rolled back`, or why not).
+pub fn rollback_state_text(state: Option<NodeState>) -> String {
+    match state {
+        Some(NodeState::Switched) => "rolled back".into(),
+        Some(NodeState::Going) => "told to roll back: its answer not heard".into(),
+        Some(NodeState::Refused(why)) => format!("NOT rolled back: refused: {why}"),
+        Some(NodeState::Silent) => "NOT rolled back: the node stopped answering".into(),
+        Some(NodeState::Arming | NodeState::Armed { .. } | NodeState::Disarmed) => {
+            "NOT rolled back: on the trial generation still".into()
+        }
+        None => "NOT rolled back: not asked".into(),
+    }
+}
+
+/// Why a rollback did not finish, in words, with what to do (`None`: it did).
+pub fn rollback_verdict_text(verdict: Verdict) -> Option<String> {
+    Some(match verdict {
+        Verdict::Switched => return None,
+        Verdict::NotIdle => "the machine did not come to rest within --wait: nothing rolled \
+                             back (every node stays on the trial generation); rollback again \
+                             once it rests, or rollback --now for a machine stopped away from \
+                             its idle point (a fault, a stall)"
+            .into(),
+        Verdict::Aborted => "a node refused or stopped answering before the rollback: \
+                             nothing rolled back (every node stays on the trial generation)"
+            .into(),
+        Verdict::Partial | Verdict::Busy => "the rollback did not finish: the nodes marked \
+                                             NOT rolled back run the trial generation; \
+                                             rollback again to finish it (or --now)"
+            .into(),
+    })
+}
+
 /// How a watched trial ended.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum TrialEnd {
@@ -527,7 +560,74 @@ pub fn scan(
 
 #[cfg(test)]
 mod tests {
-    use super::CycleCount;
+    use super::{rollback_state_text, rollback_verdict_text, CycleCount};
+    use config_schema::wire::msg::Refusal;
+    use node_fw::switch::{NodeState, Verdict};
+
+    /// Each node's line of a rollback, in words (it printed `NOT rolled back:
+    /// Some(Disarmed)`).
+    #[test]
+    fn a_rollbacks_node_lines_say_where_each_node_stands_in_words() {
+        let said = [
+            (Some(NodeState::Switched), "rolled back"),
+            (
+                Some(NodeState::Going),
+                "told to roll back: its answer not heard",
+            ),
+            (
+                Some(NodeState::Disarmed),
+                "NOT rolled back: on the trial generation still",
+            ),
+            (
+                Some(NodeState::Armed { idle: false, at: 3 }),
+                "NOT rolled back: on the trial generation still",
+            ),
+            (
+                Some(NodeState::Silent),
+                "NOT rolled back: the node stopped answering",
+            ),
+            (
+                Some(NodeState::Refused(Refusal::NotStaged { staged: 0 })),
+                "NOT rolled back: refused: no generation is staged",
+            ),
+            (None, "NOT rolled back: not asked"),
+        ];
+        for (state, text) in said {
+            assert_eq!(rollback_state_text(state), text, "{state:?}");
+        }
+    }
+
+    /// How a rollback that did not finish ended, in words, with what to do (it printed
+    /// `the rollback did not finish: NotIdle`).
+    #[test]
+    fn a_rollback_that_did_not_finish_says_why_and_what_to_do() {
+        assert_eq!(rollback_verdict_text(Verdict::Switched), None);
+        assert_eq!(
+            rollback_verdict_text(Verdict::NotIdle).as_deref(),
+            Some(
+                "the machine did not come to rest within --wait: nothing rolled back (every \
+                 node stays on the trial generation); rollback again once it rests, or \
+                 rollback --now for a machine stopped away from its idle point (a fault, a \
+                 stall)"
+            )
+        );
+        assert_eq!(
+            rollback_verdict_text(Verdict::Aborted).as_deref(),
+            Some(
+                "a node refused or stopped answering before the rollback: nothing rolled \
+                 back (every node stays on the trial generation)"
+            )
+        );
+        for v in [Verdict::Partial, Verdict::Busy] {
+            assert_eq!(
+                rollback_verdict_text(v).as_deref(),
+                Some(
+                    "the rollback did not finish: the nodes marked NOT rolled back run the \
+                     trial generation; rollback again to finish it (or --now)"
+                )
+            );
+        }
+    }
 
     /// The nodes count cycles in one wrapping byte: the watch adds the differences.
     #[test]

@@ -12,7 +12,7 @@ use config_schema::wire::msg::{Command, ConfigReply, Message, SecurityReport, St
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use medium::Conn;
 use node_fw::ota::Progress;
-use node_fw::switch::{NodeState, Verdict};
+use node_fw::switch::Verdict;
 use robot_net::demo;
 use robot_net::push::{self, Ids};
 use robot_net::radio::{ToolRadio, TOOL_ADDR};
@@ -707,9 +707,13 @@ pub fn confirm(flags: &SwitchArgs) -> Result<(), Failure> {
         let answer = answers.iter().find(|a| a.0 == *addr).and_then(|a| a.1);
         let what = match answer {
             Some(ConfigReply::Confirmed) => "confirmed".to_string(),
+            Some(ConfigReply::Refused(why)) => {
+                all = false;
+                format!("NOT confirmed: refused: {why}")
+            }
             Some(other) => {
                 all = false;
-                format!("NOT confirmed: {other:?}")
+                format!("NOT confirmed: answered {other:?}")
             }
             None => {
                 all = false;
@@ -768,16 +772,15 @@ pub fn rollback(flags: &SwitchArgs) -> Result<(), Failure> {
         let state = states.iter().find(|s| s.0 == *addr).map(|s| s.1);
         let what = match state {
             _ if back.contains(addr) => "back already (a power cut)".to_string(),
-            Some(NodeState::Switched) => "rolled back".to_string(),
-            other => format!("NOT rolled back: {other:?}"),
+            state => push::rollback_state_text(state),
         };
         outln!("  {role:<6} {addr:#06x}  generation {target}  {what}");
     }
-    match verdict {
-        Verdict::Switched => Ok(()),
-        _ => Err(Failure {
+    match push::rollback_verdict_text(verdict) {
+        None => Ok(()),
+        Some(why) => Err(Failure {
             code: exit::PUSH_FAILED,
-            ..Failure::error(format!("the rollback did not finish: {verdict:?}"))
+            ..Failure::error(why)
         }),
     }
 }
