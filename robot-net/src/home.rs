@@ -179,6 +179,9 @@ pub struct Node {
     pub role: String,
     pub addr: u16,
     pub standing: Standing,
+    /// The generation it runs, and whether on trial.
+    pub generation: u32,
+    pub trial: bool,
     /// The peers its links to are in alarm or broken (they do not acknowledge: a peer
     /// that restarted, or went away).
     pub stalled: Vec<u16>,
@@ -194,6 +197,8 @@ pub fn nodes(c: &Compiled, statuses: &[Status]) -> Vec<Node> {
             role: r.name.clone(),
             addr: r.address,
             standing: standing(&r.name, t, s),
+            generation: s.generation,
+            trial: s.trial,
             stalled: (t.peers.iter().enumerate().take(8))
                 .filter(|(i, _)| (s.link_alarms | s.links_broken) & (1 << i) != 0)
                 .map(|(_, &p)| p)
@@ -224,6 +229,9 @@ pub fn refusal(nodes: &[Node], homing: bool) -> Option<String> {
                 .filter(|n| n.standing == Standing::Other)
                 .map(|n| format!("{:#06x} ({})", n.addr, n.role))
                 .collect();
+            if let Some(split) = split_trial(nodes) {
+                return Some(split);
+            }
             let who = match others.as_slice() {
                 [_] => format!("{who} does not run"),
                 _ => format!("nodes {} do not run", others.join(", ")),
@@ -251,6 +259,38 @@ pub fn refusal(nodes: &[Node], homing: bool) -> Option<String> {
         Standing::NotHomed => "not homed: run config-tool home".to_string(),
         Standing::Homed => return None,
     })
+}
+
+/// A trial a power cut split, in words (`None`: not one): the nodes that do not run the
+/// robot's table are off the trial the others are on, each on another generation (it
+/// booted its confirmed one).
+fn split_trial(nodes: &[Node]) -> Option<String> {
+    let trial = nodes.iter().find(|n| n.trial)?.generation;
+    let off: Vec<&Node> = (nodes.iter())
+        .filter(|n| n.standing == Standing::Other)
+        .collect();
+    if !off.iter().all(|n| !n.trial && n.generation != trial) {
+        return None;
+    }
+    let off: Vec<String> = (off.iter())
+        .map(|n| {
+            format!(
+                "{:#06x} ({}) runs generation {}",
+                n.addr, n.role, n.generation
+            )
+        })
+        .collect();
+    Some(trial_split_text(trial, &off))
+}
+
+/// A trial a power cut split, in words: `off` says what each node off generation `trial`
+/// runs (`0x0014 (RC) runs generation 1`).
+pub fn trial_split_text(trial: u32, off: &[String]) -> String {
+    format!(
+        "not every node runs generation {trial} on trial: {} (a power cut returns a node to \
+         its previous generation): `config-tool rollback` returns the others to theirs",
+        off.join(", ")
+    )
 }
 
 /// The first node with a link in alarm, in words, with what re-establishes it: what
@@ -694,6 +734,8 @@ mod tests {
             role: role.into(),
             addr,
             standing,
+            generation: 1,
+            trial: false,
             stalled: Vec::new(),
         }
     }
@@ -829,5 +871,31 @@ mod tests {
                  robot's, or this file changed since its push): check the file, or push it"
             )
         );
+        // A trial a power cut split: RC booted generation 1, the others run 2 on trial
+        // (the robot's file is generation 2's, so RC's table is not it). It said `does
+        // not run this robot's table`, as if the file were wrong.
+        let on_trial = |role: &str, addr| Node {
+            generation: 2,
+            trial: true,
+            ..node(role, addr, Standing::Homed)
+        };
+        let split = [
+            on_trial("VC", 0x11),
+            node("RC", 0x14, Standing::Other),
+            on_trial("GR", 0x12),
+        ];
+        let said = "not every node runs generation 2 on trial: 0x0014 (RC) runs generation 1 \
+                    (a power cut returns a node to its previous generation): `config-tool \
+                    rollback` returns the others to theirs";
+        assert_eq!(refusal(&split, true).as_deref(), Some(said));
+        assert_eq!(refusal(&split, false).as_deref(), Some(said));
+        // Another table on a node of a trial (not off it): the file, as before.
+        let mut other_on_trial = split.clone();
+        other_on_trial[1] = Node {
+            standing: Standing::Other,
+            ..on_trial("RC", 0x14)
+        };
+        assert!(refusal(&other_on_trial, true)
+            .is_some_and(|r| r.starts_with("node 0x0014 (RC) does not run this robot's table")));
     }
 }

@@ -614,12 +614,7 @@ fn mixed_text(c: &robot_compiler::Compiled, trial: Option<u32>, off: &[(u16, u32
         .map(|&(a, g)| format!("{} runs generation {g}", who(a)))
         .collect();
     match trial {
-        Some(generation) => format!(
-            "not every node runs generation {generation} on trial: {} (a power cut returns a \
-             node to its previous generation): `config-tool rollback` returns the others to \
-             theirs",
-            off.join(", ")
-        ),
+        Some(generation) => home::trial_split_text(generation, &off),
         None => format!(
             "the nodes run different generations: {}: push again to finish the switch-over, \
              or roll back",
