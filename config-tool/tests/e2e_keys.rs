@@ -638,3 +638,80 @@ fn confirm_refuses_a_trial_a_power_cut_split() {
     drop(nodes);
     medium.stop();
 }
+
+/// Secured nodes answer an unsecured broadcast `Identify` once a second, to whoever asks
+/// first; another tool asking all the time (or a lossy medium) kept `scan` from hearing
+/// them, and it listed healthy nodes as `did not answer`. With the robot, `scan` asks each
+/// of its nodes that did not announce itself directly, secured: every node is listed.
+#[test]
+fn a_secured_scan_finds_every_node_while_another_tool_asks_all_the_time() {
+    let dir = TempDir::new("keys-scan-flood");
+    let key = dir.0.join("machine.key");
+    let key_s = s(&key).to_string();
+    ok(&["keys", "new", "--out", &key_s]);
+    let c = robot("paint-robot.ron", 1);
+    let roles: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
+    let medium = medium::Medium::start(medium::Config::default()).expect("medium");
+    let m = medium.addr().to_string();
+    let mut monitor = Monitor::join(medium.addr());
+    let _nodes: Vec<Killed> = roles
+        .iter()
+        .map(|&a| start_node(&dir.0, &key_s, &m, a))
+        .collect();
+    let mut heard = std::collections::BTreeSet::new();
+    monitor.psdus_until(|psdu| {
+        if let Ok(mac::Frame::Data { header, .. }) = mac::Frame::parse(psdu) {
+            if roles.contains(&header.src) {
+                heard.insert(header.src);
+            }
+        }
+        heard.len() == roles.len()
+    });
+    ok(&["push", ROBOT, "--keys", &key_s, "--medium", &m]);
+    // Another tool asks every node to identify itself every 2 ms.
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let mut other = e2e_support::RawClient::join(medium.addr(), 0x0200);
+    let asking = std::thread::spawn(move || {
+        let identify = config_schema::wire::msg::Message::Command {
+            id: 1,
+            command: config_schema::wire::msg::Command::Identify,
+        };
+        let payload = e2e_support::payload(&identify);
+        let mut seq = 0u8;
+        while !flag.load(Ordering::Relaxed) {
+            let frame = e2e_support::frame(
+                node_fw::node::CONFIG_PAN,
+                mac::BROADCAST,
+                0x0200,
+                seq,
+                &payload,
+            );
+            other.send_psdu(&frame);
+            seq = seq.wrapping_add(1);
+            let until = Instant::now() + std::time::Duration::from_millis(2);
+            while other.next_frame(until).is_some() {}
+        }
+    });
+    let found = ok(&["scan", ROBOT, "--keys", &key_s, "--medium", &m]);
+    stop.store(true, Ordering::Relaxed);
+    asking.join().expect("the other tool");
+    for r in &c.ir.roles {
+        let want = format!(
+            "\n{:#06x}  firmware 1  generation 1  {}  ",
+            r.address, r.name
+        );
+        assert!(format!("\n{found}").contains(&want), "{want}{found}");
+    }
+    // The spare, not started, is the only one that did not answer.
+    let silent: Vec<&str> = found
+        .lines()
+        .filter(|l| l.contains("did not answer"))
+        .collect();
+    assert_eq!(
+        silent,
+        ["0x0015  (spare)  did not answer (node spare)"],
+        "{found}"
+    );
+    medium.stop();
+}

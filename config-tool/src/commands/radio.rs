@@ -97,6 +97,10 @@ fn plain_if_off(radio: &mut ToolRadio, c: &robot_compiler::Compiled) {
 /// How long a command to one node is resent until answered.
 const ANSWER_WITHIN: Duration = Duration::from_secs(5);
 
+/// How long `scan` asks a robot's node that did not announce itself before it says that
+/// node did not answer.
+const ASK_QUIET: Duration = Duration::from_secs(1);
+
 /// Sends `cmd` to `node` every 150 ms until `pick` takes an answer acknowledging it; a
 /// repeat never runs twice on the node.
 fn ask<T>(
@@ -171,7 +175,32 @@ pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(),
     let c = robot.map(demo::load).transpose()?;
     let mut radio = connect_keyed(at, KeysFrom::resolve(keys.keys.as_deref()).as_ref())?;
     let mut ids = Ids::default();
-    let found = push::scan(&mut radio, &mut ids, Duration::from_secs(2)).map_err(Failure::error)?;
+    let mut found =
+        push::scan(&mut radio, &mut ids, Duration::from_secs(2)).map_err(Failure::error)?;
+    // A secured node answers a broadcast once a second, to whoever asks first (loss, or
+    // another tool asking, can keep it from being heard): the robot's nodes that did not
+    // announce themselves are asked directly (secured, with the keys).
+    if let Some(c) = &c {
+        let quiet: Vec<u16> = (c.robot.nodes.iter())
+            .map(|n| n.address)
+            .filter(|a| !found.contains_key(a))
+            .collect();
+        for addr in quiet {
+            let announce = push::ask(
+                &mut radio,
+                &mut ids,
+                addr,
+                Command::Identify,
+                ASK_QUIET,
+                |m, _| match m {
+                    Message::Announce(a) => Some(a),
+                    _ => None,
+                },
+            )
+            .map_err(Failure::error)?;
+            found.extend(announce.map(|a| (addr, a)));
+        }
+    }
     // The robot's nodes' statuses, as they answered.
     let mut statuses = Vec::new();
     for (addr, a) in &found {
