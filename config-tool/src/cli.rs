@@ -80,7 +80,7 @@ pub enum Command {
     Push(PushArgs),
     /// Confirm the generation on trial (`push --trial`) on every node of the robot: it
     /// stays the boot table.
-    Confirm(SwitchArgs),
+    Confirm(MachineArgs),
     /// Return every node of the robot to its previous generation together, at the
     /// machine's next idle point (or --now).
     Rollback(SwitchArgs),
@@ -450,19 +450,27 @@ pub struct PushArgs {
     pub keys: KeysArg,
 }
 
-/// `confirm` and `rollback`: which machine, and how.
+/// `rollback`: which machine, and how.
 #[derive(Args, Debug, Clone)]
 pub struct SwitchArgs {
+    #[command(flatten)]
+    pub machine: MachineArgs,
+    /// At once, whatever the machine does.
+    #[arg(long)]
+    pub now: bool,
+    /// How long to wait for the machine to be idle, seconds.
+    #[arg(long, default_value_t = 60)]
+    pub wait: u64,
+}
+
+/// `confirm` (and `rollback`'s machine): the robot whose nodes a command addresses, where,
+/// and with which keys.
+#[derive(Args, Debug, Clone)]
+pub struct MachineArgs {
     /// The robot whose nodes to address.
     pub robot: PathBuf,
     #[command(flatten)]
     pub at: MediumAddr,
-    /// (rollback) At once, whatever the machine does.
-    #[arg(long)]
-    pub now: bool,
-    /// (rollback) How long to wait for the machine to be idle, seconds.
-    #[arg(long, default_value_t = 60)]
-    pub wait: u64,
     #[command(flatten)]
     pub keys: KeysArg,
 }

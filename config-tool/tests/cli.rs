@@ -801,3 +801,19 @@ fn home_refuses_a_wait_of_no_time() {
         text(&out.stderr)
     );
 }
+
+/// `--now` and `--wait` are the rollback's: `confirm` took them and ignored them.
+#[test]
+fn confirm_refuses_the_rollbacks_now_and_wait() {
+    for extra in [&["--now"][..], &["--wait", "5"]] {
+        let mut args = vec!["confirm", "robot-configs/paint-robot.ron"];
+        args.extend(extra);
+        let out = tool(&args);
+        assert_eq!(out.status.code(), Some(2), "{extra:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.starts_with(&format!("error: unexpected argument '{}'", extra[0])),
+            "{err}"
+        );
+    }
+}

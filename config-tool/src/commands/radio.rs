@@ -20,7 +20,9 @@ use robot_net::{home, live_plant, show};
 
 use robot_compiler::model::Security;
 
-use crate::cli::{HomeArgs, KeysArg, MediumAddr, PushArgs, QemuNodeArgs, SwitchArgs, VerifyHow};
+use crate::cli::{
+    HomeArgs, KeysArg, MachineArgs, MediumAddr, PushArgs, QemuNodeArgs, SwitchArgs, VerifyHow,
+};
 use crate::commands::{alarms, offline};
 use crate::failure::{exit, Failure};
 use crate::out::{errln, out, outln};
@@ -657,7 +659,7 @@ type RoleStatus = (String, u16, Status);
 
 /// The radio, the robot `flags.robot` and the statuses of every node of it.
 fn machine(
-    flags: &SwitchArgs,
+    flags: &MachineArgs,
 ) -> Result<(ToolRadio, robot_compiler::Compiled, Vec<RoleStatus>), Failure> {
     let c = demo::load(&flags.robot)?;
     let mut radio = connect_robot(&flags.at, &flags.robot, &c, &flags.keys)?;
@@ -684,7 +686,7 @@ fn split_trial(nodes: &[RoleStatus]) -> Option<(u32, Vec<(u16, u32)>)> {
 }
 
 /// `confirm`: the generation on trial stays.
-pub fn confirm(flags: &SwitchArgs) -> Result<(), Failure> {
+pub fn confirm(flags: &MachineArgs) -> Result<(), Failure> {
     let (mut radio, c, nodes) = machine(flags)?;
     let trial: Vec<u16> = nodes.iter().filter(|n| n.2.trial).map(|n| n.1).collect();
     if trial.is_empty() {
@@ -760,7 +762,7 @@ pub fn confirm(flags: &SwitchArgs) -> Result<(), Failure> {
 
 /// `rollback`: every node back to its previous generation, together.
 pub fn rollback(flags: &SwitchArgs) -> Result<(), Failure> {
-    let (mut radio, _, nodes) = machine(flags)?;
+    let (mut radio, _, nodes) = machine(&flags.machine)?;
     // A trial a power cut split: the nodes it took off the trial run the previous
     // generation already; the others return to it.
     let back: Vec<u16> = split_trial(&nodes)
