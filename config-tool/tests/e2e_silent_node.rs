@@ -37,14 +37,16 @@ fn a_silent_node_does_not_hide_the_others_alarms() {
         ),
         "{err}"
     );
-    // `home` and `start` name the silent node's role (they said only its address).
-    for command in ["home", "start"] {
+    // `home` and `start` name the silent node's role (they said only its address), how
+    // often it was asked, and that nothing was sent (they said neither).
+    for (command, what) in [("home", "HOME"), ("start", "START")] {
         let (code, out, err) = run_tool(&[command, paint, "--medium", m]);
         assert_eq!((code, out.as_str()), (Some(1), ""), "{command}: {err}");
-        assert!(
-            err.starts_with("error: node 0x0014 (RC) did not answer Status"),
-            "{command}: {err}"
-        );
+        let asked = err
+            .strip_prefix("error: node 0x0014 (RC) did not answer Status (asked ")
+            .and_then(|r| r.strip_suffix(&format!(" times in 5 s): {what} was not sent\n")))
+            .and_then(|n| n.parse::<u32>().ok());
+        assert!(asked.is_some_and(|n| n > 1), "{command}: {err}");
     }
     bed.stop();
 }

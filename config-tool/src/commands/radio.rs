@@ -141,6 +141,37 @@ fn ask_counted<T>(
     Ok(answer.ok_or(radio.stats.sent.saturating_sub(sent_before)))
 }
 
+/// The status of every role's node of `c`, in role order; a node that does not answer
+/// fails the command, named, with how often it was asked and `not_sent` (what was not
+/// sent for want of it).
+fn robot_statuses(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    c: &robot_compiler::Compiled,
+    not_sent: &str,
+) -> Result<Vec<Status>, Failure> {
+    let mut out = Vec::new();
+    for r in &c.ir.roles {
+        let pick = |m: Message<'_>, id| match m {
+            Message::Status(s) if s.ack == id => Some(s),
+            _ => None,
+        };
+        match ask_counted(radio, ids, r.address, Command::Status, pick)? {
+            Ok(s) => out.push(s),
+            Err(asked) => {
+                return Err(Failure::error(format!(
+                    "node {:#06x} ({}) did not answer Status (asked {asked} times in {} s): \
+                     {not_sent}",
+                    r.address,
+                    r.name,
+                    ANSWER_WITHIN.as_secs()
+                )))
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// A command to one node, resent until its status comes back.
 fn command(
     radio: &mut ToolRadio,
@@ -832,7 +863,7 @@ pub fn start(
     let mut radio = connect_maybe_robot(at, robot.zip(c.as_ref()), keys)?;
     let mut ids = Ids::default();
     if let Some(c) = &c {
-        let statuses = home::statuses(&mut radio, &mut ids, c, ANSWER_WITHIN)?;
+        let statuses = robot_statuses(&mut radio, &mut ids, c, "START was not sent")?;
         if let Some(why) = home::refusal(&home::nodes(c, &statuses), false) {
             return Err(Failure::refused(format!("{why}; START was not sent")));
         }
@@ -987,9 +1018,12 @@ pub fn home(flags: &HomeArgs) -> Result<(), Failure> {
     }
     let mut radio = connect_keyed(&flags.at, keys.as_ref())?;
     plain_if_off(&mut radio, &c);
+    let mut ids = Ids::default();
+    // Every node answers first (else HOME is not sent, and the silent node is named).
+    robot_statuses(&mut radio, &mut ids, &c, "HOME was not sent")?;
     let (end, took) = home::home(
         &mut radio,
-        &mut Ids::default(),
+        &mut ids,
         &c,
         (ANSWER_WITHIN, Duration::from_secs(flags.wait)),
         &mut || {
