@@ -212,3 +212,23 @@ fn one_node_cut_mid_cycle(c: &Compiled, options: Options) {
     exact_cycle(&mut bed, c, 2);
     bed.stop();
 }
+
+/// GR's node loses power for good while the gripper holds the part: its monostable valve
+/// drops with the power, and the plant sees the gripper open (`GR-`) at once. Before, the
+/// plant kept the dead node's last levels: the gripper held the part until the node
+/// booted again.
+#[test]
+fn a_dead_nodes_valves_drop_with_its_power() {
+    let c = robot("paint-robot.ron", 1);
+    let mut bed = bring_up(&c, options(medium::Config::default(), None));
+    push_and_home(&mut bed, &c);
+    bed.press_start(&c).expect("START");
+    let seen: Vec<String> = (bed.await_strokes(2).expect("two steps").iter())
+        .map(|s| s.to_string())
+        .collect();
+    assert_eq!(seen.join(" "), "VC+ GR+");
+    bed.kill_node(addr_of(&c, "GR"));
+    let dropped = bed.await_strokes(1).expect("the gripper opens");
+    assert_eq!(dropped[0].to_string(), "GR-");
+    bed.stop();
+}

@@ -22,6 +22,9 @@ struct Client {
     outbox: Outbox,
     /// When each of its frames still waiting for (or on) the air leaves it.
     tx_queue: VecDeque<Instant>,
+    /// A node's outputs it drove high (bit = pin number, pins 0 to 63): they drop when it
+    /// goes away, as a power cut de-energizes its valves.
+    high: u64,
 }
 
 /// A frame due at a client.
@@ -159,6 +162,7 @@ impl Air {
                             peer,
                             outbox,
                             tx_queue,
+                            high: 0,
                         },
                     );
                 } else {
@@ -189,6 +193,13 @@ impl Air {
         if let Some(c) = self.clients.remove(&id) {
             if let Peer::Node { addr } = c.peer {
                 self.running.remove(&addr);
+                // Its power is gone: every output it held high drops.
+                let mut high = c.high;
+                while high != 0 {
+                    let pin = high.trailing_zeros() as u8;
+                    high &= high - 1;
+                    self.output(id, addr, pin, false);
+                }
             }
             c.outbox.close();
         }
@@ -331,9 +342,21 @@ impl Air {
     /// Output levels go from a node to plants and monitors; input levels from a plant to the
     /// node with that address (and monitors). Plants and monitors get them stamped.
     fn pin(&mut self, from: ClientId, addr: u16, pin: u8, level: bool) {
-        let Some(sender) = self.clients.get(&from).map(|c| c.peer) else {
+        let Some(client) = self.clients.get_mut(&from) else {
             return;
         };
+        let sender = client.peer;
+        if sender == (Peer::Node { addr }) {
+            if let Some(bit) = 1u64.checked_shl(u32::from(pin)) {
+                client.high = if level {
+                    client.high | bit
+                } else {
+                    client.high & !bit
+                };
+            }
+            self.output(from, addr, pin, level);
+            return;
+        }
         let at_us = self.start.elapsed().as_micros() as u64;
         let seen = Link::Seen {
             at_us,
@@ -359,6 +382,26 @@ impl Air {
             .collect();
         for (to, stamped) in targets {
             self.send(to, if stamped { &seen } else { &plain });
+        }
+    }
+
+    /// Output `pin` of node `addr` (client `from`, or gone) is at `level`: plants and
+    /// monitors get it, stamped.
+    fn output(&mut self, from: ClientId, addr: u16, pin: u8, level: bool) {
+        let at_us = self.start.elapsed().as_micros() as u64;
+        let seen = Link::Seen {
+            at_us,
+            addr,
+            pin,
+            level,
+            output: true,
+        };
+        let targets: Vec<ClientId> = (self.clients.iter())
+            .filter(|(id, c)| **id != from && matches!(c.peer, Peer::Plant | Peer::Monitor))
+            .map(|(id, _)| *id)
+            .collect();
+        for to in targets {
+            self.send(to, &seen);
         }
     }
 

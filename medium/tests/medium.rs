@@ -203,6 +203,34 @@ fn output_pins_reach_plants_and_plant_inputs_reach_their_node_only() {
     medium.stop();
 }
 
+/// A node that goes away (its process killed: a power cut) drops every output it held
+/// high, for plants and monitors, as its de-energized valves do; a low one says nothing.
+#[test]
+fn a_node_that_goes_away_drops_the_outputs_it_held_high() {
+    let medium = Medium::start(Config::default()).unwrap();
+    let a = Client::join(&medium, Peer::Node { addr: 0x11 });
+    let mut a = a;
+    let mut plant = Client::join(&medium, Peer::Plant);
+    let mut monitor = Client::join(&medium, Peer::Monitor);
+    for (pin, level) in [(3, true), (5, true), (5, false), (9, true)] {
+        a.send(&Link::Pin {
+            addr: 0x11,
+            pin,
+            level,
+        });
+        for c in [&mut plant, &mut monitor] {
+            assert_eq!(c.recv(SURE), Some(Got::Pin(0x11, pin, level)));
+        }
+    }
+    drop(a);
+    for c in [&mut plant, &mut monitor] {
+        assert_eq!(c.recv(SURE), Some(Got::Pin(0x11, 3, false)));
+        assert_eq!(c.recv(SURE), Some(Got::Pin(0x11, 9, false)));
+        assert_eq!(c.recv(QUIET), None);
+    }
+    medium.stop();
+}
+
 /// A node's running generation reaches plants and monitors in order with its pins (and a
 /// plant that joins later); a node cannot speak for another, a plant not at all.
 #[test]
