@@ -337,6 +337,18 @@ mod node {
         b.boot(&mut ib);
         let (mut events, mut acks) = (0, 0);
         let mut now = 0;
+        // Past the boot's greetings (`restart::GREETED_WITHIN_MS`): the figures are those of
+        // a machine that runs. (A greeting heard with B's lamp on, its chart under way,
+        // faults B: the figures were then those of a faulted node's.)
+        while now <= node_fw::restart::GREETED_WITHIN_MS {
+            now += 10;
+            a.poll(now, &mut ia);
+            b.poll(now, &mut ib);
+            while carry(&mut ia, &mut b, &mut ib, now, deliver)
+                + carry(&mut ib, &mut a, &mut ia, now, deliver)
+                > 0
+            {}
+        }
         for _ in 0..n {
             for level in [true, false] {
                 now += 10;
@@ -357,9 +369,19 @@ mod node {
                 }
             }
         }
+        // Every press toggled B's lamp (its chart on after an odd count), none faulted it.
+        let status = b.status(0, Default::default());
+        if status.fault.is_some() || status.states.first() != Some(&((n % 2) as u8)) {
+            return Err(format!("B did not run every press: {status:?}"));
+        }
         Ok(format!(
             "{events} events, {acks} acks, lamp pins {:#x}",
             ib.pins
         ))
+    }
+
+    /// Delivers a frame outside the probes (before the measured presses).
+    fn deliver(to: &mut NodeCore, mpdu: &[u8], now: u64, io: &mut Board) {
+        to.receive_mpdu(mpdu, now, io);
     }
 }
