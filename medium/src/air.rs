@@ -357,13 +357,15 @@ impl Air {
             self.output(from, addr, pin, level);
             return;
         }
+        // A plant's input level (a node's own outputs went above; another's are not its
+        // to say).
         let at_us = self.start.elapsed().as_micros() as u64;
         let seen = Link::Seen {
             at_us,
             addr,
             pin,
             level,
-            output: matches!(sender, Peer::Node { .. }),
+            output: false,
         };
         let plain = Link::Pin { addr, pin, level };
         let targets: Vec<(ClientId, bool)> = self
@@ -372,7 +374,6 @@ impl Air {
             .filter(|(id, _)| **id != from)
             .filter_map(|(id, c)| {
                 let stamped = match (sender, c.peer) {
-                    (Peer::Node { addr: a }, Peer::Plant | Peer::Monitor) if a == addr => true,
                     (Peer::Plant, Peer::Node { addr: a }) if a == addr => false,
                     (Peer::Plant, Peer::Monitor) => true,
                     _ => return None,
