@@ -225,13 +225,13 @@ pub fn refusal(nodes: &[Node], homing: bool) -> Option<String> {
     Some(match n.standing {
         Standing::Other => {
             // Every one of them: the operator checks or pushes them all.
+            if let Some(split) = split_trial(nodes) {
+                return Some(split);
+            }
             let others: Vec<String> = (nodes.iter())
                 .filter(|n| n.standing == Standing::Other)
                 .map(|n| format!("{:#06x} ({})", n.addr, n.role))
                 .collect();
-            if let Some(split) = split_trial(nodes) {
-                return Some(split);
-            }
             let who = match others.as_slice() {
                 [_] => format!("{who} does not run"),
                 _ => format!("nodes {} do not run", others.join(", ")),
@@ -384,12 +384,25 @@ pub fn home(
     radio: &mut ToolRadio,
     ids: &mut Ids,
     c: &Compiled,
+    within: (Duration, Duration),
+    sending: &mut dyn FnMut(),
+) -> Result<(HomeEnd, Duration), NetError> {
+    let before = statuses(radio, ids, c, within.0)?;
+    home_from(radio, ids, c, &before, within, sending)
+}
+
+/// [`home`], the nodes' statuses `before` (in role order) asked already by the caller.
+pub fn home_from(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    c: &Compiled,
+    before: &[Status],
     (answer_within, wait): (Duration, Duration),
     sending: &mut dyn FnMut(),
 ) -> Result<(HomeEnd, Duration), NetError> {
     let home = c.ir.home.ok_or(NetError::NoHome)?;
     let role = c.ir.roles.get(home).ok_or(NetError::NoHome)?;
-    let before = nodes(c, &statuses(radio, ids, c, answer_within)?);
+    let before = nodes(c, before);
     if let Some(why) = refusal(&before, true) {
         return Ok((HomeEnd::Refused(why), Duration::ZERO));
     }

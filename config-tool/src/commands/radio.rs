@@ -1020,11 +1020,12 @@ pub fn home(flags: &HomeArgs) -> Result<(), Failure> {
     plain_if_off(&mut radio, &c);
     let mut ids = Ids::default();
     // Every node answers first (else HOME is not sent, and the silent node is named).
-    robot_statuses(&mut radio, &mut ids, &c, "HOME was not sent")?;
-    let (end, took) = home::home(
+    let before = robot_statuses(&mut radio, &mut ids, &c, "HOME was not sent")?;
+    let (end, took) = home::home_from(
         &mut radio,
         &mut ids,
         &c,
+        &before,
         (ANSWER_WITHIN, Duration::from_secs(flags.wait)),
         &mut || {
             outln!("{}", demo::homing_line(&c));
