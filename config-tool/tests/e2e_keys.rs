@@ -495,23 +495,29 @@ fn start_node(dir: &Path, key: &str, medium: &str, addr: u16) -> Killed {
     Killed(child)
 }
 
-/// A node that a power cut took off a trial (it booted its confirmed generation) keeps
-/// `confirm` from confirming the others: the machine would run two generations. `confirm`
-/// names it and fails, nothing confirmed; `rollback` then brings every node back to one.
-/// Found: `confirm` confirmed the three still on trial, said nothing of the fourth, and
-/// succeeded.
-#[test]
-fn confirm_refuses_a_trial_a_power_cut_split() {
-    let dir = TempDir::new("keys-trial-cut");
-    let key = dir.0.join("machine.key");
-    let key_s = s(&key).to_string();
+/// A machine secret, the paint robot's role nodes started with their keys and flash on a
+/// medium of their own, each heard on the air.
+struct Keyed {
+    dir: TempDir,
+    key_s: String,
+    c: robot_compiler::Compiled,
+    medium: medium::Medium,
+    /// The medium's address, as the tool takes it.
+    m: String,
+    /// Each role's node, by address.
+    nodes: Vec<(u16, Killed)>,
+}
+
+fn keyed(tag: &str) -> Keyed {
+    let dir = TempDir::new(tag);
+    let key_s = s(&dir.0.join("machine.key")).to_string();
     ok(&["keys", "new", "--out", &key_s]);
     let c = robot("paint-robot.ron", 1);
     let roles: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
     let medium = medium::Medium::start(medium::Config::default()).expect("medium");
     let m = medium.addr().to_string();
     let mut monitor = Monitor::join(medium.addr());
-    let mut nodes: Vec<(u16, Killed)> = roles
+    let nodes: Vec<(u16, Killed)> = roles
         .iter()
         .map(|&a| (a, start_node(&dir.0, &key_s, &m, a)))
         .collect();
@@ -524,6 +530,31 @@ fn confirm_refuses_a_trial_a_power_cut_split() {
         }
         heard.len() == roles.len()
     });
+    Keyed {
+        dir,
+        key_s,
+        c,
+        medium,
+        m,
+        nodes,
+    }
+}
+
+/// A node that a power cut took off a trial (it booted its confirmed generation) keeps
+/// `confirm` from confirming the others: the machine would run two generations. `confirm`
+/// names it and fails, nothing confirmed; `rollback` then brings every node back to one.
+/// Found: `confirm` confirmed the three still on trial, said nothing of the fourth, and
+/// succeeded.
+#[test]
+fn confirm_refuses_a_trial_a_power_cut_split() {
+    let Keyed {
+        dir,
+        key_s,
+        c,
+        medium,
+        m,
+        mut nodes,
+    } = keyed("keys-trial-cut");
     let push = |generation: &str, trial: bool| {
         let mut args = vec!["push", ROBOT, "--keys", &key_s, "--medium", &m];
         args.extend(["--generation", generation]);
@@ -645,28 +676,15 @@ fn confirm_refuses_a_trial_a_power_cut_split() {
 /// of its nodes that did not announce itself directly, secured: every node is listed.
 #[test]
 fn a_secured_scan_finds_every_node_while_another_tool_asks_all_the_time() {
-    let dir = TempDir::new("keys-scan-flood");
-    let key = dir.0.join("machine.key");
-    let key_s = s(&key).to_string();
-    ok(&["keys", "new", "--out", &key_s]);
-    let c = robot("paint-robot.ron", 1);
-    let roles: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
-    let medium = medium::Medium::start(medium::Config::default()).expect("medium");
-    let m = medium.addr().to_string();
-    let mut monitor = Monitor::join(medium.addr());
-    let _nodes: Vec<Killed> = roles
-        .iter()
-        .map(|&a| start_node(&dir.0, &key_s, &m, a))
-        .collect();
-    let mut heard = std::collections::BTreeSet::new();
-    monitor.psdus_until(|psdu| {
-        if let Ok(mac::Frame::Data { header, .. }) = mac::Frame::parse(psdu) {
-            if roles.contains(&header.src) {
-                heard.insert(header.src);
-            }
-        }
-        heard.len() == roles.len()
-    });
+    // (The directory and the nodes held to the end: `..` would drop them here.)
+    let Keyed {
+        dir: _dir,
+        key_s,
+        c,
+        medium,
+        m,
+        nodes: _nodes,
+    } = keyed("keys-scan-flood");
     ok(&["push", ROBOT, "--keys", &key_s, "--medium", &m]);
     // Another tool asks every node to identify itself every 2 ms.
     let stop = Arc::new(AtomicBool::new(false));
