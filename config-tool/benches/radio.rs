@@ -22,7 +22,7 @@ use std::time::{Duration, Instant};
 use config_schema::link_keys;
 use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
 use config_schema::wire::medium::{Link, Peer};
-use config_schema::wire::msg::{ConfigReply, Message, SwitchStep, CHUNK_DATA};
+use config_schema::wire::msg::{Command, ConfigReply, Message, SwitchStep, CHUNK_DATA};
 use config_schema::wire::security::DEFAULT_OVERHEAD;
 use medium::{self, Conn};
 use robot_net::demo;
@@ -318,5 +318,26 @@ fn main() {
         per_hop / 1e3, cycles * publications, (event + ack) as f64 / 1e3, per_hop / (event + ack) as f64);
     println!("  (wall latency includes the host: the plant's wake-up, processes, TCP, thread wake-ups; docs/node-runtime.md has where a hop's time goes)");
     println!("frames between nodes per cycle: {per_cycle:?}   lower bound {} ({publications} publications, each an event and an ack)", 2 * publications);
+
+    // A round of every node's status, as `home`, `start`, `status` and the panel ask it:
+    // every node at once (`push::ask_each`), against one node after the other (as they
+    // were asked before), in turns in the same run.
+    let (mut at_once, mut in_turn) = (Vec::new(), Vec::new());
+    for _ in 0..40 {
+        let t = Instant::now();
+        bed.statuses(&c).expect("statuses");
+        at_once.push(t.elapsed().as_secs_f64() * 1e3);
+        let t = Instant::now();
+        for r in &c.ir.roles {
+            bed.command(r.address, Command::Status).expect("status");
+        }
+        in_turn.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    let (once, turn) = (median(&mut at_once), median(&mut in_turn));
+    println!(
+        "a round of every node's status ({} nodes, no loss, 40 rounds): every node at once {once:.2} ms median   one after another {turn:.2} ms   ratio {:.2}x",
+        c.ir.roles.len(),
+        turn / once
+    );
     bed.stop();
 }

@@ -335,15 +335,32 @@ pub fn statuses(
     c: &Compiled,
     timeout: Duration,
 ) -> Result<Vec<Status>, NetError> {
-    c.ir.roles
-        .iter()
-        .map(|r| {
-            push::command(radio, ids, r.address, Command::Status, timeout)?.ok_or_else(|| {
-                NetError::NoAnswer {
-                    addr: r.address,
-                    role: Some(r.name.clone()),
-                    command: "Status".to_string(),
-                }
+    let pick = |m: Message<'_>, id| match m {
+        Message::Status(s) if s.ack == id => Some(s),
+        _ => None,
+    };
+    every_role(radio, ids, c, Command::Status, timeout, pick)
+}
+
+/// `command` to every role's node of `c` at once ([`push::ask_each`]): each node's answer
+/// as `pick` takes it, in role order; the first node (in role order) that did not answer
+/// within `timeout` fails it.
+fn every_role<T>(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    c: &Compiled,
+    command: Command,
+    timeout: Duration,
+    pick: impl Fn(Message<'_>, u16) -> Option<T>,
+) -> Result<Vec<T>, NetError> {
+    let addrs: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
+    let answers = push::ask_each(radio, ids, &addrs, command, timeout, pick)?;
+    (c.ir.roles.iter().zip(answers))
+        .map(|(r, a)| {
+            a.map_err(|_| NetError::NoAnswer {
+                addr: r.address,
+                role: Some(r.name.clone()),
+                command: format!("{command:?}"),
             })
         })
         .collect()
@@ -359,20 +376,11 @@ pub fn alarms(
     command: Command,
     timeout: Duration,
 ) -> Result<Vec<AlarmReport>, NetError> {
-    c.ir.roles
-        .iter()
-        .map(|r| {
-            push::ask(radio, ids, r.address, command, timeout, |m, id| match m {
-                Message::Alarms(a) if a.ack == id => Some(a),
-                _ => None,
-            })?
-            .ok_or_else(|| NetError::NoAnswer {
-                addr: r.address,
-                role: Some(r.name.clone()),
-                command: format!("{command:?}"),
-            })
-        })
-        .collect()
+    let pick = |m: Message<'_>, id| match m {
+        Message::Alarms(a) if a.ack == id => Some(a),
+        _ => None,
+    };
+    every_role(radio, ids, c, command, timeout, pick)
 }
 
 /// Homes the machine of `c`: refuses one with a node faulted, moving or not running the

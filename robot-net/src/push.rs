@@ -527,6 +527,47 @@ pub fn ask<T>(
     Ok(None)
 }
 
+/// [`ask`] of several nodes at once: `command` goes to each of `addrs` (each its own id,
+/// again every 150 ms to those that have not answered) until `pick` took an answer of
+/// every one, at most `timeout`. A round costs one round trip however many nodes it asks,
+/// where asking one after the other cost one each (and a lost frame a 150 ms wait each).
+/// Per node, in the order of `addrs`: its answer, or how many times it was asked.
+pub fn ask_each<T>(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    addrs: &[u16],
+    command: Command,
+    timeout: Duration,
+    pick: impl Fn(Message<'_>, u16) -> Option<T>,
+) -> io::Result<Vec<Result<T, u32>>> {
+    let mut asked: Vec<(u16, u16, Result<T, u32>)> =
+        (addrs.iter()).map(|&a| (a, ids.fresh(), Err(0))).collect();
+    let end = Instant::now() + timeout;
+    let retry = Duration::from_millis(150);
+    while Instant::now() < end && asked.iter().any(|a| a.2.is_err()) {
+        for (addr, id, answer) in &mut asked {
+            if let Err(times) = answer {
+                radio.send(*addr, &Message::Command { id: *id, command })?;
+                *times += 1;
+            }
+        }
+        let until = (Instant::now() + retry).min(end);
+        while let Some(r) = radio.recv(until)? {
+            let waiting = (asked.iter_mut()).filter(|a| a.0 == r.src && a.2.is_err());
+            for (_, id, answer) in waiting {
+                if let Some(t) = r.message().and_then(|m| pick(m, *id)) {
+                    *answer = Ok(t);
+                    break;
+                }
+            }
+            if asked.iter().all(|a| a.2.is_ok()) {
+                break;
+            }
+        }
+    }
+    Ok(asked.into_iter().map(|a| a.2).collect())
+}
+
 /// The nodes in range: asks every node to identify itself and collects announcements
 /// for `wait` (unconfigured nodes announce themselves anyway).
 pub fn scan(

@@ -111,16 +111,57 @@ impl Poll {
     /// One round: every node's status and alarms (and now and then its security
     /// counters); then, while cycles run, START again at the idle point.
     fn round(&mut self, round: u64) -> std::io::Result<()> {
-        for (i, r) in self.c.ir.roles.iter().enumerate() {
-            let addr = r.address;
-            let s = push::command(
+        let addrs: Vec<u16> = self.c.ir.roles.iter().map(|r| r.address).collect();
+        let statuses = push::ask_each(
+            &mut self.radio,
+            &mut self.ids,
+            &addrs,
+            Command::Status,
+            POLL_ANSWER,
+            |m, id| match m {
+                Message::Status(s) if s.ack == id => Some(s),
+                _ => None,
+            },
+        )?;
+        // The alarms and counters of the nodes that answered, when due.
+        let answered: Vec<u16> = (addrs.iter().zip(&statuses))
+            .filter(|(_, s)| s.is_ok())
+            .map(|(&a, _)| a)
+            .collect();
+        let mut alarms = if round.is_multiple_of(ALARMS_EVERY) {
+            push::ask_each(
                 &mut self.radio,
                 &mut self.ids,
-                addr,
-                Command::Status,
+                &answered,
+                Command::Alarms,
                 POLL_ANSWER,
-            )?;
-            let Some(s) = s else {
+                |m, id| match m {
+                    Message::Alarms(a) if a.ack == id => Some(a),
+                    _ => None,
+                },
+            )?
+        } else {
+            Vec::new()
+        }
+        .into_iter();
+        let mut security = if round.is_multiple_of(SECURITY_EVERY) {
+            push::ask_each(
+                &mut self.radio,
+                &mut self.ids,
+                &answered,
+                Command::Security,
+                POLL_ANSWER,
+                |m, id| match m {
+                    Message::Security(r) if r.ack == id => Some(r),
+                    _ => None,
+                },
+            )?
+        } else {
+            Vec::new()
+        }
+        .into_iter();
+        for (i, s) in statuses.into_iter().enumerate() {
+            let Ok(s) = s else {
                 self.shared.update(|l| match l.nodes.get_mut(i) {
                     Some(n) if n.silent.is_none() => {
                         n.silent = Some(SystemTime::now());
@@ -130,36 +171,8 @@ impl Poll {
                 });
                 continue;
             };
-            let alarms = if round.is_multiple_of(ALARMS_EVERY) {
-                push::ask(
-                    &mut self.radio,
-                    &mut self.ids,
-                    addr,
-                    Command::Alarms,
-                    POLL_ANSWER,
-                    |m, id| match m {
-                        Message::Alarms(a) if a.ack == id => Some(a),
-                        _ => None,
-                    },
-                )?
-            } else {
-                None
-            };
-            let security = if round.is_multiple_of(SECURITY_EVERY) {
-                push::ask(
-                    &mut self.radio,
-                    &mut self.ids,
-                    addr,
-                    Command::Security,
-                    POLL_ANSWER,
-                    |m, id| match m {
-                        Message::Security(r) if r.ack == id => Some(r),
-                        _ => None,
-                    },
-                )?
-            } else {
-                None
-            };
+            let alarms = alarms.next().and_then(Result::ok);
+            let security = security.next().and_then(Result::ok);
             let (c, machine) = (&self.c, &self.machine);
             self.shared.update(|l| {
                 l.levels_from(c, machine, i, &s);

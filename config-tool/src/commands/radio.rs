@@ -141,6 +141,22 @@ fn ask_counted<T>(
     Ok(answer.ok_or(radio.stats.sent.saturating_sub(sent_before)))
 }
 
+/// `cmd` to every role's node of `c` at once ([`push::ask_each`], each asked until it
+/// answers, at most [`ANSWER_WITHIN`]): per role, in role order, its answer as `pick` takes
+/// it, or how many times it was asked without one.
+fn ask_every_role<T>(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    c: &robot_compiler::Compiled,
+    cmd: Command,
+    pick: impl Fn(Message<'_>, u16) -> Option<T>,
+) -> Result<Vec<Result<T, u64>>, Failure> {
+    let addrs: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
+    let answers =
+        push::ask_each(radio, ids, &addrs, cmd, ANSWER_WITHIN, pick).map_err(Failure::error)?;
+    Ok(answers.into_iter().map(|a| a.map_err(u64::from)).collect())
+}
+
 /// The status of every role's node of `c`, in role order; a node that does not answer
 /// fails the command, named, with how often it was asked and `not_sent` (what was not
 /// sent for want of it).
@@ -150,26 +166,24 @@ fn robot_statuses(
     c: &robot_compiler::Compiled,
     not_sent: &str,
 ) -> Result<Vec<Status>, Failure> {
-    let mut out = Vec::new();
-    for r in &c.ir.roles {
-        let pick = |m: Message<'_>, id| match m {
-            Message::Status(s) if s.ack == id => Some(s),
-            _ => None,
-        };
-        match ask_counted(radio, ids, r.address, Command::Status, pick)? {
-            Ok(s) => out.push(s),
-            Err(asked) => {
-                return Err(Failure::error(format!(
+    let pick = |m: Message<'_>, id| match m {
+        Message::Status(s) if s.ack == id => Some(s),
+        _ => None,
+    };
+    let answers = ask_every_role(radio, ids, c, Command::Status, pick)?;
+    (c.ir.roles.iter().zip(answers))
+        .map(|(r, answer)| {
+            answer.map_err(|asked| {
+                Failure::error(format!(
                     "node {:#06x} ({}) did not answer Status (asked {asked} times in {} s): \
                      {not_sent}",
                     r.address,
                     r.name,
                     ANSWER_WITHIN.as_secs()
-                )))
-            }
-        }
-    }
-    Ok(out)
+                ))
+            })
+        })
+        .collect()
 }
 
 /// A command to one node, resent until its status comes back.
@@ -695,11 +709,10 @@ fn machine(
     let c = demo::load(&flags.robot)?;
     let mut radio = connect_robot(&flags.at, &flags.robot, &c, &flags.keys)?;
     let mut ids = Ids::default();
-    let mut nodes = Vec::new();
-    for r in &c.ir.roles {
-        let s = command(&mut radio, &mut ids, r.address, Command::Status)?;
-        nodes.push((r.name.clone(), r.address, s));
-    }
+    let statuses = robot_statuses(&mut radio, &mut ids, &c, "nothing was sent")?;
+    let nodes = (c.ir.roles.iter().zip(statuses))
+        .map(|(r, s)| (r.name.clone(), r.address, s))
+        .collect();
     Ok((radio, c, nodes))
 }
 
@@ -889,13 +902,17 @@ fn node_alarms(
     c: &robot_compiler::Compiled,
     cmd: Command,
 ) -> Result<(Vec<alarms::NodeAlarms>, Vec<alarms::Silent>), Failure> {
+    let pick = |m: Message<'_>, id| match m {
+        Message::Alarms(a) if a.ack == id => Some(a),
+        _ => None,
+    };
     let (mut out, mut silent) = (Vec::new(), Vec::new());
-    for r in &c.ir.roles {
-        let pick = |m: Message<'_>, id| match m {
-            Message::Alarms(a) if a.ack == id => Some(a),
-            _ => None,
-        };
-        match ask_counted(radio, ids, r.address, cmd, pick)? {
+    for (r, answer) in
+        c.ir.roles
+            .iter()
+            .zip(ask_every_role(radio, ids, c, cmd, pick)?)
+    {
+        match answer {
             Ok(report) => out.push(alarms::NodeAlarms {
                 role: r.name.clone(),
                 addr: r.address,

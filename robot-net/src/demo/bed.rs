@@ -534,8 +534,21 @@ impl Bed {
         c: &Compiled,
         sending: &mut dyn FnMut(),
     ) -> Result<Homing, NetError> {
+        let before = self.statuses(c)?;
+        self.home_from(c, &before, sending)
+    }
+
+    /// [`Bed::home_saying`] from the nodes' statuses `before` (in role order), asked
+    /// already ([`Bed::statuses`]).
+    pub fn home_from(
+        &mut self,
+        c: &Compiled,
+        before: &[Status],
+        sending: &mut dyn FnMut(),
+    ) -> Result<Homing, NetError> {
         let within = (self.options.timeout, self.options.timeout);
-        let (end, took) = home::home(&mut self.radio, &mut self.ids, c, within, sending)?;
+        let (end, took) =
+            home::home_from(&mut self.radio, &mut self.ids, c, before, within, sending)?;
         let steps = self.strokes().into_iter().map(|s| s.step).collect();
         Ok(Homing { end, steps, took })
     }
@@ -821,10 +834,7 @@ impl Bed {
 
     /// The status of every role's node.
     pub fn statuses(&mut self, c: &Compiled) -> Result<Vec<Status>, NetError> {
-        c.ir.roles
-            .iter()
-            .map(|r| self.command(r.address, Command::Status))
-            .collect()
+        home::statuses(&mut self.radio, &mut self.ids, c, self.options.timeout)
     }
 
     /// Stops the plant, the nodes and the medium.

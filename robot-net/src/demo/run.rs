@@ -254,12 +254,13 @@ pub(super) fn push_robot(
 /// at the idle point leaves the machine homed); says what happened. `false` if homing
 /// did not end with every chart idle.
 fn home_robot(bed: &mut Bed, robot: &Compiled, out: &mut dyn Write) -> Result<bool, NetError> {
-    let nodes = home::nodes(robot, &bed.statuses(robot)?);
+    let before = bed.statuses(robot)?;
+    let nodes = home::nodes(robot, &before);
     if nodes.iter().all(|n| n.standing == home::Standing::Homed) {
         demo_report::say(out, "homed already: the tables switched at the idle point");
         return Ok(true);
     }
-    let homing = bed.home_saying(robot, &mut || {
+    let homing = bed.home_from(robot, &before, &mut || {
         demo_report::say(out, &demo_report::homing_line(robot))
     })?;
     demo_report::say(out, &demo_report::homed_line(&homing));
