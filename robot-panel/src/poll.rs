@@ -128,38 +128,24 @@ impl Poll {
             .filter(|(_, s)| s.is_ok())
             .map(|(&a, _)| a)
             .collect();
-        let mut alarms = if round.is_multiple_of(ALARMS_EVERY) {
-            push::ask_each(
-                &mut self.radio,
-                &mut self.ids,
-                &answered,
-                Command::Alarms,
-                POLL_ANSWER,
-                |m, id| match m {
-                    Message::Alarms(a) if a.ack == id => Some(a),
-                    _ => None,
-                },
-            )?
-        } else {
-            Vec::new()
-        }
-        .into_iter();
-        let mut security = if round.is_multiple_of(SECURITY_EVERY) {
-            push::ask_each(
-                &mut self.radio,
-                &mut self.ids,
-                &answered,
-                Command::Security,
-                POLL_ANSWER,
-                |m, id| match m {
-                    Message::Security(r) if r.ack == id => Some(r),
-                    _ => None,
-                },
-            )?
-        } else {
-            Vec::new()
-        }
-        .into_iter();
+        let mut alarms = self.ask_when(
+            round.is_multiple_of(ALARMS_EVERY),
+            &answered,
+            Command::Alarms,
+            |m, id| match m {
+                Message::Alarms(a) if a.ack == id => Some(a),
+                _ => None,
+            },
+        )?;
+        let mut security = self.ask_when(
+            round.is_multiple_of(SECURITY_EVERY),
+            &answered,
+            Command::Security,
+            |m, id| match m {
+                Message::Security(r) if r.ack == id => Some(r),
+                _ => None,
+            },
+        )?;
         for (i, s) in statuses.into_iter().enumerate() {
             let Ok(s) = s else {
                 self.shared.update(|l| match l.nodes.get_mut(i) {
@@ -207,6 +193,24 @@ impl Poll {
             });
         }
         self.cycles_on()
+    }
+
+    /// When `due`, `command` to every node of `addrs` at once (`push::ask_each`, within
+    /// [`POLL_ANSWER`]): their answers in that order; else none.
+    fn ask_when<T>(
+        &mut self,
+        due: bool,
+        addrs: &[u16],
+        command: Command,
+        pick: impl Fn(Message<'_>, u16) -> Option<T>,
+    ) -> std::io::Result<std::vec::IntoIter<Result<T, u32>>> {
+        let answers = if due {
+            let (radio, ids) = (&mut self.radio, &mut self.ids);
+            push::ask_each(radio, ids, addrs, command, POLL_ANSWER, pick)?
+        } else {
+            Vec::new()
+        };
+        Ok(answers.into_iter())
     }
 
     /// While cycles run: a fault ends them; at the idle point START is pressed again.
