@@ -651,7 +651,7 @@ fn confirm_refuses_a_trial_a_power_cut_split() {
             .iter()
             .map(|r| {
                 let what = if r.address == rc {
-                    "back already (a power cut)"
+                    "on it already"
                 } else {
                     "rolled back"
                 };
@@ -731,5 +731,106 @@ fn a_secured_scan_finds_every_node_while_another_tool_asks_all_the_time() {
         ["0x0015  (spare)  did not answer (node spare)"],
         "{found}"
     );
+    medium.stop();
+}
+
+/// A switch-over that did not finish (RC's node lost between staging and switching, as a
+/// `push --now` with a node gone half way leaves it): VC, GR and HC run generation 2, RC
+/// runs 1 with 2 staged. `home` and `start` sent their commands to a machine whose nodes
+/// share no link keys (homing then timed out, naming a link in alarm); now they refuse
+/// it, naming RC's generation. Found: the advice `push again to finish it` failed for
+/// good (every node that had switched refused a generation not newer than its own), and
+/// `rollback` found `no common previous generation` (RC's previous is 0, though it runs
+/// the generation the others return to). Now the push finishes the switch-over, and so
+/// does a rollback, the other way.
+#[test]
+fn a_switch_over_that_did_not_finish_is_refused_by_home_then_finished_by_push_or_rollback() {
+    let Keyed {
+        dir,
+        key_s,
+        c,
+        medium,
+        m,
+        nodes,
+    } = keyed("keys-split-switch");
+    let secret = robot_keys::load_machine_secret(Path::new(&key_s)).expect("secret");
+    let rc = e2e_support::role_of(&c, "RC").1;
+    let push = |generation: &str, extra: &[&str]| {
+        let mut args = vec!["push", ROBOT, "--keys", &key_s, "--medium", &m];
+        args.extend(["--generation", generation]);
+        args.extend(extra);
+        tool(&args)
+    };
+    let split = |generation: u32| {
+        let g = generation.to_string();
+        let out = push(&g, &["--stage-only"]);
+        assert!(out.status.success(), "{}", text(&out.stdout));
+        let mut radio = e2e_support::second_tool(medium.addr(), &secret);
+        for r in c.ir.roles.iter().filter(|r| r.address != rc) {
+            assert!(e2e_support::switch_one(&mut radio, r.address, generation));
+        }
+    };
+    let out = push("1", &[]);
+    assert!(out.status.success(), "{}", text(&out.stdout));
+    split(2);
+    for (command, what) in [("home", "HOME"), ("start", "START")] {
+        let refused = format!(
+            "error: the nodes run different generations: 0x0014 (RC) runs generation 1: push \
+             again to finish the switch-over, or roll back; {what} was not sent\n"
+        );
+        let out = tool(&[command, ROBOT, "--keys", &key_s, "--medium", &m]);
+        assert_eq!(
+            (out.status.code(), text(&out.stderr)),
+            (Some(6), refused),
+            "{command}: {}",
+            text(&out.stdout)
+        );
+    }
+    // Rolled back: the three that switched return to 1, RC is on it.
+    let back = ok(&["rollback", ROBOT, "--keys", &key_s, "--medium", &m]);
+    let lines: Vec<String> = (c.ir.roles.iter())
+        .map(|r| {
+            let what = if r.address == rc {
+                "on it already"
+            } else {
+                "rolled back"
+            };
+            format!("  {:<6} {:#06x}  generation 1  {what}", r.name, r.address)
+        })
+        .collect();
+    assert_eq!(back.lines().collect::<Vec<_>>(), lines);
+    // Split again, then pushed again: RC switches, the others run it already.
+    split(3);
+    let out = push("3", &[]);
+    let said = text(&out.stdout);
+    assert_eq!(
+        (out.status.code(), text(&out.stderr).as_str()),
+        (Some(0), ""),
+        "{said}"
+    );
+    for r in &c.ir.roles {
+        let line = said
+            .lines()
+            .find(|l| l.starts_with(&format!("  {:<6} {:#06x}", r.name, r.address)))
+            .unwrap_or_default();
+        let want = if r.address == rc {
+            "activated"
+        } else {
+            "runs this table already"
+        };
+        assert!(line.ends_with(want), "{said}");
+    }
+    assert_eq!(
+        said.lines().last(),
+        Some("switched: every node runs the new generation")
+    );
+    for r in &c.ir.roles {
+        let a = format!("{:#06x}", r.address);
+        assert_eq!(
+            status(&key_s, &m, &a).remove(0),
+            format!("{a}  role {}  generation 3", r.name)
+        );
+    }
+    drop((nodes, dir));
     medium.stop();
 }

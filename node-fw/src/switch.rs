@@ -378,7 +378,10 @@ impl Coordinator {
         match self.phase {
             Phase::Arming => s == NodeState::Arming,
             Phase::Waiting { since } => {
-                !matches!(s, NodeState::Armed { idle: true, at } if at > since)
+                !matches!(
+                    s,
+                    NodeState::Armed { idle: true, at } if at > since
+                ) && s != NodeState::Switched
             }
             Phase::Going => matches!(
                 s,
@@ -492,12 +495,19 @@ impl Coordinator {
         let all = |f: &dyn Fn(NodeState) -> bool| self.nodes.iter().all(|n| f(n.1));
         let any = |f: &dyn Fn(NodeState) -> bool| self.nodes.iter().any(|n| f(n.1));
         let failed = |s: NodeState| matches!(s, NodeState::Refused(_) | NodeState::Silent);
+        // A node that runs the generation already (it switched in a switch-over that did
+        // not finish: pushed again) answers `Activated`, and is not waited for.
+        let switched = |s: NodeState| s == NodeState::Switched;
         let next = match self.phase {
             Phase::Arming | Phase::Waiting { .. } if any(&failed) => {
                 self.verdict = Verdict::Aborted;
                 Some(Phase::Disarming)
             }
-            Phase::Arming if all(&|s| matches!(s, NodeState::Armed { .. })) => {
+            Phase::Arming | Phase::Waiting { .. } if all(&switched) => {
+                self.verdict = Verdict::Switched;
+                Some(Phase::Done)
+            }
+            Phase::Arming if all(&|s| matches!(s, NodeState::Armed { .. }) || switched(s)) => {
                 // Ask every node once more at once: only answers after this count.
                 for n in self.nodes.iter_mut() {
                     n.2 = 0;
@@ -508,9 +518,11 @@ impl Coordinator {
                 })
             }
             Phase::Waiting { since }
-                if all(&|s| matches!(s, NodeState::Armed { idle: true, at } if at > since)) =>
+                if all(&|s| {
+                    matches!(s, NodeState::Armed { idle: true, at } if at > since) || switched(s)
+                }) =>
             {
-                for n in self.nodes.iter_mut() {
+                for n in self.nodes.iter_mut().filter(|n| !switched(n.1)) {
                     n.1 = NodeState::Going;
                     n.2 = 0;
                     n.3 = now_ms;
@@ -865,6 +877,25 @@ mod tests {
         assert_eq!(m.run(30_000), Verdict::Aborted);
         assert_eq!(m.running().as_slice(), &[1, 1]);
         assert!(!m.nodes[0].1.armed());
+    }
+
+    /// A switch-over that did not finish, run again: 0x11 runs generation 2 already (it
+    /// switched the first time), 0x12 has it staged. 0x11 answers its arming `Activated`
+    /// and counts as switched; 0x12 is armed, checked once more and switched. (The
+    /// coordinator waited for 0x11's arming: `NotIdle`, nothing switched.)
+    #[test]
+    fn a_node_that_switched_already_is_not_waited_for() {
+        let mut m = Machine::new(2, false);
+        m.nodes[0].1 = SwitchOver::default();
+        m.nodes[0].3 = 2;
+        assert_eq!(m.run(30_000), Verdict::Switched);
+        assert_eq!(m.running().as_slice(), &[2, 2]);
+        let to = |addr: u16| -> heapless::Vec<SwitchStep, 16> {
+            m.log.iter().filter(|l| l.1 == addr).map(|l| l.2).collect()
+        };
+        let (arm, go) = (SwitchStep::Arm, GO);
+        assert_eq!(to(0x11).as_slice(), &[arm]);
+        assert_eq!(to(0x12).as_slice(), &[arm, arm, go]);
     }
 
     #[test]

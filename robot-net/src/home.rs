@@ -10,6 +10,7 @@ use config_schema::alarm::{Alarm, AlarmReport};
 use config_schema::wire::msg::{Command, Message, Status};
 use config_schema::{Table, TableId};
 use robot_compiler::compile::Compiled;
+use robot_compiler::model::Security;
 
 use crate::error::NetError;
 use crate::push::{self, Ids};
@@ -118,22 +119,45 @@ pub enum Generations {
 
 /// Which generation(s) the nodes of `statuses` run (`None`: no node).
 pub fn generations(statuses: &[(u16, &Status)]) -> Option<Generations> {
-    let reference = statuses
-        .iter()
-        .find(|(_, s)| s.trial)
-        .or_else(|| statuses.first())?;
-    let generation = reference.1.generation;
-    let trial = reference.1.trial.then_some(generation);
-    let off: Vec<(u16, u32)> = statuses
-        .iter()
-        .filter(|(_, s)| s.generation != generation || s.trial != reference.1.trial)
-        .map(|(a, s)| (*a, s.generation))
+    let runs: Vec<(u16, u32, bool)> = (statuses.iter())
+        .map(|(a, s)| (*a, s.generation, s.trial))
+        .collect();
+    generations_of(&runs)
+}
+
+/// [`generations`] of `(address, generation, on trial)`: the machine's generation is the
+/// one on trial if a node is on trial (a power cut takes a node off a trial, never onto
+/// one), else the newest (a switch-over that did not finish leaves the nodes it did not
+/// reach on the older one).
+fn generations_of(runs: &[(u16, u32, bool)]) -> Option<Generations> {
+    let newest = runs.iter().max_by_key(|r| r.1);
+    let &(_, generation, trial) = runs.iter().find(|r| r.2).or(newest)?;
+    let off: Vec<(u16, u32)> = (runs.iter())
+        .filter(|r| r.1 != generation || r.2 != trial)
+        .map(|r| (r.0, r.1))
         .collect();
     Some(match (off.is_empty(), trial) {
-        (true, Some(generation)) => Generations::OnTrial { generation },
-        (true, None) => Generations::Confirmed { generation },
-        (false, trial) => Generations::Mixed { trial, off },
+        (true, true) => Generations::OnTrial { generation },
+        (true, false) => Generations::Confirmed { generation },
+        (false, trial) => Generations::Mixed {
+            trial: trial.then_some(generation),
+            off,
+        },
     })
+}
+
+/// Nodes on different generations, in words (`off` says what each node off the
+/// machine's generation runs: `0x0014 (RC) runs generation 1`), with what to do: a trial
+/// a power cut split (`trial`: its generation), or a switch-over that did not finish.
+pub fn generations_text(trial: Option<u32>, off: &[String]) -> String {
+    match trial {
+        Some(generation) => trial_split_text(generation, off),
+        None => format!(
+            "the nodes run different generations: {}: push again to finish the \
+             switch-over, or roll back",
+            off.join(", ")
+        ),
+    }
 }
 
 /// Whether the node that answered `s` runs `table`: the identity it reports is that of
@@ -185,6 +209,9 @@ pub struct Node {
     /// The peers its links to are in alarm or broken (they do not acknowledge: a peer
     /// that restarted, or went away).
     pub stalled: Vec<u16>,
+    /// Its links are secured (the robot's `security`): each generation has link keys of
+    /// its own, so a node shares none with a peer on another generation.
+    pub secured: bool,
 }
 
 /// Where every role's node stands; `statuses` in role order.
@@ -203,6 +230,7 @@ pub fn nodes(c: &Compiled, statuses: &[Status]) -> Vec<Node> {
                 .filter(|(i, _)| (s.link_alarms | s.links_broken) & (1 << i) != 0)
                 .map(|(_, &p)| p)
                 .collect(),
+            secured: c.robot.security == Security::On,
         })
         .collect()
 }
@@ -220,14 +248,14 @@ pub fn machine(nodes: &[Node]) -> Option<&Node> {
 /// Why a command refuses the machine `nodes` describe (`None`: homed, at rest), in words
 /// naming the node and what to do: `start` refuses a machine not homed, `home` does not.
 pub fn refusal(nodes: &[Node], homing: bool) -> Option<String> {
+    if let Some(split) = split_generations(nodes) {
+        return Some(split);
+    }
     let n = machine(nodes)?;
     let who = format!("node {:#06x} ({})", n.addr, n.role);
     Some(match n.standing {
         Standing::Other => {
             // Every one of them: the operator checks or pushes them all.
-            if let Some(split) = split_trial(nodes) {
-                return Some(split);
-            }
             let others: Vec<String> = (nodes.iter())
                 .filter(|n| n.standing == Standing::Other)
                 .map(|n| format!("{:#06x} ({})", n.addr, n.role))
@@ -261,26 +289,33 @@ pub fn refusal(nodes: &[Node], homing: bool) -> Option<String> {
     })
 }
 
-/// A trial a power cut split, in words (`None`: not one): the nodes that do not run the
-/// robot's table are off the trial the others are on, each on another generation (it
-/// booted its confirmed one).
-fn split_trial(nodes: &[Node]) -> Option<String> {
-    let trial = nodes.iter().find(|n| n.trial)?.generation;
-    let off: Vec<&Node> = (nodes.iter())
-        .filter(|n| n.standing == Standing::Other)
+/// The machine's nodes on different generations, in words (`None`: they run one): a
+/// trial a power cut split, or, on a secured robot, a switch-over that did not finish
+/// (its nodes share no link keys with the others: no cycle runs across them). An
+/// unsecured robot's nodes may run different generations of one robot (`push --role`).
+fn split_generations(nodes: &[Node]) -> Option<String> {
+    let runs: Vec<(u16, u32, bool)> = (nodes.iter())
+        .map(|n| (n.addr, n.generation, n.trial))
         .collect();
-    if !off.iter().all(|n| !n.trial && n.generation != trial) {
+    let Some(Generations::Mixed { trial, off }) = generations_of(&runs) else {
+        return None;
+    };
+    if trial.is_none() && !nodes.iter().any(|n| n.secured) {
         return None;
     }
     let off: Vec<String> = (off.iter())
-        .map(|n| {
+        .map(|&(addr, generation)| {
+            let role = nodes
+                .iter()
+                .find(|n| n.addr == addr)
+                .map(|n| n.role.as_str());
             format!(
-                "{:#06x} ({}) runs generation {}",
-                n.addr, n.role, n.generation
+                "{addr:#06x} ({}) runs generation {generation}",
+                role.unwrap_or("?")
             )
         })
         .collect();
-    Some(trial_split_text(trial, &off))
+    Some(generations_text(trial, &off))
 }
 
 /// A trial a power cut split, in words: `off` says what each node off generation `trial`
@@ -655,14 +690,18 @@ mod tests {
             generations(&[(0x14, &c), (0x15, &c)]),
             Some(Generations::Confirmed { generation: 4 })
         );
+        // Without a trial, the nodes behind the newest generation are named (a
+        // switch-over that did not finish leaves them there), whatever the order.
         let d = on(5, false);
-        assert_eq!(
-            generations(&[(0x14, &c), (0x15, &d)]),
-            Some(Generations::Mixed {
-                trial: None,
-                off: vec![(0x15, 5)]
-            })
-        );
+        for pair in [[(0x14, &c), (0x15, &d)], [(0x15, &d), (0x14, &c)]] {
+            assert_eq!(
+                generations(&pair),
+                Some(Generations::Mixed {
+                    trial: None,
+                    off: vec![(0x14, 4)]
+                })
+            );
+        }
         assert_eq!(generations(&[]), None);
     }
 
@@ -758,6 +797,7 @@ mod tests {
             generation: 1,
             trial: false,
             stalled: Vec::new(),
+            secured: true,
         }
     }
 
@@ -918,5 +958,28 @@ mod tests {
         };
         assert!(refusal(&other_on_trial, true)
             .is_some_and(|r| r.starts_with("node 0x0014 (RC) does not run this robot's table")));
+        // Off the trial with the same table (the file pushed at both generations): RC runs
+        // the robot's table at its generation, and the trial is split all the same (it
+        // sent HOME).
+        let mut same_table = split.clone();
+        same_table[1].standing = Standing::Homed;
+        assert_eq!(refusal(&same_table, true).as_deref(), Some(said));
+        // A switch-over that did not finish: the nodes share no link keys (it sent HOME).
+        let unfinished = [
+            node("VC", 0x11, Standing::Homed),
+            Node {
+                generation: 2,
+                ..node("RC", 0x14, Standing::Homed)
+            },
+        ];
+        let said = "the nodes run different generations: 0x0011 (VC) runs generation 1: push \
+                    again to finish the switch-over, or roll back";
+        assert_eq!(refusal(&unfinished, false).as_deref(), Some(said));
+        // Unsecured, one role pushed alone at a newer generation runs with the others.
+        let unsecured = unfinished.map(|n| Node {
+            secured: false,
+            ..n
+        });
+        assert_eq!(refusal(&unsecured, false), None);
     }
 }

@@ -7,7 +7,10 @@ use std::time::{Duration, Instant};
 
 use config_schema::link_keys;
 use config_schema::wire::mac::BROADCAST;
-use config_schema::wire::msg::{Announce, Command, ConfigReply, Message, Status, SwitchStep};
+use config_schema::wire::msg::{
+    Announce, Command, ConfigReply, Message, Refusal, Status, SwitchStep,
+};
+use config_schema::Table;
 use node_fw::ota::{Progress, Sender, TransferStats};
 use node_fw::switch::{Coordinator, NodeState, Verdict};
 
@@ -37,12 +40,18 @@ pub struct Pushed {
     /// Bytes of the link key block sent after the table (0: unsecured).
     pub key_bytes: usize,
     pub elapsed: Duration,
+    /// The node ran the pushed table already (it refused the transfer as not newer, and
+    /// its status shows this very table: [`running_already`]).
+    pub running: bool,
 }
 
 impl Pushed {
     /// How it ended, in words: `activated`, `staged`, `refused: <the node's reason>`, ...
     pub fn verdict(&self) -> String {
         match (self.progress, self.switch) {
+            (Progress::Done, None | Some(NodeState::Switched)) if self.running => {
+                "runs this table already".to_string()
+            }
             (Progress::Done, Some(NodeState::Switched)) => "activated".to_string(),
             (Progress::Done, None) => "staged".to_string(),
             (Progress::Done, Some(NodeState::Refused(why))) => {
@@ -168,8 +177,40 @@ pub fn push(
             bytes: t.blob.len(),
             key_bytes: bytes.len() - t.blob.len(),
             elapsed: f.unwrap_or_else(|| start.elapsed()),
+            running: false,
         })
         .collect())
+}
+
+/// The nodes of `pushed` that refused the transfer as not newer than the generation they
+/// run, where that is the pushed `generation`, asked their status (each within
+/// `timeout`): one that runs this very table (its identity is `table_of` its role's at
+/// that generation) counts as staged, [`Pushed::running`]: the switch-over finds it
+/// switched already. A push again after a switch-over that did not finish (a node lost on
+/// the way: the others run the new generation, it runs the old one with the new one
+/// staged) then switches the rest, where every node that had switched refused it.
+pub fn running_already<'t>(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    pushed: &mut [Pushed],
+    generation: u32,
+    table_of: impl Fn(&str) -> Option<&'t Table>,
+    timeout: Duration,
+) -> io::Result<()> {
+    let stale = Progress::Refused(Refusal::Stale {
+        running: generation,
+    });
+    for p in pushed.iter_mut().filter(|p| p.progress == stale) {
+        let Some(table) = table_of(&p.role) else {
+            continue;
+        };
+        let status = command(radio, ids, p.addr, Command::Status, timeout)?;
+        if status.is_some_and(|s| s.generation == generation && crate::home::runs(table, &s)) {
+            p.progress = Progress::Done;
+            p.running = true;
+        }
+    }
+    Ok(())
 }
 
 /// What goes over the air for `t`: its blob, then, when the radio is secured, the node's

@@ -331,6 +331,23 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
     let mut radio = connect_keyed(at, keys.as_ref())?;
     plain_if_off(&mut radio, &c);
     let mut outcomes = push_with_bars(&mut radio, &targets, flags.force)?;
+    // Pushed again after a switch-over that did not finish: the nodes that switched run
+    // this generation already.
+    let table_of = |role: &str| {
+        let i = c.ir.roles.iter().position(|r| r.name == role)?;
+        c.tables.get(i)
+    };
+    let generation = c.ir.generation;
+    let mut ids = Ids::default();
+    push::running_already(
+        &mut radio,
+        &mut ids,
+        &mut outcomes,
+        generation,
+        table_of,
+        ANSWER_WITHIN,
+    )
+    .map_err(|e| lost(e, Phase::Transfer))?;
     let verdict = if flags.stage_only {
         None
     } else {
@@ -689,14 +706,7 @@ fn mixed_text(c: &robot_compiler::Compiled, trial: Option<u32>, off: &[(u16, u32
         .iter()
         .map(|&(a, g)| format!("{} runs generation {g}", who(a)))
         .collect();
-    match trial {
-        Some(generation) => home::trial_split_text(generation, &off),
-        None => format!(
-            "the nodes run different generations: {}: push again to finish the switch-over, \
-             or roll back",
-            off.join(", ")
-        ),
-    }
+    home::generations_text(trial, &off)
 }
 
 /// A role's node and its status: (role, address, status).
@@ -807,11 +817,13 @@ pub fn confirm(flags: &MachineArgs) -> Result<(), Failure> {
 /// `rollback`: every node back to its previous generation, together.
 pub fn rollback(flags: &SwitchArgs) -> Result<(), Failure> {
     let (mut radio, _, nodes) = machine(&flags.machine)?;
-    // A trial a power cut split: the nodes it took off the trial run the previous
-    // generation already; the others return to it.
-    let back: Vec<u16> = split_trial(&nodes)
-        .map(|(_, off)| off.iter().map(|o| o.0).collect())
-        .unwrap_or_default();
+    // Nodes off the machine's generation (a trial a power cut split, a switch-over that
+    // did not finish) run the previous generation already; the others return to it.
+    let statuses: Vec<(u16, &Status)> = nodes.iter().map(|n| (n.1, &n.2)).collect();
+    let back: Vec<u16> = match home::generations(&statuses) {
+        Some(home::Generations::Mixed { off, .. }) => off.iter().map(|o| o.0).collect(),
+        _ => Vec::new(),
+    };
     let moving: Vec<&RoleStatus> = nodes.iter().filter(|n| !back.contains(&n.1)).collect();
     let previous: Vec<u32> = moving.iter().map(|n| n.2.previous).collect();
     let target = previous.first().copied().unwrap_or(0);
@@ -841,7 +853,7 @@ pub fn rollback(flags: &SwitchArgs) -> Result<(), Failure> {
     for (role, addr, _) in &nodes {
         let state = states.iter().find(|s| s.0 == *addr).map(|s| s.1);
         let what = match state {
-            _ if back.contains(addr) => "back already (a power cut)".to_string(),
+            _ if back.contains(addr) => "on it already".to_string(),
             state => push::rollback_state_text(state),
         };
         outln!("  {role:<6} {addr:#06x}  generation {target}  {what}");

@@ -356,6 +356,7 @@ mod tests {
             bytes: 88,
             key_bytes: 0,
             elapsed: Duration::from_micros(12_500),
+            running: false,
         };
         let stale = Progress::Refused(Refusal::Stale { running: 1 });
         assert_eq!(
@@ -391,6 +392,7 @@ mod tests {
             bytes: 274,
             key_bytes: 0,
             elapsed: Duration::from_micros(46_100),
+            running: false,
         };
         assert_eq!(
             push_line(&o),
