@@ -303,3 +303,36 @@ fn the_host_node_refuses_another_nodes_key_file_at_start() {
         )
     );
 }
+
+/// `provision --out` naming the machine secret (the hint said `give --force`, and then
+/// the secret every node key derives from was replaced by one node's key): refused, with
+/// --force too, by any name for it, before anything is written (status 2).
+#[test]
+fn provision_never_writes_over_the_machine_secret() {
+    let dir = scratch("provision-over-secret");
+    let secret = fixed_secret(&dir);
+    let before = std::fs::read(&secret).unwrap();
+    let link = dir.join("link.key");
+    std::os::unix::fs::symlink(&secret, &link).unwrap();
+    for out in [secret.clone(), link, dir.join(".").join("machine.key")] {
+        for force in [false, true] {
+            let mut args = vec!["keys", "provision", "--keys", s(&secret), "--node", "0x11"];
+            args.extend(["--board", "host", "--out", s(&out)]);
+            if force {
+                args.push("--force");
+            }
+            let o = tool(&args);
+            assert_eq!(o.status.code(), Some(2), "{out:?} {force}");
+            assert_eq!(
+                text(&o.stderr),
+                format!(
+                    "error: --out {}: that is {}, which this command reads: it would be \
+                     overwritten\n",
+                    out.display(),
+                    secret.display()
+                )
+            );
+            assert_eq!(std::fs::read(&secret).unwrap(), before);
+        }
+    }
+}

@@ -35,6 +35,10 @@ pub fn provision(
             "--out writes the host board's key file: give --board host (or no --board)",
         ));
     }
+    if let Some(out) = out {
+        // Not even with --force: every node's key derives from the secret.
+        super::outputs::not_an_input("--out", out, &[keys.to_path_buf()])?;
+    }
     let secret = load_machine_secret(keys).map_err(Failure::error)?;
     let key = ManagementKey::from_bytes(*management_key(&secret, node).expose());
     let boards = match board {
