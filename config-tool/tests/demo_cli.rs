@@ -158,6 +158,48 @@ fn a_cut_radio_link_is_reported_as_the_alarm_of_the_node_whose_peer_stopped_ackn
     assert_eq!(lines.last(), Some(&"demo: FAULTED"), "{stdout}");
 }
 
+/// `stop:HC@9` kills HC's node before its step: RC's event to it is never acknowledged.
+/// The demo asked every node's status, the dead one too, without end: `error: node
+/// 0x0013 (HC) did not answer Status`, status 1, no fault report.
+#[test]
+fn a_stopped_node_is_reported_as_the_link_alarm_of_its_peer_and_named_silent() {
+    let out = demo(&[
+        "robot-configs/paint-robot.ron",
+        "--cycles",
+        "1",
+        "--no-reconfigure",
+        "--fault",
+        "stop:HC@9",
+    ]);
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert_eq!(out.status.code(), Some(5), "{stdout}\n{stderr}");
+    assert!(stderr.ends_with("demo: the machine faulted\n"), "{stderr}");
+    let seen: Vec<String> = steps(&stderr).into_iter().map(|(_, s, _)| s).collect();
+    assert_eq!(seen.join(" "), "VC+ GR+ VC- HC+ VC+ VC- RC+ RC-", "{stderr}");
+    let lines: Vec<&str> = stdout.lines().map(str::trim_start).collect();
+    let at = |prefix: &str| -> &str {
+        lines
+            .iter()
+            .find(|l| l.starts_with(prefix))
+            .unwrap_or_else(|| panic!("no `{prefix}` in\n{stdout}"))
+    };
+    assert!(
+        at("FAULT at")
+            .ends_with("node 0x0014 (RC) detected it: link alarm: HC does not acknowledge"),
+        "{stdout}"
+    );
+    assert_eq!(
+        at("node 0x0013 (HC):"),
+        "node 0x0013 (HC): did not answer (stopped, or out of range)"
+    );
+    // RC holds its rod in (the valve of RC-: a link alarm is not a fault state).
+    assert_eq!(
+        at("node 0x0014 (RC):"),
+        "node 0x0014 (RC): NOT faulted, outputs 0x0002"
+    );
+    assert_eq!(lines.last(), Some(&"demo: FAULTED"), "{stdout}");
+}
+
 #[test]
 fn a_push_to_a_node_that_is_not_running_is_reported_as_a_failed_push() {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("demo-push-fails");

@@ -13,7 +13,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use config_schema::alarm::AlarmReport;
-use config_schema::wire::msg::{Announce, Command, Status};
+use config_schema::wire::msg::{Announce, Command, Message, Status};
 
 use crate::error::NetError;
 use crate::home::{self, HomeEnd};
@@ -106,8 +106,9 @@ pub struct FaultReport {
     /// The step under way on the detecting role when it faulted: (step, when it was
     /// commanded); `jammed` when the plant saw the command and did not move.
     pub step: Option<(String, Duration, bool)>,
-    /// Every role's node after the fault: (role, address, fault code, outputs).
-    pub nodes: Vec<(String, u16, Option<u8>, u16)>,
+    /// Every role's node after the fault: (role, address, its fault code and outputs;
+    /// `None`: it did not answer).
+    pub nodes: Vec<(String, u16, Option<(Option<u8>, u16)>)>,
     /// Output levels the nodes drove from the detection on: (time, address, pin, level).
     pub outputs: Vec<(Duration, u16, u8, bool)>,
 }
@@ -644,19 +645,26 @@ impl Bed {
             let stalled = last_progress.elapsed() > stall;
             if steps.len() >= expect.len() || stalled {
                 // Done when every node is back where it started (and nothing else moved).
-                let statuses = self.statuses(c)?;
-                faults = faults_of(c, &statuses);
+                // A node that does not answer (`stop:ROLE` killed it) is not at rest, and
+                // its peers' links to it fall into alarm: asked within 2 s, not the bed's
+                // timeout.
+                let answers = self.statuses_answered(c, Duration::from_secs(2))?;
+                let answered: Vec<(&Status, &str)> = (answers.iter().zip(&c.ir.roles))
+                    .filter_map(|(s, r)| Some((s.as_ref()?, r.name.as_str())))
+                    .collect();
+                faults = (answered.iter())
+                    .filter_map(|(s, role)| s.fault.map(|f| (role.to_string(), f)))
+                    .collect();
                 // A stalled machine whose node reports a link in trouble: a radio fault
                 // (not a fault state of the node: it keeps retrying).
                 let link_trouble = stalled
                     .then(|| {
-                        statuses
-                            .iter()
-                            .zip(&c.ir.roles)
+                        (answered.iter())
                             .find(|(s, _)| s.link_alarms | s.links_broken != 0)
-                            .map(|(_, r)| (r.name.clone(), 0))
+                            .map(|(_, role)| (role.to_string(), 0))
                     })
                     .flatten();
+                let statuses: Option<Vec<Status>> = answers.into_iter().collect();
                 if let Some((role, _)) = faults.first().or(link_trouble.as_ref()) {
                     let at = self.medium.now().saturating_sub(m0);
                     let addr =
@@ -672,7 +680,7 @@ impl Bed {
                     });
                     break;
                 }
-                if steps.len() >= expect.len() && at_rest(c, &statuses) {
+                if steps.len() >= expect.len() && statuses.is_some_and(|s| at_rest(c, &s)) {
                     break;
                 }
                 last_progress = Instant::now();
@@ -693,7 +701,7 @@ impl Bed {
             faults = f
                 .nodes
                 .iter()
-                .filter_map(|(role, _, code, _)| code.map(|k| (role.clone(), k)))
+                .filter_map(|(role, _, node)| Some((role.clone(), node.as_ref()?.0?)))
                 .collect();
         }
         while let Ok(step) = self.steps.try_recv() {
@@ -770,23 +778,13 @@ impl Bed {
         std::thread::sleep(Duration::from_millis(100));
         let mut nodes = Vec::new();
         let mut links = Vec::new();
-        for (r, table) in c.ir.roles.iter().zip(&c.tables) {
-            let status = push::command(
-                &mut self.radio,
-                &mut self.ids,
-                r.address,
-                Command::Status,
-                Duration::from_secs(2),
-            )?;
+        let statuses = self.statuses_answered(c, Duration::from_secs(2))?;
+        for ((r, table), status) in c.ir.roles.iter().zip(&c.tables).zip(statuses) {
             if let Some(s) = status.as_ref().filter(|_| r.address == addr) {
                 links = links_in_trouble(c, table, s);
             }
-            nodes.push((
-                r.name.clone(),
-                r.address,
-                status.as_ref().and_then(|s| s.fault),
-                status.map_or(0, |s| s.outputs),
-            ));
+            let node = status.map(|s| (s.fault, s.outputs));
+            nodes.push((r.name.clone(), r.address, node));
         }
         while let Ok(seen) = self.seen.try_recv() {
             if let Seen::Output {
@@ -818,7 +816,7 @@ impl Bed {
             .rev()
             .find(|(s, _)| actuators.contains(&s.step.actuator.as_str()))
             .map(|(s, moved)| (s.to_string(), s.at.saturating_sub(m0), !moved));
-        let code = nodes.iter().find(|n| n.1 == addr).and_then(|n| n.2);
+        let code = (nodes.iter().find(|n| n.1 == addr)).and_then(|n| n.2?.0);
         Ok(FaultReport {
             at,
             stalled,
@@ -835,6 +833,28 @@ impl Bed {
     /// The status of every role's node.
     pub fn statuses(&mut self, c: &Compiled) -> Result<Vec<Status>, NetError> {
         home::statuses(&mut self.radio, &mut self.ids, c, self.options.timeout)
+    }
+
+    /// The status of every role's node that answers within `within` (`None`: it did not).
+    fn statuses_answered(
+        &mut self,
+        c: &Compiled,
+        within: Duration,
+    ) -> Result<Vec<Option<Status>>, NetError> {
+        let addrs: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
+        let pick = |m: Message<'_>, id| match m {
+            Message::Status(s) if s.ack == id => Some(s),
+            _ => None,
+        };
+        let answers = push::ask_each(
+            &mut self.radio,
+            &mut self.ids,
+            &addrs,
+            Command::Status,
+            within,
+            pick,
+        )?;
+        Ok(answers.into_iter().map(Result::ok).collect())
     }
 
     /// Stops the plant, the nodes and the medium.
@@ -902,14 +922,6 @@ fn links_in_trouble(c: &Compiled, table: &config_schema::Table, s: &Status) -> V
                     .map_or_else(|| format!("{peer:#06x}"), |r| r.name.clone());
             (name, s.links_broken & (1 << i) != 0)
         })
-        .collect()
-}
-
-fn faults_of(c: &Compiled, statuses: &[Status]) -> Vec<(String, u8)> {
-    statuses
-        .iter()
-        .zip(&c.ir.roles)
-        .filter_map(|(s, r)| s.fault.map(|f| (r.name.clone(), f)))
         .collect()
 }
 

@@ -204,14 +204,16 @@ pub fn fault_text(f: &FaultReport) -> String {
             f.at.saturating_sub(*at).as_secs_f64()
         ));
     }
-    for (role, addr, code, outputs) in &f.nodes {
-        let state = match code {
-            Some(c) => format!("faulted ({}, code {c:#04x})", fault_meaning(*c)),
-            None => "NOT faulted".to_string(),
+    for (role, addr, node) in &f.nodes {
+        let state = match node {
+            Some((Some(c), outputs)) => format!(
+                "faulted ({}, code {c:#04x}), outputs {outputs:#06x}",
+                fault_meaning(*c)
+            ),
+            Some((None, outputs)) => format!("NOT faulted, outputs {outputs:#06x}"),
+            None => "did not answer (stopped, or out of range)".to_string(),
         };
-        s.push_str(&format!(
-            "\n  node {addr:#06x} ({role}): {state}, outputs {outputs:#06x}"
-        ));
+        s.push_str(&format!("\n  node {addr:#06x} ({role}): {state}"));
         let changes: Vec<String> = f
             .outputs
             .iter()
