@@ -175,7 +175,11 @@ fn a_stopped_node_is_reported_as_the_link_alarm_of_its_peer_and_named_silent() {
     assert_eq!(out.status.code(), Some(5), "{stdout}\n{stderr}");
     assert!(stderr.ends_with("demo: the machine faulted\n"), "{stderr}");
     let seen: Vec<String> = steps(&stderr).into_iter().map(|(_, s, _)| s).collect();
-    assert_eq!(seen.join(" "), "VC+ GR+ VC- HC+ VC+ VC- RC+ RC-", "{stderr}");
+    assert_eq!(
+        seen.join(" "),
+        "VC+ GR+ VC- HC+ VC+ VC- RC+ RC-",
+        "{stderr}"
+    );
     let lines: Vec<&str> = stdout.lines().map(str::trim_start).collect();
     let at = |prefix: &str| -> &str {
         lines

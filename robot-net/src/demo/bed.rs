@@ -88,6 +88,13 @@ pub struct Homing {
     pub took: Duration,
 }
 
+/// A node's fault and outputs, as its status said after a fault.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NodeAfter {
+    pub fault: Option<u8>,
+    pub outputs: u16,
+}
+
 /// A fault, as the demo saw it happen. Times are since the cycle's START.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FaultReport {
@@ -106,9 +113,9 @@ pub struct FaultReport {
     /// The step under way on the detecting role when it faulted: (step, when it was
     /// commanded); `jammed` when the plant saw the command and did not move.
     pub step: Option<(String, Duration, bool)>,
-    /// Every role's node after the fault: (role, address, its fault code and outputs;
-    /// `None`: it did not answer).
-    pub nodes: Vec<(String, u16, Option<(Option<u8>, u16)>)>,
+    /// Every role's node after the fault: (role, address, what its status said; `None`:
+    /// it did not answer).
+    pub nodes: Vec<(String, u16, Option<NodeAfter>)>,
     /// Output levels the nodes drove from the detection on: (time, address, pin, level).
     pub outputs: Vec<(Duration, u16, u8, bool)>,
 }
@@ -701,7 +708,7 @@ impl Bed {
             faults = f
                 .nodes
                 .iter()
-                .filter_map(|(role, _, node)| Some((role.clone(), node.as_ref()?.0?)))
+                .filter_map(|(role, _, node)| Some((role.clone(), node.as_ref()?.fault?)))
                 .collect();
         }
         while let Ok(step) = self.steps.try_recv() {
@@ -783,7 +790,10 @@ impl Bed {
             if let Some(s) = status.as_ref().filter(|_| r.address == addr) {
                 links = links_in_trouble(c, table, s);
             }
-            let node = status.map(|s| (s.fault, s.outputs));
+            let node = status.map(|s| NodeAfter {
+                fault: s.fault,
+                outputs: s.outputs,
+            });
             nodes.push((r.name.clone(), r.address, node));
         }
         while let Ok(seen) = self.seen.try_recv() {
@@ -816,7 +826,7 @@ impl Bed {
             .rev()
             .find(|(s, _)| actuators.contains(&s.step.actuator.as_str()))
             .map(|(s, moved)| (s.to_string(), s.at.saturating_sub(m0), !moved));
-        let code = (nodes.iter().find(|n| n.1 == addr)).and_then(|n| n.2?.0);
+        let code = (nodes.iter().find(|n| n.1 == addr)).and_then(|n| n.2?.fault);
         Ok(FaultReport {
             at,
             stalled,

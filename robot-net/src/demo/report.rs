@@ -5,7 +5,7 @@ use std::io::Write;
 use config_schema::alarm::{AlarmSource, NO_CHART};
 use robot_compiler::compile::Compiled;
 
-use super::bed::{Cycle, FaultReport, Homing};
+use super::bed::{Cycle, FaultReport, Homing, NodeAfter};
 use crate::home::HomeEnd;
 use crate::push;
 use node_fw::ota::Progress;
@@ -206,11 +206,17 @@ pub fn fault_text(f: &FaultReport) -> String {
     }
     for (role, addr, node) in &f.nodes {
         let state = match node {
-            Some((Some(c), outputs)) => format!(
+            Some(NodeAfter {
+                fault: Some(c),
+                outputs,
+            }) => format!(
                 "faulted ({}, code {c:#04x}), outputs {outputs:#06x}",
                 fault_meaning(*c)
             ),
-            Some((None, outputs)) => format!("NOT faulted, outputs {outputs:#06x}"),
+            Some(NodeAfter {
+                fault: None,
+                outputs,
+            }) => format!("NOT faulted, outputs {outputs:#06x}"),
             None => "did not answer (stopped, or out of range)".to_string(),
         };
         s.push_str(&format!("\n  node {addr:#06x} ({role}): {state}"));
