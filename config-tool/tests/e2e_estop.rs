@@ -175,8 +175,10 @@ fn an_estop_mid_cycle_faults_every_node_its_alarm_holds_while_pressed_then_reset
     assert_eq!(
         bed.home(&c).unwrap().end,
         HomeEnd::Refused(
-            "node 0x0011 (VC) is faulted (0x83): reset first (config-tool reset --node \
-             0x0011), then config-tool home"
+            "nodes 0x0011 (VC, 0x83), 0x0012 (GR, 0x84), 0x0013 (HC, 0x84), 0x0014 (RC, 0x84) \
+             are faulted: reset each (config-tool reset --node 0x0011; config-tool reset \
+             --node 0x0012; config-tool reset --node 0x0013; config-tool reset --node \
+             0x0014), acknowledge the alarms (config-tool ack), then config-tool home"
                 .to_string()
         )
     );

@@ -46,12 +46,18 @@ fn homing_is_refused_on_a_faulted_machine_and_a_jammed_homing_step_faults() {
         robot_net::demo::cycle_line(1, &cycle)
     );
 
+    // Every node faulted: VC on its watchdog, the others by its fault's publication.
+    for r in &c.ir.roles {
+        wait_until(&mut bed, r.address, |s| s.fault.is_some());
+    }
     let refused = bed.home(&c).unwrap();
     assert_eq!(
         refused.end,
         robot_net::home::HomeEnd::Refused(
-            "node 0x0011 (VC) is faulted (0x81): reset first (config-tool reset --node \
-             0x0011), then config-tool home"
+            "nodes 0x0011 (VC, 0x81), 0x0012 (GR, 0x82), 0x0013 (HC, 0x82), 0x0014 (RC, 0x82) \
+             are faulted: reset each (config-tool reset --node 0x0011; config-tool reset \
+             --node 0x0012; config-tool reset --node 0x0013; config-tool reset --node \
+             0x0014), acknowledge the alarms (config-tool ack), then config-tool home"
                 .to_string()
         )
     );

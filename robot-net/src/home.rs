@@ -269,11 +269,7 @@ pub fn refusal(nodes: &[Node], homing: bool) -> Option<String> {
                  push): check the file, or push it"
             )
         }
-        Standing::Faulted(code) => format!(
-            "{who} is faulted ({code:#04x}): reset first (config-tool reset --node {:#06x}), \
-             then config-tool home",
-            n.addr
-        ),
+        Standing::Faulted(_) => faulted_text(nodes),
         Standing::Moving => {
             let then = if homing { "home" } else { "START" };
             let mut why =
@@ -316,6 +312,38 @@ fn split_generations(nodes: &[Node]) -> Option<String> {
         })
         .collect();
     Some(generations_text(trial, &off))
+}
+
+/// The faulted nodes of `nodes`, every one of them, with the operator's way out: reset
+/// each, acknowledge the alarms the faults latched (a node refuses HOME while one is),
+/// then home.
+fn faulted_text(nodes: &[Node]) -> String {
+    let faulted: Vec<(&Node, u8)> = (nodes.iter())
+        .filter_map(|n| match n.standing {
+            Standing::Faulted(code) => Some((n, code)),
+            _ => None,
+        })
+        .collect();
+    let resets: Vec<String> = (faulted.iter())
+        .map(|(n, _)| format!("config-tool reset --node {:#06x}", n.addr))
+        .collect();
+    let (who, them) = match faulted.as_slice() {
+        [(n, code)] => (
+            format!("node {:#06x} ({}) is faulted ({code:#04x})", n.addr, n.role),
+            "it",
+        ),
+        _ => {
+            let each: Vec<String> = (faulted.iter())
+                .map(|(n, code)| format!("{:#06x} ({}, {code:#04x})", n.addr, n.role))
+                .collect();
+            (format!("nodes {} are faulted", each.join(", ")), "each")
+        }
+    };
+    format!(
+        "{who}: reset {them} ({}), acknowledge the alarms (config-tool ack), then \
+         config-tool home",
+        resets.join("; ")
+    )
 }
 
 /// A trial a power cut split, in words: `off` says what each node off generation `trial`
@@ -880,10 +908,25 @@ mod tests {
             node("VC", 0x11, Standing::NotHomed),
             node("GR", 0x12, Standing::Faulted(0x82)),
         ];
-        let said = "node 0x0012 (GR) is faulted (0x82): reset first (config-tool reset \
-                    --node 0x0012), then config-tool home";
+        let said = "node 0x0012 (GR) is faulted (0x82): reset it (config-tool reset --node \
+                    0x0012), acknowledge the alarms (config-tool ack), then config-tool home";
         assert_eq!(refusal(&faulted, true).as_deref(), Some(said));
         assert_eq!(refusal(&faulted, false).as_deref(), Some(said));
+        // Every faulted node, not the first alone (the operator reset it, and was refused
+        // for the next).
+        let two = [
+            node("VC", 0x11, Standing::Faulted(0x86)),
+            node("GR", 0x12, Standing::Homed),
+            node("HC", 0x13, Standing::Faulted(0x86)),
+        ];
+        assert_eq!(
+            refusal(&two, true).as_deref(),
+            Some(
+                "nodes 0x0011 (VC, 0x86), 0x0013 (HC, 0x86) are faulted: reset each \
+                 (config-tool reset --node 0x0011; config-tool reset --node 0x0013), \
+                 acknowledge the alarms (config-tool ack), then config-tool home"
+            )
+        );
         let moving = [
             node("VC", 0x11, Standing::Moving),
             node("GR", 0x12, Standing::Homed),
