@@ -327,7 +327,8 @@ stayed: 0x0014 RC: chart `estop`: stopped by another node's emergency stop (code
             Some(6),
             stayed.into(),
             "error: node 0x0011 (VC) has a fault alarm latched: emergency stop `ESTOP` pressed \
-             (its cause persists): the machine cannot restart\n"
+             (its cause persists: the emergency stop is pressed; release it, then ack again): \
+             the machine cannot restart\n"
                 .into()
         )
     );

@@ -3,7 +3,7 @@
 
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
-use config_schema::alarm::{Alarm, AlarmLevel, AlarmReport};
+use config_schema::alarm::{Alarm, AlarmLevel, AlarmReport, AlarmSource};
 use robot_compiler::Compiled;
 use robot_net::demo;
 
@@ -109,9 +109,27 @@ pub fn blocking_text(c: &Compiled, nodes: &[NodeAlarms]) -> Option<String> {
     nodes.iter().find_map(|n| {
         let a = n.report.blocking()?;
         let why = if a.persists {
-            "its cause persists"
+            // What ends the cause, then another `ack`.
+            match a.source {
+                AlarmSource::Chart { .. } => format!(
+                    "its cause persists: the node is faulted; config-tool reset --node \
+                     {:#06x}, then ack again",
+                    n.addr
+                ),
+                AlarmSource::EStop => {
+                    "its cause persists: the emergency stop is pressed; release it, then \
+                     ack again"
+                        .to_string()
+                }
+                AlarmSource::Link { .. } => "its cause persists: the link is in alarm; \
+                                              ack again once the peer acknowledges"
+                    .to_string(),
+                AlarmSource::Declared { .. } => {
+                    "its cause persists: its condition holds; ack again once it clears".to_string()
+                }
+            }
         } else {
-            "not acknowledged: config-tool ack"
+            "not acknowledged: config-tool ack".to_string()
         };
         Some(format!(
             "node {:#06x} ({}) has a fault alarm latched: {} ({why})",
