@@ -519,15 +519,15 @@ impl MediumArgs {
 #[derive(Args, Debug)]
 pub struct DemoArgs {
     pub robot: PathBuf,
-    /// Cycles to run (1 to 10,000), each checked against the simulation.
-    #[arg(long, default_value_t = 3, value_parser = cycles)]
-    pub cycles: usize,
+    /// Cycles to run (1 to 10,000; default 3), each checked against the simulation.
+    #[arg(long, value_parser = cycles)]
+    pub cycles: Option<usize>,
     /// Frame loss on the medium (with half as much duplication, and reordering).
     #[arg(long, default_value_t = 0.0, value_parser = probability, allow_negative_numbers = true)]
     pub loss: f64,
     /// The robot pushed afterwards to the same running nodes (default:
     /// paint-robot-double-dip.ron beside ROBOT, if there is one).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "no_reconfigure")]
     pub then: Option<PathBuf>,
     /// Skip the reconfiguration.
     #[arg(long)]

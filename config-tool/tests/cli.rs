@@ -234,8 +234,9 @@ fn sim_of_the_ball_sorter_prints_each_ball_and_its_bin() {
     let out = tool(&["verify", "robot-configs/ball-sorter.ron", "--balls", "201"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(text(&out.stderr).contains("a number of balls from 1 to 200"));
+    // A bad argument: status 2, as an unknown --role (it was 1).
     let out = tool(&["sim", "robot-configs/ball-sorter.ron", "--feed", "B purple"]);
-    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(out.status.code(), Some(2));
     assert_eq!(
         text(&out.stderr),
         "error: feed item 2 `purple` is no colour of the sensor table (black, gray, orange)\n"
@@ -355,7 +356,7 @@ fn sim_refuses_arguments_it_cannot_honour() {
         );
     }
     let (code, err) = sim(&["--fault", "stuck:HC@4294967296.1"]);
-    assert_eq!(code, Some(1));
+    assert_eq!(code, Some(2));
     assert_eq!(
         err,
         "error: `stuck:HC@4294967296.1`: `4294967296` is not a step or cycle number (1 to 10000)\n"

@@ -204,8 +204,11 @@ fn a_stopped_node_is_reported_as_the_link_alarm_of_its_peer_and_named_silent() {
     assert_eq!(lines.last(), Some(&"demo: FAULTED"), "{stdout}");
 }
 
+/// A `--then` robot with a role on a node the demo never starts: refused before anything
+/// runs (status 2). It failed its push only after the whole first run (`push FAILED: role
+/// RC at node 0x0099: ... the node stopped answering`, status 3).
 #[test]
-fn a_push_to_a_node_that_is_not_running_is_reported_as_a_failed_push() {
+fn a_then_robot_on_a_node_the_demo_does_not_start_is_refused_before_anything_runs() {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("demo-push-fails");
     std::fs::create_dir_all(&dir).unwrap();
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -221,18 +224,54 @@ fn a_push_to_a_node_that_is_not_running_is_reported_as_a_failed_push() {
         "--then",
         b.to_str().unwrap(),
     ]);
-    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
-    assert_eq!(out.status.code(), Some(3), "{stdout}\n{stderr}");
-    assert!(
-        stdout.contains(
-            "push FAILED: role RC at node 0x0099: FAILED: the node stopped answering (is it \
-             running, in range?)"
-        ),
-        "{stdout}"
+    assert_eq!(
+        (out.status.code(), text(&out.stdout), text(&out.stderr)),
+        (
+            Some(2),
+            String::new(),
+            format!(
+                "error: --then {}: its role RC is on node 0x0099, which is not one of \
+                 robot-configs/paint-robot.ron's nodes (the demo pushes it to those)\n",
+                b.display()
+            )
+        )
     );
-    assert!(!stdout.contains("MISMATCH"), "{stdout}");
-    assert_eq!(stdout.lines().last(), Some("demo: FAILED (push)"));
-    assert!(stderr.ends_with("demo: the push failed\n"), "{stderr}");
+}
+
+/// A sorting station's demo runs its feed once, a control-function robot's its script:
+/// `--fault`, `--cycles` and `--then` were ignored (`demo: every ball sorted into sim's
+/// bin`, status 0, a fault asked for and none injected). Refused, as `sim` refuses them.
+#[test]
+fn a_station_demo_refuses_the_flags_it_would_ignore() {
+    for (robot, what) in [
+        (
+            "robot-configs/ball-sorter.ron",
+            "a sorting station's `demo` runs its feed once",
+        ),
+        (
+            "robot-configs/waterjet-transport.ron",
+            "a robot with control functions runs its operator's script",
+        ),
+    ] {
+        for (flag, args) in [
+            ("--fault", &["--fault", "stuck:NOPE@2"][..]),
+            ("--cycles", &["--cycles", "5"][..]),
+            ("--then", &["--then", "robot-configs/paint-robot.ron"][..]),
+        ] {
+            let mut all = vec![robot];
+            all.extend(args);
+            let out = demo(&all);
+            assert_eq!(
+                (out.status.code(), text(&out.stdout), text(&out.stderr)),
+                (
+                    Some(2),
+                    String::new(),
+                    format!("error: {what}: it takes no {flag} ({robot})\n")
+                ),
+                "{robot} {flag}"
+            );
+        }
+    }
 }
 
 #[test]

@@ -157,8 +157,30 @@ fn sim_fault_reports_the_detection_and_exits_0_when_everything_stopped() {
         "--fault",
         "stuck:HC",
     ]);
-    assert_eq!(bad.status.code(), Some(1));
+    // Bad arguments, said before anything runs: status 2, as an unknown --role (it was 1).
+    assert_eq!(bad.status.code(), Some(2));
     assert!(text(&bad.stderr).starts_with("error: `stuck:HC`: no `@STEP`"));
+    for (command, spec, said) in [
+        ("sim", "stuck:XX@4", "no moving actuator `XX`"),
+        (
+            "sim",
+            "link:VC->VC@2",
+            "`link:VC->VC@2`: a link joins two roles, not `VC` with itself",
+        ),
+        (
+            "sim",
+            "stuck:HC@40",
+            "the cycle has 12 steps: there is no step 40",
+        ),
+        ("demo", "stuck:XX@3", "no moving actuator `XX`"),
+    ] {
+        let bad = tool(&[command, "robot-configs/paint-robot.ron", "--fault", spec]);
+        assert_eq!(
+            (bad.status.code(), text(&bad.stdout), text(&bad.stderr)),
+            (Some(2), String::new(), format!("error: {said}\n")),
+            "{command} {spec}"
+        );
+    }
 }
 
 /// A variant of the paint robot, `from` replaced by `to`, written under the test's
@@ -215,10 +237,10 @@ fn sim_fault_on_a_switch_says_which_switch_is_missing() {
     };
     let paint = "robot-configs/paint-robot.ron";
     let (code, _, err) = sim(paint, "switch:GR.end@2");
-    assert_eq!(code, Some(1));
+    assert_eq!(code, Some(2));
     assert_eq!(err, "error: `GR` has no end switch (its switches: none)\n");
     let (code, _, err) = sim(paint, "switch:VC.top@2");
-    assert_eq!(code, Some(1));
+    assert_eq!(code, Some(2));
     assert_eq!(err, "error: `VC.top`: a switch is ACT.end or ACT.home\n");
     let (code, out, err) = sim("robot-configs/waterjet-transport.ron", "switch:BELT.end@1");
     assert_eq!(code, Some(1), "{err}");

@@ -18,7 +18,7 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
         .as_deref()
         .map(robot_analysis::inject::parse)
         .transpose()
-        .map_err(Failure::error)?;
+        .map_err(Failure::usage)?;
     let then = match (flags.no_reconfigure, &flags.then) {
         (true, _) => None,
         (false, Some(p)) => Some(p.clone()),
@@ -28,6 +28,15 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
         }
     };
     let loaded = demo::load(robot)?;
+    refuse_unused(&flags, &loaded, fault.is_some())?;
+    if let Some(spec) = &fault {
+        // A target or step the robot lacks, said before anything runs (status 2).
+        robot_analysis::inject::simulate(&loaded, spec)
+            .map_err(super::offline::injection_failure)?;
+    }
+    if let Some(then) = &then {
+        same_nodes(robot, &loaded, then)?;
+    }
     if let Some(out) = &flags.pcap {
         // What the demo reads: both robots and what they import, and the image.
         let mut inputs = outputs::robot_files(robot, &loaded.robot);
@@ -69,7 +78,7 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
         &Demo {
             robot,
             then: then.as_deref(),
-            cycles: flags.cycles,
+            cycles: flags.cycles.unwrap_or(3),
             fault,
             count_dir: count_dir.as_deref(),
         },
@@ -80,6 +89,54 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
         let _ = std::fs::remove_dir_all(dir);
     }
     Failure::of_verdict(verdict?)
+}
+
+/// A sorting station runs its feed once and a robot with control functions its
+/// operator's script: `--cycles`, `--fault` and `--then` would be ignored (said nothing,
+/// and ended `every ball sorted`), so they are refused (status 2), as `sim` refuses them.
+fn refuse_unused(
+    flags: &DemoArgs,
+    c: &robot_compiler::Compiled,
+    fault: bool,
+) -> Result<(), Failure> {
+    let what = if c.robot.sorting.is_some() {
+        "a sorting station's `demo` runs its feed once"
+    } else if !c.robot.functions.is_empty() {
+        "a robot with control functions runs its operator's script"
+    } else {
+        return Ok(());
+    };
+    let given = [
+        (flags.cycles.is_some(), "--cycles"),
+        (fault, "--fault"),
+        (flags.then.is_some(), "--then"),
+    ];
+    match given.iter().find(|g| g.0) {
+        Some((_, flag)) => Err(Failure::usage(format!(
+            "{what}: it takes no {flag} ({})",
+            flags.robot.display()
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// The robot pushed afterwards runs on the first robot's nodes (the demo starts those):
+/// one with a node of its own is refused before anything runs (it failed its push after
+/// the first robot's whole run).
+fn same_nodes(robot: &Path, c: &robot_compiler::Compiled, then: &Path) -> Result<(), Failure> {
+    let next = demo::load(then)?;
+    let ours: Vec<u16> = demo::node_addrs(c);
+    match next.ir.roles.iter().find(|r| !ours.contains(&r.address)) {
+        Some(r) => Err(Failure::usage(format!(
+            "--then {}: its role {} is on node {:#06x}, which is not one of {}'s nodes (the \
+             demo pushes it to those)",
+            then.display(),
+            r.name,
+            r.address,
+            robot.display()
+        ))),
+        None => Ok(()),
+    }
 }
 
 /// An interrupted demo (Ctrl-C, SIGTERM, its terminal closed) ends without the bed's

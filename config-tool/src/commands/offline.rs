@@ -281,6 +281,15 @@ pub fn sim(args: &SimArgs) -> Result<(), Failure> {
     }
 }
 
+/// Why a fault could not be injected: a target or step the robot does not have is a bad
+/// argument (status 2), as an unknown `--role` is; the simulation's own failures are not.
+pub fn injection_failure(e: inject::InjectError) -> Failure {
+    match e {
+        inject::InjectError::Simulation(_) | inject::InjectError::World(_) => Failure::error(e),
+        _ => Failure::usage(e),
+    }
+}
+
 /// `sim` of a sorting station: the whole feed, one line per ball.
 fn sim_station(compiled: &Compiled, args: &SimArgs) -> Result<(), Failure> {
     use robot_analysis::sorter;
@@ -301,7 +310,7 @@ fn sim_station(compiled: &Compiled, args: &SimArgs) -> Result<(), Failure> {
         ));
     }
     let feed = match (&args.feed, args.random, &compiled.robot.sorting) {
-        (Some(text), _, Some(s)) => Some(sorter::parse_feed(s, text).map_err(Failure::error)?),
+        (Some(text), _, Some(s)) => Some(sorter::parse_feed(s, text).map_err(Failure::usage)?),
         (None, Some(n), Some(s)) => Some(sorter::random_feed(s, usize::from(n), args.seed)),
         _ => None,
     };
@@ -332,8 +341,8 @@ fn sim_fault(
     trace: bool,
     timeline: Option<&Path>,
 ) -> Result<(), Failure> {
-    let spec = inject::parse(spec).map_err(Failure::error)?;
-    let run = inject::simulate(compiled, &spec).map_err(Failure::error)?;
+    let spec = inject::parse(spec).map_err(Failure::usage)?;
+    let run = inject::simulate(compiled, &spec).map_err(injection_failure)?;
     if trace {
         for e in &run.trace {
             outln!("{e}");
