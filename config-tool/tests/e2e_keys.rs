@@ -834,3 +834,36 @@ fn a_switch_over_that_did_not_finish_is_refused_by_home_then_finished_by_push_or
     drop((nodes, dir));
     medium.stop();
 }
+
+/// A robot that says `security: Off` pushed to keyed nodes: its tables go in clear and
+/// every keyed node drops them. It said only `FAILED: the node stopped answering (is it
+/// running, in range?)` of each node; now the error says why.
+#[test]
+fn an_unsecured_robot_pushed_to_keyed_nodes_says_they_take_only_secured_frames() {
+    let Keyed {
+        dir,
+        medium,
+        m,
+        nodes,
+        ..
+    } = keyed("keys-push-off");
+    let (off, _) = e2e_support::unsecured_robot(&dir, "paint-robot.ron");
+    let out = tool(&["push", s(&off), "--medium", &m]);
+    let said = text(&out.stdout);
+    assert_eq!(out.status.code(), Some(3), "{said}");
+    assert_eq!(
+        said.lines()
+            .filter(|l| l.ends_with("FAILED: the node stopped answering (is it running, in range?)"))
+            .count(),
+        4,
+        "{said}"
+    );
+    assert_eq!(
+        text(&out.stderr),
+        "error: not every node staged its table: nothing switched; the robot says `security: \
+         Off`, so its tables went in clear: a node with a management key takes only secured \
+         frames (push a robot with security on, with --keys)\n"
+    );
+    drop(nodes);
+    medium.stop();
+}

@@ -371,7 +371,9 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
         )
     };
     let one_role = flags.role.as_deref().map(|r| (r, c.ir.generation));
-    report_push(&outcomes, verdict, flags.trial, one_role)?;
+    // A robot that says `security: Off` pushed in clear: a keyed node drops it unread.
+    let plain = c.robot.security == Security::Off;
+    report_push(&outcomes, verdict, flags.trial, one_role, plain)?;
     // A trial is watched for --watch / --watch-cycles, else for the window the robot
     // declares.
     let given = flags.watch.is_some() || flags.watch_cycles.is_some();
@@ -585,15 +587,26 @@ fn report_push(
     verdict: Option<Verdict>,
     trial: bool,
     one_role: Option<(&str, u32)>,
+    plain: bool,
 ) -> Result<(), Failure> {
     for o in outcomes {
         outln!("{}", demo::push_line(o));
     }
     outln!("{}", demo::push_summary(outcomes));
     if !outcomes.iter().all(|o| o.progress == Progress::Done) {
+        let silent = outcomes.iter().any(|o| o.progress == Progress::GaveUp);
+        let hint = if plain && silent {
+            "; the robot says `security: Off`, so its tables went in clear: a node with a \
+             management key takes only secured frames (push a robot with security on, with \
+             --keys)"
+        } else {
+            ""
+        };
         return Err(Failure {
             code: exit::PUSH_FAILED,
-            ..Failure::error("not every node staged its table: nothing switched")
+            ..Failure::error(format!(
+                "not every node staged its table: nothing switched{hint}"
+            ))
         });
     }
     let failed = |what: &str| {
