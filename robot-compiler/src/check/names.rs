@@ -5,6 +5,8 @@
 
 use std::collections::BTreeMap;
 
+use config_schema::limits::MAX_ROLE_NAME;
+
 use super::duplicate;
 use crate::diag::Diagnostic;
 use crate::model::Robot;
@@ -65,6 +67,17 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
         out,
     );
     for (i, r) in robot.roles.iter().enumerate() {
+        if r.name.len() > MAX_ROLE_NAME {
+            out.push(Diagnostic::error(
+                src.span(&format!("roles[{i}].name")),
+                format!(
+                    "role name {:?} is {} bytes: at most {MAX_ROLE_NAME} (a node reports it in \
+                     its status): shorten it",
+                    r.name,
+                    r.name.len()
+                ),
+            ));
+        }
         if !is_file_name(&r.name) {
             out.push(Diagnostic::error(
                 src.span(&format!("roles[{i}].name")),
