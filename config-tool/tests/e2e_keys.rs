@@ -442,8 +442,7 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     );
     assert_eq!(
         text(&watched.stderr),
-        "error: the trial was not confirmed within 1 s: every node back to generation 4 \
-         (Switched)\n"
+        "error: the trial was not confirmed within 1 s: every node back to generation 4\n"
     );
     assert_eq!(
         status(&key_s, &m, "0x0011")[0],

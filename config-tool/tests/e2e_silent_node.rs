@@ -48,5 +48,17 @@ fn a_silent_node_does_not_hide_the_others_alarms() {
             .and_then(|n| n.parse::<u32>().ok());
         assert!(asked.is_some_and(|n| n > 1), "{command}: {err}");
     }
+    // START to one node without the robot is unchecked: the node acknowledges it, which
+    // does not say it started anything (it said `started`).
+    assert_eq!(
+        run_tool(&["start", "--node", "0x0012", "--medium", m]),
+        (
+            Some(0),
+            "0x0012: START acknowledged (unchecked without the robot: a node not homed, under \
+             way or faulted ignores it)\n"
+                .to_string(),
+            String::new()
+        )
+    );
     bed.stop();
 }

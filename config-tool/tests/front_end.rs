@@ -307,7 +307,7 @@ fn a_jammed_sensorless_gripper_prints_the_steps_after_the_injection_apart() {
         "fault: GR jammed at 302 ms (cycle 1, before step 3 VC-)
 steps until then: VC+ GR+
 steps after the injection: VC- HC+ VC+ VC- RC+ RC- HC- VC+ VC-
-NOT DETECTED: no node faulted and no link went into alarm; the machine stopped at 3968 ms
+NOT DETECTED: no node faulted and no link went into alarm up to 3968 ms, where the run ended
   the jammed motion `GR-` (at 3566 ms) has no completion sensor: it completes after its dwell time whether it moved or not (`check` warns of such steps)
 outputs afterwards:
   VC       running                      VC.extend=0 VC.retract=1

@@ -569,8 +569,8 @@ impl FaultRun {
             None => {
                 let _ = writeln!(
                     o,
-                    "NOT DETECTED: no node faulted and no link went into alarm; the machine \
-                     stopped at {} ms",
+                    "NOT DETECTED: no node faulted and no link went into alarm up to {} ms, \
+                     where the run ended",
                     self.end_ms
                 );
                 if let Some((t, step)) = &self.undetectable {

@@ -447,18 +447,26 @@ fn watch(
         push::TrialEnd::Faulted { node, rolled_back } => Err(Failure {
             code: exit::PUSH_FAILED,
             ..Failure::error(format!(
-                "node {node:#06x} faulted during the trial: every node back to generation \
-                 {previous} ({rolled_back:?})"
+                "node {node:#06x} faulted during the trial: {}",
+                back_text(previous, rolled_back)
             ))
         }),
         push::TrialEnd::Expired { rolled_back } => Err(Failure {
             code: exit::PUSH_FAILED,
             ..Failure::error(format!(
-                "the trial was not confirmed within {}: every node back to generation \
-                 {previous} ({rolled_back:?})",
-                window_text(window)
+                "the trial was not confirmed within {}: {}",
+                window_text(window),
+                back_text(previous, rolled_back)
             ))
         }),
+    }
+}
+
+/// How a watched trial's rollback to generation `previous` ended, in words.
+fn back_text(previous: u32, rolled_back: Verdict) -> String {
+    match push::rollback_verdict_text(rolled_back) {
+        None => format!("every node back to generation {previous}"),
+        Some(why) => format!("the rollback to generation {previous}: {why}"),
     }
 }
 
@@ -915,7 +923,15 @@ pub fn start(
         home::after_greetings(&mut radio, nodes.iter().map(|n| n.report.now_ms))?;
     }
     command(&mut radio, &mut ids, node, Command::Start)?;
-    outln!("{node:#06x}: started");
+    if c.is_some() {
+        outln!("{node:#06x}: started");
+    } else {
+        // Unchecked: the node took the command, which does not say it started anything.
+        outln!(
+            "{node:#06x}: START acknowledged (unchecked without the robot: a node not homed, \
+             under way or faulted ignores it)"
+        );
+    }
     Ok(())
 }
 
