@@ -309,8 +309,8 @@ pub struct VerifyHow {
     /// The operator may press START at any time, not only when the machine is idle.
     #[arg(long)]
     pub start_anytime: bool,
-    /// Stop (inconclusive) beyond this many states.
-    #[arg(long, default_value_t = MAX_STATES)]
+    /// Stop (inconclusive) beyond this many states (at least 1).
+    #[arg(long, default_value_t = MAX_STATES, value_parser = at_least_one)]
     pub max_states: usize,
     /// A sorting station: explore every colour sequence of up to this many balls (1 to
     /// 200; default 4).
@@ -609,14 +609,27 @@ pub struct QemuNodeArgs {
     pub end_with_parent: bool,
 }
 
-pub fn probability(s: &str) -> Result<f64, String> {
-    let p: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
-    if (0.0..=1.0).contains(&p) {
-        Ok(p)
-    } else {
-        Err(format!("`{s}` is not a probability in 0..1"))
+/// A count of at least 1.
+pub fn at_least_one(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!("`{s}` is not a number from 1 up")),
     }
 }
+
+pub fn probability(s: &str) -> Result<f64, String> {
+    let p: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
+    if (0.0..1.0).contains(&p) {
+        Ok(p)
+    } else {
+        // 1 would lose (or corrupt) every frame: nothing could be run or told apart.
+        Err(format!("`{s}` is not a probability from 0 to under 1"))
+    }
+}
+
+/// The longest delay the medium puts on a frame: a minute (every timeout of the tool and
+/// the nodes is shorter; a longer one is a typo).
+const MAX_DELAY_MS: u64 = 60_000;
 
 pub fn delay_range(s: &str) -> Result<(u64, u64), String> {
     let (a, b) = s
@@ -632,6 +645,11 @@ pub fn delay_range(s: &str) -> Result<(u64, u64), String> {
         .map_err(|_| format!("`{b}` is not a number of ms"))?;
     if a > b {
         return Err(format!("the range {a}..{b} is empty"));
+    }
+    if b > MAX_DELAY_MS {
+        return Err(format!(
+            "{b} ms is longer than a frame may be held ({MAX_DELAY_MS} ms at most)"
+        ));
     }
     Ok((a, b))
 }

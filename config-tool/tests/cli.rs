@@ -717,24 +717,77 @@ fn arguments_the_robot_cannot_use_are_refused() {
 }
 
 /// A negative probability is refused as one, not read as an unknown flag. Found: `demo
-/// --loss -0.1` said "unexpected argument '-0' found".
+/// --loss -0.1` said "unexpected argument '-0' found". A probability of 1 (every frame
+/// lost: `demo --loss 1` waited 60 s, then said the nodes did not answer) is refused too.
 #[test]
 fn a_negative_probability_is_refused_as_one() {
-    for args in [
-        &["demo", "robot-configs/paint-robot.ron", "--loss", "-0.1"][..],
-        &["medium", "--dup", "-0.1"],
+    for (args, value) in [
+        (
+            &["demo", "robot-configs/paint-robot.ron", "--loss", "-0.1"][..],
+            "-0.1",
+        ),
+        (&["medium", "--dup", "-0.1"], "-0.1"),
+        (
+            &["demo", "robot-configs/paint-robot.ron", "--loss", "1"],
+            "1",
+        ),
+        (&["medium", "--corrupt", "1.0"], "1.0"),
     ] {
         let out = tool(args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");
         let flag = args[args.len() - 2];
         assert!(
             text(&out.stderr).starts_with(&format!(
-                "error: invalid value '-0.1' for '{flag} <{}>': `-0.1` is not a probability in 0..1",
+                "error: invalid value '{value}' for '{flag} <{}>': `{value}` is not a probability \
+                 from 0 to under 1",
                 flag.trim_start_matches('-').to_uppercase()
             )),
             "{}",
             text(&out.stderr)
         );
+    }
+}
+
+/// Arguments no run can honour, refused as such (status 2). Found accepted: `verify
+/// --max-states 0` (then `INCOMPLETE: stopped after 0 states`), a node address that is
+/// config-tool's own (`keys provision --node 0x0100`, `node --addr 0x0100`), a medium delay
+/// of 3 years, `demo --then R2 --no-reconfigure` (the --then ignored).
+#[test]
+fn arguments_no_run_can_honour_are_refused() {
+    for (args, said) in [
+        (
+            &["verify", "robot-configs/paint-robot.ron", "--max-states", "0"][..],
+            "error: invalid value '0' for '--max-states <MAX_STATES>': `0` is not a number from 1 up",
+        ),
+        (
+            &["keys", "provision", "--node", "0x0100", "--keys", "k"],
+            "error: invalid value '0x0100' for '--node <NODE>': 0x0100 is not a node address (it \
+             is config-tool's own)",
+        ),
+        (
+            &["node", "--addr", "0x100", "--medium", "127.0.0.1:9"],
+            "error: invalid value '0x100' for '--addr <ADDR>': 0x0100 is not a node address (it \
+             is config-tool's own)",
+        ),
+        (
+            &["medium", "--delay-ms", "0..99999999999"],
+            "error: invalid value '0..99999999999' for '--delay-ms <DELAY_MS>': 99999999999 ms is \
+             longer than a frame may be held (60000 ms at most)",
+        ),
+        (
+            &[
+                "demo",
+                "robot-configs/paint-robot.ron",
+                "--then",
+                "robot-configs/paint-robot.ron",
+                "--no-reconfigure",
+            ],
+            "error: the argument '--then <THEN>' cannot be used with '--no-reconfigure'",
+        ),
+    ] {
+        let out = tool(args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        assert!(text(&out.stderr).starts_with(said), "{}", text(&out.stderr));
     }
 }
 

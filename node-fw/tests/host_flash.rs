@@ -102,6 +102,10 @@ fn addresses_parse_in_hex_or_decimal() {
     assert_eq!(parse_addr("0X1f"), Ok(0x1F));
     assert_eq!(parse_addr("42"), Ok(42));
     assert!(parse_addr("0xFFFE").unwrap_err().contains("reserved"));
+    assert_eq!(
+        parse_addr("0x0100"),
+        Err("0x0100 is not a node address (it is config-tool's own)".to_string())
+    );
     assert!(parse_addr("65536")
         .unwrap_err()
         .contains("not a 16-bit address"));

@@ -88,6 +88,10 @@ pub fn parse_addr(s: &str) -> Result<u16, String> {
         Ok(a) if a >= 0xFFFE => Err(format!(
             "{a:#06x} is not a node address (0xFFFE and 0xFFFF are reserved by IEEE 802.15.4)"
         )),
+        Ok(config_schema::wire::TOOL_ADDR) => Err(format!(
+            "{:#06x} is not a node address (it is config-tool's own)",
+            config_schema::wire::TOOL_ADDR
+        )),
         Ok(a) => Ok(a),
         Err(_) => Err(format!("`{s}` is not a 16-bit address (write 0x0003 or 3)")),
     }
