@@ -196,16 +196,30 @@ impl Alarms {
         }
     }
 
+    /// Whether the cause of alarm `i` of the list persists: its source's cause persists,
+    /// and no later alarm has its source (an alarm is raised as its cause begins, so a
+    /// later one of the same source means this one's cause ended in between).
+    fn cause_persists(&self, seen: Seen<'_>, i: usize) -> bool {
+        let Some(a) = self.list.get(i) else {
+            return false;
+        };
+        let later = self.list.iter().skip(i + 1).any(|b| b.source == a.source);
+        !later && Alarms::persists(seen, a.source)
+    }
+
     /// The operator acknowledges: every latched alarm is acknowledged but a fault alarm
     /// whose cause persists. Returns how many were.
     pub fn ack(&mut self, seen: Seen<'_>) -> usize {
         let mut n = 0;
-        for a in self.list.iter_mut().filter(|a| !a.acked) {
-            if a.level == AlarmLevel::Fault && Alarms::persists(seen, a.source) {
+        for i in 0..self.list.len() {
+            let Some(a) = self.list.get(i) else { continue };
+            if a.acked || a.level == AlarmLevel::Fault && self.cause_persists(seen, i) {
                 continue;
             }
-            a.acked = true;
-            n += 1;
+            if let Some(a) = self.list.get_mut(i) {
+                a.acked = true;
+                n += 1;
+            }
         }
         n
     }
@@ -231,8 +245,8 @@ impl Alarms {
     /// The report of command `ack` at `now_ms`, each alarm's `persists` as of `seen`.
     pub fn report(&self, ack: u16, seen: Option<Seen<'_>>, now_ms: u64) -> AlarmReport {
         let mut alarms = self.list.clone();
-        for a in alarms.iter_mut() {
-            a.persists = seen.is_some_and(|s| Alarms::persists(s, a.source));
+        for (i, a) in alarms.iter_mut().enumerate() {
+            a.persists = seen.is_some_and(|s| self.cause_persists(s, i));
         }
         AlarmReport {
             ack,

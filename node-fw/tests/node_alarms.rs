@@ -140,6 +140,22 @@ fn start_is_refused_until_the_fault_alarm_is_acknowledged_and_ack_while_its_caus
     assert!(!board.lamp, "the button toggles the lamp again");
 }
 
+/// The cause comes back after its first alarm was acknowledged: a second alarm latches,
+/// and only it persists. The first, whose cause ended before it was acknowledged, said
+/// `[acknowledged, cause persists]` again (its source's cause was asked, not its own).
+#[test]
+fn an_acknowledged_alarm_whose_cause_ended_does_not_persist_when_the_cause_comes_back() {
+    let (mut node, mut board) = (node(), Board::default());
+    node.poll(0, &mut board);
+    node.input(CAUSE, true, 100, &mut board);
+    node.input(CAUSE, false, 200, &mut board);
+    let r = alarms(&mut node, &mut board, 1, Command::Ack, 300);
+    assert_eq!(latched(&r), [(100, true, false)]);
+    node.input(CAUSE, true, 400, &mut board);
+    let r = alarms(&mut node, &mut board, 2, Command::Alarms, 500);
+    assert_eq!(latched(&r), [(100, true, false), (400, false, true)]);
+}
+
 /// `on_link_alarm: Fault`: a peer that never acknowledges faults the publisher once its
 /// link goes into alarm (code 0x85), with a fault alarm naming the link; without it the
 /// node only stalls, with a warning.

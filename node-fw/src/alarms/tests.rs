@@ -108,12 +108,12 @@ fn a_declared_alarm_latches_once_and_is_refused_an_ack_while_its_cause_persists(
     );
     assert_eq!(a.blocking(), None);
 
-    // It rises again: a new alarm.
+    // It rises again: a new alarm, whose cause persists (the first's ended at 40).
     look(&mut a, &t, &on, 0, 50);
     assert_eq!(
         listed(&a, &t, &on),
         [
-            (DECLARED, AlarmLevel::Fault, 20, true, true),
+            (DECLARED, AlarmLevel::Fault, 20, true, false),
             (DECLARED, AlarmLevel::Fault, 50, false, true)
         ]
     );
