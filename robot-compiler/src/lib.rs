@@ -43,6 +43,7 @@ pub mod plants;
 pub mod sorting;
 pub mod source;
 pub mod synth;
+mod unclosed;
 
 pub use compile::{compile, Compiled};
 pub use diag::{Diagnostic, Severity};

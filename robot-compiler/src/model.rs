@@ -654,6 +654,22 @@ pub fn parse(src: &Source) -> Result<Robot, Diagnostic> {
                 .label(range);
             }
         }
+        // Nothing but white space and comments from ron's position on, and a bracket
+        // still open: the file ends too early (ron says what it expected next).
+        let (code_end, open) = crate::unclosed::unclosed(&src.text);
+        if let (Some((at, bracket)), true) = (open, start >= code_end) {
+            let (line, col) = src.line_col(at);
+            let end = src.text.len();
+            return Diagnostic::error(
+                code_end..end,
+                format!(
+                    "Unexpected end of RON: the file ends before the `{}` opened at \
+                     {line}:{col} is closed (is it cut short?)",
+                    char::from(bracket)
+                ),
+            )
+            .label("the file ends here");
+        }
         Diagnostic::error(start..end, e.code.to_string()).label("here")
     })
 }
