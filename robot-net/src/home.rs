@@ -296,7 +296,10 @@ fn split_generations(nodes: &[Node]) -> Option<String> {
     let Some(Generations::Mixed { trial, off }) = generations_of(&runs) else {
         return None;
     };
-    if trial.is_none() && !nodes.iter().any(|n| n.secured) {
+    // Not a switch-over to finish when a node runs another robot's table (another robot
+    // pushed over this one): that node is named as not running it.
+    let other = nodes.iter().any(|n| n.standing == Standing::Other);
+    if trial.is_none() && (other || !nodes.iter().any(|n| n.secured)) {
         return None;
     }
     let off: Vec<String> = (off.iter())
@@ -1018,6 +1021,11 @@ mod tests {
         let said = "the nodes run different generations: 0x0011 (VC) runs generation 1: push \
                     again to finish the switch-over, or roll back";
         assert_eq!(refusal(&unfinished, false).as_deref(), Some(said));
+        // Another robot's table on one of them: that is said, not a switch-over.
+        let mut other = unfinished.clone();
+        other[1].standing = Standing::Other;
+        assert!(refusal(&other, false)
+            .is_some_and(|r| r.starts_with("node 0x0014 (RC) does not run this robot's table")));
         // Unsecured, one role pushed alone at a newer generation runs with the others.
         let unsecured = unfinished.map(|n| Node {
             secured: false,

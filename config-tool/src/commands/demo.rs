@@ -29,6 +29,9 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
     };
     let loaded = demo::load(robot)?;
     refuse_unused(&flags, &loaded, fault.is_some())?;
+    // A station's demo pushes nothing after its run: no default robot either.
+    let station = loaded.robot.sorting.is_some() || !loaded.robot.functions.is_empty();
+    let then = then.filter(|_| !station);
     if let Some(spec) = &fault {
         // A target or step the robot lacks, said before anything runs (status 2).
         robot_analysis::inject::simulate(&loaded, spec)

@@ -275,12 +275,21 @@ pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(),
         );
         statuses.extend(status.map(|s| (*addr, s)));
     }
-    // Generations apart: a switch-over not finished, or a trial a power cut split.
+    // Generations apart: a switch-over not finished, or a trial a power cut split. (Not
+    // when a node runs another robot's table: then another robot was pushed over this
+    // one, and its line says so; there is no switch-over to finish.)
     let by_node: Vec<(u16, &Status)> = statuses.iter().map(|(a, s)| (*a, s)).collect();
     if let (Some(c), Some(home::Generations::Mixed { trial, off })) =
         (&c, home::generations(&by_node))
     {
-        outln!("{}", mixed_text(c, trial, &off));
+        let other = (statuses.iter()).any(|(addr, s)| {
+            let role = c.ir.roles.iter().position(|r| r.address == *addr);
+            let at = role.and_then(|i| Some((c.ir.roles.get(i)?, c.tables.get(i)?)));
+            at.is_some_and(|(r, t)| home::standing(&r.name, t, s) == home::Standing::Other)
+        });
+        if trial.is_some() || !other {
+            outln!("{}", mixed_text(c, trial, &off));
+        }
     }
     // The robot's nodes that did not answer, by name and role.
     if let Some(c) = &c {
