@@ -383,8 +383,8 @@ pub struct MediumArgs {
     /// Probability a frame is lost (per receiver).
     #[arg(long, default_value_t = 0.0, value_parser = probability, allow_negative_numbers = true)]
     pub loss: f64,
-    /// Probability a frame arrives twice.
-    #[arg(long, default_value_t = 0.0, value_parser = probability, allow_negative_numbers = true)]
+    /// Probability a frame arrives twice (1: every frame).
+    #[arg(long, default_value_t = 0.0, value_parser = probability_to_one, allow_negative_numbers = true)]
     pub dup: f64,
     /// Probability a frame arrives with a flipped bit.
     #[arg(long, default_value_t = 0.0, value_parser = probability, allow_negative_numbers = true)]
@@ -614,6 +614,16 @@ pub fn at_least_one(s: &str) -> Result<usize, String> {
     match s.parse::<usize>() {
         Ok(n) if n >= 1 => Ok(n),
         _ => Err(format!("`{s}` is not a number from 1 up")),
+    }
+}
+
+/// A probability from 0 to 1, 1 included (every frame duplicated runs).
+pub fn probability_to_one(s: &str) -> Result<f64, String> {
+    let p: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
+    if (0.0..=1.0).contains(&p) {
+        Ok(p)
+    } else {
+        Err(format!("`{s}` is not a probability from 0 to 1"))
     }
 }
 

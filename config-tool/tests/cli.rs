@@ -721,17 +721,21 @@ fn arguments_the_robot_cannot_use_are_refused() {
 /// lost: `demo --loss 1` waited 60 s, then said the nodes did not answer) is refused too.
 #[test]
 fn a_negative_probability_is_refused_as_one() {
-    for (args, value) in [
+    // (Every frame duplicated runs: --dup takes 1.)
+    for (args, value, range) in [
         (
             &["demo", "robot-configs/paint-robot.ron", "--loss", "-0.1"][..],
             "-0.1",
+            "0 to under 1",
         ),
-        (&["medium", "--dup", "-0.1"], "-0.1"),
+        (&["medium", "--dup", "-0.1"], "-0.1", "0 to 1"),
+        (&["medium", "--dup", "1.5"], "1.5", "0 to 1"),
         (
             &["demo", "robot-configs/paint-robot.ron", "--loss", "1"],
             "1",
+            "0 to under 1",
         ),
-        (&["medium", "--corrupt", "1.0"], "1.0"),
+        (&["medium", "--corrupt", "1.0"], "1.0", "0 to under 1"),
     ] {
         let out = tool(args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");
@@ -739,7 +743,7 @@ fn a_negative_probability_is_refused_as_one() {
         assert!(
             text(&out.stderr).starts_with(&format!(
                 "error: invalid value '{value}' for '{flag} <{}>': `{value}` is not a probability \
-                 from 0 to under 1",
+                 from {range}",
                 flag.trim_start_matches('-').to_uppercase()
             )),
             "{}",

@@ -798,8 +798,16 @@ fn a_switch_over_that_did_not_finish_is_refused_by_home_then_finished_by_push_or
         })
         .collect();
     assert_eq!(back.lines().collect::<Vec<_>>(), lines);
-    // Split again, then pushed again: RC switches, the others run it already.
+    // Split again. Pushed again on trial: the three run generation 3 confirmed, not on
+    // trial, and refuse it (taken as running it, the machine would end half on trial).
     split(3);
+    let out = push("3", &["--trial"]);
+    assert_eq!(out.status.code(), Some(3), "{}", text(&out.stdout));
+    assert_eq!(
+        text(&out.stderr),
+        "error: not every node staged its table: nothing switched\n"
+    );
+    // Pushed again as it was: RC switches, the others run it already.
     let out = push("3", &[]);
     let said = text(&out.stdout);
     assert_eq!(

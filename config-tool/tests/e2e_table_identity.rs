@@ -79,7 +79,7 @@ fn a_robot_with_the_same_roles_and_charts_is_not_taken_for_the_running_one() {
         assert!(line.ends_with(want), "{out}");
     }
     assert!(
-        lines[5].starts_with("staged 2 of 4 table(s) (2 not: above): "),
+        lines[5].starts_with("staged 0 of 4 table(s), 2 run theirs already (2 not: above): "),
         "{out}"
     );
 

@@ -197,13 +197,18 @@ impl Alarms {
     }
 
     /// Whether the cause of alarm `i` of the list persists: its source's cause persists,
-    /// and no later alarm has its source (an alarm is raised as its cause begins, so a
-    /// later one of the same source means this one's cause ended in between).
+    /// and no later alarm has the same cause (an alarm is raised as its cause begins, so a
+    /// later one means this one's cause ended in between; the node's fault is one cause
+    /// whatever its code: a reset ends it).
     fn cause_persists(&self, seen: Seen<'_>, i: usize) -> bool {
         let Some(a) = self.list.get(i) else {
             return false;
         };
-        let later = self.list.iter().skip(i + 1).any(|b| b.source == a.source);
+        let same = |b: &Alarm| match (a.source, b.source) {
+            (AlarmSource::Chart { .. }, AlarmSource::Chart { .. }) => true,
+            (x, y) => x == y,
+        };
+        let later = self.list.iter().skip(i + 1).any(same);
         !later && Alarms::persists(seen, a.source)
     }
 

@@ -23,7 +23,13 @@ pub fn unclosed(text: &str) -> (usize, Option<(usize, u8)>) {
                 continue;
             }
             b'"' => {
-                i = string_end(s, i);
+                i = string_end(s, i, b'"');
+                code_end = i;
+                continue;
+            }
+            // A char: `'('` is no bracket.
+            b'\'' => {
+                i = string_end(s, i, b'\'');
                 code_end = i;
                 continue;
             }
@@ -61,13 +67,14 @@ fn block_comment_end(s: &[u8], mut i: usize) -> usize {
     s.len()
 }
 
-/// The offset after the string opening at `i` (escapes skipped), or the end.
-fn string_end(s: &[u8], mut i: usize) -> usize {
+/// The offset after the string (or char) opening at `i` and closed by `quote` (escapes
+/// skipped), or the end.
+fn string_end(s: &[u8], mut i: usize, quote: u8) -> usize {
     i += 1;
     while let Some(&c) = s.get(i) {
         match c {
             b'\\' => i += 2,
-            b'"' => return i + 1,
+            _ if c == quote => return i + 1,
             _ => i += 1,
         }
     }
@@ -90,6 +97,8 @@ mod tests {
         );
         assert_eq!(unclosed("R(a: [1, 2])\n// done\n"), (12, None));
         assert_eq!(unclosed(""), (0, None));
+        // A char is no bracket.
+        assert_eq!(unclosed("R(a: '(', b: ')')"), (17, None));
         // A string cut short runs to the end.
         assert_eq!(unclosed("R(a: \"x\\\""), (9, Some((1, b'('))));
     }

@@ -293,9 +293,15 @@ fn split_generations(nodes: &[Node]) -> Option<String> {
     let runs: Vec<(u16, u32, bool)> = (nodes.iter())
         .map(|n| (n.addr, n.generation, n.trial))
         .collect();
-    let Some(Generations::Mixed { trial, off }) = generations_of(&runs) else {
+    let Some(Generations::Mixed { trial, mut off }) = generations_of(&runs) else {
         return None;
     };
+    // A node that confirmed the trial generation (a `confirm` one node did not hear)
+    // shares its keys with the others: not a split.
+    off.retain(|&(_, g)| Some(g) != trial);
+    if off.is_empty() {
+        return None;
+    }
     // Not a switch-over to finish when a node runs another robot's table (another robot
     // pushed over this one): that node is named as not running it.
     let other = nodes.iter().any(|n| n.standing == Standing::Other);
@@ -1021,6 +1027,16 @@ mod tests {
         let said = "the nodes run different generations: 0x0011 (VC) runs generation 1: push \
                     again to finish the switch-over, or roll back";
         assert_eq!(refusal(&unfinished, false).as_deref(), Some(said));
+        // A trial one node confirmed and the others not (a `confirm` it alone heard): one
+        // generation, not a split.
+        let half_confirmed = [
+            on_trial("VC", 0x11),
+            Node {
+                generation: 2,
+                ..node("RC", 0x14, Standing::Homed)
+            },
+        ];
+        assert_eq!(refusal(&half_confirmed, true), None);
         // Another robot's table on one of them: that is said, not a switch-over.
         let mut other = unfinished.clone();
         other[1].standing = Standing::Other;

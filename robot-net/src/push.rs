@@ -185,7 +185,8 @@ pub fn push(
 /// The nodes of `pushed` that refused the transfer as not newer than the generation they
 /// run, where that is the pushed `generation`, asked their status (each within
 /// `timeout`): one that runs this very table (its identity is `table_of` its role's at
-/// that generation) counts as staged, [`Pushed::running`]: the switch-over finds it
+/// that generation), on trial if and only if the push is (`trial`), counts as staged,
+/// [`Pushed::running`]: the switch-over finds it
 /// switched already. A push again after a switch-over that did not finish (a node lost on
 /// the way: the others run the new generation, it runs the old one with the new one
 /// staged) then switches the rest, where every node that had switched refused it.
@@ -193,7 +194,7 @@ pub fn running_already<'t>(
     radio: &mut ToolRadio,
     ids: &mut Ids,
     pushed: &mut [Pushed],
-    generation: u32,
+    (generation, trial): (u32, bool),
     table_of: impl Fn(&str) -> Option<&'t Table>,
     timeout: Duration,
 ) -> io::Result<()> {
@@ -205,7 +206,11 @@ pub fn running_already<'t>(
             continue;
         };
         let status = command(radio, ids, p.addr, Command::Status, timeout)?;
-        if status.is_some_and(|s| s.generation == generation && crate::home::runs(table, &s)) {
+        // On trial as this push would switch it (a push on trial over nodes that run the
+        // generation confirmed, or the other way round, would leave the machine half on
+        // trial): else refused as it was.
+        let same = |s: &Status| s.generation == generation && s.trial == trial;
+        if status.is_some_and(|s| same(&s) && crate::home::runs(table, &s)) {
             p.progress = Progress::Done;
             p.running = true;
         }

@@ -37,9 +37,16 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
         robot_analysis::inject::simulate(&loaded, spec)
             .map_err(super::offline::injection_failure)?;
     }
-    if let Some(then) = &then {
-        same_nodes(robot, &loaded, then)?;
-    }
+    // A --then robot on nodes the demo does not start is refused; the default one beside
+    // the robot is pushed only if it fits them.
+    let then = match then {
+        Some(t) if flags.then.is_some() => {
+            same_nodes(robot, &loaded, &t)?;
+            Some(t)
+        }
+        Some(t) => same_nodes(robot, &loaded, &t).ok().map(|_| t),
+        None => None,
+    };
     if let Some(out) = &flags.pcap {
         // What the demo reads: both robots and what they import, and the image.
         let mut inputs = outputs::robot_files(robot, &loaded.robot);

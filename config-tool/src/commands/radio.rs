@@ -352,7 +352,7 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
         &mut radio,
         &mut ids,
         &mut outcomes,
-        generation,
+        (generation, flags.trial),
         table_of,
         ANSWER_WITHIN,
     )
@@ -632,6 +632,10 @@ fn report_push(
             ..Failure::error(what)
         })
     };
+    if !outcomes.is_empty() && outcomes.iter().all(|o| o.running) {
+        outln!("every node runs this generation's table already: nothing to switch");
+        return Ok(());
+    }
     match verdict {
         None => {
             outln!("staged on every node: `push` the same generation again to switch");

@@ -192,6 +192,47 @@ fn a_chart_fault_raises_a_fault_alarm_until_the_reset() {
     );
 }
 
+/// A fault not acknowledged, a reset, then another fault of another code: the first
+/// alarm's cause ended with the reset. It showed `cause persists` and was refused an ack
+/// (the node was faulted again, by another cause).
+#[test]
+fn a_fault_alarm_ends_with_its_reset_whatever_the_next_faults_code() {
+    let (t, mut a) = (table(), Alarms::default());
+    let first = AlarmSource::Chart {
+        chart: 1,
+        code: 0x81,
+    };
+    let second = AlarmSource::Chart {
+        chart: 2,
+        code: 0x82,
+    };
+    look(
+        &mut a,
+        &t,
+        &state(0, Some(Fault::Action { chart: 1, code: 1 })),
+        0,
+        100,
+    );
+    look(&mut a, &t, &state(0, None), 0, 200);
+    let again = state(0, Some(Fault::Action { chart: 2, code: 2 }));
+    look(&mut a, &t, &again, 0, 300);
+    assert_eq!(
+        listed(&a, &t, &again),
+        [
+            (first, AlarmLevel::Fault, 100, false, false),
+            (second, AlarmLevel::Fault, 300, false, true)
+        ]
+    );
+    assert_eq!(a.ack(seen(&t, &again)), 1);
+    assert_eq!(
+        listed(&a, &t, &again),
+        [
+            (first, AlarmLevel::Fault, 100, true, false),
+            (second, AlarmLevel::Fault, 300, false, true)
+        ]
+    );
+}
+
 #[test]
 fn a_link_alarm_is_a_warning_or_with_link_fault_a_fault() {
     let mut t = table();

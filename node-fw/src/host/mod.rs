@@ -34,7 +34,8 @@ use medium::{Closed, Connection};
              simulated 802.15.4 medium, its table slots a file"
 )]
 pub struct Args {
-    /// The node's 16-bit short address (hex with 0x, or decimal; not 0xFFFE or 0xFFFF).
+    /// The node's 16-bit short address (hex with 0x, or decimal; not 0xFFFE or 0xFFFF, nor
+    /// config-tool's own 0x0100).
     #[arg(long, value_parser = parse_addr)]
     pub addr: u16,
     /// The medium to connect to (host:port).

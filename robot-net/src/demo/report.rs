@@ -32,7 +32,7 @@ pub fn push_line(o: &push::Pushed) -> String {
 /// and what the transfers took (frames sent, retries; the longest transfer's time).
 pub fn push_summary(outcomes: &[push::Pushed]) -> String {
     let (bytes, frames, retries) = outcomes.iter().fold((0, 0, 0), |a, o| {
-        let staged = if o.progress == Progress::Done {
+        let staged = if o.progress == Progress::Done && !o.running {
             o.bytes
         } else {
             0
@@ -40,14 +40,17 @@ pub fn push_summary(outcomes: &[push::Pushed]) -> String {
         (a.0 + staged, a.1 + o.stats.frames, a.2 + o.stats.retries)
     });
     let time = outcomes.iter().map(|o| o.elapsed).max().unwrap_or_default();
-    let staged = outcomes
-        .iter()
-        .filter(|o| o.progress == Progress::Done)
-        .count();
-    let what = match outcomes.len() - staged {
-        0 => format!("pushed {staged} table(s)"),
+    let done = |o: &&push::Pushed| o.progress == Progress::Done;
+    let staged = outcomes.iter().filter(done).filter(|o| !o.running).count();
+    let running = outcomes.iter().filter(done).filter(|o| o.running).count();
+    let already = match running {
+        0 => String::new(),
+        n => format!(", {n} run theirs already"),
+    };
+    let what = match outcomes.len() - staged - running {
+        0 => format!("pushed {staged} table(s){already}"),
         not => format!(
-            "staged {staged} of {} table(s) ({not} not: above)",
+            "staged {staged} of {} table(s){already} ({not} not: above)",
             outcomes.len()
         ),
     };
