@@ -102,19 +102,26 @@ fn a_jammed_cylinder_is_reported_when_its_watchdog_fires_and_the_demo_exits_faul
     assert_eq!(lines.last(), Some(&"demo: FAULTED"), "{stdout}");
 }
 
-#[test]
-fn a_cut_radio_link_is_reported_as_the_alarm_of_the_node_whose_peer_stopped_acknowledging() {
+/// One cycle of the paint robot with `fault` injected, which faults it (status 5): its
+/// stdout and stderr.
+fn faulted_demo(fault: &str) -> (String, String) {
     let out = demo(&[
         "robot-configs/paint-robot.ron",
         "--cycles",
         "1",
         "--no-reconfigure",
         "--fault",
-        "link:VC->GR@2",
+        fault,
     ]);
     let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
     assert_eq!(out.status.code(), Some(5), "{stdout}\n{stderr}");
     assert!(stderr.ends_with("demo: the machine faulted\n"), "{stderr}");
+    (stdout, stderr)
+}
+
+#[test]
+fn a_cut_radio_link_is_reported_as_the_alarm_of_the_node_whose_peer_stopped_acknowledging() {
+    let (stdout, stderr) = faulted_demo("link:VC->GR@2");
     // VC's "extended" never reaches GR: the gripper never closes, nothing moves after VC+.
     let seen: Vec<String> = steps(&stderr).into_iter().map(|(_, s, _)| s).collect();
     assert_eq!(seen, ["VC+"], "{stderr}");
@@ -163,17 +170,7 @@ fn a_cut_radio_link_is_reported_as_the_alarm_of_the_node_whose_peer_stopped_ackn
 /// 0x0013 (HC) did not answer Status`, status 1, no fault report.
 #[test]
 fn a_stopped_node_is_reported_as_the_link_alarm_of_its_peer_and_named_silent() {
-    let out = demo(&[
-        "robot-configs/paint-robot.ron",
-        "--cycles",
-        "1",
-        "--no-reconfigure",
-        "--fault",
-        "stop:HC@9",
-    ]);
-    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
-    assert_eq!(out.status.code(), Some(5), "{stdout}\n{stderr}");
-    assert!(stderr.ends_with("demo: the machine faulted\n"), "{stderr}");
+    let (stdout, stderr) = faulted_demo("stop:HC@9");
     let seen: Vec<String> = steps(&stderr).into_iter().map(|(_, s, _)| s).collect();
     assert_eq!(
         seen.join(" "),

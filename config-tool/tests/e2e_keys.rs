@@ -539,6 +539,23 @@ fn keyed(tag: &str) -> Keyed {
     }
 }
 
+/// `rollback`'s lines: every node of `c` back to `generation`, node `on_it` on it already.
+fn rolled_back(c: &robot_compiler::Compiled, on_it: u16, generation: u32) -> Vec<String> {
+    (c.ir.roles.iter())
+        .map(|r| {
+            let what = if r.address == on_it {
+                "on it already"
+            } else {
+                "rolled back"
+            };
+            format!(
+                "  {:<6} {:#06x}  generation {generation}  {what}",
+                r.name, r.address
+            )
+        })
+        .collect()
+}
+
 /// A node that a power cut took off a trial (it booted its confirmed generation) keeps
 /// `confirm` from confirming the others: the machine would run two generations. `confirm`
 /// names it and fails, nothing confirmed; `rollback` then brings every node back to one.
@@ -645,19 +662,7 @@ fn confirm_refuses_a_trial_a_power_cut_split() {
         assert_eq!(first, want);
     }
     let back = ok(&["rollback", ROBOT, "--keys", &key_s, "--medium", &m]);
-    let lines: Vec<String> =
-        c.ir.roles
-            .iter()
-            .map(|r| {
-                let what = if r.address == rc {
-                    "on it already"
-                } else {
-                    "rolled back"
-                };
-                format!("  {:<6} {:#06x}  generation 1  {what}", r.name, r.address)
-            })
-            .collect();
-    assert_eq!(back.lines().collect::<Vec<_>>(), lines);
+    assert_eq!(back.lines().collect::<Vec<_>>(), rolled_back(&c, rc, 1));
     for r in &c.ir.roles {
         let a = format!("{:#06x}", r.address);
         assert_eq!(
@@ -787,17 +792,7 @@ fn a_switch_over_that_did_not_finish_is_refused_by_home_then_finished_by_push_or
     }
     // Rolled back: the three that switched return to 1, RC is on it.
     let back = ok(&["rollback", ROBOT, "--keys", &key_s, "--medium", &m]);
-    let lines: Vec<String> = (c.ir.roles.iter())
-        .map(|r| {
-            let what = if r.address == rc {
-                "on it already"
-            } else {
-                "rolled back"
-            };
-            format!("  {:<6} {:#06x}  generation 1  {what}", r.name, r.address)
-        })
-        .collect();
-    assert_eq!(back.lines().collect::<Vec<_>>(), lines);
+    assert_eq!(back.lines().collect::<Vec<_>>(), rolled_back(&c, rc, 1));
     // Split again. Pushed again on trial: the three run generation 3 confirmed, not on
     // trial, and refuse it (taken as running it, the machine would end half on trial).
     split(3);
