@@ -3,6 +3,7 @@
 //! reason as the tooltip); the server refuses the same command with the same reason,
 //! and the radio thread checks again on fresh answers before it sends anything.
 
+use config_schema::alarm::AlarmSource;
 use robot_compiler::compile::Compiled;
 use robot_net::home;
 use serde::Serialize;
@@ -85,8 +86,11 @@ pub fn check(b: Button, c: &Compiled, live: &Live) -> Result<(), String> {
             let text = robot_net::demo::alarm_text(c, &r.name, a.source);
             Some(match a.persists {
                 true => format!(
-                    "node {:#06x} ({}) has a fault alarm latched: {text} (its cause persists)",
-                    r.address, r.name
+                    "node {:#06x} ({}) has a fault alarm latched: {text} (its cause persists: \
+                     {}, then ACK)",
+                    r.address,
+                    r.name,
+                    what_ends(a.source)
                 ),
                 false => format!(
                     "node {:#06x} ({}) has a fault alarm latched: {text} (ACK first)",
@@ -141,6 +145,16 @@ pub fn check(b: Button, c: &Compiled, live: &Live) -> Result<(), String> {
             false => Err("nothing on trial".into()),
         },
         Button::Stop => Ok(()),
+    }
+}
+
+/// What ends the cause of an alarm from `source`, in the panel's words.
+fn what_ends(source: AlarmSource) -> &'static str {
+    match source {
+        AlarmSource::Chart { .. } => "the node is faulted: RESET it",
+        AlarmSource::EStop => "the emergency stop is pressed: release it",
+        AlarmSource::Link { .. } => "the link is in alarm: wait for the peer to acknowledge",
+        AlarmSource::Declared { .. } => "its condition holds: wait for it to clear",
     }
 }
 
@@ -250,6 +264,14 @@ mod tests {
         assert!(check(Button::Home, &c, &live)
             .unwrap_err()
             .starts_with("node 0x0013 (HC) has a fault alarm latched: "));
+        // An e-stop alarm whose button is still pressed (the node reset): what ends it.
+        live.nodes[2].alarms.as_mut().unwrap().0.alarms[0] = Alarm {
+            source: AlarmSource::EStop,
+            ..fault(true)
+        };
+        assert!(check(Button::Home, &c, &live).unwrap_err().ends_with(
+            "(its cause persists: the emergency stop is pressed: release it, then ACK)"
+        ));
     }
 
     #[test]
