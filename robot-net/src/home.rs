@@ -407,16 +407,26 @@ pub fn statuses(
     c: &Compiled,
     timeout: Duration,
 ) -> Result<Vec<Status>, NetError> {
-    let pick = |m: Message<'_>, id| match m {
-        Message::Status(s) if s.ack == id => Some(s),
-        _ => None,
-    };
-    every_role(radio, ids, c, Command::Status, timeout, pick)
+    every_role(radio, ids, c, Command::Status, timeout, push::status_answer)
 }
 
-/// `command` to every role's node of `c` at once ([`push::ask_each`]): each node's answer
-/// as `pick` takes it, in role order; the first node (in role order) that did not answer
-/// within `timeout` fails it.
+/// `command` to every role's node of `c` at once ([`push::ask_each`], within `timeout`):
+/// per role, in role order, its answer as `pick` takes it, or how many times it was asked
+/// without one.
+pub fn ask_roles<T>(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    c: &Compiled,
+    command: Command,
+    timeout: Duration,
+    pick: impl Fn(Message<'_>, u16) -> Option<T>,
+) -> std::io::Result<Vec<Result<T, u32>>> {
+    let addrs: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
+    push::ask_each(radio, ids, &addrs, command, timeout, pick)
+}
+
+/// [`ask_roles`]: each node's answer as `pick` takes it, in role order; the first node (in
+/// role order) that did not answer within `timeout` fails it.
 fn every_role<T>(
     radio: &mut ToolRadio,
     ids: &mut Ids,
@@ -425,8 +435,7 @@ fn every_role<T>(
     timeout: Duration,
     pick: impl Fn(Message<'_>, u16) -> Option<T>,
 ) -> Result<Vec<T>, NetError> {
-    let addrs: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
-    let answers = push::ask_each(radio, ids, &addrs, command, timeout, pick)?;
+    let answers = ask_roles(radio, ids, c, command, timeout, pick)?;
     (c.ir.roles.iter().zip(answers))
         .map(|(r, a)| {
             a.map_err(|_| NetError::NoAnswer {
@@ -448,11 +457,7 @@ pub fn alarms(
     command: Command,
     timeout: Duration,
 ) -> Result<Vec<AlarmReport>, NetError> {
-    let pick = |m: Message<'_>, id| match m {
-        Message::Alarms(a) if a.ack == id => Some(a),
-        _ => None,
-    };
-    every_role(radio, ids, c, command, timeout, pick)
+    every_role(radio, ids, c, command, timeout, push::alarms_answer)
 }
 
 /// Homes the machine of `c`: refuses one with a node faulted, moving or not running the

@@ -5,10 +5,11 @@ use std::collections::BTreeMap;
 use std::io;
 use std::time::{Duration, Instant};
 
+use config_schema::alarm::AlarmReport;
 use config_schema::link_keys;
 use config_schema::wire::mac::BROADCAST;
 use config_schema::wire::msg::{
-    Announce, Command, ConfigReply, Message, Refusal, Status, SwitchStep,
+    Announce, Command, ConfigReply, Message, Refusal, SecurityReport, Status, SwitchStep,
 };
 use config_schema::Table;
 use node_fw::ota::{Progress, Sender, TransferStats};
@@ -539,10 +540,31 @@ pub fn command(
     command: Command,
     timeout: Duration,
 ) -> io::Result<Option<Status>> {
-    ask(radio, ids, addr, command, timeout, |m, id| match m {
+    ask(radio, ids, addr, command, timeout, status_answer)
+}
+
+/// `m` as the status that answers command `id` (a command's answer, for [`ask`]).
+pub fn status_answer(m: Message<'_>, id: u16) -> Option<Status> {
+    match m {
         Message::Status(s) if s.ack == id => Some(s),
         _ => None,
-    })
+    }
+}
+
+/// `m` as the security report that answers command `id` (`Security`, for [`ask`]).
+pub fn security_answer(m: Message<'_>, id: u16) -> Option<SecurityReport> {
+    match m {
+        Message::Security(r) if r.ack == id => Some(r),
+        _ => None,
+    }
+}
+
+/// `m` as the alarm report that answers command `id` (`Alarms` and `Ack`, for [`ask`]).
+pub fn alarms_answer(m: Message<'_>, id: u16) -> Option<AlarmReport> {
+    match m {
+        Message::Alarms(a) if a.ack == id => Some(a),
+        _ => None,
+    }
 }
 
 /// Sends `command` to node `addr` (again every 150 ms) until `pick` takes an answer of

@@ -112,17 +112,9 @@ impl Poll {
     /// counters); then, while cycles run, START again at the idle point.
     fn round(&mut self, round: u64) -> std::io::Result<()> {
         let addrs: Vec<u16> = self.c.ir.roles.iter().map(|r| r.address).collect();
-        let statuses = push::ask_each(
-            &mut self.radio,
-            &mut self.ids,
-            &addrs,
-            Command::Status,
-            POLL_ANSWER,
-            |m, id| match m {
-                Message::Status(s) if s.ack == id => Some(s),
-                _ => None,
-            },
-        )?;
+        let statuses: Vec<Result<Status, u32>> = self
+            .ask_when(true, &addrs, Command::Status, push::status_answer)?
+            .collect();
         // The alarms and counters of the nodes that answered, when due.
         let answered: Vec<u16> = (addrs.iter().zip(&statuses))
             .filter(|(_, s)| s.is_ok())
@@ -132,19 +124,13 @@ impl Poll {
             round.is_multiple_of(ALARMS_EVERY),
             &answered,
             Command::Alarms,
-            |m, id| match m {
-                Message::Alarms(a) if a.ack == id => Some(a),
-                _ => None,
-            },
+            push::alarms_answer,
         )?;
         let mut security = self.ask_when(
             round.is_multiple_of(SECURITY_EVERY),
             &answered,
             Command::Security,
-            |m, id| match m {
-                Message::Security(r) if r.ack == id => Some(r),
-                _ => None,
-            },
+            push::security_answer,
         )?;
         for (i, s) in statuses.into_iter().enumerate() {
             let Ok(s) = s else {

@@ -151,9 +151,8 @@ fn ask_every_role<T>(
     cmd: Command,
     pick: impl Fn(Message<'_>, u16) -> Option<T>,
 ) -> Result<Vec<Result<T, u64>>, Failure> {
-    let addrs: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
     let answers =
-        push::ask_each(radio, ids, &addrs, cmd, ANSWER_WITHIN, pick).map_err(Failure::error)?;
+        home::ask_roles(radio, ids, c, cmd, ANSWER_WITHIN, pick).map_err(Failure::error)?;
     Ok(answers.into_iter().map(|a| a.map_err(u64::from)).collect())
 }
 
@@ -166,11 +165,7 @@ fn robot_statuses(
     c: &robot_compiler::Compiled,
     not_sent: &str,
 ) -> Result<Vec<Status>, Failure> {
-    let pick = |m: Message<'_>, id| match m {
-        Message::Status(s) if s.ack == id => Some(s),
-        _ => None,
-    };
-    let answers = ask_every_role(radio, ids, c, Command::Status, pick)?;
+    let answers = ask_every_role(radio, ids, c, Command::Status, push::status_answer)?;
     (c.ir.roles.iter().zip(answers))
         .map(|(r, answer)| {
             answer.map_err(|asked| {
@@ -193,18 +188,12 @@ fn command(
     node: u16,
     cmd: Command,
 ) -> Result<Status, Failure> {
-    ask(radio, ids, node, cmd, |m, id| match m {
-        Message::Status(s) if s.ack == id => Some(s),
-        _ => None,
-    })
+    ask(radio, ids, node, cmd, push::status_answer)
 }
 
 /// The node's security report (`Command::Security`).
 fn security(radio: &mut ToolRadio, ids: &mut Ids, node: u16) -> Result<SecurityReport, Failure> {
-    ask(radio, ids, node, Command::Security, |m, id| match m {
-        Message::Security(r) if r.ack == id => Some(r),
-        _ => None,
-    })
+    ask(radio, ids, node, Command::Security, push::security_answer)
 }
 
 /// `medium`: runs until interrupted.
@@ -956,16 +945,9 @@ fn node_alarms(
     c: &robot_compiler::Compiled,
     cmd: Command,
 ) -> Result<(Vec<alarms::NodeAlarms>, Vec<alarms::Silent>), Failure> {
-    let pick = |m: Message<'_>, id| match m {
-        Message::Alarms(a) if a.ack == id => Some(a),
-        _ => None,
-    };
+    let answers = ask_every_role(radio, ids, c, cmd, push::alarms_answer)?;
     let (mut out, mut silent) = (Vec::new(), Vec::new());
-    for (r, answer) in
-        c.ir.roles
-            .iter()
-            .zip(ask_every_role(radio, ids, c, cmd, pick)?)
-    {
+    for (r, answer) in c.ir.roles.iter().zip(answers) {
         match answer {
             Ok(report) => out.push(alarms::NodeAlarms {
                 role: r.name.clone(),

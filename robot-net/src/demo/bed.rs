@@ -13,7 +13,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use config_schema::alarm::AlarmReport;
-use config_schema::wire::msg::{Announce, Command, Message, Status};
+use config_schema::wire::msg::{Announce, Command, Status};
 
 use crate::error::NetError;
 use crate::home::{self, HomeEnd};
@@ -851,19 +851,8 @@ impl Bed {
         c: &Compiled,
         within: Duration,
     ) -> Result<Vec<Option<Status>>, NetError> {
-        let addrs: Vec<u16> = c.ir.roles.iter().map(|r| r.address).collect();
-        let pick = |m: Message<'_>, id| match m {
-            Message::Status(s) if s.ack == id => Some(s),
-            _ => None,
-        };
-        let answers = push::ask_each(
-            &mut self.radio,
-            &mut self.ids,
-            &addrs,
-            Command::Status,
-            within,
-            pick,
-        )?;
+        let (radio, ids) = (&mut self.radio, &mut self.ids);
+        let answers = home::ask_roles(radio, ids, c, Command::Status, within, push::status_answer)?;
         Ok(answers.into_iter().map(Result::ok).collect())
     }
 
