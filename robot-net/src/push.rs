@@ -184,7 +184,7 @@ pub fn push(
 }
 
 /// The nodes of `pushed` that refused the transfer as not newer than the generation they
-/// run, where that is the pushed `generation`, asked their status (each within
+/// run, where that is the pushed `generation`, asked their status (at once, within
 /// `timeout`): one that runs this very table (its identity is `table_of` its role's at
 /// that generation), on trial if and only if the push is (`trial`), counts as staged,
 /// [`Pushed::running`]: the switch-over finds it
@@ -202,18 +202,24 @@ pub fn running_already<'t>(
     let stale = Progress::Refused(Refusal::Stale {
         running: generation,
     });
-    for p in pushed.iter_mut().filter(|p| p.progress == stale) {
-        let Some(table) = table_of(&p.role) else {
-            continue;
-        };
-        let status = command(radio, ids, p.addr, Command::Status, timeout)?;
-        // On trial as this push would switch it (a push on trial over nodes that run the
-        // generation confirmed, or the other way round, would leave the machine half on
-        // trial): else refused as it was.
-        let same = |s: &Status| s.generation == generation && s.trial == trial;
-        if status.is_some_and(|s| same(&s) && crate::home::runs(table, &s)) {
-            p.progress = Progress::Done;
-            p.running = true;
+    let asked: Vec<(usize, &Table)> = (pushed.iter().enumerate())
+        .filter(|(_, p)| p.progress == stale)
+        .filter_map(|(i, p)| Some((i, table_of(&p.role)?)))
+        .collect();
+    let addrs: Vec<u16> = (asked.iter())
+        .filter_map(|&(i, _)| Some(pushed.get(i)?.addr))
+        .collect();
+    let statuses = ask_each(radio, ids, &addrs, Command::Status, timeout, status_answer)?;
+    // On trial as this push would switch it (a push on trial over nodes that run the
+    // generation confirmed, or the other way round, would leave the machine half on
+    // trial): else refused as it was.
+    let same = |s: &Status| s.generation == generation && s.trial == trial;
+    for ((i, table), status) in asked.into_iter().zip(statuses) {
+        if status.is_ok_and(|s| same(&s) && crate::home::runs(table, &s)) {
+            if let Some(p) = pushed.get_mut(i) {
+                p.progress = Progress::Done;
+                p.running = true;
+            }
         }
     }
     Ok(())
