@@ -19,33 +19,29 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
         .map(robot_analysis::inject::parse)
         .transpose()
         .map_err(Failure::usage)?;
-    let then = match (flags.no_reconfigure, &flags.then) {
-        (true, _) => None,
-        (false, Some(p)) => Some(p.clone()),
-        (false, None) => {
-            let p = robot.with_file_name("paint-robot-double-dip.ron");
-            (p.exists() && p != robot).then_some(p)
-        }
-    };
     let loaded = demo::load(robot)?;
     refuse_unused(&flags, &loaded, fault.is_some())?;
-    // A station's demo pushes nothing after its run: no default robot either.
-    let station = loaded.robot.sorting.is_some() || !loaded.robot.functions.is_empty();
-    let then = then.filter(|_| !station);
     if let Some(spec) = &fault {
         // A target or step the robot lacks, said before anything runs (status 2).
         robot_analysis::inject::simulate(&loaded, spec)
             .map_err(super::offline::injection_failure)?;
     }
-    // A --then robot on nodes the demo does not start is refused; the default one beside
-    // the robot is pushed only if it fits them.
-    let then = match then {
-        Some(t) if flags.then.is_some() => {
-            same_nodes(robot, &loaded, &t)?;
-            Some(t)
+    // The robot pushed afterwards: --then's, refused on nodes the demo does not start; else
+    // the double dip beside the robot, if there is one and it fits them; none with
+    // --no-reconfigure (clap refuses it with --then), nor for a station (it pushes nothing
+    // after its run; `refuse_unused` refused its --then).
+    let station = loaded.robot.sorting.is_some() || !loaded.robot.functions.is_empty();
+    let then = match &flags.then {
+        Some(t) => {
+            same_nodes(robot, &loaded, t)?;
+            Some(t.clone())
         }
-        Some(t) => same_nodes(robot, &loaded, &t).ok().map(|_| t),
-        None => None,
+        None if flags.no_reconfigure || station => None,
+        None => {
+            let p = robot.with_file_name("paint-robot-double-dip.ron");
+            let fits = p.exists() && p != robot && same_nodes(robot, &loaded, &p).is_ok();
+            fits.then_some(p)
+        }
     };
     if let Some(out) = &flags.pcap {
         // What the demo reads: both robots and what they import, and the image.
