@@ -29,17 +29,7 @@ fn seconds_after(line: &str, key: &str) -> f64 {
 
 #[test]
 fn a_jammed_cylinder_is_reported_when_its_watchdog_fires_and_the_demo_exits_faulted() {
-    let out = demo(&[
-        "robot-configs/paint-robot.ron",
-        "--cycles",
-        "1",
-        "--no-reconfigure",
-        "--fault",
-        "stuck:VC@3",
-    ]);
-    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
-    assert_eq!(out.status.code(), Some(5), "{stdout}\n{stderr}");
-    assert!(stderr.ends_with("demo: the machine faulted\n"), "{stderr}");
+    let (stdout, stderr) = faulted_demo("stuck:VC@3");
     // The plant saw VC- commanded (step 3) and jammed it; nothing else moved: the gripper
     // holds its part (`fault: Hold`).
     let seen = steps(&stderr);
@@ -49,14 +39,7 @@ fn a_jammed_cylinder_is_reported_when_its_watchdog_fires_and_the_demo_exits_faul
         [("VC+", false), ("GR+", false), ("VC-", true)],
         "{stderr}"
     );
-    let lines: Vec<&str> = stdout.lines().collect();
-    let at = |prefix: &str| -> &str {
-        lines
-            .iter()
-            .map(|l| l.trim_start())
-            .find(|l| l.starts_with(prefix))
-            .unwrap_or_else(|| panic!("no `{prefix}` in\n{stdout}"))
-    };
+    let at = |prefix: &str| line_at(&stdout, prefix);
     assert!(at("cycle 1:").starts_with("cycle 1: FAULTED"), "{stdout}");
     let fault = at("FAULT at");
     assert!(
@@ -99,7 +82,14 @@ fn a_jammed_cylinder_is_reported_when_its_watchdog_fires_and_the_demo_exits_faul
         at("node 0x0012 (GR):"),
         "node 0x0012 (GR): faulted (stopped by a peer's fault, code 0x82), outputs 0x0001"
     );
-    assert_eq!(lines.last(), Some(&"demo: FAULTED"), "{stdout}");
+    assert_eq!(stdout.lines().last(), Some("demo: FAULTED"), "{stdout}");
+}
+
+/// The line of `stdout` that starts with `prefix` (indentation aside).
+fn line_at<'a>(stdout: &'a str, prefix: &str) -> &'a str {
+    (stdout.lines().map(str::trim_start))
+        .find(|l| l.starts_with(prefix))
+        .unwrap_or_else(|| panic!("no `{prefix}` in\n{stdout}"))
 }
 
 /// One cycle of the paint robot with `fault` injected, which faults it (status 5): its
@@ -125,13 +115,7 @@ fn a_cut_radio_link_is_reported_as_the_alarm_of_the_node_whose_peer_stopped_ackn
     // VC's "extended" never reaches GR: the gripper never closes, nothing moves after VC+.
     let seen: Vec<String> = steps(&stderr).into_iter().map(|(_, s, _)| s).collect();
     assert_eq!(seen, ["VC+"], "{stderr}");
-    let lines: Vec<&str> = stdout.lines().map(str::trim_start).collect();
-    let at = |prefix: &str| -> &str {
-        lines
-            .iter()
-            .find(|l| l.starts_with(prefix))
-            .unwrap_or_else(|| panic!("no `{prefix}` in\n{stdout}"))
-    };
+    let at = |prefix: &str| line_at(&stdout, prefix);
     assert_eq!(
         at("fault to inject:"),
         "fault to inject: link VC -> GR lost before step 2 of cycle 1"
@@ -162,7 +146,7 @@ fn a_cut_radio_link_is_reported_as_the_alarm_of_the_node_whose_peer_stopped_ackn
             format!("node {addr} ({role}): NOT faulted, outputs 0x0000")
         );
     }
-    assert_eq!(lines.last(), Some(&"demo: FAULTED"), "{stdout}");
+    assert_eq!(stdout.lines().last(), Some("demo: FAULTED"), "{stdout}");
 }
 
 /// `stop:HC@9` kills HC's node before its step: RC's event to it is never acknowledged.
@@ -177,13 +161,7 @@ fn a_stopped_node_is_reported_as_the_link_alarm_of_its_peer_and_named_silent() {
         "VC+ GR+ VC- HC+ VC+ VC- RC+ RC-",
         "{stderr}"
     );
-    let lines: Vec<&str> = stdout.lines().map(str::trim_start).collect();
-    let at = |prefix: &str| -> &str {
-        lines
-            .iter()
-            .find(|l| l.starts_with(prefix))
-            .unwrap_or_else(|| panic!("no `{prefix}` in\n{stdout}"))
-    };
+    let at = |prefix: &str| line_at(&stdout, prefix);
     assert!(
         at("FAULT at")
             .ends_with("node 0x0014 (RC) detected it: link alarm: HC does not acknowledge"),
@@ -198,7 +176,7 @@ fn a_stopped_node_is_reported_as_the_link_alarm_of_its_peer_and_named_silent() {
         at("node 0x0014 (RC):"),
         "node 0x0014 (RC): NOT faulted, outputs 0x0002"
     );
-    assert_eq!(lines.last(), Some(&"demo: FAULTED"), "{stdout}");
+    assert_eq!(stdout.lines().last(), Some("demo: FAULTED"), "{stdout}");
 }
 
 /// A `--then` robot with a role on a node the demo never starts: refused before anything
