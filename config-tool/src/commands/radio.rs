@@ -749,17 +749,11 @@ fn machine(
     Ok((radio, c, nodes))
 }
 
-/// A trial a power cut split: the trial's generation and the nodes off it, each with the
-/// generation it runs (`None`: no node on trial, or every node on it).
-fn split_trial(nodes: &[RoleStatus]) -> Option<(u32, Vec<(u16, u32)>)> {
+/// Which generation(s) the robot's nodes run ([`home::generations`]: `Mixed` is a trial a
+/// power cut split, or a switch-over that did not finish).
+fn generations(nodes: &[RoleStatus]) -> Option<home::Generations> {
     let statuses: Vec<(u16, &Status)> = nodes.iter().map(|n| (n.1, &n.2)).collect();
-    match home::generations(&statuses)? {
-        home::Generations::Mixed {
-            trial: Some(generation),
-            off,
-        } => Some((generation, off)),
-        _ => None,
-    }
+    home::generations(&statuses)
 }
 
 /// `confirm`: the generation on trial stays.
@@ -782,7 +776,11 @@ pub fn confirm(flags: &MachineArgs) -> Result<(), Failure> {
     }
     // A node that left the trial (a power cut) runs another generation: confirming the
     // others would leave the machine on two.
-    if let Some((generation, off)) = split_trial(&nodes) {
+    if let Some(home::Generations::Mixed {
+        trial: Some(generation),
+        off,
+    }) = generations(&nodes)
+    {
         for (role, addr, s) in &nodes {
             let what = match off.iter().find(|o| o.0 == *addr) {
                 Some(_) => format!("generation {}  NOT on trial", s.generation),
@@ -842,8 +840,7 @@ pub fn rollback(flags: &SwitchArgs) -> Result<(), Failure> {
     let (mut radio, _, nodes) = machine(&flags.machine)?;
     // Nodes off the machine's generation (a trial a power cut split, a switch-over that
     // did not finish) run the previous generation already; the others return to it.
-    let statuses: Vec<(u16, &Status)> = nodes.iter().map(|n| (n.1, &n.2)).collect();
-    let back: Vec<u16> = match home::generations(&statuses) {
+    let back: Vec<u16> = match generations(&nodes) {
         Some(home::Generations::Mixed { off, .. }) => off.iter().map(|o| o.0).collect(),
         _ => Vec::new(),
     };
