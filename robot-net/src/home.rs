@@ -357,7 +357,7 @@ fn faulted_text(nodes: &[Node]) -> String {
 
 /// A trial a power cut split, in words: `off` says what each node off generation `trial`
 /// runs (`0x0014 (RC) runs generation 1`).
-pub fn trial_split_text(trial: u32, off: &[String]) -> String {
+fn trial_split_text(trial: u32, off: &[String]) -> String {
     format!(
         "not every node runs generation {trial} on trial: {} (a power cut returns a node to \
          its previous generation): `config-tool rollback` returns the others to theirs",
