@@ -837,6 +837,59 @@ fn a_switch_over_that_did_not_finish_is_refused_by_home_then_finished_by_push_or
     medium.stop();
 }
 
+/// `push --role` at another generation than the robot's other nodes run: each generation
+/// of a secured robot has link keys of its own, so the role's node would share none with
+/// its peers (it was pushed, switched, and the machine could not run until every role was
+/// pushed again). Refused before anything is sent, saying what to push; at the machine's
+/// generation the role alone goes through (`--force` over the node that runs it).
+#[test]
+fn a_role_pushed_alone_at_another_generation_of_a_secured_robot_is_refused() {
+    let Keyed {
+        dir,
+        key_s,
+        medium,
+        m,
+        nodes,
+        ..
+    } = keyed("keys-push-role");
+    let push = |generation: &str, extra: &[&str]| {
+        let mut args = vec!["push", ROBOT, "--keys", &key_s, "--medium", &m, "--now"];
+        args.extend(["--generation", generation]);
+        args.extend(extra);
+        tool(&args)
+    };
+    let out = push("1", &[]);
+    assert!(out.status.success(), "{}", text(&out.stdout));
+    let out = push("2", &["--role", "RC"]);
+    assert_eq!(
+        (out.status.code(), text(&out.stderr)),
+        (
+            Some(6),
+            "error: the robot's other nodes run generation 1, and each generation of a secured \
+             robot has link keys of its own: RC alone at generation 2 would share none with \
+             its peers; push every role at generation 2, or RC at generation 1 (--generation \
+             1, with --force over a node that runs it); nothing was sent\n"
+                .to_string()
+        ),
+        "{}",
+        text(&out.stdout)
+    );
+    assert_eq!(
+        status(&key_s, &m, "0x0014")[0],
+        "0x0014  role RC  generation 1"
+    );
+    // At the machine's generation, RC alone is pushed again.
+    let out = push("1", &["--role", "RC", "--force"]);
+    assert_eq!(
+        (out.status.code(), text(&out.stderr).as_str()),
+        (Some(0), ""),
+        "{}",
+        text(&out.stdout)
+    );
+    drop((nodes, dir));
+    medium.stop();
+}
+
 /// A robot that says `security: Off` pushed to keyed nodes: its tables go in clear and
 /// every keyed node drops them. It said only `FAILED: the node stopped answering (is it
 /// running, in range?)` of each node; now the error says why.

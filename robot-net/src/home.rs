@@ -146,6 +146,31 @@ fn generations_of(runs: &[(u16, u32, bool)]) -> Option<Generations> {
     })
 }
 
+/// Why `role` may not be pushed alone at `generation` to a secured robot's node (`None`:
+/// it may): `others` are the robot's other roles' nodes that answered running their roles,
+/// as `(address, generation, on trial)`. Each generation of a secured robot has link keys
+/// of its own, so the role's node would share none with peers on the machine's generation
+/// (the one on trial, else the newest) if it is another.
+pub fn role_alone_refusal(
+    role: &str,
+    generation: u32,
+    others: &[(u16, u32, bool)],
+) -> Option<String> {
+    let machine = match generations_of(others)? {
+        Generations::Confirmed { generation } | Generations::OnTrial { generation } => generation,
+        Generations::Mixed { trial, .. } => trial.or_else(|| others.iter().map(|o| o.1).max())?,
+    };
+    (machine != generation).then(|| {
+        format!(
+            "the robot's other nodes run generation {machine}, and each generation of a \
+             secured robot has link keys of its own: {role} alone at generation {generation} \
+             would share none with its peers; push every role at generation {generation}, or \
+             {role} at generation {machine} (--generation {machine}, with --force over a node \
+             that runs it)"
+        )
+    })
+}
+
 /// Nodes on different generations, in words (`off` says what each node off the
 /// machine's generation runs: `0x0014 (RC) runs generation 1`), with what to do: a trial
 /// a power cut split (`trial`: its generation), or a switch-over that did not finish.
@@ -659,6 +684,37 @@ mod tests {
             runtime: RuntimeCounters::default(),
             cycles: 0,
         }
+    }
+
+    /// A role pushed alone to a secured robot goes at the machine's generation: the one
+    /// on trial, else the newest; refused otherwise, saying which.
+    #[test]
+    fn a_role_alone_goes_at_the_machines_generation() {
+        assert_eq!(role_alone_refusal("RC", 2, &[]), None);
+        assert_eq!(
+            role_alone_refusal("RC", 2, &[(0x11, 2, false), (0x12, 2, false)]),
+            None
+        );
+        assert_eq!(
+            role_alone_refusal("RC", 3, &[(0x11, 2, false), (0x12, 3, false)]),
+            None
+        );
+        assert_eq!(
+            role_alone_refusal("RC", 2, &[(0x11, 2, true), (0x12, 3, false)]),
+            None
+        );
+        let refused = role_alone_refusal("RC", 3, &[(0x11, 2, true), (0x12, 1, false)]);
+        assert_eq!(
+            refused.as_deref(),
+            Some(
+                "the robot's other nodes run generation 2, and each generation of a secured \
+                 robot has link keys of its own: RC alone at generation 3 would share none \
+                 with its peers; push every role at generation 3, or RC at generation 2 \
+                 (--generation 2, with --force over a node that runs it)"
+            )
+        );
+        let refused = role_alone_refusal("RC", 1, &[(0x11, 4, false)]);
+        assert!(refused.is_some_and(|r| r.contains("other nodes run generation 4")));
     }
 
     /// A second `ack` said it acknowledged every alarm again.

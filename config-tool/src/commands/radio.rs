@@ -328,6 +328,10 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
     verify_before_push(robot, &c, flags.no_verify)?;
     let mut radio = connect_keyed(at, keys.as_ref())?;
     plain_if_off(&mut radio, &c);
+    let mut ids = Ids::default();
+    if let (Some(role), Security::On) = (&flags.role, c.robot.security) {
+        role_alone_at_the_machines_generation(&mut radio, &mut ids, &c, role)?;
+    }
     let mut outcomes = push_with_bars(&mut radio, &targets, flags.force)?;
     // Pushed again after a switch-over that did not finish: the nodes that switched run
     // this generation already.
@@ -336,7 +340,6 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
         c.tables.get(i)
     };
     let generation = c.ir.generation;
-    let mut ids = Ids::default();
     push::running_already(
         &mut radio,
         &mut ids,
@@ -489,6 +492,39 @@ pub(crate) fn push_keys(
             robot.display()
         ))),
         (Security::Off, _) => Ok(None),
+    }
+}
+
+/// `push --role` of a secured robot: the role's node must take the generation its peers
+/// run (each generation has link keys of its own), so the robot's other roles' nodes are
+/// asked theirs first; refused (status 6, nothing sent) at another. Nodes that do not
+/// answer, or run another robot's role, have no say.
+fn role_alone_at_the_machines_generation(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    c: &robot_compiler::Compiled,
+    role: &str,
+) -> Result<(), Failure> {
+    let roles: Vec<_> = c.ir.roles.iter().filter(|r| r.name != role).collect();
+    let addrs: Vec<u16> = roles.iter().map(|r| r.address).collect();
+    let answers = push::ask_each(
+        radio,
+        ids,
+        &addrs,
+        Command::Status,
+        ANSWER_WITHIN,
+        push::status_answer,
+    )
+    .map_err(Failure::error)?;
+    let others: Vec<(u16, u32, bool)> = (roles.iter().zip(answers))
+        .filter_map(|(r, a)| {
+            let s = a.ok().filter(|s| s.role.as_str() == r.name)?;
+            Some((r.address, s.generation, s.trial))
+        })
+        .collect();
+    match home::role_alone_refusal(role, c.ir.generation, &others) {
+        Some(why) => Err(Failure::refused(format!("{why}; nothing was sent"))),
+        None => Ok(()),
     }
 }
 
