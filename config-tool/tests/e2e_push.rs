@@ -102,3 +102,42 @@ fn tables_at_the_blob_limit_take_no_retry_on_a_lossless_medium() {
     );
     bed.stop();
 }
+
+/// The VC role moved to the spare node (`paint-robot-spare-node.ron`, pushed from the
+/// command line): the node that lost it keeps running its old table (nothing tells it
+/// otherwise), and `push` said nothing of it. Now `push` names each node of the robot
+/// that plays no role in it and still runs one, and says what it runs.
+#[test]
+fn a_push_names_a_node_of_the_robot_that_plays_no_role_and_still_runs_one() {
+    let dir = TempDir::new("push-lost-role");
+    let (_, paint) = unsecured_robot(&dir, "paint-robot.ron");
+    let (moved, _) = unsecured_robot(&dir, "paint-robot-spare-node.ron");
+    let moved = moved.to_str().expect("utf-8 path");
+    let mut opts = options(medium::Config::default(), None);
+    opts.secured = false;
+    let mut bed = bring_up(&paint, opts);
+    push_and_home(&mut bed, &paint);
+    let m = bed.medium().addr().to_string();
+    let (code, out, err) = run_tool(&["push", moved, "--medium", &m, "--generation", "2"]);
+    assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
+    let tail: Vec<&str> = out.lines().rev().take(2).collect();
+    assert_eq!(
+        tail,
+        [
+            "node 0x0011 (node-1) plays no role in this robot but runs VC of generation 1: it \
+             keeps running that table until it is given a role or powered off",
+            "switched: every node runs the new generation",
+        ],
+        "{out}"
+    );
+    // Pushed again once it is off: nothing to say of it (asked for 1 s, it did not answer).
+    bed.kill_node(0x0011);
+    let (code, out, err) = run_tool(&["push", moved, "--medium", &m, "--generation", "3"]);
+    assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
+    assert_eq!(
+        out.lines().last(),
+        Some("switched: every node runs the new generation"),
+        "{out}"
+    );
+    bed.stop();
+}

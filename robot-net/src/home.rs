@@ -146,6 +146,18 @@ fn generations_of(runs: &[(u16, u32, bool)]) -> Option<Generations> {
     })
 }
 
+/// A node of the robot that plays no role in it (`name` at `addr`) yet runs a table, as
+/// its status `s` says, in words (`None`: it runs none).
+pub fn roleless_note(name: &str, addr: u16, s: &Status) -> Option<String> {
+    (!s.role.is_empty()).then(|| {
+        format!(
+            "node {addr:#06x} ({name}) plays no role in this robot but runs {} of generation \
+             {}: it keeps running that table until it is given a role or powered off",
+            s.role, s.generation
+        )
+    })
+}
+
 /// Why `role` may not be pushed alone at `generation` to a secured robot's node (`None`:
 /// it may): `others` are the robot's other roles' nodes that answered running their roles,
 /// as `(address, generation, on trial)`. Each generation of a secured robot has link keys
@@ -684,6 +696,19 @@ mod tests {
             runtime: RuntimeCounters::default(),
             cycles: 0,
         }
+    }
+
+    /// A spare that runs no table has nothing to say; one that runs a role says which.
+    #[test]
+    fn a_roleless_node_is_named_only_when_it_runs_a_table() {
+        assert_eq!(roleless_note("spare", 0x15, &status("", &[], None)), None);
+        assert_eq!(
+            roleless_note("node-1", 0x11, &status("VC", &[0], None)).as_deref(),
+            Some(
+                "node 0x0011 (node-1) plays no role in this robot but runs VC of generation 1: \
+                 it keeps running that table until it is given a role or powered off"
+            )
+        );
     }
 
     /// A role pushed alone to a secured robot goes at the machine's generation: the one

@@ -375,6 +375,9 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
     // A robot that says `security: Off` pushed in clear: a keyed node drops it unread.
     let plain = c.robot.security == Security::Off;
     report_push(&outcomes, verdict, flags.trial, one_role, plain)?;
+    if verdict == Some(Verdict::Switched) && flags.role.is_none() {
+        roleless_nodes_that_run_a_table(&mut radio, &mut ids, &c)?;
+    }
     // A trial is watched for --watch / --watch-cycles, else for the window the robot
     // declares.
     let given = flags.watch.is_some() || flags.watch_cycles.is_some();
@@ -493,6 +496,42 @@ pub(crate) fn push_keys(
         ))),
         (Security::Off, _) => Ok(None),
     }
+}
+
+/// After a switch-over: the robot's nodes that play no role in it (spares, or a node a
+/// role moved away from) but still run a table, each on a line of its own. Nothing tells
+/// such a node to stop (it keeps its table until given a role or powered off); asked for
+/// [`ASK_QUIET`], a silent one (off, as a spare may be) has nothing to say.
+fn roleless_nodes_that_run_a_table(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    c: &robot_compiler::Compiled,
+) -> Result<(), Failure> {
+    let roleless: Vec<_> = (c.robot.nodes.iter())
+        .filter(|n| c.ir.roles.iter().all(|r| r.address != n.address))
+        .collect();
+    if roleless.is_empty() {
+        return Ok(());
+    }
+    let addrs: Vec<u16> = roleless.iter().map(|n| n.address).collect();
+    let answers = push::ask_each(
+        radio,
+        ids,
+        &addrs,
+        Command::Status,
+        ASK_QUIET,
+        push::status_answer,
+    )
+    .map_err(Failure::error)?;
+    for (n, answer) in roleless.iter().zip(answers) {
+        if let Some(note) = answer
+            .ok()
+            .and_then(|s| home::roleless_note(&n.name, n.address, &s))
+        {
+            outln!("{note}");
+        }
+    }
+    Ok(())
 }
 
 /// `push --role` of a secured robot: the role's node must take the generation its peers
