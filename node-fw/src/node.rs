@@ -1562,20 +1562,24 @@ impl<S: StagingArea> NodeCore<S> {
     }
 
     /// Sends `dst` on `pan` a challenge whose nonce is the counter of the challenge frame
-    /// itself (with `flags`: [`restart::GREETING`] for a booted node's greeting), and
-    /// remembers it: on the config PAN for the management path, on the robot's for the
-    /// peers' (one sender for both).
+    /// itself (with `flags`: [`restart::GREETING`] for a booted node's greeting; to a peer,
+    /// the nonce of a challenge it has not answered yet, if any:
+    /// [`crate::peer_security::PeerSecurity::nonce`]), and remembers it: on the config PAN
+    /// for the management path, on the robot's for the peers' (one sender for both).
     fn challenge_on(&mut self, pan: u16, dst: u16, flags: u32, io: &mut impl Io) {
         let Some(counter) = io.next_frame_counter() else {
             self.radio.security.no_counter += 1;
             return;
         };
-        let nonce = counter | flags;
-        if pan == CONFIG_PAN {
+        let nonce = if pan == CONFIG_PAN {
+            let nonce = counter | flags;
             self.challenges.sent(dst, nonce);
+            nonce
         } else {
+            let nonce = self.radio.links.nonce(dst, counter, flags);
             self.radio.links.challenged(dst, nonce);
-        }
+            nonce
+        };
         self.send_numbered(io, pan, dst, &Message::Challenge { nonce }, Some(counter));
     }
 

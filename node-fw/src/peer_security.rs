@@ -337,7 +337,7 @@ impl PeerSecurity {
                 nonce: *nonce,
                 answer,
                 challenge,
-                renumber: self.renumbers(src, aux.frame_counter),
+                renumber: self.renumbers(src, *nonce),
             };
         }
         if floor.is_none() {
@@ -376,18 +376,22 @@ impl PeerSecurity {
                 nonce: *nonce,
                 answer: may(&mut self.next_answer, src, now, ANSWER_MS),
                 challenge: false,
-                renumber: self.renumbers(src, aux.frame_counter),
+                renumber: self.renumbers(src, *nonce),
             },
             _ => Verdict::Accept(payload),
         }
     }
 
-    /// Whether a challenge from `peer` in a frame with counter `counter` numbers our link
-    /// to it again: its first, or one newer than the last that did. Before the peer's
-    /// floor is known (both booted) no replay check stops a copy of its challenge that
-    /// the radio duplicated, or an old one replayed: numbered again for it, the events
-    /// the peer took since the first would be delivered to it twice.
-    fn renumbers(&mut self, peer: u16, counter: u32) -> bool {
+    /// Whether a challenge from `peer` with `nonce` numbers our link to it again: its
+    /// first, or one whose nonce is newer than the last that did. A peer repeats its
+    /// nonce in every challenge until one is answered ([`PeerSecurity::nonce`]): those
+    /// ask for one renumbering, however late they come. Numbered again for a late one
+    /// (sent before our answer reached the peer, come after the peer took the numbered
+    /// events and its acknowledgement was lost), or for a copy the radio duplicated
+    /// before the peer's floor is known (both booted: no replay check stops it), the
+    /// events the peer took since the first would be delivered to it twice.
+    fn renumbers(&mut self, peer: u16, nonce: u32) -> bool {
+        let counter = nonce & !crate::restart::GREETING;
         let at = (self.current.as_ref()).and_then(|k| k.peers.iter().position(|p| p.peer == peer));
         let Some(last) = at.and_then(|i| self.renumbered.get_mut(i)) else {
             return true;
@@ -399,9 +403,22 @@ impl PeerSecurity {
         true
     }
 
-    /// This node challenged `peer` with `nonce` (the challenge frame's own counter).
+    /// This node challenged `peer` with `nonce` ([`PeerSecurity::nonce`]).
     pub fn challenged(&mut self, peer: u16, nonce: u32) {
         self.challenges.sent(peer, nonce);
+    }
+
+    /// The nonce of a challenge to `peer` whose frame has counter `counter`, with `flags`
+    /// ([`crate::restart::GREETING`] or none): the counter, unless a challenge to the peer
+    /// is still unanswered (its floor unknown): then that one's, so that the peer numbers
+    /// its link to this node again once for all of them (a greeting's retries, a challenge
+    /// of a frame that came before the answer). Everything the peer sent before the
+    /// first of them is still below the floor its answer sets.
+    pub fn nonce(&self, peer: u16, counter: u32, flags: u32) -> u32 {
+        let pending = (self.replay.last(peer, ANY_LINK_KEY).is_none())
+            .then(|| self.challenges.newest(peer))
+            .flatten();
+        pending.map_or(counter, |n| n & !crate::restart::GREETING) | flags
     }
 }
 
@@ -433,6 +450,12 @@ impl<const N: usize> Pending<N> {
             return false;
         };
         answered(self.sent.as_mut_view(), sender, *nonce)
+    }
+
+    /// The nonce of the last challenge to `sender` still pending.
+    pub fn newest(&self, sender: u16) -> Option<u32> {
+        let (_, nonces) = self.sent.iter().find(|(s, _)| *s == sender)?;
+        nonces[0]
     }
 
     /// Forgets the challenges of senders not in `keep`.
@@ -702,9 +725,11 @@ mod tests {
                 renumber: true,
             }
         ));
-        // Within the handshake's rate: neither answered nor challenged again.
+        // A newer challenge within the handshake's rate: neither answered nor challenged
+        // again, the link numbered again.
+        let newer = Message::Challenge { nonce: 6 };
         let v = s.open(
-            &frame(1, 4, &ch),
+            &frame(1, 4, &newer),
             ME,
             0,
             ANSWER_MS - 1,
@@ -720,11 +745,12 @@ mod tests {
                 ..
             }
         ));
-        // A copy of that challenge (the radio duplicated it), or an older one replayed:
-        // answered at the handshake's rate, but the link is not numbered again for it.
-        for counter in [4, 2] {
+        // A copy of that challenge (the radio duplicated it), an older one replayed, or
+        // a retry of the peer's (its nonce repeated in a newer frame): answered at the
+        // handshake's rate, but the link is not numbered again for it.
+        for (counter, ch) in [(4, &newer), (2, &ch), (9, &newer)] {
             let v = s.open(
-                &frame(1, counter, &ch),
+                &frame(1, counter, ch),
                 ME,
                 0,
                 10 * ANSWER_MS,
@@ -742,6 +768,30 @@ mod tests {
                 "counter {counter}"
             );
         }
+    }
+
+    /// Until a peer answers, every challenge to it repeats the first one's nonce (a
+    /// greeting keeps its flag, another challenge goes without); once its floor is known,
+    /// a challenge has its frame's counter again.
+    #[test]
+    fn a_challenge_repeats_the_nonce_of_the_one_not_answered_yet() {
+        use crate::restart::GREETING;
+        let mut s = PeerSecurity::default();
+        let mut c = SecurityCounters::default();
+        s.install(Some(keys(1)), &[PEER]);
+        assert_eq!(s.nonce(PEER, 7, GREETING), 7 | GREETING);
+        s.challenged(PEER, 7 | GREETING);
+        assert_eq!(s.nonce(PEER, 8, GREETING), 7 | GREETING);
+        assert_eq!(s.nonce(PEER, 9, 0), 7);
+        s.challenged(PEER, 7);
+        let answer = Message::ChallengeAnswer {
+            nonce: 7 | GREETING,
+        };
+        assert_eq!(
+            verdict(&mut s, &frame(1, 40, &answer), 0, &mut c),
+            "answered"
+        );
+        assert_eq!(s.nonce(PEER, 10, 0), 10);
     }
 
     #[test]

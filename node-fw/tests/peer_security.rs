@@ -496,6 +496,65 @@ fn a_duplicated_greeting_numbers_the_link_again_once() {
     assert_eq!(net.b.1.lamp, [true, false]);
 }
 
+/// B reboots while A has an event for it. B's greeting is answered, but the answer comes
+/// late: B's retry of the greeting is on its way by then. B takes the answer and the
+/// event A numbered again for the greeting; its acknowledgement is lost, and the retry
+/// reaches A after it. A numbered its link to B again for the retry too, resent the
+/// event in the newer epoch, and B took it again: delivered twice. A retry of a greeting
+/// A answered is the same restart of B: the link is numbered again once, the event
+/// delivered once.
+#[test]
+fn a_greetings_retry_after_a_late_answer_numbers_the_link_again_once() {
+    let mut net = Net::established();
+    net.b.0 = node_b();
+    net.b.1.lamp.clear();
+    net.press();
+    let (mut answer, mut retry) = (None, None);
+    let mut greetings = 0;
+    for _ in 0..1000 {
+        net.now += 1;
+        net.a.0.poll(net.now, &mut net.a.1);
+        net.b.0.poll(net.now, &mut net.b.1);
+        let mut frames = std::mem::take(&mut net.a.1.out);
+        frames.append(&mut net.b.1.out);
+        for f in frames {
+            let (h, _, payload) = open(&f);
+            let k = kind(&Message::parse(&payload).unwrap());
+            match (h.src, h.dst, k) {
+                // A's first answer to B, held until B retried its greeting.
+                (A, B, "ChallengeAnswer") if greetings < 2 => {
+                    answer.get_or_insert(f);
+                    continue;
+                }
+                (B, A, "Challenge") => {
+                    greetings += 1;
+                    if greetings == 2 {
+                        retry = Some(f);
+                        if let Some(late) = answer.take() {
+                            net.deliver(&late);
+                        }
+                        continue;
+                    }
+                }
+                // B's acknowledgement lost; the retry arrives in its place.
+                (B, A, "EventAck") if retry.is_some() => {
+                    if let Some(late) = retry.take() {
+                        net.deliver(&late);
+                    }
+                    continue;
+                }
+                _ => {}
+            }
+            net.deliver(&f);
+        }
+    }
+    assert!(greetings >= 2, "{:?}", net.trace);
+    assert_eq!(net.b.1.lamp, [true], "delivered once: {:?}", net.trace);
+    net.press();
+    net.run(400);
+    assert_eq!(net.b.1.lamp, [true, false]);
+}
+
 /// A's power is cut while B's lamp is on (B's chart neither idle nor initial: under way).
 /// A boots and greets B: a challenge whose nonce is its frame's counter with bit 31 set
 /// (`restart::GREETING`). B faults `0x86` at once, its lamp at its fault level (off),
