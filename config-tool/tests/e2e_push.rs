@@ -141,3 +141,58 @@ fn a_push_names_a_node_of_the_robot_that_plays_no_role_and_still_runs_one() {
     );
     bed.stop();
 }
+
+/// A push to a faulted machine (VC's cylinder jammed: its watchdog faulted it, and the
+/// others on its fault) waited the whole `--wait` (60 s) for an idle point a faulted
+/// machine never reaches, then said `the machine was not idle within --wait` with no node
+/// named. Now it asks the nodes first and says at once which are faulted and the ways
+/// out; the tables stay staged, and `--now` switches them.
+#[test]
+fn a_push_to_a_faulted_machine_names_the_faulted_nodes_at_once() {
+    let dir = TempDir::new("push-faulted");
+    let (_, paint) = unsecured_robot(&dir, "paint-robot.ron");
+    let (dip, _) = unsecured_robot(&dir, "paint-robot-double-dip.ron");
+    let dip = dip.to_str().expect("utf-8 path");
+    let mut opts = options(medium::Config::default(), None);
+    opts.secured = false;
+    let mut bed = bring_up(&paint, opts);
+    push_and_home(&mut bed, &paint);
+    let actuators = robot_net::live_plant::actuators(&paint).expect("actuators");
+    let vc = actuators.iter().position(|a| a.name == "VC").expect("VC");
+    bed.set_plant_injected(
+        actuators,
+        Some(robot_net::live_plant::Injection {
+            after: 0,
+            actuator: vc,
+            kind: robot_net::live_plant::Jam::Stuck,
+        }),
+    )
+    .expect("plant");
+    bed.press_start(&paint).expect("START");
+    for r in &paint.ir.roles {
+        wait_until(&mut bed, r.address, |s| s.fault.is_some());
+    }
+    let m = bed.medium().addr().to_string();
+    let (code, out, err) = run_tool(&["push", dip, "--medium", &m, "--generation", "2"]);
+    assert_eq!(
+        (code, err.as_str()),
+        (
+            Some(3),
+            "error: nodes 0x0011 (VC, 0x81), 0x0012 (GR, 0x82), 0x0013 (HC, 0x82), 0x0014 \
+             (RC, 0x82) are faulted: a faulted machine does not reach its idle point, so \
+             nothing switched (the tables stay staged): push again with --now to switch at \
+             once, or reset each (config-tool reset --node 0x0011; config-tool reset --node \
+             0x0012; config-tool reset --node 0x0013; config-tool reset --node 0x0014), \
+             acknowledge the alarms (config-tool ack), home, and push again\n"
+        ),
+        "{out}"
+    );
+    assert_eq!(
+        out.lines().filter(|l| l.ends_with("  staged")).count(),
+        4,
+        "{out}"
+    );
+    let (code, out, err) = run_tool(&["push", dip, "--medium", &m, "--generation", "2", "--now"]);
+    assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
+    bed.stop();
+}

@@ -364,32 +364,49 @@ fn split_generations(nodes: &[Node]) -> Option<String> {
 /// each, acknowledge the alarms the faults latched (a node refuses HOME while one is),
 /// then home.
 fn faulted_text(nodes: &[Node]) -> String {
-    let faulted: Vec<(&Node, u8)> = (nodes.iter())
+    let faulted: Vec<(u16, &str, u8)> = (nodes.iter())
         .filter_map(|n| match n.standing {
-            Standing::Faulted(code) => Some((n, code)),
+            Standing::Faulted(code) => Some((n.addr, n.role.as_str(), code)),
             _ => None,
         })
         .collect();
+    let (who, resets) = faulted_words(&faulted);
+    format!("{who}: {resets}, acknowledge the alarms (config-tool ack), then config-tool home")
+}
+
+/// Why a push does not wait for the idle point of a machine whose nodes `faulted`
+/// (`(address, role, fault code)`) are: it never comes. `None`: no node is faulted.
+pub fn faulted_push_text(faulted: &[(u16, &str, u8)]) -> Option<String> {
+    if faulted.is_empty() {
+        return None;
+    }
+    let (who, resets) = faulted_words(faulted);
+    Some(format!(
+        "{who}: a faulted machine does not reach its idle point, so nothing switched (the \
+         tables stay staged): push again with --now to switch at once, or {resets}, \
+         acknowledge the alarms (config-tool ack), home, and push again"
+    ))
+}
+
+/// Faulted nodes `(address, role, fault code)` in words (`node 0x0011 (VC) is faulted
+/// (0x81)`, `nodes ... are faulted`), and the resets they need (`reset it (...)`).
+fn faulted_words(faulted: &[(u16, &str, u8)]) -> (String, String) {
     let resets: Vec<String> = (faulted.iter())
-        .map(|(n, _)| format!("config-tool reset --node {:#06x}", n.addr))
+        .map(|(addr, _, _)| format!("config-tool reset --node {addr:#06x}"))
         .collect();
-    let (who, them) = match faulted.as_slice() {
-        [(n, code)] => (
-            format!("node {:#06x} ({}) is faulted ({code:#04x})", n.addr, n.role),
+    let (who, them) = match faulted {
+        [(addr, role, code)] => (
+            format!("node {addr:#06x} ({role}) is faulted ({code:#04x})"),
             "it",
         ),
         _ => {
             let each: Vec<String> = (faulted.iter())
-                .map(|(n, code)| format!("{:#06x} ({}, {code:#04x})", n.addr, n.role))
+                .map(|(addr, role, code)| format!("{addr:#06x} ({role}, {code:#04x})"))
                 .collect();
             (format!("nodes {} are faulted", each.join(", ")), "each")
         }
     };
-    format!(
-        "{who}: reset {them} ({}), acknowledge the alarms (config-tool ack), then \
-         config-tool home",
-        resets.join("; ")
-    )
+    (who, format!("reset {them} ({})", resets.join("; ")))
 }
 
 /// A trial a power cut split, in words: `off` says what each node off generation `trial`

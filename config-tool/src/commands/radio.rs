@@ -349,6 +349,9 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
         ANSWER_WITHIN,
     )
     .map_err(|e| lost(e, Phase::Transfer))?;
+    if !flags.stage_only && !flags.now {
+        none_faulted(&mut radio, &mut ids, &outcomes)?;
+    }
     let verdict = if flags.stage_only {
         None
     } else {
@@ -496,6 +499,48 @@ pub(crate) fn push_keys(
         ))),
         (Security::Off, _) => Ok(None),
     }
+}
+
+/// Before a switch-over at the idle point: the nodes that staged are asked their
+/// statuses, and faulted ones fail the push at once (a faulted machine never reaches its
+/// idle point: the switch-over would wait out `--wait` for nothing), every one named with
+/// the ways out; the lines of the push are printed first. A node that does not answer has
+/// no say here (the switch-over finds it silent).
+fn none_faulted(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    outcomes: &[push::Pushed],
+) -> Result<(), Failure> {
+    let staged: Vec<&push::Pushed> = (outcomes.iter())
+        .filter(|o| o.progress == Progress::Done && !o.running)
+        .collect();
+    if staged.is_empty() {
+        return Ok(());
+    }
+    let addrs: Vec<u16> = staged.iter().map(|o| o.addr).collect();
+    let answers = push::ask_each(
+        radio,
+        ids,
+        &addrs,
+        Command::Status,
+        ANSWER_WITHIN,
+        push::status_answer,
+    )
+    .map_err(|e| lost(e, Phase::Transfer))?;
+    let faulted: Vec<(u16, &str, u8)> = (staged.iter().zip(answers))
+        .filter_map(|(o, a)| Some((o.addr, o.role.as_str(), a.ok()?.fault?)))
+        .collect();
+    let Some(why) = home::faulted_push_text(&faulted) else {
+        return Ok(());
+    };
+    for o in outcomes {
+        outln!("{}", demo::push_line(o));
+    }
+    outln!("{}", demo::push_summary(outcomes));
+    Err(Failure {
+        code: exit::PUSH_FAILED,
+        ..Failure::error(why)
+    })
 }
 
 /// After a switch-over: the robot's nodes that play no role in it (spares, or a node a
