@@ -104,11 +104,12 @@ fn tables_at_the_blob_limit_take_no_retry_on_a_lossless_medium() {
 }
 
 /// The VC role moved to the spare node (`paint-robot-spare-node.ron`, pushed from the
-/// command line): the node that lost it keeps running its old table (nothing tells it
-/// otherwise), and `push` said nothing of it. Now `push` names each node of the robot
-/// that plays no role in it and still runs one, and says what it runs.
+/// command line): the node that lost it kept running its old table (nothing told it
+/// otherwise), and a START to it moved the cylinder still wired to it; `push` said nothing of it. Now `push` releases each node of the robot that
+/// plays no role in it and still runs one: a table with nothing in it, at once, its
+/// outputs off; and says so.
 #[test]
-fn a_push_names_a_node_of_the_robot_that_plays_no_role_and_still_runs_one() {
+fn a_push_releases_a_node_of_the_robot_that_plays_no_role_and_still_runs_one() {
     let dir = TempDir::new("push-lost-role");
     let (_, paint) = unsecured_robot(&dir, "paint-robot.ron");
     let (moved, _) = unsecured_robot(&dir, "paint-robot-spare-node.ron");
@@ -117,6 +118,7 @@ fn a_push_names_a_node_of_the_robot_that_plays_no_role_and_still_runs_one() {
     opts.secured = false;
     let mut bed = bring_up(&paint, opts);
     push_and_home(&mut bed, &paint);
+    assert_eq!(status(&mut bed, 0x0011).role.as_str(), "VC");
     let m = bed.medium().addr().to_string();
     let (code, out, err) = run_tool(&["push", moved, "--medium", &m, "--generation", "2"]);
     assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
@@ -124,21 +126,41 @@ fn a_push_names_a_node_of_the_robot_that_plays_no_role_and_still_runs_one() {
     assert_eq!(
         tail,
         [
-            "node 0x0011 (node-1) plays no role in this robot but runs VC of generation 1: it \
-             keeps running that table until it is given a role or powered off",
+            "node 0x0011 (node-1) plays no role in this robot: released (it ran VC of \
+             generation 1; now no table runs there, its outputs are off)",
             "switched: every node runs the new generation",
         ],
         "{out}"
     );
-    // Pushed again once it is off: nothing to say of it (asked for 1 s, it did not answer).
-    bed.kill_node(0x0011);
-    let (code, out, err) = run_tool(&["push", moved, "--medium", &m, "--generation", "3"]);
-    assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
+    let released = status(&mut bed, 0x0011);
     assert_eq!(
-        out.lines().last(),
-        Some("switched: every node runs the new generation"),
-        "{out}"
+        (
+            released.role.as_str(),
+            released.generation,
+            released.outputs,
+            released.states.len()
+        ),
+        ("", 2, 0, 0)
     );
+    let (code, found, _) = run_tool(&["scan", "--medium", &m]);
+    assert_eq!(code, Some(0));
+    assert!(
+        found.contains("0x0011  firmware 1  generation 2  (no role)\n"),
+        "{found}"
+    );
+    // Released, it has nothing to say at the next push; nor once it is off (asked for 1 s,
+    // it did not answer).
+    for generation in ["3", "4"] {
+        let (code, out, err) =
+            run_tool(&["push", moved, "--medium", &m, "--generation", generation]);
+        assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
+        assert_eq!(
+            out.lines().last(),
+            Some("switched: every node runs the new generation"),
+            "{out}"
+        );
+        bed.kill_node(0x0011);
+    }
     bed.stop();
 }
 

@@ -146,16 +146,22 @@ fn generations_of(runs: &[(u16, u32, bool)]) -> Option<Generations> {
     })
 }
 
-/// A node of the robot that plays no role in it (`name` at `addr`) yet runs a table, as
-/// its status `s` says, in words (`None`: it runs none).
-pub fn roleless_note(name: &str, addr: u16, s: &Status) -> Option<String> {
-    (!s.role.is_empty()).then(|| {
-        format!(
-            "node {addr:#06x} ({name}) plays no role in this robot but runs {} of generation \
-             {}: it keeps running that table until it is given a role or powered off",
-            s.role, s.generation
-        )
-    })
+/// A node of the robot that plays no role in it (`name` at `addr`), that ran a table as
+/// its status `s` says, and its release (`Err`: how it ended instead, as a push line says),
+/// in words.
+pub fn released_text(name: &str, addr: u16, s: &Status, released: Result<(), String>) -> String {
+    let ran = format!("{} of generation {}", s.role, s.generation);
+    match released {
+        Ok(()) => format!(
+            "node {addr:#06x} ({name}) plays no role in this robot: released (it ran {ran}; \
+             now no table runs there, its outputs are off)"
+        ),
+        Err(why) => format!(
+            "node {addr:#06x} ({name}) plays no role in this robot but runs {ran}, NOT \
+             released ({why}): it keeps running that table until released by a push, given \
+             a role, or powered off"
+        ),
+    }
 }
 
 /// Why `role` may not be pushed alone at `generation` to a secured robot's node (`None`:
@@ -715,16 +721,20 @@ mod tests {
         }
     }
 
-    /// A spare that runs no table has nothing to say; one that runs a role says which.
+    /// A released node says what it ran; one that was not, why, and what it keeps doing.
     #[test]
-    fn a_roleless_node_is_named_only_when_it_runs_a_table() {
-        assert_eq!(roleless_note("spare", 0x15, &status("", &[], None)), None);
+    fn a_roleless_nodes_release_says_what_it_ran() {
+        let s = status("VC", &[0], None);
         assert_eq!(
-            roleless_note("node-1", 0x11, &status("VC", &[0], None)).as_deref(),
-            Some(
-                "node 0x0011 (node-1) plays no role in this robot but runs VC of generation 1: \
-                 it keeps running that table until it is given a role or powered off"
-            )
+            released_text("node-1", 0x11, &s, Ok(())),
+            "node 0x0011 (node-1) plays no role in this robot: released (it ran VC of \
+             generation 1; now no table runs there, its outputs are off)"
+        );
+        assert_eq!(
+            released_text("node-1", 0x11, &s, Err("refused: not newer".into())),
+            "node 0x0011 (node-1) plays no role in this robot but runs VC of generation 1, \
+             NOT released (refused: not newer): it keeps running that table until released \
+             by a push, given a role, or powered off"
         );
     }
 

@@ -5,13 +5,19 @@ use config_schema::wire::mac::Frame;
 use config_schema::wire::msg::{Message, SecurityReport, Status};
 use config_schema::wire::security::{AuxHeader, AuxRepr};
 
+/// A node's role as it reports it, for people: `(unconfigured)` without a table, `(no
+/// role)` for a table with none (a node a push released: it plays no role in the robot).
+pub fn role_text(role: &str, generation: u32) -> &str {
+    match (role.is_empty(), generation) {
+        (false, _) => role,
+        (true, 0) => "(unconfigured)",
+        (true, _) => "(no role)",
+    }
+}
+
 /// A status in readable form.
 pub fn status_text(addr: u16, s: &Status) -> String {
-    let role = if s.role.is_empty() {
-        "(unconfigured)"
-    } else {
-        s.role.as_str()
-    };
+    let role = role_text(&s.role, s.generation);
     let states: Vec<String> = s.states.iter().map(|x| format!("S{x}")).collect();
     let (c, r) = (s.counters, s.runtime);
     format!(

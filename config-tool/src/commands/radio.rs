@@ -240,11 +240,7 @@ pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(),
     // The robot's nodes' statuses, as they answered.
     let mut statuses = Vec::new();
     for (addr, a) in &found {
-        let role = if a.role.is_empty() {
-            "(unconfigured)"
-        } else {
-            a.role.as_str()
-        };
+        let role = show::role_text(&a.role, a.generation);
         let status = match &c {
             Some(c) => robot_status(&mut radio, &mut ids, c, *addr)?,
             None => None,
@@ -379,7 +375,8 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
     let plain = c.robot.security == Security::Off;
     report_push(&outcomes, verdict, flags.trial, one_role, plain)?;
     if verdict == Some(Verdict::Switched) && flags.role.is_none() {
-        roleless_nodes_that_run_a_table(&mut radio, &mut ids, &c)?;
+        let wait = Duration::from_secs(flags.wait);
+        release_roleless_nodes(&mut radio, &mut ids, &c, flags.force, wait)?;
     }
     // A trial is watched for --watch / --watch-cycles, else for the window the robot
     // declares.
@@ -544,13 +541,17 @@ fn none_faulted(
 }
 
 /// After a switch-over: the robot's nodes that play no role in it (spares, or a node a
-/// role moved away from) but still run a table, each on a line of its own. Nothing tells
-/// such a node to stop (it keeps its table until given a role or powered off); asked for
-/// [`ASK_QUIET`], a silent one (off, as a spare may be) has nothing to say.
-fn roleless_nodes_that_run_a_table(
+/// role moved away from) but still run a table are released, each on a line of its own:
+/// pushed a table with nothing in it at the robot's generation and switched at once (it
+/// is no part of the machine's idle point), its outputs off; nothing else would tell it to
+/// stop playing its old role. Asked for [`ASK_QUIET`] first, a silent one (off, as a
+/// spare may be) has nothing to say.
+fn release_roleless_nodes(
     radio: &mut ToolRadio,
     ids: &mut Ids,
     c: &robot_compiler::Compiled,
+    force: bool,
+    wait: Duration,
 ) -> Result<(), Failure> {
     let roleless: Vec<_> = (c.robot.nodes.iter())
         .filter(|n| c.ir.roles.iter().all(|r| r.address != n.address))
@@ -568,13 +569,45 @@ fn roleless_nodes_that_run_a_table(
         push::status_answer,
     )
     .map_err(Failure::error)?;
-    for (n, answer) in roleless.iter().zip(answers) {
-        if let Some(note) = answer
-            .ok()
-            .and_then(|s| home::roleless_note(&n.name, n.address, &s))
-        {
-            outln!("{note}");
+    let running: Vec<(&robot_compiler::model::Node, Status)> = (roleless.into_iter().zip(answers))
+        .filter_map(|(n, a)| Some((n, a.ok().filter(|s| !s.role.is_empty())?)))
+        .collect();
+    if running.is_empty() {
+        return Ok(());
+    }
+    let generation = c.ir.generation;
+    let blob = demo::release_blob(c).map_err(|e| Failure::error(format!("release: {e}")))?;
+    let targets: Vec<push::Target> = (running.iter())
+        .map(|(n, _)| push::Target {
+            role: n.name.clone(),
+            addr: n.address,
+            blob: blob.clone(),
+            generation,
+        })
+        .collect();
+    let mut outcomes = push::push(radio, &targets, force, &mut |_, _, _| {})
+        .map_err(|e| lost(e, Phase::Transfer))?;
+    let staged: Vec<usize> = (0..outcomes.len())
+        .filter(|&i| outcomes[i].progress == Progress::Done)
+        .collect();
+    let mut go: Vec<push::Pushed> = staged.iter().map(|&i| outcomes[i].clone()).collect();
+    if !go.is_empty() {
+        push::switch_over(radio, &mut go, generation, true, wait)
+            .map_err(|e| lost(e, Phase::Switch))?;
+        for (&i, o) in staged.iter().zip(go) {
+            outcomes[i] = o;
         }
+    }
+    for ((n, s), o) in running.iter().zip(&outcomes) {
+        outln!(
+            "{}",
+            home::released_text(
+                &n.name,
+                n.address,
+                s,
+                o.switched().then_some(()).ok_or_else(|| o.verdict())
+            )
+        );
     }
     Ok(())
 }
