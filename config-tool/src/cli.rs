@@ -408,7 +408,8 @@ pub struct PushArgs {
     /// Push only this role.
     #[arg(long)]
     pub role: Option<String>,
-    /// To this node instead of the one the robot assigns (with --role).
+    /// To this node instead of the one the robot assigns (with --role; a role without
+    /// peers only: to move a role, assign it in the robot and push every role).
     #[arg(long, value_parser = node_fw::host::parse_addr, requires = "role")]
     pub node: Option<u16>,
     /// Generation of the tables (default: the robot's, at least 1).

@@ -433,6 +433,35 @@ fn diagram_prints_dot_and_rejects_an_unknown_role() {
     }
 }
 
+/// `push --role VC --node 0x0015` switched VC onto the spare and said `switched: VC's node
+/// runs generation 2`, but VC's peers still talk to 0x0011: nothing reached the spare, and
+/// with 0x0011 gone the machine could not be homed. A role with peers is refused on
+/// another node, before anything is sent (status 2), saying how to move it; at its own
+/// address `--node` changes nothing.
+#[test]
+fn push_refuses_a_role_with_peers_on_another_node_than_the_robot_assigns() {
+    let out = tool(&[
+        "push",
+        "robot-configs/paint-robot.ron",
+        "--role",
+        "VC",
+        "--node",
+        "0x0015",
+        "--medium",
+        "127.0.0.1:1",
+    ]);
+    assert_eq!(
+        (out.status.code(), text(&out.stderr).as_str()),
+        (
+            Some(2),
+            "error: robot-configs/paint-robot.ron: role VC talks with its peers (0x0012, \
+             0x0013, 0x0014) at 0x0011, its node in the robot: on 0x0015 it would hear \
+             none of them, nor they it; to move VC there, assign it to that node in the \
+             robot (`assign`) and push every role\n"
+        )
+    );
+}
+
 #[test]
 fn diagram_svg_says_clearly_when_graphviz_is_missing() {
     let out = Command::new(env!("CARGO_BIN_EXE_config-tool"))

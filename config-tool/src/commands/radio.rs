@@ -315,6 +315,9 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
     let mut targets = demo::targets(&c);
     if let Some(role) = &flags.role {
         super::known_role(robot, &c.ir, role)?;
+        if let Some(node) = flags.node {
+            elsewhere_without_peers(robot, &c, role, node)?;
+        }
         targets.retain(|t| &t.role == role);
         if let (Some(addr), Some(t)) = (flags.node, targets.first_mut()) {
             t.addr = addr;
@@ -496,6 +499,35 @@ pub(crate) fn push_keys(
         ))),
         (Security::Off, _) => Ok(None),
     }
+}
+
+/// `push --role R --node N`: a role that talks with peers goes to the node the robot
+/// assigns it only (they publish to, and hear from, that address); one without peers may
+/// go anywhere (a role on a bench).
+fn elsewhere_without_peers(
+    robot: &Path,
+    c: &robot_compiler::Compiled,
+    role: &str,
+    node: u16,
+) -> Result<(), Failure> {
+    let Some(i) = c.ir.roles.iter().position(|r| r.name == role) else {
+        return Ok(());
+    };
+    let (Some(r), Some(t)) = (c.ir.roles.get(i), c.tables.get(i)) else {
+        return Ok(());
+    };
+    if r.address == node || t.peers.is_empty() {
+        return Ok(());
+    }
+    let peers: Vec<String> = t.peers.iter().map(|p| format!("{p:#06x}")).collect();
+    Err(Failure::usage(format!(
+        "{}: role {role} talks with its peers ({}) at {:#06x}, its node in the robot: on \
+         {node:#06x} it would hear none of them, nor they it; to move {role} there, assign \
+         it to that node in the robot (`assign`) and push every role",
+        robot.display(),
+        peers.join(", "),
+        r.address
+    )))
 }
 
 /// Before a switch-over at the idle point: the nodes that staged are asked their
