@@ -144,8 +144,9 @@ pub enum Command {
         #[command(flatten)]
         keys: KeysArg,
     },
-    /// The robot's machine (cylinders, gripper) on the medium, in real time: it moves the
-    /// actuators the nodes command and closes their switches; prints every step.
+    /// The robot's machine (cylinders, gripper, a station's ball feed, motors) on the
+    /// medium, in real time: it moves the actuators the nodes command and closes their
+    /// switches; prints every step, ball and motion.
     Plant {
         robot: PathBuf,
         #[command(flatten)]

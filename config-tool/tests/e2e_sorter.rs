@@ -7,6 +7,7 @@
 use std::path::PathBuf;
 
 mod cli_support;
+mod e2e_support;
 use cli_support::{demo, text};
 
 /// `    0.743 s  ball   1: gray     bin 3  (as sim)` -> (1, "gray", 3, "as sim").
@@ -106,4 +107,43 @@ fn the_station_sorts_its_feed_on_qemu_nodes_into_sims_bins() {
     let bins: Vec<usize> = balls(&stdout).iter().map(|b| b.2).collect();
     assert_eq!(bins, [3, 1, 1, 1, 1, 2, 2, 2, 1, 1, 2, 1, 1], "{stdout}");
     assert!(balls(&stdout).iter().all(|b| b.3 == "as sim"), "{stdout}");
+}
+
+/// `config-tool plant` of the station, beside host nodes started and pushed by hand: it
+/// fed no ball (it knew only cylinders): START, and nothing happened. Now it feeds the
+/// robot's balls as `demo` does, each landing on a line, in the bins `sim` gives.
+#[test]
+fn the_plant_command_feeds_the_stations_balls() {
+    let c = e2e_support::robot("ball-sorter.ron", 1);
+    let (mut bed, plant) = e2e_support::pushed_with_plant_process(&c, "ball-sorter.ron");
+    bed.press_start(&c).expect("START");
+    let mut landed = Vec::new();
+    while landed.len() < 13 {
+        let said = plant.next_said();
+        if said.starts_with("ball ") {
+            landed.push(said);
+        }
+    }
+    let want: Vec<String> = [
+        ("gray", 3),
+        ("black", 1),
+        ("black", 1),
+        ("orange", 1),
+        ("black", 1),
+        ("gray", 2),
+        ("black", 2),
+        ("black", 2),
+        ("orange", 1),
+        ("gray", 1),
+        ("black", 2),
+        ("orange", 1),
+        ("gray", 1),
+    ]
+    .iter()
+    .enumerate()
+    .map(|(i, (c, b))| format!("ball {} ({c}) landed in bin {b}", i + 1))
+    .collect();
+    assert_eq!(landed, want);
+    drop(plant);
+    bed.stop();
 }

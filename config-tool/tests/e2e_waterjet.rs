@@ -10,6 +10,7 @@
 //! sleeps, no timing asserted.
 
 mod cli_support;
+mod e2e_support;
 use cli_support::{demo, qemu_image, text};
 
 /// The script's lines: each step, its functions, the stop (up to its timing) and the
@@ -109,4 +110,29 @@ fn fig_9_on_qemu_nodes_at_20_percent_loss_runs_every_step_as_sim() {
         .find(|l| l.starts_with("medium: "))
         .expect("the medium's totals");
     assert!(!medium.contains(" 0 lost"), "{medium}");
+}
+
+/// `config-tool plant` of the transport, beside host nodes started and pushed by hand:
+/// it knew only cylinders and printed nothing, the pusher's motor output driven for ever
+/// and no sensor ever changing. Now its motor runs as in `demo`: START, and a whole
+/// transport cycle, each motion on a line.
+#[test]
+fn the_plant_command_runs_the_transports_motor() {
+    let c = e2e_support::robot("waterjet-transport.ron", 1);
+    let (mut bed, plant) = e2e_support::pushed_with_plant_process(&c, "waterjet-transport.ron");
+    bed.press_start(&c).expect("START");
+    let motions: Vec<String> = (0..6).map(|_| plant.next_said()).collect();
+    assert_eq!(
+        motions,
+        [
+            "PUSHER clockwise",
+            "PUSHER at its end",
+            "PUSHER stopped",
+            "PUSHER counter-clockwise",
+            "PUSHER home",
+            "PUSHER stopped",
+        ]
+    );
+    drop(plant);
+    bed.stop();
 }

@@ -240,6 +240,23 @@ pub fn attach_motors(
     Ok(conn)
 }
 
+/// When the medium at `medium` started, on this process's clock: its clock asked
+/// (`Link::Clock`), the answer taken to have left it halfway between the ask and its
+/// arrival. The live motors time their carriages on it. `None`: no answer within `within`.
+pub fn medium_start(medium: SocketAddr, within: Duration) -> io::Result<Option<Instant>> {
+    let mut conn = Conn::join(medium, Peer::Monitor)?;
+    let asked = Instant::now();
+    conn.send(&Link::Clock)?;
+    let now = conn.recv(asked + within, |link| match link {
+        Link::Now { at_us } => Some(at_us),
+        _ => None,
+    })?;
+    Ok(now.and_then(|at_us| {
+        let here = asked + Instant::now().duration_since(asked) / 2;
+        here.checked_sub(Duration::from_micros(at_us))
+    }))
+}
+
 /// Runs the plant until `stop` is set or the medium goes away. Every step is sent to
 /// `steps` as it starts, stamped with the medium's clock.
 pub fn run(

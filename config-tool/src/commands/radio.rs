@@ -1318,13 +1318,88 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
             "the plant is the simulated machine: it needs a medium, not --serial",
         ));
     }
-    let (tx, rx) = std::sync::mpsc::channel();
-    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let medium = at.medium;
-    let handle = std::thread::spawn(move || live_plant::run(medium, actuators, tx, stop));
-    for step in rx {
-        outln!("{:>9.3}  {step}", step.at.as_secs_f64());
+    let motors = robot_net::live_motor::motors(&c)?;
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let (steps_tx, steps) = std::sync::mpsc::channel();
+    let attach_failed = |e: io::Error| Failure::error(format!("plant on {medium}: {e}"));
+    // What else the plant reports, in words, beside the steps (balls, motors).
+    let (said_tx, said) = std::sync::mpsc::channel::<(Duration, String)>();
+    let said_steps = said_tx.clone();
+    // The operator's requests to the motors: none from here, but the plant runs while
+    // their sender lives.
+    let mut _operator = None;
+    let handle = if let Some(s) = &c.robot.sorting {
+        // A sorting station: the robot's feed at its sensors, each ball's landing said.
+        let balls = robot_net::live_feed::ball_feed(&c, &actuators, &s.feed)?;
+        let conn = live_plant::attach_fed(medium, &actuators, &balls).map_err(attach_failed)?;
+        outln!("feed: {} ball(s): {}", s.feed.len(), s.feed.join(" "));
+        let (landed_tx, landed) = std::sync::mpsc::channel::<robot_net::live_feed::Landing>();
+        let feed = s.feed.clone();
+        std::thread::spawn(move || {
+            for l in landed {
+                let colour = feed.get(l.ball).map_or("?", String::as_str);
+                let mut line = format!("ball {} ({colour}) landed in bin {}", l.ball + 1, l.bin);
+                for g in &l.met_moving {
+                    line.push_str(&format!("; it met gate {g} moving"));
+                }
+                let _ = said_tx.send((l.at, line));
+            }
+        });
+        let flag = stop.clone();
+        std::thread::spawn(move || {
+            live_plant::run_fed(conn, actuators, balls, landed_tx, steps_tx, flag)
+        })
+    } else if !motors.motors.is_empty() || !motors.inputs.is_empty() {
+        // Motors: their carriages timed on the medium's clock, each motion said.
+        let start = live_plant::medium_start(medium, Duration::from_secs(2))
+            .map_err(attach_failed)?
+            .ok_or_else(|| {
+                Failure::error(format!(
+                    "plant on {medium}: the medium did not tell its clock"
+                ))
+            })?;
+        let conn = live_plant::attach_motors(medium, &actuators, &motors).map_err(attach_failed)?;
+        let (operate, operated) = std::sync::mpsc::channel();
+        _operator = Some(operate);
+        let (seen_tx, seen) = std::sync::mpsc::channel();
+        let names: Vec<String> = motors.motors.iter().map(|m| m.name.clone()).collect();
+        std::thread::spawn(move || {
+            for m in seen {
+                let (motor, moved, at) = match m {
+                    robot_net::live_motor::Motion::Run { motor, run, at, .. } => {
+                        (motor, demo::Moved::Run(run), at)
+                    }
+                    robot_net::live_motor::Motion::Arrived { motor, end, at } => {
+                        (motor, demo::Moved::Arrived(end), at)
+                    }
+                    _ => continue,
+                };
+                let name = names.get(motor).map_or("?", String::as_str);
+                let _ = said_tx.send((at, format!("{name} {moved}")));
+            }
+        });
+        let flag = stop.clone();
+        let plant = (motors, operated, seen_tx, start);
+        std::thread::spawn(move || live_plant::run_motors(conn, actuators, plant, steps_tx, flag))
+    } else {
+        drop(said_tx);
+        let conn = live_plant::attach(medium, &actuators).map_err(attach_failed)?;
+        let flag = stop.clone();
+        std::thread::spawn(move || live_plant::run_attached(conn, actuators, None, steps_tx, flag))
+    };
+    outln!("plant on {medium}: the nodes' switches set, waiting for their outputs");
+    // The steps said as the rest is, in the order they come, until the plant ends (and
+    // with it every sender).
+    std::thread::spawn(move || {
+        for step in steps {
+            let _ = said_steps.send((step.at, step.to_string()));
+        }
+    });
+    for (at, line) in said {
+        outln!("{:>9.3}  {line}", at.as_secs_f64());
     }
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
     match handle.join() {
         Ok(Ok(())) => Ok(()),
         Ok(Err(e)) => Err(Failure::error(format!("plant on {medium}: {e}"))),

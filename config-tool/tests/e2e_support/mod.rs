@@ -800,3 +800,74 @@ pub fn run_tool(args: &[&str]) -> (Option<i32>, String, String) {
     let text = |b: &[u8]| String::from_utf8_lossy(b).into_owned();
     (out.status.code(), text(&out.stdout), text(&out.stderr))
 }
+
+/// A `config-tool plant` process and what it prints, line by line (ended when dropped).
+pub struct PlantProcess {
+    child: std::process::Child,
+    lines: std::sync::mpsc::Receiver<String>,
+    timeout: Duration,
+}
+
+impl PlantProcess {
+    /// The next thing it says after the time column (`PUSHER clockwise`), waiting at most
+    /// the bed's timeout.
+    pub fn next_said(&self) -> String {
+        let line = self
+            .lines
+            .recv_timeout(self.timeout)
+            .expect("the plant said more");
+        let line = line.trim_start();
+        line.split_once("  ")
+            .map_or(String::new(), |(_, l)| l.to_string())
+    }
+}
+
+impl Drop for PlantProcess {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Robot `c` (the file `robot-configs/NAME`) on a bed of its nodes, pushed, with no plant
+/// of the bed's: `config-tool plant` runs it as a process of its own, returned once it
+/// says it is on the medium.
+pub fn pushed_with_plant_process(c: &Compiled, name: &str) -> (Bed, PlantProcess) {
+    use std::io::{BufRead, BufReader};
+    let opts = options(medium::Config::default(), None);
+    let timeout = opts.timeout;
+    let mut bed = Bed::start(opts).expect("bed");
+    let addrs = demo::node_addrs(c);
+    for a in &addrs {
+        bed.start_node(*a).expect("node");
+    }
+    bed.wait_for_nodes(&addrs).expect("nodes");
+    let pushed = bed.push(c, false, &mut |_, _, _| {}).expect("push");
+    assert!(pushed.iter().all(|p| p.switched()), "{pushed:?}");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .arg("plant")
+        .arg(Path::new("robot-configs").join(name))
+        .arg("--medium")
+        .arg(bed.medium().addr().to_string())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .expect("plant");
+    let (tx, lines) = std::sync::mpsc::channel();
+    let out = child.stdout.take().expect("stdout");
+    std::thread::spawn(move || {
+        for l in BufReader::new(out).lines().map_while(Result::ok) {
+            let _ = tx.send(l);
+        }
+    });
+    let plant = PlantProcess {
+        child,
+        lines,
+        timeout,
+    };
+    while !(plant.lines.recv_timeout(timeout))
+        .expect("the plant said more")
+        .starts_with("plant on ")
+    {}
+    (bed, plant)
+}
