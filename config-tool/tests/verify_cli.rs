@@ -149,8 +149,25 @@ fn sim_fault_reports_the_detection_and_exits_0_when_everything_stopped() {
     let stdout = text(&out.stdout);
     assert!(stdout.starts_with(
         "fault: HC jammed at 454 ms (cycle 1, before step 4 HC+)\nsteps until then: VC+ GR+ VC-\n\
-         detected at 2706 ms by HC: motion watchdog (fault 1), 2000 ms after step 4 was commanded\n"
+         detected at 2706 ms by HC: motion watchdog (fault 1), 2000 ms after HC+ was commanded\n"
     ), "{stdout}");
+    // Jammed before an earlier step: the watchdog's time is still its motion's, HC+ (it
+    // said `2706 ms after step 1 was commanded`, the step the jam came before).
+    let out = tool(&[
+        "sim",
+        "robot-configs/paint-robot.ron",
+        "--fault",
+        "stuck:HC@4.1",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert!(
+        stdout.contains(
+            "\ndetected at 14610 ms by HC: motion watchdog (fault 1), 2000 ms after HC+ was \
+             commanded\n"
+        ),
+        "{stdout}"
+    );
     let bad = tool(&[
         "sim",
         "robot-configs/paint-robot.ron",
@@ -208,7 +225,7 @@ fn sim_runs_as_long_as_the_declared_times_need() {
     assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
     let stdout = text(&out.stdout);
     for said in [
-        "detected at 600706 ms by HC: motion watchdog (fault 1), 600000 ms after step 4 was \
+        "detected at 600706 ms by HC: motion watchdog (fault 1), 600000 ms after HC+ was \
          commanded\n",
         "  at 600708 ms  VC: a peer's fault (fault 2)\n",
         "  at 600708 ms  GR: a peer's fault (fault 2)\n",

@@ -174,6 +174,9 @@ pub struct FaultRun {
     pub before_step: Option<Step>,
     /// Time step `step` was commanded (or attempted on a jammed actuator).
     pub commanded_ms: Option<u64>,
+    /// A motion watchdog's detection: the motion it watched (the detecting role's last
+    /// step commanded or attempted before it), and when it was commanded.
+    pub watched: Option<(u64, Step)>,
     /// Steps of the fault's cycle before the injection.
     pub steps_before: Vec<Step>,
     /// Steps after the injection, up to the detection (or, undetected, the end of the run).
@@ -235,12 +238,16 @@ pub fn simulate(c: &Compiled, spec: &FaultSpec) -> Result<FaultRun, InjectError>
         &trace,
         inj_index..detected.as_ref().map_or(trace.len(), |d| d.0),
     );
+    let watched = (detected.as_ref())
+        .filter(|(_, d)| d.how == WATCHDOG)
+        .and_then(|(i, d)| watched(c, plants, trace.get(..*i)?, &d.role));
     Ok(FaultRun {
         spec: spec.clone(),
         fault: fault_text,
         injected_ms,
         before_step,
         commanded_ms,
+        watched,
         steps_before: steps_in(&trace, mark..inj_index),
         steps_after,
         undetectable: undetectable(c, plants, &trace[inj_index..]),
@@ -384,6 +391,28 @@ fn first_command(plants: &[Plant], after: &[TraceEntry]) -> (Option<Step>, Optio
         .unwrap_or((None, None))
 }
 
+/// How a motion watchdog's detection is said.
+const WATCHDOG: &str = "motion watchdog (fault 1)";
+
+/// The motion of role `role` that a watchdog of it watched: its last step commanded (or
+/// attempted on a jammed actuator) in `before`, and when.
+fn watched(
+    c: &Compiled,
+    plants: &[Plant],
+    before: &[TraceEntry],
+    role: &str,
+) -> Option<(u64, Step)> {
+    before.iter().rev().find_map(|e| {
+        let step = match &e.what {
+            What::Step { .. } => step_of(&e.what)?,
+            What::Jammed { plant, plus } => plant_step(plants, *plant, *plus),
+            _ => return None,
+        };
+        let (r, _) = c.robot.actuator(&step.actuator)?;
+        (c.robot.roles.get(r)?.name == role).then_some((e.t_ms, step))
+    })
+}
+
 /// The first reaction to a fault, with its trace index.
 type FirstReaction = Option<(usize, Detection)>;
 
@@ -401,9 +430,7 @@ fn reactions(
         let text = match &e.what {
             What::Fault { node, fault } => {
                 let how = match fault {
-                    node_fw::ecc::Fault::Action { code: 1, .. } => {
-                        String::from("motion watchdog (fault 1)")
-                    }
+                    node_fw::ecc::Fault::Action { code: 1, .. } => String::from(WATCHDOG),
                     node_fw::ecc::Fault::Action { code: 2, .. } => {
                         String::from("a peer's fault (fault 2)")
                     }
@@ -554,13 +581,18 @@ impl FaultRun {
                     d.t_ms,
                     d.role,
                     d.how,
-                    self.commanded_ms
-                        .map(|t| format!(
+                    match (&self.watched, self.commanded_ms) {
+                        (Some((t, step)), _) => format!(
+                            ", {} ms after {step} was commanded",
+                            d.t_ms.saturating_sub(*t)
+                        ),
+                        (None, Some(t)) => format!(
                             ", {} ms after step {} was commanded",
-                            d.t_ms - t,
+                            d.t_ms.saturating_sub(t),
                             self.spec.step
-                        ))
-                        .unwrap_or_default()
+                        ),
+                        (None, None) => String::new(),
+                    }
                 );
                 for (t, r) in &self.reactions {
                     let _ = writeln!(o, "  at {t:>6} ms  {r}");
