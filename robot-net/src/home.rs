@@ -380,6 +380,17 @@ fn faulted_text(nodes: &[Node]) -> String {
     format!("{who}: {resets}, acknowledge the alarms (config-tool ack), then config-tool home")
 }
 
+/// A node that faulted while homing (`code`, what it means in words: `meaning`), with the
+/// way out: reset it, acknowledge the alarm its fault latched (a node refuses HOME while
+/// one is), home again.
+pub fn homing_faulted_text(role: &str, addr: u16, code: u8, meaning: &str) -> String {
+    format!(
+        "homing faulted: node {addr:#06x} ({role}): {meaning} (code {code:#04x}); reset it \
+         (config-tool reset --node {addr:#06x}), acknowledge the alarms (config-tool ack), \
+         then home again"
+    )
+}
+
 /// Why a push does not wait for the idle point of a machine whose nodes `faulted`
 /// (`(address, role, fault code)`) are: it never comes. `None`: no node is faulted.
 pub fn faulted_push_text(faulted: &[(u16, &str, u8)]) -> Option<String> {
@@ -719,6 +730,18 @@ mod tests {
             runtime: RuntimeCounters::default(),
             cycles: 0,
         }
+    }
+
+    /// A node faulted while homing: reset, then the ack its alarm needs (the next `home`
+    /// refuses a latched fault alarm; it said `reset, then home again`), then home.
+    #[test]
+    fn a_homing_fault_says_reset_ack_then_home() {
+        assert_eq!(
+            homing_faulted_text("VC", 0x11, 0x81, "its motion watchdog expired"),
+            "homing faulted: node 0x0011 (VC): its motion watchdog expired (code 0x81); reset \
+             it (config-tool reset --node 0x0011), acknowledge the alarms (config-tool ack), \
+             then home again"
+        );
     }
 
     /// A released node says what it ran; one that was not, why, and what it keeps doing.

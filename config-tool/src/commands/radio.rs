@@ -1249,7 +1249,12 @@ pub fn home(flags: &HomeArgs) -> Result<(), Failure> {
         KeysFrom::resolve(flags.keys.keys.as_deref()),
     )?;
     if c.ir.home.is_none() {
-        return Err(robot_net::NetError::NoHome.into());
+        // Only a sequence robot has a homing sequence: nothing to do, as `scan` says.
+        outln!(
+            "nothing to home: {} has no homing sequence (its nodes start at rest): start it",
+            flags.robot.display()
+        );
+        return Ok(());
     }
     let mut radio = connect_keyed(&flags.at, keys.as_ref())?;
     plain_if_off(&mut radio, &c);
@@ -1278,10 +1283,11 @@ pub fn home(flags: &HomeArgs) -> Result<(), Failure> {
         ))),
         home::HomeEnd::Faulted { role, addr, code } => Err(Failure {
             code: exit::FAULTED,
-            ..Failure::error(format!(
-                "homing faulted: node {addr:#06x} ({role}): {} (code {code:#04x}); reset, \
-                 then home again",
-                demo::fault_meaning(code)
+            ..Failure::error(home::homing_faulted_text(
+                &role,
+                addr,
+                code,
+                &demo::fault_meaning(code),
             ))
         }),
         home::HomeEnd::NotDone(waiting) => Err(Failure::error(format!(
