@@ -276,6 +276,26 @@ fn a_warning_about_an_imported_type_points_at_its_import() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A type imported twice (the same file listed twice in `fb_types`) is a duplicate chart
+/// type at the second entry. Found: it was at the robot's first byte (`Robot(`), as the
+/// imported types have no `chart_types[..]` of their own.
+#[test]
+fn a_type_imported_twice_is_named_at_its_second_import() {
+    let dir = std::env::temp_dir().join(format!("iec61499-twice-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("T.fbt"), fbt(VARS, ECC, ALG)).unwrap();
+    let twice = ROBOT.replace("fb_types: [\"T.fbt\"]", "fb_types: [\"T.fbt\", \"T.fbt\"]");
+    let src = Source::new(dir.join("r.ron").to_string_lossy().as_ref(), twice);
+    let errors: Vec<String> = check::check(&src)
+        .diagnostics
+        .iter()
+        .filter(|d| d.is_error())
+        .map(|d| d.short(&src).replace(&*src.name, "r.ron"))
+        .collect();
+    assert_eq!(errors, ["r.ron:1:253: error: duplicate chart type `T`"]);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// An element of more attributes than any IEC 61499 element has is refused at the first
 /// one too many, before the XML parser (whose check of duplicate attributes is quadratic)
 /// reads it; `=` in comments, CDATA and quoted values is no attribute.

@@ -144,11 +144,14 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
     dups(
         src,
         "chart type",
-        robot
-            .chart_types
-            .iter()
-            .enumerate()
-            .map(|(i, t)| (t.name.as_str(), format!("chart_types[{i}].name"))),
+        robot.chart_types.iter().enumerate().map(|(i, t)| {
+            // An imported type is where its `fb_types` entry is.
+            let at = t.imported.clone();
+            (
+                t.name.as_str(),
+                at.unwrap_or(format!("chart_types[{i}].name")),
+            )
+        }),
         out,
     );
     for (i, t) in robot.chart_types.iter().enumerate() {
