@@ -218,3 +218,68 @@ fn a_push_to_a_faulted_machine_names_the_faulted_nodes_at_once() {
     assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
     bed.stop();
 }
+
+/// A push while the machine is under way and stays so (HC's end switch never closes, its
+/// watchdog ten minutes): the switch-over waited out `--wait` and said `the machine was
+/// not idle within --wait`, every node `staged, not switched`, with no word of which
+/// node kept it. Now the nodes that were not at their idle point are named, on their
+/// lines and in the error.
+#[test]
+fn a_push_that_finds_no_idle_point_names_the_nodes_under_way() {
+    let dir = TempDir::new("push-not-idle");
+    let (paint_file, _) = unsecured_robot(&dir, "paint-robot.ron");
+    let slow = std::fs::read_to_string(&paint_file)
+        .expect("robot")
+        .replacen("motion_timeout_ms: 2000", "motion_timeout_ms: 600000", 1);
+    std::fs::write(&paint_file, &slow).expect("robot");
+    let paint = robot_compiler::compile::compile(&robot_compiler::Source::new("slow", slow))
+        .expect("compiles")
+        .with_generation(1)
+        .expect("encodes");
+    let (dip, _) = unsecured_robot(&dir, "paint-robot-double-dip.ron");
+    let dip = dip.to_str().expect("utf-8 path");
+    let mut opts = options(medium::Config::default(), None);
+    opts.secured = false;
+    let mut bed = bring_up(&paint, opts);
+    push_and_home(&mut bed, &paint);
+    let actuators = robot_net::live_plant::actuators(&paint).expect("actuators");
+    let hc = actuators.iter().position(|a| a.name == "HC").expect("HC");
+    bed.set_plant_injected(
+        actuators,
+        Some(robot_net::live_plant::Injection {
+            after: 3,
+            actuator: hc,
+            kind: robot_net::live_plant::Jam::SwitchOpen { end: true },
+        }),
+    )
+    .expect("plant");
+    bed.press_start(&paint).expect("START");
+    bed.await_strokes(4).expect("VC+ GR+ VC- HC+");
+    let m = bed.medium().addr().to_string();
+    let (code, out, err) = run_tool(&[
+        "push",
+        dip,
+        "--medium",
+        &m,
+        "--generation",
+        "2",
+        "--wait",
+        "1",
+    ]);
+    assert_eq!(code, Some(3), "{out}");
+    // HC waits for its end switch; VC and GR wait at points of the cycle under way; RC,
+    // whose steps come later, rests at its idle point.
+    let ends: Vec<&str> = (out.lines())
+        .filter(|l| l.contains("staged, not switched"))
+        .map(|l| l.split_once("  staged").map_or(l, |(_, end)| end))
+        .collect();
+    let under_way = ", not switched: not at its idle point";
+    assert_eq!(ends, [under_way, under_way, under_way, ", not switched"], "{out}");
+    assert_eq!(
+        err,
+        "error: the machine was not idle within --wait: 0x0011 (VC), 0x0012 (GR), 0x0013 \
+         (HC) were not at their idle points; nothing switched (the tables stay staged; push \
+         again, or --now for a stopped machine)\n"
+    );
+    bed.stop();
+}

@@ -44,6 +44,9 @@ pub struct Pushed {
     /// The node ran the pushed table already (it refused the transfer as not newer, and
     /// its status shows this very table: [`running_already`]).
     pub running: bool,
+    /// Its last answer in the switch-over said it was not at its idle point (the machine
+    /// under way, or stalled there): why a switch-over at the idle point did not come.
+    pub not_idle: bool,
 }
 
 impl Pushed {
@@ -63,6 +66,9 @@ impl Pushed {
             }
             (Progress::Done, Some(NodeState::Going)) => {
                 "staged, told to switch: its answer not heard".to_string()
+            }
+            (Progress::Done, Some(NodeState::Disarmed)) if self.not_idle => {
+                "staged, not switched: not at its idle point".to_string()
             }
             (Progress::Done, Some(_)) => "staged, not switched".to_string(),
             (progress, _) => Self::transfer_verdict(progress),
@@ -179,6 +185,7 @@ pub fn push(
             key_bytes: bytes.len() - t.blob.len(),
             elapsed: f.unwrap_or_else(|| start.elapsed()),
             running: false,
+            not_idle: false,
         })
         .collect())
 }
@@ -279,27 +286,35 @@ pub fn switch_over_as(
     if trial {
         c = c.on_trial();
     }
-    let (verdict, states) = coordinate(radio, c);
+    let mut not_idle = Vec::new();
+    let (verdict, states) = coordinate(radio, c, &mut not_idle);
     // Where each node stands, also when the medium was lost on the way.
     for (addr, state) in states {
         for p in pushed.iter_mut().filter(|p| p.addr == addr) {
             p.switch = Some(state);
+            p.not_idle = not_idle.contains(&addr);
         }
     }
     verdict
 }
 
 /// Runs a coordinator to its end: the verdict (or how the medium was lost) and where
-/// each node stands (then, as far as the tool heard).
+/// each node stands (then, as far as the tool heard); `not_idle` gets the nodes whose
+/// last `Armed` answer said they were not at their idle point.
 fn coordinate(
     radio: &mut ToolRadio,
     mut c: Coordinator,
+    not_idle: &mut Vec<u16>,
 ) -> (io::Result<Verdict>, Vec<(u16, NodeState)>) {
-    let verdict = run_coordinator(radio, &mut c);
+    let verdict = run_coordinator(radio, &mut c, not_idle);
     (verdict, c.nodes().collect())
 }
 
-fn run_coordinator(radio: &mut ToolRadio, c: &mut Coordinator) -> io::Result<Verdict> {
+fn run_coordinator(
+    radio: &mut ToolRadio,
+    c: &mut Coordinator,
+    not_idle: &mut Vec<u16>,
+) -> io::Result<Verdict> {
     let start = Instant::now();
     let now_ms = || start.elapsed().as_millis() as u64;
     let mut out: Vec<(u16, Message<'static>)> = Vec::new();
@@ -313,6 +328,12 @@ fn run_coordinator(radio: &mut ToolRadio, c: &mut Coordinator) -> io::Result<Ver
         let mut until = (start + Duration::from_millis(c.deadline())).max(Instant::now());
         while let Some(r) = radio.recv(until)? {
             if let Some(Message::ConfigReply { generation, reply }) = r.message() {
+                if let ConfigReply::Armed { idle } = reply {
+                    not_idle.retain(|&a| a != r.src);
+                    if !idle {
+                        not_idle.push(r.src);
+                    }
+                }
                 c.on_reply(r.src, generation, reply, now_ms(), |a, m| out.push((a, m)));
             }
             until = Instant::now();
@@ -331,7 +352,7 @@ pub fn rollback(
     wait: Duration,
 ) -> io::Result<(Verdict, Vec<(u16, NodeState)>)> {
     let c = Coordinator::new(nodes, generation, now, wait.as_millis() as u64, 0);
-    let (verdict, states) = coordinate(radio, c);
+    let (verdict, states) = coordinate(radio, c, &mut Vec::new());
     Ok((verdict?, states))
 }
 

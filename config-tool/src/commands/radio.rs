@@ -832,10 +832,23 @@ fn report_push(
             };
             Ok(())
         }
-        Some(Verdict::NotIdle) => failed(concat!(
-            "the machine was not idle within --wait: nothing switched (the tables stay ",
-            "staged; push again, or --now for a stopped machine)"
-        )),
+        Some(Verdict::NotIdle) => {
+            let under_way: Vec<String> = (outcomes.iter())
+                .filter(|o| o.not_idle)
+                .map(|o| format!("{:#06x} ({})", o.addr, o.role))
+                .collect();
+            let who = match under_way.as_slice() {
+                [] => String::new(),
+                [one] => format!(": {one} was not at its idle point;"),
+                many => format!(": {} were not at their idle points;", many.join(", ")),
+            };
+            failed(&format!(
+                "the machine was not idle within --wait{}{} nothing switched (the tables stay \
+                 staged; push again, or --now for a stopped machine)",
+                who,
+                if who.is_empty() { ":" } else { "" }
+            ))
+        }
         Some(Verdict::Aborted) => failed(concat!(
             "a node refused or stopped answering before the switch: nothing switched (the ",
             "tables stay staged)"

@@ -368,6 +368,7 @@ mod tests {
             key_bytes: 0,
             elapsed: Duration::from_micros(12_500),
             running: false,
+            not_idle: false,
         };
         let stale = Progress::Refused(Refusal::Stale { running: 1 });
         assert_eq!(
@@ -404,6 +405,7 @@ mod tests {
             key_bytes: 0,
             elapsed: Duration::from_micros(46_100),
             running: false,
+            not_idle: false,
         };
         assert_eq!(
             push_line(&o),
