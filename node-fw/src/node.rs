@@ -624,15 +624,18 @@ impl<S: StagingArea> NodeCore<S> {
     }
 
     /// Activation's pins, before `next` replaces the running table: the running table's
-    /// outputs go to their start levels (low if held: nobody drives them after), except
-    /// those `next` holds; then `next`'s outputs go to their start levels, a held one
-    /// to the level it has.
+    /// outputs go to their start levels, except those `next` holds; a pin `next` does not
+    /// drive goes low (nobody drives it after: a node released from its role leaves no
+    /// valve energised); then `next`'s outputs go to their start levels, a held one to the
+    /// level it has.
     fn drive_start(&self, next: &Table, io: &mut impl Io) {
         let holds =
             |pin: u8| (next.outputs.iter()).any(|o| o.pin == pin && o.start.level().is_none());
+        let drives = |pin: u8| next.outputs.iter().any(|o| o.pin == pin);
         if let Some(old) = &self.table {
             for o in old.outputs.iter().filter(|o| !holds(o.pin)) {
-                io.set_pin(o.pin, o.start.level().unwrap_or(false));
+                let level = o.start.level().filter(|_| drives(o.pin));
+                io.set_pin(o.pin, level.unwrap_or(false));
             }
         }
         let before = self.driven_levels(next);

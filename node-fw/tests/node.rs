@@ -930,6 +930,24 @@ fn activation_keeps_the_gripper_closed_and_drives_the_start_levels() {
     );
 }
 
+/// A table that drives none of the running table's pins (a node released from its role:
+/// a table with nothing in it) leaves each of them low, whatever its start level was (the
+/// beacon's is high: it stayed lit on a node that played no role any more).
+#[test]
+fn a_table_without_the_old_outputs_leaves_their_pins_low() {
+    let mut net = Net::new(0.0, 0.0, 37);
+    assert_eq!(net.push(B, &gripper(1, true), false), ota::Progress::Done);
+    net.nodes[1].1.pins.clear();
+    let mut released = Table::empty("");
+    released.generation = 2;
+    released.header.pan_id = gripper(1, true).header.pan_id;
+    assert_eq!(net.push(B, &released, false), ota::Progress::Done);
+    assert_eq!(
+        net.nodes[1].1.pins,
+        [(GRIP_PIN, false), (WARN_PIN, false), (BEACON_PIN, false)]
+    );
+}
+
 /// A boot drives the start levels; a held output starts low (out of reset nothing is
 /// held), and the engine agrees.
 #[test]

@@ -164,6 +164,16 @@ pub fn released_text(name: &str, addr: u16, s: &Status, released: Result<(), Str
     }
 }
 
+/// A node of the robot that plays no role in it (`name` at `addr`) and runs a table, as
+/// its status `s` says, while the robot is on trial: released once it is confirmed.
+pub fn release_later_text(name: &str, addr: u16, s: &Status) -> String {
+    format!(
+        "node {addr:#06x} ({name}) plays no role in this robot but runs {} of generation {}: \
+         released when the trial is confirmed (config-tool confirm)",
+        s.role, s.generation
+    )
+}
+
 /// Why `role` may not be pushed alone at `generation` to a secured robot's node (`None`:
 /// it may): `others` are the robot's other roles' nodes that answered running their roles,
 /// as `(address, generation, on trial)`. Each generation of a secured robot has link keys

@@ -378,8 +378,10 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
     let plain = c.robot.security == Security::Off;
     report_push(&outcomes, verdict, flags.trial, one_role, plain)?;
     if verdict == Some(Verdict::Switched) && flags.role.is_none() {
-        let wait = Duration::from_secs(flags.wait);
-        release_roleless_nodes(&mut radio, &mut ids, &c, flags.force, wait)?;
+        // On trial they are released once it is confirmed: a rollback finds the machine
+        // as it was.
+        let release = (!flags.trial).then_some(flags.force);
+        release_roleless_nodes(&mut radio, &mut ids, &c, (c.ir.generation, release))?;
     }
     // A trial is watched for --watch / --watch-cycles, else for the window the robot
     // declares.
@@ -574,16 +576,17 @@ fn none_faulted(
 
 /// After a switch-over: the robot's nodes that play no role in it (spares, or a node a
 /// role moved away from) but still run a table are released, each on a line of its own:
-/// pushed a table with nothing in it at the robot's generation and switched at once (it
-/// is no part of the machine's idle point), its outputs off; nothing else would tell it to
-/// stop playing its old role. Asked for [`ASK_QUIET`] first, a silent one (off, as a
-/// spare may be) has nothing to say.
+/// pushed a table with nothing in it at `generation`, the machine's (`--force` as
+/// `release` says) and switched at once (it is no part of the machine's idle point); nothing else
+/// would tell it to stop playing its old role. `release` `None` (a trial: a rollback must
+/// find them as they were): each is only named, `confirm` releases them. Asked for
+/// [`ASK_QUIET`] first, a silent one (off, as a spare may be) has nothing to say. The
+/// machine's own switch-over is over by then: a failure here says so.
 fn release_roleless_nodes(
     radio: &mut ToolRadio,
     ids: &mut Ids,
     c: &robot_compiler::Compiled,
-    force: bool,
-    wait: Duration,
+    (generation, release): (u32, Option<bool>),
 ) -> Result<(), Failure> {
     let roleless: Vec<_> = (c.robot.nodes.iter())
         .filter(|n| c.ir.roles.iter().all(|r| r.address != n.address))
@@ -600,15 +603,21 @@ fn release_roleless_nodes(
         ASK_QUIET,
         push::status_answer,
     )
-    .map_err(Failure::error)?;
+    .map_err(|e| lost(e, Phase::Release))?;
     let running: Vec<(&robot_compiler::model::Node, Status)> = (roleless.into_iter().zip(answers))
         .filter_map(|(n, a)| Some((n, a.ok().filter(|s| !s.role.is_empty())?)))
         .collect();
+    let Some(force) = release else {
+        for (n, s) in &running {
+            outln!("{}", home::release_later_text(&n.name, n.address, s));
+        }
+        return Ok(());
+    };
     if running.is_empty() {
         return Ok(());
     }
-    let generation = c.ir.generation;
-    let blob = demo::release_blob(c).map_err(|e| Failure::error(format!("release: {e}")))?;
+    let blob =
+        demo::release_blob(c, generation).map_err(|e| Failure::error(format!("release: {e}")))?;
     let targets: Vec<push::Target> = (running.iter())
         .map(|(n, _)| push::Target {
             role: n.name.clone(),
@@ -618,28 +627,21 @@ fn release_roleless_nodes(
         })
         .collect();
     let mut outcomes = push::push(radio, &targets, force, &mut |_, _, _| {})
-        .map_err(|e| lost(e, Phase::Transfer))?;
+        .map_err(|e| lost(e, Phase::Release))?;
     let staged: Vec<usize> = (0..outcomes.len())
         .filter(|&i| outcomes[i].progress == Progress::Done)
         .collect();
     let mut go: Vec<push::Pushed> = staged.iter().map(|&i| outcomes[i].clone()).collect();
     if !go.is_empty() {
-        push::switch_over(radio, &mut go, generation, true, wait)
-            .map_err(|e| lost(e, Phase::Switch))?;
+        push::switch_over(radio, &mut go, generation, true, ANSWER_WITHIN)
+            .map_err(|e| lost(e, Phase::Release))?;
         for (&i, o) in staged.iter().zip(go) {
             outcomes[i] = o;
         }
     }
     for ((n, s), o) in running.iter().zip(&outcomes) {
-        outln!(
-            "{}",
-            home::released_text(
-                &n.name,
-                n.address,
-                s,
-                o.switched().then_some(()).ok_or_else(|| o.verdict())
-            )
-        );
+        let released = o.switched().then_some(()).ok_or_else(|| o.verdict());
+        outln!("{}", home::released_text(&n.name, n.address, s, released));
     }
     Ok(())
 }
@@ -727,11 +729,13 @@ fn bars(targets: &[push::Target]) -> (MultiProgress, Vec<ProgressBar>) {
     (multi, bars)
 }
 
-/// The two phases of a push.
+/// The phases of a push.
 #[derive(Debug, Clone, Copy)]
 enum Phase {
     Transfer,
     Switch,
+    /// Releasing the nodes that play no role, after the machine switched.
+    Release,
 }
 
 /// A push's radio failed (the medium closed the connection: a gateway unplugged): what
@@ -745,6 +749,10 @@ fn lost(e: std::io::Error, phase: Phase) -> Failure {
         Phase::Switch => format!(
             "{e} during the switch-over: nodes may run different generations (`scan` shows \
              each one's): push again to finish it, or roll back"
+        ),
+        Phase::Release => format!(
+            "{e} while releasing the nodes that play no role: the machine itself switched; \
+             push again to release them"
         ),
     };
     Failure {
@@ -1022,7 +1030,13 @@ pub fn confirm(flags: &MachineArgs) -> Result<(), Failure> {
         outln!("  {role:<6} {addr:#06x}  generation {generation}  {what}");
     }
     if all {
-        Ok(())
+        // The trial kept: the nodes that play no role in it are released now.
+        release_roleless_nodes(
+            &mut radio,
+            &mut Ids::default(),
+            &c,
+            (generation, Some(false)),
+        )
     } else {
         Err(Failure {
             code: exit::PUSH_FAILED,
