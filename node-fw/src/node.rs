@@ -1078,7 +1078,7 @@ impl<S: StagingArea> NodeCore<S> {
         while let Some(peer) = self.radio.links.next_greeting(now) {
             if let Some(pan) = self.table.as_ref().map(|t| t.header.pan_id) {
                 let flags = if self.booted { restart::GREETING } else { 0 };
-                self.challenge_on(pan, peer, flags, io);
+                self.challenge_on(pan, peer, flags, now, io);
             }
         }
         if let Some(table) = &self.table {
@@ -1279,7 +1279,7 @@ impl<S: StagingArea> NodeCore<S> {
             Verdict::Dropped => self.radio.counters.dropped += 1,
             Verdict::Challenge { peer, challenge } => {
                 if challenge {
-                    self.challenge_peer(peer, io);
+                    self.challenge_peer(peer, now, io);
                 }
             }
             Verdict::Answer {
@@ -1298,7 +1298,7 @@ impl<S: StagingArea> NodeCore<S> {
                     self.send(io, pan, peer, &Message::ChallengeAnswer { nonce });
                 }
                 if challenge {
-                    self.challenge_peer(peer, io);
+                    self.challenge_peer(peer, now, io);
                 }
                 if nonce & restart::GREETING != 0 {
                     self.peer_restarted(peer, now, io);
@@ -1548,7 +1548,7 @@ impl<S: StagingArea> NodeCore<S> {
             c.challenged += 1;
             if now >= self.next_challenge {
                 self.next_challenge = now + CHALLENGE_MS;
-                self.challenge(src, io);
+                self.challenge(src, now, io);
             }
             return Err(Refused::Handshake);
         }
@@ -1560,8 +1560,8 @@ impl<S: StagingArea> NodeCore<S> {
     }
 
     /// Sends `src` a challenge on the config PAN (see [`NodeCore::challenge_on`]).
-    fn challenge(&mut self, src: u16, io: &mut impl Io) {
-        self.challenge_on(CONFIG_PAN, src, 0, io);
+    fn challenge(&mut self, src: u16, now: u64, io: &mut impl Io) {
+        self.challenge_on(CONFIG_PAN, src, 0, now, io);
     }
 
     /// Sends `dst` on `pan` a challenge whose nonce is the counter of the challenge frame
@@ -1569,7 +1569,7 @@ impl<S: StagingArea> NodeCore<S> {
     /// the nonce of a challenge it has not answered yet, if any:
     /// [`crate::peer_security::PeerSecurity::nonce`]), and remembers it: on the config PAN
     /// for the management path, on the robot's for the peers' (one sender for both).
-    fn challenge_on(&mut self, pan: u16, dst: u16, flags: u32, io: &mut impl Io) {
+    fn challenge_on(&mut self, pan: u16, dst: u16, flags: u32, now: u64, io: &mut impl Io) {
         let Some(counter) = io.next_frame_counter() else {
             self.radio.security.no_counter += 1;
             return;
@@ -1579,7 +1579,7 @@ impl<S: StagingArea> NodeCore<S> {
             self.challenges.sent(dst, nonce);
             nonce
         } else {
-            let nonce = self.radio.links.nonce(dst, counter, flags);
+            let nonce = self.radio.links.nonce(dst, counter, flags, now);
             self.radio.links.challenged(dst, nonce);
             nonce
         };
@@ -1607,11 +1607,11 @@ impl<S: StagingArea> NodeCore<S> {
     }
 
     /// Challenges peer `peer` on the robot's PAN (see [`crate::peer_security`]).
-    fn challenge_peer(&mut self, peer: u16, io: &mut impl Io) {
+    fn challenge_peer(&mut self, peer: u16, now: u64, io: &mut impl Io) {
         let Some(pan) = self.table.as_ref().map(|t| t.header.pan_id) else {
             return;
         };
-        self.challenge_on(pan, peer, 0, io);
+        self.challenge_on(pan, peer, 0, now, io);
     }
 
     /// A node without link keys that booted greets each of its peers in clear

@@ -17,8 +17,9 @@
 //! **Replay.** Every sender's frame counter is one per device and strictly increasing
 //! across all its keys, so the floor is per peer, kept across generations. After a boot
 //! the node knows no floor: an authentic frame from a peer without one is not acted on;
-//! the node sends that peer `Challenge { nonce }` (the challenge frame's own counter) and
-//! takes the counter of the peer's `ChallengeAnswer` with that nonce as the floor. So
+//! the node sends that peer `Challenge { nonce }` (the challenge frame's own counter, or
+//! the nonce of its challenge to the peer sent within [`REPEAT_MS`] and not answered yet)
+//! and takes the counter of the peer's `ChallengeAnswer` with that nonce as the floor. So
 //! that the first events of a new table (or after a boot) do not wait for it, the node
 //! challenges every peer it knows no floor of as soon as it runs with keys. A peer
 //! answers a challenge even if it has no floor for the challenger itself (answering takes
@@ -106,10 +107,19 @@ pub struct PeerSecurity {
     /// Per peer: when it may be challenged, and answered, again.
     next_challenge: Vec<(u16, u64), MAX_PEERS>,
     next_answer: Vec<(u16, u64), MAX_PEERS>,
-    /// Per peer of the current keys (in their order): the frame counter of its last
+    /// Per peer of the current keys (in their order): the nonce (bit 31 clear) of its last
     /// challenge that numbered our link to it again.
     renumbered: [Option<u32>; MAX_PEERS],
+    /// Per peer: the nonce this node repeats in its challenges to it while it is not
+    /// answered, and when it first sent it ([`PeerSecurity::nonce`]; forgotten when a new
+    /// table runs).
+    repeating: Vec<(u16, u32, u64), MAX_PEERS>,
 }
+
+/// How long a node repeats a challenge's nonce to a peer that has not answered: a boot's
+/// greetings and their retries ([`crate::restart::GREETED_WITHIN_MS`]), no longer (an
+/// answer to an older nonce, captured, would set the floor as long as it is repeated).
+pub const REPEAT_MS: u64 = crate::restart::GREETED_WITHIN_MS;
 
 /// Whether `peer` may be sent another handshake frame at `now`, at most one per
 /// `every` ms (if so, the next may go at `now + every`).
@@ -167,6 +177,7 @@ impl PeerSecurity {
         // Indexed by the new keys' peers: what the old ones' said is forgotten (a challenge
         // copied across a switch-over renumbers once more, at most).
         self.renumbered = [None; MAX_PEERS];
+        self.repeating.clear();
         self.greet.clear();
         if self.current.is_some() {
             for &p in peers {
@@ -409,16 +420,28 @@ impl PeerSecurity {
     }
 
     /// The nonce of a challenge to `peer` whose frame has counter `counter`, with `flags`
-    /// ([`crate::restart::GREETING`] or none): the counter, unless a challenge to the peer
-    /// is still unanswered (its floor unknown): then that one's, so that the peer numbers
-    /// its link to this node again once for all of them (a greeting's retries, a challenge
-    /// of a frame that came before the answer). Everything the peer sent before the
-    /// first of them is still below the floor its answer sets.
-    pub fn nonce(&self, peer: u16, counter: u32, flags: u32) -> u32 {
-        let pending = (self.replay.last(peer, ANY_LINK_KEY).is_none())
-            .then(|| self.challenges.newest(peer))
-            .flatten();
-        pending.map_or(counter, |n| n & !crate::restart::GREETING) | flags
+    /// ([`crate::restart::GREETING`] or none), sent at `now`: the counter, unless the peer
+    /// has not answered one sent within [`REPEAT_MS`] (its floor unknown): then that
+    /// one's (with `flags` added), so that the peer numbers its link to this node again
+    /// once for all of them (a greeting's retries, a challenge of a frame that came before
+    /// the answer). Everything the peer sent before the first of them is still below the
+    /// floor its answer sets.
+    pub fn nonce(&mut self, peer: u16, counter: u32, flags: u32, now: u64) -> u32 {
+        let unanswered = self.replay.last(peer, ANY_LINK_KEY).is_none();
+        let at = self.repeating.iter().position(|r| r.0 == peer);
+        if let Some(r) = at.and_then(|i| self.repeating.get_mut(i)) {
+            if unanswered && now.saturating_sub(r.2) < REPEAT_MS {
+                r.1 |= flags;
+                return r.1;
+            }
+            *r = (peer, counter | flags, now);
+        } else {
+            if self.repeating.is_full() {
+                crate::remove_at(&mut self.repeating, 0);
+            }
+            let _ = self.repeating.push((peer, counter | flags, now));
+        }
+        counter | flags
     }
 }
 
@@ -450,12 +473,6 @@ impl<const N: usize> Pending<N> {
             return false;
         };
         answered(self.sent.as_mut_view(), sender, *nonce)
-    }
-
-    /// The nonce of the last challenge to `sender` still pending.
-    pub fn newest(&self, sender: u16) -> Option<u32> {
-        let (_, nonces) = self.sent.iter().find(|(s, _)| *s == sender)?;
-        nonces[0]
     }
 
     /// Forgets the challenges of senders not in `keep`.
@@ -770,28 +787,39 @@ mod tests {
         }
     }
 
-    /// Until a peer answers, every challenge to it repeats the first one's nonce (a
-    /// greeting keeps its flag, another challenge goes without); once its floor is known,
-    /// a challenge has its frame's counter again.
+    /// Until a peer answers, every challenge to it within [`REPEAT_MS`] of the first
+    /// repeats its nonce (a greeting's flag kept, and added if a greeting follows another
+    /// challenge); after that time, once the peer answered, or once a new table runs, a
+    /// challenge has its frame's counter again.
     #[test]
-    fn a_challenge_repeats_the_nonce_of_the_one_not_answered_yet() {
+    fn a_challenge_repeats_the_nonce_of_the_one_not_answered_yet_for_a_while() {
         use crate::restart::GREETING;
         let mut s = PeerSecurity::default();
         let mut c = SecurityCounters::default();
         s.install(Some(keys(1)), &[PEER]);
-        assert_eq!(s.nonce(PEER, 7, GREETING), 7 | GREETING);
+        assert_eq!(s.nonce(PEER, 7, GREETING, 0), 7 | GREETING);
         s.challenged(PEER, 7 | GREETING);
-        assert_eq!(s.nonce(PEER, 8, GREETING), 7 | GREETING);
-        assert_eq!(s.nonce(PEER, 9, 0), 7);
-        s.challenged(PEER, 7);
-        let answer = Message::ChallengeAnswer {
-            nonce: 7 | GREETING,
-        };
+        assert_eq!(s.nonce(PEER, 8, GREETING, 100), 7 | GREETING);
+        assert_eq!(s.nonce(PEER, 9, 0, 150), 7 | GREETING);
+        assert_eq!(
+            s.nonce(PEER, 10, 0, REPEAT_MS),
+            10,
+            "repeated for a while only"
+        );
+        assert_eq!(s.nonce(PEER, 11, GREETING, REPEAT_MS + 1), 10 | GREETING);
+        s.install(Some(keys(1)), &[PEER]);
+        assert_eq!(
+            s.nonce(PEER, 12, 0, REPEAT_MS + 2),
+            12,
+            "a new table starts afresh"
+        );
+        s.challenged(PEER, 12);
+        let answer = Message::ChallengeAnswer { nonce: 12 };
         assert_eq!(
             verdict(&mut s, &frame(1, 40, &answer), 0, &mut c),
             "answered"
         );
-        assert_eq!(s.nonce(PEER, 10, 0), 10);
+        assert_eq!(s.nonce(PEER, 13, 0, REPEAT_MS + 3), 13, "answered");
     }
 
     #[test]

@@ -649,13 +649,21 @@ fn release_roleless_nodes(
 /// `push --role` of a secured robot: the role's node must take the generation its peers
 /// run (each generation has link keys of its own), so the robot's other roles' nodes are
 /// asked theirs first; refused (status 6, nothing sent) at another. Nodes that do not
-/// answer, or run another robot's role, have no say.
+/// answer, or run another robot's role, have no say; a role without peers goes at any.
 fn role_alone_at_the_machines_generation(
     radio: &mut ToolRadio,
     ids: &mut Ids,
     c: &robot_compiler::Compiled,
     role: &str,
 ) -> Result<(), Failure> {
+    // A role without peers shares no link keys: any generation will do.
+    let at = c.ir.roles.iter().position(|r| r.name == role);
+    if at
+        .and_then(|i| c.tables.get(i))
+        .is_none_or(|t| t.peers.is_empty())
+    {
+        return Ok(());
+    }
     let roles: Vec<_> = c.ir.roles.iter().filter(|r| r.name != role).collect();
     let addrs: Vec<u16> = roles.iter().map(|r| r.address).collect();
     let answers = push::ask_each(
