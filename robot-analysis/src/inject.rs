@@ -394,22 +394,28 @@ fn first_command(plants: &[Plant], after: &[TraceEntry]) -> (Option<Step>, Optio
 /// How a motion watchdog's detection is said.
 const WATCHDOG: &str = "motion watchdog (fault 1)";
 
-/// The motion of role `role` that a watchdog of it watched: its last step commanded (or
-/// attempted on a jammed actuator) in `before`, and when.
+/// The motion of role `role` that a watchdog of it watched, and when it was commanded:
+/// its last motion a jam held back in `before`, else its last step (a switch that stayed
+/// open: the rod moved, its switch never said so).
 fn watched(
     c: &Compiled,
     plants: &[Plant],
     before: &[TraceEntry],
     role: &str,
 ) -> Option<(u64, Step)> {
-    before.iter().rev().find_map(|e| {
-        let step = match &e.what {
-            What::Step { .. } => step_of(&e.what)?,
-            What::Jammed { plant, plus } => plant_step(plants, *plant, *plus),
-            _ => return None,
-        };
+    let of_role = |step: Step| {
         let (r, _) = c.robot.actuator(&step.actuator)?;
-        (c.robot.roles.get(r)?.name == role).then_some((e.t_ms, step))
+        (c.robot.roles.get(r)?.name == role).then_some(step)
+    };
+    let jammed = before.iter().rev().find_map(|e| match &e.what {
+        What::Jammed { plant, plus } => Some((e.t_ms, of_role(plant_step(plants, *plant, *plus))?)),
+        _ => None,
+    });
+    jammed.or_else(|| {
+        before.iter().rev().find_map(|e| match &e.what {
+            What::Step { .. } => Some((e.t_ms, of_role(step_of(&e.what)?)?)),
+            _ => None,
+        })
     })
 }
 
