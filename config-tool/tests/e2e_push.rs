@@ -103,21 +103,48 @@ fn tables_at_the_blob_limit_take_no_retry_on_a_lossless_medium() {
     bed.stop();
 }
 
-/// The VC role moved to the spare node (`paint-robot-spare-node.ron`, pushed from the
-/// command line): the node that lost it kept running its old table (nothing told it
-/// otherwise), and a START to it moved the cylinder still wired to it; `push` said nothing of it. Now `push` releases each node of the robot that
-/// plays no role in it and still runs one: a table with nothing in it, at once, its
-/// outputs off; and says so.
-#[test]
-fn a_push_releases_a_node_of_the_robot_that_plays_no_role_and_still_runs_one() {
-    let dir = TempDir::new("push-lost-role");
-    let (_, paint) = unsecured_robot(&dir, "paint-robot.ron");
-    let (moved, _) = unsecured_robot(&dir, "paint-robot-spare-node.ron");
-    let moved = moved.to_str().expect("utf-8 path");
+/// The paint robot (`security: Off`, so the tool runs without keys) on a bed of host
+/// nodes, spare included, pushed and homed; `dir` holds the robot files.
+fn paint_homed(dir: &TempDir) -> (robot_net::demo::Bed, robot_compiler::Compiled) {
+    let (_, paint) = unsecured_robot(dir, "paint-robot.ron");
     let mut opts = options(medium::Config::default(), None);
     opts.secured = false;
     let mut bed = bring_up(&paint, opts);
     push_and_home(&mut bed, &paint);
+    (bed, paint)
+}
+
+/// VC's cylinder jams from the first step on and the machine is started: VC's watchdog
+/// faults it, and every other node on its fault; returns once all are faulted.
+fn faulted(bed: &mut robot_net::demo::Bed, paint: &robot_compiler::Compiled) {
+    let actuators = robot_net::live_plant::actuators(paint).expect("actuators");
+    let vc = actuators.iter().position(|a| a.name == "VC").expect("VC");
+    bed.set_plant_injected(
+        actuators,
+        Some(robot_net::live_plant::Injection {
+            after: 0,
+            actuator: vc,
+            kind: robot_net::live_plant::Jam::Stuck,
+        }),
+    )
+    .expect("plant");
+    bed.press_start(paint).expect("START");
+    for r in &paint.ir.roles {
+        wait_until(bed, r.address, |s| s.fault.is_some());
+    }
+}
+
+/// The VC role moved to the spare node (`paint-robot-spare-node.ron`, pushed from the
+/// command line): the node that lost it kept running its old table (nothing told it
+/// otherwise), and a START to it moved the cylinder still wired to it; `push` said
+/// nothing of it. Now `push` releases each node of the robot that plays no role in it and
+/// still runs one: a table with nothing in it, at once, its outputs low; and says so.
+#[test]
+fn a_push_releases_a_node_of_the_robot_that_plays_no_role_and_still_runs_one() {
+    let dir = TempDir::new("push-lost-role");
+    let (mut bed, _) = paint_homed(&dir);
+    let (moved, _) = unsecured_robot(&dir, "paint-robot-spare-node.ron");
+    let moved = moved.to_str().expect("utf-8 path");
     assert_eq!(status(&mut bed, 0x0011).role.as_str(), "VC");
     let m = bed.medium().addr().to_string();
     // On trial: named, not released (a rollback finds the machine as it was).
@@ -190,28 +217,10 @@ fn a_push_releases_a_node_of_the_robot_that_plays_no_role_and_still_runs_one() {
 #[test]
 fn a_push_to_a_faulted_machine_names_the_faulted_nodes_at_once() {
     let dir = TempDir::new("push-faulted");
-    let (_, paint) = unsecured_robot(&dir, "paint-robot.ron");
+    let (mut bed, paint) = paint_homed(&dir);
     let (dip, _) = unsecured_robot(&dir, "paint-robot-double-dip.ron");
     let dip = dip.to_str().expect("utf-8 path");
-    let mut opts = options(medium::Config::default(), None);
-    opts.secured = false;
-    let mut bed = bring_up(&paint, opts);
-    push_and_home(&mut bed, &paint);
-    let actuators = robot_net::live_plant::actuators(&paint).expect("actuators");
-    let vc = actuators.iter().position(|a| a.name == "VC").expect("VC");
-    bed.set_plant_injected(
-        actuators,
-        Some(robot_net::live_plant::Injection {
-            after: 0,
-            actuator: vc,
-            kind: robot_net::live_plant::Jam::Stuck,
-        }),
-    )
-    .expect("plant");
-    bed.press_start(&paint).expect("START");
-    for r in &paint.ir.roles {
-        wait_until(&mut bed, r.address, |s| s.fault.is_some());
-    }
+    faulted(&mut bed, &paint);
     let m = bed.medium().addr().to_string();
     let (code, out, err) = run_tool(&["push", dip, "--medium", &m, "--generation", "2"]);
     assert_eq!(

@@ -27,6 +27,23 @@ fn balls(stdout: &str) -> Vec<(usize, String, usize, String)> {
         .collect()
 }
 
+/// The robot's 13 balls, each with the bin `sim` gives it.
+const SORTED: [(&str, usize); 13] = [
+    ("gray", 3),
+    ("black", 1),
+    ("black", 1),
+    ("orange", 1),
+    ("black", 1),
+    ("gray", 2),
+    ("black", 2),
+    ("black", 2),
+    ("orange", 1),
+    ("gray", 1),
+    ("black", 2),
+    ("orange", 1),
+    ("gray", 1),
+];
+
 #[test]
 fn the_station_sorts_its_feed_at_20_percent_loss_into_sims_bins() {
     let out = demo(&[
@@ -39,25 +56,11 @@ fn the_station_sorts_its_feed_at_20_percent_loss_into_sims_bins() {
     let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
     assert!(out.status.success(), "{stdout}\n{stderr}");
     let got = balls(&stdout);
-    let want: Vec<(usize, String, usize, String)> = [
-        ("gray", 3),
-        ("black", 1),
-        ("black", 1),
-        ("orange", 1),
-        ("black", 1),
-        ("gray", 2),
-        ("black", 2),
-        ("black", 2),
-        ("orange", 1),
-        ("gray", 1),
-        ("black", 2),
-        ("orange", 1),
-        ("gray", 1),
-    ]
-    .iter()
-    .enumerate()
-    .map(|(i, (c, b))| (i + 1, c.to_string(), *b, String::from("as sim")))
-    .collect();
+    let want: Vec<(usize, String, usize, String)> = SORTED
+        .iter()
+        .enumerate()
+        .map(|(i, (c, b))| (i + 1, c.to_string(), *b, String::from("as sim")))
+        .collect();
     assert_eq!(got, want, "{stdout}");
     let lines: Vec<&str> = stdout.lines().collect();
     assert!(lines.contains(
@@ -124,25 +127,11 @@ fn the_plant_command_feeds_the_stations_balls() {
             landed.push(said);
         }
     }
-    let want: Vec<String> = [
-        ("gray", 3),
-        ("black", 1),
-        ("black", 1),
-        ("orange", 1),
-        ("black", 1),
-        ("gray", 2),
-        ("black", 2),
-        ("black", 2),
-        ("orange", 1),
-        ("gray", 1),
-        ("black", 2),
-        ("orange", 1),
-        ("gray", 1),
-    ]
-    .iter()
-    .enumerate()
-    .map(|(i, (c, b))| format!("ball {} ({c}) landed in bin {b}", i + 1))
-    .collect();
+    let want: Vec<String> = SORTED
+        .iter()
+        .enumerate()
+        .map(|(i, (c, b))| format!("ball {} ({c}) landed in bin {b}", i + 1))
+        .collect();
     assert_eq!(landed, want);
     drop(plant);
     bed.stop();

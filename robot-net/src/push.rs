@@ -663,6 +663,17 @@ pub fn ask_each<T>(
     Ok(asked.into_iter().map(|a| a.2).collect())
 }
 
+/// The status of each node of `addrs`, all asked at once ([`ask_each`], within `timeout`):
+/// per address, in order, its status or how many times it was asked without one.
+pub fn statuses_of(
+    radio: &mut ToolRadio,
+    ids: &mut Ids,
+    addrs: &[u16],
+    timeout: Duration,
+) -> io::Result<Vec<Result<Status, u32>>> {
+    ask_each(radio, ids, addrs, Command::Status, timeout, status_answer)
+}
+
 /// The nodes in range: asks every node to identify itself and collects announcements
 /// for `wait` (unconfigured nodes announce themselves anyway).
 pub fn scan(

@@ -549,15 +549,8 @@ fn none_faulted(
         return Ok(());
     }
     let addrs: Vec<u16> = staged.iter().map(|o| o.addr).collect();
-    let answers = push::ask_each(
-        radio,
-        ids,
-        &addrs,
-        Command::Status,
-        ANSWER_WITHIN,
-        push::status_answer,
-    )
-    .map_err(|e| lost(e, Phase::Transfer))?;
+    let answers = push::statuses_of(radio, ids, &addrs, ANSWER_WITHIN)
+        .map_err(|e| lost(e, Phase::Transfer))?;
     let faulted: Vec<(u16, &str, u8)> = (staged.iter().zip(answers))
         .filter_map(|(o, a)| Some((o.addr, o.role.as_str(), a.ok()?.fault?)))
         .collect();
@@ -595,15 +588,8 @@ fn release_roleless_nodes(
         return Ok(());
     }
     let addrs: Vec<u16> = roleless.iter().map(|n| n.address).collect();
-    let answers = push::ask_each(
-        radio,
-        ids,
-        &addrs,
-        Command::Status,
-        ASK_QUIET,
-        push::status_answer,
-    )
-    .map_err(|e| lost(e, Phase::Release))?;
+    let answers =
+        push::statuses_of(radio, ids, &addrs, ASK_QUIET).map_err(|e| lost(e, Phase::Release))?;
     let running: Vec<(&robot_compiler::model::Node, Status)> = (roleless.into_iter().zip(answers))
         .filter_map(|(n, a)| Some((n, a.ok().filter(|s| !s.role.is_empty())?)))
         .collect();
@@ -666,15 +652,7 @@ fn role_alone_at_the_machines_generation(
     }
     let roles: Vec<_> = c.ir.roles.iter().filter(|r| r.name != role).collect();
     let addrs: Vec<u16> = roles.iter().map(|r| r.address).collect();
-    let answers = push::ask_each(
-        radio,
-        ids,
-        &addrs,
-        Command::Status,
-        ANSWER_WITHIN,
-        push::status_answer,
-    )
-    .map_err(Failure::error)?;
+    let answers = push::statuses_of(radio, ids, &addrs, ANSWER_WITHIN).map_err(Failure::error)?;
     let others: Vec<(u16, u32, bool)> = (roles.iter().zip(answers))
         .filter_map(|(r, a)| {
             let s = a.ok().filter(|s| s.role.as_str() == r.name)?;
