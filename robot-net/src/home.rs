@@ -146,34 +146,6 @@ fn generations_of(runs: &[(u16, u32, bool)]) -> Option<Generations> {
     })
 }
 
-/// A node of the robot that plays no role in it (`name` at `addr`), that ran a table as
-/// its status `s` says, and its release (`Err`: how it ended instead, as a push line says),
-/// in words.
-pub fn released_text(name: &str, addr: u16, s: &Status, released: Result<(), String>) -> String {
-    let ran = format!("{} of generation {}", s.role, s.generation);
-    match released {
-        Ok(()) => format!(
-            "node {addr:#06x} ({name}) plays no role in this robot: released (it ran {ran}; \
-             now no table runs there, its outputs are off)"
-        ),
-        Err(why) => format!(
-            "node {addr:#06x} ({name}) plays no role in this robot but runs {ran}, NOT \
-             released ({why}): it keeps running that table until released by a push, given \
-             a role, or powered off"
-        ),
-    }
-}
-
-/// A node of the robot that plays no role in it (`name` at `addr`) and runs a table, as
-/// its status `s` says, while the robot is on trial: released once it is confirmed.
-pub fn release_later_text(name: &str, addr: u16, s: &Status) -> String {
-    format!(
-        "node {addr:#06x} ({name}) plays no role in this robot but runs {} of generation {}: \
-         released when the trial is confirmed (config-tool confirm)",
-        s.role, s.generation
-    )
-}
-
 /// Why `role` may not be pushed alone at `generation` to a secured robot's node (`None`:
 /// it may): `others` are the robot's other roles' nodes that answered running their roles,
 /// as `(address, generation, on trial)`. Each generation of a secured robot has link keys
@@ -751,23 +723,6 @@ mod tests {
             "homing faulted: node 0x0011 (VC): its motion watchdog expired (code 0x81); reset \
              it (config-tool reset --node 0x0011), acknowledge the alarms (config-tool ack), \
              then home again"
-        );
-    }
-
-    /// A released node says what it ran; one that was not, why, and what it keeps doing.
-    #[test]
-    fn a_roleless_nodes_release_says_what_it_ran() {
-        let s = status("VC", &[0], None);
-        assert_eq!(
-            released_text("node-1", 0x11, &s, Ok(())),
-            "node 0x0011 (node-1) plays no role in this robot: released (it ran VC of \
-             generation 1; now no table runs there, its outputs are off)"
-        );
-        assert_eq!(
-            released_text("node-1", 0x11, &s, Err("refused: not newer".into())),
-            "node 0x0011 (node-1) plays no role in this robot but runs VC of generation 1, \
-             NOT released (refused: not newer): it keeps running that table until released \
-             by a push, given a role, or powered off"
         );
     }
 

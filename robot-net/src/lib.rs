@@ -12,6 +12,7 @@ pub mod live_motor;
 pub mod live_plant;
 pub mod push;
 pub mod radio;
+pub mod release;
 pub mod show;
 pub mod sniff;
 pub mod watch;

@@ -14,7 +14,7 @@ use robot_compiler::compile::Compiled;
 use robot_net::home::{self, HomeEnd, Standing};
 use robot_net::push::{self, Ids};
 use robot_net::radio::ToolRadio;
-use robot_net::{demo, show, NetError};
+use robot_net::{demo, release, show, NetError};
 
 use crate::buttons::{self, Button};
 use crate::model::Machine;
@@ -440,9 +440,19 @@ impl Poll {
             .iter()
             .filter(|a| a.1 == Some(config_schema::wire::msg::ConfigReply::Confirmed))
             .count();
-        Ok(format!(
+        let mut said = format!(
             "generation {generation} confirmed on {confirmed} of {} node(s)",
             nodes.len()
-        ))
+        );
+        // Kept on every node: the nodes that play no role in it are released now.
+        if confirmed == nodes.len() {
+            let how = release::Release::Now { force: false };
+            let (radio, ids) = (&mut self.radio, &mut self.ids);
+            for line in release::roleless(radio, ids, &c, generation, how)? {
+                said.push_str("; ");
+                said.push_str(&line);
+            }
+        }
+        Ok(said)
     }
 }

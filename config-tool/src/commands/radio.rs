@@ -16,7 +16,7 @@ use node_fw::switch::Verdict;
 use robot_net::demo;
 use robot_net::push::{self, Ids};
 use robot_net::radio::{ToolRadio, TOOL_ADDR};
-use robot_net::{home, live_plant, show};
+use robot_net::{home, live_plant, release, show};
 
 use robot_compiler::model::Security;
 
@@ -380,8 +380,12 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
     if verdict == Some(Verdict::Switched) && flags.role.is_none() {
         // On trial they are released once it is confirmed: a rollback finds the machine
         // as it was.
-        let release = (!flags.trial).then_some(flags.force);
-        release_roleless_nodes(&mut radio, &mut ids, &c, (c.ir.generation, release))?;
+        let how = if flags.trial {
+            release::Release::AfterTrial
+        } else {
+            release::Release::Now { force: flags.force }
+        };
+        release_roleless_nodes(&mut radio, &mut ids, &c, (c.ir.generation, how))?;
     }
     // A trial is watched for --watch / --watch-cycles, else for the window the robot
     // declares.
@@ -567,67 +571,19 @@ fn none_faulted(
     })
 }
 
-/// After a switch-over: the robot's nodes that play no role in it (spares, or a node a
-/// role moved away from) but still run a table are released, each on a line of its own:
-/// pushed a table with nothing in it at `generation`, the machine's (`--force` as
-/// `release` says) and switched at once (it is no part of the machine's idle point); nothing else
-/// would tell it to stop playing its old role. `release` `None` (a trial: a rollback must
-/// find them as they were): each is only named, `confirm` releases them. Asked for
-/// [`ASK_QUIET`] first, a silent one (off, as a spare may be) has nothing to say. The
-/// machine's own switch-over is over by then: a failure here says so.
+/// After a switch-over (or a confirmed trial): the robot's nodes that play no role in it
+/// and still run a table, released or named as `how` says ([`release::roleless`]), a line
+/// each. The machine's own switch-over is over by then: a failure here says so.
 fn release_roleless_nodes(
     radio: &mut ToolRadio,
     ids: &mut Ids,
     c: &robot_compiler::Compiled,
-    (generation, release): (u32, Option<bool>),
+    (generation, how): (u32, release::Release),
 ) -> Result<(), Failure> {
-    let roleless: Vec<_> = (c.robot.nodes.iter())
-        .filter(|n| c.ir.roles.iter().all(|r| r.address != n.address))
-        .collect();
-    if roleless.is_empty() {
-        return Ok(());
-    }
-    let addrs: Vec<u16> = roleless.iter().map(|n| n.address).collect();
-    let answers =
-        push::statuses_of(radio, ids, &addrs, ASK_QUIET).map_err(|e| lost(e, Phase::Release))?;
-    let running: Vec<(&robot_compiler::model::Node, Status)> = (roleless.into_iter().zip(answers))
-        .filter_map(|(n, a)| Some((n, a.ok().filter(|s| !s.role.is_empty())?)))
-        .collect();
-    let Some(force) = release else {
-        for (n, s) in &running {
-            outln!("{}", home::release_later_text(&n.name, n.address, s));
-        }
-        return Ok(());
-    };
-    if running.is_empty() {
-        return Ok(());
-    }
-    let blob =
-        demo::release_blob(c, generation).map_err(|e| Failure::error(format!("release: {e}")))?;
-    let targets: Vec<push::Target> = (running.iter())
-        .map(|(n, _)| push::Target {
-            role: n.name.clone(),
-            addr: n.address,
-            blob: blob.clone(),
-            generation,
-        })
-        .collect();
-    let mut outcomes = push::push(radio, &targets, force, &mut |_, _, _| {})
-        .map_err(|e| lost(e, Phase::Release))?;
-    let staged: Vec<usize> = (0..outcomes.len())
-        .filter(|&i| outcomes[i].progress == Progress::Done)
-        .collect();
-    let mut go: Vec<push::Pushed> = staged.iter().map(|&i| outcomes[i].clone()).collect();
-    if !go.is_empty() {
-        push::switch_over(radio, &mut go, generation, true, ANSWER_WITHIN)
-            .map_err(|e| lost(e, Phase::Release))?;
-        for (&i, o) in staged.iter().zip(go) {
-            outcomes[i] = o;
-        }
-    }
-    for ((n, s), o) in running.iter().zip(&outcomes) {
-        let released = o.switched().then_some(()).ok_or_else(|| o.verdict());
-        outln!("{}", home::released_text(&n.name, n.address, s, released));
+    let lines =
+        release::roleless(radio, ids, c, generation, how).map_err(|e| lost(e, Phase::Release))?;
+    for line in lines {
+        outln!("{line}");
     }
     Ok(())
 }
@@ -1017,12 +973,8 @@ pub fn confirm(flags: &MachineArgs) -> Result<(), Failure> {
     }
     if all {
         // The trial kept: the nodes that play no role in it are released now.
-        release_roleless_nodes(
-            &mut radio,
-            &mut Ids::default(),
-            &c,
-            (generation, Some(false)),
-        )
+        let how = release::Release::Now { force: false };
+        release_roleless_nodes(&mut radio, &mut Ids::default(), &c, (generation, how))
     } else {
         Err(Failure {
             code: exit::PUSH_FAILED,

@@ -890,20 +890,6 @@ pub fn targets(c: &Compiled) -> Vec<Target> {
         .collect()
 }
 
-/// The blob that releases a node from robot `c` (it plays no role in it): a table with
-/// no role and nothing in it (no events, charts, inputs or outputs; activated, the old
-/// table's outputs go off), on the robot's PAN and channel, at `generation`.
-pub fn release_blob(
-    c: &Compiled,
-    generation: u32,
-) -> Result<Vec<u8>, robot_compiler::compile::EncodeError> {
-    let mut t = config_schema::Table::empty("");
-    t.generation = generation;
-    t.header.pan_id = c.ir.pan_id;
-    t.header.channel = c.ir.channel;
-    robot_compiler::compile::encode(&t)
-}
-
 /// Every node back at its idle point (homed, at rest): the cycle is over.
 fn at_rest(c: &Compiled, statuses: &[Status]) -> bool {
     statuses.iter().zip(&c.tables).all(|(s, t)| {

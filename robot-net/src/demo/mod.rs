@@ -12,8 +12,8 @@ mod station;
 mod transport;
 
 pub use bed::{
-    node_addrs, release_blob, remove_key_dirs, targets, Bed, BedFault, Cycle, FaultReport, Homing,
-    MotorPlant, Options,
+    node_addrs, remove_key_dirs, targets, Bed, BedFault, Cycle, FaultReport, Homing, MotorPlant,
+    Options,
 };
 pub use qemu::{
     check_elf, check_qemu, count_log, provision_loaders, provision_word, qemu_args, read_counts,
