@@ -254,34 +254,9 @@ fn a_push_to_a_faulted_machine_names_the_faulted_nodes_at_once() {
 #[test]
 fn a_push_that_finds_no_idle_point_names_the_nodes_under_way() {
     let dir = TempDir::new("push-not-idle");
-    let (paint_file, _) = unsecured_robot(&dir, "paint-robot.ron");
-    let slow = std::fs::read_to_string(&paint_file)
-        .expect("robot")
-        .replacen("motion_timeout_ms: 2000", "motion_timeout_ms: 600000", 1);
-    std::fs::write(&paint_file, &slow).expect("robot");
-    let paint = robot_compiler::compile::compile(&robot_compiler::Source::new("slow", slow))
-        .expect("compiles")
-        .with_generation(1)
-        .expect("encodes");
+    let (bed, _) = under_way_for_good(&dir);
     let (dip, _) = unsecured_robot(&dir, "paint-robot-double-dip.ron");
     let dip = dip.to_str().expect("utf-8 path");
-    let mut opts = options(medium::Config::default(), None);
-    opts.secured = false;
-    let mut bed = bring_up(&paint, opts);
-    push_and_home(&mut bed, &paint);
-    let actuators = robot_net::live_plant::actuators(&paint).expect("actuators");
-    let hc = actuators.iter().position(|a| a.name == "HC").expect("HC");
-    bed.set_plant_injected(
-        actuators,
-        Some(robot_net::live_plant::Injection {
-            after: 3,
-            actuator: hc,
-            kind: robot_net::live_plant::Jam::SwitchOpen { end: true },
-        }),
-    )
-    .expect("plant");
-    bed.press_start(&paint).expect("START");
-    bed.await_strokes(4).expect("VC+ GR+ VC- HC+");
     let m = bed.medium().addr().to_string();
     let (code, out, err) = run_tool(&[
         "push",

@@ -871,3 +871,39 @@ pub fn pushed_with_plant_process(c: &Compiled, name: &str) -> (Bed, PlantProcess
     {}
     (bed, plant)
 }
+
+/// The paint robot (`security: Off`, its watchdog ten minutes) on a bed of host nodes,
+/// pushed, homed and started, under way for as long as the test needs: HC's end switch
+/// never closes, so the cycle waits after `VC+ GR+ VC- HC+` (no node faulted, VC, GR and
+/// HC not at their idle points, RC at its own). Returns once the plant saw those four.
+pub fn under_way_for_good(dir: &TempDir) -> (Bed, Compiled) {
+    let (file, _) = unsecured_robot(dir, "paint-robot.ron");
+    let slow = std::fs::read_to_string(&file).expect("robot").replacen(
+        "motion_timeout_ms: 2000",
+        "motion_timeout_ms: 600000",
+        1,
+    );
+    std::fs::write(&file, &slow).expect("robot");
+    let paint = compile::compile(&Source::new("slow", slow))
+        .expect("compiles")
+        .with_generation(1)
+        .expect("encodes");
+    let mut opts = options(medium::Config::default(), None);
+    opts.secured = false;
+    let mut bed = bring_up(&paint, opts);
+    push_and_home(&mut bed, &paint);
+    let actuators = live_plant::actuators(&paint).expect("actuators");
+    let hc = actuators.iter().position(|a| a.name == "HC").expect("HC");
+    bed.set_plant_injected(
+        actuators,
+        Some(live_plant::Injection {
+            after: 3,
+            actuator: hc,
+            kind: live_plant::Jam::SwitchOpen { end: true },
+        }),
+    )
+    .expect("plant");
+    bed.press_start(&paint).expect("START");
+    bed.await_strokes(4).expect("VC+ GR+ VC- HC+");
+    (bed, paint)
+}
