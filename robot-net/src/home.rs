@@ -687,11 +687,12 @@ fn detector(nodes: &[Node]) -> HomeEnd {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use config_schema::wire::msg::{Counters, RuntimeCounters};
 
-    fn status(role: &str, states: &[u8], fault: Option<u8>) -> Status {
+    /// A status of role `role`, generation 1, its charts in `states`, with `fault`.
+    pub(crate) fn status(role: &str, states: &[u8], fault: Option<u8>) -> Status {
         Status {
             ack: 1,
             role: heapless::String::try_from(role).unwrap(),

@@ -131,30 +131,9 @@ pub fn release_later_text(name: &str, addr: u16, s: &Status) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use config_schema::wire::msg::{Counters, RuntimeCounters};
-    use config_schema::TableId;
 
     fn status(role: &str) -> Status {
-        Status {
-            ack: 1,
-            role: heapless::String::try_from(role).unwrap(),
-            generation: 1,
-            table: TableId::NONE,
-            staged: 0,
-            previous: 0,
-            trial: false,
-            states: heapless::Vec::new(),
-            outputs: 0,
-            inputs: 0,
-            fault: None,
-            link_alarms: 0,
-            links_broken: 0,
-            links_restarted: 0,
-            epoch: 0,
-            counters: Counters::default(),
-            runtime: RuntimeCounters::default(),
-            cycles: 0,
-        }
+        crate::home::tests::status(role, &[], None)
     }
 
     /// A released node says what it ran; one that was not, why, and what it keeps doing.
