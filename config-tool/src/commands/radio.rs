@@ -334,10 +334,7 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
     let mut outcomes = push_with_bars(&mut radio, &targets, flags.force)?;
     // Pushed again after a switch-over that did not finish: the nodes that switched run
     // this generation already.
-    let table_of = |role: &str| {
-        let i = c.ir.roles.iter().position(|r| r.name == role)?;
-        c.tables.get(i)
-    };
+    let table_of = |role: &str| role_table(&c, role).map(|(_, t)| t);
     let generation = c.ir.generation;
     push::running_already(
         &mut radio,
@@ -365,10 +362,7 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
             )
             .map_err(|e| {
                 // Where each node stood when the medium was lost: what `scan` would show.
-                for o in &outcomes {
-                    outln!("{}", demo::push_line(o));
-                }
-                outln!("{}", demo::push_summary(&outcomes));
+                push_lines(&outcomes);
                 lost(e, Phase::Switch)
             })?,
         )
@@ -507,6 +501,15 @@ pub(crate) fn push_keys(
     }
 }
 
+/// Role `role` of `c` and its table.
+fn role_table<'c>(
+    c: &'c robot_compiler::Compiled,
+    role: &str,
+) -> Option<(&'c robot_compiler::ir::RoleIr, &'c config_schema::Table)> {
+    let i = c.ir.roles.iter().position(|r| r.name == role)?;
+    Some((c.ir.roles.get(i)?, c.tables.get(i)?))
+}
+
 /// `push --role R --node N`: a role that talks with peers goes to the node the robot
 /// assigns it only (they publish to, and hear from, that address); one without peers may
 /// go anywhere (a role on a bench).
@@ -516,10 +519,7 @@ fn elsewhere_without_peers(
     role: &str,
     node: u16,
 ) -> Result<(), Failure> {
-    let Some(i) = c.ir.roles.iter().position(|r| r.name == role) else {
-        return Ok(());
-    };
-    let (Some(r), Some(t)) = (c.ir.roles.get(i), c.tables.get(i)) else {
+    let Some((r, t)) = role_table(c, role) else {
         return Ok(());
     };
     if r.address == node || t.peers.is_empty() {
@@ -561,10 +561,7 @@ fn none_faulted(
     let Some(why) = home::faulted_push_text(&faulted) else {
         return Ok(());
     };
-    for o in outcomes {
-        outln!("{}", demo::push_line(o));
-    }
-    outln!("{}", demo::push_summary(outcomes));
+    push_lines(outcomes);
     Err(Failure {
         code: exit::PUSH_FAILED,
         ..Failure::error(why)
@@ -599,11 +596,7 @@ fn role_alone_at_the_machines_generation(
     role: &str,
 ) -> Result<(), Failure> {
     // A role without peers shares no link keys: any generation will do.
-    let at = c.ir.roles.iter().position(|r| r.name == role);
-    if at
-        .and_then(|i| c.tables.get(i))
-        .is_none_or(|t| t.peers.is_empty())
-    {
+    if role_table(c, role).is_none_or(|(_, t)| t.peers.is_empty()) {
         return Ok(());
     }
     let roles: Vec<_> = c.ir.roles.iter().filter(|r| r.name != role).collect();
@@ -721,6 +714,14 @@ fn push_with_bars(
     Ok(outcomes)
 }
 
+/// A push's lines: one per node (where it stands), then the summary.
+fn push_lines(outcomes: &[push::Pushed]) {
+    for o in outcomes {
+        outln!("{}", demo::push_line(o));
+    }
+    outln!("{}", demo::push_summary(outcomes));
+}
+
 /// `push`'s report: a line per node, the summary, how the switch-over ended; `one_role`:
 /// only that role was pushed, as that generation (`--role`).
 fn report_push(
@@ -730,10 +731,7 @@ fn report_push(
     one_role: Option<(&str, u32)>,
     plain: bool,
 ) -> Result<(), Failure> {
-    for o in outcomes {
-        outln!("{}", demo::push_line(o));
-    }
-    outln!("{}", demo::push_summary(outcomes));
+    push_lines(outcomes);
     if !outcomes.iter().all(|o| o.progress == Progress::Done) {
         let silent = outcomes.iter().any(|o| o.progress == Progress::GaveUp);
         let hint = if plain && silent {
@@ -788,15 +786,13 @@ fn report_push(
                 .map(|o| format!("{:#06x} ({})", o.addr, o.role))
                 .collect();
             let who = match under_way.as_slice() {
-                [] => String::new(),
+                [] => String::from(":"),
                 [one] => format!(": {one} was not at its idle point;"),
                 many => format!(": {} were not at their idle points;", many.join(", ")),
             };
             failed(&format!(
-                "the machine was not idle within --wait{}{} nothing switched (the tables stay \
-                 staged; push again, or --now for a stopped machine)",
-                who,
-                if who.is_empty() { ":" } else { "" }
+                "the machine was not idle within --wait{who} nothing switched (the tables stay \
+                 staged; push again, or --now for a stopped machine)"
             ))
         }
         Some(Verdict::Aborted) => failed(concat!(
