@@ -1567,7 +1567,7 @@ impl<S: StagingArea> NodeCore<S> {
     /// Sends `dst` on `pan` a challenge whose nonce is the counter of the challenge frame
     /// itself (with `flags`: [`restart::GREETING`] for a booted node's greeting; to a peer,
     /// the nonce of a challenge it has not answered yet, if any:
-    /// [`crate::peer_security::PeerSecurity::nonce`]), and remembers it: on the config PAN
+    /// [`crate::peer_security::PeerSecurity::challenge`]), and remembers it: on the config PAN
     /// for the management path, on the robot's for the peers' (one sender for both).
     fn challenge_on(&mut self, pan: u16, dst: u16, flags: u32, now: u64, io: &mut impl Io) {
         let Some(counter) = io.next_frame_counter() else {
@@ -1575,13 +1575,10 @@ impl<S: StagingArea> NodeCore<S> {
             return;
         };
         let nonce = if pan == CONFIG_PAN {
-            let nonce = counter | flags;
-            self.challenges.sent(dst, nonce);
-            nonce
+            self.challenges.sent(dst, counter | flags);
+            counter | flags
         } else {
-            let nonce = self.radio.links.nonce(dst, counter, flags, now);
-            self.radio.links.challenged(dst, nonce);
-            nonce
+            self.radio.links.challenge(dst, counter, flags, now)
         };
         self.send_numbered(io, pan, dst, &Message::Challenge { nonce }, Some(counter));
     }

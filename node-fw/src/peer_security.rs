@@ -111,7 +111,7 @@ pub struct PeerSecurity {
     /// challenge that numbered our link to it again.
     renumbered: [Option<u32>; MAX_PEERS],
     /// Per peer: the nonce this node repeats in its challenges to it while it is not
-    /// answered, and when it first sent it ([`PeerSecurity::nonce`]; forgotten when a new
+    /// answered, and when it first sent it ([`PeerSecurity::challenge`]; forgotten when a new
     /// table runs).
     repeating: Vec<(u16, u32, u64), MAX_PEERS>,
 }
@@ -395,7 +395,7 @@ impl PeerSecurity {
 
     /// Whether a challenge from `peer` with `nonce` numbers our link to it again: its
     /// first, or one whose nonce is newer than the last that did. A peer repeats its
-    /// nonce in every challenge until one is answered ([`PeerSecurity::nonce`]): those
+    /// nonce in every challenge until one is answered ([`PeerSecurity::challenge`]): those
     /// ask for one renumbering, however late they come. Numbered again for a late one
     /// (sent before our answer reached the peer, come after the peer took the numbered
     /// events and its acknowledgement was lost), or for a copy the radio duplicated
@@ -414,34 +414,36 @@ impl PeerSecurity {
         true
     }
 
-    /// This node challenged `peer` with `nonce` ([`PeerSecurity::nonce`]).
-    pub fn challenged(&mut self, peer: u16, nonce: u32) {
+    /// This node challenges `peer` in a frame with counter `counter`, with `flags`
+    /// ([`crate::restart::GREETING`] or none), at `now`: the challenge's nonce, remembered
+    /// until answered. The counter, unless the peer has not answered one sent within
+    /// [`REPEAT_MS`] (its floor unknown): then that one's (with `flags` added), so that the
+    /// peer numbers its link to this node again once for all of them (a greeting's
+    /// retries, a challenge of a frame that came before the answer). Everything the peer
+    /// sent before the first of them is still below the floor its answer sets.
+    pub fn challenge(&mut self, peer: u16, counter: u32, flags: u32, now: u64) -> u32 {
+        let nonce = self.repeated_nonce(peer, counter | flags, now);
         self.challenges.sent(peer, nonce);
+        nonce
     }
 
-    /// The nonce of a challenge to `peer` whose frame has counter `counter`, with `flags`
-    /// ([`crate::restart::GREETING`] or none), sent at `now`: the counter, unless the peer
-    /// has not answered one sent within [`REPEAT_MS`] (its floor unknown): then that
-    /// one's (with `flags` added), so that the peer numbers its link to this node again
-    /// once for all of them (a greeting's retries, a challenge of a frame that came before
-    /// the answer). Everything the peer sent before the first of them is still below the
-    /// floor its answer sets.
-    pub fn nonce(&mut self, peer: u16, counter: u32, flags: u32, now: u64) -> u32 {
+    /// [`PeerSecurity::challenge`]'s nonce: `fresh`, or the one repeated to `peer`.
+    fn repeated_nonce(&mut self, peer: u16, fresh: u32, now: u64) -> u32 {
         let unanswered = self.replay.last(peer, ANY_LINK_KEY).is_none();
         let at = self.repeating.iter().position(|r| r.0 == peer);
         if let Some(r) = at.and_then(|i| self.repeating.get_mut(i)) {
             if unanswered && now.saturating_sub(r.2) < REPEAT_MS {
-                r.1 |= flags;
+                r.1 |= fresh & crate::restart::GREETING;
                 return r.1;
             }
-            *r = (peer, counter | flags, now);
+            *r = (peer, fresh, now);
         } else {
             if self.repeating.is_full() {
                 crate::remove_at(&mut self.repeating, 0);
             }
-            let _ = self.repeating.push((peer, counter | flags, now));
+            let _ = self.repeating.push((peer, fresh, now));
         }
-        counter | flags
+        fresh
     }
 }
 
@@ -642,7 +644,7 @@ mod tests {
             verdict(&mut s, &frame(1, 9, &EVENT), 0, &mut c),
             "challenge"
         );
-        s.challenged(PEER, 77);
+        s.challenge(PEER, 77, 0, 0);
         let answer = Message::ChallengeAnswer { nonce: 77 };
         assert_eq!(
             verdict(&mut s, &frame(1, 10, &answer), 0, &mut c),
@@ -797,29 +799,30 @@ mod tests {
         let mut s = PeerSecurity::default();
         let mut c = SecurityCounters::default();
         s.install(Some(keys(1)), &[PEER]);
-        assert_eq!(s.nonce(PEER, 7, GREETING, 0), 7 | GREETING);
-        s.challenged(PEER, 7 | GREETING);
-        assert_eq!(s.nonce(PEER, 8, GREETING, 100), 7 | GREETING);
-        assert_eq!(s.nonce(PEER, 9, 0, 150), 7 | GREETING);
+        assert_eq!(s.challenge(PEER, 7, GREETING, 0), 7 | GREETING);
+        assert_eq!(s.challenge(PEER, 8, GREETING, 100), 7 | GREETING);
+        assert_eq!(s.challenge(PEER, 9, 0, 150), 7 | GREETING);
         assert_eq!(
-            s.nonce(PEER, 10, 0, REPEAT_MS),
+            s.challenge(PEER, 10, 0, REPEAT_MS),
             10,
             "repeated for a while only"
         );
-        assert_eq!(s.nonce(PEER, 11, GREETING, REPEAT_MS + 1), 10 | GREETING);
+        assert_eq!(
+            s.challenge(PEER, 11, GREETING, REPEAT_MS + 1),
+            10 | GREETING
+        );
         s.install(Some(keys(1)), &[PEER]);
         assert_eq!(
-            s.nonce(PEER, 12, 0, REPEAT_MS + 2),
+            s.challenge(PEER, 12, 0, REPEAT_MS + 2),
             12,
             "a new table starts afresh"
         );
-        s.challenged(PEER, 12);
         let answer = Message::ChallengeAnswer { nonce: 12 };
         assert_eq!(
             verdict(&mut s, &frame(1, 40, &answer), 0, &mut c),
             "answered"
         );
-        assert_eq!(s.nonce(PEER, 13, 0, REPEAT_MS + 3), 13, "answered");
+        assert_eq!(s.challenge(PEER, 13, 0, REPEAT_MS + 3), 13, "answered");
     }
 
     #[test]
@@ -842,7 +845,7 @@ mod tests {
         s.install(Some(keys(2)), &[PEER]);
         assert_eq!(s.next_greeting(1_000), Some(PEER));
         // Answered: no more greetings.
-        s.challenged(PEER, 77);
+        s.challenge(PEER, 77, 0, 1_000);
         let mut c = SecurityCounters::default();
         let answer = Message::ChallengeAnswer { nonce: 77 };
         assert_eq!(
@@ -879,16 +882,17 @@ mod tests {
         let mut s = PeerSecurity::default();
         let mut c = SecurityCounters::default();
         s.install(Some(keys(1)), &[PEER]);
-        s.challenged(PEER, 77);
-        s.challenged(PEER, 78);
+        // (Each after the last one's nonce is no longer repeated.)
+        s.challenge(PEER, 77, 0, 0);
+        s.challenge(PEER, 78, 0, REPEAT_MS);
         let late = Message::ChallengeAnswer { nonce: 77 };
         assert_eq!(verdict(&mut s, &frame(1, 10, &late), 0, &mut c), "answered");
         assert_eq!(verdict(&mut s, &frame(1, 11, &EVENT), 0, &mut c), "accept");
         // Only the last two count, and each once.
         let mut s = PeerSecurity::default();
         s.install(Some(keys(1)), &[PEER]);
-        for nonce in [77, 78, 79] {
-            s.challenged(PEER, nonce);
+        for (nonce, at) in [(77, 0), (78, REPEAT_MS), (79, 2 * REPEAT_MS)] {
+            s.challenge(PEER, nonce, 0, at);
         }
         let oldest = Message::ChallengeAnswer { nonce: 77 };
         assert_eq!(
@@ -937,7 +941,7 @@ mod tests {
         let mut s = PeerSecurity::default();
         let mut c = SecurityCounters::default();
         s.install(Some(keys(1)), &[PEER]);
-        s.challenged(PEER, 77);
+        s.challenge(PEER, 77, 0, 0);
         let wrong = Message::ChallengeAnswer { nonce: 78 };
         assert_eq!(
             verdict(&mut s, &frame(1, 10, &wrong), 0, &mut c),

@@ -4,7 +4,7 @@
 //! waiting, in the middle of a cycle or of homing, for an event it will now never send.
 //! So it tells them, with a greeting: a `Challenge` whose nonce has [`GREETING`] set. On
 //! a secured robot that is its handshake's challenge (the nonce's other bits the frame's
-//! counter, or a retry's the first greeting's: `PeerSecurity::nonce`; answered as any
+//! counter, or a retry's the first greeting's: `PeerSecurity::challenge`; answered as any
 //! challenge); on a robot without link keys a challenge in clear
 //! (no answer: [`Greetings`] sends it [`GREETINGS`] times, a copy making up for a loss).
 //! A peer takes the first copy it hears of one restart ([`Heard::first`]); a node under
@@ -18,7 +18,7 @@ use crate::peer_security::{GREET_EVERY_MS, GREET_TRIES};
 
 /// Bit 31 of a `Challenge`'s nonce: the sender booted (its greeting). A secured nonce is
 /// otherwise a challenge frame's counter (never near 2^31: that frame's, or a repeated
-/// one's, `crate::peer_security::PeerSecurity::nonce`); a nonce in clear without it is an
+/// one's, `crate::peer_security::PeerSecurity::challenge`); a nonce in clear without it is an
 /// epoch asked for ([`crate::link::Receiver::ask`]).
 pub const GREETING: u32 = 1 << 31;
 
