@@ -53,16 +53,6 @@ pub(crate) fn to_end<T>(s: &mut [T], i: usize) {
     }
 }
 
-/// Moves the last element of `s` to its front, the others keeping their order
-/// (`rotate_right(1)`, by swaps: see [`to_end`]).
-pub(crate) fn last_to_front<T>(s: &mut [T]) {
-    for j in (1..s.len()).rev() {
-        if let Some([a, b]) = s.get_mut(j - 1..j + 1) {
-            core::mem::swap(a, b);
-        }
-    }
-}
-
 /// `v.remove(i)` (nothing if `i` is out of range) without `ptr::copy` ([`to_end`]).
 pub(crate) fn remove_at<T, const N: usize>(v: &mut heapless::Vec<T, N>, i: usize) {
     if i < v.len() {
@@ -73,7 +63,7 @@ pub(crate) fn remove_at<T, const N: usize>(v: &mut heapless::Vec<T, N>, i: usize
 
 #[cfg(test)]
 mod tests {
-    /// The swaps do what `rotate_left`, `rotate_right` and `Vec::remove` do.
+    /// The swaps do what `rotate_left` and `Vec::remove` do.
     #[test]
     fn the_swaps_rotate_and_remove_as_the_std_ones() {
         for len in 0..6 {
@@ -93,11 +83,6 @@ mod tests {
                 }
                 assert_eq!(v.as_slice(), w.as_slice(), "remove {i} of {len}");
             }
-            let mut a: std::vec::Vec<u8> = (0..len as u8).collect();
-            let mut b = a.clone();
-            super::last_to_front(&mut a);
-            b.rotate_right(usize::from(len > 0));
-            assert_eq!(a, b, "last_to_front of {len}");
         }
     }
 }

@@ -1528,8 +1528,9 @@ impl<S: StagingArea> NodeCore<S> {
     /// A sender whose counter the node does not know (none since boot) is challenged
     /// instead: its frame is not acted on; the node answers `Challenge { nonce }`, the nonce
     /// being that frame's own counter (never used before), and takes the counter of the
-    /// sender's `ChallengeAnswer` with that nonce as its floor. A frame captured before
-    /// the answer has a lower counter: no replay passes a reboot.
+    /// sender's `ChallengeAnswer` with that nonce as its floor, if it comes within
+    /// [`peer_security::ANSWER_WITHIN_MS`] of the challenge. A frame captured before the
+    /// answer has a lower counter: no replay passes a reboot.
     fn admit_management<E>(
         &mut self,
         opened: &Opened<'_>,
@@ -1541,7 +1542,7 @@ impl<S: StagingArea> NodeCore<S> {
         let counter = opened.aux.frame_counter;
         let c = &mut self.radio.security;
         if self.replay.last(src, MANAGEMENT_KEY_INDEX).is_none() {
-            if self.challenges.answered(src, message) {
+            if self.challenges.answered(src, message, now) {
                 peer_security::accept(&mut self.replay, src, MANAGEMENT_KEY_INDEX, counter, c);
                 return Err(Refused::Handshake);
             }
@@ -1575,7 +1576,7 @@ impl<S: StagingArea> NodeCore<S> {
             return;
         };
         let nonce = if pan == CONFIG_PAN {
-            self.challenges.sent(dst, counter | flags);
+            self.challenges.sent(dst, counter | flags, now);
             counter | flags
         } else {
             self.radio.links.challenge(dst, counter, flags, now)

@@ -26,7 +26,8 @@
 //! nothing in; with a floor, a replayed challenge is refused like any replay), at most
 //! once per [`ANSWER_MS`] per peer; it challenges a peer at most once per
 //! [`CHALLENGE_MS`], and an answer to either of its last two challenges sets the floor (on
-//! a busy medium an answer can arrive after the next challenge went out).
+//! a busy medium an answer can arrive after the next challenge went out) if it comes
+//! within [`ANSWER_WITHIN_MS`] of it.
 
 use config_schema::limits::MAX_PEERS;
 use config_schema::link_keys::LinkKeys;
@@ -120,6 +121,28 @@ pub struct PeerSecurity {
 /// greetings and their retries ([`crate::restart::GREETED_WITHIN_MS`]), no longer (an
 /// answer to an older nonce, captured, would set the floor as long as it is repeated).
 pub const REPEAT_MS: u64 = crate::restart::GREETED_WITHIN_MS;
+
+/// An answer sets the floor only if it comes soon after the challenge (its last copy, for
+/// a repeated nonce): far later than a peer answers on a busy medium, and soon, so that
+/// an answer captured and held back from the node cannot set an old floor later (the
+/// frames above it, refused while there was no floor, would then be taken as fresh).
+/// Timed in ticks of [`ANSWER_TICK_MS`] (a `u32` a sender): an answer within
+/// `ANSWER_WITHIN_MS` always counts, one [`ANSWER_TICK_MS`] later or more never does.
+pub const ANSWER_WITHIN_MS: u64 = ANSWER_TICKS as u64 * ANSWER_TICK_MS;
+/// The tick of [`ANSWER_WITHIN_MS`].
+pub const ANSWER_TICK_MS: u64 = 1 << TICK_SHIFT;
+const TICK_SHIFT: u32 = 10;
+const ANSWER_TICKS: u32 = 2;
+
+/// `now` in ticks of [`ANSWER_TICK_MS`] (a `u32` wraps after 139 years).
+fn tick(now: u64) -> u32 {
+    (now >> TICK_SHIFT) as u32
+}
+
+/// Whether an answer at tick `now` comes in time for a challenge sent at tick `sent`.
+fn in_time(now: u32, sent: u32) -> bool {
+    now.wrapping_sub(sent) <= ANSWER_TICKS
+}
 
 /// Whether `peer` may be sent another handshake frame at `now`, at most one per
 /// `every` ms (if so, the next may go at `now + every`).
@@ -352,7 +375,7 @@ impl PeerSecurity {
             };
         }
         if floor.is_none() {
-            if self.challenges.answered(src, message) {
+            if self.challenges.answered(src, message, now) {
                 accept(
                     &mut self.replay,
                     src,
@@ -423,7 +446,7 @@ impl PeerSecurity {
     /// sent before the first of them is still below the floor its answer sets.
     pub fn challenge(&mut self, peer: u16, counter: u32, flags: u32, now: u64) -> u32 {
         let nonce = self.repeated_nonce(peer, counter | flags, now);
-        self.challenges.sent(peer, nonce);
+        self.challenges.sent(peer, nonce, now);
         nonce
     }
 
@@ -448,65 +471,70 @@ impl PeerSecurity {
 }
 
 /// Challenges a node sent and that were not answered yet: per sender the nonces of its
-/// last [`OUTSTANDING`] challenges, newest first; the sender challenged longest ago
-/// forgotten when full (shared by the management path and the peers').
+/// last [`OUTSTANDING`] challenges, newest first, and the tick the newest was last sent
+/// in (an answer sets the floor within [`ANSWER_WITHIN_MS`] of it only, and the older
+/// nonce is kept only if the newer went out within that time of it: none is answered more
+/// than twice that after it was sent); the sender challenged longest ago forgotten when
+/// full (shared by the management path and the peers').
 #[derive(Debug, Default)]
 pub struct Pending<const N: usize> {
-    sent: Vec<(u16, [Option<u32>; OUTSTANDING]), N>,
+    sent: Vec<Challenged, N>,
 }
 
 /// Challenges per sender whose answer still sets the floor.
 pub const OUTSTANDING: usize = 2;
+const _: () = assert!(OUTSTANDING == 2, "`sent` keeps the newest two");
 
-/// A sender and the nonces of its pending challenges.
-type Challenged = (u16, [Option<u32>; OUTSTANDING]);
+/// A sender, the nonces of its pending challenges and the tick the newest was last sent in.
+type Challenged = (u16, [Option<u32>; OUTSTANDING], u32);
 
 impl<const N: usize> Pending<N> {
-    /// `sender` was challenged with `nonce` (of its earlier challenges, the last
-    /// [`OUTSTANDING`] - 1 still count).
-    pub fn sent(&mut self, sender: u16, nonce: u32) {
-        sent(self.sent.as_mut_view(), sender, nonce)
+    /// `sender` was challenged with `nonce` at `now` (of its earlier challenges, the
+    /// last [`OUTSTANDING`] - 1 still count; a nonce sent again is one challenge, as
+    /// fresh as its last copy).
+    pub fn sent(&mut self, sender: u16, nonce: u32, now: u64) {
+        sent(self.sent.as_mut_view(), sender, nonce, now)
     }
 
-    /// Whether `message` from `sender` answers its pending challenge; if so it is no
-    /// longer pending.
-    pub fn answered<E>(&mut self, sender: u16, message: &Result<Message<'_>, E>) -> bool {
+    /// Whether `message` from `sender`, come at `now`, answers one of its pending
+    /// challenges in time; if so none of its challenges is pending any more.
+    pub fn answered<E>(&mut self, sender: u16, message: &Result<Message<'_>, E>, now: u64) -> bool {
         let Ok(Message::ChallengeAnswer { nonce }) = message else {
             return false;
         };
-        answered(self.sent.as_mut_view(), sender, *nonce)
+        answered(self.sent.as_mut_view(), sender, *nonce, now)
     }
 
     /// Forgets the challenges of senders not in `keep`.
     pub fn retain(&mut self, keep: &[u16]) {
-        self.sent.retain(|(s, _)| keep.contains(s));
+        self.sent.retain(|(s, _, _)| keep.contains(s));
     }
 }
 
 // `Pending`'s work on its entries' `VecView`: one copy for the management (4) and the
 // peer tables.
-fn sent(sent: &mut VecView<Challenged>, sender: u16, nonce: u32) {
-    match sent.iter_mut().find(|(s, _)| *s == sender) {
-        Some((_, nonces)) => {
-            crate::last_to_front(nonces);
-            nonces[0] = Some(nonce);
+fn sent(sent: &mut VecView<Challenged>, sender: u16, nonce: u32, now: u64) {
+    match sent.iter_mut().find(|(s, _, _)| *s == sender) {
+        Some((_, nonces, at)) => {
+            let [newest, _] = *nonces;
+            let fresh = in_time(tick(now), *at);
+            *nonces = [Some(nonce), newest.filter(|_| fresh)];
+            *at = tick(now);
         }
         None => {
             if sent.is_full() {
                 crate::to_end(sent, 0);
                 sent.pop();
             }
-            let mut nonces = [None; OUTSTANDING];
-            nonces[0] = Some(nonce);
-            let _ = sent.push((sender, nonces));
+            let _ = sent.push((sender, [Some(nonce), None], tick(now)));
         }
     }
 }
 
-fn answered(sent: &mut VecView<Challenged>, sender: u16, nonce: u32) -> bool {
+fn answered(sent: &mut VecView<Challenged>, sender: u16, nonce: u32, now: u64) -> bool {
     let Some(i) = sent
         .iter()
-        .position(|(s, n)| *s == sender && n.contains(&Some(nonce)))
+        .position(|(s, n, at)| *s == sender && n.contains(&Some(nonce)) && in_time(tick(now), *at))
     else {
         return false;
     };
@@ -934,6 +962,45 @@ mod tests {
             })
             .collect();
         assert_eq!(answered, [true, false, true]);
+    }
+
+    #[test]
+    fn an_answer_that_comes_long_after_its_challenge_does_not_set_the_floor() {
+        // An answer captured and kept from the node (its floor never set) and sent later
+        // would set an old floor: the peer's frames above it, refused while there was no
+        // floor, could then be replayed and acted on.
+        let answer = Message::ChallengeAnswer { nonce: 77 };
+        let mut c = SecurityCounters::default();
+        let late = ANSWER_WITHIN_MS + ANSWER_TICK_MS;
+        for (at, verdict_then) in [(ANSWER_WITHIN_MS, "answered"), (late, "challenge")] {
+            let mut s = PeerSecurity::default();
+            s.install(Some(keys(1)), &[PEER]);
+            s.challenge(PEER, 77, 0, 0);
+            assert_eq!(
+                verdict(&mut s, &frame(1, 10, &answer), at, &mut c),
+                verdict_then
+            );
+        }
+        // A repeated nonce is as fresh as its last challenge.
+        let mut s = PeerSecurity::default();
+        s.install(Some(keys(1)), &[PEER]);
+        s.challenge(PEER, 77, 0, 0);
+        assert_eq!(s.challenge(PEER, 78, 0, REPEAT_MS - 1), 77);
+        let at = REPEAT_MS - 1 + ANSWER_WITHIN_MS;
+        assert_eq!(
+            verdict(&mut s, &frame(1, 10, &answer), at, &mut c),
+            "answered"
+        );
+        // A challenge sent later does not make an old one's answer fresh again (a frame
+        // of the peer replayed to provoke it): the old nonce is dropped.
+        let mut s = PeerSecurity::default();
+        s.install(Some(keys(1)), &[PEER]);
+        s.challenge(PEER, 77, 0, 0);
+        s.challenge(PEER, 78, 0, late);
+        assert_eq!(
+            verdict(&mut s, &frame(1, 10, &answer), late, &mut c),
+            "challenge"
+        );
     }
 
     #[test]

@@ -437,6 +437,33 @@ fn after_a_reboot_a_replayed_start_is_challenged_and_never_runs() {
     assert_eq!(starts(&b), 1);
 }
 
+/// An answer held back from the node (captured, its copy to the node jammed) and sent
+/// long after the challenge sets no floor: else the START the node refused while it had
+/// none (the operator's, who gave up) could be replayed after it and run, minutes later.
+#[test]
+fn an_answer_held_back_and_sent_long_after_its_challenge_sets_no_floor() {
+    let (mut n, mut b) = booted();
+    let start = secured(5, &KEY, &command(1, Command::Start));
+    n.receive(&start, 0, &mut b);
+    let (_, payload) = open(&b.out[0]).unwrap();
+    let Ok(Message::Challenge { nonce }) = Message::parse(&payload) else {
+        panic!("not a challenge");
+    };
+    let answer = secured(4, &KEY, &message(&Message::ChallengeAnswer { nonce }));
+    let later = 60_000;
+    n.receive(&answer, later, &mut b);
+    n.receive(&start, later + 1, &mut b);
+    assert_eq!(starts(&b), 0);
+    // (The answer and the START challenged, as frames of a sender without a floor.)
+    assert_eq!(n.security_counters().challenged, 3);
+    // Within its time, the same answer sets the floor (below the START: it runs).
+    let (mut n, mut b) = booted();
+    n.receive(&start, 0, &mut b);
+    n.receive(&answer, node_fw::peer_security::ANSWER_WITHIN_MS, &mut b);
+    n.receive(&start, node_fw::peer_security::ANSWER_WITHIN_MS + 1, &mut b);
+    assert_eq!(starts(&b), 1);
+}
+
 proptest::proptest! {
     /// Random bytes, and a real secured START with any bytes flipped, cut or added (its
     /// FCS made good again or not): the node never starts and never answers.
