@@ -1,12 +1,13 @@
 //! `config-tool panel` without a browser: a second panel on the same port is refused
 //! with a clear error; a node that stops answering and a medium that goes away are said
 //! in the page's state (its server-sent events) and the buttons refused, by the server
-//! too; a panel off loopback needs its token; nothing hangs.
+//! too; a panel off loopback needs its token; CONFIRM releases the node a confirmed trial
+//! left without a role; nothing hangs.
 
 mod e2e_support;
 mod panel_support;
 
-use panel_support::{panel_on, Machine, Panel, ROBOT};
+use panel_support::{panel_on, text_of, Machine, Panel, ROBOT};
 
 fn buttons_enabled(state: &serde_json::Value) -> Vec<String> {
     let b = state["buttons"].as_object().expect("buttons");
@@ -421,4 +422,55 @@ fn a_panel_whose_output_is_closed_goes_on_serving() {
         200
     );
     assert_eq!(child.0.try_wait().expect("waits"), None, "still serving");
+}
+
+/// The panel's CONFIRM of a trial that moved VC to the spare node releases the node VC
+/// left (as `config-tool confirm` does: a rollback before it finds the machine as it was),
+/// and says so in its answer.
+#[test]
+fn the_panels_confirm_releases_the_node_a_confirmed_trial_left_without_a_role() {
+    let mut m = Machine::up("panel-confirm", None);
+    m.bed.start_node(0x0015).expect("the spare's process");
+    m.bed.wait_for_nodes(&[0x0015]).expect("the spare announces itself");
+    let homed = m.tool(&["home", &m.robot]);
+    assert!(homed.status.success(), "{}", text_of(&homed.stderr));
+    let moved = "robot-configs/paint-robot-spare-node.ron";
+    let trial = m.tool(&["push", moved, "--generation", "2", "--trial"]);
+    assert!(trial.status.success(), "{}", text_of(&trial.stderr));
+    let key = m.key.to_str().expect("utf-8 path").to_string();
+    let medium = m.medium();
+    let panel = Panel::start(&[
+        moved,
+        "--keys",
+        &key,
+        "--medium",
+        &medium,
+        "--listen",
+        "127.0.0.1:0",
+    ])
+    .expect("the panel starts");
+    let mut events = panel.events();
+    events.until("CONFIRM offered", |s| {
+        s["buttons"]["CONFIRM"]["enabled"] == true
+    });
+    assert_eq!(
+        panel.press("CONFIRM"),
+        (
+            200,
+            "generation 2 confirmed on 4 of 4 node(s); node 0x0011 (node-1) plays no role \
+             in this robot: released (it ran VC of generation 1; now no table runs there, \
+             its outputs are off)"
+                .to_string()
+        )
+    );
+    // (The panel holds the key file's counter while it runs.)
+    drop(events);
+    drop(panel);
+    let scan = m.tool(&["scan", moved]);
+    assert!(
+        text_of(&scan.stdout).contains("0x0011  firmware 1  generation 2  (no role)\n"),
+        "{}{}",
+        text_of(&scan.stdout),
+        text_of(&scan.stderr)
+    );
 }
