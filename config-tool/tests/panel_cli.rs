@@ -431,7 +431,9 @@ fn a_panel_whose_output_is_closed_goes_on_serving() {
 fn the_panels_confirm_releases_the_node_a_confirmed_trial_left_without_a_role() {
     let mut m = Machine::up("panel-confirm", None);
     m.bed.start_node(0x0015).expect("the spare's process");
-    m.bed.wait_for_nodes(&[0x0015]).expect("the spare announces itself");
+    m.bed
+        .wait_for_nodes(&[0x0015])
+        .expect("the spare announces itself");
     let homed = m.tool(&["home", &m.robot]);
     assert!(homed.status.success(), "{}", text_of(&homed.stderr));
     let moved = "robot-configs/paint-robot-spare-node.ron";
