@@ -6,8 +6,10 @@
 //! function places as `sim` has them, the pusher stopped by the fault contact's own node.
 //! The same on QEMU nodes booting the firmware image, at 20 % loss (skipped without the
 //! image unless `REQUIRE_QEMU` is set, as CI does once it has built it).
-//! The test waits for the demo process to end (each of its steps waits for events); no
-//! sleeps, no timing asserted.
+//! `config-tool plant` takes the operator's hand from its standard input (the fault
+//! contact, RELEASE, RESTART) and runs the transport's motor.
+//! The tests wait for the processes' lines and the nodes' reports (each step waits for
+//! events); no sleeps, no timing asserted.
 
 mod cli_support;
 mod e2e_support;
@@ -125,6 +127,95 @@ fn the_plant_command_runs_the_transports_motor() {
     assert_eq!(
         motions,
         [
+            "PUSHER clockwise",
+            "PUSHER at its end",
+            "PUSHER stopped",
+            "PUSHER counter-clockwise",
+            "PUSHER home",
+            "PUSHER stopped",
+        ]
+    );
+    drop(plant);
+    bed.stop();
+}
+
+/// `plant` with the operator at its standard input, at rest: the fault contact closed
+/// halts the machine and latches the cabinet's alarm; opened, then RELEASE, the fault
+/// detection is back to `Ok` and the alarm's cause gone; acknowledged, RESTART runs a full
+/// transport cycle. A line it cannot take is refused on standard error, naming the
+/// robot's inputs, and the plant goes on. Each step waits for the places the nodes report.
+#[test]
+fn the_plant_commands_operator_drives_the_fault_contact_and_the_buttons() {
+    use robot_net::demo::{self, Bed};
+    let c = e2e_support::robot("waterjet-transport.ron", 1);
+    let (mut bed, mut plant) = e2e_support::pushed_with_plant_process(&c, "waterjet-transport.ron");
+    // Waits until the functions `want` names are at those places (the statuses asked
+    // again and again, at most the test's timeout).
+    let places = |bed: &mut Bed, want: &[(&str, &str)]| {
+        let end = std::time::Instant::now() + e2e_support::TIMEOUT;
+        loop {
+            let statuses = bed.statuses(&c).expect("statuses");
+            let states: Vec<Option<Vec<u8>>> =
+                statuses.iter().map(|s| Some(s.states.to_vec())).collect();
+            let got = demo::functions(&c, &states);
+            if want
+                .iter()
+                .all(|w| got.iter().any(|g| (g.0.as_str(), g.1.as_str()) == *w))
+            {
+                return;
+            }
+            assert!(std::time::Instant::now() < end, "never {want:?}: {got:?}");
+        }
+    };
+    // The cabinet's (the role of `start`) alarms: (persists, acknowledged) each.
+    let cabinet = c.ir.start.as_ref().map_or(0, |s| s.0);
+    let alarms = |bed: &mut Bed, ack: bool| -> Vec<(bool, bool)> {
+        let reports = bed.alarms(&c, ack).expect("alarm reports");
+        (reports.get(cabinet).iter().flat_map(|r| r.alarms.iter()))
+            .map(|a| (a.persists, a.acked))
+            .collect()
+    };
+    // Waits until the cabinet reports `want` (what it learns from the pusher's node
+    // comes over the radio).
+    let alarms_until = |bed: &mut Bed, want: &[(bool, bool)]| {
+        let end = std::time::Instant::now() + e2e_support::TIMEOUT;
+        loop {
+            let got = alarms(bed, false);
+            if got == want {
+                return;
+            }
+            assert!(std::time::Instant::now() < end, "never {want:?}: {got:?}");
+        }
+    };
+    plant.type_line("JUMP");
+    assert_eq!(
+        plant.next_error(),
+        "plant: refused: no operator input `JUMP`: the robot's are FAULT, RELEASE, RESTART"
+    );
+    plant.type_line("FAULT on");
+    assert_eq!(plant.next_said(), "FAULT closed");
+    places(
+        &mut bed,
+        &[("FaultDetection", "Faulted"), ("Operation", "Halted")],
+    );
+    alarms_until(&mut bed, &[(true, false)]);
+    plant.type_line("FAULT off");
+    assert_eq!(plant.next_said(), "FAULT open");
+    places(&mut bed, &[("FaultDetection", "Cleared")]);
+    plant.type_line("RELEASE");
+    assert_eq!(plant.next_said(), "RELEASE pressed");
+    places(
+        &mut bed,
+        &[("FaultDetection", "Ok"), ("Operation", "Releasing")],
+    );
+    alarms_until(&mut bed, &[(false, false)]);
+    assert_eq!(alarms(&mut bed, true), [(false, true)]);
+    plant.type_line("RESTART");
+    let said: Vec<String> = (0..7).map(|_| plant.next_said()).collect();
+    assert_eq!(
+        said,
+        [
+            "RESTART pressed",
             "PUSHER clockwise",
             "PUSHER at its end",
             "PUSHER stopped",

@@ -6,6 +6,7 @@ pub mod export;
 pub mod keys;
 pub mod matrix;
 pub mod offline;
+pub mod operator;
 pub mod outputs;
 pub mod panel;
 pub mod radio;

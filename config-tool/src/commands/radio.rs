@@ -23,7 +23,7 @@ use robot_compiler::model::Security;
 use crate::cli::{
     HomeArgs, KeysArg, MachineArgs, MediumAddr, PushArgs, QemuNodeArgs, SwitchArgs, VerifyHow,
 };
-use crate::commands::{alarms, offline};
+use crate::commands::{alarms, offline, operator};
 use crate::failure::{exit, Failure};
 use crate::out::{errln, out, outln};
 use crate::tool_keys::{self, KeysFrom, KEYS_ENV};
@@ -1328,22 +1328,51 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
             })?;
         let conn = live_plant::attach_motors(medium, &actuators, &motors).map_err(attach_failed)?;
         let (operate, operated) = std::sync::mpsc::channel();
+        if !motors.inputs.is_empty() {
+            // The operator's inputs, a line of standard input each (its end leaves them
+            // where they are: the plant runs on).
+            outln!("{}", operator::usage(&motors.inputs));
+            let (inputs, to_plant) = (motors.inputs.clone(), operate.clone());
+            std::thread::spawn(move || {
+                let mut stdin = io::stdin().lock();
+                while let Ok(Some(line)) = operator::next_line(&mut stdin) {
+                    match line.and_then(|l| operator::parse(&inputs, &l)) {
+                        Ok(Some(op)) => {
+                            if to_plant.send(op).is_err() {
+                                break;
+                            }
+                        }
+                        Ok(None) => {}
+                        Err(why) => errln!("plant: refused: {why}"),
+                    }
+                }
+            });
+        }
         _operator = Some(operate);
         let (seen_tx, seen) = std::sync::mpsc::channel();
         let names: Vec<String> = motors.motors.iter().map(|m| m.name.clone()).collect();
+        let inputs = motors.inputs.clone();
         std::thread::spawn(move || {
+            use robot_net::live_motor::Motion;
             for m in seen {
-                let (motor, moved, at) = match m {
-                    robot_net::live_motor::Motion::Run { motor, run, at, .. } => {
-                        (motor, demo::Moved::Run(run), at)
+                let (line, at) = match m {
+                    Motion::Run { motor, run, at, .. } => {
+                        let name = names.get(motor).map_or("?", String::as_str);
+                        (format!("{name} {}", demo::Moved::Run(run)), at)
                     }
-                    robot_net::live_motor::Motion::Arrived { motor, end, at } => {
-                        (motor, demo::Moved::Arrived(end), at)
+                    Motion::Arrived { motor, end, at } => {
+                        let name = names.get(motor).map_or("?", String::as_str);
+                        (format!("{name} {}", demo::Moved::Arrived(end)), at)
                     }
-                    _ => continue,
+                    Motion::Input { input, level, at } => {
+                        match inputs.get(input).and_then(|i| operator::said(i, level)) {
+                            Some(line) => (line, at),
+                            None => continue,
+                        }
+                    }
+                    Motion::Held { .. } => continue,
                 };
-                let name = names.get(motor).map_or("?", String::as_str);
-                let _ = said_tx.send((at, format!("{name} {moved}")));
+                let _ = said_tx.send((at, line));
             }
         });
         let flag = stop.clone();

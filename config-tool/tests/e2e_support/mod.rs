@@ -805,10 +805,25 @@ pub fn run_tool(args: &[&str]) -> (Option<i32>, String, String) {
 pub struct PlantProcess {
     child: std::process::Child,
     lines: std::sync::mpsc::Receiver<String>,
+    errors: std::sync::mpsc::Receiver<String>,
     timeout: Duration,
 }
 
 impl PlantProcess {
+    /// Types `line` on its standard input, as the operator would.
+    pub fn type_line(&mut self, line: &str) {
+        use std::io::Write;
+        let stdin = self.child.stdin.as_mut().expect("stdin");
+        writeln!(stdin, "{line}").expect("the plant reads its standard input");
+    }
+
+    /// The next line it says on standard error, waiting at most the bed's timeout.
+    pub fn next_error(&self) -> String {
+        self.errors
+            .recv_timeout(self.timeout)
+            .expect("the plant said more on standard error")
+    }
+
     /// The next thing it says after the time column (`PUSHER clockwise`), waiting at most
     /// the bed's timeout.
     pub fn next_said(&self) -> String {
@@ -850,19 +865,26 @@ pub fn pushed_with_plant_process(c: &Compiled, name: &str) -> (Bed, PlantProcess
         .arg(Path::new("robot-configs").join(name))
         .arg("--medium")
         .arg(bed.medium().addr().to_string())
+        .stdin(std::process::Stdio::piped())
         .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
         .spawn()
         .expect("plant");
-    let (tx, lines) = std::sync::mpsc::channel();
-    let out = child.stdout.take().expect("stdout");
-    std::thread::spawn(move || {
-        for l in BufReader::new(out).lines().map_while(Result::ok) {
-            let _ = tx.send(l);
-        }
-    });
+    let lines_of = |from: Box<dyn std::io::Read + Send>| {
+        let (tx, lines) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for l in BufReader::new(from).lines().map_while(Result::ok) {
+                let _ = tx.send(l);
+            }
+        });
+        lines
+    };
+    let lines = lines_of(Box::new(child.stdout.take().expect("stdout")));
+    let errors = lines_of(Box::new(child.stderr.take().expect("stderr")));
     let plant = PlantProcess {
         child,
         lines,
+        errors,
         timeout,
     };
     while !(plant.lines.recv_timeout(timeout))

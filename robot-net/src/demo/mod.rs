@@ -24,5 +24,5 @@ pub use report::{
     push_summary, say,
 };
 pub use run::{generation_of, load, run, Demo, Verdict};
-pub use script::{fig9, simulate as simulate_script, Act, Expected, Moved};
+pub use script::{fig9, functions, simulate as simulate_script, Act, Expected, Moved};
 pub use station::{sort, Sorted};
