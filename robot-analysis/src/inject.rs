@@ -158,6 +158,8 @@ pub struct Detection {
     pub t_ms: u64,
     pub role: String,
     pub how: String,
+    /// The node's fault (`None`: a link alarm).
+    pub fault: Option<node_fw::ecc::Fault>,
 }
 
 /// A role, its fault (if any) and its output levels by name.
@@ -239,7 +241,7 @@ pub fn simulate(c: &Compiled, spec: &FaultSpec) -> Result<FaultRun, InjectError>
         inj_index..detected.as_ref().map_or(trace.len(), |d| d.0),
     );
     let watched = (detected.as_ref())
-        .filter(|(_, d)| d.how == WATCHDOG)
+        .filter(|(_, d)| matches!(d.fault, Some(node_fw::ecc::Fault::Action { code: 1, .. })))
         .and_then(|(i, d)| watched(c, plants, trace.get(..*i)?, &d.role));
     Ok(FaultRun {
         spec: spec.clone(),
@@ -442,15 +444,16 @@ fn reactions(
                     }
                     other => format!("{other:?}"),
                 };
-                Some((name(*node), how))
+                Some((name(*node), how, Some(*fault)))
             }
             What::LinkAlarm { node, peer } => Some((
                 name(*node),
                 format!("link alarm: {} does not acknowledge", name(*peer)),
+                None,
             )),
             _ => None,
         };
-        if let Some((role, how)) = text {
+        if let Some((role, how, fault)) = text {
             reactions.push((e.t_ms, format!("{role}: {how}")));
             if detected.is_none() {
                 detected = Some((
@@ -459,6 +462,7 @@ fn reactions(
                         t_ms: e.t_ms,
                         role,
                         how,
+                        fault,
                     },
                 ));
             }
