@@ -284,7 +284,7 @@ fn system(
 /// E_MERGEs joining the sources of the inputs several events feed, and a service FB per
 /// role, each mapped to the resource of its role on the device of the role's node; every
 /// chart input fed by one connection, from as many sources (through the E_MERGEs) as the
-/// robot routes to it.
+/// robot routes to it, each peer's event of one it subscribes from several counted.
 /// The paper's charts: exactly the connections the paper draws, the cut ones as
 /// PUBLISH / SUBSCRIBE pairs on the resources.
 #[test]
@@ -355,11 +355,17 @@ fn the_system_has_the_robots_instances_connections_and_mapping() {
         for i in &e.instances {
             let r = &c.ir.roles[i.role];
             for (k, input) in i.inputs.iter().enumerate() {
-                let routed = r
+                // A source per event routed to the input, or one per peer's event it
+                // stands for (a peer's fault, subscribed from each other node).
+                let routed: usize = r
                     .routes
                     .iter()
                     .filter(|(_, ch, x)| *ch == i.chart && *x == k)
-                    .count();
+                    .map(|(e, _, _)| {
+                        let imports = r.imports.iter().filter(|(_, _, l)| l == e).count();
+                        imports.max(1)
+                    })
+                    .sum();
                 let dest = format!("{}.{input}", i.name);
                 let direct = conns.iter().filter(|(_, d)| *d == dest).count();
                 assert!(direct <= 1, "{}: {dest}", path.display());

@@ -77,12 +77,34 @@ pub enum Same {
     /// The same tables, byte for byte.
     Tables,
     /// Other tables, the same `sim` run: per cycle the same actuator steps at the same
-    /// virtual times, the same duration, publications and faults ([`SIM_CYCLES`]).
+    /// virtual times, the same duration, publications and faults ([`SIM_CYCLES`]); and,
+    /// for a robot with a `sequence`, the same fault runs ([`fault_runs`]).
     Sim,
 }
 
 /// Cycles of the `sim` comparison.
 const SIM_CYCLES: usize = 3;
+
+/// A robot's fault runs, for comparing: for each step of `sequence` (the original's: the
+/// re-imported robot has none), its actuator stuck at that step (`sim --fault stuck:A@k`), what every node did (each
+/// fault and link alarm with its virtual time) and each node's fault and outputs after
+/// it. A cycle alone does not show a fault's path: an export that kept one peer of a
+/// chart input fed by several (a peer's fault from each of the others) ran the same
+/// cycles and stopped only the node that detected a jam.
+fn fault_runs(c: &Compiled, sequence: &str) -> Result<Vec<String>, String> {
+    let mut out = Vec::new();
+    for (k, step) in sequence.split_whitespace().enumerate() {
+        let actuator = step.trim_end_matches(['+', '-']);
+        let spec = format!("stuck:{actuator}@{}", k + 1);
+        let parsed = robot_analysis::inject::parse(&spec).map_err(|e| e.to_string())?;
+        let run = robot_analysis::inject::simulate(c, &parsed).map_err(|e| e.to_string())?;
+        out.push(format!(
+            "{spec}: {:?} then {:?}",
+            run.reactions, run.outputs
+        ));
+    }
+    Ok(out)
+}
 
 /// A robot's `sim` run, for comparing: per cycle its steps, duration, publications and
 /// faults, and every step with its virtual time.
@@ -130,13 +152,36 @@ pub fn sys_reimport_round_trip(robot: &Path, import: &Reimport) -> Result<Same, 
         return Ok(Same::Tables);
     }
     let (want, got) = (sim_run(&c)?, sim_run(&back)?);
-    if want.0.len() == SIM_CYCLES && want == got {
-        return Ok(Same::Sim);
+    if want.0.len() != SIM_CYCLES || want != got {
+        return Err(format!(
+            "{}: the re-imported robot's tables and sim run differ: {want:?} / {got:?}",
+            c.ir.name
+        ));
     }
-    Err(format!(
-        "{}: the re-imported robot's tables and sim run differ: {want:?} / {got:?}",
-        c.ir.name
-    ))
+    // Each role's own events, by kind (the boot event unhomes the machine when a node
+    // restarts: it came back only from the first of its sources before).
+    let own = |x: &Compiled| -> Vec<[bool; 3]> {
+        (x.tables.iter())
+            .map(|t| [t.start.is_some(), t.home.is_some(), t.boot.is_some()])
+            .collect()
+    };
+    if own(&c) != own(&back) {
+        return Err(format!(
+            "{}: the re-imported robot's start, home and boot events differ: {:?} / {:?}",
+            c.ir.name,
+            own(&c),
+            own(&back)
+        ));
+    }
+    let sequence = c.robot.sequence.as_deref().unwrap_or("");
+    let (want, got) = (fault_runs(&c, sequence)?, fault_runs(&back, sequence)?);
+    match (want.iter().zip(&got)).find(|(w, g)| w != g) {
+        None => Ok(Same::Sim),
+        Some((w, g)) => Err(format!(
+            "{}: the re-imported robot's fault runs differ: {w} / {g}",
+            c.ir.name
+        )),
+    }
 }
 
 /// Compiles the round trip's robot file (`reimport_ron`) at `path`; its errors as
@@ -164,7 +209,9 @@ fn reimport(path: &Path, src: &Source, c: &Compiled, e: &Export) -> Result<Compi
 ///   `ROLE_chart` and the timers `ROLE_chart.T`, but no name is in a table, and the
 ///   charts, events, variables and timers come back in the same order.
 /// - the sequence robots (paint-robot, -double-dip, -spare-node, -start-on-gr): the same
-///   `sim` run (`Same::Sim`), other tables. The export's vocabulary brings back what
+///   `sim` run and fault runs (`Same::Sim`), other tables. A chart input several peers'
+///   events feed (a peer's fault from each other node) comes back from its E_MERGE chain
+///   (the export kept only the first peer before: a jam stopped one node). The export's vocabulary brings back what
 ///   their lifted charts share: the role's timer `VC.watchdog` (one timer again, started
 ///   by the step and homing charts, its expiry read by the fault chart), the node events
 ///   `boot` and `home`, the input levels the homing guards read, the step chart's idle

@@ -62,18 +62,28 @@ pub fn connections(
     for inst in instances {
         let r = &c.ir.roles[inst.role];
         for (k, input) in inst.inputs.iter().enumerate() {
-            for (e, _, _) in r
+            // Each source of each event routed to the input: every import the local event
+            // stands for (several peers' events may be subscribed as one, a peer's fault
+            // from each of them), else the role's own event.
+            let sources = r
                 .routes
                 .iter()
                 .filter(|(_, ch, i)| *ch == inst.chart && *i == k)
-            {
-                let (from, event) = match r.imports.iter().find(|(_, _, local)| local == e) {
-                    Some((role, their, _)) => (
-                        c.ir.roles.iter().position(|x| &x.name == role).unwrap_or(0),
-                        their.clone(),
-                    ),
-                    None => (inst.role, e.clone()),
-                };
+                .flat_map(|(e, _, _)| {
+                    let imported: Vec<(usize, String)> = (r.imports.iter())
+                        .filter(|(_, _, local)| local == e)
+                        .map(|(role, their, _)| {
+                            let from = c.ir.roles.iter().position(|x| &x.name == role);
+                            (from.unwrap_or(0), their.clone())
+                        })
+                        .collect();
+                    if imported.is_empty() {
+                        vec![(inst.role, e.clone())]
+                    } else {
+                        imported
+                    }
+                });
+            for (from, event) in sources.collect::<Vec<_>>() {
                 let source = instances
                     .iter()
                     .filter(|i| i.role == from)
