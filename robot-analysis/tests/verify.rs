@@ -255,6 +255,54 @@ fn a_fault_publication_that_misses_a_node_is_caught() {
         .contains(&"  2. timer VC.watchdog of VC expires".to_string()));
 }
 
+/// A description whose VC no longer hears RC's fault (as the IEC 61499 export once
+/// brought the paint robot back: one peer's fault of three), its table likewise: when
+/// RC's watchdog fires, VC goes on running. VC hears the other nodes' faults, so it takes
+/// part in the machine's stop and must hear RC's too (the description alone said nothing
+/// was missing). The faults named as a robot imported from IEC 61499 names them, by the
+/// fault chart's output (`HC_fault.fault`): the property held for every imported robot,
+/// whatever its tables did, as it knew only the name `fault`.
+#[test]
+fn a_node_that_hears_faults_but_not_one_nodes_is_caught() {
+    let mut c = build(&load("../robot-configs/paint-robot.ron"));
+    let rc = c.ir.roles.iter().position(|r| r.name == "RC").expect("RC");
+    let rc_addr = c.ir.roles[rc].address;
+    for r in &mut c.ir.roles {
+        for (from, ev, _) in &mut r.imports {
+            if ev == "fault" {
+                *ev = format!("{from}_fault.fault");
+            }
+        }
+    }
+    let vc = &mut c.ir.roles[0];
+    let before = vc.imports.len();
+    vc.imports
+        .retain(|(from, ev, _)| !(from == "RC" && ev == "RC_fault.fault"));
+    assert_eq!(vc.imports.len(), before - 1);
+    let rc_fault = c.ir.roles[rc].event_id("fault").expect("RC's fault") as u8;
+    let topic = (c.tables[rc].publications.iter())
+        .find(|p| p.event == rc_fault)
+        .expect("RC publishes its fault")
+        .topic;
+    let t = &mut c.tables[0];
+    let rc_peer = t
+        .peers
+        .iter()
+        .position(|a| *a == rc_addr)
+        .expect("RC is a peer") as u8;
+    let subscribed = t.subscriptions.len();
+    t.subscriptions
+        .retain(|s| (s.publisher, s.topic) != (rc_peer, topic));
+    assert_eq!(t.subscriptions.len(), subscribed - 1);
+    c.blobs[0] = robot_compiler::compile::encode(&c.tables[0]).expect("encodes");
+    let v = run(&c, false).violation.expect("a violation");
+    assert_eq!(v.property, Property::FaultStop);
+    assert_eq!(
+        v.message,
+        "RC faulted but VC is still running (it does not hear that node's fault)"
+    );
+}
+
 /// With START pressed at any time, the small explicit-chart robot's mover extends again
 /// while it is still retracting: its chart returns to IDLE before A is home.
 #[test]

@@ -741,14 +741,27 @@ impl<'c> Model<'c> {
             }
             let r = &self.c.ir.roles[f];
             // Who must hear it: the roles the robot's description says subscribe to it
-            // (from the IR, so a table that lost a subscriber is caught).
+            // (from the IR, so a table that lost a subscriber is caught), and every other
+            // role that hears any node's fault (it takes part in the machine's stop, so a
+            // description that lost one of its subscriptions is caught too).
+            // (A fault chart's output is `fault`: the role's event `fault`, or `C.fault` of
+            // its chart `C` in a robot imported from IEC 61499.)
+            let fault =
+                |ev: &str| ev.rsplit('.').next() == Some(robot_compiler::synth::FAULT_EVENT);
             for (to, q) in self.c.ir.roles.iter().enumerate() {
-                let listens = q.imports.iter().any(|(from, ev, _)| {
-                    *from == r.name && ev == robot_compiler::synth::FAULT_EVENT
-                });
-                if listens && s.nodes[to].fault.is_none() && s.alarms & (1 << (f * n + to)) == 0 {
+                let listens = (q.imports.iter()).any(|(from, ev, _)| *from == r.name && fault(ev));
+                let takes_part = to != f && (q.imports.iter()).any(|(_, ev, _)| fault(ev));
+                if (listens || takes_part)
+                    && s.nodes[to].fault.is_none()
+                    && s.alarms & (1 << (f * n + to)) == 0
+                {
+                    let why = if listens {
+                        ""
+                    } else {
+                        " (it does not hear that node's fault)"
+                    };
                     return Some(format!(
-                        "{} faulted but {} is still running",
+                        "{} faulted but {} is still running{why}",
                         r.name, q.name
                     ));
                 }
