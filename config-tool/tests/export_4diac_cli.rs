@@ -118,3 +118,61 @@ fn a_type_that_cannot_be_exported_is_refused_at_its_place() {
     assert!(!dir.join("out").exists(), "nothing written");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// An export into the directory of the robot's own imported types (`Vc.fbt`, ...) would
+/// overwrite them with what the export made of them (the user's comments gone, a marker
+/// added): refused before anything is written, status 2, naming the file; so is a
+/// compile whose blob would land on the robot file.
+#[test]
+fn an_export_or_compile_that_would_overwrite_one_of_its_inputs_is_refused() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let dir = std::env::temp_dir().join(format!("export-4diac-inputs-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let types = dir.join("4diac/paint-robot");
+    std::fs::create_dir_all(&types).expect("dir");
+    std::fs::copy(
+        root.join("robot-configs/paint-robot-4diac.ron"),
+        dir.join("robot.ron"),
+    )
+    .expect("robot");
+    for entry in std::fs::read_dir(root.join("robot-configs/4diac/paint-robot")).expect("dir") {
+        let from = entry.expect("entry").path();
+        std::fs::copy(&from, types.join(from.file_name().expect("name"))).expect("copied");
+    }
+    let before = std::fs::read(types.join("Vc.fbt")).expect("Vc.fbt");
+    let run = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+            .args(args)
+            .current_dir(&dir)
+            .output()
+            .expect("runs");
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).to_string(),
+            String::from_utf8_lossy(&out.stderr).to_string(),
+        )
+    };
+    assert_eq!(
+        run(&["export-4diac", "robot.ron", "--out", "4diac/paint-robot"]),
+        (
+            Some(2),
+            String::new(),
+            "error: --out 4diac/paint-robot/Vc.fbt: that is 4diac/paint-robot/Vc.fbt, which \
+             this command reads: it would be overwritten\n"
+                .to_string()
+        )
+    );
+    assert_eq!(std::fs::read(types.join("Vc.fbt")).expect("Vc.fbt"), before);
+    assert!(!types.join("VC_IO.fbt").exists(), "nothing written");
+    std::fs::copy(dir.join("robot.ron"), dir.join("VC.bin")).expect("robot");
+    let (code, _, err) = run(&["compile", "VC.bin", "--out", "."]);
+    assert_eq!(
+        (code, err.as_str()),
+        (
+            Some(2),
+            "error: --out ./VC.bin: that is VC.bin, which this command reads: it would be \
+             overwritten\n"
+        )
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

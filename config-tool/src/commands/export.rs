@@ -32,6 +32,9 @@ pub fn export(robot: &Path, out: &Path) -> Result<(), Failure> {
             None => Failure::error(format!("{}: cannot export: {e}", robot.display())),
         }
     })?;
+    let inputs = super::outputs::robot_files(robot, &compiled.robot);
+    let names = exported.files.iter().map(|(name, _)| name.as_str());
+    super::outputs::none_an_input("--out", out, names, &inputs)?;
     let files = exported
         .files
         .iter()

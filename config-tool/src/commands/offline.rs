@@ -71,6 +71,8 @@ pub fn compile(robot: &Path, out: &Path, generation: Option<u32>) -> Result<(), 
         .iter()
         .map(|r| format!("{}.bin", r.name))
         .collect();
+    let inputs = super::outputs::robot_files(robot, &compiled.robot);
+    super::outputs::none_an_input("--out", out, names.iter().map(String::as_str), &inputs)?;
     let blobs = compiled.blobs.iter().map(Vec::as_slice);
     super::outputs::write_all(out, names.iter().map(String::as_str).zip(blobs))?;
     for line in pipeline::summary(&compiled) {

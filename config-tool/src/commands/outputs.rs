@@ -27,6 +27,19 @@ pub fn not_an_input(what: &str, out: &Path, inputs: &[PathBuf]) -> Result<(), Fa
     }
 }
 
+/// [`not_an_input`] for each file `names` would write into directory `dir` (`what`: the
+/// directory's flag).
+pub fn none_an_input<'a>(
+    what: &str,
+    dir: &Path,
+    names: impl IntoIterator<Item = &'a str>,
+    inputs: &[PathBuf],
+) -> Result<(), Failure> {
+    names
+        .into_iter()
+        .try_for_each(|name| not_an_input(what, &dir.join(name), inputs))
+}
+
 /// Whether two files' metadata are of the same file (`a` at `a_path`, `b` at `b_path`).
 #[cfg(unix)]
 fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata, _: &Path, _: &Path) -> bool {
