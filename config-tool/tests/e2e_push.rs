@@ -246,6 +246,45 @@ fn a_push_to_a_faulted_machine_names_the_faulted_nodes_at_once() {
     bed.stop();
 }
 
+/// After a watchdog's fault, every node reset: `start` said `not homed: run config-tool
+/// home`, and `home` then refused for the fault alarm still latched on VC. Now `start`
+/// names the alarm first (acknowledging it comes before homing); once acknowledged, it
+/// says the machine is not homed.
+#[test]
+fn a_start_after_the_resets_names_the_latched_alarm_before_homing() {
+    let dir = TempDir::new("start-latched");
+    let (paint_file, _) = unsecured_robot(&dir, "paint-robot.ron");
+    let paint_file = paint_file.to_str().expect("utf-8 path");
+    let (mut bed, paint) = paint_homed(&dir);
+    faulted(&mut bed, &paint);
+    for r in &paint.ir.roles {
+        bed.command(r.address, config_schema::wire::msg::Command::Reset)
+            .expect("reset");
+    }
+    let m = bed.medium().addr().to_string();
+    let (code, out, err) = run_tool(&["start", paint_file, "--medium", &m]);
+    assert_eq!(
+        (code, out.as_str(), err.as_str()),
+        (
+            Some(6),
+            "",
+            "error: node 0x0011 (VC) has a fault alarm latched: chart `fault`: its motion \
+             watchdog expired (code 0x81) (not acknowledged: config-tool ack), then home \
+             (config-tool home); START was not sent\n"
+        )
+    );
+    bed.alarms(&paint, true).expect("acknowledged");
+    let (code, _, err) = run_tool(&["start", paint_file, "--medium", &m]);
+    assert_eq!(
+        (code, err.as_str()),
+        (
+            Some(6),
+            "error: not homed: run config-tool home; START was not sent\n"
+        )
+    );
+    bed.stop();
+}
+
 /// A push while the machine is under way and stays so (HC's end switch never closes, its
 /// watchdog ten minutes): the switch-over waited out `--wait` and said `the machine was
 /// not idle within --wait`, every node `staged, not switched`, with no word of which

@@ -111,8 +111,15 @@ pub fn check(b: Button, c: &Compiled, live: &Live) -> Result<(), String> {
             if c.ir.start.is_none() && b == Button::Start {
                 return Err("the robot has no start input".into());
             }
+            // A machine only not homed: a latched fault alarm first (ACK comes before
+            // HOME, which refuses it), as `config-tool start` says it.
+            let not_homed =
+                (home::machine(&nodes)).is_some_and(|n| n.standing == home::Standing::NotHomed);
             if let Some(why) = home::refusal(&nodes, b == Button::Home) {
-                return Err(why.replace("run config-tool home", "HOME first"));
+                return Err(match blocking().filter(|_| not_homed) {
+                    Some(alarm) => format!("{alarm}, then HOME"),
+                    None => why.replace("run config-tool home", "HOME first"),
+                });
             }
             blocking().map_or(Ok(()), Err)
         }
@@ -264,6 +271,14 @@ mod tests {
         assert!(check(Button::Home, &c, &live)
             .unwrap_err()
             .starts_with("node 0x0013 (HC) has a fault alarm latched: "));
+        // START names the alarm too, then HOME (it said `not homed: HOME first`, and HOME
+        // was refused for the alarm).
+        let start = check(Button::Start, &c, &live).unwrap_err();
+        assert!(
+            start.starts_with("node 0x0013 (HC) has a fault alarm latched: ")
+                && start.ends_with("(ACK first), then HOME"),
+            "{start}"
+        );
         // An e-stop alarm whose button is still pressed (the node reset): what ends it.
         live.nodes[2].alarms.as_mut().unwrap().0.alarms[0] = Alarm {
             source: AlarmSource::EStop,

@@ -1055,7 +1055,13 @@ pub fn start(
     let mut ids = Ids::default();
     if let Some(c) = &c {
         let statuses = robot_statuses(&mut radio, &mut ids, c, "START was not sent")?;
-        if let Some(why) = home::refusal(&home::nodes(c, &statuses), false) {
+        let standing = home::nodes(c, &statuses);
+        // A machine only not homed: a latched fault alarm is said first (acknowledging it
+        // comes before homing, which refuses it).
+        let not_homed =
+            (home::machine(&standing)).is_some_and(|n| n.standing == home::Standing::NotHomed);
+        let refusal = home::refusal(&standing, false);
+        if let (Some(why), false) = (&refusal, not_homed) {
             return Err(Failure::refused(format!("{why}; START was not sent")));
         }
         let (nodes, silent) = node_alarms(&mut radio, &mut ids, c, Command::Alarms)?;
@@ -1063,6 +1069,14 @@ pub fn start(
             return Err(Failure::error(n.failure("START was not sent")));
         }
         if let Some(why) = alarms::blocking_text(c, &nodes) {
+            let then = if not_homed {
+                ", then home (config-tool home)"
+            } else {
+                ""
+            };
+            return Err(Failure::refused(format!("{why}{then}; START was not sent")));
+        }
+        if let Some(why) = refusal {
             return Err(Failure::refused(format!("{why}; START was not sent")));
         }
         home::after_greetings(&mut radio, nodes.iter().map(|n| n.report.now_ms))?;
