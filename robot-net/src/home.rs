@@ -362,14 +362,30 @@ fn faulted_text(nodes: &[Node]) -> String {
     format!("{who}: {resets}, acknowledge the alarms (config-tool ack), then config-tool home")
 }
 
-/// A node that faulted while homing (`code`, what it means in words: `meaning`), with the
-/// way out: reset it, acknowledge the alarm its fault latched (a node refuses HOME while
-/// one is), home again.
-pub fn homing_faulted_text(role: &str, addr: u16, code: u8, meaning: &str) -> String {
+/// A node that faulted while homing (`code`, what it means in words: `meaning`; `others`:
+/// the nodes its fault stopped), with the way out: reset each, acknowledge the alarms
+/// the faults latched (a node refuses HOME while one is), home again.
+pub fn homing_faulted_text(
+    role: &str,
+    addr: u16,
+    code: u8,
+    meaning: &str,
+    others: &[u16],
+) -> String {
+    let resets: Vec<String> = (std::iter::once(&addr).chain(others))
+        .map(|a| format!("config-tool reset --node {a:#06x}"))
+        .collect();
+    let (stopped, them) = match others {
+        [] => (String::new(), "it"),
+        _ => {
+            let each: Vec<String> = others.iter().map(|a| format!("{a:#06x}")).collect();
+            (format!(", which stopped {}", each.join(", ")), "each")
+        }
+    };
     format!(
-        "homing faulted: node {addr:#06x} ({role}): {meaning} (code {code:#04x}); reset it \
-         (config-tool reset --node {addr:#06x}), acknowledge the alarms (config-tool ack), \
-         then home again"
+        "homing faulted: node {addr:#06x} ({role}): {meaning} (code {code:#04x}){stopped}; \
+         reset {them} ({}), acknowledge the alarms (config-tool ack), then home again",
+        resets.join("; ")
     )
 }
 
@@ -443,14 +459,24 @@ pub enum HomeEnd {
     /// The home node answered the HOME command but did not start homing (armed for a
     /// switch-over).
     Ignored { role: String, addr: u16 },
-    /// A node faulted while homing.
-    Faulted { role: String, addr: u16, code: u8 },
+    /// A node faulted while homing (the one that detected the fault), and the addresses
+    /// of the other nodes faulted then (stopped by its fault: each needs a reset too).
+    Faulted {
+        role: String,
+        addr: u16,
+        code: u8,
+        others: Vec<u16>,
+    },
     /// Not every node at rest within the wait: the roles still moving or not homed.
     NotDone(Vec<String>),
 }
 
 /// How often the nodes' statuses are asked for while homing runs.
 pub const POLL: Duration = Duration::from_millis(50);
+
+/// Rounds of statuses asked at most after a node faulted while homing, until the faulted
+/// nodes are the same two rounds running.
+const SETTLE_ROUNDS: usize = 5;
 
 /// The status of every role's node of `c` (each asked until it answers, at most
 /// `timeout`).
@@ -590,8 +616,24 @@ pub fn home_from(
             .any(|n| matches!(n.standing, Standing::Faulted(_)))
         {
             // Once more, every node: the one that detected it has faulted by the time a
-            // peer shows its fault; it is named, not the peer.
-            let after = nodes(c, &statuses(radio, ids, c, answer_within)?);
+            // peer shows its fault; it is named, not the peer. Then until the faulted
+            // nodes are the same two rounds running (its fault reaches the others over
+            // the radio; each needs a reset), a few rounds at most.
+            let faulted = |n: &[Node]| -> Vec<u16> {
+                (n.iter())
+                    .filter(|n| matches!(n.standing, Standing::Faulted(_)))
+                    .map(|n| n.addr)
+                    .collect()
+            };
+            let mut after = nodes(c, &statuses(radio, ids, c, answer_within)?);
+            for _ in 0..SETTLE_ROUNDS {
+                let again = nodes(c, &statuses(radio, ids, c, answer_within)?);
+                let same = faulted(&again) == faulted(&after);
+                after = again;
+                if same {
+                    break;
+                }
+            }
             return Ok((detector(&after), t0.elapsed()));
         }
         if settled && now.iter().all(|n| n.standing == Standing::Homed) {
@@ -681,6 +723,10 @@ fn detector(nodes: &[Node]) -> HomeEnd {
             role: n.role.clone(),
             addr: n.addr,
             code,
+            others: (nodes.iter())
+                .filter(|o| o.addr != n.addr && matches!(o.standing, Standing::Faulted(_)))
+                .map(|o| o.addr)
+                .collect(),
         },
         None => HomeEnd::NotDone(Vec::new()),
     }
@@ -716,14 +762,29 @@ pub(crate) mod tests {
     }
 
     /// A node faulted while homing: reset, then the ack its alarm needs (the next `home`
-    /// refuses a latched fault alarm; it said `reset, then home again`), then home.
+    /// refuses a latched fault alarm; it said `reset, then home again`), then home. Every
+    /// node its fault stopped is reset too (it named only the one that detected it, and
+    /// following it `ack` and `home` refused for the others).
     #[test]
-    fn a_homing_fault_says_reset_ack_then_home() {
+    fn a_homing_fault_says_reset_each_ack_then_home() {
         assert_eq!(
-            homing_faulted_text("VC", 0x11, 0x81, "its motion watchdog expired"),
+            homing_faulted_text("VC", 0x11, 0x81, "its motion watchdog expired", &[]),
             "homing faulted: node 0x0011 (VC): its motion watchdog expired (code 0x81); reset \
              it (config-tool reset --node 0x0011), acknowledge the alarms (config-tool ack), \
              then home again"
+        );
+        assert_eq!(
+            homing_faulted_text(
+                "HC",
+                0x13,
+                0x81,
+                "its motion watchdog expired",
+                &[0x11, 0x12]
+            ),
+            "homing faulted: node 0x0013 (HC): its motion watchdog expired (code 0x81), which \
+             stopped 0x0011, 0x0012; reset each (config-tool reset --node 0x0013; config-tool \
+             reset --node 0x0011; config-tool reset --node 0x0012), acknowledge the alarms \
+             (config-tool ack), then home again"
         );
     }
 
@@ -985,7 +1046,8 @@ pub(crate) mod tests {
             HomeEnd::Faulted {
                 role: "HC".into(),
                 addr: 0x13,
-                code: 0x81
+                code: 0x81,
+                others: vec![0x11],
             }
         );
         assert_eq!(
@@ -993,7 +1055,8 @@ pub(crate) mod tests {
             HomeEnd::Faulted {
                 role: "VC".into(),
                 addr: 0x11,
-                code: PEER_FAULT
+                code: PEER_FAULT,
+                others: vec![],
             }
         );
     }

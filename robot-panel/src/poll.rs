@@ -410,7 +410,9 @@ impl Poll {
                 "refused: node {addr:#06x} ({role}) did not start homing (armed for a \
                  switch-over?)"
             ),
-            HomeEnd::Faulted { role, addr, code } => format!(
+            HomeEnd::Faulted {
+                role, addr, code, ..
+            } => format!(
                 "homing faulted: node {addr:#06x} ({role}): {} (code {code:#04x})",
                 demo::fault_meaning(code)
             ),

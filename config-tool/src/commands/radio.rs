@@ -1256,13 +1256,19 @@ pub fn home(flags: &HomeArgs) -> Result<(), Failure> {
             "node {addr:#06x} ({role}) did not start homing (armed for a switch-over?): \
              finish the push first"
         ))),
-        home::HomeEnd::Faulted { role, addr, code } => Err(Failure {
+        home::HomeEnd::Faulted {
+            role,
+            addr,
+            code,
+            others,
+        } => Err(Failure {
             code: exit::FAULTED,
             ..Failure::error(home::homing_faulted_text(
                 &role,
                 addr,
                 code,
                 &demo::fault_meaning(code),
+                &others,
             ))
         }),
         home::HomeEnd::NotDone(waiting) => Err(Failure::error(format!(

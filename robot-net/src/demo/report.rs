@@ -124,7 +124,9 @@ pub fn homed_line(h: &Homing) -> String {
         HomeEnd::Ignored { role, addr } => {
             format!("homing did not start: node {addr:#06x} ({role}) ignored HOME")
         }
-        HomeEnd::Faulted { role, addr, code } => format!(
+        HomeEnd::Faulted {
+            role, addr, code, ..
+        } => format!(
             "homing FAULTED: node {addr:#06x} ({role}): {}",
             fault_meaning(*code)
         ),
@@ -314,6 +316,7 @@ mod tests {
             role: "HC".into(),
             addr: 0x0013,
             code: 0x81,
+            others: vec![0x0011],
         };
         assert_eq!(
             homed_line(&h),
