@@ -732,7 +732,7 @@ fn a_secured_scan_finds_every_node_while_another_tool_asks_all_the_time() {
         .collect();
     assert_eq!(
         silent,
-        ["0x0015  (spare)  did not answer (node spare)"],
+        ["0x0015  (no role)  did not answer (node spare)"],
         "{found}"
     );
     medium.stop();

@@ -194,7 +194,7 @@ fn a_push_releases_a_node_of_the_robot_that_plays_no_role_and_still_runs_one() {
         "{found}"
     );
     // Released, it has nothing to say at the next push; nor once it is off (asked for 1 s,
-    // it did not answer).
+    // it did not answer: no role moved in this push).
     for generation in ["3", "4"] {
         let (code, out, err) =
             run_tool(&["push", moved, "--medium", &m, "--generation", generation]);
@@ -206,6 +206,72 @@ fn a_push_releases_a_node_of_the_robot_that_plays_no_role_and_still_runs_one() {
         );
         bed.kill_node(0x0011);
     }
+    bed.stop();
+}
+
+/// VC moved to the spare while VC's old node was off (a failed node, sent for repair):
+/// the push said nothing of it, and once the node was on again it ran VC beside the spare
+/// (its START input and valves live) with `scan` showing it as VC and `status` calling it
+/// `not a node of this robot`. Now the push names the silent node and the way to release
+/// it, `scan` and `status` say it plays no role but runs VC, and the next push releases it.
+#[test]
+fn a_node_a_role_moved_away_from_while_it_was_off_is_named_until_released() {
+    let dir = TempDir::new("push-off-node");
+    let flash = TempDir::new("push-off-node-flash");
+    let (_, paint) = unsecured_robot(&dir, "paint-robot.ron");
+    let mut opts = options(medium::Config::default(), Some(&flash));
+    opts.secured = false;
+    let mut bed = bring_up(&paint, opts);
+    push_and_home(&mut bed, &paint);
+    bed.start_node(0x0015).expect("the spare's process");
+    bed.wait_for_nodes(&[0x0015])
+        .expect("the spare announces itself");
+    let (moved, _) = unsecured_robot(&dir, "paint-robot-spare-node.ron");
+    let moved = moved.to_str().expect("utf-8 path");
+    let m = bed.medium().addr().to_string();
+    bed.kill_node(0x0011);
+    let (code, out, err) = run_tool(&["push", moved, "--medium", &m, "--generation", "2"]);
+    assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
+    assert_eq!(
+        out.lines().last(),
+        Some(
+            "node 0x0011 (node-1) plays no role in this robot and did not answer: if it is \
+             off and runs a table (a role moved away from it), it runs that table again when \
+             it is on: push again then to release it"
+        ),
+        "{out}"
+    );
+    // On again, from its flash: VC of generation 1.
+    bed.start_node(0x0011).expect("node-1 again");
+    assert_eq!(status(&mut bed, 0x0011).role.as_str(), "VC");
+    let (code, found, _) = run_tool(&["scan", moved, "--medium", &m]);
+    assert_eq!(code, Some(0));
+    assert!(
+        found.contains(
+            "0x0011  firmware 1  generation 1  VC  plays no role in this robot but runs VC of \
+             generation 1: push again to release it\n"
+        ),
+        "{found}"
+    );
+    let (code, said, _) = run_tool(&["status", moved, "--node", "0x0011", "--medium", &m]);
+    assert_eq!(code, Some(0));
+    assert!(
+        said.contains(
+            "  homing: plays no role in this robot but runs VC of generation 1: push again to \
+             release it\n"
+        ),
+        "{said}"
+    );
+    let (code, out, err) = run_tool(&["push", moved, "--medium", &m, "--generation", "3"]);
+    assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
+    assert_eq!(
+        out.lines().last(),
+        Some(
+            "node 0x0011 (node-1) plays no role in this robot: released (it ran VC of \
+             generation 1; now no table runs there, its outputs are off)"
+        ),
+        "{out}"
+    );
     bed.stop();
 }
 

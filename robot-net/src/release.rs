@@ -30,14 +30,18 @@ pub enum Release {
 }
 
 /// The nodes robot `c` declares with no role that run a table, released at `generation`
-/// (or named, as `how` says): a line for each, in words. A node that does not answer
-/// within [`ASK_QUIET`], or runs no table, has nothing to say.
+/// (or named, as `how` says): a line for each, in words. A node that runs no table has
+/// nothing to say; one that does not answer within [`ASK_QUIET`] is named, with the way
+/// to release it, when `name_silent` (a role moved in this push: the node it moved away
+/// from may be off, and runs that role again when it is on) and it would have been
+/// released.
 pub fn roleless(
     radio: &mut ToolRadio,
     ids: &mut Ids,
     c: &Compiled,
     generation: u32,
     how: Release,
+    name_silent: bool,
 ) -> io::Result<Vec<String>> {
     let roleless: Vec<_> = (c.robot.nodes.iter())
         .filter(|n| c.ir.roles.iter().all(|r| r.address != n.address))
@@ -47,6 +51,10 @@ pub fn roleless(
     }
     let addrs: Vec<u16> = roleless.iter().map(|n| n.address).collect();
     let answers = push::statuses_of(radio, ids, &addrs, ASK_QUIET)?;
+    let silent: Vec<String> = (roleless.iter().zip(&answers))
+        .filter(|(_, a)| name_silent && a.is_err())
+        .map(|(n, _)| silent_text(&n.name, n.address))
+        .collect();
     let running: Vec<(&robot_compiler::model::Node, Status)> = (roleless.into_iter().zip(answers))
         .filter_map(|(n, a)| Some((n, a.ok().filter(|s| !s.role.is_empty())?)))
         .collect();
@@ -59,7 +67,7 @@ pub fn roleless(
         }
     };
     if running.is_empty() {
-        return Ok(Vec::new());
+        return Ok(silent);
     }
     let blob = release_blob(c, generation).map_err(|e| io::Error::other(e.to_string()))?;
     let targets: Vec<Target> = (running.iter())
@@ -86,7 +94,27 @@ pub fn roleless(
             let released = o.switched().then_some(()).ok_or_else(|| o.verdict());
             released_text(&n.name, n.address, s, released)
         })
+        .chain(silent)
         .collect())
+}
+
+/// A node of the robot that plays no role in it (`name` at `addr`) and did not answer,
+/// in words: what it may run, and how to release it.
+pub fn silent_text(name: &str, addr: u16) -> String {
+    format!(
+        "node {addr:#06x} ({name}) plays no role in this robot and did not answer: if it is \
+         off and runs a table (a role moved away from it), it runs that table again when it \
+         is on: push again then to release it"
+    )
+}
+
+/// A node of the robot that plays no role in it and runs role `role` of `generation`, as
+/// `scan` and `status` say it.
+pub fn stale_text(role: &str, generation: u32) -> String {
+    format!(
+        "plays no role in this robot but runs {role} of generation {generation}: push again \
+         to release it"
+    )
 }
 
 /// The blob that releases a node from robot `c` (it plays no role in it): a table with

@@ -450,7 +450,7 @@ impl Poll {
         if confirmed == nodes.len() {
             let how = release::Release::Now { force: false };
             let (radio, ids) = (&mut self.radio, &mut self.ids);
-            for line in release::roleless(radio, ids, &c, generation, how)? {
+            for line in release::roleless(radio, ids, &c, generation, how, false)? {
                 said.push_str("; ");
                 said.push_str(&line);
             }

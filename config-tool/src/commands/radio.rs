@@ -250,6 +250,12 @@ pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(),
                 if s.trial { " on trial" } else { "" },
                 format!("  {}", standing_text(c, *addr, s)),
             ),
+            // A node the robot declares with no role that still runs one (the role moved
+            // away while it was off): said, with the way out.
+            (Some(c), None) if !a.role.is_empty() && declared_roleless(c, *addr) => (
+                "",
+                format!("  {}", release::stale_text(&a.role, a.generation)),
+            ),
             _ => ("", String::new()),
         };
         outln!(
@@ -285,7 +291,7 @@ pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(),
             .filter(|n| !found.contains_key(&n.address))
         {
             let role = c.ir.roles.iter().find(|r| r.address == n.address);
-            let role = role.map_or("(spare)", |r| r.name.as_str());
+            let role = role.map_or("(no role)", |r| r.name.as_str());
             outln!(
                 "{:#06x}  {role}  did not answer (node {})",
                 n.address,
@@ -345,8 +351,11 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
         ANSWER_WITHIN,
     )
     .map_err(|e| lost(e, Phase::Transfer))?;
-    if !flags.stage_only && !flags.now {
-        none_faulted(&mut radio, &mut ids, &outcomes)?;
+    // Whether a role moves to a node that ran another (or none): then a node of the
+    // robot without a role that does not answer may be the one it moved away from.
+    let mut moved = false;
+    if !flags.stage_only {
+        moved = before_switch(&mut radio, &mut ids, &outcomes, !flags.now)?;
     }
     let verdict = if flags.stage_only {
         None
@@ -379,7 +388,7 @@ pub fn push(flags: &PushArgs) -> Result<(), Failure> {
         } else {
             release::Release::Now { force: flags.force }
         };
-        release_roleless_nodes(&mut radio, &mut ids, &c, (c.ir.generation, how))?;
+        release_roleless_nodes(&mut radio, &mut ids, &c, (c.ir.generation, how), moved)?;
     }
     // A trial is watched for --watch / --watch-cycles, else for the window the robot
     // declares.
@@ -541,25 +550,28 @@ fn elsewhere_without_peers(
 /// idle point: the switch-over would wait out `--wait` for nothing), every one named with
 /// the ways out; the lines of the push are printed first. A node that does not answer has
 /// no say here (the switch-over finds it silent).
-fn none_faulted(
+fn before_switch(
     radio: &mut ToolRadio,
     ids: &mut Ids,
     outcomes: &[push::Pushed],
-) -> Result<(), Failure> {
+    refuse_faulted: bool,
+) -> Result<bool, Failure> {
     let staged: Vec<&push::Pushed> = (outcomes.iter())
         .filter(|o| o.progress == Progress::Done && !o.running)
         .collect();
     if staged.is_empty() {
-        return Ok(());
+        return Ok(false);
     }
     let addrs: Vec<u16> = staged.iter().map(|o| o.addr).collect();
     let answers = push::statuses_of(radio, ids, &addrs, ANSWER_WITHIN)
         .map_err(|e| lost(e, Phase::Transfer))?;
+    let moved = (staged.iter().zip(&answers))
+        .any(|(o, a)| a.as_ref().is_ok_and(|s| s.role.as_str() != o.role));
     let faulted: Vec<(u16, &str, u8)> = (staged.iter().zip(answers))
         .filter_map(|(o, a)| Some((o.addr, o.role.as_str(), a.ok()?.fault?)))
         .collect();
-    let Some(why) = home::faulted_push_text(&faulted) else {
-        return Ok(());
+    let Some(why) = home::faulted_push_text(&faulted).filter(|_| refuse_faulted) else {
+        return Ok(moved);
     };
     push_lines(outcomes);
     Err(Failure {
@@ -576,9 +588,10 @@ fn release_roleless_nodes(
     ids: &mut Ids,
     c: &robot_compiler::Compiled,
     (generation, how): (u32, release::Release),
+    name_silent: bool,
 ) -> Result<(), Failure> {
-    let lines =
-        release::roleless(radio, ids, c, generation, how).map_err(|e| lost(e, Phase::Release))?;
+    let lines = release::roleless(radio, ids, c, generation, how, name_silent)
+        .map_err(|e| lost(e, Phase::Release))?;
     for line in lines {
         outln!("{line}");
     }
@@ -845,8 +858,17 @@ fn standing_text(c: &robot_compiler::Compiled, node: u16, s: &Status) -> String 
                 None => text,
             }
         }
+        None if declared_roleless(c, node) => match s.role.is_empty() {
+            true => "plays no role in this robot".to_string(),
+            false => release::stale_text(&s.role, s.generation),
+        },
         None => "not a node of this robot".to_string(),
     }
+}
+
+/// Whether robot `c` declares node `addr` and gives it no role.
+fn declared_roleless(c: &robot_compiler::Compiled, addr: u16) -> bool {
+    c.robot.nodes.iter().any(|n| n.address == addr) && c.ir.roles.iter().all(|r| r.address != addr)
 }
 
 /// The status of `node` if it is a node of robot `c`'s roles (`None`: another node).
@@ -970,7 +992,13 @@ pub fn confirm(flags: &MachineArgs) -> Result<(), Failure> {
     if all {
         // The trial kept: the nodes that play no role in it are released now.
         let how = release::Release::Now { force: false };
-        release_roleless_nodes(&mut radio, &mut Ids::default(), &c, (generation, how))
+        release_roleless_nodes(
+            &mut radio,
+            &mut Ids::default(),
+            &c,
+            (generation, how),
+            false,
+        )
     } else {
         Err(Failure {
             code: exit::PUSH_FAILED,
