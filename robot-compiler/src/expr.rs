@@ -241,7 +241,21 @@ impl Parser {
             let Some(&(_, op)) = ops.iter().find(|(s, _)| self.eat(s)) else {
                 return Ok(left);
             };
+            let start = self.span().start;
             let right = next(self)?;
+            // A divisor of literals only that is 0: every evaluation faults the node.
+            if matches!(op, BinOp::Div | BinOp::Rem) && eval(&right, &|_| None) == Some(0) {
+                let end = (self.at.checked_sub(1))
+                    .and_then(|i| self.toks.get(i))
+                    .map_or(start, |t| t.1.end);
+                return Err(ExprError {
+                    message: String::from(
+                        "division by zero: this divisor is always 0 (a node evaluating it \
+                         faults)",
+                    ),
+                    span: start..end.max(start),
+                });
+            }
             left = Ast::Bin(op, Box::new(left), Box::new(right));
             if !chain {
                 if ops.iter().any(|(s, _)| *self.peek() == Tok::Sym(s)) {

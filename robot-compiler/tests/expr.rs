@@ -176,3 +176,20 @@ fn deep_nesting_and_long_chains_are_refused_at_their_place() {
     assert_eq!(&long[span.clone()], "E", "the 1025th token: {span:?}");
     assert_eq!(span.start, 512 * "END && ".len());
 }
+
+/// A divisor of literals only that is 0 faults every node that evaluates it: refused at
+/// the divisor (`1 / 0` passed `check` and faulted the node in `sim`); one that reads a
+/// variable, or is not 0, is taken.
+#[test]
+fn a_divisor_that_is_always_zero_is_refused_at_it() {
+    let zero = (
+        "division by zero: this divisor is always 0 (a node evaluating it faults)".to_string(),
+        4..5,
+    );
+    assert_eq!(error("1 / 0"), zero);
+    assert_eq!(error("1 % 0"), zero);
+    assert_eq!(error("count / (2 - 2) + 1").1, 8..15);
+    assert_eq!(ops("count / (3 - 2)").len(), 5);
+    assert_eq!(ops("1 / count").len(), 3);
+    assert_eq!(ops("0 / 1").len(), 3);
+}

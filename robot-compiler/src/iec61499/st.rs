@@ -731,7 +731,16 @@ impl<'n> Parser<'n> {
                 );
             }
             self.bump();
+            let right_at = self.span();
             let right = self.binary(level + 1)?;
+            // A divisor of literals only that is 0 (folded to `0`): every evaluation faults
+            // the node.
+            if matches!(op, "/" | "%") && right.1 == Ty::Int(None) && right.0 == "0" {
+                return err(
+                    right_at,
+                    "division by zero: this divisor is always 0 (a node evaluating it faults)",
+                );
+            }
             left = match (level, left.1, right.1) {
                 (0..=2, Ty::Bool, Ty::Bool) => (format!("({} {op} {})", left.0, right.0), Ty::Bool),
                 (0..=2, _, _) => {
@@ -1111,6 +1120,15 @@ mod tests {
             e("CV := ABS(CV);").message,
             "function calls (`ABS(...)`) are not supported"
         );
+        // A divisor of literals that is 0: refused at it (it faulted the node at run time).
+        let zero = StError {
+            message: "division by zero: this divisor is always 0 (a node evaluating it faults)"
+                .to_string(),
+            span: 11..12,
+        };
+        assert_eq!(e("CV := CV / 0;"), zero);
+        assert_eq!(e("CV := CV MOD (2 - 2);").span, 13..14);
+        assert!(algorithm("CV := CV / (3 - 2);", &names()).is_ok());
     }
 
     #[test]
