@@ -121,9 +121,20 @@ fn the_plant_command_feeds_the_stations_balls() {
     let (mut bed, plant) = e2e_support::pushed_with_plant_process(&c, "ball-sorter.ron");
     bed.press_start(&c).expect("START");
     let mut landed = Vec::new();
+    // Landings are stamped on the medium's clock, as the steps are: each after the first
+    // push that fed a ball (they were stamped from the plant's start, seconds before).
+    let mut first_push = None;
     while landed.len() < 13 {
-        let said = plant.next_said();
+        let (at, said) = plant.next_timed();
+        if said.starts_with("PUSHER+") {
+            first_push.get_or_insert(at);
+        }
         if said.starts_with("ball ") {
+            let pushed = first_push.expect("a push before a landing");
+            assert!(
+                at >= pushed,
+                "{said} at {at} s, the first push at {pushed} s"
+            );
             landed.push(said);
         }
     }

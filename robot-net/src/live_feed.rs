@@ -48,7 +48,7 @@ pub struct Landing {
     pub bin: usize,
     /// Gates it met while they moved (not taking it), by actuator name.
     pub met_moving: Vec<String>,
-    /// Since the plant started.
+    /// Since the start the plant was given (the medium's clock zero for `plant`).
     pub at: Duration,
 }
 

@@ -281,16 +281,17 @@ pub fn run_attached(
 }
 
 /// [`run_attached`] with a sorting station's ball feed ([`crate::live_feed`]), on a
-/// connection made by [`attach_fed`]; every ball that lands is sent to `landed`.
+/// connection made by [`attach_fed`]; every ball that lands is sent to `landed`, stamped
+/// from `start` (the medium's clock zero, [`medium_start`], stamps them as the steps are).
 pub fn run_fed(
     conn: Conn,
     actuators: Vec<Actuator>,
-    feed: BallFeed,
+    (feed, start): (BallFeed, Instant),
     landed: Sender<Landing>,
     steps: Sender<Stroke>,
     stop: Arc<AtomicBool>,
 ) -> io::Result<()> {
-    let feed = Running::new(feed, landed, Instant::now());
+    let feed = Running::new(feed, landed, start);
     run_with(conn, actuators, None, Some(feed), None, steps, stop)
 }
 

@@ -1344,9 +1344,20 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
     // The operator's requests to the motors: none from here, but the plant runs while
     // their sender lives.
     let mut _operator = None;
+    // The medium's clock zero: what the plant says beside the steps is stamped on it.
+    let medium_start = || {
+        live_plant::medium_start(medium, Duration::from_secs(2))
+            .map_err(attach_failed)?
+            .ok_or_else(|| {
+                Failure::error(format!(
+                    "plant on {medium}: the medium did not tell its clock"
+                ))
+            })
+    };
     let handle = if let Some(s) = &c.robot.sorting {
         // A sorting station: the robot's feed at its sensors, each ball's landing said.
         let balls = robot_net::live_feed::ball_feed(&c, &actuators, &s.feed)?;
+        let start = medium_start()?;
         let conn = live_plant::attach_fed(medium, &actuators, &balls).map_err(attach_failed)?;
         outln!("feed: {} ball(s): {}", s.feed.len(), s.feed.join(" "));
         let (landed_tx, landed) = std::sync::mpsc::channel::<robot_net::live_feed::Landing>();
@@ -1363,17 +1374,11 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
         });
         let flag = stop.clone();
         std::thread::spawn(move || {
-            live_plant::run_fed(conn, actuators, balls, landed_tx, steps_tx, flag)
+            live_plant::run_fed(conn, actuators, (balls, start), landed_tx, steps_tx, flag)
         })
     } else if !motors.motors.is_empty() || !motors.inputs.is_empty() {
         // Motors: their carriages timed on the medium's clock, each motion said.
-        let start = live_plant::medium_start(medium, Duration::from_secs(2))
-            .map_err(attach_failed)?
-            .ok_or_else(|| {
-                Failure::error(format!(
-                    "plant on {medium}: the medium did not tell its clock"
-                ))
-            })?;
+        let start = medium_start()?;
         let conn = live_plant::attach_motors(medium, &actuators, &motors).map_err(attach_failed)?;
         let (operate, operated) = std::sync::mpsc::channel();
         if !motors.inputs.is_empty() {

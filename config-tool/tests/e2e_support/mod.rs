@@ -827,13 +827,20 @@ impl PlantProcess {
     /// The next thing it says after the time column (`PUSHER clockwise`), waiting at most
     /// the bed's timeout.
     pub fn next_said(&self) -> String {
+        self.next_timed().1
+    }
+
+    /// The next line it says: its time column (seconds) and what follows it.
+    pub fn next_timed(&self) -> (f64, String) {
         let line = self
             .lines
             .recv_timeout(self.timeout)
             .expect("the plant said more");
         let line = line.trim_start();
         line.split_once("  ")
-            .map_or(String::new(), |(_, l)| l.to_string())
+            .map_or((f64::NAN, String::new()), |(t, l)| {
+                (t.trim().parse().unwrap_or(f64::NAN), l.to_string())
+            })
     }
 }
 

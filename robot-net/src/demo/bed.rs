@@ -363,6 +363,7 @@ impl Bed {
         let (tx, flag) = (self.steps_tx.clone(), stop.clone());
         let (landed_tx, landed) = mpsc::channel();
         let handle = std::thread::spawn(move || {
+            let feed = (feed, std::time::Instant::now());
             live_plant::run_fed(conn, actuators, feed, landed_tx, tx, flag)
         });
         self.plant = Some((stop, handle));
