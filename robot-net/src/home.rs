@@ -237,6 +237,9 @@ pub struct Node {
     /// Its links are secured (the robot's `security`): each generation has link keys of
     /// its own, so a node shares none with a peer on another generation.
     pub secured: bool,
+    /// The robot has a homing sequence (else a machine whose faults are cleared is
+    /// started again, not homed).
+    pub homes: bool,
 }
 
 /// Where every role's node stands; `statuses` in role order.
@@ -256,6 +259,7 @@ pub fn nodes(c: &Compiled, statuses: &[Status]) -> Vec<Node> {
                 .map(|(_, &p)| p)
                 .collect(),
             secured: c.robot.security == Security::On,
+            homes: c.ir.home.is_some(),
         })
         .collect()
 }
@@ -350,7 +354,7 @@ fn split_generations(nodes: &[Node]) -> Option<String> {
 
 /// The faulted nodes of `nodes`, every one of them, with the operator's way out: reset
 /// each, acknowledge the alarms the faults latched (a node refuses HOME while one is),
-/// then home.
+/// then home (a robot without homing: start).
 fn faulted_text(nodes: &[Node]) -> String {
     let faulted: Vec<(u16, &str, u8)> = (nodes.iter())
         .filter_map(|n| match n.standing {
@@ -359,7 +363,12 @@ fn faulted_text(nodes: &[Node]) -> String {
         })
         .collect();
     let (who, resets) = faulted_words(&faulted);
-    format!("{who}: {resets}, acknowledge the alarms (config-tool ack), then config-tool home")
+    // A robot without homing rests where its faults are cleared: started again.
+    let then = match nodes.first().is_none_or(|n| n.homes) {
+        true => "config-tool home",
+        false => "config-tool start",
+    };
+    format!("{who}: {resets}, acknowledge the alarms (config-tool ack), then {then}")
 }
 
 /// A node that faulted while homing (`code`, what it means in words: `meaning`; `others`:
@@ -998,6 +1007,7 @@ pub(crate) mod tests {
             trial: false,
             stalled: Vec::new(),
             secured: true,
+            homes: true,
         }
     }
 
@@ -1101,6 +1111,12 @@ pub(crate) mod tests {
                  acknowledge the alarms (config-tool ack), then config-tool home"
             )
         );
+        // A robot without homing (a station) is started again: `home` says there is
+        // nothing to home.
+        let station = two.map(|n| Node { homes: false, ..n });
+        assert!(refusal(&station, false).is_some_and(
+            |r| r.ends_with("acknowledge the alarms (config-tool ack), then config-tool start")
+        ));
         let moving = [
             node("VC", 0x11, Standing::Moving),
             node("GR", 0x12, Standing::Homed),
