@@ -800,7 +800,8 @@ fn a_switch_over_that_did_not_finish_is_refused_by_home_then_finished_by_push_or
     assert_eq!(out.status.code(), Some(3), "{}", text(&out.stdout));
     assert_eq!(
         text(&out.stderr),
-        "error: not every node staged its table: nothing switched\n"
+        "error: not every node staged its table: nothing switched; a node runs generation \
+         3: push with --generation 4\n"
     );
     // Pushed again as it was: RC switches, the others run it already.
     let out = push("3", &[]);

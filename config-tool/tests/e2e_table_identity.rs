@@ -64,7 +64,8 @@ fn a_robot_with_the_same_roles_and_charts_is_not_taken_for_the_running_one() {
         (code, err.as_str()),
         (
             Some(3),
-            "error: not every node staged its table: nothing switched\n"
+            "error: not every node staged its table: nothing switched; a node runs \
+             generation 1: push with --generation 2\n"
         ),
         "{out}"
     );

@@ -8,7 +8,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use config_schema::wire::medium::{Link, Peer};
-use config_schema::wire::msg::{Command, ConfigReply, Message, SecurityReport, Status};
+use config_schema::wire::msg::{Command, ConfigReply, Message, Refusal, SecurityReport, Status};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use medium::Conn;
 use node_fw::ota::Progress;
@@ -747,12 +747,25 @@ fn report_push(
     push_lines(outcomes);
     if !outcomes.iter().all(|o| o.progress == Progress::Done) {
         let silent = outcomes.iter().any(|o| o.progress == Progress::GaveUp);
+        // Refused as not newer than what a node runs: the generation to give.
+        let newest = (outcomes.iter())
+            .filter_map(|o| match o.progress {
+                Progress::Refused(Refusal::Stale { running }) if !o.running => Some(running),
+                _ => None,
+            })
+            .max();
         let hint = if plain && silent {
             "; the robot says `security: Off`, so its tables went in clear: a node with a \
              management key takes only secured frames (push a robot with security on, with \
              --keys)"
+                .to_string()
+        } else if let Some(running) = newest {
+            format!(
+                "; a node runs generation {running}: push with --generation {}",
+                running.saturating_add(1)
+            )
         } else {
-            ""
+            String::new()
         };
         return Err(Failure {
             code: exit::PUSH_FAILED,
