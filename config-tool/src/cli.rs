@@ -352,6 +352,14 @@ fn cycles(text: &str) -> Result<usize, String> {
     }
 }
 
+/// `home --wait S`: a whole number of seconds from 1 (homing takes time).
+fn homing_wait(text: &str) -> Result<u64, String> {
+    match text.parse::<u64>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err("a whole number of seconds from 1 (homing takes time)".to_string()),
+    }
+}
+
 /// `--faults N`: 1 to 8.
 fn faults(text: &str) -> Result<u8, String> {
     match text.parse::<u8>() {
@@ -485,7 +493,7 @@ pub struct HomeArgs {
     #[command(flatten)]
     pub at: MediumAddr,
     /// How long to wait for homing to end, seconds (at least 1: homing takes time).
-    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, default_value_t = 60, value_parser = homing_wait)]
     pub wait: u64,
     #[command(flatten)]
     pub keys: KeysArg,

@@ -817,6 +817,12 @@ fn arguments_no_run_can_honour_are_refused() {
             ],
             "error: the argument '--then <THEN>' cannot be used with '--no-reconfigure'",
         ),
+        (
+            // It said `0 is not in 1..18446744073709551615`.
+            &["home", "robot-configs/paint-robot.ron", "--wait", "0"],
+            "error: invalid value '0' for '--wait <WAIT>': a whole number of seconds from 1 \
+             (homing takes time)",
+        ),
     ] {
         let out = tool(args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");

@@ -336,3 +336,34 @@ fn provision_never_writes_over_the_machine_secret() {
         }
     }
 }
+
+/// `provision --out` with a board other than the host (whose key file it writes) is a
+/// command line that contradicts itself: status 2, as every such refusal (it was 1).
+#[test]
+fn provision_out_for_another_board_is_a_usage_error() {
+    let dir = scratch("provision-out-board");
+    let secret = fixed_secret(&dir);
+    let out = dir.join("node.key");
+    let o = tool(&[
+        "keys",
+        "provision",
+        "--keys",
+        s(&secret),
+        "--node",
+        "0x11",
+        "--board",
+        "qemu",
+        "--out",
+        s(&out),
+    ]);
+    assert_eq!(
+        (o.status.code(), text(&o.stderr)),
+        (
+            Some(2),
+            "error: --out writes the host board's key file: give --board host (or no \
+             --board)\n"
+                .to_string()
+        )
+    );
+    assert!(!out.exists());
+}

@@ -31,7 +31,7 @@ pub fn provision(
     force: bool,
 ) -> Result<(), Failure> {
     if out.is_some() && !matches!(board, None | Some(Board::Host)) {
-        return Err(Failure::error(
+        return Err(Failure::usage(
             "--out writes the host board's key file: give --board host (or no --board)",
         ));
     }
