@@ -84,11 +84,19 @@ pub fn write_secret_file(path: &Path, contents: &[u8], force: bool) -> Result<()
             path: path.to_path_buf(),
         });
     }
-    // `tempfile` creates the file with mode 0600 (O_EXCL, owner only).
+    if !dir.is_dir() {
+        let missing = io::Error::new(
+            io::ErrorKind::NotFound,
+            format!("no directory {}", dir.display()),
+        );
+        return Err(io_error(path)(missing));
+    }
+    // `tempfile` creates the file with mode 0600 (O_EXCL, owner only). Its errors name the
+    // temporary file, which the user never asked for: only their kind is kept.
     let mut tmp = tempfile::Builder::new()
         .prefix(".key-")
         .tempfile_in(dir)
-        .map_err(io_error(path))?;
+        .map_err(|e| io_error(path)(io::Error::from(e.kind())))?;
     set_owner_only(tmp.as_file()).map_err(io_error(path))?;
     tmp.write_all(contents).map_err(io_error(path))?;
     tmp.as_file().sync_all().map_err(io_error(path))?;
@@ -328,6 +336,22 @@ mod tests {
         assert_eq!(machine_secret_text(&s).as_str(), text);
         // Only the file is left: no temporary beside it.
         assert_eq!(std::fs::read_dir(&d).unwrap().count(), 1);
+    }
+
+    /// A key file in a directory that does not exist: said so, without the name of the
+    /// temporary file the write would have used (it said `... at path "nodir/.key-QaHBWk"`).
+    #[test]
+    fn a_key_file_in_a_missing_directory_says_so() {
+        let p = dir("nodir").join("not-there").join("machine.key");
+        let e = write_machine_secret(&p, false).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "{}: no directory {}",
+                p.display(),
+                p.parent().unwrap().display()
+            )
+        );
     }
 
     #[test]
