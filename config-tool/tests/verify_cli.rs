@@ -532,3 +532,54 @@ fn verify_faults_sets_the_fault_pulses_explored_and_refuses_a_count_out_of_range
         );
     }
 }
+
+/// The paint robot exported to IEC 61499 and brought back (its charts from the `.sys` and
+/// `.fbt` files, its sequence only what sim compares with): VC still takes the HOME
+/// command, but no homing sequence is declared to prove it against. It said `its charts
+/// take no HOME command`.
+#[test]
+fn a_robot_that_takes_home_without_a_declared_homing_says_so() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let dir = std::env::temp_dir().join(format!("verify-imported-home-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let exported = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["export-4diac", "robot-configs/paint-robot.ron", "--out"])
+        .arg(dir.join("x"))
+        .current_dir(&root)
+        .output()
+        .expect("runs");
+    assert_eq!(exported.status.code(), Some(0), "{}", text(&exported.stderr));
+    let mut types: Vec<String> = std::fs::read_dir(dir.join("x"))
+        .expect("exported")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".fbt"))
+        .map(|n| format!("\"x/{n}\""))
+        .collect();
+    types.sort();
+    let robot = std::fs::read_to_string(root.join("robot-configs/paint-robot.ron"))
+        .expect("robot")
+        .replace("sequence:", "expect:");
+    let close = robot.rfind(')').expect("the robot's end");
+    let robot = format!(
+        "{}    fb_types: [{}],\n    application: (file: \"x/paint_robot.sys\"),\n{}",
+        &robot[..close],
+        types.join(", "),
+        &robot[close..]
+    );
+    std::fs::write(dir.join("robot.ron"), robot).expect("written");
+    let out = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["verify", "robot.ron", "--only", "homing"])
+        .current_dir(&dir)
+        .output()
+        .expect("runs");
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stdout).ends_with(
+            "robot.ron: no homing to prove: role VC takes the HOME command, but the robot \
+             declares no homing sequence (`homing:`) to prove it against\n"
+        ),
+        "{}",
+        text(&out.stdout)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -218,9 +218,23 @@ pub fn verification(
             let h = verify::explore_homing(&model, opts);
             match &h {
                 Some(h) => text.push_str(&h.render(name, interlocks)),
-                None => text.push_str(&format!(
-                    "{name}: no homing to prove (its charts take no HOME command)\n"
-                )),
+                None => {
+                    // A role that takes HOME without the robot declaring its homing (a
+                    // robot brought back from IEC 61499): nothing to prove it against.
+                    let takes = (compiled.ir.roles.iter().zip(&compiled.tables))
+                        .find(|(_, t)| t.home.is_some())
+                        .map(|(r, _)| r.name.as_str());
+                    text.push_str(&match takes {
+                        Some(role) => format!(
+                            "{name}: no homing to prove: role {role} takes the HOME command, \
+                             but the robot declares no homing sequence (`homing:`) to prove \
+                             it against\n"
+                        ),
+                        None => format!(
+                            "{name}: no homing to prove (its charts take no HOME command)\n"
+                        ),
+                    })
+                }
             }
             h
         }
