@@ -548,7 +548,12 @@ fn a_robot_that_takes_home_without_a_declared_homing_says_so() {
         .current_dir(&root)
         .output()
         .expect("runs");
-    assert_eq!(exported.status.code(), Some(0), "{}", text(&exported.stderr));
+    assert_eq!(
+        exported.status.code(),
+        Some(0),
+        "{}",
+        text(&exported.stderr)
+    );
     let mut types: Vec<String> = std::fs::read_dir(dir.join("x"))
         .expect("exported")
         .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())

@@ -235,17 +235,27 @@ fn wanted(robot: &Robot, src: &Source, diags: &mut Vec<Diagnostic>) -> BTreeSet<
                         Diagnostic::error(src.span(&path), format!("unknown role `{r}`"))
                             .label("no role has this name"),
                     ),
-                    Some((at, rr)) if !known(at, rr) => diags.push(
-                        Diagnostic::error(
-                            src.span(&path),
-                            format!("unknown event `{e}` of role `{r}`"),
-                        )
-                        .label("no input, switch or chart output has this name")
-                        .help(format!(
-                            "events of `{r}`: {}",
-                            role_events(robot, rr).join(", ")
-                        )),
-                    ),
+                    Some((at, rr)) if !known(at, rr) => {
+                        // A source the robot file's `application.on` gives: at its key
+                        // there (the role's block was underlined); one the application's
+                        // XML gives: at its connection.
+                        let ron = (c.declared.as_ref()).and_then(|d| d.ron_on.get(key));
+                        let here = match ron {
+                            Some(k) => src.map_key_span("application.on", k),
+                            None => src.span(&path),
+                        };
+                        let d =
+                            Diagnostic::error(here, format!("unknown event `{e}` of role `{r}`"))
+                                .label("no input, switch or chart output has this name")
+                                .help(format!(
+                                    "events of `{r}`: {}",
+                                    role_events(robot, rr).join(", ")
+                                ));
+                        diags.push(match ron {
+                            Some(_) => d,
+                            None => d.of_chart(src, c, Some(key)),
+                        });
+                    }
                     Some(_) => {
                         wanted.insert((r.to_string(), e.to_string()));
                     }

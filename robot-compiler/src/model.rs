@@ -616,11 +616,13 @@ pub struct ChartInstance {
 }
 
 /// Where an application declares a chart, each place as `FILE:LINE:COL`: its `FB` element
-/// and the connection into each of its inputs.
+/// and the connection into each of its inputs; and the inputs the robot file's
+/// `application.on` feeds, each with its key there (`vc.START`).
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Declared {
     pub fb: String,
     pub on: BTreeMap<String, String>,
+    pub ron_on: BTreeMap<String, String>,
 }
 
 impl ChartInstance {

@@ -733,3 +733,28 @@ fn a_problem_of_an_application_chart_names_its_place_in_the_application() {
         ]
     );
 }
+
+/// An unknown event given in the robot file's `application.on` is named at its key there
+/// (the whole role block was underlined, far from it).
+#[test]
+fn an_unknown_event_of_application_on_is_named_at_its_key() {
+    let text = ROBOT
+        .replace("FBT", "[]")
+        .replace("ACTIONS", "{}")
+        .replace("\"c.CU\": \"PULSE\"", "\"c.CU\": \"PLUSE\"");
+    let dir = std::env::temp_dir().join(format!("iec61499-sys-on-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("a.sys"), SYS).unwrap();
+    let path = dir.join("r.ron").to_string_lossy().into_owned();
+    let src = Source::new(&path, text);
+    let checked = check::check(&src);
+    let _ = std::fs::remove_dir_all(&dir);
+    let errors: Vec<String> = (checked.diagnostics.iter())
+        .filter(|d| d.is_error())
+        .map(|d| d.short(&src).replace(&format!("{path}:"), "r.ron:"))
+        .collect();
+    assert_eq!(
+        errors,
+        ["r.ron:5:39: error: unknown event `PLUSE` of role `A`"]
+    );
+}

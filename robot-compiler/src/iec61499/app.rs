@@ -1267,6 +1267,9 @@ pub fn bring(
         let mut declared = Declared {
             fb: l.at.place(),
             on: BTreeMap::new(),
+            ron_on: (on.keys())
+                .map(|port| (port.clone(), format!("{}.{port}", l.name)))
+                .collect(),
         };
         let plant_here = plant_into
             .get(l.name.as_str())
