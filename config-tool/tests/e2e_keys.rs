@@ -7,6 +7,7 @@
 
 mod e2e_support;
 
+use std::io::{BufRead, BufReader, Write};
 use std::path::Path;
 use std::process::{Child, Command, Output, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -435,7 +436,8 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     assert_eq!(watched.status.code(), Some(3), "{}", text(&watched.stdout));
     assert!(
         text(&watched.stdout).ends_with(
-            "watching the trial for 1 s (rolled back to generation 4 unless confirmed)\n"
+            "watching the trial for 1 s (rolled back to generation 4 unless confirmed: type \
+             `confirm` here)\n"
         ),
         "{}",
         text(&watched.stdout)
@@ -447,6 +449,55 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     assert_eq!(
         status(&key_s, &m, "0x0011")[0],
         "0x0011  role VC  generation 4"
+    );
+    // A watched trial confirmed where it is watched: `confirm` typed on the push's
+    // standard input (a `confirm` from another terminal with the same key file is refused
+    // while the watch holds its counter file).
+    let mut watching = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args([
+            "push",
+            ROBOT,
+            "--keys",
+            &key_s,
+            "--medium",
+            &m,
+            "--generation",
+            "6",
+        ])
+        .args(["--trial", "--watch", "600"])
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .env_remove("CONFIG_TOOL_KEYS")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("push");
+    let mut lines = BufReader::new(watching.stdout.take().expect("stdout")).lines();
+    let watching_line = loop {
+        let line = lines.next().expect("push said more").expect("a line");
+        if line.starts_with("watching the trial") {
+            break line;
+        }
+    };
+    assert_eq!(
+        watching_line,
+        "watching the trial for 600 s (rolled back to generation 4 unless confirmed: type \
+         `confirm` here)"
+    );
+    writeln!(watching.stdin.as_mut().expect("stdin"), "confirm").expect("typed");
+    let rest: Vec<String> = lines.map_while(Result::ok).collect();
+    let done = watching.wait_with_output().expect("ends");
+    assert_eq!(
+        (done.status.code(), text(&done.stderr), rest),
+        (
+            Some(0),
+            String::new(),
+            vec!["confirmed: the trial generation stays".to_string()]
+        )
+    );
+    assert_eq!(
+        status(&key_s, &m, "0x0011")[0],
+        "0x0011  role VC  generation 6"
     );
 
     stop.store(true, Ordering::Relaxed);

@@ -283,7 +283,15 @@ fn watch_from_a_second_tool(
         let mut radio = second_tool(at, &secret);
         let every = Duration::from_millis(200);
         let mut ids = push::Ids::default();
-        push::watch_trial_for(&mut radio, &mut ids, &watched, 1, window, every, wait).unwrap()
+        push::watch_trial_for(
+            &mut radio,
+            &mut ids,
+            (&watched, 1),
+            window,
+            (every, wait),
+            &|| false,
+        )
+        .unwrap()
     })
 }
 

@@ -438,15 +438,21 @@ impl CycleCount {
 pub fn watch_trial_for(
     radio: &mut ToolRadio,
     ids: &mut Ids,
-    nodes: &[u16],
-    previous: u32,
+    (nodes, previous): (&[u16], u32),
     window: TrialWindow,
-    every: Duration,
-    wait: Duration,
+    (every, wait): (Duration, Duration),
+    confirm_asked: &dyn Fn() -> bool,
 ) -> io::Result<TrialEnd> {
     let end = window.time.map(|t| Instant::now() + t);
     let mut cycles = CycleCount::default();
+    // The generation on trial, as the nodes report it.
+    let mut trial = None;
     loop {
+        // Confirmed by whoever runs the watch (the tool's lock on its counter file keeps
+        // another tool of the same key file from confirming meanwhile).
+        if let (true, Some(generation)) = (confirm_asked(), trial) {
+            confirm(radio, nodes, generation, wait)?;
+        }
         let mut confirmed = true;
         for &node in nodes {
             let Some(s) = command(radio, ids, node, Command::Status, every.max(RETRY_FLOOR))?
@@ -459,6 +465,9 @@ pub fn watch_trial_for(
                 return Ok(TrialEnd::Faulted { node, rolled_back });
             }
             cycles.saw(node, s.cycles);
+            if s.trial {
+                trial = Some(s.generation);
+            }
             confirmed &= !s.trial;
         }
         if confirmed {
@@ -495,7 +504,14 @@ pub fn watch_trial(
         time: Some(window),
         cycles: None,
     };
-    watch_trial_for(radio, ids, nodes, previous, window, every, wait)
+    watch_trial_for(
+        radio,
+        ids,
+        (nodes, previous),
+        window,
+        (every, wait),
+        &|| false,
+    )
 }
 
 /// The least time a status is asked for before a watched node counts as not answering.

@@ -442,17 +442,35 @@ fn watch(
     let first = nodes.first().copied().unwrap_or(0);
     let previous = command(radio, &mut ids, first, Command::Status)?.previous;
     outln!(
-        "watching the trial for {} (rolled back to generation {previous} unless confirmed)",
+        "watching the trial for {} (rolled back to generation {previous} unless confirmed: \
+         type `confirm` here)",
         window_text(window)
     );
+    // `confirm` typed on standard input: this process holds the key file's counter, so
+    // another tool of the same key file cannot confirm while it watches.
+    let asked = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let said = asked.clone();
+    std::thread::spawn(move || {
+        let mut stdin = io::stdin().lock();
+        while let Ok(Some(line)) = operator::next_line(&mut stdin) {
+            match line {
+                Ok(l) if l.trim() == "confirm" => {
+                    said.store(true, std::sync::atomic::Ordering::Relaxed);
+                    break;
+                }
+                Ok(l) if l.trim().is_empty() => {}
+                _ => errln!("push: type `confirm` to keep the trial"),
+            }
+        }
+    });
+    let confirm_asked = || asked.load(std::sync::atomic::Ordering::Relaxed);
     let end = push::watch_trial_for(
         radio,
         &mut ids,
-        &nodes,
-        previous,
+        (&nodes, previous),
         window,
-        Duration::from_millis(500),
-        Duration::from_secs(wait),
+        (Duration::from_millis(500), Duration::from_secs(wait)),
+        &confirm_asked,
     )
     .map_err(Failure::error)?;
     match end {
