@@ -134,6 +134,11 @@ fn faulted(bed: &mut robot_net::demo::Bed, paint: &robot_compiler::Compiled) {
     }
 }
 
+/// What a push says of node-1 released after it ran VC of generation 1.
+const RELEASED_VC_1: &str = "node 0x0011 (node-1) plays no role in this robot: released (it \
+                             ran VC of generation 1; now no table runs there, its outputs \
+                             are off)";
+
 /// The VC role moved to the spare node (`paint-robot-spare-node.ron`, pushed from the
 /// command line): the node that lost it kept running its old table (nothing told it
 /// otherwise), and a START to it moved the cylinder still wired to it; `push` said
@@ -170,14 +175,7 @@ fn a_push_releases_a_node_of_the_robot_that_plays_no_role_and_still_runs_one() {
     // Confirmed: released.
     let (code, out, err) = run_tool(&["confirm", moved, "--medium", &m]);
     assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
-    assert_eq!(
-        out.lines().last(),
-        Some(
-            "node 0x0011 (node-1) plays no role in this robot: released (it ran VC of \
-             generation 1; now no table runs there, its outputs are off)"
-        ),
-        "{out}"
-    );
+    assert_eq!(out.lines().last(), Some(RELEASED_VC_1), "{out}");
     let released = status(&mut bed, 0x0011);
     assert_eq!(
         (
@@ -264,14 +262,7 @@ fn a_node_a_role_moved_away_from_while_it_was_off_is_named_until_released() {
     );
     let (code, out, err) = run_tool(&["push", moved, "--medium", &m, "--generation", "3"]);
     assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
-    assert_eq!(
-        out.lines().last(),
-        Some(
-            "node 0x0011 (node-1) plays no role in this robot: released (it ran VC of \
-             generation 1; now no table runs there, its outputs are off)"
-        ),
-        "{out}"
-    );
+    assert_eq!(out.lines().last(), Some(RELEASED_VC_1), "{out}");
     bed.stop();
 }
 
