@@ -583,8 +583,12 @@ fn before_switch(
     let addrs: Vec<u16> = staged.iter().map(|o| o.addr).collect();
     let answers = push::statuses_of(radio, ids, &addrs, ANSWER_WITHIN)
         .map_err(|e| lost(e, Phase::Transfer))?;
-    let moved = (staged.iter().zip(&answers))
-        .any(|(o, a)| a.as_ref().is_ok_and(|s| s.role.as_str() != o.role));
+    // A role moved: a node takes a role it did not run, on a machine that ran a
+    // generation before (a first push configures every node: nothing moved away).
+    let ran = |s: &Status| s.generation != 0;
+    let moved = (answers.iter()).any(|a| a.as_ref().is_ok_and(ran))
+        && (staged.iter().zip(&answers))
+            .any(|(o, a)| a.as_ref().is_ok_and(|s| s.role.as_str() != o.role));
     let faulted: Vec<(u16, &str, u8)> = (staged.iter().zip(answers))
         .filter_map(|(o, a)| Some((o.addr, o.role.as_str(), a.ok()?.fault?)))
         .collect();
