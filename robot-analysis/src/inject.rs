@@ -11,11 +11,13 @@
 
 use std::fmt::Write;
 
+use node_fw::ecc::Fault;
 use node_fw::sim::{Plant, SimError, TraceEntry, What, World};
 
 use crate::sim::{cycle_limit_ms, step_of, steps_text, SimulationError};
 use robot_compiler::compile::Compiled;
 use robot_compiler::ir::Step;
+use robot_compiler::synth::{FAULT_MOTION_TIMEOUT, FAULT_PEER};
 
 /// What is injected.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -159,7 +161,7 @@ pub struct Detection {
     pub role: String,
     pub how: String,
     /// The node's fault (`None`: a link alarm).
-    pub fault: Option<node_fw::ecc::Fault>,
+    pub fault: Option<Fault>,
 }
 
 /// A role, its fault (if any) and its output levels by name.
@@ -241,7 +243,15 @@ pub fn simulate(c: &Compiled, spec: &FaultSpec) -> Result<FaultRun, InjectError>
         inj_index..detected.as_ref().map_or(trace.len(), |d| d.0),
     );
     let watched = (detected.as_ref())
-        .filter(|(_, d)| matches!(d.fault, Some(node_fw::ecc::Fault::Action { code: 1, .. })))
+        .filter(|(_, d)| {
+            matches!(
+                d.fault,
+                Some(Fault::Action {
+                    code: FAULT_MOTION_TIMEOUT,
+                    ..
+                })
+            )
+        })
         .and_then(|(i, d)| watched(c, plants, trace.get(..*i)?, &d.role));
     Ok(FaultRun {
         spec: spec.clone(),
@@ -438,10 +448,13 @@ fn reactions(
         let text = match &e.what {
             What::Fault { node, fault } => {
                 let how = match fault {
-                    node_fw::ecc::Fault::Action { code: 1, .. } => String::from(WATCHDOG),
-                    node_fw::ecc::Fault::Action { code: 2, .. } => {
-                        String::from("a peer's fault (fault 2)")
-                    }
+                    Fault::Action {
+                        code: FAULT_MOTION_TIMEOUT,
+                        ..
+                    } => String::from(WATCHDOG),
+                    Fault::Action {
+                        code: FAULT_PEER, ..
+                    } => String::from("a peer's fault (fault 2)"),
                     other => format!("{other:?}"),
                 };
                 Some((name(*node), how, Some(*fault)))

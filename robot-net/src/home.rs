@@ -264,6 +264,20 @@ pub fn nodes(c: &Compiled, statuses: &[Status]) -> Vec<Node> {
         .collect()
 }
 
+/// Whether the machine `nodes` describe is only not homed: no node faulted, moving or
+/// running another table, one not homed ([`machine`]).
+pub fn only_not_homed(nodes: &[Node]) -> bool {
+    machine(nodes).is_some_and(|n| n.standing == Standing::NotHomed)
+}
+
+/// The addresses of the faulted nodes of `nodes`, in order.
+fn faulted_addrs(nodes: &[Node]) -> Vec<u16> {
+    (nodes.iter())
+        .filter(|n| matches!(n.standing, Standing::Faulted(_)))
+        .map(|n| n.addr)
+        .collect()
+}
+
 /// The machine as a whole: the first node that is not this robot's, else the first
 /// faulted, else the first moving; else not homed if any node is; else homed.
 pub fn machine(nodes: &[Node]) -> Option<&Node> {
@@ -628,16 +642,10 @@ pub fn home_from(
             // peer shows its fault; it is named, not the peer. Then until the faulted
             // nodes are the same two rounds running (its fault reaches the others over
             // the radio; each needs a reset), a few rounds at most.
-            let faulted = |n: &[Node]| -> Vec<u16> {
-                (n.iter())
-                    .filter(|n| matches!(n.standing, Standing::Faulted(_)))
-                    .map(|n| n.addr)
-                    .collect()
-            };
             let mut after = nodes(c, &statuses(radio, ids, c, answer_within)?);
             for _ in 0..SETTLE_ROUNDS {
                 let again = nodes(c, &statuses(radio, ids, c, answer_within)?);
-                let same = faulted(&again) == faulted(&after);
+                let same = faulted_addrs(&again) == faulted_addrs(&after);
                 after = again;
                 if same {
                     break;
@@ -732,9 +740,8 @@ fn detector(nodes: &[Node]) -> HomeEnd {
             role: n.role.clone(),
             addr: n.addr,
             code,
-            others: (nodes.iter())
-                .filter(|o| o.addr != n.addr && matches!(o.standing, Standing::Faulted(_)))
-                .map(|o| o.addr)
+            others: (faulted_addrs(nodes).into_iter())
+                .filter(|&a| a != n.addr)
                 .collect(),
         },
         None => HomeEnd::NotDone(Vec::new()),

@@ -44,7 +44,7 @@ pub fn roleless(
     name_silent: bool,
 ) -> io::Result<Vec<String>> {
     let roleless: Vec<_> = (c.robot.nodes.iter())
-        .filter(|n| c.ir.roles.iter().all(|r| r.address != n.address))
+        .filter(|n| plays_no_role(c, n.address))
         .collect();
     if roleless.is_empty() {
         return Ok(Vec::new());
@@ -96,6 +96,11 @@ pub fn roleless(
         })
         .chain(silent)
         .collect())
+}
+
+/// Whether robot `c` declares node `addr` and gives it no role.
+pub fn plays_no_role(c: &Compiled, addr: u16) -> bool {
+    c.robot.nodes.iter().any(|n| n.address == addr) && c.ir.roles.iter().all(|r| r.address != addr)
 }
 
 /// A node of the robot that plays no role in it (`name` at `addr`) and did not answer,

@@ -113,8 +113,7 @@ pub fn check(b: Button, c: &Compiled, live: &Live) -> Result<(), String> {
             }
             // A machine only not homed: a latched fault alarm first (ACK comes before
             // HOME, which refuses it), as `config-tool start` says it.
-            let not_homed =
-                (home::machine(&nodes)).is_some_and(|n| n.standing == home::Standing::NotHomed);
+            let not_homed = home::only_not_homed(&nodes);
             if let Some(why) = home::refusal(&nodes, b == Button::Home) {
                 return Err(match blocking().filter(|_| not_homed) {
                     Some(alarm) => format!("{alarm}, then HOME"),

@@ -252,7 +252,7 @@ pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(),
             ),
             // A node the robot declares with no role that still runs one (the role moved
             // away while it was off): said, with the way out.
-            (Some(c), None) if !a.role.is_empty() && declared_roleless(c, *addr) => (
+            (Some(c), None) if !a.role.is_empty() && release::plays_no_role(c, *addr) => (
                 "",
                 format!("  {}", release::stale_text(&a.role, a.generation)),
             ),
@@ -563,11 +563,13 @@ fn elsewhere_without_peers(
     )))
 }
 
-/// Before a switch-over at the idle point: the nodes that staged are asked their
-/// statuses, and faulted ones fail the push at once (a faulted machine never reaches its
-/// idle point: the switch-over would wait out `--wait` for nothing), every one named with
-/// the ways out; the lines of the push are printed first. A node that does not answer has
-/// no say here (the switch-over finds it silent).
+/// Before a switch-over: the nodes that staged are asked their statuses. With
+/// `refuse_faulted` (a switch-over at the idle point) faulted ones fail the push at once (a
+/// faulted machine never reaches its idle point: the switch-over would wait out `--wait`
+/// for nothing), every one named with the ways out; the lines of the push are printed
+/// first. A node that does not answer has no say here (the switch-over finds it silent).
+/// Returns whether a role moves (a node takes a role it did not run, on a machine that ran
+/// a generation): then a silent node without a role may be the one it moved away from.
 fn before_switch(
     radio: &mut ToolRadio,
     ids: &mut Ids,
@@ -893,17 +895,12 @@ fn standing_text(c: &robot_compiler::Compiled, node: u16, s: &Status) -> String 
                 None => text,
             }
         }
-        None if declared_roleless(c, node) => match s.role.is_empty() {
+        None if release::plays_no_role(c, node) => match s.role.is_empty() {
             true => "plays no role in this robot".to_string(),
             false => release::stale_text(&s.role, s.generation),
         },
         None => "not a node of this robot".to_string(),
     }
-}
-
-/// Whether robot `c` declares node `addr` and gives it no role.
-fn declared_roleless(c: &robot_compiler::Compiled, addr: u16) -> bool {
-    c.robot.nodes.iter().any(|n| n.address == addr) && c.ir.roles.iter().all(|r| r.address != addr)
 }
 
 /// The status of `node` if it is a node of robot `c`'s roles (`None`: another node).
@@ -1121,8 +1118,7 @@ pub fn start(
         let standing = home::nodes(c, &statuses);
         // A machine only not homed: a latched fault alarm is said first (acknowledging it
         // comes before homing, which refuses it).
-        let not_homed =
-            (home::machine(&standing)).is_some_and(|n| n.standing == home::Standing::NotHomed);
+        let not_homed = home::only_not_homed(&standing);
         let refusal = home::refusal(&standing, false);
         if let (Some(why), false) = (&refusal, not_homed) {
             return Err(Failure::refused(format!("{why}; START was not sent")));
@@ -1376,8 +1372,8 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
     // What else the plant reports, in words, beside the steps (balls, motors).
     let (said_tx, said) = std::sync::mpsc::channel::<(Duration, String)>();
     let said_steps = said_tx.clone();
-    // The operator's requests to the motors: none from here, but the plant runs while
-    // their sender lives.
+    // The operator's requests to the motors (its contacts and buttons, from standard
+    // input): the plant runs while their sender lives, after the input ends too.
     let mut _operator = None;
     // The medium's clock zero: what the plant says beside the steps is stamped on it.
     let medium_start = || {
