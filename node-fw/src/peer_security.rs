@@ -490,8 +490,8 @@ type Challenged = (u16, [Option<u32>; OUTSTANDING], u32);
 
 impl<const N: usize> Pending<N> {
     /// `sender` was challenged with `nonce` at `now` (of its earlier challenges, the
-    /// last [`OUTSTANDING`] - 1 still count; a nonce sent again is one challenge, as
-    /// fresh as its last copy).
+    /// last [`OUTSTANDING`] - 1 still count, if the newest went out in time; a nonce sent
+    /// again is as fresh as its last copy, and takes the older one's place too).
     pub fn sent(&mut self, sender: u16, nonce: u32, now: u64) {
         sent(self.sent.as_mut_view(), sender, nonce, now)
     }
