@@ -28,8 +28,9 @@ pub const MAGIC: [u8; 1] = [0xEC];
 /// declared alarms; 5: the bit-packed payload of [`crate::pack`] in an envelope of 12
 /// bytes instead of postcard in one of 16; 6: the packed payload's implicit shapes
 /// (routes one per chart input, chart inputs as their transitions use them, chain steps,
-/// default levels and safety) and its shorter codes, docs/table-format.md).
-pub const SCHEMA_VERSION: u16 = 6;
+/// default levels and safety) and its shorter codes; 7: each chart's resting states
+/// besides its idle one, docs/table-format.md).
+pub const SCHEMA_VERSION: u16 = 7;
 /// Bytes before the payload.
 pub const HEADER_LEN: usize = 8;
 /// Offset of the payload length (2 bytes, LE) in the header.

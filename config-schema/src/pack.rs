@@ -1,4 +1,4 @@
-//! The payload of a table blob (schema 6): the [`Table`] as a stream of bit fields, each
+//! The payload of a table blob (schema 7): the [`Table`] as a stream of bit fields, each
 //! as wide as the table's own counts make it. docs/table-format.md ("Payload") gives it
 //! field by field.
 //!
@@ -74,6 +74,15 @@ pub const fn bits(n: usize) -> u32 {
         0
     } else {
         usize::BITS - (n - 1).leading_zeros()
+    }
+}
+
+/// Bits of a chart's resting-state mask: one a state, for its first 32 states.
+const fn rest_width(states: usize) -> u32 {
+    if states < 32 {
+        states as u32
+    } else {
+        32
     }
 }
 
@@ -1028,17 +1037,27 @@ pub fn encode_form(
             w.count(states)?;
             w.count(transitions)?;
         }
-        let sw = wd.state(s_end.saturating_sub(prev.0));
+        let n_states = s_end.saturating_sub(prev.0);
+        let sw = wd.state(n_states);
         let implicit = !wide && inputs_are_implicit(c, t.transitions.get(prev.1..t_end));
         prev = (s_end, t_end);
         w.flag(implicit)?;
         if !implicit {
             w.count(usize::from(c.inputs))?;
         }
-        // Idle most often the first state, initial most often idle.
-        w.flag(c.idle == 0)?;
-        if c.idle != 0 {
+        // Idle most often the first state, initial most often idle. A chart that rests in
+        // other states too (rare) writes the idle state 0 after its flag, which no other
+        // chart writes (it sets the flag): its idle state and resting states follow.
+        if c.rests != 0 {
+            w.flag(false)?;
+            w.field(0, sw, "idle state")?;
             w.field(usize::from(c.idle), sw, "idle state")?;
+            w.field(c.rests as usize, rest_width(n_states), "resting states")?;
+        } else {
+            w.flag(c.idle == 0)?;
+            if c.idle != 0 {
+                w.field(usize::from(c.idle), sw, "idle state")?;
+            }
         }
         w.flag(c.initial == c.idle)?;
         if c.initial != c.idle {
@@ -1453,7 +1472,14 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
             let n = u8::try_from(r.count()).ok();
             r.ok_u8(n, PackError::Value("chart inputs"))
         };
-        let idle = if r.flag() { 0 } else { r.u8(sw) };
+        let (idle, rests) = match r.flag() {
+            true => (0, 0),
+            false => match r.u8(sw) {
+                // Resting states besides idle: idle, then their mask.
+                0 => (r.u8(sw), r.get(rest_width(s_end.saturating_sub(s_first)))),
+                idle => (idle, 0),
+            },
+        };
         let initial = if r.flag() { idle } else { r.u8(sw) };
         let chart = Chart {
             states_end: end8(&mut r, s_end, "states"),
@@ -1461,6 +1487,7 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
             inputs,
             initial,
             idle,
+            rests,
         };
         r.push(&mut t.charts, chart, "charts");
     }

@@ -152,6 +152,20 @@ pub struct Chart {
     /// actuator home. The machine is idle when every chart is in it; a table activated
     /// at the idle point starts its charts there.
     pub idle: u8,
+    /// The states besides `idle` where the chart also rests between cycles (a mode the
+    /// operator selected, kept from one cycle to the next), one bit each: bit `k` is
+    /// chart-local state `k` (so only the chart's first 32 states can be one). The machine
+    /// is idle with the chart in any of them; an activation at the idle point still
+    /// starts the chart in `idle`.
+    pub rests: u32,
+}
+
+impl Chart {
+    /// Whether the chart rests between cycles in chart-local `state`: its idle state or
+    /// one of its other resting states ([`Chart::rests`]).
+    pub fn rests_in(&self, state: u8) -> bool {
+        state == self.idle || (state < 32 && self.rests & (1 << state) != 0)
+    }
 }
 
 /// One ECC state.
@@ -422,6 +436,7 @@ impl Table {
                 inputs,
                 initial,
                 idle: initial,
+                rests: 0,
             };
             push(&mut self.charts, chart, "charts")
         })();

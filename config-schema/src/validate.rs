@@ -364,6 +364,12 @@ fn charts(t: &Table) -> Result<(), Invalid> {
                 return Err(Invalid::State { at, state });
             }
         }
+        // A resting state past the chart's states: the lowest such bit.
+        if n_states < 32 && chart.rests >> n_states != 0 {
+            let past = chart.rests >> n_states << n_states;
+            let state = past.trailing_zeros() as u8;
+            return Err(Invalid::State { at, state });
+        }
         for (ti, tr) in transitions.iter().enumerate() {
             transition_ok(
                 t,

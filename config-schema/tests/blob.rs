@@ -34,7 +34,7 @@ fn the_envelope_layout_is_exact() {
     assert_eq!(HEADER_LEN + TRAILER_LEN, 12);
     assert_eq!(b[0], 0xEC);
     assert_eq!(MAGIC, [0xEC]);
-    assert_eq!(b[1], 6, "schema version 6");
+    assert_eq!(b[1], 7, "schema version 7");
     assert_eq!(
         &b[2..6],
         &[0x04, 0x03, 0x02, 0x01],
@@ -46,7 +46,7 @@ fn the_envelope_layout_is_exact() {
     assert_eq!(
         envelope(&b),
         Ok(Envelope {
-            version: 6,
+            version: 7,
             generation: 0x0102_0304,
             payload_len: n,
             crc,
@@ -201,8 +201,11 @@ fn unsupported_version() {
     // Version 5: the first packed payload, without its implicit shapes.
     b[1] = 5;
     assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(5)));
-    b[1] = 7;
-    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(7)));
+    // Version 6: no resting states besides the idle one.
+    b[1] = 6;
+    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(6)));
+    b[1] = 8;
+    assert_eq!(decode(&b), Err(DecodeError::UnsupportedVersion(8)));
 }
 
 #[test]
@@ -492,4 +495,36 @@ fn any_one_field_at_an_edge_value_decodes_exactly_or_is_refused_by_the_validator
         // The sweep reaches both outcomes.
         assert!(sweep.exact > 50 && sweep.refused > 50, "{sweep:?}");
     }
+}
+
+/// A chart that rests in other states besides its idle one (schema 7) writes `idle is 0`
+/// false, then the idle state 0 (which no other chart writes), its idle state and a bit
+/// per state: 3 states take 1 + 2 + 2 + 3 bits where the flag alone was. A chart without
+/// them costs what it did in schema 6.
+#[test]
+fn a_chart_with_resting_states_writes_them_after_an_idle_state_of_0() {
+    use config_schema::pack::{self, SECTIONS};
+    let bits_of = |t: &Table| {
+        let mut marks = [0usize; SECTIONS.len()];
+        let mut buf = [0u8; 256];
+        pack::encode(t, &mut buf, Some(&mut marks)).unwrap();
+        marks[SECTIONS.len() - 1]
+    };
+    let mut t = Table::empty("r");
+    t.push_chart(0, 0, &[&[], &[], &[]], &[]).unwrap();
+    let plain = bits_of(&t);
+    t.charts[0].rests = 0b100;
+    assert_eq!(bits_of(&t), plain + 7);
+    assert_eq!(decode(&blob(&t)), Ok(t.clone()));
+    // Idle elsewhere, resting in 0 and 2.
+    t.charts[0].idle = 1;
+    t.charts[0].rests = 0b101;
+    assert_eq!(decode(&blob(&t)), Ok(t.clone()));
+    // One state: the flag false and no bits of state, then the mask's one bit.
+    let mut one = Table::empty("r");
+    one.push_chart(0, 0, &[&[]], &[]).unwrap();
+    let plain = bits_of(&one);
+    one.charts[0].rests = 1;
+    assert_eq!(bits_of(&one), plain + 1);
+    assert_eq!(decode(&blob(&one)), Ok(one));
 }

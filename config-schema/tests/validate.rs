@@ -258,6 +258,20 @@ fn states_and_chart_inputs() {
             state: 3
         }
     );
+    // Chart 1 has 2 states: state 1 may rest, state 2 is past them (in memory only: a
+    // blob holds one bit a state, so the encoder refuses the mask and no blob has it).
+    let mut t = realistic();
+    t.charts[1].rests = 0b110;
+    assert_eq!(
+        validate(&t),
+        Err(Invalid::State {
+            at: Place::Chart(1),
+            state: 2
+        })
+    );
+    t.charts[1].rests = 0b10;
+    assert_eq!(validate(&t), Ok(()));
+    assert_eq!(decode(&blob(&t)).map(|d| d.charts[1].rests), Ok(0b10));
     // Chart 0 has 5 inputs.
     assert_eq!(
         invalid(|t| t.transitions[down].trigger = Some(5)),
@@ -625,7 +639,8 @@ fn builders_keep_the_pools_consistent() {
             transitions_end: 1,
             inputs: 1,
             initial: 0,
-            idle: 0
+            idle: 0,
+            rests: 0
         }
     );
     assert_eq!(t.chart_states(0), 0..2);

@@ -139,6 +139,67 @@ fn the_plant_command_runs_the_transports_motor() {
     bed.stop();
 }
 
+/// Waits until the functions `want` names are at those places (the statuses asked again
+/// and again, at most the test's timeout).
+fn places(bed: &mut robot_net::demo::Bed, c: &robot_compiler::Compiled, want: &[(&str, &str)]) {
+    let end = std::time::Instant::now() + e2e_support::TIMEOUT;
+    loop {
+        let statuses = bed.statuses(c).expect("statuses");
+        let states: Vec<Option<Vec<u8>>> =
+            statuses.iter().map(|s| Some(s.states.to_vec())).collect();
+        let got = robot_net::demo::functions(c, &states);
+        if want
+            .iter()
+            .all(|w| got.iter().any(|g| (g.0.as_str(), g.1.as_str()) == *w))
+        {
+            return;
+        }
+        assert!(std::time::Instant::now() < end, "never {want:?}: {got:?}");
+    }
+}
+
+/// The transport ran once: after it the cabinet's `Operation` stayed in `Auto` (the mode
+/// the operator selected), which was neither its initial nor its idle place, so `start`
+/// refused `moving`, `status` said moving, and a push waited for an idle point that never
+/// came. `Auto` is a resting place of `Operation` now: `start` runs the transport again
+/// and again, and a push switches over between two transports.
+#[test]
+fn the_tools_start_runs_the_transport_again_and_a_push_switches_between_transports() {
+    let dir = e2e_support::TempDir::new("waterjet-again");
+    let (robot, c) = e2e_support::unsecured_robot(&dir, "waterjet-transport.ron");
+    let robot = robot.to_str().expect("utf-8 path");
+    let (mut bed, plant) = e2e_support::pushed_with_plant(&c, "waterjet-transport.ron", false);
+    let m = bed.medium().addr().to_string();
+    for _ in 0..2 {
+        let (code, _, err) = e2e_support::run_tool(&["start", robot, "--medium", &m]);
+        assert_eq!((code, err.as_str()), (Some(0), ""));
+        let motions: Vec<String> = (0..6).map(|_| plant.next_said()).collect();
+        assert_eq!(motions, TRANSPORT);
+        places(
+            &mut bed,
+            &c,
+            &[
+                ("Operation", "Auto"),
+                ("Transport", "ReadyToCut"),
+                ("Belt", "Stopped"),
+            ],
+        );
+    }
+    let (code, out, err) = e2e_support::run_tool(&[
+        "push",
+        robot,
+        "--medium",
+        &m,
+        "--generation",
+        "2",
+        "--wait",
+        "20",
+    ]);
+    assert_eq!((code, err.as_str()), (Some(0), ""), "{out}");
+    drop(plant);
+    bed.stop();
+}
+
 /// `plant` with the operator at its standard input, at rest: the fault contact closed
 /// halts the machine and latches the cabinet's alarm; opened, then RELEASE, the fault
 /// detection is back to `Ok` and the alarm's cause gone; acknowledged, RESTART runs a full
@@ -146,27 +207,10 @@ fn the_plant_command_runs_the_transports_motor() {
 /// robot's inputs, and the plant goes on. Each step waits for the places the nodes report.
 #[test]
 fn the_plant_commands_operator_drives_the_fault_contact_and_the_buttons() {
-    use robot_net::demo::{self, Bed};
+    use robot_net::demo::Bed;
     let c = e2e_support::robot("waterjet-transport.ron", 1);
     let (mut bed, mut plant) = e2e_support::pushed_with_plant_process(&c, "waterjet-transport.ron");
-    // Waits until the functions `want` names are at those places (the statuses asked
-    // again and again, at most the test's timeout).
-    let places = |bed: &mut Bed, want: &[(&str, &str)]| {
-        let end = std::time::Instant::now() + e2e_support::TIMEOUT;
-        loop {
-            let statuses = bed.statuses(&c).expect("statuses");
-            let states: Vec<Option<Vec<u8>>> =
-                statuses.iter().map(|s| Some(s.states.to_vec())).collect();
-            let got = demo::functions(&c, &states);
-            if want
-                .iter()
-                .all(|w| got.iter().any(|g| (g.0.as_str(), g.1.as_str()) == *w))
-            {
-                return;
-            }
-            assert!(std::time::Instant::now() < end, "never {want:?}: {got:?}");
-        }
-    };
+    let places = |bed: &mut Bed, want: &[(&str, &str)]| places(bed, &c, want);
     // The cabinet's (the role of `start`) alarms: (persists, acknowledged) each.
     let cabinet = c.ir.start.as_ref().map_or(0, |s| s.0);
     let alarms = |bed: &mut Bed, ack: bool| -> Vec<(bool, bool)> {

@@ -802,17 +802,17 @@ impl<S: StagingArea> NodeCore<S> {
         self.switch.staged()
     }
 
-    /// Whether the node is idle: configured, not faulted, every chart in its idle state,
-    /// no timer running, no event of its own unacknowledged (unconfigured: idle).
+    /// Whether the node is idle: configured, not faulted, every chart in its idle state
+    /// or another of its resting states (`Chart::rests`), no timer running, no event of its own unacknowledged (unconfigured: idle).
     pub fn idle(&self) -> bool {
-        self.resting(|c, cur| cur == c.idle)
+        self.resting(|c, cur| c.rests_in(cur))
     }
 
     /// Whether the node is at rest: as [`NodeCore::idle`], but a chart may also be in its
     /// initial state (not homed: nothing moves there either). A switch-over waits for this;
     /// the table it activates starts homed only if the node was idle.
     pub fn at_rest(&self) -> bool {
-        self.resting(|c, cur| cur == c.idle || cur == c.initial)
+        self.resting(|c, cur| c.rests_in(cur) || cur == c.initial)
     }
 
     fn resting(&self, chart_rests: impl Fn(&config_schema::Chart, u8) -> bool) -> bool {

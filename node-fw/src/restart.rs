@@ -35,10 +35,10 @@ pub const GREETED_WITHIN_MS: u64 = GREETINGS as u64 * GREET_EVERY_MS;
 pub const SAME_RESTART_MS: u32 = 2 * GREETED_WITHIN_MS as u32;
 
 /// Whether a node running `table`, its charts in states `current` (not faulted), is under
-/// way: a chart of it is neither in its idle nor in its initial state (a cycle or homing
-/// under way). Such a node waits for its peers' events.
+/// way: a chart of it is neither in a resting state (its idle one or another) nor in its
+/// initial state (a cycle or homing under way). Such a node waits for its peers' events.
 pub fn under_way(table: &Table, current: &[u8]) -> bool {
-    (table.charts.iter().zip(current)).any(|(c, &at)| at != c.idle && at != c.initial)
+    (table.charts.iter().zip(current)).any(|(c, &at)| !c.rests_in(at) && at != c.initial)
 }
 
 /// The greetings a node without link keys still has to send after its boot.
@@ -168,6 +168,19 @@ mod tests {
                 0x08
             ]
         );
+    }
+
+    /// A chart in a resting state besides its idle one (a mode kept between cycles) is
+    /// not under way; in any other state but idle and initial it is.
+    #[test]
+    fn a_chart_in_one_of_its_resting_states_is_not_under_way() {
+        use config_schema::Table;
+        let mut t = Table::empty("r");
+        t.push_chart(0, 0, &[&[], &[], &[], &[]], &[]).unwrap();
+        t.charts[0].idle = 1;
+        t.charts[0].rests = 1 << 2;
+        let under_way: heapless::Vec<bool, 4> = (0..4).map(|s| under_way(&t, &[s])).collect();
+        assert_eq!(under_way, [false, false, false, true]);
     }
 
     #[test]

@@ -259,7 +259,7 @@ fn dump_shows_the_decoded_table_and_names_a_bad_blob_clearly() {
     let c = build(&load("fixtures/small-sequence.ron"));
     let text = dump::dump(&c.blobs[1]).expect("dumps");
     let expected = format!(
-        "blob: {} bytes (payload {}), schema 6, generation 0, CRC-32 {:#010x}\n",
+        "blob: {} bytes (payload {}), schema 7, generation 0, CRC-32 {:#010x}\n",
         c.blobs[1].len(),
         c.blobs[1].len() - 12,
         u32::from_le_bytes(c.blobs[1][c.blobs[1].len() - 4..].try_into().expect("4"))

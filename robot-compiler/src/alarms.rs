@@ -262,6 +262,7 @@ fn stop_chart(r: &mut RoleIr, event: &str, actions: Vec<ActionIr>) {
         inputs: vec![event.to_string()],
         initial: 0,
         idle: 0,
+        rests: Vec::new(),
         states: vec![
             StateIr {
                 name: String::from("RUN"),

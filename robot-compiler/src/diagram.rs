@@ -117,7 +117,8 @@ pub fn dot_with_automata(
                 label.push_str("\\l");
             }
             // Double border: where the chart starts; bold: where it rests between cycles.
-            let extra = match (si == c.initial, si == c.idle) {
+            let rests = si == c.idle || c.rests.contains(&si);
+            let extra = match (si == c.initial, rests) {
                 (true, true) => ", peripheries=2, style=bold",
                 (true, false) => ", peripheries=2",
                 (false, true) => ", style=bold",

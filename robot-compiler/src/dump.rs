@@ -121,11 +121,19 @@ pub fn table_text(t: &Table) -> String {
     }
     for c in 0..t.charts.len() {
         let chart = t.charts[c];
-        let _ = writeln!(
+        let _ = write!(
             o,
             "chart {c}: {} inputs, initial S{}, idle S{}",
             chart.inputs, chart.initial, chart.idle
         );
+        let rests: Vec<String> = (0..32u8)
+            .filter(|&k| chart.rests & (1 << k) != 0)
+            .map(|k| format!("S{k}"))
+            .collect();
+        if !rests.is_empty() {
+            let _ = write!(o, ", also rests in {}", rests.join(" "));
+        }
+        let _ = writeln!(o);
         let states = t.chart_states(c);
         for (local, s) in states.clone().enumerate() {
             let actions: Vec<String> = t.actions[t.state_actions(s)]

@@ -582,11 +582,15 @@ pub(crate) fn instantiate(
     let idle = (t.idle.as_ref())
         .and_then(|i| t.states.iter().position(|s| s.name == *i))
         .unwrap_or(0);
+    let rests = (t.rests.iter())
+        .filter_map(|r| t.states.iter().position(|s| s.name == *r))
+        .collect();
     Ok(ChartIr {
         name: c.name.clone(),
         inputs,
         initial: 0,
         idle,
+        rests,
         states,
         transitions,
     })

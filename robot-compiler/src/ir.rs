@@ -176,6 +176,9 @@ pub struct ChartIr {
     /// Where the chart starts (not homed) and where it rests between cycles.
     pub initial: usize,
     pub idle: usize,
+    /// Other states where it rests between cycles (a mode kept from one cycle to the
+    /// next: `config_schema::Chart::rests`), besides `idle`.
+    pub rests: Vec<usize>,
     pub states: Vec<StateIr>,
     pub transitions: Vec<TransitionIr>,
 }

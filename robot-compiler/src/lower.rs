@@ -225,6 +225,21 @@ fn u8_of(x: usize, what: &'static str) -> Result<u8, RoleError> {
     u8::try_from(x).map_err(|_| RoleError::TooWide { what, value: x })
 }
 
+/// A chart's resting states as the table's mask (`config_schema::Chart::rests`): one bit
+/// a state, for the first 32.
+fn rest_mask(rests: &[usize]) -> Result<u32, RoleError> {
+    let mut mask = 0u32;
+    for &state in rests {
+        let bit = u32::try_from(state).ok().filter(|b| *b < 32);
+        let bit = bit.ok_or(RoleError::TooWide {
+            what: "resting state",
+            value: state,
+        })?;
+        mask |= 1 << bit;
+    }
+    Ok(mask)
+}
+
 /// One role being lowered: the robot's IR, the role's index and IR, and the robot's
 /// topics.
 struct Lowering<'a> {
@@ -381,6 +396,7 @@ impl Lowering<'_> {
         )?;
         if let Some(chart) = t.charts.get_mut(usize::from(index)) {
             chart.idle = u8_of(c.idle, "state")?;
+            chart.rests = rest_mask(&c.rests)?;
         }
         Ok(())
     }

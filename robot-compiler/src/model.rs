@@ -511,6 +511,11 @@ pub struct ChartType {
     /// (`iec61499::services::IDLE`).
     #[serde(skip)]
     pub idle: Option<String>,
+    /// Other states where the chart rests between cycles (a mode kept from one cycle to
+    /// the next); no robot file writes it, the `.fbt` import of a marked state reads it
+    /// (`iec61499::services::REST`).
+    #[serde(skip)]
+    pub rests: Vec<String>,
     /// For a type the robot file does not write: the place in it that brought the type
     /// (`fb_types[2]`, `application.file`), where its diagnostics point.
     #[serde(skip)]

@@ -123,6 +123,7 @@ mod tests {
             inputs: vec!["a".into(), "b".into()],
             initial: 0,
             idle: 0,
+            rests: Vec::new(),
             states: vec![StateIr {
                 name: "S0".into(),
                 actions: vec![ActionIr::Emit("done".into())],

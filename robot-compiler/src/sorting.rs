@@ -180,6 +180,7 @@ impl Sorting {
             states,
             transitions,
             idle: None,
+            rests: Vec::new(),
             imported: None,
         }
     }

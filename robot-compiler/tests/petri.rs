@@ -36,6 +36,9 @@ const BROKEN: &[(&str, &[&str])] = &[
         "35:17: warning: transition `never` of function `Transport` can never fire: its condition `FAULT && !FAULT` never holds in `Step2`",
         "36:17: warning: transition `shadowed` of function `Transport` can never fire: `abort`, declared before it, leaves `Step2` on `FAULT` whenever it is enabled (the choice rule takes the first declared)",
     ]),
+    ("petri-rest.ron", &[
+        "27:20: error: unknown place `Step9`",
+    ]),
     ("petri-row.ron", &[
         "46:59: error: row `release` of M of function `Pusher` has 1 entries -1 and 2 entries 1: a state machine's row has exactly one -1 (its precondition) and one 1 (its result)",
     ]),
@@ -97,6 +100,55 @@ fn charts(c: &robot_compiler::Compiled, role: usize) -> Vec<(String, Vec<String>
 
 fn names(items: &[&str]) -> Vec<String> {
     items.iter().map(|s| s.to_string()).collect()
+}
+
+/// A function's `rest` places are its chart's resting states besides the initial one
+/// (`Chart::rests`, a bit each), the initial and places named twice left out; the chart
+/// that follows it on another role rests where it does (`other` for places it does not
+/// read).
+#[test]
+fn a_functions_resting_places_are_its_charts_resting_states() {
+    let mut src = fixture("petri.ron");
+    let text = src.text.replace(
+        "initial: \"ReadyToCut\",",
+        "initial: \"ReadyToCut\", rest: [\"Step3\", \"ReadyToCut\", \"Step1\", \"Step3\"],",
+    );
+    src = Source::new("petri.ron", text);
+    let c = robot_compiler::compile(&src).expect("compiles");
+    let transport = c.ir.roles[0]
+        .charts
+        .iter()
+        .position(|ch| ch.name == "Transport");
+    let transport = transport.expect("Transport's chart");
+    assert_eq!(c.ir.roles[0].charts[transport].rests, [3, 1]);
+    let chart = c.tables[0].charts[transport];
+    assert_eq!((chart.idle, chart.rests), (0, 0b1010));
+    assert_eq!(
+        (0..4).map(|s| chart.rests_in(s)).collect::<Vec<_>>(),
+        [true, true, false, true]
+    );
+    // Across roles: the cell reads only the pusher's `Stopped` (its `Pusher.seen` chart:
+    // `Stopped`, `other`), so the pusher resting in `CounterClockwise` rests in `other`.
+    let two = fixture("petri-two-roles.ron");
+    let text = two.text.replace(
+        "name: \"Pusher\",\n            role: \"PUSHER\",",
+        "name: \"Pusher\",\n            role: \"PUSHER\",\n            rest: [\"CounterClockwise\"],",
+    );
+    assert_ne!(text, two.text);
+    let c = robot_compiler::compile(&Source::new("two.ron", text)).expect("compiles");
+    let rests = |role: usize, chart: &str| {
+        let ch = c.ir.roles[role]
+            .charts
+            .iter()
+            .position(|ch| ch.name == chart);
+        let ch = ch.unwrap_or_else(|| panic!("{chart}"));
+        (
+            c.ir.roles[role].charts[ch].states.len(),
+            c.tables[role].charts[ch].rests,
+        )
+    };
+    assert_eq!(rests(1, "Pusher"), (3, 0b100));
+    assert_eq!(rests(0, "Pusher.seen"), (2, 0b10));
 }
 
 /// One chart per function, places -> states in column order, rows -> transitions in row

@@ -207,7 +207,7 @@ pub fn standing(role: &str, table: &Table, s: &Status) -> Standing {
     }
     let mut homed = true;
     for (chart, &state) in table.charts.iter().zip(s.states.iter()) {
-        if state == chart.idle {
+        if chart.rests_in(state) {
             continue;
         }
         if state != chart.initial {
@@ -992,6 +992,15 @@ pub(crate) mod tests {
             standing("VC", &other, &status("VC", &[0, 0], None)),
             Standing::Other
         );
+        // A chart resting in a mode besides its idle state (a function's `Auto`) is at
+        // rest: the machine is homed, not moving.
+        let mut modes = t.clone();
+        modes.charts[1].rests = 1 << 1;
+        let mut s = status("VC", &[0, 1], None);
+        s.table = TableId::at(&modes, 1).unwrap();
+        assert_eq!(standing("VC", &modes, &s), Standing::Homed);
+        s.states = heapless::Vec::from_slice(&[1, 1]).unwrap();
+        assert_eq!(standing("VC", &modes, &s), Standing::Moving);
         // Faulted, it says so first, whichever table it runs: a reset is due either way.
         assert_eq!(
             standing("VC", &other, &status("VC", &[0, 0], Some(0x81))),

@@ -382,7 +382,18 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
         } else {
             u8::try_from(r.count()?).map_err(|_| PackError::Value("chart inputs"))?
         };
-        let idle = if r.flag()? { 0 } else { r.u8(sw)? };
+        let states = u32::try_from(s_end.saturating_sub(s_first).min(32))
+            .map_err(|_| PackError::Value("states"))?;
+        let (idle, rests) = if r.flag()? {
+            (0, 0)
+        } else {
+            let idle = r.u8(sw)?;
+            if idle == 0 {
+                (r.u8(sw)?, r.get(states)?)
+            } else {
+                (idle, 0)
+            }
+        };
         let initial = if r.flag()? { idle } else { r.u8(sw)? };
         let chart = Chart {
             states_end: end8(s_end, "states")?,
@@ -390,6 +401,7 @@ pub fn decode(bytes: &[u8]) -> R<(Table, usize)> {
             inputs,
             initial,
             idle,
+            rests,
         };
         push(&mut t.charts, chart, "charts")?;
     }

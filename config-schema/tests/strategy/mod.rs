@@ -129,6 +129,8 @@ pub struct RawTransition {
 pub struct RawChart {
     pub inputs: u8,
     pub initial: u8,
+    /// Resting states besides the idle one (masked to the chart's states).
+    pub rests: u8,
     pub states: Vec<Vec<RawAction>>,
     pub transitions: Vec<RawTransition>,
 }
@@ -149,12 +151,14 @@ fn raw_chart() -> impl Strategy<Value = RawChart> {
     (
         0u8..5,
         any::<u8>(),
+        proptest::option::weighted(0.3, any::<u8>()),
         vec(vec(raw_action(), 0..4), 1..6),
         vec(transition, 0..9),
     )
-        .prop_map(|(inputs, initial, states, transitions)| RawChart {
+        .prop_map(|(inputs, initial, rests, states, transitions)| RawChart {
             inputs,
             initial,
+            rests: rests.unwrap_or(0),
             states,
             transitions,
         })
@@ -379,8 +383,10 @@ pub fn build(raw: &Raw) -> Table {
             });
         }
         let states: Vec<&[Action]> = states.iter().map(Vec::as_slice).collect();
-        t.push_chart(chart.initial % n_states, inputs, &states, &transitions)
+        let at = t
+            .push_chart(chart.initial % n_states, inputs, &states, &transitions)
             .unwrap();
+        t.charts[usize::from(at)].rests = u32::from(chart.rests) & ((1 << n_states) - 1);
     }
     for (e, c, i) in &raw.routes {
         let chart = c % t.charts.len() as u8;
@@ -523,6 +529,9 @@ pub fn interpreter_safe(t: &Table) -> Result<(), String> {
         let n = states.len();
         if usize::from(chart.initial) >= n {
             return Err(format!("chart {c} initial state"));
+        }
+        if n < 32 && chart.rests >> n != 0 {
+            return Err(format!("chart {c} resting states"));
         }
         for tr in &t.transitions[transitions] {
             if usize::from(tr.from) >= n || usize::from(tr.to) >= n {

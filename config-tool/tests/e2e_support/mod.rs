@@ -779,9 +779,11 @@ pub fn jam_after(bed: &mut Bed, c: &Compiled, actuator: &str, after: usize) {
 pub fn unsecured_robot(dir: &TempDir, name: &str) -> (PathBuf, Compiled) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let text = std::fs::read_to_string(root.join("robot-configs").join(name)).expect("robot");
-    let network = "    network: (pan_id: 0x1234, channel: 15),\n";
-    assert!(text.contains(network), "{name} has the usual network line");
-    let text = text.replacen(network, &format!("{network}    security: Off,\n"), 1);
+    let network = (text.lines())
+        .find(|l| l.starts_with("    network: (") && l.ends_with("),"))
+        .unwrap_or_else(|| panic!("{name} has a network line"));
+    let network = format!("{network}\n");
+    let text = text.replacen(&network, &format!("{network}    security: Off,\n"), 1);
     let path = dir.0.join(name);
     std::fs::write(&path, &text).expect("robot file");
     let c = compile::compile(&Source::new(name, text))
@@ -855,8 +857,16 @@ impl Drop for PlantProcess {
 /// of the bed's: `config-tool plant` runs it as a process of its own, returned once it
 /// says it is on the medium.
 pub fn pushed_with_plant_process(c: &Compiled, name: &str) -> (Bed, PlantProcess) {
+    pushed_with_plant(c, name, true)
+}
+
+/// As [`pushed_with_plant_process`], the nodes given a management key if `secured` (a
+/// bed without one leaves the tool's commands to `run_tool` of a robot file with
+/// `security: Off`: [`unsecured_robot`]).
+pub fn pushed_with_plant(c: &Compiled, name: &str, secured: bool) -> (Bed, PlantProcess) {
     use std::io::{BufRead, BufReader};
-    let opts = options(medium::Config::default(), None);
+    let mut opts = options(medium::Config::default(), None);
+    opts.secured = secured;
     let timeout = opts.timeout;
     let mut bed = Bed::start(opts).expect("bed");
     let addrs = demo::node_addrs(c);

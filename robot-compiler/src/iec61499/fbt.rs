@@ -405,6 +405,7 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
     // Per state: what it does when entered, in order (assignments, choices, emits).
     let mut bodies: Vec<(Vec<Step>, Node<'_, '_>)> = Vec::new();
     let mut idle = None;
+    let mut rests = Vec::new();
     for s in elements(ecc).filter(|s| s.tag_name().name() == "ECState") {
         if states.len() == MAX_STATES {
             return Err(cx.node_err(
@@ -415,6 +416,15 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
         let sname = cx.attr(s, "Name")?.to_string();
         if marked && !states.is_empty() && s.attribute("Comment") == Some(super::services::IDLE) {
             idle = Some(sname.clone());
+        }
+        if marked && s.attribute("Comment") == Some(super::services::REST) {
+            if states.len() >= 32 {
+                return Err(cx.node_err(
+                    s,
+                    format!("resting state `{sname}` is not among the ECC's first 32: a table marks only those"),
+                ));
+            }
+            rests.push(sname.clone());
         }
         if states.iter().any(|d: &StateDecl| d.name == sname) {
             return Err(cx.node_err(s, format!("state `{sname}` is declared twice")));
@@ -538,6 +548,7 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
         states,
         transitions,
         idle,
+        rests,
         imported: None,
     };
     Ok((chart, interface))

@@ -42,6 +42,10 @@ const NODE_EVENT: &str = "node event ";
 /// that is not its first (initial) state.
 pub const IDLE: &str = "Idle State";
 
+/// The `Comment` of a marked type's `ECState` where the chart also rests between cycles
+/// besides its idle state (a mode kept from one cycle to the next; among its first 32).
+pub const REST: &str = "Rest State";
+
 /// The node events a role raises besides its pins, timers and charts' outputs: the
 /// node's boot with its table (published to the roles that import it) and the HOME
 /// command (the synthesised homing of a sequence robot reads both).

@@ -200,11 +200,17 @@ fn seen_chart(nets: &[Net], p: &Publication, r: &mut RoleIr) -> Result<(), Strin
     } else {
         other
     };
+    // It rests where the function does: in the state of each of its resting places.
+    let mut rests: Vec<usize> = g.rests.iter().map(|&j| state_of(j)).collect();
+    rests.retain(|&st| st != initial);
+    rests.sort_unstable();
+    rests.dedup();
     r.charts.push(ChartIr {
         name: format!("{}.seen", g.name),
         inputs,
         initial,
         idle: initial,
+        rests,
         states: ir_states,
         transitions,
     });
@@ -321,6 +327,7 @@ fn function_chart(
         inputs,
         initial: n.initial,
         idle: n.initial,
+        rests: n.rests.clone(),
         states,
         transitions,
     });

@@ -168,6 +168,7 @@ fn structure(
             ));
         }
     }
+    l.net.rests = resting_places(src, decl, &l.net, &path, diags);
     l.net.timers = decl.timers.clone();
     l.net.actions = vec![Vec::new(); l.net.places.len()];
     for (place, actions) in &decl.actions {
@@ -197,6 +198,35 @@ fn structure(
         l.net.actions[p] = actions.clone();
     }
     Some(l)
+}
+
+/// The places `rest` names besides the initial one (a table marks a chart's resting
+/// states in 32 bits: only the first 32 places can be one).
+fn resting_places(
+    src: &Source,
+    decl: &FunctionDecl,
+    net: &Net,
+    path: &str,
+    diags: &mut Vec<Diagnostic>,
+) -> Vec<usize> {
+    let mut rests = Vec::new();
+    for (k, place) in decl.rest.iter().enumerate() {
+        let here = src.span(&format!("{path}.rest[{k}]"));
+        match net.place(place) {
+            None => diags.push(unknown_place(src, net, here, place)),
+            Some(j) if j >= 32 => diags.push(Diagnostic::error(
+                here,
+                format!(
+                    "place `{place}` of function `{}` is its {}th: only the first 32 places can be resting places",
+                    net.name,
+                    j + 1
+                ),
+            )),
+            Some(j) if j != net.initial && !rests.contains(&j) => rests.push(j),
+            Some(_) => {}
+        }
+    }
+    rests
 }
 
 fn unknown_place(src: &Source, net: &Net, span: Range<usize>, name: &str) -> Diagnostic {
@@ -229,6 +259,7 @@ fn empty_net(decl: &FunctionDecl, places: &[String]) -> Net {
         role: decl.role.clone(),
         places: places.to_vec(),
         initial: 0,
+        rests: Vec::new(),
         transitions: Vec::new(),
         timers: Vec::new(),
         actions: Vec::new(),

@@ -40,6 +40,9 @@ pub struct Net {
     pub places: Vec<String>,
     /// The place marked in m(0).
     pub initial: usize,
+    /// The places besides the initial one where the function rests between cycles (a
+    /// mode kept from one cycle to the next), in declaration order.
+    pub rests: Vec<usize>,
     /// The transitions: the rows of M, in declaration order (the choice rule's order).
     pub transitions: Vec<Transition>,
     pub timers: Vec<String>,
@@ -175,6 +178,7 @@ mod tests {
             role: String::from("R"),
             places: vec![String::from("a"), String::from("b"), String::from("c")],
             initial: 1,
+            rests: Vec::new(),
             transitions: vec![row("t1", 1, 2), row("t2", 2, 0)],
             timers: vec![String::from("E")],
             actions: vec![Vec::new(); 3],

@@ -22,6 +22,11 @@ pub struct FunctionDecl {
     /// The place holding the token in m(0).
     #[serde(default)]
     pub initial: Option<String>,
+    /// The places besides the initial one where the function also rests between cycles:
+    /// a mode the operator selected and that stays selected from one cycle to the next
+    /// (the machine is idle, ready for START, with the function there).
+    #[serde(default)]
+    pub rest: Vec<String>,
     /// Its transitions, in row order of M (and in the choice rule's order).
     #[serde(default)]
     pub transitions: Vec<NetTransitionDecl>,

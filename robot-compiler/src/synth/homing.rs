@@ -361,6 +361,7 @@ fn home_chart(
             inputs,
             initial: 0,
             idle: 0,
+            rests: Vec::new(),
             states,
             transitions,
         },

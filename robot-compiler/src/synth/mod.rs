@@ -350,6 +350,7 @@ impl<'a> Sequence<'a> {
             inputs,
             initial: 0,
             idle: 0,
+            rests: Vec::new(),
             states,
             transitions,
         });
@@ -376,6 +377,7 @@ fn start_chart(robot: &Robot, r: &mut RoleIr, start_input: &str, reopen: &str, f
         inputs: vec![String::from("press"), String::from("done")],
         initial: 0,
         idle: 0,
+        rests: Vec::new(),
         states: vec![
             StateIr {
                 name: String::from("IDLE"),
@@ -747,6 +749,7 @@ impl ChartBuilder<'_> {
             inputs: self.inputs,
             initial: 0,
             idle: 0,
+            rests: Vec::new(),
             states: self.states,
             transitions: self.transitions,
         }

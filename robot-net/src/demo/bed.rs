@@ -902,7 +902,7 @@ fn at_rest(c: &Compiled, statuses: &[Status]) -> bool {
                 && s.states
                     .iter()
                     .zip(&t.charts)
-                    .all(|(st, ch)| *st == ch.idle)
+                    .all(|(st, ch)| ch.rests_in(*st))
     })
 }
 

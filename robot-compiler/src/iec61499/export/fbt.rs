@@ -310,6 +310,8 @@ pub fn write(spec: &FbSpec<'_>) -> Result<String, ExportError> {
             "Initial State"
         } else if t.idle.as_ref() == Some(&s.name) {
             services::IDLE
+        } else if t.rests.contains(&s.name) {
+            services::REST
         } else {
             ""
         };

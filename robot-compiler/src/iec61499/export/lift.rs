@@ -257,6 +257,9 @@ pub fn lift(r: &RoleIr, ci: usize, name: &str) -> Lifted {
             idle: (c.idle != c.initial)
                 .then(|| state_names.get(c.idle).cloned())
                 .flatten(),
+            rests: (c.rests.iter())
+                .filter_map(|&st| state_names.get(st).cloned())
+                .collect(),
             imported: None,
         },
         inputs: inputs_of,
