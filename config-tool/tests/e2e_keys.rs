@@ -335,16 +335,20 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
         assert!(found.contains(&line), "{found}");
     }
     assert!(found.ends_with("5 node(s)\n"), "the spare too: {found}");
+    // No node answering is an error (status 1, as the docs have it): a script that scans
+    // before it pushes stops there.
     let unkeyed = tool(&["scan", "--medium", &m]);
     assert_eq!(
         (
+            unkeyed.status.code(),
             text(&unkeyed.stdout).as_str(),
             text(&unkeyed.stderr).as_str()
         ),
         (
+            Some(1),
             "0 node(s)\n",
-            "no node answered: a node with a management key answers only secured frames (pass \
-             --keys)\n"
+            "error: no node answered: a node with a management key answers only secured frames \
+             (pass --keys)\n"
         )
     );
 

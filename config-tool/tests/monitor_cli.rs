@@ -314,3 +314,45 @@ fn monitor_stamps_frames_and_pins_with_one_clock() {
         times[0]
     );
 }
+
+/// `monitor` and `plant` ended with status 0 and said nothing when the medium went away
+/// (its process killed, its machine rebooted): the operator watching took the silence for
+/// a quiet machine. Each now says the medium closed the connection, status 1.
+#[test]
+fn monitor_and_plant_say_so_when_the_medium_goes_away() {
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+    for (args, what) in [
+        (
+            vec!["monitor"],
+            "monitor: the medium at {at} closed the connection",
+        ),
+        (
+            vec!["plant", "robot-configs/paint-robot.ron"],
+            "plant on {at}: the medium closed the connection",
+        ),
+    ] {
+        let medium = Medium::start(Config::default()).unwrap();
+        let at = medium.addr().to_string();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+            .current_dir(root)
+            .args(&args)
+            .args(["--medium", &at])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        assert!(medium.wait_for_clients(1, SURE), "{what} joins");
+        medium.stop();
+        let until = std::time::Instant::now() + SURE;
+        let status = loop {
+            if let Some(status) = child.try_wait().unwrap() {
+                break status;
+            }
+            assert!(std::time::Instant::now() < until, "{what} still runs");
+        };
+        let mut err = String::new();
+        std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+        let want = format!("error: {} (it went away)\n", what.replace("{at}", &at));
+        assert_eq!((status.code(), err.as_str()), (Some(1), want.as_str()));
+    }
+}

@@ -301,16 +301,13 @@ pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(),
     }
     outln!("{} node(s)", found.len());
     if found.is_empty() {
-        errln!(
-            "{}",
-            if radio.secured() {
-                "no node answered: are they running, on this medium, and keyed by this \
-                 machine secret (a node drops what another machine's keys secure)?"
-            } else {
-                "no node answered: a node with a management key answers only secured frames \
-                 (pass --keys)"
-            }
-        );
+        return Err(Failure::error(if radio.secured() {
+            "no node answered: are they running, on this medium, and keyed by this machine \
+             secret (a node drops what another machine's keys secure)?"
+        } else {
+            "no node answered: a node with a management key answers only secured frames \
+             (pass --keys)"
+        }));
     }
     Ok(())
 }
@@ -1480,8 +1477,12 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
         outln!("{:>9.3}  {line}", at.as_secs_f64());
     }
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    // The plant runs until the medium ends its connection (or an error ends it): it never
+    // stops of itself, so an end is the medium gone.
     match handle.join() {
-        Ok(Ok(())) => Ok(()),
+        Ok(Ok(())) => Err(Failure::error(format!(
+            "plant on {medium}: the medium closed the connection (it went away)"
+        ))),
         Ok(Err(e)) => Err(Failure::error(format!("plant on {medium}: {e}"))),
         Err(_) => Err(Failure::error("the plant stopped")),
     }
@@ -1556,7 +1557,11 @@ pub fn monitor(
         });
         let heard = match got {
             Ok(heard) => heard,
-            Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => return Ok(()),
+            Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => {
+                return Err(Failure::error(format!(
+                    "monitor: the medium at {medium} closed the connection (it went away)"
+                )))
+            }
             Err(e) => return Err(Failure::error(format!("monitor: {e}"))),
         };
         let mut lines = Vec::new();
