@@ -1064,7 +1064,7 @@ impl<S: StagingArea> NodeCore<S> {
             }
         }
         if self.greetings.due(now) {
-            self.greet_in_clear(io);
+            self.greet(now, io);
         }
         for timer in 0..MAX_TIMERS {
             if self.timers[timer].is_some_and(|t| t <= now) {
@@ -1612,17 +1612,25 @@ impl<S: StagingArea> NodeCore<S> {
         self.challenge_on(pan, peer, 0, now, io);
     }
 
-    /// A node without link keys that booted greets each of its peers in clear
-    /// ([`restart`]).
+    /// A node without link keys that booted, or any node reset under way, greets each of
+    /// its peers ([`restart`]): in clear, or with a secured challenge marked
+    /// [`restart::RESET`] (a secured node's boot greets with its handshake instead).
     #[cold]
     #[inline(never)]
-    fn greet_in_clear(&mut self, io: &mut impl Io) {
+    fn greet(&mut self, now: u64, io: &mut impl Io) {
         let Some(t) = &self.table else { return };
         let pan = t.header.pan_id;
+        let peers = t.peers.clone();
+        if self.radio.links.secured() {
+            for peer in peers {
+                self.challenge_on(pan, peer, restart::GREETING | restart::RESET, now, io);
+            }
+            return;
+        }
         let greeting = Message::Challenge {
             nonce: restart::GREETING,
         };
-        for &peer in &t.peers {
+        for peer in peers {
             self.radio.send(io, pan, peer, &greeting);
         }
     }
@@ -1953,9 +1961,15 @@ impl<S: StagingArea> NodeCore<S> {
                 Command::Home if self.switch.armed() => {}
                 Command::Home => self.run(now, io, Stimulus::Home),
                 Command::Reset => {
+                    // Its charts start over: under way, peers may wait for events they
+                    // will now never send, so it greets them as a boot does.
+                    let under_way = self.under_way();
                     // Links first: what the reset publishes goes out in the new epoch.
                     self.restart_links();
                     self.run(now, io, Stimulus::Reset);
+                    if under_way {
+                        self.greetings.boot(now);
+                    }
                 }
                 Command::Ack => {
                     // Alarms raised by what happened so far are latched before the ack.

@@ -425,6 +425,10 @@ impl PeerSecurity {
     /// before the peer's floor is known (both booted: no replay check stops it), the
     /// events the peer took since the first would be delivered to it twice.
     fn renumbers(&mut self, peer: u16, nonce: u32) -> bool {
+        // A peer reset under way kept its side of our link: nothing to number again.
+        if nonce & crate::restart::GREETING != 0 && nonce & crate::restart::RESET != 0 {
+            return false;
+        }
         let counter = nonce & !crate::restart::GREETING;
         let at = (self.current.as_ref()).and_then(|k| k.peers.iter().position(|p| p.peer == peer));
         let Some(last) = at.and_then(|i| self.renumbered.get_mut(i)) else {

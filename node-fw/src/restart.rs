@@ -22,6 +22,13 @@ use crate::peer_security::{GREET_EVERY_MS, GREET_TRIES};
 /// epoch asked for ([`crate::link::Receiver::ask`]).
 pub const GREETING: u32 = 1 << 31;
 
+/// Bit 30 of a secured greeting's nonce (with [`GREETING`]): the sender's charts started
+/// over by a `Reset` while under way, not by a boot. It kept its links' receivers and its
+/// floors, so the peer numbers nothing again (`PeerSecurity::renumbers`); it only learns
+/// that the sender's charts started over. (A greeting in clear is `GREETING` alone:
+/// nothing is numbered again in clear.)
+pub const RESET: u32 = 1 << 30;
+
 /// How many greetings a node without link keys sends each peer after it boots, one per
 /// [`GREET_EVERY_MS`] (a secured node greets as often, until answered).
 pub const GREETINGS: u8 = GREET_TRIES;
@@ -49,7 +56,7 @@ pub struct Greetings {
 }
 
 impl Greetings {
-    /// The node booted at `now`: greet from now on.
+    /// The node booted (or was reset under way) at `now`: greet from now on.
     pub fn boot(&mut self, now: u64) {
         *self = Greetings {
             left: GREETINGS,

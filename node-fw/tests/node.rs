@@ -763,6 +763,74 @@ fn a_node_under_way_faults_when_a_peer_restarts_and_one_at_rest_carries_on() {
     }
 }
 
+/// A as [`table_a`], its press also toggling a chart of its own (its light on pin 6):
+/// after a press A is under way (its chart neither idle nor initial), as a node in the
+/// middle of a cycle.
+fn table_a_stepping(generation: u32) -> Table {
+    let mut t = table_a(generation);
+    t.outputs.push(Output::safe(6, false)).unwrap();
+    let press = t.inputs[0].rise.unwrap();
+    toggle(&mut t, press, &[Action::Drive { mask: 1, value: 1 }]);
+    t
+}
+
+/// A `Reset` of a node under way (its charts started over, as at a boot) left its peers
+/// waiting for ever, with nothing said: the restart rule knew only a boot's greeting. A
+/// node reset while under way now greets its peers as a booted one does, and B, under way,
+/// faults `0x86` instead of stalling. A node reset at rest (a faulted one, the usual
+/// reset) greets nobody: nothing of a cycle was lost, and no late copy can fault a peer
+/// that homing sets going right after the resets.
+#[test]
+fn a_node_reset_under_way_faults_its_peers_under_way_and_one_reset_at_rest_does_not() {
+    let restarted = 0x80 | config_schema::alarm::FAULT_PEER_RESTART;
+    for seed in 1..=8 {
+        let mut net = Net::new(0.2, 0.1, 90 + seed);
+        assert_eq!(
+            net.push(A, &table_a_stepping(1), false),
+            ota::Progress::Done
+        );
+        assert_eq!(net.push(B, &table_b(1), false), ota::Progress::Done);
+        net.press();
+        net.run(1000);
+        assert_eq!(net.status(B).states.as_slice(), [1], "seed {seed}: lamp on");
+        assert_eq!(
+            net.status(A).states.as_slice(),
+            [1],
+            "seed {seed}: A under way"
+        );
+        let reset = net.command(A, 7, Command::Reset);
+        assert_eq!(
+            (reset.fault, reset.states.as_slice()),
+            (None, [0].as_slice())
+        );
+        net.run(1500);
+        let b = net.status(B);
+        assert_eq!(
+            (b.fault, b.states.as_slice()),
+            (Some(restarted), [1].as_slice()),
+            "seed {seed}"
+        );
+        // B reset, both at rest: a reset of A now changes nothing for B.
+        let reset = net.command(B, 8, Command::Reset);
+        assert_eq!(
+            (reset.fault, reset.states.as_slice()),
+            (None, [0].as_slice())
+        );
+        net.command(A, 9, Command::Reset);
+        net.run(1500);
+        let b = net.status(B);
+        assert_eq!(
+            (b.fault, b.states.as_slice()),
+            (None, [0].as_slice()),
+            "seed {seed}"
+        );
+        net.nodes[1].1.pins.clear();
+        net.press();
+        net.run(1000);
+        assert_eq!(net.nodes[1].1.pins, [(LAMP_PIN, true)], "seed {seed}");
+    }
+}
+
 /// A board with pins 0..=5 has B's lamp pin 7 nowhere: B refuses the table, naming the pin
 /// and the board's pins, and keeps what it ran; A's button (pin 5) is on the board.
 #[test]

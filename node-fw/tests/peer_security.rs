@@ -602,6 +602,78 @@ fn a_peers_boot_greeting_faults_a_node_under_way_and_not_one_at_rest() {
     assert_eq!((b.fault, b.states.as_slice()), (None, [1].as_slice()));
 }
 
+/// A `Reset` of A while under way (its press toggled a chart of its own on: in the middle
+/// of a cycle) starts A's charts over as a boot does, but a secured node greets only when
+/// it boots: B, under way, waited for ever. A reset under way now greets B with a
+/// challenge whose nonce is the frame's counter with bits 31 and 30 set (`GREETING`,
+/// `RESET`): B faults `0x86` and answers, and numbers nothing again (A kept its receivers:
+/// B's epoch stays).
+#[test]
+fn a_node_reset_under_way_greets_its_peers_and_nothing_is_numbered_again() {
+    use config_schema::wire::msg::Command;
+    use node_fw::restart::{GREETING, RESET};
+    let restarted = 0x80 | config_schema::alarm::FAULT_PEER_RESTART;
+    let mut net = Net::new();
+    let mut stepping = table_a();
+    stepping.outputs.push(Output::safe(6, false)).unwrap();
+    let press = stepping.inputs[0].rise.unwrap();
+    toggle(&mut stepping, press, &[Action::Drive { mask: 1, value: 1 }]);
+    net.a.0 =
+        NodeCore::new(A, u64::MAX, Some(stepping), 1).with_link_keys(keys(A, &[B], GENERATION));
+    // The boots' greetings first (A under way would fault at B's).
+    net.run(1500);
+    net.press();
+    net.run(400);
+    assert_eq!(net.b.1.lamp, [true]);
+    assert!(net.a.0.under_way() && net.b.0.under_way());
+    let epoch = net.b.0.epoch();
+    net.air.clear();
+    net.trace.clear();
+    let mut payload = [0u8; MAX_PAYLOAD];
+    let n = Message::Command {
+        id: 1,
+        command: Command::Reset,
+    }
+    .emit(&mut payload)
+    .unwrap();
+    let header = Header {
+        seq: 1,
+        pan_id: node_fw::node::CONFIG_PAN,
+        dst: A,
+        src: 0x0100,
+        ack_request: false,
+        secured: false,
+    };
+    let mut psdu = [0u8; MAX_PSDU];
+    let len = mac::emit_data(&header, &payload[..n], &mut psdu).unwrap();
+    net.a.0.receive(&psdu[..len], net.now, &mut net.a.1);
+    net.a.1.out.retain(|f| open_to_tool(f));
+    net.run(600);
+    let greeting = (net.air.iter().map(|f| open(f)))
+        .find_map(|(h, aux, payload)| match Message::parse(&payload) {
+            Ok(Message::Challenge { nonce }) if h.src == A => Some((aux.frame_counter, nonce)),
+            _ => None,
+        })
+        .expect("A greets B");
+    assert_eq!(greeting.1, greeting.0 | GREETING | RESET);
+    assert!(
+        net.trace.contains(&(B, A, "ChallengeAnswer")),
+        "{:?}",
+        net.trace
+    );
+    let b = net.b.0.status(0, Default::default());
+    assert_eq!(
+        (b.fault, b.states.as_slice()),
+        (Some(restarted), [1].as_slice())
+    );
+    assert_eq!(net.b.0.epoch(), epoch, "B numbered its link to A again");
+}
+
+/// Whether `psdu` is not one of the node's frames to its peers (its answer to the tool).
+fn open_to_tool(psdu: &[u8]) -> bool {
+    !matches!(Frame::parse(psdu), Ok(Frame::Data { header, .. }) if header.dst == 0x0100)
+}
+
 /// A booted again: its table and keys from flash, its links in a new epoch.
 fn rebooted_a() -> NodeCore {
     NodeCore::new(A, u64::MAX, Some(table_a()), 7).with_link_keys(keys(A, &[B], GENERATION))
