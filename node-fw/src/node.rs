@@ -1566,7 +1566,8 @@ impl<S: StagingArea> NodeCore<S> {
     }
 
     /// Sends `dst` on `pan` a challenge whose nonce is the counter of the challenge frame
-    /// itself (with `flags`: [`restart::GREETING`] for a booted node's greeting; to a peer,
+    /// itself (with `flags`: [`restart::GREETING`] for a booted node's greeting; the nonce
+    /// [`restart::RESET_GREETING`] alone, remembered nowhere, for a reset's; to a peer,
     /// the nonce of a challenge it has not answered yet, if any:
     /// [`crate::peer_security::PeerSecurity::challenge`]), and remembers it: on the config PAN
     /// for the management path, on the robot's for the peers' (one sender for both).
@@ -1575,7 +1576,10 @@ impl<S: StagingArea> NodeCore<S> {
             self.radio.security.no_counter += 1;
             return;
         };
-        let nonce = if pan == CONFIG_PAN {
+        let nonce = if flags == restart::RESET_GREETING {
+            // Nothing to answer for: the floors stay (no challenge is pending).
+            flags
+        } else if pan == CONFIG_PAN {
             self.challenges.sent(dst, counter | flags, now);
             counter | flags
         } else {
@@ -1613,25 +1617,26 @@ impl<S: StagingArea> NodeCore<S> {
     }
 
     /// A node without link keys that booted, or any node reset under way, greets each of
-    /// its peers ([`restart`]): in clear, or with a secured challenge marked
-    /// [`restart::RESET`] (a secured node's boot greets with its handshake instead).
+    /// its peers ([`restart`]): in clear, or secured with the nonce
+    /// [`restart::RESET_GREETING`] (a secured node's boot greets with its handshake).
     #[cold]
     #[inline(never)]
     fn greet(&mut self, now: u64, io: &mut impl Io) {
-        let Some(t) = &self.table else { return };
-        let pan = t.header.pan_id;
-        let peers = t.peers.clone();
-        if self.radio.links.secured() {
-            for peer in peers {
-                self.challenge_on(pan, peer, restart::GREETING | restart::RESET, now, io);
-            }
+        let Some(pan) = self.table.as_ref().map(|t| t.header.pan_id) else {
             return;
-        }
+        };
+        let secured = self.radio.links.secured();
         let greeting = Message::Challenge {
             nonce: restart::GREETING,
         };
-        for peer in peers {
-            self.radio.send(io, pan, peer, &greeting);
+        let mut i = 0;
+        while let Some(&peer) = self.table.as_ref().and_then(|t| t.peers.get(i)) {
+            if secured {
+                self.challenge_on(pan, peer, restart::RESET_GREETING, now, io);
+            } else {
+                self.radio.send(io, pan, peer, &greeting);
+            }
+            i += 1;
         }
     }
 

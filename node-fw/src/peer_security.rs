@@ -426,7 +426,7 @@ impl PeerSecurity {
     /// events the peer took since the first would be delivered to it twice.
     fn renumbers(&mut self, peer: u16, nonce: u32) -> bool {
         // A peer reset under way kept its side of our link: nothing to number again.
-        if nonce & crate::restart::GREETING != 0 && nonce & crate::restart::RESET != 0 {
+        if nonce == crate::restart::RESET_GREETING {
             return false;
         }
         let counter = nonce & !crate::restart::GREETING;

@@ -22,12 +22,13 @@ use crate::peer_security::{GREET_EVERY_MS, GREET_TRIES};
 /// epoch asked for ([`crate::link::Receiver::ask`]).
 pub const GREETING: u32 = 1 << 31;
 
-/// Bit 30 of a secured greeting's nonce (with [`GREETING`]): the sender's charts started
-/// over by a `Reset` while under way, not by a boot. It kept its links' receivers and its
-/// floors, so the peer numbers nothing again (`PeerSecurity::renumbers`); it only learns
-/// that the sender's charts started over. (A greeting in clear is `GREETING` alone:
-/// nothing is numbered again in clear.)
-pub const RESET: u32 = 1 << 30;
+/// A secured greeting's nonce when the sender's charts started over by a `Reset` while
+/// under way, not by a boot: exactly this (a boot's greeting is its frame's counter with
+/// [`GREETING`], which only the one counter 2^30 would make this). The sender kept its
+/// links' receivers and its floors, so the peer numbers nothing again
+/// (`PeerSecurity::renumbers`) and only learns that the sender's charts started over.
+/// (A greeting in clear is `GREETING` alone: nothing is numbered again in clear.)
+pub const RESET_GREETING: u32 = GREETING | 1 << 30;
 
 /// How many greetings a node without link keys sends each peer after it boots, one per
 /// [`GREET_EVERY_MS`] (a secured node greets as often, until answered).
