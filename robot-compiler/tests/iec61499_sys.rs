@@ -265,6 +265,45 @@ fn a_failed_import_is_the_only_error_check_reports() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// An action of `application.actions` naming an actuator or output its FB's role lacks
+/// was reported at `Robot(`, the first line of the file: now at its key, naming the
+/// role's actuators (or outputs).
+#[test]
+fn an_action_naming_what_its_role_lacks_is_refused_at_its_key() {
+    let dir = std::env::temp_dir().join(format!("sys-action-{}", std::process::id()));
+    let types = dir.join("4diac/paint-robot");
+    std::fs::create_dir_all(&types).expect("dir");
+    let configs = root().join("robot-configs");
+    for entry in std::fs::read_dir(configs.join("4diac/paint-robot")).expect("4diac files") {
+        let path = entry.expect("entry").path();
+        std::fs::copy(&path, types.join(path.file_name().expect("name"))).expect("copies");
+    }
+    let robot = std::fs::read_to_string(configs.join("paint-robot-4diac.ron")).expect("robot");
+    for (from, to, want) in [
+        (
+            "\"vc.VC_EXT\": Extend(\"VC\")",
+            "\"vc.VC_EXT\": Extend(\"VX\")",
+            "r.ron:68:13: error: `vc.VC_EXT`: no actuator `VX` (role `VC`'s actuators are VC)",
+        ),
+        (
+            "\"gr.OPEN\": Retract(\"GR\")",
+            "\"gr.OPEN\": Out(\"LAMP\", true)",
+            "r.ron:71:13: error: `gr.OPEN`: no output `LAMP` (role `GR` has no outputs)",
+        ),
+    ] {
+        assert!(robot.contains(from), "{from}");
+        std::fs::write(dir.join("r.ron"), robot.replace(from, to)).expect("writes");
+        let src = Source::read(&dir.join("r.ron")).expect("reads");
+        let errors: Vec<String> = check::check(&src)
+            .diagnostics
+            .iter()
+            .map(|d| d.short(&src).replace(&*src.name, "r.ron"))
+            .collect();
+        assert_eq!(errors, [want]);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn a_connection_to_a_missing_fb_or_port_is_refused_at_its_place() {
     assert_eq!(

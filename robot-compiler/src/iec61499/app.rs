@@ -1148,6 +1148,13 @@ pub fn bring(
                 format!("`{key}`: an output event may `Extend`, `Retract`, `Out` or `Fault`"),
             ));
         }
+        if let Some(unknown) = unknown_target(robot, &role_of(&fb), action) {
+            return Err(ron_key(
+                "application.actions",
+                key,
+                format!("`{key}`: {unknown}"),
+            ));
+        }
         acts.insert(end, action.clone());
     }
     // The charts.
@@ -1425,6 +1432,36 @@ pub fn bring(
         chart_types,
         places: place_vars,
     })
+}
+
+/// What `action` of an FB on `role` names that the role does not have (an actuator that
+/// `Extend` or `Retract` moves, an output `Out` drives): said where the robot file binds
+/// it, not at the robot.
+fn unknown_target(robot: &Robot, role: &str, action: &ActionDecl) -> Option<String> {
+    let r = robot.roles.iter().find(|r| r.name == role);
+    let names = |what: &str, have: Vec<&str>| -> String {
+        match have.is_empty() {
+            true => format!("role `{role}` has no {what}s"),
+            false => format!("role `{role}`'s {what}s are {}", have.join(", ")),
+        }
+    };
+    match action {
+        ActionDecl::Extend(a) | ActionDecl::Retract(a) => {
+            let have: Vec<&str> = r.map_or(Vec::new(), |r| {
+                r.actuators.iter().map(|x| x.name.as_str()).collect()
+            });
+            (!have.contains(&a.as_str()))
+                .then(|| format!("no actuator `{a}` ({})", names("actuator", have)))
+        }
+        ActionDecl::Out(o, _) => {
+            let have: Vec<&str> = r.map_or(Vec::new(), |r| {
+                r.outputs.iter().map(|x| x.name.as_str()).collect()
+            });
+            (!have.contains(&o.as_str()))
+                .then(|| format!("no output `{o}` ({})", names("output", have)))
+        }
+        _ => None,
+    }
 }
 
 #[cfg(test)]
