@@ -562,7 +562,6 @@ fn a_greetings_retry_after_a_late_answer_numbers_the_link_again_once() {
 /// same. At rest, B carries on through A's boot.
 #[test]
 fn a_peers_boot_greeting_faults_a_node_under_way_and_not_one_at_rest() {
-    let restarted = 0x80 | config_schema::alarm::FAULT_PEER_RESTART;
     let mut net = Net::established();
     // (Greetings within a second of the boot's are copies of it: `restart::Heard`.)
     net.run(1000);
@@ -570,23 +569,8 @@ fn a_peers_boot_greeting_faults_a_node_under_way_and_not_one_at_rest() {
     net.trace.clear();
     net.a.0 = rebooted_a();
     net.run(300);
-    let greeting = (net.air.iter().map(|f| open(f)))
-        .find_map(|(h, aux, payload)| match Message::parse(&payload) {
-            Ok(Message::Challenge { nonce }) if h.src == A => Some((aux.frame_counter, nonce)),
-            _ => None,
-        })
-        .expect("A greets B");
+    let greeting = greeted_b_under_way(&net);
     assert_eq!(greeting.1, greeting.0 | node_fw::restart::GREETING);
-    assert!(
-        net.trace.contains(&(B, A, "ChallengeAnswer")),
-        "{:?}",
-        net.trace
-    );
-    let b = net.b.0.status(0, Default::default());
-    assert_eq!(
-        (b.fault, b.states.as_slice()),
-        (Some(restarted), [1].as_slice())
-    );
     assert_eq!(net.b.1.lamp, [true, false]);
 
     // At rest (the lamp off again: its initial state), B carries on.
@@ -611,7 +595,6 @@ fn a_peers_boot_greeting_faults_a_node_under_way_and_not_one_at_rest() {
 fn a_node_reset_under_way_greets_its_peers_and_nothing_is_numbered_again() {
     use config_schema::wire::msg::Command;
     use node_fw::restart::RESET_GREETING;
-    let restarted = 0x80 | config_schema::alarm::FAULT_PEER_RESTART;
     let mut net = Net::new();
     let mut stepping = table_a();
     stepping.outputs.push(Output::safe(6, false)).unwrap();
@@ -648,14 +631,22 @@ fn a_node_reset_under_way_greets_its_peers_and_nothing_is_numbered_again() {
     net.a.0.receive(&psdu[..len], net.now, &mut net.a.1);
     net.a.1.out.retain(|f| open_to_tool(f));
     net.run(600);
+    let greeting = greeted_b_under_way(&net);
+    assert_eq!(greeting.1, RESET_GREETING);
+    assert!(greeting.0 > 0);
+    assert_eq!(net.b.0.epoch(), epoch, "B numbered its link to A again");
+}
+
+/// A's greeting to B on the air (its frame's counter, its nonce), once B, under way,
+/// answered it and faulted `0x86` (its chart where it was).
+fn greeted_b_under_way(net: &Net) -> (u32, u32) {
+    let restarted = 0x80 | config_schema::alarm::FAULT_PEER_RESTART;
     let greeting = (net.air.iter().map(|f| open(f)))
         .find_map(|(h, aux, payload)| match Message::parse(&payload) {
             Ok(Message::Challenge { nonce }) if h.src == A => Some((aux.frame_counter, nonce)),
             _ => None,
         })
         .expect("A greets B");
-    assert_eq!(greeting.1, RESET_GREETING);
-    assert!(greeting.0 > 0);
     assert!(
         net.trace.contains(&(B, A, "ChallengeAnswer")),
         "{:?}",
@@ -666,7 +657,7 @@ fn a_node_reset_under_way_greets_its_peers_and_nothing_is_numbered_again() {
         (b.fault, b.states.as_slice()),
         (Some(restarted), [1].as_slice())
     );
-    assert_eq!(net.b.0.epoch(), epoch, "B numbered its link to A again");
+    greeting
 }
 
 /// Whether `psdu` is not one of the node's frames to its peers (its answer to the tool).

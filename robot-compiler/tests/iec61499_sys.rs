@@ -235,21 +235,29 @@ fn an_unknown_element_is_refused_at_its_place() {
     );
 }
 
-/// `check` of a robot whose application fails to import reports that failure alone, not
-/// what follows from it (a robot without behaviour, its roles on no node).
-#[test]
-fn a_failed_import_is_the_only_error_check_reports() {
-    let dir = std::env::temp_dir().join(format!("sys-import-{}", std::process::id()));
+/// A scratch directory (`tag`) with the 4diac paint robot's files, each as `edit` makes
+/// it: the directory and the robot file's text (to write there as `r.ron`).
+fn paint_4diac_copy(tag: &str, edit: impl Fn(&str) -> String) -> (std::path::PathBuf, String) {
+    let dir = std::env::temp_dir().join(format!("{tag}-{}", std::process::id()));
     let types = dir.join("4diac/paint-robot");
     std::fs::create_dir_all(&types).expect("dir");
     let configs = root().join("robot-configs");
     for entry in std::fs::read_dir(configs.join("4diac/paint-robot")).expect("4diac files") {
         let path = entry.expect("entry").path();
-        let text = std::fs::read_to_string(&path).expect("reads");
-        let text = text.replace("Source=\"gr.GR1\"", "Source=\"gr.ZZ\"");
+        let text = edit(&std::fs::read_to_string(&path).expect("reads"));
         std::fs::write(types.join(path.file_name().expect("name")), text).expect("writes");
     }
     let robot = std::fs::read_to_string(configs.join("paint-robot-4diac.ron")).expect("robot");
+    (dir, robot)
+}
+
+/// `check` of a robot whose application fails to import reports that failure alone, not
+/// what follows from it (a robot without behaviour, its roles on no node).
+#[test]
+fn a_failed_import_is_the_only_error_check_reports() {
+    let (dir, robot) = paint_4diac_copy("sys-import", |text| {
+        text.replace("Source=\"gr.GR1\"", "Source=\"gr.ZZ\"")
+    });
     std::fs::write(dir.join("r.ron"), robot).expect("writes");
     let src = Source::read(&dir.join("r.ron")).expect("reads");
     let errors: Vec<String> = check::check(&src)
@@ -270,15 +278,7 @@ fn a_failed_import_is_the_only_error_check_reports() {
 /// role's actuators (or outputs).
 #[test]
 fn an_action_naming_what_its_role_lacks_is_refused_at_its_key() {
-    let dir = std::env::temp_dir().join(format!("sys-action-{}", std::process::id()));
-    let types = dir.join("4diac/paint-robot");
-    std::fs::create_dir_all(&types).expect("dir");
-    let configs = root().join("robot-configs");
-    for entry in std::fs::read_dir(configs.join("4diac/paint-robot")).expect("4diac files") {
-        let path = entry.expect("entry").path();
-        std::fs::copy(&path, types.join(path.file_name().expect("name"))).expect("copies");
-    }
-    let robot = std::fs::read_to_string(configs.join("paint-robot-4diac.ron")).expect("robot");
+    let (dir, robot) = paint_4diac_copy("sys-action", str::to_string);
     for (from, to, want) in [
         (
             "\"vc.VC_EXT\": Extend(\"VC\")",
