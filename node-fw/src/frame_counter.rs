@@ -23,8 +23,9 @@
 //! Wear (docs/security.md): at 10 frames/s, continuously, for 10 years a node sends
 //! 3.2e9 frames, so 3.1e6 reservations of 1024; a 4 KiB sector holds 256 records, so
 //! each of the two sectors is erased about 6,000 times, within the nRF52840's 10,000
-//! cycles. The 32-bit counter lasts 13.6 years at that rate; before it would wrap, `next`
-//! says [`CounterError::Exhausted`], for good: one counter serves every key of the node
+//! cycles. The counter stops below [`LIMIT`] (2^31: bit 31 of a challenge's nonce marks a
+//! greeting), 6.8 years at that rate; there `next` says [`CounterError::Exhausted`], for
+//! good: one counter serves every key of the node
 //! (so a new generation's link keys do not restart it), and only re-provisioning the node
 //! (a new management key, which erases this region with the rest of the node's flash)
 //! starts it again at 0.
@@ -35,6 +36,10 @@ use embedded_storage_async::nor_flash::NorFlash;
 
 /// Counters reserved by one flash write.
 pub const STEP: u32 = 1024;
+/// Every counter handed out is below this: a challenge's nonce is its frame's counter,
+/// and bit 31 of a nonce marks a greeting (`crate::restart::GREETING`); a counter with
+/// it set would make every challenge of the node read as a boot's greeting.
+pub const LIMIT: u32 = 1 << 31;
 const RECORD: usize = 16;
 const MAGIC: u32 = 0xFC0C_0017;
 const CRC: Crc<u32, NoTable> = Crc::<u32, NoTable>::new(&CRC_32_ISO_HDLC);
@@ -44,7 +49,7 @@ const CRC: Crc<u32, NoTable> = Crc::<u32, NoTable>::new(&CRC_32_ISO_HDLC);
 pub enum CounterError<E> {
     /// The region is not two erase sectors of whole records.
     Geometry,
-    /// The 32-bit counter is used up: a new key is needed.
+    /// The counter reached [`LIMIT`]: a new key is needed.
     Exhausted,
     /// The flash failed (the counter was not handed out).
     Flash(E),
@@ -141,9 +146,8 @@ impl<F: NorFlash> FrameCounter<F> {
     #[allow(clippy::should_implement_trait)]
     pub fn next(&mut self) -> Result<u32, CounterError<F::Error>> {
         if self.next >= self.reserved {
-            let reserve = self
-                .next
-                .checked_add(self.step)
+            let reserve = (self.next.checked_add(self.step))
+                .filter(|r| *r <= LIMIT)
                 .ok_or(CounterError::Exhausted)?;
             self.persist(reserve)?;
             self.reserved = reserve;
@@ -271,6 +275,23 @@ mod tests {
         assert_eq!(c.next(), Err(CounterError::Exhausted));
         let mut c = open(Flash::new(), 1);
         assert_eq!(c.next(), Ok(0));
+    }
+
+    /// A counter with bit 31 set would make the node's every challenge read as a boot's
+    /// greeting (its nonce is the counter; `restart::GREETING` is bit 31): the last
+    /// counter handed out is 2^31 - 1, and a region that reserved past it (an older
+    /// image's) hands out none.
+    #[test]
+    fn the_counter_stops_below_bit_31() {
+        let mut flash = Flash::new();
+        flash.bytes[..16].copy_from_slice(&encode(LIMIT - 2));
+        let mut c = open(flash, 1);
+        assert_eq!(c.next(), Ok(LIMIT - 2));
+        assert_eq!(c.next(), Ok(LIMIT - 1));
+        assert_eq!(c.next(), Err(CounterError::Exhausted));
+        let mut flash = Flash::new();
+        flash.bytes[..16].copy_from_slice(&encode(LIMIT + 5));
+        assert_eq!(open(flash, 1).next(), Err(CounterError::Exhausted));
     }
 
     #[test]
