@@ -171,6 +171,21 @@ fn clear_start() -> Vec<u8> {
     clear[..n].to_vec()
 }
 
+/// Waits (at most [`SURE`]) until `child` (`what`) ends: its exit status and standard
+/// error.
+fn ended(child: &mut Child, what: &str) -> (std::process::ExitStatus, String) {
+    let until = std::time::Instant::now() + SURE;
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(std::time::Instant::now() < until, "{what} still runs");
+    };
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    (status, err)
+}
+
 /// Issue: `config-tool monitor ... | head -1` ended with a panic message (printing to a
 /// pipe whose reader went away panicked). It ends as a filter does: quietly, status 0.
 #[test]
@@ -194,15 +209,7 @@ fn monitor_ends_quietly_when_its_reader_goes_away() {
     drop(out);
     // Its next line finds no reader.
     radio.send(&Link::Frame(&start)).unwrap();
-    let until = std::time::Instant::now() + SURE;
-    let status = loop {
-        if let Some(status) = monitor.try_wait().unwrap() {
-            break status;
-        }
-        assert!(std::time::Instant::now() < until, "the monitor still runs");
-    };
-    let mut err = String::new();
-    std::io::Read::read_to_string(&mut monitor.stderr.take().unwrap(), &mut err).unwrap();
+    let (status, err) = ended(&mut monitor, "the monitor");
     medium.stop();
     assert_eq!((status.code(), err.as_str()), (Some(0), ""));
 }
@@ -343,15 +350,7 @@ fn monitor_and_plant_say_so_when_the_medium_goes_away() {
             .unwrap();
         assert!(medium.wait_for_clients(1, SURE), "{what} joins");
         medium.stop();
-        let until = std::time::Instant::now() + SURE;
-        let status = loop {
-            if let Some(status) = child.try_wait().unwrap() {
-                break status;
-            }
-            assert!(std::time::Instant::now() < until, "{what} still runs");
-        };
-        let mut err = String::new();
-        std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+        let (status, err) = ended(&mut child, what);
         let want = format!("error: {} (it went away)\n", what.replace("{at}", &at));
         assert_eq!((status.code(), err.as_str()), (Some(1), want.as_str()));
     }

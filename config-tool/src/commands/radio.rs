@@ -1365,7 +1365,16 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
     let motors = robot_net::live_motor::motors(&c)?;
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let (steps_tx, steps) = std::sync::mpsc::channel();
-    let attach_failed = |e: io::Error| Failure::error(format!("plant on {medium}: {e}"));
+    // The medium going away, whenever the plant meets it (attaching, or running).
+    let gone = || {
+        Failure::error(format!(
+            "plant on {medium}: the medium closed the connection (it went away)"
+        ))
+    };
+    let failed = move |e: io::Error| match medium_gone(&e) {
+        true => gone(),
+        false => Failure::error(format!("plant on {medium}: {e}")),
+    };
     // What else the plant reports, in words, beside the steps (balls, motors).
     let (said_tx, said) = std::sync::mpsc::channel::<(Duration, String)>();
     let said_steps = said_tx.clone();
@@ -1375,7 +1384,7 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
     // The medium's clock zero: what the plant says beside the steps is stamped on it.
     let medium_start = || {
         live_plant::medium_start(medium, Duration::from_secs(2))
-            .map_err(attach_failed)?
+            .map_err(failed)?
             .ok_or_else(|| {
                 Failure::error(format!(
                     "plant on {medium}: the medium did not tell its clock"
@@ -1386,7 +1395,7 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
         // A sorting station: the robot's feed at its sensors, each ball's landing said.
         let balls = robot_net::live_feed::ball_feed(&c, &actuators, &s.feed)?;
         let start = medium_start()?;
-        let conn = live_plant::attach_fed(medium, &actuators, &balls).map_err(attach_failed)?;
+        let conn = live_plant::attach_fed(medium, &actuators, &balls).map_err(failed)?;
         outln!("feed: {} ball(s): {}", s.feed.len(), s.feed.join(" "));
         let (landed_tx, landed) = std::sync::mpsc::channel::<robot_net::live_feed::Landing>();
         let feed = s.feed.clone();
@@ -1407,7 +1416,7 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
     } else if !motors.motors.is_empty() || !motors.inputs.is_empty() {
         // Motors: their carriages timed on the medium's clock, each motion said.
         let start = medium_start()?;
-        let conn = live_plant::attach_motors(medium, &actuators, &motors).map_err(attach_failed)?;
+        let conn = live_plant::attach_motors(medium, &actuators, &motors).map_err(failed)?;
         let (operate, operated) = std::sync::mpsc::channel();
         if !motors.inputs.is_empty() {
             // The operator's inputs, a line of standard input each (its end leaves them
@@ -1461,7 +1470,7 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
         std::thread::spawn(move || live_plant::run_motors(conn, actuators, plant, steps_tx, flag))
     } else {
         drop(said_tx);
-        let conn = live_plant::attach(medium, &actuators).map_err(attach_failed)?;
+        let conn = live_plant::attach(medium, &actuators).map_err(failed)?;
         let flag = stop.clone();
         std::thread::spawn(move || live_plant::run_attached(conn, actuators, None, steps_tx, flag))
     };
@@ -1480,12 +1489,20 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
     // The plant runs until the medium ends its connection (or an error ends it): it never
     // stops of itself, so an end is the medium gone.
     match handle.join() {
-        Ok(Ok(())) => Err(Failure::error(format!(
-            "plant on {medium}: the medium closed the connection (it went away)"
-        ))),
-        Ok(Err(e)) => Err(Failure::error(format!("plant on {medium}: {e}"))),
+        Ok(Ok(())) => Err(gone()),
+        Ok(Err(e)) => Err(failed(e)),
         Err(_) => Err(Failure::error("the plant stopped")),
     }
+}
+
+/// Whether `e` says the medium went away: its connection ended (read), or was reset or
+/// broken under a write, whichever the client met first.
+fn medium_gone(e: &io::Error) -> bool {
+    use io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset, UnexpectedEof};
+    matches!(
+        e.kind(),
+        UnexpectedEof | BrokenPipe | ConnectionReset | ConnectionAborted
+    )
 }
 
 /// `monitor`: every frame (decoded; secured ones opened with the keys of `keys`, the
@@ -1557,7 +1574,7 @@ pub fn monitor(
         });
         let heard = match got {
             Ok(heard) => heard,
-            Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => {
+            Err(e) if medium_gone(&e) => {
                 return Err(Failure::error(format!(
                     "monitor: the medium at {medium} closed the connection (it went away)"
                 )))
