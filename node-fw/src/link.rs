@@ -197,6 +197,12 @@ impl Sender {
         self.deadline = (!self.pending.is_empty()).then(|| now + self.rto());
     }
 
+    /// Whether none of this link's events was acknowledged in its epoch: its first
+    /// unacknowledged event (or its next) is seq 0, which a fresh receiver takes as it is.
+    pub fn starts_at_zero(&self) -> bool {
+        self.base == 0
+    }
+
     /// Whether this link numbers in an epoch older than `epoch` (serial order on `u16`).
     pub fn older_than(&self, epoch: u16) -> bool {
         before(self.epoch, epoch)
@@ -209,6 +215,11 @@ impl Sender {
     pub fn renumber(&mut self, epoch: u16, now: u64) {
         self.epoch = epoch;
         self.base = 0;
+        self.resend(now);
+    }
+
+    /// Sends the window again at the next poll (the subscriber can take it now).
+    pub fn resend(&mut self, now: u64) {
         self.deadline = (!self.pending.is_empty()).then_some(now);
     }
 

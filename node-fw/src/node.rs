@@ -1290,7 +1290,7 @@ impl<S: StagingArea> NodeCore<S> {
                 renumber,
             } => {
                 // It knows no counter of ours: it booted (or is new to this table),
-                // and has no receiving side of our link to it either.
+                // and may have no receiving side of our link to it either.
                 if renumber {
                     self.renumber_link(peer, None, now);
                 }
@@ -1592,13 +1592,22 @@ impl<S: StagingArea> NodeCore<S> {
     /// receiver waits for seq 0), with the events it has not acknowledged: this node's
     /// next epoch, or `wanted` if the peer asked for a newer one (a link that numbers in
     /// `wanted` or a newer one already is left as it is: the ask came late, or twice).
+    /// Unasked (`None`: a secured peer's challenge, whose answer lets the peer take our
+    /// events: they are sent again at once), only a link some of whose events were
+    /// acknowledged in its epoch: one still at seq 0 is taken by a fresh receiver as it
+    /// is, and the challenge may have been sent before the peer took its first events
+    /// (their acknowledgement lost): numbered again, they would be delivered twice. A
+    /// challenge sent after the peer acknowledged one of them (it booted since) is newer
+    /// than that acknowledgement's counter; one sent before it is a replay by then.
     fn renumber_link(&mut self, peer: u16, wanted: Option<u16>, now: u64) {
         let Some(i) = self.peer(peer) else { return };
         let Some(sender) = self.senders.get_mut(i) else {
             return;
         };
-        if wanted.is_some_and(|w| !sender.older_than(w)) {
-            return;
+        match wanted {
+            Some(w) if !sender.older_than(w) => return,
+            None if sender.starts_at_zero() => return sender.resend(now),
+            _ => {}
         }
         let next = self.epoch.wrapping_add(1);
         self.epoch = match wanted {

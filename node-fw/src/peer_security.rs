@@ -78,8 +78,10 @@ pub enum Verdict<'s> {
         /// This node knows no floor of the peer either: challenge it back (the peer that
         /// greets last after a push is then known both ways before any event).
         challenge: bool,
-        /// The peer booted: number our link to it again (not for a copy of a challenge
-        /// that did so already: `PeerSecurity::renumbers`).
+        /// The peer may have lost its side of our link (it booted): number the link again
+        /// if the peer took some of its epoch already (`NodeCore` decides: a link none of
+        /// whose events was acknowledged in its epoch starts at seq 0, which a fresh
+        /// receiver takes as it is). Not for a reset's greeting, which kept its receivers.
         renumber: bool,
     },
     /// The answer to this node's challenge: the peer's floor is set. Nothing else to do.
@@ -108,9 +110,6 @@ pub struct PeerSecurity {
     /// Per peer: when it may be challenged, and answered, again.
     next_challenge: Vec<(u16, u64), MAX_PEERS>,
     next_answer: Vec<(u16, u64), MAX_PEERS>,
-    /// Per peer of the current keys (in their order): the nonce (bit 31 clear) of its last
-    /// challenge that numbered our link to it again.
-    renumbered: [Option<u32>; MAX_PEERS],
     /// Per peer: the nonce this node repeats in its challenges to it while it is not
     /// answered, and when it first sent it ([`PeerSecurity::challenge`]; forgotten when a new
     /// table runs).
@@ -197,9 +196,6 @@ impl PeerSecurity {
         }
         self.replay = floors;
         self.challenges.retain(peers);
-        // Indexed by the new keys' peers: what the old ones' said is forgotten (a challenge
-        // copied across a switch-over renumbers once more, at most).
-        self.renumbered = [None; MAX_PEERS];
         self.repeating.clear();
         self.greet.clear();
         if self.current.is_some() {
@@ -371,7 +367,7 @@ impl PeerSecurity {
                 nonce: *nonce,
                 answer,
                 challenge,
-                renumber: self.renumbers(src, *nonce),
+                renumber: *nonce != crate::restart::RESET_GREETING,
             };
         }
         if floor.is_none() {
@@ -410,44 +406,20 @@ impl PeerSecurity {
                 nonce: *nonce,
                 answer: may(&mut self.next_answer, src, now, ANSWER_MS),
                 challenge: false,
-                renumber: self.renumbers(src, *nonce),
+                renumber: *nonce != crate::restart::RESET_GREETING,
             },
             _ => Verdict::Accept(payload),
         }
     }
 
-    /// Whether a challenge from `peer` with `nonce` numbers our link to it again: its
-    /// first, or one whose nonce is newer than the last that did. A peer repeats its
-    /// nonce in every challenge until one is answered ([`PeerSecurity::challenge`]): those
-    /// ask for one renumbering, however late they come. Numbered again for a late one
-    /// (sent before our answer reached the peer, come after the peer took the numbered
-    /// events and its acknowledgement was lost), or for a copy the radio duplicated
-    /// before the peer's floor is known (both booted: no replay check stops it), the
-    /// events the peer took since the first would be delivered to it twice.
-    fn renumbers(&mut self, peer: u16, nonce: u32) -> bool {
-        // A peer reset under way kept its side of our link: nothing to number again.
-        if nonce == crate::restart::RESET_GREETING {
-            return false;
-        }
-        let counter = nonce & !crate::restart::GREETING;
-        let at = (self.current.as_ref()).and_then(|k| k.peers.iter().position(|p| p.peer == peer));
-        let Some(last) = at.and_then(|i| self.renumbered.get_mut(i)) else {
-            return true;
-        };
-        if last.is_some_and(|last| counter <= last) {
-            return false;
-        }
-        *last = Some(counter);
-        true
-    }
-
     /// This node challenges `peer` in a frame with counter `counter`, with `flags`
     /// ([`crate::restart::GREETING`] or none), at `now`: the challenge's nonce, remembered
     /// until answered. The counter, unless the peer has not answered one sent within
-    /// [`REPEAT_MS`] (its floor unknown): then that one's (with `flags` added), so that the
-    /// peer numbers its link to this node again once for all of them (a greeting's
-    /// retries, a challenge of a frame that came before the answer). Everything the peer
-    /// sent before the first of them is still below the floor its answer sets.
+    /// [`REPEAT_MS`] (its floor unknown): then that one's (with `flags` added), so that an
+    /// answer to any of them (a greeting's retries, a challenge of a frame that came
+    /// before the answer) sets the floor; with a nonce per copy only the last two count,
+    /// and on a radio that reorders the answers to older ones came to nothing. Everything
+    /// the peer sent before the first of them is still below the floor its answer sets.
     pub fn challenge(&mut self, peer: u16, counter: u32, flags: u32, now: u64) -> u32 {
         let nonce = self.repeated_nonce(peer, counter | flags, now);
         self.challenges.sent(peer, nonce, now);
@@ -798,8 +770,12 @@ mod tests {
         ));
         // A copy of that challenge (the radio duplicated it), an older one replayed, or
         // a retry of the peer's (its nonce repeated in a newer frame): answered at the
-        // handshake's rate, but the link is not numbered again for it.
-        for (counter, ch) in [(4, &newer), (2, &ch), (9, &newer)] {
+        // handshake's rate, the link numbered again if it took events of its epoch
+        // (`NodeCore::renumber_link`); a reset's greeting numbers nothing again.
+        let reset = Message::Challenge {
+            nonce: crate::restart::RESET_GREETING,
+        };
+        for (counter, ch, renumbers) in [(4, &newer, true), (2, &ch, true), (9, &reset, false)] {
             let v = s.open(
                 &frame(1, counter, ch),
                 ME,
@@ -809,13 +785,7 @@ mod tests {
                 &mut c,
             );
             assert!(
-                matches!(
-                    v,
-                    Verdict::Answer {
-                        renumber: false,
-                        ..
-                    }
-                ),
+                matches!(v, Verdict::Answer { renumber, .. } if renumber == renumbers),
                 "counter {counter}"
             );
         }

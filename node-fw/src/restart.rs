@@ -25,8 +25,9 @@ pub const GREETING: u32 = 1 << 31;
 /// A secured greeting's nonce when the sender's charts started over by a `Reset` while
 /// under way, not by a boot: exactly this (a boot's greeting is its frame's counter with
 /// [`GREETING`], which only the one counter 2^30 would make this). The sender kept its
-/// links' receivers and its floors, so the peer numbers nothing again
-/// (`PeerSecurity::renumbers`) and only learns that the sender's charts started over.
+/// links' receivers and its floors, so the peer numbers nothing again (the `renumber` of
+/// `crate::peer_security::Verdict::Answer`) and only learns that the sender's charts
+/// started over.
 /// (A greeting in clear is `GREETING` alone: nothing is numbered again in clear.)
 pub const RESET_GREETING: u32 = GREETING | 1 << 30;
 

@@ -555,6 +555,63 @@ fn a_greetings_retry_after_a_late_answer_numbers_the_link_again_once() {
     assert_eq!(net.b.1.lamp, [true, false]);
 }
 
+/// B reboots while A has an event for it, and A's answers to B's greeting are late: B
+/// repeats the greeting's nonce for `REPEAT_MS`, then challenges A's resent event with a
+/// fresh one. That challenge is on its way when A's (held) answer reaches B: B takes the
+/// event A numbered again for the greeting, its acknowledgement is lost, and the fresh
+/// challenge reaches A after it. A numbered its link to B again for it (a newer nonce),
+/// resent the event in the newer epoch, and B took it again: delivered twice. None of the
+/// events of A's epoch was acknowledged when the challenge came: B's receiver, fresh or
+/// not, takes its seq 0 as it is; the link is not numbered again, the event delivered
+/// once.
+#[test]
+fn a_fresh_challenge_that_comes_after_the_event_it_asked_for_numbers_nothing_again() {
+    let mut net = Net::established();
+    net.b.0 = node_b();
+    net.b.1.lamp.clear();
+    net.press();
+    let (mut greeting, mut answer, mut fresh) = (None, None, None);
+    let mut released = false;
+    for _ in 0..3000 {
+        net.now += 1;
+        net.a.0.poll(net.now, &mut net.a.1);
+        net.b.0.poll(net.now, &mut net.b.1);
+        let mut frames = std::mem::take(&mut net.a.1.out);
+        frames.append(&mut net.b.1.out);
+        for f in frames {
+            let (h, _, payload) = open(&f);
+            match (h.src, h.dst, Message::parse(&payload).unwrap()) {
+                (B, A, Message::Challenge { nonce }) if !released => {
+                    // The greeting reaches A; the first challenge with another nonce, and
+                    // its repeats, are held.
+                    match *greeting.get_or_insert(nonce) == nonce {
+                        true => net.deliver(&f),
+                        false => {
+                            fresh.get_or_insert(f);
+                        }
+                    }
+                }
+                // A's answers held, the last one released once B challenged afresh.
+                (A, B, Message::ChallengeAnswer { .. }) if fresh.is_none() => answer = Some(f),
+                // B's acknowledgement lost; the fresh challenge reaches A in its place.
+                (B, A, Message::EventAck { .. }) if !released => {
+                    released = true;
+                    net.deliver(&fresh.take().expect("B challenged afresh"));
+                }
+                _ => net.deliver(&f),
+            }
+            if let Some(late) = answer.take_if(|_| fresh.is_some()) {
+                net.deliver(&late);
+            }
+        }
+    }
+    assert!(released, "{:?}", net.trace);
+    assert_eq!(net.b.1.lamp, [true], "delivered once: {:?}", net.trace);
+    net.press();
+    net.run(400);
+    assert_eq!(net.b.1.lamp, [true, false]);
+}
+
 /// A's power is cut while B's lamp is on (B's chart neither idle nor initial: under way).
 /// A boots and greets B: a challenge whose nonce is its frame's counter with bit 31 set
 /// (`restart::GREETING`). B faults `0x86` at once, its lamp at its fault level (off),
