@@ -29,6 +29,19 @@ fn tool(args: &[&str]) -> Output {
         .expect("runs")
 }
 
+/// `push ROBOT --keys KEY --medium MEDIUM --generation GENERATION`, then `more`.
+fn push_args<'a>(
+    key: &'a str,
+    medium: &'a str,
+    generation: &'a str,
+    more: &[&'a str],
+) -> Vec<&'a str> {
+    let mut args = vec!["push", ROBOT, "--keys", key, "--medium", medium];
+    args.extend(["--generation", generation]);
+    args.extend(more);
+    args
+}
+
 fn ok(args: &[&str]) -> String {
     let out = tool(args);
     assert!(
@@ -297,16 +310,7 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     // A second push: a new run, its counters above every earlier run's (the node would
     // drop them as replayed otherwise, and the push would fail).
     let runs = reservations(&counter);
-    let again = ok(&[
-        "push",
-        ROBOT,
-        "--keys",
-        &key_s,
-        "--medium",
-        &m,
-        "--generation",
-        "2",
-    ]);
+    let again = ok(&push_args(&key_s, &m, "2", &[]));
     assert_eq!(
         again.lines().filter(|l| l.ends_with("activated")).count(),
         4,
@@ -353,19 +357,7 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     );
 
     // Generation 3 on trial; rolled back to 2; on trial again and confirmed.
-    let push_trial = |generation: &str| {
-        ok(&[
-            "push",
-            ROBOT,
-            "--keys",
-            &key_s,
-            "--medium",
-            &m,
-            "--generation",
-            generation,
-            "--trial",
-        ])
-    };
+    let push_trial = |generation: &str| ok(&push_args(&key_s, &m, generation, &["--trial"]));
     let trial = push_trial("3");
     assert!(
         trial.ends_with(
@@ -400,8 +392,7 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     drop(reader);
     let unread = Command::new(env!("CARGO_BIN_EXE_config-tool"))
         .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
-        .args(["push", ROBOT, "--keys", &key_s, "--medium", &m])
-        .args(["--generation", "4", "--trial"])
+        .args(push_args(&key_s, &m, "4", &["--trial"]))
         .env_remove("CONFIG_TOOL_KEYS")
         .stdout(writer)
         .output()
@@ -424,19 +415,7 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
         "nothing on trial: every node's generation is confirmed\n"
     );
     // A watched trial nobody confirms goes back by itself.
-    let watched = tool(&[
-        "push",
-        ROBOT,
-        "--keys",
-        &key_s,
-        "--medium",
-        &m,
-        "--generation",
-        "5",
-        "--trial",
-        "--watch",
-        "1",
-    ]);
+    let watched = tool(&push_args(&key_s, &m, "5", &["--trial", "--watch", "1"]));
     assert_eq!(watched.status.code(), Some(3), "{}", text(&watched.stdout));
     assert!(
         text(&watched.stdout).ends_with(
@@ -458,17 +437,7 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     // standard input (a `confirm` from another terminal with the same key file is refused
     // while the watch holds its counter file).
     let mut watching = Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .args([
-            "push",
-            ROBOT,
-            "--keys",
-            &key_s,
-            "--medium",
-            &m,
-            "--generation",
-            "6",
-        ])
-        .args(["--trial", "--watch", "600"])
+        .args(push_args(&key_s, &m, "6", &["--trial", "--watch", "600"]))
         .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
         .env_remove("CONFIG_TOOL_KEYS")
         .stdin(Stdio::piped())
@@ -627,12 +596,8 @@ fn confirm_refuses_a_trial_a_power_cut_split() {
         mut nodes,
     } = keyed("keys-trial-cut");
     let push = |generation: &str, trial: bool| {
-        let mut args = vec!["push", ROBOT, "--keys", &key_s, "--medium", &m];
-        args.extend(["--generation", generation]);
-        if trial {
-            args.push("--trial");
-        }
-        ok(&args)
+        let more: &[&str] = if trial { &["--trial"] } else { &[] };
+        ok(&push_args(&key_s, &m, generation, more))
     };
     push("1", false);
     push("2", true);
@@ -814,12 +779,7 @@ fn a_switch_over_that_did_not_finish_is_refused_by_home_then_finished_by_push_or
     } = keyed("keys-split-switch");
     let secret = robot_keys::load_machine_secret(Path::new(&key_s)).expect("secret");
     let rc = e2e_support::role_of(&c, "RC").1;
-    let push = |generation: &str, extra: &[&str]| {
-        let mut args = vec!["push", ROBOT, "--keys", &key_s, "--medium", &m];
-        args.extend(["--generation", generation]);
-        args.extend(extra);
-        tool(&args)
-    };
+    let push = |generation: &str, extra: &[&str]| tool(&push_args(&key_s, &m, generation, extra));
     let split = |generation: u32| {
         let g = generation.to_string();
         let out = push(&g, &["--stage-only"]);
@@ -909,10 +869,13 @@ fn a_role_pushed_alone_at_another_generation_of_a_secured_robot_is_refused() {
         ..
     } = keyed("keys-push-role");
     let push = |generation: &str, extra: &[&str]| {
-        let mut args = vec!["push", ROBOT, "--keys", &key_s, "--medium", &m, "--now"];
-        args.extend(["--generation", generation]);
-        args.extend(extra);
-        tool(&args)
+        tool(
+            &[
+                push_args(&key_s, &m, generation, &["--now"]),
+                extra.to_vec(),
+            ]
+            .concat(),
+        )
     };
     let out = push("1", &[]);
     assert!(out.status.success(), "{}", text(&out.stdout));

@@ -803,7 +803,8 @@ impl<S: StagingArea> NodeCore<S> {
     }
 
     /// Whether the node is idle: configured, not faulted, every chart in its idle state
-    /// or another of its resting states (`Chart::rests`), no timer running, no event of its own unacknowledged (unconfigured: idle).
+    /// or another of its resting states (`Chart::rests`), no timer running, no event of
+    /// its own unacknowledged (unconfigured: idle).
     pub fn idle(&self) -> bool {
         self.resting(|c, cur| c.rests_in(cur))
     }
@@ -1638,6 +1639,7 @@ impl<S: StagingArea> NodeCore<S> {
         let greeting = Message::Challenge {
             nonce: restart::GREETING,
         };
+        // By index: sending borrows the node (and a copy of the peers costs flash).
         let mut i = 0;
         while let Some(&peer) = self.table.as_ref().and_then(|t| t.peers.get(i)) {
             if secured {

@@ -18,8 +18,8 @@ use crate::peer_security::{GREET_EVERY_MS, GREET_TRIES};
 
 /// Bit 31 of a `Challenge`'s nonce: the sender booted (its greeting). A secured nonce is
 /// otherwise a challenge frame's counter (below 2^31: `crate::frame_counter::LIMIT`; that
-/// frame's, or a repeated one's, `crate::peer_security::PeerSecurity::challenge`); a nonce in clear without it is an
-/// epoch asked for ([`crate::link::Receiver::ask`]).
+/// frame's, or a repeated one's, `crate::peer_security::PeerSecurity::challenge`); a
+/// nonce in clear without it is an epoch asked for ([`crate::link::Receiver::ask`]).
 pub const GREETING: u32 = 1 << 31;
 
 /// A secured greeting's nonce when the sender's charts started over by a `Reset` while

@@ -646,8 +646,9 @@ fn a_peers_boot_greeting_faults_a_node_under_way_and_not_one_at_rest() {
 /// A `Reset` of A while under way (its press toggled a chart of its own on: in the middle
 /// of a cycle) starts A's charts over as a boot does, but a secured node greets only when
 /// it boots: B, under way, waited for ever. A reset under way now greets B with a
-/// challenge whose nonce is `restart::RESET_GREETING` (bits 31 and 30, no counter): B faults `0x86` and answers, and numbers nothing again (A kept its receivers:
-/// B's epoch stays).
+/// challenge whose nonce is `restart::RESET_GREETING` (bits 31 and 30, no counter): B
+/// faults `0x86` and answers, and numbers nothing again (A kept its receivers: B's epoch
+/// stays).
 #[test]
 fn a_node_reset_under_way_greets_its_peers_and_nothing_is_numbered_again() {
     use config_schema::wire::msg::Command;

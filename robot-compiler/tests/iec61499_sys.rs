@@ -251,6 +251,16 @@ fn paint_4diac_copy(tag: &str, edit: impl Fn(&str) -> String) -> (std::path::Pat
     (dir, robot)
 }
 
+/// `check` of `robot` written to `dir` as `r.ron` (beside the files it names): its
+/// diagnostics, each `r.ron:LINE:COL: severity: message`.
+fn check_r_ron(dir: &std::path::Path, robot: &str) -> Vec<String> {
+    std::fs::write(dir.join("r.ron"), robot).expect("writes");
+    let src = Source::read(&dir.join("r.ron")).expect("reads");
+    (check::check(&src).diagnostics.iter())
+        .map(|d| d.short(&src).replace(&*src.name, "r.ron"))
+        .collect()
+}
+
 /// `check` of a robot whose application fails to import reports that failure alone, not
 /// what follows from it (a robot without behaviour, its roles on no node).
 #[test]
@@ -258,15 +268,8 @@ fn a_failed_import_is_the_only_error_check_reports() {
     let (dir, robot) = paint_4diac_copy("sys-import", |text| {
         text.replace("Source=\"gr.GR1\"", "Source=\"gr.ZZ\"")
     });
-    std::fs::write(dir.join("r.ron"), robot).expect("writes");
-    let src = Source::read(&dir.join("r.ron")).expect("reads");
-    let errors: Vec<String> = check::check(&src)
-        .diagnostics
-        .iter()
-        .map(|d| d.short(&src).replace(&*src.name, "r.ron"))
-        .collect();
     assert_eq!(
-        errors,
+        check_r_ron(&dir, &robot),
         ["r.ron:52:15: error: 4diac/paint-robot/PaintRobot.sys:19:9: `gr.ZZ`: `gr` (of type `Gr`) \
           has no event output `ZZ`"]
     );
@@ -292,14 +295,7 @@ fn an_action_naming_what_its_role_lacks_is_refused_at_its_key() {
         ),
     ] {
         assert!(robot.contains(from), "{from}");
-        std::fs::write(dir.join("r.ron"), robot.replace(from, to)).expect("writes");
-        let src = Source::read(&dir.join("r.ron")).expect("reads");
-        let errors: Vec<String> = check::check(&src)
-            .diagnostics
-            .iter()
-            .map(|d| d.short(&src).replace(&*src.name, "r.ron"))
-            .collect();
-        assert_eq!(errors, [want]);
+        assert_eq!(check_r_ron(&dir, &robot.replace(from, to)), [want]);
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -727,14 +723,9 @@ fn checked(fbt: &str, files: &[(&str, String)]) -> Vec<String> {
     for (name, text) in files {
         std::fs::write(dir.join(name), text).unwrap();
     }
-    let path = dir.join("r.ron").to_string_lossy().into_owned();
-    let src = Source::new(&path, text);
-    let checked = check::check(&src);
+    let checked = check_r_ron(&dir, &text);
     let _ = std::fs::remove_dir_all(&dir);
-    let prefix = format!("{path}:");
-    (checked.diagnostics.iter())
-        .map(|d| d.short(&src).replace(&prefix, "r.ron:"))
-        .collect()
+    checked
 }
 
 /// A problem of a chart the application declares is reported where the application

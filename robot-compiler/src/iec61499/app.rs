@@ -1439,29 +1439,33 @@ pub fn bring(
 /// it, not at the robot.
 fn unknown_target(robot: &Robot, role: &str, action: &ActionDecl) -> Option<String> {
     let r = robot.roles.iter().find(|r| r.name == role);
-    let names = |what: &str, have: Vec<&str>| -> String {
-        match have.is_empty() {
-            true => format!("role `{role}` has no {what}s"),
-            false => format!("role `{role}`'s {what}s are {}", have.join(", ")),
-        }
-    };
-    match action {
-        ActionDecl::Extend(a) | ActionDecl::Retract(a) => {
-            let have: Vec<&str> = r.map_or(Vec::new(), |r| {
+    let (what, name, have): (&str, &str, Vec<&str>) = match action {
+        ActionDecl::Extend(a) | ActionDecl::Retract(a) => (
+            "actuator",
+            a,
+            r.map_or(Vec::new(), |r| {
                 r.actuators.iter().map(|x| x.name.as_str()).collect()
-            });
-            (!have.contains(&a.as_str()))
-                .then(|| format!("no actuator `{a}` ({})", names("actuator", have)))
-        }
-        ActionDecl::Out(o, _) => {
-            let have: Vec<&str> = r.map_or(Vec::new(), |r| {
+            }),
+        ),
+        ActionDecl::Out(o, _) => (
+            "output",
+            o,
+            r.map_or(Vec::new(), |r| {
                 r.outputs.iter().map(|x| x.name.as_str()).collect()
-            });
-            (!have.contains(&o.as_str()))
-                .then(|| format!("no output `{o}` ({})", names("output", have)))
-        }
-        _ => None,
+            }),
+        ),
+        _ => return None,
+    };
+    if have.contains(&name) {
+        return None;
     }
+    Some(match have.is_empty() {
+        true => format!("no {what} `{name}` (role `{role}` has no {what}s)"),
+        false => format!(
+            "no {what} `{name}` (role `{role}`'s {what}s are {})",
+            have.join(", ")
+        ),
+    })
 }
 
 #[cfg(test)]

@@ -217,7 +217,7 @@ fn resting_places(
             Some(j) if j >= 32 => diags.push(Diagnostic::error(
                 here,
                 format!(
-                    "place `{place}` of function `{}` is its {}th: only the first 32 places can be resting places",
+                    "place `{place}` of function `{}` is number {} of its places: only the first 32 can be resting places",
                     net.name,
                     j + 1
                 ),
