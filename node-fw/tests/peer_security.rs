@@ -158,6 +158,12 @@ impl Net {
     /// Delivers every frame sent until none is left, advancing 1 ms per round and
     /// polling the nodes (retransmissions), for `ms` milliseconds.
     fn run(&mut self, ms: u64) {
+        self.run_each(ms, |net, f| net.deliver(&f));
+    }
+
+    /// [`Net::run`], each frame sent handed to `each` (which delivers it, holds it or
+    /// drops it) instead of delivered.
+    fn run_each(&mut self, ms: u64, mut each: impl FnMut(&mut Net, Vec<u8>)) {
         let end = self.now + ms;
         while self.now < end {
             self.now += 1;
@@ -166,7 +172,7 @@ impl Net {
             let mut frames = std::mem::take(&mut self.a.1.out);
             frames.append(&mut self.b.1.out);
             for f in frames {
-                self.deliver(&f);
+                each(self, f);
             }
         }
     }
@@ -202,6 +208,25 @@ impl Net {
         net.trace.clear();
         net.air.clear();
         net
+    }
+
+    /// [`Net::established`], then B reboots and A's button is pressed: A has an event
+    /// for B, whose fresh side of the link knows no counter of A.
+    fn b_rebooted_and_pressed() -> Net {
+        let mut net = Net::established();
+        net.b.0 = node_b();
+        net.b.1.lamp.clear();
+        net.press();
+        net
+    }
+
+    /// The lamp toggled once for the press of [`Net::b_rebooted_and_pressed`], and once
+    /// more for the next.
+    fn delivered_once(&mut self) {
+        assert_eq!(self.b.1.lamp, [true], "delivered once: {:?}", self.trace);
+        self.press();
+        self.run(400);
+        assert_eq!(self.b.1.lamp, [true, false]);
     }
 
     /// Injects a frame at B (an attacker on the air).
@@ -505,54 +530,38 @@ fn a_duplicated_greeting_numbers_the_link_again_once() {
 /// delivered once.
 #[test]
 fn a_greetings_retry_after_a_late_answer_numbers_the_link_again_once() {
-    let mut net = Net::established();
-    net.b.0 = node_b();
-    net.b.1.lamp.clear();
-    net.press();
+    let mut net = Net::b_rebooted_and_pressed();
     let (mut answer, mut retry) = (None, None);
     let mut greetings = 0;
-    for _ in 0..1000 {
-        net.now += 1;
-        net.a.0.poll(net.now, &mut net.a.1);
-        net.b.0.poll(net.now, &mut net.b.1);
-        let mut frames = std::mem::take(&mut net.a.1.out);
-        frames.append(&mut net.b.1.out);
-        for f in frames {
-            let (h, _, payload) = open(&f);
-            let k = kind(&Message::parse(&payload).unwrap());
-            match (h.src, h.dst, k) {
-                // A's first answer to B, held until B retried its greeting.
-                (A, B, "ChallengeAnswer") if greetings < 2 => {
-                    answer.get_or_insert(f);
-                    continue;
-                }
-                (B, A, "Challenge") => {
-                    greetings += 1;
-                    if greetings == 2 {
-                        retry = Some(f);
-                        if let Some(late) = answer.take() {
-                            net.deliver(&late);
-                        }
-                        continue;
-                    }
-                }
-                // B's acknowledgement lost; the retry arrives in its place.
-                (B, A, "EventAck") if retry.is_some() => {
-                    if let Some(late) = retry.take() {
-                        net.deliver(&late);
-                    }
-                    continue;
-                }
-                _ => {}
+    net.run_each(1000, |net, f| {
+        let (h, _, payload) = open(&f);
+        match (h.src, h.dst, Message::parse(&payload).unwrap()) {
+            // A's first answer to B, held until B retried its greeting.
+            (A, B, Message::ChallengeAnswer { .. }) if greetings < 2 => {
+                answer.get_or_insert(f);
             }
-            net.deliver(&f);
+            (B, A, Message::Challenge { .. }) if greetings == 1 => {
+                greetings += 1;
+                retry = Some(f);
+                if let Some(late) = answer.take() {
+                    net.deliver(&late);
+                }
+            }
+            (B, A, Message::Challenge { .. }) => {
+                greetings += 1;
+                net.deliver(&f);
+            }
+            // B's acknowledgement lost; the retry arrives in its place.
+            (B, A, Message::EventAck { .. }) if retry.is_some() => {
+                if let Some(late) = retry.take() {
+                    net.deliver(&late);
+                }
+            }
+            _ => net.deliver(&f),
         }
-    }
+    });
     assert!(greetings >= 2, "{:?}", net.trace);
-    assert_eq!(net.b.1.lamp, [true], "delivered once: {:?}", net.trace);
-    net.press();
-    net.run(400);
-    assert_eq!(net.b.1.lamp, [true, false]);
+    net.delivered_once();
 }
 
 /// B reboots while A has an event for it, and A's answers to B's greeting are late: B
@@ -566,50 +575,37 @@ fn a_greetings_retry_after_a_late_answer_numbers_the_link_again_once() {
 /// once.
 #[test]
 fn a_fresh_challenge_that_comes_after_the_event_it_asked_for_numbers_nothing_again() {
-    let mut net = Net::established();
-    net.b.0 = node_b();
-    net.b.1.lamp.clear();
-    net.press();
+    let mut net = Net::b_rebooted_and_pressed();
     let (mut greeting, mut answer, mut fresh) = (None, None, None);
     let mut released = false;
-    for _ in 0..3000 {
-        net.now += 1;
-        net.a.0.poll(net.now, &mut net.a.1);
-        net.b.0.poll(net.now, &mut net.b.1);
-        let mut frames = std::mem::take(&mut net.a.1.out);
-        frames.append(&mut net.b.1.out);
-        for f in frames {
-            let (h, _, payload) = open(&f);
-            match (h.src, h.dst, Message::parse(&payload).unwrap()) {
-                (B, A, Message::Challenge { nonce }) if !released => {
-                    // The greeting reaches A; the first challenge with another nonce, and
-                    // its repeats, are held.
-                    match *greeting.get_or_insert(nonce) == nonce {
-                        true => net.deliver(&f),
-                        false => {
-                            fresh.get_or_insert(f);
-                        }
+    net.run_each(3000, |net, f| {
+        let (h, _, payload) = open(&f);
+        match (h.src, h.dst, Message::parse(&payload).unwrap()) {
+            // The greeting reaches A; the first challenge with another nonce, and its
+            // repeats, are held.
+            (B, A, Message::Challenge { nonce }) if !released => {
+                match *greeting.get_or_insert(nonce) == nonce {
+                    true => net.deliver(&f),
+                    false => {
+                        fresh.get_or_insert(f);
                     }
                 }
-                // A's answers held, the last one released once B challenged afresh.
-                (A, B, Message::ChallengeAnswer { .. }) if fresh.is_none() => answer = Some(f),
-                // B's acknowledgement lost; the fresh challenge reaches A in its place.
-                (B, A, Message::EventAck { .. }) if !released => {
-                    released = true;
-                    net.deliver(&fresh.take().expect("B challenged afresh"));
-                }
-                _ => net.deliver(&f),
             }
-            if let Some(late) = answer.take_if(|_| fresh.is_some()) {
-                net.deliver(&late);
+            // A's answers held, the last one released once B challenged afresh.
+            (A, B, Message::ChallengeAnswer { .. }) if fresh.is_none() => answer = Some(f),
+            // B's acknowledgement lost; the fresh challenge reaches A in its place.
+            (B, A, Message::EventAck { .. }) if !released => {
+                released = true;
+                net.deliver(&fresh.take().expect("B challenged afresh"));
             }
+            _ => net.deliver(&f),
         }
-    }
+        if let Some(late) = answer.take_if(|_| fresh.is_some()) {
+            net.deliver(&late);
+        }
+    });
     assert!(released, "{:?}", net.trace);
-    assert_eq!(net.b.1.lamp, [true], "delivered once: {:?}", net.trace);
-    net.press();
-    net.run(400);
-    assert_eq!(net.b.1.lamp, [true, false]);
+    net.delivered_once();
 }
 
 /// A's power is cut while B's lamp is on (B's chart neither idle nor initial: under way).
