@@ -520,9 +520,41 @@ pub struct ChartType {
     /// (`fb_types[2]`, `application.file`), where its diagnostics point.
     #[serde(skip)]
     pub imported: Option<String>,
+    /// For a type read from an IEC 61499 `.fbt` file: where in it each state and
+    /// transition was written (its diagnostics name the place).
+    #[serde(skip)]
+    pub written: Option<Written>,
+    /// For a type the application import made of another (an FB instance's own
+    /// actions): that one's name (the chart is the same: so are its warnings).
+    #[serde(skip)]
+    pub specializes: Option<String>,
+}
+
+/// Where an imported chart type was written: its file and, per state and per transition
+/// of the type (in the type's order), the line and column (1-based) of the element it
+/// came from (a state or transition an `IF` or `CASE` became: its state's).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Written {
+    pub file: String,
+    pub states: Vec<(u32, u32)>,
+    pub transitions: Vec<(u32, u32)>,
 }
 
 impl ChartType {
+    /// `file:line:col` of state `si` in the file the type was read from, if it was.
+    pub fn state_written(&self, si: usize) -> Option<String> {
+        let w = self.written.as_ref()?;
+        let (line, col) = w.states.get(si)?;
+        Some(format!("{}:{line}:{col}", w.file))
+    }
+
+    /// `file:line:col` of transition `k` in the file the type was read from, if it was.
+    pub fn transition_written(&self, k: usize) -> Option<String> {
+        let w = self.written.as_ref()?;
+        let (line, col) = w.transitions.get(k)?;
+        Some(format!("{}:{line}:{col}", w.file))
+    }
+
     /// Where a diagnostic about `path` of this type (a path in the robot file) points: the
     /// path itself, or for a type the robot file does not write the place that imported it.
     pub fn place<'a>(&'a self, path: &'a str) -> &'a str {

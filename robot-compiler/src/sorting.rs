@@ -182,6 +182,8 @@ impl Sorting {
             idle: None,
             rests: Vec::new(),
             imported: None,
+            written: None,
+            specializes: None,
         }
     }
 }

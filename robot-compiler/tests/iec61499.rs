@@ -246,16 +246,22 @@ fn a_robot_names_the_file_and_its_place_and_imports_nothing_of_a_bad_type() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// A diagnostic about an imported type points at the `fb_types` entry that brought it.
+/// A diagnostic about an imported type points at the `fb_types` entry that brought it,
+/// and names the place in the file (a state an `IF` made a chain of: all of its states
+/// at its `ECState`).
 #[test]
 fn a_warning_about_an_imported_type_points_at_its_import() {
     let dir = std::env::temp_dir().join(format!("iec61499-warn-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let lost = ECC.replace(
         "<ECState Name=\"START\"/>",
-        "<ECState Name=\"START\"/><ECState Name=\"LOST\"/>",
+        "<ECState Name=\"START\"/><ECState Name=\"LOST\"/>\n      \
+         <ECState Name=\"GONE\"><ECAction Algorithm=\"B\"/></ECState>",
     );
-    std::fs::write(dir.join("T.fbt"), fbt(VARS, &lost, ALG)).unwrap();
+    let alg = format!(
+        "{ALG}\n    <Algorithm Name=\"B\"><ST Text=\"IF C &gt; 1 THEN C := 0; END_IF;\"/></Algorithm>"
+    );
+    std::fs::write(dir.join("T.fbt"), fbt(VARS, &lost, &alg)).unwrap();
     let src = Source::new(
         dir.join("r.ron").to_string_lossy().as_ref(),
         ROBOT.to_string(),
@@ -263,14 +269,22 @@ fn a_warning_about_an_imported_type_points_at_its_import() {
     let lost: Vec<String> = check::check(&src)
         .diagnostics
         .iter()
-        .filter(|d| d.message.contains("LOST"))
+        .filter(|d| d.message.contains("unreachable"))
         .map(|d| d.short(&src).replace(&*src.name, "r.ron"))
         .collect();
+    let said = |at: &str, state: &str| {
+        format!(
+            "r.ron:1:244: warning: T.fbt:{at}: state `{state}` of chart type `T` is unreachable \
+             from its initial state `START`"
+        )
+    };
     assert_eq!(
         lost,
         [
-            "r.ron:1:244: warning: state `LOST` of chart type `T` is unreachable from its initial \
-          state `START`"
+            said("11:30", "LOST"),
+            said("12:7", "GONE.0"),
+            said("12:7", "GONE.2"),
+            said("12:7", "GONE"),
         ]
     );
     let _ = std::fs::remove_dir_all(&dir);

@@ -135,6 +135,8 @@ fn normal(t: &ChartType) -> String {
     let mut t = t.clone();
     // Where a type came from is no part of it.
     t.imported = None;
+    t.written = None;
+    t.specializes = None;
     for s in &mut t.states {
         for a in &mut s.actions {
             if let ActionDecl::Set(_, text) = a {

@@ -276,6 +276,47 @@ fn a_failed_import_is_the_only_error_check_reports() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Warnings about a chart type read from an `.fbt` file pointed at its `fb_types` entry
+/// and said nothing of where in the file (the overlap's other transition "at 49:44", the
+/// entry again), and the unreachable state was warned twice (for the type an FB
+/// instance's own actions made of it too): now each names the state's or transition's
+/// line and column in the file, once.
+#[test]
+fn warnings_on_an_imported_chart_name_their_place_in_its_fbt_file() {
+    let (dir, robot) = paint_4diac_copy("sys-written", |text| {
+        if !text.contains("<FBType Name=\"Gr\"") {
+            return text.to_string();
+        }
+        let s3 = "<ECState Name=\"S3\" Comment=\"\" x=\"2700\" y=\"400\"/>";
+        let t =
+            "<ECTransition Source=\"S3\" Destination=\"S4\" Condition=\"VC1\" x=\"0\" y=\"0\"/>";
+        assert!(text.contains(s3) && text.contains(t));
+        (text.replace(s3, &format!("{s3}\n      <ECState Name=\"S9\"/>")))
+            .replace(t, &format!("{t}\n      {t}"))
+    });
+    assert_eq!(
+        check_r_ron(&dir, &robot),
+        [
+            "r.ron:49:44: warning: 4diac/paint-robot/Gr.fbt:33:7: state `S9` of chart type `Gr` \
+             is unreachable from its initial state `S0`",
+            "r.ron:49:44: warning: 4diac/paint-robot/Gr.fbt:42:7: transitions `S3 -> S4` and \
+             `S3 -> S4` leave `S3` on `VC1` and both guards can hold: the first declared wins",
+        ]
+    );
+    let src = Source::read(&dir.join("r.ron")).expect("reads");
+    let labels: Vec<String> = (check::check(&src).diagnostics.into_iter())
+        .map(|d| d.label)
+        .collect();
+    assert_eq!(
+        labels,
+        [
+            "no transition leads here",
+            "overlaps the transition at 4diac/paint-robot/Gr.fbt:41:7"
+        ]
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// An action of `application.actions` naming an actuator or output its FB's role lacks
 /// was reported at `Robot(`, the first line of the file: now at its key, naming the
 /// role's actuators (or outputs).

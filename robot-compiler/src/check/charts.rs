@@ -161,19 +161,36 @@ fn unreachable(t: &ChartType, ti: usize, src: &Source, out: &mut Vec<Diagnostic>
         }
         k += 1;
     }
+    // A type made of another for an FB instance has that one's states and transitions:
+    // its warning is the other's.
+    if t.specializes.is_some() {
+        return;
+    }
     for (si, s) in t.states.iter().enumerate() {
         if !reached.contains(&s.name.as_str()) {
             out.push(
                 Diagnostic::warning(
                     type_span(t, src, &format!("chart_types[{ti}].states[{si}].name")),
-                    format!(
-                        "state `{}` of chart type `{}` is unreachable from its initial state `{}`",
-                        s.name, t.name, initial.name
+                    written_at(
+                        t.state_written(si),
+                        format!(
+                            "state `{}` of chart type `{}` is unreachable from its initial state `{}`",
+                            s.name, t.name, initial.name
+                        ),
                     ),
                 )
                 .label("no transition leads here"),
             );
         }
+    }
+}
+
+/// `message` about a chart type, after `file:line:col: ` if the type was read from a file
+/// ([`ChartType::written`]) where that place is (as the import's errors say it).
+fn written_at(at: Option<String>, message: String) -> String {
+    match at {
+        Some(at) => format!("{at}: {message}"),
+        None => message,
     }
 }
 
@@ -211,16 +228,23 @@ fn overlaps(
                     None => String::from("without an event"),
                 };
                 let path = format!("chart_types[{ti}].transitions");
-                let (line, col) = src.line_col(type_span(t, src, &format!("{path}[{i}]")).start);
+                let other = t.transition_written(i).unwrap_or_else(|| {
+                    let (line, col) =
+                        src.line_col(type_span(t, src, &format!("{path}[{i}]")).start);
+                    format!("{line}:{col}")
+                });
                 out.push(
                     Diagnostic::warning(
                         type_span(t, src, &format!("{path}[{j}]")),
-                        format!(
-                            "transitions `{} -> {}` and `{} -> {}` leave `{}` {on} and both guards can hold: the first declared wins",
-                            a.from, a.to, b.from, b.to, b.from
+                        written_at(
+                            t.transition_written(j),
+                            format!(
+                                "transitions `{} -> {}` and `{} -> {}` leave `{}` {on} and both guards can hold: the first declared wins",
+                                a.from, a.to, b.from, b.to, b.from
+                            ),
                         ),
                     )
-                    .label(format!("overlaps the transition at {line}:{col}")),
+                    .label(format!("overlaps the transition at {other}")),
                 );
             }
         }

@@ -1354,6 +1354,7 @@ pub fn bring(
             t.name.clone()
         } else {
             let mut s = t.clone();
+            s.specializes = Some(t.name.clone());
             // `TYPE_FB`: an IEC 61131-3 identifier (so the robot exports back to 4diac),
             // made unique against the types already there.
             s.name = format!("{}_{}", t.name, l.name);

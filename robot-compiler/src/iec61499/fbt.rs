@@ -21,7 +21,7 @@ use config_schema::limits::{MAX_STATES, MAX_TRANSITIONS};
 use roxmltree::{Document, Node};
 
 use super::st::{self, Name, StError, Stmt, Ty};
-use crate::model::{ActionDecl, ChartType, StateDecl, TransitionDecl, VarDecl};
+use crate::model::{ActionDecl, ChartType, StateDecl, TransitionDecl, VarDecl, Written};
 
 /// An import error at a line and column (1-based) of the XML file.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -53,6 +53,12 @@ impl<'a, 'i> Cx<'a, 'i> {
             col: p.col,
             message: message.into(),
         }
+    }
+
+    /// The line and column of element `n`.
+    fn line_col(&self, n: Node<'a, 'i>) -> (u32, u32) {
+        let p = self.doc.text_pos_at(n.range().start);
+        (p.row, p.col)
     }
 
     fn node_err(&self, n: Node<'a, 'i>, message: impl Into<String>) -> XmlError {
@@ -404,6 +410,9 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
     let mut states: Vec<StateDecl> = Vec::new();
     // Per state: what it does when entered, in order (assignments, choices, emits).
     let mut bodies: Vec<(Vec<Step>, Node<'_, '_>)> = Vec::new();
+    // Where each `ECState` and `ECTransition` is, in order.
+    let mut state_at: Vec<(String, (u32, u32))> = Vec::new();
+    let mut transition_at: Vec<(u32, u32)> = Vec::new();
     let mut idle = None;
     let mut rests = Vec::new();
     for s in elements(ecc).filter(|s| s.tag_name().name() == "ECState") {
@@ -446,6 +455,7 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
                 ));
             }
         }
+        state_at.push((sname.clone(), cx.line_col(s)));
         states.push(StateDecl {
             name: sname,
             actions: Vec::new(),
@@ -484,6 +494,7 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
         let cond = cx.attr(t, "Condition")?;
         let (on, when) =
             condition(cond, &events_in, &names).map_err(|e| cx.in_attr(t, "Condition", e))?;
+        transition_at.push(cx.line_col(t));
         transitions.push(TransitionDecl {
             from: ends[0].clone(),
             to: ends[1].clone(),
@@ -492,6 +503,7 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
         });
     }
     let (states, transitions) = split(states, bodies, transitions, &cx)?;
+    let written = written(&states, &transitions, &state_at, &transition_at);
     let vars = outputs
         .iter()
         .chain(internal.iter())
@@ -550,8 +562,40 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
         idle,
         rests,
         imported: None,
+        written: Some(written),
+        specializes: None,
     };
     Ok((chart, interface))
+}
+
+/// Where the states and transitions [`split`] made were written (`file` left for the
+/// importer to fill in): a state at its `ECState` (a chain's `S.k` at `S`'s), one of the
+/// ECC's transitions at its `ECTransition` (they come last, in order), a chain's at its
+/// state's.
+fn written(
+    states: &[StateDecl],
+    transitions: &[TransitionDecl],
+    state_at: &[(String, (u32, u32))],
+    transition_at: &[(u32, u32)],
+) -> Written {
+    let at = |name: &str| {
+        let base = match state_at.iter().any(|(n, _)| n == name) {
+            true => name,
+            false => name.rsplit_once('.').map_or(name, |(base, _)| base),
+        };
+        (state_at.iter().find(|(n, _)| n == base)).map_or((0, 0), |(_, at)| *at)
+    };
+    let chains = transitions.len().saturating_sub(transition_at.len());
+    Written {
+        file: String::new(),
+        states: states.iter().map(|s| at(&s.name)).collect(),
+        transitions: (transitions.iter().enumerate())
+            .map(|(k, t)| match k.checked_sub(chains) {
+                Some(i) => transition_at.get(i).copied().unwrap_or((0, 0)),
+                None => at(&t.from),
+            })
+            .collect(),
+    }
 }
 
 /// What a state does when entered: a statement of one of its algorithms, or its output

@@ -82,6 +82,9 @@ pub fn import_with(
                 fbt::bind_levels(&mut t, &mut interface);
                 interfaces.push((t.name.clone(), interface));
                 t.imported = Some(format!("fb_types[{i}]"));
+                if let Some(w) = &mut t.written {
+                    w.file = file.clone();
+                }
                 robot.chart_types.push(t);
             }
             Err(e) => {

@@ -261,6 +261,8 @@ pub fn lift(r: &RoleIr, ci: usize, name: &str) -> Lifted {
                 .filter_map(|&st| state_names.get(st).cloned())
                 .collect(),
             imported: None,
+            written: None,
+            specializes: None,
         },
         inputs: inputs_of,
         emits,
