@@ -19,7 +19,10 @@
 //! the node knows no floor: an authentic frame from a peer without one is not acted on;
 //! the node sends that peer `Challenge { nonce }` (the challenge frame's own counter, or
 //! the nonce of its challenge to the peer sent within [`REPEAT_MS`] and not answered yet)
-//! and takes the counter of the peer's `ChallengeAnswer` with that nonce as the floor. So
+//! and takes the counter of the peer's `ChallengeAnswer` with that nonce as the floor, or
+//! the highest counter of the peer's authentic frames that came before it, if higher (an
+//! answer the peer sent before it booted again, come late, would set a floor under
+//! frames of its new life: its old acknowledgements would then pass). So
 //! that the first events of a new table (or after a boot) do not wait for it, the node
 //! challenges every peer it knows no floor of as soon as it runs with keys. A peer
 //! answers a challenge even if it has no floor for the challenger itself (answering takes
@@ -114,6 +117,12 @@ pub struct PeerSecurity {
     /// answered, and when it first sent it ([`PeerSecurity::challenge`]; forgotten when a new
     /// table runs).
     repeating: Vec<(u16, u32, u64), MAX_PEERS>,
+    /// Per peer of unknown floor: the highest counter of its authentic frames come so far.
+    /// The floor an answer sets is at least that: an answer (or any frame) the peer sent
+    /// before it booted again, come late, must not set a floor below what its new life
+    /// sent already (its old acknowledgements would pass, and move a link the new life
+    /// knows nothing of).
+    seen: Vec<(u16, u32), MAX_PEERS>,
 }
 
 /// How long a node repeats a challenge's nonce to a peer that has not answered: a boot's
@@ -196,6 +205,16 @@ impl PeerSecurity {
         }
         self.replay = floors;
         self.challenges.retain(peers);
+        // (`swap_remove`, in any order: shifting the entries took a 1.5 KB `memmove` into
+        // the image.)
+        let mut i = 0;
+        while let Some((p, _)) = self.seen.get(i) {
+            if peers.contains(p) {
+                i += 1;
+            } else {
+                self.seen.swap_remove(i);
+            }
+        }
         self.repeating.clear();
         self.greet.clear();
         if self.current.is_some() {
@@ -356,6 +375,10 @@ impl PeerSecurity {
             .as_ref()
             .is_some_and(|k| aux.key_id.index() == Some(link_key_index(k.generation)));
         let floor = self.replay.last(src, ANY_LINK_KEY);
+        let seen = match floor {
+            Some(_) => 0,
+            None => self.seen_from(src, aux.frame_counter),
+        };
         if let (None, Ok(Message::Challenge { nonce })) = (floor, message) {
             // Answering takes nothing in: no floor needed (the peer rebooted, or both did).
             let answer = may(&mut self.next_answer, src, now, ANSWER_MS);
@@ -372,13 +395,10 @@ impl PeerSecurity {
         }
         if floor.is_none() {
             if self.challenges.answered(src, message, now) {
-                accept(
-                    &mut self.replay,
-                    src,
-                    ANY_LINK_KEY,
-                    aux.frame_counter,
-                    counters,
-                );
+                if let Some(i) = self.seen.iter().position(|(p, _)| *p == src) {
+                    self.seen.swap_remove(i);
+                }
+                accept(&mut self.replay, src, ANY_LINK_KEY, seen, counters);
                 return Verdict::Answered;
             }
             counters.challenged += 1;
@@ -409,6 +429,26 @@ impl PeerSecurity {
                 renumber: *nonce != crate::restart::RESET_GREETING,
             },
             _ => Verdict::Accept(payload),
+        }
+    }
+
+    /// An authentic frame with `counter` came from `peer`, whose floor is unknown: the
+    /// highest counter of its frames so far, this one's included.
+    fn seen_from(&mut self, peer: u16, counter: u32) -> u32 {
+        match self.seen.iter_mut().find(|(p, _)| *p == peer) {
+            Some((_, highest)) => {
+                *highest = (*highest).max(counter);
+                *highest
+            }
+            None => {
+                // One entry per peer whose frames open (the current keys' peers, and the
+                // previous generation's during the overlap): another makes room if full.
+                if self.seen.is_full() {
+                    self.seen.swap_remove(0);
+                }
+                let _ = self.seen.push((peer, counter));
+                counter
+            }
         }
     }
 
@@ -975,6 +1015,35 @@ mod tests {
             verdict(&mut s, &frame(1, 10, &answer), late, &mut c),
             "challenge"
         );
+    }
+
+    /// The floor an answer sets is at least the highest counter of the peer's authentic
+    /// frames come while it had none (a challenge, an event not acted on): an answer the
+    /// peer sent before it booted again, come late, sets no floor below its new life's.
+    #[test]
+    fn an_answer_sets_the_floor_at_least_at_what_the_peer_sent_before_it() {
+        let mut s = PeerSecurity::default();
+        let mut c = SecurityCounters::default();
+        s.install(Some(keys(1)), &[PEER]);
+        s.challenge(PEER, 77, 0, 0);
+        let greeting = Message::Challenge { nonce: 50 };
+        assert_eq!(
+            verdict(&mut s, &frame(1, 50, &greeting), 0, &mut c),
+            "answer"
+        );
+        assert_eq!(
+            verdict(&mut s, &frame(1, 40, &EVENT), 0, &mut c),
+            "challenge"
+        );
+        let old = Message::ChallengeAnswer { nonce: 77 };
+        assert_eq!(verdict(&mut s, &frame(1, 30, &old), 0, &mut c), "answered");
+        for (counter, want) in [(31, "dropped"), (50, "dropped"), (51, "accept")] {
+            assert_eq!(
+                verdict(&mut s, &frame(1, counter, &EVENT), 0, &mut c),
+                want,
+                "counter {counter}"
+            );
+        }
     }
 
     #[test]

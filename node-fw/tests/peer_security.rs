@@ -608,6 +608,126 @@ fn a_fresh_challenge_that_comes_after_the_event_it_asked_for_numbers_nothing_aga
     net.delivered_once();
 }
 
+/// A reboots while B is up: B answers A's greeting and takes A's press (its lamp on
+/// again), its answer and its acknowledgement held in the air; then B reboots too. The
+/// net, the old B's answer and its acknowledgement.
+fn old_b_held_its_answer_and_ack_then_rebooted() -> (Net, Vec<u8>, Vec<u8>) {
+    let mut net = Net::established();
+    net.press();
+    net.run(400);
+    net.a.0 = rebooted_a();
+    let mut held: Vec<Vec<u8>> = Vec::new();
+    let mut hold = |net: &mut Net, f: Vec<u8>| {
+        let (h, _, payload) = open(&f);
+        match (h.src, Message::parse(&payload).unwrap()) {
+            (B, Message::ChallengeAnswer { .. } | Message::EventAck { .. }) => held.push(f),
+            _ => net.deliver(&f),
+        }
+    };
+    net.run_each(20, &mut hold);
+    net.press();
+    net.run_each(20, &mut hold);
+    assert_eq!(
+        net.b.1.lamp,
+        [true, false, true],
+        "the old B took the press"
+    );
+    let first = |k: &str| {
+        let of_kind = |f: &&Vec<u8>| kind(&Message::parse(&open(f).2).unwrap()) == k;
+        held.iter().find(of_kind).expect("held").clone()
+    };
+    let (answer, ack) = (first("ChallengeAnswer"), first("EventAck"));
+    net.b.0 = node_b();
+    net.b.1.lamp.clear();
+    (net, answer, ack)
+}
+
+/// After [`old_b_held_its_answer_and_ack_then_rebooted`], the new B's greeting reaches
+/// A, which knows no floor of B (A's link is still at seq 0: not numbered again); A's
+/// resent event and the new B's answers are lost. Then the old B's answer comes and set
+/// A's floor below the new B's greeting, and the old B's acknowledgement passed and
+/// moved A's link to seq 1: the new B's fresh receiver waited for a seq 0 that never
+/// came, and every later press was lost. A floor an answer sets is at least the counter
+/// of every frame of the peer come before it: the old frames are replays.
+#[test]
+fn an_old_lifes_late_answer_and_ack_move_no_link_of_the_new_one() {
+    let (mut net, answer, ack) = old_b_held_its_answer_and_ack_then_rebooted();
+    net.run_each(30, |net, f| {
+        let (h, _, payload) = open(&f);
+        match (h.src, h.dst, Message::parse(&payload).unwrap()) {
+            (A, B, Message::Event { .. }) | (B, A, Message::ChallengeAnswer { .. }) => {}
+            _ => net.deliver(&f),
+        }
+    });
+    net.deliver(&answer);
+    net.deliver(&ack);
+    net.run(1_000);
+    let before = net.b.1.lamp.clone();
+    net.press();
+    net.run(3_000);
+    assert_eq!(
+        net.b.1.lamp.len(),
+        before.len() + 1,
+        "the new B takes the next press: {:?}",
+        net.trace
+    );
+    assert_eq!(net.a.0.link_alarms(), 0);
+}
+
+/// As above, but the new B greets A twice before it knows A's floor, and the retry is
+/// late. The new B takes A's resent press; the old B's answer and acknowledgement come
+/// (they moved A's link to seq 1); A's next press, seq 1, is taken by the new B, its
+/// acknowledgement lost; then the late retry passed A's replay check, A's link (past seq
+/// 0) was numbered again and the press delivered twice.
+#[test]
+fn an_old_lifes_late_ack_then_a_late_retry_deliver_a_press_once() {
+    let (mut net, answer, ack) = old_b_held_its_answer_and_ack_then_rebooted();
+    // The new B's greeting reaches A; A's frames to B wait until B's retry went out
+    // (held: late); the new B's answers and acknowledgements are lost.
+    let (mut first, mut late, mut to_b) = (true, None::<Vec<u8>>, Vec::<Vec<u8>>::new());
+    net.run_each(150, |net, f| {
+        let (h, _, payload) = open(&f);
+        match (h.src, h.dst, Message::parse(&payload).unwrap()) {
+            (B, A, Message::Challenge { .. }) if first => {
+                first = false;
+                net.deliver(&f);
+            }
+            (B, A, Message::Challenge { .. }) => {
+                if late.is_none() {
+                    late = Some(f);
+                    for g in std::mem::take(&mut to_b) {
+                        net.deliver(&g);
+                    }
+                }
+            }
+            (B, A, Message::ChallengeAnswer { .. } | Message::EventAck { .. }) => {}
+            // A's greeting retries lost (the new B, under way, would fault at one).
+            (A, B, Message::Challenge { .. }) => {}
+            (A, B, _) if late.is_none() => to_b.push(f),
+            _ => net.deliver(&f),
+        }
+    });
+    assert_eq!(net.b.1.lamp, [true], "the new B took A's resent press");
+    net.deliver(&answer);
+    net.deliver(&ack);
+    net.press();
+    net.run_each(50, |net, f| {
+        let (h, _, payload) = open(&f);
+        if !(h.src == B && matches!(Message::parse(&payload), Ok(Message::EventAck { .. }))) {
+            net.deliver(&f);
+        }
+    });
+    assert_eq!(net.b.1.lamp, [true, false]);
+    net.deliver(&late.expect("B retried its greeting"));
+    net.run(1_000);
+    assert_eq!(
+        net.b.1.lamp,
+        [true, false],
+        "delivered once: {:?}",
+        net.trace
+    );
+}
+
 /// A's power is cut while B's lamp is on (B's chart neither idle nor initial: under way).
 /// A boots and greets B: a challenge whose nonce is its frame's counter with bit 31 set
 /// (`restart::GREETING`). B faults `0x86` at once, its lamp at its fault level (off),
