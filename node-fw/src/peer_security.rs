@@ -433,23 +433,19 @@ impl PeerSecurity {
     }
 
     /// An authentic frame with `counter` came from `peer`, whose floor is unknown: the
-    /// highest counter of its frames so far, this one's included.
+    /// highest counter of its frames so far, this one's included. Kept for the current
+    /// keys' peers only, at most [`MAX_PEERS`], so none is ever pushed out (a node that
+    /// is no longer a peer, heard under the previous keys, delivers nothing here).
     fn seen_from(&mut self, peer: u16, counter: u32) -> u32 {
-        match self.seen.iter_mut().find(|(p, _)| *p == peer) {
-            Some((_, highest)) => {
-                *highest = (*highest).max(counter);
-                *highest
-            }
-            None => {
-                // One entry per peer whose frames open (the current keys' peers, and the
-                // previous generation's during the overlap): another makes room if full.
-                if self.seen.is_full() {
-                    self.seen.swap_remove(0);
-                }
-                let _ = self.seen.push((peer, counter));
-                counter
-            }
+        if let Some((_, highest)) = self.seen.iter_mut().find(|(p, _)| *p == peer) {
+            *highest = (*highest).max(counter);
+            return *highest;
         }
+        let ours = (self.current.as_ref()).is_some_and(|k| k.peers.iter().any(|p| p.peer == peer));
+        if ours {
+            let _ = self.seen.push((peer, counter));
+        }
+        counter
     }
 
     /// This node challenges `peer` in a frame with counter `counter`, with `flags`
