@@ -3,13 +3,12 @@
 //! knows no counter of (after its boot). Forged, damaged, replayed, unsecured frames and
 //! frames under another generation's or another node's key move nothing and are counted.
 
-use config_schema::link_keys::{LinkKeys, PeerKeys};
 use config_schema::wire::mac::{self, Frame, Header, MAX_PAYLOAD, MAX_PSDU};
 use config_schema::wire::msg::{Message, SecurityCounters};
 use config_schema::wire::security::{self, ext_addr, link_key_index, AuxRepr};
 use config_schema::{Action, Output, Publication, Subscription, Table};
 use node_fw::node::{Io, NodeCore};
-use test_tables::{button, toggle};
+use test_tables::{button, link_keys, pair_key, toggle};
 
 const A: u16 = 0x0001;
 const B: u16 = 0x0002;
@@ -18,28 +17,6 @@ const PAN: u16 = 0x4242;
 const BUTTON_PIN: u8 = 5;
 const LAMP_PIN: u8 = 7;
 const GENERATION: u32 = 1;
-
-/// The key of `from`'s frames to `to` (what the tool would derive), by pair.
-fn key(from: u16, to: u16) -> [u8; 16] {
-    [(from as u8) << 4 | to as u8; 16]
-}
-
-fn keys(node: u16, peers: &[u16], generation: u32) -> LinkKeys {
-    let mut k = LinkKeys {
-        generation,
-        peers: Default::default(),
-    };
-    for &peer in peers {
-        k.peers
-            .push(PeerKeys {
-                peer,
-                send: key(node, peer),
-                receive: key(peer, node),
-            })
-            .unwrap();
-    }
-    k
-}
 
 /// A: a button whose press is published to B.
 fn table_a() -> Table {
@@ -105,11 +82,11 @@ impl Io for Board {
 }
 
 fn node_a() -> NodeCore {
-    NodeCore::new(A, u64::MAX, Some(table_a()), 1).with_link_keys(keys(A, &[B], GENERATION))
+    NodeCore::new(A, u64::MAX, Some(table_a()), 1).with_link_keys(link_keys(A, &[B], GENERATION))
 }
 
 fn node_b() -> NodeCore {
-    NodeCore::new(B, u64::MAX, Some(table_b()), 1).with_link_keys(keys(B, &[A, C], GENERATION))
+    NodeCore::new(B, u64::MAX, Some(table_b()), 1).with_link_keys(link_keys(B, &[A, C], GENERATION))
 }
 
 /// A and B on a perfect radio; every frame on the air is recorded.
@@ -137,7 +114,7 @@ fn open(psdu: &[u8]) -> (Header, AuxRepr, Vec<u8>) {
     let mut scratch = [0u8; MAX_PAYLOAD];
     let o = security::open(
         psdu,
-        |h, _| Some((key(h.src, h.dst), ext_addr(h.pan_id, h.src))),
+        |h, _| Some((pair_key(h.src, h.dst), ext_addr(h.pan_id, h.src))),
         &mut scratch,
     )
     .expect("every frame between the nodes is secured under the pair's key");
@@ -364,13 +341,13 @@ fn forged_damaged_replayed_unsecured_and_misaddressed_events_move_nothing() {
     assert_eq!(counted(&net), expected, "a forgery with a guessed key");
 
     // C is a peer of B too (a stolen node, say): its key to B does not make A's frames.
-    net.inject(&forged(A, key(C, B), idx, 1_001, &event(9)));
+    net.inject(&forged(A, pair_key(C, B), idx, 1_001, &event(9)));
     expected.bad_mic += 1;
     assert_eq!(counted(&net), expected, "C posing as A");
 
     net.inject(&forged(
         A,
-        key(A, B),
+        pair_key(A, B),
         link_key_index(GENERATION + 1),
         1_002,
         &event(9),
@@ -395,7 +372,7 @@ fn forged_damaged_replayed_unsecured_and_misaddressed_events_move_nothing() {
     assert_eq!(counted(&net), expected, "unsecured");
 
     // B's own frame reflected back to it.
-    net.inject(&forged(B, key(B, A), idx, 1_003, &event(9)));
+    net.inject(&forged(B, pair_key(B, A), idx, 1_003, &event(9)));
     expected.unknown_key += 1;
     assert_eq!(counted(&net), expected, "reflected");
 
@@ -437,8 +414,11 @@ fn after_the_sender_reboots_its_new_events_pass_and_its_old_frames_do_not() {
     let captured = net.a.1.out[0].clone();
     net.run(200);
     // A reboots (a new link epoch); its counter continues from flash.
-    net.a.0 =
-        NodeCore::new(A, u64::MAX, Some(table_a()), 7).with_link_keys(keys(A, &[B], GENERATION));
+    net.a.0 = NodeCore::new(A, u64::MAX, Some(table_a()), 7).with_link_keys(link_keys(
+        A,
+        &[B],
+        GENERATION,
+    ));
     net.press();
     net.run(400);
     assert_eq!(net.b.1.lamp, [true, false, true]);
@@ -459,9 +439,9 @@ fn without_link_keys_the_node_refuses_secured_events_and_sends_in_clear() {
     };
     assert!(!header.secured);
     // Keys for another table's peers are not taken.
-    let b = NodeCore::new(B, u64::MAX, Some(table_b()), 1).with_link_keys(keys(B, &[A], 1));
+    let b = NodeCore::new(B, u64::MAX, Some(table_b()), 1).with_link_keys(link_keys(B, &[A], 1));
     assert!(!b.links_secured());
-    let b = NodeCore::new(B, u64::MAX, Some(table_b()), 1).with_link_keys(keys(B, &[A, C], 2));
+    let b = NodeCore::new(B, u64::MAX, Some(table_b()), 1).with_link_keys(link_keys(B, &[A, C], 2));
     assert!(!b.links_secured(), "keys of another generation");
 }
 
@@ -774,8 +754,11 @@ fn a_node_reset_under_way_greets_its_peers_and_nothing_is_numbered_again() {
     stepping.outputs.push(Output::safe(6, false)).unwrap();
     let press = stepping.inputs[0].rise.unwrap();
     toggle(&mut stepping, press, &[Action::Drive { mask: 1, value: 1 }]);
-    net.a.0 =
-        NodeCore::new(A, u64::MAX, Some(stepping), 1).with_link_keys(keys(A, &[B], GENERATION));
+    net.a.0 = NodeCore::new(A, u64::MAX, Some(stepping), 1).with_link_keys(link_keys(
+        A,
+        &[B],
+        GENERATION,
+    ));
     // The boots' greetings first (A under way would fault at B's).
     net.run(1500);
     net.press();
@@ -841,7 +824,7 @@ fn open_to_tool(psdu: &[u8]) -> bool {
 
 /// A booted again: its table and keys from flash, its links in a new epoch.
 fn rebooted_a() -> NodeCore {
-    NodeCore::new(A, u64::MAX, Some(table_a()), 7).with_link_keys(keys(A, &[B], GENERATION))
+    NodeCore::new(A, u64::MAX, Some(table_a()), 7).with_link_keys(link_keys(A, &[B], GENERATION))
 }
 
 /// A lossy radio between A and B: each frame lost with probability `loss`, copied with

@@ -5,13 +5,12 @@
 //! output at B: a second delivery of a press to one life of B drives its pin low again.
 //! (Across lives a press can be taken again: one the old life took, its acknowledgement
 //! lost, goes to the new one.)
-use config_schema::link_keys::{LinkKeys, PeerKeys};
 use config_schema::wire::mac::MAX_PAYLOAD;
 use config_schema::wire::msg::Message;
 use config_schema::wire::security::{self, ext_addr};
 use config_schema::{Action, Output, Publication, Subscription, Table, Transition};
 use node_fw::node::{Io, NodeCore};
-use test_tables::{button, route};
+use test_tables::{button, link_keys, pair_key, route};
 
 const A: u16 = 1;
 const B: u16 = 2;
@@ -19,25 +18,6 @@ const C: u16 = 3;
 const PAN: u16 = 0x4242;
 const N: usize = 8;
 
-fn key(from: u16, to: u16) -> [u8; 16] {
-    [(from as u8) << 4 | to as u8; 16]
-}
-fn keys(node: u16, peers: &[u16]) -> LinkKeys {
-    let mut k = LinkKeys {
-        generation: 1,
-        peers: Default::default(),
-    };
-    for &peer in peers {
-        k.peers
-            .push(PeerKeys {
-                peer,
-                send: key(node, peer),
-                receive: key(peer, node),
-            })
-            .unwrap();
-    }
-    k
-}
 fn table_a() -> Table {
     let mut t = Table::empty("A");
     t.generation = 1;
@@ -115,7 +95,7 @@ fn kind(psdu: &[u8]) -> String {
     let mut scratch = [0u8; MAX_PAYLOAD];
     match security::open(
         psdu,
-        |h, _| Some((key(h.src, h.dst), ext_addr(h.pan_id, h.src))),
+        |h, _| Some((pair_key(h.src, h.dst), ext_addr(h.pan_id, h.src))),
         &mut scratch,
     ) {
         Ok(o) => format!(
@@ -157,9 +137,13 @@ struct World {
 impl World {
     fn new() -> Self {
         let mut w = World {
-            a: NodeCore::new(A, u64::MAX, Some(table_a()), 1).with_link_keys(keys(A, &[B])),
+            a: NodeCore::new(A, u64::MAX, Some(table_a()), 1).with_link_keys(link_keys(A, &[B], 1)),
             ab: Board::default(),
-            b: NodeCore::new(B, u64::MAX, Some(table_b()), 1).with_link_keys(keys(B, &[A, C])),
+            b: NodeCore::new(B, u64::MAX, Some(table_b()), 1).with_link_keys(link_keys(
+                B,
+                &[A, C],
+                1,
+            )),
             bb: Board::default(),
             now: 0,
             air: vec![],
@@ -175,13 +159,13 @@ impl World {
         self.a_life += 1;
         self.trace.push(format!("{} REBOOT A", self.now));
         self.a = NodeCore::new(A, u64::MAX, Some(table_a()), 100 * self.a_life + 1)
-            .with_link_keys(keys(A, &[B]));
+            .with_link_keys(link_keys(A, &[B], 1));
     }
     fn reboot_b(&mut self) {
         self.b_life += 1;
         self.trace.push(format!("{} REBOOT B", self.now));
         self.b = NodeCore::new(B, u64::MAX, Some(table_b()), 100 * self.b_life + 1)
-            .with_link_keys(keys(B, &[A, C]));
+            .with_link_keys(link_keys(B, &[A, C], 1));
         self.b_got.push([0; N]);
     }
     fn press(&mut self, i: usize) {

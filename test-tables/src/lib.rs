@@ -165,3 +165,29 @@ pub fn toggle(t: &mut Table, event: EventId, on: &[Action]) {
         .unwrap();
     route(t, event, 0, 0);
 }
+
+/// The key of `from`'s frames to `to` in the tests' link keys (one per ordered pair; what
+/// the tool would derive from the machine's secret).
+pub fn pair_key(from: u16, to: u16) -> [u8; 16] {
+    [(from as u8) << 4 | to as u8; 16]
+}
+
+/// Link keys of `generation` for `node` and its `peers`, each direction's key
+/// [`pair_key`].
+pub fn link_keys(node: u16, peers: &[u16], generation: u32) -> config_schema::link_keys::LinkKeys {
+    use config_schema::link_keys::{LinkKeys, PeerKeys};
+    let mut k = LinkKeys {
+        generation,
+        peers: Default::default(),
+    };
+    for &peer in peers {
+        k.peers
+            .push(PeerKeys {
+                peer,
+                send: pair_key(node, peer),
+                receive: pair_key(peer, node),
+            })
+            .unwrap();
+    }
+    k
+}
