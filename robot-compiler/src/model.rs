@@ -543,15 +543,18 @@ pub struct Written {
 impl ChartType {
     /// `file:line:col` of state `si` in the file the type was read from, if it was.
     pub fn state_written(&self, si: usize) -> Option<String> {
-        let w = self.written.as_ref()?;
-        let (line, col) = w.states.get(si)?;
-        Some(format!("{}:{line}:{col}", w.file))
+        self.written_at(|w| &w.states, si)
     }
 
     /// `file:line:col` of transition `k` in the file the type was read from, if it was.
     pub fn transition_written(&self, k: usize) -> Option<String> {
+        self.written_at(|w| &w.transitions, k)
+    }
+
+    /// `file:line:col` of entry `k` of the places `of` picks, if the type was read from a file.
+    fn written_at(&self, of: fn(&Written) -> &[(u32, u32)], k: usize) -> Option<String> {
         let w = self.written.as_ref()?;
-        let (line, col) = w.transitions.get(k)?;
+        let (line, col) = of(w).get(k)?;
         Some(format!("{}:{line}:{col}", w.file))
     }
 

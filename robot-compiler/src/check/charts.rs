@@ -143,6 +143,11 @@ fn names(t: &ChartType, ti: usize, src: &Source, out: &mut Vec<Diagnostic>) {
 }
 
 fn unreachable(t: &ChartType, ti: usize, src: &Source, out: &mut Vec<Diagnostic>) {
+    // A type made of another for an FB instance has that one's states and transitions:
+    // its warning is the other's.
+    if t.specializes.is_some() {
+        return;
+    }
     let Some(initial) = t.states.first() else {
         out.push(Diagnostic::error(
             type_span(t, src, &format!("chart_types[{ti}].states")),
@@ -160,11 +165,6 @@ fn unreachable(t: &ChartType, ti: usize, src: &Source, out: &mut Vec<Diagnostic>
             }
         }
         k += 1;
-    }
-    // A type made of another for an FB instance has that one's states and transitions:
-    // its warning is the other's.
-    if t.specializes.is_some() {
-        return;
     }
     for (si, s) in t.states.iter().enumerate() {
         if !reached.contains(&s.name.as_str()) {

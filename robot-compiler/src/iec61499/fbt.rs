@@ -578,13 +578,8 @@ fn written(
     state_at: &[(String, (u32, u32))],
     transition_at: &[(u32, u32)],
 ) -> Written {
-    let at = |name: &str| {
-        let base = match state_at.iter().any(|(n, _)| n == name) {
-            true => name,
-            false => name.rsplit_once('.').map_or(name, |(base, _)| base),
-        };
-        (state_at.iter().find(|(n, _)| n == base)).map_or((0, 0), |(_, at)| *at)
-    };
+    let find = |name: &str| state_at.iter().find(|(n, _)| n == name).map(|(_, at)| *at);
+    let at = |name: &str| (find(name).or_else(|| find(name.rsplit_once('.')?.0))).unwrap_or((0, 0));
     let chains = transitions.len().saturating_sub(transition_at.len());
     Written {
         file: String::new(),
