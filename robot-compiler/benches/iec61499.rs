@@ -6,22 +6,14 @@
 //!
 //!     cargo bench -p robot-compiler --bench iec61499
 
+mod support;
+
 use std::hint::black_box;
-use std::time::Instant;
+
+use support::time;
 
 use robot_compiler::iec61499::{app::LIBRARY, fbt, import_with};
 use robot_compiler::{compile, model, Source};
-
-/// Mean seconds per run of `f`, over at least `min` runs and 0.2 s.
-fn time(min: u32, mut f: impl FnMut()) -> f64 {
-    let start = Instant::now();
-    let mut n = 0;
-    while n < min || start.elapsed().as_secs_f64() < 0.2 {
-        f();
-        n += 1;
-    }
-    start.elapsed().as_secs_f64() / f64::from(n)
-}
 
 /// A system of `n` E_CTUs, each counting the one before, spread over four devices.
 fn chain(n: usize) -> String {

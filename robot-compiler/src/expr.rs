@@ -109,9 +109,19 @@ pub const MAX_NESTING: usize = 64;
 #[derive(Debug, Clone, PartialEq, Eq)]
 enum Tok {
     Int(i32),
+    /// 2147483648 (2^31): only the operand of a unary minus, which makes it `i32::MIN`.
+    MinMagnitude,
     Name(String),
     Sym(&'static str),
     End,
+}
+
+/// The error of integer `digits` at `span`, past 32 bits.
+fn too_big(digits: &str, span: Range<usize>) -> ExprError {
+    ExprError {
+        message: format!("integer `{digits}` does not fit in 32 bits"),
+        span,
+    }
 }
 
 fn lex(text: &str) -> Result<Vec<(Tok, Range<usize>)>, ExprError> {
@@ -136,11 +146,12 @@ fn lex(text: &str) -> Result<Vec<(Tok, Range<usize>)>, ExprError> {
             while i < b.len() && b[i].is_ascii_digit() {
                 i += 1;
             }
-            let n = text[start..i].parse::<i32>().map_err(|_| ExprError {
-                message: format!("integer `{}` does not fit in 32 bits", &text[start..i]),
-                span: start..i,
-            })?;
-            out.push((Tok::Int(n), start..i));
+            let tok = match text[start..i].parse::<u32>() {
+                Ok(n) if n <= i32::MAX as u32 => Tok::Int(n as i32),
+                Ok(n) if n == 1 << 31 => Tok::MinMagnitude,
+                _ => return Err(too_big(&text[start..i], start..i)),
+            };
+            out.push((tok, start..i));
         } else if c.is_ascii_alphabetic() || c == b'_' {
             let start = i;
             while i < b.len() && (b[i].is_ascii_alphanumeric() || b[i] == b'_' || b[i] == b'.') {
@@ -216,6 +227,7 @@ impl Parser {
     fn unexpected(&self, wanted: &str) -> ExprError {
         let found = match self.peek() {
             Tok::Int(n) => format!("`{n}`"),
+            Tok::MinMagnitude => String::from("`2147483648`"),
             Tok::Name(n) => format!("`{n}`"),
             Tok::Sym(s) => format!("`{s}`"),
             Tok::End => String::from("the end of the expression"),
@@ -313,6 +325,11 @@ impl Parser {
             return Ok(Ast::Not(Box::new(of)));
         }
         if self.eat("-") {
+            // -2147483648 is a 32-bit integer, though 2147483648 is not.
+            if *self.peek() == Tok::MinMagnitude {
+                self.at += 1;
+                return Ok(Ast::Int(i32::MIN));
+            }
             let of = self.nested(span, Parser::unary)?;
             return Ok(Ast::Neg(Box::new(of)));
         }
@@ -326,6 +343,7 @@ impl Parser {
                 self.at += 1;
                 Ok(Ast::Int(n))
             }
+            Tok::MinMagnitude => Err(too_big("2147483648", span)),
             Tok::Name(n) if n == "true" => {
                 self.at += 1;
                 Ok(Ast::Int(1))

@@ -17,12 +17,27 @@ pub struct Value {
 pub enum Kind {
     /// Strings, numbers, chars, unit identifiers.
     Atom,
-    /// `Name(a: x, b: y)` or `(a: x)`: named fields, each with its key's span.
-    Fields(Vec<(String, Range<usize>, Value)>),
+    /// `Name(a: x, b: y)` or `(a: x)`: named fields, each with its key's span, and where
+    /// each name is first ([`Index`]).
+    Fields(Vec<(String, Range<usize>, Value)>, Index),
     /// `[x, y]`, `(x, y)`, `Name(x, y)`, `Some(x)`.
     Items(Vec<Value>),
-    /// `{ k: v }`: entries with the key as written (strings unquoted).
-    Map(Vec<(String, Value, Value)>),
+    /// `{ k: v }`: entries with the key as written (strings unquoted), and where each key
+    /// is first.
+    Map(Vec<(String, Value, Value)>, Index),
+}
+
+/// Where each name (of fields, or key of a map) is first: a diagnostic's path is found
+/// in one lookup a step, so that many diagnostics on one large map take linear time.
+pub type Index = std::collections::HashMap<String, usize>;
+
+/// The index of `names`, the first of each.
+fn first<'n>(names: impl Iterator<Item = &'n String>) -> Index {
+    let mut index = Index::new();
+    for (i, name) in names.enumerate() {
+        index.entry(name.clone()).or_insert(i);
+    }
+    index
 }
 
 struct Walker<'a> {
@@ -186,9 +201,10 @@ impl Walker<'_> {
                         self.i += 1;
                     }
                 }
+                let index = first(entries.iter().map(|(k, _, _)| k));
                 Some(Value {
                     span: start..self.i,
-                    kind: Kind::Map(entries),
+                    kind: Kind::Map(entries, index),
                 })
             }
             b'(' => self.parens(start, depth),
@@ -273,9 +289,10 @@ impl Walker<'_> {
                 self.i += 1;
             }
         }
+        let index = first(fields.iter().map(|(n, _, _)| n));
         Some(Value {
             span: start..self.i,
-            kind: Kind::Fields(fields),
+            kind: Kind::Fields(fields, index),
         })
     }
 
@@ -323,9 +340,9 @@ impl Value {
     pub fn duplicate_keys(&self, out: &mut Vec<(String, Range<usize>, Range<usize>)>) {
         match &self.kind {
             Kind::Atom => {}
-            Kind::Fields(fields) => fields.iter().for_each(|(_, _, v)| v.duplicate_keys(out)),
+            Kind::Fields(fields, _) => fields.iter().for_each(|(_, _, v)| v.duplicate_keys(out)),
             Kind::Items(items) => items.iter().for_each(|v| v.duplicate_keys(out)),
-            Kind::Map(entries) => {
+            Kind::Map(entries, _) => {
                 let mut seen = std::collections::HashMap::new();
                 for (key, k, v) in entries {
                     match seen.get(key.as_str()) {
@@ -350,16 +367,14 @@ impl Value {
 
     fn step(&self, seg: &Seg) -> Option<(Option<Range<usize>>, &Value)> {
         match (seg, &self.kind) {
-            (Seg::Field(name), Kind::Fields(fields)) => fields
-                .iter()
-                .find(|(n, _, _)| n == name)
+            (Seg::Field(name), Kind::Fields(fields, index)) => (index.get(*name))
+                .and_then(|&i| fields.get(i))
                 .map(|(_, k, v)| (Some(k.clone()), v)),
-            (Seg::Field(name), Kind::Map(entries)) => entries
-                .iter()
-                .find(|(n, _, _)| n == name)
+            (Seg::Field(name), Kind::Map(entries, index)) => (index.get(*name))
+                .and_then(|&i| entries.get(i))
                 .map(|(_, k, v)| (Some(k.span.clone()), v)),
             (Seg::Index(i), Kind::Items(items)) => items.get(*i).map(|v| (None, v)),
-            (Seg::Index(i), Kind::Map(entries)) => {
+            (Seg::Index(i), Kind::Map(entries, _)) => {
                 entries.get(*i).map(|(_, k, v)| (Some(k.span.clone()), v))
             }
             (Seg::Field(_), Kind::Items(items)) if items.len() == 1 => items[0].step(seg),
@@ -403,9 +418,8 @@ impl Value {
     pub fn find_map_key(&self, path: &str, key: &str) -> Range<usize> {
         let (_, v) = self.walk(path);
         match &v.kind {
-            Kind::Map(entries) => entries
-                .iter()
-                .find(|(k, _, _)| k == key)
+            Kind::Map(entries, index) => (index.get(key))
+                .and_then(|&i| entries.get(i))
                 .map_or_else(|| v.span.clone(), |(_, k, _)| k.span.clone()),
             _ => v.span.clone(),
         }

@@ -118,6 +118,22 @@ fn syntax_errors_name_the_problem_and_its_span() {
     );
 }
 
+/// -2147483648 is a 32-bit integer, though its magnitude alone is not: it was refused as
+/// `2147483648`.
+#[test]
+fn minus_2147483648_is_an_integer_and_2147483648_is_not() {
+    let value = |text: &str| {
+        robot_compiler::expr::eval(&parse(text).expect("parses"), &|_| None).expect("constant")
+    };
+    assert_eq!(value("-2147483648"), i32::MIN);
+    assert_eq!(value("- 2147483648 + 1"), i32::MIN + 1);
+    assert_eq!(value("-2147483647 - 1"), i32::MIN);
+    let big = "integer `2147483648` does not fit in 32 bits".to_string();
+    assert_eq!(error("2147483648"), (big.clone(), 0..10));
+    assert_eq!(error("-(2147483648)"), (big.clone(), 2..12));
+    assert_eq!(error("1 + 2147483648"), (big, 4..14));
+}
+
 #[test]
 fn unknown_names_are_reported_at_their_span() {
     let e = bytecode(&parse("count < MAX").expect("parses"), &|n| {

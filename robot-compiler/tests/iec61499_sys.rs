@@ -276,6 +276,43 @@ fn a_failed_import_is_the_only_error_check_reports() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A TIME literal gives each unit once, the larger first (IEC 61131-3): `T#150ms150ms`
+/// was read as 300 ms, `T#1ms1h` as an hour and a millisecond. A parameter given twice
+/// was taken at its first value, unsaid. Both are refused at their place in the file.
+#[test]
+fn a_time_with_a_unit_twice_and_a_parameter_given_twice_are_refused_at_their_place() {
+    let dt = "<Parameter Name=\"DT\" Value=\"T#150ms\"/>";
+    for (edit, error) in [
+        (
+            "<Parameter Name=\"DT\" Value=\"T#150ms150ms\"/>".to_string(),
+            "4diac/paint-robot/PaintRobot.sys:14:9: E_DELAY `T` needs its `DT` as a TIME in \
+             whole milliseconds (`T#150ms`)",
+        ),
+        (
+            "<Parameter Name=\"DT\" Value=\"T#1ms1h\"/>".to_string(),
+            "4diac/paint-robot/PaintRobot.sys:14:9: E_DELAY `T` needs its `DT` as a TIME in \
+             whole milliseconds (`T#150ms`)",
+        ),
+        (
+            format!("{dt}\n        <Parameter Name=\"DT\" Value=\"T#300ms\"/>"),
+            "4diac/paint-robot/PaintRobot.sys:15:9: parameter `DT` of FB `T` is given twice",
+        ),
+    ] {
+        let (dir, robot) = paint_4diac_copy("sys-params", |text| {
+            match text.contains("PaintRobot") && text.contains(dt) {
+                true => text.replacen(dt, &edit, 1),
+                false => text.to_string(),
+            }
+        });
+        assert_eq!(
+            check_r_ron(&dir, &robot),
+            [format!("r.ron:52:15: error: {error}")],
+            "{edit}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
 /// Warnings about a chart type read from an `.fbt` file pointed at its `fb_types` entry
 /// and said nothing of where in the file (the overlap's other transition "at 49:44", the
 /// entry again), and the unreachable state was warned twice (for the type an FB

@@ -799,7 +799,8 @@ fn unknown_type(fb: &str, ty: &str) -> String {
     }
 }
 
-/// A `TIME` literal (`T#150ms`, `TIME#1s500ms`) in whole milliseconds.
+/// A `TIME` literal (`T#150ms`, `TIME#1s500ms`) in whole milliseconds: each unit once at
+/// most, the larger first (IEC 61131-3), so `T#150ms150ms` or `T#1ms1h` is no time.
 pub fn time_ms(text: &str) -> Option<u32> {
     let t = text.trim();
     let (head, body) = t.split_once('#')?;
@@ -808,6 +809,8 @@ pub fn time_ms(text: &str) -> Option<u32> {
     }
     let body = body.replace('_', "").to_ascii_lowercase();
     let mut us: u64 = 0;
+    // The scale of the last unit: the next one must be smaller.
+    let mut last = u64::MAX;
     let mut rest = body.as_str();
     if rest.is_empty() {
         return None;
@@ -830,6 +833,10 @@ pub fn time_ms(text: &str) -> Option<u32> {
             "us" => 1,
             _ => return None,
         };
+        if scale >= last {
+            return None;
+        }
+        last = scale;
         us = us.checked_add(n.checked_mul(scale)?)?;
         rest = &rest[unit..];
     }
@@ -1483,5 +1490,11 @@ mod tests {
         assert_eq!(time_ms("150"), None);
         assert_eq!(time_ms("T#"), None);
         assert_eq!(time_ms("T#5x"), None);
+        assert_eq!(time_ms("T#1h2m3s4ms"), Some(3_723_004));
+        // Each unit once, the larger first.
+        assert_eq!(time_ms("T#150ms150ms"), None);
+        assert_eq!(time_ms("T#1s1s"), None);
+        assert_eq!(time_ms("T#1ms1h"), None);
+        assert_eq!(time_ms("T#1m1h"), None);
     }
 }

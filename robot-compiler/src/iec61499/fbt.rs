@@ -17,7 +17,7 @@
 //! composite FB) is an error naming the element and its line:col; nothing is half
 //! imported.
 
-use config_schema::limits::{MAX_STATES, MAX_TRANSITIONS};
+use config_schema::limits::{MAX_CHART_INPUTS, MAX_STATES, MAX_TRANSITIONS, MAX_VARS};
 use roxmltree::{Document, Node};
 
 use super::st::{self, Name, StError, Stmt, Ty};
@@ -236,16 +236,36 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
     let interface = child(root, "InterfaceList")
         .ok_or_else(|| cx.node_err(root, format!("`{name}` has no `InterfaceList`")))?;
     for n in elements(interface) {
-        let tag = n.tag_name().name();
-        if matches!(tag, "Sockets" | "Plugs") && elements(n).next().is_some() {
-            return Err(cx.node_err(n, "adapters (sockets and plugs) are not supported"));
+        match n.tag_name().name() {
+            "EventInputs" | "EventOutputs" | "InputVars" | "OutputVars" => {}
+            "Sockets" | "Plugs" if elements(n).next().is_some() => {
+                return Err(cx.node_err(n, "adapters (sockets and plugs) are not supported"));
+            }
+            "InOutVars" if elements(n).next().is_some() => {
+                return Err(cx.node_err(n, "in-out variables (`InOutVars`) are not supported"));
+            }
+            "Sockets" | "Plugs" | "InOutVars" => {}
+            // Read nowhere (an `InternalVars` belongs to the `BasicFB`): refused, not
+            // dropped unsaid.
+            other => {
+                return Err(cx.node_err(n, format!("unknown element `{other}` in `InterfaceList`")))
+            }
         }
     }
-    let vars_of = |list: Option<Node<'_, '_>>| -> Result<Vec<Var>, XmlError> {
+    // `most`: variables a list may have (the table's variables; parameters, the input
+    // variables, are constants of each instance and take none).
+    let vars_of = |list: Option<Node<'_, '_>>, most: usize| -> Result<Vec<Var>, XmlError> {
         let mut out = Vec::new();
         for v in list.into_iter().flat_map(elements) {
             if v.tag_name().name() != "VarDeclaration" {
                 return Err(cx.node_err(v, format!("unexpected `{}`", v.tag_name().name())));
+            }
+            // Refused here, in linear time, not after every one was read.
+            if out.len() == most {
+                return Err(cx.node_err(
+                    v,
+                    format!("more than {MAX_VARS} variables: a table holds at most {MAX_VARS} (MAX_VARS)"),
+                ));
             }
             let vname = cx.attr(v, "Name")?.to_string();
             let tname = cx.attr(v, "Type")?;
@@ -287,18 +307,29 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
         }
         Ok(out)
     };
-    let inputs = vars_of(child(interface, "InputVars"))?;
-    let outputs = vars_of(child(interface, "OutputVars"))?;
-    let internal = vars_of(child(basic, "InternalVars"))?;
+    let inputs = vars_of(child(interface, "InputVars"), usize::MAX)?;
+    let outputs = vars_of(child(interface, "OutputVars"), MAX_VARS)?;
+    let internal = vars_of(child(basic, "InternalVars"), MAX_VARS)?;
     let mut names: Vec<Name> = Vec::new();
-    let mut declared: Vec<(String, Node<'_, '_>)> = Vec::new();
     let mut events_in = Vec::new();
     let mut events_out = Vec::new();
-    for (list, out) in [
-        ("EventInputs", &mut events_in),
-        ("EventOutputs", &mut events_out),
+    // Event inputs are chart inputs (at most `MAX_CHART_INPUTS`, refused at the first one
+    // past); event outputs are not counted here: the node services among them
+    // (`START_T_150`, ...) become actions, not events.
+    for (list, out, most) in [
+        ("EventInputs", &mut events_in, MAX_CHART_INPUTS),
+        ("EventOutputs", &mut events_out, usize::MAX),
     ] {
         for e in child(interface, list).into_iter().flat_map(elements) {
+            if out.len() == most {
+                return Err(cx.node_err(
+                    e,
+                    format!(
+                        "more than {most} events in `{list}`: a table holds at most {most} \
+                         (MAX_CHART_INPUTS)"
+                    ),
+                ));
+            }
             let ename = cx.attr(e, "Name")?.to_string();
             out.push((ename, e));
         }
@@ -337,16 +368,16 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
         }
     }
     // One namespace for events and variables, case-insensitive as IEC 61131-3 has it.
+    let mut seen = std::collections::HashSet::new();
     for (n, node) in events_in
         .iter()
         .chain(events_out.iter())
         .map(|(n, e)| (n.clone(), *e))
         .chain(names.iter().map(|n| (n.name.clone(), interface)))
     {
-        if declared.iter().any(|(d, _)| d.eq_ignore_ascii_case(&n)) {
+        if !seen.insert(n.to_ascii_lowercase()) {
             return Err(cx.node_err(node, format!("`{n}` is declared twice")));
         }
-        declared.push((n, node));
     }
     // `With`: each names a variable of its side (inputs with input events, outputs with
     // output events). Data arrives with its event: with parameters for the input
@@ -630,7 +661,19 @@ fn split(
         for step in body {
             match step {
                 Step::Act(a) => chain.states[at].actions.push(a),
-                Step::Stmt(st) => at = chain.run(at, &st),
+                Step::Stmt(st) => match chain.run(at, &st) {
+                    Some(end) => at = end,
+                    None => {
+                        return Err(cx.node_err(
+                            node,
+                            format!(
+                                "state `{name}` chooses among so many arms that its chain takes \
+                                 more than {MAX_STATES} states: a table holds at most \
+                                 {MAX_STATES} (MAX_STATES)"
+                            ),
+                        ))
+                    }
+                },
             }
         }
         if chain.states.len() == 1 {
@@ -693,12 +736,18 @@ struct Chain {
 }
 
 impl Chain {
-    fn state(&mut self) -> usize {
+    /// A new state of the chain; `None` past [`MAX_STATES`] (no table holds the chain: it
+    /// stops there, so that the guards it builds, each longer than the one before, stay
+    /// bounded).
+    fn state(&mut self) -> Option<usize> {
+        if self.states.len() > MAX_STATES {
+            return None;
+        }
         self.states.push(StateDecl {
             name: format!("{}.{}", self.base, self.states.len()),
             actions: Vec::new(),
         });
-        self.states.len() - 1
+        Some(self.states.len() - 1)
     }
 
     fn go(&mut self, from: usize, to: usize, when: Option<String>) {
@@ -710,17 +759,18 @@ impl Chain {
         });
     }
 
-    /// Runs `st` from state `at`; the state where it ends.
-    fn run(&mut self, at: usize, st: &Stmt) -> usize {
+    /// Runs `st` from state `at`; the state where it ends (`None`: the chain took more
+    /// than [`MAX_STATES`] states).
+    fn run(&mut self, at: usize, st: &Stmt) -> Option<usize> {
         match st {
             Stmt::Assign(v, e) => {
                 self.states[at]
                     .actions
                     .push(ActionDecl::Set(v.clone(), e.clone()));
-                at
+                Some(at)
             }
             Stmt::If { arms, otherwise } => {
-                let join = self.state();
+                let join = self.state()?;
                 let mut before: Vec<String> = Vec::new();
                 let guard = |before: &[String], cond: Option<&str>| {
                     let mut parts: Vec<String> = before.iter().map(|c| format!("(!{c})")).collect();
@@ -728,11 +778,11 @@ impl Chain {
                     parts.join(" && ")
                 };
                 for (cond, body) in arms {
-                    let start = self.state();
+                    let start = self.state()?;
                     self.go(at, start, Some(guard(&before, Some(cond))));
                     let mut end = start;
                     for s in body {
-                        end = self.run(end, s);
+                        end = self.run(end, s)?;
                     }
                     self.go(end, join, None);
                     before.push(cond.clone());
@@ -741,15 +791,15 @@ impl Chain {
                 if otherwise.is_empty() {
                     self.go(at, join, Some(rest));
                 } else {
-                    let start = self.state();
+                    let start = self.state()?;
                     self.go(at, start, Some(rest));
                     let mut end = start;
                     for s in otherwise {
-                        end = self.run(end, s);
+                        end = self.run(end, s)?;
                     }
                     self.go(end, join, None);
                 }
-                join
+                Some(join)
             }
         }
     }

@@ -221,14 +221,23 @@ impl<'a, 'i> Xml<'a, 'i> {
         let name = self.attr(n, "Name")?.to_string();
         let ty = self.attr(n, "Type")?;
         let ty = ty.rsplit("::").next().unwrap_or(ty).to_string();
-        let mut params = Vec::new();
+        let mut params: Vec<Param> = Vec::new();
+        let mut given = std::collections::HashSet::new();
         for p in elements(n) {
             match p.tag_name().name() {
-                "Parameter" => params.push(Param {
-                    name: self.attr(p, "Name")?.to_string(),
-                    value: self.attr(p, "Value")?.to_string(),
-                    at: self.at(p),
-                }),
+                "Parameter" => {
+                    let param = self.attr(p, "Name")?;
+                    // The first would win unsaid: refused, as any name declared twice.
+                    if !given.insert(param) {
+                        let what = format!("parameter `{param}` of FB `{name}` is given twice");
+                        return Err(self.error(p, what));
+                    }
+                    params.push(Param {
+                        name: param.to_string(),
+                        value: self.attr(p, "Value")?.to_string(),
+                        at: self.at(p),
+                    });
+                }
                 "Attribute" => {}
                 _ => return Err(self.unknown(p, n)),
             }

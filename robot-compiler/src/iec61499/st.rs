@@ -232,7 +232,22 @@ fn lex(text: &str) -> Result<Vec<(Tok, Range<usize>)>, StError> {
     Ok(out)
 }
 
-/// An integer literal: decimal, or `16#`, `8#`, `2#`; `_` separates digits.
+/// The magnitude of `-2147483648`: a literal this large is only the operand of a `-`.
+const MIN_MAGNITUDE: i64 = 1 << 31;
+
+/// The error of literal `text` at `span`, past 32 bits.
+fn too_big<T>(text: &str, span: Range<usize>) -> Result<T, StError> {
+    err(
+        span,
+        format!(
+            "`{}` does not fit 32 bits (the tables' integers)",
+            short(text)
+        ),
+    )
+}
+
+/// An integer literal's magnitude (at most 2^31, for `-2147483648`): decimal, or `16#`,
+/// `8#`, `2#`; `_` separates digits.
 fn number(text: &str, span: Range<usize>) -> Result<i64, StError> {
     let digits: String = text.chars().filter(|&c| c != '_').collect();
     let (radix, body) = match digits.split_once('#') {
@@ -243,14 +258,8 @@ fn number(text: &str, span: Range<usize>) -> Result<i64, StError> {
         None => (10, digits.clone()),
     };
     match i64::from_str_radix(&body, radix) {
-        Ok(v) if v <= i64::from(i32::MAX) => Ok(v),
-        Ok(_) => err(
-            span,
-            format!(
-                "`{}` does not fit 32 bits (the tables' integers)",
-                short(text)
-            ),
-        ),
+        Ok(v) if v <= MIN_MAGNITUDE => Ok(v),
+        Ok(_) => too_big(text, span),
         Err(_) => err(span, format!("`{}` is not an integer literal", short(text))),
     }
 }
@@ -610,6 +619,7 @@ impl<'n> Parser<'n> {
             self.bump();
         }
         match self.bump() {
+            (Tok::Int(v), span) if v == MIN_MAGNITUDE && !neg => too_big(&v.to_string(), span),
             (Tok::Int(v), _) => Ok(if neg { -v } else { v }),
             (_, span) => err(span, "a CASE label is an integer literal"),
         }
@@ -775,12 +785,20 @@ impl<'n> Parser<'n> {
         let span = self.span();
         if self.sym("-") {
             self.bump();
+            // -2147483648 is a 32-bit integer, though 2147483648 is not.
+            if let Some((Tok::Int(MIN_MAGNITUDE), _)) = self.toks.get(self.at) {
+                self.bump();
+                return Ok((i32::MIN.to_string(), Ty::Int(None)));
+            }
             let (v, ty) = self.nested(span.clone(), Self::unary)?;
             let Ty::Int(w) = ty else {
                 return err(span, "unary `-` takes an integer");
             };
-            if let (None, Ok(n)) = (w, v.parse::<i64>()) {
-                return Ok(((-n).to_string(), ty));
+            // Folded as the tables compute it, wrapping: -(-2147483648) is -2147483648
+            // (folded unwrapped it was 2147483648, which no table holds).
+            if let (None, Some(n)) = (w, v.parse::<i64>().ok().and_then(|n| i32::try_from(n).ok()))
+            {
+                return Ok((n.wrapping_neg().to_string(), ty));
             }
             return Ok((wrapped(format!("-{v}"), w), ty));
         }
@@ -802,6 +820,7 @@ impl<'n> Parser<'n> {
     fn primary(&mut self) -> Result<(String, Ty), StError> {
         let (tok, span) = self.bump();
         match tok {
+            Tok::Int(v) if v == MIN_MAGNITUDE => too_big(&v.to_string(), span),
             Tok::Int(v) => Ok((v.to_string(), Ty::Int(None))),
             Tok::Word(w) if w.eq_ignore_ascii_case("TRUE") => Ok((String::from("true"), Ty::Bool)),
             Tok::Word(w) if w.eq_ignore_ascii_case("FALSE") => {
@@ -901,6 +920,9 @@ pub fn literal(text: &str, ty: Ty) -> Result<String, StError> {
     match (rest, ty) {
         ([(Tok::Int(v), _), (Tok::End, _)], Ty::Int(w)) => {
             let v = if neg { -*v } else { *v };
+            if v == MIN_MAGNITUDE {
+                return too_big(text, whole);
+            }
             if !literal_fits(&v.to_string(), w) {
                 return err(
                     whole,
@@ -956,6 +978,44 @@ mod tests {
                 other => panic!("a choice: {other:?}"),
             })
             .collect())
+    }
+
+    /// -2147483648 is a DINT: written as a literal, a CASE label or an initial value it
+    /// was refused (`2147483648` does not fit 32 bits, which only the magnitude alone does
+    /// not).
+    #[test]
+    fn minus_2147483648_is_a_dint_and_2147483648_is_not() {
+        let min = i32::MIN.to_string();
+        assert_eq!(
+            assigns("D := -2147483648;"),
+            Ok(vec![("D".into(), min.clone())])
+        );
+        assert_eq!(
+            assigns("D := - 2147483648;"),
+            Ok(vec![("D".into(), min.clone())])
+        );
+        assert_eq!(
+            assigns("D := -2147483647 - 1;"),
+            Ok(vec![("D".into(), min.clone())])
+        );
+        assert!(algorithm("CASE D OF -2147483648: D := 1; END_CASE;", &names()).is_ok());
+        // Negated again, it wraps as the tables compute (it folded to 2147483648).
+        for text in [
+            "D := -(-2147483648);",
+            "D := - -2147483648;",
+            "D := -(-2147483647 - 1);",
+        ] {
+            assert_eq!(assigns(text), Ok(vec![("D".into(), min.clone())]), "{text}");
+        }
+        let e = |text: &str| algorithm(text, &names()).unwrap_err();
+        let big = "`2147483648` does not fit 32 bits (the tables' integers)";
+        assert_eq!(e("D := 2147483648;").message, big);
+        assert_eq!(e("D := 2147483648;").span, 5..15);
+        assert_eq!(e("D := -(2147483648);").message, big);
+        assert_eq!(e("CASE D OF 2147483648: D := 1; END_CASE;").message, big);
+        let dint = Ty::of("DINT").unwrap();
+        assert_eq!(literal("-2147483648", dint), Ok(min));
+        assert_eq!(literal("2147483648", dint).unwrap_err().message, big);
     }
 
     /// Deep nesting and long expressions are refused at their place instead of running

@@ -35,7 +35,9 @@ fn coerce(text: String, kind: Kind, want: Kind) -> Result<String, String> {
 
 fn value(ast: &Ast, names: Names<'_>) -> Result<(String, Kind), String> {
     Ok(match ast {
-        Ast::Int(n) if *n < 0 => (format!("-{}", n.unsigned_abs()), Kind::Int),
+        // In parentheses: a `-` before it (`Neg`) makes `-(-5)`, not `--5` (ST takes one
+        // unary operator).
+        Ast::Int(n) if *n < 0 => (format!("(-{})", n.unsigned_abs()), Kind::Int),
         Ast::Int(n) => (n.to_string(), Kind::Int),
         Ast::Name(n, _) => names(n).ok_or_else(|| format!("unknown name `{n}`"))?,
         Ast::Not(a) => match value(a, names)? {
@@ -166,6 +168,26 @@ mod tests {
             .contains("wraps to 16 bits"));
         assert_eq!(s("m", Kind::Int).unwrap_err(), "unknown name `m`");
         assert!(s("VC.home + 1", Kind::Int).is_err());
+        // A negative literal in parentheses: negated, `-(-5)` (ST takes one unary operator:
+        // `--5` was written, which no ST reader takes).
+        assert_eq!(s("-(-5)", Kind::Int).unwrap(), "(-(-5))");
+        assert_eq!(s("-2147483648", Kind::Int).unwrap(), "(-2147483648)");
+        // Read back by the importer: `-(-2147483648)` (its fold wraps).
+        let d = crate::iec61499::st::Name {
+            name: "D".into(),
+            ty: crate::iec61499::st::Ty::of("DINT").unwrap(),
+            writable: true,
+        };
+        let read = |text: &str| {
+            crate::iec61499::st::algorithm(&format!("D := {text};"), std::slice::from_ref(&d))
+        };
+        let minus_min = s("-(-2147483648)", Kind::Int).unwrap();
+        assert_eq!(minus_min, "(-(-2147483648))");
+        assert!(
+            read(&minus_min).is_ok(),
+            "read back: {:?}",
+            read(&minus_min)
+        );
     }
 
     /// Bytecode decompiles to an expression that compiles to the same bytecode.
