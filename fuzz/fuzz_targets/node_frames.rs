@@ -82,6 +82,10 @@ impl Fresh {
                     self.core.activated(d, now, &mut Board);
                 }
                 Some(FlashRequest::Confirm) => self.core.confirmed(true, &mut Board),
+                // No boot counter: the count fails (asked again at the next epoch).
+                Some(FlashRequest::CountBoot) => {
+                    self.core.boot_counted(None);
+                }
             }
         }
     }

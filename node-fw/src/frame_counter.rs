@@ -18,7 +18,10 @@
 //! ```
 //! A torn record fails its check and is skipped (as is the slot it occupies). When a
 //! sector is full the other one is erased and the log goes on there; a cut during that
-//! erase leaves the full sector, which still holds the largest reservation.
+//! erase leaves the full sector, which still holds the largest reservation. A sector
+//! filled by failed writes only (the flash failing for a while after a switch) holds no
+//! reservation: it is erased itself and the log starts it over, never the other sector,
+//! which holds the one the node relies on.
 //!
 //! Wear (docs/security.md): at 10 frames/s, continuously, for 10 years a node sends
 //! 3.2e9 frames, so 3.1e6 reservations of 1024; a 4 KiB sector holds 256 records, so
@@ -63,6 +66,9 @@ pub struct FrameCounter<F> {
     /// The sector the log is in, and the offset of its next free record.
     active: u32,
     free: Option<u32>,
+    /// The sector whose record holds `reserved` (written and checked: the largest one in
+    /// flash).
+    holds: u32,
     next: u32,
     reserved: u32,
 }
@@ -135,6 +141,7 @@ impl<F: NorFlash> FrameCounter<F> {
             step,
             active,
             free: free.get(active as usize).copied().flatten(),
+            holds: active,
             next: reserved,
             reserved,
         })
@@ -171,12 +178,18 @@ impl<F: NorFlash> FrameCounter<F> {
         let at = match self.free {
             Some(at) => at,
             None => {
-                // The active sector is full: the log goes on in the other one.
-                let other = 1 - self.active;
-                let base = other * self.sector;
+                // The active sector is full: the log goes on in the other one, unless the
+                // reservation the node relies on is there (every write since the switch
+                // failed): then the active sector, which holds none, starts over.
+                let next = if self.holds == self.active {
+                    1 - self.active
+                } else {
+                    self.active
+                };
+                let base = next * self.sector;
                 block_on(self.flash.erase(base, base + self.sector))
                     .map_err(CounterError::Flash)?;
-                self.active = other;
+                self.active = next;
                 0
             }
         };
@@ -184,7 +197,9 @@ impl<F: NorFlash> FrameCounter<F> {
         // Past this point the slot is used, written whole or torn.
         let after = at + RECORD as u32;
         self.free = (after < self.sector).then_some(after);
-        block_on(self.flash.write(base + at, &encode(reserve))).map_err(CounterError::Flash)
+        block_on(self.flash.write(base + at, &encode(reserve))).map_err(CounterError::Flash)?;
+        self.holds = self.active;
+        Ok(())
     }
 }
 
@@ -246,6 +261,69 @@ mod tests {
                 seen.windows(2).all(|w| w[0] < w[1]),
                 "cut at write {cut}: {seen:?}"
             );
+        }
+    }
+
+    /// A flash whose writes fail (writing nothing) while `failing`; erases work.
+    struct Failing {
+        flash: Flash,
+        failing: bool,
+    }
+
+    impl embedded_storage_async::nor_flash::ErrorType for Failing {
+        type Error = crate::slots::PowerCut;
+    }
+
+    impl embedded_storage_async::nor_flash::ReadNorFlash for Failing {
+        const READ_SIZE: usize = 1;
+        async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+            self.flash.read(offset, bytes).await
+        }
+        fn capacity(&self) -> usize {
+            self.flash.capacity()
+        }
+    }
+
+    impl NorFlash for Failing {
+        const WRITE_SIZE: usize = 4;
+        const ERASE_SIZE: usize = 1024;
+        async fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+            self.flash.erase(from, to).await
+        }
+        async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+            match self.failing {
+                true => Err(crate::slots::PowerCut),
+                false => self.flash.write(offset, bytes).await,
+            }
+        }
+    }
+
+    /// The flash fails every write for a while just after the log filled a sector (each
+    /// failed write uses a slot of the other one), then the power is cut. Before, once
+    /// the failed writes had filled that sector too, the next one erased the full sector,
+    /// which held the only reservation: the node booted at counter 0 and handed out again
+    /// every counter it had used (the nonces of its secured frames). Now the sector of
+    /// failed writes starts over, and the node resumes above everything handed out.
+    #[test]
+    fn writes_failing_for_a_while_then_a_power_cut_never_hand_out_a_counter_twice() {
+        for failed in [1, 63, 64, 65, 127, 128, 129, 200] {
+            let flash = Failing {
+                flash: Flash::new(),
+                failing: false,
+            };
+            let mut c = FrameCounter::open_with_step(flash, 4).expect("opens");
+            // Sector 0 full: 64 records of 4 counters.
+            let handed: Vec<u32> = (0..64 * 4).map(|_| c.next().expect("next")).collect();
+            assert_eq!(handed.last(), Some(&255));
+            c.flash.failing = true;
+            for _ in 0..failed {
+                assert!(matches!(c.next(), Err(CounterError::Flash(_))));
+            }
+            // The power is cut; the next boot's flash works.
+            let mut flash = c.into_inner();
+            flash.failing = false;
+            let mut c = FrameCounter::open_with_step(flash, 4).expect("opens");
+            assert_eq!(c.next(), Ok(256), "after {failed} failed writes");
         }
     }
 

@@ -4,6 +4,7 @@
 //! - [`cipher`]: the AES-128 under frame security (software, or the board's hardware).
 //! - [`cylinder`]: the pneumatic plant's rules (valve, power-up, sensors, travel), pure.
 //! - [`ecc`]: the table interpreter (pure, `no_std`, no allocation, no Embassy).
+//! - [`epoch`]: the link epochs a node takes, reserved ahead by its boot counter.
 //! - [`link`]: reliable, ordered event delivery over a lossy radio (pure state machines).
 //! - [`node`]: the whole node as one pure state machine: frames in, frames and pins out.
 //! - [`ota`]: over-the-air table transfer, node and tool sides (pure state machines).
@@ -21,6 +22,7 @@ pub mod alarms;
 pub mod cipher;
 pub mod cylinder;
 pub mod ecc;
+pub mod epoch;
 pub mod frame_counter;
 #[cfg(feature = "std")]
 pub mod host;

@@ -20,6 +20,7 @@ use heapless::Vec;
 use crate::alarms::{Alarms, Seen};
 use crate::cipher::NodeCipher;
 use crate::ecc::{Effects, Engine, EngineState, Fault, Index};
+use crate::epoch::Epochs;
 use crate::link::{self, LinkState};
 use crate::ota::{self, Outcome, RamStaging, Staging as StagingArea};
 use crate::peer_security::{self, PeerSecurity, Pending, Verdict};
@@ -107,6 +108,10 @@ pub enum FlashRequest<'a> {
     Rollback,
     /// Confirm the running slot (on trial), then [`NodeCore::confirmed`].
     Confirm,
+    /// Count one more boot in the board's boot counter, then [`NodeCore::boot_counted`]:
+    /// the node has taken most of the link epochs its boot count reserves, and the next
+    /// boot must start above them ([`crate::epoch`]).
+    CountBoot,
 }
 
 /// `key`, if the image has frame security ([`crate::FRAME_SECURITY`]: without it every
@@ -137,7 +142,8 @@ pub struct NodeCore<S = RamStaging> {
     staging: Option<Staging>,
     /// The staged generation and the switch-over to it.
     switch: SwitchOver,
-    epoch: u16,
+    /// The newest link epoch, and how far the boot counter reserves them.
+    epochs: Epochs,
     /// Bit i: the last `Reset` re-established the link to peer i.
     restarted: u8,
     /// Cycles this node's START began at its idle point and that ended with the node back
@@ -464,13 +470,18 @@ impl NodeCore {
     /// booting with `table` (the newest valid slot) or none, staging pushed tables in RAM
     /// ([`NodeCore::staging_in`]). The table's identity is that of its blob, encoded here
     /// (a board boots from the blob itself: [`NodeCore::staging_in`]).
-    pub fn new(addr: u16, board_pins: u64, table: Option<Table>, epoch: u16) -> Self {
+    pub fn new(
+        addr: u16,
+        board_pins: u64,
+        table: Option<Table>,
+        epochs: impl Into<Epochs>,
+    ) -> Self {
         let boot = table.map(|table| Deployment {
             id: TableId::of(&table).unwrap_or(TableId::NONE),
             table,
             keys: None,
         });
-        NodeCore::staging_in(addr, board_pins, boot, epoch, RamStaging::new())
+        NodeCore::staging_in(addr, board_pins, boot, epochs, RamStaging::new())
     }
 }
 
@@ -478,13 +489,14 @@ impl<S: StagingArea> NodeCore<S> {
     /// A node at `addr` on a board with pins `board_pins` (bit n: the board has pin n),
     /// booting with `boot` (the newest valid slot: its table, link keys and identity) or
     /// none; a table naming a pin the board lacks is not run (the node boots
-    /// unconfigured). `epoch` must differ from (be newer than) the previous boot's: peers
-    /// only accept newer epochs.
+    /// unconfigured). `epochs` start where this boot's link epochs do, newer than every
+    /// epoch of the previous boots (peers only accept newer ones): a `u16` reserves none,
+    /// [`Epochs::counted`] those of a persisted boot counter ([`crate::epoch`]).
     pub fn staging_in(
         addr: u16,
         board_pins: u64,
         boot: Option<Deployment>,
-        epoch: u16,
+        epochs: impl Into<Epochs>,
         staging: S,
     ) -> Self {
         let mut node = NodeCore {
@@ -507,7 +519,7 @@ impl<S: StagingArea> NodeCore<S> {
             ota: ota::Receiver::staging_in(board_pins, staging),
             staging: None,
             switch: SwitchOver::default(),
-            epoch,
+            epochs: epochs.into(),
             restarted: 0,
             cycles: 0,
             cycle_open: false,
@@ -662,7 +674,7 @@ impl<S: StagingArea> NodeCore<S> {
         self.state = Some(engine.snapshot());
         self.state_changed = true;
         self.timers = [None; MAX_TIMERS];
-        self.epoch = self.epoch.wrapping_add(1);
+        let epoch = self.epochs.take();
         self.senders.clear();
         self.restarted = 0;
         self.cycle_open = false;
@@ -672,7 +684,7 @@ impl<S: StagingArea> NodeCore<S> {
         self.restarts.forget();
         self.alarms.new_table();
         for _ in &table.peers {
-            let _ = self.senders.push(link::Sender::new(self.epoch));
+            let _ = self.senders.push(link::Sender::new(epoch));
         }
         // Links from peers that stay keep their place in the publisher's numbering; the
         // receivers follow the table's peers by index (`receivers[i]` hears `peers[i]`).
@@ -723,7 +735,12 @@ impl<S: StagingArea> NodeCore<S> {
 
     /// The epoch of the newest link numbering.
     pub fn epoch(&self) -> u16 {
-        self.epoch
+        self.epochs.current()
+    }
+
+    /// The link epochs: the newest, and how far the boot counter reserves them.
+    pub fn epochs(&self) -> Epochs {
+        self.epochs
     }
 
     /// The operator's reset of the links: every link that is not idle and healthy (broken,
@@ -740,10 +757,10 @@ impl<S: StagingArea> NodeCore<S> {
             .filter(|(_, s)| stuck(s))
             .fold(0u8, |m, (i, _)| m | (1 << i));
         if restart != 0 {
-            self.epoch = self.epoch.wrapping_add(1);
+            let epoch = self.epochs.take();
             for (i, s) in self.senders.iter_mut().enumerate() {
                 if restart & (1 << i) != 0 {
-                    *s = link::Sender::new(self.epoch);
+                    *s = link::Sender::new(epoch);
                 }
             }
         }
@@ -759,10 +776,21 @@ impl<S: StagingArea> NodeCore<S> {
         if self.switch.confirming().is_some() {
             return Some(FlashRequest::Confirm);
         }
-        self.switch.activating().map(|(_, target)| match target {
-            switch::Target::Staged { trial } => FlashRequest::Activate { trial },
-            switch::Target::Previous => FlashRequest::Rollback,
-        })
+        if let Some((_, target)) = self.switch.activating() {
+            return Some(match target {
+                switch::Target::Staged { trial } => FlashRequest::Activate { trial },
+                switch::Target::Previous => FlashRequest::Rollback,
+            });
+        }
+        self.epochs.wants_count().then_some(FlashRequest::CountBoot)
+    }
+
+    /// The board counted a boot for [`FlashRequest::CountBoot`]: `boots` is the count it
+    /// persisted (`None`: it failed; asked again once another epoch is taken). Returns
+    /// whether the node wants another count at once (the epochs taken need more).
+    pub fn boot_counted(&mut self, boots: Option<u32>) -> bool {
+        self.epochs.counted_boot(boots);
+        self.epochs.wants_count()
     }
 
     /// The node booted with `generation` confirmed in its other slot: what a rollback
@@ -1128,7 +1156,7 @@ impl<S: StagingArea> NodeCore<S> {
             link_alarms: self.link_alarms(),
             links_broken: self.links_broken(),
             links_restarted: self.restarted,
-            epoch: self.epoch,
+            epoch: self.epochs.current(),
             counters: self.radio.counters,
             runtime,
             cycles: self.cycles,
@@ -1610,12 +1638,11 @@ impl<S: StagingArea> NodeCore<S> {
             None if sender.starts_at_zero() => return sender.resend(now),
             _ => {}
         }
-        let next = self.epoch.wrapping_add(1);
-        self.epoch = match wanted {
-            Some(w) if link::before(next, w) => w,
-            _ => next,
+        let epoch = match wanted {
+            Some(w) => self.epochs.take_at_least(w),
+            None => self.epochs.take(),
         };
-        sender.renumber(self.epoch, now);
+        sender.renumber(epoch, now);
     }
 
     /// Challenges peer `peer` on the robot's PAN (see [`crate::peer_security`]).
@@ -1808,14 +1835,27 @@ impl<S: StagingArea> NodeCore<S> {
             return;
         }
         let generation = self.generation();
-        if let (true, Message::ConfigBegin { generation: g, .. }) = (self.switch.trial(), msg) {
+        // On trial a transfer would be staged over the previous table, the only confirmed
+        // one: a new one is refused, and so is one begun before the trial (its transfer
+        // forgotten), or a power cut before `confirm` would boot no table at all.
+        let transfer = match *msg {
+            Message::ConfigBegin { generation, .. } => Some(generation),
+            Message::ConfigChunk { generation, .. } | Message::ConfigEnd { generation }
+                if self.ota.receiving() == Some(generation) =>
+            {
+                Some(generation)
+            }
+            _ => None,
+        };
+        if let (true, Some(g)) = (self.switch.trial(), transfer) {
+            self.ota.abort();
             let reply = ConfigReply::Refused(Refusal::OnTrial);
             self.send(
                 io,
                 pan,
                 src,
                 &Message::ConfigReply {
-                    generation: *g,
+                    generation: g,
                     reply,
                 },
             );

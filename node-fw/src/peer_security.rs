@@ -205,14 +205,13 @@ impl PeerSecurity {
         }
         self.replay = floors;
         self.challenges.retain(peers);
-        // (`swap_remove`, in any order: shifting the entries took a 1.5 KB `memmove` into
-        // the image.)
+        // (`remove_at`: `retain` shifts the entries with a 1.5 KB `memmove`.)
         let mut i = 0;
         while let Some((p, _)) = self.seen.get(i) {
             if peers.contains(p) {
                 i += 1;
             } else {
-                self.seen.swap_remove(i);
+                crate::remove_at(&mut self.seen, i);
             }
         }
         self.repeating.clear();
@@ -396,7 +395,7 @@ impl PeerSecurity {
         if floor.is_none() {
             if self.challenges.answered(src, message, now) {
                 if let Some(i) = self.seen.iter().position(|(p, _)| *p == src) {
-                    self.seen.swap_remove(i);
+                    crate::remove_at(&mut self.seen, i);
                 }
                 accept(&mut self.replay, src, ANY_LINK_KEY, seen, counters);
                 return Verdict::Answered;

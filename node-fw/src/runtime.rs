@@ -39,6 +39,7 @@ use log::{info, warn};
 
 use config_schema::wire::msg::RuntimeCounters;
 
+use crate::epoch::Epochs;
 use crate::node::{fault_code, FlashRequest, Io, NodeCore};
 use crate::ota::{RamStaging, Staging};
 use crate::provision::ManagementKey;
@@ -618,7 +619,7 @@ fn survey<F: NorFlash, N: Notes>(addr: u16, slots: &mut Slots<F>, notes: &mut N)
 fn load<F: NorFlash, S: Staging, N: Notes>(
     addr: u16,
     pin_mask: u64,
-    epoch: u16,
+    epochs: Epochs,
     slots: &mut Slots<F>,
     staging: S,
     notes: &mut N,
@@ -637,7 +638,7 @@ fn load<F: NorFlash, S: Staging, N: Notes>(
         trial: false,
         next_serial: survey.next_serial,
     };
-    let core = boot_core(addr, pin_mask, epoch, slots, &survey, staging, notes);
+    let core = boot_core(addr, pin_mask, epochs, slots, &survey, staging, notes);
     (core, at)
 }
 
@@ -646,7 +647,7 @@ fn load<F: NorFlash, S: Staging, N: Notes>(
 fn boot_core<F: NorFlash, S: Staging, N: Notes>(
     addr: u16,
     pin_mask: u64,
-    epoch: u16,
+    epochs: Epochs,
     slots: &mut Slots<F>,
     survey: &Survey,
     staging: S,
@@ -659,7 +660,7 @@ fn boot_core<F: NorFlash, S: Staging, N: Notes>(
     {
         notes.note(addr, Note::MissingPin { pin });
     }
-    let mut core = NodeCore::staging_in(addr, pin_mask, deployed, epoch, staging);
+    let mut core = NodeCore::staging_in(addr, pin_mask, deployed, epochs, staging);
     if let Some(staged) = survey.staged {
         core = core.with_staged(staged.generation);
     } else if let Some(previous) = survey.previous {
@@ -668,7 +669,8 @@ fn boot_core<F: NorFlash, S: Staging, N: Notes>(
     core
 }
 
-/// Does what the core asks of the flash, and tells it how it went.
+/// Does what the core asks of the flash (the slots, or `count_boot`: the board's boot
+/// counter, if it has one), and tells it how it went.
 fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
     addr: u16,
     core: &mut NodeCore<S>,
@@ -676,9 +678,22 @@ fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
     at: &mut SlotsAt,
     io: &mut CoreIo<'_, P>,
     notes: &mut N,
+    count_boot: &mut Option<&mut dyn FnMut() -> Option<u32>>,
 ) {
     match core.flash_request() {
         None => {}
+        Some(FlashRequest::CountBoot) => {
+            // As many counts as the epochs taken need: each moves the reservation 256 on
+            // (129 from the farthest behind, 32,768), and one that fails or moves nothing
+            // ends the asking until the next epoch. Bounded here too.
+            for _ in 0..256 {
+                let boots = count_boot.as_mut().and_then(|count| count());
+                io.stats.flash_failures += u32::from(boots.is_none());
+                if !core.boot_counted(boots) {
+                    break;
+                }
+            }
+        }
         Some(FlashRequest::Stage(blob)) => {
             let ok = match slots.stage_now(at.running, blob) {
                 Ok(slot) => {
@@ -789,6 +804,24 @@ fn switched<F: NorFlash, P: Pins, S: Staging, N: Notes>(
     }
 }
 
+/// Where a boot's link epochs start, and the board's persisted boot counter that reserves
+/// them ([`crate::epoch`], `docs/node-runtime.md`, "Epoch").
+pub enum Boot<'a> {
+    /// No persisted counter: epochs from this one on (the clock's), newer than the
+    /// previous boot's with room for what this boot takes; none reserved.
+    Epoch(u16),
+    /// Boot number `boots` of the board's persisted counter (epochs from `boots x 256`);
+    /// `count` counts one more boot and returns the count it persisted (`None`: it
+    /// failed), when the node has taken most of the epochs its count reserves. Not
+    /// `persisted` (the board failed to write count `boots`: the next boot would read the
+    /// same), nothing is reserved and the node has `count` count again at once.
+    Counted {
+        boots: u32,
+        persisted: bool,
+        count: &'a mut dyn FnMut() -> Option<u32>,
+    },
+}
+
 /// Runs node `addr` on `board` until the radio fails. `epoch` must be newer than the
 /// previous boot's (serial order on `u16`, with room for the tables this boot installs,
 /// each of which takes the next epoch): see `docs/node-runtime.md`.
@@ -820,7 +853,7 @@ where
     F: NorFlash,
     Q: Probe,
 {
-    run_secured(addr, epoch, board, probe, None).await
+    run_secured(addr, Boot::Epoch(epoch), board, probe, None).await
 }
 
 /// What a provisioned node secures its management traffic with: its key, and the source
@@ -832,10 +865,10 @@ pub struct Security<'a> {
 }
 
 /// [`run_probed`], with the management key: the config PAN is secured
-/// ([`NodeCore::with_management_key`]).
+/// ([`NodeCore::with_management_key`]), and the link epochs of `boot`.
 pub async fn run_secured<R, P, I, F, Q>(
     addr: u16,
-    epoch: u16,
+    boot: Boot<'_>,
     board: Board<R, P, I, F>,
     probe: &mut Q,
     security: Option<Security<'_>>,
@@ -849,7 +882,7 @@ where
 {
     // Held here, lent to the core: one copy in the future, not one per async layer.
     let mut staging = RamStaging::new();
-    run_staged(addr, epoch, board, probe, security, &mut staging, &mut ()).await
+    run_staged(addr, boot, board, probe, security, &mut staging, &mut ()).await
 }
 
 /// [`run_secured`], staging pushed tables in `staging` instead of a RAM buffer of the
@@ -857,7 +890,7 @@ where
 /// [`Note`]s to `notes` (`()`: the `log` crate).
 pub async fn run_staged<R, P, I, F, Q, S, N>(
     addr: u16,
-    epoch: u16,
+    boot: Boot<'_>,
     board: Board<R, P, I, F>,
     probe: &mut Q,
     security: Option<Security<'_>>,
@@ -881,7 +914,7 @@ where
         staging,
         notes,
     };
-    match run_inner(addr, epoch, board, parts).await {
+    match run_inner(addr, boot, board, parts).await {
         Ok(never) => match never {},
         Err(stop) => (stop, stats),
     }
@@ -898,7 +931,7 @@ struct Parts<'a, 'k, Q, S, N> {
 
 async fn run_inner<R, P, I, F, Q, S, N>(
     addr: u16,
-    epoch: u16,
+    boot: Boot<'_>,
     board: Board<R, P, I, F>,
     parts: Parts<'_, '_, Q, S, N>,
 ) -> Result<Infallible, Stop<R::Error>>
@@ -927,7 +960,18 @@ where
     } = board;
     outputs.all_off();
     let mut slots = Slots::new(flash).map_err(|_| Stop::FlashGeometry)?;
-    let (mut core, mut at) = load(addr, pin_mask, epoch, &mut slots, staging, notes);
+    let (epochs, mut count_boot) = match boot {
+        Boot::Epoch(first) => (Epochs::unreserved(first), None),
+        Boot::Counted {
+            boots,
+            persisted,
+            count,
+        } => match persisted {
+            true => (Epochs::counted(boots), Some(count)),
+            false => (Epochs::uncounted(boots), Some(count)),
+        },
+    };
+    let (mut core, mut at) = load(addr, pin_mask, epochs, &mut slots, staging, notes);
     let mut no_counter = || None;
     let counter: &mut dyn FnMut() -> Option<u32> = match security {
         Some(Security { key, counter }) => {
@@ -965,7 +1009,15 @@ where
     loop {
         core.poll(now_ms(), &mut io);
 
-        serve_flash(addr, &mut core, &mut slots, &mut at, &mut io, notes);
+        serve_flash(
+            addr,
+            &mut core,
+            &mut slots,
+            &mut at,
+            &mut io,
+            notes,
+            &mut count_boot,
+        );
 
         let now = fault_of(&core);
         if now != fault {

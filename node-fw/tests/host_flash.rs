@@ -8,8 +8,9 @@ use config_schema::limits::MAX_BLOB;
 use config_schema::{encode, Table};
 use embassy_futures::block_on;
 use embedded_storage_async::nor_flash::{NorFlash, ReadNorFlash};
+use node_fw::epoch::of_boot as epoch_of_boot;
 use node_fw::host::flash::{FlashError, HostFlash, OpenError, FILE_SIZE, SLOTS_BYTES};
-use node_fw::host::{epoch_of_boot, parse_addr};
+use node_fw::host::parse_addr;
 use node_fw::slots::Slots;
 
 fn path(name: &str) -> PathBuf {
@@ -72,6 +73,35 @@ fn the_boot_counter_and_the_slots_survive_reopening() {
     let loaded = block_on(slots.load()).unwrap().running.unwrap();
     assert_eq!((loaded.slot, loaded.deployed.table), (0, table));
     assert_eq!(HostFlash::ram().count_boot().unwrap(), None);
+    let _ = std::fs::remove_file(&p);
+}
+
+/// The runtime counts boots on a handle of its own while the slots own the flash (a boot
+/// that took most of its link epochs): the slots' reads and writes and the counter's move
+/// nothing of each other, and the next boot counts on from it.
+#[test]
+fn a_boot_counted_on_its_own_handle_is_the_flash_files() {
+    let p = path("boot-counter");
+    let mut table = Table::empty("kept");
+    table.generation = 4;
+    let mut blob = vec![0u8; MAX_BLOB];
+    let n = encode(&table, &mut blob).unwrap();
+    {
+        let f = HostFlash::open(&p).unwrap();
+        let mut counter = f.boot_counter().unwrap().unwrap();
+        assert_eq!(counter.count().unwrap(), 1);
+        let mut slots = Slots::new(f).unwrap();
+        assert_eq!(block_on(slots.load()).unwrap().running, None);
+        assert_eq!(counter.count().unwrap(), 2);
+        assert_eq!(block_on(slots.store(None, &blob[..n], 0)).unwrap(), 0);
+        assert_eq!(counter.count().unwrap(), 3);
+    }
+    let mut f = HostFlash::open(&p).unwrap();
+    assert_eq!(f.count_boot().unwrap(), Some(4));
+    let mut slots = Slots::new(f).unwrap();
+    let loaded = block_on(slots.load()).unwrap().running.unwrap();
+    assert_eq!((loaded.slot, loaded.deployed.table), (0, table));
+    assert!(HostFlash::ram().boot_counter().unwrap().is_none());
     let _ = std::fs::remove_file(&p);
 }
 

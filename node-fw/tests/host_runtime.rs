@@ -12,7 +12,7 @@ use std::rc::Rc;
 use std::task::{Poll, Waker};
 
 use config_schema::wire::mac::{self, Frame, Header, MAX_PSDU};
-use config_schema::wire::msg::{Command, Message, Refusal, RuntimeCounters, Status};
+use config_schema::wire::msg::{Command, ConfigReply, Message, Refusal, RuntimeCounters, Status};
 use config_schema::Table;
 use embassy_futures::join::join;
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
@@ -24,7 +24,7 @@ use embedded_storage_async::nor_flash::{self as nor, NorFlash, ReadNorFlash};
 use node_fw::host::block_on;
 use node_fw::node::CONFIG_PAN;
 use node_fw::runtime::{
-    self, mpdu_of, psdu_of, Board, Inputs, Pins, Radio, Received, Stats, Stop, WaitInputs,
+    self, mpdu_of, psdu_of, Board, Boot, Inputs, Pins, Radio, Received, Stats, Stop, WaitInputs,
 };
 use node_fw::slots::{PowerCut, RamFlash, Slots};
 use node_fw::{ota, switch};
@@ -288,12 +288,29 @@ impl Tool {
     async fn push(&mut self, table: &Table) -> ota::Progress {
         let bytes = blob(table);
         let mut tx = ota::Sender::new(&bytes, table.generation, false);
+        let mut out = Vec::new();
+        tx.start(Instant::now().as_millis(), |m| out.push(m));
+        if self.carry(&mut tx, &mut out).await != ota::Progress::Done {
+            return tx.progress();
+        }
+        // Staged: switch it over (the node is idle), as `push` does.
+        match self.switch(table.generation, false).await {
+            switch::Verdict::Switched => ota::Progress::Done,
+            _ => ota::Progress::Refused(config_schema::wire::msg::Refusal::Flash),
+        }
+    }
+
+    /// Carries the transfer of `tx` (started: its first messages in `out`) until it is
+    /// done or refused (at most `WAIT_MS`).
+    async fn carry<'b>(
+        &mut self,
+        tx: &mut ota::Sender<'b>,
+        out: &mut Vec<Message<'b>>,
+    ) -> ota::Progress {
         let now = || Instant::now().as_millis();
         let start = now();
-        let mut out = Vec::new();
-        tx.start(now(), |m| out.push(m));
         while tx.progress() == ota::Progress::Busy && now() - start < WAIT_MS {
-            for m in std::mem::take(&mut out) {
+            for m in std::mem::take(out) {
                 self.send(&m).await;
             }
             if let Some(Message::ConfigReply { generation, reply }) = self.next(5).await {
@@ -301,14 +318,20 @@ impl Tool {
             }
             tx.poll(now(), |m| out.push(m));
         }
-        if tx.progress() != ota::Progress::Done {
-            return tx.progress();
-        }
-        // Staged: switch it over (the node is idle), as `push` does.
+        tx.progress()
+    }
+
+    /// Switches the node (idle) over to the staged `generation`, as a trial if `trial`.
+    async fn switch(&mut self, generation: u32, trial: bool) -> switch::Verdict {
+        let now = || Instant::now().as_millis();
+        let start = now();
         let addr = ADDR;
-        let mut c = switch::Coordinator::new(&[addr], table.generation, false, WAIT_MS, now());
+        let mut c = switch::Coordinator::new(&[addr], generation, false, WAIT_MS, now());
+        if trial {
+            c = c.on_trial();
+        }
         let mut out: Vec<(u16, Message<'static>)> = Vec::new();
-        while c.verdict() == switch::Verdict::Busy && now() - start < 2 * WAIT_MS {
+        while c.verdict() == switch::Verdict::Busy && now() - start < WAIT_MS {
             c.poll(now(), |a, m| out.push((a, m)));
             for (_, m) in std::mem::take(&mut out) {
                 self.send(&m).await;
@@ -317,10 +340,7 @@ impl Tool {
                 c.on_reply(addr, generation, reply, now(), |a, m| out.push((a, m)));
             }
         }
-        match c.verdict() {
-            switch::Verdict::Switched => ota::Progress::Done,
-            _ => ota::Progress::Refused(config_schema::wire::msg::Refusal::Flash),
-        }
+        c.verdict()
     }
 
     async fn close(&self) {
@@ -328,8 +348,10 @@ impl Tool {
     }
 }
 
-/// Runs one boot of the node on `flash` beside `script`; returns why the node stopped.
+/// Runs one boot of the node on `flash`, with the link epochs of `boot_count`, beside
+/// `script`; returns why the node stopped.
 fn boot<S>(
+    boot_count: Boot<'static>,
     flash: Flash,
     lines: &[Rc<Line>; 10],
     pins: &Rc<RefCell<Vec<(u8, bool)>>>,
@@ -356,7 +378,7 @@ where
             flash,
             pin_mask: runtime::pin_range(10),
         };
-        runtime::run(ADDR, 1, board).await
+        runtime::run_secured(ADDR, boot_count, board, &mut (), None).await
     };
     block_on(async move { join(node, script(tool)).await.0 }).expect("spawned")
 }
@@ -383,6 +405,7 @@ fn pushed_table_is_persisted_driven_and_booted_again() {
     let button = lines[usize::from(BUTTON)].clone();
     let seen = pins.clone();
     let (stop, stats) = boot(
+        Boot::Epoch(1),
         flash.clone(),
         &lines,
         &pins,
@@ -431,6 +454,7 @@ fn pushed_table_is_persisted_driven_and_booted_again() {
     let seen = pins.clone();
     let button = lines[usize::from(BUTTON)].clone();
     let (_, stats) = boot(
+        Boot::Epoch(1),
         flash,
         &lines,
         &pins,
@@ -454,6 +478,139 @@ fn pushed_table_is_persisted_driven_and_booted_again() {
     assert_eq!(stats.activations, 0, "booted, not pushed");
 }
 
+/// A node on a board with a boot counter takes link epochs (here an operator's reset of
+/// a link its peer never acknowledges, one epoch each) until half of those its boot count
+/// reserves are left: then the runtime has the board count one more boot, once, and the
+/// node goes on in the same epochs (the next boot starts 256 further).
+#[test]
+fn the_runtime_counts_a_boot_once_half_the_reserved_epochs_are_taken() {
+    let lines = lines();
+    let pins = Rc::new(RefCell::new(Vec::new()));
+    let button = lines[usize::from(BUTTON)].clone();
+    // What the board's counter was asked, at which epoch of the node's (read by status).
+    let counts = Rc::new(RefCell::new(Vec::new()));
+    let asked = counts.clone();
+    // (The executor takes a future that borrows nothing: the counter is leaked, as the
+    // host board's is.)
+    let count: &'static mut dyn FnMut() -> Option<u32> = Box::leak(Box::new(move || {
+        asked.borrow_mut().push(());
+        Some(8)
+    }));
+    let boot_count = Boot::Counted {
+        boots: 7,
+        persisted: true,
+        count,
+    };
+    let seen = counts.clone();
+    let mut table = lamp_table(3);
+    table.peers.push(0x0042).unwrap();
+    let press = table.inputs[0].rise.unwrap();
+    (table.publications)
+        .push(config_schema::Publication {
+            event: press,
+            topic: 1,
+            subscribers: 0b1,
+        })
+        .unwrap();
+    let (_, stats) = boot(
+        boot_count,
+        Flash::default(),
+        &lines,
+        &pins,
+        Rc::default(),
+        move |mut tool| async move {
+            assert_eq!(tool.push(&table).await, ota::Progress::Done);
+            assert_eq!(tool.status().await.epoch, 7 * 256 + 1, "the table's");
+            for epoch in 7 * 256 + 2..=7 * 256 + 130 {
+                // A press the peer never acknowledges, then the reset that numbers the
+                // link again.
+                button.set(true);
+                tool.status_until(|s| s.inputs == 1).await;
+                button.set(false);
+                tool.status_until(|s| s.inputs == 0).await;
+                tool.id += 1;
+                let id = tool.id;
+                (tool.send(&Message::Command {
+                    id,
+                    command: Command::Reset,
+                }))
+                .await;
+                let s = tool.status_until(|s| s.epoch == epoch).await;
+                assert_eq!(s.epoch, epoch);
+                let expected = usize::from(epoch >= 7 * 256 + 128);
+                assert_eq!(seen.borrow().len(), expected, "at epoch {epoch}");
+            }
+            tool.close().await;
+        },
+    );
+    assert_eq!(counts.borrow().len(), 1);
+    assert_eq!(stats.flash_failures, 0);
+}
+
+/// A node on trial refuses a push: staged, the new table would go over the previous one,
+/// the only confirmed one. So is a transfer begun before the trial and carried on during
+/// it (it was staged, over generation 1: after a power cut before `confirm` the node booted
+/// no table at all, generation 0). Now its next chunk is refused `OnTrial`, nothing is
+/// staged, and a power cut boots generation 1.
+#[test]
+fn a_transfer_begun_before_a_trial_is_refused_on_trial_and_a_power_cut_boots_the_confirmed_table() {
+    let flash = Flash::default();
+    let lines = lines();
+    let pins = Rc::new(RefCell::new(Vec::new()));
+    boot(
+        Boot::Epoch(1),
+        flash.clone(),
+        &lines,
+        &pins,
+        Rc::default(),
+        move |mut tool| async move {
+            assert_eq!(tool.push(&lamp_table(1)).await, ota::Progress::Done);
+            let two = blob(&lamp_table(2));
+            let mut tx = ota::Sender::new(&two, 2, false);
+            let mut out = Vec::new();
+            tx.start(Instant::now().as_millis(), |m| out.push(m));
+            assert_eq!(tool.carry(&mut tx, &mut out).await, ota::Progress::Done);
+            // Generation 3's transfer begins (its begin answered) ...
+            let three = blob(&lamp_table(3));
+            let mut tx = ota::Sender::new(&three, 3, false);
+            let mut out = Vec::new();
+            tx.start(Instant::now().as_millis(), |m| out.push(m));
+            for m in std::mem::take(&mut out) {
+                tool.send(&m).await;
+            }
+            let Some(Message::ConfigReply { generation, reply }) = tool.next(WAIT_MS).await else {
+                panic!("no answer to the begin");
+            };
+            assert_eq!((generation, reply), (3, ConfigReply::Next { next: 0 }));
+            tx.on_reply(generation, reply, Instant::now().as_millis(), |m| {
+                out.push(m)
+            });
+            // ... then generation 2 goes on trial, then generation 3's chunks.
+            assert_eq!(tool.switch(2, true).await, switch::Verdict::Switched);
+            assert_eq!(
+                tool.carry(&mut tx, &mut out).await,
+                ota::Progress::Refused(Refusal::OnTrial)
+            );
+            let s = tool.status().await;
+            assert_eq!((s.generation, s.trial, s.staged), (2, true, 0));
+            tool.close().await;
+        },
+    );
+    // A power cut before `confirm`: the previous, confirmed generation boots.
+    boot(
+        Boot::Epoch(1),
+        flash,
+        &lines,
+        &pins,
+        Rc::default(),
+        move |mut tool| async move {
+            let s = tool.status().await;
+            assert_eq!((s.role.as_str(), s.generation, s.trial), ("lamp", 1, false));
+            tool.close().await;
+        },
+    );
+}
+
 #[test]
 fn a_table_the_flash_cannot_hold_is_refused_and_nothing_changes() {
     let flash = Flash::default();
@@ -463,6 +620,7 @@ fn a_table_the_flash_cannot_hold_is_refused_and_nothing_changes() {
     let pins = Rc::new(RefCell::new(Vec::new()));
     let seen = pins.clone();
     let (_, stats) = boot(
+        Boot::Epoch(1),
         flash,
         &lines,
         &pins,
@@ -508,6 +666,7 @@ fn a_table_naming_a_pin_the_board_lacks_is_refused() {
     let pins = Rc::new(RefCell::new(Vec::new()));
     let seen = pins.clone();
     let (_, stats) = boot(
+        Boot::Epoch(1),
         Flash::default(),
         &lines,
         &pins,
@@ -538,6 +697,7 @@ fn a_radio_that_never_takes_a_frame_costs_that_frame_only() {
     let lines = lines();
     let pins = Rc::new(RefCell::new(Vec::new()));
     let (_, stats) = boot(
+        Boot::Epoch(1),
         Flash::default(),
         &lines,
         &pins,
@@ -639,9 +799,15 @@ fn runtime_future_size() {
         pin_mask: runtime::pin_range(10),
     };
     let mut staging = ota::RamStaging::new();
+    let mut count = || Some(2);
+    let boot = Boot::Counted {
+        boots: 1,
+        persisted: true,
+        count: &mut count,
+    };
     let staged = std::mem::size_of_val(&runtime::run_staged(
         ADDR,
-        1,
+        boot,
         board,
         &mut (),
         None,

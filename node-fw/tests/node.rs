@@ -9,6 +9,7 @@ use config_schema::link_keys::decode_deployment;
 use config_schema::wire::mac::{self, Frame, Header, BROADCAST, MAX_PSDU};
 use config_schema::wire::msg::{Announce, Command, Message, Refusal, Status};
 use config_schema::{Action, Level, Output, Publication, Subscription, Table, TableId};
+use node_fw::epoch::Epochs;
 use node_fw::node::{FlashRequest, Io, NodeCore, CONFIG_PAN};
 use node_fw::{ota, switch};
 use test_tables::{blob, button, toggle};
@@ -64,6 +65,8 @@ struct Board {
     out: Vec<Vec<u8>>,
     pins: Vec<(u8, bool)>,
     staged: Option<Vec<u8>>,
+    /// The boot counter in its flash (what `FlashRequest::CountBoot` counts).
+    boots: u32,
 }
 
 /// What the runtime does with the node's flash requests (a slot kept in RAM).
@@ -85,6 +88,10 @@ fn serve_flash(node: &mut NodeCore, board: &mut Board, ok: bool, now: u64) {
                 .filter(|_| ok)
                 .and_then(|b| decode_deployment(&b).ok());
             node.activated(deployed, now, board);
+        }
+        Some(FlashRequest::CountBoot) => {
+            board.boots += u32::from(ok);
+            let _ = node.boot_counted(ok.then_some(board.boots));
         }
         None => {}
     }
@@ -711,6 +718,83 @@ fn after_the_subscriber_restarts_unsecured_links_are_numbered_again_and_events_f
         let a = net.status(A);
         assert_eq!((a.link_alarms, a.links_broken), (0, 0), "seed {seed}");
     }
+}
+
+/// A node stays up while its subscriber reboots 300 times on a robot without link keys:
+/// each reboot, B's fresh receiver asks A to number its link again, and A takes one more
+/// epoch of the 256 its boot count reserves (boot 1: epochs 256 to 511). Then A's power is
+/// cut. Its next boot must start above every epoch B took from it, or B drops every event
+/// A sends from then on (a stall, before: A's boot 2 started at 512, below the 557 B had
+/// taken). A asks its board to count a boot once half its reserved epochs are taken
+/// (at 384: count 2, reserving up to 767), so its next boot is count 3, at 768.
+#[test]
+fn a_node_up_through_hundreds_of_its_peers_reboots_boots_next_above_every_epoch_it_took() {
+    let mut net = Net::new(0.0, 0.0, 7);
+    net.nodes[0] = (
+        NodeCore::new(A, u64::MAX, Some(table_a(1)), Epochs::counted(1)),
+        Board {
+            boots: 1,
+            ..Board::default()
+        },
+    );
+    net.nodes[1] = (
+        NodeCore::new(B, u64::MAX, Some(table_b(1)), 1),
+        Board::default(),
+    );
+    for (node, board) in &mut net.nodes {
+        node.boot(board);
+    }
+    net.run(1000);
+    net.press();
+    for reboot in 0..300u16 {
+        // B reboots (its own epochs from the clock), and two presses reach its new life
+        // (its lamp back at rest: A's next boot then faults nothing).
+        net.nodes[1] = (
+            NodeCore::new(B, u64::MAX, Some(table_b(1)), 1000 + reboot),
+            Board::default(),
+        );
+        let (b, board) = &mut net.nodes[1];
+        b.boot(board);
+        net.run(1000);
+        net.press();
+        net.press();
+        net.run(300);
+    }
+    // Each life of B toggled its lamp once a press (after the level its boot drives).
+    assert_eq!(
+        net.nodes[1].1.pins,
+        [(LAMP_PIN, false), (LAMP_PIN, true), (LAMP_PIN, false)]
+    );
+    assert_eq!(
+        net.nodes[0].0.epoch(),
+        256 + 1 + 300,
+        "the boot's table, 300 renumberings"
+    );
+    assert_eq!(net.nodes[0].1.boots, 2, "counted once, at epoch 384");
+    assert_eq!(net.nodes[0].0.epochs().end(), Some(768));
+    // A's power is cut; it boots from flash, counting the boot.
+    let boots = net.nodes[0].1.boots + 1;
+    net.nodes[0] = (
+        NodeCore::new(A, u64::MAX, Some(table_a(1)), Epochs::counted(boots)),
+        Board {
+            boots,
+            ..Board::default()
+        },
+    );
+    net.nodes[1].1.pins.clear();
+    let (a, board) = &mut net.nodes[0];
+    a.boot(board);
+    assert_eq!(a.epoch(), 768 + 1);
+    net.run(1000);
+    for _ in 0..3 {
+        net.press();
+    }
+    net.run(1000);
+    assert_eq!(
+        net.nodes[1].1.pins,
+        [(LAMP_PIN, true), (LAMP_PIN, false), (LAMP_PIN, true)],
+        "every press of A's new boot toggles B's lamp"
+    );
 }
 
 /// A node without link keys that boots greets its peers in clear (a `Challenge` whose

@@ -230,3 +230,33 @@ fn a_damaged_slot_falls_back_to_the_other() {
     let mut s = slots(flash);
     assert_eq!(running(&load(&mut s)), Some((0, 1)));
 }
+
+/// A power cut during a switch-over's activation writes (the serial, then, unless a trial,
+/// the confirmation): the slot reads as a trial the cut interrupted. The node boots the old
+/// table and the switched-to one is abandoned (the runtime revokes it): G is pushed again
+/// (docs/reconfiguration.md, failure cases).
+#[test]
+fn a_power_cut_during_the_activation_boots_the_old_table_and_abandons_the_new() {
+    let (_, b1) = blob(1, 5);
+    let (_, b2) = blob(2, 5);
+    let mut base = slots(Flash::new());
+    block_on(base.store(None, &b1, 0)).unwrap();
+    block_on(base.stage(Some(0), &b2)).unwrap();
+    let base = base.into_inner();
+    for (trial, cut) in [(false, 1), (false, 2), (true, 1)] {
+        let mut f = Flash::new();
+        f.bytes = base.bytes;
+        f.fail_after = Some(cut);
+        let mut s = slots(f);
+        assert!(block_on(s.activate(1, 1, trial)).is_err());
+        let mut f = s.into_inner();
+        f.fail_after = None;
+        let boot = load(&mut slots(f));
+        let staged = boot.staged.map(|s| s.generation);
+        assert_eq!(
+            (running(&boot), staged, boot.abandoned),
+            (Some((0, 1)), None, Some(1)),
+            "trial {trial}, cut at write {cut}"
+        );
+    }
+}

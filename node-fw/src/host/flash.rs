@@ -36,6 +36,30 @@ pub fn counter_path(flash: &Path) -> PathBuf {
     PathBuf::from(p)
 }
 
+/// A flash file's boot counter (a handle on the file of its own: every access seeks first,
+/// as the flash's do).
+#[derive(Debug)]
+pub struct BootCounter(File);
+
+impl BootCounter {
+    /// Counts one more boot; returns the new count (1 on the first boot of a file).
+    pub fn count(&mut self) -> io::Result<u32> {
+        let file = &mut self.0;
+        let mut word = [0u8; 4];
+        file.seek(SeekFrom::Start(COUNTER_AT as u64))?;
+        file.read_exact(&mut word)?;
+        let boots = match u32::from_le_bytes(word) {
+            u32::MAX => 1,
+            n => n.wrapping_add(1).max(1),
+        };
+        // A 4-byte overwrite in a file: a killed process leaves the old or the new count.
+        file.seek(SeekFrom::Start(COUNTER_AT as u64))?;
+        file.write_all(&boots.to_le_bytes())?;
+        file.sync_data()?;
+        Ok(boots)
+    }
+}
+
 /// Why the host flash failed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FlashError {
@@ -170,21 +194,16 @@ impl HostFlash {
     /// Counts this boot: returns the new boot count (1 on the first boot of a file), or
     /// `None` for RAM (which has no previous boot).
     pub fn count_boot(&mut self) -> io::Result<Option<u32>> {
-        let Store::File(file) = &mut self.store else {
-            return Ok(None);
-        };
-        let mut word = [0u8; 4];
-        file.seek(SeekFrom::Start(COUNTER_AT as u64))?;
-        file.read_exact(&mut word)?;
-        let boots = match u32::from_le_bytes(word) {
-            u32::MAX => 1,
-            n => n.wrapping_add(1).max(1),
-        };
-        // A 4-byte overwrite in a file: a killed process leaves the old or the new count.
-        file.seek(SeekFrom::Start(COUNTER_AT as u64))?;
-        file.write_all(&boots.to_le_bytes())?;
-        file.sync_data()?;
-        Ok(Some(boots))
+        self.boot_counter()?.map(|mut c| c.count()).transpose()
+    }
+
+    /// The boot counter on a handle of its own (the runtime counts a boot to reserve link
+    /// epochs while the slots own the flash: `runtime::Boot::Counted`); `None` for RAM.
+    pub fn boot_counter(&self) -> io::Result<Option<BootCounter>> {
+        match &self.store {
+            Store::File(file) => Ok(Some(BootCounter(file.try_clone()?))),
+            Store::Ram(_) => Ok(None),
+        }
     }
 
     fn read_at(&mut self, start: usize, bytes: &mut [u8]) -> Result<(), FlashError> {

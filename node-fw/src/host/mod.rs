@@ -130,12 +130,6 @@ impl std::fmt::Display for HostError {
 
 impl std::error::Error for HostError {}
 
-/// The link epoch of boot number `boots` of a flash file: 256 epochs per boot, so the
-/// tables one boot installs (each takes the next epoch) stay below the next boot's.
-pub fn epoch_of_boot(boots: u32) -> u16 {
-    boots.wrapping_mul(256) as u16
-}
-
 /// The link epoch of a node without a flash file: the wall clock in seconds (u16), newer
 /// on every restart that comes at least a second (and fewer than 9 hours) later.
 pub fn epoch_of_clock() -> u16 {
@@ -179,16 +173,31 @@ pub fn run(args: Args) -> Result<(), HostError> {
     init_logging();
     let args = Config::load(&args)?;
     let addr = args.addr;
-    let (mut flash, what) = match &args.flash {
+    let (flash, what) = match &args.flash {
         Some(path) => (
             HostFlash::open(path).map_err(HostError::Flash)?,
             format!("flash {}", path.display()),
         ),
         None => (HostFlash::ram(), "flash in RAM".to_string()),
     };
-    let (epoch, boot) = match flash.count_boot().map_err(HostError::BootCounter)? {
-        Some(boots) => (epoch_of_boot(boots), format!("boot {boots}")),
-        None => (epoch_of_clock(), "clock".to_string()),
+    // With a flash file its boot counter reserves the link epochs (`crate::epoch`): it is
+    // counted again, on a handle of its own, when this boot has taken most of them.
+    let (boot, epoch, counted) = match flash.boot_counter().map_err(HostError::BootCounter)? {
+        Some(mut counter) => {
+            let boots = counter.count().map_err(HostError::BootCounter)?;
+            let count: &'static mut dyn FnMut() -> Option<u32> =
+                Box::leak(Box::new(move || counter.count().ok()));
+            let boot = runtime::Boot::Counted {
+                boots,
+                persisted: true,
+                count,
+            };
+            (boot, crate::epoch::of_boot(boots), format!("boot {boots}"))
+        }
+        None => {
+            let epoch = epoch_of_clock();
+            (runtime::Boot::Epoch(epoch), epoch, "clock".to_string())
+        }
     };
     let security = match args.key.clone() {
         Some(key) => Some(runtime::Security {
@@ -205,7 +214,7 @@ pub fn run(args: Args) -> Result<(), HostError> {
         "no management key"
     };
     info!(
-        "node {addr:#06x}: medium {}, {what}, epoch {epoch} ({boot}), {key}",
+        "node {addr:#06x}: medium {}, {what}, epoch {epoch} ({counted}), {key}",
         args.medium
     );
     let board = Board {
@@ -215,7 +224,7 @@ pub fn run(args: Args) -> Result<(), HostError> {
         flash,
         pin_mask: runtime::pin_range(PINS),
     };
-    let (stop, stats) = run_on_executor(addr, epoch, board, security);
+    let (stop, stats) = run_on_executor(addr, boot, board, security);
     let c = conn.counters();
     let (backpressure, oversized, garbage) = (
         c.backpressure.load(Ordering::Relaxed),
@@ -241,11 +250,11 @@ type HostBoard = Board<medium::HostRadio, medium::HostPins, medium::HostInputs, 
 /// Runs the runtime as a task of a fresh std executor on this thread until it stops.
 fn run_on_executor(
     addr: u16,
-    epoch: u16,
+    boot: runtime::Boot<'static>,
     board: HostBoard,
     security: Option<runtime::Security<'static>>,
 ) -> Stopped {
-    block_on(async move { runtime::run_secured(addr, epoch, board, &mut (), security).await })
+    block_on(async move { runtime::run_secured(addr, boot, board, &mut (), security).await })
         .unwrap_or((Stop::Radio(Closed), Stats::default()))
 }
 

@@ -14,8 +14,10 @@
 //! Each region is an [`NrfFlash`] of its own ([`NrfFlash::new`] gives the slots,
 //! [`NrfFlash::frame_counter`] the counter's pages), sharing the one NVMC. NVMC writes
 //! block the CPU (a page erase ~85 ms): the runtime persists a table only when one is
-//! pushed, and the frame counter writes one 16-byte record per 1024 secured frames (a page
-//! erase per 256 records), so those are the only times the node pauses.
+//! pushed, the frame counter writes one 16-byte record per 1024 secured frames (a page
+//! erase per 256 records), and the boot counter one word per boot and per 256 link epochs
+//! a long boot takes (`node_fw::epoch`; a page erase per 1024 words), so those are the
+//! only times the node pauses.
 
 use core::cell::RefCell;
 
@@ -85,6 +87,16 @@ impl NrfFlash {
         }
     }
 
+    /// The boot counter's page ([`NrfFlash::count_boot`]; call once: the page has one
+    /// owner).
+    pub fn boot_counter(&self) -> NrfFlash {
+        NrfFlash {
+            nvmc: self.nvmc,
+            at: BOOT_AT,
+            len: PAGE,
+        }
+    }
+
     fn check(&self, offset: u32, len: usize) -> Result<u32, FlashError> {
         if (offset as usize)
             .checked_add(len)
@@ -110,9 +122,10 @@ impl NrfFlash {
     }
 
     /// Counts this boot (one word written per boot; the page is erased when full) and
-    /// returns the count. A power cut during that erase, once in 1024 boots, restarts the
-    /// count at 1.
-    pub fn count_boot(&mut self) -> u32 {
+    /// returns the count, and whether it was written. A power cut during that erase, once
+    /// in 1024 boots, restarts the count at 1 (the epochs of boot 1025 are boot 1's: the
+    /// link epochs wrap every 256 boots).
+    pub fn count_boot(&mut self) -> (u32, bool) {
         let used = (0..BOOT_WORDS)
             .find(|&i| self.word(BOOT_AT + 4 * i as u32) == u32::MAX)
             .unwrap_or(BOOT_WORDS);
@@ -122,14 +135,17 @@ impl NrfFlash {
         };
         let boots = last.wrapping_add(1).max(1);
         let mut at = used;
-        if let Ok(mut nvmc) = self.nvmc() {
-            if used == BOOT_WORDS {
-                let _ = nvmc.erase(BOOT_AT, BOOT_AT + PAGE as u32);
-                at = 0;
+        let Ok(mut nvmc) = self.nvmc() else {
+            return (boots, false);
+        };
+        if used == BOOT_WORDS {
+            if nvmc.erase(BOOT_AT, BOOT_AT + PAGE as u32).is_err() {
+                return (boots, false);
             }
-            let _ = nvmc.write(BOOT_AT + 4 * at as u32, &boots.to_le_bytes());
+            at = 0;
         }
-        boots
+        let written = nvmc.write(BOOT_AT + 4 * at as u32, &boots.to_le_bytes());
+        (boots, written.is_ok())
     }
 }
 

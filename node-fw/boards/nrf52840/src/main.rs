@@ -270,9 +270,23 @@ async fn main(_spawner: Spawner) {
         ]);
         let nvmc = cortex_m::singleton!(: RefCell<Nvmc<'static>> = RefCell::new(Nvmc::new(p.NVMC)))
             .expect("once");
-        let mut flash = NrfFlash::new(nvmc);
-        let boots = flash.count_boot();
-        let epoch = boots.wrapping_mul(256) as u16;
+        let flash = NrfFlash::new(nvmc);
+        // The boot count reserves the link epochs (`node_fw::epoch`): counted again when
+        // this boot has taken most of them.
+        let mut boot_counter = flash.boot_counter();
+        let (boots, persisted) = boot_counter.count_boot();
+        let epoch = node_fw::epoch::of_boot(boots);
+        let mut count = || match boot_counter.count_boot() {
+            (boots, true) => Some(boots),
+            (_, false) => None,
+        };
+        // A count the NVMC did not take is counted again at once (the next boot would
+        // read the previous one and start at this boot's first epoch).
+        let boot = runtime::Boot::Counted {
+            boots,
+            persisted,
+            count: &mut count,
+        };
         defmt::info!(
             "node {=u16:#06x}: nrf52840, channel {=u8}, boot {=u32}, epoch {=u16}, key {=bool}",
             addr,
@@ -329,7 +343,7 @@ async fn main(_spawner: Spawner) {
             });
             runtime::run_staged(
                 addr,
-                epoch,
+                boot,
                 board,
                 &mut (),
                 security,
@@ -341,7 +355,7 @@ async fn main(_spawner: Spawner) {
         // The unsecured node (a measurement: what frame security costs).
         #[cfg(not(feature = "frame-security"))]
         let (stop, stats) =
-            runtime::run_staged(addr, epoch, board, &mut (), None, staging, &mut DefmtNotes).await;
+            runtime::run_staged(addr, boot, board, &mut (), None, staging, &mut DefmtNotes).await;
         defmt::error!(
             "node stopped ({=bool}): {=u32} activations",
             matches!(stop, runtime::Stop::FlashGeometry),

@@ -149,6 +149,16 @@ impl QemuFlash {
         }
     }
 
+    /// The boot page, for its counter ([`QemuFlash::count_boot`]; call once: the page has
+    /// one owner).
+    pub fn boot_counter(&self) -> QemuFlash {
+        QemuFlash {
+            file: self.file,
+            start: BOOT_AT,
+            len: ERASE_SIZE,
+        }
+    }
+
     /// Counts this boot in the boot page; `None` without a file (nothing persists).
     pub fn count_boot(&mut self) -> Option<u32> {
         let f = self.file?;

@@ -141,11 +141,15 @@ impl runtime::Probe for CoreProbe {
 async fn node(
     addr: u16,
     epoch: u16,
+    boots: Option<u32>,
     flash: QemuFlash,
     counting: bool,
     key: Option<ManagementKey>,
     mut counter: Option<Counter>,
 ) {
+    // With a flash file its boot count reserves the link epochs (`node_fw::epoch`): counted
+    // again, on the boot page's own handle, when this boot has taken most of them.
+    let mut boot_counter = flash.boot_counter();
     let board = Board {
         radio: uart::UartRadio,
         outputs: uart::UartPins { addr },
@@ -163,9 +167,18 @@ async fn node(
         key,
         counter: &mut next,
     });
+    let mut count = || boot_counter.count_boot();
+    let boot = match boots {
+        Some(boots) => runtime::Boot::Counted {
+            boots,
+            persisted: true,
+            count: &mut count,
+        },
+        None => runtime::Boot::Epoch(epoch),
+    };
     let staging = flash::QemuStaging::new();
     let (stop, stats) =
-        runtime::run_staged(addr, epoch, board, &mut probe, security, staging, &mut ()).await;
+        runtime::run_staged(addr, boot, board, &mut probe, security, staging, &mut ()).await;
     log::error!("node {addr:#06x}: stopped: {stop:?} ({stats:?})");
 }
 
@@ -247,8 +260,9 @@ fn main() -> ! {
 
     let mut cmdline = [0u8; 160];
     let (mut flash, backing) = QemuFlash::open(flash_path(&mut cmdline));
-    let (epoch, why) = match flash.count_boot() {
-        Some(boots) => ((boots.wrapping_mul(256)) as u16, "boot count"),
+    let boots = flash.count_boot();
+    let (epoch, why) = match boots {
+        Some(boots) => (node_fw::epoch::of_boot(boots), "boot count"),
         None => (semihosting::time().unwrap_or(0) as u16, "clock"),
     };
     let keyed = if key.is_some() {
@@ -302,7 +316,7 @@ fn main() -> ! {
             "node {addr:#06x}: security cost: aes key_schedule_ns {schedule} block_ns {block}"
         );
     }
-    spawner.spawn(node(addr, epoch, flash, counting, key, counter).expect("node task"));
+    spawner.spawn(node(addr, epoch, boots, flash, counting, key, counter).expect("node task"));
     if counting {
         spawner.spawn(count(addr).expect("count task"));
     }
