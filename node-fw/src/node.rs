@@ -1501,10 +1501,20 @@ impl<S: StagingArea> NodeCore<S> {
             }
             self.next_open_identify = now + OPEN_IDENTIFY_MS;
         }
+        let link = LinkMessage::of(&msg);
+        if link.is_some() && header.pan_id == CONFIG_PAN {
+            // Events and their acks are the robot's, on its PAN (secured there under link
+            // keys): on the config PAN they are no peer's, whoever they claim to be from.
+            if self.radio.links.secured() {
+                self.radio.security.not_secured += 1;
+            }
+            self.radio.counters.dropped += 1;
+            return;
+        }
         self.radio.counters.received += 1;
         let src = header.src;
         let reply_pan = header.pan_id;
-        if let Some(m) = LinkMessage::of(&msg) {
+        if let Some(m) = link {
             self.on_link(m, src, now, io);
             return;
         }

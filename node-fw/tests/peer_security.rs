@@ -7,7 +7,7 @@ use config_schema::wire::mac::{self, Frame, Header, MAX_PAYLOAD, MAX_PSDU};
 use config_schema::wire::msg::{Message, SecurityCounters};
 use config_schema::wire::security::{self, ext_addr, link_key_index, AuxRepr};
 use config_schema::{Action, Output, Publication, Subscription, Table};
-use node_fw::node::{Io, NodeCore};
+use node_fw::node::{Io, NodeCore, CONFIG_PAN};
 use test_tables::{button, link_keys, pair_key, toggle};
 
 const A: u16 = 0x0001;
@@ -921,4 +921,85 @@ proptest::proptest! {
         let toggles: Vec<bool> = (0..at.len()).map(|i| i % 2 == 0).collect();
         proptest::prop_assert_eq!(&net.b.1.lamp, &toggles, "{:?}", net.trace);
     }
+}
+
+/// An unsecured frame `msg` from `src` to `dst` on `pan`, as anyone in radio range can send.
+fn in_clear(pan: u16, dst: u16, src: u16, msg: &Message) -> Vec<u8> {
+    let mut payload = [0u8; MAX_PAYLOAD];
+    let n = msg.emit(&mut payload).unwrap();
+    let header = Header {
+        seq: 0,
+        pan_id: pan,
+        dst,
+        src,
+        ack_request: false,
+        secured: false,
+    };
+    let mut psdu = [0u8; MAX_PSDU];
+    let len = mac::emit_data(&header, &payload[..n], &mut psdu).unwrap();
+    psdu[..len].to_vec()
+}
+
+#[test]
+fn an_event_in_clear_on_the_config_pan_moves_nothing_on_a_secured_robot() {
+    let mut net = Net::established();
+    assert_eq!(net.b.1.lamp, [true]);
+    let epoch = net.a.0.epoch().wrapping_add(1);
+    let forged = in_clear(
+        CONFIG_PAN,
+        B,
+        A,
+        &Message::Event {
+            epoch,
+            seq: 0,
+            topic: 3,
+        },
+    );
+    let dropped = net.b.0.counters().dropped;
+    net.b.0.receive(&forged, net.now, &mut net.b.1);
+    assert_eq!(net.b.1.lamp, [true], "the forged event moved B's lamp");
+    assert_eq!(net.b.0.counters().dropped, dropped + 1);
+}
+
+#[test]
+fn an_event_in_clear_on_the_config_pan_neither_moves_a_keyed_node_nor_cuts_its_real_link() {
+    use node_fw::provision::ManagementKey;
+    let mut net = Net::new();
+    net.b.0 = node_b().with_management_key(ManagementKey::from_bytes([0x5A; 16]));
+    net.press();
+    net.run(400);
+    assert_eq!(net.b.1.lamp, [true]);
+    // An epoch far ahead of A's: taken, it would make every real event of A's look old.
+    let epoch = net.a.0.epoch().wrapping_add(0x4000);
+    let forged = in_clear(
+        CONFIG_PAN,
+        B,
+        A,
+        &Message::Event {
+            epoch,
+            seq: 0,
+            topic: 3,
+        },
+    );
+    net.b.0.receive(&forged, net.now, &mut net.b.1);
+    assert_eq!(net.b.1.lamp, [true], "the forged event moved B's lamp");
+    net.b.1.out.clear();
+    net.press();
+    net.run(2_000);
+    assert_eq!(net.b.1.lamp, [true, false], "the real press after it");
+    assert_eq!(net.a.0.link_alarms(), 0);
+}
+
+#[test]
+fn an_ack_in_clear_on_the_config_pan_loses_no_event() {
+    let mut net = Net::established();
+    net.press();
+    net.a.1.out.clear(); // A's event lost on the air
+    let epoch = net.a.0.epoch();
+    for next in 1..=4u16 {
+        let ack = in_clear(CONFIG_PAN, A, B, &Message::EventAck { epoch, next });
+        net.a.0.receive(&ack, net.now, &mut net.a.1);
+    }
+    net.run(2_000);
+    assert_eq!(net.b.1.lamp, [true, false], "the press, delivered on a resend");
 }
