@@ -37,10 +37,18 @@ pub const HEADER_LEN: usize = 8;
 pub const LENGTH_AT: usize = 6;
 /// Bytes after the payload.
 pub const TRAILER_LEN: usize = 4;
-/// The CRC of the blob (and of an OTA transfer as a whole). Bit by bit, no lookup table
+/// The CRC of the blob (and of the key block after it). Bit by bit, no lookup table
 /// (1 KiB of flash on a node, which checks a table's CRC when it is pushed or activated).
 pub const CRC32: crc::Crc<u32, crc::NoTable> =
     crc::Crc::<u32, crc::NoTable>::new(&crc::CRC_32_ISO_HDLC);
+
+/// The CRC of an OTA transfer as a whole (`ConfigBegin`'s `crc`, checked at its end):
+/// CRC-32C (Castagnoli), another polynomial than the sections' [`CRC32`]. A CRC-32/ISO-HDLC
+/// over bytes that end with their own CRC-32/ISO-HDLC is its residue, `0x2144DF1C`,
+/// whatever they hold, so it would tell no two tables of one length apart (a node answered
+/// an edited table's push `Staged` and ran the old one); this one covers the content.
+pub const TRANSFER_CRC: crc::Crc<u32, crc::NoTable> =
+    crc::Crc::<u32, crc::NoTable>::new(&crc::CRC_32_ISCSI);
 
 /// Why a byte string is not a table.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -599,7 +599,7 @@ fn a_replayed_push_and_a_forged_forced_push_change_no_table() {
     let begin = payload(&Message::ConfigBegin {
         generation: 50,
         len: blob.len() as u16,
-        crc: config_schema::blob::CRC32.checksum(&blob),
+        crc: config_schema::blob::TRANSFER_CRC.checksum(&blob),
         force: true,
     });
     raw.send_psdu(&secured_frame(&other, gr, TOOL_ADDR, u32::MAX - 1, &begin));

@@ -10,12 +10,12 @@
 //! ConfigEnd{gen}                     ->  Staged          (or Refused(Crc/Invalid/Pin/Flash))
 //! ```
 //! Every message is answered, and every answer says where the node is, so the tool resends
-//! whatever was lost. Nothing is staged before the whole blob's CRC-32 matches, the table
+//! whatever was lost. Nothing is staged before the whole transfer's CRC-32C matches, the table
 //! decodes and validates, and every pin it names is on the board; a transfer that stops
 //! anywhere leaves the old table running. A staged table runs only on the switch-over
 //! (`Message::Switch`, the node's part: `crate::node`).
 
-use config_schema::blob::CRC32;
+use config_schema::blob::TRANSFER_CRC;
 use config_schema::limits::MAX_BLOB;
 use config_schema::link_keys::decode_deployment;
 use config_schema::wire::msg::{ConfigReply, Message, Refusal, CHUNK_DATA};
@@ -238,8 +238,13 @@ impl<S: Staging> Receiver<S> {
                 crc,
                 force,
             } => {
-                if let Some(t) = self.transfer.filter(|t| t.generation == generation) {
-                    // A repeated begin: say where we are.
+                if let Some(t) = self
+                    .transfer
+                    .filter(|t| (t.generation, t.len, t.crc) == (generation, len, crc))
+                {
+                    // A repeated begin (its answer lost): say where we are. Another
+                    // table's begin (an edited robot pushed again at that generation)
+                    // starts over below.
                     return reply(ConfigReply::Next { next: t.received });
                 }
                 let offered = Taken {
@@ -329,7 +334,7 @@ impl<S: Staging> Receiver<S> {
                 }
                 self.transfer = None;
                 let blob = self.blob(usize::from(t.len));
-                if CRC32.checksum(blob) != t.crc {
+                if TRANSFER_CRC.checksum(blob) != t.crc {
                     return reply(ConfigReply::Refused(Refusal::Crc));
                 }
                 let board = self.board_pins;
@@ -455,7 +460,7 @@ impl<'b> Sender<'b> {
     /// all of them.
     fn fill(&mut self, resend: bool, send: &mut impl FnMut(Message<'b>)) {
         let Some(acked) = self.acked else {
-            let crc = CRC32.checksum(self.blob);
+            let crc = TRANSFER_CRC.checksum(self.blob);
             let begin = Message::ConfigBegin {
                 generation: self.generation,
                 len: self.blob.len() as u16,

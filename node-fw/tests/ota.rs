@@ -1,5 +1,5 @@
 //! Over-the-air transfer: the node stages a table only when the whole blob arrived, its
-//! CRC-32 matches and it decodes and validates; anything else leaves the old table running.
+//! CRC matches and it decodes and validates; anything else leaves the old table running.
 
 mod support;
 use support::{blob, Channel, Rng};
@@ -7,6 +7,11 @@ use support::{blob, Channel, Rng};
 use config_schema::wire::msg::{ConfigReply, Message, Refusal, CHUNK_DATA};
 use config_schema::Table;
 use node_fw::ota::{Outcome, Progress, Receiver, Sender};
+
+/// `ConfigBegin`'s `crc` of a transfer of `bytes`.
+fn transfer_crc(bytes: &[u8]) -> u32 {
+    config_schema::blob::TRANSFER_CRC.checksum(bytes)
+}
 
 /// What the node ended with.
 struct Node {
@@ -169,7 +174,7 @@ fn chunks_out_of_place_are_not_staged_and_the_node_says_where_it_is() {
     let begin = Message::ConfigBegin {
         generation: 2,
         len: bytes.len() as u16,
-        crc: config_schema::blob::CRC32.checksum(&bytes),
+        crc: transfer_crc(&bytes),
         force: false,
     };
     rx.on_message(&begin, 0, 0);
@@ -322,7 +327,7 @@ fn an_older_begin_does_not_replace_a_newer_transfer_and_a_staged_one_is_answered
     let begin = |generation, force| Message::ConfigBegin {
         generation,
         len: bytes.len() as u16,
-        crc: config_schema::blob::CRC32.checksum(&bytes),
+        crc: transfer_crc(&bytes),
         force,
     };
     let mut rx = Receiver::new();
@@ -356,7 +361,7 @@ fn take_whole(rx: &mut Receiver, generation: u32, bytes: &[u8]) {
     let begin = Message::ConfigBegin {
         generation,
         len: bytes.len() as u16,
-        crc: config_schema::blob::CRC32.checksum(bytes),
+        crc: transfer_crc(bytes),
         force: false,
     };
     assert_eq!(
@@ -394,7 +399,7 @@ fn another_table_of_the_staged_generation_replaces_it() {
         crc,
         force: false,
     };
-    let crc = config_schema::blob::CRC32.checksum(&bytes);
+    let crc = transfer_crc(&bytes);
     let mut rx = Receiver::new();
     take_whole(&mut rx, 7, &bytes);
     rx.persisted(true);
@@ -447,4 +452,89 @@ fn a_node_that_challenges_is_not_silent_a_timeout_it_answered_does_not_count() {
     // after at most GIVE_UP_AFTER answered timeouts more.
     let mut always = Sender::new(&bytes, 6, false);
     assert_eq!(timeouts_until_given_up(&mut always, |_| true), 2 * limit);
+}
+
+/// Two tables of generation 7 whose blobs are the same length and differ (an output's pin).
+fn two_tables_of_one_length() -> (Vec<u8>, Vec<u8>) {
+    let (mut table, _) = blob(7, 30);
+    let x = test_tables::blob(&table);
+    table.outputs[0].pin = 4;
+    let y = test_tables::blob(&table);
+    assert_eq!(x.len(), y.len());
+    assert_ne!(x, y);
+    (x, y)
+}
+
+/// The begin of a transfer of `bytes` at generation 7.
+fn begin_of(bytes: &[u8], force: bool) -> Message<'_> {
+    Message::ConfigBegin {
+        generation: 7,
+        len: bytes.len() as u16,
+        crc: transfer_crc(bytes),
+        force,
+    }
+}
+
+/// The transfer's CRC tells tables apart: a CRC-32/ISO-HDLC over bytes that end with
+/// their own would be the same (its residue) for every blob of one length.
+#[test]
+fn the_transfer_crc_differs_between_tables_of_one_length() {
+    let (x, y) = two_tables_of_one_length();
+    assert_ne!(transfer_crc(&x), transfer_crc(&y));
+}
+
+/// An edited robot pushed again at the staged generation, its blob as long as the staged
+/// one: taken (answered `Next{0}`), not `Staged`, or the switch-over runs the old table.
+#[test]
+fn another_table_of_one_length_at_the_staged_generation_is_taken() {
+    let (x, y) = two_tables_of_one_length();
+    let mut rx = Receiver::new();
+    take_whole(&mut rx, 7, &x);
+    rx.persisted(true);
+    assert_eq!(
+        rx.on_message(&begin_of(&y, false), 4, 7),
+        Some(Outcome::Reply(ConfigReply::Next { next: 0 }))
+    );
+    // X is still what is staged (Y's transfer goes to the staging area until its end).
+    assert_eq!(
+        rx.on_message(&begin_of(&x, false), 4, 7),
+        Some(Outcome::Reply(ConfigReply::Staged))
+    );
+}
+
+/// A push cut after its chunks and before its end, the robot edited, pushed again at that
+/// generation: the new table's begin starts the transfer over, and its end stages it, not
+/// the bytes of the first.
+#[test]
+fn the_begin_of_another_table_restarts_the_transfer_in_progress() {
+    let (x, y) = two_tables_of_one_length();
+    let mut rx = Receiver::new();
+    rx.on_message(&begin_of(&x, false), 4, 0);
+    for (i, data) in x.chunks(CHUNK_DATA).enumerate() {
+        let offset = (i * CHUNK_DATA) as u16;
+        let chunk = Message::ConfigChunk {
+            generation: 7,
+            offset,
+            data,
+        };
+        rx.on_message(&chunk, 4, 0);
+    }
+    // The same table's begin again (its answer lost): where the transfer stands.
+    assert_eq!(
+        rx.on_message(&begin_of(&x, false), 4, 0),
+        Some(Outcome::Reply(ConfigReply::Next {
+            next: x.len() as u16
+        }))
+    );
+    // Another table's: from the start.
+    assert_eq!(
+        rx.on_message(&begin_of(&y, false), 4, 0),
+        Some(Outcome::Reply(ConfigReply::Next { next: 0 }))
+    );
+    assert_eq!(
+        rx.on_message(&Message::ConfigEnd { generation: 7 }, 4, 0),
+        Some(Outcome::Reply(ConfigReply::Next { next: 0 }))
+    );
+    take_whole(&mut rx, 7, &y);
+    assert_eq!(rx.blob(y.len()), &y[..]);
 }

@@ -1001,5 +1001,9 @@ fn an_ack_in_clear_on_the_config_pan_loses_no_event() {
         net.a.0.receive(&ack, net.now, &mut net.a.1);
     }
     net.run(2_000);
-    assert_eq!(net.b.1.lamp, [true, false], "the press, delivered on a resend");
+    assert_eq!(
+        net.b.1.lamp,
+        [true, false],
+        "the press, delivered on a resend"
+    );
 }
