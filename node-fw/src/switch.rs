@@ -278,8 +278,9 @@ pub enum Verdict {
     /// A node refused or stopped answering before anything switched: every node
     /// disarmed, nothing switched.
     Aborted,
-    /// Some nodes switched and some did not answer any more: the machine is mixed (the
-    /// tool says which; run again, or `--now`).
+    /// Some nodes switched and some did not answer any more, or were not idle when told
+    /// to go and did not become idle again within the wait (those are disarmed): the
+    /// machine is mixed (the tool says which; run again, or `--now`).
     Partial,
 }
 
@@ -309,6 +310,11 @@ pub struct Coordinator {
     trial: bool,
     /// Until when the machine may take to become idle.
     wait_until: u64,
+    /// How long it may take: to become idle, and again to switch once told to go.
+    wait_ms: u64,
+    /// Until when the nodes told to go may take to switch (a node no longer idle when its
+    /// `Go` comes is armed and told again until then).
+    go_until: u64,
     phase: Phase,
     verdict: Verdict,
     /// Answers taken so far (orders them).
@@ -324,7 +330,9 @@ impl Coordinator {
             generation,
             now,
             trial: false,
-            wait_until: start + wait_ms,
+            wait_until: start.saturating_add(wait_ms),
+            wait_ms,
+            go_until: start.saturating_add(wait_ms),
             phase: if now { Phase::Going } else { Phase::Arming },
             verdict: Verdict::Busy,
             answers: 0,
@@ -365,13 +373,18 @@ impl Coordinator {
 
     /// When [`Coordinator::poll`] next has work.
     pub fn deadline(&self) -> u64 {
+        let limit = if self.phase == Phase::Going {
+            self.go_until
+        } else {
+            self.wait_until
+        };
         self.nodes
             .iter()
             .filter(|n| self.waits_for(n.1))
             .map(|n| n.3)
             .min()
-            .unwrap_or(self.wait_until)
-            .min(self.wait_until)
+            .unwrap_or(limit)
+            .min(limit)
     }
 
     fn waits_for(&self, s: NodeState) -> bool {
@@ -424,6 +437,21 @@ impl Coordinator {
         {
             self.verdict = Verdict::NotIdle;
             self.phase = Phase::Disarming;
+        }
+        if now_ms >= self.go_until && self.phase == Phase::Going {
+            // A node told to go that is not idle (it faulted, or moves again) within the
+            // wait: the ones not switched are disarmed.
+            let switched = self.nodes.iter().any(|n| n.1 == NodeState::Switched);
+            self.verdict = if switched {
+                Verdict::Partial
+            } else {
+                Verdict::NotIdle
+            };
+            self.phase = Phase::Disarming;
+            for n in self.nodes.iter_mut() {
+                n.2 = 0;
+                n.3 = now_ms;
+            }
         }
         let generation = self.generation;
         for i in 0..self.nodes.len() {
@@ -527,6 +555,7 @@ impl Coordinator {
                     n.2 = 0;
                     n.3 = now_ms;
                 }
+                self.go_until = now_ms.saturating_add(self.wait_ms);
                 Some(Phase::Going)
             }
             Phase::Going if all(&|s| s == NodeState::Switched) => {
@@ -738,6 +767,9 @@ mod tests {
         /// A node that reboots (its arming lost, its staged table kept) as its first Go
         /// arrives.
         reboot_at_go: Option<u16>,
+        /// A node that is no longer idle from its first Go on (it faulted, or an event set
+        /// it moving).
+        busy_at_go: Option<u16>,
         now: u64,
         log: heapless::Vec<(u64, u16, SwitchStep), 256>,
     }
@@ -757,6 +789,7 @@ mod tests {
                 drop: heapless::Vec::new(),
                 drop_go: heapless::Vec::new(),
                 reboot_at_go: None,
+                busy_at_go: None,
                 now: 0,
                 log: heapless::Vec::new(),
             }
@@ -793,6 +826,9 @@ mod tests {
                     let Some(n) = self.nodes.iter_mut().find(|n| n.0 == addr) else {
                         continue;
                     };
+                    if go && self.busy_at_go == Some(addr) {
+                        n.2 = false;
+                    }
                     let reply = match n.1.step(generation, step, TOOL, n.3, n.2, self.now) {
                         Action::Reply(r) => r,
                         Action::Activate(_) => {
@@ -868,6 +904,26 @@ mod tests {
         assert_eq!(m.run(30_000), Verdict::NotIdle);
         assert_eq!(m.running().as_slice(), &[1, 1]);
         assert!(m.nodes.iter().all(|n| !n.1.armed()), "disarmed");
+    }
+
+    /// Every node said idle after all were armed, then 0x12 is no longer idle as its Go
+    /// arrives (it faulted, or an event set it moving) and stays so. 0x11 switched; the
+    /// tool arms 0x12 again and tells it to go while the wait lasts (from the first Go),
+    /// then disarms it and ends `Partial`. (It went on for ever: each `Busy` and `Armed`
+    /// counted as progress, and going had no deadline.)
+    #[test]
+    fn a_node_no_longer_idle_at_its_go_ends_the_switch_over_partial_within_the_wait() {
+        let mut m = Machine::new(2, false);
+        m.busy_at_go = Some(0x12);
+        assert_eq!(m.run(3_600_000), Verdict::Partial);
+        assert!(m.now < 21_000, "ended at {} ms (the wait: 20 s)", m.now);
+        assert_eq!(m.running().as_slice(), &[2, 1]);
+        assert!(!m.nodes[1].1.armed(), "0x12 disarmed");
+        let states: heapless::Vec<(u16, NodeState), 4> = m.tool.nodes().collect();
+        assert_eq!(
+            states.as_slice(),
+            &[(0x11, NodeState::Switched), (0x12, NodeState::Disarmed)]
+        );
     }
 
     #[test]
