@@ -398,6 +398,10 @@ pub enum TrialEnd {
     Faulted { node: u16, rolled_back: Verdict },
     /// Not confirmed within the window: every node was rolled back at its idle point.
     Expired { rolled_back: Verdict },
+    /// A node booted the previous generation during the trial (a power cut: its trial
+    /// slot revoked), `node` the first seen: the others were rolled back at their idle
+    /// point, so the machine runs one generation (nothing was confirmed after it).
+    Reverted { node: u16, rolled_back: Verdict },
 }
 
 /// How long a trial is watched: a time, a number of cycles, or whichever ends first.
@@ -443,17 +447,16 @@ pub fn watch_trial_for(
     (every, wait): (Duration, Duration),
     confirm_asked: &dyn Fn() -> bool,
 ) -> io::Result<TrialEnd> {
-    let end = window.time.map(|t| Instant::now() + t);
+    // A window past what an `Instant` holds has no end.
+    let end = window.time.and_then(|t| Instant::now().checked_add(t));
     let mut cycles = CycleCount::default();
-    // The generation on trial, as the nodes report it.
-    let mut trial = None;
+    let mut confirmed_once = false;
     loop {
-        // Confirmed by whoever runs the watch (the tool's lock on its counter file keeps
-        // another tool of the same key file from confirming meanwhile).
-        if let (true, Some(generation)) = (confirm_asked(), trial) {
-            confirm(radio, nodes, generation, wait)?;
-        }
+        // Every node's status: a fault rolls every node back at once; a node that runs
+        // the previous generation (it lost power: the trial slot is revoked at boot) ends
+        // the trial; the trial is over when every node runs a newer one, confirmed.
         let mut confirmed = true;
+        let mut trial = None;
         for &node in nodes {
             let Some(s) = command(radio, ids, node, Command::Status, every.max(RETRY_FLOOR))?
             else {
@@ -464,6 +467,10 @@ pub fn watch_trial_for(
                 let (rolled_back, _) = rollback(radio, nodes, previous, true, wait)?;
                 return Ok(TrialEnd::Faulted { node, rolled_back });
             }
+            if s.generation == previous && !s.trial {
+                let (rolled_back, _) = rollback(radio, nodes, previous, false, wait)?;
+                return Ok(TrialEnd::Reverted { node, rolled_back });
+            }
             cycles.saw(node, s.cycles);
             if s.trial {
                 trial = Some(s.generation);
@@ -472,6 +479,16 @@ pub fn watch_trial_for(
         }
         if confirmed {
             return Ok(TrialEnd::Confirmed);
+        }
+        // Confirmed by whoever runs the watch (the tool's lock on its counter file keeps
+        // another tool of the same key file from confirming meanwhile), only after a round
+        // in which every node ran the trial: then the next round sees how it went.
+        if let (true, Some(generation)) = (confirm_asked(), trial) {
+            if !confirmed_once {
+                confirm(radio, nodes, generation, wait)?;
+                confirmed_once = true;
+                continue;
+            }
         }
         let timed_out = end.is_some_and(|e| Instant::now() >= e);
         let cycled = window.cycles.is_some_and(|n| cycles.done >= n);

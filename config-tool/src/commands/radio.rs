@@ -482,6 +482,14 @@ fn watch(
                 back_text(previous, rolled_back)
             ))
         }),
+        push::TrialEnd::Reverted { node, rolled_back } => Err(Failure {
+            code: exit::PUSH_FAILED,
+            ..Failure::error(format!(
+                "node {node:#06x} booted generation {previous} during the trial (a power \
+                 cut): {}",
+                back_text(previous, rolled_back)
+            ))
+        }),
         push::TrialEnd::Expired { rolled_back } => Err(Failure {
             code: exit::PUSH_FAILED,
             ..Failure::error(format!(
