@@ -44,6 +44,9 @@ pub const MAX_SUBSCRIPTIONS: usize = 32;
 pub const MAX_PINS: usize = 64;
 /// Bytes of the role name.
 pub const MAX_ROLE_NAME: usize = 12;
+/// Roles of one robot: the nodes the tool's switch-over moves together
+/// (`node_fw::switch::Coordinator`).
+pub const MAX_ROLES: usize = 16;
 
 /// Event-less transitions fired in one delivery before the node faults.
 pub const MAX_CHAIN: usize = 32;

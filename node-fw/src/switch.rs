@@ -10,6 +10,7 @@
 //! Pure state: the node asks [`SwitchOver::step`] what to do with a `Switch` message and
 //! tells it what happened; time comes in as milliseconds.
 
+use config_schema::limits::MAX_ROLES;
 use config_schema::wire::msg::{ConfigReply, Message, Refusal, SwitchStep};
 
 /// An armed node that hears nothing more from the tool for this long disarms (and runs a
@@ -319,12 +320,14 @@ pub struct Coordinator {
     verdict: Verdict,
     /// Answers taken so far (orders them).
     answers: u32,
-    nodes: heapless::Vec<(u16, NodeState, u8, u64), 16>,
+    nodes: heapless::Vec<(u16, NodeState, u8, u64), MAX_ROLES>,
 }
 
 impl Coordinator {
     /// A switch-over of `nodes` to `generation`: at the machine's next idle point within
-    /// `wait_ms`, or (`now`) at once whatever the machine does. At most 16 nodes.
+    /// `wait_ms`, or (`now`) at once whatever the machine does. At most [`MAX_ROLES`]
+    /// nodes: more is `Aborted` at once, nothing sent (none left out of a switch-over
+    /// that moves the others).
     pub fn new(nodes: &[u16], generation: u32, now: bool, wait_ms: u64, start: u64) -> Self {
         let mut c = Coordinator {
             generation,
@@ -344,7 +347,12 @@ impl Coordinator {
             NodeState::Arming
         };
         for &n in nodes {
-            let _ = c.nodes.push((n, state, 0, start));
+            if c.nodes.push((n, state, 0, start)).is_err() {
+                c.nodes.clear();
+                c.verdict = Verdict::Aborted;
+                c.phase = Phase::Done;
+                break;
+            }
         }
         c
     }
@@ -952,6 +960,20 @@ mod tests {
         let (arm, go) = (SwitchStep::Arm, GO);
         assert_eq!(to(0x11).as_slice(), &[arm]);
         assert_eq!(to(0x12).as_slice(), &[arm, arm, go]);
+    }
+
+    /// More nodes than a switch-over holds: none is armed, none left out of it (the
+    /// seventeenth was dropped, and the others switched without it).
+    #[test]
+    fn more_nodes_than_a_switch_over_holds_are_refused_whole() {
+        let nodes: heapless::Vec<u16, 17> = (0..=MAX_ROLES as u16).map(|i| 0x11 + i).collect();
+        let mut c = Coordinator::new(&nodes, 2, false, 20_000, 0);
+        let mut sent = 0;
+        c.poll(0, |_, _| sent += 1);
+        assert_eq!(
+            (c.verdict(), sent, c.nodes().count()),
+            (Verdict::Aborted, 0, 0)
+        );
     }
 
     #[test]

@@ -2,6 +2,8 @@
 //! radio links (topic ids per publisher, peers, publications, subscriptions). Everything is
 //! ordered by declaration, never by hash order, so the same robot gives the same bytes.
 
+use std::collections::HashSet;
+
 use config_schema::limits::*;
 use config_schema::{
     Action, Input, Output, Publication, Route, Subscription, Table, Timer, Transition,
@@ -41,16 +43,16 @@ impl std::fmt::Display for Over {
 /// names its publisher, so the topic need only tell that publisher's events apart (and is
 /// then as narrow as its publisher's count of publications).
 pub fn topics(ir: &Ir) -> Vec<(usize, usize, usize)> {
+    // (publisher, event) of every import, looked up once per event: linear in the robot.
+    let imported: HashSet<(&str, &str)> = (ir.roles.iter())
+        .flat_map(|q| q.imports.iter())
+        .map(|(from, ev, _)| (from.as_str(), ev.as_str()))
+        .collect();
     let mut out = Vec::new();
     for (ri, r) in ir.roles.iter().enumerate() {
         let mut topic = 0;
         for (e, name) in r.events.iter().enumerate() {
-            let used = ir.roles.iter().any(|q| {
-                q.imports
-                    .iter()
-                    .any(|(from, ev, _)| *from == r.name && ev == name)
-            });
-            if used {
+            if imported.contains(&(r.name.as_str(), name.as_str())) {
                 out.push((ri, e, topic));
                 topic += 1;
             }
@@ -75,6 +77,12 @@ pub fn peers(ir: &Ir, ri: usize) -> Vec<usize> {
 /// Every capacity a role's table would exceed.
 pub fn capacity(ir: &Ir) -> Vec<Over> {
     let mut out = Vec::new();
+    let mut published = vec![0usize; ir.roles.len()];
+    for (ri, _, _) in topics(ir) {
+        if let Some(n) = published.get_mut(ri) {
+            *n += 1;
+        }
+    }
     for (ri, r) in ir.roles.iter().enumerate() {
         // The length of every expression: guards and assignments.
         let exprs: Vec<usize> = r
@@ -94,7 +102,7 @@ pub fn capacity(ir: &Ir) -> Vec<Over> {
             .collect();
         let code: usize = exprs.iter().sum();
         let longest_expr = exprs.iter().copied().max().unwrap_or(0);
-        let published = topics(ir).iter().filter(|(q, _, _)| *q == ri).count();
+        let published = published.get(ri).copied().unwrap_or(0);
         let checks: [(&'static str, usize, usize); 15] = [
             ("MAX_EVENTS", r.events.len(), MAX_EVENTS),
             ("MAX_VARS", r.vars.len(), MAX_VARS),

@@ -99,8 +99,8 @@ const BROKEN: &[(&str, &[&str])] = &[
         "39:17: warning: transitions `IN -> IDLE` and `IN -> OUT` leave `IN` without an event and both guards can hold: the first declared wins",
     ]),
     ("capacity.ron", &[
-        "12:19: error: the table of role `A` is too big: actions needs 210 but MAX_ACTIONS is 160 (over by 50)",
-        "12:19: error: the table of role `A` is too big: states needs 110 but MAX_STATES is 96 (over by 14)",
+        "12:19: error: the table of role `A` is too big: actions needs 190 but MAX_ACTIONS is 160 (over by 30)",
+        "12:19: error: the table of role `A` is too big: states needs 100 but MAX_STATES is 96 (over by 4)",
     ]),
     ("guard-syntax.ron", &["36:68: error: expected a value, a name or `(`, found `&&`"]),
     ("many-problems.ron", &[
@@ -423,4 +423,66 @@ fn the_complete_example_of_the_format_doc_checks_clean_but_sensorless_steps() {
 /// The warning every step of a sensorless gripper gets (the paint robot's GR has none).
 fn sensorless(d: &robot_compiler::Diagnostic) -> bool {
     !d.is_error() && d.message.contains("has no completion sensor")
+}
+
+/// A sequence in which one role moves more often than its table holds states is refused
+/// at the first step too many, before any synthesis (a role's events were looked up by a
+/// scan per step: 4,000 steps took seconds).
+#[test]
+fn a_role_that_moves_in_more_steps_than_a_table_holds_states_is_refused_at_the_first_one_too_many()
+{
+    let text = fixture("small-sequence.ron").text;
+    let steps = "A+ B+ B- A- ".repeat(4_000);
+    let src = Source::new(
+        "long.ron",
+        text.replace("\"A+ B+ B- A-\"", &format!("\"{}\"", steps.trim_end())),
+    );
+    let got = located(&src);
+    // Step 97 of A is the 49th repetition's `A+`.
+    let at = src.text.find("sequence: \"").expect("the sequence") + "sequence: \"".len();
+    let ninety_seventh = |role: char| {
+        let (line, col) = src.line_col(at + 48 * 12 + if role == 'A' { 0 } else { 3 });
+        format!(
+            "{line}:{col}: `{role}+`: role `{role}` moves in more than 96 steps of the sequence"
+        )
+    };
+    assert_eq!(got, [ninety_seventh('A'), ninety_seventh('B')]);
+}
+
+/// A robot of more roles than one switch-over moves together is refused at the first one
+/// too many, before any synthesis (whose work grows with roles x steps).
+#[test]
+fn a_robot_of_more_roles_than_a_switch_over_moves_is_refused_at_the_first_one_too_many() {
+    let n = 17;
+    let role = |i: usize| {
+        let start = if i == 0 {
+            ", inputs: [(name: \"START\", pin: 4)]"
+        } else {
+            ""
+        };
+        format!(
+            "(name: \"R{i}\", actuators: [(name: \"R{i}\", kind: DoubleActing(extend: 0, \
+             retract: 1, home: 2, end: 3))]{start})"
+        )
+    };
+    let list = |f: &dyn Fn(usize) -> String| (0..n).map(f).collect::<Vec<_>>().join(", ");
+    let steps = |sign: char| list(&|i| format!("R{i}{sign}")).replace(',', "");
+    let text = format!(
+        "Robot(name: \"many\", network: (pan_id: 0x1234, channel: 15), nodes: [{}], \
+         assign: [{}], roles: [{}], start: \"START\", sequence: \"{} {}\")",
+        list(&|i| format!("(name: \"n{i}\", address: {})", 0x1000 + i)),
+        list(&|i| format!("(\"R{i}\", \"n{i}\")")),
+        list(&role),
+        steps('+'),
+        steps('-'),
+    );
+    let src = Source::new("many.ron", text);
+    let (line, col) = src.line_col(src.text.find("(name: \"R16\", act").expect("role 17"));
+    assert_eq!(
+        located(&src),
+        [format!(
+            "{line}:{col}: 17 roles: a robot has at most 16 (MAX_ROLES), the nodes one \
+             switch-over moves together"
+        )]
+    );
 }

@@ -36,6 +36,12 @@ const BROKEN: &[(&str, &[&str])] = &[
         "35:17: warning: transition `never` of function `Transport` can never fire: its condition `FAULT && !FAULT` never holds in `Step2`",
         "36:17: warning: transition `shadowed` of function `Transport` can never fire: `abort`, declared before it, leaves `Step2` on `FAULT` whenever it is enabled (the choice rule takes the first declared)",
     ]),
+    ("petri-marking-huge.ron", &[
+        "50:30: error: m(0) of function `Pusher` puts 2147483647 tokens in a place: a state machine's place holds 0 or 1 (one entry 1, the others 0)",
+    ]),
+    ("petri-marking-negative.ron", &[
+        "50:33: error: m(0) of function `Pusher` puts -1 tokens in a place: a state machine's place holds 0 or 1 (one entry 1, the others 0)",
+    ]),
     ("petri-rest.ron", &[
         "27:20: error: unknown place `Step9`",
     ]),

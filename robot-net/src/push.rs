@@ -282,7 +282,7 @@ pub fn switch_over_as(
         return Ok(Verdict::Aborted);
     }
     let nodes: Vec<u16> = pushed.iter().map(|p| p.addr).collect();
-    let mut c = Coordinator::new(&nodes, generation, now, wait.as_millis() as u64, 0);
+    let mut c = Coordinator::new(&nodes, generation, now, millis(wait), 0);
     if trial {
         c = c.on_trial();
     }
@@ -310,6 +310,12 @@ fn coordinate(
     (verdict, c.nodes().collect())
 }
 
+/// `wait` in whole milliseconds, the longest a `u64` holds if longer (it was cut to its
+/// low 64 bits: a wait of 2^64 ms + 384 ms was 384 ms).
+fn millis(wait: Duration) -> u64 {
+    u64::try_from(wait.as_millis()).unwrap_or(u64::MAX)
+}
+
 fn run_coordinator(
     radio: &mut ToolRadio,
     c: &mut Coordinator,
@@ -325,7 +331,11 @@ fn run_coordinator(
         }
         // The first answer by the deadline, then every answer already here, before the
         // coordinator's next poll can declare a timeout (as `push` does).
-        let mut until = (start + Duration::from_millis(c.deadline())).max(Instant::now());
+        // A deadline past what an `Instant` holds (a wait of ages): a second's sleep.
+        let deadline = start.checked_add(Duration::from_millis(c.deadline()));
+        let mut until = deadline
+            .unwrap_or_else(|| Instant::now() + Duration::from_secs(1))
+            .max(Instant::now());
         while let Some(r) = radio.recv(until)? {
             if let Some(Message::ConfigReply { generation, reply }) = r.message() {
                 if let ConfigReply::Armed { idle } = reply {
@@ -351,7 +361,7 @@ pub fn rollback(
     now: bool,
     wait: Duration,
 ) -> io::Result<(Verdict, Vec<(u16, NodeState)>)> {
-    let c = Coordinator::new(nodes, generation, now, wait.as_millis() as u64, 0);
+    let c = Coordinator::new(nodes, generation, now, millis(wait), 0);
     let (verdict, states) = coordinate(radio, c, &mut Vec::new());
     Ok((verdict?, states))
 }

@@ -4,7 +4,7 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use config_schema::limits::CHANNELS;
+use config_schema::limits::{CHANNELS, MAX_ROLES};
 
 use super::duplicate;
 use crate::diag::Diagnostic;
@@ -61,6 +61,19 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
             src.span("network.pan_id"),
             "PAN id 0xffff is the broadcast PAN id",
         ));
+    }
+    if robot.roles.len() > MAX_ROLES {
+        out.push(
+            Diagnostic::error(
+                src.span(&format!("roles[{MAX_ROLES}]")),
+                format!(
+                    "{} roles: a robot has at most {MAX_ROLES} (MAX_ROLES), the nodes one \
+                     switch-over moves together",
+                    robot.roles.len()
+                ),
+            )
+            .label("one role too many"),
+        );
     }
     let mut addrs: BTreeMap<u16, usize> = BTreeMap::new();
     for (i, n) in robot.nodes.iter().enumerate() {

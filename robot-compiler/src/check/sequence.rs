@@ -4,6 +4,8 @@
 //! that never move, steps without a completion sensor (a jam goes undetected: warning).
 //! Also the `expect` sequence of explicit robots.
 
+use config_schema::limits::MAX_STATES;
+
 use crate::diag::Diagnostic;
 use crate::elab::{start_input, StrMap};
 use crate::ir::parse_steps;
@@ -52,6 +54,9 @@ fn steps(
 ) {
     let base = StrMap::new(src, path);
     let mut out_now: Vec<(String, std::ops::Range<usize>)> = Vec::new();
+    // Steps per role: each is a state of its actuator's chart at least, so a role with
+    // more steps than a table holds states is refused here, before any synthesis.
+    let mut per_role = vec![0usize; robot.roles.len()];
     let parsed = parse_steps(text);
     if parsed.is_empty() {
         out.push(Diagnostic::error(
@@ -83,6 +88,26 @@ fn steps(
             continue;
         };
         if synth {
+            if let Some(n) = per_role.get_mut(ri) {
+                *n += 1;
+                if *n == MAX_STATES + 1 {
+                    out.push(
+                        Diagnostic::error(
+                            here.clone(),
+                            format!(
+                                "`{step}`: role `{}` moves in more than {MAX_STATES} steps \
+                                 of the sequence",
+                                robot.roles[ri].name
+                            ),
+                        )
+                        .label("one step too many")
+                        .help(format!(
+                            "each step is a state of its actuator's chart, and a role's \
+                             table holds at most {MAX_STATES} states (MAX_STATES)"
+                        )),
+                    );
+                }
+            }
             let kind = &robot.roles[ri].actuators[ai].kind;
             if let (None, ActuatorKind::SingleActing { dwell_ms, .. }) =
                 (kind.completion_switch(step.extend), kind)

@@ -415,8 +415,15 @@ fn from_matrix(
                 m.marking.len()
             ),
         ));
-    } else if m.marking.iter().any(|&x| x != 0 && x != 1) || m.marking.iter().sum::<i32>() != 1 {
-        let tokens: i32 = m.marking.iter().map(|x| x.max(&0)).sum();
+    } else if let Some((k, x)) = (m.marking.iter().enumerate()).find(|(_, &x)| x != 0 && x != 1) {
+        // Named where it is: a count of them all overflowed (`i32::MAX` tokens), and
+        // said a negative entry's function held too few.
+        diags.push(Diagnostic::error(
+            src.span(&format!("{path}.marking[{k}]")),
+            format!("m(0) of function `{f}` puts {x} tokens in a place: a state machine's place holds 0 or 1 (one entry 1, the others 0)"),
+        ));
+    } else if m.marking.iter().filter(|&&x| x == 1).count() != 1 {
+        let tokens = m.marking.iter().filter(|&&x| x == 1).count();
         diags.push(Diagnostic::error(
             src.span(&format!("{path}.marking")),
             format!("m(0) of function `{f}` holds {tokens} tokens: a state machine holds exactly one (one entry 1, the others 0)"),
