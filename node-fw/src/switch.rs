@@ -497,7 +497,12 @@ impl Coordinator {
         }
         let state = match (phase, reply) {
             (_, ConfigReply::Activated) => NodeState::Switched,
-            (_, ConfigReply::Refused(r)) => NodeState::Refused(r),
+            // What a switch step is refused with (a late answer of the transfer, `Stale`,
+            // `OutOfSequence`, ..., is not this switch-over's: it aborted it, and left a
+            // node it had armed armed).
+            (_, ConfigReply::Refused(r @ (Refusal::NotStaged { .. } | Refusal::Flash))) => {
+                NodeState::Refused(r)
+            }
             (Phase::Disarming, ConfigReply::Disarmed) => NodeState::Disarmed,
             (Phase::Going, ConfigReply::Armed { .. }) => NodeState::Going,
             (Phase::Going, ConfigReply::Busy) => NodeState::Arming,
@@ -960,6 +965,20 @@ mod tests {
         let (arm, go) = (SwitchStep::Arm, GO);
         assert_eq!(to(0x11).as_slice(), &[arm]);
         assert_eq!(to(0x12).as_slice(), &[arm, arm, go]);
+    }
+
+    /// A late answer of the transfer (`Refused(OutOfSequence)` of the generation) while
+    /// the machine is armed is not a switch step's refusal: the switch-over goes on.
+    #[test]
+    fn a_late_refusal_of_the_transfer_does_not_abort_the_switch_over() {
+        let mut m = Machine::new(2, false);
+        let mut out: heapless::Vec<(u16, Message<'static>), 16> = heapless::Vec::new();
+        let late = ConfigReply::Refused(Refusal::OutOfSequence);
+        m.tool
+            .on_reply(0x11, 2, late, 0, |a, s| out.push((a, s)).unwrap());
+        assert!(out.is_empty());
+        assert_eq!(m.run(5_000), Verdict::Switched);
+        assert_eq!(m.running().as_slice(), &[2, 2]);
     }
 
     /// More nodes than a switch-over holds: none is armed, none left out of it (the
