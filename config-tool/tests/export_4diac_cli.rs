@@ -176,3 +176,78 @@ fn an_export_or_compile_that_would_overwrite_one_of_its_inputs_is_refused() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `export-4diac` of `text` (written as `r.ron` in a directory of its own, `tag`): its
+/// status, its standard error, the place of `what` in `text` as `r.ron:LINE:COL]`, and
+/// whether the output directory was made.
+fn export_refused(tag: &str, text: &str, what: &str) -> (Option<i32>, String, String, bool) {
+    // At its value when `what` is a field (`name: "X"`).
+    let skip = what.find('"').unwrap_or(0);
+    let dir = std::env::temp_dir().join(format!("export-4diac-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("dir");
+    let robot = dir.join("r.ron");
+    std::fs::write(&robot, text).expect("writes");
+    let out = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["export-4diac"])
+        .arg(&robot)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .output()
+        .expect("runs");
+    let at = text.find(what).expect("what") + skip;
+    let line = text[..at].matches('\n').count() + 1;
+    let col = at - text[..at].rfind('\n').map_or(0, |i| i + 1) + 1;
+    let written = dir.join("out").exists();
+    let _ = std::fs::remove_dir_all(&dir);
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).to_string(),
+        format!("r.ron:{line}:{col}]"),
+        written,
+    )
+}
+
+/// A robot name too long for a file name: refused at the name, nothing written (the
+/// `.fbt` files were, then the `.sys` failed with the file system's error and no place).
+#[test]
+fn a_robot_name_too_long_for_a_file_name_is_refused_at_it_and_nothing_is_written() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let text = std::fs::read_to_string(root.join(ROBOT)).expect("robot");
+    let long = "A".repeat(252);
+    let text = text.replacen(
+        "name: \"paint-robot-paper-charts\"",
+        &format!("name: \"{long}\""),
+        1,
+    );
+    let (code, stderr, at, written) = export_refused("long", &text, &format!("\"{long}\""));
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains(&at), "{at}: {stderr}");
+    // The message as miette wraps it: compared without its spaces and the frame's bars.
+    let bare = |t: &str| -> String {
+        t.chars()
+            .filter(|c| !c.is_whitespace() && *c != '│')
+            .collect()
+    };
+    let message = format!(
+        "cannot export: the file name `{long}.sys` is 256 bytes long: a file system takes at most 255"
+    );
+    assert!(bare(&stderr).contains(&bare(&message)), "{stderr}");
+    assert!(!written, "nothing written");
+}
+
+/// A chart type named as a role's service type (`VC_IO`): refused at the chart type.
+#[test]
+fn a_chart_type_named_as_a_roles_service_type_is_refused_at_it() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let text = std::fs::read_to_string(root.join(ROBOT)).expect("robot");
+    let text = text.replace("\"Vc\"", "\"VC_IO\"");
+    let (code, stderr, at, written) = export_refused("clash", &text, "name: \"VC_IO\"");
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains(&at), "{at}: {stderr}");
+    assert!(
+        stderr.contains("cannot export: two files would be named `VC_IO.fbt`"),
+        "{stderr}"
+    );
+    assert!(!written, "nothing written");
+}

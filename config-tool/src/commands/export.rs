@@ -32,6 +32,38 @@ pub fn export(robot: &Path, out: &Path) -> Result<(), Failure> {
             None => Failure::error(format!("{}: cannot export: {e}", robot.display())),
         }
     })?;
+    // File names the file system would refuse part-way (too long), or that come twice:
+    // refused at the name in the robot file that makes them, before anything is written.
+    let mut seen = std::collections::HashSet::new();
+    for (name, _) in &exported.files {
+        let problem = if name.len() > MAX_FILE_NAME {
+            Some(format!(
+                "cannot export: the file name `{name}` is {} bytes long: a file system takes \
+                 at most {MAX_FILE_NAME}",
+                name.len()
+            ))
+        } else if !seen.insert(name.as_str()) {
+            Some(format!("cannot export: two files would be named `{name}`"))
+        } else {
+            None
+        };
+        let Some(problem) = problem else { continue };
+        let at = match (name.strip_suffix(".sys"), name.strip_suffix(".fbt")) {
+            (Some(_), _) => Some(src.span("name")),
+            (_, Some(stem)) => (compiled.robot.chart_types.iter().enumerate())
+                .rev()
+                .find(|(_, t)| t.name == stem)
+                .map(|(i, t)| src.span(t.place(&format!("chart_types[{i}].name")))),
+            _ => None,
+        };
+        return Err(match at {
+            Some(span) => {
+                report(&src, &[Diagnostic::error(span, problem)]);
+                Failure::reported()
+            }
+            None => Failure::error(format!("{}: {problem}", robot.display())),
+        });
+    }
     let inputs = super::outputs::robot_files(robot, &compiled.robot);
     let names = exported.files.iter().map(|(name, _)| name.as_str());
     super::outputs::none_an_input("--out", out, names, &inputs)?;
@@ -50,6 +82,10 @@ pub fn export(robot: &Path, out: &Path) -> Result<(), Failure> {
     );
     Ok(())
 }
+
+/// Bytes of the longest file name the common file systems take (ext4, XFS, APFS, NTFS
+/// in UTF-16 units, which a name of this many bytes never exceeds).
+const MAX_FILE_NAME: usize = 255;
 
 /// Today's date (UTC), `YYYY-MM-DD`, for `VersionInfo`.
 fn today() -> String {

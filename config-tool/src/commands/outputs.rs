@@ -88,7 +88,9 @@ pub fn write_all<'a>(
             )));
         }
         let plain = Path::new(name).file_name().and_then(|f| f.to_str()) == Some(*name);
-        if !plain {
+        // Longer than a file system takes: it would fail part-way, the files before it
+        // already in place.
+        if !plain || name.len() > 255 {
             return Err(Failure::error(format!(
                 "{name:?} is not a file name: nothing written to {}",
                 dir.display()
