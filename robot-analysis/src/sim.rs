@@ -45,8 +45,8 @@ pub const CYCLE_LIMIT_MS: u64 = 600_000;
 
 /// Virtual-time bound of one cycle of `c`: [`CYCLE_LIMIT_MS`], or more for a robot whose
 /// declared times need it: each step, and a few more for a fault and the faults it causes,
-/// may wait for the longest timer of its tables (watchdogs, dwells, chart timers) or the
-/// longest stroke of its actuators.
+/// may wait for the longest timer of its tables (watchdogs, dwells, chart timers), the
+/// longest stroke of its actuators, or the longest full stroke of its motor plants.
 pub fn cycle_limit_ms(c: &Compiled) -> u64 {
     let timers = c.tables.iter().flat_map(|t| t.actions.iter());
     let timers = timers.filter_map(|a| match *a {
@@ -58,7 +58,19 @@ pub fn cycle_limit_ms(c: &Compiled) -> u64 {
         let (out_ms, back_ms) = a.kind.strokes();
         [out_ms, back_ms]
     });
-    let longest = u64::from(timers.chain(strokes).max().unwrap_or(0));
+    // A motor plant's full stroke (`stroke_mm` at `speed_mm_s`), rounded up.
+    let motors = c.robot.plants.iter().filter_map(|p| match *p {
+        robot_compiler::plants::PlantDecl::Motor {
+            stroke_mm,
+            speed_mm_s,
+            ..
+        } if speed_mm_s > 0 => {
+            let ms = (u64::from(stroke_mm) * 1000).div_ceil(u64::from(speed_mm_s));
+            Some(u32::try_from(ms).unwrap_or(u32::MAX))
+        }
+        _ => None,
+    });
+    let longest = u64::from(timers.chain(strokes).chain(motors).max().unwrap_or(0));
     let steps = c.ir.expect.len().max(MANY_STEPS) as u64;
     CYCLE_LIMIT_MS.max(longest.saturating_mul(steps + 4))
 }

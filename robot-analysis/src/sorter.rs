@@ -13,8 +13,12 @@ use robot_compiler::Compiled;
 
 use crate::sim::{self, SimulationError};
 
-/// Virtual-time bound of a whole feed.
+/// Virtual-time bound of a whole feed: this, and [`BALL_LIMIT_MS`] more per ball.
 pub const FEED_LIMIT_MS: u64 = 3_600_000;
+
+/// Virtual time a feed is given per ball on top of [`FEED_LIMIT_MS`] (the ball sorter
+/// takes about 0.5 s a ball: a feed of 8,000, which `--random` takes, ran out of the hour).
+pub const BALL_LIMIT_MS: u64 = 10_000;
 
 /// Why a station could not be simulated.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -269,7 +273,9 @@ pub fn simulate(c: &Compiled, feed: Option<&[String]>) -> Result<SortRun, SortEr
         .press(button)
         .map_err(|e| SortError::Sim(SimulationError::World(e)))?;
     let end = world
-        .run_until_idle(FEED_LIMIT_MS)
+        .run_until_idle(
+            FEED_LIMIT_MS.saturating_add(BALL_LIMIT_MS.saturating_mul(feed.len() as u64)),
+        )
         .map_err(|e| SortError::Sim(SimulationError::World(e)))?;
     let mut run = SortRun {
         balls: (feed.iter())

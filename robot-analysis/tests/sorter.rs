@@ -66,6 +66,21 @@ fn a_feed_from_the_command_line_sorts_as_the_reference_too() {
     assert!(run.ok(), "{}", run.report());
 }
 
+/// The longest random feed `sim --random` takes (10,000 balls, about 76 virtual minutes)
+/// sorts as the reference: the feed's time bound grows with it (a fixed hour ended feeds
+/// of 8,000 balls "not idle by the time limit").
+#[test]
+fn the_longest_random_feed_sorts_as_the_reference() {
+    let src = load(SORTER);
+    let c = build(&src);
+    let s = c.robot.sorting.as_ref().expect("station");
+    let feed = sorter::random_feed(s, 10_000, 1);
+    let run = sorter::simulate(&c, Some(&feed)).expect("runs");
+    let a = automata_of(&src, &c);
+    assert_eq!(run.balls, sorter::expected(&[&a[0], &a[1]], &feed));
+    assert!(run.ok(), "{}", run.report());
+}
+
 #[test]
 fn a_feed_item_that_is_no_colour_is_an_error_naming_it() {
     let c = build(&load(SORTER));

@@ -275,3 +275,22 @@ fn the_timeline_of_fig_9_has_a_lane_per_function_and_per_position() {
          889.2,44.0 889.9,44.0 1249.6,70.0 1249.6,70.0 1250.0,70.0"
     );
 }
+
+/// A pusher whose stroke takes 1,000 s (1,000 mm at 1 mm/s): a cycle may take as long as
+/// its plants' strokes too, not only its timers' and actuators' (`sim` gave up at 600 s:
+/// "not idle by the time limit").
+#[test]
+fn a_cycle_of_a_slow_motor_plant_is_simulated_to_its_end() {
+    let text = load("../robot-configs/waterjet-transport.ron").text;
+    let at = text.find("stroke_mm: ").expect("a motor plant");
+    let end = at + text[at..].find(')').expect("its end");
+    let slow = format!(
+        "{}stroke_mm: 1000, speed_mm_s: 1{}",
+        &text[..at],
+        &text[end..]
+    );
+    let c = build(&robot_compiler::Source::new("slow.ron", slow));
+    let run = sim::simulate(&c, 1).expect("one cycle");
+    let durations: Vec<u64> = run.cycles.iter().map(|c| c.duration_ms).collect();
+    assert_eq!(durations, [2_000_008]);
+}
