@@ -89,34 +89,16 @@ fn export_4diac_writes_the_types_and_the_system_and_says_so() {
 #[test]
 fn a_type_that_cannot_be_exported_is_refused_at_its_place() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let dir = std::env::temp_dir().join(format!("export-4diac-bad-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("dir");
     let text = std::fs::read_to_string(root.join(ROBOT)).expect("robot");
-    let robot = dir.join("r.ron");
-    std::fs::write(&robot, text.replace("\"Vc\"", "\"V-c\"")).expect("writes");
-    let out = Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .args(["export-4diac"])
-        .arg(&robot)
-        .arg("--out")
-        .arg(dir.join("out"))
-        .output()
-        .expect("runs");
-    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
-    let at = text.find("name: \"Vc\"").expect("the type Vc") + "name: ".len();
-    let line = text[..at].matches('\n').count() + 1;
-    let col = at - text[..at].rfind('\n').map_or(0, |i| i + 1) + 1;
-    assert!(
-        stderr.contains(&format!("r.ron:{line}:{col}]")),
-        "{line}:{col}: {stderr}"
-    );
+    let text = text.replace("\"Vc\"", "\"V-c\"");
+    let (code, stderr, at, written) = export_refused("bad", &text, "name: \"V-c\"");
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains(&at), "{at}: {stderr}");
     assert!(
         stderr.contains("cannot export: chart type `V-c`: `V-c` is not an IEC 61131-3 identifier"),
         "{stderr}"
     );
-    assert!(!dir.join("out").exists(), "nothing written");
-    let _ = std::fs::remove_dir_all(&dir);
+    assert!(!written, "nothing written");
 }
 
 /// An export into the directory of the robot's own imported types (`Vc.fbt`, ...) would

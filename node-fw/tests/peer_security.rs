@@ -940,21 +940,22 @@ fn in_clear(pan: u16, dst: u16, src: u16, msg: &Message) -> Vec<u8> {
     psdu[..len].to_vec()
 }
 
+/// A's press in `epoch`, forged by anyone: in clear, to B, on the config PAN.
+fn event_on_the_config_pan(epoch: u16) -> Vec<u8> {
+    let press = Message::Event {
+        epoch,
+        seq: 0,
+        topic: 3,
+    };
+    in_clear(CONFIG_PAN, B, A, &press)
+}
+
 #[test]
 fn an_event_in_clear_on_the_config_pan_moves_nothing_on_a_secured_robot() {
     let mut net = Net::established();
     assert_eq!(net.b.1.lamp, [true]);
     let epoch = net.a.0.epoch().wrapping_add(1);
-    let forged = in_clear(
-        CONFIG_PAN,
-        B,
-        A,
-        &Message::Event {
-            epoch,
-            seq: 0,
-            topic: 3,
-        },
-    );
+    let forged = event_on_the_config_pan(epoch);
     let dropped = net.b.0.counters().dropped;
     net.b.0.receive(&forged, net.now, &mut net.b.1);
     assert_eq!(net.b.1.lamp, [true], "the forged event moved B's lamp");
@@ -971,16 +972,7 @@ fn an_event_in_clear_on_the_config_pan_neither_moves_a_keyed_node_nor_cuts_its_r
     assert_eq!(net.b.1.lamp, [true]);
     // An epoch far ahead of A's: taken, it would make every real event of A's look old.
     let epoch = net.a.0.epoch().wrapping_add(0x4000);
-    let forged = in_clear(
-        CONFIG_PAN,
-        B,
-        A,
-        &Message::Event {
-            epoch,
-            seq: 0,
-            topic: 3,
-        },
-    );
+    let forged = event_on_the_config_pan(epoch);
     net.b.0.receive(&forged, net.now, &mut net.b.1);
     assert_eq!(net.b.1.lamp, [true], "the forged event moved B's lamp");
     net.b.1.out.clear();
