@@ -206,7 +206,8 @@ fn main() {
             reply,
         })
     };
-    let per_node = 2 * (step(SwitchStep::Arm) + reply(ConfigReply::Armed { idle: true }))
+    let per_node = 2
+        * (step(SwitchStep::Arm { ask: 1 }) + reply(ConfigReply::Armed { idle: true, ask: 1 }))
         + step(SwitchStep::Go {
             now: false,
             trial: false,

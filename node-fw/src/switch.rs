@@ -161,9 +161,9 @@ impl SwitchOver {
             }));
         }
         match step {
-            SwitchStep::Arm => {
+            SwitchStep::Arm { ask } => {
                 self.armed_until = Some(now + ARM_HOLD_MS);
-                Action::Reply(ConfigReply::Armed { idle })
+                Action::Reply(ConfigReply::Armed { idle, ask })
             }
             SwitchStep::Go {
                 now: at_once,
@@ -321,6 +321,11 @@ pub struct Coordinator {
     /// Answers taken so far (orders them).
     answers: u32,
     nodes: heapless::Vec<(u16, NodeState, u8, u64), MAX_ROLES>,
+    /// Per node (as `nodes`): the last `Arm` it was sent and the last whose answer was
+    /// taken (`SwitchStep::Arm::ask`). An answer is taken only if it answers an ask newer
+    /// than that one: a late or duplicated answer to an earlier ask (say idle before the
+    /// machine moved again) is not.
+    asks: heapless::Vec<(u16, u16), MAX_ROLES>,
 }
 
 impl Coordinator {
@@ -340,6 +345,7 @@ impl Coordinator {
             verdict: Verdict::Busy,
             answers: 0,
             nodes: heapless::Vec::new(),
+            asks: heapless::Vec::new(),
         };
         let state = if now {
             NodeState::Going
@@ -347,8 +353,9 @@ impl Coordinator {
             NodeState::Arming
         };
         for &n in nodes {
-            if c.nodes.push((n, state, 0, start)).is_err() {
+            if c.nodes.push((n, state, 0, start)).is_err() || c.asks.push((0, 0)).is_err() {
                 c.nodes.clear();
+                c.asks.clear();
                 c.verdict = Verdict::Aborted;
                 c.phase = Phase::Done;
                 break;
@@ -423,12 +430,12 @@ impl Coordinator {
         match (self.phase, s) {
             (Phase::Disarming, _) => SwitchStep::Disarm,
             // A node that lost its arming (it rebooted) is armed again before it goes.
-            (Phase::Going, NodeState::Arming) if !self.now => SwitchStep::Arm,
+            (Phase::Going, NodeState::Arming) if !self.now => SwitchStep::Arm { ask: 0 },
             (Phase::Going, _) => SwitchStep::Go {
                 now: self.now,
                 trial: self.trial,
             },
-            _ => SwitchStep::Arm,
+            _ => SwitchStep::Arm { ask: 0 },
         }
     }
 
@@ -471,7 +478,11 @@ impl Coordinator {
                 self.nodes[i].1 = NodeState::Silent;
                 continue;
             }
-            let step = self.step_for(state);
+            let mut step = self.step_for(state);
+            if let (SwitchStep::Arm { ask }, Some(asks)) = (&mut step, self.asks.get_mut(i)) {
+                asks.0 = asks.0.wrapping_add(1);
+                *ask = asks.0;
+            }
             send(addr, Message::Switch { generation, step });
             self.nodes[i].2 = tries + 1;
             self.nodes[i].3 = now_ms + RETRY_MS;
@@ -492,8 +503,20 @@ impl Coordinator {
             return;
         }
         let phase = self.phase;
-        if !self.nodes.iter().any(|n| n.0 == addr) {
+        let Some(i) = self.nodes.iter().position(|n| n.0 == addr) else {
             return;
+        };
+        if let ConfigReply::Armed { ask, .. } = reply {
+            // Only an answer to an ask newer than the last answered, and sent.
+            let Some(asks) = self.asks.get_mut(i) else {
+                return;
+            };
+            let (sent, answered) = *asks;
+            let newer = ask.wrapping_sub(answered) as i16 > 0;
+            if !newer || (sent.wrapping_sub(ask) as i16) < 0 {
+                return;
+            }
+            asks.1 = ask;
         }
         let state = match (phase, reply) {
             (_, ConfigReply::Activated) => NodeState::Switched,
@@ -506,7 +529,7 @@ impl Coordinator {
             (Phase::Disarming, ConfigReply::Disarmed) => NodeState::Disarmed,
             (Phase::Going, ConfigReply::Armed { .. }) => NodeState::Going,
             (Phase::Going, ConfigReply::Busy) => NodeState::Arming,
-            (Phase::Arming | Phase::Waiting { .. }, ConfigReply::Armed { idle }) => {
+            (Phase::Arming | Phase::Waiting { .. }, ConfigReply::Armed { idle, .. }) => {
                 self.answers += 1;
                 NodeState::Armed {
                     idle,
@@ -608,6 +631,7 @@ mod tests {
     use super::*;
 
     const TOOL: u16 = 0x0100;
+    const ARM: SwitchStep = SwitchStep::Arm { ask: 1 };
     const GO: SwitchStep = SwitchStep::Go {
         now: false,
         trial: false,
@@ -631,10 +655,13 @@ mod tests {
             s.step(2, go, TOOL, 1, true, 0),
             Action::Reply(ConfigReply::Busy)
         );
-        let arm = SwitchStep::Arm;
+        let arm = SwitchStep::Arm { ask: 0 };
         assert_eq!(
             s.step(2, arm, TOOL, 1, false, 0),
-            Action::Reply(ConfigReply::Armed { idle: false })
+            Action::Reply(ConfigReply::Armed {
+                idle: false,
+                ask: 0
+            })
         );
         assert_eq!(
             s.step(2, go, TOOL, 1, false, 1),
@@ -667,12 +694,12 @@ mod tests {
     fn a_start_while_armed_is_held_and_runs_after_the_switch_or_on_disarm() {
         let mut s = staged(2);
         assert!(!s.hold_start(), "not armed: START runs");
-        s.step(2, SwitchStep::Arm, TOOL, 1, true, 0);
+        s.step(2, ARM, TOOL, 1, true, 0);
         assert!(s.hold_start());
         s.step(2, GO, TOOL, 1, true, 1);
         assert_eq!(s.activated(true, 1), (Some(TOOL), true));
         let mut s = staged(2);
-        s.step(2, SwitchStep::Arm, TOOL, 1, true, 0);
+        s.step(2, ARM, TOOL, 1, true, 0);
         assert!(s.hold_start());
         assert_eq!(
             s.step(2, SwitchStep::Disarm, TOOL, 1, true, 1),
@@ -684,7 +711,7 @@ mod tests {
     #[test]
     fn an_armed_node_left_alone_disarms_and_runs_its_held_start() {
         let mut s = staged(2);
-        s.step(2, SwitchStep::Arm, TOOL, 1, true, 0);
+        s.step(2, ARM, TOOL, 1, true, 0);
         s.hold_start();
         assert_eq!(s.deadline(), Some(ARM_HOLD_MS));
         assert!(!s.poll(ARM_HOLD_MS - 1));
@@ -696,7 +723,7 @@ mod tests {
     fn another_generation_than_the_staged_one_is_refused() {
         let mut s = staged(3);
         assert_eq!(
-            s.step(2, SwitchStep::Arm, TOOL, 1, true, 0),
+            s.step(2, ARM, TOOL, 1, true, 0),
             Action::Reply(ConfigReply::Refused(Refusal::NotStaged { staged: 3 }))
         );
         let mut none = SwitchOver::default();
@@ -722,8 +749,8 @@ mod tests {
         assert_eq!((s.trial(), s.previous(), s.staged()), (true, 1, 0));
         // Roll back to 1: armed and idle, then go.
         assert_eq!(
-            s.step(1, SwitchStep::Arm, TOOL, 2, true, 1),
-            Action::Reply(ConfigReply::Armed { idle: true })
+            s.step(1, ARM, TOOL, 2, true, 1),
+            Action::Reply(ConfigReply::Armed { idle: true, ask: 1 })
         );
         let go = GO;
         assert_eq!(
@@ -762,7 +789,7 @@ mod tests {
     #[test]
     fn a_failed_activation_keeps_the_staged_table_and_the_arming() {
         let mut s = staged(2);
-        s.step(2, SwitchStep::Arm, TOOL, 1, true, 0);
+        s.step(2, ARM, TOOL, 1, true, 0);
         s.step(2, GO, TOOL, 1, true, 1);
         assert_eq!(s.activated(false, 1), (Some(TOOL), false));
         assert_eq!((s.staged(), s.armed()), (2, true));
@@ -816,7 +843,12 @@ mod tests {
                     let Message::Switch { generation, step } = m else {
                         panic!()
                     };
-                    let _ = self.log.push((self.now, addr, step));
+                    // Logged without the ask's number (each Arm has its own).
+                    let kind = match step {
+                        SwitchStep::Arm { .. } => SwitchStep::Arm { ask: 0 },
+                        step => step,
+                    };
+                    let _ = self.log.push((self.now, addr, kind));
                     if let Some(d) = self.drop.iter_mut().find(|d| d.0 == addr && d.1 > 0) {
                         d.1 -= 1;
                         continue;
@@ -874,7 +906,7 @@ mod tests {
         assert_eq!(m.run(10_000), Verdict::Switched);
         assert_eq!(m.running().as_slice(), &[2, 2, 2]);
         let steps: heapless::Vec<SwitchStep, 16> = m.log.iter().map(|l| l.2).collect();
-        let arm = SwitchStep::Arm;
+        let arm = SwitchStep::Arm { ask: 0 };
         let go = GO;
         assert_eq!(
             steps.as_slice(),
@@ -905,7 +937,7 @@ mod tests {
         let to = |addr: u16| -> heapless::Vec<SwitchStep, 16> {
             m.log.iter().filter(|l| l.1 == addr).map(|l| l.2).collect()
         };
-        let (arm, go) = (SwitchStep::Arm, GO);
+        let (arm, go) = (SwitchStep::Arm { ask: 0 }, GO);
         assert_eq!(to(0x11).as_slice(), &[arm, arm, go, arm, go]);
         assert_eq!(to(0x12).as_slice(), &[arm, arm, go, go, go]);
     }
@@ -962,9 +994,75 @@ mod tests {
         let to = |addr: u16| -> heapless::Vec<SwitchStep, 16> {
             m.log.iter().filter(|l| l.1 == addr).map(|l| l.2).collect()
         };
-        let (arm, go) = (SwitchStep::Arm, GO);
+        let (arm, go) = (SwitchStep::Arm { ask: 0 }, GO);
         assert_eq!(to(0x11).as_slice(), &[arm]);
         assert_eq!(to(0x12).as_slice(), &[arm, arm, go]);
+    }
+
+    /// 0x11's first `Armed { idle: true }` (before 0x12 was armed) is duplicated and the
+    /// copy comes late: after every node was armed, the tool's ask of 0x11 once more was
+    /// lost and 0x11 started moving. The copy answers an earlier ask: not taken (it was,
+    /// as an answer after every node was armed, and 0x12 switched while 0x11 moved).
+    #[test]
+    fn a_late_copy_of_an_answer_to_an_earlier_ask_is_not_taken() {
+        type Out = heapless::Vec<(u16, Message<'static>), 8>;
+        let mut tool = Coordinator::new(&[0x11, 0x12], 2, false, 20_000, 0);
+        let (mut a, mut b) = (staged(2), staged(2));
+        let answer = |n: &mut SwitchOver, m: &Message, idle: bool, now: u64| match *m {
+            Message::Switch { generation, step } => {
+                match n.step(generation, step, TOOL, 1, idle, now) {
+                    Action::Reply(r) => r,
+                    other => panic!("{other:?}"),
+                }
+            }
+            _ => panic!("{m:?}"),
+        };
+        let mut out = Out::new();
+        tool.poll(0, |n, m| out.push((n, m)).unwrap());
+        let (to_a, to_b) = (out[0].1.clone(), out[1].1.clone());
+        let first = answer(&mut a, &to_a, true, 1);
+        assert!(matches!(first, ConfigReply::Armed { idle: true, .. }));
+        let mut again = Out::new();
+        tool.on_reply(0x11, 2, first, 2, |n, m| again.push((n, m)).unwrap());
+        let busy = answer(&mut b, &to_b, false, 3);
+        tool.on_reply(0x12, 2, busy, 4, |n, m| again.push((n, m)).unwrap());
+        // Every node armed: each asked once more. The ask of 0x11 is lost; it moves now.
+        let ask_b = again
+            .iter()
+            .find(|s| s.0 == 0x12)
+            .expect("0x12 asked again")
+            .1
+            .clone();
+        assert!(again.iter().any(|s| s.0 == 0x11), "0x11 asked again");
+        let mut sent = Out::new();
+        tool.on_reply(0x11, 2, first, 5, |n, m| sent.push((n, m)).unwrap());
+        let idle_b = answer(&mut b, &ask_b, true, 6);
+        tool.on_reply(0x12, 2, idle_b, 7, |n, m| sent.push((n, m)).unwrap());
+        // 0x11 answers each ask from now on: moving.
+        let mut now = 10;
+        while now < 2_000 {
+            let mut due = Out::new();
+            tool.poll(now, |n, m| due.push((n, m)).unwrap());
+            for (n, m) in due.iter().chain(sent.iter()) {
+                assert!(
+                    !matches!(
+                        m,
+                        Message::Switch {
+                            step: SwitchStep::Go { .. },
+                            ..
+                        }
+                    ),
+                    "Go to {n:#06x} at {now} ms while 0x11 moves"
+                );
+            }
+            sent.clear();
+            for (n, m) in due.iter().filter(|d| d.0 == 0x11) {
+                let r = answer(&mut a, m, false, now);
+                tool.on_reply(*n, 2, r, now, |n, m| sent.push((n, m)).unwrap());
+            }
+            now += 10;
+        }
+        assert_eq!(tool.verdict(), Verdict::Busy, "waiting for 0x11");
     }
 
     /// A late answer of the transfer (`Refused(OutOfSequence)` of the generation) while

@@ -338,7 +338,7 @@ fn run_coordinator(
             .max(Instant::now());
         while let Some(r) = radio.recv(until)? {
             if let Some(Message::ConfigReply { generation, reply }) = r.message() {
-                if let ConfigReply::Armed { idle } = reply {
+                if let ConfigReply::Armed { idle, .. } = reply {
                     not_idle.retain(|&a| a != r.src);
                     if !idle {
                         not_idle.push(r.src);

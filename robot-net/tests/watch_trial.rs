@@ -106,8 +106,8 @@ impl Script {
                     }
                     SwitchStep::Disarm => ConfigReply::Disarmed,
                     _ if generation == r.generation => ConfigReply::Activated,
-                    SwitchStep::Arm if generation == r.previous => {
-                        ConfigReply::Armed { idle: true }
+                    SwitchStep::Arm { ask } if generation == r.previous => {
+                        ConfigReply::Armed { idle: true, ask }
                     }
                     SwitchStep::Go { .. } if generation == r.previous => {
                         *r = Runs {

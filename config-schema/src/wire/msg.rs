@@ -71,7 +71,10 @@ pub enum Message<'a> {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum SwitchStep {
     /// Get ready: hold any START until the switch, and say whether the node is idle.
-    Arm,
+    /// `ask` numbers the tool's asks of this node, each one more: the answer carries it,
+    /// so a late or duplicated answer to an earlier ask is told from the answer to this
+    /// one.
+    Arm { ask: u16 },
     /// Switch to the generation now if armed and idle; with `now`, whatever the node is
     /// doing (a stopped or faulted machine). `trial`: not confirmed yet (a power cut, or a
     /// rollback, returns to the previous generation).
@@ -94,8 +97,8 @@ pub enum ConfigReply {
     /// The new table is checked and persisted, not running: it waits for the switch.
     Staged,
     /// Armed for the switch-over: START is held; `idle`: every chart in its initial
-    /// state, no timer running, nothing in flight, no fault.
-    Armed { idle: bool },
+    /// state, no timer running, nothing in flight, no fault; `ask`: the `Arm` answered.
+    Armed { idle: bool, ask: u16 },
     /// Not switched: the node is not armed or not idle (ask again).
     Busy,
     /// Disarmed: the running table goes on.

@@ -299,6 +299,7 @@ fn check_for_the_tool(r: &mut In, v: u32) {
                 },
                 4 => {
                     r.bool();
+                    r.u16();
                 }
                 _ => {}
             }
@@ -384,7 +385,10 @@ fn config_reply(r: &mut In) -> ConfigReply {
         1 => ConfigReply::Activated,
         2 => ConfigReply::Refused(refusal(r)),
         3 => ConfigReply::Staged,
-        4 => ConfigReply::Armed { idle: r.bool() },
+        4 => ConfigReply::Armed {
+            idle: r.bool(),
+            ask: r.u16(),
+        },
         5 => ConfigReply::Busy,
         6 => ConfigReply::Disarmed,
         _ => ConfigReply::Confirmed,
@@ -428,7 +432,7 @@ fn command(r: &mut In) -> Command {
 
 fn switch_step(r: &mut In) -> SwitchStep {
     match r.variant(4) {
-        0 => SwitchStep::Arm,
+        0 => SwitchStep::Arm { ask: r.u16() },
         1 => SwitchStep::Go {
             now: r.bool(),
             trial: r.bool(),
@@ -736,7 +740,10 @@ pub(super) fn emit(m: &Message<'_>, w: &mut Out) {
             w.byte(12);
             w.u32(*generation);
             match *step {
-                SwitchStep::Arm => w.byte(0),
+                SwitchStep::Arm { ask } => {
+                    w.byte(0);
+                    w.u16(ask)
+                }
                 SwitchStep::Go { now, trial } => {
                     w.byte(1);
                     w.bool(now);
@@ -765,9 +772,10 @@ fn emit_reply(reply: &ConfigReply, w: &mut Out) {
             emit_refusal(refusal, w)
         }
         ConfigReply::Staged => w.byte(3),
-        ConfigReply::Armed { idle } => {
+        ConfigReply::Armed { idle, ask } => {
             w.byte(4);
-            w.bool(idle)
+            w.bool(idle);
+            w.u16(ask)
         }
         ConfigReply::Busy => w.byte(5),
         ConfigReply::Disarmed => w.byte(6),

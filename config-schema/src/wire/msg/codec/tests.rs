@@ -102,7 +102,7 @@ fn reply() -> impl Strategy<Value = ConfigReply> {
         Just(ConfigReply::Activated),
         refusal().prop_map(ConfigReply::Refused),
         Just(ConfigReply::Staged),
-        any::<bool>().prop_map(|idle| ConfigReply::Armed { idle }),
+        (any::<bool>(), any::<u16>()).prop_map(|(idle, ask)| ConfigReply::Armed { idle, ask }),
         Just(ConfigReply::Busy),
         Just(ConfigReply::Disarmed),
         Just(ConfigReply::Confirmed),
@@ -116,7 +116,7 @@ fn command() -> impl Strategy<Value = Command> {
 
 fn step() -> impl Strategy<Value = SwitchStep> {
     prop_oneof![
-        Just(SwitchStep::Arm),
+        any::<u16>().prop_map(|ask| SwitchStep::Arm { ask }),
         (any::<bool>(), any::<bool>()).prop_map(|(now, trial)| SwitchStep::Go { now, trial }),
         Just(SwitchStep::Disarm),
         Just(SwitchStep::Confirm),
