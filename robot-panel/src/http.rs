@@ -154,9 +154,11 @@ fn reason(code: u16) -> &'static str {
     }
 }
 
-/// Headers every answer carries: nothing cached, and no `Referer` sent on from the page
-/// (its address may hold the token).
-pub const COMMON: &str = "Cache-Control: no-store\r\nReferrer-Policy: no-referrer\r\n";
+/// Headers every answer carries: nothing cached, no `Referer` sent on from the page (its
+/// address may hold the token), and no page of another site may frame it (a frame under a
+/// decoy button would have the operator press START: clickjacking).
+pub const COMMON: &str = "Cache-Control: no-store\r\nReferrer-Policy: no-referrer\r\n\
+    X-Frame-Options: DENY\r\nContent-Security-Policy: frame-ancestors 'none'\r\n";
 
 /// Writes a whole answer (`Connection: close`) to `out`.
 pub fn respond(out: &mut impl Write, code: u16, kind: &str, body: &str) -> io::Result<()> {
@@ -268,7 +270,8 @@ mod tests {
         assert_eq!(
             String::from_utf8(out).expect("utf-8"),
             "HTTP/1.1 409 Conflict\r\nContent-Type: text/plain\r\nCache-Control: no-store\r\n\
-             Referrer-Policy: no-referrer\r\nContent-Length: 8\r\nConnection: close\r\n\r\n\
+             Referrer-Policy: no-referrer\r\nX-Frame-Options: DENY\r\n\
+             Content-Security-Policy: frame-ancestors 'none'\r\nContent-Length: 8\r\nConnection: close\r\n\r\n\
              refused\n"
         );
         let mut out = Vec::new();
@@ -276,7 +279,8 @@ mod tests {
         assert_eq!(
             String::from_utf8(out).expect("utf-8"),
             "HTTP/1.1 303 See Other\r\nContent-Type: text/plain\r\nCache-Control: no-store\r\n\
-             Referrer-Policy: no-referrer\r\nLocation: /\r\nContent-Length: 0\r\n\
+             Referrer-Policy: no-referrer\r\nX-Frame-Options: DENY\r\n\
+             Content-Security-Policy: frame-ancestors 'none'\r\nLocation: /\r\nContent-Length: 0\r\n\
              Connection: close\r\n\r\n"
         );
     }

@@ -26,7 +26,7 @@ use crate::live::Live;
 use crate::model::Machine;
 use crate::poll::{self, Order};
 use crate::shared::Shared;
-use crate::streams::{Streams, MAX_STREAMS};
+use crate::streams::{Streams, MAX_HEADS, MAX_STREAMS};
 use crate::{feed, view};
 use robot_compiler::compile::Compiled;
 use robot_keys::MachineSecret;
@@ -106,6 +106,8 @@ struct Ctx {
     /// The panel's own address, as a request's `Host` names it.
     addr: SocketAddr,
     streams: Streams,
+    /// The requests whose head is being read.
+    heads: Streams,
     connections: AtomicUsize,
     stop: Arc<AtomicBool>,
 }
@@ -158,6 +160,7 @@ impl Panel {
             cookie: cookie_name(addr),
             addr,
             streams: Streams::default(),
+            heads: Streams::bounded(MAX_HEADS),
             connections: AtomicUsize::new(0),
             stop: stop.clone(),
         });
@@ -308,7 +311,12 @@ fn same(a: &str, b: &str) -> bool {
 
 /// Serves the one request of a connection.
 fn serve(ctx: &Ctx, mut stream: TcpStream) {
-    let rq = match http::read(&mut stream) {
+    // Among the heads being read until it is read: a newcomer past MAX_HEADS closes the
+    // oldest (a client that never finishes its heads holds no more connections than that).
+    let reading = ctx.heads.open(&stream);
+    let read = http::read(&mut stream);
+    drop(reading);
+    let rq = match read {
         Ok(rq) => rq,
         Err(Refused::Status(code, why)) => {
             let _ = http::respond(&mut stream, code, "text/plain", &format!("{why}\n"));
@@ -373,9 +381,15 @@ fn answer(ctx: &Ctx, rq: &Request) -> Answer {
     // A page of another site may open connections to the panel (an event stream holds one
     // of its few slots): the browser says whose page it is.
     let own = rq.header("host").map(|h| format!("http://{h}"));
-    if rq
-        .header("origin")
-        .is_some_and(|o| Some(o) != own.as_deref())
+    // An `<img>`, `<script>` or frame of another site's page sends no `Origin`, but its
+    // browser says the request is not the page's own (`Sec-Fetch-Site`).
+    let foreign = rq
+        .header("sec-fetch-site")
+        .is_some_and(|s| s != "same-origin" && s != "none");
+    if foreign
+        || rq
+            .header("origin")
+            .is_some_and(|o| Some(o) != own.as_deref())
     {
         return page(403, plain, "this panel answers its own page only\n");
     }
@@ -499,6 +513,104 @@ mod tests {
         let v6: SocketAddr = "[::1]:8080".parse().expect("addr");
         assert!(names_panel(Some("[::1]:8080"), v6));
         assert!(!names_panel(Some("[::2]:8080"), v6));
+    }
+
+    use std::io::Read;
+    use std::time::Instant;
+
+    /// A medium and a panel of the paint robot listening on `listen` (no radio: no button
+    /// is carried out, which these tests do not need).
+    fn panel_on(listen: &str) -> (medium::Medium, Panel) {
+        let medium = medium::Medium::start(medium::Config::default()).expect("medium");
+        let listener = Listener::bind(listen.parse().expect("addr")).expect("binds");
+        let c = crate::model::tests::paint();
+        let panel = Panel::start(listener, c, medium.addr(), None).expect("starts");
+        (medium, panel)
+    }
+
+    /// Sends `bytes` to `at`; the answer, read to its end (within 5 s).
+    fn exchange(at: SocketAddr, bytes: &[u8]) -> String {
+        let mut s = TcpStream::connect(at).expect("connects");
+        s.set_read_timeout(Some(Duration::from_secs(5)))
+            .expect("timeout");
+        s.write_all(bytes).expect("sends");
+        let mut out = Vec::new();
+        let _ = s.read_to_end(&mut out);
+        String::from_utf8_lossy(&out).into_owned()
+    }
+
+    /// Another site's page may not frame the panel's (a frame under a decoy button would
+    /// have the operator press START through it: on loopback the page needs no token).
+    #[test]
+    fn no_other_site_may_frame_the_page() {
+        let (_medium, panel) = panel_on("127.0.0.1:0");
+        let at = panel.addr();
+        let answer = exchange(
+            at,
+            format!("GET / HTTP/1.1\r\nHost: {at}\r\n\r\n").as_bytes(),
+        );
+        let (head, _) = answer.split_once("\r\n\r\n").expect("a head");
+        assert!(head.starts_with("HTTP/1.1 200 OK"), "{head}");
+        assert!(head.contains("\r\nX-Frame-Options: DENY\r\n"), "{head}");
+        assert!(
+            head.contains("\r\nContent-Security-Policy: frame-ancestors 'none'\r\n"),
+            "{head}"
+        );
+    }
+
+    /// An `<img>` of another site's page asks for the event stream without an `Origin`;
+    /// its browser says it is another site's: refused (it held a stream's slot).
+    #[test]
+    fn another_sites_image_opens_no_event_stream() {
+        let (_medium, panel) = panel_on("127.0.0.1:0");
+        let at = panel.addr();
+        let rq = format!(
+            "GET /events HTTP/1.1\r\nHost: {at}\r\nSec-Fetch-Site: cross-site\r\n\
+             Sec-Fetch-Mode: no-cors\r\nSec-Fetch-Dest: image\r\n\r\n"
+        );
+        let answer = exchange(at, rq.as_bytes());
+        assert!(answer.starts_with("HTTP/1.1 403 Forbidden\r\n"), "{answer}");
+    }
+
+    /// One client holding every connection with heads it never finishes: the oldest are
+    /// closed as newer ones come (past MAX_HEADS), so the operator's page is still served
+    /// (it got 503 until the heads' 5 s deadline, and the client opened more).
+    #[test]
+    fn heads_never_finished_keep_no_page_out() {
+        let (_medium, panel) = panel_on("127.0.0.1:0");
+        let at = panel.addr();
+        let slow: Vec<TcpStream> = (0..MAX_CONNECTIONS)
+            .map(|_| {
+                let mut s = TcpStream::connect(at).expect("connects");
+                s.write_all(b"GET / HTTP/1.1\r\nX: ").expect("sends");
+                s.set_nonblocking(true).expect("nonblocking");
+                s
+            })
+            .collect();
+        // The panel closes the oldest heads, answering nothing (before the 5 s deadline,
+        // which answers 408): wait for those closes.
+        let want = MAX_CONNECTIONS - MAX_HEADS;
+        let mut closed = vec![false; slow.len()];
+        let until = Instant::now() + Duration::from_millis(4_500);
+        while closed.iter().filter(|c| **c).count() < want && Instant::now() < until {
+            for (s, c) in slow.iter().zip(closed.iter_mut()).filter(|(_, c)| !**c) {
+                match (&*s).read(&mut [0u8; 64]) {
+                    Ok(0) => *c = true,
+                    Ok(n) => panic!("answered {n} bytes"),
+                    Err(_) => {}
+                }
+            }
+            std::thread::yield_now();
+        }
+        assert_eq!(
+            closed.iter().filter(|c| **c).count(),
+            want,
+            "closed by the panel"
+        );
+        // The operator's page: served (once the closed heads' threads are gone).
+        let get = format!("GET /state.json HTTP/1.1\r\nHost: {at}\r\n\r\n");
+        let served = (0..100).any(|_| exchange(at, get.as_bytes()).starts_with("HTTP/1.1 200 OK"));
+        assert!(served, "the operator's page was refused");
     }
 
     #[test]

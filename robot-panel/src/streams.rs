@@ -1,7 +1,11 @@
-//! The pages' event streams open at once: at most [`MAX_STREAMS`]. A newcomer past them
-//! closes the oldest, so streams that never read (a stuck tab, a local process holding
-//! connections) cannot keep a page out; a page whose stream was closed opens another by
-//! itself (`EventSource`) and gets the state at once.
+//! Connections held open, oldest first, at most a bound: the pages' event streams (at
+//! most [`MAX_STREAMS`]) and the requests whose head is still being read (at most
+//! [`MAX_HEADS`]). A newcomer past the bound closes the oldest, so streams that never read
+//! (a stuck tab, a local process holding connections) and heads never finished (a client
+//! that sends a byte now and then to hold connections: slowloris) cannot keep a page out;
+//! a page whose stream was closed opens another by itself (`EventSource`) and gets the
+//! state at once, and a page's request is read as it comes, in far less than the time it
+//! takes that many newer heads to arrive.
 
 use std::collections::VecDeque;
 use std::net::{Shutdown, TcpStream};
@@ -10,10 +14,20 @@ use std::sync::{Mutex, MutexGuard};
 /// At most this many pages stream at once (each holds a thread).
 pub const MAX_STREAMS: usize = 32;
 
-/// The streams open, oldest first.
-#[derive(Default)]
+/// At most this many requests are read at once (each holds a thread).
+pub const MAX_HEADS: usize = 48;
+
+/// The connections open, oldest first, at most `max`.
 pub struct Streams {
     open: Mutex<Open>,
+    max: usize,
+}
+
+impl Default for Streams {
+    /// The pages' event streams: at most [`MAX_STREAMS`].
+    fn default() -> Self {
+        Streams::bounded(MAX_STREAMS)
+    }
 }
 
 #[derive(Default)]
@@ -31,13 +45,21 @@ pub struct Slot<'s> {
 }
 
 impl Streams {
-    /// A place for the stream on `socket`, closing the oldest stream if [`MAX_STREAMS`]
-    /// are open (its thread finds its socket closed at its next write). Fails only if the
-    /// socket cannot be shared.
+    /// At most `max` connections (at least one).
+    pub fn bounded(max: usize) -> Self {
+        Streams {
+            open: Mutex::default(),
+            max: max.max(1),
+        }
+    }
+
+    /// A place for the connection on `socket`, closing the oldest if the bound's many are
+    /// open (its thread finds its socket closed at its next read or write). Fails only if
+    /// the socket cannot be shared.
     pub fn open(&self, socket: &TcpStream) -> std::io::Result<Slot<'_>> {
         let handle = socket.try_clone()?;
         let mut open = self.lock();
-        while open.streams.len() >= MAX_STREAMS {
+        while open.streams.len() >= self.max {
             if let Some((_, oldest)) = open.streams.pop_front() {
                 let _ = oldest.shutdown(Shutdown::Both);
             }
