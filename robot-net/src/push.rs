@@ -558,13 +558,15 @@ pub fn confirm(
         generation,
         step: SwitchStep::Confirm,
     };
-    while Instant::now() < end
-        && answers
-            .iter()
-            .any(|a| !matches!(a.1, Some(r) if r != ConfigReply::Busy))
-    {
+    // A confirmation's own answers: `Confirmed`, or refused. Anything else of the
+    // generation (`Busy` at its flash, a late `Activated` or `Armed` of the switch-over
+    // before) is not its answer: asked again.
+    let done = |a: &Option<ConfigReply>| {
+        matches!(a, Some(ConfigReply::Confirmed | ConfigReply::Refused(_)))
+    };
+    while Instant::now() < end && answers.iter().any(|a| !done(&a.1)) {
         for (n, a) in &answers {
-            if !matches!(a, Some(r) if *r != ConfigReply::Busy) {
+            if !done(a) {
                 radio.send(*n, &step)?;
             }
         }
@@ -576,7 +578,10 @@ pub fn confirm(
             }) = r.message()
             {
                 if let Some(a) = answers.iter_mut().find(|a| a.0 == r.src && g == generation) {
-                    a.1 = Some(reply);
+                    // A final answer stays (a late copy of anything else is not this one's).
+                    if !done(&a.1) {
+                        a.1 = Some(reply);
+                    }
                 }
             }
         }
