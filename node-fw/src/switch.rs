@@ -320,12 +320,42 @@ pub struct Coordinator {
     verdict: Verdict,
     /// Answers taken so far (orders them).
     answers: u32,
-    nodes: heapless::Vec<(u16, NodeState, u8, u64), MAX_ROLES>,
-    /// Per node (as `nodes`): the last `Arm` it was sent and the last whose answer was
-    /// taken (`SwitchStep::Arm::ask`). An answer is taken only if it answers an ask newer
-    /// than that one: a late or duplicated answer to an earlier ask (say idle before the
+    nodes: heapless::Vec<Peer, MAX_ROLES>,
+}
+
+/// One node of the switch-over, as the tool follows it.
+#[derive(Debug, Clone, Copy)]
+struct Peer {
+    addr: u16,
+    state: NodeState,
+    /// Sends of the step due without an answer.
+    tries: u8,
+    /// When the step is sent (again).
+    due: u64,
+    /// The last `Arm` it was sent and the last whose answer was taken
+    /// (`SwitchStep::Arm::ask`). An answer is taken only if it answers an ask newer than
+    /// that one: a late or duplicated answer to an earlier ask (say idle before the
     /// machine moved again) is not.
-    asks: heapless::Vec<(u16, u16), MAX_ROLES>,
+    asked: u16,
+    answered: u16,
+}
+
+impl Peer {
+    /// The step due is sent at `now_ms`, its tries counted afresh.
+    fn ask_at(&mut self, now_ms: u64) {
+        self.tries = 0;
+        self.due = now_ms;
+    }
+
+    /// Whether an `Armed` answering ask `ask` is taken (and if so, it is the last taken).
+    fn takes_answer_to(&mut self, ask: u16) -> bool {
+        let newer = ask.wrapping_sub(self.answered) as i16 > 0;
+        let sent = self.asked.wrapping_sub(ask) as i16 >= 0;
+        if newer && sent {
+            self.answered = ask;
+        }
+        newer && sent
+    }
 }
 
 impl Coordinator {
@@ -345,17 +375,23 @@ impl Coordinator {
             verdict: Verdict::Busy,
             answers: 0,
             nodes: heapless::Vec::new(),
-            asks: heapless::Vec::new(),
         };
         let state = if now {
             NodeState::Going
         } else {
             NodeState::Arming
         };
-        for &n in nodes {
-            if c.nodes.push((n, state, 0, start)).is_err() || c.asks.push((0, 0)).is_err() {
+        for &addr in nodes {
+            let peer = Peer {
+                addr,
+                state,
+                tries: 0,
+                due: start,
+                asked: 0,
+                answered: 0,
+            };
+            if c.nodes.push(peer).is_err() {
                 c.nodes.clear();
-                c.asks.clear();
                 c.verdict = Verdict::Aborted;
                 c.phase = Phase::Done;
                 break;
@@ -383,7 +419,7 @@ impl Coordinator {
 
     /// Every node and where it stands.
     pub fn nodes(&self) -> impl Iterator<Item = (u16, NodeState)> + '_ {
-        self.nodes.iter().map(|&(a, s, _, _)| (a, s))
+        self.nodes.iter().map(|n| (n.addr, n.state))
     }
 
     /// When [`Coordinator::poll`] next has work.
@@ -395,8 +431,8 @@ impl Coordinator {
         };
         self.nodes
             .iter()
-            .filter(|n| self.waits_for(n.1))
-            .map(|n| n.3)
+            .filter(|n| self.waits_for(n.state))
+            .map(|n| n.due)
             .min()
             .unwrap_or(limit)
             .min(limit)
@@ -456,36 +492,35 @@ impl Coordinator {
         if now_ms >= self.go_until && self.phase == Phase::Going {
             // A node told to go that is not idle (it faulted, or moves again) within the
             // wait: the ones not switched are disarmed.
-            let switched = self.nodes.iter().any(|n| n.1 == NodeState::Switched);
+            let switched = self.nodes.iter().any(|n| n.state == NodeState::Switched);
             self.verdict = if switched {
                 Verdict::Partial
             } else {
                 Verdict::NotIdle
             };
-            self.phase = Phase::Disarming;
-            for n in self.nodes.iter_mut() {
-                n.2 = 0;
-                n.3 = now_ms;
-            }
+            self.call_off(now_ms);
         }
         let generation = self.generation;
         for i in 0..self.nodes.len() {
-            let (addr, state, tries, due) = self.nodes[i];
-            if !self.waits_for(state) || now_ms < due {
+            let Some(&n) = self.nodes.get(i) else { break };
+            if !self.waits_for(n.state) || now_ms < n.due {
                 continue;
             }
-            if tries >= GIVE_UP_AFTER {
-                self.nodes[i].1 = NodeState::Silent;
+            let mut step = self.step_for(n.state);
+            let Some(n) = self.nodes.get_mut(i) else {
+                break;
+            };
+            if n.tries >= GIVE_UP_AFTER {
+                n.state = NodeState::Silent;
                 continue;
             }
-            let mut step = self.step_for(state);
-            if let (SwitchStep::Arm { ask }, Some(asks)) = (&mut step, self.asks.get_mut(i)) {
-                asks.0 = asks.0.wrapping_add(1);
-                *ask = asks.0;
+            if let SwitchStep::Arm { ask } = &mut step {
+                n.asked = n.asked.wrapping_add(1);
+                *ask = n.asked;
             }
-            send(addr, Message::Switch { generation, step });
-            self.nodes[i].2 = tries + 1;
-            self.nodes[i].3 = now_ms + RETRY_MS;
+            send(n.addr, Message::Switch { generation, step });
+            n.tries += 1;
+            n.due = now_ms + RETRY_MS;
         }
         self.advance(now_ms, send);
     }
@@ -503,20 +538,14 @@ impl Coordinator {
             return;
         }
         let phase = self.phase;
-        let Some(i) = self.nodes.iter().position(|n| n.0 == addr) else {
+        let Some(node) = self.nodes.iter_mut().find(|n| n.addr == addr) else {
             return;
         };
         if let ConfigReply::Armed { ask, .. } = reply {
             // Only an answer to an ask newer than the last answered, and sent.
-            let Some(asks) = self.asks.get_mut(i) else {
-                return;
-            };
-            let (sent, answered) = *asks;
-            let newer = ask.wrapping_sub(answered) as i16 > 0;
-            if !newer || (sent.wrapping_sub(ask) as i16) < 0 {
+            if !node.takes_answer_to(ask) {
                 return;
             }
-            asks.1 = ask;
         }
         let state = match (phase, reply) {
             (_, ConfigReply::Activated) => NodeState::Switched,
@@ -538,26 +567,25 @@ impl Coordinator {
             }
             _ => return,
         };
-        let Some(node) = self.nodes.iter_mut().find(|n| n.0 == addr) else {
+        let Some(node) = self.nodes.iter_mut().find(|n| n.addr == addr) else {
             return;
         };
-        let progressed = state != node.1 || matches!(state, NodeState::Armed { .. });
-        node.1 = state;
+        let progressed = state != node.state || matches!(state, NodeState::Armed { .. });
+        node.state = state;
         if progressed {
-            node.2 = 0;
             // Ask again at once when the step changes, else on the retry.
-            node.3 = if matches!(state, NodeState::Armed { .. }) {
+            node.ask_at(if matches!(state, NodeState::Armed { .. }) {
                 now_ms + RETRY_MS
             } else {
                 now_ms
-            };
+            });
         }
         self.advance(now_ms, &mut send);
     }
 
     fn advance(&mut self, now_ms: u64, send: &mut dyn FnMut(u16, Message<'static>)) {
-        let all = |f: &dyn Fn(NodeState) -> bool| self.nodes.iter().all(|n| f(n.1));
-        let any = |f: &dyn Fn(NodeState) -> bool| self.nodes.iter().any(|n| f(n.1));
+        let all = |f: &dyn Fn(NodeState) -> bool| self.nodes.iter().all(|n| f(n.state));
+        let any = |f: &dyn Fn(NodeState) -> bool| self.nodes.iter().any(|n| f(n.state));
         let failed = |s: NodeState| matches!(s, NodeState::Refused(_) | NodeState::Silent);
         // A node that runs the generation already (it switched in a switch-over that did
         // not finish: pushed again) answers `Activated`, and is not waited for.
@@ -574,8 +602,7 @@ impl Coordinator {
             Phase::Arming if all(&|s| matches!(s, NodeState::Armed { .. }) || switched(s)) => {
                 // Ask every node once more at once: only answers after this count.
                 for n in self.nodes.iter_mut() {
-                    n.2 = 0;
-                    n.3 = now_ms;
+                    n.ask_at(now_ms);
                 }
                 Some(Phase::Waiting {
                     since: self.answers,
@@ -586,10 +613,9 @@ impl Coordinator {
                     matches!(s, NodeState::Armed { idle: true, at } if at > since) || switched(s)
                 }) =>
             {
-                for n in self.nodes.iter_mut().filter(|n| !switched(n.1)) {
-                    n.1 = NodeState::Going;
-                    n.2 = 0;
-                    n.3 = now_ms;
+                for n in self.nodes.iter_mut().filter(|n| !switched(n.state)) {
+                    n.state = NodeState::Going;
+                    n.ask_at(now_ms);
                 }
                 self.go_until = now_ms.saturating_add(self.wait_ms);
                 Some(Phase::Going)
@@ -606,22 +632,28 @@ impl Coordinator {
                 };
                 Some(Phase::Done)
             }
-            Phase::Disarming if !self.nodes.iter().any(|n| self.waits_for(n.1)) => {
+            Phase::Disarming if !self.nodes.iter().any(|n| self.waits_for(n.state)) => {
                 Some(Phase::Done)
             }
             _ => None,
         };
         if let Some(p) = next {
-            self.phase = p;
             if p == Phase::Disarming {
-                for n in self.nodes.iter_mut() {
-                    n.2 = 0;
-                    n.3 = now_ms;
-                }
+                self.call_off(now_ms);
+            } else {
+                self.phase = p;
             }
             if p != Phase::Done {
                 self.poll_dyn(now_ms, send);
             }
+        }
+    }
+
+    /// Calls the switch-over off: every node not done with it is disarmed, from `now_ms`.
+    fn call_off(&mut self, now_ms: u64) {
+        self.phase = Phase::Disarming;
+        for n in self.nodes.iter_mut() {
+            n.ask_at(now_ms);
         }
     }
 }
