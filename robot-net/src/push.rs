@@ -493,12 +493,10 @@ pub fn watch_trial_for(
         // Confirmed by whoever runs the watch (the tool's lock on its counter file keeps
         // another tool of the same key file from confirming meanwhile), only after a round
         // in which every node ran the trial: then the next round sees how it went.
-        if let (true, Some(generation)) = (confirm_asked(), trial) {
-            if !confirmed_once {
-                confirm(radio, nodes, generation, wait)?;
-                confirmed_once = true;
-                continue;
-            }
+        if let (false, Some(generation), true) = (confirmed_once, trial, confirm_asked()) {
+            confirm(radio, nodes, generation, wait)?;
+            confirmed_once = true;
+            continue;
         }
         let timed_out = end.is_some_and(|e| Instant::now() >= e);
         let cycled = window.cycles.is_some_and(|n| cycles.done >= n);

@@ -7,62 +7,54 @@ use robot_compiler::iec61499::export;
 use robot_compiler::Diagnostic;
 
 use super::offline::{load_compiled, report};
+use super::outputs::MAX_FILE_NAME;
 use crate::failure::Failure;
 use crate::out::outln;
 
 pub fn export(robot: &Path, out: &Path) -> Result<(), Failure> {
     let (src, compiled) = load_compiled(robot)?;
+    // Where the robot file names chart type `ty`.
+    let type_at = |ty: &str| {
+        (compiled.robot.chart_type(ty))
+            .map(|(i, t)| src.span(t.place(&format!("chart_types[{i}].name"))))
+    };
+    // `problem`, at its place in the robot file if it has one.
+    let refused = |at: Option<std::ops::Range<usize>>, problem: String| match at {
+        Some(span) => {
+            report(&src, &[Diagnostic::error(span, problem)]);
+            Failure::reported()
+        }
+        None => Failure::error(format!("{}: {problem}", robot.display())),
+    };
     let exported = export::export(&compiled, &today()).map_err(|e| {
         // At the chart type it names, where the robot file has it.
         let at = match &e {
-            export::ExportError::Type { ty, .. } => compiled
-                .robot
-                .chart_type(ty)
-                .map(|(i, t)| src.span(t.place(&format!("chart_types[{i}].name")))),
+            export::ExportError::Type { ty, .. } => type_at(ty),
             export::ExportError::Reads { .. } => None,
         };
-        match at {
-            Some(span) => {
-                report(
-                    &src,
-                    &[Diagnostic::error(span, format!("cannot export: {e}"))],
-                );
-                Failure::reported()
-            }
-            None => Failure::error(format!("{}: cannot export: {e}", robot.display())),
-        }
+        refused(at, format!("cannot export: {e}"))
     })?;
     // File names the file system would refuse part-way (too long), or that come twice:
     // refused at the name in the robot file that makes them, before anything is written.
     let mut seen = std::collections::HashSet::new();
     for (name, _) in &exported.files {
         let problem = if name.len() > MAX_FILE_NAME {
-            Some(format!(
+            format!(
                 "cannot export: the file name `{name}` is {} bytes long: a file system takes \
                  at most {MAX_FILE_NAME}",
                 name.len()
-            ))
+            )
         } else if !seen.insert(name.as_str()) {
-            Some(format!("cannot export: two files would be named `{name}`"))
+            format!("cannot export: two files would be named `{name}`")
         } else {
-            None
+            continue;
         };
-        let Some(problem) = problem else { continue };
         let at = match (name.strip_suffix(".sys"), name.strip_suffix(".fbt")) {
             (Some(_), _) => Some(src.span("name")),
-            (_, Some(stem)) => (compiled.robot.chart_types.iter().enumerate())
-                .rev()
-                .find(|(_, t)| t.name == stem)
-                .map(|(i, t)| src.span(t.place(&format!("chart_types[{i}].name")))),
+            (_, Some(stem)) => type_at(stem),
             _ => None,
         };
-        return Err(match at {
-            Some(span) => {
-                report(&src, &[Diagnostic::error(span, problem)]);
-                Failure::reported()
-            }
-            None => Failure::error(format!("{}: {problem}", robot.display())),
-        });
+        return Err(refused(at, problem));
     }
     let inputs = super::outputs::robot_files(robot, &compiled.robot);
     let names = exported.files.iter().map(|(name, _)| name.as_str());
@@ -82,10 +74,6 @@ pub fn export(robot: &Path, out: &Path) -> Result<(), Failure> {
     );
     Ok(())
 }
-
-/// Bytes of the longest file name the common file systems take (ext4, XFS, APFS, NTFS
-/// in UTF-16 units, which a name of this many bytes never exceeds).
-const MAX_FILE_NAME: usize = 255;
 
 /// Today's date (UTC), `YYYY-MM-DD`, for `VersionInfo`.
 fn today() -> String {

@@ -63,6 +63,10 @@ pub fn robot_files(path: &Path, robot: &robot_compiler::model::Robot) -> Vec<Pat
         .collect()
 }
 
+/// Bytes of the longest file name the common file systems take (ext4, XFS, APFS, NTFS
+/// in UTF-16 units, which a name of this many bytes never exceeds).
+pub const MAX_FILE_NAME: usize = 255;
+
 /// Writes each `(name, bytes)` into directory `dir` (made if missing), every file or none:
 /// a name that is not a plain file name or comes twice, or a target that exists and is not
 /// a file, is refused before anything is written; each file is written to a temporary
@@ -90,7 +94,7 @@ pub fn write_all<'a>(
         let plain = Path::new(name).file_name().and_then(|f| f.to_str()) == Some(*name);
         // Longer than a file system takes: it would fail part-way, the files before it
         // already in place.
-        if !plain || name.len() > 255 {
+        if !plain || name.len() > MAX_FILE_NAME {
             return Err(Failure::error(format!(
                 "{name:?} is not a file name: nothing written to {}",
                 dir.display()

@@ -422,8 +422,7 @@ fn from_matrix(
             src.span(&format!("{path}.marking[{k}]")),
             format!("m(0) of function `{f}` puts {x} tokens in a place: a state machine's place holds 0 or 1 (one entry 1, the others 0)"),
         ));
-    } else if m.marking.iter().filter(|&&x| x == 1).count() != 1 {
-        let tokens = m.marking.iter().filter(|&&x| x == 1).count();
+    } else if let tokens @ (0 | 2..) = m.marking.iter().filter(|&&x| x == 1).count() {
         diags.push(Diagnostic::error(
             src.span(&format!("{path}.marking")),
             format!("m(0) of function `{f}` holds {tokens} tokens: a state machine holds exactly one (one entry 1, the others 0)"),
