@@ -55,6 +55,13 @@ pub(crate) fn to_end<T>(s: &mut [T], i: usize) {
     }
 }
 
+/// One more of a counter the node reports (frames received, dropped, refused, ...):
+/// held at `u32::MAX` rather than wrapped to a small number or, in a debug build,
+/// panicking after 2^32 flooded frames.
+pub(crate) fn count(counter: &mut u32) {
+    *counter = counter.saturating_add(1);
+}
+
 /// `v.remove(i)` (nothing if `i` is out of range) without `ptr::copy` ([`to_end`]).
 pub(crate) fn remove_at<T, const N: usize>(v: &mut heapless::Vec<T, N>, i: usize) {
     if i < v.len() {

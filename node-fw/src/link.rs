@@ -152,7 +152,7 @@ impl Sender {
         if index < WINDOW {
             if let Some(msg) = self.event(index) {
                 send(msg);
-                self.counters.sent += 1;
+                crate::count(&mut self.counters.sent);
             }
         }
         if self.deadline.is_none() {
@@ -191,7 +191,7 @@ impl Sender {
         for index in already_sent..WINDOW.min(self.pending.len()) {
             if let Some(msg) = self.event(index) {
                 send(msg);
-                self.counters.sent += 1;
+                crate::count(&mut self.counters.sent);
             }
         }
         self.deadline = (!self.pending.is_empty()).then(|| now + self.rto());
@@ -234,7 +234,7 @@ impl Sender {
         for index in 0..WINDOW.min(self.pending.len()) {
             if let Some(msg) = self.event(index) {
                 send(msg);
-                self.counters.retried += 1;
+                crate::count(&mut self.counters.retried);
             }
         }
         self.timeouts = self.timeouts.saturating_add(1);

@@ -347,7 +347,7 @@ impl Radio {
     #[inline(always)]
     fn transmit(&mut self, io: &mut impl Io, frame: Option<&[u8]>) {
         if let Some(frame) = frame {
-            self.counters.sent += 1;
+            crate::count(&mut self.counters.sent);
             io.transmit_mpdu(frame);
         }
     }
@@ -388,7 +388,7 @@ impl Radio {
                 };
                 let header = self.header(pan_id, dst);
                 let Some(counter) = counter.or_else(|| io.next_frame_counter()) else {
-                    self.security.no_counter += 1;
+                    crate::count(&mut self.security.no_counter);
                     return;
                 };
                 // No key for `dst` (not a peer): nothing is sent in clear instead.
@@ -1197,7 +1197,7 @@ impl<S: StagingArea> NodeCore<S> {
     /// counted with the frames the core drops. Nothing else changes (no stimulus: the
     /// alarms have nothing new to look at).
     pub fn dropped_at_edge(&mut self) {
-        self.radio.counters.dropped += 1;
+        crate::count(&mut self.radio.counters.dropped);
     }
 
     /// The short path of an unsecured `Event` or `EventAck` to this node on the running
@@ -1227,7 +1227,7 @@ impl<S: StagingArea> NodeCore<S> {
         let Some(m) = LinkMessage::parse(payload) else {
             return false;
         };
-        self.radio.counters.received += 1;
+        crate::count(&mut self.radio.counters.received);
         let src = u16::from_le_bytes([s0, s1]);
         match m {
             LinkMessage::Event { epoch, seq, topic } => {
@@ -1246,8 +1246,7 @@ impl<S: StagingArea> NodeCore<S> {
     /// check and the handshake ([`PeerSecurity::admit`]) and [`NodeCore::on_link`].
     /// One that opens to another message (a challenge, an answer) goes on as the general
     /// path's does ([`NodeCore::receive_opened`]). `false`: not such a frame, or its key
-    /// is not found, nothing done but the overlap's start ([`PeerSecurity::note_frame`],
-    /// which the general path notes too); [`NodeCore::receive_frame`] takes it, and does
+    /// is not found, nothing done; [`NodeCore::receive_frame`] takes it, and does
     /// for these frames exactly what this does.
     #[inline(never)]
     fn link_secured(&mut self, mpdu: &[u8], now: u64, io: &mut impl Io) -> bool {
@@ -1263,17 +1262,19 @@ impl<S: StagingArea> NodeCore<S> {
         };
         let src = frame.src();
         let links = &mut self.radio.links;
-        links.note_frame(now);
         let Some(key) = links.receive_key(src, frame.key_index(), self.radio.addr, now) else {
             return false;
         };
         let mut plain = [0u8; LinkMessage::MAX_LEN];
         let payload = match frame.open::<NodeCipher>(&key, &mut plain) {
-            Ok(payload) => payload,
+            Ok(payload) => {
+                links.note_frame(now);
+                payload
+            }
             Err(e) => {
                 let staged = self.switch.staged();
                 links.refused(mpdu, staged, e, &mut self.radio.security);
-                self.radio.counters.dropped += 1;
+                crate::count(&mut self.radio.counters.dropped);
                 return true;
             }
         };
@@ -1295,7 +1296,7 @@ impl<S: StagingArea> NodeCore<S> {
                 return true;
             }
         }
-        self.radio.counters.received += 1;
+        crate::count(&mut self.radio.counters.received);
         self.on_link(m, src, now, io);
         true
     }
@@ -1305,7 +1306,7 @@ impl<S: StagingArea> NodeCore<S> {
     fn not_accepted(&mut self, verdict: Verdict<'_>, pan: u16, now: u64, io: &mut impl Io) {
         match verdict {
             Verdict::Accept(_) | Verdict::Answered => {}
-            Verdict::Dropped => self.radio.counters.dropped += 1,
+            Verdict::Dropped => crate::count(&mut self.radio.counters.dropped),
             Verdict::Challenge { peer, challenge } => {
                 if challenge {
                     self.challenge_peer(peer, now, io);
@@ -1341,7 +1342,7 @@ impl<S: StagingArea> NodeCore<S> {
         let (header, payload) = match Frame::parse_mpdu(mpdu) {
             Ok(Frame::Data { header, payload }) => (header, payload),
             _ => {
-                self.radio.counters.dropped += 1;
+                crate::count(&mut self.radio.counters.dropped);
                 return;
             }
         };
@@ -1351,7 +1352,7 @@ impl<S: StagingArea> NodeCore<S> {
                 .as_ref()
                 .is_none_or(|t| t.header.pan_id == header.pan_id);
         if (header.dst != self.radio.addr && header.dst != BROADCAST) || !pan_ok {
-            self.radio.counters.dropped += 1;
+            crate::count(&mut self.radio.counters.dropped);
             return;
         }
         // The opened payload's buffer, zeroed only for a secured frame.
@@ -1364,15 +1365,12 @@ impl<S: StagingArea> NodeCore<S> {
         }
         let peers = header.pan_id != CONFIG_PAN && self.radio.links.secured();
         if peers && !header.secured {
-            self.radio.security.not_secured += 1;
-            self.radio.counters.dropped += 1;
+            crate::count(&mut self.radio.security.not_secured);
+            crate::count(&mut self.radio.counters.dropped);
             return;
         }
         // One open and one parse for both secured paths (and the unsecured one).
         let opened = if (management || peers) && header.secured {
-            if peers {
-                self.radio.links.note_frame(now);
-            }
             scratch = [0u8; mac::MAX_PAYLOAD];
             let opened = security::open_default_mpdu_with::<NodeCipher, _>(
                 mpdu,
@@ -1380,7 +1378,12 @@ impl<S: StagingArea> NodeCore<S> {
                 &mut scratch,
             );
             match opened {
-                Ok(opened) => Some(opened),
+                Ok(opened) => {
+                    if peers {
+                        self.radio.links.note_frame(now);
+                    }
+                    Some(opened)
+                }
                 Err(e) => {
                     if management {
                         peer_security::count_refusal(e, &mut self.radio.security);
@@ -1390,7 +1393,7 @@ impl<S: StagingArea> NodeCore<S> {
                             .links
                             .refused(mpdu, staged, e, &mut self.radio.security);
                     }
-                    self.radio.counters.dropped += 1;
+                    crate::count(&mut self.radio.counters.dropped);
                     return;
                 }
             }
@@ -1400,9 +1403,9 @@ impl<S: StagingArea> NodeCore<S> {
             // that generation staged (a peer that switched a moment earlier), does not.
             let ahead = self.switch.staged() != 0 && header.pan_id != CONFIG_PAN;
             if self.table.is_some() && !ahead {
-                self.radio.security.unknown_key += 1;
+                crate::count(&mut self.radio.security.unknown_key);
             }
-            self.radio.counters.dropped += 1;
+            crate::count(&mut self.radio.counters.dropped);
             return;
         } else {
             // In clear (an event or an acknowledgement in the frame this firmware writes
@@ -1438,7 +1441,7 @@ impl<S: StagingArea> NodeCore<S> {
             Some(opened) if management => match self.admit_management(opened, &parsed, now, io) {
                 Ok(()) => true,
                 Err(Refused::Dropped) => {
-                    self.radio.counters.dropped += 1;
+                    crate::count(&mut self.radio.counters.dropped);
                     return;
                 }
                 Err(Refused::Handshake) => return,
@@ -1461,11 +1464,11 @@ impl<S: StagingArea> NodeCore<S> {
             Ok(msg) => msg,
             // Replies, statuses and announcements are for the tool.
             Err(Unacted::ForTheTool) => {
-                self.radio.counters.received += 1;
+                crate::count(&mut self.radio.counters.received);
                 return;
             }
             Err(Unacted::Malformed) => {
-                self.radio.counters.dropped += 1;
+                crate::count(&mut self.radio.counters.dropped);
                 return;
             }
         };
@@ -1490,13 +1493,13 @@ impl<S: StagingArea> NodeCore<S> {
                     }
                 );
             if !scan {
-                self.radio.security.not_secured += 1;
-                self.radio.counters.dropped += 1;
+                crate::count(&mut self.radio.security.not_secured);
+                crate::count(&mut self.radio.counters.dropped);
                 return;
             }
             if now < self.next_open_identify {
                 // A scan asked again within the second: not a security refusal.
-                self.radio.counters.dropped += 1;
+                crate::count(&mut self.radio.counters.dropped);
                 return;
             }
             self.next_open_identify = now + OPEN_IDENTIFY_MS;
@@ -1506,12 +1509,12 @@ impl<S: StagingArea> NodeCore<S> {
             // Events and their acks are the robot's, on its PAN (secured there under link
             // keys): on the config PAN they are no peer's, whoever they claim to be from.
             if self.radio.links.secured() {
-                self.radio.security.not_secured += 1;
+                crate::count(&mut self.radio.security.not_secured);
             }
-            self.radio.counters.dropped += 1;
+            crate::count(&mut self.radio.counters.dropped);
             return;
         }
-        self.radio.counters.received += 1;
+        crate::count(&mut self.radio.counters.received);
         let src = header.src;
         let reply_pan = header.pan_id;
         if let Some(m) = link {
@@ -1533,7 +1536,7 @@ impl<S: StagingArea> NodeCore<S> {
                     (Some(_), Err(_)) if nonce == restart::GREETING => {
                         self.peer_restarted(src, now, io)
                     }
-                    _ => self.radio.counters.dropped += 1,
+                    _ => crate::count(&mut self.radio.counters.dropped),
                 }
             }
             Message::Command { id, command } => {
@@ -1585,7 +1588,7 @@ impl<S: StagingArea> NodeCore<S> {
                 peer_security::accept(&mut self.replay, src, MANAGEMENT_KEY_INDEX, counter, c);
                 return Err(Refused::Handshake);
             }
-            c.challenged += 1;
+            crate::count(&mut c.challenged);
             if now >= self.next_challenge {
                 self.next_challenge = now + CHALLENGE_MS;
                 self.challenge(src, now, io);
@@ -1612,7 +1615,7 @@ impl<S: StagingArea> NodeCore<S> {
     /// for the management path, on the robot's for the peers' (one sender for both).
     fn challenge_on(&mut self, pan: u16, dst: u16, flags: u32, now: u64, io: &mut impl Io) {
         let Some(counter) = io.next_frame_counter() else {
-            self.radio.security.no_counter += 1;
+            crate::count(&mut self.radio.security.no_counter);
             return;
         };
         let nonce = if flags == restart::RESET_GREETING {
@@ -1744,7 +1747,7 @@ impl<S: StagingArea> NodeCore<S> {
             None => self.ask_renumbering(peer, pan, src, epoch, now, io),
         }
         for &topic in deliver.iter() {
-            self.radio.counters.delivered += 1;
+            crate::count(&mut self.radio.counters.delivered);
             let peer = peer as u8;
             self.run(now, io, Stimulus::Remote { peer, topic });
         }
@@ -1762,7 +1765,7 @@ impl<S: StagingArea> NodeCore<S> {
         deliver: &mut Vec<u8, { link::WINDOW + 1 }>,
     ) -> Option<(usize, Option<u16>)> {
         let Some(peer) = self.peer(src) else {
-            self.radio.counters.dropped += 1;
+            crate::count(&mut self.radio.counters.dropped);
             return None;
         };
         let (_, receiver) = self.receivers.get_mut(peer)?;
@@ -1795,7 +1798,7 @@ impl<S: StagingArea> NodeCore<S> {
             None => self.ask_renumbering(peer, pan, src, epoch, now, io),
         }
         for &topic in deliver.iter() {
-            self.radio.counters.delivered += 1;
+            crate::count(&mut self.radio.counters.delivered);
             self.run_remote(now, io, peer as u8, topic);
         }
     }

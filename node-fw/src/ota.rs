@@ -452,7 +452,7 @@ impl<'b> Sender<'b> {
         if let Message::ConfigChunk { data, .. } = &msg {
             self.stats.bytes += data.len() as u32;
         }
-        self.stats.frames += 1;
+        crate::count(&mut self.stats.frames);
         send(msg);
     }
 

@@ -10,7 +10,8 @@
 //! **Overlap.** When a new generation runs, the previous generation's receive keys are
 //! kept: a peer that has not switched yet still reaches this node, until that peer is
 //! heard under the new key (it switched: its old-key frames are replays or forgeries from
-//! then on) or [`OVERLAP_MS`] after the switch, whichever comes first. A node only sends
+//! then on) or [`OVERLAP_MS`] after the first peer's frame that opened after the switch,
+//! whichever comes first. A node only sends
 //! under its running generation's keys; a peer still on the old generation cannot open
 //! them and the link layer resends until it switches. So a switch-over loses no event.
 //!
@@ -265,7 +266,8 @@ impl PeerSecurity {
         {
             return k.of(src).map(|p| p.receive);
         }
-        let overlap = self.overlap_until.is_some_and(|t| now < t) && !self.switched.contains(&src);
+        // Not begun (no peer's frame opened since the switch) is open.
+        let overlap = self.overlap_until.is_none_or(|t| now < t) && !self.switched.contains(&src);
         self.previous
             .as_ref()
             .filter(|k| overlap && link_key_index(k.generation) == key_index)
@@ -292,7 +294,6 @@ impl PeerSecurity {
         if !crate::FRAME_SECURITY {
             return Verdict::Dropped;
         }
-        self.note_frame(now);
         // The FCS is the radio edge's: checked here for a PSDU off the medium.
         let (mpdu, opened) = match config_schema::wire::mac::strip_fcs(psdu) {
             Ok(mpdu) => (
@@ -307,6 +308,7 @@ impl PeerSecurity {
         };
         match opened {
             Ok(opened) => {
+                self.note_frame(now);
                 let message = Message::parse(opened.payload);
                 self.admit(&opened, &message, now, counters)
             }
@@ -317,8 +319,9 @@ impl PeerSecurity {
         }
     }
 
-    /// A secured frame from a peer arrived at `now` (before it is opened): the overlap of
-    /// the previous generation's keys runs from the first one after a switch.
+    /// A secured frame from a peer opened at `now`: the overlap of the previous
+    /// generation's keys runs from the first one after a switch (not from a frame that
+    /// did not open: anyone in range can send one, and would end the overlap early).
     pub fn note_frame(&mut self, now: u64) {
         self.overlap_until.get_or_insert(now + OVERLAP_MS);
     }
@@ -400,7 +403,7 @@ impl PeerSecurity {
                 accept(&mut self.replay, src, ANY_LINK_KEY, seen, counters);
                 return Verdict::Answered;
             }
-            counters.challenged += 1;
+            crate::count(&mut counters.challenged);
             let challenge = may(&mut self.next_challenge, src, now, CHALLENGE_MS);
             return Verdict::Challenge {
                 peer: src,
@@ -566,11 +569,11 @@ pub fn accept<const N: usize>(
     match replay.check_and_accept(sender, key_index, counter) {
         Ok(()) => true,
         Err(ReplayError::Replayed { .. }) => {
-            c.replayed += 1;
+            crate::count(&mut c.replayed);
             false
         }
         Err(ReplayError::Full) => {
-            c.table_full += 1;
+            crate::count(&mut c.table_full);
             false
         }
     }
@@ -590,11 +593,11 @@ fn ahead(mpdu: &[u8], staged: u32) -> bool {
 /// Counts why a secured frame did not open.
 pub fn count_refusal(e: SecError, c: &mut SecurityCounters) {
     match e {
-        SecError::NotSecured => c.not_secured += 1,
-        SecError::BadMic => c.bad_mic += 1,
-        SecError::UnknownKey => c.unknown_key += 1,
-        SecError::Level { .. } | SecError::NoMic => c.wrong_level += 1,
-        _ => c.malformed += 1,
+        SecError::NotSecured => crate::count(&mut c.not_secured),
+        SecError::BadMic => crate::count(&mut c.bad_mic),
+        SecError::UnknownKey => crate::count(&mut c.unknown_key),
+        SecError::Level { .. } | SecError::NoMic => crate::count(&mut c.wrong_level),
+        _ => crate::count(&mut c.malformed),
     }
 }
 
@@ -739,6 +742,43 @@ mod tests {
             "dropped"
         );
         assert_eq!(c.unknown_key, 2);
+    }
+
+    #[test]
+    fn a_refusal_counter_at_its_limit_stays_there() {
+        let mut c = SecurityCounters {
+            bad_mic: u32::MAX,
+            ..SecurityCounters::default()
+        };
+        count_refusal(SecError::BadMic, &mut c);
+        count_refusal(SecError::UnknownKey, &mut c);
+        assert_eq!((c.bad_mic, c.unknown_key), (u32::MAX, 1));
+    }
+
+    #[test]
+    fn a_forged_frame_does_not_start_the_overlap() {
+        let (mut s, mut c) = running();
+        s.install(Some(keys(2)), &[PEER]);
+        // A frame under the previous generation's key index whose MIC is wrong (anyone
+        // in range can send one) is refused; the overlap has not begun.
+        let mut forged = frame(1, 11, &EVENT);
+        let body = forged.len() - config_schema::wire::mac::FCS_LEN;
+        forged[body - 1] ^= 0xFF;
+        config_schema::wire::mac::append_fcs(&mut forged, body).unwrap();
+        assert_eq!(verdict(&mut s, &forged, 0, &mut c), "dropped");
+        assert_eq!(c.bad_mic, 1);
+        // The peer, still on generation 1, is heard long after: its frame opens.
+        let later = 5 * OVERLAP_MS;
+        assert_eq!(
+            verdict(&mut s, &frame(1, 12, &EVENT), later, &mut c),
+            "accept"
+        );
+        // The overlap runs from that authentic frame.
+        assert_eq!(
+            verdict(&mut s, &frame(1, 13, &EVENT), later + OVERLAP_MS, &mut c),
+            "dropped"
+        );
+        assert_eq!(c.unknown_key, 1);
     }
 
     #[test]

@@ -463,16 +463,16 @@ impl<P: Pins> Io for CoreIo<'_, P> {
     fn transmit(&mut self, psdu: &[u8]) {
         match config_schema::wire::mac::strip_fcs(psdu) {
             Ok(mpdu) => self.transmit_mpdu(mpdu),
-            Err(_) => self.stats.tx_failed += 1,
+            Err(_) => crate::count(&mut self.stats.tx_failed),
         }
     }
     fn transmit_mpdu(&mut self, mpdu: &[u8]) {
         if mpdu.len() > MAX_MPDU {
-            self.stats.tx_failed += 1;
+            crate::count(&mut self.stats.tx_failed);
             return;
         }
         if !self.tx.push(mpdu) {
-            self.stats.tx_queue_full += 1;
+            crate::count(&mut self.stats.tx_queue_full);
         }
         self.stats.tx_queue_high = self.stats.tx_queue_high.max(self.tx.len() as u32);
     }
@@ -704,7 +704,7 @@ fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
                 }
                 Err(e) => {
                     notes.note(addr, Note::CannotStage(failure(e)));
-                    io.stats.flash_failures += 1;
+                    crate::count(&mut io.stats.flash_failures);
                     false
                 }
             };
@@ -718,7 +718,7 @@ fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
             if ok {
                 at.trial = false;
             } else {
-                io.stats.flash_failures += 1;
+                crate::count(&mut io.stats.flash_failures);
             }
             core.confirmed(ok, io);
         }
@@ -789,11 +789,11 @@ fn switched<F: NorFlash, P: Pins, S: Staging, N: Notes>(
     let deployed = read.and_then(|slot| deployment(slots, slot));
     let ok = deployed.is_some();
     if !ok {
-        io.stats.flash_failures += 1;
+        crate::count(&mut io.stats.flash_failures);
     }
     core.activated(deployed, now_ms(), io);
     if let Some(t) = core.table().filter(|_| ok) {
-        io.stats.activations += 1;
+        crate::count(&mut io.stats.activations);
         let note = Note::Switched {
             rollback,
             role: &t.header.role,
@@ -1031,7 +1031,7 @@ where
         while let Some(mpdu) = io.tx.front() {
             let sent = with_timeout(Duration::from_millis(SEND_TIMEOUT_MS), radio.send(mpdu)).await;
             if !matches!(sent, Ok(Ok(()))) {
-                io.stats.tx_failed += 1;
+                crate::count(&mut io.stats.tx_failed);
             }
             io.tx.pop();
         }
