@@ -4,7 +4,7 @@
 //! `robot_net` functions the CLI commands use: `push::command` (START, RESET),
 //! `home::home`, `home::alarms` (ACK), `push::confirm`.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender};
 use std::sync::Arc;
 use std::time::{Duration, SystemTime};
@@ -24,6 +24,38 @@ use crate::shared::Shared;
 pub struct Order {
     pub button: Button,
     pub reply: Sender<Result<String, String>>,
+    /// Taken by the radio thread, or given up on by the page, whichever comes first.
+    pub claim: Claim,
+}
+
+/// Who has an order: the radio thread that carries it out, or the page that stopped
+/// waiting for it. An order the page gave up on (answered "not carried out") is never
+/// carried out later; one the radio thread took is waited for until it ends.
+#[derive(Debug, Clone, Default)]
+pub struct Claim(Arc<AtomicU8>);
+
+const PENDING: u8 = 0;
+const TAKEN: u8 = 1;
+const GIVEN_UP: u8 = 2;
+
+impl Claim {
+    fn settle(&self, to: u8) -> bool {
+        (self.0)
+            .compare_exchange(PENDING, to, Ordering::SeqCst, Ordering::SeqCst)
+            .is_ok()
+    }
+
+    /// The radio thread takes the order: `false` if the page gave up on it first (then
+    /// it is not carried out).
+    pub fn take(&self) -> bool {
+        self.settle(TAKEN)
+    }
+
+    /// The page gives up waiting for the order: `false` if the radio thread took it
+    /// already (it is under way).
+    pub fn give_up(&self) -> bool {
+        self.settle(GIVEN_UP)
+    }
 }
 
 /// How long a node is asked before it counts as not answering (a round of the poll).
@@ -74,6 +106,8 @@ pub fn run(
         }
         round += 1;
         match orders.recv_timeout(ROUND) {
+            // The page gave up on it: its operator was told it was not carried out.
+            Ok(order) if !order.claim.take() => {}
             Ok(order) => {
                 let outcome = p.order(order.button);
                 if let Err(NetError::Radio(e)) = &outcome {

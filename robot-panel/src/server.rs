@@ -14,7 +14,7 @@
 use std::io::{self, Write};
 use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc::{self, Sender};
+use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -24,7 +24,7 @@ use crate::error::PanelError;
 use crate::http::{self, Refused, Request};
 use crate::live::Live;
 use crate::model::Machine;
-use crate::poll::{self, Order};
+use crate::poll::{self, Claim, Order};
 use crate::shared::Shared;
 use crate::streams::{Streams, MAX_HEADS, MAX_STREAMS};
 use crate::{feed, view};
@@ -45,6 +45,8 @@ pub const MAX_CONNECTIONS: usize = MAX_REQUESTS + MAX_STREAMS;
 const KEEPALIVE: Duration = Duration::from_secs(5);
 /// The longest an order may take (homing waits for the machine).
 const ORDER_WITHIN: Duration = Duration::from_secs(120);
+/// At most this many orders wait for the radio thread (more are answered 503).
+const MAX_ORDERS: usize = 8;
 
 /// The panel's socket, bound before anything else is opened: a second panel on the same
 /// port is refused first, with a clear error.
@@ -99,7 +101,7 @@ struct Ctx {
     machine: Arc<Machine>,
     model: String,
     shared: Arc<Shared>,
-    orders: Mutex<Sender<Order>>,
+    orders: Mutex<SyncSender<Order>>,
     token: Option<String>,
     /// The name of the cookie that keeps the token ([`cookie_name`]).
     cookie: String,
@@ -142,7 +144,7 @@ impl Panel {
                 addr: medium,
                 source,
             })?;
-        let (orders, inbox) = mpsc::channel();
+        let (orders, inbox) = mpsc::sync_channel(MAX_ORDERS);
         let run = Run {
             c: c.clone(),
             machine: machine.clone(),
@@ -434,20 +436,61 @@ fn command(ctx: &Ctx, name: &str) -> (u16, String) {
         return (409, format!("refused: {why}"));
     }
     let (reply, outcome) = mpsc::channel();
-    let sent = ctx
-        .orders
-        .lock()
-        .map(|o| o.send(Order { button: b, reply }).is_ok())
-        .unwrap_or(false);
-    if !sent {
-        return (503, "the panel's radio stopped".into());
+    let claim = Claim::default();
+    let order = Order {
+        button: b,
+        reply,
+        claim: claim.clone(),
+    };
+    let sent = match ctx.orders.lock() {
+        Ok(o) => o.try_send(order),
+        Err(_) => return (503, "the panel's radio stopped".into()),
+    };
+    match sent {
+        Ok(()) => outcome_of(name, &claim, &outcome, ORDER_WITHIN, ORDER_WITHIN),
+        Err(TrySendError::Full(_)) => (
+            503,
+            format!("the panel is busy: {MAX_ORDERS} orders wait already; {name} was not sent"),
+        ),
+        Err(TrySendError::Disconnected(_)) => (503, "the panel's radio stopped".into()),
     }
-    match outcome.recv_timeout(ORDER_WITHIN) {
-        Ok(Ok(said)) => (200, said),
-        Ok(Err(said)) => (409, said),
+}
+
+/// How order `name` ended: its outcome, once the radio thread carried it out. An order
+/// without an outcome `within` is given up on if the radio thread has not taken it (504,
+/// and it is never carried out); one it took is waited for `then` more, its outcome then
+/// unknown (504).
+fn outcome_of(
+    name: &str,
+    claim: &Claim,
+    outcome: &Receiver<Result<String, String>>,
+    within: Duration,
+    then: Duration,
+) -> (u16, String) {
+    let answer = |said: Result<String, String>| match said {
+        Ok(said) => (200, said),
+        Err(said) => (409, said),
+    };
+    if let Ok(said) = outcome.recv_timeout(within) {
+        return answer(said);
+    }
+    if claim.give_up() {
+        return (
+            504,
+            format!(
+                "{name}: not carried out (the panel's radio did not take it within {} s)",
+                within.as_secs()
+            ),
+        );
+    }
+    match outcome.recv_timeout(then) {
+        Ok(said) => answer(said),
         Err(_) => (
             504,
-            format!("{name}: no outcome within {} s", ORDER_WITHIN.as_secs()),
+            format!(
+                "{name}: under way for {} s, its outcome unknown (see the machine's state)",
+                (within + then).as_secs()
+            ),
         ),
     }
 }
@@ -611,6 +654,38 @@ mod tests {
         let get = format!("GET /state.json HTTP/1.1\r\nHost: {at}\r\n\r\n");
         let served = (0..100).any(|_| exchange(at, get.as_bytes()).starts_with("HTTP/1.1 200 OK"));
         assert!(served, "the operator's page was refused");
+    }
+
+    #[test]
+    fn an_order_the_page_gave_up_on_is_never_carried_out() {
+        let (_reply, outcome) = mpsc::channel();
+        let claim = Claim::default();
+        let (code, said) = outcome_of("START", &claim, &outcome, Duration::ZERO, Duration::ZERO);
+        assert_eq!(
+            (code, said.as_str()),
+            (
+                504,
+                "START: not carried out (the panel's radio did not take it within 0 s)"
+            )
+        );
+        // The radio thread comes to it later: it does not take it.
+        assert!(!claim.take());
+    }
+
+    #[test]
+    fn an_order_under_way_is_waited_for_past_the_first_wait() {
+        let (reply, outcome) = mpsc::channel();
+        let claim = Claim::default();
+        assert!(claim.take());
+        let radio = std::thread::spawn(move || {
+            reply.send(Ok("HOME: homed".to_string())).unwrap();
+        });
+        // The first wait ends before the outcome (or not): taken, it is waited for again.
+        let long = Duration::from_secs(600);
+        let (code, said) = outcome_of("HOME", &claim, &outcome, Duration::ZERO, long);
+        radio.join().unwrap();
+        assert_eq!((code, said.as_str()), (200, "HOME: homed"));
+        assert!(!claim.give_up());
     }
 
     #[test]
