@@ -116,6 +116,26 @@ fn every_condition_form_the_tools_write() {
     assert_eq!(with("TRUE"), (None, None));
 }
 
+/// Text after a condition's event that is no guard is refused where it is, whatever its
+/// characters (a non-ASCII one there panicked: a slice of three bytes).
+#[test]
+fn a_condition_with_other_text_after_its_event_is_refused_there() {
+    for after in ["éé", "Aé", "x"] {
+        let ecc = ECC.replace("EI[C &lt; N]", &format!("EI {after}"));
+        let col = ECC
+            .lines()
+            .nth(2)
+            .and_then(|l| l.find("EI["))
+            .expect("the condition")
+            + 4;
+        assert_eq!(
+            error(&fbt(VARS, &ecc, ALG)),
+            format!("13:{col}: expected `[guard]` or `& guard` after the event `EI`"),
+            "{after}"
+        );
+    }
+}
+
 /// An ECC of more states or transitions than a table holds is refused at the first one
 /// too many, before anything compares them in pairs.
 #[test]
@@ -422,6 +442,12 @@ fn an_element_of_too_many_attributes_is_refused_before_parsing() {
     );
     assert_eq!(
         error(&entity),
+        "2:1: a DOCTYPE with an internal subset (declarations): not taken"
+    );
+    // A `>` in a quoted literal before the subset does not end the DOCTYPE.
+    let quoted = entity.replacen("FBType [", "FBType SYSTEM \"x>y\" [", 1);
+    assert_eq!(
+        error(&quoted),
         "2:1: a DOCTYPE with an internal subset (declarations): not taken"
     );
     let system = format!(

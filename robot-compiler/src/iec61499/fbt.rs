@@ -870,8 +870,12 @@ fn condition(
         }
     } else if let Some(g) = after.strip_prefix('&') {
         (g, after_at + 1)
-    } else if after.len() >= 3 && after[..3].eq_ignore_ascii_case("AND") {
-        (&after[3..], after_at + 3)
+    } else if let Some(g) = after
+        .get(..3)
+        .filter(|and| and.eq_ignore_ascii_case("AND"))
+        .and_then(|_| after.get(3..))
+    {
+        (g, after_at + 3)
     } else {
         return Err(StError {
             message: format!("expected `[guard]` or `& guard` after the event `{event}`"),

@@ -216,12 +216,32 @@ pub(crate) fn refused_xml(text: &str) -> Option<(net::Pos, String)> {
         } else if rest.starts_with('?') {
             i = find(i, "?>");
         } else if rest.starts_with("!DOCTYPE") {
-            let end = find(i, ">");
-            if text.get(i..end).is_some_and(|d| d.contains('[')) {
+            // Its end or its subset's `[`, whichever comes first outside the quoted
+            // literals (`SYSTEM "x>y"` does not end it).
+            let mut quote = None;
+            let stop = b.get(i..).and_then(|d| {
+                d.iter().position(|&c| match quote {
+                    Some(q) => {
+                        if c == q {
+                            quote = None;
+                        }
+                        false
+                    }
+                    None if c == b'"' || c == b'\'' => {
+                        quote = Some(c);
+                        false
+                    }
+                    None => c == b'>' || c == b'[',
+                })
+            });
+            let Some(k) = stop else {
+                break;
+            };
+            if b.get(i + k) == Some(&b'[') {
                 let why = "a DOCTYPE with an internal subset (declarations): not taken";
                 return Some((place(i - 1), why.to_string()));
             }
-            i = end;
+            i += k + 1;
         } else if rest.starts_with('!') || rest.starts_with('/') {
             i = find(i, ">");
         } else {
