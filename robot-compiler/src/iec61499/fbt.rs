@@ -20,6 +20,7 @@
 use config_schema::limits::{MAX_CHART_INPUTS, MAX_STATES, MAX_TRANSITIONS, MAX_VARS};
 use roxmltree::{Document, Node};
 
+use super::net;
 use super::st::{self, Name, StError, Stmt, Ty};
 use crate::model::{ActionDecl, ChartType, StateDecl, TransitionDecl, VarDecl, Written};
 
@@ -43,13 +44,16 @@ const OTHER_FB_KINDS: [&str; 3] = ["FBNetwork", "Service", "SimpleFB"];
 #[derive(Clone, Copy)]
 struct Cx<'a, 'i> {
     doc: &'a Document<'i>,
+    /// The lines of the document's text (a place found without scanning it from its
+    /// start: roxmltree's `text_pos_at` does, and a large file took seconds).
+    lines: &'a net::Lines,
 }
 
 impl<'a, 'i> Cx<'a, 'i> {
     fn at(&self, pos: usize, message: impl Into<String>) -> XmlError {
-        let p = self.doc.text_pos_at(pos);
+        let p = self.lines.pos(self.doc.input_text(), pos);
         XmlError {
-            line: p.row,
+            line: p.line,
             col: p.col,
             message: message.into(),
         }
@@ -57,8 +61,8 @@ impl<'a, 'i> Cx<'a, 'i> {
 
     /// The line and column of element `n`.
     fn line_col(&self, n: Node<'a, 'i>) -> (u32, u32) {
-        let p = self.doc.text_pos_at(n.range().start);
-        (p.row, p.col)
+        let p = self.lines.pos(self.doc.input_text(), n.range().start);
+        (p.line, p.col)
     }
 
     fn node_err(&self, n: Node<'a, 'i>, message: impl Into<String>) -> XmlError {
@@ -205,7 +209,11 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
         col: at.col,
         message,
     })?;
-    let cx = Cx { doc: &doc };
+    let lines = net::Lines::of(text);
+    let cx = Cx {
+        doc: &doc,
+        lines: &lines,
+    };
     let root = doc.root_element();
     if root.tag_name().name() != "FBType" {
         return Err(cx.node_err(
