@@ -224,11 +224,10 @@ fn a_tampered_compiled_table_breaks_the_sequence() {
         .contains(&"      chart VC: IDLE -> STEP5".to_string()));
 }
 
-/// A tampered table whose `fault` publication no longer reaches RC: when VC's watchdog
-/// fires, RC goes on running.
-#[test]
-fn a_fault_publication_that_misses_a_node_is_caught() {
-    let mut c = build(&load("../robot-configs/paint-robot.ron"));
+/// `file` compiled, its VC's `fault` publication tampered so that it no longer reaches
+/// RC.
+fn vc_fault_misses_rc(file: &str) -> Compiled {
+    let mut c = build(&load(file));
     let fault = c.ir.roles[0].event_id("fault").expect("fault event") as u8;
     let rc = c.ir.roles.iter().position(|r| r.name == "RC").expect("RC");
     let rc_peer = c.tables[0]
@@ -244,6 +243,14 @@ fn a_fault_publication_that_misses_a_node_is_caught() {
     assert_eq!(p.subscribers.count_ones(), 3);
     p.subscribers &= !(1 << rc_peer);
     c.blobs[0] = robot_compiler::compile::encode(&c.tables[0]).expect("encodes");
+    c
+}
+
+/// A tampered table whose `fault` publication no longer reaches RC: when VC's watchdog
+/// fires, RC goes on running.
+#[test]
+fn a_fault_publication_that_misses_a_node_is_caught() {
+    let c = vc_fault_misses_rc("../robot-configs/paint-robot.ron");
     let v = run(&c, false).violation.expect("a violation");
     assert_eq!(v.property, Property::FaultStop);
     assert_eq!(v.message, "VC faulted but RC is still running");
@@ -253,6 +260,32 @@ fn a_fault_publication_that_misses_a_node_is_caught() {
     assert!(v
         .trace
         .contains(&"  2. timer VC.watchdog of VC expires".to_string()));
+}
+
+/// The same miss is caught whatever the operator may still press: START at any time, an
+/// e-stop (both offered in every state, so no state was without a next move and the
+/// property was never looked at: it was reported as holding).
+#[test]
+fn a_missed_fault_is_caught_with_start_at_any_time_and_with_an_estop() {
+    let c = vc_fault_misses_rc("../robot-configs/paint-robot.ron");
+    let anytime = ExploreOptions {
+        start_anytime: true,
+        ..ExploreOptions::default()
+    };
+    let v = verify::verify(&c, anytime).expect("model builds");
+    let v = v.violation.expect("a violation with --start-anytime");
+    assert_eq!(
+        (v.property, v.message.as_str()),
+        (Property::FaultStop, "VC faulted but RC is still running")
+    );
+    let c = vc_fault_misses_rc("../tests/fixtures/paint-robot-estop.ron");
+    let v = run(&c, false)
+        .violation
+        .expect("a violation with an e-stop");
+    assert_eq!(
+        (v.property, v.message.as_str()),
+        (Property::FaultStop, "VC faulted but RC is still running")
+    );
 }
 
 /// A description whose VC no longer hears RC's fault (as the IEC 61499 export once

@@ -442,6 +442,29 @@ enum Move {
     Ack(u8),
 }
 
+impl Move {
+    /// Whether the machine makes this move (an actuator, a timer, the radio, a motor, a
+    /// ball), not the operator (START, HOME, the e-stop, a button, an acknowledgement) or
+    /// a fault contact.
+    fn by_the_machine(self) -> bool {
+        match self {
+            Move::Arrive(_)
+            | Move::Expire(..)
+            | Move::Deliver(..)
+            | Move::Lose(..)
+            | Move::Roll(..)
+            | Move::Fall
+            | Move::Motor(_) => true,
+            Move::Press
+            | Move::Home
+            | Move::EStop
+            | Move::Switch(_)
+            | Move::Button(_)
+            | Move::Ack(_) => false,
+        }
+    }
+}
+
 /// What an engine call reported, in order.
 #[derive(Debug, Clone)]
 enum Effect {
@@ -1743,6 +1766,10 @@ struct Search {
     parent: Vec<(u32, Move)>,
     /// Every transition (from, to).
     edges: Vec<(u32, u32)>,
+    /// Bit per state expanded: nothing of the machine itself can happen next (no
+    /// arrival, timer, delivery, loss, motor, ball), only what the operator or a fault
+    /// contact does.
+    settled: Vec<bool>,
     violation: Option<Violation>,
     /// Stopped at `max_states`.
     incomplete: bool,
@@ -1757,6 +1784,7 @@ impl Search {
             labels: Vec::new(),
             parent: Vec::new(),
             edges: Vec::new(),
+            settled: Vec::new(),
             violation: None,
             incomplete: false,
         };
@@ -1793,6 +1821,7 @@ impl Search {
                 s.clone_from(&model.init);
             }
             model.moves(&s, opts, &mut moves);
+            g.settled.push(!moves.iter().any(|m| m.by_the_machine()));
             for &m in &moves {
                 t.clone_from(&s);
                 if let Some((property, message)) = model.apply(&mut t, m, None) {
@@ -1944,15 +1973,13 @@ impl Search {
         Some(self.violation(model, Property::Deadlock, message.into(), root, &path))
     }
 
-    /// Stop at once: in every state where nothing more can happen, a fault that was
-    /// published has stopped every node that listens for it.
+    /// Stop at once: in every state where nothing more of the machine itself can happen
+    /// (whatever the operator may still press: START with `--start-anytime`, an e-stop,
+    /// a button, which are offered in every state), a fault that was published has
+    /// stopped every node that listens for it.
     fn fault_stop(&self, model: &Model<'_>) -> Option<Violation> {
-        let mut out_degree = vec![0u32; self.seen.len()];
-        for &(f, _) in &self.edges {
-            out_degree[f as usize] += 1;
-        }
         let (i, message) = (0..self.seen.len()).find_map(|i| {
-            (out_degree[i] == 0)
+            (self.settled.get(i) == Some(&true))
                 .then(|| model.unstopped(&self.state(i)?))
                 .flatten()
                 .map(|m| (i, m))
