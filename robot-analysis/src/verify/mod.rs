@@ -367,8 +367,11 @@ struct Sys {
     flight: Vec<(u8, Topic)>,
     /// Links in alarm (lossy), bit `from * n + to`.
     alarms: u64,
-    /// Steps of the current cycle done, modulo the cycle length; homing: the homing steps
-    /// passed.
+    /// Steps of the current cycle done: 0 at rest, [`PRESSED`] after START at rest and
+    /// before the first step, the cycle's length once its last step was commanded, one
+    /// more if START was pressed again since (`--start-anytime`: the next step may begin
+    /// a new cycle); 0 again when the machine is idle after its last step
+    /// ([`Model::rested`]). Homing: the homing steps passed.
     progress: u16,
     /// Homing explorations only: whether the HOME command was given (`None`: the cycle).
     homing: Option<bool>,
@@ -415,6 +418,9 @@ impl Clone for Sys {
         self.uncleared = o.uncleared;
     }
 }
+
+/// [`Sys::progress`] after START pressed at rest, before the cycle's first step.
+const PRESSED: u16 = u16::MAX;
 
 /// One move of the environment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -915,6 +921,15 @@ impl<'c> Model<'c> {
                 let (node, input) = self.start;
                 inputs.push_back((node, input, true));
                 inputs.push_back((node, input, false));
+                // At rest: a new cycle. After the last step (with START at any time,
+                // pressed before the machine came to rest): a new cycle may begin.
+                if s.homing.is_none() && !self.expect.is_empty() {
+                    if s.progress == 0 {
+                        s.progress = PRESSED;
+                    } else if usize::from(s.progress) == self.expect.len() {
+                        s.progress += 1;
+                    }
+                }
             }
             Move::Home => {
                 s.homing = Some(true);
@@ -1052,6 +1067,7 @@ impl<'c> Model<'c> {
         if bad.is_none() {
             bad = self.check_estop(s, m, told);
         }
+        self.rested(s);
         if bad.is_none() {
             bad = self.check_state(s);
         }
@@ -1059,6 +1075,17 @@ impl<'c> Model<'c> {
             bad = self.check_cleared(s);
         }
         bad
+    }
+
+    /// A whole cycle done and the machine idle: at rest again, as before the cycle (one
+    /// state, not one per cycle done; a START pressed before it came to rest was not
+    /// taken).
+    fn rested(&self, s: &mut Sys) {
+        let done = usize::from(s.progress);
+        let whole = s.progress != PRESSED && done != 0 && done >= self.expect.len();
+        if s.homing.is_none() && !self.expect.is_empty() && whole && self.idle(s) {
+            s.progress = 0;
+        }
     }
 
     /// After a move: while a fault is not cleared (the switch set since the operator last
@@ -1144,15 +1171,18 @@ impl<'c> Model<'c> {
         if let Some(bad) = self.check_station(s) {
             return Some(bad);
         }
-        if s.homing.is_none() && !self.expect.is_empty() && s.progress != 0 && self.idle(s) {
-            return Some((
-                Property::Sequence,
-                format!(
-                    "the machine is idle after {} of the {} declared steps",
-                    s.progress,
-                    self.expect.len()
+        let (steps, done) = (self.expect.len(), usize::from(s.progress));
+        if s.homing.is_none() && steps != 0 && done != 0 && done < steps && self.idle(s)
+            || s.progress == PRESSED && self.idle(s)
+        {
+            let message = match s.progress {
+                PRESSED => format!(
+                    "START pressed at rest and the machine is idle again without a step (the \
+                     declared sequence has {steps})"
                 ),
-            ));
+                _ => format!("the machine is idle after {done} of the {steps} declared steps"),
+            };
+            return Some((Property::Sequence, message));
         }
         None
     }
@@ -1344,19 +1374,33 @@ impl<'c> Model<'c> {
         if self.expect.is_empty() {
             return;
         }
-        let k = usize::from(s.progress);
-        if self.expect[k] != step {
+        let k = match usize::from(s.progress) {
+            _ if s.progress == PRESSED => 0,
+            k if k == self.expect.len() + 1 => 0,
+            k => k,
+        };
+        let Some(expected) = self.expect.get(k) else {
             *bad = Some((
                 Property::Sequence,
                 format!(
-                    "step {} of the cycle is {step}, the declared sequence says {}",
+                    "step {} of the cycle is {step}, after the {k} declared steps (START was \
+                     not pressed again)",
+                    k + 1
+                ),
+            ));
+            return;
+        };
+        if *expected != step {
+            *bad = Some((
+                Property::Sequence,
+                format!(
+                    "step {} of the cycle is {step}, the declared sequence says {expected}",
                     k + 1,
-                    self.expect[k]
                 ),
             ));
             return;
         }
-        s.progress = ((k + 1) % self.expect.len()) as u16;
+        s.progress = (k + 1) as u16;
     }
 
     fn event_name(&self, node: usize, e: u8) -> String {
