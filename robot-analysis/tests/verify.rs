@@ -217,6 +217,16 @@ fn a_start_that_commands_nothing_breaks_the_sequence() {
     assert_eq!(v.steps, 1);
 }
 
+/// More switches than a state has bits for are refused, not explored in part (the ninth
+/// was never set, and `verify` passed a robot whose ninth switch breaks the sequence).
+#[test]
+fn more_switches_than_a_state_holds_are_refused() {
+    let c = build(&load("fixtures/verify/nine-switches.ron"));
+    let e = verify::verify(&c, ExploreOptions::default()).expect_err("refused");
+    assert_eq!(e, verify::ModelError::TooManySwitches(9));
+    assert_eq!(e.to_string(), "9 switches: verify handles at most 8");
+}
+
 #[test]
 fn a_timer_instead_of_a_switch_is_a_double_actuation() {
     let c = build(&load("fixtures/verify/timed-retract.ron"));
