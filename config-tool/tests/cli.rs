@@ -226,7 +226,7 @@ fn sim_of_the_ball_sorter_prints_each_ball_and_its_bin() {
     assert!(lines[1].starts_with("robot-configs/ball-sorter.ron: 753 states, 1398 transitions in "));
     assert_eq!(
         lines[3],
-        "ok: deadlock freedom, sequence conformance, 0 interlock(s), no double actuation, no \
+        "ok: deadlock freedom, no cycle declared (`expect`) to conform to, 0 interlock(s), no double actuation, no \
          engine fault, a fault stops every node, each ball in exactly one bin, no gate moves \
          while a ball falls past it, the pusher never feeds while a gate moves, selections as \
          the reference semantics"

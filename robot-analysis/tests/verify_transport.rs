@@ -43,7 +43,7 @@ fn with_a_prompt_radio_the_transport_is_deadlock_free_and_safe_after_two_fault_p
     );
     assert_eq!(
         lines[3],
-        "ok: deadlock freedom, sequence conformance, 0 interlock(s), no double actuation, no \
+        "ok: deadlock freedom, no cycle declared (`expect`) to conform to, 0 interlock(s), no double actuation, no \
          engine fault, a fault stops every node, each of the 5 functions in exactly one place \
          in every state, after a fault no motor turns clockwise until the operator has \
          cleared it"

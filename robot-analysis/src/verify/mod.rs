@@ -213,6 +213,8 @@ pub struct Report {
     pub plants: Option<String>,
     /// Control functions (each a chart: one token in every state, by construction).
     pub functions: usize,
+    /// A cycle was declared (`sequence`, `expect`) and its conformance checked.
+    pub sequence: bool,
 }
 
 impl Report {
@@ -239,6 +241,7 @@ impl Report {
             estop: None,
             plants: None,
             functions: 0,
+            sequence: false,
         }
     }
 
@@ -274,11 +277,15 @@ impl Report {
             Some(_) => ", after a fault no motor turns clockwise until the operator has cleared it",
             None => "",
         };
+        let sequence = match self.sequence {
+            true => "sequence conformance",
+            false => "no cycle declared (`expect`) to conform to",
+        };
         self.verdict(
             &mut o,
             &format!(
-                "ok: deadlock freedom, sequence conformance, {interlocks} interlock(s), no \
-                 double actuation, no engine fault, a fault stops every node{station}{estop}\
+                "ok: deadlock freedom, {sequence}, {interlocks} interlock(s), no double \
+                 actuation, no engine fault, a fault stops every node{station}{estop}\
                  {functions}{plants}"
             ),
         );
@@ -1761,6 +1768,7 @@ pub fn explore(model: &Model<'_>, opts: ExploreOptions) -> Report {
     r.estop = model.estop();
     r.plants = model.plants(opts.faults);
     r.functions = model.c.robot.functions.len();
+    r.sequence = !model.expect.is_empty();
     r
 }
 
@@ -1806,6 +1814,7 @@ fn run(model: &Model<'_>, roots: Vec<(Sys, Option<String>)>, opts: ExploreOption
         estop: None,
         plants: None,
         functions: 0,
+        sequence: false,
     }
 }
 
