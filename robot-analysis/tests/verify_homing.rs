@@ -3,7 +3,7 @@
 //! positions and the shortest counterexample.
 
 use robot_analysis::verify::{self, ExploreOptions, HomingReport, Property};
-use robot_compiler::Compiled;
+use robot_compiler::{Compiled, Source};
 
 mod common;
 use common::{build, load};
@@ -204,4 +204,64 @@ fn a_start_that_moves_the_unhomed_machine_is_caught() {
     assert!(v
         .trace
         .contains(&"      chart VC: UNHOMED -> STEP1".to_string()));
+}
+
+/// A sequence robot of `n` double-acting actuators, two a node, `A0+ .. A(n-1)+` then
+/// back.
+fn many(n: usize) -> Compiled {
+    let nodes = n.div_ceil(2);
+    let node_list: String = (0..nodes)
+        .map(|k| format!("(name: \"n{k}\", address: {}),", k + 1))
+        .collect();
+    let assign: String = (0..nodes)
+        .map(|k| format!("(\"R{k}\", \"n{k}\"),"))
+        .collect();
+    let roles: String = (0..nodes)
+        .map(|k| {
+            let acts: String = (2 * k..(2 * k + 2).min(n))
+                .map(|i| {
+                    let b = 4 * (i - 2 * k);
+                    format!(
+                        "(name: \"A{i}\", kind: DoubleActing(extend: {b}, retract: {}, home: {}, \
+                         end: {})),",
+                        b + 1,
+                        b + 2,
+                        b + 3
+                    )
+                })
+                .collect();
+            let start = if k == 0 {
+                ", inputs: [(name: \"START\", pin: 40)]"
+            } else {
+                ""
+            };
+            format!("(name: \"R{k}\", actuators: [{acts}]{start}),")
+        })
+        .collect();
+    let sequence: Vec<String> = (0..n)
+        .map(|i| format!("A{i}+"))
+        .chain((0..n).rev().map(|i| format!("A{i}-")))
+        .collect();
+    let text = format!(
+        "Robot(name: \"many\", network: (pan_id: 0x0101, channel: 11), nodes: [{node_list}], \
+         assign: [{assign}], roles: [{roles}], start: \"START\", sequence: \"{}\")",
+        sequence.join(" ")
+    );
+    build(&Source::new("many.ron", text))
+}
+
+/// Homing's start positions are made as the search takes them, so `--max-states` bounds
+/// the run: 14 actuators (3^14 start positions, all built before the search began) ran
+/// out of memory at 3.6 GB whatever `--max-states` said.
+#[test]
+fn homing_of_many_actuators_stops_at_max_states() {
+    let c = many(14);
+    let opts = ExploreOptions {
+        max_states: 1_000,
+        ..ExploreOptions::default()
+    };
+    let r = homing(&c, opts).expect("homes");
+    assert_eq!(r.positions, 4_782_969);
+    assert!(r.report.incomplete);
+    assert_eq!(r.report.states, 1_000);
 }

@@ -62,7 +62,7 @@ pub fn explore_homing(model: &Model<'_>, opts: ExploreOptions) -> Option<HomingR
     let report = run(model, roots, opts);
     let homing: Vec<String> = model.c.ir.homing.iter().map(|s| s.to_string()).collect();
     Some(HomingReport {
-        positions: 3usize.pow(model.acts.len() as u32),
+        positions: 3usize.saturating_pow(model.acts.len() as u32),
         held: held_valves(model).len(),
         homing: homing.join(" "),
         report,
@@ -71,26 +71,39 @@ pub fn explore_homing(model: &Model<'_>, opts: ExploreOptions) -> Option<HomingR
 
 /// Homing's initial states: every start position of the actuators, with every level of
 /// the held valves, each with the positions a counterexample from it names.
-pub(super) fn roots(model: &Model<'_>) -> Vec<(Sys, Option<String>)> {
+pub(super) fn roots<'m>(model: &'m Model<'_>) -> impl Iterator<Item = (Sys, Option<String>)> + 'm {
     let held = held_valves(model);
     let k = model.acts.len();
-    let positions = 3usize.pow(k as u32);
-    let mut roots = Vec::new();
-    for held_high in 0..1usize << held.len() {
+    // An odometer: the rods' rests (3 each, the first rod fastest), then the held
+    // valves' levels (2 each). Made one at a time as the search takes them: it stops at
+    // `max_states`, and 3^k of them built at once (14 rods: 4.8 million) ran out of
+    // memory before.
+    let radix: Vec<u8> = (std::iter::repeat_n(3, k))
+        .chain(std::iter::repeat_n(2, held.len()))
+        .collect();
+    let first = vec![0u8; radix.len()];
+    let odometer = std::iter::successors(Some(first), move |digits| {
+        let mut next = digits.clone();
+        for (d, r) in next.iter_mut().zip(&radix) {
+            *d += 1;
+            if *d < *r {
+                return Some(next);
+            }
+            *d = 0;
+        }
+        None
+    });
+    odometer.map(move |digits| {
+        let (rests, levels) = digits.split_at(k);
+        let rests: Vec<Rest> = rests.iter().map(|&d| Rest::ALL[usize::from(d)]).collect();
         let mut before = vec![0u16; model.n()];
-        for (b, &(node, output)) in held.iter().enumerate() {
-            if held_high & (1 << b) != 0 {
+        for (&high, &(node, output)) in levels.iter().zip(&held) {
+            if high != 0 {
                 before[node] |= 1 << (output & 15);
             }
         }
-        for combo in 0..positions {
-            let rests: Vec<Rest> = (0..k)
-                .map(|p| Rest::ALL[combo / 3usize.pow(p as u32) % 3])
-                .collect();
-            roots.push(start(model, &rests, &before, &held));
-        }
-    }
-    roots
+        start(model, &rests, &before, &held)
+    })
 }
 
 /// The valve outputs whose start level is `Hold`, as (node, output).

@@ -1774,7 +1774,11 @@ pub fn explore(model: &Model<'_>, opts: ExploreOptions) -> Report {
 
 /// Explores every state reachable from `roots` (each with the start positions a
 /// counterexample names) and checks the properties.
-fn run(model: &Model<'_>, roots: Vec<(Sys, Option<String>)>, opts: ExploreOptions) -> Report {
+fn run(
+    model: &Model<'_>,
+    roots: impl IntoIterator<Item = (Sys, Option<String>)>,
+    opts: ExploreOptions,
+) -> Report {
     let t0 = Instant::now();
     let mut search = Search::bfs(model, roots, opts);
     let states = search.seen.len();
@@ -1843,7 +1847,11 @@ struct Search {
 impl Search {
     /// Breadth-first from the initial states, up to the first move that breaks a property
     /// checked on a transition or state.
-    fn bfs(model: &Model<'_>, roots: Vec<(Sys, Option<String>)>, opts: ExploreOptions) -> Search {
+    fn bfs(
+        model: &Model<'_>,
+        roots: impl IntoIterator<Item = (Sys, Option<String>)>,
+        opts: ExploreOptions,
+    ) -> Search {
         let mut g = Search {
             seen: IndexSet::default(),
             labels: Vec::new(),

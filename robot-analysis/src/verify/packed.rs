@@ -445,7 +445,7 @@ mod tests {
             let model = Model::new(c).unwrap();
             let mut runs: Vec<_> = opts.into_iter().map(|o| (model.roots(), o)).collect();
             if model.home.is_some() {
-                runs.push((homing::roots(&model), plain));
+                runs.push((homing::roots(&model).collect(), plain));
             }
             for (roots, opts) in runs {
                 let want = unpacked_bfs(&model, &roots, opts);
