@@ -462,3 +462,37 @@ fn a_lifted_chart_reading_another_charts_variable_says_whose() {
         ]
     );
 }
+
+/// Variables named as IEC 61131-3 keywords (`time`, `step`) are exported renamed, as
+/// a clash with another name is (a keyword is no identifier: the ST would not parse),
+/// and a character XML 1.0 does not allow (a control character in the robot's name) is
+/// not written (the file was not well formed); the tables come back the same.
+#[test]
+fn keywords_and_characters_xml_forbids_are_not_written_as_they_are() {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../robot-configs/paint-robot-counted.ron");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("\"dips", "\"time")
+        .replace("\"seen", "\"step")
+        .replace("(dips", "(time")
+        .replace(" dips ", " time ")
+        .replace(" seen ", " step ")
+        .replacen("\"paint-robot-counted\"", "\"paint\\u{1}robot\"", 1);
+    let c = compile(&Source::new("keywords.ron", text)).unwrap_or_else(|d| panic!("{d:?}"));
+    let e = exported(&c);
+    for (name, text) in &e.files {
+        let opt = roxmltree::ParsingOptions {
+            allow_dtd: true,
+            ..roxmltree::ParsingOptions::default()
+        };
+        if let Err(err) = roxmltree::Document::parse_with_options(text, opt) {
+            panic!("{name}: {err}\n{text}");
+        }
+        assert!(!text.contains('\u{1}'), "{name}");
+    }
+    let all: String = e.files.iter().map(|(_, t)| t.as_str()).collect();
+    assert!(all.contains("time_V := (time_V + 1)"), "{all}");
+    assert!(all.contains("step_V := (step_V + 1)"), "{all}");
+    assert!(!all.contains("time :="), "{all}");
+}

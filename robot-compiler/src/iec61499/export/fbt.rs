@@ -42,6 +42,114 @@ pub fn is_identifier(name: &str) -> bool {
         && b.iter().all(|c| c.is_ascii_alphanumeric() || *c == b'_')
         && !name.contains("__")
         && !name.ends_with('_')
+        && !is_keyword(name)
+}
+
+/// The keywords of IEC 61131-3 (structured text, SFC, declarations) and its elementary
+/// type names, upper case: not identifiers, whatever their case.
+const KEYWORDS: &[&str] = &[
+    "ACTION",
+    "AND",
+    "ANY",
+    "ARRAY",
+    "AT",
+    "BOOL",
+    "BY",
+    "BYTE",
+    "CASE",
+    "CONFIGURATION",
+    "CONSTANT",
+    "DATE",
+    "DATE_AND_TIME",
+    "DINT",
+    "DO",
+    "DT",
+    "DWORD",
+    "ELSE",
+    "ELSIF",
+    "EN",
+    "END_ACTION",
+    "END_CASE",
+    "END_CONFIGURATION",
+    "END_FOR",
+    "END_FUNCTION",
+    "END_FUNCTION_BLOCK",
+    "END_IF",
+    "END_PROGRAM",
+    "END_REPEAT",
+    "END_RESOURCE",
+    "END_STEP",
+    "END_STRUCT",
+    "END_TRANSITION",
+    "END_TYPE",
+    "END_VAR",
+    "END_WHILE",
+    "ENO",
+    "EXIT",
+    "FALSE",
+    "F_EDGE",
+    "FOR",
+    "FROM",
+    "FUNCTION",
+    "FUNCTION_BLOCK",
+    "IF",
+    "INITIAL_STEP",
+    "INT",
+    "LINT",
+    "LREAL",
+    "LWORD",
+    "MOD",
+    "NON_RETAIN",
+    "NOT",
+    "OF",
+    "ON",
+    "OR",
+    "PROGRAM",
+    "READ_ONLY",
+    "READ_WRITE",
+    "REAL",
+    "REPEAT",
+    "RESOURCE",
+    "RETAIN",
+    "RETURN",
+    "R_EDGE",
+    "SINT",
+    "STEP",
+    "STRING",
+    "STRUCT",
+    "TASK",
+    "THEN",
+    "TIME",
+    "TIME_OF_DAY",
+    "TO",
+    "TOD",
+    "TRANSITION",
+    "TRUE",
+    "TYPE",
+    "UDINT",
+    "UINT",
+    "ULINT",
+    "UNTIL",
+    "USINT",
+    "VAR",
+    "VAR_ACCESS",
+    "VAR_CONFIG",
+    "VAR_EXTERNAL",
+    "VAR_GLOBAL",
+    "VAR_IN_OUT",
+    "VAR_INPUT",
+    "VAR_OUTPUT",
+    "VAR_TEMP",
+    "WHILE",
+    "WITH",
+    "WORD",
+    "WSTRING",
+    "XOR",
+];
+
+/// Whether `name` is a keyword of IEC 61131-3 (any case).
+pub fn is_keyword(name: &str) -> bool {
+    KEYWORDS.iter().any(|k| k.eq_ignore_ascii_case(name))
 }
 
 /// `name` made an identifier: other characters become `_`, runs of `_` one, a leading
@@ -80,7 +188,7 @@ pub fn rename_clashing_vars(t: &ChartType) -> ChartType {
     for v in &mut t.vars {
         let mut name = v.name.clone();
         let mut k = 1;
-        while taken.contains(&name.to_ascii_uppercase()) {
+        while taken.contains(&name.to_ascii_uppercase()) || is_keyword(&name) {
             name = if k == 1 {
                 format!("{}_V", v.name)
             } else {

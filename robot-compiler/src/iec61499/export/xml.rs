@@ -20,6 +20,9 @@ pub fn escape(value: &str) -> String {
             '\n' => s.push_str("&#10;"),
             '\r' => s.push_str("&#13;"),
             '\t' => s.push_str("&#9;"),
+            // Not a character of XML 1.0, even as a reference (only a comment, from a
+            // name, can hold one): the replacement character.
+            '\u{0}'..='\u{1F}' | '\u{FFFE}' | '\u{FFFF}' => s.push('\u{FFFD}'),
             c => s.push(c),
         }
     }
