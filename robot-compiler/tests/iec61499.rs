@@ -484,3 +484,29 @@ fn truncated_xml_is_refused_at_its_end() {
         "2:3: not well-formed XML: the document does not have a root node"
     );
 }
+
+/// An error in Structured Text written as the `ST` element's text is placed where it is
+/// in the file, after a CDATA section's start, whitespace before it and character
+/// references (it was off by the 9 characters of `<![CDATA[`, by 3 for each `&lt;`).
+#[test]
+fn an_error_in_st_element_text_is_placed_exactly() {
+    let cases = [
+        "    <Algorithm Name=\"A\"><ST>\n      <![CDATA[C := 1; C := C + ;]]></ST></Algorithm>",
+        "    <Algorithm Name=\"A\"><ST>IF C &lt; 2 THEN C := C + ; END_IF;</ST></Algorithm>",
+        "    <Algorithm Name=\"A\"><ST Text=\"IF C &lt; 2 THEN C := C + ; END_IF;\"/></Algorithm>",
+        "    <Algorithm Name=\"A\"><ST>C := 1;<![CDATA[ IF C < 2 THEN]]> C := C + ; END_IF;</ST></Algorithm>",
+    ];
+    for alg in cases {
+        let text = fbt(VARS, ECC, alg);
+        let (line, col) = text
+            .lines()
+            .enumerate()
+            .find_map(|(i, l)| l.find("+ ;").map(|c| (i + 1, c + 3)))
+            .expect("the error's place");
+        let e = error(&text);
+        assert!(
+            e.starts_with(&format!("{line}:{col}: ")),
+            "{e}, not at {line}:{col}, in {alg}"
+        );
+    }
+}

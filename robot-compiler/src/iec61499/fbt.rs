@@ -79,19 +79,87 @@ impl<'a, 'i> Cx<'a, 'i> {
         })
     }
 
-    /// An error inside attribute `name` of `n` at byte span `span` of its value (exact
-    /// when the value has no character references, else at the value's start).
+    /// An error inside attribute `name` of `n` at byte span `span` of its value.
     fn in_attr(&self, n: Node<'a, 'i>, name: &str, e: StError) -> XmlError {
         let pos = n
             .attributes()
             .find(|a| a.name() == name)
             .map_or(n.range().start, |a| {
                 let raw = a.range_value();
-                let exact = !self.doc.input_text()[raw.clone()].contains('&');
-                raw.start + if exact { e.span.start } else { 0 }
+                let text = self.doc.input_text().get(raw.clone()).unwrap_or("");
+                raw.start + raw_offset(text, e.span.start)
             });
         self.at(pos, e.message)
     }
+
+    /// An error at byte span `span` of the text of element `n`'s children (its text and
+    /// CDATA sections, as one string: roxmltree makes them one node, whose range is its
+    /// first part's only), found in the element's content as written.
+    fn in_text(&self, n: Node<'a, 'i>, e: StError) -> XmlError {
+        let pos = n.first_child().map_or(n.range().start, |c| {
+            let start = c.range().start;
+            let raw = self
+                .doc
+                .input_text()
+                .get(start..n.range().end)
+                .unwrap_or("");
+            start + raw_offset(raw, e.span.start)
+        });
+        self.at(pos, e.message)
+    }
+}
+
+/// The byte of `raw` (XML as written: character and entity references, CDATA sections,
+/// comments and processing instructions, line ends of two characters) where byte
+/// `decoded` of the text it stands for is.
+fn raw_offset(raw: &str, decoded: usize) -> usize {
+    let (mut at, mut out) = (0, 0);
+    let b = raw.as_bytes();
+    while at < b.len() && out < decoded {
+        let rest = raw.get(at..).unwrap_or("");
+        if let Some(cdata) = rest.strip_prefix("<![CDATA[") {
+            let body = cdata.find("]]>").unwrap_or(cdata.len());
+            let take = body.min(decoded - out);
+            out += take;
+            at += 9 + take;
+            if out < decoded {
+                at += 3;
+            }
+            // Where the decoded text goes on, after the section's end.
+            continue;
+        }
+        let skipped = [("<!--", "-->"), ("<?", "?>")]
+            .into_iter()
+            .find_map(|(open, close)| {
+                rest.strip_prefix(open)
+                    .map(|r| open.len() + r.find(close).map_or(r.len(), |k| k + close.len()))
+            });
+        if let Some(len) = skipped {
+            at += len;
+            continue;
+        }
+        let (raw_len, text_len) = match rest.chars().next() {
+            Some('&') => {
+                let end = rest.find(';').map_or(rest.len(), |k| k + 1);
+                let decoded_char = match rest.get(1..end - 1).unwrap_or("") {
+                    "lt" | "gt" | "amp" | "quot" | "apos" => Some('<'),
+                    r => r
+                        .strip_prefix("#x")
+                        .map(|h| u32::from_str_radix(h, 16))
+                        .or_else(|| r.strip_prefix('#').map(str::parse::<u32>))
+                        .and_then(Result::ok)
+                        .and_then(char::from_u32),
+                };
+                (end, decoded_char.map_or(end, char::len_utf8))
+            }
+            Some('\r') if rest.starts_with("\r\n") => (2, 1),
+            Some(c) => (c.len_utf8(), c.len_utf8()),
+            None => break,
+        };
+        at += raw_len;
+        out += text_len;
+    }
+    at
 }
 
 /// Element children of `n` (comments and text skipped).
@@ -429,16 +497,7 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
                 ),
                 None => {
                     let t: String = body.children().filter_map(|c| c.text()).collect();
-                    let start = body
-                        .children()
-                        .find(|c| c.is_text())
-                        .map_or(body.range().start, |c| c.range().start);
-                    let cdata = doc.input_text()[start..].starts_with("<![CDATA[");
-                    let base = start + if cdata { 9 } else { 0 };
-                    (
-                        t,
-                        Box::new(move |e: StError| cx.at(base + e.span.start, e.message)),
-                    )
+                    (t, Box::new(move |e: StError| cx.in_text(body, e)))
                 }
             };
         let statements = st::algorithm(&text, &names).map_err(err_at)?;
