@@ -38,6 +38,77 @@ const DATA: &str = r#"Robot(name: "dc", network: (pan_id: 1, channel: 11),
                   actions: {"lamp.ON": Out("LAMP", true), "lamp.OFF": Out("LAMP", false)}),
 )"#;
 
+/// A data connection into a variable that does not hold every value of its source is
+/// refused at the connection (a BOOL given the counter's DINT held 2, and neither
+/// `N = TRUE` nor `N = FALSE` held: the machine stalled), as 4diac refuses it; so is a
+/// robot file's value of an imported type's parameter its type does not hold.
+#[test]
+fn a_value_a_variable_cannot_hold_is_refused_where_it_comes_from() {
+    let dir = std::env::temp_dir().join(format!("iec-types-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for f in ["Cnt.fbt", "app.sys", "Lamp.fbt"] {
+        std::fs::copy(fixture("data-connection").join(f), dir.join(f)).unwrap();
+    }
+    let errors = |lamp_n: &str, robot: &str| {
+        let mut lamp = std::fs::read_to_string(fixture("data-connection").join("Lamp.fbt"))
+            .unwrap()
+            .replace(
+                "Name=\"N\" Type=\"DINT\"",
+                &format!("Name=\"N\" Type=\"{lamp_n}\""),
+            );
+        if lamp_n == "BOOL" {
+            lamp = lamp
+                .replace("REQ[N &gt;= 2]", "REQ[N = TRUE]")
+                .replace("REQ[N &lt; 2]", "REQ[N = FALSE]");
+        }
+        std::fs::write(dir.join("Lamp.fbt"), lamp).unwrap();
+        let src = Source::new(dir.join("robot.ron").display().to_string(), robot);
+        let d = compile(&src).err().unwrap_or_default();
+        d.iter().map(|x| x.short(&src)).collect::<Vec<_>>()
+    };
+    let sys = std::fs::read_to_string(dir.join("app.sys")).unwrap();
+    let (line, col) = sys
+        .lines()
+        .enumerate()
+        .find_map(|(i, l)| {
+            l.find("<Connection Source=\"cnt.CV\"")
+                .map(|c| (i + 1, c + 1))
+        })
+        .expect("the data connection");
+    let refused = errors("BOOL", DATA);
+    assert_eq!(refused.len(), 1, "{refused:?}");
+    assert!(
+        refused[0].contains(&format!(
+            "app.sys:{line}:{col}: data connection `cnt.CV` -> `lamp.N`: `CV` is DINT and `N` \
+             BOOL, which does not hold every value of it"
+        )),
+        "{refused:?}"
+    );
+    assert_eq!(errors("UINT", DATA).len(), 1, "DINT into UINT");
+    assert!(errors("DINT", DATA).is_empty());
+    // A robot file's parameter value of an imported type.
+    let ron = r#"Robot(name: "p", network: (pan_id: 1, channel: 11),
+    nodes: [(name: "n1", address: 1)], assign: [("A", "n1")], start: "START",
+    roles: [(name: "A", inputs: [(name: "START", pin: 0)],
+             charts: [(name: "lamp", type: "Lamp", params: {"N": 2}, on: {"REQ": "START"})])],
+    fb_types: ["Lamp.fbt"])"#;
+    let refused = errors("BOOL", ron);
+    assert_eq!(refused.len(), 1, "{refused:?}");
+    assert!(
+        refused[0].ends_with(
+            "parameter `N` of chart `lamp` is BOOL: `2` is not a literal of this variable's type"
+        ),
+        "{refused:?}"
+    );
+    let fine = errors("USINT", ron);
+    assert!(fine.is_empty(), "{fine:?}");
+    let big = ron.replace("\"N\": 2", "\"N\": 70000");
+    assert!(errors("UINT", &big)[0].ends_with(
+        "parameter `N` of chart `lamp` is UINT: `70000` is out of the variable's range"
+    ));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// `lamp` (declared first) reads `cnt.CV` by a data connection on their resource: the
 /// lamp's parameter `N` is the counter's variable, so the first press (count 1) darkens
 /// it and the second (count 2) lights it (a constant 0 never would).

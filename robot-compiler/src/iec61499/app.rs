@@ -147,6 +147,9 @@ impl Types {
                             .map(|p| (p.clone(), Ty::of("DINT").unwrap_or(Ty::Bool), None))
                             .collect(),
                         outputs: t.vars.iter().map(|v| v.name.clone()).collect(),
+                        vars: (t.vars.iter())
+                            .map(|v| (v.name.clone(), Ty::of("DINT").unwrap_or(Ty::Bool)))
+                            .collect(),
                         services: Vec::new(),
                         levels: Vec::new(),
                         places: Vec::new(),
@@ -1223,6 +1226,21 @@ pub fn bring(
                                  nodes carry no data; map both FBs onto one resource, or give \
                                  `{input}` a parameter",
                                 l.name, l.name
+                            ))
+                            .into());
+                    }
+                    let from_ty = (leaf_of.get(fb.as_str()))
+                        .and_then(|f| types.basic(&f.ty))
+                        .and_then(|(_, i)| i.vars.iter().find(|(n, _)| *n == var))
+                        .map(|(_, t)| *t);
+                    if let Some(from_ty) = from_ty.filter(|f| !st::holds(*ty, *f)) {
+                        return Err(at
+                            .error(format!(
+                                "data connection `{fb}.{var}` -> `{}.{input}`: `{var}` is {} \
+                                 and `{input}` {}, which does not hold every value of it",
+                                l.name,
+                                from_ty.name(),
+                                ty.name()
                             ))
                             .into());
                     }

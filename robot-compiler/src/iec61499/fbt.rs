@@ -194,6 +194,9 @@ pub struct Interface {
     pub inputs: Vec<(String, Ty, Option<String>)>,
     /// The output variables' names.
     pub outputs: Vec<String>,
+    /// The output and internal variables with their types (what a data connection from
+    /// an instance of the type reads).
+    pub vars: Vec<(String, Ty)>,
     /// The output events that are node services (of a type marked
     /// [`super::services::MARK`]): in an application, each may connect to its role's
     /// node services FB (`ROLE_IO`) only.
@@ -616,6 +619,9 @@ pub fn import_typed(text: &str) -> Result<(ChartType, Interface), XmlError> {
             .map(|v| (v.name.clone(), v.ty, v.init.clone()))
             .collect(),
         outputs: outputs.iter().map(|v| v.name.clone()).collect(),
+        vars: (outputs.iter().chain(internal.iter()))
+            .map(|v| (v.name.clone(), v.ty))
+            .collect(),
         services: events_out
             .iter()
             .filter(|(n, _)| service(n).is_some())

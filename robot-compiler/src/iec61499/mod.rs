@@ -92,9 +92,45 @@ pub fn import_with(
             }
         }
     }
+    diags.extend(parameters_out_of_type(robot, src, &interfaces));
     if diags.is_empty() {
         if let Some(d) = application(robot, src, read, &interfaces, composites, ios) {
             diags.push(d);
+        }
+    }
+    diags
+}
+
+/// The robot file's values of imported types' parameters that their declared types do
+/// not hold (a BOOL given 2: `= TRUE` and `= FALSE` then both fail; a UINT given 70000),
+/// each at its value. (An application's parameters are checked as they are read.)
+fn parameters_out_of_type(
+    robot: &Robot,
+    src: &Source,
+    interfaces: &[(String, fbt::Interface)],
+) -> Vec<Diagnostic> {
+    let mut diags = Vec::new();
+    for (ri, r) in robot.roles.iter().enumerate() {
+        for (ci, c) in r.charts.iter().enumerate() {
+            let Some((_, iface)) = interfaces.iter().find(|(n, _)| *n == c.type_) else {
+                continue;
+            };
+            for (p, v) in &c.params {
+                let Some((_, ty, _)) = iface.inputs.iter().find(|(n, _, _)| n == p) else {
+                    continue;
+                };
+                if let Err(e) = st::literal(&v.to_string(), *ty) {
+                    diags.push(Diagnostic::error(
+                        src.span(&format!("roles[{ri}].charts[{ci}].params.{p}")),
+                        format!(
+                            "parameter `{p}` of chart `{}` is {}: {}",
+                            c.name,
+                            ty.name(),
+                            e.message
+                        ),
+                    ));
+                }
+            }
         }
     }
     diags

@@ -56,6 +56,39 @@ impl Ty {
     fn is_int(self) -> bool {
         matches!(self, Ty::Int(_))
     }
+
+    /// The type's IEC 61131-3 name (`ANY_INT` for a literal's, of no width yet).
+    pub fn name(self) -> &'static str {
+        match self {
+            Ty::Bool => "BOOL",
+            Ty::Int(None) => "ANY_INT",
+            Ty::Int(Some(Width { bits, signed })) => match (bits, signed) {
+                (8, true) => "SINT",
+                (16, true) => "INT",
+                (8, false) => "USINT",
+                (16, false) => "UINT",
+                (_, true) => "DINT",
+                (_, false) => "UDINT",
+            },
+        }
+    }
+}
+
+/// Whether a variable of type `to` holds every value of type `from` (a data connection
+/// `from` -> `to` is then an implicit widening IEC 61131-3 allows: BOOL to BOOL, an
+/// integer to one at least as wide of the same signedness or a wider signed one).
+pub fn holds(to: Ty, from: Ty) -> bool {
+    match (to, from) {
+        (Ty::Bool, Ty::Bool) => true,
+        (Ty::Int(Some(t)), Ty::Int(Some(f))) => match (t.signed, f.signed) {
+            (true, true) | (false, false) => t.bits >= f.bits,
+            (true, false) => t.bits > f.bits,
+            (false, true) => false,
+        },
+        (Ty::Int(_), Ty::Int(None)) => true,
+        (Ty::Int(None), Ty::Int(_)) => true,
+        _ => false,
+    }
 }
 
 /// `inner` (an integer operation of width `w`, unparenthesised) wrapped to `w` if it is
