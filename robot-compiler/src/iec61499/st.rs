@@ -120,13 +120,49 @@ fn literal_fits(text: &str, w: Option<Width>) -> bool {
 }
 
 /// The width of an operation on `a` and `b`: the declared one (a literal takes the other
-/// side's), the wider if both are declared.
+/// side's), the wider if both are declared and of one signedness, else the narrowest
+/// signed one that holds both (SINT and USINT: INT; the same either way round).
 fn join(a: Option<Width>, b: Option<Width>) -> Option<Width> {
     match (a, b) {
-        (Some(x), Some(y)) if y.bits > x.bits => Some(y),
-        (Some(x), _) => Some(x),
+        (Some(x), Some(y)) if x.signed == y.signed => Some(if y.bits > x.bits { y } else { x }),
+        (Some(x), Some(y)) => {
+            let (signed, unsigned) = if x.signed { (x, y) } else { (y, x) };
+            Some(Width {
+                bits: signed.bits.max(unsigned.bits * 2).min(32),
+                signed: true,
+            })
+        }
+        (Some(x), None) => Some(x),
         (None, y) => y,
     }
+}
+
+/// The type of operand `(text, ty)` of an operation whose other operand is of width
+/// `other`: a literal that `other` does not hold takes the narrowest type that holds it
+/// (of `other`'s signedness if it can: `S * 1000`, S a SINT, is an INT product), as
+/// IEC 61131-3 gives an untyped literal the type it needs.
+fn literal_width(text: &str, ty: Ty, other: Option<Width>) -> Option<Width> {
+    let Ty::Int(w) = ty else {
+        return None;
+    };
+    let (Some(o), None, Ok(v)) = (other, w, text.parse::<i64>()) else {
+        return w;
+    };
+    if literal_fits(text, other) {
+        return w;
+    }
+    [8, 16, 32]
+        .into_iter()
+        .flat_map(|bits| {
+            [
+                Width {
+                    bits,
+                    signed: o.signed,
+                },
+                Width { bits, signed: true },
+            ]
+        })
+        .find(|&c| (v >= 0 || c.signed) && literal_fits(&v.to_string(), Some(c)))
 }
 
 /// A name an algorithm or condition may use.
@@ -156,6 +192,8 @@ fn err<T>(span: Range<usize>, message: impl Into<String>) -> Result<T, StError> 
 #[derive(Debug, Clone, PartialEq, Eq)]
 enum Tok {
     Int(i64),
+    /// A typed integer literal (`SINT#100`): of that width, as a variable of it is.
+    Typed(i64, Width),
     Word(String),
     Sym(&'static str),
     End,
@@ -241,7 +279,10 @@ fn lex(text: &str) -> Result<Vec<(Tok, Range<usize>)>, StError> {
                         if !literal_fits(&n.to_string(), w) || (unsigned && n < 0) {
                             return err(start..j, format!("`{literal}` does not fit in {name}"));
                         }
-                        Tok::Int(n)
+                        match w {
+                            Some(w) => Tok::Typed(n, w),
+                            None => Tok::Int(n),
+                        }
                     }
                 };
                 out.push((tok, start..j));
@@ -427,7 +468,7 @@ impl<'n> Parser<'n> {
         let tok = |k: usize| self.toks.get(self.at + k).map(|(t, _)| t);
         let after = match (tok(0), tok(1)) {
             (Some(Tok::Sym("-")), Some(Tok::Int(_))) => tok(2),
-            (Some(Tok::Int(_)), _) => tok(1),
+            (Some(Tok::Int(_) | Tok::Typed(..)), _) => tok(1),
             _ => return false,
         };
         matches!(after, Some(Tok::Sym(":" | "," | "..")))
@@ -654,6 +695,7 @@ impl<'n> Parser<'n> {
         match self.bump() {
             (Tok::Int(v), span) if v == MIN_MAGNITUDE && !neg => too_big(&v.to_string(), span),
             (Tok::Int(v), _) => Ok(if neg { -v } else { v }),
+            (Tok::Typed(v, _), _) if !neg => Ok(v),
             (_, span) => err(span, "a CASE label is an integer literal"),
         }
     }
@@ -713,7 +755,8 @@ impl<'n> Parser<'n> {
             }
             // Already of the target's width, or wrapped to it here.
             (Ty::Int(to), Ty::Int(from)) if to == from => value,
-            (Ty::Int(to), Ty::Int(None)) if literal_fits(&value, to) => value,
+            // A constant (a literal, or folded) the target holds.
+            (Ty::Int(to), Ty::Int(_)) if literal_fits(&value, to) => value,
             (Ty::Int(to), Ty::Int(_)) => match to {
                 Some(w) if w.bits < 32 => {
                     format!("{}({value})", crate::expr::wrap_name(w.bits, w.signed))
@@ -803,11 +846,18 @@ impl<'n> Parser<'n> {
                     (v.to_string(), Ty::Int(None))
                 }
                 (_, Ty::Int(a), Ty::Int(b)) => {
-                    let w = join(a, b);
-                    (
-                        wrapped(format!("{} {op} {}", left.0, right.0), w),
-                        Ty::Int(w),
-                    )
+                    let w = join(
+                        literal_width(&left.0, left.1, b),
+                        literal_width(&right.0, right.1, a),
+                    );
+                    // Constants of a type (`SINT#100 + SINT#100`): folded, wrapped to it.
+                    match fold(&left.0, op, &right.0) {
+                        Some(v) => (wrap_value(v, w).to_string(), Ty::Int(w)),
+                        None => (
+                            wrapped(format!("{} {op} {}", left.0, right.0), w),
+                            Ty::Int(w),
+                        ),
+                    }
                 }
                 _ => return err(span, format!("`{}` takes integer operands", sym_name(op))),
             };
@@ -855,6 +905,7 @@ impl<'n> Parser<'n> {
         match tok {
             Tok::Int(v) if v == MIN_MAGNITUDE => too_big(&v.to_string(), span),
             Tok::Int(v) => Ok((v.to_string(), Ty::Int(None))),
+            Tok::Typed(v, w) => Ok((v.to_string(), Ty::Int(Some(w)))),
             Tok::Word(w) if w.eq_ignore_ascii_case("TRUE") => Ok((String::from("true"), Ty::Bool)),
             Tok::Word(w) if w.eq_ignore_ascii_case("FALSE") => {
                 Ok((String::from("false"), Ty::Bool))
@@ -904,6 +955,22 @@ fn fold(a: &str, op: &str, b: &str) -> Option<i64> {
         .then_some(v)
 }
 
+/// `v` wrapped to width `w` (two's complement), as a variable of it holds it.
+fn wrap_value(v: i64, w: Option<Width>) -> i64 {
+    match w {
+        Some(Width { bits, signed }) if bits < 32 => {
+            let m = 1i64 << bits;
+            let u = v.rem_euclid(m);
+            if signed && u >= m / 2 {
+                u - m
+            } else {
+                u
+            }
+        }
+        _ => v,
+    }
+}
+
 /// An operator as ST writes it.
 fn sym_name(op: &str) -> &str {
     if op == "%" {
@@ -951,7 +1018,7 @@ pub fn literal(text: &str, ty: Ty) -> Result<String, StError> {
     };
     let whole = 0..text.len();
     match (rest, ty) {
-        ([(Tok::Int(v), _), (Tok::End, _)], Ty::Int(w)) => {
+        ([(Tok::Int(v) | Tok::Typed(v, _), _), (Tok::End, _)], Ty::Int(w)) => {
             let v = if neg { -*v } else { *v };
             if v == MIN_MAGNITUDE {
                 return too_big(text, whole);
@@ -1115,7 +1182,7 @@ mod tests {
         );
         assert_eq!(
             assigns("CV := 16#FF - UINT#2 - 1_000;"),
-            Ok(vec![("CV".to_string(), "uint(-747)".to_string())])
+            Ok(vec![("CV".to_string(), "64789".to_string())])
         );
     }
 
@@ -1139,9 +1206,18 @@ mod tests {
         );
         assert_eq!(one("S := 5;"), Ok("5".into()));
         assert_eq!(one("S := 300;"), Ok("sint(300)".into()));
-        // Mixed widths compute in the wider.
-        assert_eq!(one("D := S + CV;"), Ok("uint(S + CV)".into()));
+        // Mixed widths compute in the wider; mixed signedness in the narrowest signed
+        // type that holds both (SINT and UINT: DINT), whichever side each is on.
+        assert_eq!(one("D := S + CV;"), Ok("(S + CV)".into()));
+        assert_eq!(one("D := CV + S;"), Ok("(CV + S)".into()));
         assert_eq!(one("D := S + D;"), Ok("(S + D)".into()));
+        // A typed literal is of its type: SINT#100 + SINT#100 wraps to -56.
+        assert_eq!(one("D := SINT#100 + SINT#100;"), Ok("-56".into()));
+        assert_eq!(one("D := SINT#100 + 100;"), Ok("-56".into()));
+        // A literal the other side's type does not hold takes one that holds it: S * 1000
+        // is an INT product (it was a SINT one, -48 for S = 2).
+        assert_eq!(one("D := S * 1000;"), Ok("int(S * 1000)".into()));
+        assert_eq!(one("D := S * 100;"), Ok("sint(S * 100)".into()));
     }
 
     #[test]
@@ -1239,15 +1315,16 @@ mod tests {
                 a("Q", "true"),
             ])
         );
-        // A step, downwards; nested loops; the bounds folded from literals.
+        // A step, downwards; nested loops; the bounds folded from literals (and the
+        // body's sums of constants).
         assert_eq!(
             assigns("FOR D := 2 * 3 TO 1 BY -3 DO FOR S := 0 TO 1 DO CV := D + S; END_FOR END_FOR"),
             Ok(vec![
-                a("CV", "uint((6 + 0))"),
-                a("CV", "uint((6 + 1))"),
+                a("CV", "6"),
+                a("CV", "7"),
                 a("S", "2"),
-                a("CV", "uint((3 + 0))"),
-                a("CV", "uint((3 + 1))"),
+                a("CV", "3"),
+                a("CV", "4"),
                 a("S", "2"),
                 a("D", "0"),
             ])
