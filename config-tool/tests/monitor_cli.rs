@@ -355,3 +355,24 @@ fn monitor_and_plant_say_so_when_the_medium_goes_away() {
         assert_eq!((status.code(), err.as_str()), (Some(1), want.as_str()));
     }
 }
+
+/// `--seconds` past what the clock holds (u64::MAX) is no end a run reaches, not a panic
+/// (status 101 at once); so is `--wait` of `home` and of a watched push, which panicked
+/// after HOME or the switch was sent (their deadline is `robot_net::deadline`, tested
+/// there).
+#[test]
+fn monitor_for_more_seconds_than_the_clock_holds_runs() {
+    let medium = Medium::start(Config::default()).unwrap();
+    let mut radio = Conn::join(medium.addr(), Peer::Tool { addr: TOOL }).unwrap();
+    let (mut monitor, lines) = monitor(&medium, &["--seconds", &u64::MAX.to_string()]);
+    radio.send(&Link::Frame(&clear_start())).unwrap();
+    let line = lines.recv_timeout(SURE);
+    let _ = monitor.kill();
+    let _ = monitor.wait();
+    medium.stop();
+    assert!(
+        line.as_deref()
+            .is_ok_and(|l| l.contains("unsecured: Command")),
+        "{line:?}"
+    );
+}

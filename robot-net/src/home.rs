@@ -626,7 +626,7 @@ pub fn home_from(
             return Ok((end, t0.elapsed()));
         }
     }
-    let end = t0 + wait;
+    let end = crate::deadline(t0, wait);
     let mut links = Settling::default();
     loop {
         let asked = Instant::now();

@@ -551,7 +551,7 @@ pub fn confirm(
     timeout: Duration,
 ) -> io::Result<Vec<(u16, Option<ConfigReply>)>> {
     let mut answers: Vec<(u16, Option<ConfigReply>)> = nodes.iter().map(|&n| (n, None)).collect();
-    let end = Instant::now() + timeout;
+    let end = crate::deadline(Instant::now(), timeout);
     let step = Message::Switch {
         generation,
         step: SwitchStep::Confirm,
@@ -651,7 +651,7 @@ pub fn ask<T>(
     pick: impl Fn(Message<'_>, u16) -> Option<T>,
 ) -> io::Result<Option<T>> {
     let id = ids.fresh();
-    let end = Instant::now() + timeout;
+    let end = crate::deadline(Instant::now(), timeout);
     let retry = Duration::from_millis(150);
     while Instant::now() < end {
         radio.send(addr, &Message::Command { id, command })?;
@@ -683,7 +683,7 @@ pub fn ask_each<T>(
 ) -> io::Result<Vec<Result<T, u32>>> {
     let mut asked: Vec<(u16, u16, Result<T, u32>)> =
         (addrs.iter()).map(|&a| (a, ids.fresh(), Err(0))).collect();
-    let end = Instant::now() + timeout;
+    let end = crate::deadline(Instant::now(), timeout);
     let retry = Duration::from_millis(150);
     while Instant::now() < end && asked.iter().any(|a| a.2.is_err()) {
         for (addr, id, answer) in &mut asked {
@@ -729,7 +729,7 @@ pub fn scan(
 ) -> io::Result<BTreeMap<u16, Announce>> {
     let mut found = BTreeMap::new();
     let id = ids.fresh();
-    let end = Instant::now() + wait;
+    let end = crate::deadline(Instant::now(), wait);
     let mut next_ask = Instant::now();
     while Instant::now() < end {
         if Instant::now() >= next_ask {

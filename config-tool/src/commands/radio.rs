@@ -1534,7 +1534,7 @@ pub fn monitor(
     let asked = Instant::now();
     conn.send(&Link::Clock)
         .map_err(|e| Failure::error(format!("monitor: {e}")))?;
-    let end = for_.map(|d| asked + d);
+    let end = for_.map(|d| robot_net::deadline(asked, d));
     // The medium's clock once its answer came; what is heard before waits for it (a
     // medium that does not answer within `CLOCK_WITHIN`: the monitor's own, from its start).
     let mut clock: Option<MediumClock> = None;

@@ -428,7 +428,7 @@ impl Bed {
 
     /// Waits until every address in `addrs` has announced itself.
     pub fn wait_for_nodes(&mut self, addrs: &[u16]) -> Result<BTreeMap<u16, Announce>, NetError> {
-        let end = Instant::now() + self.options.timeout;
+        let end = crate::deadline(Instant::now(), self.options.timeout);
         let mut found = BTreeMap::new();
         while Instant::now() < end {
             let seen = push::scan(&mut self.radio, &mut self.ids, Duration::from_millis(600))?;
@@ -577,7 +577,7 @@ impl Bed {
 
     /// Waits (at most the bed's timeout) until the plant has seen `n` more strokes; them.
     pub fn await_strokes(&mut self, n: usize) -> Result<Vec<Stroke>, NetError> {
-        let end = Instant::now() + self.options.timeout;
+        let end = crate::deadline(Instant::now(), self.options.timeout);
         let mut got = Vec::new();
         while got.len() < n {
             let left = end.saturating_duration_since(Instant::now());

@@ -200,7 +200,7 @@ impl Live<'_> {
             Act::Ack => {
                 // The fault cleared reaches the operator's panel one hop later: wait for its
                 // alarm report to say the cause is gone, then acknowledge.
-                let end = Instant::now() + bed.timeout();
+                let end = crate::deadline(Instant::now(), bed.timeout());
                 while (self.alarms(bed, false)?.iter()).any(|a| a.3 && !is_radio(a))
                     && Instant::now() < end
                 {}
@@ -241,7 +241,7 @@ impl Live<'_> {
 
     /// Waits (at most the bed's timeout) for `n` motions of the motor.
     fn moved(&mut self, bed: &Bed, n: usize) -> Result<Vec<Motioned>, NetError> {
-        let end = Instant::now() + bed.timeout();
+        let end = crate::deadline(Instant::now(), bed.timeout());
         let mut got = Vec::new();
         loop {
             for m in self.pending.drain(..) {
@@ -301,7 +301,7 @@ impl Live<'_> {
 
     /// Waits (at most the bed's timeout) for the plant to say its time stands still.
     fn wait_held(&mut self, bed: &Bed) {
-        let end = Instant::now() + bed.timeout();
+        let end = crate::deadline(Instant::now(), bed.timeout());
         while !self.held && self.take_motion(end) {}
     }
 
@@ -341,7 +341,7 @@ impl Live<'_> {
         bed: &mut Bed,
         want: &[(String, String)],
     ) -> Result<Vec<(String, String)>, NetError> {
-        let end = Instant::now() + bed.timeout();
+        let end = crate::deadline(Instant::now(), bed.timeout());
         loop {
             let statuses = bed.statuses(self.c)?;
             let states: Vec<Option<Vec<u8>>> = (statuses.iter())
