@@ -911,3 +911,27 @@ fn confirm_refuses_the_rollbacks_now_and_wait() {
         );
     }
 }
+
+/// `start ROBOT --node N`: START goes to the robot's start input, so another node is
+/// refused before anything is sent (status 2). It said `0x0013: started`, status 0, for
+/// a node whose charts take no START (the machine stayed at rest), and for any address
+/// at all.
+#[test]
+fn start_refuses_a_node_other_than_the_robots_start_node() {
+    let robot = "robot-configs/paint-robot.ron";
+    for node in ["0x0013", "0x0015", "0x0042"] {
+        let out = tool(&["start", robot, "--medium", "127.0.0.1:1", "--node", node]);
+        assert_eq!(
+            (out.status.code(), text(&out.stderr).trim_end()),
+            (
+                Some(2),
+                format!(
+                    "error: --node {node}: the robot's START input is on node 0x0011 \
+                     (role VC), where START goes (leave out --node)"
+                )
+                .as_str()
+            ),
+            "{node}"
+        );
+    }
+}

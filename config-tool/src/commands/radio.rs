@@ -1107,10 +1107,29 @@ pub fn start(
     keys: &KeysArg,
 ) -> Result<(), Failure> {
     let c = robot.map(demo::load).transpose()?;
-    let start_node = c.as_ref().and_then(|c| {
+    let start_role = c.as_ref().and_then(|c| {
         let (role, _) = c.ir.start.as_ref()?;
-        Some(c.ir.roles.get(*role)?.address)
+        c.ir.roles.get(*role)
     });
+    let start_node = start_role.map(|r| r.address);
+    // With the robot, START goes to its start input: another node's charts take none
+    // (it said "started" with the machine at rest), and any other address is not the
+    // robot's.
+    if let (Some(c), Some(n)) = (&c, node) {
+        if let Some(r) = start_role.filter(|r| r.address != n) {
+            return Err(Failure::usage(format!(
+                "--node {n:#06x}: the robot's START input is on node {:#06x} (role {}), \
+                 where START goes (leave out --node)",
+                r.address, r.name
+            )));
+        }
+        if !c.ir.roles.iter().any(|r| r.address == n) {
+            return Err(Failure::usage(format!(
+                "--node {n:#06x} is no node of robot `{}`",
+                c.ir.name
+            )));
+        }
+    }
     let node = node.or(start_node).ok_or_else(|| {
         Failure::usage("the robot has no start input: give the node to START with --node")
     })?;
