@@ -58,8 +58,8 @@ fn build(name: &str, text: &str) -> Compiled {
 }
 
 /// The robots with START on another role than step 1's: the last step on the button's
-/// role (its `stepN.done` reopens the gate), on step 1's role, and a button on a role
-/// that moves nothing (both: `cycle.done`).
+/// role, on step 1's role, and a button on a role that moves nothing (each gate opened by
+/// `cycle.done`).
 fn gated() -> Vec<(&'static str, String)> {
     vec![
         ("paint-robot-start-on-gr.ron", START_ON_GR.to_string()),
@@ -142,7 +142,10 @@ fn press_storm(c: &Compiled, during: usize, loss: f64) -> (Vec<String>, usize, V
 fn presses_during_a_cycle_cost_nothing_and_break_no_link_at_20_percent_loss() {
     for (name, text, per_cycle) in [
         ("paint-robot-start-on-gr.ron", START_ON_GR.to_string(), 11),
-        ("last-on-button.ron", two("A+ B+ A- B-", "B"), 5),
+        // (5 while the last step's own `stepN.done` reopened the gate: `cycle.done` now
+        // does, for every gated robot, so that the gate opens only when step 1's chart is
+        // idle.)
+        ("last-on-button.ron", two("A+ B+ A- B-", "B"), 6),
         ("panel.ron", two("A+ B+ B- A-", "PANEL"), 4),
     ] {
         let c = build(name, &text);
@@ -161,5 +164,46 @@ fn presses_during_a_cycle_cost_nothing_and_break_no_link_at_20_percent_loss() {
         assert_eq!(steps, two_cycles, "{name}");
         assert_eq!(publications, 2 * per_cycle, "{name}");
         assert_eq!(trouble, Vec::<String>::new(), "{name}");
+    }
+}
+
+/// The gated robots home: a START pressed before HOME (or during homing) never starts a
+/// cycle. The gate opened at power-up: such a press sent `cycle.start`, which homing's end
+/// let through (step 1's chart back in `IDLE`) unless the last homing step was on the
+/// button's role and its `home.done` came first on the same link; with START on the
+/// paint robot's HC (its last homing step RC-) `verify` failed homing conformance and
+/// `push` refused the robot. The gate now opens when step 1's chart tells it the
+/// machine is idle.
+#[test]
+fn a_start_before_home_never_starts_a_cycle_with_the_button_on_any_role() {
+    let on_hc = START_ON_GR
+        .replace("inputs: [(name: \"START\", pin: 4)],", "")
+        .replace(
+            "(name: \"HC\", kind: DoubleActing(extend: 0, retract: 1, home: 2, end: 3, out_ms: 800, back_ms: 800)),\n            ],",
+            "(name: \"HC\", kind: DoubleActing(extend: 0, retract: 1, home: 2, end: 3, out_ms: 800, back_ms: 800)),\n            ],\n            inputs: [(name: \"START\", pin: 4)],",
+        );
+    let mut robots = gated();
+    robots.push(("start-on-hc.ron", on_hc));
+    robots.push(("panel-last-a.ron", two("A+ B+ B- A-", "PANEL")));
+    robots.push(("panel-last-b.ron", two("A+ B+ A- B-", "PANEL")));
+    for (name, text) in robots {
+        let c = build(name, &text);
+        let model = verify::Model::new(&c).expect("model builds");
+        assert_eq!(
+            c.ir.roles
+                .iter()
+                .position(|r| r.start.is_some())
+                .map(|r| c.ir.roles[r].name.as_str()),
+            Some(match name {
+                "paint-robot-start-on-gr.ron" => "GR",
+                "start-on-hc.ron" => "HC",
+                "last-on-button.ron" => "B",
+                _ => "PANEL",
+            }),
+            "{name}"
+        );
+        let r = verify::explore_homing(&model, verify::ExploreOptions::default())
+            .expect("the robot homes");
+        assert!(r.report.ok(), "{}", r.render(name, 0));
     }
 }

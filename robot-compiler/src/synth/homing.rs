@@ -16,7 +16,7 @@ use crate::homing;
 use crate::ir::{ActionIr, ChartIr, Ir, RoleIr, StateIr, Step, TransitionIr};
 use crate::model::Robot;
 
-use super::{Motion, Sequence, SynthError, Timers, CYCLE_DONE_EVENT};
+use super::{Motion, Sequence, SynthError, Timers};
 
 /// The event step 1's chart emits to start the homing steps.
 pub const HOME_START_EVENT: &str = "home.start";
@@ -181,19 +181,6 @@ pub(super) fn add(seq: &Sequence<'_>, ir: &mut Ir) -> Result<(), SynthError> {
         if owners.last().is_some_and(|&o| o != first) {
             let last = owners[n - 1];
             import(r, last, HOME_DONE_EVENT);
-        }
-    }
-    // A START gate that reopens on the last cycle step's event: homing reopens it too (a
-    // press while not homed closed it for nothing).
-    if seq.gated && seq.reopen != CYCLE_DONE_EVENT {
-        let sr = seq.start_role;
-        let r = &mut ir.roles[sr];
-        if let Some(gi) = r.charts.iter().position(|c| c.name == seq.start_input) {
-            r.event(HOME_DONE_EVENT);
-            r.routes.push((String::from(HOME_DONE_EVENT), gi, 1));
-            if owners.last().is_some_and(|&o| o != sr) {
-                import(r, owners[n - 1], HOME_DONE_EVENT);
-            }
         }
     }
     for q in 0..ir.roles.len() {

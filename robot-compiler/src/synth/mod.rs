@@ -11,12 +11,15 @@
 //! The owner of step 1 waits in `IDLE` for START, and (if the last step is another
 //! actuator's) in `CYCLE_END` for `stepN.done`, so a START during a cycle is ignored.
 //! When the START button is on another role than step 1's, a `START` chart on the
-//! button's role gates it: `IDLE` -(press)-> `CYCLE` (emit `cycle.start`, published to
-//! step 1's role) -(the cycle is over)-> `IDLE`. A press during a cycle costs nothing. The
-//! cycle is over for the button's role when step 1's chart is back in `IDLE`: it then
-//! emits `cycle.done` to the button's role, unless the last step is the button role's own
-//! (its `stepN.done` reaches step 1's role on the same link before the next
-//! `cycle.start`, so that local event reopens the gate for free).
+//! button's role gates it: `SHUT` -(the machine is idle)-> `IDLE` -(press)-> `CYCLE`
+//! (emit `cycle.start`, published to step 1's role) -(the cycle is over)-> `IDLE`. A
+//! press during a cycle, or before the machine is homed, costs nothing. The machine is
+//! idle, and a cycle over, for the button's role when step 1's chart is back in `IDLE`
+//! (after homing or a cycle): it then emits `cycle.done` to the button's role. (The gate
+//! once started open, and reopened on the last step's `stepN.done` when that step was the
+//! button role's own: a press before HOME then sent `cycle.start`, which started a cycle
+//! once homing had ended, unless the last homing step's `home.done` reached step 1's role
+//! first on the same link.)
 //! A watchdog timeout raises fault 1 through a small per-role `fault` chart, which also
 //! publishes `fault` to every other role; receiving a peer's `fault` raises fault 2. So a
 //! fault anywhere stops every node at once (outputs safe) until a reset.
@@ -125,13 +128,9 @@ struct Sequence<'a> {
     start_input: String,
     /// The role of step 1's actuator.
     first_role: usize,
-    /// Whether START is on another role than step 1's (gated there).
+    /// Whether START is on another role than step 1's (gated there; step 1's chart
+    /// emits `cycle.done` when back in `IDLE`).
     gated: bool,
-    /// The event that reopens the gate: the local `stepN.done` if the last step is the
-    /// button role's, else `cycle.done`.
-    reopen: String,
-    /// Whether step 1's chart emits `cycle.done` (gated, and reopened by it).
-    cycle_done: bool,
 }
 
 impl<'a> Sequence<'a> {
@@ -147,21 +146,14 @@ impl<'a> Sequence<'a> {
             .map(|(r, _)| r)
             .ok_or_else(|| SynthError::UnknownActuator(steps[0].actuator.clone()))?;
         let gated = start_role != first_role;
-        let mut seq = Sequence {
+        Ok(Sequence {
             robot,
             steps,
             start_role,
             start_input,
             first_role,
             gated,
-            reopen: String::from(CYCLE_DONE_EVENT),
-            cycle_done: false,
-        };
-        if seq.role_of(n - 1) == Some(start_role) {
-            seq.reopen = done_event(n - 1);
-        }
-        seq.cycle_done = gated && seq.reopen == CYCLE_DONE_EVENT;
-        Ok(seq)
+        })
     }
 
     /// The role of step `k`'s actuator (the cycle wraps around).
@@ -211,7 +203,7 @@ impl<'a> Sequence<'a> {
         for (a, timers) in moving.iter().zip(timers) {
             let motion = Motion::of(robot, &r, a, timers)?;
             let mut chart = actuator_chart(&mut r, &motion, self.steps, &self.start_input)?;
-            if self.cycle_done && a.name == self.steps[0].actuator {
+            if self.gated && a.name == self.steps[0].actuator {
                 // Back in IDLE: tell the button's role that a press may start a cycle.
                 if let Some(idle) = chart.states.first_mut() {
                     idle.actions
@@ -226,13 +218,7 @@ impl<'a> Sequence<'a> {
             self.fault_chart(&mut r, ri);
         }
         if self.gated && ri == self.start_role {
-            start_chart(
-                robot,
-                &mut r,
-                &self.start_input,
-                &self.reopen,
-                self.first_role,
-            );
+            start_chart(robot, &mut r, &self.start_input, self.first_role);
         }
         // Register route events (emitted and imported) in a stable order.
         for (e, _, _) in r.routes.clone() {
@@ -358,24 +344,24 @@ impl<'a> Sequence<'a> {
 }
 
 /// The START chart of the button's role when step 1 is another role's (module doc):
-/// `IDLE` -(START)-> `CYCLE` [emit `cycle.start`] -(`reopen`)-> `IDLE`.
-fn start_chart(robot: &Robot, r: &mut RoleIr, start_input: &str, reopen: &str, first: usize) {
+/// `SHUT` -(`cycle.done`)-> `IDLE` -(START)-> `CYCLE` [emit `cycle.start`] -(`cycle.done`)->
+/// `IDLE`. It starts shut (after a boot or a reset the machine is not homed) and rests
+/// open (a table activated at rest is idle).
+fn start_chart(robot: &Robot, r: &mut RoleIr, start_input: &str, first: usize) {
     let c = r.charts.len();
     r.start = Some(start_input.to_string());
     r.event(CYCLE_START_EVENT);
-    if reopen == CYCLE_DONE_EVENT {
-        r.imports.push((
-            robot.roles[first].name.clone(),
-            String::from(CYCLE_DONE_EVENT),
-            String::from(CYCLE_DONE_EVENT),
-        ));
-    }
+    r.imports.push((
+        robot.roles[first].name.clone(),
+        String::from(CYCLE_DONE_EVENT),
+        String::from(CYCLE_DONE_EVENT),
+    ));
     r.routes.push((start_input.to_string(), c, 0));
-    r.routes.push((reopen.to_string(), c, 1));
+    r.routes.push((String::from(CYCLE_DONE_EVENT), c, 1));
     r.charts.push(ChartIr {
         name: start_input.to_string(),
         inputs: vec![String::from("press"), String::from("done")],
-        initial: 0,
+        initial: 2,
         idle: 0,
         rests: Vec::new(),
         states: vec![
@@ -387,8 +373,18 @@ fn start_chart(robot: &Robot, r: &mut RoleIr, start_input: &str, reopen: &str, f
                 name: String::from("CYCLE"),
                 actions: vec![ActionIr::Emit(String::from(CYCLE_START_EVENT))],
             },
+            StateIr {
+                name: String::from("SHUT"),
+                actions: vec![],
+            },
         ],
         transitions: vec![
+            TransitionIr {
+                from: 2,
+                to: 0,
+                trigger: Some(1),
+                guard: None,
+            },
             TransitionIr {
                 from: 0,
                 to: 1,
