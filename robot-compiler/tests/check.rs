@@ -144,6 +144,22 @@ const BROKEN: &[(&str, &[&str])] = &[
     ("guard-unknown-name.ron", &[
         "36:68: error: unknown name `MAX`: not a variable, input or parameter of this chart",
     ]),
+    // Each accepted, each broke the machine: B out at the first `B+` (its watchdog
+    // faulted every cycle); HOME at each START; an e-stop at each START; a press of
+    // `fault` faulted B, an input `A.end2` beside the synthesised `A.end`.
+    ("start-extend.ron", &[
+        "18:104: error: `start: Extend` drives `B` out before the charts run: a sequence starts with every actuator home",
+    ]),
+    ("home-is-start.ron", &[
+        "23:11: error: `home` is the START input `START`: one button cannot both home the machine and start a cycle",
+    ]),
+    ("estop-is-start.ron", &[
+        "15:20: error: `estop` is the START input `START`: every press would stop the machine",
+    ]),
+    ("input-named-like-an-event.ron", &[
+        "14:29: error: input `fault` is named as the sequence's charts name their own events (`fault`, `boot`, `home` and every name with a `.`)",
+        "14:54: error: input `A.end2` is named as the sequence's charts name their own events (`fault`, `boot`, `home` and every name with a `.`)",
+    ]),
 ];
 
 #[test]

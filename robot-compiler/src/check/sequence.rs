@@ -9,7 +9,7 @@ use config_schema::limits::MAX_STATES;
 use crate::diag::Diagnostic;
 use crate::elab::{start_input, StrMap};
 use crate::ir::parse_steps;
-use crate::model::{ActuatorKind, Robot};
+use crate::model::{ActuatorKind, ActuatorLevel, Robot};
 use crate::source::Source;
 
 pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
@@ -38,6 +38,8 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
     }
     if let Some(text) = &robot.sequence {
         steps(robot, src, "sequence", text, true, out);
+        buttons(robot, src, out);
+        start_levels(robot, src, out);
     }
     if let Some(text) = &robot.expect {
         steps(robot, src, "expect", text, false, out);
@@ -180,6 +182,95 @@ fn steps(
                         format!("actuator `{}` never moves in the sequence", a.name),
                     ));
                 }
+            }
+        }
+    }
+}
+
+/// The events a sequence's synthesised charts name themselves without a `.` (every other
+/// one has one: `A.end`, `step1.done`, `cycle.start`, ...).
+const SYNTHESISED: [&str; 3] = [
+    crate::synth::FAULT_EVENT,
+    crate::synth::BOOT_EVENT,
+    crate::synth::HOME_COMMAND_EVENT,
+];
+
+/// A sequence robot's inputs are events of its synthesised charts: none may be named as
+/// their own events (an input `fault` faulted a peer at each press), and the START, HOME
+/// and e-stop buttons are three buttons (HOME on START homed at each press, an e-stop on
+/// START stopped the machine at each).
+fn buttons(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
+    for (ri, r) in robot.roles.iter().enumerate() {
+        for (k, i) in r.inputs.iter().enumerate() {
+            if i.name.contains('.') || SYNTHESISED.contains(&i.name.as_str()) {
+                out.push(
+                    Diagnostic::error(
+                        src.span(&format!("roles[{ri}].inputs[{k}].name")),
+                        format!(
+                            "input `{}` is named as the sequence's charts name their own \
+                             events (`fault`, `boot`, `home` and every name with a `.`)",
+                            i.name
+                        ),
+                    )
+                    .help("rename the input"),
+                );
+            }
+        }
+    }
+    let Ok(Some(start)) = start_input(robot) else {
+        return;
+    };
+    if let Ok(Some(home)) = crate::elab::home_input(robot) {
+        if home == start {
+            out.push(Diagnostic::error(
+                src.span("home"),
+                format!(
+                    "`home` is the START input `{}`: one button cannot both home the machine \
+                     and start a cycle",
+                    start.1
+                ),
+            ));
+        }
+    }
+    if let Some(r) = robot.roles.get(start.0) {
+        if r.estop.as_deref() == Some(start.1.as_str()) {
+            out.push(Diagnostic::error(
+                src.span(&format!("roles[{}].estop", start.0)),
+                format!(
+                    "`estop` is the START input `{}`: every press would stop the machine",
+                    start.1
+                ),
+            ));
+        }
+    }
+}
+
+/// A sequence starts with every actuator home: one the sequence moves may not be driven
+/// out before the charts run (`start: Extend`: the first `+` then commanded nothing and
+/// its watchdog faulted the machine, every cycle).
+fn start_levels(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
+    let moved: Vec<String> = robot
+        .sequence
+        .as_deref()
+        .map(parse_steps)
+        .unwrap_or_default()
+        .into_iter()
+        .filter_map(|(s, _)| s.ok().map(|s| s.actuator))
+        .collect();
+    for (ri, r) in robot.roles.iter().enumerate() {
+        for (ai, a) in r.actuators.iter().enumerate() {
+            if a.start == ActuatorLevel::Extend && moved.contains(&a.name) {
+                out.push(
+                    Diagnostic::error(
+                        src.span(&format!("roles[{ri}].actuators[{ai}].start")),
+                        format!(
+                            "`start: Extend` drives `{}` out before the charts run: a sequence \
+                             starts with every actuator home",
+                            a.name
+                        ),
+                    )
+                    .help("`Off`, `Hold` or `Retract`"),
+                );
             }
         }
     }
