@@ -352,3 +352,33 @@ fn diagram_draws_states_with_actions_and_labelled_transitions() {
         "unknown role `Z` (roles: A, B)"
     );
 }
+
+/// A sequence robot with a plant on an input its synthesised charts do not read (a door
+/// button, wired and declared, not yet used): `check` took it, then `sim` and `verify`
+/// failed (`plant DOOR: no input DOOR on role VC`). The node reads the input; nothing
+/// listens to it.
+#[test]
+fn a_plant_on_an_input_the_sequence_does_not_read_simulates() {
+    let src = load("../robot-configs/paint-robot.ron");
+    let text = src
+        .text
+        .replace(
+            "inputs: [(name: \"START\", pin: 4)],",
+            "inputs: [(name: \"START\", pin: 4), (name: \"DOOR\", pin: 5)],",
+        )
+        .replace(
+            "    start: \"START\",",
+            "    plants: [Button(name: \"DOOR\", role: \"VC\", input: \"DOOR\")],\n    start: \"START\",",
+        );
+    let c = build(&Source::new("door.ron", text));
+    let vc = &c.ir.roles[0];
+    assert!(vc
+        .inputs
+        .iter()
+        .any(|i| i.name == "DOOR" && i.pin == 5 && i.rise.is_none()));
+    let r = sim::simulate(&c, 2).expect("simulates");
+    assert!(r.ok(), "{}", r.report());
+    let v = robot_analysis::verify::verify(&c, robot_analysis::verify::ExploreOptions::default())
+        .expect("model builds");
+    assert!(v.ok(), "{}", v.render("door", 0));
+}

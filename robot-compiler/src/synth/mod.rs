@@ -220,6 +220,7 @@ impl<'a> Sequence<'a> {
         if self.gated && ri == self.start_role {
             start_chart(robot, &mut r, &self.start_input, self.first_role);
         }
+        plant_inputs(robot, role, &mut r);
         // Register route events (emitted and imported) in a stable order.
         for (e, _, _) in r.routes.clone() {
             r.event(&e);
@@ -421,6 +422,28 @@ fn button(r: &mut RoleIr, role: &Role, name: &str) -> Result<(), SynthError> {
         });
     }
     Ok(())
+}
+
+/// The inputs of `role` that a declared plant drives and the charts do not read (a door
+/// button wired and not yet used): declared without an event, so that the node reads the
+/// pin and `sim` and `verify` find the plant's input.
+fn plant_inputs(robot: &Robot, role: &Role, r: &mut RoleIr) {
+    for p in robot.plants.iter().filter(|p| p.role() == role.name) {
+        for (_, pin, output) in p.pins() {
+            let declared = role.inputs.iter().find(|i| i.name == pin);
+            if let (false, Some(i)) = (output, declared) {
+                if !r.inputs.iter().any(|x| x.name == i.name) {
+                    r.inputs.push(InputIr {
+                        name: i.name.clone(),
+                        pin: i.pin,
+                        rise: None,
+                        fall: None,
+                        var: None,
+                    });
+                }
+            }
+        }
+    }
 }
 
 /// The timers of one actuator's chart (indices into the role's `timers`).
