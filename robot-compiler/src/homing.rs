@@ -14,7 +14,7 @@ use std::collections::BTreeMap;
 
 use crate::interlock::{self, Atom, Interlock, END, EXTENDING, HOME, RETRACTING};
 use crate::ir::{Ir, Step};
-use crate::model::Robot;
+use crate::model::{ActuatorKind, ActuatorLevel, Robot};
 
 /// A homing step that lets an interlock hold.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -35,22 +35,60 @@ pub enum DeriveError {
          anywhere (declare `homing`, e.g. `homing: \"{example}\"`)"
     )]
     Stuck { stuck: String, example: String },
+    #[error(
+        "interlock never[{index}] `{text}` may hold before HOME, {witness}: a monostable \
+         valve drops at a boot (or `start: Retract` drives), and its actuator returns home \
+         at once"
+    )]
+    AtPowerUp {
+        index: usize,
+        text: String,
+        witness: String,
+    },
 }
 
 /// Where an actuator is before a homing step: known (home or end) after an earlier step,
-/// moving (the step's own), or anywhere at rest.
+/// moving (the step's own), anywhere at rest, or (one whose valve returns it home before
+/// the charts run: a monostable valve, which drops at a boot, or `start: Retract`) also
+/// on its way home.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Place {
     Known(u8),
     Moving(u8),
     Anywhere,
+    AnywhereOrReturning,
+}
+
+/// Whether actuator `name`'s valve may move it home before homing: a monostable valve
+/// (it drops at a boot, whatever its start level says) or `start: Retract`.
+fn returns_at_start(robot: &Robot, name: &str) -> bool {
+    robot
+        .actuator(name)
+        .and_then(|(r, i)| robot.roles.get(r)?.actuators.get(i))
+        .is_some_and(|a| {
+            matches!(a.kind, ActuatorKind::SingleActing { .. }) || a.start == ActuatorLevel::Retract
+        })
+}
+
+/// Where every plant actuator (`actuators`, plant order) is before HOME: anywhere, on its
+/// way home if its valve returns it.
+fn power_up(robot: &Robot, actuators: &[String]) -> Vec<Place> {
+    actuators
+        .iter()
+        .map(|a| match returns_at_start(robot, a) {
+            true => Place::AnywhereOrReturning,
+            false => Place::Anywhere,
+        })
+        .collect()
 }
 
 /// The places every plant actuator (`actuators`, plant order) has during step `k`.
-fn places(actuators: &[String], steps: &[Step], k: usize) -> Vec<Place> {
+fn places(robot: &Robot, actuators: &[String], steps: &[Step], k: usize) -> Vec<Place> {
+    let start = power_up(robot, actuators);
     actuators
         .iter()
-        .map(|a| {
+        .zip(start)
+        .map(|(a, start)| {
             if steps[k].actuator == *a {
                 return Place::Moving(if steps[k].extend {
                     EXTENDING
@@ -62,26 +100,31 @@ fn places(actuators: &[String], steps: &[Step], k: usize) -> Vec<Place> {
                 .iter()
                 .rev()
                 .find(|s| s.actuator == *a)
-                .map_or(Place::Anywhere, |s| {
-                    Place::Known(if s.extend { END } else { HOME })
-                })
+                .map_or(start, |s| Place::Known(if s.extend { END } else { HOME }))
         })
         .collect()
 }
 
-/// The positions an actuator anywhere at rest may have: home, end, stopped in between.
-const AT_REST: [u8; 3] = [HOME, END, 0];
+/// The positions an actuator anywhere at rest may have: home, end, stopped in between;
+/// one whose valve returns it, also on its way home.
+const AT_REST: [u8; 4] = [HOME, END, 0, RETRACTING];
 
 /// A placement of the free names of `lock` under which it holds, if one exists.
 fn holds_somewhere(lock: &Interlock, places: &[Place], names: &[String]) -> Option<String> {
-    // The free dimensions: actuators anywhere (3 positions), chart states (2 values).
-    let mut free_plants: Vec<usize> = Vec::new();
+    // The free dimensions: actuators anywhere (3 positions, 4 for one on its way home),
+    // chart states (2 values).
+    let mut free_plants: Vec<(usize, usize)> = Vec::new();
     let mut free_charts: Vec<Atom> = Vec::new();
     for atom in lock.names.values() {
         match *atom {
             Atom::Position { plant, .. } => {
-                if places.get(plant) == Some(&Place::Anywhere) && !free_plants.contains(&plant) {
-                    free_plants.push(plant);
+                let radix = match places.get(plant) {
+                    Some(Place::Anywhere) => 3,
+                    Some(Place::AnywhereOrReturning) => 4,
+                    _ => continue,
+                };
+                if !free_plants.iter().any(|(p, _)| *p == plant) {
+                    free_plants.push((plant, radix));
                 }
             }
             Atom::Chart { .. } => free_charts.push(*atom),
@@ -90,8 +133,8 @@ fn holds_somewhere(lock: &Interlock, places: &[Place], names: &[String]) -> Opti
     }
     // Each interlock names a few things: the product stays small; past 2^12 placements
     // assume the worst (a breach) rather than spend the time.
-    let combos = 3usize
-        .checked_pow(free_plants.len() as u32)
+    let combos = (free_plants.iter())
+        .try_fold(1usize, |n, (_, radix)| n.checked_mul(*radix))
         .and_then(|n| n.checked_mul(1usize.checked_shl(free_charts.len() as u32)?));
     let Some(combos) = combos.filter(|&n| n <= 4096) else {
         return Some(String::from("(too many placements to search)"));
@@ -99,9 +142,9 @@ fn holds_somewhere(lock: &Interlock, places: &[Place], names: &[String]) -> Opti
     for n in 0..combos {
         let mut rest = n;
         let mut at: BTreeMap<usize, u8> = BTreeMap::new();
-        for &p in &free_plants {
-            at.insert(p, AT_REST[rest % 3]);
-            rest /= 3;
+        for &(p, radix) in &free_plants {
+            at.insert(p, AT_REST[rest % radix]);
+            rest /= radix;
         }
         let charts: Vec<(Atom, bool)> = free_charts
             .iter()
@@ -126,11 +169,12 @@ fn holds_somewhere(lock: &Interlock, places: &[Place], names: &[String]) -> Opti
         if lock.holds(&read) {
             let witness: Vec<String> = free_plants
                 .iter()
-                .map(|p| {
+                .map(|(p, _)| {
                     let name = names.get(*p).map_or("?", String::as_str);
                     match at.get(p).copied().unwrap_or(0) {
                         HOME => format!("{name} home"),
                         END => format!("{name} at its end"),
+                        RETRACTING => format!("{name} on its way home"),
                         _ => format!("{name} stopped between home and end"),
                     }
                 })
@@ -147,11 +191,16 @@ fn holds_somewhere(lock: &Interlock, places: &[Place], names: &[String]) -> Opti
 
 /// Every (step, interlock) pair where the step lets the interlock hold; `interlocks` are
 /// (index in `never`, interlock).
-pub fn breaches(ir: &Ir, interlocks: &[(usize, Interlock)], steps: &[Step]) -> Vec<Breach> {
+pub fn breaches(
+    robot: &Robot,
+    ir: &Ir,
+    interlocks: &[(usize, Interlock)],
+    steps: &[Step],
+) -> Vec<Breach> {
     let actuators = interlock::actuator_names(ir);
     let mut out = Vec::new();
     for k in 0..steps.len() {
-        let places = places(&actuators, steps, k);
+        let places = places(robot, &actuators, steps, k);
         for (i, lock) in interlocks {
             if let Some(witness) = holds_somewhere(lock, &places, &actuators) {
                 out.push(Breach {
@@ -163,6 +212,22 @@ pub fn breaches(ir: &Ir, interlocks: &[(usize, Interlock)], steps: &[Step]) -> V
         }
     }
     out
+}
+
+/// The interlocks (index in `never`, and where the actuators are) that may hold before
+/// HOME: every actuator anywhere, one whose valve returns it home on its way (a
+/// monostable valve drops at a boot: a gripper opening while the arm is down).
+pub fn at_power_up(
+    robot: &Robot,
+    ir: &Ir,
+    interlocks: &[(usize, Interlock)],
+) -> Vec<(usize, String)> {
+    let actuators = interlock::actuator_names(ir);
+    let places = power_up(robot, &actuators);
+    interlocks
+        .iter()
+        .filter_map(|(i, lock)| Some((*i, holds_somewhere(lock, &places, &actuators)?)))
+        .collect()
 }
 
 /// The moving actuators a homing sequence leaves away from home (or never moves).
@@ -185,6 +250,14 @@ pub fn derive(
     ir: &Ir,
     interlocks: &[(usize, Interlock)],
 ) -> Result<Vec<Step>, DeriveError> {
+    if let Some((index, witness)) = at_power_up(robot, ir, interlocks).into_iter().next() {
+        let text = robot.never.get(index).cloned().unwrap_or_default();
+        return Err(DeriveError::AtPowerUp {
+            index,
+            text,
+            witness,
+        });
+    }
     let actuators = interlock::actuator_names(ir);
     let switched = |a: &str| {
         robot
@@ -203,7 +276,7 @@ pub fn derive(
                 extend: false,
             });
             let k = next.len() - 1;
-            let places = places(&actuators, &next, k);
+            let places = places(robot, &actuators, &next, k);
             interlocks
                 .iter()
                 .all(|(_, l)| holds_somewhere(l, &places, &actuators).is_none())

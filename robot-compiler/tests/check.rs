@@ -147,6 +147,11 @@ const BROKEN: &[(&str, &[&str])] = &[
     // Each accepted, each broke the machine: B out at the first `B+` (its watchdog
     // faulted every cycle); HOME at each START; an e-stop at each START; a press of
     // `fault` faulted B, an input `A.end2` beside the synthesised `A.end`.
+    // `check` took it; `verify` found the interlock broken in the start state (B returns
+    // home at a boot, its valve dropped, while A may be out), and `push` refused it.
+    ("interlock-at-power-up.ron", &[
+        "23:13: error: interlock never[0] `B.moving && !A.home` may hold before HOME, with A at its end, B on its way home: a monostable valve drops at a boot (or `start: Retract` drives), and its actuator returns home at once",
+    ]),
     ("start-extend.ron", &[
         "18:104: error: `start: Extend` drives `B` out before the charts run: a sequence starts with every actuator home",
     ]),

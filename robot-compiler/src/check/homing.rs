@@ -111,7 +111,22 @@ pub fn check_ir(robot: &Robot, ir: &Ir, src: &Source, out: &mut Vec<Diagnostic>)
         );
     }
     let locks = homing::resolved_interlocks(robot, ir);
-    for b in homing::breaches(ir, &locks, &ir.homing) {
+    for (i, witness) in homing::at_power_up(robot, ir, &locks) {
+        let lock = robot.never.get(i).map_or("", String::as_str);
+        out.push(
+            Diagnostic::error(
+                src.span(&format!("never[{i}]")),
+                homing::DeriveError::AtPowerUp {
+                    index: i,
+                    text: lock.to_string(),
+                    witness,
+                }
+                .to_string(),
+            )
+            .help("give the returning actuator a double-acting valve, or an interlock that allows its return"),
+        );
+    }
+    for b in homing::breaches(robot, ir, &locks, &ir.homing) {
         let step = &ir.homing[b.step];
         let lock = robot.never.get(b.interlock).map_or("", String::as_str);
         out.push(

@@ -141,8 +141,17 @@ fn build_charts(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
                 .into_iter()
                 .filter_map(|(s, _)| s.ok())
                 .collect();
-            synth::synthesise(robot, &steps)
-                .map_err(|e| vec![Diagnostic::error(src.span("sequence"), e.to_string())])
+            synth::synthesise(robot, &steps).map_err(|e| {
+                // An interlock that may hold at power-up is the interlock's problem.
+                let at = match &e {
+                    synth::SynthError::Homing(crate::homing::DeriveError::AtPowerUp {
+                        index,
+                        ..
+                    }) => format!("never[{index}]"),
+                    _ => String::from("sequence"),
+                };
+                vec![Diagnostic::error(src.span(&at), e.to_string())]
+            })
         }
         None => elab::elaborate(robot, src),
     }
