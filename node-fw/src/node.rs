@@ -1270,7 +1270,7 @@ impl<S: StagingArea> NodeCore<S> {
             Ok(payload) => payload,
             Err(e) => {
                 let staged = self.switch.staged();
-                links.refused(mpdu, staged, e, &mut self.radio.security);
+                links.refused(Some(frame.key_index()), staged, e, &mut self.radio.security);
                 crate::count(&mut self.radio.counters.dropped);
                 return true;
             }
@@ -1381,9 +1381,10 @@ impl<S: StagingArea> NodeCore<S> {
                         peer_security::count_refusal(e, &mut self.radio.security);
                     } else {
                         let staged = self.switch.staged();
+                        let index = peer_security::aux_key_index(payload);
                         self.radio
                             .links
-                            .refused(mpdu, staged, e, &mut self.radio.security);
+                            .refused(index, staged, e, &mut self.radio.security);
                     }
                     crate::count(&mut self.radio.counters.dropped);
                     return;

@@ -156,20 +156,21 @@ fn in_time(now: u32, sent: u32) -> bool {
 /// Whether `peer` may be sent another handshake frame at `now`, at most one per
 /// `every` ms (if so, the next may go at `now + every`).
 fn may(times: &mut Vec<(u16, u64), MAX_PEERS>, peer: u16, now: u64, every: u64) -> bool {
-    match times.iter_mut().find(|(p, _)| *p == peer) {
-        Some((_, next)) if now < *next => false,
-        Some((_, next)) => {
-            *next = now + every;
-            true
+    if let Some((_, next)) = times.iter_mut().find(|(p, _)| *p == peer) {
+        if now < *next {
+            return false;
         }
-        None => {
-            if times.is_full() {
-                crate::remove_at(times, 0);
-            }
-            let _ = times.push((peer, now + every));
-            true
+        *next = now + every;
+        return true;
+    }
+    // A new one: in a free entry, else in the one free again the longest (only authentic
+    // frames' senders come here, at most the table's peers: a full list is no flood).
+    if let Err(entry) = times.push((peer, now + every)) {
+        if let Some(oldest) = times.iter_mut().min_by_key(|(_, next)| *next) {
+            *oldest = entry;
         }
     }
+    true
 }
 
 impl PeerSecurity {
@@ -312,7 +313,7 @@ impl PeerSecurity {
                 self.admit(&opened, &message, now, counters)
             }
             Err(e) => {
-                self.refused(mpdu, staged, e, counters);
+                self.refused(key_index_of(mpdu), staged, e, counters);
                 Verdict::Dropped
             }
         }
@@ -348,10 +349,18 @@ impl PeerSecurity {
         self.key_for(src, key_index, now)
     }
 
-    /// A peer's frame `mpdu` (no FCS) did not open (`e`): counted by its reason, unless it is under
-    /// the key index of `staged` (a peer that switched a moment earlier).
-    pub fn refused(&self, mpdu: &[u8], staged: u32, e: SecError, counters: &mut SecurityCounters) {
-        if !(e == SecError::UnknownKey && staged != 0 && ahead(mpdu, staged)) {
+    /// A peer's frame under key index `key_index` (if its auxiliary header says one) did
+    /// not open (`e`): counted by its reason, unless it is under the key index of `staged`
+    /// (a peer that switched a moment earlier).
+    pub fn refused(
+        &self,
+        key_index: Option<u8>,
+        staged: u32,
+        e: SecError,
+        counters: &mut SecurityCounters,
+    ) {
+        let ahead = staged != 0 && key_index == Some(link_key_index(staged));
+        if !(e == SecError::UnknownKey && ahead) {
             count_refusal(e, counters);
         }
     }
@@ -579,15 +588,20 @@ pub fn accept<const N: usize>(
     }
 }
 
-/// Whether `mpdu` is secured under the key index of generation `staged`.
-fn ahead(mpdu: &[u8], staged: u32) -> bool {
+/// The key index of secured frame `mpdu`'s auxiliary header, if it has one.
+fn key_index_of(mpdu: &[u8]) -> Option<u8> {
     match config_schema::wire::mac::Frame::parse_mpdu(mpdu) {
-        Ok(config_schema::wire::mac::Frame::Data { payload, .. }) => {
-            security::AuxHeader::new_checked(payload)
-                .is_ok_and(|aux| aux.key_index() == Some(link_key_index(staged)))
-        }
-        _ => false,
+        Ok(config_schema::wire::mac::Frame::Data { payload, .. }) => aux_key_index(payload),
+        _ => None,
     }
+}
+
+/// The key index of the auxiliary header at the start of a secured frame's MAC
+/// `payload`, if it has one.
+pub fn aux_key_index(payload: &[u8]) -> Option<u8> {
+    security::AuxHeader::new_checked(payload)
+        .ok()
+        .and_then(|aux| aux.key_index())
 }
 
 /// Counts why a secured frame did not open.
