@@ -74,8 +74,10 @@ pub trait Io {
 /// The key index of the management key in the auxiliary security header.
 pub const MANAGEMENT_KEY_INDEX: u8 = 0;
 /// Senders on the config PAN whose last frame counter a node remembers (the tool, and a
-/// few spare tool addresses); a new one past these is refused, never one forgotten.
-pub const MANAGEMENT_SENDERS: usize = 4;
+/// few spare tool addresses); a new one past these is refused, never one forgotten. As many
+/// as a table has peers: the replay guard and challenge list of both are then one type, one
+/// copy of their code (132 B of the nRF52840 image for 128 B of RAM).
+pub const MANAGEMENT_SENDERS: usize = MAX_PEERS;
 /// A secured node answers an unsecured broadcast `Identify` (a scan cannot be secured
 /// with every node's key) at most once per this many ms: the answer is secured and spends
 /// a frame counter, so a flood must not use the counter up.

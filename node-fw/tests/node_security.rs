@@ -370,26 +370,33 @@ fn an_unkeyed_node_is_unchanged() {
 }
 
 #[test]
-fn a_fifth_management_sender_is_refused_not_one_forgotten() {
+fn a_management_sender_past_the_table_is_refused_not_one_forgotten() {
     let (mut n, mut b) = node();
-    for (i, src) in [0x0101, 0x0102, 0x0103].into_iter().enumerate() {
+    // The tool and as many others as the table holds but one.
+    let others = node_fw::node::MANAGEMENT_SENDERS as u16 - 1;
+    for (i, src) in (0x0101..0x0101 + others).enumerate() {
         handshake(&mut n, &mut b, src, 1, 100 * (i as u64 + 1));
     }
-    // The fifth is challenged, but its answer finds the table full.
-    let src = 0x0104;
-    n.receive(&from(src, 1, &command(1, Command::Status)), 400, &mut b);
+    let now = 100 * (u64::from(others) + 1);
+    // One more is challenged, but its answer finds the table full.
+    let src = 0x0101 + others;
+    n.receive(&from(src, 1, &command(1, Command::Status)), now, &mut b);
     let (_, payload) = open(&b.out[0]).unwrap();
     let Ok(Message::Challenge { nonce }) = Message::parse(&payload) else {
         panic!("not a challenge");
     };
     n.receive(
         &from(src, 2, &message(&Message::ChallengeAnswer { nonce })),
-        400,
+        now,
         &mut b,
     );
     assert_eq!(n.security_counters().table_full, 1);
     // And the tool was not forgotten.
-    n.receive(&secured(1, &KEY, &command(2, Command::Status)), 500, &mut b);
+    n.receive(
+        &secured(1, &KEY, &command(2, Command::Status)),
+        now + 100,
+        &mut b,
+    );
     assert_eq!(b.out.len(), 2);
     assert!(matches!(
         Message::parse(&open(&b.out[1]).unwrap().1),
