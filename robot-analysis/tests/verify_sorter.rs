@@ -34,6 +34,39 @@ fn the_station_passes_for_every_feed_of_up_to_4_balls() {
     assert_eq!((r.states, r.transitions, r.idle), (164, 279, 7));
 }
 
+/// An automaton written in a `facts_file` (next to the robot file) verifies as the same
+/// automaton written inline: `verify` takes the automata as compile resolved them. It
+/// read no file, so such a station did not verify, and `push` refused it.
+#[test]
+fn an_automaton_from_a_facts_file_verifies_as_written_inline() {
+    let src = load(SORTER);
+    let start = src
+        .text
+        .find("facts: r#\"state(s0).")
+        .expect("fig. 1's facts inline");
+    let end = start + src.text[start..].find("\"#,").expect("their end") + 3;
+    let dir = std::env::temp_dir().join(format!("sorter-facts-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let facts = src.text[start..end]
+        .trim_start_matches("facts: r#\"")
+        .trim_end_matches("\"#,");
+    std::fs::write(dir.join("fig1.pl"), facts).unwrap();
+    let text = format!(
+        "{}facts_file: \"fig1.pl\",{}",
+        &src.text[..start],
+        &src.text[end..]
+    );
+    let path = dir.join("ball-sorter.ron");
+    let c = build(&robot_compiler::Source::new(
+        path.display().to_string(),
+        text,
+    ));
+    std::fs::remove_dir_all(&dir).unwrap();
+    let r = verify(&c, 4);
+    assert!(r.ok(), "{}", r.render("ball-sorter", 0));
+    assert_eq!((r.states, r.transitions), (5299, 10232));
+}
+
 /// The station as it was: each gate closed on a 150 ms hold timer started by ENTRY. verify
 /// treats timers as untimed, so the timer may expire before the ball has fallen past the
 /// gate: gate G2, open for an orange fig. 1 takes, closes while the ball falls toward it.

@@ -28,6 +28,10 @@ pub struct Compiled {
     pub tables: Vec<Table>,
     pub blobs: Vec<Vec<u8>>,
     pub warnings: Vec<Diagnostic>,
+    /// The robot's selecting automata as resolved (a `facts_file` read next to the robot
+    /// file), in declaration order: what `verify` takes the reference semantics from (it
+    /// reads no file: a station whose automaton came from a file did not verify).
+    pub automata: Vec<crate::automata::Automaton>,
 }
 
 impl Compiled {
@@ -78,12 +82,19 @@ pub fn lower_checked(src: &Source, checked: Checked) -> Result<Compiled, Vec<Dia
         .map(encode)
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| fail(&e))?;
+    let automata = match robot.automata.is_empty() {
+        true => Vec::new(),
+        false => (crate::automata::load(&robot, src).automata.into_iter())
+            .map(|l| l.automaton)
+            .collect(),
+    };
     Ok(Compiled {
         robot,
         ir,
         tables,
         blobs,
         warnings: diags,
+        automata,
     })
 }
 

@@ -106,11 +106,6 @@ impl FeedModel {
                 .position(|a| a.name == n)
                 .ok_or_else(|| missing(n))
         };
-        let loaded = robot_compiler::automata::load_with(
-            &c.robot,
-            &robot_compiler::Source::new("robot", ""),
-            &|_| Err(std::io::Error::other("verify reads no facts file")),
-        );
         let mut automata = Vec::new();
         let mut marks = Vec::new();
         for (g, gate) in s.gates.iter().enumerate() {
@@ -120,14 +115,11 @@ impl FeedModel {
                 .ok_or_else(|| {
                     ModelError::Station(format!("gate `{gate}`: no automaton runs on its role"))
                 })?;
-            let a = (loaded.automata.iter())
-                .find(|l| l.automaton.name == decl.name)
-                .map(|l| l.automaton.clone())
+            let a = (c.automata.iter())
+                .find(|a| a.name == decl.name)
+                .cloned()
                 .ok_or_else(|| {
-                    ModelError::Station(format!(
-                        "automaton `{}` does not load without its source (a facts file?)",
-                        decl.name
-                    ))
+                    ModelError::Station(format!("automaton `{}` did not resolve", decl.name))
                 })?;
             let gnode = (c.ir.roles.iter())
                 .position(|r| r.name == role_name)
