@@ -166,6 +166,16 @@ fn structure(
                 src.span(&format!("{path}.timers[{k}]")),
                 format!("duplicate timer `{t}` of function `{name}`"),
             ));
+        } else if l.net.places.iter().any(|p| p == t) {
+            // `F.X` is both the place's entry and the timer's expiry: one event, whose
+            // routes took the one for the other (the timed place was left at once).
+            diags.push(Diagnostic::error(
+                src.span(&format!("{path}.timers[{k}]")),
+                format!(
+                    "timer `{t}` of function `{name}` is named as one of its places: \
+                     `{name}.{t}` would be both the place's entry and the timer's expiry"
+                ),
+            ));
         }
     }
     l.net.rests = resting_places(src, decl, &l.net, &path, diags);
