@@ -20,6 +20,8 @@
 
 use std::collections::VecDeque;
 
+use config_schema::limits::MAX_CASCADE;
+
 use robot_compiler::expr;
 use robot_compiler::petri::{place_ref, Event, Net};
 
@@ -148,20 +150,33 @@ impl<'n> Controller<'n> {
 
     /// One occurrence and every place change it causes, to completion; `inputs` gives
     /// the input levels (after the edge). The transitions fired, in order.
-    pub fn occur(&mut self, o: Occurrence, inputs: &dyn Fn(&str) -> Option<bool>) -> Vec<Fired> {
+    pub fn occur(
+        &mut self,
+        o: Occurrence,
+        inputs: &dyn Fn(&str) -> Option<bool>,
+    ) -> Result<Vec<Fired>, Endless> {
         self.occur_all(vec![o], inputs)
     }
 
     /// Simultaneous occurrences (one input edge sensed by the nodes of several roles),
-    /// queued in this order, and every place change they cause, to completion.
+    /// queued in this order, and every place change they cause, to completion; or
+    /// [`Endless`] past [`MAX_CASCADE`] place changes (where a node faults: it never
+    /// returned).
     pub fn occur_all(
         &mut self,
         occurrences: Vec<Occurrence>,
         inputs: &dyn Fn(&str) -> Option<bool>,
-    ) -> Vec<Fired> {
+    ) -> Result<Vec<Fired>, Endless> {
         let mut fired = Vec::new();
         let mut queue = VecDeque::from(occurrences);
+        let mut changes = 0;
         while let Some(o) = queue.pop_front() {
+            if matches!(o, Occurrence::Place { .. }) {
+                changes += 1;
+                if changes > MAX_CASCADE {
+                    return Err(Endless);
+                }
+            }
             for (f, net) in self.nets.iter().enumerate() {
                 let xe = enabled(&net.precondition(), self.marking(f));
                 let u = self.conditions(f, &o, inputs);
@@ -178,9 +193,15 @@ impl<'n> Controller<'n> {
                 }
             }
         }
-        fired
+        Ok(fired)
     }
 }
+
+/// More place changes for one occurrence than a node processes events for one stimulus
+/// ([`MAX_CASCADE`]): the functions enter places on each other's entries without end.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("more than {MAX_CASCADE} place changes for one occurrence: the functions' place events cycle (a node faults: Cascade)")]
+pub struct Endless;
 
 #[cfg(test)]
 mod tests {

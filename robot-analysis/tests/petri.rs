@@ -59,13 +59,15 @@ fn lockstep(c: &Compiled, nets: &[Net], toggles: &[usize]) -> Vec<Vec<String>> {
                 .position(|x| x.name == name)
                 .map(|p| lv[p])
         };
-        let fired = reference.occur(
-            Occurrence::Role {
-                role: role.name.clone(),
-                event,
-            },
-            &level,
-        );
+        let fired = reference
+            .occur(
+                Occurrence::Role {
+                    role: role.name.clone(),
+                    event,
+                },
+                &level,
+            )
+            .expect("the functions settle");
         trace.push(
             fired
                 .iter()
@@ -370,7 +372,9 @@ fn across_the_radio_the_charts_reach_the_controllers_places() {
                 event: event.clone(),
             })
             .collect();
-        reference.occur_all(sensed, &level);
+        reference
+            .occur_all(sensed, &level)
+            .expect("the functions settle");
         for (f, (ri, ci)) in charts.iter().enumerate() {
             assert_eq!(engines[*ri].fault(), None);
             assert_eq!(
@@ -420,4 +424,26 @@ proptest! {
             prop_assert!(robot_compiler::compile(&src).is_ok());
         }
     }
+}
+
+/// Two functions that enter places on each other's entries: the reference controller
+/// stops past `MAX_CASCADE` place changes, as a node faults there (it never returned).
+#[test]
+fn the_reference_controller_stops_an_endless_cascade_where_a_node_faults() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../tests/fixtures/broken/petri-cascade.ron"
+    );
+    let text = std::fs::read_to_string(path).unwrap();
+    let c = compile("petri-cascade.ron", &text);
+    let nets = nets(&c, &text);
+    let mut reference = Controller::new(&nets);
+    let edge = Occurrence::Role {
+        role: String::from("R"),
+        event: String::from("A"),
+    };
+    assert_eq!(
+        reference.occur(edge, &|_| Some(true)),
+        Err(robot_analysis::petri::Endless)
+    );
 }
