@@ -82,6 +82,18 @@ fn power_up(robot: &Robot, actuators: &[String]) -> Vec<Place> {
         .collect()
 }
 
+/// [`power_up`] with every returning actuator at `place` (on its way home, or still at
+/// its end before its valve let go).
+fn returned(robot: &Robot, actuators: &[String], place: Place) -> Vec<Place> {
+    power_up(robot, actuators)
+        .into_iter()
+        .map(|p| match p {
+            Place::AnywhereOrReturning => place,
+            other => other,
+        })
+        .collect()
+}
+
 /// The places every plant actuator (`actuators`, plant order) has during step `k`.
 fn places(robot: &Robot, actuators: &[String], steps: &[Step], k: usize) -> Vec<Place> {
     let start = power_up(robot, actuators);
@@ -214,19 +226,38 @@ pub fn breaches(
     out
 }
 
-/// The interlocks (index in `never`, and where the actuators are) that may hold before
-/// HOME: every actuator anywhere, one whose valve returns it home on its way (a
-/// monostable valve drops at a boot: a gripper opening while the arm is down).
+/// The interlocks (index in `never`, and where the actuators are) that the node's own
+/// return of an actuator may break before HOME (a monostable valve drops at a boot: a
+/// gripper opening while the arm is down): one that holds with the returning actuators on
+/// their way home and the others anywhere, and never with the returning ones still at
+/// their end. (Where a power cut left the actuators is not the node's doing: an
+/// interlock that holds there without a motion is homing's to end.)
 pub fn at_power_up(
     robot: &Robot,
     ir: &Ir,
     interlocks: &[(usize, Interlock)],
 ) -> Vec<(usize, String)> {
     let actuators = interlock::actuator_names(ir);
-    let places = power_up(robot, &actuators);
+    let moving = returned(robot, &actuators, Place::Moving(RETRACTING));
+    let still = returned(robot, &actuators, Place::Known(END));
     interlocks
         .iter()
-        .filter_map(|(i, lock)| Some((*i, holds_somewhere(lock, &places, &actuators)?)))
+        .filter(|(_, lock)| holds_somewhere(lock, &still, &actuators).is_none())
+        .filter_map(|(i, lock)| {
+            let witness = holds_somewhere(lock, &moving, &actuators)?;
+            // The returning actuators it names, on their way home.
+            let mut returning: Vec<String> = (lock.names.values())
+                .filter_map(|atom| match *atom {
+                    Atom::Position { plant, .. } if moving.get(plant) != still.get(plant) => {
+                        actuators.get(plant).map(|a| format!("{a} on its way home"))
+                    }
+                    _ => None,
+                })
+                .collect();
+            returning.sort();
+            returning.dedup();
+            Some((*i, format!("{witness}, {}", returning.join(", "))))
+        })
         .collect()
 }
 
