@@ -44,14 +44,7 @@ pub fn check(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
         );
         return;
     }
-    let cycle: Vec<String> = robot
-        .sequence
-        .as_deref()
-        .map(parse_steps)
-        .unwrap_or_default()
-        .into_iter()
-        .filter_map(|(s, _)| s.ok().map(|s| s.actuator))
-        .collect();
+    let cycle = super::sequence_actuators(robot);
     for (step, span) in parsed {
         let here = base.span(span.clone());
         match step {

@@ -157,6 +157,18 @@ fn build_charts(robot: &Robot, src: &Source) -> Result<Ir, Vec<Diagnostic>> {
     }
 }
 
+/// The actuators of the robot's `sequence`, step by step (those of steps that parse).
+pub(crate) fn sequence_actuators(robot: &Robot) -> Vec<String> {
+    robot
+        .sequence
+        .as_deref()
+        .map(parse_steps)
+        .unwrap_or_default()
+        .into_iter()
+        .filter_map(|(s, _)| s.ok().map(|s| s.actuator))
+        .collect()
+}
+
 /// An error for the second of two things with one name.
 pub(crate) fn duplicate(
     src: &Source,

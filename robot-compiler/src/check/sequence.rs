@@ -249,14 +249,7 @@ fn buttons(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
 /// out before the charts run (`start: Extend`: the first `+` then commanded nothing and
 /// its watchdog faulted the machine, every cycle).
 fn start_levels(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
-    let moved: Vec<String> = robot
-        .sequence
-        .as_deref()
-        .map(parse_steps)
-        .unwrap_or_default()
-        .into_iter()
-        .filter_map(|(s, _)| s.ok().map(|s| s.actuator))
-        .collect();
+    let moved = super::sequence_actuators(robot);
     for (ri, r) in robot.roles.iter().enumerate() {
         for (ai, a) in r.actuators.iter().enumerate() {
             if a.start == ActuatorLevel::Extend && moved.contains(&a.name) {
