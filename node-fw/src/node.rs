@@ -1910,6 +1910,8 @@ impl<S: StagingArea> NodeCore<S> {
             self.switch.set_staged(generation);
             ConfigReply::Staged
         } else {
+            // Its erase may have gone over the previous table: no rollback to it.
+            self.switch.set_previous(0);
             ConfigReply::Refused(Refusal::Flash)
         };
         self.send(
@@ -1947,7 +1949,15 @@ impl<S: StagingArea> NodeCore<S> {
                 self.install(deployed, at_idle);
                 ConfigReply::Activated
             }
-            None => ConfigReply::Refused(Refusal::Flash),
+            None => {
+                // The staged table's slot is revoked (its serial may be written): a push
+                // of it again stages it again.
+                if !rollback {
+                    self.switch.set_staged(0);
+                    self.ota.unstaged();
+                }
+                ConfigReply::Refused(Refusal::Flash)
+            }
         };
         if let Some(from) = from {
             self.send(

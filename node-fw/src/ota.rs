@@ -201,6 +201,12 @@ impl<S: Staging> Receiver<S> {
         self.staged = if ok { taken } else { None };
     }
 
+    /// The staged table is gone (its activation failed, its slot revoked): a push of it
+    /// again is staged again, not answered `Staged` at once.
+    pub fn unstaged(&mut self) {
+        self.staged = None;
+    }
+
     /// The generation being received, if a transfer is in progress.
     pub fn receiving(&self) -> Option<u32> {
         self.transfer.map(|t| t.generation)

@@ -573,6 +573,24 @@ struct SlotsAt {
     /// The running slot is on trial (activated, not confirmed).
     trial: bool,
     next_serial: u32,
+    /// The boot could not read the slots (it runs no table): none is staged until they
+    /// are read (a table staged then went over the one confirmed, with a serial below
+    /// it, and the next boot ran the older table).
+    unread: bool,
+}
+
+impl SlotsAt {
+    /// Where the slots are, as `survey` read them.
+    fn of(survey: &Survey) -> SlotsAt {
+        SlotsAt {
+            running: survey.running.map(|l| l.slot),
+            staged: survey.staged.map(|s| s.slot),
+            previous: survey.previous.map(|p| p.slot),
+            trial: false,
+            next_serial: survey.next_serial,
+            unread: false,
+        }
+    }
 }
 
 /// Reads slot `slot`'s blob into a buffer on the stack and hands it to `f` (`None`: the
@@ -602,13 +620,13 @@ fn decodes<F: NorFlash>(slots: &mut Slots<F>, slot: usize) -> bool {
 }
 
 /// What the slots hold (read into a buffer on the stack: [`with_slot`]).
-fn survey<F: NorFlash, N: Notes>(addr: u16, slots: &mut Slots<F>, notes: &mut N) -> Survey {
+fn survey<F: NorFlash, N: Notes>(addr: u16, slots: &mut Slots<F>, notes: &mut N) -> Option<Survey> {
     let mut buf = [0u8; MAX_BLOB];
     match slots.survey_now(&mut buf) {
-        Ok(survey) => survey,
+        Ok(survey) => Some(survey),
         Err(e) => {
             notes.note(addr, Note::FlashUnreadable(e.kind()));
-            Survey::default()
+            None
         }
     }
 }
@@ -624,7 +642,8 @@ fn load<F: NorFlash, S: Staging, N: Notes>(
     staging: S,
     notes: &mut N,
 ) -> (NodeCore<S>, SlotsAt) {
-    let survey = survey(addr, slots, notes);
+    let read = survey(addr, slots, notes);
+    let survey = read.unwrap_or_default();
     if let Some(slot) = survey.abandoned {
         notes.note(addr, Note::TrialCutShort { slot });
         if slots.revoke_now(slot).is_err() {
@@ -632,11 +651,8 @@ fn load<F: NorFlash, S: Staging, N: Notes>(
         }
     }
     let at = SlotsAt {
-        running: survey.running.map(|l| l.slot),
-        staged: survey.staged.map(|s| s.slot),
-        previous: survey.previous.map(|p| p.slot),
-        trial: false,
-        next_serial: survey.next_serial,
+        unread: read.is_none(),
+        ..SlotsAt::of(&survey)
     };
     let core = boot_core(addr, pin_mask, epochs, slots, &survey, staging, notes);
     (core, at)
@@ -695,16 +711,32 @@ fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
             }
         }
         Some(FlashRequest::Stage(blob)) => {
-            let ok = match slots.stage_now(at.running, blob) {
-                Ok(slot) => {
+            // Slots the boot could not read: read them now (the table running before is
+            // kept, and a new one is numbered above it), or stage nothing.
+            if at.unread {
+                if let Some(survey) = survey(addr, slots, notes) {
+                    *at = SlotsAt::of(&survey);
+                }
+            }
+            let staged = (!at.unread).then(|| slots.stage_now(at.running, blob));
+            let ok = match staged {
+                None => {
+                    let unread = SlotError::Flash(NorFlashErrorKind::Other);
+                    notes.note(addr, Note::CannotStage(unread));
+                    crate::count(&mut io.stats.flash_failures);
+                    false
+                }
+                Some(Ok(slot)) => {
                     at.staged = Some(slot);
                     // It went over the previous table.
                     at.previous = None;
                     true
                 }
-                Err(e) => {
+                Some(Err(e)) => {
                     notes.note(addr, Note::CannotStage(failure(e)));
                     crate::count(&mut io.stats.flash_failures);
+                    // Its erase may have gone over the previous table: no rollback to it.
+                    at.previous = None;
                     false
                 }
             };
@@ -761,6 +793,12 @@ fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
                         Err(e) => {
                             let why = failure(e);
                             notes.note(addr, Note::CannotActivate { slot, why });
+                            // Its serial may be written: no longer staged (the core forgets
+                            // it too, so that a push stages it again), revoked if the
+                            // flash lets (else the next boot revokes it as a trial cut
+                            // short).
+                            let _ = slots.revoke_now(slot);
+                            at.staged = None;
                             None
                         }
                     }

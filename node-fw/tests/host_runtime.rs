@@ -166,11 +166,26 @@ impl Radio for FakeRadio {
 
 const FLASH: usize = 2 * Slots::<RamFlash<1>>::slot_size();
 
-/// A RAM flash that outlives one boot, and can be made to fail.
+/// A RAM flash that outlives one boot, and can be made to fail: `broken` (every erase and
+/// write fails), `fail_reads` (the next reads fail), `fail_op` (that erase or write,
+/// counted from 1 in `ops`, fails and writes nothing; the others work: a transient
+/// error, not a power cut).
 #[derive(Clone, Default)]
 struct Flash {
     cells: Rc<RefCell<RamFlash<FLASH>>>,
     broken: Rc<Cell<bool>>,
+    fail_reads: Rc<Cell<u32>>,
+    ops: Rc<Cell<usize>>,
+    fail_op: Rc<Cell<Option<usize>>>,
+}
+
+impl Flash {
+    /// One more erase or write: whether it fails.
+    fn fails(&self) -> bool {
+        let n = self.ops.get() + 1;
+        self.ops.set(n);
+        self.broken.get() || self.fail_op.get() == Some(n)
+    }
 }
 
 impl nor::ErrorType for Flash {
@@ -180,6 +195,10 @@ impl nor::ErrorType for Flash {
 impl ReadNorFlash for Flash {
     const READ_SIZE: usize = 1;
     async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), PowerCut> {
+        if self.fail_reads.get() > 0 {
+            self.fail_reads.set(self.fail_reads.get() - 1);
+            return Err(PowerCut);
+        }
         let mut cells = self.cells.borrow_mut();
         embassy_futures::block_on(cells.read(offset, bytes))
     }
@@ -192,14 +211,14 @@ impl NorFlash for Flash {
     const WRITE_SIZE: usize = 4;
     const ERASE_SIZE: usize = 1024;
     async fn erase(&mut self, from: u32, to: u32) -> Result<(), PowerCut> {
-        if self.broken.get() {
+        if self.fails() {
             return Err(PowerCut);
         }
         let mut cells = self.cells.borrow_mut();
         embassy_futures::block_on(cells.erase(from, to))
     }
     async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), PowerCut> {
-        if self.broken.get() {
+        if self.fails() {
             return Err(PowerCut);
         }
         let mut cells = self.cells.borrow_mut();
@@ -832,4 +851,148 @@ fn runtime_future_size() {
         std::mem::size_of_val(&slots.load())
     );
     assert!(size > std::mem::size_of::<node_fw::node::NodeCore>());
+}
+
+// ---------------------------------------------------------------- transient flash errors
+
+impl Tool {
+    /// Transfers `table` and waits for `Staged` (no switch).
+    async fn stage(&mut self, table: &Table) -> bool {
+        let bytes = blob(table);
+        let mut tx = ota::Sender::new(&bytes, table.generation, false);
+        let mut out = Vec::new();
+        tx.start(Instant::now().as_millis(), |m| out.push(m));
+        self.carry(&mut tx, &mut out).await == ota::Progress::Done
+    }
+}
+
+/// One boot on `flash` running `script` with a fresh tool.
+fn boot_with<S>(flash: &Flash, script: impl FnOnce(Tool) -> S + 'static) -> Stats
+where
+    S: std::future::Future<Output = ()> + 'static,
+{
+    let pins = Rc::new(RefCell::new(Vec::new()));
+    let script = boot(
+        Boot::Epoch(1),
+        flash.clone(),
+        &lines(),
+        &pins,
+        Rc::default(),
+        script,
+    );
+    script.1
+}
+
+/// The (generation, previous) a boot on `flash` runs.
+fn booted(flash: &Flash) -> (u32, u32) {
+    let got = Rc::new(Cell::new((0, 0)));
+    let put = got.clone();
+    boot_with(flash, move |mut tool| async move {
+        let s = tool.status().await;
+        put.set((s.generation, s.previous));
+        tool.close().await;
+    });
+    got.get()
+}
+
+/// A transient flash error on the activation's confirmation (its serial written): the
+/// `Go` is refused `Flash` and the node keeps generation 1; once the flash works again a
+/// push of generation 2 stages it again and switches. The node refused every `Go` until
+/// it rebooted (the slot had a serial: `NotStaged`), and answered the push `Staged` at
+/// once, without writing, as it still took that table for staged.
+#[test]
+fn after_a_failed_activation_a_push_again_switches() {
+    let flash = Flash::default();
+    let f = flash.clone();
+    let log = Rc::new(RefCell::new(Vec::new()));
+    let l = log.clone();
+    boot_with(&flash, move |mut tool| async move {
+        assert_eq!(tool.push(&lamp_table(1)).await, ota::Progress::Done);
+        assert!(tool.stage(&lamp_table(2)).await);
+        // The activation's serial, then its confirmation: the confirmation fails once.
+        f.fail_op.set(Some(f.ops.get() + 2));
+        let first = tool.switch(2, false).await;
+        let ops = f.ops.get();
+        let staged = tool.stage(&lamp_table(2)).await;
+        let written = f.ops.get() - ops;
+        let again = tool.switch(2, false).await;
+        let s = tool.status().await;
+        l.borrow_mut().push(format!(
+            "{first:?}; staged again {staged} ({} writes); {again:?}; runs {}",
+            if written > 0 { "some" } else { "no" },
+            s.generation
+        ));
+        tool.close().await;
+    });
+    assert_eq!(
+        log.borrow().as_slice(),
+        ["Aborted; staged again true (some writes); Switched; runs 2"]
+    );
+    assert_eq!(booted(&flash).0, 2);
+}
+
+/// A boot whose survey of the slots could not read the flash runs no table, and reads
+/// them again before it stages one: the table running before is kept (the rollback
+/// target) and the new one numbered above it. A table pushed then went to slot 0 with
+/// serial 0, below the one confirmed in slot 1, and the next boot ran the older table (a
+/// silent downgrade).
+#[test]
+fn a_boot_that_could_not_read_its_slots_reads_them_before_staging() {
+    let flash = Flash::default();
+    boot_with(&flash, |mut tool| async move {
+        assert_eq!(tool.push(&lamp_table(1)).await, ota::Progress::Done);
+        assert_eq!(tool.push(&lamp_table(2)).await, ota::Progress::Done);
+        tool.close().await;
+    });
+    assert_eq!(booted(&flash).0, 2);
+    flash.fail_reads.set(1);
+    let pushed = Rc::new(Cell::new(None));
+    let p = pushed.clone();
+    boot_with(&flash, move |mut tool| async move {
+        assert_eq!(tool.status().await.generation, 0, "booted unconfigured");
+        p.set(Some(tool.push(&lamp_table(3)).await));
+        tool.close().await;
+    });
+    assert_eq!(pushed.get(), Some(ota::Progress::Done));
+    assert_eq!(
+        booted(&flash),
+        (3, 2),
+        "the table pushed last, the one before kept"
+    );
+    // Unreadable again at boot and at the stage: nothing staged, nothing lost.
+    flash.fail_reads.set(2);
+    let p = pushed.clone();
+    boot_with(&flash, move |mut tool| async move {
+        p.set(Some(tool.push(&lamp_table(4)).await));
+        tool.close().await;
+    });
+    assert_eq!(
+        pushed.get(),
+        Some(ota::Progress::Refused(
+            config_schema::wire::msg::Refusal::Flash
+        ))
+    );
+    assert_eq!(booted(&flash), (3, 2));
+}
+
+/// A stage that fails after erasing the previous generation's slot offers no rollback
+/// to it any more (it said `previous: 1`, and a rollback was refused `Flash`).
+#[test]
+fn a_failed_stage_offers_no_rollback_to_the_table_it_erased() {
+    let flash = Flash::default();
+    let f = flash.clone();
+    let previous = Rc::new(Cell::new(None));
+    let p = previous.clone();
+    boot_with(&flash, move |mut tool| async move {
+        assert_eq!(tool.push(&lamp_table(1)).await, ota::Progress::Done);
+        assert_eq!(tool.push(&lamp_table(2)).await, ota::Progress::Done);
+        assert_eq!(tool.status().await.previous, 1);
+        // Generation 3's stage: the erase of generation 1's slot works, the first write
+        // fails once.
+        f.fail_op.set(Some(f.ops.get() + 2));
+        assert!(!tool.stage(&lamp_table(3)).await);
+        p.set(Some(tool.status().await.previous));
+        tool.close().await;
+    });
+    assert_eq!(previous.get(), Some(0));
 }

@@ -429,7 +429,7 @@ impl Clone for Sys {
     }
 }
 
-/// The most declared switches (fault contacts) a state holds: [`Sys::switches`] has a
+/// The most declared switches (fault contacts) a state holds: its `switches` has a
 /// bit for each.
 pub const MAX_SWITCHES: usize = 8;
 
