@@ -82,12 +82,35 @@ pub enum ToolKeyError {
     },
     #[error("counter file {}: unreadable", .0.display())]
     Unreadable(PathBuf),
+    #[error(
+        "counter file {}: its directory is writable by others (mode {mode:04o}): they could \
+         set the counter back; keep the key file in a directory of this user's",
+        path.display()
+    )]
+    OpenDirectory { path: PathBuf, mode: u32 },
+    #[error(
+        "counter file {}: owned by user {owner} with mode {mode:04o}: only its owner, this \
+         user, may write it (another could set the counter back); fix it or remove it",
+        path.display()
+    )]
+    NotOwnersAlone {
+        path: PathBuf,
+        owner: u32,
+        mode: u32,
+    },
 }
 
 /// Reads the machine secret of `key_file` (refused if others may read it) and opens the
 /// tool's frame counter beside it, locked for this process until the counter is dropped.
 pub fn open(key_file: &Path) -> Result<ToolKeys, ToolKeyError> {
     let secret = load_machine_secret(key_file)?;
+    // The key file itself, not the name it was reached by: a link to it (or another
+    // spelling of its path) gets the same counter file and lock, never a second counter
+    // that starts at 0 (a nonce used twice under one key).
+    let key_file = &std::fs::canonicalize(key_file).map_err(|source| ToolKeyError::Io {
+        path: key_file.to_path_buf(),
+        source,
+    })?;
     let path = counter_path(key_file);
     let lock = lock(&path)?;
     let mut counter = node_fw::host::frame_counter(Some(key_file)).map_err(|e| match e {
@@ -116,19 +139,54 @@ pub fn open(key_file: &Path) -> Result<ToolKeys, ToolKeyError> {
 
 /// Opens (creating, mode 0600) and locks the counter file; a file just created, or left
 /// shorter by a cut while it was being created (still blank), is made two erased pages.
+/// Whoever may write it may set the counter back (a nonce used twice): it must be a
+/// regular file (not a link), this user's alone, in a directory others cannot write to
+/// (unless sticky: they cannot then replace this user's files).
 fn lock(path: &Path) -> Result<File, ToolKeyError> {
     let io_err = |source| ToolKeyError::Io {
         path: path.to_path_buf(),
         source,
     };
+    #[cfg(unix)]
+    if let Some(dir) = path.parent() {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(dir).map_err(io_err)?.permissions().mode();
+        if mode & 0o022 != 0 && mode & 0o1000 == 0 {
+            return Err(ToolKeyError::OpenDirectory {
+                path: path.to_path_buf(),
+                mode: mode & 0o7777,
+            });
+        }
+    }
     let mut options = OpenOptions::new();
     options.read(true).write(true).create(true);
     #[cfg(unix)]
     {
         use std::os::unix::fs::OpenOptionsExt;
         options.mode(0o600);
+        options.custom_flags(rustix::fs::OFlags::NOFOLLOW.bits() as i32);
     }
     let mut file = options.open(path).map_err(io_err)?;
+    let meta = file.metadata().map_err(io_err)?;
+    if !meta.is_file() {
+        return Err(KeyFileError::NotAFile {
+            path: path.to_path_buf(),
+        }
+        .into());
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::{MetadataExt, PermissionsExt};
+        let me = rustix::process::geteuid().as_raw();
+        let mode = meta.permissions().mode() & 0o7777;
+        if meta.uid() != me || mode & 0o022 != 0 {
+            return Err(ToolKeyError::NotOwnersAlone {
+                path: path.to_path_buf(),
+                owner: meta.uid(),
+                mode,
+            });
+        }
+    }
     #[cfg(unix)]
     {
         use rustix::fs::{flock, FlockOperation};
@@ -218,5 +276,51 @@ mod tests {
             )
         );
         assert_eq!(std::fs::read(&path).unwrap(), b"hello");
+    }
+
+    /// A key file reached through a link (or another spelling of its path) has the one
+    /// counter file and lock of the file it names: a second counter beside the link
+    /// started at 0 again (frame counters, so nonces, used twice under one key), and two
+    /// runs held "the" lock at once.
+    #[cfg(unix)]
+    #[test]
+    fn a_key_file_reached_through_a_link_shares_its_counter_and_lock() {
+        let key = key_file("link");
+        let link = key.with_file_name("link.key");
+        std::os::unix::fs::symlink(&key, &link).unwrap();
+        let mut first = open(&key).unwrap();
+        assert_eq!((first.counter)(), Some(0));
+        assert!(matches!(open(&link), Err(ToolKeyError::Locked(_))));
+        drop(first);
+        let mut second = open(&link).unwrap();
+        assert_eq!((second.counter)(), Some(node_fw::frame_counter::STEP));
+        assert!(!counter_path(&link).exists());
+    }
+
+    /// A counter file another may write (or in a directory others may write to) is
+    /// refused: they could set it back. It was opened and used as it was.
+    #[cfg(unix)]
+    #[test]
+    fn a_counter_file_others_may_write_is_refused() {
+        use std::os::unix::fs::PermissionsExt;
+        let key = key_file("open");
+        let path = counter_path(&key);
+        drop(open(&key).unwrap());
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o666)).unwrap();
+        let e = open(&key).err().expect("refused");
+        assert!(
+            matches!(e, ToolKeyError::NotOwnersAlone { mode: 0o666, .. }),
+            "{e}"
+        );
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).unwrap();
+        let dir = key.parent().unwrap();
+        std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o777)).unwrap();
+        let e = open(&key).err().expect("refused");
+        std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o700)).unwrap();
+        assert!(
+            matches!(e, ToolKeyError::OpenDirectory { mode: 0o777, .. }),
+            "{e}"
+        );
+        assert!(open(&key).is_ok());
     }
 }

@@ -79,10 +79,20 @@ pub fn write_secret_file(path: &Path, contents: &[u8], force: bool) -> Result<()
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    if !force && path.symlink_metadata().is_ok() {
-        return Err(KeyFileError::Exists {
-            path: path.to_path_buf(),
-        });
+    match path.symlink_metadata() {
+        Ok(_) if !force => {
+            return Err(KeyFileError::Exists {
+                path: path.to_path_buf(),
+            })
+        }
+        // `--force` replaces a key file (or a link), never a FIFO, a device or a
+        // directory (as root, `--out /dev/null --force` replaced the system's).
+        Ok(meta) if !(meta.is_file() || meta.is_symlink()) => {
+            return Err(KeyFileError::NotAFile {
+                path: path.to_path_buf(),
+            })
+        }
+        _ => {}
     }
     if !dir.is_dir() {
         let missing = io::Error::new(
@@ -174,8 +184,10 @@ pub fn read_secret_file(path: &Path) -> Result<Zeroizing<String>, KeyFileError> 
     }
 }
 
+/// Whether the file of `meta` (at `path`) is a secret's: owned by this user, neither read
+/// nor written by others (a file another user owns or may write, they may know or set).
 #[cfg(unix)]
-fn check_owner_only(path: &Path, meta: &std::fs::Metadata) -> Result<(), KeyFileError> {
+pub fn check_owner_only(path: &Path, meta: &std::fs::Metadata) -> Result<(), KeyFileError> {
     use std::os::unix::fs::{MetadataExt, PermissionsExt};
     let me = rustix::process::geteuid().as_raw();
     if meta.uid() != me {
@@ -195,8 +207,9 @@ fn check_owner_only(path: &Path, meta: &std::fs::Metadata) -> Result<(), KeyFile
     Ok(())
 }
 
+/// [`check_owner_only`] where there are no owners and modes: every file passes.
 #[cfg(not(unix))]
-fn check_owner_only(_: &Path, _: &std::fs::Metadata) -> Result<(), KeyFileError> {
+pub fn check_owner_only(_: &Path, _: &std::fs::Metadata) -> Result<(), KeyFileError> {
     Ok(())
 }
 
@@ -352,6 +365,25 @@ mod tests {
                 p.parent().unwrap().display()
             )
         );
+    }
+
+    /// `--force` replaces a key file, not whatever else has the name: a FIFO stays.
+    #[cfg(unix)]
+    #[test]
+    fn force_replaces_no_fifo() {
+        use std::os::unix::fs::FileTypeExt;
+        let p = dir("fifo").join("pipe");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&p)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        let e = write_machine_secret(&p, true).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!("{}: not a regular file", p.display())
+        );
+        assert!(std::fs::symlink_metadata(&p).unwrap().file_type().is_fifo());
     }
 
     #[test]

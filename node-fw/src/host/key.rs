@@ -27,6 +27,8 @@ pub enum KeyError {
     },
     /// The file is for another node (its address, the node's).
     OtherNode(PathBuf, u16, u16),
+    /// Another user owns it (its uid, this process's): they may know the key.
+    NotOwned(PathBuf, u32, u32),
 }
 
 impl fmt::Display for KeyError {
@@ -51,6 +53,12 @@ impl fmt::Display for KeyError {
                 "{}: the key of node {theirs:#06x}, not of this node ({ours:#06x})",
                 p.display()
             ),
+            KeyError::NotOwned(p, owner, me) => write!(
+                f,
+                "{}: owned by user {owner}, not by this user ({me}): whoever owns it may know \
+                 the key",
+                p.display()
+            ),
         }
     }
 }
@@ -71,10 +79,17 @@ pub fn load(path: &Path, addr: u16) -> Result<ManagementKey, KeyError> {
     }
     #[cfg(unix)]
     {
-        use std::os::unix::fs::PermissionsExt;
+        use std::os::unix::fs::{MetadataExt, PermissionsExt};
         let mode = meta.permissions().mode() & 0o7777;
         if mode & 0o066 != 0 {
             return Err(KeyError::Permissions(path.to_path_buf(), mode));
+        }
+        // This process's user: the owner of its own `/proc/self` (Linux; elsewhere the
+        // owner is not checked).
+        if let Ok(me) = std::fs::metadata("/proc/self").map(|m| m.uid()) {
+            if meta.uid() != me {
+                return Err(KeyError::NotOwned(path.to_path_buf(), meta.uid(), me));
+            }
         }
     }
     let mut bytes = Vec::new();
@@ -149,6 +164,27 @@ mod tests {
             format!(
                 "{0}: mode 0644 lets group or others read or write it; a key file must be \
                  readable by its owner only (chmod 600 {0})",
+                p.display()
+            )
+        );
+    }
+
+    /// A key file another user owns is refused, as the machine secret is (whoever owns it
+    /// may know the key). It was taken. (Giving a file away takes root: run as root, as
+    /// CI does.)
+    #[cfg(unix)]
+    #[test]
+    fn a_key_file_another_user_owns_is_refused() {
+        use std::os::unix::fs::MetadataExt;
+        let p = file("theirs", &line(0x0011), 0o600);
+        if std::fs::metadata("/proc/self").map(|m| m.uid()).ok() != Some(0) {
+            return;
+        }
+        std::os::unix::fs::chown(&p, Some(65534), None).unwrap();
+        assert_eq!(
+            load(&p, 0x0011).unwrap_err().to_string(),
+            format!(
+                "{}: owned by user 65534, not by this user (0): whoever owns it may know the key",
                 p.display()
             )
         );
