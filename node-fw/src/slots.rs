@@ -279,7 +279,10 @@ impl<F: NorFlash> Slots<F> {
         let mut best: Option<u32> = None;
         for slot in 0..2 {
             let st = self.state_now(slot)?;
-            if let Some(serial) = st.serial {
+            // Numbered above the confirmed tables only: a serial torn by a power cut (the
+            // write half applied: 0xFFFF_0001 for 1), whose slot is abandoned, would
+            // number the next ones up to the erased word (never activated) within 65,535.
+            if let (Some(serial), true, false) = (st.serial, st.confirmed, st.revoked) {
                 survey.next_serial = survey.next_serial.max(serial.saturating_add(1));
             }
             if !st.staged || st.revoked {

@@ -260,3 +260,29 @@ fn a_power_cut_during_the_activation_boots_the_old_table_and_abandons_the_new() 
         );
     }
 }
+
+/// A power cut that tears the activation's serial (the write applied halfway: 0xFFFF_0001
+/// for 1) numbers the next activations from the confirmed table's serial, not from the
+/// torn word: counted from it, the serials came to 0xFFFF_FFFF (the erased word, "never
+/// activated") within 65,535 activations, and that table was not booted.
+#[test]
+fn a_torn_serial_does_not_number_the_next_activations() {
+    let (_, b1) = blob(1, 5);
+    let (_, b2) = blob(2, 5);
+    let mut s = slots(Flash::new());
+    s.store_now(None, &b1, 0).unwrap();
+    s.stage_now(Some(0), &b2).unwrap();
+    // The power cut at the activation's first write, the serial's.
+    let mut f = Flash::new();
+    f.bytes = s.into_inner().bytes;
+    f.fail_after = Some(1);
+    let mut s = slots(f);
+    assert!(s.activate_now(1, 1, false).is_err());
+    let mut f = s.into_inner();
+    f.fail_after = None;
+    let mut s = slots(f);
+    let mut buf = [0u8; config_schema::limits::MAX_BLOB];
+    let survey = s.survey_now(&mut buf).unwrap();
+    assert_eq!(survey.running.map(|r| r.slot), Some(0));
+    assert_eq!(format!("{:#010x}", survey.next_serial), "0x00000001");
+}
