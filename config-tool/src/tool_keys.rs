@@ -140,8 +140,8 @@ pub fn open(key_file: &Path) -> Result<ToolKeys, ToolKeyError> {
 /// Opens (creating, mode 0600) and locks the counter file; a file just created, or left
 /// shorter by a cut while it was being created (still blank), is made two erased pages.
 /// Whoever may write it may set the counter back (a nonce used twice): it must be a
-/// regular file (not a link), this user's alone, in a directory others cannot write to
-/// (unless sticky: they cannot then replace this user's files).
+/// regular file (not a link), written by this user alone, in a directory others (not the
+/// group) cannot write to (unless sticky: they cannot then replace this user's files).
 fn lock(path: &Path) -> Result<File, ToolKeyError> {
     let io_err = |source| ToolKeyError::Io {
         path: path.to_path_buf(),
@@ -151,7 +151,9 @@ fn lock(path: &Path) -> Result<File, ToolKeyError> {
     if let Some(dir) = path.parent() {
         use std::os::unix::fs::PermissionsExt;
         let mode = std::fs::metadata(dir).map_err(io_err)?.permissions().mode();
-        if mode & 0o022 != 0 && mode & 0o1000 == 0 {
+        // Others (not the group: umask 002 and a group of one's own are common) may
+        // replace files in it, unless it is sticky.
+        if mode & 0o002 != 0 && mode & 0o1000 == 0 {
             return Err(ToolKeyError::OpenDirectory {
                 path: path.to_path_buf(),
                 mode: mode & 0o7777,

@@ -507,3 +507,18 @@ fn a_robot_of_more_roles_than_a_switch_over_moves_is_refused_at_the_first_one_to
         )]
     );
 }
+
+/// The HOME input may be named `home`: it is then the event itself, nothing synthesised
+/// beside it (refused as a synthesised event's name while another input would be).
+#[test]
+fn a_home_input_named_home_is_the_home_input() {
+    let base = fixture("small-sequence.ron");
+    let text = base
+        .text
+        .replace(
+            "inputs: [(name: \"START\", pin: 4)],",
+            "inputs: [(name: \"START\", pin: 4), (name: \"home\", pin: 5)],",
+        )
+        .replace("    start: \"START\",", "    start: \"START\",\n    home: \"home\",");
+    assert_eq!(located(&Source::new("home.ron", text)), Vec::<String>::new());
+}

@@ -200,8 +200,15 @@ const SYNTHESISED: [&str; 3] = [
 /// and e-stop buttons are three buttons (HOME on START homed at each press, an e-stop on
 /// START stopped the machine at each).
 fn buttons(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
+    // The HOME input is `home` itself (its own event, none synthesised beside it).
+    let home = crate::elab::home_input(robot).ok().flatten();
     for (ri, r) in robot.roles.iter().enumerate() {
         for (k, i) in r.inputs.iter().enumerate() {
+            if home.as_ref() == Some(&(ri, i.name.clone()))
+                && i.name == crate::synth::HOME_COMMAND_EVENT
+            {
+                continue;
+            }
             if i.name.contains('.') || SYNTHESISED.contains(&i.name.as_str()) {
                 out.push(
                     Diagnostic::error(

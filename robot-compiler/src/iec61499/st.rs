@@ -467,7 +467,7 @@ impl<'n> Parser<'n> {
     fn at_label(&self) -> bool {
         let tok = |k: usize| self.toks.get(self.at + k).map(|(t, _)| t);
         let after = match (tok(0), tok(1)) {
-            (Some(Tok::Sym("-")), Some(Tok::Int(_))) => tok(2),
+            (Some(Tok::Sym("-")), Some(Tok::Int(_) | Tok::Typed(..))) => tok(2),
             (Some(Tok::Int(_) | Tok::Typed(..)), _) => tok(1),
             _ => return false,
         };
@@ -695,7 +695,7 @@ impl<'n> Parser<'n> {
         match self.bump() {
             (Tok::Int(v), span) if v == MIN_MAGNITUDE && !neg => too_big(&v.to_string(), span),
             (Tok::Int(v), _) => Ok(if neg { -v } else { v }),
-            (Tok::Typed(v, _), _) if !neg => Ok(v),
+            (Tok::Typed(v, _), _) => Ok(if neg { -v } else { v }),
             (_, span) => err(span, "a CASE label is an integer literal"),
         }
     }
@@ -1298,6 +1298,14 @@ mod tests {
         assert_eq!(e("CV := CV / 0;"), zero);
         assert_eq!(e("CV := CV MOD (2 - 2);").span, 13..14);
         assert!(algorithm("CV := CV / (3 - 2);", &names()).is_ok());
+    }
+
+    /// A typed CASE label, negative too (`-SINT#5`: typed literals lexed apart from plain
+    /// ones were refused there).
+    #[test]
+    fn typed_case_labels_are_labels() {
+        assert!(algorithm("CASE S OF -SINT#5: D := 1; END_CASE;", &names()).is_ok());
+        assert!(algorithm("CASE S OF 1, -SINT#5, SINT#7: D := 1; END_CASE;", &names()).is_ok());
     }
 
     #[test]
