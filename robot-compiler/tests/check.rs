@@ -519,6 +519,12 @@ fn a_home_input_named_home_is_the_home_input() {
             "inputs: [(name: \"START\", pin: 4)],",
             "inputs: [(name: \"START\", pin: 4), (name: \"home\", pin: 5)],",
         )
-        .replace("    start: \"START\",", "    start: \"START\",\n    home: \"home\",");
-    assert_eq!(located(&Source::new("home.ron", text)), Vec::<String>::new());
+        .replace(
+            "    start: \"START\",",
+            "    start: \"START\",\n    home: \"home\",",
+        );
+    assert_eq!(
+        located(&Source::new("home.ron", text)),
+        Vec::<String>::new()
+    );
 }
