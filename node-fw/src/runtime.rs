@@ -718,22 +718,19 @@ fn serve_flash<F: NorFlash, P: Pins, S: Staging, N: Notes>(
                     *at = SlotsAt::of(&survey);
                 }
             }
-            let staged = (!at.unread).then(|| slots.stage_now(at.running, blob));
+            let staged = match at.unread {
+                true => Err(SlotError::Flash(NorFlashErrorKind::Other)),
+                false => slots.stage_now(at.running, blob).map_err(failure),
+            };
             let ok = match staged {
-                None => {
-                    let unread = SlotError::Flash(NorFlashErrorKind::Other);
-                    notes.note(addr, Note::CannotStage(unread));
-                    crate::count(&mut io.stats.flash_failures);
-                    false
-                }
-                Some(Ok(slot)) => {
+                Ok(slot) => {
                     at.staged = Some(slot);
                     // It went over the previous table.
                     at.previous = None;
                     true
                 }
-                Some(Err(e)) => {
-                    notes.note(addr, Note::CannotStage(failure(e)));
+                Err(e) => {
+                    notes.note(addr, Note::CannotStage(e));
                     crate::count(&mut io.stats.flash_failures);
                     // Its erase may have gone over the previous table: no rollback to it.
                     at.previous = None;

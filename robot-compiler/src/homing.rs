@@ -94,13 +94,13 @@ fn returned(robot: &Robot, actuators: &[String], place: Place) -> Vec<Place> {
         .collect()
 }
 
-/// The places every plant actuator (`actuators`, plant order) has during step `k`.
-fn places(robot: &Robot, actuators: &[String], steps: &[Step], k: usize) -> Vec<Place> {
-    let start = power_up(robot, actuators);
+/// The places every plant actuator (`actuators`, plant order) has during step `k`, each
+/// not moved by an earlier step where it was before HOME (`start`: [`power_up`]).
+fn places(start: &[Place], actuators: &[String], steps: &[Step], k: usize) -> Vec<Place> {
     actuators
         .iter()
         .zip(start)
-        .map(|(a, start)| {
+        .map(|(a, &start)| {
             if steps[k].actuator == *a {
                 return Place::Moving(if steps[k].extend {
                     EXTENDING
@@ -210,9 +210,10 @@ pub fn breaches(
     steps: &[Step],
 ) -> Vec<Breach> {
     let actuators = interlock::actuator_names(ir);
+    let start = power_up(robot, &actuators);
     let mut out = Vec::new();
     for k in 0..steps.len() {
-        let places = places(robot, &actuators, steps, k);
+        let places = places(&start, &actuators, steps, k);
         for (i, lock) in interlocks {
             if let Some(witness) = holds_somewhere(lock, &places, &actuators) {
                 out.push(Breach {
@@ -290,6 +291,7 @@ pub fn derive(
         });
     }
     let actuators = interlock::actuator_names(ir);
+    let start = power_up(robot, &actuators);
     let switched = |a: &str| {
         robot
             .actuator(a)
@@ -307,7 +309,7 @@ pub fn derive(
                 extend: false,
             });
             let k = next.len() - 1;
-            let places = places(robot, &actuators, &next, k);
+            let places = places(&start, &actuators, &next, k);
             interlocks
                 .iter()
                 .all(|(_, l)| holds_somewhere(l, &places, &actuators).is_none())

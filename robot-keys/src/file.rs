@@ -187,7 +187,7 @@ pub fn read_secret_file(path: &Path) -> Result<Zeroizing<String>, KeyFileError> 
 /// Whether the file of `meta` (at `path`) is a secret's: owned by this user, neither read
 /// nor written by others (a file another user owns or may write, they may know or set).
 #[cfg(unix)]
-pub fn check_owner_only(path: &Path, meta: &std::fs::Metadata) -> Result<(), KeyFileError> {
+fn check_owner_only(path: &Path, meta: &std::fs::Metadata) -> Result<(), KeyFileError> {
     use std::os::unix::fs::{MetadataExt, PermissionsExt};
     let me = rustix::process::geteuid().as_raw();
     if meta.uid() != me {
@@ -209,7 +209,7 @@ pub fn check_owner_only(path: &Path, meta: &std::fs::Metadata) -> Result<(), Key
 
 /// [`check_owner_only`] where there are no owners and modes: every file passes.
 #[cfg(not(unix))]
-pub fn check_owner_only(_: &Path, _: &std::fs::Metadata) -> Result<(), KeyFileError> {
+fn check_owner_only(_: &Path, _: &std::fs::Metadata) -> Result<(), KeyFileError> {
     Ok(())
 }
 

@@ -12,7 +12,5 @@ pub mod file;
 mod secret;
 
 pub use derive::{link_key, link_keys, management_key};
-pub use file::{
-    check_owner_only, load_machine_secret, write_machine_secret, write_secret_file, KeyFileError,
-};
+pub use file::{load_machine_secret, write_machine_secret, write_secret_file, KeyFileError};
 pub use secret::{Key, MachineSecret, KEY_LEN, SECRET_LEN};

@@ -227,7 +227,7 @@ fn buttons(robot: &Robot, src: &Source, out: &mut Vec<Diagnostic>) {
     let Ok(Some(start)) = start_input(robot) else {
         return;
     };
-    if let Ok(Some(home)) = crate::elab::home_input(robot) {
+    if let Some(home) = home {
         if home == start {
             out.push(Diagnostic::error(
                 src.span("home"),
