@@ -207,3 +207,34 @@ fn a_start_before_home_never_starts_a_cycle_with_the_button_on_any_role() {
         assert!(r.report.ok(), "{}", r.render(name, 0));
     }
 }
+
+/// A power cut of a button's node that moves nothing (a panel), while the machine rests
+/// homed: the node comes back with its gate shut, and step 1's chart, idle, answers its
+/// boot with `cycle.done`, so the next press starts a cycle without HOME (the panel's
+/// actuators cannot stand anywhere new: it has none). The node greets its peers; none is
+/// under way, so nothing faults.
+#[test]
+fn a_panel_node_cut_at_rest_takes_the_next_press_without_home() {
+    let c = build("panel.ron", &two("A+ B+ B- A-", "PANEL"));
+    let tables = sim::tables(&c).expect("blobs decode");
+    let specs = sim::node_specs(&c, &tables);
+    let (plants, button) = sim::plants(&c).expect("plants");
+    let mut world = World::new(&specs, plants).expect("world");
+    let panel = world.node_by_addr(0x23).expect("the panel's node");
+    world.press(button).expect("press");
+    world.run_until_idle(600_000).expect("idle");
+    let expect: Vec<String> = c.ir.expect.iter().map(|s| s.to_string()).collect();
+    assert_eq!(world.steps(), expect);
+    world.reboot(panel).expect("reboot");
+    world.run_until_idle(600_000).expect("idle");
+    world.press(button).expect("press");
+    world.run_until_idle(600_000).expect("idle");
+    assert_eq!(world.steps(), [expect.clone(), expect].concat());
+    let faults: Vec<String> = world
+        .trace()
+        .iter()
+        .filter(|e| matches!(e.what, What::Fault { .. }))
+        .map(|e| e.to_string())
+        .collect();
+    assert_eq!(faults, Vec::<String>::new());
+}

@@ -26,6 +26,9 @@ pub const HOME_DONE_EVENT: &str = "home.done";
 pub const BOOT_EVENT: &str = "boot";
 /// The event another node's boot raises on step 1's role.
 pub const PEER_BOOT_EVENT: &str = "peer.boot";
+/// The event the boot of the START button's node raises on step 1's role when that
+/// button's role moves nothing (a panel): step 1's chart, idle, then reopens the gate.
+pub const BUTTON_BOOT_EVENT: &str = "button.boot";
 /// The event the HOME command raises when the robot declares no HOME input.
 pub const HOME_COMMAND_EVENT: &str = "home";
 
@@ -101,8 +104,8 @@ pub(super) fn add(seq: &Sequence<'_>, ir: &mut Ir) -> Result<(), SynthError> {
             r.imports.push(entry);
         }
     };
-    // Step 1's chart coordinates.
-    {
+    // Step 1's chart coordinates (and the role of a button that moves nothing).
+    let panel = {
         let r = &mut ir.roles[first];
         r.home = Some(home_event.clone());
         let ci = r
@@ -160,6 +163,21 @@ pub(super) fn add(seq: &Sequence<'_>, ir: &mut Ir) -> Result<(), SynthError> {
                 guard: None,
             });
         }
+        // The START button on a role that moves nothing (a panel): that node's power cut
+        // leaves no actuator anywhere new, but it comes back with its gate shut. Step 1's
+        // chart, idle, answers its boot by entering `IDLE` again, whose `cycle.done` opens
+        // the gate (busy or not homed, it lets the boot pass: its next `IDLE` opens it).
+        let panel = (seq.gated && !seq.moves_in(seq.start_role)).then(|| {
+            let greet = c.inputs.len();
+            c.inputs.push(String::from("greet"));
+            c.transitions.push(TransitionIr {
+                from: c.idle,
+                to: c.idle,
+                trigger: Some(greet),
+                guard: None,
+            });
+            (seq.start_role, greet)
+        });
         c.initial = unhomed;
         if let Some(unhome) = unhome_input {
             r.event(PEER_BOOT_EVENT);
@@ -173,6 +191,15 @@ pub(super) fn add(seq: &Sequence<'_>, ir: &mut Ir) -> Result<(), SynthError> {
                 r.imports.push(entry);
             }
         }
+        if let Some((q, greet)) = panel {
+            r.event(BUTTON_BOOT_EVENT);
+            r.routes.push((String::from(BUTTON_BOOT_EVENT), ci, greet));
+            r.imports.push((
+                roles_names[q].clone(),
+                String::from(BOOT_EVENT),
+                String::from(BUTTON_BOOT_EVENT),
+            ));
+        }
         r.event(&home_event);
         r.event(HOME_START_EVENT);
         r.event(HOME_DONE_EVENT);
@@ -182,9 +209,10 @@ pub(super) fn add(seq: &Sequence<'_>, ir: &mut Ir) -> Result<(), SynthError> {
             let last = owners[n - 1];
             import(r, last, HOME_DONE_EVENT);
         }
-    }
+        panel.map(|(q, _)| q)
+    };
     for q in 0..ir.roles.len() {
-        if q != first && seq.moves_in(q) {
+        if q != first && (seq.moves_in(q) || panel == Some(q)) {
             let r = &mut ir.roles[q];
             r.event(BOOT_EVENT);
             r.boot = Some(String::from(BOOT_EVENT));

@@ -15,7 +15,9 @@
 //! (emit `cycle.start`, published to step 1's role) -(the cycle is over)-> `IDLE`. A
 //! press during a cycle, or before the machine is homed, costs nothing. The machine is
 //! idle, and a cycle over, for the button's role when step 1's chart is back in `IDLE`
-//! (after homing or a cycle): it then emits `cycle.done` to the button's role. (The gate
+//! (after homing or a cycle): it then emits `cycle.done` to the button's role, and enters
+//! `IDLE` again (so sends it again) on the boot of a button's role that moves nothing
+//! (homing's `button.boot`: a panel's power cut at rest). (The gate
 //! once started open, and reopened on the last step's `stepN.done` when that step was the
 //! button role's own: a press before HOME then sent `cycle.start`, which started a cycle
 //! once homing had ended, unless the last homing step's `home.done` reached step 1's role
