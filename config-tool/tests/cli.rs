@@ -61,6 +61,36 @@ fn check_accepts_a_good_robot_and_rejects_a_broken_one_with_status_1() {
     );
 }
 
+/// A guard a node cannot evaluate (11 values on its 8-deep stack) is `check`'s error at the
+/// guard. `check` said ok, and `compile` then refused the table at `Robot(`.
+#[test]
+fn check_refuses_a_guard_too_deep_for_a_node_at_the_guard() {
+    let robot = "tests/fixtures/broken/guard-too-deep.ron";
+    let dir = scratch("guard-too-deep");
+    let dir = dir.to_str().expect("a UTF-8 path");
+    for (command, args) in [
+        ("check", vec!["check", robot]),
+        ("compile", vec!["compile", robot, "--out", dir]),
+    ] {
+        let out = tool(&args);
+        assert_eq!(out.status.code(), Some(1), "{command}");
+        assert_eq!(text(&out.stdout), "", "{command}");
+        let err = text(&out.stderr);
+        assert!(
+            err.contains("this expression needs 11 values on the stack at once"),
+            "{command}: {err}"
+        );
+        assert!(
+            err.contains("[tests/fixtures/broken/guard-too-deep.ron:36:60]"),
+            "{command}: {err}"
+        );
+        assert!(
+            err.ends_with(": 1 error(s), 0 warning(s)\n"),
+            "{command}: {err}"
+        );
+    }
+}
+
 #[test]
 fn check_reports_warnings_but_succeeds() {
     let out = tool(&["check", "tests/fixtures/broken/unreachable-state.ron"]);

@@ -18,6 +18,7 @@
 
 use std::ops::Range;
 
+use config_schema::limits::MAX_STACK;
 use config_schema::Op;
 
 /// A syntax or name error at a byte span of the expression text.
@@ -418,7 +419,33 @@ pub fn bytecode(
 ) -> Result<Vec<Op>, ExprError> {
     let mut ops = Vec::new();
     emit(ast, resolve, &mut ops)?;
+    let deepest = deepest(&ops);
+    if deepest > MAX_STACK {
+        // A node refuses the table (`config_schema::guard::check`): said here, at the
+        // expression's start, and not as a table that does not validate.
+        return Err(ExprError {
+            message: format!(
+                "this expression needs {deepest} values on the stack at once, a node \
+                 evaluates on {MAX_STACK}: nest it to the left (`(a + b) + c` needs 2, \
+                 `a + (b + c)` 3) or name a part of it in a variable"
+            ),
+            span: 0..0,
+        });
+    }
     Ok(ops)
+}
+
+/// The most values `ops` hold on the stack at once (0 for ops that underflow it, which
+/// `emit` never writes).
+fn deepest(ops: &[Op]) -> usize {
+    let mut depth = 0usize;
+    let mut most = 0;
+    for op in ops {
+        let (pop, push) = op.stack_effect();
+        depth = depth.saturating_sub(pop) + push;
+        most = most.max(depth);
+    }
+    most
 }
 
 fn emit(

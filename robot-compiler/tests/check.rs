@@ -103,6 +103,11 @@ const BROKEN: &[(&str, &[&str])] = &[
         "12:19: error: the table of role `A` is too big: states needs 100 but MAX_STATES is 96 (over by 4)",
     ]),
     ("guard-syntax.ron", &["36:68: error: expected a value, a name or `(`, found `&&`"]),
+    ("guard-too-deep.ron", &[
+        "36:60: error: this expression needs 11 values on the stack at once, a node evaluates \
+         on 8: nest it to the left (`(a + b) + c` needs 2, `a + (b + c)` 3) or name a part \
+         of it in a variable",
+    ]),
     ("many-problems.ron", &[
         "7:31: error: address 0x0001 is used by nodes `n1` and `n2`",
         "14:43: error: pin 2 of role `A` is used twice: by `A.home` and `START`",

@@ -50,10 +50,14 @@ pub fn check(robot: &Path) -> Result<(), Failure> {
             outln!("{line}");
         }
     }
-    if let Ok(compiled) = pipeline::lower_checked(&src, checked) {
-        for line in pipeline::stimulus_lines(&compiled) {
-            outln!("{line}");
-        }
+    // What the checks let through must also become tables: a robot that does not compile
+    // is not ok.
+    let compiled = pipeline::lower_checked(&src, checked).map_err(|diags| {
+        report(&src, &diags);
+        Failure::reported()
+    })?;
+    for line in pipeline::stimulus_lines(&compiled) {
+        outln!("{line}");
     }
     outln!("{}: ok", src.name);
     Ok(())
