@@ -535,20 +535,24 @@ fn diagram_svg_renders_through_graphviz() {
         eprintln!("Graphviz not installed: skipped");
         return;
     }
-    let out = tool(&[
-        "diagram",
-        "robot-configs/paint-robot.ron",
-        "--role",
-        "GR",
-        "--format",
-        "svg",
-    ]);
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
-    let svg = text(&out.stdout);
-    assert!(svg.contains("<svg"), "{svg}");
-    assert!(svg.trim_end().ends_with("</svg>"), "{svg}");
-    // The states and the transition labels made it into the picture.
-    assert!(svg.contains("dwell"), "{svg}");
+    // A colour named with a double quote: its label in the automaton's FB network was
+    // written unescaped, and Graphviz refused the DOT.
+    for (robot, role, shown) in [
+        ("robot-configs/paint-robot.ron", "GR", "dwell"),
+        (
+            "tests/fixtures/sorter-quoted-colour.ron",
+            "GATE1",
+            "C=bl&quot;ack T=1",
+        ),
+    ] {
+        let out = tool(&["diagram", robot, "--role", role, "--format", "svg"]);
+        assert_eq!(out.status.code(), Some(0), "{robot}: {}", text(&out.stderr));
+        let svg = text(&out.stdout);
+        assert!(svg.contains("<svg"), "{svg}");
+        assert!(svg.trim_end().ends_with("</svg>"), "{svg}");
+        // The states and the transition labels made it into the picture.
+        assert!(svg.contains(shown), "{robot}: {svg}");
+    }
 }
 
 /// `matrix` prints each control function's M, F, m(0), x and u (`--csv`: as CSV); an

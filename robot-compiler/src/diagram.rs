@@ -166,7 +166,7 @@ fn network_dot(o: &mut String, k: usize, a: &Automaton, net: &compile::Network) 
         let arrow = t.map_or(String::new(), |t| {
             format!("{} -> {}", a.state_name(t.from), a.state_name(t.to))
         });
-        let colour = t.map_or("?", |t| a.colour_name(t.colour));
+        let colour = esc(t.map_or("?", |t| a.colour_name(t.colour)));
         let eos = if i.is_final { "\\lEOS" } else { "" };
         let _ = writeln!(
             o,
