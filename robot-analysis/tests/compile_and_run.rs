@@ -306,6 +306,7 @@ publish e9 as topic 3 to peers 0b00000001
 subscribe p0 topic 0 -> e6
 subscribe p0 topic 1 -> e7
 subscribe p0 topic 2 -> e8
+safety: estop -  on link alarm stall  restart -
 ";
     assert_eq!(text, expected);
     let mut bad = c.blobs[1].clone();
@@ -381,4 +382,31 @@ fn a_plant_on_an_input_the_sequence_does_not_read_simulates() {
     let v = robot_analysis::verify::verify(&c, robot_analysis::verify::ExploreOptions::default())
         .expect("model builds");
     assert!(v.ok(), "{}", v.render("door", 0));
+}
+
+/// `dump` shows the table's safety declarations: the restart input and the declared alarm
+/// with its condition (two blobs that differed only there dumped the same text).
+#[test]
+fn dump_shows_the_safety_declarations() {
+    let c = build(&load("../robot-configs/waterjet-transport.ron"));
+    let cabinet =
+        c.ir.roles
+            .iter()
+            .position(|r| r.name == "CABINET")
+            .expect("CABINET");
+    let text = dump::dump(&c.blobs[cabinet]).expect("dumps");
+    let safety: Vec<&str> = text
+        .lines()
+        .skip_while(|l| !l.starts_with("safety:"))
+        .collect();
+    assert_eq!(
+        safety,
+        [
+            // RESTART is the cabinet's third input; places Faulted and Released are 1 and
+            // 2 of FaultDetection, whose state is v2.
+            "safety: estop -  on link alarm stall  restart in2",
+            "alarm a0: Fault when v2 == 1 || v2 == 2",
+        ],
+        "{text}"
+    );
 }

@@ -173,6 +173,32 @@ pub fn table_text(t: &Table) -> String {
             s.publisher, s.topic, s.event
         );
     }
+    let safety = &t.safety;
+    let restart: Vec<String> = (0..16u8)
+        .filter(|&i| safety.restart & (1 << i) != 0)
+        .map(|i| format!("in{i}"))
+        .collect();
+    let _ = writeln!(
+        o,
+        "safety: estop {}  on link alarm {}  restart {}",
+        safety
+            .estop
+            .map_or_else(|| String::from("-"), |i| format!("in{i}")),
+        if safety.link_fault { "fault" } else { "stall" },
+        if restart.is_empty() {
+            String::from("-")
+        } else {
+            restart.join(" ")
+        }
+    );
+    for (i, a) in safety.alarms.iter().enumerate() {
+        let _ = writeln!(
+            o,
+            "alarm a{i}: {:?} when {}",
+            a.level,
+            expr_text(t.expr(a.when))
+        );
+    }
     o
 }
 
