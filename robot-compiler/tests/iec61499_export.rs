@@ -237,6 +237,47 @@ fn explicit_chart_types_round_trip_to_the_same_tables() {
     );
 }
 
+/// A chart type whose guard reads its role's input (`A.home`, which robot-format.md
+/// allows) is exported with that level as a BOOL input variable marked `level of A.home`,
+/// and comes back through the `.fbt` import to the same tables. The export refused it
+/// (`unknown name `A.home``).
+#[test]
+fn a_chart_type_reading_a_role_input_round_trips_to_the_same_tables() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/small-charts.ron");
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains("count < M || true"));
+    let text = text.replace("count < M || true", "count < M || A.home");
+    let src = Source::new("reads-input.ron", text);
+    let c = compile(&src).unwrap_or_else(|d| panic!("{d:?}"));
+    let e = exported(&c);
+    let mover = file(&e, "Mover.fbt");
+    assert!(
+        mover.contains(
+            "<VarDeclaration Name=\"A_home\" Type=\"BOOL\" Comment=\"level of A.home\"/>"
+        ),
+        "{mover}"
+    );
+    assert!(mover.contains("OR A_home"), "{mover}");
+    let dir = std::env::temp_dir().join(format!("export-reads-input-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let names = [String::from("Mover.fbt"), String::from("Follower.fbt")];
+    for n in &names {
+        std::fs::write(dir.join(n), file(&e, n)).unwrap();
+    }
+    let robot = dir.join("robot.ron");
+    let again = Source::new(robot.display().to_string(), with_fb_types(&src, &names));
+    let back = compile(&again);
+    std::fs::remove_dir_all(&dir).unwrap();
+    let back = back.unwrap_or_else(|d| panic!("{d:?}"));
+    let dumps = |c: &robot_compiler::Compiled| -> Vec<String> {
+        let d = |b: &Vec<u8>| robot_compiler::dump::dump(b).unwrap();
+        c.blobs.iter().map(d).collect()
+    };
+    // (Its `when: "true"` came back `1 != 0` while the export wrote `(1 <> 0)`.)
+    assert_eq!(dumps(&back), dumps(&c));
+    assert_eq!(back.blobs, c.blobs);
+}
+
 /// The `.sys` of a robot, parsed: (application FBs as (name, type), application
 /// connections as (source, destination), mapping as (from, to), resources as
 /// (device, resource)).

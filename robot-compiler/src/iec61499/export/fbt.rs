@@ -207,6 +207,74 @@ pub fn rename_clashing_vars(t: &ChartType) -> ChartType {
     t
 }
 
+/// `t` with each name its guards and assignments read that is neither a parameter nor a
+/// variable (a role input's level, `A.home`: robot-format.md) made a BOOL parameter named
+/// as an identifier (`A_home`), and the (parameter, role input) pairs: the levels of
+/// [`FbSpec::levels`], each written with its comment, which the import binds back to
+/// reads of the input ([`crate::iec61499::fbt::bind_levels`]).
+pub fn levels_as_params(t: &ChartType) -> (ChartType, Vec<(String, String)>) {
+    let mut read = Vec::new();
+    let texts = (t.states.iter())
+        .flat_map(|s| s.actions.iter())
+        .filter_map(|a| match a {
+            ActionDecl::Set(_, text) => Some(text),
+            _ => None,
+        })
+        .chain(t.transitions.iter().filter_map(|tr| tr.when.as_ref()));
+    for text in texts {
+        if let Ok(ast) = expr::parse(text) {
+            expr::names(&ast, &mut read);
+        }
+    }
+    let own = |n: &str| t.params.iter().any(|p| p == n) || t.vars.iter().any(|v| v.name == n);
+    read.retain(|n| !own(n));
+    if read.is_empty() {
+        return (t.clone(), Vec::new());
+    }
+    let mut taken: Vec<String> = std::iter::once(&t.name)
+        .chain(&t.params)
+        .chain(&t.inputs)
+        .chain(&t.timers)
+        .chain(&t.outputs)
+        .chain(t.vars.iter().map(|v| &v.name))
+        .map(|n| n.to_ascii_uppercase())
+        .collect();
+    let mut renames: BTreeMap<String, String> = BTreeMap::new();
+    let mut levels = Vec::new();
+    let mut t = t.clone();
+    for input in read {
+        let base = identifier(&input);
+        let (mut name, mut k) = (base.clone(), 2);
+        while taken.contains(&name.to_ascii_uppercase()) || is_keyword(&name) {
+            name = format!("{base}_{k}");
+            k += 1;
+        }
+        taken.push(name.to_ascii_uppercase());
+        t.params.push(name.clone());
+        levels.push((name.clone(), input.clone()));
+        renames.insert(input, name);
+    }
+    let rewrite = |text: &mut String| {
+        if let Ok(mut ast) = expr::parse(text) {
+            rename(&mut ast, &renames);
+            *text = super::lift::print(&ast);
+        }
+    };
+    for s in &mut t.states {
+        for a in &mut s.actions {
+            if let ActionDecl::Set(_, text) = a {
+                rewrite(text);
+            }
+        }
+    }
+    for tr in &mut t.transitions {
+        if let Some(g) = &mut tr.when {
+            rewrite(g);
+        }
+    }
+    (t, levels)
+}
+
 fn rename(ast: &mut expr::Ast, renames: &BTreeMap<String, String>) {
     use expr::Ast;
     match ast {

@@ -85,11 +85,14 @@ pub fn export(c: &Compiled, date: &str) -> Result<Export, ExportError> {
     let mut types: Vec<crate::model::ChartType> = Vec::new();
     for t in &robot.chart_types {
         let t = &fbt::rename_clashing_vars(t);
+        // The role inputs its guards read, as BOOL parameters marked with their levels.
+        let (written, levels) = fbt::levels_as_params(t);
+        let bools: Vec<String> = levels.iter().map(|(p, _)| p.clone()).collect();
         let spec = fbt::FbSpec {
-            ty: t,
+            ty: &written,
             comment: format!("Chart type `{}` of robot {}", t.name, robot.name),
-            bools: &[],
-            levels: &[],
+            bools: &bools,
+            levels: &levels,
             values: &[],
             places: &[],
             date,

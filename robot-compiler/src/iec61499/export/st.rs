@@ -18,6 +18,13 @@ pub type Names<'a> = &'a dyn Fn(&str) -> Option<(String, Kind)>;
 /// with 0 (the same truth value); the reverse, and a wrap to a narrower width (which ST
 /// writes as a narrower variable's type, not an operator), have no ST form here.
 pub fn st(ast: &Ast, want: Kind, names: Names<'_>) -> Result<String, String> {
+    // `true` and `false` (1 and 0 in the tables) where ST needs a BOOL: its literals, which
+    // the import reads back as 1 and 0 (as `(1 <> 0)` it read back a comparison).
+    match (ast, want) {
+        (Ast::Int(1), Kind::Bool) => return Ok(String::from("TRUE")),
+        (Ast::Int(0), Kind::Bool) => return Ok(String::from("FALSE")),
+        _ => {}
+    }
     let (text, kind) = value(ast, names)?;
     coerce(text, kind, want)
 }
