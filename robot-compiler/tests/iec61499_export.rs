@@ -278,6 +278,41 @@ fn a_chart_type_reading_a_role_input_round_trips_to_the_same_tables() {
     assert_eq!(back.blobs, c.blobs);
 }
 
+/// A control function named `IO` on role CABINET: its lifted chart's type and FB are
+/// named apart from the role's service FB and type `CABINET_IO`. Both were
+/// `CABINET_IO`: the export refused the robot ("two files would be named
+/// `CABINET_IO.fbt`"), at no place.
+#[test]
+fn a_chart_named_like_its_roles_service_fb_is_named_apart() {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../robot-configs/waterjet-transport.ron");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("Operation", "IO");
+    let src = Source::new("io.ron", text);
+    let c = compile(&src).unwrap_or_else(|d| panic!("{d:?}"));
+    let e = exported(&c);
+    let mut names: Vec<&str> = e.files.iter().map(|(n, _)| n.as_str()).collect();
+    names.sort();
+    let count = names.len();
+    names.dedup();
+    assert_eq!(names.len(), count, "{names:?}");
+    assert!(names.contains(&"CABINET_IO.fbt") && names.contains(&"CABINET_IO_2.fbt"));
+    for (name, text) in &e.files {
+        if let Err(e) = validate(text) {
+            panic!("{name}:{e}\n{text}");
+        }
+    }
+    let (fbs, _, _, _) = system(file(&e, &export::sys_file(&c)));
+    let mut fb_names: Vec<&str> = fbs.iter().map(|(n, _)| n.as_str()).collect();
+    fb_names.sort();
+    let count = fb_names.len();
+    fb_names.dedup();
+    assert_eq!(fb_names.len(), count, "{fbs:?}");
+    assert!(fbs.contains(&(String::from("CABINET_IO"), String::from("CABINET_IO"))));
+    assert!(fbs.contains(&(String::from("CABINET_IO_2"), String::from("CABINET_IO_2"))));
+}
+
 /// The `.sys` of a robot, parsed: (application FBs as (name, type), application
 /// connections as (source, destination), mapping as (from, to), resources as
 /// (device, resource)).

@@ -106,8 +106,16 @@ pub fn export(c: &Compiled, date: &str) -> Result<Export, ExportError> {
     // The lifted charts, written once every FB's name is known: (instance index, its
     // lifted type, the `.fbt` comment).
     let mut lifted: Vec<(usize, lift::Lifted, String)> = Vec::new();
-    let mut taken: Vec<String> = types.iter().map(|t| t.name.to_ascii_uppercase()).collect();
-    let mut fb_names: Vec<String> = Vec::new();
+    // Each role's service FB and its type are `ROLE_IO` (`sys::io_name`): a chart's FB or
+    // lifted type named so (a chart `IO` of role CABINET) is named apart.
+    let ios: Vec<String> = (0..c.ir.roles.len())
+        .map(|ri| sys::io_name(c, ri))
+        .collect();
+    let mut taken: Vec<String> = (types.iter().map(|t| &t.name))
+        .chain(&ios)
+        .map(|n| n.to_ascii_uppercase())
+        .collect();
+    let mut fb_names: Vec<String> = ios;
     let mut instances = Vec::new();
     for (ri, r) in c.ir.roles.iter().enumerate() {
         let role = robot.roles.get(ri);
