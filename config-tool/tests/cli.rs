@@ -251,7 +251,8 @@ fn sim_of_the_ball_sorter_prints_each_ball_and_its_bin() {
     assert_eq!(
         lines[0],
         "robot-configs/ball-sorter.ron: ball feed: every sequence of up to 2 balls of black, \
-         gray, orange"
+         gray, orange (untimed: the next ball is taken to lie at the sensors once the pusher \
+         is home; `sim` times its roll)"
     );
     assert!(lines[1].starts_with("robot-configs/ball-sorter.ron: 753 states, 1398 transitions in "));
     assert_eq!(

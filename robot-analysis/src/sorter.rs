@@ -76,6 +76,9 @@ pub struct SortRun {
     pub duration_ms: u64,
     /// Faults, as text; balls that met a moving gate; pusher strokes while a gate moved.
     pub faults: Vec<String>,
+    /// Why the station stopped with balls left in the magazine, if it did (and did not
+    /// fault): as text, with the times.
+    pub stopped: Option<String>,
     /// Every trace entry, as text.
     pub trace: Vec<String>,
     /// Every trace entry (for `--timeline`).
@@ -115,6 +118,9 @@ impl SortRun {
         }
         for f in &self.faults {
             let _ = writeln!(o, "  FAULT {f}");
+        }
+        if let Some(why) = &self.stopped {
+            let _ = writeln!(o, "  STOPPED {why}");
         }
         let bins = self.balls.iter().filter_map(|b| b.bin).max().unwrap_or(0);
         let counts: Vec<String> = (1..=bins.max(1))
@@ -288,6 +294,7 @@ pub fn simulate(c: &Compiled, feed: Option<&[String]>) -> Result<SortRun, SortEr
             .collect(),
         duration_ms: end,
         faults: Vec::new(),
+        stopped: None,
         trace: world.trace().iter().map(ToString::to_string).collect(),
         entries: world.trace().to_vec(),
         selections: Vec::new(),
@@ -348,7 +355,55 @@ pub fn simulate(c: &Compiled, feed: Option<&[String]>) -> Result<SortRun, SortEr
             _ => {}
         }
     }
+    if run.faults.is_empty() && fed < feed.len() {
+        let chart = (c.ir.roles[node].charts.iter()).position(|ch| ch.name == s.chart_name());
+        run.stopped = Some(stopped(
+            world.trace(),
+            node,
+            chart,
+            fed,
+            feed.len(),
+            s.roll_ms,
+        ));
+    }
     Ok(run)
+}
+
+/// Why the station stopped at ball `next` (0-based, never pushed) of `balls`: the ball
+/// reached the sensors after the station last read them (its classification chart,
+/// `chart`, fired on `node`), which the station took for an empty magazine.
+fn stopped(
+    trace: &[TraceEntry],
+    node: usize,
+    chart: Option<usize>,
+    next: usize,
+    balls: usize,
+    roll_ms: u32,
+) -> String {
+    let left = format!("with {} ball(s) in the magazine", balls - next);
+    let ready = trace.iter().find_map(|e| match e.what {
+        What::BallReady { ball, .. } if ball == next => Some(e.t_ms),
+        _ => None,
+    });
+    let read = ready.and_then(|ready| {
+        (trace.iter().rev())
+            .filter(|e| e.t_ms < ready)
+            .find_map(|e| match e.what {
+                What::Fired {
+                    node: n, chart: ch, ..
+                } if n == node && chart == Some(usize::from(ch)) => Some(e.t_ms),
+                _ => None,
+            })
+    });
+    match (ready, read) {
+        (Some(ready), Some(read)) => format!(
+            "{left}: ball {} reached the sensors at {ready} ms (roll_ms {roll_ms} after the \
+             pusher came home), after the station read them at {read} ms: the next ball must \
+             lie at the sensors before the station samples them",
+            next + 1
+        ),
+        _ => left,
+    }
 }
 
 /// A chart of node `node` entered state `to` while ball `b` was being decided: an

@@ -166,3 +166,34 @@ fn a_gate_ready_before_it_is_open_lets_the_pusher_feed_while_it_moves() {
         ]
     );
 }
+
+/// A ball that rolls to the sensors slower than the station samples them after the pusher
+/// comes home (`roll_ms` 150, the feeder's settle timer 100 ms): the station reads an
+/// empty magazine and stops. The report says so, with the times: it said only `FAILED`,
+/// every later ball in `bin none`. (verify cannot see it: it is untimed, and assumes the
+/// next ball is at the sensors once the pusher is home; its report says so.)
+#[test]
+fn a_ball_slower_to_roll_than_the_sample_is_reported_with_its_times() {
+    let src = load(SORTER);
+    assert!(src.text.contains("roll_ms: 50, "));
+    let src = robot_compiler::Source::new(
+        "slow-roll.ron",
+        src.text.replace("roll_ms: 50, ", "roll_ms: 150,"),
+    );
+    let c = build(&src);
+    let feed = vec![String::from("gray"), String::from("black")];
+    let run = sorter::simulate(&c, Some(&feed)).expect("runs");
+    assert!(!run.ok());
+    assert_eq!(bins(&run.balls), [3, 0]);
+    let report = run.report();
+    let stopped: Vec<&str> = report.lines().filter(|l| l.contains("STOPPED")).collect();
+    assert_eq!(
+        stopped,
+        [
+            "  STOPPED with 1 ball(s) in the magazine: ball 2 reached the sensors at 504 ms \
+             (roll_ms 150 after the pusher came home), after the station read them at 478 ms: \
+             the next ball must lie at the sensors before the station samples them"
+        ],
+        "{report}"
+    );
+}

@@ -23,7 +23,11 @@ fn the_station_passes_for_every_feed_of_up_to_4_balls() {
     assert!(r.ok(), "{}", r.render("ball-sorter", 0));
     assert_eq!(
         r.feed.as_deref(),
-        Some("ball feed: every sequence of up to 4 balls of black, gray, orange")
+        Some(
+            "ball feed: every sequence of up to 4 balls of black, gray, orange (untimed: the \
+             next ball is taken to lie at the sensors once the pusher is home; `sim` times its \
+             roll)"
+        )
     );
     assert_eq!(
         (r.states, r.transitions, r.idle, r.stopped),

@@ -218,7 +218,8 @@ impl FeedModel {
     pub(super) fn describe(&self) -> String {
         let names: Vec<&str> = self.colours.iter().map(|r| r.0.as_str()).collect();
         format!(
-            "ball feed: every sequence of up to {} balls of {}",
+            "ball feed: every sequence of up to {} balls of {} (untimed: the next ball is \
+             taken to lie at the sensors once the pusher is home; `sim` times its roll)",
             self.balls,
             names.join(", ")
         )
