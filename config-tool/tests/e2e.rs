@@ -673,3 +673,89 @@ fn a_host_node_started_by_hand_ends_when_its_medium_stops() {
     );
     assert_eq!(gone.left, 0);
 }
+
+/// A node's secured announcement, captured in one run's scan and replayed into the scan
+/// of a later run of the tool (a new radio, whose replay guard has no counter of the node
+/// yet) after the node was switched off: the node is not listed, the nodes still on are.
+/// It was listed: an announcement answered no ask in particular, so one recorded earlier
+/// stood in for a node that was gone.
+#[test]
+fn a_replayed_announcement_does_not_bring_back_a_switched_off_node() {
+    use config_schema::wire::msg::Announce;
+    use robot_net::push::{self, Ids};
+    use robot_net::radio::ToolRadio;
+    use std::time::{Duration, Instant};
+    const HOSTILE: u16 = 0xBEEF;
+    let c = robot("paint-robot.ron", 1);
+    let mut bed = bring_up(&c, options(medium::Config::default(), None));
+    let secret = bed.secret().expect("a secured bed").clone();
+    let (vc, gr) = (addr_of(&c, "VC"), addr_of(&c, "GR"));
+    let announce = |psdu: &[u8]| -> Option<(u16, Announce)> {
+        let plain = open_from(&secret, psdu)?;
+        let Ok(mac::Frame::Data { header, payload }) = mac::Frame::parse(&plain) else {
+            return None;
+        };
+        match Message::parse(payload) {
+            Ok(Message::Announce(a)) => Some((header.src, a)),
+            _ => None,
+        }
+    };
+    let mut monitor = Monitor::join(bed.medium().addr());
+    bed.wait_for_nodes(&[gr]).expect("GR announces itself");
+    let captured = monitor
+        .psdus_until(|p| announce(p).is_some_and(|(src, _)| src == gr))
+        .pop()
+        .expect("GR's announcement");
+    bed.kill_node(gr);
+
+    // A later run of the tool: its own radio and command ids, the same keys.
+    let mut radio = ToolRadio::connect(bed.medium().addr(), TOOL_ADDR).expect("radio");
+    let mut next = 1u32 << 24;
+    radio.secure(
+        secret.clone(),
+        Box::new(move || {
+            next += 1;
+            Some(next)
+        }),
+    );
+    let mut raw = RawClient::join(bed.medium().addr(), HOSTILE);
+    // Each of the scan's asks (an unsecured broadcast Identify) answered with the
+    // recording, until the scan is over.
+    let is_identify = |psdu: &[u8]| match mac::Frame::parse(psdu) {
+        Ok(mac::Frame::Data { header, payload }) => {
+            !header.secured
+                && header.dst == mac::BROADCAST
+                && matches!(
+                    Message::parse(payload),
+                    Ok(Message::Command {
+                        command: Command::Identify,
+                        ..
+                    })
+                )
+        }
+        _ => false,
+    };
+    let over = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let replayer = {
+        let over = over.clone();
+        std::thread::spawn(move || {
+            let mut replayed = 0;
+            while !over.load(std::sync::atomic::Ordering::SeqCst) {
+                if let Some(f) = raw.next_frame(Instant::now() + Duration::from_millis(100)) {
+                    if is_identify(&f) {
+                        raw.send_psdu(&captured);
+                        replayed += 1;
+                    }
+                }
+            }
+            replayed
+        })
+    };
+    let found = push::scan(&mut radio, &mut Ids::default(), Duration::from_secs(2)).expect("scan");
+    over.store(true, std::sync::atomic::Ordering::SeqCst);
+    let replayed = replayer.join().expect("the replayer");
+    assert!(replayed > 0, "the scan asked");
+    assert!(found.contains_key(&vc), "{found:?}");
+    assert!(!found.contains_key(&gr), "{found:?}");
+    bed.stop();
+}

@@ -1122,12 +1122,13 @@ impl<S: StagingArea> NodeCore<S> {
             }
         } else if now >= self.next_announce {
             self.next_announce = now + ANNOUNCE_MS;
-            let announce = self.announce();
+            let announce = self.announce(0);
             self.send(io, CONFIG_PAN, BROADCAST, &announce);
         }
     }
 
-    fn announce(&self) -> Message<'static> {
+    /// `ack`: the id of the `Identify` it answers (0: unprompted).
+    fn announce(&self, ack: u16) -> Message<'static> {
         let mut role = heapless::String::new();
         if let Some(t) = &self.table {
             role = t.header.role.clone();
@@ -1138,6 +1139,7 @@ impl<S: StagingArea> NodeCore<S> {
             role,
             table: self.table_id,
             staged: self.switch.staged(),
+            ack,
         })
     }
 
@@ -2008,7 +2010,7 @@ impl<S: StagingArea> NodeCore<S> {
         io: &mut impl Io,
     ) {
         if cmd == Command::Identify {
-            let a = self.announce();
+            let a = self.announce(id);
             self.send(io, pan, src, &a);
             return;
         }

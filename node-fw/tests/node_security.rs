@@ -324,6 +324,7 @@ fn other_nodes_secured_announcements_are_ignored_not_counted() {
         role: heapless::String::new(),
         table: config_schema::TableId::NONE,
         staged: 0,
+        ack: 0,
     })
     .emit(&mut announce)
     .unwrap();

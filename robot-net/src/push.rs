@@ -598,8 +598,9 @@ impl Default for Ids {
 }
 
 impl Ids {
+    /// The next id; never 0, which an unprompted `Announce` carries.
     pub fn fresh(&mut self) -> u16 {
-        self.0 = self.0.wrapping_add(1);
+        self.0 = self.0.wrapping_add(1).max(1);
         self.0
     }
 }
@@ -720,8 +721,11 @@ pub fn statuses_of(
     ask_each(radio, ids, addrs, Command::Status, timeout, status_answer)
 }
 
-/// The nodes in range: asks every node to identify itself and collects announcements
-/// for `wait` (unconfigured nodes announce themselves anyway).
+/// The nodes in range: asks every node to identify itself and collects the announcements
+/// that answer this ask, for `wait`. An unprompted one (an unconfigured node's periodic
+/// announcement) or one answering another ask is not taken: a recorded announcement,
+/// replayed, would stand in for a node that is gone (frame security proves who sent it,
+/// not when; only the ask's id does).
 pub fn scan(
     radio: &mut ToolRadio,
     ids: &mut Ids,
@@ -744,7 +748,9 @@ pub fn scan(
         }
         if let Some(r) = radio.recv(next_ask.min(end))? {
             if let Some(Message::Announce(a)) = r.message() {
-                found.insert(r.src, a);
+                if a.ack == id {
+                    found.insert(r.src, a);
+                }
             }
         }
     }

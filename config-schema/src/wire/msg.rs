@@ -327,6 +327,10 @@ pub struct Announce {
     pub table: TableId,
     /// The generation staged for the switch-over (0: none).
     pub staged: u32,
+    /// The id of the `Identify` this answers (0: unprompted, the periodic announcement of
+    /// an unconfigured node). The tool takes only the answers to its own ask: a secured
+    /// announcement recorded earlier and replayed does not say that a node is there.
+    pub ack: u16,
 }
 
 /// Why a payload is not a message (postcard's reasons: the codec reads what postcard reads
@@ -474,12 +478,13 @@ mod tests {
             role: String::try_from("VC").unwrap(),
             table: TableId::from_crc(0x1234_ABCD),
             staged: 0,
+            ack: 0x1234,
         });
         let mut buf = [0u8; 32];
         let n = msg.emit(&mut buf).unwrap();
         assert_eq!(
             &buf[..n],
-            &[8, 1, 0xAC, 0x02, 2, b'V', b'C', 0xCD, 0xAB, 0x34, 0x12, 0]
+            &[8, 1, 0xAC, 0x02, 2, b'V', b'C', 0xCD, 0xAB, 0x34, 0x12, 0, 0xB4, 0x24]
         );
         assert_eq!(Message::parse(&buf[..n]), Ok(msg));
     }

@@ -228,8 +228,8 @@ pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(),
                 addr,
                 Command::Identify,
                 ASK_QUIET,
-                |m, _| match m {
-                    Message::Announce(a) => Some(a),
+                |m, id| match m {
+                    Message::Announce(a) if a.ack == id => Some(a),
                     _ => None,
                 },
             )

@@ -271,6 +271,7 @@ fn for_the_tool<'a>(r: &mut In<'a>, v: u32) -> Message<'a> {
             role: r.role(),
             table: r.table_id(),
             staged: r.u32(),
+            ack: r.u16(),
         }),
         9 => Message::Security(security(r)),
         _ => Message::Alarms(alarms(r)),
@@ -345,6 +346,7 @@ fn check_for_the_tool(r: &mut In, v: u32) {
             r.role();
             r.table_id();
             r.u32();
+            r.u16();
         }
         9 => {
             r.u16();
@@ -709,7 +711,8 @@ pub(super) fn emit(m: &Message<'_>, w: &mut Out) {
             w.u32(a.generation);
             w.bytes(a.role.as_bytes());
             w.raw(&a.table.0);
-            w.u32(a.staged)
+            w.u32(a.staged);
+            w.u16(a.ack)
         }
         Message::Security(s) => {
             w.byte(9);

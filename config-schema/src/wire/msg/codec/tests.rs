@@ -259,14 +259,15 @@ fn message() -> impl Strategy<Value = Message<'static>> {
         (n32(), reply()).prop_map(|(generation, reply)| Message::ConfigReply { generation, reply }),
         (n16(), command()).prop_map(|(id, command)| Message::Command { id, command }),
         status().prop_map(Message::Status),
-        (n16(), n32(), role(), table_id(), n32()).prop_map(
-            |(firmware, generation, role, table, staged)| {
+        (n16(), n32(), role(), table_id(), n32(), n16()).prop_map(
+            |(firmware, generation, role, table, staged, ack)| {
                 Message::Announce(Announce {
                     firmware,
                     generation,
                     role,
                     table,
                     staged,
+                    ack,
                 })
             }
         ),
