@@ -8,7 +8,7 @@ use std::ops::Range;
 
 use crate::diag::Diagnostic;
 use crate::expr::{self, Operand};
-use crate::ir::{ActionIr, ChartIr, InputIr, Ir, OutputIr, RoleIr, StateIr, TimerIr, TransitionIr};
+use crate::ir::{ActionIr, ChartIr, InputIr, Ir, RoleIr, StateIr, TimerIr, TransitionIr};
 use crate::model::{ActionDecl, ChartInstance, ChartType, Robot, Role};
 use crate::source::Source;
 
@@ -288,16 +288,7 @@ fn hardware(robot: &Robot, role: &Role, wanted: &BTreeSet<(String, String)>) -> 
             pin: i.pin,
         });
     }
-    for o in &role.outputs {
-        let (fault, start, home) = o.levels();
-        r.outputs.push(OutputIr {
-            name: o.name.clone(),
-            pin: o.pin,
-            fault,
-            start,
-            home,
-        });
-    }
+    r.declare_plain_outputs(role);
     for i in r.inputs.clone() {
         for e in [i.rise, i.fall].into_iter().flatten() {
             r.event(&e);

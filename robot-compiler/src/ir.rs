@@ -224,6 +224,21 @@ pub enum ActionIr {
 }
 
 impl RoleIr {
+    /// Declares the role's plain outputs (lamps, gates: `Role::outputs`), each with its
+    /// fault, start and home levels, after what is declared already.
+    pub fn declare_plain_outputs(&mut self, role: &crate::model::Role) {
+        for o in &role.outputs {
+            let (fault, start, home) = o.levels();
+            self.outputs.push(OutputIr {
+                name: o.name.clone(),
+                pin: o.pin,
+                fault,
+                start,
+                home,
+            });
+        }
+    }
+
     /// Declares an actuator's pins: each valve an output `ACT.FIELD` (its fault and start
     /// levels from the actuator's, home as after a `-`), each limit
     /// switch an input `ACT.FIELD` whose rising edge raises the event `ACT.FIELD` if

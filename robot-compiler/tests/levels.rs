@@ -117,3 +117,31 @@ fn dump_and_diagram_show_the_levels() {
         "{dot}"
     );
 }
+
+/// A sequence robot's plain outputs (a lamp lit on fault, as robot-format.md's example
+/// declares on VC) are in its tables with their levels, after the valves. Synthesis left
+/// them out: `check` said ok, and the lamp was in no table.
+#[test]
+fn a_sequence_robots_plain_outputs_are_in_its_tables() {
+    let text = std::fs::read_to_string(root("robot-configs/paint-robot.ron")).unwrap();
+    let vc = "inputs: [(name: \"START\", pin: 4)],";
+    assert!(text.contains(vc), "paint-robot.ron's VC");
+    let with = |output: &str| {
+        let edited = text.replacen(vc, &format!("{vc}\n            outputs: [{output}],"), 1);
+        Source::new("lamp.ron", edited)
+    };
+    let src = with("(name: \"LAMP\", pin: 5, safe: false, fault: High)");
+    assert_eq!(
+        outputs(&src, "VC"),
+        [
+            out(0, Level::Low, Level::Low, false),
+            out(1, Level::Low, Level::Low, true),
+            out(5, Level::High, Level::Low, false),
+        ]
+    );
+    let src = with("(name: \"LAMP\", pin: 5, safe: true)");
+    assert_eq!(
+        outputs(&src, "VC")[2],
+        out(5, Level::High, Level::High, true)
+    );
+}

@@ -195,6 +195,9 @@ impl<'a> Sequence<'a> {
                 r.event(&name);
             }
         }
+        // Its lamps and other plain outputs: no chart drives them, the node does on a
+        // fault, at start and by homing.
+        r.declare_plain_outputs(role);
         if self.start_role == ri {
             self.start_button(&mut r, role)?;
         }
