@@ -305,6 +305,32 @@ fn demo_refuses_a_number_of_cycles_sim_refuses() {
     }
 }
 
+/// A `--fault` in a cycle the demo does not run is refused before anything starts (status
+/// 2). It was taken, never injected, and the demo said `every cycle matched`, status 0.
+#[test]
+fn demo_refuses_a_fault_in_a_cycle_it_does_not_run() {
+    for (cycles, fault) in [("1", "stuck:HC@3.4"), ("3", "stop:HC@4.9")] {
+        let mut args = vec!["robot-configs/paint-robot.ron", "--no-reconfigure"];
+        args.extend(["--cycles", cycles, "--fault", fault]);
+        let out = demo(&args);
+        assert_eq!(out.status.code(), Some(2), "{fault}");
+        assert_eq!(text(&out.stdout), "", "{fault}: nothing ran");
+        let cycle = fault
+            .split_once('@')
+            .and_then(|(_, s)| s.split_once('.'))
+            .unwrap()
+            .0;
+        assert_eq!(
+            text(&out.stderr),
+            format!(
+                "error: --fault {fault}: its cycle {cycle} is after the last the demo runs \
+                 ({cycles}: --cycles {cycle} or more runs it)\n"
+            ),
+            "{fault}"
+        );
+    }
+}
+
 /// `demo --pcap` naming the robot (or the robot pushed after it) is refused before anything
 /// starts, and the file is left as it was. Found: `sim --timeline` overwrote the robot.
 #[test]

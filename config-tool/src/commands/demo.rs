@@ -25,6 +25,16 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
         // A target or step the robot lacks, said before anything runs (status 2).
         robot_analysis::inject::simulate(&loaded, spec)
             .map_err(super::offline::injection_failure)?;
+        // A fault in a cycle the demo does not run would never be injected.
+        let cycles = flags.cycles.unwrap_or(3);
+        if spec.cycle > cycles {
+            let given = flags.fault.as_deref().unwrap_or_default();
+            return Err(Failure::usage(format!(
+                "--fault {given}: its cycle {} is after the last the demo runs ({cycles}: \
+                 --cycles {} or more runs it)",
+                spec.cycle, spec.cycle
+            )));
+        }
     }
     // The robot pushed afterwards: --then's, refused on nodes the demo does not start; else
     // the double dip beside the robot, if there is one and it fits them; none with
