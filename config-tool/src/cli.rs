@@ -360,6 +360,18 @@ fn homing_wait(text: &str) -> Result<u64, String> {
     }
 }
 
+/// `push --wait S`, `rollback --wait S`: a whole number of seconds from 1 (the nodes are
+/// asked whether they are idle first; `--now` switches at once).
+fn idle_wait(text: &str) -> Result<u64, String> {
+    match text.parse::<u64>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(
+            "a whole number of seconds from 1 (the nodes are asked first; --now switches at once)"
+                .to_string(),
+        ),
+    }
+}
+
 /// `--faults N`: 1 to 8.
 fn faults(text: &str) -> Result<u8, String> {
     match text.parse::<u8>() {
@@ -440,7 +452,7 @@ pub struct PushArgs {
     #[arg(long, conflicts_with = "now")]
     pub stage_only: bool,
     /// How long to wait for the machine to be idle (the cycle in progress to end), seconds.
-    #[arg(long, default_value_t = 60)]
+    #[arg(long, default_value_t = 60, value_parser = idle_wait)]
     pub wait: u64,
     /// Switch on trial: until `config-tool confirm`, a power cut or `config-tool rollback`
     /// returns every node to the previous generation.
@@ -469,7 +481,7 @@ pub struct SwitchArgs {
     #[arg(long)]
     pub now: bool,
     /// How long to wait for the machine to be idle, seconds.
-    #[arg(long, default_value_t = 60)]
+    #[arg(long, default_value_t = 60, value_parser = idle_wait)]
     pub wait: u64,
 }
 

@@ -91,6 +91,25 @@ fn check_refuses_a_guard_too_deep_for_a_node_at_the_guard() {
     }
 }
 
+/// `push --wait 0` and `rollback --wait 0` are usage errors, as `home --wait 0` is: a
+/// push waited 0 ms for the idle point and said the machine was not idle, status 3, naming
+/// no node, on a machine at rest.
+#[test]
+fn push_and_rollback_refuse_a_wait_of_0() {
+    for command in ["push", "rollback"] {
+        let out = tool(&[command, "robot-configs/paint-robot.ron", "--wait", "0"]);
+        assert_eq!(out.status.code(), Some(2), "{command}");
+        let err = text(&out.stderr);
+        assert!(
+            err.contains(
+                "invalid value '0' for '--wait <WAIT>': a whole number of seconds from 1 (the \
+                 nodes are asked first; --now switches at once)"
+            ),
+            "{command}: {err}"
+        );
+    }
+}
+
 #[test]
 fn check_reports_warnings_but_succeeds() {
     let out = tool(&["check", "tests/fixtures/broken/unreachable-state.ron"]);

@@ -605,13 +605,12 @@ impl FaultRun {
                     d.role,
                     d.how,
                     match (&self.watched, self.commanded_ms) {
-                        (Some((t, step)), _) => format!(
-                            ", {} ms after {step} was commanded",
-                            d.t_ms.saturating_sub(*t)
-                        ),
+                        (Some((t, step)), _) => {
+                            format!(", {} {step} was commanded", since(d.t_ms, *t))
+                        }
                         (None, Some(t)) => format!(
-                            ", {} ms after step {} was commanded",
-                            d.t_ms.saturating_sub(t),
+                            ", {} step {} was commanded",
+                            since(d.t_ms, t),
                             self.spec.step
                         ),
                         (None, None) => String::new(),
@@ -680,6 +679,15 @@ fn describe(kind: &FaultKind) -> String {
         FaultKind::Switch(s) => format!("switch {s} broken (stays open)"),
         FaultKind::Stop(r) => format!("node of {r} stopped"),
         FaultKind::Link(f, t) => format!("link {f} -> {t} lost"),
+    }
+}
+
+/// When `t_ms` came relative to `then_ms`: `N ms after` or `N ms before`.
+fn since(t_ms: u64, then_ms: u64) -> String {
+    if t_ms >= then_ms {
+        format!("{} ms after", t_ms - then_ms)
+    } else {
+        format!("{} ms before", then_ms - t_ms)
     }
 }
 

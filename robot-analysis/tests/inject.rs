@@ -249,3 +249,26 @@ fn the_timeline_of_a_fault_marks_it_and_shades_the_stopped_charts() {
         .count();
     assert_eq!(marks, 5, "the injection and four faults");
 }
+
+/// A fault detected before the step it was injected before is commanded (the water-jet
+/// transport's belt node stopped before step 2: PUSHER's link alarm comes at 812 ms, step 2
+/// at 2006 ms) is said to come that long before it. The report said `0 ms after`.
+#[test]
+fn a_detection_before_the_step_is_commanded_says_how_long_before() {
+    let path = format!(
+        "{}/../robot-configs/waterjet-transport.ron",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let text = std::fs::read_to_string(&path).expect("robot");
+    let c = compile(&Source::new("waterjet-transport.ron", text)).expect("compiles");
+    let report = inject(&c, "stop:BELT@2").report();
+    let line = report
+        .lines()
+        .find(|l| l.starts_with("detected at"))
+        .expect("detected");
+    assert_eq!(
+        line,
+        "detected at 812 ms by PUSHER: link alarm: BELT does not acknowledge, 1194 ms before \
+         step 2 was commanded"
+    );
+}
