@@ -53,12 +53,14 @@ impl Conn {
         let n = link
             .emit(&mut buf)
             .map_err(|_| io::Error::other("message too long for the medium"))?;
-        self.stream.write_all(buf.get(..n).unwrap_or_default())
+        self.stream
+            .write_all(buf.get(..n).unwrap_or_default())
+            .map_err(gone)
     }
 
     /// Writes raw bytes on the connection (a test's hand-built message).
     pub fn send_raw(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.stream.write_all(bytes)
+        self.stream.write_all(bytes).map_err(gone)
     }
 
     /// A barrier: returns once the medium has handled everything sent before. Messages
@@ -211,4 +213,16 @@ enum Next<T> {
     Taken(T),
     Declined,
     TimedOut,
+}
+
+/// A write's error, said as a read's end is when it means that the medium went away (its
+/// end of the connection closed or reset): not as this process's own output breaking.
+fn gone(e: io::Error) -> io::Error {
+    use io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset};
+    match e.kind() {
+        BrokenPipe | ConnectionReset | ConnectionAborted => {
+            io::Error::new(e.kind(), "the medium closed the connection")
+        }
+        _ => e,
+    }
 }

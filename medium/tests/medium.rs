@@ -705,3 +705,24 @@ fn silent_connections_do_not_keep_a_newcomer_out() {
     assert!((s.refused, s.clients) == (0, 2) && s.silent >= 2, "{s:?}");
     medium.stop();
 }
+
+/// A client writing to a medium that went away is told so: the error says the medium
+/// closed the connection, as a read's does. It said `Broken pipe (os error 32)`, which
+/// `alarms --watch` printed as if its own output had broken.
+#[test]
+fn writing_to_a_medium_that_went_away_says_so() {
+    let medium = Medium::start(Config::default()).unwrap();
+    let mut conn = medium::Conn::join(medium.addr(), Peer::Tool { addr: 0x100 }).unwrap();
+    medium.stop();
+    // The read sees the end first; writes then fail (the first may still be buffered).
+    let read = conn.recv(std::time::Instant::now() + SURE, |_| Some(()));
+    assert_eq!(
+        read.map_err(|e| e.to_string()),
+        Err(String::from("the medium closed the connection"))
+    );
+    let frame = frame(0x100, 0x11, b"anyone?");
+    let failed = (0..100)
+        .find_map(|_| conn.send(&Link::Frame(&frame)).err())
+        .expect("a write fails");
+    assert_eq!(failed.to_string(), "the medium closed the connection");
+}
