@@ -250,7 +250,12 @@ impl Air {
         sender.tx_queue.push_back(arrives);
         let sender_addr = radio_addr(sender.peer);
         if let Some(pcap) = &mut self.pcap {
-            pcap.write(on_air.duration_since(self.start), &psdu);
+            if let Err(e) = pcap.write(on_air.duration_since(self.start), &psdu) {
+                self.counters.count(|s| {
+                    s.pcap_unwritten += 1;
+                    s.pcap_error.get_or_insert(e.kind());
+                });
+            }
         }
         self.counters.count(|s| {
             s.frames += 1;

@@ -128,6 +128,11 @@ pub struct Stats {
     pub silent: u64,
     /// Connections refused (too many at once).
     pub refused: u64,
+    /// Frames the pcap (`Config::pcap`) lacks: its file could not be written (from the
+    /// first failure on, the file ends there).
+    pub pcap_unwritten: u64,
+    /// Why the first of them was not written.
+    pub pcap_error: Option<io::ErrorKind>,
     /// Deliveries scheduled and not made yet (a gauge).
     pub queued: u64,
     /// Deliveries not made because their link was cut ([`Medium::cut`]).

@@ -14,6 +14,9 @@ pub enum NetError {
     Load(#[from] robot_compiler::source::LoadError),
     #[error("medium: {0}")]
     Medium(#[source] io::Error),
+    /// The medium's capture (`--pcap`) lacks frames: its file could not be written.
+    #[error("--pcap: {unwritten} frame(s) not written ({why}): the capture ends early")]
+    Pcap { unwritten: u64, why: io::ErrorKind },
     /// The tool's radio (or a command on it) failed.
     #[error("{0}")]
     Radio(#[from] io::Error),

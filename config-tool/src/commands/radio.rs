@@ -196,14 +196,25 @@ fn security(radio: &mut ToolRadio, ids: &mut Ids, node: u16) -> Result<SecurityR
     ask(radio, ids, node, Command::Security, push::security_answer)
 }
 
-/// `medium`: runs until interrupted.
+/// `medium`: runs until interrupted. A capture (`--pcap`) that cannot be written is said
+/// on standard error once, within a second: the medium carries on without it.
 pub fn medium(config: medium::Config) -> Result<(), Failure> {
     let listen = config.listen;
+    let pcap = config.pcap.clone();
     let m = medium::Medium::start(config)
         .map_err(|e| Failure::error(format!("medium on {listen}: {e}")))?;
     outln!("medium listening on {}", m.addr());
+    let mut said = false;
     loop {
-        std::thread::sleep(Duration::from_secs(3600));
+        std::thread::sleep(Duration::from_secs(1));
+        if let (Some(why), Some(path), false) = (m.stats().pcap_error, &pcap, said) {
+            errln!(
+                "error: --pcap {}: a frame could not be written ({why}): the capture ends \
+                 there, the medium carries on",
+                path.display()
+            );
+            said = true;
+        }
     }
 }
 

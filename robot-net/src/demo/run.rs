@@ -176,7 +176,7 @@ pub fn run(demo: &Demo, options: bed::Options, out: &mut dyn Write) -> Result<Ve
             break;
         }
     }
-    finish(bed, verdict, out);
+    finish(bed, verdict, out)?;
     Ok(verdict)
 }
 
@@ -323,7 +323,7 @@ fn run_cycles(
 }
 
 /// The medium's totals and the verdict in words; stops the bed.
-fn finish(bed: Bed, verdict: Verdict, out: &mut dyn Write) {
+fn finish(bed: Bed, verdict: Verdict, out: &mut dyn Write) -> Result<(), NetError> {
     finish_as(
         bed,
         verdict,
@@ -334,7 +334,7 @@ fn finish(bed: Bed, verdict: Verdict, out: &mut dyn Write) {
 }
 
 /// [`finish`] of a sorting station's demo.
-pub(super) fn finish_with(bed: Bed, verdict: Verdict, out: &mut dyn Write) {
+pub(super) fn finish_with(bed: Bed, verdict: Verdict, out: &mut dyn Write) -> Result<(), NetError> {
     finish_as(
         bed,
         verdict,
@@ -344,14 +344,15 @@ pub(super) fn finish_with(bed: Bed, verdict: Verdict, out: &mut dyn Write) {
     )
 }
 
-/// [`finish`], saying `matched` or `mismatch` for those verdicts.
+/// [`finish`], saying `matched` or `mismatch` for those verdicts; an error if the
+/// medium's capture (`--pcap`) could not be written whole.
 pub(super) fn finish_as(
     bed: Bed,
     verdict: Verdict,
     matched: &str,
     mismatch: &str,
     out: &mut dyn Write,
-) {
+) -> Result<(), NetError> {
     let s = bed.medium().stats();
     demo_report::say(
         out,
@@ -373,4 +374,11 @@ pub(super) fn finish_as(
             Verdict::Faulted => "demo: FAULTED",
         },
     );
+    match (s.pcap_unwritten, s.pcap_error) {
+        (0, _) => Ok(()),
+        (unwritten, why) => Err(NetError::Pcap {
+            unwritten,
+            why: why.unwrap_or(std::io::ErrorKind::Other),
+        }),
+    }
 }

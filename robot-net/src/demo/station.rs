@@ -41,7 +41,7 @@ pub fn run(c: &Compiled, options: bed::Options, out: &mut dyn Write) -> Result<V
     let addrs = bed::node_addrs(c);
     let mut bed = bring_up(options, &addrs, actuators.clone(), out)?;
     if !push_robot(&mut bed, std::path::Path::new(&c.robot.name), c, out)? {
-        finish_with(bed, Verdict::PushFailed, out);
+        finish_with(bed, Verdict::PushFailed, out)?;
         return Ok(Verdict::PushFailed);
     }
     let sorted = sort(
@@ -56,7 +56,7 @@ pub fn run(c: &Compiled, options: bed::Options, out: &mut dyn Write) -> Result<V
     } else {
         Verdict::Mismatch
     };
-    finish_with(bed, verdict, out);
+    finish_with(bed, verdict, out)?;
     Ok(verdict)
 }
 

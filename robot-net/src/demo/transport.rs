@@ -28,7 +28,7 @@ pub fn run(c: &Compiled, options: bed::Options, out: &mut dyn Write) -> Result<V
     let addrs = bed::node_addrs(c);
     let mut bed = bring_up(options, &addrs, actuators.clone(), out)?;
     if !push_robot(&mut bed, std::path::Path::new(&c.robot.name), c, out)? {
-        finish(bed, Verdict::PushFailed, out);
+        finish(bed, Verdict::PushFailed, out)?;
         return Ok(Verdict::PushFailed);
     }
     let motors = live_motor::motors(c)?;
@@ -49,11 +49,11 @@ pub fn run(c: &Compiled, options: bed::Options, out: &mut dyn Write) -> Result<V
             break;
         }
     }
-    finish(bed, verdict, out);
+    finish(bed, verdict, out)?;
     Ok(verdict)
 }
 
-fn finish(bed: Bed, verdict: Verdict, out: &mut dyn Write) {
+fn finish(bed: Bed, verdict: Verdict, out: &mut dyn Write) -> Result<(), NetError> {
     finish_as(
         bed,
         verdict,
