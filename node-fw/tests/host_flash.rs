@@ -141,3 +141,69 @@ fn addresses_parse_in_hex_or_decimal() {
         .contains("not a 16-bit address"));
     assert!(parse_addr("").is_err());
 }
+
+/// A flash file another node process has open is refused (`InUse`), untouched: two nodes
+/// on one file (a typo in a start loop) both took it, one staged its table over the
+/// other's confirmed one, and that one booted the other's role after a power cut. The
+/// counter file beside it likewise (two processes counted the same frame counters: nonces
+/// used twice under one key). Once the first is closed, the file opens again.
+#[test]
+fn a_flash_file_in_use_by_another_node_is_refused() {
+    let p = path("in-use");
+    let first = HostFlash::open(&p).unwrap();
+    let before = std::fs::read(&p).unwrap();
+    match HostFlash::open(&p) {
+        Err(e @ OpenError::InUse(_)) => assert_eq!(
+            e.to_string(),
+            format!(
+                "flash file {} is in use by another node process (two nodes cannot share \
+                 one flash)",
+                p.display()
+            )
+        ),
+        other => panic!("{:?}", other.err()),
+    }
+    assert_eq!(std::fs::read(&p).unwrap(), before);
+    let counter = node_fw::host::flash::counter_path(&p);
+    let first_counter = HostFlash::open_counter(&counter).unwrap();
+    assert!(matches!(
+        HostFlash::open_counter(&counter),
+        Err(OpenError::InUse(_))
+    ));
+    drop((first, first_counter));
+    assert!(HostFlash::open(&p).is_ok());
+    let _ = std::fs::remove_file(&p);
+    let _ = std::fs::remove_file(&counter);
+}
+
+/// A creation that did not finish (a full disk: here a file size limit of 8 KiB on the
+/// node process) leaves no flash file where the node looks: the file appears whole or not
+/// at all, so the next start creates it. A short one was left, and every later start
+/// stopped at it ("is 8192 bytes, not a node flash file").
+#[test]
+fn a_creation_that_did_not_finish_leaves_no_flash_file() {
+    let dir =
+        PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("creating-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join("n.flash");
+    // The node stops at its flash file, before it looks for the medium.
+    let run = std::process::Command::new("bash")
+        .arg("-c")
+        .arg("ulimit -f 8; trap '' XFSZ; exec \"$0\" --addr 0x0011 --medium 127.0.0.1:9 --flash \"$1\"")
+        .arg(env!("CARGO_BIN_EXE_node-host"))
+        .arg(&p)
+        .output()
+        .unwrap();
+    assert_eq!(
+        run.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(!p.exists(), "a short flash file was left");
+    let f = HostFlash::open(&p).unwrap();
+    assert_eq!(std::fs::read(&p).unwrap().len(), FILE_SIZE);
+    drop(f);
+    let _ = std::fs::remove_dir_all(&dir);
+}

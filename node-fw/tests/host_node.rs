@@ -793,3 +793,38 @@ fn a_fault_is_logged_reported_and_cleared_by_a_new_table() {
     let log = node.log_saying("fault cleared");
     assert!(log.contains("fault cleared"), "{log}");
 }
+
+/// A "medium" that talks but never welcomes (another service on that port, sending a
+/// message a second) is given up on within the welcome timeout, as a silent one is. Each
+/// message restarted the wait: the node waited for ever, saying nothing.
+#[test]
+fn a_medium_that_talks_but_never_welcomes_is_given_up_on() {
+    use node_fw::host::medium::{Connection, WELCOME_TIMEOUT};
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let at = listener.local_addr().unwrap();
+    let server = std::thread::spawn(move || {
+        let (mut s, _) = listener.accept().unwrap();
+        // Every 100 ms a message, never `Welcome`, until the node hangs up.
+        while s.write_all(&emit(&Link::Synced(7))).is_ok() {
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    });
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        let stream = TcpStream::connect(at).unwrap();
+        let _ = tx.send(
+            Connection::start(0x0011, stream)
+                .map(drop)
+                .map_err(|e| e.to_string()),
+        );
+    });
+    // Bounded: a node that never gives up fails here instead of hanging the suite.
+    let ended = rx
+        .recv_timeout(WELCOME_TIMEOUT * 6)
+        .expect("the node gave up on the medium");
+    assert_eq!(
+        ended,
+        Err(String::from("the medium did not welcome this node"))
+    );
+    server.join().unwrap();
+}

@@ -108,10 +108,39 @@ pub struct HostFlash {
     capacity: usize,
 }
 
+/// Creates the erased file `path` of `size` bytes whole or not at all: written and synced
+/// under a name of its own beside it (`.NAME.creating.PID`), then linked to `path` (which
+/// fails if `path` appeared meanwhile: another process created it first, and that one is
+/// used). A creation that stops part-way (a kill, a full disk) leaves only the temporary
+/// file, never a short flash file.
+fn create_erased(path: &Path, size: usize) -> io::Result<()> {
+    let name = path
+        .file_name()
+        .map_or_else(Default::default, |n| n.to_string_lossy());
+    let temporary = path.with_file_name(format!(".{name}.creating.{}", std::process::id()));
+    let written = (|| {
+        let mut file = OpenOptions::new()
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&temporary)?;
+        file.write_all(&vec![0xFF; size])?;
+        file.sync_all()?;
+        match std::fs::hard_link(&temporary, path) {
+            Err(e) if e.kind() != io::ErrorKind::AlreadyExists => Err(e),
+            _ => Ok(()),
+        }
+    })();
+    let _ = std::fs::remove_file(&temporary);
+    written
+}
+
 /// Why a flash file cannot be used (nothing in it was changed).
 #[derive(Debug)]
 pub enum OpenError {
     Io(PathBuf, io::Error),
+    /// Another process has the file open (a second node on one flash file): locked.
+    InUse(PathBuf),
     /// The file exists but is not a node flash file.
     Size {
         path: PathBuf,
@@ -124,6 +153,12 @@ impl std::fmt::Display for OpenError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             OpenError::Io(path, e) => write!(f, "flash file {}: {e}", path.display()),
+            OpenError::InUse(path) => write!(
+                f,
+                "flash file {} is in use by another node process (two nodes cannot share one \
+                 flash)",
+                path.display()
+            ),
             OpenError::Size {
                 path,
                 found,
@@ -158,33 +193,34 @@ impl HostFlash {
         Self::open_sized(path, COUNTER_FILE_SIZE, COUNTER_FILE_SIZE)
     }
 
+    /// Opens (creating it erased if missing) and locks the file at `path`: a process has
+    /// it alone for as long as it runs (an exclusive advisory lock, which the system drops
+    /// when the process ends, however it ends).
     fn open_sized(path: &Path, file_size: usize, capacity: usize) -> Result<Self, OpenError> {
         let io_err = |e| OpenError::Io(path.to_path_buf(), e);
-        let file = match OpenOptions::new().read(true).write(true).open(path) {
-            Ok(file) => {
-                let found = file.metadata().map_err(io_err)?.len();
-                if found != file_size as u64 {
-                    return Err(OpenError::Size {
-                        path: path.to_path_buf(),
-                        found,
-                        expected: file_size as u64,
-                    });
-                }
-                file
-            }
+        let open = || OpenOptions::new().read(true).write(true).open(path);
+        let file = match open() {
             Err(e) if e.kind() == io::ErrorKind::NotFound => {
-                let mut file = OpenOptions::new()
-                    .read(true)
-                    .write(true)
-                    .create_new(true)
-                    .open(path)
-                    .map_err(io_err)?;
-                file.write_all(&vec![0xFF; file_size]).map_err(io_err)?;
-                file.sync_all().map_err(io_err)?;
-                file
+                create_erased(path, file_size).map_err(io_err)?;
+                open().map_err(io_err)?
             }
-            Err(e) => return Err(io_err(e)),
+            opened => opened.map_err(io_err)?,
         };
+        match file.try_lock() {
+            Ok(()) => {}
+            Err(std::fs::TryLockError::WouldBlock) => {
+                return Err(OpenError::InUse(path.to_path_buf()))
+            }
+            Err(std::fs::TryLockError::Error(e)) => return Err(io_err(e)),
+        }
+        let found = file.metadata().map_err(io_err)?.len();
+        if found != file_size as u64 {
+            return Err(OpenError::Size {
+                path: path.to_path_buf(),
+                found,
+                expected: file_size as u64,
+            });
+        }
         Ok(HostFlash {
             store: Store::File(file),
             capacity,

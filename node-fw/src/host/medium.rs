@@ -20,7 +20,7 @@ use std::net::{Shutdown, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use config_schema::wire::mac::MAX_PSDU;
 use config_schema::wire::medium::{Deframer, Link, Peer, MAX_LINK};
@@ -136,10 +136,13 @@ fn next_body<'a>(
     incoming.take().ok().flatten()
 }
 
-/// Reads messages until the medium's `Welcome`; returns what was read past it.
+/// Reads messages until the medium's `Welcome`, for [`WELCOME_TIMEOUT`] in all (what
+/// else it says does not extend the wait); returns what was read past it.
 fn await_welcome(stream: &TcpStream) -> io::Result<Incoming> {
-    let mut reader = stream;
-    reader.set_read_timeout(Some(WELCOME_TIMEOUT))?;
+    let mut reader = Until {
+        stream,
+        end: Instant::now() + WELCOME_TIMEOUT,
+    };
     let mut incoming = Incoming::default();
     loop {
         let body = next_body(&mut reader, &mut incoming, || {}).ok_or_else(|| {
@@ -152,8 +155,26 @@ fn await_welcome(stream: &TcpStream) -> io::Result<Incoming> {
             break;
         }
     }
-    reader.set_read_timeout(None)?;
+    stream.set_read_timeout(None)?;
     Ok(incoming)
+}
+
+/// Reads from `stream` until `end` (then `TimedOut`), however the bytes come.
+struct Until<'s> {
+    stream: &'s TcpStream,
+    end: Instant,
+}
+
+impl Read for Until<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let left = self.end.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(io::ErrorKind::TimedOut.into());
+        }
+        self.stream.set_read_timeout(Some(left))?;
+        let mut stream = self.stream;
+        stream.read(buf)
+    }
 }
 
 impl Connection {

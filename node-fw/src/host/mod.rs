@@ -42,7 +42,10 @@ pub struct Args {
     #[arg(long)]
     pub medium: SocketAddr,
     /// The flash file with the two table slots and the boot counter (created erased if
-    /// missing). Without it the slots are in RAM and the node boots unconfigured.
+    /// missing; one node process at a time). With a key, the frame counter is in
+    /// FILE.counter beside it: move or restore the two together (a counter file started
+    /// afresh numbers frames from 0 again under the same key). Without it the slots are in
+    /// RAM and the node boots unconfigured.
     #[arg(long)]
     pub flash: Option<PathBuf>,
     /// The node's management key file (`config-tool keys provision --board host --out
