@@ -1406,7 +1406,8 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
     // The medium going away, whenever the plant meets it (attaching, or running).
     let gone = || {
         Failure::error(format!(
-            "plant on {medium}: the medium closed the connection (it went away)"
+            "plant on {medium}: the medium {}",
+            closed_why(medium)
         ))
     };
     let failed = move |e: io::Error| match medium_gone(&e) {
@@ -1533,6 +1534,19 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
     }
 }
 
+/// Why the medium at `medium` closed a plant's or monitor's connection: it went away, or,
+/// since it still welcomes a client, it dropped that one for falling behind (it does so to
+/// a plant or monitor that does not read its frames: `monitor | less` left on a page).
+fn closed_why(medium: SocketAddr) -> &'static str {
+    match Conn::join(medium, Peer::Monitor) {
+        Ok(_) => {
+            "dropped this connection: it did not read fast enough (the medium drops a plant \
+             or monitor that falls behind; it still runs)"
+        }
+        Err(_) => "closed the connection (it went away)",
+    }
+}
+
 /// Whether `e` says the medium went away: its connection ended (read), or was reset or
 /// broken under a write, whichever the client met first.
 fn medium_gone(e: &io::Error) -> bool {
@@ -1614,7 +1628,8 @@ pub fn monitor(
             Ok(heard) => heard,
             Err(e) if medium_gone(&e) => {
                 return Err(Failure::error(format!(
-                    "monitor: the medium at {medium} closed the connection (it went away)"
+                    "monitor: the medium at {medium} {}",
+                    closed_why(medium)
                 )))
             }
             Err(e) => return Err(Failure::error(format!("monitor: {e}"))),
@@ -1944,4 +1959,26 @@ fn key_memfd(_: &node_fw::provision::ManagementKey) -> Result<std::os::fd::Owned
 /// `node`: one generic node in this process (what `demo` starts).
 pub fn node(args: node_fw::host::Args) -> Result<(), Failure> {
     node_fw::host::run(args).map_err(|e| Failure::as_is(exit::ERROR, format!("node: {e}")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::closed_why;
+
+    /// A plant's or monitor's connection closed by a medium that still runs was dropped
+    /// (it fell behind); by one that stopped, the medium went away. Both said "went away",
+    /// and a `monitor | less` left on a page sent its user looking for a dead medium.
+    #[test]
+    fn a_medium_that_still_runs_dropped_the_connection_one_that_stopped_went_away() {
+        let m = medium::Medium::start(medium::Config::default()).unwrap();
+        let at = m.addr();
+        assert_eq!(
+            closed_why(at),
+            "dropped this connection: it did not read fast enough (the medium drops a plant \
+             or monitor that falls behind; it still runs)"
+        );
+        m.stop();
+        drop(m);
+        assert_eq!(closed_why(at), "closed the connection (it went away)");
+    }
 }
