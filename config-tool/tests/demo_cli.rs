@@ -331,6 +331,26 @@ fn demo_refuses_a_fault_in_a_cycle_it_does_not_run() {
     }
 }
 
+/// `--fault stop:VC@1` stops the node that takes START before the cycle's first step: the
+/// demo is refused it (status 2, saying why). It sent START to the stopped node, waited a
+/// minute, and said only that the node did not answer Start, status 1.
+#[test]
+fn demo_refuses_to_stop_the_start_node_before_step_1() {
+    let out = demo(&[
+        "robot-configs/paint-robot.ron",
+        "--no-reconfigure",
+        "--fault",
+        "stop:VC@2.1",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(text(&out.stdout), "");
+    assert_eq!(
+        text(&out.stderr),
+        "error: --fault stop:VC@2.1: role VC's node takes START: stopped before step 1, it \
+         takes no START and nothing moves (sim: not detected); stop it before a later step\n"
+    );
+}
+
 /// `demo --pcap` naming the robot (or the robot pushed after it) is refused before anything
 /// starts, and the file is left as it was. Found: `sim --timeline` overwrote the robot.
 #[test]
