@@ -260,8 +260,11 @@ pub enum NodeState {
     Switched,
     /// Refused (it has not staged this generation, or its flash failed).
     Refused(Refusal),
-    /// Stopped answering.
+    /// Stopped answering before it was told to go: it runs the old generation.
     Silent,
+    /// Told to go, then never heard from again: it may have switched (persisted the new
+    /// table, then lost its power before its answer), or not.
+    Unheard,
     /// Disarmed after the switch-over was called off.
     Disarmed,
 }
@@ -456,6 +459,7 @@ impl Coordinator {
                 NodeState::Disarmed
                     | NodeState::Switched
                     | NodeState::Silent
+                    | NodeState::Unheard
                     | NodeState::Refused(_)
             ),
             Phase::Done => false,
@@ -511,7 +515,10 @@ impl Coordinator {
                 break;
             };
             if n.tries >= GIVE_UP_AFTER {
-                n.state = NodeState::Silent;
+                n.state = match n.state {
+                    NodeState::Going => NodeState::Unheard,
+                    _ => NodeState::Silent,
+                };
                 continue;
             }
             if let SwitchStep::Arm { ask } = &mut step {
@@ -586,7 +593,14 @@ impl Coordinator {
     fn advance(&mut self, now_ms: u64, send: &mut dyn FnMut(u16, Message<'static>)) {
         let all = |f: &dyn Fn(NodeState) -> bool| self.nodes.iter().all(|n| f(n.state));
         let any = |f: &dyn Fn(NodeState) -> bool| self.nodes.iter().any(|n| f(n.state));
-        let failed = |s: NodeState| matches!(s, NodeState::Refused(_) | NodeState::Silent);
+        let failed = |s: NodeState| {
+            matches!(
+                s,
+                NodeState::Refused(_) | NodeState::Silent | NodeState::Unheard
+            )
+        };
+        // Switched, or may have: the switch-over is not all undone.
+        let moved = |s: NodeState| matches!(s, NodeState::Switched | NodeState::Unheard);
         // A node that runs the generation already (it switched in a switch-over that did
         // not finish: pushed again) answers `Activated`, and is not waited for.
         let switched = |s: NodeState| s == NodeState::Switched;
@@ -625,7 +639,7 @@ impl Coordinator {
                 Some(Phase::Done)
             }
             Phase::Going if all(&|s| s == NodeState::Switched || failed(s)) => {
-                self.verdict = if any(&|s| s == NodeState::Switched) {
+                self.verdict = if any(&moved) {
                     Verdict::Partial
                 } else {
                     Verdict::Aborted
@@ -1109,6 +1123,38 @@ mod tests {
         assert!(out.is_empty());
         assert_eq!(m.run(5_000), Verdict::Switched);
         assert_eq!(m.running().as_slice(), &[2, 2]);
+    }
+
+    /// A node told to go that never answers again may have switched (its process killed
+    /// after it persisted the new table, before its answer): it is `Unheard`, and the
+    /// switch-over `Partial`, not a node that `stopped answering` before the switch with
+    /// `nothing switched`, which the tool told the operator: the node booted the new
+    /// generation.
+    #[test]
+    fn a_node_told_to_go_that_never_answers_is_unheard_not_silent() {
+        let mut c = Coordinator::new(&[0x11], 2, true, 20_000, 0);
+        let mut now = 0;
+        while c.verdict() == Verdict::Busy && now < 60_000 {
+            c.poll(now, |_, _| {});
+            now += 10;
+        }
+        assert_eq!(
+            c.nodes().collect::<heapless::Vec<_, 1>>().as_slice(),
+            &[(0x11, NodeState::Unheard)]
+        );
+        assert_eq!(c.verdict(), Verdict::Partial);
+        // Not armed yet, it is silent: it never heard a Go.
+        let mut c = Coordinator::new(&[0x11], 2, false, 20_000, 0);
+        let mut now = 0;
+        while c.verdict() == Verdict::Busy && now < 60_000 {
+            c.poll(now, |_, _| {});
+            now += 10;
+        }
+        assert_eq!(
+            c.nodes().collect::<heapless::Vec<_, 1>>().as_slice(),
+            &[(0x11, NodeState::Silent)]
+        );
+        assert_eq!(c.verdict(), Verdict::Aborted);
     }
 
     /// More nodes than a switch-over holds: none is armed, none left out of it (the

@@ -64,6 +64,11 @@ impl Pushed {
             (Progress::Done, Some(NodeState::Silent)) => {
                 "staged, not switched: the node stopped answering".to_string()
             }
+            (Progress::Done, Some(NodeState::Unheard)) => {
+                "staged, told to switch, then stopped answering: it runs the old generation \
+                 or the new one (scan tells)"
+                    .to_string()
+            }
             (Progress::Done, Some(NodeState::Going)) => {
                 "staged, told to switch: its answer not heard".to_string()
             }
@@ -373,6 +378,9 @@ pub fn rollback_state_text(state: Option<NodeState>) -> String {
         Some(NodeState::Going) => "told to roll back: its answer not heard".into(),
         Some(NodeState::Refused(why)) => format!("NOT rolled back: refused: {why}"),
         Some(NodeState::Silent) => "NOT rolled back: the node stopped answering".into(),
+        Some(NodeState::Unheard) => {
+            "told to roll back, then stopped answering: on either generation (scan tells)".into()
+        }
         Some(NodeState::Arming | NodeState::Armed { .. } | NodeState::Disarmed) => {
             "NOT rolled back: on the trial generation still".into()
         }
@@ -784,6 +792,10 @@ mod tests {
             (
                 Some(NodeState::Silent),
                 "NOT rolled back: the node stopped answering",
+            ),
+            (
+                Some(NodeState::Unheard),
+                "told to roll back, then stopped answering: on either generation (scan tells)",
             ),
             (
                 Some(NodeState::Refused(Refusal::NotStaged { staged: 0 })),
