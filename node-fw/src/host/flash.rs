@@ -184,19 +184,27 @@ impl HostFlash {
 
     /// Opens the flash file at `path`, creating it erased if it does not exist.
     pub fn open(path: &Path) -> Result<Self, OpenError> {
-        Self::open_sized(path, FILE_SIZE, SLOTS_BYTES)
+        Self::open_sized(path, FILE_SIZE, SLOTS_BYTES, true)
     }
 
     /// Opens the frame counter file at `path` (two erase pages), creating it erased if it
     /// does not exist.
+    /// Not locked here: the node's counter file goes with its flash file, which is
+    /// (one process per flash file, so per counter file); the tool locks its own, waiting
+    /// for another run.
     pub fn open_counter(path: &Path) -> Result<Self, OpenError> {
-        Self::open_sized(path, COUNTER_FILE_SIZE, COUNTER_FILE_SIZE)
+        Self::open_sized(path, COUNTER_FILE_SIZE, COUNTER_FILE_SIZE, false)
     }
 
-    /// Opens (creating it erased if missing) and locks the file at `path`: a process has
-    /// it alone for as long as it runs (an exclusive advisory lock, which the system drops
-    /// when the process ends, however it ends).
-    fn open_sized(path: &Path, file_size: usize, capacity: usize) -> Result<Self, OpenError> {
+    /// Opens the file at `path` (creating it erased if missing) and, with `lock`, locks it:
+    /// a process has it alone for as long as it runs (an exclusive advisory lock, which the
+    /// system drops when the process ends, however it ends).
+    fn open_sized(
+        path: &Path,
+        file_size: usize,
+        capacity: usize,
+        lock: bool,
+    ) -> Result<Self, OpenError> {
         let io_err = |e| OpenError::Io(path.to_path_buf(), e);
         let open = || OpenOptions::new().read(true).write(true).open(path);
         let file = match open() {
@@ -207,6 +215,7 @@ impl HostFlash {
             opened => opened.map_err(io_err)?,
         };
         match file.try_lock() {
+            _ if !lock => {}
             Ok(()) => {}
             Err(std::fs::TryLockError::WouldBlock) => {
                 return Err(OpenError::InUse(path.to_path_buf()))
