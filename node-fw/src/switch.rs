@@ -1132,29 +1132,28 @@ mod tests {
     /// generation.
     #[test]
     fn a_node_told_to_go_that_never_answers_is_unheard_not_silent() {
-        let mut c = Coordinator::new(&[0x11], 2, true, 20_000, 0);
-        let mut now = 0;
-        while c.verdict() == Verdict::Busy && now < 60_000 {
-            c.poll(now, |_, _| {});
-            now += 10;
-        }
+        // 0x11 alone, told to go at once (`now`) or armed first; it never answers.
+        let unanswered = |now: bool| {
+            let mut c = Coordinator::new(&[0x11], 2, now, 20_000, 0);
+            let mut t = 0;
+            while c.verdict() == Verdict::Busy && t < 60_000 {
+                c.poll(t, |_, _| {});
+                t += 10;
+            }
+            let states: heapless::Vec<_, 1> = c.nodes().map(|(_, s)| s).collect();
+            (states, c.verdict())
+        };
+        let (states, verdict) = unanswered(true);
         assert_eq!(
-            c.nodes().collect::<heapless::Vec<_, 1>>().as_slice(),
-            &[(0x11, NodeState::Unheard)]
+            (states.as_slice(), verdict),
+            (&[NodeState::Unheard][..], Verdict::Partial)
         );
-        assert_eq!(c.verdict(), Verdict::Partial);
         // Not armed yet, it is silent: it never heard a Go.
-        let mut c = Coordinator::new(&[0x11], 2, false, 20_000, 0);
-        let mut now = 0;
-        while c.verdict() == Verdict::Busy && now < 60_000 {
-            c.poll(now, |_, _| {});
-            now += 10;
-        }
+        let (states, verdict) = unanswered(false);
         assert_eq!(
-            c.nodes().collect::<heapless::Vec<_, 1>>().as_slice(),
-            &[(0x11, NodeState::Silent)]
+            (states.as_slice(), verdict),
+            (&[NodeState::Silent][..], Verdict::Aborted)
         );
-        assert_eq!(c.verdict(), Verdict::Aborted);
     }
 
     /// More nodes than a switch-over holds: none is armed, none left out of it (the

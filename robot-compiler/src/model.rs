@@ -541,6 +541,26 @@ pub struct Written {
 }
 
 impl ChartType {
+    /// The text of every expression of the type: its assignments' (`Set`), then its
+    /// transitions' guards.
+    pub fn expressions(&self) -> impl Iterator<Item = &String> {
+        let sets = (self.states.iter().flat_map(|s| s.actions.iter())).filter_map(|a| match a {
+            ActionDecl::Set(_, text) => Some(text),
+            _ => None,
+        });
+        sets.chain(self.transitions.iter().filter_map(|t| t.when.as_ref()))
+    }
+
+    /// [`ChartType::expressions`], to rewrite in place.
+    pub fn expressions_mut(&mut self) -> impl Iterator<Item = &mut String> {
+        let sets =
+            (self.states.iter_mut().flat_map(|s| s.actions.iter_mut())).filter_map(|a| match a {
+                ActionDecl::Set(_, text) => Some(text),
+                _ => None,
+            });
+        sets.chain(self.transitions.iter_mut().filter_map(|t| t.when.as_mut()))
+    }
+
     /// `file:line:col` of state `si` in the file the type was read from, if it was.
     pub fn state_written(&self, si: usize) -> Option<String> {
         self.written_at(|w| &w.states, si)

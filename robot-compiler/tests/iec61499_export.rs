@@ -175,6 +175,32 @@ fn every_chart_type_comes_back_through_the_fbt_import() {
     assert!(types > 60, "{types} types");
 }
 
+/// Robot `src` (compiled: `c`) compiled again with each of its chart types imported from
+/// its `.fbt` of export `e` instead (written to a directory of its own, then removed).
+fn through_fbt(
+    src: &Source,
+    c: &robot_compiler::Compiled,
+    e: &Export,
+) -> Result<robot_compiler::Compiled, Vec<robot_compiler::diag::Diagnostic>> {
+    let dir = std::env::temp_dir().join(format!(
+        "export-round-trip-{}-{}",
+        std::process::id(),
+        c.ir.name
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    let names: Vec<String> = (c.robot.chart_types.iter())
+        .map(|t| format!("{}.fbt", t.name))
+        .collect();
+    for n in &names {
+        std::fs::write(dir.join(n), file(e, n)).unwrap();
+    }
+    let robot = dir.join("robot.ron");
+    let again = Source::new(robot.display().to_string(), with_fb_types(src, &names));
+    let back = compile(&again);
+    std::fs::remove_dir_all(&dir).unwrap();
+    back
+}
+
 /// The robot's source with its `chart_types` replaced by `fb_types` naming `files`.
 fn with_fb_types(src: &Source, files: &[String]) -> String {
     let span = src.span("chart_types");
@@ -203,26 +229,7 @@ fn explicit_chart_types_round_trip_to_the_same_tables() {
         if c.robot.chart_types.is_empty() || c.robot.application.is_some() {
             continue;
         }
-        let e = exported(&c);
-        let dir = std::env::temp_dir().join(format!(
-            "export-round-trip-{}-{}",
-            std::process::id(),
-            c.ir.name
-        ));
-        std::fs::create_dir_all(&dir).unwrap();
-        let names: Vec<String> = c
-            .robot
-            .chart_types
-            .iter()
-            .map(|t| format!("{}.fbt", t.name))
-            .collect();
-        for n in &names {
-            std::fs::write(dir.join(n), file(&e, n)).unwrap();
-        }
-        let robot = dir.join("robot.ron");
-        let again = Source::new(robot.display().to_string(), with_fb_types(&src, &names));
-        let back = compile(&again);
-        std::fs::remove_dir_all(&dir).unwrap();
+        let back = through_fbt(&src, &c, &exported(&c));
         let back = back.unwrap_or_else(|d| panic!("{}: {d:?}", path.display()));
         assert_eq!(back.blobs, c.blobs, "{}", path.display());
         robots_done.push(c.ir.name.clone());
@@ -258,17 +265,7 @@ fn a_chart_type_reading_a_role_input_round_trips_to_the_same_tables() {
         "{mover}"
     );
     assert!(mover.contains("OR A_home"), "{mover}");
-    let dir = std::env::temp_dir().join(format!("export-reads-input-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let names = [String::from("Mover.fbt"), String::from("Follower.fbt")];
-    for n in &names {
-        std::fs::write(dir.join(n), file(&e, n)).unwrap();
-    }
-    let robot = dir.join("robot.ron");
-    let again = Source::new(robot.display().to_string(), with_fb_types(&src, &names));
-    let back = compile(&again);
-    std::fs::remove_dir_all(&dir).unwrap();
-    let back = back.unwrap_or_else(|d| panic!("{d:?}"));
+    let back = through_fbt(&src, &c, &e).unwrap_or_else(|d| panic!("{d:?}"));
     let dumps = |c: &robot_compiler::Compiled| -> Vec<String> {
         let d = |b: &Vec<u8>| robot_compiler::dump::dump(b).unwrap();
         c.blobs.iter().map(d).collect()

@@ -227,21 +227,9 @@ pub fn bind_levels(t: &mut ChartType, i: &mut Interface) {
     let of = |n: &str| levels.iter().find(|(p, _)| p == n).map(|(_, l)| l.clone());
     t.params.retain(|p| of(p).is_none());
     i.inputs.retain(|(p, _, _)| of(p).is_none());
-    let rename = |text: &mut String| {
+    for text in t.expressions_mut() {
         if let Ok(ast) = crate::expr::parse(text) {
             *text = super::export::lift::print(&rename_names(ast, &of));
-        }
-    };
-    for s in &mut t.states {
-        for a in &mut s.actions {
-            if let ActionDecl::Set(_, text) = a {
-                rename(text);
-            }
-        }
-    }
-    for tr in &mut t.transitions {
-        if let Some(g) = &mut tr.when {
-            rename(g);
         }
     }
 }

@@ -183,28 +183,27 @@ pub fn rename_clashing_vars(t: &ChartType) -> ChartType {
     if renames.is_empty() {
         return t;
     }
-    let rewrite = |text: &mut String| {
-        if let Ok(mut ast) = expr::parse(text) {
-            rename(&mut ast, &renames);
-            *text = super::lift::print(&ast);
-        }
-    };
     for s in &mut t.states {
         for a in &mut s.actions {
-            if let ActionDecl::Set(var, text) = a {
+            if let ActionDecl::Set(var, _) = a {
                 if let Some(n) = renames.get(var.as_str()) {
                     *var = n.clone();
                 }
-                rewrite(text);
             }
         }
     }
-    for tr in &mut t.transitions {
-        if let Some(g) = &mut tr.when {
-            rewrite(g);
+    rename_in_expressions(&mut t, &renames);
+    t
+}
+
+/// Each name of `renames` renamed in every expression of `t`.
+fn rename_in_expressions(t: &mut ChartType, renames: &BTreeMap<String, String>) {
+    for text in t.expressions_mut() {
+        if let Ok(mut ast) = expr::parse(text) {
+            rename(&mut ast, renames);
+            *text = super::lift::print(&ast);
         }
     }
-    t
 }
 
 /// `t` with each name its guards and assignments read that is neither a parameter nor a
@@ -214,14 +213,7 @@ pub fn rename_clashing_vars(t: &ChartType) -> ChartType {
 /// reads of the input ([`crate::iec61499::fbt::bind_levels`]).
 pub fn levels_as_params(t: &ChartType) -> (ChartType, Vec<(String, String)>) {
     let mut read = Vec::new();
-    let texts = (t.states.iter())
-        .flat_map(|s| s.actions.iter())
-        .filter_map(|a| match a {
-            ActionDecl::Set(_, text) => Some(text),
-            _ => None,
-        })
-        .chain(t.transitions.iter().filter_map(|tr| tr.when.as_ref()));
-    for text in texts {
+    for text in t.expressions() {
         if let Ok(ast) = expr::parse(text) {
             expr::names(&ast, &mut read);
         }
@@ -254,24 +246,7 @@ pub fn levels_as_params(t: &ChartType) -> (ChartType, Vec<(String, String)>) {
         levels.push((name.clone(), input.clone()));
         renames.insert(input, name);
     }
-    let rewrite = |text: &mut String| {
-        if let Ok(mut ast) = expr::parse(text) {
-            rename(&mut ast, &renames);
-            *text = super::lift::print(&ast);
-        }
-    };
-    for s in &mut t.states {
-        for a in &mut s.actions {
-            if let ActionDecl::Set(_, text) = a {
-                rewrite(text);
-            }
-        }
-    }
-    for tr in &mut t.transitions {
-        if let Some(g) = &mut tr.when {
-            rewrite(g);
-        }
-    }
+    rename_in_expressions(&mut t, &renames);
     (t, levels)
 }
 
