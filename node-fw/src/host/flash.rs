@@ -112,8 +112,14 @@ pub struct HostFlash {
 /// under a name of its own beside it (`.NAME.creating.PID`), then linked to `path` (which
 /// fails if `path` appeared meanwhile: another process created it first, and that one is
 /// used). A creation that stops part-way (a kill, a full disk) leaves only the temporary
-/// file, never a short flash file.
+/// file, never a short flash file. On a file system without hard links (vfat) the file is
+/// written in place, as before: a creation cut short there leaves a short file, which the
+/// next start refuses by its size.
 fn create_erased(path: &Path, size: usize) -> io::Result<()> {
+    let erased = |file: &mut File| {
+        file.write_all(&vec![0xFF; size])?;
+        file.sync_all()
+    };
     let name = path
         .file_name()
         .map_or_else(Default::default, |n| n.to_string_lossy());
@@ -124,15 +130,25 @@ fn create_erased(path: &Path, size: usize) -> io::Result<()> {
             .create(true)
             .truncate(true)
             .open(&temporary)?;
-        file.write_all(&vec![0xFF; size])?;
-        file.sync_all()?;
-        match std::fs::hard_link(&temporary, path) {
-            Err(e) if e.kind() != io::ErrorKind::AlreadyExists => Err(e),
-            _ => Ok(()),
-        }
+        erased(&mut file)?;
+        std::fs::hard_link(&temporary, path)
     })();
     let _ = std::fs::remove_file(&temporary);
-    written
+    match written {
+        Ok(()) => Ok(()),
+        // Another process created it first: that one is used.
+        Err(e) if e.kind() == io::ErrorKind::AlreadyExists => Ok(()),
+        Err(e)
+            if matches!(
+                e.kind(),
+                io::ErrorKind::Unsupported | io::ErrorKind::PermissionDenied
+            ) =>
+        {
+            let mut file = OpenOptions::new().write(true).create_new(true).open(path)?;
+            erased(&mut file)
+        }
+        Err(e) => Err(e),
+    }
 }
 
 /// Why a flash file cannot be used (nothing in it was changed).

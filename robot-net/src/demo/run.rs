@@ -374,11 +374,18 @@ pub(super) fn finish_as(
             Verdict::Faulted => "demo: FAULTED",
         },
     );
-    match (s.pcap_unwritten, s.pcap_error) {
-        (0, _) => Ok(()),
-        (unwritten, why) => Err(NetError::Pcap {
+    // A capture cut short fails a demo that passed; one that failed keeps its verdict's
+    // status, the capture said beside it.
+    let pcap = match (s.pcap_unwritten, s.pcap_error) {
+        (0, _) => return Ok(()),
+        (unwritten, why) => NetError::Pcap {
             unwritten,
             why: why.unwrap_or(std::io::ErrorKind::Other),
-        }),
+        },
+    };
+    if verdict == Verdict::Matched {
+        return Err(pcap);
     }
+    demo_report::say(out, &format!("demo: {pcap}"));
+    Ok(())
 }
