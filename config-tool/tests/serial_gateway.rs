@@ -128,3 +128,45 @@ fn the_plant_refuses_a_serial_port() {
         "error: the plant is the simulated machine: it needs a medium, not --serial\n"
     );
 }
+
+/// A serial port named by a link (`/dev/serial/by-id/...`, the stable name of a board) is a
+/// terminal all the same: `stty` sets it, and refuses a baud it does not know (status 1).
+/// Only paths starting with `/dev/tty` were set: such a port stayed in the line mode a
+/// terminal starts in, the bad baud was taken, and the gateway heard nothing.
+#[test]
+fn a_serial_port_named_by_a_link_is_set_up_as_a_terminal() {
+    const PTY: &str = "import os, pty, sys\nm, s = pty.openpty()\nprint(os.ttyname(s), flush=True)\nsys.stdin.read()\n";
+    let mut holder = Killed(
+        Command::new("python3")
+            .args(["-c", PTY])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("python3"),
+    );
+    let mut path = String::new();
+    BufReader::new(holder.0.stdout.as_mut().unwrap())
+        .read_line(&mut path)
+        .unwrap();
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("by-id-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let link = dir.join("usb-SEGGER_J-Link-if00");
+    std::os::unix::fs::symlink(path.trim(), &link).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["gateway", "--serial"])
+        .arg(&link)
+        .args(["--baud", "12345", "--listen", "127.0.0.1:0"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    // (stty says why first, in its own words.)
+    let err = String::from_utf8_lossy(&out.stderr);
+    let want = format!(
+        "error: stty -F {} 12345 raw: exit status: 1\n",
+        link.display()
+    );
+    assert!(err.ends_with(&want), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -136,6 +136,10 @@ pub struct Deframer<const N: usize> {
     end: usize,
     /// Bytes of a too-long message still to skip.
     skip: usize,
+    /// A too-long length is taken for a framing slip (a serial line's stray byte), not a
+    /// message: one byte is dropped and the length read again one byte on
+    /// ([`Deframer::resynchronising`]).
+    resync: bool,
 }
 
 impl<const N: usize> Default for Deframer<N> {
@@ -154,7 +158,19 @@ impl<const N: usize> Deframer<N> {
             start: 0,
             end: 0,
             skip: 0,
+            resync: false,
         }
+    }
+
+    /// A deframer for a line that can lose or gain bytes (a serial line: noise, a UART
+    /// glitch at power-up), where a stream over TCP cannot: a length longer than any
+    /// message drops one byte, not the length, so the next whole message is found again
+    /// at once. (Skipping the length, a stray byte before `0E 00` read as a length of
+    /// 3,584 skipped that much real traffic, and again at the slip it landed on.)
+    pub const fn resynchronising() -> Self {
+        let mut d = Self::new();
+        d.resync = true;
+        d
     }
 
     /// Room for more bytes (never empty: a partial message is shorter than `MAX_LINK`).
@@ -200,6 +216,10 @@ impl<const N: usize> Deframer<N> {
             [lo, hi, ..] => usize::from(u16::from_le_bytes([*lo, *hi])),
             _ => return Ok(false),
         };
+        if 2 + len > MAX_LINK && self.resync {
+            self.start += 1;
+            return Err(TooLong { len });
+        }
         if 2 + len > MAX_LINK {
             // Skip what is buffered of it now, the rest as it comes; the next call reports
             // the message after it (which may be too long as well).
