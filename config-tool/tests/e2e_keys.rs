@@ -941,3 +941,42 @@ fn an_unsecured_robot_pushed_to_keyed_nodes_says_they_take_only_secured_frames()
     drop(nodes);
     medium.stop();
 }
+
+/// A rollback of a faulted machine (generation 2 pushed over 1, then HOME with no plant to
+/// move the rods: every node faults) is refused at once, status 3, the faulted nodes named
+/// with the ways out, as `push` does: a faulted machine never comes to rest. It waited
+/// out `--wait` and said every node stayed "on the trial generation" (there was no trial).
+#[test]
+fn a_rollback_of_a_faulted_machine_is_refused_at_once_naming_the_faulted_nodes() {
+    let Keyed {
+        dir: _dir,
+        key_s,
+        c,
+        medium: _medium,
+        m,
+        nodes: _nodes,
+    } = keyed("keys-rollback-faulted");
+    ok(&push_args(&key_s, &m, "1", &[]));
+    ok(&push_args(&key_s, &m, "2", &["--now"]));
+    let home = tool(&["home", ROBOT, "--keys", &key_s, "--medium", &m]);
+    assert_eq!(home.status.code(), Some(5), "{}", text(&home.stderr));
+    let back = tool(&[
+        "rollback", ROBOT, "--keys", &key_s, "--medium", &m, "--wait", "600",
+    ]);
+    assert_eq!(back.status.code(), Some(3), "{}", text(&back.stderr));
+    assert_eq!(text(&back.stdout), "");
+    let err = text(&back.stderr);
+    let each: Vec<String> = (c.ir.roles.iter())
+        .map(|r| format!("config-tool reset --node {:#06x}", r.address))
+        .collect();
+    assert!(err.starts_with("error: nodes 0x0011 (VC, 0x"), "{err}");
+    assert!(
+        err.ends_with(&format!(
+            " are faulted: a faulted machine does not reach its idle point, so nothing rolled \
+             back: rollback --now to return at once, or reset each ({}), acknowledge the \
+             alarms (config-tool ack), home, and roll back again\n",
+            each.join("; ")
+        )),
+        "{err}"
+    );
+}

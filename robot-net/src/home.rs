@@ -426,6 +426,20 @@ pub fn faulted_push_text(faulted: &[(u16, &str, u8)]) -> Option<String> {
     ))
 }
 
+/// Why a rollback at the idle point does not wait for a machine whose nodes `faulted`
+/// are: it never comes. `None`: no node is faulted.
+pub fn faulted_rollback_text(faulted: &[(u16, &str, u8)]) -> Option<String> {
+    if faulted.is_empty() {
+        return None;
+    }
+    let (who, resets) = faulted_words(faulted);
+    Some(format!(
+        "{who}: a faulted machine does not reach its idle point, so nothing rolled back: \
+         rollback --now to return at once, or {resets}, acknowledge the alarms (config-tool \
+         ack), home, and roll back again"
+    ))
+}
+
 /// Faulted nodes `(address, role, fault code)` in words (`node 0x0011 (VC) is faulted
 /// (0x81)`, `nodes ... are faulted`), and the resets they need (`reset it (...)`).
 fn faulted_words(faulted: &[(u16, &str, u8)]) -> (String, String) {

@@ -382,7 +382,7 @@ pub fn rollback_state_text(state: Option<NodeState>) -> String {
             "told to roll back, then stopped answering: on either generation (scan tells)".into()
         }
         Some(NodeState::Arming | NodeState::Armed { .. } | NodeState::Disarmed) => {
-            "NOT rolled back: on the trial generation still".into()
+            "NOT rolled back: on the new generation still".into()
         }
         None => "NOT rolled back: not asked".into(),
     }
@@ -393,15 +393,15 @@ pub fn rollback_verdict_text(verdict: Verdict) -> Option<String> {
     Some(match verdict {
         Verdict::Switched => return None,
         Verdict::NotIdle => "the machine did not come to rest within --wait: nothing rolled \
-                             back (every node stays on the trial generation); rollback again \
+                             back (every node stays on the new generation); rollback again \
                              once it rests, or rollback --now for a machine stopped away from \
                              its idle point (a fault, a stall)"
             .into(),
         Verdict::Aborted => "a node refused or stopped answering before the rollback: \
-                             nothing rolled back (every node stays on the trial generation)"
+                             nothing rolled back (every node stays on the new generation)"
             .into(),
         Verdict::Partial | Verdict::Busy => "the rollback did not finish: the nodes marked \
-                                             NOT rolled back run the trial generation; \
+                                             NOT rolled back run the new generation; \
                                              rollback again to finish it (or --now)"
             .into(),
     })
@@ -783,11 +783,11 @@ mod tests {
             ),
             (
                 Some(NodeState::Disarmed),
-                "NOT rolled back: on the trial generation still",
+                "NOT rolled back: on the new generation still",
             ),
             (
                 Some(NodeState::Armed { idle: false, at: 3 }),
-                "NOT rolled back: on the trial generation still",
+                "NOT rolled back: on the new generation still",
             ),
             (
                 Some(NodeState::Silent),
@@ -817,7 +817,7 @@ mod tests {
             rollback_verdict_text(Verdict::NotIdle).as_deref(),
             Some(
                 "the machine did not come to rest within --wait: nothing rolled back (every \
-                 node stays on the trial generation); rollback again once it rests, or \
+                 node stays on the new generation); rollback again once it rests, or \
                  rollback --now for a machine stopped away from its idle point (a fault, a \
                  stall)"
             )
@@ -826,7 +826,7 @@ mod tests {
             rollback_verdict_text(Verdict::Aborted).as_deref(),
             Some(
                 "a node refused or stopped answering before the rollback: nothing rolled \
-                 back (every node stays on the trial generation)"
+                 back (every node stays on the new generation)"
             )
         );
         for v in [Verdict::Partial, Verdict::Busy] {
@@ -834,7 +834,7 @@ mod tests {
                 rollback_verdict_text(v).as_deref(),
                 Some(
                     "the rollback did not finish: the nodes marked NOT rolled back run the \
-                     trial generation; rollback again to finish it (or --now)"
+                     new generation; rollback again to finish it (or --now)"
                 )
             );
         }

@@ -1083,6 +1083,16 @@ pub fn rollback(flags: &SwitchArgs) -> Result<(), Failure> {
             each.join(", ")
         )));
     }
+    // A faulted machine never reaches its idle point: said at once, not after --wait.
+    let faulted: Vec<(u16, &str, u8)> = (moving.iter())
+        .filter_map(|(role, addr, s)| Some((*addr, role.as_str(), s.fault?)))
+        .collect();
+    if let Some(why) = home::faulted_rollback_text(&faulted).filter(|_| !flags.now) {
+        return Err(Failure {
+            code: exit::PUSH_FAILED,
+            ..Failure::error(why)
+        });
+    }
     let addrs: Vec<u16> = moving.iter().map(|n| n.1).collect();
     let (verdict, states) = push::rollback(
         &mut radio,
