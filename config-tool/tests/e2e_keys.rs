@@ -980,3 +980,50 @@ fn a_rollback_of_a_faulted_machine_is_refused_at_once_naming_the_faulted_nodes()
         "{err}"
     );
 }
+
+/// An alarm's wall time is the tool's clock when its node answered, less the alarm's age:
+/// the same in every read, whoever else answers. With one node silent, every other
+/// node's alarm moved 5 s later (the answers were stamped when the last ask gave up).
+#[test]
+fn alarm_times_do_not_move_when_a_node_is_silent() {
+    let Keyed {
+        dir: _dir,
+        key_s,
+        c: _c,
+        medium: _medium,
+        m,
+        mut nodes,
+    } = keyed("keys-alarm-times");
+    ok(&push_args(&key_s, &m, "1", &[]));
+    // HOME with no plant to move the rods: every node faults and latches an alarm.
+    let home = tool(&["home", ROBOT, "--keys", &key_s, "--medium", &m]);
+    assert_eq!(home.status.code(), Some(5), "{}", text(&home.stderr));
+    // Each alarm line's time (`HH:MM:SS.mmm`, in ms) and node.
+    let times = |out: &str| -> Vec<(String, u64)> {
+        out.lines()
+            .filter(|l| l.contains(" UTC  0x"))
+            .map(|l| {
+                let clock = l.split_whitespace().nth(1).unwrap();
+                let (hms, ms) = clock.split_once('.').unwrap();
+                let secs: Vec<u64> = hms.split(':').map(|x| x.parse().unwrap()).collect();
+                let at =
+                    ((secs[0] * 60 + secs[1]) * 60 + secs[2]) * 1000 + ms.parse::<u64>().unwrap();
+                (l.split_whitespace().nth(3).unwrap().to_string(), at)
+            })
+            .collect()
+    };
+    let alarms = || text(&tool(&["alarms", ROBOT, "--keys", &key_s, "--medium", &m]).stdout);
+    let before = times(&alarms());
+    assert_eq!(before.len(), 4, "{before:?}");
+    // HC's node off: the others' alarms are read again.
+    let hc = nodes.iter().position(|(a, _)| *a == 0x0013).unwrap();
+    drop(nodes.remove(hc));
+    let after = times(&alarms());
+    assert_eq!(after.len(), 3, "{after:?}");
+    for (node, at) in &after {
+        let (_, was) = before.iter().find(|(n, _)| n == node).unwrap();
+        // The same alarm, read twice: its time moves by the radio's delays only (ms),
+        // not by the 5 s the tool waits for a silent node.
+        assert!(at.abs_diff(*was) < 1000, "{node}: {was} ms, then {at} ms");
+    }
+}

@@ -1206,15 +1206,20 @@ fn node_alarms(
     c: &robot_compiler::Compiled,
     cmd: Command,
 ) -> Result<(Vec<alarms::NodeAlarms>, Vec<alarms::Silent>), Failure> {
-    let answers = ask_every_role(radio, ids, c, cmd, push::alarms_answer)?;
+    // Each answer stamped as it comes: the node's alarm ages count back from then (after
+    // every node answered, a silent one's wait moved every alarm 5 s later).
+    let stamped = |m: Message<'_>, id: u16| {
+        push::alarms_answer(m, id).map(|report| (report, std::time::SystemTime::now()))
+    };
+    let answers = ask_every_role(radio, ids, c, cmd, stamped)?;
     let (mut out, mut silent) = (Vec::new(), Vec::new());
     for (r, answer) in c.ir.roles.iter().zip(answers) {
         match answer {
-            Ok(report) => out.push(alarms::NodeAlarms {
+            Ok((report, read_at)) => out.push(alarms::NodeAlarms {
                 role: r.name.clone(),
                 addr: r.address,
                 report,
-                read_at: std::time::SystemTime::now(),
+                read_at,
             }),
             Err(asked) => silent.push(alarms::Silent {
                 role: r.name.clone(),
