@@ -170,3 +170,33 @@ fn a_serial_port_named_by_a_link_is_set_up_as_a_terminal() {
     assert!(err.ends_with(&want), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A gateway that goes away under a command (unplugged: the serial line ends as the tool's
+/// first frame goes out) is said to have gone, and the command fails as on a medium that
+/// went away. It waited 5 s and blamed the node ("did not answer ... pass --keys").
+#[test]
+fn a_gateway_that_goes_away_is_said_to_have_gone() {
+    const GONE: &str = "import os, pty, sys, tty\nm, s = pty.openpty()\ntty.setraw(s)\nprint(os.ttyname(s), flush=True)\nos.read(m, 1)\nos.close(m)\n";
+    let mut device = Killed(
+        Command::new("python3")
+            .args(["-c", GONE])
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("python3"),
+    );
+    let mut pty = String::new();
+    BufReader::new(device.0.stdout.as_mut().unwrap())
+        .read_line(&mut pty)
+        .unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(["status", "--node", "0x0021", "--serial", pty.trim()])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with(&format!("error: {}: the ", pty.trim())),
+        "{err}"
+    );
+    assert!(!err.contains("did not answer"), "{err}");
+}

@@ -29,14 +29,25 @@ use crate::out::{errln, out, outln};
 use crate::tool_keys::{self, KeysFrom, KEYS_ENV};
 
 /// The medium to talk to: the one at `--medium`, or with `--serial` one bridged to the air
-/// started here (it lives as long as the command).
+/// started here (it lives as long as the command). If the serial line ends or fails (the
+/// gateway unplugged), that is said, and the medium stops: the command then fails as on
+/// a medium that went away, not as if every node were silent.
 pub(crate) fn resolve(at: &MediumAddr) -> Result<SocketAddr, Failure> {
     match &at.serial {
         None => Ok(at.medium),
         Some(serial) => {
-            let (m, _) = medium::bridge(serial, at.baud, SocketAddr::from(([127, 0, 0, 1], 0)))?;
+            let (m, up) = medium::bridge(serial, at.baud, SocketAddr::from(([127, 0, 0, 1], 0)))?;
             let addr = m.addr();
-            std::mem::forget(m);
+            let port = serial.display().to_string();
+            std::thread::spawn(move || {
+                let why = match up.join() {
+                    Ok(Ok(())) => String::from("the gateway closed the serial line"),
+                    Ok(Err(e)) => format!("the serial line failed: {e}"),
+                    Err(_) => String::from("the bridge to the serial line stopped"),
+                };
+                errln!("error: {port}: {why}");
+                m.stop();
+            });
             Ok(addr)
         }
     }
