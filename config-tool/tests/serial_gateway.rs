@@ -135,25 +135,17 @@ fn the_plant_refuses_a_serial_port() {
 /// terminal starts in, the bad baud was taken, and the gateway heard nothing.
 #[test]
 fn a_serial_port_named_by_a_link_is_set_up_as_a_terminal() {
-    const PTY: &str = "import os, pty, sys\nm, s = pty.openpty()\nprint(os.ttyname(s), flush=True)\nsys.stdin.read()\n";
-    let mut holder = Killed(
-        Command::new("python3")
-            .args(["-c", PTY])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .spawn()
-            .expect("python3"),
+    // A pty held open while the test runs (until its standard input closes).
+    let (_holder, path) = device(
+        "import os, pty, sys\nm, s = pty.openpty()\nprint(os.ttyname(s), flush=True)\n\
+         sys.stdin.read()\n",
     );
-    let mut path = String::new();
-    BufReader::new(holder.0.stdout.as_mut().unwrap())
-        .read_line(&mut path)
-        .unwrap();
     let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
         .join(format!("by-id-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let link = dir.join("usb-SEGGER_J-Link-if00");
-    std::os::unix::fs::symlink(path.trim(), &link).unwrap();
+    std::os::unix::fs::symlink(&path, &link).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_config-tool"))
         .args(["gateway", "--serial"])
         .arg(&link)
@@ -176,27 +168,35 @@ fn a_serial_port_named_by_a_link_is_set_up_as_a_terminal() {
 /// went away. It waited 5 s and blamed the node ("did not answer ... pass --keys").
 #[test]
 fn a_gateway_that_goes_away_is_said_to_have_gone() {
-    const GONE: &str = "import os, pty, sys, tty\nm, s = pty.openpty()\ntty.setraw(s)\nprint(os.ttyname(s), flush=True)\nos.read(m, 1)\nos.close(m)\n";
-    let mut device = Killed(
-        Command::new("python3")
-            .args(["-c", GONE])
-            .stdout(Stdio::piped())
-            .spawn()
-            .expect("python3"),
+    // A pty whose other side closes as the first byte reaches it.
+    let (_device, pty) = device(
+        "import os, pty, sys, tty\nm, s = pty.openpty()\ntty.setraw(s)\n\
+         print(os.ttyname(s), flush=True)\nos.read(m, 1)\nos.close(m)\n",
     );
-    let mut pty = String::new();
-    BufReader::new(device.0.stdout.as_mut().unwrap())
-        .read_line(&mut pty)
-        .unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .args(["status", "--node", "0x0021", "--serial", pty.trim()])
+        .args(["status", "--node", "0x0021", "--serial", &pty])
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.starts_with(&format!("error: {}: the ", pty.trim())),
-        "{err}"
-    );
+    assert!(err.starts_with(&format!("error: {}: the ", pty)), "{err}");
     assert!(!err.contains("did not answer"), "{err}");
+}
+
+/// A serial device played by `script` (Python): it prints its pty's path first, which is
+/// returned with the process (killed when dropped).
+fn device(script: &str) -> (Killed, String) {
+    let mut process = Killed(
+        Command::new("python3")
+            .args(["-c", script])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("python3"),
+    );
+    let mut path = String::new();
+    BufReader::new(process.0.stdout.as_mut().unwrap())
+        .read_line(&mut path)
+        .unwrap();
+    (process, path.trim().to_string())
 }
