@@ -401,4 +401,25 @@ mod tests {
         assert_eq!(Link::parse(&[9, 9, 9]), Err(LinkError::Malformed));
         assert_eq!(Link::parse(&[]), Err(LinkError::Malformed));
     }
+
+    /// A stray `00` before `Welcome` (`01 00 03`) reads as the length 0x0100: too long.
+    /// The resynchronising deframer drops one byte and finds `Welcome` and `Sync(300)`;
+    /// the plain one skips 258 bytes, both messages with them.
+    #[test]
+    fn a_resynchronising_deframer_finds_the_messages_after_a_stray_byte() {
+        let stream = [0x00, 1, 0, 3, 3, 0, 4, 0xAC, 0x02];
+        let mut d = Deframer::<MAX_LINK>::resynchronising();
+        assert_eq!(d.push(&stream), stream.len());
+        assert_eq!(d.take(), Err(TooLong { len: 0x0100 }));
+        assert_eq!(d.take().unwrap().map(Link::parse), Some(Ok(Link::Welcome)));
+        assert_eq!(
+            d.take().unwrap().map(Link::parse),
+            Some(Ok(Link::Sync(300)))
+        );
+        assert_eq!(d.take(), Ok(None));
+        let mut plain = Deframer::<MAX_LINK>::new();
+        assert_eq!(plain.push(&stream), stream.len());
+        assert_eq!(plain.take(), Err(TooLong { len: 0x0100 }));
+        assert_eq!(plain.take(), Ok(None));
+    }
 }

@@ -54,8 +54,10 @@ pub async fn run(
     mut rx: BufferedUarteRx<'static>,
     mut tx: BufferedUarteTx<'static>,
 ) -> ! {
+    // A serial line can lose or gain a byte (a glitch as the host opens the port): the
+    // framing finds the next message again at once.
     let mut reader = Reader {
-        incoming: Deframer::new(),
+        incoming: Deframer::resynchronising(),
     };
     let mut mpdu = [0u8; MAX_PSDU];
     let mut out = [0u8; MAX_LINK];
