@@ -200,3 +200,25 @@ fn device(script: &str) -> (Killed, String) {
         .unwrap();
     (process, path.trim().to_string())
 }
+
+/// A serial port that is no terminal (`/dev/null`, a regular file) is refused, status 1:
+/// the gateway said it was listening and ended at once, status 0.
+#[test]
+fn a_serial_port_that_is_no_terminal_is_refused() {
+    let out = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args([
+            "gateway",
+            "--serial",
+            "/dev/null",
+            "--listen",
+            "127.0.0.1:0",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(String::from_utf8_lossy(&out.stdout), "");
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "error: /dev/null: not a serial port (not a terminal)\n"
+    );
+}

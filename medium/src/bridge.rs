@@ -26,6 +26,8 @@ pub enum BridgeError {
     },
     #[error("{port}: {source}")]
     Port { port: String, source: io::Error },
+    #[error("{0}: not a serial port (not a terminal)")]
+    NotASerialPort(String),
     #[error("medium on {listen}: {source}")]
     Medium {
         listen: SocketAddr,
@@ -52,21 +54,23 @@ pub fn bridge(
             source,
         })?;
     // A terminal by what it is, not by its name (`/dev/serial/by-id/...`, `/dev/pts/N`
-    // were left in the line mode a terminal starts in, and their baud unset).
-    if std::io::IsTerminal::is_terminal(&port) {
-        let status = std::process::Command::new("stty")
-            .arg("-F")
-            .arg(serial)
-            .args([baud.to_string().as_str(), "raw", "-echo"])
-            .status()
-            .map_err(BridgeError::Stty)?;
-        if !status.success() {
-            return Err(BridgeError::SttyFailed {
-                port: port_name(),
-                baud,
-                status,
-            });
-        }
+    // were left in the line mode a terminal starts in, and their baud unset); anything
+    // else (a file, `/dev/null`) ended at once, and the gateway said nothing.
+    if !std::io::IsTerminal::is_terminal(&port) {
+        return Err(BridgeError::NotASerialPort(port_name()));
+    }
+    let status = std::process::Command::new("stty")
+        .arg("-F")
+        .arg(serial)
+        .args([baud.to_string().as_str(), "raw", "-echo"])
+        .status()
+        .map_err(BridgeError::Stty)?;
+    if !status.success() {
+        return Err(BridgeError::SttyFailed {
+            port: port_name(),
+            baud,
+            status,
+        });
     }
     let m = Medium::start(Config {
         listen,

@@ -1749,8 +1749,13 @@ pub fn gateway(serial: &Path, baud: u32, listen: SocketAddr) -> Result<(), Failu
         m.addr(),
         serial.display()
     );
+    // It runs as long as the serial line does: its end is the gateway gone.
     match up.join() {
-        Ok(r) => r.map_err(|e| Failure::error(format!("{}: {e}", serial.display()))),
+        Ok(Ok(())) => Err(Failure::error(format!(
+            "{}: the gateway closed the serial line",
+            serial.display()
+        ))),
+        Ok(Err(e)) => Err(Failure::error(format!("{}: {e}", serial.display()))),
         Err(_) => Err(Failure::error("the gateway bridge stopped")),
     }
 }
