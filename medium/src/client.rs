@@ -215,14 +215,21 @@ enum Next<T> {
     TimedOut,
 }
 
-/// A write's error, said as a read's end is when it means that the medium went away (its
-/// end of the connection closed or reset): not as this process's own output breaking.
+/// Whether `e`, met on a connection to the medium, says the medium went away: the
+/// connection ended (a read), or was reset or broken under a write, whichever came first.
+pub fn went_away(e: &io::Error) -> bool {
+    use io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset, UnexpectedEof};
+    matches!(
+        e.kind(),
+        UnexpectedEof | BrokenPipe | ConnectionReset | ConnectionAborted
+    )
+}
+
+/// A write's error, said as a read's end is when it means that the medium went away: not
+/// as this process's own output breaking.
 fn gone(e: io::Error) -> io::Error {
-    use io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset};
-    match e.kind() {
-        BrokenPipe | ConnectionReset | ConnectionAborted => {
-            io::Error::new(e.kind(), "the medium closed the connection")
-        }
-        _ => e,
+    if went_away(&e) {
+        return io::Error::new(e.kind(), "the medium closed the connection");
     }
+    e
 }

@@ -42,7 +42,7 @@ use std::time::{Duration, Instant};
 use config_schema::wire::medium::Peer;
 
 pub use bridge::{bridge, BridgeError};
-pub use client::{Conn, JOIN_TIMEOUT};
+pub use client::{went_away, Conn, JOIN_TIMEOUT};
 pub use pcap::PcapLog;
 
 /// Every bound of the medium, in one place.

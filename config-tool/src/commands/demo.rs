@@ -27,6 +27,7 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
             .map_err(super::offline::injection_failure)?;
         // The node that takes START stopped before a cycle's first step takes no START: the
         // demo would wait a minute for its answer and report no fault.
+        let given = flags.fault.as_deref().unwrap_or_default();
         let starts = loaded
             .ir
             .start
@@ -34,7 +35,6 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
             .map(|(r, _)| loaded.ir.roles[*r].name.as_str());
         if let robot_analysis::inject::FaultKind::Stop(role) = &spec.kind {
             if spec.step == 1 && Some(role.as_str()) == starts {
-                let given = flags.fault.as_deref().unwrap_or_default();
                 return Err(Failure::usage(format!(
                     "--fault {given}: role {role}'s node takes START: stopped before step 1, \
                      it takes no START and nothing moves (sim: not detected); stop it before a \
@@ -45,7 +45,6 @@ pub fn demo(flags: DemoArgs) -> Result<(), Failure> {
         // A fault in a cycle the demo does not run would never be injected.
         let cycles = flags.cycles.unwrap_or(3);
         if spec.cycle > cycles {
-            let given = flags.fault.as_deref().unwrap_or_default();
             return Err(Failure::usage(format!(
                 "--fault {given}: its cycle {} is after the last the demo runs ({cycles}: \
                  --cycles {} or more runs it)",

@@ -1436,7 +1436,7 @@ pub fn plant(robot: &Path, at: &MediumAddr) -> Result<(), Failure> {
             closed_why(medium)
         ))
     };
-    let failed = move |e: io::Error| match medium_gone(&e) {
+    let failed = move |e: io::Error| match medium::went_away(&e) {
         true => gone(),
         false => Failure::error(format!("plant on {medium}: {e}")),
     };
@@ -1573,16 +1573,6 @@ fn closed_why(medium: SocketAddr) -> &'static str {
     }
 }
 
-/// Whether `e` says the medium went away: its connection ended (read), or was reset or
-/// broken under a write, whichever the client met first.
-fn medium_gone(e: &io::Error) -> bool {
-    use io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset, UnexpectedEof};
-    matches!(
-        e.kind(),
-        UnexpectedEof | BrokenPipe | ConnectionReset | ConnectionAborted
-    )
-}
-
 /// `monitor`: every frame (decoded; secured ones opened with the keys of `keys`, the
 /// machine secret's file) and pin change on the medium, on the medium's clock: pin changes
 /// as the medium stamped them, frames (and generation changes) at the time they reached
@@ -1652,7 +1642,7 @@ pub fn monitor(
         });
         let heard = match got {
             Ok(heard) => heard,
-            Err(e) if medium_gone(&e) => {
+            Err(e) if medium::went_away(&e) => {
                 return Err(Failure::error(format!(
                     "monitor: the medium at {medium} {}",
                     closed_why(medium)
