@@ -130,8 +130,8 @@ fn main() {
         radio.secure(
             secret,
             Box::new(move || {
-                next = next.checked_add(1)?;
-                Some(next)
+                next = (next.checked_add(1)).ok_or_else(|| std::io::Error::other("used up"))?;
+                Ok(next)
             }),
         );
         panel.serve(radio)

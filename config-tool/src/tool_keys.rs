@@ -3,23 +3,29 @@
 //! file beside it (`FILE.counter`).
 //!
 //! The counter is the host node's: a `node_fw::frame_counter::FrameCounter` over a host
-//! flash file of two erase pages (`node_fw::host::frame_counter`), reserved 1024 ahead, so
+//! flash file of two erase pages (`node_fw::host::counter_file`), reserved 1024 ahead, so
 //! it is strictly increasing across runs of the tool and power cuts with one write per run
-//! and per 1024 frames. A process holds an exclusive advisory lock (`flock`) on the counter
-//! file for as long as it may send: a second process with the same key file is refused
-//! rather than handed the same counters (after waiting [`LOCK_WAIT`] for it to let go).
+//! and per 1024 frames. Runs with the same key file share it, each frame's counter taken
+//! under an exclusive advisory lock (`flock`) on the counter file: the run reads the file
+//! again (`FrameCounter::catch_up`) and, if another run reserved above its own
+//! reservation since, goes on above that one. Every counter is then above every one
+//! handed out before it, by any run (the nodes refuse a counter at or below the last one
+//! they took from the tool as a replay), and a panel, a watch or `alarms --watch` can run
+//! while other commands are given. A run waits [`LOCK_WAIT`] at most for another to let
+//! go (a run holds the lock for one read and, once per 1024 frames, one write).
 
 use std::fs::{File, OpenOptions};
 use std::io::{self, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use node_fw::host::flash::{counter_path, OpenError, COUNTER_FILE_SIZE};
+use node_fw::frame_counter::{CounterError, FrameCounter};
+use node_fw::host::flash::{counter_path, HostFlash, OpenError, COUNTER_FILE_SIZE};
 use node_fw::host::HostError;
 use robot_keys::{load_machine_secret, KeyFileError, MachineSecret};
 use robot_net::radio::CounterSource;
 
-/// How long a run waits for another run's lock on the counter file before it is refused.
+/// How long a run waits for another run's lock on the counter file before it gives up.
 pub const LOCK_WAIT: Duration = Duration::from_secs(2);
 
 /// The environment variable that stands for `--keys FILE` when the flag is not given.
@@ -50,7 +56,8 @@ impl KeysFrom {
     }
 }
 
-/// What a secured radio is given: the secret and the counter (which holds the lock).
+/// What a secured radio is given: the secret and the counter (shared with other runs of
+/// the same key file).
 pub struct ToolKeys {
     pub secret: MachineSecret,
     pub counter: CounterSource,
@@ -63,9 +70,10 @@ pub enum ToolKeyError {
     #[error(transparent)]
     Key(#[from] KeyFileError),
     #[error(
-        "counter file {}: in use by another config-tool process with the same key file \
-         (locked); wait until it ends",
-        .0.display()
+        "counter file {}: locked by another config-tool process with the same key file for \
+         over {} s (stopped while it held it?)",
+        .0.display(),
+        LOCK_WAIT.as_secs()
     )]
     Locked(PathBuf),
     #[error("counter file {}: {source}", path.display())]
@@ -101,7 +109,7 @@ pub enum ToolKeyError {
 }
 
 /// Reads the machine secret of `key_file` (refused if others may read it) and opens the
-/// tool's frame counter beside it, locked for this process until the counter is dropped.
+/// tool's frame counter beside it, shared with every other run of the same key file.
 pub fn open(key_file: &Path) -> Result<ToolKeys, ToolKeyError> {
     let secret = load_machine_secret(key_file)?;
     // The key file itself, not the name it was reached by: a link to it (or another
@@ -112,8 +120,8 @@ pub fn open(key_file: &Path) -> Result<ToolKeys, ToolKeyError> {
         source,
     })?;
     let path = counter_path(key_file);
-    let lock = lock(&path)?;
-    let mut counter = node_fw::host::frame_counter(Some(key_file)).map_err(|e| match e {
+    let file = lock(&path)?;
+    let counter = node_fw::host::counter_file(&path).map_err(|e| match e {
         HostError::Flash(OpenError::Size {
             found, expected, ..
         }) => ToolKeyError::Size {
@@ -127,17 +135,53 @@ pub fn open(key_file: &Path) -> Result<ToolKeys, ToolKeyError> {
         },
         _ => ToolKeyError::Unreadable(path.clone()),
     })?;
+    unlock(&file);
+    let mut shared = Shared {
+        file,
+        path,
+        counter,
+    };
     Ok(ToolKeys {
         secret,
-        counter: Box::new(move || {
-            // The lock lives as long as the counter.
-            let _held = &lock;
-            counter()
-        }),
+        counter: Box::new(move || shared.next()),
     })
 }
 
-/// Opens (creating, mode 0600) and locks the counter file; a file just created, or left
+/// The tool's frame counter in its counter file, which other runs write too.
+struct Shared {
+    /// The counter file, open for its lock.
+    file: File,
+    path: PathBuf,
+    counter: FrameCounter<HostFlash>,
+}
+
+impl Shared {
+    /// A counter above every one handed out before, by this run or any other: taken under
+    /// the counter file's lock, after reading the file again.
+    fn next(&mut self) -> io::Result<u32> {
+        hold(&self.file, &self.path).map_err(|e| io::Error::other(e.to_string()))?;
+        let next = self.counter.catch_up().and_then(|()| self.counter.next());
+        unlock(&self.file);
+        next.map_err(|e| {
+            io::Error::other(match e {
+                CounterError::Exhausted => format!(
+                    "counter file {}: used up (2^31 frames): make a new machine secret \
+                     (`keys new`) and provision the nodes again",
+                    self.path.display()
+                ),
+                CounterError::Flash(e) => {
+                    format!("counter file {}: {e:?}", self.path.display())
+                }
+                CounterError::Geometry => {
+                    format!("counter file {}: not two pages", self.path.display())
+                }
+            })
+        })
+    }
+}
+
+/// Opens (creating, mode 0600) and locks the counter file (until [`unlock`]); a file just
+/// created, or left
 /// shorter by a cut while it was being created (still blank), is made two erased pages.
 /// Whoever may write it may set the counter back (a nonce used twice): it must be a
 /// regular file (not a link), written by this user alone, in a directory others (not the
@@ -189,25 +233,7 @@ fn lock(path: &Path) -> Result<File, ToolKeyError> {
             });
         }
     }
-    #[cfg(unix)]
-    {
-        use rustix::fs::{flock, FlockOperation};
-        // Another run that is ending (or a process forked while it held the file) gets
-        // LOCK_WAIT to let go; then this run is refused.
-        let until = Instant::now() + LOCK_WAIT;
-        loop {
-            match flock(&file, FlockOperation::NonBlockingLockExclusive) {
-                Ok(()) => break,
-                Err(e) if e == rustix::io::Errno::WOULDBLOCK => {
-                    if Instant::now() >= until {
-                        return Err(ToolKeyError::Locked(path.to_path_buf()));
-                    }
-                    std::thread::sleep(Duration::from_millis(20));
-                }
-                Err(e) => return Err(io_err(e.into())),
-            }
-        }
-    }
+    hold(&file, path)?;
     let len = file.metadata().map_err(io_err)?.len();
     if len < COUNTER_FILE_SIZE as u64 {
         let mut bytes = Vec::new();
@@ -220,6 +246,42 @@ fn lock(path: &Path) -> Result<File, ToolKeyError> {
         }
     }
     Ok(file)
+}
+
+/// Takes the exclusive lock of the counter file `file` (at `path`), waiting for another run
+/// to let go for [`LOCK_WAIT`] at most.
+fn hold(file: &File, path: &Path) -> Result<(), ToolKeyError> {
+    #[cfg(unix)]
+    {
+        use rustix::fs::{flock, FlockOperation};
+        let until = Instant::now() + LOCK_WAIT;
+        loop {
+            match flock(file, FlockOperation::NonBlockingLockExclusive) {
+                Ok(()) => break,
+                Err(e) if e == rustix::io::Errno::WOULDBLOCK => {
+                    if Instant::now() >= until {
+                        return Err(ToolKeyError::Locked(path.to_path_buf()));
+                    }
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+                Err(e) => {
+                    return Err(ToolKeyError::Io {
+                        path: path.to_path_buf(),
+                        source: e.into(),
+                    })
+                }
+            }
+        }
+    }
+    let _ = (file, path);
+    Ok(())
+}
+
+/// Lets go of the counter file's lock ([`hold`]).
+fn unlock(file: &File) {
+    #[cfg(unix)]
+    let _ = rustix::fs::flock(file, rustix::fs::FlockOperation::Unlock);
+    let _ = file;
 }
 
 #[cfg(test)]
@@ -235,28 +297,54 @@ mod tests {
         p
     }
 
+    /// Runs with one key file at once (a panel, and a command given meanwhile) share its
+    /// counter: each counter is above every one handed out before it, by either run (a
+    /// node takes no counter at or below the last one it took from the tool), and a later
+    /// run resumes above both. Before, the second run was refused while the first ran.
     #[test]
-    fn the_counter_resumes_above_every_earlier_run_and_one_run_at_a_time() {
+    fn runs_with_one_key_file_share_the_counter() {
         let key = key_file("runs");
         let mut first = open(&key).unwrap();
-        let sent: Vec<u32> = (0..3).map(|_| (first.counter)().unwrap()).collect();
-        assert_eq!(sent, [0, 1, 2]);
-        let again = open(&key).err().expect("locked while the first runs");
-        assert_eq!(
-            again.to_string(),
-            format!(
-                "counter file {}.counter: in use by another config-tool process with the same \
-                 key file (locked); wait until it ends",
-                key.display()
-            )
-        );
-        drop(first);
+        let next = |keys: &mut ToolKeys| (keys.counter)().unwrap();
+        let mut sent: Vec<u32> = (0..3).map(|_| next(&mut first)).collect();
         let mut second = open(&key).unwrap();
-        assert_eq!((second.counter)(), Some(node_fw::frame_counter::STEP));
+        sent.push(next(&mut second));
+        sent.push(next(&mut second));
+        sent.push(next(&mut first));
+        sent.push(next(&mut second));
+        const STEP: u32 = node_fw::frame_counter::STEP;
+        // Each catching up skips what the other reserved and did not use, then reserves a
+        // counter at a time: two runs that take turns skip no more.
+        assert_eq!(sent, [0, 1, 2, STEP, STEP + 1, 2 * STEP, 2 * STEP + 1]);
+        drop((first, second));
+        let mut third = open(&key).unwrap();
+        assert_eq!(next(&mut third), 2 * STEP + 2);
         assert_eq!(
             std::fs::metadata(counter_path(&key)).unwrap().len(),
             COUNTER_FILE_SIZE as u64
         );
+    }
+
+    /// A run that holds the counter file's lock for longer than [`LOCK_WAIT`] (stopped
+    /// while it held it): another run's next frame is not sent, and says why.
+    #[cfg(unix)]
+    #[test]
+    fn a_counter_file_locked_for_long_stops_the_frame_and_says_why() {
+        let key = key_file("held");
+        let mut keys = open(&key).unwrap();
+        let other = File::open(counter_path(&key)).unwrap();
+        rustix::fs::flock(&other, rustix::fs::FlockOperation::LockExclusive).unwrap();
+        let err = (keys.counter)().expect_err("locked");
+        assert_eq!(
+            err.to_string(),
+            format!(
+                "counter file {}.counter: locked by another config-tool process with the same \
+                 key file for over 2 s (stopped while it held it?)",
+                key.display()
+            )
+        );
+        drop(other);
+        assert_eq!((keys.counter)().ok(), Some(0));
     }
 
     #[test]
@@ -265,7 +353,7 @@ mod tests {
         let path = counter_path(&key);
         std::fs::write(&path, [0xFF; 100]).unwrap();
         let mut keys = open(&key).unwrap();
-        assert_eq!((keys.counter)(), Some(0));
+        assert_eq!((keys.counter)().ok(), Some(0));
         drop(keys);
         std::fs::write(&path, b"hello").unwrap();
         let e = open(&key).err().expect("refused");
@@ -282,8 +370,7 @@ mod tests {
 
     /// A key file reached through a link (or another spelling of its path) has the one
     /// counter file and lock of the file it names: a second counter beside the link
-    /// started at 0 again (frame counters, so nonces, used twice under one key), and two
-    /// runs held "the" lock at once.
+    /// started at 0 again (frame counters, so nonces, used twice under one key).
     #[cfg(unix)]
     #[test]
     fn a_key_file_reached_through_a_link_shares_its_counter_and_lock() {
@@ -291,11 +378,13 @@ mod tests {
         let link = key.with_file_name("link.key");
         std::os::unix::fs::symlink(&key, &link).unwrap();
         let mut first = open(&key).unwrap();
-        assert_eq!((first.counter)(), Some(0));
-        assert!(matches!(open(&link), Err(ToolKeyError::Locked(_))));
-        drop(first);
+        assert_eq!((first.counter)().ok(), Some(0));
         let mut second = open(&link).unwrap();
-        assert_eq!((second.counter)(), Some(node_fw::frame_counter::STEP));
+        assert_eq!((second.counter)().ok(), Some(node_fw::frame_counter::STEP));
+        assert_eq!(
+            (first.counter)().ok(),
+            Some(2 * node_fw::frame_counter::STEP)
+        );
         assert!(!counter_path(&link).exists());
     }
 

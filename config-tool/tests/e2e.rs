@@ -715,7 +715,7 @@ fn a_replayed_announcement_does_not_bring_back_a_switched_off_node() {
         secret.clone(),
         Box::new(move || {
             next += 1;
-            Some(next)
+            Ok(next)
         }),
     );
     let mut raw = RawClient::join(bed.medium().addr(), HOSTILE);

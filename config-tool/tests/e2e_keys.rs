@@ -420,7 +420,7 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     assert!(
         text(&watched.stdout).ends_with(
             "watching the trial for 1 s (rolled back to generation 4 unless confirmed: type \
-             `confirm` here)\n"
+             `confirm` here, or run `config-tool confirm`)\n"
         ),
         "{}",
         text(&watched.stdout)
@@ -434,8 +434,7 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
         "0x0011  role VC  generation 4"
     );
     // A watched trial confirmed where it is watched: `confirm` typed on the push's
-    // standard input (a `confirm` from another terminal with the same key file is refused
-    // while the watch holds its counter file).
+    // standard input.
     let mut watching = Command::new(env!("CARGO_BIN_EXE_config-tool"))
         .args(push_args(&key_s, &m, "6", &["--trial", "--watch", "600"]))
         .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
@@ -455,7 +454,7 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     assert_eq!(
         watching_line,
         "watching the trial for 600 s (rolled back to generation 4 unless confirmed: type \
-         `confirm` here)"
+         `confirm` here, or run `config-tool confirm`)"
     );
     writeln!(watching.stdin.as_mut().expect("stdin"), "confirm").expect("typed");
     let rest: Vec<String> = lines.map_while(Result::ok).collect();
@@ -471,6 +470,49 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     assert_eq!(
         status(&key_s, &m, "0x0011")[0],
         "0x0011  role VC  generation 6"
+    );
+    // ... or by `confirm` from another terminal while the watch runs: the two runs share
+    // the key file's counter, each frame numbered above every earlier one of either (the
+    // nodes take no counter at or below the last one they took). Before, the second run
+    // was refused ("in use by another config-tool process") until the watch ended, and
+    // the trial rolled back.
+    let mut watching = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(push_args(&key_s, &m, "7", &["--trial", "--watch", "600"]))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .env_remove("CONFIG_TOOL_KEYS")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("push");
+    let mut lines = BufReader::new(watching.stdout.take().expect("stdout")).lines();
+    while !(lines.next().expect("push said more").expect("a line"))
+        .starts_with("watching the trial")
+    {}
+    let before = reservations(&counter);
+    let kept = ok(&["confirm", ROBOT, "--keys", &key_s, "--medium", &m]);
+    assert!(
+        kept.lines().all(|l| l.ends_with("generation 7  confirmed")),
+        "{kept}"
+    );
+    let rest: Vec<String> = lines.map_while(Result::ok).collect();
+    let done = watching.wait_with_output().expect("ends");
+    assert_eq!(
+        (done.status.code(), text(&done.stderr), rest),
+        (
+            Some(0),
+            String::new(),
+            vec!["confirmed: the trial generation stays".to_string()]
+        )
+    );
+    let after = reservations(&counter);
+    assert!(
+        after.len() > before.len() && after.windows(2).all(|w| w[0] < w[1]),
+        "the confirm and the watch each reserved above the other: {before:?} then {after:?}"
+    );
+    assert_eq!(
+        status(&key_s, &m, "0x0011")[0],
+        "0x0011  role VC  generation 7"
     );
 
     stop.store(true, Ordering::Relaxed);

@@ -253,9 +253,11 @@ fn an_unreadable_counter_file_is_refused_and_left_as_it_is() {
     );
 }
 
+/// A counter file another process holds locked for over `LOCK_WAIT` (runs share it, each
+/// holding it for one frame's counter: one that holds it longer was stopped).
 #[cfg(unix)]
 #[test]
-fn a_counter_file_another_process_holds_is_refused_until_it_is_released() {
+fn a_counter_file_another_process_holds_for_long_is_refused_until_it_is_released() {
     use rustix::fs::{flock, FlockOperation};
     let dir = scratch("locked");
     let key = new_key(&dir);
@@ -279,8 +281,8 @@ fn a_counter_file_another_process_holds_is_refused_until_it_is_released() {
     assert_eq!(
         text(&out.stderr),
         format!(
-            "error: counter file {}: in use by another config-tool process with the same key \
-             file (locked); wait until it ends\n",
+            "error: counter file {}: locked by another config-tool process with the same key \
+             file for over 2 s (stopped while it held it?)\n",
             counter.display()
         )
     );

@@ -62,7 +62,10 @@ pub enum CounterError<E> {
 pub struct FrameCounter<F> {
     flash: F,
     sector: u32,
+    /// Counters the next write reserves: `full` but after [`FrameCounter::catch_up`]
+    /// found another writer (then 1, doubling with each write back to `full`).
     step: u32,
+    full: u32,
     /// The sector the log is in, and the offset of its next free record.
     active: u32,
     free: Option<u32>,
@@ -90,27 +93,16 @@ fn decode(r: &[u8; RECORD]) -> Option<u32> {
         .then_some(reserved)
 }
 
-impl<F: NorFlash> FrameCounter<F> {
-    /// Opens the counter of a region of exactly two erase sectors (a fresh, erased region
-    /// starts at 0), reserving [`STEP`] counters per write. A plain function, each flash
-    /// access run to completion in place (`embassy_futures::block_on`: a board's `NorFlash`
-    /// completes when first polled), so no state machine of it is in a board's image.
-    pub fn open(flash: F) -> Result<Self, CounterError<F::Error>> {
-        Self::open_with_step(flash, STEP)
-    }
+/// What a region holds: its largest reservation (0 in an erased region), the sector that
+/// record is in, and that sector's first free record.
+struct Log {
+    reserved: u32,
+    active: u32,
+    free: Option<u32>,
+}
 
-    /// As [`FrameCounter::open`], with `step` counters per write.
-    pub fn open_with_step(mut flash: F, step: u32) -> Result<Self, CounterError<F::Error>> {
-        let sector = F::ERASE_SIZE;
-        let fits = sector.is_multiple_of(RECORD)
-            && RECORD.is_multiple_of(F::WRITE_SIZE)
-            && RECORD.is_multiple_of(F::READ_SIZE)
-            && flash.capacity() >= 2 * sector
-            && step > 0;
-        if !fits {
-            return Err(CounterError::Geometry);
-        }
-        let sector = u32::try_from(sector).map_err(|_| CounterError::Geometry)?;
+impl Log {
+    fn scan<F: NorFlash>(flash: &mut F, sector: u32) -> Result<Log, CounterError<F::Error>> {
         // The largest reservation, where it is, and each sector's first free record.
         let mut best: Option<(u32, u32)> = None;
         let mut free = [None, None];
@@ -135,16 +127,74 @@ impl<F: NorFlash> FrameCounter<F> {
             }
         }
         let (reserved, active) = best.unwrap_or((0, 0));
+        Ok(Log {
+            reserved,
+            active,
+            free: free.get(active as usize).copied().flatten(),
+        })
+    }
+}
+
+impl<F: NorFlash> FrameCounter<F> {
+    /// Opens the counter of a region of exactly two erase sectors (a fresh, erased region
+    /// starts at 0), reserving [`STEP`] counters per write. A plain function, each flash
+    /// access run to completion in place (`embassy_futures::block_on`: a board's `NorFlash`
+    /// completes when first polled), so no state machine of it is in a board's image.
+    pub fn open(flash: F) -> Result<Self, CounterError<F::Error>> {
+        Self::open_with_step(flash, STEP)
+    }
+
+    /// As [`FrameCounter::open`], with `step` counters per write.
+    pub fn open_with_step(mut flash: F, step: u32) -> Result<Self, CounterError<F::Error>> {
+        let sector = F::ERASE_SIZE;
+        let fits = sector.is_multiple_of(RECORD)
+            && RECORD.is_multiple_of(F::WRITE_SIZE)
+            && RECORD.is_multiple_of(F::READ_SIZE)
+            && flash.capacity() >= 2 * sector
+            && step > 0;
+        if !fits {
+            return Err(CounterError::Geometry);
+        }
+        let sector = u32::try_from(sector).map_err(|_| CounterError::Geometry)?;
+        let log = Log::scan(&mut flash, sector)?;
         Ok(FrameCounter {
             flash,
             sector,
             step,
-            active,
-            free: free.get(active as usize).copied().flatten(),
-            holds: active,
-            next: reserved,
-            reserved,
+            full: step,
+            active: log.active,
+            free: log.free,
+            holds: log.active,
+            next: log.reserved,
+            reserved: log.reserved,
         })
+    }
+
+    /// Reads the region again, for a counter whose region another process may write too
+    /// (the tool's counter file, shared by every run of the tool with one key file, each
+    /// taking it in turn under a lock): a larger reservation than this counter's own,
+    /// written by the other, moves this counter up to it (the next counter handed out is
+    /// above every one the other may hand out until it reads the region again), and the
+    /// log goes on where it now ends. A region that lost this counter's reservation (set
+    /// back, or replaced) gets it written again first. Called before each
+    /// [`FrameCounter::next`] under that lock, the counters of all the processes are
+    /// strictly increasing in the order they are handed out.
+    ///
+    /// What a jump skips is what the other reserved and did not hand out: so once it has
+    /// caught up, a counter reserves one counter a write, then twice as many with each
+    /// write, back to its step. Processes that take turns frame by frame then skip none
+    /// (a write each); one left alone again soon writes once per step. A node's region is
+    /// its own: it never calls this.
+    pub fn catch_up(&mut self) -> Result<(), CounterError<F::Error>> {
+        let log = Log::scan(&mut self.flash, self.sector)?;
+        (self.active, self.free, self.holds) = (log.active, log.free, log.active);
+        if log.reserved > self.reserved {
+            (self.next, self.reserved) = (log.reserved, log.reserved);
+            self.step = 1;
+        } else if log.reserved < self.reserved {
+            self.persist(self.reserved)?;
+        }
+        Ok(())
     }
 
     /// A counter never handed out before, by this node, whatever power cuts came between
@@ -158,6 +208,7 @@ impl<F: NorFlash> FrameCounter<F> {
                 .ok_or(CounterError::Exhausted)?;
             self.persist(reserve)?;
             self.reserved = reserve;
+            self.step = self.step.saturating_mul(2).min(self.full);
         }
         let n = self.next;
         self.next += 1;
@@ -370,6 +421,67 @@ mod tests {
         let mut flash = Flash::new();
         flash.bytes[..16].copy_from_slice(&encode(LIMIT + 5));
         assert_eq!(open(flash, 1).next(), Err(CounterError::Exhausted));
+    }
+
+    /// Two counters over one region, taking turns (the tool's runs with one key file, each
+    /// calling `catch_up` before `next` under the counter file's lock): every counter is
+    /// above every one handed out before it, by either, and a counter alone in its region
+    /// goes on in its reservation.
+    #[test]
+    fn counters_sharing_a_region_catch_up_with_each_other() {
+        let mut a = open(Flash::new(), 8);
+        let mut handed = Vec::new();
+        let mut turn = |c: &mut FrameCounter<Flash>, flash: Flash| {
+            c.flash = flash;
+            c.catch_up().expect("reads");
+            let n = c.next().expect("next");
+            handed.push(n);
+            core::mem::take(&mut c.flash)
+        };
+        let flash = core::mem::take(&mut a.flash);
+        let flash = turn(&mut a, flash);
+        let flash = turn(&mut a, flash);
+        // The second run opens while the first runs: both read reservation 8.
+        let mut b = open(flash.clone(), 8);
+        let flash = turn(&mut b, flash);
+        let flash = turn(&mut a, flash);
+        let flash = turn(&mut a, flash);
+        let flash = turn(&mut b, flash);
+        let flash = turn(&mut b, flash);
+        let flash = turn(&mut a, flash);
+        // Each jump to the other's reservation, then a write a counter: two that take
+        // turns skip nothing.
+        assert_eq!(handed, [0, 1, 8, 16, 17, 19, 20, 22]);
+        // A third run, later, starts above all of them.
+        let mut c = open(flash, 8);
+        assert_eq!(c.next(), Ok(23));
+        // Left alone, the jumped counter's writes grow back to a step each.
+        let mut writes = 0;
+        let mut flash = core::mem::take(&mut a.flash);
+        let mut last = a.reserved;
+        for _ in 0..64 {
+            a.flash = flash;
+            a.catch_up().expect("reads");
+            a.next().expect("next");
+            writes += usize::from(a.reserved != last);
+            last = a.reserved;
+            flash = core::mem::take(&mut a.flash);
+        }
+        assert_eq!((writes, a.step), (10, 8));
+    }
+
+    /// A region set back under a counter (a copy of the file from before put back) gets
+    /// the counter's reservation again before it hands out another: a power cut then does
+    /// not start below what it handed out.
+    #[test]
+    fn a_region_set_back_gets_the_reservation_written_again() {
+        let mut c = open(Flash::new(), 8);
+        let old = c.flash.clone();
+        assert_eq!(c.next(), Ok(0));
+        c.flash = old;
+        c.catch_up().expect("reads");
+        assert_eq!(c.next(), Ok(1));
+        assert_eq!(open(c.into_inner(), 8).next(), Ok(8));
     }
 
     #[test]

@@ -56,8 +56,9 @@ pub const RESEND_WITHIN: Duration = Duration::from_millis(500);
 pub const TOOL_SENDERS: usize = 256;
 
 /// The source of the tool's frame counters: never one handed out before under the same
-/// machine secret (`None`: used up, or its file failed; nothing is sent).
-pub type CounterSource = Box<dyn FnMut() -> Option<u32>>;
+/// machine secret, by any run of the tool (an error: used up, or its file failed or stayed
+/// locked; nothing is sent, and the error says why).
+pub type CounterSource = Box<dyn FnMut() -> io::Result<u32>>;
 
 /// What a secured tool radio holds: the machine secret (each node's management key is
 /// derived from it), its frame counter, and the last counter accepted from each node.
@@ -184,8 +185,7 @@ impl ToolRadio {
         let mut psdu = [0u8; MAX_PSDU];
         let len = match self.keys.as_mut().filter(|_| dst != mac::BROADCAST) {
             Some(keys) => {
-                let counter = (keys.counter)()
-                    .ok_or_else(|| io::Error::other("the tool's frame counter is used up"))?;
+                let counter = (keys.counter)()?;
                 let key = management_key(&keys.secret, dst);
                 security::secure(
                     &header,
@@ -350,7 +350,7 @@ mod tests {
         Box::new(move || {
             let n = next;
             next += 1;
-            Some(n)
+            Ok(n)
         })
     }
 

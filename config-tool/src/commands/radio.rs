@@ -462,11 +462,11 @@ fn watch(
     let previous = command(radio, &mut ids, first, Command::Status)?.previous;
     outln!(
         "watching the trial for {} (rolled back to generation {previous} unless confirmed: \
-         type `confirm` here)",
+         type `confirm` here, or run `config-tool confirm`)",
         window_text(window)
     );
-    // `confirm` typed on standard input: this process holds the key file's counter, so
-    // another tool of the same key file cannot confirm while it watches.
+    // `confirm` typed on standard input, or a `confirm` of another run (the key file's
+    // counter is shared): the watch sees no node on trial any more.
     let asked = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let said = asked.clone();
     std::thread::spawn(move || {

@@ -672,7 +672,7 @@ pub fn second_tool(medium: std::net::SocketAddr, secret: &robot_keys::MachineSec
         secret.clone(),
         Box::new(move || {
             next += 1;
-            Some(next)
+            Ok(next)
         }),
     );
     radio

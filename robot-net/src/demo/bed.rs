@@ -238,8 +238,9 @@ impl Bed {
                 keys.secret.clone(),
                 Box::new(move || {
                     let n = next;
-                    next = next.checked_add(1).filter(|n| *n != u32::MAX)?;
-                    Some(n)
+                    next = (next.checked_add(1).filter(|n| *n != u32::MAX))
+                        .ok_or_else(|| std::io::Error::other("the bed's counter is used up"))?;
+                    Ok(n)
                 }),
             );
             Some(keys)
