@@ -728,7 +728,7 @@ fn a_replayed_announcement_does_not_bring_back_a_switched_off_node() {
                 && matches!(
                     Message::parse(payload),
                     Ok(Message::Command {
-                        command: Command::Identify,
+                        command: Command::Identify { .. },
                         ..
                     })
                 )

@@ -759,7 +759,7 @@ fn a_secured_scan_finds_every_node_while_another_tool_asks_all_the_time() {
     let asking = std::thread::spawn(move || {
         let identify = config_schema::wire::msg::Message::Command {
             id: 1,
-            command: config_schema::wire::msg::Command::Identify,
+            command: config_schema::wire::msg::Command::Identify { nonce: 1 },
         };
         let payload = e2e_support::payload(&identify);
         let mut seq = 0u8;

@@ -1127,8 +1127,8 @@ impl<S: StagingArea> NodeCore<S> {
         }
     }
 
-    /// `ack`: the id of the `Identify` it answers (0: unprompted).
-    fn announce(&self, ack: u16) -> Message<'static> {
+    /// `nonce`: that of the `Identify` it answers (0: unprompted).
+    fn announce(&self, nonce: u64) -> Message<'static> {
         let mut role = heapless::String::new();
         if let Some(t) = &self.table {
             role = t.header.role.clone();
@@ -1139,7 +1139,7 @@ impl<S: StagingArea> NodeCore<S> {
             role,
             table: self.table_id,
             staged: self.switch.staged(),
-            ack,
+            nonce,
         })
     }
 
@@ -1485,7 +1485,7 @@ impl<S: StagingArea> NodeCore<S> {
                 && matches!(
                     msg,
                     Message::Command {
-                        command: Command::Identify,
+                        command: Command::Identify { .. },
                         ..
                     }
                 );
@@ -2009,8 +2009,8 @@ impl<S: StagingArea> NodeCore<S> {
         now: u64,
         io: &mut impl Io,
     ) {
-        if cmd == Command::Identify {
-            let a = self.announce(id);
+        if let Command::Identify { nonce } = cmd {
+            let a = self.announce(nonce);
             self.send(io, pan, src, &a);
             return;
         }
@@ -2060,7 +2060,10 @@ impl<S: StagingArea> NodeCore<S> {
                         self.alarms.ack(seen);
                     }
                 }
-                Command::Identify | Command::Status | Command::Security | Command::Alarms => {}
+                Command::Identify { .. }
+                | Command::Status
+                | Command::Security
+                | Command::Alarms => {}
             }
         }
         if matches!(cmd, Command::Alarms | Command::Ack) {

@@ -279,8 +279,9 @@ impl Net {
     }
 
     fn announce(&mut self, dst: u16) -> Announce {
-        self.ask(dst, Command::Identify, |m| match m {
-            Message::Announce(a) => Some(a),
+        let nonce = 0x0123_4567_89AB_CDEF;
+        self.ask(dst, Command::Identify { nonce }, |m| match m {
+            Message::Announce(a) if a.nonce == nonce => Some(a),
             _ => None,
         })
     }

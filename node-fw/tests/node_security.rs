@@ -291,7 +291,12 @@ fn the_security_command_reports_the_counters_and_counters_increase() {
 #[test]
 fn an_unsecured_scan_is_answered_secured_at_most_once_a_second() {
     let (mut n, mut b) = node();
-    let identify = plain(CONFIG_PAN, BROADCAST, &command(9, Command::Identify));
+    let nonce = 0xFEDC_BA98_7654_3210;
+    let identify = plain(
+        CONFIG_PAN,
+        BROADCAST,
+        &command(9, Command::Identify { nonce }),
+    );
     n.receive(&identify, 0, &mut b);
     n.receive(&identify, 10, &mut b);
     n.receive(&identify, 999, &mut b);
@@ -299,14 +304,19 @@ fn an_unsecured_scan_is_answered_secured_at_most_once_a_second() {
     assert_eq!(b.out.len(), 2);
     for psdu in &b.out {
         let (_, payload) = open(psdu).expect("the announcement is secured");
-        assert!(matches!(Message::parse(&payload), Ok(Message::Announce(_))));
+        // It carries the ask's nonce back: the scan takes it, and no recorded answer.
+        assert!(matches!(Message::parse(&payload), Ok(Message::Announce(a)) if a.nonce == nonce));
     }
     // A scan asking again within the second is not a security refusal.
     assert_eq!(n.security_counters().not_secured, 0);
     assert_eq!(n.counters().dropped, 2);
     // An unsecured Identify to the node itself is not a scan.
     n.receive(
-        &plain(CONFIG_PAN, NODE, &command(10, Command::Identify)),
+        &plain(
+            CONFIG_PAN,
+            NODE,
+            &command(10, Command::Identify { nonce: 10 }),
+        ),
         5000,
         &mut b,
     );
@@ -324,7 +334,7 @@ fn other_nodes_secured_announcements_are_ignored_not_counted() {
         role: heapless::String::new(),
         table: config_schema::TableId::NONE,
         staged: 0,
-        ack: 0,
+        nonce: 0,
     })
     .emit(&mut announce)
     .unwrap();

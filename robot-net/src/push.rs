@@ -613,6 +613,12 @@ impl Ids {
     }
 }
 
+/// A fresh random nonce for an `Identify` (never 0, which an unprompted `Announce`
+/// carries): its answers, and no earlier ones, carry it back.
+pub fn identify_nonce() -> u64 {
+    rand::random::<u64>().max(1)
+}
+
 /// Sends `command` to `addr` until its status comes back acknowledging it (every
 /// `retry`, at most until `timeout`). A repeat never runs twice on the node.
 pub fn command(
@@ -733,14 +739,14 @@ pub fn statuses_of(
 /// that answer this ask, for `wait`. An unprompted one (an unconfigured node's periodic
 /// announcement) or one answering another ask is not taken: a recorded announcement,
 /// replayed, would stand in for a node that is gone (frame security proves who sent it,
-/// not when; only the ask's id does).
+/// not when; only the ask's nonce does, a fresh random 64-bit one: [`identify_nonce`]).
 pub fn scan(
     radio: &mut ToolRadio,
     ids: &mut Ids,
     wait: Duration,
 ) -> io::Result<BTreeMap<u16, Announce>> {
     let mut found = BTreeMap::new();
-    let id = ids.fresh();
+    let (id, nonce) = (ids.fresh(), identify_nonce());
     let end = crate::deadline(Instant::now(), wait);
     let mut next_ask = Instant::now();
     while Instant::now() < end {
@@ -749,14 +755,14 @@ pub fn scan(
                 BROADCAST,
                 &Message::Command {
                     id,
-                    command: Command::Identify,
+                    command: Command::Identify { nonce },
                 },
             )?;
             next_ask = Instant::now() + Duration::from_millis(300);
         }
         if let Some(r) = radio.recv(next_ask.min(end))? {
             if let Some(Message::Announce(a)) = r.message() {
-                if a.ack == id {
+                if a.nonce == nonce {
                     found.insert(r.src, a);
                 }
             }

@@ -357,7 +357,7 @@ mod tests {
     fn status_payload(ack: u16) -> Vec<u8> {
         let msg = Message::Command {
             id: ack,
-            command: Command::Identify,
+            command: Command::Identify { nonce: 1 },
         };
         let mut buf = [0u8; mac::MAX_PAYLOAD];
         let n = msg.emit(&mut buf).unwrap();

@@ -248,7 +248,7 @@ mod tests {
             role: heapless::String::try_from("VC").unwrap(),
             table: config_schema::TableId::from_crc(0x1234_abcd),
             staged: 0,
-            ack: 0,
+            nonce: 0,
         });
         sealed(header(CONFIG_PAN, node, BROADCAST), 0, 9, key.expose(), &m)
     }
@@ -318,7 +318,7 @@ mod tests {
             s.describe(&announce_from(VC, 3)),
             "0x0011 -> 0xffff  secured EncMic64 key 0 counter 9: \
              Announce(Announce { firmware: 1, generation: 3, role: \"VC\", \
-             table: TableId(0x1234abcd), staged: 0, ack: 0 })"
+             table: TableId(0x1234abcd), staged: 0, nonce: 0 })"
         );
         assert_eq!(s.generations().collect::<Vec<_>>(), [3]);
         assert_eq!(

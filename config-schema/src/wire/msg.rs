@@ -204,8 +204,11 @@ pub enum Command {
     Start,
     /// Leave a fault: back to the initial state.
     Reset,
-    /// Answer with an `Announce` (may be broadcast: a scan).
-    Identify,
+    /// Answer with an `Announce` carrying `nonce` back (may be broadcast: a scan). A
+    /// random 64-bit nonce per ask: a node answers an unsecured broadcast ask (once a
+    /// second), so with a narrower one an attacker could have it sign an answer to every
+    /// value and replay the one a later scan asks for.
+    Identify { nonce: u64 },
     /// Only answer with the status.
     Status,
     /// Answer with the frame security counters (`Message::Security`) instead of the status.
@@ -327,10 +330,10 @@ pub struct Announce {
     pub table: TableId,
     /// The generation staged for the switch-over (0: none).
     pub staged: u32,
-    /// The id of the `Identify` this answers (0: unprompted, the periodic announcement of
-    /// an unconfigured node). The tool takes only the answers to its own ask: a secured
+    /// The nonce of the `Identify` this answers (0: unprompted, the periodic announcement
+    /// of an unconfigured node). The tool takes only the answers to its own ask: a secured
     /// announcement recorded earlier and replayed does not say that a node is there.
-    pub ack: u16,
+    pub nonce: u64,
 }
 
 /// Why a payload is not a message (postcard's reasons: the codec reads what postcard reads
@@ -470,6 +473,34 @@ mod tests {
         assert_eq!(Message::parse(&buf[..n]), Ok(msg));
     }
 
+    /// An `Identify` carries its nonce after the command's variant, as a varint of up to
+    /// 64 bits: the `Announce` that answers carries it back.
+    #[test]
+    fn an_identify_carries_its_nonce() {
+        let msg = Message::Command {
+            id: 7,
+            command: Command::Identify { nonce: 300 },
+        };
+        let mut buf = [0u8; 16];
+        let n = msg.emit(&mut buf).unwrap();
+        assert_eq!(&buf[..n], &[6, 7, 2, 0xAC, 0x02]);
+        assert_eq!(Message::parse(&buf[..n]), Ok(msg));
+        let widest = [
+            6, 7, 2, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0x01,
+        ];
+        assert_eq!(
+            Message::parse(&widest),
+            Ok(Message::Command {
+                id: 7,
+                command: Command::Identify { nonce: u64::MAX },
+            })
+        );
+        // One bit more than 64 is no nonce.
+        let mut over = widest;
+        over[12] = 0x02;
+        assert!(Message::parse(&over).is_err());
+    }
+
     #[test]
     fn an_announce_carries_the_table_identity_as_four_bytes_after_the_role() {
         let msg = Message::Announce(Announce {
@@ -478,13 +509,16 @@ mod tests {
             role: String::try_from("VC").unwrap(),
             table: TableId::from_crc(0x1234_ABCD),
             staged: 0,
-            ack: 0x1234,
+            nonce: 0x1234_5678_9ABC_DEF0,
         });
         let mut buf = [0u8; 32];
         let n = msg.emit(&mut buf).unwrap();
         assert_eq!(
             &buf[..n],
-            &[8, 1, 0xAC, 0x02, 2, b'V', b'C', 0xCD, 0xAB, 0x34, 0x12, 0, 0xB4, 0x24]
+            &[
+                8, 1, 0xAC, 0x02, 2, b'V', b'C', 0xCD, 0xAB, 0x34, 0x12, 0, 0xF0, 0xBD, 0xF3, 0xD5,
+                0x89, 0xCF, 0x95, 0x9A, 0x12
+            ]
         );
         assert_eq!(Message::parse(&buf[..n]), Ok(msg));
     }

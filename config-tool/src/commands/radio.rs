@@ -244,14 +244,15 @@ pub fn scan(robot: Option<&Path>, at: &MediumAddr, keys: &KeysArg) -> Result<(),
             .filter(|a| !found.contains_key(a))
             .collect();
         for addr in quiet {
+            let nonce = push::identify_nonce();
             let announce = push::ask(
                 &mut radio,
                 &mut ids,
                 addr,
-                Command::Identify,
+                Command::Identify { nonce },
                 ASK_QUIET,
-                |m, id| match m {
-                    Message::Announce(a) if a.ack == id => Some(a),
+                |m, _| match m {
+                    Message::Announce(a) if a.nonce == nonce => Some(a),
                     _ => None,
                 },
             )

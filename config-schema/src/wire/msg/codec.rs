@@ -271,7 +271,7 @@ fn for_the_tool<'a>(r: &mut In<'a>, v: u32) -> Message<'a> {
             role: r.role(),
             table: r.table_id(),
             staged: r.u32(),
-            ack: r.u16(),
+            nonce: r.varint(64),
         }),
         9 => Message::Security(security(r)),
         _ => Message::Alarms(alarms(r)),
@@ -346,7 +346,7 @@ fn check_for_the_tool(r: &mut In, v: u32) {
             r.role();
             r.table_id();
             r.u32();
-            r.u16();
+            r.varint(64);
         }
         9 => {
             r.u16();
@@ -415,11 +415,11 @@ fn refusal(r: &mut In) -> Refusal {
     }
 }
 
-/// The commands in variant order.
+/// The commands in variant order (`Identify`, variant 2, has its nonce: read apart).
 const COMMANDS: [Command; 8] = [
     Command::Start,
     Command::Reset,
-    Command::Identify,
+    Command::Identify { nonce: 0 },
     Command::Status,
     Command::Security,
     Command::Home,
@@ -428,8 +428,12 @@ const COMMANDS: [Command; 8] = [
 ];
 
 fn command(r: &mut In) -> Command {
-    let v = r.variant(COMMANDS.len() as u32);
-    COMMANDS.get(v as usize).copied().unwrap_or(Command::Start)
+    match r.variant(COMMANDS.len() as u32) {
+        2 => Command::Identify {
+            nonce: r.varint(64),
+        },
+        v => COMMANDS.get(v as usize).copied().unwrap_or(Command::Start),
+    }
 }
 
 fn switch_step(r: &mut In) -> SwitchStep {
@@ -699,7 +703,13 @@ pub(super) fn emit(m: &Message<'_>, w: &mut Out) {
         Message::Command { id, command } => {
             w.byte(6);
             w.u16(*id);
-            w.byte(*command as u8)
+            match command {
+                Command::Identify { nonce } => {
+                    w.byte(2);
+                    w.varint(*nonce)
+                }
+                c => w.byte(COMMANDS.iter().position(|k| k == c).unwrap_or(0) as u8),
+            }
         }
         Message::Status(s) => {
             w.byte(7);
@@ -712,7 +722,7 @@ pub(super) fn emit(m: &Message<'_>, w: &mut Out) {
             w.bytes(a.role.as_bytes());
             w.raw(&a.table.0);
             w.u32(a.staged);
-            w.u16(a.ack)
+            w.varint(a.nonce)
         }
         Message::Security(s) => {
             w.byte(9);

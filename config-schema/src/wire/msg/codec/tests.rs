@@ -65,6 +65,10 @@ fn n32() -> impl Strategy<Value = u32> {
     prop_oneof![0u32..300, any::<u32>(), Just(u32::MAX)]
 }
 
+fn n64() -> impl Strategy<Value = u64> {
+    prop_oneof![0u64..300, any::<u64>(), Just(u64::MAX)]
+}
+
 fn n16() -> impl Strategy<Value = u16> {
     prop_oneof![0u16..300, any::<u16>(), Just(u16::MAX)]
 }
@@ -111,7 +115,10 @@ fn reply() -> impl Strategy<Value = ConfigReply> {
 
 fn command() -> impl Strategy<Value = Command> {
     // Every command; the properties compare their bytes to postcard's (serde's order).
-    (0..super::COMMANDS.len()).prop_map(|i| super::COMMANDS[i])
+    prop_oneof![
+        (0..super::COMMANDS.len()).prop_map(|i| super::COMMANDS[i]),
+        n64().prop_map(|nonce| Command::Identify { nonce }),
+    ]
 }
 
 fn step() -> impl Strategy<Value = SwitchStep> {
@@ -259,15 +266,15 @@ fn message() -> impl Strategy<Value = Message<'static>> {
         (n32(), reply()).prop_map(|(generation, reply)| Message::ConfigReply { generation, reply }),
         (n16(), command()).prop_map(|(id, command)| Message::Command { id, command }),
         status().prop_map(Message::Status),
-        (n16(), n32(), role(), table_id(), n32(), n16()).prop_map(
-            |(firmware, generation, role, table, staged, ack)| {
+        (n16(), n32(), role(), table_id(), n32(), n64()).prop_map(
+            |(firmware, generation, role, table, staged, nonce)| {
                 Message::Announce(Announce {
                     firmware,
                     generation,
                     role,
                     table,
                     staged,
-                    ack,
+                    nonce,
                 })
             }
         ),
