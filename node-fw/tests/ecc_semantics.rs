@@ -309,6 +309,35 @@ fn an_event_without_a_transition_is_ignored() {
     assert_eq!(e.var(0), Some(1));
 }
 
+/// A transition to a state its chart does not have (only a table that skipped validation
+/// holds one; here chart 0's S0 -> S2 of its two states, where global state 2 is chart 1's
+/// first) moves the chart there and stops: it runs no entry, another chart's neither.
+/// Before, the target's global state was taken as it was: chart 1's S0 entry ran for
+/// chart 0 and drove its output.
+#[test]
+fn a_transition_out_of_its_chart_runs_no_entry() {
+    let mut t = Table::empty("out");
+    events(&mut t, 2);
+    outputs(&mut t, &[false]);
+    t.push_chart(0, 1, &[&[], &[]], &[on(0, 0, 2)]).unwrap();
+    t.push_chart(0, 1, &[&[drive(0, true)], &[]], &[on(0, 0, 1)])
+        .unwrap();
+    route(&mut t, 0, 0, 0);
+    route(&mut t, 1, 1, 0);
+    assert!(validate(&t).is_err());
+    let mut e = Engine::new(&t);
+    let mut fx = Rec::default();
+    e.event(0, &mut fx);
+    assert_eq!(fx.take(), [fired(0, 0, 0, 2)]);
+    assert_eq!((e.state(0), e.state(1), e.outputs()), (Some(2), Some(0), 0));
+    // A chart in a state it does not have takes nothing more.
+    e.event(0, &mut fx);
+    assert_eq!(fx.take(), [Ignored { chart: 0, input: 0 }]);
+    // The other chart is unmoved by it.
+    e.event(1, &mut fx);
+    assert_eq!(fx.take(), [fired(1, 1, 0, 1)]);
+}
+
 // ---------------------------------------------------------------------------------------
 // FIFO of emitted events, several charts
 // ---------------------------------------------------------------------------------------

@@ -390,9 +390,11 @@ impl Index {
                     let Some(slot) = self.steps.get_mut(n) else {
                         continue;
                     };
+                    // A target outside the chart (only in a table that skipped
+                    // validation) has no entry: its transition stops the chart there.
                     let target = first + usize::from(t.to);
                     if let Some(slot) = targets.get_mut(n) {
-                        *slot = if target < MAX_STATES {
+                        *slot = if t.to < layout.states && target < MAX_STATES {
                             target as u8
                         } else {
                             NONE

@@ -544,10 +544,6 @@ impl Run<'_> {
                     // for it).
                     0 | act::END => return Flow::Go,
                     act::FIRE => {
-                        // Only a state of the chart moves on its own.
-                        if to >= states {
-                            return Flow::Go;
-                        }
                         chained += 1;
                         if chained > MAX_CHAIN {
                             self.set_fault(ix, Fault::ChainLimit { chart }, fx);
@@ -568,9 +564,6 @@ impl Run<'_> {
                         continue;
                     }
                     act::CHOOSE => {
-                        if to >= states {
-                            return Flow::Go;
-                        }
                         chained += 1;
                         let steps = ix.state(usize::from(dst)).map_or(Span::EMPTY, |r| r.steps);
                         let step = match self.select(ix.steps(steps), EVENTLESS, table) {
@@ -607,9 +600,6 @@ impl Run<'_> {
                             return Flow::Stop;
                         }
                         // Then the close, as `FIRE` with a stable target.
-                        if to >= states {
-                            return flow;
-                        }
                         chained += 1;
                         if chained > MAX_CHAIN {
                             self.set_fault(ix, Fault::ChainLimit { chart }, fx);
