@@ -415,24 +415,35 @@ fn refusal(r: &mut In) -> Refusal {
     }
 }
 
-/// The commands in variant order (`Identify`, variant 2, has its nonce: read apart).
-const COMMANDS: [Command; 8] = [
-    Command::Start,
-    Command::Reset,
-    Command::Identify { nonce: 0 },
-    Command::Status,
-    Command::Security,
-    Command::Home,
-    Command::Alarms,
-    Command::Ack,
-];
+/// The number of commands (their variants in the order `Command` declares them).
+const COMMANDS: u32 = 8;
+
+/// The variant of `c` (serde's: declaration order).
+fn command_variant(c: &Command) -> u8 {
+    match c {
+        Command::Start => 0,
+        Command::Reset => 1,
+        Command::Identify { .. } => 2,
+        Command::Status => 3,
+        Command::Security => 4,
+        Command::Home => 5,
+        Command::Alarms => 6,
+        Command::Ack => 7,
+    }
+}
 
 fn command(r: &mut In) -> Command {
-    match r.variant(COMMANDS.len() as u32) {
+    match r.variant(COMMANDS) {
+        0 => Command::Start,
+        1 => Command::Reset,
         2 => Command::Identify {
             nonce: r.varint(64),
         },
-        v => COMMANDS.get(v as usize).copied().unwrap_or(Command::Start),
+        3 => Command::Status,
+        4 => Command::Security,
+        5 => Command::Home,
+        6 => Command::Alarms,
+        _ => Command::Ack,
     }
 }
 
@@ -708,7 +719,7 @@ pub(super) fn emit(m: &Message<'_>, w: &mut Out) {
                     w.byte(2);
                     w.varint(*nonce)
                 }
-                c => w.byte(COMMANDS.iter().position(|k| k == c).unwrap_or(0) as u8),
+                c => w.byte(command_variant(c)),
             }
         }
         Message::Status(s) => {

@@ -116,7 +116,15 @@ fn reply() -> impl Strategy<Value = ConfigReply> {
 fn command() -> impl Strategy<Value = Command> {
     // Every command; the properties compare their bytes to postcard's (serde's order).
     prop_oneof![
-        (0..super::COMMANDS.len()).prop_map(|i| super::COMMANDS[i]),
+        prop::sample::select(vec![
+            Command::Start,
+            Command::Reset,
+            Command::Status,
+            Command::Security,
+            Command::Home,
+            Command::Alarms,
+            Command::Ack,
+        ]),
         n64().prop_map(|nonce| Command::Identify { nonce }),
     ]
 }
