@@ -338,6 +338,40 @@ fn a_transition_out_of_its_chart_runs_no_entry() {
     assert_eq!(fx.take(), [fired(1, 1, 0, 1)]);
 }
 
+/// Charts whose states overlap (only a table that skipped validation: here chart 1's end
+/// set back, so chart 2's range starts inside chart 0's): the later chart has no state and
+/// ignores its inputs, and chart 0's walk runs only its own entries. Before, global state 1
+/// was both chart 0's S1 and chart 2's S0: chart 0, entering its S1, took chart 2's
+/// event-less transitions and ran their entries (two outputs driven).
+#[test]
+fn a_chart_overlapping_an_earlier_one_has_no_state() {
+    let mut t = Table::empty("overlap");
+    events(&mut t, 2);
+    outputs(&mut t, &[false, false]);
+    t.push_chart(0, 1, &[&[], &[]], &[on(0, 0, 1)]).unwrap();
+    t.push_chart(0, 0, &[], &[]).unwrap();
+    t.push_chart(
+        0,
+        1,
+        &[&[], &[drive(1, true)], &[drive(0, true)], &[]],
+        &[always(0, 3), always(3, 2), on(2, 0, 1)],
+    )
+    .unwrap();
+    t.charts[1].states_end = 1;
+    route(&mut t, 0, 0, 0);
+    route(&mut t, 1, 2, 0);
+    assert!(validate(&t).is_err());
+    assert_eq!((t.chart_states(0), t.chart_states(2)), (0..2, 1..6));
+    let mut e = Engine::new(&t);
+    let mut fx = Rec::default();
+    e.event(0, &mut fx);
+    assert_eq!(fx.take(), [fired(0, 0, 0, 1)]);
+    assert_eq!((e.state(0), e.outputs()), (Some(1), 0));
+    e.event(1, &mut fx);
+    assert_eq!(fx.take(), [Ignored { chart: 2, input: 0 }]);
+    assert_eq!(e.outputs(), 0);
+}
+
 // ---------------------------------------------------------------------------------------
 // FIFO of emitted events, several charts
 // ---------------------------------------------------------------------------------------

@@ -306,12 +306,20 @@ impl Index {
             start_drive: table.start_drive(),
             fault_drive: table.fault_drive(),
         };
+        // Each chart's states after the previous chart's, inside the pool: a chart whose
+        // range overlaps an earlier one's or passes `MAX_STATES` (only in a table that
+        // skipped validation) has no state, and ignores its inputs. So every global state
+        // is of one chart at most, and a walk of entries is of its own chart's states.
+        let mut free = 0;
         for (c, slot) in ix.layout.iter_mut().enumerate().take(table.charts.len()) {
             let states = table.chart_states(c);
-            *slot = Layout {
-                first_state: states.start.min(usize::from(NONE)) as u8,
-                states: states.len().min(usize::from(NONE)) as u8,
-            };
+            if free <= states.start && states.start <= states.end && states.end <= MAX_STATES {
+                *slot = Layout {
+                    first_state: states.start as u8,
+                    states: states.len() as u8,
+                };
+                free = states.end;
+            }
         }
         for (slot, p) in ix.publications.iter_mut().zip(table.publications.iter()) {
             *slot = *p;
