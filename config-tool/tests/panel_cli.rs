@@ -465,7 +465,6 @@ fn the_panels_confirm_releases_the_node_a_confirmed_trial_left_without_a_role() 
                 .to_string()
         )
     );
-    // (The panel holds the key file's counter while it runs.)
     drop(events);
     drop(panel);
     let scan = m.tool(&["scan", moved]);

@@ -416,10 +416,14 @@ pub enum TrialEnd {
     Faulted { node: u16, rolled_back: Verdict },
     /// Not confirmed within the window: every node was rolled back at its idle point.
     Expired { rolled_back: Verdict },
-    /// A node booted the previous generation during the trial (a power cut: its trial
-    /// slot revoked), `node` the first seen: the others were rolled back at their idle
-    /// point, so the machine runs one generation (nothing was confirmed after it).
+    /// A node runs the previous generation again during the trial (a power cut: its
+    /// trial slot revoked at boot; or a `rollback` of another run of the tool), `node` the
+    /// first seen: the others were rolled back at their idle point, so the machine runs
+    /// one generation (nothing was confirmed after it).
     Reverted { node: u16, rolled_back: Verdict },
+    /// A node runs a generation newer than the trial's (another run of the tool pushed
+    /// it): the watch ends, nothing rolled back or confirmed by it.
+    Superseded { node: u16, generation: u32 },
 }
 
 /// How long a trial is watched: a time, a number of cycles, or whichever ends first.
@@ -469,6 +473,8 @@ pub fn watch_trial_for(
     let end = window.time.and_then(|t| Instant::now().checked_add(t));
     let mut cycles = CycleCount::default();
     let mut confirmed_once = false;
+    // The trial's generation, once a node was seen on it.
+    let mut watched: Option<u32> = None;
     loop {
         // Every node's status: a fault rolls every node back at once; a node that runs
         // the previous generation (it lost power: the trial slot is revoked at boot) ends
@@ -476,6 +482,7 @@ pub fn watch_trial_for(
         let mut confirmed = true;
         let mut trial = None;
         for &node in nodes {
+            let newer = |g: u32| watched.is_some_and(|w| g > w);
             let Some(s) = command(radio, ids, node, Command::Status, every.max(RETRY_FLOOR))?
             else {
                 confirmed = false;
@@ -489,18 +496,23 @@ pub fn watch_trial_for(
                 let (rolled_back, _) = rollback(radio, nodes, previous, false, wait)?;
                 return Ok(TrialEnd::Reverted { node, rolled_back });
             }
+            if newer(s.generation) {
+                let generation = s.generation;
+                return Ok(TrialEnd::Superseded { node, generation });
+            }
             cycles.saw(node, s.cycles);
             if s.trial {
                 trial = Some(s.generation);
+                watched = watched.max(Some(s.generation));
             }
             confirmed &= !s.trial;
         }
         if confirmed {
             return Ok(TrialEnd::Confirmed);
         }
-        // Confirmed by whoever runs the watch (the tool's lock on its counter file keeps
-        // another tool of the same key file from confirming meanwhile), only after a round
-        // in which every node ran the trial: then the next round sees how it went.
+        // Confirmed by whoever runs the watch (or by a `confirm` of another run: then no
+        // node is on trial any more), only after a round in which every node ran the
+        // trial: then the next round sees how it went.
         if let (false, Some(generation), true) = (confirmed_once, trial, confirm_asked()) {
             confirm(radio, nodes, generation, wait)?;
             confirmed_once = true;

@@ -317,3 +317,37 @@ fn confirm_takes_only_a_confirmations_answers() {
     assert!(script.confirms.load(Ordering::SeqCst) >= 2);
     assert!(!script.runs().trial, "confirmed");
 }
+
+/// Another run of the tool pushes generation 3 to every node during the watch of
+/// generation 2's trial. The watch said `Confirmed` ("confirmed: the trial generation
+/// stays", exit 0): no node was on trial any more. Now it ends superseded, rolling
+/// nothing back and confirming nothing.
+#[test]
+fn a_newer_generation_pushed_elsewhere_during_a_watched_trial_ends_it_superseded() {
+    let scripts = [(0x0061, Script::new(None)), (0x0062, Script::new(None))];
+    let pushed = Runs {
+        generation: 3,
+        trial: false,
+        previous: 2,
+    };
+    // Asked once a round: after the first round (both seen on trial), the push lands.
+    let end = watch(&scripts, Duration::from_secs(600), &|| {
+        for (_, s) in &scripts {
+            if s.statuses.load(Ordering::SeqCst) >= 1 {
+                *s.runs.lock().unwrap() = pushed;
+            }
+        }
+        false
+    });
+    assert_eq!(
+        end,
+        TrialEnd::Superseded {
+            node: 0x0061,
+            generation: 3
+        }
+    );
+    assert!(scripts.iter().all(|s| s.1.runs().generation == 3));
+    assert!(scripts
+        .iter()
+        .all(|s| s.1.confirms.load(Ordering::SeqCst) == 0));
+}

@@ -508,9 +508,16 @@ fn watch(
         push::TrialEnd::Reverted { node, rolled_back } => Err(Failure {
             code: exit::PUSH_FAILED,
             ..Failure::error(format!(
-                "node {node:#06x} booted generation {previous} during the trial (a power \
-                 cut): {}",
+                "node {node:#06x} runs generation {previous} again during the trial (a power \
+                 cut, or a rollback from another terminal): {}",
                 back_text(previous, rolled_back)
+            ))
+        }),
+        push::TrialEnd::Superseded { node, generation } => Err(Failure {
+            code: exit::PUSH_FAILED,
+            ..Failure::error(format!(
+                "node {node:#06x} runs generation {generation}, pushed from another terminal \
+                 during the trial: the watch ends, nothing rolled back"
             ))
         }),
         push::TrialEnd::Expired { rolled_back } => Err(Failure {
