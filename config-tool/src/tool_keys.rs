@@ -156,27 +156,58 @@ struct Shared {
 }
 
 impl Shared {
+    /// Whether the counter file's path still names the file this run has open.
+    fn is_at_path(&self) -> bool {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            let (Ok(open), Ok(named)) =
+                (self.file.metadata(), std::fs::symlink_metadata(&self.path))
+            else {
+                return false;
+            };
+            (open.dev(), open.ino()) == (named.dev(), named.ino())
+        }
+        #[cfg(not(unix))]
+        true
+    }
+
     /// A counter above every one handed out before, by this run or any other: taken under
-    /// the counter file's lock, after reading the file again.
+    /// the counter file's lock, after reading the file again. A file replaced since (a
+    /// rename over it: a restored copy) is the counter's from then on: its lock is taken
+    /// and the counter goes on there above both.
     fn next(&mut self) -> io::Result<u32> {
-        hold(&self.file, &self.path).map_err(|e| io::Error::other(e.to_string()))?;
-        let next = self.counter.catch_up().and_then(|()| self.counter.next());
+        let failed = |e: ToolKeyError| io::Error::other(e.to_string());
+        hold(&self.file, &self.path).map_err(failed)?;
+        let next = self.next_held();
         unlock(&self.file);
-        next.map_err(|e| {
+        next
+    }
+
+    /// [`Shared::next`] under the lock.
+    fn next_held(&mut self) -> io::Result<u32> {
+        let path = self.path.display();
+        let counter_error = |e: CounterError<_>| {
             io::Error::other(match e {
                 CounterError::Exhausted => format!(
-                    "counter file {}: used up (2^31 frames): make a new machine secret \
-                     (`keys new`) and provision the nodes again",
-                    self.path.display()
+                    "counter file {path}: used up (2^31 frames): make a new machine secret \
+                     (`keys new`) and provision the nodes again"
                 ),
-                CounterError::Flash(e) => {
-                    format!("counter file {}: {e:?}", self.path.display())
-                }
-                CounterError::Geometry => {
-                    format!("counter file {}: not two pages", self.path.display())
-                }
+                CounterError::Flash(e) => format!("counter file {path}: {e:?}"),
+                CounterError::Geometry => format!("counter file {path}: not two pages"),
             })
-        })
+        };
+        if !self.is_at_path() {
+            let file = lock(&self.path).map_err(|e| io::Error::other(e.to_string()))?;
+            // The new file's lock is held from here (the old one's goes with it).
+            unlock(&std::mem::replace(&mut self.file, file));
+            let flash = HostFlash::open_counter(&self.path)
+                .map_err(|e| io::Error::other(format!("counter file {path}: {e}")))?;
+            self.counter.move_to(flash).map_err(counter_error)?;
+        }
+        (self.counter.catch_up())
+            .and_then(|()| self.counter.next())
+            .map_err(counter_error)
     }
 }
 
@@ -323,6 +354,34 @@ mod tests {
             std::fs::metadata(counter_path(&key)).unwrap().len(),
             COUNTER_FILE_SIZE as u64
         );
+    }
+
+    /// The counter file set back under a running run, to a copy taken earlier: written
+    /// over in place, or renamed over it (a restored backup, a synced copy). Either way
+    /// the run's next frame writes its reservation into the file that is there now, and a
+    /// later run starts above everything the first handed out. Renamed over it, the run
+    /// went on with the file it had open, and the later run started inside what it had
+    /// handed out (counters, so nonces, used twice).
+    #[test]
+    fn a_counter_file_set_back_under_a_run_is_caught_up() {
+        for replaced in [false, true] {
+            let key = key_file(if replaced { "renamed" } else { "in-place" });
+            let path = counter_path(&key);
+            let copy = path.with_extension("copy");
+            let mut a = open(&key).unwrap();
+            assert_eq!((a.counter)().ok(), Some(0));
+            std::fs::copy(&path, &copy).unwrap();
+            let sent: Vec<u32> = (0..1500).map(|_| (a.counter)().unwrap()).collect();
+            assert_eq!(sent.last(), Some(&1500));
+            if replaced {
+                std::fs::rename(&copy, &path).unwrap();
+            } else {
+                std::fs::copy(&copy, &path).unwrap();
+            }
+            assert_eq!((a.counter)().ok(), Some(1501), "replaced: {replaced}");
+            let mut later = open(&key).unwrap();
+            assert_eq!((later.counter)().ok(), Some(2048), "replaced: {replaced}");
+        }
     }
 
     /// A run that holds the counter file's lock for longer than [`LOCK_WAIT`] (stopped

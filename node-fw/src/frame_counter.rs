@@ -215,6 +215,16 @@ impl<F: NorFlash> FrameCounter<F> {
         Ok(n)
     }
 
+    /// Moves the counter to `flash`, a region that stands for its own (the tool's counter
+    /// file replaced under a running run, by a rename: a restored copy), and catches up
+    /// with it ([`FrameCounter::catch_up`]): a larger reservation there moves the counter
+    /// up, a smaller one gets the counter's own written first. Gives the old region back.
+    pub fn move_to(&mut self, flash: F) -> Result<F, CounterError<F::Error>> {
+        let old = core::mem::replace(&mut self.flash, flash);
+        self.catch_up()?;
+        Ok(old)
+    }
+
     /// The counter `next` will hand out.
     pub fn peek(&self) -> u32 {
         self.next
@@ -482,6 +492,25 @@ mod tests {
         c.catch_up().expect("reads");
         assert_eq!(c.next(), Ok(1));
         assert_eq!(open(c.into_inner(), 8).next(), Ok(8));
+    }
+
+    /// A counter moved to a region that holds less (a file replaced under it by an older
+    /// copy) writes its own reservation there first: a later open starts above everything
+    /// it handed out. Moved to one that holds more, it goes on above that.
+    #[test]
+    fn a_counter_moved_to_another_region_keeps_above_both() {
+        let mut c = open(Flash::new(), 8);
+        let older = c.flash.clone();
+        for n in 0..12 {
+            assert_eq!(c.next(), Ok(n));
+        }
+        c.move_to(older).expect("moves");
+        assert_eq!(c.next(), Ok(12));
+        assert_eq!(open(c.flash.clone(), 8).next(), Ok(16));
+        let mut ahead = open(Flash::new(), 8);
+        ahead.flash.bytes[..16].copy_from_slice(&encode(40));
+        c.move_to(ahead.into_inner()).expect("moves");
+        assert_eq!(c.next(), Ok(40));
     }
 
     #[test]
