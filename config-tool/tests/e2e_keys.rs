@@ -514,6 +514,38 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
         status(&key_s, &m, "0x0011")[0],
         "0x0011  role VC  generation 7"
     );
+    // A `rollback` from another terminal ends a watched trial too: the watch said the
+    // node had lost power.
+    let mut watching = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(push_args(&key_s, &m, "8", &["--trial", "--watch", "600"]))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .env_remove("CONFIG_TOOL_KEYS")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("push");
+    let mut lines = BufReader::new(watching.stdout.take().expect("stdout")).lines();
+    while !(lines.next().expect("push said more").expect("a line"))
+        .starts_with("watching the trial")
+    {}
+    ok(&["rollback", ROBOT, "--keys", &key_s, "--medium", &m]);
+    let rest: Vec<String> = lines.map_while(Result::ok).collect();
+    let done = watching.wait_with_output().expect("ends");
+    let said = text(&done.stderr);
+    assert_eq!((done.status.code(), rest), (Some(3), vec![]), "{said}");
+    assert!(
+        said.starts_with("error: node 0x00")
+            && said.contains(
+                " runs generation 7 again during the trial (a power cut, or a rollback from \
+                 another terminal): "
+            ),
+        "{said}"
+    );
+    assert_eq!(
+        status(&key_s, &m, "0x0011")[0],
+        "0x0011  role VC  generation 7"
+    );
 
     stop.store(true, Ordering::Relaxed);
     drop(nodes);
