@@ -85,6 +85,10 @@ pub const OPEN_IDENTIFY_MS: u64 = ANNOUNCE_MS;
 /// A node sends at most one `Challenge` per this many ms (each spends a frame counter:
 /// a flood of replays must not use it up).
 pub const CHALLENGE_MS: u64 = 50;
+/// Commands that act whose (sender, id) a node remembers, to answer a repeat without
+/// running it again: eight, over every sender (a tool's command is resent every 150 ms
+/// until it is answered; eight others that act would have to come in between).
+pub const RECENT_COMMANDS: usize = 8;
 
 /// A transfer waiting to be staged in flash: its blob is in the OTA buffer (decoded and
 /// validated already).
@@ -162,8 +166,11 @@ pub struct NodeCore<S = RamStaging> {
     /// The peers' restarts heard.
     restarts: restart::Heard,
     next_announce: u64,
-    /// The last command id run per sender: a repeat is answered, not run again.
-    commands: Vec<(u16, u16), 4>,
+    /// The (sender, id) of the last commands run that act (START, RESET, HOME, ACK), oldest
+    /// first: a repeat is answered, not run again. Several per sender: runs of the tool at
+    /// once share its address, and one may resend its command after another's came in
+    /// between.
+    commands: Vec<(u16, u16), RECENT_COMMANDS>,
     /// Board pin levels as last reported (bit = pin number), kept while unconfigured too,
     /// so a new table starts from the switches' real positions.
     pins: u64,
@@ -2014,17 +2021,19 @@ impl<S: StagingArea> NodeCore<S> {
             self.send(io, pan, src, &a);
             return;
         }
-        let seen = self.commands.iter().position(|(from, _)| *from == src);
-        let repeat = seen.is_some_and(|i| self.commands[i].1 == id);
+        // Only a command that does something is remembered: a status asked again is
+        // answered again, and the tools' polls do not push a START out of the memory.
+        let acts = matches!(
+            cmd,
+            Command::Start | Command::Reset | Command::Home | Command::Ack
+        );
+        let repeat = acts && self.commands.contains(&(src, id));
         if !repeat {
-            match seen {
-                Some(i) => self.commands[i].1 = id,
-                None => {
-                    if self.commands.is_full() {
-                        crate::remove_at(&mut self.commands, 0);
-                    }
-                    let _ = self.commands.push((src, id));
+            if acts {
+                if self.commands.is_full() {
+                    crate::remove_at(&mut self.commands, 0);
                 }
+                let _ = self.commands.push((src, id));
             }
             // A latched fault alarm: nothing starts or moves until it is acknowledged.
             let blocked = self.alarms.blocking().is_some();

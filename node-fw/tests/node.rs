@@ -503,6 +503,31 @@ fn a_repeated_command_is_acknowledged_but_runs_once() {
     );
 }
 
+/// Two runs of the tool at once (a panel and a CLI command share the tool's address): one
+/// resends its START (id 7, its answer lost) after the other's command (id 8) came in
+/// between. The node remembered one id per sender, took the resent START for a new one and
+/// ran it twice.
+#[test]
+fn a_command_resent_after_another_runs_command_runs_once() {
+    let mut net = Net::new(0.0, 0.0, 11);
+    assert_eq!(net.push(A, &table_a(1), false), ota::Progress::Done);
+    assert_eq!(net.push(B, &table_b(1), false), ota::Progress::Done);
+    net.nodes[1].1.pins.clear();
+    let command = |id, command| Message::Command { id, command };
+    // Between them, another run's ACK (id 8) and its polls.
+    let mut between: Vec<_> = (100..120).map(|id| command(id, Command::Status)).collect();
+    between.push(command(8, Command::Ack));
+    let sent = [command(7, Command::Start)]
+        .into_iter()
+        .chain(between)
+        .chain([command(7, Command::Start)]);
+    for m in sent {
+        net.tool_send(A, &m);
+        net.run(200);
+    }
+    assert_eq!(net.nodes[1].1.pins, vec![(LAMP_PIN, true)], "one START ran");
+}
+
 #[test]
 fn a_switch_already_closed_at_activation_raises_no_event() {
     let mut net = Net::new(0.0, 0.0, 13);

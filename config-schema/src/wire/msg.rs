@@ -42,9 +42,11 @@ pub enum Message<'a> {
     ConfigEnd { generation: u32 },
     /// The node's answer to every config message.
     ConfigReply { generation: u32, reply: ConfigReply },
-    /// An operator command. `id` tells repeats apart: a node runs each (sender, id) once and
-    /// answers every copy with its `Status` (whose `ack` is the id), so the tool can resend a
-    /// START until it is acknowledged without ever starting a second cycle.
+    /// An operator command. `id` tells repeats apart: a node runs each (sender, id) once
+    /// (of the last eight that act: START, RESET, HOME, ACK, whoever sent them) and answers
+    /// every copy (a `Status`, whose `ack` is the id), so the tool can resend a START until
+    /// it is acknowledged without ever starting a second cycle, while other runs of the
+    /// tool send their own commands in between.
     Command { id: u16, command: Command },
     /// The node's status: the answer to every command but `Identify`.
     Status(Status),
