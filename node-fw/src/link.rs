@@ -383,6 +383,25 @@ impl Receiver {
         Some(wanted)
     }
 
+    /// [`Receiver::receive`] of the event this receiver expects next (`seq` the next of
+    /// the epoch it is at) while it holds none: the one event to deliver is this one, and
+    /// `Some(next)`, to acknowledge with, is what `receive` returns. `None`: any other
+    /// frame, nothing changed ([`Receiver::receive`] takes it).
+    #[inline(always)]
+    pub fn next_in_order(&mut self, epoch: u16, seq: u16) -> Option<u16> {
+        match self.cursor {
+            Cursor::At {
+                epoch: current,
+                next,
+            } if current == epoch && next == seq && self.held == [None; WINDOW] => {
+                let next = next.wrapping_add(1);
+                self.cursor = Cursor::At { epoch, next };
+                Some(next)
+            }
+            _ => None,
+        }
+    }
+
     fn drop_frame(&mut self) -> Option<u16> {
         self.dropped += 1;
         None

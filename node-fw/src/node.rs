@@ -1757,6 +1757,17 @@ impl<S: StagingArea> NodeCore<S> {
         }
     }
 
+    /// The short path of [`NodeCore::receive_event`]: event `seq` of `epoch` from `src` is
+    /// the one its link receiver expects next, and it holds none (a running link's every
+    /// event: [`link::Receiver::next_in_order`]). The peer's index and the ack's `next`;
+    /// the one topic to deliver is the event's. `None`: any other event, nothing changed.
+    #[inline(always)]
+    fn next_in_order(&mut self, src: u16, epoch: u16, seq: u16) -> Option<(usize, u16)> {
+        let peer = self.peer(src)?;
+        let (_, receiver) = self.receivers.get_mut(peer)?;
+        Some((peer, receiver.next_in_order(epoch, seq)?))
+    }
+
     /// Event `seq` (`topic`, `epoch`) from `src` to its link receiver, which pushes the
     /// topics to deliver now onto `deliver` (empty), in order: the peer's index and the
     /// ack's `next` if one is due. `None`: `src` is no peer (the frame counted as
@@ -1778,33 +1789,27 @@ impl<S: StagingArea> NodeCore<S> {
 
     /// [`NodeCore::on_event`] of an event that came in clear on the running table's PAN
     /// `pan` with no link keys (so its ack goes in clear: [`Radio::send_link`]), written
-    /// out for [`NodeCore::link_in_clear`]: the same steps, the engine run without the
-    /// stimulus' dispatch ([`NodeCore::run_remote`]).
+    /// out for [`NodeCore::link_in_clear`] for the event its link expects next while none
+    /// is held (a running link's every event: [`NodeCore::next_in_order`]): the same steps,
+    /// the engine run without the stimulus' dispatch ([`NodeCore::run_remote`]). Any other
+    /// event goes to `on_event` itself.
     #[inline(always)]
     fn event_in_clear(
         &mut self,
         pan: u16,
         src: u16,
-        m: (u16, u16, u8),
+        (epoch, seq, topic): (u16, u16, u8),
         now: u64,
         io: &mut impl Io,
     ) {
-        let mut deliver = Vec::new();
-        let Some((peer, ack)) = self.receive_event(src, m, &mut deliver) else {
+        let Some((peer, next)) = self.next_in_order(src, epoch, seq) else {
+            self.on_event(src, epoch, seq, topic, now, io);
             return;
         };
-        let epoch = m.0;
-        match ack {
-            Some(next) => {
-                let ack = LinkMessage::EventAck { epoch, next };
-                self.radio.send_link(io, pan, src, ack);
-            }
-            None => self.ask_renumbering(peer, pan, src, epoch, now, io),
-        }
-        for &topic in deliver.iter() {
-            crate::count(&mut self.radio.counters.delivered);
-            self.run_remote(now, io, peer as u8, topic);
-        }
+        let ack = LinkMessage::EventAck { epoch, next };
+        self.radio.send_link(io, pan, src, ack);
+        crate::count(&mut self.radio.counters.delivered);
+        self.run_remote(now, io, peer as u8, topic);
     }
 
     /// The receiver of peer `peer` (address `src`) dropped its event of `epoch`: on a
