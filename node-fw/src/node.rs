@@ -1842,12 +1842,18 @@ impl<S: StagingArea> NodeCore<S> {
     }
 
     /// [`NodeCore::run`] of a remote event: `topic` from peer `peer` (written out for the
-    /// event path, without the stimulus' dispatch).
+    /// event path, without the stimulus' dispatch). The subscribed event is found here and
+    /// raised as [`Engine::remote`] raises it ([`Engine::event`]); none: the engine is not
+    /// run (it would raise nothing, and change nothing the alarms read).
     #[inline(always)]
     fn run_remote(&mut self, now: u64, io: &mut impl Io, peer: u8, topic: u8) {
-        self.on_engine(now, io, |engine, fx| {
-            engine.remote(peer, topic, fx);
+        let subscribed = (self.table.as_ref()).and_then(|t| {
+            (t.subscriptions.iter()).find(|s| s.publisher == peer && s.topic == topic)
         });
+        let Some(&config_schema::Subscription { event, .. }) = subscribed else {
+            return;
+        };
+        self.on_engine(now, io, |engine, fx| engine.event(event, fx));
     }
 
     fn on_config(&mut self, msg: &Message<'_>, src: u16, pan: u16, io: &mut impl Io) {
