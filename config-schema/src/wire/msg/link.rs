@@ -29,8 +29,9 @@ impl LinkMessage {
 
     /// `payload` as an `Event` or `EventAck` in its canonical encoding; `None`: anything
     /// else (another message, a longer encoding, trailing bytes: [`Message::parse_node`]'s
-    /// codec path).
-    #[inline]
+    /// codec path). Inline: an event of a link's first 16,384 is read in its caller's code
+    /// (a call cost more than the read); anything else out of line.
+    #[inline(always)]
     pub fn parse(payload: &[u8]) -> Option<LinkMessage> {
         // An event with a one-byte epoch and a one- or two-byte seq (a link's first 16,384
         // events), matched as a whole; anything else is read field by field below.
@@ -51,6 +52,12 @@ impl LinkMessage {
             }
             _ => {}
         }
+        Self::parse_fields(payload)
+    }
+
+    /// [`LinkMessage::parse`] of anything but a short event: field by field.
+    #[inline(never)]
+    fn parse_fields(payload: &[u8]) -> Option<LinkMessage> {
         let (&tag, rest) = payload.split_first()?;
         match tag {
             EVENT => {
