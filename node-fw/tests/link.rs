@@ -325,6 +325,32 @@ proptest! {
     }
 }
 
+proptest! {
+    /// The short path of the event expected next (`Receiver::next_in_order`, the topic
+    /// delivered alone), taking every other event to `Receiver::receive`, answers and
+    /// delivers as `receive` alone does, and leaves the receiver as it does.
+    #[test]
+    fn the_event_expected_next_is_taken_as_receive_takes_it(
+        events in proptest::collection::vec((0u16..3, 0u16..8, any::<u8>()), 0..40),
+    ) {
+        let (mut short, mut general) = (Receiver::new(), Receiver::new());
+        for (epoch, seq, topic) in events {
+            let mut deliver = heapless::Vec::new();
+            let ack = general.receive(epoch, seq, topic, &mut deliver);
+            let (ours, delivered) = match short.next_in_order(epoch, seq) {
+                Some(next) => (Some(next), vec![topic]),
+                None => {
+                    let mut d = heapless::Vec::new();
+                    (short.receive(epoch, seq, topic, &mut d), d.to_vec())
+                }
+            };
+            prop_assert_eq!(ours, ack);
+            prop_assert_eq!(delivered, deliver.to_vec());
+            prop_assert_eq!(short, general);
+        }
+    }
+}
+
 /// A fresh receiver (its node booted while the publisher numbered on) asks for the link
 /// numbered again in the epoch after the one it dropped, `ASK_MS` after the first event it
 /// dropped, then at most once per `ASK_MS`, and takes no older epoch from then on; once it
