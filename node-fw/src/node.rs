@@ -1235,7 +1235,7 @@ impl<S: StagingArea> NodeCore<S> {
         {
             return false;
         }
-        let Some(m) = LinkMessage::parse(payload) else {
+        let Some(m) = LinkMessage::parse_inline(payload) else {
             return false;
         };
         crate::count(&mut self.radio.counters.received);

@@ -29,30 +29,39 @@ impl LinkMessage {
 
     /// `payload` as an `Event` or `EventAck` in its canonical encoding; `None`: anything
     /// else (another message, a longer encoding, trailing bytes: [`Message::parse_node`]'s
-    /// codec path). Inline: an event of a link's first 16,384 is read in its caller's code
-    /// (a call cost more than the read); anything else out of line.
-    #[inline(always)]
+    /// codec path).
+    #[inline]
     pub fn parse(payload: &[u8]) -> Option<LinkMessage> {
-        // An event with a one-byte epoch and a one- or two-byte seq (a link's first 16,384
-        // events), matched as a whole; anything else is read field by field below.
+        Self::short_event(payload).or_else(|| Self::parse_fields(payload))
+    }
+
+    /// [`LinkMessage::parse`] with an event of a link's first 16,384 read in the caller's
+    /// code (a call cost more than the read: the node core's short path of a frame in
+    /// clear); anything else by `parse`.
+    #[inline(always)]
+    pub fn parse_inline(payload: &[u8]) -> Option<LinkMessage> {
+        Self::short_event(payload).or_else(|| Self::parse(payload))
+    }
+
+    /// An event with a one-byte epoch and a one- or two-byte seq (a link's first 16,384
+    /// events), matched as a whole; `None`: anything else (read field by field).
+    #[inline(always)]
+    fn short_event(payload: &[u8]) -> Option<LinkMessage> {
         match *payload {
-            [EVENT, epoch, seq, topic] if epoch < 0x80 && seq < 0x80 => {
-                return Some(LinkMessage::Event {
-                    epoch: u16::from(epoch),
-                    seq: u16::from(seq),
-                    topic,
-                });
-            }
+            [EVENT, epoch, seq, topic] if epoch < 0x80 && seq < 0x80 => Some(LinkMessage::Event {
+                epoch: u16::from(epoch),
+                seq: u16::from(seq),
+                topic,
+            }),
             [EVENT, epoch, s0, s1, topic] if epoch < 0x80 && s0 >= 0x80 && s1 != 0 && s1 < 0x80 => {
-                return Some(LinkMessage::Event {
+                Some(LinkMessage::Event {
                     epoch: u16::from(epoch),
                     seq: u16::from(s0 & 0x7F) | u16::from(s1) << 7,
                     topic,
-                });
+                })
             }
-            _ => {}
+            _ => None,
         }
-        Self::parse_fields(payload)
     }
 
     /// [`LinkMessage::parse`] of anything but a short event: field by field.
