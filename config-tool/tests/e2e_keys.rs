@@ -9,7 +9,7 @@ mod e2e_support;
 
 use std::io::{BufRead, BufReader, Write};
 use std::path::Path;
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Child, ChildStdout, Command, Output, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc};
 use std::time::Instant;
@@ -85,6 +85,41 @@ fn reservations(counter: &Path) -> Vec<u32> {
             word(r, 4)
         })
         .collect()
+}
+
+/// `push` of `generation` on trial, watched for 600 s, running: the process and its
+/// standard output's lines.
+fn watched_push(
+    key: &str,
+    medium: &str,
+    generation: &str,
+) -> (Child, std::io::Lines<BufReader<ChildStdout>>) {
+    let mut watching = Command::new(env!("CARGO_BIN_EXE_config-tool"))
+        .args(push_args(
+            key,
+            medium,
+            generation,
+            &["--trial", "--watch", "600"],
+        ))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .env_remove("CONFIG_TOOL_KEYS")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("push");
+    let lines = BufReader::new(watching.stdout.take().expect("stdout")).lines();
+    (watching, lines)
+}
+
+/// `lines` past the watched push's "watching the trial" line.
+fn until_watching(
+    mut lines: std::io::Lines<BufReader<ChildStdout>>,
+) -> std::io::Lines<BufReader<ChildStdout>> {
+    while !(lines.next().expect("push said more").expect("a line"))
+        .starts_with("watching the trial")
+    {}
+    lines
 }
 
 /// `status --keys` of `node`, as lines.
@@ -435,16 +470,7 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     );
     // A watched trial confirmed where it is watched: `confirm` typed on the push's
     // standard input.
-    let mut watching = Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .args(push_args(&key_s, &m, "6", &["--trial", "--watch", "600"]))
-        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
-        .env_remove("CONFIG_TOOL_KEYS")
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("push");
-    let mut lines = BufReader::new(watching.stdout.take().expect("stdout")).lines();
+    let (mut watching, mut lines) = watched_push(&key_s, &m, "6");
     let watching_line = loop {
         let line = lines.next().expect("push said more").expect("a line");
         if line.starts_with("watching the trial") {
@@ -476,19 +502,8 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     // nodes take no counter at or below the last one they took). Before, the second run
     // was refused ("in use by another config-tool process") until the watch ended, and
     // the trial rolled back.
-    let mut watching = Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .args(push_args(&key_s, &m, "7", &["--trial", "--watch", "600"]))
-        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
-        .env_remove("CONFIG_TOOL_KEYS")
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("push");
-    let mut lines = BufReader::new(watching.stdout.take().expect("stdout")).lines();
-    while !(lines.next().expect("push said more").expect("a line"))
-        .starts_with("watching the trial")
-    {}
+    let (watching, lines) = watched_push(&key_s, &m, "7");
+    let lines = until_watching(lines);
     let before = reservations(&counter);
     let kept = ok(&["confirm", ROBOT, "--keys", &key_s, "--medium", &m]);
     assert!(
@@ -516,19 +531,8 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     );
     // A `rollback` from another terminal ends a watched trial too: the watch said the
     // node had lost power.
-    let mut watching = Command::new(env!("CARGO_BIN_EXE_config-tool"))
-        .args(push_args(&key_s, &m, "8", &["--trial", "--watch", "600"]))
-        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
-        .env_remove("CONFIG_TOOL_KEYS")
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("push");
-    let mut lines = BufReader::new(watching.stdout.take().expect("stdout")).lines();
-    while !(lines.next().expect("push said more").expect("a line"))
-        .starts_with("watching the trial")
-    {}
+    let (watching, lines) = watched_push(&key_s, &m, "8");
+    let lines = until_watching(lines);
     ok(&["rollback", ROBOT, "--keys", &key_s, "--medium", &m]);
     let rest: Vec<String> = lines.map_while(Result::ok).collect();
     let done = watching.wait_with_output().expect("ends");
