@@ -89,6 +89,10 @@ pub const CHALLENGE_MS: u64 = 50;
 /// running it again: eight, over every sender (a tool's command is resent every 150 ms
 /// until it is answered; eight others that act would have to come in between).
 pub const RECENT_COMMANDS: usize = 8;
+/// How long a command that acts is taken for a repeat of the one before with its (sender,
+/// id): six times the 5 s a tool resends it for. Later, the same (sender, id) is a new
+/// command (a new run of the tool drew the id again: ids are 16 bits).
+pub const REPEAT_MS: u32 = 30_000;
 
 /// A transfer waiting to be staged in flash: its blob is in the OTA buffer (decoded and
 /// validated already).
@@ -166,11 +170,11 @@ pub struct NodeCore<S = RamStaging> {
     /// The peers' restarts heard.
     restarts: restart::Heard,
     next_announce: u64,
-    /// The (sender, id) of the last commands run that act (START, RESET, HOME, ACK), oldest
-    /// first: a repeat is answered, not run again. Several per sender: runs of the tool at
-    /// once share its address, and one may resend its command after another's came in
-    /// between.
-    commands: Vec<(u16, u16), RECENT_COMMANDS>,
+    /// The (sender, id, when: ms, wrapping) of the last commands run that act (START,
+    /// RESET, HOME, ACK), oldest first: a repeat within [`REPEAT_MS`] is answered, not run
+    /// again. Several per sender: runs of the tool at once share its address, and one may
+    /// resend its command after another's came in between.
+    commands: Vec<(u16, u16, u32), RECENT_COMMANDS>,
     /// Board pin levels as last reported (bit = pin number), kept while unconfigured too,
     /// so a new table starts from the switches' real positions.
     pins: u64,
@@ -2038,13 +2042,17 @@ impl<S: StagingArea> NodeCore<S> {
             cmd,
             Command::Start | Command::Reset | Command::Home | Command::Ack
         );
-        let repeat = acts && self.commands.contains(&(src, id));
+        let at = now as u32;
+        let repeat = acts
+            && (self.commands.iter()).any(|&(from, was, when)| {
+                (from, was) == (src, id) && at.wrapping_sub(when) < REPEAT_MS
+            });
         if !repeat {
             if acts {
                 if self.commands.is_full() {
                     crate::remove_at(&mut self.commands, 0);
                 }
-                let _ = self.commands.push((src, id));
+                let _ = self.commands.push((src, id, at));
             }
             // A latched fault alarm: nothing starts or moves until it is acknowledged.
             let blocked = self.alarms.blocking().is_some();

@@ -526,6 +526,15 @@ fn a_command_resent_after_another_runs_command_runs_once() {
         net.run(200);
     }
     assert_eq!(net.nodes[1].1.pins, vec![(LAMP_PIN, true)], "one START ran");
+    // Past `REPEAT_MS`, the same id is a new command (a later run drew it again).
+    net.run(u64::from(node_fw::node::REPEAT_MS));
+    net.tool_send(A, &command(7, Command::Start));
+    net.run(200);
+    assert_eq!(
+        net.nodes[1].1.pins,
+        vec![(LAMP_PIN, true), (LAMP_PIN, false)],
+        "a START again"
+    );
 }
 
 #[test]
