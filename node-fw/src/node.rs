@@ -89,8 +89,8 @@ pub const CHALLENGE_MS: u64 = 50;
 /// running it again: eight, over every sender (a tool's command is resent every 150 ms
 /// until it is answered; eight others that act would have to come in between).
 pub const RECENT_COMMANDS: usize = 8;
-/// How long a command that acts is taken for a repeat of the one before with its (sender,
-/// id): six times the 5 s a tool resends it for. Later, the same (sender, id) is a new
+/// How long without a command that acts makes a node forget the ones it remembers: six
+/// times the 5 s a tool resends one for. After it, a (sender, id) remembered is a new
 /// command (a new run of the tool drew the id again: ids are 16 bits).
 pub const REPEAT_MS: u32 = 30_000;
 
@@ -170,11 +170,13 @@ pub struct NodeCore<S = RamStaging> {
     /// The peers' restarts heard.
     restarts: restart::Heard,
     next_announce: u64,
-    /// The (sender, id, when: ms, wrapping) of the last commands run that act (START,
-    /// RESET, HOME, ACK), oldest first: a repeat within [`REPEAT_MS`] is answered, not run
-    /// again. Several per sender: runs of the tool at once share its address, and one may
-    /// resend its command after another's came in between.
-    commands: Vec<(u16, u16, u32), RECENT_COMMANDS>,
+    /// The (sender, id) of the last commands run that act (START, RESET, HOME, ACK), oldest
+    /// first: a repeat is answered, not run again. Several per sender: runs of the tool at
+    /// once share its address, and one may resend its command after another's came in
+    /// between. Forgotten after [`REPEAT_MS`] without one (`commands_at`: when the last
+    /// came, ms, wrapping).
+    commands: Vec<(u16, u16), RECENT_COMMANDS>,
+    commands_at: u32,
     /// Board pin levels as last reported (bit = pin number), kept while unconfigured too,
     /// so a new table starts from the switches' real positions.
     pins: u64,
@@ -542,6 +544,7 @@ impl<S: StagingArea> NodeCore<S> {
             restarts: restart::Heard::default(),
             next_announce: 0,
             commands: Vec::new(),
+            commands_at: 0,
             pins: 0,
             replay: ReplayGuard::new(),
             next_open_identify: 0,
@@ -2042,17 +2045,21 @@ impl<S: StagingArea> NodeCore<S> {
             cmd,
             Command::Start | Command::Reset | Command::Home | Command::Ack
         );
-        let at = now as u32;
-        let repeat = acts
-            && (self.commands.iter()).any(|&(from, was, when)| {
-                (from, was) == (src, id) && at.wrapping_sub(when) < REPEAT_MS
-            });
+        if acts {
+            // After a quiet time the ids remembered are another time's: forgotten.
+            let at = now as u32;
+            if at.wrapping_sub(self.commands_at) >= REPEAT_MS {
+                self.commands.clear();
+            }
+            self.commands_at = at;
+        }
+        let repeat = acts && self.commands.contains(&(src, id));
         if !repeat {
             if acts {
                 if self.commands.is_full() {
                     crate::remove_at(&mut self.commands, 0);
                 }
-                let _ = self.commands.push((src, id, at));
+                let _ = self.commands.push((src, id));
             }
             // A latched fault alarm: nothing starts or moves until it is acknowledged.
             let blocked = self.alarms.blocking().is_some();

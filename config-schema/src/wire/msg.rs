@@ -43,8 +43,8 @@ pub enum Message<'a> {
     /// The node's answer to every config message.
     ConfigReply { generation: u32, reply: ConfigReply },
     /// An operator command. `id` tells repeats apart: a node runs each (sender, id) once
-    /// (of the last eight that act, START, RESET, HOME, ACK, whoever sent them, within 30 s:
-    /// `node_fw::node::REPEAT_MS`) and answers
+    /// (of the last eight that act, START, RESET, HOME, ACK, whoever sent them, forgotten
+    /// after 30 s without one: `node_fw::node::REPEAT_MS`) and answers
     /// every copy (a `Status`, whose `ack` is the id), so the tool can resend a START until
     /// it is acknowledged without ever starting a second cycle, while other runs of the
     /// tool send their own commands in between.
