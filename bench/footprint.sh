@@ -22,8 +22,10 @@ NRF_UNSECURED_DIR="$BOARDS/target/unsecured"
 NRF_UNSECURED_ELF="$NRF_UNSECURED_DIR/thumbv7em-none-eabihf/release/nrf52840"
 
 if [ "${1:-}" != "--no-build" ]; then
-    (cd "$BOARDS/qemu-mps2" && cargo build --release --locked -q)
-    (cd "$BOARDS/nrf52840" && cargo build --release --locked -q)
+    # The boards' own target directory (a CARGO_TARGET_DIR set in the shell would build
+    # them elsewhere, and the figures below would be of images built before).
+    (cd "$BOARDS/qemu-mps2" && env -u CARGO_TARGET_DIR cargo build --release --locked -q)
+    (cd "$BOARDS/nrf52840" && env -u CARGO_TARGET_DIR cargo build --release --locked -q)
     (cd "$BOARDS/nrf52840" && CARGO_TARGET_DIR=../target/unsecured \
         cargo build --release --locked -q --no-default-features)
 fi

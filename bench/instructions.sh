@@ -28,7 +28,7 @@ if ! command -v valgrind >/dev/null; then
     exit 1
 fi
 cargo build -q --release -p robot-tests --example instructions
-bin=target/release/examples/instructions
+bin="${CARGO_TARGET_DIR:-target}/release/examples/instructions"
 
 # instructions RUN COUNT: the instructions callgrind counted for `bin RUN COUNT`
 count() {

@@ -15,7 +15,7 @@ log=${SOAK_LOG:-$(mktemp -d)}
 mkdir -p "$log"
 
 cargo build -q --release -p config-tool
-tool=target/release/config-tool
+tool="${CARGO_TARGET_DIR:-target}/release/config-tool"
 
 burners=()
 for _ in 1 2; do
