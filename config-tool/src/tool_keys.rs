@@ -3,16 +3,16 @@
 //! file beside it (`FILE.counter`).
 //!
 //! The counter is the host node's: a `node_fw::frame_counter::FrameCounter` over a host
-//! flash file of two erase pages (`node_fw::host::counter_file`), reserved 1024 ahead, so
-//! it is strictly increasing across runs of the tool and power cuts with one write per run
-//! and per 1024 frames. Runs with the same key file share it, each frame's counter taken
+//! flash file of two erase pages (`node_fw::host::flash::HostFlash::open_counter`),
+//! reserved 1024 ahead, so it is strictly increasing across runs of the tool and power cuts
+//! with one write per run and per 1024 frames. Runs with the same key file share it, each frame's counter taken
 //! under an exclusive advisory lock (`flock`) on the counter file: the run reads the file
 //! again (`FrameCounter::catch_up`) and, if another run reserved above its own
 //! reservation since, goes on above that one. Every counter is then above every one
 //! handed out before it, by any run (the nodes refuse a counter at or below the last one
 //! they took from the tool as a replay), and a panel, a watch or `alarms --watch` can run
 //! while other commands are given. A run waits [`LOCK_WAIT`] at most for another to let
-//! go (a run holds the lock for one read and, once per 1024 frames, one write).
+//! go (a run holds the lock for one read and, when its reservation is used up, one write).
 
 use std::fs::{File, OpenOptions};
 use std::io::{self, Read, Seek, SeekFrom, Write};
@@ -21,7 +21,6 @@ use std::time::{Duration, Instant};
 
 use node_fw::frame_counter::{CounterError, FrameCounter};
 use node_fw::host::flash::{counter_path, HostFlash, OpenError, COUNTER_FILE_SIZE};
-use node_fw::host::HostError;
 use robot_keys::{load_machine_secret, KeyFileError, MachineSecret};
 use robot_net::radio::CounterSource;
 
@@ -121,20 +120,8 @@ pub fn open(key_file: &Path) -> Result<ToolKeys, ToolKeyError> {
     })?;
     let path = counter_path(key_file);
     let file = lock(&path)?;
-    let counter = node_fw::host::counter_file(&path).map_err(|e| match e {
-        HostError::Flash(OpenError::Size {
-            found, expected, ..
-        }) => ToolKeyError::Size {
-            path: path.clone(),
-            found,
-            expected,
-        },
-        HostError::Flash(OpenError::Io(_, source)) => ToolKeyError::Io {
-            path: path.clone(),
-            source,
-        },
-        _ => ToolKeyError::Unreadable(path.clone()),
-    })?;
+    let counter = FrameCounter::open(counter_flash(&path)?)
+        .map_err(|_| ToolKeyError::Unreadable(path.clone()))?;
     unlock(&file);
     let mut shared = Shared {
         file,
@@ -198,11 +185,11 @@ impl Shared {
             })
         };
         if !self.is_at_path() {
-            let file = lock(&self.path).map_err(|e| io::Error::other(e.to_string()))?;
+            let failed = |e: ToolKeyError| io::Error::other(e.to_string());
+            let file = lock(&self.path).map_err(failed)?;
             // The new file's lock is held from here (the old one's goes with it).
             unlock(&std::mem::replace(&mut self.file, file));
-            let flash = HostFlash::open_counter(&self.path)
-                .map_err(|e| io::Error::other(format!("counter file {path}: {e}")))?;
+            let flash = counter_flash(&self.path).map_err(failed)?;
             self.counter.move_to(flash).map_err(counter_error)?;
         }
         (self.counter.catch_up())
@@ -211,9 +198,28 @@ impl Shared {
     }
 }
 
+/// The counter file at `path` (checked and made whole by [`lock`]) as the flash of its
+/// `FrameCounter`, what is wrong with it in the tool's words.
+fn counter_flash(path: &Path) -> Result<HostFlash, ToolKeyError> {
+    HostFlash::open_counter(path).map_err(|e| match e {
+        OpenError::Size {
+            found, expected, ..
+        } => ToolKeyError::Size {
+            path: path.to_path_buf(),
+            found,
+            expected,
+        },
+        OpenError::Io(_, source) => ToolKeyError::Io {
+            path: path.to_path_buf(),
+            source,
+        },
+        OpenError::InUse(_) => ToolKeyError::Unreadable(path.to_path_buf()),
+    })
+}
+
 /// Opens (creating, mode 0600) and locks the counter file (until [`unlock`]); a file just
-/// created, or left
-/// shorter by a cut while it was being created (still blank), is made two erased pages.
+/// created, or left shorter by a cut while it was being created (still blank), is made two
+/// erased pages.
 /// Whoever may write it may set the counter back (a nonce used twice): it must be a
 /// regular file (not a link), written by this user alone, in a directory others (not the
 /// group) cannot write to (unless sticky: they cannot then replace this user's files).

@@ -276,21 +276,12 @@ pub fn frame_counter(flash: Option<&std::path::Path>) -> Result<CounterSource, H
             Some(n)
         }));
     };
-    let mut counter = counter_file(&flash::counter_path(flash))?;
-    Ok(Box::new(move || counter.next().ok()))
-}
-
-/// The `FrameCounter` in counter file `path` (created erased if missing): a node's, or the
-/// tool's, which shares it between its runs ([`FrameCounter::catch_up`]).
-///
-/// [`FrameCounter::catch_up`]: crate::frame_counter::FrameCounter::catch_up
-pub fn counter_file(
-    path: &std::path::Path,
-) -> Result<crate::frame_counter::FrameCounter<HostFlash>, HostError> {
-    let file = HostFlash::open_counter(path).map_err(HostError::Flash)?;
+    let path = flash::counter_path(flash);
+    let file = HostFlash::open_counter(&path).map_err(HostError::Flash)?;
     // The host flash does its I/O synchronously: these futures complete when first polled.
-    crate::frame_counter::FrameCounter::open(file)
-        .map_err(|_| HostError::FrameCounter(path.to_path_buf()))
+    let mut counter = crate::frame_counter::FrameCounter::open(file)
+        .map_err(|_| HostError::FrameCounter(path))?;
+    Ok(Box::new(move || counter.next().ok()))
 }
 
 /// Where the frame counter of a node without a flash file starts: 16 per second since
