@@ -482,7 +482,6 @@ pub fn watch_trial_for(
         let mut confirmed = true;
         let mut trial = None;
         for &node in nodes {
-            let newer = |g: u32| watched.is_some_and(|w| g > w);
             let Some(s) = command(radio, ids, node, Command::Status, every.max(RETRY_FLOOR))?
             else {
                 confirmed = false;
@@ -496,7 +495,7 @@ pub fn watch_trial_for(
                 let (rolled_back, _) = rollback(radio, nodes, previous, false, wait)?;
                 return Ok(TrialEnd::Reverted { node, rolled_back });
             }
-            if newer(s.generation) {
+            if watched.is_some_and(|w| s.generation > w) {
                 let generation = s.generation;
                 return Ok(TrialEnd::Superseded { node, generation });
             }

@@ -714,12 +714,9 @@ pub(super) fn emit(m: &Message<'_>, w: &mut Out) {
         Message::Command { id, command } => {
             w.byte(6);
             w.u16(*id);
-            match command {
-                Command::Identify { nonce } => {
-                    w.byte(2);
-                    w.varint(*nonce)
-                }
-                c => w.byte(command_variant(c)),
+            w.byte(command_variant(command));
+            if let Command::Identify { nonce } = command {
+                w.varint(*nonce)
             }
         }
         Message::Status(s) => {
