@@ -358,6 +358,15 @@ impl Table {
     pub fn publication(&self, event: EventId) -> Option<&Publication> {
         self.publications.iter().find(|p| p.event == event)
     }
+
+    /// The node event that peer `publisher` (index into the peers) publishing `topic`
+    /// raises here, if this node subscribes to it.
+    #[inline]
+    pub fn subscribed(&self, publisher: u8, topic: Topic) -> Option<EventId> {
+        (self.subscriptions.iter())
+            .find(|s| s.publisher == publisher && s.topic == topic)
+            .map(|s| s.event)
+    }
 }
 
 /// (mask of the outputs a level drives, their levels) over the first 16 outputs.

@@ -1854,10 +1854,7 @@ impl<S: StagingArea> NodeCore<S> {
     /// run (it would raise nothing, and change nothing the alarms read).
     #[inline(always)]
     fn run_remote(&mut self, now: u64, io: &mut impl Io, peer: u8, topic: u8) {
-        let subscribed = (self.table.as_ref()).and_then(|t| {
-            (t.subscriptions.iter()).find(|s| s.publisher == peer && s.topic == topic)
-        });
-        let Some(&config_schema::Subscription { event, .. }) = subscribed else {
+        let Some(event) = (self.table.as_ref()).and_then(|t| t.subscribed(peer, topic)) else {
             return;
         };
         self.on_engine(now, io, |engine, fx| engine.event(event, fx));

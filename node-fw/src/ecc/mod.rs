@@ -325,14 +325,9 @@ impl<'t, S: BorrowMut<EngineState>, I: Borrow<Index>> Engine<'t, S, I> {
     /// Peer `publisher` (index into the table's peers) published `topic`: raises the
     /// subscribed event, if this node subscribes to it. Returns whether it did.
     pub fn remote(&mut self, publisher: u8, topic: Topic, fx: &mut impl Effects) -> bool {
-        let sub = self
-            .table
-            .subscriptions
-            .iter()
-            .find(|s| s.publisher == publisher && s.topic == topic);
-        match sub {
-            Some(s) => {
-                self.raise(s.event, false, fx);
+        match self.table.subscribed(publisher, topic) {
+            Some(event) => {
+                self.raise(event, false, fx);
                 true
             }
             None => false,
