@@ -122,6 +122,17 @@ fn until_watching(
     lines
 }
 
+/// How a watched push ended: its status, standard error, and what it printed after `lines`
+/// were read so far.
+fn watch_end(
+    watching: Child,
+    lines: std::io::Lines<BufReader<ChildStdout>>,
+) -> (Option<i32>, String, Vec<String>) {
+    let rest: Vec<String> = lines.map_while(Result::ok).collect();
+    let done = watching.wait_with_output().expect("ends");
+    (done.status.code(), text(&done.stderr), rest)
+}
+
 /// `status --keys` of `node`, as lines.
 fn status(key: &str, medium: &str, node: &str) -> Vec<String> {
     ok(&["status", "--keys", key, "--medium", medium, "--node", node])
@@ -483,10 +494,8 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
          `confirm` here, or run `config-tool confirm`)"
     );
     writeln!(watching.stdin.as_mut().expect("stdin"), "confirm").expect("typed");
-    let rest: Vec<String> = lines.map_while(Result::ok).collect();
-    let done = watching.wait_with_output().expect("ends");
     assert_eq!(
-        (done.status.code(), text(&done.stderr), rest),
+        watch_end(watching, lines),
         (
             Some(0),
             String::new(),
@@ -510,10 +519,8 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
         kept.lines().all(|l| l.ends_with("generation 7  confirmed")),
         "{kept}"
     );
-    let rest: Vec<String> = lines.map_while(Result::ok).collect();
-    let done = watching.wait_with_output().expect("ends");
     assert_eq!(
-        (done.status.code(), text(&done.stderr), rest),
+        watch_end(watching, lines),
         (
             Some(0),
             String::new(),
@@ -534,10 +541,8 @@ fn keys_new_provision_push_start_status_with_keys_then_unsecured_start_is_droppe
     let (watching, lines) = watched_push(&key_s, &m, "8");
     let lines = until_watching(lines);
     ok(&["rollback", ROBOT, "--keys", &key_s, "--medium", &m]);
-    let rest: Vec<String> = lines.map_while(Result::ok).collect();
-    let done = watching.wait_with_output().expect("ends");
-    let said = text(&done.stderr);
-    assert_eq!((done.status.code(), rest), (Some(3), vec![]), "{said}");
+    let (code, said, rest) = watch_end(watching, lines);
+    assert_eq!((code, rest), (Some(3), vec![]), "{said}");
     assert!(
         said.starts_with("error: node 0x00")
             && said.contains(
