@@ -28,6 +28,7 @@ fn spawn_push(bed: &robot_net::demo::Bed, robot: &std::path::Path, args: &[&str]
 /// It said only `error: the medium closed the connection`, status 1, whether the nodes had
 /// switched or not. Cut during the transfer (one node down, so the transfer is still
 /// under way), it now says nothing switched and to push again; status 3, a failed push.
+/// It names the medium it lost (it named none).
 #[test]
 fn a_push_cut_off_during_the_transfer_says_nothing_switched() {
     let dir = TempDir::new("push-cut");
@@ -41,6 +42,7 @@ fn a_push_cut_off_during_the_transfer_says_nothing_switched() {
     let push = spawn_push(&bed, &paint, &[]);
     // The transfer is under way once a table's first chunk is on the air.
     monitor.until(|_, payload| matches!(Message::parse(payload), Ok(Message::ConfigChunk { .. })));
+    let at = bed.medium().addr();
     bed.stop();
     let out = push.wait_with_output().expect("push ends");
     assert_eq!(
@@ -50,9 +52,10 @@ fn a_push_cut_off_during_the_transfer_says_nothing_switched() {
         ),
         (
             Some(3),
-            "error: the medium closed the connection during the transfer: nothing switched \
-             (what a node staged, it keeps): push again\n"
-                .to_string()
+            format!(
+                "error: the medium at {at} closed the connection during the transfer: nothing \
+                 switched (what a node staged, it keeps): push again\n"
+            )
         )
     );
 }
@@ -71,6 +74,7 @@ fn a_push_cut_off_during_the_switch_over_says_where_each_node_stands() {
     let push = spawn_push(&bed, &dip, &["--generation", "2"]);
     // The switch-over is under way once a node is asked to arm.
     monitor.until(|_, payload| matches!(Message::parse(payload), Ok(Message::Switch { .. })));
+    let at = bed.medium().addr();
     bed.stop();
     let out = push.wait_with_output().expect("push ends");
     let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
@@ -91,10 +95,11 @@ fn a_push_cut_off_during_the_switch_over_says_where_each_node_stands() {
         ),
         (
             Some(3),
-            "error: the medium closed the connection during the switch-over: nodes may run \
-             different generations (`scan` shows each one's): push again to finish it, or roll \
-             back\n"
-                .to_string()
+            format!(
+                "error: the medium at {at} closed the connection during the switch-over: nodes \
+                 may run different generations (`scan` shows each one's): push again to finish \
+                 it, or roll back\n"
+            )
         )
     );
 }

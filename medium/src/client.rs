@@ -20,6 +20,8 @@ const HELD: usize = 1024;
 /// A joined connection.
 pub struct Conn {
     stream: TcpStream,
+    /// The medium's address, for what a failure says.
+    medium: SocketAddr,
     incoming: Box<Deframer<{ 16 * MAX_LINK }>>,
     /// Messages read during a sync, not yet returned.
     held: VecDeque<Vec<u8>>,
@@ -33,6 +35,7 @@ impl Conn {
         stream.set_nodelay(true)?;
         let mut conn = Conn {
             stream,
+            medium,
             incoming: Box::default(),
             held: VecDeque::new(),
             syncs: 0,
@@ -55,12 +58,14 @@ impl Conn {
             .map_err(|_| io::Error::other("message too long for the medium"))?;
         self.stream
             .write_all(buf.get(..n).unwrap_or_default())
-            .map_err(gone)
+            .map_err(|e| gone(e, self.medium))
     }
 
     /// Writes raw bytes on the connection (a test's hand-built message).
     pub fn send_raw(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.stream.write_all(bytes).map_err(gone)
+        self.stream
+            .write_all(bytes)
+            .map_err(|e| gone(e, self.medium))
     }
 
     /// A barrier: returns once the medium has handled everything sent before. Messages
@@ -152,12 +157,7 @@ impl Conn {
                 self.stream.set_nonblocking(false)?;
             }
             match read {
-                Ok(0) => {
-                    return Err(io::Error::new(
-                        io::ErrorKind::UnexpectedEof,
-                        "the medium closed the connection",
-                    ))
-                }
+                Ok(0) => return Err(closed(io::ErrorKind::UnexpectedEof, self.medium)),
                 Ok(n) => self.incoming.filled(n),
                 Err(e)
                     if matches!(
@@ -227,9 +227,17 @@ pub fn went_away(e: &io::Error) -> bool {
 
 /// A write's error, said as a read's end is when it means that the medium went away: not
 /// as this process's own output breaking.
-fn gone(e: io::Error) -> io::Error {
+fn gone(e: io::Error, medium: SocketAddr) -> io::Error {
     if went_away(&e) {
-        return io::Error::new(e.kind(), "the medium closed the connection");
+        return closed(e.kind(), medium);
     }
     e
+}
+
+/// The medium at `medium` ended the connection (a read's end, or a write's reset).
+fn closed(kind: io::ErrorKind, medium: SocketAddr) -> io::Error {
+    io::Error::new(
+        kind,
+        format!("the medium at {medium} closed the connection"),
+    )
 }

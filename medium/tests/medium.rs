@@ -708,21 +708,23 @@ fn silent_connections_do_not_keep_a_newcomer_out() {
 
 /// A client writing to a medium that went away is told so: the error says the medium
 /// closed the connection, as a read's does. It said `Broken pipe (os error 32)`, which
-/// `alarms --watch` printed as if its own output had broken.
+/// `alarms --watch` printed as if its own output had broken. Both name the medium (they
+/// named no address: a push cut off said only "the medium closed the connection").
 #[test]
 fn writing_to_a_medium_that_went_away_says_so() {
     let medium = Medium::start(Config::default()).unwrap();
+    let said = format!("the medium at {} closed the connection", medium.addr());
     let mut conn = medium::Conn::join(medium.addr(), Peer::Tool { addr: 0x100 }).unwrap();
     medium.stop();
     // The read sees the end first; writes then fail (the first may still be buffered).
     let read = conn.recv(std::time::Instant::now() + SURE, |_| Some(()));
     assert_eq!(
         read.map_err(|e| e.to_string()),
-        Err(String::from("the medium closed the connection"))
+        Err(said.clone())
     );
     let frame = frame(0x100, 0x11, b"anyone?");
     let failed = (0..100)
         .find_map(|_| conn.send(&Link::Frame(&frame)).err())
         .expect("a write fails");
-    assert_eq!(failed.to_string(), "the medium closed the connection");
+    assert_eq!(failed.to_string(), said);
 }
