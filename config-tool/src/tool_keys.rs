@@ -213,7 +213,10 @@ fn counter_flash(path: &Path) -> Result<HostFlash, ToolKeyError> {
             path: path.to_path_buf(),
             source,
         },
-        OpenError::InUse(_) => ToolKeyError::Unreadable(path.to_path_buf()),
+        // (`Foreign` is a node flash file's: a counter file is read by its `FrameCounter`.)
+        OpenError::InUse(_) | OpenError::Foreign { .. } => {
+            ToolKeyError::Unreadable(path.to_path_buf())
+        }
     })
 }
 

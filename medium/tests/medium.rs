@@ -718,10 +718,7 @@ fn writing_to_a_medium_that_went_away_says_so() {
     medium.stop();
     // The read sees the end first; writes then fail (the first may still be buffered).
     let read = conn.recv(std::time::Instant::now() + SURE, |_| Some(()));
-    assert_eq!(
-        read.map_err(|e| e.to_string()),
-        Err(said.clone())
-    );
+    assert_eq!(read.map_err(|e| e.to_string()), Err(said.clone()));
     let frame = frame(0x100, 0x11, b"anyone?");
     let failed = (0..100)
         .find_map(|_| conn.send(&Link::Frame(&frame)).err())

@@ -117,6 +117,48 @@ fn a_file_of_another_size_is_refused_untouched() {
     let _ = std::fs::remove_file(&p);
 }
 
+/// Only the size told a flash file: any other file of 20,480 bytes was taken for one, and
+/// the node's first boot wrote its boot count into it (a table pushed erased its pages).
+/// Past the count, the boot counter's page of a flash file is erased: a file whose page
+/// holds anything else there is refused, unchanged.
+#[test]
+fn a_file_of_the_size_that_is_not_a_flash_file_is_refused_untouched() {
+    let p = path("foreign-sized");
+    let text: Vec<u8> = (b"notes of a shift\n".iter().copied().cycle())
+        .take(FILE_SIZE)
+        .collect();
+    std::fs::write(&p, &text).unwrap();
+    let said = match HostFlash::open(&p) {
+        Err(e @ OpenError::Foreign { .. }) => e.to_string(),
+        other => panic!("{:?}", other.err()),
+    };
+    assert_eq!(
+        said,
+        format!(
+            "flash file {}: not a node flash file (its boot counter's page holds other data); \
+             left unchanged",
+            p.display()
+        )
+    );
+    assert_eq!(std::fs::read(&p).unwrap(), text);
+    // One byte off in the erased part is enough.
+    let mut flash = vec![0xFF; FILE_SIZE];
+    flash[FILE_SIZE - 1] = 0xFE;
+    std::fs::write(&p, &flash).unwrap();
+    assert!(matches!(
+        HostFlash::open(&p),
+        Err(OpenError::Foreign { .. })
+    ));
+    assert_eq!(std::fs::read(&p).unwrap(), flash);
+    // A node's own file, booted and holding a table, opens.
+    flash[FILE_SIZE - 1] = 0xFF;
+    flash[SLOTS_BYTES..SLOTS_BYTES + 4].copy_from_slice(&7u32.to_le_bytes());
+    flash[..64].fill(0x12);
+    std::fs::write(&p, &flash).unwrap();
+    assert!(HostFlash::open(&p).is_ok());
+    let _ = std::fs::remove_file(&p);
+}
+
 #[test]
 fn epochs_of_consecutive_boots_are_newer_with_room_for_tables() {
     for boots in [1u32, 2, 255, 256, 257, 65_535, 65_536] {

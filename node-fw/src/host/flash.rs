@@ -163,6 +163,11 @@ pub enum OpenError {
         found: u64,
         expected: u64,
     },
+    /// The file has a flash file's size, but past the boot count its boot counter's page
+    /// holds other data than erased bytes: not a node's flash file.
+    Foreign {
+        path: PathBuf,
+    },
 }
 
 impl std::fmt::Display for OpenError {
@@ -185,6 +190,12 @@ impl std::fmt::Display for OpenError {
                  left unchanged",
                 path.display()
             ),
+            OpenError::Foreign { path } => write!(
+                f,
+                "flash file {}: not a node flash file (its boot counter's page holds other \
+                 data); left unchanged",
+                path.display()
+            ),
         }
     }
 }
@@ -199,8 +210,25 @@ impl HostFlash {
     }
 
     /// Opens the flash file at `path`, creating it erased if it does not exist.
+    /// A file of the size whose boot counter's page is not erased past the count is
+    /// refused before anything is written to it ([`OpenError::Foreign`]): every flash
+    /// file a node made has it so.
     pub fn open(path: &Path) -> Result<Self, OpenError> {
-        Self::open_sized(path, FILE_SIZE, SLOTS_BYTES, true)
+        let flash = Self::open_sized(path, FILE_SIZE, SLOTS_BYTES, true)?;
+        let Store::File(file) = &flash.store else {
+            return Ok(flash);
+        };
+        let mut rest = [0u8; ERASE_SIZE - 4];
+        let mut file = file;
+        (file.seek(SeekFrom::Start(COUNTER_AT as u64 + 4)))
+            .and_then(|_| file.read_exact(&mut rest))
+            .map_err(|e| OpenError::Io(path.to_path_buf(), e))?;
+        if rest.iter().any(|&b| b != 0xFF) {
+            return Err(OpenError::Foreign {
+                path: path.to_path_buf(),
+            });
+        }
+        Ok(flash)
     }
 
     /// Opens the frame counter file at `path` (two erase pages), creating it erased if it
