@@ -91,7 +91,7 @@ pub const CHALLENGE_MS: u64 = 50;
 pub const RECENT_COMMANDS: usize = 8;
 /// How long without a command that acts makes a node forget the ones it remembers: six
 /// times the 5 s a tool resends one for. After it, a (sender, id) remembered is a new
-/// command (the tool's ids wrap: 16 bits, its secured runs' drawn from its frame counter).
+/// command (a new run of the tool drew the id again: ids are 16 bits).
 pub const REPEAT_MS: u32 = 30_000;
 
 /// A transfer waiting to be staged in flash: its blob is in the OTA buffer (decoded and
@@ -2038,7 +2038,10 @@ impl<S: StagingArea> NodeCore<S> {
         }
         // Only a command that does something is remembered: a status asked again is
         // answered again, and the tools' polls do not push a START out of the memory.
-        let acts = cmd.acts();
+        let acts = matches!(
+            cmd,
+            Command::Start | Command::Reset | Command::Home | Command::Ack
+        );
         if acts {
             // After a quiet time the ids remembered are another time's: forgotten.
             let at = now as u32;

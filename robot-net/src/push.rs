@@ -606,53 +606,21 @@ pub fn confirm(
     Ok(answers)
 }
 
-/// Command ids. A node runs each (sender, id) of a command that acts once: it remembers
-/// the last eight, whichever run of the tool sent them, until 30 s pass without one
-/// (`node_fw::node::RECENT_COMMANDS`, `REPEAT_MS`), and answers a repeat without running
-/// it. Every run of the tool sends from the same address, so a run must not draw an id
-/// another run drew shortly before: its START would be answered and not run.
-///
-/// The ids of commands that act ([`Command::acts`]) have bit 15 set, the ids of those
-/// that only ask have it clear: an ask's answer never stands in for the answer to a
-/// command that acts, whichever run sent them. On a secured radio, a command that acts
-/// spends one of the frame counters, which the runs of a key file share and never hand
-/// out twice: its id is 0x8000 and the counter's low 15 bits, so two drawn within
-/// 32,768 counters of each other differ. The asks spend none (a panel's polls would use
-/// the counter up twice as fast). An unsecured radio's ids of each kind start at random
-/// and count up (runs at once: about one command that acts in 4,000 may meet one of the
-/// last eight another run sent).
-pub struct Ids {
-    /// The last id of a command that acts, without its bit 15.
-    acts: u16,
-    /// The last id of a command that asks.
-    asks: u16,
-}
-
-/// Bit 15 of a command id: the command acts.
-const ACTS: u16 = 0x8000;
+/// Command ids: start somewhere new in every run (a node remembers the last id it ran
+/// from this address and would take a repeat for a retransmission).
+pub struct Ids(u16);
 
 impl Default for Ids {
     fn default() -> Self {
-        Ids {
-            acts: rand::random(),
-            asks: rand::random(),
-        }
+        Ids(rand::random())
     }
 }
 
 impl Ids {
-    /// The next id for `command` sent through `radio`; never 0. An error: the secured
-    /// radio's counter could not be drawn (nothing is sent).
-    pub fn fresh(&mut self, radio: &mut ToolRadio, command: Command) -> io::Result<u16> {
-        if !command.acts() {
-            self.asks = (self.asks.wrapping_add(1) & !ACTS).max(1);
-            return Ok(self.asks);
-        }
-        self.acts = match radio.unique() {
-            Some(counter) => counter? as u16,
-            None => self.acts.wrapping_add(1),
-        };
-        Ok(ACTS | self.acts)
+    /// The next id; never 0, which an unprompted `Announce` carries.
+    pub fn fresh(&mut self) -> u16 {
+        self.0 = self.0.wrapping_add(1).max(1);
+        self.0
     }
 }
 
@@ -708,7 +676,7 @@ pub fn ask<T>(
     timeout: Duration,
     pick: impl Fn(Message<'_>, u16) -> Option<T>,
 ) -> io::Result<Option<T>> {
-    let id = ids.fresh(radio, command)?;
+    let id = ids.fresh();
     let end = crate::deadline(Instant::now(), timeout);
     let retry = Duration::from_millis(150);
     while Instant::now() < end {
@@ -739,9 +707,8 @@ pub fn ask_each<T>(
     timeout: Duration,
     pick: impl Fn(Message<'_>, u16) -> Option<T>,
 ) -> io::Result<Vec<Result<T, u32>>> {
-    let mut asked: Vec<(u16, u16, Result<T, u32>)> = (addrs.iter())
-        .map(|&a| Ok((a, ids.fresh(radio, command)?, Err(0))))
-        .collect::<io::Result<_>>()?;
+    let mut asked: Vec<(u16, u16, Result<T, u32>)> =
+        (addrs.iter()).map(|&a| (a, ids.fresh(), Err(0))).collect();
     let end = crate::deadline(Instant::now(), timeout);
     let retry = Duration::from_millis(150);
     while Instant::now() < end && asked.iter().any(|a| a.2.is_err()) {
@@ -790,14 +757,18 @@ pub fn scan(
     wait: Duration,
 ) -> io::Result<BTreeMap<u16, Announce>> {
     let mut found = BTreeMap::new();
-    let nonce = identify_nonce();
-    let command = Command::Identify { nonce };
-    let id = ids.fresh(radio, command)?;
+    let (id, nonce) = (ids.fresh(), identify_nonce());
     let end = crate::deadline(Instant::now(), wait);
     let mut next_ask = Instant::now();
     while Instant::now() < end {
         if Instant::now() >= next_ask {
-            radio.send(BROADCAST, &Message::Command { id, command })?;
+            radio.send(
+                BROADCAST,
+                &Message::Command {
+                    id,
+                    command: Command::Identify { nonce },
+                },
+            )?;
             next_ask = Instant::now() + Duration::from_millis(300);
         }
         if let Some(r) = radio.recv(next_ask.min(end))? {

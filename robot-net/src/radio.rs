@@ -133,13 +133,6 @@ impl ToolRadio {
         robot_keys::link_keys(&keys.secret, generation, node, peers)
     }
 
-    /// A number no run of the tool under the same machine secret drew before: one of
-    /// its frame counters, spent on it (each run of a key file draws them from the file
-    /// all its runs share). `None` when the radio is not secured.
-    pub fn unique(&mut self) -> Option<io::Result<u32>> {
-        self.keys.as_mut().map(|k| (k.counter)())
-    }
-
     /// Whether the radio secures its frames.
     pub fn secured(&self) -> bool {
         self.keys.is_some()

@@ -225,18 +225,6 @@ pub enum Command {
     Ack,
 }
 
-impl Command {
-    /// Whether the command does something a repeat must not do again (START, RESET,
-    /// HOME, ACK): a node remembers its (sender, id) and answers a repeat without running
-    /// it. The others only ask.
-    pub const fn acts(&self) -> bool {
-        matches!(
-            self,
-            Command::Start | Command::Reset | Command::Home | Command::Ack
-        )
-    }
-}
-
 /// What a node counted of frame security (every reason a frame was dropped, and what it
 /// could not send), answering command `ack`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
