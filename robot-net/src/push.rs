@@ -606,8 +606,16 @@ pub fn confirm(
     Ok(answers)
 }
 
-/// Command ids: start somewhere new in every run (a node remembers the last id it ran
-/// from this address and would take a repeat for a retransmission).
+/// Command ids: start somewhere new at random in every run, then count up. A node runs
+/// each (sender, id) of a command that acts once (it remembers the last eight, whichever
+/// run of the tool sent them, until 30 s pass without one: `node_fw::node::
+/// RECENT_COMMANDS`, `REPEAT_MS`) and answers a repeat without running it. Random, an id
+/// is not known before it is sent (it is encrypted on a secured radio), so an answer
+/// recorded earlier cannot be made to answer it; the price: among runs at once, a command
+/// that acts meets one of the last eight another run sent about once in 8,000. (Drawn from
+/// the shared frame counter instead, the first command of every 32nd run drew the same
+/// id: each run starts at a fresh reservation of 1024, and the header carries the counter
+/// in clear.)
 pub struct Ids(u16);
 
 impl Default for Ids {
