@@ -174,9 +174,9 @@ pub struct NodeCore<S = RamStaging> {
     /// first: a repeat is answered, not run again. Several per sender: runs of the tool at
     /// once share its address, and one may resend its command after another's came in
     /// between. Forgotten after [`REPEAT_MS`] without one (`commands_at`: when the last
-    /// came, ms, wrapping).
+    /// came, ms since boot).
     commands: Vec<(u16, u16), RECENT_COMMANDS>,
-    commands_at: u32,
+    commands_at: u64,
     /// Board pin levels as last reported (bit = pin number), kept while unconfigured too,
     /// so a new table starts from the switches' real positions.
     pins: u64,
@@ -2044,11 +2044,12 @@ impl<S: StagingArea> NodeCore<S> {
         );
         if acts {
             // After a quiet time the ids remembered are another time's: forgotten.
-            let at = now as u32;
-            if at.wrapping_sub(self.commands_at) >= REPEAT_MS {
+            // In ms since boot, whole: `now as u32` wrapped after 49.7 days, and a command
+            // that came 2^32 ms after the last was taken for a repeat of it.
+            if now.saturating_sub(self.commands_at) >= u64::from(REPEAT_MS) {
                 self.commands.clear();
             }
-            self.commands_at = at;
+            self.commands_at = now;
         }
         let repeat = acts && self.commands.contains(&(src, id));
         if !repeat {

@@ -1289,3 +1289,31 @@ fn a_node_booting_with_a_table_publishes_its_boot_event_once() {
         "B heard A's boot once"
     );
 }
+
+/// A node quiet for 2^32 ms (49.7 days) and less than 30 s took a new command whose
+/// (sender, id) it remembered from before the quiet time for a repeat: it kept the last
+/// command's time as `now as u32` ms, whose wrapping difference was under `REPEAT_MS`.
+#[test]
+fn a_command_49_7_days_later_with_a_remembered_id_is_run() {
+    let mut net = Net::new(0.0, 0.0, 11);
+    assert_eq!(net.push(A, &table_a(1), false), ota::Progress::Done);
+    assert_eq!(net.push(B, &table_b(1), false), ota::Progress::Done);
+    net.nodes[1].1.pins.clear();
+    let start = Message::Command {
+        id: 1024,
+        command: Command::Start,
+    };
+    net.tool_send(A, &start);
+    net.run(200);
+    assert_eq!(net.nodes[1].1.pins, vec![(LAMP_PIN, true)]);
+    // 2^32 ms + 10 s later (the nodes idle meanwhile; the time skipped, not stepped).
+    net.now += 1 << 32;
+    net.run(10_000);
+    net.tool_send(A, &start);
+    net.run(2_000);
+    assert_eq!(
+        net.nodes[1].1.pins,
+        vec![(LAMP_PIN, true), (LAMP_PIN, false)],
+        "a START 49.7 days later ran"
+    );
+}
