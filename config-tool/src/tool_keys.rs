@@ -283,6 +283,9 @@ fn lock(path: &Path) -> Result<File, ToolKeyError> {
             file.seek(SeekFrom::Start(0)).map_err(io_err)?;
             file.write_all(&[0xFF; COUNTER_FILE_SIZE]).map_err(io_err)?;
             file.sync_all().map_err(io_err)?;
+            // Just created (or cut short while it was): its name made durable too, or a
+            // power cut could lose the file and the next run start at 0 again.
+            node_fw::host::flash::sync_directory_of(path).map_err(io_err)?;
         }
     }
     Ok(file)

@@ -135,7 +135,7 @@ fn create_erased(path: &Path, size: usize) -> io::Result<()> {
     })();
     let _ = std::fs::remove_file(&temporary);
     match written {
-        Ok(()) => Ok(()),
+        Ok(()) => sync_directory_of(path),
         // Another process created it first: that one is used.
         Err(e) if e.kind() == io::ErrorKind::AlreadyExists => Ok(()),
         Err(e)
@@ -145,10 +145,28 @@ fn create_erased(path: &Path, size: usize) -> io::Result<()> {
             ) =>
         {
             let mut file = OpenOptions::new().write(true).create_new(true).open(path)?;
-            erased(&mut file)
+            erased(&mut file)?;
+            sync_directory_of(path)
         }
         Err(e) => Err(e),
     }
+}
+
+/// Makes the name of a file just created at `path` durable: its directory synced (a
+/// power cut soon after could otherwise lose the file's entry though its bytes were
+/// synced; a frame counter file lost so starts again at 0: nonces used twice).
+pub fn sync_directory_of(path: &Path) -> io::Result<()> {
+    #[cfg(unix)]
+    {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        File::open(dir)?.sync_all()?;
+    }
+    #[cfg(not(unix))]
+    let _ = path;
+    Ok(())
 }
 
 /// Why a flash file cannot be used (nothing in it was changed).
