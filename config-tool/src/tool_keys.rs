@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use node_fw::frame_counter::{CounterError, FrameCounter};
-use node_fw::host::flash::{counter_path, HostFlash, OpenError, COUNTER_FILE_SIZE};
+use node_fw::host::flash::{counter_path, FlashError, HostFlash, OpenError, COUNTER_FILE_SIZE};
 use robot_keys::{load_machine_secret, KeyFileError, MachineSecret};
 use robot_net::radio::CounterSource;
 
@@ -87,8 +87,8 @@ pub enum ToolKeyError {
         found: u64,
         expected: u64,
     },
-    #[error("counter file {}: unreadable", .0.display())]
-    Unreadable(PathBuf),
+    #[error("counter file {}: {why}", path.display())]
+    Unreadable { path: PathBuf, why: String },
     #[error(
         "counter file {}: its directory is writable by others (mode {mode:04o}): they could \
          set the counter back; keep the key file in a directory of this user's",
@@ -120,8 +120,11 @@ pub fn open(key_file: &Path) -> Result<ToolKeys, ToolKeyError> {
     })?;
     let path = counter_path(key_file);
     let file = lock(&path)?;
-    let counter = FrameCounter::open(counter_flash(&path)?)
-        .map_err(|_| ToolKeyError::Unreadable(path.clone()))?;
+    let counter =
+        FrameCounter::open(counter_flash(&file, &path)?).map_err(|e| ToolKeyError::Unreadable {
+            path: path.clone(),
+            why: counter_failure(e),
+        })?;
     unlock(&file);
     let mut shared = Shared {
         file,
@@ -175,21 +178,14 @@ impl Shared {
     fn next_held(&mut self) -> io::Result<u32> {
         let path = self.path.display();
         let counter_error = |e: CounterError<_>| {
-            io::Error::other(match e {
-                CounterError::Exhausted => format!(
-                    "counter file {path}: used up (2^31 frames): make a new machine secret \
-                     (`keys new`) and provision the nodes again"
-                ),
-                CounterError::Flash(e) => format!("counter file {path}: {e:?}"),
-                CounterError::Geometry => format!("counter file {path}: not two pages"),
-            })
+            io::Error::other(format!("counter file {path}: {}", counter_failure(e)))
         };
         if !self.is_at_path() {
             let failed = |e: ToolKeyError| io::Error::other(e.to_string());
             let file = lock(&self.path).map_err(failed)?;
             // The new file's lock is held from here (the old one's goes with it).
             unlock(&std::mem::replace(&mut self.file, file));
-            let flash = counter_flash(&self.path).map_err(failed)?;
+            let flash = counter_flash(&self.file, &self.path).map_err(failed)?;
             self.counter.move_to(flash).map_err(counter_error)?;
         }
         (self.counter.catch_up())
@@ -198,10 +194,27 @@ impl Shared {
     }
 }
 
-/// The counter file at `path` (checked and made whole by [`lock`]) as the flash of its
-/// `FrameCounter`, what is wrong with it in the tool's words.
-fn counter_flash(path: &Path) -> Result<HostFlash, ToolKeyError> {
-    HostFlash::open_counter(path).map_err(|e| match e {
+/// What went wrong with the frame counter in a counter file, in the tool's words.
+fn counter_failure(e: CounterError<FlashError>) -> String {
+    match e {
+        CounterError::Exhausted => "used up (2^31 frames): make a new machine secret (`keys \
+                                    new`) and provision the nodes again"
+            .to_string(),
+        CounterError::Flash(e) => e.to_string(),
+        CounterError::Geometry => "not two pages".to_string(),
+    }
+}
+
+/// The counter file `file` locked by [`lock`] (at `path`, checked and made whole) as the
+/// flash of its `FrameCounter`, what is wrong with it in the tool's words. The very file
+/// locked, on a handle of its own: opened by its path again, it could be another file
+/// renamed over it in between, not locked.
+fn counter_flash(file: &File, path: &Path) -> Result<HostFlash, ToolKeyError> {
+    let file = file.try_clone().map_err(|source| ToolKeyError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    HostFlash::counter_on(file, path).map_err(|e| match e {
         OpenError::Size {
             found, expected, ..
         } => ToolKeyError::Size {
@@ -214,9 +227,10 @@ fn counter_flash(path: &Path) -> Result<HostFlash, ToolKeyError> {
             source,
         },
         // (`Foreign` is a node flash file's: a counter file is read by its `FrameCounter`.)
-        OpenError::InUse(_) | OpenError::Foreign { .. } => {
-            ToolKeyError::Unreadable(path.to_path_buf())
-        }
+        OpenError::InUse(_) | OpenError::Foreign { .. } => ToolKeyError::Unreadable {
+            path: path.to_path_buf(),
+            why: e.to_string(),
+        },
     })
 }
 
@@ -338,6 +352,35 @@ mod tests {
         let p = dir.join("machine.key");
         robot_keys::write_machine_secret(&p, false).unwrap();
         p
+    }
+
+    /// A counter used up says so and what to do, in words (the flash's errors were in
+    /// their debug form, and a counter that could not be opened said only "unreadable").
+    #[test]
+    fn a_counter_used_up_says_what_to_do() {
+        let key = key_file("used-up");
+        let path = counter_path(&std::fs::canonicalize(&key).unwrap());
+        let flash = HostFlash::open_counter(&path).unwrap();
+        let limit = node_fw::frame_counter::LIMIT;
+        let mut c = FrameCounter::open_with_step(flash, limit).unwrap();
+        assert_eq!(c.next(), Ok(0), "the whole counter reserved");
+        drop(c);
+        let mut keys = open(&key).unwrap();
+        let e = (keys.counter)().expect_err("used up");
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "counter file {}: used up (2^31 frames): make a new machine secret (`keys \
+                 new`) and provision the nodes again",
+                path.display()
+            )
+        );
+        assert_eq!(
+            counter_failure(CounterError::Flash(FlashError::Io(
+                io::ErrorKind::StorageFull
+            ))),
+            "no storage space"
+        );
     }
 
     /// Runs with one key file at once (a panel, and a command given meanwhile) share its

@@ -90,6 +90,16 @@ impl NorFlashError for FlashError {
     }
 }
 
+impl std::fmt::Display for FlashError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FlashError::OutOfBounds => f.write_str("an access outside the file"),
+            FlashError::NotAligned => f.write_str("an access not aligned to its pages"),
+            FlashError::Io(kind) => write!(f, "{kind}"),
+        }
+    }
+}
+
 impl From<io::Error> for FlashError {
     fn from(e: io::Error) -> Self {
         FlashError::Io(e.kind())
@@ -284,7 +294,26 @@ impl HostFlash {
             }
             Err(std::fs::TryLockError::Error(e)) => return Err(io_err(e)),
         }
-        let found = file.metadata().map_err(io_err)?.len();
+        Self::sized(file, path, file_size, capacity)
+    }
+
+    /// The frame counter file open as `file` (at `path`: for what an error says), as
+    /// [`HostFlash::open_counter`] opens it: a caller that locked the file reads and writes
+    /// the very file it locked, whatever its path names meanwhile.
+    pub fn counter_on(file: File, path: &Path) -> Result<Self, OpenError> {
+        Self::sized(file, path, COUNTER_FILE_SIZE, COUNTER_FILE_SIZE)
+    }
+
+    /// `file` as a flash of `capacity` bytes if it is `file_size` bytes long.
+    fn sized(
+        file: File,
+        path: &Path,
+        file_size: usize,
+        capacity: usize,
+    ) -> Result<Self, OpenError> {
+        let found = (file.metadata())
+            .map_err(|e| OpenError::Io(path.to_path_buf(), e))?
+            .len();
         if found != file_size as u64 {
             return Err(OpenError::Size {
                 path: path.to_path_buf(),
