@@ -828,3 +828,29 @@ fn a_medium_that_talks_but_never_welcomes_is_given_up_on() {
     );
     server.join().unwrap();
 }
+
+/// A node run on a thread of a process (as the tool's tests and an embedding run it), not
+/// a process of its own: stopped (its medium closed its connection), it left its flash
+/// file locked until the process ended, its boot counter's handle (which shares the flash
+/// file's lock) leaked with the closure that counts boots; the same file run again in the
+/// same process was refused, "in use by another node process".
+#[test]
+fn a_node_run_on_a_thread_frees_its_flash_file_when_it_stops() {
+    let relay = Relay::start();
+    let flash = flash_file("on-a-thread");
+    // Another address each time: the relay forgets a closed connection on its own time.
+    for addr in [0x0031, 0x0032] {
+        let args = node_fw::host::Args {
+            addr,
+            medium: std::net::SocketAddr::from(([127, 0, 0, 1], relay.port)),
+            flash: Some(flash.clone()),
+            key: None,
+        };
+        let node = std::thread::spawn(move || node_fw::host::run(args).map_err(|e| e.to_string()));
+        assert!(relay.connected(addr), "node {addr:#06x} on the relay");
+        relay.disconnect(addr);
+        assert_eq!(node.join().expect("no panic"), Ok(()), "node {addr:#06x}");
+    }
+    assert!(node_fw::host::flash::HostFlash::open(&flash).is_ok());
+    let _ = std::fs::remove_file(&flash);
+}

@@ -185,11 +185,18 @@ pub fn run(args: Args) -> Result<(), HostError> {
     };
     // With a flash file its boot counter reserves the link epochs (`crate::epoch`): it is
     // counted again, on a handle of its own, when this boot has taken most of them.
+    // The runtime's `'static` closure is leaked, not the handle it counts on: that handle
+    // shares the flash file's lock, and is closed when the node stops (a node run on a
+    // thread left its flash file locked until the process ended).
+    let boot_counter = Closing(Rc::new(RefCell::new(None)));
     let (boot, epoch, counted) = match flash.boot_counter().map_err(HostError::BootCounter)? {
         Some(mut counter) => {
             let boots = counter.count().map_err(HostError::BootCounter)?;
-            let count: &'static mut dyn FnMut() -> Option<u32> =
-                Box::leak(Box::new(move || counter.count().ok()));
+            *boot_counter.0.borrow_mut() = Some(counter);
+            let held = Rc::clone(&boot_counter.0);
+            let count: &'static mut dyn FnMut() -> Option<u32> = Box::leak(Box::new(move || {
+                held.borrow_mut().as_mut().and_then(|c| c.count().ok())
+            }));
             let boot = runtime::Boot::Counted {
                 boots,
                 persisted: true,
@@ -228,6 +235,7 @@ pub fn run(args: Args) -> Result<(), HostError> {
         pin_mask: runtime::pin_range(PINS),
     };
     let (stop, stats) = run_on_executor(addr, boot, board, security);
+    drop(boot_counter);
     let c = conn.counters();
     let (backpressure, oversized, garbage) = (
         c.backpressure.load(Ordering::Relaxed),
@@ -244,6 +252,16 @@ pub fn run(args: Args) -> Result<(), HostError> {
     match stop {
         Stop::Radio(Closed) => Ok(()),
         Stop::FlashGeometry => Err(HostError::FlashGeometry),
+    }
+}
+
+/// A handle shared with a leaked closure, closed when this is dropped (however
+/// [`run`] returns).
+struct Closing<T>(Rc<RefCell<Option<T>>>);
+
+impl<T> Drop for Closing<T> {
+    fn drop(&mut self) {
+        drop(self.0.borrow_mut().take());
     }
 }
 
