@@ -1221,8 +1221,10 @@ impl<S: StagingArea> NodeCore<S> {
     /// The short path of an unsecured `Event` or `EventAck` to this node on the running
     /// table's PAN, in the frame this firmware writes ([`mac::PLAIN_DATA_FC`]: no security,
     /// no acknowledgement request): the MAC header checked as three compares against what
-    /// the node expects, the message read in place and handled at once. `false`: not such
-    /// a frame, nothing done; [`NodeCore::receive_frame`] takes it (and does for these
+    /// the node expects, the message read in place and handled at once (an event of a
+    /// link's first 16,384 read in this code, [`LinkMessage::short_event`], and taken by
+    /// [`NodeCore::event_in_clear`]; any other event or ack read by a call). `false`: not
+    /// such a frame, nothing done; [`NodeCore::receive_frame`] takes it (and does for these
     /// frames exactly what this does: counted as received, [`NodeCore::on_link`]).
     #[inline(always)]
     fn link_in_clear(&mut self, mpdu: &[u8], now: u64, io: &mut impl Io) -> bool {
@@ -1233,7 +1235,7 @@ impl<S: StagingArea> NodeCore<S> {
             return false;
         };
         let pan = table.header.pan_id;
-        let [f0, f1, _, p0, p1, d0, d1, s0, s1] = *head;
+        let [f0, f1, _, p0, p1, d0, d1, ref src @ ..] = *head;
         if u16::from_le_bytes([f0, f1]) != mac::PLAIN_DATA_FC
             || u16::from_le_bytes([p0, p1]) != pan
             || u16::from_le_bytes([d0, d1]) != self.radio.addr
@@ -1242,15 +1244,22 @@ impl<S: StagingArea> NodeCore<S> {
         {
             return false;
         }
-        let Some(m) = LinkMessage::parse_inline(payload) else {
+        let src = u16::from_le_bytes(*src);
+        if let Some(event) = LinkMessage::short_event(payload) {
+            crate::count(&mut self.radio.counters.received);
+            // `on_link`'s event arm; this path's ack goes in clear.
+            self.event_in_clear(pan, src, event, now, io);
+            return true;
+        }
+        // Any other event (an epoch or seq past the short read) or an ack: `on_link`, as
+        // the general path.
+        let Some(m) = LinkMessage::parse_fields(payload) else {
             return false;
         };
         crate::count(&mut self.radio.counters.received);
-        let src = u16::from_le_bytes([s0, s1]);
         match m {
             LinkMessage::Event { epoch, seq, topic } => {
-                // `on_link`'s event arm; this path's ack goes in clear.
-                self.event_in_clear(pan, src, (epoch, seq, topic), now, io)
+                self.on_event(src, epoch, seq, topic, now, io)
             }
             LinkMessage::EventAck { .. } => self.on_link(m, src, now, io),
         }
@@ -1312,7 +1321,12 @@ impl<S: StagingArea> NodeCore<S> {
             }
         }
         crate::count(&mut self.radio.counters.received);
-        self.on_link(m, src, now, io);
+        match m {
+            LinkMessage::Event { epoch, seq, topic } => {
+                self.on_event(src, epoch, seq, topic, now, io)
+            }
+            LinkMessage::EventAck { .. } => self.on_link(m, src, now, io),
+        }
         true
     }
 
@@ -2242,10 +2256,12 @@ mod tests {
         let dst = prop_oneof![6 => Just(B), 1 => Just(BROADCAST), 1 => Just(9u16)];
         let src = prop_oneof![6 => Just(A), 1 => Just(C), 1 => Just(9u16)];
         let varint = prop_oneof![4 => 0u16..6, 1 => any::<u16>()];
+        // Epochs on both sides of the one-byte varint (the short read's bound).
+        let epoch = prop_oneof![4 => 0u16..3, 1 => 0x7Eu16..0x82];
         let payload = prop_oneof![
-            4 => (0u16..3, varint.clone(), prop_oneof![Just(3u8), Just(4u8)])
+            4 => (epoch.clone(), varint.clone(), prop_oneof![Just(3u8), Just(4u8)])
                 .prop_map(|(epoch, seq, topic)| LinkMessage::Event { epoch, seq, topic }),
-            2 => (0u16..3, varint).prop_map(|(epoch, next)| LinkMessage::EventAck { epoch, next }),
+            2 => (epoch, varint).prop_map(|(epoch, next)| LinkMessage::EventAck { epoch, next }),
         ]
         .prop_map(|m| {
             let mut out = [0u8; LinkMessage::MAX_LEN];

@@ -32,41 +32,33 @@ impl LinkMessage {
     /// codec path).
     #[inline]
     pub fn parse(payload: &[u8]) -> Option<LinkMessage> {
-        Self::short_event(payload).or_else(|| Self::parse_fields(payload))
-    }
-
-    /// [`LinkMessage::parse`] with an event of a link's first 16,384 read in the caller's
-    /// code (a call cost more than the read: the node core's short path of a frame in
-    /// clear); anything else by `parse`.
-    #[inline(always)]
-    pub fn parse_inline(payload: &[u8]) -> Option<LinkMessage> {
-        Self::short_event(payload).or_else(|| Self::parse(payload))
-    }
-
-    /// An event with a one-byte epoch and a one- or two-byte seq (a link's first 16,384
-    /// events), matched as a whole; `None`: anything else (read field by field).
-    #[inline(always)]
-    fn short_event(payload: &[u8]) -> Option<LinkMessage> {
-        match *payload {
-            [EVENT, epoch, seq, topic] if epoch < 0x80 && seq < 0x80 => Some(LinkMessage::Event {
-                epoch: u16::from(epoch),
-                seq: u16::from(seq),
-                topic,
-            }),
-            [EVENT, epoch, s0, s1, topic] if epoch < 0x80 && s0 >= 0x80 && s1 != 0 && s1 < 0x80 => {
-                Some(LinkMessage::Event {
-                    epoch: u16::from(epoch),
-                    seq: u16::from(s0 & 0x7F) | u16::from(s1) << 7,
-                    topic,
-                })
-            }
-            _ => None,
+        match Self::short_event(payload) {
+            Some((epoch, seq, topic)) => Some(LinkMessage::Event { epoch, seq, topic }),
+            None => Self::parse_fields(payload),
         }
     }
 
-    /// [`LinkMessage::parse`] of anything but a short event: field by field.
+    /// An event with a one-byte epoch and a one- or two-byte seq (a link's first 16,384
+    /// events), matched as a whole: its `(epoch, seq, topic)`, read in the caller's code
+    /// (a call cost more than the read: the node core's short path of a frame in clear);
+    /// `None`: anything else ([`LinkMessage::parse`] reads it field by field). What it
+    /// reads, `parse` reads as the same `Event`.
+    #[inline(always)]
+    pub fn short_event(payload: &[u8]) -> Option<(u16, u16, u8)> {
+        let (epoch, seq, topic) = match *payload {
+            [EVENT, epoch, seq, topic] if seq < 0x80 => (epoch, u16::from(seq), topic),
+            [EVENT, epoch, s0, s1, topic] if s0 >= 0x80 && s1 != 0 && s1 < 0x80 => {
+                (epoch, u16::from(s0 & 0x7F) | u16::from(s1) << 7, topic)
+            }
+            _ => return None,
+        };
+        (epoch < 0x80).then_some((u16::from(epoch), seq, topic))
+    }
+
+    /// [`LinkMessage::parse`] of anything but a short event ([`LinkMessage::short_event`]
+    /// read `None`): field by field.
     #[inline(never)]
-    fn parse_fields(payload: &[u8]) -> Option<LinkMessage> {
+    pub fn parse_fields(payload: &[u8]) -> Option<LinkMessage> {
         let (&tag, rest) = payload.split_first()?;
         match tag {
             EVENT => {
@@ -216,6 +208,18 @@ mod tests {
                 };
                 if tag == EVENT {
                     prop_assert_eq!(LinkMessage::parse(payload), canonical);
+                }
+                // The short read reads only what `parse` reads, as the same event; what it
+                // leaves, `parse_fields` reads as `parse` does.
+                match LinkMessage::short_event(payload) {
+                    Some((epoch, seq, topic)) => prop_assert_eq!(
+                        LinkMessage::parse(payload),
+                        Some(LinkMessage::Event { epoch, seq, topic })
+                    ),
+                    None => prop_assert_eq!(
+                        LinkMessage::parse_fields(payload),
+                        LinkMessage::parse(payload)
+                    ),
                 }
                 prop_assert_eq!(Message::parse(payload), by_codec(payload));
             }
