@@ -270,13 +270,54 @@ enum Cursor {
     At { epoch: u16, next: u16 },
 }
 
+/// Events that arrived early, `WINDOW` slots: slot i is seq `next + 1 + i`. Bit i of
+/// `mask` says slot i holds `topics[i]` (a slot not holding one reads 0: equal holdings
+/// compare equal); none held is one compare.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+struct Held {
+    mask: u8,
+    topics: [Topic; WINDOW],
+}
+
+impl Held {
+    /// No slot holds an event.
+    #[inline(always)]
+    fn empty(&self) -> bool {
+        self.mask == 0
+    }
+
+    /// Slot `i` holds an event.
+    fn holds(&self, i: usize) -> bool {
+        self.mask & (1 << i) != 0
+    }
+
+    /// Slot `i` (below `WINDOW`) holds `topic` from now on.
+    fn put(&mut self, i: usize, topic: Topic) {
+        if let Some(t) = self.topics.get_mut(i) {
+            *t = topic;
+            self.mask |= 1 << i;
+        }
+    }
+
+    /// The slots re-indexed from a `next` one higher: slot 0's event, if any, is taken
+    /// out (returned), the others move down one.
+    fn shift(&mut self) -> Option<Topic> {
+        let [first, rest @ ..] = self.topics;
+        let first = (self.mask & 1 != 0).then_some(first);
+        self.topics = [0; WINDOW];
+        self.topics[..WINDOW - 1].copy_from_slice(&rest);
+        self.mask >>= 1;
+        first
+    }
+}
+
 /// The subscriber's side of one link.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
 pub struct Receiver {
     /// Where the link stands.
     cursor: Cursor,
-    /// Events that arrived early: `held[i]` is seq `next + 1 + i`.
-    held: [Option<Topic>; WINDOW],
+    /// Events that arrived early.
+    held: Held,
     /// Duplicates, stale and out-of-window frames dropped.
     pub dropped: u32,
 }
@@ -322,7 +363,7 @@ impl Receiver {
             // (whose events the publisher may be numbering again in a newer one).
             Cursor::Asked { wanted, .. } if before(epoch, wanted) => return self.drop_frame(),
             _ => {
-                self.held = [None; WINDOW];
+                self.held = Held::default();
                 0
             }
         };
@@ -333,11 +374,8 @@ impl Receiver {
             next = next.wrapping_add(1);
             // Re-index the held frames from the new `next`, releasing those now in order
             // (none held: nothing to re-index).
-            while self.held.iter().any(Option::is_some) {
-                let [first, rest @ ..] = self.held;
-                self.held = [None; WINDOW];
-                self.held[..WINDOW - 1].copy_from_slice(&rest);
-                match first {
+            while !self.held.empty() {
+                match self.held.shift() {
                     Some(t) => {
                         let _ = deliver.push(t);
                         next = next.wrapping_add(1);
@@ -345,8 +383,8 @@ impl Receiver {
                     None => break,
                 }
             }
-        } else if (1..=WINDOW).contains(&ahead) && self.held[ahead - 1].is_none() {
-            self.held[ahead - 1] = Some(topic);
+        } else if (1..=WINDOW).contains(&ahead) && !self.held.holds(ahead - 1) {
+            self.held.put(ahead - 1, topic);
         } else {
             self.dropped += 1; // a duplicate, or beyond the sender's window
         }
@@ -389,14 +427,13 @@ impl Receiver {
     /// frame, nothing changed ([`Receiver::receive`] takes it).
     #[inline(always)]
     pub fn next_in_order(&mut self, epoch: u16, seq: u16) -> Option<u16> {
-        match self.cursor {
+        match &mut self.cursor {
             Cursor::At {
                 epoch: current,
                 next,
-            } if current == epoch && next == seq && self.held == [None; WINDOW] => {
-                let next = next.wrapping_add(1);
-                self.cursor = Cursor::At { epoch, next };
-                Some(next)
+            } if *current == epoch && *next == seq && self.held.empty() => {
+                *next = seq.wrapping_add(1);
+                Some(*next)
             }
             _ => None,
         }
