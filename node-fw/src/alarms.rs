@@ -66,10 +66,18 @@ impl Alarms {
     #[inline]
     pub fn look(&mut self, seen: Seen<'_>, now_ms: u64, state_changed: bool) -> usize {
         // Inline: the common look (nothing changed) costs its caller a compare.
-        if !state_changed && self.looked && seen.link_alarms == self.links {
+        if self.quiet(seen.link_alarms, state_changed) {
             return 0;
         }
         self.look_again(seen, now_ms, state_changed || !self.looked)
+    }
+
+    /// Whether [`Alarms::look`] with links `link_alarms` in alarm and `state_changed`
+    /// would find nothing to look at (and return 0 at once): a caller asks it before it
+    /// puts together what `look` is given.
+    #[inline(always)]
+    pub fn quiet(&self, link_alarms: u8, state_changed: bool) -> bool {
+        !state_changed && self.looked && link_alarms == self.links
     }
 
     fn look_again(&mut self, seen: Seen<'_>, now_ms: u64, state_changed: bool) -> usize {
@@ -271,6 +279,26 @@ impl Alarms {
     }
 }
 
+/// What the alarms read of a running table's engine state, found once per table (kept
+/// beside it: [`Reads`] are taken at every stimulus): the emergency stop's input bit, and
+/// whether the table declares alarms.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Watch {
+    /// The emergency stop's input bit (none: 0).
+    estop: u16,
+    declared: bool,
+}
+
+impl Watch {
+    /// What the alarms read of the state of `table`.
+    pub fn of(table: &Table) -> Watch {
+        Watch {
+            estop: estop_bit(table),
+            declared: !table.safety.alarms.is_empty(),
+        }
+    }
+}
+
 /// What the alarms read from an engine state, kept before a stimulus that runs the engine
 /// on the state in place (nothing copied): the fault and the emergency stop's input (the
 /// other inputs are read by declared conditions only). A table that declares alarms has
@@ -280,22 +308,17 @@ impl Alarms {
 #[derive(Debug, Clone, Copy)]
 pub struct Reads {
     fault: Option<Fault>,
-    /// The emergency stop's input bit (none: 0), and the inputs masked with it.
-    estop: u16,
+    /// The inputs masked with the emergency stop's input bit.
     inputs: u16,
-    declared: bool,
 }
 
 impl Reads {
-    /// What the alarms read of `state` (running `table`) now.
+    /// What the alarms read of `state` now (running the table `watch` is of).
     #[inline]
-    pub fn of(table: &Table, state: &EngineState) -> Reads {
-        let estop = estop_bit(table);
+    pub fn of(watch: Watch, state: &EngineState) -> Reads {
         Reads {
             fault: state.fault,
-            estop,
-            inputs: state.inputs & estop,
-            declared: !table.safety.alarms.is_empty(),
+            inputs: state.inputs & watch.estop,
         }
     }
 
@@ -303,8 +326,8 @@ impl Reads {
     /// stop's input changed, or the table declares alarms (their conditions taken as
     /// changed).
     #[inline]
-    pub fn changed(&self, now: &EngineState) -> bool {
-        self.declared || self.fault != now.fault || self.inputs != now.inputs & self.estop
+    pub fn changed(&self, watch: Watch, now: &EngineState) -> bool {
+        watch.declared || self.fault != now.fault || self.inputs != now.inputs & watch.estop
     }
 }
 

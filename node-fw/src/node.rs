@@ -193,6 +193,9 @@ pub struct NodeCore<S = RamStaging> {
     /// The engine state was written since the alarms last looked (they look at the rest,
     /// the links, every time): set wherever `state` is written.
     state_changed: bool,
+    /// What the alarms read of the running table's engine state (found when it was
+    /// installed).
+    watch: crate::alarms::Watch,
 }
 
 /// What the running engine is given (one [`NodeCore::run`] for all of them).
@@ -552,6 +555,7 @@ impl<S: StagingArea> NodeCore<S> {
             next_challenge: 0,
             alarms: Alarms::default(),
             state_changed: true,
+            watch: Default::default(),
         };
         if let Some(d) = boot.filter(|d| d.table.missing_pin(board_pins).is_none()) {
             node.install(d, false);
@@ -710,6 +714,7 @@ impl<S: StagingArea> NodeCore<S> {
             let _ = self.receivers.push((p, kept.unwrap_or_default()));
         }
         self.index = Some(index);
+        self.watch = crate::alarms::Watch::of(&table);
         self.table = Some(table);
         self.table_id = id;
     }
@@ -950,7 +955,8 @@ impl<S: StagingArea> NodeCore<S> {
             return;
         };
         // What the alarms read of the state, as it was: the engine runs on it in place.
-        let before = crate::alarms::Reads::of(table, state);
+        let watch = self.watch;
+        let before = crate::alarms::Reads::of(watch, state);
         let mut fx = NodeEffects {
             now,
             table,
@@ -960,7 +966,7 @@ impl<S: StagingArea> NodeCore<S> {
             io,
         };
         f(&mut Engine::on(table, index, state), &mut fx);
-        self.state_changed |= before.changed(state);
+        self.state_changed |= before.changed(watch, state);
     }
 
     fn send(&mut self, io: &mut impl Io, pan: u16, dst: u16, msg: &Message<'_>) {
@@ -1054,12 +1060,16 @@ impl<S: StagingArea> NodeCore<S> {
             self.fail_link(now, io);
         }
         if let (Some(table), Some(state)) = (&self.table, &self.state) {
+            let changed = core::mem::take(&mut self.state_changed);
+            // The common look (nothing changed) asked before its `Seen` is put together.
+            if self.alarms.quiet(link_alarms, changed) {
+                return;
+            }
             let seen = Seen {
                 table,
                 state,
                 link_alarms,
             };
-            let changed = core::mem::take(&mut self.state_changed);
             self.alarms.look(seen, now, changed);
         }
     }

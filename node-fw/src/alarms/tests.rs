@@ -7,7 +7,7 @@ use std::vec::Vec;
 use config_schema::alarm::{AlarmDecl, AlarmLevel, AlarmSource, MAX_ALARMS};
 use config_schema::{Input, Op, Table};
 
-use super::{Alarms, Reads, Seen};
+use super::{Alarms, Reads, Seen, Watch};
 use crate::ecc::{EngineState, Fault};
 
 fn table() -> Table {
@@ -335,14 +335,16 @@ fn only_the_fault_and_the_estop_input_are_a_change_without_declared_alarms() {
     let mut t = table();
     t.safety.alarms.clear();
     let idle = state(0b000, None);
-    let reads = Reads::of(&t, &idle);
-    assert!(!reads.changed(&state(0b110, None)));
-    assert!(reads.changed(&state(0b001, None)));
-    assert!(reads.changed(&state(0b000, Some(Fault::Expr { chart: 0 }))));
+    let watch = Watch::of(&t);
+    let reads = Reads::of(watch, &idle);
+    assert!(!reads.changed(watch, &state(0b110, None)));
+    assert!(reads.changed(watch, &state(0b001, None)));
+    assert!(reads.changed(watch, &state(0b000, Some(Fault::Expr { chart: 0 }))));
     t.safety.estop = None;
-    assert!(!Reads::of(&t, &idle).changed(&state(0b111, None)));
-    let declared = table();
-    assert!(Reads::of(&declared, &idle).changed(&idle));
+    let watch = Watch::of(&t);
+    assert!(!Reads::of(watch, &idle).changed(watch, &state(0b111, None)));
+    let watch = Watch::of(&table());
+    assert!(Reads::of(watch, &idle).changed(watch, &idle));
 }
 
 mod props {
@@ -437,14 +439,15 @@ mod props {
                 t.safety.alarms.clear();
             }
             let (mut full, mut lean) = (Alarms::default(), Alarms::default());
+            let watch = Watch::of(&t);
             let mut before: Option<Reads> = None;
             for (now, (inputs, _, _, fault, links, ack)) in steps.into_iter().enumerate() {
                 let fault = fault.map(|c| Fault::Action { chart: c, code: c });
                 let s = state(inputs, fault);
-                let changed = before.is_none_or(|b| b.changed(&s));
+                let changed = before.is_none_or(|b| b.changed(watch, &s));
                 let seen = Seen { table: &t, state: &s, link_alarms: links };
                 same_alarms(&mut full, &mut lean, seen, now as u64, changed, ack)?;
-                before = Some(Reads::of(&t, &s));
+                before = Some(Reads::of(watch, &s));
             }
         }
     }
