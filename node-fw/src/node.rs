@@ -1055,16 +1055,17 @@ impl<S: StagingArea> NodeCore<S> {
     #[inline]
     fn look(&mut self, now: u64, io: &mut impl Io) {
         let link_alarms = self.senders.alarms();
-        let link_fault = self.table.as_ref().is_some_and(|t| t.safety.link_fault);
-        if link_fault && link_alarms != 0 {
+        // Links in alarm asked first: the table is read only then.
+        if link_alarms != 0 && self.table.as_ref().is_some_and(|t| t.safety.link_fault) {
             self.fail_link(now, io);
+        }
+        // The common look (nothing changed: `state_changed` is clear, nothing to take) asked
+        // first, before its `Seen` is put together.
+        if self.alarms.quiet(link_alarms, self.state_changed) {
+            return;
         }
         if let (Some(table), Some(state)) = (&self.table, &self.state) {
             let changed = core::mem::take(&mut self.state_changed);
-            // The common look (nothing changed) asked before its `Seen` is put together.
-            if self.alarms.quiet(link_alarms, changed) {
-                return;
-            }
             let seen = Seen {
                 table,
                 state,
