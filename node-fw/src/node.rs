@@ -1233,7 +1233,7 @@ impl<S: StagingArea> NodeCore<S> {
     /// table's PAN, in the frame this firmware writes ([`mac::PLAIN_DATA_FC`]: no security,
     /// no acknowledgement request): the MAC header checked as three compares against what
     /// the node expects, the message read in place and handled at once (an event of a
-    /// link's first 16,384 read in this code, [`LinkMessage::short_event`], and taken by
+    /// link's first 16,384 read in this code, [`LinkMessage::event_fields`], and taken by
     /// [`NodeCore::event_in_clear`]; any other event or ack read by a call). `false`: not
     /// such a frame, nothing done; [`NodeCore::receive_frame`] takes it (and does for these
     /// frames exactly what this does: counted as received, [`NodeCore::on_link`]).
@@ -1256,7 +1256,7 @@ impl<S: StagingArea> NodeCore<S> {
             return false;
         }
         let src = u16::from_le_bytes(*src);
-        if let Some(event) = LinkMessage::short_event(payload) {
+        if let Some(event) = LinkMessage::event_fields(payload) {
             crate::count(&mut self.radio.counters.received);
             // `on_link`'s event arm; this path's ack goes in clear.
             self.event_in_clear(pan, src, event, now, io);
@@ -1268,12 +1268,7 @@ impl<S: StagingArea> NodeCore<S> {
             return false;
         };
         crate::count(&mut self.radio.counters.received);
-        match m {
-            LinkMessage::Event { epoch, seq, topic } => {
-                self.on_event(src, epoch, seq, topic, now, io)
-            }
-            LinkMessage::EventAck { .. } => self.on_link(m, src, now, io),
-        }
+        self.on_link(m, src, now, io);
         true
     }
 
@@ -1332,12 +1327,7 @@ impl<S: StagingArea> NodeCore<S> {
             }
         }
         crate::count(&mut self.radio.counters.received);
-        match m {
-            LinkMessage::Event { epoch, seq, topic } => {
-                self.on_event(src, epoch, seq, topic, now, io)
-            }
-            LinkMessage::EventAck { .. } => self.on_link(m, src, now, io),
-        }
+        self.on_link(m, src, now, io);
         true
     }
 

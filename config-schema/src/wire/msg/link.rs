@@ -32,19 +32,38 @@ impl LinkMessage {
     /// codec path).
     #[inline]
     pub fn parse(payload: &[u8]) -> Option<LinkMessage> {
-        match Self::short_event(payload) {
-            Some((epoch, seq, topic)) => Some(LinkMessage::Event { epoch, seq, topic }),
-            None => Self::parse_fields(payload),
-        }
+        Self::short_event(payload).or_else(|| Self::parse_fields(payload))
     }
 
     /// An event with a one-byte epoch and a one- or two-byte seq (a link's first 16,384
-    /// events), matched as a whole: its `(epoch, seq, topic)`, read in the caller's code
-    /// (a call cost more than the read: the node core's short path of a frame in clear);
-    /// `None`: anything else ([`LinkMessage::parse`] reads it field by field). What it
-    /// reads, `parse` reads as the same `Event`.
+    /// events), matched as a whole; `None`: anything else (read field by field).
     #[inline(always)]
-    pub fn short_event(payload: &[u8]) -> Option<(u16, u16, u8)> {
+    fn short_event(payload: &[u8]) -> Option<LinkMessage> {
+        match *payload {
+            [EVENT, epoch, seq, topic] if epoch < 0x80 && seq < 0x80 => Some(LinkMessage::Event {
+                epoch: u16::from(epoch),
+                seq: u16::from(seq),
+                topic,
+            }),
+            [EVENT, epoch, s0, s1, topic] if epoch < 0x80 && s0 >= 0x80 && s1 != 0 && s1 < 0x80 => {
+                Some(LinkMessage::Event {
+                    epoch: u16::from(epoch),
+                    seq: u16::from(s0 & 0x7F) | u16::from(s1) << 7,
+                    topic,
+                })
+            }
+            _ => None,
+        }
+    }
+
+    /// The short event [`LinkMessage::parse`] reads as a whole (a link's first 16,384
+    /// events: a one-byte epoch, a one- or two-byte seq) as its `(epoch, seq, topic)`,
+    /// read in the caller's code (a call cost more than the read: the node core's short
+    /// path of a frame in clear), the fields straight to the caller (no [`LinkMessage`]
+    /// merged with the other reads); `None`: anything else, which
+    /// [`LinkMessage::parse_fields`] reads as `parse` does.
+    #[inline(always)]
+    pub fn event_fields(payload: &[u8]) -> Option<(u16, u16, u8)> {
         let (epoch, seq, topic) = match *payload {
             [EVENT, epoch, seq, topic] if seq < 0x80 => (epoch, u16::from(seq), topic),
             [EVENT, epoch, s0, s1, topic] if s0 >= 0x80 && s1 != 0 && s1 < 0x80 => {
@@ -55,7 +74,7 @@ impl LinkMessage {
         (epoch < 0x80).then_some((u16::from(epoch), seq, topic))
     }
 
-    /// [`LinkMessage::parse`] of anything but a short event ([`LinkMessage::short_event`]
+    /// [`LinkMessage::parse`] of anything but a short event ([`LinkMessage::event_fields`]
     /// read `None`): field by field.
     #[inline(never)]
     pub fn parse_fields(payload: &[u8]) -> Option<LinkMessage> {
@@ -211,7 +230,7 @@ mod tests {
                 }
                 // The short read reads only what `parse` reads, as the same event; what it
                 // leaves, `parse_fields` reads as `parse` does.
-                match LinkMessage::short_event(payload) {
+                match LinkMessage::event_fields(payload) {
                     Some((epoch, seq, topic)) => prop_assert_eq!(
                         LinkMessage::parse(payload),
                         Some(LinkMessage::Event { epoch, seq, topic })
