@@ -2243,6 +2243,26 @@ mod tests {
         Frame(std::vec::Vec<u8>),
         Press(bool),
         Poll(u64),
+        /// A's events of `epoch` from seq 0 to `count`, in order: the link past the
+        /// one-byte seqs, so that random events later are in order with a 2-byte seq.
+        Burst {
+            epoch: u16,
+            count: u16,
+        },
+    }
+
+    /// A's event `(epoch, seq, topic)` to B in clear, on B's PAN.
+    fn event_frame(epoch: u16, seq: u16, topic: u8) -> std::vec::Vec<u8> {
+        let mut f = std::vec::Vec::new();
+        f.extend_from_slice(&mac::PLAIN_DATA_FC.to_le_bytes());
+        f.push(seq as u8);
+        for v in [PAN, B, A] {
+            f.extend_from_slice(&v.to_le_bytes());
+        }
+        let mut out = [0u8; LinkMessage::MAX_LEN];
+        let n = LinkMessage::Event { epoch, seq, topic }.write(&mut out);
+        f.extend_from_slice(&out[..n]);
+        f
     }
 
     fn frame() -> impl Strategy<Value = std::vec::Vec<u8>> {
@@ -2256,7 +2276,8 @@ mod tests {
         let pan = prop_oneof![6 => Just(PAN), 1 => Just(0x1111u16), 1 => Just(CONFIG_PAN)];
         let dst = prop_oneof![6 => Just(B), 1 => Just(BROADCAST), 1 => Just(9u16)];
         let src = prop_oneof![6 => Just(A), 1 => Just(C), 1 => Just(9u16)];
-        let varint = prop_oneof![4 => 0u16..6, 1 => any::<u16>()];
+        // Seqs on both sides of the one-byte varint too (after a burst, in order).
+        let varint = prop_oneof![4 => 0u16..6, 1 => 0x7Eu16..0x86, 1 => any::<u16>()];
         // Epochs on both sides of the one-byte varint (the short read's bound).
         let epoch = prop_oneof![4 => 0u16..3, 1 => 0x7Eu16..0x82];
         let payload = prop_oneof![
@@ -2295,6 +2316,7 @@ mod tests {
             6 => frame().prop_map(Op::Frame),
             2 => any::<bool>().prop_map(Op::Press),
             1 => (0u64..3000).prop_map(Op::Poll),
+            1 => (0u16..2, 120u16..136).prop_map(|(epoch, count)| Op::Burst { epoch, count }),
         ]
     }
 
@@ -2378,6 +2400,11 @@ mod tests {
                     self.now += dt;
                     self.fast.poll(self.now, &mut self.bf);
                     self.general.poll(self.now, &mut self.bg);
+                }
+                Op::Burst { epoch, count } => {
+                    for seq in 0..count {
+                        self.apply(Op::Frame(event_frame(epoch, seq, 3)))?;
+                    }
                 }
             }
             prop_assert_eq!(&self.bf, &self.bg);
