@@ -2251,18 +2251,30 @@ mod tests {
         },
     }
 
-    /// A's event `(epoch, seq, topic)` to B in clear, on B's PAN.
-    fn event_frame(epoch: u16, seq: u16, topic: u8) -> std::vec::Vec<u8> {
+    /// The bytes of link message `m`.
+    fn link_bytes(m: LinkMessage) -> std::vec::Vec<u8> {
+        let mut out = [0u8; LinkMessage::MAX_LEN];
+        let n = m.write(&mut out);
+        out[..n].to_vec()
+    }
+
+    /// A data MPDU: frame control `fc`, sequence number `seq`, PAN, destination and source
+    /// `pan_dst_src`, then `payload`.
+    fn mpdu(fc: u16, seq: u8, pan_dst_src: [u16; 3], payload: &[u8]) -> std::vec::Vec<u8> {
         let mut f = std::vec::Vec::new();
-        f.extend_from_slice(&mac::PLAIN_DATA_FC.to_le_bytes());
-        f.push(seq as u8);
-        for v in [PAN, B, A] {
+        f.extend_from_slice(&fc.to_le_bytes());
+        f.push(seq);
+        for v in pan_dst_src {
             f.extend_from_slice(&v.to_le_bytes());
         }
-        let mut out = [0u8; LinkMessage::MAX_LEN];
-        let n = LinkMessage::Event { epoch, seq, topic }.write(&mut out);
-        f.extend_from_slice(&out[..n]);
+        f.extend_from_slice(payload);
         f
+    }
+
+    /// A's event `(epoch, seq, topic)` to B in clear, on B's PAN.
+    fn event_frame(epoch: u16, seq: u16, topic: u8) -> std::vec::Vec<u8> {
+        let event = link_bytes(LinkMessage::Event { epoch, seq, topic });
+        mpdu(mac::PLAIN_DATA_FC, seq as u8, [PAN, B, A], &event)
     }
 
     fn frame() -> impl Strategy<Value = std::vec::Vec<u8>> {
@@ -2285,24 +2297,14 @@ mod tests {
                 .prop_map(|(epoch, seq, topic)| LinkMessage::Event { epoch, seq, topic }),
             2 => (epoch, varint).prop_map(|(epoch, next)| LinkMessage::EventAck { epoch, next }),
         ]
-        .prop_map(|m| {
-            let mut out = [0u8; LinkMessage::MAX_LEN];
-            let n = m.write(&mut out);
-            out[..n].to_vec()
-        });
+        .prop_map(link_bytes);
         let payload = prop_oneof![
             6 => payload,
             1 => proptest::collection::vec(any::<u8>(), 0..12),
         ];
         (fc, any::<u8>(), pan, dst, src, payload, 0usize..40).prop_map(
             |(fc, seq, pan, dst, src, payload, cut)| {
-                let mut f = std::vec::Vec::new();
-                f.extend_from_slice(&fc.to_le_bytes());
-                f.push(seq);
-                for v in [pan, dst, src] {
-                    f.extend_from_slice(&v.to_le_bytes());
-                }
-                f.extend_from_slice(&payload);
+                let mut f = mpdu(fc, seq, [pan, dst, src], &payload);
                 if cut < f.len() && cut % 8 == 0 {
                     f.truncate(cut);
                 }
@@ -2811,16 +2813,7 @@ mod tests {
     fn the_short_path_takes_an_unsecured_event_to_this_node() {
         let mut node = NodeCore::new(B, 1 << 5 | 1 << 7, Some(table_b(false)), 1);
         let mut board = Board::default();
-        let event = |fc: u16, dst: u16| {
-            let mut f = std::vec::Vec::new();
-            f.extend_from_slice(&fc.to_le_bytes());
-            f.push(0);
-            for v in [PAN, dst, A] {
-                f.extend_from_slice(&v.to_le_bytes());
-            }
-            f.extend_from_slice(&[0, 0, 0, 3]);
-            f
-        };
+        let event = |fc: u16, dst: u16| mpdu(fc, 0, [PAN, dst, A], &[0, 0, 0, 3]);
         assert!(node.link_in_clear(&event(mac::PLAIN_DATA_FC, B), 0, &mut board));
         assert_eq!(board.pins, [(7, true)]);
         assert_eq!(board.out.len(), 1);
